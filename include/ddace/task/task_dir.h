@@ -1,0 +1,36 @@
+// A task directory: task.yaml + demos/*.csv (read in file-name order).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "ddace/task/demonstration.h"
+#include "ddace/task/task_spec.h"
+
+namespace ddace::task {
+
+struct TaskDir {
+  std::string path;
+  TaskSpec spec;
+  std::vector<Demonstration> demos;
+
+  /// The action vocabulary: task.yaml's `actions`, else every action seen in the
+  /// demonstrations, sorted.
+  std::vector<std::string> vocabulary() const;
+};
+
+/// Everything found while reading a task directory; `errors` empty means valid.
+struct TaskDirReport {
+  TaskDir dir;  ///< demonstrations with errors are left out
+  std::vector<Diagnostic> errors;
+};
+
+/// Reads everything that can be read and collects every error (for `ddace validate`).
+TaskDirReport checkTaskDir(const std::string& path);
+/// Reads a task directory; throws ddace::Error listing every error. Nothing is
+/// returned (so nothing is trained) when any file has an error.
+TaskDir loadTaskDir(const std::string& path);
+/// Writes task.yaml and demos/<name>.csv with names demo_000.csv, demo_001.csv, ...
+void writeTaskDir(const TaskDir& dir, const std::string& path);
+
+}  // namespace ddace::task

@@ -1,0 +1,67 @@
+// The scene of a task: task.yaml of format ddace-task/1 (shared/spec/task-format.md).
+//
+// Owns: parsing, validating and writing task.yaml. Entity order is the node
+// order of every graph built from the task. Units: metres (REP-103), table frame.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "ddace/common/error.h"
+
+namespace ddace::task {
+
+inline constexpr const char* kFormat = "ddace-task/1";
+inline constexpr double kDefaultArrivalRadius = 0.03;  // metres
+
+enum class EntityKind { Robot, Object, Goal };
+
+/// "robot", "object", "goal".
+const char* toString(EntityKind kind);
+/// Parses "robot"/"object"/"goal"; nullopt otherwise.
+std::optional<EntityKind> entityKindFromString(const std::string& s);
+
+struct Entity {
+  std::string name;  ///< [A-Za-z][A-Za-z0-9_]*, unique within the task
+  EntityKind kind = EntityKind::Robot;
+  std::string type;  ///< free text ("hamster", "uav"), may be empty
+};
+
+/// At the end of an execution, `entity` must be within `tolerance` metres of `at`.
+struct GoalCondition {
+  std::string entity;
+  std::string at;
+  double tolerance = 0.05;  ///< metres
+};
+
+struct TaskSpec {
+  std::string name;
+  std::vector<Entity> entities;           ///< order = node order
+  std::vector<std::string> actions;       ///< declared vocabulary (empty when absent)
+  bool actions_declared = false;          ///< true when task.yaml lists `actions`
+  double arrival_radius = kDefaultArrivalRadius;  ///< metres
+  std::vector<GoalCondition> goal_conditions;
+
+  /// Index of the entity called `name`, or -1.
+  int entityIndex(const std::string& name) const;
+  /// True when `action` is in the declared vocabulary (always true when none is declared).
+  bool allowsAction(const std::string& action) const;
+  /// Names of all entities, in order.
+  std::vector<std::string> entityNames() const;
+};
+
+/// True for names matching [A-Za-z][A-Za-z0-9_]*.
+bool isValidName(const std::string& name);
+
+/// Parses task.yaml text. `file` is used in diagnostics only.
+/// Throws ddace::Error listing every problem with file:line:column.
+TaskSpec parseTaskYaml(const std::string& text, const std::string& file);
+/// Reads and parses a task.yaml file. Throws ddace::Error.
+TaskSpec readTaskYaml(const std::string& path);
+/// Serialises to task.yaml text (round-trips through parseTaskYaml).
+std::string taskYamlText(const TaskSpec& spec);
+/// Writes task.yaml. Throws ddace::Error when the file cannot be written.
+void writeTaskYaml(const TaskSpec& spec, const std::string& path);
+
+}  // namespace ddace::task
