@@ -1,0 +1,91 @@
+// ddace validate: check a task directory and summarise what the spec derives from it.
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include "command.h"
+#include "ddace/task/task_dir.h"
+
+namespace ddace::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string stepText(const task::Step& step, const task::TaskSpec& spec) {
+  std::string s = "[";
+  for (size_t i = 0; i < step.tokens.size(); ++i)
+    s += (i ? " " : "") + task::tokenKey(step.tokens[i], spec);
+  return s + "]";
+}
+
+/// Validates one task directory; prints its summary or its errors. Returns true when valid.
+bool validateOne(const std::string& path, bool verbose) {
+  const task::TaskDirReport report = task::checkTaskDir(path);
+  if (!report.errors.empty()) {
+    std::cerr << path << ": " << report.errors.size() << " error(s)\n";
+    for (const auto& d : report.errors) std::cerr << d.str() << "\n";
+    return false;
+  }
+  const auto& dir = report.dir;
+  const auto& spec = dir.spec;
+  std::cout << path << ": task '" << spec.name << "', " << spec.entities.size() << " entities (";
+  for (size_t i = 0; i < spec.entities.size(); ++i)
+    std::cout << (i ? ", " : "") << spec.entities[i].name << " " << task::toString(spec.entities[i].kind);
+  std::cout << "), actions [";
+  const auto vocab = dir.vocabulary();
+  for (size_t i = 0; i < vocab.size(); ++i) std::cout << (i ? ", " : "") << vocab[i];
+  std::cout << "], " << dir.demos.size() << " demonstrations\n";
+
+  std::string first_structure;
+  bool same = true;
+  for (const auto& d : dir.demos) {
+    std::string structure;
+    for (const auto& s : d.steps) structure += stepText(s, spec) + " ";
+    if (first_structure.empty()) first_structure = structure;
+    same = same && structure == first_structure;
+    std::printf("  %s: %zu rows (%.2f s), %zu keyframes, %zu steps, %zu segments\n",
+                fs::path(d.source).filename().c_str(), d.rows(), d.t.back() - d.t.front(),
+                d.keyframes.size(), d.steps.size(), d.segments.size());
+    if (verbose || d.steps.empty()) {
+      for (size_t k = 0; k < d.steps.size(); ++k)
+        std::printf("    step %zu @ row %d (t = %.2f s): %s\n", k + 1, d.steps[k].keyframe_row,
+                    d.t[d.steps[k].keyframe_row], stepText(d.steps[k], spec).c_str());
+      std::printf("    END @ row %d\n", d.snapshots.back().row);
+    }
+  }
+  if (!dir.demos.empty() && same && !verbose) {
+    const auto& d = dir.demos.front();
+    std::cout << "  every demonstration has the same " << d.steps.size() << " steps:\n";
+    for (size_t k = 0; k < d.steps.size(); ++k)
+      std::cout << "    step " << k + 1 << ": " << stepText(d.steps[k], spec) << "\n";
+    std::cout << "    then END\n";
+  } else if (!same && !verbose) {
+    std::cout << "  the demonstrations differ in their steps (--verbose lists them)\n";
+  }
+  return true;
+}
+
+int runValidate(const std::vector<std::string>& argv) {
+  Args args(argv, {}, {"--verbose"});
+  if (args.positional().empty()) throw Error("missing argument DIR (a task directory)");
+  bool ok = true;
+  for (const auto& path : args.positional()) {
+    // The output of `ddace generate` holds train/ and test/: validate both.
+    if (!fs::exists(fs::path(path) / "task.yaml") && fs::is_directory(fs::path(path) / "train")) {
+      for (const char* sub : {"train", "test"})
+        if (fs::is_directory(fs::path(path) / sub))
+          ok = validateOne((fs::path(path) / sub).string(), args.has("--verbose")) && ok;
+    } else {
+      ok = validateOne(path, args.has("--verbose")) && ok;
+    }
+  }
+  return ok ? 0 : 1;
+}
+
+DDACE_COMMAND({"validate", "ddace validate DIR... [--verbose]",
+               "check task directories against ddace-task/1; print a summary or every error "
+               "as file:line:column",
+               runValidate});
+
+}  // namespace
+}  // namespace ddace::cli

@@ -1,0 +1,311 @@
+#include "ddace/task/task_spec.h"
+
+#include <cmath>
+#include <fstream>
+#include <cctype>
+#include <set>
+#include <sstream>
+
+#include <yaml-cpp/yaml.h>
+
+namespace ddace::task {
+
+const char* toString(EntityKind kind) {
+  switch (kind) {
+    case EntityKind::Robot: return "robot";
+    case EntityKind::Object: return "object";
+    case EntityKind::Goal: return "goal";
+  }
+  return "robot";
+}
+
+std::optional<EntityKind> entityKindFromString(const std::string& s) {
+  if (s == "robot") return EntityKind::Robot;
+  if (s == "object") return EntityKind::Object;
+  if (s == "goal") return EntityKind::Goal;
+  return std::nullopt;
+}
+
+bool isValidName(const std::string& name) {
+  if (name.empty() || !std::isalpha(static_cast<unsigned char>(name[0]))) return false;
+  for (char c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') return false;
+  return true;
+}
+
+int TaskSpec::entityIndex(const std::string& name) const {
+  for (size_t i = 0; i < entities.size(); ++i)
+    if (entities[i].name == name) return static_cast<int>(i);
+  return -1;
+}
+
+bool TaskSpec::allowsAction(const std::string& action) const {
+  if (!actions_declared) return true;
+  for (const auto& a : actions)
+    if (a == action) return true;
+  return false;
+}
+
+std::vector<std::string> TaskSpec::entityNames() const {
+  std::vector<std::string> names;
+  for (const auto& e : entities) names.push_back(e.name);
+  return names;
+}
+
+namespace {
+
+/// Collects diagnostics while walking the YAML tree.
+class YamlChecker {
+ public:
+  explicit YamlChecker(std::string file) : file_(std::move(file)) {}
+
+  void error(const YAML::Node& node, const std::string& message) {
+    const YAML::Mark m = node.Mark();
+    errors_.push_back({file_, m.is_null() ? 0 : m.line + 1, m.is_null() ? 0 : m.column + 1, message});
+  }
+  void error(const YAML::Mark& m, const std::string& message) {
+    errors_.push_back({file_, m.line + 1, m.column + 1, message});
+  }
+
+  /// Reports keys of `map` that are not in `allowed`.
+  void onlyKeys(const YAML::Node& map, const std::set<std::string>& allowed, const std::string& where) {
+    for (const auto& kv : map) {
+      const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : std::string("?");
+      if (!allowed.count(key)) {
+        std::string list;
+        for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+        error(kv.first, "unknown key '" + key + "' in " + where + " (allowed: " + list + ")");
+      }
+    }
+  }
+
+  bool scalar(const YAML::Node& node, const std::string& what, std::string& out) {
+    if (!node.IsScalar()) {
+      error(node, what + " must be a single value");
+      return false;
+    }
+    out = node.Scalar();
+    return true;
+  }
+
+  bool number(const YAML::Node& node, const std::string& what, double& out) {
+    std::string s;
+    if (!scalar(node, what, s)) return false;
+    char* end = nullptr;
+    const double v = std::strtod(s.c_str(), &end);
+    if (s.empty() || *end != '\0' || !std::isfinite(v)) {
+      error(node, what + ": '" + s + "' is not a finite number");
+      return false;
+    }
+    out = v;
+    return true;
+  }
+
+  std::vector<Diagnostic> errors_;
+
+ private:
+  std::string file_;
+};
+
+}  // namespace
+
+TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw Error(Diagnostic{file, e.mark.is_null() ? 0 : e.mark.line + 1,
+                           e.mark.is_null() ? 0 : e.mark.column + 1, "YAML syntax error: " + e.msg});
+  }
+  YamlChecker c(file);
+  TaskSpec spec;
+  if (!root.IsMap()) {
+    throw Error(Diagnostic{file, 1, 1, "task.yaml must be a mapping with format, entities, ..."});
+  }
+  c.onlyKeys(root, {"format", "name", "entities", "actions", "arrival_radius", "goal_conditions"},
+             "task.yaml");
+
+  std::string format;
+  if (!root["format"]) {
+    c.error(root, std::string("missing key 'format' (expected '") + kFormat + "')");
+  } else if (c.scalar(root["format"], "format", format) && format != kFormat) {
+    c.error(root["format"], "format '" + format + "' is not supported (expected '" + kFormat + "')");
+  }
+  if (root["name"]) c.scalar(root["name"], "name", spec.name);
+
+  std::set<std::string> names;
+  if (!root["entities"]) {
+    c.error(root, "missing key 'entities'");
+  } else if (!root["entities"].IsSequence() || root["entities"].size() == 0) {
+    c.error(root["entities"], "entities must be a non-empty list of {name, kind, type}");
+  } else {
+    for (const auto& node : root["entities"]) {
+      if (!node.IsMap()) {
+        c.error(node, "an entity must be a mapping {name, kind, type}");
+        continue;
+      }
+      c.onlyKeys(node, {"name", "kind", "type"}, "an entity");
+      Entity e;
+      bool ok = true;
+      if (!node["name"]) {
+        c.error(node, "entity without 'name'");
+        ok = false;
+      } else if (c.scalar(node["name"], "entity name", e.name)) {
+        if (!isValidName(e.name)) {
+          c.error(node["name"], "entity name '" + e.name + "' must match [A-Za-z][A-Za-z0-9_]*");
+          ok = false;
+        } else if (!names.insert(e.name).second) {
+          c.error(node["name"], "duplicate entity name '" + e.name + "'");
+          ok = false;
+        }
+      } else {
+        ok = false;
+      }
+      std::string kind;
+      if (!node["kind"]) {
+        c.error(node, "entity '" + e.name + "' without 'kind' (robot, object or goal)");
+        ok = false;
+      } else if (c.scalar(node["kind"], "kind", kind)) {
+        auto k = entityKindFromString(kind);
+        if (!k) {
+          c.error(node["kind"], "unknown kind '" + kind + "' (expected robot, object or goal)");
+          ok = false;
+        } else {
+          e.kind = *k;
+        }
+      }
+      if (node["type"]) c.scalar(node["type"], "type", e.type);
+      if (ok) spec.entities.push_back(e);
+    }
+  }
+
+  if (root["actions"]) {
+    spec.actions_declared = true;
+    if (!root["actions"].IsSequence()) {
+      c.error(root["actions"], "actions must be a list of words");
+    } else {
+      std::set<std::string> seen;
+      for (const auto& node : root["actions"]) {
+        std::string a;
+        if (!c.scalar(node, "action", a)) continue;
+        if (!isValidName(a)) {
+          c.error(node, "action '" + a + "' must match [A-Za-z][A-Za-z0-9_]*");
+        } else if (a == "idle") {
+          c.error(node, "'idle' is reserved for no action and cannot be listed in actions");
+        } else if (!seen.insert(a).second) {
+          c.error(node, "duplicate action '" + a + "'");
+        } else {
+          spec.actions.push_back(a);
+        }
+      }
+    }
+  }
+
+  if (root["arrival_radius"]) {
+    double r = 0;
+    if (c.number(root["arrival_radius"], "arrival_radius", r)) {
+      if (r <= 0)
+        c.error(root["arrival_radius"], "arrival_radius must be positive (metres)");
+      else
+        spec.arrival_radius = r;
+    }
+  }
+
+  if (root["goal_conditions"]) {
+    if (!root["goal_conditions"].IsSequence()) {
+      c.error(root["goal_conditions"], "goal_conditions must be a list of {entity, at, tolerance}");
+    } else {
+      for (const auto& node : root["goal_conditions"]) {
+        if (!node.IsMap()) {
+          c.error(node, "a goal condition must be a mapping {entity, at, tolerance}");
+          continue;
+        }
+        c.onlyKeys(node, {"entity", "at", "tolerance"}, "a goal condition");
+        GoalCondition g;
+        bool ok = true;
+        for (const char* key : {"entity", "at"}) {
+          std::string value;
+          if (!node[key]) {
+            c.error(node, std::string("goal condition without '") + key + "'");
+            ok = false;
+          } else if (c.scalar(node[key], key, value)) {
+            if (!names.count(value)) {
+              c.error(node[key], "goal condition names unknown entity '" + value + "'");
+              ok = false;
+            }
+            (std::string(key) == "entity" ? g.entity : g.at) = value;
+          } else {
+            ok = false;
+          }
+        }
+        if (node["tolerance"]) {
+          if (!c.number(node["tolerance"], "tolerance", g.tolerance)) {
+            ok = false;
+          } else if (g.tolerance <= 0) {
+            c.error(node["tolerance"], "tolerance must be positive (metres)");
+            ok = false;
+          }
+        }
+        if (ok) spec.goal_conditions.push_back(g);
+      }
+    }
+  }
+
+  if (!c.errors_.empty()) throw Error(c.errors_);
+  return spec;
+}
+
+namespace {
+std::string readFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(Diagnostic{path, 0, 0, "cannot open file"});
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+}  // namespace
+
+TaskSpec readTaskYaml(const std::string& path) { return parseTaskYaml(readFile(path), path); }
+
+std::string taskYamlText(const TaskSpec& spec) {
+  std::ostringstream out;
+  out << "format: " << kFormat << "\n";
+  YAML::Emitter name;
+  name << spec.name;
+  out << "name: " << (spec.name.empty() ? "''" : name.c_str()) << "\n";
+  out << "entities:                        # order = node order of the graph\n";
+  for (const auto& e : spec.entities) {
+    out << "  - {name: " << e.name << ", kind: " << toString(e.kind);
+    if (!e.type.empty()) {
+      YAML::Emitter type;
+      type << e.type;
+      out << ", type: " << type.c_str();
+    }
+    out << "}\n";
+  }
+  if (spec.actions_declared) {
+    out << "actions: [";
+    for (size_t i = 0; i < spec.actions.size(); ++i) out << (i ? ", " : "") << spec.actions[i];
+    out << "]\n";
+  }
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6g", spec.arrival_radius);
+  out << "arrival_radius: " << buf << "                # metres\n";
+  if (!spec.goal_conditions.empty()) {
+    out << "goal_conditions:\n";
+    for (const auto& g : spec.goal_conditions) {
+      std::snprintf(buf, sizeof buf, "%.6g", g.tolerance);
+      out << "  - {entity: " << g.entity << ", at: " << g.at << ", tolerance: " << buf << "}\n";
+    }
+  }
+  return out.str();
+}
+
+void writeTaskYaml(const TaskSpec& spec, const std::string& path) {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw Error(Diagnostic{path, 0, 0, "cannot write file"});
+  out << taskYamlText(spec);
+  if (!out) throw Error(Diagnostic{path, 0, 0, "write failed"});
+}
+
+}  // namespace ddace::task
