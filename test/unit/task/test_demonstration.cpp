@@ -1,0 +1,277 @@
+// Demonstration CSVs: keyframes, steps and tokens, segments, snapshots, every listed error.
+#include <gtest/gtest.h>
+
+#include "ddace/task/demonstration.h"
+
+using namespace ddace;
+using namespace ddace::task;
+
+namespace {
+
+TaskSpec scene(bool declare_actions = true) {
+  return parseTaskYaml(std::string("format: ddace-task/1\nentities:\n"
+                                   "  - {name: R1, kind: robot}\n  - {name: R2, kind: robot}\n"
+                                   "  - {name: B1, kind: object}\n  - {name: G1, kind: goal}\n") +
+                           (declare_actions ? "actions: [move, carry, stop]\n" : ""),
+                       "task.yaml");
+}
+
+const char* kHeader = "t,R1.x,R1.y,R1.action,R1.target,R2.x,R2.y,R2.action,R2.target,B1.x,B1.y,G1.x,G1.y\n";
+
+std::string row(double t, const std::string& a1, const std::string& t1, const std::string& a2,
+                const std::string& t2, double x1 = 0.1) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%g,%g,0.1,%s,%s,0.5,0.5,%s,%s,0.2,0.2,0.9,0.9\n", t, x1, a1.c_str(),
+                t1.c_str(), a2.c_str(), t2.c_str());
+  return buf;
+}
+
+Diagnostic firstError(const std::string& text, const TaskSpec& spec = scene()) {
+  try {
+    parseDemonstrationCsv(text, spec, "demo.csv");
+  } catch (const Error& e) {
+    return e.diagnostics().front();
+  }
+  ADD_FAILURE() << "expected an error for:\n" << text;
+  return {};
+}
+
+}  // namespace
+
+TEST(Demonstration, KeyframesStepsSegmentsAndSnapshots) {
+  // rows: 0 idle | 1-3 R1 move->G1 (+ R2 carry->B1 rows 1-2) | 4 idle | 5-6 R2 stop | 7 idle
+  std::string csv = kHeader;
+  csv += row(0.0, "", "", "", "");
+  csv += row(0.1, "move", "G1", "carry", "B1", 0.2);
+  csv += row(0.2, "move", "G1", "carry", "B1", 0.3);
+  csv += row(0.3, "move", "G1", "idle", "", 0.4);
+  csv += row(0.4, "idle", "", "", "", 0.5);
+  csv += row(0.5, "", "", "stop", "", 0.5);
+  csv += row(0.6, "", "", "stop", "", 0.5);
+  csv += row(0.7, "", "", "", "", 0.5);
+  const TaskSpec spec = scene();
+  const Demonstration d = parseDemonstrationCsv(csv, spec, "demo.csv");
+  ASSERT_EQ(d.rows(), 8u);
+  // Row 3 changes (R2 goes idle) but is not all-null: it is a keyframe with no new token.
+  EXPECT_EQ(d.keyframes, (std::vector<int>{1, 3, 5}));
+  ASSERT_EQ(d.steps.size(), 3u);
+  ASSERT_EQ(d.steps[0].tokens.size(), 2u);
+  EXPECT_EQ(tokenKey(d.steps[0].tokens[0], spec), "R1:move:G1");
+  EXPECT_EQ(tokenKey(d.steps[0].tokens[1], spec), "R2:carry:B1");
+  EXPECT_TRUE(d.steps[1].tokens.empty());
+  ASSERT_EQ(d.steps[2].tokens.size(), 1u);
+  EXPECT_EQ(tokenKey(d.steps[2].tokens[0], spec), "R2:stop");
+  EXPECT_FALSE(d.steps[2].tokens[0].isMotion());
+
+  ASSERT_EQ(d.segments.size(), 3u);
+  EXPECT_EQ(d.segments[0].first_row, 1);
+  EXPECT_EQ(d.segments[0].last_row, 3);  // up to the last row before R1's label changes
+  EXPECT_EQ(d.segments[1].last_row, 2);
+  EXPECT_EQ(d.segments[2].first_row, 5);
+  EXPECT_EQ(d.segments[2].last_row, 6);
+  const auto path = d.segmentPath(d.segments[0]);
+  ASSERT_EQ(path.size(), 3u);
+  EXPECT_DOUBLE_EQ(path.front().x(), 0.2);
+  EXPECT_DOUBLE_EQ(path.back().x(), 0.4);
+  EXPECT_DOUBLE_EQ(d.segmentGoal(d.segments[0]).x(), 0.9);  // G1 at the keyframe
+
+  // One snapshot per step plus the terminal END snapshot from the last row.
+  ASSERT_EQ(d.snapshots.size(), 4u);
+  EXPECT_EQ(d.snapshots[0].row, 1);
+  EXPECT_FALSE(d.snapshots[0].end);
+  EXPECT_DOUBLE_EQ(d.snapshots[0].positions[0].x(), 0.2);
+  EXPECT_TRUE(d.snapshots.back().end);
+  EXPECT_EQ(d.snapshots.back().row, 7);
+}
+
+TEST(Demonstration, RowZeroIsAKeyframeWhenNotAllNull) {
+  std::string csv = kHeader;
+  csv += row(0.0, "move", "G1", "", "");
+  csv += row(0.1, "move", "G1", "", "");
+  const Demonstration d = parseDemonstrationCsv(csv, scene(), "demo.csv");
+  EXPECT_EQ(d.keyframes, (std::vector<int>{0}));
+  ASSERT_EQ(d.steps.size(), 1u);
+  EXPECT_EQ(d.segments[0].first_row, 0);
+  EXPECT_EQ(d.segments[0].last_row, 1);
+}
+
+TEST(Demonstration, AllNullRowZeroIsNotAKeyframe) {
+  std::string csv = kHeader;
+  csv += row(0.0, "idle", "", "", "");
+  csv += row(0.1, "move", "G1", "", "");
+  const Demonstration d = parseDemonstrationCsv(csv, scene(), "demo.csv");
+  EXPECT_EQ(d.keyframes, (std::vector<int>{1}));
+}
+
+TEST(Demonstration, SwitchingTargetWithoutIdlingIsANewToken) {
+  std::string csv = kHeader;
+  csv += row(0.0, "move", "G1", "move", "G1");
+  csv += row(0.1, "move", "B1", "move", "G1");  // R1 switches target, R2 continues
+  csv += row(0.2, "move", "B1", "move", "G1");
+  const TaskSpec spec = scene();
+  const Demonstration d = parseDemonstrationCsv(csv, spec, "demo.csv");
+  EXPECT_EQ(d.keyframes, (std::vector<int>{0, 1}));
+  ASSERT_EQ(d.steps[1].tokens.size(), 1u);  // only the entity whose own label changed
+  EXPECT_EQ(tokenKey(d.steps[1].tokens[0], spec), "R1:move:B1");
+  EXPECT_EQ(d.segments[0].last_row, 0);  // R1's first segment ended when its label changed
+  EXPECT_EQ(d.segments[1].last_row, 2);  // R2's continues to the end
+}
+
+TEST(Demonstration, ColumnsInAnyOrderAndEntitiesWithoutLabelColumns) {
+  const std::string csv =
+      "G1.y,G1.x,B1.y,B1.x,R2.y,R2.x,R1.target,R1.action,R1.y,R1.x,t\n"
+      "0.9,0.9,0.2,0.2,0.5,0.5,G1,move,0.1,0.1,0\n"
+      "0.9,0.9,0.2,0.2,0.5,0.5,,,0.1,0.2,1\n";
+  const Demonstration d = parseDemonstrationCsv(csv, scene(), "demo.csv");
+  EXPECT_TRUE(d.has_label_columns[0]);
+  EXPECT_FALSE(d.has_label_columns[1]);
+  EXPECT_DOUBLE_EQ(d.positions[1][0].x(), 0.2);
+  EXPECT_EQ(d.steps.size(), 1u);
+}
+
+TEST(Demonstration, ActionsAreFreeWhenTaskYamlListsNone) {
+  std::string csv = kHeader;
+  csv += row(0.0, "juggle", "G1", "", "");
+  EXPECT_NO_THROW(parseDemonstrationCsv(csv, scene(false), "demo.csv"));
+  EXPECT_NE(firstError(csv).message.find("not in task.yaml's actions"), std::string::npos);
+}
+
+TEST(Demonstration, WriteReadRoundTripIsExact) {
+  std::string csv = kHeader;
+  csv += row(0.0, "", "", "", "");
+  csv += row(0.05, "move", "G1", "carry", "B1", 0.123456);
+  csv += row(0.1, "", "", "stop", "", 0.25);
+  const TaskSpec spec = scene();
+  const Demonstration a = parseDemonstrationCsv(csv, spec, "a.csv");
+  const std::string text = demonstrationCsvText(a, spec);
+  const Demonstration b = parseDemonstrationCsv(text, spec, "b.csv");
+  EXPECT_EQ(demonstrationCsvText(b, spec), text);
+  EXPECT_EQ(b.labels, a.labels);
+  EXPECT_EQ(b.keyframes, a.keyframes);
+  EXPECT_DOUBLE_EQ(b.positions[1][0].x(), 0.123456);
+}
+
+TEST(Demonstration, TokenKeysRoundTripAndBadKeysAreRefused) {
+  const TaskSpec spec = scene();
+  for (const std::string key : {"R1:move:G1", "R2:stop"})
+    EXPECT_EQ(tokenKey(parseTokenKey(key, spec), spec), key);
+  EXPECT_THROW(parseTokenKey("R9:move:G1", spec), Error);
+  EXPECT_THROW(parseTokenKey("R1:fly:G1", spec), Error);
+  EXPECT_THROW(parseTokenKey("R1:move:R1", spec), Error);
+  EXPECT_THROW(parseTokenKey("R1", spec), Error);
+}
+
+// ---- every error of the spec names file, line and column
+
+TEST(DemonstrationErrors, UnknownColumn) {
+  const Diagnostic d = firstError(std::string("t,R1.x,R1.y,R1.z,R2.x,R2.y,B1.x,B1.y,G1.x,G1.y\n"));
+  EXPECT_EQ(d.file, "demo.csv");
+  EXPECT_EQ(d.line, 1);
+  EXPECT_EQ(d.column, 13);
+  EXPECT_NE(d.message.find("unknown column 'R1.z'"), std::string::npos);
+}
+
+TEST(DemonstrationErrors, DuplicatedColumn) {
+  const Diagnostic d = firstError("t,R1.x,R1.y,R1.x,R2.x,R2.y,B1.x,B1.y,G1.x,G1.y\n");
+  EXPECT_EQ(d.line, 1);
+  EXPECT_EQ(d.column, 13);
+  EXPECT_NE(d.message.find("duplicated column 'R1.x'"), std::string::npos);
+}
+
+TEST(DemonstrationErrors, MissingRequiredColumn) {
+  const Diagnostic d = firstError("t,R1.x,R1.y,R2.x,R2.y,B1.x,B1.y,G1.x\n0,0,0,0,0,0,0,0\n");
+  EXPECT_EQ(d.line, 1);
+  EXPECT_NE(d.message.find("missing required column 'G1.y'"), std::string::npos);
+}
+
+TEST(DemonstrationErrors, TargetWithoutActionColumn) {
+  const Diagnostic d = firstError("t,R1.x,R1.y,R1.target,R2.x,R2.y,B1.x,B1.y,G1.x,G1.y\n");
+  EXPECT_EQ(d.column, 13);
+  EXPECT_NE(d.message.find("'R1.target' without 'R1.action'"), std::string::npos);
+}
+
+TEST(DemonstrationErrors, TooFewAndTooManyFields) {
+  std::string csv = std::string(kHeader) + row(0, "", "", "", "") + "0.1,0.1,0.1\n";
+  Diagnostic d = firstError(csv);
+  EXPECT_EQ(d.line, 3);
+  EXPECT_NE(d.message.find("too few"), std::string::npos);
+  csv = std::string(kHeader) + "0,0.1,0.1,,,0.5,0.5,,,0.2,0.2,0.9,0.9,7\n";
+  d = firstError(csv);
+  EXPECT_EQ(d.line, 2);
+  EXPECT_EQ(d.column, 39);  // the first extra field
+  EXPECT_NE(d.message.find("too many"), std::string::npos);
+}
+
+TEST(DemonstrationErrors, NonFiniteNumber) {
+  for (const std::string bad : {"nan", "inf", "abc", ""}) {
+    const std::string csv = std::string(kHeader) + "0," + bad + ",0.1,,,0.5,0.5,,,0.2,0.2,0.9,0.9\n";
+    const Diagnostic d = firstError(csv);
+    EXPECT_EQ(d.line, 2) << bad;
+    EXPECT_EQ(d.column, 3) << bad;
+    EXPECT_NE(d.message.find("R1.x"), std::string::npos);
+    EXPECT_NE(d.message.find("not a finite number"), std::string::npos);
+  }
+}
+
+TEST(DemonstrationErrors, ActionNotInVocabulary) {
+  const Diagnostic d = firstError(std::string(kHeader) + row(0, "fly", "G1", "", ""));
+  EXPECT_EQ(d.line, 2);
+  EXPECT_EQ(d.column, 11);
+  EXPECT_NE(d.message.find("action 'fly'"), std::string::npos);
+}
+
+TEST(DemonstrationErrors, UnknownTarget) {
+  const Diagnostic d = firstError(std::string(kHeader) + row(0, "move", "X9", "", ""));
+  EXPECT_EQ(d.column, 16);
+  EXPECT_NE(d.message.find("unknown target 'X9'"), std::string::npos);
+}
+
+TEST(DemonstrationErrors, TargetEqualToItself) {
+  const Diagnostic d = firstError(std::string(kHeader) + row(0, "move", "R1", "", ""));
+  EXPECT_NE(d.message.find("cannot target itself"), std::string::npos);
+}
+
+TEST(DemonstrationErrors, TargetWithoutActionValue) {
+  const Diagnostic d = firstError(std::string(kHeader) + row(0, "", "G1", "", ""));
+  EXPECT_EQ(d.line, 2);
+  EXPECT_NE(d.message.find("without an action"), std::string::npos);
+}
+
+TEST(DemonstrationErrors, TimeNotStrictlyIncreasing) {
+  const Diagnostic d = firstError(std::string(kHeader) + row(0.5, "", "", "", "") + row(0.5, "", "", "", ""));
+  EXPECT_EQ(d.line, 3);
+  EXPECT_EQ(d.column, 1);
+  EXPECT_NE(d.message.find("strictly increasing"), std::string::npos);
+}
+
+TEST(DemonstrationErrors, EmptyFileAndHeaderOnly) {
+  EXPECT_NE(firstError("").message.find("empty"), std::string::npos);
+  EXPECT_NE(firstError("\n\n").message.find("empty"), std::string::npos);
+  EXPECT_NE(firstError(kHeader).message.find("no data rows"), std::string::npos);
+}
+
+TEST(DemonstrationErrors, NotUtf8) {
+  const std::string csv = std::string(kHeader) + "0,0.1,0.1,mo\xff" "ve,G1,0.5,0.5,,,0.2,0.2,0.9,0.9\n";
+  const Diagnostic d = firstError(csv);
+  EXPECT_EQ(d.line, 2);
+  EXPECT_EQ(d.column, 13);
+  EXPECT_NE(d.message.find("not UTF-8"), std::string::npos);
+}
+
+TEST(DemonstrationErrors, EveryBadRowIsReported) {
+  std::string csv = std::string(kHeader) + row(0, "fly", "", "", "") + row(1, "", "X", "", "") + row(2, "move", "R1", "", "");
+  try {
+    parseDemonstrationCsv(csv, scene(), "demo.csv");
+    FAIL();
+  } catch (const Error& e) {
+    ASSERT_EQ(e.diagnostics().size(), 3u) << e.what();
+    EXPECT_EQ(e.diagnostics()[2].line, 4);
+    EXPECT_EQ(std::string(e.what()).substr(0, 11), "demo.csv:2:");
+  }
+}
+
+TEST(DemonstrationErrors, CrlfLineEndingsAndByteOrderMarkAreAccepted) {
+  std::string csv = "\xEF\xBB\xBF" + std::string(kHeader) + row(0, "move", "G1", "", "");
+  for (size_t p = 0; (p = csv.find('\n', p)) != std::string::npos; p += 2) csv.insert(p, "\r");
+  EXPECT_NO_THROW(parseDemonstrationCsv(csv, scene(), "demo.csv"));
+}

@@ -1,0 +1,79 @@
+// Task directories: every error of every file, partial recordings, nothing loaded on error.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "ddace/task/task_dir.h"
+#include "ddace/tasks/generators.h"
+
+using namespace ddace;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string makeDir(const std::string& name) {
+  const std::string path = ::testing::TempDir() + "/ddace_taskdir_" + name;
+  fs::remove_all(path);
+  tasks::GeneratorOptions o;
+  o.family = "task4";
+  o.demos = 3;
+  task::writeTaskDir(tasks::generate(o), path);
+  return path;
+}
+
+void write(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+
+}  // namespace
+
+TEST(TaskDir, ReadsDemosInFileNameOrder) {
+  const std::string path = makeDir("order");
+  const task::TaskDir dir = task::loadTaskDir(path);
+  ASSERT_EQ(dir.demos.size(), 3u);
+  EXPECT_EQ(fs::path(dir.demos[0].source).filename(), "demo_000.csv");
+  EXPECT_EQ(fs::path(dir.demos[2].source).filename(), "demo_002.csv");
+  EXPECT_EQ(dir.vocabulary(), (std::vector<std::string>{"move"}));
+}
+
+TEST(TaskDir, OneBadFileMeansNothingIsLoadedAndEveryErrorIsListed) {
+  const std::string path = makeDir("bad");
+  write(path + "/demos/demo_001.csv", "t,R1.x\n0,1\n");
+  write(path + "/demos/demo_002.csv", "");
+  const task::TaskDirReport report = task::checkTaskDir(path);
+  EXPECT_GE(report.errors.size(), 2u);
+  EXPECT_EQ(report.dir.demos.size(), 1u);  // only the good one
+  try {
+    task::loadTaskDir(path);
+    FAIL();
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("demo_001.csv:1:1: missing required column 'R1.y'"), std::string::npos) << what;
+    EXPECT_NE(what.find("demo_002.csv:1:1: file is empty"), std::string::npos) << what;
+  }
+}
+
+TEST(TaskDir, PartialRecordingsAreReported) {
+  const std::string path = makeDir("partial");
+  fs::copy_file(path + "/demos/demo_000.csv", path + "/demos/demo_003.csv.partial");
+  const task::TaskDirReport report = task::checkTaskDir(path);
+  ASSERT_EQ(report.errors.size(), 1u);
+  EXPECT_NE(report.errors[0].str().find("demo_003.csv.partial: partial recording"), std::string::npos);
+}
+
+TEST(TaskDir, MissingPiecesAreNamed) {
+  EXPECT_NE(task::checkTaskDir("/nonexistent_ddace").errors.at(0).message.find("not a task directory"),
+            std::string::npos);
+  const std::string path = makeDir("missing");
+  fs::remove_all(path + "/demos");
+  EXPECT_NE(task::checkTaskDir(path).errors.at(0).message.find("no demonstrations"), std::string::npos);
+  fs::remove(path + "/task.yaml");
+  EXPECT_NE(task::checkTaskDir(path).errors.at(0).message.find("missing task.yaml"), std::string::npos);
+}
+
+TEST(TaskDir, RewritingRemovesOldDemonstrations) {
+  const std::string path = makeDir("rewrite");
+  tasks::GeneratorOptions o;
+  o.demos = 1;
+  task::writeTaskDir(tasks::generate(o), path);
+  EXPECT_EQ(task::loadTaskDir(path).demos.size(), 1u);
+}

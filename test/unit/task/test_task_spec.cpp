@@ -1,0 +1,153 @@
+// task.yaml: every rule of shared/spec/task-format.md, errors with file:line:column.
+#include <gtest/gtest.h>
+
+#include "ddace/task/task_spec.h"
+
+using namespace ddace;
+using namespace ddace::task;
+
+namespace {
+
+const char* kGood = R"(format: ddace-task/1
+name: relay
+entities:
+  - {name: R1, kind: robot, type: hamster}
+  - {name: R2, kind: robot, type: hamster}
+  - {name: B1, kind: object}
+  - {name: G1, kind: goal}
+actions: [move, carry, pass]
+arrival_radius: 0.04
+goal_conditions:
+  - {entity: B1, at: G1, tolerance: 0.05}
+)";
+
+/// The single diagnostic of parsing `text`, which must fail.
+Diagnostic onlyError(const std::string& text) {
+  try {
+    parseTaskYaml(text, "task.yaml");
+  } catch (const Error& e) {
+    EXPECT_EQ(e.diagnostics().size(), 1u) << e.what();
+    return e.diagnostics().front();
+  }
+  ADD_FAILURE() << "expected an error for:\n" << text;
+  return {};
+}
+
+}  // namespace
+
+TEST(TaskSpec, ParsesTheSpecExample) {
+  const TaskSpec s = parseTaskYaml(kGood, "task.yaml");
+  EXPECT_EQ(s.name, "relay");
+  ASSERT_EQ(s.entities.size(), 4u);
+  EXPECT_EQ(s.entities[0].name, "R1");
+  EXPECT_EQ(s.entities[0].type, "hamster");
+  EXPECT_EQ(s.entities[2].kind, EntityKind::Object);
+  EXPECT_EQ(s.entities[3].kind, EntityKind::Goal);
+  EXPECT_EQ(s.entityIndex("B1"), 2);
+  EXPECT_EQ(s.entityIndex("X"), -1);
+  EXPECT_TRUE(s.actions_declared);
+  EXPECT_EQ(s.actions, (std::vector<std::string>{"move", "carry", "pass"}));
+  EXPECT_DOUBLE_EQ(s.arrival_radius, 0.04);
+  ASSERT_EQ(s.goal_conditions.size(), 1u);
+  EXPECT_EQ(s.goal_conditions[0].entity, "B1");
+  EXPECT_DOUBLE_EQ(s.goal_conditions[0].tolerance, 0.05);
+}
+
+TEST(TaskSpec, DefaultsWhenOptionalKeysAreAbsent) {
+  const TaskSpec s = parseTaskYaml("format: ddace-task/1\nentities:\n  - {name: R1, kind: robot}\n", "t");
+  EXPECT_FALSE(s.actions_declared);
+  EXPECT_TRUE(s.allowsAction("anything"));
+  EXPECT_DOUBLE_EQ(s.arrival_radius, kDefaultArrivalRadius);
+  EXPECT_TRUE(s.goal_conditions.empty());
+}
+
+TEST(TaskSpec, WriteReadRoundTrip) {
+  const TaskSpec a = parseTaskYaml(kGood, "task.yaml");
+  const TaskSpec b = parseTaskYaml(taskYamlText(a), "again.yaml");
+  EXPECT_EQ(taskYamlText(a), taskYamlText(b));
+  EXPECT_EQ(b.entityNames(), a.entityNames());
+  EXPECT_EQ(b.actions, a.actions);
+  EXPECT_DOUBLE_EQ(b.arrival_radius, a.arrival_radius);
+  EXPECT_EQ(b.goal_conditions.size(), 1u);
+}
+
+TEST(TaskSpec, UnknownTopLevelKeyIsAnErrorAtItsPosition) {
+  const Diagnostic d = onlyError("format: ddace-task/1\nentities:\n  - {name: R1, kind: robot}\nspeed: 3\n");
+  EXPECT_EQ(d.file, "task.yaml");
+  EXPECT_EQ(d.line, 4);
+  EXPECT_EQ(d.column, 1);
+  EXPECT_NE(d.message.find("unknown key 'speed'"), std::string::npos);
+}
+
+TEST(TaskSpec, UnknownKindIsAnError) {
+  const Diagnostic d = onlyError("format: ddace-task/1\nentities:\n  - {name: R1, kind: tank}\n");
+  EXPECT_EQ(d.line, 3);
+  EXPECT_EQ(d.column, 22);
+  EXPECT_NE(d.message.find("unknown kind 'tank'"), std::string::npos);
+}
+
+TEST(TaskSpec, DuplicateNameIsAnError) {
+  const Diagnostic d = onlyError(
+      "format: ddace-task/1\nentities:\n  - {name: R1, kind: robot}\n  - {name: R1, kind: goal}\n");
+  EXPECT_EQ(d.line, 4);
+  EXPECT_NE(d.message.find("duplicate entity name 'R1'"), std::string::npos);
+}
+
+TEST(TaskSpec, InvalidNameIsAnError) {
+  const Diagnostic d = onlyError("format: ddace-task/1\nentities:\n  - {name: 1R, kind: robot}\n");
+  EXPECT_NE(d.message.find("must match"), std::string::npos);
+}
+
+TEST(TaskSpec, GoalConditionNamingUnknownEntityIsAnError) {
+  const Diagnostic d = onlyError(
+      "format: ddace-task/1\nentities:\n  - {name: R1, kind: robot}\ngoal_conditions:\n"
+      "  - {entity: R1, at: G9}\n");
+  EXPECT_EQ(d.line, 5);
+  EXPECT_NE(d.message.find("unknown entity 'G9'"), std::string::npos);
+}
+
+TEST(TaskSpec, UnknownKeyInsideAnEntityIsAnError) {
+  const Diagnostic d = onlyError("format: ddace-task/1\nentities:\n  - {name: R1, kind: robot, colour: red}\n");
+  EXPECT_NE(d.message.find("unknown key 'colour'"), std::string::npos);
+}
+
+TEST(TaskSpec, WrongFormatAndMissingEntitiesAreErrors) {
+  EXPECT_NE(onlyError("format: ddace-task/2\nentities:\n  - {name: R1, kind: robot}\n").message.find("not supported"),
+            std::string::npos);
+  EXPECT_NE(onlyError("format: ddace-task/1\n").message.find("missing key 'entities'"), std::string::npos);
+}
+
+TEST(TaskSpec, BadArrivalRadiusIsAnError) {
+  EXPECT_NE(onlyError("format: ddace-task/1\nentities: [{name: R1, kind: robot}]\narrival_radius: -1\n")
+                .message.find("positive"),
+            std::string::npos);
+  EXPECT_NE(onlyError("format: ddace-task/1\nentities: [{name: R1, kind: robot}]\narrival_radius: abc\n")
+                .message.find("not a finite number"),
+            std::string::npos);
+}
+
+TEST(TaskSpec, YamlSyntaxErrorNamesLineAndColumn) {
+  const Diagnostic d = onlyError("format: ddace-task/1\nentities: [\n");
+  EXPECT_EQ(d.file, "task.yaml");
+  EXPECT_GT(d.line, 0);
+  EXPECT_NE(d.message.find("YAML syntax error"), std::string::npos);
+}
+
+TEST(TaskSpec, EveryErrorIsReportedNotJustTheFirst) {
+  try {
+    parseTaskYaml("format: ddace-task/1\nentities:\n  - {name: R1, kind: tank}\n  - {name: R1, kind: robot}\nfoo: 1\n",
+                  "task.yaml");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.diagnostics().size(), 3u) << e.what();
+  }
+}
+
+TEST(TaskSpec, MissingFileNamesTheFile) {
+  try {
+    readTaskYaml("/nonexistent/task.yaml");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/task.yaml"), std::string::npos);
+  }
+}
