@@ -1,0 +1,55 @@
+// ddace bench: run the benchmarks (bench/<name>.cpp -> bench_<name>, installed next to ddace).
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+
+#include "command.h"
+#include "ddace/common/error.h"
+
+namespace ddace::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+int runBench(const std::vector<std::string>& argv) {
+  Args args(argv, {}, {"--list"});
+  const fs::path self = fs::read_symlink("/proc/self/exe");
+  std::vector<fs::path> benches;
+  for (const auto& entry : fs::directory_iterator(self.parent_path())) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("bench_", 0) == 0 && access(entry.path().c_str(), X_OK) == 0) benches.push_back(entry.path());
+  }
+  std::sort(benches.begin(), benches.end());
+  if (args.has("--list")) {
+    for (const auto& b : benches) std::cout << b.filename().string().substr(6) << "\n";
+    return 0;
+  }
+  std::vector<fs::path> chosen;
+  for (const auto& want : args.positional()) {
+    auto it = std::find_if(benches.begin(), benches.end(),
+                           [&](const fs::path& b) { return b.filename() == "bench_" + want; });
+    if (it == benches.end()) throw Error("unknown benchmark '" + want + "' (ddace bench --list shows them)");
+    chosen.push_back(*it);
+  }
+  if (chosen.empty()) chosen = benches;
+  if (chosen.empty()) throw Error("no benchmarks built next to " + self.string());
+  int failed = 0;
+  for (const auto& b : chosen) {
+    std::cout << "== " << b.filename().string().substr(6) << "\n" << std::flush;
+    const int rc = std::system(("'" + b.string() + "'").c_str());
+    if (rc != 0) {
+      std::cerr << "ddace bench: " << b.filename().string() << " exited with status " << rc << "\n";
+      ++failed;
+    }
+  }
+  std::cout << "results: docs/bench/*.md\n";
+  return failed ? 1 : 0;
+}
+
+DDACE_COMMAND({"bench", "ddace bench [NAME...] [--list]",
+               "run the benchmarks (all by default); each writes docs/bench/<name>.md", runBench});
+
+}  // namespace
+}  // namespace ddace::cli
