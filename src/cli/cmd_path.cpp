@@ -122,10 +122,28 @@ int demoPaths(const Args& args, const gp::PrimitiveLibrary& lib) {
   return 0;
 }
 
+/// The primitives of a library: key, segments, hyper-parameters and likelihood per axis.
+int listPrimitives(const gp::PrimitiveLibrary& lib) {
+  std::cout << "task " << lib.taskName() << ": " << lib.primitives().size() << " primitives\n"
+            << "key                      segments  axis        C   length_scale    noise_level         LML\n";
+  for (const auto& [key, p] : lib.primitives()) {
+    for (int axis = 0; axis < 2; ++axis) {
+      const gp::GaussianProcess& g = axis == 0 ? p.x : p.y;
+      std::cout << std::left << std::setw(25) << (axis == 0 ? key : "") << std::right << std::setw(8)
+                << (axis == 0 ? std::to_string(p.segments) : "") << "  " << std::setw(4) << (axis == 0 ? "x" : "y")
+                << std::scientific << std::setprecision(3) << std::setw(11) << g.params().constant << std::setw(15)
+                << g.params().length_scale << std::setw(15) << g.params().noise_level << std::fixed
+                << std::setprecision(2) << std::setw(12) << g.logMarginalLikelihood() << "\n";
+    }
+  }
+  return 0;
+}
+
 int runPath(const std::vector<std::string>& argv) {
-  Args args(argv, {"--key", "--start", "--goal", "--points", "--csv", "--demos"});
+  Args args(argv, {"--key", "--start", "--goal", "--points", "--csv", "--demos"}, {"--list"});
   args.expectAtMostPositional(1);
   const gp::PrimitiveLibrary lib = loadLibrary(args.positional(0, "MODELDIR"));
+  if (args.has("--list")) return listPrimitives(lib);
   if (args.has("--demos")) {
     for (const char* flag : {"--key", "--start", "--goal", "--points"})
       if (args.has(flag)) throw Error(std::string("option ") + flag + " cannot be combined with --demos");
@@ -136,9 +154,10 @@ int runPath(const std::vector<std::string>& argv) {
 
 DDACE_COMMAND({"path",
                "ddace path MODELDIR --key E:ACTION:T --start X,Y --goal X,Y [--points N] [--csv FILE] | "
-               "ddace path MODELDIR --demos TASKDIR --csv FILE",
+               "ddace path MODELDIR --demos TASKDIR --csv FILE | ddace path MODELDIR --list",
                "print or write a primitive path retargeted to a start and goal (metres, table frame), "
-               "or every motion segment of TASKDIR next to its generated path with the mean FD per key",
+               "or every motion segment of TASKDIR next to its generated path with the mean FD per key, "
+               "or list the primitives",
                runPath});
 
 }  // namespace

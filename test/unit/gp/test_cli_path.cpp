@@ -51,7 +51,10 @@ struct Model {
     task::writeTaskDir(tasks::generate(o), (root / "test").string());
     dir = (root / "model").string();
     test = (root / "test").string();
+    this->root = root.string();
   }
+  ~Model() { fs::remove_all(root); }
+  std::string root;
 };
 
 const Model& model() {
@@ -88,6 +91,13 @@ TEST(CliPath, DemosModeReportsFrechetPerKey) {
   for (const char* key : {"R1:move:R3", "R2:move:R4", "R3:move:G1", "R4:move:G1"})
     EXPECT_NE(r.out.find(key), std::string::npos) << r.out;
   EXPECT_TRUE(fs::file_size(csv) > 1000);
+}
+
+TEST(CliPath, ListsPrimitives) {
+  const ToolRun r = runTool("path " + model().dir + " --list");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("4 primitives"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("R3:move:G1                     12"), std::string::npos) << r.out;
 }
 
 TEST(CliPath, BadInputFailsWithAMessage) {

@@ -55,8 +55,14 @@ std::map<std::string, double> heldOutFrechet(const std::string& family) {
   return mean;
 }
 
+/// A fresh directory under /tmp, removed when the test binary exits.
 std::string tempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("ddace_test_gp_" + name + "_" + std::to_string(::getpid()));
+  struct Root {
+    fs::path path = fs::temp_directory_path() / ("ddace_test_gp_" + std::to_string(::getpid()));
+    ~Root() { fs::remove_all(path); }
+  };
+  static const Root root;
+  const fs::path dir = root.path / name;
   fs::create_directories(dir);
   return dir.string();
 }
