@@ -78,8 +78,9 @@ struct RepeatedData {
 /// How logMarginalLikelihood factorises A. Auto: Toeplitz when the distinct inputs are
 /// equally spaced and all counts are equal (then A is symmetric Toeplitz: Durbin's
 /// algorithm for the log-determinant, Trench's for the inverse, O(n^2) instead of O(n^3);
-/// a primitive's data always has this structure), Cholesky otherwise or when Durbin's
-/// recursion loses positive definiteness numerically.
+/// a primitive's data always has this structure, while the condition number of A is
+/// provably below 1e11), Cholesky otherwise or when Durbin's recursion loses positive
+/// definiteness numerically.
 enum class Solver { Auto, Cholesky, Toeplitz };
 
 /// True when `data` has the structure the Toeplitz solver needs.
