@@ -24,7 +24,8 @@
 // F(e) is the number of tokens with edge e summed over all demonstrations;
 // normalised Laplacian L = I - D^-1/2 A D^-1/2 (an isolated node keeps L_ii = 1);
 // number of clusters k = position of the largest gap among the ascending
-// eigenvalues (k in 1..n-1); rows of the first k eigenvectors, normalised to unit
+// eigenvalues, k in 1..max(1, n/2) (a cluster of one or two entities on average
+// says nothing about structure); rows of the first k eigenvectors, normalised to unit
 // length, clustered by k-means (k-means++ seeding with our own SplitMix64 RNG
 // from `seed`, 8 restarts, best inertia). Everything is deterministic: the same
 // demonstrations and options give the same E'.

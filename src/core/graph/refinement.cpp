@@ -172,11 +172,11 @@ RefinedGraph refine(const std::vector<task::Demonstration>& demos, int nodes,
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver(lnorm);
   g.eigenvalues = solver.eigenvalues();
 
-  // Eigengap: k = argmax_{i in 1..n-1} (lambda_i - lambda_{i-1}).
+  // Eigengap: k = argmax_{i in 1..max(1, n/2)} (lambda_i - lambda_{i-1}).
   g.clusters = 1;
   if (nodes > 1) {
     double best_gap = -1;
-    for (int i = 1; i < nodes; ++i) {
+    for (int i = 1; i <= std::max(1, nodes / 2); ++i) {
       const double gap = g.eigenvalues(i) - g.eigenvalues(i - 1);
       if (gap > best_gap + 1e-9) {
         best_gap = gap;
