@@ -21,6 +21,7 @@
 #include <iomanip>
 #include <iostream>
 #include <sstream>
+#include <thread>
 
 #include <yaml-cpp/yaml.h>
 
@@ -107,6 +108,11 @@ int main(int argc, char** argv) {
       }
     }
     const fs::path repo = findRepo(repo_arg);
+    std::string load = "unknown";
+    {
+      std::ifstream f("/proc/loadavg");
+      std::getline(f, load);
+    }
 
     tasks::GeneratorOptions g;
     g.family = "task4";
@@ -206,7 +212,8 @@ int main(int argc, char** argv) {
        << std::fixed << "), bounds C [1e-4, 1e2], l [1e-2, 10], sigma_n^2 [1e-6, 1], alpha 1e-10, " << gopt.restarts
        << " restarts, on both sides. A fit is an x-GP and a y-GP from the raw samples. scikit-learn "
        << ref["sklearn"].as<std::string>() << " (GaussianProcessRegressor, L-BFGS-B) runs in the same process tree, "
-       << "in the same run.\n\n"
+       << "in the same run. Median of repeated runs for ours, one run for scikit-learn; "
+       << std::thread::hardware_concurrency() << " cores, /proc/loadavg at the start: " << load << ".\n\n"
        << "| demos | samples per axis | ours fit (ms) | scikit-learn fit (s) | speed-up | LML ours (x + y) | LML scikit-learn (x + y) |\n"
        << "|---:|---:|---:|---:|---:|---:|---:|\n";
     double sk_predict_ms = -1;

@@ -291,3 +291,26 @@ TEST(PrimitiveLibrary, FitIsDeterministic) {
   gp::PrimitiveLibrary::fit(train).save(b);
   EXPECT_EQ(readText(a), readText(b));
 }
+
+TEST(PrimitiveLibrary, PlainRbfPlusWhiteKernel) {
+  // The paper's kernel without the constant factor: still accurate, and the file says so.
+  gp::PrimitiveOptions o;
+  o.gp.use_constant = false;
+  const gp::PrimitiveLibrary lib = gp::PrimitiveLibrary::fit(generated("task4", 30, 1), o);
+  const task::TaskDir test = generated("task4", 5, 99);
+  for (const auto& demo : test.demos)
+    for (const auto& seg : demo.segments) {
+      if (!seg.token.isMotion()) continue;
+      const auto truth = demo.segmentPath(seg);
+      EXPECT_LE(eval::normalisedFrechet(lib.generate(seg.token, truth.front(), demo.segmentGoal(seg)).points, truth),
+                0.04);
+    }
+  const std::string path = tempDir("plain") + "/primitives.yaml";
+  lib.save(path);
+  const gp::PrimitiveLibrary back = gp::PrimitiveLibrary::load(path);
+  for (const auto& [key, p] : back.primitives()) {
+    EXPECT_FALSE(p.x.usesConstant());
+    EXPECT_EQ(p.x.params().constant, 1.0);
+    EXPECT_EQ(p.y.params().length_scale, lib.primitives().at(key).y.params().length_scale);
+  }
+}
