@@ -141,6 +141,8 @@ class Coordinator {
 
   CoordinatorOutput onEntities(const EntityObservation& observation, double now_s);
   CoordinatorOutput onDecision(uint32_t request_id, const Decision& decision, double now_s);
+  /// The decision asked for cannot be made (no model, bad answer): aborts with `error`.
+  CoordinatorOutput onDecisionError(uint32_t request_id, const std::string& error, double now_s);
   /// A generated path. An empty `path.points` or `error` not empty aborts the run.
   CoordinatorOutput onPath(uint32_t request_id, const PlannedPath& path, const std::string& error, double now_s);
   CoordinatorOutput onSegmentStatus(int entity, uint32_t segment_id, SegmentState state, double progress,

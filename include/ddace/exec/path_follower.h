@@ -35,6 +35,11 @@ struct PlannedPath {
 /// zero length). Used as the pose stamps of a progress-parameterised nav_msgs/Path.
 std::vector<double> progressOf(const std::vector<Eigen::Vector2d>& points);
 
+/// `n` >= 2 points evenly spaced in arc length along `path` (same ends); a path of one
+/// point or zero length gives `n` copies of its first point. Per-point values in
+/// `stddev_m` (same length as the path, or empty) are interpolated alike.
+PlannedPath resampleByArcLength(const PlannedPath& path, int n);
+
 struct FollowerGains {
   double cruise_speed_mps = 0.12;      ///< forward speed on a straight, far from the goal
   double min_speed_mps = 0.02;         ///< never slower than this while moving forward

@@ -266,6 +266,13 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
   return out;
 }
 
+CoordinatorOutput Coordinator::onDecisionError(uint32_t id, const std::string& error, double) {
+  CoordinatorOutput out;
+  if (state_ != RunState::Deciding || id != pending_decision_ || id == 0) return out;
+  abort("no decision for step " + std::to_string(steps_.size() + 1) + ": " + error, out);
+  return out;
+}
+
 void Coordinator::requestPaths(double now_s, CoordinatorOutput& out) {
   StepRecord& s = steps_.back();
   pending_paths_.assign(s.tokens.size(), 0);

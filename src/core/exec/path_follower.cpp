@@ -17,6 +17,29 @@ std::vector<double> progressOf(const std::vector<Eigen::Vector2d>& points) {
   return s;
 }
 
+PlannedPath resampleByArcLength(const PlannedPath& path, int n) {
+  if (path.points.empty()) throw Error("cannot resample an empty path");
+  if (n < 2) throw Error("a resampled path needs at least 2 points, got " + std::to_string(n));
+  const bool sd = path.stddev_m.size() == path.points.size();
+  const std::vector<double> s = progressOf(path.points);
+  PlannedPath out;
+  size_t k = 1;
+  for (int i = 0; i < n; ++i) {
+    const double u = static_cast<double>(i) / (n - 1);
+    if (path.points.size() == 1 || s.back() == 0) {
+      out.points.push_back(path.points.front());
+      if (sd) out.stddev_m.push_back(path.stddev_m.front());
+      continue;
+    }
+    while (k + 1 < s.size() && s[k] < u) ++k;
+    const double len = s[k] - s[k - 1];
+    const double f = len > 0 ? std::clamp((u - s[k - 1]) / len, 0.0, 1.0) : 0.0;
+    out.points.push_back(path.points[k - 1] + f * (path.points[k] - path.points[k - 1]));
+    if (sd) out.stddev_m.push_back(path.stddev_m[k - 1] + f * (path.stddev_m[k] - path.stddev_m[k - 1]));
+  }
+  return out;
+}
+
 void FollowerGains::validate() const {
   auto positive = [](double v, const char* name) {
     if (!(v > 0) || !std::isfinite(v)) throw Error(std::string("follower gain '") + name + "' must be positive");

@@ -185,3 +185,14 @@ TEST(PathFollower, BadPathsAndGainsAreRefused) {
     EXPECT_NE(std::string(e.what()).find("lookahead_m"), std::string::npos);
   }
 }
+
+TEST(PathFollower, ResampleByArcLengthKeepsEndsAndSpacing) {
+  PlannedPath p{{{0, 0}, {0.1, 0}, {1, 0}}, {0, 0.1, 1.0}};
+  const PlannedPath r = resampleByArcLength(p, 11);
+  ASSERT_EQ(r.points.size(), 11u);
+  for (int i = 0; i <= 10; ++i) EXPECT_NEAR(r.points[i].x(), 0.1 * i, 1e-12);
+  EXPECT_NEAR(r.stddev_m[5], 0.5, 1e-12);
+  EXPECT_THROW(resampleByArcLength(p, 1), Error);
+  EXPECT_THROW(resampleByArcLength({}, 5), Error);
+  EXPECT_EQ(resampleByArcLength({{{0.3, 0.3}}, {}}, 3).points.size(), 3u);
+}
