@@ -81,7 +81,6 @@ class CoordinatorNode {
     publishState();
     ROS_INFO("coordinator: task '%s' with %zu entities; %s", spec_.name.c_str(), spec_.entities.size(),
              autostart_ ? "starts when every entity is tracked" : "call ~start to run");
-    if (autostart_) apply(coordinator_->start(now()));
   }
 
  private:
@@ -197,7 +196,27 @@ class CoordinatorNode {
                                         m.message, now()));
   }
 
-  void onTick(const ros::TimerEvent&) { apply(coordinator_->onTick(now())); }
+  void onTick(const ros::TimerEvent&) {
+    if (autostart_) {
+      std::string missing;
+      if (connected(missing)) {
+        autostart_ = false;
+        apply(coordinator_->start(now()));
+      } else {
+        ROS_INFO_THROTTLE(5.0, "coordinator: autostart waits for %s", missing.c_str());
+      }
+    }
+    apply(coordinator_->onTick(now()));
+  }
+
+  /// Every collaborator is subscribed: a request published now is not lost.
+  bool connected(std::string& missing) const {
+    if (decision_pub_.getNumSubscribers() == 0) missing = "a sequence node on /ddace/decision_request";
+    else if (path_pub_.getNumSubscribers() == 0) missing = "a path node on /ddace/path_request";
+    for (const auto& [i, pub] : segment_pubs_)
+      if (missing.empty() && pub.getNumSubscribers() == 0) missing = "an executor on " + pub.getTopic();
+    return missing.empty();
+  }
 
   void onEstopTopic(const std_msgs::Bool& m) {
     if (m.data && coordinator_->state() != exec::RunState::EStopped)
@@ -205,6 +224,12 @@ class CoordinatorNode {
   }
 
   bool srvStart(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+    std::string missing;
+    if (!connected(missing)) {
+      res.success = false;
+      res.message = "not started: no " + missing;
+      return true;
+    }
     return answer(coordinator_->start(now()), res,
                   {exec::RunState::WaitingForEntities, exec::RunState::Deciding, exec::RunState::Planning,
                    exec::RunState::Executing});
@@ -246,7 +271,13 @@ class CoordinatorNode {
     for (const auto& step : coordinator_->steps()) {
       ddace::Step m;
       m.index = step.step;
-      for (const auto& t : step.tokens) m.tokens.push_back(ros_exec::toMsg(t.token, spec_));
+      for (const auto& t : step.tokens) {
+        m.tokens.push_back(ros_exec::toMsg(t.token, spec_));
+        m.status.push_back(static_cast<uint8_t>(t.state));
+        m.progress.push_back(t.progress);
+      }
+      m.decided = ros::Time(step.decided_s);
+      if (step.finished_s >= 0) m.finished = ros::Time(step.finished_s);
       s.steps.push_back(m);
     }
     for (int e : coordinator_->activeEntities()) s.active.push_back(spec_.entities[e].name);

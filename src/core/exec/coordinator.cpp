@@ -3,6 +3,14 @@
 #include <cmath>
 #include <sstream>
 
+namespace {
+std::string seconds(double s) {
+  std::ostringstream os;
+  os << s << " s";
+  return os.str();
+}
+}  // namespace
+
 #include "ddace/common/error.h"
 
 namespace ddace::exec {
@@ -389,9 +397,9 @@ void Coordinator::completeStepIfDone(double now_s, CoordinatorOutput& out) {
 CoordinatorOutput Coordinator::onTick(double now_s) {
   CoordinatorOutput out;
   if (state_ == RunState::Deciding && now_s - pending_since_s_ > config_.decision_timeout_s) {
-    abort("no decision within decision_timeout_s = " + std::to_string(config_.decision_timeout_s) + " s", out);
+    abort("no decision within decision_timeout_s = " + seconds(config_.decision_timeout_s), out);
   } else if (state_ == RunState::Planning && now_s - pending_since_s_ > config_.path_timeout_s) {
-    abort("not every path arrived within path_timeout_s = " + std::to_string(config_.path_timeout_s) + " s", out);
+    abort("not every path arrived within path_timeout_s = " + seconds(config_.path_timeout_s), out);
   } else if (state_ == RunState::Executing && !steps_.empty()) {
     for (const auto& t : steps_.back().tokens) {
       if (t.segment_id == 0 || t.state == SegmentState::Done) continue;
