@@ -3,9 +3,10 @@
 #include <iostream>
 
 #include "command.h"
-#include "evaluation.h"
+#include "ddace/pipeline/evaluation.h"
 
 namespace ddace::cli {
+using namespace ddace::pipeline;
 namespace {
 
 int runEval(const std::vector<std::string>& argv) {

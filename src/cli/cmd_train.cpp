@@ -6,9 +6,10 @@
 #include "ddace/common/error.h"
 #include "ddace/task/task_dir.h"
 #include "ddace/tgn/sequence_model.h"
-#include "evaluation.h"
+#include "ddace/pipeline/evaluation.h"
 
 namespace ddace::cli {
+using namespace ddace::pipeline;
 namespace {
 
 namespace fs = std::filesystem;

@@ -1,6 +1,6 @@
-// Glue shared by `ddace train`, `ddace eval` and `ddace table`: trains the two learned
+// The pipeline shared by `ddace train/eval/table` and the ROS nodes: trains the two learned
 // halves into one model directory and runs the closed-loop evaluation of a model on a
-// test set. Lives with the tool because it ties together tgn (libtorch), gp, exec and eval.
+// test set. Its own library (ddace_pipeline) because it ties tgn (libtorch) to gp, exec and eval.
 #pragma once
 
 #include <iosfwd>
@@ -14,7 +14,7 @@
 #include "ddace/task/task_dir.h"
 #include "ddace/tgn/sequence_model.h"
 
-namespace ddace::cli {
+namespace ddace::pipeline {
 
 /// A trained model directory: the sequence model and (except for gnn) the primitives.
 struct Model {
@@ -54,4 +54,4 @@ void printEvaluation(const Evaluation& e, std::ostream& out);
 /// {"task", "variant", "execution", "trials", "osr", "ssr", "gcr", "fd", "per_trial": [...]}
 std::string evaluationJson(const Evaluation& e);
 
-}  // namespace ddace::cli
+}  // namespace ddace::pipeline

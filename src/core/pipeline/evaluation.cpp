@@ -1,4 +1,4 @@
-#include "evaluation.h"
+#include "ddace/pipeline/evaluation.h"
 
 #include <cmath>
 #include <cstdio>
@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 
 
-namespace ddace::cli {
+namespace ddace::pipeline {
 
 namespace fs = std::filesystem;
 
@@ -155,4 +155,4 @@ std::string evaluationJson(const Evaluation& e) {
   return j.dump(2) + "\n";
 }
 
-}  // namespace ddace::cli
+}  // namespace ddace::pipeline
