@@ -155,7 +155,9 @@ bool toeplitzLml(const RepeatedData& data, const KernelParams& p, bool use_const
   const Eigen::VectorXd rho = kcol / a0;  // rho[0] unused (the normalised diagonal is 1)
 
   // Durbin: y solves T_{n-1} y = -rho[1..n-1]; log det T_n from the prediction errors.
-  Eigen::VectorXd y(std::max<Eigen::Index>(n - 1, 1)), z(std::max<Eigen::Index>(n - 1, 1));
+  // rho is read backwards; a reversed copy makes that a forward (vectorised) dot product.
+  const Eigen::VectorXd rr = rho.reverse();  // rr[t] = rho[n-1-t]
+  Eigen::VectorXd y(std::max<Eigen::Index>(n - 1, 1));
   double log_det_t = 0;
   double beta = 1, a = -rho[1];
   y[0] = -rho[1];
@@ -163,11 +165,12 @@ bool toeplitzLml(const RepeatedData& data, const KernelParams& p, bool use_const
     beta *= (1 - a * a);
     if (!(beta > 0)) return false;
     log_det_t += std::log(beta);
-    double acc = rho[k + 1];
-    for (Eigen::Index i = 0; i < k; ++i) acc += rho[k - i] * y[i];
-    a = -acc / beta;
-    for (Eigen::Index i = 0; i < k; ++i) z[i] = y[i] + a * y[k - 1 - i];
-    y.head(k) = z.head(k);
+    a = -(rho[k + 1] + rr.segment(n - 1 - k, k).dot(y.head(k))) / beta;
+    for (Eigen::Index i = 0, j = k - 1; i <= j; ++i, --j) {  // y[0..k) += a * reversed y, in place
+      const double yi = y[i], yj = y[j];
+      y[i] = yi + a * yj;
+      if (i != j) y[j] = yj + a * yi;
+    }
     y[k] = a;
   }
   beta *= (1 - a * a);
@@ -175,25 +178,20 @@ bool toeplitzLml(const RepeatedData& data, const KernelParams& p, bool use_const
   log_det_t += std::log(beta);
   const double gamma = 1.0 / beta;
 
-  // Trench: entries of T^-1 follow the recurrence B(i, i+k) = B(i-1, i-1+k) + gamma (...)
-  // along each diagonal k, so w = A^-1 ybar and the diagonal sums of A^-1 (all the
-  // gradient needs) accumulate on the fly without storing the n x n inverse.
-  Eigen::VectorXd w = Eigen::VectorXd::Zero(n), diag_sum(n);
-  const double* yv = y.data();
-  const double* yb = data.means.data();
-  for (Eigen::Index k = 0; k < n; ++k) {
-    double b = k == 0 ? gamma : gamma * yv[k - 1];
-    double sum = 0;
-    for (Eigen::Index i = 0; i + k < n; ++i) {
-      if (i > 0) b += gamma * (yv[i - 1] * yv[i + k - 1] - yv[n - 1 - i] * yv[n - 1 - i - k]);
-      const Eigen::Index j = i + k;
-      sum += b;
-      w[i] += b * yb[j];
-      if (k > 0) w[j] += b * yb[i];
-    }
-    diag_sum[k] = sum;
+  // Trench: the upper triangle of T^-1 column by column, from the recurrence
+  // B(i, j) = B(i-1, j-1) + gamma (y[i-1] y[j-1] - y[n-1-i] y[n-1-j]).
+  const Eigen::VectorXd yrev = y.head(n - 1).reverse();  // yrev[t] = y[n-2-t]
+  Eigen::MatrixXd bm(n, n);
+  bm(0, 0) = gamma;
+  for (Eigen::Index j = 1; j < n; ++j) {
+    bm(0, j) = gamma * y[j - 1];
+    bm.col(j).segment(1, j) = bm.col(j - 1).head(j) + (gamma * y[j - 1]) * y.head(j) -
+                              (gamma * y[n - 1 - j]) * yrev.head(j);
   }
-  w /= a0;
+  // w = A^-1 ybar, and the sums of A^-1 along its diagonals (all the gradient needs).
+  const Eigen::VectorXd w = (bm.selfadjointView<Eigen::Upper>() * data.means) / a0;
+  Eigen::VectorXd diag_sum = Eigen::VectorXd::Zero(n);
+  for (Eigen::Index j = 0; j < n; ++j) diag_sum.head(j + 1).reverse() += bm.col(j).head(j + 1);
   diag_sum /= a0;
 
   const double log_det_a = static_cast<double>(n) * std::log(a0) + log_det_t;
@@ -378,9 +376,19 @@ GaussianProcess GaussianProcess::condition(const RepeatedData& data, const Kerne
 
 void GaussianProcess::conditionOnData() {
   if (!use_constant_) params_.constant = 1.0;
-  const Eigen::MatrixXd d2 = squaredDistances(data_.inputs, data_.inputs);
-  Eigen::MatrixXd a =
-      params_.constant * (-0.5 / (params_.length_scale * params_.length_scale) * d2).array().exp().matrix();
+  const Eigen::Index n = data_.inputs.size();
+  const double inv2l2 = 0.5 / (params_.length_scale * params_.length_scale);
+  Eigen::MatrixXd a(n, n);
+  if (isToeplitz(data_)) {
+    // Equally spaced inputs: n kernel values instead of n^2 exponentials.
+    const double h = (data_.inputs[n - 1] - data_.inputs[0]) / static_cast<double>(n - 1);
+    Eigen::VectorXd col(n);
+    for (Eigen::Index k = 0; k < n; ++k) col[k] = params_.constant * std::exp(-inv2l2 * std::pow(k * h, 2));
+    for (Eigen::Index j = 0; j < n; ++j)
+      for (Eigen::Index i = 0; i < n; ++i) a(i, j) = col[std::abs(i - j)];
+  } else {
+    a = params_.constant * (-inv2l2 * squaredDistances(data_.inputs, data_.inputs)).array().exp().matrix();
+  }
   a.diagonal().array() += (params_.noise_level + alpha_) / data_.counts.array();
   llt_.compute(a);
   if (llt_.info() != Eigen::Success)
@@ -388,9 +396,8 @@ void GaussianProcess::conditionOnData() {
   weights_ = llt_.solve(data_.means);
   // The reported (and stored) likelihood comes from this backward-stable factorisation.
   const double s2 = params_.noise_level + alpha_;
-  const double n = static_cast<double>(data_.inputs.size());
   lml_ = -0.5 * data_.means.dot(weights_) - llt_.matrixLLT().diagonal().array().log().sum() -
-         0.5 * data_.counts.array().log().sum() - 0.5 * (data_.total - n) * std::log(s2) -
+         0.5 * data_.counts.array().log().sum() - 0.5 * (data_.total - static_cast<double>(n)) * std::log(s2) -
          0.5 * data_.residual_ss / s2 - 0.5 * data_.total * kLog2Pi;
 }
 
