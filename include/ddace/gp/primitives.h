@@ -30,6 +30,9 @@
 //
 // File: <modeldir>/primitives.yaml (format ddace-primitives/1), documented in docs/gp.md.
 //
+// A library is immutable after fit()/load(): generate() may be called from several
+// threads at once.
+//
 // Owns: primitives, their library and file. Must not: decide which tokens run (tgn)
 // or drive anything (exec).
 #pragma once
