@@ -45,6 +45,16 @@ RobotLink::RobotLink(RobotConfig robot, const BridgeConfig& bridge, std::shared_
 }
 
 RobotLink::~RobotLink() {
+  if (transport_ && state_ == LinkState::Streaming) {
+    // Shutting down: leave the robot standing still.
+    try {
+      Effector zero = effects_;
+      zero.left_wheel = zero.right_wheel = 0;
+      const std::string line = encodeLine(encodeEffector(model_, zero), robot_.address);
+      transport_->write(line.data(), line.size());
+    } catch (const Error&) {
+    }
+  }
   if (transport_) transport_->close();
   if (!canonical_.empty()) ports_->release(canonical_);
 }
