@@ -1,6 +1,5 @@
 #include <fcntl.h>
 #include <glob.h>
-#include <poll.h>
 #include <sys/ioctl.h>
 #include <termios.h>
 #include <unistd.h>
@@ -48,7 +47,7 @@ void SerialTransport::open() {
   } else {
     tio.c_cflag &= ~static_cast<tcflag_t>(CRTSCTS);
   }
-  tio.c_cc[VMIN] = 0;
+  tio.c_cc[VMIN] = 1;
   tio.c_cc[VTIME] = 0;
   ::cfsetispeed(&tio, B115200);
   ::cfsetospeed(&tio, B115200);
@@ -76,15 +75,9 @@ size_t SerialTransport::read(char* buf, size_t size) {
   const ssize_t n = ::read(fd_, buf, size);
   if (n > 0) return static_cast<size_t>(n);
   if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) return 0;
-  if (n == 0) {
-    // With VMIN=0 a tty returns 0 both for "no data" and after a hang-up (unplugged
-    // adapter, closed pty master); poll tells them apart.
-    pollfd p{fd_, POLLIN, 0};
-    if (::poll(&p, 1, 0) > 0 && (p.revents & (POLLHUP | POLLERR | POLLNVAL))) {
-      throw Error("serial port " + path_ + " hung up (unplugged?)");
-    }
-    return 0;
-  }
+  // VMIN=1 with O_NONBLOCK: "no data" is EAGAIN, so 0 (end of file) only comes after a
+  // hang-up (adapter unplugged); EIO when a pty's other side closed.
+  if (n == 0) throw Error("serial port " + path_ + " hung up (unplugged?)");
   throw Error(osError("read failed on", path_));
 }
 
