@@ -77,7 +77,7 @@ class HamsterBridge {
       updater_.add("hamster " + r.name,
                    [this, raw](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnose(*raw, s); });
       ROS_INFO("hamster_bridge: %s = %s (%s), port hints [%s]", r.name.c_str(), r.address.display().c_str(),
-               modelName(r.model).c_str(), join(r.port_hints).c_str());
+               r.model == Model::Unknown ? "model auto" : modelName(r.model).c_str(), join(r.port_hints).c_str());
       robots_.push_back(std::move(robot));
     }
     ROS_INFO("hamster_bridge: %zu robots; ports under %s, scanning [%s]", robots_.size(), config_.port_dir.c_str(),

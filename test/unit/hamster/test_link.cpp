@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
+#include <fstream>
 #include <cstdlib>
 #include <filesystem>
 #include <functional>
@@ -13,6 +15,7 @@
 #include "ddace/common/error.h"
 #include "ddace/hamster/link.h"
 #include "ddace/hamster/mock_robot.h"
+#include "ddace/hamster/scan.h"
 
 using namespace ddace::hamster;
 
@@ -225,4 +228,30 @@ TEST_F(LinkTest, WrongModelInConfigIsRefused) {
   runFor(0.5);
   EXPECT_NE(l.state(), LinkState::Streaming);
   EXPECT_NE(l.stats().last_error.find("config says hamster_s"), std::string::npos) << l.stats().last_error;
+}
+
+TEST_F(LinkTest, SurveyListsRobotsAndDonglesWithoutRobots) {
+  addMock("a", "0000000000AA", Model::HamsterS, 0.002);
+  MockRobot& lonely = addMock("b", "0000000000BB", Model::Hamster, 0.002);
+  lonely.setFault(MockFault::Drop, 10.0, nowS());
+  { std::ofstream(dir_ + "/hamster_plainfile") << "not a tty"; }
+  std::atomic<bool> stop{false};
+  std::thread robots([&] {
+    while (!stop) {
+      for (auto& m : mocks_) m->step(nowS());
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  });
+  const auto survey = surveyPorts({"hamster_*"}, dir_, 0.5, serialTransportFactory());
+  stop = true;
+  robots.join();
+  ASSERT_EQ(survey.size(), 3u);
+  EXPECT_EQ(survey[0].port, dir_ + "/hamster_a");
+  EXPECT_EQ(survey[0].status, PortSurvey::Status::Robot);
+  EXPECT_TRUE(survey[0].identified);
+  EXPECT_EQ(survey[0].identify.model, Model::HamsterS);
+  EXPECT_EQ(survey[0].identify.address.wire(), "0000000000AA");
+  EXPECT_EQ(survey[1].status, PortSurvey::Status::NoRobot);
+  EXPECT_EQ(survey[2].status, PortSurvey::Status::OpenFailed);
+  EXPECT_NE(survey[2].error.find("hamster_plainfile"), std::string::npos);
 }
