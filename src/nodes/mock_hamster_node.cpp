@@ -148,6 +148,19 @@ class MockHamsterNode {
       s.driven = r->driven(now);
       s.left_units = r->leftUnits();
       s.right_units = r->rightUnits();
+      const Effector& e = r->effector();
+      auto colour = [](const std::array<uint8_t, 3>& rgb) {
+        std_msgs::ColorRGBA c;
+        c.r = rgb[0] / 255.0f;
+        c.g = rgb[1] / 255.0f;
+        c.b = rgb[2] / 255.0f;
+        c.a = 1.0f;
+        return c;
+      };
+      s.left_led = colour(e.left_led_rgb);
+      s.right_led = colour(e.right_led_rgb);
+      s.buzzer_hz = e.buzzer_hz;
+      s.note = e.note;
       s.motoring_lines = r->motoringLines();
       s.bad_lines = r->badLines();
       s.identify_requests = r->identifyRequests();

@@ -4,12 +4,14 @@
 #include <ros/ros.h>
 
 #include <atomic>
+#include <cmath>
 #include <functional>
 #include <map>
 #include <mutex>
 #include <set>
 #include <thread>
 
+#include <ddace/HamsterEffects.h>
 #include <ddace/HamsterMockFault.h>
 #include <ddace/HamsterMockState.h>
 #include <ddace/HamsterSensors.h>
@@ -49,6 +51,9 @@ class World {
           }));
     }
     fault_ = nh.advertise<ddace::HamsterMockFault>("/mock_hamster/fault", 10);
+    for (const auto& name : kRobots) {
+      effects_[name] = nh.advertise<ddace::HamsterEffects>("/robots/" + name + "/effects", 1, true);
+    }
     state_sub_ = nh.subscribe<ddace::HamsterMockState>("/mock_hamster/state", 100,
                                                         [this](const ddace::HamsterMockState::ConstPtr& m) {
                                                           std::lock_guard<std::mutex> lock(mutex_);
@@ -163,6 +168,7 @@ class World {
   std::map<std::string, std::pair<double, double>> commands_;
   std::map<std::string, ros::Publisher> wheels_;
   ros::Publisher fault_;
+  std::map<std::string, ros::Publisher> effects_;
   ros::Subscriber state_sub_, diag_sub_;
   std::vector<ros::Subscriber> sensor_subs_;
   std::map<std::string, ddace::HamsterMockState> states_;
@@ -285,6 +291,40 @@ TEST_F(HamsterBridgeTest, GarbageAndTruncatedLinesAreCountedAndSurvived) {
   EXPECT_GE(world->sensor_count_["R2"] - sensors_before, 50);
   EXPECT_TRUE(world->onWire("R2", 25, -20));
   EXPECT_TRUE(world->states_["R2"].driven);
+}
+
+TEST_F(HamsterBridgeTest, LedsAndSoundReachTheRobotAndBadValuesAreRefused) {
+  ASSERT_TRUE(world->wait([&] { return world->allDrivenAsCommanded(); }, 20.0));
+  ddace::HamsterEffects fx;
+  fx.left_led.r = 1.0f;   // red
+  fx.right_led.g = 0.6f;  // green + blue = cyan on the original Hamster's 8 colours
+  fx.right_led.b = 0.8f;
+  fx.buzzer_hz = 440.0;
+  world->effects_["R1"].publish(fx);
+  fx.buzzer_hz = 0.0;
+  fx.note = 49;
+  world->effects_["R4"].publish(fx);
+  auto led = [](const std_msgs::ColorRGBA& c, float r, float g, float b) {
+    return std::abs(c.r - r) < 0.01f && std::abs(c.g - g) < 0.01f && std::abs(c.b - b) < 0.01f;
+  };
+  ASSERT_TRUE(world->wait(
+      [&] {
+        const auto& r1 = world->states_["R1"];
+        const auto& r4 = world->states_["R4"];
+        return led(r1.left_led, 1, 0, 0) && led(r1.right_led, 0, 1, 1) && std::abs(r1.buzzer_hz - 440.0) < 1e-6 &&
+               led(r4.left_led, 1, 0, 0) && led(r4.right_led, 0, 153 / 255.0f, 204 / 255.0f) && r4.note == 49;
+      },
+      2.0))
+      << "effects not on the wire";
+  // Out of range: refused, the previous effects stay.
+  ddace::HamsterEffects bad = fx;
+  bad.left_led.r = 2.0f;
+  bad.note = 0;
+  world->effects_["R4"].publish(bad);
+  ros::WallDuration(0.3).sleep();
+  std::lock_guard<std::mutex> lock(world->mutex_);
+  EXPECT_EQ(world->states_["R4"].note, 49);
+  EXPECT_TRUE(world->onWire("R1", 30, 30));  // effects never disturb the wheels
 }
 
 int main(int argc, char** argv) {

@@ -6,7 +6,8 @@
 //   Searching → (open a candidate port) → Identifying (send "FF\r", wait for the
 //   reply with our address) → Streaming (answer every valid sensor line with exactly
 //   one motoring line) → Lost (no valid line for link_timeout_s, or the port failed)
-//   → Searching again, starting with the port that worked.
+//   → Searching again, starting with the port that worked. Failing to write any
+//   motoring line for link_timeout_s (flow control stuck) is a lost link too.
 // Safety: the wheels sent are the latest command converted with the calibration
 // only while that command is younger than command_timeout_s; otherwise zero. A
 // command is never extrapolated. On link loss a zero-wheel line is sent best-effort
@@ -129,6 +130,7 @@ class RobotLink {
   double next_identify_s_ = 0.0;
   int identify_sent_ = 0;
   double last_line_s_ = -1.0;
+  double last_write_s_ = -1.0;
 
   bool has_command_ = false;
   double command_left_mps_ = 0.0, command_right_mps_ = 0.0, command_s_ = 0.0;

@@ -204,7 +204,8 @@ void RobotLink::handleLine(std::string_view line, double now_s, std::vector<Cycl
       model_ = parsed.identify.model;
       preferred_port_ = port();
       state_ = LinkState::Streaming;
-      last_line_s_ = now_s;  // the link-loss clock starts now
+      last_line_s_ = now_s;  // the link-loss clocks start now
+      last_write_s_ = now_s;
       ++stats_.connects;
       stats_.last_error.clear();
       return;
@@ -248,6 +249,7 @@ void RobotLink::handleLine(std::string_view line, double now_s, std::vector<Cycl
   try {
     transport_->write(out.data(), out.size());
     ++stats_.lines_sent;
+    last_write_s_ = now_s;
   } catch (const Error& e) {
     ++stats_.write_failures;
     stats_.last_error = e.what();
@@ -300,6 +302,12 @@ void RobotLink::poll(double now_s, std::vector<CycleReport>& reports) {
   } else if (state_ == LinkState::Streaming && now_s - last_line_s_ > bridge_.link_timeout_s) {
     closePort("no valid line from " + robot_.address.display() + " for " + std::to_string(bridge_.link_timeout_s) +
                   " s",
+              now_s, true);
+  } else if (state_ == LinkState::Streaming && now_s - last_write_s_ > bridge_.link_timeout_s) {
+    // Lines come in but none of our answers goes out (e.g. CTS never asserted): the
+    // robot keeps its last command, so this is a lost link too.
+    closePort("no motoring line could be written for " + std::to_string(bridge_.link_timeout_s) + " s (" +
+                  stats_.last_error + ")",
               now_s, true);
   }
 }

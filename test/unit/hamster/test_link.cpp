@@ -255,3 +255,80 @@ TEST_F(LinkTest, SurveyListsRobotsAndDonglesWithoutRobots) {
   EXPECT_EQ(survey[2].status, PortSurvey::Status::OpenFailed);
   EXPECT_NE(survey[2].error.find("hamster_plainfile"), std::string::npos);
 }
+
+namespace {
+
+/// A dongle in memory whose output can be blocked (as when CTS is never asserted).
+struct MemoryDongle {
+  std::string to_host, from_host;
+  bool block_writes = false;
+};
+
+class MemoryTransport : public Transport {
+ public:
+  explicit MemoryTransport(std::shared_ptr<MemoryDongle> d) : d_(std::move(d)) {}
+  void open() override { open_ = true; }
+  void close() override { open_ = false; }
+  bool isOpen() const override { return open_; }
+  size_t read(char* buf, size_t size) override {
+    const size_t n = std::min(size, d_->to_host.size());
+    std::copy_n(d_->to_host.data(), n, buf);
+    d_->to_host.erase(0, n);
+    return n;
+  }
+  void write(const char* data, size_t size) override {
+    if (d_->block_writes) throw ddace::Error("output queue full (flow control)");
+    d_->from_host.append(data, size);
+  }
+  void flush() override {}
+  std::string name() const override { return "memory"; }
+
+ private:
+  std::shared_ptr<MemoryDongle> d_;
+  bool open_ = false;
+};
+
+}  // namespace
+
+TEST(RobotLinkMemory, BlockedWritesCountAsALostLink) {
+  auto dongle = std::make_shared<MemoryDongle>();
+  BridgeConfig bridge;
+  bridge.scan = {};
+  RobotConfig r;
+  r.name = "R1";
+  r.address = *Address::parse("0000000000AA");
+  r.port_hints = {"/proc/self/exe"};  // any existing path; the factory ignores it
+  r.calibration.left_mps_per_unit = r.calibration.right_mps_per_unit = 0.002;
+  RobotLink link(r, bridge, std::make_shared<PortDirectory>(),
+                 [dongle](const std::string&) { return std::make_unique<MemoryTransport>(dongle); });
+  std::vector<CycleReport> reports;
+  double t = 0.0;
+  link.poll(t, reports);
+  ASSERT_EQ(link.state(), LinkState::Identifying);
+  EXPECT_EQ(dongle->from_host, "FF\r");
+  dongle->to_host = "FF,Hamster,04,01,0000000000AA\r";
+  link.poll(t, reports);
+  ASSERT_EQ(link.state(), LinkState::Streaming);
+  Sensors s;
+  const std::string line = encodeLine(encodeSensors(Model::Hamster, s, true), r.address);
+  link.setWheelCommand(0.1, 0.1, t);
+  dongle->to_host = line;
+  link.poll(t, reports);
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_EQ(reports[0].left_sent, 50);
+  dongle->block_writes = true;
+  for (int i = 1; i <= 20; ++i) {  // lines keep coming every 20 ms, answers cannot leave
+    t = 0.02 * i;
+    link.setWheelCommand(0.1, 0.1, t);
+    dongle->to_host += line;
+    link.poll(t, reports);
+    if (link.state() != LinkState::Streaming) break;
+  }
+  EXPECT_NE(link.state(), LinkState::Streaming);
+  EXPECT_GE(t, 0.25);
+  EXPECT_LE(t, 0.3);
+  EXPECT_EQ(link.stats().link_losses, 1u);
+  EXPECT_NE(link.stats().last_error.find("no motoring line could be written"), std::string::npos)
+      << link.stats().last_error;
+  EXPECT_GT(link.stats().write_failures, 10u);
+}
