@@ -75,6 +75,16 @@ struct RepeatedData {
   static RepeatedData group(const Eigen::VectorXd& x, const Eigen::VectorXd& y);
 };
 
+/// How logMarginalLikelihood factorises A. Auto: Toeplitz when the distinct inputs are
+/// equally spaced and all counts are equal (then A is symmetric Toeplitz: Durbin's
+/// algorithm for the log-determinant, Trench's for the inverse, O(n^2) instead of O(n^3);
+/// a primitive's data always has this structure), Cholesky otherwise or when Durbin's
+/// recursion loses positive definiteness numerically.
+enum class Solver { Auto, Cholesky, Toeplitz };
+
+/// True when `data` has the structure the Toeplitz solver needs.
+bool isToeplitz(const RepeatedData& data);
+
 /// log theta vector of `p` (size 3 with the constant, 2 without).
 Eigen::VectorXd toTheta(const KernelParams& p, bool use_constant);
 KernelParams fromTheta(const Eigen::VectorXd& theta, bool use_constant);
@@ -83,7 +93,7 @@ KernelParams fromTheta(const Eigen::VectorXd& theta, bool use_constant);
 /// when `gradient` is not null, its gradient with respect to theta. Returns -inf when
 /// the covariance is not numerically positive definite.
 double logMarginalLikelihood(const RepeatedData& data, const Eigen::VectorXd& theta, bool use_constant,
-                             double alpha, Eigen::VectorXd* gradient = nullptr);
+                             double alpha, Eigen::VectorXd* gradient = nullptr, Solver solver = Solver::Auto);
 
 /// The same quantity computed the textbook way on all N observations (an N x N
 /// Cholesky). O(N^3): for tests of the reduction and for small data only.

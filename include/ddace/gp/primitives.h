@@ -69,6 +69,18 @@ struct GeneratedPath {
   std::string source_key;               ///< primitive actually used ("straight line" when none)
 };
 
+/// The training data of one motion key: its segments, each resampled to `points` points by
+/// progress and expressed in its own canonical frame (dimensionless).
+struct KeySegments {
+  task::Token token;
+  std::vector<std::vector<Eigen::Vector2d>> canonical;  ///< [segment][point]
+  int skipped = 0;  ///< segments shorter than min_segment_length_m
+};
+
+/// What PrimitiveLibrary::fit() trains on, by key ("R1:move:R3"). Throws ddace::Error for
+/// invalid options.
+std::map<std::string, KeySegments> canonicalSegments(const task::TaskDir& train, const PrimitiveOptions& options = {});
+
 /// One learned primitive.
 struct Primitive {
   std::string key;     ///< "R1:move:R3"

@@ -122,9 +122,116 @@ KernelParams fromTheta(const Eigen::VectorXd& theta, bool use_constant) {
   return p;
 }
 
+bool isToeplitz(const RepeatedData& data) {
+  const Eigen::Index n = data.inputs.size();
+  if (n < 2) return false;
+  if ((data.counts.array() != data.counts[0]).any()) return false;
+  const double h = (data.inputs[n - 1] - data.inputs[0]) / static_cast<double>(n - 1);
+  if (!(h > 0)) return false;
+  for (Eigen::Index i = 0; i < n; ++i)
+    if (std::abs(data.inputs[i] - (data.inputs[0] + static_cast<double>(i) * h)) > 1e-12 * (1 + std::abs(data.inputs[i])))
+      return false;
+  return true;
+}
+
+namespace {
+
+/// The Toeplitz path of logMarginalLikelihood. Returns false when Durbin's recursion
+/// meets a non-positive prediction-error variance (then the caller uses Cholesky).
+bool toeplitzLml(const RepeatedData& data, const KernelParams& p, bool use_constant, double alpha, double& lml,
+                 Eigen::VectorXd* gradient) {
+  const Eigen::Index n = data.inputs.size();
+  const double h = (data.inputs[n - 1] - data.inputs[0]) / static_cast<double>(n - 1);
+  const double m = data.counts[0];
+  const double s2 = p.noise_level + alpha;
+  // First column of K (kernel) and of A = K + s2/m I.
+  Eigen::VectorXd kcol(n), d2(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    d2[k] = (static_cast<double>(k) * h) * (static_cast<double>(k) * h);
+    kcol[k] = p.constant * std::exp(-0.5 * d2[k] / (p.length_scale * p.length_scale));
+  }
+  const double a0 = kcol[0] + s2 / m;
+  const Eigen::VectorXd rho = kcol / a0;  // rho[0] unused (the normalised diagonal is 1)
+
+  // Durbin: y solves T_{n-1} y = -rho[1..n-1]; log det T_n from the prediction errors.
+  Eigen::VectorXd y(std::max<Eigen::Index>(n - 1, 1)), z(std::max<Eigen::Index>(n - 1, 1));
+  double log_det_t = 0;
+  double beta = 1, a = -rho[1];
+  y[0] = -rho[1];
+  for (Eigen::Index k = 1; k < n - 1; ++k) {
+    beta *= (1 - a * a);
+    if (!(beta > 0)) return false;
+    log_det_t += std::log(beta);
+    double acc = rho[k + 1];
+    for (Eigen::Index i = 0; i < k; ++i) acc += rho[k - i] * y[i];
+    a = -acc / beta;
+    for (Eigen::Index i = 0; i < k; ++i) z[i] = y[i] + a * y[k - 1 - i];
+    y.head(k) = z.head(k);
+    y[k] = a;
+  }
+  beta *= (1 - a * a);
+  if (!(beta > 0)) return false;
+  log_det_t += std::log(beta);
+  const double gamma = 1.0 / beta;
+
+  // Trench: the inverse of T from y, upper triangle by the displacement recurrence.
+  Eigen::MatrixXd b(n, n);
+  b(0, 0) = gamma;
+  for (Eigen::Index j = 1; j < n; ++j) b(0, j) = gamma * y[j - 1];
+  for (Eigen::Index i = 1; i < n; ++i)
+    for (Eigen::Index j = i; j < n; ++j)
+      b(i, j) = b(i - 1, j - 1) + gamma * (y[i - 1] * y[j - 1] - y[n - 1 - i] * y[n - 1 - j]);
+  b.triangularView<Eigen::StrictlyLower>() = b.transpose();
+  b /= a0;  // A^-1
+
+  const Eigen::VectorXd w = b * data.means;
+  const double log_det_a = static_cast<double>(n) * std::log(a0) + log_det_t;
+  lml = -0.5 * data.means.dot(w) - 0.5 * log_det_a - 0.5 * static_cast<double>(n) * std::log(m) -
+        0.5 * (data.total - n) * std::log(s2) - 0.5 * data.residual_ss / s2 - 0.5 * data.total * kLog2Pi;
+  if (!std::isfinite(lml)) return false;
+  if (gradient) {
+    // u[k] = sum over entries (i, j) with |i - j| = k of (w w' - A^-1)_ij; every dA/dtheta
+    // is Toeplitz, so tr((w w' - A^-1) dA) = sum_k t_k u[k].
+    Eigen::VectorXd u = Eigen::VectorXd::Zero(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      u[0] += w[i] * w[i] - b(i, i);
+      for (Eigen::Index j = i + 1; j < n; ++j) u[j - i] += 2 * (w[i] * w[j] - b(i, j));
+    }
+    const double trace_k = kcol.dot(u);
+    const double trace_l = kcol.cwiseProduct(d2).dot(u) / (p.length_scale * p.length_scale);
+    const double g_noise = 0.5 * p.noise_level * u[0] / m +
+                           p.noise_level * (-0.5 * (data.total - n) / s2 + 0.5 * data.residual_ss / (s2 * s2));
+    gradient->resize(use_constant ? 3 : 2);
+    if (use_constant) {
+      (*gradient) << 0.5 * trace_k, 0.5 * trace_l, g_noise;
+    } else {
+      (*gradient) << 0.5 * trace_l, g_noise;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 double logMarginalLikelihood(const RepeatedData& data, const Eigen::VectorXd& theta, bool use_constant, double alpha,
-                             Eigen::VectorXd* gradient) {
+                             Eigen::VectorXd* gradient, Solver solver) {
   const KernelParams p = fromTheta(theta, use_constant);
+  if (solver != Solver::Cholesky) {
+    const bool structured = isToeplitz(data);
+    if (solver == Solver::Toeplitz && !structured)
+      throw Error("GP: the Toeplitz solver needs equally spaced inputs with equal counts");
+    // Durbin's recursion loses accuracy faster than Cholesky as A becomes ill-conditioned;
+    // Auto keeps it to covariances whose condition number is provably below 1e9
+    // (lambda_max <= n a0 by Gershgorin, lambda_min >= s^2/m).
+    bool use = structured;
+    if (use && solver == Solver::Auto) {
+      const double s2m = (p.noise_level + alpha) / data.counts[0];
+      use = static_cast<double>(data.inputs.size()) * (p.constant + s2m) / s2m <= 1e9;
+    }
+    double lml = 0;
+    if (use && toeplitzLml(data, p, use_constant, alpha, lml, gradient)) return lml;
+    if (solver == Solver::Toeplitz) return -std::numeric_limits<double>::infinity();
+  }
   const Eigen::Index n = data.inputs.size();
   const double s2 = p.noise_level + alpha;
   const Eigen::MatrixXd d2 = squaredDistances(data.inputs, data.inputs);
@@ -266,7 +373,9 @@ void GaussianProcess::conditionOnData() {
   if (llt_.info() != Eigen::Success)
     throw Error("GP: the training covariance is not positive definite (noise level too small?)");
   weights_ = llt_.solve(data_.means);
-  lml_ = gp::logMarginalLikelihood(data_, toTheta(params_, use_constant_), use_constant_, alpha_);
+  // The reported (and stored) likelihood comes from the backward-stable factorisation.
+  lml_ = gp::logMarginalLikelihood(data_, toTheta(params_, use_constant_), use_constant_, alpha_, nullptr,
+                                   Solver::Cholesky);
 }
 
 void GaussianProcess::predict(const Eigen::VectorXd& x, Eigen::VectorXd& mean, Eigen::VectorXd* stddev) const {

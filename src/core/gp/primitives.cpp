@@ -150,24 +150,14 @@ GpOptions defaultPrimitiveGpOptions() {
   return o;
 }
 
-PrimitiveLibrary PrimitiveLibrary::fit(const task::TaskDir& train, const PrimitiveOptions& options) {
+std::map<std::string, KeySegments> canonicalSegments(const task::TaskDir& train, const PrimitiveOptions& options) {
   if (options.points < 2) throw Error("primitive option points must be at least 2");
   if (!(options.min_segment_length_m > 0)) throw Error("primitive option min_segment_length_m must be positive");
-  PrimitiveLibrary lib;
-  lib.task_ = train.spec.name;
-  lib.entities_ = train.spec.entityNames();
-  lib.options_ = options;
-
-  struct Collected {
-    task::Token token;
-    std::vector<std::vector<Eigen::Vector2d>> canonical;  // [segment][point]
-    int skipped = 0;
-  };
-  std::map<std::string, Collected> by_key;
+  std::map<std::string, KeySegments> by_key;
   for (const auto& demo : train.demos) {
     for (const auto& seg : demo.segments) {
       if (!seg.token.isMotion()) continue;
-      Collected& c = by_key[task::tokenKey(seg.token, train.spec)];
+      KeySegments& c = by_key[task::tokenKey(seg.token, train.spec)];
       c.token = seg.token;
       const std::vector<Eigen::Vector2d> path = demo.segmentPath(seg);
       if ((path.back() - path.front()).norm() < options.min_segment_length_m) {
@@ -178,7 +168,15 @@ PrimitiveLibrary PrimitiveLibrary::fit(const task::TaskDir& train, const Primiti
       c.canonical.push_back(frame.toCanonical(resampleByProgress(path, options.points)));
     }
   }
+  return by_key;
+}
 
+PrimitiveLibrary PrimitiveLibrary::fit(const task::TaskDir& train, const PrimitiveOptions& options) {
+  const std::map<std::string, KeySegments> by_key = canonicalSegments(train, options);
+  PrimitiveLibrary lib;
+  lib.task_ = train.spec.name;
+  lib.entities_ = train.spec.entityNames();
+  lib.options_ = options;
   const int n = options.points;
   for (const auto& [key, c] : by_key) {
     Primitive p;

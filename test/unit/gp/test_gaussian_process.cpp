@@ -17,7 +17,7 @@ namespace {
 
 /// `segments` noisy copies of an arc on the same `points` inputs (a primitive's structure),
 /// plus a few inputs seen only once, so the counts are not all equal.
-void repeatedData(int segments, int points, Eigen::VectorXd& x, Eigen::VectorXd& y) {
+void repeatedData(int segments, int points, Eigen::VectorXd& x, Eigen::VectorXd& y, bool singles = true) {
   std::mt19937 gen(3);
   std::normal_distribution<double> noise(0.0, 0.01);
   std::vector<double> xs, ys;
@@ -29,7 +29,7 @@ void repeatedData(int segments, int points, Eigen::VectorXd& x, Eigen::VectorXd&
       ys.push_back(a * std::sin(M_PI * s) + noise(gen));
     }
   }
-  for (double s : {0.013, 0.5123, 0.977}) {
+  for (double s : singles ? std::vector<double>{0.013, 0.5123, 0.977} : std::vector<double>{}) {
     xs.push_back(s);
     ys.push_back(0.3 * std::sin(M_PI * s));
   }
@@ -87,6 +87,47 @@ TEST(Reduction, LikelihoodAndGradientEqualTheNaiveComputation) {
         EXPECT_NEAR(g_fast[j], g_naive[j], 1e-6 * (1 + std::abs(g_naive[j]))) << "component " << j;
     }
   }
+}
+
+TEST(Reduction, ToeplitzSolverEqualsCholeskyAndNaive) {
+  // A primitive's structure: equally spaced progress values, every segment on all of them.
+  Eigen::VectorXd x, y;
+  repeatedData(5, 60, x, y, false);
+  const RepeatedData d = RepeatedData::group(x, y);
+  ASSERT_TRUE(gp::isToeplitz(d));
+  Eigen::VectorXd x2, y2;
+  repeatedData(5, 60, x2, y2, true);
+  EXPECT_FALSE(gp::isToeplitz(RepeatedData::group(x2, y2)));
+  // Including badly conditioned covariances: long length scales, tiny noise. The last one
+  // (condition number ~1e10) is beyond what Auto gives the Toeplitz solver: there it is
+  // only accurate to ~1e-6 and Auto must use Cholesky.
+  const std::vector<std::pair<gp::KernelParams, double>> cases = {
+      {{0.2, 0.3, 1e-4}, 1e-8}, {{1.5, 0.05, 0.02}, 1e-8}, {{0.13, 0.07, 1.2e-5}, 1e-8},
+      {{0.1, 2.0, 1e-6}, 1e-8}, {{50, 10, 1e-6}, 1e-6}};
+  for (const auto& [p, tol] : cases) {
+    const Eigen::VectorXd theta = gp::toTheta(p, true);
+    Eigen::VectorXd g_t, g_c, g_n;
+    const double t = gp::logMarginalLikelihood(d, theta, true, 1e-10, &g_t, gp::Solver::Toeplitz);
+    const double c = gp::logMarginalLikelihood(d, theta, true, 1e-10, &g_c, gp::Solver::Cholesky);
+    const double n = gp::logMarginalLikelihoodNaive(x, y, theta, true, 1e-10, &g_n);
+    if (!std::isfinite(t)) {
+      // Durbin lost definiteness: Auto must then still agree with Cholesky.
+      EXPECT_NEAR(gp::logMarginalLikelihood(d, theta, true, 1e-10), c, 1e-9 * std::abs(c));
+      continue;
+    }
+    EXPECT_NEAR(t, c, tol * std::abs(c)) << "l " << p.length_scale;
+    EXPECT_NEAR(t, n, tol * std::abs(n)) << "l " << p.length_scale;
+    for (Eigen::Index j = 0; j < 3; ++j) {
+      EXPECT_NEAR(g_t[j], g_c[j], 100 * tol * (1 + std::abs(g_c[j]))) << "component " << j << " l " << p.length_scale;
+      EXPECT_NEAR(g_t[j], g_n[j], 100 * tol * (1 + std::abs(g_n[j]))) << "component " << j << " l " << p.length_scale;
+    }
+    if (tol > 1e-8) {
+      EXPECT_EQ(gp::logMarginalLikelihood(d, theta, true, 1e-10), c);
+    }
+  }
+  EXPECT_THROW(gp::logMarginalLikelihood(RepeatedData::group(x2, y2), gp::toTheta({}, true), true, 1e-10, nullptr,
+                                         gp::Solver::Toeplitz),
+               Error);
 }
 
 TEST(Reduction, PredictionEqualsConditioningOnEveryObservation) {
