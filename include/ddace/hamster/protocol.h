@@ -86,9 +86,9 @@ constexpr std::string_view kIdentifyRequest = "FF\r";
 /// not carry are left unset (has_* = false).
 struct Sensors {
   Model model = Model::Unknown;
-  uint8_t proximity_left = 0;   ///< raw 0..255, larger = closer obstacle
+  uint8_t proximity_left = 0;   ///< front IR proximity, raw 0..255 (scale undocumented)
   uint8_t proximity_right = 0;
-  uint8_t floor_left = 0;       ///< raw 0..255, larger = brighter floor
+  uint8_t floor_left = 0;       ///< downward IR floor sensor, raw 0..255 (scale undocumented)
   uint8_t floor_right = 0;
   /// Accelerometer, raw signed counts; x forward, y left, z up (about 16384 per g at
   /// the default range, unverified).
