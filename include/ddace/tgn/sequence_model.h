@@ -28,9 +28,9 @@
 //                   the entity itself is masked out), and END (2 classes).
 //   loss            sum of the three mean cross-entropies; Adam; mini-batches of whole
 //                   demonstrations in a seeded shuffled order.
-//   stopping        at `max_epochs`, or at a plateau: the loss has not dropped by more than
-//                   `plateau_delta` over the last `plateau_patience` epochs while the step
-//                   accuracy on the training demonstrations is 1.
+//   stopping        at `max_epochs`, or at a plateau: the best loss of the last
+//                   `plateau_patience` epochs is less than `plateau_delta` below the best
+//                   loss before them.
 //   determinism     torch::manual_seed(seed), at::set_num_threads(threads) (default 1: the
 //                   tensors are tiny and one thread is both fastest and reproducible).
 //

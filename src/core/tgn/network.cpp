@@ -500,7 +500,7 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
       progress->precision(precision);
     }
     const int p = options.plateau_patience;
-    if (epoch > p && (gnn || rec.step_accuracy >= 1.0)) {
+    if (epoch > p) {
       double before = std::numeric_limits<double>::infinity(), recent = before;
       for (int e = 0; e < epoch; ++e) {
         double& best = e < epoch - p ? before : recent;
@@ -626,6 +626,8 @@ SequenceModel SequenceModel::load(const std::string& model_dir) {
   if (!fs::is_directory(dir)) throw Error(Diagnostic{model_dir, 0, 0, "not a model directory (does not exist)"});
   auto impl = std::make_shared<Impl>();
   const std::string manifest = (dir / files::kManifest).string(), weights = (dir / files::kWeights).string();
+  if (!fs::exists(manifest))
+    throw Error(Diagnostic{manifest, 0, 0, "missing: " + model_dir + " is not a model directory (ddace train writes one)"});
   impl->spec = task::readTaskYaml((dir / files::kTask).string());
   uint64_t hash = 0, bytes = 0;
   impl->info = files::parseManifest(manifest, impl->spec, &hash, &bytes);
