@@ -26,11 +26,11 @@
 //   heads           linear, from the GRU output k: per entity the action of step k
 //                   (classes: idle + vocabulary) and its target (classes: none + entities;
 //                   the entity itself is masked out), and END (2 classes).
-//   loss            sum of the three mean cross-entropies; Adam; mini-batches of whole
-//                   demonstrations in a seeded shuffled order.
+//   loss            sum of the three mean cross-entropies; Adam with the gradient norm clipped
+//                   at 1; mini-batches of whole demonstrations in a seeded shuffled order.
 //   stopping        at `max_epochs`, or at a plateau: the best loss of the last
-//                   `plateau_patience` epochs is less than `plateau_delta` below the best
-//                   loss before them.
+//                   `plateau_patience` epochs differs by less than `plateau_delta` from the
+//                   best loss of the `plateau_patience` epochs before them.
 //   determinism     torch::manual_seed(seed), at::set_num_threads(threads) (default 1: the
 //                   tensors are tiny and one thread is both fastest and reproducible).
 //
@@ -65,11 +65,12 @@ struct TrainOptions {
   int gat_layers = 3;
   int gru_layers = 2;
   int gru_hidden = 64;
-  bool identity_embedding = true;  ///< learned per-entity embedding added to (x, y)
+  bool identity_embedding = true;  ///< learned per-entity embedding concatenated to (x, y)
   int identity_dim = 8;
   double dropout = 0.1;
   double learning_rate = 5e-3;
-  int batch_demos = 8;             ///< demonstrations per mini-batch
+  int batch_demos = 8;             ///< at most this many demonstrations per mini-batch, and at
+                                   ///< most a quarter of them (at least 4 steps per epoch)
   int plateau_patience = 20;       ///< epochs
   double plateau_delta = 1e-3;     ///< loss
   int threads = 1;                 ///< at::set_num_threads
