@@ -12,7 +12,8 @@
 //                   region maps to about [-2, 2]); nothing depends on a particular start or
 //                   goal, so new start-goal configurations in the same workspace need no
 //                   retraining. Optional learned identity embedding per entity
-//                   (`identity_embedding`, default on: it measured better, docs/tgn.md),
+//                   (`identity_embedding`, default on: it measured better,
+//                   docs/bench/tgn_train.md),
 //                   concatenated to (x, y).
 //   spatial         3 x [GAT (2 heads, concatenated) -> BatchNorm -> ReLU -> dropout].
 //                   GAT semantics are PyTorch Geometric's GATConv: x'_i = bias +
