@@ -6,8 +6,10 @@
 #include "ddace/common/error.h"
 #include "ddace/task/task_dir.h"
 #include "ddace/tgn/sequence_model.h"
+#include "ddace/pipeline/evaluation.h"
 
 namespace ddace::cli {
+using namespace ddace::pipeline;
 namespace {
 
 namespace fs = std::filesystem;
@@ -44,10 +46,9 @@ int runTrain(const std::vector<std::string>& argv) {
   std::cout << "training variant '" << options.variant << "' on " << train.demos.size() << " demonstrations of task '"
             << train.spec.name << "' (" << train.spec.entities.size() << " entities), seed " << options.seed << "\n"
             << std::flush;
-  const tgn::SequenceModel model =
-      tgn::SequenceModel::train(train, options, args.has("--quiet") ? nullptr : &std::cout);
-  model.save(out);
-  // Further parts of the model directory (the GP primitive library) are written next to it here.
+  // The sequence model, then (except for gnn) the GP primitive library, into one directory.
+  const Model trained = trainModel(train, options, out, args.has("--quiet") ? nullptr : &std::cout);
+  const tgn::SequenceModel& model = trained.sequence;
 
   const tgn::ModelInfo& info = model.info();
   const tgn::EpochRecord& last = info.history.back();
@@ -56,6 +57,15 @@ int runTrain(const std::vector<std::string>& argv) {
             << last.seconds << " s\n";
   std::cout << "attention edges: " << info.attention_edges.size() << " (E' has " << info.refined.kept.size() << " of "
             << info.refined.edges.size() << " observed edges)\n";
+  if (trained.primitives) {
+    std::cout << "motion primitives: " << trained.primitives->primitives().size() << " (";
+    bool first = true;
+    for (const auto& [key, p] : trained.primitives->primitives()) {
+      std::cout << (first ? "" : ", ") << key << " x" << p.segments;
+      first = false;
+    }
+    std::cout << ")\n";
+  }
   std::cout << "wrote " << out << " (ddace inspect " << out << " shows it)\n";
   return 0;
 }
@@ -63,7 +73,7 @@ int runTrain(const std::vector<std::string>& argv) {
 DDACE_COMMAND({"train",
                "ddace train TASKDIR --out MODELDIR [--variant ddace|full-graph|gnn] [--epochs N=400] [--seed S=1] "
                "[--threads T=1] [--patience P=20] [--lr RATE] [--no-identity] [--quiet]",
-               "train the temporal graph network on a task directory; one progress line per epoch", runTrain});
+               "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR", runTrain});
 
 }  // namespace
 }  // namespace ddace::cli
