@@ -32,10 +32,9 @@
 #include <ddace/SegmentStatus.h>
 #include <ddace/WheelCommand.h>
 
-#include "ddace/gp/primitives.h"
+#include "ddace/pipeline/evaluation.h"
 #include "ddace/task/task_dir.h"
 #include "ddace/tasks/generators.h"
-#include "ddace/tgn/sequence_model.h"
 
 namespace exec_test {
 
@@ -73,19 +72,16 @@ inline void generateTask(const std::string& dir, const std::string& family, int 
   ddace::task::writeTaskDir(ddace::tasks::generate(o), dir + "/test");
 }
 
-/// Trains what `ddace train` writes into a model directory: the temporal graph network and
-/// the GP primitive library, on DIR/train. Returns the model directory.
+/// Trains DIR/train into DIR/model exactly as `ddace train` does (pipeline::trainModel:
+/// the temporal graph network and the GP primitive library). Returns the model directory.
 inline std::string trainModel(const std::string& dir) {
   const ddace::task::TaskDir train = ddace::task::loadTaskDir(dir + "/train");
   const std::string model_dir = dir + "/model";
   const auto t0 = std::chrono::steady_clock::now();
-  ddace::tgn::TrainOptions options;  // defaults; stops at the plateau
-  const ddace::tgn::SequenceModel model = ddace::tgn::SequenceModel::train(train, options, nullptr);
-  model.save(model_dir);
-  ddace::gp::PrimitiveLibrary::fit(train).save(model_dir + "/" + ddace::gp::kPrimitivesFile);
+  const ddace::pipeline::Model model = ddace::pipeline::trainModel(train, {}, model_dir, nullptr);
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::cout << "trained " << model_dir << " in " << s << " s (" << model.info().history.size()
-            << " epochs, step accuracy " << model.info().history.back().step_accuracy << ")\n";
+  std::cout << "trained " << model_dir << " in " << s << " s (" << model.sequence.info().history.size()
+            << " epochs, step accuracy " << model.sequence.info().history.back().step_accuracy << ")\n";
   return model_dir;
 }
 
