@@ -19,6 +19,7 @@
 #include <functional>
 #include <map>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include <ros/ros.h>
@@ -176,7 +177,9 @@ class Watcher {
     subs_.push_back(nh.subscribe<ddace::DecisionRequest>("/ddace/decision_request", 20,
                                                          [this](const ddace::DecisionRequest::ConstPtr& m) {
                                                            std::lock_guard<std::mutex> l(mu_);
-                                                           requests_.push_back(m->header.stamp);
+                                                           // A re-sent request (same id) counts once.
+                                                           if (request_ids_.insert(m->id).second)
+                                                             requests_.push_back(m->header.stamp);
                                                          }));
     subs_.push_back(nh.subscribe<ddace::CoordinatorState>("/coordinator/state", 20,
                                                           [this](const ddace::CoordinatorState::ConstPtr& m) {
@@ -225,6 +228,7 @@ class Watcher {
   std::map<std::string, std::vector<Wheel>> wheels_;
   std::map<uint32_t, Seg> segments_;
   std::vector<ros::Time> requests_;
+  std::set<uint32_t> request_ids_;
   ddace::CoordinatorState state_;
   bool have_state_ = false;
 };
