@@ -13,6 +13,8 @@
 // Reference, in the same run: the same loop with the demonstration replay policy and
 // the demonstrated paths retargeted (exec/replay.h): the coordinator's own overhead.
 // Writes docs/bench/decision_latency.md.
+#include <time.h>
+
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
@@ -40,11 +42,20 @@ constexpr int kDecisions = 1000;
 using PolicyFn = std::function<exec::Decision(const std::vector<task::Snapshot>&, int scene)>;
 using PathFn = std::function<exec::PlannedPath(const task::Token&, const Eigen::Vector2d&, const Eigen::Vector2d&)>;
 
+/// CPU time of this thread, ms: the work itself, without the time the thread waited
+/// while other processes had the cores.
+double threadCpuMs() {
+  timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
 struct Stats {
   std::vector<double> ms;
+  std::vector<double> cpu_ms;
   int runs = 0, finished = 0;
-  double pct(double p) const {
-    std::vector<double> v = ms;
+  double pct(double p, bool cpu = false) const {
+    std::vector<double> v = cpu ? cpu_ms : ms;
     std::sort(v.begin(), v.end());
     const size_t i = std::min(v.size() - 1, static_cast<size_t>(p * (v.size() - 1) + 0.5));
     return v[i];
@@ -83,8 +94,10 @@ Stats run(const task::TaskSpec& spec, const std::vector<task::Demonstration>& sc
       return segs;
     };
     auto t0 = Clock::now();
+    double c0 = threadCpuMs();
     std::vector<exec::SegmentCommand> segs = decide(c.start(now));
     st.ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+    st.cpu_ms.push_back(threadCpuMs() - c0);
     while (c.state() == exec::RunState::Executing && !segs.empty() && static_cast<int>(st.ms.size()) < kDecisions) {
       now += 1;
       for (const auto& s : segs) pos[s.entity] = s.path.points.back();
@@ -92,9 +105,11 @@ Stats run(const task::TaskSpec& spec, const std::vector<task::Demonstration>& sc
       for (size_t i = 0; i + 1 < segs.size(); ++i)
         c.onSegmentStatus(segs[i].entity, segs[i].segment_id, exec::SegmentState::Done, 1, "", now);
       t0 = Clock::now();
+      c0 = threadCpuMs();
       const auto& last = segs.back();
       segs = decide(c.onSegmentStatus(last.entity, last.segment_id, exec::SegmentState::Done, 1, "", now));
       st.ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+      st.cpu_ms.push_back(threadCpuMs() - c0);
     }
     if (c.state() == exec::RunState::Finished) ++st.finished;
   }
@@ -178,9 +193,14 @@ int main() {
     for (auto [name, p] : std::vector<std::pair<std::string, double>>{{"p50", 0.5}, {"p90", 0.9}, {"p99", 0.99}})
       md << "| " << name << " | " << fmt(learned.pct(p)) << " ms | " << fmt(reference.pct(p)) << " ms | "
          << fmt(learned.pct(p) / reference.pct(p), 1) << "x | " << (name == "p99" ? "< 5 ms" : "") << " |\n";
+    for (auto [name, p] : std::vector<std::pair<std::string, double>>{{"p50 CPU time", 0.5}, {"p99 CPU time", 0.99}})
+      md << "| " << name << " | " << fmt(learned.pct(p, true)) << " ms | " << fmt(reference.pct(p, true)) << " ms | "
+         << fmt(learned.pct(p, true) / reference.pct(p, true), 1) << "x |  |\n";
     md << "| p99 vs the goal | " << fmt(learned.pct(0.99)) << " ms | " << fmt(goal_ms, 0) << " ms (goal) | "
        << fmt(learned.pct(0.99) / goal_ms, 2) << " of the goal | < 5 ms |\n\n"
-       << "Goal p99 < 5 ms: " << (learned.pct(0.99) < goal_ms ? "met" : "NOT met") << " in this run.\n";
+       << "Goal p99 < 5 ms (wall clock): " << (learned.pct(0.99) < goal_ms ? "met" : "NOT met")
+       << " in this run. The CPU-time rows count only the time the decision's thread ran: the work itself, "
+          "without waiting for the cores; on a loaded machine the wall-clock tail is that plus preemption.\n";
     const fs::path out = fs::path(DDACE_SOURCE_DIR) / "docs" / "bench" / "decision_latency.md";
     fs::create_directories(out.parent_path());
     std::ofstream(out) << md.str();
