@@ -1,8 +1,8 @@
 #!/usr/bin/python3
 """Python/PyTorch reference for bench_tgn_train and bench_tgn_decision: the same network
 (3 GAT layers with GATConv semantics, BatchNorm, ReLU, dropout, mean pooling, 2-layer GRU,
-linear heads with the self-target mask) and the same training loop (Adam, mini-batches of
-whole demonstrations in a shuffled order, masked cross-entropies, an eval-mode step
+linear heads with the self-target mask) and the same training loop (Adam with gradient-norm
+clipping at 1, mini-batches of whole demonstrations in a shuffled order, masked cross-entropies, an eval-mode step
 accuracy after every epoch) as src/core/tgn/network.cpp, on the tensors that
 ddace::tgn::writeTrainingTensors wrote. Prints one JSON object.
 
@@ -203,6 +203,7 @@ def main():
                 adam.zero_grad()
                 loss = loss_of(run(net, batch), batch)
                 loss.backward()
+                torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
                 adam.step()
                 total += loss.item()
                 batches += 1

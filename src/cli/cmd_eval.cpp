@@ -16,8 +16,8 @@ int runEval(const std::vector<std::string>& argv) {
   const std::string test_dir = args.positional(1, "TESTDIR");
   EvalOptions o;
   o.execution = args.get("--execution", "ideal");
-  if (o.execution != "ideal")
-    throw Error("--execution '" + o.execution + "' is not one of: ideal");
+  if (o.execution != "ideal" && o.execution != "diffdrive")
+    throw Error("--execution '" + o.execution + "' is not one of ideal, diffdrive");
   o.noise_m = args.getDouble("--noise", 0.0);
   if (o.noise_m < 0) throw Error("--noise must not be negative (metres)");
   if (o.noise_m > 0 && o.execution != "diffdrive") throw Error("--noise needs --execution diffdrive");

@@ -12,7 +12,8 @@
 //                   region maps to about [-2, 2]); nothing depends on a particular start or
 //                   goal, so new start-goal configurations in the same workspace need no
 //                   retraining. Optional learned identity embedding per entity
-//                   (`identity_embedding`, default on: it measured better, docs/tgn.md),
+//                   (`identity_embedding`, default on: it measured better,
+//                   docs/bench/tgn_train.md),
 //                   concatenated to (x, y).
 //   spatial         3 x [GAT (2 heads, concatenated) -> BatchNorm -> ReLU -> dropout].
 //                   GAT semantics are PyTorch Geometric's GATConv: x'_i = bias +
@@ -26,11 +27,11 @@
 //   heads           linear, from the GRU output k: per entity the action of step k
 //                   (classes: idle + vocabulary) and its target (classes: none + entities;
 //                   the entity itself is masked out), and END (2 classes).
-//   loss            sum of the three mean cross-entropies; Adam; mini-batches of whole
-//                   demonstrations in a seeded shuffled order.
-//   stopping        at `max_epochs`, or at a plateau: the loss has not dropped by more than
-//                   `plateau_delta` over the last `plateau_patience` epochs while the step
-//                   accuracy on the training demonstrations is 1.
+//   loss            sum of the three mean cross-entropies; Adam with the gradient norm clipped
+//                   at 1; mini-batches of whole demonstrations in a seeded shuffled order.
+//   stopping        at `max_epochs`, or at a plateau: the best loss of the last
+//                   `plateau_patience` epochs differs by less than `plateau_delta` from the
+//                   best loss of the `plateau_patience` epochs before them.
 //   determinism     torch::manual_seed(seed), at::set_num_threads(threads) (default 1: the
 //                   tensors are tiny and one thread is both fastest and reproducible).
 //
@@ -65,11 +66,12 @@ struct TrainOptions {
   int gat_layers = 3;
   int gru_layers = 2;
   int gru_hidden = 64;
-  bool identity_embedding = true;  ///< learned per-entity embedding added to (x, y)
+  bool identity_embedding = true;  ///< learned per-entity embedding concatenated to (x, y)
   int identity_dim = 8;
   double dropout = 0.1;
   double learning_rate = 5e-3;
-  int batch_demos = 8;             ///< demonstrations per mini-batch
+  int batch_demos = 8;             ///< at most this many demonstrations per mini-batch, and at
+                                   ///< most a quarter of them (at least 4 steps per epoch)
   int plateau_patience = 20;       ///< epochs
   double plateau_delta = 1e-3;     ///< loss
   int threads = 1;                 ///< at::set_num_threads

@@ -7,6 +7,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "ddace/exec/diff_drive_execution.h"
+
 
 namespace ddace::pipeline {
 
@@ -85,6 +87,8 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
   std::unique_ptr<exec::ExecutionModel> execution;
   if (options.execution == "ideal") {
     execution = std::make_unique<exec::IdealExecution>();
+  } else if (options.execution == "diffdrive") {
+    execution = std::make_unique<exec::DiffDriveExecution>(spec.arrival_radius, options.noise_m, options.seed);
   } else {
     throw Error("--execution '" + options.execution + "' is not one of ideal, diffdrive");
   }

@@ -250,6 +250,8 @@ Tensor correctOf(const NetworkImpl::Heads& h, const Batch& batch, bool gnn) {
   return end.eq(batch.end).logical_and(batch.end.eq(1).logical_or(labels_ok));
 }
 
+constexpr double kClipNorm = 1.0;  // gradient norm clipping (also in the Python reference)
+
 /// SplitMix64 for the shuffled demonstration order.
 struct Rng {
   uint64_t state;
@@ -467,7 +469,8 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
   ModelInfo& info = impl->info;
   info.stop_reason = "max_epochs";
-  const size_t bs = static_cast<size_t>(options.batch_demos);
+  // At least 4 optimiser steps per epoch when there are few demonstrations (few-shot).
+  const size_t bs = std::min(static_cast<size_t>(options.batch_demos), std::max<size_t>(1, (seqs.size() + 3) / 4));
   for (int epoch = 1; epoch <= options.max_epochs; ++epoch) {
     for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[rng.next() % i]);
     net->train();
@@ -480,6 +483,8 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
       adam.zero_grad();
       const Tensor loss = lossOf(run(net, batch), batch, gnn);
       loss.backward();
+      // GRUs on few sequences occasionally take a huge step; clipping keeps training monotone.
+      torch::nn::utils::clip_grad_norm_(net->parameters(), kClipNorm);
       adam.step();
       total += loss.item<double>();
       ++batches;
@@ -499,14 +504,16 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
       progress->flags(flags);
       progress->precision(precision);
     }
+    // Plateau: the best loss of the last `p` epochs is within plateau_delta of the best of
+    // the `p` before them (a recovering spike is not a plateau).
     const int p = options.plateau_patience;
-    if (epoch > p && (gnn || rec.step_accuracy >= 1.0)) {
+    if (epoch >= 2 * p) {
       double before = std::numeric_limits<double>::infinity(), recent = before;
-      for (int e = 0; e < epoch; ++e) {
+      for (int e = epoch - 2 * p; e < epoch; ++e) {
         double& best = e < epoch - p ? before : recent;
         best = std::min(best, info.history[static_cast<size_t>(e)].loss);
       }
-      if (before - recent < options.plateau_delta) {
+      if (std::abs(before - recent) < options.plateau_delta) {
         info.stop_reason = "plateau";
         break;
       }
@@ -626,6 +633,8 @@ SequenceModel SequenceModel::load(const std::string& model_dir) {
   if (!fs::is_directory(dir)) throw Error(Diagnostic{model_dir, 0, 0, "not a model directory (does not exist)"});
   auto impl = std::make_shared<Impl>();
   const std::string manifest = (dir / files::kManifest).string(), weights = (dir / files::kWeights).string();
+  if (!fs::exists(manifest))
+    throw Error(Diagnostic{manifest, 0, 0, "missing: " + model_dir + " is not a model directory (ddace train writes one)"});
   impl->spec = task::readTaskYaml((dir / files::kTask).string());
   uint64_t hash = 0, bytes = 0;
   impl->info = files::parseManifest(manifest, impl->spec, &hash, &bytes);

@@ -54,7 +54,7 @@ const tgn::SequenceModel& task4Model() {
 class ReachesFullStepAccuracy : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(ReachesFullStepAccuracy, OnTheTrainingDemonstrations) {
-  const task::TaskDir train = generate(GetParam(), 20);
+  const task::TaskDir train = generate(GetParam(), 10);
   tgn::TrainOptions o;
   std::ostringstream progress;
   const tgn::SequenceModel m = tgn::SequenceModel::train(train, o, &progress);
@@ -226,15 +226,15 @@ TEST(SequenceModel, FullGraphVariantAttendsOverEveryPair) {
 }
 
 TEST(SequenceModel, GnnBaselineRollsOutItsOwnTrajectories) {
-  const task::TaskDir train = generate("task4", 4);
+  const task::TaskDir train = generate("task4", 3);
   tgn::TrainOptions o;
   o.variant = "gnn";
-  o.max_epochs = 30;
+  o.max_epochs = 20;
   std::ostringstream progress;
   const auto m = tgn::SequenceModel::train(train, o, &progress);
   EXPECT_NE(progress.str().find("frame label accuracy"), std::string::npos);
   // Labels of the next frame are mostly right after a short training.
-  EXPECT_GT(m.stepAccuracy(train.demos), 0.8);
+  EXPECT_GT(m.stepAccuracy(train.demos), 0.8) << progress.str();
   EXPECT_THROW(m.predictNext(train.demos[0].snapshots), Error);
   const task::Demonstration& d = train.demos[0];
   const task::Demonstration r = tgn::rolloutGnn(m, d, 50);
