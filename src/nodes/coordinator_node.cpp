@@ -10,6 +10,8 @@
 // Decisions are requested only when the run starts or every active entity reported its
 // segment done (the state machine decides); the timer only checks time-outs.
 // Parameters: config/execution.yaml, section coordinator.
+#include <map>
+#include <optional>
 #include <sstream>
 
 #include <ros/ros.h>
@@ -52,6 +54,8 @@ class CoordinatorNode {
     const double tick_hz = ros_exec::param(pnh, "timeout_check_hz", 10.0);
     if (!(tick_hz > 0)) throw Error("parameter '" + pnh.resolveName("timeout_check_hz") + "' must be positive");
     autostart_ = ros_exec::param(pnh, "autostart", false);
+    resend_after_s_ = ros_exec::param(pnh, "resend_after_s", 1.0);
+    if (!(resend_after_s_ > 0)) throw Error("parameter '" + pnh.resolveName("resend_after_s") + "' must be positive");
 
     for (size_t i = 0; i < spec_.entities.size(); ++i) {
       const auto& e = spec_.entities[i];
@@ -89,6 +93,12 @@ class CoordinatorNode {
   void apply(const exec::CoordinatorOutput& out) {
     for (const auto& line : out.log) ROS_INFO("coordinator: %s", line.c_str());
     const ros::Time stamp = ros::Time::now();
+    if (out.stop_all || out.state_changed) {
+      // Whatever was asked before no longer needs an answer.
+      if (coordinator_->state() != exec::RunState::Deciding) unanswered_decision_.reset();
+      if (coordinator_->state() != exec::RunState::Planning) unanswered_paths_.clear();
+      if (coordinator_->state() != exec::RunState::Executing) unanswered_segments_.clear();
+    }
     // Stops first: a robot must never keep an old segment while a new one is planned.
     std::vector<int> stop = out.stop;
     if (out.stop_all)
@@ -118,6 +128,7 @@ class CoordinatorNode {
       s.arrival_radius_m = arrival_radius_m_;
       s.timeout_s = seg.timeout_s;
       segment_pubs_[seg.entity].publish(s);
+      unanswered_segments_[seg.segment_id] = {seg.entity, s, ros::WallTime::now()};
     }
     for (const auto& p : out.paths) {
       ddace::PathRequest r;
@@ -132,6 +143,7 @@ class CoordinatorNode {
       r.goal.y = p.goal.y();
       r.points = path_points_;
       path_pub_.publish(r);
+      unanswered_paths_[p.id] = {r, ros::WallTime::now()};
     }
     if (out.decision) {
       ddace::DecisionRequest r;
@@ -152,6 +164,8 @@ class CoordinatorNode {
         r.history.push_back(s);
       }
       decision_pub_.publish(r);
+      unanswered_decision_ = r;
+      decision_sent_ = ros::WallTime::now();
     }
     if (out.state_changed || !out.segments.empty() || !out.stop.empty() || out.decision) publishState();
   }
@@ -162,6 +176,7 @@ class CoordinatorNode {
   }
 
   void onDecision(const ddace::Decision& m) {
+    if (unanswered_decision_ && unanswered_decision_->id == m.id) unanswered_decision_.reset();
     if (!m.error.empty()) {
       apply(coordinator_->onDecisionError(m.id, "sequence_node: " + m.error, now()));
       return;
@@ -178,6 +193,7 @@ class CoordinatorNode {
   }
 
   void onPath(const ddace::PathResponse& m) {
+    unanswered_paths_.erase(m.id);
     exec::PlannedPath p;
     std::string error = m.error;
     if (error.empty()) {
@@ -192,6 +208,7 @@ class CoordinatorNode {
   }
 
   void onStatus(int entity, const ddace::SegmentStatus& m) {
+    unanswered_segments_.erase(m.segment_id);
     apply(coordinator_->onSegmentStatus(entity, m.segment_id, static_cast<exec::SegmentState>(m.status), m.progress,
                                         m.message, now()));
   }
@@ -206,7 +223,35 @@ class CoordinatorNode {
         ROS_INFO_THROTTLE(5.0, "coordinator: autostart waits for %s", missing.c_str());
       }
     }
+    resendUnanswered();
     apply(coordinator_->onTick(now()));
+  }
+
+  /// At-least-once delivery: a request or segment nobody acknowledged within resend_after_s
+  /// goes out again, unchanged (same id), e.g. when a node subscribed just too late. The
+  /// receivers ignore an id they already handle; this never makes a new decision.
+  void resendUnanswered() {
+    const ros::WallTime now = ros::WallTime::now();
+    auto due = [&](ros::WallTime& sent) {
+      if ((now - sent).toSec() < resend_after_s_) return false;
+      sent = now;
+      return true;
+    };
+    if (unanswered_decision_ && due(decision_sent_)) {
+      ROS_WARN("coordinator: decision request %u unanswered for %.1f s, sending it again", unanswered_decision_->id,
+               resend_after_s_);
+      decision_pub_.publish(*unanswered_decision_);
+    }
+    for (auto& [id, p] : unanswered_paths_)
+      if (due(p.sent)) {
+        ROS_WARN("coordinator: path request %u unanswered, sending it again", id);
+        path_pub_.publish(p.msg);
+      }
+    for (auto& [id, seg] : unanswered_segments_)
+      if (due(seg.sent)) {
+        ROS_WARN("coordinator: segment %u of %s not acknowledged, sending it again", id, seg.msg.entity.c_str());
+        segment_pubs_[seg.entity].publish(seg.msg);
+      }
   }
 
   /// Every collaborator is subscribed: a request published now is not lost.
@@ -387,6 +432,21 @@ class CoordinatorNode {
     }
     marker_pub_.publish(arr);
   }
+
+  struct SentPath {
+    ddace::PathRequest msg;
+    ros::WallTime sent;
+  };
+  struct SentSegment {
+    int entity;
+    ddace::Segment msg;
+    ros::WallTime sent;
+  };
+  std::optional<ddace::DecisionRequest> unanswered_decision_;
+  ros::WallTime decision_sent_;
+  std::map<uint32_t, SentPath> unanswered_paths_;
+  std::map<uint32_t, SentSegment> unanswered_segments_;
+  double resend_after_s_ = 1.0;
 
   ros::NodeHandle nh_;
   task::TaskSpec spec_;

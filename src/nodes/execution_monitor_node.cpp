@@ -8,7 +8,8 @@
 //
 //   in  /coordinator/state, /ddace/decision_request, /robots/E/segment, /robots/E/segment_status
 //   params  task (task directory), ground_truth_demo (index into demos/, -1 = none),
-//           result_file (optional: the report as JSON), timeout_s (give up; 0 = never)
+//           result_file (optional: the metrics as JSON), report_file (optional: the printed
+//           report), timeout_s (give up; 0 = never)
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
@@ -52,6 +53,7 @@ class Monitor {
       have_gt_ = true;
     }
     result_file_ = ros_exec::param<std::string>(pnh, "result_file", "");
+    report_file_ = ros_exec::param<std::string>(pnh, "report_file", "");
     const double timeout_s = ros_exec::param(pnh, "timeout_s", 0.0);
     for (const auto& e : spec_.entities) {
       if (e.kind == task::EntityKind::Goal) continue;
@@ -183,6 +185,7 @@ class Monitor {
     const int violations = this->violations();
     os << "decisions requested while a segment was running: " << violations << "\n";
     std::cout << os.str() << std::flush;
+    if (!report_file_.empty()) std::ofstream(report_file_) << os.str();
     if (!result_file_.empty()) {
       std::ofstream f(result_file_);
       f << "{\"task\": \"" << spec_.name << "\", \"state\": \"" << s.state_name << "\", \"steps\": " << executed.size()
@@ -195,7 +198,7 @@ class Monitor {
 
   task::TaskSpec spec_;
   task::Demonstration gt_;
-  std::string gt_file_, result_file_;
+  std::string gt_file_, result_file_, report_file_;
   bool have_gt_ = false, reported_ = false;
   struct Seg {
     std::string key;

@@ -5,10 +5,16 @@
 //   out /ddace/path (PathResponse)
 //
 // Path sources (parameter `source`):
+//   library        the Gaussian-process primitive library (`library`: a primitives.yaml or a
+//                  model directory holding one): gp::PrimitiveLibrary::generate, with the
+//                  per-point standard deviation; a key never demonstrated falls back as
+//                  gp/primitives.h says and the response says so (fell_back)
 //   demonstration  the first demonstrated trajectory of the token's key in `task`'s demos/,
 //                  retargeted to the new start and goal by a similarity transform; zero
 //                  standard deviation (one demonstration has no spread).
 // Parameters: config/execution.yaml, section gp_path.
+#include <filesystem>
+#include <functional>
 #include <memory>
 
 #include <ros/ros.h>
@@ -18,6 +24,7 @@
 
 #include "../ros/exec_conversions.h"
 #include "ddace/exec/replay.h"
+#include "ddace/gp/primitives.h"
 
 namespace ddace {
 namespace {
@@ -30,7 +37,22 @@ class GpPathNode {
     default_points_ = ros_exec::param(pnh, "points", 100);
     if (default_points_ < 2) throw Error("parameter '" + pnh.resolveName("points") + "' must be at least 2");
     const std::string source = ros_exec::param<std::string>(pnh, "source", "demonstration");
-    if (source == "demonstration") {
+    if (source == "library") {
+      std::string path = ros_exec::param<std::string>(pnh, "library", "");
+      if (path.empty()) throw Error("source 'library' needs parameter '" + pnh.resolveName("library") + "'");
+      if (std::filesystem::is_directory(path)) path = (std::filesystem::path(path) / gp::kPrimitivesFile).string();
+      spec_ = ros_exec::loadTaskSpec(task_path);
+      library_ = std::make_unique<gp::PrimitiveLibrary>(gp::PrimitiveLibrary::load(path));
+      generate_ = [this](const task::Token& t, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
+        // The library's own entity indices: map by key.
+        const gp::GeneratedPath p = library_->generate(task::tokenKey(t, spec_), s, g, points_);
+        if (p.fell_back) ROS_WARN("gp_path: %s was never demonstrated; using %s", task::tokenKey(t, spec_).c_str(),
+                                  p.source_key.c_str());
+        fell_back_ = p.fell_back;
+        return exec::PlannedPath{p.points, p.stddev};
+      };
+      ROS_INFO("gp_path: primitive library %s", path.c_str());
+    } else if (source == "demonstration") {
       const task::TaskDir dir = task::loadTaskDir(task_path);
       spec_ = dir.spec;
       demo_paths_ = std::make_unique<exec::DemonstrationPaths>(dir.spec, dir.demos);
@@ -39,7 +61,7 @@ class GpPathNode {
       };
       ROS_INFO("gp_path: %zu demonstrated motion keys from %s", demo_paths_->size(), task_path.c_str());
     } else {
-      throw Error("parameter '" + pnh.resolveName("source") + "' = '" + source + "': expected 'demonstration'");
+      throw Error("parameter '" + pnh.resolveName("source") + "' = '" + source + "': expected 'library' or 'demonstration'");
     }
     pub_ = nh.advertise<ddace::PathResponse>("/ddace/path", 50);
     sub_ = nh.subscribe("/ddace/path_request", 50, &GpPathNode::onRequest, this);
@@ -56,8 +78,10 @@ class GpPathNode {
       if (!token.isMotion()) throw Error("token " + task::tokenKey(token, spec_) + " is not a motion (no target)");
       const Eigen::Vector2d start(req.start.x, req.start.y), goal(req.goal.x, req.goal.y);
       if (!start.allFinite() || !goal.allFinite()) throw Error("start or goal is not finite");
-      const exec::PlannedPath p =
-          exec::resampleByArcLength(generate_(token, start, goal), req.points >= 2 ? req.points : default_points_);
+      points_ = req.points >= 2 ? req.points : default_points_;
+      fell_back_ = false;
+      const exec::PlannedPath p = exec::resampleByArcLength(generate_(token, start, goal), points_);
+      out.fell_back = fell_back_;
       ros_exec::toMsg(p, frame_id_, out.header.stamp, out.path, out.progress, out.stddev_m);
     } catch (const std::exception& e) {
       out.error = e.what();
@@ -70,6 +94,9 @@ class GpPathNode {
   std::string frame_id_;
   int default_points_ = 100;
   std::unique_ptr<exec::DemonstrationPaths> demo_paths_;
+  std::unique_ptr<gp::PrimitiveLibrary> library_;
+  int points_ = 100;
+  bool fell_back_ = false;
   std::function<exec::PlannedPath(const task::Token&, const Eigen::Vector2d&, const Eigen::Vector2d&)> generate_;
   ros::Publisher pub_;
   ros::Subscriber sub_;

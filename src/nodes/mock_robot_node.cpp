@@ -177,6 +177,7 @@ class MockRobotNode {
       }
       return;
     }
+    if (e.moving && m.segment_id == e.segment_id) return;  // a re-sent copy of the running segment
     try {
       const exec::PlannedPath p = ros_exec::fromMsg(m.path, m.stddev_m, "/robots/" + spec_.entities[i].name + "/segment");
       if (p.points.empty()) throw Error("segment path is empty");

@@ -112,6 +112,7 @@ class PathFollowerNode {
       stopRobot(r, ddace::SegmentStatus::ABORTED, "stopped by the coordinator");
       return;
     }
+    if (r.follower && m.segment_id == r.segment_id) return;  // a re-sent copy of the running segment
     if (estopped_) {
       publishStatus(r, m.segment_id, ddace::SegmentStatus::ABORTED, 0, 0, "e-stop is active");
       publishWheels(r, 0, 0);

@@ -4,12 +4,15 @@
 //   out /ddace/decision (Decision)
 //
 // Policy sources (parameter `policy`):
+//   model   the temporal graph network of a model directory (`model`, written by
+//           `ddace train`): tgn::SequenceModel::predictNext on the snapshot history
 //   replay  the step sequence of one demonstration (`replay_csv`, or `task`'s demos/ by
 //           `replay_demo` index), open loop: step k for the k-th request, then END.
 // Parameters: config/execution.yaml, section sequence.
 #include <algorithm>
 #include <filesystem>
 #include <functional>
+#include <memory>
 
 #include <ros/ros.h>
 
@@ -18,6 +21,7 @@
 
 #include "../ros/exec_conversions.h"
 #include "ddace/exec/replay.h"
+#include "ddace/tgn/sequence_model.h"
 
 namespace ddace {
 namespace {
@@ -42,14 +46,30 @@ class SequenceNode {
     const std::string task_path = ros_exec::param<std::string>(pnh, "task", "");
     spec_ = ros_exec::loadTaskSpec(task_path);
     const std::string policy = ros_exec::param<std::string>(pnh, "policy", "replay");
-    if (policy == "replay") {
+    if (policy == "model") {
+      const std::string dir = ros_exec::param<std::string>(pnh, "model", "");
+      if (dir.empty()) throw Error("policy 'model' needs parameter '" + pnh.resolveName("model") + "' (a model directory)");
+      model_ = std::make_unique<tgn::SequenceModel>(tgn::SequenceModel::load(dir));
+      if (model_->spec().entityNames() != spec_.entityNames())
+        throw Error("model " + dir + " was trained on other entities than the task " + task_path + " has");
+      policy_ = [this](const std::vector<task::Snapshot>& h) {
+        const tgn::Prediction p = model_->predictNext(h);
+        exec::Decision d;
+        d.end = p.end;
+        d.tokens = p.tokens;
+        last_probabilities_ = p.token_probabilities;
+        last_end_probability_ = p.end_probability;
+        return d;
+      };
+      ROS_INFO("sequence: model %s (variant %s)", dir.c_str(), model_->variant().c_str());
+    } else if (policy == "replay") {
       std::string csv = ros_exec::param<std::string>(pnh, "replay_csv", "");
       if (csv.empty()) csv = demoFile(task_path, ros_exec::param(pnh, "replay_demo", 0), pnh.resolveName("replay_demo"));
       demo_ = task::readDemonstrationCsv(csv, spec_);
       policy_ = [this](const std::vector<task::Snapshot>& h) { return exec::replayDecision(demo_, h); };
       ROS_INFO("sequence: replaying the %zu steps of %s", demo_.steps.size(), csv.c_str());
     } else {
-      throw Error("parameter '" + pnh.resolveName("policy") + "' = '" + policy + "': expected 'replay'");
+      throw Error("parameter '" + pnh.resolveName("policy") + "' = '" + policy + "': expected 'model' or 'replay'");
     }
     pub_ = nh.advertise<ddace::Decision>("/ddace/decision", 5);
     sub_ = nh.subscribe("/ddace/decision_request", 5, &SequenceNode::onRequest, this);
@@ -89,10 +109,14 @@ class SequenceNode {
         history.push_back(std::move(t));
       }
       if (history.empty()) throw Error("request has an empty snapshot history");
+      last_probabilities_.clear();
+      last_end_probability_ = -1;
       const exec::Decision d = policy_(history);
       out.end = d.end;
-      out.end_probability = d.end ? 1.0 : 0.0;
-      for (const auto& t : d.tokens) out.tokens.push_back(ros_exec::toMsg(t, spec_));
+      out.end_probability = last_end_probability_ >= 0 ? last_end_probability_ : (d.end ? 1.0 : 0.0);
+      for (size_t i = 0; i < d.tokens.size(); ++i)
+        out.tokens.push_back(ros_exec::toMsg(
+            d.tokens[i], spec_, i < last_probabilities_.size() ? last_probabilities_[i] : 1.0));
       std::string line;
       for (const auto& t : d.tokens) line += " " + task::tokenKey(t, spec_);
       ROS_INFO("sequence: decision %u (step %d):%s", req.id, req.step + 1, d.end ? " END" : line.c_str());
@@ -106,6 +130,9 @@ class SequenceNode {
 
   task::TaskSpec spec_;
   task::Demonstration demo_;
+  std::unique_ptr<tgn::SequenceModel> model_;
+  std::vector<double> last_probabilities_;
+  double last_end_probability_ = -1;
   std::function<exec::Decision(const std::vector<task::Snapshot>&)> policy_;
   ros::Publisher pub_;
   ros::Subscriber sub_;

@@ -19,6 +19,7 @@
 #include <functional>
 #include <map>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include <ros/ros.h>
@@ -32,6 +33,7 @@
 #include <ddace/SegmentStatus.h>
 #include <ddace/WheelCommand.h>
 
+#include "ddace/pipeline/evaluation.h"
 #include "ddace/task/task_dir.h"
 #include "ddace/tasks/generators.h"
 
@@ -39,14 +41,24 @@ namespace exec_test {
 
 namespace fs = std::filesystem;
 
-/// A fresh directory under ROS_HOME (or /tmp) for this test's files.
-inline std::string scratchDir(const std::string& name) {
-  const char* home = std::getenv("ROS_HOME");
-  fs::path p = fs::path(home ? home : "/tmp") / ("ddace_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(p);
-  fs::create_directories(p);
-  return p.string();
-}
+/// A fresh directory under ROS_HOME (or /tmp) for this test's files, removed at the end.
+class ScratchDir {
+ public:
+  explicit ScratchDir(const std::string& name) {
+    const char* home = std::getenv("ROS_HOME");
+    path_ = (fs::path(home ? home : "/tmp") / ("ddace_" + name + "_" + std::to_string(::getpid()))).string();
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~ScratchDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  operator const std::string&() const { return path_; }
+
+ private:
+  std::string path_;
+};
 
 /// Writes DIR/train and DIR/test of a generated family, like `ddace generate`.
 inline void generateTask(const std::string& dir, const std::string& family, int train, int test, int robots = 11) {
@@ -59,6 +71,19 @@ inline void generateTask(const std::string& dir, const std::string& family, int 
   o.demos = test;
   o.seed = 77;
   ddace::task::writeTaskDir(ddace::tasks::generate(o), dir + "/test");
+}
+
+/// Trains DIR/train into DIR/model exactly as `ddace train` does (pipeline::trainModel:
+/// the temporal graph network and the GP primitive library). Returns the model directory.
+inline std::string trainModel(const std::string& dir) {
+  const ddace::task::TaskDir train = ddace::task::loadTaskDir(dir + "/train");
+  const std::string model_dir = dir + "/model";
+  const auto t0 = std::chrono::steady_clock::now();
+  const ddace::pipeline::Model model = ddace::pipeline::trainModel(train, {}, model_dir, nullptr);
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::cout << "trained " << model_dir << " in " << s << " s (" << model.sequence.info().history.size()
+            << " epochs, step accuracy " << model.sequence.info().history.back().step_accuracy << ")\n";
+  return model_dir;
 }
 
 /// `config` with some values replaced: {"coordinator", "segment_timeout_s", "3.0"}.
@@ -152,7 +177,9 @@ class Watcher {
     subs_.push_back(nh.subscribe<ddace::DecisionRequest>("/ddace/decision_request", 20,
                                                          [this](const ddace::DecisionRequest::ConstPtr& m) {
                                                            std::lock_guard<std::mutex> l(mu_);
-                                                           requests_.push_back(m->header.stamp);
+                                                           // A re-sent request (same id) counts once.
+                                                           if (request_ids_.insert(m->id).second)
+                                                             requests_.push_back(m->header.stamp);
                                                          }));
     subs_.push_back(nh.subscribe<ddace::CoordinatorState>("/coordinator/state", 20,
                                                           [this](const ddace::CoordinatorState::ConstPtr& m) {
@@ -201,6 +228,7 @@ class Watcher {
   std::map<std::string, std::vector<Wheel>> wheels_;
   std::map<uint32_t, Seg> segments_;
   std::vector<ros::Time> requests_;
+  std::set<uint32_t> request_ids_;
   ddace::CoordinatorState state_;
   bool have_state_ = false;
 };
@@ -252,15 +280,18 @@ struct Files {
   }
 };
 
-/// Runs a generated task end-to-end on mock robots (scene and ground truth: test demo 0)
+/// Runs a generated task end-to-end on mock robots (scene and ground truth: test demo 0),
+/// with a model trained here on 10 demonstrations (`learned`) or replaying the demonstration
 /// and checks what a user depends on: the ground-truth step sequence, END, every goal
 /// condition, no decision while a segment runs, all wheels zero at the end.
-inline void runTaskEndToEnd(const std::string& family, int robots, const std::vector<std::string>& extra_args,
-                            double timeout_s) {
+inline void runTaskEndToEnd(const std::string& family, int robots, bool learned, double timeout_s) {
   ros::NodeHandle nh;
   const Files files = Files::fromParams();
-  const std::string dir = scratchDir(family);
-  generateTask(dir, family, 3, 1, robots);
+  const ScratchDir scratch(family);
+  const std::string& dir = scratch;
+  generateTask(dir, family, learned ? 10 : 3, 1, robots);
+  std::vector<std::string> extra_args;
+  if (learned) extra_args.push_back("model:=" + trainModel(dir));
   const ddace::task::TaskDir test = ddace::task::loadTaskDir(dir + "/test");
   Watcher watch(nh, test.spec);
   std::vector<std::string> args = {files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train",

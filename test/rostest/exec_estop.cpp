@@ -31,7 +31,8 @@ bool anyDriving(Watcher& w) {
 TEST(ExecEstop, ServiceAndTopicZeroEveryRobotWithinOneCycle) {
   ros::NodeHandle nh;
   const Files files = Files::fromParams();
-  const std::string dir = scratchDir("estop");
+  const ScratchDir scratch("estop");
+  const std::string& dir = scratch;
   generateTask(dir, "task4", 3, 1);
   const auto spec = ddace::task::loadTaskDir(dir + "/test").spec;
   Watcher w(nh, spec);

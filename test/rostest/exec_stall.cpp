@@ -6,7 +6,8 @@ using namespace exec_test;
 TEST(ExecStall, SegmentTimeoutAbortsTheRunWithZeroWheels) {
   ros::NodeHandle nh;
   const Files files = Files::fromParams();
-  const std::string dir = scratchDir("stall");
+  const ScratchDir scratch("stall");
+  const std::string& dir = scratch;
   generateTask(dir, "task4", 3, 1);
   const auto spec = ddace::task::loadTaskDir(dir + "/test").spec;
   const std::string config = writeConfig(files.config_file, dir + "/execution.yaml",

@@ -1,8 +1,8 @@
-// Task 2 (11 robots) end-to-end on mock robots: the whole graph of launch/execute_sim.launch.
+// Learned Task 2 (11 robots) end-to-end on mock robots with a model trained in the set-up: the whole graph of launch/execute_sim.launch.
 #include "exec_common.h"
 
 TEST(ExecTask2, CompletesWithTheGroundTruthSequenceAndEveryGoalCondition) {
-  exec_test::runTaskEndToEnd("task2", 11, {}, 90.0);
+  exec_test::runTaskEndToEnd("task2", 11, true, 90.0);
 }
 
 int main(int argc, char** argv) {

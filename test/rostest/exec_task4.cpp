@@ -1,8 +1,8 @@
-// Task 4 end-to-end on mock robots: the whole graph of launch/execute_sim.launch.
+// Learned Task 4 end-to-end on mock robots with a model trained in the set-up: the whole graph of launch/execute_sim.launch.
 #include "exec_common.h"
 
 TEST(ExecTask4, CompletesWithTheGroundTruthSequenceAndEveryGoalCondition) {
-  exec_test::runTaskEndToEnd("task4", 4, {}, 60.0);
+  exec_test::runTaskEndToEnd("task4", 4, true, 60.0);
 }
 
 int main(int argc, char** argv) {
