@@ -36,6 +36,8 @@ struct DetectorConfig {
                                      ///< apriltag: tag36h11, tag25h9, tag16h5, tagStandard41h12, ...
   // aruco
   bool aruco_subpixel = true;        ///< corner refinement CORNER_REFINE_SUBPIX
+  int aruco_subpixel_window = 2;     ///< half-size of its window, pixels; keep it below the
+                                     ///< white quiet zone or dark robot bodies pull corners out
   int aruco_window_min = 3;          ///< adaptive threshold windows, pixels: min, max, step
   int aruco_window_max = 23;         ///< (OpenCV's defaults; one window = one thresholding pass)
   int aruco_window_step = 10;

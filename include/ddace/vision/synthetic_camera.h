@@ -30,7 +30,8 @@ struct SyntheticCameraConfig {
   cv::Vec3d position{0.4, -0.02, 1.0};  ///< camera centre, table frame, metres
   cv::Point2d look_at{0.4, 0.3};        ///< table point on the optical axis
   double roll_deg = 0.0;                ///< rotation about the optical axis
-  cv::Size2d table_size{0.8, 0.6};      ///< the white table top, metres from the origin
+  cv::Size2d table_size{0.8, 0.6};      ///< the working area, metres from the origin
+  double table_margin_m = 0.06;         ///< the white table top extends this far beyond it
   double body_size_m = 0.045;           ///< robots' dark bodies under their markers
   double blur_sigma_px = 0.7;           ///< Gaussian blur (defocus)
   double noise_sigma = 2.0;             ///< Gaussian pixel noise (grey levels)

@@ -6,7 +6,8 @@
 // pixel position of every known marker (corner markers included) are searched.
 // A marker that left its region is found again at the next full-frame pass. Corner
 // markers are searched like the others (set roi.track_corners false to search them on
-// full-frame passes only).
+// full-frame passes only). With a decimating AprilTag detector, a marker missing
+// near its last position is looked for again there at full resolution.
 //
 // Configuration comes from two commented YAML files: config/markers.yaml (which
 // markers exist: family, corner markers, entity markers) and config/tracker.yaml
@@ -16,6 +17,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -119,10 +121,12 @@ class Tracker {
   long frames() const { return frames_; }
 
  private:
-  std::vector<cv::Rect> regions(const cv::Size& size) const;
+  /// Search regions around the last positions (of the ids in `only`, when given).
+  std::vector<cv::Rect> regions(const cv::Size& size, const std::set<int>* only = nullptr) const;
 
   TrackerConfig config_;
   std::unique_ptr<FiducialDetector> detector_;
+  std::unique_ptr<FiducialDetector> fine_detector_;  // AprilTag without decimation, for misses
   CameraModel camera_;
   std::optional<TableFrame> table_;
   bool fixed_table_ = false;

@@ -96,6 +96,8 @@ class ArucoDetector : public FiducialDetector {
     params_ = cv::aruco::DetectorParameters::create();
     apriltag_print_ = config.family.rfind("DICT_APRILTAG", 0) == 0;
     if (config.aruco_subpixel) params_->cornerRefinementMethod = cv::aruco::CORNER_REFINE_SUBPIX;
+    if (config.aruco_subpixel_window < 1) throw Error("aruco subpixel_window must be >= 1");
+    params_->cornerRefinementWinSize = config.aruco_subpixel_window;
     if (config.aruco_window_min < 3 || config.aruco_window_max < config.aruco_window_min ||
         config.aruco_window_step < 1)
       throw Error("aruco threshold windows: need 3 <= window_min <= window_max and window_step >= 1");

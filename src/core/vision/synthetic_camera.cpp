@@ -17,7 +17,7 @@ SyntheticCameraConfig parseSyntheticCameraConfig(const std::string& text, const 
   if (!root.IsDefined()) r.throwIfErrors();
   if (!r.expectMap(root, "the synthetic camera configuration")) r.throwIfErrors();
   r.onlyKeys(root,
-             {"width", "height", "hfov_deg", "position", "look_at", "roll_deg", "table_size", "body_size",
+             {"width", "height", "hfov_deg", "position", "look_at", "roll_deg", "table_size", "table_margin", "body_size",
               "blur_sigma", "noise_sigma", "light_amplitude", "light_period", "light_gradient", "occlusions", "seed"},
              "the synthetic camera configuration");
   c.width = r.integer(root, "width", c.width, 64, 8192);
@@ -48,6 +48,7 @@ SyntheticCameraConfig parseSyntheticCameraConfig(const std::string& text, const 
   const auto table = vec("table_size", 2, {c.table_size.width, c.table_size.height});
   c.table_size = {table[0], table[1]};
   c.roll_deg = r.number(root, "roll_deg", c.roll_deg, -180, 180);
+  c.table_margin_m = r.number(root, "table_margin", c.table_margin_m, 0.0, 10.0);
   c.body_size_m = r.number(root, "body_size", c.body_size_m, 0.0, 1.0);
   c.blur_sigma_px = r.number(root, "blur_sigma", c.blur_sigma_px, 0.0, 20.0);
   c.noise_sigma = r.number(root, "noise_sigma", c.noise_sigma, 0.0, 100.0);
@@ -105,7 +106,8 @@ SyntheticCamera::SyntheticCamera(SyntheticCameraConfig config, MarkerConfig mark
 
   background_ = cv::Mat(config_.height, config_.width, CV_8UC1, cv::Scalar(70));
   const double tw = config_.table_size.width, th = config_.table_size.height;
-  drawQuad(background_, {{0, 0, 0}, {tw, 0, 0}, {tw, th, 0}, {0, th, 0}}, 215);
+  const double mg = config_.table_margin_m;
+  drawQuad(background_, {{-mg, -mg, 0}, {tw + mg, -mg, 0}, {tw + mg, th + mg, 0}, {-mg, th + mg, 0}}, 215);
   // Some clutter on the table: darker blotches (wood grain, stains) that are not markers.
   cv::RNG clutter(config_.seed + 17);
   for (int i = 0; i < 25; ++i) {

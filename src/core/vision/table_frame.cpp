@@ -74,6 +74,8 @@ TableFrame TableFrame::fromCameraPose(const cv::Matx33d& K, const cv::Matx33d& R
   }
   const cv::Vec3d center = -(R.t() * t);
   if (center[2] <= 0) throw Error("the camera is not above the table plane (camera z <= 0 in the table frame)");
+  // The optical axis in table coordinates is R's third row: it must point down.
+  if (R(2, 2) >= 0) throw Error("the camera does not look down at the table (optical axis z >= 0 in the table frame)");
   TableFrame f;
   f.Hinv_ = K * M;
   f.H_ = f.Hinv_.inv();

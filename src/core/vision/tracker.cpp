@@ -132,8 +132,9 @@ void parseTrackerTuning(const std::string& text, const std::string& file, Tracke
   r.onlyKeys(root, {"aruco", "apriltag", "roi", "filter"}, "tracker.yaml");
   DetectorConfig& d = config.detector;
   if (const YAML::Node a = root["aruco"]; a.IsDefined() && r.expectMap(a, "'aruco'")) {
-    r.onlyKeys(a, {"subpixel", "window_min", "window_max", "window_step"}, "'aruco'");
+    r.onlyKeys(a, {"subpixel", "subpixel_window", "window_min", "window_max", "window_step"}, "'aruco'");
     d.aruco_subpixel = r.boolean(a, "subpixel", d.aruco_subpixel);
+    d.aruco_subpixel_window = r.integer(a, "subpixel_window", d.aruco_subpixel_window, 1, 50);
     d.aruco_window_min = r.integer(a, "window_min", d.aruco_window_min, 3, 999);
     d.aruco_window_max = r.integer(a, "window_max", d.aruco_window_max, 3, 999);
     d.aruco_window_step = r.integer(a, "window_step", d.aruco_window_step, 1, 999);
@@ -196,6 +197,11 @@ Tracker::Tracker(TrackerConfig config) : config_(std::move(config)) {
   config_.detector.backend = config_.markers.backend;
   config_.detector.family = config_.markers.family;
   detector_ = makeDetector(config_.detector);
+  if (config_.detector.backend == "apriltag" && config_.detector.apriltag_decimate > 1.0) {
+    DetectorConfig fine = config_.detector;
+    fine.apriltag_decimate = 1.0;
+    fine_detector_ = makeDetector(fine);
+  }
   filters_.assign(config_.markers.entities.size(), PoseFilter(config_.filter));
 }
 
@@ -211,14 +217,17 @@ void Tracker::setFixedTableFrame(const TableFrame& frame) {
   fixed_table_ = true;
 }
 
-std::vector<cv::Rect> Tracker::regions(const cv::Size& size) const {
+std::vector<cv::Rect> Tracker::regions(const cv::Size& size, const std::set<int>* only) const {
   std::vector<cv::Rect> rects;
   const cv::Rect whole(0, 0, size.width, size.height);
   for (const auto& [id, det] : last_seen_px_) {
-    if (!config_.roi.track_corners && table_ && config_.markers.isCorner(id)) continue;
+    if (only && !only->count(id)) continue;
+    if (!only && !config_.roi.track_corners && table_ && config_.markers.isCorner(id)) continue;
     cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(det.corners.begin(), det.corners.end()));
     const int m = std::max(config_.roi.min_margin_px, static_cast<int>(std::ceil(config_.roi.margin * det.sidePx())));
-    box = cv::Rect(box.x - m, box.y - m, box.width + 2 * m, box.height + 2 * m) & whole;
+    // Even origins keep a decimating detector (AprilTag) on the full frame's sampling grid.
+    const int x0 = (box.x - m) & ~1, y0 = (box.y - m) & ~1;
+    box = cv::Rect(x0, y0, box.x + box.width + m - x0, box.y + box.height + m - y0) & whole;
     if (!box.empty()) rects.push_back(box);
   }
   return mergeRegions(rects);
@@ -251,6 +260,23 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
     for (const auto& roi : result.rois)
       for (const auto& d : detector_->detect(gray_, roi))
         if (seen.insert(d.id).second) found.push_back(d);
+  }
+
+  // A decimating detector misses small markers now and then: look again at full
+  // resolution, but only where a marker that was there a moment ago is missing.
+  if (fine_detector_) {
+    std::set<int> missing;
+    for (const auto& [id, det] : last_seen_px_) missing.insert(id);
+    for (const auto& d : found) missing.erase(d.id);
+    if (!result.full_frame && !config_.roi.track_corners && table_)
+      for (const auto& c : config_.markers.corners) missing.erase(c.id);
+    if (!missing.empty()) {
+      std::set<int> seen;
+      for (const auto& d : found) seen.insert(d.id);
+      for (const auto& roi : regions(gray_.size(), &missing))
+        for (const auto& d : fine_detector_->detect(gray_, roi))
+          if (seen.insert(d.id).second) found.push_back(d);
+    }
   }
 
   // Keep configured markers only; an id seen twice (a reflection, a second print) is
