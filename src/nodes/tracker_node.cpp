@@ -126,6 +126,12 @@ class TrackerNode {
   }
 
   void onImage(const sensor_msgs::ImageConstPtr& msg) {
+    // A driver that publishes camera_info sends it along with the images: do not measure
+    // without the intrinsics it brings (raised markers would be off by centimetres).
+    if (!have_camera_ && info_sub_.getNumPublishers() > 0) {
+      ROS_INFO_THROTTLE(2.0, "tracker_node: waiting for %s", info_sub_.getTopic().c_str());
+      return;
+    }
     cv_bridge::CvImageConstPtr img;
     try {
       const bool mono = msg->encoding == "mono8" || msg->encoding == "8UC1";

@@ -21,8 +21,9 @@ struct FilterConfig {
   int reacquire_after = 3;           ///< this many consecutive mutually consistent outliers
                                      ///< mean the entity really moved (picked up and put down)
   double hold_s = 1.0;               ///< keep the last pose this long without measurements
-  double position_gain = 0.8;        ///< 1 = raw measurement; lower = smoother, more lag
-  double yaw_gain = 0.8;             ///< same for yaw
+  double position_gain = 1.0;        ///< 1 = raw measurement; lower = smoother, but lags
+                                     ///< by speed x frame period x (1 - gain) / gain
+  double yaw_gain = 1.0;             ///< same for yaw
 };
 
 class PoseFilter {
