@@ -7,7 +7,9 @@
 // Each frame shows the latest truth and carries its stamp, so the tracker's output
 // can be compared with the truth at exactly that time; a frame is rendered only when a
 // newer truth arrived (the camera never publishes two frames with one stamp).
-// Occlusion times in the camera file count from the first truth message.
+// An entity whose truth says visible = false gets a hand drawn over it (tests script
+// occlusions this way, to the frame); occlusion times in the camera file count from the
+// first truth message.
 #include <memory>
 
 #include <cv_bridge/cv_bridge.h>

@@ -26,7 +26,7 @@ ddace::EntityArray toMsg(const std::vector<vision::EntityState>& states, const r
 
 std::vector<vision::TrueEntity> trueEntities(const ddace::EntityArray& msg) {
   std::vector<vision::TrueEntity> out;
-  for (const auto& e : msg.entities) out.push_back({e.name, {e.pose.x, e.pose.y, e.pose.theta}});
+  for (const auto& e : msg.entities) out.push_back({e.name, {e.pose.x, e.pose.y, e.pose.theta}, !e.visible});
   return out;
 }
 

@@ -17,7 +17,7 @@ namespace ddace::ros_vision {
 /// Tracker states -> EntityArray in the `frame_id` frame at `stamp`.
 ddace::EntityArray toMsg(const std::vector<vision::EntityState>& states, const ros::Time& stamp,
                          const std::string& frame_id);
-/// EntityArray -> the poses the synthetic camera renders.
+/// EntityArray -> the poses the synthetic camera renders; visible = false draws a hand over it.
 std::vector<vision::TrueEntity> trueEntities(const ddace::EntityArray& msg);
 /// CameraInfo (K, D plumb_bob) -> CameraModel; invalid when K is all zero.
 vision::CameraModel fromMsg(const sensor_msgs::CameraInfo& info);

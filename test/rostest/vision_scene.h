@@ -28,7 +28,8 @@ inline void truePose(int i, double t, double& x, double& y, double& theta) {
 
 inline const char* kNames[5] = {"R1", "R2", "R3", "R4", "G1"};
 
-inline ddace::EntityArray truthMsg(double t, const ros::Time& stamp) {
+/// The truth at time t; R2 is under a hand (visible = false) while hide_r2.
+inline ddace::EntityArray truthMsg(double t, const ros::Time& stamp, bool hide_r2 = false) {
   ddace::EntityArray msg;
   msg.header.stamp = stamp;
   msg.header.frame_id = "table";
@@ -37,7 +38,7 @@ inline ddace::EntityArray truthMsg(double t, const ros::Time& stamp) {
     e.name = kNames[i];
     e.kind = i == 4 ? "goal" : "robot";
     truePose(i, t, e.pose.x, e.pose.y, e.pose.theta);
-    e.visible = true;
+    e.visible = !(hide_r2 && i == 1);
     e.last_seen = stamp;
     msg.entities.push_back(e);
   }

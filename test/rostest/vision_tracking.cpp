@@ -41,7 +41,7 @@ TEST(VisionTracking, PosesMatchTheTruthAndSurviveAnOcclusion) {
     const ros::Time now = ros::Time::now();
     const double t = (now - start).toSec();
     if (t > 3.0) break;
-    truth.publish(vision_test::truthMsg(t, now));
+    truth.publish(vision_test::truthMsg(t, now, t >= 1.0 && t < 1.5));
     ros::spinOnce();
     tf_ok = tf_ok || tf_buffer.canTransform("table", "R1", ros::Time(0));
     rate.sleep();

@@ -50,7 +50,8 @@ SyntheticCameraConfig loadSyntheticCameraConfig(const std::string& path);
 /// One entity as the camera should see it.
 struct TrueEntity {
   std::string name;
-  PlanarPose pose;  ///< table frame; the marker is drawn at yaw - the marker's yaw_offset
+  PlanarPose pose;        ///< table frame; the marker is drawn at yaw - the marker's yaw_offset
+  bool occluded = false;  ///< draw a hand over it (as well as the configured occlusions)
 };
 
 class SyntheticCamera {

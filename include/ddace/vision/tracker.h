@@ -4,7 +4,9 @@
 // Search strategy: a full-frame pass every `roi.full_frame_every` frames (and whenever
 // the table frame is not known yet); in between, only regions around the last
 // pixel position of every known marker (corner markers included) are searched.
-// A marker that left its region is found again at the next full-frame pass. Corner
+// The region of a marker that is not found grows with the time since it was last seen
+// (a robot under a hand drives on); a marker that left its region anyway is found
+// again at the next full-frame pass. Corner
 // markers are searched like the others (set roi.track_corners false to search them on
 // full-frame passes only). With a decimating AprilTag detector, a marker missing
 // near its last position is looked for again there at full resolution.
@@ -59,6 +61,8 @@ struct RoiConfig {
   int min_margin_px = 12;     ///< ... but at least this many pixels
   bool track_corners = true;  ///< also search the corner markers between full-frame passes
                               ///< (false: the table frame is re-estimated on full-frame passes only)
+  double lost_growth_mps = 0.3;  ///< the region of a marker not seen grows by this speed
+                                 ///< times the time since it was last seen
 };
 
 /// config/tracker.yaml (plus the markers).
@@ -122,7 +126,7 @@ class Tracker {
 
  private:
   /// Search regions around the last positions (of the ids in `only`, when given).
-  std::vector<cv::Rect> regions(const cv::Size& size, const std::set<int>* only = nullptr) const;
+  std::vector<cv::Rect> regions(const cv::Size& size, double stamp, const std::set<int>* only = nullptr) const;
 
   TrackerConfig config_;
   std::unique_ptr<FiducialDetector> detector_;
@@ -132,6 +136,8 @@ class Tracker {
   bool fixed_table_ = false;
   std::vector<PoseFilter> filters_;
   std::map<int, Detection> last_seen_px_;  // id -> last raw detection (region search)
+  std::map<int, double> last_seen_t_;      // id -> stamp of that detection
+  double previous_stamp_ = 0;              // stamp of the previous frame
   long frames_ = 0;
   cv::Mat gray_;
 };

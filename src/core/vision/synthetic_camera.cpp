@@ -213,7 +213,7 @@ cv::Mat SyntheticCamera::render(const std::vector<TrueEntity>& entities, double 
     drawMarker(img, em->id, em->size_m, marker_pose, em->height_m);
   }
   for (const auto& te : entities) {
-    if (!occluded(te.name, t_s)) continue;
+    if (!te.occluded && !occluded(te.name, t_s)) continue;
     // A hand: a blob over the marker with a shadow beside it.
     const cv::Point2d p = project({te.pose.x, te.pose.y, 0.08});
     const cv::Point2d q = project({te.pose.x + 0.05, te.pose.y, 0.08});

@@ -147,7 +147,8 @@ void parseTrackerTuning(const std::string& text, const std::string& file, Tracke
     d.apriltag_max_hamming = r.integer(a, "max_hamming", d.apriltag_max_hamming, 0, 2);
   }
   if (const YAML::Node n = root["roi"]; n.IsDefined() && r.expectMap(n, "'roi'")) {
-    r.onlyKeys(n, {"enabled", "full_frame_every", "margin", "min_margin_px", "track_corners"}, "'roi'");
+    r.onlyKeys(n, {"enabled", "full_frame_every", "margin", "min_margin_px", "track_corners", "lost_growth"}, "'roi'");
+    config.roi.lost_growth_mps = r.number(n, "lost_growth", config.roi.lost_growth_mps, 0.0, 100.0);
     config.roi.track_corners = r.boolean(n, "track_corners", config.roi.track_corners);
     config.roi.enabled = r.boolean(n, "enabled", config.roi.enabled);
     config.roi.full_frame_every = r.integer(n, "full_frame_every", config.roi.full_frame_every, 1, 100000);
@@ -217,14 +218,23 @@ void Tracker::setFixedTableFrame(const TableFrame& frame) {
   fixed_table_ = true;
 }
 
-std::vector<cv::Rect> Tracker::regions(const cv::Size& size, const std::set<int>* only) const {
+std::vector<cv::Rect> Tracker::regions(const cv::Size& size, double stamp, const std::set<int>* only) const {
   std::vector<cv::Rect> rects;
   const cv::Rect whole(0, 0, size.width, size.height);
   for (const auto& [id, det] : last_seen_px_) {
     if (only && !only->count(id)) continue;
     if (!only && !config_.roi.track_corners && table_ && config_.markers.isCorner(id)) continue;
     cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(det.corners.begin(), det.corners.end()));
-    const int m = std::max(config_.roi.min_margin_px, static_cast<int>(std::ceil(config_.roi.margin * det.sidePx())));
+    double margin = std::max<double>(config_.roi.min_margin_px, config_.roi.margin * det.sidePx());
+    // A marker not seen for a while may be anywhere it could have driven to since.
+    // (0 for a marker found in the previous frame: its margin covers one frame's motion)
+    const double missing_s = std::min(stamp, previous_stamp_) - last_seen_t_.at(id);
+    if (missing_s > 0) {
+      const EntityMarker* em = config_.markers.entityById(id);
+      const double size_m = em ? em->size_m : config_.markers.corner_size_m;
+      margin += config_.roi.lost_growth_mps * missing_s * det.sidePx() / size_m;
+    }
+    const int m = static_cast<int>(std::ceil(margin));
     // Even origins keep a decimating detector (AprilTag) on the full frame's sampling grid.
     const int x0 = (box.x - m) & ~1, y0 = (box.y - m) & ~1;
     box = cv::Rect(x0, y0, box.x + box.width + m - x0, box.y + box.height + m - y0) & whole;
@@ -255,7 +265,7 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
   if (result.full_frame) {
     found = detector_->detect(gray_);
   } else {
-    result.rois = regions(gray_.size());
+    result.rois = regions(gray_.size(), stamp);
     std::set<int> seen;
     for (const auto& roi : result.rois)
       for (const auto& d : detector_->detect(gray_, roi))
@@ -273,7 +283,7 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
     if (!missing.empty()) {
       std::set<int> seen;
       for (const auto& d : found) seen.insert(d.id);
-      for (const auto& roi : regions(gray_.size(), &missing))
+      for (const auto& roi : regions(gray_.size(), stamp, &missing))
         for (const auto& d : fine_detector_->detect(gray_, roi))
           if (seen.insert(d.id).second) found.push_back(d);
     }
@@ -297,11 +307,12 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
   for (const auto& [id, d] : by_id) {
     result.detections.push_back(d);
     last_seen_px_[id] = d;
+    last_seen_t_[id] = stamp;
   }
-  // Regions follow markers seen recently; forget those gone since the last full pass.
-  if (result.full_frame)
-    for (auto it = last_seen_px_.begin(); it != last_seen_px_.end();)
-      it = by_id.count(it->first) ? std::next(it) : last_seen_px_.erase(it);
+  // Regions follow markers seen recently; those unseen for longer than the hold are
+  // left to the full-frame passes.
+  for (auto it = last_seen_px_.begin(); it != last_seen_px_.end();)
+    it = stamp - last_seen_t_.at(it->first) <= config_.filter.hold_s ? std::next(it) : last_seen_px_.erase(it);
 
   std::vector<Detection> undistorted;
   for (const auto& d : result.detections) {
@@ -332,6 +343,7 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
     }
   }
   result.entities = states(stamp);
+  previous_stamp_ = stamp;
   return result;
 }
 
