@@ -3,7 +3,8 @@
 // moves data (see docs/vision.md for topics and parameters).
 //
 // Sources: image_transport topic `image_raw` (+ optional `camera_info`), or, when
-// ~video_device >= 0 or ~video_file is set, OpenCV's V4L2 / file capture.
+// ~video_device >= 0 or ~video_file is set, OpenCV's V4L2 / file capture (the frames
+// are then published on `image_raw` while somebody subscribes, e.g. rosbag).
 #include <cmath>
 #include <memory>
 
@@ -80,6 +81,8 @@ class TrackerNode {
     pnh_.param("video_height", height, 0);
     if (width > 0) cap.set(cv::CAP_PROP_FRAME_WIDTH, width);
     if (height > 0) cap.set(cv::CAP_PROP_FRAME_HEIGHT, height);
+    // The captured frames as a topic too, for rosbag and image viewers (only when watched).
+    image_transport::Publisher raw_pub = it_.advertise("image_raw", 1);
     double fps = cap.get(cv::CAP_PROP_FPS);
     pnh_.param("video_rate_hz", fps, fps > 0 ? fps : 30.0);
     ros::Rate rate(fps);
@@ -92,7 +95,14 @@ class TrackerNode {
         }
         ROS_ERROR_THROTTLE(1.0, "tracker_node: no frame from /dev/video%d", video_device_);
       } else {
-        process(frame, ros::Time::now());
+        const ros::Time stamp = ros::Time::now();
+        if (raw_pub.getNumSubscribers() > 0) {
+          std_msgs::Header h;
+          h.stamp = stamp;
+          h.frame_id = "overhead_camera";
+          raw_pub.publish(cv_bridge::CvImage(h, frame.channels() == 1 ? "mono8" : "bgr8", frame).toImageMsg());
+        }
+        process(frame, stamp);
       }
       ros::spinOnce();
       if (!video_file_.empty()) rate.sleep();
