@@ -1,0 +1,110 @@
+// bench_tgn_decision: latency of one decision (predict the next step) for 11 entities,
+// against the same forward pass in Python/PyTorch (bench/tgn_train_reference.py decision)
+// timed in the same run. Writes docs/bench/tgn_decision.md.
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <thread>
+
+#include "ddace/common/error.h"
+#include "ddace/tasks/generators.h"
+#include "ddace/tgn/sequence_model.h"
+
+namespace fs = std::filesystem;
+using namespace ddace;
+
+namespace {
+
+const fs::path kRepo = fs::path(__FILE__).parent_path().parent_path();
+
+std::string capture(const std::string& command) {
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) throw Error("cannot run: " + command);
+  std::string out;
+  char buf[4096];
+  while (size_t n = fread(buf, 1, sizeof buf, pipe)) out.append(buf, n);
+  if (pclose(pipe) != 0) throw Error("failed: " + command + "\n" + out);
+  return out;
+}
+
+double jsonNumber(const std::string& json, const std::string& key) {
+  const auto at = json.find("\"" + key + "\":");
+  if (at == std::string::npos) throw Error("reference output lacks '" + key + "': " + json);
+  return std::stod(json.substr(at + key.size() + 3));
+}
+
+std::string today() {
+  const std::time_t now = std::time(nullptr);
+  char buf[64];
+  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
+  return buf;
+}
+
+}  // namespace
+
+int main() try {
+  const int kRepeats = 300, kHistory = 6;
+  tasks::GeneratorOptions g;
+  g.family = "task2";
+  g.robots = 10;  // + G1: 11 entities
+  g.demos = 10;
+  const task::TaskDir train = tasks::generate(g);
+  const tgn::TrainOptions o;  // trained to the plateau, as a user would
+  const auto model = tgn::SequenceModel::train(train, o, nullptr);
+  const task::Demonstration& d = train.demos.front();
+  const std::vector<task::Snapshot> history(d.snapshots.begin(), d.snapshots.begin() + kHistory);
+
+  const fs::path tensors = fs::temp_directory_path() / ("ddace_bench_tgn_decision_" + std::to_string(getpid()) + ".txt");
+  tgn::writeTrainingTensors(train, o, tensors.string());
+  const std::string cmd = "/usr/bin/python3 '" + (kRepo / "bench" / "tgn_train_reference.py").string() +
+                          "' decision '" + tensors.string() + "' --history " + std::to_string(kHistory) +
+                          " --repeats " + std::to_string(kRepeats);
+
+  double cpp_ms = 1e30, py_ms = 1e30;
+  size_t tokens = 0;
+  for (int round = 0; round < 2; ++round) {
+    std::vector<double> times;
+    for (int i = 0; i < kRepeats; ++i) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const tgn::Prediction p = model.predictNext(history);
+      times.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      tokens = p.tokens.size();
+    }
+    std::sort(times.begin(), times.end());
+    cpp_ms = std::min(cpp_ms, times[times.size() / 2]);
+    py_ms = std::min(py_ms, jsonNumber(capture(cmd), "median_ms"));
+  }
+  fs::remove(tensors);
+  std::cout << "one decision, 11 entities, history of " << kHistory << ": C++ " << cpp_ms << " ms (" << tokens
+            << " tokens), Python " << py_ms << " ms\n";
+
+  fs::create_directories(kRepo / "docs" / "bench");
+  std::ofstream md(kRepo / "docs" / "bench" / "tgn_decision.md");
+  char line[512];
+  md << "# bench: tgn_decision\n\n"
+     << "Written by `bench_tgn_decision` (`ddace bench tgn_decision`), " << today() << ", "
+     << std::thread::hardware_concurrency() << "-core machine, one thread.\n"
+     << "One decision = `SequenceModel::predictNext` on a history of " << kHistory
+     << " keyframe snapshots of Task 2 with 10 robots + G1 (11 entities): GAT encoder over every snapshot, GRU, heads, "
+        "tokens and probabilities. Median of "
+     << kRepeats << " calls, best of 2 rounds. Reference: the same forward pass in Python/PyTorch "
+                    "(`bench/tgn_train_reference.py decision`), timed in the same run.\n\n"
+     << "| measure | C++ (libtorch) | reference | ratio | goal |\n|---|---|---|---|---|\n";
+  std::snprintf(line, sizeof line, "| one decision | %.3f ms | %.3f ms (Python) | C++ %.2fx faster | < 2 ms |\n", cpp_ms,
+                py_ms, py_ms / cpp_ms);
+  md << line;
+  std::snprintf(line, sizeof line, "| one decision vs the goal | %.3f ms | 2 ms (goal) | %.2f of the goal | < 2 ms |\n",
+                cpp_ms, cpp_ms / 2.0);
+  md << line;
+  std::cout << "wrote " << (kRepo / "docs" / "bench" / "tgn_decision.md").string() << "\n";
+  return 0;
+} catch (const std::exception& e) {
+  std::cerr << "bench_tgn_decision: " << e.what() << "\n";
+  return 1;
+}

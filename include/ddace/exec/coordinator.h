@@ -1,0 +1,191 @@
+// The coordinator's state machine: the event-driven execution of a learned task.
+//
+//   Idle --start--> WaitingForEntities --all tracked--> Deciding --step--> Planning
+//     --all paths--> Executing --every active entity done--> (WaitingForEntities|Deciding) ...
+//   Deciding --END--> Finished;  any failure / time-out --> Aborted;  e-stop --> EStopped
+//
+// A decision is requested only when the run starts or when *every* segment of the
+// current step has been reported done: never on a timer. onTick() only checks time-outs.
+// Goals of motion tokens are the targets' positions when the step was decided (the
+// spec's semantics); every motion token, a robot's or an object's, becomes one segment
+// for that entity; in-place tokens complete when decided.
+//
+// Owns: the run's state, the requests and segments it sends, the record of what was
+// executed. Must not: talk ROS, read clocks (time comes in as `now_s`), plan paths or
+// predict steps (those answers come in as events).
+// Units: metres, seconds; table frame.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ddace/exec/path_follower.h"
+#include "ddace/exec/simulator.h"
+#include "ddace/task/demonstration.h"
+#include "ddace/task/task_spec.h"
+
+namespace ddace::exec {
+
+enum class RunState : uint8_t {
+  Idle = 0,                ///< not started (or reset)
+  WaitingForEntities = 1,  ///< some entity is not tracked; no decision until all are
+  Deciding = 2,            ///< a decision request is out
+  Planning = 3,            ///< path requests for the step's motion tokens are out
+  Executing = 4,           ///< segments are out; waiting for every one to be done
+  Paused = 5,              ///< stopped by the user; start() resumes
+  Finished = 6,            ///< the policy said END
+  Aborted = 7,             ///< failure or time-out; reason() says which
+  EStopped = 8,            ///< emergency stop; only reset() leaves it
+};
+/// "idle", "waiting_for_entities", "deciding", ...
+const char* toString(RunState state);
+
+/// What an entity's executor reports about its segment.
+enum class SegmentState : uint8_t { Sent = 0, Accepted = 1, Running = 2, Done = 3, Failed = 4, Aborted = 5 };
+const char* toString(SegmentState state);
+
+struct CoordinatorConfig {
+  double decision_timeout_s = 10;        ///< no decision within this -> abort
+  double path_timeout_s = 10;            ///< not every path within this -> abort
+  double segment_timeout_s = 30;         ///< base time a segment may take ...
+  double segment_timeout_per_m_s = 20;   ///< ... plus this much per metre of path
+  int max_steps = 50;                    ///< more decided steps than this -> abort
+  /// Throws ddace::Error naming the first invalid field.
+  void validate() const;
+};
+
+/// The latest poses of every entity (index = task.yaml order).
+struct EntityObservation {
+  std::vector<Eigen::Vector2d> positions;  ///< metres, table frame
+  std::vector<bool> tracked;               ///< false while the entity is missing or stale
+};
+
+struct DecisionRequest {
+  uint32_t id = 0;
+  int step = 0;                            ///< index of the step to decide (0-based)
+  std::vector<task::Snapshot> history;     ///< every decision's snapshot, oldest first; last = now
+};
+
+struct PathRequest {
+  uint32_t id = 0;
+  int step = 0;
+  task::Token token;
+  Eigen::Vector2d start{0, 0};  ///< the entity's position when the step was decided
+  Eigen::Vector2d goal{0, 0};   ///< the target's position when the step was decided
+};
+
+/// One entity's part of a step, sent to the entity's executor.
+struct SegmentCommand {
+  int entity = -1;
+  uint32_t segment_id = 0;   ///< unique within a run; status reports refer to it
+  int step = 0;
+  task::Token token;
+  PlannedPath path;
+  Eigen::Vector2d goal{0, 0};
+  double timeout_s = 0;      ///< the coordinator aborts after this long
+};
+
+/// What the caller must do after an event. Empty most of the time.
+struct CoordinatorOutput {
+  std::optional<DecisionRequest> decision;
+  std::vector<PathRequest> paths;
+  std::vector<SegmentCommand> segments;
+  std::vector<int> stop;          ///< entities whose segment is cancelled: zero their wheels now
+  bool stop_all = false;          ///< stop every robot (abort, e-stop, reset)
+  bool state_changed = false;
+  std::vector<std::string> log;   ///< what happened, for the operator
+
+  bool empty() const {
+    return !decision && paths.empty() && segments.empty() && stop.empty() && !stop_all && !state_changed;
+  }
+};
+
+/// One token as it ran.
+struct TokenRecord {
+  task::Token token;
+  Eigen::Vector2d start{0, 0};
+  Eigen::Vector2d goal{0, 0};   ///< = start for in-place tokens
+  uint32_t segment_id = 0;      ///< 0 for in-place tokens
+  SegmentState state = SegmentState::Sent;
+  double progress = 0;          ///< last reported, [0, 1]
+  PlannedPath path;             ///< empty for in-place tokens
+};
+
+struct StepRecord {
+  int step = 0;
+  std::vector<TokenRecord> tokens;
+  double decided_s = 0;
+  double segments_sent_s = -1;  ///< when every segment went out (-1: not yet)
+  double finished_s = -1;       ///< when the last segment was reported done (-1: not yet)
+  bool complete = false;
+};
+
+class Coordinator {
+ public:
+  /// Throws ddace::Error when the config is invalid.
+  Coordinator(task::TaskSpec spec, CoordinatorConfig config);
+
+  /// Idle -> start a run; Paused -> resume (re-plans the unfinished tokens of the step).
+  /// Refused (empty output and a log line) in any other state.
+  CoordinatorOutput start(double now_s);
+  /// Cancels the running segments (robots stop) and holds. Refused when not running.
+  CoordinatorOutput pause(double now_s);
+  /// Stops everything and forgets the run; also leaves EStopped.
+  CoordinatorOutput reset(double now_s);
+  /// Stops every robot and holds in EStopped until reset().
+  CoordinatorOutput emergencyStop(double now_s, const std::string& reason);
+
+  CoordinatorOutput onEntities(const EntityObservation& observation, double now_s);
+  CoordinatorOutput onDecision(uint32_t request_id, const Decision& decision, double now_s);
+  /// The decision asked for cannot be made (no model, bad answer): aborts with `error`.
+  CoordinatorOutput onDecisionError(uint32_t request_id, const std::string& error, double now_s);
+  /// A generated path. An empty `path.points` or `error` not empty aborts the run.
+  CoordinatorOutput onPath(uint32_t request_id, const PlannedPath& path, const std::string& error, double now_s);
+  CoordinatorOutput onSegmentStatus(int entity, uint32_t segment_id, SegmentState state, double progress,
+                                    const std::string& message, double now_s);
+  /// Time-outs only; never starts a decision.
+  CoordinatorOutput onTick(double now_s);
+
+  RunState state() const { return state_; }
+  const std::string& reason() const { return reason_; }  ///< why Aborted/EStopped/Finished
+  const task::TaskSpec& spec() const { return spec_; }
+  const std::vector<StepRecord>& steps() const { return steps_; }
+  /// The step being worked on (decided and not yet complete), or nullptr.
+  const StepRecord* currentStep() const;
+  /// The latest observation (empty before the first).
+  const EntityObservation& observation() const { return observation_; }
+  /// Entities whose segment of the current step is not done yet.
+  std::vector<int> activeEntities() const;
+  /// Every goal condition of task.yaml against the latest positions, in order.
+  std::vector<bool> goalConditionsMet() const;
+  uint32_t decisionsRequested() const { return decisions_requested_; }
+
+ private:
+  bool allTracked() const;
+  void setState(RunState s, CoordinatorOutput& out);
+  void requestDecisionOrWait(double now_s, CoordinatorOutput& out);
+  void requestPaths(double now_s, CoordinatorOutput& out);
+  void abort(const std::string& why, CoordinatorOutput& out);
+  void stopActive(CoordinatorOutput& out);
+  void completeStepIfDone(double now_s, CoordinatorOutput& out);
+
+  task::TaskSpec spec_;
+  CoordinatorConfig config_;
+  RunState state_ = RunState::Idle;
+  std::string reason_;
+  EntityObservation observation_;
+  std::vector<task::Snapshot> history_;
+  std::vector<StepRecord> steps_;
+  uint32_t next_id_ = 1;
+  uint32_t pending_decision_ = 0;
+  double pending_since_s_ = 0;
+  std::vector<uint32_t> pending_paths_;   ///< request id per token of the current step (0 = none)
+  double segments_since_s_ = 0;
+  uint32_t decisions_requested_ = 0;
+};
+
+}  // namespace ddace::exec

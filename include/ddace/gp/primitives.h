@@ -1,0 +1,145 @@
+// Motion primitives: how an entity moves for one (entity, action, target) key, learned
+// from the demonstrations and retargeted to new starts and goals (DDACE, Sec. IV-C).
+//
+// Fitting. For every motion key (a token with a target), every segment of that key in
+// every demonstration is taken (Demonstration::segmentPath), resampled to `points`
+// points by progress (arc-length fraction, gp/canonical.h) and expressed in its own
+// canonical frame (start at the origin, start->end along +x, start-end distance 1).
+// Two GPs (gp/gaussian_process.h) are trained on all segments of the key: the x-GP
+// maps normalised progress s in [0, 1] to canonical x, the y-GP to canonical y. All
+// segments share the same progress values, so each GP is fitted on `points` distinct
+// inputs whatever the number of demonstrations. Segments shorter than
+// `min_segment_length_m` have no canonical frame and are skipped (and counted).
+//
+// Generation. The GPs' mean at `points` progress values is retargeted to the new start
+// S and goal G: p = S + |G - S| R(phi) c, phi the direction of G - S (the inverse
+// rotation, scaling and translation of the canonical frame). With `pin_endpoints` the
+// canonical mean is first corrected by a linear blend, c(s) += (1 - s)(0 - c(0)) +
+// s((1, 0) - c(1)), so the path starts exactly at S and ends exactly at G (the correction
+// is what the GP mean misses at the ends, typically < 1e-3 canonical units).
+// stddev[i] = |G - S| * sqrt((sx^2 + sy^2) / 2): the RMS of the per-axis predictive
+// standard deviations (white noise included, i.e. the spread of demonstrations),
+// in metres; it does not depend on the direction of G - S.
+//
+// Fallback for a key that was never demonstrated, in this order:
+//   1. the same entity and action toward another target,
+//   2. the same action by any entity,
+//   3. a straight line from S to G with stddev 0 (source_key "straight line");
+// within 1 and 2 the primitive with the most segments wins, ties by key order.
+// The result says so (fell_back, source_key).
+//
+// File: <modeldir>/primitives.yaml (format ddace-primitives/1), documented in docs/gp.md.
+//
+// Owns: primitives, their library and file. Must not: decide which tokens run (tgn)
+// or drive anything (exec).
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ddace/gp/gaussian_process.h"
+#include "ddace/task/demonstration.h"
+#include "ddace/task/task_dir.h"
+
+namespace ddace::gp {
+
+inline constexpr const char* kPrimitivesFormat = "ddace-primitives/1";
+inline constexpr const char* kPrimitivesFile = "primitives.yaml";
+inline constexpr const char* kStraightLine = "straight line";
+
+/// C*RBF + White with bounds for canonical coordinates: C in [1e-4, 1e2],
+/// l in [1e-2, 10] (progress units), sigma_n^2 in [1e-6, 1]; initial (0.1, 0.2, 1e-4);
+/// 2 restarts, seed 0, alpha 1e-10.
+GpOptions defaultPrimitiveGpOptions();
+
+struct PrimitiveOptions {
+  int points = 100;                   ///< progress samples per segment (distinct GP inputs)
+  double min_segment_length_m = 0.005;  ///< shorter segments are skipped, metres
+  bool pin_endpoints = true;          ///< generated paths start at S and end at G exactly
+  GpOptions gp = defaultPrimitiveGpOptions();  ///< for both the x- and the y-GP
+};
+
+struct GeneratedPath {
+  std::vector<Eigen::Vector2d> points;  ///< table frame, metres, start..goal
+  std::vector<double> stddev;           ///< per point, metres (see the header comment)
+  bool fell_back = false;               ///< true when the key was never demonstrated
+  std::string source_key;               ///< primitive actually used ("straight line" when none)
+};
+
+/// The training data of one motion key: its segments, each resampled to `points` points by
+/// progress and expressed in its own canonical frame (dimensionless).
+struct KeySegments {
+  task::Token token;
+  std::vector<std::vector<Eigen::Vector2d>> canonical;  ///< [segment][point]
+  int skipped = 0;  ///< segments shorter than min_segment_length_m
+};
+
+/// What PrimitiveLibrary::fit() trains on, by key ("R1:move:R3"). Throws ddace::Error for
+/// invalid options.
+std::map<std::string, KeySegments> canonicalSegments(const task::TaskDir& train, const PrimitiveOptions& options = {});
+
+/// One learned primitive.
+struct Primitive {
+  std::string key;     ///< "R1:move:R3"
+  std::string entity, action, target;
+  int segments = 0;          ///< segments trained on
+  int skipped_segments = 0;  ///< too short to have a canonical frame
+  GaussianProcess x, y;      ///< canonical x and y as functions of progress
+};
+
+class PrimitiveLibrary {
+ public:
+  PrimitiveLibrary() = default;
+
+  /// Fits one primitive per motion key of `train`. Throws ddace::Error for invalid options.
+  static PrimitiveLibrary fit(const task::TaskDir& train, const PrimitiveOptions& options = {});
+
+  /// Writes the library as YAML (format ddace-primitives/1). Throws ddace::Error naming
+  /// the file when it cannot be written.
+  void save(const std::string& path) const;
+  /// Reads a library written by save(). Throws ddace::Error naming the file (and the line
+  /// and column where known) and the problem: unreadable, not YAML, wrong format, a missing
+  /// or invalid field, or numbers that do not reproduce the stored likelihood.
+  static PrimitiveLibrary load(const std::string& path);
+
+  /// A path for `token` from `start` to `goal` (table frame, metres) with `points` >= 2
+  /// points. Throws ddace::Error for an in-place token, an entity index outside the
+  /// library's task, or points < 2. A start within 1 micrometre of the goal gives
+  /// `points` copies of the start (nothing to move).
+  GeneratedPath generate(const task::Token& token, const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
+                         int points = 100) const;
+  /// The same for a key "E:action:T" naming the library's entities (ddace path).
+  GeneratedPath generate(const std::string& key, const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
+                         int points = 100) const;
+
+  /// Canonical mean and per-axis standard deviation of a primitive at `points` progress
+  /// values (before retargeting; endpoint pinning applied when enabled).
+  void canonical(const Primitive& primitive, int points, std::vector<Eigen::Vector2d>& mean,
+                 std::vector<Eigen::Vector2d>& stddev) const;
+
+  const std::map<std::string, Primitive>& primitives() const { return primitives_; }
+  const std::vector<std::string>& entityNames() const { return entities_; }
+  const std::string& taskName() const { return task_; }
+  const PrimitiveOptions& options() const { return options_; }
+
+ private:
+  /// The primitive for (entity, action, target) names after the fallback rule, or null.
+  const Primitive* lookup(const std::string& entity, const std::string& action, const std::string& target,
+                          bool& fell_back) const;
+  GeneratedPath generateFrom(const Primitive* primitive, bool fell_back, const Eigen::Vector2d& start,
+                             const Eigen::Vector2d& goal, int points) const;
+  void cacheGrid();
+
+  std::string task_;
+  std::vector<std::string> entities_;
+  PrimitiveOptions options_;
+  std::map<std::string, Primitive> primitives_;
+  /// Canonical mean/stddev on the training grid, per key: generation at the default
+  /// number of points needs no GP evaluation.
+  std::map<std::string, std::pair<std::vector<Eigen::Vector2d>, std::vector<Eigen::Vector2d>>> grid_;
+};
+
+}  // namespace ddace::gp

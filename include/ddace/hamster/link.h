@@ -1,0 +1,140 @@
+// One robot's radio link: find its dongle by address, identify, run the
+// response-driven cycle, watch the link and the commands.
+//
+// Owns: the per-robot state machine used by hamster_bridge_node (and by the
+// benchmark and tests without ROS):
+//   Searching → (open a candidate port) → Identifying (send "FF\r", wait for the
+//   reply with our address) → Streaming (answer every valid sensor line with exactly
+//   one motoring line) → Lost (no valid line for link_timeout_s, or the port failed)
+//   → Searching again, starting with the port that worked. Failing to write any
+//   motoring line for link_timeout_s (flow control stuck) is a lost link too.
+// Safety: the wheels sent are the latest command converted with the calibration
+// only while that command is younger than command_timeout_s; otherwise zero. A
+// command is never extrapolated. On link loss a zero-wheel line is sent best-effort
+// before the port is closed.
+// Must not: block (every call returns at once), read a clock (time is passed in),
+// or touch ROS.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "ddace/hamster/config.h"
+#include "ddace/hamster/protocol.h"
+#include "ddace/hamster/transport.h"
+
+namespace ddace::hamster {
+
+/// Ports held by the links of one bridge, so two links never open the same dongle,
+/// plus what each port said when it was identified (to try likely ports first).
+class PortDirectory {
+ public:
+  /// False when another link holds the port (canonical path).
+  bool claim(const std::string& canonical);
+  void release(const std::string& canonical);
+  void remember(const std::string& canonical, const Address& address);
+  /// The address last identified on this port, if any.
+  std::optional<Address> known(const std::string& canonical) const;
+
+ private:
+  std::set<std::string> claimed_;
+  std::vector<std::pair<std::string, Address>> known_;
+};
+
+enum class LinkState { Searching, Identifying, Streaming };
+std::string linkStateName(LinkState state);
+
+/// Counters since the link object was created.
+struct LinkStats {
+  uint64_t lines_ok = 0;           ///< valid sensor lines from our robot
+  uint64_t lines_dropped = 0;      ///< malformed, wrong packet type, wrong address, overlong
+  uint64_t lines_sent = 0;         ///< motoring lines written
+  uint64_t write_failures = 0;     ///< motoring lines that could not be written
+  uint64_t no_robot_lines = 0;     ///< "dongle without robot" lines
+  uint64_t connects = 0;           ///< times the link reached Streaming
+  uint64_t link_losses = 0;        ///< times Streaming was left
+  uint64_t stale_command_cycles = 0;  ///< cycles answered with zero wheels because no fresh command
+  uint64_t saturated_cycles = 0;   ///< cycles whose command exceeded max_units (scaled down)
+  std::string last_drop_reason;    ///< why the last line was dropped
+  std::string last_error;          ///< last port/identification problem
+};
+
+/// One decoded sensor line and the wheels sent in reply.
+struct CycleReport {
+  double time_s = 0.0;  ///< the `now_s` of the poll that received the line
+  Sensors sensors;
+  int8_t left_sent = 0, right_sent = 0;
+  bool command_fresh = false;  ///< the wheels came from a command younger than command_timeout_s
+};
+
+class RobotLink {
+ public:
+  RobotLink(RobotConfig robot, const BridgeConfig& bridge, std::shared_ptr<PortDirectory> ports,
+            TransportFactory factory);
+  ~RobotLink();
+
+  const RobotConfig& robot() const { return robot_; }
+
+  /// Latest wheel ground speeds (m/s) received at now_s. Throws ddace::Error for a
+  /// non-finite speed (the previous command stays and ages out).
+  void setWheelCommand(double left_mps, double right_mps, double now_s);
+  /// Forgets the command at once (e.g. e-stop): the next cycle sends zero wheels.
+  void clearCommand();
+  /// LEDs and sound; kept until changed (no timeout: they cannot move the robot).
+  void setEffects(const std::array<uint8_t, 3>& left_rgb, const std::array<uint8_t, 3>& right_rgb,
+                  double buzzer_hz, uint8_t note);
+
+  /// Does everything that is due at now_s (monotonic seconds): open/identify ports,
+  /// read all available bytes, answer each valid sensor line, detect link loss.
+  /// Appends one report per valid sensor line to `reports`.
+  void poll(double now_s, std::vector<CycleReport>& reports);
+
+  LinkState state() const { return state_; }
+  const LinkStats& stats() const { return stats_; }
+  /// The port in use (Identifying/Streaming), empty otherwise.
+  std::string port() const;
+  /// Model reported by the FF reply (Unknown before the first identification).
+  Model model() const { return model_; }
+  /// Descriptor to wait on with poll(2); -1 when no port is open.
+  int fd() const;
+  /// Time of the last valid sensor line (monotonic s), negative before the first.
+  double lastLineTime() const { return last_line_s_; }
+
+ private:
+  void startSearch(double now_s);
+  void tryNextPort(double now_s);
+  void closePort(const std::string& why, double now_s, bool restart_search);
+  void handleLine(std::string_view line, double now_s, std::vector<CycleReport>& reports);
+  void drop(const std::string& why);
+
+  RobotConfig robot_;
+  BridgeConfig bridge_;
+  std::shared_ptr<PortDirectory> ports_;
+  TransportFactory factory_;
+  std::unique_ptr<Transport> transport_;
+  std::string canonical_;
+  LineAssembler assembler_;
+  LinkState state_ = LinkState::Searching;
+  Model model_ = Model::Unknown;
+  LinkStats stats_;
+
+  std::vector<std::string> candidates_;
+  size_t next_candidate_ = 0;
+  std::string preferred_port_;
+  double next_search_s_ = 0.0;
+  double opened_s_ = 0.0;
+  double next_identify_s_ = 0.0;
+  int identify_sent_ = 0;
+  double last_line_s_ = -1.0;
+  double last_write_s_ = -1.0;
+
+  bool has_command_ = false;
+  double command_left_mps_ = 0.0, command_right_mps_ = 0.0, command_s_ = 0.0;
+  Effector effects_;
+};
+
+}  // namespace ddace::hamster

@@ -1,0 +1,57 @@
+// The pipeline shared by `ddace train/eval/table` and the ROS nodes: trains the two learned
+// halves into one model directory and runs the closed-loop evaluation of a model on a
+// test set. Its own library (ddace_pipeline) because it ties tgn (libtorch) to gp, exec and eval.
+#pragma once
+
+#include <iosfwd>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "ddace/eval/metrics.h"
+#include "ddace/exec/simulator.h"
+#include "ddace/gp/primitives.h"
+#include "ddace/task/task_dir.h"
+#include "ddace/tgn/sequence_model.h"
+
+namespace ddace::pipeline {
+
+/// A trained model directory: the sequence model and (except for gnn) the primitives.
+struct Model {
+  tgn::SequenceModel sequence;
+  std::shared_ptr<gp::PrimitiveLibrary> primitives;  ///< null for the gnn variant
+};
+
+/// Trains the sequence model and fits the primitive library (not for gnn, which rolls
+/// out its own trajectories), writing both into `model_dir`.
+Model trainModel(const task::TaskDir& train, const tgn::TrainOptions& options, const std::string& model_dir,
+                 std::ostream* progress);
+/// Loads a model directory. Throws ddace::Error naming the file at fault.
+Model loadModel(const std::string& model_dir);
+
+/// Refuses (ddace::Error) a test set whose task differs from the model's: other entities
+/// (names, kinds, order) or actions outside the model's vocabulary.
+void checkSameTask(const task::TaskSpec& model, const std::string& model_dir, const task::TaskSpec& test,
+                   const std::string& test_dir);
+
+struct EvalOptions {
+  std::string execution = "ideal";  ///< ideal | diffdrive
+  double noise_m = 0;               ///< diffdrive: std-dev of the measured position, metres
+  uint64_t seed = 1;                ///< diffdrive noise seed
+};
+
+struct Evaluation {
+  std::string task, variant, execution;
+  std::vector<eval::TrialScore> scores;
+  std::vector<exec::Trial> trials;
+  eval::Summary summary;
+};
+
+Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOptions& options);
+
+/// Human-readable table: one line per trial, then the summary.
+void printEvaluation(const Evaluation& e, std::ostream& out);
+/// {"task", "variant", "execution", "trials", "osr", "ssr", "gcr", "fd", "per_trial": [...]}
+std::string evaluationJson(const Evaluation& e);
+
+}  // namespace ddace::pipeline

@@ -1,0 +1,47 @@
+// ddace eval: closed-loop evaluation of a trained model on a test set (OSR, SSR, GCR, FD).
+#include <fstream>
+#include <iostream>
+
+#include "command.h"
+#include "ddace/pipeline/evaluation.h"
+
+namespace ddace::cli {
+using namespace ddace::pipeline;
+namespace {
+
+int runEval(const std::vector<std::string>& argv) {
+  Args args(argv, {"--json", "--execution", "--noise", "--seed"});
+  args.expectAtMostPositional(2);
+  const std::string model_dir = args.positional(0, "MODELDIR");
+  const std::string test_dir = args.positional(1, "TESTDIR");
+  EvalOptions o;
+  o.execution = args.get("--execution", "ideal");
+  if (o.execution != "ideal" && o.execution != "diffdrive")
+    throw Error("--execution '" + o.execution + "' is not one of ideal, diffdrive");
+  o.noise_m = args.getDouble("--noise", 0.0);
+  if (o.noise_m < 0) throw Error("--noise must not be negative (metres)");
+  if (o.noise_m > 0 && o.execution != "diffdrive") throw Error("--noise needs --execution diffdrive");
+  o.seed = static_cast<uint64_t>(args.getInt("--seed", 1));
+
+  const Model model = loadModel(model_dir);
+  const task::TaskDir test = task::loadTaskDir(test_dir);
+  checkSameTask(model.sequence.spec(), model_dir, test.spec, test_dir);
+  const Evaluation e = evaluate(model, test, o);
+  printEvaluation(e, std::cout);
+  if (args.has("--json")) {
+    const std::string path = args.get("--json", "");
+    std::ofstream out(path);
+    if (!(out << evaluationJson(e))) throw Error(Diagnostic{path, 0, 0, "cannot write the JSON report"});
+    std::cout << "wrote " << path << "\n";
+  }
+  return 0;
+}
+
+DDACE_COMMAND({"eval",
+               "ddace eval MODELDIR TESTDIR [--json FILE] [--execution ideal|diffdrive] [--noise SIGMA_M] [--seed S]",
+               "run the learned task in closed loop on every test demonstration's start configuration and "
+               "report OSR, SSR, GCR and FD",
+               runEval});
+
+}  // namespace
+}  // namespace ddace::cli

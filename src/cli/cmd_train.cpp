@@ -1,0 +1,79 @@
+// ddace train: learn a task's step sequence (temporal graph network) into a model directory.
+#include <filesystem>
+#include <iostream>
+
+#include "command.h"
+#include "ddace/common/error.h"
+#include "ddace/task/task_dir.h"
+#include "ddace/tgn/sequence_model.h"
+#include "ddace/pipeline/evaluation.h"
+
+namespace ddace::cli {
+using namespace ddace::pipeline;
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A `ddace generate` output directory holds train/ and test/: train on train/.
+std::string trainingDir(const std::string& path) {
+  if (!fs::exists(fs::path(path) / "task.yaml") && fs::exists(fs::path(path) / "train" / "task.yaml")) {
+    std::cout << "training on " << (fs::path(path) / "train").string() << " (the training half)\n";
+    return (fs::path(path) / "train").string();
+  }
+  return path;
+}
+
+int runTrain(const std::vector<std::string>& argv) {
+  Args args(argv, {"--out", "--variant", "--epochs", "--seed", "--threads", "--patience", "--lr"},
+            {"--no-identity", "--quiet"});
+  const std::string task_path = trainingDir(args.positional(0, "TASKDIR"));
+  args.expectAtMostPositional(1);
+  const std::string out = args.require("--out");
+
+  tgn::TrainOptions options;
+  options.variant = args.get("--variant", options.variant);
+  options.max_epochs = static_cast<int>(args.getInt("--epochs", options.max_epochs));
+  const long seed = args.getInt("--seed", static_cast<long>(options.seed));
+  if (seed < 0) throw Error("option --seed: must be non-negative");
+  options.seed = static_cast<uint64_t>(seed);
+  options.threads = static_cast<int>(args.getInt("--threads", options.threads));
+  options.plateau_patience = static_cast<int>(args.getInt("--patience", options.plateau_patience));
+  options.learning_rate = args.getDouble("--lr", options.learning_rate);
+  if (args.has("--no-identity")) options.identity_embedding = false;
+  options.validate();
+
+  const task::TaskDir train = task::loadTaskDir(task_path);
+  std::cout << "training variant '" << options.variant << "' on " << train.demos.size() << " demonstrations of task '"
+            << train.spec.name << "' (" << train.spec.entities.size() << " entities), seed " << options.seed << "\n"
+            << std::flush;
+  // The sequence model, then (except for gnn) the GP primitive library, into one directory.
+  const Model trained = trainModel(train, options, out, args.has("--quiet") ? nullptr : &std::cout);
+  const tgn::SequenceModel& model = trained.sequence;
+
+  const tgn::ModelInfo& info = model.info();
+  const tgn::EpochRecord& last = info.history.back();
+  std::cout << "stopped after " << last.epoch << " epochs (" << info.stop_reason << "): loss " << last.loss << ", "
+            << (options.variant == "gnn" ? "frame label" : "step") << " accuracy " << last.step_accuracy << ", "
+            << last.seconds << " s\n";
+  std::cout << "attention edges: " << info.attention_edges.size() << " (E' has " << info.refined.kept.size() << " of "
+            << info.refined.edges.size() << " observed edges)\n";
+  if (trained.primitives) {
+    std::cout << "motion primitives: " << trained.primitives->primitives().size() << " (";
+    bool first = true;
+    for (const auto& [key, p] : trained.primitives->primitives()) {
+      std::cout << (first ? "" : ", ") << key << " x" << p.segments;
+      first = false;
+    }
+    std::cout << ")\n";
+  }
+  std::cout << "wrote " << out << " (ddace inspect " << out << " shows it)\n";
+  return 0;
+}
+
+DDACE_COMMAND({"train",
+               "ddace train TASKDIR --out MODELDIR [--variant ddace|full-graph|gnn] [--epochs N=400] [--seed S=1] "
+               "[--threads T=1] [--patience P=20] [--lr RATE] [--no-identity] [--quiet]",
+               "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR", runTrain});
+
+}  // namespace
+}  // namespace ddace::cli

@@ -1,0 +1,91 @@
+#include "ddace/eval/metrics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "ddace/eval/frechet.h"
+
+namespace ddace::eval {
+
+double TrialScore::meanFd() const {
+  if (fd.empty()) return std::numeric_limits<double>::quiet_NaN();
+  double s = 0;
+  for (double v : fd) s += v;
+  return s / fd.size();
+}
+
+namespace {
+std::vector<task::Token> sorted(std::vector<task::Token> tokens) {
+  std::sort(tokens.begin(), tokens.end());
+  return tokens;
+}
+}  // namespace
+
+TrialScore scoreTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const exec::Trial& trial,
+                      bool use_executed_paths) {
+  TrialScore s;
+  s.demo = gt.source;
+  s.gt_steps = static_cast<int>(gt.steps.size());
+  s.predicted_steps = static_cast<int>(trial.predicted.size());
+  for (int i = 0; i < s.gt_steps; ++i)
+    if (i < s.predicted_steps && sorted(trial.predicted[i].tokens) == sorted(gt.steps[i].tokens)) ++s.correct_steps;
+  s.ended_correctly = trial.ended && s.predicted_steps == s.gt_steps;
+
+  // Each executed token matches at most one ground-truth token with the same key.
+  std::vector<bool> used(trial.executed.size(), false);
+  auto match = [&](const task::Token& t) -> int {
+    for (size_t i = 0; i < trial.executed.size(); ++i)
+      if (!used[i] && trial.executed[i].token == t) {
+        used[i] = true;
+        return static_cast<int>(i);
+      }
+    return -1;
+  };
+  for (const auto& seg : gt.segments) {
+    if (!seg.token.isMotion()) continue;
+    const int i = match(seg.token);
+    const bool robot = spec.entities[seg.token.entity].kind == task::EntityKind::Robot;
+    if (robot) ++s.gt_robot_motions;
+    if (i < 0) continue;
+    const exec::ExecutedToken& ex = trial.executed[i];
+    if (robot && (ex.executed.back() - ex.goal).norm() <= spec.arrival_radius) ++s.achieved_robot_motions;
+    const exec::Path& generated = use_executed_paths || ex.planned.empty() ? ex.executed : ex.planned;
+    const auto truth = gt.segmentPath(seg);
+    if (generated.size() >= 2 && truth.size() >= 2 && (truth.back() - truth.front()).norm() > 1e-9)
+      s.fd.push_back(normalisedFrechet(generated, truth));
+  }
+
+  for (const auto& g : spec.goal_conditions) {
+    const int a = spec.entityIndex(g.entity), b = spec.entityIndex(g.at);
+    if (a < 0 || b < 0 || trial.final_positions.empty() ||
+        (trial.final_positions[a] - trial.final_positions[b]).norm() > g.tolerance)
+      s.goal_conditions_hold = false;
+  }
+  s.success = s.correct_steps == s.gt_steps && s.ended_correctly &&
+              s.achieved_robot_motions == s.gt_robot_motions && s.goal_conditions_hold;
+  return s;
+}
+
+Summary summarise(const std::vector<TrialScore>& scores) {
+  Summary m;
+  m.trials = static_cast<int>(scores.size());
+  int ok = 0, steps = 0, correct = 0, motions = 0, achieved = 0;
+  double fd = 0;
+  for (const auto& s : scores) {
+    ok += s.success;
+    steps += s.gt_steps;
+    correct += s.correct_steps;
+    motions += s.gt_robot_motions;
+    achieved += s.achieved_robot_motions;
+    for (double v : s.fd) fd += v;
+    m.fd_tokens += static_cast<int>(s.fd.size());
+  }
+  m.osr = m.trials ? static_cast<double>(ok) / m.trials : 0;
+  m.ssr = steps ? static_cast<double>(correct) / steps : 0;
+  m.gcr = motions ? static_cast<double>(achieved) / motions : 0;
+  m.fd = m.fd_tokens ? fd / m.fd_tokens : std::numeric_limits<double>::quiet_NaN();
+  return m;
+}
+
+}  // namespace ddace::eval

@@ -1,0 +1,421 @@
+#include "ddace/exec/coordinator.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace {
+std::string seconds(double s) {
+  std::ostringstream os;
+  os << s << " s";
+  return os.str();
+}
+}  // namespace
+
+#include "ddace/common/error.h"
+
+namespace ddace::exec {
+
+const char* toString(RunState s) {
+  switch (s) {
+    case RunState::Idle: return "idle";
+    case RunState::WaitingForEntities: return "waiting_for_entities";
+    case RunState::Deciding: return "deciding";
+    case RunState::Planning: return "planning";
+    case RunState::Executing: return "executing";
+    case RunState::Paused: return "paused";
+    case RunState::Finished: return "finished";
+    case RunState::Aborted: return "aborted";
+    case RunState::EStopped: return "estopped";
+  }
+  return "?";
+}
+
+const char* toString(SegmentState s) {
+  switch (s) {
+    case SegmentState::Sent: return "sent";
+    case SegmentState::Accepted: return "accepted";
+    case SegmentState::Running: return "running";
+    case SegmentState::Done: return "done";
+    case SegmentState::Failed: return "failed";
+    case SegmentState::Aborted: return "aborted";
+  }
+  return "?";
+}
+
+void CoordinatorConfig::validate() const {
+  auto positive = [](double v, const char* name) {
+    if (!(v > 0) || !std::isfinite(v)) throw Error(std::string("coordinator parameter '") + name + "' must be positive");
+  };
+  positive(decision_timeout_s, "decision_timeout_s");
+  positive(path_timeout_s, "path_timeout_s");
+  positive(segment_timeout_s, "segment_timeout_s");
+  if (!(segment_timeout_per_m_s >= 0) || !std::isfinite(segment_timeout_per_m_s))
+    throw Error("coordinator parameter 'segment_timeout_per_m_s' must be >= 0");
+  if (max_steps < 1) throw Error("coordinator parameter 'max_steps' must be at least 1");
+}
+
+Coordinator::Coordinator(task::TaskSpec spec, CoordinatorConfig config)
+    : spec_(std::move(spec)), config_(config) {
+  config_.validate();
+  if (spec_.entities.empty()) throw Error("coordinator: the task has no entities");
+}
+
+const StepRecord* Coordinator::currentStep() const {
+  if (steps_.empty() || steps_.back().complete) return nullptr;
+  return &steps_.back();
+}
+
+std::vector<int> Coordinator::activeEntities() const {
+  std::vector<int> active;
+  if (const StepRecord* s = currentStep())
+    for (const auto& t : s->tokens)
+      if (t.token.isMotion() && t.state != SegmentState::Done) active.push_back(t.token.entity);
+  return active;
+}
+
+std::vector<bool> Coordinator::goalConditionsMet() const {
+  std::vector<bool> met;
+  for (const auto& gc : spec_.goal_conditions) {
+    const int e = spec_.entityIndex(gc.entity), at = spec_.entityIndex(gc.at);
+    const bool known = e >= 0 && at >= 0 && observation_.positions.size() == spec_.entities.size();
+    met.push_back(known && (observation_.positions[e] - observation_.positions[at]).norm() <= gc.tolerance);
+  }
+  return met;
+}
+
+bool Coordinator::allTracked() const {
+  if (observation_.tracked.size() != spec_.entities.size()) return false;
+  for (bool t : observation_.tracked)
+    if (!t) return false;
+  return true;
+}
+
+void Coordinator::setState(RunState s, CoordinatorOutput& out) {
+  if (s != state_) {
+    out.log.push_back(std::string("state ") + toString(state_) + " -> " + toString(s));
+    state_ = s;
+    out.state_changed = true;
+  }
+}
+
+void Coordinator::abort(const std::string& why, CoordinatorOutput& out) {
+  reason_ = why;
+  out.log.push_back("abort: " + why);
+  stopActive(out);
+  out.stop_all = true;
+  pending_decision_ = 0;
+  pending_paths_.clear();
+  setState(RunState::Aborted, out);
+}
+
+void Coordinator::stopActive(CoordinatorOutput& out) {
+  if (StepRecord* s = steps_.empty() ? nullptr : &steps_.back()) {
+    for (auto& t : s->tokens) {
+      if (t.segment_id != 0 && t.state != SegmentState::Done && t.state != SegmentState::Failed) {
+        out.stop.push_back(t.token.entity);
+        t.state = SegmentState::Aborted;
+      }
+    }
+  }
+}
+
+void Coordinator::requestDecisionOrWait(double now_s, CoordinatorOutput& out) {
+  if (!allTracked()) {
+    setState(RunState::WaitingForEntities, out);
+    return;
+  }
+  if (static_cast<int>(steps_.size()) >= config_.max_steps) {
+    abort("the policy did not say END within max_steps = " + std::to_string(config_.max_steps) + " steps", out);
+    return;
+  }
+  task::Snapshot snap;
+  snap.row = static_cast<int>(history_.size());
+  snap.positions = observation_.positions;
+  history_.push_back(snap);
+  DecisionRequest req;
+  req.id = next_id_++;
+  req.step = static_cast<int>(steps_.size());
+  req.history = history_;
+  pending_decision_ = req.id;
+  pending_since_s_ = now_s;
+  ++decisions_requested_;
+  out.log.push_back("requesting decision " + std::to_string(req.step + 1));
+  out.decision = std::move(req);
+  setState(RunState::Deciding, out);
+}
+
+CoordinatorOutput Coordinator::start(double now_s) {
+  CoordinatorOutput out;
+  if (state_ == RunState::Idle) {
+    reason_.clear();
+    history_.clear();
+    steps_.clear();
+    requestDecisionOrWait(now_s, out);
+    out.state_changed = true;
+  } else if (state_ == RunState::Paused) {
+    if (currentStep() != nullptr)
+      requestPaths(now_s, out);  // re-plan what is left of the step from where robots stopped
+    else
+      requestDecisionOrWait(now_s, out);
+    out.state_changed = true;
+  } else {
+    out.log.push_back(std::string("start refused in state ") + toString(state_) +
+                      (state_ == RunState::Finished || state_ == RunState::Aborted || state_ == RunState::EStopped
+                           ? " (reset first)"
+                           : " (already running)"));
+  }
+  return out;
+}
+
+CoordinatorOutput Coordinator::pause(double) {
+  CoordinatorOutput out;
+  if (state_ != RunState::WaitingForEntities && state_ != RunState::Deciding && state_ != RunState::Planning &&
+      state_ != RunState::Executing) {
+    out.log.push_back(std::string("pause refused in state ") + toString(state_));
+    return out;
+  }
+  if (state_ == RunState::Deciding && !history_.empty()) history_.pop_back();
+  pending_decision_ = 0;
+  pending_paths_.clear();
+  stopActive(out);
+  setState(RunState::Paused, out);
+  return out;
+}
+
+CoordinatorOutput Coordinator::reset(double) {
+  CoordinatorOutput out;
+  stopActive(out);
+  out.stop_all = true;
+  history_.clear();
+  steps_.clear();
+  pending_decision_ = 0;
+  pending_paths_.clear();
+  reason_.clear();
+  setState(RunState::Idle, out);
+  out.state_changed = true;
+  return out;
+}
+
+CoordinatorOutput Coordinator::emergencyStop(double, const std::string& why) {
+  CoordinatorOutput out;
+  reason_ = "emergency stop: " + why;
+  out.log.push_back(reason_);
+  stopActive(out);
+  out.stop_all = true;
+  pending_decision_ = 0;
+  pending_paths_.clear();
+  setState(RunState::EStopped, out);
+  out.state_changed = true;
+  return out;
+}
+
+CoordinatorOutput Coordinator::onEntities(const EntityObservation& obs, double now_s) {
+  CoordinatorOutput out;
+  if (obs.positions.size() != spec_.entities.size() || obs.tracked.size() != spec_.entities.size())
+    throw Error("coordinator: an observation must have one position and one tracked flag per task entity (" +
+                std::to_string(spec_.entities.size()) + ")");
+  observation_ = obs;
+  if (state_ == RunState::WaitingForEntities && allTracked()) {
+    out.log.push_back("every entity is tracked");
+    requestDecisionOrWait(now_s, out);
+  }
+  return out;
+}
+
+CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double now_s) {
+  CoordinatorOutput out;
+  if (state_ != RunState::Deciding || id != pending_decision_ || id == 0) {
+    out.log.push_back("ignoring decision " + std::to_string(id) + " (not the one asked for)");
+    return out;
+  }
+  pending_decision_ = 0;
+  if (d.end) {
+    reason_ = "the policy predicted END after " + std::to_string(steps_.size()) + " steps";
+    out.log.push_back(reason_);
+    setState(RunState::Finished, out);
+    return out;
+  }
+  const int n = static_cast<int>(spec_.entities.size());
+  if (d.tokens.empty()) {
+    abort("the policy returned a step without tokens", out);
+    return out;
+  }
+  StepRecord step;
+  step.step = static_cast<int>(steps_.size());
+  step.decided_s = now_s;
+  const auto& decided = history_.back().positions;
+  std::vector<bool> seen(n, false);
+  for (const auto& tok : d.tokens) {
+    if (tok.entity < 0 || tok.entity >= n || tok.target >= n || tok.target == tok.entity || tok.action.empty()) {
+      abort("the policy returned an invalid token (entity " + std::to_string(tok.entity) + ", target " +
+                std::to_string(tok.target) + ", action '" + tok.action + "')",
+            out);
+      return out;
+    }
+    if (seen[tok.entity]) {
+      abort("the policy gave entity " + spec_.entities[tok.entity].name + " two tokens in one step", out);
+      return out;
+    }
+    seen[tok.entity] = true;
+    TokenRecord r;
+    r.token = tok;
+    r.start = decided[tok.entity];
+    r.goal = tok.isMotion() ? decided[tok.target] : r.start;
+    r.state = tok.isMotion() ? SegmentState::Sent : SegmentState::Done;
+    if (!tok.isMotion()) r.progress = 1.0;
+    step.tokens.push_back(std::move(r));
+  }
+  std::ostringstream os;
+  os << "step " << step.step + 1 << ":";
+  for (const auto& t : step.tokens) os << " " << task::tokenKey(t.token, spec_);
+  out.log.push_back(os.str());
+  steps_.push_back(std::move(step));
+  requestPaths(now_s, out);
+  return out;
+}
+
+CoordinatorOutput Coordinator::onDecisionError(uint32_t id, const std::string& error, double) {
+  CoordinatorOutput out;
+  if (state_ != RunState::Deciding || id != pending_decision_ || id == 0) return out;
+  abort("no decision for step " + std::to_string(steps_.size() + 1) + ": " + error, out);
+  return out;
+}
+
+void Coordinator::requestPaths(double now_s, CoordinatorOutput& out) {
+  StepRecord& s = steps_.back();
+  pending_paths_.assign(s.tokens.size(), 0);
+  bool any = false;
+  for (size_t i = 0; i < s.tokens.size(); ++i) {
+    TokenRecord& t = s.tokens[i];
+    if (!t.token.isMotion() || t.state == SegmentState::Done) continue;
+    PathRequest req;
+    req.id = next_id_++;
+    req.step = s.step;
+    req.token = t.token;
+    // After a pause the entity continues from where it stopped; the goal stays fixed.
+    req.start = (s.segments_sent_s >= 0 && observation_.positions.size() > static_cast<size_t>(t.token.entity))
+                    ? observation_.positions[t.token.entity]
+                    : t.start;
+    req.goal = t.goal;
+    pending_paths_[i] = req.id;
+    t.path = {};
+    t.segment_id = 0;
+    t.state = SegmentState::Sent;
+    out.paths.push_back(req);
+    any = true;
+  }
+  pending_since_s_ = now_s;
+  if (any) {
+    setState(RunState::Planning, out);
+  } else {
+    setState(RunState::Executing, out);
+    completeStepIfDone(now_s, out);
+  }
+}
+
+CoordinatorOutput Coordinator::onPath(uint32_t id, const PlannedPath& path, const std::string& error, double now_s) {
+  CoordinatorOutput out;
+  if (state_ != RunState::Planning || id == 0) return out;
+  StepRecord& s = steps_.back();
+  size_t slot = pending_paths_.size();
+  for (size_t i = 0; i < pending_paths_.size(); ++i)
+    if (pending_paths_[i] == id) slot = i;
+  if (slot == pending_paths_.size()) return out;
+  const std::string key = task::tokenKey(s.tokens[slot].token, spec_);
+  if (!error.empty() || path.points.empty()) {
+    abort("no path for " + key + ": " + (error.empty() ? "the path is empty" : error), out);
+    return out;
+  }
+  for (const auto& p : path.points)
+    if (!p.allFinite()) {
+      abort("the path for " + key + " has a non-finite point", out);
+      return out;
+    }
+  s.tokens[slot].path = path;
+  pending_paths_[slot] = 0;
+  for (uint32_t p : pending_paths_)
+    if (p != 0) return out;
+
+  // Every path is in: send all segments together so the robots start together.
+  for (auto& t : s.tokens) {
+    if (!t.token.isMotion() || t.state == SegmentState::Done) continue;
+    SegmentCommand cmd;
+    cmd.entity = t.token.entity;
+    cmd.segment_id = next_id_++;
+    cmd.step = s.step;
+    cmd.token = t.token;
+    cmd.path = t.path;
+    cmd.goal = t.goal;
+    double length = 0;
+    for (size_t i = 1; i < t.path.points.size(); ++i) length += (t.path.points[i] - t.path.points[i - 1]).norm();
+    cmd.timeout_s = config_.segment_timeout_s + config_.segment_timeout_per_m_s * length;
+    t.segment_id = cmd.segment_id;
+    t.state = SegmentState::Sent;
+    t.progress = 0;
+    out.segments.push_back(std::move(cmd));
+  }
+  s.segments_sent_s = now_s;
+  segments_since_s_ = now_s;
+  setState(RunState::Executing, out);
+  return out;
+}
+
+CoordinatorOutput Coordinator::onSegmentStatus(int entity, uint32_t segment_id, SegmentState st, double progress,
+                                               const std::string& message, double now_s) {
+  CoordinatorOutput out;
+  if (state_ != RunState::Executing || steps_.empty()) return out;
+  StepRecord& s = steps_.back();
+  TokenRecord* rec = nullptr;
+  for (auto& t : s.tokens)
+    if (t.segment_id == segment_id && t.token.entity == entity && segment_id != 0) rec = &t;
+  if (rec == nullptr || rec->state == SegmentState::Done) return out;
+  const std::string key = task::tokenKey(rec->token, spec_);
+  rec->state = st;
+  if (std::isfinite(progress)) rec->progress = progress;
+  if (st == SegmentState::Failed || st == SegmentState::Aborted) {
+    abort("segment " + key + " " + toString(st) + (message.empty() ? "" : ": " + message), out);
+    return out;
+  }
+  if (st == SegmentState::Done) {
+    rec->progress = 1.0;
+    out.log.push_back("done: " + key);
+    completeStepIfDone(now_s, out);
+  }
+  return out;
+}
+
+void Coordinator::completeStepIfDone(double now_s, CoordinatorOutput& out) {
+  StepRecord& s = steps_.back();
+  for (const auto& t : s.tokens)
+    if (t.state != SegmentState::Done) return;
+  s.finished_s = now_s;
+  s.complete = true;
+  out.log.push_back("step " + std::to_string(s.step + 1) + " complete");
+  requestDecisionOrWait(now_s, out);
+}
+
+CoordinatorOutput Coordinator::onTick(double now_s) {
+  CoordinatorOutput out;
+  if (state_ == RunState::Deciding && now_s - pending_since_s_ > config_.decision_timeout_s) {
+    abort("no decision within decision_timeout_s = " + seconds(config_.decision_timeout_s), out);
+  } else if (state_ == RunState::Planning && now_s - pending_since_s_ > config_.path_timeout_s) {
+    abort("not every path arrived within path_timeout_s = " + seconds(config_.path_timeout_s), out);
+  } else if (state_ == RunState::Executing && !steps_.empty()) {
+    for (const auto& t : steps_.back().tokens) {
+      if (t.segment_id == 0 || t.state == SegmentState::Done) continue;
+      double length = 0;
+      for (size_t i = 1; i < t.path.points.size(); ++i) length += (t.path.points[i] - t.path.points[i - 1]).norm();
+      const double timeout = config_.segment_timeout_s + config_.segment_timeout_per_m_s * length;
+      if (now_s - segments_since_s_ > timeout) {
+        std::ostringstream os;
+        os << "segment " << task::tokenKey(t.token, spec_) << " timed out after " << timeout << " s (progress "
+           << t.progress << ")";
+        abort(os.str(), out);
+        break;
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace ddace::exec

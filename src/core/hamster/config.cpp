@@ -1,0 +1,274 @@
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "ddace/common/error.h"
+#include "ddace/hamster/config.h"
+#include "ddace/hamster/transport.h"
+
+namespace ddace::hamster {
+
+WheelUnits wheelUnitsFromSpeeds(const Calibration& c, double left_mps, double right_mps) {
+  if (!std::isfinite(left_mps) || !std::isfinite(right_mps)) {
+    throw Error("wheel command is not finite (left_mps=" + std::to_string(left_mps) +
+                ", right_mps=" + std::to_string(right_mps) + ")");
+  }
+  if (!(c.left_mps_per_unit > 0.0) || !(c.right_mps_per_unit > 0.0)) {
+    throw Error("speed calibration missing: mps_per_unit must be > 0");
+  }
+  double left = left_mps / c.left_mps_per_unit;
+  double right = right_mps / c.right_mps_per_unit;
+  const double limit = std::clamp(c.max_units, 1, kMaxWheelUnits);
+  const double largest = std::max(std::fabs(left), std::fabs(right));
+  WheelUnits out;
+  if (largest > limit + 0.5) {
+    // Scale both sides together: the path follower's curvature survives saturation.
+    left *= limit / largest;
+    right *= limit / largest;
+    out.saturated = true;
+  }
+  out.left = static_cast<int8_t>(std::clamp<long>(std::lround(left), -static_cast<long>(limit), static_cast<long>(limit)));
+  out.right = static_cast<int8_t>(std::clamp<long>(std::lround(right), -static_cast<long>(limit), static_cast<long>(limit)));
+  return out;
+}
+
+void wheelSpeedsFromTwist(double v_mps, double omega_rps, double track_m, double* left_mps, double* right_mps) {
+  *left_mps = v_mps - omega_rps * track_m / 2.0;
+  *right_mps = v_mps + omega_rps * track_m / 2.0;
+}
+
+namespace {
+
+class Checker {
+ public:
+  explicit Checker(std::string file) : file_(std::move(file)) {}
+
+  void error(const YAML::Node& node, const std::string& message) {
+    const YAML::Mark m = node.Mark();
+    errors.push_back({file_, m.is_null() ? 0 : m.line + 1, m.is_null() ? 0 : m.column + 1, message});
+  }
+
+  void onlyKeys(const YAML::Node& map, const std::set<std::string>& allowed, const std::string& where) {
+    for (const auto& kv : map) {
+      const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : std::string("?");
+      if (!allowed.count(key)) {
+        std::string list;
+        for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+        error(kv.first, "unknown key '" + key + "' in " + where + " (allowed: " + list + ")");
+      }
+    }
+  }
+
+  bool text(const YAML::Node& node, const std::string& what, std::string& out) {
+    if (!node.IsScalar()) {
+      error(node, what + " must be a single value");
+      return false;
+    }
+    out = node.Scalar();
+    return true;
+  }
+
+  bool number(const YAML::Node& node, const std::string& what, double& out) {
+    std::string s;
+    if (!text(node, what, s)) return false;
+    char* end = nullptr;
+    const double v = std::strtod(s.c_str(), &end);
+    if (s.empty() || *end != '\0' || !std::isfinite(v)) {
+      error(node, what + ": '" + s + "' is not a finite number");
+      return false;
+    }
+    out = v;
+    return true;
+  }
+
+  bool positive(const YAML::Node& node, const std::string& what, double& out) {
+    double v = 0;
+    if (!number(node, what, v)) return false;
+    if (!(v > 0)) {
+      error(node, what + " must be > 0 (got " + node.Scalar() + ")");
+      return false;
+    }
+    out = v;
+    return true;
+  }
+
+  bool boolean(const YAML::Node& node, const std::string& what, bool& out) {
+    std::string s;
+    if (!text(node, what, s)) return false;
+    if (s == "true" || s == "True") {
+      out = true;
+    } else if (s == "false" || s == "False") {
+      out = false;
+    } else {
+      error(node, what + ": '" + s + "' is not true or false");
+      return false;
+    }
+    return true;
+  }
+
+  void patterns(const YAML::Node& node, const std::string& what, std::vector<std::string>& out) {
+    if (!node.IsSequence()) {
+      error(node, what + " must be a list of path patterns, e.g. [ttyUSB*]");
+      return;
+    }
+    out.clear();
+    for (const auto& item : node) {
+      std::string s;
+      if (text(item, what + " entry", s)) out.push_back(s);
+    }
+  }
+
+  std::vector<Diagnostic> errors;
+
+ private:
+  std::string file_;
+};
+
+RobotConfig parseRobot(Checker& c, const YAML::Node& node, size_t index) {
+  RobotConfig r;
+  const std::string where = "robots[" + std::to_string(index) + "]";
+  if (!node.IsMap()) {
+    c.error(node, where + " must be a mapping with name, address, calibration");
+    return r;
+  }
+  c.onlyKeys(node, {"name", "address", "model", "port_hints", "calibration"}, where);
+  if (!node["name"]) {
+    c.error(node, where + ": missing key 'name'");
+  } else if (c.text(node["name"], where + ".name", r.name)) {
+    bool ok = !r.name.empty() && (std::isalpha(static_cast<unsigned char>(r.name[0])) != 0);
+    for (char ch : r.name) ok = ok && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_');
+    if (!ok) c.error(node["name"], where + ".name '" + r.name + "' is not a valid ROS name (letters, digits, _)");
+  }
+  const std::string who = r.name.empty() ? where : "robot " + r.name;
+  std::string address;
+  if (!node["address"]) {
+    c.error(node, who + ": missing key 'address' (12 hex digits as on the wire, or AA:BB:CC:DD:EE:FF)");
+  } else if (c.text(node["address"], who + " address", address)) {
+    const auto a = Address::parse(address);
+    if (!a) {
+      c.error(node["address"], who + ": address '" + address +
+                                   "' is neither 12 hex digits (wire order) nor AA:BB:CC:DD:EE:FF");
+    } else {
+      r.address = *a;
+    }
+  }
+  if (node["model"]) {
+    std::string m;
+    if (c.text(node["model"], who + " model", m)) {
+      if (m == "hamster") {
+        r.model = Model::Hamster;
+      } else if (m == "hamster_s") {
+        r.model = Model::HamsterS;
+      } else if (m == "auto") {
+        r.model = Model::Unknown;
+      } else {
+        c.error(node["model"], who + ": model '" + m + "' is not one of hamster, hamster_s, auto");
+      }
+    }
+  }
+  if (node["port_hints"]) c.patterns(node["port_hints"], who + " port_hints", r.port_hints);
+  const YAML::Node cal = node["calibration"];
+  if (!cal) {
+    c.error(node, who + ": missing key 'calibration' (measure it with scripts/calibrate_hamster.py)");
+  } else if (!cal.IsMap()) {
+    c.error(cal, who + " calibration must be a mapping");
+  } else {
+    c.onlyKeys(cal, {"mps_per_unit", "left_mps_per_unit", "right_mps_per_unit", "max_units", "track_m"},
+               who + " calibration");
+    double both = 0;
+    if (cal["mps_per_unit"] && c.positive(cal["mps_per_unit"], who + " calibration.mps_per_unit", both)) {
+      r.calibration.left_mps_per_unit = r.calibration.right_mps_per_unit = both;
+    }
+    if (cal["left_mps_per_unit"]) {
+      c.positive(cal["left_mps_per_unit"], who + " calibration.left_mps_per_unit", r.calibration.left_mps_per_unit);
+    }
+    if (cal["right_mps_per_unit"]) {
+      c.positive(cal["right_mps_per_unit"], who + " calibration.right_mps_per_unit",
+                 r.calibration.right_mps_per_unit);
+    }
+    if (!(r.calibration.left_mps_per_unit > 0) || !(r.calibration.right_mps_per_unit > 0)) {
+      c.error(cal, who + " calibration needs mps_per_unit (or left_mps_per_unit and right_mps_per_unit)");
+    }
+    double max_units = kMaxWheelUnits;
+    if (cal["max_units"] && c.number(cal["max_units"], who + " calibration.max_units", max_units)) {
+      if (max_units < 1 || max_units > kMaxWheelUnits || max_units != std::floor(max_units)) {
+        c.error(cal["max_units"], who + " calibration.max_units must be an integer in 1..100");
+      } else {
+        r.calibration.max_units = static_cast<int>(max_units);
+      }
+    }
+    if (cal["track_m"]) c.positive(cal["track_m"], who + " calibration.track_m", r.calibration.track_m);
+  }
+  return r;
+}
+
+}  // namespace
+
+BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& file) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    throw Error(Diagnostic{file, e.mark.is_null() ? 0 : e.mark.line + 1, e.mark.is_null() ? 0 : e.mark.column + 1,
+                           "YAML syntax error: " + e.msg});
+  }
+  if (!root.IsMap()) throw Error(Diagnostic{file, 1, 1, "the Hamster config must be a mapping with a 'robots' list"});
+  Checker c(file);
+  BridgeConfig cfg;
+  cfg.scan = defaultScanPatterns();
+  c.onlyKeys(root,
+             {"port_dir", "scan", "rtscts", "command_timeout_s", "link_timeout_s", "identify_interval_s",
+              "identify_retries", "rescan_interval_s", "robots"},
+             "the Hamster config");
+  if (root["port_dir"]) c.text(root["port_dir"], "port_dir", cfg.port_dir);
+  if (root["scan"]) c.patterns(root["scan"], "scan", cfg.scan);
+  if (root["rtscts"]) c.boolean(root["rtscts"], "rtscts", cfg.rtscts);
+  if (root["command_timeout_s"]) c.positive(root["command_timeout_s"], "command_timeout_s", cfg.command_timeout_s);
+  if (root["link_timeout_s"]) c.positive(root["link_timeout_s"], "link_timeout_s", cfg.link_timeout_s);
+  if (root["identify_interval_s"]) {
+    c.positive(root["identify_interval_s"], "identify_interval_s", cfg.identify_interval_s);
+  }
+  if (root["rescan_interval_s"]) c.positive(root["rescan_interval_s"], "rescan_interval_s", cfg.rescan_interval_s);
+  double retries = cfg.identify_retries;
+  if (root["identify_retries"] && c.positive(root["identify_retries"], "identify_retries", retries)) {
+    cfg.identify_retries = static_cast<int>(retries);
+  }
+  const YAML::Node robots = root["robots"];
+  if (!robots) {
+    c.error(root, "missing key 'robots' (a list of {name, address, calibration})");
+  } else if (!robots.IsSequence() || robots.size() == 0) {
+    c.error(robots, "robots must be a non-empty list of {name, address, calibration}");
+  } else {
+    std::map<std::string, size_t> names, addresses;
+    for (size_t i = 0; i < robots.size(); ++i) {
+      RobotConfig r = parseRobot(c, robots[i], i);
+      if (!r.name.empty() && !names.emplace(r.name, i).second) {
+        c.error(robots[i]["name"], "robot name '" + r.name + "' is used twice");
+      }
+      if (robots[i].IsMap() && robots[i]["address"] && !addresses.emplace(r.address.wire(), i).second) {
+        c.error(robots[i]["address"], "address " + r.address.display() + " of robot " + r.name +
+                                          " is also used by robots[" + std::to_string(addresses[r.address.wire()]) +
+                                          "]");
+      }
+      cfg.robots.push_back(std::move(r));
+    }
+  }
+  if (!c.errors.empty()) throw Error(c.errors);
+  return cfg;
+}
+
+BridgeConfig loadBridgeConfig(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw Error(Diagnostic{path, 0, 0, "cannot read the Hamster config file"});
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parseBridgeConfig(ss.str(), path);
+}
+
+}  // namespace ddace::hamster

@@ -1,0 +1,315 @@
+#include "ddace/hamster/link.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "ddace/common/error.h"
+
+namespace ddace::hamster {
+
+bool PortDirectory::claim(const std::string& canonical) { return claimed_.insert(canonical).second; }
+
+void PortDirectory::release(const std::string& canonical) { claimed_.erase(canonical); }
+
+void PortDirectory::remember(const std::string& canonical, const Address& address) {
+  for (auto& [port, a] : known_) {
+    if (port == canonical) {
+      a = address;
+      return;
+    }
+  }
+  known_.emplace_back(canonical, address);
+}
+
+std::optional<Address> PortDirectory::known(const std::string& canonical) const {
+  for (const auto& [port, a] : known_) {
+    if (port == canonical) return a;
+  }
+  return std::nullopt;
+}
+
+std::string linkStateName(LinkState state) {
+  switch (state) {
+    case LinkState::Searching: return "searching";
+    case LinkState::Identifying: return "identifying";
+    case LinkState::Streaming: return "streaming";
+  }
+  return "?";
+}
+
+RobotLink::RobotLink(RobotConfig robot, const BridgeConfig& bridge, std::shared_ptr<PortDirectory> ports,
+                     TransportFactory factory)
+    : robot_(std::move(robot)), bridge_(bridge), ports_(std::move(ports)), factory_(std::move(factory)) {
+  bridge_.robots.clear();
+  model_ = robot_.model;
+}
+
+RobotLink::~RobotLink() {
+  if (transport_ && state_ == LinkState::Streaming) {
+    // Shutting down: leave the robot standing still.
+    try {
+      Effector zero = effects_;
+      zero.left_wheel = zero.right_wheel = 0;
+      const std::string line = encodeLine(encodeEffector(model_, zero), robot_.address);
+      transport_->write(line.data(), line.size());
+    } catch (const Error&) {
+    }
+  }
+  if (transport_) transport_->close();
+  if (!canonical_.empty()) ports_->release(canonical_);
+}
+
+void RobotLink::setWheelCommand(double left_mps, double right_mps, double now_s) {
+  // Validates (throws on NaN/inf, missing calibration) before replacing the command.
+  wheelUnitsFromSpeeds(robot_.calibration, left_mps, right_mps);
+  command_left_mps_ = left_mps;
+  command_right_mps_ = right_mps;
+  command_s_ = now_s;
+  has_command_ = true;
+}
+
+void RobotLink::clearCommand() { has_command_ = false; }
+
+void RobotLink::setEffects(const std::array<uint8_t, 3>& left_rgb, const std::array<uint8_t, 3>& right_rgb,
+                           double buzzer_hz, uint8_t note) {
+  effects_.left_led_rgb = left_rgb;
+  effects_.right_led_rgb = right_rgb;
+  effects_.buzzer_hz = std::isfinite(buzzer_hz) ? buzzer_hz : 0.0;
+  effects_.note = note;
+}
+
+std::string RobotLink::port() const { return transport_ ? transport_->name() : std::string(); }
+
+int RobotLink::fd() const { return transport_ ? transport_->fd() : -1; }
+
+void RobotLink::drop(const std::string& why) {
+  ++stats_.lines_dropped;
+  stats_.last_drop_reason = why;
+}
+
+void RobotLink::startSearch(double now_s) {
+  std::vector<std::string> patterns = robot_.port_hints;
+  candidates_ = expandPorts(patterns, bridge_.port_dir);
+  const size_t hinted = candidates_.size();
+  for (const auto& p : expandPorts(bridge_.scan, bridge_.port_dir)) {
+    if (std::find(candidates_.begin(), candidates_.end(), p) == candidates_.end()) candidates_.push_back(p);
+  }
+  // Order: the port that worked last, then hinted ports, then ports whose last
+  // identification showed our address, then unknown ports; ports known to carry
+  // another robot go last (robots can be swapped between dongles).
+  auto rank = [&](const std::string& p, size_t index) {
+    if (!preferred_port_.empty() && p == preferred_port_) return 0;
+    const auto known = ports_->known(canonicalPort(p));
+    if (known && *known == robot_.address) return 1;
+    if (index < hinted) return 2;
+    if (!known) return 3;
+    return 4;
+  };
+  std::vector<std::pair<int, size_t>> order;
+  for (size_t i = 0; i < candidates_.size(); ++i) order.emplace_back(rank(candidates_[i], i), i);
+  std::stable_sort(order.begin(), order.end());
+  std::vector<std::string> sorted;
+  for (const auto& [r, i] : order) sorted.push_back(candidates_[i]);
+  candidates_ = std::move(sorted);
+  next_candidate_ = 0;
+  next_search_s_ = now_s;
+}
+
+void RobotLink::tryNextPort(double now_s) {
+  while (next_candidate_ < candidates_.size()) {
+    const std::string path = candidates_[next_candidate_++];
+    const std::string canonical = canonicalPort(path);
+    if (!ports_->claim(canonical)) continue;  // another robot's link holds it
+    auto transport = factory_(path);
+    try {
+      transport->open();
+    } catch (const Error& e) {
+      ports_->release(canonical);
+      stats_.last_error = e.what();
+      continue;
+    }
+    transport_ = std::move(transport);
+    canonical_ = canonical;
+    assembler_.reset();
+    state_ = LinkState::Identifying;
+    opened_s_ = now_s;
+    next_identify_s_ = now_s;
+    identify_sent_ = 0;
+    return;
+  }
+  // Every candidate tried: wait before scanning again (ports may appear later).
+  if (candidates_.empty() && stats_.last_error.empty()) {
+    stats_.last_error = "no candidate port (check port_hints/scan and port_dir " + bridge_.port_dir + ")";
+  }
+  startSearch(now_s);
+  next_search_s_ = now_s + bridge_.rescan_interval_s;
+}
+
+void RobotLink::closePort(const std::string& why, double now_s, bool restart_search) {
+  if (state_ == LinkState::Streaming) {
+    ++stats_.link_losses;
+    // Best effort: if the radio still reaches the robot, make it stop.
+    try {
+      Effector zero = effects_;
+      zero.left_wheel = zero.right_wheel = 0;
+      const std::string line = encodeLine(encodeEffector(model_, zero), robot_.address);
+      transport_->write(line.data(), line.size());
+    } catch (const Error&) {
+    }
+  }
+  if (transport_) transport_->close();
+  transport_.reset();
+  if (!canonical_.empty()) ports_->release(canonical_);
+  canonical_.clear();
+  stats_.last_error = why;
+  state_ = LinkState::Searching;
+  if (restart_search) {
+    startSearch(now_s);  // the port that worked comes first
+    // Reopening flushes the port: give the zero-wheel line time to leave first
+    // (54 bytes take 5 ms at 115200 baud).
+    next_search_s_ = now_s + 0.05;
+  } else {
+    next_search_s_ = now_s;  // go on with the next candidate
+  }
+}
+
+void RobotLink::handleLine(std::string_view line, double now_s, std::vector<CycleReport>& reports) {
+  const ParsedLine parsed = parseLine(line);
+  switch (parsed.kind) {
+    case LineKind::Malformed: drop(parsed.error); return;
+    case LineKind::NoRobot:
+      ++stats_.no_robot_lines;
+      if (state_ == LinkState::Identifying) stats_.last_error = "dongle on " + port() + " has no robot linked";
+      return;
+    case LineKind::Identify:
+      if (state_ != LinkState::Identifying) return;  // a late reply to an earlier FF
+      ports_->remember(canonical_, parsed.identify.address);
+      if (parsed.identify.address != robot_.address) {
+        closePort("port " + port() + " carries robot " + parsed.identify.address.display() + ", not ours", now_s,
+                  false);
+        return;
+      }
+      if (parsed.identify.model != Model::Hamster && parsed.identify.model != Model::HamsterS) {
+        closePort("robot on " + port() + " reports model code " + std::to_string(parsed.identify.model_code) +
+                      ", which is not a Hamster (04) or Hamster-S (0E)",
+                  now_s, false);
+        return;
+      }
+      if (robot_.model != Model::Unknown && parsed.identify.model != robot_.model) {
+        closePort("robot " + robot_.address.display() + " is a " + modelName(parsed.identify.model) +
+                      " but the config says " + modelName(robot_.model),
+                  now_s, false);
+        return;
+      }
+      model_ = parsed.identify.model;
+      preferred_port_ = port();
+      state_ = LinkState::Streaming;
+      last_line_s_ = now_s;  // the link-loss clocks start now
+      last_write_s_ = now_s;
+      ++stats_.connects;
+      stats_.last_error.clear();
+      return;
+    case LineKind::Data: break;
+  }
+  if (parsed.address != robot_.address) {
+    if (state_ == LinkState::Identifying) {
+      // The dongle streams another robot's lines: no need to wait for its FF reply.
+      ports_->remember(canonical_, parsed.address);
+      closePort("port " + port() + " carries robot " + parsed.address.display() + ", not ours", now_s, false);
+      return;
+    }
+    drop("line from foreign address " + parsed.address.display());
+    return;
+  }
+  if (state_ != LinkState::Streaming) return;  // ours, but not identified yet
+  std::string why;
+  const auto sensors = decodeSensors(model_, parsed.payload, &why);
+  if (!sensors) {
+    drop(why);
+    return;
+  }
+  last_line_s_ = now_s;
+  ++stats_.lines_ok;
+  CycleReport report;
+  report.time_s = now_s;
+  report.sensors = *sensors;
+  Effector effector = effects_;
+  report.command_fresh = has_command_ && now_s - command_s_ <= bridge_.command_timeout_s && now_s >= command_s_;
+  if (report.command_fresh) {
+    const WheelUnits u = wheelUnitsFromSpeeds(robot_.calibration, command_left_mps_, command_right_mps_);
+    effector.left_wheel = u.left;
+    effector.right_wheel = u.right;
+    if (u.saturated) ++stats_.saturated_cycles;
+  } else {
+    ++stats_.stale_command_cycles;
+  }
+  report.left_sent = effector.left_wheel;
+  report.right_sent = effector.right_wheel;
+  const std::string out = encodeLine(encodeEffector(model_, effector), robot_.address);
+  try {
+    transport_->write(out.data(), out.size());
+    ++stats_.lines_sent;
+    last_write_s_ = now_s;
+  } catch (const Error& e) {
+    ++stats_.write_failures;
+    stats_.last_error = e.what();
+  }
+  reports.push_back(report);
+}
+
+void RobotLink::poll(double now_s, std::vector<CycleReport>& reports) {
+  if (state_ == LinkState::Searching) {
+    if (candidates_.empty() && next_candidate_ == 0 && now_s >= next_search_s_) startSearch(now_s);
+    if (now_s >= next_search_s_) tryNextPort(now_s);
+    if (state_ == LinkState::Searching) return;
+  }
+  char buf[1024];
+  for (int rounds = 0; rounds < 64 && transport_; ++rounds) {
+    size_t n = 0;
+    try {
+      n = transport_->read(buf, sizeof buf);
+    } catch (const Error& e) {
+      closePort(e.what(), now_s, state_ == LinkState::Streaming);
+      return;
+    }
+    if (n == 0) break;
+    const uint64_t overlong_before = assembler_.overlong();
+    assembler_.push(buf, n, [&](std::string_view line) {
+      if (transport_) handleLine(line, now_s, reports);
+    });
+    if (assembler_.overlong() != overlong_before) {
+      stats_.lines_dropped += assembler_.overlong() - overlong_before;
+      stats_.last_drop_reason = "line longer than " + std::to_string(kMaxLineChars) + " characters";
+    }
+  }
+  if (!transport_) return;
+  if (state_ == LinkState::Identifying) {
+    if (now_s >= next_identify_s_) {
+      if (identify_sent_ >= bridge_.identify_retries) {
+        closePort("no FF reply from " + port() + " after " + std::to_string(identify_sent_) + " requests", now_s,
+                  false);
+        return;
+      }
+      try {
+        transport_->write(kIdentifyRequest.data(), kIdentifyRequest.size());
+      } catch (const Error& e) {
+        closePort(e.what(), now_s, false);
+        return;
+      }
+      ++identify_sent_;
+      next_identify_s_ = now_s + bridge_.identify_interval_s;
+    }
+  } else if (state_ == LinkState::Streaming && now_s - last_line_s_ > bridge_.link_timeout_s) {
+    closePort("no valid line from " + robot_.address.display() + " for " + std::to_string(bridge_.link_timeout_s) +
+                  " s",
+              now_s, true);
+  } else if (state_ == LinkState::Streaming && now_s - last_write_s_ > bridge_.link_timeout_s) {
+    // Lines come in but none of our answers goes out (e.g. CTS never asserted): the
+    // robot keeps its last command, so this is a lost link too.
+    closePort("no motoring line could be written for " + std::to_string(bridge_.link_timeout_s) + " s (" +
+                  stats_.last_error + ")",
+              now_s, true);
+  }
+}
+
+}  // namespace ddace::hamster

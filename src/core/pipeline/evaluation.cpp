@@ -1,0 +1,162 @@
+#include "ddace/pipeline/evaluation.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <ostream>
+
+#include <nlohmann/json.hpp>
+
+#include "ddace/exec/diff_drive_execution.h"
+
+
+namespace ddace::pipeline {
+
+namespace fs = std::filesystem;
+
+Model trainModel(const task::TaskDir& train, const tgn::TrainOptions& options, const std::string& model_dir,
+                 std::ostream* progress) {
+  Model m{tgn::SequenceModel::train(train, options, progress), nullptr};
+  m.sequence.save(model_dir);
+  if (options.variant != "gnn") {
+    m.primitives = std::make_shared<gp::PrimitiveLibrary>(gp::PrimitiveLibrary::fit(train));
+    m.primitives->save((fs::path(model_dir) / gp::kPrimitivesFile).string());
+  }
+  return m;
+}
+
+Model loadModel(const std::string& model_dir) {
+  Model m{tgn::SequenceModel::load(model_dir), nullptr};
+  if (m.sequence.variant() != "gnn")
+    m.primitives = std::make_shared<gp::PrimitiveLibrary>(
+        gp::PrimitiveLibrary::load((fs::path(model_dir) / gp::kPrimitivesFile).string()));
+  return m;
+}
+
+void checkSameTask(const task::TaskSpec& a, const std::string& model_dir, const task::TaskSpec& b,
+                   const std::string& test_dir) {
+  auto describe = [](const task::TaskSpec& s) {
+    std::string out = "'" + s.name + "' (";
+    for (size_t i = 0; i < s.entities.size(); ++i)
+      out += (i ? " " : "") + s.entities[i].name + ":" + task::toString(s.entities[i].kind);
+    return out + ")";
+  };
+  bool same = a.entities.size() == b.entities.size();
+  for (size_t i = 0; same && i < a.entities.size(); ++i)
+    same = a.entities[i].name == b.entities[i].name && a.entities[i].kind == b.entities[i].kind;
+  if (!same)
+    throw Error("the model in " + model_dir + " was trained on task " + describe(a) + ", but " + test_dir +
+                " holds task " + describe(b) + ": train a model on this task first (ddace train)");
+  if (b.actions_declared)
+    for (const auto& action : b.actions)
+      if (!a.allowsAction(action))
+        throw Error("the model in " + model_dir + " has no action '" + action + "', which " + test_dir +
+                    "/task.yaml lists: train a model on this task first (ddace train)");
+}
+
+namespace {
+
+/// A trial from a gnn rollout: its own steps, its own trajectories.
+exec::Trial trialFromRollout(const task::Demonstration& r, int max_rows) {
+  exec::Trial t;
+  t.predicted = r.steps;
+  t.ended = static_cast<int>(r.rows()) < max_rows;
+  for (const auto& seg : r.segments) {
+    exec::ExecutedToken ex;
+    ex.token = seg.token;
+    ex.step = seg.step;
+    ex.executed = r.segmentPath(seg);
+    ex.start = ex.executed.front();
+    ex.goal = r.segmentGoal(seg);
+    t.executed.push_back(std::move(ex));
+  }
+  t.snapshots = r.snapshots;
+  if (r.rows()) t.final_positions = r.positions.back();
+  return t;
+}
+
+}  // namespace
+
+Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOptions& options) {
+  Evaluation e;
+  e.task = model.sequence.spec().name;
+  e.variant = model.sequence.variant();
+  e.execution = options.execution;
+  const task::TaskSpec& spec = test.spec;
+
+  std::unique_ptr<exec::ExecutionModel> execution;
+  if (options.execution == "ideal") {
+    execution = std::make_unique<exec::IdealExecution>();
+  } else if (options.execution == "diffdrive") {
+    execution = std::make_unique<exec::DiffDriveExecution>(spec.arrival_radius, options.noise_m, options.seed);
+  } else {
+    throw Error("--execution '" + options.execution + "' is not one of ideal, diffdrive");
+  }
+
+  for (const auto& gt : test.demos) {
+    exec::Trial trial;
+    if (e.variant == "gnn") {
+      // Room for the ground truth plus two more steps' worth of frames, as the spec's limit.
+      const int max_rows = static_cast<int>(gt.rows() * (gt.steps.size() + 2) / std::max<size_t>(1, gt.steps.size()));
+      trial = trialFromRollout(tgn::rolloutGnn(model.sequence, gt, max_rows), max_rows);
+    } else {
+      const auto policy = [&](const std::vector<task::Snapshot>& history) {
+        const tgn::Prediction p = model.sequence.predictNext(history);
+        return exec::Decision{p.end, p.tokens};
+      };
+      const auto paths = [&](const task::Token& token, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
+        return model.primitives->generate(token, s, g).points;
+      };
+      trial = exec::runTrial(spec, gt, policy, paths, *execution);
+    }
+    e.scores.push_back(eval::scoreTrial(spec, gt, trial, e.variant == "gnn"));
+    e.trials.push_back(std::move(trial));
+  }
+  e.summary = eval::summarise(e.scores);
+  return e;
+}
+
+void printEvaluation(const Evaluation& e, std::ostream& out) {
+  char line[256];
+  std::snprintf(line, sizeof line, "%-16s %7s %6s %6s %7s %7s\n", "trial", "steps", "END", "GCR", "FD", "success");
+  out << line;
+  for (const auto& s : e.scores) {
+    std::snprintf(line, sizeof line, "%-16s %3d/%-3d %6s %6.3f %7.4f %7s\n", fs::path(s.demo).filename().c_str(),
+                  s.correct_steps, s.gt_steps, s.ended_correctly ? "yes" : "no", s.gcr(), s.meanFd(),
+                  s.success ? "yes" : "no");
+    out << line;
+  }
+  const auto& m = e.summary;
+  std::snprintf(line, sizeof line, "%s, variant %s, execution %s: %d trials  OSR %.3f  SSR %.3f  GCR %.3f  FD %.4f\n",
+                e.task.c_str(), e.variant.c_str(), e.execution.c_str(), m.trials, m.osr, m.ssr, m.gcr, m.fd);
+  out << line;
+}
+
+std::string evaluationJson(const Evaluation& e) {
+  auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+  nlohmann::json j;
+  j["task"] = e.task;
+  j["variant"] = e.variant;
+  j["execution"] = e.execution;
+  j["trials"] = e.summary.trials;
+  j["osr"] = e.summary.osr;
+  j["ssr"] = e.summary.ssr;
+  j["gcr"] = e.summary.gcr;
+  j["fd"] = num(e.summary.fd);
+  j["per_trial"] = nlohmann::json::array();
+  for (const auto& s : e.scores) {
+    j["per_trial"].push_back({{"demo", fs::path(s.demo).filename().string()},
+                              {"success", s.success},
+                              {"ssr", s.ssr()},
+                              {"gcr", s.gcr()},
+                              {"fd", num(s.meanFd())},
+                              {"steps_correct", s.correct_steps},
+                              {"steps_ground_truth", s.gt_steps},
+                              {"steps_predicted", s.predicted_steps},
+                              {"ended_correctly", s.ended_correctly},
+                              {"goal_conditions_hold", s.goal_conditions_hold}});
+  }
+  return j.dump(2) + "\n";
+}
+
+}  // namespace ddace::pipeline

@@ -1,0 +1,283 @@
+// hamster_bridge_node: drives real Hamster robots through their USB radio dongles.
+//
+// Parameters (private):
+//   ~config   (string, required)  path of config/hamsters.yaml (robots, addresses, calibration)
+//   ~port_dir (string, optional)  overrides the config's port_dir
+//   ~scan     (string list, optional) overrides the config's scan patterns ([] = hints only)
+//   ~robots   (string list, optional) drive only these robots of the config
+//   ~diagnostic_period (double, default 1.0) diagnostics publication period, s
+// Per robot <name>:
+//   subscribes /robots/<name>/wheels  (ddace/WheelCommand, m/s per wheel)
+//              /robots/<name>/effects (ddace/HamsterEffects, LEDs and sound)
+//   publishes  /robots/<name>/sensors (ddace/HamsterSensors, one per sensor line)
+//   and one diagnostic status "hamster <name>" on /diagnostics.
+// All protocol and safety logic lives in ddace::hamster::RobotLink (core); this node
+// only moves messages in and out and runs the I/O loop.
+#include <poll.h>
+#include <ros/ros.h>
+#include <diagnostic_updater/diagnostic_updater.h>
+
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <mutex>
+
+#include <ddace/HamsterEffects.h>
+#include <ddace/HamsterSensors.h>
+#include <ddace/WheelCommand.h>
+
+#include "ddace/common/error.h"
+#include "ddace/hamster/config.h"
+#include "ddace/hamster/link.h"
+#include "ddace/ros/hamster_conversions.h"
+
+namespace {
+
+using namespace ddace::hamster;
+
+double monotonicS() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+class HamsterBridge {
+ public:
+  HamsterBridge(ros::NodeHandle& nh, ros::NodeHandle& pnh) : updater_(nh, pnh) {
+    std::string config_path;
+    if (!pnh.getParam("config", config_path) || config_path.empty()) {
+      throw ddace::Error("parameter ~config (path of the Hamster config YAML, e.g. config/hamsters.yaml) is not set");
+    }
+    config_ = loadBridgeConfig(config_path);
+    pnh.getParam("port_dir", config_.port_dir);
+    if (pnh.hasParam("scan") && !pnh.getParam("scan", config_.scan)) {
+      throw ddace::Error("parameter ~scan must be a list of strings");
+    }
+    std::vector<std::string> only;
+    if (pnh.hasParam("robots") && !pnh.getParam("robots", only)) {
+      throw ddace::Error("parameter ~robots must be a list of robot names");
+    }
+    for (const auto& name : only) {
+      bool found = false;
+      for (const auto& r : config_.robots) found = found || r.name == name;
+      if (!found) throw ddace::Error("parameter ~robots: robot '" + name + "' is not in " + config_path);
+    }
+    updater_.setHardwareID("hamster_bridge");
+    auto ports = std::make_shared<PortDirectory>();
+    for (const auto& r : config_.robots) {
+      if (!only.empty() && std::find(only.begin(), only.end(), r.name) == only.end()) continue;
+      auto robot = std::make_unique<Robot>();
+      robot->link = std::make_unique<RobotLink>(r, config_, ports, serialTransportFactory(config_.rtscts));
+      const std::string base = "/robots/" + r.name;
+      Robot* raw = robot.get();
+      robot->sensors = nh.advertise<ddace::HamsterSensors>(base + "/sensors", 10);
+      robot->wheels = nh.subscribe<ddace::WheelCommand>(
+          base + "/wheels", 1, [this, raw](const ddace::WheelCommand::ConstPtr& m) { onWheels(*raw, *m); },
+          ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+      robot->effects = nh.subscribe<ddace::HamsterEffects>(
+          base + "/effects", 1, [this, raw](const ddace::HamsterEffects::ConstPtr& m) { onEffects(*raw, *m); });
+      updater_.add("hamster " + r.name,
+                   [this, raw](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnose(*raw, s); });
+      ROS_INFO("hamster_bridge: %s = %s (%s), port hints [%s]", r.name.c_str(), r.address.display().c_str(),
+               r.model == Model::Unknown ? "model auto" : modelName(r.model).c_str(), join(r.port_hints).c_str());
+      robots_.push_back(std::move(robot));
+    }
+    ROS_INFO("hamster_bridge: %zu robots; ports under %s, scanning [%s]", robots_.size(), config_.port_dir.c_str(),
+             join(config_.scan).c_str());
+    diag_timer_ = nh.createSteadyTimer(ros::WallDuration(0.1), [this](const ros::SteadyTimerEvent&) {
+      updater_.update();
+    });
+  }
+
+  /// The I/O loop: wait for bytes on any port (at most 2 ms, so identification and
+  /// link timers run), let every link do its work, publish the sensor lines.
+  void run() {
+    std::vector<pollfd> fds;
+    std::vector<ddace::hamster::CycleReport> reports;
+    while (ros::ok()) {
+      fds.clear();
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        for (const auto& r : robots_) {
+          if (r->link->fd() >= 0) fds.push_back({r->link->fd(), POLLIN, 0});
+        }
+      }
+      if (fds.empty()) {
+        ros::WallDuration(0.002).sleep();
+      } else {
+        ::poll(fds.data(), fds.size(), 2);
+      }
+      for (auto& r : robots_) {
+        reports.clear();
+        LinkState before, after;
+        std::string error;
+        {
+          std::lock_guard<std::mutex> lock(mutex_);
+          before = r->link->state();
+          r->link->poll(monotonicS(), reports);
+          after = r->link->state();
+          error = r->link->stats().last_error;
+        }
+        if (before != after) logTransition(*r, before, after, error);
+        for (const auto& report : reports) {
+          ddace::HamsterSensors msg =
+              ddace::ros_hamster::toSensorsMsg(r->link->robot(), r->link->model(), report, r->memory);
+          msg.header.stamp = ros::Time::now();
+          r->last_battery_v = msg.battery_v;
+          r->last_rssi_dbm = msg.rssi_dbm;
+          r->sensors.publish(msg);
+        }
+      }
+    }
+  }
+
+ private:
+  struct Robot {
+    std::unique_ptr<RobotLink> link;
+    ros::Publisher sensors;
+    ros::Subscriber wheels, effects;
+    ddace::ros_hamster::SensorMemory memory;
+    std::atomic<float> last_battery_v{NAN};  // written by the I/O loop, read by diagnostics
+    std::atomic<int> last_rssi_dbm{0};
+    uint64_t diag_lines = 0;
+    uint64_t diag_losses = 0;
+    double diag_time_s = -1.0;
+    uint64_t refused_commands = 0;
+  };
+
+  static std::string join(const std::vector<std::string>& items) {
+    std::string out;
+    for (const auto& i : items) out += (out.empty() ? "" : ", ") + i;
+    return out;
+  }
+
+  void logTransition(const Robot& r, LinkState before, LinkState after, const std::string& error) {
+    const std::string& name = r.link->robot().name;
+    if (after == LinkState::Streaming) {
+      ROS_INFO("hamster_bridge: %s streaming on %s (%s %s)", name.c_str(), r.link->port().c_str(),
+               modelName(r.link->model()).c_str(), r.link->robot().address.display().c_str());
+    } else if (before == LinkState::Streaming) {
+      ROS_WARN("hamster_bridge: %s link lost (%s); wheels zeroed, reconnecting", name.c_str(), error.c_str());
+    } else if (after == LinkState::Searching && !error.empty()) {
+      ROS_DEBUG("hamster_bridge: %s: %s", name.c_str(), error.c_str());
+    }
+  }
+
+  void onWheels(Robot& r, const ddace::WheelCommand& m) {
+    const std::string topic = "/robots/" + r.link->robot().name + "/wheels";
+    if (!m.header.stamp.isZero()) {
+      const double age = (ros::Time::now() - m.header.stamp).toSec();
+      if (age > config_.command_timeout_s) {
+        ++r.refused_commands;
+        ROS_WARN_THROTTLE(1.0, "hamster_bridge: %s: command stamped %.3f s ago (> command_timeout_s %.3f) refused",
+                          topic.c_str(), age, config_.command_timeout_s);
+        return;
+      }
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    try {
+      r.link->setWheelCommand(m.left_mps, m.right_mps, monotonicS());
+    } catch (const ddace::Error& e) {
+      ++r.refused_commands;
+      ROS_WARN_THROTTLE(1.0, "hamster_bridge: %s: command refused: %s", topic.c_str(), e.what());
+    }
+  }
+
+  void onEffects(Robot& r, const ddace::HamsterEffects& m) {
+    try {
+      const auto e = ddace::ros_hamster::fromEffectsMsg(m);
+      std::lock_guard<std::mutex> lock(mutex_);
+      r.link->setEffects(e.left_rgb, e.right_rgb, e.buzzer_hz, e.note);
+    } catch (const ddace::Error& e) {
+      ROS_WARN_THROTTLE(1.0, "hamster_bridge: /robots/%s/effects refused: %s", r.link->robot().name.c_str(), e.what());
+    }
+  }
+
+  void diagnose(Robot& r, diagnostic_updater::DiagnosticStatusWrapper& s) {
+    LinkStats st;
+    LinkState state;
+    std::string port;
+    Model model;
+    double last_line;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      st = r.link->stats();
+      state = r.link->state();
+      port = r.link->port();
+      model = r.link->model();
+      last_line = r.link->lastLineTime();
+    }
+    const double now = monotonicS();
+    double rate = 0.0;
+    if (r.diag_time_s > 0 && now > r.diag_time_s) rate = (st.lines_ok - r.diag_lines) / (now - r.diag_time_s);
+    const uint64_t lines_in_period = st.lines_ok - r.diag_lines;
+    const uint64_t losses_in_period = st.link_losses - r.diag_losses;
+    const bool first_report = r.diag_time_s < 0;
+    r.diag_lines = st.lines_ok;
+    r.diag_losses = st.link_losses;
+    r.diag_time_s = now;
+    if (state == LinkState::Streaming && losses_in_period > 0) {
+      // A flapping link must show even if it happens to be up at the moment of the report.
+      s.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "link lost %llu times since the last report",
+                 static_cast<unsigned long long>(losses_in_period));
+    } else if (state == LinkState::Streaming && lines_in_period == 0 && !first_report) {
+      s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "identified, but no sensor lines");
+    } else if (state == LinkState::Streaming) {
+      if (r.last_battery_v.load() < 3.6f) {
+        s.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "streaming, battery low (%.2f V)",
+                   static_cast<double>(r.last_battery_v.load()));
+      } else {
+        s.summary(diagnostic_msgs::DiagnosticStatus::OK, "streaming");
+      }
+    } else if (state == LinkState::Identifying) {
+      s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "identifying on " + port);
+    } else {
+      s.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                "no link (wheels stopped)" + (st.last_error.empty() ? std::string() : ": " + st.last_error));
+    }
+    const RobotConfig& cfg = r.link->robot();
+    s.add("link state", linkStateName(state));
+    s.add("address", cfg.address.display());
+    s.add("model", modelName(model));
+    s.add("port", port);
+    s.add("line rate (Hz)", rate);
+    s.add("last valid line age (s)", last_line < 0 ? -1.0 : now - last_line);
+    s.add("valid lines", st.lines_ok);
+    s.add("dropped lines", st.lines_dropped);
+    s.add("last drop reason", st.last_drop_reason);
+    s.add("motoring lines sent", st.lines_sent);
+    s.add("write failures", st.write_failures);
+    s.add("zero-wheel cycles (no fresh command)", st.stale_command_cycles);
+    s.add("saturated cycles", st.saturated_cycles);
+    s.add("refused commands", r.refused_commands);
+    s.add("connects", st.connects);
+    s.add("link losses", st.link_losses);
+    s.add("no-robot lines", st.no_robot_lines);
+    s.add("battery (V)", r.last_battery_v.load());
+    s.add("signal (dBm)", r.last_rssi_dbm.load());
+    s.add("last error", st.last_error);
+  }
+
+  BridgeConfig config_;
+  diagnostic_updater::Updater updater_;
+  ros::SteadyTimer diag_timer_;
+  std::mutex mutex_;
+  std::vector<std::unique_ptr<Robot>> robots_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "hamster_bridge");
+  ros::NodeHandle nh, pnh("~");
+  std::unique_ptr<HamsterBridge> bridge;
+  try {
+    bridge = std::make_unique<HamsterBridge>(nh, pnh);
+  } catch (const std::exception& e) {
+    ROS_FATAL("hamster_bridge: %s", e.what());
+    return 1;
+  }
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  bridge->run();
+  spinner.stop();
+  return 0;
+}

@@ -1,0 +1,220 @@
+// mock_hamster_node: simulated Hamster dongles on pseudo-terminals, for tests and demos
+// without hardware. Speaks the radio protocol (ddace::hamster::MockRobot), so the real
+// hamster_bridge_node drives it unchanged.
+//
+// Parameters (private):
+//   ~config   (string, required)  the bridge's Hamster config: robot names, addresses,
+//                                  models (auto = hamster) and, unless overridden, the true
+//                                  wheel speed per unit (= its calibration: a perfect one)
+//   ~link_dir (string, required)  directory (created) for the symlinks <link_dir>/hamster_<name>
+//                                  → pty slave; point the bridge's port_dir or hints here
+//   ~robots   (string list, optional) simulate only these robots
+//   ~true_mps_per_unit (double, optional) the simulated robots' real speed per unit, to
+//                                  test a calibration
+//   ~robot_timeout_s (double, default 0) a robot stops after this long without motoring
+//                                  lines (0 = keeps the last wheels, the worst case)
+//   ~frame_id (string, default "table")
+// Topics (private): ~state (ddace/HamsterMockState, per robot, 50 Hz), ~entities
+// (ddace/EntityArray, true poses, 30 Hz), ~fault (ddace/HamsterMockFault, in).
+#include <ros/ros.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include <ddace/EntityArray.h>
+#include <ddace/HamsterMockFault.h>
+#include <ddace/HamsterMockState.h>
+
+#include "ddace/common/error.h"
+#include "ddace/hamster/config.h"
+#include "ddace/hamster/mock_robot.h"
+
+namespace {
+
+using namespace ddace::hamster;
+
+double monotonicS() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+class MockHamsterNode {
+ public:
+  MockHamsterNode(ros::NodeHandle& pnh) {
+    std::string config_path, link_dir;
+    if (!pnh.getParam("config", config_path)) throw ddace::Error("parameter ~config (Hamster config YAML) is not set");
+    if (!pnh.getParam("link_dir", link_dir) || link_dir.empty()) {
+      throw ddace::Error("parameter ~link_dir (directory for the pty symlinks) is not set");
+    }
+    if (::mkdir(link_dir.c_str(), 0755) == 0) {
+      created_dir_ = link_dir;
+    } else if (errno != EEXIST) {
+      throw ddace::Error("cannot create ~link_dir " + link_dir + ": " + std::strerror(errno));
+    }
+    const BridgeConfig config = loadBridgeConfig(config_path);
+    std::vector<std::string> only;
+    pnh.getParam("robots", only);
+    double true_mps = 0.0;
+    const bool override_speed = pnh.getParam("true_mps_per_unit", true_mps);
+    if (override_speed && !(true_mps > 0.0)) throw ddace::Error("parameter ~true_mps_per_unit must be > 0");
+    double robot_timeout_s = 0.0;
+    pnh.getParam("robot_timeout_s", robot_timeout_s);
+    pnh.param<std::string>("frame_id", frame_id_, "table");
+    size_t index = 0;
+    for (const auto& r : config.robots) {
+      if (!only.empty() && std::find(only.begin(), only.end(), r.name) == only.end()) continue;
+      MockRobotSettings s;
+      s.name = r.name;
+      s.address = r.address;
+      s.model = r.model == Model::Unknown ? Model::Hamster : r.model;
+      s.link_path = link_dir + "/hamster_" + r.name;
+      s.left_mps_per_unit = override_speed ? true_mps : r.calibration.left_mps_per_unit;
+      s.right_mps_per_unit = override_speed ? true_mps : r.calibration.right_mps_per_unit;
+      s.track_m = r.calibration.track_m;
+      s.x_m = 0.2 + 0.15 * static_cast<double>(index);
+      s.y_m = 0.2;
+      s.robot_timeout_s = robot_timeout_s;
+      s.seed = static_cast<uint32_t>(index + 1);
+      robots_.push_back(std::make_unique<MockRobot>(s));
+      ROS_INFO("mock_hamster: %s (%s, %s) on %s -> %s", s.name.c_str(), modelName(s.model).c_str(),
+               s.address.display().c_str(), s.link_path.c_str(), robots_.back()->slavePath().c_str());
+      ++index;
+    }
+    if (robots_.empty()) throw ddace::Error("no robots to simulate (check ~config and ~robots)");
+    state_pub_ = pnh.advertise<ddace::HamsterMockState>("state", 50);
+    entities_pub_ = pnh.advertise<ddace::EntityArray>("entities", 5);
+    fault_sub_ = pnh.subscribe<ddace::HamsterMockFault>("fault", 10,
+                                                         [this](const ddace::HamsterMockFault::ConstPtr& m) { onFault(*m); });
+    state_timer_ = pnh.createSteadyTimer(ros::WallDuration(0.02), [this](const ros::SteadyTimerEvent&) { publishStates(); });
+    entity_timer_ =
+        pnh.createSteadyTimer(ros::WallDuration(1.0 / 30.0), [this](const ros::SteadyTimerEvent&) { publishEntities(); });
+  }
+
+  ~MockHamsterNode() {
+    robots_.clear();  // removes the symlinks
+    if (!created_dir_.empty()) ::rmdir(created_dir_.c_str());
+  }
+
+  /// Steps every simulated robot each millisecond.
+  void run() {
+    while (ros::ok()) {
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        const double now = monotonicS();
+        for (auto& r : robots_) r->step(now);
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  }
+
+ private:
+  void onFault(const ddace::HamsterMockFault& m) {
+    MockFault fault;
+    try {
+      fault = parseMockFault(m.fault);
+    } catch (const ddace::Error& e) {
+      ROS_ERROR("mock_hamster: ~fault: %s", e.what());
+      return;
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    bool found = false;
+    for (auto& r : robots_) {
+      if (m.robot == "*" || m.robot == r->settings().name) {
+        r->setFault(fault, m.duration_s, monotonicS());
+        ROS_INFO("mock_hamster: %s: fault %s for %.2f s", r->settings().name.c_str(), m.fault.c_str(), m.duration_s);
+        found = true;
+      }
+    }
+    if (!found) ROS_ERROR("mock_hamster: ~fault: no robot named '%s'", m.robot.c_str());
+  }
+
+  void publishStates() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const double now = monotonicS();
+    for (const auto& r : robots_) {
+      ddace::HamsterMockState s;
+      s.header.stamp = ros::Time::now();
+      s.header.frame_id = frame_id_;
+      s.robot = r->settings().name;
+      s.address = r->settings().address.display();
+      s.port = r->slavePath();
+      s.fault = mockFaultName(r->fault());
+      s.driven = r->driven(now);
+      s.left_units = r->leftUnits();
+      s.right_units = r->rightUnits();
+      const Effector& e = r->effector();
+      auto colour = [](const std::array<uint8_t, 3>& rgb) {
+        std_msgs::ColorRGBA c;
+        c.r = rgb[0] / 255.0f;
+        c.g = rgb[1] / 255.0f;
+        c.b = rgb[2] / 255.0f;
+        c.a = 1.0f;
+        return c;
+      };
+      s.left_led = colour(e.left_led_rgb);
+      s.right_led = colour(e.right_led_rgb);
+      s.buzzer_hz = e.buzzer_hz;
+      s.note = e.note;
+      s.motoring_lines = r->motoringLines();
+      s.bad_lines = r->badLines();
+      s.identify_requests = r->identifyRequests();
+      s.pose.x = r->x();
+      s.pose.y = r->y();
+      s.pose.theta = r->theta();
+      state_pub_.publish(s);
+    }
+  }
+
+  void publishEntities() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ddace::EntityArray a;
+    a.header.stamp = ros::Time::now();
+    a.header.frame_id = frame_id_;
+    for (const auto& r : robots_) {
+      ddace::Entity e;
+      e.name = r->settings().name;
+      e.kind = "robot";
+      e.pose.x = r->x();
+      e.pose.y = r->y();
+      e.pose.theta = r->theta();
+      e.visible = true;
+      e.stale = false;
+      e.last_seen = a.header.stamp;
+      a.entities.push_back(e);
+    }
+    entities_pub_.publish(a);
+  }
+
+  std::mutex mutex_;
+  std::vector<std::unique_ptr<MockRobot>> robots_;
+  std::string frame_id_;
+  std::string created_dir_;
+  ros::Publisher state_pub_, entities_pub_;
+  ros::Subscriber fault_sub_;
+  ros::SteadyTimer state_timer_, entity_timer_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "mock_hamster");
+  ros::NodeHandle pnh("~");
+  std::unique_ptr<MockHamsterNode> node;
+  try {
+    node = std::make_unique<MockHamsterNode>(pnh);
+  } catch (const std::exception& e) {
+    ROS_FATAL("mock_hamster: %s", e.what());
+    return 1;
+  }
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  node->run();
+  spinner.stop();
+  return 0;
+}

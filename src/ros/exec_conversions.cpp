@@ -1,0 +1,138 @@
+#include "exec_conversions.h"
+
+#include <cmath>
+#include <filesystem>
+
+#include <tf2/LinearMath/Quaternion.h>
+
+namespace ddace::ros_exec {
+
+task::TaskSpec loadTaskSpec(const std::string& task_path) {
+  namespace fs = std::filesystem;
+  if (task_path.empty()) throw Error("no task given (parameter 'task': a task directory or its task.yaml)");
+  fs::path p(task_path);
+  if (fs::is_directory(p)) p /= "task.yaml";
+  if (!fs::exists(p)) throw Error(Diagnostic{p.string(), 0, 0, "task file does not exist"});
+  return task::readTaskYaml(p.string());
+}
+
+task::Token fromMsg(const ddace::Token& msg, const task::TaskSpec& spec) {
+  task::Token t;
+  t.entity = spec.entityIndex(msg.entity);
+  if (t.entity < 0) throw Error("token names an unknown entity '" + msg.entity + "'");
+  if (msg.action.empty()) throw Error("token of '" + msg.entity + "' has no action");
+  t.action = msg.action;
+  if (!msg.target.empty()) {
+    t.target = spec.entityIndex(msg.target);
+    if (t.target < 0) throw Error("token " + msg.entity + ":" + msg.action + " names an unknown target '" + msg.target + "'");
+  }
+  return t;
+}
+
+ddace::Token toMsg(const task::Token& token, const task::TaskSpec& spec, double probability) {
+  ddace::Token m;
+  m.entity = spec.entities.at(token.entity).name;
+  m.action = token.action;
+  if (token.target >= 0) m.target = spec.entities.at(token.target).name;
+  m.probability = probability;
+  return m;
+}
+
+void toMsg(const exec::PlannedPath& path, const std::string& frame_id, const ros::Time& stamp, nav_msgs::Path& out,
+           std::vector<double>& progress, std::vector<double>& stddev_m) {
+  out.header.frame_id = frame_id;
+  out.header.stamp = stamp;
+  out.poses.clear();
+  const size_t n = path.points.size();
+  for (size_t i = 0; i < n; ++i) {
+    geometry_msgs::PoseStamped ps;
+    ps.header = out.header;
+    ps.pose.position.x = path.points[i].x();
+    ps.pose.position.y = path.points[i].y();
+    const Eigen::Vector2d d = n < 2 ? Eigen::Vector2d(1, 0)
+                                    : (i + 1 < n ? path.points[i + 1] - path.points[i] : path.points[i] - path.points[i - 1]);
+    tf2::Quaternion q;
+    q.setRPY(0, 0, std::atan2(d.y(), d.x()));
+    ps.pose.orientation.x = q.x();
+    ps.pose.orientation.y = q.y();
+    ps.pose.orientation.z = q.z();
+    ps.pose.orientation.w = q.w();
+    out.poses.push_back(ps);
+  }
+  progress = exec::progressOf(path.points);
+  stddev_m = path.stddev_m.size() == n ? path.stddev_m : std::vector<double>(n, 0.0);
+}
+
+exec::PlannedPath fromMsg(const nav_msgs::Path& path, const std::vector<double>& stddev_m, const std::string& what) {
+  exec::PlannedPath p;
+  for (size_t i = 0; i < path.poses.size(); ++i) {
+    const auto& pos = path.poses[i].pose.position;
+    if (!std::isfinite(pos.x) || !std::isfinite(pos.y))
+      throw Error(what + ": path point " + std::to_string(i) + " is not finite");
+    p.points.emplace_back(pos.x, pos.y);
+  }
+  if (!stddev_m.empty() && stddev_m.size() != p.points.size())
+    throw Error(what + ": stddev_m has " + std::to_string(stddev_m.size()) + " values for " +
+                std::to_string(p.points.size()) + " path points");
+  p.stddev_m = stddev_m;
+  return p;
+}
+
+exec::EntityObservation toObservation(const ddace::EntityArray& msg, const task::TaskSpec& spec,
+                                      std::vector<double>* yaws) {
+  const size_t n = spec.entities.size();
+  exec::EntityObservation obs;
+  obs.positions.assign(n, Eigen::Vector2d::Zero());
+  obs.tracked.assign(n, false);
+  if (yaws) yaws->assign(n, 0.0);
+  for (const auto& e : msg.entities) {
+    const int i = spec.entityIndex(e.name);
+    if (i < 0) continue;  // markers of things that are not part of this task
+    const bool finite = std::isfinite(e.pose.x) && std::isfinite(e.pose.y) && std::isfinite(e.pose.theta);
+    obs.positions[i] = finite ? Eigen::Vector2d(e.pose.x, e.pose.y) : Eigen::Vector2d::Zero();
+    obs.tracked[i] = finite && !e.stale;
+    if (yaws && finite) (*yaws)[i] = e.pose.theta;
+  }
+  return obs;
+}
+
+exec::FollowerGains loadFollowerGains(const ros::NodeHandle& nh) {
+  exec::FollowerGains g;
+  g.cruise_speed_mps = param(nh, "cruise_speed_mps", g.cruise_speed_mps);
+  g.min_speed_mps = param(nh, "min_speed_mps", g.min_speed_mps);
+  g.lookahead_m = param(nh, "lookahead_m", g.lookahead_m);
+  g.slowdown_radius_m = param(nh, "slowdown_radius_m", g.slowdown_radius_m);
+  g.rotate_in_place_rad = param(nh, "rotate_in_place_rad", g.rotate_in_place_rad);
+  g.heading_gain = param(nh, "heading_gain", g.heading_gain);
+  g.max_turn_rate_radps = param(nh, "max_turn_rate_radps", g.max_turn_rate_radps);
+  g.search_window_m = param(nh, "search_window_m", g.search_window_m);
+  g.arrival_radius_m = param(nh, "arrival_radius_m", g.arrival_radius_m);
+  g.wheel_base_m = param(nh, "wheel_base_m", g.wheel_base_m);
+  g.max_wheel_speed_mps = param(nh, "max_wheel_speed_mps", g.max_wheel_speed_mps);
+  try {
+    g.validate();
+  } catch (const Error& e) {
+    throw Error(std::string(e.what()) + " (parameters under " + nh.getNamespace() + ")");
+  }
+  return g;
+}
+
+exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh) {
+  exec::DiffDriveParams p;
+  p.rate_hz = param(nh, "rate_hz", p.rate_hz);
+  p.wheel_base_m = param(nh, "wheel_base_m", p.wheel_base_m);
+  p.max_wheel_speed_mps = param(nh, "max_wheel_speed_mps", p.max_wheel_speed_mps);
+  p.latency_s = param(nh, "latency_s", p.latency_s);
+  p.command_timeout_s = param(nh, "command_timeout_s", p.command_timeout_s);
+  p.position_noise_m = param(nh, "position_noise_m", p.position_noise_m);
+  p.yaw_noise_rad = param(nh, "yaw_noise_rad", p.yaw_noise_rad);
+  p.seed = static_cast<uint64_t>(param(nh, "seed", 1));
+  try {
+    p.validate();
+  } catch (const Error& e) {
+    throw Error(std::string(e.what()) + " (parameters under " + nh.getNamespace() + ")");
+  }
+  return p;
+}
+
+}  // namespace ddace::ros_exec

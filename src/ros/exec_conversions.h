@@ -1,0 +1,69 @@
+// Message conversions and parameter helpers shared by the execution nodes
+// (sequence, gp_path, coordinator, path_follower, mock_robot).
+//
+// Every conversion that can meet bad input throws ddace::Error naming the topic/field;
+// nodes then refuse the message (log + error status), they never act on a default.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <ros/ros.h>
+
+#include <ddace/Decision.h>
+#include <ddace/EntityArray.h>
+#include <ddace/Segment.h>
+#include <ddace/Token.h>
+#include <nav_msgs/Path.h>
+
+#include "ddace/exec/coordinator.h"
+#include "ddace/exec/diff_drive.h"
+#include "ddace/exec/path_follower.h"
+#include "ddace/task/task_dir.h"
+
+namespace ddace::ros_exec {
+
+/// The task spec from a task directory or a task.yaml path. Throws ddace::Error.
+task::TaskSpec loadTaskSpec(const std::string& task_path);
+
+/// Token message -> core token. Throws ddace::Error naming the unknown entity/target.
+task::Token fromMsg(const ddace::Token& msg, const task::TaskSpec& spec);
+ddace::Token toMsg(const task::Token& token, const task::TaskSpec& spec, double probability = 1.0);
+
+/// Planned path -> nav_msgs/Path (frame `frame_id`, orientation = direction of travel)
+/// plus its progress and stddev arrays.
+void toMsg(const exec::PlannedPath& path, const std::string& frame_id, const ros::Time& stamp, nav_msgs::Path& out,
+           std::vector<double>& progress, std::vector<double>& stddev_m);
+/// nav_msgs/Path (+ stddev, may be empty) -> planned path. Throws ddace::Error on a
+/// non-finite coordinate or a stddev array of the wrong length; `what` names the source.
+exec::PlannedPath fromMsg(const nav_msgs::Path& path, const std::vector<double>& stddev_m, const std::string& what);
+
+/// Entity array -> observation in `spec`'s entity order. An entity that is missing,
+/// stale or whose data is not finite counts as not tracked. Yaws go to `yaws` when given.
+exec::EntityObservation toObservation(const ddace::EntityArray& msg, const task::TaskSpec& spec,
+                                      std::vector<double>* yaws = nullptr);
+
+/// A required parameter; throws ddace::Error naming it (with the node's namespace).
+template <typename T>
+T requireParam(const ros::NodeHandle& nh, const std::string& name) {
+  T value;
+  if (!nh.getParam(name, value))
+    throw Error("missing or mistyped parameter '" + nh.resolveName(name) + "'");
+  return value;
+}
+
+/// An optional parameter with its default; a present but mistyped value throws.
+template <typename T>
+T param(const ros::NodeHandle& nh, const std::string& name, const T& fallback) {
+  if (!nh.hasParam(name)) return fallback;
+  T value;
+  if (!nh.getParam(name, value)) throw Error("parameter '" + nh.resolveName(name) + "' has the wrong type");
+  return value;
+}
+
+/// Follower gains from `~follower/*` style parameters under `nh` (defaults from FollowerGains).
+exec::FollowerGains loadFollowerGains(const ros::NodeHandle& nh);
+/// Diff-drive parameters from parameters under `nh`.
+exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh);
+
+}  // namespace ddace::ros_exec

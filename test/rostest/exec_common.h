@@ -1,0 +1,300 @@
+// Shared by the rostests of the execution graph (exec_*.cpp): generate a task, start
+// launch/execute_sim.launch as a child roslaunch on rostest's master, and watch the wire.
+//
+// The graph is started from the test (not from the .test file) because its nodes need the
+// task directory, which the test generates first.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include <ros/ros.h>
+#include <std_msgs/Bool.h>
+#include <std_srvs/Trigger.h>
+#include <yaml-cpp/yaml.h>
+
+#include <ddace/CoordinatorState.h>
+#include <ddace/DecisionRequest.h>
+#include <ddace/Segment.h>
+#include <ddace/SegmentStatus.h>
+#include <ddace/WheelCommand.h>
+
+#include "ddace/task/task_dir.h"
+#include "ddace/tasks/generators.h"
+
+namespace exec_test {
+
+namespace fs = std::filesystem;
+
+/// A fresh directory under ROS_HOME (or /tmp) for this test's files.
+inline std::string scratchDir(const std::string& name) {
+  const char* home = std::getenv("ROS_HOME");
+  fs::path p = fs::path(home ? home : "/tmp") / ("ddace_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(p);
+  fs::create_directories(p);
+  return p.string();
+}
+
+/// Writes DIR/train and DIR/test of a generated family, like `ddace generate`.
+inline void generateTask(const std::string& dir, const std::string& family, int train, int test, int robots = 11) {
+  ddace::tasks::GeneratorOptions o;
+  o.family = family;
+  o.robots = robots;
+  o.demos = train;
+  o.seed = 5;
+  ddace::task::writeTaskDir(ddace::tasks::generate(o), dir + "/train");
+  o.demos = test;
+  o.seed = 77;
+  ddace::task::writeTaskDir(ddace::tasks::generate(o), dir + "/test");
+}
+
+/// `config` with some values replaced: {"coordinator", "segment_timeout_s", "3.0"}.
+inline std::string writeConfig(const std::string& shipped, const std::string& out,
+                               const std::vector<std::array<std::string, 3>>& overrides) {
+  YAML::Node root = YAML::LoadFile(shipped);
+  for (const auto& o : overrides) root[o[0]][o[1]] = YAML::Load(o[2]);
+  std::ofstream f(out);
+  f << root;
+  return out;
+}
+
+/// roslaunch as a child process group; killed (SIGINT, then SIGKILL) on destruction.
+class Launch {
+ public:
+  explicit Launch(const std::vector<std::string>& args) {
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      ::setpgid(0, 0);
+      std::vector<char*> argv;
+      argv.push_back(const_cast<char*>("roslaunch"));
+      for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+      argv.push_back(nullptr);
+      ::execvp("roslaunch", argv.data());
+      ::_exit(127);
+    }
+    ::setpgid(pid_, pid_);
+  }
+  ~Launch() {
+    if (pid_ <= 0) return;
+    ::kill(-pid_, SIGINT);
+    for (int i = 0; i < 150; ++i) {
+      if (::waitpid(pid_, nullptr, WNOHANG) == pid_) return;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    ::kill(-pid_, SIGKILL);
+    ::waitpid(pid_, nullptr, 0);
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
+
+/// Polls `pred` while callbacks run (an AsyncSpinner must be running).
+inline bool waitFor(const std::function<bool()>& pred, double timeout_s) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  while (std::chrono::steady_clock::now() < end) {
+    if (pred()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return pred();
+}
+
+/// Everything on the wire that the tests judge.
+class Watcher {
+ public:
+  struct Wheel {
+    ros::Time stamp;
+    double left, right;
+  };
+  struct Seg {
+    std::string key;
+    ros::Time sent, ended;
+    uint8_t end_status = 0;
+  };
+
+  Watcher(ros::NodeHandle& nh, const ddace::task::TaskSpec& spec) {
+    for (const auto& e : spec.entities) {
+      if (e.kind == ddace::task::EntityKind::Goal) continue;
+      const std::string n = e.name;
+      subs_.push_back(nh.subscribe<ddace::Segment>("/robots/" + n + "/segment", 50, [this](const ddace::Segment::ConstPtr& m) {
+        std::lock_guard<std::mutex> l(mu_);
+        if (m->mode != ddace::Segment::MODE_FOLLOW) return;
+        segments_[m->segment_id].key = m->token.entity + ":" + m->token.action + ":" + m->token.target;
+        segments_[m->segment_id].sent = m->header.stamp;
+      }));
+      subs_.push_back(nh.subscribe<ddace::SegmentStatus>(
+          "/robots/" + n + "/segment_status", 100, [this](const ddace::SegmentStatus::ConstPtr& m) {
+            std::lock_guard<std::mutex> l(mu_);
+            if (m->status < ddace::SegmentStatus::DONE) return;
+            Seg& s = segments_[m->segment_id];
+            if (s.ended == ros::Time()) s.ended = m->header.stamp, s.end_status = m->status;
+          }));
+      if (e.kind == ddace::task::EntityKind::Robot)
+        subs_.push_back(nh.subscribe<ddace::WheelCommand>("/robots/" + n + "/wheels", 200,
+                                                          [this, n](const ddace::WheelCommand::ConstPtr& m) {
+                                                            std::lock_guard<std::mutex> l(mu_);
+                                                            wheels_[n].push_back({m->header.stamp, m->left_mps, m->right_mps});
+                                                          }));
+    }
+    subs_.push_back(nh.subscribe<ddace::DecisionRequest>("/ddace/decision_request", 20,
+                                                         [this](const ddace::DecisionRequest::ConstPtr& m) {
+                                                           std::lock_guard<std::mutex> l(mu_);
+                                                           requests_.push_back(m->header.stamp);
+                                                         }));
+    subs_.push_back(nh.subscribe<ddace::CoordinatorState>("/coordinator/state", 20,
+                                                          [this](const ddace::CoordinatorState::ConstPtr& m) {
+                                                            std::lock_guard<std::mutex> l(mu_);
+                                                            state_ = *m;
+                                                            have_state_ = true;
+                                                          }));
+  }
+
+  bool haveState() {
+    std::lock_guard<std::mutex> l(mu_);
+    return have_state_;
+  }
+  ddace::CoordinatorState state() {
+    std::lock_guard<std::mutex> l(mu_);
+    return state_;
+  }
+  uint8_t stateCode() { return state().state; }
+  std::map<std::string, std::vector<Wheel>> wheels() {
+    std::lock_guard<std::mutex> l(mu_);
+    return wheels_;
+  }
+  std::map<uint32_t, Seg> segments() {
+    std::lock_guard<std::mutex> l(mu_);
+    return segments_;
+  }
+
+  /// Decision requests stamped while some segment was running (sent, not yet ended).
+  std::vector<std::string> decisionsWhileRunning() {
+    std::lock_guard<std::mutex> l(mu_);
+    std::vector<std::string> bad;
+    for (const auto& r : requests_)
+      for (const auto& [id, s] : segments_)
+        if (s.sent != ros::Time() && s.sent < r && (s.ended == ros::Time() || r < s.ended))
+          bad.push_back("request at " + std::to_string(r.toSec()) + " while " + s.key + " ran");
+    return bad;
+  }
+  size_t requests() {
+    std::lock_guard<std::mutex> l(mu_);
+    return requests_.size();
+  }
+
+ private:
+  std::mutex mu_;
+  std::vector<ros::Subscriber> subs_;
+  std::map<std::string, std::vector<Wheel>> wheels_;
+  std::map<uint32_t, Seg> segments_;
+  std::vector<ros::Time> requests_;
+  ddace::CoordinatorState state_;
+  bool have_state_ = false;
+};
+
+/// Calls a Trigger service until it exists and succeeds (the graph may still be connecting).
+inline bool trigger(const std::string& service, double timeout_s, std::string* message = nullptr) {
+  return waitFor(
+      [&] {
+        std_srvs::Trigger t;
+        if (!ros::service::exists(service, false) || !ros::service::call(service, t)) return false;
+        if (message) *message = t.response.message;
+        return static_cast<bool>(t.response.success);
+      },
+      timeout_s);
+}
+
+/// Step token keys of a demonstration, sorted per step.
+inline std::vector<std::vector<std::string>> truthSteps(const ddace::task::Demonstration& d,
+                                                         const ddace::task::TaskSpec& spec) {
+  std::vector<std::vector<std::string>> out;
+  for (const auto& s : d.steps) {
+    out.emplace_back();
+    for (const auto& t : s.tokens) out.back().push_back(ddace::task::tokenKey(t, spec));
+    std::sort(out.back().begin(), out.back().end());
+  }
+  return out;
+}
+
+inline std::vector<std::vector<std::string>> executedSteps(const ddace::CoordinatorState& s) {
+  std::vector<std::vector<std::string>> out;
+  for (const auto& step : s.steps) {
+    out.emplace_back();
+    for (const auto& t : step.tokens)
+      out.back().push_back(t.entity + ":" + t.action + (t.target.empty() ? "" : ":" + t.target));
+    std::sort(out.back().begin(), out.back().end());
+  }
+  return out;
+}
+
+/// Parameters every graph test gets from its .test file.
+struct Files {
+  std::string launch_file, config_file;
+  static Files fromParams() {
+    ros::NodeHandle pnh("~");
+    Files f;
+    if (!pnh.getParam("launch_file", f.launch_file) || !pnh.getParam("config_file", f.config_file))
+      throw std::runtime_error("the .test file must set ~launch_file and ~config_file");
+    return f;
+  }
+};
+
+/// Runs a generated task end-to-end on mock robots (scene and ground truth: test demo 0)
+/// and checks what a user depends on: the ground-truth step sequence, END, every goal
+/// condition, no decision while a segment runs, all wheels zero at the end.
+inline void runTaskEndToEnd(const std::string& family, int robots, const std::vector<std::string>& extra_args,
+                            double timeout_s) {
+  ros::NodeHandle nh;
+  const Files files = Files::fromParams();
+  const std::string dir = scratchDir(family);
+  generateTask(dir, family, 3, 1, robots);
+  const ddace::task::TaskDir test = ddace::task::loadTaskDir(dir + "/test");
+  Watcher watch(nh, test.spec);
+  std::vector<std::string> args = {files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train",
+                                   "autostart:=false", "monitor:=false", "config:=" + files.config_file};
+  args.insert(args.end(), extra_args.begin(), extra_args.end());
+  Launch graph(args);
+  std::string msg;
+  ASSERT_TRUE(trigger("/coordinator/start", 30.0, &msg)) << "could not start the run: " << msg;
+  const bool ended = waitFor(
+      [&] {
+        const auto c = watch.stateCode();
+        return c == ddace::CoordinatorState::FINISHED || c == ddace::CoordinatorState::ABORTED ||
+               c == ddace::CoordinatorState::ESTOPPED;
+      },
+      timeout_s);
+  ros::Duration(0.3).sleep();  // the last statuses and wheel commands
+  const ddace::CoordinatorState s = watch.state();
+  ASSERT_TRUE(ended) << "run did not end within " << timeout_s << " s; state " << s.state_name;
+  ASSERT_EQ(s.state, ddace::CoordinatorState::FINISHED) << s.state_name << ": " << s.reason;
+  EXPECT_EQ(executedSteps(s), truthSteps(test.demos.front(), test.spec));
+  ASSERT_EQ(s.goal_conditions_met.size(), test.spec.goal_conditions.size());
+  for (size_t i = 0; i < s.goal_conditions_met.size(); ++i)
+    EXPECT_TRUE(s.goal_conditions_met[i]) << s.goal_conditions[i];
+  for (const auto& step : s.steps)
+    for (size_t i = 0; i < step.tokens.size(); ++i)
+      EXPECT_EQ(step.status[i], ddace::SegmentStatus::DONE) << step.tokens[i].entity << " in step " << step.index;
+  EXPECT_EQ(watch.requests(), test.demos.front().steps.size() + 1) << "one decision per step plus END";
+  const auto bad = watch.decisionsWhileRunning();
+  EXPECT_TRUE(bad.empty()) << bad.front();
+  for (const auto& [robot, cmds] : watch.wheels()) {
+    ASSERT_FALSE(cmds.empty()) << robot;
+    EXPECT_EQ(cmds.back().left, 0.0) << robot << " still driving at the end";
+    EXPECT_EQ(cmds.back().right, 0.0) << robot;
+  }
+}
+
+}  // namespace exec_test

@@ -1,0 +1,86 @@
+// E-stop on the whole graph: the ~estop service and the latched /ddace/estop topic zero
+// every robot within one control cycle and hold the run until reset.
+#include "exec_common.h"
+
+using namespace exec_test;
+
+namespace {
+
+/// Each robot got a zero command stamped in [issued, by], and every command stamped after
+/// `by` is zero.
+void expectAllStopped(Watcher& w, const ros::Time& issued, const ros::Time& by) {
+  const ros::Time after = by;
+  for (const auto& [robot, cmds] : w.wheels()) {
+    bool zero_by = false;
+    for (const auto& c : cmds) {
+      if (c.stamp > after) EXPECT_TRUE(c.left == 0 && c.right == 0) << robot << " driven after the e-stop";
+      if (c.stamp >= issued && c.stamp <= by && c.left == 0 && c.right == 0) zero_by = true;
+    }
+    EXPECT_TRUE(zero_by) << robot << " got no zero command within one control cycle";
+  }
+}
+
+bool anyDriving(Watcher& w) {
+  for (const auto& [robot, cmds] : w.wheels())
+    if (!cmds.empty() && (cmds.back().left != 0 || cmds.back().right != 0)) return true;
+  return false;
+}
+
+}  // namespace
+
+TEST(ExecEstop, ServiceAndTopicZeroEveryRobotWithinOneCycle) {
+  ros::NodeHandle nh;
+  const Files files = Files::fromParams();
+  const std::string dir = scratchDir("estop");
+  generateTask(dir, "task4", 3, 1);
+  const auto spec = ddace::task::loadTaskDir(dir + "/test").spec;
+  Watcher w(nh, spec);
+  Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "autostart:=false",
+                "monitor:=false", "config:=" + files.config_file});
+  ASSERT_TRUE(trigger("/coordinator/start", 30.0));
+  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING && anyDriving(w); }, 20.0));
+  ros::Duration(0.5).sleep();
+
+  // 1. The service.
+  const double cycle_s = 0.02;  // path_follower rate_hz = 50
+  const ros::Time call = ros::Time::now();
+  std_srvs::Trigger t;
+  ASSERT_TRUE(ros::service::call("/coordinator/estop", t));
+  // The coordinator has published the e-stop when the call returns.
+  const ros::Time returned = ros::Time::now();
+  EXPECT_TRUE(t.response.success) << t.response.message;
+  ros::Duration(0.5).sleep();
+  EXPECT_EQ(w.stateCode(), ddace::CoordinatorState::ESTOPPED);
+  expectAllStopped(w, call, returned + ros::Duration(cycle_s));
+  for (const auto& [id, s] : w.segments())
+    EXPECT_NE(s.ended, ros::Time()) << s.key << " (segment " << id << ") never ended after the e-stop";
+  const size_t requests = w.requests();
+  EXPECT_FALSE(trigger("/coordinator/start", 0.5)) << "start must be refused until reset";
+  ros::Duration(1.0).sleep();
+  EXPECT_EQ(w.requests(), requests) << "a decision was requested while e-stopped";
+
+  // 2. Reset releases it; a new run drives again.
+  ASSERT_TRUE(trigger("/coordinator/reset", 5.0));
+  EXPECT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::IDLE; }, 2.0));
+  ASSERT_TRUE(trigger("/coordinator/start", 10.0));
+  ASSERT_TRUE(waitFor([&] { return anyDriving(w); }, 20.0)) << "robots do not drive after reset + start";
+
+  // 3. The latched topic, from anybody.
+  ros::Publisher estop = nh.advertise<std_msgs::Bool>("/ddace/estop", 1, true);
+  ASSERT_TRUE(waitFor([&] { return estop.getNumSubscribers() >= 3; }, 5.0));  // follower, mock, coordinator
+  std_msgs::Bool on;
+  on.data = true;
+  const ros::Time pub = ros::Time::now();
+  estop.publish(on);
+  ros::Duration(0.5).sleep();
+  expectAllStopped(w, pub, pub + ros::Duration(cycle_s));
+  EXPECT_EQ(w.stateCode(), ddace::CoordinatorState::ESTOPPED);
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "exec_estop_test");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  return RUN_ALL_TESTS();
+}

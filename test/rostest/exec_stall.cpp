@@ -1,0 +1,48 @@
+// A stalled mock robot: its segment times out, the run aborts cleanly, every wheel is zero.
+#include "exec_common.h"
+
+using namespace exec_test;
+
+TEST(ExecStall, SegmentTimeoutAbortsTheRunWithZeroWheels) {
+  ros::NodeHandle nh;
+  const Files files = Files::fromParams();
+  const std::string dir = scratchDir("stall");
+  generateTask(dir, "task4", 3, 1);
+  const auto spec = ddace::task::loadTaskDir(dir + "/test").spec;
+  const std::string config = writeConfig(files.config_file, dir + "/execution.yaml",
+                                         {{{"coordinator", "segment_timeout_s", "8.0"},
+                                           {"coordinator", "segment_timeout_per_m_s", "0.0"}}});
+  Watcher w(nh, spec);
+  Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "autostart:=false",
+                "monitor:=false", "config:=" + config, "stalled:=[R2]"});
+  ASSERT_TRUE(trigger("/coordinator/start", 30.0));
+  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 30.0))
+      << "state " << w.state().state_name;
+  const ros::Time aborted = w.state().header.stamp;
+  ros::Duration(0.5).sleep();
+  const auto s = w.state();
+  EXPECT_NE(s.reason.find("R2:move:R4"), std::string::npos) << s.reason;
+  EXPECT_NE(s.reason.find("timed out"), std::string::npos) << s.reason;
+  // R1 arrived, R2's segment was aborted, and no further step was decided.
+  ASSERT_EQ(s.steps.size(), 1u);
+  EXPECT_EQ(w.requests(), 1u);
+  bool r2_aborted = false;
+  for (const auto& [id, seg] : w.segments())
+    if (seg.key == "R2:move:R4") r2_aborted = seg.end_status == ddace::SegmentStatus::ABORTED;
+  EXPECT_TRUE(r2_aborted) << "R2's segment was not reported aborted";
+  for (const auto& [robot, cmds] : w.wheels()) {
+    ASSERT_FALSE(cmds.empty());
+    for (const auto& c : cmds)
+      if (c.stamp > aborted + ros::Duration(0.05))
+        ASSERT_TRUE(c.left == 0 && c.right == 0) << robot << " driven after the abort";
+    EXPECT_EQ(cmds.back().left, 0.0);
+  }
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "exec_stall_test");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  return RUN_ALL_TESTS();
+}

@@ -1,0 +1,14 @@
+// Task 2 (11 robots) end-to-end on mock robots: the whole graph of launch/execute_sim.launch.
+#include "exec_common.h"
+
+TEST(ExecTask2, CompletesWithTheGroundTruthSequenceAndEveryGoalCondition) {
+  exec_test::runTaskEndToEnd("task2", 11, {}, 90.0);
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "exec_task2_test");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  return RUN_ALL_TESTS();
+}

@@ -1,0 +1,14 @@
+// Task 4 end-to-end on mock robots: the whole graph of launch/execute_sim.launch.
+#include "exec_common.h"
+
+TEST(ExecTask4, CompletesWithTheGroundTruthSequenceAndEveryGoalCondition) {
+  exec_test::runTaskEndToEnd("task4", 4, {}, 60.0);
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "exec_task4_test");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  return RUN_ALL_TESTS();
+}

@@ -1,0 +1,151 @@
+// Closed-loop simulator + metrics: a policy that replays the ground truth scores perfectly;
+// each kind of mistake lowers exactly the metric the spec says it should.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "ddace/eval/metrics.h"
+#include "ddace/tasks/generators.h"
+
+using namespace ddace;
+
+namespace {
+
+task::TaskDir testSet(const std::string& family, int demos = 3) {
+  tasks::GeneratorOptions o;
+  o.family = family;
+  o.demos = demos;
+  o.seed = 11;
+  return tasks::generate(o);
+}
+
+/// Replays the ground truth's steps, then END; `mutate` may change step k.
+exec::Policy replay(const task::Demonstration& gt,
+                    std::function<void(size_t, exec::Decision&)> mutate = nullptr) {
+  return [&gt, mutate](const std::vector<task::Snapshot>& history) {
+    exec::Decision d;
+    const size_t k = history.size() - 1;
+    if (k >= gt.steps.size()) {
+      d.end = true;
+    } else {
+      d.tokens = gt.steps[k].tokens;
+    }
+    if (mutate) mutate(k, d);
+    return d;
+  };
+}
+
+/// The demonstrated path of the segment with this token (a replay starts and decides
+/// exactly where the demonstration did, so start and goal coincide with it).
+exec::PathGenerator truthPaths(const task::Demonstration& gt) {
+  return [&gt](const task::Token& t, const Eigen::Vector2d& start, const Eigen::Vector2d& goal) {
+    for (const auto& s : gt.segments)
+      if (s.token == t && (gt.segmentPath(s).front() - start).norm() < 1e-9) return gt.segmentPath(s);
+    return exec::Path{start, goal};
+  };
+}
+
+exec::PathGenerator straight() {
+  return [](const task::Token&, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    exec::Path p;
+    for (int i = 0; i <= 50; ++i) p.push_back(a + (b - a) * (i / 50.0));
+    return p;
+  };
+}
+
+}  // namespace
+
+TEST(ClosedLoop, ReplayingTheGroundTruthIsAPerfectTrial) {
+  for (const auto& family : tasks::families()) {
+    const auto dir = testSet(family);
+    exec::IdealExecution ideal;
+    std::vector<eval::TrialScore> scores;
+    for (const auto& gt : dir.demos) {
+      const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt), truthPaths(gt), ideal);
+      EXPECT_TRUE(trial.ended);
+      EXPECT_EQ(trial.snapshots.size(), gt.steps.size() + 1);
+      scores.push_back(eval::scoreTrial(dir.spec, gt, trial));
+      EXPECT_TRUE(scores.back().success) << family;
+    }
+    const eval::Summary m = eval::summarise(scores);
+    EXPECT_EQ(m.trials, 3);
+    EXPECT_DOUBLE_EQ(m.osr, 1.0) << family;
+    EXPECT_DOUBLE_EQ(m.ssr, 1.0);
+    EXPECT_DOUBLE_EQ(m.gcr, 1.0);
+    EXPECT_LT(m.fd, 0.01) << family;
+    EXPECT_GT(m.fd_tokens, 0);
+  }
+}
+
+TEST(ClosedLoop, GoalsAreTheTargetsPositionsWhenTheStepIsDecided) {
+  const auto dir = testSet("task4", 1);
+  const auto& gt = dir.demos[0];
+  exec::IdealExecution ideal;
+  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt), straight(), ideal);
+  // Step 2: R3 -> G1 starts where R3 was at the start (it did not move in step 1).
+  for (const auto& ex : trial.executed) {
+    EXPECT_LT((ex.goal - trial.snapshots[ex.step].positions[ex.token.target]).norm(), 1e-12);
+    EXPECT_LT((ex.executed.back() - ex.goal).norm(), 1e-12);
+  }
+}
+
+TEST(ClosedLoop, StraightPathsOnCurvedDemonstrationsRaiseOnlyFd) {
+  const auto dir = testSet("task4", 2);
+  exec::IdealExecution ideal;
+  std::vector<eval::TrialScore> scores;
+  for (const auto& gt : dir.demos)
+    scores.push_back(eval::scoreTrial(dir.spec, gt, exec::runTrial(dir.spec, gt, replay(gt), straight(), ideal)));
+  const eval::Summary m = eval::summarise(scores);
+  EXPECT_DOUBLE_EQ(m.osr, 1.0);
+  EXPECT_GT(m.fd, 0.1);  // arcs of 0.3 and spirals are far from straight lines
+}
+
+TEST(ClosedLoop, AWrongStepLowersSsrAndOsr) {
+  const auto dir = testSet("task4", 1);
+  const auto& gt = dir.demos[0];
+  exec::IdealExecution ideal;
+  // Step 2 forgets R4's token: R4 never reaches G1.
+  auto drop = [](size_t k, exec::Decision& d) {
+    if (k == 1) d.tokens.pop_back();
+  };
+  const auto s = eval::scoreTrial(dir.spec, gt, exec::runTrial(dir.spec, gt, replay(gt, drop), straight(), ideal));
+  EXPECT_EQ(s.correct_steps, 1);
+  EXPECT_DOUBLE_EQ(s.ssr(), 0.5);
+  EXPECT_DOUBLE_EQ(s.gcr(), 0.75);
+  EXPECT_FALSE(s.goal_conditions_hold);  // R4 is not at G1
+  EXPECT_FALSE(s.success);
+}
+
+TEST(ClosedLoop, NeverEndingPolicyStopsTwoStepsAfterTheGroundTruth) {
+  const auto dir = testSet("task4", 1);
+  const auto& gt = dir.demos[0];
+  exec::IdealExecution ideal;
+  auto never_end = [&](size_t k, exec::Decision& d) {
+    if (k >= gt.steps.size()) {
+      d.end = false;
+      d.tokens = gt.steps[0].tokens;
+    }
+  };
+  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt, never_end), straight(), ideal);
+  EXPECT_FALSE(trial.ended);
+  EXPECT_EQ(trial.predicted.size(), gt.steps.size() + 2);
+  const auto s = eval::scoreTrial(dir.spec, gt, trial);
+  EXPECT_DOUBLE_EQ(s.ssr(), 1.0);
+  EXPECT_FALSE(s.ended_correctly);
+  EXPECT_FALSE(s.success);
+}
+
+TEST(ClosedLoop, StoppingShortOfTheGoalLowersGcr) {
+  const auto dir = testSet("task4", 1);
+  const auto& gt = dir.demos[0];
+  struct Short : exec::ExecutionModel {
+    std::string name() const override { return "short"; }
+    exec::Path follow(const exec::Path& p, bool, int) override {
+      return exec::Path(p.begin(), p.begin() + static_cast<long>(p.size() * 0.8));
+    }
+  } short_model;
+  const auto s = eval::scoreTrial(dir.spec, gt, exec::runTrial(dir.spec, gt, replay(gt), straight(), short_model));
+  EXPECT_DOUBLE_EQ(s.ssr(), 1.0);
+  EXPECT_DOUBLE_EQ(s.gcr(), 0.0);
+  EXPECT_FALSE(s.success);
+}

@@ -1,0 +1,119 @@
+// `ddace path` end to end: a model directory holding primitives.yaml (fitted here, as
+// `ddace train` will do), paths on stdout and in CSV files, and clean errors.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "ddace/gp/primitives.h"
+#include "ddace/task/task_dir.h"
+#include "ddace/tasks/generators.h"
+
+using namespace ddace;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct ToolRun {
+  int status = -1;
+  std::string out;
+};
+
+/// Runs the ddace tool built next to this test binary; stdout and stderr together.
+ToolRun runTool(const std::string& args) {
+  const fs::path tool = fs::read_symlink("/proc/self/exe").parent_path() / "ddace";
+  ToolRun r;
+  FILE* p = ::popen(("'" + tool.string() + "' " + args + " 2>&1").c_str(), "r");
+  if (!p) return r;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int status = ::pclose(p);
+  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+/// A model directory with the primitives of a generated Task 4 and its test set.
+struct Model {
+  std::string dir, test;
+  Model() {
+    const fs::path root = fs::temp_directory_path() / ("ddace_test_cli_path_" + std::to_string(::getpid()));
+    fs::create_directories(root / "model");
+    tasks::GeneratorOptions o;
+    o.family = "task4";
+    o.demos = 12;
+    gp::PrimitiveLibrary::fit(tasks::generate(o)).save((root / "model" / gp::kPrimitivesFile).string());
+    o.demos = 3;
+    o.seed = 77;
+    task::writeTaskDir(tasks::generate(o), (root / "test").string());
+    dir = (root / "model").string();
+    test = (root / "test").string();
+    this->root = root.string();
+  }
+  ~Model() { fs::remove_all(root); }
+  std::string root;
+};
+
+const Model& model() {
+  static const Model m;
+  return m;
+}
+
+}  // namespace
+
+TEST(CliPath, PrintsARetargetedPath) {
+  const ToolRun r = runTool("path " + model().dir + " --key R3:move:G1 --start 0.1,0.2 --goal 0.8,0.7 --points 5");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("# primitive R3:move:G1"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("i,progress,x,y,stddev\n0,0,0.1,0.2,"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\n4,1,0.8,0.7,"), std::string::npos) << r.out;
+}
+
+TEST(CliPath, WritesCsvAndSaysWhenItFellBack) {
+  const std::string csv = model().dir + "/fallback.csv";
+  const ToolRun r = runTool("path " + model().dir + " --key R1:move:G1 --start 0,0 --goal 0.5,0 --csv " + csv);
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("fell back to R1:move:R3"), std::string::npos) << r.out;
+  std::ifstream f(csv);
+  std::string line;
+  int lines = 0;
+  while (std::getline(f, line)) ++lines;
+  EXPECT_EQ(lines, 101);  // header + 100 points
+}
+
+TEST(CliPath, DemosModeReportsFrechetPerKey) {
+  const std::string csv = model().dir + "/demos.csv";
+  const ToolRun r = runTool("path " + model().dir + " --demos " + model().test + " --csv " + csv);
+  ASSERT_EQ(r.status, 0) << r.out;
+  for (const char* key : {"R1:move:R3", "R2:move:R4", "R3:move:G1", "R4:move:G1"})
+    EXPECT_NE(r.out.find(key), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::file_size(csv) > 1000);
+}
+
+TEST(CliPath, ListsPrimitives) {
+  const ToolRun r = runTool("path " + model().dir + " --list");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("4 primitives"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("R3:move:G1                     12"), std::string::npos) << r.out;
+}
+
+TEST(CliPath, BadInputFailsWithAMessage) {
+  ToolRun r = runTool("path " + model().dir + " --key R3:move:G1 --start 0.1 --goal 0.8,0.7");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("--start"), std::string::npos) << r.out;
+  r = runTool("path " + model().dir + " --key R3:fly --start 0,0 --goal 1,1");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("ENTITY:ACTION:TARGET"), std::string::npos) << r.out;
+  r = runTool("path /nonexistent/model --key R3:move:G1 --start 0,0 --goal 1,1");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("/nonexistent/model"), std::string::npos) << r.out;
+  const std::string broken = model().dir + "/broken.yaml";
+  std::ofstream(broken) << "format: ddace-primitives/1\ntask: x\n";
+  r = runTool("path " + broken + " --key R3:move:G1 --start 0,0 --goal 1,1");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find(broken), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("missing field 'entities'"), std::string::npos) << r.out;
+}

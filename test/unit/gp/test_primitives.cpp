@@ -1,0 +1,293 @@
+// Motion primitives: accuracy on held-out demonstrations of generated tasks,
+// retargeting invariance, fallback, the library file and its errors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <regex>
+
+#include "ddace/common/error.h"
+#include "ddace/eval/frechet.h"
+#include "ddace/gp/primitives.h"
+#include "ddace/tasks/generators.h"
+
+using namespace ddace;
+using Eigen::Vector2d;
+namespace fs = std::filesystem;
+
+namespace {
+
+task::TaskDir generated(const std::string& family, int demos, uint64_t seed) {
+  tasks::GeneratorOptions o;
+  o.family = family;
+  o.demos = demos;
+  o.seed = seed;
+  return tasks::generate(o);
+}
+
+/// Trained on 30 demonstrations (seed 1), shared by the tests of one family.
+const gp::PrimitiveLibrary& library(const std::string& family) {
+  static std::map<std::string, gp::PrimitiveLibrary> cache;
+  auto it = cache.find(family);
+  if (it == cache.end()) it = cache.emplace(family, gp::PrimitiveLibrary::fit(generated(family, 30, 1))).first;
+  return it->second;
+}
+
+/// Mean normalised FD per primitive key over the motion segments of fresh test demos.
+std::map<std::string, double> heldOutFrechet(const std::string& family) {
+  const task::TaskDir test = generated(family, 10, 99);
+  const gp::PrimitiveLibrary& lib = library(family);
+  std::map<std::string, std::pair<double, int>> sum;
+  for (const auto& demo : test.demos)
+    for (const auto& seg : demo.segments) {
+      if (!seg.token.isMotion()) continue;
+      const auto truth = demo.segmentPath(seg);
+      const gp::GeneratedPath g = lib.generate(seg.token, truth.front(), demo.segmentGoal(seg));
+      EXPECT_FALSE(g.fell_back) << task::tokenKey(seg.token, test.spec);
+      auto& [total, count] = sum[task::tokenKey(seg.token, test.spec)];
+      total += eval::normalisedFrechet(g.points, truth);
+      ++count;
+    }
+  std::map<std::string, double> mean;
+  for (const auto& [key, s] : sum) mean[key] = s.first / s.second;
+  return mean;
+}
+
+/// A fresh directory under /tmp, removed when the test binary exits.
+std::string tempDir(const std::string& name) {
+  struct Root {
+    fs::path path = fs::temp_directory_path() / ("ddace_test_gp_" + std::to_string(::getpid()));
+    ~Root() { fs::remove_all(path); }
+  };
+  static const Root root;
+  const fs::path dir = root.path / name;
+  fs::create_directories(dir);
+  return dir.string();
+}
+
+std::string readText(const std::string& path) {
+  std::ifstream f(path);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+void writeText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+
+/// load() must throw a ddace::Error whose message names the file and contains `what`.
+void expectLoadError(const std::string& path, const std::string& what) {
+  try {
+    gp::PrimitiveLibrary::load(path);
+    ADD_FAILURE() << "loaded a bad library; expected an error containing '" << what << "'";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find(path), std::string::npos) << msg;
+    EXPECT_NE(msg.find(what), std::string::npos) << msg;
+  }
+}
+
+}  // namespace
+
+TEST(Primitives, OnePrimitivePerMotionKey) {
+  const auto& lib = library("task4");
+  std::vector<std::string> keys;
+  for (const auto& [key, p] : lib.primitives()) {
+    keys.push_back(key);
+    EXPECT_EQ(p.segments, 30);
+    EXPECT_EQ(p.skipped_segments, 0);
+  }
+  EXPECT_EQ(keys, (std::vector<std::string>{"R1:move:R3", "R2:move:R4", "R3:move:G1", "R4:move:G1"}));
+}
+
+TEST(Primitives, HeldOutFrechetOnCurvedAndSpiralPrimitives) {
+  // Task 4: arcs (R1, R2) and spirals (R3, R4) -- the spec's bound is 0.04.
+  for (const auto& [key, fd] : heldOutFrechet("task4")) {
+    EXPECT_LE(fd, 0.04) << key;
+    std::cout << "task4 " << key << " mean FD " << fd << "\n";
+  }
+}
+
+TEST(Primitives, HeldOutFrechetOnStraightPrimitives) {
+  // Task 2: every motion is straight -- the spec's bound is 0.02.
+  const auto fds = heldOutFrechet("task2");
+  ASSERT_GE(fds.size(), 10u);
+  for (const auto& [key, fd] : fds) EXPECT_LE(fd, 0.02) << key;
+}
+
+TEST(Primitives, HeldOutFrechetOnTask3) {
+  // Straight passes, arcs and S-curves.
+  for (const auto& [key, fd] : heldOutFrechet("task3")) EXPECT_LE(fd, 0.04) << key;
+}
+
+TEST(Primitives, RetargetingCommutesWithSimilarityTransforms) {
+  const auto& lib = library("task4");
+  const Vector2d s(0.2, 0.3), g(0.7, 0.45);
+  for (const auto& [key, p] : lib.primitives()) {
+    const gp::GeneratedPath base = lib.generate(key, s, g, 60);
+    for (double angle : {0.7, -2.0, M_PI}) {
+      for (double scale : {0.3, 2.5}) {
+        const Vector2d t(-0.4, 1.1);
+        Eigen::Matrix2d r;
+        r << std::cos(angle), -std::sin(angle), std::sin(angle), std::cos(angle);
+        auto T = [&](const Vector2d& v) -> Vector2d { return r * (scale * v) + t; };
+        const gp::GeneratedPath moved = lib.generate(key, T(s), T(g), 60);
+        ASSERT_EQ(moved.points.size(), 60u);
+        for (size_t i = 0; i < 60; ++i) {
+          EXPECT_LT((moved.points[i] - T(base.points[i])).norm(), 1e-12) << key << " point " << i;
+          EXPECT_NEAR(moved.stddev[i], scale * base.stddev[i], 1e-12) << key << " point " << i;
+        }
+      }
+    }
+    EXPECT_EQ(base.points.front(), s);
+    EXPECT_EQ(base.points.back(), g);
+  }
+}
+
+TEST(Primitives, SpreadFollowsTheDemonstrations) {
+  // The spiral's amplitude varies between demonstrations; a straight move does not.
+  const auto& spiral = library("task4");
+  const gp::GeneratedPath curved = spiral.generate("R3:move:G1", {0, 0}, {1, 0});
+  const gp::GeneratedPath straight = library("task2").generate("R1:move:R3", {0, 0}, {1, 0});
+  const double curved_max = *std::max_element(curved.stddev.begin(), curved.stddev.end());
+  const double straight_max = *std::max_element(straight.stddev.begin(), straight.stddev.end());
+  EXPECT_GT(curved_max, 3 * straight_max);
+  for (double v : curved.stddev) EXPECT_GE(v, 0.0);
+}
+
+TEST(Primitives, FallbackRule) {
+  const auto& lib = library("task4");
+  // Same entity and action toward another target.
+  gp::GeneratedPath g = lib.generate("R1:move:G1", {0, 0}, {1, 0});
+  EXPECT_TRUE(g.fell_back);
+  EXPECT_EQ(g.source_key, "R1:move:R3");
+  // Same action by another entity (R2 never moves toward R1; R2:move:R4 exists).
+  g = lib.generate("R2:move:R1", {0, 0}, {1, 0});
+  EXPECT_EQ(g.source_key, "R2:move:R4");
+  // G1 has no primitive of its own: the action's most-demonstrated primitive, ties by key.
+  g = lib.generate("G1:move:R1", {0, 0}, {1, 0});
+  EXPECT_TRUE(g.fell_back);
+  EXPECT_EQ(g.source_key, "R1:move:R3");
+  // Unknown action: a straight line with zero spread.
+  g = lib.generate("R1:jump:R3", {0.1, 0.1}, {0.5, 0.3}, 5);
+  EXPECT_TRUE(g.fell_back);
+  EXPECT_EQ(g.source_key, gp::kStraightLine);
+  ASSERT_EQ(g.points.size(), 5u);
+  EXPECT_TRUE(g.points[2].isApprox(Vector2d(0.3, 0.2)));
+  for (double v : g.stddev) EXPECT_EQ(v, 0.0);
+  // Exact key: no fallback.
+  g = lib.generate("R3:move:G1", {0, 0}, {1, 0});
+  EXPECT_FALSE(g.fell_back);
+  EXPECT_EQ(g.source_key, "R3:move:G1");
+}
+
+TEST(Primitives, GenerateRejectsBadRequests) {
+  const auto& lib = library("task4");
+  EXPECT_THROW(lib.generate("R1:move", {0, 0}, {1, 0}), Error);
+  EXPECT_THROW(lib.generate("R9:move:R3", {0, 0}, {1, 0}), Error);
+  EXPECT_THROW(lib.generate("R1:move:R1", {0, 0}, {1, 0}), Error);
+  EXPECT_THROW(lib.generate("R1:move:R3", {0, 0}, {1, 0}, 1), Error);
+  EXPECT_THROW(lib.generate("R1:move:R3", {0, 0}, {NAN, 0}), Error);
+  task::Token in_place{0, "stop", -1};
+  EXPECT_THROW(lib.generate(in_place, {0, 0}, {1, 0}), Error);
+  task::Token outside{17, "move", 2};
+  EXPECT_THROW(lib.generate(outside, {0, 0}, {1, 0}), Error);
+  // Already at the goal: stay put.
+  const gp::GeneratedPath stay = lib.generate("R1:move:R3", {0.4, 0.4}, {0.4, 0.4}, 7);
+  ASSERT_EQ(stay.points.size(), 7u);
+  for (const auto& p : stay.points) EXPECT_EQ(p, Vector2d(0.4, 0.4));
+}
+
+TEST(Primitives, OtherPointCountsFollowTheSameMean) {
+  const auto& lib = library("task4");
+  const gp::GeneratedPath dense = lib.generate("R3:move:G1", {0.1, 0.5}, {0.9, 0.5}, 100);
+  const gp::GeneratedPath sparse = lib.generate("R3:move:G1", {0.1, 0.5}, {0.9, 0.5}, 34);
+  // Progress 1/3 is index 33 of 100 and index 11 of 34.
+  EXPECT_LT((dense.points[33] - sparse.points[11]).norm(), 1e-12);
+  EXPECT_NEAR(dense.stddev[33], sparse.stddev[11], 1e-12);
+}
+
+TEST(PrimitiveLibrary, SaveLoadRoundTrip) {
+  const auto& lib = library("task4");
+  const std::string path = tempDir("roundtrip") + "/" + gp::kPrimitivesFile;
+  lib.save(path);
+  const gp::PrimitiveLibrary back = gp::PrimitiveLibrary::load(path);
+  EXPECT_EQ(back.taskName(), lib.taskName());
+  EXPECT_EQ(back.entityNames(), lib.entityNames());
+  ASSERT_EQ(back.primitives().size(), lib.primitives().size());
+  for (const auto& [key, p] : lib.primitives()) {
+    for (int n : {100, 23}) {
+      const auto a = lib.generate(key, {0.1, 0.2}, {0.8, 0.6}, n), b = back.generate(key, {0.1, 0.2}, {0.8, 0.6}, n);
+      for (int i = 0; i < n; ++i) {
+        EXPECT_LT((a.points[i] - b.points[i]).norm(), 1e-12);
+        EXPECT_NEAR(a.stddev[i], b.stddev[i], 1e-12);
+      }
+    }
+    EXPECT_NEAR(back.primitives().at(key).x.logMarginalLikelihood(), p.x.logMarginalLikelihood(), 1e-9);
+  }
+}
+
+TEST(PrimitiveLibrary, CorruptedFilesAreRejectedCleanly) {
+  const std::string dir = tempDir("corrupt");
+  const std::string good = dir + "/good.yaml";
+  library("task4").save(good);
+  const std::string text = readText(good);
+
+  expectLoadError(dir + "/missing.yaml", "cannot open");
+
+  const std::string truncated = dir + "/truncated.yaml";
+  writeText(truncated, text.substr(0, text.size() / 2) + "\n  - [unclosed");
+  expectLoadError(truncated, "");
+
+  const std::string not_yaml = dir + "/not_yaml.yaml";
+  writeText(not_yaml, "format: [ddace-primitives/1\n");
+  expectLoadError(not_yaml, "not valid YAML");
+
+  const std::string wrong_format = dir + "/wrong_format.yaml";
+  writeText(wrong_format, std::regex_replace(text, std::regex("ddace-primitives/1"), "ddace-primitives/9"));
+  expectLoadError(wrong_format, "unsupported format");
+
+  // A hyper-parameter changed by hand: the stored likelihood no longer matches.
+  const std::string edited = dir + "/edited.yaml";
+  writeText(edited, std::regex_replace(text, std::regex("length_scale: ([0-9])"), "length_scale: 9$1",
+                                       std::regex_constants::format_first_only));
+  expectLoadError(edited, "does not match");
+
+  const std::string not_number = dir + "/not_number.yaml";
+  writeText(not_number, std::regex_replace(text, std::regex("noise_level: [^\\n]*"), "noise_level: lots",
+                                           std::regex_constants::format_first_only));
+  expectLoadError(not_number, "'noise_level' must be a number");
+
+  const std::string missing_field = dir + "/missing_field.yaml";
+  writeText(missing_field, std::regex_replace(text, std::regex("\\n *residual_ss: [^\\n]*"), "",
+                                              std::regex_constants::format_first_only));
+  expectLoadError(missing_field, "missing field 'residual_ss'");
+
+  const std::string short_means = dir + "/short_means.yaml";
+  writeText(short_means, std::regex_replace(text, std::regex("means: \\[[^,]*, "), "means: [",
+                                            std::regex_constants::format_first_only));
+  expectLoadError(short_means, "'means' must be a list of 100 numbers");
+
+  const std::string unknown_entity = dir + "/unknown_entity.yaml";
+  writeText(unknown_entity, std::regex_replace(text, std::regex("entity: R1"), "entity: Q7",
+                                               std::regex_constants::format_first_only));
+  expectLoadError(unknown_entity, "unknown entity 'Q7'");
+
+  // Diagnostics carry a line number (file:line:column).
+  try {
+    gp::PrimitiveLibrary::load(not_number);
+    FAIL();
+  } catch (const Error& e) {
+    ASSERT_FALSE(e.diagnostics().empty());
+    EXPECT_GT(e.diagnostics()[0].line, 1);
+  }
+}
+
+TEST(PrimitiveLibrary, FitIsDeterministic) {
+  const task::TaskDir train = generated("task1", 8, 5);
+  const std::string a = tempDir("det") + "/a.yaml", b = tempDir("det") + "/b.yaml";
+  gp::PrimitiveLibrary::fit(train).save(a);
+  gp::PrimitiveLibrary::fit(train).save(b);
+  EXPECT_EQ(readText(a), readText(b));
+}

@@ -1,0 +1,114 @@
+// config/hamsters.yaml parsing and the m/s → wheel-unit calibration.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "ddace/common/error.h"
+#include "ddace/hamster/config.h"
+
+using namespace ddace::hamster;
+
+namespace {
+
+std::string errorOf(const std::string& yaml) {
+  try {
+    parseBridgeConfig(yaml, "h.yaml");
+  } catch (const ddace::Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+const char* kRobot = "robots:\n  - name: R1\n    address: 67E1A48B4BD9\n    calibration: {mps_per_unit: 0.002}\n";
+
+}  // namespace
+
+TEST(HamsterConfig, ParsesRobotsAndDefaults) {
+  const BridgeConfig c = parseBridgeConfig(
+      "port_dir: /tmp/x\nscan: []\nlink_timeout_s: 0.3\nrobots:\n"
+      "  - name: R1\n    address: D9:4B:8B:A4:E1:67\n    model: hamster_s\n    port_hints: [hamster_R1, /abs/*]\n"
+      "    calibration: {left_mps_per_unit: 0.002, right_mps_per_unit: 0.0021, max_units: 80, track_m: 0.034}\n"
+      "  - name: R2\n    address: '000000000001'\n    calibration: {mps_per_unit: 0.0019}\n",
+      "h.yaml");
+  EXPECT_EQ(c.port_dir, "/tmp/x");
+  EXPECT_TRUE(c.scan.empty());
+  EXPECT_DOUBLE_EQ(c.link_timeout_s, 0.3);
+  EXPECT_DOUBLE_EQ(c.command_timeout_s, 0.2);
+  ASSERT_EQ(c.robots.size(), 2u);
+  EXPECT_EQ(c.robots[0].address.wire(), "67E1A48B4BD9");
+  EXPECT_EQ(c.robots[0].model, Model::HamsterS);
+  EXPECT_EQ(c.robots[0].port_hints, (std::vector<std::string>{"hamster_R1", "/abs/*"}));
+  EXPECT_DOUBLE_EQ(c.robots[0].calibration.right_mps_per_unit, 0.0021);
+  EXPECT_EQ(c.robots[0].calibration.max_units, 80);
+  EXPECT_EQ(c.robots[1].model, Model::Unknown);
+  EXPECT_DOUBLE_EQ(c.robots[1].calibration.left_mps_per_unit, 0.0019);
+  EXPECT_DOUBLE_EQ(c.robots[1].calibration.right_mps_per_unit, 0.0019);
+  // Without a scan key the usual device patterns are scanned.
+  EXPECT_EQ(parseBridgeConfig(kRobot, "h.yaml").scan.size(), 3u);
+}
+
+TEST(HamsterConfig, ShippedConfigIsValid) {
+  const BridgeConfig c = loadBridgeConfig(std::string(DDACE_SOURCE_DIR) + "/config/hamsters.yaml");
+  EXPECT_GE(c.robots.size(), 1u);
+}
+
+TEST(HamsterConfig, ErrorsNameFileLineAndColumn) {
+  EXPECT_EQ(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BZZ\n    calibration: {mps_per_unit: 0.002}\n"),
+            "h.yaml:3:14: robot R1: address '67E1A48B4BZZ' is neither 12 hex digits (wire order) nor "
+            "AA:BB:CC:DD:EE:FF");
+  EXPECT_NE(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BD9\n").find(
+                "h.yaml:2:5: robot R1: missing key 'calibration'"),
+            std::string::npos);
+  EXPECT_NE(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BD9\n    calibration: {mps_per_unit: -1}\n")
+                .find("mps_per_unit must be > 0"),
+            std::string::npos);
+  EXPECT_NE(errorOf(std::string(kRobot) + "  - name: R2\n    address: 67e1a48b4bd9\n    calibration: {mps_per_unit: 1}\n")
+                .find("h.yaml:6:14: address D9:4B:8B:A4:E1:67 of robot R2 is also used by robots[0]"),
+            std::string::npos);
+  EXPECT_NE(errorOf(std::string("speed: 3\n") + kRobot).find("h.yaml:1:1: unknown key 'speed'"), std::string::npos);
+  EXPECT_NE(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BD9\n    model: turtle\n"
+                    "    calibration: {mps_per_unit: 0.002}\n")
+                .find("model 'turtle'"),
+            std::string::npos);
+  EXPECT_NE(errorOf("robots: [").find("YAML syntax error"), std::string::npos);
+  EXPECT_NE(errorOf("port_dir: /dev\n").find("missing key 'robots'"), std::string::npos);
+}
+
+TEST(HamsterConfig, WheelUnitsFollowTheCalibration) {
+  Calibration c;
+  c.left_mps_per_unit = 0.002;
+  c.right_mps_per_unit = 0.0025;
+  WheelUnits u = wheelUnitsFromSpeeds(c, 0.06, 0.06);
+  EXPECT_EQ(u.left, 30);
+  EXPECT_EQ(u.right, 24);
+  EXPECT_FALSE(u.saturated);
+  u = wheelUnitsFromSpeeds(c, -0.0609, 0.0);
+  EXPECT_EQ(u.left, -30);  // rounds to nearest
+  EXPECT_EQ(u.right, 0);
+}
+
+TEST(HamsterConfig, SaturationKeepsTheCurvature) {
+  Calibration c;
+  c.left_mps_per_unit = c.right_mps_per_unit = 0.001;
+  c.max_units = 80;
+  const WheelUnits u = wheelUnitsFromSpeeds(c, 0.2, 0.1);  // 200 / 100 units wanted
+  EXPECT_TRUE(u.saturated);
+  EXPECT_EQ(u.left, 80);
+  EXPECT_EQ(u.right, 40);
+}
+
+TEST(HamsterConfig, NonFiniteCommandsAreRefused) {
+  Calibration c;
+  c.left_mps_per_unit = c.right_mps_per_unit = 0.001;
+  EXPECT_THROW(wheelUnitsFromSpeeds(c, std::nan(""), 0.0), ddace::Error);
+  EXPECT_THROW(wheelUnitsFromSpeeds(c, 0.0, INFINITY), ddace::Error);
+  EXPECT_THROW(wheelUnitsFromSpeeds(Calibration{}, 0.1, 0.1), ddace::Error);  // no calibration
+}
+
+TEST(HamsterConfig, TwistToWheelSpeeds) {
+  double l = 0, r = 0;
+  wheelSpeedsFromTwist(0.1, 2.0, 0.04, &l, &r);  // turning left: right wheel faster
+  EXPECT_NEAR(l, 0.06, 1e-12);
+  EXPECT_NEAR(r, 0.14, 1e-12);
+}

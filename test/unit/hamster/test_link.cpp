@@ -1,0 +1,334 @@
+// The per-robot link against simulated dongles on pseudo-terminals: finding robots by
+// address, the response-driven cycle, the command watchdog, link loss and recovery.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <fstream>
+#include <cstdlib>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <thread>
+
+#include "ddace/common/error.h"
+#include "ddace/hamster/link.h"
+#include "ddace/hamster/mock_robot.h"
+#include "ddace/hamster/scan.h"
+
+using namespace ddace::hamster;
+
+namespace {
+
+double nowS() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+class LinkTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    char tmpl[] = "/tmp/ddace_hamster_test_XXXXXX";
+    ASSERT_NE(::mkdtemp(tmpl), nullptr);
+    dir_ = tmpl;
+  }
+  void TearDown() override {
+    links_.clear();
+    mocks_.clear();
+    std::filesystem::remove_all(dir_);
+  }
+
+  MockRobot& addMock(const std::string& name, const std::string& address, Model model, double mps_per_unit) {
+    MockRobotSettings s;
+    s.name = name;
+    s.address = *Address::parse(address);
+    s.model = model;
+    s.link_path = dir_ + "/hamster_" + name;
+    s.left_mps_per_unit = s.right_mps_per_unit = mps_per_unit;
+    mocks_.push_back(std::make_unique<MockRobot>(s));
+    return *mocks_.back();
+  }
+
+  RobotLink& addLink(const std::string& name, const std::string& address, Model model = Model::Unknown) {
+    BridgeConfig bridge;
+    bridge.port_dir = dir_;
+    bridge.scan = {};
+    RobotConfig r;
+    r.name = name;
+    r.address = *Address::parse(address);
+    r.model = model;
+    r.port_hints = {"hamster_*"};  // every link sees every port: it must pick by address
+    r.calibration.left_mps_per_unit = r.calibration.right_mps_per_unit = 0.002;
+    links_.push_back(std::make_unique<RobotLink>(r, bridge, ports_, serialTransportFactory()));
+    return *links_.back();
+  }
+
+  /// Steps mocks and links every millisecond until `done()` or `timeout_s`.
+  bool runUntil(const std::function<bool()>& done, double timeout_s) {
+    const double end = nowS() + timeout_s;
+    while (nowS() < end) {
+      step();
+      if (done()) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    return false;
+  }
+  void runFor(double seconds) {
+    runUntil([] { return false; }, seconds);
+  }
+  void step() {
+    const double t = nowS();
+    for (auto& m : mocks_) m->step(t);
+    for (auto& l : links_) {
+      for (auto& cmd : commands_) {
+        if (cmd.link == l.get()) l->setWheelCommand(cmd.left, cmd.right, t);
+      }
+      l->poll(t, reports_);
+    }
+  }
+
+  struct Stream {
+    RobotLink* link;
+    double left, right;
+  };
+  std::vector<Stream> commands_;  // commands re-sent every step (like a 1 kHz publisher)
+  std::string dir_;
+  std::shared_ptr<PortDirectory> ports_ = std::make_shared<PortDirectory>();
+  std::vector<std::unique_ptr<MockRobot>> mocks_;
+  std::vector<std::unique_ptr<RobotLink>> links_;
+  std::vector<CycleReport> reports_;
+};
+
+}  // namespace
+
+TEST_F(LinkTest, FindsEachRobotByAddressAndDrivesItsWheels) {
+  MockRobot& m1 = addMock("a", "000000000001", Model::Hamster, 0.002);
+  MockRobot& m2 = addMock("b", "000000000002", Model::HamsterS, 0.002);
+  MockRobot& m3 = addMock("c", "000000000003", Model::Hamster, 0.002);
+  // Links created in the opposite order of the ports: the first port tried is wrong.
+  RobotLink& l3 = addLink("R3", "000000000003");
+  RobotLink& l2 = addLink("R2", "000000000002");
+  RobotLink& l1 = addLink("R1", "000000000001");
+  commands_ = {{&l1, 0.06, 0.06}, {&l2, -0.02, 0.04}, {&l3, 0.3, 0.15}};
+  ASSERT_TRUE(runUntil(
+      [&] {
+        return m1.leftUnits() == 30 && m1.rightUnits() == 30 && m2.leftUnits() == -10 && m2.rightUnits() == 20 &&
+               m3.leftUnits() == 100 && m3.rightUnits() == 50;
+      },
+      5.0))
+      << "m1 " << int(m1.leftUnits()) << " m2 " << int(m2.leftUnits()) << " m3 " << int(m3.leftUnits());
+  EXPECT_EQ(l1.state(), LinkState::Streaming);
+  EXPECT_EQ(l2.model(), Model::HamsterS);
+  EXPECT_EQ(l1.port(), dir_ + "/hamster_a");
+  EXPECT_EQ(l2.port(), dir_ + "/hamster_b");
+  EXPECT_EQ(l3.port(), dir_ + "/hamster_c");
+  EXPECT_GT(l3.stats().saturated_cycles, 0u);
+  // Response-driven: one motoring line per valid sensor line.
+  runFor(0.3);
+  EXPECT_EQ(m1.badLines(), 0u);
+  EXPECT_EQ(l1.stats().lines_sent, l1.stats().lines_ok);
+  EXPECT_NEAR(static_cast<double>(m1.motoringLines()), static_cast<double>(l1.stats().lines_sent), 2.0);
+  EXPECT_EQ(l1.stats().lines_dropped, 0u);
+  // Sensors arrive decoded, battery included.
+  bool battery = false;
+  for (const auto& r : reports_) battery = battery || (r.sensors.has_battery && std::abs(r.sensors.battery_v - 3.9) < 1e-9);
+  EXPECT_TRUE(battery);
+}
+
+TEST_F(LinkTest, WatchdogZeroesWheelsWhenCommandsStop) {
+  MockRobot& m = addMock("a", "0000000000AA", Model::Hamster, 0.002);
+  RobotLink& l = addLink("R1", "0000000000AA");
+  commands_ = {{&l, 0.1, 0.1}};
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
+  commands_.clear();
+  const double stop = nowS();
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 0 && m.rightUnits() == 0; }, 1.0));
+  const double elapsed = nowS() - stop;
+  EXPECT_GE(elapsed, 0.15);  // the command stays valid for command_timeout_s (0.2 s)
+  EXPECT_LE(elapsed, 0.5);
+  EXPECT_EQ(l.state(), LinkState::Streaming);
+  EXPECT_GT(l.stats().stale_command_cycles, 0u);
+}
+
+TEST_F(LinkTest, OneWayStallIsALinkLossThatStopsTheRobotAndRecovers) {
+  MockRobot& m = addMock("a", "0000000000AA", Model::Hamster, 0.002);
+  RobotLink& l = addLink("R1", "0000000000AA");
+  commands_ = {{&l, 0.1, 0.1}};
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
+  m.setFault(MockFault::Stall, 1.0, nowS());
+  // No sensor line for 250 ms → the link sends a zero line (the robot still hears us) and reconnects.
+  const double stall = nowS();
+  ASSERT_TRUE(runUntil([&] { return l.state() != LinkState::Streaming; }, 1.0));
+  EXPECT_GE(nowS() - stall, 0.24);
+  EXPECT_EQ(l.stats().link_losses, 1u);
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 0 && m.rightUnits() == 0; }, 0.1));
+  // The dongle still answers FF, so the link re-identifies, but without sensor lines it
+  // never drives; once the lines come back, driving resumes.
+  runFor(0.4);
+  EXPECT_EQ(m.leftUnits(), 0);
+  ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Streaming && m.leftUnits() == 50; }, 3.0));
+  EXPECT_GE(l.stats().connects, 2u);
+}
+
+TEST_F(LinkTest, RadioDropRecoversWhenTheRobotComesBack) {
+  MockRobot& m = addMock("a", "0000000000AA", Model::Hamster, 0.002);
+  RobotLink& l = addLink("R1", "0000000000AA");
+  commands_ = {{&l, 0.1, 0.1}};
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
+  m.setFault(MockFault::Drop, 0.8, nowS());
+  ASSERT_TRUE(runUntil([&] { return l.state() != LinkState::Streaming; }, 1.0));
+  runFor(0.3);
+  EXPECT_NE(l.state(), LinkState::Streaming);
+  EXPECT_GT(l.stats().no_robot_lines, 0u);
+  ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Streaming && m.driven(nowS()); }, 4.0));
+}
+
+TEST_F(LinkTest, UnplugAndReplugReopensThroughTheSymlink) {
+  MockRobot& m = addMock("a", "0000000000AA", Model::HamsterS, 0.002);
+  RobotLink& l = addLink("R1", "0000000000AA");
+  commands_ = {{&l, 0.1, 0.1}};
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
+  const std::string before = m.slavePath();
+  m.setFault(MockFault::Unplug, 0.5, nowS());
+  ASSERT_TRUE(runUntil([&] { return l.state() != LinkState::Streaming; }, 1.0));
+  ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Streaming && m.driven(nowS()); }, 4.0));
+  EXPECT_EQ(l.stats().connects, 2u);
+  EXPECT_EQ(m.leftUnits(), 50);
+  (void)before;
+}
+
+TEST_F(LinkTest, GarbageIsCountedAndDroppedWhileDrivingContinues) {
+  MockRobot& m = addMock("a", "0000000000AA", Model::Hamster, 0.002);
+  RobotLink& l = addLink("R1", "0000000000AA");
+  commands_ = {{&l, 0.1, 0.1}};
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
+  const uint64_t ok_before = l.stats().lines_ok;
+  m.setFault(MockFault::Garbage, 0.5, nowS());
+  runFor(0.6);
+  EXPECT_EQ(l.state(), LinkState::Streaming);
+  EXPECT_EQ(l.stats().link_losses, 0u);
+  EXPECT_GE(l.stats().lines_dropped, 20u);  // two bad lines per 20 ms cycle for 0.5 s
+  EXPECT_GE(l.stats().lines_ok - ok_before, 20u);
+  EXPECT_EQ(m.leftUnits(), 50);
+}
+
+TEST_F(LinkTest, NonFiniteCommandIsRefusedAndTheOldOneAgesOut) {
+  MockRobot& m = addMock("a", "0000000000AA", Model::Hamster, 0.002);
+  RobotLink& l = addLink("R1", "0000000000AA");
+  commands_ = {{&l, 0.1, 0.1}};
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
+  commands_.clear();
+  EXPECT_THROW(l.setWheelCommand(std::nan(""), 0.1, nowS()), ddace::Error);
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 0; }, 1.0));
+}
+
+TEST_F(LinkTest, WrongModelInConfigIsRefused) {
+  addMock("a", "0000000000AA", Model::Hamster, 0.002);
+  RobotLink& l = addLink("R1", "0000000000AA", Model::HamsterS);
+  runFor(0.5);
+  EXPECT_NE(l.state(), LinkState::Streaming);
+  EXPECT_NE(l.stats().last_error.find("config says hamster_s"), std::string::npos) << l.stats().last_error;
+}
+
+TEST_F(LinkTest, SurveyListsRobotsAndDonglesWithoutRobots) {
+  addMock("a", "0000000000AA", Model::HamsterS, 0.002);
+  MockRobot& lonely = addMock("b", "0000000000BB", Model::Hamster, 0.002);
+  lonely.setFault(MockFault::Drop, 10.0, nowS());
+  { std::ofstream(dir_ + "/hamster_plainfile") << "not a tty"; }
+  std::atomic<bool> stop{false};
+  std::thread robots([&] {
+    while (!stop) {
+      for (auto& m : mocks_) m->step(nowS());
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  });
+  const auto survey = surveyPorts({"hamster_*"}, dir_, 0.5, serialTransportFactory());
+  stop = true;
+  robots.join();
+  ASSERT_EQ(survey.size(), 3u);
+  EXPECT_EQ(survey[0].port, dir_ + "/hamster_a");
+  EXPECT_EQ(survey[0].status, PortSurvey::Status::Robot);
+  EXPECT_TRUE(survey[0].identified);
+  EXPECT_EQ(survey[0].identify.model, Model::HamsterS);
+  EXPECT_EQ(survey[0].identify.address.wire(), "0000000000AA");
+  EXPECT_EQ(survey[1].status, PortSurvey::Status::NoRobot);
+  EXPECT_EQ(survey[2].status, PortSurvey::Status::OpenFailed);
+  EXPECT_NE(survey[2].error.find("hamster_plainfile"), std::string::npos);
+}
+
+namespace {
+
+/// A dongle in memory whose output can be blocked (as when CTS is never asserted).
+struct MemoryDongle {
+  std::string to_host, from_host;
+  bool block_writes = false;
+};
+
+class MemoryTransport : public Transport {
+ public:
+  explicit MemoryTransport(std::shared_ptr<MemoryDongle> d) : d_(std::move(d)) {}
+  void open() override { open_ = true; }
+  void close() override { open_ = false; }
+  bool isOpen() const override { return open_; }
+  size_t read(char* buf, size_t size) override {
+    const size_t n = std::min(size, d_->to_host.size());
+    std::copy_n(d_->to_host.data(), n, buf);
+    d_->to_host.erase(0, n);
+    return n;
+  }
+  void write(const char* data, size_t size) override {
+    if (d_->block_writes) throw ddace::Error("output queue full (flow control)");
+    d_->from_host.append(data, size);
+  }
+  void flush() override {}
+  std::string name() const override { return "memory"; }
+
+ private:
+  std::shared_ptr<MemoryDongle> d_;
+  bool open_ = false;
+};
+
+}  // namespace
+
+TEST(RobotLinkMemory, BlockedWritesCountAsALostLink) {
+  auto dongle = std::make_shared<MemoryDongle>();
+  BridgeConfig bridge;
+  bridge.scan = {};
+  RobotConfig r;
+  r.name = "R1";
+  r.address = *Address::parse("0000000000AA");
+  r.port_hints = {"/proc/self/exe"};  // any existing path; the factory ignores it
+  r.calibration.left_mps_per_unit = r.calibration.right_mps_per_unit = 0.002;
+  RobotLink link(r, bridge, std::make_shared<PortDirectory>(),
+                 [dongle](const std::string&) { return std::make_unique<MemoryTransport>(dongle); });
+  std::vector<CycleReport> reports;
+  double t = 0.0;
+  link.poll(t, reports);
+  ASSERT_EQ(link.state(), LinkState::Identifying);
+  EXPECT_EQ(dongle->from_host, "FF\r");
+  dongle->to_host = "FF,Hamster,04,01,0000000000AA\r";
+  link.poll(t, reports);
+  ASSERT_EQ(link.state(), LinkState::Streaming);
+  Sensors s;
+  const std::string line = encodeLine(encodeSensors(Model::Hamster, s, true), r.address);
+  link.setWheelCommand(0.1, 0.1, t);
+  dongle->to_host = line;
+  link.poll(t, reports);
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_EQ(reports[0].left_sent, 50);
+  dongle->block_writes = true;
+  for (int i = 1; i <= 20; ++i) {  // lines keep coming every 20 ms, answers cannot leave
+    t = 0.02 * i;
+    link.setWheelCommand(0.1, 0.1, t);
+    dongle->to_host += line;
+    link.poll(t, reports);
+    if (link.state() != LinkState::Streaming) break;
+  }
+  EXPECT_NE(link.state(), LinkState::Streaming);
+  EXPECT_GE(t, 0.25);
+  EXPECT_LE(t, 0.3);
+  EXPECT_EQ(link.stats().link_losses, 1u);
+  EXPECT_NE(link.stats().last_error.find("no motoring line could be written"), std::string::npos)
+      << link.stats().last_error;
+  EXPECT_GT(link.stats().write_failures, 10u);
+}

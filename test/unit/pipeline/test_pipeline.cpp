@@ -1,0 +1,101 @@
+// Data-driven regression of the whole learned pipeline: generate -> train (TGN + GP) ->
+// closed-loop evaluation, as `ddace train` and `ddace eval` run it.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include <nlohmann/json.hpp>
+
+#include "ddace/pipeline/evaluation.h"
+#include "ddace/tasks/generators.h"
+
+using namespace ddace;
+namespace fs = std::filesystem;
+
+namespace {
+
+task::TaskDir generated(const std::string& family, int demos, uint64_t seed) {
+  tasks::GeneratorOptions o;
+  o.family = family;
+  o.demos = demos;
+  o.seed = seed;
+  return tasks::generate(o);
+}
+
+class Pipeline : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = ::testing::TempDir() + "/ddace_pipeline_task4";
+    fs::remove_all(dir_);
+    tgn::TrainOptions o;
+    o.seed = 3;
+    model_ = new pipeline::Model(pipeline::trainModel(generated("task4", 12, 1), o, dir_, nullptr));
+  }
+  static void TearDownTestSuite() {
+    delete model_;
+    fs::remove_all(dir_);
+  }
+  static std::string dir_;
+  static pipeline::Model* model_;
+};
+std::string Pipeline::dir_;
+pipeline::Model* Pipeline::model_ = nullptr;
+
+}  // namespace
+
+TEST_F(Pipeline, Task4OnFreshConfigurationsMeetsThePapersFigures) {
+  const task::TaskDir test = generated("task4", 6, 99);
+  const pipeline::Evaluation e = pipeline::evaluate(*model_, test, {});
+  EXPECT_EQ(e.summary.trials, 6);
+  EXPECT_DOUBLE_EQ(e.summary.osr, 1.0);
+  EXPECT_DOUBLE_EQ(e.summary.ssr, 1.0);
+  EXPECT_DOUBLE_EQ(e.summary.gcr, 1.0);
+  EXPECT_LE(e.summary.fd, 0.04);
+}
+
+TEST_F(Pipeline, ASavedModelDirectoryEvaluatesIdentically) {
+  ASSERT_TRUE(fs::exists(fs::path(dir_) / gp::kPrimitivesFile));
+  const pipeline::Model loaded = pipeline::loadModel(dir_);
+  const task::TaskDir test = generated("task4", 3, 5);
+  const auto a = pipeline::evaluate(*model_, test, {});
+  const auto b = pipeline::evaluate(loaded, test, {});
+  EXPECT_EQ(pipeline::evaluationJson(a), pipeline::evaluationJson(b));
+}
+
+TEST_F(Pipeline, JsonReportHasTheDocumentedKeys) {
+  const auto e = pipeline::evaluate(*model_, generated("task4", 2, 5), {});
+  const auto j = nlohmann::json::parse(pipeline::evaluationJson(e));
+  for (const char* key : {"task", "variant", "trials", "osr", "ssr", "gcr", "fd", "per_trial"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["variant"], "ddace");
+  EXPECT_EQ(j["per_trial"].size(), 2u);
+}
+
+TEST_F(Pipeline, AModelOfAnotherTaskIsRefused) {
+  const task::TaskDir other = generated("task3", 1, 1);
+  try {
+    pipeline::checkSameTask(model_->sequence.spec(), dir_, other.spec, "task3/test");
+    FAIL();
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("task4_trajectory_shape"), std::string::npos) << what;
+    EXPECT_NE(what.find("task3/test"), std::string::npos) << what;
+  }
+  EXPECT_NO_THROW(pipeline::checkSameTask(model_->sequence.spec(), dir_, generated("task4", 1, 2).spec, "t"));
+}
+
+TEST(PipelineFiles, AMissingPrimitiveLibraryIsNamed) {
+  const std::string dir = ::testing::TempDir() + "/ddace_pipeline_missing";
+  fs::remove_all(dir);
+  tgn::TrainOptions o;
+  o.max_epochs = 2;
+  pipeline::trainModel(generated("task4", 2, 1), o, dir, nullptr);
+  fs::remove(fs::path(dir) / gp::kPrimitivesFile);
+  try {
+    pipeline::loadModel(dir);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(gp::kPrimitivesFile), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
+}
