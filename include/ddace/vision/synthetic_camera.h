@@ -73,7 +73,8 @@ class SyntheticCamera {
   bool occluded(const std::string& entity, double t_s) const;
 
  private:
-  void drawMarker(cv::Mat& img, int id, double size_m, const PlanarPose& pose, double height_m);
+  enum class MarkerPart { Whole, QuietZone, Square };
+  void drawMarker(cv::Mat& img, int id, double size_m, const PlanarPose& pose, double height_m, MarkerPart part);
   void drawQuad(cv::Mat& img, const std::vector<cv::Vec3d>& corners, int grey);
 
   SyntheticCameraConfig config_;

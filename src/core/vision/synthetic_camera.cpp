@@ -1,5 +1,6 @@
 #include "ddace/vision/synthetic_camera.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <opencv2/imgproc.hpp>
@@ -115,7 +116,7 @@ SyntheticCamera::SyntheticCamera(SyntheticCameraConfig config, MarkerConfig mark
     cv::circle(background_, p, clutter.uniform(3, 14), cv::Scalar(clutter.uniform(150, 200)), cv::FILLED, cv::LINE_AA);
   }
   for (const auto& c : markers_.corners)
-    drawMarker(background_, c.id, markers_.corner_size_m, {c.table_xy.x, c.table_xy.y, 0.0}, 0.0);
+    drawMarker(background_, c.id, markers_.corner_size_m, {c.table_xy.x, c.table_xy.y, 0.0}, 0.0, MarkerPart::Whole);
 
   light_ = cv::Mat(config_.height, config_.width, CV_32F);
   for (int r = 0; r < config_.height; ++r)
@@ -152,8 +153,19 @@ void SyntheticCamera::drawQuad(cv::Mat& img, const std::vector<cv::Vec3d>& corne
   cv::fillConvexPoly(img, pts, cv::Scalar(grey), cv::LINE_AA, 4);
 }
 
-void SyntheticCamera::drawMarker(cv::Mat& img, int id, double size_m, const PlanarPose& pose, double height_m) {
-  const MarkerImage m = renderMarker(family_, id);
+void SyntheticCamera::drawMarker(cv::Mat& img, int id, double size_m, const PlanarPose& pose, double height_m,
+                                 MarkerPart part) {
+  MarkerImage m = renderMarker(family_, id);
+  if (part == MarkerPart::QuietZone) {
+    m.cells.setTo(255);
+  } else if (part == MarkerPart::Square) {
+    // Only the printed cells inside the white margin (the black square; for AprilTag's
+    // reversed-border families also the data ring around it), centred like the whole.
+    cv::Mat dark = m.cells < 128;
+    const cv::Rect ink = cv::boundingRect(dark);
+    const int pad = std::min(ink.x, m.cells.cols - ink.x - ink.width);
+    m.cells = m.cells(cv::Rect(pad, pad, m.cells.cols - 2 * pad, m.cells.rows - 2 * pad)).clone();
+  }
   // Supersample the cells so that the warp interpolates edges, not cells.
   constexpr int kScale = 12;
   cv::Mat big;
@@ -195,23 +207,35 @@ void SyntheticCamera::drawMarker(cv::Mat& img, int id, double size_m, const Plan
 
 cv::Mat SyntheticCamera::render(const std::vector<TrueEntity>& entities, double t_s) {
   cv::Mat img = background_.clone();
-  for (const auto& te : entities) {
-    const EntityMarker* em = nullptr;
+  auto markerOf = [&](const TrueEntity& te) -> const EntityMarker* {
     for (const auto& e : markers_.entities)
-      if (e.name == te.name) em = &e;
-    if (!em) continue;
-    const double c = std::cos(te.pose.yaw), s = std::sin(te.pose.yaw);
-    if (em->kind != task::EntityKind::Goal && config_.body_size_m > 0) {
-      const double b = config_.body_size_m / 2;
-      std::vector<cv::Vec3d> body;
-      for (const auto& [lx, ly] : {std::pair{-b, -b}, {b, -b}, {b, b}, {-b, b}})
-        body.emplace_back(te.pose.x + c * lx - s * ly, te.pose.y + s * lx + c * ly, 0.0);
-      drawQuad(img, body, em->kind == task::EntityKind::Robot ? 45 : 120);
-    }
-    PlanarPose marker_pose = te.pose;
-    marker_pose.yaw = te.pose.yaw - em->yaw_offset_rad;
-    drawMarker(img, em->id, em->size_m, marker_pose, em->height_m);
+      if (e.name == te.name) return &e;
+    return nullptr;
+  };
+  // Bodies first, then the markers on top of them (lowest first): robots that come
+  // closer than their size in a simulation overlap, but their markers stay on top.
+  for (const auto& te : entities) {
+    const EntityMarker* em = markerOf(te);
+    if (!em || em->kind == task::EntityKind::Goal || config_.body_size_m <= 0) continue;
+    const double c = std::cos(te.pose.yaw), s = std::sin(te.pose.yaw), b = config_.body_size_m / 2;
+    std::vector<cv::Vec3d> body;
+    for (const auto& [lx, ly] : {std::pair{-b, -b}, {b, -b}, {b, b}, {-b, b}})
+      body.emplace_back(te.pose.x + c * lx - s * ly, te.pose.y + s * lx + c * ly, 0.0);
+    drawQuad(img, body, em->kind == task::EntityKind::Robot ? 45 : 120);
   }
+  std::vector<std::pair<const EntityMarker*, PlanarPose>> to_draw;
+  for (const auto& te : entities)
+    if (const EntityMarker* em = markerOf(te)) {
+      PlanarPose marker_pose = te.pose;
+      marker_pose.yaw = te.pose.yaw - em->yaw_offset_rad;
+      to_draw.emplace_back(em, marker_pose);
+    }
+  std::stable_sort(to_draw.begin(), to_draw.end(),
+                   [](const auto& a, const auto& b) { return a.first->height_m < b.first->height_m; });
+  // White margins of every marker first, then every marker's black square over them: two
+  // markers closer than their margins still show both squares (as prints would).
+  for (const auto& [em, pose] : to_draw) drawMarker(img, em->id, em->size_m, pose, em->height_m, MarkerPart::QuietZone);
+  for (const auto& [em, pose] : to_draw) drawMarker(img, em->id, em->size_m, pose, em->height_m, MarkerPart::Square);
   for (const auto& te : entities) {
     if (!te.occluded && !occluded(te.name, t_s)) continue;
     // A hand: a blob over the marker with a shadow beside it.
