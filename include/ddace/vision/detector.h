@@ -1,0 +1,82 @@
+// Fiducial detection behind one interface: OpenCV's aruco (contrib, 4.6 API) and
+// AprilTag 3. Both return the four corners of every marker's outer black square in
+// one order, so nothing downstream knows which backend ran.
+//
+// Owns: running a detector on a whole 8-bit grey image or on regions of it, and
+// drawing markers (for printing and for the synthetic camera). Must not: know about
+// the table, entities or time (table_frame.h, tracker.h do).
+// Units: image pixels as in OpenCV: pixel centres at integer coordinates, x right, y down.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace ddace::vision {
+
+/// One detected marker. corners[] are the outer black square's corners in the
+/// order of the printed marker: top-left, top-right, bottom-right, bottom-left
+/// (as drawn by renderMarker, before any rotation), in full-image pixels.
+struct Detection {
+  int id = -1;
+  std::array<cv::Point2f, 4> corners;
+  /// Centre: intersection of the diagonals (perspective-correct, unlike the mean).
+  cv::Point2f center() const;
+  /// Mean edge length in pixels.
+  double sidePx() const;
+};
+
+/// Which detector and which marker family. Loaded from tracker.yaml (tracker.h).
+struct DetectorConfig {
+  std::string backend = "aruco";     ///< "aruco" or "apriltag"
+  std::string family = "DICT_4X4_50";  ///< aruco: DICT_4X4_50 ... DICT_APRILTAG_36h11;
+                                     ///< apriltag: tag36h11, tag25h9, tag16h5, tagStandard41h12, ...
+  // aruco
+  bool aruco_subpixel = true;        ///< corner refinement CORNER_REFINE_SUBPIX
+  int aruco_subpixel_window = 2;     ///< half-size of its window, pixels; keep it below the
+                                     ///< white quiet zone or dark robot bodies pull corners out
+  int aruco_window_min = 3;          ///< adaptive threshold windows, pixels: min, max, step
+  int aruco_window_max = 23;         ///< (OpenCV's defaults; one window = one thresholding pass)
+  int aruco_window_step = 10;
+  // apriltag
+  double apriltag_decimate = 2.0;    ///< quad_decimate: segment a 1/d-size image (d = 1 is ~4x slower)
+  double apriltag_sigma = 0.0;       ///< quad_sigma (Gaussian blur before segmentation), pixels
+  int apriltag_max_hamming = 1;      ///< bits corrected when decoding (0..2)
+};
+
+/// Names accepted as DetectorConfig::family for `backend`.
+std::vector<std::string> knownFamilies(const std::string& backend);
+
+class FiducialDetector {
+ public:
+  virtual ~FiducialDetector() = default;
+  /// Detects markers inside `roi` of the 8-bit single-channel `gray` (the whole
+  /// image when roi is empty). Corners are returned in full-image pixels.
+  /// A marker that is cut by the ROI border is not found.
+  virtual std::vector<Detection> detect(const cv::Mat& gray, const cv::Rect& roi = cv::Rect()) = 0;
+  /// "aruco DICT_4X4_50", "apriltag tag36h11".
+  virtual std::string name() const = 0;
+};
+
+/// Creates the configured detector. Throws ddace::Error naming the unknown backend
+/// or family (and listing the known ones).
+std::unique_ptr<FiducialDetector> makeDetector(const DetectorConfig& config);
+
+/// A printable marker, one pixel per cell, white quiet zone included.
+struct MarkerImage {
+  cv::Mat cells;          ///< CV_8UC1, 0 = black, 255 = white, square
+  int square_offset = 0;  ///< cells from the image border to the detected square
+  int square_cells = 0;   ///< edge of the detected (outer black) square in cells
+};
+
+/// Draws marker `id` of the configured family. Throws ddace::Error when the id is
+/// out of the family's range.
+MarkerImage renderMarker(const DetectorConfig& config, int id);
+
+/// Number of ids in the configured family.
+int familySize(const DetectorConfig& config);
+
+}  // namespace ddace::vision

@@ -1,0 +1,232 @@
+#include "ddace/vision/recorder.h"
+
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <regex>
+
+#include "yaml_reader.h"
+
+namespace ddace::vision {
+
+namespace fs = std::filesystem;
+using detail::YamlReader;
+
+RecorderConfig parseRecorderConfig(const std::string& text, const std::string& file, const MarkerConfig& markers) {
+  YamlReader r(file);
+  RecorderConfig c;
+  const YAML::Node root = r.parse(text);
+  if (!root.IsDefined()) r.throwIfErrors();
+  if (!r.expectMap(root, "recorder.yaml")) r.throwIfErrors();
+  r.onlyKeys(root, {"output_dir", "rate_hz", "flush_period", "task"}, "recorder.yaml");
+  c.output_dir = r.string(root, "output_dir", "");
+  if (c.output_dir.empty()) r.error(root, "'output_dir' (the task directory to record into) is required");
+  if (c.output_dir.rfind("~/", 0) == 0) {
+    const char* home = std::getenv("HOME");
+    c.output_dir = std::string(home ? home : "") + c.output_dir.substr(1);
+  }
+  c.rate_hz = r.number(root, "rate_hz", c.rate_hz, 0.1, 1000.0);
+  c.flush_period_s = r.number(root, "flush_period", c.flush_period_s, 0.01, 1.0);
+
+  for (const auto& m : markers.entities) c.spec.entities.push_back({m.name, m.kind, m.type});
+  const YAML::Node t = root["task"];
+  if (!t.IsDefined() || !r.expectMap(t, "'task'")) {
+    if (!t.IsDefined()) r.error(root, "'task' (name, actions, goal conditions of the recorded task) is required");
+  } else {
+    r.onlyKeys(t, {"name", "actions", "arrival_radius", "goal_conditions"}, "'task'");
+    c.spec.name = r.string(t, "name", "");
+    if (c.spec.name.empty()) r.error(t, "'task.name' is required");
+    c.spec.arrival_radius = r.number(t, "arrival_radius", task::kDefaultArrivalRadius, 1e-4, 10.0);
+    if (const YAML::Node a = t["actions"]; a.IsDefined()) {
+      if (!a.IsSequence()) {
+        r.error(a, "'actions' must be a list of words");
+      } else {
+        c.spec.actions_declared = true;
+        for (const auto& w : a) {
+          const std::string word = w.IsScalar() ? w.Scalar() : "";
+          if (!task::isValidName(word) || word == "idle")
+            r.error(w, "action '" + word + "' must match [A-Za-z][A-Za-z0-9_]* and not be 'idle'");
+          else
+            c.spec.actions.push_back(word);
+        }
+      }
+    }
+    if (const YAML::Node g = t["goal_conditions"]; g.IsDefined()) {
+      if (!g.IsSequence()) {
+        r.error(g, "'goal_conditions' must be a list of {entity, at, tolerance}");
+      } else {
+        for (const auto& gc : g) {
+          if (!r.expectMap(gc, "a goal condition")) continue;
+          r.onlyKeys(gc, {"entity", "at", "tolerance"}, "a goal condition");
+          task::GoalCondition cond;
+          cond.entity = r.string(gc, "entity", "");
+          cond.at = r.string(gc, "at", "");
+          cond.tolerance = r.number(gc, "tolerance", cond.tolerance, 0.0, 10.0);
+          for (const auto* name : {&cond.entity, &cond.at})
+            if (c.spec.entityIndex(*name) < 0)
+              r.error(gc, "goal condition names '" + *name + "', which is not an entity of markers.yaml");
+          c.spec.goal_conditions.push_back(cond);
+        }
+      }
+    }
+  }
+  r.throwIfErrors();
+  return c;
+}
+
+RecorderConfig loadRecorderConfig(const std::string& path, const MarkerConfig& markers) {
+  return parseRecorderConfig(detail::readTextFile(path), path, markers);
+}
+
+DemoRecorder::DemoRecorder(task::TaskSpec spec, std::string task_dir, double flush_period_s)
+    : spec_(std::move(spec)), dir_(std::move(task_dir)), flush_period_s_(flush_period_s) {
+  labels_.assign(spec_.entities.size(), task::Label{});
+  std::error_code ec;
+  fs::create_directories(fs::path(dir_) / "demos", ec);
+  if (ec) throw Error(Diagnostic{dir_, 0, 0, "cannot create the task directory: " + ec.message()});
+  const fs::path yaml = fs::path(dir_) / "task.yaml";
+  const std::string mine = task::taskYamlText(spec_);
+  if (fs::exists(yaml)) {
+    // More demonstrations of the same task go next to the others; a different scene
+    // would make the directory unusable.
+    const task::TaskSpec theirs = task::readTaskYaml(yaml.string());
+    if (task::taskYamlText(theirs) != mine)
+      throw Error(Diagnostic{yaml.string(), 0, 0,
+                             "this task.yaml differs from the recorder's configuration (markers.yaml + "
+                             "recorder.yaml); record into another directory or fix the configuration"});
+  } else {
+    task::writeTaskYaml(spec_, yaml.string());
+  }
+}
+
+DemoRecorder::~DemoRecorder() {
+  // Leave an interrupted recording as it is: flushed, still .partial.
+  if (file_) std::fclose(file_);
+}
+
+std::string DemoRecorder::start(double t0) {
+  if (file_) throw Error("already recording " + final_path_ + " (stop or discard it first)");
+  int next = 0;
+  const std::regex pattern(R"(demo_(\d+)\.csv(\.partial)?)");
+  for (const auto& entry : fs::directory_iterator(fs::path(dir_) / "demos")) {
+    std::smatch m;
+    const std::string name = entry.path().filename().string();
+    if (std::regex_match(name, m, pattern)) next = std::max(next, std::stoi(m[1]) + 1);
+  }
+  char name[32];
+  std::snprintf(name, sizeof name, "demo_%03d.csv", next);
+  final_path_ = (fs::path(dir_) / "demos" / name).string();
+  partial_path_ = final_path_ + ".partial";
+  file_ = std::fopen(partial_path_.c_str(), "wx");
+  if (!file_) throw Error(Diagnostic{partial_path_, 0, 0, std::string("cannot create: ") + std::strerror(errno)});
+  std::string header = "t";
+  for (size_t i = 0; i < spec_.entities.size(); ++i) {
+    const std::string& n = spec_.entities[i].name;
+    header += "," + n + ".x," + n + ".y";
+    if (hasLabelColumns(i)) header += "," + n + ".action," + n + ".target";
+  }
+  header += "\n";
+  std::fputs(header.c_str(), file_);
+  clearLabels();
+  t0_ = t0;
+  last_t_ = -1;
+  last_flush_ = 0;
+  rows_ = 0;
+  flush();
+  return final_path_;
+}
+
+void DemoRecorder::setLabel(const std::string& entity, const std::string& action_in, const std::string& target) {
+  const int e = spec_.entityIndex(entity);
+  if (e < 0) throw Error("unknown entity '" + entity + "'");
+  if (!hasLabelColumns(static_cast<size_t>(e))) throw Error("'" + entity + "' is a goal: goals take no labels");
+  const std::string action = action_in == "idle" ? "" : action_in;
+  task::Label l;
+  if (action.empty()) {
+    if (!target.empty()) throw Error("a target ('" + target + "') needs an action");
+  } else {
+    if (!task::isValidName(action)) throw Error("action '" + action + "' must match [A-Za-z][A-Za-z0-9_]*");
+    if (!spec_.allowsAction(action)) {
+      std::string list;
+      for (const auto& a : spec_.actions) list += (list.empty() ? "" : ", ") + a;
+      throw Error("action '" + action + "' is not in the task's vocabulary (" + list + ")");
+    }
+    l.action = action;
+    if (!target.empty()) {
+      l.target = spec_.entityIndex(target);
+      if (l.target < 0) throw Error("unknown target '" + target + "'");
+      if (l.target == e) throw Error("'" + entity + "' cannot target itself");
+    }
+  }
+  labels_[static_cast<size_t>(e)] = l;
+}
+
+void DemoRecorder::clearLabels() { labels_.assign(spec_.entities.size(), task::Label{}); }
+
+bool DemoRecorder::addRow(double t_abs, const std::vector<Eigen::Vector2d>& positions) {
+  if (!file_) throw Error("not recording");
+  if (positions.size() != spec_.entities.size())
+    throw Error("a row needs " + std::to_string(spec_.entities.size()) + " positions, got " +
+                std::to_string(positions.size()));
+  const double t = t_abs - t0_;
+  if (rows_ > 0 && !(t > last_t_ + 5e-7)) return false;  // t must increase at the CSV's precision
+  for (const auto& p : positions)
+    if (!std::isfinite(p.x()) || !std::isfinite(p.y())) throw Error("a position is not a finite number");
+  std::string row;
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6f", std::max(0.0, t));
+  row += buf;
+  for (size_t i = 0; i < positions.size(); ++i) {
+    std::snprintf(buf, sizeof buf, ",%.6f,%.6f", positions[i].x(), positions[i].y());
+    row += buf;
+    if (hasLabelColumns(i)) {
+      const task::Label& l = labels_[i];
+      row += "," + l.action + "," + (l.target >= 0 ? spec_.entities[static_cast<size_t>(l.target)].name : "");
+    }
+  }
+  row += "\n";
+  // One fputs per row: a flush never splits it, so a killed recorder leaves whole rows.
+  std::fputs(row.c_str(), file_);
+  last_t_ = std::max(0.0, t);
+  ++rows_;
+  if (last_t_ - last_flush_ >= flush_period_s_) {
+    flush();
+    last_flush_ = last_t_;
+  }
+  return true;
+}
+
+void DemoRecorder::flush() {
+  if (!file_) return;
+  std::fflush(file_);
+  fdatasync(fileno(file_));
+}
+
+std::string DemoRecorder::stop() {
+  if (!file_) throw Error("not recording");
+  flush();
+  std::fclose(file_);
+  file_ = nullptr;
+  if (rows_ == 0)
+    throw Error(Diagnostic{partial_path_, 0, 0, "no rows were recorded (no entity poses arrived?); file left as is"});
+  task::readDemonstrationCsv(partial_path_, spec_);  // throws with file:line:column
+  std::error_code ec;
+  fs::rename(partial_path_, final_path_, ec);
+  if (ec) throw Error(Diagnostic{partial_path_, 0, 0, "cannot rename to " + final_path_ + ": " + ec.message()});
+  return final_path_;
+}
+
+void DemoRecorder::discard() {
+  if (!file_) throw Error("not recording");
+  std::fclose(file_);
+  file_ = nullptr;
+  std::error_code ec;
+  fs::remove(partial_path_, ec);
+  rows_ = 0;
+}
+
+}  // namespace ddace::vision

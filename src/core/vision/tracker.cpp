@@ -1,0 +1,367 @@
+#include "ddace/vision/tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include <opencv2/imgproc.hpp>
+
+#include "yaml_reader.h"
+
+namespace ddace::vision {
+
+using detail::YamlReader;
+
+const EntityMarker* MarkerConfig::entityById(int id) const {
+  for (const auto& e : entities)
+    if (e.id == id) return &e;
+  return nullptr;
+}
+
+bool MarkerConfig::isCorner(int id) const {
+  for (const auto& c : corners)
+    if (c.id == id) return true;
+  return false;
+}
+
+MarkerConfig parseMarkerConfig(const std::string& text, const std::string& file) {
+  YamlReader r(file);
+  MarkerConfig mc;
+  const YAML::Node root = r.parse(text);
+  if (!root.IsDefined()) r.throwIfErrors();
+  if (!r.expectMap(root, "markers.yaml")) r.throwIfErrors();
+  r.onlyKeys(root, {"backend", "family", "corners", "corner_size", "default_size", "default_height", "entities"},
+             "markers.yaml");
+  mc.backend = r.string(root, "backend", mc.backend);
+  if (mc.backend != "aruco" && mc.backend != "apriltag")
+    r.error(root["backend"], "backend must be 'aruco' or 'apriltag' (got '" + mc.backend + "')");
+  mc.family = r.string(root, "family", mc.backend == "apriltag" ? "tag36h11" : "DICT_4X4_50");
+  int family_size = 0;
+  {
+    DetectorConfig dc;
+    dc.backend = mc.backend;
+    dc.family = mc.family;
+    try {
+      family_size = familySize(dc);
+    } catch (const Error& e) {
+      if (mc.backend == "aruco" || mc.backend == "apriltag") r.error(root["family"], e.what());
+    }
+  }
+  mc.corner_size_m = r.number(root, "corner_size", mc.corner_size_m, 1e-3, 1.0);
+  const double default_size = r.number(root, "default_size", 0.03, 1e-3, 1.0);
+  const double default_height = r.number(root, "default_height", 0.0, 0.0, 1.0);
+
+  std::set<int> ids;
+  auto checkId = [&](const YAML::Node& node, int id) {
+    if (family_size > 0 && (id < 0 || id >= family_size))
+      r.error(node, "marker id " + std::to_string(id) + " is outside " + mc.family + " (ids 0.." +
+                        std::to_string(family_size - 1) + ")");
+    if (!ids.insert(id).second) r.error(node, "marker id " + std::to_string(id) + " is used twice");
+  };
+
+  const YAML::Node corners = root["corners"];
+  if (corners.IsDefined() && !corners.IsNull()) {
+    if (!corners.IsSequence()) {
+      r.error(corners, "'corners' must be a list of {id, x, y}");
+    } else {
+      for (const auto& c : corners) {
+        if (!r.expectMap(c, "a corner")) continue;
+        r.onlyKeys(c, {"id", "x", "y"}, "a corner");
+        if (!c["id"] || !c["x"] || !c["y"]) {
+          r.error(c, "a corner needs id, x and y (metres, table frame)");
+          continue;
+        }
+        CornerMarker cm;
+        cm.id = r.integer(c, "id", -1);
+        cm.table_xy = {r.number(c, "x", 0), r.number(c, "y", 0)};
+        checkId(c["id"], cm.id);
+        mc.corners.push_back(cm);
+      }
+      if (mc.corners.size() != 4)
+        r.error(corners, "'corners' needs exactly four markers (got " + std::to_string(mc.corners.size()) +
+                             "); leave it out to use a calibrated camera instead");
+    }
+  }
+
+  const YAML::Node entities = root["entities"];
+  std::set<std::string> names;
+  if (!entities.IsDefined() || !entities.IsSequence() || entities.size() == 0) {
+    r.error(entities.IsDefined() ? entities : root, "'entities' must be a non-empty list of {id, name, kind}");
+  } else {
+    for (const auto& e : entities) {
+      if (!r.expectMap(e, "an entity")) continue;
+      r.onlyKeys(e, {"id", "name", "kind", "type", "size", "height", "yaw_offset"}, "an entity");
+      if (!e["id"] || !e["name"]) {
+        r.error(e, "an entity needs at least id and name");
+        continue;
+      }
+      EntityMarker em;
+      em.id = r.integer(e, "id", -1);
+      checkId(e["id"], em.id);
+      em.name = r.string(e, "name", "");
+      if (!task::isValidName(em.name))
+        r.error(e["name"], "entity name '" + em.name + "' must match [A-Za-z][A-Za-z0-9_]*");
+      else if (!names.insert(em.name).second)
+        r.error(e["name"], "entity name '" + em.name + "' is used twice");
+      const std::string kind = r.string(e, "kind", "robot");
+      const auto k = task::entityKindFromString(kind);
+      if (!k)
+        r.error(e["kind"], "kind must be robot, object or goal (got '" + kind + "')");
+      else
+        em.kind = *k;
+      em.type = r.string(e, "type", "");
+      em.size_m = r.number(e, "size", default_size, 1e-3, 1.0);
+      em.height_m = r.number(e, "height", default_height, 0.0, 1.0);
+      em.yaw_offset_rad = r.number(e, "yaw_offset", 0.0, -2 * M_PI, 2 * M_PI);
+      mc.entities.push_back(em);
+    }
+  }
+  r.throwIfErrors();
+  return mc;
+}
+
+MarkerConfig loadMarkerConfig(const std::string& path) {
+  return parseMarkerConfig(detail::readTextFile(path), path);
+}
+
+void parseTrackerTuning(const std::string& text, const std::string& file, TrackerConfig& config) {
+  YamlReader r(file);
+  const YAML::Node root = r.parse(text);
+  if (!root.IsDefined()) r.throwIfErrors();
+  if (!r.expectMap(root, "tracker.yaml")) r.throwIfErrors();
+  r.onlyKeys(root, {"aruco", "apriltag", "roi", "filter"}, "tracker.yaml");
+  DetectorConfig& d = config.detector;
+  if (const YAML::Node a = root["aruco"]; a.IsDefined() && r.expectMap(a, "'aruco'")) {
+    r.onlyKeys(a, {"subpixel", "subpixel_window", "window_min", "window_max", "window_step"}, "'aruco'");
+    d.aruco_subpixel = r.boolean(a, "subpixel", d.aruco_subpixel);
+    d.aruco_subpixel_window = r.integer(a, "subpixel_window", d.aruco_subpixel_window, 1, 50);
+    d.aruco_window_min = r.integer(a, "window_min", d.aruco_window_min, 3, 999);
+    d.aruco_window_max = r.integer(a, "window_max", d.aruco_window_max, 3, 999);
+    d.aruco_window_step = r.integer(a, "window_step", d.aruco_window_step, 1, 999);
+    if (d.aruco_window_max < d.aruco_window_min) r.error(a, "aruco window_max must be >= window_min");
+  }
+  if (const YAML::Node a = root["apriltag"]; a.IsDefined() && r.expectMap(a, "'apriltag'")) {
+    r.onlyKeys(a, {"decimate", "sigma", "max_hamming"}, "'apriltag'");
+    d.apriltag_decimate = r.number(a, "decimate", d.apriltag_decimate, 1.0, 8.0);
+    d.apriltag_sigma = r.number(a, "sigma", d.apriltag_sigma, 0.0, 5.0);
+    d.apriltag_max_hamming = r.integer(a, "max_hamming", d.apriltag_max_hamming, 0, 2);
+  }
+  if (const YAML::Node n = root["roi"]; n.IsDefined() && r.expectMap(n, "'roi'")) {
+    r.onlyKeys(n, {"enabled", "full_frame_every", "margin", "min_margin_px", "track_corners", "lost_growth"}, "'roi'");
+    config.roi.lost_growth_mps = r.number(n, "lost_growth", config.roi.lost_growth_mps, 0.0, 100.0);
+    config.roi.track_corners = r.boolean(n, "track_corners", config.roi.track_corners);
+    config.roi.enabled = r.boolean(n, "enabled", config.roi.enabled);
+    config.roi.full_frame_every = r.integer(n, "full_frame_every", config.roi.full_frame_every, 1, 100000);
+    config.roi.margin = r.number(n, "margin", config.roi.margin, 0.0, 20.0);
+    config.roi.min_margin_px = r.integer(n, "min_margin_px", config.roi.min_margin_px, 0, 10000);
+  }
+  if (const YAML::Node n = root["filter"]; n.IsDefined() && r.expectMap(n, "'filter'")) {
+    r.onlyKeys(n, {"max_speed", "max_yaw_rate", "gate_margin", "reacquire_after", "hold", "position_gain", "yaw_gain"},
+               "'filter'");
+    FilterConfig& f = config.filter;
+    f.max_speed_mps = r.number(n, "max_speed", f.max_speed_mps, 1e-3, 100.0);
+    f.max_yaw_rate_rps = r.number(n, "max_yaw_rate", f.max_yaw_rate_rps, 1e-3, 1000.0);
+    f.gate_margin_m = r.number(n, "gate_margin", f.gate_margin_m, 0.0, 10.0);
+    f.reacquire_after = r.integer(n, "reacquire_after", f.reacquire_after, 1, 1000);
+    f.hold_s = r.number(n, "hold", f.hold_s, 0.0, 60.0);
+    f.position_gain = r.number(n, "position_gain", f.position_gain, 0.01, 1.0);
+    f.yaw_gain = r.number(n, "yaw_gain", f.yaw_gain, 0.01, 1.0);
+  }
+  r.throwIfErrors();
+}
+
+TrackerConfig loadTrackerConfig(const std::string& markers_path, const std::string& tracker_path) {
+  TrackerConfig c;
+  c.markers = loadMarkerConfig(markers_path);
+  c.detector.backend = c.markers.backend;
+  c.detector.family = c.markers.family;
+  if (!tracker_path.empty()) parseTrackerTuning(detail::readTextFile(tracker_path), tracker_path, c);
+  return c;
+}
+
+std::vector<cv::Rect> mergeRegions(std::vector<cv::Rect> rects) {
+  bool merged = true;
+  while (merged) {
+    merged = false;
+    for (size_t i = 0; i < rects.size() && !merged; ++i)
+      for (size_t j = i + 1; j < rects.size() && !merged; ++j)
+        if ((rects[i] & rects[j]).area() > 0) {
+          rects[i] |= rects[j];
+          rects.erase(rects.begin() + static_cast<long>(j));
+          merged = true;
+        }
+  }
+  return rects;
+}
+
+Tracker::Tracker(TrackerConfig config) : config_(std::move(config)) {
+  config_.detector.backend = config_.markers.backend;
+  config_.detector.family = config_.markers.family;
+  detector_ = makeDetector(config_.detector);
+  if (config_.detector.backend == "apriltag" && config_.detector.apriltag_decimate > 1.0) {
+    DetectorConfig fine = config_.detector;
+    fine.apriltag_decimate = 1.0;
+    fine_detector_ = makeDetector(fine);
+  }
+  filters_.assign(config_.markers.entities.size(), PoseFilter(config_.filter));
+}
+
+Tracker::~Tracker() = default;
+
+void Tracker::setCamera(const CameraModel& camera) {
+  camera_ = camera;
+  if (table_ && camera_.valid && !fixed_table_) table_->setIntrinsics(camera_.K);
+}
+
+void Tracker::setFixedTableFrame(const TableFrame& frame) {
+  table_ = frame;
+  fixed_table_ = true;
+}
+
+std::vector<cv::Rect> Tracker::regions(const cv::Size& size, double stamp, const std::set<int>* only) const {
+  std::vector<cv::Rect> rects;
+  const cv::Rect whole(0, 0, size.width, size.height);
+  for (const auto& [id, det] : last_seen_px_) {
+    if (only && !only->count(id)) continue;
+    if (!only && !config_.roi.track_corners && table_ && config_.markers.isCorner(id)) continue;
+    cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(det.corners.begin(), det.corners.end()));
+    double margin = std::max<double>(config_.roi.min_margin_px, config_.roi.margin * det.sidePx());
+    // A marker not seen for a while may be anywhere it could have driven to since.
+    // (0 for a marker found in the previous frame: its margin covers one frame's motion)
+    const double missing_s = std::min(stamp, previous_stamp_) - last_seen_t_.at(id);
+    if (missing_s > 0) {
+      const EntityMarker* em = config_.markers.entityById(id);
+      const double size_m = em ? em->size_m : config_.markers.corner_size_m;
+      margin += config_.roi.lost_growth_mps * missing_s * det.sidePx() / size_m;
+    }
+    const int m = static_cast<int>(std::ceil(margin));
+    // Even origins keep a decimating detector (AprilTag) on the full frame's sampling grid.
+    const int x0 = (box.x - m) & ~1, y0 = (box.y - m) & ~1;
+    box = cv::Rect(x0, y0, box.x + box.width + m - x0, box.y + box.height + m - y0) & whole;
+    if (!box.empty()) rects.push_back(box);
+  }
+  return mergeRegions(rects);
+}
+
+FrameResult Tracker::process(const cv::Mat& image, double stamp) {
+  if (image.empty()) throw Error("tracker: empty image");
+  if (image.channels() == 3)
+    cv::cvtColor(image, gray_, cv::COLOR_BGR2GRAY);
+  else if (image.channels() == 4)
+    cv::cvtColor(image, gray_, cv::COLOR_BGRA2GRAY);
+  else if (image.type() == CV_8UC1)
+    gray_ = image;
+  else
+    throw Error("tracker: unsupported image type (need 8-bit mono, BGR or BGRA)");
+
+  FrameResult result;
+  result.stamp = stamp;
+  const bool need_table = !table_ && !config_.markers.corners.empty();
+  result.full_frame = !config_.roi.enabled || need_table || last_seen_px_.empty() ||
+                      frames_ % config_.roi.full_frame_every == 0;
+  ++frames_;
+
+  std::vector<Detection> found;
+  if (result.full_frame) {
+    found = detector_->detect(gray_);
+  } else {
+    result.rois = regions(gray_.size(), stamp);
+    std::set<int> seen;
+    for (const auto& roi : result.rois)
+      for (const auto& d : detector_->detect(gray_, roi))
+        if (seen.insert(d.id).second) found.push_back(d);
+  }
+
+  // A decimating detector misses small markers now and then: look again at full
+  // resolution, but only where a marker that was there a moment ago is missing.
+  if (fine_detector_) {
+    std::set<int> missing;
+    for (const auto& [id, det] : last_seen_px_) missing.insert(id);
+    for (const auto& d : found) missing.erase(d.id);
+    if (!result.full_frame && !config_.roi.track_corners && table_)
+      for (const auto& c : config_.markers.corners) missing.erase(c.id);
+    if (!missing.empty()) {
+      std::set<int> seen;
+      for (const auto& d : found) seen.insert(d.id);
+      for (const auto& roi : regions(gray_.size(), stamp, &missing))
+        for (const auto& d : fine_detector_->detect(gray_, roi))
+          if (seen.insert(d.id).second) found.push_back(d);
+    }
+  }
+
+  // Keep configured markers only; an id seen twice (a reflection, a second print) is
+  // ambiguous: keep the one nearest its last position.
+  std::map<int, Detection> by_id;
+  for (const auto& d : found) {
+    if (!config_.markers.isCorner(d.id) && !config_.markers.entityById(d.id)) continue;
+    auto it = by_id.find(d.id);
+    if (it == by_id.end()) {
+      by_id[d.id] = d;
+      continue;
+    }
+    const auto last = last_seen_px_.find(d.id);
+    if (last != last_seen_px_.end() &&
+        cv::norm(d.center() - last->second.center()) < cv::norm(it->second.center() - last->second.center()))
+      it->second = d;
+  }
+  for (const auto& [id, d] : by_id) {
+    result.detections.push_back(d);
+    last_seen_px_[id] = d;
+    last_seen_t_[id] = stamp;
+  }
+  // Regions follow markers seen recently; those unseen for longer than the hold are
+  // left to the full-frame passes.
+  for (auto it = last_seen_px_.begin(); it != last_seen_px_.end();)
+    it = stamp - last_seen_t_.at(it->first) <= config_.filter.hold_s ? std::next(it) : last_seen_px_.erase(it);
+
+  std::vector<Detection> undistorted;
+  for (const auto& d : result.detections) {
+    Detection u = d;
+    const auto pts = camera_.undistort(std::vector<cv::Point2f>(d.corners.begin(), d.corners.end()));
+    for (int k = 0; k < 4; ++k) u.corners[k] = pts[k];
+    undistorted.push_back(u);
+  }
+
+  if (!fixed_table_ && !config_.markers.corners.empty()) {
+    if (auto frame = TableFrame::fromCornerMarkers(undistorted, config_.markers.corners)) {
+      table_ = *frame;
+      if (camera_.valid) table_->setIntrinsics(camera_.K);
+      result.table_updated = true;
+    }
+  }
+  result.table_valid = table_.has_value();
+
+  if (table_) {
+    for (const auto& u : undistorted) {
+      for (size_t i = 0; i < config_.markers.entities.size(); ++i) {
+        const EntityMarker& em = config_.markers.entities[i];
+        if (em.id != u.id) continue;
+        PlanarPose p = table_->markerPose(u, em.height_m);
+        p.yaw = wrapAngle(p.yaw + em.yaw_offset_rad);
+        filters_[i].update(p, stamp);
+      }
+    }
+  }
+  result.entities = states(stamp);
+  previous_stamp_ = stamp;
+  return result;
+}
+
+std::vector<EntityState> Tracker::states(double stamp) const {
+  std::vector<EntityState> out;
+  for (size_t i = 0; i < config_.markers.entities.size(); ++i) {
+    const auto& em = config_.markers.entities[i];
+    const PoseFilter& f = filters_[i];
+    EntityState s;
+    s.name = em.name;
+    s.kind = em.kind;
+    s.pose = f.pose();
+    s.visible = f.visibleAt(stamp);
+    s.stale = f.staleAt(stamp);
+    s.last_seen = f.everSeen() ? f.lastSeen() : 0.0;
+    out.push_back(s);
+  }
+  return out;
+}
+
+}  // namespace ddace::vision

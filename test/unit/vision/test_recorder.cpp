@@ -1,0 +1,171 @@
+// The recorder's files: valid ddace-task/1, labels as set, crash-safe partial files.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "ddace/common/error.h"
+#include "ddace/task/task_dir.h"
+#include "ddace/vision/recorder.h"
+
+using namespace ddace;
+using namespace ddace::vision;
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kConfig = std::string(DDACE_SOURCE_DIR) + "/config/";
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    path = fs::temp_directory_path() / ("ddace_recorder_test_" + std::to_string(::getpid()) + "_" +
+                                        std::to_string(counter++));
+    fs::remove_all(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+  static inline int counter = 0;
+};
+
+RecorderConfig shippedConfig() {
+  return loadRecorderConfig(kConfig + "recorder.yaml", loadMarkerConfig(kConfig + "markers.yaml"));
+}
+
+std::vector<Eigen::Vector2d> positions(double t) {
+  return {{0.1 + 0.1 * t, 0.2}, {0.1, 0.8}, {0.45, 0.3}, {0.45, 0.7}, {0.88, 0.5}};
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+TEST(Recorder, ShippedConfigBuildsTheTaskFromTheMarkers) {
+  const RecorderConfig c = shippedConfig();
+  ASSERT_EQ(c.spec.entities.size(), 5u);
+  EXPECT_EQ(c.spec.entities[4].name, "G1");
+  EXPECT_EQ(c.spec.entities[4].kind, task::EntityKind::Goal);
+  EXPECT_EQ(c.spec.entities[0].type, "hamster");
+  EXPECT_EQ(c.spec.actions, (std::vector<std::string>{"move", "stop"}));
+  EXPECT_DOUBLE_EQ(c.rate_hz, 30.0);
+  EXPECT_EQ(c.output_dir.find('~'), std::string::npos);
+}
+
+TEST(Recorder, ConfigErrorsNameTheLine) {
+  const MarkerConfig m = loadMarkerConfig(kConfig + "markers.yaml");
+  try {
+    parseRecorderConfig("output_dir: /tmp/x\ntask:\n  name: t\n  goal_conditions:\n    - {entity: R9, at: G1}\n", "r.yaml", m);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.diagnostics().front().str(), "r.yaml:5:7: goal condition names 'R9', which is not an entity of markers.yaml");
+  }
+  EXPECT_THROW(parseRecorderConfig("task: {name: t}\n", "r.yaml", m), Error);  // no output_dir
+  EXPECT_THROW(parseRecorderConfig("output_dir: /tmp/x\ntask: {name: t}\nrate: 3\n", "r.yaml", m), Error);
+}
+
+TEST(Recorder, WritesADemonstrationThatValidatesWithItsLabels) {
+  TempDir dir;
+  const RecorderConfig c = shippedConfig();
+  DemoRecorder rec(c.spec, dir.path.string(), 1.0);
+  const std::string path = rec.start(100.0);
+  EXPECT_EQ(fs::path(path).filename(), "demo_000.csv");
+  EXPECT_TRUE(fs::exists(rec.partialPath()));
+  for (int i = 0; i < 90; ++i) {
+    const double t = 100.0 + i / 30.0;
+    if (i == 10) {
+      rec.setLabel("R1", "move", "R3");
+      rec.setLabel("R2", "move", "R3");
+    }
+    if (i == 40) {
+      rec.setLabel("R1", "idle", "");
+      rec.setLabel("R2", "", "");
+    }
+    if (i == 50) rec.setLabel("R3", "stop", "");
+    if (i == 60) rec.setLabel("R3", "idle", "");
+    EXPECT_TRUE(rec.addRow(t, positions(t - 100.0)));
+  }
+  EXPECT_FALSE(rec.addRow(100.5, positions(0.5)));  // time went backwards: dropped
+  EXPECT_EQ(rec.stop(), path);
+  EXPECT_FALSE(fs::exists(path + ".partial"));
+
+  const task::TaskDirReport report = task::checkTaskDir(dir.path.string());
+  ASSERT_TRUE(report.errors.empty()) << formatDiagnostics(report.errors);
+  ASSERT_EQ(report.dir.demos.size(), 1u);
+  const task::Demonstration& d = report.dir.demos[0];
+  EXPECT_EQ(d.rows(), 90u);
+  EXPECT_NEAR(d.t[30], 1.0, 1e-6);
+  EXPECT_NEAR(d.positions[30][0].x(), 0.2, 1e-6);
+  ASSERT_EQ(d.steps.size(), 2u);
+  EXPECT_EQ(d.steps[0].keyframe_row, 10);
+  EXPECT_EQ(task::tokenKey(d.steps[0].tokens[0], report.dir.spec), "R1:move:R3");
+  EXPECT_EQ(d.steps[1].keyframe_row, 50);
+  EXPECT_EQ(task::tokenKey(d.steps[1].tokens[0], report.dir.spec), "R3:stop");
+
+  // A second demonstration in the same directory gets the next number.
+  DemoRecorder again(c.spec, dir.path.string(), 1.0);
+  EXPECT_EQ(fs::path(again.start(0.0)).filename(), "demo_001.csv");
+  again.discard();
+  EXPECT_FALSE(fs::exists(dir.path / "demos" / "demo_001.csv.partial"));
+}
+
+TEST(Recorder, RefusesBadLabelsWithoutChangingAnything) {
+  TempDir dir;
+  DemoRecorder rec(shippedConfig().spec, dir.path.string());
+  rec.start(0.0);
+  rec.setLabel("R1", "move", "G1");
+  EXPECT_THROW(rec.setLabel("R7", "move", "G1"), Error);   // unknown entity
+  EXPECT_THROW(rec.setLabel("R1", "dance", "G1"), Error);  // not in the vocabulary
+  EXPECT_THROW(rec.setLabel("R1", "move", "R1"), Error);   // itself
+  EXPECT_THROW(rec.setLabel("R1", "move", "X"), Error);    // unknown target
+  EXPECT_THROW(rec.setLabel("R1", "", "G1"), Error);       // target without action
+  EXPECT_THROW(rec.setLabel("G1", "move", "R1"), Error);   // goals take no labels
+  EXPECT_EQ(rec.label(0).action, "move");
+  EXPECT_EQ(rec.label(0).target, 4);
+  EXPECT_THROW(rec.start(1.0), Error);  // already recording
+  rec.discard();
+}
+
+TEST(Recorder, AKilledRecorderLeavesAReadablePartialFile) {
+  TempDir dir;
+  const RecorderConfig c = shippedConfig();
+  std::string partial;
+  {
+    DemoRecorder rec(c.spec, dir.path.string(), 1.0);
+    rec.start(0.0);
+    rec.setLabel("R1", "move", "G1");
+    for (int i = 0; i < 70; ++i) rec.addRow(i / 30.0, positions(i / 30.0));
+    partial = rec.partialPath();
+    // Rows up to the last flush (t >= 1 s) are on disk before anything is closed.
+    const std::string text = slurp(partial);
+    const size_t lines = static_cast<size_t>(std::count(text.begin(), text.end(), '\n'));
+    EXPECT_GE(lines, 31u);  // header + at least 1 s of rows
+    EXPECT_EQ(text.back(), '\n');
+    // The recorder object dies without stop(): the file stays .partial.
+  }
+  ASSERT_TRUE(fs::exists(partial));
+  EXPECT_EQ(fs::path(partial).extension(), ".partial");
+  // Readable as it is ...
+  const task::Demonstration d = task::readDemonstrationCsv(partial, c.spec);
+  EXPECT_GE(d.rows(), 30u);
+  // ... and reported by validation as a partial recording.
+  const task::TaskDirReport report = task::checkTaskDir(dir.path.string());
+  ASSERT_EQ(report.errors.size(), 1u);
+  EXPECT_NE(report.errors[0].message.find("partial recording"), std::string::npos);
+  // The next demonstration does not overwrite it.
+  DemoRecorder rec(c.spec, dir.path.string(), 1.0);
+  EXPECT_EQ(fs::path(rec.start(0.0)).filename(), "demo_001.csv");
+  rec.discard();
+}
+
+TEST(Recorder, RefusesADirectoryOfAnotherTask) {
+  TempDir dir;
+  RecorderConfig c = shippedConfig();
+  { DemoRecorder rec(c.spec, dir.path.string()); }
+  c.spec.entities.pop_back();
+  EXPECT_THROW(DemoRecorder(c.spec, dir.path.string()), Error);
+}
