@@ -39,6 +39,14 @@ double jsonNumber(const std::string& json, const std::string& key) {
   return std::stod(json.substr(at + key.size() + 3));
 }
 
+/// The 1-minute load average: the machine is shared, absolute times move with it.
+std::string loadAverage() {
+  std::ifstream in("/proc/loadavg");
+  std::string first;
+  in >> first;
+  return first.empty() ? "unknown" : first;
+}
+
 std::string today() {
   const std::time_t now = std::time(nullptr);
   char buf[64];
@@ -89,7 +97,7 @@ int main() try {
   char line[512];
   md << "# bench: tgn_decision\n\n"
      << "Written by `bench_tgn_decision` (`ddace bench tgn_decision`), " << today() << ", "
-     << std::thread::hardware_concurrency() << "-core machine, one thread.\n"
+     << std::thread::hardware_concurrency() << "-core machine (1-minute load average " << loadAverage() << " after the timings), one thread.\n"
      << "One decision = `SequenceModel::predictNext` on a history of " << kHistory
      << " keyframe snapshots of Task 2 with 10 robots + G1 (11 entities): GAT encoder over every snapshot, GRU, heads, "
         "tokens and probabilities. Median of "

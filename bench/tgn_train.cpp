@@ -40,6 +40,14 @@ double jsonNumber(const std::string& json, const std::string& key) {
   return std::stod(json.substr(at + key.size() + 3));
 }
 
+/// The 1-minute load average: the machine is shared, absolute times move with it.
+std::string loadAverage() {
+  std::ifstream in("/proc/loadavg");
+  std::string first;
+  in >> first;
+  return first.empty() ? "unknown" : first;
+}
+
 std::string today() {
   const std::time_t now = std::time(nullptr);
   char buf[64];
@@ -91,10 +99,10 @@ int main() try {
   char line[512];
   md << "# bench: tgn_train\n\n"
      << "Written by `bench_tgn_train` (`ddace bench tgn_train`), " << today() << ", " << std::thread::hardware_concurrency()
-     << "-core machine, one thread in both languages (`at::set_num_threads(1)`, `torch.set_num_threads(1)`).\n"
+     << "-core machine (1-minute load average " << loadAverage() << " after the timings), one thread in both languages (`at::set_num_threads(1)`, `torch.set_num_threads(1)`).\n"
      << "Task 2 with 11 robots (12 entities), 30 demonstrations (generator seed 1), variant `ddace`, default "
         "hyper-parameters (3 GAT layers x 2 heads x 16 channels, GRU 2 x 64, batches of 8 demonstrations, Adam "
-        "lr 0.005), eval-mode step accuracy after every epoch in both.\n"
+        "lr 0.005, gradient norm clipped at 1), eval-mode step accuracy after every epoch in both.\n"
      << "The reference is `bench/tgn_train_reference.py`: the same network and loop in Python/PyTorch "
         "(Debian's python3-torch), on the same tensors, timed in the same run; per-epoch times are the best of "
      << kRounds << " alternating rounds of " << kEpochs << " epochs.\n\n"
