@@ -150,7 +150,7 @@ int main(int argc, char** argv) {
      << "| backend | full frame (ms) | ROI (ms) | speed-up | tracker, all frames (ms) | markers found full / ROI | lost |\n"
      << "|---|---|---|---|---|---|---|\n";
   bool ok = true;
-  double reference = 0;
+  double reference = 0, aruco_roi = 0;
   for (const std::string backend : {"aruco", "apriltag"}) {
     const Result r = run(backend, frames);
     const double full = r.full_ms / r.frames, roi = r.roi_ms / std::max(1L, r.roi_frames);
@@ -159,14 +159,17 @@ int main(int argc, char** argv) {
                   roi, full / roi, r.track_ms / r.frames, r.full_found, r.roi_found, r.lost);
     md << line;
     std::cout << line << std::flush;
-    if (backend == "aruco") reference = r.reference_ms / r.frames;
+    if (backend == "aruco") {
+      reference = r.reference_ms / r.frames;
+      aruco_roi = roi;
+    }
     ok = ok && r.full_found > 0;
   }
   char ref[256];
   std::snprintf(ref, sizeof ref,
                 "\nReference in the same run: OpenCV 4.6 `cv::aruco::detectMarkers` with default parameters "
-                "(no corner refinement) on the whole frame: %.2f ms.\n",
-                reference);
+                "(no corner refinement) on the whole frame: %.2f ms; the aruco ROI search is %.1fx faster.\n",
+                reference, reference / aruco_roi);
   md << ref;
   std::cout << ref;
   md << "\nGoal (issue 8): <= 5 ms per frame with regions of interest, >= 3x faster than full-frame "
