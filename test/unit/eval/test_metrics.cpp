@@ -149,3 +149,64 @@ TEST(ClosedLoop, StoppingShortOfTheGoalLowersGcr) {
   EXPECT_DOUBLE_EQ(s.gcr(), 0.0);
   EXPECT_FALSE(s.success);
 }
+
+TEST(ClosedLoop, AnEarlyEndLosesTheRemainingSteps) {
+  const auto dir = testSet("task4", 1);
+  const auto& gt = dir.demos[0];
+  exec::IdealExecution ideal;
+  auto early = [](size_t k, exec::Decision& d) {
+    if (k == 1) {
+      d.end = true;
+      d.tokens.clear();
+    }
+  };
+  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt, early), straight(), ideal);
+  EXPECT_TRUE(trial.ended);
+  const auto s = eval::scoreTrial(dir.spec, gt, trial);
+  EXPECT_EQ(s.correct_steps, 1);
+  EXPECT_FALSE(s.ended_correctly);
+  EXPECT_DOUBLE_EQ(s.gcr(), 0.5);  // R3 and R4 never went to G1
+  EXPECT_FALSE(s.success);
+}
+
+TEST(ClosedLoop, AnExtraStepBeforeEndIsNotASuccess) {
+  const auto dir = testSet("task4", 1);
+  const auto& gt = dir.demos[0];
+  exec::IdealExecution ideal;
+  auto extra = [&](size_t k, exec::Decision& d) {
+    if (k == gt.steps.size()) {  // one more step (R1 -> G1), then END
+      d.end = false;
+      d.tokens = {task::Token{0, "move", 4}};
+    }
+  };
+  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt, extra), straight(), ideal);
+  EXPECT_TRUE(trial.ended);
+  EXPECT_EQ(trial.predicted.size(), gt.steps.size() + 1);
+  const auto s = eval::scoreTrial(dir.spec, gt, trial);
+  EXPECT_DOUBLE_EQ(s.ssr(), 1.0);  // every ground-truth step was right ...
+  EXPECT_DOUBLE_EQ(s.gcr(), 1.0);
+  EXPECT_FALSE(s.ended_correctly);  // ... but END came one step late
+  EXPECT_FALSE(s.success);
+}
+
+TEST(ClosedLoop, FdOfAPathWithAKnownOffset) {
+  // The generated path is the demonstrated one shifted sideways by 5 % of the segment's
+  // start-goal distance: in the canonical frame the Fréchet distance is exactly 0.05.
+  const auto dir = testSet("task2", 1);
+  const auto& gt = dir.demos[0];
+  exec::IdealExecution ideal;
+  const auto shifted = [&gt](const task::Token& t, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    const Eigen::Vector2d d = b - a;
+    const Eigen::Vector2d n = Eigen::Vector2d(-d.y(), d.x()) * 0.05;
+    exec::Path p;
+    for (const auto& s : gt.segments)
+      if (s.token == t)
+        for (const auto& q : gt.segmentPath(s)) p.push_back(q + n);
+    return p;
+  };
+  const auto s = eval::scoreTrial(dir.spec, gt, exec::runTrial(dir.spec, gt, replay(gt), shifted, ideal));
+  ASSERT_FALSE(s.fd.empty());
+  for (double fd : s.fd) EXPECT_NEAR(fd, 0.05, 1e-6);
+  // Ideal following ends on the shifted end point, 5 % of the distance off the goal.
+  EXPECT_LT(s.gcr(), 1.0);
+}

@@ -99,3 +99,10 @@ TEST(PipelineFiles, AMissingPrimitiveLibraryIsNamed) {
   }
   fs::remove_all(dir);
 }
+
+TEST_F(Pipeline, ReproducesItsOwnTrainingDemonstrations) {
+  const auto e = pipeline::evaluate(*model_, generated("task4", 12, 1), {});
+  EXPECT_DOUBLE_EQ(e.summary.osr, 1.0);
+  EXPECT_DOUBLE_EQ(e.summary.ssr, 1.0);
+  EXPECT_LE(e.summary.fd, 0.04);
+}

@@ -1,0 +1,39 @@
+// `ddace table --quick`: the whole Table 2 command end to end (generate, train every
+// variant, evaluate, plot, write results.md), on a small budget.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+TEST(TableQuick, WritesResultsAndEveryFigure) {
+  // The ddace tool is built next to this test binary (devel/lib/ddace).
+  const fs::path ddace = fs::read_symlink("/proc/self/exe").parent_path() / "ddace";
+  ASSERT_TRUE(fs::exists(ddace)) << ddace;
+  const fs::path out = fs::path(::testing::TempDir()) / "ddace_table_quick";
+  fs::remove_all(out);
+  const std::string cmd = "'" + ddace.string() + "' table --quick --out '" + (out / "run").string() + "' --docs '" +
+                          (out / "docs").string() + "' > '" + (out.string() + ".log") + "' 2>&1";
+  fs::create_directories(out);
+  const int rc = std::system(cmd.c_str());
+  std::ifstream log(out.string() + ".log");
+  std::stringstream log_text;
+  log_text << log.rdbuf();
+  ASSERT_EQ(rc, 0) << log_text.str();
+
+  std::ifstream md((out / "docs" / "results.md").string());
+  ASSERT_TRUE(md) << "no results.md";
+  std::stringstream text;
+  text << md.rdbuf();
+  const std::string results = text.str();
+  for (const char* needle : {"| task1 | DDACE |", "| task4 | w/o spectral clustering |", "| task2 | GNN |",
+                             "| task3 | LLM |", "## Beyond the paper", "imperfect", "--quick"})
+    EXPECT_NE(results.find(needle), std::string::npos) << needle;
+  for (const char* fig : {"loss_fig4.png", "loss_task2_robots.png", "loss_task3_actions.png", "overlay_task1.png",
+                          "overlay_task4.png"})
+    EXPECT_TRUE(fs::exists(out / "docs" / "figures" / fig)) << fig;
+  fs::remove_all(out);
+}
