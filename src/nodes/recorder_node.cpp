@@ -7,6 +7,7 @@
 // Rows are sampled at rate_hz from the latest EntityArray; a row's t is that message's
 // stamp minus the first row's (so positions and times belong together).
 #include <map>
+#include <iostream>
 #include <memory>
 #include <set>
 #include <sstream>
@@ -195,7 +196,8 @@ int main(int argc, char** argv) {
     RecorderNode node(ros::NodeHandle(), ros::NodeHandle("~"));
     ros::spin();
   } catch (const ddace::Error& e) {
-    ROS_FATAL("recorder_node: %s", e.what());
+    // On stderr as well: rosconsole may not be up when the configuration is refused.
+    std::cerr << "recorder_node: " << e.what() << std::endl;
     return 1;
   }
   return 0;

@@ -10,6 +10,7 @@
 // An entity whose truth says visible = false gets a hand drawn over it (tests script
 // occlusions this way, to the frame); occlusion times in the camera file count from the
 // first truth message.
+#include <iostream>
 #include <memory>
 
 #include <cv_bridge/cv_bridge.h>
@@ -83,7 +84,8 @@ int main(int argc, char** argv) {
     SyntheticCameraNode node(ros::NodeHandle(), ros::NodeHandle("~"));
     ros::spin();
   } catch (const ddace::Error& e) {
-    ROS_FATAL("synthetic_camera_node: %s", e.what());
+    // On stderr as well: rosconsole may not be up when the configuration is refused.
+    std::cerr << "synthetic_camera_node: " << e.what() << std::endl;
     return 1;
   }
   return 0;

@@ -6,6 +6,7 @@
 // ~video_device >= 0 or ~video_file is set, OpenCV's V4L2 / file capture (the frames
 // are then published on `image_raw` while somebody subscribes, e.g. rosbag).
 #include <cmath>
+#include <iostream>
 #include <memory>
 
 #include <cv_bridge/cv_bridge.h>
@@ -277,7 +278,8 @@ int main(int argc, char** argv) {
     TrackerNode node(ros::NodeHandle(), ros::NodeHandle("~"));
     node.spin();
   } catch (const ddace::Error& e) {
-    ROS_FATAL("tracker_node: %s", e.what());
+    // On stderr as well: rosconsole may not be up when the configuration is refused.
+    std::cerr << "tracker_node: " << e.what() << std::endl;
     return 1;
   }
   return 0;

@@ -48,6 +48,13 @@ TEST(Detector, ArucoFindsEveryMarkerWithCornersInPrintedOrder) {
   expectFindsAll(cfg);
 }
 
+TEST(Detector, ArucoAprilTagDictionaryUsesTheAprilTagPrintOrientation) {
+  DetectorConfig cfg;
+  cfg.backend = "aruco";
+  cfg.family = "DICT_APRILTAG_36h11";
+  expectFindsAll(cfg);
+}
+
 TEST(Detector, AprilTagFindsEveryMarkerWithCornersInPrintedOrder) {
   DetectorConfig cfg;
   cfg.backend = "apriltag";
