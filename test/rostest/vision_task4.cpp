@@ -14,7 +14,8 @@ TEST(VisionTask4, CompletesOnTrackedPoses) {
   std::string shipped;
   ASSERT_TRUE(pnh.getParam("shipped_config_file", shipped));
   // The mock robots publish the truth for the camera; tf comes from the tracker.
-  const std::string dir = exec_test::scratchDir("vision_task4_config");
+  const exec_test::ScratchDir scratch("vision_task4_config");
+  const std::string& dir = scratch;
   pnh.setParam("config_file", exec_test::writeConfig(shipped, dir + "/execution.yaml",
                                                      {{{"mock_robots", "entities_topic", "/ddace/true_entities"}},
                                                       {{"mock_robots", "publish_tf", "false"}}}));
@@ -26,7 +27,7 @@ TEST(VisionTask4, CompletesOnTrackedPoses) {
   std::atomic<int> truth{0};
   ros::Subscriber sub_truth = nh.subscribe<ddace::EntityArray>("/ddace/true_entities", 50,
                                                                [&](const ddace::EntityArray::ConstPtr&) { ++truth; });
-  exec_test::runTaskEndToEnd("task4", 4, {}, 100.0);
+  exec_test::runTaskEndToEnd("task4", 4, /*learned=*/true, 100.0);
   EXPECT_GT(truth.load(), 0) << "the mock robots did not publish on /ddace/true_entities";
   EXPECT_GT(tracked.load(), 100) << "the tracker published too few measured poses";
   std::printf("vision_task4: %d tracker outputs, %d truth messages\n", tracked.load(), truth.load());
