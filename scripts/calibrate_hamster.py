@@ -66,7 +66,7 @@ class Calibrator:
         self.robot = rospy.get_param("~robot", "")
         if not self.robot:
             raise ValueError("parameter ~robot (robot name, e.g. R1) is required")
-        default_config = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "config", "hamsters.yaml")
+        default_config = os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "config", "hamsters.yaml")
         self.config = rospy.get_param("~config", default_config)
         self.speeds = [float(s) for s in rospy.get_param("~speeds", [0.03, 0.05, 0.07])]
         self.run_s = float(rospy.get_param("~run_s", 1.5))

@@ -37,7 +37,7 @@ def gatconv(x, edges, weight, att_src, att_dst, bias, heads, channels):
 
 
 def main():
-    here = os.path.dirname(os.path.abspath(__file__))
+    here = os.path.dirname(os.path.realpath(__file__))
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default=os.path.join(here, "..", "test", "data", "tgn", "gat_fixture.txt"))
     args = parser.parse_args()

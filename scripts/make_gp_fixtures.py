@@ -17,7 +17,7 @@ import numpy as np
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
-OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "test", "data", "gp")
+OUT = os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "test", "data", "gp")
 
 
 def make_kernel(spec):

@@ -24,7 +24,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-REPO = os.path.abspath(os.path.join(os.path.dirname(__file__), ".."))
+REPO = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))  # through the workspace symlink
 DDACE = os.path.join(REPO, "scripts", "ddace")
 
 
