@@ -12,7 +12,7 @@ TEST(HamsterCalibration, MeasuresTheTrueSpeedPerUnit) {
   double truth = 0.0;
   ASSERT_TRUE(pnh.getParam("output", output));
   ASSERT_TRUE(pnh.getParam("true_mps_per_unit", truth));
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(50.0);
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(100.0);
   YAML::Node result;
   while (ros::WallTime::now() < end && ros::ok()) {
     std::ifstream in(output);
