@@ -1,3 +1,4 @@
+#include "ddace/common/file.h"
 #include "ddace/task/demonstration.h"
 
 #include <algorithm>
@@ -328,18 +329,8 @@ Demonstration parseDemonstrationCsv(const std::string& input, const TaskSpec& sp
   return demo;
 }
 
-namespace {
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(Diagnostic{path, 0, 0, "cannot open file"});
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-}  // namespace
-
 Demonstration readDemonstrationCsv(const std::string& path, const TaskSpec& spec) {
-  return parseDemonstrationCsv(slurp(path), spec, path);
+  return parseDemonstrationCsv(readTextFile(path), spec, path);
 }
 
 std::string demonstrationCsvText(const Demonstration& demo, const TaskSpec& spec) {

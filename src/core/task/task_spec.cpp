@@ -1,3 +1,4 @@
+#include "ddace/common/file.h"
 #include "ddace/task/task_spec.h"
 
 #include <cmath>
@@ -255,17 +256,7 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
   return spec;
 }
 
-namespace {
-std::string readFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(Diagnostic{path, 0, 0, "cannot open file"});
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-}  // namespace
-
-TaskSpec readTaskYaml(const std::string& path) { return parseTaskYaml(readFile(path), path); }
+TaskSpec readTaskYaml(const std::string& path) { return parseTaskYaml(readTextFile(path), path); }
 
 std::string taskYamlText(const TaskSpec& spec) {
   std::ostringstream out;
