@@ -10,10 +10,13 @@ directory's loss.csv. Figures:
   task3   Task 3 with 2, 3, 4 actions (30 demonstrations)
 
 Usage: scripts/plot_loss.py [--work WORKDIR] [--out DIR] [--only fig4,task2,task3]
-       [--seed S] [--epochs N] [--models MODELDIR...]
+       [--seed S] [--epochs N] [--jobs N] [--models MODELDIR...]
+--jobs trains that many models at a time (each `ddace train` is single-threaded and
+deterministic, so the curves do not depend on it).
 With --models, plots the given model directories' loss curves in one figure instead.
 """
 import argparse
+import concurrent.futures
 import csv
 import os
 import subprocess
@@ -79,6 +82,7 @@ def main():
     p.add_argument("--only", default="fig4,task2,task3")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--epochs", type=int, default=0, help="maximum epochs (default: the trainer's)")
+    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="models trained at a time")
     p.add_argument("--models", nargs="*", help="plot these model directories instead")
     a = p.parse_args()
     os.makedirs(a.out, exist_ok=True)
@@ -100,6 +104,21 @@ def main():
         sys.exit("plot_loss: --only: unknown figure(s) %s (fig4, task2, task3)" % ", ".join(sorted(unknown)))
     if not os.access(DDACE, os.X_OK):
         sys.exit("plot_loss: %s not found; run scripts/setup first" % DDACE)
+
+    if a.jobs < 1:
+        sys.exit("plot_loss: --jobs must be at least 1")
+    # Every configuration the figures need, trained up front (in parallel); the plots
+    # below then find each model in place.
+    configs = []
+    if "fig4" in only:
+        configs += [dict(family=f, demos=d) for f in ("task1", "task2", "task3", "task4") for d in (10, 20, 30)]
+    if "task2" in only:
+        configs += [dict(family="task2", demos=30, robots=r) for r in range(4, 12)]
+    if "task3" in only:
+        configs += [dict(family="task3", demos=30, actions=k) for k in (2, 3, 4)]
+    with concurrent.futures.ThreadPoolExecutor(max_workers=a.jobs) as pool:
+        for future in [pool.submit(model, a.work, seed=a.seed, epochs=a.epochs, **c) for c in configs]:
+            future.result()
 
     if "fig4" in only:
         fig, axes = plt.subplots(1, 4, figsize=(16, 3.6))

@@ -1,5 +1,5 @@
-// The only translation unit of ddace that includes torch: network, trainer, predictor,
-// weights I/O and the gnn rollout (see include/ddace/tgn/sequence_model.h).
+// Network, trainer, predictor, weights I/O and the gnn rollout (see
+// include/ddace/tgn/sequence_model.h); the fused kernels are in fused_kernels.cpp.
 #include <torch/torch.h>
 
 #include <algorithm>
@@ -10,12 +10,14 @@
 #include <iomanip>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <ostream>
 #include <set>
 #include <sstream>
 
 #include "ddace/common/error.h"
 #include "ddace/tgn/sequence_model.h"
+#include "fused_kernels.h"
 #include "manifest.h"
 
 namespace ddace::tgn {
@@ -28,19 +30,14 @@ using torch::Tensor;
 // ------------------------------------------------------------------ modules
 
 /// Which node receives from which: mask[i][j] = node i receives from node j (self-loops
-/// included), and the same as an edge list (src -> dst) for the aggregation.
+/// included), and the same as incoming edge lists for the fused attention.
 struct Attention {
-  Tensor mask, src, dst;
-  explicit Attention(Tensor m) : mask(std::move(m)) {
-    const Tensor nz = mask.nonzero();  // rows (i, j)
-    dst = nz.select(1, 0).contiguous();
-    src = nz.select(1, 1).contiguous();
-  }
+  Tensor mask;
+  fused::InEdges in;
+  explicit Attention(Tensor m) : mask(std::move(m)), in(fused::inEdgesFromMask(mask)) {}
 };
 
-/// GATConv semantics; all snapshots of a batch at once. Attention logits and the softmax are
-/// dense (N x N is tiny); the weighted sum runs over the edge list, which is several times
-/// faster than a batched matmul when E' is sparse.
+/// GATConv semantics; all snapshots of a batch at once (the attention is one fused kernel).
 struct GatLayerImpl : torch::nn::Module {
   GatLayerImpl(int in, int heads, int channels) : heads_(heads), channels_(channels) {
     lin = register_module("lin", torch::nn::Linear(torch::nn::LinearOptions(in, heads * channels).bias(false)));
@@ -56,16 +53,7 @@ struct GatLayerImpl : torch::nn::Module {
   Tensor forward(const Tensor& x, const Attention& att) {
     const int64_t s = x.size(0), n = x.size(1);
     const Tensor h = lin(x).view({s, n, heads_, channels_});
-    const Tensor a_src = (h * att_src).sum(-1);  // [S, N, H]
-    const Tensor a_dst = (h * att_dst).sum(-1);
-    Tensor e = torch::leaky_relu(a_dst.unsqueeze(2) + a_src.unsqueeze(1), 0.2);  // [S, i, j, H]
-    e = e.masked_fill(att.mask.logical_not().view({1, n, n, 1}), -std::numeric_limits<float>::infinity());
-    const Tensor alpha = torch::softmax(e, 2);
-    // alpha at every edge [S, E, H] times the source's features [S, E, H, C], summed per target.
-    const Tensor messages = alpha.index({torch::indexing::Slice(), att.dst, att.src}).unsqueeze(-1) *
-                            h.index_select(1, att.src);
-    const Tensor out = torch::zeros({s, n, heads_, channels_}, h.options()).index_add(1, att.dst, messages);
-    return out.reshape({s, n, heads_ * channels_}) + bias;
+    return fused::gatAttention(h, att_src, att_dst, att.in).view({s, n, heads_ * channels_}) + bias;
   }
 
   int heads_, channels_;
@@ -113,6 +101,14 @@ struct NetworkImpl : torch::nn::Module {
     for (int i = 0; i < c.nodes; ++i) self_mask[i][i + 1] = -1e9;
   }
 
+  /// As torch::dropout, but from this network's own generator: models trained in parallel
+  /// threads stay deterministic (torch's default generator is process-wide).
+  Tensor dropout(const Tensor& x) {
+    const double p = cfg.o.dropout;
+    if (!is_training() || p <= 0) return x;
+    return x * torch::empty_like(x).bernoulli_(1 - p, generator).div_(1 - p);
+  }
+
   int64_t outputs() const { return cfg.nodes * (cfg.actions + cfg.targets + (cfg.gnn ? 2 : 0)) + 2; }
 
   /// x [S, N, F] -> graph embeddings [S, width].
@@ -123,7 +119,7 @@ struct NetworkImpl : torch::nn::Module {
       x = gat[l]->forward(x, att);
       const int64_t w = x.size(2);
       x = bn[l]->forward(x.reshape({s * n, w})).view({s, n, w});
-      x = torch::dropout(torch::relu(x), cfg.o.dropout, is_training());
+      x = dropout(torch::relu(x));
     }
     return x.mean(1);
   }
@@ -160,6 +156,7 @@ struct NetworkImpl : torch::nn::Module {
 
   NetConfig cfg;
   Attention att;
+  at::Generator generator = at::make_generator<at::CPUGeneratorImpl>(cfg.o.seed);
   Tensor self_mask;
   torch::nn::Embedding identity{nullptr};
   std::vector<GatLayer> gat;
@@ -222,8 +219,7 @@ Batch collate(const std::vector<Sequence>& seqs, const std::vector<size_t>& whic
 NetworkImpl::Heads run(Network& net, const Batch& batch) {
   const Tensor emb = net->encode(batch.x);
   Tensor seq = torch::zeros({batch.b * batch.t, emb.size(1)}).index_copy(0, batch.slot, emb);
-  auto out = std::get<0>(net->gru->forward(seq.view({batch.b, batch.t, emb.size(1)})));
-  return net->heads(out);
+  return net->heads(fused::gru(net->gru, seq.view({batch.b, batch.t, emb.size(1)})).first);
 }
 
 Tensor nll(const Tensor& logits, const Tensor& target) {
@@ -286,6 +282,16 @@ struct SequenceModel::Impl {
     cfg.features = cfg.gnn ? 2 + cfg.actions + cfg.targets : 2;
     cfg.o = info.options;
     net = Network(cfg, maskFromEdges(cfg.nodes, info.attention_edges, true));
+  }
+
+  /// build() with the weights initialised from the model's seed. The initialisers draw from
+  /// torch's process-wide generator, so concurrent builds (ddace table trains models in
+  /// parallel threads) take turns.
+  void seededBuild() {
+    static std::mutex initialising;
+    const std::lock_guard<std::mutex> lock(initialising);
+    torch::manual_seed(info.options.seed);
+    build();
   }
 
   /// Normalised node features of one row / snapshot.
@@ -457,13 +463,12 @@ std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const T
 SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& options, std::ostream* progress) {
   auto impl = prepare(train, options);
   const auto started = std::chrono::steady_clock::now();
-  torch::manual_seed(options.seed);
   at::set_num_threads(options.threads);
-  impl->build();
+  impl->seededBuild();
   Network& net = impl->net;
   const bool gnn = impl->cfg.gnn;
   const std::vector<Sequence> seqs = impl->sequences(train.demos);
-  torch::optim::Adam adam(net->parameters(), torch::optim::AdamOptions(options.learning_rate));
+  fused::FlatParameters parameters(net->parameters());  // Adam as torch::optim::Adam, in a few ops
   Rng rng{options.seed ^ 0xD1B54A32D192ED03ULL};
   std::vector<size_t> order(seqs.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
@@ -480,12 +485,12 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
       const std::vector<size_t> which(order.begin() + static_cast<long>(from),
                                       order.begin() + static_cast<long>(std::min(order.size(), from + bs)));
       const Batch batch = collate(seqs, which, gnn);
-      adam.zero_grad();
+      parameters.zeroGrad();
       const Tensor loss = lossOf(run(net, batch), batch, gnn);
       loss.backward();
       // GRUs on few sequences occasionally take a huge step; clipping keeps training monotone.
-      torch::nn::utils::clip_grad_norm_(net->parameters(), kClipNorm);
-      adam.step();
+      parameters.clipGradNorm(kClipNorm);
+      parameters.adamStep(options.learning_rate);
       total += loss.item<double>();
       ++batches;
     }
@@ -542,7 +547,7 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
   for (int64_t k = 0; k < t; ++k) m.features(history[k].positions, nullptr, x[k].data_ptr<float>());
   Network net = m.net;
   const Tensor emb = net->encode(x);
-  const Tensor out = std::get<0>(net->gru->forward(emb.unsqueeze(0))).select(1, t - 1).squeeze(0);
+  const Tensor out = fused::gru(net->gru, emb.unsqueeze(0)).first.select(1, t - 1).squeeze(0);
   const auto h = net->heads(out);
   const Tensor pa = torch::softmax(h.action, -1), pt = torch::softmax(h.target, -1);
   Prediction p;
@@ -585,7 +590,7 @@ task::Demonstration rolloutGnn(const SequenceModel& model, const task::Demonstra
   while (static_cast<int>(out.rows()) < max_rows) {
     m.features(out.positions.back(), &out.labels.back(), x.data_ptr<float>());
     const Tensor emb = net->encode(x);  // [1, width]
-    auto [y, h] = net->gru->forward(emb.unsqueeze(0), hidden);
+    auto [y, h] = fused::gru(net->gru, emb.unsqueeze(0), hidden);
     hidden = h;
     const auto heads = net->heads(y.squeeze(0).squeeze(0));
     const Tensor act = heads.action.argmax(-1), tgt = heads.target.argmax(-1);
@@ -647,9 +652,8 @@ SequenceModel SequenceModel::load(const std::string& model_dir) {
                                               std::to_string(bytes)});
   if (files::fileHash(weights) != hash)
     throw Error(Diagnostic{weights, 0, 0, "corrupted: its checksum does not match " + manifest});
-  torch::manual_seed(impl->info.options.seed);
   at::set_num_threads(impl->info.options.threads);
-  impl->build();
+  impl->seededBuild();
   // Module::load replaces tensors whatever their shape, so the shapes are checked here.
   std::vector<std::pair<std::string, std::vector<int64_t>>> expected;
   for (const auto& p : impl->net->named_parameters()) expected.emplace_back(p.key(), p.value().sizes().vec());
