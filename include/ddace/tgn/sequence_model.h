@@ -31,7 +31,9 @@
 //                   at 1; mini-batches of whole demonstrations in a seeded shuffled order.
 //   stopping        at `max_epochs`, or at a plateau: the best loss of the last
 //                   `plateau_patience` epochs differs by less than `plateau_delta` from the
-//                   best loss of the `plateau_patience` epochs before them.
+//                   best loss of the `plateau_patience` epochs before them, and the last
+//                   epoch's loss is within `plateau_delta` of that best too (never stop on a
+//                   spike: the weights kept are the last epoch's).
 //   determinism     torch::manual_seed(seed), at::set_num_threads(threads) (default 1: the
 //                   tensors are tiny and one thread is both fastest and reproducible).
 //
@@ -179,6 +181,9 @@ struct GatWeights {
 /// are added. Returns [nodes][heads*channels] row-major.
 std::vector<float> gatForward(const GatWeights& w, const std::vector<float>& x, int nodes,
                               const std::vector<graph::Edge>& edges);
+/// The training's stopping rule (see "stopping" above) on the epochs so far.
+bool atPlateau(const std::vector<EpochRecord>& history, int patience, double delta);
+
 }  // namespace detail
 
 }  // namespace ddace::tgn

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "ddace/common/error.h"
+#include "ddace/common/random.h"
 
 namespace ddace::gp {
 
@@ -16,22 +17,6 @@ namespace {
 
 constexpr double kToeplitzMaxCondition = 1e11;
 constexpr double kLog2Pi = 1.8378770664093454835606594728112;
-
-/// SplitMix64: restart points identical on every platform.
-class SplitMix {
- public:
-  explicit SplitMix(uint64_t seed) : state_(seed) {}
-  double uniform() {
-    uint64_t z = (state_ += 0x9E3779B97F4A7C15ULL);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    z ^= z >> 31;
-    return static_cast<double>(z >> 11) * 0x1.0p-53;
-  }
-
- private:
-  uint64_t state_;
-};
 
 /// Squared distances between all pairs of `a` and `b`.
 Eigen::MatrixXd squaredDistances(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
@@ -341,7 +326,7 @@ GaussianProcess GaussianProcess::fit(const RepeatedData& data, const GpOptions& 
     LBFGSpp::LBFGSBSolver<double> solver(param);
     Objective objective(data, options.use_constant, options.alpha);
 
-    SplitMix rng(options.seed);
+    SplitMix64 rng(options.seed);
     for (int start = 0; start <= options.restarts; ++start) {
       Eigen::VectorXd theta = start == 0 ? toTheta(gp.params_, options.use_constant) : Eigen::VectorXd(dim);
       if (start > 0)

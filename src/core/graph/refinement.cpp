@@ -9,29 +9,14 @@
 #include <Eigen/Eigenvalues>
 
 #include "ddace/common/error.h"
+#include "ddace/common/random.h"
 
 namespace ddace::graph {
 
 namespace {
 
-/// SplitMix64: the same sequence on every platform (no std distributions).
-class Rng {
- public:
-  explicit Rng(uint64_t seed) : state_(seed * 0x9E3779B97F4A7C15ULL + 0x2545F4914F6CDD1DULL) {}
-  uint64_t next() {
-    uint64_t z = (state_ += 0x9E3779B97F4A7C15ULL);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31);
-  }
-  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
-
- private:
-  uint64_t state_;
-};
-
 /// k-means on the rows of `points` with k-means++ seeding; returns labels and inertia.
-std::pair<std::vector<int>, double> kmeans(const Eigen::MatrixXd& points, int k, Rng& rng) {
+std::pair<std::vector<int>, double> kmeans(const Eigen::MatrixXd& points, int k, SplitMix64& rng) {
   const int n = static_cast<int>(points.rows());
   Eigen::MatrixXd centres(k, points.cols());
   centres.row(0) = points.row(static_cast<int>(rng.next() % static_cast<uint64_t>(n)));
@@ -191,7 +176,7 @@ RefinedGraph refine(const std::vector<task::Demonstration>& demos, int nodes,
       const double norm = embed.row(i).norm();
       if (norm > 1e-12) embed.row(i) /= norm;
     }
-    Rng rng(options.seed);
+    SplitMix64 rng(options.seed * 0x9E3779B97F4A7C15ULL + 0x2545F4914F6CDD1DULL);
     std::vector<int> best;
     double best_inertia = std::numeric_limits<double>::infinity();
     for (int restart = 0; restart < 8; ++restart) {

@@ -4,34 +4,14 @@
 #include <cmath>
 #include <map>
 
+#include "ddace/common/random.h"
+
 namespace ddace::tasks {
 
 namespace {
 
 using Eigen::Vector2d;
 using task::EntityKind;
-
-/// SplitMix64 with our own float arithmetic: identical output on every platform.
-class Rng {
- public:
-  explicit Rng(uint64_t seed) : state_(seed * 0x9E3779B97F4A7C15ULL + 0x632BE59BD9B4E019ULL) {}
-  uint64_t next() {
-    uint64_t z = (state_ += 0x9E3779B97F4A7C15ULL);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31);
-  }
-  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
-  double uniform(double a, double b) { return a + (b - a) * uniform(); }
-  double normal() {
-    const double u1 = 1.0 - uniform(), u2 = uniform();
-    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
-  }
-  size_t index(size_t n) { return static_cast<size_t>(next() % n); }
-
- private:
-  uint64_t state_;
-};
 
 /// A path shape in the canonical frame: f(0) = (0,0), f(1) = (1,0).
 struct Shape {
@@ -201,7 +181,7 @@ double pathLength(const Shape& shape, double a, const Vector2d& from, const Vect
   return len;
 }
 
-task::Demonstration simulate(const Plan& plan, Rng& rng, double jitter_m) {
+task::Demonstration simulate(const Plan& plan, SplitMix64& rng, double jitter_m) {
   const auto& spec = plan.spec;
   const size_t m = spec.entities.size();
   std::vector<Vector2d> pos(m);
@@ -272,7 +252,7 @@ task::Demonstration simulate(const Plan& plan, Rng& rng, double jitter_m) {
 }
 
 /// One wrong label: the target of one token (its whole segment) names another entity.
-void mislabel(task::Demonstration& d, const task::TaskSpec& spec, Rng& rng) {
+void mislabel(task::Demonstration& d, const task::TaskSpec& spec, SplitMix64& rng) {
   d.analyze();
   std::vector<size_t> motions;
   for (size_t i = 0; i < d.segments.size(); ++i)
@@ -314,7 +294,7 @@ task::TaskDir generate(const GeneratorOptions& o) {
 
   task::TaskDir dir;
   dir.spec = plan.spec;
-  Rng rng(o.seed);
+  SplitMix64 rng(o.seed * 0x9E3779B97F4A7C15ULL + 0x632BE59BD9B4E019ULL);
   const int mislabelled = static_cast<int>(std::round(o.mislabel_fraction * o.demos));
   for (int i = 0; i < o.demos; ++i) {
     task::Demonstration d = simulate(plan, rng, o.jitter_m);

@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "ddace/common/error.h"
+#include "ddace/common/random.h"
 #include "ddace/tgn/sequence_model.h"
 #include "fused_kernels.h"
 #include "manifest.h"
@@ -248,17 +249,6 @@ Tensor correctOf(const NetworkImpl::Heads& h, const Batch& batch, bool gnn) {
 
 constexpr double kClipNorm = 1.0;  // gradient norm clipping (also in the Python reference)
 
-/// SplitMix64 for the shuffled demonstration order.
-struct Rng {
-  uint64_t state;
-  uint64_t next() {
-    uint64_t z = (state += 0x9E3779B97F4A7C15ULL);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31);
-  }
-};
-
 }  // namespace
 
 // ------------------------------------------------------------------ the model
@@ -469,7 +459,7 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
   const bool gnn = impl->cfg.gnn;
   const std::vector<Sequence> seqs = impl->sequences(train.demos);
   fused::FlatParameters parameters(net->parameters());  // Adam as torch::optim::Adam, in a few ops
-  Rng rng{options.seed ^ 0xD1B54A32D192ED03ULL};
+  SplitMix64 rng(options.seed ^ 0xD1B54A32D192ED03ULL);
   std::vector<size_t> order(seqs.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
   ModelInfo& info = impl->info;
@@ -509,19 +499,9 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
       progress->flags(flags);
       progress->precision(precision);
     }
-    // Plateau: the best loss of the last `p` epochs is within plateau_delta of the best of
-    // the `p` before them (a recovering spike is not a plateau).
-    const int p = options.plateau_patience;
-    if (epoch >= 2 * p) {
-      double before = std::numeric_limits<double>::infinity(), recent = before;
-      for (int e = epoch - 2 * p; e < epoch; ++e) {
-        double& best = e < epoch - p ? before : recent;
-        best = std::min(best, info.history[static_cast<size_t>(e)].loss);
-      }
-      if (std::abs(before - recent) < options.plateau_delta) {
-        info.stop_reason = "plateau";
-        break;
-      }
+    if (detail::atPlateau(info.history, options.plateau_patience, options.plateau_delta)) {
+      info.stop_reason = "plateau";
+      break;
     }
   }
   net->eval();
@@ -703,6 +683,21 @@ void writeTrainingTensors(const task::TaskDir& train, const TrainOptions& option
 }
 
 namespace detail {
+
+bool atPlateau(const std::vector<EpochRecord>& history, int patience, double delta) {
+  // The best loss of the last `p` epochs within delta of the best of the `p` before them (a
+  // recovering spike is not a plateau), and the last epoch's too: the weights kept are the
+  // last epoch's, and an epoch that just took a bad step (Adam now and then does, even with
+  // clipping) must not end training.
+  const int64_t p = patience, n = static_cast<int64_t>(history.size());
+  if (p < 1 || n < 2 * p) return false;
+  double before = std::numeric_limits<double>::infinity(), recent = before;
+  for (int64_t e = n - 2 * p; e < n; ++e) {
+    double& best = e < n - p ? before : recent;
+    best = std::min(best, history[static_cast<size_t>(e)].loss);
+  }
+  return std::abs(before - recent) < delta && history.back().loss - recent < delta;
+}
 
 std::vector<float> gatForward(const GatWeights& w, const std::vector<float>& x, int nodes,
                               const std::vector<graph::Edge>& edges) {

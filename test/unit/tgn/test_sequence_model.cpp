@@ -107,6 +107,23 @@ TEST(SequenceModel, IsDeterministicBySeed) {
   EXPECT_NE(a.info().history.back().loss, c.info().history.back().loss);
 }
 
+TEST(SequenceModel, StopsAtAPlateauButNeverOnASpike) {
+  auto history = [](std::vector<double> losses) {
+    std::vector<tgn::EpochRecord> h;
+    for (size_t i = 0; i < losses.size(); ++i) h.push_back({static_cast<int>(i) + 1, losses[i], 1.0, 0.0});
+    return h;
+  };
+  std::vector<double> flat(40, 0.0035), falling, spike(40, 0.0035);
+  for (int i = 0; i < 40; ++i) falling.push_back(1.0 / (i + 1));
+  spike.back() = 0.43;  // the last epoch took a bad step: its weights must not be the model
+  EXPECT_TRUE(tgn::detail::atPlateau(history(flat), 20, 1e-3));
+  EXPECT_FALSE(tgn::detail::atPlateau(history(falling), 20, 1e-3));
+  EXPECT_FALSE(tgn::detail::atPlateau(history(spike), 20, 1e-3));
+  EXPECT_FALSE(tgn::detail::atPlateau(history(std::vector<double>(39, 0.0035)), 20, 1e-3)) << "too few epochs";
+  spike.push_back(0.0036);  // recovered
+  EXPECT_TRUE(tgn::detail::atPlateau(history(spike), 20, 1e-3));
+}
+
 // ddace table trains models in parallel threads: a model must not depend on what the
 // other threads draw from their random generators.
 TEST(SequenceModel, ModelsTrainedInParallelThreadsEqualSerialOnes) {
