@@ -227,7 +227,8 @@ class Mock:
     def __init__(self, bus, adapter, address, connect_delay_s):
         self.bus, self.address, self.connect_delay_s = bus, address, connect_delay_s
         self.calls, self.writes, self.connections = [], [], 0
-        self.sensor, self.stalled = bytes(20), False
+        # A valid, all-zero Hamster sensor payload (byte 2 = 0x10 marks a sensor packet).
+        self.sensor, self.stalled = bytes([0, 0, 0x10] + [0] * 17), False
         self.root = Root(self)
         self.adapter = Adapter(self, "/org/bluez/" + adapter)
         self.device = None
