@@ -1,4 +1,5 @@
-// hamster_bridge_node: drives real Hamster robots through their USB radio dongles.
+// hamster_bridge_node: drives real Hamster robots through their USB radio dongles
+// (or, for robots with `transport: ble`, directly through BlueZ).
 //
 // Parameters (private):
 //   ~config   (string, required)  path of config/hamsters.yaml (robots, addresses, calibration)
@@ -65,7 +66,7 @@ class HamsterBridge {
     for (const auto& r : config_.robots) {
       if (!only.empty() && std::find(only.begin(), only.end(), r.name) == only.end()) continue;
       auto robot = std::make_unique<Robot>();
-      robot->link = std::make_unique<RobotLink>(r, config_, ports, serialTransportFactory(config_.rtscts));
+      robot->link = std::make_unique<RobotLink>(r, config_, ports, transportFactoryFor(r, config_));
       const std::string base = "/robots/" + r.name;
       Robot* raw = robot.get();
       robot->sensors = nh.advertise<ddace::HamsterSensors>(base + "/sensors", 10);
@@ -76,8 +77,10 @@ class HamsterBridge {
           base + "/effects", 1, [this, raw](const ddace::HamsterEffects::ConstPtr& m) { onEffects(*raw, *m); });
       updater_.add("hamster " + r.name,
                    [this, raw](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnose(*raw, s); });
-      ROS_INFO("hamster_bridge: %s = %s (%s), port hints [%s]", r.name.c_str(), r.address.display().c_str(),
-               r.model == Model::Unknown ? "model auto" : modelName(r.model).c_str(), join(r.port_hints).c_str());
+      const std::string reach = r.transport == TransportKind::Ble ? "direct BLE via " + r.ble_adapter
+                                                                  : "port hints [" + join(r.port_hints) + "]";
+      ROS_INFO("hamster_bridge: %s = %s (%s), %s", r.name.c_str(), r.address.display().c_str(),
+               r.model == Model::Unknown ? "model auto" : modelName(r.model).c_str(), reach.c_str());
       robots_.push_back(std::move(robot));
     }
     ROS_INFO("hamster_bridge: %zu robots; ports under %s, scanning [%s]", robots_.size(), config_.port_dir.c_str(),

@@ -37,11 +37,19 @@ WheelUnits wheelUnitsFromSpeeds(const Calibration& calibration, double left_mps,
 /// ground speeds (left, right) for a differential drive with the given track.
 void wheelSpeedsFromTwist(double v_mps, double omega_rps, double track_m, double* left_mps, double* right_mps);
 
+/// How the host reaches a robot.
+enum class TransportKind {
+  Serial,  ///< its USB radio dongle (a serial port found by address)
+  Ble,     ///< directly over Bluetooth LE through BlueZ (original Hamster only; needs DDACE_WITH_BLE)
+};
+
 struct RobotConfig {
   std::string name;                     ///< ROS name, e.g. "R1" (topics /robots/R1/...)
   Address address;                      ///< radio address (wire order)
-  Model model = Model::Unknown;         ///< Unknown = accept what the FF reply says
-  std::vector<std::string> port_hints;  ///< glob patterns tried first (relative to port_dir)
+  Model model = Model::Unknown;         ///< Unknown = accept what the FF reply says (always Hamster for BLE)
+  std::vector<std::string> port_hints;  ///< glob patterns tried first (relative to port_dir); serial only
+  TransportKind transport = TransportKind::Serial;
+  std::string ble_adapter = "hci0";     ///< BlueZ adapter (BLE only), e.g. hci0
   Calibration calibration;
 };
 
@@ -54,12 +62,17 @@ struct BridgeConfig {
   double identify_interval_s = 0.1;              ///< between FF requests
   int identify_retries = 10;                     ///< FF requests per port before giving up on it
   double rescan_interval_s = 0.5;                ///< pause after every port was tried
+  double ble_connect_timeout_s = 20.0;           ///< BLE: give up a connection attempt after this long
   std::vector<RobotConfig> robots;
 };
 
+/// Whether this build has the direct-BLE transport (CMake option DDACE_WITH_BLE).
+bool bleBuilt();
+
 /// Parses config/hamsters.yaml text. `file` names the source in errors. Throws
 /// ddace::Error with file:line:column for every problem found (unknown keys, bad
-/// addresses, duplicate names or addresses, missing or non-positive calibration).
+/// addresses, duplicate names or addresses, missing or non-positive calibration,
+/// `transport: ble` in a build without BLE or for a Hamster-S).
 BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& file);
 
 /// Reads and parses a file (error naming the path when it cannot be read).

@@ -3,11 +3,13 @@
 //
 // Owns: the per-robot state machine used by hamster_bridge_node (and by the
 // benchmark and tests without ROS):
-//   Searching → (open a candidate port) → Identifying (send "FF\r", wait for the
-//   reply with our address) → Streaming (answer every valid sensor line with exactly
-//   one motoring line) → Lost (no valid line for link_timeout_s, or the port failed)
-//   → Searching again, starting with the port that worked. Failing to write any
-//   motoring line for link_timeout_s (flow control stuck) is a lost link too.
+//   Searching → (open a candidate port) → Identifying (once the transport is no
+//   longer connecting(), send "FF\r", wait for the reply with our address) →
+//   Streaming (answer every valid sensor line with exactly one motoring line) →
+//   Lost (no valid line for link_timeout_s, or the port failed) → Searching again,
+//   starting with the port that worked. Failing to write any motoring line for
+//   link_timeout_s (flow control stuck) is a lost link too.
+// A robot with transport Ble has one candidate port, bleEndpoint(adapter, address).
 // Safety: the wheels sent are the latest command converted with the calibration
 // only while that command is younger than command_timeout_s; otherwise zero. A
 // command is never extrapolated. On link loss a zero-wheel line is sent best-effort
@@ -44,6 +46,11 @@ class PortDirectory {
   std::set<std::string> claimed_;
   std::vector<std::pair<std::string, Address>> known_;
 };
+
+/// The transport factory for one robot: serial ports (with the bridge's rtscts) or,
+/// for transport Ble, BlueZ (with ble_connect_timeout_s). Throws ddace::Error for Ble
+/// in a build without DDACE_WITH_BLE (the config parser refuses that earlier).
+TransportFactory transportFactoryFor(const RobotConfig& robot, const BridgeConfig& bridge);
 
 enum class LinkState { Searching, Identifying, Streaming };
 std::string linkStateName(LinkState state);

@@ -79,6 +79,10 @@ Payload encodeEffector(Model model, const Effector& effector);
 /// The full line: 40 hex digits, '-', address.wire(), '\r' (54 characters).
 std::string encodeLine(const Payload& payload, const Address& address);
 
+/// Upper-case hex, two digits per byte, most significant nibble first (the line
+/// encoding of any byte string, e.g. a BLE notification of the wrong length).
+std::string hexBytes(const uint8_t* data, size_t size);
+
 /// The identification request the host sends: "FF\r".
 constexpr std::string_view kIdentifyRequest = "FF\r";
 

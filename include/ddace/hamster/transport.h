@@ -2,7 +2,8 @@
 //
 // Owns: the Transport interface (non-blocking open/read/write/close of one link),
 // the POSIX serial implementation (termios raw 115200 8N1 with RTS/CTS hardware
-// flow control) and port discovery by glob patterns.
+// flow control), port discovery by glob patterns, and the names of direct-BLE
+// endpoints (the BLE transport itself is ble_transport.h, built with DDACE_WITH_BLE).
 // Must not: interpret the bytes (that is protocol.h) or decide which robot is where
 // (that is link.h).
 #pragma once
@@ -12,6 +13,8 @@
 #include <memory>
 #include <string>
 #include <vector>
+
+#include "ddace/hamster/protocol.h"
 
 namespace ddace::hamster {
 
@@ -34,6 +37,10 @@ class Transport {
   virtual void flush() = 0;
   /// File descriptor for poll(2), -1 when closed or not applicable.
   virtual int fd() const { return -1; }
+  /// True while an opened link is still being established (a BLE connection in
+  /// progress): reads return 0 and the caller waits instead of counting its
+  /// identification requests. A transport that gives up throws from read().
+  virtual bool connecting() const { return false; }
   /// Human-readable name (the port path).
   virtual std::string name() const = 0;
 };
@@ -76,5 +83,13 @@ std::vector<std::string> expandPorts(const std::vector<std::string>& patterns, c
 
 /// The canonical device path (symlinks resolved); the path itself when it does not resolve.
 std::string canonicalPort(const std::string& path);
+
+/// The port name of a robot reached by direct BLE: "ble:<adapter>/<AA:BB:CC:DD:EE:FF>"
+/// (address in the usual display order). RobotLink uses it as the robot's only
+/// candidate port; bleTransportFactory() (ble_transport.h) parses it.
+std::string bleEndpoint(const std::string& adapter, const Address& address);
+
+/// Splits a bleEndpoint() name. False when `port` is not one.
+bool parseBleEndpoint(const std::string& port, std::string* adapter, Address* address);
 
 }  // namespace ddace::hamster

@@ -130,14 +130,50 @@ class Checker {
   std::string file_;
 };
 
-RobotConfig parseRobot(Checker& c, const YAML::Node& node, size_t index) {
+// `transport:` value; `ble` only in a build with the BLE transport.
+bool parseTransport(Checker& c, const YAML::Node& node, const std::string& what, TransportKind& out) {
+  std::string t;
+  if (!c.text(node, what, t)) return false;
+  if (t == "serial") {
+    out = TransportKind::Serial;
+  } else if (t == "ble") {
+    if (!bleBuilt()) {
+      c.error(node, what + " 'ble': this ddace was built without direct BLE (CMake option DDACE_WITH_BLE=OFF; "
+                           "install libsystemd-dev and rebuild, e.g. scripts/setup); use transport: serial (dongle)");
+      return false;
+    }
+    out = TransportKind::Ble;
+  } else {
+    c.error(node, what + " '" + t + "' is not one of serial, ble");
+    return false;
+  }
+  return true;
+}
+
+// A BlueZ adapter name becomes a D-Bus object path element: /org/bluez/<adapter>.
+bool parseAdapter(Checker& c, const YAML::Node& node, const std::string& what, std::string& out) {
+  std::string a;
+  if (!c.text(node, what, a)) return false;
+  bool ok = !a.empty();
+  for (char ch : a) ok = ok && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_');
+  if (!ok) {
+    c.error(node, what + " '" + a + "' is not a BlueZ adapter name such as hci0 (see bluetoothctl list)");
+    return false;
+  }
+  out = a;
+  return true;
+}
+
+RobotConfig parseRobot(Checker& c, const YAML::Node& node, size_t index, const RobotConfig& defaults) {
   RobotConfig r;
+  r.transport = defaults.transport;
+  r.ble_adapter = defaults.ble_adapter;
   const std::string where = "robots[" + std::to_string(index) + "]";
   if (!node.IsMap()) {
     c.error(node, where + " must be a mapping with name, address, calibration");
     return r;
   }
-  c.onlyKeys(node, {"name", "address", "model", "port_hints", "calibration"}, where);
+  c.onlyKeys(node, {"name", "address", "model", "port_hints", "transport", "ble_adapter", "calibration"}, where);
   if (!node["name"]) {
     c.error(node, where + ": missing key 'name'");
   } else if (c.text(node["name"], where + ".name", r.name)) {
@@ -173,6 +209,21 @@ RobotConfig parseRobot(Checker& c, const YAML::Node& node, size_t index) {
     }
   }
   if (node["port_hints"]) c.patterns(node["port_hints"], who + " port_hints", r.port_hints);
+  if (node["transport"]) parseTransport(c, node["transport"], who + " transport", r.transport);
+  if (node["ble_adapter"]) parseAdapter(c, node["ble_adapter"], who + " ble_adapter", r.ble_adapter);
+  if (r.transport == TransportKind::Ble) {
+    if (r.model == Model::HamsterS) {
+      c.error(node["model"], who + ": transport ble drives the original Hamster only (the Hamster-S GATT "
+                                   "layout is unknown); reach a Hamster-S through its dongle (transport: serial)");
+    }
+    r.model = Model::Hamster;  // what the BLE transport reports in its FF reply
+    if (node["port_hints"]) {
+      c.error(node["port_hints"], who + ": port_hints apply to transport serial only (a BLE robot is found "
+                                        "by its address through BlueZ)");
+    }
+  } else if (node["ble_adapter"]) {
+    c.error(node["ble_adapter"], who + ": ble_adapter applies to transport ble only");
+  }
   const YAML::Node cal = node["calibration"];
   if (!cal) {
     c.error(node, who + ": missing key 'calibration' (measure it with scripts/calibrate_hamster.py)");
@@ -210,6 +261,8 @@ RobotConfig parseRobot(Checker& c, const YAML::Node& node, size_t index) {
 
 }  // namespace
 
+bool bleBuilt() { return DDACE_WITH_BLE != 0; }
+
 BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& file) {
   YAML::Node root;
   try {
@@ -224,8 +277,14 @@ BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& 
   cfg.scan = defaultScanPatterns();
   c.onlyKeys(root,
              {"port_dir", "scan", "rtscts", "command_timeout_s", "link_timeout_s", "identify_interval_s",
-              "identify_retries", "rescan_interval_s", "robots"},
+              "identify_retries", "rescan_interval_s", "transport", "ble_adapter", "ble_connect_timeout_s", "robots"},
              "the Hamster config");
+  RobotConfig defaults;  // transport and adapter for robots that do not set their own
+  if (root["transport"]) parseTransport(c, root["transport"], "transport", defaults.transport);
+  if (root["ble_adapter"]) parseAdapter(c, root["ble_adapter"], "ble_adapter", defaults.ble_adapter);
+  if (root["ble_connect_timeout_s"]) {
+    c.positive(root["ble_connect_timeout_s"], "ble_connect_timeout_s", cfg.ble_connect_timeout_s);
+  }
   if (root["port_dir"]) c.text(root["port_dir"], "port_dir", cfg.port_dir);
   if (root["scan"]) c.patterns(root["scan"], "scan", cfg.scan);
   if (root["rtscts"]) c.boolean(root["rtscts"], "rtscts", cfg.rtscts);
@@ -247,7 +306,7 @@ BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& 
   } else {
     std::map<std::string, size_t> names, addresses;
     for (size_t i = 0; i < robots.size(); ++i) {
-      RobotConfig r = parseRobot(c, robots[i], i);
+      RobotConfig r = parseRobot(c, robots[i], i, defaults);
       if (!r.name.empty() && !names.emplace(r.name, i).second) {
         c.error(robots[i]["name"], "robot name '" + r.name + "' is used twice");
       }

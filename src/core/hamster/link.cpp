@@ -4,6 +4,9 @@
 #include <cmath>
 
 #include "ddace/common/error.h"
+#if DDACE_WITH_BLE
+#include "ddace/hamster/ble_transport.h"
+#endif
 
 namespace ddace::hamster {
 
@@ -26,6 +29,15 @@ std::optional<Address> PortDirectory::known(const std::string& canonical) const 
     if (port == canonical) return a;
   }
   return std::nullopt;
+}
+
+TransportFactory transportFactoryFor(const RobotConfig& robot, const BridgeConfig& bridge) {
+  if (robot.transport == TransportKind::Serial) return serialTransportFactory(bridge.rtscts);
+#if DDACE_WITH_BLE
+  return bleTransportFactory(bridge.ble_connect_timeout_s);
+#else
+  throw Error("robot " + robot.name + ": transport ble, but this ddace was built without BLE (DDACE_WITH_BLE=OFF)");
+#endif
 }
 
 std::string linkStateName(LinkState state) {
@@ -88,6 +100,13 @@ void RobotLink::drop(const std::string& why) {
 }
 
 void RobotLink::startSearch(double now_s) {
+  if (robot_.transport == TransportKind::Ble) {
+    // One endpoint, named by adapter and address: the robot is found by BlueZ.
+    candidates_ = {bleEndpoint(robot_.ble_adapter, robot_.address)};
+    next_candidate_ = 0;
+    next_search_s_ = now_s;
+    return;
+  }
   std::vector<std::string> patterns = robot_.port_hints;
   candidates_ = expandPorts(patterns, bridge_.port_dir);
   const size_t hinted = candidates_.size();
@@ -284,7 +303,9 @@ void RobotLink::poll(double now_s, std::vector<CycleReport>& reports) {
   }
   if (!transport_) return;
   if (state_ == LinkState::Identifying) {
-    if (now_s >= next_identify_s_) {
+    // A BLE connection in progress takes seconds: ask FF only once it stands (the
+    // transport throws from read() when it gives up).
+    if (now_s >= next_identify_s_ && !transport_->connecting()) {
       if (identify_sent_ >= bridge_.identify_retries) {
         closePort("no FF reply from " + port() + " after " + std::to_string(identify_sent_) + " requests", now_s,
                   false);

@@ -303,6 +303,13 @@ Payload encodeSensors(Model model, const Sensors& s, bool light_packet) {
   return p;
 }
 
+std::string hexBytes(const uint8_t* data, size_t size) {
+  std::string out;
+  out.reserve(2 * size);
+  for (size_t i = 0; i < size; ++i) appendHex(out, data[i]);
+  return out;
+}
+
 std::string encodeIdentifyReply(const IdentifyReply& r) {
   std::string out = "FF," + r.name + ",";
   appendHex(out, r.model_code);

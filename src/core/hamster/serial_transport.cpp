@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <climits>
 #include <cstdlib>
@@ -132,6 +133,25 @@ std::vector<std::string> expandPorts(const std::vector<std::string>& patterns, c
     ::globfree(&g);
   }
   return out;
+}
+
+std::string bleEndpoint(const std::string& adapter, const Address& address) {
+  return "ble:" + adapter + "/" + address.display();
+}
+
+bool parseBleEndpoint(const std::string& port, std::string* adapter, Address* address) {
+  const size_t slash = port.find('/');
+  if (port.rfind("ble:", 0) != 0 || slash == std::string::npos || slash == 4) return false;
+  const std::string name = port.substr(4, slash - 4);
+  // The adapter becomes a D-Bus object path element (/org/bluez/<adapter>).
+  for (char c : name) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') return false;
+  }
+  const auto a = Address::parse(port.substr(slash + 1));
+  if (!a) return false;
+  *adapter = name;
+  *address = *a;
+  return true;
 }
 
 }  // namespace ddace::hamster

@@ -112,3 +112,42 @@ TEST(HamsterConfig, TwistToWheelSpeeds) {
   EXPECT_NEAR(l, 0.06, 1e-12);
   EXPECT_NEAR(r, 0.14, 1e-12);
 }
+
+TEST(HamsterConfig, TransportKeys) {
+  const std::string cal = "    calibration: {mps_per_unit: 0.002}\n";
+  // Serial is the default; a global transport applies to robots without their own.
+  BridgeConfig c = parseBridgeConfig(kRobot, "h.yaml");
+  EXPECT_EQ(c.robots[0].transport, TransportKind::Serial);
+  EXPECT_NE(errorOf("transport: usb\n" + std::string(kRobot)).find("h.yaml:1:12: transport 'usb' is not one of serial, ble"),
+            std::string::npos);
+  EXPECT_NE(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BD9\n    ble_adapter: hci1\n" + cal)
+                .find("h.yaml:4:18: robot R1: ble_adapter applies to transport ble only"),
+            std::string::npos);
+  const std::string ble_robot = "robots:\n  - name: R1\n    address: 67E1A48B4BD9\n    transport: ble\n";
+  if (!bleBuilt()) {
+    // Never silently serial: a clear error naming the place and the build option.
+    EXPECT_NE(errorOf(ble_robot + cal).find("h.yaml:4:16: robot R1 transport 'ble': this ddace was built without "
+                                            "direct BLE (CMake option DDACE_WITH_BLE=OFF"),
+              std::string::npos);
+    EXPECT_NE(errorOf("transport: ble\n" + std::string(kRobot)).find("h.yaml:1:12: transport 'ble': this ddace"),
+              std::string::npos);
+    return;
+  }
+  c = parseBridgeConfig("transport: ble\nble_adapter: hci1\nble_connect_timeout_s: 5\n" + std::string(kRobot) +
+                            "  - name: R2\n    address: 67E1A48B4BDA\n    transport: serial\n" + cal,
+                        "h.yaml");
+  EXPECT_EQ(c.robots[0].transport, TransportKind::Ble);
+  EXPECT_EQ(c.robots[0].ble_adapter, "hci1");
+  EXPECT_EQ(c.robots[0].model, Model::Hamster);  // auto means the original Hamster over BLE
+  EXPECT_EQ(c.robots[1].transport, TransportKind::Serial);
+  EXPECT_DOUBLE_EQ(c.ble_connect_timeout_s, 5.0);
+  EXPECT_NE(errorOf(ble_robot + "    model: hamster_s\n" + cal)
+                .find("h.yaml:5:12: robot R1: transport ble drives the original Hamster only"),
+            std::string::npos);
+  EXPECT_NE(errorOf(ble_robot + "    port_hints: [ttyUSB0]\n" + cal)
+                .find("h.yaml:5:17: robot R1: port_hints apply to transport serial only"),
+            std::string::npos);
+  EXPECT_NE(errorOf(ble_robot + "    ble_adapter: /org/bluez\n" + cal).find("h.yaml:5:18: robot R1 ble_adapter "
+                                                                         "'/org/bluez' is not a BlueZ adapter name"),
+            std::string::npos);
+}
