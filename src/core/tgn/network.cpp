@@ -10,7 +10,6 @@
 #include <iomanip>
 #include <limits>
 #include <map>
-#include <mutex>
 #include <ostream>
 #include <set>
 #include <sstream>
@@ -102,8 +101,8 @@ struct NetworkImpl : torch::nn::Module {
     for (int i = 0; i < c.nodes; ++i) self_mask[i][i + 1] = -1e9;
   }
 
-  /// As torch::dropout, but from this network's own generator: models trained in parallel
-  /// threads stay deterministic (torch's default generator is process-wide).
+  /// As torch::dropout, but from this network's own generator, seeded with the model's
+  /// seed: the masks do not depend on what else draws from torch's process-wide generator.
   Tensor dropout(const Tensor& x) {
     const double p = cfg.o.dropout;
     if (!is_training() || p <= 0) return x;
@@ -274,12 +273,9 @@ struct SequenceModel::Impl {
     net = Network(cfg, maskFromEdges(cfg.nodes, info.attention_edges, true));
   }
 
-  /// build() with the weights initialised from the model's seed. The initialisers draw from
-  /// torch's process-wide generator, so concurrent builds (ddace table trains models in
-  /// parallel threads) take turns.
+  /// build() with the weights initialised from the model's seed (the initialisers draw
+  /// from torch's process-wide generator).
   void seededBuild() {
-    static std::mutex initialising;
-    const std::lock_guard<std::mutex> lock(initialising);
     torch::manual_seed(info.options.seed);
     build();
   }

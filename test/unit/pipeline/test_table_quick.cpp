@@ -40,5 +40,22 @@ TEST(TableQuick, WritesResultsAndEveryFigure) {
   std::stringstream bench_text;
   bench_text << bench.rdbuf();
   EXPECT_NE(bench_text.str().find("| `ddace table --quick` wall time |"), std::string::npos) << bench_text.str();
+
+  // Models train side by side (one process each, --jobs defaults to the cores): each must
+  // equal the same model trained alone.
+  const fs::path alone = out / "alone";
+  const std::string train = "'" + ddace.string() + "' train '" + (out / "run" / "data" / "task4" / "train").string() +
+                            "' --out '" + alone.string() + "' --variant gnn --epochs 40 --seed 1 --quiet > '" +
+                            out.string() + "_alone.log' 2>&1";
+  ASSERT_EQ(std::system(train.c_str()), 0) << train;
+  auto lossColumns = [](const fs::path& model) {  // epoch, loss, accuracy: not the wall time
+    std::ifstream in((model / "loss.csv").string());
+    std::string line, text;
+    while (std::getline(in, line)) text += line.substr(0, line.rfind(',')) + "\n";
+    return text;
+  };
+  const std::string in_table = lossColumns(out / "run" / "models" / "task4-gnn");
+  EXPECT_GT(in_table.size(), 100u);
+  EXPECT_EQ(in_table, lossColumns(alone));
   fs::remove_all(out);
 }

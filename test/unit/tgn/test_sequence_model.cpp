@@ -4,7 +4,6 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
-#include <thread>
 
 #include "ddace/common/error.h"
 #include "ddace/tasks/generators.h"
@@ -122,30 +121,6 @@ TEST(SequenceModel, StopsAtAPlateauButNeverOnASpike) {
   EXPECT_FALSE(tgn::detail::atPlateau(history(std::vector<double>(39, 0.0035)), 20, 1e-3)) << "too few epochs";
   spike.push_back(0.0036);  // recovered
   EXPECT_TRUE(tgn::detail::atPlateau(history(spike), 20, 1e-3));
-}
-
-// ddace table trains models in parallel threads: a model must not depend on what the
-// other threads draw from their random generators.
-TEST(SequenceModel, ModelsTrainedInParallelThreadsEqualSerialOnes) {
-  const task::TaskDir train = generate("task1", 6);
-  tgn::TrainOptions o;
-  o.max_epochs = 6;
-  o.seed = 11;
-  tgn::TrainOptions g = o;
-  g.variant = "gnn";
-  g.max_epochs = 2;
-  const auto serial_a = tgn::SequenceModel::train(train, o, nullptr);
-  const auto serial_g = tgn::SequenceModel::train(train, g, nullptr);
-  std::vector<double> a, b;
-  std::thread other([&] {
-    for (const auto& r : tgn::SequenceModel::train(train, g, nullptr).info().history) b.push_back(r.loss);
-  });
-  for (const auto& r : tgn::SequenceModel::train(train, o, nullptr).info().history) a.push_back(r.loss);
-  other.join();
-  ASSERT_EQ(a.size(), serial_a.info().history.size());
-  for (size_t i = 0; i < a.size(); ++i) EXPECT_EQ(a[i], serial_a.info().history[i].loss) << "epoch " << i + 1;
-  ASSERT_EQ(b.size(), serial_g.info().history.size());
-  for (size_t i = 0; i < b.size(); ++i) EXPECT_EQ(b[i], serial_g.info().history[i].loss) << "gnn epoch " << i + 1;
 }
 
 TEST(SequenceModel, SaveThenLoadGivesIdenticalPredictions) {
