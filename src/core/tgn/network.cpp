@@ -101,12 +101,24 @@ struct NetworkImpl : torch::nn::Module {
     for (int i = 0; i < c.nodes; ++i) self_mask[i][i + 1] = -1e9;
   }
 
-  /// As torch::dropout, but from this network's own generator, seeded with the model's
-  /// seed: the masks do not depend on what else draws from torch's process-wide generator.
+  /// As torch::dropout (keep with probability 1 - p, scale kept values by 1 / (1 - p)), with
+  /// masks from this network's own SplitMix64 seeded with the model's seed: they do not
+  /// depend on what else draws from torch's process-wide generator, and two 32-bit draws per
+  /// 64-bit number are several times cheaper than bernoulli_'s locked per-element draws.
   Tensor dropout(const Tensor& x) {
     const double p = cfg.o.dropout;
     if (!is_training() || p <= 0) return x;
-    return x * torch::empty_like(x).bernoulli_(1 - p, generator).div_(1 - p);
+    Tensor mask = torch::empty(x.sizes());
+    float* m = mask.data_ptr<float>();
+    const int64_t n = mask.numel();
+    const uint64_t keep_below = static_cast<uint64_t>((1 - p) * 4294967296.0);  // 2^32 (1 - p)
+    const float scale = static_cast<float>(1 / (1 - p));
+    for (int64_t i = 0; i < n; i += 2) {
+      const uint64_t r = dropout_rng.next();
+      m[i] = (r & 0xffffffffULL) < keep_below ? scale : 0.f;
+      if (i + 1 < n) m[i + 1] = (r >> 32) < keep_below ? scale : 0.f;
+    }
+    return x * mask;
   }
 
   int64_t outputs() const { return cfg.nodes * (cfg.actions + cfg.targets + (cfg.gnn ? 2 : 0)) + 2; }
@@ -156,7 +168,7 @@ struct NetworkImpl : torch::nn::Module {
 
   NetConfig cfg;
   Attention att;
-  at::Generator generator = at::make_generator<at::CPUGeneratorImpl>(cfg.o.seed);
+  SplitMix64 dropout_rng{cfg.o.seed ^ 0x5DEECE66DULL};
   Tensor self_mask;
   torch::nn::Embedding identity{nullptr};
   std::vector<GatLayer> gat;
