@@ -47,13 +47,6 @@ T param(const ros::NodeHandle& nh, const std::string& name, const T& fallback) {
   return optionalParam<T>(nh, name).value_or(fallback);
 }
 
-/// A required parameter; throws ddace::Error naming it when missing or mistyped.
-template <typename T>
-T requireParam(const ros::NodeHandle& nh, const std::string& name) {
-  if (auto value = optionalParam<T>(nh, name)) return *value;
-  throw Error("missing parameter '" + nh.resolveName(name) + "' (" + expectedType<T>() + ")");
-}
-
 /// A required non-empty string parameter (typically a file path); `what` says what it
 /// is for. Throws ddace::Error naming it when missing, empty or mistyped.
 inline std::string requireString(const ros::NodeHandle& nh, const std::string& name, const std::string& what) {

@@ -15,8 +15,8 @@
 namespace ddace::vision {
 
 namespace fs = std::filesystem;
-using detail::parseRoot;
 using detail::numberOr;
+using detail::parseRoot;
 using detail::stringOr;
 
 RecorderConfig parseRecorderConfig(const std::string& text, const std::string& file, const MarkerConfig& markers) {

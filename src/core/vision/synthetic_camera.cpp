@@ -10,9 +10,9 @@
 
 namespace ddace::vision {
 
-using detail::parseRoot;
-using detail::numberOr;
 using detail::integerOr;
+using detail::numberOr;
+using detail::parseRoot;
 using detail::stringOr;
 
 SyntheticCameraConfig parseSyntheticCameraConfig(const std::string& text, const std::string& file) {

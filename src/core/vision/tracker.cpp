@@ -11,10 +11,10 @@
 
 namespace ddace::vision {
 
-using detail::parseRoot;
-using detail::numberOr;
-using detail::integerOr;
 using detail::booleanOr;
+using detail::integerOr;
+using detail::numberOr;
+using detail::parseRoot;
 using detail::stringOr;
 
 const EntityMarker* MarkerConfig::entityById(int id) const {
