@@ -29,6 +29,7 @@
 #include <ddace/SegmentStatus.h>
 
 #include "../ros/exec_conversions.h"
+#include "../ros/params.h"
 
 namespace ddace {
 namespace {
@@ -36,25 +37,25 @@ namespace {
 class CoordinatorNode {
  public:
   CoordinatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) : nh_(nh) {
-    spec_ = ros_exec::loadTaskSpec(ros_exec::param<std::string>(pnh, "task", ""));
+    spec_ = ros_exec::loadTaskSpec(rosparam::param<std::string>(pnh, "task", ""));
     exec::CoordinatorConfig cfg;
-    cfg.decision_timeout_s = ros_exec::param(pnh, "decision_timeout_s", cfg.decision_timeout_s);
-    cfg.path_timeout_s = ros_exec::param(pnh, "path_timeout_s", cfg.path_timeout_s);
-    cfg.segment_timeout_s = ros_exec::param(pnh, "segment_timeout_s", cfg.segment_timeout_s);
-    cfg.segment_timeout_per_m_s = ros_exec::param(pnh, "segment_timeout_per_m_s", cfg.segment_timeout_per_m_s);
-    cfg.max_steps = ros_exec::param(pnh, "max_steps", cfg.max_steps);
+    cfg.decision_timeout_s = rosparam::param(pnh, "decision_timeout_s", cfg.decision_timeout_s);
+    cfg.path_timeout_s = rosparam::param(pnh, "path_timeout_s", cfg.path_timeout_s);
+    cfg.segment_timeout_s = rosparam::param(pnh, "segment_timeout_s", cfg.segment_timeout_s);
+    cfg.segment_timeout_per_m_s = rosparam::param(pnh, "segment_timeout_per_m_s", cfg.segment_timeout_per_m_s);
+    cfg.max_steps = rosparam::param(pnh, "max_steps", cfg.max_steps);
     try {
       coordinator_ = std::make_unique<exec::Coordinator>(spec_, cfg);
     } catch (const Error& e) {
       throw Error(std::string(e.what()) + " (parameters under " + pnh.getNamespace() + ")");
     }
-    frame_id_ = ros_exec::param<std::string>(pnh, "frame_id", "table");
-    arrival_radius_m_ = ros_exec::param(pnh, "arrival_radius_m", spec_.arrival_radius);
-    path_points_ = ros_exec::param(pnh, "path_points", 100);
-    const double tick_hz = ros_exec::param(pnh, "timeout_check_hz", 10.0);
+    frame_id_ = rosparam::param<std::string>(pnh, "frame_id", "table");
+    arrival_radius_m_ = rosparam::param(pnh, "arrival_radius_m", spec_.arrival_radius);
+    path_points_ = rosparam::param(pnh, "path_points", 100);
+    const double tick_hz = rosparam::param(pnh, "timeout_check_hz", 10.0);
     if (!(tick_hz > 0)) throw Error("parameter '" + pnh.resolveName("timeout_check_hz") + "' must be positive");
-    autostart_ = ros_exec::param(pnh, "autostart", false);
-    resend_after_s_ = ros_exec::param(pnh, "resend_after_s", 1.0);
+    autostart_ = rosparam::param(pnh, "autostart", false);
+    resend_after_s_ = rosparam::param(pnh, "resend_after_s", 1.0);
     if (!(resend_after_s_ > 0)) throw Error("parameter '" + pnh.resolveName("resend_after_s") + "' must be positive");
 
     for (size_t i = 0; i < spec_.entities.size(); ++i) {

@@ -24,6 +24,7 @@
 #include <ddace/SegmentStatus.h>
 
 #include "../ros/exec_conversions.h"
+#include "../ros/params.h"
 
 namespace ddace {
 namespace {
@@ -37,9 +38,9 @@ std::string stepText(const std::vector<std::string>& keys) {
 class Monitor {
  public:
   Monitor(ros::NodeHandle& nh, ros::NodeHandle& pnh) : nh_(nh) {
-    const std::string task_path = ros_exec::param<std::string>(pnh, "task", "");
+    const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
     spec_ = ros_exec::loadTaskSpec(task_path);
-    const int gt = ros_exec::param(pnh, "ground_truth_demo", -1);
+    const int gt = rosparam::param(pnh, "ground_truth_demo", -1);
     if (gt >= 0) {
       std::vector<std::string> files;
       for (const auto& f : std::filesystem::directory_iterator(std::filesystem::path(task_path) / "demos"))
@@ -52,9 +53,9 @@ class Monitor {
       gt_ = task::readDemonstrationCsv(gt_file_, spec_);
       have_gt_ = true;
     }
-    result_file_ = ros_exec::param<std::string>(pnh, "result_file", "");
-    report_file_ = ros_exec::param<std::string>(pnh, "report_file", "");
-    const double timeout_s = ros_exec::param(pnh, "timeout_s", 0.0);
+    result_file_ = rosparam::param<std::string>(pnh, "result_file", "");
+    report_file_ = rosparam::param<std::string>(pnh, "report_file", "");
+    const double timeout_s = rosparam::param(pnh, "timeout_s", 0.0);
     for (const auto& e : spec_.entities) {
       if (e.kind == task::EntityKind::Goal) continue;
       subs_.push_back(nh.subscribe<ddace::Segment>("/robots/" + e.name + "/segment", 20,

@@ -23,6 +23,7 @@
 #include <ddace/PathResponse.h>
 
 #include "../ros/exec_conversions.h"
+#include "../ros/params.h"
 #include "ddace/exec/replay.h"
 #include "ddace/gp/primitives.h"
 
@@ -32,13 +33,13 @@ namespace {
 class GpPathNode {
  public:
   GpPathNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
-    const std::string task_path = ros_exec::param<std::string>(pnh, "task", "");
-    frame_id_ = ros_exec::param<std::string>(pnh, "frame_id", "table");
-    default_points_ = ros_exec::param(pnh, "points", 100);
+    const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
+    frame_id_ = rosparam::param<std::string>(pnh, "frame_id", "table");
+    default_points_ = rosparam::param(pnh, "points", 100);
     if (default_points_ < 2) throw Error("parameter '" + pnh.resolveName("points") + "' must be at least 2");
-    const std::string source = ros_exec::param<std::string>(pnh, "source", "demonstration");
+    const std::string source = rosparam::param<std::string>(pnh, "source", "demonstration");
     if (source == "library") {
-      std::string path = ros_exec::param<std::string>(pnh, "library", "");
+      std::string path = rosparam::param<std::string>(pnh, "library", "");
       if (path.empty()) throw Error("source 'library' needs parameter '" + pnh.resolveName("library") + "'");
       if (std::filesystem::is_directory(path)) path = (std::filesystem::path(path) / gp::kPrimitivesFile).string();
       spec_ = ros_exec::loadTaskSpec(task_path);

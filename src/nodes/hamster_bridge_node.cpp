@@ -32,6 +32,8 @@
 #include "ddace/hamster/link.h"
 #include "ddace/ros/hamster_conversions.h"
 
+#include "../ros/params.h"
+
 namespace {
 
 using namespace ddace::hamster;
@@ -43,19 +45,12 @@ double monotonicS() {
 class HamsterBridge {
  public:
   HamsterBridge(ros::NodeHandle& nh, ros::NodeHandle& pnh) : updater_(nh, pnh) {
-    std::string config_path;
-    if (!pnh.getParam("config", config_path) || config_path.empty()) {
-      throw ddace::Error("parameter ~config (path of the Hamster config YAML, e.g. config/hamsters.yaml) is not set");
-    }
+    const std::string config_path = ddace::rosparam::requireString(
+        pnh, "config", "path of the Hamster config YAML, e.g. config/hamsters.yaml");
     config_ = loadBridgeConfig(config_path);
-    pnh.getParam("port_dir", config_.port_dir);
-    if (pnh.hasParam("scan") && !pnh.getParam("scan", config_.scan)) {
-      throw ddace::Error("parameter ~scan must be a list of strings");
-    }
-    std::vector<std::string> only;
-    if (pnh.hasParam("robots") && !pnh.getParam("robots", only)) {
-      throw ddace::Error("parameter ~robots must be a list of robot names");
-    }
+    config_.port_dir = ddace::rosparam::param(pnh, "port_dir", config_.port_dir);
+    config_.scan = ddace::rosparam::param(pnh, "scan", config_.scan);
+    const auto only = ddace::rosparam::param(pnh, "robots", std::vector<std::string>{});
     for (const auto& name : only) {
       bool found = false;
       for (const auto& r : config_.robots) found = found || r.name == name;

@@ -26,6 +26,7 @@
 #include <cstring>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include <ddace/EntityArray.h>
@@ -35,6 +36,8 @@
 #include "ddace/common/error.h"
 #include "ddace/hamster/config.h"
 #include "ddace/hamster/mock_robot.h"
+
+#include "../ros/params.h"
 
 namespace {
 
@@ -47,25 +50,19 @@ double monotonicS() {
 class MockHamsterNode {
  public:
   MockHamsterNode(ros::NodeHandle& pnh) {
-    std::string config_path, link_dir;
-    if (!pnh.getParam("config", config_path)) throw ddace::Error("parameter ~config (Hamster config YAML) is not set");
-    if (!pnh.getParam("link_dir", link_dir) || link_dir.empty()) {
-      throw ddace::Error("parameter ~link_dir (directory for the pty symlinks) is not set");
-    }
+    const std::string config_path = ddace::rosparam::requireString(pnh, "config", "Hamster config YAML");
+    const std::string link_dir = ddace::rosparam::requireString(pnh, "link_dir", "directory for the pty symlinks");
     if (::mkdir(link_dir.c_str(), 0755) == 0) {
       created_dir_ = link_dir;
     } else if (errno != EEXIST) {
       throw ddace::Error("cannot create ~link_dir " + link_dir + ": " + std::strerror(errno));
     }
     const BridgeConfig config = loadBridgeConfig(config_path);
-    std::vector<std::string> only;
-    pnh.getParam("robots", only);
-    double true_mps = 0.0;
-    const bool override_speed = pnh.getParam("true_mps_per_unit", true_mps);
-    if (override_speed && !(true_mps > 0.0)) throw ddace::Error("parameter ~true_mps_per_unit must be > 0");
-    double robot_timeout_s = 0.0;
-    pnh.getParam("robot_timeout_s", robot_timeout_s);
-    pnh.param<std::string>("frame_id", frame_id_, "table");
+    const auto only = ddace::rosparam::param(pnh, "robots", std::vector<std::string>{});
+    const std::optional<double> true_mps = ddace::rosparam::optionalParam<double>(pnh, "true_mps_per_unit");
+    if (true_mps && !(*true_mps > 0.0)) throw ddace::Error("parameter ~true_mps_per_unit must be > 0");
+    const double robot_timeout_s = ddace::rosparam::param(pnh, "robot_timeout_s", 0.0);
+    frame_id_ = ddace::rosparam::param<std::string>(pnh, "frame_id", "table");
     size_t index = 0;
     for (const auto& r : config.robots) {
       if (!only.empty() && std::find(only.begin(), only.end(), r.name) == only.end()) continue;
@@ -74,8 +71,8 @@ class MockHamsterNode {
       s.address = r.address;
       s.model = r.model == Model::Unknown ? Model::Hamster : r.model;
       s.link_path = link_dir + "/hamster_" + r.name;
-      s.left_mps_per_unit = override_speed ? true_mps : r.calibration.left_mps_per_unit;
-      s.right_mps_per_unit = override_speed ? true_mps : r.calibration.right_mps_per_unit;
+      s.left_mps_per_unit = true_mps.value_or(r.calibration.left_mps_per_unit);
+      s.right_mps_per_unit = true_mps.value_or(r.calibration.right_mps_per_unit);
       s.track_m = r.calibration.track_m;
       s.x_m = 0.2 + 0.15 * static_cast<double>(index);
       s.y_m = 0.2;

@@ -23,6 +23,7 @@
 #include <ddace/WheelCommand.h>
 
 #include "../ros/exec_conversions.h"
+#include "../ros/params.h"
 #include "ddace/task/task_dir.h"
 
 namespace ddace {
@@ -31,14 +32,14 @@ namespace {
 class MockRobotNode {
  public:
   MockRobotNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
-    const std::string task_path = ros_exec::param<std::string>(pnh, "task", "");
+    const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
     spec_ = ros_exec::loadTaskSpec(task_path);
-    frame_id_ = ros_exec::param<std::string>(pnh, "frame_id", "table");
-    publish_tf_ = ros_exec::param(pnh, "publish_tf", true);
-    object_speed_mps_ = ros_exec::param(pnh, "object_speed_mps", 0.12);
+    frame_id_ = rosparam::param<std::string>(pnh, "frame_id", "table");
+    publish_tf_ = rosparam::param(pnh, "publish_tf", true);
+    object_speed_mps_ = rosparam::param(pnh, "object_speed_mps", 0.12);
     if (!(object_speed_mps_ > 0)) throw Error("parameter '" + pnh.resolveName("object_speed_mps") + "' must be positive");
     const exec::DiffDriveParams dp = ros_exec::loadDiffDriveParams(ros::NodeHandle(pnh, "robot"));
-    const auto stalled = ros_exec::param(pnh, "stalled", std::vector<std::string>{});
+    const auto stalled = rosparam::param(pnh, "stalled", std::vector<std::string>{});
     for (const auto& s : stalled)
       if (spec_.entityIndex(s) < 0)
         throw Error("parameter '" + pnh.resolveName("stalled") + "' names '" + s + "', not an entity of the task");
@@ -69,7 +70,7 @@ class MockRobotNode {
       }
     }
     rate_hz_ = dp.rate_hz;
-    const std::string topic = ros_exec::param<std::string>(pnh, "entities_topic", "/ddace/entities");
+    const std::string topic = rosparam::param<std::string>(pnh, "entities_topic", "/ddace/entities");
     entities_pub_ = nh.advertise<ddace::EntityArray>(topic, 5);
     estop_sub_ = nh.subscribe("/ddace/estop", 5, &MockRobotNode::onEstop, this);
     timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz_), &MockRobotNode::onTimer, this);
@@ -96,8 +97,8 @@ class MockRobotNode {
     const size_t n = spec_.entities.size();
     std::vector<exec::Pose2D> poses(n);
     std::vector<bool> set(n, false);
-    std::string csv = ros_exec::param<std::string>(pnh, "scene_csv", "");
-    const int demo_index = ros_exec::param(pnh, "scene_demo", -1);
+    std::string csv = rosparam::param<std::string>(pnh, "scene_csv", "");
+    const int demo_index = rosparam::param(pnh, "scene_demo", -1);
     if (csv.empty() && demo_index >= 0) {
       std::vector<std::string> files;
       for (const auto& f : std::filesystem::directory_iterator(std::filesystem::path(task_path) / "demos"))
@@ -125,11 +126,10 @@ class MockRobotNode {
       }
       ROS_INFO("mock_robots: scene from the first row of %s", csv.c_str());
     }
-    XmlRpc::XmlRpcValue scene;
-    if (pnh.getParam("scene", scene)) {
-      if (scene.getType() != XmlRpc::XmlRpcValue::TypeStruct)
+    if (auto scene = rosparam::optionalParam<XmlRpc::XmlRpcValue>(pnh, "scene")) {
+      if (scene->getType() != XmlRpc::XmlRpcValue::TypeStruct)
         throw Error("parameter '" + pnh.resolveName("scene") + "' must be a map name: [x, y] or [x, y, yaw]");
-      for (auto it = scene.begin(); it != scene.end(); ++it) {
+      for (auto it = scene->begin(); it != scene->end(); ++it) {
         const int i = spec_.entityIndex(it->first);
         const std::string where = pnh.resolveName("scene") + "/" + it->first;
         if (i < 0) throw Error("parameter '" + where + "': no entity of that name in the task");

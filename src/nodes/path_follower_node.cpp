@@ -21,6 +21,7 @@
 #include <ddace/WheelCommand.h>
 
 #include "../ros/exec_conversions.h"
+#include "../ros/params.h"
 
 namespace ddace {
 namespace {
@@ -28,9 +29,9 @@ namespace {
 class PathFollowerNode {
  public:
   PathFollowerNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
-    std::vector<std::string> names = ros_exec::param(pnh, "robots", std::vector<std::string>{});
+    std::vector<std::string> names = rosparam::param(pnh, "robots", std::vector<std::string>{});
     if (names.empty()) {
-      const task::TaskSpec spec = ros_exec::loadTaskSpec(ros_exec::param<std::string>(pnh, "task", ""));
+      const task::TaskSpec spec = ros_exec::loadTaskSpec(rosparam::param<std::string>(pnh, "task", ""));
       for (const auto& e : spec.entities)
         if (e.kind == task::EntityKind::Robot) names.push_back(e.name);
       default_arrival_m_ = spec.arrival_radius;
@@ -38,10 +39,10 @@ class PathFollowerNode {
     if (names.empty()) throw Error("no robots to drive: set '" + pnh.resolveName("robots") + "' or a task with robots");
     gains_ = ros_exec::loadFollowerGains(ros::NodeHandle(pnh, "gains"));
     if (!pnh.hasParam("gains/arrival_radius_m")) gains_.arrival_radius_m = default_arrival_m_;
-    rate_hz_ = ros_exec::param(pnh, "rate_hz", 50.0);
-    pose_timeout_s_ = ros_exec::param(pnh, "pose_timeout_s", 0.25);
-    stale_fail_s_ = ros_exec::param(pnh, "stale_fail_s", 2.0);
-    status_every_ = std::max(1, ros_exec::param(pnh, "status_every_cycles", 5));
+    rate_hz_ = rosparam::param(pnh, "rate_hz", 50.0);
+    pose_timeout_s_ = rosparam::param(pnh, "pose_timeout_s", 0.25);
+    stale_fail_s_ = rosparam::param(pnh, "stale_fail_s", 2.0);
+    status_every_ = std::max(1, rosparam::param(pnh, "status_every_cycles", 5));
     if (!(rate_hz_ > 0)) throw Error("parameter '" + pnh.resolveName("rate_hz") + "' must be positive");
     if (!(pose_timeout_s_ > 0)) throw Error("parameter '" + pnh.resolveName("pose_timeout_s") + "' must be positive");
     if (!(stale_fail_s_ > 0)) throw Error("parameter '" + pnh.resolveName("stale_fail_s") + "' must be positive");

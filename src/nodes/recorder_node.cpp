@@ -16,6 +16,7 @@
 #include <std_msgs/String.h>
 #include <std_srvs/Trigger.h>
 
+#include "../ros/params.h"
 #include "../ros/vision_ros.h"
 #include "ddace/EntityArray.h"
 #include "ddace/Label.h"
@@ -29,11 +30,11 @@ using namespace ddace;
 class RecorderNode {
  public:
   RecorderNode(ros::NodeHandle nh, ros::NodeHandle pnh) {
-    const std::string markers = ros_vision::requiredParam(pnh, "markers_file", "path to config/markers.yaml");
-    const std::string file = ros_vision::requiredParam(pnh, "recorder_file", "path to config/recorder.yaml");
+    const std::string markers = rosparam::requireString(pnh, "markers_file", "path to config/markers.yaml");
+    const std::string file = rosparam::requireString(pnh, "recorder_file", "path to config/recorder.yaml");
     config_ = vision::loadRecorderConfig(file, vision::loadMarkerConfig(markers));
-    std::string dir;
-    if (pnh.getParam("output_dir", dir) && !dir.empty()) config_.output_dir = dir;
+    const std::string dir = rosparam::param<std::string>(pnh, "output_dir", "");
+    if (!dir.empty()) config_.output_dir = dir;
     recorder_ = std::make_unique<vision::DemoRecorder>(config_.spec, config_.output_dir, config_.flush_period_s);
 
     state_pub_ = pnh.advertise<std_msgs::String>("state", 1, true);

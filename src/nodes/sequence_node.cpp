@@ -20,6 +20,7 @@
 #include <ddace/DecisionRequest.h>
 
 #include "../ros/exec_conversions.h"
+#include "../ros/params.h"
 #include "ddace/exec/replay.h"
 #include "ddace/tgn/sequence_model.h"
 
@@ -43,11 +44,11 @@ std::string demoFile(const std::string& task_dir, int index, const std::string& 
 class SequenceNode {
  public:
   SequenceNode(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
-    const std::string task_path = ros_exec::param<std::string>(pnh, "task", "");
+    const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
     spec_ = ros_exec::loadTaskSpec(task_path);
-    const std::string policy = ros_exec::param<std::string>(pnh, "policy", "replay");
+    const std::string policy = rosparam::param<std::string>(pnh, "policy", "replay");
     if (policy == "model") {
-      const std::string dir = ros_exec::param<std::string>(pnh, "model", "");
+      const std::string dir = rosparam::param<std::string>(pnh, "model", "");
       if (dir.empty()) throw Error("policy 'model' needs parameter '" + pnh.resolveName("model") + "' (a model directory)");
       model_ = std::make_unique<tgn::SequenceModel>(tgn::SequenceModel::load(dir));
       if (model_->spec().entityNames() != spec_.entityNames())
@@ -63,8 +64,8 @@ class SequenceNode {
       };
       ROS_INFO("sequence: model %s (variant %s)", dir.c_str(), model_->variant().c_str());
     } else if (policy == "replay") {
-      std::string csv = ros_exec::param<std::string>(pnh, "replay_csv", "");
-      if (csv.empty()) csv = demoFile(task_path, ros_exec::param(pnh, "replay_demo", 0), pnh.resolveName("replay_demo"));
+      std::string csv = rosparam::param<std::string>(pnh, "replay_csv", "");
+      if (csv.empty()) csv = demoFile(task_path, rosparam::param(pnh, "replay_demo", 0), pnh.resolveName("replay_demo"));
       demo_ = task::readDemonstrationCsv(csv, spec_);
       policy_ = [this](const std::vector<task::Snapshot>& h) { return exec::replayDecision(demo_, h); };
       ROS_INFO("sequence: replaying the %zu steps of %s", demo_.steps.size(), csv.c_str());

@@ -17,6 +17,7 @@
 #include <image_transport/image_transport.h>
 #include <ros/ros.h>
 
+#include "../ros/params.h"
 #include "../ros/vision_ros.h"
 #include "ddace/EntityArray.h"
 #include "ddace/common/error.h"
@@ -29,13 +30,12 @@ using namespace ddace;
 class SyntheticCameraNode {
  public:
   SyntheticCameraNode(ros::NodeHandle nh, ros::NodeHandle pnh) : it_(nh) {
-    const std::string markers = ros_vision::requiredParam(pnh, "markers_file", "path to config/markers.yaml");
-    const std::string camera = ros_vision::requiredParam(pnh, "camera_file", "path to the synthetic camera's YAML");
+    const std::string markers = rosparam::requireString(pnh, "markers_file", "path to config/markers.yaml");
+    const std::string camera = rosparam::requireString(pnh, "camera_file", "path to the synthetic camera's YAML");
     camera_ = std::make_unique<vision::SyntheticCamera>(vision::loadSyntheticCameraConfig(camera),
                                                         vision::loadMarkerConfig(markers));
-    pnh.param<std::string>("frame_id", frame_id_, "overhead_camera");
-    double rate_hz = 30.0;
-    pnh.param("rate_hz", rate_hz, rate_hz);
+    frame_id_ = rosparam::param<std::string>(pnh, "frame_id", "overhead_camera");
+    const double rate_hz = rosparam::param(pnh, "rate_hz", 30.0);
     if (!(rate_hz > 0 && rate_hz <= 1000))
       throw Error("parameter " + pnh.resolveName("rate_hz") + " must be in (0, 1000]");
     info_ = ros_vision::toMsg(camera_->camera(), camera_->config().width, camera_->config().height, frame_id_);

@@ -19,6 +19,7 @@
 #include <tf2_ros/transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include "../ros/params.h"
 #include "../ros/vision_ros.h"
 #include "ddace/EntityArray.h"
 #include "ddace/common/error.h"
@@ -31,27 +32,27 @@ using namespace ddace;
 class TrackerNode {
  public:
   TrackerNode(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh), it_(nh), pit_(pnh) {
-    const std::string markers = ros_vision::requiredParam(pnh_, "markers_file", "path to config/markers.yaml");
-    std::string tuning;
-    pnh_.param<std::string>("tracker_file", tuning, "");
+    const std::string markers = rosparam::requireString(pnh_, "markers_file", "path to config/markers.yaml");
+    const std::string tuning = rosparam::param<std::string>(pnh_, "tracker_file", "");
     tracker_ = std::make_unique<vision::Tracker>(vision::loadTrackerConfig(markers, tuning));
-    pnh_.param<std::string>("frame_id", frame_id_, "table");
-    pnh_.param("publish_tf", publish_tf_, true);
+    frame_id_ = rosparam::param<std::string>(pnh_, "frame_id", "table");
+    publish_tf_ = rosparam::param(pnh_, "publish_tf", true);
 
     // A calibrated camera instead of corner markers: the table frame's pose in the
     // camera's optical frame, [x y z roll pitch yaw] (metres, radians).
-    if (pnh_.getParam("table_in_camera", table_in_camera_) && table_in_camera_.size() != 6)
-      throw Error("parameter " + pnh_.resolveName("table_in_camera") + " needs 6 numbers [x y z roll pitch yaw]");
+    if (const auto t = rosparam::optionalParam<std::vector<double>>(pnh_, "table_in_camera")) {
+      table_in_camera_ = *t;
+      if (table_in_camera_.size() != 6)
+        throw Error("parameter " + pnh_.resolveName("table_in_camera") + " needs 6 numbers [x y z roll pitch yaw]");
+    }
     if (tracker_->config().markers.corners.empty() && table_in_camera_.empty())
       throw Error(markers + ": no corner markers, so parameter " + pnh_.resolveName("table_in_camera") +
                   " (the table's pose in the camera frame, with camera_info) is required");
-    std::vector<double> K, D;
-    if (pnh_.getParam("camera_matrix", K)) {
-      if (K.size() != 9) throw Error("parameter " + pnh_.resolveName("camera_matrix") + " needs 9 numbers");
+    if (const auto K = rosparam::optionalParam<std::vector<double>>(pnh_, "camera_matrix")) {
+      if (K->size() != 9) throw Error("parameter " + pnh_.resolveName("camera_matrix") + " needs 9 numbers");
       sensor_msgs::CameraInfo info;
-      std::copy(K.begin(), K.end(), info.K.begin());
-      pnh_.getParam("distortion", D);
-      info.D = D;
+      std::copy(K->begin(), K->end(), info.K.begin());
+      info.D = rosparam::param(pnh_, "distortion", std::vector<double>{});
       setCamera(info);
     }
 
@@ -59,8 +60,8 @@ class TrackerNode {
     markers_pub_ = pnh_.advertise<visualization_msgs::MarkerArray>("markers", 2);
     debug_pub_ = pit_.advertise("debug_image", 1);
 
-    pnh_.param("video_device", video_device_, -1);
-    pnh_.param<std::string>("video_file", video_file_, "");
+    video_device_ = rosparam::param(pnh_, "video_device", -1);
+    video_file_ = rosparam::param<std::string>(pnh_, "video_file", "");
     if (video_device_ < 0 && video_file_.empty()) {
       image_sub_ = it_.subscribe("image_raw", 2, &TrackerNode::onImage, this);
       info_sub_ = nh_.subscribe("camera_info", 2, &TrackerNode::onCameraInfo, this);
@@ -77,15 +78,14 @@ class TrackerNode {
     if (!video_file_.empty() ? !cap.open(video_file_) : !cap.open(video_device_, cv::CAP_V4L2))
       throw Error(!video_file_.empty() ? "cannot open video file " + video_file_
                                        : "cannot open V4L2 device /dev/video" + std::to_string(video_device_));
-    int width = 0, height = 0;
-    pnh_.param("video_width", width, 0);
-    pnh_.param("video_height", height, 0);
+    const int width = rosparam::param(pnh_, "video_width", 0);
+    const int height = rosparam::param(pnh_, "video_height", 0);
     if (width > 0) cap.set(cv::CAP_PROP_FRAME_WIDTH, width);
     if (height > 0) cap.set(cv::CAP_PROP_FRAME_HEIGHT, height);
     // The captured frames as a topic too, for rosbag and image viewers (only when watched).
     image_transport::Publisher raw_pub = it_.advertise("image_raw", 1);
-    double fps = cap.get(cv::CAP_PROP_FPS);
-    pnh_.param("video_rate_hz", fps, fps > 0 ? fps : 30.0);
+    const double camera_fps = cap.get(cv::CAP_PROP_FPS);
+    const double fps = rosparam::param(pnh_, "video_rate_hz", camera_fps > 0 ? camera_fps : 30.0);
     ros::Rate rate(fps);
     cv::Mat frame;
     while (ros::ok()) {

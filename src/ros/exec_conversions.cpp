@@ -1,11 +1,15 @@
 #include "exec_conversions.h"
 
+#include "params.h"
+
 #include <cmath>
 #include <filesystem>
 
 #include <tf2/LinearMath/Quaternion.h>
 
 namespace ddace::ros_exec {
+
+using rosparam::param;
 
 task::TaskSpec loadTaskSpec(const std::string& task_path) {
   namespace fs = std::filesystem;

@@ -1,4 +1,4 @@
-// Message conversions and parameter helpers shared by the execution nodes
+// Message conversions and parameter loaders shared by the execution nodes
 // (sequence, gp_path, coordinator, path_follower, mock_robot).
 //
 // Every conversion that can meet bad input throws ddace::Error naming the topic/field;
@@ -42,24 +42,6 @@ exec::PlannedPath fromMsg(const nav_msgs::Path& path, const std::vector<double>&
 /// stale or whose data is not finite counts as not tracked. Yaws go to `yaws` when given.
 exec::EntityObservation toObservation(const ddace::EntityArray& msg, const task::TaskSpec& spec,
                                       std::vector<double>* yaws = nullptr);
-
-/// A required parameter; throws ddace::Error naming it (with the node's namespace).
-template <typename T>
-T requireParam(const ros::NodeHandle& nh, const std::string& name) {
-  T value;
-  if (!nh.getParam(name, value))
-    throw Error("missing or mistyped parameter '" + nh.resolveName(name) + "'");
-  return value;
-}
-
-/// An optional parameter with its default; a present but mistyped value throws.
-template <typename T>
-T param(const ros::NodeHandle& nh, const std::string& name, const T& fallback) {
-  if (!nh.hasParam(name)) return fallback;
-  T value;
-  if (!nh.getParam(name, value)) throw Error("parameter '" + nh.resolveName(name) + "' has the wrong type");
-  return value;
-}
 
 /// Follower gains from `~follower/*` style parameters under `nh` (defaults from FollowerGains).
 exec::FollowerGains loadFollowerGains(const ros::NodeHandle& nh);

@@ -55,11 +55,4 @@ sensor_msgs::CameraInfo toMsg(const vision::CameraModel& camera, int width, int 
   return info;
 }
 
-std::string requiredParam(const ros::NodeHandle& nh, const std::string& name, const std::string& what) {
-  std::string value;
-  if (!nh.getParam(name, value) || value.empty())
-    throw Error("parameter " + nh.resolveName(name) + " is required: " + what);
-  return value;
-}
-
 }  // namespace ddace::ros_vision

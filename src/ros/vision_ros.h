@@ -24,7 +24,4 @@ vision::CameraModel fromMsg(const sensor_msgs::CameraInfo& info);
 /// CameraModel -> CameraInfo of a `width` x `height` image (no distortion when D is empty).
 sensor_msgs::CameraInfo toMsg(const vision::CameraModel& camera, int width, int height, const std::string& frame_id);
 
-/// Reads a required string parameter; throws ddace::Error naming it when missing.
-std::string requiredParam(const ros::NodeHandle& nh, const std::string& name, const std::string& what);
-
 }  // namespace ddace::ros_vision

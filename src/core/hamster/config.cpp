@@ -5,10 +5,10 @@
 #include <cmath>
 #include <fstream>
 #include <map>
-#include <set>
 #include <sstream>
 
 #include "ddace/common/error.h"
+#include "ddace/common/yaml_checker.h"
 #include "ddace/hamster/config.h"
 #include "ddace/hamster/transport.h"
 
@@ -45,95 +45,23 @@ void wheelSpeedsFromTwist(double v_mps, double omega_rps, double track_m, double
 
 namespace {
 
-class Checker {
- public:
-  explicit Checker(std::string file) : file_(std::move(file)) {}
-
-  void error(const YAML::Node& node, const std::string& message) {
-    const YAML::Mark m = node.Mark();
-    errors.push_back({file_, m.is_null() ? 0 : m.line + 1, m.is_null() ? 0 : m.column + 1, message});
+// A list of device path patterns (`scan`, `port_hints`); replaces `out` entry by entry.
+void parsePatterns(YamlChecker& c, const YAML::Node& node, const std::string& what, std::vector<std::string>& out) {
+  if (!node.IsSequence()) {
+    c.error(node, what + " must be a list of path patterns, e.g. [ttyUSB*]");
+    return;
   }
-
-  void onlyKeys(const YAML::Node& map, const std::set<std::string>& allowed, const std::string& where) {
-    for (const auto& kv : map) {
-      const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : std::string("?");
-      if (!allowed.count(key)) {
-        std::string list;
-        for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-        error(kv.first, "unknown key '" + key + "' in " + where + " (allowed: " + list + ")");
-      }
-    }
-  }
-
-  bool text(const YAML::Node& node, const std::string& what, std::string& out) {
-    if (!node.IsScalar()) {
-      error(node, what + " must be a single value");
-      return false;
-    }
-    out = node.Scalar();
-    return true;
-  }
-
-  bool number(const YAML::Node& node, const std::string& what, double& out) {
+  out.clear();
+  for (const auto& item : node) {
     std::string s;
-    if (!text(node, what, s)) return false;
-    char* end = nullptr;
-    const double v = std::strtod(s.c_str(), &end);
-    if (s.empty() || *end != '\0' || !std::isfinite(v)) {
-      error(node, what + ": '" + s + "' is not a finite number");
-      return false;
-    }
-    out = v;
-    return true;
+    if (c.scalar(item, what + " entry", s)) out.push_back(s);
   }
-
-  bool positive(const YAML::Node& node, const std::string& what, double& out) {
-    double v = 0;
-    if (!number(node, what, v)) return false;
-    if (!(v > 0)) {
-      error(node, what + " must be > 0 (got " + node.Scalar() + ")");
-      return false;
-    }
-    out = v;
-    return true;
-  }
-
-  bool boolean(const YAML::Node& node, const std::string& what, bool& out) {
-    std::string s;
-    if (!text(node, what, s)) return false;
-    if (s == "true" || s == "True") {
-      out = true;
-    } else if (s == "false" || s == "False") {
-      out = false;
-    } else {
-      error(node, what + ": '" + s + "' is not true or false");
-      return false;
-    }
-    return true;
-  }
-
-  void patterns(const YAML::Node& node, const std::string& what, std::vector<std::string>& out) {
-    if (!node.IsSequence()) {
-      error(node, what + " must be a list of path patterns, e.g. [ttyUSB*]");
-      return;
-    }
-    out.clear();
-    for (const auto& item : node) {
-      std::string s;
-      if (text(item, what + " entry", s)) out.push_back(s);
-    }
-  }
-
-  std::vector<Diagnostic> errors;
-
- private:
-  std::string file_;
-};
+}
 
 // `transport:` value; `ble` only in a build with the BLE transport.
-bool parseTransport(Checker& c, const YAML::Node& node, const std::string& what, TransportKind& out) {
+bool parseTransport(YamlChecker& c, const YAML::Node& node, const std::string& what, TransportKind& out) {
   std::string t;
-  if (!c.text(node, what, t)) return false;
+  if (!c.scalar(node, what, t)) return false;
   if (t == "serial") {
     out = TransportKind::Serial;
   } else if (t == "ble") {
@@ -151,9 +79,9 @@ bool parseTransport(Checker& c, const YAML::Node& node, const std::string& what,
 }
 
 // A BlueZ adapter name becomes a D-Bus object path element: /org/bluez/<adapter>.
-bool parseAdapter(Checker& c, const YAML::Node& node, const std::string& what, std::string& out) {
+bool parseAdapter(YamlChecker& c, const YAML::Node& node, const std::string& what, std::string& out) {
   std::string a;
-  if (!c.text(node, what, a)) return false;
+  if (!c.scalar(node, what, a)) return false;
   bool ok = !a.empty();
   for (char ch : a) ok = ok && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_');
   if (!ok) {
@@ -164,7 +92,7 @@ bool parseAdapter(Checker& c, const YAML::Node& node, const std::string& what, s
   return true;
 }
 
-RobotConfig parseRobot(Checker& c, const YAML::Node& node, size_t index, const RobotConfig& defaults) {
+RobotConfig parseRobot(YamlChecker& c, const YAML::Node& node, size_t index, const RobotConfig& defaults) {
   RobotConfig r;
   r.transport = defaults.transport;
   r.ble_adapter = defaults.ble_adapter;
@@ -176,7 +104,7 @@ RobotConfig parseRobot(Checker& c, const YAML::Node& node, size_t index, const R
   c.onlyKeys(node, {"name", "address", "model", "port_hints", "transport", "ble_adapter", "calibration"}, where);
   if (!node["name"]) {
     c.error(node, where + ": missing key 'name'");
-  } else if (c.text(node["name"], where + ".name", r.name)) {
+  } else if (c.scalar(node["name"], where + ".name", r.name)) {
     bool ok = !r.name.empty() && (std::isalpha(static_cast<unsigned char>(r.name[0])) != 0);
     for (char ch : r.name) ok = ok && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_');
     if (!ok) c.error(node["name"], where + ".name '" + r.name + "' is not a valid ROS name (letters, digits, _)");
@@ -185,7 +113,7 @@ RobotConfig parseRobot(Checker& c, const YAML::Node& node, size_t index, const R
   std::string address;
   if (!node["address"]) {
     c.error(node, who + ": missing key 'address' (12 hex digits as on the wire, or AA:BB:CC:DD:EE:FF)");
-  } else if (c.text(node["address"], who + " address", address)) {
+  } else if (c.scalar(node["address"], who + " address", address)) {
     const auto a = Address::parse(address);
     if (!a) {
       c.error(node["address"], who + ": address '" + address +
@@ -196,7 +124,7 @@ RobotConfig parseRobot(Checker& c, const YAML::Node& node, size_t index, const R
   }
   if (node["model"]) {
     std::string m;
-    if (c.text(node["model"], who + " model", m)) {
+    if (c.scalar(node["model"], who + " model", m)) {
       if (m == "hamster") {
         r.model = Model::Hamster;
       } else if (m == "hamster_s") {
@@ -208,7 +136,7 @@ RobotConfig parseRobot(Checker& c, const YAML::Node& node, size_t index, const R
       }
     }
   }
-  if (node["port_hints"]) c.patterns(node["port_hints"], who + " port_hints", r.port_hints);
+  if (node["port_hints"]) parsePatterns(c, node["port_hints"], who + " port_hints", r.port_hints);
   if (node["transport"]) parseTransport(c, node["transport"], who + " transport", r.transport);
   if (node["ble_adapter"]) parseAdapter(c, node["ble_adapter"], who + " ble_adapter", r.ble_adapter);
   if (r.transport == TransportKind::Ble) {
@@ -264,15 +192,10 @@ RobotConfig parseRobot(Checker& c, const YAML::Node& node, size_t index, const R
 bool bleBuilt() { return DDACE_WITH_BLE != 0; }
 
 BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& file) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw Error(Diagnostic{file, e.mark.is_null() ? 0 : e.mark.line + 1, e.mark.is_null() ? 0 : e.mark.column + 1,
-                           "YAML syntax error: " + e.msg});
-  }
+  YamlChecker c(file);
+  const YAML::Node root = c.parse(yaml_text);
+  c.throwIfErrors();
   if (!root.IsMap()) throw Error(Diagnostic{file, 1, 1, "the Hamster config must be a mapping with a 'robots' list"});
-  Checker c(file);
   BridgeConfig cfg;
   cfg.scan = defaultScanPatterns();
   c.onlyKeys(root,
@@ -285,8 +208,8 @@ BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& 
   if (root["ble_connect_timeout_s"]) {
     c.positive(root["ble_connect_timeout_s"], "ble_connect_timeout_s", cfg.ble_connect_timeout_s);
   }
-  if (root["port_dir"]) c.text(root["port_dir"], "port_dir", cfg.port_dir);
-  if (root["scan"]) c.patterns(root["scan"], "scan", cfg.scan);
+  if (root["port_dir"]) c.scalar(root["port_dir"], "port_dir", cfg.port_dir);
+  if (root["scan"]) parsePatterns(c, root["scan"], "scan", cfg.scan);
   if (root["rtscts"]) c.boolean(root["rtscts"], "rtscts", cfg.rtscts);
   if (root["command_timeout_s"]) c.positive(root["command_timeout_s"], "command_timeout_s", cfg.command_timeout_s);
   if (root["link_timeout_s"]) c.positive(root["link_timeout_s"], "link_timeout_s", cfg.link_timeout_s);
@@ -318,7 +241,7 @@ BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& 
       cfg.robots.push_back(std::move(r));
     }
   }
-  if (!c.errors.empty()) throw Error(c.errors);
+  c.throwIfErrors();
   return cfg;
 }
 

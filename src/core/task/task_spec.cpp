@@ -1,13 +1,15 @@
-#include "ddace/common/file.h"
 #include "ddace/task/task_spec.h"
 
-#include <cmath>
-#include <fstream>
 #include <cctype>
+#include <cstdio>
+#include <fstream>
 #include <set>
 #include <sstream>
 
 #include <yaml-cpp/yaml.h>
+
+#include "ddace/common/file.h"
+#include "ddace/common/yaml_checker.h"
 
 namespace ddace::task {
 
@@ -53,72 +55,10 @@ std::vector<std::string> TaskSpec::entityNames() const {
   return names;
 }
 
-namespace {
-
-/// Collects diagnostics while walking the YAML tree.
-class YamlChecker {
- public:
-  explicit YamlChecker(std::string file) : file_(std::move(file)) {}
-
-  void error(const YAML::Node& node, const std::string& message) {
-    const YAML::Mark m = node.Mark();
-    errors_.push_back({file_, m.is_null() ? 0 : m.line + 1, m.is_null() ? 0 : m.column + 1, message});
-  }
-  void error(const YAML::Mark& m, const std::string& message) {
-    errors_.push_back({file_, m.line + 1, m.column + 1, message});
-  }
-
-  /// Reports keys of `map` that are not in `allowed`.
-  void onlyKeys(const YAML::Node& map, const std::set<std::string>& allowed, const std::string& where) {
-    for (const auto& kv : map) {
-      const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : std::string("?");
-      if (!allowed.count(key)) {
-        std::string list;
-        for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-        error(kv.first, "unknown key '" + key + "' in " + where + " (allowed: " + list + ")");
-      }
-    }
-  }
-
-  bool scalar(const YAML::Node& node, const std::string& what, std::string& out) {
-    if (!node.IsScalar()) {
-      error(node, what + " must be a single value");
-      return false;
-    }
-    out = node.Scalar();
-    return true;
-  }
-
-  bool number(const YAML::Node& node, const std::string& what, double& out) {
-    std::string s;
-    if (!scalar(node, what, s)) return false;
-    char* end = nullptr;
-    const double v = std::strtod(s.c_str(), &end);
-    if (s.empty() || *end != '\0' || !std::isfinite(v)) {
-      error(node, what + ": '" + s + "' is not a finite number");
-      return false;
-    }
-    out = v;
-    return true;
-  }
-
-  std::vector<Diagnostic> errors_;
-
- private:
-  std::string file_;
-};
-
-}  // namespace
-
 TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    throw Error(Diagnostic{file, e.mark.is_null() ? 0 : e.mark.line + 1,
-                           e.mark.is_null() ? 0 : e.mark.column + 1, "YAML syntax error: " + e.msg});
-  }
   YamlChecker c(file);
+  const YAML::Node root = c.parse(text);
+  c.throwIfErrors();
   TaskSpec spec;
   if (!root.IsMap()) {
     throw Error(Diagnostic{file, 1, 1, "task.yaml must be a mapping with format, entities, ..."});
@@ -252,7 +192,7 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
     }
   }
 
-  if (!c.errors_.empty()) throw Error(c.errors_);
+  c.throwIfErrors();
   return spec;
 }
 

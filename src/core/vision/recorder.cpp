@@ -9,28 +9,29 @@
 #include <filesystem>
 #include <regex>
 
-#include "yaml_reader.h"
+#include "ddace/common/file.h"
+#include "yaml_values.h"
 
 namespace ddace::vision {
 
 namespace fs = std::filesystem;
-using detail::YamlReader;
+using detail::numberOr;
+using detail::parseRoot;
+using detail::stringOr;
 
 RecorderConfig parseRecorderConfig(const std::string& text, const std::string& file, const MarkerConfig& markers) {
-  YamlReader r(file);
+  YamlChecker r(file);
   RecorderConfig c;
-  const YAML::Node root = r.parse(text);
-  if (!root.IsDefined()) r.throwIfErrors();
-  if (!r.expectMap(root, "recorder.yaml")) r.throwIfErrors();
+  const YAML::Node root = parseRoot(r, text, "recorder.yaml");
   r.onlyKeys(root, {"output_dir", "rate_hz", "flush_period", "task"}, "recorder.yaml");
-  c.output_dir = r.string(root, "output_dir", "");
+  c.output_dir = stringOr(r, root, "output_dir", "");
   if (c.output_dir.empty()) r.error(root, "'output_dir' (the task directory to record into) is required");
   if (c.output_dir.rfind("~/", 0) == 0) {
     const char* home = std::getenv("HOME");
     c.output_dir = std::string(home ? home : "") + c.output_dir.substr(1);
   }
-  c.rate_hz = r.number(root, "rate_hz", c.rate_hz, 0.1, 1000.0);
-  c.flush_period_s = r.number(root, "flush_period", c.flush_period_s, 0.01, 1.0);
+  c.rate_hz = numberOr(r, root, "rate_hz", c.rate_hz, 0.1, 1000.0);
+  c.flush_period_s = numberOr(r, root, "flush_period", c.flush_period_s, 0.01, 1.0);
 
   for (const auto& m : markers.entities) c.spec.entities.push_back({m.name, m.kind, m.type});
   const YAML::Node t = root["task"];
@@ -38,9 +39,9 @@ RecorderConfig parseRecorderConfig(const std::string& text, const std::string& f
     if (!t.IsDefined()) r.error(root, "'task' (name, actions, goal conditions of the recorded task) is required");
   } else {
     r.onlyKeys(t, {"name", "actions", "arrival_radius", "goal_conditions"}, "'task'");
-    c.spec.name = r.string(t, "name", "");
+    c.spec.name = stringOr(r, t, "name", "");
     if (c.spec.name.empty()) r.error(t, "'task.name' is required");
-    c.spec.arrival_radius = r.number(t, "arrival_radius", task::kDefaultArrivalRadius, 1e-4, 10.0);
+    c.spec.arrival_radius = numberOr(r, t, "arrival_radius", task::kDefaultArrivalRadius, 1e-4, 10.0);
     if (const YAML::Node a = t["actions"]; a.IsDefined()) {
       if (!a.IsSequence()) {
         r.error(a, "'actions' must be a list of words");
@@ -63,9 +64,9 @@ RecorderConfig parseRecorderConfig(const std::string& text, const std::string& f
           if (!r.expectMap(gc, "a goal condition")) continue;
           r.onlyKeys(gc, {"entity", "at", "tolerance"}, "a goal condition");
           task::GoalCondition cond;
-          cond.entity = r.string(gc, "entity", "");
-          cond.at = r.string(gc, "at", "");
-          cond.tolerance = r.number(gc, "tolerance", cond.tolerance, 0.0, 10.0);
+          cond.entity = stringOr(r, gc, "entity", "");
+          cond.at = stringOr(r, gc, "at", "");
+          cond.tolerance = numberOr(r, gc, "tolerance", cond.tolerance, 0.0, 10.0);
           for (const auto* name : {&cond.entity, &cond.at})
             if (c.spec.entityIndex(*name) < 0)
               r.error(gc, "goal condition names '" + *name + "', which is not an entity of markers.yaml");
@@ -79,7 +80,7 @@ RecorderConfig parseRecorderConfig(const std::string& text, const std::string& f
 }
 
 RecorderConfig loadRecorderConfig(const std::string& path, const MarkerConfig& markers) {
-  return parseRecorderConfig(detail::readTextFile(path), path, markers);
+  return parseRecorderConfig(readTextFile(path), path, markers);
 }
 
 DemoRecorder::DemoRecorder(task::TaskSpec spec, std::string task_dir, double flush_period_s)

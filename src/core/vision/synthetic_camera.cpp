@@ -5,25 +5,27 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "yaml_reader.h"
+#include "ddace/common/file.h"
+#include "yaml_values.h"
 
 namespace ddace::vision {
 
-using detail::YamlReader;
+using detail::integerOr;
+using detail::numberOr;
+using detail::parseRoot;
+using detail::stringOr;
 
 SyntheticCameraConfig parseSyntheticCameraConfig(const std::string& text, const std::string& file) {
-  YamlReader r(file);
+  YamlChecker r(file);
   SyntheticCameraConfig c;
-  const YAML::Node root = r.parse(text);
-  if (!root.IsDefined()) r.throwIfErrors();
-  if (!r.expectMap(root, "the synthetic camera configuration")) r.throwIfErrors();
+  const YAML::Node root = parseRoot(r, text, "the synthetic camera configuration");
   r.onlyKeys(root,
              {"width", "height", "hfov_deg", "position", "look_at", "roll_deg", "table_size", "table_margin", "body_size",
               "blur_sigma", "noise_sigma", "light_amplitude", "light_period", "light_gradient", "occlusions", "seed"},
              "the synthetic camera configuration");
-  c.width = r.integer(root, "width", c.width, 64, 8192);
-  c.height = r.integer(root, "height", c.height, 64, 8192);
-  c.hfov_deg = r.number(root, "hfov_deg", c.hfov_deg, 5.0, 170.0);
+  c.width = integerOr(r, root, "width", c.width, 64, 8192);
+  c.height = integerOr(r, root, "height", c.height, 64, 8192);
+  c.hfov_deg = numberOr(r, root, "hfov_deg", c.hfov_deg, 5.0, 170.0);
   auto vec = [&](const char* key, int n, std::vector<double> fallback) {
     const YAML::Node v = root[key];
     if (!v.IsDefined()) return fallback;
@@ -48,15 +50,15 @@ SyntheticCameraConfig parseSyntheticCameraConfig(const std::string& text, const 
   c.look_at = {look[0], look[1]};
   const auto table = vec("table_size", 2, {c.table_size.width, c.table_size.height});
   c.table_size = {table[0], table[1]};
-  c.roll_deg = r.number(root, "roll_deg", c.roll_deg, -180, 180);
-  c.table_margin_m = r.number(root, "table_margin", c.table_margin_m, 0.0, 10.0);
-  c.body_size_m = r.number(root, "body_size", c.body_size_m, 0.0, 1.0);
-  c.blur_sigma_px = r.number(root, "blur_sigma", c.blur_sigma_px, 0.0, 20.0);
-  c.noise_sigma = r.number(root, "noise_sigma", c.noise_sigma, 0.0, 100.0);
-  c.light_amplitude = r.number(root, "light_amplitude", c.light_amplitude, 0.0, 0.9);
-  c.light_period_s = r.number(root, "light_period", c.light_period_s, 0.01, 1e6);
-  c.light_gradient = r.number(root, "light_gradient", c.light_gradient, 0.0, 0.9);
-  c.seed = static_cast<unsigned>(r.integer(root, "seed", static_cast<int>(c.seed), 0));
+  c.roll_deg = numberOr(r, root, "roll_deg", c.roll_deg, -180, 180);
+  c.table_margin_m = numberOr(r, root, "table_margin", c.table_margin_m, 0.0, 10.0);
+  c.body_size_m = numberOr(r, root, "body_size", c.body_size_m, 0.0, 1.0);
+  c.blur_sigma_px = numberOr(r, root, "blur_sigma", c.blur_sigma_px, 0.0, 20.0);
+  c.noise_sigma = numberOr(r, root, "noise_sigma", c.noise_sigma, 0.0, 100.0);
+  c.light_amplitude = numberOr(r, root, "light_amplitude", c.light_amplitude, 0.0, 0.9);
+  c.light_period_s = numberOr(r, root, "light_period", c.light_period_s, 0.01, 1e6);
+  c.light_gradient = numberOr(r, root, "light_gradient", c.light_gradient, 0.0, 0.9);
+  c.seed = static_cast<unsigned>(integerOr(r, root, "seed", static_cast<int>(c.seed), 0));
   const YAML::Node occ = root["occlusions"];
   if (occ.IsDefined() && !occ.IsNull()) {
     if (!occ.IsSequence()) {
@@ -66,10 +68,10 @@ SyntheticCameraConfig parseSyntheticCameraConfig(const std::string& text, const 
         if (!r.expectMap(o, "an occlusion")) continue;
         r.onlyKeys(o, {"entity", "start", "duration"}, "an occlusion");
         Occlusion oc;
-        oc.entity = r.string(o, "entity", "");
+        oc.entity = stringOr(r, o, "entity", "");
         if (oc.entity.empty()) r.error(o, "an occlusion needs 'entity'");
-        oc.start_s = r.number(o, "start", 0.0, 0.0, 1e9);
-        oc.end_s = oc.start_s + r.number(o, "duration", 0.5, 0.0, 1e9);
+        oc.start_s = numberOr(r, o, "start", 0.0, 0.0, 1e9);
+        oc.end_s = oc.start_s + numberOr(r, o, "duration", 0.5, 0.0, 1e9);
         c.occlusions.push_back(oc);
       }
     }
@@ -79,7 +81,7 @@ SyntheticCameraConfig parseSyntheticCameraConfig(const std::string& text, const 
 }
 
 SyntheticCameraConfig loadSyntheticCameraConfig(const std::string& path) {
-  return parseSyntheticCameraConfig(detail::readTextFile(path), path);
+  return parseSyntheticCameraConfig(readTextFile(path), path);
 }
 
 SyntheticCamera::SyntheticCamera(SyntheticCameraConfig config, MarkerConfig markers)

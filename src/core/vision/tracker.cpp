@@ -6,11 +6,16 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "yaml_reader.h"
+#include "ddace/common/file.h"
+#include "yaml_values.h"
 
 namespace ddace::vision {
 
-using detail::YamlReader;
+using detail::booleanOr;
+using detail::integerOr;
+using detail::numberOr;
+using detail::parseRoot;
+using detail::stringOr;
 
 const EntityMarker* MarkerConfig::entityById(int id) const {
   for (const auto& e : entities)
@@ -25,17 +30,15 @@ bool MarkerConfig::isCorner(int id) const {
 }
 
 MarkerConfig parseMarkerConfig(const std::string& text, const std::string& file) {
-  YamlReader r(file);
+  YamlChecker r(file);
   MarkerConfig mc;
-  const YAML::Node root = r.parse(text);
-  if (!root.IsDefined()) r.throwIfErrors();
-  if (!r.expectMap(root, "markers.yaml")) r.throwIfErrors();
+  const YAML::Node root = parseRoot(r, text, "markers.yaml");
   r.onlyKeys(root, {"backend", "family", "corners", "corner_size", "default_size", "default_height", "entities"},
              "markers.yaml");
-  mc.backend = r.string(root, "backend", mc.backend);
+  mc.backend = stringOr(r, root, "backend", mc.backend);
   if (mc.backend != "aruco" && mc.backend != "apriltag")
     r.error(root["backend"], "backend must be 'aruco' or 'apriltag' (got '" + mc.backend + "')");
-  mc.family = r.string(root, "family", mc.backend == "apriltag" ? "tag36h11" : "DICT_4X4_50");
+  mc.family = stringOr(r, root, "family", mc.backend == "apriltag" ? "tag36h11" : "DICT_4X4_50");
   int family_size = 0;
   {
     DetectorConfig dc;
@@ -47,9 +50,9 @@ MarkerConfig parseMarkerConfig(const std::string& text, const std::string& file)
       if (mc.backend == "aruco" || mc.backend == "apriltag") r.error(root["family"], e.what());
     }
   }
-  mc.corner_size_m = r.number(root, "corner_size", mc.corner_size_m, 1e-3, 1.0);
-  const double default_size = r.number(root, "default_size", 0.03, 1e-3, 1.0);
-  const double default_height = r.number(root, "default_height", 0.0, 0.0, 1.0);
+  mc.corner_size_m = numberOr(r, root, "corner_size", mc.corner_size_m, 1e-3, 1.0);
+  const double default_size = numberOr(r, root, "default_size", 0.03, 1e-3, 1.0);
+  const double default_height = numberOr(r, root, "default_height", 0.0, 0.0, 1.0);
 
   std::set<int> ids;
   auto checkId = [&](const YAML::Node& node, int id) {
@@ -72,8 +75,8 @@ MarkerConfig parseMarkerConfig(const std::string& text, const std::string& file)
           continue;
         }
         CornerMarker cm;
-        cm.id = r.integer(c, "id", -1);
-        cm.table_xy = {r.number(c, "x", 0), r.number(c, "y", 0)};
+        cm.id = integerOr(r, c, "id", -1);
+        cm.table_xy = {numberOr(r, c, "x", 0), numberOr(r, c, "y", 0)};
         checkId(c["id"], cm.id);
         mc.corners.push_back(cm);
       }
@@ -96,23 +99,23 @@ MarkerConfig parseMarkerConfig(const std::string& text, const std::string& file)
         continue;
       }
       EntityMarker em;
-      em.id = r.integer(e, "id", -1);
+      em.id = integerOr(r, e, "id", -1);
       checkId(e["id"], em.id);
-      em.name = r.string(e, "name", "");
+      em.name = stringOr(r, e, "name", "");
       if (!task::isValidName(em.name))
         r.error(e["name"], "entity name '" + em.name + "' must match [A-Za-z][A-Za-z0-9_]*");
       else if (!names.insert(em.name).second)
         r.error(e["name"], "entity name '" + em.name + "' is used twice");
-      const std::string kind = r.string(e, "kind", "robot");
+      const std::string kind = stringOr(r, e, "kind", "robot");
       const auto k = task::entityKindFromString(kind);
       if (!k)
         r.error(e["kind"], "kind must be robot, object or goal (got '" + kind + "')");
       else
         em.kind = *k;
-      em.type = r.string(e, "type", "");
-      em.size_m = r.number(e, "size", default_size, 1e-3, 1.0);
-      em.height_m = r.number(e, "height", default_height, 0.0, 1.0);
-      em.yaw_offset_rad = r.number(e, "yaw_offset", 0.0, -2 * M_PI, 2 * M_PI);
+      em.type = stringOr(r, e, "type", "");
+      em.size_m = numberOr(r, e, "size", default_size, 1e-3, 1.0);
+      em.height_m = numberOr(r, e, "height", default_height, 0.0, 1.0);
+      em.yaw_offset_rad = numberOr(r, e, "yaw_offset", 0.0, -2 * M_PI, 2 * M_PI);
       mc.entities.push_back(em);
     }
   }
@@ -121,51 +124,49 @@ MarkerConfig parseMarkerConfig(const std::string& text, const std::string& file)
 }
 
 MarkerConfig loadMarkerConfig(const std::string& path) {
-  return parseMarkerConfig(detail::readTextFile(path), path);
+  return parseMarkerConfig(readTextFile(path), path);
 }
 
 void parseTrackerTuning(const std::string& text, const std::string& file, TrackerConfig& config) {
-  YamlReader r(file);
-  const YAML::Node root = r.parse(text);
-  if (!root.IsDefined()) r.throwIfErrors();
-  if (!r.expectMap(root, "tracker.yaml")) r.throwIfErrors();
+  YamlChecker r(file);
+  const YAML::Node root = parseRoot(r, text, "tracker.yaml");
   r.onlyKeys(root, {"aruco", "apriltag", "roi", "filter"}, "tracker.yaml");
   DetectorConfig& d = config.detector;
   if (const YAML::Node a = root["aruco"]; a.IsDefined() && r.expectMap(a, "'aruco'")) {
     r.onlyKeys(a, {"subpixel", "subpixel_window", "window_min", "window_max", "window_step"}, "'aruco'");
-    d.aruco_subpixel = r.boolean(a, "subpixel", d.aruco_subpixel);
-    d.aruco_subpixel_window = r.integer(a, "subpixel_window", d.aruco_subpixel_window, 1, 50);
-    d.aruco_window_min = r.integer(a, "window_min", d.aruco_window_min, 3, 999);
-    d.aruco_window_max = r.integer(a, "window_max", d.aruco_window_max, 3, 999);
-    d.aruco_window_step = r.integer(a, "window_step", d.aruco_window_step, 1, 999);
+    d.aruco_subpixel = booleanOr(r, a, "subpixel", d.aruco_subpixel);
+    d.aruco_subpixel_window = integerOr(r, a, "subpixel_window", d.aruco_subpixel_window, 1, 50);
+    d.aruco_window_min = integerOr(r, a, "window_min", d.aruco_window_min, 3, 999);
+    d.aruco_window_max = integerOr(r, a, "window_max", d.aruco_window_max, 3, 999);
+    d.aruco_window_step = integerOr(r, a, "window_step", d.aruco_window_step, 1, 999);
     if (d.aruco_window_max < d.aruco_window_min) r.error(a, "aruco window_max must be >= window_min");
   }
   if (const YAML::Node a = root["apriltag"]; a.IsDefined() && r.expectMap(a, "'apriltag'")) {
     r.onlyKeys(a, {"decimate", "sigma", "max_hamming"}, "'apriltag'");
-    d.apriltag_decimate = r.number(a, "decimate", d.apriltag_decimate, 1.0, 8.0);
-    d.apriltag_sigma = r.number(a, "sigma", d.apriltag_sigma, 0.0, 5.0);
-    d.apriltag_max_hamming = r.integer(a, "max_hamming", d.apriltag_max_hamming, 0, 2);
+    d.apriltag_decimate = numberOr(r, a, "decimate", d.apriltag_decimate, 1.0, 8.0);
+    d.apriltag_sigma = numberOr(r, a, "sigma", d.apriltag_sigma, 0.0, 5.0);
+    d.apriltag_max_hamming = integerOr(r, a, "max_hamming", d.apriltag_max_hamming, 0, 2);
   }
   if (const YAML::Node n = root["roi"]; n.IsDefined() && r.expectMap(n, "'roi'")) {
     r.onlyKeys(n, {"enabled", "full_frame_every", "margin", "min_margin_px", "track_corners", "lost_growth"}, "'roi'");
-    config.roi.lost_growth_mps = r.number(n, "lost_growth", config.roi.lost_growth_mps, 0.0, 100.0);
-    config.roi.track_corners = r.boolean(n, "track_corners", config.roi.track_corners);
-    config.roi.enabled = r.boolean(n, "enabled", config.roi.enabled);
-    config.roi.full_frame_every = r.integer(n, "full_frame_every", config.roi.full_frame_every, 1, 100000);
-    config.roi.margin = r.number(n, "margin", config.roi.margin, 0.0, 20.0);
-    config.roi.min_margin_px = r.integer(n, "min_margin_px", config.roi.min_margin_px, 0, 10000);
+    config.roi.lost_growth_mps = numberOr(r, n, "lost_growth", config.roi.lost_growth_mps, 0.0, 100.0);
+    config.roi.track_corners = booleanOr(r, n, "track_corners", config.roi.track_corners);
+    config.roi.enabled = booleanOr(r, n, "enabled", config.roi.enabled);
+    config.roi.full_frame_every = integerOr(r, n, "full_frame_every", config.roi.full_frame_every, 1, 100000);
+    config.roi.margin = numberOr(r, n, "margin", config.roi.margin, 0.0, 20.0);
+    config.roi.min_margin_px = integerOr(r, n, "min_margin_px", config.roi.min_margin_px, 0, 10000);
   }
   if (const YAML::Node n = root["filter"]; n.IsDefined() && r.expectMap(n, "'filter'")) {
     r.onlyKeys(n, {"max_speed", "max_yaw_rate", "gate_margin", "reacquire_after", "hold", "position_gain", "yaw_gain"},
                "'filter'");
     FilterConfig& f = config.filter;
-    f.max_speed_mps = r.number(n, "max_speed", f.max_speed_mps, 1e-3, 100.0);
-    f.max_yaw_rate_rps = r.number(n, "max_yaw_rate", f.max_yaw_rate_rps, 1e-3, 1000.0);
-    f.gate_margin_m = r.number(n, "gate_margin", f.gate_margin_m, 0.0, 10.0);
-    f.reacquire_after = r.integer(n, "reacquire_after", f.reacquire_after, 1, 1000);
-    f.hold_s = r.number(n, "hold", f.hold_s, 0.0, 60.0);
-    f.position_gain = r.number(n, "position_gain", f.position_gain, 0.01, 1.0);
-    f.yaw_gain = r.number(n, "yaw_gain", f.yaw_gain, 0.01, 1.0);
+    f.max_speed_mps = numberOr(r, n, "max_speed", f.max_speed_mps, 1e-3, 100.0);
+    f.max_yaw_rate_rps = numberOr(r, n, "max_yaw_rate", f.max_yaw_rate_rps, 1e-3, 1000.0);
+    f.gate_margin_m = numberOr(r, n, "gate_margin", f.gate_margin_m, 0.0, 10.0);
+    f.reacquire_after = integerOr(r, n, "reacquire_after", f.reacquire_after, 1, 1000);
+    f.hold_s = numberOr(r, n, "hold", f.hold_s, 0.0, 60.0);
+    f.position_gain = numberOr(r, n, "position_gain", f.position_gain, 0.01, 1.0);
+    f.yaw_gain = numberOr(r, n, "yaw_gain", f.yaw_gain, 0.01, 1.0);
   }
   r.throwIfErrors();
 }
@@ -175,7 +176,7 @@ TrackerConfig loadTrackerConfig(const std::string& markers_path, const std::stri
   c.markers = loadMarkerConfig(markers_path);
   c.detector.backend = c.markers.backend;
   c.detector.family = c.markers.family;
-  if (!tracker_path.empty()) parseTrackerTuning(detail::readTextFile(tracker_path), tracker_path, c);
+  if (!tracker_path.empty()) parseTrackerTuning(readTextFile(tracker_path), tracker_path, c);
   return c;
 }
 

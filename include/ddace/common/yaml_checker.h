@@ -1,0 +1,60 @@
+// Checking YAML configuration files with file:line:column diagnostics.
+//
+// The readers of task.yaml, the Hamster config and the vision configs walk the
+// yaml-cpp tree with one YamlChecker: each check records a Diagnostic at the node
+// it concerns and tells the caller whether the value is usable, so one pass reports
+// every problem of a file; throwIfErrors() then throws them all at once.
+#pragma once
+
+#include <set>
+#include <string>
+#include <vector>
+
+#include <yaml-cpp/yaml.h>
+
+#include "ddace/common/error.h"
+
+namespace ddace {
+
+class YamlChecker {
+ public:
+  /// `file` is the path the diagnostics name (as given by the caller).
+  explicit YamlChecker(std::string file) : file_(std::move(file)) {}
+
+  /// Parses `text`. A syntax error is recorded ("YAML syntax error: ...", at its
+  /// line and column) and an undefined node returned.
+  YAML::Node parse(const std::string& text);
+
+  /// Records `message` at `node` (line/column 0 when the node has no position).
+  void error(const YAML::Node& node, const std::string& message);
+  void error(const YAML::Mark& mark, const std::string& message);
+
+  /// Records "unknown key 'k' in <where> (allowed: a, b, ...)" at every key of
+  /// `map` that is not in `allowed`. Does nothing when `map` is not a mapping.
+  void onlyKeys(const YAML::Node& map, const std::set<std::string>& allowed, const std::string& where);
+  /// True when `node` is a mapping; else records "<where> must be a mapping (key: value)".
+  bool expectMap(const YAML::Node& node, const std::string& where);
+
+  /// The scalar text of `node` into `out`; false (and "<what> must be a single
+  /// value" recorded) when `node` is not a scalar. `out` is untouched on failure,
+  /// as with every check below.
+  bool scalar(const YAML::Node& node, const std::string& what, std::string& out);
+  /// A finite number (the whole scalar, strtod syntax); else records
+  /// "<what>: '<text>' is not a finite number".
+  bool number(const YAML::Node& node, const std::string& what, double& out);
+  /// A number > 0; else records "<what> must be > 0 (got <text>)".
+  bool positive(const YAML::Node& node, const std::string& what, double& out);
+  /// true/True or false/False; else records "<what>: '<text>' is not true or false".
+  bool boolean(const YAML::Node& node, const std::string& what, bool& out);
+
+  const std::string& file() const { return file_; }
+  const std::vector<Diagnostic>& errors() const { return errors_; }
+  /// Throws ddace::Error with every recorded diagnostic, if any.
+  void throwIfErrors() const;
+
+ private:
+  std::string file_;
+  std::vector<Diagnostic> errors_;
+};
+
+}  // namespace ddace

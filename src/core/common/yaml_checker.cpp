@@ -1,0 +1,92 @@
+#include "ddace/common/yaml_checker.h"
+
+#include <cmath>
+#include <cstdlib>
+
+namespace ddace {
+
+YAML::Node YamlChecker::parse(const std::string& text) {
+  try {
+    return YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    error(e.mark, "YAML syntax error: " + e.msg);
+    return YAML::Node(YAML::NodeType::Undefined);
+  }
+}
+
+void YamlChecker::error(const YAML::Node& node, const std::string& message) { error(node.Mark(), message); }
+
+void YamlChecker::error(const YAML::Mark& m, const std::string& message) {
+  errors_.push_back({file_, m.is_null() ? 0 : m.line + 1, m.is_null() ? 0 : m.column + 1, message});
+}
+
+void YamlChecker::onlyKeys(const YAML::Node& map, const std::set<std::string>& allowed, const std::string& where) {
+  if (!map.IsMap()) return;
+  for (const auto& kv : map) {
+    const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : std::string("?");
+    if (!allowed.count(key)) {
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      error(kv.first, "unknown key '" + key + "' in " + where + " (allowed: " + list + ")");
+    }
+  }
+}
+
+bool YamlChecker::expectMap(const YAML::Node& node, const std::string& where) {
+  if (node.IsMap()) return true;
+  error(node, where + " must be a mapping (key: value)");
+  return false;
+}
+
+bool YamlChecker::scalar(const YAML::Node& node, const std::string& what, std::string& out) {
+  if (!node.IsScalar()) {
+    error(node, what + " must be a single value");
+    return false;
+  }
+  out = node.Scalar();
+  return true;
+}
+
+bool YamlChecker::number(const YAML::Node& node, const std::string& what, double& out) {
+  std::string s;
+  if (!scalar(node, what, s)) return false;
+  char* end = nullptr;
+  const double v = std::strtod(s.c_str(), &end);
+  if (s.empty() || *end != '\0' || !std::isfinite(v)) {
+    error(node, what + ": '" + s + "' is not a finite number");
+    return false;
+  }
+  out = v;
+  return true;
+}
+
+bool YamlChecker::positive(const YAML::Node& node, const std::string& what, double& out) {
+  double v = 0;
+  if (!number(node, what, v)) return false;
+  if (!(v > 0)) {
+    error(node, what + " must be > 0 (got " + node.Scalar() + ")");
+    return false;
+  }
+  out = v;
+  return true;
+}
+
+bool YamlChecker::boolean(const YAML::Node& node, const std::string& what, bool& out) {
+  std::string s;
+  if (!scalar(node, what, s)) return false;
+  if (s == "true" || s == "True") {
+    out = true;
+  } else if (s == "false" || s == "False") {
+    out = false;
+  } else {
+    error(node, what + ": '" + s + "' is not true or false");
+    return false;
+  }
+  return true;
+}
+
+void YamlChecker::throwIfErrors() const {
+  if (!errors_.empty()) throw Error(errors_);
+}
+
+}  // namespace ddace

@@ -1,0 +1,76 @@
+// Nodes started with one mistyped parameter must exit non-zero with an error naming the
+// parameter, never run on its default (src/ros/params.h). Each node is started with
+// rosrun against rostest's master; `timeout` turns a node that keeps running into a failure.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include <ros/ros.h>
+
+namespace {
+
+struct NodeRun {
+  int status = -1;  ///< exit status of the node (124: still running after the time-out)
+  std::string output;
+};
+
+NodeRun runNode(const std::string& node, const std::string& args) {
+  const std::string cmd = "timeout 30 rosrun ddace " + node + " " + args + " 2>&1";
+  NodeRun r;
+  FILE* p = ::popen(cmd.c_str(), "r");
+  if (!p) return r;
+  char buf[512];
+  while (std::fgets(buf, sizeof buf, p)) r.output += buf;
+  const int s = ::pclose(p);
+  r.status = WIFEXITED(s) ? WEXITSTATUS(s) : -1;
+  return r;
+}
+
+const std::string kPkg = "$(rospack find ddace)";
+
+}  // namespace
+
+TEST(ParamsMistyped, SyntheticCameraRateHz) {
+  const NodeRun r = runNode("synthetic_camera_node", "__name:=params_camera _markers_file:=" + kPkg +
+                                                     "/config/markers.yaml _camera_file:=" + kPkg +
+                                                     "/test/data/vision/synthetic_camera_clear.yaml _rate_hz:=fast");
+  EXPECT_NE(r.status, 0) << r.output;
+  EXPECT_NE(r.status, 124) << "the node ran on the default: " << r.output;
+  EXPECT_NE(r.output.find("parameter '/params_camera/rate_hz' has the wrong type (expected a number)"),
+            std::string::npos)
+      << r.output;
+}
+
+TEST(ParamsMistyped, HamsterBridgePortDir) {
+  const NodeRun r = runNode("hamster_bridge_node", "__name:=params_bridge _config:=" + kPkg +
+                                                   "/test/rostest/hamster_bridge.yaml _port_dir:=42");
+  EXPECT_NE(r.status, 0) << r.output;
+  EXPECT_NE(r.status, 124) << "the node ran on the default: " << r.output;
+  EXPECT_NE(r.output.find("parameter '/params_bridge/port_dir' has the wrong type (expected a string)"),
+            std::string::npos)
+      << r.output;
+}
+
+TEST(ParamsMistyped, MockHamsterRobotTimeout) {
+  char tmpl[] = "/tmp/ddace_params_mistyped_XXXXXX";
+  ASSERT_NE(::mkdtemp(tmpl), nullptr);
+  const NodeRun r = runNode("mock_hamster_node", "__name:=params_mock _config:=" + kPkg +
+                                                 "/test/rostest/hamster_bridge.yaml _link_dir:=" + tmpl +
+                                                 " _robot_timeout_s:=soon");
+  std::filesystem::remove_all(tmpl);
+  EXPECT_NE(r.status, 0) << r.output;
+  EXPECT_NE(r.status, 124) << "the node ran on the default: " << r.output;
+  EXPECT_NE(r.output.find("parameter '/params_mock/robot_timeout_s' has the wrong type (expected a number)"),
+            std::string::npos)
+      << r.output;
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "params_mistyped");
+  return RUN_ALL_TESTS();
+}

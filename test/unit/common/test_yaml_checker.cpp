@@ -1,0 +1,98 @@
+// The common YAML checker: diagnostics at file:line:column, one per problem.
+#include <gtest/gtest.h>
+
+#include "ddace/common/yaml_checker.h"
+
+using ddace::Diagnostic;
+using ddace::YamlChecker;
+
+TEST(YamlChecker, UnknownKeysNameTheirPlaceAndTheAllowedOnes) {
+  YamlChecker c("c.yaml");
+  const YAML::Node root = c.parse("width: 3\nspeed: 2\ncolour: red\n");
+  ASSERT_TRUE(root.IsMap());
+  c.onlyKeys(root, {"width", "height"}, "the test config");
+  ASSERT_EQ(c.errors().size(), 2u);
+  EXPECT_EQ(c.errors()[0].str(), "c.yaml:2:1: unknown key 'speed' in the test config (allowed: height, width)");
+  EXPECT_EQ(c.errors()[1].str(), "c.yaml:3:1: unknown key 'colour' in the test config (allowed: height, width)");
+  try {
+    c.throwIfErrors();
+    FAIL() << "throwIfErrors did not throw";
+  } catch (const ddace::Error& e) {
+    EXPECT_EQ(e.diagnostics().size(), 2u);
+    EXPECT_EQ(std::string(e.what()), c.errors()[0].str() + "\n" + c.errors()[1].str());
+  }
+}
+
+TEST(YamlChecker, NoErrorsNoThrow) {
+  YamlChecker c("c.yaml");
+  const YAML::Node root = c.parse("a: 1.5\nb: true\nc: text\n");
+  c.onlyKeys(root, {"a", "b", "c"}, "x");
+  double a = 0;
+  bool b = false;
+  std::string s;
+  EXPECT_TRUE(c.positive(root["a"], "a", a));
+  EXPECT_TRUE(c.boolean(root["b"], "b", b));
+  EXPECT_TRUE(c.scalar(root["c"], "c", s));
+  EXPECT_DOUBLE_EQ(a, 1.5);
+  EXPECT_TRUE(b);
+  EXPECT_EQ(s, "text");
+  EXPECT_TRUE(c.errors().empty());
+  EXPECT_NO_THROW(c.throwIfErrors());
+}
+
+TEST(YamlChecker, NonScalarIsNotASingleValue) {
+  YamlChecker c("c.yaml");
+  const YAML::Node root = c.parse("name: [a, b]\n");
+  std::string out = "kept";
+  EXPECT_FALSE(c.scalar(root["name"], "name", out));
+  EXPECT_EQ(out, "kept");
+  ASSERT_EQ(c.errors().size(), 1u);
+  EXPECT_EQ(c.errors()[0].str(), "c.yaml:1:7: name must be a single value");
+}
+
+TEST(YamlChecker, NumbersMustBeFinite) {
+  YamlChecker c("c.yaml");
+  const YAML::Node root = c.parse("a: inf\nb: nan\nc: 1.5m\nd: -2\n");
+  double out = 7;
+  EXPECT_FALSE(c.number(root["a"], "a", out));
+  EXPECT_FALSE(c.number(root["b"], "b", out));
+  EXPECT_FALSE(c.number(root["c"], "c", out));
+  EXPECT_EQ(out, 7);
+  EXPECT_TRUE(c.number(root["d"], "d", out));
+  EXPECT_EQ(out, -2);
+  EXPECT_FALSE(c.positive(root["d"], "d", out));
+  ASSERT_EQ(c.errors().size(), 4u);
+  EXPECT_EQ(c.errors()[0].str(), "c.yaml:1:4: a: 'inf' is not a finite number");
+  EXPECT_EQ(c.errors()[1].str(), "c.yaml:2:4: b: 'nan' is not a finite number");
+  EXPECT_EQ(c.errors()[2].str(), "c.yaml:3:4: c: '1.5m' is not a finite number");
+  EXPECT_EQ(c.errors()[3].str(), "c.yaml:4:4: d must be > 0 (got -2)");
+}
+
+TEST(YamlChecker, BooleansAreTrueOrFalse) {
+  YamlChecker c("c.yaml");
+  const YAML::Node root = c.parse("a: True\nb: false\nc: yes\n");
+  bool a = false, b = true, x = true;
+  EXPECT_TRUE(c.boolean(root["a"], "a", a));
+  EXPECT_TRUE(c.boolean(root["b"], "b", b));
+  EXPECT_FALSE(c.boolean(root["c"], "c", x));
+  EXPECT_TRUE(a);
+  EXPECT_FALSE(b);
+  EXPECT_TRUE(x);
+  ASSERT_EQ(c.errors().size(), 1u);
+  EXPECT_EQ(c.errors()[0].str(), "c.yaml:3:4: c: 'yes' is not true or false");
+}
+
+TEST(YamlChecker, SyntaxErrorsAndMappings) {
+  YamlChecker c("c.yaml");
+  EXPECT_FALSE(c.parse("a: [1, 2\n").IsDefined());
+  ASSERT_EQ(c.errors().size(), 1u);
+  EXPECT_EQ(c.errors()[0].file, "c.yaml");
+  EXPECT_GT(c.errors()[0].line, 0);
+  EXPECT_NE(c.errors()[0].message.find("YAML syntax error: "), std::string::npos);
+
+  YamlChecker m("m.yaml");
+  EXPECT_FALSE(m.expectMap(m.parse("- 1\n- 2\n"), "the list"));
+  EXPECT_TRUE(m.expectMap(m.parse("a: 1\n"), "the map"));
+  ASSERT_EQ(m.errors().size(), 1u);
+  EXPECT_EQ(m.errors()[0].str(), "m.yaml:1:1: the list must be a mapping (key: value)");
+}
