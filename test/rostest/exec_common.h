@@ -189,6 +189,23 @@ class Watcher {
                                                           }));
   }
 
+  /// Waits until every subscription is connected to a publisher: the graph starts after
+  /// this watcher, and a run started before the links stand loses its first messages
+  /// (seen under load: the first decision request went uncounted). Returns the topics
+  /// still without a publisher (empty when all are connected).
+  std::vector<std::string> waitConnected(double timeout_s) {
+    std::vector<std::string> missing;
+    waitFor(
+        [&] {
+          missing.clear();
+          for (const auto& sub : subs_)
+            if (sub.getNumPublishers() == 0) missing.push_back(sub.getTopic());
+          return missing.empty();
+        },
+        timeout_s);
+    return missing;
+  }
+
   bool haveState() {
     std::lock_guard<std::mutex> l(mu_);
     return have_state_;
@@ -298,6 +315,8 @@ inline void runTaskEndToEnd(const std::string& family, int robots, bool learned,
                                    "autostart:=false", "monitor:=false", "config:=" + files.config_file};
   args.insert(args.end(), extra_args.begin(), extra_args.end());
   Launch graph(args);
+  const auto unconnected = watch.waitConnected(30.0);
+  ASSERT_TRUE(unconnected.empty()) << "no publisher on " << unconnected.front();
   std::string msg;
   ASSERT_TRUE(trigger("/coordinator/start", 30.0, &msg)) << "could not start the run: " << msg;
   const bool ended = waitFor(
