@@ -1,6 +1,7 @@
 // ddace table: regenerate the paper's Table 2 (and Fig. 4, the case studies and one
 // trajectory overlay per task) from scratch, writing docs/results.md. Every number in
 // that file comes from this run.
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -159,6 +160,14 @@ std::vector<Row> runJobs(const Settings& s, const std::vector<Job>& jobs) {
   fs::create_directories(row_dir);
   auto row_file = [&](size_t i) { return row_dir / (jobs[i].model_name + ".txt"); };
   std::map<pid_t, size_t> running;
+  // On an error here, no job process outlives the table: they are stopped and reaped.
+  struct Reaper {
+    std::map<pid_t, size_t>& running;
+    ~Reaper() {
+      for (const auto& [pid, job] : running) ::kill(pid, SIGTERM);
+      for (const auto& [pid, job] : running) ::waitpid(pid, nullptr, 0);
+    }
+  } reaper{running};
   std::vector<std::string> failed;
   size_t next = 0;
   while (next < order.size() || !running.empty()) {
@@ -192,6 +201,9 @@ std::vector<Row> runJobs(const Settings& s, const std::vector<Job>& jobs) {
     }
     const auto it = running.find(pid);
     if (it == running.end()) continue;
+    if (WIFSIGNALED(status))
+      std::fprintf(stderr, "ddace table: %s: the job process was killed (%s)\n", jobs[it->second].model_name.c_str(),
+                   strsignal(WTERMSIG(status)));
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) failed.push_back(jobs[it->second].model_name);
     running.erase(it);
   }
@@ -235,13 +247,15 @@ int runTable(const std::vector<std::string>& argv) {
   args.expectAtMostPositional(0);
   Settings s;
   const fs::path source = DDACE_SOURCE_DIR;
-  s.out = args.get("--out", (source / "out" / "table").string());
-  s.docs = args.get("--docs", (source / "docs").string());
   s.quick = args.has("--quick");
+  s.out = args.get("--out", (source / "out" / (s.quick ? "table-quick" : "table")).string());
+  // A smoke test must not overwrite the shipped results: --quick writes beside its models.
+  s.docs = args.get("--docs", s.quick ? (s.out / "docs").string() : (source / "docs").string());
   s.seed = static_cast<int>(args.getInt("--seed", 1));
   s.gnn_epochs = static_cast<int>(args.getInt("--gnn-epochs", 0));
   if (s.gnn_epochs < 0) throw Error("--gnn-epochs must not be negative");
-  s.jobs = static_cast<int>(args.getInt("--jobs", std::max(1u, std::thread::hardware_concurrency())));
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));  // 0: unknown
+  s.jobs = static_cast<int>(args.getInt("--jobs", cores));
   if (s.jobs < 1) throw Error("--jobs must be at least 1");
   if (s.quick) {  // a smoke test of the whole command, not the paper's protocol
     s.train = 5;
@@ -345,8 +359,8 @@ int runTable(const std::vector<std::string>& argv) {
   const double minutes = secondsSince(t_all) / 60;
   fs::create_directories(s.docs / "bench");
   std::ofstream(s.docs / "bench" / "table.md")
-      << "# bench: table\n\nWritten by `ddace table" << (s.quick ? " --quick" : "") << "` on "
-      << std::thread::hardware_concurrency() << " cores, " << s.jobs << " models at a time (1-minute load average "
+      << "# bench: table\n\nWritten by `ddace table" << (s.quick ? " --quick" : "") << "` on " << cores
+      << " cores, " << s.jobs << " models at a time (1-minute load average "
       << loadAverage() << " at the end). The whole command: data, " << rows.size()
       << " models trained and evaluated, the training curves (scripts/plot_loss.py), the figures.\n\n"
       << "| measure | time | goal | ratio |\n|---|---|---|---|\n"
@@ -363,7 +377,8 @@ int runTable(const std::vector<std::string>& argv) {
 
 DDACE_COMMAND({"table", "ddace table [--out DIR] [--docs DIR] [--quick] [--seed S] [--gnn-epochs N] [--jobs N]",
                "regenerate the paper's Table 2, Fig. 4, the case studies and trajectory overlays into "
-               "docs/results.md and docs/bench/table.md (--quick: a smoke test of a few minutes)",
+               "docs/results.md and docs/bench/table.md (--quick: a smoke test of a few minutes, written to "
+               "out/table-quick)",
                runTable});
 
 }  // namespace ddace::cli

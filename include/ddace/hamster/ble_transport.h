@@ -59,7 +59,8 @@ class BleTransport : public Transport {
   /// Takes text lines (whole or in pieces): "FF\r" is answered by the next read();
   /// a motoring line for our address sends its payload. Throws for any other line,
   /// before the connection stands, on a lost link, when kMaxPendingWrites writes are
-  /// still unacknowledged by BlueZ (a stale command is never queued), and when the
+  /// still unacknowledged by BlueZ (a stale command is never queued; a stop, zero on
+  /// both wheels, always goes out), and when the
   /// last acknowledged write failed (the current line is sent nevertheless).
   void write(const char* data, size_t size) override;
   /// Drops unread lines and a partly written line (sent writes cannot be recalled).
@@ -77,7 +78,7 @@ class BleTransport : public Transport {
   std::string devicePath() const;
 
   /// GATT writes in flight (sent to BlueZ, not yet acknowledged) beyond which
-  /// write() refuses new lines.
+  /// write() refuses new lines, except a stop (zero on both wheels).
   static constexpr int kMaxPendingWrites = 4;
 
  private:

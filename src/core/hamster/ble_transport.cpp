@@ -487,7 +487,8 @@ struct BleTransport::Impl {
       sd_bus_message_unref(m);
     }
     // Hand the queued messages (the last zero-wheel write, Disconnect) to the socket,
-    // waiting briefly at most.
+    // waiting briefly at most. Closed first: replies processed meanwhile start nothing new.
+    phase = BlePhase::Closed;
     const double end = monotonicS() + 0.1;
     uint64_t queued = 0;
     while (sd_bus_get_n_queued_write(bus, &queued) >= 0 && queued > 0 && monotonicS() < end) {
@@ -583,7 +584,11 @@ struct BleTransport::Impl {
       throw Error(endpoint + ": motoring line for " + parsed.address.display() + " refused");
     }
     if (phase != BlePhase::Ready) throw Error(endpoint + ": not connected yet");
-    if (pending_writes >= kMaxPendingWrites) {
+    // A stop always goes out: it is what RobotLink sends when it gives the link up, which is
+    // exactly when writes are backed up.
+    const auto effector = decodeEffector(Model::Hamster, parsed.payload);
+    const bool stop = effector && effector->left_wheel == 0 && effector->right_wheel == 0;
+    if (pending_writes >= kMaxPendingWrites && !stop) {
       throw Error(endpoint + ": " + std::to_string(pending_writes) +
                   " GATT writes not acknowledged by BlueZ; command dropped");
     }

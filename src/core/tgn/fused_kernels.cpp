@@ -248,6 +248,7 @@ struct GruRecurrenceFn : torch::autograd::Function<GruRecurrenceFn> {
 }  // namespace
 
 InEdges inEdgesFromMask(const torch::Tensor& mask) {
+  if (mask.dim() != 2 || mask.size(0) != mask.size(1)) throw Error("gat attention: the mask must be square");
   const Tensor m = mask.to(torch::kBool).contiguous();
   const int64_t n = m.size(0);
   auto a = m.accessor<bool, 2>();
@@ -282,7 +283,12 @@ std::pair<torch::Tensor, torch::Tensor> gru(torch::nn::GRU& module, const torch:
   const auto& o = module->options;
   if (!o.batch_first() || o.bidirectional() || o.dropout() != 0 || !o.bias())
     throw Error("fused gru: only batch-first, unidirectional GRUs with biases and no dropout");
-  const int64_t b_n = x.size(0), t_n = x.size(1), layers = o.num_layers(), hidden = o.hidden_size();
+  const int64_t layers = o.num_layers(), hidden = o.hidden_size();
+  if (x.dim() != 3 || x.size(1) < 1 || x.size(2) != o.input_size())
+    throw Error("fused gru: x must be [B, T >= 1, " + std::to_string(o.input_size()) + "]");
+  const int64_t b_n = x.size(0), t_n = x.size(1);
+  if (h0.defined() && (h0.dim() != 3 || h0.size(0) != layers || h0.size(1) != b_n || h0.size(2) != hidden))
+    throw Error("fused gru: h0 must be [layers, B, hidden]");
   const auto params = module->named_parameters(false);
   Tensor in = x;
   std::vector<Tensor> last;
@@ -290,7 +296,7 @@ std::pair<torch::Tensor, torch::Tensor> gru(torch::nn::GRU& module, const torch:
     const std::string k = "_l" + std::to_string(l);
     const Tensor gi = torch::linear(in, params["weight_ih" + k], params["bias_ih" + k]);
     const Tensor start = h0.defined() ? h0[l] : torch::zeros({b_n, hidden});
-    in = GruRecurrenceFn::apply(gi, params["weight_hh" + k], params["bias_hh" + k], start);
+    in = gruRecurrence(gi, params["weight_hh" + k], params["bias_hh" + k], start);
     last.push_back(in.select(1, t_n - 1));
   }
   return {in, torch::stack(last)};

@@ -162,14 +162,18 @@ class Characteristic(PropertyObject):
         self.mock.calls.append("StopNotify")
         self.set(Notifying=False)
 
-    @dbus.service.method(CHAR, in_signature="aya{sv}")
-    def WriteValue(self, value, options):
+    @dbus.service.method(CHAR, in_signature="aya{sv}", async_callbacks=("ok", "err"))
+    def WriteValue(self, value, options, ok, err):
         self.mock.calls.append("WriteValue")
         if not self.mock.device or not self.mock.device.props["Connected"]:
-            raise BluezError("NotConnected", "Not connected")
+            return err(BluezError("NotConnected", "Not connected"))
         if "write-without-response" not in self.props["Flags"]:
-            raise BluezError("NotPermitted", "Write not permitted")
+            return err(BluezError("NotPermitted", "Write not permitted"))
         self.mock.writes.append((self.mock.connections, bytes(value), str(options.get("type", ""))))
+        if self.mock.hold_writes:
+            self.mock.held_acks.append(ok)  # acknowledged by HoldWrites(false)
+        else:
+            ok()
 
     def notify(self, payload):
         self.props["Value"] = dbus.Array(payload, signature="y")
@@ -205,6 +209,15 @@ class Control(dbus.service.Object):
     def Stall(self, stalled):
         self.mock.stalled = bool(stalled)
 
+    @dbus.service.method(CONTROL, in_signature="b")
+    def HoldWrites(self, hold):
+        """While held, WriteValue calls are recorded but not answered (a congested link)."""
+        self.mock.hold_writes = bool(hold)
+        if not hold:
+            acks, self.mock.held_acks = self.mock.held_acks, []
+            for ok in acks:
+                ok()
+
     @dbus.service.method(CONTROL)
     def Vanish(self):
         """BlueZ forgets the device (no Connected=false first)."""
@@ -229,6 +242,7 @@ class Mock:
         self.calls, self.writes, self.connections = [], [], 0
         # A valid, all-zero Hamster sensor payload (byte 2 = 0x10 marks a sensor packet).
         self.sensor, self.stalled = bytes([0, 0, 0x10] + [0] * 17), False
+        self.hold_writes, self.held_acks = False, []
         self.root = Root(self)
         self.adapter = Adapter(self, "/org/bluez/" + adapter)
         self.device = None

@@ -317,6 +317,50 @@ TEST_F(BleTest, TransportConnectsIdentifiesAndPresentsTheDongleProtocol) {
   }, 2.0));
   EXPECT_EQ(std::get<2>(writes().back()), "command");
 
+  // A congested link: motion commands beyond kMaxPendingWrites unacknowledged writes are
+  // refused (never queued), a stop still goes out.
+  control("HoldWrites", nullptr, 1);
+  Effector slow;
+  slow.left_wheel = 5;
+  slow.right_wheel = 5;
+  const std::string slow_line = encodeLine(encodeEffector(Model::Hamster, slow), address());
+  const size_t before = writes().size();
+  // Nothing is read meanwhile, so no acknowledgement is processed: the count only grows
+  // (it may start above 0 with an earlier write not yet acknowledged).
+  size_t accepted = 0;
+  bool refused = false;
+  for (int i = 0; i <= BleTransport::kMaxPendingWrites && !refused; ++i) {
+    try {
+      t.write(slow_line.data(), slow_line.size());
+      ++accepted;
+    } catch (const ddace::Error& err) {
+      refused = true;
+      EXPECT_NE(std::string(err.what()).find("not acknowledged"), std::string::npos) << err.what();
+    }
+  }
+  ASSERT_TRUE(refused) << "more than kMaxPendingWrites unacknowledged writes accepted";
+  EXPECT_GE(accepted, 1u);
+  ASSERT_TRUE(runUntil([&] { return writes().size() == before + accepted; }, 2.0));
+  const Payload stop = encodeEffector(Model::Hamster, Effector{});
+  const std::string stop_line = encodeLine(stop, address());
+  EXPECT_NO_THROW(t.write(stop_line.data(), stop_line.size()));
+  ASSERT_TRUE(runUntil([&] {
+    collect();
+    const auto w = writes();
+    return !w.empty() && std::get<1>(w.back()) == std::vector<uint8_t>(stop.begin(), stop.end());
+  }, 2.0));
+  EXPECT_EQ(writes().size(), before + accepted + 1) << "the refused command went out";
+  control("HoldWrites", nullptr, 0);
+  ASSERT_TRUE(runUntil([&] {
+    collect();
+    try {
+      t.write(slow_line.data(), slow_line.size());  // accepted again once acknowledged
+      return true;
+    } catch (const ddace::Error&) {
+      return false;
+    }
+  }, 2.0));
+
   // Anything else written is refused, as is a line for another robot.
   EXPECT_THROW(t.write("hello\r", 6), ddace::Error);
   const std::string foreign = encodeLine(motoring, *Address::parse("D9:4B:8B:A4:E1:68"));

@@ -102,6 +102,16 @@ TEST(FusedKernels, GruEqualsTorchGruAndItsGradients) {
   }
 }
 
+TEST(FusedKernels, GruRefusesMisshapenInputs) {
+  torch::nn::GRU gru(torch::nn::GRUOptions(6, 4).num_layers(2).batch_first(true));
+  torch::NoGradGuard no_grad;
+  EXPECT_THROW(fused::gru(gru, torch::zeros({3, 5, 7})), ddace::Error) << "input size";
+  EXPECT_THROW(fused::gru(gru, torch::zeros({3, 0, 6})), ddace::Error) << "no steps";
+  EXPECT_THROW(fused::gru(gru, torch::zeros({3, 5, 6}), torch::zeros({2, 2, 4})), ddace::Error) << "h0 batch";
+  EXPECT_THROW(fused::gru(gru, torch::zeros({3, 5, 6}), torch::zeros({1, 3, 4})), ddace::Error) << "h0 layers";
+  EXPECT_EQ(fused::gru(gru, torch::zeros({3, 1, 6}), torch::zeros({2, 3, 4})).first.sizes(), (std::vector<int64_t>{3, 1, 4}));
+}
+
 TEST(FusedKernels, FlatAdamWithClippingEqualsTorchAdam) {
   torch::manual_seed(7);
   torch::nn::Linear a(3, 4), b(3, 4);
