@@ -86,6 +86,8 @@ class TrackerNode {
     image_transport::Publisher raw_pub = it_.advertise("image_raw", 1);
     const double camera_fps = cap.get(cv::CAP_PROP_FPS);
     const double fps = rosparam::param(pnh_, "video_rate_hz", camera_fps > 0 ? camera_fps : 30.0);
+    if (!(fps > 0 && fps <= 1000))
+      throw Error("parameter " + pnh_.resolveName("video_rate_hz") + " must be in (0, 1000] Hz");
     ros::Rate rate(fps);
     cv::Mat frame;
     while (ros::ok()) {
