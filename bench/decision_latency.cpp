@@ -25,6 +25,7 @@
 #include <sstream>
 #include <thread>
 
+#include "ddace/common/machine.h"
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/replay.h"
 #include "ddace/gp/primitives.h"
@@ -116,14 +117,6 @@ Stats run(const task::TaskSpec& spec, const std::vector<task::Demonstration>& sc
   return st;
 }
 
-/// The 1-minute load average (other processes competing for the cores).
-std::string loadAverage() {
-  std::ifstream f("/proc/loadavg");
-  std::string one;
-  f >> one;
-  return one.empty() ? "unknown" : one;
-}
-
 std::string fmt(double v, int prec = 3) {
   std::ostringstream s;
   s << std::fixed << std::setprecision(prec) << v;
@@ -175,11 +168,8 @@ int main() {
 
     const double goal_ms = 5.0;
     std::ostringstream md;
-    const auto now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-    char when[32];
-    std::strftime(when, sizeof when, "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
     md << "# bench: decision_latency\n\n"
-       << "Written by `bench_decision_latency` (`ddace bench decision_latency`), " << when << ", "
+       << "Written by `bench_decision_latency` (`ddace bench decision_latency`), " << utcNow() << ", "
        << std::thread::hardware_concurrency() << "-core machine, one thread, load average " << loadAverage()
        << " while it ran (tail latencies grow with the machine's load: the TGN's forward pass is preempted).\n"
        << "One decision = the last \"done\" of a step -> every segment of the next step ready to publish: "

@@ -27,6 +27,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "ddace/common/error.h"
+#include "ddace/common/machine.h"
 #include "ddace/gp/primitives.h"
 #include "ddace/tasks/generators.h"
 
@@ -122,11 +123,7 @@ int main(int argc, char** argv) {
       }
     }
     const fs::path repo = findRepo(repo_arg);
-    std::string load = "unknown";
-    {
-      std::ifstream f("/proc/loadavg");
-      std::getline(f, load);
-    }
+    const std::string load = loadAverage();
 
     tasks::GeneratorOptions g;
     g.family = "task4";
@@ -228,7 +225,7 @@ int main(int argc, char** argv) {
        << " restarts, on both sides. A fit is an x-GP and a y-GP from the raw samples. scikit-learn "
        << ref["sklearn"].as<std::string>() << " (GaussianProcessRegressor, L-BFGS-B) runs in the same process tree, "
        << "in the same run. Median of repeated runs for ours, one run for scikit-learn; "
-       << std::thread::hardware_concurrency() << " cores, /proc/loadavg at the start: " << load << ".\n\n"
+       << std::thread::hardware_concurrency() << " cores, 1-minute load average at the start: " << load << ".\n\n"
        << "| demos | samples per axis | ours fit, wall (ms) | ours fit, CPU (ms) | scikit-learn fit, wall (s) | "
           "scikit-learn fit, CPU (s) | speed-up, wall | speed-up, CPU | LML ours (x + y) | LML scikit-learn (x + y) |\n"
        << "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";

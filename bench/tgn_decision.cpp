@@ -6,15 +6,16 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <thread>
 
 #include "ddace/common/error.h"
+#include "ddace/common/machine.h"
 #include "ddace/tasks/generators.h"
 #include "ddace/tgn/sequence_model.h"
+#include "reference_runner.h"
 
 namespace fs = std::filesystem;
 using namespace ddace;
@@ -22,37 +23,6 @@ using namespace ddace;
 namespace {
 
 const fs::path kRepo = fs::path(__FILE__).parent_path().parent_path();
-
-std::string capture(const std::string& command) {
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) throw Error("cannot run: " + command);
-  std::string out;
-  char buf[4096];
-  while (size_t n = fread(buf, 1, sizeof buf, pipe)) out.append(buf, n);
-  if (pclose(pipe) != 0) throw Error("failed: " + command + "\n" + out);
-  return out;
-}
-
-double jsonNumber(const std::string& json, const std::string& key) {
-  const auto at = json.find("\"" + key + "\":");
-  if (at == std::string::npos) throw Error("reference output lacks '" + key + "': " + json);
-  return std::stod(json.substr(at + key.size() + 3));
-}
-
-/// The 1-minute load average: the machine is shared, absolute times move with it.
-std::string loadAverage() {
-  std::ifstream in("/proc/loadavg");
-  std::string first;
-  in >> first;
-  return first.empty() ? "unknown" : first;
-}
-
-std::string today() {
-  const std::time_t now = std::time(nullptr);
-  char buf[64];
-  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
-  return buf;
-}
 
 }  // namespace
 
@@ -86,7 +56,7 @@ int main() try {
     }
     std::sort(times.begin(), times.end());
     cpp_ms = std::min(cpp_ms, times[times.size() / 2]);
-    py_ms = std::min(py_ms, jsonNumber(capture(cmd), "median_ms"));
+    py_ms = std::min(py_ms, bench::jsonNumber(bench::capture(cmd), "median_ms"));
   }
   fs::remove(tensors);
   std::cout << "one decision, 11 entities, history of " << kHistory << ": C++ " << cpp_ms << " ms (" << tokens
@@ -96,7 +66,7 @@ int main() try {
   std::ofstream md(kRepo / "docs" / "bench" / "tgn_decision.md");
   char line[512];
   md << "# bench: tgn_decision\n\n"
-     << "Written by `bench_tgn_decision` (`ddace bench tgn_decision`), " << today() << ", "
+     << "Written by `bench_tgn_decision` (`ddace bench tgn_decision`), " << utcNow() << ", "
      << std::thread::hardware_concurrency() << "-core machine (1-minute load average " << loadAverage() << " after the timings), one thread.\n"
      << "One decision = `SequenceModel::predictNext` on a history of " << kHistory
      << " keyframe snapshots of Task 2 with 10 robots + G1 (11 entities): GAT encoder over every snapshot, GRU, heads, "

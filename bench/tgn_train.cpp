@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -14,8 +13,10 @@
 #include <thread>
 
 #include "ddace/common/error.h"
+#include "ddace/common/machine.h"
 #include "ddace/tasks/generators.h"
 #include "ddace/tgn/sequence_model.h"
+#include "reference_runner.h"
 
 namespace fs = std::filesystem;
 using namespace ddace;
@@ -23,37 +24,6 @@ using namespace ddace;
 namespace {
 
 const fs::path kRepo = fs::path(__FILE__).parent_path().parent_path();
-
-std::string capture(const std::string& command) {
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) throw Error("cannot run: " + command);
-  std::string out;
-  char buf[4096];
-  while (size_t n = fread(buf, 1, sizeof buf, pipe)) out.append(buf, n);
-  if (pclose(pipe) != 0) throw Error("failed: " + command + "\n" + out);
-  return out;
-}
-
-double jsonNumber(const std::string& json, const std::string& key) {
-  const auto at = json.find("\"" + key + "\":");
-  if (at == std::string::npos) throw Error("reference output lacks '" + key + "': " + json);
-  return std::stod(json.substr(at + key.size() + 3));
-}
-
-/// The 1-minute load average: the machine is shared, absolute times move with it.
-std::string loadAverage() {
-  std::ifstream in("/proc/loadavg");
-  std::string first;
-  in >> first;
-  return first.empty() ? "unknown" : first;
-}
-
-std::string today() {
-  const std::time_t now = std::time(nullptr);
-  char buf[64];
-  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
-  return buf;
-}
 
 }  // namespace
 
@@ -82,7 +52,7 @@ int main() try {
   for (int round = 0; round < kRounds; ++round) {
     const auto m = tgn::SequenceModel::train(train, fixed, nullptr);
     cpp_ms = std::min(cpp_ms, 1000 * m.info().history.back().seconds / kEpochs);
-    py_ms = std::min(py_ms, jsonNumber(capture(cmd), "ms_per_epoch"));
+    py_ms = std::min(py_ms, bench::jsonNumber(bench::capture(cmd), "ms_per_epoch"));
     std::cout << "round " << round + 1 << ": C++ " << cpp_ms << " ms/epoch, Python " << py_ms << " ms/epoch\n";
   }
   fs::remove(tensors);
@@ -98,7 +68,7 @@ int main() try {
   std::ofstream md(kRepo / "docs" / "bench" / "tgn_train.md");
   char line[512];
   md << "# bench: tgn_train\n\n"
-     << "Written by `bench_tgn_train` (`ddace bench tgn_train`), " << today() << ", " << std::thread::hardware_concurrency()
+     << "Written by `bench_tgn_train` (`ddace bench tgn_train`), " << utcNow() << ", " << std::thread::hardware_concurrency()
      << "-core machine (1-minute load average " << loadAverage() << " after the timings), one thread in both languages (`at::set_num_threads(1)`, `torch.set_num_threads(1)`).\n"
      << "Task 2 with 11 robots (12 entities), 30 demonstrations (generator seed 1), variant `ddace`, default "
         "hyper-parameters (3 GAT layers x 2 heads x 16 channels, GRU 2 x 64, batches of 8 demonstrations, Adam "

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "command.h"
+#include "ddace/common/machine.h"
 #include "ddace/tasks/generators.h"
 #include "ddace/pipeline/evaluation.h"
 #include "results_discussion.h"
@@ -222,14 +223,6 @@ std::string fmt(double v, int digits = 3) {
   char b[32];
   std::snprintf(b, sizeof b, "%.*f", digits, v);
   return b;
-}
-
-/// The 1-minute load average: the machine is shared, wall times move with it.
-std::string loadAverage() {
-  std::ifstream in("/proc/loadavg");
-  std::string first;
-  in >> first;
-  return first.empty() ? "unknown" : first;
 }
 
 int plot_failures = 0;
