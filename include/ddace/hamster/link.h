@@ -115,6 +115,8 @@ class RobotLink {
   void startSearch(double now_s);
   void tryNextPort(double now_s);
   void closePort(const std::string& why, double now_s, bool restart_search);
+  /// Writes zero wheels (other effects kept) to the open transport; errors are ignored.
+  void sendStop() noexcept;
   void handleLine(std::string_view line, double now_s, std::vector<CycleReport>& reports);
   void drop(const std::string& why);
 

@@ -57,18 +57,20 @@ RobotLink::RobotLink(RobotConfig robot, const BridgeConfig& bridge, std::shared_
 }
 
 RobotLink::~RobotLink() {
-  if (transport_ && state_ == LinkState::Streaming) {
-    // Shutting down: leave the robot standing still.
-    try {
-      Effector zero = effects_;
-      zero.left_wheel = zero.right_wheel = 0;
-      const std::string line = encodeLine(encodeEffector(model_, zero), robot_.address);
-      transport_->write(line.data(), line.size());
-    } catch (const Error&) {
-    }
-  }
+  if (transport_ && state_ == LinkState::Streaming) sendStop();  // leave the robot standing still
   if (transport_) transport_->close();
   if (!canonical_.empty()) ports_->release(canonical_);
+}
+
+void RobotLink::sendStop() noexcept {
+  // Best effort: the link may already be gone.
+  try {
+    Effector zero = effects_;
+    zero.left_wheel = zero.right_wheel = 0;
+    const std::string line = encodeLine(encodeEffector(model_, zero), robot_.address);
+    transport_->write(line.data(), line.size());
+  } catch (const std::exception&) {
+  }
 }
 
 void RobotLink::setWheelCommand(double left_mps, double right_mps, double now_s) {
@@ -167,14 +169,7 @@ void RobotLink::tryNextPort(double now_s) {
 void RobotLink::closePort(const std::string& why, double now_s, bool restart_search) {
   if (state_ == LinkState::Streaming) {
     ++stats_.link_losses;
-    // Best effort: if the radio still reaches the robot, make it stop.
-    try {
-      Effector zero = effects_;
-      zero.left_wheel = zero.right_wheel = 0;
-      const std::string line = encodeLine(encodeEffector(model_, zero), robot_.address);
-      transport_->write(line.data(), line.size());
-    } catch (const Error&) {
-    }
+    sendStop();  // if the radio still reaches the robot
   }
   if (transport_) transport_->close();
   transport_.reset();
