@@ -262,6 +262,16 @@ inline bool trigger(const std::string& service, double timeout_s, std::string* m
       timeout_s);
 }
 
+/// Starts the run once the watcher's links stand (a run started earlier loses its first
+/// messages). Returns "" or what went wrong.
+inline std::string startRun(Watcher& watch, double timeout_s) {
+  const auto unconnected = watch.waitConnected(timeout_s);
+  if (!unconnected.empty()) return "no publisher on " + unconnected.front();
+  std::string msg;
+  if (!trigger("/coordinator/start", timeout_s, &msg)) return "could not start the run: " + msg;
+  return "";
+}
+
 /// Step token keys of a demonstration, sorted per step.
 inline std::vector<std::vector<std::string>> truthSteps(const ddace::task::Demonstration& d,
                                                          const ddace::task::TaskSpec& spec) {
@@ -315,10 +325,8 @@ inline void runTaskEndToEnd(const std::string& family, int robots, bool learned,
                                    "autostart:=false", "monitor:=false", "config:=" + files.config_file};
   args.insert(args.end(), extra_args.begin(), extra_args.end());
   Launch graph(args);
-  const auto unconnected = watch.waitConnected(30.0);
-  ASSERT_TRUE(unconnected.empty()) << "no publisher on " << unconnected.front();
-  std::string msg;
-  ASSERT_TRUE(trigger("/coordinator/start", 30.0, &msg)) << "could not start the run: " << msg;
+  const std::string started = startRun(watch, 30.0);
+  ASSERT_TRUE(started.empty()) << started;
   const bool ended = waitFor(
       [&] {
         const auto c = watch.stateCode();

@@ -38,9 +38,8 @@ TEST(ExecEstop, ServiceAndTopicZeroEveryRobotWithinOneCycle) {
   Watcher w(nh, spec);
   Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "autostart:=false",
                 "monitor:=false", "config:=" + files.config_file});
-  const auto unconnected = w.waitConnected(30.0);
-  ASSERT_TRUE(unconnected.empty()) << "no publisher on " << unconnected.front();
-  ASSERT_TRUE(trigger("/coordinator/start", 30.0));
+  const std::string started = startRun(w, 30.0);
+  ASSERT_TRUE(started.empty()) << started;
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING && anyDriving(w); }, 20.0));
   ros::Duration(0.5).sleep();
 

@@ -16,9 +16,8 @@ TEST(ExecStall, SegmentTimeoutAbortsTheRunWithZeroWheels) {
   Watcher w(nh, spec);
   Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "autostart:=false",
                 "monitor:=false", "config:=" + config, "stalled:=[R2]"});
-  const auto unconnected = w.waitConnected(30.0);
-  ASSERT_TRUE(unconnected.empty()) << "no publisher on " << unconnected.front();
-  ASSERT_TRUE(trigger("/coordinator/start", 30.0));
+  const std::string started = startRun(w, 30.0);
+  ASSERT_TRUE(started.empty()) << started;
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 30.0))
       << "state " << w.state().state_name;
   const ros::Time aborted = w.state().header.stamp;
