@@ -93,6 +93,8 @@ struct Result {
   long reference_found = 0, tracker_found = 0, lost = 0, frames = 0, roi_frames = 0;
   long ball_reference = 0, ball_tracker = 0;
   std::vector<double> errors_m;  // visible entities vs the truth
+  double robot_side_px = 0;      // mean edge of the robots' markers in the image
+  long robot_sides = 0;
 };
 
 double msSince(std::chrono::steady_clock::time_point t0) {
@@ -137,6 +139,11 @@ Result run(const std::string& backend, bool ball, int frames) {
     std::set<int> found;
     for (const auto& d : fr.detections) found.insert(d.id);
     res.tracker_found += static_cast<long>(found.size());
+    for (const auto& d : fr.detections)
+      if (d.id >= 10 && d.id < 10 + kRobots) {
+        res.robot_side_px += d.sidePx();
+        ++res.robot_sides;
+      }
     for (int id : std::set<int>(ids.begin(), ids.end())) {
       if (!markers.isCorner(id) && !markers.entityById(id)) continue;
       ++res.reference_found;
@@ -183,9 +190,8 @@ int main(int argc, char** argv) {
         "noise), "
      << frames << " frames at 30 frames/s per scene and backend, one core, the tuning of config/tracker.yaml, "
      << "intrinsics given. *small*: 4 corner markers and " << kRobots
-     << " robots with 3 cm markers (23 px) on slow circles; *fast*: the same and a 3 cm ball passed across the "
-        "table at "
-     << kBallSpeed << " m/s. *Reference*: OpenCV 4.6 `cv::aruco::detectMarkers` with its default parameters on "
+     << " robots with 3 cm markers on slow circles; *fast*: the same and a 3 cm ball passed across the table at "
+     << kBallSpeed << " m/s (marker edges in the image: see the last column). *Reference*: OpenCV 4.6 `cv::aruco::detectMarkers` with its default parameters on "
      << "the whole frame (for AprilTag: its `DICT_APRILTAG_36h11`, the same prints). *Lost*: markers the reference "
         "found in a frame and the tracker did not. *Time ratio*: the tracker's mean time per frame (detection, "
         "table frame, poses, filtering; full-frame passes included) over the reference's, measured on the same "
@@ -193,20 +199,22 @@ int main(int argc, char** argv) {
         "frame, for the speed-up of the region search. Position errors: entities the tracker reports visible, "
         "against the true poses.\n\n"
      << "| scene | backend | reference (ms) | backend, full frame (ms) | tracker (ms) | tracker / reference | "
-        "region frames | found by reference | lost | ball: reference / tracker | position p95 / max (mm) |\n"
-     << "|---|---|---|---|---|---|---|---|---|---|---|\n";
+        "region frames | found by reference | lost | ball: reference / tracker | position p95 / max (mm) | "
+        "robot marker edge (px) |\n"
+     << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   bool ok = true;
   for (const bool ball : {false, true})
     for (const std::string backend : {"aruco", "apriltag"}) {
       const Result r = run(backend, ball, frames);
       char line[512];
       std::snprintf(line, sizeof line,
-                    "| %s | %s | %.2f | %.2f | %.2f | %.2f | %ld / %ld | %ld | %ld | %s | %.2f / %.2f |\n",
+                    "| %s | %s | %.2f | %.2f | %.2f | %.2f | %ld / %ld | %ld | %ld | %s | %.2f / %.2f | %.1f |\n",
                     ball ? "fast" : "small", backend.c_str(), r.reference_ms / r.frames, r.full_ms / r.frames,
                     r.tracker_ms / r.frames,
                     r.tracker_ms / r.reference_ms, r.roi_frames, r.frames, r.reference_found, r.lost,
                     ball ? (std::to_string(r.ball_reference) + " / " + std::to_string(r.ball_tracker)).c_str() : "-",
-                    percentile(r.errors_m, 0.95) * 1000, percentile(r.errors_m, 1.0) * 1000);
+                    percentile(r.errors_m, 0.95) * 1000, percentile(r.errors_m, 1.0) * 1000,
+                    r.robot_side_px / std::max(1L, r.robot_sides));
       md << line;
       std::cout << line << std::flush;
       ok = ok && r.reference_found > 0;
