@@ -13,7 +13,9 @@ void expectAllStopped(Watcher& w, const ros::Time& issued, const ros::Time& by) 
   for (const auto& [robot, cmds] : w.wheels()) {
     bool zero_by = false;
     for (const auto& c : cmds) {
-      if (c.stamp > after) EXPECT_TRUE(c.left == 0 && c.right == 0) << robot << " driven after the e-stop";
+      if (c.stamp > after) {
+        EXPECT_TRUE(c.left == 0 && c.right == 0) << robot << " driven after the e-stop";
+      }
       if (c.stamp >= issued && c.stamp <= by && c.left == 0 && c.right == 0) zero_by = true;
     }
     EXPECT_TRUE(zero_by) << robot << " got no zero command within one control cycle";

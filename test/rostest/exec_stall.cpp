@@ -34,9 +34,11 @@ TEST(ExecStall, SegmentTimeoutAbortsTheRunWithZeroWheels) {
   EXPECT_TRUE(r2_aborted) << "R2's segment was not reported aborted";
   for (const auto& [robot, cmds] : w.wheels()) {
     ASSERT_FALSE(cmds.empty());
-    for (const auto& c : cmds)
-      if (c.stamp > aborted + ros::Duration(0.05))
+    for (const auto& c : cmds) {
+      if (c.stamp > aborted + ros::Duration(0.05)) {
         ASSERT_TRUE(c.left == 0 && c.right == 0) << robot << " driven after the abort";
+      }
+    }
     EXPECT_EQ(cmds.back().left, 0.0);
   }
 }

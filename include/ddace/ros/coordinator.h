@@ -1,0 +1,34 @@
+// coordinator_node: runs a learned task event-driven (exec::Coordinator over ROS).
+//
+//   in   /ddace/entities (EntityArray), /ddace/decision (Decision), /ddace/path (PathResponse),
+//        /robots/E/segment_status (SegmentStatus) for every robot and object E,
+//        /ddace/estop (std_msgs/Bool, latched; true from anyone e-stops the run)
+//   out  /ddace/decision_request, /ddace/path_request, /robots/E/segment,
+//        /ddace/estop (latched), ~state (CoordinatorState, latched), ~markers (MarkerArray)
+//   srv  ~start, ~pause, ~reset, ~estop (std_srvs/Trigger)
+//
+// Decisions are requested only when the run starts or every active entity reported its
+// segment done (the state machine decides); the timer only checks time-outs.
+// Parameters: config/execution.yaml, section coordinator.
+#pragma once
+
+#include <memory>
+
+#include <ros/node_handle.h>
+
+namespace ddace::nodes {
+
+/// The coordinator node (src/nodes/coordinator_node.cpp runs it). The constructor reads the
+/// private parameters from `pnh`, advertises and subscribes on `nh`, and throws
+/// ddace::Error naming the parameter or file it refuses.
+class CoordinatorNode {
+ public:
+  CoordinatorNode(ros::NodeHandle nh, ros::NodeHandle pnh);
+  ~CoordinatorNode();
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ddace::nodes

@@ -1,0 +1,37 @@
+// gp_path_node: answers path requests (token key, start, goal) with a progress-
+// parameterised path and its per-point standard deviation.
+//
+//   in  /ddace/path_request (PathRequest)
+//   out /ddace/path (PathResponse)
+//
+// Path sources (parameter `source`):
+//   library        the Gaussian-process primitive library (`library`: a primitives.yaml or a
+//                  model directory holding one): gp::PrimitiveLibrary::generate, with the
+//                  per-point standard deviation; a key never demonstrated falls back as
+//                  gp/primitives.h says and the response says so (fell_back)
+//   demonstration  the first demonstrated trajectory of the token's key in `task`'s demos/,
+//                  retargeted to the new start and goal by a similarity transform; zero
+//                  standard deviation (one demonstration has no spread).
+// Parameters: config/execution.yaml, section gp_path.
+#pragma once
+
+#include <memory>
+
+#include <ros/node_handle.h>
+
+namespace ddace::nodes {
+
+/// The gp_path node (src/nodes/gp_path_node.cpp runs it). The constructor reads the
+/// private parameters from `pnh`, advertises and subscribes on `nh`, and throws
+/// ddace::Error naming the parameter or file it refuses.
+class GpPathNode {
+ public:
+  GpPathNode(ros::NodeHandle nh, ros::NodeHandle pnh);
+  ~GpPathNode();
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ddace::nodes

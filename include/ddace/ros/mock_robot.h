@@ -1,0 +1,31 @@
+// mock_robot_node: stands in for the Hamsters, their bridge and the overhead tracker.
+//
+// Every robot of the task is an exec::DiffDriveModel (unicycle at rate_hz, wheel limits,
+// command latency, watchdog, pose noise) driven by /robots/R/wheels. Objects move only
+// through their own segments (/robots/O/segment), following the path ideally at
+// object_speed_mps and reporting /robots/O/segment_status, as in the simulator. Goals
+// stay put. Publishes every entity on `entities_topic` (default /ddace/entities;
+// remap it when a synthetic camera + tracker close the loop) and tf table -> entity.
+// Parameters: config/execution.yaml, section mock_robots.
+#pragma once
+
+#include <memory>
+
+#include <ros/node_handle.h>
+
+namespace ddace::nodes {
+
+/// The mock_robots node (src/nodes/mock_robot_node.cpp runs it). The constructor reads the
+/// private parameters from `pnh`, advertises and subscribes on `nh`, and throws
+/// ddace::Error naming the parameter or file it refuses.
+class MockRobotNode {
+ public:
+  MockRobotNode(ros::NodeHandle nh, ros::NodeHandle pnh);
+  ~MockRobotNode();
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ddace::nodes

@@ -1,0 +1,33 @@
+// path_follower_node: drives every robot of the task along its current segment with the
+// pure-pursuit-with-progress law of exec::PathFollower, from the tracked poses.
+//
+// Per robot R:  in  /robots/R/segment (ddace/Segment), /ddace/entities (ddace/EntityArray)
+//               out /robots/R/wheels (ddace/WheelCommand, every control cycle),
+//                   /robots/R/segment_status (ddace/SegmentStatus)
+// Global:       in  /ddace/estop (std_msgs/Bool, latched): true zeroes every robot at once.
+//
+// Fails safe: no segment, a stale or missing pose, an e-stop, a stop segment, arrival:
+// zero wheels. A pose that stays stale for stale_fail_s fails the segment.
+// Parameters: config/execution.yaml, section path_follower.
+#pragma once
+
+#include <memory>
+
+#include <ros/node_handle.h>
+
+namespace ddace::nodes {
+
+/// The path_follower node (src/nodes/path_follower_node.cpp runs it). The constructor reads the
+/// private parameters from `pnh`, advertises and subscribes on `nh`, and throws
+/// ddace::Error naming the parameter or file it refuses.
+class PathFollowerNode {
+ public:
+  PathFollowerNode(ros::NodeHandle nh, ros::NodeHandle pnh);
+  ~PathFollowerNode();
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ddace::nodes

@@ -1,0 +1,33 @@
+// sequence_node: answers the coordinator's decision requests with the next step or END.
+//
+//   in  /ddace/decision_request (DecisionRequest: the snapshot history)
+//   out /ddace/decision (Decision)
+//
+// Policy sources (parameter `policy`):
+//   model   the temporal graph network of a model directory (`model`, written by
+//           `ddace train`): tgn::SequenceModel::predictNext on the snapshot history
+//   replay  the step sequence of one demonstration (`replay_csv`, or `task`'s demos/ by
+//           `replay_demo` index), open loop: step k for the k-th request, then END.
+// Parameters: config/execution.yaml, section sequence.
+#pragma once
+
+#include <memory>
+
+#include <ros/node_handle.h>
+
+namespace ddace::nodes {
+
+/// The sequence node (src/nodes/sequence_node.cpp runs it). The constructor reads the
+/// private parameters from `pnh`, advertises and subscribes on `nh`, and throws
+/// ddace::Error naming the parameter or file it refuses.
+class SequenceNode {
+ public:
+  SequenceNode(ros::NodeHandle nh, ros::NodeHandle pnh);
+  ~SequenceNode();
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ddace::nodes

@@ -1,0 +1,41 @@
+// tracker_node: overhead camera images -> /ddace/entities, tf table -> <entity>, a debug
+// image and rviz markers. The algorithm is ddace::vision::Tracker; this node only
+// moves data (see docs/vision.md for topics and parameters).
+//
+// Sources: image_transport topic `image_raw` (+ optional `camera_info`), or, when
+// ~video_device >= 0 or ~video_file is set, OpenCV's V4L2 / file capture (the frames
+// are then published on `image_raw` while somebody subscribes, e.g. rosbag).
+#pragma once
+
+#include <memory>
+
+#include <ros/node_handle.h>
+
+namespace ddace::nodes {
+
+/// The tracker_node node (src/nodes/tracker_node.cpp runs it). The constructor reads the
+/// private parameters from `pnh`, advertises and subscribes on `nh`, and throws
+/// ddace::Error naming the parameter or file it refuses.
+class TrackerNode {
+ public:
+  TrackerNode(ros::NodeHandle nh, ros::NodeHandle pnh);
+  ~TrackerNode();
+
+  /// Whether frames come from ~video_device / ~video_file (opened by the constructor)
+  /// rather than from the `image_raw` subscription.
+  bool capturing() const;
+
+  /// The capture loop: reads, publishes and tracks frames on the calling thread until
+  /// shutdown, stop() or the end of the video file. Without a capture source it waits
+  /// for shutdown (the subscription's callbacks run on the spinner).
+  void run();
+
+  /// Ends run() after the current frame (from another thread; the nodelet's unload).
+  void stop();
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace ddace::nodes

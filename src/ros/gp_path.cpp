@@ -1,0 +1,97 @@
+// GpPathNode: see include/ddace/ros/gp_path.h.
+#include "ddace/ros/gp_path.h"
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+
+#include <ros/ros.h>
+
+#include <ddace/PathRequest.h>
+#include <ddace/PathResponse.h>
+
+#include "exec_conversions.h"
+#include "params.h"
+#include "ddace/exec/replay.h"
+#include "ddace/gp/primitives.h"
+
+namespace ddace::nodes {
+
+class GpPathNode::Impl {
+ public:
+  Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
+    const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
+    frame_id_ = rosparam::param<std::string>(pnh, "frame_id", "table");
+    default_points_ = rosparam::param(pnh, "points", 100);
+    if (default_points_ < 2) throw Error("parameter '" + pnh.resolveName("points") + "' must be at least 2");
+    const std::string source = rosparam::param<std::string>(pnh, "source", "demonstration");
+    if (source == "library") {
+      std::string path = rosparam::param<std::string>(pnh, "library", "");
+      if (path.empty()) throw Error("source 'library' needs parameter '" + pnh.resolveName("library") + "'");
+      if (std::filesystem::is_directory(path)) path = (std::filesystem::path(path) / gp::kPrimitivesFile).string();
+      spec_ = ros_exec::loadTaskSpec(task_path);
+      library_ = std::make_unique<gp::PrimitiveLibrary>(gp::PrimitiveLibrary::load(path));
+      generate_ = [this](const task::Token& t, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
+        // The library's own entity indices: map by key.
+        const gp::GeneratedPath p = library_->generate(task::tokenKey(t, spec_), s, g, points_);
+        if (p.fell_back) ROS_WARN("gp_path: %s was never demonstrated; using %s", task::tokenKey(t, spec_).c_str(),
+                                  p.source_key.c_str());
+        fell_back_ = p.fell_back;
+        return exec::PlannedPath{p.points, p.stddev};
+      };
+      ROS_INFO("gp_path: primitive library %s", path.c_str());
+    } else if (source == "demonstration") {
+      const task::TaskDir dir = task::loadTaskDir(task_path);
+      spec_ = dir.spec;
+      demo_paths_ = std::make_unique<exec::DemonstrationPaths>(dir.spec, dir.demos);
+      generate_ = [this](const task::Token& t, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
+        return demo_paths_->generate(t, s, g);
+      };
+      ROS_INFO("gp_path: %zu demonstrated motion keys from %s", demo_paths_->size(), task_path.c_str());
+    } else {
+      throw Error("parameter '" + pnh.resolveName("source") + "' = '" + source + "': expected 'library' or 'demonstration'");
+    }
+    pub_ = nh.advertise<ddace::PathResponse>("/ddace/path", 50);
+    sub_ = nh.subscribe("/ddace/path_request", 50, &Impl::onRequest, this);
+  }
+
+ private:
+  void onRequest(const ddace::PathRequest& req) {
+    ddace::PathResponse out;
+    out.header.stamp = ros::Time::now();
+    out.header.frame_id = frame_id_;
+    out.id = req.id;
+    try {
+      const task::Token token = ros_exec::fromMsg(req.token, spec_);
+      if (!token.isMotion()) throw Error("token " + task::tokenKey(token, spec_) + " is not a motion (no target)");
+      const Eigen::Vector2d start(req.start.x, req.start.y), goal(req.goal.x, req.goal.y);
+      if (!start.allFinite() || !goal.allFinite()) throw Error("start or goal is not finite");
+      points_ = req.points >= 2 ? req.points : default_points_;
+      fell_back_ = false;
+      const exec::PlannedPath p = exec::resampleByArcLength(generate_(token, start, goal), points_);
+      out.fell_back = fell_back_;
+      ros_exec::toMsg(p, frame_id_, out.header.stamp, out.path, out.progress, out.stddev_m);
+    } catch (const std::exception& e) {
+      out.error = e.what();
+      ROS_ERROR("gp_path: path request %u refused: %s", req.id, e.what());
+    }
+    pub_.publish(out);
+  }
+
+  task::TaskSpec spec_;
+  std::string frame_id_;
+  int default_points_ = 100;
+  std::unique_ptr<exec::DemonstrationPaths> demo_paths_;
+  std::unique_ptr<gp::PrimitiveLibrary> library_;
+  int points_ = 100;
+  bool fell_back_ = false;
+  std::function<exec::PlannedPath(const task::Token&, const Eigen::Vector2d&, const Eigen::Vector2d&)> generate_;
+  ros::Publisher pub_;
+  ros::Subscriber sub_;
+};
+
+GpPathNode::GpPathNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}
+
+GpPathNode::~GpPathNode() = default;
+
+}  // namespace ddace::nodes

@@ -1,0 +1,261 @@
+// HamsterBridgeNode: see include/ddace/ros/hamster_bridge.h.
+#include "ddace/ros/hamster_bridge.h"
+
+#include <poll.h>
+#include <ros/ros.h>
+#include <diagnostic_updater/diagnostic_updater.h>
+
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <mutex>
+
+#include <ddace/HamsterEffects.h>
+#include <ddace/HamsterSensors.h>
+#include <ddace/WheelCommand.h>
+
+#include "ddace/common/error.h"
+#include "ddace/hamster/config.h"
+#include "ddace/hamster/link.h"
+#include "ddace/ros/hamster_conversions.h"
+
+#include "params.h"
+
+namespace {
+
+double monotonicS() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+}  // namespace
+
+namespace ddace::nodes {
+
+using namespace hamster;
+
+class HamsterBridgeNode::Impl {
+ public:
+  Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) : updater_(nh, pnh) {
+    const std::string config_path = ddace::rosparam::requireString(
+        pnh, "config", "path of the Hamster config YAML, e.g. config/hamsters.yaml");
+    config_ = loadBridgeConfig(config_path);
+    config_.port_dir = ddace::rosparam::param(pnh, "port_dir", config_.port_dir);
+    config_.scan = ddace::rosparam::param(pnh, "scan", config_.scan);
+    const auto only = ddace::rosparam::param(pnh, "robots", std::vector<std::string>{});
+    for (const auto& name : only) {
+      bool found = false;
+      for (const auto& r : config_.robots) found = found || r.name == name;
+      if (!found) throw ddace::Error("parameter ~robots: robot '" + name + "' is not in " + config_path);
+    }
+    updater_.setHardwareID("hamster_bridge");
+    auto ports = std::make_shared<PortDirectory>();
+    for (const auto& r : config_.robots) {
+      if (!only.empty() && std::find(only.begin(), only.end(), r.name) == only.end()) continue;
+      auto robot = std::make_unique<Robot>();
+      robot->link = std::make_unique<RobotLink>(r, config_, ports, transportFactoryFor(r, config_));
+      const std::string base = "/robots/" + r.name;
+      Robot* raw = robot.get();
+      robot->sensors = nh.advertise<ddace::HamsterSensors>(base + "/sensors", 10);
+      robot->wheels = nh.subscribe<ddace::WheelCommand>(
+          base + "/wheels", 1, [this, raw](const ddace::WheelCommand::ConstPtr& m) { onWheels(*raw, *m); },
+          ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+      robot->effects = nh.subscribe<ddace::HamsterEffects>(
+          base + "/effects", 1, [this, raw](const ddace::HamsterEffects::ConstPtr& m) { onEffects(*raw, *m); });
+      updater_.add("hamster " + r.name,
+                   [this, raw](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnose(*raw, s); });
+      const std::string reach = r.transport == TransportKind::Ble ? "direct BLE via " + r.ble_adapter
+                                                                  : "port hints [" + join(r.port_hints) + "]";
+      ROS_INFO("hamster_bridge: %s = %s (%s), %s", r.name.c_str(), r.address.display().c_str(),
+               r.model == Model::Unknown ? "model auto" : modelName(r.model).c_str(), reach.c_str());
+      robots_.push_back(std::move(robot));
+    }
+    ROS_INFO("hamster_bridge: %zu robots; ports under %s, scanning [%s]", robots_.size(), config_.port_dir.c_str(),
+             join(config_.scan).c_str());
+    diag_timer_ = nh.createSteadyTimer(ros::WallDuration(0.1), [this](const ros::SteadyTimerEvent&) {
+      updater_.update();
+    });
+  }
+
+  /// The I/O loop: wait for bytes on any port (at most 2 ms, so identification and
+  /// link timers run), let every link do its work, publish the sensor lines.
+  void run() {
+    std::vector<pollfd> fds;
+    std::vector<ddace::hamster::CycleReport> reports;
+    while (ros::ok()) {
+      fds.clear();
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        for (const auto& r : robots_) {
+          if (r->link->fd() >= 0) fds.push_back({r->link->fd(), POLLIN, 0});
+        }
+      }
+      if (fds.empty()) {
+        ros::WallDuration(0.002).sleep();
+      } else {
+        ::poll(fds.data(), fds.size(), 2);
+      }
+      for (auto& r : robots_) {
+        reports.clear();
+        LinkState before, after;
+        std::string error;
+        {
+          std::lock_guard<std::mutex> lock(mutex_);
+          before = r->link->state();
+          r->link->poll(monotonicS(), reports);
+          after = r->link->state();
+          error = r->link->stats().last_error;
+        }
+        if (before != after) logTransition(*r, before, after, error);
+        for (const auto& report : reports) {
+          ddace::HamsterSensors msg =
+              ddace::ros_hamster::toSensorsMsg(r->link->robot(), r->link->model(), report, r->memory);
+          msg.header.stamp = ros::Time::now();
+          r->last_battery_v = msg.battery_v;
+          r->last_rssi_dbm = msg.rssi_dbm;
+          r->sensors.publish(msg);
+        }
+      }
+    }
+  }
+
+ private:
+  struct Robot {
+    std::unique_ptr<RobotLink> link;
+    ros::Publisher sensors;
+    ros::Subscriber wheels, effects;
+    ddace::ros_hamster::SensorMemory memory;
+    std::atomic<float> last_battery_v{NAN};  // written by the I/O loop, read by diagnostics
+    std::atomic<int> last_rssi_dbm{0};
+    uint64_t diag_lines = 0;
+    uint64_t diag_losses = 0;
+    double diag_time_s = -1.0;
+    uint64_t refused_commands = 0;
+  };
+
+  static std::string join(const std::vector<std::string>& items) {
+    std::string out;
+    for (const auto& i : items) out += (out.empty() ? "" : ", ") + i;
+    return out;
+  }
+
+  void logTransition(const Robot& r, LinkState before, LinkState after, const std::string& error) {
+    const std::string& name = r.link->robot().name;
+    if (after == LinkState::Streaming) {
+      ROS_INFO("hamster_bridge: %s streaming on %s (%s %s)", name.c_str(), r.link->port().c_str(),
+               modelName(r.link->model()).c_str(), r.link->robot().address.display().c_str());
+    } else if (before == LinkState::Streaming) {
+      ROS_WARN("hamster_bridge: %s link lost (%s); wheels zeroed, reconnecting", name.c_str(), error.c_str());
+    } else if (after == LinkState::Searching && !error.empty()) {
+      ROS_DEBUG("hamster_bridge: %s: %s", name.c_str(), error.c_str());
+    }
+  }
+
+  void onWheels(Robot& r, const ddace::WheelCommand& m) {
+    const std::string topic = "/robots/" + r.link->robot().name + "/wheels";
+    if (!m.header.stamp.isZero()) {
+      const double age = (ros::Time::now() - m.header.stamp).toSec();
+      if (age > config_.command_timeout_s) {
+        ++r.refused_commands;
+        ROS_WARN_THROTTLE(1.0, "hamster_bridge: %s: command stamped %.3f s ago (> command_timeout_s %.3f) refused",
+                          topic.c_str(), age, config_.command_timeout_s);
+        return;
+      }
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    try {
+      r.link->setWheelCommand(m.left_mps, m.right_mps, monotonicS());
+    } catch (const ddace::Error& e) {
+      ++r.refused_commands;
+      ROS_WARN_THROTTLE(1.0, "hamster_bridge: %s: command refused: %s", topic.c_str(), e.what());
+    }
+  }
+
+  void onEffects(Robot& r, const ddace::HamsterEffects& m) {
+    try {
+      const auto e = ddace::ros_hamster::fromEffectsMsg(m);
+      std::lock_guard<std::mutex> lock(mutex_);
+      r.link->setEffects(e.left_rgb, e.right_rgb, e.buzzer_hz, e.note);
+    } catch (const ddace::Error& e) {
+      ROS_WARN_THROTTLE(1.0, "hamster_bridge: /robots/%s/effects refused: %s", r.link->robot().name.c_str(), e.what());
+    }
+  }
+
+  void diagnose(Robot& r, diagnostic_updater::DiagnosticStatusWrapper& s) {
+    LinkStats st;
+    LinkState state;
+    std::string port;
+    Model model;
+    double last_line;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      st = r.link->stats();
+      state = r.link->state();
+      port = r.link->port();
+      model = r.link->model();
+      last_line = r.link->lastLineTime();
+    }
+    const double now = monotonicS();
+    double rate = 0.0;
+    if (r.diag_time_s > 0 && now > r.diag_time_s) rate = (st.lines_ok - r.diag_lines) / (now - r.diag_time_s);
+    const uint64_t lines_in_period = st.lines_ok - r.diag_lines;
+    const uint64_t losses_in_period = st.link_losses - r.diag_losses;
+    const bool first_report = r.diag_time_s < 0;
+    r.diag_lines = st.lines_ok;
+    r.diag_losses = st.link_losses;
+    r.diag_time_s = now;
+    if (state == LinkState::Streaming && losses_in_period > 0) {
+      // A flapping link must show even if it happens to be up at the moment of the report.
+      s.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "link lost %llu times since the last report",
+                 static_cast<unsigned long long>(losses_in_period));
+    } else if (state == LinkState::Streaming && lines_in_period == 0 && !first_report) {
+      s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "identified, but no sensor lines");
+    } else if (state == LinkState::Streaming) {
+      if (r.last_battery_v.load() < 3.6f) {
+        s.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "streaming, battery low (%.2f V)",
+                   static_cast<double>(r.last_battery_v.load()));
+      } else {
+        s.summary(diagnostic_msgs::DiagnosticStatus::OK, "streaming");
+      }
+    } else if (state == LinkState::Identifying) {
+      s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "identifying on " + port);
+    } else {
+      s.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                "no link (wheels stopped)" + (st.last_error.empty() ? std::string() : ": " + st.last_error));
+    }
+    const RobotConfig& cfg = r.link->robot();
+    s.add("link state", linkStateName(state));
+    s.add("address", cfg.address.display());
+    s.add("model", modelName(model));
+    s.add("port", port);
+    s.add("line rate (Hz)", rate);
+    s.add("last valid line age (s)", last_line < 0 ? -1.0 : now - last_line);
+    s.add("valid lines", st.lines_ok);
+    s.add("dropped lines", st.lines_dropped);
+    s.add("last drop reason", st.last_drop_reason);
+    s.add("motoring lines sent", st.lines_sent);
+    s.add("write failures", st.write_failures);
+    s.add("zero-wheel cycles (no fresh command)", st.stale_command_cycles);
+    s.add("saturated cycles", st.saturated_cycles);
+    s.add("refused commands", r.refused_commands);
+    s.add("connects", st.connects);
+    s.add("link losses", st.link_losses);
+    s.add("no-robot lines", st.no_robot_lines);
+    s.add("battery (V)", r.last_battery_v.load());
+    s.add("signal (dBm)", r.last_rssi_dbm.load());
+    s.add("last error", st.last_error);
+  }
+
+  BridgeConfig config_;
+  diagnostic_updater::Updater updater_;
+  ros::SteadyTimer diag_timer_;
+  std::mutex mutex_;
+  std::vector<std::unique_ptr<Robot>> robots_;
+};
+
+HamsterBridgeNode::HamsterBridgeNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}
+
+HamsterBridgeNode::~HamsterBridgeNode() = default;
+
+void HamsterBridgeNode::run() { impl_->run(); }
+
+}  // namespace ddace::nodes

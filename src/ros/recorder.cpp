@@ -1,0 +1,188 @@
+// RecorderNode: see include/ddace/ros/recorder.h.
+#include "ddace/ros/recorder.h"
+
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+
+#include <ros/ros.h>
+#include <std_msgs/String.h>
+#include <std_srvs/Trigger.h>
+
+#include "params.h"
+#include "vision_ros.h"
+#include "ddace/EntityArray.h"
+#include "ddace/Label.h"
+#include "ddace/common/error.h"
+#include "ddace/vision/recorder.h"
+
+namespace ddace::nodes {
+
+class RecorderNode::Impl {
+ public:
+  Impl(ros::NodeHandle nh, ros::NodeHandle pnh) {
+    const std::string markers = rosparam::requireString(pnh, "markers_file", "path to config/markers.yaml");
+    const std::string file = rosparam::requireString(pnh, "recorder_file", "path to config/recorder.yaml");
+    config_ = vision::loadRecorderConfig(file, vision::loadMarkerConfig(markers));
+    const std::string dir = rosparam::param<std::string>(pnh, "output_dir", "");
+    if (!dir.empty()) config_.output_dir = dir;
+    recorder_ = std::make_unique<vision::DemoRecorder>(config_.spec, config_.output_dir, config_.flush_period_s);
+
+    state_pub_ = pnh.advertise<std_msgs::String>("state", 1, true);
+    entities_sub_ = nh.subscribe("/ddace/entities", 10, &Impl::onEntities, this);
+    labels_sub_ = nh.subscribe("/ddace/labels", 100, &Impl::onLabel, this);
+    start_srv_ = pnh.advertiseService("start", &Impl::onStart, this);
+    stop_srv_ = pnh.advertiseService("stop", &Impl::onStop, this);
+    discard_srv_ = pnh.advertiseService("discard", &Impl::onDiscard, this);
+    timer_ = nh.createTimer(ros::Duration(1.0 / config_.rate_hz), &Impl::onTimer, this);
+    setState("ready: " + config_.output_dir + " (call ~start)");
+  }
+
+ private:
+  void setState(const std::string& s) {
+    std_msgs::String msg;
+    msg.data = s;
+    state_pub_.publish(msg);
+    ROS_INFO("recorder_node: %s", s.c_str());
+  }
+
+  void onEntities(const ddace::EntityArray::ConstPtr& msg) {
+    latest_ = msg;
+    for (const auto& e : msg->entities) {
+      if (e.stale && !e.visible && e.last_seen.isZero()) continue;  // never measured
+      positions_[e.name] = Eigen::Vector2d(e.pose.x, e.pose.y);
+      stale_[e.name] = e.stale;
+    }
+  }
+
+  void onLabel(const ddace::Label::ConstPtr& msg) {
+    if (!recorder_->recording()) {
+      ROS_WARN("recorder_node: label %s %s %s ignored: not recording", msg->entity.c_str(), msg->action.c_str(),
+               msg->target.c_str());
+      return;
+    }
+    try {
+      recorder_->setLabel(msg->entity, msg->action, msg->target);
+      ROS_INFO("recorder_node: %s -> %s %s", msg->entity.c_str(), msg->action.empty() ? "idle" : msg->action.c_str(),
+               msg->target.c_str());
+    } catch (const Error& e) {
+      ROS_ERROR("recorder_node: label refused: %s", e.what());
+      setState("label refused: " + std::string(e.what()));
+    }
+  }
+
+  /// Positions of every task entity; false (and the missing names) when one was never seen.
+  bool currentPositions(std::vector<Eigen::Vector2d>& out, std::string& missing, int& stale) const {
+    out.clear();
+    missing.clear();
+    stale = 0;
+    for (const auto& e : config_.spec.entities) {
+      const auto it = positions_.find(e.name);
+      if (it == positions_.end()) {
+        missing += (missing.empty() ? "" : ", ") + e.name;
+        continue;
+      }
+      out.push_back(it->second);
+      stale += stale_.at(e.name) ? 1 : 0;
+    }
+    return missing.empty();
+  }
+
+  void onTimer(const ros::TimerEvent&) {
+    if (!recorder_->recording() || !latest_ || latest_->header.stamp <= last_row_) return;
+    std::vector<Eigen::Vector2d> p;
+    std::string missing;
+    int stale = 0;
+    if (!currentPositions(p, missing, stale)) return;
+    try {
+      if (recorder_->addRow(latest_->header.stamp.toSec(), p)) {
+        last_row_ = latest_->header.stamp;
+        if (stale > 0) ++stale_rows_;
+      }
+    } catch (const Error& e) {
+      ROS_ERROR_THROTTLE(1.0, "recorder_node: %s", e.what());
+    }
+  }
+
+  bool onStart(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+    std::vector<Eigen::Vector2d> p;
+    std::string missing;
+    int stale = 0;
+    if (recorder_->recording()) {
+      res.message = "already recording " + path_ + " (stop or discard it first)";
+    } else if (!latest_) {
+      res.message = "no /ddace/entities received yet (is the tracker running?)";
+    } else if (!currentPositions(p, missing, stale)) {
+      res.message = "not every entity has been seen yet: " + missing + " (are their markers visible?)";
+    } else {
+      try {
+        t0_ = latest_->header.stamp;
+        path_ = recorder_->start(t0_.toSec());
+        recorder_->addRow(t0_.toSec(), p);
+        last_row_ = t0_;
+        stale_rows_ = stale > 0 ? 1 : 0;
+        res.success = true;
+        res.message = "recording " + path_;
+      } catch (const Error& e) {
+        res.message = e.what();
+      }
+    }
+    setState(res.message);
+    return true;
+  }
+
+  bool onStop(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+    if (!recorder_->recording()) {
+      res.message = "not recording";
+    } else {
+      const size_t rows = recorder_->rows();
+      const double duration = recorder_->duration();
+      try {
+        const std::string path = recorder_->stop();
+        std::ostringstream os;
+        os.precision(9);
+        os << "saved " << path << ": " << rows << " rows, " << duration << " s, start stamp " << std::fixed
+           << t0_.toSec();
+        if (stale_rows_ > 0) os << "; WARNING: " << stale_rows_ << " rows hold a stale pose";
+        res.message = os.str();
+        res.success = true;
+      } catch (const Error& e) {
+        res.message = std::string("not saved: ") + e.what();
+      }
+    }
+    setState(res.message);
+    return true;
+  }
+
+  bool onDiscard(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+    if (!recorder_->recording()) {
+      res.message = "not recording";
+    } else {
+      recorder_->discard();
+      res.success = true;
+      res.message = "discarded " + path_;
+    }
+    setState(res.message);
+    return true;
+  }
+
+  vision::RecorderConfig config_;
+  std::unique_ptr<vision::DemoRecorder> recorder_;
+  ros::Publisher state_pub_;
+  ros::Subscriber entities_sub_, labels_sub_;
+  ros::ServiceServer start_srv_, stop_srv_, discard_srv_;
+  ros::Timer timer_;
+  ddace::EntityArray::ConstPtr latest_;
+  std::map<std::string, Eigen::Vector2d> positions_;
+  std::map<std::string, bool> stale_;
+  ros::Time t0_, last_row_;
+  std::string path_;
+  long stale_rows_ = 0;
+};
+
+RecorderNode::RecorderNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}
+
+RecorderNode::~RecorderNode() = default;
+
+}  // namespace ddace::nodes

@@ -1,0 +1,143 @@
+// SequenceNode: see include/ddace/ros/sequence.h.
+#include "ddace/ros/sequence.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <functional>
+#include <memory>
+
+#include <ros/ros.h>
+
+#include <ddace/Decision.h>
+#include <ddace/DecisionRequest.h>
+
+#include "exec_conversions.h"
+#include "params.h"
+#include "ddace/exec/replay.h"
+#include "ddace/tgn/sequence_model.h"
+
+namespace ddace {
+namespace {
+
+/// The n-th demonstration CSV of a task directory (file-name order).
+std::string demoFile(const std::string& task_dir, int index, const std::string& param_name) {
+  std::vector<std::string> files;
+  const auto demos = std::filesystem::path(task_dir) / "demos";
+  if (!std::filesystem::is_directory(demos)) throw Error(Diagnostic{demos.string(), 0, 0, "no demos/ directory"});
+  for (const auto& f : std::filesystem::directory_iterator(demos))
+    if (f.path().extension() == ".csv") files.push_back(f.path().string());
+  std::sort(files.begin(), files.end());
+  if (index < 0 || index >= static_cast<int>(files.size()))
+    throw Error("parameter '" + param_name + "' = " + std::to_string(index) + " but " + demos.string() + " has " +
+                std::to_string(files.size()) + " demonstrations");
+  return files[index];
+}
+
+}  // namespace
+}  // namespace ddace
+
+namespace ddace::nodes {
+
+class SequenceNode::Impl {
+ public:
+  Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
+    const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
+    spec_ = ros_exec::loadTaskSpec(task_path);
+    const std::string policy = rosparam::param<std::string>(pnh, "policy", "replay");
+    if (policy == "model") {
+      const std::string dir = rosparam::param<std::string>(pnh, "model", "");
+      if (dir.empty()) throw Error("policy 'model' needs parameter '" + pnh.resolveName("model") + "' (a model directory)");
+      model_ = std::make_unique<tgn::SequenceModel>(tgn::SequenceModel::load(dir));
+      if (model_->spec().entityNames() != spec_.entityNames())
+        throw Error("model " + dir + " was trained on other entities than the task " + task_path + " has");
+      policy_ = [this](const std::vector<task::Snapshot>& h) {
+        const tgn::Prediction p = model_->predictNext(h);
+        exec::Decision d;
+        d.end = p.end;
+        d.tokens = p.tokens;
+        last_probabilities_ = p.token_probabilities;
+        last_end_probability_ = p.end_probability;
+        return d;
+      };
+      ROS_INFO("sequence: model %s (variant %s)", dir.c_str(), model_->variant().c_str());
+    } else if (policy == "replay") {
+      std::string csv = rosparam::param<std::string>(pnh, "replay_csv", "");
+      if (csv.empty()) csv = demoFile(task_path, rosparam::param(pnh, "replay_demo", 0), pnh.resolveName("replay_demo"));
+      demo_ = task::readDemonstrationCsv(csv, spec_);
+      policy_ = [this](const std::vector<task::Snapshot>& h) { return exec::replayDecision(demo_, h); };
+      ROS_INFO("sequence: replaying the %zu steps of %s", demo_.steps.size(), csv.c_str());
+    } else {
+      throw Error("parameter '" + pnh.resolveName("policy") + "' = '" + policy + "': expected 'model' or 'replay'");
+    }
+    pub_ = nh.advertise<ddace::Decision>("/ddace/decision", 5);
+    sub_ = nh.subscribe("/ddace/decision_request", 5, &Impl::onRequest, this);
+  }
+
+ private:
+  void onRequest(const ddace::DecisionRequest& req) {
+    ddace::Decision out;
+    out.header.stamp = ros::Time::now();
+    out.id = req.id;
+    try {
+      // Map the request's entity order onto the task's.
+      const size_t n = spec_.entities.size();
+      std::vector<int> index(req.entity_names.size(), -1);
+      std::vector<bool> seen(n, false);
+      for (size_t k = 0; k < req.entity_names.size(); ++k) {
+        index[k] = spec_.entityIndex(req.entity_names[k]);
+        if (index[k] < 0) throw Error("request names entity '" + req.entity_names[k] + "', not in the task");
+        seen[index[k]] = true;
+      }
+      for (size_t i = 0; i < n; ++i)
+        if (!seen[i]) throw Error("request has no position of entity '" + spec_.entities[i].name + "'");
+      std::vector<task::Snapshot> history;
+      for (size_t s = 0; s < req.history.size(); ++s) {
+        const auto& snap = req.history[s];
+        if (snap.positions.size() != req.entity_names.size())
+          throw Error("snapshot " + std::to_string(s) + " has " + std::to_string(snap.positions.size()) +
+                      " positions for " + std::to_string(req.entity_names.size()) + " entities");
+        task::Snapshot t;
+        t.row = static_cast<int>(s);
+        t.positions.assign(n, Eigen::Vector2d::Zero());
+        for (size_t k = 0; k < snap.positions.size(); ++k) {
+          if (!std::isfinite(snap.positions[k].x) || !std::isfinite(snap.positions[k].y))
+            throw Error("snapshot " + std::to_string(s) + ": position of " + req.entity_names[k] + " is not finite");
+          t.positions[index[k]] = {snap.positions[k].x, snap.positions[k].y};
+        }
+        history.push_back(std::move(t));
+      }
+      if (history.empty()) throw Error("request has an empty snapshot history");
+      last_probabilities_.clear();
+      last_end_probability_ = -1;
+      const exec::Decision d = policy_(history);
+      out.end = d.end;
+      out.end_probability = last_end_probability_ >= 0 ? last_end_probability_ : (d.end ? 1.0 : 0.0);
+      for (size_t i = 0; i < d.tokens.size(); ++i)
+        out.tokens.push_back(ros_exec::toMsg(
+            d.tokens[i], spec_, i < last_probabilities_.size() ? last_probabilities_[i] : 1.0));
+      std::string line;
+      for (const auto& t : d.tokens) line += " " + task::tokenKey(t, spec_);
+      ROS_INFO("sequence: decision %u (step %d):%s", req.id, req.step + 1, d.end ? " END" : line.c_str());
+    } catch (const std::exception& e) {
+      out.error = e.what();
+      out.tokens.clear();
+      ROS_ERROR("sequence: decision request %u refused: %s", req.id, e.what());
+    }
+    pub_.publish(out);
+  }
+
+  task::TaskSpec spec_;
+  task::Demonstration demo_;
+  std::unique_ptr<tgn::SequenceModel> model_;
+  std::vector<double> last_probabilities_;
+  double last_end_probability_ = -1;
+  std::function<exec::Decision(const std::vector<task::Snapshot>&)> policy_;
+  ros::Publisher pub_;
+  ros::Subscriber sub_;
+};
+
+SequenceNode::SequenceNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}
+
+SequenceNode::~SequenceNode() = default;
+
+}  // namespace ddace::nodes
