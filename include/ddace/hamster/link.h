@@ -5,15 +5,24 @@
 // benchmark and tests without ROS):
 //   Searching → (open a candidate port) → Identifying (once the transport is no
 //   longer connecting(), send "FF\r", wait for the reply with our address) →
-//   Streaming (answer every valid sensor line with exactly one motoring line) →
-//   Lost (no valid line for link_timeout_s, or the port failed) → Searching again,
-//   starting with the port that worked. Failing to write any motoring line for
-//   link_timeout_s (flow control stuck) is a lost link too.
+//   Identified (the dongle answered for our robot; every valid sensor line is
+//   answered, but only the first one that is answered proves the robot is there) →
+//   Streaming (valid sensor lines, each answered with exactly one motoring line) →
+//   Lost (no valid line for link_timeout_s, or no answer could be written for that
+//   long) → Streaming again when lines come back.
+// While Identified or Lost the port stays open and the link waits for lines, as the
+// reference clients do: a dongle re-links to its robot by itself, and reopening a
+// serial port drops DTR/RTS (HUPCL) every time. Only a hang-up or an I/O error
+// closes the port (→ Searching, starting with the port that worked). A direct BLE
+// connection has no dongle to re-link it: there, Lost reconnects.
 // A robot with transport Ble has one candidate port, bleEndpoint(adapter, address).
 // Safety: the wheels sent are the latest command converted with the calibration
 // only while that command is younger than command_timeout_s; otherwise zero. A
-// command is never extrapolated. On link loss a zero-wheel line is sent best-effort
-// before the port is closed.
+// command stamped more than command_max_age_s ago (or ahead) is refused. A command
+// is never extrapolated. On link loss a zero-wheel line is sent best-effort.
+// Reporting: warnings for the user (a port that carries a robot of no configured
+// address, a search that found nothing, a missing port directory) are queued for
+// takeWarnings(); health() is the diagnostics' level and summary.
 // Must not: block (every call returns at once), read a clock (time is passed in),
 // or touch ROS.
 #pragma once
@@ -41,10 +50,14 @@ class PortDirectory {
   void remember(const std::string& canonical, const Address& address);
   /// The address last identified on this port, if any.
   std::optional<Address> known(const std::string& canonical) const;
+  /// True the first time `message` is offered (warnings shared by the links of one
+  /// bridge: a foreign robot on a port is reported once, not once per link and scan).
+  bool firstTime(const std::string& message);
 
  private:
   std::set<std::string> claimed_;
   std::vector<std::pair<std::string, Address>> known_;
+  std::set<std::string> reported_;
 };
 
 /// The transport factory for one robot: serial ports (with the bridge's rtscts) or,
@@ -52,8 +65,22 @@ class PortDirectory {
 /// in a build without DDACE_WITH_BLE (the config parser refuses that earlier).
 TransportFactory transportFactoryFor(const RobotConfig& robot, const BridgeConfig& bridge);
 
-enum class LinkState { Searching, Identifying, Streaming };
+enum class LinkState {
+  Searching,    ///< no port open
+  Identifying,  ///< port open, "FF" sent, waiting for the reply with our address
+  Identified,   ///< the dongle answered for our robot; no sensor line answered yet
+  Streaming,    ///< sensor lines arrive and are answered
+  Lost,         ///< was streaming; no valid line (or no answer written) for link_timeout_s
+};
+/// "searching", "identifying", "identified, no sensor line", "streaming", "lost".
 std::string linkStateName(LinkState state);
+
+/// What the diagnostics say about a link (diagnostic_msgs levels OK/WARN/ERROR).
+struct LinkHealth {
+  enum class Level { Ok, Warn, Error };
+  Level level = Level::Error;
+  std::string summary;
+};
 
 /// Counters since the link object was created.
 struct LinkStats {
@@ -66,6 +93,7 @@ struct LinkStats {
   uint64_t link_losses = 0;        ///< times Streaming was left
   uint64_t stale_command_cycles = 0;  ///< cycles answered with zero wheels because no fresh command
   uint64_t saturated_cycles = 0;   ///< cycles whose command exceeded max_units (scaled down)
+  uint64_t refused_commands = 0;   ///< wheel commands refused (stale stamp, not finite)
   std::string last_drop_reason;    ///< why the last line was dropped
   std::string last_error;          ///< last port/identification problem
 };
@@ -86,9 +114,12 @@ class RobotLink {
 
   const RobotConfig& robot() const { return robot_; }
 
-  /// Latest wheel ground speeds (m/s) received at now_s. Throws ddace::Error for a
-  /// non-finite speed (the previous command stays and ages out).
-  void setWheelCommand(double left_mps, double right_mps, double now_s);
+  /// Latest wheel ground speeds (m/s) received at now_s. `stamp_age_s` is how old the
+  /// command's own stamp is (its sender's clock, seconds; nullopt = unstamped). Throws
+  /// ddace::Error (and counts a refused command; the previous command stays and ages
+  /// out) for a non-finite speed or a stamp more than command_max_age_s old or ahead.
+  void setWheelCommand(double left_mps, double right_mps, double now_s,
+                       std::optional<double> stamp_age_s = std::nullopt);
   /// Forgets the command at once (e.g. e-stop): the next cycle sends zero wheels.
   void clearCommand();
   /// LEDs and sound; kept until changed (no timeout: they cannot move the robot).
@@ -110,6 +141,15 @@ class RobotLink {
   int fd() const;
   /// Time of the last valid sensor line (monotonic s), negative before the first.
   double lastLineTime() const { return last_line_s_; }
+  /// Battery voltage, the mean of the last battery_samples readings; NaN before the first.
+  double batteryV() const;
+  /// Level and summary for the diagnostics at now_s. `losses_since_report`: link
+  /// losses since the previous report (a link that flapped shows even if it is up).
+  /// ERROR whenever the robot is not reached (not Streaming) and for an empty battery;
+  /// WARN for a low battery or losses since the last report; OK otherwise.
+  LinkHealth health(double now_s, uint64_t losses_since_report) const;
+  /// Warnings for the user queued since the last call (each one once).
+  std::vector<std::string> takeWarnings();
 
  private:
   void startSearch(double now_s);
@@ -119,9 +159,16 @@ class RobotLink {
   void sendStop() noexcept;
   void handleLine(std::string_view line, double now_s, std::vector<CycleReport>& reports);
   void drop(const std::string& why);
+  /// The link stopped streaming: zero wheels, then wait on the port (dongle) or reconnect (BLE).
+  void loseLink(const std::string& why, double now_s);
+  /// A robot at `address` answers on the open port: not ours. Remembers it, warns
+  /// when no robot of this bridge has that address, and moves on to the next port.
+  void foreignRobot(const Address& address, double now_s);
+  void warn(const std::string& message);
 
   RobotConfig robot_;
   BridgeConfig bridge_;
+  std::set<std::string> bridge_addresses_;  // wire form of every robot of the bridge
   std::shared_ptr<PortDirectory> ports_;
   TransportFactory factory_;
   std::unique_ptr<Transport> transport_;
@@ -140,6 +187,11 @@ class RobotLink {
   int identify_sent_ = 0;
   double last_line_s_ = -1.0;
   double last_write_s_ = -1.0;
+  double lost_s_ = -1.0;
+  std::vector<std::string> searched_;        // what each port of the current pass said
+  std::vector<std::string> warnings_;
+  std::vector<double> battery_;              // last battery_samples readings, V
+  size_t battery_next_ = 0;
 
   bool has_command_ = false;
   double command_left_mps_ = 0.0, command_right_mps_ = 0.0, command_s_ = 0.0;

@@ -4,7 +4,7 @@
 // 20-byte sensor payload of the original Hamster (model code 0x04) and the Hamster-S
 // (0x0E); the text framing (40 upper-case hex digits, '-', 12-hex-digit robot
 // address, CR); the `FF` identification reply; line reassembly from a byte stream.
-// Facts and sources: shared/design/hamster-protocol.md (our own implementation).
+// Facts and their public sources: docs/hamster-protocol.md (our own implementation).
 //
 // Must not: touch a file descriptor, a clock or ROS. Parsing never throws and never
 // crashes on any input: a malformed line is reported as LineKind::Malformed with a

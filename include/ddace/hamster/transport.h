@@ -31,7 +31,9 @@ class Transport {
   /// (device unplugged, hang-up); the caller then closes and reopens.
   virtual size_t read(char* buf, size_t size) = 0;
   /// Writes all bytes or throws ddace::Error. A full output queue (flow control
-  /// holding us back) throws too: a stale command must never be queued for later.
+  /// holding us back) throws too: a stale command must never be queued for later,
+  /// and a line that went out only in part is discarded from the queue (TCOFLUSH),
+  /// so the next line reaches the dongle whole.
   virtual void write(const char* data, size_t size) = 0;
   /// Drops unread input and unsent output.
   virtual void flush() = 0;

@@ -1,18 +1,20 @@
-// Recording demonstrations as ddace-task/1 (shared/spec/task-format.md): a task
-// directory with task.yaml and one demos/demo_NNN.csv per demonstration.
+// Recording demonstrations as ddace-task/1 (docs/task-format.md): a task directory
+// with task.yaml and one demos/demo_NNN.csv per demonstration.
 //
-// Crash safety: rows go to demos/demo_NNN.csv.partial, flushed (and fdatasync'ed) at
-// least every `flush_period_s`; stop() checks the file with the task module's reader
-// and renames it to demo_NNN.csv. A recorder that is killed leaves the .partial
-// file, which holds whole rows only and is readable as a CSV; `ddace validate`
-// reports it as a partial recording (rename it to .csv to use it, or delete it).
+// Crash safety: rows go to demos/demo_NNN.csv.partial, each row (the first one with
+// the header) built in the recorder's own buffer and handed to the kernel in one
+// write(2), never through stdio, so the file never ends inside a row, whenever the
+// process dies; fdatasync at least every `flush_period_s` bounds what a power loss
+// takes. stop() checks the file with the task module's reader and renames it to
+// demo_NNN.csv. A recorder that is killed leaves the .partial file, whole rows only,
+// a valid CSV once renamed to .csv (empty when it died before the first row);
+// `ddace validate` reports it as a partial recording (rename it to use it, or delete it).
 //
 // Owns: task.yaml from the configuration, the CSV rows, the current labels.
 // Must not: know about ROS or the tracker (recorder_node feeds it).
 // Units: seconds (any monotonic clock; the CSV's t starts at 0), metres, table frame.
 #pragma once
 
-#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -46,9 +48,9 @@ class DemoRecorder {
   DemoRecorder(const DemoRecorder&) = delete;
   DemoRecorder& operator=(const DemoRecorder&) = delete;
 
-  /// Starts demo_NNN (the next free number) at time `t0`: writes the header of the
-  /// .partial file, every label null. Returns the final .csv path. Throws when already
-  /// recording or the file cannot be created.
+  /// Starts demo_NNN (the next free number) at time `t0`: creates the .partial file
+  /// (its header goes out with the first row), every label null. Returns the final
+  /// .csv path. Throws when already recording or the file cannot be created.
   std::string start(double t0);
   /// Sets the label of `entity` from now on. action "" or "idle" = none; target ""
   /// = none. Throws ddace::Error (and changes nothing) when the entity is unknown or
@@ -57,18 +59,19 @@ class DemoRecorder {
   void setLabel(const std::string& entity, const std::string& action, const std::string& target);
   /// Every entity's label back to none.
   void clearLabels();
-  /// Appends a row at time `t` with the positions of every entity (task order).
-  /// Rows whose t is not after the previous row's are dropped (returns false).
+  /// Appends a row at time `t` with the positions of every entity (task order): one
+  /// write(2) of the whole row. Rows whose t is not after the previous row's are
+  /// dropped (returns false). Throws ddace::Error naming the file when the write fails.
   bool addRow(double t, const std::vector<Eigen::Vector2d>& positions);
   /// Flushes, re-reads the file with the task module (errors keep it .partial and
   /// throw), renames it to .csv and returns that path.
   std::string stop();
   /// Stops and deletes the current recording.
   void discard();
-  /// Writes buffered rows to the disk now.
+  /// Forces the rows written so far to the disk now (fdatasync).
   void flush();
 
-  bool recording() const { return file_ != nullptr; }
+  bool recording() const { return fd_ >= 0; }
   size_t rows() const { return rows_; }
   /// Seconds since start() of the last row.
   double duration() const { return last_t_; }
@@ -83,7 +86,11 @@ class DemoRecorder {
   task::TaskSpec spec_;
   std::string dir_;
   double flush_period_s_;
-  std::FILE* file_ = nullptr;
+  void writeWhole(const std::string& bytes);
+  void closeFile();
+
+  int fd_ = -1;
+  std::string header_;  // written with the first row
   std::string partial_path_, final_path_;
   std::vector<task::Label> labels_;
   double t0_ = 0, last_t_ = -1, last_flush_ = 0;

@@ -6,14 +6,15 @@
 // mapped into the plane (never a 3-D pose: those flip for a marker facing the camera).
 //
 // Two ways to get the homography: from four corner markers at known table positions
-// (re-estimated whenever all four are seen), or from a calibrated camera and the pose
-// of the table plane in the camera frame.
+// (re-estimated whenever all four are seen, checked by its reprojection error), or
+// from a calibrated camera and the pose of the table plane in the camera frame.
 //
 // Owns: image <-> table mapping, undistortion, marker height (parallax) correction.
 // Must not: detect markers or filter poses.
 #pragma once
 
 #include <optional>
+#include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -27,6 +28,7 @@ struct CameraModel {
   cv::Matx33d K = cv::Matx33d::eye();
   std::vector<double> D;  ///< k1 k2 p1 p2 [k3 ...]; empty = no distortion
   bool valid = false;     ///< false: intrinsics unknown (homography-only mode)
+  cv::Size image_size;    ///< the calibrated image size; 0 x 0 = not known (any size accepted)
 
   /// Removes lens distortion: returns the pixel an ideal pinhole camera with the same
   /// K would see. Identity when D is empty or the model is not valid.
@@ -44,8 +46,15 @@ struct CornerMarker {
   cv::Point2d table_xy;  ///< metres, table frame
 };
 
+struct TableFit;
+
 class TableFrame {
  public:
+  /// Least-squares homography from the 4 centres and 16 corners of the corner markers
+  /// (undistorted pixels) to the table, with its reprojection error. `corner_size_m`
+  /// is the edge of their black squares.
+  static TableFit fitCornerMarkers(const std::vector<Detection>& detections, const std::vector<CornerMarker>& corners,
+                                   double corner_size_m);
   /// Homography from the centres of four corner markers (undistorted pixels) to their
   /// table positions. nullopt unless all four are among `detections` and they are in
   /// general position (no three collinear in the image).
@@ -55,6 +64,10 @@ class TableFrame {
   /// (X_cam = R * X_table + t, metres). Throws ddace::Error when the table plane is
   /// behind the camera or K is singular.
   static TableFrame fromCameraPose(const cv::Matx33d& K, const cv::Matx33d& R, const cv::Vec3d& t);
+  /// The same from [x y z roll pitch yaw] (metres, radians; R = Rz(yaw) Ry(pitch) Rx(roll)),
+  /// the form of tracker_node's ~table_in_camera. Throws ddace::Error naming `what`
+  /// unless there are 6 finite numbers.
+  static TableFrame fromCameraPose(const cv::Matx33d& K, const std::vector<double>& xyz_rpy, const std::string& what);
 
   /// Table point (metres, on the plane z = 0) of an undistorted pixel.
   cv::Point2d imageToTable(const cv::Point2d& px) const;
@@ -81,6 +94,35 @@ class TableFrame {
   cv::Matx33d Hinv_ = cv::Matx33d::eye();  // table -> pixel
   std::optional<cv::Vec3d> camera_center_;
 };
+
+/// A table frame fitted to the four corner markers, and how well it fits.
+struct TableFit {
+  std::optional<TableFrame> frame;  ///< nullopt: not all four seen, or degenerate
+  /// Largest distance (undistorted pixels) between the 20 detected points (4 centres, 16
+  /// square corners) and the same points of the fitted model: the centres at their
+  /// configured table positions, each square of edge corner_size_m around its centre.
+  /// Large when a configured position or corner_size is wrong or a corner misdetected.
+  double reprojection_px = 0;
+};
+
+/// What raised markers cost without intrinsics: without them the tracker cannot
+/// correct parallax, and a marker `height_m` above the table appears shifted away from
+/// the camera's nadir by height / camera height x its distance from the nadir.
+struct ParallaxEstimate {
+  double max_error_m = 0;      ///< largest shift over the working area (the corner markers' hull)
+  double camera_height_m = 0;  ///< estimated camera height above the table
+  double focal_px = 0;         ///< focal length used
+  bool focal_assumed = false;  ///< true: the homography could not give the focal length
+                               ///< (camera looking straight down), a 60 deg field of view was assumed
+};
+
+/// Estimates the camera from a homography alone (principal point at the image
+/// centre, square pixels: the focal length follows from the table's axes being
+/// perpendicular) and the shift of a marker `height_m` up at the worst point of `area`
+/// (table points, metres). nullopt when no consistent camera fits.
+std::optional<ParallaxEstimate> estimateParallaxWithoutIntrinsics(const TableFrame& frame, const cv::Size& image,
+                                                                  double height_m,
+                                                                  const std::vector<cv::Point2d>& area);
 
 /// Wraps an angle into (-pi, pi].
 double wrapAngle(double a);

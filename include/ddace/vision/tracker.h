@@ -2,14 +2,16 @@
 // camera frame. ROS-free; tracker_node wraps it.
 //
 // Search strategy: a full-frame pass every `roi.full_frame_every` frames (and whenever
-// the table frame is not known yet); in between, only regions around the last
-// pixel position of every known marker (corner markers included) are searched.
-// The region of a marker that is not found grows with the time since it was last seen
-// (a robot under a hand drives on); a marker that left its region anyway is found
-// again at the next full-frame pass. Corner
-// markers are searched like the others (set roi.track_corners false to search them on
-// full-frame passes only). With a decimating AprilTag detector, a marker missing
-// near its last position is looked for again there at full resolution.
+// the table frame is not known yet); in between, only regions around every marker
+// seen within filter.hold_s (corner markers included). A region covers the marker's
+// last position and the one its pixel velocity predicts, grown by roi.margin and by
+// filter.max_speed x the time since the marker was seen: every position the pose
+// filter would accept is searched, in the very next frame too when a marker was
+// missed. When the regions would cover most of the image the whole frame is
+// searched instead. Corner markers are searched like the others (set
+// roi.track_corners false to search them on full-frame passes only). With a
+// decimating AprilTag detector, a marker missing near its last position is looked
+// for again there at full resolution.
 //
 // Configuration comes from two commented YAML files: config/markers.yaml (which
 // markers exist: family, corner markers, entity markers) and config/tracker.yaml
@@ -61,8 +63,16 @@ struct RoiConfig {
   int min_margin_px = 12;     ///< ... but at least this many pixels
   bool track_corners = true;  ///< also search the corner markers between full-frame passes
                               ///< (false: the table frame is re-estimated on full-frame passes only)
-  double lost_growth_mps = 0.3;  ///< the region of a marker not seen grows by this speed
-                                 ///< times the time since it was last seen
+  // Regions grow at FilterConfig::max_speed_mps: one parameter for "how fast can a
+  // marker move", so the search never loses what the filter would accept.
+};
+
+/// The table frame from the corner markers.
+struct TableConfig {
+  double max_reprojection_px = 1.5;  ///< a fit whose largest reprojection error exceeds this is refused
+  double smoothing = 0.2;            ///< per-frame gain of the corner markers' image positions
+                                     ///< (1 = the last frame only); reset when one jumps by
+                                     ///< more than max_reprojection_px (the camera moved)
 };
 
 /// config/tracker.yaml (plus the markers).
@@ -71,7 +81,18 @@ struct TrackerConfig {
   DetectorConfig detector;  ///< backend/family copied from markers; tuning from tracker.yaml
   RoiConfig roi;
   FilterConfig filter;
+  TableConfig table;
 };
+
+/// Whether raised markers are corrected for parallax (needs intrinsics). Never
+/// switched off silently: FrameResult says which and why.
+enum class HeightCorrection {
+  On,                   ///< intrinsics given and consistent with the table frame
+  NoIntrinsics,         ///< no camera_info / calibration file: errors of height / camera height x distance
+  IntrinsicsDoNotFit,   ///< intrinsics given but the table frame contradicts them (wrong file?)
+};
+/// "on", "off: no intrinsics", "off: the intrinsics do not fit the table frame".
+std::string heightCorrectionName(HeightCorrection state);
 
 /// Parses markers.yaml text; `file` names it in diagnostics. Throws ddace::Error
 /// listing every problem as file:line:column (unknown keys, duplicate ids or names,
@@ -89,8 +110,11 @@ struct EntityState {
   task::EntityKind kind = task::EntityKind::Robot;
   PlanarPose pose;        ///< table frame; held while not visible
   bool visible = false;   ///< measured (and accepted) in this frame
-  bool stale = true;      ///< never seen, or not seen for longer than filter.hold_s
+  bool stale = true;      ///< never seen, not seen for longer than filter.hold_s, or held
+                          ///< while its speed says it may have moved more than
+                          ///< filter.max_drift: never publish it as a current pose
   double last_seen = 0;   ///< stamp of the last accepted measurement, seconds
+  double drift_m = 0;     ///< speed estimate x time since last seen (0 while visible)
 };
 
 struct FrameResult {
@@ -100,6 +124,12 @@ struct FrameResult {
   std::vector<Detection> detections; ///< every configured marker found, raw image pixels
   bool table_valid = false;          ///< a table frame is known
   bool table_updated = false;        ///< re-estimated from the corner markers in this frame
+  /// Largest reprojection error of this frame's corner-marker fit (pixels); -1 when no fit
+  /// was made (not all four seen, fixed table frame).
+  double table_reprojection_px = -1;
+  bool table_refused = false;        ///< this frame's fit exceeded table.max_reprojection_px (the
+                                     ///< previous table frame, if any, is kept)
+  HeightCorrection height_correction = HeightCorrection::NoIntrinsics;
   std::vector<EntityState> entities; ///< in MarkerConfig::entities order
 };
 
@@ -109,9 +139,16 @@ class Tracker {
   explicit Tracker(TrackerConfig config);
   ~Tracker();
 
-  /// Intrinsics and distortion (from camera_info). Enables undistortion and marker
-  /// height correction.
+  /// Intrinsics and distortion (camera_info or a calibration file). Enables
+  /// undistortion and marker height correction. Frames of another size than
+  /// camera.image_size (when set) are refused by process().
   void setCamera(const CameraModel& camera);
+  bool hasCamera() const { return camera_.valid; }
+  HeightCorrection heightCorrection() const;
+  /// Without intrinsics: the largest position error raised markers get (the highest
+  /// configured marker, over the corner markers' area), from the table frame and the
+  /// last image size. nullopt before the first table frame or with intrinsics.
+  std::optional<ParallaxEstimate> parallaxWithoutIntrinsics() const;
   /// Uses a fixed table frame (calibrated camera) instead of the corner markers.
   void setFixedTableFrame(const TableFrame& frame);
 
@@ -127,6 +164,8 @@ class Tracker {
  private:
   /// Search regions around the last positions (of the ids in `only`, when given).
   std::vector<cv::Rect> regions(const cv::Size& size, double stamp, const std::set<int>* only = nullptr) const;
+  /// Re-fits the table frame when all corner markers are among `undistorted`.
+  void updateTable(const std::vector<Detection>& undistorted, FrameResult& result);
 
   TrackerConfig config_;
   std::unique_ptr<FiducialDetector> detector_;
@@ -137,12 +176,15 @@ class Tracker {
   std::vector<PoseFilter> filters_;
   std::map<int, Detection> last_seen_px_;  // id -> last raw detection (region search)
   std::map<int, double> last_seen_t_;      // id -> stamp of that detection
-  double previous_stamp_ = 0;              // stamp of the previous frame
+  std::map<int, cv::Point2d> velocity_px_; // id -> pixel velocity from its last two detections, px/s
+  std::map<int, Detection> corner_average_;  // corner marker id -> smoothed undistorted detection
+  cv::Size image_size_;
   long frames_ = 0;
   cv::Mat gray_;
 };
 
-/// Merges overlapping rectangles until none overlap (the union of each cluster).
+/// Merges overlapping rectangles into their bounding box wherever that box is at most
+/// 1.5 times their areas together (overlaps may remain; a marker is then searched twice).
 std::vector<cv::Rect> mergeRegions(std::vector<cv::Rect> rects);
 
 }  // namespace ddace::vision

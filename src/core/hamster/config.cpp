@@ -92,7 +92,23 @@ bool parseAdapter(YamlChecker& c, const YAML::Node& node, const std::string& wha
   return true;
 }
 
-RobotConfig parseRobot(YamlChecker& c, const YAML::Node& node, size_t index, const RobotConfig& defaults) {
+// An optional integer key in 1..max (a fraction or a word is an error, never truncated).
+void positiveInteger(YamlChecker& c, const YAML::Node& node, const std::string& what, int max, int& out) {
+  if (!node) return;
+  double v = 0;
+  if (!c.number(node, what, v)) return;
+  if (v < 1 || v > max || v != std::floor(v)) {
+    c.error(node, what + " must be an integer in 1.." + std::to_string(max) + " (got " + node.Scalar() + ")");
+    return;
+  }
+  out = static_cast<int>(v);
+}
+
+// `address_ok` tells whether the robot's address parsed (a bad one is reported here
+// and must not be compared with the others).
+RobotConfig parseRobot(YamlChecker& c, const YAML::Node& node, size_t index, const RobotConfig& defaults,
+                       bool& address_ok) {
+  address_ok = false;
   RobotConfig r;
   r.transport = defaults.transport;
   r.ble_adapter = defaults.ble_adapter;
@@ -120,6 +136,7 @@ RobotConfig parseRobot(YamlChecker& c, const YAML::Node& node, size_t index, con
                                    "' is neither 12 hex digits (wire order) nor AA:BB:CC:DD:EE:FF");
     } else {
       r.address = *a;
+      address_ok = true;
     }
   }
   if (node["model"]) {
@@ -199,8 +216,9 @@ BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& 
   BridgeConfig cfg;
   cfg.scan = defaultScanPatterns();
   c.onlyKeys(root,
-             {"port_dir", "scan", "rtscts", "command_timeout_s", "link_timeout_s", "identify_interval_s",
-              "identify_retries", "rescan_interval_s", "transport", "ble_adapter", "ble_connect_timeout_s", "robots"},
+             {"port_dir", "scan", "rtscts", "command_timeout_s", "command_max_age_s", "link_timeout_s",
+              "identify_interval_s", "identify_retries", "rescan_interval_s", "transport", "ble_adapter",
+              "ble_connect_timeout_s", "battery_low_v", "battery_empty_v", "battery_samples", "robots"},
              "the Hamster config");
   RobotConfig defaults;  // transport and adapter for robots that do not set their own
   if (root["transport"]) parseTransport(c, root["transport"], "transport", defaults.transport);
@@ -217,9 +235,14 @@ BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& 
     c.positive(root["identify_interval_s"], "identify_interval_s", cfg.identify_interval_s);
   }
   if (root["rescan_interval_s"]) c.positive(root["rescan_interval_s"], "rescan_interval_s", cfg.rescan_interval_s);
-  double retries = cfg.identify_retries;
-  if (root["identify_retries"] && c.positive(root["identify_retries"], "identify_retries", retries)) {
-    cfg.identify_retries = static_cast<int>(retries);
+  if (root["command_max_age_s"]) c.positive(root["command_max_age_s"], "command_max_age_s", cfg.command_max_age_s);
+  positiveInteger(c, root["identify_retries"], "identify_retries", 1000, cfg.identify_retries);
+  positiveInteger(c, root["battery_samples"], "battery_samples", 1000, cfg.battery_samples);
+  if (root["battery_low_v"]) c.positive(root["battery_low_v"], "battery_low_v", cfg.battery_low_v);
+  if (root["battery_empty_v"]) c.positive(root["battery_empty_v"], "battery_empty_v", cfg.battery_empty_v);
+  if (root["battery_empty_v"] && cfg.battery_empty_v >= cfg.battery_low_v) {
+    c.error(root["battery_empty_v"], "battery_empty_v (" + std::to_string(cfg.battery_empty_v) +
+                                         ") must be below battery_low_v (" + std::to_string(cfg.battery_low_v) + ")");
   }
   const YAML::Node robots = root["robots"];
   if (!robots) {
@@ -229,11 +252,12 @@ BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& 
   } else {
     std::map<std::string, size_t> names, addresses;
     for (size_t i = 0; i < robots.size(); ++i) {
-      RobotConfig r = parseRobot(c, robots[i], i, defaults);
+      bool address_ok = false;
+      RobotConfig r = parseRobot(c, robots[i], i, defaults, address_ok);
       if (!r.name.empty() && !names.emplace(r.name, i).second) {
         c.error(robots[i]["name"], "robot name '" + r.name + "' is used twice");
       }
-      if (robots[i].IsMap() && robots[i]["address"] && !addresses.emplace(r.address.wire(), i).second) {
+      if (address_ok && !addresses.emplace(r.address.wire(), i).second) {
         c.error(robots[i]["address"], "address " + r.address.display() + " of robot " + r.name +
                                           " is also used by robots[" + std::to_string(addresses[r.address.wire()]) +
                                           "]");

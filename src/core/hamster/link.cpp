@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <numeric>
+#include <utility>
 
 #include "ddace/common/error.h"
 #if DDACE_WITH_BLE
@@ -24,6 +28,8 @@ void PortDirectory::remember(const std::string& canonical, const Address& addres
   known_.emplace_back(canonical, address);
 }
 
+bool PortDirectory::firstTime(const std::string& message) { return reported_.insert(message).second; }
+
 std::optional<Address> PortDirectory::known(const std::string& canonical) const {
   for (const auto& [port, a] : known_) {
     if (port == canonical) return a;
@@ -44,7 +50,9 @@ std::string linkStateName(LinkState state) {
   switch (state) {
     case LinkState::Searching: return "searching";
     case LinkState::Identifying: return "identifying";
+    case LinkState::Identified: return "identified, no sensor line";
     case LinkState::Streaming: return "streaming";
+    case LinkState::Lost: return "lost";
   }
   return "?";
 }
@@ -52,12 +60,14 @@ std::string linkStateName(LinkState state) {
 RobotLink::RobotLink(RobotConfig robot, const BridgeConfig& bridge, std::shared_ptr<PortDirectory> ports,
                      TransportFactory factory)
     : robot_(std::move(robot)), bridge_(bridge), ports_(std::move(ports)), factory_(std::move(factory)) {
+  for (const auto& r : bridge_.robots) bridge_addresses_.insert(r.address.wire());
+  bridge_addresses_.insert(robot_.address.wire());
   bridge_.robots.clear();
   model_ = robot_.model;
 }
 
 RobotLink::~RobotLink() {
-  if (transport_ && state_ == LinkState::Streaming) sendStop();  // leave the robot standing still
+  if (transport_ && (state_ == LinkState::Streaming || state_ == LinkState::Lost)) sendStop();  // leave it standing
   if (transport_) transport_->close();
   if (!canonical_.empty()) ports_->release(canonical_);
 }
@@ -73,9 +83,20 @@ void RobotLink::sendStop() noexcept {
   }
 }
 
-void RobotLink::setWheelCommand(double left_mps, double right_mps, double now_s) {
-  // Validates (throws on NaN/inf, missing calibration) before replacing the command.
-  wheelUnitsFromSpeeds(robot_.calibration, left_mps, right_mps);
+void RobotLink::setWheelCommand(double left_mps, double right_mps, double now_s, std::optional<double> stamp_age_s) {
+  // Validates (throws on NaN/inf, missing calibration, a stale stamp) before replacing the command.
+  try {
+    if (stamp_age_s && !(std::abs(*stamp_age_s) <= bridge_.command_max_age_s)) {
+      char why[160];
+      std::snprintf(why, sizeof why, "command stamped %.3f s %s (more than command_max_age_s %.3f s)",
+                    std::abs(*stamp_age_s), *stamp_age_s >= 0 ? "ago" : "in the future", bridge_.command_max_age_s);
+      throw Error(why);
+    }
+    wheelUnitsFromSpeeds(robot_.calibration, left_mps, right_mps);
+  } catch (const Error&) {
+    ++stats_.refused_commands;
+    throw;
+  }
   command_left_mps_ = left_mps;
   command_right_mps_ = right_mps;
   command_s_ = now_s;
@@ -96,6 +117,50 @@ std::string RobotLink::port() const { return transport_ ? transport_->name() : s
 
 int RobotLink::fd() const { return transport_ ? transport_->fd() : -1; }
 
+void RobotLink::warn(const std::string& message) {
+  if (ports_->firstTime(robot_.name + ": " + message)) warnings_.push_back(message);
+}
+
+std::vector<std::string> RobotLink::takeWarnings() { return std::exchange(warnings_, {}); }
+
+double RobotLink::batteryV() const {
+  if (battery_.empty()) return std::nan("");
+  return std::accumulate(battery_.begin(), battery_.end(), 0.0) / static_cast<double>(battery_.size());
+}
+
+LinkHealth RobotLink::health(double now_s, uint64_t losses_since_report) const {
+  using Level = LinkHealth::Level;
+  const std::string why = stats_.last_error.empty() ? std::string() : ": " + stats_.last_error;
+  char buf[256];
+  switch (state_) {
+    case LinkState::Searching: return {Level::Error, "robot unreachable, no port (wheels not driven)" + why};
+    case LinkState::Identifying: return {Level::Error, "robot unreachable, identifying on " + port()};
+    case LinkState::Identified:
+      return {Level::Error, "robot unreachable: the dongle on " + port() +
+                                " answers for it but no sensor line came (robot off or out of range?)"};
+    case LinkState::Lost:
+      std::snprintf(buf, sizeof buf, "robot unreachable for %.1f s, waiting on %s (wheels zeroed)", now_s - lost_s_,
+                    port().c_str());
+      return {Level::Error, buf + why};
+    case LinkState::Streaming: break;
+  }
+  const double v = batteryV();
+  if (v < bridge_.battery_empty_v) {
+    std::snprintf(buf, sizeof buf, "streaming, battery empty (%.2f V < %.2f V)", v, bridge_.battery_empty_v);
+    return {Level::Error, buf};
+  }
+  if (losses_since_report > 0) {
+    std::snprintf(buf, sizeof buf, "streaming, but the link was lost %llu times since the last report",
+                  static_cast<unsigned long long>(losses_since_report));
+    return {Level::Warn, buf};
+  }
+  if (v < bridge_.battery_low_v) {
+    std::snprintf(buf, sizeof buf, "streaming, battery low (%.2f V < %.2f V)", v, bridge_.battery_low_v);
+    return {Level::Warn, buf};
+  }
+  return {Level::Ok, "streaming"};
+}
+
 void RobotLink::drop(const std::string& why) {
   ++stats_.lines_dropped;
   stats_.last_drop_reason = why;
@@ -108,6 +173,11 @@ void RobotLink::startSearch(double now_s) {
     next_candidate_ = 0;
     next_search_s_ = now_s;
     return;
+  }
+  std::error_code ec;
+  if (!std::filesystem::is_directory(bridge_.port_dir.empty() ? "/dev" : bridge_.port_dir, ec)) {
+    stats_.last_error = "port directory " + bridge_.port_dir + " does not exist";
+    warn(stats_.last_error + " (port_dir in the config or ~port_dir); still looking");
   }
   std::vector<std::string> patterns = robot_.port_hints;
   candidates_ = expandPorts(patterns, bridge_.port_dir);
@@ -134,19 +204,24 @@ void RobotLink::startSearch(double now_s) {
   candidates_ = std::move(sorted);
   next_candidate_ = 0;
   next_search_s_ = now_s;
+  searched_.clear();
 }
 
 void RobotLink::tryNextPort(double now_s) {
   while (next_candidate_ < candidates_.size()) {
     const std::string path = candidates_[next_candidate_++];
     const std::string canonical = canonicalPort(path);
-    if (!ports_->claim(canonical)) continue;  // another robot's link holds it
+    if (!ports_->claim(canonical)) {  // another robot's link holds it
+      searched_.push_back(path + " (held by another robot of this bridge)");
+      continue;
+    }
     auto transport = factory_(path);
     try {
       transport->open();
     } catch (const Error& e) {
       ports_->release(canonical);
       stats_.last_error = e.what();
+      searched_.push_back(path + " (" + e.what() + ")");
       continue;
     }
     transport_ = std::move(transport);
@@ -158,19 +233,51 @@ void RobotLink::tryNextPort(double now_s) {
     identify_sent_ = 0;
     return;
   }
-  // Every candidate tried: wait before scanning again (ports may appear later).
-  if (candidates_.empty() && stats_.last_error.empty()) {
-    stats_.last_error = "no candidate port (check port_hints/scan and port_dir " + bridge_.port_dir + ")";
+  // Every candidate tried: say where we looked, then wait before scanning again
+  // (ports may appear later).
+  std::string where;
+  for (const auto& s : searched_) where += (where.empty() ? "" : "; ") + s;
+  if (searched_.empty()) {
+    std::string patterns;
+    for (const auto& p : robot_.port_hints) patterns += (patterns.empty() ? "" : ", ") + p;
+    for (const auto& p : bridge_.scan) patterns += (patterns.empty() ? "" : ", ") + p;
+    stats_.last_error = "no port matches [" + patterns + "] under " + bridge_.port_dir;
+  } else {
+    stats_.last_error = "not found on " + std::to_string(searched_.size()) + " ports searched: " + where;
   }
+  warn("robot " + robot_.address.display() + " " + stats_.last_error);
   startSearch(now_s);
   next_search_s_ = now_s + bridge_.rescan_interval_s;
+}
+
+void RobotLink::loseLink(const std::string& why, double now_s) {
+  if (robot_.transport == TransportKind::Ble) {
+    closePort(why, now_s, true);  // counts the loss and sends the zero line
+    return;
+  }
+  ++stats_.link_losses;
+  sendStop();  // if the radio still reaches the robot
+  stats_.last_error = why;
+  state_ = LinkState::Lost;
+  lost_s_ = now_s;
+}
+
+void RobotLink::foreignRobot(const Address& address, double now_s) {
+  ports_->remember(canonical_, address);
+  if (!bridge_addresses_.count(address.wire()))
+    warn("port " + port() + " carries robot " + address.display() +
+         ", which is not in the config (no robot of this bridge has that address)");
+  closePort("robot " + address.display() + " answers there", now_s, false);
 }
 
 void RobotLink::closePort(const std::string& why, double now_s, bool restart_search) {
   if (state_ == LinkState::Streaming) {
     ++stats_.link_losses;
     sendStop();  // if the radio still reaches the robot
+  } else if (state_ == LinkState::Lost) {
+    sendStop();
   }
+  if (transport_ && !restart_search) searched_.push_back(port() + " (" + why + ")");  // for the search report
   if (transport_) transport_->close();
   transport_.reset();
   if (!canonical_.empty()) ports_->release(canonical_);
@@ -197,12 +304,11 @@ void RobotLink::handleLine(std::string_view line, double now_s, std::vector<Cycl
       return;
     case LineKind::Identify:
       if (state_ != LinkState::Identifying) return;  // a late reply to an earlier FF
-      ports_->remember(canonical_, parsed.identify.address);
       if (parsed.identify.address != robot_.address) {
-        closePort("port " + port() + " carries robot " + parsed.identify.address.display() + ", not ours", now_s,
-                  false);
+        foreignRobot(parsed.identify.address, now_s);
         return;
       }
+      ports_->remember(canonical_, parsed.identify.address);
       if (parsed.identify.model != Model::Hamster && parsed.identify.model != Model::HamsterS) {
         closePort("robot on " + port() + " reports model code " + std::to_string(parsed.identify.model_code) +
                       ", which is not a Hamster (04) or Hamster-S (0E)",
@@ -217,25 +323,22 @@ void RobotLink::handleLine(std::string_view line, double now_s, std::vector<Cycl
       }
       model_ = parsed.identify.model;
       preferred_port_ = port();
-      state_ = LinkState::Streaming;
-      last_line_s_ = now_s;  // the link-loss clocks start now
-      last_write_s_ = now_s;
-      ++stats_.connects;
+      // Our dongle, but the robot is proven there only by its first sensor line.
+      state_ = LinkState::Identified;
       stats_.last_error.clear();
       return;
     case LineKind::Data: break;
   }
   if (parsed.address != robot_.address) {
-    if (state_ == LinkState::Identifying) {
-      // The dongle streams another robot's lines: no need to wait for its FF reply.
-      ports_->remember(canonical_, parsed.address);
-      closePort("port " + port() + " carries robot " + parsed.address.display() + ", not ours", now_s, false);
+    if (state_ == LinkState::Identifying || state_ == LinkState::Identified || state_ == LinkState::Lost) {
+      // The dongle streams another robot's lines (it re-linked, or it never was ours).
+      foreignRobot(parsed.address, now_s);
       return;
     }
     drop("line from foreign address " + parsed.address.display());
     return;
   }
-  if (state_ != LinkState::Streaming) return;  // ours, but not identified yet
+  if (state_ == LinkState::Identifying) return;  // ours, but not identified yet
   std::string why;
   const auto sensors = decodeSensors(model_, parsed.payload, &why);
   if (!sensors) {
@@ -244,6 +347,15 @@ void RobotLink::handleLine(std::string_view line, double now_s, std::vector<Cycl
   }
   last_line_s_ = now_s;
   ++stats_.lines_ok;
+  if (sensors->has_battery && std::isfinite(sensors->battery_v)) {
+    const size_t n = static_cast<size_t>(std::max(1, bridge_.battery_samples));
+    if (battery_.size() < n) {
+      battery_.push_back(sensors->battery_v);
+    } else {
+      battery_[battery_next_ % n] = sensors->battery_v;
+    }
+    battery_next_ = (battery_next_ + 1) % n;
+  }
   CycleReport report;
   report.time_s = now_s;
   report.sensors = *sensors;
@@ -264,6 +376,12 @@ void RobotLink::handleLine(std::string_view line, double now_s, std::vector<Cycl
     transport_->write(out.data(), out.size());
     ++stats_.lines_sent;
     last_write_s_ = now_s;
+    if (state_ != LinkState::Streaming) {
+      // A sensor line answered: the robot hears us and we hear it.
+      state_ = LinkState::Streaming;
+      ++stats_.connects;
+      stats_.last_error.clear();
+    }
   } catch (const Error& e) {
     ++stats_.write_failures;
     stats_.last_error = e.what();
@@ -283,7 +401,9 @@ void RobotLink::poll(double now_s, std::vector<CycleReport>& reports) {
     try {
       n = transport_->read(buf, sizeof buf);
     } catch (const Error& e) {
-      closePort(e.what(), now_s, state_ == LinkState::Streaming);
+      // A hang-up or an I/O error: the only reasons to let go of an identified port.
+      const bool ours = state_ == LinkState::Streaming || state_ == LinkState::Lost || state_ == LinkState::Identified;
+      closePort(e.what(), now_s, ours);
       return;
     }
     if (n == 0) break;
@@ -316,15 +436,16 @@ void RobotLink::poll(double now_s, std::vector<CycleReport>& reports) {
       next_identify_s_ = now_s + bridge_.identify_interval_s;
     }
   } else if (state_ == LinkState::Streaming && now_s - last_line_s_ > bridge_.link_timeout_s) {
-    closePort("no valid line from " + robot_.address.display() + " for " + std::to_string(bridge_.link_timeout_s) +
-                  " s",
-              now_s, true);
+    char why[160];
+    std::snprintf(why, sizeof why, "no valid line from %s for %.2f s", robot_.address.display().c_str(),
+                  bridge_.link_timeout_s);
+    loseLink(why, now_s);
   } else if (state_ == LinkState::Streaming && now_s - last_write_s_ > bridge_.link_timeout_s) {
     // Lines come in but none of our answers goes out (e.g. CTS never asserted): the
     // robot keeps its last command, so this is a lost link too.
-    closePort("no motoring line could be written for " + std::to_string(bridge_.link_timeout_s) + " s (" +
-                  stats_.last_error + ")",
-              now_s, true);
+    char why[96];
+    std::snprintf(why, sizeof why, "no motoring line could be written for %.2f s (", bridge_.link_timeout_s);
+    loseLink(why + stats_.last_error + ")", now_s);
   }
 }
 

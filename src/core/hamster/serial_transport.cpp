@@ -92,6 +92,13 @@ void SerialTransport::write(const char* data, size_t size) {
     } else if (n < 0 && errno == EINTR) {
       continue;
     } else if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
+      if (done > 0) {
+        // A fragment is queued: sent later, it would run into the next line and the
+        // dongle would get one malformed line. Discard the whole unsent output.
+        ::tcflush(fd_, TCOFLUSH);
+        throw Error("serial port " + path_ + ": output queue full (flow control) after " + std::to_string(done) +
+                    " of " + std::to_string(size) + " bytes; fragment discarded");
+      }
       throw Error("serial port " + path_ + ": output queue full (flow control), line dropped");
     } else {
       throw Error(osError("write failed on", path_));

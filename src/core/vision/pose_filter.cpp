@@ -15,6 +15,7 @@ bool PoseFilter::consistent(const PlanarPose& a, double ta, const PlanarPose& b,
 void PoseFilter::reset() {
   seen_ = false;
   outlier_run_ = 0;
+  vx_ = vy_ = speed_mps_ = 0;
 }
 
 bool PoseFilter::update(const PlanarPose& m, double t) {
@@ -24,6 +25,8 @@ bool PoseFilter::update(const PlanarPose& m, double t) {
     seen_ = true;
     last_seen_ = t;
     outlier_run_ = 0;
+    vx_ = vy_ = speed_mps_ = 0;
+    velocity_samples_ = 0;
     return true;
   }
   if (!consistent(pose_, last_seen_, m, t)) {
@@ -40,6 +43,8 @@ bool PoseFilter::update(const PlanarPose& m, double t) {
     pose_.yaw = wrapAngle(m.yaw);
     last_seen_ = t;
     outlier_run_ = 0;
+    vx_ = vy_ = speed_mps_ = 0;
+    velocity_samples_ = 0;
     return true;
   }
   outlier_run_ = 0;
@@ -47,6 +52,19 @@ bool PoseFilter::update(const PlanarPose& m, double t) {
   const bool gap = t - last_seen_ > 0.25;
   const double gp = gap ? 1.0 : config_.position_gain;
   const double gy = gap ? 1.0 : config_.yaw_gain;
+  const double dt = t - last_seen_;
+  if (gap || dt <= 0) {
+    vx_ = vy_ = 0;
+    velocity_samples_ = 0;
+  } else {
+    // Smoothed over a few frames (one frame's difference is mostly detection noise
+    // for a slow robot); the first difference is taken as it is.
+    constexpr double kVelocityGain = 0.3;
+    const double g = velocity_samples_++ == 0 ? 1.0 : kVelocityGain;
+    vx_ += g * ((m.x - pose_.x) / dt - vx_);
+    vy_ += g * ((m.y - pose_.y) / dt - vy_);
+  }
+  speed_mps_ = std::hypot(vx_, vy_);
   pose_.x += gp * (m.x - pose_.x);
   pose_.y += gp * (m.y - pose_.y);
   pose_.yaw = wrapAngle(pose_.yaw + gy * wrapAngle(m.yaw - pose_.yaw));

@@ -1,5 +1,6 @@
 #include "ddace/vision/recorder.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -8,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <regex>
+#include <utility>
 
 #include "ddace/common/file.h"
 #include "yaml_values.h"
@@ -105,12 +107,29 @@ DemoRecorder::DemoRecorder(task::TaskSpec spec, std::string task_dir, double flu
 }
 
 DemoRecorder::~DemoRecorder() {
-  // Leave an interrupted recording as it is: flushed, still .partial.
-  if (file_) std::fclose(file_);
+  // Leave an interrupted recording as it is: whole rows, still .partial.
+  closeFile();
+}
+
+void DemoRecorder::closeFile() {
+  if (fd_ < 0) return;
+  ::fdatasync(fd_);
+  ::close(fd_);
+  fd_ = -1;
+}
+
+void DemoRecorder::writeWhole(const std::string& bytes) {
+  size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd_, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) throw Error(Diagnostic{partial_path_, 0, 0, std::string("cannot write: ") + std::strerror(errno)});
+    done += static_cast<size_t>(n);  // a short write to a file only happens when the disk is full
+  }
 }
 
 std::string DemoRecorder::start(double t0) {
-  if (file_) throw Error("already recording " + final_path_ + " (stop or discard it first)");
+  if (fd_ >= 0) throw Error("already recording " + final_path_ + " (stop or discard it first)");
   int next = 0;
   const std::regex pattern(R"(demo_(\d+)\.csv(\.partial)?)");
   for (const auto& entry : fs::directory_iterator(fs::path(dir_) / "demos")) {
@@ -122,8 +141,8 @@ std::string DemoRecorder::start(double t0) {
   std::snprintf(name, sizeof name, "demo_%03d.csv", next);
   final_path_ = (fs::path(dir_) / "demos" / name).string();
   partial_path_ = final_path_ + ".partial";
-  file_ = std::fopen(partial_path_.c_str(), "wx");
-  if (!file_) throw Error(Diagnostic{partial_path_, 0, 0, std::string("cannot create: ") + std::strerror(errno)});
+  fd_ = ::open(partial_path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw Error(Diagnostic{partial_path_, 0, 0, std::string("cannot create: ") + std::strerror(errno)});
   std::string header = "t";
   for (size_t i = 0; i < spec_.entities.size(); ++i) {
     const std::string& n = spec_.entities[i].name;
@@ -131,13 +150,12 @@ std::string DemoRecorder::start(double t0) {
     if (hasLabelColumns(i)) header += "," + n + ".action," + n + ".target";
   }
   header += "\n";
-  std::fputs(header.c_str(), file_);
+  header_ = header;
   clearLabels();
   t0_ = t0;
   last_t_ = -1;
   last_flush_ = 0;
   rows_ = 0;
-  flush();
   return final_path_;
 }
 
@@ -169,7 +187,7 @@ void DemoRecorder::setLabel(const std::string& entity, const std::string& action
 void DemoRecorder::clearLabels() { labels_.assign(spec_.entities.size(), task::Label{}); }
 
 bool DemoRecorder::addRow(double t_abs, const std::vector<Eigen::Vector2d>& positions) {
-  if (!file_) throw Error("not recording");
+  if (fd_ < 0) throw Error("not recording");
   if (positions.size() != spec_.entities.size())
     throw Error("a row needs " + std::to_string(spec_.entities.size()) + " positions, got " +
                 std::to_string(positions.size()));
@@ -177,7 +195,7 @@ bool DemoRecorder::addRow(double t_abs, const std::vector<Eigen::Vector2d>& posi
   if (rows_ > 0 && !(t > last_t_ + 5e-7)) return false;  // t must increase at the CSV's precision
   for (const auto& p : positions)
     if (!std::isfinite(p.x()) || !std::isfinite(p.y())) throw Error("a position is not a finite number");
-  std::string row;
+  std::string row = std::exchange(header_, {});
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.6f", std::max(0.0, t));
   row += buf;
@@ -190,8 +208,9 @@ bool DemoRecorder::addRow(double t_abs, const std::vector<Eigen::Vector2d>& posi
     }
   }
   row += "\n";
-  // One fputs per row: a flush never splits it, so a killed recorder leaves whole rows.
-  std::fputs(row.c_str(), file_);
+  // One write(2) per row: the kernel has either none or all of it, so a killed
+  // recorder leaves whole rows (stdio would hand over 4 KiB blocks cut anywhere).
+  writeWhole(row);
   last_t_ = std::max(0.0, t);
   ++rows_;
   if (last_t_ - last_flush_ >= flush_period_s_) {
@@ -202,16 +221,12 @@ bool DemoRecorder::addRow(double t_abs, const std::vector<Eigen::Vector2d>& posi
 }
 
 void DemoRecorder::flush() {
-  if (!file_) return;
-  std::fflush(file_);
-  fdatasync(fileno(file_));
+  if (fd_ >= 0) ::fdatasync(fd_);
 }
 
 std::string DemoRecorder::stop() {
-  if (!file_) throw Error("not recording");
-  flush();
-  std::fclose(file_);
-  file_ = nullptr;
+  if (fd_ < 0) throw Error("not recording");
+  closeFile();
   if (rows_ == 0)
     throw Error(Diagnostic{partial_path_, 0, 0, "no rows were recorded (no entity poses arrived?); file left as is"});
   task::readDemonstrationCsv(partial_path_, spec_);  // throws with file:line:column
@@ -222,9 +237,9 @@ std::string DemoRecorder::stop() {
 }
 
 void DemoRecorder::discard() {
-  if (!file_) throw Error("not recording");
-  std::fclose(file_);
-  file_ = nullptr;
+  if (fd_ < 0) throw Error("not recording");
+  ::close(fd_);
+  fd_ = -1;
   std::error_code ec;
   fs::remove(partial_path_, ec);
   rows_ = 0;

@@ -130,7 +130,13 @@ MarkerConfig loadMarkerConfig(const std::string& path) {
 void parseTrackerTuning(const std::string& text, const std::string& file, TrackerConfig& config) {
   YamlChecker r(file);
   const YAML::Node root = parseRoot(r, text, "tracker.yaml");
-  r.onlyKeys(root, {"aruco", "apriltag", "roi", "filter"}, "tracker.yaml");
+  r.onlyKeys(root, {"aruco", "apriltag", "roi", "filter", "table"}, "tracker.yaml");
+  if (const YAML::Node n = root["table"]; n.IsDefined() && r.expectMap(n, "'table'")) {
+    r.onlyKeys(n, {"max_reprojection_px", "smoothing"}, "'table'");
+    config.table.max_reprojection_px =
+        numberOr(r, n, "max_reprojection_px", config.table.max_reprojection_px, 0.01, 1000.0);
+    config.table.smoothing = numberOr(r, n, "smoothing", config.table.smoothing, 0.01, 1.0);
+  }
   DetectorConfig& d = config.detector;
   if (const YAML::Node a = root["aruco"]; a.IsDefined() && r.expectMap(a, "'aruco'")) {
     r.onlyKeys(a, {"subpixel", "subpixel_window", "window_min", "window_max", "window_step"}, "'aruco'");
@@ -148,8 +154,9 @@ void parseTrackerTuning(const std::string& text, const std::string& file, Tracke
     d.apriltag_max_hamming = integerOr(r, a, "max_hamming", d.apriltag_max_hamming, 0, 2);
   }
   if (const YAML::Node n = root["roi"]; n.IsDefined() && r.expectMap(n, "'roi'")) {
+    if (n["lost_growth"])
+      r.error(n["lost_growth"], "'roi.lost_growth' is gone: regions now grow at filter.max_speed (one speed for both)");
     r.onlyKeys(n, {"enabled", "full_frame_every", "margin", "min_margin_px", "track_corners", "lost_growth"}, "'roi'");
-    config.roi.lost_growth_mps = numberOr(r, n, "lost_growth", config.roi.lost_growth_mps, 0.0, 100.0);
     config.roi.track_corners = booleanOr(r, n, "track_corners", config.roi.track_corners);
     config.roi.enabled = booleanOr(r, n, "enabled", config.roi.enabled);
     config.roi.full_frame_every = integerOr(r, n, "full_frame_every", config.roi.full_frame_every, 1, 100000);
@@ -157,7 +164,9 @@ void parseTrackerTuning(const std::string& text, const std::string& file, Tracke
     config.roi.min_margin_px = integerOr(r, n, "min_margin_px", config.roi.min_margin_px, 0, 10000);
   }
   if (const YAML::Node n = root["filter"]; n.IsDefined() && r.expectMap(n, "'filter'")) {
-    r.onlyKeys(n, {"max_speed", "max_yaw_rate", "gate_margin", "reacquire_after", "hold", "position_gain", "yaw_gain"},
+    r.onlyKeys(n,
+               {"max_speed", "max_yaw_rate", "gate_margin", "reacquire_after", "hold", "max_drift", "position_gain",
+                "yaw_gain"},
                "'filter'");
     FilterConfig& f = config.filter;
     f.max_speed_mps = numberOr(r, n, "max_speed", f.max_speed_mps, 1e-3, 100.0);
@@ -165,6 +174,7 @@ void parseTrackerTuning(const std::string& text, const std::string& file, Tracke
     f.gate_margin_m = numberOr(r, n, "gate_margin", f.gate_margin_m, 0.0, 10.0);
     f.reacquire_after = integerOr(r, n, "reacquire_after", f.reacquire_after, 1, 1000);
     f.hold_s = numberOr(r, n, "hold", f.hold_s, 0.0, 60.0);
+    f.max_drift_m = numberOr(r, n, "max_drift", f.max_drift_m, 0.0, 100.0);
     f.position_gain = numberOr(r, n, "position_gain", f.position_gain, 0.01, 1.0);
     f.yaw_gain = numberOr(r, n, "yaw_gain", f.yaw_gain, 0.01, 1.0);
   }
@@ -180,15 +190,31 @@ TrackerConfig loadTrackerConfig(const std::string& markers_path, const std::stri
   return c;
 }
 
+std::string heightCorrectionName(HeightCorrection state) {
+  switch (state) {
+    case HeightCorrection::On: return "on";
+    case HeightCorrection::NoIntrinsics: return "off: no intrinsics";
+    case HeightCorrection::IntrinsicsDoNotFit: return "off: the intrinsics do not fit the table frame";
+  }
+  return "?";
+}
+
 std::vector<cv::Rect> mergeRegions(std::vector<cv::Rect> rects) {
+  // Each rectangle with the area of the regions it stands for: a merge must not cost
+  // more than half again what its parts needed, or a chain of neighbours would grow
+  // into one region spanning the table.
+  std::vector<double> needed;
+  for (const auto& r : rects) needed.push_back(r.area());
   bool merged = true;
   while (merged) {
     merged = false;
     for (size_t i = 0; i < rects.size() && !merged; ++i)
       for (size_t j = i + 1; j < rects.size() && !merged; ++j)
-        if ((rects[i] & rects[j]).area() > 0) {
+        if ((rects[i] & rects[j]).area() > 0 && (rects[i] | rects[j]).area() <= 1.5 * (needed[i] + needed[j])) {
           rects[i] |= rects[j];
+          needed[i] += needed[j];
           rects.erase(rects.begin() + static_cast<long>(j));
+          needed.erase(needed.begin() + static_cast<long>(j));
           merged = true;
         }
   }
@@ -214,6 +240,21 @@ void Tracker::setCamera(const CameraModel& camera) {
   if (table_ && camera_.valid && !fixed_table_) table_->setIntrinsics(camera_.K);
 }
 
+HeightCorrection Tracker::heightCorrection() const {
+  if (!camera_.valid) return HeightCorrection::NoIntrinsics;
+  if (table_ && !table_->cameraCenter()) return HeightCorrection::IntrinsicsDoNotFit;
+  return HeightCorrection::On;
+}
+
+std::optional<ParallaxEstimate> Tracker::parallaxWithoutIntrinsics() const {
+  if (camera_.valid || !table_) return std::nullopt;
+  double height = 0;
+  for (const auto& e : config_.markers.entities) height = std::max(height, e.height_m);
+  std::vector<cv::Point2d> area;
+  for (const auto& c : config_.markers.corners) area.push_back(c.table_xy);
+  return estimateParallaxWithoutIntrinsics(*table_, image_size_, height, area);
+}
+
 void Tracker::setFixedTableFrame(const TableFrame& frame) {
   table_ = frame;
   fixed_table_ = true;
@@ -226,14 +267,17 @@ std::vector<cv::Rect> Tracker::regions(const cv::Size& size, double stamp, const
     if (only && !only->count(id)) continue;
     if (!only && !config_.roi.track_corners && table_ && config_.markers.isCorner(id)) continue;
     cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(det.corners.begin(), det.corners.end()));
-    double margin = std::max<double>(config_.roi.min_margin_px, config_.roi.margin * det.sidePx());
-    // A marker not seen for a while may be anywhere it could have driven to since.
-    // (0 for a marker found in the previous frame: its margin covers one frame's motion)
-    const double missing_s = std::min(stamp, previous_stamp_) - last_seen_t_.at(id);
-    if (missing_s > 0) {
-      const EntityMarker* em = config_.markers.entityById(id);
-      const double size_m = em ? em->size_m : config_.markers.corner_size_m;
-      margin += config_.roi.lost_growth_mps * missing_s * det.sidePx() / size_m;
+    // Since it was seen, the marker may have moved anywhere within max_speed x dt
+    // (what the filter accepts): cover that, and where its velocity says it went.
+    const double dt = std::max(0.0, stamp - last_seen_t_.at(id));
+    const EntityMarker* em = config_.markers.entityById(id);
+    const double px_per_m = det.sidePx() / (em ? em->size_m : config_.markers.corner_size_m);
+    const double reach_m = config_.filter.max_speed_mps * dt + config_.filter.gate_margin_m;
+    const double margin = std::max<double>(config_.roi.min_margin_px, config_.roi.margin * det.sidePx()) +
+                          reach_m * px_per_m;
+    if (const auto v = velocity_px_.find(id); v != velocity_px_.end()) {
+      const cv::Point shift(cvRound(v->second.x * dt), cvRound(v->second.y * dt));
+      box |= cv::Rect(box.tl() + shift, box.size());
     }
     const int m = static_cast<int>(std::ceil(margin));
     // Even origins keep a decimating detector (AprilTag) on the full frame's sampling grid.
@@ -255,18 +299,33 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
   else
     throw Error("tracker: unsupported image type (need 8-bit mono, BGR or BGRA)");
 
+  if (camera_.valid && camera_.image_size.area() > 0 && gray_.size() != camera_.image_size)
+    throw Error("tracker: the image is " + std::to_string(gray_.cols) + "x" + std::to_string(gray_.rows) +
+                " but the camera calibration is for " + std::to_string(camera_.image_size.width) + "x" +
+                std::to_string(camera_.image_size.height));
+  image_size_ = gray_.size();
   FrameResult result;
   result.stamp = stamp;
   const bool need_table = !table_ && !config_.markers.corners.empty();
   result.full_frame = !config_.roi.enabled || need_table || last_seen_px_.empty() ||
                       frames_ % config_.roi.full_frame_every == 0;
   ++frames_;
+  if (!result.full_frame) {
+    result.rois = regions(gray_.size(), stamp);
+    // Regions grown around missed or fast markers can cost more than the whole frame.
+    double area = 0;
+    for (const auto& r : result.rois) area += r.area();
+    constexpr double kFullFrameAbove = 0.75;  // fraction of the image (merged regions cost about their area)
+    if (area > kFullFrameAbove * gray_.total()) {
+      result.full_frame = true;
+      result.rois.clear();
+    }
+  }
 
   std::vector<Detection> found;
   if (result.full_frame) {
     found = detector_->detect(gray_);
   } else {
-    result.rois = regions(gray_.size(), stamp);
     std::set<int> seen;
     for (const auto& roi : result.rois)
       for (const auto& d : detector_->detect(gray_, roi))
@@ -307,6 +366,14 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
   }
   for (const auto& [id, d] : by_id) {
     result.detections.push_back(d);
+    const auto last = last_seen_px_.find(id);
+    const double dt = last == last_seen_px_.end() ? 0.0 : stamp - last_seen_t_.at(id);
+    if (dt > 0 && dt <= 0.25) {
+      const cv::Point2f moved = d.center() - last->second.center();
+      velocity_px_[id] = cv::Point2d(moved.x / dt, moved.y / dt);
+    } else {
+      velocity_px_.erase(id);  // first sighting, or after a gap: no velocity to trust
+    }
     last_seen_px_[id] = d;
     last_seen_t_[id] = stamp;
   }
@@ -323,14 +390,9 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
     undistorted.push_back(u);
   }
 
-  if (!fixed_table_ && !config_.markers.corners.empty()) {
-    if (auto frame = TableFrame::fromCornerMarkers(undistorted, config_.markers.corners)) {
-      table_ = *frame;
-      if (camera_.valid) table_->setIntrinsics(camera_.K);
-      result.table_updated = true;
-    }
-  }
+  if (!fixed_table_ && !config_.markers.corners.empty()) updateTable(undistorted, result);
   result.table_valid = table_.has_value();
+  result.height_correction = heightCorrection();
 
   if (table_) {
     for (const auto& u : undistorted) {
@@ -344,8 +406,41 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
     }
   }
   result.entities = states(stamp);
-  previous_stamp_ = stamp;
   return result;
+}
+
+void Tracker::updateTable(const std::vector<Detection>& undistorted, FrameResult& result) {
+  std::vector<Detection> corners;
+  for (const auto& d : undistorted)
+    if (config_.markers.isCorner(d.id)) corners.push_back(d);
+  if (corners.size() != config_.markers.corners.size()) return;  // one is covered: keep the frame
+  // The corner markers lie still: average their image positions over frames, unless
+  // one jumped (the camera was moved), which starts the average again.
+  bool jumped = corner_average_.size() != corners.size();
+  for (const auto& d : corners) {
+    const auto it = corner_average_.find(d.id);
+    jumped = jumped || it == corner_average_.end();
+    for (int k = 0; k < 4 && !jumped; ++k)
+      jumped = cv::norm(d.corners[k] - it->second.corners[k]) > config_.table.max_reprojection_px;
+  }
+  const float g = jumped ? 1.0f : static_cast<float>(config_.table.smoothing);
+  for (const auto& d : corners) {
+    Detection& avg = corner_average_[d.id];
+    if (jumped) avg = d;
+    for (int k = 0; k < 4; ++k) avg.corners[k] += g * (d.corners[k] - avg.corners[k]);
+  }
+  std::vector<Detection> smoothed;
+  for (const auto& [id, d] : corner_average_) smoothed.push_back(d);
+  const TableFit fit = TableFrame::fitCornerMarkers(smoothed, config_.markers.corners, config_.markers.corner_size_m);
+  if (!fit.frame) return;
+  result.table_reprojection_px = fit.reprojection_px;
+  if (fit.reprojection_px > config_.table.max_reprojection_px) {
+    result.table_refused = true;
+    return;
+  }
+  table_ = *fit.frame;
+  if (camera_.valid) table_->setIntrinsics(camera_.K);  // heightCorrection() reports a misfit
+  result.table_updated = true;
 }
 
 std::vector<EntityState> Tracker::states(double stamp) const {
@@ -360,6 +455,7 @@ std::vector<EntityState> Tracker::states(double stamp) const {
     s.visible = f.visibleAt(stamp);
     s.stale = f.staleAt(stamp);
     s.last_seen = f.everSeen() ? f.lastSeen() : 0.0;
+    s.drift_m = f.driftAt(stamp);
     out.push_back(s);
   }
   return out;

@@ -73,6 +73,26 @@ TEST(HamsterConfig, ErrorsNameFileLineAndColumn) {
             std::string::npos);
   EXPECT_NE(errorOf("robots: [").find("YAML syntax error"), std::string::npos);
   EXPECT_NE(errorOf("port_dir: /dev\n").find("missing key 'robots'"), std::string::npos);
+  // A fraction is not silently truncated.
+  EXPECT_NE(errorOf(std::string("identify_retries: 2.5\n") + kRobot)
+                .find("h.yaml:1:19: identify_retries must be an integer in 1..1000 (got 2.5)"),
+            std::string::npos)
+      << errorOf(std::string("identify_retries: 2.5\n") + kRobot);
+  EXPECT_EQ(parseBridgeConfig(std::string("identify_retries: 3\n") + kRobot, "h.yaml").identify_retries, 3);
+  // An invalid address is reported once, not also as a duplicate of another invalid one.
+  const std::string bad = errorOf(
+      "robots:\n  - name: R1\n    address: nonsense\n    calibration: {mps_per_unit: 0.002}\n"
+      "  - name: R2\n    address: rubbish\n    calibration: {mps_per_unit: 0.002}\n");
+  EXPECT_NE(bad.find("address 'nonsense'"), std::string::npos) << bad;
+  EXPECT_NE(bad.find("address 'rubbish'"), std::string::npos) << bad;
+  EXPECT_EQ(bad.find("also used by"), std::string::npos) << bad;
+  EXPECT_NE(errorOf(std::string("battery_low_v: 3.4\nbattery_empty_v: 3.5\n") + kRobot)
+                .find("battery_empty_v (3.500000) must be below battery_low_v (3.400000)"),
+            std::string::npos);
+  const BridgeConfig c = parseBridgeConfig(std::string("battery_low_v: 3.7\ncommand_max_age_s: 0.1\n") + kRobot, "h.yaml");
+  EXPECT_DOUBLE_EQ(c.battery_low_v, 3.7);
+  EXPECT_DOUBLE_EQ(c.battery_empty_v, 3.0);
+  EXPECT_DOUBLE_EQ(c.command_max_age_s, 0.1);
 }
 
 TEST(HamsterConfig, WheelUnitsFollowTheCalibration) {

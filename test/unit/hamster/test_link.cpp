@@ -1,6 +1,10 @@
 // The per-robot link against simulated dongles on pseudo-terminals: finding robots by
 // address, the response-driven cycle, the command watchdog, link loss and recovery.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <pty.h>
+#include <sys/ioctl.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -308,12 +312,13 @@ TEST(RobotLinkMemory, BlockedWritesCountAsALostLink) {
   EXPECT_EQ(dongle->from_host, "FF\r");
   dongle->to_host = "FF,Hamster,04,01,0000000000AA\r";
   link.poll(t, reports);
-  ASSERT_EQ(link.state(), LinkState::Streaming);
+  ASSERT_EQ(link.state(), LinkState::Identified);  // streaming only once the robot's lines come
   Sensors s;
   const std::string line = encodeLine(encodeSensors(Model::Hamster, s, true), r.address);
   link.setWheelCommand(0.1, 0.1, t);
   dongle->to_host = line;
   link.poll(t, reports);
+  ASSERT_EQ(link.state(), LinkState::Streaming);
   ASSERT_EQ(reports.size(), 1u);
   EXPECT_EQ(reports[0].left_sent, 50);
   dongle->block_writes = true;
@@ -331,4 +336,264 @@ TEST(RobotLinkMemory, BlockedWritesCountAsALostLink) {
   EXPECT_NE(link.stats().last_error.find("no motoring line could be written"), std::string::npos)
       << link.stats().last_error;
   EXPECT_GT(link.stats().write_failures, 10u);
+}
+
+TEST_F(LinkTest, DongleAnsweringFfWithoutItsRobotNeverStreamsNorFlaps) {
+  MockRobot& m = addMock("a", "0000000000AA", Model::Hamster, 0.002);
+  m.setFault(MockFault::Stall, 2.0, nowS());  // answers FF, no sensor line: the robot is gone
+  RobotLink& l = addLink("R1", "0000000000AA");
+  commands_ = {{&l, 0.1, 0.1}};
+  ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Identified; }, 1.0)) << l.stats().last_error;
+  runFor(1.5);
+  EXPECT_EQ(l.state(), LinkState::Identified);
+  EXPECT_EQ(l.stats().connects, 0u);
+  EXPECT_EQ(l.stats().link_losses, 0u);
+  EXPECT_EQ(m.identifyRequests(), 1u);  // the port was opened once and kept
+  EXPECT_EQ(l.port(), dir_ + "/hamster_a");
+  const LinkHealth h = l.health(nowS(), 0);
+  EXPECT_EQ(h.level, LinkHealth::Level::Error);
+  EXPECT_NE(h.summary.find("no sensor line"), std::string::npos) << h.summary;
+  // The robot comes back: the first sensor line answered makes the link stream.
+  ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Streaming && m.leftUnits() == 50; }, 2.0));
+  EXPECT_EQ(l.stats().connects, 1u);
+  EXPECT_EQ(l.health(nowS(), 0).level, LinkHealth::Level::Ok);
+}
+
+TEST_F(LinkTest, LostLinkWaitsOnTheOpenPort) {
+  MockRobot& m = addMock("a", "0000000000AA", Model::Hamster, 0.002);
+  RobotLink& l = addLink("R1", "0000000000AA");
+  commands_ = {{&l, 0.1, 0.1}};
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
+  const uint64_t ff_before = m.identifyRequests();
+  m.setFault(MockFault::Drop, 0.8, nowS());
+  ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Lost; }, 1.0));
+  EXPECT_EQ(l.port(), dir_ + "/hamster_a");
+  EXPECT_EQ(l.health(nowS(), 1).level, LinkHealth::Level::Error);
+  runFor(0.3);
+  EXPECT_EQ(l.state(), LinkState::Lost);
+  EXPECT_EQ(m.identifyRequests(), ff_before);  // not reopened, not re-identified
+  ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Streaming && m.leftUnits() == 50; }, 2.0));
+  EXPECT_EQ(l.stats().link_losses, 1u);
+  EXPECT_EQ(l.stats().connects, 2u);
+  EXPECT_EQ(m.identifyRequests(), ff_before);
+  // The loss shows in the next report even though the link is up again.
+  EXPECT_EQ(l.health(nowS(), 1).level, LinkHealth::Level::Warn);
+}
+
+TEST_F(LinkTest, WarnsOnceAboutAForeignRobotAndListsThePortsSearched) {
+  addMock("a", "0000000000F0", Model::Hamster, 0.002);  // nobody's robot
+  addMock("b", "0000000000B2", Model::Hamster, 0.002);  // the other configured robot's
+  BridgeConfig bridge;
+  bridge.port_dir = dir_;
+  bridge.scan = {};
+  RobotConfig r1, r2;
+  r1.name = "R1";
+  r1.address = *Address::parse("0000000000B1");
+  r2.name = "R2";
+  r2.address = *Address::parse("0000000000B2");
+  for (RobotConfig* r : {&r1, &r2}) {
+    r->port_hints = {"hamster_*"};
+    r->calibration.left_mps_per_unit = r->calibration.right_mps_per_unit = 0.002;
+  }
+  bridge.robots = {r1, r2};
+  RobotLink l1(r1, bridge, ports_, serialTransportFactory());
+  std::vector<std::string> warnings;
+  const double end = nowS() + 1.5;  // three search passes
+  while (nowS() < end) {
+    for (auto& m : mocks_) m->step(nowS());
+    l1.poll(nowS(), reports_);
+    for (auto& w : l1.takeWarnings()) warnings.push_back(w);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ASSERT_EQ(warnings.size(), 2u) << (warnings.empty() ? "" : warnings[0]);
+  EXPECT_NE(warnings[0].find("carries robot F0:00:00:00:00:00, which is not in the config"), std::string::npos)
+      << warnings[0];
+  EXPECT_NE(warnings[1].find("robot B1:00:00:00:00:00 not found on 2 ports searched"), std::string::npos)
+      << warnings[1];
+  EXPECT_NE(warnings[1].find(dir_ + "/hamster_a (robot F0:00:00:00:00:00 answers there)"), std::string::npos)
+      << warnings[1];
+  EXPECT_NE(warnings[1].find(dir_ + "/hamster_b (robot B2:00:00:00:00:00 answers there)"), std::string::npos)
+      << warnings[1];
+  EXPECT_EQ(l1.health(nowS(), 0).level, LinkHealth::Level::Error);
+}
+
+TEST_F(LinkTest, MissingPortDirectoryIsReported) {
+  BridgeConfig bridge;
+  bridge.port_dir = dir_ + "/no_such_dir";
+  bridge.scan = {"ttyUSB*"};
+  RobotConfig r;
+  r.name = "R1";
+  r.address = *Address::parse("0000000000AA");
+  r.calibration.left_mps_per_unit = r.calibration.right_mps_per_unit = 0.002;
+  RobotLink l(r, bridge, ports_, serialTransportFactory());
+  l.poll(0.0, reports_);
+  const auto w = l.takeWarnings();
+  ASSERT_FALSE(w.empty());
+  EXPECT_NE(w[0].find("port directory " + dir_ + "/no_such_dir does not exist"), std::string::npos) << w[0];
+  l.poll(1.0, reports_);
+  EXPECT_TRUE(l.takeWarnings().empty());  // once, but it stays in the diagnostics
+  EXPECT_NE(l.health(1.0, 0).summary.find("no_such_dir"), std::string::npos) << l.health(1.0, 0).summary;
+}
+
+TEST_F(LinkTest, StaleOrFutureStampedCommandsAreRefusedAndCounted) {
+  MockRobot& m = addMock("a", "0000000000AA", Model::Hamster, 0.002);
+  RobotLink& l = addLink("R1", "0000000000AA");
+  ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Streaming; }, 3.0));
+  EXPECT_THROW(l.setWheelCommand(0.1, 0.1, nowS(), 0.25), ddace::Error);   // older than command_max_age_s
+  EXPECT_THROW(l.setWheelCommand(0.1, 0.1, nowS(), -0.25), ddace::Error);  // from the future
+  EXPECT_EQ(l.stats().refused_commands, 2u);
+  runFor(0.1);
+  EXPECT_EQ(m.leftUnits(), 0);
+  l.setWheelCommand(0.1, 0.1, nowS(), 0.05);
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 0.5));
+  try {
+    l.setWheelCommand(0.1, 0.1, nowS(), 1.5);
+    FAIL();
+  } catch (const ddace::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("1.500 s ago (more than command_max_age_s 0.200 s)"), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(RobotLinkMemory, BatteryHealthUsesTheConfiguredThresholdsOnTheMean) {
+  auto dongle = std::make_shared<MemoryDongle>();
+  BridgeConfig bridge;
+  bridge.scan = {};
+  bridge.battery_low_v = 3.7;
+  bridge.battery_empty_v = 3.2;
+  bridge.battery_samples = 4;
+  RobotConfig r;
+  r.name = "R1";
+  r.address = *Address::parse("0000000000AA");
+  r.port_hints = {"/proc/self/exe"};
+  r.calibration.left_mps_per_unit = r.calibration.right_mps_per_unit = 0.002;
+  RobotLink link(r, bridge, std::make_shared<PortDirectory>(),
+                 [dongle](const std::string&) { return std::make_unique<MemoryTransport>(dongle); });
+  std::vector<CycleReport> reports;
+  link.poll(0.0, reports);
+  dongle->to_host = "FF,Hamster,04,01,0000000000AA\r";
+  link.poll(0.0, reports);
+  EXPECT_EQ(link.state(), LinkState::Identified);
+  EXPECT_EQ(link.health(0.0, 0).level, LinkHealth::Level::Error);
+  double t = 0.0;
+  auto feed = [&](double volts, int n) {
+    for (int i = 0; i < n; ++i) {
+      Sensors s;
+      s.has_battery = true;
+      s.battery_v = volts;
+      t += 0.02;
+      dongle->to_host += encodeLine(encodeSensors(Model::Hamster, s, false), r.address);
+      link.poll(t, reports);
+    }
+  };
+  feed(3.9, 4);
+  ASSERT_EQ(link.state(), LinkState::Streaming);
+  EXPECT_EQ(link.health(t, 0).level, LinkHealth::Level::Ok);
+  feed(3.5, 1);  // one low reading: the mean of four (3.85 V) is fine
+  EXPECT_EQ(link.health(t, 0).level, LinkHealth::Level::Ok);
+  feed(3.5, 3);
+  EXPECT_NEAR(link.batteryV(), 3.5, 1e-9);
+  EXPECT_EQ(link.health(t, 0).level, LinkHealth::Level::Warn);
+  EXPECT_NE(link.health(t, 0).summary.find("battery low (3.50 V < 3.70 V)"), std::string::npos);
+  feed(3.1, 4);
+  EXPECT_EQ(link.health(t, 0).level, LinkHealth::Level::Error);
+}
+
+namespace {
+
+size_t fionread(int fd) {
+  int n = 0;
+  ::ioctl(fd, FIONREAD, &n);
+  return static_cast<size_t>(n);
+}
+
+std::string drain(int fd) {
+  std::string out;
+  char buf[4096];
+  for (int idle = 0; idle < 20;) {
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n > 0) {
+      out.append(buf, static_cast<size_t>(n));
+      idle = 0;
+    } else {
+      ++idle;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  }
+  return out;
+}
+
+struct Pty {
+  int master = -1, slave = -1;
+  std::string path;
+  Pty() {
+    char name[128];
+    if (::openpty(&master, &slave, name, nullptr, nullptr) != 0) throw ddace::Error("openpty failed");
+    path = name;
+    termios tio{};
+    ::tcgetattr(master, &tio);
+    ::cfmakeraw(&tio);
+    ::tcsetattr(master, TCSANOW, &tio);
+    ::fcntl(master, F_SETFL, ::fcntl(master, F_GETFL) | O_NONBLOCK);
+  }
+  ~Pty() {
+    ::close(slave);
+    ::close(master);
+  }
+};
+
+}  // namespace
+
+TEST(SerialTransportPty, PartialWriteIsDiscardedSoTheNextLineGoesOutWhole) {
+  // How many bytes the far side's line discipline takes before the pty queues
+  // (what is there is delivered; only the queue behind it can be discarded).
+  size_t capacity = 0;
+  {
+    Pty probe;
+    SerialTransport t(probe.path, false);
+    t.open();
+    const std::string chunk(256, 'x');
+    try {
+      for (int i = 0; i < 1000; ++i) t.write(chunk.data(), chunk.size());
+    } catch (const ddace::Error&) {
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    capacity = fionread(probe.master);
+  }
+  ASSERT_GT(capacity, 54u);
+  const Address address = *Address::parse("0000000000AA");
+  Effector e;
+  // Shift the lines against the queue's end until one goes out only in part.
+  for (size_t shift = 0; shift < 54; ++shift) {
+    Pty pty;
+    SerialTransport t(pty.path, false);
+    t.open();
+    // Fill the far side with one whole (junk) line, then queue lines behind it.
+    std::string filler(capacity - 1, 'x');
+    filler += '\r';
+    ASSERT_EQ(::write(t.fd(), filler.data(), filler.size()), static_cast<ssize_t>(filler.size()));
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    ASSERT_EQ(fionread(pty.master), capacity);
+    const std::string pad(shift, 'y');
+    ASSERT_EQ(::write(t.fd(), pad.data(), pad.size()), static_cast<ssize_t>(pad.size()));
+    std::string error;
+    for (int i = 0; i < 100000 && error.empty(); ++i) {
+      e.left_wheel = static_cast<int8_t>(i % 100);
+      const std::string line = encodeLine(encodeEffector(Model::Hamster, e), address);
+      try {
+        t.write(line.data(), line.size());
+      } catch (const ddace::Error& err) {
+        error = err.what();
+      }
+    }
+    ASSERT_FALSE(error.empty());
+    if (error.find("fragment discarded") == std::string::npos) continue;  // the queue ended at a line end
+    EXPECT_EQ(drain(pty.master), filler);  // the queue behind it was discarded, fragment included
+    e.left_wheel = 42;
+    const std::string next = encodeLine(encodeEffector(Model::Hamster, e), address);
+    t.write(next.data(), next.size());
+    EXPECT_EQ(drain(pty.master), next);
+    return;
+  }
+  FAIL() << "no write went out in part";
 }

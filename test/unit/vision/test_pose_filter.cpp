@@ -82,3 +82,27 @@ TEST(WrapAngle, RangeIsMinusPiExclusiveToPiInclusive) {
   EXPECT_NEAR(wrapAngle(3 * M_PI / 2), -M_PI / 2, 1e-12);
   EXPECT_NEAR(wrapAngle(-7.0), -7.0 + 2 * M_PI, 1e-12);
 }
+
+TEST(PoseFilter, AHeldPoseGoesStaleOnceItsSpeedSaysItHasDriftedTooFar) {
+  FilterConfig c;
+  c.hold_s = 1.0;
+  c.max_drift_m = 0.06;
+  PoseFilter fast(c), still(c);
+  for (int i = 0; i <= 10; ++i) {  // 0.6 m/s along x, and one standing still
+    fast.update({0.1 + 0.02 * i, 0.5, 0}, i / 30.0);
+    still.update({0.5, 0.5, 0}, i / 30.0);
+  }
+  EXPECT_NEAR(fast.speed(), 0.6, 1e-6);
+  EXPECT_NEAR(still.speed(), 0.0, 1e-9);
+  const double last = 10 / 30.0;
+  EXPECT_DOUBLE_EQ(fast.driftAt(last), 0.0);
+  EXPECT_FALSE(fast.staleAt(last + 0.09));  // 5.4 cm
+  EXPECT_TRUE(fast.staleAt(last + 0.11));   // 6.6 cm > max_drift: not a current pose any more
+  EXPECT_NEAR(fast.driftAt(last + 0.11), 0.066, 1e-6);
+  EXPECT_DOUBLE_EQ(fast.pose().x, 0.3);     // held, never extrapolated
+  EXPECT_FALSE(still.staleAt(last + 0.99));  // standing still: the hold decides
+  EXPECT_TRUE(still.staleAt(last + 1.01));
+  // Seen again: current, and the speed is re-estimated from there.
+  EXPECT_TRUE(fast.update({0.36, 0.5, 0}, last + 0.1));
+  EXPECT_FALSE(fast.staleAt(last + 0.1));
+}

@@ -1,9 +1,15 @@
 // The recorder's files: valid ddace-task/1, labels as set, crash-safe partial files.
 #include <gtest/gtest.h>
 
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "ddace/common/error.h"
 #include "ddace/task/task_dir.h"
@@ -160,6 +166,94 @@ TEST(Recorder, AKilledRecorderLeavesAReadablePartialFile) {
   DemoRecorder rec(c.spec, dir.path.string(), 1.0);
   EXPECT_EQ(fs::path(rec.start(0.0)).filename(), "demo_001.csv");
   rec.discard();
+}
+
+namespace {
+
+/// 12 entities: 8 robots, 3 objects (with label columns) and a goal.
+task::TaskSpec twelveEntities() {
+  task::TaskSpec spec;
+  spec.name = "kill_test";
+  for (int i = 0; i < 8; ++i) spec.entities.push_back({"R" + std::to_string(i + 1), task::EntityKind::Robot, "hamster"});
+  for (int i = 0; i < 3; ++i) spec.entities.push_back({"O" + std::to_string(i + 1), task::EntityKind::Object, "box"});
+  spec.entities.push_back({"G1", task::EntityKind::Goal, ""});
+  spec.actions = {"move", "push"};
+  spec.actions_declared = true;
+  return spec;
+}
+
+/// Forks a recorder writing rows of 12 entities (every `period_s`, 0 = as fast as
+/// it can), SIGKILLs it `kill_after_s` after its first row, and returns the .partial
+/// file it left.
+std::string recordAndKill(const std::string& dir, double period_s, double kill_after_s) {
+  const task::TaskSpec spec = twelveEntities();
+  int ready[2];
+  if (::pipe(ready) != 0) throw Error("pipe failed");
+  const pid_t child = ::fork();
+  if (child == 0) {
+    ::close(ready[0]);
+    try {
+      DemoRecorder rec(spec, dir, 1.0);
+      rec.start(0.0);
+      rec.setLabel("R1", "move", "O2");
+      rec.setLabel("O3", "push", "G1");
+      std::vector<Eigen::Vector2d> p(spec.entities.size());
+      for (long i = 0;; ++i) {
+        const double t = i * (period_s > 0 ? period_s : 1e-3);
+        for (size_t k = 0; k < p.size(); ++k) p[k] = {0.123456 + 0.001 * k + 0.1 * t, 0.654321 - 0.002 * k};
+        rec.addRow(t, p);
+        if (i == 0) {
+          const std::string path = rec.partialPath() + "\n";
+          if (::write(ready[1], path.data(), path.size()) < 0) ::_exit(3);
+        }
+        if (period_s > 0) std::this_thread::sleep_for(std::chrono::duration<double>(period_s));
+      }
+    } catch (...) {
+      ::_exit(2);
+    }
+  }
+  ::close(ready[1]);
+  std::string path;
+  char c;
+  while (::read(ready[0], &c, 1) == 1 && c != '\n') path += c;
+  ::close(ready[0]);
+  std::this_thread::sleep_for(std::chrono::duration<double>(kill_after_s));
+  ::kill(child, SIGKILL);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "the recorder died by itself: " << status;
+  return path;
+}
+
+}  // namespace
+
+TEST(Recorder, KillNineLeavesWholeRowsAtAnyKillPoint) {
+  const task::TaskSpec spec = twelveEntities();
+  // 30 Hz as the recorder runs (a 4 KiB stdio buffer fills twice a second with 12
+  // entities), then as fast as it can write (kills land in the middle of writes).
+  const std::vector<std::pair<double, double>> runs = {
+      {1 / 30.0, 0.15}, {1 / 30.0, 0.55}, {1 / 30.0, 0.9}, {1 / 30.0, 1.35}, {1 / 30.0, 1.7},
+      {0.0, 0.003},     {0.0, 0.011},     {0.0, 0.027},    {0.0, 0.05},     {0.0, 0.13}};
+  for (const auto& [period, kill_after] : runs) {
+    TempDir dir;
+    const std::string partial = recordAndKill(dir.path.string(), period, kill_after);
+    ASSERT_FALSE(partial.empty()) << "the recorder did not start";
+    ASSERT_TRUE(fs::exists(partial));
+    // The documented recovery: rename the .partial file to .csv; the directory validates.
+    const std::string csv = partial.substr(0, partial.size() - std::string(".partial").size());
+    fs::rename(partial, csv);
+    const std::string text = slurp(csv);
+    ASSERT_FALSE(text.empty());
+    EXPECT_EQ(text.back(), '\n') << "killed after " << kill_after << " s: the last row is torn";
+    const task::TaskDirReport report = task::checkTaskDir(dir.path.string());
+    EXPECT_TRUE(report.errors.empty()) << "killed after " << kill_after << " s: "
+                                       << (report.errors.empty() ? "" : report.errors[0].message);
+    const task::Demonstration d = task::readDemonstrationCsv(csv, spec);
+    if (period > 0) {
+      // Every row written before the kill is in the file (rows are not held back).
+      EXPECT_GE(d.rows(), static_cast<size_t>(kill_after * 30 * 0.8)) << "killed after " << kill_after << " s";
+    }
+  }
 }
 
 TEST(Recorder, RefusesADirectoryOfAnotherTask) {
