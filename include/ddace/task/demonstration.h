@@ -70,6 +70,9 @@ class Demonstration {
   std::vector<std::vector<Eigen::Vector2d>> positions; ///< [row][entity], metres
   std::vector<std::vector<Label>> labels;              ///< [row][entity]
   std::vector<bool> has_label_columns;                 ///< [entity]
+  /// Step grouping window, seconds >= 0 (task.yaml's step_window_s; the generators set it
+  /// from the task).
+  double step_window_s = kDefaultStepWindow;
 
   // Derived by analyze(); filled by the readers and the generators.
   std::vector<int> keyframes;       ///< rows that are keyframes

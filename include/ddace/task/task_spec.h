@@ -1,4 +1,4 @@
-// The scene of a task: task.yaml of format ddace-task/1 (shared/spec/task-format.md).
+// The scene of a task: task.yaml of format ddace-task/1 (docs/task-format.md).
 //
 // Owns: parsing, validating and writing task.yaml. Entity order is the node
 // order of every graph built from the task. Units: metres (REP-103), table frame.
@@ -14,6 +14,9 @@ namespace ddace::task {
 
 inline constexpr const char* kFormat = "ddace-task/1";
 inline constexpr double kDefaultArrivalRadius = 0.03;  // metres
+/// Labels that begin this close to a step's first one join the step (docs/task-format.md,
+/// "Step grouping"); seconds. 0 is the paper's bare keyframe rule.
+inline constexpr double kDefaultStepWindow = 0.5;
 
 enum class EntityKind { Robot, Object, Goal };
 
@@ -41,6 +44,7 @@ struct TaskSpec {
   std::vector<std::string> actions;       ///< declared vocabulary (empty when absent)
   bool actions_declared = false;          ///< true when task.yaml lists `actions`
   double arrival_radius = kDefaultArrivalRadius;  ///< metres
+  double step_window_s = kDefaultStepWindow;      ///< seconds, >= 0
   std::vector<GoalCondition> goal_conditions;
 
   /// Index of the entity called `name`, or -1.
