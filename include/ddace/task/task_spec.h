@@ -61,11 +61,15 @@ bool isValidName(const std::string& name);
 /// Parses task.yaml text. `file` is used in diagnostics only.
 /// Throws ddace::Error listing every problem with file:line:column.
 TaskSpec parseTaskYaml(const std::string& text, const std::string& file);
-/// Reads and parses a task.yaml file. Throws ddace::Error.
+/// Reads and parses a task.yaml file: a regular file of at most kMaxInputFileBytes
+/// (common/file.h, 64 MiB; a FIFO, a device, a directory or a symlink loop is refused by
+/// name before it is opened). Throws ddace::Error.
 TaskSpec readTaskYaml(const std::string& path);
-/// Serialises to task.yaml text (round-trips through parseTaskYaml).
+/// Serialises to task.yaml text (round-trips through parseTaskYaml: numbers are written
+/// with the shortest digits that read back exactly).
 std::string taskYamlText(const TaskSpec& spec);
-/// Writes task.yaml. Throws ddace::Error when the file cannot be written.
+/// Writes task.yaml, checked and atomically. Throws ddace::Error naming the file when it
+/// cannot be written; no half-written file is left under its name.
 void writeTaskYaml(const TaskSpec& spec, const std::string& path);
 
 }  // namespace ddace::task

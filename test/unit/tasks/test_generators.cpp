@@ -349,6 +349,26 @@ TEST(OnsetJitter, LabelsLagTheirMotionByUpToTheJitterAndEndWithTheStep) {
   }
 }
 
+TEST(OnsetJitter, StepGroupingRestoresTheCleanSteps) {
+  for (const auto& family : tasks::families()) {
+    const auto clean = genOnset(family, 0), late = genOnset(family, 0.4);
+    int differs_bare = 0;
+    for (size_t i = 0; i < clean.demos.size(); ++i) {
+      EXPECT_EQ(structure(late.demos[i], late.spec), structure(clean.demos[i], clean.spec)) << family << " " << i;
+      task::Demonstration bare = late.demos[i];
+      bare.step_window_s = 0;  // the paper's bare keyframe rule
+      bare.analyze();
+      differs_bare += structure(bare, late.spec) != structure(clean.demos[i], clean.spec);
+    }
+    // Without grouping, a step of several tokens falls apart into several steps.
+    bool multi = false;
+    for (const auto& s : clean.demos[0].steps) multi = multi || s.tokens.size() > 1;
+    if (multi) {
+      EXPECT_GT(differs_bare, 0) << family;
+    }
+  }
+}
+
 TEST(OnsetJitter, OutOfRangeIsRefusedNamingTheOption) {
   for (double bad : {-0.1, 0.5, 0.7, std::nan("")}) {
     try {
