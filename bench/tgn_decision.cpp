@@ -14,6 +14,7 @@
 #include "ddace/common/error.h"
 #include "ddace/common/machine.h"
 #include "ddace/tasks/generators.h"
+#include "ddace/tgn/detail.h"
 #include "ddace/tgn/sequence_model.h"
 #include "reference_runner.h"
 

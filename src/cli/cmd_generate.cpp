@@ -1,4 +1,4 @@
-// ddace generate: the paper's task families as task directories.
+// ddace generate: the task families as task directories.
 #include <filesystem>
 #include <iostream>
 
@@ -9,10 +9,13 @@ namespace ddace::cli {
 namespace {
 
 int runGenerate(const std::vector<std::string>& argv) {
-  Args args(argv, {"--out", "--train", "--test", "--seed", "--robots", "--actions", "--jitter", "--mislabel"});
+  Args args(argv, {"--out", "--train", "--test", "--seed", "--robots", "--actions", "--jitter", "--mislabel",
+                        "--onset-jitter"});
   args.expectAtMostPositional(1);
   tasks::GeneratorOptions o;
-  o.family = args.positional(0, "FAMILY (task1, task2, task3 or task4)");
+  std::string names;
+  for (const auto& f : tasks::families()) names += (names.empty() ? "" : ", ") + f;
+  o.family = args.positional(0, "FAMILY (" + names + ")");
   const std::string out = args.require("--out");
   const long train = args.getInt("--train", 30), test = args.getInt("--test", 15);
   if (train < 1) throw Error("--train must be at least 1");
@@ -24,15 +27,17 @@ int runGenerate(const std::vector<std::string>& argv) {
   o.actions = static_cast<int>(args.getInt("--actions", 4));
   o.jitter_m = args.getDouble("--jitter", 0.0);
   o.mislabel_fraction = args.getDouble("--mislabel", 0.0);
+  o.onset_jitter_s = args.getDouble("--onset-jitter", 0.0);
 
   o.demos = static_cast<int>(train);
   const task::TaskDir train_dir = tasks::generate(o);
   // Test configurations come from their own stream and are clean: imperfections
-  // (--jitter, --mislabel) only affect what is learned from.
+  // (--jitter, --mislabel, --onset-jitter) only affect what is learned from.
   o.demos = static_cast<int>(test);
   o.seed = o.seed * 2654435761ULL + 0x7e57;
   o.jitter_m = 0;
   o.mislabel_fraction = 0;
+  o.onset_jitter_s = 0;
   const task::TaskDir test_dir = tasks::generate(o);
 
   const std::string train_path = (std::filesystem::path(out) / "train").string();
@@ -46,9 +51,10 @@ int runGenerate(const std::vector<std::string>& argv) {
 }
 
 DDACE_COMMAND({"generate",
-               "ddace generate {task1,task2,task3,task4} --out DIR [--train N] [--test M] [--seed S] "
-               "[--robots K] [--actions K] [--jitter SIGMA_M] [--mislabel FRACTION]",
-               "write DIR/train and DIR/test task directories of one of the paper's task families",
+               "ddace generate FAMILY --out DIR [--train N] [--test M] [--seed S] [--robots K] "
+               "[--actions K] [--jitter SIGMA_M] [--mislabel FRACTION] [--onset-jitter SECONDS]",
+               "write DIR/train and DIR/test task directories of a task family (task1..task4, fetch, "
+               "nearest_goal, queue, deliver)",
                runGenerate});
 
 }  // namespace

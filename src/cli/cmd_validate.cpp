@@ -46,6 +46,8 @@ bool validateOne(const std::string& path, bool verbose) {
     std::printf("  %s: %zu rows (%.2f s), %zu keyframes, %zu steps, %zu segments\n",
                 fs::path(d.source).filename().c_str(), d.rows(), d.t.back() - d.t.front(),
                 d.keyframes.size(), d.steps.size(), d.segments.size());
+    // Where step grouping merged a late label into its step (people label one robot after another).
+    for (const auto& note : task::mergedOnsetNotes(d, spec)) std::printf("    %s\n", note.str().c_str());
     if (verbose || d.steps.empty()) {
       for (size_t k = 0; k < d.steps.size(); ++k)
         std::printf("    step %zu @ row %d (t = %.2f s): %s\n", k + 1, d.steps[k].keyframe_row,

@@ -1,11 +1,13 @@
-// One demonstration: a CSV of ddace-task/1 and what the spec derives from it
-// (keyframes, steps and their tokens, segments, graph snapshots with the
-// terminal END snapshot). See shared/spec/task-format.md, "Semantics".
+// One demonstration: a CSV of ddace-task/1 and what the format derives from it
+// (steps and their tokens after step grouping, segments, graph snapshots with the
+// terminal END snapshot). See docs/task-format.md, "Semantics".
 //
 // Positions are metres in the table frame; times are seconds from the start.
-// Rows are 0-based indices into the data rows (file line = row + 2).
+// Rows are 0-based indices into the data rows (file line = row + 2 for the files
+// the project writes; a reader records the line of every row it read).
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -42,17 +44,26 @@ std::string tokenKey(const Token& token, const TaskSpec& spec);
 /// Parses tokenKey() output. Throws ddace::Error naming the bad part.
 Token parseTokenKey(const std::string& key, const TaskSpec& spec);
 
-/// Step k: the tokens that begin at keyframe k, sorted by entity index.
+/// A token whose label began after its step's first row and joined the step (step grouping).
+struct LateOnset {
+  Token token;
+  int row = 0;         ///< row where its label begins
+  double delay_s = 0;  ///< t[row] - t[keyframe_row], seconds, in (0, step_window_s]
+};
+
+/// Step k: the tokens that begin at keyframe k or join it within the step window,
+/// sorted by entity index.
 struct Step {
-  int keyframe_row = 0;
+  int keyframe_row = 0;          ///< the row of the step's first token: its snapshot
   std::vector<Token> tokens;
+  std::vector<LateOnset> late;   ///< the tokens that joined after keyframe_row, in row order
 };
 
 /// The rows during which a token's label holds: [first_row, last_row].
 struct Segment {
   Token token;
-  int step = 0;       ///< index of the step that started it
-  int first_row = 0;  ///< the step's keyframe row
+  int step = 0;       ///< index of the step it belongs to
+  int first_row = 0;  ///< the token's own first row (the step's keyframe unless it joined late)
   int last_row = 0;   ///< last row before the entity's label changes away
 };
 
@@ -70,9 +81,12 @@ class Demonstration {
   std::vector<std::vector<Eigen::Vector2d>> positions; ///< [row][entity], metres
   std::vector<std::vector<Label>> labels;              ///< [row][entity]
   std::vector<bool> has_label_columns;                 ///< [entity]
+  /// Step grouping window, seconds >= 0 (task.yaml's step_window_s; the readers and the
+  /// generators set it from the task).
+  double step_window_s = kDefaultStepWindow;
 
   // Derived by analyze(); filled by the readers and the generators.
-  std::vector<int> keyframes;       ///< rows that are keyframes
+  std::vector<int> keyframes;       ///< keyframe row of every step
   std::vector<Step> steps;          ///< one per keyframe
   std::vector<Segment> segments;    ///< one per token, in step order
   std::vector<Snapshot> snapshots;  ///< one per step plus the END snapshot
@@ -80,23 +94,41 @@ class Demonstration {
   size_t rows() const { return t.size(); }
   size_t entities() const { return has_label_columns.size(); }
 
-  /// Computes keyframes, steps, segments and snapshots from t/positions/labels.
+  /// Computes steps (grouped with step_window_s), keyframes, segments and snapshots
+  /// from t/positions/labels. t must be strictly increasing.
   void analyze();
   /// Positions of the segment's entity over its rows.
   std::vector<Eigen::Vector2d> segmentPath(const Segment& segment) const;
-  /// Goal of a motion segment: the target's position at the step's keyframe.
+  /// Goal of a motion segment: the target's position at its step's keyframe (when the
+  /// step was decided); for an in-place action, the entity's own position there.
   Eigen::Vector2d segmentGoal(const Segment& segment) const;
 };
+
+/// One note per token that step grouping merged into its step, for `ddace validate`:
+/// "<source>:<line>: step k: R2:move:G1 began 0.250 s after the step's first token
+/// (line L); merged into the step" (line = row + 2: the header is line 1).
+std::vector<Diagnostic> mergedOnsetNotes(const Demonstration& demo, const TaskSpec& spec);
+
+/// The largest demonstration CSV the readers accept: 1 GiB. They read it as a stream,
+/// so memory holds the parsed rows (about 40 bytes per entity and row, plus the action
+/// words), never the file's text.
+inline constexpr std::uint64_t kMaxDemonstrationBytes = std::uint64_t{1} << 30;
 
 /// Parses CSV text against `spec`. `file` is used in diagnostics. Throws
 /// ddace::Error listing every problem (file:line:column); the result is analyzed.
 Demonstration parseDemonstrationCsv(const std::string& text, const TaskSpec& spec,
                                     const std::string& file);
-/// Reads, parses and analyzes one CSV. Throws ddace::Error.
+/// Reads, parses and analyzes one CSV, as a stream. Throws ddace::Error naming the file
+/// when it is not a regular file (a FIFO, a device, a directory, a symlink loop: refused
+/// before it is opened), is larger than kMaxDemonstrationBytes, or has errors.
 Demonstration readDemonstrationCsv(const std::string& path, const TaskSpec& spec);
 /// CSV text: t, then per entity <E>.x,<E>.y and, where present, <E>.action,<E>.target.
-/// Numbers with 6 decimals (micrometres); byte-identical for identical input.
+/// A number is written with 6 decimals when that reads back exactly (micrometres, 20 or
+/// 30 Hz times), else with the shortest digits that do: every value reads back as it
+/// was. Byte-identical for identical input.
 std::string demonstrationCsvText(const Demonstration& demo, const TaskSpec& spec);
+/// Writes demonstrationCsvText() checked and atomically (common/file.h OutputFile):
+/// a failed write throws ddace::Error naming `path` and leaves no half-written file.
 void writeDemonstrationCsv(const Demonstration& demo, const TaskSpec& spec,
                            const std::string& path);
 

@@ -25,6 +25,16 @@ struct TaskDirReport {
   std::vector<Diagnostic> errors;
 };
 
+/// The demonstration CSVs of a task directory (`<task_dir>/demos/*.csv`), in file-name
+/// order: the order in which every reader takes them. Throws ddace::Error naming the
+/// directory when demos/ is missing or cannot be read.
+std::vector<std::string> demoFiles(const std::string& task_dir);
+/// The path of the `index`-th (0-based) demonstration CSV of demoFiles(task_dir). Throws
+/// ddace::Error "<what> = <index>, but <task_dir>/demos has <n> demonstrations (0..n-1)"
+/// when there is no such demonstration; `what` names where the index came from (e.g.
+/// "parameter '/sequence/replay_demo'").
+std::string demoFile(const std::string& task_dir, long index, const std::string& what = "demonstration index");
+
 /// Reads everything that can be read and collects every error (for `ddace validate`).
 TaskDirReport checkTaskDir(const std::string& path);
 /// Reads a task directory; throws ddace::Error listing every error. Nothing is

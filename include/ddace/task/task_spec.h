@@ -1,4 +1,4 @@
-// The scene of a task: task.yaml of format ddace-task/1 (shared/spec/task-format.md).
+// The scene of a task: task.yaml of format ddace-task/1 (docs/task-format.md).
 //
 // Owns: parsing, validating and writing task.yaml. Entity order is the node
 // order of every graph built from the task. Units: metres (REP-103), table frame.
@@ -14,6 +14,9 @@ namespace ddace::task {
 
 inline constexpr const char* kFormat = "ddace-task/1";
 inline constexpr double kDefaultArrivalRadius = 0.03;  // metres
+/// Labels that begin this close to a step's first one join the step (docs/task-format.md,
+/// "Step grouping"); seconds. 0 is the paper's bare keyframe rule.
+inline constexpr double kDefaultStepWindow = 0.5;
 
 enum class EntityKind { Robot, Object, Goal };
 
@@ -41,6 +44,7 @@ struct TaskSpec {
   std::vector<std::string> actions;       ///< declared vocabulary (empty when absent)
   bool actions_declared = false;          ///< true when task.yaml lists `actions`
   double arrival_radius = kDefaultArrivalRadius;  ///< metres
+  double step_window_s = kDefaultStepWindow;      ///< seconds, >= 0
   std::vector<GoalCondition> goal_conditions;
 
   /// Index of the entity called `name`, or -1.
@@ -57,11 +61,15 @@ bool isValidName(const std::string& name);
 /// Parses task.yaml text. `file` is used in diagnostics only.
 /// Throws ddace::Error listing every problem with file:line:column.
 TaskSpec parseTaskYaml(const std::string& text, const std::string& file);
-/// Reads and parses a task.yaml file. Throws ddace::Error.
+/// Reads and parses a task.yaml file: a regular file of at most kMaxInputFileBytes
+/// (common/file.h, 64 MiB; a FIFO, a device, a directory or a symlink loop is refused by
+/// name before it is opened). Throws ddace::Error.
 TaskSpec readTaskYaml(const std::string& path);
-/// Serialises to task.yaml text (round-trips through parseTaskYaml).
+/// Serialises to task.yaml text (round-trips through parseTaskYaml: numbers are written
+/// with the shortest digits that read back exactly).
 std::string taskYamlText(const TaskSpec& spec);
-/// Writes task.yaml. Throws ddace::Error when the file cannot be written.
+/// Writes task.yaml, checked and atomically. Throws ddace::Error naming the file when it
+/// cannot be written; no half-written file is left under its name.
 void writeTaskYaml(const TaskSpec& spec, const std::string& path);
 
 }  // namespace ddace::task

@@ -163,27 +163,4 @@ class SequenceModel {
 task::Demonstration rolloutGnn(const SequenceModel& model, const task::Demonstration& test_demo,
                                int max_rows);
 
-/// For the benchmarks' Python reference: writes the keyframe training tensors of `train`
-/// (normalised inputs, targets, masks, attention mask) as whitespace-separated text.
-void writeTrainingTensors(const task::TaskDir& train, const TrainOptions& options,
-                          const std::string& path);
-
-namespace detail {
-/// One GAT layer on plain arrays, through the same module the network uses (tests).
-struct GatWeights {
-  int in = 0, heads = 0, channels = 0;
-  std::vector<float> weight;   ///< [heads*channels][in], row-major (torch Linear layout)
-  std::vector<float> att_src;  ///< [heads][channels]
-  std::vector<float> att_dst;  ///< [heads][channels]
-  std::vector<float> bias;     ///< [heads*channels]
-};
-/// x: [nodes][in] row-major. Messages flow along `edges` (source -> target), self-loops
-/// are added. Returns [nodes][heads*channels] row-major.
-std::vector<float> gatForward(const GatWeights& w, const std::vector<float>& x, int nodes,
-                              const std::vector<graph::Edge>& edges);
-/// The training's stopping rule (see "stopping" above) on the epochs so far.
-bool atPlateau(const std::vector<EpochRecord>& history, int patience, double delta);
-
-}  // namespace detail
-
 }  // namespace ddace::tgn

@@ -57,26 +57,49 @@ void Demonstration::analyze() {
   const size_t n = rows(), m = entities();
   if (n == 0) return;
   const std::vector<Label> none(m);
+  std::vector<std::vector<Segment>> step_segments;
+  int open_until = -1;  // the current step's tokens all hold up to this row (none has ended)
+  auto openStep = [&](size_t row) {
+    steps.push_back({static_cast<int>(row), {}, {}});
+    step_segments.emplace_back();
+    keyframes.push_back(static_cast<int>(row));
+    snapshots.push_back({static_cast<int>(row), false, positions[row]});
+    open_until = static_cast<int>(n);
+  };
   for (size_t i = 0; i < n; ++i) {
     const auto& prev = i == 0 ? none : labels[i - 1];
-    bool all_null = true;
-    for (const auto& l : labels[i]) all_null = all_null && l.isNull();
-    if (all_null || labels[i] == prev) continue;
-
-    Step step;
-    step.keyframe_row = static_cast<int>(i);
+    std::vector<Segment> starting;  // tokens whose label begins in row i, by entity
     for (size_t e = 0; e < m; ++e) {
       const Label& l = labels[i][e];
       if (l.isNull() || l == prev[e]) continue;
-      Token token{static_cast<int>(e), l.action, l.target};
-      step.tokens.push_back(token);
       size_t last = i;
       while (last + 1 < n && labels[last + 1][e] == l) ++last;
-      segments.push_back({token, static_cast<int>(steps.size()), static_cast<int>(i), static_cast<int>(last)});
+      starting.push_back({{static_cast<int>(e), l.action, l.target}, 0, static_cast<int>(i), static_cast<int>(last)});
     }
-    keyframes.push_back(static_cast<int>(i));
-    snapshots.push_back({static_cast<int>(i), false, positions[i]});
-    steps.push_back(std::move(step));
+    if (starting.empty()) {
+      // The bare rule (window 0) also makes a keyframe, with no token, of a row in which
+      // labels only end while others hold; with grouping only a beginning label opens a step.
+      bool all_null = true;
+      for (const auto& l : labels[i]) all_null = all_null && l.isNull();
+      if (step_window_s == 0 && !all_null && labels[i] != prev) openStep(i);
+      continue;
+    }
+    const bool joins = !steps.empty() && static_cast<int>(i) <= open_until &&
+                       t[i] - t[steps.back().keyframe_row] <= step_window_s;
+    if (!joins) openStep(i);
+    Step& step = steps.back();
+    for (auto& seg : starting) {
+      seg.step = static_cast<int>(steps.size()) - 1;
+      step.tokens.push_back(seg.token);
+      if (joins) step.late.push_back({seg.token, static_cast<int>(i), t[i] - t[step.keyframe_row]});
+      open_until = std::min(open_until, seg.last_row);
+      step_segments.back().push_back(std::move(seg));
+    }
+    std::sort(step.tokens.begin(), step.tokens.end());
+  }
+  for (auto& segs : step_segments) {
+    std::sort(segs.begin(), segs.end(), [](const Segment& a, const Segment& b) { return a.token < b.token; });
+    segments.insert(segments.end(), segs.begin(), segs.end());
   }
   snapshots.push_back({static_cast<int>(n - 1), true, positions[n - 1]});
 }
@@ -90,7 +113,23 @@ std::vector<Eigen::Vector2d> Demonstration::segmentPath(const Segment& segment) 
 
 Eigen::Vector2d Demonstration::segmentGoal(const Segment& segment) const {
   const int who = segment.token.target >= 0 ? segment.token.target : segment.token.entity;
-  return positions[segment.first_row][who];
+  return positions[steps[segment.step].keyframe_row][who];
+}
+
+std::vector<Diagnostic> mergedOnsetNotes(const Demonstration& demo, const TaskSpec& spec) {
+  std::vector<Diagnostic> notes;
+  for (size_t k = 0; k < demo.steps.size(); ++k) {
+    const Step& step = demo.steps[k];
+    for (const LateOnset& late : step.late) {
+      char delay[32];
+      std::snprintf(delay, sizeof delay, "%.3f", late.delay_s);
+      notes.push_back({demo.source, late.row + 2, 0,
+                       "step " + std::to_string(k + 1) + ": " + tokenKey(late.token, spec) + " began " + delay +
+                           " s after the step's first token (line " + std::to_string(step.keyframe_row + 2) +
+                           "); merged into the step"});
+    }
+  }
+  return notes;
 }
 
 namespace {
@@ -232,6 +271,7 @@ Demonstration parseDemonstrationCsv(const std::string& input, const TaskSpec& sp
   missing("t");
   Demonstration demo;
   demo.source = file;
+  demo.step_window_s = spec.step_window_s;
   demo.has_label_columns.assign(m, false);
   for (size_t e = 0; e < m; ++e) {
     const std::string& n = spec.entities[e].name;

@@ -19,16 +19,70 @@ std::vector<std::string> TaskDir::vocabulary() const {
   return {seen.begin(), seen.end()};
 }
 
+namespace {
+
+struct DemoListing {
+  std::vector<fs::path> csvs, partial;  ///< each sorted by file name
+};
+
+/// The entries of demos/ by name (nothing is opened: the readers refuse what is not a
+/// regular file, by name). Throws ddace::Error naming the directory when it cannot be read.
+DemoListing listDemos(const fs::path& demos) {
+  DemoListing out;
+  std::error_code ec;
+  fs::directory_iterator it(demos, ec);
+  for (; !ec && it != fs::directory_iterator(); it.increment(ec)) {
+    const fs::path& p = it->path();
+    if (p.extension() == ".csv") out.csvs.push_back(p);
+    else if (p.extension() == ".partial") out.partial.push_back(p);
+  }
+  if (ec) throw Error(Diagnostic{demos.string(), 0, 0, "cannot read the directory: " + ec.message()});
+  std::sort(out.csvs.begin(), out.csvs.end());
+  std::sort(out.partial.begin(), out.partial.end());
+  return out;
+}
+
+/// What `path` is, following symlinks; a symlink loop or an unreadable parent is an error.
+fs::file_status statusOf(const fs::path& path, std::string& error) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (ec && st.type() != fs::file_type::not_found) error = "cannot read: " + ec.message();
+  return st;
+}
+
+}  // namespace
+
+std::vector<std::string> demoFiles(const std::string& task_dir) {
+  const fs::path demos = fs::path(task_dir) / "demos";
+  std::string error;
+  const fs::file_status st = statusOf(demos, error);
+  if (!error.empty()) throw Error(Diagnostic{demos.string(), 0, 0, error});
+  if (!fs::is_directory(st)) throw Error(Diagnostic{demos.string(), 0, 0, "no demos/ directory (expected demos/*.csv)"});
+  std::vector<std::string> files;
+  for (const auto& p : listDemos(demos).csvs) files.push_back(p.string());
+  return files;
+}
+
+std::string demoFile(const std::string& task_dir, long index, const std::string& what) {
+  const std::vector<std::string> files = demoFiles(task_dir);
+  if (index < 0 || index >= static_cast<long>(files.size()))
+    throw Error(what + " = " + std::to_string(index) + ", but " + (fs::path(task_dir) / "demos").string() + " has " +
+                std::to_string(files.size()) + " demonstrations" +
+                (files.empty() ? "" : " (0.." + std::to_string(files.size() - 1) + ")"));
+  return files[static_cast<size_t>(index)];
+}
+
 TaskDirReport checkTaskDir(const std::string& path) {
   TaskDirReport report;
   report.dir.path = path;
-  std::error_code ec;
-  if (!fs::is_directory(path, ec)) {
-    report.errors.push_back({path, 0, 0, "not a task directory (expected task.yaml and demos/*.csv)"});
+  std::string error;
+  if (!fs::is_directory(statusOf(path, error))) {
+    report.errors.push_back(
+        {path, 0, 0, error.empty() ? "not a task directory (expected task.yaml and demos/*.csv)" : error});
     return report;
   }
   const std::string yaml = (fs::path(path) / "task.yaml").string();
-  if (!fs::exists(yaml, ec)) {
+  if (statusOf(yaml, error).type() == fs::file_type::not_found && error.empty()) {
     report.errors.push_back({yaml, 0, 0, "missing task.yaml"});
     return report;
   }
@@ -40,25 +94,28 @@ TaskDirReport checkTaskDir(const std::string& path) {
   }
 
   const fs::path demos = fs::path(path) / "demos";
-  std::vector<fs::path> csvs, partial;
-  if (fs::is_directory(demos, ec)) {
-    for (const auto& entry : fs::directory_iterator(demos, ec)) {
-      if (!entry.is_regular_file()) continue;
-      const std::string name = entry.path().filename().string();
-      if (entry.path().extension() == ".csv") csvs.push_back(entry.path());
-      else if (entry.path().extension() == ".partial") partial.push_back(entry.path());
+  DemoListing listing;
+  const fs::file_status demos_status = statusOf(demos, error);
+  if (!error.empty()) {
+    report.errors.push_back({demos.string(), 0, 0, error});
+    return report;
+  }
+  if (fs::is_directory(demos_status)) {
+    try {
+      listing = listDemos(demos);
+    } catch (const Error& e) {
+      report.errors.insert(report.errors.end(), e.diagnostics().begin(), e.diagnostics().end());
+      return report;
     }
   }
-  std::sort(csvs.begin(), csvs.end());
-  std::sort(partial.begin(), partial.end());
-  if (csvs.empty() && partial.empty())
+  if (listing.csvs.empty() && listing.partial.empty())
     report.errors.push_back({demos.string(), 0, 0, "no demonstrations (expected demos/*.csv)"});
-  for (const auto& p : partial) {
+  for (const auto& p : listing.partial) {
     report.errors.push_back({p.string(), 0, 0,
                              "partial recording (the recorder stopped without finishing it): "
                              "inspect it, then rename it to .csv to use it or delete it"});
   }
-  for (const auto& p : csvs) {
+  for (const auto& p : listing.csvs) {
     try {
       report.dir.demos.push_back(readDemonstrationCsv(p.string(), report.dir.spec));
     } catch (const Error& e) {

@@ -10,6 +10,7 @@
 
 #include "ddace/common/file.h"
 #include "ddace/common/yaml_checker.h"
+#include "number.h"
 
 namespace ddace::task {
 
@@ -63,7 +64,7 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
   if (!root.IsMap()) {
     throw Error(Diagnostic{file, 1, 1, "task.yaml must be a mapping with format, entities, ..."});
   }
-  c.onlyKeys(root, {"format", "name", "entities", "actions", "arrival_radius", "goal_conditions"},
+  c.onlyKeys(root, {"format", "name", "entities", "actions", "arrival_radius", "step_window_s", "goal_conditions"},
              "task.yaml");
 
   std::string format;
@@ -152,6 +153,16 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
     }
   }
 
+  if (root["step_window_s"]) {
+    double w = 0;
+    if (c.number(root["step_window_s"], "step_window_s", w)) {
+      if (w < 0)
+        c.error(root["step_window_s"], "step_window_s must be >= 0 (seconds; 0 = the bare keyframe rule)");
+      else
+        spec.step_window_s = w;
+    }
+  }
+
   if (root["goal_conditions"]) {
     if (!root["goal_conditions"].IsSequence()) {
       c.error(root["goal_conditions"], "goal_conditions must be a list of {entity, at, tolerance}");
@@ -222,6 +233,9 @@ std::string taskYamlText(const TaskSpec& spec) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.6g", spec.arrival_radius);
   out << "arrival_radius: " << buf << "                # metres\n";
+  if (spec.step_window_s != kDefaultStepWindow) {
+    out << "step_window_s: " << detail::shortestNumber(spec.step_window_s) << "                 # seconds\n";
+  }
   if (!spec.goal_conditions.empty()) {
     out << "goal_conditions:\n";
     for (const auto& g : spec.goal_conditions) {

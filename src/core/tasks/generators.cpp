@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <functional>
 #include <map>
+#include <optional>
 
 #include "ddace/common/random.h"
 
@@ -160,6 +163,206 @@ Plan task4() {
   return p;
 }
 
+// ---- the scene-dependent families: who acts (and where) follows from the start configuration
+
+constexpr int kMaxSceneAttempts = 100000;
+
+Vector2d tablePoint(SplitMix64& rng) {
+  return {rng.uniform(kSceneBorder, kTableSize - kSceneBorder), rng.uniform(kSceneBorder, kTableSize - kSceneBorder)};
+}
+
+bool insideTable(const Vector2d& p) {
+  return p.minCoeff() >= kSceneBorder && p.maxCoeff() <= kTableSize - kSceneBorder;
+}
+
+/// True when every pair of `points` is at least kSceneMinSeparation apart.
+bool separated(const std::vector<Vector2d>& points) {
+  for (size_t i = 0; i < points.size(); ++i)
+    for (size_t j = i + 1; j < points.size(); ++j)
+      if ((points[i] - points[j]).norm() < kSceneMinSeparation) return false;
+  return true;
+}
+
+/// Index of the candidate nearest to `to` when it is nearer than every other by
+/// kSceneDecisionMargin; -1 when the choice is ambiguous.
+int clearlyNearest(const std::vector<Vector2d>& candidates, const Vector2d& to) {
+  int best = -1;
+  double d1 = 1e9, d2 = 1e9;
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    const double d = (candidates[i] - to).norm();
+    if (d < d1) {
+      d2 = d1;
+      d1 = d;
+      best = static_cast<int>(i);
+    } else if (d < d2) {
+      d2 = d;
+    }
+  }
+  return d2 - d1 >= kSceneDecisionMargin ? best : -1;
+}
+
+/// A family whose steps are decided per demonstration by its start configuration.
+struct SceneFamily {
+  task::TaskSpec spec;
+  /// Draws one start configuration (`layout` of the plan) and decides its steps;
+  /// returns false to reject an ambiguous configuration (the caller draws again).
+  std::function<bool(SplitMix64&, Plan&)> sample;
+};
+
+std::string robotName(int i) { return "R" + std::to_string(i + 1); }
+
+void addSceneEntity(task::TaskSpec& spec, const std::string& name, EntityKind kind, const std::string& type) {
+  spec.entities.push_back({name, kind, type});
+}
+
+/// fetch: the robot nearest the box B1 fetches it (moves to it), then carries it to G1
+/// (B1's own token in the same step); then the other robot follows the fetcher.
+SceneFamily fetchFamily() {
+  SceneFamily f;
+  f.spec.name = "fetch_nearest_robot";
+  f.spec.actions = {"move", "carry"};
+  addSceneEntity(f.spec, "R1", EntityKind::Robot, "hamster");
+  addSceneEntity(f.spec, "R2", EntityKind::Robot, "hamster");
+  addSceneEntity(f.spec, "B1", EntityKind::Object, "box");
+  addSceneEntity(f.spec, "G1", EntityKind::Goal, "");
+  f.spec.goal_conditions = {{"B1", "G1", 0.05}};
+  f.sample = [](SplitMix64& rng, Plan& p) {
+    const std::vector<Vector2d> robots = {tablePoint(rng), tablePoint(rng)};
+    const Vector2d box = tablePoint(rng), goal = tablePoint(rng);
+    if (!separated({robots[0], robots[1], box, goal})) return false;
+    const int fetcher = clearlyNearest(robots, box);
+    if (fetcher < 0) return false;
+    const std::string F = robotName(fetcher), O = robotName(1 - fetcher);
+    p.layout = {{"R1", robots[0]}, {"R2", robots[1]}, {"B1", box}, {"G1", goal}};
+    p.steps = {{{F, "move", "B1", {}}},
+               {{F, "carry", "G1", {}}, {"B1", "carry", "G1", {}}},
+               {{O, "move", F, {}}}};
+    return true;
+  };
+  return f;
+}
+
+/// nearest_goal: R1..R3 and goals G1..G4; in one step every robot drives to its own
+/// nearest free goal. "Free" is decided greedily by increasing distance: the closest
+/// robot-goal pair is matched first, then the closest pair of the unmatched robots and
+/// goals, and so on (one goal stays free). Each match beats every competing pair (same
+/// robot or same goal) by kSceneDecisionMargin.
+SceneFamily nearestGoalFamily() {
+  constexpr int kRobots = 3, kGoals = 4;
+  SceneFamily f;
+  f.spec.name = "nearest_free_goal";
+  f.spec.actions = {"move"};
+  for (int i = 0; i < kRobots; ++i) addSceneEntity(f.spec, robotName(i), EntityKind::Robot, "hamster");
+  for (int g = 0; g < kGoals; ++g) addSceneEntity(f.spec, "G" + std::to_string(g + 1), EntityKind::Goal, "");
+  f.sample = [](SplitMix64& rng, Plan& p) {
+    std::vector<Vector2d> all;
+    for (int i = 0; i < kRobots + kGoals; ++i) all.push_back(tablePoint(rng));
+    if (!separated(all)) return false;
+    auto dist = [&](int r, int g) { return (all[r] - all[kRobots + g]).norm(); };
+    std::vector<bool> robot_done(kRobots, false), goal_used(kGoals, false);
+    std::vector<Move> step;
+    for (int round = 0; round < kRobots; ++round) {
+      int br = -1, bg = -1;
+      for (int r = 0; r < kRobots; ++r)
+        for (int g = 0; g < kGoals; ++g)
+          if (!robot_done[r] && !goal_used[g] && (br < 0 || dist(r, g) < dist(br, bg))) br = r, bg = g;
+      for (int r = 0; r < kRobots; ++r)
+        for (int g = 0; g < kGoals; ++g)
+          if (!robot_done[r] && !goal_used[g] && (r == br) != (g == bg) &&
+              dist(r, g) < dist(br, bg) + kSceneDecisionMargin)
+            return false;
+      robot_done[br] = goal_used[bg] = true;
+      step.push_back({robotName(br), "move", "G" + std::to_string(bg + 1), {}});
+    }
+    for (int i = 0; i < kRobots + kGoals; ++i) p.layout[p.spec.entities[i].name] = all[i];
+    p.steps = {step};
+    return true;
+  };
+  return f;
+}
+
+/// queue: R1..R3 line up in the slots Q1 (the head), Q2, Q3 (goals on a straight line,
+/// kQueueSlotSpacing apart), one robot per step, in the order of their distance to Q1: the
+/// nearest to Q1, then the next-nearest to Q2, the farthest to Q3.
+SceneFamily queueFamily() {
+  constexpr int kRobots = 3;
+  SceneFamily f;
+  f.spec.name = "queue_by_distance";
+  f.spec.actions = {"move"};
+  for (int i = 0; i < kRobots; ++i) addSceneEntity(f.spec, robotName(i), EntityKind::Robot, "hamster");
+  for (int q = 0; q < kRobots; ++q) addSceneEntity(f.spec, "Q" + std::to_string(q + 1), EntityKind::Goal, "slot");
+  f.sample = [](SplitMix64& rng, Plan& p) {
+    std::vector<Vector2d> all;
+    for (int i = 0; i < kRobots; ++i) all.push_back(tablePoint(rng));
+    const Vector2d head = tablePoint(rng);
+    const double angle = rng.uniform(0, 2 * M_PI);
+    const Vector2d dir(std::cos(angle), std::sin(angle));
+    for (int q = 0; q < kRobots; ++q) all.push_back(head + q * kQueueSlotSpacing * dir);
+    for (const auto& a : all)
+      if (!insideTable(a)) return false;
+    if (!separated(all)) return false;
+    std::vector<int> order(kRobots);
+    for (int i = 0; i < kRobots; ++i) order[i] = i;
+    auto d = [&](int r) { return (all[r] - head).norm(); };
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return d(a) < d(b); });
+    for (int k = 0; k + 1 < kRobots; ++k)
+      if (d(order[k + 1]) - d(order[k]) < kSceneDecisionMargin) return false;
+    for (int i = 0; i < 2 * kRobots; ++i) p.layout[p.spec.entities[i].name] = all[i];
+    p.steps.clear();
+    for (int k = 0; k < kRobots; ++k) p.steps.push_back({{robotName(order[k]), "move", "Q" + std::to_string(k + 1), {}}});
+    return true;
+  };
+  return f;
+}
+
+/// deliver: the robot nearest the box B1 fetches it and carries it to whichever of G1, G2
+/// is nearer to the box; the other robot stays where it is.
+SceneFamily deliverFamily() {
+  SceneFamily f;
+  f.spec.name = "deliver_to_nearest_goal";
+  f.spec.actions = {"move", "carry"};
+  addSceneEntity(f.spec, "R1", EntityKind::Robot, "hamster");
+  addSceneEntity(f.spec, "R2", EntityKind::Robot, "hamster");
+  addSceneEntity(f.spec, "B1", EntityKind::Object, "box");
+  addSceneEntity(f.spec, "G1", EntityKind::Goal, "");
+  addSceneEntity(f.spec, "G2", EntityKind::Goal, "");
+  f.sample = [](SplitMix64& rng, Plan& p) {
+    const std::vector<Vector2d> robots = {tablePoint(rng), tablePoint(rng)};
+    const Vector2d box = tablePoint(rng);
+    const std::vector<Vector2d> goals = {tablePoint(rng), tablePoint(rng)};
+    if (!separated({robots[0], robots[1], box, goals[0], goals[1]})) return false;
+    const int fetcher = clearlyNearest(robots, box), goal = clearlyNearest(goals, box);
+    if (fetcher < 0 || goal < 0) return false;
+    const std::string F = robotName(fetcher), G = "G" + std::to_string(goal + 1);
+    p.layout = {{"R1", robots[0]}, {"R2", robots[1]}, {"B1", box}, {"G1", goals[0]}, {"G2", goals[1]}};
+    p.steps = {{{F, "move", "B1", {}}}, {{F, "carry", G, {}}, {"B1", "carry", G, {}}}};
+    return true;
+  };
+  return f;
+}
+
+const std::vector<std::string> kPaperFamilies = {"task1", "task2", "task3", "task4"};
+const std::vector<std::string> kSceneFamilies = {"fetch", "nearest_goal", "queue", "deliver"};
+
+SceneFamily sceneFamily(const std::string& name) {
+  if (name == "fetch") return fetchFamily();
+  if (name == "nearest_goal") return nearestGoalFamily();
+  if (name == "queue") return queueFamily();
+  return deliverFamily();
+}
+
+/// One start configuration of `family` and its steps, drawn until unambiguous.
+Plan sampleScene(const SceneFamily& family, SplitMix64& rng) {
+  for (int attempt = 0; attempt < kMaxSceneAttempts; ++attempt) {
+    Plan p;
+    p.spec = family.spec;
+    p.layout_jitter = 0;  // the layout is the drawn configuration itself
+    if (family.sample(rng, p)) return p;
+  }
+  throw Error("family '" + family.spec.name + "': no unambiguous start configuration in " +
+              std::to_string(kMaxSceneAttempts) + " draws");
+}
+
 double smoothstep(double s) { return s * s * (3 - 2 * s); }
 
 /// The path of a motion from `from` to `to` with `shape` and amplitude `a`, at progress u.
@@ -181,7 +384,10 @@ double pathLength(const Shape& shape, double a, const Vector2d& from, const Vect
   return len;
 }
 
-task::Demonstration simulate(const Plan& plan, SplitMix64& rng, double jitter_m) {
+/// One demonstration of `plan`. Onset jitter delays each token's label (not its motion)
+/// by a whole number of rows, drawn from `onset_rng` in [0, onset_jitter_s) seconds.
+task::Demonstration simulate(const Plan& plan, SplitMix64& rng, double jitter_m, double onset_jitter_s,
+                             SplitMix64& onset_rng) {
   const auto& spec = plan.spec;
   const size_t m = spec.entities.size();
   std::vector<Vector2d> pos(m);
@@ -192,7 +398,8 @@ task::Demonstration simulate(const Plan& plan, SplitMix64& rng, double jitter_m)
     auto key = std::make_pair(base.x(), base.y());
     auto it = placed.find(key);
     if (it == placed.end()) {
-      Vector2d p = base + Vector2d(rng.uniform(-1, 1), rng.uniform(-1, 1)) * plan.layout_jitter;
+      Vector2d p = base;
+      if (plan.layout_jitter > 0) p += Vector2d(rng.uniform(-1, 1), rng.uniform(-1, 1)) * plan.layout_jitter;
       p = p.cwiseMax(0.03).cwiseMin(kTableSize - 0.03);
       it = placed.emplace(key, p).first;
     }
@@ -222,10 +429,14 @@ task::Demonstration simulate(const Plan& plan, SplitMix64& rng, double jitter_m)
     };
     std::vector<Active> moving;
     std::vector<task::Label> labels(m);
+    std::vector<int> onset_rows(m, 0);
     double longest = 0;
     for (const auto& mv : step) {
       const int e = spec.entityIndex(mv.entity);
       labels[e].action = mv.action;
+      // floor: the label's lag never exceeds the drawn delay, so it stays below step_window_s.
+      if (onset_jitter_s > 0)
+        onset_rows[e] = static_cast<int>(std::floor(onset_rng.uniform(0, onset_jitter_s) * kGeneratorRateHz));
       if (mv.target.empty()) continue;
       labels[e].target = spec.entityIndex(mv.target);
       // Small per-demonstration variation of the shape: demonstrations are never identical.
@@ -236,10 +447,12 @@ task::Demonstration simulate(const Plan& plan, SplitMix64& rng, double jitter_m)
     // All tokens of a step end together (step-synchronous demonstrations).
     const double duration = std::max(kMinStepDuration, longest / kSpeed);
     const int n = static_cast<int>(std::ceil(duration * kGeneratorRateHz));
+    std::vector<task::Label> row_labels(m);
     for (int j = 0; j <= n; ++j) {
       const double u = smoothstep(static_cast<double>(j) / n);
       for (const auto& mv : moving) pos[mv.entity] = pathPoint(mv.shape, mv.a, mv.from, mv.to, u);
-      emit(labels);
+      for (size_t e = 0; e < m; ++e) row_labels[e] = j >= onset_rows[e] ? labels[e] : task::Label{};
+      emit(row_labels);
     }
     const int gap = s + 1 < plan.steps.size() ? kIdleRowsBetween : kIdleRowsAfter;
     for (int i = 0; i < gap; ++i) emit(idle);
@@ -268,10 +481,17 @@ void mislabel(task::Demonstration& d, const task::TaskSpec& spec, SplitMix64& rn
 
 }  // namespace
 
-std::vector<std::string> families() { return {"task1", "task2", "task3", "task4"}; }
+std::vector<std::string> paperFamilies() { return kPaperFamilies; }
+std::vector<std::string> sceneFamilies() { return kSceneFamilies; }
+std::vector<std::string> families() {
+  std::vector<std::string> all = kPaperFamilies;
+  all.insert(all.end(), kSceneFamilies.begin(), kSceneFamilies.end());
+  return all;
+}
 
 task::TaskDir generate(const GeneratorOptions& o) {
   Plan plan;
+  std::optional<SceneFamily> scene;
   if (o.family == "task1") {
     plan = task1();
   } else if (o.family == "task2") {
@@ -284,20 +504,39 @@ task::TaskDir generate(const GeneratorOptions& o) {
     plan = task3(o.actions);
   } else if (o.family == "task4") {
     plan = task4();
+  } else if (std::find(kSceneFamilies.begin(), kSceneFamilies.end(), o.family) != kSceneFamilies.end()) {
+    scene = sceneFamily(o.family);
+    plan.spec = scene->spec;
   } else {
-    throw Error("unknown task family '" + o.family + "' (expected task1, task2, task3 or task4)");
+    std::string names;
+    for (const auto& f : families()) names += (names.empty() ? "" : ", ") + f;
+    throw Error("unknown task family '" + o.family + "' (expected one of " + names + ")");
   }
   if (o.demos < 0) throw Error("the number of demonstrations must not be negative");
   if (o.jitter_m < 0 || !std::isfinite(o.jitter_m)) throw Error("jitter must be a non-negative number of metres");
   if (o.mislabel_fraction < 0 || o.mislabel_fraction > 1) throw Error("mislabel fraction must be in [0, 1]");
   plan.spec.actions_declared = true;
+  const double window = plan.spec.step_window_s;
+  if (!(o.onset_jitter_s >= 0 && o.onset_jitter_s < window)) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf,
+                  "--onset-jitter %g is out of range: seconds in [0, %g), below the task's step_window_s "
+                  "so that the steps group back",
+                  o.onset_jitter_s, window);
+    throw Error(buf);
+  }
 
   task::TaskDir dir;
   dir.spec = plan.spec;
   SplitMix64 rng(o.seed * 0x9E3779B97F4A7C15ULL + 0x632BE59BD9B4E019ULL);
+  // Onset delays come from their own stream: the same seed gives the same scenes and
+  // motions with and without --onset-jitter.
+  SplitMix64 onset_rng(o.seed * 0x9E3779B97F4A7C15ULL + 0x3C6EF372FE94F82AULL);
   const int mislabelled = static_cast<int>(std::round(o.mislabel_fraction * o.demos));
   for (int i = 0; i < o.demos; ++i) {
-    task::Demonstration d = simulate(plan, rng, o.jitter_m);
+    if (scene) plan = sampleScene(*scene, rng);
+    task::Demonstration d = simulate(plan, rng, o.jitter_m, o.onset_jitter_s, onset_rng);
+    d.step_window_s = window;
     if (i < mislabelled) mislabel(d, dir.spec, rng);
     d.analyze();
     dir.demos.push_back(std::move(d));

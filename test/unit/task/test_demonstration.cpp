@@ -8,13 +8,17 @@ using namespace ddace::task;
 
 namespace {
 
-TaskSpec scene(bool declare_actions = true) {
+TaskSpec scene(bool declare_actions = true, const std::string& step_window = "") {
   return parseTaskYaml(std::string("format: ddace-task/1\nentities:\n"
                                    "  - {name: R1, kind: robot}\n  - {name: R2, kind: robot}\n"
                                    "  - {name: B1, kind: object}\n  - {name: G1, kind: goal}\n") +
-                           (declare_actions ? "actions: [move, carry, stop]\n" : ""),
+                           (declare_actions ? "actions: [move, carry, stop]\n" : "") +
+                           (step_window.empty() ? "" : "step_window_s: " + step_window + "\n"),
                        "task.yaml");
 }
+
+/// The scene with the paper's bare keyframe rule (step_window_s: 0).
+TaskSpec bareScene() { return scene(true, "0"); }
 
 const char* kHeader = "t,R1.x,R1.y,R1.action,R1.target,R2.x,R2.y,R2.action,R2.target,B1.x,B1.y,G1.x,G1.y\n";
 
@@ -38,7 +42,7 @@ Diagnostic firstError(const std::string& text, const TaskSpec& spec = scene()) {
 
 }  // namespace
 
-TEST(Demonstration, KeyframesStepsSegmentsAndSnapshots) {
+TEST(Demonstration, KeyframesStepsSegmentsAndSnapshotsOfTheBareRule) {
   // rows: 0 idle | 1-3 R1 move->G1 (+ R2 carry->B1 rows 1-2) | 4 idle | 5-6 R2 stop | 7 idle
   std::string csv = kHeader;
   csv += row(0.0, "", "", "", "");
@@ -49,7 +53,7 @@ TEST(Demonstration, KeyframesStepsSegmentsAndSnapshots) {
   csv += row(0.5, "", "", "stop", "", 0.5);
   csv += row(0.6, "", "", "stop", "", 0.5);
   csv += row(0.7, "", "", "", "", 0.5);
-  const TaskSpec spec = scene();
+  const TaskSpec spec = bareScene();
   const Demonstration d = parseDemonstrationCsv(csv, spec, "demo.csv");
   ASSERT_EQ(d.rows(), 8u);
   // Row 3 changes (R2 goes idle) but is not all-null: it is a keyframe with no new token.
@@ -115,6 +119,158 @@ TEST(Demonstration, SwitchingTargetWithoutIdlingIsANewToken) {
   EXPECT_EQ(tokenKey(d.steps[1].tokens[0], spec), "R1:move:B1");
   EXPECT_EQ(d.segments[0].last_row, 0);  // R1's first segment ended when its label changed
   EXPECT_EQ(d.segments[1].last_row, 2);  // R2's continues to the end
+}
+
+// ---- step grouping (docs/task-format.md, "Step grouping"; default window 0.5 s)
+
+namespace {
+
+std::vector<std::vector<std::string>> structure(const Demonstration& d, const TaskSpec& spec) {
+  std::vector<std::vector<std::string>> out;
+  for (const auto& s : d.steps) {
+    out.emplace_back();
+    for (const auto& t : s.tokens) out.back().push_back(tokenKey(t, spec));
+  }
+  return out;
+}
+
+using Steps = std::vector<std::vector<std::string>>;
+
+}  // namespace
+
+TEST(StepGrouping, ALateTokenJoinsTheStepAndItsGoalIsTakenAtTheKeyframe) {
+  // R1 starts at row 1; R2's label (toward the moving R1) begins 0.2 s later, at row 3.
+  std::string csv = kHeader;
+  csv += row(0.0, "", "", "", "", 0.1);
+  csv += row(0.1, "move", "G1", "", "", 0.2);
+  csv += row(0.2, "move", "G1", "", "", 0.3);
+  csv += row(0.3, "move", "G1", "move", "R1", 0.4);
+  csv += row(0.4, "move", "G1", "move", "R1", 0.5);
+  csv += row(0.5, "", "", "", "", 0.6);
+  const TaskSpec spec = scene();
+  const Demonstration d = parseDemonstrationCsv(csv, spec, "demo.csv");
+  EXPECT_EQ(structure(d, spec), (Steps{{"R1:move:G1", "R2:move:R1"}}));
+  EXPECT_EQ(d.keyframes, (std::vector<int>{1}));
+  ASSERT_EQ(d.snapshots.size(), 2u);
+  EXPECT_EQ(d.snapshots[0].row, 1);  // the step's snapshot is its first token's row
+  EXPECT_DOUBLE_EQ(d.snapshots[0].positions[0].x(), 0.2);
+  ASSERT_EQ(d.segments.size(), 2u);
+  EXPECT_EQ(d.segments[1].first_row, 3);  // the late token's segment starts at its own row
+  EXPECT_EQ(d.segments[1].step, 0);
+  EXPECT_EQ(d.segmentPath(d.segments[1]).size(), 2u);
+  EXPECT_DOUBLE_EQ(d.segmentGoal(d.segments[1]).x(), 0.2);  // R1 where the step was decided
+  ASSERT_EQ(d.steps[0].late.size(), 1u);
+  EXPECT_EQ(tokenKey(d.steps[0].late[0].token, spec), "R2:move:R1");
+  EXPECT_EQ(d.steps[0].late[0].row, 3);
+  EXPECT_NEAR(d.steps[0].late[0].delay_s, 0.2, 1e-12);
+  EXPECT_TRUE(d.snapshots.back().end);
+  EXPECT_EQ(d.snapshots.back().row, 5);
+
+  // Window 0 is the paper's bare rule: two steps.
+  const Demonstration bare = parseDemonstrationCsv(csv, bareScene(), "demo.csv");
+  EXPECT_EQ(structure(bare, spec), (Steps{{"R1:move:G1"}, {"R2:move:R1"}}));
+  EXPECT_TRUE(bare.steps[1].late.empty());
+}
+
+TEST(StepGrouping, ALateTokenAfterAnotherTokenOfTheStepEndedOpensANewStep) {
+  std::string csv = kHeader;
+  csv += row(0.0, "move", "G1", "", "");
+  csv += row(0.1, "move", "G1", "", "");
+  csv += row(0.2, "", "", "move", "G1");  // R1 ended in this very row: a new step
+  csv += row(0.3, "", "", "move", "G1");
+  const TaskSpec spec = scene();
+  const Demonstration d = parseDemonstrationCsv(csv, spec, "demo.csv");
+  EXPECT_EQ(structure(d, spec), (Steps{{"R1:move:G1"}, {"R2:move:G1"}}));
+  EXPECT_EQ(d.keyframes, (std::vector<int>{0, 2}));
+  EXPECT_TRUE(d.steps[1].late.empty());
+}
+
+TEST(StepGrouping, AnInPlaceTokenOfOneRowEndsItsStepAtTheNextRow) {
+  std::string csv = kHeader;
+  csv += row(0.0, "stop", "", "move", "G1");  // same row: one step, nothing late
+  csv += row(0.1, "", "", "move", "G1");
+  csv += row(0.2, "", "", "", "");
+  csv += row(0.3, "stop", "", "", "");
+  csv += row(0.4, "", "", "move", "G1");  // R1's one-row stop has ended: a new step
+  const TaskSpec spec = scene();
+  const Demonstration d = parseDemonstrationCsv(csv, spec, "demo.csv");
+  EXPECT_EQ(structure(d, spec), (Steps{{"R1:stop", "R2:move:G1"}, {"R1:stop"}, {"R2:move:G1"}}));
+  EXPECT_TRUE(d.steps[0].late.empty());
+  EXPECT_EQ(d.segments[2].first_row, d.segments[2].last_row);  // a single row
+}
+
+TEST(StepGrouping, AnEntityWhoseLabelChangesTwiceWithinTheWindowOpensANewStep) {
+  std::string csv = kHeader;
+  csv += row(0.0, "move", "G1", "", "");
+  csv += row(0.1, "move", "B1", "", "");  // R1 corrects itself: its first token ended
+  csv += row(0.2, "move", "B1", "move", "G1");  // R2 joins R1's second token
+  csv += row(0.3, "move", "B1", "move", "G1");
+  const TaskSpec spec = scene();
+  const Demonstration d = parseDemonstrationCsv(csv, spec, "demo.csv");
+  EXPECT_EQ(structure(d, spec), (Steps{{"R1:move:G1"}, {"R1:move:B1", "R2:move:G1"}}));
+  ASSERT_EQ(d.steps[1].late.size(), 1u);
+  EXPECT_EQ(d.steps[1].late[0].row, 2);
+}
+
+TEST(StepGrouping, TheWindowBoundaryIsInclusive) {
+  // t = 1.0 and 1.5 are exact in binary: 0.5 s apart joins, a microsecond more does not.
+  for (const auto& [late_t, expected] :
+       std::vector<std::pair<double, Steps>>{{1.5, Steps{{"R1:move:G1", "R2:move:G1"}}},
+                                             {1.500001, Steps{{"R1:move:G1"}, {"R2:move:G1"}}}}) {
+    std::string csv = kHeader;
+    csv += row(1.0, "move", "G1", "", "");
+    char t[32];
+    std::snprintf(t, sizeof t, "%.6f", late_t);
+    csv += std::string(t) + ",0.1,0.1,move,G1,0.5,0.5,move,G1,0.2,0.2,0.9,0.9\n";
+    csv += row(2.0, "move", "G1", "move", "G1");
+    const TaskSpec spec = scene();
+    EXPECT_EQ(structure(parseDemonstrationCsv(csv, spec, "demo.csv"), spec), expected) << late_t;
+  }
+}
+
+TEST(StepGrouping, LabelsThatOnlyEndOpenNoStep) {
+  // R2 is released two rows before R1: with grouping no empty step appears there.
+  std::string csv = kHeader;
+  csv += row(0.0, "move", "G1", "move", "G1");
+  csv += row(0.1, "move", "G1", "", "");
+  csv += row(0.2, "move", "G1", "", "");
+  csv += row(0.3, "", "", "", "");
+  const TaskSpec spec = scene();
+  EXPECT_EQ(structure(parseDemonstrationCsv(csv, spec, "demo.csv"), spec), (Steps{{"R1:move:G1", "R2:move:G1"}}));
+  // The bare rule keeps its keyframe without a token in row 1.
+  EXPECT_EQ(structure(parseDemonstrationCsv(csv, bareScene(), "demo.csv"), spec),
+            (Steps{{"R1:move:G1", "R2:move:G1"}, {}}));
+}
+
+TEST(StepGrouping, SeveralLateTokensAreMeasuredFromTheFirstOne) {
+  // Three tokens labelled 0.2 s apart each: with a 0.3 s window the third (0.4 s after
+  // the first) opens a step of its own.
+  std::string csv = "t,R1.x,R1.y,R1.action,R1.target,R2.x,R2.y,R2.action,R2.target,B1.x,B1.y,B1.action,B1.target,G1.x,G1.y\n";
+  csv += "0.0,0.1,0.1,move,G1,0.5,0.5,,,0.2,0.2,,,0.9,0.9\n";
+  csv += "0.2,0.1,0.1,move,G1,0.5,0.5,move,G1,0.2,0.2,,,0.9,0.9\n";
+  csv += "0.4,0.1,0.1,move,G1,0.5,0.5,move,G1,0.2,0.2,carry,G1,0.9,0.9\n";
+  csv += "0.6,0.1,0.1,move,G1,0.5,0.5,move,G1,0.2,0.2,carry,G1,0.9,0.9\n";
+  const TaskSpec spec = scene(true, "0.3");
+  EXPECT_DOUBLE_EQ(spec.step_window_s, 0.3);
+  EXPECT_EQ(structure(parseDemonstrationCsv(csv, spec, "demo.csv"), spec),
+            (Steps{{"R1:move:G1", "R2:move:G1"}, {"B1:carry:G1"}}));
+  EXPECT_EQ(structure(parseDemonstrationCsv(csv, scene(), "demo.csv"), spec),
+            (Steps{{"R1:move:G1", "R2:move:G1", "B1:carry:G1"}}));
+}
+
+TEST(StepGrouping, ValidateNotesSayWhereOnsetsWereMerged) {
+  std::string csv = kHeader;
+  csv += row(0.0, "move", "G1", "", "");
+  csv += row(0.25, "move", "G1", "move", "G1");
+  csv += row(0.5, "move", "G1", "move", "G1");
+  const TaskSpec spec = scene();
+  const Demonstration d = parseDemonstrationCsv(csv, spec, "demos/demo_007.csv");
+  const std::vector<Diagnostic> notes = mergedOnsetNotes(d, spec);
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_EQ(notes[0].str(),
+            "demos/demo_007.csv:3: step 1: R2:move:G1 began 0.250 s after the step's first token "
+            "(line 2); merged into the step");
+  EXPECT_TRUE(mergedOnsetNotes(parseDemonstrationCsv(csv, bareScene(), "d.csv"), spec).empty());
 }
 
 TEST(Demonstration, ColumnsInAnyOrderAndEntitiesWithoutLabelColumns) {

@@ -77,3 +77,18 @@ TEST(TaskDir, RewritingRemovesOldDemonstrations) {
   task::writeTaskDir(tasks::generate(o), path);
   EXPECT_EQ(task::loadTaskDir(path).demos.size(), 1u);
 }
+
+TEST(TaskDir, TheNthDemonstrationIsFoundOrTheErrorNamesDirectoryAndCount) {
+  const std::string path = makeDir("nth");
+  EXPECT_EQ(fs::path(task::demoFile(path, 2)).filename(), "demo_002.csv");
+  EXPECT_EQ(task::demoFiles(path).size(), 3u);
+  try {
+    task::demoFile(path, 3, "parameter '/monitor/ground_truth_demo'");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "parameter '/monitor/ground_truth_demo' = 3, but " + path +
+                                         "/demos has 3 demonstrations (0..2)");
+  }
+  EXPECT_THROW(task::demoFile(path, -1), Error);
+  EXPECT_THROW(task::demoFile("/nonexistent_ddace", 0), Error);
+}

@@ -1,7 +1,9 @@
 // Generators of the paper's task families: exact step structure, determinism, validity.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <set>
 
 #include "ddace/tasks/generators.h"
 
@@ -170,4 +172,238 @@ TEST(Generators, BadOptionsAreRefusedNamingTheOption) {
   }
   EXPECT_THROW(gen("task3", 1, 1, 11, 5), Error);
   EXPECT_THROW(gen("task9"), Error);
+}
+
+// ---- the scene-dependent families: the start configuration decides who acts
+
+namespace {
+
+using Eigen::Vector2d;
+
+/// Start position of entity `name` in demonstration `d`.
+Vector2d start(const task::Demonstration& d, const task::TaskSpec& spec, const std::string& name) {
+  return d.positions.front()[spec.entityIndex(name)];
+}
+
+double dist(const Vector2d& a, const Vector2d& b) { return (a - b).norm(); }
+
+}  // namespace
+
+TEST(SceneFamilies, FetchTheRobotNearestTheBoxFetchesItAndTheOtherFollows) {
+  const auto dir = gen("fetch", 30);
+  int r1_fetches = 0;
+  for (const auto& d : dir.demos) {
+    const double d1 = dist(start(d, dir.spec, "R1"), start(d, dir.spec, "B1"));
+    const double d2 = dist(start(d, dir.spec, "R2"), start(d, dir.spec, "B1"));
+    EXPECT_GE(std::abs(d1 - d2), tasks::kSceneDecisionMargin);
+    const std::string F = d1 < d2 ? "R1" : "R2", O = d1 < d2 ? "R2" : "R1";
+    r1_fetches += d1 < d2;
+    EXPECT_EQ(structure(d, dir.spec), (Steps{{F + ":move:B1"}, {F + ":carry:G1", "B1:carry:G1"}, {O + ":move:" + F}}));
+  }
+  // The decision genuinely depends on the scene: both robots fetch in some demonstrations.
+  EXPECT_GT(r1_fetches, 5);
+  EXPECT_LT(r1_fetches, 25);
+}
+
+TEST(SceneFamilies, NearestGoalMatchesEveryRobotToItsNearestFreeGoalInOneStep) {
+  const auto dir = gen("nearest_goal", 30);
+  std::set<std::vector<std::string>> assignments;
+  for (const auto& d : dir.demos) {
+    // The rule, written out: repeatedly match the closest unmatched robot-goal pair.
+    std::vector<std::string> robots = {"R1", "R2", "R3"}, goals = {"G1", "G2", "G3", "G4"};
+    std::vector<std::string> expected;
+    while (!robots.empty()) {
+      size_t br = 0, bg = 0;
+      for (size_t r = 0; r < robots.size(); ++r)
+        for (size_t g = 0; g < goals.size(); ++g)
+          if (dist(start(d, dir.spec, robots[r]), start(d, dir.spec, goals[g])) <
+              dist(start(d, dir.spec, robots[br]), start(d, dir.spec, goals[bg])))
+            br = r, bg = g;
+      expected.push_back(robots[br] + ":move:" + goals[bg]);
+      robots.erase(robots.begin() + static_cast<long>(br));
+      goals.erase(goals.begin() + static_cast<long>(bg));
+    }
+    std::sort(expected.begin(), expected.end());
+    const auto s = structure(d, dir.spec);
+    ASSERT_EQ(s.size(), 1u);
+    EXPECT_EQ(s[0], expected);
+    assignments.insert(expected);
+  }
+  EXPECT_GT(assignments.size(), 10u);  // many different matchings, decided by the scene
+}
+
+TEST(SceneFamilies, QueueRobotsLineUpInTheOrderOfTheirDistanceToTheHead) {
+  const auto dir = gen("queue", 30);
+  std::set<std::string> first;
+  for (const auto& d : dir.demos) {
+    std::vector<std::string> order = {"R1", "R2", "R3"};
+    const Vector2d head = start(d, dir.spec, "Q1");
+    std::sort(order.begin(), order.end(), [&](const std::string& a, const std::string& b) {
+      return dist(start(d, dir.spec, a), head) < dist(start(d, dir.spec, b), head);
+    });
+    for (size_t k = 0; k + 1 < order.size(); ++k)
+      EXPECT_GE(dist(start(d, dir.spec, order[k + 1]), head) - dist(start(d, dir.spec, order[k]), head),
+                tasks::kSceneDecisionMargin);
+    EXPECT_EQ(structure(d, dir.spec),
+              (Steps{{order[0] + ":move:Q1"}, {order[1] + ":move:Q2"}, {order[2] + ":move:Q3"}}));
+    EXPECT_NEAR(dist(start(d, dir.spec, "Q1"), start(d, dir.spec, "Q2")), tasks::kQueueSlotSpacing, 1e-5);
+    first.insert(order[0]);
+  }
+  EXPECT_EQ(first.size(), 3u);  // every robot heads the queue in some demonstration
+}
+
+TEST(SceneFamilies, DeliverTheNearestRobotCarriesTheBoxToTheGoalNearestIt) {
+  const auto dir = gen("deliver", 30);
+  std::set<std::string> seen;
+  for (const auto& d : dir.demos) {
+    const Vector2d box = start(d, dir.spec, "B1");
+    const std::string F = dist(start(d, dir.spec, "R1"), box) < dist(start(d, dir.spec, "R2"), box) ? "R1" : "R2";
+    const std::string G = dist(start(d, dir.spec, "G1"), box) < dist(start(d, dir.spec, "G2"), box) ? "G1" : "G2";
+    EXPECT_EQ(structure(d, dir.spec), (Steps{{F + ":move:B1"}, {F + ":carry:" + G, "B1:carry:" + G}}));
+    seen.insert(F + G);
+  }
+  EXPECT_EQ(seen.size(), 4u);  // both robots, both goals
+}
+
+TEST(SceneFamilies, StartConfigurationsCoverTheWholeTableWithSeparatedEntities) {
+  for (const auto& family : tasks::sceneFamilies()) {
+    const auto dir = gen(family, 30);
+    Eigen::Vector2d lo(1, 1), hi(0, 0);
+    for (const auto& d : dir.demos) {
+      const auto& p = d.positions.front();
+      for (size_t i = 0; i < p.size(); ++i) {
+        lo = lo.cwiseMin(p[i]);
+        hi = hi.cwiseMax(p[i]);
+        EXPECT_GE(p[i].minCoeff(), tasks::kSceneBorder - 1e-9) << family;
+        EXPECT_LE(p[i].maxCoeff(), tasks::kTableSize - tasks::kSceneBorder + 1e-9) << family;
+        for (size_t j = i + 1; j < p.size(); ++j)
+          EXPECT_GE(dist(p[i], p[j]), tasks::kSceneMinSeparation - 1e-5) << family;
+      }
+    }
+    EXPECT_LT(lo.maxCoeff(), 0.2) << family;  // not jitter around a template
+    EXPECT_GT(hi.minCoeff(), 0.8) << family;
+  }
+}
+
+TEST(SceneFamilies, AreListedAndGeneratedByName) {
+  EXPECT_EQ(tasks::paperFamilies(), (std::vector<std::string>{"task1", "task2", "task3", "task4"}));
+  EXPECT_EQ(tasks::sceneFamilies(), (std::vector<std::string>{"fetch", "nearest_goal", "queue", "deliver"}));
+  EXPECT_EQ(tasks::families().size(), 8u);
+  try {
+    gen("fetchh");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("nearest_goal"), std::string::npos) << e.what();
+  }
+}
+
+// ---- human-timed labels: --onset-jitter
+
+namespace {
+
+task::TaskDir genOnset(const std::string& family, double onset_s, int demos = 10) {
+  tasks::GeneratorOptions o;
+  o.family = family;
+  o.demos = demos;
+  o.seed = 11;
+  o.onset_jitter_s = onset_s;
+  return tasks::generate(o);
+}
+
+}  // namespace
+
+TEST(OnsetJitter, LabelsLagTheirMotionByUpToTheJitterAndEndWithTheStep) {
+  const int max_lag = static_cast<int>(0.4 * tasks::kGeneratorRateHz);
+  for (const auto& family : tasks::families()) {
+    const auto clean = genOnset(family, 0), late = genOnset(family, 0.4);
+    ASSERT_EQ(clean.demos.size(), late.demos.size());
+    int lagging = 0;
+    for (size_t i = 0; i < clean.demos.size(); ++i) {
+      const auto& c = clean.demos[i];
+      const auto& l = late.demos[i];
+      ASSERT_EQ(c.positions, l.positions) << family;  // the same scenes and motions: only labels differ
+      ASSERT_EQ(c.rows(), l.rows());
+      for (size_t e = 0; e < c.entities(); ++e) {
+        for (size_t r = 0; r < c.rows(); ++r) {
+          const task::Label& lr = l.labels[r][e];
+          const task::Label& cr = c.labels[r][e];
+          if (!lr.isNull()) {
+            EXPECT_EQ(lr, cr) << family;  // a label is never invented ...
+          }
+          const bool clean_starts = !cr.isNull() && (r == 0 || c.labels[r - 1][e] != cr);
+          if (!clean_starts) continue;
+          // ... it begins up to max_lag rows late, and ends with the step.
+          size_t begin = r;
+          while (begin < c.rows() && l.labels[begin][e].isNull()) ++begin;
+          ASSERT_LT(begin, c.rows()) << family;
+          EXPECT_LE(static_cast<int>(begin - r), max_lag) << family;
+          EXPECT_EQ(l.labels[begin][e], cr) << family;
+          size_t end = r;
+          while (end + 1 < c.rows() && c.labels[end + 1][e] == cr) ++end;
+          EXPECT_EQ(l.labels[end][e], cr) << family;
+          lagging += begin > r;
+        }
+      }
+    }
+    EXPECT_GT(lagging, 0) << family;
+  }
+}
+
+TEST(OnsetJitter, StepGroupingRestoresTheCleanSteps) {
+  for (const auto& family : tasks::families()) {
+    const auto clean = genOnset(family, 0), late = genOnset(family, 0.4);
+    int differs_bare = 0;
+    for (size_t i = 0; i < clean.demos.size(); ++i) {
+      EXPECT_EQ(structure(late.demos[i], late.spec), structure(clean.demos[i], clean.spec)) << family << " " << i;
+      task::Demonstration bare = late.demos[i];
+      bare.step_window_s = 0;  // the paper's bare keyframe rule
+      bare.analyze();
+      differs_bare += structure(bare, late.spec) != structure(clean.demos[i], clean.spec);
+    }
+    // Without grouping, a step of several tokens falls apart into several steps.
+    bool multi = false;
+    for (const auto& s : clean.demos[0].steps) multi = multi || s.tokens.size() > 1;
+    if (multi) {
+      EXPECT_GT(differs_bare, 0) << family;
+    }
+  }
+}
+
+TEST(OnsetJitter, OutOfRangeIsRefusedNamingTheOption) {
+  for (double bad : {-0.1, 0.5, 0.7, std::nan("")}) {
+    try {
+      genOnset("task4", bad, 1);
+      FAIL() << bad;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("--onset-jitter"), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(Generators, ThePaperFamiliesAreByteIdenticalToTheDataOfTheTable2Rows) {
+  // FNV-1a 64 of task.yaml and the CSVs of 4 demonstrations (seed 1), clean and imperfect,
+  // as the generators wrote them when docs/results.md was made. A change here changes the
+  // paper's Table 2 rows: regenerate them (`ddace table`) and update these digests.
+  auto digest = [](const task::TaskDir& dir) {
+    std::string text = task::taskYamlText(dir.spec);
+    for (const auto& d : dir.demos) text += task::demonstrationCsvText(d, dir.spec);
+    uint64_t h = 0xcbf29ce484222325ULL;
+    for (unsigned char c : text) h = (h ^ c) * 0x100000001b3ULL;
+    return h;
+  };
+  const std::vector<std::pair<uint64_t, uint64_t>> expected = {{0x18f713b67d164c00ULL, 0x37c428ea762819c3ULL},
+                                                                {0x95f3bb3632e044a7ULL, 0x5e1183e98c9860eaULL},
+                                                                {0x3f7a363aca04ab1aULL, 0x05c809aea1c09a43ULL},
+                                                                {0x9720ad9da5e6556eULL, 0x01ae842d85c32059ULL}};
+  for (size_t f = 0; f < 4; ++f) {
+    tasks::GeneratorOptions o;
+    o.family = tasks::paperFamilies()[f];
+    o.demos = 4;
+    const uint64_t clean = digest(tasks::generate(o));
+    o.jitter_m = 0.005;
+    o.mislabel_fraction = 0.25;
+    const uint64_t imperfect = digest(tasks::generate(o));
+    EXPECT_EQ(clean, expected[f].first) << o.family;
+    EXPECT_EQ(imperfect, expected[f].second) << o.family;
+  }
 }

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "ddace/common/error.h"
+#include "ddace/tgn/detail.h"
 #include "ddace/tgn/sequence_model.h"
 
 using namespace ddace;

@@ -7,6 +7,7 @@
 
 #include "ddace/common/error.h"
 #include "ddace/tasks/generators.h"
+#include "ddace/tgn/detail.h"
 #include "ddace/tgn/sequence_model.h"
 
 using namespace ddace;

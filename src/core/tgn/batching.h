@@ -1,0 +1,34 @@
+// Demonstrations as tensors, and padded mini-batches of them (internal to the tgn module).
+#pragma once
+
+#include <torch/torch.h>
+
+#include <vector>
+
+#include "network.h"
+
+namespace ddace::tgn {
+
+/// One demonstration as tensors: T sequence elements (snapshots, or frames for gnn).
+struct Sequence {
+  torch::Tensor x;       ///< [T, N, F] normalised inputs
+  torch::Tensor action;  ///< [T, N] long, 0 = idle
+  torch::Tensor target;  ///< [T, N] long, 0 = none
+  torch::Tensor end;     ///< [T] long
+  torch::Tensor delta;   ///< gnn: [T, N, 2] normalised next displacement
+};
+
+/// A padded mini-batch: the encoder sees only real elements (BatchNorm statistics
+/// must not include padding), scattered into [B*T] slots for the GRU.
+struct Batch {
+  int64_t b = 0, t = 0;
+  torch::Tensor x, slot, valid, action, target, end, delta;
+};
+
+/// The sequences `which` of `seqs` as one batch.
+Batch collate(const std::vector<Sequence>& seqs, const std::vector<size_t>& which, bool gnn);
+
+/// The network on a batch: encoder, GRU, heads; outputs [B, T, ...].
+Heads run(Network& net, const Batch& batch);
+
+}  // namespace ddace::tgn

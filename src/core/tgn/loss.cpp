@@ -1,0 +1,34 @@
+#include "loss.h"
+
+namespace ddace::tgn {
+
+using torch::Tensor;
+
+namespace {
+
+Tensor nll(const Tensor& logits, const Tensor& target) {
+  return -torch::log_softmax(logits, -1).gather(-1, target.unsqueeze(-1)).squeeze(-1);
+}
+
+}  // namespace
+
+Tensor lossOf(const Heads& h, const Batch& batch, bool gnn) {
+  const Tensor valid = batch.valid;
+  const Tensor count = valid.sum();
+  const Tensor vn = valid.unsqueeze(-1);
+  const int64_t n = batch.action.size(2);
+  Tensor loss = (nll(h.action, batch.action) * vn).sum() / (count * n) +
+                (nll(h.target, batch.target) * vn).sum() / (count * n) + (nll(h.end, batch.end) * valid).sum() / count;
+  if (gnn) loss = loss + ((h.delta - batch.delta).pow(2) * vn.unsqueeze(-1)).sum() / (count * n * 2);
+  return loss;
+}
+
+Tensor correctOf(const Heads& h, const Batch& batch, bool gnn) {
+  const Tensor act = h.action.argmax(-1), tgt = h.target.argmax(-1), end = h.end.argmax(-1);
+  const Tensor entity_ok = act.eq(batch.action).logical_and(batch.action.eq(0).logical_or(tgt.eq(batch.target)));
+  const Tensor labels_ok = entity_ok.all(-1);
+  if (gnn) return labels_ok;
+  return end.eq(batch.end).logical_and(batch.end.eq(1).logical_or(labels_ok));
+}
+
+}  // namespace ddace::tgn

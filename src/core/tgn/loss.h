@@ -1,0 +1,20 @@
+// The training loss and the exact-step criterion (internal to the tgn module).
+#pragma once
+
+#include <torch/torch.h>
+
+#include "batching.h"
+
+namespace ddace::tgn {
+
+/// Gradient norm clipping (also in the Python reference).
+inline constexpr double kClipNorm = 1.0;
+
+/// Sum of the mean cross-entropies of the action, target and END heads (plus the
+/// displacement MSE for gnn), over the batch's real elements.
+torch::Tensor lossOf(const Heads& h, const Batch& batch, bool gnn);
+
+/// Per element: 1 when the prediction equals the truth (a step, END, or a frame's labels).
+torch::Tensor correctOf(const Heads& h, const Batch& batch, bool gnn);
+
+}  // namespace ddace::tgn

@@ -1,0 +1,97 @@
+// SequenceModel::train: mini-batches, Adam on the flat parameters, the plateau rule.
+#include <torch/torch.h>
+
+#include <algorithm>
+#include <chrono>
+#include <iomanip>
+#include <limits>
+#include <ostream>
+
+#include "ddace/common/random.h"
+#include "ddace/tgn/detail.h"
+#include "fused_kernels.h"
+#include "loss.h"
+#include "model_impl.h"
+
+namespace ddace::tgn {
+
+using torch::Tensor;
+
+SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& options, std::ostream* progress) {
+  auto impl = prepare(train, options);
+  const auto started = std::chrono::steady_clock::now();
+  at::set_num_threads(options.threads);
+  impl->seededBuild();
+  Network& net = impl->net;
+  const bool gnn = impl->cfg.gnn;
+  const std::vector<Sequence> seqs = impl->sequences(train.demos);
+  fused::FlatParameters parameters(net->parameters());  // Adam as torch::optim::Adam, in a few ops
+  SplitMix64 rng(options.seed ^ 0xD1B54A32D192ED03ULL);
+  std::vector<size_t> order(seqs.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  ModelInfo& info = impl->info;
+  info.stop_reason = "max_epochs";
+  // At least 4 optimiser steps per epoch when there are few demonstrations (few-shot).
+  const size_t bs = std::min(static_cast<size_t>(options.batch_demos), std::max<size_t>(1, (seqs.size() + 3) / 4));
+  for (int epoch = 1; epoch <= options.max_epochs; ++epoch) {
+    for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[rng.next() % i]);
+    net->train();
+    double total = 0;
+    int batches = 0;
+    for (size_t from = 0; from < order.size(); from += bs) {
+      const std::vector<size_t> which(order.begin() + static_cast<long>(from),
+                                      order.begin() + static_cast<long>(std::min(order.size(), from + bs)));
+      const Batch batch = collate(seqs, which, gnn);
+      parameters.zeroGrad();
+      const Tensor loss = lossOf(run(net, batch), batch, gnn);
+      loss.backward();
+      // GRUs on few sequences occasionally take a huge step; clipping keeps training monotone.
+      parameters.clipGradNorm(kClipNorm);
+      parameters.adamStep(options.learning_rate);
+      total += loss.item<double>();
+      ++batches;
+    }
+    EpochRecord rec;
+    rec.epoch = epoch;
+    rec.loss = total / batches;
+    rec.step_accuracy = impl->accuracy(seqs);
+    rec.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    info.history.push_back(rec);
+    if (progress) {
+      const std::ios::fmtflags flags = progress->flags();
+      const std::streamsize precision = progress->precision();
+      *progress << "epoch " << epoch << "/" << options.max_epochs << "  loss " << std::fixed << std::setprecision(4)
+                << rec.loss << "  " << (gnn ? "frame label accuracy " : "step accuracy ") << std::setprecision(3)
+                << rec.step_accuracy << "  " << std::setprecision(1) << rec.seconds << " s" << std::endl;
+      progress->flags(flags);
+      progress->precision(precision);
+    }
+    if (detail::atPlateau(info.history, options.plateau_patience, options.plateau_delta)) {
+      info.stop_reason = "plateau";
+      break;
+    }
+  }
+  net->eval();
+  return SequenceModel(impl);
+}
+
+namespace detail {
+
+bool atPlateau(const std::vector<EpochRecord>& history, int patience, double delta) {
+  // The best loss of the last `p` epochs within delta of the best of the `p` before them (a
+  // recovering spike is not a plateau), and the last epoch's too: the weights kept are the
+  // last epoch's, and an epoch that just took a bad step (Adam now and then does, even with
+  // clipping) must not end training.
+  const int64_t p = patience, n = static_cast<int64_t>(history.size());
+  if (p < 1 || n < 2 * p) return false;
+  double before = std::numeric_limits<double>::infinity(), recent = before;
+  for (int64_t e = n - 2 * p; e < n; ++e) {
+    double& best = e < n - p ? before : recent;
+    best = std::min(best, history[static_cast<size_t>(e)].loss);
+  }
+  return std::abs(before - recent) < delta && history.back().loss - recent < delta;
+}
+
+}  // namespace detail
+
+}  // namespace ddace::tgn
