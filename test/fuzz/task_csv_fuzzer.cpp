@@ -1,6 +1,5 @@
 // libFuzzer target: the demonstration CSV reader must reject or accept any bytes, never crash.
-// fuzz-sources: src/core/task/demonstration.cpp src/core/task/task_spec.cpp src/core/common/error.cpp src/core/common/file.cpp
-// fuzz-libs: -lyaml-cpp
+// fuzz-modules: task
 #include <cstdint>
 #include <string>
 
