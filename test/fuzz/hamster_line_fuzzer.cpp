@@ -1,5 +1,5 @@
 // libFuzzer target: the Hamster line parser must classify any byte stream, never crash.
-// fuzz-sources: src/core/hamster/protocol.cpp src/core/common/error.cpp
+// fuzz-modules: hamster
 //
 // The input is fed through the line assembler in two chunkings; every line is parsed,
 // and data lines are decoded as both models. Invariants checked: a line that parses

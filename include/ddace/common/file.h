@@ -73,7 +73,9 @@ class OutputFile {
   /// Opens the temporary file (or the non-regular target). Throws ddace::Error naming
   /// `path` when it is a directory, its directory does not exist or is not writable.
   /// A new file gets mode 0666 minus the umask; a replaced file keeps its mode. A
-  /// symlink to a regular file is followed: the file it points to is replaced.
+  /// symlink to a regular file is followed: the file it points to is replaced. A file
+  /// the caller may not write (read-only) is refused, not replaced. Being a new file, a
+  /// replaced file no longer shares hard links it had.
   explicit OutputFile(const std::string& path);
   ~OutputFile();
   OutputFile(const OutputFile&) = delete;

@@ -201,6 +201,8 @@ OutputFile::OutputFile(const std::string& path) : path_(path) {
       if (fd_ < 0) refuse(path, "cannot open for writing: " + reason(errno));
       final_ = path;
     } else {
+      // A read-only file stays as it is (the rename below would replace it regardless).
+      if (::access(path.c_str(), W_OK) != 0) refuse(path, "cannot write: " + reason(errno));
       std::error_code ec;
       final_ = fs::canonical(path, ec).string();  // replace what a symlink points to, keep the link
       if (ec) final_ = path;

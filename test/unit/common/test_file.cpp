@@ -268,3 +268,15 @@ TEST(OutputFile, KeepsTheModeAndFollowsSymlinks) {
   EXPECT_EQ(st.st_mode & 0777, 0640u);
   EXPECT_EQ(dir.entries(), (std::vector<std::string>{"link.yaml", "real.yaml"}));
 }
+
+TEST(OutputFile, ReadOnlyFileIsRefusedNotReplaced) {
+  if (::geteuid() == 0) GTEST_SKIP() << "root may write any file";
+  TempDir dir;
+  const std::string path = dir.file("locked.yaml");
+  writeTextFile(path, "keep\n");
+  ASSERT_EQ(::chmod(path.c_str(), 0444), 0);
+  const std::string message = errorOf([&] { writeTextFile(path, "replaced\n"); });
+  EXPECT_NE(message.find(path), std::string::npos) << message;
+  EXPECT_NE(message.find("Permission denied"), std::string::npos) << message;
+  EXPECT_EQ(readTextFile(path), "keep\n");
+}
