@@ -17,6 +17,8 @@
 
 #include <ros/node_handle.h>
 
+#include "ddace/ros/frames.h"
+
 namespace ddace::nodes {
 
 /// The coordinator node (src/nodes/coordinator_node.cpp runs it). The constructor reads the
@@ -29,7 +31,7 @@ class CoordinatorNode {
   /// time-outs and step limit are exec::CoordinatorConfig's. arrival_radius_m defaults
   /// to the task's arrival_radius.
   struct Params {
-    std::string frame_id = "table";  ///< frame of paths, goals and markers
+    std::string frame_id = kTableFrame;  ///< frame of paths, goals and markers
     bool autostart = false;          ///< start as soon as every entity is tracked
     int path_points = 100;           ///< points per requested path
     double timeout_check_hz = 10.0;  ///< how often time-outs are checked

@@ -20,6 +20,8 @@
 
 #include <ros/node_handle.h>
 
+#include "ddace/ros/frames.h"
+
 namespace ddace::nodes {
 
 /// The gp_path node (src/nodes/gp_path_node.cpp runs it). The constructor reads the
@@ -34,7 +36,7 @@ class GpPathNode {
 
   /// The node's own parameters and their defaults (config/execution.yaml, section gp_path).
   struct Params {
-    std::string frame_id = "table";
+    std::string frame_id = kTableFrame;
     Source source = Source::Demonstration;
     int points = 100;  ///< path points when a request does not say
   };

@@ -14,6 +14,8 @@
 
 #include <ros/node_handle.h>
 
+#include "ddace/ros/frames.h"
+
 namespace ddace::nodes {
 
 /// The mock_robots node (src/nodes/mock_robot_node.cpp runs it). The constructor reads the
@@ -25,7 +27,7 @@ class MockRobotNode {
   /// config/execution.yaml (section mock_robots) documents them; ~robot/* are
   /// exec::DiffDriveParams.
   struct Params {
-    std::string frame_id = "table";
+    std::string frame_id = kTableFrame;
     std::string entities_topic = "/ddace/entities";  ///< remap for a synthetic camera + tracker
     bool publish_tf = true;                          ///< tf table -> <entity> for every entity
     double object_speed_mps = 0.12;                  ///< objects follow their segments at this speed
