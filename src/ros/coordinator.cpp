@@ -39,13 +39,14 @@ class CoordinatorNode::Impl {
     } catch (const Error& e) {
       throw Error(std::string(e.what()) + " (parameters under " + pnh.getNamespace() + ")");
     }
-    frame_id_ = rosparam::param<std::string>(pnh, "frame_id", "table");
+    const CoordinatorNode::Params defaults;
+    frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
     arrival_radius_m_ = rosparam::param(pnh, "arrival_radius_m", spec_.arrival_radius);
-    path_points_ = rosparam::param(pnh, "path_points", 100);
-    const double tick_hz = rosparam::param(pnh, "timeout_check_hz", 10.0);
+    path_points_ = rosparam::param(pnh, "path_points", defaults.path_points);
+    const double tick_hz = rosparam::param(pnh, "timeout_check_hz", defaults.timeout_check_hz);
     if (!(tick_hz > 0)) throw Error("parameter '" + pnh.resolveName("timeout_check_hz") + "' must be positive");
-    autostart_ = rosparam::param(pnh, "autostart", false);
-    resend_after_s_ = rosparam::param(pnh, "resend_after_s", 1.0);
+    autostart_ = rosparam::param(pnh, "autostart", defaults.autostart);
+    resend_after_s_ = rosparam::param(pnh, "resend_after_s", defaults.resend_after_s);
     if (!(resend_after_s_ > 0)) throw Error("parameter '" + pnh.resolveName("resend_after_s") + "' must be positive");
 
     for (size_t i = 0; i < spec_.entities.size(); ++i) {
@@ -437,14 +438,14 @@ class CoordinatorNode::Impl {
   ros::WallTime decision_sent_;
   std::map<uint32_t, SentPath> unanswered_paths_;
   std::map<uint32_t, SentSegment> unanswered_segments_;
-  double resend_after_s_ = 1.0;
+  double resend_after_s_ = 0;  // set from the parameters
 
   ros::NodeHandle nh_;
   task::TaskSpec spec_;
   std::unique_ptr<exec::Coordinator> coordinator_;
   std::string frame_id_;
   double arrival_radius_m_ = task::kDefaultArrivalRadius;
-  int path_points_ = 100;
+  int path_points_ = 0;
   bool autostart_ = false;
   long entity_msgs_ = 0;
   std::map<int, ros::Publisher> segment_pubs_;

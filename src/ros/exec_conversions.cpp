@@ -130,7 +130,7 @@ exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh) {
   p.command_timeout_s = param(nh, "command_timeout_s", p.command_timeout_s);
   p.position_noise_m = param(nh, "position_noise_m", p.position_noise_m);
   p.yaw_noise_rad = param(nh, "yaw_noise_rad", p.yaw_noise_rad);
-  p.seed = static_cast<uint64_t>(param(nh, "seed", 1));
+  p.seed = static_cast<uint64_t>(param(nh, "seed", static_cast<int>(p.seed)));
   try {
     p.validate();
   } catch (const Error& e) {

@@ -21,11 +21,14 @@ class GpPathNode::Impl {
  public:
   Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
     const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
-    frame_id_ = rosparam::param<std::string>(pnh, "frame_id", "table");
-    default_points_ = rosparam::param(pnh, "points", 100);
+    const GpPathNode::Params defaults;
+    frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
+    default_points_ = rosparam::param(pnh, "points", defaults.points);
     if (default_points_ < 2) throw Error("parameter '" + pnh.resolveName("points") + "' must be at least 2");
-    const std::string source = rosparam::param<std::string>(pnh, "source", "demonstration");
-    if (source == "library") {
+    const auto source_name = rosparam::optionalParam<std::string>(pnh, "source");
+    const GpPathNode::Source source =
+        source_name ? GpPathNode::parseSource(*source_name, pnh.resolveName("source")) : defaults.source;
+    if (source == GpPathNode::Source::Library) {
       std::string path = rosparam::param<std::string>(pnh, "library", "");
       if (path.empty()) throw Error("source 'library' needs parameter '" + pnh.resolveName("library") + "'");
       if (std::filesystem::is_directory(path)) path = (std::filesystem::path(path) / gp::kPrimitivesFile).string();
@@ -40,7 +43,7 @@ class GpPathNode::Impl {
         return exec::PlannedPath{p.points, p.stddev};
       };
       ROS_INFO("gp_path: primitive library %s", path.c_str());
-    } else if (source == "demonstration") {
+    } else {
       const task::TaskDir dir = task::loadTaskDir(task_path);
       spec_ = dir.spec;
       demo_paths_ = std::make_unique<exec::DemonstrationPaths>(dir.spec, dir.demos);
@@ -48,8 +51,6 @@ class GpPathNode::Impl {
         return demo_paths_->generate(t, s, g);
       };
       ROS_INFO("gp_path: %zu demonstrated motion keys from %s", demo_paths_->size(), task_path.c_str());
-    } else {
-      throw Error("parameter '" + pnh.resolveName("source") + "' = '" + source + "': expected 'library' or 'demonstration'");
     }
     pub_ = nh.advertise<ddace::PathResponse>("/ddace/path", 50);
     sub_ = nh.subscribe("/ddace/path_request", 50, &Impl::onRequest, this);
@@ -80,15 +81,21 @@ class GpPathNode::Impl {
 
   task::TaskSpec spec_;
   std::string frame_id_;
-  int default_points_ = 100;
+  int default_points_ = 0;  // set from the parameters
   std::unique_ptr<exec::DemonstrationPaths> demo_paths_;
   std::unique_ptr<gp::PrimitiveLibrary> library_;
-  int points_ = 100;
+  int points_ = 0;  // of the request being answered
   bool fell_back_ = false;
   std::function<exec::PlannedPath(const task::Token&, const Eigen::Vector2d&, const Eigen::Vector2d&)> generate_;
   ros::Publisher pub_;
   ros::Subscriber sub_;
 };
+
+GpPathNode::Source GpPathNode::parseSource(const std::string& value, const std::string& param_name) {
+  if (value == "library") return Source::Library;
+  if (value == "demonstration") return Source::Demonstration;
+  throw Error("parameter '" + param_name + "' = '" + value + "': expected 'library' or 'demonstration'");
+}
 
 GpPathNode::GpPathNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}
 

@@ -22,6 +22,7 @@
 #include "ddace/hamster/config.h"
 #include "ddace/hamster/mock_robot.h"
 
+#include "ddace/ros/frames.h"
 #include "params.h"
 
 namespace {
@@ -51,7 +52,7 @@ class MockHamsterNode::Impl {
     const std::optional<double> true_mps = ddace::rosparam::optionalParam<double>(pnh, "true_mps_per_unit");
     if (true_mps && !(*true_mps > 0.0)) throw ddace::Error("parameter ~true_mps_per_unit must be > 0");
     const double robot_timeout_s = ddace::rosparam::param(pnh, "robot_timeout_s", 0.0);
-    frame_id_ = ddace::rosparam::param<std::string>(pnh, "frame_id", "table");
+    frame_id_ = ddace::rosparam::param<std::string>(pnh, "frame_id", kTableFrame);
     size_t index = 0;
     for (const auto& r : config.robots) {
       if (!only.empty() && std::find(only.begin(), only.end(), r.name) == only.end()) continue;

@@ -27,9 +27,10 @@ class MockRobotNode::Impl {
   Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
     const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
     spec_ = ros_exec::loadTaskSpec(task_path);
-    frame_id_ = rosparam::param<std::string>(pnh, "frame_id", "table");
-    publish_tf_ = rosparam::param(pnh, "publish_tf", true);
-    object_speed_mps_ = rosparam::param(pnh, "object_speed_mps", 0.12);
+    const MockRobotNode::Params defaults;
+    frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
+    publish_tf_ = rosparam::param(pnh, "publish_tf", defaults.publish_tf);
+    object_speed_mps_ = rosparam::param(pnh, "object_speed_mps", defaults.object_speed_mps);
     if (!(object_speed_mps_ > 0)) throw Error("parameter '" + pnh.resolveName("object_speed_mps") + "' must be positive");
     const exec::DiffDriveParams dp = ros_exec::loadDiffDriveParams(ros::NodeHandle(pnh, "robot"));
     const auto stalled = rosparam::param(pnh, "stalled", std::vector<std::string>{});
@@ -63,7 +64,7 @@ class MockRobotNode::Impl {
       }
     }
     rate_hz_ = dp.rate_hz;
-    const std::string topic = rosparam::param<std::string>(pnh, "entities_topic", "/ddace/entities");
+    const std::string topic = rosparam::param(pnh, "entities_topic", defaults.entities_topic);
     entities_pub_ = nh.advertise<ddace::EntityArray>(topic, 5);
     estop_sub_ = nh.subscribe("/ddace/estop", 5, &Impl::onEstop, this);
     timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz_), &Impl::onTimer, this);
@@ -261,9 +262,9 @@ class MockRobotNode::Impl {
   task::TaskSpec spec_;
   std::vector<Entity> entities_;
   std::string frame_id_;
-  bool publish_tf_ = true;
-  double object_speed_mps_ = 0.12;
-  double rate_hz_ = 50;
+  bool publish_tf_ = true;  // these three: set from the parameters
+  double object_speed_mps_ = 0;
+  double rate_hz_ = 0;
   double sim_time_s_ = 0;
   bool estopped_ = false;
   ros::Publisher entities_pub_;

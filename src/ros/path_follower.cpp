@@ -30,10 +30,11 @@ class PathFollowerNode::Impl {
     if (names.empty()) throw Error("no robots to drive: set '" + pnh.resolveName("robots") + "' or a task with robots");
     gains_ = ros_exec::loadFollowerGains(ros::NodeHandle(pnh, "gains"));
     if (!pnh.hasParam("gains/arrival_radius_m")) gains_.arrival_radius_m = default_arrival_m_;
-    rate_hz_ = rosparam::param(pnh, "rate_hz", 50.0);
-    pose_timeout_s_ = rosparam::param(pnh, "pose_timeout_s", 0.25);
-    stale_fail_s_ = rosparam::param(pnh, "stale_fail_s", 2.0);
-    status_every_ = std::max(1, rosparam::param(pnh, "status_every_cycles", 5));
+    const PathFollowerNode::Params defaults;
+    rate_hz_ = rosparam::param(pnh, "rate_hz", defaults.rate_hz);
+    pose_timeout_s_ = rosparam::param(pnh, "pose_timeout_s", defaults.pose_timeout_s);
+    stale_fail_s_ = rosparam::param(pnh, "stale_fail_s", defaults.stale_fail_s);
+    status_every_ = std::max(1, rosparam::param(pnh, "status_every_cycles", defaults.status_every_cycles));
     if (!(rate_hz_ > 0)) throw Error("parameter '" + pnh.resolveName("rate_hz") + "' must be positive");
     if (!(pose_timeout_s_ > 0)) throw Error("parameter '" + pnh.resolveName("pose_timeout_s") + "' must be positive");
     if (!(stale_fail_s_ > 0)) throw Error("parameter '" + pnh.resolveName("stale_fail_s") + "' must be positive");
@@ -191,8 +192,8 @@ class PathFollowerNode::Impl {
   std::map<std::string, std::unique_ptr<Robot>> robots_;
   exec::FollowerGains gains_;
   double default_arrival_m_ = task::kDefaultArrivalRadius;
-  double rate_hz_ = 50, pose_timeout_s_ = 0.25, stale_fail_s_ = 2.0;
-  int status_every_ = 5;
+  double rate_hz_ = 0, pose_timeout_s_ = 0, stale_fail_s_ = 0;  // set from the parameters
+  int status_every_ = 1;
   bool estopped_ = false;
   ros::Subscriber entities_sub_, estop_sub_;
   ros::Timer timer_;

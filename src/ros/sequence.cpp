@@ -43,8 +43,11 @@ class SequenceNode::Impl {
   Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
     const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
     spec_ = ros_exec::loadTaskSpec(task_path);
-    const std::string policy = rosparam::param<std::string>(pnh, "policy", "replay");
-    if (policy == "model") {
+    const SequenceNode::Params defaults;
+    const auto policy_name = rosparam::optionalParam<std::string>(pnh, "policy");
+    const SequenceNode::Policy policy =
+        policy_name ? SequenceNode::parsePolicy(*policy_name, pnh.resolveName("policy")) : defaults.policy;
+    if (policy == SequenceNode::Policy::Model) {
       const std::string dir = rosparam::param<std::string>(pnh, "model", "");
       if (dir.empty()) throw Error("policy 'model' needs parameter '" + pnh.resolveName("model") + "' (a model directory)");
       model_ = std::make_unique<tgn::SequenceModel>(tgn::SequenceModel::load(dir));
@@ -60,14 +63,13 @@ class SequenceNode::Impl {
         return d;
       };
       ROS_INFO("sequence: model %s (variant %s)", dir.c_str(), model_->variant().c_str());
-    } else if (policy == "replay") {
+    } else {
       std::string csv = rosparam::param<std::string>(pnh, "replay_csv", "");
-      if (csv.empty()) csv = demoFile(task_path, rosparam::param(pnh, "replay_demo", 0), pnh.resolveName("replay_demo"));
+      if (csv.empty())
+        csv = demoFile(task_path, rosparam::param(pnh, "replay_demo", defaults.replay_demo), pnh.resolveName("replay_demo"));
       demo_ = task::readDemonstrationCsv(csv, spec_);
       policy_ = [this](const std::vector<task::Snapshot>& h) { return exec::replayDecision(demo_, h); };
       ROS_INFO("sequence: replaying the %zu steps of %s", demo_.steps.size(), csv.c_str());
-    } else {
-      throw Error("parameter '" + pnh.resolveName("policy") + "' = '" + policy + "': expected 'model' or 'replay'");
     }
     pub_ = nh.advertise<ddace::Decision>("/ddace/decision", 5);
     sub_ = nh.subscribe("/ddace/decision_request", 5, &Impl::onRequest, this);
@@ -135,6 +137,12 @@ class SequenceNode::Impl {
   ros::Publisher pub_;
   ros::Subscriber sub_;
 };
+
+SequenceNode::Policy SequenceNode::parsePolicy(const std::string& value, const std::string& param_name) {
+  if (value == "model") return Policy::Model;
+  if (value == "replay") return Policy::Replay;
+  throw Error("parameter '" + param_name + "' = '" + value + "': expected 'model' or 'replay'");
+}
 
 SequenceNode::SequenceNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}
 

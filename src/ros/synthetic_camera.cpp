@@ -22,8 +22,9 @@ class SyntheticCameraNode::Impl {
     const std::string camera = rosparam::requireString(pnh, "camera_file", "path to the synthetic camera's YAML");
     camera_ = std::make_unique<vision::SyntheticCamera>(vision::loadSyntheticCameraConfig(camera),
                                                         vision::loadMarkerConfig(markers));
-    frame_id_ = rosparam::param<std::string>(pnh, "frame_id", "overhead_camera");
-    const double rate_hz = rosparam::param(pnh, "rate_hz", 30.0);
+    const SyntheticCameraNode::Params defaults;
+    frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
+    const double rate_hz = rosparam::param(pnh, "rate_hz", defaults.rate_hz);
     if (!(rate_hz > 0 && rate_hz <= 1000))
       throw Error("parameter " + pnh.resolveName("rate_hz") + " must be in (0, 1000]");
     info_ = ros_vision::toMsg(camera_->camera(), camera_->config().width, camera_->config().height, frame_id_);

@@ -29,8 +29,8 @@ class TrackerNode::Impl {
     const std::string markers = rosparam::requireString(pnh_, "markers_file", "path to config/markers.yaml");
     const std::string tuning = rosparam::param<std::string>(pnh_, "tracker_file", "");
     tracker_ = std::make_unique<vision::Tracker>(vision::loadTrackerConfig(markers, tuning));
-    frame_id_ = rosparam::param<std::string>(pnh_, "frame_id", "table");
-    publish_tf_ = rosparam::param(pnh_, "publish_tf", true);
+    frame_id_ = rosparam::param(pnh_, "frame_id", defaults_.frame_id);
+    publish_tf_ = rosparam::param(pnh_, "publish_tf", defaults_.publish_tf);
 
     // A calibrated camera instead of corner markers: the table frame's pose in the
     // camera's optical frame, [x y z roll pitch yaw] (metres, radians).
@@ -54,7 +54,7 @@ class TrackerNode::Impl {
     markers_pub_ = pnh_.advertise<visualization_msgs::MarkerArray>("markers", 2);
     debug_pub_ = pit_.advertise("debug_image", 1);
 
-    video_device_ = rosparam::param(pnh_, "video_device", -1);
+    video_device_ = rosparam::param(pnh_, "video_device", defaults_.video_device);
     video_file_ = rosparam::param<std::string>(pnh_, "video_file", "");
     if (video_device_ < 0 && video_file_.empty()) {
       image_sub_ = it_.subscribe("image_raw", 2, &Impl::onImage, this);
@@ -87,7 +87,7 @@ class TrackerNode::Impl {
         if (raw_pub_.getNumSubscribers() > 0) {
           std_msgs::Header h;
           h.stamp = stamp;
-          h.frame_id = "overhead_camera";
+          h.frame_id = kCameraFrame;
           raw_pub_.publish(cv_bridge::CvImage(h, frame.channels() == 1 ? "mono8" : "bgr8", frame).toImageMsg());
         }
         process(frame, stamp);
@@ -104,8 +104,8 @@ class TrackerNode::Impl {
     if (!video_file_.empty() ? !capture_.open(video_file_) : !capture_.open(video_device_, cv::CAP_V4L2))
       throw Error(!video_file_.empty() ? "cannot open video file " + video_file_
                                        : "cannot open V4L2 device /dev/video" + std::to_string(video_device_));
-    const int width = rosparam::param(pnh_, "video_width", 0);
-    const int height = rosparam::param(pnh_, "video_height", 0);
+    const int width = rosparam::param(pnh_, "video_width", defaults_.video_width);
+    const int height = rosparam::param(pnh_, "video_height", defaults_.video_height);
     if (width > 0) capture_.set(cv::CAP_PROP_FRAME_WIDTH, width);
     if (height > 0) capture_.set(cv::CAP_PROP_FRAME_HEIGHT, height);
     // The captured frames as a topic too, for rosbag and image viewers (only when watched).
@@ -257,10 +257,11 @@ class TrackerNode::Impl {
     cv::putText(out, status, cv::Point(10, 25), cv::FONT_HERSHEY_SIMPLEX, 0.7, cv::Scalar(0, 0, 255), 2);
     std_msgs::Header h;
     h.stamp = stamp;
-    h.frame_id = "overhead_camera";
+    h.frame_id = kCameraFrame;
     debug_pub_.publish(cv_bridge::CvImage(h, "bgr8", out).toImageMsg());
   }
 
+  const TrackerNode::Params defaults_;
   ros::NodeHandle nh_, pnh_;
   image_transport::ImageTransport it_, pit_;
   image_transport::Subscriber image_sub_;

@@ -13,8 +13,11 @@
 #pragma once
 
 #include <memory>
+#include <string>
 
 #include <ros/node_handle.h>
+
+#include "ddace/ros/frames.h"
 
 namespace ddace::nodes {
 
@@ -23,6 +26,18 @@ namespace ddace::nodes {
 /// ddace::Error naming the parameter or file it refuses.
 class CoordinatorNode {
  public:
+  /// The node's own parameters (private namespace) and their defaults, as
+  /// config/execution.yaml (section coordinator) documents them; the state machine's
+  /// time-outs and step limit are exec::CoordinatorConfig's. arrival_radius_m defaults
+  /// to the task's arrival_radius.
+  struct Params {
+    std::string frame_id = kTableFrame;  ///< frame of paths, goals and markers
+    bool autostart = false;          ///< start as soon as every entity is tracked
+    int path_points = 100;           ///< points per requested path
+    double timeout_check_hz = 10.0;  ///< how often time-outs are checked
+    double resend_after_s = 1.0;     ///< an unacknowledged request or segment goes out again after this
+  };
+
   CoordinatorNode(ros::NodeHandle nh, ros::NodeHandle pnh);
   ~CoordinatorNode();
 

@@ -1,6 +1,6 @@
 // execution_monitor_node: watches a run and, when it ends, prints the executed step
 // sequence next to the ground truth and the trial's metrics (SSR, GCR, goal conditions,
-// OSR; shared/spec/task-format.md), then exits (launch files mark it required, so the
+// OSR; docs/task-format.md), then exits (launch files mark it required, so the
 // graph shuts down with it).
 //
 // Also checks the coordinator's contract on the wire: a DecisionRequest while any

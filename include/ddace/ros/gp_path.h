@@ -16,8 +16,11 @@
 #pragma once
 
 #include <memory>
+#include <string>
 
 #include <ros/node_handle.h>
+
+#include "ddace/ros/frames.h"
 
 namespace ddace::nodes {
 
@@ -26,6 +29,18 @@ namespace ddace::nodes {
 /// ddace::Error naming the parameter or file it refuses.
 class GpPathNode {
  public:
+  /// Where paths come from (parameter `source`: "library" or "demonstration").
+  enum class Source { Library, Demonstration };
+  /// "library" / "demonstration"; throws ddace::Error naming `param_name` otherwise.
+  static Source parseSource(const std::string& value, const std::string& param_name);
+
+  /// The node's own parameters and their defaults (config/execution.yaml, section gp_path).
+  struct Params {
+    std::string frame_id = kTableFrame;
+    Source source = Source::Demonstration;
+    int points = 100;  ///< path points when a request does not say
+  };
+
   GpPathNode(ros::NodeHandle nh, ros::NodeHandle pnh);
   ~GpPathNode();
 

@@ -10,8 +10,11 @@
 #pragma once
 
 #include <memory>
+#include <string>
 
 #include <ros/node_handle.h>
+
+#include "ddace/ros/frames.h"
 
 namespace ddace::nodes {
 
@@ -20,6 +23,16 @@ namespace ddace::nodes {
 /// ddace::Error naming the parameter or file it refuses.
 class MockRobotNode {
  public:
+  /// The node's own parameters (private namespace) and their defaults, as
+  /// config/execution.yaml (section mock_robots) documents them; ~robot/* are
+  /// exec::DiffDriveParams.
+  struct Params {
+    std::string frame_id = kTableFrame;
+    std::string entities_topic = "/ddace/entities";  ///< remap for a synthetic camera + tracker
+    bool publish_tf = true;                          ///< tf table -> <entity> for every entity
+    double object_speed_mps = 0.12;                  ///< objects follow their segments at this speed
+  };
+
   MockRobotNode(ros::NodeHandle nh, ros::NodeHandle pnh);
   ~MockRobotNode();
 

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <memory>
+#include <string>
 
 #include <ros/node_handle.h>
 
@@ -22,6 +23,16 @@ namespace ddace::nodes {
 /// ddace::Error naming the parameter or file it refuses.
 class PathFollowerNode {
  public:
+  /// The node's own parameters (private namespace) and their defaults, as
+  /// config/execution.yaml (section path_follower) documents them; ~gains/* are
+  /// exec::FollowerGains (arrival_radius_m defaults to the task's arrival_radius).
+  struct Params {
+    double rate_hz = 50.0;         ///< control cycle; wheel commands go out every cycle
+    double pose_timeout_s = 0.25;  ///< no pose of a robot for this long = stale -> zero wheels
+    double stale_fail_s = 2.0;     ///< stale for this long during a segment -> segment FAILED
+    int status_every_cycles = 5;   ///< RUNNING status every N cycles
+  };
+
   PathFollowerNode(ros::NodeHandle nh, ros::NodeHandle pnh);
   ~PathFollowerNode();
 

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <memory>
+#include <string>
 
 #include <ros/node_handle.h>
 
@@ -22,6 +23,17 @@ namespace ddace::nodes {
 /// ddace::Error naming the parameter or file it refuses.
 class SequenceNode {
  public:
+  /// Where the next step comes from (parameter `policy`: "model" or "replay").
+  enum class Policy { Model, Replay };
+  /// "model" / "replay"; throws ddace::Error naming `param_name` otherwise.
+  static Policy parsePolicy(const std::string& value, const std::string& param_name);
+
+  /// The node's own parameters and their defaults (config/execution.yaml, section sequence).
+  struct Params {
+    Policy policy = Policy::Replay;
+    int replay_demo = 0;  ///< which demonstration of the task's demos/ to replay
+  };
+
   SequenceNode(ros::NodeHandle nh, ros::NodeHandle pnh);
   ~SequenceNode();
 

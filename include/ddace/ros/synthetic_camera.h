@@ -13,8 +13,11 @@
 #pragma once
 
 #include <memory>
+#include <string>
 
 #include <ros/node_handle.h>
+
+#include "ddace/ros/frames.h"
 
 namespace ddace::nodes {
 
@@ -23,6 +26,12 @@ namespace ddace::nodes {
 /// ddace::Error naming the parameter or file it refuses.
 class SyntheticCameraNode {
  public:
+  /// The node's own parameters and their defaults (the camera itself: ~camera_file).
+  struct Params {
+    std::string frame_id = kCameraFrame;  ///< frame of the images and camera_info
+    double rate_hz = 30.0;                ///< at most this many frames per second, (0, 1000]
+  };
+
   SyntheticCameraNode(ros::NodeHandle nh, ros::NodeHandle pnh);
   ~SyntheticCameraNode();
 

@@ -8,8 +8,11 @@
 #pragma once
 
 #include <memory>
+#include <string>
 
 #include <ros/node_handle.h>
+
+#include "ddace/ros/frames.h"
 
 namespace ddace::nodes {
 
@@ -18,6 +21,16 @@ namespace ddace::nodes {
 /// ddace::Error naming the parameter or file it refuses.
 class TrackerNode {
  public:
+  /// The node's own parameters and their defaults (the detector's and filter's are
+  /// config/tracker.yaml's, read by vision::loadTrackerConfig).
+  struct Params {
+    std::string frame_id = kTableFrame;  ///< frame of the entities, tf parent
+    bool publish_tf = true;              ///< tf frame_id -> <entity> for every fresh entity
+    int video_device = -1;               ///< V4L2 device number; < 0 = none
+    int video_width = 0;                 ///< requested capture size; 0 = the device's
+    int video_height = 0;
+  };
+
   TrackerNode(ros::NodeHandle nh, ros::NodeHandle pnh);
   ~TrackerNode();
 

@@ -1,0 +1,140 @@
+// config/execution.yaml documents the parameters of the execution nodes and says every
+// value in it is the node's built-in default. This test holds it to that: each key it
+// sets must be one the node reads (a misspelt key would silently change nothing) and,
+// except where noted below, its value must equal the default the node falls back on
+// (the node classes' Params and the core structs they fill).
+#include <gtest/gtest.h>
+
+#include <map>
+#include <set>
+#include <string>
+
+#include <ros/ros.h>
+#include <yaml-cpp/yaml.h>
+
+#include "ddace/exec/coordinator.h"
+#include "ddace/exec/diff_drive.h"
+#include "ddace/exec/path_follower.h"
+#include "ddace/ros/coordinator.h"
+#include "ddace/ros/gp_path.h"
+#include "ddace/ros/mock_robot.h"
+#include "ddace/ros/path_follower.h"
+#include "ddace/ros/sequence.h"
+
+namespace {
+
+using Defaults = std::map<std::string, YAML::Node>;
+
+template <typename T>
+YAML::Node value(const T& v) {
+  return YAML::Node(v);
+}
+
+/// Every key of `section` is in `known`; those with a default equal it (numbers compared
+/// as doubles, so 50 and 50.0 agree).
+void expectDefaults(const YAML::Node& section, const std::string& where, const Defaults& defaults,
+                    const std::set<std::string>& without_default = {}) {
+  ASSERT_TRUE(section && section.IsMap()) << where << " is missing from config/execution.yaml";
+  for (const auto& kv : section) {
+    const std::string key = kv.first.as<std::string>();
+    const auto d = defaults.find(key);
+    if (d == defaults.end()) {
+      EXPECT_TRUE(without_default.count(key)) << where << "/" << key << " is not a parameter the node reads";
+      continue;
+    }
+    if (kv.second.IsMap()) continue;  // a sub-section, checked on its own
+    try {
+      EXPECT_DOUBLE_EQ(kv.second.as<double>(), d->second.as<double>()) << where << "/" << key;
+    } catch (const YAML::Exception&) {
+      EXPECT_EQ(kv.second.as<std::string>(), d->second.as<std::string>()) << where << "/" << key;
+    }
+  }
+}
+
+}  // namespace
+
+TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
+  ros::NodeHandle pnh("~");
+  std::string file;
+  ASSERT_TRUE(pnh.getParam("execution_yaml", file));
+  const YAML::Node yaml = YAML::LoadFile(file);
+  using ddace::nodes::CoordinatorNode;
+  using ddace::nodes::GpPathNode;
+  using ddace::nodes::MockRobotNode;
+  using ddace::nodes::PathFollowerNode;
+  using ddace::nodes::SequenceNode;
+
+  const CoordinatorNode::Params c;
+  const ddace::exec::CoordinatorConfig cc;
+  expectDefaults(yaml["coordinator"], "coordinator",
+                 {{"frame_id", value(c.frame_id)},
+                  {"autostart", value(c.autostart)},
+                  {"path_points", value(c.path_points)},
+                  {"timeout_check_hz", value(c.timeout_check_hz)},
+                  {"resend_after_s", value(c.resend_after_s)},
+                  {"decision_timeout_s", value(cc.decision_timeout_s)},
+                  {"path_timeout_s", value(cc.path_timeout_s)},
+                  {"segment_timeout_s", value(cc.segment_timeout_s)},
+                  {"segment_timeout_per_m_s", value(cc.segment_timeout_per_m_s)},
+                  {"max_steps", value(cc.max_steps)}},
+                 {"arrival_radius_m"});
+
+  const PathFollowerNode::Params f;
+  const ddace::exec::FollowerGains g;
+  expectDefaults(yaml["path_follower"], "path_follower",
+                 {{"rate_hz", value(f.rate_hz)},
+                  {"pose_timeout_s", value(f.pose_timeout_s)},
+                  {"stale_fail_s", value(f.stale_fail_s)},
+                  {"status_every_cycles", value(f.status_every_cycles)},
+                  {"gains", YAML::Node()}},
+                 {"robots"});
+  expectDefaults(yaml["path_follower"]["gains"], "path_follower/gains",
+                 {{"cruise_speed_mps", value(g.cruise_speed_mps)},
+                  {"min_speed_mps", value(g.min_speed_mps)},
+                  {"lookahead_m", value(g.lookahead_m)},
+                  {"slowdown_radius_m", value(g.slowdown_radius_m)},
+                  {"rotate_in_place_rad", value(g.rotate_in_place_rad)},
+                  {"heading_gain", value(g.heading_gain)},
+                  {"max_turn_rate_radps", value(g.max_turn_rate_radps)},
+                  {"search_window_m", value(g.search_window_m)},
+                  {"wheel_base_m", value(g.wheel_base_m)},
+                  {"max_wheel_speed_mps", value(g.max_wheel_speed_mps)}},
+                 {"arrival_radius_m"});
+
+  const MockRobotNode::Params m;
+  const ddace::exec::DiffDriveParams r;
+  expectDefaults(yaml["mock_robots"], "mock_robots",
+                 {{"frame_id", value(m.frame_id)},
+                  {"entities_topic", value(m.entities_topic)},
+                  {"publish_tf", value(m.publish_tf)},
+                  {"object_speed_mps", value(m.object_speed_mps)},
+                  {"robot", YAML::Node()}},
+                 {"stalled", "scene_csv", "scene_demo", "scene"});
+  // The simulated Hamster's latency and tracking noise are deliberately not
+  // exec::DiffDriveParams' defaults (an ideal robot, for the core's own tests).
+  expectDefaults(yaml["mock_robots"]["robot"], "mock_robots/robot",
+                 {{"rate_hz", value(r.rate_hz)},
+                  {"wheel_base_m", value(r.wheel_base_m)},
+                  {"max_wheel_speed_mps", value(r.max_wheel_speed_mps)},
+                  {"command_timeout_s", value(r.command_timeout_s)},
+                  {"seed", value(r.seed)}},
+                 {"latency_s", "position_noise_m", "yaw_noise_rad"});
+
+  const SequenceNode::Params s;
+  const YAML::Node seq = yaml["sequence"];
+  ASSERT_TRUE(seq && seq["policy"]);
+  EXPECT_EQ(SequenceNode::parsePolicy(seq["policy"].as<std::string>(), "sequence/policy"), s.policy);
+  expectDefaults(seq, "sequence", {{"replay_demo", value(s.replay_demo)}}, {"policy"});
+
+  const GpPathNode::Params p;
+  const YAML::Node gp = yaml["gp_path"];
+  ASSERT_TRUE(gp && gp["source"]);
+  EXPECT_EQ(GpPathNode::parseSource(gp["source"].as<std::string>(), "gp_path/source"), p.source);
+  expectDefaults(gp, "gp_path", {{"frame_id", value(p.frame_id)}, {"points", value(p.points)}}, {"source"});
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "params_defaults");
+  return RUN_ALL_TESTS();
+}
