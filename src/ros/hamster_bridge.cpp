@@ -9,6 +9,7 @@
 #include <chrono>
 #include <memory>
 #include <mutex>
+#include <optional>
 
 #include <ddace/HamsterEffects.h>
 #include <ddace/HamsterSensors.h>
@@ -98,19 +99,21 @@ class HamsterBridgeNode::Impl {
         reports.clear();
         LinkState before, after;
         std::string error;
+        std::vector<std::string> warnings;
         {
           std::lock_guard<std::mutex> lock(mutex_);
           before = r->link->state();
           r->link->poll(monotonicS(), reports);
           after = r->link->state();
           error = r->link->stats().last_error;
+          warnings = r->link->takeWarnings();
         }
+        for (const auto& w : warnings) ROS_WARN("hamster_bridge: %s: %s", r->link->robot().name.c_str(), w.c_str());
         if (before != after) logTransition(*r, before, after, error);
         for (const auto& report : reports) {
           ddace::HamsterSensors msg =
               ddace::ros_hamster::toSensorsMsg(r->link->robot(), r->link->model(), report, r->memory);
           msg.header.stamp = ros::Time::now();
-          r->last_battery_v = msg.battery_v;
           r->last_rssi_dbm = msg.rssi_dbm;
           r->sensors.publish(msg);
         }
@@ -124,12 +127,10 @@ class HamsterBridgeNode::Impl {
     ros::Publisher sensors;
     ros::Subscriber wheels, effects;
     ddace::ros_hamster::SensorMemory memory;
-    std::atomic<float> last_battery_v{NAN};  // written by the I/O loop, read by diagnostics
-    std::atomic<int> last_rssi_dbm{0};
+    std::atomic<int> last_rssi_dbm{0};  // written by the I/O loop, read by diagnostics
     uint64_t diag_lines = 0;
     uint64_t diag_losses = 0;
     double diag_time_s = -1.0;
-    uint64_t refused_commands = 0;
   };
 
   static std::string join(const std::vector<std::string>& items) {
@@ -143,30 +144,29 @@ class HamsterBridgeNode::Impl {
     if (after == LinkState::Streaming) {
       ROS_INFO("hamster_bridge: %s streaming on %s (%s %s)", name.c_str(), r.link->port().c_str(),
                modelName(r.link->model()).c_str(), r.link->robot().address.display().c_str());
-    } else if (before == LinkState::Streaming) {
-      ROS_WARN("hamster_bridge: %s link lost (%s); wheels zeroed, reconnecting", name.c_str(), error.c_str());
+    } else if (after == LinkState::Identified) {
+      ROS_INFO("hamster_bridge: %s: the dongle on %s answers for %s; waiting for the robot's first sensor line",
+               name.c_str(), r.link->port().c_str(), r.link->robot().address.display().c_str());
+    } else if (after == LinkState::Lost) {
+      ROS_WARN("hamster_bridge: %s link lost (%s); wheels zeroed, waiting on %s", name.c_str(), error.c_str(),
+               r.link->port().c_str());
+    } else if (before == LinkState::Streaming || before == LinkState::Lost || before == LinkState::Identified) {
+      ROS_WARN("hamster_bridge: %s: port closed (%s); wheels zeroed, searching", name.c_str(), error.c_str());
     } else if (after == LinkState::Searching && !error.empty()) {
       ROS_DEBUG("hamster_bridge: %s: %s", name.c_str(), error.c_str());
     }
   }
 
   void onWheels(Robot& r, const ddace::WheelCommand& m) {
-    const std::string topic = "/robots/" + r.link->robot().name + "/wheels";
-    if (!m.header.stamp.isZero()) {
-      const double age = (ros::Time::now() - m.header.stamp).toSec();
-      if (age > config_.command_timeout_s) {
-        ++r.refused_commands;
-        ROS_WARN_THROTTLE(1.0, "hamster_bridge: %s: command stamped %.3f s ago (> command_timeout_s %.3f) refused",
-                          topic.c_str(), age, config_.command_timeout_s);
-        return;
-      }
-    }
+    // The stale-stamp rule is RobotLink's (command_max_age_s); the age is on ROS time.
+    std::optional<double> age;
+    if (!m.header.stamp.isZero()) age = (ros::Time::now() - m.header.stamp).toSec();
     std::lock_guard<std::mutex> lock(mutex_);
     try {
-      r.link->setWheelCommand(m.left_mps, m.right_mps, monotonicS());
+      r.link->setWheelCommand(m.left_mps, m.right_mps, monotonicS(), age);
     } catch (const ddace::Error& e) {
-      ++r.refused_commands;
-      ROS_WARN_THROTTLE(1.0, "hamster_bridge: %s: command refused: %s", topic.c_str(), e.what());
+      ROS_WARN_THROTTLE(1.0, "hamster_bridge: /robots/%s/wheels: command refused: %s", r.link->robot().name.c_str(),
+                        e.what());
     }
   }
 
@@ -185,7 +185,9 @@ class HamsterBridgeNode::Impl {
     LinkState state;
     std::string port;
     Model model;
-    double last_line;
+    double last_line, battery_v;
+    LinkHealth health;
+    const double now = monotonicS();
     {
       std::lock_guard<std::mutex> lock(mutex_);
       st = r.link->stats();
@@ -193,35 +195,20 @@ class HamsterBridgeNode::Impl {
       port = r.link->port();
       model = r.link->model();
       last_line = r.link->lastLineTime();
+      battery_v = r.link->batteryV();
+      // A flapping link must show even if it happens to be up at the moment of the report.
+      health = r.link->health(now, st.link_losses - r.diag_losses);
     }
-    const double now = monotonicS();
     double rate = 0.0;
     if (r.diag_time_s > 0 && now > r.diag_time_s) rate = (st.lines_ok - r.diag_lines) / (now - r.diag_time_s);
-    const uint64_t lines_in_period = st.lines_ok - r.diag_lines;
-    const uint64_t losses_in_period = st.link_losses - r.diag_losses;
-    const bool first_report = r.diag_time_s < 0;
     r.diag_lines = st.lines_ok;
     r.diag_losses = st.link_losses;
     r.diag_time_s = now;
-    if (state == LinkState::Streaming && losses_in_period > 0) {
-      // A flapping link must show even if it happens to be up at the moment of the report.
-      s.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "link lost %llu times since the last report",
-                 static_cast<unsigned long long>(losses_in_period));
-    } else if (state == LinkState::Streaming && lines_in_period == 0 && !first_report) {
-      s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "identified, but no sensor lines");
-    } else if (state == LinkState::Streaming) {
-      if (r.last_battery_v.load() < 3.6f) {
-        s.summaryf(diagnostic_msgs::DiagnosticStatus::WARN, "streaming, battery low (%.2f V)",
-                   static_cast<double>(r.last_battery_v.load()));
-      } else {
-        s.summary(diagnostic_msgs::DiagnosticStatus::OK, "streaming");
-      }
-    } else if (state == LinkState::Identifying) {
-      s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "identifying on " + port);
-    } else {
-      s.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
-                "no link (wheels stopped)" + (st.last_error.empty() ? std::string() : ": " + st.last_error));
-    }
+    using Level = LinkHealth::Level;
+    s.summary(health.level == Level::Ok     ? diagnostic_msgs::DiagnosticStatus::OK
+              : health.level == Level::Warn ? diagnostic_msgs::DiagnosticStatus::WARN
+                                            : diagnostic_msgs::DiagnosticStatus::ERROR,
+              health.summary);
     const RobotConfig& cfg = r.link->robot();
     s.add("link state", linkStateName(state));
     s.add("address", cfg.address.display());
@@ -236,11 +223,11 @@ class HamsterBridgeNode::Impl {
     s.add("write failures", st.write_failures);
     s.add("zero-wheel cycles (no fresh command)", st.stale_command_cycles);
     s.add("saturated cycles", st.saturated_cycles);
-    s.add("refused commands", r.refused_commands);
+    s.add("refused commands", st.refused_commands);
     s.add("connects", st.connects);
     s.add("link losses", st.link_losses);
     s.add("no-robot lines", st.no_robot_lines);
-    s.add("battery (V)", r.last_battery_v.load());
+    s.add("battery (V)", battery_v);
     s.add("signal (dBm)", r.last_rssi_dbm.load());
     s.add("last error", st.last_error);
   }

@@ -1,14 +1,18 @@
 // TrackerNode: see include/ddace/ros/tracker.h.
 #include "ddace/ros/tracker.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <memory>
+#include <mutex>
+#include <optional>
 
 #include <cv_bridge/cv_bridge.h>
+#include <diagnostic_updater/diagnostic_updater.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <image_transport/image_transport.h>
-#include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
@@ -19,13 +23,15 @@
 #include "vision_ros.h"
 #include "ddace/EntityArray.h"
 #include "ddace/common/error.h"
+#include "ddace/vision/camera_calibration.h"
+#include "ddace/vision/debug_image.h"
 #include "ddace/vision/tracker.h"
 
 namespace ddace::nodes {
 
 class TrackerNode::Impl {
  public:
-  Impl(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh), it_(nh), pit_(pnh) {
+  Impl(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh), it_(nh), pit_(pnh), updater_(nh, pnh) {
     const std::string markers = rosparam::requireString(pnh_, "markers_file", "path to config/markers.yaml");
     const std::string tuning = rosparam::param<std::string>(pnh_, "tracker_file", "");
     tracker_ = std::make_unique<vision::Tracker>(vision::loadTrackerConfig(markers, tuning));
@@ -41,14 +47,29 @@ class TrackerNode::Impl {
     }
     if (tracker_->config().markers.corners.empty() && table_in_camera_.empty())
       throw Error(markers + ": no corner markers, so parameter " + pnh_.resolveName("table_in_camera") +
-                  " (the table's pose in the camera frame, with camera_info) is required");
-    if (const auto K = rosparam::optionalParam<std::vector<double>>(pnh_, "camera_matrix")) {
+                  " (the table's pose in the camera frame, with intrinsics) is required");
+    // Intrinsics: a calibration file (camera_info YAML), or ~camera_matrix, or the
+    // camera_info topic (in every input mode; the first two win over it).
+    const std::string calibration = rosparam::param<std::string>(pnh_, "camera_calibration_file", "");
+    if (!calibration.empty()) {
+      const vision::CameraCalibration cal = vision::loadCameraCalibration(calibration);
+      setCamera(cal.camera, "calibration file " + calibration);
+    } else if (const auto K = rosparam::optionalParam<std::vector<double>>(pnh_, "camera_matrix")) {
       if (K->size() != 9) throw Error("parameter " + pnh_.resolveName("camera_matrix") + " needs 9 numbers");
       sensor_msgs::CameraInfo info;
       std::copy(K->begin(), K->end(), info.K.begin());
       info.D = rosparam::param(pnh_, "distortion", std::vector<double>{});
-      setCamera(info);
+      const vision::CameraModel model = ros_vision::fromMsg(info);
+      if (!model.valid)
+        throw Error("parameter " + pnh_.resolveName("camera_matrix") + " is not a camera matrix (fx, fy must be > 0)");
+      setCamera(model, "parameter " + pnh_.resolveName("camera_matrix"));
     }
+    info_sub_ = nh_.subscribe("camera_info", 2, &Impl::onCameraInfo, this);
+    updater_.setHardwareID("overhead camera");
+    updater_.add("tracker", [this](diagnostic_updater::DiagnosticStatusWrapper& d) { diagnose(d); });
+    diag_timer_ = nh_.createSteadyTimer(ros::WallDuration(0.5), [this](const ros::SteadyTimerEvent&) {
+      updater_.update();
+    });
 
     entities_pub_ = nh_.advertise<ddace::EntityArray>("/ddace/entities", 10);
     markers_pub_ = pnh_.advertise<visualization_msgs::MarkerArray>("markers", 2);
@@ -58,7 +79,6 @@ class TrackerNode::Impl {
     video_file_ = rosparam::param<std::string>(pnh_, "video_file", "");
     if (video_device_ < 0 && video_file_.empty()) {
       image_sub_ = it_.subscribe("image_raw", 2, &Impl::onImage, this);
-      info_sub_ = nh_.subscribe("camera_info", 2, &Impl::onCameraInfo, this);
       ROS_INFO("tracker_node: %s, waiting for %s", markers.c_str(), image_sub_.getTopic().c_str());
     } else {
       openCapture();
@@ -75,6 +95,7 @@ class TrackerNode::Impl {
     }
     ros::Rate rate(capture_rate_hz_);
     cv::Mat frame;
+    ros::Time file_start;  // ROS time of the video file's t = 0
     while (ros::ok() && !stop_) {
       if (!capture_.read(frame) || frame.empty()) {
         if (!video_file_.empty()) {
@@ -83,13 +104,20 @@ class TrackerNode::Impl {
         }
         ROS_ERROR_THROTTLE(1.0, "tracker_node: no frame from /dev/video%d", video_device_);
       } else {
-        const ros::Time stamp = ros::Time::now();
+        ros::Time stamp = ros::Time::now();
+        if (!video_file_.empty()) {
+          // The file's own time line: frame intervals as recorded, whatever the playback rate.
+          const double file_s = capture_.get(cv::CAP_PROP_POS_MSEC) / 1000.0;
+          if (file_start.isZero()) file_start = stamp - ros::Duration(file_s);
+          stamp = file_start + ros::Duration(file_s);
+        }
         if (raw_pub_.getNumSubscribers() > 0) {
           std_msgs::Header h;
           h.stamp = stamp;
           h.frame_id = kCameraFrame;
           raw_pub_.publish(cv_bridge::CvImage(h, frame.channels() == 1 ? "mono8" : "bgr8", frame).toImageMsg());
         }
+        if (info_pub_.getNumSubscribers() > 0) publishCameraInfo(frame.size(), stamp);
         process(frame, stamp);
       }
       if (!video_file_.empty()) rate.sleep();
@@ -108,37 +136,49 @@ class TrackerNode::Impl {
     const int height = rosparam::param(pnh_, "video_height", defaults_.video_height);
     if (width > 0) capture_.set(cv::CAP_PROP_FRAME_WIDTH, width);
     if (height > 0) capture_.set(cv::CAP_PROP_FRAME_HEIGHT, height);
-    // The captured frames as a topic too, for rosbag and image viewers (only when watched).
+    // The captured frames as a topic too, for rosbag and image viewers (only when watched),
+    // with the intrinsics in use.
     raw_pub_ = it_.advertise("image_raw", 1);
+    info_pub_ = nh_.advertise<sensor_msgs::CameraInfo>("camera_info", 1);
     const double camera_fps = capture_.get(cv::CAP_PROP_FPS);
     capture_rate_hz_ = rosparam::param(pnh_, "video_rate_hz", camera_fps > 0 ? camera_fps : 30.0);
     if (!(capture_rate_hz_ > 0 && capture_rate_hz_ <= 1000))
       throw Error("parameter " + pnh_.resolveName("video_rate_hz") + " must be in (0, 1000] Hz");
   }
 
-  void setCamera(const sensor_msgs::CameraInfo& info) {
-    const vision::CameraModel model = ros_vision::fromMsg(info);
-    if (!model.valid) return;
+  /// Uses `model` from now on (called once: intrinsics do not change while running).
+  void setCamera(const vision::CameraModel& model, const std::string& source) {
+    std::lock_guard<std::mutex> lock(mutex_);
     tracker_->setCamera(model);
-    if (!table_in_camera_.empty()) {
-      const double r = table_in_camera_[3], p = table_in_camera_[4], y = table_in_camera_[5];
-      const cv::Matx33d Rx(1, 0, 0, 0, std::cos(r), -std::sin(r), 0, std::sin(r), std::cos(r));
-      const cv::Matx33d Ry(std::cos(p), 0, std::sin(p), 0, 1, 0, -std::sin(p), 0, std::cos(p));
-      const cv::Matx33d Rz(std::cos(y), -std::sin(y), 0, std::sin(y), std::cos(y), 0, 0, 0, 1);
-      tracker_->setFixedTableFrame(vision::TableFrame::fromCameraPose(
-          model.K, Rz * Ry * Rx, cv::Vec3d(table_in_camera_[0], table_in_camera_[1], table_in_camera_[2])));
-    }
+    if (!table_in_camera_.empty())
+      tracker_->setFixedTableFrame(
+          vision::TableFrame::fromCameraPose(model.K, table_in_camera_, "parameter " + pnh_.resolveName("table_in_camera")));
+    camera_ = model;
+    camera_source_ = source;
     have_camera_ = true;
+    ROS_INFO("tracker_node: intrinsics from %s (undistortion, marker height correction)", source.c_str());
   }
 
   void onCameraInfo(const sensor_msgs::CameraInfoConstPtr& info) {
-    if (have_camera_) return;  // intrinsics do not change while running
+    if (have_camera_) return;  // given by a file or parameter, or already received
     try {
-      setCamera(*info);
-      if (have_camera_) ROS_INFO("tracker_node: using camera_info intrinsics (undistortion, marker height correction)");
+      vision::CameraModel model = ros_vision::fromMsg(*info);
+      if (!model.valid) {
+        ROS_ERROR_THROTTLE(5.0, "tracker_node: %s carries no camera matrix (K is zero); ignored",
+                           info_sub_.getTopic().c_str());
+        return;
+      }
+      setCamera(model, "topic " + info_sub_.getTopic());
     } catch (const Error& e) {
-      ROS_ERROR_THROTTLE(5.0, "tracker_node: camera_info: %s", e.what());
+      ROS_ERROR_THROTTLE(5.0, "tracker_node: %s: %s", info_sub_.getTopic().c_str(), e.what());
     }
+  }
+
+  void publishCameraInfo(const cv::Size& size, const ros::Time& stamp) {
+    if (!have_camera_) return;
+    sensor_msgs::CameraInfo info = ros_vision::toMsg(camera_, size.width, size.height, "overhead_camera");
+    info.header.stamp = stamp;
+    info_pub_.publish(info);
   }
 
   void onImage(const sensor_msgs::ImageConstPtr& msg) {
@@ -161,22 +201,99 @@ class TrackerNode::Impl {
 
   void process(const cv::Mat& image, const ros::Time& stamp) {
     if (!table_in_camera_.empty() && !have_camera_) {
-      ROS_WARN_THROTTLE(5.0, "tracker_node: ~table_in_camera needs camera_info; waiting for it");
+      ROS_WARN_THROTTLE(5.0, "tracker_node: ~table_in_camera needs intrinsics (camera_info, "
+                             "~camera_calibration_file or ~camera_matrix); waiting for them");
       return;
     }
     vision::FrameResult fr;
-    try {
-      fr = tracker_->process(image, stamp.toSec());
-    } catch (const Error& e) {
-      ROS_ERROR_THROTTLE(5.0, "tracker_node: %s", e.what());
-      return;
+    std::optional<vision::ParallaxEstimate> parallax;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      try {
+        fr = tracker_->process(image, stamp.toSec());
+      } catch (const Error& e) {
+        ROS_ERROR_THROTTLE(5.0, "tracker_node: %s", e.what());
+        return;
+      }
+      if (fr.table_valid && fr.height_correction == vision::HeightCorrection::NoIntrinsics)
+        parallax = tracker_->parallaxWithoutIntrinsics();
+      last_ = fr;
+      last_parallax_ = parallax;
     }
     if (!fr.table_valid)
-      ROS_WARN_THROTTLE(5.0, "tracker_node: table frame unknown: not all four corner markers are visible");
+      ROS_WARN_THROTTLE(5.0, "tracker_node: table frame unknown: %s",
+                        fr.table_refused ? refusedText(fr).c_str() : "not all four corner markers are visible");
+    else if (fr.table_refused)
+      ROS_WARN_THROTTLE(5.0, "tracker_node: %s; keeping the previous table frame", refusedText(fr).c_str());
+    if (fr.height_correction == vision::HeightCorrection::IntrinsicsDoNotFit)
+      ROS_ERROR_THROTTLE(10.0, "tracker_node: the intrinsics from %s do not fit the table frame (another camera, or "
+                               "another resolution?): raised markers are NOT corrected for parallax",
+                         camera_source_.c_str());
+    if (parallax && !warned_no_intrinsics_) {
+      // Once, with the number: what running without intrinsics costs on this table.
+      warned_no_intrinsics_ = true;
+      ROS_WARN("tracker_node: no intrinsics (no camera_info, ~camera_calibration_file or ~camera_matrix): markers "
+               "%.1f cm above the table are off by up to %.0f mm at the far corners (camera about %.2f m above the "
+               "table%s); give a camera calibration to correct it",
+               maxMarkerHeight() * 100, parallax->max_error_m * 1000, parallax->camera_height_m,
+               parallax->focal_assumed ? ", focal length assumed" : "");
+    }
     entities_pub_.publish(ros_vision::toMsg(fr.entities, stamp, frame_id_));
     if (publish_tf_) publishTf(fr, stamp);
     if (markers_pub_.getNumSubscribers() > 0) publishMarkers(fr, stamp);
     if (debug_pub_.getNumSubscribers() > 0) publishDebug(image, fr, stamp);
+  }
+
+  std::string refusedText(const vision::FrameResult& fr) const {
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "table frame refused: reprojection error %.2f px > table.max_reprojection_px %.2f (check the "
+                  "corner positions and corner_size in the markers file)",
+                  fr.table_reprojection_px, tracker_->config().table.max_reprojection_px);
+    return buf;
+  }
+
+  double maxMarkerHeight() const {
+    double h = 0;
+    for (const auto& e : tracker_->config().markers.entities) h = std::max(h, e.height_m);
+    return h;
+  }
+
+  /// One status "tracker": ERROR without a table frame, WARN without height
+  /// correction or with a refused fit, OK otherwise.
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& d) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!last_) {
+      d.summary(diagnostic_msgs::DiagnosticStatus::WARN, "no frame yet");
+      return;
+    }
+    const vision::FrameResult& fr = *last_;
+    int stale = 0, visible = 0;
+    for (const auto& e : fr.entities) {
+      stale += e.stale;
+      visible += e.visible;
+    }
+    if (!fr.table_valid) {
+      d.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                fr.table_refused ? refusedText(fr) : "no table frame: not all four corner markers are visible");
+    } else if (fr.height_correction != vision::HeightCorrection::On) {
+      std::string text = "height correction " + vision::heightCorrectionName(fr.height_correction);
+      if (last_parallax_) text += " (up to " + std::to_string(std::lround(last_parallax_->max_error_m * 1000)) + " mm)";
+      d.summary(diagnostic_msgs::DiagnosticStatus::WARN, text);
+    } else if (fr.table_refused) {
+      d.summary(diagnostic_msgs::DiagnosticStatus::WARN, refusedText(fr));
+    } else {
+      d.summary(diagnostic_msgs::DiagnosticStatus::OK, "tracking");
+    }
+    d.add("table frame", fr.table_valid ? "valid" : "unknown");
+    d.add("table reprojection error (px)", fr.table_reprojection_px);
+    d.add("table fit refused", fr.table_refused);
+    d.add("height correction", vision::heightCorrectionName(fr.height_correction));
+    d.add("intrinsics", have_camera_ ? camera_source_ : "none");
+    if (last_parallax_) d.add("expected error without intrinsics (mm)", last_parallax_->max_error_m * 1000);
+    d.add("entities visible", visible);
+    d.add("entities stale", stale);
+    d.add("search", fr.full_frame ? std::string("full frame") : std::to_string(fr.rois.size()) + " regions");
   }
 
   void publishTf(const vision::FrameResult& fr, const ros::Time& stamp) {
@@ -233,28 +350,7 @@ class TrackerNode::Impl {
   }
 
   void publishDebug(const cv::Mat& image, const vision::FrameResult& fr, const ros::Time& stamp) {
-    cv::Mat out;
-    if (image.channels() == 1)
-      cv::cvtColor(image, out, cv::COLOR_GRAY2BGR);
-    else
-      out = image.clone();
-    for (const auto& r : fr.rois) cv::rectangle(out, r, cv::Scalar(255, 160, 0), 1);
-    const auto& markers = tracker_->config().markers;
-    for (const auto& d : fr.detections) {
-      std::vector<cv::Point> poly;
-      for (const auto& c : d.corners) poly.emplace_back(cvRound(c.x), cvRound(c.y));
-      const bool corner = markers.isCorner(d.id);
-      cv::polylines(out, poly, true, corner ? cv::Scalar(255, 0, 255) : cv::Scalar(0, 220, 0), 2);
-      cv::circle(out, poly[0], 3, cv::Scalar(0, 0, 255), cv::FILLED);  // printed top-left
-      const vision::EntityMarker* em = markers.entityById(d.id);
-      const std::string label = em ? em->name : "corner " + std::to_string(d.id);
-      cv::putText(out, label, poly[0] + cv::Point(0, -6), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 255), 1);
-    }
-    std::string status = fr.full_frame ? "full frame" : std::to_string(fr.rois.size()) + " regions";
-    if (!fr.table_valid) status += ", NO TABLE FRAME";
-    for (const auto& e : fr.entities)
-      if (e.stale) status += ", " + e.name + " stale";
-    cv::putText(out, status, cv::Point(10, 25), cv::FONT_HERSHEY_SIMPLEX, 0.7, cv::Scalar(0, 0, 255), 2);
+    const cv::Mat out = vision::drawDebugImage(image, fr, tracker_->config().markers);
     std_msgs::Header h;
     h.stamp = stamp;
     h.frame_id = kCameraFrame;
@@ -267,12 +363,21 @@ class TrackerNode::Impl {
   image_transport::Subscriber image_sub_;
   image_transport::Publisher debug_pub_, raw_pub_;
   ros::Subscriber info_sub_;
-  ros::Publisher entities_pub_, markers_pub_;
+  ros::Publisher entities_pub_, markers_pub_, info_pub_;
   tf2_ros::TransformBroadcaster tf_;
+  diagnostic_updater::Updater updater_;
+  ros::SteadyTimer diag_timer_;
+  std::mutex mutex_;  // the tracker: frames (capture thread) vs camera_info and diagnostics (spinner)
   std::unique_ptr<vision::Tracker> tracker_;
+  vision::CameraModel camera_;
+  std::string camera_source_;
+  std::optional<vision::FrameResult> last_;
+  std::optional<vision::ParallaxEstimate> last_parallax_;
+  bool warned_no_intrinsics_ = false;
   std::string frame_id_, video_file_;
   int video_device_ = -1;
-  bool publish_tf_ = true, have_camera_ = false;
+  bool publish_tf_ = true;
+  std::atomic<bool> have_camera_{false};
   std::vector<double> table_in_camera_;
   cv::VideoCapture capture_;
   double capture_rate_hz_ = 30.0;

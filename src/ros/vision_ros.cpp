@@ -36,6 +36,7 @@ vision::CameraModel fromMsg(const sensor_msgs::CameraInfo& info) {
     for (int c = 0; c < 3; ++c) m.K(r, c) = info.K[static_cast<size_t>(3 * r + c)];
   m.valid = info.K[0] > 0 && info.K[4] > 0;
   m.D.assign(info.D.begin(), info.D.end());
+  if (info.width > 0 && info.height > 0) m.image_size = cv::Size(static_cast<int>(info.width), static_cast<int>(info.height));
   return m;
 }
 
@@ -44,7 +45,7 @@ sensor_msgs::CameraInfo toMsg(const vision::CameraModel& camera, int width, int 
   info.header.frame_id = frame_id;
   info.width = static_cast<uint32_t>(width);
   info.height = static_cast<uint32_t>(height);
-  info.distortion_model = "plumb_bob";
+  info.distortion_model = camera.D.size() == 8 ? "rational_polynomial" : "plumb_bob";
   info.D = camera.D.empty() ? std::vector<double>(5, 0.0) : camera.D;
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) {

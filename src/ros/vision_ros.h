@@ -19,7 +19,8 @@ ddace::EntityArray toMsg(const std::vector<vision::EntityState>& states, const r
                          const std::string& frame_id);
 /// EntityArray -> the poses the synthetic camera renders; visible = false draws a hand over it.
 std::vector<vision::TrueEntity> trueEntities(const ddace::EntityArray& msg);
-/// CameraInfo (K, D plumb_bob) -> CameraModel; invalid when K is all zero.
+/// CameraInfo (K, D plumb_bob or rational_polynomial, image size) -> CameraModel;
+/// invalid when K is all zero.
 vision::CameraModel fromMsg(const sensor_msgs::CameraInfo& info);
 /// CameraModel -> CameraInfo of a `width` x `height` image (no distortion when D is empty).
 sensor_msgs::CameraInfo toMsg(const vision::CameraModel& camera, int width, int height, const std::string& frame_id);

@@ -28,6 +28,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <optional>
 #include <set>
@@ -50,14 +51,15 @@ class PortDirectory {
   void remember(const std::string& canonical, const Address& address);
   /// The address last identified on this port, if any.
   std::optional<Address> known(const std::string& canonical) const;
-  /// True the first time `message` is offered (warnings shared by the links of one
-  /// bridge: a foreign robot on a port is reported once, not once per link and scan).
-  bool firstTime(const std::string& message);
+  /// True when `message` was never offered, or last reported more than `repeat_s`
+  /// before now_s (warnings shared by the links of one bridge: a foreign robot on a
+  /// port is reported once per repeat_s, not once per link and scan).
+  bool due(const std::string& message, double now_s, double repeat_s);
 
  private:
   std::set<std::string> claimed_;
   std::vector<std::pair<std::string, Address>> known_;
-  std::set<std::string> reported_;
+  std::map<std::string, double> reported_;  // message -> when it was last reported
 };
 
 /// The transport factory for one robot: serial ports (with the bridge's rtscts) or,
@@ -108,6 +110,9 @@ struct CycleReport {
 
 class RobotLink {
  public:
+  /// A warning that still holds is repeated this often (s): a console scrolls.
+  static constexpr double kWarningRepeatS = 10.0;
+
   RobotLink(RobotConfig robot, const BridgeConfig& bridge, std::shared_ptr<PortDirectory> ports,
             TransportFactory factory);
   ~RobotLink();
@@ -148,7 +153,8 @@ class RobotLink {
   /// ERROR whenever the robot is not reached (not Streaming) and for an empty battery;
   /// WARN for a low battery or losses since the last report; OK otherwise.
   LinkHealth health(double now_s, uint64_t losses_since_report) const;
-  /// Warnings for the user queued since the last call (each one once).
+  /// Warnings for the user queued since the last call (each one at most every
+  /// kWarningRepeatS while it persists).
   std::vector<std::string> takeWarnings();
 
  private:
@@ -164,7 +170,7 @@ class RobotLink {
   /// A robot at `address` answers on the open port: not ours. Remembers it, warns
   /// when no robot of this bridge has that address, and moves on to the next port.
   void foreignRobot(const Address& address, double now_s);
-  void warn(const std::string& message);
+  void warn(const std::string& message, double now_s);
 
   RobotConfig robot_;
   BridgeConfig bridge_;

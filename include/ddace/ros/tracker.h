@@ -2,9 +2,16 @@
 // image and rviz markers. The algorithm is ddace::vision::Tracker; this node only
 // moves data (see docs/vision.md for topics and parameters).
 //
-// Sources: image_transport topic `image_raw` (+ optional `camera_info`), or, when
-// ~video_device >= 0 or ~video_file is set, OpenCV's V4L2 / file capture (the frames
-// are then published on `image_raw` while somebody subscribes, e.g. rosbag).
+// Sources: image_transport topic `image_raw`, or, when ~video_device >= 0 or
+// ~video_file is set, OpenCV's V4L2 / file capture (the frames are then published on
+// `image_raw`, with `camera_info` when intrinsics are known, while somebody
+// subscribes, e.g. rosbag). Video-file frames are stamped with the file's own time
+// line (its first frame at the start of playback).
+// Intrinsics, in every input mode: ~camera_calibration_file (camera_info YAML as ROS
+// camera calibration writes it), else ~camera_matrix (+ ~distortion), else the
+// `camera_info` topic. Without them the node warns once with the error raised markers
+// get at the configured height. Diagnostics: one status "tracker" (table frame and its
+// reprojection error, height correction, stale entities).
 #pragma once
 
 #include <memory>

@@ -28,7 +28,12 @@ void PortDirectory::remember(const std::string& canonical, const Address& addres
   known_.emplace_back(canonical, address);
 }
 
-bool PortDirectory::firstTime(const std::string& message) { return reported_.insert(message).second; }
+bool PortDirectory::due(const std::string& message, double now_s, double repeat_s) {
+  const auto it = reported_.find(message);
+  if (it != reported_.end() && now_s - it->second < repeat_s) return false;
+  reported_[message] = now_s;
+  return true;
+}
 
 std::optional<Address> PortDirectory::known(const std::string& canonical) const {
   for (const auto& [port, a] : known_) {
@@ -117,8 +122,8 @@ std::string RobotLink::port() const { return transport_ ? transport_->name() : s
 
 int RobotLink::fd() const { return transport_ ? transport_->fd() : -1; }
 
-void RobotLink::warn(const std::string& message) {
-  if (ports_->firstTime(robot_.name + ": " + message)) warnings_.push_back(message);
+void RobotLink::warn(const std::string& message, double now_s) {
+  if (ports_->due(robot_.name + ": " + message, now_s, kWarningRepeatS)) warnings_.push_back(message);
 }
 
 std::vector<std::string> RobotLink::takeWarnings() { return std::exchange(warnings_, {}); }
@@ -177,7 +182,7 @@ void RobotLink::startSearch(double now_s) {
   std::error_code ec;
   if (!std::filesystem::is_directory(bridge_.port_dir.empty() ? "/dev" : bridge_.port_dir, ec)) {
     stats_.last_error = "port directory " + bridge_.port_dir + " does not exist";
-    warn(stats_.last_error + " (port_dir in the config or ~port_dir); still looking");
+    warn(stats_.last_error + " (port_dir in the config or ~port_dir); still looking", now_s);
   }
   std::vector<std::string> patterns = robot_.port_hints;
   candidates_ = expandPorts(patterns, bridge_.port_dir);
@@ -245,7 +250,7 @@ void RobotLink::tryNextPort(double now_s) {
   } else {
     stats_.last_error = "not found on " + std::to_string(searched_.size()) + " ports searched: " + where;
   }
-  warn("robot " + robot_.address.display() + " " + stats_.last_error);
+  warn("robot " + robot_.address.display() + " " + stats_.last_error, now_s);
   startSearch(now_s);
   next_search_s_ = now_s + bridge_.rescan_interval_s;
 }
@@ -266,7 +271,8 @@ void RobotLink::foreignRobot(const Address& address, double now_s) {
   ports_->remember(canonical_, address);
   if (!bridge_addresses_.count(address.wire()))
     warn("port " + port() + " carries robot " + address.display() +
-         ", which is not in the config (no robot of this bridge has that address)");
+             ", which is not in the config (no robot of this bridge has that address)",
+         now_s);
   closePort("robot " + address.display() + " answers there", now_s, false);
 }
 
