@@ -1,5 +1,6 @@
 // Task directories: every error of every file, partial recordings, nothing loaded on error.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <filesystem>
 #include <fstream>
@@ -76,6 +77,43 @@ TEST(TaskDir, RewritingRemovesOldDemonstrations) {
   o.demos = 1;
   task::writeTaskDir(tasks::generate(o), path);
   EXPECT_EQ(task::loadTaskDir(path).demos.size(), 1u);
+}
+
+namespace {
+
+std::string freshDir(const std::string& name) {
+  const std::string path = ::testing::TempDir() + "/ddace_owned_" + name;
+  fs::remove_all(path);
+  return path;
+}
+
+}  // namespace
+
+// ---- unreadable directories and special files are one error each, nothing hangs
+
+TEST(TaskDir, ASymlinkLoopIsOneErrorAndAFifoTaskYamlDoesNotHang) {
+  const std::string loop = freshDir("loop");
+  fs::create_symlink(loop + "_b", loop);
+  fs::create_symlink(loop, loop + "_b");
+  auto errors = task::checkTaskDir(loop).errors;
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].str().find("symbolic links"), std::string::npos) << errors[0].str();
+  fs::remove(loop);
+  fs::remove(loop + "_b");
+
+  const std::string dir = makeDir("fifo");
+  fs::remove(dir + "/task.yaml");
+  ASSERT_EQ(::mkfifo((dir + "/task.yaml").c_str(), 0600), 0);
+  errors = task::checkTaskDir(dir).errors;
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].str().find("task.yaml: cannot read: is a FIFO"), std::string::npos) << errors[0].str();
+
+  const std::string demos_loop = makeDir("demosloop");
+  fs::remove_all(demos_loop + "/demos");
+  fs::create_symlink(demos_loop + "/demos", demos_loop + "/demos");  // demos -> itself
+  errors = task::checkTaskDir(demos_loop).errors;
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].str().find("demos: cannot read"), std::string::npos) << errors[0].str();
 }
 
 TEST(TaskDir, TheNthDemonstrationIsFoundOrTheErrorNamesDirectoryAndCount) {
