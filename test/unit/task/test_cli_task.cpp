@@ -1,11 +1,13 @@
-// `ddace generate` and `ddace validate` end to end: merged onsets are reported, validate
-// goes on past a directory it cannot read.
+// `ddace generate` and `ddace validate` end to end: nothing a user owns is lost, every
+// failure is named and exits non-zero, validate goes on past a directory it cannot read.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 
 namespace fs = std::filesystem;
 
@@ -36,7 +38,59 @@ std::string root() {
   return r;
 }
 
+std::string read(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
 }  // namespace
+
+TEST(CliGenerate, RefusesADirectoryHoldingARecordingAndAHandWrittenTaskYamlEvenWithForce) {
+  const std::string out = root() + "/user";
+  fs::create_directories(out + "/demos");
+  const std::string yaml = "format: ddace-task/1\n# mine\nentities: [{name: R1, kind: robot}]\n";
+  const std::string csv = "t,R1.x,R1.y\n0,0.1,0.1\n";
+  std::ofstream(out + "/task.yaml") << yaml;
+  std::ofstream(out + "/demos/my_recording.csv") << csv;
+  for (const std::string force : {"", " --force"}) {
+    const ToolRun r = ddace("generate task1 --out '" + out + "' --train 2 --test 1" + force);
+    EXPECT_NE(r.status, 0) << r.out;
+    EXPECT_NE(r.out.find(out + "/demos/my_recording.csv (not written by ddace generate)"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(out + "/task.yaml (not written by ddace generate)"), std::string::npos) << r.out;
+    EXPECT_EQ(read(out + "/task.yaml"), yaml);
+    EXPECT_EQ(read(out + "/demos/my_recording.csv"), csv);
+  }
+}
+
+TEST(CliGenerate, ReplacesItsOwnOutputOnlyWithForceAndLeavesNoStaleFile) {
+  const std::string out = root() + "/own";
+  ToolRun r = ddace("generate task4 --out '" + out + "' --train 5 --test 1");
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = ddace("generate task4 --out '" + out + "' --train 2 --test 1");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.out.find("--force replaces it"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(out + "/train/demos/demo_004.csv"));
+  r = ddace("generate task4 --out '" + out + "' --train 2 --test 1 --force");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_FALSE(fs::exists(out + "/train/demos/demo_004.csv"));
+  EXPECT_TRUE(fs::exists(out + "/train/demos/demo_001.csv"));
+  // A model trained into the output (as `ddace train --out DIR/model` would) is not generate's.
+  fs::create_directories(out + "/model");
+  std::ofstream(out + "/model/weights.pt") << "w";
+  r = ddace("generate task4 --out '" + out + "' --train 2 --test 1 --force");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.out.find(out + "/model/weights.pt (not written by ddace generate)"), std::string::npos) << r.out;
+  EXPECT_EQ(read(out + "/model/weights.pt"), "w");
+}
+
+TEST(CliGenerate, AnOutputThatCannotBeWrittenIsAnError) {
+  ToolRun r = ddace("generate task4 --out /dev/full --train 1 --test 1");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.out.find("/dev/full: exists and is not a directory"), std::string::npos) << r.out;
+  r = ddace("generate task4 --out /proc/ddace_not_writable --train 1 --test 1");
+  EXPECT_NE(r.status, 0) << r.out;
+  EXPECT_EQ(r.out.find("generated"), std::string::npos) << r.out;
+}
 
 TEST(CliGenerate, OnsetJitterIsMergedBackAndValidateSaysWhere) {
   const std::string out = root() + "/onset";
