@@ -9,8 +9,10 @@ namespace ddace::cli {
 namespace {
 
 int runGenerate(const std::vector<std::string>& argv) {
-  Args args(argv, {"--out", "--train", "--test", "--seed", "--robots", "--actions", "--jitter", "--mislabel",
-                        "--onset-jitter"});
+  Args args(argv,
+            {"--out", "--train", "--test", "--seed", "--robots", "--actions", "--jitter", "--mislabel",
+             "--onset-jitter"},
+            {"--force"});
   args.expectAtMostPositional(1);
   tasks::GeneratorOptions o;
   std::string names;
@@ -40,10 +42,14 @@ int runGenerate(const std::vector<std::string>& argv) {
   o.onset_jitter_s = 0;
   const task::TaskDir test_dir = tasks::generate(o);
 
+  // DIR as a whole: refused when it holds anything generate did not write; its own
+  // earlier output is replaced (--force) in one step, or not at all.
+  std::vector<task::OwnedFile> files = task::taskDirFiles(train_dir, "train/");
+  const std::vector<task::OwnedFile> test_files = task::taskDirFiles(test_dir, "test/");
+  files.insert(files.end(), test_files.begin(), test_files.end());
+  task::writeOwnedDirectory(out, files, "ddace generate", args.has("--force"));
   const std::string train_path = (std::filesystem::path(out) / "train").string();
   const std::string test_path = (std::filesystem::path(out) / "test").string();
-  task::writeTaskDir(train_dir, train_path);
-  task::writeTaskDir(test_dir, test_path);
   std::cout << "generated " << o.family << " '" << train_dir.spec.name << "': " << train
             << " training demonstrations in " << train_path << ", " << test << " test in "
             << test_path << "\n";
@@ -51,7 +57,7 @@ int runGenerate(const std::vector<std::string>& argv) {
 }
 
 DDACE_COMMAND({"generate",
-               "ddace generate FAMILY --out DIR [--train N] [--test M] [--seed S] [--robots K] "
+               "ddace generate FAMILY --out DIR [--force] [--train N] [--test M] [--seed S] [--robots K] "
                "[--actions K] [--jitter SIGMA_M] [--mislabel FRACTION] [--onset-jitter SECONDS]",
                "write DIR/train and DIR/test task directories of a task family (task1..task4, fetch, "
                "nearest_goal, queue, deliver)",

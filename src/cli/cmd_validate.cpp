@@ -71,12 +71,20 @@ int runValidate(const std::vector<std::string>& argv) {
   Args args(argv, {}, {"--verbose"});
   if (args.positional().empty()) throw Error("missing argument DIR (a task directory)");
   bool ok = true;
+  // Never throws for a path it cannot read (checkTaskDir reports that as the directory's error).
+  auto isDir = [](const fs::path& p) {
+    std::error_code ec;
+    return fs::is_directory(p, ec);
+  };
+  auto exists = [](const fs::path& p) {
+    std::error_code ec;
+    return fs::symlink_status(p, ec).type() != fs::file_type::not_found;
+  };
   for (const auto& path : args.positional()) {
     // The output of `ddace generate` holds train/ and test/: validate both.
-    if (!fs::exists(fs::path(path) / "task.yaml") && fs::is_directory(fs::path(path) / "train")) {
+    if (!exists(fs::path(path) / "task.yaml") && isDir(fs::path(path) / "train")) {
       for (const char* sub : {"train", "test"})
-        if (fs::is_directory(fs::path(path) / sub))
-          ok = validateOne((fs::path(path) / sub).string(), args.has("--verbose")) && ok;
+        if (isDir(fs::path(path) / sub)) ok = validateOne((fs::path(path) / sub).string(), args.has("--verbose")) && ok;
     } else {
       ok = validateOne(path, args.has("--verbose")) && ok;
     }

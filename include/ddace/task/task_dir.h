@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "ddace/task/demonstration.h"
+#include "ddace/task/owned_dir.h"
 #include "ddace/task/task_spec.h"
 
 namespace ddace::task {
@@ -40,7 +41,12 @@ TaskDirReport checkTaskDir(const std::string& path);
 /// Reads a task directory; throws ddace::Error listing every error. Nothing is
 /// returned (so nothing is trained) when any file has an error.
 TaskDir loadTaskDir(const std::string& path);
-/// Writes task.yaml and demos/<name>.csv with names demo_000.csv, demo_001.csv, ...
+/// The files of `dir` as a task directory: task.yaml and demos/demo_000.csv,
+/// demos/demo_001.csv, ..., each path prefixed with `prefix` (e.g. "train/").
+std::vector<OwnedFile> taskDirFiles(const TaskDir& dir, const std::string& prefix = "");
+/// Writes `dir` as the whole content of the directory `path` (owned_dir.h): a directory
+/// holding anything it did not write is refused, naming what is there; its own earlier
+/// output is replaced in one step, so no old demonstration survives.
 void writeTaskDir(const TaskDir& dir, const std::string& path);
 
 }  // namespace ddace::task

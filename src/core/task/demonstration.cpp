@@ -1,4 +1,3 @@
-#include "ddace/common/file.h"
 #include "ddace/task/demonstration.h"
 
 #include <algorithm>
@@ -7,6 +6,10 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <string_view>
+
+#include "ddace/common/file.h"
+#include "number.h"
 
 namespace ddace::task {
 
@@ -134,8 +137,8 @@ std::vector<Diagnostic> mergedOnsetNotes(const Demonstration& demo, const TaskSp
 
 namespace {
 
-/// Byte offset of the first invalid UTF-8 sequence, or npos.
-size_t firstInvalidUtf8(const std::string& s) {
+/// Byte offset of the first invalid UTF-8 sequence in `s`, or npos.
+size_t firstInvalidUtf8(std::string_view s) {
   size_t i = 0;
   while (i < s.size()) {
     const auto c = static_cast<unsigned char>(s[i]);
@@ -146,37 +149,32 @@ size_t firstInvalidUtf8(const std::string& s) {
     if (len == 2 && c < 0xC2) return i;  // overlong
     i += len;
   }
-  return std::string::npos;
+  return std::string_view::npos;
 }
 
 struct Field {
-  std::string text;
-  int column;  // 1-based character column of the field's first character
+  std::string_view text;
+  int column;  // 1-based byte column of the field's first character
 };
 
-std::vector<Field> splitLine(const std::string& line) {
-  std::vector<Field> fields;
+/// The fields of one line, trimmed of spaces and tabs; views into `line`.
+void splitLine(std::string_view line, std::vector<Field>& fields) {
+  fields.clear();
   size_t start = 0;
   while (true) {
     const size_t comma = line.find(',', start);
-    std::string f = line.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    std::string_view f = line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start);
     size_t lead = 0;
     while (lead < f.size() && (f[lead] == ' ' || f[lead] == '\t')) ++lead;
     size_t trail = f.size();
     while (trail > lead && (f[trail - 1] == ' ' || f[trail - 1] == '\t')) --trail;
     fields.push_back({f.substr(lead, trail - lead), static_cast<int>(start + lead + 1)});
-    if (comma == std::string::npos) break;
+    if (comma == std::string_view::npos) break;
     start = comma + 1;
   }
-  return fields;
 }
 
-bool parseNumber(const std::string& s, double& out) {
-  if (s.empty()) return false;
-  char* end = nullptr;
-  out = std::strtod(s.c_str(), &end);
-  return *end == '\0' && std::isfinite(out);
-}
+bool isBlank(std::string_view line) { return line.find_first_not_of(" \t") == std::string_view::npos; }
 
 enum class ColumnKind { Time, X, Y, Action, Target };
 
@@ -187,133 +185,150 @@ struct Column {
 
 constexpr size_t kMaxErrorsPerFile = 50;
 
-}  // namespace
-
-Demonstration parseDemonstrationCsv(const std::string& input, const TaskSpec& spec,
-                                    const std::string& file) {
-  std::vector<Diagnostic> errors;
-  auto fail = [&](int line, int column, const std::string& message) {
-    if (errors.size() < kMaxErrorsPerFile) errors.push_back({file, line, column, message});
-  };
-  auto finish = [&]() {
-    if (errors.size() >= kMaxErrorsPerFile)
-      errors.push_back({file, 0, 0, "too many errors; stopped after " + std::to_string(kMaxErrorsPerFile)});
-    throw Error(errors);
-  };
-
-  std::string text = input;
-  if (text.compare(0, 3, "\xEF\xBB\xBF") == 0) text.erase(0, 3);  // UTF-8 byte order mark
-  const size_t bad = firstInvalidUtf8(text);
-  if (bad != std::string::npos) {
-    const size_t line_start = text.rfind('\n', bad == 0 ? 0 : bad - 1);
-    const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + bad, '\n'));
-    const int column = static_cast<int>(bad - (line_start == std::string::npos || bad == 0 ? 0 : line_start + 1)) + 1;
-    fail(line, column, "file is not UTF-8 (invalid byte sequence)");
-    finish();
+/// Parses a demonstration one line at a time, keeping only the parsed values: memory
+/// grows with the rows' numbers and labels, never with the text.
+class CsvParser {
+ public:
+  CsvParser(const TaskSpec& spec, std::string file) : spec_(spec), file_(std::move(file)) {
+    demo_.source = file_;
+    demo_.step_window_s = spec.step_window_s;
   }
 
-  std::vector<std::string> lines;
-  {
-    std::string line;
-    std::istringstream in(text);
-    while (std::getline(in, line)) {
-      if (!line.empty() && line.back() == '\r') line.pop_back();
-      lines.push_back(line);
+  /// False once there are so many errors that reading on is pointless.
+  bool wantsMore() const { return utf8_ok_ && errors_.size() < kMaxErrorsPerFile; }
+
+  /// One physical line (without its line ending), 1-based line number.
+  void line(std::string_view text, int number) {
+    if (!utf8_ok_) return;  // a file that is not UTF-8 is reported as that alone
+    if (number == 1 && text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 byte order mark
+    const size_t bad = firstInvalidUtf8(text);
+    if (bad != std::string_view::npos) {
+      fail(number, static_cast<int>(bad) + 1, "file is not UTF-8 (invalid byte sequence)");
+      utf8_ok_ = false;
+      return;
     }
-    while (!lines.empty() && lines.back().find_first_not_of(" \t") == std::string::npos) lines.pop_back();
-  }
-  if (lines.empty()) {
-    fail(1, 1, "file is empty (expected a header row t,<E>.x,<E>.y,...)");
-    finish();
+    // Blank lines at the end of a file are ignored; anywhere else they are rows.
+    if (isBlank(text)) {
+      ++pending_blank_;
+      return;
+    }
+    for (; pending_blank_ > 0; --pending_blank_) process("", number - pending_blank_);
+    process(text, number);
   }
 
-  // Header.
-  const size_t m = spec.entities.size();
-  const std::vector<Field> header = splitLine(lines[0]);
-  std::vector<Column> columns;
-  std::map<std::string, int> seen;  // column name -> 1-based character column
-  size_t t_index = 0;
-  bool header_ok = true;
-  for (const auto& f : header) {
-    Column col{ColumnKind::Time, -1};
-    bool ok = true;
-    if (f.text == "t") {
-      col.kind = ColumnKind::Time;
-      t_index = columns.size();
-    } else {
-      const size_t dot = f.text.rfind('.');
-      const std::string name = dot == std::string::npos ? f.text : f.text.substr(0, dot);
-      const std::string suffix = dot == std::string::npos ? "" : f.text.substr(dot + 1);
-      col.entity = spec.entityIndex(name);
-      if (suffix == "x") col.kind = ColumnKind::X;
-      else if (suffix == "y") col.kind = ColumnKind::Y;
-      else if (suffix == "action") col.kind = ColumnKind::Action;
-      else if (suffix == "target") col.kind = ColumnKind::Target;
-      else ok = false;
-      if (col.entity < 0 || !ok) {
-        fail(1, f.column, "unknown column '" + f.text + "' (expected t or <entity>.x/.y/.action/.target for an entity of task.yaml)");
+  Demonstration finish() {
+    if (!utf8_ok_) throwErrors();
+    if (!header_seen_) {
+      fail(1, 1, "file is empty (expected a header row t,<E>.x,<E>.y,...)");
+      throwErrors();
+    }
+    if (errors_.empty() && demo_.t.empty()) fail(2, 1, "file has a header but no data rows");
+    if (!errors_.empty()) throwErrors();
+    demo_.analyze();
+    return std::move(demo_);
+  }
+
+  void fail(int line, int column, const std::string& message) {
+    if (errors_.size() < kMaxErrorsPerFile) errors_.push_back({file_, line, column, message});
+  }
+
+ private:
+  [[noreturn]] void throwErrors() {
+    if (errors_.size() >= kMaxErrorsPerFile)
+      errors_.push_back({file_, 0, 0, "too many errors; stopped after " + std::to_string(kMaxErrorsPerFile)});
+    throw Error(errors_);
+  }
+
+  void process(std::string_view text, int number) {
+    if (!header_seen_) {
+      header_seen_ = true;
+      header(text);
+      return;
+    }
+    if (header_ok_) row(text, number);
+  }
+
+  void header(std::string_view text) {
+    const size_t m = spec_.entities.size();
+    splitLine(text, fields_);
+    std::map<std::string, int> seen;  // column name -> 1-based column
+    for (const auto& f : fields_) {
+      const std::string name(f.text);
+      names_.push_back(name);
+      Column col{ColumnKind::Time, -1};
+      bool ok = true;
+      if (name == "t") {
+        t_index_ = columns_.size();
+      } else {
+        const size_t dot = name.rfind('.');
+        const std::string entity = dot == std::string::npos ? name : name.substr(0, dot);
+        const std::string suffix = dot == std::string::npos ? "" : name.substr(dot + 1);
+        col.entity = spec_.entityIndex(entity);
+        if (suffix == "x") col.kind = ColumnKind::X;
+        else if (suffix == "y") col.kind = ColumnKind::Y;
+        else if (suffix == "action") col.kind = ColumnKind::Action;
+        else if (suffix == "target") col.kind = ColumnKind::Target;
+        else ok = false;
+        if (col.entity < 0 || !ok) {
+          fail(1, f.column, "unknown column '" + name + "' (expected t or <entity>.x/.y/.action/.target for an entity of task.yaml)");
+          ok = false;
+        }
+      }
+      if (ok && !seen.emplace(name, f.column).second) {
+        fail(1, f.column, "duplicated column '" + name + "'");
         ok = false;
       }
+      header_ok_ = header_ok_ && ok;
+      columns_.push_back(col);
     }
-    if (ok && !seen.emplace(f.text, f.column).second) {
-      fail(1, f.column, "duplicated column '" + f.text + "'");
-      ok = false;
+    auto missing = [&](const std::string& name) {
+      if (!seen.count(name)) {
+        fail(1, 1, "missing required column '" + name + "'");
+        header_ok_ = false;
+      }
+    };
+    missing("t");
+    demo_.has_label_columns.assign(m, false);
+    for (size_t e = 0; e < m; ++e) {
+      const std::string& n = spec_.entities[e].name;
+      missing(n + ".x");
+      missing(n + ".y");
+      const bool has_action = seen.count(n + ".action") > 0;
+      if (seen.count(n + ".target") && !has_action) {
+        fail(1, seen[n + ".target"], "column '" + n + ".target' without '" + n + ".action'");
+        header_ok_ = false;
+      }
+      demo_.has_label_columns[e] = has_action;
     }
-    header_ok = header_ok && ok;
-    columns.push_back(col);
   }
-  auto missing = [&](const std::string& name) {
-    if (!seen.count(name)) {
-      fail(1, 1, "missing required column '" + name + "'");
-      header_ok = false;
-    }
-  };
-  missing("t");
-  Demonstration demo;
-  demo.source = file;
-  demo.step_window_s = spec.step_window_s;
-  demo.has_label_columns.assign(m, false);
-  for (size_t e = 0; e < m; ++e) {
-    const std::string& n = spec.entities[e].name;
-    missing(n + ".x");
-    missing(n + ".y");
-    const bool has_action = seen.count(n + ".action") > 0;
-    if (seen.count(n + ".target") && !has_action) {
-      fail(1, seen[n + ".target"], "column '" + n + ".target' without '" + n + ".action'");
-      header_ok = false;
-    }
-    demo.has_label_columns[e] = has_action;
-  }
-  if (!header_ok) finish();
 
-  // Rows.
-  for (size_t li = 1; li < lines.size(); ++li) {
-    const int line = static_cast<int>(li) + 1;
-    const std::vector<Field> fields = splitLine(lines[li]);
-    if (fields.size() != columns.size()) {
-      const int col = fields.size() > columns.size() ? fields[columns.size()].column
-                                                     : static_cast<int>(lines[li].size()) + 1;
-      fail(line, col, "row has " + std::to_string(fields.size()) + " fields, the header has " +
-                          std::to_string(columns.size()) +
-                          (fields.size() > columns.size() ? " (too many)" : " (too few)"));
-      continue;
+  void row(std::string_view text, int line) {
+    const size_t m = spec_.entities.size();
+    splitLine(text, fields_);
+    if (fields_.size() != columns_.size()) {
+      const int col = fields_.size() > columns_.size() ? fields_[columns_.size()].column
+                                                       : static_cast<int>(text.size()) + 1;
+      fail(line, col, "row has " + std::to_string(fields_.size()) + " fields, the header has " +
+                          std::to_string(columns_.size()) +
+                          (fields_.size() > columns_.size() ? " (too many)" : " (too few)"));
+      return;
     }
     double t = 0;
     std::vector<Eigen::Vector2d> pos(m, Eigen::Vector2d::Zero());
     std::vector<Label> labels(m);
     std::vector<int> target_column(m, 0);
     bool row_ok = true;
-    for (size_t c = 0; c < columns.size(); ++c) {
-      const Field& f = fields[c];
-      const Column& col = columns[c];
-      const std::string& cname = header[c].text;
+    for (size_t c = 0; c < columns_.size(); ++c) {
+      const Field& f = fields_[c];
+      const Column& col = columns_[c];
+      const std::string& cname = names_[c];
       switch (col.kind) {
         case ColumnKind::Time:
         case ColumnKind::X:
         case ColumnKind::Y: {
           double v = 0;
-          if (!parseNumber(f.text, v)) {
-            fail(line, f.column, cname + ": '" + f.text + "' is not a finite number");
+          if (!detail::parseFiniteNumber(f.text, v)) {
+            fail(line, f.column, cname + ": '" + printable(f.text) + "' is not a finite number");
             row_ok = false;
           } else if (col.kind == ColumnKind::Time) {
             t = v;
@@ -322,89 +337,205 @@ Demonstration parseDemonstrationCsv(const std::string& input, const TaskSpec& sp
           }
           break;
         }
-        case ColumnKind::Action:
+        case ColumnKind::Action: {
           if (f.text.empty() || f.text == "idle") break;
-          if (!isValidName(f.text)) {
-            fail(line, f.column, cname + ": '" + f.text + "' is not an action word");
+          const std::string a(f.text);
+          if (!isValidName(a)) {
+            fail(line, f.column, cname + ": '" + printable(f.text) + "' is not an action word");
             row_ok = false;
-          } else if (!spec.allowsAction(f.text)) {
-            fail(line, f.column, cname + ": action '" + f.text + "' is not in task.yaml's actions");
+          } else if (!spec_.allowsAction(a)) {
+            fail(line, f.column, cname + ": action '" + a + "' is not in task.yaml's actions");
             row_ok = false;
           } else {
-            labels[col.entity].action = f.text;
+            labels[col.entity].action = a;
           }
           break;
-        case ColumnKind::Target:
+        }
+        case ColumnKind::Target: {
           if (f.text.empty()) break;
+          const std::string target(f.text);
           target_column[col.entity] = f.column;
-          labels[col.entity].target = spec.entityIndex(f.text);
+          labels[col.entity].target = spec_.entityIndex(target);
           if (labels[col.entity].target < 0) {
-            fail(line, f.column, cname + ": unknown target '" + f.text + "'");
+            fail(line, f.column, cname + ": unknown target '" + printable(f.text) + "'");
             row_ok = false;
           } else if (labels[col.entity].target == col.entity) {
             fail(line, f.column, cname + ": an entity cannot target itself");
             row_ok = false;
           }
           break;
+        }
       }
     }
     for (size_t e = 0; e < m; ++e) {
       if (labels[e].target >= 0 && labels[e].action.empty() && row_ok) {
-        fail(line, target_column[e], spec.entities[e].name + ".target: target '" +
-                                         spec.entities[labels[e].target].name + "' without an action");
+        fail(line, target_column[e], spec_.entities[e].name + ".target: target '" +
+                                         spec_.entities[labels[e].target].name + "' without an action");
         row_ok = false;
       }
     }
-    if (!row_ok) continue;
-    if (!demo.t.empty() && !(t > demo.t.back())) {
-      fail(line, fields[t_index].column, "t = " + fields[t_index].text + " is not strictly increasing (previous row: " + std::to_string(demo.t.back()) + ")");
+    if (!row_ok) return;
+    if (!demo_.t.empty() && !(t > demo_.t.back())) {
+      fail(line, fields_[t_index_].column, "t = " + std::string(fields_[t_index_].text) +
+                                               " is not strictly increasing (previous row: " +
+                                               detail::shortestNumber(demo_.t.back()) + ")");
     }
-    demo.t.push_back(t);
-    demo.positions.push_back(std::move(pos));
-    demo.labels.push_back(std::move(labels));
+    demo_.t.push_back(t);
+    demo_.positions.push_back(std::move(pos));
+    demo_.labels.push_back(std::move(labels));
   }
-  if (errors.empty() && demo.t.empty()) fail(2, 1, "file has a header but no data rows");
-  if (!errors.empty()) finish();
-  demo.analyze();
-  return demo;
+
+  /// The field as it can be shown in a message (control bytes, NUL included, escaped).
+  static std::string printable(std::string_view s) {
+    std::string out;
+    for (char c : s) {
+      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {
+        char buf[8];
+        std::snprintf(buf, sizeof buf, "\\x%02x", static_cast<unsigned char>(c));
+        out += buf;
+      } else {
+        out += c;
+      }
+    }
+    return out;
+  }
+
+  const TaskSpec& spec_;
+  std::string file_;
+  Demonstration demo_;
+  std::vector<Diagnostic> errors_;
+  std::vector<Column> columns_;
+  std::vector<std::string> names_;
+  std::vector<Field> fields_;
+  size_t t_index_ = 0;
+  bool header_seen_ = false, header_ok_ = true, utf8_ok_ = true;
+  int pending_blank_ = 0;
+};
+
+/// Splits bytes into lines ending in LF, CRLF or CR alone and hands them to `parser`;
+/// a CR at the end of one chunk and an LF at the start of the next are one ending.
+class LineSplitter {
+ public:
+  explicit LineSplitter(CsvParser& parser) : parser_(parser) {}
+
+  void feed(std::string_view bytes) {
+    size_t start = 0;
+    for (size_t i = 0; i < bytes.size(); ++i) {
+      const char c = bytes[i];
+      if (c != '\n' && c != '\r') continue;
+      if (c == '\n' && after_cr_ && i == start && current_.empty()) {  // the LF of a CRLF
+        after_cr_ = false;
+        start = i + 1;
+        continue;
+      }
+      current_.append(bytes.data() + start, i - start);
+      emit();
+      after_cr_ = c == '\r';
+      start = i + 1;
+    }
+    if (start < bytes.size()) {
+      current_.append(bytes.data() + start, bytes.size() - start);
+      after_cr_ = false;
+      if (current_.size() > kMaxLineBytes) {
+        parser_.fail(number_ + 1, 1, "line longer than " + std::to_string(kMaxLineBytes) + " bytes");
+        overlong_ = true;
+        current_.clear();
+      }
+    }
+  }
+
+  /// Ends the input (a last line without a line ending).
+  void finish() {
+    if (!current_.empty() || overlong_) emit();
+  }
+  bool wantsMore() const { return parser_.wantsMore() && !overlong_; }
+
+ private:
+  static constexpr size_t kMaxLineBytes = 1 << 20;
+
+  void emit() {
+    ++number_;
+    if (!overlong_) parser_.line(current_, number_);
+    current_.clear();
+  }
+
+  CsvParser& parser_;
+  std::string current_;
+  int number_ = 0;
+  bool after_cr_ = false, overlong_ = false;
+};
+
+}  // namespace
+
+Demonstration parseDemonstrationCsv(const std::string& text, const TaskSpec& spec, const std::string& file) {
+  CsvParser parser(spec, file);
+  LineSplitter lines(parser);
+  lines.feed(text);
+  lines.finish();
+  return parser.finish();
 }
 
 Demonstration readDemonstrationCsv(const std::string& path, const TaskSpec& spec) {
-  return parseDemonstrationCsv(readTextFile(path), spec, path);
+  InputFile in(path, kMaxDemonstrationBytes);
+  CsvParser parser(spec, path);
+  LineSplitter lines(parser);
+  char chunk[65536];
+  std::streambuf* buf = in.stream().rdbuf();
+  while (lines.wantsMore()) {
+    const std::streamsize n = buf->sgetn(chunk, sizeof chunk);
+    if (n <= 0) break;
+    lines.feed(std::string_view(chunk, static_cast<size_t>(n)));
+  }
+  if (in.exceeded())
+    throw Error(Diagnostic{path, 0, 0, "cannot read: more than the limit of " + std::to_string(kMaxDemonstrationBytes) +
+                                           " bytes for a demonstration"});
+  lines.finish();
+  return parser.finish();
 }
 
-std::string demonstrationCsvText(const Demonstration& demo, const TaskSpec& spec) {
-  std::string out = "t";
+namespace {
+
+void writeCsv(std::ostream& out, const Demonstration& demo, const TaskSpec& spec) {
   const size_t m = spec.entities.size();
+  std::string line = "t";
   for (size_t e = 0; e < m; ++e) {
     const std::string& n = spec.entities[e].name;
-    out += "," + n + ".x," + n + ".y";
-    if (demo.has_label_columns[e]) out += "," + n + ".action," + n + ".target";
+    line += "," + n + ".x," + n + ".y";
+    if (demo.has_label_columns[e]) line += "," + n + ".action," + n + ".target";
   }
-  out += "\n";
-  char buf[64];
+  out << line << '\n';
   for (size_t r = 0; r < demo.rows(); ++r) {
-    std::snprintf(buf, sizeof buf, "%.6f", demo.t[r]);
-    out += buf;
+    line = detail::csvNumber(demo.t[r]);
     for (size_t e = 0; e < m; ++e) {
       const auto& p = demo.positions[r][e];
-      std::snprintf(buf, sizeof buf, ",%.6f,%.6f", p.x(), p.y());
-      out += buf;
+      line += ',';
+      line += detail::csvNumber(p.x());
+      line += ',';
+      line += detail::csvNumber(p.y());
       if (demo.has_label_columns[e]) {
         const Label& l = demo.labels[r][e];
-        out += "," + l.action + "," + (l.target >= 0 ? spec.entities[l.target].name : "");
+        line += ',';
+        line += l.action;
+        line += ',';
+        if (l.target >= 0) line += spec.entities[l.target].name;
       }
     }
-    out += "\n";
+    out << line << '\n';
   }
-  return out;
+}
+
+}  // namespace
+
+std::string demonstrationCsvText(const Demonstration& demo, const TaskSpec& spec) {
+  std::ostringstream out;
+  writeCsv(out, demo, spec);
+  return out.str();
 }
 
 void writeDemonstrationCsv(const Demonstration& demo, const TaskSpec& spec, const std::string& path) {
-  std::ofstream out(path, std::ios::binary);
-  if (!out) throw Error(Diagnostic{path, 0, 0, "cannot write file"});
-  out << demonstrationCsvText(demo, spec);
-  if (!out) throw Error(Diagnostic{path, 0, 0, "write failed"});
+  OutputFile out(path);
+  writeCsv(out.stream(), demo, spec);
+  out.commit();
 }
 
 }  // namespace ddace::task

@@ -131,20 +131,19 @@ TaskDir loadTaskDir(const std::string& path) {
   return std::move(report.dir);
 }
 
-void writeTaskDir(const TaskDir& dir, const std::string& path) {
-  std::error_code ec;
-  const fs::path demos = fs::path(path) / "demos";
-  fs::create_directories(demos, ec);
-  if (ec) throw Error(Diagnostic{demos.string(), 0, 0, "cannot create directory: " + ec.message()});
-  // Old demonstrations would silently join the new ones: remove them.
-  for (const auto& entry : fs::directory_iterator(demos, ec))
-    if (entry.path().extension() == ".csv") fs::remove(entry.path(), ec);
-  writeTaskYaml(dir.spec, (fs::path(path) / "task.yaml").string());
+std::vector<OwnedFile> taskDirFiles(const TaskDir& dir, const std::string& prefix) {
+  std::vector<OwnedFile> files;
+  files.emplace_back(prefix + "task.yaml", taskYamlText(dir.spec));
   char name[32];
   for (size_t i = 0; i < dir.demos.size(); ++i) {
     std::snprintf(name, sizeof name, "demo_%03zu.csv", i);
-    writeDemonstrationCsv(dir.demos[i], dir.spec, (demos / name).string());
+    files.emplace_back(prefix + "demos/" + name, demonstrationCsvText(dir.demos[i], dir.spec));
   }
+  return files;
+}
+
+void writeTaskDir(const TaskDir& dir, const std::string& path) {
+  writeOwnedDirectory(path, taskDirFiles(dir), "ddace", true);
 }
 
 }  // namespace ddace::task

@@ -1,8 +1,6 @@
 #include "ddace/task/task_spec.h"
 
 #include <cctype>
-#include <cstdio>
-#include <fstream>
 #include <set>
 #include <sstream>
 
@@ -230,27 +228,20 @@ std::string taskYamlText(const TaskSpec& spec) {
     for (size_t i = 0; i < spec.actions.size(); ++i) out << (i ? ", " : "") << spec.actions[i];
     out << "]\n";
   }
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6g", spec.arrival_radius);
-  out << "arrival_radius: " << buf << "                # metres\n";
+  out << "arrival_radius: " << detail::shortestNumber(spec.arrival_radius) << "                # metres\n";
   if (spec.step_window_s != kDefaultStepWindow) {
     out << "step_window_s: " << detail::shortestNumber(spec.step_window_s) << "                 # seconds\n";
   }
   if (!spec.goal_conditions.empty()) {
     out << "goal_conditions:\n";
     for (const auto& g : spec.goal_conditions) {
-      std::snprintf(buf, sizeof buf, "%.6g", g.tolerance);
-      out << "  - {entity: " << g.entity << ", at: " << g.at << ", tolerance: " << buf << "}\n";
+      out << "  - {entity: " << g.entity << ", at: " << g.at << ", tolerance: " << detail::shortestNumber(g.tolerance)
+          << "}\n";
     }
   }
   return out.str();
 }
 
-void writeTaskYaml(const TaskSpec& spec, const std::string& path) {
-  std::ofstream out(path, std::ios::binary);
-  if (!out) throw Error(Diagnostic{path, 0, 0, "cannot write file"});
-  out << taskYamlText(spec);
-  if (!out) throw Error(Diagnostic{path, 0, 0, "write failed"});
-}
+void writeTaskYaml(const TaskSpec& spec, const std::string& path) { writeTextFile(path, taskYamlText(spec)); }
 
 }  // namespace ddace::task

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <map>
 #include <optional>
@@ -363,6 +364,13 @@ Plan sampleScene(const SceneFamily& family, SplitMix64& rng) {
               std::to_string(kMaxSceneAttempts) + " draws");
 }
 
+/// `v` rounded to six decimals as printf rounds it (the digits a file holds), read back.
+double micrometres(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6f", v);
+  return std::strtod(buf, nullptr);
+}
+
 double smoothstep(double s) { return s * s * (3 - 2 * s); }
 
 /// The path of a motion from `from` to `to` with `shape` and amplitude `a`, at progress u.
@@ -461,6 +469,10 @@ task::Demonstration simulate(const Plan& plan, SplitMix64& rng, double jitter_m,
   if (jitter_m > 0)
     for (auto& row : d.positions)
       for (auto& p : row) p += Vector2d(rng.normal(), rng.normal()) * jitter_m;
+  // Positions in whole micrometres, exactly the values a file holds: a demonstration in
+  // memory equals the one read back, and the files keep their six decimals.
+  for (auto& row : d.positions)
+    for (auto& p : row) p = {micrometres(p.x()), micrometres(p.y())};
   return d;
 }
 

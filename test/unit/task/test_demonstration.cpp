@@ -1,6 +1,13 @@
 // Demonstration CSVs: keyframes, steps and tokens, segments, snapshots, every listed error.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+
+#include "ddace/common/random.h"
 #include "ddace/task/demonstration.h"
 
 using namespace ddace;
@@ -430,4 +437,163 @@ TEST(DemonstrationErrors, CrlfLineEndingsAndByteOrderMarkAreAccepted) {
   std::string csv = "\xEF\xBB\xBF" + std::string(kHeader) + row(0, "move", "G1", "", "");
   for (size_t p = 0; (p = csv.find('\n', p)) != std::string::npos; p += 2) csv.insert(p, "\r");
   EXPECT_NO_THROW(parseDemonstrationCsv(csv, scene(), "demo.csv"));
+}
+
+// ---- numbers, line endings, files (issue 14: inputs are files of bounded size; exact round trips)
+
+namespace {
+
+std::string tempPath(const std::string& name) { return ::testing::TempDir() + "/ddace_demo_" + name; }
+
+void writeBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::binary) << bytes;
+}
+
+}  // namespace
+
+TEST(DemonstrationErrors, ANumberMustBeTheWholeField) {
+  const std::string nul("0.208496\0GARBAGE", 16);
+  for (const std::string& bad : {nul, std::string("0.2x"), std::string("0x"), std::string("1e")}) {
+    const std::string csv = std::string(kHeader) + "0," + bad + ",0.1,,,0.5,0.5,,,0.2,0.2,0.9,0.9\n";
+    const Diagnostic d = firstError(csv);
+    EXPECT_EQ(d.line, 2);
+    EXPECT_EQ(d.column, 3);
+    EXPECT_NE(d.message.find("not a finite number"), std::string::npos) << d.message;
+  }
+  EXPECT_NE(firstError(std::string(kHeader) + "0," + nul + ",0.1,,,0.5,0.5,,,0.2,0.2,0.9,0.9\n").message.find("\\x00GARBAGE"),
+            std::string::npos);
+}
+
+TEST(Demonstration, CrOnlyCrlfAndLfLineEndingsReadTheSame) {
+  std::string lf = std::string(kHeader) + row(0, "move", "G1", "", "") + row(0.1, "move", "G1", "", "") +
+                   row(0.2, "", "", "stop", "");
+  auto replaced = [&](const std::string& ending) {
+    std::string out;
+    for (char c : lf) out += c == '\n' ? ending : std::string(1, c);
+    return out;
+  };
+  const TaskSpec spec = scene();
+  const std::string expected = demonstrationCsvText(parseDemonstrationCsv(lf, spec, "lf.csv"), spec);
+  for (const std::string ending : {"\r", "\r\n"}) {
+    const Demonstration d = parseDemonstrationCsv(replaced(ending), spec, "x.csv");
+    EXPECT_EQ(d.rows(), 3u);
+    EXPECT_EQ(demonstrationCsvText(d, spec), expected);
+  }
+  // A CR-only file on disk, read as a stream, gives the same.
+  writeBytes(tempPath("cr.csv"), replaced("\r"));
+  EXPECT_EQ(demonstrationCsvText(readDemonstrationCsv(tempPath("cr.csv"), spec), spec), expected);
+}
+
+TEST(Demonstration, StreamingAcrossChunkBoundariesEqualsParsingFromMemory) {
+  // Rows of varying length so that line endings (CRLF split between two reads among
+  // them) fall on every offset around the 64 KiB read size.
+  const TaskSpec spec = scene();
+  for (const std::string ending : {"\r\n", "\r", "\n"}) {
+    std::string csv = kHeader;
+    for (int i = 0; i < 3000; ++i) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "%d.%0*d,0.1,0.1,%s,0.5,0.5,,,0.2,0.2,0.9,0.9", i, 1 + i % 7, i % 10,
+                    i % 3 ? "move,G1" : ",");
+      csv += std::string(buf) + ending;
+    }
+    writeBytes(tempPath("stream.csv"), csv);
+    const Demonstration a = parseDemonstrationCsv(csv, spec, "m.csv");
+    const Demonstration b = readDemonstrationCsv(tempPath("stream.csv"), spec);
+    EXPECT_EQ(a.rows(), 3000u);
+    EXPECT_EQ(a.t, b.t);
+    EXPECT_EQ(a.labels, b.labels);
+    EXPECT_EQ(a.keyframes, b.keyframes);
+  }
+}
+
+TEST(Demonstration, WrittenNumbersReadBackExactly) {
+  // Property: any finite t (strictly increasing) and positions survive write -> read
+  // bit for bit, and writing again gives the same bytes.
+  const TaskSpec spec = scene();
+  SplitMix64 rng(12345);
+  for (int trial = 0; trial < 50; ++trial) {
+    Demonstration d;
+    d.has_label_columns = {true, true, false, false};
+    double t = trial == 0 ? 0.0 : rng.uniform(-1e3, 1e3);
+    for (int r = 0; r < 20; ++r) {
+      d.t.push_back(t);
+      // Tiny steps (t = 0, 1e-7, ...), ordinary ones, and ones at the limit of doubles.
+      t = trial % 3 == 0 ? t + 1e-7 : trial % 3 == 1 ? t + rng.uniform(1e-3, 1.0) : std::nextafter(t, 1e300);
+      std::vector<Eigen::Vector2d> pos;
+      for (int e = 0; e < 4; ++e) {
+        const double scale = std::pow(10.0, rng.uniform(-300, 300));
+        pos.emplace_back((rng.uniform() - 0.5) * scale, rng.uniform(-2, 2));
+      }
+      d.positions.push_back(pos);
+      std::vector<Label> labels(4);
+      if (r % 5 == 1) labels[0] = {"move", 3};
+      d.labels.push_back(labels);
+    }
+    const std::string text = demonstrationCsvText(d, spec);
+    const Demonstration back = parseDemonstrationCsv(text, spec, "p.csv");
+    ASSERT_EQ(back.t, d.t) << text.substr(0, 400);
+    ASSERT_EQ(back.positions, d.positions);
+    EXPECT_EQ(back.labels, d.labels);
+    EXPECT_EQ(demonstrationCsvText(back, spec), text);
+  }
+  // Micrometres and 20 Hz times keep their six decimals.
+  std::string csv = kHeader;
+  csv += row(0.05, "", "", "", "", 0.123457);
+  EXPECT_EQ(demonstrationCsvText(parseDemonstrationCsv(csv, spec, "a.csv"), spec).substr(std::string(kHeader).size()),
+            "0.050000,0.123457,0.100000,,,0.500000,0.500000,,,0.200000,0.200000,0.900000,0.900000\n");
+}
+
+TEST(DemonstrationFiles, OnlyRegularFilesAreReadAndNothingHangs) {
+  const TaskSpec spec = scene();
+  const std::string fifo = tempPath("fifo.csv");
+  std::remove(fifo.c_str());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string a = tempPath("loop_a.csv"), b = tempPath("loop_b.csv");
+  std::remove(a.c_str());
+  std::remove(b.c_str());
+  ASSERT_EQ(::symlink(b.c_str(), a.c_str()), 0);
+  ASSERT_EQ(::symlink(a.c_str(), b.c_str()), 0);
+  for (const auto& [path, why] : std::vector<std::pair<std::string, std::string>>{
+           {fifo, "FIFO"}, {a, "symbolic links"}, {"/dev/zero", "character device"}, {::testing::TempDir(), "directory"}}) {
+    try {
+      readDemonstrationCsv(path, spec);
+      ADD_FAILURE() << path;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.diagnostics().at(0).file, path);
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+  }
+  std::remove(fifo.c_str());
+  std::remove(a.c_str());
+  std::remove(b.c_str());
+}
+
+TEST(DemonstrationFiles, AnOverlongLineIsRefusedWithoutHoldingIt) {
+  writeBytes(tempPath("long.csv"), std::string(kHeader) + std::string(3 << 20, '7') + "\n");
+  try {
+    readDemonstrationCsv(tempPath("long.csv"), scene());
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("long.csv:2:1: line longer than"), std::string::npos) << e.what();
+  }
+}
+
+TEST(DemonstrationFiles, AFailedWriteIsAnErrorNamingTheFileAndLeavesNothingBehind) {
+  std::string csv = std::string(kHeader) + row(0, "move", "G1", "", "");
+  const TaskSpec spec = scene();
+  const Demonstration d = parseDemonstrationCsv(csv, spec, "a.csv");
+  try {
+    writeDemonstrationCsv(d, spec, "/dev/full");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.diagnostics().at(0).file, "/dev/full");
+    EXPECT_NE(std::string(e.what()).find("No space left"), std::string::npos) << e.what();
+  }
+  // A directory that does not exist: an error, no file.
+  EXPECT_THROW(writeDemonstrationCsv(d, spec, tempPath("missing_dir/x.csv")), Error);
+  // A good write replaces the file in one step.
+  const std::string path = tempPath("written.csv");
+  writeBytes(path, "old");
+  writeDemonstrationCsv(d, spec, path);
+  EXPECT_EQ(demonstrationCsvText(readDemonstrationCsv(path, spec), spec), demonstrationCsvText(d, spec));
 }

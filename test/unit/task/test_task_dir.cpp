@@ -1,8 +1,11 @@
 // Task directories: every error of every file, partial recordings, nothing loaded on error.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <map>
 
 #include "ddace/task/task_dir.h"
 #include "ddace/tasks/generators.h"
@@ -76,6 +79,163 @@ TEST(TaskDir, RewritingRemovesOldDemonstrations) {
   o.demos = 1;
   task::writeTaskDir(tasks::generate(o), path);
   EXPECT_EQ(task::loadTaskDir(path).demos.size(), 1u);
+}
+
+// ---- nothing a user owns is lost (issue 14): the data-loss cases first
+
+namespace {
+
+std::string read(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+/// Everything under `dir`, path -> bytes (directories as "<dir>/").
+std::map<std::string, std::string> tree(const std::string& dir) {
+  std::map<std::string, std::string> out;
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    out[fs::relative(e.path(), dir).string() + (e.is_directory() ? "/" : "")] = e.is_directory() ? "" : read(e.path());
+  return out;
+}
+
+std::string freshDir(const std::string& name) {
+  const std::string path = ::testing::TempDir() + "/ddace_owned_" + name;
+  fs::remove_all(path);
+  return path;
+}
+
+task::TaskDir task4(int demos) {
+  tasks::GeneratorOptions o;
+  o.family = "task4";
+  o.demos = demos;
+  return tasks::generate(o);
+}
+
+}  // namespace
+
+TEST(OwnedOutput, AUsersRecordingAndHandWrittenTaskYamlAreNeverReplaced) {
+  const std::string path = freshDir("user");
+  fs::create_directories(path + "/demos");
+  write(path + "/task.yaml", "format: ddace-task/1\n# my scene\nentities: [{name: R1, kind: robot}]\n");
+  write(path + "/demos/my_recording.csv", "t,R1.x,R1.y\n0,0.1,0.1\n");
+  const auto before = tree(path);
+  try {
+    task::writeTaskDir(task4(2), path);
+    FAIL();
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("my_recording.csv (not written by ddace)"), std::string::npos) << what;
+    EXPECT_NE(what.find("task.yaml (not written by ddace)"), std::string::npos) << what;
+  }
+  EXPECT_EQ(tree(path), before);
+  // Nothing was left next to it either.
+  for (const auto& e : fs::directory_iterator(fs::path(path).parent_path()))
+    EXPECT_EQ(e.path().filename().string().find(".ddace_owned_user.tmp"), std::string::npos) << e.path();
+}
+
+TEST(OwnedOutput, ItsOwnOutputIsReplacedWholeSoNoStaleDemonstrationSurvives) {
+  const std::string path = freshDir("own");
+  task::writeTaskDir(task4(5), path);
+  EXPECT_TRUE(fs::exists(path + "/" + task::kOwnedManifest));
+  task::writeTaskDir(task4(2), path);
+  EXPECT_EQ(task::loadTaskDir(path).demos.size(), 2u);
+  EXPECT_FALSE(fs::exists(path + "/demos/demo_004.csv"));
+  // A file it wrote, then changed by hand, is no longer its own.
+  write(path + "/demos/demo_001.csv", read(path + "/demos/demo_001.csv") + "\n");
+  try {
+    task::writeTaskDir(task4(2), path);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("demo_001.csv (changed since ddace wrote it)"), std::string::npos) << e.what();
+  }
+}
+
+TEST(OwnedOutput, WithoutReplaceItsOwnEarlierOutputIsRefusedToo) {
+  const std::string path = freshDir("noreplace");
+  const auto files = task::taskDirFiles(task4(1));
+  task::writeOwnedDirectory(path, files, "ddace generate", false);
+  try {
+    task::writeOwnedDirectory(path, files, "ddace generate", false);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("earlier ddace generate; --force replaces it"), std::string::npos) << e.what();
+  }
+  // An empty directory is fine.
+  const std::string empty = freshDir("empty");
+  fs::create_directories(empty);
+  task::writeOwnedDirectory(empty, files, "ddace generate", false);
+  EXPECT_TRUE(fs::exists(empty + "/task.yaml"));
+}
+
+TEST(OwnedOutput, OutputWrittenBeforeManifestsExistedIsReplacedOnlyWhereIdentical) {
+  const std::string path = freshDir("legacy");
+  task::writeOwnedDirectory(path, task::taskDirFiles(task4(3)), "ddace", true);
+  fs::remove(path + "/" + task::kOwnedManifest);  // as an older ddace left it
+  // demo_002.csv would not be rewritten, and without a manifest nothing says it is ours.
+  try {
+    task::writeOwnedDirectory(path, task::taskDirFiles(task4(2)), "ddace", true);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("demo_002.csv (not written by ddace)"), std::string::npos) << e.what();
+  }
+  // Every file byte-identical to what replaces it: nothing can be lost.
+  EXPECT_NO_THROW(task::writeOwnedDirectory(path, task::taskDirFiles(task4(3)), "ddace", true));
+}
+
+TEST(OwnedOutput, AFailedWriteLeavesTheOldOutputIntactAndNoTemporaryBehind) {
+  const std::string path = freshDir("failed");
+  task::writeTaskDir(task4(3), path);
+  const auto before = tree(path);
+  std::vector<task::OwnedFile> files = task::taskDirFiles(task4(2));
+  files.emplace_back("demos/" + std::string(300, 'x') + ".csv", "t\n");  // a name too long for the file system
+  try {
+    task::writeOwnedDirectory(path, files, "ddace", true);
+    FAIL();
+  } catch (const Error& e) {
+    // The error names the file where it would have been.
+    EXPECT_EQ(e.diagnostics().at(0).file.rfind(path + "/demos/xxx", 0), 0u) << e.what();
+  }
+  EXPECT_EQ(tree(path), before);
+  for (const auto& e : fs::directory_iterator(fs::path(path).parent_path()))
+    EXPECT_EQ(e.path().filename().string().find(".ddace_owned_failed.tmp"), std::string::npos) << e.path();
+  // Paths that leave the directory are refused before anything is written.
+  EXPECT_THROW(task::writeOwnedDirectory(path, {{"../escape.csv", "x"}}, "ddace", true), Error);
+  EXPECT_THROW(task::writeOwnedDirectory(path, {{"/abs.csv", "x"}}, "ddace", true), Error);
+  EXPECT_EQ(tree(path), before);
+}
+
+TEST(OwnedOutput, NotADirectoryIsRefused) {
+  const std::string path = freshDir("file");
+  write(path, "mine");
+  EXPECT_THROW(task::writeTaskDir(task4(1), path), Error);
+  EXPECT_EQ(read(path), "mine");
+}
+
+// ---- unreadable directories and special files are one error each, nothing hangs
+
+TEST(TaskDir, ASymlinkLoopIsOneErrorAndAFifoTaskYamlDoesNotHang) {
+  const std::string loop = freshDir("loop");
+  fs::create_symlink(loop + "_b", loop);
+  fs::create_symlink(loop, loop + "_b");
+  auto errors = task::checkTaskDir(loop).errors;
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].str().find("symbolic links"), std::string::npos) << errors[0].str();
+  fs::remove(loop);
+  fs::remove(loop + "_b");
+
+  const std::string dir = makeDir("fifo");
+  fs::remove(dir + "/task.yaml");
+  ASSERT_EQ(::mkfifo((dir + "/task.yaml").c_str(), 0600), 0);
+  errors = task::checkTaskDir(dir).errors;
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].str().find("task.yaml: cannot read: is a FIFO"), std::string::npos) << errors[0].str();
+
+  const std::string demos_loop = makeDir("demosloop");
+  fs::remove_all(demos_loop + "/demos");
+  fs::create_symlink(demos_loop + "/demos", demos_loop + "/demos");  // demos -> itself
+  errors = task::checkTaskDir(demos_loop).errors;
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].str().find("demos: cannot read"), std::string::npos) << errors[0].str();
 }
 
 TEST(TaskDir, TheNthDemonstrationIsFoundOrTheErrorNamesDirectoryAndCount) {

@@ -1,0 +1,35 @@
+// Output directories that a tool owns as a whole (`ddace generate --out DIR`, a task
+// directory written by writeTaskDir): written so that nothing a user put there is lost.
+//
+// The directory gets a manifest, kOwnedManifest, listing every file the tool wrote with
+// its size and FNV-1a 64 digest. Writing again:
+//   - an empty or missing directory is written;
+//   - a directory holding anything else is refused, naming what is there, unless
+//     `replace` is set and everything in it is the tool's own: listed in the manifest
+//     and unchanged since, or byte-identical to the file about to be written in its
+//     place (so replacing it loses nothing);
+//   - the new content is written into a temporary sibling directory, every file
+//     flushed, synced and checked, and only then swapped in for the old directory in
+//     one rename (renameat2 RENAME_EXCHANGE); a failed run leaves the old directory as
+//     it was, and no file of the old output survives in the new one.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace ddace::task {
+
+inline constexpr const char* kOwnedManifest = "ddace-output.txt";
+
+/// A file to write: path relative to the directory ("train/demos/demo_000.csv"), bytes.
+using OwnedFile = std::pair<std::string, std::string>;
+
+/// Writes `files` as the whole content of directory `dir` (plus the manifest), as
+/// above. `tool` names the writer in messages and in the manifest ("ddace generate").
+/// Throws ddace::Error naming `dir` and what is in the way, or the file that could not
+/// be written (under its final name), and leaves `dir` untouched.
+void writeOwnedDirectory(const std::string& dir, const std::vector<OwnedFile>& files, const std::string& tool,
+                         bool replace);
+
+}  // namespace ddace::task
