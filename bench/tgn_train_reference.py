@@ -1,10 +1,15 @@
 #!/usr/bin/python3
-"""Python/PyTorch reference for bench_tgn_train and bench_tgn_decision: the same network
-(3 GAT layers with GATConv semantics, BatchNorm, ReLU, dropout, mean pooling, 2-layer GRU,
-linear heads with the self-target mask) and the same training loop (Adam with gradient-norm
-clipping at 1, mini-batches of whole demonstrations in a shuffled order, masked cross-entropies, an eval-mode step
-accuracy after every epoch) as src/core/tgn/network.cpp, on the tensors that
-ddace::tgn::writeTrainingTensors wrote. Prints one JSON object.
+"""Python/PyTorch reference for bench_tgn_train and bench_tgn_decision: the same networks and
+the same training loop (Adam with gradient-norm clipping at 1, mini-batches of whole
+demonstrations in a shuffled order, masked cross-entropies, an eval-mode step accuracy after
+every epoch) as src/core/tgn, on the tensors that ddace::tgn::writeTrainingTensors wrote
+(their `variant` line picks the network):
+  scene  (src/core/tgn/scene_network.cpp) GATv2 attention with relative edge features in the
+         logits and the messages, ReLU, dropout, residuals, mean pooling, 2-layer GRU,
+         per-entity action heads and a pointer over the candidate targets;
+  paper  (src/core/tgn/network.cpp) 3 GAT layers with GATConv semantics, BatchNorm, ReLU,
+         dropout, mean pooling, 2-layer GRU, linear heads with the self-target mask.
+Prints one JSON object.
 
 Usage:
   tgn_train_reference.py train TENSORS --epochs N [--batch 8] [--lr 0.005] ...
@@ -28,10 +33,12 @@ def read_tensors(path):
             key, _, rest = line.strip().partition(" ")
             if key == "sequence":
                 seqs.append({"t": int(rest)})
-            elif key in ("x", "action", "target", "end"):
+            elif key in ("x", "action", "target", "end", "rel"):
                 seqs[-1][key] = rest.split()
             elif key == "mask":
                 meta["mask"] = [int(v) for v in rest.split()]
+            elif key == "variant":
+                meta["variant"] = rest
             else:
                 meta[key] = int(rest)
     n, fe = meta["nodes"], meta["features"]
@@ -44,6 +51,8 @@ def read_tensors(path):
             "target": torch.tensor([int(v) for v in s["target"]]).view(t, n),
             "end": torch.tensor([int(v) for v in s["end"]]).view(t),
         })
+        if "rel" in s:
+            out[-1]["rel"] = torch.tensor([float(v) for v in s["rel"]]).view(t, n, n, -1)
     mask = torch.tensor(meta["mask"], dtype=torch.bool).view(n, n)
     return meta, mask, out
 
@@ -112,6 +121,70 @@ class Network(torch.nn.Module):
         return action, target, end
 
 
+class SceneLayer(torch.nn.Module):
+    def __init__(self, fin, rel, heads, channels):
+        super().__init__()
+        self.heads, self.channels = heads, channels
+        width = heads * channels
+        self.lin_src = torch.nn.Linear(fin, width, bias=False)
+        self.lin_dst = torch.nn.Linear(fin, width, bias=False)
+        self.lin_edge = torch.nn.Linear(rel, width, bias=False)
+        self.att = torch.nn.Parameter(torch.empty(heads, channels))
+        self.bias = torch.nn.Parameter(torch.zeros(width))
+        for w in (self.lin_src.weight, self.lin_dst.weight, self.lin_edge.weight, self.att):
+            torch.nn.init.xavier_uniform_(w)
+
+    def forward(self, x, rel, mask):
+        s, n = x.shape[0], x.shape[1]
+        hs = self.lin_src(x).view(s, 1, n, self.heads, self.channels)
+        hd = self.lin_dst(x).view(s, n, 1, self.heads, self.channels)
+        msg = hs + self.lin_edge(rel).view(s, n, n, self.heads, self.channels)
+        logit = (F.leaky_relu(hd + msg, 0.2) * self.att).sum(-1)
+        alpha = torch.softmax(logit.masked_fill(mask.logical_not(), -1e30), 2)
+        return (alpha.unsqueeze(-1) * msg).sum(2).reshape(s, n, self.heads * self.channels) + self.bias
+
+
+class SceneNetwork(torch.nn.Module):
+    def __init__(self, meta, mask, a, rel):
+        super().__init__()
+        self.n, self.actions = meta["nodes"], meta["actions"]
+        self.mask = mask.view(1, self.n, self.n, 1)
+        self.dropout, self.identity_dim = a.dropout, a.identity_dim
+        self.identity = torch.nn.Embedding(self.n, a.identity_dim)
+        width, hidden = a.heads * a.head_channels, a.head_hidden
+        fin = meta["features"] + a.identity_dim
+        self.layers = torch.nn.ModuleList(
+            [SceneLayer(fin if l == 0 else width, rel, a.heads, a.head_channels) for l in range(3)])
+        self.gru = torch.nn.GRU(width, a.gru_hidden, num_layers=2, batch_first=True)
+        self.act_h = torch.nn.Linear(width, hidden)
+        self.act_z = torch.nn.Linear(a.gru_hidden, hidden, bias=False)
+        self.act_out = torch.nn.Linear(hidden, self.actions)
+        self.none_out = torch.nn.Linear(hidden, 1)
+        self.ptr_i = torch.nn.Linear(width, hidden)
+        self.ptr_j = torch.nn.Linear(width, hidden, bias=False)
+        self.ptr_r = torch.nn.Linear(rel, hidden, bias=False)
+        self.ptr_z = torch.nn.Linear(a.gru_hidden, hidden, bias=False)
+        self.ptr_out = torch.nn.Linear(hidden, 1)
+        self.end = torch.nn.Linear(a.gru_hidden, 2)
+        self.self_mask = torch.eye(self.n) * -1e9
+
+    def encode(self, x, rel):
+        s, n = x.shape[0], x.shape[1]
+        x = torch.cat([x, self.identity.weight.unsqueeze(0).expand(s, n, self.identity_dim)], 2)
+        for l, layer in enumerate(self.layers):
+            y = F.dropout(F.relu(layer(x, rel, self.mask)), self.dropout, self.training)
+            x = y if l == 0 else x + y
+        return x
+
+    def heads(self, nodes, rel, z):
+        zu = z.unsqueeze(-2)
+        hidden = F.relu(self.act_h(nodes) + self.act_z(zu))
+        pre = (self.ptr_i(nodes).unsqueeze(-2) + self.ptr_j(nodes).unsqueeze(-3) + self.ptr_r(rel)
+               + self.ptr_z(zu).unsqueeze(-2))
+        scores = self.ptr_out(F.relu(pre)).squeeze(-1) + self.self_mask
+        return self.act_out(hidden), torch.cat([self.none_out(hidden), scores], -1), self.end(z)
+
+
 def collate(seqs, which):
     b = len(which)
     t = max(seqs[i]["x"].shape[0] for i in which)
@@ -126,7 +199,12 @@ def collate(seqs, which):
         out = torch.zeros([b * t] + list(values.shape[1:]), dtype=values.dtype).index_copy(0, slot, values)
         return out.view(shape)
 
+    extra = {}
+    if "rel" in seqs[which[0]]:
+        extra["rel"] = torch.cat([seqs[i]["rel"] for i in which])
+        extra["rel_slots"] = scatter(extra["rel"], [b, t, n, n, extra["rel"].shape[-1]])
     return {
+        **extra,
         "b": b, "t": t, "x": x, "slot": slot,
         "valid": scatter(torch.ones(x.shape[0]), [b, t]),
         "action": scatter(torch.cat([seqs[i]["action"] for i in which]), [b, t, n]),
@@ -136,6 +214,13 @@ def collate(seqs, which):
 
 
 def run(net, batch):
+    if isinstance(net, SceneNetwork):
+        nodes = net.encode(batch["x"], batch["rel"])
+        bt, n, w = batch["b"] * batch["t"], nodes.shape[1], nodes.shape[2]
+        pooled = torch.zeros(bt, w).index_copy(0, batch["slot"], nodes.mean(1))
+        z, _ = net.gru(pooled.view(batch["b"], batch["t"], w))
+        slots = torch.zeros(bt, n, w).index_copy(0, batch["slot"], nodes).view(batch["b"], batch["t"], n, w)
+        return net.heads(slots, batch["rel_slots"], z)
     emb = net.encode(batch["x"])
     seq = torch.zeros(batch["b"] * batch["t"], emb.shape[1]).index_copy(0, batch["slot"], emb)
     out, _ = net.gru(seq.view(batch["b"], batch["t"], emb.shape[1]))
@@ -146,14 +231,18 @@ def nll(logits, target):
     return -torch.log_softmax(logits, -1).gather(-1, target.unsqueeze(-1)).squeeze(-1)
 
 
-def loss_of(heads, batch):
+def loss_of(heads, batch, acting_targets):
     action, target, end = heads
     valid = batch["valid"]
     count = valid.sum()
     vn = valid.unsqueeze(-1)
     n = batch["action"].shape[2]
-    return ((nll(action, batch["action"]) * vn).sum() / (count * n)
-            + (nll(target, batch["target"]) * vn).sum() / (count * n)
+    if acting_targets:  # the scene network's pointer: the entities that act
+        acting = vn * batch["action"].gt(0).float()
+        target_loss = (nll(target, batch["target"]) * acting).sum() / acting.sum().clamp_min(1)
+    else:
+        target_loss = (nll(target, batch["target"]) * vn).sum() / (count * n)
+    return ((nll(action, batch["action"]) * vn).sum() / (count * n) + target_loss
             + (nll(end, batch["end"]) * valid).sum() / count)
 
 
@@ -179,6 +268,7 @@ def main():
     p.add_argument("--gru-hidden", type=int, default=64)
     p.add_argument("--identity-dim", type=int, default=8)
     p.add_argument("--dropout", type=float, default=0.1)
+    p.add_argument("--head-hidden", type=int, default=32)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--history", type=int, default=6)
     p.add_argument("--repeats", type=int, default=200)
@@ -186,7 +276,8 @@ def main():
     torch.set_num_threads(1)
     torch.manual_seed(a.seed)
     meta, mask, seqs = read_tensors(a.tensors)
-    net = Network(meta, mask, a)
+    scene = meta.get("variant") == "scene"
+    net = SceneNetwork(meta, mask, a, seqs[0]["rel"].shape[-1]) if scene else Network(meta, mask, a)
     if a.mode == "train":
         adam = torch.optim.Adam(net.parameters(), lr=a.lr)
         rng = random.Random(a.seed)
@@ -201,7 +292,7 @@ def main():
             for i in range(0, len(order), a.batch):
                 batch = collate(seqs, order[i:i + a.batch])
                 adam.zero_grad()
-                loss = loss_of(run(net, batch), batch)
+                loss = loss_of(run(net, batch), batch, scene)
                 loss.backward()
                 torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
                 adam.step()
@@ -215,13 +306,19 @@ def main():
     else:
         net.eval()
         x = seqs[0]["x"][: a.history]
+        rel = seqs[0]["rel"][: a.history] if scene else None
         times = []
         with torch.no_grad():
             for _ in range(a.repeats):
                 t0 = time.perf_counter()
-                emb = net.encode(x)
-                out, _ = net.gru(emb.unsqueeze(0))
-                action, target, end = net.heads(out[0, -1])
+                if scene:
+                    nodes = net.encode(x, rel)
+                    out, _ = net.gru(nodes.mean(1).unsqueeze(0))
+                    action, target, end = net.heads(nodes[-1], rel[-1], out[0, -1])
+                else:
+                    emb = net.encode(x)
+                    out, _ = net.gru(emb.unsqueeze(0))
+                    action, target, end = net.heads(out[0, -1])
                 pa, pt, pe = torch.softmax(action, -1), torch.softmax(target, -1), torch.softmax(end, -1)
                 pa.argmax(-1).tolist(), pt.argmax(-1).tolist(), float(pe[1])
                 times.append(time.perf_counter() - t0)

@@ -19,7 +19,7 @@ int runInspect(const std::vector<std::string>& argv) {
   const auto name = [&](int i) { return spec.entities.at(static_cast<size_t>(i)).name; };
   const tgn::TrainOptions& o = info.options;
 
-  std::cout << dir << ": " << tgn::kModelFormat << ", variant '" << info.variant << "', task '" << spec.name << "'\n";
+  std::cout << dir << ": " << tgn::kModelFormat << ", variant '" << tgn::toString(info.variant) << "', task '" << spec.name << "'\n";
   std::cout << "  entities:   ";
   for (const auto& e : spec.entities) std::cout << " " << e.name;
   std::cout << "\n  vocabulary: ";
@@ -33,7 +33,7 @@ int runInspect(const std::vector<std::string>& argv) {
   if (!info.history.empty()) {
     const auto& last = info.history.back();
     std::cout << "  result:      " << last.epoch << " epochs (" << info.stop_reason << "), loss " << last.loss << ", "
-              << (info.variant == "gnn" ? "frame label" : "step") << " accuracy " << last.step_accuracy << ", "
+              << (info.variant == tgn::Variant::Gnn ? "frame label" : "step") << " accuracy " << last.step_accuracy << ", "
               << last.seconds << " s\n";
   }
   std::cout << "  normalisation: x' = (x - " << info.mean[0] << ") / " << info.std[0] << ", y' = (y - " << info.mean[1]
@@ -62,8 +62,9 @@ int runInspect(const std::vector<std::string>& argv) {
   std::cout << "E' (" << g.kept.size() << " edges):";
   for (const auto& e : g.kept) std::cout << " " << name(e.source) << "->" << name(e.target);
   std::cout << "\nthe network attends over " << info.attention_edges.size() << " directed edges"
-            << (info.variant == "ddace" ? " (E', both directions, plus self-loops)"
-                                        : " (every pair, plus self-loops)")
+            << (info.variant == tgn::Variant::Paper   ? " (E', both directions, plus self-loops)"
+                : info.variant == tgn::Variant::Scene ? " (E' lifted to entity kinds, both directions, plus self-loops)"
+                                                      : " (every pair, plus self-loops)")
             << "\n";
   if (args.has("--loss")) {
     std::cout << "\nepoch,loss,step_accuracy,seconds\n";

@@ -24,14 +24,20 @@ std::string trainingDir(const std::string& path) {
 }
 
 int runTrain(const std::vector<std::string>& argv) {
-  Args args(argv, {"--out", "--variant", "--epochs", "--seed", "--threads", "--patience", "--lr"},
+  Args args(argv, {"--out", "--variant", "--epochs", "--seed", "--threads", "--patience", "--lr", "--attention",
+                   "--dropout", "--layers", "--gru-hidden", "--head-hidden", "--identity-dim"},
             {"--no-identity", "--quiet"});
   const std::string task_path = trainingDir(args.positional(0, "TASKDIR"));
   args.expectAtMostPositional(1);
   const std::string out = args.require("--out");
 
   tgn::TrainOptions options;
-  options.variant = args.get("--variant", options.variant);
+  try {
+    options.variant = tgn::variantFromString(args.get("--variant", tgn::toString(options.variant)));
+    options.attention = tgn::attentionFromString(args.get("--attention", tgn::toString(options.attention)));
+  } catch (const Error& e) {
+    throw Error(std::string("option --variant/--attention: ") + e.what());
+  }
   options.max_epochs = static_cast<int>(args.getInt("--epochs", options.max_epochs));
   const long seed = args.getInt("--seed", static_cast<long>(options.seed));
   if (seed < 0) throw Error("option --seed: must be non-negative");
@@ -39,11 +45,16 @@ int runTrain(const std::vector<std::string>& argv) {
   options.threads = static_cast<int>(args.getInt("--threads", options.threads));
   options.plateau_patience = static_cast<int>(args.getInt("--patience", options.plateau_patience));
   options.learning_rate = args.getDouble("--lr", options.learning_rate);
+  options.dropout = args.getDouble("--dropout", options.dropout);
+  options.gat_layers = static_cast<int>(args.getInt("--layers", options.gat_layers));
+  options.gru_hidden = static_cast<int>(args.getInt("--gru-hidden", options.gru_hidden));
+  options.head_hidden = static_cast<int>(args.getInt("--head-hidden", options.head_hidden));
+  options.identity_dim = static_cast<int>(args.getInt("--identity-dim", options.identity_dim));
   if (args.has("--no-identity")) options.identity_embedding = false;
   options.validate();
 
   const task::TaskDir train = task::loadTaskDir(task_path);
-  std::cout << "training variant '" << options.variant << "' on " << train.demos.size() << " demonstrations of task '"
+  std::cout << "training variant '" << tgn::toString(options.variant) << "' on " << train.demos.size() << " demonstrations of task '"
             << train.spec.name << "' (" << train.spec.entities.size() << " entities), seed " << options.seed << "\n"
             << std::flush;
   // The sequence model, then (except for gnn) the GP primitive library, into one directory.
@@ -53,7 +64,7 @@ int runTrain(const std::vector<std::string>& argv) {
   const tgn::ModelInfo& info = model.info();
   const tgn::EpochRecord& last = info.history.back();
   std::cout << "stopped after " << last.epoch << " epochs (" << info.stop_reason << "): loss " << last.loss << ", "
-            << (options.variant == "gnn" ? "frame label" : "step") << " accuracy " << last.step_accuracy << ", "
+            << (options.variant == tgn::Variant::Gnn ? "frame label" : "step") << " accuracy " << last.step_accuracy << ", "
             << last.seconds << " s\n";
   std::cout << "attention edges: " << info.attention_edges.size() << " (E' has " << info.refined.kept.size() << " of "
             << info.refined.edges.size() << " observed edges)\n";
@@ -71,8 +82,9 @@ int runTrain(const std::vector<std::string>& argv) {
 }
 
 DDACE_COMMAND({"train",
-               "ddace train TASKDIR --out MODELDIR [--variant ddace|full-graph|gnn] [--epochs N=400] [--seed S=1] "
-               "[--threads T=1] [--patience P=20] [--lr RATE] [--no-identity] [--quiet]",
+               "ddace train TASKDIR --out MODELDIR [--variant scene|paper|full-graph|gnn] [--attention gatv2|gat] [--epochs N=400] [--seed S=1] "
+               "[--threads T=1] [--patience P=20] [--lr RATE] [--dropout P=0.1] [--layers L=3] [--gru-hidden H=64] "
+               "[--head-hidden H=32] [--identity-dim D=8] [--no-identity] [--quiet]",
                "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR", runTrain});
 
 }  // namespace

@@ -96,6 +96,12 @@ std::vector<Edge> tokenEdges(const task::Demonstration& demo);
 RefinedGraph refine(const std::vector<task::Demonstration>& demos, int nodes,
                     const RefinementOptions& options = {});
 
+/// The same graph with node k renamed to new_index[k] (a permutation of 0..nodes-1):
+/// edges and E' re-sorted, clusters, adjacency and Laplacian permuted; the eigenvalues
+/// stay. The sequence model refines in the canonical (name-sorted) entity order, where
+/// the k-means seeding visits the nodes, and maps the result back to the task's order.
+RefinedGraph permuted(const RefinedGraph& g, const std::vector<int>& new_index);
+
 /// Every ordered pair (i, j), i != j: the edge set of the `full-graph` ablation.
 std::vector<Edge> fullyConnected(int nodes);
 

@@ -1,48 +1,41 @@
 // The temporal graph network (DDACE, Sec. IV-B): *which* entities do *what* next.
 //
-// Owns: the network (3 GAT layers over the refined edge set E' -> global mean
-// pooling -> 2-layer GRU over the keyframe snapshots -> heads), its trainer and
-// predictor, the `full-graph` and `gnn` variants, and the model directory.
-// Implemented with libtorch behind a pimpl: this header includes no torch.
+// Owns: the networks (variants below), their trainer and predictor, the gnn baseline's
+// rollout, and the model directory. Implemented with libtorch behind a pimpl: this header
+// includes no torch. docs/tgn.md describes every variant and why `scene` is the default.
 //
-// Network (variant `ddace`; `full-graph` only swaps the edge set):
-//   node features   per snapshot, per entity: (x, y) normalised by the training set's
-//                   per-coordinate mean and standard deviation over every entity in every
-//                   training snapshot, i.e. x_n = (x - mean_x) / std_x (the scene's table
-//                   region maps to about [-2, 2]); nothing depends on a particular start or
-//                   goal, so new start-goal configurations in the same workspace need no
-//                   retraining. Optional learned identity embedding per entity
-//                   (`identity_embedding`, default on: it measured better,
-//                   docs/bench/tgn_train.md),
-//                   concatenated to (x, y).
-//   spatial         3 x [GAT (2 heads, concatenated) -> BatchNorm -> ReLU -> dropout].
-//                   GAT semantics are PyTorch Geometric's GATConv: x'_i = bias +
-//                   ||_h sum_{j in N(i) u {i}} a^h_ij W^h x_j, a^h_ij = softmax_j LeakyReLU_0.2(
-//                   <att_dst^h, W^h x_i> + <att_src^h, W^h x_j>), over each node's incoming
-//                   edges plus a self-loop. The attention edges are E' made symmetric
-//                   (an interaction informs both ends), plus self-loops.
-//   pooling         mean over the entities -> one graph embedding per snapshot.
-//   temporal        2-layer GRU over the snapshots of one demonstration, hidden state zero
-//                   at the first snapshot; output k sees snapshots 0..k.
-//   heads           linear, from the GRU output k: per entity the action of step k
-//                   (classes: idle + vocabulary) and its target (classes: none + entities;
-//                   the entity itself is masked out), and END (2 classes).
-//   loss            sum of the three mean cross-entropies; Adam with the gradient norm clipped
-//                   at 1; mini-batches of whole demonstrations in a seeded shuffled order.
+// Variants:
+//   scene       (default) relative features (displacement, distance, nearness ranks) on the
+//               attention edges, entity kinds, an identity embedding keyed by name,
+//               per-entity action heads and a pointer over the candidate targets;
+//               attention over E' lifted to entity kinds (see Variant).
+//   paper       the paper's network: 3 x [GAT (2 heads, concatenated) -> BatchNorm ->
+//               ReLU -> dropout] over E' made symmetric, mean pooling, a 2-layer GRU over
+//               the keyframe snapshots, linear heads with one output slot per entity.
+//               Node features: (x, y) normalised per coordinate, plus the identity
+//               embedding. GAT semantics are PyTorch Geometric's GATConv.
+//   full-graph  `paper` over every ordered pair (the paper's ablation).
+//   gnn         the paper's end-to-end baseline: the `paper` encoder over every pair, run
+//               on every frame; node features add the entity's current label; the heads
+//               predict every entity's next displacement and label and the end. Loss:
+//               MSE + cross-entropies. It does not predict steps: use rolloutGnn().
+//
+// Common to all:
+//   entity order    everything runs internally in the canonical order of the entity
+//                   names (sorted), and inputs and outputs are mapped from and to the
+//                   task's order: the order of the entities in task.yaml changes no
+//                   decision, no weight and no E'.
+//   loss            sum of the mean cross-entropies of action, target (the scene variant:
+//                   over the entities that act) and END; Adam with the gradient norm
+//                   clipped at 1; mini-batches of whole demonstrations in a seeded order.
 //   stopping        at `max_epochs`, or at a plateau: the best loss of the last
 //                   `plateau_patience` epochs differs by less than `plateau_delta` from the
 //                   best loss of the `plateau_patience` epochs before them, and the last
-//                   epoch's loss is within `plateau_delta` of that best too (never stop on a
-//                   spike: the weights kept are the last epoch's).
-//   determinism     torch::manual_seed(seed), at::set_num_threads(threads) (default 1: the
-//                   tensors are tiny and one thread is both fastest and reproducible).
-//
-// Variant `gnn` (the paper's end-to-end baseline): the same encoder over the fully connected
-// graph, run on every frame (row) instead of keyframes. Node features add the entity's
-// current label (one-hot action, one-hot target); the heads predict, for the next frame,
-// every entity's displacement (normalised by the training displacements' std), its label,
-// and whether the demonstration ends there. Loss: MSE + cross-entropies. It does not
-// predict steps: use rolloutGnn().
+//                   epoch's loss is within `plateau_delta` of that best too.
+//   determinism     weights initialised from the model's seed without touching torch's
+//                   process-wide generator (its state is saved and restored), dropout
+//                   from the network's own SplitMix64, `threads` intra-op threads only
+//                   while training (restored afterwards).
 #pragma once
 
 #include <cstdint>
@@ -57,10 +50,31 @@
 namespace ddace::tgn {
 
 /// Format tag of manifest.yaml in a model directory.
-inline constexpr const char* kModelFormat = "ddace-model/1";
+inline constexpr const char* kModelFormat = "ddace-model/2";
+
+/// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
+enum class Variant {
+  Scene,      ///< sees the scene: relative edge features, per-entity heads, pointer targets
+  Paper,      ///< the paper's network over E'
+  FullGraph,  ///< the paper's network over every pair (the paper's ablation)
+  Gnn,        ///< the paper's end-to-end GNN baseline (frames, not steps)
+};
+const char* toString(Variant v);
+/// Throws ddace::Error listing the names for an unknown one.
+Variant variantFromString(const std::string& name);
+/// Every variant, default first.
+std::vector<Variant> allVariants();
+
+/// How the scene network's attention logits are formed.
+enum class AttentionKind {
+  GatV2,   ///< a . LeakyReLU(W_d x_i + W_s x_j + W_e r_ij) (GATv2Conv with edge features)
+  GatConv, ///< LeakyReLU(a_d . W_d x_i + a_s . W_s x_j + a_e . W_e r_ij) (GATConv with edge_dim)
+};
+const char* toString(AttentionKind k);  ///< "gatv2", "gat"
+AttentionKind attentionFromString(const std::string& name);
 
 struct TrainOptions {
-  std::string variant = "ddace";  ///< ddace | full-graph | gnn
+  Variant variant = Variant::Scene;
   int max_epochs = 400;
   uint64_t seed = 1;
   int heads = 2;                   ///< GAT heads (concatenated)
@@ -70,6 +84,8 @@ struct TrainOptions {
   int gru_hidden = 64;
   bool identity_embedding = true;  ///< learned per-entity embedding concatenated to (x, y)
   int identity_dim = 8;
+  AttentionKind attention = AttentionKind::GatV2;  ///< scene variant
+  int head_hidden = 32;            ///< scene variant: hidden units of the action and pointer heads
   double dropout = 0.1;
   double learning_rate = 5e-3;
   int batch_demos = 8;             ///< at most this many demonstrations per mini-batch, and at
@@ -102,7 +118,7 @@ struct Prediction {
 
 /// Everything a model directory records besides the weights (manifest.yaml, loss.csv).
 struct ModelInfo {
-  std::string variant;
+  Variant variant = Variant::Scene;
   TrainOptions options;                  ///< hyper-parameters and seed used
   std::vector<std::string> vocabulary;   ///< actions; class 0 of the action head is idle
   graph::RefinedGraph refined;           ///< the spectral refinement (ddace; computed for all variants)
@@ -133,6 +149,7 @@ class SequenceModel {
   Prediction predictNext(const std::vector<task::Snapshot>& history) const;
 
   const task::TaskSpec& spec() const;
+  /// The variant's name (for messages; info().variant is the enum).
   std::string variant() const;
   const ModelInfo& info() const;
 

@@ -104,6 +104,29 @@ std::vector<Edge> tokenEdges(const task::Demonstration& demo) {
   return edges;
 }
 
+RefinedGraph permuted(const RefinedGraph& g, const std::vector<int>& new_index) {
+  const int n = g.nodes;
+  if (static_cast<int>(new_index.size()) != n) throw Error("graph refinement: the permutation has the wrong size");
+  std::vector<bool> seen(static_cast<size_t>(n), false);
+  for (int v : new_index) {
+    if (v < 0 || v >= n || seen[static_cast<size_t>(v)]) throw Error("graph refinement: not a permutation");
+    seen[static_cast<size_t>(v)] = true;
+  }
+  const auto map = [&](Edge e) { return Edge{new_index[static_cast<size_t>(e.source)], new_index[static_cast<size_t>(e.target)]}; };
+  RefinedGraph out = g;
+  for (auto& s : out.edges) s.edge = map(s.edge);
+  std::sort(out.edges.begin(), out.edges.end(), [](const EdgeStats& a, const EdgeStats& b) { return a.edge < b.edge; });
+  for (auto& e : out.kept) e = map(e);
+  std::sort(out.kept.begin(), out.kept.end());
+  Eigen::MatrixXd p = Eigen::MatrixXd::Zero(n, n);  // p(new, old) = 1
+  for (int k = 0; k < n; ++k) p(new_index[static_cast<size_t>(k)], k) = 1;
+  if (g.adjacency.rows() == n) out.adjacency = p * g.adjacency * p.transpose();
+  if (g.laplacian.rows() == n) out.laplacian = p * g.laplacian * p.transpose();
+  for (int k = 0; k < n && static_cast<int>(g.cluster.size()) == n; ++k)
+    out.cluster[static_cast<size_t>(new_index[static_cast<size_t>(k)])] = g.cluster[static_cast<size_t>(k)];
+  return out;
+}
+
 std::vector<Edge> fullyConnected(int nodes) {
   std::vector<Edge> edges;
   for (int i = 0; i < nodes; ++i)

@@ -18,7 +18,7 @@ Model trainModel(const task::TaskDir& train, const tgn::TrainOptions& options, c
                  std::ostream* progress) {
   Model m{tgn::SequenceModel::train(train, options, progress), nullptr};
   m.sequence.save(model_dir);
-  if (options.variant != "gnn") {
+  if (options.variant != tgn::Variant::Gnn) {
     m.primitives = std::make_shared<gp::PrimitiveLibrary>(gp::PrimitiveLibrary::fit(train));
     m.primitives->save((fs::path(model_dir) / gp::kPrimitivesFile).string());
   }
@@ -27,7 +27,7 @@ Model trainModel(const task::TaskDir& train, const tgn::TrainOptions& options, c
 
 Model loadModel(const std::string& model_dir) {
   Model m{tgn::SequenceModel::load(model_dir), nullptr};
-  if (m.sequence.variant() != "gnn")
+  if (m.sequence.info().variant != tgn::Variant::Gnn)
     m.primitives = std::make_shared<gp::PrimitiveLibrary>(
         gp::PrimitiveLibrary::load((fs::path(model_dir) / gp::kPrimitivesFile).string()));
   return m;
@@ -81,6 +81,7 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
   Evaluation e;
   e.task = model.sequence.spec().name;
   e.variant = model.sequence.variant();
+  const bool gnn = model.sequence.info().variant == tgn::Variant::Gnn;
   e.execution = options.execution;
   const task::TaskSpec& spec = test.spec;
 
@@ -95,7 +96,7 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
 
   for (const auto& gt : test.demos) {
     exec::Trial trial;
-    if (e.variant == "gnn") {
+    if (gnn) {
       // Room for the ground truth plus two more steps' worth of frames, as the spec's limit.
       const int max_rows = static_cast<int>(gt.rows() * (gt.steps.size() + 2) / std::max<size_t>(1, gt.steps.size()));
       trial = trialFromRollout(tgn::rolloutGnn(model.sequence, gt, max_rows), max_rows);
@@ -109,7 +110,7 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
       };
       trial = exec::runTrial(spec, gt, policy, paths, *execution);
     }
-    e.scores.push_back(eval::scoreTrial(spec, gt, trial, e.variant == "gnn"));
+    e.scores.push_back(eval::scoreTrial(spec, gt, trial, gnn));
     e.trials.push_back(std::move(trial));
   }
   e.summary = eval::summarise(e.scores);

@@ -10,7 +10,7 @@ Batch collate(const std::vector<Sequence>& seqs, const std::vector<size_t>& whic
   Batch batch;
   batch.b = static_cast<int64_t>(which.size());
   for (size_t i : which) batch.t = std::max(batch.t, seqs[i].x.size(0));
-  std::vector<Tensor> xs, acts, tgts, ends, deltas;
+  std::vector<Tensor> xs, acts, tgts, ends, deltas, rels;
   std::vector<int64_t> slots;
   for (size_t k = 0; k < which.size(); ++k) {
     const Sequence& s = seqs[which[k]];
@@ -19,6 +19,7 @@ Batch collate(const std::vector<Sequence>& seqs, const std::vector<size_t>& whic
     tgts.push_back(s.target);
     ends.push_back(s.end);
     if (gnn) deltas.push_back(s.delta);
+    if (s.rel.defined()) rels.push_back(s.rel);
     for (int64_t j = 0; j < s.x.size(0); ++j) slots.push_back(static_cast<int64_t>(k) * batch.t + j);
   }
   batch.x = torch::cat(xs);
@@ -35,13 +36,11 @@ Batch collate(const std::vector<Sequence>& seqs, const std::vector<size_t>& whic
   batch.target = scatter(torch::cat(tgts), {batch.b, batch.t, n});
   batch.end = scatter(torch::cat(ends), {batch.b, batch.t});
   if (gnn) batch.delta = scatter(torch::cat(deltas), {batch.b, batch.t, n, 2});
+  if (!rels.empty()) {
+    batch.rel = torch::cat(rels);
+    batch.rel_slots = scatter(batch.rel, {batch.b, batch.t, n, n, batch.rel.size(3)});
+  }
   return batch;
-}
-
-Heads run(Network& net, const Batch& batch) {
-  const Tensor emb = net->encode(batch.x);
-  Tensor seq = torch::zeros({batch.b * batch.t, emb.size(1)}).index_copy(0, batch.slot, emb);
-  return net->heads(fused::gru(net->gru, seq.view({batch.b, batch.t, emb.size(1)})).first);
 }
 
 }  // namespace ddace::tgn

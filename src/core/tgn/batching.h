@@ -16,6 +16,7 @@ struct Sequence {
   torch::Tensor target;  ///< [T, N] long, 0 = none
   torch::Tensor end;     ///< [T] long
   torch::Tensor delta;   ///< gnn: [T, N, 2] normalised next displacement
+  torch::Tensor rel;     ///< scene: [T, N, N, R] relative features of every pair
 };
 
 /// A padded mini-batch: the encoder sees only real elements (BatchNorm statistics
@@ -23,12 +24,11 @@ struct Sequence {
 struct Batch {
   int64_t b = 0, t = 0;
   torch::Tensor x, slot, valid, action, target, end, delta;
+  torch::Tensor rel;        ///< scene: [S, N, N, R], the real elements
+  torch::Tensor rel_slots;  ///< scene: [B, T, N, N, R]
 };
 
 /// The sequences `which` of `seqs` as one batch.
 Batch collate(const std::vector<Sequence>& seqs, const std::vector<size_t>& which, bool gnn);
-
-/// The network on a batch: encoder, GRU, heads; outputs [B, T, ...].
-Heads run(Network& net, const Batch& batch);
 
 }  // namespace ddace::tgn

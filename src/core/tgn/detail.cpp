@@ -20,9 +20,10 @@ void writeTrainingTensors(const task::TaskDir& train, const TrainOptions& option
   std::ostringstream out;
   const NetConfig& c = impl->cfg;
   out << "# ddace tgn training tensors (keyframe variants); read by bench/tgn_train_reference.py\n";
+  out << "variant " << toString(impl->info.variant) << "\n";
   out << "nodes " << c.nodes << "\nactions " << c.actions << "\ntargets " << c.targets << "\nfeatures " << c.features
       << "\ndemos " << seqs.size() << "\nmask";
-  const Tensor mask = impl->net->att.mask.to(torch::kLong);
+  const Tensor mask = (impl->isScene() ? impl->scene->mask.view({c.nodes, c.nodes}) : impl->net->att.mask).to(torch::kLong);
   for (int64_t i = 0; i < mask.numel(); ++i) out << ' ' << mask.view(-1)[i].item<int64_t>();
   out << '\n' << std::setprecision(9);
   for (const auto& s : seqs) {
@@ -33,6 +34,11 @@ void writeTrainingTensors(const task::TaskDir& train, const TrainOptions& option
       out << '\n' << name;
       const Tensor v = t.contiguous().view(-1);
       for (int64_t i = 0; i < v.numel(); ++i) out << ' ' << v[i].item<int64_t>();
+    }
+    if (s.rel.defined()) {
+      out << "\nrel";
+      const Tensor r = s.rel.contiguous().view(-1);
+      for (int64_t i = 0; i < r.numel(); ++i) out << ' ' << r[i].item<float>();
     }
     out << '\n';
   }

@@ -10,19 +10,23 @@ using torch::Tensor;
 
 task::Demonstration rolloutGnn(const SequenceModel& model, const task::Demonstration& test_demo, int max_rows) {
   const SequenceModel::Impl& m = *model.impl_;
-  if (!m.cfg.gnn) throw Error("rolloutGnn: the model is of variant '" + m.info.variant + "', not gnn");
+  if (!m.cfg.gnn) throw Error("rolloutGnn: the model is of variant '" + std::string(toString(m.info.variant)) + "', not gnn");
   const int n = m.cfg.nodes;
   if (test_demo.entities() != static_cast<size_t>(n) || test_demo.rows() == 0)
     throw Error(Diagnostic{test_demo.source, 0, 0, "does not fit the model's task (" + std::to_string(n) + " entities)"});
   if (max_rows < 1) throw Error("rolloutGnn: max_rows must be at least 1");
+  requireFinite(test_demo.positions[0], m.spec, test_demo.source, "row", 0);
   torch::NoGradGuard no_grad;
   Network net = m.net;
+  // Rolled out in the canonical entity order, returned in the task's.
+  const task::Demonstration start = m.order.toCanonical(test_demo);
   task::Demonstration out;
   out.source = "gnn rollout of " + test_demo.source;
-  out.has_label_columns = test_demo.has_label_columns;
+  out.has_label_columns = start.has_label_columns;
+  out.step_window_s = start.step_window_s;
   out.t.push_back(0);
-  out.positions.push_back(test_demo.positions[0]);
-  out.labels.push_back(test_demo.labels[0]);
+  out.positions.push_back(start.positions[0]);
+  out.labels.push_back(start.labels[0]);
   Tensor hidden;
   Tensor x = torch::zeros({1, n, m.cfg.features});
   while (static_cast<int>(out.rows()) < max_rows) {
@@ -47,8 +51,9 @@ task::Demonstration rolloutGnn(const SequenceModel& model, const task::Demonstra
     out.labels.push_back(labels);
     if (torch::softmax(heads.end, -1)[1].item<double>() > 0.5) break;
   }
-  out.analyze();
-  return out;
+  task::Demonstration result = m.order.rowsToTask(out);
+  result.analyze();
+  return result;
 }
 
 }  // namespace ddace::tgn

@@ -12,13 +12,20 @@ Tensor nll(const Tensor& logits, const Tensor& target) {
 
 }  // namespace
 
-Tensor lossOf(const Heads& h, const Batch& batch, bool gnn) {
+Tensor lossOf(const Heads& h, const Batch& batch, bool gnn, bool acting_targets) {
   const Tensor valid = batch.valid;
   const Tensor count = valid.sum();
   const Tensor vn = valid.unsqueeze(-1);
   const int64_t n = batch.action.size(2);
-  Tensor loss = (nll(h.action, batch.action) * vn).sum() / (count * n) +
-                (nll(h.target, batch.target) * vn).sum() / (count * n) + (nll(h.end, batch.end) * valid).sum() / count;
+  Tensor target_loss;
+  if (acting_targets) {
+    const Tensor acting = vn * batch.action.gt(0).to(torch::kFloat);
+    target_loss = (nll(h.target, batch.target) * acting).sum() / acting.sum().clamp_min(1);
+  } else {
+    target_loss = (nll(h.target, batch.target) * vn).sum() / (count * n);
+  }
+  Tensor loss = (nll(h.action, batch.action) * vn).sum() / (count * n) + target_loss +
+                (nll(h.end, batch.end) * valid).sum() / count;
   if (gnn) loss = loss + ((h.delta - batch.delta).pow(2) * vn.unsqueeze(-1)).sum() / (count * n * 2);
   return loss;
 }

@@ -12,14 +12,42 @@
 
 namespace ddace::tgn {
 
+const char* toString(Variant v) {
+  switch (v) {
+    case Variant::Scene: return "scene";
+    case Variant::Paper: return "paper";
+    case Variant::FullGraph: return "full-graph";
+    case Variant::Gnn: return "gnn";
+  }
+  return "?";
+}
+
+std::vector<Variant> allVariants() { return {Variant::Scene, Variant::Paper, Variant::FullGraph, Variant::Gnn}; }
+
+Variant variantFromString(const std::string& name) {
+  std::string names;
+  for (Variant v : allVariants()) {
+    if (name == toString(v)) return v;
+    names += std::string(names.empty() ? "" : ", ") + toString(v);
+  }
+  throw Error("variant '" + name + "' is not one of " + names);
+}
+
+const char* toString(AttentionKind k) { return k == AttentionKind::GatV2 ? "gatv2" : "gat"; }
+
+AttentionKind attentionFromString(const std::string& name) {
+  if (name == "gatv2") return AttentionKind::GatV2;
+  if (name == "gat") return AttentionKind::GatConv;
+  throw Error("attention '" + name + "' is not one of gatv2, gat");
+}
+
 void TrainOptions::validate() const {
   auto bad = [](const std::string& what) { throw Error("train option " + what); };
-  if (variant != "ddace" && variant != "full-graph" && variant != "gnn")
-    bad("variant: '" + variant + "' is not one of ddace, full-graph, gnn");
   if (max_epochs < 1) bad("max_epochs: must be at least 1");
   if (heads < 1 || head_channels < 1) bad("heads/head_channels: must be at least 1");
   if (gat_layers < 1 || gru_layers < 1 || gru_hidden < 1) bad("gat_layers/gru_layers/gru_hidden: must be at least 1");
   if (identity_dim < 1) bad("identity_dim: must be at least 1");
+  if (head_hidden < 1) bad("head_hidden: must be at least 1");
   if (!(dropout >= 0 && dropout < 1)) bad("dropout: must be in [0, 1)");
   if (!(learning_rate > 0 && std::isfinite(learning_rate))) bad("learning_rate: must be positive");
   if (batch_demos < 1) bad("batch_demos: must be at least 1");
@@ -110,7 +138,7 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec, uint
   y.SetDoublePrecision(17);
   y << YAML::BeginMap;
   y << YAML::Key << "format" << YAML::Value << kModelFormat;
-  y << YAML::Key << "variant" << YAML::Value << info.variant;
+  y << YAML::Key << "variant" << YAML::Value << toString(info.variant);
   y << YAML::Key << "seed" << YAML::Value << o.seed;
   y << YAML::Key << "task" << YAML::Value << kTask;
   y << YAML::Key << "weights" << YAML::Value << kWeights;
@@ -130,6 +158,8 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec, uint
   y << YAML::Key << "gru_hidden" << YAML::Value << o.gru_hidden;
   y << YAML::Key << "identity_embedding" << YAML::Value << o.identity_embedding;
   y << YAML::Key << "identity_dim" << YAML::Value << o.identity_dim;
+  y << YAML::Key << "attention" << YAML::Value << toString(o.attention);
+  y << YAML::Key << "head_hidden" << YAML::Value << o.head_hidden;
   y << YAML::Key << "dropout" << YAML::Value << o.dropout;
   y << YAML::Key << "learning_rate" << YAML::Value << o.learning_rate;
   y << YAML::Key << "batch_demos" << YAML::Value << o.batch_demos;
@@ -176,7 +206,8 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec, uint
   return std::string("# ddace model manifest (") + kModelFormat +
          "): written by `ddace train`, read by `ddace inspect` and the sequence node.\n"
          "# E' is refinement.edges with a 'kept' decision; attention_edges is what the network\n"
-         "# attends over (E', or every pair for the full-graph and gnn variants), made symmetric.\n" +
+         "# attends over (paper: E'; scene: E' lifted to entity kinds; full-graph, gnn: every pair),\n"
+         "# made symmetric.\n" +
          y.c_str() + "\n";
 }
 
@@ -195,7 +226,11 @@ ModelInfo parseManifest(const std::string& path, const task::TaskSpec& spec, uin
     if (format != kModelFormat)
       throw errorAt(path, root["format"], "format '" + format + "' is not " + kModelFormat);
     ModelInfo info;
-    info.variant = as<std::string>(path, root, "variant");
+    try {
+      info.variant = variantFromString(as<std::string>(path, root, "variant"));
+    } catch (const Error& e) {
+      throw errorAt(path, root["variant"], e.what());
+    }
     info.options.variant = info.variant;
     info.options.seed = as<uint64_t>(path, root, "seed");
     info.stop_reason = as<std::string>(path, root, "stop_reason");
@@ -220,6 +255,12 @@ ModelInfo parseManifest(const std::string& path, const task::TaskSpec& spec, uin
     o.gru_hidden = as<int>(path, hp, "gru_hidden");
     o.identity_embedding = as<bool>(path, hp, "identity_embedding");
     o.identity_dim = as<int>(path, hp, "identity_dim");
+    try {
+      o.attention = attentionFromString(as<std::string>(path, hp, "attention"));
+    } catch (const Error& e) {
+      throw errorAt(path, hp["attention"], e.what());
+    }
+    o.head_hidden = as<int>(path, hp, "head_hidden");
     o.dropout = as<double>(path, hp, "dropout");
     o.learning_rate = as<double>(path, hp, "learning_rate");
     o.batch_demos = as<int>(path, hp, "batch_demos");

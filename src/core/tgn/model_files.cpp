@@ -22,7 +22,7 @@ void SequenceModel::save(const std::string& model_dir) const {
   const std::string weights = (fs::path(model_dir) / files::kWeights).string();
   try {
     torch::serialize::OutputArchive archive;
-    impl_->net->save(archive);
+    impl_->module().save(archive);
     archive.save_to(weights);
   } catch (const c10::Error& e) {
     throw Error(Diagnostic{weights, 0, 0, std::string("cannot write the weights: ") + e.what_without_backtrace()});
@@ -52,27 +52,26 @@ SequenceModel SequenceModel::load(const std::string& model_dir) {
                                               std::to_string(bytes)});
   if (files::fileHash(weights) != hash)
     throw Error(Diagnostic{weights, 0, 0, "corrupted: its checksum does not match " + manifest});
-  at::set_num_threads(impl->info.options.threads);
-  impl->seededBuild();
+  impl->build();  // the loaded weights replace the initial ones
   // Module::load replaces tensors whatever their shape, so the shapes are checked here.
   std::vector<std::pair<std::string, std::vector<int64_t>>> expected;
-  for (const auto& p : impl->net->named_parameters()) expected.emplace_back(p.key(), p.value().sizes().vec());
-  for (const auto& b : impl->net->named_buffers()) expected.emplace_back(b.key(), b.value().sizes().vec());
+  for (const auto& p : impl->module().named_parameters()) expected.emplace_back(p.key(), p.value().sizes().vec());
+  for (const auto& b : impl->module().named_buffers()) expected.emplace_back(b.key(), b.value().sizes().vec());
   try {
     torch::serialize::InputArchive archive;
     archive.load_from(weights);
-    impl->net->load(archive);
+    impl->module().load(archive);
   } catch (const c10::Error& e) {
     throw Error(Diagnostic{weights, 0, 0, std::string("does not fit the manifest's network: ") + e.what_without_backtrace()});
   }
   std::map<std::string, std::vector<int64_t>> loaded;
-  for (const auto& p : impl->net->named_parameters()) loaded[p.key()] = p.value().sizes().vec();
-  for (const auto& b : impl->net->named_buffers()) loaded[b.key()] = b.value().sizes().vec();
+  for (const auto& p : impl->module().named_parameters()) loaded[p.key()] = p.value().sizes().vec();
+  for (const auto& b : impl->module().named_buffers()) loaded[b.key()] = b.value().sizes().vec();
   for (const auto& [name, shape] : expected)
     if (loaded[name] != shape)
       throw Error(Diagnostic{weights, 0, 0, "does not fit the network of " + manifest + ": tensor '" + name +
                                                 "' has another shape"});
-  impl->net->eval();
+  impl->module().eval();
   return SequenceModel(impl);
 }
 

@@ -1,15 +1,148 @@
-// SequenceModel::Impl: building the network and turning demonstrations into tensors.
+// SequenceModel::Impl: the canonical entity order, building the network and turning
+// demonstrations into tensors.
 #include "model_impl.h"
+
+#include <ATen/CPUGeneratorImpl.h>
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
+#include <numeric>
+#include <set>
 
 #include "ddace/common/error.h"
+#include "ddace/common/random.h"
 #include "loss.h"
 
 namespace ddace::tgn {
 
 using torch::Tensor;
+
+namespace {
+
+/// Seeds torch's process-wide CPU generator for the module constructors' initialisers and
+/// puts its previous state back afterwards: building (or loading) a model neither reseeds
+/// nor advances the generator other code in the process draws from.
+class SeededInit {
+ public:
+  explicit SeededInit(uint64_t seed) : gen_(at::detail::getDefaultCPUGenerator()) {
+    std::lock_guard<std::mutex> lock(gen_.mutex());
+    saved_ = gen_.get_state();
+    gen_.set_current_seed(seed);
+  }
+  ~SeededInit() {
+    std::lock_guard<std::mutex> lock(gen_.mutex());
+    gen_.set_state(saved_);
+  }
+  SeededInit(const SeededInit&) = delete;
+  SeededInit& operator=(const SeededInit&) = delete;
+
+ private:
+  at::Generator gen_;
+  Tensor saved_;
+};
+
+uint64_t fnv1a(const std::string& s) {
+  uint64_t h = 0xcbf29ce484222325ULL;
+  for (unsigned char c : s) {
+    h ^= c;
+    h *= 0x100000001b3ULL;
+  }
+  return h;
+}
+
+/// Row k of the identity embedding from the name of canonical entity k and the seed
+/// (standard normal, as torch::nn::Embedding's own initialisation).
+void initIdentity(torch::nn::Embedding& e, const task::TaskSpec& spec, const EntityOrder& order, uint64_t seed) {
+  torch::NoGradGuard no_grad;
+  auto w = e->weight.accessor<float, 2>();
+  for (int k = 0; k < order.size(); ++k) {
+    SplitMix64 rng(fnv1a(spec.entities[static_cast<size_t>(order.task_of[k])].name) ^ (seed * 0x9E3779B97F4A7C15ULL));
+    for (int64_t c = 0; c < w.size(1); ++c) w[k][c] = static_cast<float>(rng.normal());
+  }
+}
+
+}  // namespace
+
+EntityOrder::EntityOrder(const task::TaskSpec& spec) {
+  const size_t n = spec.entities.size();
+  task_of.resize(n);
+  std::iota(task_of.begin(), task_of.end(), 0);
+  std::sort(task_of.begin(), task_of.end(),
+            [&](int a, int b) { return spec.entities[static_cast<size_t>(a)].name < spec.entities[static_cast<size_t>(b)].name; });
+  canonical_of.resize(n);
+  for (size_t k = 0; k < n; ++k) canonical_of[static_cast<size_t>(task_of[k])] = static_cast<int>(k);
+}
+
+task::Demonstration EntityOrder::toCanonical(const task::Demonstration& d) const {
+  const size_t n = task_of.size();
+  const auto entity = [&](int i) { return i < 0 ? i : canonical_of[static_cast<size_t>(i)]; };
+  const auto token = [&](task::Token t) {
+    t.entity = entity(t.entity);
+    t.target = entity(t.target);
+    return t;
+  };
+  const auto positions = [&](const std::vector<Eigen::Vector2d>& p) {
+    std::vector<Eigen::Vector2d> out(n);
+    for (size_t k = 0; k < n; ++k) out[k] = p[static_cast<size_t>(task_of[k])];
+    return out;
+  };
+  task::Demonstration c = d;
+  for (size_t r = 0; r < d.rows(); ++r) {
+    c.positions[r] = positions(d.positions[r]);
+    for (size_t k = 0; k < n; ++k) {
+      task::Label l = d.labels[r][static_cast<size_t>(task_of[k])];
+      l.target = entity(l.target);
+      c.labels[r][k] = l;
+    }
+  }
+  for (size_t k = 0; k < n; ++k) c.has_label_columns[k] = d.has_label_columns[static_cast<size_t>(task_of[k])];
+  for (auto& step : c.steps) {
+    for (auto& t : step.tokens) t = token(t);
+    std::sort(step.tokens.begin(), step.tokens.end());
+    for (auto& late : step.late) late.token = token(late.token);
+  }
+  for (auto& seg : c.segments) seg.token = token(seg.token);
+  for (auto& s : c.snapshots) s.positions = positions(s.positions);
+  return c;
+}
+
+task::Demonstration EntityOrder::rowsToTask(const task::Demonstration& c) const {
+  const size_t n = task_of.size();
+  task::Demonstration d;
+  d.source = c.source;
+  d.step_window_s = c.step_window_s;
+  d.t = c.t;
+  d.has_label_columns.resize(n);
+  for (size_t k = 0; k < n; ++k) d.has_label_columns[static_cast<size_t>(task_of[k])] = c.has_label_columns[k];
+  for (size_t r = 0; r < c.rows(); ++r) {
+    std::vector<Eigen::Vector2d> p(n);
+    std::vector<task::Label> l(n);
+    for (size_t k = 0; k < n; ++k) {
+      p[static_cast<size_t>(task_of[k])] = c.positions[r][k];
+      task::Label label = c.labels[r][k];
+      if (label.target >= 0) label.target = task_of[static_cast<size_t>(label.target)];
+      l[static_cast<size_t>(task_of[k])] = label;
+    }
+    d.positions.push_back(std::move(p));
+    d.labels.push_back(std::move(l));
+  }
+  return d;
+}
+
+void requireFinite(const std::vector<Eigen::Vector2d>& pos, const task::TaskSpec& spec, const std::string& source,
+                   const char* what, size_t index) {
+  for (size_t i = 0; i < pos.size(); ++i)
+    if (!pos[i].allFinite())
+      throw Error(Diagnostic{source, 0, 0, std::string(what) + " " + std::to_string(index) + ": the position of '" +
+                                               (i < spec.entities.size() ? spec.entities[i].name : std::to_string(i)) +
+                                               "' is not finite"});
+}
+
+torch::nn::Module& SequenceModel::Impl::module() {
+  if (scene) return *scene;
+  return *net;
+}
 
 int SequenceModel::Impl::vocabIndex(const std::string& action) const {
   const auto it = std::find(info.vocabulary.begin(), info.vocabulary.end(), action);
@@ -17,18 +150,30 @@ int SequenceModel::Impl::vocabIndex(const std::string& action) const {
 }
 
 void SequenceModel::Impl::build() {
+  order = EntityOrder(spec);
   cfg.nodes = static_cast<int>(spec.entities.size());
   cfg.actions = static_cast<int>(info.vocabulary.size()) + 1;
   cfg.targets = cfg.nodes + 1;
-  cfg.gnn = info.variant == "gnn";
-  cfg.features = cfg.gnn ? 2 + cfg.actions + cfg.targets : 2;
+  cfg.gnn = info.variant == Variant::Gnn;
+  cfg.features = cfg.gnn ? 2 + cfg.actions + cfg.targets : isScene() ? 5 : 2;
   cfg.o = info.options;
-  net = Network(cfg, maskFromEdges(cfg.nodes, info.attention_edges, true));
-}
-
-void SequenceModel::Impl::seededBuild() {
-  torch::manual_seed(info.options.seed);
-  build();
+  kinds.assign(static_cast<size_t>(cfg.nodes) * 3, 0.f);
+  for (int k = 0; k < cfg.nodes; ++k)
+    kinds[static_cast<size_t>(k) * 3 + static_cast<size_t>(spec.entities[static_cast<size_t>(order.task_of[k])].kind)] = 1.f;
+  std::vector<graph::Edge> edges;
+  for (const auto& e : info.attention_edges)
+    edges.push_back({order.canonical_of[static_cast<size_t>(e.source)], order.canonical_of[static_cast<size_t>(e.target)]});
+  const Tensor mask = maskFromEdges(cfg.nodes, edges, true);
+  SeededInit seeded(info.options.seed);
+  net = nullptr;
+  scene = nullptr;
+  if (isScene()) {
+    scene = SceneNetwork(cfg, mask);
+    if (scene->identity) initIdentity(scene->identity, spec, order, info.options.seed);
+  } else {
+    net = Network(cfg, mask);
+    if (net->identity) initIdentity(net->identity, spec, order, info.options.seed);
+  }
 }
 
 void SequenceModel::Impl::features(const std::vector<Eigen::Vector2d>& pos, const std::vector<task::Label>* labels, float* out) const {
@@ -38,6 +183,7 @@ void SequenceModel::Impl::features(const std::vector<Eigen::Vector2d>& pos, cons
     std::fill(row, row + f, 0.f);
     row[0] = static_cast<float>((pos[i].x() - info.mean[0]) / info.std[0]);
     row[1] = static_cast<float>((pos[i].y() - info.mean[1]) / info.std[1]);
+    if (isScene()) std::copy(kinds.begin() + i * 3, kinds.begin() + i * 3 + 3, row + 2);
     if (labels) {
       const task::Label& l = (*labels)[i];
       const int a = l.isNull() ? 0 : vocabIndex(l.action) + 1;
@@ -47,6 +193,34 @@ void SequenceModel::Impl::features(const std::vector<Eigen::Vector2d>& pos, cons
   }
 }
 
+void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos, float* out) const {
+  const int n = cfg.nodes;
+  const double scale = info.std[0];  // isotropic for the scene variant
+  std::vector<double> d(static_cast<size_t>(n * n));
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) d[static_cast<size_t>(i * n + j)] = (pos[j] - pos[i]).norm() / scale;
+  const auto kind = [&](int i) { return spec.entities[static_cast<size_t>(order.task_of[i])].kind; };
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      float* r = out + (static_cast<size_t>(i) * n + j) * kRelativeFeatures;
+      std::fill(r, r + kRelativeFeatures, 0.f);
+      if (i == j) continue;
+      const double dij = d[static_cast<size_t>(i * n + j)];
+      // How many entities of j's kind are nearer to i than j; of i's kind nearer to j than i.
+      int rank_j = 0, rank_i = 0;
+      for (int k = 0; k < n; ++k) {
+        if (k == i || k == j) continue;
+        if (kind(k) == kind(j) && d[static_cast<size_t>(i * n + k)] < dij) ++rank_j;
+        if (kind(k) == kind(i) && d[static_cast<size_t>(j * n + k)] < dij) ++rank_i;
+      }
+      r[0] = static_cast<float>((pos[j].x() - pos[i].x()) / scale);
+      r[1] = static_cast<float>((pos[j].y() - pos[i].y()) / scale);
+      r[2] = static_cast<float>(dij);
+      r[3] = 1.f / static_cast<float>(1 + rank_j);
+      r[4] = 1.f / static_cast<float>(1 + rank_i);
+    }
+}
+
 Sequence SequenceModel::Impl::keyframeSequence(const task::Demonstration& d) const {
   const int64_t t = static_cast<int64_t>(d.snapshots.size()), n = cfg.nodes;
   Sequence s;
@@ -54,10 +228,12 @@ Sequence SequenceModel::Impl::keyframeSequence(const task::Demonstration& d) con
   s.action = torch::zeros({t, n}, torch::kLong);
   s.target = torch::zeros({t, n}, torch::kLong);
   s.end = torch::zeros({t}, torch::kLong);
+  if (isScene()) s.rel = torch::zeros({t, n, n, kRelativeFeatures});
   auto act = s.action.accessor<int64_t, 2>();
   auto tgt = s.target.accessor<int64_t, 2>();
   for (int64_t k = 0; k < t; ++k) {
     features(d.snapshots[k].positions, nullptr, s.x[k].data_ptr<float>());
+    if (isScene()) relative(d.snapshots[k].positions, s.rel[k].data_ptr<float>());
     if (d.snapshots[k].end) {
       s.end[k] = 1;
       continue;
@@ -108,21 +284,37 @@ std::vector<Sequence> SequenceModel::Impl::sequences(const std::vector<task::Dem
           throw Error(Diagnostic{d.source, 0, 0, "action '" + tok.action + "' is not in the model's vocabulary"});
     if (cfg.gnn) {
       if (d.rows() < 2) throw Error(Diagnostic{d.source, 0, 0, "needs at least two rows"});
-      out.push_back(frameSequence(d));
+      for (size_t r = 0; r < d.rows(); ++r) requireFinite(d.positions[r], spec, d.source, "row", r);
+      out.push_back(frameSequence(order.toCanonical(d)));
     } else {
-      out.push_back(keyframeSequence(d));
+      for (size_t k = 0; k < d.snapshots.size(); ++k) requireFinite(d.snapshots[k].positions, spec, d.source, "snapshot", k);
+      out.push_back(keyframeSequence(order.toCanonical(d)));
     }
   }
   return out;
 }
 
+Heads SequenceModel::Impl::run(const Batch& batch) {
+  if (!isScene()) {
+    const Tensor emb = net->encode(batch.x);
+    Tensor seq = torch::zeros({batch.b * batch.t, emb.size(1)}).index_copy(0, batch.slot, emb);
+    return net->heads(fused::gru(net->gru, seq.view({batch.b, batch.t, emb.size(1)})).first);
+  }
+  const Tensor nodes = scene->encode(batch.x, batch.rel);  // [S, N, W]
+  const int64_t n = nodes.size(1), w = nodes.size(2), bt = batch.b * batch.t;
+  const Tensor pooled = torch::zeros({bt, w}).index_copy(0, batch.slot, nodes.mean(1));
+  const Tensor z = fused::gru(scene->gru, pooled.view({batch.b, batch.t, w})).first;
+  const Tensor slots = torch::zeros({bt, n, w}).index_copy(0, batch.slot, nodes).view({batch.b, batch.t, n, w});
+  return scene->heads(slots, batch.rel_slots, z);
+}
+
 double SequenceModel::Impl::accuracy(const std::vector<Sequence>& seqs) {
   torch::NoGradGuard no_grad;
-  net->eval();
+  module().eval();
   std::vector<size_t> all(seqs.size());
   for (size_t i = 0; i < all.size(); ++i) all[i] = i;
   const Batch batch = collate(seqs, all, cfg.gnn);
-  const Tensor ok = correctOf(run(net, batch), batch, cfg.gnn).to(torch::kFloat) * batch.valid;
+  const Tensor ok = correctOf(run(batch), batch, cfg.gnn).to(torch::kFloat) * batch.valid;
   return (ok.sum() / batch.valid.sum()).item<double>();
 }
 
@@ -130,13 +322,15 @@ SequenceModel::SequenceModel(std::shared_ptr<Impl> impl) : impl_(std::move(impl)
 SequenceModel::~SequenceModel() = default;
 
 const task::TaskSpec& SequenceModel::spec() const { return impl_->spec; }
-std::string SequenceModel::variant() const { return impl_->info.variant; }
+std::string SequenceModel::variant() const { return toString(impl_->info.variant); }
 const ModelInfo& SequenceModel::info() const { return impl_->info; }
 
 namespace {
 
-/// Mean/std of positions over every entity; frame_dt and displacement std for gnn.
-void normalisation(const task::TaskDir& dir, bool gnn, ModelInfo& info) {
+/// Mean/std of positions over every entity (one std for both axes for the scene variant,
+/// so that its distances are distances); frame_dt and displacement std for gnn.
+void normalisation(const task::TaskDir& dir, Variant variant, ModelInfo& info) {
+  const bool gnn = variant == Variant::Gnn;
   double sum[2] = {0, 0}, sq[2] = {0, 0}, dsq[2] = {0, 0};
   double count = 0, dcount = 0, dt = 0;
   for (const auto& d : dir.demos) {
@@ -162,14 +356,31 @@ void normalisation(const task::TaskDir& dir, bool gnn, ModelInfo& info) {
       for (const auto& s : d.snapshots) add(s.positions);
     }
   }
+  double var[2];
   for (int c = 0; c < 2; ++c) {
     info.mean[c] = sum[c] / count;
-    info.std[c] = std::max(1e-3, std::sqrt(std::max(0.0, sq[c] / count - info.mean[c] * info.mean[c])));
+    var[c] = std::max(0.0, sq[c] / count - info.mean[c] * info.mean[c]);
     info.delta_std[c] = dcount > 0 ? std::max(1e-5, std::sqrt(dsq[c] / dcount)) : 1.0;
   }
+  for (int c = 0; c < 2; ++c)
+    info.std[c] = std::max(1e-3, std::sqrt(variant == Variant::Scene ? (var[0] + var[1]) / 2 : var[c]));
   // Every displacement is counted once per entity; dt once per row pair.
   const double pairs = dcount > 0 ? dcount / static_cast<double>(dir.spec.entities.size()) : 0;
   info.frame_dt_s = pairs > 0 ? dt / pairs : 0.05;
+}
+
+/// E' lifted to entity kinds: every pair whose kinds are those of a kept edge.
+std::vector<graph::Edge> liftedToKinds(const std::vector<graph::Edge>& kept, const task::TaskSpec& spec) {
+  std::set<std::pair<task::EntityKind, task::EntityKind>> kinds;
+  for (const auto& e : kept)
+    kinds.insert({spec.entities[static_cast<size_t>(e.source)].kind, spec.entities[static_cast<size_t>(e.target)].kind});
+  std::vector<graph::Edge> out;
+  const int n = static_cast<int>(spec.entities.size());
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      if (i != j && kinds.count({spec.entities[static_cast<size_t>(i)].kind, spec.entities[static_cast<size_t>(j)].kind}))
+        out.push_back({i, j});
+  return out;
 }
 
 }  // namespace
@@ -179,6 +390,7 @@ std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const T
   if (train.demos.empty()) throw Error(Diagnostic{train.path, 0, 0, "no demonstrations to train on"});
   auto impl = std::make_shared<SequenceModel::Impl>();
   impl->spec = train.spec;
+  impl->order = EntityOrder(train.spec);
   ModelInfo& info = impl->info;
   info.variant = options.variant;
   info.options = options;
@@ -186,11 +398,22 @@ std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const T
   info.vocabulary = train.vocabulary();
   const int n = static_cast<int>(train.spec.entities.size());
   size_t steps = 0;
-  for (const auto& d : train.demos) steps += d.steps.size();
+  for (const auto& d : train.demos) {
+    steps += d.steps.size();
+    for (size_t r = 0; r < d.rows(); ++r) requireFinite(d.positions[r], train.spec, d.source, "row", r);
+  }
   if (steps == 0) throw Error(Diagnostic{train.path, 0, 0, "the demonstrations have no steps (no labelled actions)"});
-  info.refined = graph::refine(train.demos, n, info.options.refinement);
-  info.attention_edges = options.variant == "ddace" ? info.refined.kept : graph::fullyConnected(n);
-  normalisation(train, options.variant == "gnn", info);
+  // The refinement in canonical order (k-means seeding visits the nodes in order), mapped back.
+  std::vector<task::Demonstration> canonical;
+  for (const auto& d : train.demos) canonical.push_back(impl->order.toCanonical(d));
+  info.refined = graph::permuted(graph::refine(canonical, n, info.options.refinement), impl->order.task_of);
+  switch (options.variant) {
+    case Variant::Paper: info.attention_edges = info.refined.kept; break;
+    case Variant::Scene: info.attention_edges = liftedToKinds(info.refined.kept, train.spec); break;
+    case Variant::FullGraph:
+    case Variant::Gnn: info.attention_edges = graph::fullyConnected(n); break;
+  }
+  normalisation(train, options.variant, info);
   return impl;
 }
 

@@ -10,33 +10,60 @@
 #include "batching.h"
 #include "ddace/tgn/sequence_model.h"
 #include "network.h"
+#include "scene_network.h"
 
 namespace ddace::tgn {
 
-struct SequenceModel::Impl {
-  task::TaskSpec spec;
-  ModelInfo info;
-  NetConfig cfg;
-  Network net{nullptr};
+/// The task's entities in canonical (name-sorted) order: every tensor of the model is in
+/// this order, so that the order of task.yaml changes nothing.
+struct EntityOrder {
+  std::vector<int> task_of;       ///< [canonical] -> task index
+  std::vector<int> canonical_of;  ///< [task index] -> canonical
+  explicit EntityOrder(const task::TaskSpec& spec = {});
+  int size() const { return static_cast<int>(task_of.size()); }
+  /// A demonstration (raw rows and everything analyze() derived) in canonical order.
+  task::Demonstration toCanonical(const task::Demonstration& d) const;
+  /// Rows of a canonical demonstration back in task order (derived fields not filled).
+  task::Demonstration rowsToTask(const task::Demonstration& d) const;
+};
 
+struct SequenceModel::Impl {
+  task::TaskSpec spec;  ///< in the task's order (as task.yaml)
+  EntityOrder order;
+  ModelInfo info;       ///< entity indices in the task's order
+  NetConfig cfg;
+  Network net{nullptr};         ///< paper, full-graph, gnn
+  SceneNetwork scene{nullptr};  ///< scene
+  std::vector<float> kinds;     ///< [canonical][3] one-hot entity kind
+
+  bool isScene() const { return info.variant == Variant::Scene; }
+  torch::nn::Module& module();
   /// Index of `action` in the vocabulary, or -1.
   int vocabIndex(const std::string& action) const;
-  /// The network of `info` (shapes, attention edges), weights initialised by libtorch.
+  /// The network of `info` (shapes, attention edges), weights initialised from the model's
+  /// seed; torch's process-wide generator is left as it was.
   void build();
-  /// build() with the weights initialised from the model's seed.
-  void seededBuild();
-  /// Normalised node features of one row / snapshot into out[N][features].
+  /// Normalised node features of one row / snapshot (canonical order) into out[N][features].
   void features(const std::vector<Eigen::Vector2d>& pos, const std::vector<task::Label>* labels, float* out) const;
-  Sequence keyframeSequence(const task::Demonstration& d) const;
-  Sequence frameSequence(const task::Demonstration& d) const;
-  /// Every demonstration as a Sequence (keyframes, or frames for gnn); throws ddace::Error
-  /// naming the demonstration when it does not fit the model.
+  /// Relative features of every pair (canonical order) into out[N][N][kRelativeFeatures].
+  void relative(const std::vector<Eigen::Vector2d>& pos, float* out) const;
+  Sequence keyframeSequence(const task::Demonstration& canonical) const;
+  Sequence frameSequence(const task::Demonstration& canonical) const;
+  /// Every demonstration (task order) as a Sequence (keyframes, or frames for gnn); throws
+  /// ddace::Error naming the demonstration when it does not fit the model.
   std::vector<Sequence> sequences(const std::vector<task::Demonstration>& demos) const;
+  /// The network on a batch: outputs [B, T, ...].
+  Heads run(const Batch& batch);
   /// Exact-step (gnn: frame label) accuracy, eval mode.
   double accuracy(const std::vector<Sequence>& seqs);
 };
 
 /// Spec, vocabulary, E', attention edges and normalisation: everything but the weights.
 std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const TrainOptions& options);
+
+/// Throws ddace::Error naming the entity and the snapshot (or row) when a position is not
+/// finite. `what` is "snapshot" or "row".
+void requireFinite(const std::vector<Eigen::Vector2d>& pos, const task::TaskSpec& spec, const std::string& source,
+                   const char* what, size_t index);
 
 }  // namespace ddace::tgn

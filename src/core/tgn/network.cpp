@@ -52,16 +52,15 @@ NetworkImpl::NetworkImpl(const NetConfig& c, Tensor attention) : cfg(c), att(std
   for (int i = 0; i < c.nodes; ++i) self_mask[i][i + 1] = -1e9;
 }
 
-Tensor NetworkImpl::dropout(const Tensor& x) {
-  const double p = cfg.o.dropout;
-  if (!is_training() || p <= 0) return x;
+Tensor Dropout::operator()(const Tensor& x, bool training) {
+  if (!training || p_ <= 0) return x;
   Tensor mask = torch::empty(x.sizes());
   float* m = mask.data_ptr<float>();
   const int64_t n = mask.numel();
-  const uint64_t keep_below = static_cast<uint64_t>((1 - p) * 4294967296.0);  // 2^32 (1 - p)
-  const float scale = static_cast<float>(1 / (1 - p));
+  const uint64_t keep_below = static_cast<uint64_t>((1 - p_) * 4294967296.0);  // 2^32 (1 - p)
+  const float scale = static_cast<float>(1 / (1 - p_));
   for (int64_t i = 0; i < n; i += 2) {
-    const uint64_t r = dropout_rng.next();
+    const uint64_t r = rng_.next();
     m[i] = (r & 0xffffffffULL) < keep_below ? scale : 0.f;
     if (i + 1 < n) m[i + 1] = (r >> 32) < keep_below ? scale : 0.f;
   }
@@ -77,7 +76,7 @@ Tensor NetworkImpl::encode(Tensor x) {
     x = gat[l]->forward(x, att);
     const int64_t w = x.size(2);
     x = bn[l]->forward(x.reshape({s * n, w})).view({s, n, w});
-    x = dropout(torch::relu(x));
+    x = drop(torch::relu(x), is_training());
   }
   return x.mean(1);
 }

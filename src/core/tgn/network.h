@@ -36,6 +36,20 @@ struct GatLayerImpl : torch::nn::Module {
 };
 TORCH_MODULE(GatLayer);
 
+/// As torch::dropout (keep with probability 1 - p, scale kept values by 1 / (1 - p)), with
+/// masks from the network's own SplitMix64 seeded with the model's seed: they do not
+/// depend on what else draws from torch's process-wide generator, and two 32-bit draws per
+/// 64-bit number are several times cheaper than bernoulli_'s locked per-element draws.
+class Dropout {
+ public:
+  Dropout(double p, uint64_t seed) : p_(p), rng_(seed ^ 0x5DEECE66DULL) {}
+  torch::Tensor operator()(const torch::Tensor& x, bool training);
+
+ private:
+  double p_;
+  SplitMix64 rng_;
+};
+
 struct NetConfig {
   int nodes = 0;
   int actions = 1;   ///< classes of the action head: idle + vocabulary
@@ -53,14 +67,10 @@ struct Heads {
   torch::Tensor delta;   ///< gnn: [..., N, 2]
 };
 
+/// The `paper` network (also `full-graph` and `gnn`).
 struct NetworkImpl : torch::nn::Module {
   NetworkImpl(const NetConfig& c, torch::Tensor attention);
 
-  /// As torch::dropout (keep with probability 1 - p, scale kept values by 1 / (1 - p)), with
-  /// masks from this network's own SplitMix64 seeded with the model's seed: they do not
-  /// depend on what else draws from torch's process-wide generator, and two 32-bit draws per
-  /// 64-bit number are several times cheaper than bernoulli_'s locked per-element draws.
-  torch::Tensor dropout(const torch::Tensor& x);
   int64_t outputs() const;
   /// x [S, N, F] -> graph embeddings [S, width].
   torch::Tensor encode(torch::Tensor x);
@@ -69,7 +79,7 @@ struct NetworkImpl : torch::nn::Module {
 
   NetConfig cfg;
   Attention att;
-  SplitMix64 dropout_rng{cfg.o.seed ^ 0x5DEECE66DULL};
+  Dropout drop{cfg.o.dropout, cfg.o.seed};
   torch::Tensor self_mask;
   torch::nn::Embedding identity{nullptr};
   std::vector<GatLayer> gat;

@@ -1,6 +1,8 @@
 // SequenceModel::predictNext and stepAccuracy.
 #include <torch/torch.h>
 
+#include <algorithm>
+
 #include "ddace/common/error.h"
 #include "model_impl.h"
 
@@ -22,18 +24,33 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
     if (history[k].positions.size() != static_cast<size_t>(n))
       throw Error("predictNext: snapshot " + std::to_string(k) + " has " + std::to_string(history[k].positions.size()) +
                   " positions, the task has " + std::to_string(n) + " entities");
+  for (size_t k = 0; k < history.size(); ++k) requireFinite(history[k].positions, m.spec, "predictNext", "snapshot", k);
   torch::NoGradGuard no_grad;
   Tensor x = torch::zeros({t, n, m.cfg.features});
-  for (int64_t k = 0; k < t; ++k) m.features(history[k].positions, nullptr, x[k].data_ptr<float>());
-  Network net = m.net;
-  const Tensor emb = net->encode(x);
-  const Tensor out = fused::gru(net->gru, emb.unsqueeze(0)).first.select(1, t - 1).squeeze(0);
-  const auto h = net->heads(out);
+  Tensor rel = m.isScene() ? torch::zeros({t, n, n, kRelativeFeatures}) : Tensor();
+  for (int64_t k = 0; k < t; ++k) {
+    std::vector<Eigen::Vector2d> pos(static_cast<size_t>(n));
+    for (int64_t c = 0; c < n; ++c) pos[static_cast<size_t>(c)] = history[static_cast<size_t>(k)].positions[static_cast<size_t>(m.order.task_of[static_cast<size_t>(c)])];
+    m.features(pos, nullptr, x[k].data_ptr<float>());
+    if (m.isScene()) m.relative(pos, rel[k].data_ptr<float>());
+  }
+  Heads h;
+  if (m.isScene()) {
+    SceneNetwork net = m.scene;
+    const Tensor nodes = net->encode(x, rel);
+    const Tensor z = fused::gru(net->gru, nodes.mean(1).unsqueeze(0)).first.select(1, t - 1).squeeze(0);
+    h = net->heads(nodes[t - 1], rel[t - 1], z);
+  } else {
+    Network net = m.net;
+    const Tensor emb = net->encode(x);
+    h = net->heads(fused::gru(net->gru, emb.unsqueeze(0)).first.select(1, t - 1).squeeze(0));
+  }
   const Tensor pa = torch::softmax(h.action, -1), pt = torch::softmax(h.target, -1);
   Prediction p;
   p.end_probability = torch::softmax(h.end, -1)[1].item<double>();
   p.end = p.end_probability > 0.5;
   if (p.end) return p;
+  std::vector<std::pair<task::Token, double>> scored;
   auto a = pa.accessor<float, 2>();
   auto tg = pt.accessor<float, 2>();
   for (int64_t i = 0; i < n; ++i) {
@@ -44,8 +61,16 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
     int target = 0;
     for (int c = 1; c < m.cfg.targets; ++c)
       if (tg[i][c] > tg[i][target]) target = c;
-    p.tokens.push_back({static_cast<int>(i), m.info.vocabulary[static_cast<size_t>(best - 1)], target - 1});
-    p.token_probabilities.push_back(static_cast<double>(a[i][best]) * tg[i][target]);
+    // Back from the canonical order to the task's.
+    const int entity = m.order.task_of[static_cast<size_t>(i)];
+    const int to = target == 0 ? -1 : m.order.task_of[static_cast<size_t>(target - 1)];
+    scored.push_back({{entity, m.info.vocabulary[static_cast<size_t>(best - 1)], to},
+                      static_cast<double>(a[i][best]) * tg[i][target]});
+  }
+  std::sort(scored.begin(), scored.end(), [](const auto& u, const auto& v) { return u.first.entity < v.first.entity; });
+  for (const auto& [token, q] : scored) {
+    p.tokens.push_back(token);
+    p.token_probabilities.push_back(q);
   }
   return p;
 }

@@ -17,15 +17,31 @@ namespace ddace::tgn {
 
 using torch::Tensor;
 
+namespace {
+
+/// `threads` intra-op threads while training, the process's own count again afterwards.
+class ThreadCount {
+ public:
+  explicit ThreadCount(int threads) : saved_(at::get_num_threads()) { at::set_num_threads(threads); }
+  ~ThreadCount() { at::set_num_threads(saved_); }
+  ThreadCount(const ThreadCount&) = delete;
+  ThreadCount& operator=(const ThreadCount&) = delete;
+
+ private:
+  int saved_;
+};
+
+}  // namespace
+
 SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& options, std::ostream* progress) {
   auto impl = prepare(train, options);
   const auto started = std::chrono::steady_clock::now();
-  at::set_num_threads(options.threads);
-  impl->seededBuild();
-  Network& net = impl->net;
-  const bool gnn = impl->cfg.gnn;
+  const ThreadCount threads(options.threads);
+  impl->build();
+  torch::nn::Module& net = impl->module();
+  const bool gnn = impl->cfg.gnn, acting_targets = impl->isScene();
   const std::vector<Sequence> seqs = impl->sequences(train.demos);
-  fused::FlatParameters parameters(net->parameters());  // Adam as torch::optim::Adam, in a few ops
+  fused::FlatParameters parameters(net.parameters());  // Adam as torch::optim::Adam, in a few ops
   SplitMix64 rng(options.seed ^ 0xD1B54A32D192ED03ULL);
   std::vector<size_t> order(seqs.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
@@ -35,7 +51,7 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
   const size_t bs = std::min(static_cast<size_t>(options.batch_demos), std::max<size_t>(1, (seqs.size() + 3) / 4));
   for (int epoch = 1; epoch <= options.max_epochs; ++epoch) {
     for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[rng.next() % i]);
-    net->train();
+    net.train();
     double total = 0;
     int batches = 0;
     for (size_t from = 0; from < order.size(); from += bs) {
@@ -43,7 +59,7 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
                                       order.begin() + static_cast<long>(std::min(order.size(), from + bs)));
       const Batch batch = collate(seqs, which, gnn);
       parameters.zeroGrad();
-      const Tensor loss = lossOf(run(net, batch), batch, gnn);
+      const Tensor loss = lossOf(impl->run(batch), batch, gnn, acting_targets);
       loss.backward();
       // GRUs on few sequences occasionally take a huge step; clipping keeps training monotone.
       parameters.clipGradNorm(kClipNorm);
@@ -71,7 +87,7 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
       break;
     }
   }
-  net->eval();
+  net.eval();
   return SequenceModel(impl);
 }
 

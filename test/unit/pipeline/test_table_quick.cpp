@@ -29,8 +29,11 @@ TEST(TableQuick, WritesResultsAndEveryFigure) {
   std::stringstream text;
   text << md.rdbuf();
   const std::string results = text.str();
-  for (const char* needle : {"| task1 | DDACE |", "| task4 | w/o spectral clustering |", "| task2 | GNN |",
-                             "| task3 | LLM |", "## Beyond the paper", "imperfect", "--quick"})
+  for (const char* needle : {"| task1 | DDACE (the paper's network) |", "| task1 | DDACE, scene network (default) |",
+                             "| task4 | w/o spectral clustering |", "| task2 | GNN |", "| task3 | LLM (GPT-5.2) |",
+                             "0 / 0.3 / 0.59 / 0", "## Few-shot, every family", "| fetch | 3 demos | GNN |",
+                             "## Human-timed demonstrations", "| task4 | human-timed, 3 demos |",
+                             "## Imperfect demonstrations", "--quick"})
     EXPECT_NE(results.find(needle), std::string::npos) << needle;
   for (const char* fig : {"loss_fig4.png", "loss_task2_robots.png", "loss_task3_actions.png", "overlay_task1.png",
                           "overlay_task4.png"})

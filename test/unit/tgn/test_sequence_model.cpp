@@ -1,7 +1,10 @@
 // Training, prediction, the model directory and the gnn baseline.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <limits>
+#include <set>
 #include <fstream>
 #include <sstream>
 
@@ -130,7 +133,7 @@ TEST(SequenceModel, SaveThenLoadGivesIdenticalPredictions) {
   m.save(dir);
   for (const char* f : {"manifest.yaml", "task.yaml", "weights.pt", "loss.csv"}) EXPECT_TRUE(fs::exists(fs::path(dir) / f)) << f;
   const tgn::SequenceModel l = tgn::SequenceModel::load(dir);
-  EXPECT_EQ(l.variant(), "ddace");
+  EXPECT_EQ(l.variant(), "scene");
   EXPECT_EQ(l.spec().entityNames(), m.spec().entityNames());
   EXPECT_EQ(l.info().vocabulary, m.info().vocabulary);
   EXPECT_EQ(l.info().refined.kept, m.info().refined.kept);
@@ -196,7 +199,7 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
   EXPECT_NE(e.find("manifest.yaml"), std::string::npos) << e;
   EXPECT_NE(e.find("do not match"), std::string::npos) << e;
   e = variant("other_format", [&](const fs::path& d) {
-    rewrite(d / "manifest.yaml", [](std::string& s) { s.replace(s.find("format: ddace-model/1"), 21, "format: ddace-model/9"); });
+    rewrite(d / "manifest.yaml", [](std::string& s) { s.replace(s.find("format: ddace-model/2"), 21, "format: ddace-model/9"); });
   });
   EXPECT_NE(e.find("manifest.yaml:"), std::string::npos) << e;
   e = variant("loss_row", [&](const fs::path& d) {
@@ -215,8 +218,7 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
 TEST(SequenceModel, RejectsBadOptionsAndHistories) {
   const task::TaskDir train = generate("task4", 2);
   tgn::TrainOptions o;
-  o.variant = "transformer";
-  EXPECT_THROW(tgn::SequenceModel::train(train, o, nullptr), Error);
+  EXPECT_THROW(tgn::variantFromString("transformer"), Error);
   o = {};
   o.max_epochs = 0;
   EXPECT_THROW(tgn::SequenceModel::train(train, o, nullptr), Error);
@@ -234,19 +236,139 @@ TEST(SequenceModel, RejectsBadOptionsAndHistories) {
 TEST(SequenceModel, FullGraphVariantAttendsOverEveryPair) {
   const task::TaskDir train = generate("task4", 4);
   tgn::TrainOptions o;
-  o.variant = "full-graph";
+  o.variant = tgn::Variant::FullGraph;
   o.max_epochs = 3;
   const auto m = tgn::SequenceModel::train(train, o, nullptr);
   const size_t n = train.spec.entities.size();
   EXPECT_EQ(m.info().attention_edges.size(), n * (n - 1));
-  EXPECT_LT(task4Model().info().attention_edges.size(), n * (n - 1));
-  EXPECT_EQ(task4Model().info().attention_edges, task4Model().info().refined.kept);
+  o.variant = tgn::Variant::Paper;
+  const auto paper = tgn::SequenceModel::train(train, o, nullptr);
+  EXPECT_LT(paper.info().attention_edges.size(), n * (n - 1));
+  EXPECT_EQ(paper.info().attention_edges, paper.info().refined.kept);
+  // The scene variant: E' lifted to entity kinds (every pair whose kinds a kept edge has).
+  const tgn::ModelInfo& scene = task4Model().info();
+  EXPECT_LT(scene.attention_edges.size(), n * (n - 1));
+  for (const auto& e : scene.refined.kept)
+    EXPECT_NE(std::find(scene.attention_edges.begin(), scene.attention_edges.end(), e), scene.attention_edges.end());
+  const auto& ents = task4Model().spec().entities;
+  for (const auto& a : scene.attention_edges) {
+    bool kinds_kept = false;
+    for (const auto& e : scene.refined.kept)
+      kinds_kept = kinds_kept || (ents[a.source].kind == ents[e.source].kind && ents[a.target].kind == ents[e.target].kind);
+    EXPECT_TRUE(kinds_kept) << ents[a.source].name << "->" << ents[a.target].name;
+  }
+}
+
+namespace {
+
+/// `dir` written to disk twice, the second time with task.yaml's entities in reverse order
+/// (the CSV columns are named, so the demonstrations read the same); both loaded again.
+std::pair<task::TaskDir, task::TaskDir> withReversedEntities(const task::TaskDir& dir, const std::string& name) {
+  const std::string a = tempDir(name + "_a"), b = tempDir(name + "_b");
+  task::writeTaskDir(dir, a);
+  task::TaskDir reversed = dir;
+  std::reverse(reversed.spec.entities.begin(), reversed.spec.entities.end());
+  task::writeTaskYaml(reversed.spec, a + "/reversed.yaml");
+  fs::copy(a, b, fs::copy_options::recursive);
+  fs::rename(fs::path(b) / "reversed.yaml", fs::path(b) / "task.yaml");
+  fs::remove(fs::path(a) / "reversed.yaml");
+  auto out = std::make_pair(task::loadTaskDir(a), task::loadTaskDir(b));
+  fs::remove_all(a);
+  fs::remove_all(b);
+  return out;
+}
+
+/// A prediction's tokens by entity name ("R1:move:G1"), so that two task orders compare.
+std::vector<std::string> named(const tgn::Prediction& p, const task::TaskSpec& spec) {
+  std::vector<std::string> out;
+  for (const auto& t : p.tokens) out.push_back(task::tokenKey(t, spec));
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+/// A snapshot history in the order of `to`, from one in the order of `from`.
+std::vector<task::Snapshot> reordered(const std::vector<task::Snapshot>& h, const task::TaskSpec& from,
+                                      const task::TaskSpec& to) {
+  std::vector<task::Snapshot> out = h;
+  for (size_t k = 0; k < h.size(); ++k)
+    for (size_t i = 0; i < from.entities.size(); ++i)
+      out[k].positions[static_cast<size_t>(to.entityIndex(from.entities[i].name))] = h[k].positions[i];
+  return out;
+}
+
+}  // namespace
+
+class EntityOrder : public ::testing::TestWithParam<tgn::Variant> {};
+
+TEST_P(EntityOrder, InTaskYamlChangesNoDecision) {
+  // Task 1 has three kinds of entity; the reversed order puts the goal first.
+  const auto [train, train_reversed] = withReversedEntities(generate("task1", 6), "order_train");
+  const auto [test, test_reversed] = withReversedEntities(generate("task1", 3, 21), "order_test");
+  ASSERT_NE(train.spec.entityNames(), train_reversed.spec.entityNames());
+  tgn::TrainOptions o;
+  o.variant = GetParam();
+  o.max_epochs = 25;
+  const auto a = tgn::SequenceModel::train(train, o, nullptr);
+  const auto b = tgn::SequenceModel::train(train_reversed, o, nullptr);
+  // The same training, bit for bit: the loss of every epoch.
+  ASSERT_EQ(a.info().history.size(), b.info().history.size());
+  for (size_t e = 0; e < a.info().history.size(); ++e) EXPECT_EQ(a.info().history[e].loss, b.info().history[e].loss) << e;
+  // The same E' (by name).
+  auto names = [](const tgn::SequenceModel& m, const std::vector<graph::Edge>& edges) {
+    std::set<std::string> out;
+    for (const auto& e : edges) out.insert(m.spec().entities[e.source].name + "->" + m.spec().entities[e.target].name);
+    return out;
+  };
+  EXPECT_EQ(names(a, a.info().refined.kept), names(b, b.info().refined.kept));
+  EXPECT_EQ(names(a, a.info().attention_edges), names(b, b.info().attention_edges));
+  // The same decisions on the same scenes.
+  for (const auto& d : test.demos)
+    for (size_t k = 1; k <= d.snapshots.size(); ++k) {
+      const std::vector<task::Snapshot> h(d.snapshots.begin(), d.snapshots.begin() + static_cast<long>(k));
+      const auto p = a.predictNext(h), q = b.predictNext(reordered(h, test.spec, test_reversed.spec));
+      EXPECT_EQ(p.end, q.end);
+      EXPECT_EQ(p.end_probability, q.end_probability);
+      EXPECT_EQ(named(p, a.spec()), named(q, b.spec())) << d.source << " step " << k;
+    }
+  EXPECT_EQ(a.stepAccuracy(test.demos), b.stepAccuracy(test_reversed.demos));
+}
+
+INSTANTIATE_TEST_SUITE_P(Variants, EntityOrder, ::testing::Values(tgn::Variant::Scene, tgn::Variant::Paper),
+                         [](const auto& info) { return std::string(tgn::toString(info.param)); });
+
+TEST(SequenceModel, RefusesANonFinitePositionNamingTheEntityAndSnapshot) {
+  const tgn::SequenceModel& m = task4Model();
+  const task::Demonstration d = generate("task4", 1, 5).demos.front();
+  std::vector<task::Snapshot> h(d.snapshots.begin(), d.snapshots.begin() + 2);
+  h[1].positions[2].y() = std::numeric_limits<double>::quiet_NaN();
+  try {
+    m.predictNext(h);
+    FAIL() << "a NaN position was accepted";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("snapshot 1"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("'" + m.spec().entities[2].name + "'"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("not finite"), std::string::npos) << msg;
+  }
+  h[1].positions[2].y() = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(m.predictNext(h), Error);
+  // Training refuses one too, naming the demonstration.
+  task::TaskDir train = generate("task4", 2);
+  train.demos[1].positions[7][1].x() = std::numeric_limits<double>::quiet_NaN();
+  tgn::TrainOptions o;
+  o.max_epochs = 1;
+  try {
+    tgn::SequenceModel::train(train, o, nullptr);
+    FAIL() << "a NaN position was accepted for training";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("row 7"), std::string::npos) << e.what();
+  }
 }
 
 TEST(SequenceModel, GnnBaselineRollsOutItsOwnTrajectories) {
   const task::TaskDir train = generate("task4", 3);
   tgn::TrainOptions o;
-  o.variant = "gnn";
+  o.variant = tgn::Variant::Gnn;
   o.max_epochs = 20;
   std::ostringstream progress;
   const auto m = tgn::SequenceModel::train(train, o, &progress);

@@ -1,0 +1,103 @@
+#include "scene_network.h"
+
+#include <string>
+
+namespace ddace::tgn {
+
+using torch::Tensor;
+namespace nn = torch::nn;
+
+namespace {
+
+constexpr double kSlope = 0.2;  // LeakyReLU negative slope, as GATConv / GATv2Conv
+
+nn::Linear linear(int in, int out, bool bias = true) { return nn::Linear(nn::LinearOptions(in, out).bias(bias)); }
+
+}  // namespace
+
+SceneLayerImpl::SceneLayerImpl(int in, int heads, int channels, AttentionKind kind)
+    : heads_(heads), channels_(channels), kind_(kind) {
+  const int width = heads * channels;
+  lin_src = register_module("lin_src", linear(in, width, false));
+  lin_dst = register_module("lin_dst", linear(in, width, false));
+  lin_edge = register_module("lin_edge", linear(kRelativeFeatures, width, false));
+  for (auto* w : {&lin_src->weight, &lin_dst->weight, &lin_edge->weight}) nn::init::xavier_uniform_(*w);
+  if (kind == AttentionKind::GatV2) {
+    att = register_parameter("att", torch::empty({heads, channels}));
+    nn::init::xavier_uniform_(att);
+  } else {
+    att_src = register_parameter("att_src", torch::empty({heads, channels}));
+    att_dst = register_parameter("att_dst", torch::empty({heads, channels}));
+    att_edge = register_parameter("att_edge", torch::empty({heads, channels}));
+    for (auto* a : {&att_src, &att_dst, &att_edge}) nn::init::xavier_uniform_(*a);
+  }
+  bias = register_parameter("bias", torch::zeros({width}));
+}
+
+Tensor SceneLayerImpl::forward(const Tensor& x, const Tensor& rel, const Tensor& mask) {
+  const int64_t s = x.size(0), n = x.size(1);
+  const Tensor hs = lin_src(x).view({s, 1, n, heads_, channels_});   // sender j
+  const Tensor hd = lin_dst(x).view({s, n, 1, heads_, channels_});   // receiver i
+  const Tensor he = lin_edge(rel).view({s, n, n, heads_, channels_});
+  const Tensor msg = hs + he;  // [S, i, j, H, C]
+  Tensor logit;
+  if (kind_ == AttentionKind::GatV2) {
+    logit = (torch::leaky_relu(hd + msg, kSlope) * att).sum(-1);
+  } else {
+    logit = torch::leaky_relu((hd * att_dst).sum(-1) + (hs * att_src).sum(-1) + (he * att_edge).sum(-1), kSlope);
+  }
+  const Tensor alpha = torch::softmax(logit.masked_fill(mask.logical_not(), -1e30), 2);  // over j
+  return (alpha.unsqueeze(-1) * msg).sum(2).view({s, n, heads_ * channels_}) + bias;
+}
+
+SceneNetworkImpl::SceneNetworkImpl(const NetConfig& c, const Tensor& attention)
+    : cfg(c), mask(attention.to(torch::kBool).view({1, c.nodes, c.nodes, 1})), drop(c.o.dropout, c.o.seed) {
+  const TrainOptions& o = c.o;
+  int in = c.features;
+  if (o.identity_embedding) {
+    identity = register_module("identity", nn::Embedding(c.nodes, o.identity_dim));
+    in += o.identity_dim;
+  }
+  const int width = o.heads * o.head_channels;
+  for (int l = 0; l < o.gat_layers; ++l)
+    layers.push_back(register_module("layer" + std::to_string(l),
+                                     SceneLayer(l == 0 ? in : width, o.heads, o.head_channels, o.attention)));
+  gru = register_module("gru", nn::GRU(nn::GRUOptions(width, o.gru_hidden).num_layers(o.gru_layers).batch_first(true)));
+  const int hidden = o.head_hidden;
+  act_h = register_module("act_h", linear(width, hidden));
+  act_z = register_module("act_z", linear(o.gru_hidden, hidden, false));
+  act_out = register_module("act_out", linear(hidden, c.actions));
+  none_out = register_module("none_out", linear(hidden, 1));
+  ptr_i = register_module("ptr_i", linear(width, hidden));
+  ptr_j = register_module("ptr_j", linear(width, hidden, false));
+  ptr_r = register_module("ptr_r", linear(kRelativeFeatures, hidden, false));
+  ptr_z = register_module("ptr_z", linear(o.gru_hidden, hidden, false));
+  ptr_out = register_module("ptr_out", linear(hidden, 1));
+  end = register_module("end", linear(o.gru_hidden, 2));
+  self_mask = torch::eye(c.nodes) * -1e9;
+}
+
+Tensor SceneNetworkImpl::encode(const Tensor& features, const Tensor& rel) {
+  const int64_t s = features.size(0), n = features.size(1);
+  Tensor x = features;
+  if (identity) x = torch::cat({x, identity->weight.unsqueeze(0).expand({s, n, cfg.o.identity_dim})}, 2);
+  for (size_t l = 0; l < layers.size(); ++l) {
+    Tensor y = drop(torch::relu(layers[l]->forward(x, rel, mask)), is_training());
+    x = l == 0 ? y : x + y;
+  }
+  return x;
+}
+
+Heads SceneNetworkImpl::heads(const Tensor& nodes, const Tensor& rel, const Tensor& z) {
+  const Tensor zu = z.unsqueeze(-2);  // [..., 1, hidden]
+  const Tensor hidden = torch::relu(act_h(nodes) + act_z(zu));  // [..., N, hidden]
+  Heads h;
+  h.action = act_out(hidden);
+  const Tensor pre = ptr_i(nodes).unsqueeze(-2) + ptr_j(nodes).unsqueeze(-3) + ptr_r(rel) + ptr_z(zu).unsqueeze(-2);
+  const Tensor scores = ptr_out(torch::relu(pre)).squeeze(-1) + self_mask;  // [..., N, N]
+  h.target = torch::cat({none_out(hidden), scores}, -1);
+  h.end = end(z);
+  return h;
+}
+
+}  // namespace ddace::tgn

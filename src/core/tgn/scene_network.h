@@ -1,0 +1,70 @@
+// The `scene` network (the default variant): what decides a step can depend on the
+// configuration. Internal to the tgn module (includes <torch/torch.h>).
+//
+//   node features   (x, y) normalised isotropically (one scale for both axes, so that
+//                   distances keep their meaning), the entity kind (one-hot robot, object,
+//                   goal) and an identity embedding keyed by the entity's name.
+//   edge features   for the pair i <- j: the displacement x_j - x_i, the distance, and two
+//                   nearness ranks: 1 / (1 + the number of entities of j's kind nearer to i
+//                   than j), and the same for i seen from j (1 = the nearest of its kind).
+//   spatial         `gat_layers` x attention over the attention edges plus self-loops; the
+//                   message from j to i is W_s x_j + W_e r_ij (it carries the edge
+//                   features: a convex combination of W x_j alone cannot form x_j - x_i);
+//                   the logit is GATv2's a . LeakyReLU(W_d x_i + W_s x_j + W_e r_ij), or
+//                   GATConv's LeakyReLU(a_d . W_d x_i + a_s . W_s x_j + a_e . W_e r_ij)
+//                   (`attention`); softmax over i's incoming edges; then ReLU, dropout and,
+//                   from the second layer, a residual connection.
+//   temporal        the mean over the entities' embeddings -> the 2-layer GRU (as `paper`).
+//   heads           per entity i, from its own embedding h_i and the GRU output z:
+//                   action = MLP(h_i, z); the target is a pointer: score(i, j) =
+//                   v . ReLU(P_i h_i + P_j h_j + P_r r_ij + P_z z) for every other entity j,
+//                   and a "none" score (in-place action) from the action MLP's hidden layer;
+//                   END = linear(z). No output slot belongs to an entity index, so the heads
+//                   are equivariant under a permutation of the entities.
+#pragma once
+
+#include <torch/torch.h>
+
+#include "network.h"
+
+namespace ddace::tgn {
+
+/// Relative features per pair (see above).
+inline constexpr int kRelativeFeatures = 5;
+
+struct SceneLayerImpl : torch::nn::Module {
+  SceneLayerImpl(int in, int heads, int channels, AttentionKind kind);
+  /// x [S, N, in], rel [S, N, N, R] (pair i <- j), mask [1, N, N, 1] bool (i receives from j)
+  /// -> [S, N, heads * channels].
+  torch::Tensor forward(const torch::Tensor& x, const torch::Tensor& rel, const torch::Tensor& mask);
+
+  int heads_, channels_;
+  AttentionKind kind_;
+  torch::nn::Linear lin_src{nullptr}, lin_dst{nullptr}, lin_edge{nullptr};
+  torch::Tensor att, att_src, att_dst, att_edge, bias;
+};
+TORCH_MODULE(SceneLayer);
+
+struct SceneNetworkImpl : torch::nn::Module {
+  /// `attention`: [N, N] bool, i receives from j (self-loops included).
+  SceneNetworkImpl(const NetConfig& c, const torch::Tensor& attention);
+
+  /// x [S, N, F], rel [S, N, N, R] -> node embeddings [S, N, width].
+  torch::Tensor encode(const torch::Tensor& x, const torch::Tensor& rel);
+  /// nodes [..., N, width], rel [..., N, N, R], z [..., hidden] -> the heads.
+  Heads heads(const torch::Tensor& nodes, const torch::Tensor& rel, const torch::Tensor& z);
+
+  NetConfig cfg;
+  torch::Tensor mask;  ///< [1, N, N, 1]
+  Dropout drop;
+  torch::Tensor self_mask;  ///< [N, N]: -1e9 on the diagonal
+  torch::nn::Embedding identity{nullptr};
+  std::vector<SceneLayer> layers;
+  torch::nn::GRU gru{nullptr};
+  torch::nn::Linear act_h{nullptr}, act_z{nullptr}, act_out{nullptr}, none_out{nullptr};
+  torch::nn::Linear ptr_i{nullptr}, ptr_j{nullptr}, ptr_r{nullptr}, ptr_z{nullptr}, ptr_out{nullptr};
+  torch::nn::Linear end{nullptr};
+};
+TORCH_MODULE(SceneNetwork);
+
+}  // namespace ddace::tgn
