@@ -3,6 +3,7 @@
 #include "params.h"
 
 #include <cmath>
+#include <algorithm>
 #include <filesystem>
 
 #include <tf2/LinearMath/Quaternion.h>
@@ -14,10 +15,31 @@ using rosparam::param;
 task::TaskSpec loadTaskSpec(const std::string& task_path) {
   namespace fs = std::filesystem;
   if (task_path.empty()) throw Error("no task given (parameter 'task': a task directory or its task.yaml)");
+  requireAbsolute(task_path, "task");
   fs::path p(task_path);
   if (fs::is_directory(p)) p /= "task.yaml";
   if (!fs::exists(p)) throw Error(Diagnostic{p.string(), 0, 0, "task file does not exist"});
   return task::readTaskYaml(p.string());
+}
+
+void requireAbsolute(const std::string& path, const std::string& param) {
+  if (!path.empty() && std::filesystem::path(path).is_relative())
+    throw Error("parameter '" + param + "' = '" + path +
+                "' is a relative path, but nodes run in ROS_HOME, not in your working directory: give an absolute "
+                "path (scripts/execute_sim and execute_sim.launch resolve relative paths against the caller's directory)");
+}
+
+std::string demonstrationFile(const std::string& task_dir, int index, const std::string& param) {
+  std::vector<std::string> files;
+  const auto demos = std::filesystem::path(task_dir) / "demos";
+  if (!std::filesystem::is_directory(demos)) throw Error(Diagnostic{demos.string(), 0, 0, "no demos/ directory"});
+  for (const auto& f : std::filesystem::directory_iterator(demos))
+    if (f.path().extension() == ".csv") files.push_back(f.path().string());
+  std::sort(files.begin(), files.end());
+  if (index < 0 || index >= static_cast<int>(files.size()))
+    throw Error("parameter '" + param + "' = " + std::to_string(index) + " but " + demos.string() + " has " +
+                std::to_string(files.size()) + " demonstrations");
+  return files[index];
 }
 
 task::Token fromMsg(const ddace::Token& msg, const task::TaskSpec& spec) {

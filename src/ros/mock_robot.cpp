@@ -92,16 +92,8 @@ class MockRobotNode::Impl {
     std::vector<bool> set(n, false);
     std::string csv = rosparam::param<std::string>(pnh, "scene_csv", "");
     const int demo_index = rosparam::param(pnh, "scene_demo", -1);
-    if (csv.empty() && demo_index >= 0) {
-      std::vector<std::string> files;
-      for (const auto& f : std::filesystem::directory_iterator(std::filesystem::path(task_path) / "demos"))
-        if (f.path().extension() == ".csv") files.push_back(f.path().string());
-      std::sort(files.begin(), files.end());
-      if (demo_index >= static_cast<int>(files.size()))
-        throw Error("parameter '" + pnh.resolveName("scene_demo") + "' = " + std::to_string(demo_index) + " but " +
-                    task_path + "/demos has " + std::to_string(files.size()) + " demonstrations");
-      csv = files[demo_index];
-    }
+    if (csv.empty() && demo_index >= 0)
+      csv = ros_exec::demonstrationFile(task_path, demo_index, pnh.resolveName("scene_demo"));
     if (!csv.empty()) {
       const task::Demonstration d = task::readDemonstrationCsv(csv, spec_);
       for (size_t i = 0; i < n; ++i) {

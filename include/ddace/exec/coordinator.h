@@ -187,6 +187,10 @@ class Coordinator {
   /// goal; until then the segment runs on (checked again on every observation) until it
   /// really arrives or times out. A disagreeing DONE is logged once per segment.
   CoordinatorOutput onSegmentStatus(const StatusReport& report, double now_s);
+  /// The same for an in-process executor reporting on `entity`'s own topic (simulations,
+  /// benchmarks): every check above still applies.
+  CoordinatorOutput onSegmentStatus(int entity, uint32_t segment_id, SegmentState state, double progress,
+                                    const std::string& message, double now_s);
   /// Time-outs only; never starts a decision.
   CoordinatorOutput onTick(double now_s);
   /// Something the run depends on is gone (a node serving a role, the pose source): stops

@@ -480,6 +480,18 @@ CoordinatorOutput Coordinator::onSegmentStatus(const StatusReport& r, double now
   return out;
 }
 
+CoordinatorOutput Coordinator::onSegmentStatus(int entity, uint32_t segment_id, SegmentState state, double progress,
+                                               const std::string& message, double now_s) {
+  StatusReport r;
+  r.topic_entity = entity;
+  if (entity >= 0 && entity < static_cast<int>(spec_.entities.size())) r.entity = spec_.entities[entity].name;
+  r.segment_id = segment_id;
+  r.code = static_cast<int>(state);
+  r.progress = progress;
+  r.message = message;
+  return onSegmentStatus(r, now_s);
+}
+
 void Coordinator::completeStepIfDone(double now_s, CoordinatorOutput& out) {
   StepRecord& s = steps_.back();
   for (const auto& t : s.tokens)
