@@ -73,7 +73,7 @@ class CoordinatorNode::Impl {
           [this, i](const ddace::SegmentStatus::ConstPtr& m) { onStatus(static_cast<int>(i), *m); }));
       if (e.kind != task::EntityKind::Robot) continue;
       // Only the coordinator can stop a robot whose follower died: it publishes zeros itself.
-      wheel_pubs_[i] = nh.advertise<ddace::WheelCommand>("/robots/" + e.name + "/wheels", 10);
+      wheel_pubs_[i] = advertiseWatched<ddace::WheelCommand>(nh, "/robots/" + e.name + "/wheels", 10);
       const size_t role = follower_role_.at(i);
       wheel_subs_.push_back(nh.subscribe<ddace::WheelCommand>(
           "/robots/" + e.name + "/wheels", 20,
@@ -307,6 +307,7 @@ class CoordinatorNode::Impl {
     if (!paths.empty())
       watched_.push_back({roles_.add("path node", paths, "subscribed to /ddace/path_request"), "/ddace/path_request", paths});
     const std::string follower = name("follower", "/path_follower"), objects = name("object_executor", "/mock_robots");
+    const std::string driver = name("driver", "/mock_robots");
     for (size_t i = 0; i < spec_.entities.size(); ++i) {
       const auto& e = spec_.entities[i];
       const std::string topic = "/robots/" + e.name + "/segment";
@@ -315,6 +316,10 @@ class CoordinatorNode::Impl {
         if (node.empty()) throw Error("parameter '" + r.resolveName("follower") + "' is empty: every robot needs a follower");
         follower_role_[i] = roles_.add("follower of " + e.name, node, "subscribed to " + topic, heartbeat_s);
         watched_.push_back({follower_role_[i], topic, node});
+        // The node that moves the robot (mock robots, the radio bridge): its link drops at once.
+        const std::string wheels = "/robots/" + e.name + "/wheels", driver_node = name("drivers/" + e.name, driver);
+        if (!driver_node.empty())
+          watched_.push_back({roles_.add("driver of " + e.name, driver_node, "subscribed to " + wheels), wheels, driver_node});
       } else if (e.kind == task::EntityKind::Object && !objects.empty()) {
         watched_.push_back({roles_.add("executor of " + e.name, objects, "subscribed to " + topic), topic, objects});
       }

@@ -114,14 +114,14 @@ class ExecutionMonitorNode::Impl {
     if (timeout_s > 0)
       timer_ = nh.createTimer(ros::Duration(timeout_s), [this, timeout_s](const ros::TimerEvent&) {
         ROS_ERROR("execution_monitor: the run did not end within %.0f s", timeout_s);
-        report("timed out (monitor, timeout_s = " + std::to_string(timeout_s) + ")", last_state_);
+        report("timed out (monitor, timeout_s = " + std::to_string(timeout_s) + ")", last_state_, "timed_out");
       }, true);
     ROS_INFO("execution_monitor: recording the run into %s", run_dir_.c_str());
   }
 
   ~Impl() {
     // SIGINT (roslaunch shutting down, Ctrl-C): whatever ran is recorded as interrupted.
-    if (!reported_) report("interrupted (SIGINT) in state " + last_state_.state_name, last_state_);
+    if (!reported_) report("interrupted (SIGINT) in state " + last_state_.state_name, last_state_, "interrupted");
     stopBag();
   }
 
@@ -285,7 +285,9 @@ class ExecutionMonitorNode::Impl {
     return t;
   }
 
-  void report(const std::string& outcome, const ddace::CoordinatorState& s) {
+  /// `ending`: the run's ending as result.json names it: the coordinator's final state
+  /// (finished, aborted, estopped), or the monitor's (interrupted, timed_out).
+  void report(const std::string& outcome, const ddace::CoordinatorState& s, const std::string& ending = "") {
     if (reported_) return;
     reported_ = true;
     const bool finished = s.state == ddace::CoordinatorState::FINISHED;
@@ -327,7 +329,8 @@ class ExecutionMonitorNode::Impl {
     const exec::Trial run = trial(s);
     nlohmann::json j;
     j["task"] = spec_.name;
-    j["state"] = have_state_ ? s.state_name : "none";
+    j["state"] = !ending.empty() ? ending : s.state_name;
+    j["coordinator_state"] = have_state_ ? s.state_name : "none";
     j["outcome"] = outcome;
     j["reason"] = s.reason;
     j["steps"] = executed.size();
