@@ -90,3 +90,18 @@ TEST(PathBand, EdgesLieTwoSigmaEitherSideOfTheDirectionOfTravel) {
   EXPECT_EQ(sigmaBandTriangles(p, 2.0).size(), 12u);
   EXPECT_TRUE(sigmaBandTriangles(PlannedPath{{{0, 0}}, {0.1}}, 2.0).empty());
 }
+
+#include "ddace/exec/scene.h"
+
+TEST(CarriedObject, MovesAlongItsPathAtItsSpeedFromWhereItIs) {
+  CarriedObject o({{0, 0}, {1, 0}, {1, 1}}, {0.1, 0}, 0.5);
+  EXPECT_TRUE(o.position().isApprox(Eigen::Vector2d(0.1, 0)));
+  EXPECT_TRUE(o.advance(1.0).isApprox(Eigen::Vector2d(0.6, 0)));
+  EXPECT_TRUE(o.advance(1.0).isApprox(Eigen::Vector2d(1.0, 0.1)));  // round the corner
+  EXPECT_FALSE(o.arrived());
+  EXPECT_NEAR(o.progress(), 1.0 / 1.9, 1e-9);
+  EXPECT_TRUE(o.advance(10.0).isApprox(Eigen::Vector2d(1, 1)));
+  EXPECT_TRUE(o.arrived());
+  EXPECT_THROW(CarriedObject({}, {0, 0}, 1.0), Error);
+  EXPECT_THROW(CarriedObject({{0, 0}}, {0, 0}, 0.0), Error);
+}
