@@ -1,7 +1,10 @@
 // CoordinatorNode: see include/ddace/ros/coordinator.h.
 #include "ddace/ros/coordinator.h"
 
+#include <algorithm>
 #include <map>
+#include <mutex>
+#include <set>
 #include <optional>
 #include <sstream>
 
@@ -10,6 +13,7 @@
 #include <std_srvs/Trigger.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <ddace/ActiveSegment.h>
 #include <ddace/CoordinatorState.h>
 #include <ddace/Decision.h>
 #include <ddace/DecisionRequest.h>
@@ -18,9 +22,13 @@
 #include <ddace/PathResponse.h>
 #include <ddace/Segment.h>
 #include <ddace/SegmentStatus.h>
+#include <ddace/WheelCommand.h>
 
 #include "exec_conversions.h"
 #include "params.h"
+#include "ddace/exec/liveness.h"
+#include "ddace/exec/outbox.h"
+#include "ddace/exec/path_band.h"
 
 namespace ddace::nodes {
 
@@ -34,6 +42,8 @@ class CoordinatorNode::Impl {
     cfg.segment_timeout_s = rosparam::param(pnh, "segment_timeout_s", cfg.segment_timeout_s);
     cfg.segment_timeout_per_m_s = rosparam::param(pnh, "segment_timeout_per_m_s", cfg.segment_timeout_per_m_s);
     cfg.max_steps = rosparam::param(pnh, "max_steps", cfg.max_steps);
+    cfg.arrival_radius_m = rosparam::param(pnh, "arrival_radius_m", spec_.arrival_radius);
+    cfg.arrival_tolerance_m = rosparam::param(pnh, "arrival_tolerance_m", cfg.arrival_tolerance_m);
     try {
       coordinator_ = std::make_unique<exec::Coordinator>(spec_, cfg);
     } catch (const Error& e) {
@@ -41,24 +51,40 @@ class CoordinatorNode::Impl {
     }
     const CoordinatorNode::Params defaults;
     frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
-    arrival_radius_m_ = rosparam::param(pnh, "arrival_radius_m", spec_.arrival_radius);
+    arrival_radius_m_ = cfg.arrival_radius_m;
     path_points_ = rosparam::param(pnh, "path_points", defaults.path_points);
     const double tick_hz = rosparam::param(pnh, "timeout_check_hz", defaults.timeout_check_hz);
     if (!(tick_hz > 0)) throw Error("parameter '" + pnh.resolveName("timeout_check_hz") + "' must be positive");
     autostart_ = rosparam::param(pnh, "autostart", defaults.autostart);
-    resend_after_s_ = rosparam::param(pnh, "resend_after_s", defaults.resend_after_s);
-    if (!(resend_after_s_ > 0)) throw Error("parameter '" + pnh.resolveName("resend_after_s") + "' must be positive");
+    const double resend_after_s = rosparam::param(pnh, "resend_after_s", defaults.resend_after_s);
+    if (!(resend_after_s > 0)) throw Error("parameter '" + pnh.resolveName("resend_after_s") + "' must be positive");
+    outbox_ = std::make_unique<exec::Outbox>(resend_after_s);
+    const double state_hz = rosparam::param(pnh, "state_rate_hz", defaults.state_rate_hz);
+    if (!(state_hz > 0)) throw Error("parameter '" + pnh.resolveName("state_rate_hz") + "' must be positive");
+    const double liveness_hz = rosparam::param(pnh, "liveness_check_hz", defaults.liveness_check_hz);
+    if (!(liveness_hz > 0)) throw Error("parameter '" + pnh.resolveName("liveness_check_hz") + "' must be positive");
 
+    loadRoles(pnh);
     for (size_t i = 0; i < spec_.entities.size(); ++i) {
       const auto& e = spec_.entities[i];
       if (e.kind == task::EntityKind::Goal) continue;
-      segment_pubs_[i] = nh.advertise<ddace::Segment>("/robots/" + e.name + "/segment", 10);
+      segment_pubs_[i] = advertiseWatched<ddace::Segment>(nh, "/robots/" + e.name + "/segment", 10);
       status_subs_.push_back(nh.subscribe<ddace::SegmentStatus>(
           "/robots/" + e.name + "/segment_status", 50,
           [this, i](const ddace::SegmentStatus::ConstPtr& m) { onStatus(static_cast<int>(i), *m); }));
+      if (e.kind != task::EntityKind::Robot) continue;
+      // Only the coordinator can stop a robot whose follower died: it publishes zeros itself.
+      wheel_pubs_[i] = advertiseWatched<ddace::WheelCommand>(nh, "/robots/" + e.name + "/wheels", 10);
+      const size_t role = follower_role_.at(i);
+      wheel_subs_.push_back(nh.subscribe<ddace::WheelCommand>(
+          "/robots/" + e.name + "/wheels", 20,
+          boost::function<void(const ros::MessageEvent<const ddace::WheelCommand>&)>(
+              [this, role](const ros::MessageEvent<const ddace::WheelCommand>& ev) {
+                if (ev.getPublisherName() == roles_.node(role)) roles_.heartbeat(role, now());
+              })));
     }
-    decision_pub_ = nh.advertise<ddace::DecisionRequest>("/ddace/decision_request", 5);
-    path_pub_ = nh.advertise<ddace::PathRequest>("/ddace/path_request", 50);
+    decision_pub_ = advertiseWatched<ddace::DecisionRequest>(nh, "/ddace/decision_request", 5);
+    path_pub_ = advertiseWatched<ddace::PathRequest>(nh, "/ddace/path_request", 50);
     estop_pub_ = nh.advertise<std_msgs::Bool>("/ddace/estop", 1, true);
     state_pub_ = pnh.advertise<ddace::CoordinatorState>("state", 1, true);
     marker_pub_ = pnh.advertise<visualization_msgs::MarkerArray>("markers", 1, true);
@@ -71,6 +97,8 @@ class CoordinatorNode::Impl {
     services_.push_back(pnh.advertiseService("reset", &Impl::srvReset, this));
     services_.push_back(pnh.advertiseService("estop", &Impl::srvEstop, this));
     timer_ = nh.createTimer(ros::Duration(1.0 / tick_hz), &Impl::onTick, this);
+    state_timer_ = nh.createTimer(ros::Duration(1.0 / state_hz), [this](const ros::TimerEvent&) { publishState(); });
+    liveness_timer_ = nh.createTimer(ros::Duration(1.0 / liveness_hz), &Impl::onLiveness, this);
     std_msgs::Bool released;
     released.data = false;
     estop_pub_.publish(released);
@@ -87,9 +115,10 @@ class CoordinatorNode::Impl {
     const ros::Time stamp = ros::Time::now();
     if (out.stop_all || out.state_changed) {
       // Whatever was asked before no longer needs an answer.
-      if (coordinator_->state() != exec::RunState::Deciding) unanswered_decision_.reset();
-      if (coordinator_->state() != exec::RunState::Planning) unanswered_paths_.clear();
-      if (coordinator_->state() != exec::RunState::Executing) unanswered_segments_.clear();
+      using K = exec::Outbox::Kind;
+      if (coordinator_->state() != exec::RunState::Deciding) outbox_->forget(K::Decision), sent_decisions_.clear();
+      if (coordinator_->state() != exec::RunState::Planning) outbox_->forget(K::Path), sent_paths_.clear();
+      if (coordinator_->state() != exec::RunState::Executing) outbox_->forget(K::Segment), sent_segments_.clear();
     }
     // Stops first: a robot must never keep an old segment while a new one is planned.
     std::vector<int> stop = out.stop;
@@ -120,7 +149,8 @@ class CoordinatorNode::Impl {
       s.arrival_radius_m = arrival_radius_m_;
       s.timeout_s = seg.timeout_s;
       segment_pubs_[seg.entity].publish(s);
-      unanswered_segments_[seg.segment_id] = {seg.entity, s, ros::WallTime::now()};
+      sent_segments_[seg.segment_id] = {seg.entity, s};
+      outbox_->sent(exec::Outbox::Kind::Segment, seg.segment_id, wallNow());
     }
     for (const auto& p : out.paths) {
       ddace::PathRequest r;
@@ -135,7 +165,8 @@ class CoordinatorNode::Impl {
       r.goal.y = p.goal.y();
       r.points = path_points_;
       path_pub_.publish(r);
-      unanswered_paths_[p.id] = {r, ros::WallTime::now()};
+      sent_paths_[p.id] = r;
+      outbox_->sent(exec::Outbox::Kind::Path, p.id, wallNow());
     }
     if (out.decision) {
       ddace::DecisionRequest r;
@@ -156,36 +187,43 @@ class CoordinatorNode::Impl {
         r.history.push_back(s);
       }
       decision_pub_.publish(r);
-      unanswered_decision_ = r;
-      decision_sent_ = ros::WallTime::now();
+      sent_decisions_[r.id] = r;
+      outbox_->sent(exec::Outbox::Kind::Decision, r.id, wallNow());
     }
     if (out.state_changed || !out.segments.empty() || !out.stop.empty() || out.decision) publishState();
   }
 
-  void onEntities(const ddace::EntityArray& m) {
+  void onEntities(const ros::MessageEvent<const ddace::EntityArray>& ev) {
+    const ddace::EntityArray& m = *ev.getConstMessage();
+    if (pose_role_ && ev.getPublisherName() == roles_.node(*pose_role_)) roles_.heartbeat(*pose_role_, now());
     apply(coordinator_->onEntities(ros_exec::toObservation(m, spec_), now()));
     if (++entity_msgs_ % 5 == 0) publishMarkers();  // entity labels follow the robots
   }
 
   void onDecision(const ddace::Decision& m) {
-    if (unanswered_decision_ && unanswered_decision_->id == m.id) unanswered_decision_.reset();
+    outbox_->acknowledged(exec::Outbox::Kind::Decision, m.id);
     if (!m.error.empty()) {
       apply(coordinator_->onDecisionError(m.id, "sequence_node: " + m.error, now()));
       return;
     }
     exec::Decision d;
     d.end = m.end;
+    exec::DecisionProbabilities prob;
+    prob.end = m.end_probability;
     try {
-      for (const auto& t : m.tokens) d.tokens.push_back(ros_exec::fromMsg(t, spec_));
+      for (const auto& t : m.tokens) {
+        d.tokens.push_back(ros_exec::fromMsg(t, spec_));
+        prob.tokens.push_back(t.probability);
+      }
     } catch (const Error& e) {
       apply(coordinator_->onDecisionError(m.id, std::string("/ddace/decision: ") + e.what(), now()));
       return;
     }
-    apply(coordinator_->onDecision(m.id, d, now()));
+    apply(coordinator_->onDecision(m.id, d, now(), prob));
   }
 
   void onPath(const ddace::PathResponse& m) {
-    unanswered_paths_.erase(m.id);
+    outbox_->acknowledged(exec::Outbox::Kind::Path, m.id);
     exec::PlannedPath p;
     std::string error = m.error;
     if (error.empty()) {
@@ -200,9 +238,23 @@ class CoordinatorNode::Impl {
   }
 
   void onStatus(int entity, const ddace::SegmentStatus& m) {
-    unanswered_segments_.erase(m.segment_id);
-    apply(coordinator_->onSegmentStatus(entity, m.segment_id, static_cast<exec::SegmentState>(m.status), m.progress,
-                                        m.message, now()));
+    if (m.entity == spec_.entities[entity].name) outbox_->acknowledged(exec::Outbox::Kind::Segment, m.segment_id);
+    exec::StatusReport r;
+    r.topic_entity = entity;
+    r.entity = m.entity;
+    r.segment_id = m.segment_id;
+    r.code = m.status;
+    r.progress = m.progress;
+    r.distance_to_goal_m = m.distance_to_goal_m;
+    r.message = m.message;
+    const exec::CoordinatorOutput out = coordinator_->onSegmentStatus(r, now());
+    for (const auto& line : out.log)
+      if (line.rfind("ignoring", 0) == 0) ROS_WARN("coordinator: %s", line.c_str());
+    exec::CoordinatorOutput rest = out;
+    rest.log.erase(std::remove_if(rest.log.begin(), rest.log.end(),
+                                  [](const std::string& l) { return l.rfind("ignoring", 0) == 0; }),
+                   rest.log.end());
+    apply(rest);
   }
 
   void onTick(const ros::TimerEvent&) {
@@ -212,47 +264,124 @@ class CoordinatorNode::Impl {
         autostart_ = false;
         apply(coordinator_->start(now()));
       } else {
-        ROS_INFO_THROTTLE(5.0, "coordinator: autostart waits for %s", missing.c_str());
+        ROS_INFO_THROTTLE(5.0, "coordinator: autostart waits for: %s", missing.c_str());
       }
     }
     resendUnanswered();
     apply(coordinator_->onTick(now()));
   }
 
-  /// At-least-once delivery: a request or segment nobody acknowledged within resend_after_s
-  /// goes out again, unchanged (same id), e.g. when a node subscribed just too late. The
-  /// receivers ignore an id they already handle; this never makes a new decision.
+  static double wallNow() { return ros::WallTime::now().toSec(); }
+
+  /// At-least-once delivery (exec::Outbox): what nobody acknowledged goes out again, same id.
   void resendUnanswered() {
-    const ros::WallTime now = ros::WallTime::now();
-    auto due = [&](ros::WallTime& sent) {
-      if ((now - sent).toSec() < resend_after_s_) return false;
-      sent = now;
-      return true;
-    };
-    if (unanswered_decision_ && due(decision_sent_)) {
-      ROS_WARN("coordinator: decision request %u unanswered for %.1f s, sending it again", unanswered_decision_->id,
-               resend_after_s_);
-      decision_pub_.publish(*unanswered_decision_);
-    }
-    for (auto& [id, p] : unanswered_paths_)
-      if (due(p.sent)) {
+    using K = exec::Outbox::Kind;
+    for (const auto& [kind, id] : outbox_->due(wallNow())) {
+      if (kind == K::Decision && sent_decisions_.count(id)) {
+        ROS_WARN("coordinator: decision request %u unanswered for %.1f s, sending it again", id, outbox_->resendAfter());
+        decision_pub_.publish(sent_decisions_[id]);
+      } else if (kind == K::Path && sent_paths_.count(id)) {
         ROS_WARN("coordinator: path request %u unanswered, sending it again", id);
-        path_pub_.publish(p.msg);
-      }
-    for (auto& [id, seg] : unanswered_segments_)
-      if (due(seg.sent)) {
+        path_pub_.publish(sent_paths_[id]);
+      } else if (kind == K::Segment && sent_segments_.count(id)) {
+        const auto& seg = sent_segments_[id];
         ROS_WARN("coordinator: segment %u of %s not acknowledged, sending it again", id, seg.msg.entity.c_str());
         segment_pubs_[seg.entity].publish(seg.msg);
       }
+    }
   }
 
-  /// Every collaborator is subscribed: a request published now is not lost.
-  bool connected(std::string& missing) const {
-    if (decision_pub_.getNumSubscribers() == 0) missing = "a sequence node on /ddace/decision_request";
-    else if (path_pub_.getNumSubscribers() == 0) missing = "a path node on /ddace/path_request";
-    for (const auto& [i, pub] : segment_pubs_)
-      if (missing.empty() && pub.getNumSubscribers() == 0) missing = "an executor on " + pub.getTopic();
-    return missing.empty();
+  /// The node of every role, from ~roles (config/execution.yaml). An empty name leaves the
+  /// role unwatched (e.g. objects nobody moves on the real table).
+  void loadRoles(const ros::NodeHandle& pnh) {
+    const ros::NodeHandle r(pnh, "roles");
+    auto name = [&](const std::string& key, const std::string& fallback) {
+      std::string n = rosparam::param<std::string>(r, key, fallback);
+      if (!n.empty() && n[0] != '/') n = "/" + n;
+      return n;
+    };
+    const double heartbeat_s = rosparam::param(r, "heartbeat_timeout_s", 0.5);
+    const double pose_s = rosparam::param(r, "pose_timeout_s", 1.0);
+    const std::string seq = name("sequence", "/sequence"), paths = name("paths", "/gp_path");
+    if (!seq.empty()) watched_.push_back({roles_.add("sequence node", seq, "subscribed to /ddace/decision_request"),
+                                          "/ddace/decision_request", seq});
+    if (!paths.empty())
+      watched_.push_back({roles_.add("path node", paths, "subscribed to /ddace/path_request"), "/ddace/path_request", paths});
+    const std::string follower = name("follower", "/path_follower"), objects = name("object_executor", "/mock_robots");
+    const std::string driver = name("driver", "/mock_robots");
+    for (size_t i = 0; i < spec_.entities.size(); ++i) {
+      const auto& e = spec_.entities[i];
+      const std::string topic = "/robots/" + e.name + "/segment";
+      if (e.kind == task::EntityKind::Robot) {
+        const std::string node = name("followers/" + e.name, follower);
+        if (node.empty()) throw Error("parameter '" + r.resolveName("follower") + "' is empty: every robot needs a follower");
+        follower_role_[i] = roles_.add("follower of " + e.name, node, "subscribed to " + topic, heartbeat_s);
+        watched_.push_back({follower_role_[i], topic, node});
+        // The node that moves the robot (mock robots, the radio bridge): its link drops at once.
+        const std::string wheels = "/robots/" + e.name + "/wheels", driver_node = name("drivers/" + e.name, driver);
+        if (!driver_node.empty())
+          watched_.push_back({roles_.add("driver of " + e.name, driver_node, "subscribed to " + wheels), wheels, driver_node});
+      } else if (e.kind == task::EntityKind::Object && !objects.empty()) {
+        watched_.push_back({roles_.add("executor of " + e.name, objects, "subscribed to " + topic), topic, objects});
+      }
+    }
+    const std::string pose = name("pose_source", "/mock_robots");
+    if (!pose.empty()) pose_role_ = roles_.add("pose source", pose, "publishing /ddace/entities", pose_s);
+  }
+
+  /// Advertises `topic` and keeps track of which nodes are subscribed to it (roscpp calls
+  /// the disconnect callback as soon as a subscriber's connection drops, e.g. it was killed).
+  template <typename M>
+  ros::Publisher advertiseWatched(ros::NodeHandle& nh, const std::string& topic, uint32_t queue) {
+    auto connect = [this, topic](const ros::SingleSubscriberPublisher& p) {
+      std::lock_guard<std::mutex> l(links_mutex_);
+      links_.insert({topic, p.getSubscriberName()});
+    };
+    auto disconnect = [this, topic](const ros::SingleSubscriberPublisher& p) {
+      std::lock_guard<std::mutex> l(links_mutex_);
+      auto it = links_.find({topic, p.getSubscriberName()});
+      if (it != links_.end()) links_.erase(it);
+    };
+    return nh.advertise<M>(topic, queue, connect, disconnect);
+  }
+
+  /// Whether each role's node is connected on its topic.
+  void updatePresence() {
+    {
+      std::lock_guard<std::mutex> l(links_mutex_);
+      for (const auto& w : watched_) roles_.present(w.role, links_.count({w.topic, w.node}) != 0);
+    }
+    // The pose source publishes to us: present while its messages come (heartbeat rule).
+    if (pose_role_) roles_.present(*pose_role_, entities_sub_.getNumPublishers() > 0);
+  }
+
+  void onLiveness(const ros::TimerEvent&) {
+    updatePresence();
+    if (!coordinator_->running()) {
+      roles_.disarm();
+      return;
+    }
+    if (!roles_.armed()) roles_.arm(now());
+    if (const auto lost = roles_.lost(now())) {
+      ROS_ERROR("coordinator: %s: stopping every robot", lost->c_str());
+      zeroAllWheels();
+      apply(coordinator_->abortRun(*lost, now()));
+    }
+  }
+
+  void zeroAllWheels() {
+    ddace::WheelCommand w;
+    w.header.stamp = ros::Time::now();
+    for (auto& [i, pub] : wheel_pubs_) pub.publish(w);
+  }
+
+  /// Every role is served by its node: a request published now is not lost.
+  bool connected(std::string& missing) {
+    updatePresence();
+    const auto m = roles_.missing();
+    missing.clear();
+    for (const auto& r : m) missing += (missing.empty() ? "" : ", ") + r;
+    return m.empty();
   }
 
   void onEstopTopic(const std_msgs::Bool& m) {
@@ -264,7 +393,7 @@ class CoordinatorNode::Impl {
     std::string missing;
     if (!connected(missing)) {
       res.success = false;
-      res.message = "not started: no " + missing;
+      res.message = "not started: no node serves " + missing;
       return true;
     }
     return answer(coordinator_->start(now()), res,
@@ -281,6 +410,7 @@ class CoordinatorNode::Impl {
     return answer(coordinator_->reset(now()), res, {exec::RunState::Idle});
   }
   bool srvEstop(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+    zeroAllWheels();
     std_msgs::Bool stop;
     stop.data = true;
     estop_pub_.publish(stop);  // the followers zero every wheel on receipt
@@ -318,6 +448,33 @@ class CoordinatorNode::Impl {
       s.steps.push_back(m);
     }
     for (int e : coordinator_->activeEntities()) s.active.push_back(spec_.entities[e].name);
+    if (const exec::StepRecord* step = coordinator_->currentStep()) {
+      for (const auto& t : step->tokens) {
+        if (!t.token.isMotion() || t.state == exec::SegmentState::Done) continue;
+        ddace::ActiveSegment a;
+        a.entity = spec_.entities[t.token.entity].name;
+        a.segment_id = t.segment_id;
+        a.token = ros_exec::toMsg(t.token, spec_);
+        a.status = static_cast<uint8_t>(t.state);
+        a.progress = t.progress;
+        a.distance_to_goal_m = t.distance_to_goal_m;
+        a.elapsed_s = t.segment_id != 0 ? now() - coordinator_->segmentsSince() : 0.0;
+        a.timeout_s = t.timeout_s;
+        a.done_claimed = t.done_claimed;
+        s.segments.push_back(a);
+      }
+    }
+    for (const auto& step : coordinator_->steps()) s.completed_steps += step.complete ? 1 : 0;
+    s.last_end_probability = -1;
+    if (const auto& last = coordinator_->lastDecision()) {
+      const auto& d = last->decision;
+      const auto& p = last->probabilities;
+      for (size_t i = 0; i < d.tokens.size(); ++i)
+        s.last_decision.push_back(ros_exec::toMsg(d.tokens[i], spec_, i < p.tokens.size() ? p.tokens[i] : 1.0));
+      s.last_decision_end = d.end;
+      s.last_end_probability = p.end;
+    }
+    for (size_t k = 0; k < roles_.size(); ++k) s.roles.push_back(roles_.node(k));
     s.decisions_requested = coordinator_->decisionsRequested();
     const auto met = coordinator_->goalConditionsMet();
     for (size_t i = 0; i < spec_.goal_conditions.size(); ++i) {
@@ -386,21 +543,12 @@ class CoordinatorNode::Impl {
         line.color.a = 1.0;
         for (const auto& p : tr.path.points) line.points.push_back(point(p, 0.002));
         arr.markers.push_back(line);
-        // ... its +-2 sigma band (normal to the path, as a triangle strip) ...
+        // ... its +-2 sigma band ...
         Marker band = base("band_2sigma", Marker::TRIANGLE_LIST);
         band.scale.x = band.scale.y = band.scale.z = 1.0;
         band.color = line.color;
         band.color.a = 0.25;
-        const auto& pts = tr.path.points;
-        auto offset = [&](size_t k, double sign) {
-          const Eigen::Vector2d d = (k + 1 < pts.size() ? pts[k + 1] - pts[k] : pts[k] - pts[k - 1]).normalized();
-          const double sd = k < tr.path.stddev_m.size() ? tr.path.stddev_m[k] : 0.0;
-          return Eigen::Vector2d(pts[k] + sign * 2 * sd * Eigen::Vector2d(-d.y(), d.x()));
-        };
-        for (size_t k = 0; k + 1 < pts.size(); ++k) {
-          const auto a = offset(k, 1), b = offset(k, -1), c = offset(k + 1, 1), d = offset(k + 1, -1);
-          for (const auto& p : {a, b, c, c, b, d}) band.points.push_back(point(p, 0.001));
-        }
+        for (const auto& p : exec::sigmaBandTriangles(tr.path, 2.0)) band.points.push_back(point(p, 0.001));
         if (!band.points.empty()) arr.markers.push_back(band);
         // ... and its goal.
         Marker goal = base("goals", Marker::CYLINDER);
@@ -425,20 +573,27 @@ class CoordinatorNode::Impl {
     marker_pub_.publish(arr);
   }
 
-  struct SentPath {
-    ddace::PathRequest msg;
-    ros::WallTime sent;
-  };
   struct SentSegment {
     int entity;
     ddace::Segment msg;
-    ros::WallTime sent;
   };
-  std::optional<ddace::DecisionRequest> unanswered_decision_;
-  ros::WallTime decision_sent_;
-  std::map<uint32_t, SentPath> unanswered_paths_;
-  std::map<uint32_t, SentSegment> unanswered_segments_;
-  double resend_after_s_ = 0;  // set from the parameters
+  std::unique_ptr<exec::Outbox> outbox_;
+  std::map<uint32_t, ddace::DecisionRequest> sent_decisions_;
+  std::map<uint32_t, ddace::PathRequest> sent_paths_;
+  std::map<uint32_t, SentSegment> sent_segments_;
+
+  struct Watched {
+    size_t role;
+    std::string topic, node;  ///< the node must be subscribed to this topic of ours
+  };
+  exec::RoleWatch roles_;
+  std::vector<Watched> watched_;
+  std::mutex links_mutex_;
+  std::multiset<std::pair<std::string, std::string>> links_;  ///< (our topic, subscribed node)
+  std::map<int, size_t> follower_role_;
+  std::optional<size_t> pose_role_;
+  std::map<int, ros::Publisher> wheel_pubs_;
+  std::vector<ros::Subscriber> wheel_subs_;
 
   ros::NodeHandle nh_;
   task::TaskSpec spec_;
@@ -453,7 +608,7 @@ class CoordinatorNode::Impl {
   ros::Publisher decision_pub_, path_pub_, estop_pub_, state_pub_, marker_pub_;
   ros::Subscriber entities_sub_, decision_sub_, path_sub_, estop_sub_;
   std::vector<ros::ServiceServer> services_;
-  ros::Timer timer_;
+  ros::Timer timer_, state_timer_, liveness_timer_;
 };
 
 CoordinatorNode::CoordinatorNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}

@@ -3,6 +3,7 @@
 #include "params.h"
 
 #include <cmath>
+#include <algorithm>
 #include <filesystem>
 
 #include <tf2/LinearMath/Quaternion.h>
@@ -14,10 +15,18 @@ using rosparam::param;
 task::TaskSpec loadTaskSpec(const std::string& task_path) {
   namespace fs = std::filesystem;
   if (task_path.empty()) throw Error("no task given (parameter 'task': a task directory or its task.yaml)");
+  requireAbsolute(task_path, "task");
   fs::path p(task_path);
   if (fs::is_directory(p)) p /= "task.yaml";
   if (!fs::exists(p)) throw Error(Diagnostic{p.string(), 0, 0, "task file does not exist"});
   return task::readTaskYaml(p.string());
+}
+
+void requireAbsolute(const std::string& path, const std::string& param) {
+  if (!path.empty() && std::filesystem::path(path).is_relative())
+    throw Error("parameter '" + param + "' = '" + path +
+                "' is a relative path, but nodes run in ROS_HOME, not in your working directory: give an absolute "
+                "path (scripts/execute_sim and execute_sim.launch resolve relative paths against the caller's directory)");
 }
 
 task::Token fromMsg(const ddace::Token& msg, const task::TaskSpec& spec) {

@@ -23,8 +23,13 @@
 
 namespace ddace::ros_exec {
 
-/// The task spec from a task directory or a task.yaml path. Throws ddace::Error.
+/// The task spec from a task directory or a task.yaml path. Throws ddace::Error; a
+/// relative path is refused (nodes run in ROS_HOME, not in the caller's directory).
 task::TaskSpec loadTaskSpec(const std::string& task_path);
+
+/// Refuses a relative path given in parameter `param`: nodes run in ROS_HOME, so it would
+/// not mean what the caller meant. Throws ddace::Error saying so.
+void requireAbsolute(const std::string& path, const std::string& param);
 
 /// Token message -> core token. Throws ddace::Error naming the unknown entity/target.
 task::Token fromMsg(const ddace::Token& msg, const task::TaskSpec& spec);

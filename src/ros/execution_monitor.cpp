@@ -1,23 +1,40 @@
 // ExecutionMonitorNode: see include/ddace/ros/execution_monitor.h.
 #include "ddace/ros/execution_monitor.h"
+#include "ddace/task/task_dir.h"
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <map>
+#include <set>
 #include <sstream>
+#include <thread>
 
+#include <nlohmann/json.hpp>
 #include <ros/ros.h>
 
 #include <ddace/CoordinatorState.h>
 #include <ddace/DecisionRequest.h>
+#include <ddace/EntityArray.h>
 #include <ddace/Segment.h>
 #include <ddace/SegmentStatus.h>
 
 #include "exec_conversions.h"
 #include "params.h"
+#include "ddace/common/file.h"
+#include "ddace/eval/metrics.h"
 
-namespace ddace {
+namespace ddace::nodes {
+namespace fs = std::filesystem;
+
 namespace {
 
 std::string stepText(const std::vector<std::string>& keys) {
@@ -26,10 +43,27 @@ std::string stepText(const std::vector<std::string>& keys) {
   return s;
 }
 
-}  // namespace
-}  // namespace ddace
+std::string utcStamp() {
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y%m%dT%H%M%SZ", &tm);
+  return buf;
+}
 
-namespace ddace::nodes {
+std::string keyOf(const ddace::Token& t) {
+  return t.entity + ":" + t.action + (t.target.empty() ? "" : ":" + t.target);
+}
+
+/// True when process `pid` runs roslaunch (only then is it ours to end).
+bool isRoslaunch(pid_t pid) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/cmdline");
+  std::string cmd((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  return cmd.find("roslaunch") != std::string::npos;
+}
+
+}  // namespace
 
 class ExecutionMonitorNode::Impl {
  public:
@@ -38,56 +72,152 @@ class ExecutionMonitorNode::Impl {
     spec_ = ros_exec::loadTaskSpec(task_path);
     const int gt = rosparam::param(pnh, "ground_truth_demo", -1);
     if (gt >= 0) {
-      std::vector<std::string> files;
-      for (const auto& f : std::filesystem::directory_iterator(std::filesystem::path(task_path) / "demos"))
-        if (f.path().extension() == ".csv") files.push_back(f.path().string());
-      std::sort(files.begin(), files.end());
-      if (gt >= static_cast<int>(files.size()))
-        throw Error("parameter '" + pnh.resolveName("ground_truth_demo") + "' = " + std::to_string(gt) +
-                    " is beyond the " + std::to_string(files.size()) + " demonstrations");
-      gt_file_ = files[gt];
+      gt_file_ = task::demoFile(task_path, gt, "parameter '" + pnh.resolveName("ground_truth_demo") + "'");
       gt_ = task::readDemonstrationCsv(gt_file_, spec_);
       have_gt_ = true;
     }
-    result_file_ = rosparam::param<std::string>(pnh, "result_file", "");
-    report_file_ = rosparam::param<std::string>(pnh, "report_file", "");
+    std::string run_dir = rosparam::param<std::string>(pnh, "run_dir", "");
+    if (run_dir.empty()) {
+      const char* home = std::getenv("HOME");
+      std::string base = rosparam::param<std::string>(pnh, "runs_dir", std::string(home ? home : "/tmp") + "/.ros/ddace/runs");
+      run_dir = (fs::path(base) / utcStamp()).string();
+      latest_link_ = (fs::path(base) / "latest").string();
+    }
+    if (fs::path(run_dir).is_relative())
+      throw Error("parameter '" + pnh.resolveName("run_dir") + "' = '" + run_dir +
+                  "' is relative: nodes run in ROS_HOME, give an absolute path");
+    std::error_code ec;
+    fs::create_directories(run_dir, ec);
+    if (ec) throw Error("cannot create the run directory " + run_dir + ": " + ec.message());
+    run_dir_ = run_dir;
+    if (!latest_link_.empty()) {
+      fs::remove(latest_link_, ec);
+      fs::create_directory_symlink(fs::path(run_dir_).filename(), latest_link_, ec);
+    }
+    plot_script_ = rosparam::param<std::string>(pnh, "plot_script", "");
+    end_launch_ = rosparam::param(pnh, "end_launch", true);
     const double timeout_s = rosparam::param(pnh, "timeout_s", 0.0);
+    std::vector<std::string> topics = {"/ddace/entities", "/ddace/decision_request", "/coordinator/state", "/ddace/estop"};
     for (const auto& e : spec_.entities) {
       if (e.kind == task::EntityKind::Goal) continue;
-      subs_.push_back(nh.subscribe<ddace::Segment>("/robots/" + e.name + "/segment", 20,
+      const std::string r = "/robots/" + e.name;
+      topics.insert(topics.end(), {r + "/segment", r + "/segment_status"});
+      if (e.kind == task::EntityKind::Robot) topics.push_back(r + "/wheels");
+      subs_.push_back(nh.subscribe<ddace::Segment>(r + "/segment", 20,
                                                    [this](const ddace::Segment::ConstPtr& m) { onSegment(*m); }));
       subs_.push_back(nh.subscribe<ddace::SegmentStatus>(
-          "/robots/" + e.name + "/segment_status", 50, [this](const ddace::SegmentStatus::ConstPtr& m) { onStatus(*m); }));
+          r + "/segment_status", 50, [this](const ddace::SegmentStatus::ConstPtr& m) { onStatus(*m); }));
     }
     subs_.push_back(nh.subscribe("/ddace/decision_request", 10, &Impl::onDecisionRequest, this));
     subs_.push_back(nh.subscribe("/coordinator/state", 10, &Impl::onState, this));
+    subs_.push_back(nh.subscribe("/ddace/entities", 10, &Impl::onEntities, this));
+    if (rosparam::param(pnh, "record_bag", true)) startBag(topics);
     if (timeout_s > 0)
       timer_ = nh.createTimer(ros::Duration(timeout_s), [this, timeout_s](const ros::TimerEvent&) {
         ROS_ERROR("execution_monitor: the run did not end within %.0f s", timeout_s);
-        report("timed out (monitor)", {});
+        report("timed out (monitor, timeout_s = " + std::to_string(timeout_s) + ")", last_state_, "timed_out");
       }, true);
+    ROS_INFO("execution_monitor: recording the run into %s", run_dir_.c_str());
+  }
+
+  ~Impl() {
+    // SIGINT (roslaunch shutting down, Ctrl-C): whatever ran is recorded as interrupted.
+    if (!reported_) report("interrupted (SIGINT) in state " + last_state_.state_name, last_state_, "interrupted");
+    stopBag();
   }
 
  private:
+  struct Seg {
+    std::string key, entity;
+    int step = 0;
+    ros::Time sent, ended;
+    uint8_t end_status = 0;
+    std::vector<Eigen::Vector2d> planned, executed;
+    std::vector<double> stddev_m;
+    Eigen::Vector2d goal{0, 0};
+  };
+
+  /// "execution_monitor_bag" for /ns/execution_monitor (a node name has no slash).
+  static std::string bagNodeName() {
+    const std::string n = ros::this_node::getName();
+    return n.substr(n.rfind('/') + 1) + "_bag";
+  }
+
+  void startBag(const std::vector<std::string>& topics) {
+    std::vector<std::string> args = {"rosbag", "record", "--quiet", "-O", run_dir_ + "/run.bag",
+                                     "__name:=" + bagNodeName()};
+    args.insert(args.end(), topics.begin(), topics.end());
+    bag_pid_ = ::fork();
+    if (bag_pid_ == 0) {
+      std::vector<char*> argv;
+      for (auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+      argv.push_back(nullptr);
+      ::execvp("rosbag", argv.data());
+      std::cerr << "execution_monitor: cannot run rosbag (install Debian's rosbag)\n";
+      ::_exit(127);
+    }
+    if (bag_pid_ < 0) ROS_ERROR("execution_monitor: cannot start rosbag record: %s", std::strerror(errno));
+  }
+
+  void stopBag() {
+    if (bag_pid_ <= 0) return;
+    ::kill(bag_pid_, SIGINT);
+    for (int i = 0; i < 100; ++i) {  // rosbag closes the bag on SIGINT: up to 10 s
+      if (::waitpid(bag_pid_, nullptr, WNOHANG) == bag_pid_) {
+        bag_pid_ = -1;
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    ::kill(bag_pid_, SIGKILL);
+    ::waitpid(bag_pid_, nullptr, 0);
+    bag_pid_ = -1;
+  }
+
+  void onEntities(const ddace::EntityArray& m) {
+    for (const auto& e : m.entities) {
+      if (!std::isfinite(e.pose.x) || !std::isfinite(e.pose.y)) continue;
+      const Eigen::Vector2d p(e.pose.x, e.pose.y);
+      positions_[e.name] = p;
+      auto it = running_.find(e.name);
+      if (it != running_.end()) {
+        auto& trace = segments_[it->second].executed;
+        if (trace.empty() || (trace.back() - p).norm() > 0.002) trace.push_back(p);
+      }
+    }
+  }
+
   // Topics from different publishers may arrive in any order, so the check compares the
   // stamps: a request stamped after a segment was sent and before it ended is a violation.
   void onSegment(const ddace::Segment& m) {
     if (m.mode != ddace::Segment::MODE_FOLLOW) return;
     Seg& seg = segments_[m.segment_id];
-    seg.key = m.token.entity + ":" + m.token.action + (m.token.target.empty() ? "" : ":" + m.token.target);
+    if (seg.sent != ros::Time()) return;  // a re-sent copy
+    seg.key = keyOf(m.token);
+    seg.entity = m.entity;
+    seg.step = m.step;
     seg.sent = m.header.stamp;
+    seg.goal = {m.goal.x, m.goal.y};
+    for (const auto& p : m.path.poses) seg.planned.emplace_back(p.pose.position.x, p.pose.position.y);
+    seg.stddev_m = m.stddev_m;
+    auto pos = positions_.find(m.entity);
+    if (pos != positions_.end()) seg.executed.push_back(pos->second);
+    running_[m.entity] = m.segment_id;
   }
 
   void onStatus(const ddace::SegmentStatus& m) {
     if (m.status != ddace::SegmentStatus::DONE && m.status != ddace::SegmentStatus::FAILED &&
         m.status != ddace::SegmentStatus::ABORTED)
       return;
-    Seg& seg = segments_[m.segment_id];
-    if (seg.ended != ros::Time()) return;
-    seg.ended = m.header.stamp;
+    auto it = segments_.find(m.segment_id);
+    if (it == segments_.end() || it->second.ended != ros::Time() || it->second.entity != m.entity) return;
+    it->second.ended = m.header.stamp;
+    it->second.end_status = m.status;
   }
 
-  void onDecisionRequest(const ddace::DecisionRequest& m) { requests_.push_back(m.header.stamp); }
+  void onDecisionRequest(const ddace::DecisionRequest& m) {
+    if (request_ids_.insert(m.id).second) requests_.push_back(m.header.stamp);
+  }
 
   int violations() const {
     int n = 0;
@@ -102,26 +232,70 @@ class ExecutionMonitorNode::Impl {
   }
 
   void onState(const ddace::CoordinatorState& s) {
+    last_state_ = s;
+    have_state_ = true;
     if (s.state == ddace::CoordinatorState::FINISHED || s.state == ddace::CoordinatorState::ABORTED ||
-        s.state == ddace::CoordinatorState::ESTOPPED)
-    {
+        s.state == ddace::CoordinatorState::ESTOPPED) {
       if (final_timer_.isValid()) return;
       // Status messages of the last segments may still be on their way on other connections.
       final_timer_ = nh_.createTimer(ros::Duration(0.5), [this, s](const ros::TimerEvent&) {
-        report(s.state_name + (s.reason.empty() ? "" : " (" + s.reason + ")"), s);
+        report(s.state_name + (s.reason.empty() ? "" : " (" + s.reason + ")"), last_state_);
       }, true);
     }
   }
 
-  void report(const std::string& outcome, const ddace::CoordinatorState& s) {
+  /// The run as the closed-loop simulator would have recorded it, for eval::scoreTrial.
+  exec::Trial trial(const ddace::CoordinatorState& s) const {
+    exec::Trial t;
+    t.ended = s.state == ddace::CoordinatorState::FINISHED;
+    for (const auto& step : s.steps) {
+      task::Step st;
+      for (const auto& tok : step.tokens) {
+        try {
+          st.tokens.push_back(ros_exec::fromMsg(tok, spec_));
+        } catch (const Error& e) {
+          ROS_WARN("execution_monitor: step %d: %s", step.index + 1, e.what());
+        }
+      }
+      t.predicted.push_back(st);
+    }
+    // Executed motion tokens: every segment sent, with the positions it passed through.
+    for (const auto& [id, seg] : segments_) {
+      if (seg.sent == ros::Time()) continue;
+      exec::ExecutedToken ex;
+      try {
+        ex.token = task::parseTokenKey(seg.key, spec_);
+      } catch (const Error&) {
+        continue;
+      }
+      ex.step = seg.step;
+      ex.goal = seg.goal;
+      ex.planned = seg.planned;
+      ex.executed = seg.executed;
+      auto pos = positions_.find(seg.entity);
+      if (ex.executed.empty() && pos != positions_.end()) ex.executed.push_back(pos->second);
+      if (ex.executed.empty()) continue;
+      ex.start = ex.executed.front();
+      t.executed.push_back(ex);
+    }
+    for (const auto& e : spec_.entities) {
+      auto pos = positions_.find(e.name);
+      t.final_positions.push_back(pos != positions_.end() ? pos->second : Eigen::Vector2d::Constant(NAN));
+    }
+    if (positions_.size() < spec_.entities.size()) t.final_positions.clear();
+    return t;
+  }
+
+  /// `ending`: the run's ending as result.json names it: the coordinator's final state
+  /// (finished, aborted, estopped), or the monitor's (interrupted, timed_out).
+  void report(const std::string& outcome, const ddace::CoordinatorState& s, const std::string& ending = "") {
     if (reported_) return;
     reported_ = true;
     const bool finished = s.state == ddace::CoordinatorState::FINISHED;
     std::vector<std::vector<std::string>> executed, truth;
     for (const auto& step : s.steps) {
       executed.emplace_back();
-      for (const auto& t : step.tokens)
-        executed.back().push_back(t.entity + ":" + t.action + (t.target.empty() ? "" : ":" + t.target));
+      for (const auto& t : step.tokens) executed.back().push_back(keyOf(t));
       std::sort(executed.back().begin(), executed.back().end());
     }
     if (have_gt_)
@@ -132,80 +306,121 @@ class ExecutionMonitorNode::Impl {
       }
     std::ostringstream os;
     os << "\n=== ddace execution: task '" << spec_.name << "'";
-    if (have_gt_) os << ", ground truth " << gt_file_;
+    if (have_gt_) os << ", ground truth " << fs::path(gt_file_).filename().string();
     os << "\n";
     const size_t rows = std::max(executed.size(), truth.size());
-    int right = 0;
     for (size_t k = 0; k < rows; ++k) {
       os << "  step " << k + 1 << ": " << (k < executed.size() ? stepText(executed[k]) : "(none)");
       if (have_gt_) {
         const bool same = k < executed.size() && k < truth.size() && executed[k] == truth[k];
-        right += same && k < truth.size();
         os << (same ? "   [= ground truth]" : "   [ground truth: " + (k < truth.size() ? stepText(truth[k]) : "END") + "]");
       }
       os << "\n";
     }
     os << "  " << (finished ? "END" : "(no END)") << "\n";
-    const double duration = s.steps.empty() ? 0.0 : (s.header.stamp - s.steps.front().decided).toSec();
+    const double duration = s.steps.empty() ? 0.0 : (ros::Time::now() - s.steps.front().decided).toSec();
     os << "result: " << outcome << ", " << duration << " s from the first decision to the end, " << s.decisions_requested
        << " decisions requested\n";
     int gc_met = 0;
-    for (size_t i = 0; i < s.goal_conditions.size(); ++i) {
+    for (size_t i = 0; i < s.goal_conditions.size() && i < s.goal_conditions_met.size(); ++i) {
       gc_met += s.goal_conditions_met[i] ? 1 : 0;
       os << "  goal condition " << s.goal_conditions[i] << ": " << (s.goal_conditions_met[i] ? "met" : "NOT met")
          << "\n";
     }
-    double ssr = 0, gcr = 0;
-    int gt_motion = 0, matched = 0;
+    const exec::Trial run = trial(s);
+    nlohmann::json j;
+    j["task"] = spec_.name;
+    j["state"] = !ending.empty() ? ending : s.state_name;
+    j["coordinator_state"] = have_state_ ? s.state_name : "none";
+    j["outcome"] = outcome;
+    j["reason"] = s.reason;
+    j["steps"] = executed.size();
+    j["goal_conditions_met"] = gc_met;
+    j["duration_s"] = duration;
     if (have_gt_) {
-      ssr = truth.empty() ? 1.0 : static_cast<double>(right) / truth.size();
-      std::vector<std::string> done;  // motion tokens reported done, from the coordinator's record
-      for (const auto& step : s.steps)
-        for (size_t i = 0; i < step.tokens.size() && i < step.status.size(); ++i)
-          if (!step.tokens[i].target.empty() && step.status[i] == ddace::SegmentStatus::DONE)
-            done.push_back(step.tokens[i].entity + ":" + step.tokens[i].action + ":" + step.tokens[i].target);
-      for (const auto& seg : gt_.segments) {
-        if (!seg.token.isMotion() || spec_.entities[seg.token.entity].kind != task::EntityKind::Robot) continue;
-        ++gt_motion;
-        auto it = std::find(done.begin(), done.end(), task::tokenKey(seg.token, spec_));
-        if (it != done.end()) ++matched, done.erase(it);
-      }
-      gcr = gt_motion ? static_cast<double>(matched) / gt_motion : 1.0;
+      // One definition of every metric: the same scoring as `ddace eval`.
+      const eval::TrialScore score = eval::scoreTrial(spec_, gt_, run);
+      auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+      os << "metrics: SSR " << score.ssr() << " (" << score.correct_steps << "/" << score.gt_steps << " steps), GCR "
+         << score.gcr() << " (" << score.achieved_robot_motions << "/" << score.gt_robot_motions
+         << " robot motion tokens arrived), goal conditions " << (score.goal_conditions_hold ? "hold" : "do NOT hold")
+         << ", FD " << score.meanFd() << ", OSR " << (score.success ? 1 : 0) << "\n";
+      j["ground_truth"] = fs::path(gt_file_).filename().string();
+      j["ssr"] = score.ssr();
+      j["gcr"] = score.gcr();
+      j["fd"] = num(score.meanFd());
+      j["osr"] = score.success ? 1 : 0;
+      j["ended_correctly"] = score.ended_correctly;
+      j["goal_conditions_hold"] = score.goal_conditions_hold;
     }
-    const bool all_gc = gc_met == static_cast<int>(s.goal_conditions.size());
-    const bool osr = have_gt_ && finished && right == static_cast<int>(truth.size()) &&
-                     executed.size() == truth.size() && gcr == 1.0 && all_gc;
-    if (have_gt_)
-      os << "metrics: SSR " << ssr << " (" << right << "/" << truth.size() << " steps), GCR " << gcr << " ("
-         << matched << "/" << gt_motion << " robot motion tokens done), goal conditions " << gc_met << "/"
-         << s.goal_conditions.size() << ", OSR " << (osr ? 1 : 0) << "\n";
     const int violations = this->violations();
     os << "decisions requested while a segment was running: " << violations << "\n";
+    j["decisions_while_running"] = violations;
+    os << "run directory: " << run_dir_ << "\n";
     std::cout << os.str() << std::flush;
-    if (!report_file_.empty()) std::ofstream(report_file_) << os.str();
-    if (!result_file_.empty()) {
-      std::ofstream f(result_file_);
-      f << "{\"task\": \"" << spec_.name << "\", \"state\": \"" << s.state_name << "\", \"steps\": " << executed.size()
-        << ", \"ssr\": " << ssr << ", \"gcr\": " << gcr << ", \"goal_conditions_met\": " << gc_met
-        << ", \"osr\": " << (osr ? 1 : 0) << ", \"duration_s\": " << duration
-        << ", \"decisions_while_running\": " << violations << "}\n";
-    }
+    std::ofstream(run_dir_ + "/report.txt") << os.str();
+    std::ofstream(run_dir_ + "/result.json") << j.dump(2) << "\n";
+    writeRunJson(s, run);
+    stopBag();
+    plot();
+    if (end_launch_ && isRoslaunch(::getppid())) ::kill(::getppid(), SIGINT);  // a clean end of the whole launch
     ros::shutdown();
+  }
+
+  /// What the plot needs: per segment the planned path with its stddev, the executed
+  /// positions, and when each step was decided.
+  void writeRunJson(const ddace::CoordinatorState& s, const exec::Trial&) const {
+    nlohmann::json j;
+    j["task"] = spec_.name;
+    j["state"] = s.state_name;
+    j["reason"] = s.reason;
+    const double t0 = s.steps.empty() ? 0.0 : s.steps.front().decided.toSec();
+    j["decisions_s"] = nlohmann::json::array();
+    for (const auto& step : s.steps) j["decisions_s"].push_back(step.decided.toSec() - t0);
+    j["segments"] = nlohmann::json::array();
+    for (const auto& [id, seg] : segments_) {
+      if (seg.sent == ros::Time()) continue;
+      nlohmann::json g;
+      g["id"] = id;
+      g["key"] = seg.key;
+      g["entity"] = seg.entity;
+      g["kind"] = spec_.entityIndex(seg.entity) >= 0 ? task::toString(spec_.entities[spec_.entityIndex(seg.entity)].kind)
+                                                    : "unknown";
+      g["step"] = seg.step;
+      g["sent_s"] = seg.sent.toSec() - t0;
+      g["ended_s"] = seg.ended == ros::Time() ? nlohmann::json(nullptr) : nlohmann::json(seg.ended.toSec() - t0);
+      g["end_status"] = seg.end_status;
+      g["goal"] = {seg.goal.x(), seg.goal.y()};
+      for (const auto& p : seg.planned) g["planned"].push_back({p.x(), p.y()});
+      g["stddev_m"] = seg.stddev_m;
+      for (const auto& p : seg.executed) g["executed"].push_back({p.x(), p.y()});
+      j["segments"].push_back(g);
+    }
+    std::ofstream(run_dir_ + "/run.json") << j.dump() << "\n";
+  }
+
+  void plot() const {
+    if (plot_script_.empty()) return;
+    const std::string cmd = "/usr/bin/python3 '" + plot_script_ + "' '" + run_dir_ + "/run.json' '" + run_dir_ +
+                            "/paths.png' > '" + run_dir_ + "/plot.log' 2>&1";
+    if (std::system(cmd.c_str()) != 0)
+      std::cerr << "execution_monitor: the plot failed (see " << run_dir_ << "/plot.log)\n";
   }
 
   task::TaskSpec spec_;
   task::Demonstration gt_;
-  std::string gt_file_, result_file_, report_file_;
-  bool have_gt_ = false, reported_ = false;
-  struct Seg {
-    std::string key;
-    ros::Time sent, ended;
-  };
+  std::string gt_file_, run_dir_, latest_link_, plot_script_;
+  bool have_gt_ = false, reported_ = false, have_state_ = false, end_launch_ = true;
+  ddace::CoordinatorState last_state_;
   std::map<uint32_t, Seg> segments_;
+  std::map<std::string, uint32_t> running_;  ///< entity -> its latest segment
+  std::map<std::string, Eigen::Vector2d> positions_;
   std::vector<ros::Time> requests_;
+  std::set<uint32_t> request_ids_;
   std::vector<ros::Subscriber> subs_;
   ros::Timer timer_, final_timer_;
   ros::NodeHandle nh_;
+  pid_t bag_pid_ = -1;
 };
 
 ExecutionMonitorNode::ExecutionMonitorNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}

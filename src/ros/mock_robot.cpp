@@ -9,6 +9,7 @@
 #include <ros/ros.h>
 #include <std_msgs/Bool.h>
 #include <tf2/LinearMath/Quaternion.h>
+#include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
 
 #include <ddace/EntityArray.h>
@@ -18,6 +19,7 @@
 
 #include "exec_conversions.h"
 #include "params.h"
+#include "ddace/exec/scene.h"
 #include "ddace/task/task_dir.h"
 
 namespace ddace::nodes {
@@ -68,6 +70,7 @@ class MockRobotNode::Impl {
     entities_pub_ = nh.advertise<ddace::EntityArray>(topic, 5);
     estop_sub_ = nh.subscribe("/ddace/estop", 5, &Impl::onEstop, this);
     timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz_), &Impl::onTimer, this);
+    if (publish_tf_) publishStaticFrames();
     ROS_INFO("mock_robots: task '%s', %zu entities at %.0f Hz on %s", spec_.name.c_str(), n, rate_hz_, topic.c_str());
   }
 
@@ -77,9 +80,7 @@ class MockRobotNode::Impl {
     std::unique_ptr<exec::DiffDriveModel> robot;
     ros::Subscriber wheels_sub, segment_sub;
     ros::Publisher status;
-    std::vector<Eigen::Vector2d> path;          ///< object segment being carried out
-    std::vector<double> cum_m;
-    double s_m = 0;
+    std::unique_ptr<exec::CarriedObject> carried;  ///< object segment being carried out
     uint32_t segment_id = 0;
     bool moving = false;
     int status_cycle = 0;
@@ -93,31 +94,11 @@ class MockRobotNode::Impl {
     std::vector<bool> set(n, false);
     std::string csv = rosparam::param<std::string>(pnh, "scene_csv", "");
     const int demo_index = rosparam::param(pnh, "scene_demo", -1);
-    if (csv.empty() && demo_index >= 0) {
-      std::vector<std::string> files;
-      for (const auto& f : std::filesystem::directory_iterator(std::filesystem::path(task_path) / "demos"))
-        if (f.path().extension() == ".csv") files.push_back(f.path().string());
-      std::sort(files.begin(), files.end());
-      if (demo_index >= static_cast<int>(files.size()))
-        throw Error("parameter '" + pnh.resolveName("scene_demo") + "' = " + std::to_string(demo_index) + " but " +
-                    task_path + "/demos has " + std::to_string(files.size()) + " demonstrations");
-      csv = files[demo_index];
-    }
+    if (csv.empty() && demo_index >= 0)
+      csv = task::demoFile(task_path, demo_index, "parameter '" + pnh.resolveName("scene_demo") + "'");
     if (!csv.empty()) {
-      const task::Demonstration d = task::readDemonstrationCsv(csv, spec_);
-      for (size_t i = 0; i < n; ++i) {
-        poses[i].x = d.positions.front()[i].x();
-        poses[i].y = d.positions.front()[i].y();
-        // Face the way the entity first moves in the demonstration.
-        for (size_t row = 1; row < d.rows(); ++row) {
-          const Eigen::Vector2d v = d.positions[row][i] - d.positions.front()[i];
-          if (v.norm() > 0.01) {
-            poses[i].yaw = std::atan2(v.y(), v.x());
-            break;
-          }
-        }
-        set[i] = true;
-      }
+      poses = exec::startPoses(task::readDemonstrationCsv(csv, spec_));
+      set.assign(n, true);
       ROS_INFO("mock_robots: scene from the first row of %s", csv.c_str());
     }
     if (auto scene = rosparam::optionalParam<XmlRpc::XmlRpcValue>(pnh, "scene")) {
@@ -153,9 +134,8 @@ class MockRobotNode::Impl {
     s.entity = spec_.entities[i].name;
     s.segment_id = e.segment_id;
     s.status = status;
-    const double total = e.cum_m.empty() ? 0.0 : e.cum_m.back();
-    s.progress = total > 0 ? std::min(1.0, e.s_m / total) : 1.0;
-    s.distance_to_goal_m = e.path.empty() ? 0.0 : (e.path.back() - e.pose.position()).norm();
+    s.progress = e.carried ? e.carried->progress() : 0.0;
+    s.distance_to_goal_m = e.carried ? (e.carried->goal() - e.pose.position()).norm() : 0.0;
     s.message = msg;
     e.status.publish(s);
   }
@@ -175,11 +155,7 @@ class MockRobotNode::Impl {
     try {
       const exec::PlannedPath p = ros_exec::fromMsg(m.path, m.stddev_m, "/robots/" + spec_.entities[i].name + "/segment");
       if (p.points.empty()) throw Error("segment path is empty");
-      e.path = p.points;
-      e.path.front() = e.pose.position();  // an object starts where it is
-      e.cum_m.assign(e.path.size(), 0.0);
-      for (size_t k = 1; k < e.path.size(); ++k) e.cum_m[k] = e.cum_m[k - 1] + (e.path[k] - e.path[k - 1]).norm();
-      e.s_m = 0;
+      e.carried = std::make_unique<exec::CarriedObject>(p.points, e.pose.position(), object_speed_mps_);
       e.segment_id = m.segment_id;
       e.moving = true;
       objectStatus(e, i, ddace::SegmentStatus::ACCEPTED, "");
@@ -188,6 +164,32 @@ class MockRobotNode::Impl {
       e.moving = false;
       objectStatus(e, i, ddace::SegmentStatus::FAILED, ex.what());
     }
+  }
+
+  /// Goals never move: their frames go on /tf_static once (latched), not at 50 Hz on /tf.
+  void publishStaticFrames() {
+    std::vector<geometry_msgs::TransformStamped> frames;
+    for (size_t i = 0; i < entities_.size(); ++i) {
+      if (spec_.entities[i].kind != task::EntityKind::Goal) continue;
+      frames.push_back(transform(spec_.entities[i].name, entities_[i].pose, ros::Time::now()));
+    }
+    if (!frames.empty()) static_tf_.sendTransform(frames);
+  }
+
+  geometry_msgs::TransformStamped transform(const std::string& child, const exec::Pose2D& pose, const ros::Time& stamp) const {
+    geometry_msgs::TransformStamped t;
+    t.header.stamp = stamp;
+    t.header.frame_id = frame_id_;
+    t.child_frame_id = child;
+    t.transform.translation.x = pose.x;
+    t.transform.translation.y = pose.y;
+    tf2::Quaternion q;
+    q.setRPY(0, 0, pose.yaw);
+    t.transform.rotation.x = q.x();
+    t.transform.rotation.y = q.y();
+    t.transform.rotation.z = q.z();
+    t.transform.rotation.w = q.w();
+    return t;
   }
 
   void onEstop(const std_msgs::Bool& m) {
@@ -213,17 +215,11 @@ class MockRobotNode::Impl {
         measured = e.robot->measuredPose();
         e.pose = e.robot->truePose();
       } else if (e.moving) {
-        e.s_m = std::min(e.s_m + object_speed_mps_ * dt, e.cum_m.back());
-        size_t k = 1;
-        while (k + 1 < e.path.size() && e.cum_m[k] < e.s_m) ++k;
-        const double len = e.path.size() > 1 ? e.cum_m[k] - e.cum_m[k - 1] : 0.0;
-        const double f = len > 0 ? (e.s_m - e.cum_m[k - 1]) / len : 1.0;
-        const Eigen::Vector2d p =
-            e.path.size() > 1 ? Eigen::Vector2d(e.path[k - 1] + f * (e.path[k] - e.path[k - 1])) : e.path.back();
+        const Eigen::Vector2d p = e.carried->advance(dt);
         e.pose.x = p.x();
         e.pose.y = p.y();
         measured = e.pose;
-        if (e.s_m >= e.cum_m.back()) {
+        if (e.carried->arrived()) {
           e.moving = false;
           objectStatus(e, i, ddace::SegmentStatus::DONE, "");
         } else if (++e.status_cycle % 5 == 0) {
@@ -240,20 +236,8 @@ class MockRobotNode::Impl {
       out.stale = false;
       out.last_seen = msg.header.stamp;
       msg.entities.push_back(out);
-      if (publish_tf_) {
-        geometry_msgs::TransformStamped t;
-        t.header = msg.header;
-        t.child_frame_id = out.name;
-        t.transform.translation.x = measured.x;
-        t.transform.translation.y = measured.y;
-        tf2::Quaternion q;
-        q.setRPY(0, 0, measured.yaw);
-        t.transform.rotation.x = q.x();
-        t.transform.rotation.y = q.y();
-        t.transform.rotation.z = q.z();
-        t.transform.rotation.w = q.w();
-        tf_.sendTransform(t);
-      }
+      if (publish_tf_ && spec_.entities[i].kind != task::EntityKind::Goal)
+        tf_.sendTransform(transform(out.name, measured, msg.header.stamp));
     }
     sim_time_s_ += dt;
     entities_pub_.publish(msg);
@@ -271,6 +255,7 @@ class MockRobotNode::Impl {
   ros::Subscriber estop_sub_;
   ros::Timer timer_;
   tf2_ros::TransformBroadcaster tf_;
+  tf2_ros::StaticTransformBroadcaster static_tf_;
 };
 
 MockRobotNode::MockRobotNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}

@@ -1,5 +1,6 @@
 // SequenceNode: see include/ddace/ros/sequence.h.
 #include "ddace/ros/sequence.h"
+#include "ddace/task/task_dir.h"
 
 #include <algorithm>
 #include <filesystem>
@@ -16,26 +17,6 @@
 #include "ddace/exec/replay.h"
 #include "ddace/tgn/sequence_model.h"
 
-namespace ddace {
-namespace {
-
-/// The n-th demonstration CSV of a task directory (file-name order).
-std::string demoFile(const std::string& task_dir, int index, const std::string& param_name) {
-  std::vector<std::string> files;
-  const auto demos = std::filesystem::path(task_dir) / "demos";
-  if (!std::filesystem::is_directory(demos)) throw Error(Diagnostic{demos.string(), 0, 0, "no demos/ directory"});
-  for (const auto& f : std::filesystem::directory_iterator(demos))
-    if (f.path().extension() == ".csv") files.push_back(f.path().string());
-  std::sort(files.begin(), files.end());
-  if (index < 0 || index >= static_cast<int>(files.size()))
-    throw Error("parameter '" + param_name + "' = " + std::to_string(index) + " but " + demos.string() + " has " +
-                std::to_string(files.size()) + " demonstrations");
-  return files[index];
-}
-
-}  // namespace
-}  // namespace ddace
-
 namespace ddace::nodes {
 
 class SequenceNode::Impl {
@@ -50,6 +31,7 @@ class SequenceNode::Impl {
     if (policy == SequenceNode::Policy::Model) {
       const std::string dir = rosparam::param<std::string>(pnh, "model", "");
       if (dir.empty()) throw Error("policy 'model' needs parameter '" + pnh.resolveName("model") + "' (a model directory)");
+      ros_exec::requireAbsolute(dir, pnh.resolveName("model"));
       model_ = std::make_unique<tgn::SequenceModel>(tgn::SequenceModel::load(dir));
       if (model_->spec().entityNames() != spec_.entityNames())
         throw Error("model " + dir + " was trained on other entities than the task " + task_path + " has");
@@ -66,7 +48,8 @@ class SequenceNode::Impl {
     } else {
       std::string csv = rosparam::param<std::string>(pnh, "replay_csv", "");
       if (csv.empty())
-        csv = demoFile(task_path, rosparam::param(pnh, "replay_demo", defaults.replay_demo), pnh.resolveName("replay_demo"));
+        csv = task::demoFile(task_path, rosparam::param(pnh, "replay_demo", defaults.replay_demo),
+                             "parameter '" + pnh.resolveName("replay_demo") + "'");
       demo_ = task::readDemonstrationCsv(csv, spec_);
       policy_ = [this](const std::vector<task::Snapshot>& h) { return exec::replayDecision(demo_, h); };
       ROS_INFO("sequence: replaying the %zu steps of %s", demo_.steps.size(), csv.c_str());

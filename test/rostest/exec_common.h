@@ -22,7 +22,9 @@
 #include <set>
 #include <thread>
 
+#include <ros/network.h>
 #include <ros/ros.h>
+#include <xmlrpcpp/XmlRpcClient.h>
 #include <std_msgs/Bool.h>
 #include <std_srvs/Trigger.h>
 #include <yaml-cpp/yaml.h>
@@ -112,6 +114,21 @@ class Launch {
     }
     ::setpgid(pid_, pid_);
   }
+  /// SIGINT to the launch's process group (Ctrl-C in its terminal).
+  void interrupt() {
+    if (pid_ > 0) ::kill(-pid_, SIGINT);
+  }
+  /// Waits until roslaunch exits by itself; true when it did within `timeout_s`.
+  bool waitExit(double timeout_s) {
+    for (int i = 0; i < timeout_s * 10 && pid_ > 0; ++i) {
+      if (::waitpid(pid_, nullptr, WNOHANG) == pid_) {
+        pid_ = -1;
+        return true;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    return pid_ <= 0;
+  }
   ~Launch() {
     if (pid_ <= 0) return;
     ::kill(-pid_, SIGINT);
@@ -126,6 +143,22 @@ class Launch {
  private:
   pid_t pid_ = -1;
 };
+
+/// The process id of a running node, from its own XML-RPC getPid (-1 when unknown).
+inline int pidOfNode(const std::string& node) {
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  args[1] = node;
+  if (!ros::master::execute("lookupNode", args, result, payload, false)) return -1;
+  std::string host;
+  uint32_t port = 0;
+  if (!ros::network::splitURI(std::string(payload), host, port)) return -1;
+  XmlRpc::XmlRpcClient client(host.c_str(), port, "/");
+  XmlRpc::XmlRpcValue a, r;
+  a[0] = ros::this_node::getName();
+  if (!client.execute("getPid", a, r) || r.getType() != XmlRpc::XmlRpcValue::TypeArray || r.size() < 3) return -1;
+  return static_cast<int>(r[2]);
+}
 
 /// Polls `pred` while callbacks run (an AsyncSpinner must be running).
 inline bool waitFor(const std::function<bool()>& pred, double timeout_s) {

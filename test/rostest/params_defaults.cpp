@@ -72,12 +72,15 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"path_points", value(c.path_points)},
                   {"timeout_check_hz", value(c.timeout_check_hz)},
                   {"resend_after_s", value(c.resend_after_s)},
+                  {"state_rate_hz", value(c.state_rate_hz)},
+                  {"liveness_check_hz", value(c.liveness_check_hz)},
+                  {"arrival_tolerance_m", value(cc.arrival_tolerance_m)},
                   {"decision_timeout_s", value(cc.decision_timeout_s)},
                   {"path_timeout_s", value(cc.path_timeout_s)},
                   {"segment_timeout_s", value(cc.segment_timeout_s)},
                   {"segment_timeout_per_m_s", value(cc.segment_timeout_per_m_s)},
                   {"max_steps", value(cc.max_steps)}},
-                 {"arrival_radius_m"});
+                 {"arrival_radius_m", "roles"});
 
   const PathFollowerNode::Params f;
   const ddace::exec::FollowerGains g;

@@ -17,6 +17,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -54,6 +55,11 @@ struct CoordinatorConfig {
   double segment_timeout_s = 30;         ///< base time a segment may take ...
   double segment_timeout_per_m_s = 20;   ///< ... plus this much per metre of path
   int max_steps = 50;                    ///< more decided steps than this -> abort
+  /// A DONE counts only when the coordinator's own tracked position of the entity is
+  /// within arrival_radius_m + arrival_tolerance_m of the segment's goal. The tolerance
+  /// covers the tracker's noise between the executor's reading and the coordinator's.
+  double arrival_radius_m = task::kDefaultArrivalRadius;
+  double arrival_tolerance_m = 0.005;
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
 };
@@ -68,6 +74,29 @@ struct DecisionRequest {
   uint32_t id = 0;
   int step = 0;                            ///< index of the step to decide (0-based)
   std::vector<task::Snapshot> history;     ///< every decision's snapshot, oldest first; last = now
+};
+
+/// The policy's confidence in a decision (display only; never changes what runs).
+struct DecisionProbabilities {
+  std::vector<double> tokens;  ///< [token] probability, [0, 1] (empty: not given)
+  double end = -1;             ///< probability of END (-1: not given)
+};
+
+/// A decision as the coordinator accepted it.
+struct AcceptedDecision {
+  Decision decision;
+  DecisionProbabilities probabilities;
+};
+
+/// A SegmentStatus as received, before any check (see Coordinator::onSegmentStatus).
+struct StatusReport {
+  int topic_entity = -1;          ///< entity whose status topic it arrived on (task.yaml index)
+  std::string entity;             ///< the entity name the message claims
+  uint32_t segment_id = 0;
+  int code = 0;                   ///< raw status code; valid: Accepted..Aborted (1..5)
+  double progress = 0;            ///< [0, 1]
+  double distance_to_goal_m = 0;  ///< the executor's own distance (informational only)
+  std::string message;
 };
 
 struct PathRequest {
@@ -113,6 +142,11 @@ struct TokenRecord {
   SegmentState state = SegmentState::Sent;
   double progress = 0;          ///< last reported, [0, 1]
   PlannedPath path;             ///< empty for in-place tokens
+  double timeout_s = 0;         ///< the segment's time-out (0 for in-place tokens)
+  /// Straight-line distance of the entity's *tracked* position to `goal` (metres; NaN
+  /// before the first observation after the segment went out).
+  double distance_to_goal_m = std::numeric_limits<double>::quiet_NaN();
+  bool done_claimed = false;    ///< the executor said DONE; counted once the tracked pose agrees
 };
 
 struct StepRecord {
@@ -140,15 +174,30 @@ class Coordinator {
   CoordinatorOutput emergencyStop(double now_s, const std::string& reason);
 
   CoordinatorOutput onEntities(const EntityObservation& observation, double now_s);
-  CoordinatorOutput onDecision(uint32_t request_id, const Decision& decision, double now_s);
+  /// `probabilities`, when given, must have one entry per token (else the run aborts).
+  CoordinatorOutput onDecision(uint32_t request_id, const Decision& decision, double now_s,
+                               const DecisionProbabilities& probabilities = {});
   /// The decision asked for cannot be made (no model, bad answer): aborts with `error`.
   CoordinatorOutput onDecisionError(uint32_t request_id, const std::string& error, double now_s);
   /// A generated path. An empty `path.points` or `error` not empty aborts the run.
   CoordinatorOutput onPath(uint32_t request_id, const PlannedPath& path, const std::string& error, double now_s);
+  /// Counted only when the report's entity, topic and segment id agree with the running
+  /// segment and its code is valid; anything else is logged and ignored. A DONE counts
+  /// only when the tracked position of the entity is within the arrival radius of the
+  /// goal; until then the segment runs on (checked again on every observation) until it
+  /// really arrives or times out. A disagreeing DONE is logged once per segment.
+  CoordinatorOutput onSegmentStatus(const StatusReport& report, double now_s);
+  /// The same for an in-process executor reporting on `entity`'s own topic (simulations,
+  /// benchmarks): every check above still applies.
   CoordinatorOutput onSegmentStatus(int entity, uint32_t segment_id, SegmentState state, double progress,
                                     const std::string& message, double now_s);
   /// Time-outs only; never starts a decision.
   CoordinatorOutput onTick(double now_s);
+  /// Something the run depends on is gone (a node serving a role, the pose source): stops
+  /// every robot and aborts with `why`. No effect unless a run is under way (or paused).
+  CoordinatorOutput abortRun(const std::string& why, double now_s);
+  /// True while a run is under way: WaitingForEntities, Deciding, Planning, Executing, Paused.
+  bool running() const;
 
   RunState state() const { return state_; }
   const std::string& reason() const { return reason_; }  ///< why Aborted/EStopped/Finished
@@ -163,6 +212,11 @@ class Coordinator {
   /// Every goal condition of task.yaml against the latest positions, in order.
   std::vector<bool> goalConditionsMet() const;
   uint32_t decisionsRequested() const { return decisions_requested_; }
+  /// The last decision the coordinator accepted (probabilities as the policy gave them).
+  const std::optional<AcceptedDecision>& lastDecision() const { return last_decision_; }
+  /// When the current phase (deciding, planning, executing) began, seconds.
+  double phaseSince() const { return pending_since_s_; }
+  double segmentsSince() const { return segments_since_s_; }
 
  private:
   bool allTracked() const;
@@ -172,6 +226,8 @@ class Coordinator {
   void abort(const std::string& why, CoordinatorOutput& out);
   void stopActive(CoordinatorOutput& out);
   void completeStepIfDone(double now_s, CoordinatorOutput& out);
+  bool arrived(const TokenRecord& t) const;
+  void updateDistances();
 
   task::TaskSpec spec_;
   CoordinatorConfig config_;
@@ -186,6 +242,7 @@ class Coordinator {
   std::vector<uint32_t> pending_paths_;   ///< request id per token of the current step (0 = none)
   double segments_since_s_ = 0;
   uint32_t decisions_requested_ = 0;
+  std::optional<AcceptedDecision> last_decision_;
 };
 
 }  // namespace ddace::exec

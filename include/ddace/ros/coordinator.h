@@ -2,13 +2,17 @@
 //
 //   in   /ddace/entities (EntityArray), /ddace/decision (Decision), /ddace/path (PathResponse),
 //        /robots/E/segment_status (SegmentStatus) for every robot and object E,
+//        /robots/R/wheels (the follower's commands: its heartbeat),
 //        /ddace/estop (std_msgs/Bool, latched; true from anyone e-stops the run)
 //   out  /ddace/decision_request, /ddace/path_request, /robots/E/segment,
-//        /ddace/estop (latched), ~state (CoordinatorState, latched), ~markers (MarkerArray)
+//        /robots/R/wheels (zeros, when a role is lost or on ~estop), /ddace/estop (latched),
+//        ~state (CoordinatorState, latched, every change and ~state_rate_hz), ~markers (MarkerArray)
 //   srv  ~start, ~pause, ~reset, ~estop (std_srvs/Trigger)
 //
 // Decisions are requested only when the run starts or every active entity reported its
-// segment done (the state machine decides); the timer only checks time-outs.
+// segment done and is tracked at its goal (exec::Coordinator decides); the timers check
+// time-outs, re-send what is unacknowledged (exec::Outbox) and watch the node of every
+// role in ~roles (exec::RoleWatch): a lost one stops every robot and aborts the run.
 // Parameters: config/execution.yaml, section coordinator.
 #pragma once
 
@@ -36,6 +40,8 @@ class CoordinatorNode {
     int path_points = 100;           ///< points per requested path
     double timeout_check_hz = 10.0;  ///< how often time-outs are checked
     double resend_after_s = 1.0;     ///< an unacknowledged request or segment goes out again after this
+    double state_rate_hz = 5.0;      ///< ~state goes out at this rate (and on every change)
+    double liveness_check_hz = 50.0; ///< how often the roles' nodes are checked
   };
 
   CoordinatorNode(ros::NodeHandle nh, ros::NodeHandle pnh);

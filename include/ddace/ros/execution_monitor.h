@@ -1,15 +1,26 @@
-// execution_monitor_node: watches a run and, when it ends, prints the executed step
-// sequence next to the ground truth and the trial's metrics (SSR, GCR, goal conditions,
-// OSR; docs/task-format.md), then exits (launch files mark it required, so the
-// graph shuts down with it).
+// execution_monitor_node: watches a run and, when it ends — finished, aborted, e-stopped,
+// timed out or interrupted (SIGINT) — writes its record: the executed step sequence next to
+// the ground truth and the trial's metrics, scored through eval::scoreTrial (the same
+// definition as `ddace eval`; docs/task-format.md), into a run directory, then ends the
+// launch that started it (SIGINT to the parent roslaunch) so a run ends without a red
+// "REQUIRED process has died".
+//
+// Run directory (`run_dir`, default `runs_dir`/<UTC timestamp>, `runs_dir` default
+// $HOME/.ros/ddace/runs; `runs_dir`/latest points at the newest):
+//   report.txt   the printed report          result.json  the metrics (eval's definitions)
+//   run.json     planned paths (with stddev), executed positions, decision times
+//   run.bag      entities, segments, statuses, wheels, coordinator state (rosbag record)
+//   paths.png    planned (±2σ) against executed paths per robot (`plot_script` on run.json)
 //
 // Also checks the coordinator's contract on the wire: a DecisionRequest while any
 // segment is still running (sent, not yet done/failed/aborted) is a violation.
 //
-//   in  /coordinator/state, /ddace/decision_request, /robots/E/segment, /robots/E/segment_status
-//   params  task (task directory), ground_truth_demo (index into demos/, -1 = none),
-//           result_file (optional: the metrics as JSON), report_file (optional: the printed
-//           report), timeout_s (give up; 0 = never)
+//   in  /coordinator/state, /ddace/decision_request, /ddace/entities, /robots/E/segment,
+//       /robots/E/segment_status
+//   params  task (absolute task directory), ground_truth_demo (index into demos/, -1 = none),
+//           run_dir / runs_dir (above), record_bag (true), plot_script (path, "" = no plot),
+//           end_launch (true: SIGINT the parent roslaunch after the record is written),
+//           timeout_s (give up; 0 = never)
 #pragma once
 
 #include <memory>
@@ -20,7 +31,8 @@ namespace ddace::nodes {
 
 /// The execution_monitor node (src/nodes/execution_monitor_node.cpp runs it). The constructor reads the
 /// private parameters from `pnh`, advertises and subscribes on `nh`, and throws
-/// ddace::Error naming the parameter or file it refuses.
+/// ddace::Error naming the parameter or file it refuses. The destructor writes the record
+/// of a run that has not ended (interrupted).
 class ExecutionMonitorNode {
  public:
   ExecutionMonitorNode(ros::NodeHandle nh, ros::NodeHandle pnh);

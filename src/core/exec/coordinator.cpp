@@ -1,5 +1,6 @@
 #include "ddace/exec/coordinator.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -52,6 +53,9 @@ void CoordinatorConfig::validate() const {
   if (!(segment_timeout_per_m_s >= 0) || !std::isfinite(segment_timeout_per_m_s))
     throw Error("coordinator parameter 'segment_timeout_per_m_s' must be >= 0");
   if (max_steps < 1) throw Error("coordinator parameter 'max_steps' must be at least 1");
+  positive(arrival_radius_m, "arrival_radius_m");
+  if (!(arrival_tolerance_m >= 0) || !std::isfinite(arrival_tolerance_m))
+    throw Error("coordinator parameter 'arrival_tolerance_m' must be >= 0");
 }
 
 Coordinator::Coordinator(task::TaskSpec spec, CoordinatorConfig config)
@@ -150,6 +154,8 @@ CoordinatorOutput Coordinator::start(double now_s) {
     reason_.clear();
     history_.clear();
     steps_.clear();
+    decisions_requested_ = 0;
+    last_decision_.reset();
     requestDecisionOrWait(now_s, out);
     out.state_changed = true;
   } else if (state_ == RunState::Paused) {
@@ -188,6 +194,8 @@ CoordinatorOutput Coordinator::reset(double) {
   out.stop_all = true;
   history_.clear();
   steps_.clear();
+  decisions_requested_ = 0;
+  last_decision_.reset();
   pending_decision_ = 0;
   pending_paths_.clear();
   reason_.clear();
@@ -218,17 +226,51 @@ CoordinatorOutput Coordinator::onEntities(const EntityObservation& obs, double n
   if (state_ == RunState::WaitingForEntities && allTracked()) {
     out.log.push_back("every entity is tracked");
     requestDecisionOrWait(now_s, out);
+  } else if (state_ == RunState::Executing && !steps_.empty()) {
+    updateDistances();
+    // A DONE that came before the tracked pose agreed counts once it does.
+    bool any = false;
+    for (auto& t : steps_.back().tokens)
+      if (t.done_claimed && t.state != SegmentState::Done && arrived(t)) {
+        t.state = SegmentState::Done;
+        t.progress = 1.0;
+        out.log.push_back("done: " + task::tokenKey(t.token, spec_) + " (tracked pose now within the arrival radius)");
+        any = true;
+      }
+    if (any) completeStepIfDone(now_s, out);
   }
   return out;
 }
 
-CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double now_s) {
+bool Coordinator::arrived(const TokenRecord& t) const {
+  const auto e = static_cast<size_t>(t.token.entity);
+  if (observation_.positions.size() <= e || !observation_.tracked[e]) return false;
+  return (observation_.positions[e] - t.goal).norm() <= config_.arrival_radius_m + config_.arrival_tolerance_m;
+}
+
+void Coordinator::updateDistances() {
+  for (auto& t : steps_.back().tokens) {
+    const auto e = static_cast<size_t>(t.token.entity);
+    if (t.segment_id != 0 && observation_.positions.size() > e && observation_.tracked[e])
+      t.distance_to_goal_m = (observation_.positions[e] - t.goal).norm();
+  }
+}
+
+CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double now_s,
+                                          const DecisionProbabilities& prob) {
   CoordinatorOutput out;
   if (state_ != RunState::Deciding || id != pending_decision_ || id == 0) {
     out.log.push_back("ignoring decision " + std::to_string(id) + " (not the one asked for)");
     return out;
   }
   pending_decision_ = 0;
+  if (!prob.tokens.empty() && prob.tokens.size() != d.tokens.size()) {
+    abort("the policy returned " + std::to_string(prob.tokens.size()) + " probabilities for " +
+              std::to_string(d.tokens.size()) + " tokens",
+          out);
+    return out;
+  }
+  last_decision_ = AcceptedDecision{d, prob};
   if (d.end) {
     reason_ = "the policy predicted END after " + std::to_string(steps_.size()) + " steps";
     out.log.push_back(reason_);
@@ -331,6 +373,20 @@ CoordinatorOutput Coordinator::onPath(uint32_t id, const PlannedPath& path, cons
       abort("the path for " + key + " has a non-finite point", out);
       return out;
     }
+  for (double sd : path.stddev_m)
+    if (!std::isfinite(sd) || sd < 0) {
+      abort("the path for " + key + " has a non-finite or negative standard deviation", out);
+      return out;
+    }
+  // A path for another token (another start or goal) must not drive this entity.
+  const double end_error = (path.points.back() - s.tokens[slot].goal).norm();
+  if (end_error > config_.arrival_radius_m) {
+    std::ostringstream os;
+    os << "the path for " << key << " ends " << end_error << " m from its goal (more than arrival_radius_m = "
+       << config_.arrival_radius_m << " m): not a path for this token";
+    abort(os.str(), out);
+    return out;
+  }
   s.tokens[slot].path = path;
   pending_paths_[slot] = 0;
   for (uint32_t p : pending_paths_)
@@ -352,36 +408,88 @@ CoordinatorOutput Coordinator::onPath(uint32_t id, const PlannedPath& path, cons
     t.segment_id = cmd.segment_id;
     t.state = SegmentState::Sent;
     t.progress = 0;
+    t.timeout_s = cmd.timeout_s;
+    t.done_claimed = false;
+    t.distance_to_goal_m = std::numeric_limits<double>::quiet_NaN();
     out.segments.push_back(std::move(cmd));
   }
   s.segments_sent_s = now_s;
   segments_since_s_ = now_s;
   setState(RunState::Executing, out);
+  updateDistances();
   return out;
 }
 
-CoordinatorOutput Coordinator::onSegmentStatus(int entity, uint32_t segment_id, SegmentState st, double progress,
-                                               const std::string& message, double now_s) {
+CoordinatorOutput Coordinator::onSegmentStatus(const StatusReport& r, double now_s) {
   CoordinatorOutput out;
-  if (state_ != RunState::Executing || steps_.empty()) return out;
+  const int n = static_cast<int>(spec_.entities.size());
+  if (r.topic_entity < 0 || r.topic_entity >= n) return out;
+  const std::string& topic_name = spec_.entities[r.topic_entity].name;
+  if (r.entity != topic_name) {
+    out.log.push_back("ignoring a status for '" + r.entity + "' on " + topic_name + "'s status topic (segment " +
+                      std::to_string(r.segment_id) + ")");
+    return out;
+  }
+  if (r.code < static_cast<int>(SegmentState::Accepted) || r.code > static_cast<int>(SegmentState::Aborted)) {
+    out.log.push_back("ignoring a status of " + topic_name + " with invalid code " + std::to_string(r.code));
+    return out;
+  }
+  if (state_ != RunState::Executing || steps_.empty() || r.segment_id == 0) return out;
   StepRecord& s = steps_.back();
   TokenRecord* rec = nullptr;
   for (auto& t : s.tokens)
-    if (t.segment_id == segment_id && t.token.entity == entity && segment_id != 0) rec = &t;
-  if (rec == nullptr || rec->state == SegmentState::Done) return out;
-  const std::string key = task::tokenKey(rec->token, spec_);
-  rec->state = st;
-  if (std::isfinite(progress)) rec->progress = progress;
-  if (st == SegmentState::Failed || st == SegmentState::Aborted) {
-    abort("segment " + key + " " + toString(st) + (message.empty() ? "" : ": " + message), out);
+    if (t.segment_id == r.segment_id && t.token.entity == r.topic_entity) rec = &t;
+  if (rec == nullptr) {
+    bool other = false;  // a running segment of another entity: a status on the wrong topic
+    for (const auto& t : s.tokens) other = other || t.segment_id == r.segment_id;
+    if (other)
+      out.log.push_back("ignoring a status for segment " + std::to_string(r.segment_id) + " on " + topic_name +
+                        "'s topic: that segment belongs to another entity");
     return out;
   }
-  if (st == SegmentState::Done) {
-    rec->progress = 1.0;
-    out.log.push_back("done: " + key);
-    completeStepIfDone(now_s, out);
+  if (rec->state == SegmentState::Done) return out;
+  const std::string key = task::tokenKey(rec->token, spec_);
+  const auto st = static_cast<SegmentState>(r.code);
+  if (std::isfinite(r.progress)) rec->progress = std::clamp(r.progress, 0.0, 1.0);
+  if (st == SegmentState::Failed || st == SegmentState::Aborted) {
+    rec->state = st;
+    abort("segment " + key + " " + toString(st) + (r.message.empty() ? "" : ": " + r.message), out);
+    return out;
   }
+  if (st != SegmentState::Done) {
+    if (!rec->done_claimed) rec->state = st;
+    return out;
+  }
+  updateDistances();
+  if (!arrived(*rec)) {
+    if (!rec->done_claimed) {
+      std::ostringstream os;
+      os << "ignoring DONE of " << key << " (segment " << r.segment_id << "): the tracked position is "
+         << rec->distance_to_goal_m << " m from the goal (arrival radius " << config_.arrival_radius_m
+         << " m); the segment runs on until it arrives or times out";
+      out.log.push_back(os.str());
+    }
+    rec->done_claimed = true;
+    rec->state = SegmentState::Running;
+    return out;
+  }
+  rec->state = SegmentState::Done;
+  rec->progress = 1.0;
+  out.log.push_back("done: " + key);
+  completeStepIfDone(now_s, out);
   return out;
+}
+
+CoordinatorOutput Coordinator::onSegmentStatus(int entity, uint32_t segment_id, SegmentState state, double progress,
+                                               const std::string& message, double now_s) {
+  StatusReport r;
+  r.topic_entity = entity;
+  if (entity >= 0 && entity < static_cast<int>(spec_.entities.size())) r.entity = spec_.entities[entity].name;
+  r.segment_id = segment_id;
+  r.code = static_cast<int>(state);
+  r.progress = progress;
+  r.message = message;
+  return onSegmentStatus(r, now_s);
 }
 
 void Coordinator::completeStepIfDone(double now_s, CoordinatorOutput& out) {
@@ -394,6 +502,17 @@ void Coordinator::completeStepIfDone(double now_s, CoordinatorOutput& out) {
   requestDecisionOrWait(now_s, out);
 }
 
+bool Coordinator::running() const {
+  return state_ == RunState::WaitingForEntities || state_ == RunState::Deciding || state_ == RunState::Planning ||
+         state_ == RunState::Executing || state_ == RunState::Paused;
+}
+
+CoordinatorOutput Coordinator::abortRun(const std::string& why, double) {
+  CoordinatorOutput out;
+  if (running()) abort(why, out);
+  return out;
+}
+
 CoordinatorOutput Coordinator::onTick(double now_s) {
   CoordinatorOutput out;
   if (state_ == RunState::Deciding && now_s - pending_since_s_ > config_.decision_timeout_s) {
@@ -403,9 +522,7 @@ CoordinatorOutput Coordinator::onTick(double now_s) {
   } else if (state_ == RunState::Executing && !steps_.empty()) {
     for (const auto& t : steps_.back().tokens) {
       if (t.segment_id == 0 || t.state == SegmentState::Done) continue;
-      double length = 0;
-      for (size_t i = 1; i < t.path.points.size(); ++i) length += (t.path.points[i] - t.path.points[i - 1]).norm();
-      const double timeout = config_.segment_timeout_s + config_.segment_timeout_per_m_s * length;
+      const double timeout = t.timeout_s;
       if (now_s - segments_since_s_ > timeout) {
         std::ostringstream os;
         os << "segment " << task::tokenKey(t.token, spec_) << " timed out after " << timeout << " s (progress "

@@ -1,6 +1,7 @@
 #include "ddace/exec/simulator.h"
 
 #include "ddace/common/error.h"
+#include "ddace/exec/scene.h"
 
 namespace ddace::exec {
 
@@ -9,7 +10,8 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
   Trial trial;
   if (gt.rows() == 0) throw Error(Diagnostic{gt.source, 0, 0, "test demonstration has no rows"});
   const int n = static_cast<int>(spec.entities.size());
-  std::vector<Eigen::Vector2d> pos = gt.positions.front();
+  std::vector<Eigen::Vector2d> pos;  // the scene, as the mock robots start it
+  for (const Pose2D& p : startPoses(gt)) pos.push_back(p.position());
   const int max_steps = static_cast<int>(gt.steps.size()) + options.extra_steps;
 
   while (static_cast<int>(trial.predicted.size()) < max_steps) {

@@ -28,6 +28,27 @@ task::Token tok(const task::TaskSpec& spec, const std::string& key) { return tas
 
 PlannedPath straight(const PathRequest& r) { return {{r.start, r.goal}, {0, 0}}; }
 
+/// A status as an executor sends it on `entity`'s own topic.
+StatusReport report(const Coordinator& c, int entity, uint32_t segment_id, SegmentState st, double progress,
+                    const std::string& message = "") {
+  StatusReport r;
+  r.topic_entity = entity;
+  r.entity = c.spec().entities[entity].name;
+  r.segment_id = segment_id;
+  r.code = static_cast<int>(st);
+  r.progress = progress;
+  r.message = message;
+  return r;
+}
+
+/// The entity is tracked at its goal, then its executor reports DONE.
+CoordinatorOutput arriveDone(Coordinator& c, const SegmentCommand& s, double now) {
+  EntityObservation obs = c.observation();
+  obs.positions[s.entity] = s.goal;
+  c.onEntities(obs, now);
+  return c.onSegmentStatus(report(c, s.entity, s.segment_id, SegmentState::Done, 1.0), now);
+}
+
 /// Answers every path request with a straight line; returns the segments sent.
 std::vector<SegmentCommand> answerPaths(Coordinator& c, const CoordinatorOutput& out, double now) {
   std::vector<SegmentCommand> segs;
@@ -97,17 +118,17 @@ TEST_F(Fixture, NextDecisionOnlyWhenEveryActiveRobotIsDone) {
   for (double t = 0.3; t < 5.0; t += 0.1) {
     EXPECT_FALSE(c.onTick(t).decision);
     EXPECT_FALSE(c.onEntities(observe(start), t).decision);
-    EXPECT_FALSE(c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Running, t / 5, "", t).decision);
+    EXPECT_FALSE(c.onSegmentStatus(report(c, segs[0].entity, segs[0].segment_id, SegmentState::Running, t / 5, ""), t).decision);
   }
   // The first robot is done: still waiting for the second.
-  auto out = c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Done, 1.0, "", 5.0);
+  auto out = arriveDone(c, segs[0], 5.0);
   EXPECT_FALSE(out.decision);
   EXPECT_EQ(c.activeEntities(), std::vector<int>{segs[1].entity});
   // A duplicate "done" from the same robot changes nothing.
-  EXPECT_FALSE(c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Done, 1.0, "", 5.1).decision);
+  EXPECT_FALSE(arriveDone(c, segs[0], 5.1).decision);
   // A status for an unknown segment id is ignored.
-  EXPECT_FALSE(c.onSegmentStatus(segs[1].entity, 9999, SegmentState::Done, 1.0, "", 5.2).decision);
-  out = c.onSegmentStatus(segs[1].entity, segs[1].segment_id, SegmentState::Done, 1.0, "", 6.0);
+  EXPECT_FALSE(c.onSegmentStatus(report(c, segs[1].entity, 9999, SegmentState::Done, 1.0, ""), 5.2).decision);
+  out = arriveDone(c, segs[1], 6.0);
   ASSERT_TRUE(out.decision);
   EXPECT_EQ(out.decision->step, 1);
   EXPECT_EQ(out.decision->history.size(), 2u);
@@ -131,7 +152,7 @@ TEST_F(Fixture, RunsTheWholeTaskAndFinishesOnEnd) {
     for (const auto& s : segs) {
       pos[s.entity] = s.goal;  // ideal execution
       c.onEntities(observe(pos), t);
-      auto o = c.onSegmentStatus(s.entity, s.segment_id, SegmentState::Done, 1, "", t);
+      auto o = arriveDone(c, s, t);
       if (o.decision) out = o;
     }
   }
@@ -153,7 +174,7 @@ TEST_F(Fixture, SegmentTimeoutAbortsAndStopsTheRobots) {
   cfg.segment_timeout_per_m_s = 0;
   c = Coordinator(dir.spec, cfg);
   const auto segs = runToFirstStep();
-  c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Done, 1, "", 1.0);
+  arriveDone(c, segs[0], 1.0);
   EXPECT_TRUE(c.onTick(2.1).empty()) << "aborted before the time-out";
   const auto out = c.onTick(2.3);
   EXPECT_EQ(c.state(), RunState::Aborted);
@@ -163,14 +184,14 @@ TEST_F(Fixture, SegmentTimeoutAbortsAndStopsTheRobots) {
   EXPECT_NE(c.reason().find("R2:move:R4"), std::string::npos) << c.reason();
   EXPECT_NE(c.reason().find("timed out"), std::string::npos) << c.reason();
   // A late "done" does not revive the run.
-  EXPECT_FALSE(c.onSegmentStatus(segs[1].entity, segs[1].segment_id, SegmentState::Done, 1, "", 3).decision);
+  EXPECT_FALSE(arriveDone(c, segs[1], 3).decision);
   EXPECT_EQ(c.state(), RunState::Aborted);
   EXPECT_FALSE(c.start(3).decision) << "start after abort needs a reset";
 }
 
 TEST_F(Fixture, FailedSegmentAborts) {
   const auto segs = runToFirstStep();
-  const auto out = c.onSegmentStatus(segs[1].entity, segs[1].segment_id, SegmentState::Failed, 0.3, "pose stale", 1);
+  const auto out = c.onSegmentStatus(report(c, segs[1].entity, segs[1].segment_id, SegmentState::Failed, 0.3, "pose stale"), 1);
   EXPECT_EQ(c.state(), RunState::Aborted);
   EXPECT_TRUE(out.stop_all);
   EXPECT_NE(c.reason().find("pose stale"), std::string::npos);
@@ -245,7 +266,7 @@ TEST_F(Fixture, EmergencyStopStopsEveryRobotAndHoldsUntilReset) {
   EXPECT_EQ(out.stop.size(), 2u);
   EXPECT_EQ(c.state(), RunState::EStopped);
   // Nothing moves it on: not a done, not a tick, not start.
-  EXPECT_TRUE(c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Done, 1, "", 2).empty());
+  EXPECT_TRUE(arriveDone(c, segs[0], 2).empty());
   EXPECT_TRUE(c.onTick(100).empty());
   EXPECT_FALSE(c.start(3).decision);
   EXPECT_EQ(c.state(), RunState::EStopped);
@@ -256,7 +277,7 @@ TEST_F(Fixture, EmergencyStopStopsEveryRobotAndHoldsUntilReset) {
 
 TEST_F(Fixture, PauseStopsAndResumeReplansTheUnfinishedTokens) {
   const auto segs = runToFirstStep();
-  c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Done, 1, "", 1);
+  arriveDone(c, segs[0], 1);
   const auto p = c.pause(2);
   EXPECT_EQ(c.state(), RunState::Paused);
   EXPECT_EQ(p.stop, std::vector<int>{segs[1].entity});
@@ -274,8 +295,8 @@ TEST_F(Fixture, PauseStopsAndResumeReplansTheUnfinishedTokens) {
   ASSERT_EQ(resent.size(), 1u);
   EXPECT_NE(resent[0].segment_id, segs[1].segment_id);
   // The old segment's id no longer counts.
-  EXPECT_FALSE(c.onSegmentStatus(segs[1].entity, segs[1].segment_id, SegmentState::Done, 1, "", 1003).decision);
-  EXPECT_TRUE(c.onSegmentStatus(resent[0].entity, resent[0].segment_id, SegmentState::Done, 1, "", 1004).decision);
+  EXPECT_FALSE(arriveDone(c, segs[1], 1003).decision);
+  EXPECT_TRUE(arriveDone(c, resent[0], 1004).decision);
 }
 
 TEST_F(Fixture, PauseWhileDecidingAsksAgainOnResume) {
@@ -316,7 +337,7 @@ TEST_F(Fixture, StepLimitAborts) {
   const auto s = k.start(0);
   const auto d = k.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1);
   const auto segs = answerPaths(k, d, 0.2);
-  for (const auto& g : segs) k.onSegmentStatus(g.entity, g.segment_id, SegmentState::Done, 1, "", 1);
+  for (const auto& g : segs) arriveDone(k, g, 1);
   EXPECT_EQ(k.state(), RunState::Aborted);
   EXPECT_NE(k.reason().find("max_steps"), std::string::npos);
 }
@@ -348,4 +369,133 @@ TEST(Replay, DemonstrationPathsKnowEveryMotionKey) {
   EXPECT_TRUE(p.points.back().isApprox(Vector2d(0.9, 0.9)));
   EXPECT_EQ(p.stddev_m.size(), p.points.size());
   EXPECT_THROW(paths.generate(task::parseTokenKey("R1:move:G1", dir.spec), {0, 0}, {1, 1}), Error);
+}
+
+TEST_F(Fixture, StatusesWithTheWrongEntityCodeOrSegmentAreIgnored) {
+  const auto segs = runToFirstStep();
+  // R-something's DONE on the right topic with the right segment id but another entity name.
+  StatusReport forged = report(c, segs[0].entity, segs[0].segment_id, SegmentState::Done, 1.0);
+  forged.entity = "R9";
+  EntityObservation obs = c.observation();
+  obs.positions[segs[0].entity] = segs[0].goal;
+  c.onEntities(obs, 1.0);
+  auto out = c.onSegmentStatus(forged, 1.0);
+  ASSERT_EQ(out.log.size(), 1u);
+  EXPECT_NE(out.log[0].find("R9"), std::string::npos) << out.log[0];
+  // An invalid code, and "sent" (only the coordinator sends).
+  StatusReport bad = report(c, segs[0].entity, segs[0].segment_id, SegmentState::Done, 1.0);
+  bad.code = 17;
+  EXPECT_FALSE(c.onSegmentStatus(bad, 1.1).log.empty());
+  bad.code = static_cast<int>(SegmentState::Sent);
+  EXPECT_FALSE(c.onSegmentStatus(bad, 1.1).log.empty());
+  // The other robot's segment id on this robot's topic.
+  out = c.onSegmentStatus(report(c, segs[0].entity, segs[1].segment_id, SegmentState::Done, 1.0), 1.2);
+  EXPECT_FALSE(out.log.empty());
+  EXPECT_EQ(c.activeEntities().size(), 2u) << "no forged status may complete a segment";
+  EXPECT_EQ(c.state(), RunState::Executing);
+}
+
+TEST_F(Fixture, DoneCountsOnlyWhenTheTrackedPoseIsAtTheGoal) {
+  const auto segs = runToFirstStep();
+  arriveDone(c, segs[1], 1.0);
+  // R's executor says DONE while the tracker sees it 0.25 m from the goal.
+  EntityObservation obs = c.observation();
+  const Vector2d far = segs[0].goal + Vector2d(0.25, 0);
+  obs.positions[segs[0].entity] = far;
+  c.onEntities(obs, 2.0);
+  auto out = c.onSegmentStatus(report(c, segs[0].entity, segs[0].segment_id, SegmentState::Done, 1.0), 2.0);
+  EXPECT_FALSE(out.decision);
+  ASSERT_EQ(out.log.size(), 1u);
+  EXPECT_NE(out.log[0].find("ignoring DONE"), std::string::npos) << out.log[0];
+  // Said again: ignored without another log line.
+  out = c.onSegmentStatus(report(c, segs[0].entity, segs[0].segment_id, SegmentState::Done, 1.0), 2.1);
+  EXPECT_FALSE(out.decision);
+  EXPECT_TRUE(out.log.empty());
+  EXPECT_EQ(c.activeEntities(), std::vector<int>{segs[0].entity});
+  ASSERT_NE(c.currentStep(), nullptr);
+  for (const auto& t : c.currentStep()->tokens)
+    if (t.segment_id == segs[0].segment_id) {
+      EXPECT_NEAR(t.distance_to_goal_m, 0.25, 1e-9);
+    }
+  // Still far: nothing; within the radius: the claimed DONE counts and the next decision goes out.
+  obs.positions[segs[0].entity] = segs[0].goal + Vector2d(0.1, 0);
+  EXPECT_FALSE(c.onEntities(obs, 3.0).decision);
+  obs.positions[segs[0].entity] = segs[0].goal + Vector2d(0.02, 0);
+  out = c.onEntities(obs, 4.0);
+  ASSERT_TRUE(out.decision);
+  EXPECT_EQ(out.decision->step, 1);
+}
+
+TEST_F(Fixture, ADoneThatNeverArrivesTimesOut) {
+  const auto segs = runToFirstStep();
+  arriveDone(c, segs[1], 1.0);
+  c.onSegmentStatus(report(c, segs[0].entity, segs[0].segment_id, SegmentState::Done, 1.0), 1.0);
+  EXPECT_FALSE(c.onTick(0.2 + segs[0].timeout_s - 0.5).stop_all);
+  const auto out = c.onTick(0.2 + segs[0].timeout_s + 0.5);
+  EXPECT_TRUE(out.stop_all);
+  EXPECT_EQ(c.state(), RunState::Aborted);
+  EXPECT_NE(c.reason().find("timed out"), std::string::npos) << c.reason();
+}
+
+TEST_F(Fixture, APathForAnotherGoalAborts) {
+  c.onEntities(observe(start), 0);
+  const auto s = c.start(0);
+  const auto d = c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1);
+  ASSERT_FALSE(d.paths.empty());
+  PlannedPath p = straight(d.paths[0]);
+  p.points.back() += Vector2d(0.2, 0);
+  const auto out = c.onPath(d.paths[0].id, p, "", 0.2);
+  EXPECT_TRUE(out.stop_all);
+  EXPECT_EQ(c.state(), RunState::Aborted);
+  EXPECT_NE(c.reason().find("from its goal"), std::string::npos) << c.reason();
+}
+
+TEST_F(Fixture, ResetForgetsTheRunAndAStartPlansFromTheCurrentPoses) {
+  const auto segs = runToFirstStep();
+  arriveDone(c, segs[0], 1.0);
+  ASSERT_EQ(c.decisionsRequested(), 1u);
+  ASSERT_TRUE(c.lastDecision());
+  const auto r = c.reset(2.0);
+  EXPECT_TRUE(r.stop_all);
+  EXPECT_EQ(c.state(), RunState::Idle);
+  EXPECT_TRUE(c.steps().empty());
+  EXPECT_EQ(c.decisionsRequested(), 0u);
+  EXPECT_FALSE(c.lastDecision());
+  const EntityObservation now = c.observation();
+  const auto s = c.start(3.0);
+  ASSERT_TRUE(s.decision);
+  EXPECT_EQ(s.decision->step, 0);
+  ASSERT_EQ(s.decision->history.size(), 1u);
+  EXPECT_EQ(s.decision->history[0].positions, now.positions) << "the new run starts from where the entities are";
+  EXPECT_EQ(c.decisionsRequested(), 1u);
+}
+
+TEST_F(Fixture, ALostRoleAbortsARunningRunOnly) {
+  EXPECT_TRUE(c.abortRun("node /sequence is gone", 0).empty()) << "nothing runs yet";
+  runToFirstStep();
+  const auto out = c.abortRun("role sequence: node /sequence is gone", 1.0);
+  EXPECT_TRUE(out.stop_all);
+  EXPECT_EQ(out.stop.size(), 2u);
+  EXPECT_EQ(c.state(), RunState::Aborted);
+  EXPECT_NE(c.reason().find("/sequence"), std::string::npos);
+}
+
+TEST_F(Fixture, TheLastDecisionKeepsItsProbabilities) {
+  c.onEntities(observe(start), 0);
+  const auto s = c.start(0);
+  const Decision d = replayDecision(demo, s.decision->history);
+  DecisionProbabilities p;
+  p.tokens.assign(d.tokens.size(), 0.75);
+  p.end = 0.01;
+  c.onDecision(s.decision->id, d, 0.1, p);
+  ASSERT_TRUE(c.lastDecision());
+  EXPECT_EQ(c.lastDecision()->probabilities.tokens, p.tokens);
+  EXPECT_DOUBLE_EQ(c.lastDecision()->probabilities.end, 0.01);
+  // Probabilities that do not fit the tokens are refused.
+  Coordinator k{dir.spec, CoordinatorConfig{}};
+  k.onEntities(observe(start), 0);
+  const auto s2 = k.start(0);
+  p.tokens.push_back(0.5);
+  k.onDecision(s2.decision->id, d, 0.1, p);
+  EXPECT_EQ(k.state(), RunState::Aborted);
 }

@@ -1,0 +1,105 @@
+// What an operator watches and keeps: ~state at its rate during a step with live progress
+// and distance; reset returns the run to its initial state and a start after it runs the
+// task from the current poses; the run's directory holds a readable bag and the plot.
+#include "exec_common.h"
+
+using namespace exec_test;
+
+namespace {
+
+std::string readFile(const std::string& path) {
+  std::ifstream f(path);
+  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+}  // namespace
+
+TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
+  ros::NodeHandle nh;
+  const Files files = Files::fromParams();
+  const ScratchDir scratch("record");
+  generateTask(scratch, "task4", 3, 1, 4);
+  const ddace::task::TaskDir test = ddace::task::loadTaskDir(std::string(scratch) + "/test");
+  const std::string run_dir = std::string(scratch) + "/run";
+  std::mutex mu;
+  std::vector<ddace::CoordinatorState> states;
+  ros::Subscriber sub = nh.subscribe<ddace::CoordinatorState>("/coordinator/state", 100,
+                                                              [&](const ddace::CoordinatorState::ConstPtr& m) {
+                                                                std::lock_guard<std::mutex> l(mu);
+                                                                states.push_back(*m);
+                                                              });
+  Watcher w(nh, test.spec);
+  Launch graph({files.launch_file, "task:=" + std::string(scratch) + "/test", "train:=" + std::string(scratch) + "/train",
+                "autostart:=false", "monitor:=true", "run_dir:=" + run_dir, "config:=" + files.config_file});
+  const std::string started = startRun(w, 30.0);
+  ASSERT_TRUE(started.empty()) << started;
+  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING; }, 20.0));
+
+  // During a step: ~state at ~5 Hz, the same state, progress and distance moving.
+  {
+    std::lock_guard<std::mutex> l(mu);
+    states.clear();
+  }
+  ros::WallDuration(2.0).sleep();
+  std::vector<ddace::CoordinatorState> window;
+  {
+    std::lock_guard<std::mutex> l(mu);
+    window = states;
+  }
+  ASSERT_GE(window.size(), 8u) << "~state is not published at its rate (5 Hz) during a step";
+  const auto& first = window.front();
+  const auto& last = window.back();
+  ASSERT_EQ(first.state, ddace::CoordinatorState::EXECUTING);
+  ASSERT_EQ(last.state, ddace::CoordinatorState::EXECUTING);
+  ASSERT_FALSE(first.segments.empty());
+  ASSERT_EQ(first.segments.size(), last.segments.size());
+  EXPECT_GT(last.segments[0].progress, first.segments[0].progress) << "progress stays at its first value";
+  EXPECT_LT(last.segments[0].distance_to_goal_m, first.segments[0].distance_to_goal_m);
+  EXPECT_GT(last.segments[0].elapsed_s, first.segments[0].elapsed_s);
+  EXPECT_FALSE(last.last_decision.empty());
+  EXPECT_EQ(last.completed_steps, 0u);
+
+  // Reset mid-run: back to the initial state, robots stopped.
+  ASSERT_TRUE(trigger("/coordinator/reset", 5.0));
+  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::IDLE; }, 2.0));
+  ros::Duration(0.3).sleep();
+  const auto idle = w.state();
+  EXPECT_TRUE(idle.steps.empty());
+  EXPECT_EQ(idle.decisions_requested, 0u);
+  EXPECT_TRUE(idle.last_decision.empty());
+  for (const auto& [robot, cmds] : w.wheels()) EXPECT_TRUE(cmds.back().left == 0 && cmds.back().right == 0) << robot;
+
+  // Start again: the task runs from where the robots are now, to the end.
+  std::string msg;
+  ASSERT_TRUE(trigger("/coordinator/start", 10.0, &msg)) << msg;
+  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::FINISHED; }, 60.0))
+      << w.state().state_name << ": " << w.state().reason;
+  const auto done = w.state();
+  EXPECT_EQ(executedSteps(done), truthSteps(test.demos.front(), test.spec));
+  EXPECT_EQ(done.decisions_requested, test.demos.front().steps.size() + 1) << "counters carried over the reset";
+  for (bool met : done.goal_conditions_met) EXPECT_TRUE(met);
+
+  // The monitor writes the record and ends the launch by itself.
+  ASSERT_TRUE(graph.waitExit(30.0)) << "the launch did not end after the run finished";
+  const std::string result = readFile(run_dir + "/result.json");
+  EXPECT_NE(result.find("\"state\": \"finished\""), std::string::npos) << result;
+  EXPECT_NE(readFile(run_dir + "/report.txt").find("finished"), std::string::npos);
+  ASSERT_TRUE(fs::exists(run_dir + "/run.bag")) << "no bag in " << run_dir;
+  const std::string info = run_dir + "/bag_info.txt";
+  ASSERT_EQ(std::system(("rosbag info " + run_dir + "/run.bag > " + info + " 2>&1").c_str()), 0) << readFile(info);
+  const std::string bag = readFile(info);
+  for (const std::string topic : {"/ddace/entities", "/coordinator/state", "/robots/R1/segment", "/robots/R1/segment_status",
+                                  "/robots/R1/wheels"})
+    EXPECT_NE(bag.find(topic), std::string::npos) << topic << " not in the bag:\n" << bag;
+  const std::string png = readFile(run_dir + "/paths.png");
+  ASSERT_GT(png.size(), 1000u) << readFile(run_dir + "/plot.log");
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "exec_record_test");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  return RUN_ALL_TESTS();
+}

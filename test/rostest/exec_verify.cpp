@@ -1,0 +1,190 @@
+// coordinator_node believes only what it can check: a DONE on R1's topic naming another
+// entity, with an invalid code, with R2's segment id, or while its own tracked pose of R1
+// is 0.25 m from the goal changes nothing; the next decision goes out only once R1 is
+// really tracked at the goal. Its ~state carries the live distance meanwhile.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <tuple>
+
+#include <ros/ros.h>
+#include <std_srvs/Trigger.h>
+
+#include <ddace/CoordinatorState.h>
+#include <ddace/Decision.h>
+#include <ddace/DecisionRequest.h>
+#include <ddace/EntityArray.h>
+#include <ddace/PathRequest.h>
+#include <ddace/PathResponse.h>
+#include <ddace/Segment.h>
+#include <ddace/SegmentStatus.h>
+#include <ddace/WheelCommand.h>
+
+namespace {
+
+std::mutex mu;
+std::vector<ddace::DecisionRequest> requests;
+std::vector<ddace::Segment> segments;
+ddace::CoordinatorState state;
+double r1_x = 0.2, r1_y = 0.2;
+
+template <typename F>
+bool waitFor(F pred, double timeout_s) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  while (ros::WallTime::now() < end) {
+    {
+      std::lock_guard<std::mutex> l(mu);
+      if (pred()) return true;
+    }
+    ros::WallDuration(0.01).sleep();
+  }
+  std::lock_guard<std::mutex> l(mu);
+  return pred();
+}
+
+}  // namespace
+
+TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
+  ros::NodeHandle nh;
+  ros::Publisher decision_pub = nh.advertise<ddace::Decision>("/ddace/decision", 5);
+  ros::Publisher path_pub = nh.advertise<ddace::PathResponse>("/ddace/path", 5);
+  ros::Publisher status_pub = nh.advertise<ddace::SegmentStatus>("/robots/R1/segment_status", 5);
+  ros::Publisher status2_pub = nh.advertise<ddace::SegmentStatus>("/robots/R2/segment_status", 5);
+  ros::Publisher entities_pub = nh.advertise<ddace::EntityArray>("/ddace/entities", 5);
+  // Sequence node: step 1 = R1:move:G1, then END.
+  auto on_request = [&](const ddace::DecisionRequest::ConstPtr& m) {
+    std::lock_guard<std::mutex> l(mu);
+    for (const auto& r : requests)
+      if (r.id == m->id) return;
+    requests.push_back(*m);
+    ddace::Decision d;
+    d.id = m->id;
+    if (m->step == 0) {
+      ddace::Token t;
+      t.entity = "R1";
+      t.action = "move";
+      t.target = "G1";
+      t.probability = 0.9;
+      d.tokens.push_back(t);
+    } else {
+      d.end = true;
+    }
+    decision_pub.publish(d);
+  };
+  auto on_path = [&](const ddace::PathRequest::ConstPtr& m) {
+    ddace::PathResponse r;
+    r.id = m->id;
+    r.path.header.frame_id = "table";
+    for (const auto& p : {m->start, m->goal}) {
+      geometry_msgs::PoseStamped ps;
+      ps.pose.position = p;
+      ps.pose.orientation.w = 1;
+      r.path.poses.push_back(ps);
+    }
+    path_pub.publish(r);
+  };
+  auto on_segment = [&](const ddace::Segment::ConstPtr& m) {
+    std::lock_guard<std::mutex> l(mu);
+    if (m->mode == ddace::Segment::MODE_FOLLOW) segments.push_back(*m);
+  };
+  ros::Subscriber a = nh.subscribe<ddace::DecisionRequest>("/ddace/decision_request", 10, on_request);
+  ros::Subscriber b = nh.subscribe<ddace::PathRequest>("/ddace/path_request", 10, on_path);
+  ros::Subscriber c = nh.subscribe<ddace::Segment>("/robots/R1/segment", 10, on_segment);
+  ros::Subscriber d = nh.subscribe<ddace::Segment>("/robots/R2/segment", 10, [&](const ddace::Segment::ConstPtr&) {});
+  ros::Subscriber e = nh.subscribe<ddace::CoordinatorState>("/coordinator/state", 10,
+                                                            [&](const ddace::CoordinatorState::ConstPtr& m) {
+                                                              std::lock_guard<std::mutex> l(mu);
+                                                              state = *m;
+                                                            });
+  std::atomic<bool> run{true};
+  std::thread tracker([&] {
+    ros::Rate rate(30);
+    while (run) {
+      ddace::EntityArray arr;
+      arr.header.stamp = ros::Time::now();
+      arr.header.frame_id = "table";
+      double x, y;
+      {
+        std::lock_guard<std::mutex> l(mu);
+        x = r1_x, y = r1_y;
+      }
+      for (auto [name, kind, px, py] : std::vector<std::tuple<std::string, std::string, double, double>>{
+               {"R1", "robot", x, y}, {"R2", "robot", 0.5, 0.2}, {"G1", "goal", 0.8, 0.8}}) {
+        ddace::Entity en;
+        en.name = name;
+        en.kind = kind;
+        en.pose.x = px;
+        en.pose.y = py;
+        en.visible = true;
+        arr.entities.push_back(en);
+      }
+      entities_pub.publish(arr);
+      rate.sleep();
+    }
+  });
+
+  bool started = false;
+  std::string why;
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(20);
+  while (!started && ros::WallTime::now() < end) {
+    std_srvs::Trigger t;
+    started = ros::service::exists("/coordinator/start", false) && ros::service::call("/coordinator/start", t) &&
+              t.response.success;
+    why = t.response.message;
+    if (!started) ros::WallDuration(0.1).sleep();
+  }
+  ASSERT_TRUE(started) << why;
+  ASSERT_TRUE(waitFor([] { return !segments.empty(); }, 10.0));
+  const uint32_t id = segments.front().segment_id;
+  auto status = [&](ros::Publisher& pub, const std::string& entity, uint32_t seg, uint8_t code) {
+    ddace::SegmentStatus s;
+    s.header.stamp = ros::Time::now();
+    s.entity = entity;
+    s.segment_id = seg;
+    s.status = code;
+    s.progress = 1;
+    pub.publish(s);
+  };
+  // R1 is 0.25 m from G1 when its "DONE"s come.
+  {
+    std::lock_guard<std::mutex> l(mu);
+    r1_x = 0.8 - 0.25, r1_y = 0.8;
+  }
+  ros::WallDuration(0.3).sleep();
+  status(status_pub, "R9", id, ddace::SegmentStatus::DONE);       // another entity's name
+  status(status_pub, "R1", id, 42);                               // no such code
+  status(status2_pub, "R2", id, ddace::SegmentStatus::DONE);      // R1's segment on R2's topic
+  status(status_pub, "R1", id + 100, ddace::SegmentStatus::DONE); // no such segment
+  status(status_pub, "R1", id, ddace::SegmentStatus::DONE);       // right, but R1 is not there
+  ros::WallDuration(1.0).sleep();
+  {
+    std::lock_guard<std::mutex> l(mu);
+    EXPECT_EQ(requests.size(), 1u) << "a forged or premature DONE was believed";
+    EXPECT_EQ(state.state, ddace::CoordinatorState::EXECUTING) << state.state_name << ": " << state.reason;
+    ASSERT_EQ(state.segments.size(), 1u);
+    EXPECT_NEAR(state.segments[0].distance_to_goal_m, 0.25, 0.01);
+    EXPECT_TRUE(state.segments[0].done_claimed);
+    ASSERT_EQ(state.last_decision.size(), 1u);
+    EXPECT_DOUBLE_EQ(state.last_decision[0].probability, 0.9);
+  }
+  // R1 really arrives: the claimed DONE counts now, and the next decision goes out.
+  {
+    std::lock_guard<std::mutex> l(mu);
+    r1_x = 0.8 - 0.01;
+  }
+  ASSERT_TRUE(waitFor([] { return requests.size() == 2; }, 5.0)) << "no decision after the real arrival";
+  ASSERT_TRUE(waitFor([] { return state.state == ddace::CoordinatorState::FINISHED; }, 5.0)) << state.state_name;
+  run = false;
+  tracker.join();
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "exec_verify_test");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  return RUN_ALL_TESTS();
+}
