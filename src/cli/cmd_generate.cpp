@@ -16,7 +16,7 @@ int runGenerate(const std::vector<std::string>& argv) {
   args.expectAtMostPositional(1);
   tasks::GeneratorOptions o;
   std::string names;
-  for (const auto& f : tasks::families()) names += (names.empty() ? "" : ", ") + f;
+  for (const auto& f : tasks::allFamilies()) names += (names.empty() ? "" : ", ") + f;
   o.family = args.positional(0, "FAMILY (" + names + ")");
   const std::string out = args.require("--out");
   const long train = args.getInt("--train", 30), test = args.getInt("--test", 15);

@@ -4,7 +4,7 @@
 #include <iostream>
 
 #include "command.h"
-#include "ddace/task/task_dir.h"
+#include "ddace/task/summary.h"
 
 namespace ddace::cli {
 namespace {
@@ -19,14 +19,14 @@ std::string stepText(const task::Step& step, const task::TaskSpec& spec) {
 }
 
 /// Validates one task directory; prints its summary or its errors. Returns true when valid.
+/// Demonstrations are summarised while they are read (no rows kept): any length validates.
 bool validateOne(const std::string& path, bool verbose) {
-  const task::TaskDirReport report = task::checkTaskDir(path);
-  if (!report.errors.empty()) {
-    std::cerr << path << ": " << report.errors.size() << " error(s)\n";
-    for (const auto& d : report.errors) std::cerr << d.str() << "\n";
+  const task::TaskDirSummary dir = task::summarizeTaskDir(path);
+  if (!dir.errors.empty()) {
+    std::cerr << path << ": " << dir.errors.size() << " error(s)\n";
+    for (const auto& d : dir.errors) std::cerr << d.str() << "\n";
     return false;
   }
-  const auto& dir = report.dir;
   const auto& spec = dir.spec;
   std::cout << path << ": task '" << spec.name << "', " << spec.entities.size() << " entities (";
   for (size_t i = 0; i < spec.entities.size(); ++i)
@@ -44,15 +44,15 @@ bool validateOne(const std::string& path, bool verbose) {
     if (first_structure.empty()) first_structure = structure;
     same = same && structure == first_structure;
     std::printf("  %s: %zu rows (%.2f s), %zu keyframes, %zu steps, %zu segments\n",
-                fs::path(d.source).filename().c_str(), d.rows(), d.t.back() - d.t.front(),
-                d.keyframes.size(), d.steps.size(), d.segments.size());
+                fs::path(d.source).filename().c_str(), d.rows, d.t_last - d.t_first, d.steps.size(),
+                d.steps.size(), d.segments);
     // Where step grouping merged a late label into its step (people label one robot after another).
-    for (const auto& note : task::mergedOnsetNotes(d, spec)) std::printf("    %s\n", note.str().c_str());
+    for (const auto& note : task::mergedOnsetNotes(d.source, d.steps, spec)) std::printf("    %s\n", note.str().c_str());
     if (verbose || d.steps.empty()) {
       for (size_t k = 0; k < d.steps.size(); ++k)
-        std::printf("    step %zu @ row %d (t = %.2f s): %s\n", k + 1, d.steps[k].keyframe_row,
-                    d.t[d.steps[k].keyframe_row], stepText(d.steps[k], spec).c_str());
-      std::printf("    END @ row %d\n", d.snapshots.back().row);
+        std::printf("    step %zu @ row %d (t = %.2f s): %s\n", k + 1, d.steps[k].keyframe_row, d.keyframe_t[k],
+                    stepText(d.steps[k], spec).c_str());
+      std::printf("    END @ row %d\n", d.end_row);
     }
   }
   if (!dir.demos.empty() && same && !verbose) {

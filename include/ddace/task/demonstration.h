@@ -110,8 +110,8 @@ class Demonstration {
 std::vector<Diagnostic> mergedOnsetNotes(const Demonstration& demo, const TaskSpec& spec);
 
 /// The largest demonstration CSV the readers accept: 1 GiB. They read it as a stream,
-/// so memory holds the parsed rows (about 40 bytes per entity and row, plus the action
-/// words), never the file's text.
+/// never holding its text: readDemonstrationCsv keeps the parsed rows (about 90 bytes per
+/// entity and row), summarizeDemonstrationCsv (task/summary.h) none of them.
 inline constexpr std::uint64_t kMaxDemonstrationBytes = std::uint64_t{1} << 30;
 
 /// Parses CSV text against `spec`. `file` is used in diagnostics. Throws

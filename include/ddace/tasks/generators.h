@@ -46,7 +46,7 @@ inline constexpr double kSceneDecisionMargin = 0.05;  // metres
 inline constexpr double kQueueSlotSpacing = 0.16;     // metres
 
 struct GeneratorOptions {
-  std::string family = "task4";  ///< one of families()
+  std::string family = "task4";  ///< one of allFamilies()
   int demos = 30;                ///< number of demonstrations
   uint64_t seed = 1;
   int robots = 11;               ///< task2 only: team size 4..11
@@ -61,12 +61,15 @@ struct GeneratorOptions {
   double onset_jitter_s = 0.0;
 };
 
-/// Every family: paperFamilies() then sceneFamilies().
-std::vector<std::string> families();
 /// {"task1", "task2", "task3", "task4"}: the paper's Table 2 families.
 std::vector<std::string> paperFamilies();
 /// {"fetch", "nearest_goal", "queue", "deliver"}: the start configuration decides.
 std::vector<std::string> sceneFamilies();
+/// Every family generate() takes: paperFamilies() then sceneFamilies().
+std::vector<std::string> allFamilies();
+/// The families `ddace table` runs as the paper's Table 2: paperFamilies() (its rows
+/// and overlays are the paper's; the table lists the others once it has rows for them).
+std::vector<std::string> families();
 
 /// Generates one task directory (spec + demos, analyzed). Throws ddace::Error
 /// for an unknown family or an option out of range, naming the option.

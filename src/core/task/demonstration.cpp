@@ -1,9 +1,8 @@
 #include "ddace/task/demonstration.h"
+#include "ddace/task/summary.h"
 
 #include <algorithm>
-#include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <map>
 #include <sstream>
 #include <string_view>
@@ -52,58 +51,101 @@ Token parseTokenKey(const std::string& key, const TaskSpec& spec) {
   return t;
 }
 
+namespace {
+
+/// Step grouping one row at a time (docs/task-format.md, "Step grouping"), with state for
+/// the open step and each entity's running token only: analyze() over stored rows, and
+/// the summary reader, which keeps no rows, compute the same steps.
+class StepGrouper {
+ public:
+  StepGrouper(size_t entities, double window) : prev_(entities), active_(entities, {-1, -1}), window_(window) {}
+
+  void row(int i, double t, const std::vector<Label>& labels, const std::vector<Eigen::Vector2d>& positions) {
+    const size_t m = labels.size();
+    // A token ends where its entity's label changes away from it.
+    for (size_t e = 0; e < m; ++e) {
+      if (labels[e] == prev_[e] || active_[e].first < 0) continue;
+      const auto [k, s] = active_[e];
+      step_segments_[k][s].last_row = i - 1;
+      if (k == static_cast<int>(steps_.size()) - 1) open_ended_ = true;
+      active_[e] = {-1, -1};
+    }
+    std::vector<Token> starting;  // tokens whose label begins in row i, by entity
+    bool all_null = true;
+    for (size_t e = 0; e < m; ++e) {
+      const Label& l = labels[e];
+      all_null = all_null && l.isNull();
+      if (!l.isNull() && l != prev_[e]) starting.push_back({static_cast<int>(e), l.action, l.target});
+    }
+    if (starting.empty()) {
+      // The bare rule (window 0) also makes a keyframe, with no token, of a row in which
+      // labels only end while others hold; with grouping only a beginning label opens a step.
+      if (window_ == 0 && !all_null && labels != prev_) openStep(i, t, positions);
+    } else {
+      const bool joins = !steps_.empty() && !open_ended_ && t - keyframe_t_.back() <= window_;
+      if (!joins) openStep(i, t, positions);
+      const int k = static_cast<int>(steps_.size()) - 1;
+      Step& step = steps_.back();
+      for (const Token& token : starting) {
+        step.tokens.push_back(token);
+        if (joins) step.late.push_back({token, i, t - keyframe_t_.back()});
+        active_[token.entity] = {k, static_cast<int>(step_segments_[k].size())};
+        step_segments_[k].push_back({token, k, i, i});
+      }
+      std::sort(step.tokens.begin(), step.tokens.end());
+    }
+    prev_ = labels;
+    last_row_ = i;
+  }
+
+  /// Closes the running tokens at the last row and hands the steps, segments (in step
+  /// order, by entity) and keyframe snapshots to `d`'s derived fields.
+  void finish(std::vector<int>& keyframes, std::vector<Step>& steps, std::vector<Segment>& segments,
+              std::vector<Snapshot>& snapshots) {
+    for (const auto& [k, s] : active_)
+      if (k >= 0) step_segments_[k][s].last_row = last_row_;
+    for (auto& segs : step_segments_) {
+      std::sort(segs.begin(), segs.end(), [](const Segment& a, const Segment& b) { return a.token < b.token; });
+      segments.insert(segments.end(), segs.begin(), segs.end());
+    }
+    for (const Step& s : steps_) keyframes.push_back(s.keyframe_row);
+    steps = std::move(steps_);
+    snapshots = std::move(snapshots_);
+  }
+  const std::vector<double>& keyframeTimes() const { return keyframe_t_; }
+
+ private:
+  void openStep(int i, double t, const std::vector<Eigen::Vector2d>& positions) {
+    steps_.push_back({i, {}, {}});
+    step_segments_.emplace_back();
+    snapshots_.push_back({i, false, positions});
+    keyframe_t_.push_back(t);
+    open_ended_ = false;
+  }
+
+  std::vector<Label> prev_;
+  std::vector<std::pair<int, int>> active_;  ///< [entity] (step, segment) of its running token
+  double window_;
+  std::vector<Step> steps_;
+  std::vector<std::vector<Segment>> step_segments_;
+  std::vector<Snapshot> snapshots_;
+  std::vector<double> keyframe_t_;
+  bool open_ended_ = false;  ///< a token of the open step has ended
+  int last_row_ = -1;
+};
+
+}  // namespace
+
 void Demonstration::analyze() {
   keyframes.clear();
   steps.clear();
   segments.clear();
   snapshots.clear();
-  const size_t n = rows(), m = entities();
+  const size_t n = rows();
   if (n == 0) return;
-  const std::vector<Label> none(m);
-  std::vector<std::vector<Segment>> step_segments;
-  int open_until = -1;  // the current step's tokens all hold up to this row (none has ended)
-  auto openStep = [&](size_t row) {
-    steps.push_back({static_cast<int>(row), {}, {}});
-    step_segments.emplace_back();
-    keyframes.push_back(static_cast<int>(row));
-    snapshots.push_back({static_cast<int>(row), false, positions[row]});
-    open_until = static_cast<int>(n);
-  };
-  for (size_t i = 0; i < n; ++i) {
-    const auto& prev = i == 0 ? none : labels[i - 1];
-    std::vector<Segment> starting;  // tokens whose label begins in row i, by entity
-    for (size_t e = 0; e < m; ++e) {
-      const Label& l = labels[i][e];
-      if (l.isNull() || l == prev[e]) continue;
-      size_t last = i;
-      while (last + 1 < n && labels[last + 1][e] == l) ++last;
-      starting.push_back({{static_cast<int>(e), l.action, l.target}, 0, static_cast<int>(i), static_cast<int>(last)});
-    }
-    if (starting.empty()) {
-      // The bare rule (window 0) also makes a keyframe, with no token, of a row in which
-      // labels only end while others hold; with grouping only a beginning label opens a step.
-      bool all_null = true;
-      for (const auto& l : labels[i]) all_null = all_null && l.isNull();
-      if (step_window_s == 0 && !all_null && labels[i] != prev) openStep(i);
-      continue;
-    }
-    const bool joins = !steps.empty() && static_cast<int>(i) <= open_until &&
-                       t[i] - t[steps.back().keyframe_row] <= step_window_s;
-    if (!joins) openStep(i);
-    Step& step = steps.back();
-    for (auto& seg : starting) {
-      seg.step = static_cast<int>(steps.size()) - 1;
-      step.tokens.push_back(seg.token);
-      if (joins) step.late.push_back({seg.token, static_cast<int>(i), t[i] - t[step.keyframe_row]});
-      open_until = std::min(open_until, seg.last_row);
-      step_segments.back().push_back(std::move(seg));
-    }
-    std::sort(step.tokens.begin(), step.tokens.end());
-  }
-  for (auto& segs : step_segments) {
-    std::sort(segs.begin(), segs.end(), [](const Segment& a, const Segment& b) { return a.token < b.token; });
-    segments.insert(segments.end(), segs.begin(), segs.end());
-  }
+  StepGrouper grouper(entities(), step_window_s);
+  for (size_t i = 0; i < n; ++i) grouper.row(static_cast<int>(i), t[i], labels[i], positions[i]);
+  grouper.finish(keyframes, steps, segments, snapshots);
   snapshots.push_back({static_cast<int>(n - 1), true, positions[n - 1]});
 }
 
@@ -120,13 +162,18 @@ Eigen::Vector2d Demonstration::segmentGoal(const Segment& segment) const {
 }
 
 std::vector<Diagnostic> mergedOnsetNotes(const Demonstration& demo, const TaskSpec& spec) {
+  return mergedOnsetNotes(demo.source, demo.steps, spec);
+}
+
+std::vector<Diagnostic> mergedOnsetNotes(const std::string& source, const std::vector<Step>& steps,
+                                         const TaskSpec& spec) {
   std::vector<Diagnostic> notes;
-  for (size_t k = 0; k < demo.steps.size(); ++k) {
-    const Step& step = demo.steps[k];
+  for (size_t k = 0; k < steps.size(); ++k) {
+    const Step& step = steps[k];
     for (const LateOnset& late : step.late) {
       char delay[32];
       std::snprintf(delay, sizeof delay, "%.3f", late.delay_s);
-      notes.push_back({demo.source, late.row + 2, 0,
+      notes.push_back({source, late.row + 2, 0,
                        "step " + std::to_string(k + 1) + ": " + tokenKey(late.token, spec) + " began " + delay +
                            " s after the step's first token (line " + std::to_string(step.keyframe_row + 2) +
                            "); merged into the step"});
@@ -189,7 +236,9 @@ constexpr size_t kMaxErrorsPerFile = 50;
 /// grows with the rows' numbers and labels, never with the text.
 class CsvParser {
  public:
-  CsvParser(const TaskSpec& spec, std::string file) : spec_(spec), file_(std::move(file)) {
+  /// `keep_rows` false: the rows are analyzed as they come and dropped (summary()).
+  CsvParser(const TaskSpec& spec, std::string file, bool keep_rows = true)
+      : spec_(spec), file_(std::move(file)), keep_rows_(keep_rows), grouper_(spec.entities.size(), spec.step_window_s) {
     demo_.source = file_;
     demo_.step_window_s = spec.step_window_s;
   }
@@ -217,15 +266,26 @@ class CsvParser {
   }
 
   Demonstration finish() {
-    if (!utf8_ok_) throwErrors();
-    if (!header_seen_) {
-      fail(1, 1, "file is empty (expected a header row t,<E>.x,<E>.y,...)");
-      throwErrors();
-    }
-    if (errors_.empty() && demo_.t.empty()) fail(2, 1, "file has a header but no data rows");
-    if (!errors_.empty()) throwErrors();
+    checkComplete();
     demo_.analyze();
     return std::move(demo_);
+  }
+
+  DemonstrationSummary summary() {
+    checkComplete();
+    DemonstrationSummary s;
+    s.source = file_;
+    s.rows = static_cast<size_t>(rows_);
+    s.t_first = t_first_;
+    s.t_last = t_last_;
+    s.keyframe_t = grouper_.keyframeTimes();
+    std::vector<int> keyframes;
+    std::vector<Segment> segments;
+    std::vector<Snapshot> snapshots;
+    grouper_.finish(keyframes, s.steps, segments, snapshots);
+    s.segments = segments.size();
+    s.end_row = rows_ - 1;
+    return s;
   }
 
   void fail(int line, int column, const std::string& message) {
@@ -233,6 +293,16 @@ class CsvParser {
   }
 
  private:
+  void checkComplete() {
+    if (!utf8_ok_) throwErrors();
+    if (!header_seen_) {
+      fail(1, 1, "file is empty (expected a header row t,<E>.x,<E>.y,...)");
+      throwErrors();
+    }
+    if (errors_.empty() && rows_ == 0) fail(2, 1, "file has a header but no data rows");
+    if (!errors_.empty()) throwErrors();
+  }
+
   [[noreturn]] void throwErrors() {
     if (errors_.size() >= kMaxErrorsPerFile)
       errors_.push_back({file_, 0, 0, "too many errors; stopped after " + std::to_string(kMaxErrorsPerFile)});
@@ -375,14 +445,21 @@ class CsvParser {
       }
     }
     if (!row_ok) return;
-    if (!demo_.t.empty() && !(t > demo_.t.back())) {
+    if (rows_ > 0 && !(t > t_last_)) {
       fail(line, fields_[t_index_].column, "t = " + std::string(fields_[t_index_].text) +
                                                " is not strictly increasing (previous row: " +
-                                               detail::shortestNumber(demo_.t.back()) + ")");
+                                               detail::shortestNumber(t_last_) + ")");
     }
-    demo_.t.push_back(t);
-    demo_.positions.push_back(std::move(pos));
-    demo_.labels.push_back(std::move(labels));
+    if (rows_ == 0) t_first_ = t;
+    t_last_ = t;
+    if (keep_rows_) {
+      demo_.t.push_back(t);
+      demo_.positions.push_back(std::move(pos));
+      demo_.labels.push_back(std::move(labels));
+    } else if (errors_.empty()) {  // only an error-free file is analyzed
+      grouper_.row(rows_, t, labels, pos);
+    }
+    ++rows_;
   }
 
   /// The field as it can be shown in a message (control bytes, NUL included, escaped).
@@ -402,6 +479,10 @@ class CsvParser {
 
   const TaskSpec& spec_;
   std::string file_;
+  bool keep_rows_;
+  StepGrouper grouper_;
+  int rows_ = 0;
+  double t_first_ = 0, t_last_ = 0;
   Demonstration demo_;
   std::vector<Diagnostic> errors_;
   std::vector<Column> columns_;
@@ -475,9 +556,11 @@ Demonstration parseDemonstrationCsv(const std::string& text, const TaskSpec& spe
   return parser.finish();
 }
 
-Demonstration readDemonstrationCsv(const std::string& path, const TaskSpec& spec) {
+namespace {
+
+/// Streams the CSV at `path` through `parser`.
+void readCsv(const std::string& path, CsvParser& parser) {
   InputFile in(path, kMaxDemonstrationBytes);
-  CsvParser parser(spec, path);
   LineSplitter lines(parser);
   char chunk[65536];
   std::streambuf* buf = in.stream().rdbuf();
@@ -490,7 +573,20 @@ Demonstration readDemonstrationCsv(const std::string& path, const TaskSpec& spec
     throw Error(Diagnostic{path, 0, 0, "cannot read: more than the limit of " + std::to_string(kMaxDemonstrationBytes) +
                                            " bytes for a demonstration"});
   lines.finish();
+}
+
+}  // namespace
+
+Demonstration readDemonstrationCsv(const std::string& path, const TaskSpec& spec) {
+  CsvParser parser(spec, path);
+  readCsv(path, parser);
   return parser.finish();
+}
+
+DemonstrationSummary summarizeDemonstrationCsv(const std::string& path, const TaskSpec& spec) {
+  CsvParser parser(spec, path, false);
+  readCsv(path, parser);
+  return parser.summary();
 }
 
 namespace {

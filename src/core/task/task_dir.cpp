@@ -1,4 +1,5 @@
 #include "ddace/task/task_dir.h"
+#include "ddace/task/summary.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -72,57 +73,85 @@ std::string demoFile(const std::string& task_dir, long index, const std::string&
   return files[static_cast<size_t>(index)];
 }
 
-TaskDirReport checkTaskDir(const std::string& path) {
-  TaskDirReport report;
-  report.dir.path = path;
+namespace {
+
+/// The checks of a task directory, every error into `errors`; `read` takes each
+/// demonstration CSV and throws ddace::Error for one with errors.
+template <class Read>
+void checkDir(const std::string& path, TaskSpec& spec, std::vector<Diagnostic>& errors, Read read) {
   std::string error;
   if (!fs::is_directory(statusOf(path, error))) {
-    report.errors.push_back(
-        {path, 0, 0, error.empty() ? "not a task directory (expected task.yaml and demos/*.csv)" : error});
-    return report;
+    errors.push_back({path, 0, 0, error.empty() ? "not a task directory (expected task.yaml and demos/*.csv)" : error});
+    return;
   }
   const std::string yaml = (fs::path(path) / "task.yaml").string();
   if (statusOf(yaml, error).type() == fs::file_type::not_found && error.empty()) {
-    report.errors.push_back({yaml, 0, 0, "missing task.yaml"});
-    return report;
+    errors.push_back({yaml, 0, 0, "missing task.yaml"});
+    return;
   }
   try {
-    report.dir.spec = readTaskYaml(yaml);
+    spec = readTaskYaml(yaml);
   } catch (const Error& e) {
-    report.errors.insert(report.errors.end(), e.diagnostics().begin(), e.diagnostics().end());
-    return report;  // demonstrations cannot be checked without the scene
+    errors.insert(errors.end(), e.diagnostics().begin(), e.diagnostics().end());
+    return;  // demonstrations cannot be checked without the scene
   }
 
   const fs::path demos = fs::path(path) / "demos";
   DemoListing listing;
   const fs::file_status demos_status = statusOf(demos, error);
   if (!error.empty()) {
-    report.errors.push_back({demos.string(), 0, 0, error});
-    return report;
+    errors.push_back({demos.string(), 0, 0, error});
+    return;
   }
   if (fs::is_directory(demos_status)) {
     try {
       listing = listDemos(demos);
     } catch (const Error& e) {
-      report.errors.insert(report.errors.end(), e.diagnostics().begin(), e.diagnostics().end());
-      return report;
+      errors.insert(errors.end(), e.diagnostics().begin(), e.diagnostics().end());
+      return;
     }
   }
   if (listing.csvs.empty() && listing.partial.empty())
-    report.errors.push_back({demos.string(), 0, 0, "no demonstrations (expected demos/*.csv)"});
+    errors.push_back({demos.string(), 0, 0, "no demonstrations (expected demos/*.csv)"});
   for (const auto& p : listing.partial) {
-    report.errors.push_back({p.string(), 0, 0,
-                             "partial recording (the recorder stopped without finishing it): "
-                             "inspect it, then rename it to .csv to use it or delete it"});
+    errors.push_back({p.string(), 0, 0,
+                      "partial recording (the recorder stopped without finishing it): "
+                      "inspect it, then rename it to .csv to use it or delete it"});
   }
   for (const auto& p : listing.csvs) {
     try {
-      report.dir.demos.push_back(readDemonstrationCsv(p.string(), report.dir.spec));
+      read(p.string());
     } catch (const Error& e) {
-      report.errors.insert(report.errors.end(), e.diagnostics().begin(), e.diagnostics().end());
+      errors.insert(errors.end(), e.diagnostics().begin(), e.diagnostics().end());
     }
   }
+}
+
+}  // namespace
+
+TaskDirReport checkTaskDir(const std::string& path) {
+  TaskDirReport report;
+  report.dir.path = path;
+  checkDir(path, report.dir.spec, report.errors,
+           [&](const std::string& csv) { report.dir.demos.push_back(readDemonstrationCsv(csv, report.dir.spec)); });
   return report;
+}
+
+TaskDirSummary summarizeTaskDir(const std::string& path) {
+  TaskDirSummary summary;
+  summary.path = path;
+  checkDir(path, summary.spec, summary.errors,
+           [&](const std::string& csv) { summary.demos.push_back(summarizeDemonstrationCsv(csv, summary.spec)); });
+  return summary;
+}
+
+std::vector<std::string> TaskDirSummary::vocabulary() const {
+  if (spec.actions_declared) return spec.actions;
+  std::set<std::string> seen;
+  for (const auto& d : demos)
+    for (const auto& step : d.steps)
+      for (const auto& token : step.tokens) seen.insert(token.action);
+  return {seen.begin(), seen.end()};
 }
 
 TaskDir loadTaskDir(const std::string& path) {

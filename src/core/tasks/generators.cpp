@@ -495,11 +495,12 @@ void mislabel(task::Demonstration& d, const task::TaskSpec& spec, SplitMix64& rn
 
 std::vector<std::string> paperFamilies() { return kPaperFamilies; }
 std::vector<std::string> sceneFamilies() { return kSceneFamilies; }
-std::vector<std::string> families() {
+std::vector<std::string> allFamilies() {
   std::vector<std::string> all = kPaperFamilies;
   all.insert(all.end(), kSceneFamilies.begin(), kSceneFamilies.end());
   return all;
 }
+std::vector<std::string> families() { return kPaperFamilies; }
 
 task::TaskDir generate(const GeneratorOptions& o) {
   Plan plan;
@@ -521,7 +522,7 @@ task::TaskDir generate(const GeneratorOptions& o) {
     plan.spec = scene->spec;
   } else {
     std::string names;
-    for (const auto& f : families()) names += (names.empty() ? "" : ", ") + f;
+    for (const auto& f : allFamilies()) names += (names.empty() ? "" : ", ") + f;
     throw Error("unknown task family '" + o.family + "' (expected one of " + names + ")");
   }
   if (o.demos < 0) throw Error("the number of demonstrations must not be negative");

@@ -3,12 +3,14 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 
 #include "ddace/common/random.h"
 #include "ddace/task/demonstration.h"
+#include "ddace/task/summary.h"
 
 using namespace ddace;
 using namespace ddace::task;
@@ -596,4 +598,104 @@ TEST(DemonstrationFiles, AFailedWriteIsAnErrorNamingTheFileAndLeavesNothingBehin
   writeBytes(path, "old");
   writeDemonstrationCsv(d, spec, path);
   EXPECT_EQ(demonstrationCsvText(readDemonstrationCsv(path, spec), spec), demonstrationCsvText(d, spec));
+}
+
+namespace {
+
+/// The grouping rule written out directly over all rows (as docs/task-format.md states
+/// it): for each row, the tokens that begin there join the open step when within the
+/// window and every token of the step still holds in that row.
+std::vector<std::vector<Token>> referenceSteps(const Demonstration& d) {
+  std::vector<std::vector<Token>> steps;
+  std::vector<int> last_rows;  // of the open step's tokens
+  double keyframe_t = 0;
+  const std::vector<Label> none(d.entities());
+  for (size_t i = 0; i < d.rows(); ++i) {
+    const auto& prev = i == 0 ? none : d.labels[i - 1];
+    std::vector<Token> starting;
+    std::vector<int> ends;
+    for (size_t e = 0; e < d.entities(); ++e) {
+      const Label& l = d.labels[i][e];
+      if (l.isNull() || l == prev[e]) continue;
+      size_t last = i;
+      while (last + 1 < d.rows() && d.labels[last + 1][e] == l) ++last;
+      starting.push_back({static_cast<int>(e), l.action, l.target});
+      ends.push_back(static_cast<int>(last));
+    }
+    bool all_null = true;
+    for (const auto& l : d.labels[i]) all_null = all_null && l.isNull();
+    if (starting.empty()) {
+      if (d.step_window_s == 0 && !all_null && d.labels[i] != prev) {
+        steps.emplace_back();
+        last_rows.clear();
+        keyframe_t = d.t[i];
+      }
+      continue;
+    }
+    bool holds = !steps.empty();
+    for (int last : last_rows) holds = holds && last >= static_cast<int>(i);
+    if (!(holds && d.t[i] - keyframe_t <= d.step_window_s)) {
+      steps.emplace_back();
+      last_rows.clear();
+      keyframe_t = d.t[i];
+    }
+    steps.back().insert(steps.back().end(), starting.begin(), starting.end());
+    std::sort(steps.back().begin(), steps.back().end());
+    last_rows.insert(last_rows.end(), ends.begin(), ends.end());
+  }
+  return steps;
+}
+
+}  // namespace
+
+TEST(DemonstrationFiles, ASummaryIsWhatReadingDerivesWithoutTheRows) {
+  // Random labels (late onsets, early ends, switches, one-row tokens) under three windows:
+  // the summary read without rows equals what analyze() derives from the stored rows.
+  SplitMix64 rng(99);
+  const char* actions[] = {"", "move", "carry", "stop"};
+  const char* targets[] = {"G1", "B1"};
+  for (const std::string window : {"0", "0.25", "0.5"}) {
+    const TaskSpec spec = scene(true, window);
+    for (int trial = 0; trial < 20; ++trial) {
+      std::string csv = kHeader;
+      std::string a1, t1, a2, t2;
+      for (int r = 0; r < 60; ++r) {
+        if (rng.uniform() < 0.2) {
+          a1 = actions[rng.index(4)];
+          t1 = a1.empty() || a1 == "stop" ? "" : targets[rng.index(2)];
+        }
+        if (rng.uniform() < 0.2) {
+          a2 = actions[rng.index(4)];
+          t2 = a2.empty() || a2 == "stop" ? "" : targets[rng.index(2)];
+        }
+        csv += row(0.1 * r, a1, t1, a2, t2, 0.01 * r);
+      }
+      const std::string path = tempPath("summary.csv");
+      writeBytes(path, csv);
+      const Demonstration d = readDemonstrationCsv(path, spec);
+      const DemonstrationSummary s = summarizeDemonstrationCsv(path, spec);
+      const std::vector<std::vector<Token>> expected = referenceSteps(d);
+      ASSERT_EQ(d.steps.size(), expected.size()) << csv;
+      for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(d.steps[k].tokens, expected[k]) << csv;
+      EXPECT_EQ(s.source, path);
+      EXPECT_EQ(s.rows, d.rows());
+      EXPECT_EQ(s.t_first, d.t.front());
+      EXPECT_EQ(s.t_last, d.t.back());
+      EXPECT_EQ(s.segments, d.segments.size());
+      EXPECT_EQ(s.end_row, d.snapshots.back().row);
+      ASSERT_EQ(s.steps.size(), d.steps.size());
+      ASSERT_EQ(s.keyframe_t.size(), d.steps.size());
+      for (size_t k = 0; k < d.steps.size(); ++k) {
+        EXPECT_EQ(s.steps[k].keyframe_row, d.steps[k].keyframe_row);
+        EXPECT_EQ(s.keyframe_t[k], d.t[d.steps[k].keyframe_row]);
+        EXPECT_EQ(s.steps[k].tokens, d.steps[k].tokens);
+        ASSERT_EQ(s.steps[k].late.size(), d.steps[k].late.size());
+        for (size_t j = 0; j < d.steps[k].late.size(); ++j) EXPECT_EQ(s.steps[k].late[j].row, d.steps[k].late[j].row);
+      }
+      EXPECT_EQ(mergedOnsetNotes(s.source, s.steps, spec).size(), mergedOnsetNotes(d, spec).size());
+    }
+  }
+  // The same errors as reading.
+  writeBytes(tempPath("bad_summary.csv"), std::string(kHeader) + row(0, "fly", "G1", "", ""));
+  EXPECT_THROW(summarizeDemonstrationCsv(tempPath("bad_summary.csv"), scene()), Error);
 }
