@@ -18,7 +18,7 @@ Run it in a terminal next to the recorder:
     q         quit
 
 Labels go to /ddace/labels (ddace/Label). Demonstrations are step-synchronous
-(shared/spec/task-format.md): give the labels of one step together, and the next
+(docs/task-format.md): give the labels of one step together, and the next
 step's only after every motion of the previous one has ended.
 """
 import select

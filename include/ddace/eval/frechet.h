@@ -2,7 +2,7 @@
 //
 // Units: frechetDistance is in the units of its inputs (metres for table-frame
 // paths); normalisedFrechet is dimensionless (fractions of the ground-truth
-// segment's start-end distance), see shared/spec/task-format.md, "FD".
+// segment's start-end distance), see docs/task-format.md, "FD".
 #pragma once
 
 #include <vector>

@@ -1,4 +1,4 @@
-// The evaluation metrics of shared/spec/task-format.md: OSR, SSR, GCR and FD, per trial
+// The evaluation metrics of docs/task-format.md: OSR, SSR, GCR and FD, per trial
 // and aggregated over a test set.
 //
 // Owns: scoring a simulated (or rolled-out) trial against its ground-truth demonstration.

@@ -1,4 +1,4 @@
-// The closed-loop simulator of shared/spec/task-format.md, "Evaluation on a test set".
+// The closed-loop simulator of docs/task-format.md, "Evaluation on a test set".
 //
 // One trial: every entity starts at the test demonstration's first row; then, until the
 // policy predicts END or the number of predicted steps exceeds the ground truth's by 2:
