@@ -25,8 +25,8 @@ std::string trainingDir(const std::string& path) {
 
 int runTrain(const std::vector<std::string>& argv) {
   Args args(argv, {"--out", "--variant", "--epochs", "--seed", "--threads", "--patience", "--lr", "--attention",
-                   "--dropout", "--layers", "--gru-hidden", "--head-hidden", "--identity-dim"},
-            {"--no-identity", "--quiet"});
+                   "--dropout", "--layers", "--gru-hidden", "--head-hidden", "--identity-dim", "--weight-decay"},
+            {"--no-identity", "--no-positions", "--no-displacement", "--quiet"});
   const std::string task_path = trainingDir(args.positional(0, "TASKDIR"));
   args.expectAtMostPositional(1);
   const std::string out = args.require("--out");
@@ -50,7 +50,10 @@ int runTrain(const std::vector<std::string>& argv) {
   options.gru_hidden = static_cast<int>(args.getInt("--gru-hidden", options.gru_hidden));
   options.head_hidden = static_cast<int>(args.getInt("--head-hidden", options.head_hidden));
   options.identity_dim = static_cast<int>(args.getInt("--identity-dim", options.identity_dim));
+  options.weight_decay = args.getDouble("--weight-decay", options.weight_decay);
   if (args.has("--no-identity")) options.identity_embedding = false;
+  if (args.has("--no-positions")) options.node_positions = false;
+  if (args.has("--no-displacement")) options.edge_displacement = false;
   options.validate();
 
   const task::TaskDir train = task::loadTaskDir(task_path);
@@ -84,7 +87,8 @@ int runTrain(const std::vector<std::string>& argv) {
 DDACE_COMMAND({"train",
                "ddace train TASKDIR --out MODELDIR [--variant scene|paper|full-graph|gnn] [--attention gatv2|gat] [--epochs N=400] [--seed S=1] "
                "[--threads T=1] [--patience P=20] [--lr RATE] [--dropout P=0.1] [--layers L=3] [--gru-hidden H=64] "
-               "[--head-hidden H=32] [--identity-dim D=8] [--no-identity] [--quiet]",
+               "[--head-hidden H=32] [--identity-dim D=8] [--weight-decay W=0] [--no-identity] [--no-positions] "
+               "[--no-displacement] [--quiet]",
                "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR", runTrain});
 
 }  // namespace

@@ -86,6 +86,10 @@ struct TrainOptions {
   int identity_dim = 8;
   AttentionKind attention = AttentionKind::GatV2;  ///< scene variant
   int head_hidden = 32;            ///< scene variant: hidden units of the action and pointer heads
+  bool node_positions = true;      ///< scene variant: absolute (x, y) among the node features
+  bool edge_displacement = true;   ///< scene variant: x_j - x_i among the edge features (else only
+                                   ///< distance and nearness ranks: invariant to rotating the scene)
+  double weight_decay = 0;         ///< Adam's L2 penalty (as torch.optim.Adam's weight_decay)
   double dropout = 0.1;
   double learning_rate = 5e-3;
   int batch_demos = 8;             ///< at most this many demonstrations per mini-batch, and at

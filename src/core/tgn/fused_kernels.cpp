@@ -338,10 +338,11 @@ double FlatParameters::clipGradNorm(double max_norm) {
   return norm;
 }
 
-void FlatParameters::adamStep(double learning_rate) {
+void FlatParameters::adamStep(double learning_rate, double weight_decay) {
   constexpr double kBeta1 = 0.9, kBeta2 = 0.999, kEps = 1e-8;
   torch::NoGradGuard no_grad;
   ++step_;
+  if (weight_decay != 0) grad_.add_(data_, weight_decay);
   exp_avg_.mul_(kBeta1).add_(grad_, 1 - kBeta1);
   exp_avg_sq_.mul_(kBeta2).addcmul_(grad_, grad_, 1 - kBeta2);
   const double bias1 = 1 - std::pow(kBeta1, static_cast<double>(step_));

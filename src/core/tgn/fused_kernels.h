@@ -63,8 +63,9 @@ class FlatParameters {
   void zeroGrad() { grad_.zero_(); }
   /// torch::nn::utils::clip_grad_norm_ (2-norm over all gradients); returns the norm before clipping.
   double clipGradNorm(double max_norm);
-  /// One step of torch.optim.Adam (betas 0.9/0.999, eps 1e-8, no weight decay, no amsgrad).
-  void adamStep(double learning_rate);
+  /// One step of torch.optim.Adam (betas 0.9/0.999, eps 1e-8, L2 weight decay as its
+  /// `weight_decay`: the gradient gets weight_decay * parameter; no amsgrad).
+  void adamStep(double learning_rate, double weight_decay = 0);
 
  private:
   std::vector<torch::Tensor> parameters_;

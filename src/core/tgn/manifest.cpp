@@ -48,6 +48,7 @@ void TrainOptions::validate() const {
   if (gat_layers < 1 || gru_layers < 1 || gru_hidden < 1) bad("gat_layers/gru_layers/gru_hidden: must be at least 1");
   if (identity_dim < 1) bad("identity_dim: must be at least 1");
   if (head_hidden < 1) bad("head_hidden: must be at least 1");
+  if (!(weight_decay >= 0 && std::isfinite(weight_decay))) bad("weight_decay: must be a non-negative number");
   if (!(dropout >= 0 && dropout < 1)) bad("dropout: must be in [0, 1)");
   if (!(learning_rate > 0 && std::isfinite(learning_rate))) bad("learning_rate: must be positive");
   if (batch_demos < 1) bad("batch_demos: must be at least 1");
@@ -160,6 +161,9 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec, uint
   y << YAML::Key << "identity_dim" << YAML::Value << o.identity_dim;
   y << YAML::Key << "attention" << YAML::Value << toString(o.attention);
   y << YAML::Key << "head_hidden" << YAML::Value << o.head_hidden;
+  y << YAML::Key << "node_positions" << YAML::Value << o.node_positions;
+  y << YAML::Key << "edge_displacement" << YAML::Value << o.edge_displacement;
+  y << YAML::Key << "weight_decay" << YAML::Value << o.weight_decay;
   y << YAML::Key << "dropout" << YAML::Value << o.dropout;
   y << YAML::Key << "learning_rate" << YAML::Value << o.learning_rate;
   y << YAML::Key << "batch_demos" << YAML::Value << o.batch_demos;
@@ -261,6 +265,9 @@ ModelInfo parseManifest(const std::string& path, const task::TaskSpec& spec, uin
       throw errorAt(path, hp["attention"], e.what());
     }
     o.head_hidden = as<int>(path, hp, "head_hidden");
+    o.node_positions = as<bool>(path, hp, "node_positions");
+    o.edge_displacement = as<bool>(path, hp, "edge_displacement");
+    o.weight_decay = as<double>(path, hp, "weight_decay");
     o.dropout = as<double>(path, hp, "dropout");
     o.learning_rate = as<double>(path, hp, "learning_rate");
     o.batch_demos = as<int>(path, hp, "batch_demos");

@@ -181,8 +181,10 @@ void SequenceModel::Impl::features(const std::vector<Eigen::Vector2d>& pos, cons
   for (int i = 0; i < cfg.nodes; ++i) {
     float* row = out + i * f;
     std::fill(row, row + f, 0.f);
-    row[0] = static_cast<float>((pos[i].x() - info.mean[0]) / info.std[0]);
-    row[1] = static_cast<float>((pos[i].y() - info.mean[1]) / info.std[1]);
+    if (!isScene() || info.options.node_positions) {
+      row[0] = static_cast<float>((pos[i].x() - info.mean[0]) / info.std[0]);
+      row[1] = static_cast<float>((pos[i].y() - info.mean[1]) / info.std[1]);
+    }
     if (isScene()) std::copy(kinds.begin() + i * 3, kinds.begin() + i * 3 + 3, row + 2);
     if (labels) {
       const task::Label& l = (*labels)[i];
@@ -213,8 +215,10 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos, floa
         if (kind(k) == kind(j) && d[static_cast<size_t>(i * n + k)] < dij) ++rank_j;
         if (kind(k) == kind(i) && d[static_cast<size_t>(j * n + k)] < dij) ++rank_i;
       }
-      r[0] = static_cast<float>((pos[j].x() - pos[i].x()) / scale);
-      r[1] = static_cast<float>((pos[j].y() - pos[i].y()) / scale);
+      if (info.options.edge_displacement) {
+        r[0] = static_cast<float>((pos[j].x() - pos[i].x()) / scale);
+        r[1] = static_cast<float>((pos[j].y() - pos[i].y()) / scale);
+      }
       r[2] = static_cast<float>(dij);
       r[3] = 1.f / static_cast<float>(1 + rank_j);
       r[4] = 1.f / static_cast<float>(1 + rank_i);

@@ -63,7 +63,7 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
       loss.backward();
       // GRUs on few sequences occasionally take a huge step; clipping keeps training monotone.
       parameters.clipGradNorm(kClipNorm);
-      parameters.adamStep(options.learning_rate);
+      parameters.adamStep(options.learning_rate, options.weight_decay);
       total += loss.item<double>();
       ++batches;
     }
