@@ -58,6 +58,11 @@ inline constexpr const char* kStraightLine = "straight line";
 /// 2 restarts, seed 0, alpha 1e-10.
 GpOptions defaultPrimitiveGpOptions();
 
+/// Bounds of what primitives.yaml may ask for, checked before anything is allocated: a GP
+/// holds points x points matrices, and segments only weight the fit.
+inline constexpr int kMaxPrimitivePoints = 2000;
+inline constexpr int kMaxPrimitiveSegments = 1000000;
+
 struct PrimitiveOptions {
   int points = 100;                   ///< progress samples per segment (distinct GP inputs)
   double min_segment_length_m = 0.005;  ///< shorter segments are skipped, metres

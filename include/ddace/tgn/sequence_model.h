@@ -73,6 +73,10 @@ enum class AttentionKind {
 const char* toString(AttentionKind k);  ///< "gatv2", "gat"
 AttentionKind attentionFromString(const std::string& name);
 
+/// Most training threads a model may ask for (manifest.yaml is outside input; more threads
+/// than this machine has cores only slow tiny tensors down).
+inline constexpr int kMaxThreads = 64;
+
 struct TrainOptions {
   Variant variant = Variant::Scene;
   int max_epochs = 400;
@@ -96,7 +100,7 @@ struct TrainOptions {
                                    ///< most a quarter of them (at least 4 steps per epoch)
   int plateau_patience = 20;       ///< epochs
   double plateau_delta = 1e-3;     ///< loss
-  int threads = 1;                 ///< at::set_num_threads
+  int threads = 1;                 ///< at::set_num_threads during training (1..kMaxThreads)
   graph::RefinementOptions refinement;  ///< E' (variant ddace)
 
   /// Throws ddace::Error naming the first option out of range.

@@ -50,7 +50,7 @@ struct Reader {
     if (!(v > 0)) fail(need(parent, key), "'" + key + "' must be positive");
     return v;
   }
-  int integer(const YAML::Node& parent, const std::string& key, int min) const {
+  int integer(const YAML::Node& parent, const std::string& key, int min, int max) const {
     const YAML::Node n = need(parent, key);
     int v = 0;
     try {
@@ -58,7 +58,8 @@ struct Reader {
     } catch (const YAML::Exception&) {
       fail(n, "'" + key + "' must be an integer");
     }
-    if (v < min) fail(n, "'" + key + "' must be at least " + std::to_string(min));
+    if (v < min || v > max)
+      fail(n, "'" + key + "' must be in " + std::to_string(min) + ".." + std::to_string(max));
     return v;
   }
   bool boolean(const YAML::Node& parent, const std::string& key) const {
@@ -151,7 +152,8 @@ GpOptions defaultPrimitiveGpOptions() {
 }
 
 std::map<std::string, KeySegments> canonicalSegments(const task::TaskDir& train, const PrimitiveOptions& options) {
-  if (options.points < 2) throw Error("primitive option points must be at least 2");
+  if (options.points < 2 || options.points > kMaxPrimitivePoints)
+    throw Error("primitive option points must be in 2.." + std::to_string(kMaxPrimitivePoints));
   if (!(options.min_segment_length_m > 0)) throw Error("primitive option min_segment_length_m must be positive");
   std::map<std::string, KeySegments> by_key;
   for (const auto& demo : train.demos) {
@@ -400,7 +402,8 @@ PrimitiveLibrary PrimitiveLibrary::load(const std::string& path) {
     if (!e.IsScalar() || !task::isValidName(e.Scalar())) r.fail(e, "invalid entity name");
     lib.entities_.push_back(e.Scalar());
   }
-  lib.options_.points = r.integer(root, "points", 2);
+  // Bounded before anything is allocated from it (every GP holds points x points matrices).
+  lib.options_.points = r.integer(root, "points", 2, kMaxPrimitivePoints);
   lib.options_.pin_endpoints = r.boolean(root, "pin_endpoints");
   lib.options_.min_segment_length_m = r.positive(root, "min_segment_length_m");
   const YAML::Node prims = r.need(root, "primitives");
@@ -419,8 +422,8 @@ PrimitiveLibrary PrimitiveLibrary::load(const std::string& path) {
     if (p.key != joinKey(p.entity, p.action, p.target))
       r.fail(node["key"], "primitive key '" + p.key + "' does not match its entity, action and target");
     if (lib.primitives_.count(p.key)) r.fail(node["key"], "primitive " + p.key + " appears twice");
-    p.segments = r.integer(node, "segments", 1);
-    p.skipped_segments = r.integer(node, "skipped_segments", 0);
+    p.segments = r.integer(node, "segments", 1, kMaxPrimitiveSegments);
+    p.skipped_segments = r.integer(node, "skipped_segments", 0, kMaxPrimitiveSegments);
     p.x = readGp(r, r.need(node, "x"), lib.options_.points, p.segments, "primitive " + p.key + ", x");
     p.y = readGp(r, r.need(node, "y"), lib.options_.points, p.segments, "primitive " + p.key + ", y");
     lib.primitives_.emplace(p.key, std::move(p));

@@ -54,7 +54,13 @@ void TrainOptions::validate() const {
   if (batch_demos < 1) bad("batch_demos: must be at least 1");
   if (plateau_patience < 1) bad("plateau_patience: must be at least 1");
   if (!(plateau_delta >= 0)) bad("plateau_delta: must be non-negative");
-  if (threads < 1) bad("threads: must be at least 1");
+  if (threads < 1 || threads > kMaxThreads) bad("threads: must be in 1.." + std::to_string(kMaxThreads));
+  // Upper bounds too: a manifest is outside input, and these sizes are allocated from.
+  if (max_epochs > 1000000) bad("max_epochs: must be at most 1000000");
+  if (heads > 64 || head_channels > 1024) bad("heads/head_channels: must be at most 64/1024");
+  if (gat_layers > 16 || gru_layers > 16 || gru_hidden > 4096) bad("gat_layers/gru_layers/gru_hidden: must be at most 16/16/4096");
+  if (identity_dim > 1024 || head_hidden > 4096) bad("identity_dim/head_hidden: must be at most 1024/4096");
+  if (batch_demos > 100000 || plateau_patience > 100000) bad("batch_demos/plateau_patience: must be at most 100000");
 }
 
 namespace files {
