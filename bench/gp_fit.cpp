@@ -181,10 +181,16 @@ int main(int argc, char** argv) {
     task::TaskDir train5 = all;
     train5.demos.resize(5);
     const gp::PrimitiveLibrary lib = gp::PrimitiveLibrary::fit(train5);
-    const Timing generate =
-        median([&] { (void)lib.generate(std::string(kKey), {0.2, 0.3}, {0.8, 0.6}, 100); }, 200, 300);
-    const Timing generate_other =
-        median([&] { (void)lib.generate(std::string(kKey), {0.2, 0.3}, {0.8, 0.6}, 101); }, 200, 300);
+    const Timing generate = median(
+        [&] {
+          (void)lib.generate(std::string(kKey), {0.2, 0.3}, {0.8, 0.6}, 100);
+        },
+        200, 300);
+    const Timing generate_other = median(
+        [&] {
+          (void)lib.generate(std::string(kKey), {0.2, 0.3}, {0.8, 0.6}, 101);
+        },
+        200, 300);
 
     // ---- scikit-learn, same run
     const fs::path tmp = fs::temp_directory_path() / ("ddace_bench_gp_fit_" + std::to_string(::getpid()));
@@ -218,10 +224,10 @@ int main(int argc, char** argv) {
     md << std::fixed;
     md << "# GP primitive fit and prediction vs scikit-learn\n\n"
        << "Written by `bench_gp_fit` (bench/gp_fit.cpp; `ddace bench gp_fit`). Do not edit.\n\n"
-       << "Primitive " << kKey << " (spiral) of a generated Task 4 (seed 1); each segment resampled to "
-       << popt.points << " progress values. Kernel C*RBF + White, initial (C, l, sigma_n^2) = (" << std::defaultfloat
-       << gopt.initial.constant << ", " << gopt.initial.length_scale << ", " << gopt.initial.noise_level
-       << std::fixed << "), bounds C [1e-4, 1e2], l [1e-2, 10], sigma_n^2 [1e-6, 1], alpha 1e-10, " << gopt.restarts
+       << "Primitive " << kKey << " (spiral) of a generated Task 4 (seed 1); each segment resampled to " << popt.points
+       << " progress values. Kernel C*RBF + White, initial (C, l, sigma_n^2) = (" << std::defaultfloat
+       << gopt.initial.constant << ", " << gopt.initial.length_scale << ", " << gopt.initial.noise_level << std::fixed
+       << "), bounds C [1e-4, 1e2], l [1e-2, 10], sigma_n^2 [1e-6, 1], alpha 1e-10, " << gopt.restarts
        << " restarts, on both sides. A fit is an x-GP and a y-GP from the raw samples. scikit-learn "
        << ref["sklearn"].as<std::string>() << " (GaussianProcessRegressor, L-BFGS-B) runs in the same process tree, "
        << "in the same run. Median of repeated runs for ours, one run for scikit-learn; "
@@ -232,8 +238,8 @@ int main(int argc, char** argv) {
     double sk_predict_ms = -1, sk_predict_cpu_ms = -1;
     for (size_t i = 0; i < sets.size(); ++i) {
       const Ours& o = ours[i];
-      md << "| " << sets[i].demos << " | " << sets[i].x.size() << " | " << std::setprecision(2) << o.fit.wall_ms << " | "
-         << o.fit.cpu_ms << " | ";
+      md << "| " << sets[i].demos << " | " << sets[i].x.size() << " | " << std::setprecision(2) << o.fit.wall_ms
+         << " | " << o.fit.cpu_ms << " | ";
       const YAML::Node ref_sets = ref["sets"];
       int found = -1;
       for (size_t j = 0; j < ref_sets.size(); ++j)

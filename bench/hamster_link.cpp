@@ -116,10 +116,9 @@ CpuResult cpuBench(int robots, long cycles) {
     r.address = addressOf(i);
     r.port_hints = {exe};
     r.calibration.left_mps_per_unit = r.calibration.right_mps_per_unit = 0.001;
-    links.push_back(std::make_unique<RobotLink>(r, bridge, std::make_shared<PortDirectory>(),
-                                                [pipe](const std::string& p) {
-                                                  return std::make_unique<MemoryTransport>(p, pipe);
-                                                }));
+    links.push_back(std::make_unique<RobotLink>(
+        r, bridge, std::make_shared<PortDirectory>(),
+        [pipe](const std::string& p) { return std::make_unique<MemoryTransport>(p, pipe); }));
   }
   double t = 0.0;
   for (int i = 0; i < robots; ++i) {
@@ -200,7 +199,7 @@ struct PtyResult {
   long lines = 0;
   double link_cpu_us_per_line = 0;  ///< CPU of the polls that handled lines, incl. system calls, per line
   long idle_polls = 0;
-  double idle_us_per_poll = 0;      ///< CPU of a poll that found no line (one read system call)
+  double idle_us_per_poll = 0;  ///< CPU of a poll that found no line (one read system call)
 };
 
 PtyResult ptyBench(int robots, int commands) {
@@ -347,7 +346,8 @@ int main() {
      << "read/write system calls are included). Polls that handled a line are charged to that line;\n"
      << "polls that found nothing are the idle cost (hamster_bridge_node polls every port whenever any\n"
      << "port has data, and at least every 2 ms).\n\n"
-     << "| lines | µs CPU per line (link + syscalls) | ratio to the in-memory link | goal | idle polls | µs CPU per idle poll |\n"
+     << "| lines | µs CPU per line (link + syscalls) | ratio to the in-memory link | goal | idle polls | µs CPU per "
+        "idle poll |\n"
      << "|---|---|---|---|---|---|\n";
   std::snprintf(buf, sizeof buf, "| %ld | %.2f | %.1f | < 20 µs/line: %s | %ld | %.2f |\n", pty.lines,
                 pty.link_cpu_us_per_line, pty.link_cpu_us_per_line / cpu.link_us,

@@ -39,7 +39,8 @@ int main() try {
   const task::Demonstration& d = train.demos.front();
   const std::vector<task::Snapshot> history(d.snapshots.begin(), d.snapshots.begin() + kHistory);
 
-  const fs::path tensors = fs::temp_directory_path() / ("ddace_bench_tgn_decision_" + std::to_string(getpid()) + ".txt");
+  const fs::path tensors =
+      fs::temp_directory_path() / ("ddace_bench_tgn_decision_" + std::to_string(getpid()) + ".txt");
   tgn::writeTrainingTensors(train, o, tensors.string());
   const std::string cmd = "/usr/bin/python3 '" + (kRepo / "bench" / "tgn_train_reference.py").string() +
                           "' decision '" + tensors.string() + "' --history " + std::to_string(kHistory) +
@@ -68,15 +69,17 @@ int main() try {
   char line[512];
   md << "# bench: tgn_decision\n\n"
      << "Written by `bench_tgn_decision` (`ddace bench tgn_decision`), " << utcNow() << ", "
-     << std::thread::hardware_concurrency() << "-core machine (1-minute load average " << loadAverage() << " after the timings), one thread.\n"
+     << std::thread::hardware_concurrency() << "-core machine (1-minute load average " << loadAverage()
+     << " after the timings), one thread.\n"
      << "One decision = `SequenceModel::predictNext` on a history of " << kHistory
      << " keyframe snapshots of Task 2 with 10 robots + G1 (11 entities): GAT encoder over every snapshot, GRU, heads, "
         "tokens and probabilities. Median of "
-     << kRepeats << " calls, best of 2 rounds. Reference: the same forward pass in Python/PyTorch "
-                    "(`bench/tgn_train_reference.py decision`), timed in the same run.\n\n"
+     << kRepeats
+     << " calls, best of 2 rounds. Reference: the same forward pass in Python/PyTorch "
+        "(`bench/tgn_train_reference.py decision`), timed in the same run.\n\n"
      << "| measure | C++ (libtorch) | reference | ratio | goal |\n|---|---|---|---|---|\n";
-  std::snprintf(line, sizeof line, "| one decision | %.3f ms | %.3f ms (Python) | C++ %.2fx faster | < 2 ms |\n", cpp_ms,
-                py_ms, py_ms / cpp_ms);
+  std::snprintf(line, sizeof line, "| one decision | %.3f ms | %.3f ms (Python) | C++ %.2fx faster | < 2 ms |\n",
+                cpp_ms, py_ms, py_ms / cpp_ms);
   md << line;
   std::snprintf(line, sizeof line, "| one decision vs the goal | %.3f ms | 2 ms (goal) | %.2f of the goal | < 2 ms |\n",
                 cpp_ms, cpp_ms / 2.0);

@@ -69,8 +69,9 @@ int main() try {
   std::ofstream md(kRepo / "docs" / "bench" / "tgn_train.md");
   char line[512];
   md << "# bench: tgn_train\n\n"
-     << "Written by `bench_tgn_train` (`ddace bench tgn_train`), " << utcNow() << ", " << std::thread::hardware_concurrency()
-     << "-core machine (1-minute load average " << loadAverage() << " after the timings), one thread in both languages (`at::set_num_threads(1)`, `torch.set_num_threads(1)`).\n"
+     << "Written by `bench_tgn_train` (`ddace bench tgn_train`), " << utcNow() << ", "
+     << std::thread::hardware_concurrency() << "-core machine (1-minute load average " << loadAverage()
+     << " after the timings), one thread in both languages (`at::set_num_threads(1)`, `torch.set_num_threads(1)`).\n"
      << "Task 2 with 11 robots (12 entities), 30 demonstrations (generator seed 1), the default variant `"
      << tgn::toString(fixed.variant)
      << "` with its default hyper-parameters (3 attention layers x 2 heads x 16 channels with relative edge "
@@ -81,11 +82,13 @@ int main() try {
         "(Debian's python3-torch), on the same tensors, timed in the same run; per-epoch times are the best of "
      << kRounds << " alternating rounds of " << kEpochs << " epochs.\n\n"
      << "| measure | C++ (libtorch) | reference | ratio | goal |\n|---|---|---|---|---|\n";
-  std::snprintf(line, sizeof line, "| time per epoch | %.1f ms | %.1f ms (Python) | C++ %.2fx faster | >= 2x faster |\n",
-                cpp_ms, py_ms, py_ms / cpp_ms);
+  std::snprintf(line, sizeof line,
+                "| time per epoch | %.1f ms | %.1f ms (Python) | C++ %.2fx faster | >= 2x faster |\n", cpp_ms, py_ms,
+                py_ms / cpp_ms);
   md << line;
   std::snprintf(line, sizeof line,
-                "| training to the plateau | %.1f s (%d epochs, %s, step accuracy %.3f) | 30 s (goal) | %.2f of the goal | < 30 s |\n",
+                "| training to the plateau | %.1f s (%d epochs, %s, step accuracy %.3f) | 30 s (goal) | %.2f of the "
+                "goal | < 30 s |\n",
                 plateau_s, last.epoch, model.info().stop_reason.c_str(), last.step_accuracy, plateau_s / 30.0);
   md << line;
 
@@ -97,9 +100,14 @@ int main() try {
         "closed-loop comparison on every family is in docs/results.md.\n\n"
      << "| task | demos | variant | identity embedding | epochs | training time | train step accuracy | test step "
         "accuracy |\n|---|---|---|---|---|---|---|---|\n";
-  for (const auto& [family, demos] : std::vector<std::pair<std::string, int>>{
-           {"task1", 20}, {"task1", 3}, {"task2", 20}, {"task2", 3}, {"task3", 20}, {"task3", 3},
-           {"task4", 20}, {"task4", 3}}) {
+  for (const auto& [family, demos] : std::vector<std::pair<std::string, int>>{{"task1", 20},
+                                                                              {"task1", 3},
+                                                                              {"task2", 20},
+                                                                              {"task2", 3},
+                                                                              {"task3", 20},
+                                                                              {"task3", 3},
+                                                                              {"task4", 20},
+                                                                              {"task4", 3}}) {
     tasks::GeneratorOptions tg;
     tg.family = family;
     tg.demos = demos;
@@ -108,16 +116,18 @@ int main() try {
     tg.demos = 10;
     tg.seed = 101;
     const task::TaskDir te = tasks::generate(tg);
-    for (const auto& [variant, identity] : std::vector<std::pair<tgn::Variant, bool>>{
-             {tgn::Variant::Scene, true}, {tgn::Variant::Paper, true}, {tgn::Variant::Paper, false},
-             {tgn::Variant::FullGraph, true}}) {
+    for (const auto& [variant, identity] :
+         std::vector<std::pair<tgn::Variant, bool>>{{tgn::Variant::Scene, true},
+                                                    {tgn::Variant::Paper, true},
+                                                    {tgn::Variant::Paper, false},
+                                                    {tgn::Variant::FullGraph, true}}) {
       tgn::TrainOptions o;
       o.variant = variant;
       o.identity_embedding = identity;
       const auto m = tgn::SequenceModel::train(tr, o, nullptr);
       const auto& r = m.info().history.back();
-      std::snprintf(line, sizeof line, "| %s | %d | %s | %s | %d | %.1f s | %.3f | %.3f |\n", family.c_str(),
-                    demos, tgn::toString(variant), identity ? "on" : "off", r.epoch, r.seconds, m.stepAccuracy(tr.demos),
+      std::snprintf(line, sizeof line, "| %s | %d | %s | %s | %d | %.1f s | %.3f | %.3f |\n", family.c_str(), demos,
+                    tgn::toString(variant), identity ? "on" : "off", r.epoch, r.seconds, m.stepAccuracy(tr.demos),
                     m.stepAccuracy(te.demos));
       md << line;
       std::cout << line << std::flush;

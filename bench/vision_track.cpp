@@ -115,8 +115,8 @@ Result run(const std::string& backend, bool ball, int frames) {
   dc.backend = markers.backend;
   dc.family = markers.family;
   auto full = makeDetector(dc);
-  const auto dict = cv::aruco::getPredefinedDictionary(backend == "aruco" ? cv::aruco::DICT_4X4_50
-                                                                          : cv::aruco::DICT_APRILTAG_36h11);
+  const auto dict =
+      cv::aruco::getPredefinedDictionary(backend == "aruco" ? cv::aruco::DICT_4X4_50 : cv::aruco::DICT_APRILTAG_36h11);
   const auto params = cv::aruco::DetectorParameters::create();
 
   Result res;
@@ -153,7 +153,8 @@ Result run(const std::string& backend, bool ball, int frames) {
     }
     for (size_t i = 0; i < fr.entities.size(); ++i)
       if (fr.entities[i].visible)
-        res.errors_m.push_back(std::hypot(fr.entities[i].pose.x - truth[i].pose.x, fr.entities[i].pose.y - truth[i].pose.y));
+        res.errors_m.push_back(
+            std::hypot(fr.entities[i].pose.x - truth[i].pose.x, fr.entities[i].pose.y - truth[i].pose.y));
     ++res.frames;
   }
   return res;
@@ -191,7 +192,9 @@ int main(int argc, char** argv) {
      << frames << " frames at 30 frames/s per scene and backend, one core, the tuning of config/tracker.yaml, "
      << "intrinsics given. *small*: 4 corner markers and " << kRobots
      << " robots with 3 cm markers on slow circles; *fast*: the same and a 3 cm ball passed across the table at "
-     << kBallSpeed << " m/s (marker edges in the image: see the last column). *Reference*: OpenCV 4.6 `cv::aruco::detectMarkers` with its default parameters on "
+     << kBallSpeed
+     << " m/s (marker edges in the image: see the last column). *Reference*: OpenCV 4.6 `cv::aruco::detectMarkers` "
+        "with its default parameters on "
      << "the whole frame (for AprilTag: its `DICT_APRILTAG_36h11`, the same prints). *Lost*: markers the reference "
         "found in a frame and the tracker did not. *Time ratio*: the tracker's mean time per frame (detection, "
         "table frame, poses, filtering; full-frame passes included) over the reference's, measured on the same "
@@ -210,8 +213,8 @@ int main(int argc, char** argv) {
       std::snprintf(line, sizeof line,
                     "| %s | %s | %.2f | %.2f | %.2f | %.2f | %ld / %ld | %ld | %ld | %s | %.2f / %.2f | %.1f |\n",
                     ball ? "fast" : "small", backend.c_str(), r.reference_ms / r.frames, r.full_ms / r.frames,
-                    r.tracker_ms / r.frames,
-                    r.tracker_ms / r.reference_ms, r.roi_frames, r.frames, r.reference_found, r.lost,
+                    r.tracker_ms / r.frames, r.tracker_ms / r.reference_ms, r.roi_frames, r.frames, r.reference_found,
+                    r.lost,
                     ball ? (std::to_string(r.ball_reference) + " / " + std::to_string(r.ball_tracker)).c_str() : "-",
                     percentile(r.errors_m, 0.95) * 1000, percentile(r.errors_m, 1.0) * 1000,
                     r.robot_side_px / std::max(1L, r.robot_sides));
@@ -223,8 +226,8 @@ int main(int argc, char** argv) {
         "The regions grow at `filter.max_speed` (1 m/s, about 5 cm a frame at 30 Hz with `gate_margin`) around "
         "every marker, which on this crowded table covers about half the image: the price of searching every "
         "position the filter accepts.\n\n"
-     << "Written by `bench_vision_track` (`ddace bench vision_track`), " << ddace::utcNow()
-     << ", load average " << ddace::loadAverage() << " while it ran.\n";
+     << "Written by `bench_vision_track` (`ddace bench vision_track`), " << ddace::utcNow() << ", load average "
+     << ddace::loadAverage() << " while it ran.\n";
   std::ofstream f(out);
   if (!f) {
     std::cerr << "bench_vision_track: cannot write " << out << "\n";

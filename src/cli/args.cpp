@@ -13,7 +13,9 @@ std::map<std::string, Command>& commands() {
   return registry;
 }
 
-Registrar::Registrar(Command command) { commands()[command.name] = std::move(command); }
+Registrar::Registrar(Command command) {
+  commands()[command.name] = std::move(command);
+}
 
 Args::Args(const std::vector<std::string>& argv, const std::vector<std::string>& options,
            const std::vector<std::string>& switches) {
@@ -57,7 +59,9 @@ void Args::expectAtMostPositional(size_t n) const {
   if (positional_.size() > n) throw Error("unexpected argument '" + positional_[n] + "'");
 }
 
-bool Args::has(const std::string& flag) const { return values_.count(flag) > 0; }
+bool Args::has(const std::string& flag) const {
+  return values_.count(flag) > 0;
+}
 
 std::string Args::get(const std::string& flag, const std::string& fallback) const {
   auto it = values_.find(flag);
@@ -76,8 +80,7 @@ long Args::getInt(const std::string& flag, long fallback) const {
   char* end = nullptr;
   errno = 0;
   const long v = std::strtol(s.c_str(), &end, 10);
-  if (s.empty() || *end != '\0' || errno != 0)
-    throw Error("option " + flag + ": '" + s + "' is not an integer");
+  if (s.empty() || *end != '\0' || errno != 0) throw Error("option " + flag + ": '" + s + "' is not an integer");
   return v;
 }
 

@@ -9,10 +9,10 @@ namespace ddace::cli {
 namespace {
 
 int runGenerate(const std::vector<std::string>& argv) {
-  Args args(argv,
-            {"--out", "--train", "--test", "--seed", "--robots", "--actions", "--jitter", "--mislabel",
-             "--onset-jitter"},
-            {"--force"});
+  Args args(
+      argv,
+      {"--out", "--train", "--test", "--seed", "--robots", "--actions", "--jitter", "--mislabel", "--onset-jitter"},
+      {"--force"});
   args.expectAtMostPositional(1);
   tasks::GeneratorOptions o;
   std::string names;
@@ -51,8 +51,7 @@ int runGenerate(const std::vector<std::string>& argv) {
   const std::string train_path = (std::filesystem::path(out) / "train").string();
   const std::string test_path = (std::filesystem::path(out) / "test").string();
   std::cout << "generated " << o.family << " '" << train_dir.spec.name << "': " << train
-            << " training demonstrations in " << train_path << ", " << test << " test in "
-            << test_path << "\n";
+            << " training demonstrations in " << train_path << ", " << test << " test in " << test_path << "\n";
   return 0;
 }
 

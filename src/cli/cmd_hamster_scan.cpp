@@ -43,8 +43,7 @@ int runHamsterScan(const std::vector<std::string>& argv) {
 }
 
 DDACE_COMMAND({"hamster-scan", "ddace hamster-scan [PATTERN...] [--port-dir /dev] [--timeout 1.5] [--no-rtscts]",
-               "list Hamster dongles and the address/model of the robot on each (sends only FF)",
-               runHamsterScan});
+               "list Hamster dongles and the address/model of the robot on each (sends only FF)", runHamsterScan});
 
 }  // namespace
 }  // namespace ddace::cli

@@ -19,7 +19,8 @@ int runInspect(const std::vector<std::string>& argv) {
   const auto name = [&](int i) { return spec.entities.at(static_cast<size_t>(i)).name; };
   const tgn::TrainOptions& o = info.options;
 
-  std::cout << dir << ": " << tgn::kModelFormat << ", variant '" << tgn::toString(info.variant) << "', task '" << spec.name << "'\n";
+  std::cout << dir << ": " << tgn::kModelFormat << ", variant '" << tgn::toString(info.variant) << "', task '"
+            << spec.name << "'\n";
   std::cout << "  entities:   ";
   for (const auto& e : spec.entities) std::cout << " " << e.name;
   std::cout << "\n  vocabulary: ";
@@ -33,8 +34,8 @@ int runInspect(const std::vector<std::string>& argv) {
   if (!info.history.empty()) {
     const auto& last = info.history.back();
     std::cout << "  result:      " << last.epoch << " epochs (" << info.stop_reason << "), loss " << last.loss << ", "
-              << (info.variant == tgn::Variant::Gnn ? "frame label" : "step") << " accuracy " << last.step_accuracy << ", "
-              << last.seconds << " s\n";
+              << (info.variant == tgn::Variant::Gnn ? "frame label" : "step") << " accuracy " << last.step_accuracy
+              << ", " << last.seconds << " s\n";
   }
   std::cout << "  normalisation: x' = (x - " << info.mean[0] << ") / " << info.std[0] << ", y' = (y - " << info.mean[1]
             << ") / " << info.std[1] << "  (metres)\n";
@@ -49,13 +50,15 @@ int runInspect(const std::vector<std::string>& argv) {
     }
   }
   std::cout << "\n  eigenvalues of the normalised Laplacian:";
-  for (Eigen::Index i = 0; i < g.eigenvalues.size(); ++i) std::cout << " " << std::fixed << std::setprecision(3) << g.eigenvalues(i);
+  for (Eigen::Index i = 0; i < g.eigenvalues.size(); ++i)
+    std::cout << " " << std::fixed << std::setprecision(3) << g.eigenvalues(i);
   std::cout.unsetf(std::ios::floatfield);
-  std::cout << "\n  " << std::left << std::setw(16) << "edge" << std::right << std::setw(10) << "frequency" << std::setw(8)
-            << "demos" << std::setw(9) << "support" << "  decision\n";
+  std::cout << "\n  " << std::left << std::setw(16) << "edge" << std::right << std::setw(10) << "frequency"
+            << std::setw(8) << "demos" << std::setw(9) << "support"
+            << "  decision\n";
   for (const auto& s : g.edges) {
-    std::cout << "  " << std::left << std::setw(16) << (name(s.edge.source) + " -> " + name(s.edge.target)) << std::right
-              << std::setw(10) << s.frequency << std::setw(8) << s.demos << std::setw(9) << std::fixed
+    std::cout << "  " << std::left << std::setw(16) << (name(s.edge.source) + " -> " + name(s.edge.target))
+              << std::right << std::setw(10) << s.frequency << std::setw(8) << s.demos << std::setw(9) << std::fixed
               << std::setprecision(2) << s.support << "  " << graph::toString(s.decision) << "\n";
     std::cout.unsetf(std::ios::floatfield);
   }

@@ -27,8 +27,8 @@ gp::PrimitiveLibrary loadLibrary(const std::string& model) {
   if (fs::is_directory(p)) {
     const fs::path file = p / gp::kPrimitivesFile;
     if (!fs::exists(file))
-      throw Error(Diagnostic{file.string(), 0, 0, "no primitive library in model directory " + model +
-                                                      " (train one with ddace train)"});
+      throw Error(Diagnostic{file.string(), 0, 0,
+                             "no primitive library in model directory " + model + " (train one with ddace train)"});
     return gp::PrimitiveLibrary::load(file.string());
   }
   return gp::PrimitiveLibrary::load(model);
@@ -52,8 +52,8 @@ void writePath(std::ostream& out, const gp::GeneratedPath& path) {
   out << "i,progress,x,y,stddev\n" << std::setprecision(9);
   const size_t n = path.points.size();
   for (size_t i = 0; i < n; ++i)
-    out << i << "," << static_cast<double>(i) / (n - 1) << "," << path.points[i].x() << "," << path.points[i].y()
-        << "," << path.stddev[i] << "\n";
+    out << i << "," << static_cast<double>(i) / (n - 1) << "," << path.points[i].x() << "," << path.points[i].y() << ","
+        << path.stddev[i] << "\n";
 }
 
 int onePath(const Args& args, const gp::PrimitiveLibrary& lib) {

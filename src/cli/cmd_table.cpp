@@ -53,16 +53,25 @@ constexpr double kHumanNoise = 0.002;
 std::string paperRow(const std::string& family, const std::string& variant) {
   static const std::map<std::string, std::map<std::string, std::string>> table = {
       {"paper",
-       {{"task1", "1 / 1 / 1 / 0.02"}, {"task2", "1 / 1 / 1 / 0"}, {"task3", "1 / 1 / 1 / 0"}, {"task4", "1 / 1 / 1 / 0.04"}}},
+       {{"task1", "1 / 1 / 1 / 0.02"},
+        {"task2", "1 / 1 / 1 / 0"},
+        {"task3", "1 / 1 / 1 / 0"},
+        {"task4", "1 / 1 / 1 / 0.04"}}},
       {"full-graph",
        {{"task1", "0 / 0.2 / 0.74 / 0.02"},
         {"task2", "0 / 0.3 / 0.59 / 0"},
         {"task3", "0 / 0.25 / 0.50 / 0"},
         {"task4", "0 / 0.5 / 0.74 / 0.04"}}},
       {"gnn",
-       {{"task1", "0 / 0 / 0.33 / 0.67"}, {"task2", "0 / 0 / 0.18 / 1"}, {"task3", "0 / 0 / 0.16 / 0.93"}, {"task4", "0 / 0 / 0.25 / 1"}}},
+       {{"task1", "0 / 0 / 0.33 / 0.67"},
+        {"task2", "0 / 0 / 0.18 / 1"},
+        {"task3", "0 / 0 / 0.16 / 0.93"},
+        {"task4", "0 / 0 / 0.25 / 1"}}},
       {"llm",
-       {{"task1", "1 / 1 / 1 / –"}, {"task2", "0 / 0.5 / 0.64 / –"}, {"task3", "0 / 0.25 / 0.25 / –"}, {"task4", "1 / 1 / 1 / –"}}},
+       {{"task1", "1 / 1 / 1 / –"},
+        {"task2", "0 / 0.5 / 0.64 / –"},
+        {"task3", "0 / 0.25 / 0.25 / –"},
+        {"task4", "1 / 1 / 1 / –"}}},
   };
   const auto v = table.find(variant);
   if (v == table.end()) return "(not in the paper)";
@@ -163,7 +172,10 @@ struct Job {
 /// A row through a file, from the job's process to the table's.
 void writeRow(const fs::path& path, const Row& r) {
   std::ofstream out(path);
-  out << std::setprecision(17) << r.task << "\n" << r.variant << "\n" << r.condition << "\n" << r.stop << "\n"
+  out << std::setprecision(17) << r.task << "\n"
+      << r.variant << "\n"
+      << r.condition << "\n"
+      << r.stop << "\n"
       << r.m.trials << " " << r.m.osr << " " << r.m.ssr << " " << r.m.gcr << " " << r.m.fd << " " << r.m.fd_tokens
       << " " << r.train_s << " " << r.epochs << " " << r.demos << " " << r.rules[0] << " " << r.rules[1] << " "
       << r.rules[2] << " " << r.rules[3] << "\n";
@@ -310,8 +322,7 @@ int runTable(const std::vector<std::string>& argv) {
   // Quick: a smoke test of every kind of row, not every combination.
   const std::vector<std::string> few_families =
       s.quick ? std::vector<std::string>{"task4", "fetch"} : tasks::families();
-  const std::vector<std::string> human_families =
-      s.quick ? std::vector<std::string>{"task4"} : paper_families;
+  const std::vector<std::string> human_families = s.quick ? std::vector<std::string>{"task4"} : paper_families;
   const std::vector<int> sizes = s.quick ? std::vector<int>{3} : std::vector<int>{10, 20};
   std::vector<std::string> variants;  // the paper's network, the default, the ablation, the baseline
   for (tgn::Variant v : {tgn::Variant::Paper, tgn::Variant::Scene, tgn::Variant::FullGraph, tgn::Variant::Gnn})
@@ -373,17 +384,17 @@ int runTable(const std::vector<std::string>& argv) {
   // draws the curves for 10/20/30 demonstrations, 4..11 robots and 2..4 actions.
   std::cout << "Fig. 4 and the case studies (training curves, scripts/plot_loss.py)\n" << std::flush;
   runPlot(py + "plot_loss.py' --seed " + std::to_string(s.seed) + " --jobs " + std::to_string(s.jobs) +
-          (s.max_epochs > 0 ? " --epochs " + std::to_string(s.max_epochs) : std::string()) + " --work '" + (s.out / "loss").string() +
-          "' --out '" + figs.string() + "'");
+          (s.max_epochs > 0 ? " --epochs " + std::to_string(s.max_epochs) : std::string()) + " --work '" +
+          (s.out / "loss").string() + "' --out '" + figs.string() + "'");
   for (const auto& f : paper_families)
-    runPlot(py + "plot_overlay.py' '" + (s.out / "overlays" / (f + ".csv")).string() + "' --title '" + f +
-            "' --out '" + (figs / ("overlay_" + f + ".png")).string() + "'");
+    runPlot(py + "plot_overlay.py' '" + (s.out / "overlays" / (f + ".csv")).string() + "' --title '" + f + "' --out '" +
+            (figs / ("overlay_" + f + ".png")).string() + "'");
 
   // docs/results.md
   const std::map<std::string, std::string> method = {{"paper", "DDACE (the paper's network)"},
-                                                      {"scene", "DDACE, scene network (default)"},
-                                                      {"full-graph", "w/o spectral clustering"},
-                                                      {"gnn", "GNN"}};
+                                                     {"scene", "DDACE, scene network (default)"},
+                                                     {"full-graph", "w/o spectral clustering"},
+                                                     {"gnn", "GNN"}};
   auto rules = [](const Row& r) {
     return std::to_string(r.rules[0]) + " / " + std::to_string(r.rules[1]) + " / " + std::to_string(r.rules[2]) +
            " / " + std::to_string(r.rules[3]);
@@ -391,20 +402,23 @@ int runTable(const std::vector<std::string>& argv) {
   auto metrics = [&](const Row& r) {
     return fmt(r.m.osr, 2) + " | " + fmt(r.m.ssr, 2) + " | " + fmt(r.m.gcr, 2) + " | " + fmt(r.m.fd, 4);
   };
-  auto training = [&](const Row& r) { return std::to_string(r.epochs) + " (" + r.stop + ") | " + fmt(r.train_s, 1) + " s"; };
+  auto training = [&](const Row& r) {
+    return std::to_string(r.epochs) + " (" + r.stop + ") | " + fmt(r.train_s, 1) + " s";
+  };
   std::ostringstream md;
   md << "# Results: the paper's Table 2, regenerated, and beyond\n\n"
      << (s.quick ? "**`--quick`: a smoke test of the command (few demonstrations, at most 40 epochs, a few families), "
                    "not the paper's protocol; run `ddace table` for the real numbers.**\n\n"
                  : "")
      << "Written by `ddace table" << (s.quick ? " --quick" : "") << "` (seed " << s.seed
-     << "); every number below comes from that run (" << fmt(secondsSince(t_all) / 60, 1)
-     << " min on this machine, " << s.jobs << " models trained at a time). Models and per-trial JSON are in `"
+     << "); every number below comes from that run (" << fmt(secondsSince(t_all) / 60, 1) << " min on this machine, "
+     << s.jobs << " models trained at a time). Models and per-trial JSON are in `"
      << (s.quick ? s.out.string() : "out/table") << "`.\n\n"
      << "Each cell: " << s.test << " closed-loop trials on fresh start-goal configurations (ideal path "
      << "following, as the paper), models trained to their loss plateau. OSR, SSR, GCR, FD as defined in "
      << "docs/task-format.md. libtorch's kernels run with `ATEN_CPU_CAPABILITY=" << kCpuCapability
-     << "` in every job, so that the numbers do not depend on the host's vector instruction set. **E' rules**: how many of the observed interaction edges each refinement rule "
+     << "` in every job, so that the numbers do not depend on the host's vector instruction set. **E' rules**: how "
+        "many of the observed interaction edges each refinement rule "
      << "decided (kept: recurs / kept: same cluster / dropped: rare / dropped: crosses clusters; docs/tgn.md)."
      << (s.gnn_epochs > 0 ? " The GNN baseline was capped at " + std::to_string(s.gnn_epochs) +
                                 " epochs (`--gnn-epochs`); the epochs column says whether a model reached its plateau."
@@ -421,7 +435,8 @@ int runTable(const std::vector<std::string>& argv) {
     md << "| " << f << " | LLM (GPT-5.2) | – | – | – | – | " << paperRow(f, "llm")
        << " | | not reproducible offline (needs a hosted LLM) | |\n";
   auto section = [&](const std::string& title, const std::string& text, const std::vector<size_t>& which) {
-    md << "\n## " << title << "\n\n" << text << "\n\n"
+    md << "\n## " << title << "\n\n"
+       << text << "\n\n"
        << "| family | demonstrations | method | OSR | SSR | GCR | FD | E' rules | epochs | training |\n"
        << "|---|---|---|---|---|---|---|---|---|---|\n";
     for (size_t i : which) {
@@ -437,8 +452,10 @@ int runTable(const std::vector<std::string>& argv) {
           few);
   section("Human-timed demonstrations",
           "Training demonstrations labelled as a person does: every token's label begins up to " +
-              fmt(kHumanOnsetJitter, 1) + " s late (step grouping, `step_window_s`, merges it into its step), "
-              "with Gaussian position noise of " + fmt(kHumanNoise * 1000, 0) + " mm on every row; test sets are clean.",
+              fmt(kHumanOnsetJitter, 1) +
+              " s late (step grouping, `step_window_s`, merges it into its step), "
+              "with Gaussian position noise of " +
+              fmt(kHumanNoise * 1000, 0) + " mm on every row; test sets are clean.",
           human);
   section("Imperfect demonstrations",
           "Gaussian position jitter σ = 5 mm on every row, and in 10 % of the demonstrations one motion token's target "
@@ -459,14 +476,14 @@ int runTable(const std::vector<std::string>& argv) {
   const double minutes = secondsSince(t_all) / 60;
   fs::create_directories(s.docs / "bench");
   std::ofstream(s.docs / "bench" / "table.md")
-      << "# bench: table\n\nWritten by `ddace table" << (s.quick ? " --quick" : "") << "` on " << cores
-      << " cores, " << s.jobs << " models at a time (1-minute load average "
-      << loadAverage() << " at the end). The whole command: data, " << rows.size()
+      << "# bench: table\n\nWritten by `ddace table" << (s.quick ? " --quick" : "") << "` on " << cores << " cores, "
+      << s.jobs << " models at a time (1-minute load average " << loadAverage()
+      << " at the end). The whole command: data, " << rows.size()
       << " models trained and evaluated, the training curves (scripts/plot_loss.py), the figures.\n\n"
       << "| measure | time | goal | ratio |\n|---|---|---|---|\n"
       << "| `ddace table" << (s.quick ? " --quick" : "") << "` wall time | " << fmt(minutes, 1) << " min | "
-      << (s.quick ? "(smoke test, no goal)" : "20 min") << " | " << (s.quick ? "–" : fmt(minutes / 20, 2) + " of the goal")
-      << " |\n";
+      << (s.quick ? "(smoke test, no goal)" : "20 min") << " | "
+      << (s.quick ? "–" : fmt(minutes / 20, 2) + " of the goal") << " |\n";
   std::cout << "wrote " << results.string() << ", " << (s.docs / "bench" / "table.md").string() << " and "
             << figs.string() << "/*.png (" << fmt(minutes, 1) << " min)\n";
   if (plot_failures) std::cerr << "ddace table: " << plot_failures << " figure(s) could not be drawn (see above)\n";

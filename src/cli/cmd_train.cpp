@@ -24,8 +24,9 @@ std::string trainingDir(const std::string& path) {
 }
 
 int runTrain(const std::vector<std::string>& argv) {
-  Args args(argv, {"--out", "--variant", "--epochs", "--seed", "--threads", "--patience", "--lr", "--attention",
-                   "--dropout", "--layers", "--gru-hidden", "--head-hidden", "--identity-dim", "--weight-decay"},
+  Args args(argv,
+            {"--out", "--variant", "--epochs", "--seed", "--threads", "--patience", "--lr", "--attention", "--dropout",
+             "--layers", "--gru-hidden", "--head-hidden", "--identity-dim", "--weight-decay"},
             {"--no-identity", "--no-positions", "--no-displacement", "--quiet"});
   const std::string task_path = trainingDir(args.positional(0, "TASKDIR"));
   args.expectAtMostPositional(1);
@@ -57,8 +58,9 @@ int runTrain(const std::vector<std::string>& argv) {
   options.validate();
 
   const task::TaskDir train = task::loadTaskDir(task_path);
-  std::cout << "training variant '" << tgn::toString(options.variant) << "' on " << train.demos.size() << " demonstrations of task '"
-            << train.spec.name << "' (" << train.spec.entities.size() << " entities), seed " << options.seed << "\n"
+  std::cout << "training variant '" << tgn::toString(options.variant) << "' on " << train.demos.size()
+            << " demonstrations of task '" << train.spec.name << "' (" << train.spec.entities.size()
+            << " entities), seed " << options.seed << "\n"
             << std::flush;
   // The sequence model, then (except for gnn) the GP primitive library, into one directory.
   const Model trained = trainModel(train, options, out, args.has("--quiet") ? nullptr : &std::cout);
@@ -67,8 +69,8 @@ int runTrain(const std::vector<std::string>& argv) {
   const tgn::ModelInfo& info = model.info();
   const tgn::EpochRecord& last = info.history.back();
   std::cout << "stopped after " << last.epoch << " epochs (" << info.stop_reason << "): loss " << last.loss << ", "
-            << (options.variant == tgn::Variant::Gnn ? "frame label" : "step") << " accuracy " << last.step_accuracy << ", "
-            << last.seconds << " s\n";
+            << (options.variant == tgn::Variant::Gnn ? "frame label" : "step") << " accuracy " << last.step_accuracy
+            << ", " << last.seconds << " s\n";
   std::cout << "attention edges: " << info.attention_edges.size() << " (E' has " << info.refined.kept.size() << " of "
             << info.refined.edges.size() << " observed edges)\n";
   if (trained.primitives) {
@@ -84,12 +86,15 @@ int runTrain(const std::vector<std::string>& argv) {
   return 0;
 }
 
-DDACE_COMMAND({"train",
-               "ddace train TASKDIR --out MODELDIR [--variant scene|paper|full-graph|gnn] [--attention gatv2|gat] [--epochs N=400] [--seed S=1] "
-               "[--threads T=1] [--patience P=20] [--lr RATE] [--dropout P=0.1] [--layers L=3] [--gru-hidden H=64] "
-               "[--head-hidden H=32] [--identity-dim D=8] [--weight-decay W=0] [--no-identity] [--no-positions] "
-               "[--no-displacement] [--quiet]",
-               "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR", runTrain});
+DDACE_COMMAND(
+    {"train",
+     "ddace train TASKDIR --out MODELDIR [--variant scene|paper|full-graph|gnn] [--attention gatv2|gat] [--epochs "
+     "N=400] [--seed S=1] "
+     "[--threads T=1] [--patience P=20] [--lr RATE] [--dropout P=0.1] [--layers L=3] [--gru-hidden H=64] "
+     "[--head-hidden H=32] [--identity-dim D=8] [--weight-decay W=0] [--no-identity] [--no-positions] "
+     "[--no-displacement] [--quiet]",
+     "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR",
+     runTrain});
 
 }  // namespace
 }  // namespace ddace::cli

@@ -13,8 +13,7 @@ namespace fs = std::filesystem;
 
 std::string stepText(const task::Step& step, const task::TaskSpec& spec) {
   std::string s = "[";
-  for (size_t i = 0; i < step.tokens.size(); ++i)
-    s += (i ? " " : "") + task::tokenKey(step.tokens[i], spec);
+  for (size_t i = 0; i < step.tokens.size(); ++i) s += (i ? " " : "") + task::tokenKey(step.tokens[i], spec);
   return s + "]";
 }
 
@@ -44,10 +43,11 @@ bool validateOne(const std::string& path, bool verbose) {
     if (first_structure.empty()) first_structure = structure;
     same = same && structure == first_structure;
     std::printf("  %s: %zu rows (%.2f s), %zu keyframes, %zu steps, %zu segments\n",
-                fs::path(d.source).filename().c_str(), d.rows, d.t_last - d.t_first, d.steps.size(),
-                d.steps.size(), d.segments);
+                fs::path(d.source).filename().c_str(), d.rows, d.t_last - d.t_first, d.steps.size(), d.steps.size(),
+                d.segments);
     // Where step grouping merged a late label into its step (people label one robot after another).
-    for (const auto& note : task::mergedOnsetNotes(d.source, d.steps, spec)) std::printf("    %s\n", note.str().c_str());
+    for (const auto& note : task::mergedOnsetNotes(d.source, d.steps, spec))
+      std::printf("    %s\n", note.str().c_str());
     if (verbose || d.steps.empty()) {
       for (size_t k = 0; k < d.steps.size(); ++k)
         std::printf("    step %zu @ row %d (t = %.2f s): %s\n", k + 1, d.steps[k].keyframe_row, d.keyframe_t[k],

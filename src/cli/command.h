@@ -38,8 +38,8 @@ class Args {
 
 struct Command {
   std::string name;
-  std::string usage;    ///< one line: "ddace generate FAMILY --out DIR [...]"
-  std::string summary;  ///< one line for `ddace help`
+  std::string usage;                                        ///< one line: "ddace generate FAMILY --out DIR [...]"
+  std::string summary;                                      ///< one line for `ddace help`
   std::function<int(const std::vector<std::string>&)> run;  ///< args after the name
 };
 

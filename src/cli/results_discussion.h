@@ -2,33 +2,33 @@
 // numbers. It holds no number: every figure in that file comes from the run itself.
 #pragma once
 
-#define DDACE_RESULTS_DISCUSSION \
-  "- **Two networks, one name each.** `paper` is the paper's network (GAT over E', mean pooling, GRU, one " \
-  "linear output slot per entity); `scene` (the default, docs/tgn.md) adds relative features on the " \
-  "attention edges, entity kinds, per-entity heads and a pointer over the candidate targets. On the " \
-  "paper's four families the step order is fixed and both only have to count keyframes; the scene-dependent " \
-  "families (fetch, nearest_goal, queue, deliver) are where they differ: the paper's network has no path " \
-  "from \"which robot is nearest\" to its output slots.\n" \
-  "- **Where E' matters.** The E' rules column counts the observed interaction edges each refinement rule " \
-  "decided. On clean demonstrations of a fixed-order family every observed edge recurs, so the rule " \
-  "\"recurs\" decides all of them and E' is exactly the demonstrated edge set; the ablation (`full-graph`) " \
-  "then differs from DDACE only by extra edges between entities that never interact, which attention learns " \
-  "to ignore. The cluster rule and the rare rule only have work where edges occur in some demonstrations " \
-  "and not others: mislabelled tokens (the imperfect rows, dropped as rare) and the scene-dependent families " \
-  "(whose edges depend on the configuration). Where the counts of those rules are zero, E' did not matter.\n" \
-  "- **Human-timed demonstrations.** Label onsets up to 0.4 s apart within a step are merged by step " \
-  "grouping (`step_window_s`, 0.5 s by default) before anything is learned, so the sequence model sees the " \
-  "same steps as from clean data; what remains is the 2 mm position noise.\n" \
-  "- **GNN baseline.** It is trained as seriously as DDACE — the same encoder, GRU, optimiser and " \
-  "plateau rule, to its loss plateau (epochs column) — but on every frame, to predict the next " \
-  "positions and labels, and it rolls out its own trajectories: small errors in the predicted " \
-  "displacements compound over hundreds of frames, and a label switch predicted a few frames early or " \
-  "late splits or merges steps. Its GCR stays low even where the label sequence is right, because the " \
-  "rolled-out robots drift and stop away from their goals, and its FD is an order of magnitude above the " \
-  "GP primitives'. Differences to the paper's GNN row may come from the frame rate and trajectory length " \
+#define DDACE_RESULTS_DISCUSSION                                                                                \
+  "- **Two networks, one name each.** `paper` is the paper's network (GAT over E', mean pooling, GRU, one "     \
+  "linear output slot per entity); `scene` (the default, docs/tgn.md) adds relative features on the "           \
+  "attention edges, entity kinds, per-entity heads and a pointer over the candidate targets. On the "           \
+  "paper's four families the step order is fixed and both only have to count keyframes; the scene-dependent "   \
+  "families (fetch, nearest_goal, queue, deliver) are where they differ: the paper's network has no path "      \
+  "from \"which robot is nearest\" to its output slots.\n"                                                      \
+  "- **Where E' matters.** The E' rules column counts the observed interaction edges each refinement rule "     \
+  "decided. On clean demonstrations of a fixed-order family every observed edge recurs, so the rule "           \
+  "\"recurs\" decides all of them and E' is exactly the demonstrated edge set; the ablation (`full-graph`) "    \
+  "then differs from DDACE only by extra edges between entities that never interact, which attention learns "   \
+  "to ignore. The cluster rule and the rare rule only have work where edges occur in some demonstrations "      \
+  "and not others: mislabelled tokens (the imperfect rows, dropped as rare) and the scene-dependent families "  \
+  "(whose edges depend on the configuration). Where the counts of those rules are zero, E' did not matter.\n"   \
+  "- **Human-timed demonstrations.** Label onsets up to 0.4 s apart within a step are merged by step "          \
+  "grouping (`step_window_s`, 0.5 s by default) before anything is learned, so the sequence model sees the "    \
+  "same steps as from clean data; what remains is the 2 mm position noise.\n"                                   \
+  "- **GNN baseline.** It is trained as seriously as DDACE — the same encoder, GRU, optimiser and "           \
+  "plateau rule, to its loss plateau (epochs column) — but on every frame, to predict the next "              \
+  "positions and labels, and it rolls out its own trajectories: small errors in the predicted "                 \
+  "displacements compound over hundreds of frames, and a label switch predicted a few frames early or "         \
+  "late splits or merges steps. Its GCR stays low even where the label sequence is right, because the "         \
+  "rolled-out robots drift and stop away from their goals, and its FD is an order of magnitude above the "      \
+  "GP primitives'. Differences to the paper's GNN row may come from the frame rate and trajectory length "      \
   "(ours: the generator's 20 Hz rows over the whole task) and the model size, which the paper does not give.\n" \
-  "- **LLM.** The paper's LLM baseline needs a hosted language model; it cannot be reproduced offline; its " \
-  "row quotes the paper.\n" \
-  "- **Paper column.** The paper's Table 2 for DDACE, DDACE without spectral clustering and the GNN, per " \
-  "task (OSR / SSR / GCR / FD). Our ablation does not reproduce the paper's gap on generated demonstrations " \
+  "- **LLM.** The paper's LLM baseline needs a hosted language model; it cannot be reproduced offline; its "    \
+  "row quotes the paper.\n"                                                                                     \
+  "- **Paper column.** The paper's Table 2 for DDACE, DDACE without spectral clustering and the GNN, per "      \
+  "task (OSR / SSR / GCR / FD). Our ablation does not reproduce the paper's gap on generated demonstrations "   \
   "(see \"Where E' matters\").\n"

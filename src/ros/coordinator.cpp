@@ -76,12 +76,13 @@ class CoordinatorNode::Impl {
       // Only the coordinator can stop a robot whose follower died: it publishes zeros itself.
       wheel_pubs_[i] = advertiseWatched<ddace::WheelCommand>(nh, "/robots/" + e.name + "/wheels", 10);
       const size_t role = follower_role_.at(i);
-      wheel_subs_.push_back(nh.subscribe<ddace::WheelCommand>(
-          "/robots/" + e.name + "/wheels", 20,
-          boost::function<void(const ros::MessageEvent<const ddace::WheelCommand>&)>(
-              [this, role](const ros::MessageEvent<const ddace::WheelCommand>& ev) {
-                if (ev.getPublisherName() == roles_.node(role)) roles_.heartbeat(role, now());
-              })));
+      wheel_subs_.push_back(
+          nh.subscribe<ddace::WheelCommand>("/robots/" + e.name + "/wheels", 20,
+                                            boost::function<void(const ros::MessageEvent<const ddace::WheelCommand>&)>(
+                                                [this, role](const ros::MessageEvent<const ddace::WheelCommand>& ev) {
+                                                  if (ev.getPublisherName() == roles_.node(role))
+                                                    roles_.heartbeat(role, now());
+                                                })));
     }
     decision_pub_ = advertiseWatched<ddace::DecisionRequest>(nh, "/ddace/decision_request", 5);
     path_pub_ = advertiseWatched<ddace::PathRequest>(nh, "/ddace/path_request", 50);
@@ -278,7 +279,8 @@ class CoordinatorNode::Impl {
     using K = exec::Outbox::Kind;
     for (const auto& [kind, id] : outbox_->due(wallNow())) {
       if (kind == K::Decision && sent_decisions_.count(id)) {
-        ROS_WARN("coordinator: decision request %u unanswered for %.1f s, sending it again", id, outbox_->resendAfter());
+        ROS_WARN("coordinator: decision request %u unanswered for %.1f s, sending it again", id,
+                 outbox_->resendAfter());
         decision_pub_.publish(sent_decisions_[id]);
       } else if (kind == K::Path && sent_paths_.count(id)) {
         ROS_WARN("coordinator: path request %u unanswered, sending it again", id);
@@ -303,10 +305,12 @@ class CoordinatorNode::Impl {
     const double heartbeat_s = rosparam::param(r, "heartbeat_timeout_s", 0.5);
     const double pose_s = rosparam::param(r, "pose_timeout_s", 1.0);
     const std::string seq = name("sequence", "/sequence"), paths = name("paths", "/gp_path");
-    if (!seq.empty()) watched_.push_back({roles_.add("sequence node", seq, "subscribed to /ddace/decision_request"),
-                                          "/ddace/decision_request", seq});
+    if (!seq.empty())
+      watched_.push_back(
+          {roles_.add("sequence node", seq, "subscribed to /ddace/decision_request"), "/ddace/decision_request", seq});
     if (!paths.empty())
-      watched_.push_back({roles_.add("path node", paths, "subscribed to /ddace/path_request"), "/ddace/path_request", paths});
+      watched_.push_back(
+          {roles_.add("path node", paths, "subscribed to /ddace/path_request"), "/ddace/path_request", paths});
     const std::string follower = name("follower", "/path_follower"), objects = name("object_executor", "/mock_robots");
     const std::string driver = name("driver", "/mock_robots");
     for (size_t i = 0; i < spec_.entities.size(); ++i) {
@@ -314,13 +318,15 @@ class CoordinatorNode::Impl {
       const std::string topic = "/robots/" + e.name + "/segment";
       if (e.kind == task::EntityKind::Robot) {
         const std::string node = name("followers/" + e.name, follower);
-        if (node.empty()) throw Error("parameter '" + r.resolveName("follower") + "' is empty: every robot needs a follower");
+        if (node.empty())
+          throw Error("parameter '" + r.resolveName("follower") + "' is empty: every robot needs a follower");
         follower_role_[i] = roles_.add("follower of " + e.name, node, "subscribed to " + topic, heartbeat_s);
         watched_.push_back({follower_role_[i], topic, node});
         // The node that moves the robot (mock robots, the radio bridge): its link drops at once.
         const std::string wheels = "/robots/" + e.name + "/wheels", driver_node = name("drivers/" + e.name, driver);
         if (!driver_node.empty())
-          watched_.push_back({roles_.add("driver of " + e.name, driver_node, "subscribed to " + wheels), wheels, driver_node});
+          watched_.push_back(
+              {roles_.add("driver of " + e.name, driver_node, "subscribed to " + wheels), wheels, driver_node});
       } else if (e.kind == task::EntityKind::Object && !objects.empty()) {
         watched_.push_back({roles_.add("executor of " + e.name, objects, "subscribed to " + topic), topic, objects});
       }

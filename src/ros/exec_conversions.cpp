@@ -24,9 +24,10 @@ task::TaskSpec loadTaskSpec(const std::string& task_path) {
 
 void requireAbsolute(const std::string& path, const std::string& param) {
   if (!path.empty() && std::filesystem::path(path).is_relative())
-    throw Error("parameter '" + param + "' = '" + path +
-                "' is a relative path, but nodes run in ROS_HOME, not in your working directory: give an absolute "
-                "path (scripts/execute_sim and execute_sim.launch resolve relative paths against the caller's directory)");
+    throw Error(
+        "parameter '" + param + "' = '" + path +
+        "' is a relative path, but nodes run in ROS_HOME, not in your working directory: give an absolute "
+        "path (scripts/execute_sim and execute_sim.launch resolve relative paths against the caller's directory)");
 }
 
 task::Token fromMsg(const ddace::Token& msg, const task::TaskSpec& spec) {
@@ -37,7 +38,8 @@ task::Token fromMsg(const ddace::Token& msg, const task::TaskSpec& spec) {
   t.action = msg.action;
   if (!msg.target.empty()) {
     t.target = spec.entityIndex(msg.target);
-    if (t.target < 0) throw Error("token " + msg.entity + ":" + msg.action + " names an unknown target '" + msg.target + "'");
+    if (t.target < 0)
+      throw Error("token " + msg.entity + ":" + msg.action + " names an unknown target '" + msg.target + "'");
   }
   return t;
 }
@@ -62,8 +64,9 @@ void toMsg(const exec::PlannedPath& path, const std::string& frame_id, const ros
     ps.header = out.header;
     ps.pose.position.x = path.points[i].x();
     ps.pose.position.y = path.points[i].y();
-    const Eigen::Vector2d d = n < 2 ? Eigen::Vector2d(1, 0)
-                                    : (i + 1 < n ? path.points[i + 1] - path.points[i] : path.points[i] - path.points[i - 1]);
+    const Eigen::Vector2d d =
+        n < 2 ? Eigen::Vector2d(1, 0)
+              : (i + 1 < n ? path.points[i + 1] - path.points[i] : path.points[i] - path.points[i - 1]);
     tf2::Quaternion q;
     q.setRPY(0, 0, std::atan2(d.y(), d.x()));
     ps.pose.orientation.x = q.x();

@@ -79,7 +79,8 @@ class ExecutionMonitorNode::Impl {
     std::string run_dir = rosparam::param<std::string>(pnh, "run_dir", "");
     if (run_dir.empty()) {
       const char* home = std::getenv("HOME");
-      std::string base = rosparam::param<std::string>(pnh, "runs_dir", std::string(home ? home : "/tmp") + "/.ros/ddace/runs");
+      std::string base =
+          rosparam::param<std::string>(pnh, "runs_dir", std::string(home ? home : "/tmp") + "/.ros/ddace/runs");
       run_dir = (fs::path(base) / utcStamp()).string();
       latest_link_ = (fs::path(base) / "latest").string();
     }
@@ -97,7 +98,8 @@ class ExecutionMonitorNode::Impl {
     plot_script_ = rosparam::param<std::string>(pnh, "plot_script", "");
     end_launch_ = rosparam::param(pnh, "end_launch", true);
     const double timeout_s = rosparam::param(pnh, "timeout_s", 0.0);
-    std::vector<std::string> topics = {"/ddace/entities", "/ddace/decision_request", "/coordinator/state", "/ddace/estop"};
+    std::vector<std::string> topics = {"/ddace/entities", "/ddace/decision_request", "/coordinator/state",
+                                       "/ddace/estop"};
     for (const auto& e : spec_.entities) {
       if (e.kind == task::EntityKind::Goal) continue;
       const std::string r = "/robots/" + e.name;
@@ -113,10 +115,13 @@ class ExecutionMonitorNode::Impl {
     subs_.push_back(nh.subscribe("/ddace/entities", 10, &Impl::onEntities, this));
     if (rosparam::param(pnh, "record_bag", true)) startBag(topics);
     if (timeout_s > 0)
-      timer_ = nh.createTimer(ros::Duration(timeout_s), [this, timeout_s](const ros::TimerEvent&) {
-        ROS_ERROR("execution_monitor: the run did not end within %.0f s", timeout_s);
-        report("timed out (monitor, timeout_s = " + std::to_string(timeout_s) + ")", last_state_, "timed_out");
-      }, true);
+      timer_ = nh.createTimer(
+          ros::Duration(timeout_s),
+          [this, timeout_s](const ros::TimerEvent&) {
+            ROS_ERROR("execution_monitor: the run did not end within %.0f s", timeout_s);
+            report("timed out (monitor, timeout_s = " + std::to_string(timeout_s) + ")", last_state_, "timed_out");
+          },
+          true);
     ROS_INFO("execution_monitor: recording the run into %s", run_dir_.c_str());
   }
 
@@ -144,8 +149,8 @@ class ExecutionMonitorNode::Impl {
   }
 
   void startBag(const std::vector<std::string>& topics) {
-    std::vector<std::string> args = {"rosbag", "record", "--quiet", "-O", run_dir_ + "/run.bag",
-                                     "__name:=" + bagNodeName()};
+    std::vector<std::string> args = {
+        "rosbag", "record", "--quiet", "-O", run_dir_ + "/run.bag", "__name:=" + bagNodeName()};
     args.insert(args.end(), topics.begin(), topics.end());
     bag_pid_ = ::fork();
     if (bag_pid_ == 0) {
@@ -238,9 +243,12 @@ class ExecutionMonitorNode::Impl {
         s.state == ddace::CoordinatorState::ESTOPPED) {
       if (final_timer_.isValid()) return;
       // Status messages of the last segments may still be on their way on other connections.
-      final_timer_ = nh_.createTimer(ros::Duration(0.5), [this, s](const ros::TimerEvent&) {
-        report(s.state_name + (s.reason.empty() ? "" : " (" + s.reason + ")"), last_state_);
-      }, true);
+      final_timer_ = nh_.createTimer(
+          ros::Duration(0.5),
+          [this, s](const ros::TimerEvent&) {
+            report(s.state_name + (s.reason.empty() ? "" : " (" + s.reason + ")"), last_state_);
+          },
+          true);
     }
   }
 
@@ -313,14 +321,15 @@ class ExecutionMonitorNode::Impl {
       os << "  step " << k + 1 << ": " << (k < executed.size() ? stepText(executed[k]) : "(none)");
       if (have_gt_) {
         const bool same = k < executed.size() && k < truth.size() && executed[k] == truth[k];
-        os << (same ? "   [= ground truth]" : "   [ground truth: " + (k < truth.size() ? stepText(truth[k]) : "END") + "]");
+        os << (same ? "   [= ground truth]"
+                    : "   [ground truth: " + (k < truth.size() ? stepText(truth[k]) : "END") + "]");
       }
       os << "\n";
     }
     os << "  " << (finished ? "END" : "(no END)") << "\n";
     const double duration = s.steps.empty() ? 0.0 : (ros::Time::now() - s.steps.front().decided).toSec();
-    os << "result: " << outcome << ", " << duration << " s from the first decision to the end, " << s.decisions_requested
-       << " decisions requested\n";
+    os << "result: " << outcome << ", " << duration << " s from the first decision to the end, "
+       << s.decisions_requested << " decisions requested\n";
     int gc_met = 0;
     for (size_t i = 0; i < s.goal_conditions.size() && i < s.goal_conditions_met.size(); ++i) {
       gc_met += s.goal_conditions_met[i] ? 1 : 0;
@@ -384,8 +393,9 @@ class ExecutionMonitorNode::Impl {
       g["id"] = id;
       g["key"] = seg.key;
       g["entity"] = seg.entity;
-      g["kind"] = spec_.entityIndex(seg.entity) >= 0 ? task::toString(spec_.entities[spec_.entityIndex(seg.entity)].kind)
-                                                    : "unknown";
+      g["kind"] = spec_.entityIndex(seg.entity) >= 0
+                      ? task::toString(spec_.entities[spec_.entityIndex(seg.entity)].kind)
+                      : "unknown";
       g["step"] = seg.step;
       g["sent_s"] = seg.sent.toSec() - t0;
       g["ended_s"] = seg.ended == ros::Time() ? nlohmann::json(nullptr) : nlohmann::json(seg.ended.toSec() - t0);
@@ -423,7 +433,8 @@ class ExecutionMonitorNode::Impl {
   pid_t bag_pid_ = -1;
 };
 
-ExecutionMonitorNode::ExecutionMonitorNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}
+ExecutionMonitorNode::ExecutionMonitorNode(ros::NodeHandle nh, ros::NodeHandle pnh)
+    : impl_(std::make_unique<Impl>(nh, pnh)) {}
 
 ExecutionMonitorNode::~ExecutionMonitorNode() = default;
 

@@ -37,8 +37,9 @@ class GpPathNode::Impl {
       generate_ = [this](const task::Token& t, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
         // The library's own entity indices: map by key.
         const gp::GeneratedPath p = library_->generate(task::tokenKey(t, spec_), s, g, points_);
-        if (p.fell_back) ROS_WARN("gp_path: %s was never demonstrated; using %s", task::tokenKey(t, spec_).c_str(),
-                                  p.source_key.c_str());
+        if (p.fell_back)
+          ROS_WARN("gp_path: %s was never demonstrated; using %s", task::tokenKey(t, spec_).c_str(),
+                   p.source_key.c_str());
         fell_back_ = p.fell_back;
         return exec::PlannedPath{p.points, p.stddev};
       };

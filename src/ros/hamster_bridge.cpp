@@ -37,8 +37,8 @@ using namespace hamster;
 class HamsterBridgeNode::Impl {
  public:
   Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) : updater_(nh, pnh) {
-    const std::string config_path = ddace::rosparam::requireString(
-        pnh, "config", "path of the Hamster config YAML, e.g. config/hamsters.yaml");
+    const std::string config_path =
+        ddace::rosparam::requireString(pnh, "config", "path of the Hamster config YAML, e.g. config/hamsters.yaml");
     config_ = loadBridgeConfig(config_path);
     config_.port_dir = ddace::rosparam::param(pnh, "port_dir", config_.port_dir);
     config_.scan = ddace::rosparam::param(pnh, "scan", config_.scan);
@@ -72,9 +72,8 @@ class HamsterBridgeNode::Impl {
     }
     ROS_INFO("hamster_bridge: %zu robots; ports under %s, scanning [%s]", robots_.size(), config_.port_dir.c_str(),
              join(config_.scan).c_str());
-    diag_timer_ = nh.createSteadyTimer(ros::WallDuration(0.1), [this](const ros::SteadyTimerEvent&) {
-      updater_.update();
-    });
+    diag_timer_ =
+        nh.createSteadyTimer(ros::WallDuration(0.1), [this](const ros::SteadyTimerEvent&) { updater_.update(); });
   }
 
   /// The I/O loop: wait for bytes on any port (at most 2 ms, so identification and
@@ -239,10 +238,13 @@ class HamsterBridgeNode::Impl {
   std::vector<std::unique_ptr<Robot>> robots_;
 };
 
-HamsterBridgeNode::HamsterBridgeNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}
+HamsterBridgeNode::HamsterBridgeNode(ros::NodeHandle nh, ros::NodeHandle pnh)
+    : impl_(std::make_unique<Impl>(nh, pnh)) {}
 
 HamsterBridgeNode::~HamsterBridgeNode() = default;
 
-void HamsterBridgeNode::run() { impl_->run(); }
+void HamsterBridgeNode::run() {
+  impl_->run();
+}
 
 }  // namespace ddace::nodes

@@ -76,11 +76,12 @@ class MockHamsterNode::Impl {
     if (robots_.empty()) throw ddace::Error("no robots to simulate (check ~config and ~robots)");
     state_pub_ = pnh.advertise<ddace::HamsterMockState>("state", 50);
     entities_pub_ = pnh.advertise<ddace::EntityArray>("entities", 5);
-    fault_sub_ = pnh.subscribe<ddace::HamsterMockFault>("fault", 10,
-                                                         [this](const ddace::HamsterMockFault::ConstPtr& m) { onFault(*m); });
-    state_timer_ = pnh.createSteadyTimer(ros::WallDuration(0.02), [this](const ros::SteadyTimerEvent&) { publishStates(); });
-    entity_timer_ =
-        pnh.createSteadyTimer(ros::WallDuration(1.0 / 30.0), [this](const ros::SteadyTimerEvent&) { publishEntities(); });
+    fault_sub_ = pnh.subscribe<ddace::HamsterMockFault>(
+        "fault", 10, [this](const ddace::HamsterMockFault::ConstPtr& m) { onFault(*m); });
+    state_timer_ =
+        pnh.createSteadyTimer(ros::WallDuration(0.02), [this](const ros::SteadyTimerEvent&) { publishStates(); });
+    entity_timer_ = pnh.createSteadyTimer(ros::WallDuration(1.0 / 30.0),
+                                          [this](const ros::SteadyTimerEvent&) { publishEntities(); });
   }
 
   ~Impl() {
@@ -191,6 +192,8 @@ MockHamsterNode::MockHamsterNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl
 
 MockHamsterNode::~MockHamsterNode() = default;
 
-void MockHamsterNode::run() { impl_->run(); }
+void MockHamsterNode::run() {
+  impl_->run();
+}
 
 }  // namespace ddace::nodes

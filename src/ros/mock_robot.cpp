@@ -33,7 +33,8 @@ class MockRobotNode::Impl {
     frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
     publish_tf_ = rosparam::param(pnh, "publish_tf", defaults.publish_tf);
     object_speed_mps_ = rosparam::param(pnh, "object_speed_mps", defaults.object_speed_mps);
-    if (!(object_speed_mps_ > 0)) throw Error("parameter '" + pnh.resolveName("object_speed_mps") + "' must be positive");
+    if (!(object_speed_mps_ > 0))
+      throw Error("parameter '" + pnh.resolveName("object_speed_mps") + "' must be positive");
     const exec::DiffDriveParams dp = ros_exec::loadDiffDriveParams(ros::NodeHandle(pnh, "robot"));
     const auto stalled = rosparam::param(pnh, "stalled", std::vector<std::string>{});
     for (const auto& s : stalled)
@@ -61,8 +62,9 @@ class MockRobotNode::Impl {
             });
       } else if (te.kind == task::EntityKind::Object) {
         e.status = nh.advertise<ddace::SegmentStatus>("/robots/" + te.name + "/segment_status", 10);
-        e.segment_sub = nh.subscribe<ddace::Segment>(
-            "/robots/" + te.name + "/segment", 10, [this, i](const ddace::Segment::ConstPtr& m) { onObjectSegment(i, *m); });
+        e.segment_sub =
+            nh.subscribe<ddace::Segment>("/robots/" + te.name + "/segment", 10,
+                                         [this, i](const ddace::Segment::ConstPtr& m) { onObjectSegment(i, *m); });
       }
     }
     rate_hz_ = dp.rate_hz;
@@ -76,7 +78,7 @@ class MockRobotNode::Impl {
 
  private:
   struct Entity {
-    exec::Pose2D pose;                          ///< objects and goals; robots use `robot`
+    exec::Pose2D pose;  ///< objects and goals; robots use `robot`
     std::unique_ptr<exec::DiffDriveModel> robot;
     ros::Subscriber wheels_sub, segment_sub;
     ros::Publisher status;
@@ -153,7 +155,8 @@ class MockRobotNode::Impl {
     }
     if (e.moving && m.segment_id == e.segment_id) return;  // a re-sent copy of the running segment
     try {
-      const exec::PlannedPath p = ros_exec::fromMsg(m.path, m.stddev_m, "/robots/" + spec_.entities[i].name + "/segment");
+      const exec::PlannedPath p =
+          ros_exec::fromMsg(m.path, m.stddev_m, "/robots/" + spec_.entities[i].name + "/segment");
       if (p.points.empty()) throw Error("segment path is empty");
       e.carried = std::make_unique<exec::CarriedObject>(p.points, e.pose.position(), object_speed_mps_);
       e.segment_id = m.segment_id;
@@ -176,7 +179,8 @@ class MockRobotNode::Impl {
     if (!frames.empty()) static_tf_.sendTransform(frames);
   }
 
-  geometry_msgs::TransformStamped transform(const std::string& child, const exec::Pose2D& pose, const ros::Time& stamp) const {
+  geometry_msgs::TransformStamped transform(const std::string& child, const exec::Pose2D& pose,
+                                            const ros::Time& stamp) const {
     geometry_msgs::TransformStamped t;
     t.header.stamp = stamp;
     t.header.frame_id = frame_id_;

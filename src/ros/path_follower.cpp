@@ -45,8 +45,8 @@ class PathFollowerNode::Impl {
       r->wheels = nh.advertise<ddace::WheelCommand>("/robots/" + name + "/wheels", 10);
       r->status = nh.advertise<ddace::SegmentStatus>("/robots/" + name + "/segment_status", 20);
       Robot* raw = r.get();
-      r->segment_sub = nh.subscribe<ddace::Segment>("/robots/" + name + "/segment", 10,
-                                                    [this, raw](const ddace::Segment::ConstPtr& m) { onSegment(*raw, *m); });
+      r->segment_sub = nh.subscribe<ddace::Segment>(
+          "/robots/" + name + "/segment", 10, [this, raw](const ddace::Segment::ConstPtr& m) { onSegment(*raw, *m); });
       robots_[name] = std::move(r);
     }
     entities_sub_ = nh.subscribe("/ddace/entities", 5, &Impl::onEntities, this);
@@ -111,8 +111,9 @@ class PathFollowerNode::Impl {
       publishWheels(r, 0, 0);
       return;
     }
-    if (r.follower) publishStatus(r, r.segment_id, ddace::SegmentStatus::ABORTED, r.follower->progress(), 0,
-                                  "replaced by segment " + std::to_string(m.segment_id));
+    if (r.follower)
+      publishStatus(r, r.segment_id, ddace::SegmentStatus::ABORTED, r.follower->progress(), 0,
+                    "replaced by segment " + std::to_string(m.segment_id));
     r.follower.reset();
     try {
       if (m.mode != ddace::Segment::MODE_FOLLOW) throw Error("unknown segment mode " + std::to_string(m.mode));

@@ -30,7 +30,8 @@ class SequenceNode::Impl {
         policy_name ? SequenceNode::parsePolicy(*policy_name, pnh.resolveName("policy")) : defaults.policy;
     if (policy == SequenceNode::Policy::Model) {
       const std::string dir = rosparam::param<std::string>(pnh, "model", "");
-      if (dir.empty()) throw Error("policy 'model' needs parameter '" + pnh.resolveName("model") + "' (a model directory)");
+      if (dir.empty())
+        throw Error("policy 'model' needs parameter '" + pnh.resolveName("model") + "' (a model directory)");
       ros_exec::requireAbsolute(dir, pnh.resolveName("model"));
       model_ = std::make_unique<tgn::SequenceModel>(tgn::SequenceModel::load(dir));
       if (model_->spec().entityNames() != spec_.entityNames())
@@ -98,8 +99,8 @@ class SequenceNode::Impl {
       out.end = d.end;
       out.end_probability = last_end_probability_ >= 0 ? last_end_probability_ : (d.end ? 1.0 : 0.0);
       for (size_t i = 0; i < d.tokens.size(); ++i)
-        out.tokens.push_back(ros_exec::toMsg(
-            d.tokens[i], spec_, i < last_probabilities_.size() ? last_probabilities_[i] : 1.0));
+        out.tokens.push_back(
+            ros_exec::toMsg(d.tokens[i], spec_, i < last_probabilities_.size() ? last_probabilities_[i] : 1.0));
       std::string line;
       for (const auto& t : d.tokens) line += " " + task::tokenKey(t, spec_);
       ROS_INFO("sequence: decision %u (step %d):%s", req.id, req.step + 1, d.end ? " END" : line.c_str());

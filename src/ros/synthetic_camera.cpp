@@ -66,7 +66,8 @@ class SyntheticCameraNode::Impl {
   ros::Time first_, last_;
 };
 
-SyntheticCameraNode::SyntheticCameraNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}
+SyntheticCameraNode::SyntheticCameraNode(ros::NodeHandle nh, ros::NodeHandle pnh)
+    : impl_(std::make_unique<Impl>(nh, pnh)) {}
 
 SyntheticCameraNode::~SyntheticCameraNode() = default;
 

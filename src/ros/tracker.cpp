@@ -67,9 +67,8 @@ class TrackerNode::Impl {
     info_sub_ = nh_.subscribe("camera_info", 2, &Impl::onCameraInfo, this);
     updater_.setHardwareID("overhead camera");
     updater_.add("tracker", [this](diagnostic_updater::DiagnosticStatusWrapper& d) { diagnose(d); });
-    diag_timer_ = nh_.createSteadyTimer(ros::WallDuration(0.5), [this](const ros::SteadyTimerEvent&) {
-      updater_.update();
-    });
+    diag_timer_ =
+        nh_.createSteadyTimer(ros::WallDuration(0.5), [this](const ros::SteadyTimerEvent&) { updater_.update(); });
 
     entities_pub_ = nh_.advertise<ddace::EntityArray>("/ddace/entities", 10);
     markers_pub_ = pnh_.advertise<visualization_msgs::MarkerArray>("markers", 2);
@@ -151,8 +150,8 @@ class TrackerNode::Impl {
     std::lock_guard<std::mutex> lock(mutex_);
     tracker_->setCamera(model);
     if (!table_in_camera_.empty())
-      tracker_->setFixedTableFrame(
-          vision::TableFrame::fromCameraPose(model.K, table_in_camera_, "parameter " + pnh_.resolveName("table_in_camera")));
+      tracker_->setFixedTableFrame(vision::TableFrame::fromCameraPose(
+          model.K, table_in_camera_, "parameter " + pnh_.resolveName("table_in_camera")));
     camera_ = model;
     camera_source_ = source;
     have_camera_ = true;
@@ -201,8 +200,9 @@ class TrackerNode::Impl {
 
   void process(const cv::Mat& image, const ros::Time& stamp) {
     if (!table_in_camera_.empty() && !have_camera_) {
-      ROS_WARN_THROTTLE(5.0, "tracker_node: ~table_in_camera needs intrinsics (camera_info, "
-                             "~camera_calibration_file or ~camera_matrix); waiting for them");
+      ROS_WARN_THROTTLE(5.0,
+                        "tracker_node: ~table_in_camera needs intrinsics (camera_info, "
+                        "~camera_calibration_file or ~camera_matrix); waiting for them");
       return;
     }
     vision::FrameResult fr;
@@ -226,17 +226,19 @@ class TrackerNode::Impl {
     else if (fr.table_refused)
       ROS_WARN_THROTTLE(5.0, "tracker_node: %s; keeping the previous table frame", refusedText(fr).c_str());
     if (fr.height_correction == vision::HeightCorrection::IntrinsicsDoNotFit)
-      ROS_ERROR_THROTTLE(10.0, "tracker_node: the intrinsics from %s do not fit the table frame (another camera, or "
-                               "another resolution?): raised markers are NOT corrected for parallax",
+      ROS_ERROR_THROTTLE(10.0,
+                         "tracker_node: the intrinsics from %s do not fit the table frame (another camera, or "
+                         "another resolution?): raised markers are NOT corrected for parallax",
                          camera_source_.c_str());
     if (parallax && !warned_no_intrinsics_) {
       // Once, with the number: what running without intrinsics costs on this table.
       warned_no_intrinsics_ = true;
-      ROS_WARN("tracker_node: no intrinsics (no camera_info, ~camera_calibration_file or ~camera_matrix): markers "
-               "%.1f cm above the table are off by up to %.0f mm at the far corners (camera about %.2f m above the "
-               "table%s); give a camera calibration to correct it",
-               maxMarkerHeight() * 100, parallax->max_error_m * 1000, parallax->camera_height_m,
-               parallax->focal_assumed ? ", focal length assumed" : "");
+      ROS_WARN(
+          "tracker_node: no intrinsics (no camera_info, ~camera_calibration_file or ~camera_matrix): markers "
+          "%.1f cm above the table are off by up to %.0f mm at the far corners (camera about %.2f m above the "
+          "table%s); give a camera calibration to correct it",
+          maxMarkerHeight() * 100, parallax->max_error_m * 1000, parallax->camera_height_m,
+          parallax->focal_assumed ? ", focal length assumed" : "");
     }
     entities_pub_.publish(ros_vision::toMsg(fr.entities, stamp, frame_id_));
     if (publish_tf_) publishTf(fr, stamp);
@@ -322,7 +324,8 @@ class TrackerNode::Impl {
       m.header.stamp = stamp;
       m.ns = "entities";
       m.id = id++;
-      m.type = e.kind == task::EntityKind::Goal ? visualization_msgs::Marker::CYLINDER : visualization_msgs::Marker::ARROW;
+      m.type =
+          e.kind == task::EntityKind::Goal ? visualization_msgs::Marker::CYLINDER : visualization_msgs::Marker::ARROW;
       m.action = e.stale ? visualization_msgs::Marker::DELETE : visualization_msgs::Marker::ADD;
       m.pose.position.x = e.pose.x;
       m.pose.position.y = e.pose.y;
@@ -388,10 +391,16 @@ TrackerNode::TrackerNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::m
 
 TrackerNode::~TrackerNode() = default;
 
-bool TrackerNode::capturing() const { return impl_->capturing(); }
+bool TrackerNode::capturing() const {
+  return impl_->capturing();
+}
 
-void TrackerNode::run() { impl_->run(); }
+void TrackerNode::run() {
+  impl_->run();
+}
 
-void TrackerNode::stop() { impl_->stop(); }
+void TrackerNode::stop() {
+  impl_->stop();
+}
 
 }  // namespace ddace::nodes

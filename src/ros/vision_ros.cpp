@@ -36,7 +36,8 @@ vision::CameraModel fromMsg(const sensor_msgs::CameraInfo& info) {
     for (int c = 0; c < 3; ++c) m.K(r, c) = info.K[static_cast<size_t>(3 * r + c)];
   m.valid = info.K[0] > 0 && info.K[4] > 0;
   m.D.assign(info.D.begin(), info.D.end());
-  if (info.width > 0 && info.height > 0) m.image_size = cv::Size(static_cast<int>(info.width), static_cast<int>(info.height));
+  if (info.width > 0 && info.height > 0)
+    m.image_size = cv::Size(static_cast<int>(info.width), static_cast<int>(info.height));
   return m;
 }
 

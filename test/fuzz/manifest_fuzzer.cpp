@@ -1,8 +1,8 @@
 // libFuzzer target: a model's manifest.yaml is accepted or refused with a ddace::Error
 // (never a crash, another exception, or an allocation sized by the file); an accepted
 // manifest survives the writer and the reader again, and asks for no more threads than a
-// machine has (issue: `threads: 100000` made inspect and eval start 2,386 threads and hang). The task is test/fuzz/manifest_task.yaml.
-// The reader takes a path only (tgn::files::parseManifest): the input goes through an
+// machine has (issue: `threads: 100000` made inspect and eval start 2,386 threads and hang). The task is
+// test/fuzz/manifest_task.yaml. The reader takes a path only (tgn::files::parseManifest): the input goes through an
 // in-memory file. A text API (parseManifestText(text, file, spec, ...)) would let this
 // parse from memory.
 // fuzz-modules: task graph

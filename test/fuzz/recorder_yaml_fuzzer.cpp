@@ -19,8 +19,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       ddace::vision::parseMarkerConfig(ddace::readTextFile(DDACE_SOURCE_DIR "/config/markers.yaml"), "markers.yaml");
   ddace::vision::RecorderConfig config;
   try {
-    config = ddace::vision::parseRecorderConfig(std::string(reinterpret_cast<const char*>(data), size),
-                                                "recorder.yaml", markers);
+    config = ddace::vision::parseRecorderConfig(std::string(reinterpret_cast<const char*>(data), size), "recorder.yaml",
+                                                markers);
   } catch (const ddace::Error&) {
     return 0;
   }

@@ -187,25 +187,27 @@ class Watcher {
     for (const auto& e : spec.entities) {
       if (e.kind == ddace::task::EntityKind::Goal) continue;
       const std::string n = e.name;
-      subs_.push_back(nh.subscribe<ddace::Segment>("/robots/" + n + "/segment", 50, [this](const ddace::Segment::ConstPtr& m) {
-        std::lock_guard<std::mutex> l(mu_);
-        if (m->mode != ddace::Segment::MODE_FOLLOW) return;
-        segments_[m->segment_id].key = m->token.entity + ":" + m->token.action + ":" + m->token.target;
-        segments_[m->segment_id].sent = m->header.stamp;
-      }));
-      subs_.push_back(nh.subscribe<ddace::SegmentStatus>(
-          "/robots/" + n + "/segment_status", 100, [this](const ddace::SegmentStatus::ConstPtr& m) {
+      subs_.push_back(
+          nh.subscribe<ddace::Segment>("/robots/" + n + "/segment", 50, [this](const ddace::Segment::ConstPtr& m) {
             std::lock_guard<std::mutex> l(mu_);
-            if (m->status < ddace::SegmentStatus::DONE) return;
-            Seg& s = segments_[m->segment_id];
-            if (s.ended == ros::Time()) s.ended = m->header.stamp, s.end_status = m->status;
+            if (m->mode != ddace::Segment::MODE_FOLLOW) return;
+            segments_[m->segment_id].key = m->token.entity + ":" + m->token.action + ":" + m->token.target;
+            segments_[m->segment_id].sent = m->header.stamp;
           }));
+      subs_.push_back(nh.subscribe<ddace::SegmentStatus>("/robots/" + n + "/segment_status", 100,
+                                                         [this](const ddace::SegmentStatus::ConstPtr& m) {
+                                                           std::lock_guard<std::mutex> l(mu_);
+                                                           if (m->status < ddace::SegmentStatus::DONE) return;
+                                                           Seg& s = segments_[m->segment_id];
+                                                           if (s.ended == ros::Time())
+                                                             s.ended = m->header.stamp, s.end_status = m->status;
+                                                         }));
       if (e.kind == ddace::task::EntityKind::Robot)
-        subs_.push_back(nh.subscribe<ddace::WheelCommand>("/robots/" + n + "/wheels", 200,
-                                                          [this, n](const ddace::WheelCommand::ConstPtr& m) {
-                                                            std::lock_guard<std::mutex> l(mu_);
-                                                            wheels_[n].push_back({m->header.stamp, m->left_mps, m->right_mps});
-                                                          }));
+        subs_.push_back(nh.subscribe<ddace::WheelCommand>(
+            "/robots/" + n + "/wheels", 200, [this, n](const ddace::WheelCommand::ConstPtr& m) {
+              std::lock_guard<std::mutex> l(mu_);
+              wheels_[n].push_back({m->header.stamp, m->left_mps, m->right_mps});
+            }));
     }
     subs_.push_back(nh.subscribe<ddace::DecisionRequest>("/ddace/decision_request", 20,
                                                          [this](const ddace::DecisionRequest::ConstPtr& m) {
@@ -307,7 +309,7 @@ inline std::string startRun(Watcher& watch, double timeout_s) {
 
 /// Step token keys of a demonstration, sorted per step.
 inline std::vector<std::vector<std::string>> truthSteps(const ddace::task::Demonstration& d,
-                                                         const ddace::task::TaskSpec& spec) {
+                                                        const ddace::task::TaskSpec& spec) {
   std::vector<std::vector<std::string>> out;
   for (const auto& s : d.steps) {
     out.emplace_back();
@@ -354,8 +356,8 @@ inline void runTaskEndToEnd(const std::string& family, int robots, bool learned,
   if (learned) extra_args.push_back("model:=" + trainModel(dir));
   const ddace::task::TaskDir test = ddace::task::loadTaskDir(dir + "/test");
   Watcher watch(nh, test.spec);
-  std::vector<std::string> args = {files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train",
-                                   "autostart:=false", "monitor:=false", "config:=" + files.config_file};
+  std::vector<std::string> args = {files.launch_file,  "task:=" + dir + "/test", "train:=" + dir + "/train",
+                                   "autostart:=false", "monitor:=false",         "config:=" + files.config_file};
   args.insert(args.end(), extra_args.begin(), extra_args.end());
   Launch graph(args);
   const std::string started = startRun(watch, 30.0);

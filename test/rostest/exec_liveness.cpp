@@ -31,8 +31,13 @@ struct Graph {
     run_dir = std::string(scratch) + "/run_" + name;
   }
   std::vector<std::string> args() const {
-    return {files.launch_file, "task:=" + std::string(scratch) + "/test", "train:=" + std::string(scratch) + "/train",
-            "autostart:=false", "monitor:=true", "run_dir:=" + run_dir, "config:=" + files.config_file};
+    return {files.launch_file,
+            "task:=" + std::string(scratch) + "/test",
+            "train:=" + std::string(scratch) + "/train",
+            "autostart:=false",
+            "monitor:=true",
+            "run_dir:=" + run_dir,
+            "config:=" + files.config_file};
   }
 };
 
@@ -73,8 +78,8 @@ TEST_P(KillRole, StopsEveryRobotAtOnceAndAbortsNamingTheNode) {
     // on the wire (two publishers); one cycle later everything is zero.
     for (const auto& c : cmds)
       if (c.stamp > first_zero + ros::Duration(0.05)) {
-        EXPECT_TRUE(c.left == 0 && c.right == 0) << robot << " driven " << (c.stamp - first_zero).toSec()
-                                                 << " s after its first zero";
+        EXPECT_TRUE(c.left == 0 && c.right == 0)
+            << robot << " driven " << (c.stamp - first_zero).toSec() << " s after its first zero";
       }
     EXPECT_TRUE(cmds.back().left == 0 && cmds.back().right == 0) << robot;
   }

@@ -23,14 +23,15 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
   const std::string run_dir = std::string(scratch) + "/run";
   std::mutex mu;
   std::vector<ddace::CoordinatorState> states;
-  ros::Subscriber sub = nh.subscribe<ddace::CoordinatorState>("/coordinator/state", 100,
-                                                              [&](const ddace::CoordinatorState::ConstPtr& m) {
-                                                                std::lock_guard<std::mutex> l(mu);
-                                                                states.push_back(*m);
-                                                              });
+  ros::Subscriber sub =
+      nh.subscribe<ddace::CoordinatorState>("/coordinator/state", 100, [&](const ddace::CoordinatorState::ConstPtr& m) {
+        std::lock_guard<std::mutex> l(mu);
+        states.push_back(*m);
+      });
   Watcher w(nh, test.spec);
-  Launch graph({files.launch_file, "task:=" + std::string(scratch) + "/test", "train:=" + std::string(scratch) + "/train",
-                "autostart:=false", "monitor:=true", "run_dir:=" + run_dir, "config:=" + files.config_file});
+  Launch graph({files.launch_file, "task:=" + std::string(scratch) + "/test",
+                "train:=" + std::string(scratch) + "/train", "autostart:=false", "monitor:=true", "run_dir:=" + run_dir,
+                "config:=" + files.config_file});
   const std::string started = startRun(w, 30.0);
   ASSERT_TRUE(started.empty()) << started;
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING; }, 20.0));
@@ -88,8 +89,8 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
   const std::string info = run_dir + "/bag_info.txt";
   ASSERT_EQ(std::system(("rosbag info " + run_dir + "/run.bag > " + info + " 2>&1").c_str()), 0) << readFile(info);
   const std::string bag = readFile(info);
-  for (const std::string topic : {"/ddace/entities", "/coordinator/state", "/robots/R1/segment", "/robots/R1/segment_status",
-                                  "/robots/R1/wheels"})
+  for (const std::string topic : {"/ddace/entities", "/coordinator/state", "/robots/R1/segment",
+                                  "/robots/R1/segment_status", "/robots/R1/wheels"})
     EXPECT_NE(bag.find(topic), std::string::npos) << topic << " not in the bag:\n" << bag;
   const std::string png = readFile(run_dir + "/paths.png");
   ASSERT_GT(png.size(), 1000u) << readFile(run_dir + "/plot.log");

@@ -104,11 +104,11 @@ TEST(ExecResend, LostMessagesAreSentAgainWithTheSameId) {
   ros::Subscriber b = nh.subscribe<ddace::PathRequest>("/ddace/path_request", 10, on_path);
   ros::Subscriber c = nh.subscribe<ddace::Segment>("/robots/R1/segment", 10, on_segment);
   ros::Subscriber d = nh.subscribe<ddace::Segment>("/robots/R2/segment", 10, [&](const ddace::Segment::ConstPtr&) {});
-  ros::Subscriber e = nh.subscribe<ddace::CoordinatorState>("/coordinator/state", 10,
-                                                            [&](const ddace::CoordinatorState::ConstPtr& m) {
-                                                              std::lock_guard<std::mutex> l(mu);
-                                                              state = *m;
-                                                            });
+  ros::Subscriber e =
+      nh.subscribe<ddace::CoordinatorState>("/coordinator/state", 10, [&](const ddace::CoordinatorState::ConstPtr& m) {
+        std::lock_guard<std::mutex> l(mu);
+        state = *m;
+      });
   // The tracker: R1 at (0.2, 0.2), R2 at (0.5, 0.2), G1 at (0.8, 0.8); R1 "arrives" when done.
   std::atomic<bool> run{true};
   std::thread tracker([&] {
@@ -123,7 +123,9 @@ TEST(ExecResend, LostMessagesAreSentAgainWithTheSameId) {
         done = !segment_copies.empty() && segment_copies.begin()->second >= 2;
       }
       for (auto [name, kind, x, y] : std::vector<std::tuple<std::string, std::string, double, double>>{
-               {"R1", "robot", done ? 0.8 : 0.2, done ? 0.8 : 0.2}, {"R2", "robot", 0.5, 0.2}, {"G1", "goal", 0.8, 0.8}}) {
+               {"R1", "robot", done ? 0.8 : 0.2, done ? 0.8 : 0.2},
+               {"R2", "robot", 0.5, 0.2},
+               {"G1", "goal", 0.8, 0.8}}) {
         ddace::Entity en;
         en.name = name;
         en.kind = kind;

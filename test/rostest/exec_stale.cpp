@@ -26,10 +26,11 @@ struct Wheel {
 class FollowerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    wheels_sub_ = nh_.subscribe<ddace::WheelCommand>("/robots/R1/wheels", 500, [this](const ddace::WheelCommand::ConstPtr& m) {
-      std::lock_guard<std::mutex> l(mu_);
-      wheels_.push_back({m->header.stamp, m->left_mps, m->right_mps});
-    });
+    wheels_sub_ =
+        nh_.subscribe<ddace::WheelCommand>("/robots/R1/wheels", 500, [this](const ddace::WheelCommand::ConstPtr& m) {
+          std::lock_guard<std::mutex> l(mu_);
+          wheels_.push_back({m->header.stamp, m->left_mps, m->right_mps});
+        });
     status_sub_ = nh_.subscribe<ddace::SegmentStatus>("/robots/R1/segment_status", 100,
                                                       [this](const ddace::SegmentStatus::ConstPtr& m) {
                                                         std::lock_guard<std::mutex> l(mu_);
@@ -58,11 +59,14 @@ class FollowerTest : public ::testing::Test {
         rate.sleep();
       }
     });
-    ASSERT_TRUE(wait([&] {
-      return segment_pub_.getNumSubscribers() > 0 && wheels_sub_.getNumPublishers() > 0 &&
-             status_sub_.getNumPublishers() > 0 && entities_pub_.getNumSubscribers() > 0 &&
-             estop_pub_.getNumSubscribers() > 0;
-    }, 20.0)) << "path_follower_node did not connect";
+    ASSERT_TRUE(wait(
+        [&] {
+          return segment_pub_.getNumSubscribers() > 0 && wheels_sub_.getNumPublishers() > 0 &&
+                 status_sub_.getNumPublishers() > 0 && entities_pub_.getNumSubscribers() > 0 &&
+                 estop_pub_.getNumSubscribers() > 0;
+        },
+        20.0))
+        << "path_follower_node did not connect";
     std_msgs::Bool off;
     off.data = false;
     estop_pub_.publish(off);
@@ -124,8 +128,8 @@ class FollowerTest : public ::testing::Test {
       if (w.stamp > t) {
         ++n;
         if (w.left != 0 || w.right != 0)
-          return ::testing::AssertionFailure() << "non-zero command " << w.left << ", " << w.right << " at "
-                                               << (w.stamp - t).toSec() << " s";
+          return ::testing::AssertionFailure()
+                 << "non-zero command " << w.left << ", " << w.right << " at " << (w.stamp - t).toSec() << " s";
       }
     if (n == 0) return ::testing::AssertionFailure() << "no command after the event";
     return ::testing::AssertionSuccess();

@@ -10,9 +10,9 @@ TEST(ExecStall, SegmentTimeoutAbortsTheRunWithZeroWheels) {
   const std::string& dir = scratch;
   generateTask(dir, "task4", 3, 1);
   const auto spec = ddace::task::loadTaskDir(dir + "/test").spec;
-  const std::string config = writeConfig(files.config_file, dir + "/execution.yaml",
-                                         {{{"coordinator", "segment_timeout_s", "8.0"},
-                                           {"coordinator", "segment_timeout_per_m_s", "0.0"}}});
+  const std::string config =
+      writeConfig(files.config_file, dir + "/execution.yaml",
+                  {{{"coordinator", "segment_timeout_s", "8.0"}, {"coordinator", "segment_timeout_per_m_s", "0.0"}}});
   Watcher w(nh, spec);
   Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "autostart:=false",
                 "monitor:=false", "config:=" + config, "stalled:=[R2]"});

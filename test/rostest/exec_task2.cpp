@@ -1,4 +1,5 @@
-// Learned Task 2 (11 robots) end-to-end on mock robots with a model trained in the set-up: the whole graph of launch/execute_sim.launch.
+// Learned Task 2 (11 robots) end-to-end on mock robots with a model trained in the set-up: the whole graph of
+// launch/execute_sim.launch.
 #include "exec_common.h"
 
 TEST(ExecTask2, CompletesWithTheGroundTruthSequenceAndEveryGoalCondition) {

@@ -94,11 +94,11 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
   ros::Subscriber b = nh.subscribe<ddace::PathRequest>("/ddace/path_request", 10, on_path);
   ros::Subscriber c = nh.subscribe<ddace::Segment>("/robots/R1/segment", 10, on_segment);
   ros::Subscriber d = nh.subscribe<ddace::Segment>("/robots/R2/segment", 10, [&](const ddace::Segment::ConstPtr&) {});
-  ros::Subscriber e = nh.subscribe<ddace::CoordinatorState>("/coordinator/state", 10,
-                                                            [&](const ddace::CoordinatorState::ConstPtr& m) {
-                                                              std::lock_guard<std::mutex> l(mu);
-                                                              state = *m;
-                                                            });
+  ros::Subscriber e =
+      nh.subscribe<ddace::CoordinatorState>("/coordinator/state", 10, [&](const ddace::CoordinatorState::ConstPtr& m) {
+        std::lock_guard<std::mutex> l(mu);
+        state = *m;
+      });
   std::atomic<bool> run{true};
   std::thread tracker([&] {
     ros::Rate rate(30);
@@ -154,11 +154,11 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
     r1_x = 0.8 - 0.25, r1_y = 0.8;
   }
   ros::WallDuration(0.3).sleep();
-  status(status_pub, "R9", id, ddace::SegmentStatus::DONE);       // another entity's name
-  status(status_pub, "R1", id, 42);                               // no such code
-  status(status2_pub, "R2", id, ddace::SegmentStatus::DONE);      // R1's segment on R2's topic
-  status(status_pub, "R1", id + 100, ddace::SegmentStatus::DONE); // no such segment
-  status(status_pub, "R1", id, ddace::SegmentStatus::DONE);       // right, but R1 is not there
+  status(status_pub, "R9", id, ddace::SegmentStatus::DONE);        // another entity's name
+  status(status_pub, "R1", id, 42);                                // no such code
+  status(status2_pub, "R2", id, ddace::SegmentStatus::DONE);       // R1's segment on R2's topic
+  status(status_pub, "R1", id + 100, ddace::SegmentStatus::DONE);  // no such segment
+  status(status_pub, "R1", id, ddace::SegmentStatus::DONE);        // right, but R1 is not there
   ros::WallDuration(1.0).sleep();
   {
     std::lock_guard<std::mutex> l(mu);

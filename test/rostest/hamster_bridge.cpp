@@ -43,29 +43,30 @@ class World {
     ros::NodeHandle nh;
     for (const auto& name : kRobots) {
       wheels_[name] = nh.advertise<ddace::WheelCommand>("/robots/" + name + "/wheels", 1);
-      sensor_subs_.push_back(nh.subscribe<ddace::HamsterSensors>(
-          "/robots/" + name + "/sensors", 50, [this](const ddace::HamsterSensors::ConstPtr& m) {
-            std::lock_guard<std::mutex> lock(mutex_);
-            sensors_[m->robot] = *m;
-            ++sensor_count_[m->robot];
-          }));
+      sensor_subs_.push_back(nh.subscribe<ddace::HamsterSensors>("/robots/" + name + "/sensors", 50,
+                                                                 [this](const ddace::HamsterSensors::ConstPtr& m) {
+                                                                   std::lock_guard<std::mutex> lock(mutex_);
+                                                                   sensors_[m->robot] = *m;
+                                                                   ++sensor_count_[m->robot];
+                                                                 }));
     }
     fault_ = nh.advertise<ddace::HamsterMockFault>("/mock_hamster/fault", 10);
     for (const auto& name : kRobots) {
       effects_[name] = nh.advertise<ddace::HamsterEffects>("/robots/" + name + "/effects", 1, true);
     }
     state_sub_ = nh.subscribe<ddace::HamsterMockState>("/mock_hamster/state", 100,
-                                                        [this](const ddace::HamsterMockState::ConstPtr& m) {
-                                                          std::lock_guard<std::mutex> lock(mutex_);
-                                                          states_[m->robot] = *m;
-                                                        });
+                                                       [this](const ddace::HamsterMockState::ConstPtr& m) {
+                                                         std::lock_guard<std::mutex> lock(mutex_);
+                                                         states_[m->robot] = *m;
+                                                       });
     diag_sub_ = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
         "/diagnostics", 50, [this](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
           std::lock_guard<std::mutex> lock(mutex_);
           for (const auto& s : m->status) {
             for (const auto& name : kRobots) {
               const std::string suffix = "hamster " + name;
-              if (s.name.size() >= suffix.size() && s.name.compare(s.name.size() - suffix.size(), suffix.size(), suffix) == 0) {
+              if (s.name.size() >= suffix.size() &&
+                  s.name.compare(s.name.size() - suffix.size(), suffix.size(), suffix) == 0) {
                 Diag& d = diags_[name];
                 d.level = s.level;
                 for (const auto& kv : s.values) d.values[kv.key] = kv.value;
@@ -110,8 +111,8 @@ class World {
   std::pair<int, int> expected(const std::string& name) {
     for (const auto& r : config_->robots) {
       if (r.name == name) {
-        const auto u = ddace::hamster::wheelUnitsFromSpeeds(r.calibration, commands0_.at(name).first,
-                                                            commands0_.at(name).second);
+        const auto u =
+            ddace::hamster::wheelUnitsFromSpeeds(r.calibration, commands0_.at(name).first, commands0_.at(name).second);
         return {u.left, u.right};
       }
     }
@@ -249,8 +250,10 @@ TEST_F(HamsterBridgeTest, LinkLossZeroesTheWheelsThenTheBridgeReconnects) {
   // must reach the robot as zero wheels although commands keep coming.
   world->inject("R3", "stall", 1.5);
   ASSERT_TRUE(world->wait([&] { return world->onWire("R3", 0, 0); }, 1.5)) << "R3 not stopped on link loss";
-  ASSERT_TRUE(world->wait([&] { return world->non_ok_seen_.count("R3") > 0; }, 2.0)) << "diagnostics never showed the loss";
-  ASSERT_TRUE(world->wait([&] { return world->onWire("R3", 80, 40) && world->diagLevel("R3", 0); }, 8.0)) << "R3 not driven again";
+  ASSERT_TRUE(world->wait([&] { return world->non_ok_seen_.count("R3") > 0; }, 2.0))
+      << "diagnostics never showed the loss";
+  ASSERT_TRUE(world->wait([&] { return world->onWire("R3", 80, 40) && world->diagLevel("R3", 0); }, 8.0))
+      << "R3 not driven again";
   EXPECT_GE(world->diagValue("R3", "link losses"), 1.0);
   std::lock_guard<std::mutex> lock(world->mutex_);
   EXPECT_TRUE(world->onWire("R1", 30, 30));
@@ -265,7 +268,8 @@ TEST_F(HamsterBridgeTest, RadioDropAndUnplugAreRecovered) {
   world->inject("R1", "drop", 1.0);
   world->inject("R4", "unplug", 1.0);
   ASSERT_TRUE(world->wait([&] { return world->non_ok_seen_.count("R1") && world->non_ok_seen_.count("R4"); }, 3.0));
-  ASSERT_TRUE(world->wait([&] { return world->allDrivenAsCommanded() && world->diagLevel("R1", 0) && world->diagLevel("R4", 0); }, 10.0))
+  ASSERT_TRUE(world->wait(
+      [&] { return world->allDrivenAsCommanded() && world->diagLevel("R1", 0) && world->diagLevel("R4", 0); }, 10.0))
       << "not all robots driven again after drop/unplug";
   EXPECT_GE(world->diagValue("R1", "no-robot lines"), 1.0);
   EXPECT_GE(world->diagValue("R4", "link losses"), 1.0);  // the hang-up was noticed
@@ -284,7 +288,7 @@ TEST_F(HamsterBridgeTest, GarbageAndTruncatedLinesAreCountedAndSurvived) {
   world->inject("R2", "garbage", 1.0);
   ros::WallDuration(1.3).sleep();
   ASSERT_TRUE(world->wait([&] { return world->diagLevel("R2", 0); }, 2.0));
-  ros::WallDuration(0.5).sleep();  // a fresh diagnostics message
+  ros::WallDuration(0.5).sleep();                                             // a fresh diagnostics message
   EXPECT_GE(world->diagValue("R2", "dropped lines") - dropped_before, 40.0);  // 2 bad lines per 20 ms cycle
   EXPECT_EQ(world->diagValue("R2", "link losses"), losses_before);
   std::lock_guard<std::mutex> lock(world->mutex_);

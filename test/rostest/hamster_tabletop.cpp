@@ -19,10 +19,10 @@ TEST(HamsterTabletop, EveryConfiguredRobotIsFoundAndDriven) {
   std::mutex mutex;
   std::map<std::string, ddace::HamsterMockState> states;
   auto sub = nh.subscribe<ddace::HamsterMockState>("/mock_hamster/state", 100,
-                                                    [&](const ddace::HamsterMockState::ConstPtr& m) {
-                                                      std::lock_guard<std::mutex> lock(mutex);
-                                                      states[m->robot] = *m;
-                                                    });
+                                                   [&](const ddace::HamsterMockState::ConstPtr& m) {
+                                                     std::lock_guard<std::mutex> lock(mutex);
+                                                     states[m->robot] = *m;
+                                                   });
   std::map<std::string, ros::Publisher> pubs;
   std::map<std::string, int> want;
   for (const auto& r : config.robots) {

@@ -35,9 +35,10 @@ const std::string kPkg = "$(rospack find ddace)";
 }  // namespace
 
 TEST(ParamsMistyped, SyntheticCameraRateHz) {
-  const NodeRun r = runNode("synthetic_camera_node", "__name:=params_camera _markers_file:=" + kPkg +
-                                                     "/config/markers.yaml _camera_file:=" + kPkg +
-                                                     "/test/data/vision/synthetic_camera_clear.yaml _rate_hz:=fast");
+  const NodeRun r =
+      runNode("synthetic_camera_node", "__name:=params_camera _markers_file:=" + kPkg +
+                                           "/config/markers.yaml _camera_file:=" + kPkg +
+                                           "/test/data/vision/synthetic_camera_clear.yaml _rate_hz:=fast");
   EXPECT_NE(r.status, 0) << r.output;
   EXPECT_NE(r.status, 124) << "the node ran on the default: " << r.output;
   EXPECT_NE(r.output.find("parameter '/params_camera/rate_hz' has the wrong type (expected a number)"),
@@ -47,7 +48,7 @@ TEST(ParamsMistyped, SyntheticCameraRateHz) {
 
 TEST(ParamsMistyped, HamsterBridgePortDir) {
   const NodeRun r = runNode("hamster_bridge_node", "__name:=params_bridge _config:=" + kPkg +
-                                                   "/test/rostest/hamster_bridge.yaml _port_dir:=42");
+                                                       "/test/rostest/hamster_bridge.yaml _port_dir:=42");
   EXPECT_NE(r.status, 0) << r.output;
   EXPECT_NE(r.status, 124) << "the node ran on the default: " << r.output;
   EXPECT_NE(r.output.find("parameter '/params_bridge/port_dir' has the wrong type (expected a string)"),
@@ -59,8 +60,8 @@ TEST(ParamsMistyped, MockHamsterRobotTimeout) {
   char tmpl[] = "/tmp/ddace_params_mistyped_XXXXXX";
   ASSERT_NE(::mkdtemp(tmpl), nullptr);
   const NodeRun r = runNode("mock_hamster_node", "__name:=params_mock _config:=" + kPkg +
-                                                 "/test/rostest/hamster_bridge.yaml _link_dir:=" + tmpl +
-                                                 " _robot_timeout_s:=soon");
+                                                     "/test/rostest/hamster_bridge.yaml _link_dir:=" + tmpl +
+                                                     " _robot_timeout_s:=soon");
   std::filesystem::remove_all(tmpl);
   EXPECT_NE(r.status, 0) << r.output;
   EXPECT_NE(r.status, 124) << "the node ran on the default: " << r.output;

@@ -112,8 +112,8 @@ TEST(VisionRecorder, RecordsAValidDemonstrationOfTheMotionAndLabels) {
     for (int i = 0; i < 5; ++i) {
       double x, y, th;
       vision_test::truePose(i, t, x, y, th);
-      const double err = std::hypot(d.positions[r][static_cast<size_t>(i)].x() - x,
-                                    d.positions[r][static_cast<size_t>(i)].y() - y);
+      const double err =
+          std::hypot(d.positions[r][static_cast<size_t>(i)].x() - x, d.positions[r][static_cast<size_t>(i)].y() - y);
       if (err > 0.005) std::printf("  row %zu (t = %.3f) %s: %.1f mm off\n", r, t, vision_test::kNames[i], err * 1000);
       max_err = std::max(max_err, err);
     }

@@ -11,7 +11,9 @@
 
 namespace vision_test {
 
-inline double wrap(double a) { return std::atan2(std::sin(a), std::cos(a)); }
+inline double wrap(double a) {
+  return std::atan2(std::sin(a), std::cos(a));
+}
 
 /// Pose of entity `i` (0..4) at time t: x, y metres, theta radians.
 inline void truePose(int i, double t, double& x, double& y, double& theta) {

@@ -21,9 +21,10 @@ TEST(VisionTask4, CompletesOnTrackedPoses) {
                                                       {{"mock_robots", "publish_tf", "false"}}}));
   // Count what the tracker publishes, to be sure the run drove on it.
   std::atomic<int> tracked{0};
-  ros::Subscriber sub = nh.subscribe<ddace::EntityArray>("/ddace/entities", 50, [&](const ddace::EntityArray::ConstPtr& m) {
-    if (!m->entities.empty() && m->entities.front().visible) ++tracked;
-  });
+  ros::Subscriber sub =
+      nh.subscribe<ddace::EntityArray>("/ddace/entities", 50, [&](const ddace::EntityArray::ConstPtr& m) {
+        if (!m->entities.empty() && m->entities.front().visible) ++tracked;
+      });
   std::atomic<int> truth{0};
   ros::Subscriber sub_truth = nh.subscribe<ddace::EntityArray>("/ddace/true_entities", 50,
                                                                [&](const ddace::EntityArray::ConstPtr&) { ++truth; });

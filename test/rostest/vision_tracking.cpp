@@ -24,9 +24,10 @@ TEST(VisionTracking, PosesMatchTheTruthAndSurviveAnOcclusion) {
   ros::Publisher truth = nh.advertise<ddace::EntityArray>("/ddace/true_entities", 10);
   std::vector<Sample> samples;
   ros::Time start;
-  ros::Subscriber sub = nh.subscribe<ddace::EntityArray>("/ddace/entities", 100, [&](const ddace::EntityArray::ConstPtr& m) {
-    if (!start.isZero()) samples.push_back({(m->header.stamp - start).toSec(), *m});
-  });
+  ros::Subscriber sub =
+      nh.subscribe<ddace::EntityArray>("/ddace/entities", 100, [&](const ddace::EntityArray::ConstPtr& m) {
+        if (!start.isZero()) samples.push_back({(m->header.stamp - start).toSec(), *m});
+      });
   tf2_ros::Buffer tf_buffer;
   tf2_ros::TransformListener tf_listener(tf_buffer);
 
@@ -72,8 +73,9 @@ TEST(VisionTracking, PosesMatchTheTruthAndSurviveAnOcclusion) {
       double x, y, th;
       vision_test::truePose(i, s.t, x, y, th);
       const double err = std::hypot(e.pose.x - x, e.pose.y - y);
-      if (err > 0.005) std::printf("  %s at t = %.3f: (%.4f, %.4f) vs truth (%.4f, %.4f): %.1f mm\n", e.name.c_str(), s.t,
-                                   e.pose.x, e.pose.y, x, y, err * 1000);
+      if (err > 0.005)
+        std::printf("  %s at t = %.3f: (%.4f, %.4f) vs truth (%.4f, %.4f): %.1f mm\n", e.name.c_str(), s.t, e.pose.x,
+                    e.pose.y, x, y, err * 1000);
       max_pos = std::max(max_pos, err);
       if (i < 4) max_yaw = std::max(max_yaw, std::abs(vision_test::wrap(e.pose.theta - th)));
     }

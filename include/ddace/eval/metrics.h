@@ -15,16 +15,16 @@
 namespace ddace::eval {
 
 struct TrialScore {
-  std::string demo;                 ///< test demonstration file
-  int gt_steps = 0;                 ///< ground-truth steps
-  int predicted_steps = 0;          ///< steps the policy predicted
-  int correct_steps = 0;            ///< ground-truth steps whose token set was predicted at the same index
-  bool ended_correctly = false;     ///< END right after the last ground-truth step
-  int gt_robot_motions = 0;         ///< ground-truth motion tokens of robots
-  int achieved_robot_motions = 0;   ///< ... executed (same entity, action, target) and arrived
-  bool goal_conditions_hold = true; ///< every goal_conditions entry at the end
-  std::vector<double> fd;           ///< normalised Fréchet distance per matched motion token
-  bool success = false;             ///< OSR: all of the above
+  std::string demo;                  ///< test demonstration file
+  int gt_steps = 0;                  ///< ground-truth steps
+  int predicted_steps = 0;           ///< steps the policy predicted
+  int correct_steps = 0;             ///< ground-truth steps whose token set was predicted at the same index
+  bool ended_correctly = false;      ///< END right after the last ground-truth step
+  int gt_robot_motions = 0;          ///< ground-truth motion tokens of robots
+  int achieved_robot_motions = 0;    ///< ... executed (same entity, action, target) and arrived
+  bool goal_conditions_hold = true;  ///< every goal_conditions entry at the end
+  std::vector<double> fd;            ///< normalised Fréchet distance per matched motion token
+  bool success = false;              ///< OSR: all of the above
 
   double ssr() const { return gt_steps ? static_cast<double>(correct_steps) / gt_steps : 1.0; }
   double gcr() const { return gt_robot_motions ? static_cast<double>(achieved_robot_motions) / gt_robot_motions : 1.0; }
@@ -33,8 +33,8 @@ struct TrialScore {
 
 /// Scores one trial. `use_executed_paths`: FD on the executed positions instead of the
 /// generated path (for a baseline that rolls out its own trajectories, both are the same).
-TrialScore scoreTrial(const task::TaskSpec& spec, const task::Demonstration& ground_truth,
-                      const exec::Trial& trial, bool use_executed_paths = false);
+TrialScore scoreTrial(const task::TaskSpec& spec, const task::Demonstration& ground_truth, const exec::Trial& trial,
+                      bool use_executed_paths = false);
 
 struct Summary {
   int trials = 0;

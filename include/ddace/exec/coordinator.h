@@ -50,11 +50,11 @@ enum class SegmentState : uint8_t { Sent = 0, Accepted = 1, Running = 2, Done = 
 const char* toString(SegmentState state);
 
 struct CoordinatorConfig {
-  double decision_timeout_s = 10;        ///< no decision within this -> abort
-  double path_timeout_s = 10;            ///< not every path within this -> abort
-  double segment_timeout_s = 30;         ///< base time a segment may take ...
-  double segment_timeout_per_m_s = 20;   ///< ... plus this much per metre of path
-  int max_steps = 50;                    ///< more decided steps than this -> abort
+  double decision_timeout_s = 10;       ///< no decision within this -> abort
+  double path_timeout_s = 10;           ///< not every path within this -> abort
+  double segment_timeout_s = 30;        ///< base time a segment may take ...
+  double segment_timeout_per_m_s = 20;  ///< ... plus this much per metre of path
+  int max_steps = 50;                   ///< more decided steps than this -> abort
   /// A DONE counts only when the coordinator's own tracked position of the entity is
   /// within arrival_radius_m + arrival_tolerance_m of the segment's goal. The tolerance
   /// covers the tracker's noise between the executor's reading and the coordinator's.
@@ -72,8 +72,8 @@ struct EntityObservation {
 
 struct DecisionRequest {
   uint32_t id = 0;
-  int step = 0;                            ///< index of the step to decide (0-based)
-  std::vector<task::Snapshot> history;     ///< every decision's snapshot, oldest first; last = now
+  int step = 0;                         ///< index of the step to decide (0-based)
+  std::vector<task::Snapshot> history;  ///< every decision's snapshot, oldest first; last = now
 };
 
 /// The policy's confidence in a decision (display only; never changes what runs).
@@ -90,8 +90,8 @@ struct AcceptedDecision {
 
 /// A SegmentStatus as received, before any check (see Coordinator::onSegmentStatus).
 struct StatusReport {
-  int topic_entity = -1;          ///< entity whose status topic it arrived on (task.yaml index)
-  std::string entity;             ///< the entity name the message claims
+  int topic_entity = -1;  ///< entity whose status topic it arrived on (task.yaml index)
+  std::string entity;     ///< the entity name the message claims
   uint32_t segment_id = 0;
   int code = 0;                   ///< raw status code; valid: Accepted..Aborted (1..5)
   double progress = 0;            ///< [0, 1]
@@ -110,12 +110,12 @@ struct PathRequest {
 /// One entity's part of a step, sent to the entity's executor.
 struct SegmentCommand {
   int entity = -1;
-  uint32_t segment_id = 0;   ///< unique within a run; status reports refer to it
+  uint32_t segment_id = 0;  ///< unique within a run; status reports refer to it
   int step = 0;
   task::Token token;
   PlannedPath path;
   Eigen::Vector2d goal{0, 0};
-  double timeout_s = 0;      ///< the coordinator aborts after this long
+  double timeout_s = 0;  ///< the coordinator aborts after this long
 };
 
 /// What the caller must do after an event. Empty most of the time.
@@ -123,10 +123,10 @@ struct CoordinatorOutput {
   std::optional<DecisionRequest> decision;
   std::vector<PathRequest> paths;
   std::vector<SegmentCommand> segments;
-  std::vector<int> stop;          ///< entities whose segment is cancelled: zero their wheels now
-  bool stop_all = false;          ///< stop every robot (abort, e-stop, reset)
+  std::vector<int> stop;  ///< entities whose segment is cancelled: zero their wheels now
+  bool stop_all = false;  ///< stop every robot (abort, e-stop, reset)
   bool state_changed = false;
-  std::vector<std::string> log;   ///< what happened, for the operator
+  std::vector<std::string> log;  ///< what happened, for the operator
 
   bool empty() const {
     return !decision && paths.empty() && segments.empty() && stop.empty() && !stop_all && !state_changed;
@@ -137,16 +137,16 @@ struct CoordinatorOutput {
 struct TokenRecord {
   task::Token token;
   Eigen::Vector2d start{0, 0};
-  Eigen::Vector2d goal{0, 0};   ///< = start for in-place tokens
-  uint32_t segment_id = 0;      ///< 0 for in-place tokens
+  Eigen::Vector2d goal{0, 0};  ///< = start for in-place tokens
+  uint32_t segment_id = 0;     ///< 0 for in-place tokens
   SegmentState state = SegmentState::Sent;
-  double progress = 0;          ///< last reported, [0, 1]
-  PlannedPath path;             ///< empty for in-place tokens
-  double timeout_s = 0;         ///< the segment's time-out (0 for in-place tokens)
+  double progress = 0;   ///< last reported, [0, 1]
+  PlannedPath path;      ///< empty for in-place tokens
+  double timeout_s = 0;  ///< the segment's time-out (0 for in-place tokens)
   /// Straight-line distance of the entity's *tracked* position to `goal` (metres; NaN
   /// before the first observation after the segment went out).
   double distance_to_goal_m = std::numeric_limits<double>::quiet_NaN();
-  bool done_claimed = false;    ///< the executor said DONE; counted once the tracked pose agrees
+  bool done_claimed = false;  ///< the executor said DONE; counted once the tracked pose agrees
 };
 
 struct StepRecord {
@@ -239,7 +239,7 @@ class Coordinator {
   uint32_t next_id_ = 1;
   uint32_t pending_decision_ = 0;
   double pending_since_s_ = 0;
-  std::vector<uint32_t> pending_paths_;   ///< request id per token of the current step (0 = none)
+  std::vector<uint32_t> pending_paths_;  ///< request id per token of the current step (0 = none)
   double segments_since_s_ = 0;
   uint32_t decisions_requested_ = 0;
   std::optional<AcceptedDecision> last_decision_;

@@ -19,8 +19,8 @@ class DiffDriveExecution : public ExecutionModel {
   /// The control law reports done within this fraction of the task's arrival radius.
   static constexpr double kStopFraction = 0.5;
   /// `arrival_radius_m`: the task's; `noise_m`: std-dev of measured x and y.
-  DiffDriveExecution(double arrival_radius_m, double noise_m, uint64_t seed,
-                     const FollowerGains& gains = {}, const DiffDriveParams& robot = {});
+  DiffDriveExecution(double arrival_radius_m, double noise_m, uint64_t seed, const FollowerGains& gains = {},
+                     const DiffDriveParams& robot = {});
   std::string name() const override { return "diffdrive"; }
   /// Follows until the control law reports done or a time limit (3x the path at cruise
   /// speed + 10 s) passes; returns the true positions at the control rate.

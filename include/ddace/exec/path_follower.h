@@ -41,17 +41,17 @@ std::vector<double> progressOf(const std::vector<Eigen::Vector2d>& points);
 PlannedPath resampleByArcLength(const PlannedPath& path, int n);
 
 struct FollowerGains {
-  double cruise_speed_mps = 0.12;      ///< forward speed on a straight, far from the goal
-  double min_speed_mps = 0.02;         ///< never slower than this while moving forward
-  double lookahead_m = 0.04;           ///< arc length from the progress point to the pursuit point
-  double slowdown_radius_m = 0.08;     ///< speed ramps down linearly inside this distance to the goal
-  double rotate_in_place_rad = 1.0;    ///< heading errors beyond this turn on the spot
-  double heading_gain = 3.0;           ///< rad/s per rad of heading error when turning on the spot
-  double max_turn_rate_radps = 4.0;    ///< |yaw rate| limit
-  double search_window_m = 0.10;       ///< progress advances at most this much arc per call
-  double arrival_radius_m = 0.03;      ///< done within this distance of the final point
-  double wheel_base_m = 0.030;         ///< as DiffDriveParams::wheel_base_m
-  double max_wheel_speed_mps = 0.20;   ///< both wheels are scaled together to stay within +-this
+  double cruise_speed_mps = 0.12;     ///< forward speed on a straight, far from the goal
+  double min_speed_mps = 0.02;        ///< never slower than this while moving forward
+  double lookahead_m = 0.04;          ///< arc length from the progress point to the pursuit point
+  double slowdown_radius_m = 0.08;    ///< speed ramps down linearly inside this distance to the goal
+  double rotate_in_place_rad = 1.0;   ///< heading errors beyond this turn on the spot
+  double heading_gain = 3.0;          ///< rad/s per rad of heading error when turning on the spot
+  double max_turn_rate_radps = 4.0;   ///< |yaw rate| limit
+  double search_window_m = 0.10;      ///< progress advances at most this much arc per call
+  double arrival_radius_m = 0.03;     ///< done within this distance of the final point
+  double wheel_base_m = 0.030;        ///< as DiffDriveParams::wheel_base_m
+  double max_wheel_speed_mps = 0.20;  ///< both wheels are scaled together to stay within +-this
 
   /// Throws ddace::Error naming the first invalid gain.
   void validate() const;
@@ -59,11 +59,11 @@ struct FollowerGains {
 
 /// What the control law decided for one pose.
 struct FollowerOutput {
-  WheelSpeeds wheels;              ///< zero when done
-  double progress = 0;             ///< arc-length fraction covered, [0, 1], never decreases
-  double distance_to_goal_m = 0;   ///< straight-line distance to the final point
-  double cross_track_m = 0;        ///< distance from the path at the progress point
-  bool done = false;               ///< arrived: stays true until the next setPath()
+  WheelSpeeds wheels;             ///< zero when done
+  double progress = 0;            ///< arc-length fraction covered, [0, 1], never decreases
+  double distance_to_goal_m = 0;  ///< straight-line distance to the final point
+  double cross_track_m = 0;       ///< distance from the path at the progress point
+  bool done = false;              ///< arrived: stays true until the next setPath()
 };
 
 class PathFollower {
@@ -91,7 +91,7 @@ class PathFollower {
   std::vector<Eigen::Vector2d> points_;
   std::vector<double> cum_m_;  ///< cumulative arc length at each point
   double total_m_ = 0;
-  double s_m_ = 0;             ///< arc length of the progress point
+  double s_m_ = 0;  ///< arc length of the progress point
   bool done_ = false;
 };
 

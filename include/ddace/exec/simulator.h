@@ -64,10 +64,10 @@ struct ExecutedToken {
 };
 
 struct Trial {
-  std::vector<task::Step> predicted;     ///< the predicted steps, in order (keyframe_row unused)
-  bool ended = false;                    ///< the policy predicted END
-  std::vector<ExecutedToken> executed;   ///< every token of every predicted step
-  std::vector<task::Snapshot> snapshots; ///< the snapshots the policy saw
+  std::vector<task::Step> predicted;      ///< the predicted steps, in order (keyframe_row unused)
+  bool ended = false;                     ///< the policy predicted END
+  std::vector<ExecutedToken> executed;    ///< every token of every predicted step
+  std::vector<task::Snapshot> snapshots;  ///< the snapshots the policy saw
   std::vector<Eigen::Vector2d> final_positions;
 };
 

@@ -36,8 +36,8 @@ class CanonicalFrame {
   std::vector<Eigen::Vector2d> fromCanonical(const std::vector<Eigen::Vector2d>& path) const;
 
   const Eigen::Vector2d& origin() const { return origin_; }
-  double scale() const { return scale_; }    ///< d, metres per canonical unit
-  double angle() const { return angle_; }    ///< phi, radians
+  double scale() const { return scale_; }  ///< d, metres per canonical unit
+  double angle() const { return angle_; }  ///< phi, radians
 
  private:
   Eigen::Vector2d origin_;

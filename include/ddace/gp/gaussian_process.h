@@ -50,16 +50,16 @@ struct KernelParams {
 };
 
 struct GpOptions {
-  bool use_constant = true;      ///< C * RBF + White when true, RBF + White when false
-  double alpha = 1e-10;          ///< added to the diagonal of the training covariance (jitter)
-  KernelParams initial;          ///< first start of the optimiser (scikit-learn: the kernel's values)
-  Bounds constant_bounds;        ///< bounds of C
-  Bounds length_scale_bounds;    ///< bounds of l
-  Bounds noise_bounds;           ///< bounds of sigma_n^2
-  int restarts = 2;              ///< extra optimiser starts after `initial` (scikit-learn's n_restarts_optimizer)
-  uint64_t seed = 0;             ///< seed of the restart points (SplitMix64)
-  bool optimize = true;          ///< false: keep `initial` (scikit-learn's optimizer=None)
-  int max_iterations = 200;      ///< per optimiser start
+  bool use_constant = true;    ///< C * RBF + White when true, RBF + White when false
+  double alpha = 1e-10;        ///< added to the diagonal of the training covariance (jitter)
+  KernelParams initial;        ///< first start of the optimiser (scikit-learn: the kernel's values)
+  Bounds constant_bounds;      ///< bounds of C
+  Bounds length_scale_bounds;  ///< bounds of l
+  Bounds noise_bounds;         ///< bounds of sigma_n^2
+  int restarts = 2;            ///< extra optimiser starts after `initial` (scikit-learn's n_restarts_optimizer)
+  uint64_t seed = 0;           ///< seed of the restart points (SplitMix64)
+  bool optimize = true;        ///< false: keep `initial` (scikit-learn's optimizer=None)
+  int max_iterations = 200;    ///< per optimiser start
 };
 
 /// Training data grouped by distinct input (see the header comment).
@@ -93,8 +93,8 @@ KernelParams fromTheta(const Eigen::VectorXd& theta, bool use_constant);
 /// Log marginal likelihood of the grouped data at log hyper-parameters `theta` and,
 /// when `gradient` is not null, its gradient with respect to theta. Returns -inf when
 /// the covariance is not numerically positive definite.
-double logMarginalLikelihood(const RepeatedData& data, const Eigen::VectorXd& theta, bool use_constant,
-                             double alpha, Eigen::VectorXd* gradient = nullptr, Solver solver = Solver::Auto);
+double logMarginalLikelihood(const RepeatedData& data, const Eigen::VectorXd& theta, bool use_constant, double alpha,
+                             Eigen::VectorXd* gradient = nullptr, Solver solver = Solver::Auto);
 
 /// The same quantity computed the textbook way on all N observations (an N x N
 /// Cholesky). O(N^3): for tests of the reduction and for small data only.

@@ -64,9 +64,9 @@ inline constexpr int kMaxPrimitivePoints = 2000;
 inline constexpr int kMaxPrimitiveSegments = 1000000;
 
 struct PrimitiveOptions {
-  int points = 100;                   ///< progress samples per segment (distinct GP inputs)
-  double min_segment_length_m = 0.005;  ///< shorter segments are skipped, metres
-  bool pin_endpoints = true;          ///< generated paths start at S and end at G exactly
+  int points = 100;                            ///< progress samples per segment (distinct GP inputs)
+  double min_segment_length_m = 0.005;         ///< shorter segments are skipped, metres
+  bool pin_endpoints = true;                   ///< generated paths start at S and end at G exactly
   GpOptions gp = defaultPrimitiveGpOptions();  ///< for both the x- and the y-GP
 };
 
@@ -82,7 +82,7 @@ struct GeneratedPath {
 struct KeySegments {
   task::Token token;
   std::vector<std::vector<Eigen::Vector2d>> canonical;  ///< [segment][point]
-  int skipped = 0;  ///< segments shorter than min_segment_length_m
+  int skipped = 0;                                      ///< segments shorter than min_segment_length_m
 };
 
 /// What PrimitiveLibrary::fit() trains on, by key ("R1:move:R3"). Throws ddace::Error for
@@ -91,7 +91,7 @@ std::map<std::string, KeySegments> canonicalSegments(const task::TaskDir& train,
 
 /// One learned primitive.
 struct Primitive {
-  std::string key;     ///< "R1:move:R3"
+  std::string key;  ///< "R1:move:R3"
   std::string entity, action, target;
   int segments = 0;          ///< segments trained on
   int skipped_segments = 0;  ///< too short to have a canonical frame

@@ -46,9 +46,7 @@ struct Edge {
   int source = -1;
   int target = -1;
   bool operator==(const Edge& o) const { return source == o.source && target == o.target; }
-  bool operator<(const Edge& o) const {
-    return source != o.source ? source < o.source : target < o.target;
-  }
+  bool operator<(const Edge& o) const { return source != o.source ? source < o.source : target < o.target; }
 };
 
 /// Why an observed edge is in E' or not (see the rule above).
@@ -60,9 +58,9 @@ bool isKept(Decision decision);
 /// One observed edge with its statistics.
 struct EdgeStats {
   Edge edge;
-  int frequency = 0;     ///< F(e): tokens with this edge, summed over demonstrations
-  int demos = 0;         ///< demonstrations in which the edge occurs
-  double support = 0;    ///< demos / number of demonstrations, in [0, 1]
+  int frequency = 0;   ///< F(e): tokens with this edge, summed over demonstrations
+  int demos = 0;       ///< demonstrations in which the edge occurs
+  double support = 0;  ///< demos / number of demonstrations, in [0, 1]
   Decision decision = Decision::DroppedRare;
 };
 
@@ -76,13 +74,13 @@ struct RefinementOptions {
 struct RefinedGraph {
   int nodes = 0;
   int demonstrations = 0;
-  std::vector<EdgeStats> edges;     ///< every observed edge, sorted by (source, target)
-  Eigen::MatrixXd adjacency;        ///< [nodes x nodes] symmetric weights A
-  Eigen::MatrixXd laplacian;        ///< L = D - A (unnormalised; the clustering uses the normalised one)
-  Eigen::VectorXd eigenvalues;      ///< of the normalised Laplacian, ascending
-  int clusters = 1;                 ///< k chosen by the eigengap
-  std::vector<int> cluster;         ///< [node] cluster index in 0..k-1 (numbered by first node)
-  std::vector<Edge> kept;           ///< E', sorted
+  std::vector<EdgeStats> edges;  ///< every observed edge, sorted by (source, target)
+  Eigen::MatrixXd adjacency;     ///< [nodes x nodes] symmetric weights A
+  Eigen::MatrixXd laplacian;     ///< L = D - A (unnormalised; the clustering uses the normalised one)
+  Eigen::VectorXd eigenvalues;   ///< of the normalised Laplacian, ascending
+  int clusters = 1;              ///< k chosen by the eigengap
+  std::vector<int> cluster;      ///< [node] cluster index in 0..k-1 (numbered by first node)
+  std::vector<Edge> kept;        ///< E', sorted
 
   bool contains(const Edge& e) const;
 };
@@ -93,8 +91,7 @@ std::vector<Edge> tokenEdges(const task::Demonstration& demo);
 /// Applies the rule above to the demonstrations of one task with `nodes` entities.
 /// Throws ddace::Error when there are no demonstrations, a token names an entity
 /// outside 0..nodes-1, or the support thresholds are not 0 <= drop <= keep <= 1.
-RefinedGraph refine(const std::vector<task::Demonstration>& demos, int nodes,
-                    const RefinementOptions& options = {});
+RefinedGraph refine(const std::vector<task::Demonstration>& demos, int nodes, const RefinementOptions& options = {});
 
 /// The same graph with node k renamed to new_index[k] (a permutation of 0..nodes-1):
 /// edges and E' re-sorted, clusters, adjacency and Laplacian permuted; the eigenvalues

@@ -86,18 +86,18 @@ struct LinkHealth {
 
 /// Counters since the link object was created.
 struct LinkStats {
-  uint64_t lines_ok = 0;           ///< valid sensor lines from our robot
-  uint64_t lines_dropped = 0;      ///< malformed, wrong packet type, wrong address, overlong
-  uint64_t lines_sent = 0;         ///< motoring lines written
-  uint64_t write_failures = 0;     ///< motoring lines that could not be written
-  uint64_t no_robot_lines = 0;     ///< "dongle without robot" lines
-  uint64_t connects = 0;           ///< times the link reached Streaming
-  uint64_t link_losses = 0;        ///< times Streaming was left
+  uint64_t lines_ok = 0;              ///< valid sensor lines from our robot
+  uint64_t lines_dropped = 0;         ///< malformed, wrong packet type, wrong address, overlong
+  uint64_t lines_sent = 0;            ///< motoring lines written
+  uint64_t write_failures = 0;        ///< motoring lines that could not be written
+  uint64_t no_robot_lines = 0;        ///< "dongle without robot" lines
+  uint64_t connects = 0;              ///< times the link reached Streaming
+  uint64_t link_losses = 0;           ///< times Streaming was left
   uint64_t stale_command_cycles = 0;  ///< cycles answered with zero wheels because no fresh command
-  uint64_t saturated_cycles = 0;   ///< cycles whose command exceeded max_units (scaled down)
-  uint64_t refused_commands = 0;   ///< wheel commands refused (stale stamp, not finite)
-  std::string last_drop_reason;    ///< why the last line was dropped
-  std::string last_error;          ///< last port/identification problem
+  uint64_t saturated_cycles = 0;      ///< cycles whose command exceeded max_units (scaled down)
+  uint64_t refused_commands = 0;      ///< wheel commands refused (stale stamp, not finite)
+  std::string last_drop_reason;       ///< why the last line was dropped
+  std::string last_error;             ///< last port/identification problem
 };
 
 /// One decoded sensor line and the wheels sent in reply.
@@ -128,8 +128,8 @@ class RobotLink {
   /// Forgets the command at once (e.g. e-stop): the next cycle sends zero wheels.
   void clearCommand();
   /// LEDs and sound; kept until changed (no timeout: they cannot move the robot).
-  void setEffects(const std::array<uint8_t, 3>& left_rgb, const std::array<uint8_t, 3>& right_rgb,
-                  double buzzer_hz, uint8_t note);
+  void setEffects(const std::array<uint8_t, 3>& left_rgb, const std::array<uint8_t, 3>& right_rgb, double buzzer_hz,
+                  uint8_t note);
 
   /// Does everything that is due at now_s (monotonic seconds): open/identify ports,
   /// read all available bytes, answer each valid sensor line, detect link loss.
@@ -194,9 +194,9 @@ class RobotLink {
   double last_line_s_ = -1.0;
   double last_write_s_ = -1.0;
   double lost_s_ = -1.0;
-  std::vector<std::string> searched_;        // what each port of the current pass said
+  std::vector<std::string> searched_;  // what each port of the current pass said
   std::vector<std::string> warnings_;
-  std::vector<double> battery_;              // last battery_samples readings, V
+  std::vector<double> battery_;  // last battery_samples readings, V
   size_t battery_next_ = 0;
 
   bool has_command_ = false;

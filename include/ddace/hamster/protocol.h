@@ -90,24 +90,24 @@ constexpr std::string_view kIdentifyRequest = "FF\r";
 /// not carry are left unset (has_* = false).
 struct Sensors {
   Model model = Model::Unknown;
-  uint8_t proximity_left = 0;   ///< front IR proximity, raw 0..255 (scale undocumented)
+  uint8_t proximity_left = 0;  ///< front IR proximity, raw 0..255 (scale undocumented)
   uint8_t proximity_right = 0;
-  uint8_t floor_left = 0;       ///< downward IR floor sensor, raw 0..255 (scale undocumented)
+  uint8_t floor_left = 0;  ///< downward IR floor sensor, raw 0..255 (scale undocumented)
   uint8_t floor_right = 0;
   /// Accelerometer, raw signed counts; x forward, y left, z up (about 16384 per g at
   /// the default range, unverified).
   int16_t accel_x = 0, accel_y = 0, accel_z = 0;
-  int8_t rssi_dbm = 0;          ///< radio signal strength, dBm (-128..0)
+  int8_t rssi_dbm = 0;               ///< radio signal strength, dBm (-128..0)
   uint8_t input_a = 0, input_b = 0;  ///< external I/O ports, raw
   bool has_light = false;
-  uint16_t light = 0;           ///< raw ambient light (unit undocumented)
+  uint16_t light = 0;  ///< raw ambient light (unit undocumented)
   bool has_temperature = false;
   double temperature_c = 0.0;
   bool has_battery = false;
   double battery_v = 0.0;
   // Hamster-S only.
   bool has_pulse_count = false;
-  uint16_t pulse_count = 0;     ///< wheel pulses (about 138 per cm)
+  uint16_t pulse_count = 0;  ///< wheel pulses (about 138 per cm)
 };
 
 /// Decodes a sensor payload of `model`. Returns nullopt and sets `why` when the
@@ -126,7 +126,7 @@ std::optional<Effector> decodeEffector(Model model, const Payload& payload, std:
 
 /// The `FF` identification reply: "FF,<name>,<model hex>,<info>,<address>".
 struct IdentifyReply {
-  std::string name;        ///< e.g. "Hamster"
+  std::string name;  ///< e.g. "Hamster"
   Model model = Model::Unknown;
   uint8_t model_code = 0;  ///< the raw model code (may be a robot we do not drive)
   std::string info;        ///< field 3, undocumented (firmware version?)

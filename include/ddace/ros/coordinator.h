@@ -36,12 +36,12 @@ class CoordinatorNode {
   /// to the task's arrival_radius.
   struct Params {
     std::string frame_id = kTableFrame;  ///< frame of paths, goals and markers
-    bool autostart = false;          ///< start as soon as every entity is tracked
-    int path_points = 100;           ///< points per requested path
-    double timeout_check_hz = 10.0;  ///< how often time-outs are checked
-    double resend_after_s = 1.0;     ///< an unacknowledged request or segment goes out again after this
-    double state_rate_hz = 5.0;      ///< ~state goes out at this rate (and on every change)
-    double liveness_check_hz = 50.0; ///< how often the roles' nodes are checked
+    bool autostart = false;              ///< start as soon as every entity is tracked
+    int path_points = 100;               ///< points per requested path
+    double timeout_check_hz = 10.0;      ///< how often time-outs are checked
+    double resend_after_s = 1.0;         ///< an unacknowledged request or segment goes out again after this
+    double state_rate_hz = 5.0;          ///< ~state goes out at this rate (and on every change)
+    double liveness_check_hz = 50.0;     ///< how often the roles' nodes are checked
   };
 
   CoordinatorNode(ros::NodeHandle nh, ros::NodeHandle pnh);

@@ -32,9 +32,7 @@ struct Token {
   std::string action;  ///< never empty
   int target = -1;     ///< entity index, -1 for an in-place action
   bool isMotion() const { return target >= 0; }
-  bool operator==(const Token& o) const {
-    return entity == o.entity && action == o.action && target == o.target;
-  }
+  bool operator==(const Token& o) const { return entity == o.entity && action == o.action && target == o.target; }
   bool operator!=(const Token& o) const { return !(*this == o); }
   bool operator<(const Token& o) const;
 };
@@ -54,9 +52,9 @@ struct LateOnset {
 /// Step k: the tokens that begin at keyframe k or join it within the step window,
 /// sorted by entity index.
 struct Step {
-  int keyframe_row = 0;          ///< the row of the step's first token: its snapshot
+  int keyframe_row = 0;  ///< the row of the step's first token: its snapshot
   std::vector<Token> tokens;
-  std::vector<LateOnset> late;   ///< the tokens that joined after keyframe_row, in row order
+  std::vector<LateOnset> late;  ///< the tokens that joined after keyframe_row, in row order
 };
 
 /// The rows during which a token's label holds: [first_row, last_row].
@@ -70,17 +68,17 @@ struct Segment {
 /// Positions of all entities at one row; the state in which a step was decided.
 struct Snapshot {
   int row = 0;
-  bool end = false;  ///< the terminal snapshot (last row), labelled END
+  bool end = false;                        ///< the terminal snapshot (last row), labelled END
   std::vector<Eigen::Vector2d> positions;  ///< [entity], metres
 };
 
 class Demonstration {
  public:
-  std::string source;                                  ///< file it was read from (diagnostics)
-  std::vector<double> t;                               ///< [row], seconds
-  std::vector<std::vector<Eigen::Vector2d>> positions; ///< [row][entity], metres
-  std::vector<std::vector<Label>> labels;              ///< [row][entity]
-  std::vector<bool> has_label_columns;                 ///< [entity]
+  std::string source;                                   ///< file it was read from (diagnostics)
+  std::vector<double> t;                                ///< [row], seconds
+  std::vector<std::vector<Eigen::Vector2d>> positions;  ///< [row][entity], metres
+  std::vector<std::vector<Label>> labels;               ///< [row][entity]
+  std::vector<bool> has_label_columns;                  ///< [entity]
   /// Step grouping window, seconds >= 0 (task.yaml's step_window_s; the readers and the
   /// generators set it from the task).
   double step_window_s = kDefaultStepWindow;
@@ -116,8 +114,7 @@ inline constexpr std::uint64_t kMaxDemonstrationBytes = std::uint64_t{1} << 30;
 
 /// Parses CSV text against `spec`. `file` is used in diagnostics. Throws
 /// ddace::Error listing every problem (file:line:column); the result is analyzed.
-Demonstration parseDemonstrationCsv(const std::string& text, const TaskSpec& spec,
-                                    const std::string& file);
+Demonstration parseDemonstrationCsv(const std::string& text, const TaskSpec& spec, const std::string& file);
 /// Reads, parses and analyzes one CSV, as a stream. Throws ddace::Error naming the file
 /// when it is not a regular file (a FIFO, a device, a directory, a symlink loop: refused
 /// before it is opened), is larger than kMaxDemonstrationBytes, or has errors.
@@ -129,7 +126,6 @@ Demonstration readDemonstrationCsv(const std::string& path, const TaskSpec& spec
 std::string demonstrationCsvText(const Demonstration& demo, const TaskSpec& spec);
 /// Writes demonstrationCsvText() checked and atomically (common/file.h OutputFile):
 /// a failed write throws ddace::Error naming `path` and leaves no half-written file.
-void writeDemonstrationCsv(const Demonstration& demo, const TaskSpec& spec,
-                           const std::string& path);
+void writeDemonstrationCsv(const Demonstration& demo, const TaskSpec& spec, const std::string& path);
 
 }  // namespace ddace::task

@@ -18,7 +18,7 @@ struct DemonstrationSummary {
   std::vector<Step> steps;         ///< exactly Demonstration::steps of the same file
   std::vector<double> keyframe_t;  ///< [step] t at its keyframe, seconds
   size_t segments = 0;
-  int end_row = 0;                 ///< the END snapshot's row (the last row)
+  int end_row = 0;  ///< the END snapshot's row (the last row)
 };
 
 /// Reads one CSV as readDemonstrationCsv does (same checks, same errors) and keeps only

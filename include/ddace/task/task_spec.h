@@ -40,9 +40,9 @@ struct GoalCondition {
 
 struct TaskSpec {
   std::string name;
-  std::vector<Entity> entities;           ///< order = node order
-  std::vector<std::string> actions;       ///< declared vocabulary (empty when absent)
-  bool actions_declared = false;          ///< true when task.yaml lists `actions`
+  std::vector<Entity> entities;                   ///< order = node order
+  std::vector<std::string> actions;               ///< declared vocabulary (empty when absent)
+  bool actions_declared = false;                  ///< true when task.yaml lists `actions`
   double arrival_radius = kDefaultArrivalRadius;  ///< metres
   double step_window_s = kDefaultStepWindow;      ///< seconds, >= 0
   std::vector<GoalCondition> goal_conditions;

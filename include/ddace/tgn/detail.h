@@ -13,8 +13,7 @@ namespace ddace::tgn {
 
 /// For the benchmarks' Python reference: writes the keyframe training tensors of `train`
 /// (normalised inputs, targets, masks, attention mask) as whitespace-separated text.
-void writeTrainingTensors(const task::TaskDir& train, const TrainOptions& options,
-                          const std::string& path);
+void writeTrainingTensors(const task::TaskDir& train, const TrainOptions& options, const std::string& path);
 
 namespace detail {
 /// One GAT layer on plain arrays, through the same module the network uses (tests).

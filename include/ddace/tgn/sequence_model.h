@@ -67,8 +67,8 @@ std::vector<Variant> allVariants();
 
 /// How the scene network's attention logits are formed.
 enum class AttentionKind {
-  GatV2,   ///< a . LeakyReLU(W_d x_i + W_s x_j + W_e r_ij) (GATv2Conv with edge features)
-  GatConv, ///< LeakyReLU(a_d . W_d x_i + a_s . W_s x_j + a_e . W_e r_ij) (GATConv with edge_dim)
+  GatV2,    ///< a . LeakyReLU(W_d x_i + W_s x_j + W_e r_ij) (GATv2Conv with edge features)
+  GatConv,  ///< LeakyReLU(a_d . W_d x_i + a_s . W_s x_j + a_e . W_e r_ij) (GATConv with edge_dim)
 };
 const char* toString(AttentionKind k);  ///< "gatv2", "gat"
 AttentionKind attentionFromString(const std::string& name);
@@ -81,26 +81,26 @@ struct TrainOptions {
   Variant variant = Variant::Scene;
   int max_epochs = 400;
   uint64_t seed = 1;
-  int heads = 2;                   ///< GAT heads (concatenated)
-  int head_channels = 16;          ///< channels per head: node embedding = heads * head_channels
+  int heads = 2;           ///< GAT heads (concatenated)
+  int head_channels = 16;  ///< channels per head: node embedding = heads * head_channels
   int gat_layers = 3;
   int gru_layers = 2;
   int gru_hidden = 64;
   bool identity_embedding = true;  ///< learned per-entity embedding concatenated to (x, y)
   int identity_dim = 8;
   AttentionKind attention = AttentionKind::GatV2;  ///< scene variant
-  int head_hidden = 32;            ///< scene variant: hidden units of the action and pointer heads
-  bool node_positions = true;      ///< scene variant: absolute (x, y) among the node features
-  bool edge_displacement = true;   ///< scene variant: x_j - x_i among the edge features (else only
-                                   ///< distance and nearness ranks: invariant to rotating the scene)
-  double weight_decay = 0;         ///< Adam's L2 penalty (as torch.optim.Adam's weight_decay)
+  int head_hidden = 32;                            ///< scene variant: hidden units of the action and pointer heads
+  bool node_positions = true;                      ///< scene variant: absolute (x, y) among the node features
+  bool edge_displacement = true;                   ///< scene variant: x_j - x_i among the edge features (else only
+                                                   ///< distance and nearness ranks: invariant to rotating the scene)
+  double weight_decay = 0;                         ///< Adam's L2 penalty (as torch.optim.Adam's weight_decay)
   double dropout = 0.1;
   double learning_rate = 5e-3;
-  int batch_demos = 8;             ///< at most this many demonstrations per mini-batch, and at
-                                   ///< most a quarter of them (at least 4 steps per epoch)
-  int plateau_patience = 20;       ///< epochs
-  double plateau_delta = 1e-3;     ///< loss
-  int threads = 1;                 ///< at::set_num_threads during training (1..kMaxThreads)
+  int batch_demos = 8;                  ///< at most this many demonstrations per mini-batch, and at
+                                        ///< most a quarter of them (at least 4 steps per epoch)
+  int plateau_patience = 20;            ///< epochs
+  double plateau_delta = 1e-3;          ///< loss
+  int threads = 1;                      ///< at::set_num_threads during training (1..kMaxThreads)
   graph::RefinementOptions refinement;  ///< E' (variant ddace)
 
   /// Throws ddace::Error naming the first option out of range.
@@ -109,12 +109,12 @@ struct TrainOptions {
 
 /// One training epoch, as printed and stored in loss.csv.
 struct EpochRecord {
-  int epoch = 0;               ///< 1-based
-  double loss = 0;             ///< mean training loss over the epoch's mini-batches
-  double step_accuracy = 0;    ///< ddace/full-graph: steps (incl. END) predicted exactly on the
-                               ///< training demos (eval mode, true history); gnn: frames whose
-                               ///< next labels are all right
-  double seconds = 0;          ///< wall time since training started
+  int epoch = 0;             ///< 1-based
+  double loss = 0;           ///< mean training loss over the epoch's mini-batches
+  double step_accuracy = 0;  ///< ddace/full-graph: steps (incl. END) predicted exactly on the
+                             ///< training demos (eval mode, true history); gnn: frames whose
+                             ///< next labels are all right
+  double seconds = 0;        ///< wall time since training started
 };
 
 struct Prediction {
@@ -127,15 +127,15 @@ struct Prediction {
 /// Everything a model directory records besides the weights (manifest.yaml, loss.csv).
 struct ModelInfo {
   Variant variant = Variant::Scene;
-  TrainOptions options;                  ///< hyper-parameters and seed used
-  std::vector<std::string> vocabulary;   ///< actions; class 0 of the action head is idle
-  graph::RefinedGraph refined;           ///< the spectral refinement (ddace; computed for all variants)
+  TrainOptions options;                      ///< hyper-parameters and seed used
+  std::vector<std::string> vocabulary;       ///< actions; class 0 of the action head is idle
+  graph::RefinedGraph refined;               ///< the spectral refinement (ddace; computed for all variants)
   std::vector<graph::Edge> attention_edges;  ///< directed edges the GAT attends over (no self-loops)
   double mean[2] = {0, 0}, std[2] = {1, 1};  ///< position normalisation, metres
-  double delta_std[2] = {1, 1};          ///< gnn: displacement normalisation, metres per frame
-  double frame_dt_s = 0.05;              ///< gnn: time between rolled-out frames
-  std::vector<EpochRecord> history;      ///< loss per epoch
-  std::string stop_reason;               ///< "plateau" or "max_epochs"
+  double delta_std[2] = {1, 1};              ///< gnn: displacement normalisation, metres per frame
+  double frame_dt_s = 0.05;                  ///< gnn: time between rolled-out frames
+  std::vector<EpochRecord> history;          ///< loss per epoch
+  std::string stop_reason;                   ///< "plateau" or "max_epochs"
 };
 
 class SequenceModel {
@@ -143,8 +143,7 @@ class SequenceModel {
   /// Trains on the demonstrations of `train` (spec + demos). One progress line per epoch
   /// ("epoch 12/400  loss 0.4310  step accuracy 0.873  1.2 s") goes to `progress` when not
   /// null. Throws ddace::Error for bad options or unusable data (no demonstrations, no steps).
-  static SequenceModel train(const task::TaskDir& train, const TrainOptions& options,
-                             std::ostream* progress);
+  static SequenceModel train(const task::TaskDir& train, const TrainOptions& options, std::ostream* progress);
   /// Writes manifest.yaml, task.yaml, weights.pt and loss.csv into `model_dir` (created).
   void save(const std::string& model_dir) const;
   /// Reads a model directory. A missing, truncated, corrupted or mismatched file throws
@@ -185,7 +184,6 @@ class SequenceModel {
 /// labels, has_label_columns of `test_demo`) whose steps and segments the evaluator
 /// compares with the test demonstration. No GP is involved. Throws ddace::Error when the
 /// model is not of variant gnn or the demonstration does not fit the model's task.
-task::Demonstration rolloutGnn(const SequenceModel& model, const task::Demonstration& test_demo,
-                               int max_rows);
+task::Demonstration rolloutGnn(const SequenceModel& model, const task::Demonstration& test_demo, int max_rows);
 
 }  // namespace ddace::tgn

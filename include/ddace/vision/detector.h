@@ -31,20 +31,20 @@ struct Detection {
 
 /// Which detector and which marker family. Loaded from tracker.yaml (tracker.h).
 struct DetectorConfig {
-  std::string backend = "aruco";     ///< "aruco" or "apriltag"
+  std::string backend = "aruco";       ///< "aruco" or "apriltag"
   std::string family = "DICT_4X4_50";  ///< aruco: DICT_4X4_50 ... DICT_APRILTAG_36h11;
-                                     ///< apriltag: tag36h11, tag25h9, tag16h5, tagStandard41h12, ...
+                                       ///< apriltag: tag36h11, tag25h9, tag16h5, tagStandard41h12, ...
   // aruco
-  bool aruco_subpixel = true;        ///< corner refinement CORNER_REFINE_SUBPIX
-  int aruco_subpixel_window = 2;     ///< half-size of its window, pixels; keep it below the
-                                     ///< white quiet zone or dark robot bodies pull corners out
-  int aruco_window_min = 3;          ///< adaptive threshold windows, pixels: min, max, step
-  int aruco_window_max = 23;         ///< (OpenCV's defaults; one window = one thresholding pass)
+  bool aruco_subpixel = true;     ///< corner refinement CORNER_REFINE_SUBPIX
+  int aruco_subpixel_window = 2;  ///< half-size of its window, pixels; keep it below the
+                                  ///< white quiet zone or dark robot bodies pull corners out
+  int aruco_window_min = 3;       ///< adaptive threshold windows, pixels: min, max, step
+  int aruco_window_max = 23;      ///< (OpenCV's defaults; one window = one thresholding pass)
   int aruco_window_step = 10;
   // apriltag
-  double apriltag_decimate = 2.0;    ///< quad_decimate: segment a 1/d-size image (d = 1 is ~4x slower)
-  double apriltag_sigma = 0.0;       ///< quad_sigma (Gaussian blur before segmentation), pixels
-  int apriltag_max_hamming = 1;      ///< bits corrected when decoding (0..2)
+  double apriltag_decimate = 2.0;  ///< quad_decimate: segment a 1/d-size image (d = 1 is ~4x slower)
+  double apriltag_sigma = 0.0;     ///< quad_sigma (Gaussian blur before segmentation), pixels
+  int apriltag_max_hamming = 1;    ///< bits corrected when decoding (0..2)
 };
 
 /// Names accepted as DetectorConfig::family for `backend`.

@@ -18,17 +18,17 @@
 namespace ddace::vision {
 
 struct FilterConfig {
-  double max_speed_mps = 1.0;        ///< faster apparent motion is an outlier; the tracker's
-                                     ///< search regions grow at this speed too
-  double max_yaw_rate_rps = 12.0;    ///< faster apparent turning is an outlier
-  double gate_margin_m = 0.02;       ///< always-allowed jump (detection noise, frame jitter)
-  int reacquire_after = 3;           ///< this many consecutive mutually consistent outliers
-                                     ///< mean the entity really moved (picked up and put down)
-  double hold_s = 1.0;               ///< keep the last pose this long without measurements
-  double max_drift_m = 0.06;         ///< ... unless speed estimate x time unseen exceeds this
-  double position_gain = 1.0;        ///< 1 = raw measurement; lower = smoother, but lags
-                                     ///< by speed x frame period x (1 - gain) / gain
-  double yaw_gain = 1.0;             ///< same for yaw
+  double max_speed_mps = 1.0;      ///< faster apparent motion is an outlier; the tracker's
+                                   ///< search regions grow at this speed too
+  double max_yaw_rate_rps = 12.0;  ///< faster apparent turning is an outlier
+  double gate_margin_m = 0.02;     ///< always-allowed jump (detection noise, frame jitter)
+  int reacquire_after = 3;         ///< this many consecutive mutually consistent outliers
+                                   ///< mean the entity really moved (picked up and put down)
+  double hold_s = 1.0;             ///< keep the last pose this long without measurements
+  double max_drift_m = 0.06;       ///< ... unless speed estimate x time unseen exceeds this
+  double position_gain = 1.0;      ///< 1 = raw measurement; lower = smoother, but lags
+                                   ///< by speed x frame period x (1 - gain) / gain
+  double yaw_gain = 1.0;           ///< same for yaw
 };
 
 class PoseFilter {
@@ -49,9 +49,7 @@ class PoseFilter {
   bool visibleAt(double t) const { return seen_ && last_seen_ == t; }
   /// True when never seen, not seen for longer than hold_s at time `t`, or
   /// driftAt(t) > max_drift_m.
-  bool staleAt(double t) const {
-    return !seen_ || t - last_seen_ > config_.hold_s || driftAt(t) > config_.max_drift_m;
-  }
+  bool staleAt(double t) const { return !seen_ || t - last_seen_ > config_.hold_s || driftAt(t) > config_.max_drift_m; }
   /// How far the entity may have moved since its last measurement at its estimated
   /// speed (metres; 0 while visible).
   double driftAt(double t) const { return seen_ ? speed_mps_ * std::max(0.0, t - last_seen_) : 0.0; }

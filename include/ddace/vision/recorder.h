@@ -28,10 +28,10 @@ namespace ddace::vision {
 
 /// config/recorder.yaml.
 struct RecorderConfig {
-  std::string output_dir;        ///< the task directory (created); "~/" is expanded
-  double rate_hz = 30.0;         ///< rows per second
-  double flush_period_s = 1.0;   ///< rows reach the disk at least this often
-  task::TaskSpec spec;           ///< entities from markers.yaml, the rest from `task:`
+  std::string output_dir;       ///< the task directory (created); "~/" is expanded
+  double rate_hz = 30.0;        ///< rows per second
+  double flush_period_s = 1.0;  ///< rows reach the disk at least this often
+  task::TaskSpec spec;          ///< entities from markers.yaml, the rest from `task:`
 };
 
 /// Parses recorder.yaml; entities (order, names, kinds, types) come from `markers`.

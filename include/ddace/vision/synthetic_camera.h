@@ -39,7 +39,7 @@ struct SyntheticCameraConfig {
   double light_period_s = 5.0;          ///< ... with this period
   double light_gradient = 0.25;         ///< brightness falls by this fraction across the image
   std::vector<Occlusion> occlusions;
-  unsigned seed = 1;                    ///< noise seed
+  unsigned seed = 1;  ///< noise seed
 };
 
 /// Reads the synthetic camera's YAML (test/data/vision/synthetic_camera.yaml documents

@@ -35,17 +35,17 @@ namespace ddace::vision {
 /// A marker that identifies one entity of the scene.
 struct EntityMarker {
   int id = -1;
-  std::string name;                             ///< entity name as in task.yaml
+  std::string name;  ///< entity name as in task.yaml
   task::EntityKind kind = task::EntityKind::Robot;
-  std::string type;                             ///< free text, e.g. "hamster"
-  double size_m = 0.03;                         ///< edge of the outer black square
-  double height_m = 0.0;                        ///< marker height above the table
-  double yaw_offset_rad = 0.0;                  ///< entity yaw = marker yaw + offset
+  std::string type;             ///< free text, e.g. "hamster"
+  double size_m = 0.03;         ///< edge of the outer black square
+  double height_m = 0.0;        ///< marker height above the table
+  double yaw_offset_rad = 0.0;  ///< entity yaw = marker yaw + offset
 };
 
 /// config/markers.yaml.
 struct MarkerConfig {
-  std::string backend = "aruco";       ///< "aruco" or "apriltag"
+  std::string backend = "aruco";  ///< "aruco" or "apriltag"
   std::string family = "DICT_4X4_50";
   std::vector<CornerMarker> corners;   ///< exactly four, or none (calibrated camera)
   double corner_size_m = 0.04;         ///< edge of the corner markers' black square
@@ -87,9 +87,9 @@ struct TrackerConfig {
 /// Whether raised markers are corrected for parallax (needs intrinsics). Never
 /// switched off silently: FrameResult says which and why.
 enum class HeightCorrection {
-  On,                   ///< intrinsics given and consistent with the table frame
-  NoIntrinsics,         ///< no camera_info / calibration file: errors of height / camera height x distance
-  IntrinsicsDoNotFit,   ///< intrinsics given but the table frame contradicts them (wrong file?)
+  On,                  ///< intrinsics given and consistent with the table frame
+  NoIntrinsics,        ///< no camera_info / calibration file: errors of height / camera height x distance
+  IntrinsicsDoNotFit,  ///< intrinsics given but the table frame contradicts them (wrong file?)
 };
 /// "on", "off: no intrinsics", "off: the intrinsics do not fit the table frame".
 std::string heightCorrectionName(HeightCorrection state);
@@ -108,29 +108,29 @@ TrackerConfig loadTrackerConfig(const std::string& markers_path, const std::stri
 struct EntityState {
   std::string name;
   task::EntityKind kind = task::EntityKind::Robot;
-  PlanarPose pose;        ///< table frame; held while not visible
-  bool visible = false;   ///< measured (and accepted) in this frame
-  bool stale = true;      ///< never seen, not seen for longer than filter.hold_s, or held
-                          ///< while its speed says it may have moved more than
-                          ///< filter.max_drift: never publish it as a current pose
-  double last_seen = 0;   ///< stamp of the last accepted measurement, seconds
-  double drift_m = 0;     ///< speed estimate x time since last seen (0 while visible)
+  PlanarPose pose;       ///< table frame; held while not visible
+  bool visible = false;  ///< measured (and accepted) in this frame
+  bool stale = true;     ///< never seen, not seen for longer than filter.hold_s, or held
+                         ///< while its speed says it may have moved more than
+                         ///< filter.max_drift: never publish it as a current pose
+  double last_seen = 0;  ///< stamp of the last accepted measurement, seconds
+  double drift_m = 0;    ///< speed estimate x time since last seen (0 while visible)
 };
 
 struct FrameResult {
   double stamp = 0;
-  bool full_frame = false;           ///< this frame was searched whole
-  std::vector<cv::Rect> rois;        ///< searched regions (empty for a full frame)
-  std::vector<Detection> detections; ///< every configured marker found, raw image pixels
-  bool table_valid = false;          ///< a table frame is known
-  bool table_updated = false;        ///< re-estimated from the corner markers in this frame
+  bool full_frame = false;            ///< this frame was searched whole
+  std::vector<cv::Rect> rois;         ///< searched regions (empty for a full frame)
+  std::vector<Detection> detections;  ///< every configured marker found, raw image pixels
+  bool table_valid = false;           ///< a table frame is known
+  bool table_updated = false;         ///< re-estimated from the corner markers in this frame
   /// Largest reprojection error of this frame's corner-marker fit (pixels); -1 when no fit
   /// was made (not all four seen, fixed table frame).
   double table_reprojection_px = -1;
-  bool table_refused = false;        ///< this frame's fit exceeded table.max_reprojection_px (the
-                                     ///< previous table frame, if any, is kept)
+  bool table_refused = false;  ///< this frame's fit exceeded table.max_reprojection_px (the
+                               ///< previous table frame, if any, is kept)
   HeightCorrection height_correction = HeightCorrection::NoIntrinsics;
-  std::vector<EntityState> entities; ///< in MarkerConfig::entities order
+  std::vector<EntityState> entities;  ///< in MarkerConfig::entities order
 };
 
 class Tracker {
@@ -174,9 +174,9 @@ class Tracker {
   std::optional<TableFrame> table_;
   bool fixed_table_ = false;
   std::vector<PoseFilter> filters_;
-  std::map<int, Detection> last_seen_px_;  // id -> last raw detection (region search)
-  std::map<int, double> last_seen_t_;      // id -> stamp of that detection
-  std::map<int, cv::Point2d> velocity_px_; // id -> pixel velocity from its last two detections, px/s
+  std::map<int, Detection> last_seen_px_;    // id -> last raw detection (region search)
+  std::map<int, double> last_seen_t_;        // id -> stamp of that detection
+  std::map<int, cv::Point2d> velocity_px_;   // id -> pixel velocity from its last two detections, px/s
   std::map<int, Detection> corner_average_;  // corner marker id -> smoothed undistorted detection
   cv::Size image_size_;
   long frames_ = 0;

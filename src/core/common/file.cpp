@@ -15,7 +15,9 @@
 namespace ddace {
 namespace {
 
-std::string reason(int error_number) { return std::error_code(error_number, std::generic_category()).message(); }
+std::string reason(int error_number) {
+  return std::error_code(error_number, std::generic_category()).message();
+}
 
 [[noreturn]] void refuse(const std::string& path, const std::string& message) {
   throw Error(Diagnostic{path, 0, 0, message});
@@ -143,15 +145,20 @@ class InputFile::Buffer : public std::streambuf {
 };
 
 InputFile::InputFile(const std::string& path, std::uint64_t max_bytes)
-    : path_(path), buffer_(std::make_unique<Buffer>(path, openRegular(path, max_bytes), max_bytes)),
+    : path_(path),
+      buffer_(std::make_unique<Buffer>(path, openRegular(path, max_bytes), max_bytes)),
       stream_(std::make_unique<std::istream>(buffer_.get())) {
   // A read error thrown by the buffer reaches the caller instead of just setting badbit.
   stream_->exceptions(std::ios::badbit);
 }
 
 InputFile::~InputFile() = default;
-std::istream& InputFile::stream() { return *stream_; }
-bool InputFile::exceeded() const { return buffer_->exceeded(); }
+std::istream& InputFile::stream() {
+  return *stream_;
+}
+bool InputFile::exceeded() const {
+  return buffer_->exceeded();
+}
 
 // ------------------------------------------------------------------ OutputFile
 
@@ -241,7 +248,9 @@ OutputFile::~OutputFile() {
   if (!committed_) discard();
 }
 
-std::ostream& OutputFile::stream() { return *stream_; }
+std::ostream& OutputFile::stream() {
+  return *stream_;
+}
 
 void OutputFile::write(std::string_view bytes) {
   stream_->write(bytes.data(), static_cast<std::streamsize>(bytes.size()));

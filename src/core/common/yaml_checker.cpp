@@ -14,7 +14,9 @@ YAML::Node YamlChecker::parse(const std::string& text) {
   }
 }
 
-void YamlChecker::error(const YAML::Node& node, const std::string& message) { error(node.Mark(), message); }
+void YamlChecker::error(const YAML::Node& node, const std::string& message) {
+  error(node.Mark(), message);
+}
 
 void YamlChecker::error(const YAML::Mark& m, const std::string& message) {
   errors_.push_back({file_, m.is_null() ? 0 : m.line + 1, m.is_null() ? 0 : m.column + 1, message});

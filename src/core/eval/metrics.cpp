@@ -62,8 +62,8 @@ TrialScore scoreTrial(const task::TaskSpec& spec, const task::Demonstration& gt,
         (trial.final_positions[a] - trial.final_positions[b]).norm() > g.tolerance)
       s.goal_conditions_hold = false;
   }
-  s.success = s.correct_steps == s.gt_steps && s.ended_correctly &&
-              s.achieved_robot_motions == s.gt_robot_motions && s.goal_conditions_hold;
+  s.success = s.correct_steps == s.gt_steps && s.ended_correctly && s.achieved_robot_motions == s.gt_robot_motions &&
+              s.goal_conditions_hold;
   return s;
 }
 

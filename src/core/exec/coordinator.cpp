@@ -18,34 +18,50 @@ namespace ddace::exec {
 
 const char* toString(RunState s) {
   switch (s) {
-    case RunState::Idle: return "idle";
-    case RunState::WaitingForEntities: return "waiting_for_entities";
-    case RunState::Deciding: return "deciding";
-    case RunState::Planning: return "planning";
-    case RunState::Executing: return "executing";
-    case RunState::Paused: return "paused";
-    case RunState::Finished: return "finished";
-    case RunState::Aborted: return "aborted";
-    case RunState::EStopped: return "estopped";
+    case RunState::Idle:
+      return "idle";
+    case RunState::WaitingForEntities:
+      return "waiting_for_entities";
+    case RunState::Deciding:
+      return "deciding";
+    case RunState::Planning:
+      return "planning";
+    case RunState::Executing:
+      return "executing";
+    case RunState::Paused:
+      return "paused";
+    case RunState::Finished:
+      return "finished";
+    case RunState::Aborted:
+      return "aborted";
+    case RunState::EStopped:
+      return "estopped";
   }
   return "?";
 }
 
 const char* toString(SegmentState s) {
   switch (s) {
-    case SegmentState::Sent: return "sent";
-    case SegmentState::Accepted: return "accepted";
-    case SegmentState::Running: return "running";
-    case SegmentState::Done: return "done";
-    case SegmentState::Failed: return "failed";
-    case SegmentState::Aborted: return "aborted";
+    case SegmentState::Sent:
+      return "sent";
+    case SegmentState::Accepted:
+      return "accepted";
+    case SegmentState::Running:
+      return "running";
+    case SegmentState::Done:
+      return "done";
+    case SegmentState::Failed:
+      return "failed";
+    case SegmentState::Aborted:
+      return "aborted";
   }
   return "?";
 }
 
 void CoordinatorConfig::validate() const {
   auto positive = [](double v, const char* name) {
-    if (!(v > 0) || !std::isfinite(v)) throw Error(std::string("coordinator parameter '") + name + "' must be positive");
+    if (!(v > 0) || !std::isfinite(v))
+      throw Error(std::string("coordinator parameter '") + name + "' must be positive");
   };
   positive(decision_timeout_s, "decision_timeout_s");
   positive(path_timeout_s, "path_timeout_s");
@@ -58,8 +74,7 @@ void CoordinatorConfig::validate() const {
     throw Error("coordinator parameter 'arrival_tolerance_m' must be >= 0");
 }
 
-Coordinator::Coordinator(task::TaskSpec spec, CoordinatorConfig config)
-    : spec_(std::move(spec)), config_(config) {
+Coordinator::Coordinator(task::TaskSpec spec, CoordinatorConfig config) : spec_(std::move(spec)), config_(config) {
   config_.validate();
   if (spec_.entities.empty()) throw Error("coordinator: the task has no entities");
 }
@@ -161,8 +176,7 @@ CoordinatorOutput Coordinator::start(double now_s) {
   } else if (state_ == RunState::Paused) {
     if (currentStep() != nullptr)
       requestPaths(now_s, out);  // re-plan what is left of the step from where robots stopped
-    else
-      requestDecisionOrWait(now_s, out);
+    else requestDecisionOrWait(now_s, out);
     out.state_changed = true;
   } else {
     out.log.push_back(std::string("start refused in state ") + toString(state_) +
@@ -382,8 +396,9 @@ CoordinatorOutput Coordinator::onPath(uint32_t id, const PlannedPath& path, cons
   const double end_error = (path.points.back() - s.tokens[slot].goal).norm();
   if (end_error > config_.arrival_radius_m) {
     std::ostringstream os;
-    os << "the path for " << key << " ends " << end_error << " m from its goal (more than arrival_radius_m = "
-       << config_.arrival_radius_m << " m): not a path for this token";
+    os << "the path for " << key << " ends " << end_error
+       << " m from its goal (more than arrival_radius_m = " << config_.arrival_radius_m
+       << " m): not a path for this token";
     abort(os.str(), out);
     return out;
   }

@@ -52,8 +52,7 @@ void DiffDriveModel::step() {
     pending_.pop_front();
   }
   // The watchdog runs on the robot, i.e. after the latency.
-  if (params_.command_timeout_s > 0 &&
-      time_s_ - (last_command_s_ + params_.latency_s) > params_.command_timeout_s)
+  if (params_.command_timeout_s > 0 && time_s_ - (last_command_s_ + params_.latency_s) > params_.command_timeout_s)
     applied_ = {};
 
   const double dt = 1.0 / params_.rate_hz;

@@ -17,9 +17,13 @@ size_t RoleWatch::add(const std::string& role, const std::string& node, const st
   return roles_.size() - 1;
 }
 
-void RoleWatch::present(size_t role, bool present) { roles_.at(role).present = present; }
+void RoleWatch::present(size_t role, bool present) {
+  roles_.at(role).present = present;
+}
 
-void RoleWatch::heartbeat(size_t role, double now_s) { roles_.at(role).last_heartbeat_s = now_s; }
+void RoleWatch::heartbeat(size_t role, double now_s) {
+  roles_.at(role).last_heartbeat_s = now_s;
+}
 
 void RoleWatch::arm(double now_s) {
   armed_ = true;
@@ -41,8 +45,8 @@ std::optional<std::string> RoleWatch::lost(double now_s) const {
       const double since = std::max(r.last_heartbeat_s, armed_s_);
       if (now_s - since > r.heartbeat_timeout_s) {
         std::ostringstream os;
-        os << "lost the " << r.name << ": node " << r.node << " silent for " << now_s - since << " s (heartbeat time-out "
-           << r.heartbeat_timeout_s << " s)";
+        os << "lost the " << r.name << ": node " << r.node << " silent for " << now_s - since
+           << " s (heartbeat time-out " << r.heartbeat_timeout_s << " s)";
         return os.str();
       }
     }

@@ -8,13 +8,16 @@
 namespace ddace::exec {
 
 Outbox::Outbox(double resend_after_s) : resend_after_s_(resend_after_s) {
-  if (!(resend_after_s > 0) || !std::isfinite(resend_after_s))
-    throw Error("outbox: resend_after_s must be positive");
+  if (!(resend_after_s > 0) || !std::isfinite(resend_after_s)) throw Error("outbox: resend_after_s must be positive");
 }
 
-void Outbox::sent(Kind kind, uint32_t id, double now_s) { pending_[{kind, id}] = now_s; }
+void Outbox::sent(Kind kind, uint32_t id, double now_s) {
+  pending_[{kind, id}] = now_s;
+}
 
-void Outbox::acknowledged(Kind kind, uint32_t id) { pending_.erase({kind, id}); }
+void Outbox::acknowledged(Kind kind, uint32_t id) {
+  pending_.erase({kind, id});
+}
 
 void Outbox::forget(Kind kind) {
   for (auto it = pending_.begin(); it != pending_.end();) it = it->first.first == kind ? pending_.erase(it) : ++it;

@@ -60,7 +60,9 @@ void FollowerGains::validate() const {
     throw Error("follower gain 'cruise_speed_mps' exceeds 'max_wheel_speed_mps'");
 }
 
-PathFollower::PathFollower(const FollowerGains& gains) : gains_(gains) { gains_.validate(); }
+PathFollower::PathFollower(const FollowerGains& gains) : gains_(gains) {
+  gains_.validate();
+}
 
 void PathFollower::setPath(const PlannedPath& path) {
   if (path.points.empty()) throw Error("path to follow has no points");

@@ -115,7 +115,8 @@ bool isToeplitz(const RepeatedData& data) {
   const double h = (data.inputs[n - 1] - data.inputs[0]) / static_cast<double>(n - 1);
   if (!(h > 0)) return false;
   for (Eigen::Index i = 0; i < n; ++i)
-    if (std::abs(data.inputs[i] - (data.inputs[0] + static_cast<double>(i) * h)) > 1e-12 * (1 + std::abs(data.inputs[i])))
+    if (std::abs(data.inputs[i] - (data.inputs[0] + static_cast<double>(i) * h)) >
+        1e-12 * (1 + std::abs(data.inputs[i])))
       return false;
   return true;
 }
@@ -170,8 +171,8 @@ bool toeplitzLml(const RepeatedData& data, const KernelParams& p, bool use_const
   bm(0, 0) = gamma;
   for (Eigen::Index j = 1; j < n; ++j) {
     bm(0, j) = gamma * y[j - 1];
-    bm.col(j).segment(1, j) = bm.col(j - 1).head(j) + (gamma * y[j - 1]) * y.head(j) -
-                              (gamma * y[n - 1 - j]) * yrev.head(j);
+    bm.col(j).segment(1, j) =
+        bm.col(j - 1).head(j) + (gamma * y[j - 1]) * y.head(j) - (gamma * y[n - 1 - j]) * yrev.head(j);
   }
   // w = A^-1 ybar, and the sums of A^-1 along its diagonals (all the gradient needs).
   const Eigen::VectorXd w = (bm.selfadjointView<Eigen::Upper>() * data.means) / a0;
@@ -246,8 +247,7 @@ double logMarginalLikelihood(const RepeatedData& data, const Eigen::VectorXd& th
     Eigen::MatrixXd wm = -llt.solve(Eigen::MatrixXd::Identity(n, n));
     wm.noalias() += w * w.transpose();
     const double trace_k = (wm.array() * k.array()).sum();
-    const double trace_l =
-        (wm.array() * k.array() * d2.array()).sum() / (p.length_scale * p.length_scale);
+    const double trace_l = (wm.array() * k.array() * d2.array()).sum() / (p.length_scale * p.length_scale);
     const double trace_n = (wm.diagonal().array() / data.counts.array()).sum();
     const double g_noise = 0.5 * p.noise_level * trace_n +
                            p.noise_level * (-0.5 * (data.total - n) / s2 + 0.5 * data.residual_ss / (s2 * s2));
@@ -321,7 +321,7 @@ GaussianProcess GaussianProcess::fit(const RepeatedData& data, const GpOptions& 
     param.epsilon = 1e-5;  // projected gradient, like SciPy's pgtol
     param.epsilon_rel = 0;
     param.past = 1;
-    param.delta = 1e-10;   // relative decrease of -LML between iterations (SciPy's default: 2.2e-9)
+    param.delta = 1e-10;  // relative decrease of -LML between iterations (SciPy's default: 2.2e-9)
     param.max_linesearch = 40;
     LBFGSpp::LBFGSBSolver<double> solver(param);
     Objective objective(data, options.use_constant, options.alpha);
@@ -394,8 +394,7 @@ void GaussianProcess::predict(const Eigen::VectorXd& x, Eigen::VectorXd& mean, E
   mean.noalias() = ks.transpose() * weights_;
   if (stddev) {
     const Eigen::MatrixXd v = llt_.matrixL().solve(ks);
-    const Eigen::ArrayXd var =
-        (params_.constant + params_.noise_level) - v.colwise().squaredNorm().transpose().array();
+    const Eigen::ArrayXd var = (params_.constant + params_.noise_level) - v.colwise().squaredNorm().transpose().array();
     *stddev = var.max(0.0).sqrt().matrix();
   }
 }

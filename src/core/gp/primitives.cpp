@@ -14,7 +14,9 @@ namespace ddace::gp {
 
 namespace {
 
-Eigen::VectorXd progressGrid(int points) { return Eigen::VectorXd::LinSpaced(points, 0.0, 1.0); }
+Eigen::VectorXd progressGrid(int points) {
+  return Eigen::VectorXd::LinSpaced(points, 0.0, 1.0);
+}
 
 std::string joinKey(const std::string& entity, const std::string& action, const std::string& target) {
   return entity + ":" + action + ":" + target;
@@ -58,8 +60,7 @@ struct Reader {
     } catch (const YAML::Exception&) {
       fail(n, "'" + key + "' must be an integer");
     }
-    if (v < min || v > max)
-      fail(n, "'" + key + "' must be in " + std::to_string(min) + ".." + std::to_string(max));
+    if (v < min || v > max) fail(n, "'" + key + "' must be in " + std::to_string(min) + ".." + std::to_string(max));
     return v;
   }
   bool boolean(const YAML::Node& parent, const std::string& key) const {
@@ -388,8 +389,8 @@ PrimitiveLibrary PrimitiveLibrary::load(const std::string& path) {
     throw Error(Diagnostic{path, e.mark.line + 1, e.mark.column + 1, "not valid YAML: " + e.msg});
   }
   const Reader r{path};
-  if (!root.IsMap()) r.fail(root, "not a primitive library (expected a mapping with format: " +
-                                       std::string(kPrimitivesFormat) + ")");
+  if (!root.IsMap())
+    r.fail(root, "not a primitive library (expected a mapping with format: " + std::string(kPrimitivesFormat) + ")");
   const std::string format = r.text(root, "format");
   if (format != kPrimitivesFormat)
     r.fail(root["format"], "unsupported format '" + format + "' (expected " + kPrimitivesFormat + ")");

@@ -80,10 +80,14 @@ std::pair<std::vector<int>, double> kmeans(const Eigen::MatrixXd& points, int k,
 
 const char* toString(Decision decision) {
   switch (decision) {
-    case Decision::KeptRecurrent: return "kept: recurs";
-    case Decision::KeptSameCluster: return "kept: same cluster";
-    case Decision::DroppedRare: return "dropped: rare";
-    case Decision::DroppedCrossCluster: return "dropped: crosses clusters";
+    case Decision::KeptRecurrent:
+      return "kept: recurs";
+    case Decision::KeptSameCluster:
+      return "kept: same cluster";
+    case Decision::DroppedRare:
+      return "dropped: rare";
+    case Decision::DroppedCrossCluster:
+      return "dropped: crosses clusters";
   }
   return "?";
 }
@@ -112,7 +116,9 @@ RefinedGraph permuted(const RefinedGraph& g, const std::vector<int>& new_index) 
     if (v < 0 || v >= n || seen[static_cast<size_t>(v)]) throw Error("graph refinement: not a permutation");
     seen[static_cast<size_t>(v)] = true;
   }
-  const auto map = [&](Edge e) { return Edge{new_index[static_cast<size_t>(e.source)], new_index[static_cast<size_t>(e.target)]}; };
+  const auto map = [&](Edge e) {
+    return Edge{new_index[static_cast<size_t>(e.source)], new_index[static_cast<size_t>(e.target)]};
+  };
   RefinedGraph out = g;
   for (auto& s : out.edges) s.edge = map(s.edge);
   std::sort(out.edges.begin(), out.edges.end(), [](const EdgeStats& a, const EdgeStats& b) { return a.edge < b.edge; });
@@ -135,15 +141,13 @@ std::vector<Edge> fullyConnected(int nodes) {
   return edges;
 }
 
-RefinedGraph refine(const std::vector<task::Demonstration>& demos, int nodes,
-                    const RefinementOptions& options) {
+RefinedGraph refine(const std::vector<task::Demonstration>& demos, int nodes, const RefinementOptions& options) {
   if (demos.empty()) throw Error("graph refinement: no demonstrations");
   if (nodes <= 0) throw Error("graph refinement: the task has no entities");
-  if (!(options.drop_support >= 0 && options.drop_support <= options.keep_support &&
-        options.keep_support <= 1))
+  if (!(options.drop_support >= 0 && options.drop_support <= options.keep_support && options.keep_support <= 1))
     throw Error("graph refinement: support thresholds must satisfy 0 <= drop_support (" +
-                std::to_string(options.drop_support) + ") <= keep_support (" +
-                std::to_string(options.keep_support) + ") <= 1");
+                std::to_string(options.drop_support) + ") <= keep_support (" + std::to_string(options.keep_support) +
+                ") <= 1");
 
   RefinedGraph g;
   g.nodes = nodes;
@@ -154,8 +158,8 @@ RefinedGraph refine(const std::vector<task::Demonstration>& demos, int nodes,
     for (const Edge& e : tokenEdges(demo)) {
       if (e.source < 0 || e.source >= nodes || e.target < 0 || e.target >= nodes)
         throw Error("graph refinement: " + demo.source + ": a token names entity " +
-                    std::to_string(std::max(e.source, e.target)) + " of a task with " +
-                    std::to_string(nodes) + " entities");
+                    std::to_string(std::max(e.source, e.target)) + " of a task with " + std::to_string(nodes) +
+                    " entities");
       auto& s = stats[e];
       s.edge = e;
       ++s.frequency;
@@ -175,8 +179,8 @@ RefinedGraph refine(const std::vector<task::Demonstration>& demos, int nodes,
   // Normalised Laplacian; an isolated node has D^-1/2 = 0 and L_ii = 1.
   Eigen::VectorXd inv_sqrt(nodes);
   for (int i = 0; i < nodes; ++i) inv_sqrt(i) = degree(i) > 0 ? 1.0 / std::sqrt(degree(i)) : 0.0;
-  const Eigen::MatrixXd lnorm = Eigen::MatrixXd::Identity(nodes, nodes) -
-                                inv_sqrt.asDiagonal() * g.adjacency * inv_sqrt.asDiagonal();
+  const Eigen::MatrixXd lnorm =
+      Eigen::MatrixXd::Identity(nodes, nodes) - inv_sqrt.asDiagonal() * g.adjacency * inv_sqrt.asDiagonal();
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver(lnorm);
   g.eigenvalues = solver.eigenvalues();
 
@@ -227,8 +231,8 @@ RefinedGraph refine(const std::vector<task::Demonstration>& demos, int nodes,
     } else if (s.support >= options.keep_support) {
       s.decision = Decision::KeptRecurrent;
     } else {
-      s.decision = g.cluster[e.source] == g.cluster[e.target] ? Decision::KeptSameCluster
-                                                              : Decision::DroppedCrossCluster;
+      s.decision =
+          g.cluster[e.source] == g.cluster[e.target] ? Decision::KeptSameCluster : Decision::DroppedCrossCluster;
     }
     g.edges.push_back(s);
     if (isKept(s.decision)) g.kept.push_back(e);

@@ -193,9 +193,8 @@ struct BleTransport::Impl {
         });
       } else if (iface == kCharIface && path.rfind(device_path + "/", 0) == 0) {
         std::string uuid;
-        r = readProperties(m, [&](const std::string& key, sd_bus_message* v) {
-          return key == "UUID" && readString(v, &uuid);
-        });
+        r = readProperties(
+            m, [&](const std::string& key, sd_bus_message* v) { return key == "UUID" && readString(v, &uuid); });
         if (strcasecmp(uuid.c_str(), kHamsterSensorCharUuid) == 0) out.sensor_path = path;
         if (strcasecmp(uuid.c_str(), kHamsterEffectorCharUuid) == 0) out.effector_path = path;
       } else {
@@ -288,7 +287,8 @@ struct BleTransport::Impl {
     std::string why;
     // InProgress: another client is discovering already, which serves us as well.
     if (replyFailed(m, &why) && why.rfind("org.bluez.Error.InProgress", 0) != 0) {
-      t->fail("StartDiscovery on " + t->adapter + " failed (" + why + "); is the adapter powered (bluetoothctl power on)?");
+      t->fail("StartDiscovery on " + t->adapter + " failed (" + why +
+              "); is the adapter powered (bluetoothctl power on)?");
     }
     return 0;
   }
@@ -438,14 +438,15 @@ struct BleTransport::Impl {
     int r = sd_bus_open_system(&bus);
     if (r < 0) {
       bus = nullptr;
-      throw Error(endpoint + ": cannot connect to the system D-Bus (" + errorText(nullptr, r) +
-                  "); is dbus running?");
+      throw Error(endpoint + ": cannot connect to the system D-Bus (" + errorText(nullptr, r) + "); is dbus running?");
     }
     sd_bus_set_exit_on_disconnect(bus, 0);  // a lost bus is a lost link, not the end of the process
     // Signals first: the daemon handles our messages in order, so nothing that
     // happens after the listing below can be missed.
-    const std::string props = "type='signal',interface='org.freedesktop.DBus.Properties',member='PropertiesChanged',"
-                              "path_namespace='" + device_path + "'";
+    const std::string props =
+        "type='signal',interface='org.freedesktop.DBus.Properties',member='PropertiesChanged',"
+        "path_namespace='" +
+        device_path + "'";
     r = sd_bus_add_match_async(bus, nullptr, props.c_str(), &Impl::onPropertiesChanged, nullptr, this);
     if (r >= 0) {
       r = sd_bus_match_signal_async(bus, nullptr, nullptr, nullptr, "org.freedesktop.DBus.ObjectManager",
@@ -527,11 +528,19 @@ struct BleTransport::Impl {
         fail("adapter " + adapter + " did not find the robot" + within +
              " (switched on? in range? connected to another host or dongle?)");
         break;
-      case BlePhase::Connecting: fail("no connection" + within); break;
+      case BlePhase::Connecting:
+        fail("no connection" + within);
+        break;
       case BlePhase::Resolving:
-      case BlePhase::Finding: fail("the robot's GATT services were not resolved" + within); break;
-      case BlePhase::Subscribing: fail("sensor notifications did not start" + within); break;
-      default: fail("BlueZ did not answer" + within + "; is bluetoothd running?"); break;
+      case BlePhase::Finding:
+        fail("the robot's GATT services were not resolved" + within);
+        break;
+      case BlePhase::Subscribing:
+        fail("sensor notifications did not start" + within);
+        break;
+      default:
+        fail("BlueZ did not answer" + within + "; is bluetoothd running?");
+        break;
     }
   }
 
@@ -608,13 +617,25 @@ BleTransport::BleTransport(std::string endpoint, double connect_timeout_s) : imp
   }
 }
 
-BleTransport::~BleTransport() { impl_->close(); }
+BleTransport::~BleTransport() {
+  impl_->close();
+}
 
-void BleTransport::open() { impl_->open(); }
-void BleTransport::close() { impl_->close(); }
-bool BleTransport::isOpen() const { return impl_->bus != nullptr; }
-size_t BleTransport::read(char* buf, size_t size) { return impl_->read(buf, size); }
-void BleTransport::write(const char* data, size_t size) { impl_->write(data, size); }
+void BleTransport::open() {
+  impl_->open();
+}
+void BleTransport::close() {
+  impl_->close();
+}
+bool BleTransport::isOpen() const {
+  return impl_->bus != nullptr;
+}
+size_t BleTransport::read(char* buf, size_t size) {
+  return impl_->read(buf, size);
+}
+void BleTransport::write(const char* data, size_t size) {
+  impl_->write(data, size);
+}
 
 void BleTransport::flush() {
   impl_->rx.clear();
@@ -631,9 +652,15 @@ bool BleTransport::connecting() const {
   return impl_->bus && impl_->error.empty() && impl_->phase != BlePhase::Ready;
 }
 
-std::string BleTransport::name() const { return impl_->endpoint; }
-uint64_t BleTransport::malformedNotifications() const { return impl_->malformed; }
-std::string BleTransport::devicePath() const { return impl_->device_path; }
+std::string BleTransport::name() const {
+  return impl_->endpoint;
+}
+uint64_t BleTransport::malformedNotifications() const {
+  return impl_->malformed;
+}
+std::string BleTransport::devicePath() const {
+  return impl_->device_path;
+}
 
 TransportFactory bleTransportFactory(double connect_timeout_s) {
   return [connect_timeout_s](const std::string& port) -> std::unique_ptr<Transport> {

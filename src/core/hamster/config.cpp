@@ -33,8 +33,10 @@ WheelUnits wheelUnitsFromSpeeds(const Calibration& c, double left_mps, double ri
     right *= limit / largest;
     out.saturated = true;
   }
-  out.left = static_cast<int8_t>(std::clamp<long>(std::lround(left), -static_cast<long>(limit), static_cast<long>(limit)));
-  out.right = static_cast<int8_t>(std::clamp<long>(std::lround(right), -static_cast<long>(limit), static_cast<long>(limit)));
+  out.left =
+      static_cast<int8_t>(std::clamp<long>(std::lround(left), -static_cast<long>(limit), static_cast<long>(limit)));
+  out.right =
+      static_cast<int8_t>(std::clamp<long>(std::lround(right), -static_cast<long>(limit), static_cast<long>(limit)));
   return out;
 }
 
@@ -66,8 +68,9 @@ bool parseTransport(YamlChecker& c, const YAML::Node& node, const std::string& w
     out = TransportKind::Serial;
   } else if (t == "ble") {
     if (!bleBuilt()) {
-      c.error(node, what + " 'ble': this ddace was built without direct BLE (CMake option DDACE_WITH_BLE=OFF; "
-                           "install libsystemd-dev and rebuild, e.g. scripts/setup); use transport: serial (dongle)");
+      c.error(node, what +
+                        " 'ble': this ddace was built without direct BLE (CMake option DDACE_WITH_BLE=OFF; "
+                        "install libsystemd-dev and rebuild, e.g. scripts/setup); use transport: serial (dongle)");
       return false;
     }
     out = TransportKind::Ble;
@@ -132,8 +135,8 @@ RobotConfig parseRobot(YamlChecker& c, const YAML::Node& node, size_t index, con
   } else if (c.scalar(node["address"], who + " address", address)) {
     const auto a = Address::parse(address);
     if (!a) {
-      c.error(node["address"], who + ": address '" + address +
-                                   "' is neither 12 hex digits (wire order) nor AA:BB:CC:DD:EE:FF");
+      c.error(node["address"],
+              who + ": address '" + address + "' is neither 12 hex digits (wire order) nor AA:BB:CC:DD:EE:FF");
     } else {
       r.address = *a;
       address_ok = true;
@@ -158,13 +161,15 @@ RobotConfig parseRobot(YamlChecker& c, const YAML::Node& node, size_t index, con
   if (node["ble_adapter"]) parseAdapter(c, node["ble_adapter"], who + " ble_adapter", r.ble_adapter);
   if (r.transport == TransportKind::Ble) {
     if (r.model == Model::HamsterS) {
-      c.error(node["model"], who + ": transport ble drives the original Hamster only (the Hamster-S GATT "
-                                   "layout is unknown); reach a Hamster-S through its dongle (transport: serial)");
+      c.error(node["model"], who +
+                                 ": transport ble drives the original Hamster only (the Hamster-S GATT "
+                                 "layout is unknown); reach a Hamster-S through its dongle (transport: serial)");
     }
     r.model = Model::Hamster;  // what the BLE transport reports in its FF reply
     if (node["port_hints"]) {
-      c.error(node["port_hints"], who + ": port_hints apply to transport serial only (a BLE robot is found "
-                                        "by its address through BlueZ)");
+      c.error(node["port_hints"], who +
+                                      ": port_hints apply to transport serial only (a BLE robot is found "
+                                      "by its address through BlueZ)");
     }
   } else if (node["ble_adapter"]) {
     c.error(node["ble_adapter"], who + ": ble_adapter applies to transport ble only");
@@ -185,8 +190,7 @@ RobotConfig parseRobot(YamlChecker& c, const YAML::Node& node, size_t index, con
       c.positive(cal["left_mps_per_unit"], who + " calibration.left_mps_per_unit", r.calibration.left_mps_per_unit);
     }
     if (cal["right_mps_per_unit"]) {
-      c.positive(cal["right_mps_per_unit"], who + " calibration.right_mps_per_unit",
-                 r.calibration.right_mps_per_unit);
+      c.positive(cal["right_mps_per_unit"], who + " calibration.right_mps_per_unit", r.calibration.right_mps_per_unit);
     }
     if (!(r.calibration.left_mps_per_unit > 0) || !(r.calibration.right_mps_per_unit > 0)) {
       c.error(cal, who + " calibration needs mps_per_unit (or left_mps_per_unit and right_mps_per_unit)");
@@ -206,7 +210,9 @@ RobotConfig parseRobot(YamlChecker& c, const YAML::Node& node, size_t index, con
 
 }  // namespace
 
-bool bleBuilt() { return DDACE_WITH_BLE != 0; }
+bool bleBuilt() {
+  return DDACE_WITH_BLE != 0;
+}
 
 BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& file) {
   YamlChecker c(file);

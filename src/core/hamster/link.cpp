@@ -14,9 +14,13 @@
 
 namespace ddace::hamster {
 
-bool PortDirectory::claim(const std::string& canonical) { return claimed_.insert(canonical).second; }
+bool PortDirectory::claim(const std::string& canonical) {
+  return claimed_.insert(canonical).second;
+}
 
-void PortDirectory::release(const std::string& canonical) { claimed_.erase(canonical); }
+void PortDirectory::release(const std::string& canonical) {
+  claimed_.erase(canonical);
+}
 
 void PortDirectory::remember(const std::string& canonical, const Address& address) {
   for (auto& [port, a] : known_) {
@@ -53,11 +57,16 @@ TransportFactory transportFactoryFor(const RobotConfig& robot, const BridgeConfi
 
 std::string linkStateName(LinkState state) {
   switch (state) {
-    case LinkState::Searching: return "searching";
-    case LinkState::Identifying: return "identifying";
-    case LinkState::Identified: return "identified, no sensor line";
-    case LinkState::Streaming: return "streaming";
-    case LinkState::Lost: return "lost";
+    case LinkState::Searching:
+      return "searching";
+    case LinkState::Identifying:
+      return "identifying";
+    case LinkState::Identified:
+      return "identified, no sensor line";
+    case LinkState::Streaming:
+      return "streaming";
+    case LinkState::Lost:
+      return "lost";
   }
   return "?";
 }
@@ -108,7 +117,9 @@ void RobotLink::setWheelCommand(double left_mps, double right_mps, double now_s,
   has_command_ = true;
 }
 
-void RobotLink::clearCommand() { has_command_ = false; }
+void RobotLink::clearCommand() {
+  has_command_ = false;
+}
 
 void RobotLink::setEffects(const std::array<uint8_t, 3>& left_rgb, const std::array<uint8_t, 3>& right_rgb,
                            double buzzer_hz, uint8_t note) {
@@ -118,15 +129,21 @@ void RobotLink::setEffects(const std::array<uint8_t, 3>& left_rgb, const std::ar
   effects_.note = note;
 }
 
-std::string RobotLink::port() const { return transport_ ? transport_->name() : std::string(); }
+std::string RobotLink::port() const {
+  return transport_ ? transport_->name() : std::string();
+}
 
-int RobotLink::fd() const { return transport_ ? transport_->fd() : -1; }
+int RobotLink::fd() const {
+  return transport_ ? transport_->fd() : -1;
+}
 
 void RobotLink::warn(const std::string& message, double now_s) {
   if (ports_->due(robot_.name + ": " + message, now_s, kWarningRepeatS)) warnings_.push_back(message);
 }
 
-std::vector<std::string> RobotLink::takeWarnings() { return std::exchange(warnings_, {}); }
+std::vector<std::string> RobotLink::takeWarnings() {
+  return std::exchange(warnings_, {});
+}
 
 double RobotLink::batteryV() const {
   if (battery_.empty()) return std::nan("");
@@ -138,8 +155,10 @@ LinkHealth RobotLink::health(double now_s, uint64_t losses_since_report) const {
   const std::string why = stats_.last_error.empty() ? std::string() : ": " + stats_.last_error;
   char buf[256];
   switch (state_) {
-    case LinkState::Searching: return {Level::Error, "robot unreachable, no port (wheels not driven)" + why};
-    case LinkState::Identifying: return {Level::Error, "robot unreachable, identifying on " + port()};
+    case LinkState::Searching:
+      return {Level::Error, "robot unreachable, no port (wheels not driven)" + why};
+    case LinkState::Identifying:
+      return {Level::Error, "robot unreachable, identifying on " + port()};
     case LinkState::Identified:
       return {Level::Error, "robot unreachable: the dongle on " + port() +
                                 " answers for it but no sensor line came (robot off or out of range?)"};
@@ -147,7 +166,8 @@ LinkHealth RobotLink::health(double now_s, uint64_t losses_since_report) const {
       std::snprintf(buf, sizeof buf, "robot unreachable for %.1f s, waiting on %s (wheels zeroed)", now_s - lost_s_,
                     port().c_str());
       return {Level::Error, buf + why};
-    case LinkState::Streaming: break;
+    case LinkState::Streaming:
+      break;
   }
   const double v = batteryV();
   if (v < bridge_.battery_empty_v) {
@@ -303,7 +323,9 @@ void RobotLink::closePort(const std::string& why, double now_s, bool restart_sea
 void RobotLink::handleLine(std::string_view line, double now_s, std::vector<CycleReport>& reports) {
   const ParsedLine parsed = parseLine(line);
   switch (parsed.kind) {
-    case LineKind::Malformed: drop(parsed.error); return;
+    case LineKind::Malformed:
+      drop(parsed.error);
+      return;
     case LineKind::NoRobot:
       ++stats_.no_robot_lines;
       if (state_ == LinkState::Identifying) stats_.last_error = "dongle on " + port() + " has no robot linked";
@@ -333,7 +355,8 @@ void RobotLink::handleLine(std::string_view line, double now_s, std::vector<Cycl
       state_ = LinkState::Identified;
       stats_.last_error.clear();
       return;
-    case LineKind::Data: break;
+    case LineKind::Data:
+      break;
   }
   if (parsed.address != robot_.address) {
     if (state_ == LinkState::Identifying || state_ == LinkState::Identified || state_ == LinkState::Lost) {

@@ -25,11 +25,16 @@ MockFault parseMockFault(const std::string& text) {
 
 std::string mockFaultName(MockFault fault) {
   switch (fault) {
-    case MockFault::None: return "none";
-    case MockFault::Drop: return "drop";
-    case MockFault::Stall: return "stall";
-    case MockFault::Garbage: return "garbage";
-    case MockFault::Unplug: return "unplug";
+    case MockFault::None:
+      return "none";
+    case MockFault::Drop:
+      return "drop";
+    case MockFault::Stall:
+      return "stall";
+    case MockFault::Garbage:
+      return "garbage";
+    case MockFault::Unplug:
+      return "unplug";
   }
   return "?";
 }

@@ -34,7 +34,9 @@ void appendHex(std::string& out, uint8_t byte) {
   out += kHexDigits[byte & 0x0F];
 }
 
-uint8_t clampByte(long v, long lo, long hi) { return static_cast<uint8_t>(std::clamp(v, lo, hi)); }
+uint8_t clampByte(long v, long lo, long hi) {
+  return static_cast<uint8_t>(std::clamp(v, lo, hi));
+}
 
 int8_t clampWheel(int8_t v) {
   return static_cast<int8_t>(std::clamp<int>(v, -kMaxWheelUnits, kMaxWheelUnits));
@@ -50,8 +52,12 @@ std::array<uint8_t, 3> colourRgb(uint8_t index) {
           static_cast<uint8_t>(index & 1 ? 255 : 0)};
 }
 
-int16_t readS16(const Payload& p, size_t i) { return static_cast<int16_t>(p[i] << 8 | p[i + 1]); }
-uint16_t readU16(const Payload& p, size_t i) { return static_cast<uint16_t>(p[i] << 8 | p[i + 1]); }
+int16_t readS16(const Payload& p, size_t i) {
+  return static_cast<int16_t>(p[i] << 8 | p[i + 1]);
+}
+uint16_t readU16(const Payload& p, size_t i) {
+  return static_cast<uint16_t>(p[i] << 8 | p[i + 1]);
+}
 void writeU16(Payload& p, size_t i, uint16_t v) {
   p[i] = static_cast<uint8_t>(v >> 8);
   p[i + 1] = static_cast<uint8_t>(v & 0xFF);
@@ -65,9 +71,12 @@ void setWhy(std::string* why, const std::string& text) {
 
 std::string modelName(Model model) {
   switch (model) {
-    case Model::Hamster: return "hamster";
-    case Model::HamsterS: return "hamster_s";
-    default: return "unknown";
+    case Model::Hamster:
+      return "hamster";
+    case Model::HamsterS:
+      return "hamster_s";
+    default:
+      return "unknown";
   }
 }
 
@@ -199,8 +208,8 @@ std::optional<Sensors> decodeSensors(Model model, const Payload& p, std::string*
   if (model == Model::HamsterS) {
     const int type = p[0] >> 4;
     if (type != 1) {
-      setWhy(why, type == 2 ? "serial pass-through packet" : "not a Hamster-S sensor packet (type nibble " +
-                                                                  std::to_string(type) + ")");
+      setWhy(why, type == 2 ? "serial pass-through packet"
+                            : "not a Hamster-S sensor packet (type nibble " + std::to_string(type) + ")");
       return std::nullopt;
     }
     s.has_pulse_count = true;

@@ -10,10 +10,14 @@ namespace ddace::hamster {
 
 std::string surveyStatusName(PortSurvey::Status status) {
   switch (status) {
-    case PortSurvey::Status::Robot: return "robot";
-    case PortSurvey::Status::NoRobot: return "no robot linked";
-    case PortSurvey::Status::NoReply: return "no reply";
-    case PortSurvey::Status::OpenFailed: return "cannot open";
+    case PortSurvey::Status::Robot:
+      return "robot";
+    case PortSurvey::Status::NoRobot:
+      return "no robot linked";
+    case PortSurvey::Status::NoReply:
+      return "no reply";
+    case PortSurvey::Status::OpenFailed:
+      return "cannot open";
   }
   return "?";
 }

@@ -26,7 +26,9 @@ std::string osError(const std::string& what, const std::string& path) {
 
 SerialTransport::SerialTransport(std::string path, bool rtscts) : path_(std::move(path)), rtscts_(rtscts) {}
 
-SerialTransport::~SerialTransport() { close(); }
+SerialTransport::~SerialTransport() {
+  close();
+}
 
 void SerialTransport::open() {
   close();
@@ -114,7 +116,9 @@ TransportFactory serialTransportFactory(bool rtscts) {
   return [rtscts](const std::string& port) { return std::make_unique<SerialTransport>(port, rtscts); };
 }
 
-std::vector<std::string> defaultScanPatterns() { return {"serial/by-id/*", "ttyUSB*", "ttyACM*"}; }
+std::vector<std::string> defaultScanPatterns() {
+  return {"serial/by-id/*", "ttyUSB*", "ttyACM*"};
+}
 
 std::string canonicalPort(const std::string& path) {
   char resolved[PATH_MAX];

@@ -9,7 +9,6 @@
 
 #include "ddace/exec/diff_drive_execution.h"
 
-
 namespace ddace::pipeline {
 
 namespace fs = std::filesystem;

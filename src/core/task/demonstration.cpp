@@ -20,8 +20,7 @@ bool Token::operator<(const Token& o) const {
 
 std::string tokenKey(const Token& token, const TaskSpec& spec) {
   auto name = [&](int i) {
-    return i >= 0 && i < static_cast<int>(spec.entities.size()) ? spec.entities[i].name
-                                                                : "#" + std::to_string(i);
+    return i >= 0 && i < static_cast<int>(spec.entities.size()) ? spec.entities[i].name : "#" + std::to_string(i);
   };
   std::string key = name(token.entity) + ":" + token.action;
   if (token.target >= 0) key += ":" + name(token.target);
@@ -151,8 +150,7 @@ void Demonstration::analyze() {
 
 std::vector<Eigen::Vector2d> Demonstration::segmentPath(const Segment& segment) const {
   std::vector<Eigen::Vector2d> path;
-  for (int r = segment.first_row; r <= segment.last_row; ++r)
-    path.push_back(positions[r][segment.token.entity]);
+  for (int r = segment.first_row; r <= segment.last_row; ++r) path.push_back(positions[r][segment.token.entity]);
   return path;
 }
 
@@ -221,7 +219,9 @@ void splitLine(std::string_view line, std::vector<Field>& fields) {
   }
 }
 
-bool isBlank(std::string_view line) { return line.find_first_not_of(" \t") == std::string_view::npos; }
+bool isBlank(std::string_view line) {
+  return line.find_first_not_of(" \t") == std::string_view::npos;
+}
 
 enum class ColumnKind { Time, X, Y, Action, Target };
 
@@ -340,7 +340,9 @@ class CsvParser {
         else if (suffix == "target") col.kind = ColumnKind::Target;
         else ok = false;
         if (col.entity < 0 || !ok) {
-          fail(1, f.column, "unknown column '" + name + "' (expected t or <entity>.x/.y/.action/.target for an entity of task.yaml)");
+          fail(
+              1, f.column,
+              "unknown column '" + name + "' (expected t or <entity>.x/.y/.action/.target for an entity of task.yaml)");
           ok = false;
         }
       }
@@ -376,11 +378,11 @@ class CsvParser {
     const size_t m = spec_.entities.size();
     splitLine(text, fields_);
     if (fields_.size() != columns_.size()) {
-      const int col = fields_.size() > columns_.size() ? fields_[columns_.size()].column
-                                                       : static_cast<int>(text.size()) + 1;
-      fail(line, col, "row has " + std::to_string(fields_.size()) + " fields, the header has " +
-                          std::to_string(columns_.size()) +
-                          (fields_.size() > columns_.size() ? " (too many)" : " (too few)"));
+      const int col =
+          fields_.size() > columns_.size() ? fields_[columns_.size()].column : static_cast<int>(text.size()) + 1;
+      fail(line, col,
+           "row has " + std::to_string(fields_.size()) + " fields, the header has " + std::to_string(columns_.size()) +
+               (fields_.size() > columns_.size() ? " (too many)" : " (too few)"));
       return;
     }
     double t = 0;
@@ -439,16 +441,17 @@ class CsvParser {
     }
     for (size_t e = 0; e < m; ++e) {
       if (labels[e].target >= 0 && labels[e].action.empty() && row_ok) {
-        fail(line, target_column[e], spec_.entities[e].name + ".target: target '" +
-                                         spec_.entities[labels[e].target].name + "' without an action");
+        fail(line, target_column[e],
+             spec_.entities[e].name + ".target: target '" + spec_.entities[labels[e].target].name +
+                 "' without an action");
         row_ok = false;
       }
     }
     if (!row_ok) return;
     if (rows_ > 0 && !(t > t_last_)) {
-      fail(line, fields_[t_index_].column, "t = " + std::string(fields_[t_index_].text) +
-                                               " is not strictly increasing (previous row: " +
-                                               detail::shortestNumber(t_last_) + ")");
+      fail(line, fields_[t_index_].column,
+           "t = " + std::string(fields_[t_index_].text) +
+               " is not strictly increasing (previous row: " + detail::shortestNumber(t_last_) + ")");
     }
     if (rows_ == 0) t_first_ = t;
     t_last_ = t;
@@ -570,8 +573,9 @@ void readCsv(const std::string& path, CsvParser& parser) {
     lines.feed(std::string_view(chunk, static_cast<size_t>(n)));
   }
   if (in.exceeded())
-    throw Error(Diagnostic{path, 0, 0, "cannot read: more than the limit of " + std::to_string(kMaxDemonstrationBytes) +
-                                           " bytes for a demonstration"});
+    throw Error(Diagnostic{path, 0, 0,
+                           "cannot read: more than the limit of " + std::to_string(kMaxDemonstrationBytes) +
+                               " bytes for a demonstration"});
   lines.finish();
 }
 

@@ -63,7 +63,8 @@ bool readManifest(const fs::path& file, std::map<std::string, Entry>& out) {
 
 std::string manifestText(const std::vector<OwnedFile>& files, const std::string& tool) {
   std::string text = "# " + tool + " wrote these files (FNV-1a 64, bytes, path); it replaces only these\n";
-  for (const auto& [path, bytes] : files) text += hex16(fnv1a64(bytes)) + " " + std::to_string(bytes.size()) + " " + path + "\n";
+  for (const auto& [path, bytes] : files)
+    text += hex16(fnv1a64(bytes)) + " " + std::to_string(bytes.size()) + " " + path + "\n";
   return text;
 }
 
@@ -119,7 +120,8 @@ Survey survey(const fs::path& dir, const fs::path& shown, const std::vector<Owne
     if (fs::is_directory(st)) {
       // A directory is judged by what it holds (listed one by one); an empty one of
       // somebody else's is named itself.
-      if (!parents.count(rel) && fs::is_empty(p, sec)) s.foreign.push_back(name + "/ (a directory " + tool + " did not create)");
+      if (!parents.count(rel) && fs::is_empty(p, sec))
+        s.foreign.push_back(name + "/ (a directory " + tool + " did not create)");
       continue;
     }
     if (!fs::is_regular_file(st)) {
@@ -147,8 +149,8 @@ Survey survey(const fs::path& dir, const fs::path& shown, const std::vector<Owne
     }
     if (own) ++s.own;
     else
-      s.foreign.push_back(name + (m != manifest.end() ? " (changed since " + tool + " wrote it)"
-                                                      : " (not written by " + tool + ")"));
+      s.foreign.push_back(
+          name + (m != manifest.end() ? " (changed since " + tool + " wrote it)" : " (not written by " + tool + ")"));
   }
   if (ec) s.foreign.push_back(shown.string() + " (cannot read the directory: " + ec.message() + ")");
   return s;
@@ -165,7 +167,8 @@ void exchange(const fs::path& a, const fs::path& b) {
   if (errno != EINVAL && errno != ENOSYS && errno != ENOTSUP)
     refuse(b, std::string("cannot replace the directory: ") + std::strerror(errno));
   const fs::path aside = a.string() + ".old";
-  if (::rename(b.c_str(), aside.c_str()) != 0) refuse(b, std::string("cannot replace the directory: ") + std::strerror(errno));
+  if (::rename(b.c_str(), aside.c_str()) != 0)
+    refuse(b, std::string("cannot replace the directory: ") + std::strerror(errno));
   if (::rename(a.c_str(), b.c_str()) != 0) {
     const int e = errno;
     ::rename(aside.c_str(), b.c_str());
@@ -220,8 +223,8 @@ void writeOwnedDirectory(const std::string& dir, const std::vector<OwnedFile>& f
   static std::atomic<unsigned> counter{0};
   fs::path tmp;
   for (int attempt = 0; attempt < 100; ++attempt) {
-    tmp = parent / ("." + target.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
-                    std::to_string(counter++));
+    tmp = parent /
+          ("." + target.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
     if (::mkdir(tmp.c_str(), 0777) == 0) break;
     if (errno != EEXIST) refuse(parent, std::string("cannot create a temporary directory: ") + std::strerror(errno));
     tmp.clear();
@@ -242,7 +245,8 @@ void writeOwnedDirectory(const std::string& dir, const std::vector<OwnedFile>& f
     try {
       std::error_code dec;
       fs::create_directories(file.parent_path(), dec);
-      if (dec) throw Error(Diagnostic{file.parent_path().string(), 0, 0, "cannot create the directory: " + dec.message()});
+      if (dec)
+        throw Error(Diagnostic{file.parent_path().string(), 0, 0, "cannot create the directory: " + dec.message()});
       writeTextFile(file.string(), bytes);
     } catch (const Error& e) {
       // Name the file as the user will look for it, not its temporary place.

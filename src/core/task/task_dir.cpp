@@ -58,7 +58,8 @@ std::vector<std::string> demoFiles(const std::string& task_dir) {
   std::string error;
   const fs::file_status st = statusOf(demos, error);
   if (!error.empty()) throw Error(Diagnostic{demos.string(), 0, 0, error});
-  if (!fs::is_directory(st)) throw Error(Diagnostic{demos.string(), 0, 0, "no demos/ directory (expected demos/*.csv)"});
+  if (!fs::is_directory(st))
+    throw Error(Diagnostic{demos.string(), 0, 0, "no demos/ directory (expected demos/*.csv)"});
   std::vector<std::string> files;
   for (const auto& p : listDemos(demos).csvs) files.push_back(p.string());
   return files;

@@ -14,9 +14,12 @@ namespace ddace::task {
 
 const char* toString(EntityKind kind) {
   switch (kind) {
-    case EntityKind::Robot: return "robot";
-    case EntityKind::Object: return "object";
-    case EntityKind::Goal: return "goal";
+    case EntityKind::Robot:
+      return "robot";
+    case EntityKind::Object:
+      return "object";
+    case EntityKind::Goal:
+      return "goal";
   }
   return "robot";
 }
@@ -144,20 +147,16 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
   if (root["arrival_radius"]) {
     double r = 0;
     if (c.number(root["arrival_radius"], "arrival_radius", r)) {
-      if (r <= 0)
-        c.error(root["arrival_radius"], "arrival_radius must be positive (metres)");
-      else
-        spec.arrival_radius = r;
+      if (r <= 0) c.error(root["arrival_radius"], "arrival_radius must be positive (metres)");
+      else spec.arrival_radius = r;
     }
   }
 
   if (root["step_window_s"]) {
     double w = 0;
     if (c.number(root["step_window_s"], "step_window_s", w)) {
-      if (w < 0)
-        c.error(root["step_window_s"], "step_window_s must be >= 0 (seconds; 0 = the bare keyframe rule)");
-      else
-        spec.step_window_s = w;
+      if (w < 0) c.error(root["step_window_s"], "step_window_s must be >= 0 (seconds; 0 = the bare keyframe rule)");
+      else spec.step_window_s = w;
     }
   }
 
@@ -205,7 +204,9 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
   return spec;
 }
 
-TaskSpec readTaskYaml(const std::string& path) { return parseTaskYaml(readTextFile(path), path); }
+TaskSpec readTaskYaml(const std::string& path) {
+  return parseTaskYaml(readTextFile(path), path);
+}
 
 std::string taskYamlText(const TaskSpec& spec) {
   std::ostringstream out;
@@ -242,6 +243,8 @@ std::string taskYamlText(const TaskSpec& spec) {
   return out.str();
 }
 
-void writeTaskYaml(const TaskSpec& spec, const std::string& path) { writeTextFile(path, taskYamlText(spec)); }
+void writeTaskYaml(const TaskSpec& spec, const std::string& path) {
+  writeTextFile(path, taskYamlText(spec));
+}
 
 }  // namespace ddace::task

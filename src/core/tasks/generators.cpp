@@ -24,9 +24,12 @@ struct Shape {
 
   Vector2d at(double u, double a) const {
     switch (kind) {
-      case Straight: return {u, 0};
-      case Arc: return {u, a * std::sin(M_PI * u)};
-      case SCurve: return {u, a * std::sin(2 * M_PI * u)};
+      case Straight:
+        return {u, 0};
+      case Arc:
+        return {u, a * std::sin(M_PI * u)};
+      case SCurve:
+        return {u, a * std::sin(2 * M_PI * u)};
       case Spiral: {
         // A loop and a half whose radius swells and vanishes: a spiral-like path.
         const double r = a * std::sin(M_PI * u), th = 3 * M_PI * u;
@@ -50,12 +53,11 @@ struct Plan {
   std::vector<std::vector<Move>> steps;
 };
 
-constexpr double kSpeed = 0.15;          // m/s, nominal robot speed
-constexpr double kMinStepDuration = 1.0; // s
+constexpr double kSpeed = 0.15;           // m/s, nominal robot speed
+constexpr double kMinStepDuration = 1.0;  // s
 constexpr int kIdleRowsBefore = 4, kIdleRowsBetween = 3, kIdleRowsAfter = 4;
 
-void addEntity(Plan& p, const std::string& name, EntityKind kind, const std::string& type,
-               Vector2d where) {
+void addEntity(Plan& p, const std::string& name, EntityKind kind, const std::string& type, Vector2d where) {
   p.spec.entities.push_back({name, kind, type});
   p.layout[name] = where;
 }
@@ -86,9 +88,9 @@ Plan task2(int robots) {
   Plan p;
   p.spec.name = "task2_scalability_" + std::to_string(robots) + "_robots";
   p.spec.actions = {"move", "stop"};
-  const std::vector<Vector2d> where = {
-      {0.08, 0.15}, {0.08, 0.45}, {0.25, 0.30}, {0.50, 0.40}, {0.30, 0.60}, {0.55, 0.75},
-      {0.80, 0.88}, {0.75, 0.55}, {0.88, 0.30}, {0.45, 0.12}, {0.70, 0.15}};
+  const std::vector<Vector2d> where = {{0.08, 0.15}, {0.08, 0.45}, {0.25, 0.30}, {0.50, 0.40},
+                                       {0.30, 0.60}, {0.55, 0.75}, {0.80, 0.88}, {0.75, 0.55},
+                                       {0.88, 0.30}, {0.45, 0.12}, {0.70, 0.15}};
   auto R = [](int i) { return "R" + std::to_string(i); };
   for (int i = 1; i <= robots; ++i) addEntity(p, R(i), EntityKind::Robot, "hamster", where[i - 1]);
   addEntity(p, "G1", EntityKind::Goal, "", {0.95, 0.05});
@@ -135,8 +137,7 @@ Plan task3(int actions) {
   addEntity(p, "B1", EntityKind::Object, "ball", {0.15, 0.25});    // with the passer
   addEntity(p, "G1", EntityKind::Goal, "hoop", {0.85, 0.85});
   p.spec.goal_conditions = {{"B1", "G1", 0.05}, {"R3", "G1", 0.05}};
-  const Shape straight{Shape::Straight, 0}, approach{Shape::Arc, 0.15},
-      around{Shape::SCurve, 0.12};
+  const Shape straight{Shape::Straight, 0}, approach{Shape::Arc, 0.15}, around{Shape::SCurve, 0.12};
   p.steps = {
       {{"R1", "move", "R3", approach}, {"R2", pass_self, "", {}}, {"B1", pass_ball, "R3", straight}},
       {{"R2", "move", "R1", approach}},  // the screen
@@ -210,7 +211,9 @@ struct SceneFamily {
   std::function<bool(SplitMix64&, Plan&)> sample;
 };
 
-std::string robotName(int i) { return "R" + std::to_string(i + 1); }
+std::string robotName(int i) {
+  return "R" + std::to_string(i + 1);
+}
 
 void addSceneEntity(task::TaskSpec& spec, const std::string& name, EntityKind kind, const std::string& type) {
   spec.entities.push_back({name, kind, type});
@@ -235,9 +238,7 @@ SceneFamily fetchFamily() {
     if (fetcher < 0) return false;
     const std::string F = robotName(fetcher), O = robotName(1 - fetcher);
     p.layout = {{"R1", robots[0]}, {"R2", robots[1]}, {"B1", box}, {"G1", goal}};
-    p.steps = {{{F, "move", "B1", {}}},
-               {{F, "carry", "G1", {}}, {"B1", "carry", "G1", {}}},
-               {{O, "move", F, {}}}};
+    p.steps = {{{F, "move", "B1", {}}}, {{F, "carry", "G1", {}}, {"B1", "carry", "G1", {}}}, {{O, "move", F, {}}}};
     return true;
   };
   return f;
@@ -310,7 +311,8 @@ SceneFamily queueFamily() {
       if (d(order[k + 1]) - d(order[k]) < kSceneDecisionMargin) return false;
     for (int i = 0; i < 2 * kRobots; ++i) p.layout[p.spec.entities[i].name] = all[i];
     p.steps.clear();
-    for (int k = 0; k < kRobots; ++k) p.steps.push_back({{robotName(order[k]), "move", "Q" + std::to_string(k + 1), {}}});
+    for (int k = 0; k < kRobots; ++k)
+      p.steps.push_back({{robotName(order[k]), "move", "Q" + std::to_string(k + 1), {}}});
     return true;
   };
   return f;
@@ -371,7 +373,9 @@ double micrometres(double v) {
   return std::strtod(buf, nullptr);
 }
 
-double smoothstep(double s) { return s * s * (3 - 2 * s); }
+double smoothstep(double s) {
+  return s * s * (3 - 2 * s);
+}
 
 /// The path of a motion from `from` to `to` with `shape` and amplitude `a`, at progress u.
 Vector2d pathPoint(const Shape& shape, double a, const Vector2d& from, const Vector2d& to, double u) {
@@ -493,14 +497,20 @@ void mislabel(task::Demonstration& d, const task::TaskSpec& spec, SplitMix64& rn
 
 }  // namespace
 
-std::vector<std::string> paperFamilies() { return kPaperFamilies; }
-std::vector<std::string> sceneFamilies() { return kSceneFamilies; }
+std::vector<std::string> paperFamilies() {
+  return kPaperFamilies;
+}
+std::vector<std::string> sceneFamilies() {
+  return kSceneFamilies;
+}
 std::vector<std::string> allFamilies() {
   std::vector<std::string> all = kPaperFamilies;
   all.insert(all.end(), kSceneFamilies.begin(), kSceneFamilies.end());
   return all;
 }
-std::vector<std::string> families() { return kPaperFamilies; }
+std::vector<std::string> families() {
+  return kPaperFamilies;
+}
 
 task::TaskDir generate(const GeneratorOptions& o) {
   Plan plan;

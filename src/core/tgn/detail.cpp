@@ -23,14 +23,16 @@ void writeTrainingTensors(const task::TaskDir& train, const TrainOptions& option
   out << "variant " << toString(impl->info.variant) << "\n";
   out << "nodes " << c.nodes << "\nactions " << c.actions << "\ntargets " << c.targets << "\nfeatures " << c.features
       << "\ndemos " << seqs.size() << "\nmask";
-  const Tensor mask = (impl->isScene() ? impl->scene->mask.view({c.nodes, c.nodes}) : impl->net->att.mask).to(torch::kLong);
+  const Tensor mask =
+      (impl->isScene() ? impl->scene->mask.view({c.nodes, c.nodes}) : impl->net->att.mask).to(torch::kLong);
   for (int64_t i = 0; i < mask.numel(); ++i) out << ' ' << mask.view(-1)[i].item<int64_t>();
   out << '\n' << std::setprecision(9);
   for (const auto& s : seqs) {
     out << "sequence " << s.x.size(0) << "\nx";
     const Tensor x = s.x.contiguous().view(-1);
     for (int64_t i = 0; i < x.numel(); ++i) out << ' ' << x[i].item<float>();
-    for (const auto& [name, t] : {std::pair<const char*, Tensor>{"action", s.action}, {"target", s.target}, {"end", s.end}}) {
+    for (const auto& [name, t] :
+         {std::pair<const char*, Tensor>{"action", s.action}, {"target", s.target}, {"end", s.end}}) {
       out << '\n' << name;
       const Tensor v = t.contiguous().view(-1);
       for (int64_t i = 0; i < v.numel(); ++i) out << ' ' << v[i].item<int64_t>();
@@ -66,7 +68,8 @@ std::vector<float> gatForward(const GatWeights& w, const std::vector<float>& x, 
   layer->att_src.copy_(from(w.att_src, {w.heads, w.channels}));
   layer->att_dst.copy_(from(w.att_dst, {w.heads, w.channels}));
   layer->bias.copy_(from(w.bias, {width}));
-  const Tensor y = layer->forward(from(x, {1, nodes, w.in}), Attention(maskFromEdges(nodes, edges, false))).contiguous();
+  const Tensor y =
+      layer->forward(from(x, {1, nodes, w.in}), Attention(maskFromEdges(nodes, edges, false))).contiguous();
   return std::vector<float>(y.data_ptr<float>(), y.data_ptr<float>() + y.numel());
 }
 

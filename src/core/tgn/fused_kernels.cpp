@@ -31,7 +31,9 @@ void axpy(float alpha, const float* x, float* y, int64_t n) {
   for (int64_t c = 0; c < n; ++c) y[c] += alpha * x[c];
 }
 
-Tensor saved(AutogradContext* ctx, const char* name) { return ctx->saved_data.at(name).toTensor(); }
+Tensor saved(AutogradContext* ctx, const char* name) {
+  return ctx->saved_data.at(name).toTensor();
+}
 
 // ------------------------------------------------------------------ GAT attention
 
@@ -82,8 +84,13 @@ struct GatAttentionFn : torch::autograd::Function<GatAttentionFn> {
             axpy(v, hp + ((s * n_n + src[e]) * h_n + k) * c_n, oi, c_n);
           }
         }
-    for (const auto& [name, t] : {std::pair<const char*, Tensor>{"h", h}, {"att_src", att_src}, {"att_dst", att_dst},
-                                  {"alpha", alpha}, {"a_src", a_src}, {"a_dst", a_dst}, {"offset", offset},
+    for (const auto& [name, t] : {std::pair<const char*, Tensor>{"h", h},
+                                  {"att_src", att_src},
+                                  {"att_dst", att_dst},
+                                  {"alpha", alpha},
+                                  {"a_src", a_src},
+                                  {"a_dst", a_dst},
+                                  {"offset", offset},
                                   {"source", source}})
       ctx->saved_data[name] = t;
     return out;
@@ -108,7 +115,8 @@ struct GatAttentionFn : torch::autograd::Function<GatAttentionFn> {
     float* dhp = dh.data_ptr<float>();
     float* dwsp = dws.data_ptr<float>();
     float* dwdp = dwd.data_ptr<float>();
-    std::vector<float> d_as(static_cast<size_t>(n_n)), d_ad(static_cast<size_t>(n_n)), d_alpha(static_cast<size_t>(e_n));
+    std::vector<float> d_as(static_cast<size_t>(n_n)), d_ad(static_cast<size_t>(n_n)),
+        d_alpha(static_cast<size_t>(e_n));
     for (int64_t s = 0; s < s_n; ++s)
       for (int64_t k = 0; k < h_n; ++k) {
         std::fill(d_as.begin(), d_as.end(), 0.f);
@@ -152,7 +160,9 @@ struct GatAttentionFn : torch::autograd::Function<GatAttentionFn> {
 
 // ------------------------------------------------------------------ GRU recurrence
 
-float sigmoid(float v) { return 1.f / (1.f + std::exp(-v)); }
+float sigmoid(float v) {
+  return 1.f / (1.f + std::exp(-v));
+}
 
 struct GruRecurrenceFn : torch::autograd::Function<GruRecurrenceFn> {
   static Tensor forward(AutogradContext* ctx, Tensor gi, Tensor w_hh, Tensor b_hh, Tensor h0) {
@@ -192,8 +202,8 @@ struct GruRecurrenceFn : torch::autograd::Function<GruRecurrenceFn> {
         }
       }
     }
-    for (const auto& [name, t] : {std::pair<const char*, Tensor>{"w_hh", w_hh}, {"h_prev", h_prev},
-                                  {"gates", gates}, {"gh_n", gh_n}})
+    for (const auto& [name, t] :
+         {std::pair<const char*, Tensor>{"w_hh", w_hh}, {"h_prev", h_prev}, {"gates", gates}, {"gh_n", gh_n}})
       ctx->saved_data[name] = t;
     return hs;
   }

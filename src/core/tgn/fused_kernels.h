@@ -47,7 +47,8 @@ torch::Tensor gruRecurrence(const torch::Tensor& gi, const torch::Tensor& w_hh, 
 /// A multi-layer GRU (batch first, no inter-layer dropout) with the parameters of a
 /// torch::nn::GRU module (weight_ih_l<k>, weight_hh_l<k>, bias_ih_l<k>, bias_hh_l<k>).
 /// x [B, T, I], h0 [L, B, H] or undefined (zeros). Returns {output [B, T, H], h_n [L, B, H]}.
-std::pair<torch::Tensor, torch::Tensor> gru(torch::nn::GRU& module, const torch::Tensor& x, const torch::Tensor& h0 = {});
+std::pair<torch::Tensor, torch::Tensor> gru(torch::nn::GRU& module, const torch::Tensor& x,
+                                            const torch::Tensor& h0 = {});
 
 /// All parameters of a module as views of one flat buffer, their gradients as views of
 /// another, so that zeroing, norm clipping and Adam are a few ops in all instead of a few

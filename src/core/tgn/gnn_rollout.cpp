@@ -10,10 +10,12 @@ using torch::Tensor;
 
 task::Demonstration rolloutGnn(const SequenceModel& model, const task::Demonstration& test_demo, int max_rows) {
   const SequenceModel::Impl& m = *model.impl_;
-  if (!m.cfg.gnn) throw Error("rolloutGnn: the model is of variant '" + std::string(toString(m.info.variant)) + "', not gnn");
+  if (!m.cfg.gnn)
+    throw Error("rolloutGnn: the model is of variant '" + std::string(toString(m.info.variant)) + "', not gnn");
   const int n = m.cfg.nodes;
   if (test_demo.entities() != static_cast<size_t>(n) || test_demo.rows() == 0)
-    throw Error(Diagnostic{test_demo.source, 0, 0, "does not fit the model's task (" + std::to_string(n) + " entities)"});
+    throw Error(
+        Diagnostic{test_demo.source, 0, 0, "does not fit the model's task (" + std::to_string(n) + " entities)"});
   if (max_rows < 1) throw Error("rolloutGnn: max_rows must be at least 1");
   requireFinite(test_demo.positions[0], m.spec, test_demo.source, "row", 0);
   torch::NoGradGuard no_grad;

@@ -14,15 +14,21 @@ namespace ddace::tgn {
 
 const char* toString(Variant v) {
   switch (v) {
-    case Variant::Scene: return "scene";
-    case Variant::Paper: return "paper";
-    case Variant::FullGraph: return "full-graph";
-    case Variant::Gnn: return "gnn";
+    case Variant::Scene:
+      return "scene";
+    case Variant::Paper:
+      return "paper";
+    case Variant::FullGraph:
+      return "full-graph";
+    case Variant::Gnn:
+      return "gnn";
   }
   return "?";
 }
 
-std::vector<Variant> allVariants() { return {Variant::Scene, Variant::Paper, Variant::FullGraph, Variant::Gnn}; }
+std::vector<Variant> allVariants() {
+  return {Variant::Scene, Variant::Paper, Variant::FullGraph, Variant::Gnn};
+}
 
 Variant variantFromString(const std::string& name) {
   std::string names;
@@ -33,7 +39,9 @@ Variant variantFromString(const std::string& name) {
   throw Error("variant '" + name + "' is not one of " + names);
 }
 
-const char* toString(AttentionKind k) { return k == AttentionKind::GatV2 ? "gatv2" : "gat"; }
+const char* toString(AttentionKind k) {
+  return k == AttentionKind::GatV2 ? "gatv2" : "gat";
+}
 
 AttentionKind attentionFromString(const std::string& name) {
   if (name == "gatv2") return AttentionKind::GatV2;
@@ -58,7 +66,8 @@ void TrainOptions::validate() const {
   // Upper bounds too: a manifest is outside input, and these sizes are allocated from.
   if (max_epochs > 1000000) bad("max_epochs: must be at most 1000000");
   if (heads > 64 || head_channels > 1024) bad("heads/head_channels: must be at most 64/1024");
-  if (gat_layers > 16 || gru_layers > 16 || gru_hidden > 4096) bad("gat_layers/gru_layers/gru_hidden: must be at most 16/16/4096");
+  if (gat_layers > 16 || gru_layers > 16 || gru_hidden > 4096)
+    bad("gat_layers/gru_layers/gru_hidden: must be at most 16/16/4096");
   if (identity_dim > 1024 || head_hidden > 4096) bad("identity_dim/head_hidden: must be at most 1024/4096");
   if (batch_demos > 100000 || plateau_patience > 100000) bad("batch_demos/plateau_patience: must be at most 100000");
 }
@@ -75,8 +84,7 @@ std::string hex(uint64_t v) {
 
 Error errorAt(const std::string& path, const YAML::Node& node, const std::string& message) {
   const auto mark = node.Mark();
-  return Error(Diagnostic{path, mark.line >= 0 ? mark.line + 1 : 0, mark.column >= 0 ? mark.column + 1 : 0,
-                          message});
+  return Error(Diagnostic{path, mark.line >= 0 ? mark.line + 1 : 0, mark.column >= 0 ? mark.column + 1 : 0, message});
 }
 
 YAML::Node need(const std::string& path, const YAML::Node& parent, const std::string& key) {
@@ -104,8 +112,8 @@ int entityIndex(const std::string& path, const YAML::Node& n, const task::TaskSp
 
 graph::Decision decisionFromString(const std::string& path, const YAML::Node& n) {
   const std::string s = n.as<std::string>();
-  for (auto d : {graph::Decision::KeptRecurrent, graph::Decision::KeptSameCluster,
-                 graph::Decision::DroppedRare, graph::Decision::DroppedCrossCluster})
+  for (auto d : {graph::Decision::KeptRecurrent, graph::Decision::KeptSameCluster, graph::Decision::DroppedRare,
+                 graph::Decision::DroppedCrossCluster})
     if (s == graph::toString(d)) return d;
   throw errorAt(path, n, "unknown edge decision '" + s + "'");
 }
@@ -191,7 +199,8 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec, uint
   y << YAML::Key << "demonstrations" << YAML::Value << g.demonstrations;
   y << YAML::Key << "clusters" << YAML::Value << g.clusters;
   y << YAML::Key << "cluster_of" << YAML::Value << YAML::Flow << YAML::BeginMap;
-  for (size_t i = 0; i < g.cluster.size(); ++i) y << YAML::Key << name(static_cast<int>(i)) << YAML::Value << g.cluster[i];
+  for (size_t i = 0; i < g.cluster.size(); ++i)
+    y << YAML::Key << name(static_cast<int>(i)) << YAML::Value << g.cluster[i];
   y << YAML::EndMap;
   std::vector<double> eig(g.eigenvalues.data(), g.eigenvalues.data() + g.eigenvalues.size());
   y << YAML::Key << "eigenvalues" << YAML::Value << YAML::Flow << eig;
@@ -233,8 +242,7 @@ ModelInfo parseManifest(const std::string& path, const task::TaskSpec& spec, uin
   if (!root.IsMap()) throw Error(Diagnostic{path, 1, 1, "not a model manifest (expected a YAML map)"});
   try {
     const std::string format = as<std::string>(path, root, "format");
-    if (format != kModelFormat)
-      throw errorAt(path, root["format"], "format '" + format + "' is not " + kModelFormat);
+    if (format != kModelFormat) throw errorAt(path, root["format"], "format '" + format + "' is not " + kModelFormat);
     ModelInfo info;
     try {
       info.variant = variantFromString(as<std::string>(path, root, "variant"));
@@ -354,8 +362,8 @@ std::vector<EpochRecord> readLossCsv(const std::string& path) {
     char tail = 0;
     if (std::sscanf(line.c_str(), "%d,%lf,%lf,%lf%c", &r.epoch, &r.loss, &r.step_accuracy, &r.seconds, &tail) != 4 ||
         r.epoch != static_cast<int>(out.size()) + 1 || !std::isfinite(r.loss))
-      throw Error(Diagnostic{path, number, 1, "expected 'epoch,loss,step_accuracy,seconds' for epoch " +
-                                                  std::to_string(out.size() + 1)});
+      throw Error(Diagnostic{
+          path, number, 1, "expected 'epoch,loss,step_accuracy,seconds' for epoch " + std::to_string(out.size() + 1)});
     out.push_back(r);
   }
   return out;

@@ -39,7 +39,8 @@ SequenceModel SequenceModel::load(const std::string& model_dir) {
   auto impl = std::make_shared<Impl>();
   const std::string manifest = (dir / files::kManifest).string(), weights = (dir / files::kWeights).string();
   if (!fs::exists(manifest))
-    throw Error(Diagnostic{manifest, 0, 0, "missing: " + model_dir + " is not a model directory (ddace train writes one)"});
+    throw Error(
+        Diagnostic{manifest, 0, 0, "missing: " + model_dir + " is not a model directory (ddace train writes one)"});
   impl->spec = task::readTaskYaml((dir / files::kTask).string());
   uint64_t hash = 0, bytes = 0;
   impl->info = files::parseManifest(manifest, impl->spec, &hash, &bytes);
@@ -48,8 +49,9 @@ SequenceModel SequenceModel::load(const std::string& model_dir) {
   const uint64_t size = fs::file_size(weights, ec);
   if (ec) throw Error(Diagnostic{weights, 0, 0, "cannot read the weights (missing?)"});
   if (size != bytes)
-    throw Error(Diagnostic{weights, 0, 0, "truncated or replaced: " + std::to_string(size) + " bytes, the manifest says " +
-                                              std::to_string(bytes)});
+    throw Error(Diagnostic{
+        weights, 0, 0,
+        "truncated or replaced: " + std::to_string(size) + " bytes, the manifest says " + std::to_string(bytes)});
   if (files::fileHash(weights) != hash)
     throw Error(Diagnostic{weights, 0, 0, "corrupted: its checksum does not match " + manifest});
   impl->build();  // the loaded weights replace the initial ones
@@ -62,15 +64,16 @@ SequenceModel SequenceModel::load(const std::string& model_dir) {
     archive.load_from(weights);
     impl->module().load(archive);
   } catch (const c10::Error& e) {
-    throw Error(Diagnostic{weights, 0, 0, std::string("does not fit the manifest's network: ") + e.what_without_backtrace()});
+    throw Error(
+        Diagnostic{weights, 0, 0, std::string("does not fit the manifest's network: ") + e.what_without_backtrace()});
   }
   std::map<std::string, std::vector<int64_t>> loaded;
   for (const auto& p : impl->module().named_parameters()) loaded[p.key()] = p.value().sizes().vec();
   for (const auto& b : impl->module().named_buffers()) loaded[b.key()] = b.value().sizes().vec();
   for (const auto& [name, shape] : expected)
     if (loaded[name] != shape)
-      throw Error(Diagnostic{weights, 0, 0, "does not fit the network of " + manifest + ": tensor '" + name +
-                                                "' has another shape"});
+      throw Error(Diagnostic{weights, 0, 0,
+                             "does not fit the network of " + manifest + ": tensor '" + name + "' has another shape"});
   impl->module().eval();
   return SequenceModel(impl);
 }

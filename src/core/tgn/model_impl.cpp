@@ -68,8 +68,9 @@ EntityOrder::EntityOrder(const task::TaskSpec& spec) {
   const size_t n = spec.entities.size();
   task_of.resize(n);
   std::iota(task_of.begin(), task_of.end(), 0);
-  std::sort(task_of.begin(), task_of.end(),
-            [&](int a, int b) { return spec.entities[static_cast<size_t>(a)].name < spec.entities[static_cast<size_t>(b)].name; });
+  std::sort(task_of.begin(), task_of.end(), [&](int a, int b) {
+    return spec.entities[static_cast<size_t>(a)].name < spec.entities[static_cast<size_t>(b)].name;
+  });
   canonical_of.resize(n);
   for (size_t k = 0; k < n; ++k) canonical_of[static_cast<size_t>(task_of[k])] = static_cast<int>(k);
 }
@@ -134,9 +135,10 @@ void requireFinite(const std::vector<Eigen::Vector2d>& pos, const task::TaskSpec
                    const char* what, size_t index) {
   for (size_t i = 0; i < pos.size(); ++i)
     if (!pos[i].allFinite())
-      throw Error(Diagnostic{source, 0, 0, std::string(what) + " " + std::to_string(index) + ": the position of '" +
-                                               (i < spec.entities.size() ? spec.entities[i].name : std::to_string(i)) +
-                                               "' is not finite"});
+      throw Error(Diagnostic{source, 0, 0,
+                             std::string(what) + " " + std::to_string(index) + ": the position of '" +
+                                 (i < spec.entities.size() ? spec.entities[i].name : std::to_string(i)) +
+                                 "' is not finite"});
 }
 
 torch::nn::Module& SequenceModel::Impl::module() {
@@ -159,10 +161,12 @@ void SequenceModel::Impl::build() {
   cfg.o = info.options;
   kinds.assign(static_cast<size_t>(cfg.nodes) * 3, 0.f);
   for (int k = 0; k < cfg.nodes; ++k)
-    kinds[static_cast<size_t>(k) * 3 + static_cast<size_t>(spec.entities[static_cast<size_t>(order.task_of[k])].kind)] = 1.f;
+    kinds[static_cast<size_t>(k) * 3 + static_cast<size_t>(spec.entities[static_cast<size_t>(order.task_of[k])].kind)] =
+        1.f;
   std::vector<graph::Edge> edges;
   for (const auto& e : info.attention_edges)
-    edges.push_back({order.canonical_of[static_cast<size_t>(e.source)], order.canonical_of[static_cast<size_t>(e.target)]});
+    edges.push_back(
+        {order.canonical_of[static_cast<size_t>(e.source)], order.canonical_of[static_cast<size_t>(e.target)]});
   const Tensor mask = maskFromEdges(cfg.nodes, edges, true);
   SeededInit seeded(info.options.seed);
   net = nullptr;
@@ -176,7 +180,8 @@ void SequenceModel::Impl::build() {
   }
 }
 
-void SequenceModel::Impl::features(const std::vector<Eigen::Vector2d>& pos, const std::vector<task::Label>* labels, float* out) const {
+void SequenceModel::Impl::features(const std::vector<Eigen::Vector2d>& pos, const std::vector<task::Label>* labels,
+                                   float* out) const {
   const int f = cfg.features;
   for (int i = 0; i < cfg.nodes; ++i) {
     float* row = out + i * f;
@@ -280,8 +285,9 @@ std::vector<Sequence> SequenceModel::Impl::sequences(const std::vector<task::Dem
   std::vector<Sequence> out;
   for (const auto& d : demos) {
     if (d.entities() != static_cast<size_t>(cfg.nodes))
-      throw Error(Diagnostic{d.source, 0, 0, "has " + std::to_string(d.entities()) + " entities, the model's task has " +
-                                                 std::to_string(cfg.nodes)});
+      throw Error(Diagnostic{
+          d.source, 0, 0,
+          "has " + std::to_string(d.entities()) + " entities, the model's task has " + std::to_string(cfg.nodes)});
     for (const auto& step : d.steps)
       for (const auto& tok : step.tokens)
         if (vocabIndex(tok.action) < 0)
@@ -291,7 +297,8 @@ std::vector<Sequence> SequenceModel::Impl::sequences(const std::vector<task::Dem
       for (size_t r = 0; r < d.rows(); ++r) requireFinite(d.positions[r], spec, d.source, "row", r);
       out.push_back(frameSequence(order.toCanonical(d)));
     } else {
-      for (size_t k = 0; k < d.snapshots.size(); ++k) requireFinite(d.snapshots[k].positions, spec, d.source, "snapshot", k);
+      for (size_t k = 0; k < d.snapshots.size(); ++k)
+        requireFinite(d.snapshots[k].positions, spec, d.source, "snapshot", k);
       out.push_back(keyframeSequence(order.toCanonical(d)));
     }
   }
@@ -325,9 +332,15 @@ double SequenceModel::Impl::accuracy(const std::vector<Sequence>& seqs) {
 SequenceModel::SequenceModel(std::shared_ptr<Impl> impl) : impl_(std::move(impl)) {}
 SequenceModel::~SequenceModel() = default;
 
-const task::TaskSpec& SequenceModel::spec() const { return impl_->spec; }
-std::string SequenceModel::variant() const { return toString(impl_->info.variant); }
-const ModelInfo& SequenceModel::info() const { return impl_->info; }
+const task::TaskSpec& SequenceModel::spec() const {
+  return impl_->spec;
+}
+std::string SequenceModel::variant() const {
+  return toString(impl_->info.variant);
+}
+const ModelInfo& SequenceModel::info() const {
+  return impl_->info;
+}
 
 namespace {
 
@@ -377,12 +390,14 @@ void normalisation(const task::TaskDir& dir, Variant variant, ModelInfo& info) {
 std::vector<graph::Edge> liftedToKinds(const std::vector<graph::Edge>& kept, const task::TaskSpec& spec) {
   std::set<std::pair<task::EntityKind, task::EntityKind>> kinds;
   for (const auto& e : kept)
-    kinds.insert({spec.entities[static_cast<size_t>(e.source)].kind, spec.entities[static_cast<size_t>(e.target)].kind});
+    kinds.insert(
+        {spec.entities[static_cast<size_t>(e.source)].kind, spec.entities[static_cast<size_t>(e.target)].kind});
   std::vector<graph::Edge> out;
   const int n = static_cast<int>(spec.entities.size());
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j)
-      if (i != j && kinds.count({spec.entities[static_cast<size_t>(i)].kind, spec.entities[static_cast<size_t>(j)].kind}))
+      if (i != j &&
+          kinds.count({spec.entities[static_cast<size_t>(i)].kind, spec.entities[static_cast<size_t>(j)].kind}))
         out.push_back({i, j});
   return out;
 }
@@ -412,10 +427,16 @@ std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const T
   for (const auto& d : train.demos) canonical.push_back(impl->order.toCanonical(d));
   info.refined = graph::permuted(graph::refine(canonical, n, info.options.refinement), impl->order.task_of);
   switch (options.variant) {
-    case Variant::Paper: info.attention_edges = info.refined.kept; break;
-    case Variant::Scene: info.attention_edges = liftedToKinds(info.refined.kept, train.spec); break;
+    case Variant::Paper:
+      info.attention_edges = info.refined.kept;
+      break;
+    case Variant::Scene:
+      info.attention_edges = liftedToKinds(info.refined.kept, train.spec);
+      break;
     case Variant::FullGraph:
-    case Variant::Gnn: info.attention_edges = graph::fullyConnected(n); break;
+    case Variant::Gnn:
+      info.attention_edges = graph::fullyConnected(n);
+      break;
   }
   normalisation(train, options.variant, info);
   return impl;

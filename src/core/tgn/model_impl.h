@@ -30,7 +30,7 @@ struct EntityOrder {
 struct SequenceModel::Impl {
   task::TaskSpec spec;  ///< in the task's order (as task.yaml)
   EntityOrder order;
-  ModelInfo info;       ///< entity indices in the task's order
+  ModelInfo info;  ///< entity indices in the task's order
   NetConfig cfg;
   Network net{nullptr};         ///< paper, full-graph, gnn
   SceneNetwork scene{nullptr};  ///< scene

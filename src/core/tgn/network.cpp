@@ -45,7 +45,8 @@ NetworkImpl::NetworkImpl(const NetConfig& c, Tensor attention) : cfg(c), att(std
     gat.push_back(register_module("gat" + std::to_string(l), GatLayer(l == 0 ? in : width, o.heads, o.head_channels)));
     bn.push_back(register_module("bn" + std::to_string(l), torch::nn::BatchNorm1d(width)));
   }
-  gru = register_module("gru", torch::nn::GRU(torch::nn::GRUOptions(width, o.gru_hidden).num_layers(o.gru_layers).batch_first(true)));
+  gru = register_module(
+      "gru", torch::nn::GRU(torch::nn::GRUOptions(width, o.gru_hidden).num_layers(o.gru_layers).batch_first(true)));
   head = register_module("head", torch::nn::Linear(o.gru_hidden, outputs()));
   // The target head never proposes the entity itself.
   self_mask = torch::zeros({c.nodes, c.targets});
@@ -67,7 +68,9 @@ Tensor Dropout::operator()(const Tensor& x, bool training) {
   return x * mask;
 }
 
-int64_t NetworkImpl::outputs() const { return cfg.nodes * (cfg.actions + cfg.targets + (cfg.gnn ? 2 : 0)) + 2; }
+int64_t NetworkImpl::outputs() const {
+  return cfg.nodes * (cfg.actions + cfg.targets + (cfg.gnn ? 2 : 0)) + 2;
+}
 
 Tensor NetworkImpl::encode(Tensor x) {
   const int64_t s = x.size(0), n = x.size(1);

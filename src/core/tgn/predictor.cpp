@@ -30,7 +30,9 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
   Tensor rel = m.isScene() ? torch::zeros({t, n, n, kRelativeFeatures}) : Tensor();
   for (int64_t k = 0; k < t; ++k) {
     std::vector<Eigen::Vector2d> pos(static_cast<size_t>(n));
-    for (int64_t c = 0; c < n; ++c) pos[static_cast<size_t>(c)] = history[static_cast<size_t>(k)].positions[static_cast<size_t>(m.order.task_of[static_cast<size_t>(c)])];
+    for (int64_t c = 0; c < n; ++c)
+      pos[static_cast<size_t>(c)] =
+          history[static_cast<size_t>(k)].positions[static_cast<size_t>(m.order.task_of[static_cast<size_t>(c)])];
     m.features(pos, nullptr, x[k].data_ptr<float>());
     if (m.isScene()) m.relative(pos, rel[k].data_ptr<float>());
   }

@@ -11,7 +11,9 @@ namespace {
 
 constexpr double kSlope = 0.2;  // LeakyReLU negative slope, as GATConv / GATv2Conv
 
-nn::Linear linear(int in, int out, bool bias = true) { return nn::Linear(nn::LinearOptions(in, out).bias(bias)); }
+nn::Linear linear(int in, int out, bool bias = true) {
+  return nn::Linear(nn::LinearOptions(in, out).bias(bias));
+}
 
 }  // namespace
 
@@ -36,8 +38,8 @@ SceneLayerImpl::SceneLayerImpl(int in, int heads, int channels, AttentionKind ki
 
 Tensor SceneLayerImpl::forward(const Tensor& x, const Tensor& rel, const Tensor& mask) {
   const int64_t s = x.size(0), n = x.size(1);
-  const Tensor hs = lin_src(x).view({s, 1, n, heads_, channels_});   // sender j
-  const Tensor hd = lin_dst(x).view({s, n, 1, heads_, channels_});   // receiver i
+  const Tensor hs = lin_src(x).view({s, 1, n, heads_, channels_});  // sender j
+  const Tensor hd = lin_dst(x).view({s, n, 1, heads_, channels_});  // receiver i
   const Tensor he = lin_edge(rel).view({s, n, n, heads_, channels_});
   const Tensor msg = hs + he;  // [S, i, j, H, C]
   Tensor logit;
@@ -89,7 +91,7 @@ Tensor SceneNetworkImpl::encode(const Tensor& features, const Tensor& rel) {
 }
 
 Heads SceneNetworkImpl::heads(const Tensor& nodes, const Tensor& rel, const Tensor& z) {
-  const Tensor zu = z.unsqueeze(-2);  // [..., 1, hidden]
+  const Tensor zu = z.unsqueeze(-2);                            // [..., 1, hidden]
   const Tensor hidden = torch::relu(act_h(nodes) + act_z(zu));  // [..., N, hidden]
   Heads h;
   h.action = act_out(hidden);

@@ -37,17 +37,15 @@ bool readMatrix(YamlChecker& c, const YAML::Node& root, const std::string& key, 
     return false;
   }
   if (ok && data.size() != static_cast<size_t>(r * k)) {
-    c.error(data, "'" + key + ".data' has " + std::to_string(data.size()) + " numbers, rows x cols = " +
-                      std::to_string(r * k));
+    c.error(data, "'" + key + ".data' has " + std::to_string(data.size()) +
+                      " numbers, rows x cols = " + std::to_string(r * k));
     ok = false;
   }
   out.clear();
   for (const auto& v : data) {
     double x = 0;
-    if (c.number(v, "'" + key + "' entry", x))
-      out.push_back(x);
-    else
-      ok = false;
+    if (c.number(v, "'" + key + "' entry", x)) out.push_back(x);
+    else ok = false;
   }
   return ok;
 }
@@ -62,7 +60,8 @@ CameraCalibration parseCameraCalibration(const std::string& text, const std::str
               "distortion_coefficients", "rectification_matrix", "projection_matrix"},
              "the camera calibration");
   CameraCalibration cal;
-  for (const char* key : {"image_width", "image_height", "camera_matrix", "distortion_model", "distortion_coefficients"})
+  for (const char* key :
+       {"image_width", "image_height", "camera_matrix", "distortion_model", "distortion_coefficients"})
     if (!root[key]) c.error(root, std::string("missing key '") + key + "'");
   cal.camera.image_size.width = integerOr(c, root, "image_width", 0, 1, 100000);
   cal.camera.image_size.height = integerOr(c, root, "image_height", 0, 1, 100000);

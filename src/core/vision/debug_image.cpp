@@ -8,10 +8,8 @@ namespace ddace::vision {
 
 cv::Mat drawDebugImage(const cv::Mat& image, const FrameResult& fr, const MarkerConfig& markers) {
   cv::Mat out;
-  if (image.channels() == 1)
-    cv::cvtColor(image, out, cv::COLOR_GRAY2BGR);
-  else
-    out = image.clone();
+  if (image.channels() == 1) cv::cvtColor(image, out, cv::COLOR_GRAY2BGR);
+  else out = image.clone();
   for (const auto& r : fr.rois) cv::rectangle(out, r, cv::Scalar(255, 160, 0), 1);
   for (const auto& d : fr.detections) {
     std::vector<cv::Point> poly;
@@ -30,7 +28,8 @@ cv::Mat drawDebugImage(const cv::Mat& image, const FrameResult& fr, const Marker
     std::snprintf(buf, sizeof buf, ", table %.2f px%s", fr.table_reprojection_px, fr.table_refused ? " REFUSED" : "");
     status += buf;
   }
-  if (fr.height_correction != HeightCorrection::On) status += ", height correction " + heightCorrectionName(fr.height_correction);
+  if (fr.height_correction != HeightCorrection::On)
+    status += ", height correction " + heightCorrectionName(fr.height_correction);
   for (const auto& e : fr.entities)
     if (e.stale) status += ", " + e.name + " stale";
   cv::putText(out, status, cv::Point(10, 25), cv::FONT_HERSHEY_SIMPLEX, 0.7, cv::Scalar(0, 0, 255), 2);

@@ -40,17 +40,27 @@ namespace {
 const std::map<std::string, int>& arucoDictionaries() {
   using namespace cv::aruco;
   static const std::map<std::string, int> dicts = {
-      {"DICT_4X4_50", DICT_4X4_50},           {"DICT_4X4_100", DICT_4X4_100},
-      {"DICT_4X4_250", DICT_4X4_250},         {"DICT_4X4_1000", DICT_4X4_1000},
-      {"DICT_5X5_50", DICT_5X5_50},           {"DICT_5X5_100", DICT_5X5_100},
-      {"DICT_5X5_250", DICT_5X5_250},         {"DICT_5X5_1000", DICT_5X5_1000},
-      {"DICT_6X6_50", DICT_6X6_50},           {"DICT_6X6_100", DICT_6X6_100},
-      {"DICT_6X6_250", DICT_6X6_250},         {"DICT_6X6_1000", DICT_6X6_1000},
-      {"DICT_7X7_50", DICT_7X7_50},           {"DICT_7X7_100", DICT_7X7_100},
-      {"DICT_7X7_250", DICT_7X7_250},         {"DICT_7X7_1000", DICT_7X7_1000},
+      {"DICT_4X4_50", DICT_4X4_50},
+      {"DICT_4X4_100", DICT_4X4_100},
+      {"DICT_4X4_250", DICT_4X4_250},
+      {"DICT_4X4_1000", DICT_4X4_1000},
+      {"DICT_5X5_50", DICT_5X5_50},
+      {"DICT_5X5_100", DICT_5X5_100},
+      {"DICT_5X5_250", DICT_5X5_250},
+      {"DICT_5X5_1000", DICT_5X5_1000},
+      {"DICT_6X6_50", DICT_6X6_50},
+      {"DICT_6X6_100", DICT_6X6_100},
+      {"DICT_6X6_250", DICT_6X6_250},
+      {"DICT_6X6_1000", DICT_6X6_1000},
+      {"DICT_7X7_50", DICT_7X7_50},
+      {"DICT_7X7_100", DICT_7X7_100},
+      {"DICT_7X7_250", DICT_7X7_250},
+      {"DICT_7X7_1000", DICT_7X7_1000},
       {"DICT_ARUCO_ORIGINAL", DICT_ARUCO_ORIGINAL},
-      {"DICT_APRILTAG_16h5", DICT_APRILTAG_16h5}, {"DICT_APRILTAG_25h9", DICT_APRILTAG_25h9},
-      {"DICT_APRILTAG_36h10", DICT_APRILTAG_36h10}, {"DICT_APRILTAG_36h11", DICT_APRILTAG_36h11},
+      {"DICT_APRILTAG_16h5", DICT_APRILTAG_16h5},
+      {"DICT_APRILTAG_25h9", DICT_APRILTAG_25h9},
+      {"DICT_APRILTAG_36h10", DICT_APRILTAG_36h10},
+      {"DICT_APRILTAG_36h11", DICT_APRILTAG_36h11},
   };
   return dicts;
 }
@@ -119,7 +129,8 @@ class ArucoDetector : public FiducialDetector {
     // absolute limits in a region, or every speck of noise there becomes a candidate.
     const double scale = static_cast<double>(std::max(gray.cols, gray.rows)) / std::max(roi.width, roi.height);
     roi_params_->minMarkerPerimeterRate = std::min(4.0, params_->minMarkerPerimeterRate * scale);
-    roi_params_->maxMarkerPerimeterRate = std::max(roi_params_->minMarkerPerimeterRate, params_->maxMarkerPerimeterRate * scale);
+    roi_params_->maxMarkerPerimeterRate =
+        std::max(roi_params_->minMarkerPerimeterRate, params_->maxMarkerPerimeterRate * scale);
     cv::aruco::detectMarkers(gray(roi), dictionary_, corners, ids, scale > 1.0 ? roi_params_ : params_);
     const cv::Point2f offset(static_cast<float>(roi.x), static_cast<float>(roi.y));
     for (size_t i = 0; i < ids.size(); ++i) {
@@ -149,8 +160,7 @@ class AprilTagDetector : public FiducialDetector {
     const auto it = aprilFamilies().find(config.family);
     if (it == aprilFamilies().end()) unknownFamily(config);
     if (config.apriltag_max_hamming < 0 || config.apriltag_max_hamming > 2)
-      throw Error("apriltag max_hamming must be 0, 1 or 2 (got " +
-                  std::to_string(config.apriltag_max_hamming) + ")");
+      throw Error("apriltag max_hamming must be 0, 1 or 2 (got " + std::to_string(config.apriltag_max_hamming) + ")");
     if (!(config.apriltag_decimate >= 1.0)) throw Error("apriltag decimate must be >= 1");
     destroy_family_ = it->second.destroy;
     family_ = it->second.create();
@@ -187,8 +197,8 @@ class AprilTagDetector : public FiducialDetector {
       Detection d;
       d.id = det->id;
       for (int k = 0; k < 4; ++k)
-        d.corners[k] = cv::Point2f(static_cast<float>(det->p[kOrder[k]][0]) + ox,
-                                   static_cast<float>(det->p[kOrder[k]][1]) + oy);
+        d.corners[k] =
+            cv::Point2f(static_cast<float>(det->p[kOrder[k]][0]) + ox, static_cast<float>(det->p[kOrder[k]][1]) + oy);
       out.push_back(d);
     }
     apriltag_detections_destroy(found);

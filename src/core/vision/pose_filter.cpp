@@ -8,8 +8,7 @@ bool PoseFilter::consistent(const PlanarPose& a, double ta, const PlanarPose& b,
   const double dt = std::abs(tb - ta);
   const double dist = std::hypot(b.x - a.x, b.y - a.y);
   const double dyaw = std::abs(wrapAngle(b.yaw - a.yaw));
-  return dist <= config_.max_speed_mps * dt + config_.gate_margin_m &&
-         dyaw <= config_.max_yaw_rate_rps * dt + 0.2;
+  return dist <= config_.max_speed_mps * dt + config_.gate_margin_m && dyaw <= config_.max_yaw_rate_rps * dt + 0.2;
 }
 
 void PoseFilter::reset() {
@@ -32,10 +31,8 @@ bool PoseFilter::update(const PlanarPose& m, double t) {
   if (!consistent(pose_, last_seen_, m, t)) {
     ++rejected_;
     // A run of outliers that agree with each other is the entity somewhere else.
-    if (outlier_run_ > 0 && consistent(outlier_pose_, outlier_t_, m, t))
-      ++outlier_run_;
-    else
-      outlier_run_ = 1;
+    if (outlier_run_ > 0 && consistent(outlier_pose_, outlier_t_, m, t)) ++outlier_run_;
+    else outlier_run_ = 1;
     outlier_pose_ = m;
     outlier_t_ = t;
     if (outlier_run_ < config_.reacquire_after) return false;

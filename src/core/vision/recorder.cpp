@@ -53,8 +53,7 @@ RecorderConfig parseRecorderConfig(const std::string& text, const std::string& f
           const std::string word = w.IsScalar() ? w.Scalar() : "";
           if (!task::isValidName(word) || word == "idle")
             r.error(w, "action '" + word + "' must match [A-Za-z][A-Za-z0-9_]* and not be 'idle'");
-          else
-            c.spec.actions.push_back(word);
+          else c.spec.actions.push_back(word);
         }
       }
     }
@@ -184,7 +183,9 @@ void DemoRecorder::setLabel(const std::string& entity, const std::string& action
   labels_[static_cast<size_t>(e)] = l;
 }
 
-void DemoRecorder::clearLabels() { labels_.assign(spec_.entities.size(), task::Label{}); }
+void DemoRecorder::clearLabels() {
+  labels_.assign(spec_.entities.size(), task::Label{});
+}
 
 bool DemoRecorder::addRow(double t_abs, const std::vector<Eigen::Vector2d>& positions) {
   if (fd_ < 0) throw Error("not recording");

@@ -19,10 +19,11 @@ SyntheticCameraConfig parseSyntheticCameraConfig(const std::string& text, const 
   YamlChecker r(file);
   SyntheticCameraConfig c;
   const YAML::Node root = parseRoot(r, text, "the synthetic camera configuration");
-  r.onlyKeys(root,
-             {"width", "height", "hfov_deg", "position", "look_at", "roll_deg", "table_size", "table_margin", "body_size",
-              "blur_sigma", "noise_sigma", "light_amplitude", "light_period", "light_gradient", "occlusions", "seed"},
-             "the synthetic camera configuration");
+  r.onlyKeys(
+      root,
+      {"width", "height", "hfov_deg", "position", "look_at", "roll_deg", "table_size", "table_margin", "body_size",
+       "blur_sigma", "noise_sigma", "light_amplitude", "light_period", "light_gradient", "occlusions", "seed"},
+      "the synthetic camera configuration");
   c.width = integerOr(r, root, "width", c.width, 64, 8192);
   c.height = integerOr(r, root, "height", c.height, 64, 8192);
   c.hfov_deg = numberOr(r, root, "hfov_deg", c.hfov_deg, 5.0, 170.0);
@@ -138,7 +139,9 @@ CameraModel SyntheticCamera::camera() const {
   return m;
 }
 
-TableFrame SyntheticCamera::tableFrame() const { return TableFrame::fromCameraPose(K_, R_, t_); }
+TableFrame SyntheticCamera::tableFrame() const {
+  return TableFrame::fromCameraPose(K_, R_, t_);
+}
 
 bool SyntheticCamera::occluded(const std::string& entity, double t_s) const {
   for (const auto& o : config_.occlusions)

@@ -63,8 +63,8 @@ std::optional<TableFrame> TableFrame::fromCornerMarkers(const std::vector<Detect
   return f;
 }
 
-TableFit TableFrame::fitCornerMarkers(const std::vector<Detection>& detections, const std::vector<CornerMarker>& corners,
-                                      double corner_size_m) {
+TableFit TableFrame::fitCornerMarkers(const std::vector<Detection>& detections,
+                                      const std::vector<CornerMarker>& corners, double corner_size_m) {
   TableFit fit;
   const auto exact = fromCornerMarkers(detections, corners);
   if (!exact) return fit;
@@ -131,7 +131,8 @@ std::optional<ParallaxEstimate> estimateParallaxWithoutIntrinsics(const TableFra
   const double d1 = a1[2] * a2[2], d2 = a1[2] * a1[2] - a2[2] * a2[2];
   // Each equation only when its perspective terms are not lost in rounding.
   if (std::abs(d1) > 1e-9 * scale * scale) f2.push_back(-(a1[0] * a2[0] + a1[1] * a2[1]) / d1);
-  if (std::abs(d2) > 1e-9 * scale * scale) f2.push_back(-(a1[0] * a1[0] + a1[1] * a1[1] - a2[0] * a2[0] - a2[1] * a2[1]) / d2);
+  if (std::abs(d2) > 1e-9 * scale * scale)
+    f2.push_back(-(a1[0] * a1[0] + a1[1] * a1[1] - a2[0] * a2[0] - a2[1] * a2[1]) / d2);
   ParallaxEstimate est;
   for (double v : f2)
     if (v > 0 && std::sqrt(v) > 0.2 * image.width && std::sqrt(v) < 20.0 * image.width) {
@@ -200,8 +201,12 @@ bool TableFrame::setIntrinsics(const cv::Matx33d& K) {
   return true;
 }
 
-cv::Point2d TableFrame::imageToTable(const cv::Point2d& px) const { return apply(H_, px); }
-cv::Point2d TableFrame::tableToImage(const cv::Point2d& xy) const { return apply(Hinv_, xy); }
+cv::Point2d TableFrame::imageToTable(const cv::Point2d& px) const {
+  return apply(H_, px);
+}
+cv::Point2d TableFrame::tableToImage(const cv::Point2d& xy) const {
+  return apply(Hinv_, xy);
+}
 
 PlanarPose TableFrame::markerPose(const Detection& d, double height_m) const {
   std::array<cv::Point2d, 4> c;

@@ -104,14 +104,11 @@ MarkerConfig parseMarkerConfig(const std::string& text, const std::string& file)
       em.name = stringOr(r, e, "name", "");
       if (!task::isValidName(em.name))
         r.error(e["name"], "entity name '" + em.name + "' must match [A-Za-z][A-Za-z0-9_]*");
-      else if (!names.insert(em.name).second)
-        r.error(e["name"], "entity name '" + em.name + "' is used twice");
+      else if (!names.insert(em.name).second) r.error(e["name"], "entity name '" + em.name + "' is used twice");
       const std::string kind = stringOr(r, e, "kind", "robot");
       const auto k = task::entityKindFromString(kind);
-      if (!k)
-        r.error(e["kind"], "kind must be robot, object or goal (got '" + kind + "')");
-      else
-        em.kind = *k;
+      if (!k) r.error(e["kind"], "kind must be robot, object or goal (got '" + kind + "')");
+      else em.kind = *k;
       em.type = stringOr(r, e, "type", "");
       em.size_m = numberOr(r, e, "size", default_size, 1e-3, 1.0);
       em.height_m = numberOr(r, e, "height", default_height, 0.0, 1.0);
@@ -192,9 +189,12 @@ TrackerConfig loadTrackerConfig(const std::string& markers_path, const std::stri
 
 std::string heightCorrectionName(HeightCorrection state) {
   switch (state) {
-    case HeightCorrection::On: return "on";
-    case HeightCorrection::NoIntrinsics: return "off: no intrinsics";
-    case HeightCorrection::IntrinsicsDoNotFit: return "off: the intrinsics do not fit the table frame";
+    case HeightCorrection::On:
+      return "on";
+    case HeightCorrection::NoIntrinsics:
+      return "off: no intrinsics";
+    case HeightCorrection::IntrinsicsDoNotFit:
+      return "off: the intrinsics do not fit the table frame";
   }
   return "?";
 }
@@ -273,8 +273,8 @@ std::vector<cv::Rect> Tracker::regions(const cv::Size& size, double stamp, const
     const EntityMarker* em = config_.markers.entityById(id);
     const double px_per_m = det.sidePx() / (em ? em->size_m : config_.markers.corner_size_m);
     const double reach_m = config_.filter.max_speed_mps * dt + config_.filter.gate_margin_m;
-    const double margin = std::max<double>(config_.roi.min_margin_px, config_.roi.margin * det.sidePx()) +
-                          reach_m * px_per_m;
+    const double margin =
+        std::max<double>(config_.roi.min_margin_px, config_.roi.margin * det.sidePx()) + reach_m * px_per_m;
     if (const auto v = velocity_px_.find(id); v != velocity_px_.end()) {
       const cv::Point shift(cvRound(v->second.x * dt), cvRound(v->second.y * dt));
       box |= cv::Rect(box.tl() + shift, box.size());
@@ -290,14 +290,10 @@ std::vector<cv::Rect> Tracker::regions(const cv::Size& size, double stamp, const
 
 FrameResult Tracker::process(const cv::Mat& image, double stamp) {
   if (image.empty()) throw Error("tracker: empty image");
-  if (image.channels() == 3)
-    cv::cvtColor(image, gray_, cv::COLOR_BGR2GRAY);
-  else if (image.channels() == 4)
-    cv::cvtColor(image, gray_, cv::COLOR_BGRA2GRAY);
-  else if (image.type() == CV_8UC1)
-    gray_ = image;
-  else
-    throw Error("tracker: unsupported image type (need 8-bit mono, BGR or BGRA)");
+  if (image.channels() == 3) cv::cvtColor(image, gray_, cv::COLOR_BGR2GRAY);
+  else if (image.channels() == 4) cv::cvtColor(image, gray_, cv::COLOR_BGRA2GRAY);
+  else if (image.type() == CV_8UC1) gray_ = image;
+  else throw Error("tracker: unsupported image type (need 8-bit mono, BGR or BGRA)");
 
   if (camera_.valid && camera_.image_size.area() > 0 && gray_.size() != camera_.image_size)
     throw Error("tracker: the image is " + std::to_string(gray_.cols) + "x" + std::to_string(gray_.rows) +
@@ -307,8 +303,8 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
   FrameResult result;
   result.stamp = stamp;
   const bool need_table = !table_ && !config_.markers.corners.empty();
-  result.full_frame = !config_.roi.enabled || need_table || last_seen_px_.empty() ||
-                      frames_ % config_.roi.full_frame_every == 0;
+  result.full_frame =
+      !config_.roi.enabled || need_table || last_seen_px_.empty() || frames_ % config_.roi.full_frame_every == 0;
   ++frames_;
   if (!result.full_frame) {
     result.rois = regions(gray_.size(), stamp);

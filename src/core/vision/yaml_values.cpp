@@ -46,8 +46,8 @@ int integerOr(YamlChecker& c, const YAML::Node& map, const std::string& key, int
     return fallback;
   }
   if (v < lo || v > hi) {
-    c.error(n, "'" + key + "' = " + n.Scalar() + " is out of range [" + std::to_string(lo) + ", " +
-                   std::to_string(hi) + "]");
+    c.error(n, "'" + key + "' = " + n.Scalar() + " is out of range [" + std::to_string(lo) + ", " + std::to_string(hi) +
+                   "]");
     return fallback;
   }
   return static_cast<int>(v);

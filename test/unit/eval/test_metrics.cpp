@@ -20,8 +20,7 @@ task::TaskDir testSet(const std::string& family, int demos = 3) {
 }
 
 /// Replays the ground truth's steps, then END; `mutate` may change step k.
-exec::Policy replay(const task::Demonstration& gt,
-                    std::function<void(size_t, exec::Decision&)> mutate = nullptr) {
+exec::Policy replay(const task::Demonstration& gt, std::function<void(size_t, exec::Decision&)> mutate = nullptr) {
   return [&gt, mutate](const std::vector<task::Snapshot>& history) {
     exec::Decision d;
     const size_t k = history.size() - 1;

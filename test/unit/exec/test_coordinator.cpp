@@ -24,9 +24,13 @@ EntityObservation observe(const std::vector<Vector2d>& positions, bool tracked =
   return {positions, std::vector<bool>(positions.size(), tracked)};
 }
 
-task::Token tok(const task::TaskSpec& spec, const std::string& key) { return task::parseTokenKey(key, spec); }
+task::Token tok(const task::TaskSpec& spec, const std::string& key) {
+  return task::parseTokenKey(key, spec);
+}
 
-PlannedPath straight(const PathRequest& r) { return {{r.start, r.goal}, {0, 0}}; }
+PlannedPath straight(const PathRequest& r) {
+  return {{r.start, r.goal}, {0, 0}};
+}
 
 /// A status as an executor sends it on `entity`'s own topic.
 StatusReport report(const Coordinator& c, int entity, uint32_t segment_id, SegmentState st, double progress,
@@ -118,7 +122,8 @@ TEST_F(Fixture, NextDecisionOnlyWhenEveryActiveRobotIsDone) {
   for (double t = 0.3; t < 5.0; t += 0.1) {
     EXPECT_FALSE(c.onTick(t).decision);
     EXPECT_FALSE(c.onEntities(observe(start), t).decision);
-    EXPECT_FALSE(c.onSegmentStatus(report(c, segs[0].entity, segs[0].segment_id, SegmentState::Running, t / 5, ""), t).decision);
+    EXPECT_FALSE(
+        c.onSegmentStatus(report(c, segs[0].entity, segs[0].segment_id, SegmentState::Running, t / 5, ""), t).decision);
   }
   // The first robot is done: still waiting for the second.
   auto out = arriveDone(c, segs[0], 5.0);
@@ -191,7 +196,8 @@ TEST_F(Fixture, SegmentTimeoutAbortsAndStopsTheRobots) {
 
 TEST_F(Fixture, FailedSegmentAborts) {
   const auto segs = runToFirstStep();
-  const auto out = c.onSegmentStatus(report(c, segs[1].entity, segs[1].segment_id, SegmentState::Failed, 0.3, "pose stale"), 1);
+  const auto out =
+      c.onSegmentStatus(report(c, segs[1].entity, segs[1].segment_id, SegmentState::Failed, 0.3, "pose stale"), 1);
   EXPECT_EQ(c.state(), RunState::Aborted);
   EXPECT_TRUE(out.stop_all);
   EXPECT_NE(c.reason().find("pose stale"), std::string::npos);

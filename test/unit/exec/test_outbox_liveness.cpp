@@ -84,7 +84,7 @@ TEST(PathBand, EdgesLieTwoSigmaEitherSideOfTheDirectionOfTravel) {
   std::vector<Eigen::Vector2d> l, r;
   sigmaBandEdges(p, 2.0, l, r);
   ASSERT_EQ(l.size(), 3u);
-  EXPECT_TRUE(l[0].isApprox(Eigen::Vector2d(0, 0.2)));   // +x travel: left is +y
+  EXPECT_TRUE(l[0].isApprox(Eigen::Vector2d(0, 0.2)));  // +x travel: left is +y
   EXPECT_TRUE(r[1].isApprox(Eigen::Vector2d(1, -0.4)));
   EXPECT_TRUE(l[2].isApprox(Eigen::Vector2d(2, 0)));
   EXPECT_EQ(sigmaBandTriangles(p, 2.0).size(), 12u);

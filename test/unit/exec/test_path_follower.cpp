@@ -23,7 +23,7 @@ struct FollowRun {
 
 /// Closed loop at 50 Hz until done or `limit_s`.
 FollowRun follow(const PlannedPath& path, Pose2D start, DiffDriveParams dp = {}, FollowerGains g = {},
-           double limit_s = 30) {
+                 double limit_s = 30) {
   DiffDriveModel robot(dp, start);
   PathFollower f(g);
   f.setPath(path);

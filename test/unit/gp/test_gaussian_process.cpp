@@ -43,7 +43,9 @@ Eigen::VectorXd vec(const YAML::Node& n) {
   return v;
 }
 
-gp::Bounds bounds(const YAML::Node& n) { return {n[0].as<double>(), n[1].as<double>()}; }
+gp::Bounds bounds(const YAML::Node& n) {
+  return {n[0].as<double>(), n[1].as<double>()};
+}
 
 }  // namespace
 
@@ -74,8 +76,8 @@ TEST(Reduction, LikelihoodAndGradientEqualTheNaiveComputation) {
   const RepeatedData d = RepeatedData::group(x, y);
   ASSERT_EQ(d.inputs.size(), 43);
   for (bool use_constant : {true, false}) {
-    for (const gp::KernelParams& p : {gp::KernelParams{0.2, 0.3, 1e-4}, gp::KernelParams{1.5, 0.05, 0.02},
-                                      gp::KernelParams{0.01, 2.0, 1e-6}}) {
+    for (const gp::KernelParams& p :
+         {gp::KernelParams{0.2, 0.3, 1e-4}, gp::KernelParams{1.5, 0.05, 0.02}, gp::KernelParams{0.01, 2.0, 1e-6}}) {
       const Eigen::VectorXd theta = gp::toTheta(p, use_constant);
       Eigen::VectorXd g_fast, g_naive;
       const double fast = gp::logMarginalLikelihood(d, theta, use_constant, 1e-10, &g_fast);
@@ -170,8 +172,8 @@ TEST(Likelihood, GradientMatchesFiniteDifferences) {
     Eigen::VectorXd tp = theta, tm = theta;
     tp[j] += h;
     tm[j] -= h;
-    const double fd = (gp::logMarginalLikelihood(d, tp, true, 1e-10) - gp::logMarginalLikelihood(d, tm, true, 1e-10)) /
-                      (2 * h);
+    const double fd =
+        (gp::logMarginalLikelihood(d, tp, true, 1e-10) - gp::logMarginalLikelihood(d, tm, true, 1e-10)) / (2 * h);
     EXPECT_NEAR(g[j], fd, 1e-4 * (1 + std::abs(fd))) << "component " << j;
   }
 }

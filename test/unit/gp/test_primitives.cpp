@@ -74,7 +74,9 @@ std::string readText(const std::string& path) {
   return s.str();
 }
 
-void writeText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+void writeText(const std::string& path, const std::string& text) {
+  std::ofstream(path) << text;
+}
 
 /// load() must throw a ddace::Error whose message names the file and contains `what`.
 void expectLoadError(const std::string& path, const std::string& what) {
@@ -270,8 +272,8 @@ TEST(PrimitiveLibrary, CorruptedFilesAreRejectedCleanly) {
   expectLoadError(short_means, "'means' must be a list of 100 numbers");
 
   const std::string unknown_entity = dir + "/unknown_entity.yaml";
-  writeText(unknown_entity, std::regex_replace(text, std::regex("entity: R1"), "entity: Q7",
-                                               std::regex_constants::format_first_only));
+  writeText(unknown_entity,
+            std::regex_replace(text, std::regex("entity: R1"), "entity: Q7", std::regex_constants::format_first_only));
   expectLoadError(unknown_entity, "unknown entity 'Q7'");
 
   // Diagnostics carry a line number (file:line:column).

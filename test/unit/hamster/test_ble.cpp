@@ -134,9 +134,8 @@ class BleTest : public ::testing::Test {
     sd_bus_message* m = nullptr;
     sd_bus_message* reply = nullptr;
     sd_bus_error e = SD_BUS_ERROR_NULL;
-    ASSERT_GE(sd_bus_message_new_method_call(control_, &m, "org.bluez", "/org/ddace/mock", "org.ddace.MockBluez",
-                                             member),
-              0);
+    ASSERT_GE(
+        sd_bus_message_new_method_call(control_, &m, "org.bluez", "/org/ddace/mock", "org.ddace.MockBluez", member), 0);
     if (bytes) {
       ASSERT_GE(sd_bus_message_append_array(m, 'y', bytes->data(), bytes->size()), 0);
     }
@@ -160,8 +159,8 @@ class BleTest : public ::testing::Test {
     std::vector<std::tuple<uint32_t, std::vector<uint8_t>, std::string>> out;
     sd_bus_message* reply = nullptr;
     sd_bus_error e = SD_BUS_ERROR_NULL;
-    if (sd_bus_call_method(control_, "org.bluez", "/org/ddace/mock", "org.ddace.MockBluez", "Writes", &e, &reply,
-                           "") < 0) {
+    if (sd_bus_call_method(control_, "org.bluez", "/org/ddace/mock", "org.ddace.MockBluez", "Writes", &e, &reply, "") <
+        0) {
       ADD_FAILURE() << "mock Writes: " << (e.message ? e.message : "?");
       sd_bus_error_free(&e);
       return out;
@@ -186,8 +185,8 @@ class BleTest : public ::testing::Test {
   std::vector<std::string> calls() {
     std::vector<std::string> out;
     sd_bus_message* reply = nullptr;
-    if (sd_bus_call_method(control_, "org.bluez", "/org/ddace/mock", "org.ddace.MockBluez", "Calls", nullptr,
-                           &reply, "") < 0) {
+    if (sd_bus_call_method(control_, "org.bluez", "/org/ddace/mock", "org.ddace.MockBluez", "Calls", nullptr, &reply,
+                           "") < 0) {
       ADD_FAILURE() << "mock Calls failed";
       return out;
     }
@@ -249,8 +248,7 @@ TEST_F(BleTest, TransportConnectsIdentifiesAndPresentsTheDongleProtocol) {
   EXPECT_TRUE(t.connecting());
   char buf[512];
   // The mock does not know the robot until discovery ran, and connects after 0.3 s.
-  ASSERT_TRUE(runUntil([&] { return t.read(buf, sizeof buf) == 0 && !t.connecting(); }, 10.0))
-      << "no connection";
+  ASSERT_TRUE(runUntil([&] { return t.read(buf, sizeof buf) == 0 && !t.connecting(); }, 10.0)) << "no connection";
   const auto c = calls();
   ASSERT_GE(c.size(), 3u);
   const auto at = [&](const std::string& s) { return std::find(c.begin(), c.end(), s) - c.begin(); };
@@ -269,11 +267,15 @@ TEST_F(BleTest, TransportConnectsIdentifiesAndPresentsTheDongleProtocol) {
     lines.push(buf, n, [&](std::string_view l) { parsed.push_back(parseLine(l)); });
     return n;
   };
-  ASSERT_TRUE(runUntil([&] {
-    collect();
-    return std::any_of(parsed.begin(), parsed.end(), [](const ParsedLine& p) { return p.kind == LineKind::Identify; });
-  }, 2.0));
-  const auto id = std::find_if(parsed.begin(), parsed.end(), [](const ParsedLine& p) { return p.kind == LineKind::Identify; });
+  ASSERT_TRUE(runUntil(
+      [&] {
+        collect();
+        return std::any_of(parsed.begin(), parsed.end(),
+                           [](const ParsedLine& p) { return p.kind == LineKind::Identify; });
+      },
+      2.0));
+  const auto id =
+      std::find_if(parsed.begin(), parsed.end(), [](const ParsedLine& p) { return p.kind == LineKind::Identify; });
   EXPECT_EQ(id->identify.model, Model::Hamster);
   EXPECT_EQ(id->identify.name, "Hamster");
   EXPECT_EQ(id->identify.address, address());
@@ -282,11 +284,14 @@ TEST_F(BleTest, TransportConnectsIdentifiesAndPresentsTheDongleProtocol) {
   // Notifications become 54-character sensor lines with our address.
   setSensor(sensorPayload());
   parsed.clear();
-  ASSERT_TRUE(runUntil([&] {
-    collect();
-    return std::any_of(parsed.begin(), parsed.end(),
-                       [&](const ParsedLine& p) { return p.kind == LineKind::Data && p.payload == sensorPayload(); });
-  }, 2.0));
+  ASSERT_TRUE(runUntil(
+      [&] {
+        collect();
+        return std::any_of(parsed.begin(), parsed.end(), [&](const ParsedLine& p) {
+          return p.kind == LineKind::Data && p.payload == sensorPayload();
+        });
+      },
+      2.0));
   for (const auto& p : parsed) {
     if (p.kind == LineKind::Data) {
       EXPECT_EQ(p.address, address());
@@ -296,10 +301,13 @@ TEST_F(BleTest, TransportConnectsIdentifiesAndPresentsTheDongleProtocol) {
   // A notification of the wrong length: counted, and a line RobotLink drops.
   notifyRaw(std::vector<uint8_t>(19, 0x11));
   parsed.clear();
-  ASSERT_TRUE(runUntil([&] {
-    collect();
-    return std::any_of(parsed.begin(), parsed.end(), [](const ParsedLine& p) { return p.kind == LineKind::Malformed; });
-  }, 2.0));
+  ASSERT_TRUE(runUntil(
+      [&] {
+        collect();
+        return std::any_of(parsed.begin(), parsed.end(),
+                           [](const ParsedLine& p) { return p.kind == LineKind::Malformed; });
+      },
+      2.0));
   EXPECT_EQ(t.malformedNotifications(), 1u);
 
   // A motoring line goes out as its 20-byte payload, written without response.
@@ -310,11 +318,13 @@ TEST_F(BleTest, TransportConnectsIdentifiesAndPresentsTheDongleProtocol) {
   const std::string line = encodeLine(motoring, address());
   t.write(line.data(), 20);  // in two pieces, as a byte stream may come
   t.write(line.data() + 20, line.size() - 20);
-  ASSERT_TRUE(runUntil([&] {
-    collect();
-    const auto w = writes();
-    return !w.empty() && std::get<1>(w.back()) == std::vector<uint8_t>(motoring.begin(), motoring.end());
-  }, 2.0));
+  ASSERT_TRUE(runUntil(
+      [&] {
+        collect();
+        const auto w = writes();
+        return !w.empty() && std::get<1>(w.back()) == std::vector<uint8_t>(motoring.begin(), motoring.end());
+      },
+      2.0));
   EXPECT_EQ(std::get<2>(writes().back()), "command");
 
   // A congested link: motion commands beyond kMaxPendingWrites unacknowledged writes are
@@ -344,22 +354,26 @@ TEST_F(BleTest, TransportConnectsIdentifiesAndPresentsTheDongleProtocol) {
   const Payload stop = encodeEffector(Model::Hamster, Effector{});
   const std::string stop_line = encodeLine(stop, address());
   EXPECT_NO_THROW(t.write(stop_line.data(), stop_line.size()));
-  ASSERT_TRUE(runUntil([&] {
-    collect();
-    const auto w = writes();
-    return !w.empty() && std::get<1>(w.back()) == std::vector<uint8_t>(stop.begin(), stop.end());
-  }, 2.0));
+  ASSERT_TRUE(runUntil(
+      [&] {
+        collect();
+        const auto w = writes();
+        return !w.empty() && std::get<1>(w.back()) == std::vector<uint8_t>(stop.begin(), stop.end());
+      },
+      2.0));
   EXPECT_EQ(writes().size(), before + accepted + 1) << "the refused command went out";
   control("HoldWrites", nullptr, 0);
-  ASSERT_TRUE(runUntil([&] {
-    collect();
-    try {
-      t.write(slow_line.data(), slow_line.size());  // accepted again once acknowledged
-      return true;
-    } catch (const ddace::Error&) {
-      return false;
-    }
-  }, 2.0));
+  ASSERT_TRUE(runUntil(
+      [&] {
+        collect();
+        try {
+          t.write(slow_line.data(), slow_line.size());  // accepted again once acknowledged
+          return true;
+        } catch (const ddace::Error&) {
+          return false;
+        }
+      },
+      2.0));
 
   // Anything else written is refused, as is a line for another robot.
   EXPECT_THROW(t.write("hello\r", 6), ddace::Error);
@@ -402,14 +416,24 @@ TEST_F(BleTest, RobotLinkDrivesReconnectsAndFailsSafe) {
     link.poll(t, reports);
     all.insert(all.end(), reports.begin(), reports.end());
   };
-  ASSERT_TRUE(runUntil([&] { step(); return link.state() == LinkState::Streaming; }, 10.0))
+  ASSERT_TRUE(runUntil(
+      [&] {
+        step();
+        return link.state() == LinkState::Streaming;
+      },
+      10.0))
       << "not streaming: " << link.stats().last_error;
   EXPECT_EQ(link.port(), "ble:hci0/D9:4B:8B:A4:E1:67");
   EXPECT_EQ(link.model(), Model::Hamster);
   EXPECT_EQ(link.stats().connects, 1u);
 
   // Sensor notifications decoded through RobotLink.
-  ASSERT_TRUE(runUntil([&] { step(); return all.size() >= 5; }, 3.0));
+  ASSERT_TRUE(runUntil(
+      [&] {
+        step();
+        return all.size() >= 5;
+      },
+      3.0));
   const Sensors& s = all.back().sensors;
   EXPECT_EQ(s.proximity_left, 17);
   EXPECT_EQ(s.proximity_right, 42);
@@ -436,11 +460,13 @@ TEST_F(BleTest, RobotLinkDrivesReconnectsAndFailsSafe) {
   const std::vector<uint8_t> driving_bytes(driving.begin(), driving.end());
   command = true;
   const size_t before = writes().size();
-  ASSERT_TRUE(runUntil([&] {
-    step();
-    const auto w = writes();
-    return w.size() > before + 5 && std::get<1>(w.back()) == driving_bytes;
-  }, 3.0));
+  ASSERT_TRUE(runUntil(
+      [&] {
+        step();
+        const auto w = writes();
+        return w.size() > before + 5 && std::get<1>(w.back()) == driving_bytes;
+      },
+      3.0));
   for (const auto& [connection, bytes, type] : writes()) {
     EXPECT_EQ(connection, 1u);
     EXPECT_EQ(type, "command");
@@ -450,7 +476,12 @@ TEST_F(BleTest, RobotLinkDrivesReconnectsAndFailsSafe) {
   // A notification of the wrong length is counted and dropped; the link stays.
   const uint64_t dropped = link.stats().lines_dropped;
   notifyRaw(std::vector<uint8_t>(19, 0x11));
-  ASSERT_TRUE(runUntil([&] { step(); return link.stats().lines_dropped > dropped; }, 2.0));
+  ASSERT_TRUE(runUntil(
+      [&] {
+        step();
+        return link.stats().lines_dropped > dropped;
+      },
+      2.0));
   EXPECT_EQ(link.stats().lines_dropped, dropped + 1);
   EXPECT_NE(link.stats().last_drop_reason.find("characters"), std::string::npos) << link.stats().last_drop_reason;
   EXPECT_EQ(link.state(), LinkState::Streaming);
@@ -458,35 +489,54 @@ TEST_F(BleTest, RobotLinkDrivesReconnectsAndFailsSafe) {
   // The radio link breaks (Connected=false): link lost at once, reconnection.
   command = false;
   control("Drop");
-  ASSERT_TRUE(runUntil([&] { step(); return link.stats().link_losses == 1; }, 2.0));
+  ASSERT_TRUE(runUntil(
+      [&] {
+        step();
+        return link.stats().link_losses == 1;
+      },
+      2.0));
   EXPECT_NE(link.stats().last_error.find("Connected=false"), std::string::npos) << link.stats().last_error;
-  ASSERT_TRUE(runUntil([&] { step(); return link.state() == LinkState::Streaming; }, 10.0))
+  ASSERT_TRUE(runUntil(
+      [&] {
+        step();
+        return link.state() == LinkState::Streaming;
+      },
+      10.0))
       << "no reconnection: " << link.stats().last_error;
   EXPECT_EQ(link.stats().connects, 2u);
   EXPECT_EQ(countOf(calls(), "Connect"), 2u);
   // The last command is older than command_timeout_s: zero wheels until a fresh one.
-  ASSERT_TRUE(runUntil([&] {
-    step();
-    size_t n = 0;
-    for (const auto& w : writes()) n += std::get<0>(w) == 2;
-    return n >= 5;
-  }, 3.0));
+  ASSERT_TRUE(runUntil(
+      [&] {
+        step();
+        size_t n = 0;
+        for (const auto& w : writes()) n += std::get<0>(w) == 2;
+        return n >= 5;
+      },
+      3.0));
   for (const auto& [connection, bytes, type] : writes()) {
     if (connection != 2) continue;
     EXPECT_EQ(bytes[3], 0);
     EXPECT_EQ(bytes[4], 0);
   }
   command = true;
-  ASSERT_TRUE(runUntil([&] {
-    step();
-    const auto w = writes();
-    return std::get<0>(w.back()) == 2 && std::get<1>(w.back()) == driving_bytes;
-  }, 3.0));
+  ASSERT_TRUE(runUntil(
+      [&] {
+        step();
+        const auto w = writes();
+        return std::get<0>(w.back()) == 2 && std::get<1>(w.back()) == driving_bytes;
+      },
+      3.0));
 
   // Notifications stop while connected (stall): after link_timeout_s the link is lost
   // and the last line written is zero wheels, before the robot is disconnected.
   control("Stall", nullptr, 1);
-  ASSERT_TRUE(runUntil([&] { step(); return link.stats().link_losses == 2; }, 3.0));
+  ASSERT_TRUE(runUntil(
+      [&] {
+        step();
+        return link.stats().link_losses == 2;
+      },
+      3.0));
   const auto w = writes();
   ASSERT_FALSE(w.empty());
   EXPECT_EQ(std::get<1>(w.back())[3], 0);

@@ -57,15 +57,16 @@ TEST(HamsterConfig, ErrorsNameFileLineAndColumn) {
   EXPECT_EQ(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BZZ\n    calibration: {mps_per_unit: 0.002}\n"),
             "h.yaml:3:14: robot R1: address '67E1A48B4BZZ' is neither 12 hex digits (wire order) nor "
             "AA:BB:CC:DD:EE:FF");
-  EXPECT_NE(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BD9\n").find(
-                "h.yaml:2:5: robot R1: missing key 'calibration'"),
+  EXPECT_NE(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BD9\n")
+                .find("h.yaml:2:5: robot R1: missing key 'calibration'"),
             std::string::npos);
   EXPECT_NE(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BD9\n    calibration: {mps_per_unit: -1}\n")
                 .find("mps_per_unit must be > 0"),
             std::string::npos);
-  EXPECT_NE(errorOf(std::string(kRobot) + "  - name: R2\n    address: 67e1a48b4bd9\n    calibration: {mps_per_unit: 1}\n")
-                .find("h.yaml:6:14: address D9:4B:8B:A4:E1:67 of robot R2 is also used by robots[0]"),
-            std::string::npos);
+  EXPECT_NE(
+      errorOf(std::string(kRobot) + "  - name: R2\n    address: 67e1a48b4bd9\n    calibration: {mps_per_unit: 1}\n")
+          .find("h.yaml:6:14: address D9:4B:8B:A4:E1:67 of robot R2 is also used by robots[0]"),
+      std::string::npos);
   EXPECT_NE(errorOf(std::string("speed: 3\n") + kRobot).find("h.yaml:1:1: unknown key 'speed'"), std::string::npos);
   EXPECT_NE(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BD9\n    model: turtle\n"
                     "    calibration: {mps_per_unit: 0.002}\n")
@@ -89,7 +90,8 @@ TEST(HamsterConfig, ErrorsNameFileLineAndColumn) {
   EXPECT_NE(errorOf(std::string("battery_low_v: 3.4\nbattery_empty_v: 3.5\n") + kRobot)
                 .find("battery_empty_v (3.500000) must be below battery_low_v (3.400000)"),
             std::string::npos);
-  const BridgeConfig c = parseBridgeConfig(std::string("battery_low_v: 3.7\ncommand_max_age_s: 0.1\n") + kRobot, "h.yaml");
+  const BridgeConfig c =
+      parseBridgeConfig(std::string("battery_low_v: 3.7\ncommand_max_age_s: 0.1\n") + kRobot, "h.yaml");
   EXPECT_DOUBLE_EQ(c.battery_low_v, 3.7);
   EXPECT_DOUBLE_EQ(c.battery_empty_v, 3.0);
   EXPECT_DOUBLE_EQ(c.command_max_age_s, 0.1);
@@ -138,16 +140,18 @@ TEST(HamsterConfig, TransportKeys) {
   // Serial is the default; a global transport applies to robots without their own.
   BridgeConfig c = parseBridgeConfig(kRobot, "h.yaml");
   EXPECT_EQ(c.robots[0].transport, TransportKind::Serial);
-  EXPECT_NE(errorOf("transport: usb\n" + std::string(kRobot)).find("h.yaml:1:12: transport 'usb' is not one of serial, ble"),
-            std::string::npos);
+  EXPECT_NE(
+      errorOf("transport: usb\n" + std::string(kRobot)).find("h.yaml:1:12: transport 'usb' is not one of serial, ble"),
+      std::string::npos);
   EXPECT_NE(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BD9\n    ble_adapter: hci1\n" + cal)
                 .find("h.yaml:4:18: robot R1: ble_adapter applies to transport ble only"),
             std::string::npos);
   const std::string ble_robot = "robots:\n  - name: R1\n    address: 67E1A48B4BD9\n    transport: ble\n";
   if (!bleBuilt()) {
     // Never silently serial: a clear error naming the place and the build option.
-    EXPECT_NE(errorOf(ble_robot + cal).find("h.yaml:4:16: robot R1 transport 'ble': this ddace was built without "
-                                            "direct BLE (CMake option DDACE_WITH_BLE=OFF"),
+    EXPECT_NE(errorOf(ble_robot + cal)
+                  .find("h.yaml:4:16: robot R1 transport 'ble': this ddace was built without "
+                        "direct BLE (CMake option DDACE_WITH_BLE=OFF"),
               std::string::npos);
     EXPECT_NE(errorOf("transport: ble\n" + std::string(kRobot)).find("h.yaml:1:12: transport 'ble': this ddace"),
               std::string::npos);
@@ -167,7 +171,8 @@ TEST(HamsterConfig, TransportKeys) {
   EXPECT_NE(errorOf(ble_robot + "    port_hints: [ttyUSB0]\n" + cal)
                 .find("h.yaml:5:17: robot R1: port_hints apply to transport serial only"),
             std::string::npos);
-  EXPECT_NE(errorOf(ble_robot + "    ble_adapter: /org/bluez\n" + cal).find("h.yaml:5:18: robot R1 ble_adapter "
-                                                                         "'/org/bluez' is not a BlueZ adapter name"),
+  EXPECT_NE(errorOf(ble_robot + "    ble_adapter: /org/bluez\n" + cal)
+                .find("h.yaml:5:18: robot R1 ble_adapter "
+                      "'/org/bluez' is not a BlueZ adapter name"),
             std::string::npos);
 }

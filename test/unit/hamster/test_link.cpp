@@ -135,7 +135,8 @@ TEST_F(LinkTest, FindsEachRobotByAddressAndDrivesItsWheels) {
   EXPECT_EQ(l1.stats().lines_dropped, 0u);
   // Sensors arrive decoded, battery included.
   bool battery = false;
-  for (const auto& r : reports_) battery = battery || (r.sensors.has_battery && std::abs(r.sensors.battery_v - 3.9) < 1e-9);
+  for (const auto& r : reports_)
+    battery = battery || (r.sensors.has_battery && std::abs(r.sensors.battery_v - 3.9) < 1e-9);
   EXPECT_TRUE(battery);
 }
 

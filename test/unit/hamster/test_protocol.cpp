@@ -71,7 +71,7 @@ TEST(HamsterProtocol, WheelsAreClampedToPlusMinus100) {
 
 TEST(HamsterProtocol, LedsAndSound) {
   Effector e;
-  e.left_led_rgb = {255, 0, 0};    // red
+  e.left_led_rgb = {255, 0, 0};     // red
   e.right_led_rgb = {0, 200, 255};  // cyan = green + blue
   e.buzzer_hz = 440.0;
   Payload p = encodeEffector(Model::Hamster, e);
@@ -82,7 +82,7 @@ TEST(HamsterProtocol, LedsAndSound) {
   EXPECT_EQ(p[3], 255);
   EXPECT_EQ(p[7], 200);
   EXPECT_EQ(hex(p).substr(36, 4), "1330");  // 440 * 10 + 512 = 4912
-  e.note = 49;  // a note wins over the buzzer
+  e.note = 49;                              // a note wins over the buzzer
   EXPECT_EQ(hex(encodeEffector(Model::HamsterS, e)).substr(36, 4), "0131");
   p = encodeEffector(Model::Hamster, e);
   EXPECT_EQ(p[10], 49);

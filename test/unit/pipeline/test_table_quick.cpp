@@ -17,8 +17,9 @@ TEST(TableQuick, WritesResultsAndEveryFigure) {
   fs::remove_all(out);
   // The table pins libtorch's kernels to AVX2 whatever the caller's environment says: a
   // model trained alone with AVX2 kernels must equal the table's (below).
-  const std::string cmd = "ATEN_CPU_CAPABILITY=default '" + ddace.string() + "' table --quick --out '" + (out / "run").string() + "' --docs '" +
-                          (out / "docs").string() + "' > '" + (out.string() + ".log") + "' 2>&1";
+  const std::string cmd = "ATEN_CPU_CAPABILITY=default '" + ddace.string() + "' table --quick --out '" +
+                          (out / "run").string() + "' --docs '" + (out / "docs").string() + "' > '" +
+                          (out.string() + ".log") + "' 2>&1";
   fs::create_directories(out);
   const int rc = std::system(cmd.c_str());
   std::ifstream log(out.string() + ".log");
@@ -31,14 +32,14 @@ TEST(TableQuick, WritesResultsAndEveryFigure) {
   std::stringstream text;
   text << md.rdbuf();
   const std::string results = text.str();
-  for (const char* needle : {"| task1 | DDACE (the paper's network) |", "| task1 | DDACE, scene network (default) |",
-                             "| task4 | w/o spectral clustering |", "| task2 | GNN |", "| task3 | LLM (GPT-5.2) |",
-                             "0 / 0.3 / 0.59 / 0", "## Few-shot, every family", "| fetch | 3 demos | GNN |",
-                             "## Human-timed demonstrations", "| task4 | human-timed, 3 demos |",
-                             "## Imperfect demonstrations", "--quick"})
+  for (const char* needle :
+       {"| task1 | DDACE (the paper's network) |", "| task1 | DDACE, scene network (default) |",
+        "| task4 | w/o spectral clustering |", "| task2 | GNN |", "| task3 | LLM (GPT-5.2) |", "0 / 0.3 / 0.59 / 0",
+        "## Few-shot, every family", "| fetch | 3 demos | GNN |", "## Human-timed demonstrations",
+        "| task4 | human-timed, 3 demos |", "## Imperfect demonstrations", "--quick"})
     EXPECT_NE(results.find(needle), std::string::npos) << needle;
-  for (const char* fig : {"loss_fig4.png", "loss_task2_robots.png", "loss_task3_actions.png", "overlay_task1.png",
-                          "overlay_task4.png"})
+  for (const char* fig :
+       {"loss_fig4.png", "loss_task2_robots.png", "loss_task3_actions.png", "overlay_task1.png", "overlay_task4.png"})
     EXPECT_TRUE(fs::exists(out / "docs" / "figures" / fig)) << fig;
   // The wall time against the 20-minute goal is written as a bench result.
   std::ifstream bench((out / "docs" / "bench" / "table.md").string());
@@ -49,9 +50,9 @@ TEST(TableQuick, WritesResultsAndEveryFigure) {
   // Models train side by side (one process each, --jobs defaults to the cores): each must
   // equal the same model trained alone.
   const fs::path alone = out / "alone";
-  const std::string train = "ATEN_CPU_CAPABILITY=avx2 '" + ddace.string() + "' train '" + (out / "run" / "data" / "task4" / "train").string() +
-                            "' --out '" + alone.string() + "' --variant gnn --epochs 40 --seed 1 --quiet > '" +
-                            out.string() + "_alone.log' 2>&1";
+  const std::string train = "ATEN_CPU_CAPABILITY=avx2 '" + ddace.string() + "' train '" +
+                            (out / "run" / "data" / "task4" / "train").string() + "' --out '" + alone.string() +
+                            "' --variant gnn --epochs 40 --seed 1 --quiet > '" + out.string() + "_alone.log' 2>&1";
   ASSERT_EQ(std::system(train.c_str()), 0) << train;
   auto lossColumns = [](const fs::path& model) {  // epoch, loss, accuracy: not the wall time
     std::ifstream in((model / "loss.csv").string());

@@ -27,15 +27,17 @@ TaskSpec scene(bool declare_actions = true, const std::string& step_window = "")
 }
 
 /// The scene with the paper's bare keyframe rule (step_window_s: 0).
-TaskSpec bareScene() { return scene(true, "0"); }
+TaskSpec bareScene() {
+  return scene(true, "0");
+}
 
 const char* kHeader = "t,R1.x,R1.y,R1.action,R1.target,R2.x,R2.y,R2.action,R2.target,B1.x,B1.y,G1.x,G1.y\n";
 
-std::string row(double t, const std::string& a1, const std::string& t1, const std::string& a2,
-                const std::string& t2, double x1 = 0.1) {
+std::string row(double t, const std::string& a1, const std::string& t1, const std::string& a2, const std::string& t2,
+                double x1 = 0.1) {
   char buf[256];
-  std::snprintf(buf, sizeof buf, "%g,%g,0.1,%s,%s,0.5,0.5,%s,%s,0.2,0.2,0.9,0.9\n", t, x1, a1.c_str(),
-                t1.c_str(), a2.c_str(), t2.c_str());
+  std::snprintf(buf, sizeof buf, "%g,%g,0.1,%s,%s,0.5,0.5,%s,%s,0.2,0.2,0.9,0.9\n", t, x1, a1.c_str(), t1.c_str(),
+                a2.c_str(), t2.c_str());
   return buf;
 }
 
@@ -211,7 +213,7 @@ TEST(StepGrouping, AnInPlaceTokenOfOneRowEndsItsStepAtTheNextRow) {
 TEST(StepGrouping, AnEntityWhoseLabelChangesTwiceWithinTheWindowOpensANewStep) {
   std::string csv = kHeader;
   csv += row(0.0, "move", "G1", "", "");
-  csv += row(0.1, "move", "B1", "", "");  // R1 corrects itself: its first token ended
+  csv += row(0.1, "move", "B1", "", "");        // R1 corrects itself: its first token ended
   csv += row(0.2, "move", "B1", "move", "G1");  // R2 joins R1's second token
   csv += row(0.3, "move", "B1", "move", "G1");
   const TaskSpec spec = scene();
@@ -223,9 +225,8 @@ TEST(StepGrouping, AnEntityWhoseLabelChangesTwiceWithinTheWindowOpensANewStep) {
 
 TEST(StepGrouping, TheWindowBoundaryIsInclusive) {
   // t = 1.0 and 1.5 are exact in binary: 0.5 s apart joins, a microsecond more does not.
-  for (const auto& [late_t, expected] :
-       std::vector<std::pair<double, Steps>>{{1.5, Steps{{"R1:move:G1", "R2:move:G1"}}},
-                                             {1.500001, Steps{{"R1:move:G1"}, {"R2:move:G1"}}}}) {
+  for (const auto& [late_t, expected] : std::vector<std::pair<double, Steps>>{
+           {1.5, Steps{{"R1:move:G1", "R2:move:G1"}}}, {1.500001, Steps{{"R1:move:G1"}, {"R2:move:G1"}}}}) {
     std::string csv = kHeader;
     csv += row(1.0, "move", "G1", "", "");
     char t[32];
@@ -254,7 +255,8 @@ TEST(StepGrouping, LabelsThatOnlyEndOpenNoStep) {
 TEST(StepGrouping, SeveralLateTokensAreMeasuredFromTheFirstOne) {
   // Three tokens labelled 0.2 s apart each: with a 0.3 s window the third (0.4 s after
   // the first) opens a step of its own.
-  std::string csv = "t,R1.x,R1.y,R1.action,R1.target,R2.x,R2.y,R2.action,R2.target,B1.x,B1.y,B1.action,B1.target,G1.x,G1.y\n";
+  std::string csv =
+      "t,R1.x,R1.y,R1.action,R1.target,R2.x,R2.y,R2.action,R2.target,B1.x,B1.y,B1.action,B1.target,G1.x,G1.y\n";
   csv += "0.0,0.1,0.1,move,G1,0.5,0.5,,,0.2,0.2,,,0.9,0.9\n";
   csv += "0.2,0.1,0.1,move,G1,0.5,0.5,move,G1,0.2,0.2,,,0.9,0.9\n";
   csv += "0.4,0.1,0.1,move,G1,0.5,0.5,move,G1,0.2,0.2,carry,G1,0.9,0.9\n";
@@ -318,8 +320,7 @@ TEST(Demonstration, WriteReadRoundTripIsExact) {
 
 TEST(Demonstration, TokenKeysRoundTripAndBadKeysAreRefused) {
   const TaskSpec spec = scene();
-  for (const std::string key : {"R1:move:G1", "R2:stop"})
-    EXPECT_EQ(tokenKey(parseTokenKey(key, spec), spec), key);
+  for (const std::string key : {"R1:move:G1", "R2:stop"}) EXPECT_EQ(tokenKey(parseTokenKey(key, spec), spec), key);
   EXPECT_THROW(parseTokenKey("R9:move:G1", spec), Error);
   EXPECT_THROW(parseTokenKey("R1:fly:G1", spec), Error);
   EXPECT_THROW(parseTokenKey("R1:move:R1", spec), Error);
@@ -416,7 +417,9 @@ TEST(DemonstrationErrors, EmptyFileAndHeaderOnly) {
 }
 
 TEST(DemonstrationErrors, NotUtf8) {
-  const std::string csv = std::string(kHeader) + "0,0.1,0.1,mo\xff" "ve,G1,0.5,0.5,,,0.2,0.2,0.9,0.9\n";
+  const std::string csv = std::string(kHeader) +
+                          "0,0.1,0.1,mo\xff"
+                          "ve,G1,0.5,0.5,,,0.2,0.2,0.9,0.9\n";
   const Diagnostic d = firstError(csv);
   EXPECT_EQ(d.line, 2);
   EXPECT_EQ(d.column, 13);
@@ -424,7 +427,8 @@ TEST(DemonstrationErrors, NotUtf8) {
 }
 
 TEST(DemonstrationErrors, EveryBadRowIsReported) {
-  std::string csv = std::string(kHeader) + row(0, "fly", "", "", "") + row(1, "", "X", "", "") + row(2, "move", "R1", "", "");
+  std::string csv =
+      std::string(kHeader) + row(0, "fly", "", "", "") + row(1, "", "X", "", "") + row(2, "move", "R1", "", "");
   try {
     parseDemonstrationCsv(csv, scene(), "demo.csv");
     FAIL();
@@ -445,7 +449,9 @@ TEST(DemonstrationErrors, CrlfLineEndingsAndByteOrderMarkAreAccepted) {
 
 namespace {
 
-std::string tempPath(const std::string& name) { return ::testing::TempDir() + "/ddace_demo_" + name; }
+std::string tempPath(const std::string& name) {
+  return ::testing::TempDir() + "/ddace_demo_" + name;
+}
 
 void writeBytes(const std::string& path, const std::string& bytes) {
   std::ofstream(path, std::ios::binary) << bytes;
@@ -462,8 +468,9 @@ TEST(DemonstrationErrors, ANumberMustBeTheWholeField) {
     EXPECT_EQ(d.column, 3);
     EXPECT_NE(d.message.find("not a finite number"), std::string::npos) << d.message;
   }
-  EXPECT_NE(firstError(std::string(kHeader) + "0," + nul + ",0.1,,,0.5,0.5,,,0.2,0.2,0.9,0.9\n").message.find("\\x00GARBAGE"),
-            std::string::npos);
+  EXPECT_NE(
+      firstError(std::string(kHeader) + "0," + nul + ",0.1,,,0.5,0.5,,,0.2,0.2,0.9,0.9\n").message.find("\\x00GARBAGE"),
+      std::string::npos);
 }
 
 TEST(Demonstration, CrOnlyCrlfAndLfLineEndingsReadTheSame) {
@@ -555,8 +562,11 @@ TEST(DemonstrationFiles, OnlyRegularFilesAreReadAndNothingHangs) {
   std::remove(b.c_str());
   ASSERT_EQ(::symlink(b.c_str(), a.c_str()), 0);
   ASSERT_EQ(::symlink(a.c_str(), b.c_str()), 0);
-  for (const auto& [path, why] : std::vector<std::pair<std::string, std::string>>{
-           {fifo, "FIFO"}, {a, "symbolic links"}, {"/dev/zero", "character device"}, {::testing::TempDir(), "directory"}}) {
+  for (const auto& [path, why] :
+       std::vector<std::pair<std::string, std::string>>{{fifo, "FIFO"},
+                                                        {a, "symbolic links"},
+                                                        {"/dev/zero", "character device"},
+                                                        {::testing::TempDir(), "directory"}}) {
     try {
       readDemonstrationCsv(path, spec);
       ADD_FAILURE() << path;

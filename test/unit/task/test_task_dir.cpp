@@ -25,7 +25,9 @@ std::string makeDir(const std::string& name) {
   return path;
 }
 
-void write(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+void write(const std::string& path, const std::string& text) {
+  std::ofstream(path) << text;
+}
 
 }  // namespace
 
@@ -246,8 +248,8 @@ TEST(TaskDir, TheNthDemonstrationIsFoundOrTheErrorNamesDirectoryAndCount) {
     task::demoFile(path, 3, "parameter '/monitor/ground_truth_demo'");
     FAIL();
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()), "parameter '/monitor/ground_truth_demo' = 3, but " + path +
-                                         "/demos has 3 demonstrations (0..2)");
+    EXPECT_EQ(std::string(e.what()),
+              "parameter '/monitor/ground_truth_demo' = 3, but " + path + "/demos has 3 demonstrations (0..2)");
   }
   EXPECT_THROW(task::demoFile(path, -1), Error);
   EXPECT_THROW(task::demoFile("/nonexistent_ddace", 0), Error);

@@ -87,8 +87,8 @@ TEST(TaskSpec, UnknownKindIsAnError) {
 }
 
 TEST(TaskSpec, DuplicateNameIsAnError) {
-  const Diagnostic d = onlyError(
-      "format: ddace-task/1\nentities:\n  - {name: R1, kind: robot}\n  - {name: R1, kind: goal}\n");
+  const Diagnostic d =
+      onlyError("format: ddace-task/1\nentities:\n  - {name: R1, kind: robot}\n  - {name: R1, kind: goal}\n");
   EXPECT_EQ(d.line, 4);
   EXPECT_NE(d.message.find("duplicate entity name 'R1'"), std::string::npos);
 }

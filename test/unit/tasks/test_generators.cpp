@@ -11,8 +11,7 @@ using namespace ddace;
 
 namespace {
 
-task::TaskDir gen(const std::string& family, int demos = 3, uint64_t seed = 7, int robots = 11,
-                  int actions = 4) {
+task::TaskDir gen(const std::string& family, int demos = 3, uint64_t seed = 7, int robots = 11, int actions = 4) {
   tasks::GeneratorOptions o;
   o.family = family;
   o.demos = demos;
@@ -67,9 +66,12 @@ TEST(Generators, Task2ScalabilityHasTenSteps) {
 
 TEST(Generators, Task2FewerRobotsTruncatesConsistently) {
   expectStructure(gen("task2", 2, 7, 4), Steps{{"R1:move:R3", "R2:move:R3"}, {"R3:move:R4"}, {"R4:move:G1"}});
-  expectStructure(gen("task2", 2, 7, 6),
-                  Steps{{"R1:move:R3", "R2:move:R3"}, {"R3:move:R5"}, {"R3:move:R4"},
-                        {"R4:move:R6", "R5:move:R6"}, {"R5:stop"}, {"R6:move:G1"}});
+  expectStructure(gen("task2", 2, 7, 6), Steps{{"R1:move:R3", "R2:move:R3"},
+                                               {"R3:move:R5"},
+                                               {"R3:move:R4"},
+                                               {"R4:move:R6", "R5:move:R6"},
+                                               {"R5:stop"},
+                                               {"R6:move:G1"}});
   for (int k = 4; k <= 11; ++k) {
     const auto dir = gen("task2", 1, 3, k);
     EXPECT_EQ(dir.spec.entities.size(), static_cast<size_t>(k + 1));
@@ -185,7 +187,9 @@ Vector2d start(const task::Demonstration& d, const task::TaskSpec& spec, const s
   return d.positions.front()[spec.entityIndex(name)];
 }
 
-double dist(const Vector2d& a, const Vector2d& b) { return (a - b).norm(); }
+double dist(const Vector2d& a, const Vector2d& b) {
+  return (a - b).norm();
+}
 
 }  // namespace
 
@@ -393,9 +397,9 @@ TEST(Generators, ThePaperFamiliesAreByteIdenticalToTheDataOfTheTable2Rows) {
     return h;
   };
   const std::vector<std::pair<uint64_t, uint64_t>> expected = {{0x18f713b67d164c00ULL, 0x37c428ea762819c3ULL},
-                                                                {0x95f3bb3632e044a7ULL, 0x5e1183e98c9860eaULL},
-                                                                {0x3f7a363aca04ab1aULL, 0x05c809aea1c09a43ULL},
-                                                                {0x9720ad9da5e6556eULL, 0x01ae842d85c32059ULL}};
+                                                               {0x95f3bb3632e044a7ULL, 0x5e1183e98c9860eaULL},
+                                                               {0x3f7a363aca04ab1aULL, 0x05c809aea1c09a43ULL},
+                                                               {0x9720ad9da5e6556eULL, 0x01ae842d85c32059ULL}};
   for (size_t f = 0; f < 4; ++f) {
     tasks::GeneratorOptions o;
     o.family = tasks::paperFamilies()[f];

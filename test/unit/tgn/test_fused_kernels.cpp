@@ -31,7 +31,9 @@ void expectClose(const Tensor& a, const Tensor& b, double tol, const std::string
   EXPECT_LT((a - b).abs().max().item<double>(), tol) << what;
 }
 
-Tensor leaf(std::vector<int64_t> shape) { return torch::randn(shape).requires_grad_(true); }
+Tensor leaf(std::vector<int64_t> shape) {
+  return torch::randn(shape).requires_grad_(true);
+}
 
 void checkGat(const Tensor& mask) {
   const Tensor h = leaf({3, mask.size(0), 2, 4}), ws = leaf({2, 4}), wd = leaf({2, 4});
@@ -109,7 +111,8 @@ TEST(FusedKernels, GruRefusesMisshapenInputs) {
   EXPECT_THROW(fused::gru(gru, torch::zeros({3, 0, 6})), ddace::Error) << "no steps";
   EXPECT_THROW(fused::gru(gru, torch::zeros({3, 5, 6}), torch::zeros({2, 2, 4})), ddace::Error) << "h0 batch";
   EXPECT_THROW(fused::gru(gru, torch::zeros({3, 5, 6}), torch::zeros({1, 3, 4})), ddace::Error) << "h0 layers";
-  EXPECT_EQ(fused::gru(gru, torch::zeros({3, 1, 6}), torch::zeros({2, 3, 4})).first.sizes(), (std::vector<int64_t>{3, 1, 4}));
+  EXPECT_EQ(fused::gru(gru, torch::zeros({3, 1, 6}), torch::zeros({2, 3, 4})).first.sizes(),
+            (std::vector<int64_t>{3, 1, 4}));
 }
 
 TEST(FusedKernels, FlatAdamWithClippingEqualsTorchAdam) {

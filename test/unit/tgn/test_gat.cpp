@@ -30,7 +30,9 @@ std::map<std::string, std::vector<double>> readFixture(const std::string& path) 
   return out;
 }
 
-std::vector<float> floats(const std::vector<double>& v) { return std::vector<float>(v.begin(), v.end()); }
+std::vector<float> floats(const std::vector<double>& v) {
+  return std::vector<float>(v.begin(), v.end());
+}
 
 }  // namespace
 

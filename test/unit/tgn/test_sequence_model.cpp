@@ -131,7 +131,8 @@ TEST(SequenceModel, SaveThenLoadGivesIdenticalPredictions) {
   const tgn::SequenceModel& m = task4Model();
   const std::string dir = tempDir("roundtrip");
   m.save(dir);
-  for (const char* f : {"manifest.yaml", "task.yaml", "weights.pt", "loss.csv"}) EXPECT_TRUE(fs::exists(fs::path(dir) / f)) << f;
+  for (const char* f : {"manifest.yaml", "task.yaml", "weights.pt", "loss.csv"})
+    EXPECT_TRUE(fs::exists(fs::path(dir) / f)) << f;
   const tgn::SequenceModel l = tgn::SequenceModel::load(dir);
   EXPECT_EQ(l.variant(), "scene");
   EXPECT_EQ(l.spec().entityNames(), m.spec().entityNames());
@@ -182,9 +183,8 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
   });
   EXPECT_NE(e.find("weights.pt"), std::string::npos) << e;
   EXPECT_NE(e.find("truncated"), std::string::npos) << e;
-  e = variant("flipped", [&](const fs::path& d) {
-    rewrite(d / "weights.pt", [](std::string& s) { s[s.size() / 2] ^= 0x5a; });
-  });
+  e = variant("flipped",
+              [&](const fs::path& d) { rewrite(d / "weights.pt", [](std::string& s) { s[s.size() / 2] ^= 0x5a; }); });
   EXPECT_NE(e.find("weights.pt"), std::string::npos) << e;
   EXPECT_NE(e.find("corrupted"), std::string::npos) << e;
   e = variant("bad_yaml", [&](const fs::path& d) {
@@ -199,12 +199,11 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
   EXPECT_NE(e.find("manifest.yaml"), std::string::npos) << e;
   EXPECT_NE(e.find("do not match"), std::string::npos) << e;
   e = variant("other_format", [&](const fs::path& d) {
-    rewrite(d / "manifest.yaml", [](std::string& s) { s.replace(s.find("format: ddace-model/2"), 21, "format: ddace-model/9"); });
+    rewrite(d / "manifest.yaml",
+            [](std::string& s) { s.replace(s.find("format: ddace-model/2"), 21, "format: ddace-model/9"); });
   });
   EXPECT_NE(e.find("manifest.yaml:"), std::string::npos) << e;
-  e = variant("loss_row", [&](const fs::path& d) {
-    rewrite(d / "loss.csv", [](std::string& s) { s += "x,y\n"; });
-  });
+  e = variant("loss_row", [&](const fs::path& d) { rewrite(d / "loss.csv", [](std::string& s) { s += "x,y\n"; }); });
   EXPECT_NE(e.find("loss.csv:"), std::string::npos) << e;
   // A network of another shape: the manifest's hyper-parameters no longer fit the weights
   // (the checksum still matches, so the archive itself is checked).
@@ -254,7 +253,8 @@ TEST(SequenceModel, FullGraphVariantAttendsOverEveryPair) {
   for (const auto& a : scene.attention_edges) {
     bool kinds_kept = false;
     for (const auto& e : scene.refined.kept)
-      kinds_kept = kinds_kept || (ents[a.source].kind == ents[e.source].kind && ents[a.target].kind == ents[e.target].kind);
+      kinds_kept =
+          kinds_kept || (ents[a.source].kind == ents[e.source].kind && ents[a.target].kind == ents[e.target].kind);
     EXPECT_TRUE(kinds_kept) << ents[a.source].name << "->" << ents[a.target].name;
   }
 }
@@ -312,7 +312,8 @@ TEST_P(EntityOrder, InTaskYamlChangesNoDecision) {
   const auto b = tgn::SequenceModel::train(train_reversed, o, nullptr);
   // The same training, bit for bit: the loss of every epoch.
   ASSERT_EQ(a.info().history.size(), b.info().history.size());
-  for (size_t e = 0; e < a.info().history.size(); ++e) EXPECT_EQ(a.info().history[e].loss, b.info().history[e].loss) << e;
+  for (size_t e = 0; e < a.info().history.size(); ++e)
+    EXPECT_EQ(a.info().history[e].loss, b.info().history[e].loss) << e;
   // The same E' (by name).
   auto names = [](const tgn::SequenceModel& m, const std::vector<graph::Edge>& edges) {
     std::set<std::string> out;

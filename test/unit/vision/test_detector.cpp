@@ -27,7 +27,8 @@ std::array<cv::Point2f, 4> paste(cv::Mat& img, const DetectorConfig& cfg, int id
 void expectFindsAll(const DetectorConfig& cfg) {
   cv::Mat img(480, 640, CV_8UC1, cv::Scalar(230));
   std::map<int, std::array<cv::Point2f, 4>> expected;
-  for (int i = 0; i < 6; ++i) expected[i * 3 + 1] = paste(img, cfg, i * 3 + 1, 30 + (i % 3) * 200, 40 + (i / 3) * 220, 12);
+  for (int i = 0; i < 6; ++i)
+    expected[i * 3 + 1] = paste(img, cfg, i * 3 + 1, 30 + (i % 3) * 200, 40 + (i / 3) * 220, 12);
   cv::GaussianBlur(img, img, cv::Size(0, 0), 0.8);
   auto det = makeDetector(cfg);
   const auto found = det->detect(img);

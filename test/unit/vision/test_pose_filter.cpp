@@ -24,8 +24,8 @@ TEST(PoseFilter, RejectsAJumpFasterThanTheRobotCanMove) {
   c.position_gain = 1.0;
   PoseFilter f(c);
   f.update({0.5, 0.5, 0}, 0.0);
-  EXPECT_TRUE(f.update({0.51, 0.5, 0}, 1.0 / 30));   // 0.3 m/s: fine
-  EXPECT_FALSE(f.update({0.8, 0.5, 0}, 2.0 / 30));   // 9 m/s: a wrong decode or a reflection
+  EXPECT_TRUE(f.update({0.51, 0.5, 0}, 1.0 / 30));  // 0.3 m/s: fine
+  EXPECT_FALSE(f.update({0.8, 0.5, 0}, 2.0 / 30));  // 9 m/s: a wrong decode or a reflection
   EXPECT_DOUBLE_EQ(f.pose().x, 0.51);
   EXPECT_FALSE(f.visibleAt(2.0 / 30));
   EXPECT_EQ(f.rejected(), 1);
@@ -99,7 +99,7 @@ TEST(PoseFilter, AHeldPoseGoesStaleOnceItsSpeedSaysItHasDriftedTooFar) {
   EXPECT_FALSE(fast.staleAt(last + 0.09));  // 5.4 cm
   EXPECT_TRUE(fast.staleAt(last + 0.11));   // 6.6 cm > max_drift: not a current pose any more
   EXPECT_NEAR(fast.driftAt(last + 0.11), 0.066, 1e-6);
-  EXPECT_DOUBLE_EQ(fast.pose().x, 0.3);     // held, never extrapolated
+  EXPECT_DOUBLE_EQ(fast.pose().x, 0.3);      // held, never extrapolated
   EXPECT_FALSE(still.staleAt(last + 0.99));  // standing still: the hold decides
   EXPECT_TRUE(still.staleAt(last + 1.01));
   // Seen again: current, and the speed is re-estimated from there.

@@ -26,8 +26,8 @@ const std::string kConfig = std::string(DDACE_SOURCE_DIR) + "/config/";
 struct TempDir {
   fs::path path;
   TempDir() {
-    path = fs::temp_directory_path() / ("ddace_recorder_test_" + std::to_string(::getpid()) + "_" +
-                                        std::to_string(counter++));
+    path = fs::temp_directory_path() /
+           ("ddace_recorder_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
     fs::remove_all(path);
   }
   ~TempDir() { fs::remove_all(path); }
@@ -65,10 +65,12 @@ TEST(Recorder, ShippedConfigBuildsTheTaskFromTheMarkers) {
 TEST(Recorder, ConfigErrorsNameTheLine) {
   const MarkerConfig m = loadMarkerConfig(kConfig + "markers.yaml");
   try {
-    parseRecorderConfig("output_dir: /tmp/x\ntask:\n  name: t\n  goal_conditions:\n    - {entity: R9, at: G1}\n", "r.yaml", m);
+    parseRecorderConfig("output_dir: /tmp/x\ntask:\n  name: t\n  goal_conditions:\n    - {entity: R9, at: G1}\n",
+                        "r.yaml", m);
     FAIL();
   } catch (const Error& e) {
-    EXPECT_EQ(e.diagnostics().front().str(), "r.yaml:5:7: goal condition names 'R9', which is not an entity of markers.yaml");
+    EXPECT_EQ(e.diagnostics().front().str(),
+              "r.yaml:5:7: goal condition names 'R9', which is not an entity of markers.yaml");
   }
   EXPECT_THROW(parseRecorderConfig("task: {name: t}\n", "r.yaml", m), Error);  // no output_dir
   EXPECT_THROW(parseRecorderConfig("output_dir: /tmp/x\ntask: {name: t}\nrate: 3\n", "r.yaml", m), Error);
@@ -174,7 +176,8 @@ namespace {
 task::TaskSpec twelveEntities() {
   task::TaskSpec spec;
   spec.name = "kill_test";
-  for (int i = 0; i < 8; ++i) spec.entities.push_back({"R" + std::to_string(i + 1), task::EntityKind::Robot, "hamster"});
+  for (int i = 0; i < 8; ++i)
+    spec.entities.push_back({"R" + std::to_string(i + 1), task::EntityKind::Robot, "hamster"});
   for (int i = 0; i < 3; ++i) spec.entities.push_back({"O" + std::to_string(i + 1), task::EntityKind::Object, "box"});
   spec.entities.push_back({"G1", task::EntityKind::Goal, ""});
   spec.actions = {"move", "push"};
@@ -233,7 +236,7 @@ TEST(Recorder, KillNineLeavesWholeRowsAtAnyKillPoint) {
   // entities), then as fast as it can write (kills land in the middle of writes).
   const std::vector<std::pair<double, double>> runs = {
       {1 / 30.0, 0.15}, {1 / 30.0, 0.55}, {1 / 30.0, 0.9}, {1 / 30.0, 1.35}, {1 / 30.0, 1.7},
-      {0.0, 0.003},     {0.0, 0.011},     {0.0, 0.027},    {0.0, 0.05},     {0.0, 0.13}};
+      {0.0, 0.003},     {0.0, 0.011},     {0.0, 0.027},    {0.0, 0.05},      {0.0, 0.13}};
   for (const auto& [period, kill_after] : runs) {
     TempDir dir;
     const std::string partial = recordAndKill(dir.path.string(), period, kill_after);
@@ -246,8 +249,8 @@ TEST(Recorder, KillNineLeavesWholeRowsAtAnyKillPoint) {
     ASSERT_FALSE(text.empty());
     EXPECT_EQ(text.back(), '\n') << "killed after " << kill_after << " s: the last row is torn";
     const task::TaskDirReport report = task::checkTaskDir(dir.path.string());
-    EXPECT_TRUE(report.errors.empty()) << "killed after " << kill_after << " s: "
-                                       << (report.errors.empty() ? "" : report.errors[0].message);
+    EXPECT_TRUE(report.errors.empty()) << "killed after " << kill_after
+                                       << " s: " << (report.errors.empty() ? "" : report.errors[0].message);
     const task::Demonstration d = task::readDemonstrationCsv(csv, spec);
     if (period > 0) {
       // Every row written before the kill is in the file (rows are not held back).

@@ -27,7 +27,8 @@ std::vector<TrueEntity> scene(double t) {
   for (int i = 0; i < 4; ++i) {
     const double a = (0.8 + 0.3 * i) * t + i;
     const double cx = 0.2 + 0.2 * i, cy = 0.3 + 0.15 * (i % 2);
-    out.push_back({"R" + std::to_string(i + 1), {cx + 0.08 * std::cos(a), cy + 0.08 * std::sin(a), wrapAngle(a + M_PI / 2)}});
+    out.push_back(
+        {"R" + std::to_string(i + 1), {cx + 0.08 * std::cos(a), cy + 0.08 * std::sin(a), wrapAngle(a + M_PI / 2)}});
   }
   out.push_back({"G1", {0.85, 0.8, 0.0}});
   return out;
@@ -50,7 +51,9 @@ void accumulate(Errors& e, const FrameResult& fr, const std::vector<TrueEntity>&
   }
 }
 
-TrackerConfig shippedConfig() { return loadTrackerConfig(kConfig + "markers.yaml", kConfig + "tracker.yaml"); }
+TrackerConfig shippedConfig() {
+  return loadTrackerConfig(kConfig + "markers.yaml", kConfig + "tracker.yaml");
+}
 
 }  // namespace
 
@@ -77,7 +80,8 @@ TEST(TrackerConfig, ErrorsNameFileLineAndColumn) {
   };
   EXPECT_EQ(firstError("family: DICT_4X4_50\nentities:\n  - {id: 1, name: R1}\n  - {id: 1, name: R2}\n"),
             "m.yaml:4:10: marker id 1 is used twice");
-  EXPECT_EQ(firstError("entities:\n  - {id: 60, name: R1}\n"), "m.yaml:2:10: marker id 60 is outside DICT_4X4_50 (ids 0..49)");
+  EXPECT_EQ(firstError("entities:\n  - {id: 60, name: R1}\n"),
+            "m.yaml:2:10: marker id 60 is outside DICT_4X4_50 (ids 0..49)");
   EXPECT_NE(firstError("entities:\n  - {id: 1, name: R1, colour: red}\n").find("m.yaml:2:23: unknown key 'colour'"),
             std::string::npos);
   EXPECT_NE(firstError("corners:\n  - {id: 0, x: 0, y: 0}\nentities:\n  - {id: 1, name: R1}\n").find("exactly four"),
@@ -128,8 +132,8 @@ TEST(TableFrame, MarkerPoseGivesYawCounterClockwiseFromTableX) {
     const double h = 15, c = std::cos(yaw), s = std::sin(yaw);
     const double local[4][2] = {{-h, h}, {h, h}, {h, -h}, {-h, -h}};  // printed TL, TR, BR, BL (mm, y up)
     for (int k = 0; k < 4; ++k) {
-      const cv::Point2d p = f.tableToImage({0.3 + (c * local[k][0] - s * local[k][1]) / 1000,
-                                            0.6 + (s * local[k][0] + c * local[k][1]) / 1000});
+      const cv::Point2d p = f.tableToImage(
+          {0.3 + (c * local[k][0] - s * local[k][1]) / 1000, 0.6 + (s * local[k][0] + c * local[k][1]) / 1000});
       d.corners[k] = cv::Point2f(static_cast<float>(p.x), static_cast<float>(p.y));
     }
     const PlanarPose p = f.markerPose(d);
@@ -209,7 +213,7 @@ TEST(Tracker, HoldsThroughAHalfSecondOcclusionThenGoesStale) {
       ++hidden_frames;
       EXPECT_FALSE(r2.visible) << "frame " << f;
       EXPECT_FALSE(r2.stale) << "frame " << f;  // hold (1 s) > occlusion (0.5 s)
-      EXPECT_DOUBLE_EQ(r2.pose.x, before.x);      // held, not extrapolated
+      EXPECT_DOUBLE_EQ(r2.pose.x, before.x);    // held, not extrapolated
     }
     EXPECT_TRUE(fr.entities[0].visible) << "R1 must stay visible, frame " << f;
   }
@@ -294,8 +298,8 @@ struct FieldScene {
     camera.height = 720;
     camera.position = {0.4, -0.15, 1.0};  // about 9 degrees from straight down ...
     camera.look_at = {0.4, 0.3};
-    camera.roll_deg = 3.0;                  // ... and rolled
-    camera.light_gradient = 0.4;            // 40 % light falloff across the image
+    camera.roll_deg = 3.0;        // ... and rolled
+    camera.light_gradient = 0.4;  // 40 % light falloff across the image
   }
 
   std::vector<TrueEntity> truth(double t) const {
@@ -303,7 +307,8 @@ struct FieldScene {
     for (int i = 0; i < 10; ++i) {
       const double cx = 0.14 + 0.13 * (i % 5), cy = 0.16 + 0.28 * (i / 5);
       const double a = (1.0 + 0.2 * i) * t + i;
-      out.push_back({"R" + std::to_string(i + 1), {cx + 0.03 * std::cos(a), cy + 0.03 * std::sin(a), wrapAngle(a + M_PI / 2)}});
+      out.push_back(
+          {"R" + std::to_string(i + 1), {cx + 0.03 * std::cos(a), cy + 0.03 * std::sin(a), wrapAngle(a + M_PI / 2)}});
     }
     // Back and forth between x = 0.1 and 0.7 along y = 0.3 (between the robot rows).
     const double s = std::fmod(kBallSpeed * t, 1.2);
@@ -315,8 +320,8 @@ struct FieldScene {
 /// OpenCV's own detector with its default parameters on the whole frame: the
 /// reference the tracker must not fall behind.
 std::set<int> openCvDefaultIds(const cv::Mat& img, const std::string& backend) {
-  const auto dict = cv::aruco::getPredefinedDictionary(backend == "aruco" ? cv::aruco::DICT_4X4_50
-                                                                          : cv::aruco::DICT_APRILTAG_36h11);
+  const auto dict =
+      cv::aruco::getPredefinedDictionary(backend == "aruco" ? cv::aruco::DICT_4X4_50 : cv::aruco::DICT_APRILTAG_36h11);
   std::vector<std::vector<cv::Point2f>> corners;
   std::vector<int> ids;
   cv::aruco::detectMarkers(img, dict, corners, ids, cv::aruco::DetectorParameters::create());
@@ -348,7 +353,8 @@ TEST(Tracker, FindsEveryMarkerOpenCvFindsOnAFastObjectAndSmallMarkers) {
         ++reference_found;
         ball_frames += id == 30;
         EXPECT_TRUE(ids.count(id)) << backend << ": OpenCV finds marker " << id << " in frame " << f
-                                   << " but the tracker does not (" << (fr.full_frame ? "full frame" : "regions") << ")";
+                                   << " but the tracker does not (" << (fr.full_frame ? "full frame" : "regions")
+                                   << ")";
       }
       EXPECT_TRUE(fr.entities.back().visible) << backend << " ball, frame " << f;
       accumulate(e, fr, truth);
@@ -417,23 +423,29 @@ TEST(CameraCalibration, ReadsTheRosCameraInfoFormat) {
     return std::string("no error");
   };
   const std::string good_k = "camera_matrix: {rows: 3, cols: 3, data: [900, 0, 640, 0, 900, 360, 0, 0, 1]}\n";
-  const std::string good_d = "distortion_model: plumb_bob\ndistortion_coefficients: {rows: 1, cols: 5, data: [0.1, 0, 0, 0, 0]}\n";
+  const std::string good_d =
+      "distortion_model: plumb_bob\ndistortion_coefficients: {rows: 1, cols: 5, data: [0.1, 0, 0, 0, 0]}\n";
   const std::string size = "image_width: 1280\nimage_height: 720\n";
   EXPECT_EQ(firstError(size + good_k + good_d), "no error");
   EXPECT_EQ(firstError(size + "camera_matrix: {rows: 3, cols: 3, data: [900, 0, 640, 0, 900, 360, 0, 0]}\n" + good_d),
             "c.yaml:3:41: 'camera_matrix.data' has 8 numbers, rows x cols = 9");
-  EXPECT_EQ(firstError(size + good_k + "distortion_model: equidistant\ndistortion_coefficients: {rows: 1, cols: 4, data: [0, 0, 0, 0]}\n"),
-            "c.yaml:4:19: distortion_model 'equidistant' is not supported (plumb_bob or rational_polynomial; "
-            "recalibrate without the fisheye model)");
-  EXPECT_EQ(firstError(size + good_k + "distortion_model: plumb_bob\ndistortion_coefficients: {rows: 1, cols: 4, data: [0, 0, 0, 0]}\n"),
-            "c.yaml:5:26: distortion_model plumb_bob needs 5 coefficients (got 4)");
+  EXPECT_EQ(
+      firstError(size + good_k +
+                 "distortion_model: equidistant\ndistortion_coefficients: {rows: 1, cols: 4, data: [0, 0, 0, 0]}\n"),
+      "c.yaml:4:19: distortion_model 'equidistant' is not supported (plumb_bob or rational_polynomial; "
+      "recalibrate without the fisheye model)");
+  EXPECT_EQ(
+      firstError(size + good_k +
+                 "distortion_model: plumb_bob\ndistortion_coefficients: {rows: 1, cols: 4, data: [0, 0, 0, 0]}\n"),
+      "c.yaml:5:26: distortion_model plumb_bob needs 5 coefficients (got 4)");
   EXPECT_EQ(firstError("image_width: 1280\n" + good_k + good_d), "c.yaml:1:1: missing key 'image_height'");
   EXPECT_EQ(firstError(size + good_k + good_d + "lens: wide\n"),
             "c.yaml:6:1: unknown key 'lens' in the camera calibration (allowed: camera_matrix, camera_name, "
             "distortion_coefficients, distortion_model, image_height, image_width, projection_matrix, "
             "rectification_matrix)");
-  EXPECT_EQ(firstError(size + "camera_matrix: {rows: 3, cols: 3, data: [900, 0, 640, 0, 900, 360, 0, 0, 2]}\n" + good_d),
-            "c.yaml:3:41: 'camera_matrix' must be [fx 0 cx 0 fy cy 0 0 1] with fx, fy > 0 (a pinhole camera matrix)");
+  EXPECT_EQ(
+      firstError(size + "camera_matrix: {rows: 3, cols: 3, data: [900, 0, 640, 0, 900, 360, 0, 0, 2]}\n" + good_d),
+      "c.yaml:3:41: 'camera_matrix' must be [fx 0 cx 0 fy cy 0 0 1] with fx, fy > 0 (a pinhole camera matrix)");
   EXPECT_THROW(loadCameraCalibration(kData + "does_not_exist.yaml"), ddace::Error);
 }
 
@@ -499,10 +511,8 @@ TEST(TableFrame, FitIsCheckedByItsReprojectionErrorAndSmoothed) {
   // and no table frame (rather than one that is centimetres off).
   for (int wrong = 0; wrong < 2; ++wrong) {
     TrackerConfig bad = c;
-    if (wrong == 0)
-      bad.markers.corners[2].table_xy.x += 0.10;
-    else
-      bad.markers.corner_size_m = 0.05;
+    if (wrong == 0) bad.markers.corners[2].table_xy.x += 0.10;
+    else bad.markers.corner_size_m = 0.05;
     Tracker t(bad);
     t.setCamera(cam.camera());
     fr = t.process(cam.render(scene(0.0), 0.0), 0.0);
@@ -529,8 +539,10 @@ TEST(TableFrame, FitIsCheckedByItsReprojectionErrorAndSmoothed) {
 TEST(TableFrame, PoseParameterGivesTheSameFrameAsTheRotation) {
   const cv::Matx33d K(1000, 0, 500, 0, 1000, 500, 0, 0, 1);
   // Looking straight down: roll pi about x.
-  const TableFrame a = TableFrame::fromCameraPose(K, std::vector<double>{-0.5, 0.5, 1.0, M_PI, 0, 0}, "~table_in_camera");
-  const TableFrame b = TableFrame::fromCameraPose(K, cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1), cv::Vec3d(-0.5, 0.5, 1.0));
+  const TableFrame a =
+      TableFrame::fromCameraPose(K, std::vector<double>{-0.5, 0.5, 1.0, M_PI, 0, 0}, "~table_in_camera");
+  const TableFrame b =
+      TableFrame::fromCameraPose(K, cv::Matx33d(1, 0, 0, 0, -1, 0, 0, 0, -1), cv::Vec3d(-0.5, 0.5, 1.0));
   for (const cv::Point2d p : {cv::Point2d(0.1, 0.2), cv::Point2d(0.9, 0.7)})
     EXPECT_LT(cv::norm(a.tableToImage(p) - b.tableToImage(p)), 1e-6);
   try {
@@ -554,8 +566,8 @@ TEST(DebugImage, DrawsDetectionsRegionsAndStatus) {
   ASSERT_EQ(out.type(), CV_8UC3);
   ASSERT_EQ(out.size(), img.size());
   const auto& d = fr.detections.front();
-  const cv::Vec3b edge = out.at<cv::Vec3b>(cvRound((d.corners[0].y + d.corners[1].y) / 2),
-                                           cvRound((d.corners[0].x + d.corners[1].x) / 2));
+  const cv::Vec3b edge =
+      out.at<cv::Vec3b>(cvRound((d.corners[0].y + d.corners[1].y) / 2), cvRound((d.corners[0].x + d.corners[1].x) / 2));
   EXPECT_TRUE(edge == cv::Vec3b(255, 0, 255) || edge == cv::Vec3b(0, 220, 0)) << edge;
   const cv::Rect r = fr.rois.front();
   EXPECT_EQ(out.at<cv::Vec3b>(r.y, r.x + r.width / 2), cv::Vec3b(255, 160, 0));
