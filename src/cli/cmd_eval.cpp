@@ -3,6 +3,7 @@
 #include <iostream>
 
 #include "command.h"
+#include "ddace/common/file.h"
 #include "ddace/pipeline/evaluation.h"
 
 namespace ddace::cli {
@@ -30,8 +31,7 @@ int runEval(const std::vector<std::string>& argv) {
   printEvaluation(e, std::cout);
   if (args.has("--json")) {
     const std::string path = args.get("--json", "");
-    std::ofstream out(path);
-    if (!(out << evaluationJson(e))) throw Error(Diagnostic{path, 0, 0, "cannot write the JSON report"});
+    writeTextFile(path, evaluationJson(e));  // checked: a failed write is an error naming the file
     std::cout << "wrote " << path << "\n";
   }
   return 0;

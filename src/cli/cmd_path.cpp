@@ -11,6 +11,7 @@
 
 #include "command.h"
 #include "ddace/common/error.h"
+#include "ddace/common/file.h"
 #include "ddace/eval/frechet.h"
 #include "ddace/gp/canonical.h"
 #include "ddace/gp/primitives.h"
@@ -65,10 +66,9 @@ int onePath(const Args& args, const gp::PrimitiveLibrary& lib) {
   const std::string note = path.fell_back ? "# " + key + " was never demonstrated: fell back to " + path.source_key
                                           : "# primitive " + path.source_key;
   if (args.has("--csv")) {
-    std::ofstream f(args.get("--csv", ""));
-    if (!f) throw Error(Diagnostic{args.get("--csv", ""), 0, 0, "cannot open for writing"});
+    std::ostringstream f;
     writePath(f, path);
-    if (!f) throw Error(Diagnostic{args.get("--csv", ""), 0, 0, "cannot write"});
+    writeTextFile(args.get("--csv", ""), f.str());
     std::cout << note.substr(2) << "; " << points << " points written to " << args.get("--csv", "") << "\n";
   } else {
     std::cout << note << "\n";

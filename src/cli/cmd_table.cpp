@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "command.h"
+#include "ddace/common/file.h"
 #include "ddace/common/machine.h"
 #include "ddace/tasks/generators.h"
 #include "ddace/pipeline/evaluation.h"
@@ -137,7 +138,7 @@ Row trainAndEvaluate(const Settings& s, const fs::path& data, const std::string&
   r.stop = model.sequence.info().stop_reason;
   const Evaluation e = evaluate(model, test, {});
   r.m = e.summary;
-  std::ofstream((s.out / "eval" / (model_name + ".json")).string()) << evaluationJson(e);
+  writeTextFile((s.out / "eval" / (model_name + ".json")).string(), evaluationJson(e));
   // The first trial's paths, for the trajectory overlay figure.
   if (!e.trials.empty() && overlay) {
     std::ofstream csv((s.out / "overlays" / (family + ".csv")).string());
@@ -471,7 +472,7 @@ int runTable(const std::vector<std::string>& argv) {
   for (const auto& f : paper_families) md << "![" << f << "](figures/overlay_" << f << ".png)\n";
   md << "\n## Reading the numbers\n\n" << DDACE_RESULTS_DISCUSSION;
   const fs::path results = s.docs / "results.md";
-  std::ofstream(results.string()) << md.str();
+  writeTextFile(results.string(), md.str());
   // The 20-minute goal is a benchmark: the run's wall time goes next to the other benches.
   const double minutes = secondsSince(t_all) / 60;
   fs::create_directories(s.docs / "bench");

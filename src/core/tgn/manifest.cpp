@@ -9,6 +9,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "ddace/common/error.h"
+#include "ddace/common/file.h"
 
 namespace ddace::tgn {
 
@@ -139,10 +140,7 @@ std::string readFile(const std::string& path) {
 }
 
 void writeFile(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  out << text;
-  out.close();
-  if (!out) throw Error(Diagnostic{path, 0, 0, "cannot write the file"});
+  writeTextFile(path, text);
 }
 
 std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec, uint64_t weights_hash,
