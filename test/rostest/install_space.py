@@ -62,10 +62,10 @@ class InstallSpace(unittest.TestCase):
         # Every node and the Python labelling tool resolve to installed executables.
         args = self.sh("roslaunch --args /coordinator ddace execute_sim.launch task:=x", 60)
         self.assertTrue(args.startswith(os.path.join(self.prefix, "lib", "ddace", "coordinator_node")), args)
-        result = os.path.join(self.work, "result.json")
-        self.sh("roslaunch ddace execute_sim.launch task:=%s/task4/test train:=%s/task4/train result_file:=%s"
-                % (self.work, self.work, result), 300)
-        with open(result) as f:
+        run_dir = os.path.join(self.work, "run")
+        self.sh("roslaunch ddace execute_sim.launch task:=%s/task4/test train:=%s/task4/train run_dir:=%s"
+                % (self.work, self.work, run_dir), 300)
+        with open(os.path.join(run_dir, "result.json")) as f:
             self.assertEqual(json.load(f)["state"], "finished")
 
 

@@ -16,9 +16,16 @@ TEST(VisionTask4, CompletesOnTrackedPoses) {
   // The mock robots publish the truth for the camera; tf comes from the tracker.
   const exec_test::ScratchDir scratch("vision_task4_config");
   const std::string& dir = scratch;
-  pnh.setParam("config_file", exec_test::writeConfig(shipped, dir + "/execution.yaml",
-                                                     {{{"mock_robots", "entities_topic", "/ddace/true_entities"}},
-                                                      {{"mock_robots", "publish_tf", "false"}}}));
+  pnh.setParam("config_file",
+               exec_test::writeConfig(shipped, dir + "/execution.yaml",
+                                      {{{"mock_robots", "entities_topic", "/ddace/true_entities"}},
+                                       {{"mock_robots", "publish_tf", "false"}},
+                                       // The poses come from the tracker: it is the pose source.
+                                       {{"coordinator", "roles",
+                                         "{sequence: /sequence, paths: /gp_path, follower: /path_follower,"
+                                         " driver: /mock_robots, object_executor: /mock_robots,"
+                                         " pose_source: /tracker, heartbeat_timeout_s: 0.5,"
+                                         " pose_timeout_s: 1.0}"}}}));
   // Count what the tracker publishes, to be sure the run drove on it.
   std::atomic<int> tracked{0};
   ros::Subscriber sub =
