@@ -1,5 +1,6 @@
 #include "ddace/task/task_spec.h"
 
+#include <algorithm>
 #include <cctype>
 #include <set>
 #include <sstream>
@@ -118,6 +119,12 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
         }
       }
       if (node["type"]) c.scalar(node["type"], "type", e.type);
+      // Free text, but text: a control character would not survive taskYamlText (found by fuzzing).
+      if (std::any_of(e.type.begin(), e.type.end(),
+                      [](char ch) { return std::iscntrl(static_cast<unsigned char>(ch)); })) {
+        c.error(node["type"], "type must be printable text (it has a control character)");
+        ok = false;
+      }
       if (ok) spec.entities.push_back(e);
     }
   }

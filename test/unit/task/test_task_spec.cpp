@@ -86,6 +86,13 @@ TEST(TaskSpec, UnknownKindIsAnError) {
   EXPECT_NE(d.message.find("unknown kind 'tank'"), std::string::npos);
 }
 
+TEST(TaskSpec, ControlCharacterInTypeIsAnErrorAtItsPosition) {
+  // Found by the task_yaml fuzzer: such a type did not survive taskYamlText -> parseTaskYaml.
+  const Diagnostic d = onlyError("format: ddace-task/1\nentities:\n  - {name: R1, kind: robot, type: \"ha\\x03m\"}\n");
+  EXPECT_EQ(d.line, 3);
+  EXPECT_NE(d.message.find("control character"), std::string::npos) << d.message;
+}
+
 TEST(TaskSpec, DuplicateNameIsAnError) {
   const Diagnostic d =
       onlyError("format: ddace-task/1\nentities:\n  - {name: R1, kind: robot}\n  - {name: R1, kind: goal}\n");
