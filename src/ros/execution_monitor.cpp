@@ -1,5 +1,6 @@
 // ExecutionMonitorNode: see include/ddace/ros/execution_monitor.h.
 #include "ddace/ros/execution_monitor.h"
+#include "ddace/common/machine.h"
 #include "ddace/task/task_dir.h"
 
 #include <signal.h>
@@ -43,15 +44,6 @@ std::string stepText(const std::vector<std::string>& keys) {
   return s;
 }
 
-std::string utcStamp() {
-  const std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y%m%dT%H%M%SZ", &tm);
-  return buf;
-}
-
 std::string keyOf(const ddace::Token& t) {
   return t.entity + ":" + t.action + (t.target.empty() ? "" : ":" + t.target);
 }
@@ -81,7 +73,7 @@ class ExecutionMonitorNode::Impl {
       const char* home = std::getenv("HOME");
       std::string base =
           rosparam::param<std::string>(pnh, "runs_dir", std::string(home ? home : "/tmp") + "/.ros/ddace/runs");
-      run_dir = (fs::path(base) / utcStamp()).string();
+      run_dir = (fs::path(base) / utcNow("%Y%m%dT%H%M%SZ")).string();
       latest_link_ = (fs::path(base) / "latest").string();
     }
     if (fs::path(run_dir).is_relative())

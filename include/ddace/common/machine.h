@@ -16,13 +16,13 @@ inline std::string loadAverage() {
   return first.empty() ? "unknown" : first;
 }
 
-/// Now, as "YYYY-MM-DD HH:MM UTC".
-inline std::string utcNow() {
+/// Now in UTC, formatted by strftime's `format` (default "YYYY-MM-DD HH:MM UTC"; at most 63 characters).
+inline std::string utcNow(const char* format = "%Y-%m-%d %H:%M UTC") {
   const std::time_t now = std::time(nullptr);
   std::tm tm{};
   gmtime_r(&now, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M UTC", &tm);
+  char buf[64];
+  std::strftime(buf, sizeof buf, format, &tm);
   return buf;
 }
 
