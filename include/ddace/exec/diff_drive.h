@@ -13,6 +13,8 @@
 
 #include <Eigen/Core>
 
+#include "ddace/common/angle.h"
+
 namespace ddace::exec {
 
 /// Planar pose in the table frame.
@@ -44,8 +46,8 @@ struct DiffDriveParams {
   void validate() const;
 };
 
-/// Wraps an angle to (-pi, pi].
-double wrapAngle(double a);
+/// Wraps an angle to (-pi, pi] (the one definition is in common/angle.h).
+using ddace::wrapAngle;
 
 /// Converts a body twist (v m/s forward, w rad/s counter-clockwise) to wheel speeds.
 WheelSpeeds twistToWheels(double v_mps, double w_radps, double wheel_base_m);

@@ -19,6 +19,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "ddace/common/angle.h"
 #include "ddace/vision/detector.h"
 
 namespace ddace::vision {
@@ -124,7 +125,7 @@ std::optional<ParallaxEstimate> estimateParallaxWithoutIntrinsics(const TableFra
                                                                   double height_m,
                                                                   const std::vector<cv::Point2d>& area);
 
-/// Wraps an angle into (-pi, pi].
-double wrapAngle(double a);
+/// Wraps an angle into (-pi, pi] (the one definition is in common/angle.h).
+using ddace::wrapAngle;
 
 }  // namespace ddace::vision

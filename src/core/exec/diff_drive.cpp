@@ -23,12 +23,6 @@ void DiffDriveParams::validate() const {
   if (!(yaw_noise_rad >= 0) || !std::isfinite(yaw_noise_rad)) bad("yaw_noise_rad", "must be >= 0 radians");
 }
 
-double wrapAngle(double a) {
-  a = std::fmod(a + M_PI, 2 * M_PI);
-  if (a <= 0) a += 2 * M_PI;
-  return a - M_PI;
-}
-
 WheelSpeeds twistToWheels(double v_mps, double w_radps, double wheel_base_m) {
   return {v_mps - w_radps * wheel_base_m / 2, v_mps + w_radps * wheel_base_m / 2};
 }

@@ -9,12 +9,6 @@
 
 namespace ddace::vision {
 
-double wrapAngle(double a) {
-  a = std::fmod(a + M_PI, 2 * M_PI);
-  if (a <= 0) a += 2 * M_PI;
-  return a - M_PI;
-}
-
 std::vector<cv::Point2f> CameraModel::undistort(const std::vector<cv::Point2f>& px) const {
   if (!valid || D.empty() || px.empty()) return px;
   bool any = false;

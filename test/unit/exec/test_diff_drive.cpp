@@ -131,10 +131,3 @@ TEST(DiffDrive, InvalidParametersAreRefusedByName) {
   p.latency_s = -1;
   EXPECT_THROW(DiffDriveModel{p}, Error);
 }
-
-TEST(DiffDrive, WrapAngle) {
-  EXPECT_NEAR(wrapAngle(3 * M_PI / 2), -M_PI / 2, 1e-12);
-  EXPECT_NEAR(wrapAngle(-3 * M_PI / 2), M_PI / 2, 1e-12);
-  EXPECT_NEAR(wrapAngle(M_PI), M_PI, 1e-12);
-  EXPECT_NEAR(wrapAngle(-M_PI), M_PI, 1e-12);
-}

@@ -76,13 +76,6 @@ TEST(PoseFilter, SmoothsYawAcrossTheWrap) {
   EXPECT_NEAR(std::abs(f.pose().yaw), M_PI, 1e-9);
 }
 
-TEST(WrapAngle, RangeIsMinusPiExclusiveToPiInclusive) {
-  EXPECT_DOUBLE_EQ(wrapAngle(M_PI), M_PI);
-  EXPECT_DOUBLE_EQ(wrapAngle(-M_PI), M_PI);
-  EXPECT_NEAR(wrapAngle(3 * M_PI / 2), -M_PI / 2, 1e-12);
-  EXPECT_NEAR(wrapAngle(-7.0), -7.0 + 2 * M_PI, 1e-12);
-}
-
 TEST(PoseFilter, AHeldPoseGoesStaleOnceItsSpeedSaysItHasDriftedTooFar) {
   FilterConfig c;
   c.hold_s = 1.0;
