@@ -6,7 +6,6 @@
 #include <diagnostic_updater/diagnostic_updater.h>
 
 #include <atomic>
-#include <chrono>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -15,20 +14,13 @@
 #include <ddace/HamsterSensors.h>
 #include <ddace/WheelCommand.h>
 
+#include "ddace/common/clock.h"
 #include "ddace/common/error.h"
 #include "ddace/hamster/config.h"
 #include "ddace/hamster/link.h"
 #include "ddace/ros/hamster_conversions.h"
 
 #include "params.h"
-
-namespace {
-
-double monotonicS() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-}  // namespace
 
 namespace ddace::nodes {
 

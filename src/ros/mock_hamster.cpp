@@ -18,20 +18,13 @@
 #include <ddace/HamsterMockFault.h>
 #include <ddace/HamsterMockState.h>
 
+#include "ddace/common/clock.h"
 #include "ddace/common/error.h"
 #include "ddace/hamster/config.h"
 #include "ddace/hamster/mock_robot.h"
 
 #include "ddace/ros/frames.h"
 #include "params.h"
-
-namespace {
-
-double monotonicS() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-}  // namespace
 
 namespace ddace::nodes {
 

@@ -5,9 +5,9 @@
 #include <systemd/sd-bus.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cstring>
 
+#include "ddace/common/clock.h"
 #include "ddace/common/error.h"
 
 namespace ddace::hamster {
@@ -19,10 +19,6 @@ constexpr const char* kDeviceIface = "org.bluez.Device1";
 constexpr const char* kCharIface = "org.bluez.GattCharacteristic1";
 // Unread lines kept at most; more means nobody reads, and old sensor lines are stale anyway.
 constexpr size_t kMaxUnreadBytes = 64 * 1024;
-
-double monotonicS() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 std::string errorText(const sd_bus_error* e, int r) {
   if (e && sd_bus_error_is_set(e)) return std::string(e->name) + (e->message ? std::string(": ") + e->message : "");

@@ -4,6 +4,7 @@
 #include <memory>
 #include <thread>
 
+#include "ddace/common/clock.h"
 #include "ddace/common/error.h"
 
 namespace ddace::hamster {
@@ -24,7 +25,6 @@ std::string surveyStatusName(PortSurvey::Status status) {
 
 std::vector<PortSurvey> surveyPorts(const std::vector<std::string>& patterns, const std::string& port_dir,
                                     double timeout_s, const TransportFactory& factory) {
-  using Clock = std::chrono::steady_clock;
   struct Probe {
     std::unique_ptr<Transport> transport;
     LineAssembler assembler;
@@ -47,18 +47,18 @@ std::vector<PortSurvey> surveyPorts(const std::vector<std::string>& patterns, co
     out.push_back(s);
     probes.push_back(std::move(p));
   }
-  const auto start = Clock::now();
-  auto next_ff = start;
+  const double start_s = monotonicS();
+  double next_ff_s = start_s;
   char buf[512];
   for (;;) {
-    const auto now = Clock::now();
+    const double now_s = monotonicS();
     bool all_done = true;
     for (size_t i = 0; i < probes.size(); ++i) {
       Probe& p = probes[i];
       if (p.done) continue;
       PortSurvey& s = out[i];
       try {
-        if (now >= next_ff) p.transport->write(kIdentifyRequest.data(), kIdentifyRequest.size());
+        if (now_s >= next_ff_s) p.transport->write(kIdentifyRequest.data(), kIdentifyRequest.size());
         for (size_t n; (n = p.transport->read(buf, sizeof buf)) > 0;) {
           p.assembler.push(buf, n, [&](std::string_view line) {
             const ParsedLine parsed = parseLine(line);
@@ -82,8 +82,8 @@ std::vector<PortSurvey> surveyPorts(const std::vector<std::string>& patterns, co
       }
       all_done = all_done && p.done;
     }
-    if (now >= next_ff) next_ff = now + std::chrono::milliseconds(100);
-    if (all_done || std::chrono::duration<double>(now - start).count() >= timeout_s) break;
+    if (now_s >= next_ff_s) next_ff_s = now_s + 0.1;
+    if (all_done || now_s - start_s >= timeout_s) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
   for (auto& p : probes) p.transport->close();

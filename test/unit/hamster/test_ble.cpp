@@ -26,20 +26,18 @@
 #include <thread>
 #include <tuple>
 
+#include "ddace/common/clock.h"
 #include "ddace/hamster/ble_transport.h"
 #include "ddace/hamster/link.h"
 
 extern char** environ;
 
 using namespace ddace::hamster;
+using ddace::monotonicS;
 
 namespace {
 
 const char* kDisplayAddress = "D9:4B:8B:A4:E1:67";
-
-double nowS() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 /// Starts `argv` with its stdout on a pipe; returns the pid (-1 on failure).
 pid_t spawnWithStdout(const std::vector<std::string>& argv, int* stdout_fd) {
@@ -67,8 +65,8 @@ pid_t spawnWithStdout(const std::vector<std::string>& argv, int* stdout_fd) {
 /// One line from fd (without the newline); empty on timeout or end of file.
 std::string readLine(int fd, double timeout_s) {
   std::string line;
-  const double end = nowS() + timeout_s;
-  while (nowS() < end) {
+  const double end = monotonicS() + timeout_s;
+  while (monotonicS() < end) {
     pollfd p{fd, POLLIN, 0};
     if (::poll(&p, 1, 50) <= 0) continue;
     char c = 0;
@@ -202,8 +200,8 @@ class BleTest : public ::testing::Test {
   }
 
   static bool runUntil(const std::function<bool()>& step, double timeout_s) {
-    const double end = nowS() + timeout_s;
-    while (nowS() < end) {
+    const double end = monotonicS() + timeout_s;
+    while (monotonicS() < end) {
       if (step()) return true;
       std::this_thread::sleep_for(std::chrono::milliseconds(2));
     }
@@ -410,7 +408,7 @@ TEST_F(BleTest, RobotLinkDrivesReconnectsAndFailsSafe) {
   std::vector<CycleReport> reports, all;
   bool command = false;
   auto step = [&] {
-    const double t = nowS();
+    const double t = monotonicS();
     if (command) link.setWheelCommand(0.03, -0.015, t);  // 20 and -10 units
     reports.clear();
     link.poll(t, reports);

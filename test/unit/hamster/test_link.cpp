@@ -16,18 +16,16 @@
 #include <memory>
 #include <thread>
 
+#include "ddace/common/clock.h"
 #include "ddace/common/error.h"
 #include "ddace/hamster/link.h"
 #include "ddace/hamster/mock_robot.h"
 #include "ddace/hamster/scan.h"
 
 using namespace ddace::hamster;
+using ddace::monotonicS;
 
 namespace {
-
-double nowS() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 class LinkTest : public ::testing::Test {
  protected:
@@ -69,8 +67,8 @@ class LinkTest : public ::testing::Test {
 
   /// Steps mocks and links every millisecond until `done()` or `timeout_s`.
   bool runUntil(const std::function<bool()>& done, double timeout_s) {
-    const double end = nowS() + timeout_s;
-    while (nowS() < end) {
+    const double end = monotonicS() + timeout_s;
+    while (monotonicS() < end) {
       step();
       if (done()) return true;
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
@@ -81,7 +79,7 @@ class LinkTest : public ::testing::Test {
     runUntil([] { return false; }, seconds);
   }
   void step() {
-    const double t = nowS();
+    const double t = monotonicS();
     for (auto& m : mocks_) m->step(t);
     for (auto& l : links_) {
       for (auto& cmd : commands_) {
@@ -146,9 +144,9 @@ TEST_F(LinkTest, WatchdogZeroesWheelsWhenCommandsStop) {
   commands_ = {{&l, 0.1, 0.1}};
   ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
   commands_.clear();
-  const double stop = nowS();
+  const double stop = monotonicS();
   ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 0 && m.rightUnits() == 0; }, 1.0));
-  const double elapsed = nowS() - stop;
+  const double elapsed = monotonicS() - stop;
   EXPECT_GE(elapsed, 0.15);  // the command stays valid for command_timeout_s (0.2 s)
   EXPECT_LE(elapsed, 0.5);
   EXPECT_EQ(l.state(), LinkState::Streaming);
@@ -160,11 +158,11 @@ TEST_F(LinkTest, OneWayStallIsALinkLossThatStopsTheRobotAndRecovers) {
   RobotLink& l = addLink("R1", "0000000000AA");
   commands_ = {{&l, 0.1, 0.1}};
   ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
-  m.setFault(MockFault::Stall, 1.0, nowS());
+  m.setFault(MockFault::Stall, 1.0, monotonicS());
   // No sensor line for 250 ms → the link sends a zero line (the robot still hears us) and reconnects.
-  const double stall = nowS();
+  const double stall = monotonicS();
   ASSERT_TRUE(runUntil([&] { return l.state() != LinkState::Streaming; }, 1.0));
-  EXPECT_GE(nowS() - stall, 0.24);
+  EXPECT_GE(monotonicS() - stall, 0.24);
   EXPECT_EQ(l.stats().link_losses, 1u);
   ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 0 && m.rightUnits() == 0; }, 0.1));
   // The dongle still answers FF, so the link re-identifies, but without sensor lines it
@@ -180,12 +178,12 @@ TEST_F(LinkTest, RadioDropRecoversWhenTheRobotComesBack) {
   RobotLink& l = addLink("R1", "0000000000AA");
   commands_ = {{&l, 0.1, 0.1}};
   ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
-  m.setFault(MockFault::Drop, 0.8, nowS());
+  m.setFault(MockFault::Drop, 0.8, monotonicS());
   ASSERT_TRUE(runUntil([&] { return l.state() != LinkState::Streaming; }, 1.0));
   runFor(0.3);
   EXPECT_NE(l.state(), LinkState::Streaming);
   EXPECT_GT(l.stats().no_robot_lines, 0u);
-  ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Streaming && m.driven(nowS()); }, 4.0));
+  ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Streaming && m.driven(monotonicS()); }, 4.0));
 }
 
 TEST_F(LinkTest, UnplugAndReplugReopensThroughTheSymlink) {
@@ -194,9 +192,9 @@ TEST_F(LinkTest, UnplugAndReplugReopensThroughTheSymlink) {
   commands_ = {{&l, 0.1, 0.1}};
   ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
   const std::string before = m.slavePath();
-  m.setFault(MockFault::Unplug, 0.5, nowS());
+  m.setFault(MockFault::Unplug, 0.5, monotonicS());
   ASSERT_TRUE(runUntil([&] { return l.state() != LinkState::Streaming; }, 1.0));
-  ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Streaming && m.driven(nowS()); }, 4.0));
+  ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Streaming && m.driven(monotonicS()); }, 4.0));
   EXPECT_EQ(l.stats().connects, 2u);
   EXPECT_EQ(m.leftUnits(), 50);
   (void)before;
@@ -208,7 +206,7 @@ TEST_F(LinkTest, GarbageIsCountedAndDroppedWhileDrivingContinues) {
   commands_ = {{&l, 0.1, 0.1}};
   ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
   const uint64_t ok_before = l.stats().lines_ok;
-  m.setFault(MockFault::Garbage, 0.5, nowS());
+  m.setFault(MockFault::Garbage, 0.5, monotonicS());
   runFor(0.6);
   EXPECT_EQ(l.state(), LinkState::Streaming);
   EXPECT_EQ(l.stats().link_losses, 0u);
@@ -223,7 +221,7 @@ TEST_F(LinkTest, NonFiniteCommandIsRefusedAndTheOldOneAgesOut) {
   commands_ = {{&l, 0.1, 0.1}};
   ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
   commands_.clear();
-  EXPECT_THROW(l.setWheelCommand(std::nan(""), 0.1, nowS()), ddace::Error);
+  EXPECT_THROW(l.setWheelCommand(std::nan(""), 0.1, monotonicS()), ddace::Error);
   ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 0; }, 1.0));
 }
 
@@ -238,12 +236,12 @@ TEST_F(LinkTest, WrongModelInConfigIsRefused) {
 TEST_F(LinkTest, SurveyListsRobotsAndDonglesWithoutRobots) {
   addMock("a", "0000000000AA", Model::HamsterS, 0.002);
   MockRobot& lonely = addMock("b", "0000000000BB", Model::Hamster, 0.002);
-  lonely.setFault(MockFault::Drop, 10.0, nowS());
+  lonely.setFault(MockFault::Drop, 10.0, monotonicS());
   { std::ofstream(dir_ + "/hamster_plainfile") << "not a tty"; }
   std::atomic<bool> stop{false};
   std::thread robots([&] {
     while (!stop) {
-      for (auto& m : mocks_) m->step(nowS());
+      for (auto& m : mocks_) m->step(monotonicS());
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
   });
@@ -341,7 +339,7 @@ TEST(RobotLinkMemory, BlockedWritesCountAsALostLink) {
 
 TEST_F(LinkTest, DongleAnsweringFfWithoutItsRobotNeverStreamsNorFlaps) {
   MockRobot& m = addMock("a", "0000000000AA", Model::Hamster, 0.002);
-  m.setFault(MockFault::Stall, 2.0, nowS());  // answers FF, no sensor line: the robot is gone
+  m.setFault(MockFault::Stall, 2.0, monotonicS());  // answers FF, no sensor line: the robot is gone
   RobotLink& l = addLink("R1", "0000000000AA");
   commands_ = {{&l, 0.1, 0.1}};
   ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Identified; }, 1.0)) << l.stats().last_error;
@@ -351,13 +349,13 @@ TEST_F(LinkTest, DongleAnsweringFfWithoutItsRobotNeverStreamsNorFlaps) {
   EXPECT_EQ(l.stats().link_losses, 0u);
   EXPECT_EQ(m.identifyRequests(), 1u);  // the port was opened once and kept
   EXPECT_EQ(l.port(), dir_ + "/hamster_a");
-  const LinkHealth h = l.health(nowS(), 0);
+  const LinkHealth h = l.health(monotonicS(), 0);
   EXPECT_EQ(h.level, LinkHealth::Level::Error);
   EXPECT_NE(h.summary.find("no sensor line"), std::string::npos) << h.summary;
   // The robot comes back: the first sensor line answered makes the link stream.
   ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Streaming && m.leftUnits() == 50; }, 2.0));
   EXPECT_EQ(l.stats().connects, 1u);
-  EXPECT_EQ(l.health(nowS(), 0).level, LinkHealth::Level::Ok);
+  EXPECT_EQ(l.health(monotonicS(), 0).level, LinkHealth::Level::Ok);
 }
 
 TEST_F(LinkTest, LostLinkWaitsOnTheOpenPort) {
@@ -366,10 +364,10 @@ TEST_F(LinkTest, LostLinkWaitsOnTheOpenPort) {
   commands_ = {{&l, 0.1, 0.1}};
   ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 3.0));
   const uint64_t ff_before = m.identifyRequests();
-  m.setFault(MockFault::Drop, 0.8, nowS());
+  m.setFault(MockFault::Drop, 0.8, monotonicS());
   ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Lost; }, 1.0));
   EXPECT_EQ(l.port(), dir_ + "/hamster_a");
-  EXPECT_EQ(l.health(nowS(), 1).level, LinkHealth::Level::Error);
+  EXPECT_EQ(l.health(monotonicS(), 1).level, LinkHealth::Level::Error);
   runFor(0.3);
   EXPECT_EQ(l.state(), LinkState::Lost);
   EXPECT_EQ(m.identifyRequests(), ff_before);  // not reopened, not re-identified
@@ -378,7 +376,7 @@ TEST_F(LinkTest, LostLinkWaitsOnTheOpenPort) {
   EXPECT_EQ(l.stats().connects, 2u);
   EXPECT_EQ(m.identifyRequests(), ff_before);
   // The loss shows in the next report even though the link is up again.
-  EXPECT_EQ(l.health(nowS(), 1).level, LinkHealth::Level::Warn);
+  EXPECT_EQ(l.health(monotonicS(), 1).level, LinkHealth::Level::Warn);
 }
 
 TEST_F(LinkTest, WarnsOnceAboutAForeignRobotAndListsThePortsSearched) {
@@ -399,10 +397,10 @@ TEST_F(LinkTest, WarnsOnceAboutAForeignRobotAndListsThePortsSearched) {
   bridge.robots = {r1, r2};
   RobotLink l1(r1, bridge, ports_, serialTransportFactory());
   std::vector<std::string> warnings;
-  const double end = nowS() + 1.5;  // three search passes
-  while (nowS() < end) {
-    for (auto& m : mocks_) m->step(nowS());
-    l1.poll(nowS(), reports_);
+  const double end = monotonicS() + 1.5;  // three search passes
+  while (monotonicS() < end) {
+    for (auto& m : mocks_) m->step(monotonicS());
+    l1.poll(monotonicS(), reports_);
     for (auto& w : l1.takeWarnings()) warnings.push_back(w);
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
@@ -415,7 +413,7 @@ TEST_F(LinkTest, WarnsOnceAboutAForeignRobotAndListsThePortsSearched) {
       << warnings[1];
   EXPECT_NE(warnings[1].find(dir_ + "/hamster_b (robot B2:00:00:00:00:00 answers there)"), std::string::npos)
       << warnings[1];
-  EXPECT_EQ(l1.health(nowS(), 0).level, LinkHealth::Level::Error);
+  EXPECT_EQ(l1.health(monotonicS(), 0).level, LinkHealth::Level::Error);
 }
 
 TEST_F(LinkTest, MissingPortDirectoryIsReported) {
@@ -442,15 +440,15 @@ TEST_F(LinkTest, StaleOrFutureStampedCommandsAreRefusedAndCounted) {
   MockRobot& m = addMock("a", "0000000000AA", Model::Hamster, 0.002);
   RobotLink& l = addLink("R1", "0000000000AA");
   ASSERT_TRUE(runUntil([&] { return l.state() == LinkState::Streaming; }, 3.0));
-  EXPECT_THROW(l.setWheelCommand(0.1, 0.1, nowS(), 0.25), ddace::Error);   // older than command_max_age_s
-  EXPECT_THROW(l.setWheelCommand(0.1, 0.1, nowS(), -0.25), ddace::Error);  // from the future
+  EXPECT_THROW(l.setWheelCommand(0.1, 0.1, monotonicS(), 0.25), ddace::Error);   // older than command_max_age_s
+  EXPECT_THROW(l.setWheelCommand(0.1, 0.1, monotonicS(), -0.25), ddace::Error);  // from the future
   EXPECT_EQ(l.stats().refused_commands, 2u);
   runFor(0.1);
   EXPECT_EQ(m.leftUnits(), 0);
-  l.setWheelCommand(0.1, 0.1, nowS(), 0.05);
+  l.setWheelCommand(0.1, 0.1, monotonicS(), 0.05);
   ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50; }, 0.5));
   try {
-    l.setWheelCommand(0.1, 0.1, nowS(), 1.5);
+    l.setWheelCommand(0.1, 0.1, monotonicS(), 1.5);
     FAIL();
   } catch (const ddace::Error& e) {
     EXPECT_NE(std::string(e.what()).find("1.500 s ago (more than command_max_age_s 0.200 s)"), std::string::npos)
