@@ -13,28 +13,25 @@
 // Reference, in the same run: the same loop with the demonstration replay policy and
 // the demonstrated paths retargeted (exec/replay.h): the coordinator's own overhead.
 // Writes docs/bench/decision_latency.md.
-#include <time.h>
-
 #include <algorithm>
-#include <chrono>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
 #include <thread>
 
+#include "ddace/common/clock.h"
 #include "ddace/common/machine.h"
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/replay.h"
 #include "ddace/gp/primitives.h"
 #include "ddace/tasks/generators.h"
 #include "ddace/tgn/sequence_model.h"
+#include "results.h"
 
 namespace fs = std::filesystem;
 using namespace ddace;
-using Clock = std::chrono::steady_clock;
 
 namespace {
 
@@ -46,9 +43,7 @@ using PathFn = std::function<exec::PlannedPath(const task::Token&, const Eigen::
 /// CPU time of this thread, ms: the work itself, without the time the thread waited
 /// while other processes had the cores.
 double threadCpuMs() {
-  timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+  return threadCpuS() * 1e3;
 }
 
 struct Stats {
@@ -94,10 +89,10 @@ Stats run(const task::TaskSpec& spec, const std::vector<task::Demonstration>& sc
       }
       return segs;
     };
-    auto t0 = Clock::now();
+    auto t0 = SteadyClock::now();
     double c0 = threadCpuMs();
     std::vector<exec::SegmentCommand> segs = decide(c.start(now));
-    st.ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+    st.ms.push_back(msSince(t0));
     st.cpu_ms.push_back(threadCpuMs() - c0);
     while (c.state() == exec::RunState::Executing && !segs.empty() && static_cast<int>(st.ms.size()) < kDecisions) {
       now += 1;
@@ -105,11 +100,11 @@ Stats run(const task::TaskSpec& spec, const std::vector<task::Demonstration>& sc
       c.onEntities({pos, tracked}, now);
       for (size_t i = 0; i + 1 < segs.size(); ++i)
         c.onSegmentStatus(segs[i].entity, segs[i].segment_id, exec::SegmentState::Done, 1, "", now);
-      t0 = Clock::now();
+      t0 = SteadyClock::now();
       c0 = threadCpuMs();
       const auto& last = segs.back();
       segs = decide(c.onSegmentStatus(last.entity, last.segment_id, exec::SegmentState::Done, 1, "", now));
-      st.ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+      st.ms.push_back(msSince(t0));
       st.cpu_ms.push_back(threadCpuMs() - c0);
     }
     if (c.state() == exec::RunState::Finished) ++st.finished;
@@ -125,8 +120,13 @@ std::string fmt(double v, int prec = 3) {
 
 }  // namespace
 
-int main() {
+int main(int argc, char** argv) {
   try {
+    const fs::path repo = bench::repositoryFromArgs(argc, argv);
+    if (argc > 1) {
+      std::cerr << "usage: bench_decision_latency [--repo DIR]\n";
+      return 2;
+    }
     tasks::GeneratorOptions o;
     o.family = "task2";
     o.robots = 11;
@@ -191,10 +191,8 @@ int main() {
        << "Goal p99 < 5 ms (wall clock): " << (learned.pct(0.99) < goal_ms ? "met" : "NOT met")
        << " in this run. The CPU-time rows count only the time the decision's thread ran: the work itself, "
           "without waiting for the cores; on a loaded machine the wall-clock tail is that plus preemption.\n";
-    const fs::path out = fs::path(DDACE_SOURCE_DIR) / "docs" / "bench" / "decision_latency.md";
-    fs::create_directories(out.parent_path());
-    std::ofstream(out) << md.str();
-    std::cout << md.str() << "wrote " << out.string() << "\n";
+    std::cout << md.str();
+    bench::writeResults(repo, "decision_latency", md.str());
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "bench_decision_latency: " << e.what() << "\n";

@@ -8,17 +8,13 @@
 // scikit-learn (bench/gp_fit_reference.py, /usr/bin/python3) runs at 500 samples by
 // default; --sklearn-demos 5,10,20 asks for more (minutes).
 //
-// Writes docs/bench/gp_fit.md under the repository (found from DDACE_SOURCE_DIR, --repo,
-// or the catkin workspace this binary was built in).
-#include <time.h>
+// Writes docs/bench/gp_fit.md under the repository (--repo DIR or found: common/repository.h).
 #include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
@@ -26,14 +22,16 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "ddace/common/clock.h"
 #include "ddace/common/error.h"
+#include "ddace/common/file.h"
 #include "ddace/common/machine.h"
 #include "ddace/gp/primitives.h"
 #include "ddace/tasks/generators.h"
+#include "results.h"
 
 namespace fs = std::filesystem;
 using namespace ddace;
-using Clock = std::chrono::steady_clock;
 
 namespace {
 
@@ -57,9 +55,7 @@ struct Ours {
 };
 
 double cpuMs() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+  return processCpuS() * 1e3;
 }
 
 /// Medians over repeated runs (at least `min_runs` and `min_total_ms` of wall time).
@@ -68,27 +64,17 @@ Timing median(F&& f, int min_runs, double min_total_ms) {
   std::vector<double> wall, cpu;
   double total = 0;
   while (static_cast<int>(wall.size()) < min_runs || total < min_total_ms) {
-    const auto t0 = Clock::now();
+    const auto t0 = SteadyClock::now();
     const double c0 = cpuMs();
     f();
     cpu.push_back(cpuMs() - c0);
-    wall.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+    wall.push_back(msSince(t0));
     total += wall.back();
     if (wall.size() > 100000) break;
   }
   std::sort(wall.begin(), wall.end());
   std::sort(cpu.begin(), cpu.end());
   return {wall[wall.size() / 2], cpu[cpu.size() / 2]};
-}
-
-fs::path findRepo(const std::string& given) {
-  if (!given.empty()) return given;
-  if (const char* env = std::getenv("DDACE_SOURCE_DIR")) return env;
-  // <ws>/devel/lib/ddace/bench_gp_fit -> <ws>/src/ddace
-  const fs::path self = fs::read_symlink("/proc/self/exe");
-  const fs::path guess = self.parent_path().parent_path().parent_path().parent_path() / "src" / "ddace";
-  if (fs::exists(guess / "bench" / "gp_fit_reference.py")) return fs::canonical(guess);
-  throw Error("cannot find the repository: set DDACE_SOURCE_DIR or pass --repo DIR");
 }
 
 std::string jsonArray(const Eigen::VectorXd& v) {
@@ -103,13 +89,11 @@ std::string jsonArray(const Eigen::VectorXd& v) {
 
 int main(int argc, char** argv) {
   try {
-    std::string repo_arg;
+    const fs::path repo = bench::repositoryFromArgs(argc, argv, {"bench/gp_fit_reference.py"});
     std::vector<int> sklearn_demos = {5};
     for (int i = 1; i < argc; ++i) {
       const std::string a = argv[i];
-      if (a == "--repo" && i + 1 < argc) {
-        repo_arg = argv[++i];
-      } else if (a == "--sklearn-demos" && i + 1 < argc) {
+      if (a == "--sklearn-demos" && i + 1 < argc) {
         sklearn_demos.clear();
         std::stringstream ss(argv[++i]);
         for (std::string part; std::getline(ss, part, ',');) {
@@ -122,7 +106,6 @@ int main(int argc, char** argv) {
         return 2;
       }
     }
-    const fs::path repo = findRepo(repo_arg);
     const std::string load = loadAverage();
 
     tasks::GeneratorOptions g;
@@ -196,7 +179,7 @@ int main(int argc, char** argv) {
     const fs::path tmp = fs::temp_directory_path() / ("ddace_bench_gp_fit_" + std::to_string(::getpid()));
     fs::create_directories(tmp);
     {
-      std::ofstream in(tmp / "in.json");
+      std::ostringstream in;
       in << std::setprecision(17) << "{\"predict_points\": 100, \"kernel\": {"
          << "\"constant\": " << gopt.initial.constant << ", \"length_scale\": " << gopt.initial.length_scale
          << ", \"noise_level\": " << gopt.initial.noise_level << ", \"constant_bounds\": ["
@@ -212,11 +195,12 @@ int main(int argc, char** argv) {
         first = false;
       }
       in << "]}\n";
+      writeTextFile((tmp / "in.json").string(), in.str());
     }
     const std::string cmd = "/usr/bin/python3 '" + (repo / "bench" / "gp_fit_reference.py").string() + "' '" +
                             (tmp / "in.json").string() + "' '" + (tmp / "out.json").string() + "'";
     if (std::system(cmd.c_str()) != 0) throw Error("the scikit-learn reference failed: " + cmd);
-    const YAML::Node ref = YAML::LoadFile((tmp / "out.json").string());
+    const YAML::Node ref = YAML::Load(readTextFile((tmp / "out.json").string()));
     fs::remove_all(tmp);
 
     // ---- report
@@ -271,10 +255,8 @@ int main(int argc, char** argv) {
        << generate_other.cpu_ms << " | | |\n\n"
        << "Goals (issue 4): fit >= 1000x faster than scikit-learn at 500 samples with an equal or better LML; "
        << "20-demo fit < 50 ms; 100-point prediction < 0.2 ms.\n";
-    const fs::path out = repo / "docs" / "bench" / "gp_fit.md";
-    fs::create_directories(out.parent_path());
-    std::ofstream(out) << md.str();
-    std::cout << md.str() << "written: " << out.string() << "\n";
+    std::cout << md.str();
+    bench::writeResults(repo, "gp_fit", md.str());
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "bench_gp_fit: error: " << e.what() << "\n";

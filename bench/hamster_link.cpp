@@ -15,32 +15,24 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <ctime>
-#include <time.h>
 #include <deque>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <memory>
 #include <numeric>
 #include <sstream>
 #include <thread>
 
+#include "ddace/common/clock.h"
 #include "ddace/hamster/link.h"
 #include "ddace/hamster/mock_robot.h"
+#include "results.h"
 
 using namespace ddace::hamster;
+using ddace::monotonicS;
+using ddace::threadCpuS;
 
 namespace {
-
-double cpuS() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-double wallS() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 /// A dongle in memory: the bench writes robot lines into `in`, the link's replies land in `out`.
 struct Pipe {
@@ -143,7 +135,7 @@ CpuResult cpuBench(int robots, long cycles) {
   }
   // Link: the full per-line path.
   reports.reserve(robots);
-  const double c0 = cpuS();
+  const double c0 = threadCpuS();
   for (long c = 0; c < cycles; ++c) {
     t += 0.02;
     for (int i = 0; i < robots; ++i) {
@@ -163,7 +155,7 @@ CpuResult cpuBench(int robots, long cycles) {
       if (pipes[i]->out.size() > (1 << 16)) pipes[i]->out.clear();
     }
   }
-  const double c1 = cpuS();
+  const double c1 = threadCpuS();
   result.lines = cycles * robots;
   for (int i = 0; i < robots; ++i) {
     if (links[i]->stats().lines_ok != static_cast<uint64_t>(cycles) || links[i]->stats().lines_dropped != 0) {
@@ -175,7 +167,7 @@ CpuResult cpuBench(int robots, long cycles) {
   Effector e;
   e.left_wheel = 10;
   size_t sink = 0;
-  const double r0 = cpuS();
+  const double r0 = threadCpuS();
   for (long c = 0; c < cycles; ++c) {
     for (int i = 0; i < robots; ++i) {
       const std::string& l = lines[i][c % 64];
@@ -185,7 +177,7 @@ CpuResult cpuBench(int robots, long cycles) {
       sink += out.size() + (s ? s->proximity_left : 0);
     }
   }
-  const double r1 = cpuS();
+  const double r1 = threadCpuS();
   if (sink == 0) std::exit(1);
   result.link_us = (c1 - c0) / static_cast<double>(result.lines) * 1e6;
   result.reference_us = (r1 - r0) / static_cast<double>(result.lines) * 1e6;
@@ -233,9 +225,9 @@ PtyResult ptyBench(int robots, int commands) {
     for (auto& m : mocks) m->step(now);
     for (auto& l : links) {
       const uint64_t before = l->stats().lines_ok;
-      const double c0 = cpuS();
+      const double c0 = threadCpuS();
       l->poll(now, reports);
-      const double c1 = cpuS();
+      const double c1 = threadCpuS();
       if (l->stats().lines_ok > before) {
         link_cpu_s += c1 - c0;
       } else {
@@ -246,9 +238,9 @@ PtyResult ptyBench(int robots, int commands) {
     reports.clear();
   };
   // Connect and settle.
-  const double start = wallS();
-  while (wallS() - start < 5.0) {
-    step(wallS());
+  const double start = monotonicS();
+  while (monotonicS() - start < 5.0) {
+    step(monotonicS());
     bool all = true;
     for (auto& l : links) all = all && l->state() == LinkState::Streaming;
     if (all) break;
@@ -262,18 +254,18 @@ PtyResult ptyBench(int robots, int commands) {
   for (int k = 0; k < commands; ++k) {
     const int units = (k % 2 ? 40 : -40) + k % 7;
     std::vector<double> issued(robots), seen(robots, -1.0);
-    const double t_cmd = wallS();
+    const double t_cmd = monotonicS();
     for (int i = 0; i < robots; ++i) {
       links[i]->setWheelCommand(units * 0.001, units * 0.001, t_cmd);
       issued[i] = t_cmd;
     }
     // Keep the command fresh while waiting (like a 50 Hz publisher), up to 0.1 s.
-    while (wallS() - t_cmd < 0.1) {
-      const double now = wallS();
+    while (monotonicS() - t_cmd < 0.1) {
+      const double now = monotonicS();
       for (int i = 0; i < robots; ++i) links[i]->setWheelCommand(units * 0.001, units * 0.001, now);
       step(now);
       for (int i = 0; i < robots; ++i) {
-        if (seen[i] < 0 && mocks[i]->leftUnits() == units) seen[i] = wallS();
+        if (seen[i] < 0 && mocks[i]->leftUnits() == units) seen[i] = monotonicS();
       }
       if (std::all_of(seen.begin(), seen.end(), [](double s) { return s >= 0; })) break;
       std::this_thread::sleep_for(std::chrono::microseconds(200));
@@ -283,9 +275,9 @@ PtyResult ptyBench(int robots, int commands) {
     }
     // Random phase for the next command relative to the 20 ms sensor cycle.
     const double pause = 0.005 + 0.003 * (k % 5);
-    const double until = wallS() + pause;
-    while (wallS() < until) {
-      step(wallS());
+    const double until = monotonicS() + pause;
+    while (monotonicS() < until) {
+      step(monotonicS());
       std::this_thread::sleep_for(std::chrono::microseconds(200));
     }
   }
@@ -310,7 +302,12 @@ PtyResult ptyBench(int robots, int commands) {
 
 }  // namespace
 
-int main() {
+int main(int argc, char** argv) try {
+  const std::filesystem::path repo = ddace::bench::repositoryFromArgs(argc, argv);
+  if (argc > 1) {
+    std::cerr << "usage: bench_hamster_link [--repo DIR]\n";
+    return 2;
+  }
   const int robots = 8;
   const long cycles = 50000;
   const CpuResult cpu = cpuBench(robots, cycles);
@@ -354,9 +351,9 @@ int main() {
                 pty.link_cpu_us_per_line < 20.0 ? "met" : "NOT met", pty.idle_polls, pty.idle_us_per_poll);
   md << buf;
   std::cout << md.str();
-  const std::filesystem::path out = std::filesystem::path(DDACE_SOURCE_DIR) / "docs" / "bench" / "hamster_link.md";
-  std::filesystem::create_directories(out.parent_path());
-  std::ofstream(out) << md.str();
-  std::cout << "wrote " << out.string() << "\n";
+  ddace::bench::writeResults(repo, "hamster_link", md.str());
   return cpu.latency_max_cycles == 1 && pty.samples == robots * commands ? 0 : 1;
+} catch (const std::exception& e) {
+  std::cerr << "bench_hamster_link: error: " << e.what() << "\n";
+  return 1;
 }

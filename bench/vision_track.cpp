@@ -10,10 +10,9 @@
 // ratios against the reference measured on the same frames. "Lost": markers the
 // reference found in a frame and the tracker did not (the goal is 0).
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
+#include <filesystem>
 #include <iostream>
 #include <set>
 #include <sstream>
@@ -23,11 +22,13 @@
 #include <opencv2/aruco.hpp>
 #include <opencv2/core.hpp>
 
+#include "ddace/common/clock.h"
 #include "ddace/common/error.h"
 #include "ddace/common/file.h"
 #include "ddace/common/machine.h"
 #include "ddace/vision/synthetic_camera.h"
 #include "ddace/vision/tracker.h"
+#include "results.h"
 
 using namespace ddace::vision;
 
@@ -97,17 +98,11 @@ struct Result {
   long robot_sides = 0;
 };
 
-double msSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
-Result run(const std::string& backend, bool ball, int frames) {
+/// `tuning`: the shipped config/tracker.yaml.
+Result run(const std::string& backend, bool ball, int frames, const TrackerConfig& tuning) {
   const MarkerConfig markers = sceneMarkers(backend, ball);
   SyntheticCamera camera(sceneCamera(), markers);
-  // The shipped tuning (config/tracker.yaml).
-  TrackerConfig tc;
-  parseTrackerTuning(ddace::readTextFile(std::string(DDACE_SOURCE_DIR) + "/config/tracker.yaml"), "config/tracker.yaml",
-                     tc);
+  TrackerConfig tc = tuning;
   tc.markers = markers;
   Tracker tracker(tc);
   tracker.setCamera(camera.camera());
@@ -124,17 +119,17 @@ Result run(const std::string& backend, bool ball, int frames) {
     const double t = f / 30.0;
     const auto truth = sceneTruth(t, ball);
     const cv::Mat img = camera.render(truth, t);
-    auto t0 = std::chrono::steady_clock::now();
+    auto t0 = ddace::SteadyClock::now();
     std::vector<std::vector<cv::Point2f>> corners;
     std::vector<int> ids;
     cv::aruco::detectMarkers(img, dict, corners, ids, params);
-    res.reference_ms += msSince(t0);
-    t0 = std::chrono::steady_clock::now();
+    res.reference_ms += ddace::msSince(t0);
+    t0 = ddace::SteadyClock::now();
     full->detect(img);
-    res.full_ms += msSince(t0);
-    t0 = std::chrono::steady_clock::now();
+    res.full_ms += ddace::msSince(t0);
+    t0 = ddace::SteadyClock::now();
     const FrameResult fr = tracker.process(img, t);
-    res.tracker_ms += msSince(t0);
+    res.tracker_ms += ddace::msSince(t0);
     res.roi_frames += !fr.full_frame;
     std::set<int> found;
     for (const auto& d : fr.detections) found.insert(d.id);
@@ -168,15 +163,16 @@ double percentile(std::vector<double> v, double p) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
+  const std::filesystem::path repo = ddace::bench::repositoryFromArgs(argc, argv, {"config/tracker.yaml"});
   int frames = 300;
-  std::string out = std::string(DDACE_SOURCE_DIR) + "/docs/bench/vision_track.md";
+  std::string out;  // default: the repository's docs/bench/vision_track.md
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--frames" && i + 1 < argc) frames = std::atoi(argv[++i]);
     else if (a == "--out" && i + 1 < argc) out = argv[++i];
     else {
-      std::cerr << "usage: bench_vision_track [--frames N] [--out FILE]\n";
+      std::cerr << "usage: bench_vision_track [--repo DIR] [--frames N] [--out FILE]\n";
       return 2;
     }
   }
@@ -185,6 +181,9 @@ int main(int argc, char** argv) {
     return 2;
   }
   cv::setNumThreads(1);
+  TrackerConfig tuning;
+  const std::string tuning_file = (repo / "config" / "tracker.yaml").string();
+  parseTrackerTuning(ddace::readTextFile(tuning_file), tuning_file, tuning);
   std::ostringstream md;
   md << "# The overhead tracker against OpenCV (bench_vision_track)\n\n"
      << "1280x720 frames of the synthetic overhead camera (tilted 9 degrees, rolled 3, 40 % light falloff, blur, "
@@ -208,7 +207,7 @@ int main(int argc, char** argv) {
   bool ok = true;
   for (const bool ball : {false, true})
     for (const std::string backend : {"aruco", "apriltag"}) {
-      const Result r = run(backend, ball, frames);
+      const Result r = run(backend, ball, frames, tuning);
       char line[512];
       std::snprintf(line, sizeof line,
                     "| %s | %s | %.2f | %.2f | %.2f | %.2f | %ld / %ld | %ld | %ld | %s | %.2f / %.2f | %.1f |\n",
@@ -228,12 +227,14 @@ int main(int argc, char** argv) {
         "position the filter accepts.\n\n"
      << "Written by `bench_vision_track` (`ddace bench vision_track`), " << ddace::utcNow() << ", load average "
      << ddace::loadAverage() << " while it ran.\n";
-  std::ofstream f(out);
-  if (!f) {
-    std::cerr << "bench_vision_track: cannot write " << out << "\n";
-    return 1;
+  if (out.empty()) {
+    ddace::bench::writeResults(repo, "vision_track", md.str());
+  } else {
+    ddace::writeTextFile(out, md.str());
+    std::cout << "wrote " << out << "\n";
   }
-  f << md.str();
-  std::cout << "wrote " << out << "\n";
   return ok ? 0 : 1;
+} catch (const std::exception& e) {
+  std::cerr << "bench_vision_track: error: " << e.what() << "\n";
+  return 1;
 }

@@ -7,6 +7,7 @@
 
 #include "command.h"
 #include "ddace/common/error.h"
+#include "ddace/common/repository.h"
 
 namespace ddace::cli {
 namespace {
@@ -14,7 +15,7 @@ namespace {
 namespace fs = std::filesystem;
 
 int runBench(const std::vector<std::string>& argv) {
-  Args args(argv, {}, {"--list"});
+  Args args(argv, {"--repo"}, {"--list"});
   const fs::path self = fs::read_symlink("/proc/self/exe");
   std::vector<fs::path> benches;
   for (const auto& entry : fs::directory_iterator(self.parent_path())) {
@@ -35,6 +36,10 @@ int runBench(const std::vector<std::string>& argv) {
   }
   if (chosen.empty()) chosen = benches;
   if (chosen.empty()) throw Error("no benchmarks built next to " + self.string());
+  // Every benchmark writes into the same repository: found once here (an error before any
+  // run when there is none), handed to each through DDACE_REPO.
+  const fs::path repo = findRepository(args.get("--repo", ""), {"docs/bench"});
+  ::setenv(kRepositoryEnv, repo.c_str(), 1);
   int failed = 0;
   for (const auto& b : chosen) {
     std::cout << "== " << b.filename().string().substr(6) << "\n" << std::flush;
@@ -44,12 +49,12 @@ int runBench(const std::vector<std::string>& argv) {
       ++failed;
     }
   }
-  std::cout << "results: docs/bench/*.md\n";
+  std::cout << "results: " << (repo / "docs" / "bench").string() << "/*.md\n";
   return failed ? 1 : 0;
 }
 
-DDACE_COMMAND({"bench", "ddace bench [NAME...] [--list]",
-               "run the benchmarks (all by default); each writes docs/bench/<name>.md", runBench});
+DDACE_COMMAND({"bench", "ddace bench [NAME...] [--list] [--repo DIR]",
+               "run the benchmarks (all by default); each writes docs/bench/<name>.md of the repository", runBench});
 
 }  // namespace
 }  // namespace ddace::cli

@@ -15,6 +15,7 @@
 #include "../../src/core/tgn/manifest.h"
 #include "ddace/common/error.h"
 #include "ddace/common/file.h"
+#include "ddace/common/repository.h"
 #include "ddace/task/task_spec.h"
 #include "memory_file.h"
 
@@ -24,8 +25,10 @@ using namespace ddace;
 constexpr int kMaxThreads = 1024;
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  static const task::TaskSpec spec =
-      task::parseTaskYaml(readTextFile(DDACE_SOURCE_DIR "/test/fuzz/manifest_task.yaml"), "task.yaml");
+  static const task::TaskSpec spec = task::parseTaskYaml(
+      readTextFile(
+          (ddace::findRepository("", {"test/fuzz/manifest_task.yaml"}) / "test/fuzz/manifest_task.yaml").string()),
+      "task.yaml");
   static MemoryFile file;
   tgn::ModelInfo info;
   uint64_t hash = 0, bytes = 0;

@@ -10,13 +10,15 @@
 
 #include "ddace/common/error.h"
 #include "ddace/common/file.h"
+#include "ddace/common/repository.h"
 #include "ddace/task/task_spec.h"
 #include "ddace/vision/recorder.h"
 #include "ddace/vision/tracker.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  static const ddace::vision::MarkerConfig markers =
-      ddace::vision::parseMarkerConfig(ddace::readTextFile(DDACE_SOURCE_DIR "/config/markers.yaml"), "markers.yaml");
+  static const ddace::vision::MarkerConfig markers = ddace::vision::parseMarkerConfig(
+      ddace::readTextFile((ddace::findRepository("", {"config/markers.yaml"}) / "config/markers.yaml").string()),
+      "markers.yaml");
   ddace::vision::RecorderConfig config;
   try {
     config = ddace::vision::parseRecorderConfig(std::string(reinterpret_cast<const char*>(data), size), "recorder.yaml",

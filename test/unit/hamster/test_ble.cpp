@@ -27,6 +27,7 @@
 #include <tuple>
 
 #include "ddace/common/clock.h"
+#include "ddace/common/repository.h"
 #include "ddace/hamster/ble_transport.h"
 #include "ddace/hamster/link.h"
 
@@ -101,7 +102,8 @@ class BleTest : public ::testing::Test {
     if (const char* old = std::getenv("DBUS_SYSTEM_BUS_ADDRESS")) old_address_ = old;
     ::setenv("DBUS_SYSTEM_BUS_ADDRESS", address_.c_str(), 1);
 
-    const std::string script = std::string(DDACE_SOURCE_DIR) + "/test/unit/hamster/mock_bluez.py";
+    const std::string script =
+        (ddace::findRepository("", {"test/unit/hamster/mock_bluez.py"}) / "test/unit/hamster/mock_bluez.py").string();
     mock_ = spawnWithStdout({"/usr/bin/python3", script, "--address", kDisplayAddress, "--connect-delay", "0.3"},
                             &mock_out_);
     ASSERT_GT(mock_, 0) << "cannot start /usr/bin/python3 " << script;

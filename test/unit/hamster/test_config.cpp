@@ -5,6 +5,7 @@
 #include <fstream>
 
 #include "ddace/common/error.h"
+#include "ddace/common/repository.h"
 #include "ddace/hamster/config.h"
 
 using namespace ddace::hamster;
@@ -49,7 +50,8 @@ TEST(HamsterConfig, ParsesRobotsAndDefaults) {
 }
 
 TEST(HamsterConfig, ShippedConfigIsValid) {
-  const BridgeConfig c = loadBridgeConfig(std::string(DDACE_SOURCE_DIR) + "/config/hamsters.yaml");
+  const BridgeConfig c =
+      loadBridgeConfig((ddace::findRepository("", {"config/hamsters.yaml"}) / "config/hamsters.yaml").string());
   EXPECT_GE(c.robots.size(), 1u);
 }
 

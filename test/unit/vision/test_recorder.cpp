@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "ddace/common/error.h"
+#include "ddace/common/repository.h"
 #include "ddace/task/task_dir.h"
 #include "ddace/vision/recorder.h"
 
@@ -21,7 +22,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const std::string kConfig = std::string(DDACE_SOURCE_DIR) + "/config/";
+// The repository's config/, found at run time (common/repository.h).
+const std::string& configDir() {
+  static const std::string dir = (ddace::findRepository("", {"config"}) / "config/").string();
+  return dir;
+}
 
 struct TempDir {
   fs::path path;
@@ -35,7 +40,7 @@ struct TempDir {
 };
 
 RecorderConfig shippedConfig() {
-  return loadRecorderConfig(kConfig + "recorder.yaml", loadMarkerConfig(kConfig + "markers.yaml"));
+  return loadRecorderConfig(configDir() + "recorder.yaml", loadMarkerConfig(configDir() + "markers.yaml"));
 }
 
 std::vector<Eigen::Vector2d> positions(double t) {
@@ -63,7 +68,7 @@ TEST(Recorder, ShippedConfigBuildsTheTaskFromTheMarkers) {
 }
 
 TEST(Recorder, ConfigErrorsNameTheLine) {
-  const MarkerConfig m = loadMarkerConfig(kConfig + "markers.yaml");
+  const MarkerConfig m = loadMarkerConfig(configDir() + "markers.yaml");
   try {
     parseRecorderConfig("output_dir: /tmp/x\ntask:\n  name: t\n  goal_conditions:\n    - {entity: R9, at: G1}\n",
                         "r.yaml", m);

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ddace/common/error.h"
+#include "ddace/common/repository.h"
 #include "ddace/vision/camera_calibration.h"
 #include "ddace/vision/debug_image.h"
 #include "ddace/vision/synthetic_camera.h"
@@ -18,8 +19,16 @@ using namespace ddace::vision;
 
 namespace {
 
-const std::string kConfig = std::string(DDACE_SOURCE_DIR) + "/config/";
-const std::string kData = std::string(DDACE_TEST_DATA_DIR) + "/vision/";
+// The repository's config/, found at run time (common/repository.h).
+const std::string& configDir() {
+  static const std::string dir = (ddace::findRepository("", {"config"}) / "config/").string();
+  return dir;
+}
+// The repository's test data for vision, found at run time.
+const std::string& dataDir() {
+  static const std::string dir = (ddace::findRepository("", {"test/data/vision"}) / "test/data/vision/").string();
+  return dir;
+}
 
 /// R1..R4 driving on small circles, G1 fixed, at time t.
 std::vector<TrueEntity> scene(double t) {
@@ -52,7 +61,7 @@ void accumulate(Errors& e, const FrameResult& fr, const std::vector<TrueEntity>&
 }
 
 TrackerConfig shippedConfig() {
-  return loadTrackerConfig(kConfig + "markers.yaml", kConfig + "tracker.yaml");
+  return loadTrackerConfig(configDir() + "markers.yaml", configDir() + "tracker.yaml");
 }
 
 }  // namespace
@@ -66,7 +75,7 @@ TEST(TrackerConfig, ShippedFilesLoad) {
   EXPECT_DOUBLE_EQ(c.markers.entities[0].height_m, 0.035);
   EXPECT_DOUBLE_EQ(c.markers.entities[4].height_m, 0.0);
   EXPECT_EQ(c.roi.full_frame_every, 15);
-  EXPECT_NO_THROW(loadSyntheticCameraConfig(kData + "synthetic_camera.yaml"));
+  EXPECT_NO_THROW(loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml"));
 }
 
 TEST(TrackerConfig, ErrorsNameFileLineAndColumn) {
@@ -97,12 +106,12 @@ TEST(TrackerConfig, ErrorsNameFileLineAndColumn) {
   } catch (const ddace::Error& e) {
     EXPECT_EQ(e.diagnostics().front().str(), "t.yaml:2:21: 'full_frame_every' = 0 is out of range [1, 100000]");
   }
-  EXPECT_THROW(loadMarkerConfig(kData + "does_not_exist.yaml"), ddace::Error);
+  EXPECT_THROW(loadMarkerConfig(dataDir() + "does_not_exist.yaml"), ddace::Error);
 }
 
 TEST(TableFrame, CornerMarkersGiveTheTrueTableFrame) {
   const TrackerConfig c = shippedConfig();
-  SyntheticCamera cam(loadSyntheticCameraConfig(kData + "synthetic_camera.yaml"), c.markers);
+  SyntheticCamera cam(loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml"), c.markers);
   const cv::Mat img = cam.render({}, 0.0);
   auto det = makeDetector(c.detector);
   const auto frame = TableFrame::fromCornerMarkers(det->detect(img), c.markers.corners);
@@ -153,7 +162,7 @@ TEST(Tracker, PosesWithin5mmAnd3DegreesOfTheTruth) {
       c.markers.backend = "apriltag";
       c.markers.family = "tag36h11";
     }
-    auto cam_cfg = loadSyntheticCameraConfig(kData + "synthetic_camera.yaml");
+    auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml");
     cam_cfg.occlusions.clear();
     SyntheticCamera cam(cam_cfg, c.markers);
     Tracker tracker(c);
@@ -177,7 +186,7 @@ TEST(Tracker, PosesWithin5mmAnd3DegreesOfTheTruth) {
 
 TEST(Tracker, ParallaxOfRaisedMarkersIsCorrectedWithIntrinsics) {
   TrackerConfig c = shippedConfig();
-  auto cam_cfg = loadSyntheticCameraConfig(kData + "synthetic_camera.yaml");
+  auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml");
   SyntheticCamera cam(cam_cfg, c.markers);
   // R4 far from the camera's nadir: without intrinsics the 3.5 cm height shows.
   const std::vector<TrueEntity> truth = {{"R4", {0.9, 0.95, 0.0}}};
@@ -192,7 +201,7 @@ TEST(Tracker, ParallaxOfRaisedMarkersIsCorrectedWithIntrinsics) {
 
 TEST(Tracker, HoldsThroughAHalfSecondOcclusionThenGoesStale) {
   TrackerConfig c = shippedConfig();
-  auto cam_cfg = loadSyntheticCameraConfig(kData + "synthetic_camera.yaml");  // R2 hidden 1.0 .. 1.5 s
+  auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml");  // R2 hidden 1.0 .. 1.5 s
   SyntheticCamera cam(cam_cfg, c.markers);
   Tracker tracker(c);
   tracker.setCamera(cam.camera());
@@ -233,7 +242,7 @@ TEST(Tracker, RegionSearchGivesTheSamePosesAsFullFrames) {
   TrackerConfig roi = shippedConfig();
   TrackerConfig full = roi;
   full.roi.enabled = false;
-  auto cam_cfg = loadSyntheticCameraConfig(kData + "synthetic_camera.yaml");
+  auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml");
   cam_cfg.occlusions.clear();
   SyntheticCamera cam(cam_cfg, roi.markers);
   Tracker a(roi), b(full);
@@ -407,12 +416,12 @@ TEST(Tracker, AHeldFastObjectGoesStaleWithinFramesASlowOneHolds) {
 }
 
 TEST(CameraCalibration, ReadsTheRosCameraInfoFormat) {
-  const CameraCalibration cal = loadCameraCalibration(kData + "synthetic_camera_info.yaml");
+  const CameraCalibration cal = loadCameraCalibration(dataDir() + "synthetic_camera_info.yaml");
   EXPECT_EQ(cal.camera_name, "synthetic_overhead");
   EXPECT_EQ(cal.camera.image_size, cv::Size(1280, 960));
   EXPECT_TRUE(cal.camera.valid);
   EXPECT_EQ(cal.camera.D.size(), 5u);
-  SyntheticCamera cam(loadSyntheticCameraConfig(kData + "synthetic_camera.yaml"), shippedConfig().markers);
+  SyntheticCamera cam(loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml"), shippedConfig().markers);
   for (int i = 0; i < 9; ++i) EXPECT_NEAR(cal.camera.K.val[i], cam.camera().K.val[i], 1e-9);
   auto firstError = [](const std::string& text) {
     try {
@@ -446,12 +455,12 @@ TEST(CameraCalibration, ReadsTheRosCameraInfoFormat) {
   EXPECT_EQ(
       firstError(size + "camera_matrix: {rows: 3, cols: 3, data: [900, 0, 640, 0, 900, 360, 0, 0, 2]}\n" + good_d),
       "c.yaml:3:41: 'camera_matrix' must be [fx 0 cx 0 fy cy 0 0 1] with fx, fy > 0 (a pinhole camera matrix)");
-  EXPECT_THROW(loadCameraCalibration(kData + "does_not_exist.yaml"), ddace::Error);
+  EXPECT_THROW(loadCameraCalibration(dataDir() + "does_not_exist.yaml"), ddace::Error);
 }
 
 TEST(Tracker, HeightCorrectionIsAReportedStateAndItsAbsenceHasANumber) {
   TrackerConfig c = shippedConfig();
-  auto cam_cfg = loadSyntheticCameraConfig(kData + "synthetic_camera.yaml");
+  auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml");
   SyntheticCamera cam(cam_cfg, c.markers);
   const cv::Mat img = cam.render(scene(0.0), 0.0);
   Tracker without(c);
@@ -490,7 +499,7 @@ TEST(Tracker, HeightCorrectionIsAReportedStateAndItsAbsenceHasANumber) {
 
 TEST(TableFrame, FitIsCheckedByItsReprojectionErrorAndSmoothed) {
   TrackerConfig c = shippedConfig();
-  auto cam_cfg = loadSyntheticCameraConfig(kData + "synthetic_camera.yaml");
+  auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml");
   cam_cfg.occlusions.clear();
   SyntheticCamera cam(cam_cfg, c.markers);
   Tracker good(c);
@@ -555,7 +564,7 @@ TEST(TableFrame, PoseParameterGivesTheSameFrameAsTheRotation) {
 
 TEST(DebugImage, DrawsDetectionsRegionsAndStatus) {
   TrackerConfig c = shippedConfig();
-  auto cam_cfg = loadSyntheticCameraConfig(kData + "synthetic_camera.yaml");
+  auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml");
   SyntheticCamera cam(cam_cfg, c.markers);
   Tracker tracker(c);
   tracker.process(cam.render(scene(0.0), 0.0), 0.0);
