@@ -3,16 +3,21 @@
 #pragma once
 
 #include <ctime>
-#include <fstream>
+#include <sstream>
 #include <string>
+
+#include "ddace/common/error.h"
+#include "ddace/common/file.h"
 
 namespace ddace {
 
 /// The 1-minute load average from /proc/loadavg ("unknown" where there is none).
 inline std::string loadAverage() {
-  std::ifstream in("/proc/loadavg");
   std::string first;
-  in >> first;
+  try {
+    std::istringstream(readTextFile("/proc/loadavg", 4096)) >> first;
+  } catch (const Error&) {
+  }
   return first.empty() ? "unknown" : first;
 }
 

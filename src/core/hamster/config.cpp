@@ -3,11 +3,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
-#include <fstream>
 #include <map>
-#include <sstream>
 
 #include "ddace/common/error.h"
+#include "ddace/common/file.h"
 #include "ddace/common/yaml_checker.h"
 #include "ddace/hamster/config.h"
 #include "ddace/hamster/transport.h"
@@ -276,11 +275,7 @@ BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& 
 }
 
 BridgeConfig loadBridgeConfig(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw Error(Diagnostic{path, 0, 0, "cannot read the Hamster config file"});
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parseBridgeConfig(ss.str(), path);
+  return parseBridgeConfig(readTextFile(path), path);
 }
 
 }  // namespace ddace::hamster
