@@ -35,15 +35,9 @@ class HamsterBridgeNode::Impl {
     config_.port_dir = ddace::rosparam::param(pnh, "port_dir", config_.port_dir);
     config_.scan = ddace::rosparam::param(pnh, "scan", config_.scan);
     const auto only = ddace::rosparam::param(pnh, "robots", std::vector<std::string>{});
-    for (const auto& name : only) {
-      bool found = false;
-      for (const auto& r : config_.robots) found = found || r.name == name;
-      if (!found) throw ddace::Error("parameter ~robots: robot '" + name + "' is not in " + config_path);
-    }
     updater_.setHardwareID("hamster_bridge");
     auto ports = std::make_shared<PortDirectory>();
-    for (const auto& r : config_.robots) {
-      if (!only.empty() && std::find(only.begin(), only.end(), r.name) == only.end()) continue;
+    for (const auto& r : selectRobots(config_, only, "parameter ~robots", config_path)) {
       auto robot = std::make_unique<Robot>();
       robot->link = std::make_unique<RobotLink>(r, config_, ports, transportFactoryFor(r, config_));
       const std::string base = "/robots/" + r.name;

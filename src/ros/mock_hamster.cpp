@@ -46,25 +46,12 @@ class MockHamsterNode::Impl {
     if (true_mps && !(*true_mps > 0.0)) throw ddace::Error("parameter ~true_mps_per_unit must be > 0");
     const double robot_timeout_s = ddace::rosparam::param(pnh, "robot_timeout_s", 0.0);
     frame_id_ = ddace::rosparam::param<std::string>(pnh, "frame_id", kTableFrame);
-    size_t index = 0;
-    for (const auto& r : config.robots) {
-      if (!only.empty() && std::find(only.begin(), only.end(), r.name) == only.end()) continue;
-      MockRobotSettings s;
-      s.name = r.name;
-      s.address = r.address;
-      s.model = r.model == Model::Unknown ? Model::Hamster : r.model;
-      s.link_path = link_dir + "/hamster_" + r.name;
-      s.left_mps_per_unit = true_mps.value_or(r.calibration.left_mps_per_unit);
-      s.right_mps_per_unit = true_mps.value_or(r.calibration.right_mps_per_unit);
-      s.track_m = r.calibration.track_m;
-      s.x_m = 0.2 + 0.15 * static_cast<double>(index);
-      s.y_m = 0.2;
-      s.robot_timeout_s = robot_timeout_s;
-      s.seed = static_cast<uint32_t>(index + 1);
+    const std::vector<RobotConfig> chosen = selectRobots(config, only, "parameter ~robots", config_path);
+    for (size_t index = 0; index < chosen.size(); ++index) {
+      const MockRobotSettings s = mockSettingsFor(chosen[index], index, link_dir, true_mps, robot_timeout_s);
       robots_.push_back(std::make_unique<MockRobot>(s));
       ROS_INFO("mock_hamster: %s (%s, %s) on %s -> %s", s.name.c_str(), modelName(s.model).c_str(),
                s.address.display().c_str(), s.link_path.c_str(), robots_.back()->slavePath().c_str());
-      ++index;
     }
     if (robots_.empty()) throw ddace::Error("no robots to simulate (check ~config and ~robots)");
     state_pub_ = pnh.advertise<ddace::HamsterMockState>("state", 50);

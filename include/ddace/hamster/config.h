@@ -82,4 +82,10 @@ BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& 
 /// Reads and parses a file (error naming the path when it cannot be read).
 BridgeConfig loadBridgeConfig(const std::string& path);
 
+/// The robots of `config` that `names` lists (every robot when `names` is empty), in the
+/// config's order. A name the config does not have is an error, not a robot silently
+/// left out: ddace::Error "<what>: robot 'X' is not in <config_file>".
+std::vector<RobotConfig> selectRobots(const BridgeConfig& config, const std::vector<std::string>& names,
+                                      const std::string& what, const std::string& config_file);
+
 }  // namespace ddace::hamster

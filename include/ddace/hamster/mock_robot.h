@@ -9,10 +9,13 @@
 // Must not: know about ROS, or about the bridge's internals (only the wire).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <random>
 #include <string>
 
+#include "ddace/hamster/config.h"
 #include "ddace/hamster/protocol.h"
 
 namespace ddace::hamster {
@@ -45,6 +48,15 @@ enum class MockFault {
 };
 
 /// "none", "drop", "stall", "garbage", "unplug" → MockFault; throws ddace::Error otherwise.
+/// The simulated robot standing in for `robot` of the Hamster config, the `index`-th of
+/// a row (start pose x = 0.2 + 0.15 * index m, y = 0.2 m; its own garbage seed): its
+/// name, address and calibration's track; model Hamster when the config leaves it to
+/// auto-detection; its pty linked as <link_dir>/hamster_<name>. The true m/s per wheel
+/// unit is `true_mps_per_unit` when given (a calibration to be found), else the
+/// config's calibration (a perfectly calibrated robot).
+MockRobotSettings mockSettingsFor(const RobotConfig& robot, size_t index, const std::string& link_dir,
+                                  std::optional<double> true_mps_per_unit, double robot_timeout_s);
+
 MockFault parseMockFault(const std::string& text);
 std::string mockFaultName(MockFault fault);
 

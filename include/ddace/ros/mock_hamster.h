@@ -8,7 +8,8 @@
 //                                  wheel speed per unit (= its calibration: a perfect one)
 //   ~link_dir (string, required)  directory (created) for the symlinks <link_dir>/hamster_<name>
 //                                  → pty slave; point the bridge's port_dir or hints here
-//   ~robots   (string list, optional) simulate only these robots
+//   ~robots   (string list, optional) simulate only these robots of the config (a name
+//             the config does not have stops the node, as in hamster_bridge_node)
 //   ~true_mps_per_unit (double, optional) the simulated robots' real speed per unit, to
 //                                  test a calibration
 //   ~robot_timeout_s (double, default 0) a robot stops after this long without motoring

@@ -278,4 +278,18 @@ BridgeConfig loadBridgeConfig(const std::string& path) {
   return parseBridgeConfig(readTextFile(path), path);
 }
 
+std::vector<RobotConfig> selectRobots(const BridgeConfig& config, const std::vector<std::string>& names,
+                                      const std::string& what, const std::string& config_file) {
+  auto listed = [&](const std::string& name) { return std::find(names.begin(), names.end(), name) != names.end(); };
+  for (const auto& name : names) {
+    const bool known =
+        std::any_of(config.robots.begin(), config.robots.end(), [&](const RobotConfig& r) { return r.name == name; });
+    if (!known) throw Error(what + ": robot '" + name + "' is not in " + config_file);
+  }
+  std::vector<RobotConfig> out;
+  for (const auto& r : config.robots)
+    if (names.empty() || listed(r.name)) out.push_back(r);
+  return out;
+}
+
 }  // namespace ddace::hamster

@@ -14,6 +14,25 @@
 
 namespace ddace::hamster {
 
+MockRobotSettings mockSettingsFor(const RobotConfig& robot, size_t index, const std::string& link_dir,
+                                  std::optional<double> true_mps_per_unit, double robot_timeout_s) {
+  if (true_mps_per_unit && !(*true_mps_per_unit > 0.0))
+    throw Error("the true m/s per wheel unit must be > 0 (got " + std::to_string(*true_mps_per_unit) + ")");
+  MockRobotSettings s;
+  s.name = robot.name;
+  s.address = robot.address;
+  s.model = robot.model == Model::Unknown ? Model::Hamster : robot.model;
+  s.link_path = link_dir + "/hamster_" + robot.name;
+  s.left_mps_per_unit = true_mps_per_unit.value_or(robot.calibration.left_mps_per_unit);
+  s.right_mps_per_unit = true_mps_per_unit.value_or(robot.calibration.right_mps_per_unit);
+  s.track_m = robot.calibration.track_m;
+  s.x_m = 0.2 + 0.15 * static_cast<double>(index);
+  s.y_m = 0.2;
+  s.robot_timeout_s = robot_timeout_s;
+  s.seed = static_cast<uint32_t>(index + 1);
+  return s;
+}
+
 MockFault parseMockFault(const std::string& text) {
   if (text == "none") return MockFault::None;
   if (text == "drop") return MockFault::Drop;

@@ -7,6 +7,7 @@
 #include "ddace/common/error.h"
 #include "ddace/common/repository.h"
 #include "ddace/hamster/config.h"
+#include "ddace/hamster/mock_robot.h"
 
 using namespace ddace::hamster;
 
@@ -177,4 +178,51 @@ TEST(HamsterConfig, TransportKeys) {
                 .find("h.yaml:5:18: robot R1 ble_adapter "
                       "'/org/bluez' is not a BlueZ adapter name"),
             std::string::npos);
+}
+
+TEST(HamsterConfig, SelectRobotsKeepsTheConfigOrderAndRefusesUnknownNames) {
+  const BridgeConfig c = parseBridgeConfig(
+      "robots:\n"
+      "  - {name: R1, address: '000000000001', calibration: {mps_per_unit: 0.002}}\n"
+      "  - {name: R2, address: '000000000002', calibration: {mps_per_unit: 0.002}}\n"
+      "  - {name: R3, address: '000000000003', calibration: {mps_per_unit: 0.002}}\n",
+      "h.yaml");
+  auto names = [](const std::vector<RobotConfig>& robots) {
+    std::vector<std::string> out;
+    for (const auto& r : robots) out.push_back(r.name);
+    return out;
+  };
+  EXPECT_EQ(names(selectRobots(c, {}, "parameter ~robots", "h.yaml")), (std::vector<std::string>{"R1", "R2", "R3"}));
+  EXPECT_EQ(names(selectRobots(c, {"R3", "R1"}, "parameter ~robots", "h.yaml")),
+            (std::vector<std::string>{"R1", "R3"}));
+  try {
+    selectRobots(c, {"R2", "R9"}, "parameter /bridge/robots", "h.yaml");
+    FAIL() << "an unknown robot name was accepted";
+  } catch (const ddace::Error& e) {
+    EXPECT_STREQ(e.what(), "parameter /bridge/robots: robot 'R9' is not in h.yaml");
+  }
+}
+
+TEST(HamsterConfig, MockRobotsStandInForTheConfiguredOnesInARow) {
+  const BridgeConfig c = parseBridgeConfig(
+      "robots:\n"
+      "  - {name: R1, address: '000000000001', calibration: {left_mps_per_unit: 0.002, right_mps_per_unit: 0.0021}}\n"
+      "  - {name: R2, address: '000000000002', model: hamster_s, calibration: {mps_per_unit: 0.0019, track_m: 0.04}}\n",
+      "h.yaml");
+  const MockRobotSettings a = mockSettingsFor(c.robots[0], 0, "/tmp/links", std::nullopt, 0.5);
+  EXPECT_EQ(a.name, "R1");
+  EXPECT_EQ(a.address.wire(), "000000000001");
+  EXPECT_EQ(a.model, Model::Hamster);  // auto-detected in the config: the mock is a Hamster
+  EXPECT_EQ(a.link_path, "/tmp/links/hamster_R1");
+  EXPECT_DOUBLE_EQ(a.left_mps_per_unit, 0.002);  // perfectly calibrated
+  EXPECT_DOUBLE_EQ(a.right_mps_per_unit, 0.0021);
+  EXPECT_DOUBLE_EQ(a.robot_timeout_s, 0.5);
+  const MockRobotSettings b = mockSettingsFor(c.robots[1], 1, "/tmp/links", 0.0025, 0.0);
+  EXPECT_EQ(b.model, Model::HamsterS);
+  EXPECT_DOUBLE_EQ(b.left_mps_per_unit, 0.0025);  // the truth a calibration has to find
+  EXPECT_DOUBLE_EQ(b.right_mps_per_unit, 0.0025);
+  EXPECT_DOUBLE_EQ(b.track_m, 0.04);
+  EXPECT_GT(std::hypot(b.x_m - a.x_m, b.y_m - a.y_m), 0.1);  // side by side, not on top of each other
+  EXPECT_NE(a.seed, b.seed);
+  EXPECT_THROW(mockSettingsFor(c.robots[0], 0, "/tmp/links", 0.0, 0.0), ddace::Error);
 }
