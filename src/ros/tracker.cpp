@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <cstdio>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -247,12 +246,7 @@ class TrackerNode::Impl {
   }
 
   std::string refusedText(const vision::FrameResult& fr) const {
-    char buf[256];
-    std::snprintf(buf, sizeof buf,
-                  "table frame refused: reprojection error %.2f px > table.max_reprojection_px %.2f (check the "
-                  "corner positions and corner_size in the markers file)",
-                  fr.table_reprojection_px, tracker_->config().table.max_reprojection_px);
-    return buf;
+    return vision::tableRefusedText(fr, tracker_->config().table.max_reprojection_px);
   }
 
   double maxMarkerHeight() const {
@@ -261,40 +255,26 @@ class TrackerNode::Impl {
     return h;
   }
 
-  /// One status "tracker": ERROR without a table frame, WARN without height
-  /// correction or with a refused fit, OK otherwise.
+  /// One status "tracker" (the rule: vision::trackerStatus).
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& d) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!last_) {
-      d.summary(diagnostic_msgs::DiagnosticStatus::WARN, "no frame yet");
-      return;
-    }
+    const vision::TrackerStatus status =
+        vision::trackerStatus(last_, last_parallax_, tracker_->config().table.max_reprojection_px);
+    using Level = vision::TrackerStatus::Level;
+    d.summary(status.level == Level::Ok     ? diagnostic_msgs::DiagnosticStatus::OK
+              : status.level == Level::Warn ? diagnostic_msgs::DiagnosticStatus::WARN
+                                            : diagnostic_msgs::DiagnosticStatus::ERROR,
+              status.summary);
+    if (!last_) return;
     const vision::FrameResult& fr = *last_;
-    int stale = 0, visible = 0;
-    for (const auto& e : fr.entities) {
-      stale += e.stale;
-      visible += e.visible;
-    }
-    if (!fr.table_valid) {
-      d.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
-                fr.table_refused ? refusedText(fr) : "no table frame: not all four corner markers are visible");
-    } else if (fr.height_correction != vision::HeightCorrection::On) {
-      std::string text = "height correction " + vision::heightCorrectionName(fr.height_correction);
-      if (last_parallax_) text += " (up to " + std::to_string(std::lround(last_parallax_->max_error_m * 1000)) + " mm)";
-      d.summary(diagnostic_msgs::DiagnosticStatus::WARN, text);
-    } else if (fr.table_refused) {
-      d.summary(diagnostic_msgs::DiagnosticStatus::WARN, refusedText(fr));
-    } else {
-      d.summary(diagnostic_msgs::DiagnosticStatus::OK, "tracking");
-    }
     d.add("table frame", fr.table_valid ? "valid" : "unknown");
     d.add("table reprojection error (px)", fr.table_reprojection_px);
     d.add("table fit refused", fr.table_refused);
     d.add("height correction", vision::heightCorrectionName(fr.height_correction));
     d.add("intrinsics", have_camera_ ? camera_source_ : "none");
     if (last_parallax_) d.add("expected error without intrinsics (mm)", last_parallax_->max_error_m * 1000);
-    d.add("entities visible", visible);
-    d.add("entities stale", stale);
+    d.add("entities visible", status.visible);
+    d.add("entities stale", status.stale);
     d.add("search", fr.full_frame ? std::string("full frame") : std::to_string(fr.rois.size()) + " regions");
   }
 

@@ -183,6 +183,25 @@ class Tracker {
   cv::Mat gray_;
 };
 
+/// How the tracker is doing, from its last frame (the tracker node's diagnostics).
+struct TrackerStatus {
+  enum class Level { Ok, Warn, Error };
+  Level level = Level::Warn;
+  std::string summary;  ///< one line for the operator
+  int visible = 0;      ///< entities seen in the last frame
+  int stale = 0;        ///< entities too long unseen to be trusted
+};
+
+/// ERROR without a table frame (refused fit or not all corner markers seen); WARN
+/// without height correction (with `parallax`'s worst error in mm when known), with a
+/// refused fit while an older table frame is kept, or before the first frame (`last`
+/// empty); OK otherwise. `max_reprojection_px`: table.max_reprojection_px.
+TrackerStatus trackerStatus(const std::optional<FrameResult>& last, const std::optional<ParallaxEstimate>& parallax,
+                            double max_reprojection_px);
+
+/// "table frame refused: reprojection error E px > table.max_reprojection_px M (...)".
+std::string tableRefusedText(const FrameResult& result, double max_reprojection_px);
+
 /// Merges overlapping rectangles into their bounding box wherever that box is at most
 /// 1.5 times their areas together (overlaps may remain; a marker is then searched twice).
 std::vector<cv::Rect> mergeRegions(std::vector<cv::Rect> rects);
