@@ -1,9 +1,7 @@
 // RecorderNode: see include/ddace/ros/recorder.h.
 #include "ddace/ros/recorder.h"
 
-#include <map>
 #include <memory>
-#include <set>
 #include <sstream>
 
 #include <ros/ros.h>
@@ -28,6 +26,7 @@ class RecorderNode::Impl {
     const std::string dir = rosparam::param<std::string>(pnh, "output_dir", "");
     if (!dir.empty()) config_.output_dir = dir;
     recorder_ = std::make_unique<vision::DemoRecorder>(config_.spec, config_.output_dir, config_.flush_period_s);
+    positions_ = std::make_unique<vision::LatestPositions>(config_.spec);
 
     state_pub_ = pnh.advertise<std_msgs::String>("state", 1, true);
     entities_sub_ = nh.subscribe("/ddace/entities", 10, &Impl::onEntities, this);
@@ -50,9 +49,8 @@ class RecorderNode::Impl {
   void onEntities(const ddace::EntityArray::ConstPtr& msg) {
     latest_ = msg;
     for (const auto& e : msg->entities) {
-      if (e.stale && !e.visible && e.last_seen.isZero()) continue;  // never measured
-      positions_[e.name] = Eigen::Vector2d(e.pose.x, e.pose.y);
-      stale_[e.name] = e.stale;
+      const bool measured = !(e.stale && !e.visible && e.last_seen.isZero());
+      positions_->update(e.name, Eigen::Vector2d(e.pose.x, e.pose.y), e.stale, measured);
     }
   }
 
@@ -72,33 +70,14 @@ class RecorderNode::Impl {
     }
   }
 
-  /// Positions of every task entity; false (and the missing names) when one was never seen.
-  bool currentPositions(std::vector<Eigen::Vector2d>& out, std::string& missing, int& stale) const {
-    out.clear();
-    missing.clear();
-    stale = 0;
-    for (const auto& e : config_.spec.entities) {
-      const auto it = positions_.find(e.name);
-      if (it == positions_.end()) {
-        missing += (missing.empty() ? "" : ", ") + e.name;
-        continue;
-      }
-      out.push_back(it->second);
-      stale += stale_.at(e.name) ? 1 : 0;
-    }
-    return missing.empty();
-  }
-
   void onTimer(const ros::TimerEvent&) {
     if (!recorder_->recording() || !latest_ || latest_->header.stamp <= last_row_) return;
-    std::vector<Eigen::Vector2d> p;
-    std::string missing;
-    int stale = 0;
-    if (!currentPositions(p, missing, stale)) return;
+    const auto p = positions_->all();
+    if (!p) return;
     try {
-      if (recorder_->addRow(latest_->header.stamp.toSec(), p)) {
+      if (recorder_->addRow(latest_->header.stamp.toSec(), *p)) {
         last_row_ = latest_->header.stamp;
-        if (stale > 0) ++stale_rows_;
+        if (positions_->stale() > 0) ++stale_rows_;
       }
     } catch (const Error& e) {
       ROS_ERROR_THROTTLE(1.0, "recorder_node: %s", e.what());
@@ -106,22 +85,20 @@ class RecorderNode::Impl {
   }
 
   bool onStart(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-    std::vector<Eigen::Vector2d> p;
-    std::string missing;
-    int stale = 0;
+    const auto p = positions_->all();
     if (recorder_->recording()) {
       res.message = "already recording " + path_ + " (stop or discard it first)";
     } else if (!latest_) {
       res.message = "no /ddace/entities received yet (is the tracker running?)";
-    } else if (!currentPositions(p, missing, stale)) {
-      res.message = "not every entity has been seen yet: " + missing + " (are their markers visible?)";
+    } else if (!p) {
+      res.message = "not every entity has been seen yet: " + positions_->missing() + " (are their markers visible?)";
     } else {
       try {
         t0_ = latest_->header.stamp;
         path_ = recorder_->start(t0_.toSec());
-        recorder_->addRow(t0_.toSec(), p);
+        recorder_->addRow(t0_.toSec(), *p);
         last_row_ = t0_;
-        stale_rows_ = stale > 0 ? 1 : 0;
+        stale_rows_ = positions_->stale() > 0 ? 1 : 0;
         res.success = true;
         res.message = "recording " + path_;
       } catch (const Error& e) {
@@ -174,8 +151,7 @@ class RecorderNode::Impl {
   ros::ServiceServer start_srv_, stop_srv_, discard_srv_;
   ros::Timer timer_;
   ddace::EntityArray::ConstPtr latest_;
-  std::map<std::string, Eigen::Vector2d> positions_;
-  std::map<std::string, bool> stale_;
+  std::unique_ptr<vision::LatestPositions> positions_;
   ros::Time t0_, last_row_;
   std::string path_;
   long stale_rows_ = 0;

@@ -15,6 +15,7 @@
 // Units: seconds (any monotonic clock; the CSV's t starts at 0), metres, table frame.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,28 @@ struct RecorderConfig {
 /// Throws ddace::Error with file:line:column.
 RecorderConfig parseRecorderConfig(const std::string& text, const std::string& file, const MarkerConfig& markers);
 RecorderConfig loadRecorderConfig(const std::string& path, const MarkerConfig& markers);
+
+/// The latest measured position of each entity of a task, from the tracker's reports:
+/// what a recorded row holds. An entity never measured has no position (not (0, 0)),
+/// so no row can be written before every entity was seen once.
+class LatestPositions {
+ public:
+  explicit LatestPositions(const task::TaskSpec& spec);
+  /// A tracker report for `name`; `measured` false (never seen yet) and names outside
+  /// the task are ignored. `stale`: the tracker holds the pose without seeing it.
+  void update(const std::string& name, const Eigen::Vector2d& position_m, bool stale, bool measured);
+  /// Every entity's position in task order once all were measured, else nullopt.
+  std::optional<std::vector<Eigen::Vector2d>> all() const;
+  /// The entities never measured, comma-separated in task order ("" when none).
+  std::string missing() const;
+  /// How many entities' latest positions are stale.
+  int stale() const;
+
+ private:
+  std::vector<std::string> names_;  // task order
+  std::vector<std::optional<Eigen::Vector2d>> positions_;
+  std::vector<bool> stale_;
+};
 
 class DemoRecorder {
  public:

@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -244,6 +245,42 @@ void DemoRecorder::discard() {
   std::error_code ec;
   fs::remove(partial_path_, ec);
   rows_ = 0;
+}
+
+LatestPositions::LatestPositions(const task::TaskSpec& spec)
+    : positions_(spec.entities.size()), stale_(spec.entities.size(), false) {
+  for (const auto& e : spec.entities) names_.push_back(e.name);
+}
+
+void LatestPositions::update(const std::string& name, const Eigen::Vector2d& position_m, bool stale, bool measured) {
+  if (!measured) return;
+  const auto it = std::find(names_.begin(), names_.end(), name);
+  if (it == names_.end()) return;
+  const size_t i = static_cast<size_t>(it - names_.begin());
+  positions_[i] = position_m;
+  stale_[i] = stale;
+}
+
+std::optional<std::vector<Eigen::Vector2d>> LatestPositions::all() const {
+  std::vector<Eigen::Vector2d> out;
+  for (const auto& p : positions_) {
+    if (!p) return std::nullopt;
+    out.push_back(*p);
+  }
+  return out;
+}
+
+std::string LatestPositions::missing() const {
+  std::string out;
+  for (size_t i = 0; i < names_.size(); ++i)
+    if (!positions_[i]) out += (out.empty() ? "" : ", ") + names_[i];
+  return out;
+}
+
+int LatestPositions::stale() const {
+  int n = 0;
+  for (size_t i = 0; i < names_.size(); ++i) n += positions_[i] && stale_[i];
+  return n;
 }
 
 }  // namespace ddace::vision

@@ -271,3 +271,34 @@ TEST(Recorder, RefusesADirectoryOfAnotherTask) {
   c.spec.entities.pop_back();
   EXPECT_THROW(DemoRecorder(c.spec, dir.path.string()), Error);
 }
+
+TEST(Recorder, ARowNeedsEveryEntityMeasuredOnceAndCountsStalePoses) {
+  const RecorderConfig c = shippedConfig();
+  ASSERT_GE(c.spec.entities.size(), 2u);
+  LatestPositions latest(c.spec);
+  std::string all_names;
+  for (const auto& e : c.spec.entities) all_names += (all_names.empty() ? "" : ", ") + e.name;
+  EXPECT_FALSE(latest.all().has_value());
+  EXPECT_EQ(latest.missing(), all_names);
+
+  const std::string first = c.spec.entities[0].name;
+  latest.update(first, {0.3, 0.4}, false, true);
+  latest.update(c.spec.entities[1].name, {0.9, 0.9}, true, false);  // never measured: not a position
+  latest.update("not_in_the_task", {0.5, 0.5}, false, true);
+  EXPECT_FALSE(latest.all().has_value());
+  EXPECT_EQ(latest.missing().find(first), std::string::npos);
+  EXPECT_NE(latest.missing().find(c.spec.entities[1].name), std::string::npos);
+
+  for (size_t i = 1; i < c.spec.entities.size(); ++i)
+    latest.update(c.spec.entities[i].name, {0.1 * static_cast<double>(i), 0.2}, false, true);
+  latest.update(first, {0.35, 0.45}, true, true);  // held by the tracker: the latest pose, stale
+  const auto p = latest.all();
+  ASSERT_TRUE(p.has_value());
+  ASSERT_EQ(p->size(), c.spec.entities.size());
+  EXPECT_EQ((*p)[0], Eigen::Vector2d(0.35, 0.45));
+  EXPECT_EQ((*p)[1], Eigen::Vector2d(0.1, 0.2));
+  EXPECT_EQ(latest.missing(), "");
+  EXPECT_EQ(latest.stale(), 1);
+  latest.update(first, {0.36, 0.45}, false, true);
+  EXPECT_EQ(latest.stale(), 0);
+}
