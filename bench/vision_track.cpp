@@ -37,10 +37,10 @@ namespace {
 constexpr int kRobots = 12;
 constexpr double kBallSpeed = 0.8;
 
-MarkerConfig sceneMarkers(const std::string& backend, bool ball) {
+MarkerConfig sceneMarkers(DetectorBackend backend, bool ball) {
   MarkerConfig m;
   m.backend = backend;
-  m.family = backend == "aruco" ? "DICT_4X4_50" : "tag36h11";
+  m.family = backend == DetectorBackend::Aruco ? "DICT_4X4_50" : "tag36h11";
   m.corner_size_m = 0.04;
   m.corners = {{0, {0.03, 0.03}}, {1, {0.77, 0.03}}, {2, {0.77, 0.57}}, {3, {0.03, 0.57}}};
   for (int i = 0; i < kRobots; ++i) {
@@ -99,7 +99,7 @@ struct Result {
 };
 
 /// `tuning`: the shipped config/tracker.yaml.
-Result run(const std::string& backend, bool ball, int frames, const TrackerConfig& tuning) {
+Result run(DetectorBackend backend, bool ball, int frames, const TrackerConfig& tuning) {
   const MarkerConfig markers = sceneMarkers(backend, ball);
   SyntheticCamera camera(sceneCamera(), markers);
   TrackerConfig tc = tuning;
@@ -110,8 +110,8 @@ Result run(const std::string& backend, bool ball, int frames, const TrackerConfi
   dc.backend = markers.backend;
   dc.family = markers.family;
   auto full = makeDetector(dc);
-  const auto dict =
-      cv::aruco::getPredefinedDictionary(backend == "aruco" ? cv::aruco::DICT_4X4_50 : cv::aruco::DICT_APRILTAG_36h11);
+  const auto dict = cv::aruco::getPredefinedDictionary(
+      backend == DetectorBackend::Aruco ? cv::aruco::DICT_4X4_50 : cv::aruco::DICT_APRILTAG_36h11);
   const auto params = cv::aruco::DetectorParameters::create();
 
   Result res;
@@ -206,12 +206,12 @@ int main(int argc, char** argv) try {
      << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   bool ok = true;
   for (const bool ball : {false, true})
-    for (const std::string backend : {"aruco", "apriltag"}) {
+    for (const DetectorBackend backend : {DetectorBackend::Aruco, DetectorBackend::AprilTag}) {
       const Result r = run(backend, ball, frames, tuning);
       char line[512];
       std::snprintf(line, sizeof line,
                     "| %s | %s | %.2f | %.2f | %.2f | %.2f | %ld / %ld | %ld | %ld | %s | %.2f / %.2f | %.1f |\n",
-                    ball ? "fast" : "small", backend.c_str(), r.reference_ms / r.frames, r.full_ms / r.frames,
+                    ball ? "fast" : "small", toString(backend).c_str(), r.reference_ms / r.frames, r.full_ms / r.frames,
                     r.tracker_ms / r.frames, r.tracker_ms / r.reference_ms, r.roi_frames, r.frames, r.reference_found,
                     r.lost,
                     ball ? (std::to_string(r.ball_reference) + " / " + std::to_string(r.ball_tracker)).c_str() : "-",

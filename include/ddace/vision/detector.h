@@ -10,6 +10,7 @@
 
 #include <array>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,9 +30,16 @@ struct Detection {
   double sidePx() const;
 };
 
+/// The fiducial detectors: OpenCV's ArUco module or AprilTag 3.
+enum class DetectorBackend { Aruco, AprilTag };
+/// "aruco", "apriltag": the names markers.yaml uses.
+std::string toString(DetectorBackend backend);
+/// The backend named `name` ("aruco", "apriltag"); nullopt for any other name.
+std::optional<DetectorBackend> parseDetectorBackend(const std::string& name);
+
 /// Which detector and which marker family. Loaded from tracker.yaml (tracker.h).
 struct DetectorConfig {
-  std::string backend = "aruco";       ///< "aruco" or "apriltag"
+  DetectorBackend backend = DetectorBackend::Aruco;
   std::string family = "DICT_4X4_50";  ///< aruco: DICT_4X4_50 ... DICT_APRILTAG_36h11;
                                        ///< apriltag: tag36h11, tag25h9, tag16h5, tagStandard41h12, ...
   // aruco
@@ -48,7 +56,7 @@ struct DetectorConfig {
 };
 
 /// Names accepted as DetectorConfig::family for `backend`.
-std::vector<std::string> knownFamilies(const std::string& backend);
+std::vector<std::string> knownFamilies(DetectorBackend backend);
 
 class FiducialDetector {
  public:
@@ -61,8 +69,8 @@ class FiducialDetector {
   virtual std::string name() const = 0;
 };
 
-/// Creates the configured detector. Throws ddace::Error naming the unknown backend
-/// or family (and listing the known ones).
+/// Creates the configured detector. Throws ddace::Error naming the unknown family (and
+/// listing the known ones).
 std::unique_ptr<FiducialDetector> makeDetector(const DetectorConfig& config);
 
 /// A printable marker, one pixel per cell, white quiet zone included.

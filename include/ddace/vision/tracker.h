@@ -45,7 +45,7 @@ struct EntityMarker {
 
 /// config/markers.yaml.
 struct MarkerConfig {
-  std::string backend = "aruco";  ///< "aruco" or "apriltag"
+  DetectorBackend backend = DetectorBackend::Aruco;
   std::string family = "DICT_4X4_50";
   std::vector<CornerMarker> corners;   ///< exactly four, or none (calibrated camera)
   double corner_size_m = 0.04;         ///< edge of the corner markers' black square

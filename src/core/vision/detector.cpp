@@ -85,7 +85,7 @@ const std::map<std::string, AprilFamily>& aprilFamilies() {
 [[noreturn]] void unknownFamily(const DetectorConfig& config) {
   std::string list;
   for (const auto& f : knownFamilies(config.backend)) list += (list.empty() ? "" : ", ") + f;
-  throw Error("unknown " + config.backend + " family '" + config.family + "' (known: " + list + ")");
+  throw Error("unknown " + toString(config.backend) + " family '" + config.family + "' (known: " + list + ")");
 }
 
 cv::Rect clampRoi(const cv::Mat& gray, const cv::Rect& roi) {
@@ -217,45 +217,51 @@ class AprilTagDetector : public FiducialDetector {
 
 }  // namespace
 
-std::vector<std::string> knownFamilies(const std::string& backend) {
+std::string toString(DetectorBackend backend) {
+  return backend == DetectorBackend::AprilTag ? "apriltag" : "aruco";
+}
+
+std::optional<DetectorBackend> parseDetectorBackend(const std::string& name) {
+  if (name == "aruco") return DetectorBackend::Aruco;
+  if (name == "apriltag") return DetectorBackend::AprilTag;
+  return std::nullopt;
+}
+
+std::vector<std::string> knownFamilies(DetectorBackend backend) {
   std::vector<std::string> names;
-  if (backend == "aruco")
+  if (backend == DetectorBackend::Aruco)
     for (const auto& kv : arucoDictionaries()) names.push_back(kv.first);
-  else if (backend == "apriltag")
+  else
     for (const auto& kv : aprilFamilies()) names.push_back(kv.first);
   return names;
 }
 
 std::unique_ptr<FiducialDetector> makeDetector(const DetectorConfig& config) {
-  if (config.backend == "aruco") return std::make_unique<ArucoDetector>(config);
-  if (config.backend == "apriltag") return std::make_unique<AprilTagDetector>(config);
-  throw Error("unknown detector backend '" + config.backend + "' (known: aruco, apriltag)");
+  if (config.backend == DetectorBackend::Aruco) return std::make_unique<ArucoDetector>(config);
+  return std::make_unique<AprilTagDetector>(config);
 }
 
 int familySize(const DetectorConfig& config) {
-  if (config.backend == "aruco") {
+  if (config.backend == DetectorBackend::Aruco) {
     const auto it = arucoDictionaries().find(config.family);
     if (it == arucoDictionaries().end()) unknownFamily(config);
     return cv::aruco::getPredefinedDictionary(it->second)->bytesList.rows;
   }
-  if (config.backend == "apriltag") {
-    const auto it = aprilFamilies().find(config.family);
-    if (it == aprilFamilies().end()) unknownFamily(config);
-    apriltag_family_t* fam = it->second.create();
-    const int n = static_cast<int>(fam->ncodes);
-    it->second.destroy(fam);
-    return n;
-  }
-  throw Error("unknown detector backend '" + config.backend + "' (known: aruco, apriltag)");
+  const auto it = aprilFamilies().find(config.family);
+  if (it == aprilFamilies().end()) unknownFamily(config);
+  apriltag_family_t* fam = it->second.create();
+  const int n = static_cast<int>(fam->ncodes);
+  it->second.destroy(fam);
+  return n;
 }
 
 MarkerImage renderMarker(const DetectorConfig& config, int id) {
   const int n = familySize(config);
   if (id < 0 || id >= n)
-    throw Error("marker id " + std::to_string(id) + " is outside " + config.backend + " " + config.family +
+    throw Error("marker id " + std::to_string(id) + " is outside " + toString(config.backend) + " " + config.family +
                 " (ids 0.." + std::to_string(n - 1) + ")");
   MarkerImage m;
-  if (config.backend == "aruco") {
+  if (config.backend == DetectorBackend::Aruco) {
     const auto dict = cv::aruco::getPredefinedDictionary(arucoDictionaries().at(config.family));
     const int cells = dict->markerSize + 2;  // data bits + one black border cell each side
     cv::Mat marker;

@@ -35,10 +35,11 @@ MarkerConfig parseMarkerConfig(const std::string& text, const std::string& file)
   const YAML::Node root = parseRoot(r, text, "markers.yaml");
   r.onlyKeys(root, {"backend", "family", "corners", "corner_size", "default_size", "default_height", "entities"},
              "markers.yaml");
-  mc.backend = stringOr(r, root, "backend", mc.backend);
-  if (mc.backend != "aruco" && mc.backend != "apriltag")
-    r.error(root["backend"], "backend must be 'aruco' or 'apriltag' (got '" + mc.backend + "')");
-  mc.family = stringOr(r, root, "family", mc.backend == "apriltag" ? "tag36h11" : "DICT_4X4_50");
+  const std::string backend = stringOr(r, root, "backend", toString(mc.backend));
+  const std::optional<DetectorBackend> known_backend = parseDetectorBackend(backend);
+  if (known_backend) mc.backend = *known_backend;
+  else r.error(root["backend"], "backend must be 'aruco' or 'apriltag' (got '" + backend + "')");
+  mc.family = stringOr(r, root, "family", mc.backend == DetectorBackend::AprilTag ? "tag36h11" : "DICT_4X4_50");
   int family_size = 0;
   {
     DetectorConfig dc;
@@ -47,7 +48,7 @@ MarkerConfig parseMarkerConfig(const std::string& text, const std::string& file)
     try {
       family_size = familySize(dc);
     } catch (const Error& e) {
-      if (mc.backend == "aruco" || mc.backend == "apriltag") r.error(root["family"], e.what());
+      if (known_backend) r.error(root["family"], e.what());
     }
   }
   mc.corner_size_m = numberOr(r, root, "corner_size", mc.corner_size_m, 1e-3, 1.0);
@@ -225,7 +226,7 @@ Tracker::Tracker(TrackerConfig config) : config_(std::move(config)) {
   config_.detector.backend = config_.markers.backend;
   config_.detector.family = config_.markers.family;
   detector_ = makeDetector(config_.detector);
-  if (config_.detector.backend == "apriltag" && config_.detector.apriltag_decimate > 1.0) {
+  if (config_.detector.backend == DetectorBackend::AprilTag && config_.detector.apriltag_decimate > 1.0) {
     DetectorConfig fine = config_.detector;
     fine.apriltag_decimate = 1.0;
     fine_detector_ = makeDetector(fine);

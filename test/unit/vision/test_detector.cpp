@@ -44,28 +44,28 @@ void expectFindsAll(const DetectorConfig& cfg) {
 
 TEST(Detector, ArucoFindsEveryMarkerWithCornersInPrintedOrder) {
   DetectorConfig cfg;
-  cfg.backend = "aruco";
+  cfg.backend = DetectorBackend::Aruco;
   cfg.family = "DICT_4X4_50";
   expectFindsAll(cfg);
 }
 
 TEST(Detector, ArucoAprilTagDictionaryUsesTheAprilTagPrintOrientation) {
   DetectorConfig cfg;
-  cfg.backend = "aruco";
+  cfg.backend = DetectorBackend::Aruco;
   cfg.family = "DICT_APRILTAG_36h11";
   expectFindsAll(cfg);
 }
 
 TEST(Detector, AprilTagFindsEveryMarkerWithCornersInPrintedOrder) {
   DetectorConfig cfg;
-  cfg.backend = "apriltag";
+  cfg.backend = DetectorBackend::AprilTag;
   cfg.family = "tag36h11";
   expectFindsAll(cfg);
 }
 
 TEST(Detector, AprilTagStandard41h12HasItsBorderInside) {
   DetectorConfig cfg;
-  cfg.backend = "apriltag";
+  cfg.backend = DetectorBackend::AprilTag;
   cfg.family = "tagStandard41h12";
   expectFindsAll(cfg);
 }
@@ -74,10 +74,10 @@ TEST(Detector, BothBackendsAgreeOnTheSameAprilTagPrint) {
   // OpenCV's DICT_APRILTAG_36h11 and AprilTag's tag36h11 are the same markers: the
   // corners must coincide, so swapping backends does not move any pose.
   DetectorConfig a;
-  a.backend = "apriltag";
+  a.backend = DetectorBackend::AprilTag;
   a.family = "tag36h11";
   DetectorConfig o;
-  o.backend = "aruco";
+  o.backend = DetectorBackend::Aruco;
   o.family = "DICT_APRILTAG_36h11";
   cv::Mat img(200, 200, CV_8UC1, cv::Scalar(230));
   paste(img, a, 7, 40, 50, 10);
@@ -114,9 +114,10 @@ TEST(Detector, UnknownFamilyAndBackendNameTheKnownOnes) {
   } catch (const ddace::Error& e) {
     EXPECT_NE(std::string(e.what()).find("DICT_4X4_50"), std::string::npos) << e.what();
   }
-  cfg.backend = "qr";
-  EXPECT_THROW(makeDetector(cfg), ddace::Error);
-  cfg.backend = "apriltag";
+  EXPECT_FALSE(parseDetectorBackend("qr").has_value());
+  EXPECT_EQ(parseDetectorBackend("apriltag"), DetectorBackend::AprilTag);
+  EXPECT_EQ(toString(*parseDetectorBackend("aruco")), "aruco");
+  cfg.backend = DetectorBackend::AprilTag;
   cfg.family = "tag36h11";
   EXPECT_THROW(renderMarker(cfg, 587), ddace::Error);  // tag36h11 has 587 ids: 0..586
   EXPECT_NO_THROW(renderMarker(cfg, 586));

@@ -156,10 +156,10 @@ TEST(TableFrame, MarkerPoseGivesYawCounterClockwiseFromTableX) {
 }
 
 TEST(Tracker, PosesWithin5mmAnd3DegreesOfTheTruth) {
-  for (const std::string backend : {"aruco", "apriltag"}) {
+  for (const DetectorBackend backend : {DetectorBackend::Aruco, DetectorBackend::AprilTag}) {
     TrackerConfig c = shippedConfig();
-    if (backend == "apriltag") {
-      c.markers.backend = "apriltag";
+    if (backend == DetectorBackend::AprilTag) {
+      c.markers.backend = DetectorBackend::AprilTag;
       c.markers.family = "tag36h11";
     }
     auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml");
@@ -172,15 +172,15 @@ TEST(Tracker, PosesWithin5mmAnd3DegreesOfTheTruth) {
       const double t = f / 30.0;
       const auto truth = scene(t);
       const FrameResult fr = tracker.process(cam.render(truth, t), t);
-      ASSERT_TRUE(fr.table_valid) << backend;
-      for (const auto& s : fr.entities) EXPECT_TRUE(s.visible) << backend << " " << s.name << " frame " << f;
+      ASSERT_TRUE(fr.table_valid) << toString(backend);
+      for (const auto& s : fr.entities) EXPECT_TRUE(s.visible) << toString(backend) << " " << s.name << " frame " << f;
       accumulate(e, fr, truth);
     }
-    EXPECT_EQ(e.compared, 90 * 5) << backend;
-    EXPECT_LT(e.max_pos_m, 0.005) << backend;
-    EXPECT_LT(e.max_yaw_rad, 3.0 * M_PI / 180) << backend;
-    std::printf("%s: max position error %.2f mm, max yaw error %.2f deg\n", backend.c_str(), e.max_pos_m * 1000,
-                e.max_yaw_rad * 180 / M_PI);
+    EXPECT_EQ(e.compared, 90 * 5) << toString(backend);
+    EXPECT_LT(e.max_pos_m, 0.005) << toString(backend);
+    EXPECT_LT(e.max_yaw_rad, 3.0 * M_PI / 180) << toString(backend);
+    std::printf("%s: max position error %.2f mm, max yaw error %.2f deg\n", toString(backend).c_str(),
+                e.max_pos_m * 1000, e.max_yaw_rad * 180 / M_PI);
   }
 }
 
@@ -283,9 +283,9 @@ struct FieldScene {
   SyntheticCameraConfig camera;
   static constexpr double kBallSpeed = 0.8;
 
-  explicit FieldScene(const std::string& backend) {
+  explicit FieldScene(DetectorBackend backend) {
     markers.backend = backend;
-    markers.family = backend == "aruco" ? "DICT_4X4_50" : "tag36h11";
+    markers.family = backend == DetectorBackend::Aruco ? "DICT_4X4_50" : "tag36h11";
     markers.corner_size_m = 0.04;
     markers.corners = {{0, {0.03, 0.03}}, {1, {0.77, 0.03}}, {2, {0.77, 0.57}}, {3, {0.03, 0.57}}};
     for (int i = 0; i < 10; ++i) {
@@ -328,9 +328,9 @@ struct FieldScene {
 
 /// OpenCV's own detector with its default parameters on the whole frame: the
 /// reference the tracker must not fall behind.
-std::set<int> openCvDefaultIds(const cv::Mat& img, const std::string& backend) {
-  const auto dict =
-      cv::aruco::getPredefinedDictionary(backend == "aruco" ? cv::aruco::DICT_4X4_50 : cv::aruco::DICT_APRILTAG_36h11);
+std::set<int> openCvDefaultIds(const cv::Mat& img, DetectorBackend backend) {
+  const auto dict = cv::aruco::getPredefinedDictionary(
+      backend == DetectorBackend::Aruco ? cv::aruco::DICT_4X4_50 : cv::aruco::DICT_APRILTAG_36h11);
   std::vector<std::vector<cv::Point2f>> corners;
   std::vector<int> ids;
   cv::aruco::detectMarkers(img, dict, corners, ids, cv::aruco::DetectorParameters::create());
@@ -340,7 +340,7 @@ std::set<int> openCvDefaultIds(const cv::Mat& img, const std::string& backend) {
 }  // namespace
 
 TEST(Tracker, FindsEveryMarkerOpenCvFindsOnAFastObjectAndSmallMarkers) {
-  for (const std::string backend : {"aruco", "apriltag"}) {
+  for (const DetectorBackend backend : {DetectorBackend::Aruco, DetectorBackend::AprilTag}) {
     const FieldScene scene(backend);
     TrackerConfig c = shippedConfig();
     c.markers = scene.markers;
@@ -361,24 +361,24 @@ TEST(Tracker, FindsEveryMarkerOpenCvFindsOnAFastObjectAndSmallMarkers) {
         if (!c.markers.isCorner(id) && !c.markers.entityById(id)) continue;
         ++reference_found;
         ball_frames += id == 30;
-        EXPECT_TRUE(ids.count(id)) << backend << ": OpenCV finds marker " << id << " in frame " << f
+        EXPECT_TRUE(ids.count(id)) << toString(backend) << ": OpenCV finds marker " << id << " in frame " << f
                                    << " but the tracker does not (" << (fr.full_frame ? "full frame" : "regions")
                                    << ")";
       }
-      EXPECT_TRUE(fr.entities.back().visible) << backend << " ball, frame " << f;
+      EXPECT_TRUE(fr.entities.back().visible) << toString(backend) << " ball, frame " << f;
       accumulate(e, fr, truth);
     }
-    EXPECT_GT(reference_found, 90 * 14) << backend;  // OpenCV itself sees nearly everything
-    EXPECT_GT(ball_frames, 80) << backend;
-    EXPECT_GT(roi_frames, 60) << backend;  // and the tracker did use its regions
-    EXPECT_LT(e.max_pos_m, 0.005) << backend;
+    EXPECT_GT(reference_found, 90 * 14) << toString(backend);  // OpenCV itself sees nearly everything
+    EXPECT_GT(ball_frames, 80) << toString(backend);
+    EXPECT_GT(roi_frames, 60) << toString(backend);  // and the tracker did use its regions
+    EXPECT_LT(e.max_pos_m, 0.005) << toString(backend);
     std::printf("%s field scene: %ld markers found by OpenCV, all found by the tracker; max position error %.2f mm\n",
-                backend.c_str(), reference_found, e.max_pos_m * 1000);
+                toString(backend).c_str(), reference_found, e.max_pos_m * 1000);
   }
 }
 
 TEST(Tracker, AHeldFastObjectGoesStaleWithinFramesASlowOneHolds) {
-  for (const std::string backend : {"aruco", "apriltag"}) {
+  for (const DetectorBackend backend : {DetectorBackend::Aruco, DetectorBackend::AprilTag}) {
     const FieldScene scene(backend);
     TrackerConfig c = shippedConfig();
     c.markers = scene.markers;
@@ -400,18 +400,18 @@ TEST(Tracker, AHeldFastObjectGoesStaleWithinFramesASlowOneHolds) {
         // A held pose that is not stale is never further off than max_drift (+ 1 frame).
         if (!ball.stale) {
           ++ball_current_while_hidden;
-          EXPECT_LT(off, c.filter.max_drift_m + FieldScene::kBallSpeed / 30) << backend << " frame " << f;
+          EXPECT_LT(off, c.filter.max_drift_m + FieldScene::kBallSpeed / 30) << toString(backend) << " frame " << f;
         }
       } else if (f > 1) {
-        EXPECT_TRUE(ball.visible) << backend << " frame " << f;
-        EXPECT_FALSE(ball.stale) << backend << " frame " << f;
+        EXPECT_TRUE(ball.visible) << toString(backend) << " frame " << f;
+        EXPECT_FALSE(ball.stale) << toString(backend) << " frame " << f;
       }
       if (cam.occluded("R3", t)) {
         EXPECT_FALSE(r3.visible);
-        EXPECT_FALSE(r3.stale) << backend << " frame " << f;  // slow: held through the hand
+        EXPECT_FALSE(r3.stale) << toString(backend) << " frame " << f;  // slow: held through the hand
       }
     }
-    EXPECT_LE(ball_current_while_hidden, 3) << backend;  // 0.06 m at 0.8 m/s: 75 ms
+    EXPECT_LE(ball_current_while_hidden, 3) << toString(backend);  // 0.06 m at 0.8 m/s: 75 ms
   }
 }
 
