@@ -4,8 +4,9 @@
 Installs the build directory into its install space (cmake --install: what
 `catkin_make install` does after building, catkin_ws/install by default), then, in an environment that sources only that prefix's
 setup.bash: `rospack find ddace` is the installed share/ddace, `ddace generate` and
-`ddace validate` run, and execute_sim.launch replays a generated Task 4 on mock robots
-until the execution monitor reports `finished` (against this test's ROS master).
+`ddace validate` run, execute_sim.launch replays a generated Task 4 on mock robots
+until the execution monitor reports `finished` (against this test's ROS master), and the
+installed plot_run.py draws that run.
 """
 import json
 import os
@@ -67,6 +68,9 @@ class InstallSpace(unittest.TestCase):
                 % (self.work, self.work, run_dir), 300)
         with open(os.path.join(run_dir, "result.json")) as f:
             self.assertEqual(json.load(f)["state"], "finished")
+        # The run's plot script is an installed program too (lib/ddace, python3-matplotlib).
+        self.sh("rosrun ddace plot_run.py %s/run.json %s/replot.png" % (run_dir, self.work), 120)
+        self.assertGreater(os.path.getsize(os.path.join(self.work, "replot.png")), 1000)
 
 
 if __name__ == "__main__":
