@@ -4,7 +4,10 @@
 #include <ros/ros.h>
 #include <yaml-cpp/yaml.h>
 
-#include <fstream>
+#include <cstdio>
+
+#include "ddace/common/error.h"
+#include "ddace/common/file.h"
 
 TEST(HamsterCalibration, MeasuresTheTrueSpeedPerUnit) {
   ros::NodeHandle pnh("~");
@@ -15,14 +18,13 @@ TEST(HamsterCalibration, MeasuresTheTrueSpeedPerUnit) {
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(100.0);
   YAML::Node result;
   while (ros::WallTime::now() < end && ros::ok()) {
-    std::ifstream in(output);
-    if (in) {
-      try {
-        result = YAML::LoadFile(output);
-        if (result["right_mps_per_unit"]) break;
-      } catch (const YAML::Exception&) {
-        // still being written
-      }
+    try {
+      result = YAML::Load(ddace::readTextFile(output));
+      if (result["right_mps_per_unit"]) break;
+    } catch (const ddace::Error&) {
+      // not written yet
+    } catch (const YAML::Exception&) {
+      // still being written
     }
     ros::WallDuration(0.2).sleep();
   }

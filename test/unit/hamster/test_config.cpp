@@ -2,7 +2,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <fstream>
 
 #include "ddace/common/error.h"
 #include "ddace/common/repository.h"

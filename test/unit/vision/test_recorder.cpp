@@ -7,11 +7,10 @@
 
 #include <chrono>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <thread>
 
 #include "ddace/common/error.h"
+#include "ddace/common/file.h"
 #include "ddace/common/repository.h"
 #include "ddace/task/task_dir.h"
 #include "ddace/vision/recorder.h"
@@ -45,13 +44,6 @@ RecorderConfig shippedConfig() {
 
 std::vector<Eigen::Vector2d> positions(double t) {
   return {{0.1 + 0.1 * t, 0.2}, {0.1, 0.8}, {0.45, 0.3}, {0.45, 0.7}, {0.88, 0.5}};
-}
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
 }
 
 }  // namespace
@@ -154,7 +146,7 @@ TEST(Recorder, AKilledRecorderLeavesAReadablePartialFile) {
     for (int i = 0; i < 70; ++i) rec.addRow(i / 30.0, positions(i / 30.0));
     partial = rec.partialPath();
     // Rows up to the last flush (t >= 1 s) are on disk before anything is closed.
-    const std::string text = slurp(partial);
+    const std::string text = readTextFile(partial);
     const size_t lines = static_cast<size_t>(std::count(text.begin(), text.end(), '\n'));
     EXPECT_GE(lines, 31u);  // header + at least 1 s of rows
     EXPECT_EQ(text.back(), '\n');
@@ -250,7 +242,7 @@ TEST(Recorder, KillNineLeavesWholeRowsAtAnyKillPoint) {
     // The documented recovery: rename the .partial file to .csv; the directory validates.
     const std::string csv = partial.substr(0, partial.size() - std::string(".partial").size());
     fs::rename(partial, csv);
-    const std::string text = slurp(csv);
+    const std::string text = readTextFile(csv);
     ASSERT_FALSE(text.empty());
     EXPECT_EQ(text.back(), '\n') << "killed after " << kill_after << " s: the last row is torn";
     const task::TaskDirReport report = task::checkTaskDir(dir.path.string());
