@@ -93,7 +93,7 @@ class TrackerNode::Impl {
     }
     ros::Rate rate(capture_rate_hz_);
     cv::Mat frame;
-    ros::Time file_start;  // ROS time of the video file's t = 0
+    vision::VideoTimeline file_time;
     while (ros::ok() && !stop_) {
       if (!capture_.read(frame) || frame.empty()) {
         if (!video_file_.empty()) {
@@ -103,12 +103,8 @@ class TrackerNode::Impl {
         ROS_ERROR_THROTTLE(1.0, "tracker_node: no frame from /dev/video%d", video_device_);
       } else {
         ros::Time stamp = ros::Time::now();
-        if (!video_file_.empty()) {
-          // The file's own time line: frame intervals as recorded, whatever the playback rate.
-          const double file_s = capture_.get(cv::CAP_PROP_POS_MSEC) / 1000.0;
-          if (file_start.isZero()) file_start = stamp - ros::Duration(file_s);
-          stamp = file_start + ros::Duration(file_s);
-        }
+        if (!video_file_.empty())
+          stamp.fromSec(file_time.stamp(capture_.get(cv::CAP_PROP_POS_MSEC) / 1000.0, stamp.toSec()));
         if (raw_pub_.getNumSubscribers() > 0) {
           std_msgs::Header h;
           h.stamp = stamp;

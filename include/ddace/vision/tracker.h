@@ -202,6 +202,21 @@ TrackerStatus trackerStatus(const std::optional<FrameResult>& last, const std::o
 /// "table frame refused: reprojection error E px > table.max_reprojection_px M (...)".
 std::string tableRefusedText(const FrameResult& result, double max_reprojection_px);
 
+/// Stamps for the frames of a recorded video file: the file's own time line (its frame
+/// times), anchored at the time the first frame was read, so the intervals between
+/// frames stay as recorded whatever the playback rate. Seconds on any clock.
+class VideoTimeline {
+ public:
+  /// The stamp of the frame `file_s` seconds into the file, read at `now_s`.
+  double stamp(double file_s, double now_s) {
+    if (!start_s_) start_s_ = now_s - file_s;
+    return *start_s_ + file_s;
+  }
+
+ private:
+  std::optional<double> start_s_;
+};
+
 /// Merges overlapping rectangles into their bounding box wherever that box is at most
 /// 1.5 times their areas together (overlaps may remain; a marker is then searched twice).
 std::vector<cv::Rect> mergeRegions(std::vector<cv::Rect> rects);

@@ -1,4 +1,5 @@
-// The tracker's health rule (what tracker_node reports on /diagnostics).
+// The tracker node's rules: its health (what it reports on /diagnostics) and the time
+// line of a video file.
 #include <gtest/gtest.h>
 
 #include "ddace/vision/tracker.h"
@@ -72,4 +73,13 @@ TEST(TrackerStatus, ARefusedFitWithAnOlderTableFrameKeptIsAWarning) {
   const TrackerStatus s = trackerStatus(fr, std::nullopt, 2.0);
   EXPECT_EQ(s.level, Level::Warn);
   EXPECT_NE(s.summary.find("table frame refused"), std::string::npos);
+}
+
+TEST(VideoTimeline, FramesKeepTheFilesIntervalsWhateverThePlaybackRate) {
+  VideoTimeline t;
+  // The first frame (0.5 s into the file) is read at 1000 s: the file's t = 0 is 999.5 s.
+  EXPECT_DOUBLE_EQ(t.stamp(0.5, 1000.0), 1000.0);
+  // Read slowly (a loaded machine) or quickly: the stamps follow the file, not the reads.
+  EXPECT_DOUBLE_EQ(t.stamp(0.5 + 1.0 / 30, 1000.2), 1000.0 + 1.0 / 30);
+  EXPECT_DOUBLE_EQ(t.stamp(2.5, 1000.3), 1002.0);
 }
