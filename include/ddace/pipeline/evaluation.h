@@ -44,12 +44,16 @@ struct Evaluation {
   std::string task, variant, execution;
   std::vector<eval::TrialScore> scores;
   std::vector<exec::Trial> trials;
+  /// Per trial: "" when every step matched, else the first step that differs, as
+  /// "step K: predicted {R1:move:G2} demonstrated {R2:move:G2}" (K 1-based).
+  std::vector<std::string> first_difference;
   eval::Summary summary;
 };
 
 Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOptions& options);
 
-/// Human-readable table: one line per trial, then the summary.
+/// Human-readable table: one line per trial (a failed one adds its first differing step),
+/// then the summary.
 void printEvaluation(const Evaluation& e, std::ostream& out);
 /// {"task", "variant", "execution", "trials", "osr", "ssr", "gcr", "fd", "per_trial": [...]}
 std::string evaluationJson(const Evaluation& e);

@@ -5,8 +5,8 @@
 // includes no torch. docs/tgn.md describes every variant and why `scene` is the default.
 //
 // Variants:
-//   scene       (default) relative features (displacement, distance, nearness ranks) on the
-//               attention edges, entity kinds, an identity embedding keyed by name,
+//   scene       (default) relative features (distance, nearness ranks) on the attention
+//               edges, no absolute position, entity kinds, an identity embedding keyed by name,
 //               per-entity action heads and a pointer over the candidate targets;
 //               attention over E' lifted to entity kinds (see Variant).
 //   paper       the paper's network: 3 x [GAT (2 heads, concatenated) -> BatchNorm ->
@@ -90,8 +90,8 @@ struct TrainOptions {
   int identity_dim = 8;
   AttentionKind attention = AttentionKind::GatV2;  ///< scene variant
   int head_hidden = 32;                            ///< scene variant: hidden units of the action and pointer heads
-  bool node_positions = true;                      ///< scene variant: absolute (x, y) among the node features
-  bool edge_displacement = true;                   ///< scene variant: x_j - x_i among the edge features (else only
+  bool node_positions = false;                     ///< scene variant: absolute (x, y) among the node features
+  bool edge_displacement = false;                  ///< scene variant: x_j - x_i among the edge features (else only
                                                    ///< distance and nearness ranks: invariant to rotating the scene)
   double weight_decay = 0;                         ///< Adam's L2 penalty (as torch.optim.Adam's weight_decay)
   double dropout = 0.1;

@@ -1,5 +1,6 @@
 #include "ddace/pipeline/evaluation.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -74,6 +75,23 @@ exec::Trial trialFromRollout(const task::Demonstration& r, int max_rows) {
   return t;
 }
 
+std::string tokensOf(const std::vector<task::Step>& steps, size_t k, const task::TaskSpec& spec) {
+  if (k >= steps.size()) return "{END}";
+  std::string out = "{";
+  for (const auto& t : steps[k].tokens) out += (out.size() > 1 ? " " : "") + task::tokenKey(t, spec);
+  return out + "}";
+}
+
+/// The first step whose tokens differ (the diagnostic line of a failed trial).
+std::string firstDifference(const task::TaskSpec& spec, const std::vector<task::Step>& demonstrated,
+                            const std::vector<task::Step>& predicted) {
+  for (size_t k = 0; k < std::max(demonstrated.size(), predicted.size()); ++k) {
+    const std::string p = tokensOf(predicted, k, spec), d = tokensOf(demonstrated, k, spec);
+    if (p != d) return "step " + std::to_string(k + 1) + ": predicted " + p + " demonstrated " + d;
+  }
+  return "";
+}
+
 }  // namespace
 
 Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOptions& options) {
@@ -110,6 +128,7 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
       trial = exec::runTrial(spec, gt, policy, paths, *execution);
     }
     e.scores.push_back(eval::scoreTrial(spec, gt, trial, gnn));
+    e.first_difference.push_back(firstDifference(spec, gt.steps, trial.predicted));
     e.trials.push_back(std::move(trial));
   }
   e.summary = eval::summarise(e.scores);
@@ -120,11 +139,14 @@ void printEvaluation(const Evaluation& e, std::ostream& out) {
   char line[256];
   std::snprintf(line, sizeof line, "%-16s %7s %6s %6s %7s %7s\n", "trial", "steps", "END", "GCR", "FD", "success");
   out << line;
-  for (const auto& s : e.scores) {
+  for (size_t i = 0; i < e.scores.size(); ++i) {
+    const auto& s = e.scores[i];
     std::snprintf(line, sizeof line, "%-16s %3d/%-3d %6s %6.3f %7.4f %7s\n", fs::path(s.demo).filename().c_str(),
                   s.correct_steps, s.gt_steps, s.ended_correctly ? "yes" : "no", s.gcr(), s.meanFd(),
                   s.success ? "yes" : "no");
     out << line;
+    if (!s.success && i < e.first_difference.size() && !e.first_difference[i].empty())
+      out << "    " << e.first_difference[i] << "\n";
   }
   const auto& m = e.summary;
   std::snprintf(line, sizeof line, "%s, variant %s, execution %s: %d trials  OSR %.3f  SSR %.3f  GCR %.3f  FD %.4f\n",
@@ -144,7 +166,8 @@ std::string evaluationJson(const Evaluation& e) {
   j["gcr"] = e.summary.gcr;
   j["fd"] = num(e.summary.fd);
   j["per_trial"] = nlohmann::json::array();
-  for (const auto& s : e.scores) {
+  for (size_t i = 0; i < e.scores.size(); ++i) {
+    const auto& s = e.scores[i];
     j["per_trial"].push_back({{"demo", fs::path(s.demo).filename().string()},
                               {"success", s.success},
                               {"ssr", s.ssr()},
@@ -154,7 +177,8 @@ std::string evaluationJson(const Evaluation& e) {
                               {"steps_ground_truth", s.gt_steps},
                               {"steps_predicted", s.predicted_steps},
                               {"ended_correctly", s.ended_correctly},
-                              {"goal_conditions_hold", s.goal_conditions_hold}});
+                              {"goal_conditions_hold", s.goal_conditions_hold},
+                              {"first_difference", i < e.first_difference.size() ? e.first_difference[i] : ""}});
   }
   return j.dump(2) + "\n";
 }

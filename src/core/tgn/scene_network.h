@@ -1,12 +1,15 @@
 // The `scene` network (the default variant): what decides a step can depend on the
 // configuration. Internal to the tgn module (includes <torch/torch.h>).
 //
-//   node features   (x, y) normalised isotropically (one scale for both axes, so that
-//                   distances keep their meaning), the entity kind (one-hot robot, object,
-//                   goal) and an identity embedding keyed by the entity's name.
-//   edge features   for the pair i <- j: the displacement x_j - x_i, the distance, and two
-//                   nearness ranks: 1 / (1 + the number of entities of j's kind nearer to i
-//                   than j), and the same for i seen from j (1 = the nearest of its kind).
+//   node features   the entity kind (one-hot robot, object, goal) and an identity
+//                   embedding keyed by the entity's name; (x, y) normalised isotropically
+//                   only with TrainOptions::node_positions (off by default: a decision
+//                   depends on how the scene is arranged, not where it is on the table).
+//   edge features   for the pair i <- j: the distance and two nearness ranks:
+//                   1 / (1 + the number of entities of j's kind nearer to i than j), and
+//                   the same for i seen from j (1 = the nearest of its kind); the
+//                   displacement x_j - x_i only with TrainOptions::edge_displacement (off by
+//                   default: the rest is invariant to moving, rotating, mirroring the scene).
 //   spatial         `gat_layers` x attention over the attention edges plus self-loops; the
 //                   message from j to i is W_s x_j + W_e r_ij (it carries the edge
 //                   features: a convex combination of W x_j alone cannot form x_j - x_i);

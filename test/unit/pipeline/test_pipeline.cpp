@@ -111,8 +111,8 @@ TEST_F(Pipeline, ReproducesItsOwnTrainingDemonstrations) {
 // and carries it to the goal nearest the box. The default (scene) network learns the rule
 // from the demonstrations and applies it to fresh configurations; the paper's network, with
 // one output slot per entity, has no path from "nearest" to its output and does far worse.
-// (The goal is OSR >= 0.9 with 20 demonstrations; measured: about 0.9 for scene,
-// 0.35 for paper; the bounds below leave a margin of a few trials.)
+// The goal is OSR >= 0.9 with 20 demonstrations on 20 fresh configurations; measured 1.0
+// for scene with three training seeds, 0.35 for paper: 0.9 leaves a margin of two trials.
 TEST(ScenePipeline, LearnsWhoActsFromTheConfiguration) {
   const std::string dir = ::testing::TempDir() + "/ddace_pipeline_deliver";
   const task::TaskDir train = generated("deliver", 20, 1), test = generated("deliver", 20, 77);
@@ -124,7 +124,7 @@ TEST(ScenePipeline, LearnsWhoActsFromTheConfiguration) {
     const pipeline::Model m = pipeline::trainModel(train, o, dir, nullptr);
     osr[v == tgn::Variant::Scene ? 0 : 1] = pipeline::evaluate(m, test, {}).summary.osr;
   }
-  EXPECT_GE(osr[0], 0.7) << "scene " << osr[0] << ", paper " << osr[1];
+  EXPECT_GE(osr[0], 0.9) << "scene " << osr[0] << ", paper " << osr[1];
   EXPECT_GE(osr[0], osr[1] + 0.3) << "scene " << osr[0] << ", paper " << osr[1];
   fs::remove_all(dir);
 }

@@ -1,6 +1,8 @@
 // Training, prediction, the model directory and the gnn baseline.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <filesystem>
 #include <limits>
@@ -336,6 +338,35 @@ TEST_P(EntityOrder, InTaskYamlChangesNoDecision) {
 
 INSTANTIATE_TEST_SUITE_P(Variants, EntityOrder, ::testing::Values(tgn::Variant::Scene, tgn::Variant::Paper),
                          [](const auto& info) { return std::string(tgn::toString(info.param)); });
+
+// The default network sees distances and nearness ranks, no absolute position: a scene that
+// is moved, rotated or mirrored on the table gets the same decisions.
+TEST(SequenceModel, SceneDecisionsDoNotDependOnWhereTheSceneIsOnTheTable) {
+  tgn::TrainOptions o;
+  o.max_epochs = 25;
+  const auto m = tgn::SequenceModel::train(generate("deliver", 8), o, nullptr);
+  const task::TaskDir test = generate("deliver", 4, 33);
+  const Eigen::Rotation2Dd rotation(0.7);
+  const auto moved = [&](std::vector<task::Snapshot> h, bool mirror) {
+    for (auto& s : h)
+      for (auto& p : s.positions) {
+        if (mirror) p.x() = -p.x();
+        p = rotation * p + Eigen::Vector2d(0.31, -0.12);
+      }
+    return h;
+  };
+  for (const auto& d : test.demos)
+    for (size_t k = 1; k <= d.snapshots.size(); ++k) {
+      const std::vector<task::Snapshot> h(d.snapshots.begin(), d.snapshots.begin() + static_cast<long>(k));
+      const auto p = m.predictNext(h);
+      for (bool mirror : {false, true}) {
+        const auto q = m.predictNext(moved(h, mirror));
+        EXPECT_EQ(p.end, q.end) << d.source << " step " << k;
+        EXPECT_NEAR(p.end_probability, q.end_probability, 1e-4) << d.source << " step " << k;
+        EXPECT_EQ(named(p, m.spec()), named(q, m.spec())) << d.source << " step " << k << " mirror " << mirror;
+      }
+    }
+}
 
 TEST(SequenceModel, RefusesANonFinitePositionNamingTheEntityAndSnapshot) {
   const tgn::SequenceModel& m = task4Model();
