@@ -11,7 +11,7 @@ using namespace ddace::pipeline;
 namespace {
 
 int runEval(const std::vector<std::string>& argv) {
-  Args args(argv, {"--json", "--execution", "--noise", "--seed"});
+  Args args(argv, {"--json", "--execution", "--noise", "--seed"}, {"--allow-other-task"});
   args.expectAtMostPositional(2);
   const std::string model_dir = args.positional(0, "MODELDIR");
   const std::string test_dir = args.positional(1, "TESTDIR");
@@ -26,7 +26,7 @@ int runEval(const std::vector<std::string>& argv) {
 
   const Model model = loadModel(model_dir);
   const task::TaskDir test = task::loadTaskDir(test_dir);
-  checkSameTask(model.sequence.spec(), model_dir, test.spec, test_dir);
+  checkSameTask(model, model_dir, test, test_dir, args.has("--allow-other-task"));
   const Evaluation e = evaluate(model, test, o);
   printEvaluation(e, std::cout);
   if (args.has("--json")) {
@@ -38,9 +38,10 @@ int runEval(const std::vector<std::string>& argv) {
 }
 
 DDACE_COMMAND({"eval",
-               "ddace eval MODELDIR TESTDIR [--json FILE] [--execution ideal|diffdrive] [--noise SIGMA_M] [--seed S]",
+               "ddace eval MODELDIR TESTDIR [--json FILE] [--execution ideal|diffdrive] [--noise SIGMA_M] [--seed S] "
+               "[--allow-other-task]",
                "run the learned task in closed loop on every test demonstration's start configuration and "
-               "report OSR, SSR, GCR and FD",
+               "report OSR, SSR, GCR and FD (a model of another task is refused unless --allow-other-task)",
                runEval});
 
 }  // namespace

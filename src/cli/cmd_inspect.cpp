@@ -1,9 +1,11 @@
 // ddace inspect: what a model directory holds (checked on the way: every file is read).
 #include <iomanip>
 #include <iostream>
+#include <sstream>
 
 #include "command.h"
 #include "ddace/common/error.h"
+#include "ddace/pipeline/evaluation.h"
 #include "ddace/tgn/sequence_model.h"
 
 namespace ddace::cli {
@@ -13,7 +15,9 @@ int runInspect(const std::vector<std::string>& argv) {
   Args args(argv, {}, {"--loss"});
   const std::string dir = args.positional(0, "MODELDIR");
   args.expectAtMostPositional(1);
-  const tgn::SequenceModel model = tgn::SequenceModel::load(dir);
+  // The loader every user of a model goes through: every file is read and verified.
+  const pipeline::Model loaded = pipeline::loadModel(dir);
+  const tgn::SequenceModel& model = loaded.sequence;
   const tgn::ModelInfo& info = model.info();
   const task::TaskSpec& spec = model.spec();
   const auto name = [&](int i) { return spec.entities.at(static_cast<size_t>(i)).name; };
@@ -37,6 +41,24 @@ int runInspect(const std::vector<std::string>& argv) {
               << (info.variant == tgn::Variant::Gnn ? "frame label" : "step") << " accuracy " << last.step_accuracy
               << ", " << last.seconds << " s\n";
   }
+  const auto join = [](const auto& items) {
+    std::string out;
+    for (const auto& i : items) {
+      std::ostringstream s;
+      s << i;
+      out += (out.empty() ? "" : ", ") + s.str();
+    }
+    return "[" + out + "]";
+  };
+  const task::TaskFingerprint& f = info.fingerprint;
+  std::cout << "  task fingerprint " << f.digest().substr(0, 16) << ": token types " << join(f.token_types)
+            << ", steps per demonstration " << join(f.step_counts) << ", goal conditions " << join(f.goal_conditions)
+            << ", " << f.demonstrations << " demonstrations\n";
+  std::cout << "  files (verified):";
+  for (const auto& [name, d] : info.files) std::cout << " " << name << " (" << d.bytes << " bytes)";
+  std::cout << "\n";
+  if (loaded.primitives)
+    std::cout << "  primitives:  " << loaded.primitives->primitives().size() << " motion primitives\n";
   std::cout << "  normalisation: x' = (x - " << info.mean[0] << ") / " << info.std[0] << ", y' = (y - " << info.mean[1]
             << ") / " << info.std[1] << "  (metres)\n";
 
@@ -78,7 +100,8 @@ int runInspect(const std::vector<std::string>& argv) {
 }
 
 DDACE_COMMAND({"inspect", "ddace inspect MODELDIR [--loss]",
-               "check a model directory and print its task, network, training result and refined edge set E'",
+               "check every file of a model directory (digests, task fingerprint) and print its task, network, training "
+               "result and refined edge set E'",
                runInspect});
 
 }  // namespace

@@ -15,6 +15,8 @@
 #include "ddace/eval/frechet.h"
 #include "ddace/gp/canonical.h"
 #include "ddace/gp/primitives.h"
+#include "ddace/pipeline/evaluation.h"
+#include "ddace/task/fingerprint.h"
 #include "ddace/task/task_dir.h"
 
 namespace ddace::cli {
@@ -22,10 +24,21 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// MODELDIR/primitives.yaml, or the file itself when MODEL names a file.
+/// The primitive library of a model directory (loaded and verified as every user of a
+/// model does, pipeline::loadModel), or a library file on its own (checked by its own
+/// reader: format, fingerprint digest, stored likelihoods). A directory without a
+/// manifest.yaml holding a primitives.yaml is such a library on its own.
 gp::PrimitiveLibrary loadLibrary(const std::string& model) {
   const fs::path p(model);
   if (fs::is_directory(p)) {
+    if (fs::exists(p / "manifest.yaml")) {
+      const pipeline::Model m = pipeline::loadModel(model);
+      if (!m.primitives)
+        throw Error(Diagnostic{model, 0, 0,
+                               "a " + m.sequence.variant() + " model has no primitive library (it rolls out its own "
+                               "trajectories)"});
+      return *m.primitives;
+    }
     const fs::path file = p / gp::kPrimitivesFile;
     if (!fs::exists(file))
       throw Error(Diagnostic{file.string(), 0, 0,
@@ -83,6 +96,10 @@ int demoPaths(const Args& args, const gp::PrimitiveLibrary& lib) {
   const std::string dir = args.get("--demos", "");
   if (!args.has("--csv")) throw Error("--demos needs --csv FILE for the paths");
   const task::TaskDir task = task::loadTaskDir(dir);
+  if (!args.has("--allow-other-task"))
+    task::requireSameTask(lib.taskFingerprint(), args.positional(0, "MODELDIR") + " (task '" + lib.taskName() + "')",
+                          task::fingerprintOf(task), dir + " (task '" + task.spec.name + "')",
+                          "pass --allow-other-task");
   if (task.spec.entityNames() != lib.entityNames())
     throw Error("the entities of " + dir + " differ from those the primitives were trained on (task '" +
                 lib.taskName() + "')");
@@ -140,7 +157,7 @@ int listPrimitives(const gp::PrimitiveLibrary& lib) {
 }
 
 int runPath(const std::vector<std::string>& argv) {
-  Args args(argv, {"--key", "--start", "--goal", "--points", "--csv", "--demos"}, {"--list"});
+  Args args(argv, {"--key", "--start", "--goal", "--points", "--csv", "--demos"}, {"--list", "--allow-other-task"});
   args.expectAtMostPositional(1);
   const gp::PrimitiveLibrary lib = loadLibrary(args.positional(0, "MODELDIR"));
   if (args.has("--list")) return listPrimitives(lib);
@@ -154,7 +171,7 @@ int runPath(const std::vector<std::string>& argv) {
 
 DDACE_COMMAND({"path",
                "ddace path MODELDIR --key E:ACTION:T --start X,Y --goal X,Y [--points N] [--csv FILE] | "
-               "ddace path MODELDIR --demos TASKDIR --csv FILE | ddace path MODELDIR --list",
+               "ddace path MODELDIR --demos TASKDIR --csv FILE [--allow-other-task] | ddace path MODELDIR --list",
                "print or write a primitive path retargeted to a start and goal (metres, table frame), "
                "or every motion segment of TASKDIR next to its generated path with the mean FD per key, "
                "or list the primitives",

@@ -14,6 +14,8 @@
 #include "params.h"
 #include "ddace/exec/replay.h"
 #include "ddace/gp/primitives.h"
+#include "ddace/pipeline/evaluation.h"
+#include "ddace/task/fingerprint.h"
 
 namespace ddace::nodes {
 
@@ -31,9 +33,27 @@ class GpPathNode::Impl {
     if (source == GpPathNode::Source::Library) {
       std::string path = rosparam::param<std::string>(pnh, "library", "");
       if (path.empty()) throw Error("source 'library' needs parameter '" + pnh.resolveName("library") + "'");
-      if (std::filesystem::is_directory(path)) path = (std::filesystem::path(path) / gp::kPrimitivesFile).string();
       spec_ = ros_exec::loadTaskSpec(task_path);
-      library_ = std::make_unique<gp::PrimitiveLibrary>(gp::PrimitiveLibrary::load(path));
+      namespace fs = std::filesystem;
+      if (fs::is_directory(path)) {
+        // A model directory goes through the one model loader (every file verified).
+        if (!fs::exists(fs::path(path) / "manifest.yaml"))
+          throw Error(Diagnostic{path, 0, 0, "not a model directory (no manifest.yaml): give a model directory "
+                                             "written by ddace train, or a primitives.yaml"});
+        const pipeline::Model model = pipeline::loadModel(path);
+        if (!model.primitives)
+          throw Error(Diagnostic{path, 0, 0, "a " + model.sequence.variant() + " model has no primitive library"});
+        library_ = std::make_unique<gp::PrimitiveLibrary>(*model.primitives);
+      } else {
+        library_ = std::make_unique<gp::PrimitiveLibrary>(gp::PrimitiveLibrary::load(path));
+      }
+      if (!rosparam::param(pnh, "allow_other_task", defaults.allow_other_task))
+        task::requireSameTask(library_->taskFingerprint(), path + " (task '" + library_->taskName() + "')",
+                              task::fingerprintOfPath(task_path), task_path + " (task '" + spec_.name + "')",
+                              "set parameter '" + pnh.resolveName("allow_other_task") + "' to true");
+      else
+        ROS_WARN("gp_path: %s: the library's task is not checked against %s",
+                 pnh.resolveName("allow_other_task").c_str(), task_path.c_str());
       generate_ = [this](const task::Token& t, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
         // The library's own entity indices: map by key.
         const gp::GeneratedPath p = library_->generate(task::tokenKey(t, spec_), s, g, points_);

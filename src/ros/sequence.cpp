@@ -15,6 +15,8 @@
 #include "exec_conversions.h"
 #include "params.h"
 #include "ddace/exec/replay.h"
+#include "ddace/pipeline/evaluation.h"
+#include "ddace/task/fingerprint.h"
 #include "ddace/tgn/sequence_model.h"
 
 namespace ddace::nodes {
@@ -33,9 +35,19 @@ class SequenceNode::Impl {
       if (dir.empty())
         throw Error("policy 'model' needs parameter '" + pnh.resolveName("model") + "' (a model directory)");
       ros_exec::requireAbsolute(dir, pnh.resolveName("model"));
-      model_ = std::make_unique<tgn::SequenceModel>(tgn::SequenceModel::load(dir));
+      // The one model loader: every file of the directory is verified, primitives.yaml too.
+      model_ = std::make_unique<tgn::SequenceModel>(pipeline::loadModel(dir).sequence);
+      const bool allow_other_task = rosparam::param(pnh, "allow_other_task", defaults.allow_other_task);
+      if (!allow_other_task)
+        task::requireSameTask(model_->info().fingerprint, dir + " (task '" + model_->spec().name + "')",
+                              task::fingerprintOfPath(task_path), task_path + " (task '" + spec_.name + "')",
+                              "set parameter '" + pnh.resolveName("allow_other_task") + "' to true");
+      else
+        ROS_WARN("sequence: %s: the model's task is not checked against %s", pnh.resolveName("allow_other_task").c_str(),
+                 task_path.c_str());
       if (model_->spec().entityNames() != spec_.entityNames())
-        throw Error("model " + dir + " was trained on other entities than the task " + task_path + " has");
+        throw Error("model " + dir + " was trained on other entities (or another order of them) than the task " +
+                    task_path + " has");
       policy_ = [this](const std::vector<task::Snapshot>& h) {
         const tgn::Prediction p = model_->predictNext(h);
         exec::Decision d;

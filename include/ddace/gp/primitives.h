@@ -28,7 +28,7 @@
 // within 1 and 2 the primitive with the most segments wins, ties by key order.
 // The result says so (fell_back, source_key).
 //
-// File: <modeldir>/primitives.yaml (format ddace-primitives/1), documented in docs/gp.md.
+// File: <modeldir>/primitives.yaml (format ddace-primitives/2), documented in docs/gp.md.
 //
 // A library is immutable after fit()/load(): generate() may be called from several
 // threads at once.
@@ -45,11 +45,13 @@
 
 #include "ddace/gp/gaussian_process.h"
 #include "ddace/task/demonstration.h"
+#include "ddace/task/fingerprint.h"
 #include "ddace/task/task_dir.h"
 
 namespace ddace::gp {
 
-inline constexpr const char* kPrimitivesFormat = "ddace-primitives/1";
+/// /2: the library names the task fingerprint it was fitted on (task/fingerprint.h).
+inline constexpr const char* kPrimitivesFormat = "ddace-primitives/2";
 inline constexpr const char* kPrimitivesFile = "primitives.yaml";
 inline constexpr const char* kStraightLine = "straight line";
 
@@ -105,13 +107,17 @@ class PrimitiveLibrary {
   /// Fits one primitive per motion key of `train`. Throws ddace::Error for invalid options.
   static PrimitiveLibrary fit(const task::TaskDir& train, const PrimitiveOptions& options = {});
 
-  /// Writes the library as YAML (format ddace-primitives/1). Throws ddace::Error naming
+  /// Writes the library as YAML (format ddace-primitives/2). Throws ddace::Error naming
   /// the file when it cannot be written.
   void save(const std::string& path) const;
+  /// The text save() writes.
+  std::string text() const;
   /// Reads a library written by save(). Throws ddace::Error naming the file (and the line
   /// and column where known) and the problem: unreadable, not YAML, wrong format, a missing
   /// or invalid field, or numbers that do not reproduce the stored likelihood.
   static PrimitiveLibrary load(const std::string& path);
+  /// The same from the file's bytes (`path` names it in messages).
+  static PrimitiveLibrary parse(const std::string& text, const std::string& path);
 
   /// A path for `token` from `start` to `goal` (table frame, metres) with `points` >= 2
   /// points. Throws ddace::Error for an in-place token, an entity index outside the
@@ -131,6 +137,8 @@ class PrimitiveLibrary {
   const std::map<std::string, Primitive>& primitives() const { return primitives_; }
   const std::vector<std::string>& entityNames() const { return entities_; }
   const std::string& taskName() const { return task_; }
+  /// The fingerprint of the training directory the library was fitted on.
+  const task::TaskFingerprint& taskFingerprint() const { return fingerprint_; }
   const PrimitiveOptions& options() const { return options_; }
 
  private:
@@ -143,6 +151,7 @@ class PrimitiveLibrary {
 
   std::string task_;
   std::vector<std::string> entities_;
+  task::TaskFingerprint fingerprint_;
   PrimitiveOptions options_;
   std::map<std::string, Primitive> primitives_;
   /// Canonical mean/stddev on the training grid, per key: generation at the default

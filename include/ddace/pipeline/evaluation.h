@@ -26,13 +26,18 @@ struct Model {
 /// out its own trajectories), writing both into `model_dir`.
 Model trainModel(const task::TaskDir& train, const tgn::TrainOptions& options, const std::string& model_dir,
                  std::ostream* progress);
-/// Loads a model directory. Throws ddace::Error naming the file at fault.
+/// Loads a model directory: the one loader of `ddace eval/inspect/path` and the nodes.
+/// Every file is read and checked against the manifest's digests (the manifest against
+/// its own), and the primitive library must name the sequence model's task fingerprint.
+/// Throws ddace::Error naming the file at fault and what differs.
 Model loadModel(const std::string& model_dir);
 
-/// Refuses (ddace::Error) a test set whose task differs from the model's: other entities
-/// (names, kinds, order) or actions outside the model's vocabulary.
-void checkSameTask(const task::TaskSpec& model, const std::string& model_dir, const task::TaskSpec& test,
-                   const std::string& test_dir);
+/// Refuses (ddace::Error) a task directory (task.yaml and its demonstrations) of another
+/// task than the model's, listing what differs (task::requireSameTask: entities, kinds,
+/// vocabulary, goal conditions, demonstrated step structure). With `allow_other_task`
+/// (a deliberate transfer) only the entity names and their order must agree.
+void checkSameTask(const Model& model, const std::string& model_dir, const task::TaskDir& test,
+                   const std::string& test_dir, bool allow_other_task);
 
 struct EvalOptions {
   std::string execution = "ideal";  ///< ideal | diffdrive

@@ -8,7 +8,10 @@
 //   library        the Gaussian-process primitive library (`library`: a primitives.yaml or a
 //                  model directory holding one): gp::PrimitiveLibrary::generate, with the
 //                  per-point standard deviation; a key never demonstrated falls back as
-//                  gp/primitives.h says and the response says so (fell_back)
+//                  gp/primitives.h says and the response says so (fell_back). A model
+//                  directory is loaded by pipeline::loadModel (every file verified); a
+//                  library of another task than `task` (its task fingerprint) is refused
+//                  unless `allow_other_task` is true.
 //   demonstration  the first demonstrated trajectory of the token's key in `task`'s demos/,
 //                  retargeted to the new start and goal by a similarity transform; zero
 //                  standard deviation (one demonstration has no spread).
@@ -38,7 +41,9 @@ class GpPathNode {
   struct Params {
     std::string frame_id = kTableFrame;
     Source source = Source::Demonstration;
-    int points = 100;  ///< path points when a request does not say
+    int points = 100;               ///< path points when a request does not say
+    bool allow_other_task = false;  ///< source library: accept a library of another task
+                                    ///< (deliberate transfer) instead of refusing it
   };
 
   GpPathNode(ros::NodeHandle nh, ros::NodeHandle pnh);

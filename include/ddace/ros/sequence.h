@@ -5,7 +5,11 @@
 //
 // Policy sources (parameter `policy`):
 //   model   the temporal graph network of a model directory (`model`, written by
-//           `ddace train`): tgn::SequenceModel::predictNext on the snapshot history
+//           `ddace train`): tgn::SequenceModel::predictNext on the snapshot history.
+//           Loaded through pipeline::loadModel (every file verified); a model of another
+//           task than `task` (task fingerprint: entities, kinds, vocabulary, goal
+//           conditions, step structure when `task` has demos/) is refused unless
+//           `allow_other_task` is true.
 //   replay  the step sequence of one demonstration (`replay_csv`, or `task`'s demos/ by
 //           `replay_demo` index), open loop: step k for the k-th request, then END.
 // Parameters: config/execution.yaml, section sequence.
@@ -31,7 +35,9 @@ class SequenceNode {
   /// The node's own parameters and their defaults (config/execution.yaml, section sequence).
   struct Params {
     Policy policy = Policy::Replay;
-    int replay_demo = 0;  ///< which demonstration of the task's demos/ to replay
+    int replay_demo = 0;            ///< which demonstration of the task's demos/ to replay
+    bool allow_other_task = false;  ///< policy model: accept a model of another task (deliberate
+                                    ///< transfer) instead of refusing it (task::requireSameTask)
   };
 
   SequenceNode(ros::NodeHandle nh, ros::NodeHandle pnh);

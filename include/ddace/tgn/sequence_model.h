@@ -44,13 +44,18 @@
 #include <string>
 #include <vector>
 
+#include <map>
+
 #include "ddace/graph/refinement.h"
+#include "ddace/task/fingerprint.h"
 #include "ddace/task/task_dir.h"
 
 namespace ddace::tgn {
 
-/// Format tag of manifest.yaml in a model directory.
-inline constexpr const char* kModelFormat = "ddace-model/2";
+/// Format tag of manifest.yaml in a model directory. /3: SHA-256 digests of every file
+/// and of the manifest itself, and the task fingerprint; older manifests are refused
+/// (retrain).
+inline constexpr const char* kModelFormat = "ddace-model/3";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {
@@ -124,6 +129,12 @@ struct Prediction {
   std::vector<double> token_probabilities;  ///< one per token: p(action) * p(target)
 };
 
+/// Size and SHA-256 of one file of a model directory, as the manifest records it.
+struct FileDigest {
+  uint64_t bytes = 0;
+  std::string sha256;  ///< 64 hex digits
+};
+
 /// Everything a model directory records besides the weights (manifest.yaml, loss.csv).
 struct ModelInfo {
   Variant variant = Variant::Scene;
@@ -136,6 +147,10 @@ struct ModelInfo {
   double frame_dt_s = 0.05;                  ///< gnn: time between rolled-out frames
   std::vector<EpochRecord> history;          ///< loss per epoch
   std::string stop_reason;                   ///< "plateau" or "max_epochs"
+  task::TaskFingerprint fingerprint;         ///< of the training directory (task.yaml and demos)
+  /// The files the manifest binds by digest, by name in the model directory (task.yaml,
+  /// weights.pt, loss.csv and, but for gnn, primitives.yaml). Filled by load().
+  std::map<std::string, FileDigest> files;
 };
 
 class SequenceModel {
@@ -144,10 +159,15 @@ class SequenceModel {
   /// ("epoch 12/400  loss 0.4310  step accuracy 0.873  1.2 s") goes to `progress` when not
   /// null. Throws ddace::Error for bad options or unusable data (no demonstrations, no steps).
   static SequenceModel train(const task::TaskDir& train, const TrainOptions& options, std::ostream* progress);
-  /// Writes manifest.yaml, task.yaml, weights.pt and loss.csv into `model_dir` (created).
-  void save(const std::string& model_dir) const;
-  /// Reads a model directory. A missing, truncated, corrupted or mismatched file throws
-  /// ddace::Error naming the file.
+  /// Writes task.yaml, weights.pt, loss.csv and last manifest.yaml into `model_dir`
+  /// (created). The manifest records the digest of those and of each of `bound_files`
+  /// (names of files already written into `model_dir`, e.g. primitives.yaml), and its own.
+  void save(const std::string& model_dir, const std::vector<std::string>& bound_files = {}) const;
+  /// Reads a model directory: the manifest (its own digest first), then task.yaml, the
+  /// weights and loss.csv, each checked against its recorded size and digest. A missing,
+  /// truncated, corrupted, edited or mismatched file throws ddace::Error naming the file
+  /// and what differs. Files bound besides those (primitives.yaml) are listed in
+  /// info().files for the caller to verify (pipeline::loadModel).
   static SequenceModel load(const std::string& model_dir);
 
   /// The next step given the keyframe snapshots so far (positions of all entities in task

@@ -4,10 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <sstream>
 
 #include "ddace/common/error.h"
+#include "ddace/common/file.h"
 #include "ddace/gp/canonical.h"
 
 namespace ddace::gp {
@@ -179,6 +179,7 @@ PrimitiveLibrary PrimitiveLibrary::fit(const task::TaskDir& train, const Primiti
   PrimitiveLibrary lib;
   lib.task_ = train.spec.name;
   lib.entities_ = train.spec.entityNames();
+  lib.fingerprint_ = task::fingerprintOf(train);
   lib.options_ = options;
   const int n = options.points;
   for (const auto& [key, c] : by_key) {
@@ -340,6 +341,10 @@ GeneratedPath PrimitiveLibrary::generate(const std::string& key, const Eigen::Ve
 }
 
 void PrimitiveLibrary::save(const std::string& path) const {
+  writeTextFile(path, text());  // checked and atomic: a failed write leaves the old file
+}
+
+std::string PrimitiveLibrary::text() const {
   YAML::Emitter out;
   out.SetDoublePrecision(17);
   out << YAML::Comment(
@@ -352,6 +357,8 @@ void PrimitiveLibrary::save(const std::string& path) const {
   out << YAML::Key << "format" << YAML::Value << kPrimitivesFormat;
   out << YAML::Key << "task" << YAML::Value << task_;
   out << YAML::Key << "entities" << YAML::Value << YAML::Flow << entities_;
+  out << YAML::Key << "task_fingerprint" << YAML::Value;
+  task::emitFingerprint(out, fingerprint_);
   out << YAML::Key << "points" << YAML::Value << options_.points;
   out << YAML::Key << "pin_endpoints" << YAML::Value << options_.pin_endpoints;
   out << YAML::Key << "min_segment_length_m" << YAML::Value << options_.min_segment_length_m;
@@ -371,20 +378,17 @@ void PrimitiveLibrary::save(const std::string& path) const {
     out << YAML::EndMap;
   }
   out << YAML::EndSeq << YAML::EndMap;
-  std::ofstream f(path);
-  if (!f) throw Error(Diagnostic{path, 0, 0, "cannot open the primitive library for writing"});
-  f << out.c_str() << "\n";
-  if (!f) throw Error(Diagnostic{path, 0, 0, "cannot write the primitive library"});
+  return std::string(out.c_str()) + "\n";
 }
 
 PrimitiveLibrary PrimitiveLibrary::load(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw Error(Diagnostic{path, 0, 0, "cannot open the primitive library (missing or unreadable)"});
-  std::stringstream text;
-  text << f.rdbuf();
+  return parse(readTextFile(path), path);
+}
+
+PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::string& path) {
   YAML::Node root;
   try {
-    root = YAML::Load(text.str());
+    root = YAML::Load(text);
   } catch (const YAML::ParserException& e) {
     throw Error(Diagnostic{path, e.mark.line + 1, e.mark.column + 1, "not valid YAML: " + e.msg});
   }
@@ -393,7 +397,10 @@ PrimitiveLibrary PrimitiveLibrary::load(const std::string& path) {
     r.fail(root, "not a primitive library (expected a mapping with format: " + std::string(kPrimitivesFormat) + ")");
   const std::string format = r.text(root, "format");
   if (format != kPrimitivesFormat)
-    r.fail(root["format"], "unsupported format '" + format + "' (expected " + kPrimitivesFormat + ")");
+    r.fail(root["format"], "unsupported format '" + format + "' (expected " + kPrimitivesFormat +
+                               (format == "ddace-primitives/1" ? "; this older library names no task: retrain the model"
+                                                               : "") +
+                               ")");
 
   PrimitiveLibrary lib;
   lib.task_ = r.text(root, "task");
@@ -402,6 +409,14 @@ PrimitiveLibrary PrimitiveLibrary::load(const std::string& path) {
   for (const auto& e : entities) {
     if (!e.IsScalar() || !task::isValidName(e.Scalar())) r.fail(e, "invalid entity name");
     lib.entities_.push_back(e.Scalar());
+  }
+  lib.fingerprint_ = task::parseFingerprint(r.need(root, "task_fingerprint"), path);
+  {
+    std::vector<std::string> sorted = lib.entities_;
+    std::sort(sorted.begin(), sorted.end());
+    std::vector<std::string> named;
+    for (const auto& e : lib.fingerprint_.entities) named.push_back(e.substr(0, e.find(':')));
+    if (sorted != named) r.fail(root["task_fingerprint"], "task_fingerprint names other entities than 'entities'");
   }
   // Bounded before anything is allocated from it (every GP holds points x points matrices).
   lib.options_.points = r.integer(root, "points", 2, kMaxPrimitivePoints);

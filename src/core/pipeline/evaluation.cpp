@@ -8,6 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "ddace/common/file.h"
+#include "ddace/common/sha256.h"
 #include "ddace/exec/diff_drive_execution.h"
 
 namespace ddace::pipeline {
@@ -17,41 +19,68 @@ namespace fs = std::filesystem;
 Model trainModel(const task::TaskDir& train, const tgn::TrainOptions& options, const std::string& model_dir,
                  std::ostream* progress) {
   Model m{tgn::SequenceModel::train(train, options, progress), nullptr};
-  m.sequence.save(model_dir);
+  std::vector<std::string> bound;
   if (options.variant != tgn::Variant::Gnn) {
     m.primitives = std::make_shared<gp::PrimitiveLibrary>(gp::PrimitiveLibrary::fit(train));
+    std::error_code ec;
+    fs::create_directories(model_dir, ec);
+    if (ec) throw Error(Diagnostic{model_dir, 0, 0, "cannot create the model directory: " + ec.message()});
     m.primitives->save((fs::path(model_dir) / gp::kPrimitivesFile).string());
+    bound.push_back(gp::kPrimitivesFile);
   }
+  m.sequence.save(model_dir, bound);  // the manifest last: it binds the files written before it
   return m;
 }
 
 Model loadModel(const std::string& model_dir) {
   Model m{tgn::SequenceModel::load(model_dir), nullptr};
-  if (m.sequence.info().variant != tgn::Variant::Gnn)
-    m.primitives = std::make_shared<gp::PrimitiveLibrary>(
-        gp::PrimitiveLibrary::load((fs::path(model_dir) / gp::kPrimitivesFile).string()));
+  const tgn::ModelInfo& info = m.sequence.info();
+  const std::string manifest = (fs::path(model_dir) / "manifest.yaml").string();
+  const std::string path = (fs::path(model_dir) / gp::kPrimitivesFile).string();
+  const auto bound = info.files.find(gp::kPrimitivesFile);
+  if (info.variant == tgn::Variant::Gnn) {
+    if (bound != info.files.end())
+      throw Error(Diagnostic{manifest, 0, 0, "a gnn model has no primitive library, but the manifest lists one"});
+    return m;
+  }
+  if (bound == info.files.end())
+    throw Error(Diagnostic{manifest, 0, 0,
+                           std::string("lists no ") + gp::kPrimitivesFile + " (a " + m.sequence.variant() +
+                               " model needs its primitive library): retrain the model"});
+  // The bytes parsed are the bytes checked.
+  const std::string text = readTextFile(path);
+  const std::string actual = sha256Hex(text);
+  if (text.size() != bound->second.bytes || actual != bound->second.sha256)
+    throw Error(Diagnostic{path, 0, 0,
+                           "edited, replaced or corrupted: " + std::to_string(text.size()) + " bytes with SHA-256 " +
+                               actual + ", " + manifest + " records " + std::to_string(bound->second.bytes) +
+                               " bytes with " + bound->second.sha256});
+  m.primitives = std::make_shared<gp::PrimitiveLibrary>(gp::PrimitiveLibrary::parse(text, path));
+  if (m.primitives->taskFingerprint().digest() != info.fingerprint.digest())
+    throw Error(Diagnostic{path, 0, 0,
+                           "fitted on another task than the sequence model (task fingerprint " +
+                               m.primitives->taskFingerprint().digest() + ", " + manifest + " has " +
+                               info.fingerprint.digest() + ")"});
   return m;
 }
 
-void checkSameTask(const task::TaskSpec& a, const std::string& model_dir, const task::TaskSpec& b,
-                   const std::string& test_dir) {
-  auto describe = [](const task::TaskSpec& s) {
-    std::string out = "'" + s.name + "' (";
-    for (size_t i = 0; i < s.entities.size(); ++i)
-      out += (i ? " " : "") + s.entities[i].name + ":" + task::toString(s.entities[i].kind);
-    return out + ")";
-  };
-  bool same = a.entities.size() == b.entities.size();
-  for (size_t i = 0; same && i < a.entities.size(); ++i)
-    same = a.entities[i].name == b.entities[i].name && a.entities[i].kind == b.entities[i].kind;
-  if (!same)
-    throw Error("the model in " + model_dir + " was trained on task " + describe(a) + ", but " + test_dir +
-                " holds task " + describe(b) + ": train a model on this task first (ddace train)");
-  if (b.actions_declared)
-    for (const auto& action : b.actions)
-      if (!a.allowsAction(action))
-        throw Error("the model in " + model_dir + " has no action '" + action + "', which " + test_dir +
-                    "/task.yaml lists: train a model on this task first (ddace train)");
+void checkSameTask(const Model& model, const std::string& model_dir, const task::TaskDir& test,
+                   const std::string& test_dir, bool allow_other_task) {
+  if (allow_other_task) {
+    // Transfer on purpose still needs the entities the network has slots for, in the order
+    // the snapshots are given in.
+    if (model.sequence.spec().entityNames() != test.spec.entityNames())
+      throw Error("the model in " + model_dir + " has entities other than " + test_dir +
+                  "/task.yaml (even with --allow-other-task the entity names and their order must agree)");
+    return;
+  }
+  task::requireSameTask(model.sequence.info().fingerprint,
+                        (fs::path(model_dir) / "manifest.yaml").string() + ", task '" + model.sequence.spec().name + "'",
+                        task::fingerprintOf(test), test_dir + " (task '" + test.spec.name + "')",
+                        "pass --allow-other-task");
+  if (model.sequence.spec().entityNames() != test.spec.entityNames())
+    throw Error("the model in " + model_dir + " lists the entities in another order than " + test_dir +
+                "/task.yaml: keep task.yaml's order of the training directory");
 }
 
 namespace {

@@ -1,5 +1,6 @@
 #include "manifest.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -10,6 +11,7 @@
 
 #include "ddace/common/error.h"
 #include "ddace/common/file.h"
+#include "ddace/common/sha256.h"
 
 namespace ddace::tgn {
 
@@ -77,12 +79,6 @@ namespace files {
 
 namespace {
 
-std::string hex(uint64_t v) {
-  char buf[17];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
-  return buf;
-}
-
 Error errorAt(const std::string& path, const YAML::Node& node, const std::string& message) {
   const auto mark = node.Mark();
   return Error(Diagnostic{path, mark.line >= 0 ? mark.line + 1 : 0, mark.column >= 0 ? mark.column + 1 : 0, message});
@@ -121,30 +117,33 @@ graph::Decision decisionFromString(const std::string& path, const YAML::Node& n)
 
 }  // namespace
 
-uint64_t fileHash(const std::string& path) {
-  const std::string bytes = readFile(path);
-  uint64_t h = 0xcbf29ce484222325ULL;
-  for (unsigned char c : bytes) {
-    h ^= c;
-    h *= 0x100000001b3ULL;
-  }
-  return h;
+FileDigest digestOf(const std::string& bytes) {
+  return {bytes.size(), sha256Hex(bytes)};
 }
 
-std::string readFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error(Diagnostic{path, 0, 0, "cannot read the file (missing?)"});
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+void verifyDigest(const std::string& path, const std::string& bytes, const FileDigest& expected,
+                  const std::string& manifest) {
+  if (bytes.size() != expected.bytes)
+    throw Error(Diagnostic{path, 0, 0,
+                           "truncated or replaced: " + std::to_string(bytes.size()) + " bytes, " + manifest +
+                               " says " + std::to_string(expected.bytes)});
+  const std::string actual = sha256Hex(bytes);
+  if (actual != expected.sha256)
+    throw Error(Diagnostic{path, 0, 0,
+                           "edited or corrupted: its SHA-256 " + actual + " is not the " + expected.sha256 +
+                               " that " + manifest + " records"});
+}
+
+std::string readFile(const std::string& path, uint64_t max_bytes) {
+  return readTextFile(path, max_bytes);
 }
 
 void writeFile(const std::string& path, const std::string& text) {
   writeTextFile(path, text);
 }
 
-std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec, uint64_t weights_hash,
-                         uint64_t weights_bytes) {
+std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
+                         const std::map<std::string, FileDigest>& files) {
   const auto name = [&](int i) { return spec.entities.at(static_cast<size_t>(i)).name; };
   const TrainOptions& o = info.options;
   YAML::Emitter y;
@@ -154,10 +153,16 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec, uint
   y << YAML::Key << "variant" << YAML::Value << toString(info.variant);
   y << YAML::Key << "seed" << YAML::Value << o.seed;
   y << YAML::Key << "task" << YAML::Value << kTask;
-  y << YAML::Key << "weights" << YAML::Value << kWeights;
-  y << YAML::Key << "weights_bytes" << YAML::Value << weights_bytes;
-  y << YAML::Key << "weights_fnv1a64" << YAML::Value << hex(weights_hash);
-  y << YAML::Key << "loss" << YAML::Value << kLoss;
+  y << YAML::Key << "files" << YAML::Value << YAML::BeginMap;
+  for (const auto& [name, d] : files) {
+    y << YAML::Key << name << YAML::Value << YAML::Flow << YAML::BeginMap;
+    y << YAML::Key << "bytes" << YAML::Value << d.bytes;
+    y << YAML::Key << "sha256" << YAML::Value << d.sha256;
+    y << YAML::EndMap;
+  }
+  y << YAML::EndMap;
+  y << YAML::Key << "task_fingerprint" << YAML::Value;
+  task::emitFingerprint(y, info.fingerprint);
   y << YAML::Key << "epochs" << YAML::Value << info.history.size();
   y << YAML::Key << "stop_reason" << YAML::Value << info.stop_reason;
   y << YAML::Key << "entities" << YAML::Value << YAML::Flow << spec.entityNames();
@@ -220,17 +225,21 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec, uint
     y << YAML::Flow << std::vector<std::string>{name(e.source), name(e.target)};
   y << YAML::EndSeq;
   y << YAML::EndMap;
-  return std::string("# ddace model manifest (") + kModelFormat +
-         "): written by `ddace train`, read by `ddace inspect` and the sequence node.\n"
-         "# E' is refinement.edges with a 'kept' decision; attention_edges is what the network\n"
-         "# attends over (paper: E'; scene: E' lifted to entity kinds; full-graph, gnn: every pair),\n"
-         "# made symmetric.\n" +
-         y.c_str() + "\n";
+  const std::string body =
+      std::string("# ddace model manifest (") + kModelFormat +
+      "): written by `ddace train`, read by `ddace inspect` and the sequence node.\n"
+      "# E' is refinement.edges with a 'kept' decision; attention_edges is what the network\n"
+      "# attends over (paper: E'; scene: E' lifted to entity kinds; full-graph, gnn: every pair),\n"
+      "# made symmetric. files: size and SHA-256 of each file; the last line is the SHA-256 of\n"
+      "# everything before it. Do not edit: any change is refused.\n" +
+      y.c_str() + "\n";
+  return body + kManifestDigestKey + ": " + sha256Hex(body) + "\n";
 }
 
-ModelInfo parseManifest(const std::string& path, const task::TaskSpec& spec, uint64_t* weights_hash,
-                        uint64_t* weights_bytes) {
-  const std::string text = readFile(path);
+namespace {
+
+/// The manifest's YAML after the format check and the check of its own digest.
+YAML::Node checkedRoot(const std::string& text, const std::string& path) {
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -238,9 +247,62 @@ ModelInfo parseManifest(const std::string& path, const task::TaskSpec& spec, uin
     throw Error(Diagnostic{path, e.mark.line + 1, e.mark.column + 1, "not valid YAML: " + e.msg});
   }
   if (!root.IsMap()) throw Error(Diagnostic{path, 1, 1, "not a model manifest (expected a YAML map)"});
+  const std::string format = as<std::string>(path, root, "format");
+  if (format.rfind("ddace-model/", 0) == 0 && format != kModelFormat)
+    throw errorAt(path, root["format"],
+                  "format '" + format + "' is an older model format than " + kModelFormat +
+                      " (its files are not bound by digests to the model and its task): retrain the model "
+                      "(ddace train)");
+  if (format != kModelFormat) throw errorAt(path, root["format"], "format '" + format + "' is not " + kModelFormat);
+  // The digest line must be the last line; the digest covers every byte before it.
+  const std::string key = std::string("\n") + kManifestDigestKey + ": ";
+  const size_t at = text.rfind(key);
+  const size_t digest_begin = at == std::string::npos ? 0 : at + key.size();
+  if (at == std::string::npos || text.size() != digest_begin + 65 || text.back() != '\n' ||
+      !isSha256Hex(std::string_view(text).substr(digest_begin, 64)))
+    throw Error(Diagnostic{path, 0, 0,
+                           std::string("no '") + kManifestDigestKey +
+                               ": <64 hex digits>' as the last line: the manifest was cut or edited"});
+  const std::string body = text.substr(0, at + 1), stored = text.substr(digest_begin, 64);
+  if (sha256Hex(body) != stored)
+    throw Error(Diagnostic{path, 0, 0,
+                           std::string("edited or corrupted: its content does not match its own digest (") +
+                               kManifestDigestKey + "); restore the file or retrain the model"});
+  return root;
+}
+
+std::map<std::string, FileDigest> parseFiles(const std::string& path, const YAML::Node& root) {
+  const YAML::Node files = need(path, root, "files");
+  if (!files.IsMap()) throw errorAt(path, files, "'files' must map file names to {bytes, sha256}");
+  std::map<std::string, FileDigest> out;
+  for (auto it = files.begin(); it != files.end(); ++it) {
+    const std::string name = it->first.as<std::string>();
+    if (name != kTask && name != kWeights && name != kLoss && name != "primitives.yaml")
+      throw errorAt(path, it->first, "'files' names '" + name + "', not a file of a model directory");
+    FileDigest d;
+    d.bytes = as<uint64_t>(path, it->second, "bytes");
+    d.sha256 = as<std::string>(path, it->second, "sha256");
+    if (!isSha256Hex(d.sha256)) throw errorAt(path, it->second["sha256"], name + ": sha256 is not 64 hex digits");
+    out[name] = d;
+  }
+  for (const char* required : {kTask, kWeights, kLoss})
+    if (!out.count(required)) throw errorAt(path, files, std::string("'files' has no digest of ") + required);
+  return out;
+}
+
+}  // namespace
+
+std::map<std::string, FileDigest> manifestFiles(const std::string& text, const std::string& path) {
   try {
-    const std::string format = as<std::string>(path, root, "format");
-    if (format != kModelFormat) throw errorAt(path, root["format"], "format '" + format + "' is not " + kModelFormat);
+    return parseFiles(path, checkedRoot(text, path));
+  } catch (const YAML::Exception& e) {
+    throw Error(Diagnostic{path, e.mark.line + 1, e.mark.column + 1, e.msg});
+  }
+}
+
+ModelInfo parseManifest(const std::string& text, const std::string& path, const task::TaskSpec& spec) {
+  try {
+    const YAML::Node root = checkedRoot(text, path);
     ModelInfo info;
     try {
       info.variant = variantFromString(as<std::string>(path, root, "variant"));
@@ -250,16 +312,24 @@ ModelInfo parseManifest(const std::string& path, const task::TaskSpec& spec, uin
     info.options.variant = info.variant;
     info.options.seed = as<uint64_t>(path, root, "seed");
     info.stop_reason = as<std::string>(path, root, "stop_reason");
-    const std::string hash = as<std::string>(path, root, "weights_fnv1a64");
-    char* end = nullptr;
-    *weights_hash = std::strtoull(hash.c_str(), &end, 16);
-    if (hash.size() != 16 || *end != '\0') throw errorAt(path, root["weights_fnv1a64"], "not a 64-bit hex hash");
-    *weights_bytes = as<uint64_t>(path, root, "weights_bytes");
+    info.files = parseFiles(path, root);
+    info.fingerprint = task::parseFingerprint(need(path, root, "task_fingerprint"), path);
+    for (const std::string& d : task::fingerprintDifferences(info.fingerprint, task::fingerprintOf(spec)))
+      throw errorAt(path, root["task_fingerprint"], "task_fingerprint does not describe the model's task.yaml: " + d);
 
     const YAML::Node ents = need(path, root, "entities");
     if (ents.as<std::vector<std::string>>() != spec.entityNames())
       throw errorAt(path, ents, "entities do not match the model's task.yaml");
     info.vocabulary = as<std::vector<std::string>>(path, root, "vocabulary");
+    {
+      // The vocabulary's order is the action head's class order: it must be the training
+      // directory's, whose sorted set the fingerprint records.
+      std::vector<std::string> sorted = info.vocabulary;
+      std::sort(sorted.begin(), sorted.end());
+      if (info.vocabulary.empty() || sorted != info.fingerprint.vocabulary ||
+          std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
+        throw errorAt(path, root["vocabulary"], "vocabulary does not match task_fingerprint.vocabulary");
+    }
 
     const YAML::Node hp = need(path, root, "hyper_parameters");
     TrainOptions& o = info.options;
@@ -307,18 +377,28 @@ ModelInfo parseManifest(const std::string& path, const task::TaskSpec& spec, uin
     pair("std_m", info.std, true);
     pair("delta_std_m", info.delta_std, true);
     info.frame_dt_s = as<double>(path, norm, "frame_dt_s");
-    if (!(info.frame_dt_s > 0)) throw errorAt(path, norm["frame_dt_s"], "frame_dt_s must be positive");
+    if (!(info.frame_dt_s > 0 && info.frame_dt_s <= 10))
+      throw errorAt(path, norm["frame_dt_s"], "frame_dt_s must be in (0, 10] seconds");
 
     const YAML::Node ref = need(path, root, "refinement");
     graph::RefinedGraph& g = info.refined;
     g.nodes = static_cast<int>(spec.entities.size());
     g.demonstrations = as<int>(path, ref, "demonstrations");
+    if (g.demonstrations < 1 || g.demonstrations > task::kMaxFingerprintCount)
+      throw errorAt(path, ref["demonstrations"], "demonstrations must be in 1.." + std::to_string(task::kMaxFingerprintCount));
     g.clusters = as<int>(path, ref, "clusters");
+    if (g.clusters < 1 || g.clusters > g.nodes)
+      throw errorAt(path, ref["clusters"], "clusters must be in 1.." + std::to_string(g.nodes) + " (the entities)");
     g.cluster.assign(static_cast<size_t>(g.nodes), 0);
     const YAML::Node cof = need(path, ref, "cluster_of");
-    for (auto it = cof.begin(); it != cof.end(); ++it)
-      g.cluster[static_cast<size_t>(entityIndex(path, it->first, spec))] = it->second.as<int>();
+    for (auto it = cof.begin(); it != cof.end(); ++it) {
+      const int c = it->second.as<int>();
+      if (c < 0 || c >= g.clusters) throw errorAt(path, it->second, "cluster index out of 0..clusters-1");
+      g.cluster[static_cast<size_t>(entityIndex(path, it->first, spec))] = c;
+    }
     const auto eig = as<std::vector<double>>(path, ref, "eigenvalues");
+    if (eig.size() > static_cast<size_t>(g.nodes))
+      throw errorAt(path, ref["eigenvalues"], "more eigenvalues than entities");
     g.eigenvalues = Eigen::Map<const Eigen::VectorXd>(eig.data(), static_cast<Eigen::Index>(eig.size()));
     for (const YAML::Node& e : need(path, ref, "edges")) {
       graph::EdgeStats s;
@@ -326,6 +406,8 @@ ModelInfo parseManifest(const std::string& path, const task::TaskSpec& spec, uin
       s.frequency = as<int>(path, e, "frequency");
       s.demos = as<int>(path, e, "demos");
       s.support = as<double>(path, e, "support");
+      if (s.frequency < 0 || s.demos < 0 || s.demos > g.demonstrations || !(s.support >= 0 && s.support <= 1))
+        throw errorAt(path, e, "an edge needs frequency >= 0, demos in 0..demonstrations, support in [0, 1]");
       s.decision = decisionFromString(path, need(path, e, "decision"));
       g.edges.push_back(s);
       if (graph::isKept(s.decision)) g.kept.push_back(s.edge);
@@ -348,7 +430,11 @@ std::string lossCsvText(const std::vector<EpochRecord>& history) {
 }
 
 std::vector<EpochRecord> readLossCsv(const std::string& path) {
-  std::istringstream in(readFile(path));
+  return parseLossCsv(readFile(path), path);
+}
+
+std::vector<EpochRecord> parseLossCsv(const std::string& text, const std::string& path) {
+  std::istringstream in(text);
   std::string line;
   if (!std::getline(in, line) || line != "epoch,loss,step_accuracy,seconds")
     throw Error(Diagnostic{path, 1, 1, "expected the header 'epoch,loss,step_accuracy,seconds'"});

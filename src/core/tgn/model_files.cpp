@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <map>
+#include <sstream>
 
 #include "ddace/common/error.h"
 #include "manifest.h"
@@ -15,22 +16,32 @@ using torch::Tensor;
 
 namespace fs = std::filesystem;
 
-void SequenceModel::save(const std::string& model_dir) const {
+void SequenceModel::save(const std::string& model_dir, const std::vector<std::string>& bound_files) const {
   std::error_code ec;
   fs::create_directories(model_dir, ec);
   if (ec) throw Error(Diagnostic{model_dir, 0, 0, "cannot create the model directory: " + ec.message()});
-  const std::string weights = (fs::path(model_dir) / files::kWeights).string();
+  const fs::path dir(model_dir);
+  std::ostringstream weights;
   try {
     torch::serialize::OutputArchive archive;
     impl_->module().save(archive);
     archive.save_to(weights);
   } catch (const c10::Error& e) {
-    throw Error(Diagnostic{weights, 0, 0, std::string("cannot write the weights: ") + e.what_without_backtrace()});
+    throw Error(Diagnostic{(dir / files::kWeights).string(), 0, 0,
+                           std::string("cannot serialise the weights: ") + e.what_without_backtrace()});
   }
-  task::writeTaskYaml(impl_->spec, (fs::path(model_dir) / files::kTask).string());
-  files::writeFile((fs::path(model_dir) / files::kLoss).string(), files::lossCsvText(impl_->info.history));
-  files::writeFile((fs::path(model_dir) / files::kManifest).string(),
-                   files::manifestText(impl_->info, impl_->spec, files::fileHash(weights), fs::file_size(weights)));
+  // The digests are of the bytes written, so nothing is read back before the manifest.
+  std::map<std::string, FileDigest> digests;
+  const auto put = [&](const char* name, const std::string& bytes) {
+    files::writeFile((dir / name).string(), bytes);
+    digests[name] = files::digestOf(bytes);
+  };
+  put(files::kWeights, weights.str());
+  put(files::kTask, task::taskYamlText(impl_->spec));
+  put(files::kLoss, files::lossCsvText(impl_->info.history));
+  for (const auto& name : bound_files)
+    digests[name] = files::digestOf(files::readFile((dir / name).string()));
+  files::writeFile((dir / files::kManifest).string(), files::manifestText(impl_->info, impl_->spec, digests));
 }
 
 SequenceModel SequenceModel::load(const std::string& model_dir) {
@@ -41,19 +52,22 @@ SequenceModel SequenceModel::load(const std::string& model_dir) {
   if (!fs::exists(manifest))
     throw Error(
         Diagnostic{manifest, 0, 0, "missing: " + model_dir + " is not a model directory (ddace train writes one)"});
-  impl->spec = task::readTaskYaml((dir / files::kTask).string());
-  uint64_t hash = 0, bytes = 0;
-  impl->info = files::parseManifest(manifest, impl->spec, &hash, &bytes);
-  impl->info.history = files::readLossCsv((dir / files::kLoss).string());
-  std::error_code ec;
-  const uint64_t size = fs::file_size(weights, ec);
-  if (ec) throw Error(Diagnostic{weights, 0, 0, "cannot read the weights (missing?)"});
-  if (size != bytes)
-    throw Error(Diagnostic{
-        weights, 0, 0,
-        "truncated or replaced: " + std::to_string(size) + " bytes, the manifest says " + std::to_string(bytes)});
-  if (files::fileHash(weights) != hash)
-    throw Error(Diagnostic{weights, 0, 0, "corrupted: its checksum does not match " + manifest});
+  // Every file is read once, checked against the manifest, and parsed from those bytes.
+  const std::string manifest_text = files::readFile(manifest);
+  const std::map<std::string, FileDigest> digests = files::manifestFiles(manifest_text, manifest);
+  const auto verified = [&](const char* name, uint64_t max_bytes) {
+    const std::string path = (dir / name).string();
+    const std::string bytes = files::readFile(path, max_bytes);
+    files::verifyDigest(path, bytes, digests.at(name), manifest);
+    return bytes;
+  };
+  const std::string task_path = (dir / files::kTask).string();
+  impl->spec = task::parseTaskYaml(verified(files::kTask, kMaxInputFileBytes), task_path);
+  impl->info = files::parseManifest(manifest_text, manifest, impl->spec);
+  impl->info.history = files::parseLossCsv(verified(files::kLoss, kMaxInputFileBytes), (dir / files::kLoss).string());
+  if (static_cast<int>(impl->info.history.size()) > impl->info.options.max_epochs)
+    throw Error(Diagnostic{(dir / files::kLoss).string(), 0, 0, "more epochs than the manifest's max_epochs"});
+  const std::string weight_bytes = verified(files::kWeights, files::kMaxWeightsBytes);
   impl->build();  // the loaded weights replace the initial ones
   // Module::load replaces tensors whatever their shape, so the shapes are checked here.
   std::vector<std::pair<std::string, std::vector<int64_t>>> expected;
@@ -61,7 +75,7 @@ SequenceModel SequenceModel::load(const std::string& model_dir) {
   for (const auto& b : impl->module().named_buffers()) expected.emplace_back(b.key(), b.value().sizes().vec());
   try {
     torch::serialize::InputArchive archive;
-    archive.load_from(weights);
+    archive.load_from(weight_bytes.data(), weight_bytes.size());
     impl->module().load(archive);
   } catch (const c10::Error& e) {
     throw Error(

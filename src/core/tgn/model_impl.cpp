@@ -415,6 +415,7 @@ std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const T
   info.options = options;
   info.options.refinement.seed = options.seed;
   info.vocabulary = train.vocabulary();
+  info.fingerprint = task::fingerprintOf(train);
   const int n = static_cast<int>(train.spec.entities.size());
   size_t steps = 0;
   for (const auto& d : train.demos) {

@@ -74,14 +74,14 @@ TEST_F(Pipeline, JsonReportHasTheDocumentedKeys) {
 TEST_F(Pipeline, AModelOfAnotherTaskIsRefused) {
   const task::TaskDir other = generated("task3", 1, 1);
   try {
-    pipeline::checkSameTask(model_->sequence.spec(), dir_, other.spec, "task3/test");
+    pipeline::checkSameTask(*model_, dir_, other, "task3/test", false);
     FAIL();
   } catch (const Error& e) {
     const std::string what = e.what();
     EXPECT_NE(what.find("task4_trajectory_shape"), std::string::npos) << what;
     EXPECT_NE(what.find("task3/test"), std::string::npos) << what;
   }
-  EXPECT_NO_THROW(pipeline::checkSameTask(model_->sequence.spec(), dir_, generated("task4", 1, 2).spec, "t"));
+  EXPECT_NO_THROW(pipeline::checkSameTask(*model_, dir_, generated("task4", 1, 2), "t", false));
 }
 
 TEST(PipelineFiles, AMissingPrimitiveLibraryIsNamed) {
