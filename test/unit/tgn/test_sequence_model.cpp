@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "ddace/common/error.h"
+#include "ddace/common/sha256.h"
 #include "ddace/tasks/generators.h"
 #include "ddace/tgn/detail.h"
 #include "ddace/tgn/sequence_model.h"
@@ -45,6 +46,22 @@ std::string loadError(const std::string& dir) {
   }
   return "";
 }
+
+/// Recomputes the manifest's own digest after an edit (what a careful forger would do).
+void reseal(std::string& manifest) {
+  const size_t at = manifest.rfind("\nmanifest_sha256: ");
+  manifest = manifest.substr(0, at + 1);
+  manifest += "manifest_sha256: " + sha256Hex(manifest) + "\n";
+}
+
+std::string readAll(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+void writeAll(const fs::path& p, const std::string& s) { std::ofstream(p, std::ios::binary) << s; }
 
 const tgn::SequenceModel& task4Model() {
   static const tgn::SequenceModel model = [] {
@@ -198,22 +215,101 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
       for (size_t at = s.find("R4"); at != std::string::npos; at = s.find("R4")) s.replace(at, 2, "R9");
     });
   });
-  EXPECT_NE(e.find("manifest.yaml"), std::string::npos) << e;
-  EXPECT_NE(e.find("do not match"), std::string::npos) << e;
+  EXPECT_NE(e.find("task.yaml"), std::string::npos) << e;
+  EXPECT_NE(e.find("manifest.yaml records"), std::string::npos) << e;
   e = variant("other_format", [&](const fs::path& d) {
     rewrite(d / "manifest.yaml",
-            [](std::string& s) { s.replace(s.find("format: ddace-model/2"), 21, "format: ddace-model/9"); });
+            [](std::string& s) { s.replace(s.find("format: ddace-model/3"), 21, "format: ddace-model/9"); });
   });
   EXPECT_NE(e.find("manifest.yaml:"), std::string::npos) << e;
   e = variant("loss_row", [&](const fs::path& d) { rewrite(d / "loss.csv", [](std::string& s) { s += "x,y\n"; }); });
   EXPECT_NE(e.find("loss.csv:"), std::string::npos) << e;
   // A network of another shape: the manifest's hyper-parameters no longer fit the weights
-  // (the checksum still matches, so the archive itself is checked).
+  // (the manifest re-sealed with its digest recomputed, so the archive itself is checked).
   e = variant("other_shape", [&](const fs::path& d) {
-    rewrite(d / "manifest.yaml", [](std::string& s) { s.replace(s.find("gru_hidden: 64"), 14, "gru_hidden: 32"); });
+    rewrite(d / "manifest.yaml", [](std::string& s) {
+      s.replace(s.find("gru_hidden: 64"), 14, "gru_hidden: 32");
+      reseal(s);
+    });
   });
   EXPECT_NE(e.find("weights.pt"), std::string::npos) << e;
   fs::remove_all(good);
+}
+
+// Issue 14: edits of the manifest that used to load silently. Each is a small, plausible
+// hand edit; the manifest's own digest refuses every one, naming the file.
+TEST(SequenceModel, RefusesEveryManifestEdit) {
+  tgn::TrainOptions o;
+  o.max_epochs = 2;
+  tasks::GeneratorOptions g;
+  g.family = "task2";
+  g.robots = 4;
+  g.demos = 4;
+  const std::string good = tempDir("edits");
+  tgn::SequenceModel::train(tasks::generate(g), o, nullptr).save(good);
+  ASSERT_EQ(loadError(good), "");
+  const std::string manifest = readAll(fs::path(good) / "manifest.yaml");
+  ASSERT_NE(manifest.find("vocabulary: [move, stop]"), std::string::npos) << manifest;
+  const auto edited = [&](const std::string& from, const std::string& to, bool seal) {
+    std::string s = manifest;
+    const size_t at = s.find(from);
+    if (at == std::string::npos) return "'" + from + "' is not in the manifest";
+    s.replace(at, from.size(), to);
+    if (seal) reseal(s);
+    const std::string dir = tempDir("edited");
+    fs::copy(good, dir);
+    writeAll(fs::path(dir) / "manifest.yaml", s);
+    const std::string e = loadError(dir);
+    fs::remove_all(dir);
+    return e;
+  };
+  const std::vector<std::pair<std::string, std::string>> edits = {
+      {"vocabulary: [move, stop]", "vocabulary: [stop, move]"},
+      {"vocabulary: [move, stop]", "vocabulary: [move, halt]"},
+      {"mean_m: [0.", "mean_m: [1."},
+      {"variant: scene", "variant: paper"},
+      {"threads: 1", "threads: 100000"},
+  };
+  for (const auto& [from, to] : edits) {
+    const std::string e = edited(from, to, false);
+    EXPECT_NE(e.find("manifest.yaml"), std::string::npos) << from << " -> " << to << ": " << e;
+    EXPECT_NE(e.find("its own digest"), std::string::npos) << from << " -> " << to << ": " << e;
+  }
+  // attention_edges cut to one: everything after the first edge dropped.
+  {
+    const size_t first = manifest.find("attention_edges:\n  - ");
+    ASSERT_NE(first, std::string::npos);
+    const size_t second = manifest.find("\n  - ", first + 20);
+    const size_t end = manifest.rfind("\nmanifest_sha256: ");
+    const std::string e = edited(manifest.substr(second, end - second), "", false);
+    EXPECT_NE(e.find("its own digest"), std::string::npos) << e;
+  }
+  // Re-sealed edits are still caught by what the fields must agree with.
+  EXPECT_NE(edited("vocabulary: [move, stop]", "vocabulary: [stop, move]", true).find("task_fingerprint"),
+            std::string::npos);
+  EXPECT_NE(edited("threads: 1", "threads: 100000", true).find("threads: must be in 1..64"), std::string::npos);
+  EXPECT_NE(edited("clusters: ", "clusters: 99", true).find("clusters must be in"), std::string::npos);
+  // The digest line itself cut or changed.
+  EXPECT_NE(edited("manifest_sha256: ", "manifest_sha256: 0", false).find("last line"), std::string::npos);
+  // An older format: retrain.
+  const std::string old = edited("format: ddace-model/3", "format: ddace-model/2", false);
+  EXPECT_NE(old.find("retrain"), std::string::npos) << old;
+  EXPECT_NE(old.find("manifest.yaml:"), std::string::npos) << old;
+  fs::remove_all(good);
+}
+
+TEST(SequenceModel, RecordsTheTaskFingerprintOfItsTrainingDirectory) {
+  const tgn::SequenceModel& m = task4Model();
+  EXPECT_EQ(m.info().fingerprint, task::fingerprintOf(generate("task4", 10)));
+  const std::string dir = tempDir("fingerprint");
+  m.save(dir);
+  const tgn::SequenceModel l = tgn::SequenceModel::load(dir);
+  EXPECT_EQ(l.info().fingerprint.digest(), m.info().fingerprint.digest());
+  for (const char* f : {"task.yaml", "weights.pt", "loss.csv"}) {
+    ASSERT_TRUE(l.info().files.count(f)) << f;
+    EXPECT_EQ(l.info().files.at(f).sha256, sha256Hex(readAll(fs::path(dir) / f))) << f;
+  }
+  fs::remove_all(dir);
 }
 
 TEST(SequenceModel, RejectsBadOptionsAndHistories) {

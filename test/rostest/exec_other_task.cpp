@@ -1,0 +1,113 @@
+// Issue 13: a model of another task with the same entity names — Task 2 trained with 4
+// robots (R1..R4, G1) given for Task 4 — is refused by the sequence node and the gp_path
+// node with a message that says what differs; the launched graph then never starts a run
+// (the start is refused, no wheel ever turns) and the monitor still leaves a report.
+// ~allow_other_task lets a deliberate transfer through.
+#include "exec_common.h"
+
+#include "ddace/ros/gp_path.h"
+#include "ddace/ros/sequence.h"
+
+using namespace exec_test;
+
+namespace {
+
+std::string readFile(const std::string& path) {
+  std::ifstream f(path);
+  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+/// Task 4 (train, test) and a Task 2 model with 4 robots, once for every test.
+struct Setup {
+  ScratchDir scratch{"other_task"};
+  std::string task4, model;
+  Setup() {
+    task4 = std::string(scratch) + "/task4";
+    generateTask(task4, "task4", 3, 1, 4);
+    const std::string task2 = std::string(scratch) + "/task2";
+    generateTask(task2, "task2", 4, 1, 4);
+    ddace::tgn::TrainOptions o;
+    o.max_epochs = 5;  // what is checked is the task, not how well it was learned
+    model = std::string(scratch) + "/task2_model";
+    ddace::pipeline::trainModel(ddace::task::loadTaskDir(task2 + "/train"), o, model, nullptr);
+  }
+};
+
+const Setup& setup() {
+  static const Setup s;
+  return s;
+}
+
+/// The error the node class throws on construction with these private parameters, or "".
+template <typename Node>
+std::string refusal(const std::string& ns, const std::map<std::string, std::string>& params, bool allow) {
+  ros::NodeHandle nh, pnh("~" + ns);
+  for (const auto& [k, v] : params) pnh.setParam(k, v);
+  pnh.setParam("allow_other_task", allow);
+  try {
+    Node node(nh, pnh);
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(OtherTask, TheSequenceNodeRefusesAnotherTasksModel) {
+  const std::map<std::string, std::string> params = {
+      {"task", setup().task4 + "/test"}, {"policy", "model"}, {"model", setup().model}};
+  const std::string e = refusal<ddace::nodes::SequenceNode>("sequence_under_test", params, false);
+  EXPECT_NE(e.find("vocabulary: model [move, stop], task [move]"), std::string::npos) << e;
+  EXPECT_NE(e.find("goal conditions:"), std::string::npos) << e;
+  EXPECT_NE(e.find(setup().model), std::string::npos) << e;
+  EXPECT_NE(e.find("allow_other_task"), std::string::npos) << e;
+  EXPECT_EQ(refusal<ddace::nodes::SequenceNode>("sequence_transfer", params, true), "");
+}
+
+TEST(OtherTask, TheGpPathNodeRefusesAnotherTasksLibrary) {
+  const std::map<std::string, std::string> params = {
+      {"task", setup().task4 + "/test"}, {"source", "library"}, {"library", setup().model}};
+  const std::string e = refusal<ddace::nodes::GpPathNode>("gp_path_under_test", params, false);
+  EXPECT_NE(e.find("vocabulary: model [move, stop], task [move]"), std::string::npos) << e;
+  EXPECT_NE(e.find("allow_other_task"), std::string::npos) << e;
+  EXPECT_EQ(refusal<ddace::nodes::GpPathNode>("gp_path_transfer", params, true), "");
+}
+
+TEST(OtherTask, TheRunDoesNotStartAndNoWheelTurns) {
+  ros::NodeHandle nh;
+  const Files files = Files::fromParams();
+  const ddace::task::TaskDir test = ddace::task::loadTaskDir(setup().task4 + "/test");
+  const std::string run_dir = std::string(setup().scratch) + "/run";
+  Watcher watch(nh, test.spec);
+  Launch graph({files.launch_file, "task:=" + setup().task4 + "/test", "train:=" + setup().task4 + "/train",
+                "model:=" + setup().model, "autostart:=false", "monitor:=true", "run_dir:=" + run_dir,
+                "config:=" + files.config_file});
+  // The coordinator comes up; the two refusing nodes exit, so every start is refused.
+  ASSERT_TRUE(waitFor([] { return ros::service::exists("/coordinator/start", false); }, 30.0));
+  std::string message;
+  EXPECT_FALSE(trigger("/coordinator/start", 10.0, &message)) << "a run started with another task's model";
+  EXPECT_NE(message, "");
+  EXPECT_EQ(pidOfNode("/sequence"), -1) << "the sequence node still runs with another task's model";
+  EXPECT_EQ(pidOfNode("/gp_path"), -1) << "the gp_path node still runs with another task's library";
+  EXPECT_EQ(watch.requests(), 0u) << "a decision was asked for";
+  for (const auto& [robot, cmds] : watch.wheels())
+    for (const auto& c : cmds) {
+      EXPECT_EQ(c.left, 0.0) << robot;
+      EXPECT_EQ(c.right, 0.0) << robot;
+    }
+  EXPECT_NE(watch.stateCode(), ddace::CoordinatorState::EXECUTING);
+  graph.interrupt();
+  ASSERT_TRUE(graph.waitExit(30.0));
+  const std::string report = readFile(run_dir + "/report.txt");
+  EXPECT_NE(report, "") << "no report in " << run_dir;
+  EXPECT_EQ(report.find("finished"), std::string::npos) << report;
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "exec_other_task_test");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  return RUN_ALL_TESTS();
+}
