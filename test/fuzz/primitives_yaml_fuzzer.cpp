@@ -1,9 +1,8 @@
-// libFuzzer target: a model's primitives.yaml (the fitted Gaussian-process library) is
-// loaded or refused with a ddace::Error, never a crash, another exception or an allocation
-// sized by the file (-rss_limit_mb); an accepted library survives save() and load().
-// The reader takes a path only (gp::PrimitiveLibrary::load): the input goes through an
-// in-memory file. A text API (PrimitiveLibrary::parse(text, file)) would let this parse
-// from memory.
+// libFuzzer target: a model's primitives.yaml (the fitted Gaussian-process library, with
+// the task fingerprint it names) is parsed or refused with a ddace::Error, never a crash,
+// another exception or an allocation sized by the file (-rss_limit_mb); an accepted
+// library survives text() and parse() with the same fingerprint. Parses from memory
+// (gp::PrimitiveLibrary::parse).
 // fuzz-modules: gp task
 // fuzz-max-len: 65536
 #include <cstdint>
@@ -12,20 +11,18 @@
 
 #include "ddace/common/error.h"
 #include "ddace/gp/primitives.h"
-#include "memory_file.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  static MemoryFile file;
-  static MemoryFile saved;
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  ddace::gp::PrimitiveLibrary lib;
   try {
-    const auto lib = ddace::gp::PrimitiveLibrary::load(file.hold(data, size));
-    saved.hold(nullptr, 0);
-    lib.save(saved.path());
+    lib = ddace::gp::PrimitiveLibrary::parse(text, "primitives.yaml");
   } catch (const ddace::Error&) {
     return 0;
   }
   try {
-    ddace::gp::PrimitiveLibrary::load(saved.path());
+    const auto again = ddace::gp::PrimitiveLibrary::parse(lib.text(), "primitives.yaml");
+    if (!(again.taskFingerprint() == lib.taskFingerprint())) std::abort();
   } catch (const ddace::Error&) {
     std::abort();  // ddace wrote a library it refuses
   }
