@@ -7,6 +7,8 @@
 //   entities         "NAME:KIND" or "NAME:KIND:TYPE" per entity of task.yaml
 //   vocabulary       the actions (task.yaml's `actions`, else every action demonstrated);
 //                    empty when unknown (a task.yaml without `actions` and no demonstrations)
+//   vocabulary_declared  true when task.yaml lists `actions` (else the vocabulary is only
+//                    what the demonstrations happen to show)
 //   goal_conditions  "ENTITY at TARGET" per goal condition (the tolerance is an evaluation
 //                    threshold, not part of what is learned)
 //   token_types      the demonstrated step structure in kind terms: every distinct
@@ -37,6 +39,7 @@ inline constexpr int kMaxFingerprintCount = 1000000;
 struct TaskFingerprint {
   std::vector<std::string> entities;
   std::vector<std::string> vocabulary;
+  bool vocabulary_declared = false;
   std::vector<std::string> goal_conditions;
   std::vector<std::string> token_types;
   std::vector<int> step_counts;
@@ -59,8 +62,9 @@ TaskFingerprint fingerprintOf(const TaskSpec& spec);
 TaskFingerprint fingerprintOfPath(const std::string& task_path);
 
 /// What keeps a model trained on `model` from being used on `task`, one line per field,
-/// as "vocabulary: model [move, stop], task [move]"; empty when nothing does. Entities,
-/// goal conditions and (when both are known) the vocabulary must be equal; the step
+/// as "vocabulary: model [move, stop], task [move]"; empty when nothing does. Entities
+/// and goal conditions must be equal, the vocabulary too when both task.yaml files declare
+/// it (else the task's actions must be among the model's); the step
 /// structure is compared only when both sides have demonstrations: the task's token types
 /// must all have been demonstrated to the model, and its step counts must lie within the
 /// model's range (a test set may show fewer scene variants than the training set).

@@ -84,7 +84,8 @@ int count(const YAML::Node& n, const std::string& what, const std::string& file)
 }  // namespace
 
 std::string TaskFingerprint::canonicalText() const {
-  return "entities: " + list(entities) + "\nvocabulary: " + list(vocabulary) + "\ngoal_conditions: " +
+  return "entities: " + list(entities) + "\nvocabulary: " + list(vocabulary) +
+         "\nvocabulary_declared: " + (vocabulary_declared ? "true" : "false") + "\ngoal_conditions: " +
          list(goal_conditions) + "\ntoken_types: " + list(token_types) + "\nstep_counts: " + list(step_counts) +
          "\ndemonstrations: " + std::to_string(demonstrations) + "\n";
 }
@@ -95,6 +96,7 @@ TaskFingerprint fingerprintOf(const TaskSpec& spec) {
   TaskFingerprint f;
   f.entities = specEntities(spec);
   if (spec.actions_declared) f.vocabulary = sortedUnique(spec.actions);
+  f.vocabulary_declared = spec.actions_declared;
   f.goal_conditions = specGoals(spec);
   return f;
 }
@@ -131,7 +133,13 @@ std::vector<std::string> fingerprintDifferences(const TaskFingerprint& model, co
     if (a != b) out.push_back(field + ": model " + list(a) + ", task " + list(b));
   };
   differ("entities", model.entities, task.entities);
-  if (!model.vocabulary.empty() && !task.vocabulary.empty()) differ("vocabulary", model.vocabulary, task.vocabulary);
+  if (model.vocabulary_declared && task.vocabulary_declared) {
+    differ("vocabulary", model.vocabulary, task.vocabulary);
+  } else if (!std::includes(model.vocabulary.begin(), model.vocabulary.end(), task.vocabulary.begin(),
+                            task.vocabulary.end())) {
+    out.push_back("vocabulary: model " + list(model.vocabulary) + ", task " + list(task.vocabulary) +
+                  " (actions the model never learned)");
+  }
   differ("goal conditions", model.goal_conditions, task.goal_conditions);
   if (model.demonstrations > 0 && task.demonstrations > 0) {
     std::vector<std::string> unseen;
@@ -162,6 +170,7 @@ void emitFingerprint(YAML::Emitter& y, const TaskFingerprint& f) {
   y << YAML::BeginMap;
   y << YAML::Key << "entities" << YAML::Value << YAML::Flow << f.entities;
   y << YAML::Key << "vocabulary" << YAML::Value << YAML::Flow << f.vocabulary;
+  y << YAML::Key << "vocabulary_declared" << YAML::Value << f.vocabulary_declared;
   y << YAML::Key << "goal_conditions" << YAML::Value << YAML::Flow << f.goal_conditions;
   y << YAML::Key << "token_types" << YAML::Value << YAML::Flow << f.token_types;
   y << YAML::Key << "step_counts" << YAML::Value << YAML::Flow << f.step_counts;
@@ -174,6 +183,14 @@ TaskFingerprint parseFingerprint(const YAML::Node& node, const std::string& file
   TaskFingerprint f;
   f.entities = texts(node, "entities", file);
   f.vocabulary = texts(node, "vocabulary", file);
+  {
+    const YAML::Node declared = need(node, "vocabulary_declared", file);
+    try {
+      f.vocabulary_declared = declared.as<bool>();
+    } catch (const YAML::Exception&) {
+      failAt(file, declared, "task_fingerprint: vocabulary_declared must be true or false");
+    }
+  }
   f.goal_conditions = texts(node, "goal_conditions", file);
   f.token_types = texts(node, "token_types", file);
   const YAML::Node steps = need(node, "step_counts", file);

@@ -247,8 +247,20 @@ TEST(PrimitiveLibrary, CorruptedFilesAreRejectedCleanly) {
   expectLoadError(not_yaml, "not valid YAML");
 
   const std::string wrong_format = dir + "/wrong_format.yaml";
-  writeText(wrong_format, std::regex_replace(text, std::regex("ddace-primitives/1"), "ddace-primitives/9"));
+  writeText(wrong_format, std::regex_replace(text, std::regex("ddace-primitives/2"), "ddace-primitives/9"));
   expectLoadError(wrong_format, "unsupported format");
+
+  // A library of the format before the task fingerprint: retrain.
+  const std::string older = dir + "/older.yaml";
+  writeText(older, std::regex_replace(text, std::regex("ddace-primitives/2"), "ddace-primitives/1"));
+  expectLoadError(older, "retrain");
+
+  // The task fingerprint edited (Task 4's goal conditions made Task 2's): its digest refuses it.
+  const std::string other_task = dir + "/other_task.yaml";
+  writeText(other_task, std::regex_replace(text, std::regex("goal_conditions: \\[R3 at G1, R4 at G1\\]"),
+                                           "goal_conditions: [R4 at G1]", std::regex_constants::format_first_only));
+  ASSERT_NE(readText(other_task), text);
+  expectLoadError(other_task, "digest does not match");
 
   // A hyper-parameter changed by hand: the stored likelihood no longer matches.
   const std::string edited = dir + "/edited.yaml";
@@ -284,6 +296,16 @@ TEST(PrimitiveLibrary, CorruptedFilesAreRejectedCleanly) {
     ASSERT_FALSE(e.diagnostics().empty());
     EXPECT_GT(e.diagnostics()[0].line, 1);
   }
+}
+
+TEST(PrimitiveLibrary, NamesTheTaskFingerprintItWasFittedOn) {
+  const task::TaskDir train = generated("task4", 6, 3);
+  const gp::PrimitiveLibrary lib = gp::PrimitiveLibrary::fit(train);
+  EXPECT_EQ(lib.taskFingerprint(), task::fingerprintOf(train));
+  const std::string path = tempDir("fingerprint") + "/primitives.yaml";
+  lib.save(path);
+  EXPECT_EQ(gp::PrimitiveLibrary::load(path).taskFingerprint().digest(), task::fingerprintOf(train).digest());
+  EXPECT_EQ(gp::PrimitiveLibrary::parse(lib.text(), "p.yaml").taskFingerprint(), lib.taskFingerprint());
 }
 
 TEST(PrimitiveLibrary, FitIsDeterministic) {

@@ -120,3 +120,16 @@ TEST(TaskFingerprint, RoundTripsThroughYamlAndRefusesEdits) {
   EXPECT_NE(refusal("[move, stop]", "[stop, move]").find("not sorted"), std::string::npos);
   EXPECT_NE(refusal("digest:", "dig:").find("missing key 'digest'"), std::string::npos);
 }
+
+TEST(TaskFingerprint, AnUndeclaredVocabularyNeedOnlyBeAmongTheModels) {
+  // Without `actions` in task.yaml a test set that never shows `stop` is the same task...
+  const task::TaskDir train = generated("task2", 3, 1, 4);
+  task::TaskFingerprint model = task::fingerprintOf(train), shown = model;
+  model.vocabulary_declared = shown.vocabulary_declared = false;
+  shown.vocabulary = {"move"};
+  EXPECT_EQ(joined(task::fingerprintDifferences(model, shown)), "");
+  // ...but an action the model never learned is not.
+  shown.vocabulary = {"dribble", "move"};
+  EXPECT_NE(joined(task::fingerprintDifferences(model, shown)).find("actions the model never learned"),
+            std::string::npos);
+}
