@@ -114,7 +114,7 @@ TEST(TaskFingerprint, RoundTripsThroughYamlAndRefusesEdits) {
     }
     return std::string();
   };
-  EXPECT_NE(refusal("[move, stop]", "[move, halt]").find("digest does not match"), std::string::npos);
+  EXPECT_NE(refusal("[move, stop]", "[move, stops]").find("digest does not match"), std::string::npos);
   EXPECT_NE(refusal("demonstrations: 3", "demonstrations: 4").find("f.yaml:"), std::string::npos);
   EXPECT_NE(refusal("demonstrations: 3", "demonstrations: 99999999").find("0..1000000"), std::string::npos);
   EXPECT_NE(refusal("[move, stop]", "[stop, move]").find("not sorted"), std::string::npos);
