@@ -111,7 +111,7 @@ TEST(CliPath, BadInputFailsWithAMessage) {
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.out.find("/nonexistent/model"), std::string::npos) << r.out;
   const std::string broken = model().dir + "/broken.yaml";
-  std::ofstream(broken) << "format: ddace-primitives/1\ntask: x\n";
+  std::ofstream(broken) << "format: ddace-primitives/2\ntask: x\n";
   r = runTool("path " + broken + " --key R3:move:G1 --start 0,0 --goal 1,1");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.out.find(broken), std::string::npos) << r.out;
