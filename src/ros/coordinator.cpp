@@ -99,7 +99,7 @@ class CoordinatorNode::Impl {
     services_.push_back(pnh.advertiseService("estop", &Impl::srvEstop, this));
     timer_ = nh.createTimer(ros::Duration(1.0 / tick_hz), &Impl::onTick, this);
     state_timer_ = nh.createTimer(ros::Duration(1.0 / state_hz), [this](const ros::TimerEvent&) { publishState(); });
-    liveness_timer_ = nh.createTimer(ros::Duration(1.0 / liveness_hz), &Impl::onLiveness, this);
+    liveness_timer_ = nh.createTimer(ros::Duration(1.0 / liveness_hz), [this](const ros::TimerEvent&) { checkRoles(); });
     std_msgs::Bool released;
     released.data = false;
     estop_pub_.publish(released);
@@ -127,6 +127,12 @@ class CoordinatorNode::Impl {
       for (const auto& [i, pub] : segment_pubs_) stop.push_back(i);
     std::sort(stop.begin(), stop.end());
     stop.erase(std::unique(stop.begin(), stop.end()), stop.end());
+    // Zero wheels from here, now: the follower zeroes only when the STOP reaches it (a
+    // cycle of its own may still be under way), and it may be the node that died.
+    ddace::WheelCommand zero;
+    zero.header.stamp = stamp;
+    for (int i : stop)
+      if (auto w = wheel_pubs_.find(i); w != wheel_pubs_.end()) w->second.publish(zero);
     for (int i : stop) {
       ddace::Segment s;
       s.header.stamp = stamp;
@@ -344,9 +350,13 @@ class CoordinatorNode::Impl {
       links_.insert({topic, p.getSubscriberName()});
     };
     auto disconnect = [this, topic](const ros::SingleSubscriberPublisher& p) {
-      std::lock_guard<std::mutex> l(links_mutex_);
-      auto it = links_.find({topic, p.getSubscriberName()});
-      if (it != links_.end()) links_.erase(it);
+      {
+        std::lock_guard<std::mutex> l(links_mutex_);
+        auto it = links_.find({topic, p.getSubscriberName()});
+        if (it != links_.end()) links_.erase(it);
+      }
+      // A dropped link is the first sign of a dead node: act on it now, not at the next check.
+      checkRoles();
     };
     return nh.advertise<M>(topic, queue, connect, disconnect);
   }
@@ -361,7 +371,8 @@ class CoordinatorNode::Impl {
     if (pose_role_) roles_.present(*pose_role_, entities_sub_.getNumPublishers() > 0);
   }
 
-  void onLiveness(const ros::TimerEvent&) {
+  /// Runs on the spinner thread: roscpp queues the (dis)connect callbacks like messages.
+  void checkRoles() {
     updatePresence();
     if (!coordinator_->running()) {
       roles_.disarm();
@@ -370,15 +381,8 @@ class CoordinatorNode::Impl {
     if (!roles_.armed()) roles_.arm(now());
     if (const auto lost = roles_.lost(now())) {
       ROS_ERROR("coordinator: %s: stopping every robot", lost->c_str());
-      zeroAllWheels();
-      apply(coordinator_->abortRun(*lost, now()));
+      apply(coordinator_->abortRun(*lost, now()));  // stop_all: zero wheels first
     }
-  }
-
-  void zeroAllWheels() {
-    ddace::WheelCommand w;
-    w.header.stamp = ros::Time::now();
-    for (auto& [i, pub] : wheel_pubs_) pub.publish(w);
   }
 
   /// Every role is served by its node: a request published now is not lost.
@@ -416,11 +420,12 @@ class CoordinatorNode::Impl {
     return answer(coordinator_->reset(now()), res, {exec::RunState::Idle});
   }
   bool srvEstop(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-    zeroAllWheels();
+    // stop_all: every wheel zeroed from here first, then the followers hear it.
+    const bool answered = answer(coordinator_->emergencyStop(now(), "~estop service"), res, {exec::RunState::EStopped});
     std_msgs::Bool stop;
     stop.data = true;
-    estop_pub_.publish(stop);  // the followers zero every wheel on receipt
-    return answer(coordinator_->emergencyStop(now(), "~estop service"), res, {exec::RunState::EStopped});
+    estop_pub_.publish(stop);  // the followers zero every wheel on receipt and refuse segments
+    return answered;
   }
 
   bool answer(const exec::CoordinatorOutput& out, std_srvs::Trigger::Response& res,
