@@ -265,7 +265,9 @@ class CoordinatorNode::Impl {
   }
 
   void onTick(const ros::TimerEvent&) {
-    if (autostart_) {
+    // Autostart tries at most 5 times a second (the recorder's check asks every publisher).
+    if (autostart_ && ros::WallTime::now() >= next_autostart_try_) {
+      next_autostart_try_ = ros::WallTime::now() + ros::WallDuration(0.2);
       std::string missing;
       if (connected(missing)) {
         autostart_ = false;
@@ -337,6 +339,7 @@ class CoordinatorNode::Impl {
         watched_.push_back({roles_.add("executor of " + e.name, objects, "subscribed to " + topic), topic, objects});
       }
     }
+    recorder_ = name("recorder", "");
     const std::string pose = name("pose_source", "/mock_robots");
     if (!pose.empty()) pose_role_ = roles_.add("pose source", pose, "publishing /ddace/entities", pose_s);
   }
@@ -385,13 +388,34 @@ class CoordinatorNode::Impl {
     }
   }
 
-  /// Every role is served by its node: a request published now is not lost.
+  /// Every role is served by its node (a request published now is not lost) and, for a
+  /// new run, the recorder records every topic (the record starts with the run).
+  /// `missing` says what is not there yet.
   bool connected(std::string& missing) {
     updatePresence();
     const auto m = roles_.missing();
     missing.clear();
     for (const auto& r : m) missing += (missing.empty() ? "" : ", ") + r;
-    return m.empty();
+    return m.empty() && recorderReady(missing);
+  }
+
+  /// The recorder's `~ready` (std_srvs/Trigger): it checks that every publisher of every
+  /// recorded topic is connected to it. Asked only before a new run: only then is it
+  /// worth blocking this thread (no robot is driven in Idle).
+  bool recorderReady(std::string& missing) {
+    if (recorder_.empty() || coordinator_->state() != exec::RunState::Idle) return true;
+    const std::string service = recorder_ + "/ready";
+    std_srvs::Trigger t;
+    if (!ros::service::exists(service, false)) {
+      missing = "the recorder " + recorder_ + " (no service " + service + " yet)";
+      return false;
+    }
+    if (!ros::service::call(service, t)) {
+      missing = "the recorder " + recorder_ + " (" + service + " failed)";
+      return false;
+    }
+    if (!t.response.success) missing = "the recorder " + recorder_ + " (" + t.response.message + ")";
+    return t.response.success;
   }
 
   void onEstopTopic(const std_msgs::Bool& m) {
@@ -403,7 +427,7 @@ class CoordinatorNode::Impl {
     std::string missing;
     if (!connected(missing)) {
       res.success = false;
-      res.message = "not started: no node serves " + missing;
+      res.message = "not started: waiting for " + missing;
       return true;
     }
     return answer(coordinator_->start(now()), res,
@@ -603,6 +627,8 @@ class CoordinatorNode::Impl {
   std::multiset<std::pair<std::string, std::string>> links_;  ///< (our topic, subscribed node)
   std::map<int, size_t> follower_role_;
   std::optional<size_t> pose_role_;
+  std::string recorder_;  ///< node whose ~ready must succeed before a new run ("" = none)
+  ros::WallTime next_autostart_try_;
   std::map<int, ros::Publisher> wheel_pubs_;
   std::vector<ros::Subscriber> wheel_subs_;
 

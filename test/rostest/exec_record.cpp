@@ -12,6 +12,34 @@ std::string readFile(const std::string& path) {
   return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
 }
 
+/// Column `field` of every message on `topic` in `bag` (`rostopic echo -b -p`: one CSV row
+/// per message, e.g. field.segment_id, field.header.stamp in nanoseconds).
+std::vector<std::string> bagColumn(const std::string& bag, const std::string& topic, const std::string& field) {
+  const std::string out = bag + "." + std::to_string(std::hash<std::string>()(topic)) + ".csv";
+  if (std::system(("rostopic echo -b '" + bag + "' -p " + topic + " > '" + out + "' 2>&1").c_str()) != 0) return {};
+  std::ifstream f(out);
+  std::string line;
+  std::vector<std::string> values;
+  int column = -1;
+  while (std::getline(f, line)) {
+    std::vector<std::string> cells;
+    std::stringstream row(line);
+    for (std::string cell; std::getline(row, cell, ',');) cells.push_back(cell);
+    if (column < 0) {
+      const auto it = std::find(cells.begin(), cells.end(), field);
+      if (it == cells.end()) return {};
+      column = static_cast<int>(it - cells.begin());
+    } else if (column < static_cast<int>(cells.size())) {
+      values.push_back(cells[column]);
+    }
+  }
+  return values;
+}
+
+bool contains(const std::vector<std::string>& values, const std::string& v) {
+  return std::find(values.begin(), values.end(), v) != values.end();
+}
+
 }  // namespace
 
 TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
@@ -34,6 +62,7 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
                 "config:=" + files.config_file});
   const std::string started = startRun(w, 30.0);
   ASSERT_TRUE(started.empty()) << started;
+  const ros::Time start_returned = ros::Time::now();
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING; }, 20.0));
 
   // During a step: ~state at ~5 Hz, the same state, progress and distance moving.
@@ -92,9 +121,36 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
   for (const std::string topic : {"/ddace/entities", "/coordinator/state", "/robots/R1/segment",
                                   "/robots/R1/segment_status", "/robots/R1/wheels"})
     EXPECT_NE(bag.find(topic), std::string::npos) << topic << " not in the bag:\n" << bag;
+  // The bag holds the run from the start command on (the coordinator starts a run only
+  // once the monitor's ~ready says the recorder is linked to every publisher): the first
+  // decision request, the first segment and the first wheel command after the start.
+  const std::string bag_file = run_dir + "/run.bag";
+  EXPECT_TRUE(contains(bagColumn(bag_file, "/ddace/decision_request", "field.id"), "1"))
+      << "the run's first decision request is not in the bag";
+  const auto segments = w.segments();
+  ASSERT_FALSE(segments.empty());
+  const auto& [first_id, first_seg] = *segments.begin();
+  const std::string entity = first_seg.key.substr(0, first_seg.key.find(':'));
+  EXPECT_TRUE(contains(bagColumn(bag_file, "/robots/" + entity + "/segment", "field.segment_id"),
+                       std::to_string(first_id)))
+      << "the run's first segment (" << first_seg.key << ", id " << first_id << ") is not in the bag";
+  const auto wheels = w.wheels();
+  ASSERT_TRUE(wheels.count("R1"));
+  ros::Time first_wheel;
+  for (const auto& c : wheels.at("R1"))
+    if (c.stamp >= start_returned) {
+      first_wheel = c.stamp;
+      break;
+    }
+  ASSERT_NE(first_wheel, ros::Time());
+  EXPECT_TRUE(contains(bagColumn(bag_file, "/robots/R1/wheels", "field.header.stamp"),
+                       std::to_string(first_wheel.toNSec())))
+      << "R1's first wheel command after the start (" << first_wheel << ") is not in the bag";
   const std::string png = readFile(run_dir + "/paths.png");
   ASSERT_GT(png.size(), 1000u) << readFile(run_dir + "/plot.log");
   EXPECT_EQ(png.substr(1, 3), "PNG");
+  EXPECT_NE(result.find("\"plot\": \"paths.png\""), std::string::npos) << result;
+  EXPECT_NE(result.find("\"bag\": \"run.bag\""), std::string::npos) << result;
 }
 
 int main(int argc, char** argv) {

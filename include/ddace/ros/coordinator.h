@@ -16,7 +16,9 @@
 // Whenever a segment is cancelled (abort, e-stop, pause, reset, a lost role) the
 // coordinator publishes zero wheels for its robot itself in the same callback, before the
 // STOP segment: the follower may be the node that died. A subscriber's link dropping
-// (a node killed) is acted on in its disconnect callback, not at the next check.
+// (a node killed) is acted on in its disconnect callback, not at the next check. A new run
+// starts only when ~roles/recorder (if set) answers its ~ready: the record holds the run
+// from its first message.
 // Parameters: config/execution.yaml, section coordinator.
 #pragma once
 
