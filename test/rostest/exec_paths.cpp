@@ -38,6 +38,29 @@ TEST(ExecPaths, TheLaunchFileResolvesRelativePathsAgainstTheCallersDirectory) {
   EXPECT_EQ(params["/gp_path/library"].as<std::string>(""), model);
 }
 
+// The real table's launch file the same way; it records the run too, and watches the node
+// that really publishes the poses: the tracker, or as a nodelet its manager.
+TEST(ExecPaths, TheRealLaunchFileResolvesPathsRecordsAndWatchesThePosePublisher) {
+  std::string launch;
+  ASSERT_TRUE(ros::NodeHandle("~").getParam("real_launch_file", launch));
+  const ScratchDir caller("paths_real");
+  for (const bool nodelet : {false, true}) {
+    std::string out;
+    ASSERT_EQ(run(caller,
+                  "roslaunch --dump-params '" + launch + "' task:=out/task model:=out/model nodelet:=" +
+                      (nodelet ? "true" : "false"),
+                  out),
+              0)
+        << out;
+    const YAML::Node params = YAML::Load(out);
+    EXPECT_EQ(params["/coordinator/task"].as<std::string>(""), std::string(caller) + "/out/task");
+    EXPECT_EQ(params["/execution_monitor/task"].as<std::string>(""), std::string(caller) + "/out/task");
+    EXPECT_EQ(params["/sequence/model"].as<std::string>(""), std::string(caller) + "/out/model");
+    EXPECT_EQ(params["/coordinator/roles/recorder"].as<std::string>(""), "/execution_monitor");
+    EXPECT_EQ(params["/coordinator/roles/pose_source"].as<std::string>(""), nodelet ? "/camera_manager" : "/tracker");
+  }
+}
+
 TEST(ExecPaths, ANodeRefusesARelativeTaskPathSayingWhy) {
   const ScratchDir caller("paths_node");
   std::string out;
