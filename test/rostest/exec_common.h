@@ -13,6 +13,7 @@
 
 #include <array>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -104,12 +105,19 @@ inline std::string writeConfig(const std::string& shipped, const std::string& ou
 }
 
 /// roslaunch as a child process group; killed (SIGINT, then SIGKILL) on destruction.
+/// With `log` its output goes to that file instead of the test's.
 class Launch {
  public:
-  explicit Launch(const std::vector<std::string>& args) {
+  explicit Launch(const std::vector<std::string>& args, const std::string& log = "") {
     pid_ = ::fork();
     if (pid_ == 0) {
       ::setpgid(0, 0);
+      if (!log.empty()) {
+        if (std::FILE* f = std::fopen(log.c_str(), "w")) {
+          ::dup2(::fileno(f), 1);
+          ::dup2(::fileno(f), 2);
+        }
+      }
       std::vector<char*> argv;
       argv.push_back(const_cast<char*>("roslaunch"));
       for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
@@ -389,17 +397,25 @@ inline std::vector<std::vector<std::string>> executedSteps(const ddace::Coordina
   return out;
 }
 
-/// Parameters every graph test gets from its .test file.
+/// Parameters every graph test gets from its .test file (~execute_sim: optional).
 struct Files {
-  std::string launch_file, config_file;
+  std::string launch_file, config_file, execute_sim;
   static Files fromParams() {
     ros::NodeHandle pnh("~");
     Files f;
     if (!pnh.getParam("launch_file", f.launch_file) || !pnh.getParam("config_file", f.config_file))
       throw std::runtime_error("the .test file must set ~launch_file and ~config_file");
+    pnh.getParam("execute_sim", f.execute_sim);
     return f;
   }
 };
+
+/// The exit status of `scripts/execute_sim --check RUN_DIR` (-1 when it did not run).
+inline int checkRun(const Files& files, const std::string& run_dir) {
+  if (files.execute_sim.empty()) return -1;
+  const int status = std::system(("'" + files.execute_sim + "' --check '" + run_dir + "' > /dev/null 2>&1").c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
 
 /// Runs a generated task end-to-end on mock robots (scene and ground truth: test demo 0),
 /// with a model trained here on 10 demonstrations (`learned`) or replaying the demonstration

@@ -1,6 +1,8 @@
 // A node serving a role dies mid-run (SIGKILL: no goodbye): the coordinator publishes zero
 // wheels on every robot at once, aborts the run naming the node, and the monitor writes
 // the report of the partial run. Ctrl-C (SIGINT) of a running launch also leaves a report.
+#include <ddace/PathRequest.h>
+
 #include "exec_common.h"
 
 using namespace exec_test;
@@ -13,20 +15,47 @@ bool anyDriving(Watcher& w) {
   return false;
 }
 
-/// When process `pid` (just sent SIGKILL) has finished dying: a zombie or gone, so its
-/// sockets are closed and its peers can see it (polled every millisecond).
-ros::Time whenDead(int pid) {
-  for (int i = 0; i < 5000; ++i) {
-    std::ifstream f("/proc/" + std::to_string(pid) + "/stat");
-    std::string stat((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    const size_t paren = stat.rfind(')');
-    if (stat.empty() || paren == std::string::npos || paren + 2 >= stat.size() || stat[paren + 2] == 'Z' ||
-        stat[paren + 2] == 'X')
-      return ros::Time::now();
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+/// Sees a node's death the way the coordinator does: a topic the node subscribes to,
+/// advertised here (never published), whose disconnect callback fires when the node's
+/// link drops. `dropped()` is when that happened (ros::Time() before).
+class DeathProbe {
+ public:
+  DeathProbe(ros::NodeHandle& nh, const std::string& node) : node_(node) {
+    if (node == "/path_follower") pub_ = advertise<ddace::Segment>(nh, "/robots/R1/segment");
+    if (node == "/sequence") pub_ = advertise<ddace::DecisionRequest>(nh, "/ddace/decision_request");
+    if (node == "/gp_path") pub_ = advertise<ddace::PathRequest>(nh, "/ddace/path_request");
+    if (node == "/mock_robots") pub_ = advertise<ddace::WheelCommand>(nh, "/robots/R1/wheels");
   }
-  return ros::Time::now();
-}
+  bool linked() {
+    std::lock_guard<std::mutex> l(mu_);
+    return linked_;
+  }
+  ros::Time dropped() {
+    std::lock_guard<std::mutex> l(mu_);
+    return dropped_;
+  }
+
+ private:
+  template <typename M>
+  ros::Publisher advertise(ros::NodeHandle& nh, const std::string& topic) {
+    return nh.advertise<M>(
+        topic, 1,
+        [this](const ros::SingleSubscriberPublisher& p) {
+          std::lock_guard<std::mutex> l(mu_);
+          if (p.getSubscriberName() == node_) linked_ = true;
+        },
+        [this](const ros::SingleSubscriberPublisher& p) {
+          const ros::Time now = ros::Time::now();
+          std::lock_guard<std::mutex> l(mu_);
+          if (p.getSubscriberName() == node_ && dropped_ == ros::Time()) dropped_ = now;
+        });
+  }
+  std::string node_;
+  ros::Publisher pub_;
+  std::mutex mu_;
+  bool linked_ = false;
+  ros::Time dropped_;
+};
 
 std::string readFile(const std::string& path) {
   std::ifstream f(path);
@@ -71,9 +100,10 @@ TEST_P(KillRole, StopsEveryRobotAtOnceAndAbortsNamingTheNode) {
   ros::Duration(0.5).sleep();
   const int pid = pidOfNode(node);
   ASSERT_GT(pid, 0) << "no pid for " << node;
+  DeathProbe probe(g.nh, node);
+  ASSERT_TRUE(waitFor([&] { return probe.linked(); }, 10.0)) << node << " did not subscribe to the probe";
   const ros::Time killed = ros::Time::now();
   ASSERT_EQ(::kill(pid, SIGKILL), 0);
-  const ros::Time died = whenDead(pid);
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 5.0))
       << "state " << w.state().state_name;
   ros::Duration(0.3).sleep();
@@ -103,13 +133,27 @@ TEST_P(KillRole, StopsEveryRobotAtOnceAndAbortsNamingTheNode) {
     }
     EXPECT_TRUE(cmds.back().zero()) << robot;
   }
-  std::cout << node << " killed: dead (its sockets closed) after " << (died - killed).toSec()
-            << " s; every robot zeroed by the coordinator " << worst_s << " s after the kill\n";
+  // When the link dropped, as another process saw it: the rest is the coordinator's own part.
+  ASSERT_TRUE(waitFor([&] { return probe.dropped() != ros::Time(); }, 2.0));
+  if (node != "/path_follower") {
+    // Counted in the living follower's control cycles: from the drop to the coordinator's
+    // zero at most the one under way.
+    const auto cmds = w.wheels()["R1"];
+    const ros::Time zero = firstZeroAfter(from(cmds, "/coordinator"), killed);
+    int cycles = 0;
+    for (const auto& c : from(cmds, "/path_follower"))
+      if (c.stamp > probe.dropped() && c.stamp < zero) ++cycles;
+    EXPECT_LE(cycles, 1) << "the coordinator zeroed R1 " << cycles << " control cycles after the link dropped";
+  }
+  std::cout << node << " killed: its link dropped " << (probe.dropped() - killed).toSec()
+            << " s after the signal (seen by this test); every robot zeroed by the coordinator " << worst_s
+            << " s after the signal\n";
   ASSERT_TRUE(graph.waitExit(20.0)) << "the launch did not end after the abort";
   const std::string report = readFile(g.run_dir + "/report.txt");
   EXPECT_NE(report.find("aborted"), std::string::npos) << report;
   EXPECT_NE(report.find(node), std::string::npos) << report;
   EXPECT_NE(readFile(g.run_dir + "/result.json").find("\"aborted\""), std::string::npos);
+  EXPECT_EQ(checkRun(g.files, g.run_dir), 1) << "execute_sim --check must fail an aborted run";
 }
 
 INSTANTIATE_TEST_SUITE_P(Roles, KillRole, ::testing::Values("/path_follower", "/sequence", "/gp_path", "/mock_robots"),
@@ -129,6 +173,7 @@ TEST(Sigint, AnInterruptedRunLeavesItsReport) {
   EXPECT_NE(report.find("step 1:"), std::string::npos) << "the partial run's steps are in the report\n" << report;
   const std::string result = readFile(g.run_dir + "/result.json");
   EXPECT_NE(result.find("\"state\": \"interrupted\""), std::string::npos) << result;
+  EXPECT_EQ(checkRun(g.files, g.run_dir), 1) << "execute_sim --check must fail an interrupted run";
 }
 
 int main(int argc, char** argv) {

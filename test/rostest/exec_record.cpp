@@ -62,7 +62,8 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
   Watcher w(nh, test.spec);
   Launch graph({files.launch_file, "task:=" + std::string(scratch) + "/test",
                 "train:=" + std::string(scratch) + "/train", "autostart:=true", "monitor:=true", "run_dir:=" + run_dir,
-                "config:=" + files.config_file});
+                "config:=" + files.config_file},
+               std::string(scratch) + "/launch.log");
   // Autostart: the coordinator starts the run the moment it may, as early as it can be.
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING; }, 40.0))
       << "state " << w.state().state_name << ": " << w.state().reason;
@@ -113,6 +114,12 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
 
   // The monitor writes the record and ends the launch by itself.
   ASSERT_TRUE(graph.waitExit(30.0)) << "the launch did not end after the run finished";
+  // A clean ending: no error or dead process in the launch's output, and the documented
+  // check says finished.
+  const std::string log = readFile(std::string(scratch) + "/launch.log");
+  for (const std::string bad : {"[ERROR]", "[FATAL]", "has died", "REQUIRED"})
+    EXPECT_EQ(log.find(bad), std::string::npos) << "'" << bad << "' in the output of a finished run:\n" << log;
+  EXPECT_EQ(checkRun(files, run_dir), 0) << "execute_sim --check " << run_dir;
   const std::string result = readFile(run_dir + "/result.json");
   EXPECT_NE(result.find("\"state\": \"finished\""), std::string::npos) << result;
   EXPECT_NE(readFile(run_dir + "/report.txt").find("finished"), std::string::npos);
