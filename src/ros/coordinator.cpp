@@ -99,7 +99,8 @@ class CoordinatorNode::Impl {
     services_.push_back(pnh.advertiseService("estop", &Impl::srvEstop, this));
     timer_ = nh.createTimer(ros::Duration(1.0 / tick_hz), &Impl::onTick, this);
     state_timer_ = nh.createTimer(ros::Duration(1.0 / state_hz), [this](const ros::TimerEvent&) { publishState(); });
-    liveness_timer_ = nh.createTimer(ros::Duration(1.0 / liveness_hz), [this](const ros::TimerEvent&) { checkRoles(); });
+    liveness_timer_ =
+        nh.createTimer(ros::Duration(1.0 / liveness_hz), [this](const ros::TimerEvent&) { checkRoles(); });
     std_msgs::Bool released;
     released.data = false;
     estop_pub_.publish(released);

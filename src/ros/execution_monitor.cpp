@@ -512,8 +512,8 @@ class ExecutionMonitorNode::Impl {
   std::string plot() const {
     if (plot_script_.empty()) return "none (parameter plot_script is empty)";
     if (!fs::exists(plot_script_)) {
-      const std::string why = "NONE: the plot script " + plot_script_ +
-                              " does not exist (build or install ddace, or set ~plot_script)";
+      const std::string why =
+          "NONE: the plot script " + plot_script_ + " does not exist (build or install ddace, or set ~plot_script)";
       ROS_ERROR("execution_monitor: %s", why.c_str());
       return why;
     }

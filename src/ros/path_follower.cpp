@@ -173,8 +173,8 @@ class PathFollowerNode::Impl {
       if (r.segment_sub.getNumPublishers() == 0) {
         ROS_ERROR("path_follower: %s: the coordinator is gone (no publisher on %s): stopping", name.c_str(),
                   r.segment_sub.getTopic().c_str());
-        stopRobot(r, ddace::SegmentStatus::ABORTED, "the coordinator is gone (no publisher on " +
-                                                        r.segment_sub.getTopic() + ")");
+        stopRobot(r, ddace::SegmentStatus::ABORTED,
+                  "the coordinator is gone (no publisher on " + r.segment_sub.getTopic() + ")");
         continue;
       }
       const bool stale = !r.pose_known || r.pose_stale || (now - r.pose_time).toSec() > pose_timeout_s_;

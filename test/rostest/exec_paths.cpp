@@ -26,9 +26,8 @@ TEST(ExecPaths, TheLaunchFileResolvesRelativePathsAgainstTheCallersDirectory) {
   const Files files = Files::fromParams();
   const ScratchDir caller("paths_caller");
   std::string out;
-  ASSERT_EQ(run(caller, "roslaunch --dump-params '" + files.launch_file + "' task:=out/task4/test model:=out/model",
-                out),
-            0)
+  ASSERT_EQ(
+      run(caller, "roslaunch --dump-params '" + files.launch_file + "' task:=out/task4/test model:=out/model", out), 0)
       << out;
   const YAML::Node params = YAML::Load(out);
   const std::string task = std::string(caller) + "/out/task4/test", model = std::string(caller) + "/out/model";
@@ -47,8 +46,8 @@ TEST(ExecPaths, TheRealLaunchFileResolvesPathsRecordsAndWatchesThePosePublisher)
   for (const bool nodelet : {false, true}) {
     std::string out;
     ASSERT_EQ(run(caller,
-                  "roslaunch --dump-params '" + launch + "' task:=out/task model:=out/model nodelet:=" +
-                      (nodelet ? "true" : "false"),
+                  "roslaunch --dump-params '" + launch +
+                      "' task:=out/task model:=out/model nodelet:=" + (nodelet ? "true" : "false"),
                   out),
               0)
         << out;
@@ -64,7 +63,8 @@ TEST(ExecPaths, TheRealLaunchFileResolvesPathsRecordsAndWatchesThePosePublisher)
 TEST(ExecPaths, ANodeRefusesARelativeTaskPathSayingWhy) {
   const ScratchDir caller("paths_node");
   std::string out;
-  const int status = run(caller, "rosrun ddace coordinator_node __name:=relative_task_check _task:=out/task4/test", out);
+  const int status =
+      run(caller, "rosrun ddace coordinator_node __name:=relative_task_check _task:=out/task4/test", out);
   EXPECT_EQ(status, 1) << out;
   EXPECT_NE(out.find("out/task4/test"), std::string::npos) << out;
   EXPECT_NE(out.find("relative path"), std::string::npos) << out;

@@ -60,10 +60,10 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
         states.push_back(*m);
       });
   Watcher w(nh, test.spec);
-  Launch graph({files.launch_file, "task:=" + std::string(scratch) + "/test",
-                "train:=" + std::string(scratch) + "/train", "autostart:=true", "monitor:=true", "run_dir:=" + run_dir,
-                "config:=" + files.config_file},
-               std::string(scratch) + "/launch.log");
+  Launch graph(
+      {files.launch_file, "task:=" + std::string(scratch) + "/test", "train:=" + std::string(scratch) + "/train",
+       "autostart:=true", "monitor:=true", "run_dir:=" + run_dir, "config:=" + files.config_file},
+      std::string(scratch) + "/launch.log");
   // Autostart: the coordinator starts the run the moment it may, as early as it can be.
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING; }, 40.0))
       << "state " << w.state().state_name << ": " << w.state().reason;
@@ -153,8 +153,8 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
   ASSERT_FALSE(segments.empty());
   const auto& [first_id, first_seg] = *segments.begin();
   const std::string entity = first_seg.key.substr(0, first_seg.key.find(':'));
-  EXPECT_TRUE(contains(bagColumn(bag_file, "/robots/" + entity + "/segment", "field.segment_id"),
-                       std::to_string(first_id)))
+  EXPECT_TRUE(
+      contains(bagColumn(bag_file, "/robots/" + entity + "/segment", "field.segment_id"), std::to_string(first_id)))
       << "the run's first segment (" << first_seg.key << ", id " << first_id << ") is not in the bag";
   const std::string png = readFile(run_dir + "/paths.png");
   ASSERT_GT(png.size(), 1000u) << readFile(run_dir + "/plot.log");

@@ -50,8 +50,8 @@ TEST(ExecStall, SegmentTimeoutAbortsTheRunWithZeroWheels) {
       int cycles = 0;
       for (const auto& c : from(cmds, "/path_follower"))
         if (c.stamp > deadline && c.stamp < zero) ++cycles;
-      std::cout << "R2's segment timed out: the coordinator zeroed it " << (zero - deadline).toSec() << " s ("
-                << cycles << " follower cycles) after the deadline\n";
+      std::cout << "R2's segment timed out: the coordinator zeroed it " << (zero - deadline).toSec() << " s (" << cycles
+                << " follower cycles) after the deadline\n";
       EXPECT_LE(cycles, 2) << "the time-out was noticed " << cycles << " control cycles late";
     }
   }

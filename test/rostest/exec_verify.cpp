@@ -192,11 +192,11 @@ TEST(ExecVerify, WrongDecisionsAndPathsAreRefused) {
   ros::Publisher entities_pub = nh.advertise<ddace::EntityArray>("/ddace/entities", 5);
   std::vector<ddace::DecisionRequest> asked;
   std::vector<ddace::PathRequest> paths_asked;
-  ros::Subscriber a = nh.subscribe<ddace::DecisionRequest>(
-      "/ddace/decision_request", 10, [&](const ddace::DecisionRequest::ConstPtr& m) {
-        std::lock_guard<std::mutex> l(mu);
-        asked.push_back(*m);
-      });
+  ros::Subscriber a = nh.subscribe<ddace::DecisionRequest>("/ddace/decision_request", 10,
+                                                           [&](const ddace::DecisionRequest::ConstPtr& m) {
+                                                             std::lock_guard<std::mutex> l(mu);
+                                                             asked.push_back(*m);
+                                                           });
   ros::Subscriber b =
       nh.subscribe<ddace::PathRequest>("/ddace/path_request", 10, [&](const ddace::PathRequest::ConstPtr& m) {
         std::lock_guard<std::mutex> l(mu);
