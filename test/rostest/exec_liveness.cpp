@@ -159,6 +159,45 @@ TEST_P(KillRole, StopsEveryRobotAtOnceAndAbortsNamingTheNode) {
 INSTANTIATE_TEST_SUITE_P(Roles, KillRole, ::testing::Values("/path_follower", "/sequence", "/gp_path", "/mock_robots"),
                          [](const auto& info) { return info.param.substr(1); });
 
+// A follower that hangs (SIGSTOP: its links stay up) is lost by its heartbeat: after
+// heartbeat_timeout_s (0.5) without a wheel command the coordinator zeroes every robot in
+// the check that finds it and aborts naming the node.
+TEST(Hang, AFollowerThatHangsIsLostByItsHeartbeat) {
+  Graph g("hang");
+  Watcher w(g.nh, g.test.spec);
+  Launch graph(g.args());
+  const std::string started = startRun(w, 30.0);
+  ASSERT_TRUE(started.empty()) << started;
+  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING && anyDriving(w); }, 20.0));
+  ros::Duration(0.5).sleep();
+  const int pid = pidOfNode("/path_follower");
+  ASSERT_GT(pid, 0);
+  const ros::Time hung = ros::Time::now();
+  ASSERT_EQ(::kill(pid, SIGSTOP), 0);
+  const bool aborted = waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 5.0);
+  ::kill(pid, SIGCONT);
+  ASSERT_TRUE(aborted) << "state " << w.state().state_name;
+  const auto s = w.state();
+  EXPECT_NE(s.reason.find("/path_follower"), std::string::npos) << s.reason;
+  EXPECT_NE(s.reason.find("silent"), std::string::npos) << s.reason;
+  const ros::Time knew = w.firstStamp(ddace::CoordinatorState::ABORTED);
+  for (const auto& [robot, cmds] : w.wheels()) {
+    const ros::Time zero = firstZeroAfter(from(cmds, "/coordinator"), hung);
+    ASSERT_NE(zero, ros::Time()) << robot;
+    EXPECT_LE(zero, knew) << robot;
+    // Not before the heartbeat time-out after the follower's last command.
+    ros::Time last_beat;
+    for (const auto& c : from(cmds, "/path_follower"))
+      if (c.stamp < zero) last_beat = c.stamp;
+    EXPECT_GE((zero - last_beat).toSec(), 0.5) << robot;
+    if (robot == "R1")
+      std::cout << "/path_follower hung: every robot zeroed by the coordinator " << (zero - hung).toSec()
+                << " s later (heartbeat_timeout_s 0.5)\n";
+  }
+  ASSERT_TRUE(graph.waitExit(20.0)) << "the launch did not end after the abort";
+  EXPECT_NE(readFile(g.run_dir + "/report.txt").find("silent"), std::string::npos);
+}
+
 TEST(Sigint, AnInterruptedRunLeavesItsReport) {
   Graph g("sigint");
   Watcher w(g.nh, g.test.spec);
