@@ -258,18 +258,24 @@ class ExecutionMonitorNode::Impl {
     }
   }
 
+  /// Stops the recorder and waits (up to 10 s) until the bag is closed. `rosbag record` is
+  /// a Python wrapper that forwards SIGINT to the recorder and exits at once, so its exit
+  /// does not mean the bag is written: that is when run.bag.active has become run.bag.
   void stopBag() {
     if (bag_pid_ <= 0) return;
     ::kill(bag_pid_, SIGINT);
-    for (int i = 0; i < 100; ++i) {  // rosbag closes the bag on SIGINT: up to 10 s
-      if (::waitpid(bag_pid_, nullptr, WNOHANG) == bag_pid_) {
-        bag_pid_ = -1;
-        return;
-      }
+    const std::string active = run_dir_ + "/run.bag.active";
+    bool exited = false;
+    for (int i = 0; i < 100; ++i) {
+      if (!exited && ::waitpid(bag_pid_, nullptr, WNOHANG) == bag_pid_) exited = true;
+      if (exited && !fs::exists(active)) break;
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
-    ::kill(bag_pid_, SIGKILL);
-    ::waitpid(bag_pid_, nullptr, 0);
+    if (!exited) {
+      ::kill(bag_pid_, SIGKILL);
+      ::waitpid(bag_pid_, nullptr, 0);
+    }
+    if (fs::exists(active)) ROS_ERROR("execution_monitor: rosbag record did not close %s within 10 s", active.c_str());
     bag_pid_ = -1;
   }
 
