@@ -52,6 +52,13 @@ class CoordinatorNode::Impl {
     const CoordinatorNode::Params defaults;
     frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
     arrival_radius_m_ = cfg.arrival_radius_m;
+    // The executor is asked to stop that much inside the radius that a DONE is checked
+    // against from outside it: tracking noise between the executor's reading, ours and the
+    // record's cannot flip an arrival either way.
+    stop_radius_m_ = cfg.arrival_radius_m - cfg.arrival_tolerance_m;
+    if (!(stop_radius_m_ > 0))
+      throw Error("parameter '" + pnh.resolveName("arrival_tolerance_m") +
+                  "' must be smaller than the arrival radius (" + std::to_string(cfg.arrival_radius_m) + " m)");
     path_points_ = rosparam::param(pnh, "path_points", defaults.path_points);
     const double tick_hz = rosparam::param(pnh, "timeout_check_hz", defaults.timeout_check_hz);
     if (!(tick_hz > 0)) throw Error("parameter '" + pnh.resolveName("timeout_check_hz") + "' must be positive");
@@ -154,7 +161,7 @@ class CoordinatorNode::Impl {
       ros_exec::toMsg(seg.path, frame_id_, stamp, s.path, s.progress, s.stddev_m);
       s.goal.x = seg.goal.x();
       s.goal.y = seg.goal.y();
-      s.arrival_radius_m = arrival_radius_m_;
+      s.arrival_radius_m = stop_radius_m_;
       s.timeout_s = seg.timeout_s;
       segment_pubs_[seg.entity].publish(s);
       sent_segments_[seg.segment_id] = {seg.entity, s};
@@ -638,6 +645,7 @@ class CoordinatorNode::Impl {
   std::unique_ptr<exec::Coordinator> coordinator_;
   std::string frame_id_;
   double arrival_radius_m_ = task::kDefaultArrivalRadius;
+  double stop_radius_m_ = task::kDefaultArrivalRadius;  ///< sent with every segment
   int path_points_ = 0;
   bool autostart_ = false;
   long entity_msgs_ = 0;
