@@ -83,10 +83,6 @@ int runTrain(const std::vector<std::string>& argv) {
   options.validate();
 
   const task::TaskDir train = task::loadTaskDir(task_path);
-  std::cout << "training variant '" << tgn::toString(options.variant) << "' on " << train.demos.size()
-            << " demonstrations of task '" << train.spec.name << "' (" << train.spec.entities.size()
-            << " entities), seed " << options.seed << "\n"
-            << std::flush;
   // The sequence model, then (except for gnn) the GP primitive library, into one
   // directory of train's own: written whole beside MODELDIR, then swapped in, so a failed
   // or interrupted run leaves the old model as it was and no old file survives.
@@ -94,6 +90,10 @@ int runTrain(const std::vector<std::string>& argv) {
   task::writeOwnedDirectory(
       out,
       [&](const std::string& dir) {
+        std::cout << "training variant '" << tgn::toString(options.variant) << "' on " << train.demos.size()
+                  << " demonstrations of task '" << train.spec.name << "' (" << train.spec.entities.size()
+                  << " entities), seed " << options.seed << "\n"
+                  << std::flush;
         result.emplace(trainModel(train, options, dir, args.has("--quiet") ? nullptr : &std::cout));
       },
       "ddace train", args.has("--force"));
