@@ -475,8 +475,8 @@ class ExecutionMonitorNode::Impl {
     j["plot"] = plotted;
     os << "run directory: " << run_dir_ << "\n";
     std::cout << os.str() << std::flush;
-    std::ofstream(run_dir_ + "/report.txt") << os.str();
-    std::ofstream(run_dir_ + "/result.json") << j.dump(2) << "\n";
+    writeRecord("report.txt", os.str());
+    writeRecord("result.json", j.dump(2) + "\n");
     if (end_launch_ && isRoslaunch(::getppid())) ::kill(::getppid(), SIGINT);  // a clean end of the whole launch
     ros::shutdown();
   }
@@ -511,7 +511,17 @@ class ExecutionMonitorNode::Impl {
       for (const auto& p : seg.executed) g["executed"].push_back({p.x(), p.y()});
       j["segments"].push_back(g);
     }
-    std::ofstream(run_dir_ + "/run.json") << j.dump() << "\n";
+    writeRecord("run.json", j.dump() + "\n");
+  }
+
+  /// Writes one file of the run directory, checked and atomic; a failure (a full disk)
+  /// is logged naming the file, and the run's other files are still written.
+  void writeRecord(const std::string& name, const std::string& text) const {
+    try {
+      writeTextFile(run_dir_ + "/" + name, text);
+    } catch (const std::exception& e) {
+      ROS_ERROR_STREAM("execution monitor: the run record is incomplete: " << e.what());
+    }
   }
 
   /// Runs plot_script on run.json; returns "paths.png" or why there is no plot.
