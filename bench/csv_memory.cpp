@@ -10,7 +10,7 @@
 //   - by the `ddace validate` tool built next to this benchmark, in a child process
 //     (its peak resident set from wait4).
 // The readers stream the CSV (task/demonstration.h): the peak must not grow with the rows.
-// Writes docs/bench/csv_memory.md under the repository (DDACE_SOURCE_DIR).
+// Writes docs/bench/csv_memory.md under the repository it finds at run time (--repo DIR, see bench/results.h).
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -28,6 +28,7 @@
 #include "ddace/common/machine.h"
 #include "ddace/task/summary.h"
 #include "ddace/tasks/generators.h"
+#include "results.h"
 
 namespace fs = std::filesystem;
 using namespace ddace;
@@ -133,11 +134,11 @@ std::string mb(long kb) {
 
 }  // namespace
 
-int main() {
+int main(int argc, char** argv) {
   try {
     const fs::path self = fs::read_symlink("/proc/self/exe");
     const fs::path tool = self.parent_path() / "ddace";
-    const fs::path repo = DDACE_SOURCE_DIR;
+    const fs::path repo = bench::repositoryFromArgs(argc, argv);
     const std::string load = loadAverage();
     const fs::path work = fs::temp_directory_path() / ("ddace_bench_csv_memory_" + std::to_string(::getpid()));
     fs::remove_all(work);
@@ -210,9 +211,8 @@ int main() {
     md << ".\n\nGoal (issue 14): memory independent of the number of rows, i.e. the peak grows by less than 1% "
           "of the file's size: "
        << (met ? "met" : (reset_ok ? "NOT met" : "not measured (the kernel cannot reset VmHWM)")) << ".\n";
-    const std::string out = (repo / "docs" / "bench" / "csv_memory.md").string();
-    writeTextFile(out, md.str());
-    std::cout << md.str() << "wrote " << out << "\n";
+    std::cout << md.str();
+    bench::writeResults(repo, "csv_memory", md.str());
     return met ? 0 : 1;
   } catch (const std::exception& e) {
     std::cerr << "bench_csv_memory: " << e.what() << "\n";
