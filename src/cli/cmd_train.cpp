@@ -1,9 +1,12 @@
 // ddace train: learn a task's step sequence (temporal graph network) into a model directory.
+#include <algorithm>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include "command.h"
 #include "ddace/common/error.h"
+#include "ddace/task/owned_dir.h"
 #include "ddace/task/task_dir.h"
 #include "ddace/tgn/sequence_model.h"
 #include "ddace/pipeline/evaluation.h"
@@ -23,14 +26,36 @@ std::string trainingDir(const std::string& path) {
   return path;
 }
 
+/// Refuses an output directory that is, lies inside or holds the directory `input`: the
+/// model is written as a directory of its own and must not replace what it learns from.
+void checkApart(const std::string& out, const std::string& input) {
+  std::error_code ec;
+  const fs::path o = fs::weakly_canonical(fs::absolute(out), ec);
+  const fs::path i = fs::weakly_canonical(fs::absolute(input), ec);
+  auto within = [](const fs::path& inner, const fs::path& outer) {
+    return std::mismatch(outer.begin(), outer.end(), inner.begin(), inner.end()).first == outer.end();
+  };
+  if (within(o, i))
+    throw Error(Diagnostic{out, 0, 0,
+                           (o == i ? "is the training directory " : "is inside the training directory ") + input +
+                               ": train writes the model into a directory of its own (choose another --out)"});
+  if (within(i, o))
+    throw Error(Diagnostic{out, 0, 0,
+                           "holds the training directory " + input +
+                               ": train writes the model into a directory of its own (choose another --out)"});
+}
+
 int runTrain(const std::vector<std::string>& argv) {
   Args args(argv,
             {"--out", "--variant", "--epochs", "--seed", "--threads", "--patience", "--lr", "--attention", "--dropout",
              "--layers", "--gru-hidden", "--head-hidden", "--identity-dim", "--weight-decay"},
-            {"--no-identity", "--no-positions", "--no-displacement", "--quiet"});
-  const std::string task_path = trainingDir(args.positional(0, "TASKDIR"));
+            {"--no-identity", "--no-positions", "--no-displacement", "--quiet", "--force"});
+  const std::string given = args.positional(0, "TASKDIR");
+  const std::string task_path = trainingDir(given);
   args.expectAtMostPositional(1);
   const std::string out = args.require("--out");
+  checkApart(out, given);
+  if (task_path != given) checkApart(out, task_path);
 
   tgn::TrainOptions options;
   try {
@@ -58,12 +83,21 @@ int runTrain(const std::vector<std::string>& argv) {
   options.validate();
 
   const task::TaskDir train = task::loadTaskDir(task_path);
-  std::cout << "training variant '" << tgn::toString(options.variant) << "' on " << train.demos.size()
-            << " demonstrations of task '" << train.spec.name << "' (" << train.spec.entities.size()
-            << " entities), seed " << options.seed << "\n"
-            << std::flush;
-  // The sequence model, then (except for gnn) the GP primitive library, into one directory.
-  const Model trained = trainModel(train, options, out, args.has("--quiet") ? nullptr : &std::cout);
+  // The sequence model, then (except for gnn) the GP primitive library, into one
+  // directory of train's own: written whole beside MODELDIR, then swapped in, so a failed
+  // or interrupted run leaves the old model as it was and no old file survives.
+  std::optional<Model> result;
+  task::writeOwnedDirectory(
+      out,
+      [&](const std::string& dir) {
+        std::cout << "training variant '" << tgn::toString(options.variant) << "' on " << train.demos.size()
+                  << " demonstrations of task '" << train.spec.name << "' (" << train.spec.entities.size()
+                  << " entities), seed " << options.seed << "\n"
+                  << std::flush;
+        result.emplace(trainModel(train, options, dir, args.has("--quiet") ? nullptr : &std::cout));
+      },
+      "ddace train", args.has("--force"));
+  const Model& trained = *result;
   const tgn::SequenceModel& model = trained.sequence;
 
   const tgn::ModelInfo& info = model.info();
@@ -88,12 +122,14 @@ int runTrain(const std::vector<std::string>& argv) {
 
 DDACE_COMMAND(
     {"train",
-     "ddace train TASKDIR --out MODELDIR [--variant scene|paper|full-graph|gnn] [--attention gatv2|gat] [--epochs "
+     "ddace train TASKDIR --out MODELDIR [--force] [--variant scene|paper|full-graph|gnn] [--attention gatv2|gat] "
+     "[--epochs "
      "N=400] [--seed S=1] "
      "[--threads T=1] [--patience P=20] [--lr RATE] [--dropout P=0.1] [--layers L=3] [--gru-hidden H=64] "
      "[--head-hidden H=32] [--identity-dim D=8] [--weight-decay W=0] [--no-identity] [--no-positions] "
      "[--no-displacement] [--quiet]",
-     "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR",
+     "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR "
+     "(refused when it holds anything else; --force replaces an earlier model)",
      runTrain});
 
 }  // namespace

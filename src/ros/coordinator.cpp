@@ -52,6 +52,13 @@ class CoordinatorNode::Impl {
     const CoordinatorNode::Params defaults;
     frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
     arrival_radius_m_ = cfg.arrival_radius_m;
+    // The executor is asked to stop that much inside the radius that a DONE is checked
+    // against from outside it: tracking noise between the executor's reading, ours and the
+    // record's cannot flip an arrival either way.
+    stop_radius_m_ = cfg.arrival_radius_m - cfg.arrival_tolerance_m;
+    if (!(stop_radius_m_ > 0))
+      throw Error("parameter '" + pnh.resolveName("arrival_tolerance_m") +
+                  "' must be smaller than the arrival radius (" + std::to_string(cfg.arrival_radius_m) + " m)");
     path_points_ = rosparam::param(pnh, "path_points", defaults.path_points);
     const double tick_hz = rosparam::param(pnh, "timeout_check_hz", defaults.timeout_check_hz);
     if (!(tick_hz > 0)) throw Error("parameter '" + pnh.resolveName("timeout_check_hz") + "' must be positive");
@@ -99,7 +106,8 @@ class CoordinatorNode::Impl {
     services_.push_back(pnh.advertiseService("estop", &Impl::srvEstop, this));
     timer_ = nh.createTimer(ros::Duration(1.0 / tick_hz), &Impl::onTick, this);
     state_timer_ = nh.createTimer(ros::Duration(1.0 / state_hz), [this](const ros::TimerEvent&) { publishState(); });
-    liveness_timer_ = nh.createTimer(ros::Duration(1.0 / liveness_hz), &Impl::onLiveness, this);
+    liveness_timer_ =
+        nh.createTimer(ros::Duration(1.0 / liveness_hz), [this](const ros::TimerEvent&) { checkRoles(); });
     std_msgs::Bool released;
     released.data = false;
     estop_pub_.publish(released);
@@ -127,6 +135,12 @@ class CoordinatorNode::Impl {
       for (const auto& [i, pub] : segment_pubs_) stop.push_back(i);
     std::sort(stop.begin(), stop.end());
     stop.erase(std::unique(stop.begin(), stop.end()), stop.end());
+    // Zero wheels from here, now: the follower zeroes only when the STOP reaches it (a
+    // cycle of its own may still be under way), and it may be the node that died.
+    ddace::WheelCommand zero;
+    zero.header.stamp = stamp;
+    for (int i : stop)
+      if (auto w = wheel_pubs_.find(i); w != wheel_pubs_.end()) w->second.publish(zero);
     for (int i : stop) {
       ddace::Segment s;
       s.header.stamp = stamp;
@@ -147,7 +161,7 @@ class CoordinatorNode::Impl {
       ros_exec::toMsg(seg.path, frame_id_, stamp, s.path, s.progress, s.stddev_m);
       s.goal.x = seg.goal.x();
       s.goal.y = seg.goal.y();
-      s.arrival_radius_m = arrival_radius_m_;
+      s.arrival_radius_m = stop_radius_m_;
       s.timeout_s = seg.timeout_s;
       segment_pubs_[seg.entity].publish(s);
       sent_segments_[seg.segment_id] = {seg.entity, s};
@@ -259,7 +273,9 @@ class CoordinatorNode::Impl {
   }
 
   void onTick(const ros::TimerEvent&) {
-    if (autostart_) {
+    // Autostart tries at most 5 times a second (the recorder's check asks every publisher).
+    if (autostart_ && ros::WallTime::now() >= next_autostart_try_) {
+      next_autostart_try_ = ros::WallTime::now() + ros::WallDuration(0.2);
       std::string missing;
       if (connected(missing)) {
         autostart_ = false;
@@ -331,6 +347,7 @@ class CoordinatorNode::Impl {
         watched_.push_back({roles_.add("executor of " + e.name, objects, "subscribed to " + topic), topic, objects});
       }
     }
+    recorder_ = name("recorder", "");
     const std::string pose = name("pose_source", "/mock_robots");
     if (!pose.empty()) pose_role_ = roles_.add("pose source", pose, "publishing /ddace/entities", pose_s);
   }
@@ -344,9 +361,13 @@ class CoordinatorNode::Impl {
       links_.insert({topic, p.getSubscriberName()});
     };
     auto disconnect = [this, topic](const ros::SingleSubscriberPublisher& p) {
-      std::lock_guard<std::mutex> l(links_mutex_);
-      auto it = links_.find({topic, p.getSubscriberName()});
-      if (it != links_.end()) links_.erase(it);
+      {
+        std::lock_guard<std::mutex> l(links_mutex_);
+        auto it = links_.find({topic, p.getSubscriberName()});
+        if (it != links_.end()) links_.erase(it);
+      }
+      // A dropped link is the first sign of a dead node: act on it now, not at the next check.
+      checkRoles();
     };
     return nh.advertise<M>(topic, queue, connect, disconnect);
   }
@@ -361,7 +382,8 @@ class CoordinatorNode::Impl {
     if (pose_role_) roles_.present(*pose_role_, entities_sub_.getNumPublishers() > 0);
   }
 
-  void onLiveness(const ros::TimerEvent&) {
+  /// Runs on the spinner thread: roscpp queues the (dis)connect callbacks like messages.
+  void checkRoles() {
     updatePresence();
     if (!coordinator_->running()) {
       roles_.disarm();
@@ -370,24 +392,38 @@ class CoordinatorNode::Impl {
     if (!roles_.armed()) roles_.arm(now());
     if (const auto lost = roles_.lost(now())) {
       ROS_ERROR("coordinator: %s: stopping every robot", lost->c_str());
-      zeroAllWheels();
-      apply(coordinator_->abortRun(*lost, now()));
+      apply(coordinator_->abortRun(*lost, now()));  // stop_all: zero wheels first
     }
   }
 
-  void zeroAllWheels() {
-    ddace::WheelCommand w;
-    w.header.stamp = ros::Time::now();
-    for (auto& [i, pub] : wheel_pubs_) pub.publish(w);
-  }
-
-  /// Every role is served by its node: a request published now is not lost.
+  /// Every role is served by its node (a request published now is not lost) and, for a
+  /// new run, the recorder records every topic (the record starts with the run).
+  /// `missing` says what is not there yet.
   bool connected(std::string& missing) {
     updatePresence();
     const auto m = roles_.missing();
     missing.clear();
     for (const auto& r : m) missing += (missing.empty() ? "" : ", ") + r;
-    return m.empty();
+    return m.empty() && recorderReady(missing);
+  }
+
+  /// The recorder's `~ready` (std_srvs/Trigger): it checks that every publisher of every
+  /// recorded topic is connected to it. Asked only before a new run: only then is it
+  /// worth blocking this thread (no robot is driven in Idle).
+  bool recorderReady(std::string& missing) {
+    if (recorder_.empty() || coordinator_->state() != exec::RunState::Idle) return true;
+    const std::string service = recorder_ + "/ready";
+    std_srvs::Trigger t;
+    if (!ros::service::exists(service, false)) {
+      missing = "the recorder " + recorder_ + " (no service " + service + " yet)";
+      return false;
+    }
+    if (!ros::service::call(service, t)) {
+      missing = "the recorder " + recorder_ + " (" + service + " failed)";
+      return false;
+    }
+    if (!t.response.success) missing = "the recorder " + recorder_ + " (" + t.response.message + ")";
+    return t.response.success;
   }
 
   void onEstopTopic(const std_msgs::Bool& m) {
@@ -399,7 +435,7 @@ class CoordinatorNode::Impl {
     std::string missing;
     if (!connected(missing)) {
       res.success = false;
-      res.message = "not started: no node serves " + missing;
+      res.message = "not started: waiting for " + missing;
       return true;
     }
     return answer(coordinator_->start(now()), res,
@@ -416,11 +452,12 @@ class CoordinatorNode::Impl {
     return answer(coordinator_->reset(now()), res, {exec::RunState::Idle});
   }
   bool srvEstop(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
-    zeroAllWheels();
+    // stop_all: every wheel zeroed from here first, then the followers hear it.
+    const bool answered = answer(coordinator_->emergencyStop(now(), "~estop service"), res, {exec::RunState::EStopped});
     std_msgs::Bool stop;
     stop.data = true;
-    estop_pub_.publish(stop);  // the followers zero every wheel on receipt
-    return answer(coordinator_->emergencyStop(now(), "~estop service"), res, {exec::RunState::EStopped});
+    estop_pub_.publish(stop);  // the followers zero every wheel on receipt and refuse segments
+    return answered;
   }
 
   bool answer(const exec::CoordinatorOutput& out, std_srvs::Trigger::Response& res,
@@ -598,6 +635,8 @@ class CoordinatorNode::Impl {
   std::multiset<std::pair<std::string, std::string>> links_;  ///< (our topic, subscribed node)
   std::map<int, size_t> follower_role_;
   std::optional<size_t> pose_role_;
+  std::string recorder_;  ///< node whose ~ready must succeed before a new run ("" = none)
+  ros::WallTime next_autostart_try_;
   std::map<int, ros::Publisher> wheel_pubs_;
   std::vector<ros::Subscriber> wheel_subs_;
 
@@ -606,6 +645,7 @@ class CoordinatorNode::Impl {
   std::unique_ptr<exec::Coordinator> coordinator_;
   std::string frame_id_;
   double arrival_radius_m_ = task::kDefaultArrivalRadius;
+  double stop_radius_m_ = task::kDefaultArrivalRadius;  ///< sent with every segment
   int path_points_ = 0;
   bool autostart_ = false;
   long entity_msgs_ = 0;

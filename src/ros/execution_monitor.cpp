@@ -20,7 +20,10 @@
 #include <thread>
 
 #include <nlohmann/json.hpp>
+#include <ros/network.h>
 #include <ros/ros.h>
+#include <std_srvs/Trigger.h>
+#include <xmlrpcpp/XmlRpcClient.h>
 
 #include <ddace/CoordinatorState.h>
 #include <ddace/DecisionRequest.h>
@@ -55,6 +58,53 @@ bool isRoslaunch(pid_t pid) {
   return cmd.find("roslaunch") != std::string::npos;
 }
 
+/// scripts/plot_run.py as the build installs it: next to this executable (devel/lib/ddace
+/// and install/lib/ddace alike), so no source tree is needed.
+std::string installedPlotScript() {
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? "plot_run.py" : (exe.parent_path() / "plot_run.py").string();
+}
+
+using TopicNodes = std::map<std::string, std::set<std::string>>;  ///< topic -> node names
+
+/// The master's publishers and subscribers of every topic; false when it does not answer.
+bool systemState(TopicNodes& publishers, TopicNodes& subscribers) {
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  if (!ros::master::execute("getSystemState", args, result, payload, false)) return false;
+  auto read = [](XmlRpc::XmlRpcValue& list, TopicNodes& out) {
+    for (int i = 0; i < list.size(); ++i)
+      for (int k = 0; k < list[i][1].size(); ++k) out[std::string(list[i][0])].insert(std::string(list[i][1][k]));
+  };
+  read(payload[0], publishers);
+  read(payload[1], subscribers);
+  return true;
+}
+
+/// (topic, subscriber node) of every outbound link of `node`, from its own getBusInfo: a
+/// publisher lists a subscriber only once the handshake is done, so from then on every
+/// message it publishes on that topic reaches it. False when the node does not answer.
+bool outboundLinks(const std::string& node, std::set<std::pair<std::string, std::string>>& links) {
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  args[1] = node;
+  if (!ros::master::execute("lookupNode", args, result, payload, false)) return false;
+  std::string host;
+  uint32_t port = 0;
+  if (!ros::network::splitURI(std::string(payload), host, port)) return false;
+  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
+  XmlRpc::XmlRpcValue a, r;
+  a[0] = ros::this_node::getName();
+  if (!client.execute("getBusInfo", a, r) || r.getType() != XmlRpc::XmlRpcValue::TypeArray || r.size() < 3)
+    return false;
+  XmlRpc::XmlRpcValue& info = r[2];
+  for (int i = 0; i < info.size(); ++i)
+    if (info[i].size() >= 5 && std::string(info[i][2]) == "o")
+      links.insert({std::string(info[i][4]), std::string(info[i][1])});
+  return true;
+}
+
 }  // namespace
 
 class ExecutionMonitorNode::Impl {
@@ -87,7 +137,10 @@ class ExecutionMonitorNode::Impl {
       fs::remove(latest_link_, ec);
       fs::create_directory_symlink(fs::path(run_dir_).filename(), latest_link_, ec);
     }
-    plot_script_ = rosparam::param<std::string>(pnh, "plot_script", "");
+    plot_script_ = rosparam::param<std::string>(pnh, "plot_script", installedPlotScript());
+    if (!plot_script_.empty() && fs::path(plot_script_).is_relative())
+      throw Error("parameter '" + pnh.resolveName("plot_script") + "' = '" + plot_script_ +
+                  "' is relative: nodes run in ROS_HOME, give an absolute path");
     end_launch_ = rosparam::param(pnh, "end_launch", true);
     const double timeout_s = rosparam::param(pnh, "timeout_s", 0.0);
     std::vector<std::string> topics = {"/ddace/entities", "/ddace/decision_request", "/coordinator/state",
@@ -105,7 +158,13 @@ class ExecutionMonitorNode::Impl {
     subs_.push_back(nh.subscribe("/ddace/decision_request", 10, &Impl::onDecisionRequest, this));
     subs_.push_back(nh.subscribe("/coordinator/state", 10, &Impl::onState, this));
     subs_.push_back(nh.subscribe("/ddace/entities", 10, &Impl::onEntities, this));
-    if (rosparam::param(pnh, "record_bag", true)) startBag(topics);
+    for (const auto& sub : subs_) listeners_[ros::this_node::getName()].push_back(sub.getTopic());
+    record_bag_ = rosparam::param(pnh, "record_bag", true);
+    if (record_bag_) {
+      startBag(topics);
+      listeners_[bagNode()] = topics;
+    }
+    ready_srv_ = pnh.advertiseService("ready", &Impl::srvReady, this);
     if (timeout_s > 0)
       timer_ = nh.createTimer(
           ros::Duration(timeout_s),
@@ -139,6 +198,46 @@ class ExecutionMonitorNode::Impl {
     const std::string n = ros::this_node::getName();
     return n.substr(n.rfind('/') + 1) + "_bag";
   }
+  /// The recorder's full node name (rosbag runs in this node's namespace).
+  static std::string bagNode() {
+    const std::string n = ros::this_node::getName();
+    return n.substr(0, n.rfind('/') + 1) + bagNodeName();
+  }
+
+  /// ~ready: succeeds once the bag recorder and this node's own subscriptions are linked
+  /// to every publisher the master lists for each of their topics; the coordinator starts
+  /// a new run only then (roles/recorder), so the record holds the run from its first
+  /// message. Otherwise the message names the first link still missing.
+  bool srvReady(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+    res.message = notRecording();
+    res.success = res.message.empty();
+    if (res.success) res.message = "recording into " + run_dir_;
+    return true;
+  }
+
+  std::string notRecording() {
+    if (bag_pid_ > 0 && ::waitpid(bag_pid_, nullptr, WNOHANG) == bag_pid_) {
+      bag_pid_ = -1;
+      bag_failed_ = true;
+    }
+    if (bag_failed_) return "rosbag record exited: no bag can be recorded (is Debian's rosbag installed?)";
+    TopicNodes publishers, subscribers;
+    if (!systemState(publishers, subscribers)) return "the ROS master does not answer getSystemState";
+    std::map<std::string, std::set<std::pair<std::string, std::string>>> links;  // publisher node -> its links
+    for (const auto& [listener, topics] : listeners_) {
+      for (const auto& topic : topics) {
+        if (!subscribers[topic].count(listener)) return listener + " is not subscribed to " + topic + " yet";
+        for (const auto& pub : publishers[topic]) {
+          if (pub == listener) continue;
+          if (!links.count(pub) && !outboundLinks(pub, links[pub]))
+            return pub + " (publishing " + topic + ") does not answer getBusInfo";
+          if (!links[pub].count({topic, listener}))
+            return listener + " is not yet connected to " + pub + " on " + topic;
+        }
+      }
+    }
+    return "";
+  }
 
   void startBag(const std::vector<std::string>& topics) {
     std::vector<std::string> args = {
@@ -153,21 +252,30 @@ class ExecutionMonitorNode::Impl {
       std::cerr << "execution_monitor: cannot run rosbag (install Debian's rosbag)\n";
       ::_exit(127);
     }
-    if (bag_pid_ < 0) ROS_ERROR("execution_monitor: cannot start rosbag record: %s", std::strerror(errno));
+    if (bag_pid_ < 0) {
+      ROS_ERROR("execution_monitor: cannot start rosbag record: %s", std::strerror(errno));
+      bag_failed_ = true;
+    }
   }
 
+  /// Stops the recorder and waits (up to 10 s) until the bag is closed. `rosbag record` is
+  /// a Python wrapper that forwards SIGINT to the recorder and exits at once, so its exit
+  /// does not mean the bag is written: that is when run.bag.active has become run.bag.
   void stopBag() {
     if (bag_pid_ <= 0) return;
     ::kill(bag_pid_, SIGINT);
-    for (int i = 0; i < 100; ++i) {  // rosbag closes the bag on SIGINT: up to 10 s
-      if (::waitpid(bag_pid_, nullptr, WNOHANG) == bag_pid_) {
-        bag_pid_ = -1;
-        return;
-      }
+    const std::string active = run_dir_ + "/run.bag.active";
+    bool exited = false;
+    for (int i = 0; i < 100; ++i) {
+      if (!exited && ::waitpid(bag_pid_, nullptr, WNOHANG) == bag_pid_) exited = true;
+      if (exited && !fs::exists(active)) break;
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
-    ::kill(bag_pid_, SIGKILL);
-    ::waitpid(bag_pid_, nullptr, 0);
+    if (!exited) {
+      ::kill(bag_pid_, SIGKILL);
+      ::waitpid(bag_pid_, nullptr, 0);
+    }
+    if (fs::exists(active)) ROS_ERROR("execution_monitor: rosbag record did not close %s within 10 s", active.c_str());
     bag_pid_ = -1;
   }
 
@@ -357,13 +465,18 @@ class ExecutionMonitorNode::Impl {
     const int violations = this->violations();
     os << "decisions requested while a segment was running: " << violations << "\n";
     j["decisions_while_running"] = violations;
-    os << "run directory: " << run_dir_ << "\n";
-    std::cout << os.str() << std::flush;
-    std::ofstream(run_dir_ + "/report.txt") << os.str();
-    std::ofstream(run_dir_ + "/result.json") << j.dump(2) << "\n";
     writeRunJson(s, run);
     stopBag();
-    plot();
+    const bool bag = fs::exists(run_dir_ + "/run.bag");
+    if (record_bag_) os << "bag: " << (bag ? "run.bag" : "NONE (rosbag record wrote no run.bag)") << "\n";
+    j["bag"] = bag ? nlohmann::json("run.bag") : nlohmann::json(nullptr);
+    const std::string plotted = plot();
+    os << "plot: " << plotted << "\n";
+    j["plot"] = plotted;
+    os << "run directory: " << run_dir_ << "\n";
+    std::cout << os.str() << std::flush;
+    writeRecord("report.txt", os.str());
+    writeRecord("result.json", j.dump(2) + "\n");
     if (end_launch_ && isRoslaunch(::getppid())) ::kill(::getppid(), SIGINT);  // a clean end of the whole launch
     ros::shutdown();
   }
@@ -398,15 +511,35 @@ class ExecutionMonitorNode::Impl {
       for (const auto& p : seg.executed) g["executed"].push_back({p.x(), p.y()});
       j["segments"].push_back(g);
     }
-    std::ofstream(run_dir_ + "/run.json") << j.dump() << "\n";
+    writeRecord("run.json", j.dump() + "\n");
   }
 
-  void plot() const {
-    if (plot_script_.empty()) return;
+  /// Writes one file of the run directory, checked and atomic; a failure (a full disk)
+  /// is logged naming the file, and the run's other files are still written.
+  void writeRecord(const std::string& name, const std::string& text) const {
+    try {
+      writeTextFile(run_dir_ + "/" + name, text);
+    } catch (const std::exception& e) {
+      ROS_ERROR_STREAM("execution monitor: the run record is incomplete: " << e.what());
+    }
+  }
+
+  /// Runs plot_script on run.json; returns "paths.png" or why there is no plot.
+  std::string plot() const {
+    if (plot_script_.empty()) return "none (parameter plot_script is empty)";
+    if (!fs::exists(plot_script_)) {
+      const std::string why =
+          "NONE: the plot script " + plot_script_ + " does not exist (build or install ddace, or set ~plot_script)";
+      ROS_ERROR("execution_monitor: %s", why.c_str());
+      return why;
+    }
     const std::string cmd = "/usr/bin/python3 '" + plot_script_ + "' '" + run_dir_ + "/run.json' '" + run_dir_ +
                             "/paths.png' > '" + run_dir_ + "/plot.log' 2>&1";
-    if (std::system(cmd.c_str()) != 0)
-      std::cerr << "execution_monitor: the plot failed (see " << run_dir_ << "/plot.log)\n";
+    if (std::system(cmd.c_str()) != 0 || !fs::exists(run_dir_ + "/paths.png")) {
+      ROS_ERROR("execution_monitor: the plot failed (see %s/plot.log)", run_dir_.c_str());
+      return "NONE: " + plot_script_ + " failed (see plot.log)";
+    }
+    return "paths.png";
   }
 
   task::TaskSpec spec_;
@@ -423,6 +556,9 @@ class ExecutionMonitorNode::Impl {
   ros::Timer timer_, final_timer_;
   ros::NodeHandle nh_;
   pid_t bag_pid_ = -1;
+  bool record_bag_ = true, bag_failed_ = false;
+  std::map<std::string, std::vector<std::string>> listeners_;  ///< node (this one, the recorder) -> its topics
+  ros::ServiceServer ready_srv_;
 };
 
 ExecutionMonitorNode::ExecutionMonitorNode(ros::NodeHandle nh, ros::NodeHandle pnh)

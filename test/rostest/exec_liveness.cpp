@@ -1,6 +1,8 @@
 // A node serving a role dies mid-run (SIGKILL: no goodbye): the coordinator publishes zero
 // wheels on every robot at once, aborts the run naming the node, and the monitor writes
 // the report of the partial run. Ctrl-C (SIGINT) of a running launch also leaves a report.
+#include <ddace/PathRequest.h>
+
 #include "exec_common.h"
 
 using namespace exec_test;
@@ -9,9 +11,51 @@ namespace {
 
 bool anyDriving(Watcher& w) {
   for (const auto& [robot, cmds] : w.wheels())
-    if (!cmds.empty() && (cmds.back().left != 0 || cmds.back().right != 0)) return true;
+    if (!cmds.empty() && !cmds.back().zero()) return true;
   return false;
 }
+
+/// Sees a node's death the way the coordinator does: a topic the node subscribes to,
+/// advertised here (never published), whose disconnect callback fires when the node's
+/// link drops. `dropped()` is when that happened (ros::Time() before).
+class DeathProbe {
+ public:
+  DeathProbe(ros::NodeHandle& nh, const std::string& node) : node_(node) {
+    if (node == "/path_follower") pub_ = advertise<ddace::Segment>(nh, "/robots/R1/segment");
+    if (node == "/sequence") pub_ = advertise<ddace::DecisionRequest>(nh, "/ddace/decision_request");
+    if (node == "/gp_path") pub_ = advertise<ddace::PathRequest>(nh, "/ddace/path_request");
+    if (node == "/mock_robots") pub_ = advertise<ddace::WheelCommand>(nh, "/robots/R1/wheels");
+  }
+  bool linked() {
+    std::lock_guard<std::mutex> l(mu_);
+    return linked_;
+  }
+  ros::Time dropped() {
+    std::lock_guard<std::mutex> l(mu_);
+    return dropped_;
+  }
+
+ private:
+  template <typename M>
+  ros::Publisher advertise(ros::NodeHandle& nh, const std::string& topic) {
+    return nh.advertise<M>(
+        topic, 1,
+        [this](const ros::SingleSubscriberPublisher& p) {
+          std::lock_guard<std::mutex> l(mu_);
+          if (p.getSubscriberName() == node_) linked_ = true;
+        },
+        [this](const ros::SingleSubscriberPublisher& p) {
+          const ros::Time now = ros::Time::now();
+          std::lock_guard<std::mutex> l(mu_);
+          if (p.getSubscriberName() == node_ && dropped_ == ros::Time()) dropped_ = now;
+        });
+  }
+  std::string node_;
+  ros::Publisher pub_;
+  std::mutex mu_;
+  bool linked_ = false;
+  ros::Time dropped_;
+};
 
 std::string readFile(const std::string& path) {
   std::ifstream f(path);
@@ -56,6 +100,8 @@ TEST_P(KillRole, StopsEveryRobotAtOnceAndAbortsNamingTheNode) {
   ros::Duration(0.5).sleep();
   const int pid = pidOfNode(node);
   ASSERT_GT(pid, 0) << "no pid for " << node;
+  DeathProbe probe(g.nh, node);
+  ASSERT_TRUE(waitFor([&] { return probe.linked(); }, 10.0)) << node << " did not subscribe to the probe";
   const ros::Time killed = ros::Time::now();
   ASSERT_EQ(::kill(pid, SIGKILL), 0);
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 5.0))
@@ -63,39 +109,94 @@ TEST_P(KillRole, StopsEveryRobotAtOnceAndAbortsNamingTheNode) {
   ros::Duration(0.3).sleep();
   const auto s = w.state();
   EXPECT_NE(s.reason.find(node), std::string::npos) << s.reason;
-  // Every robot got a zero command soon after the kill, and nothing but zeros since.
+  // Known through the link dropping, not a heartbeat time-out.
+  EXPECT_NE(s.reason.find("is gone"), std::string::npos) << s.reason;
+  const ros::Time knew = w.firstStamp(ddace::CoordinatorState::ABORTED);
   double worst_s = 0;
   for (const auto& [robot, cmds] : w.wheels()) {
-    ros::Time first_zero;
-    for (const auto& c : cmds)
-      if (c.stamp > killed && c.left == 0 && c.right == 0) {
-        first_zero = c.stamp;
-        break;
+    // The coordinator zeroes every robot itself in the callback that learns of the loss,
+    // before it announces the abort ...
+    const ros::Time zero = firstZeroAfter(from(cmds, "/coordinator"), killed);
+    ASSERT_NE(zero, ros::Time()) << "the coordinator sent " << robot << " no zero after " << node << " died";
+    EXPECT_LE(zero, knew) << robot << ": zeroed after the abort was announced";
+    worst_s = std::max(worst_s, (zero - killed).toSec());
+    // ... and a living follower stops within its cycle under way: at most one more
+    // command, then zeros. A dead follower sends nothing after the kill but zeros.
+    if (node == "/path_follower") {
+      for (const auto& c : cmds) {
+        if (c.stamp > killed) {
+          EXPECT_TRUE(c.zero()) << robot << " driven " << (c.stamp - killed).toSec() << " s after the kill";
+        }
       }
-    ASSERT_NE(first_zero, ros::Time()) << robot << " got no zero command after " << node << " died";
-    worst_s = std::max(worst_s, (first_zero - killed).toSec());
-    // The follower's command of the cycle under way may still cross the coordinator's zero
-    // on the wire (two publishers); one cycle later everything is zero.
-    for (const auto& c : cmds)
-      if (c.stamp > first_zero + ros::Duration(0.05)) {
-        EXPECT_TRUE(c.left == 0 && c.right == 0)
-            << robot << " driven " << (c.stamp - first_zero).toSec() << " s after its first zero";
-      }
-    EXPECT_TRUE(cmds.back().left == 0 && cmds.back().right == 0) << robot;
+    } else {
+      EXPECT_TRUE(zeroWithinOneCycle(from(cmds, "/path_follower"), zero)) << robot;
+    }
+    EXPECT_TRUE(cmds.back().zero()) << robot;
   }
-  // The robots were driving at 50 Hz: a zero for each within a few control cycles of the kill
-  // (the coordinator checks its roles at 50 Hz and zeroes every robot on detection).
-  EXPECT_LT(worst_s, 0.1) << "last robot stopped " << worst_s << " s after " << node << " was killed";
-  std::cout << node << " killed: every robot at zero after " << worst_s << " s\n";
+  // When the link dropped, as another process saw it: the rest is the coordinator's own part.
+  ASSERT_TRUE(waitFor([&] { return probe.dropped() != ros::Time(); }, 2.0));
+  if (node != "/path_follower") {
+    // Counted in the living follower's control cycles: from the drop to the coordinator's
+    // zero at most the one under way.
+    const auto cmds = w.wheels()["R1"];
+    const ros::Time zero = firstZeroAfter(from(cmds, "/coordinator"), killed);
+    int cycles = 0;
+    for (const auto& c : from(cmds, "/path_follower"))
+      if (c.stamp > probe.dropped() && c.stamp < zero) ++cycles;
+    EXPECT_LE(cycles, 1) << "the coordinator zeroed R1 " << cycles << " control cycles after the link dropped";
+  }
+  std::cout << node << " killed: its link dropped " << (probe.dropped() - killed).toSec()
+            << " s after the signal (seen by this test); every robot zeroed by the coordinator " << worst_s
+            << " s after the signal\n";
   ASSERT_TRUE(graph.waitExit(20.0)) << "the launch did not end after the abort";
   const std::string report = readFile(g.run_dir + "/report.txt");
   EXPECT_NE(report.find("aborted"), std::string::npos) << report;
   EXPECT_NE(report.find(node), std::string::npos) << report;
   EXPECT_NE(readFile(g.run_dir + "/result.json").find("\"aborted\""), std::string::npos);
+  EXPECT_EQ(checkRun(g.files, g.run_dir), 1) << "execute_sim --check must fail an aborted run";
 }
 
 INSTANTIATE_TEST_SUITE_P(Roles, KillRole, ::testing::Values("/path_follower", "/sequence", "/gp_path", "/mock_robots"),
                          [](const auto& info) { return info.param.substr(1); });
+
+// A follower that hangs (SIGSTOP: its links stay up) is lost by its heartbeat: after
+// heartbeat_timeout_s (0.5) without a wheel command the coordinator zeroes every robot in
+// the check that finds it and aborts naming the node.
+TEST(Hang, AFollowerThatHangsIsLostByItsHeartbeat) {
+  Graph g("hang");
+  Watcher w(g.nh, g.test.spec);
+  Launch graph(g.args());
+  const std::string started = startRun(w, 30.0);
+  ASSERT_TRUE(started.empty()) << started;
+  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING && anyDriving(w); }, 20.0));
+  ros::Duration(0.5).sleep();
+  const int pid = pidOfNode("/path_follower");
+  ASSERT_GT(pid, 0);
+  const ros::Time hung = ros::Time::now();
+  ASSERT_EQ(::kill(pid, SIGSTOP), 0);
+  const bool aborted = waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 5.0);
+  ::kill(pid, SIGCONT);
+  ASSERT_TRUE(aborted) << "state " << w.state().state_name;
+  const auto s = w.state();
+  EXPECT_NE(s.reason.find("/path_follower"), std::string::npos) << s.reason;
+  EXPECT_NE(s.reason.find("silent"), std::string::npos) << s.reason;
+  const ros::Time knew = w.firstStamp(ddace::CoordinatorState::ABORTED);
+  for (const auto& [robot, cmds] : w.wheels()) {
+    const ros::Time zero = firstZeroAfter(from(cmds, "/coordinator"), hung);
+    ASSERT_NE(zero, ros::Time()) << robot;
+    EXPECT_LE(zero, knew) << robot;
+    // Not before the heartbeat time-out after the follower's last command.
+    ros::Time last_beat;
+    for (const auto& c : from(cmds, "/path_follower"))
+      if (c.stamp < zero) last_beat = c.stamp;
+    EXPECT_GE((zero - last_beat).toSec(), 0.5) << robot;
+    if (robot == "R1")
+      std::cout << "/path_follower hung: every robot zeroed by the coordinator " << (zero - hung).toSec()
+                << " s later (heartbeat_timeout_s 0.5)\n";
+  }
+  ASSERT_TRUE(graph.waitExit(20.0)) << "the launch did not end after the abort";
+  EXPECT_NE(readFile(g.run_dir + "/report.txt").find("silent"), std::string::npos);
+}
 
 TEST(Sigint, AnInterruptedRunLeavesItsReport) {
   Graph g("sigint");
@@ -111,6 +212,7 @@ TEST(Sigint, AnInterruptedRunLeavesItsReport) {
   EXPECT_NE(report.find("step 1:"), std::string::npos) << "the partial run's steps are in the report\n" << report;
   const std::string result = readFile(g.run_dir + "/result.json");
   EXPECT_NE(result.find("\"state\": \"interrupted\""), std::string::npos) << result;
+  EXPECT_EQ(checkRun(g.files, g.run_dir), 1) << "execute_sim --check must fail an interrupted run";
 }
 
 int main(int argc, char** argv) {

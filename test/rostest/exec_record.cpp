@@ -1,6 +1,9 @@
 // What an operator watches and keeps: ~state at its rate during a step with live progress
 // and distance; reset returns the run to its initial state and a start after it runs the
 // task from the current poses; the run's directory holds a readable bag and the plot.
+#include <limits>
+#include <sstream>
+
 #include "exec_common.h"
 
 using namespace exec_test;
@@ -10,6 +13,34 @@ namespace {
 std::string readFile(const std::string& path) {
   std::ifstream f(path);
   return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+/// Column `field` of every message on `topic` in `bag` (`rostopic echo -b -p`: one CSV row
+/// per message, e.g. field.segment_id, field.header.stamp in nanoseconds).
+std::vector<std::string> bagColumn(const std::string& bag, const std::string& topic, const std::string& field) {
+  const std::string out = bag + "." + std::to_string(std::hash<std::string>()(topic)) + ".csv";
+  if (std::system(("rostopic echo -b '" + bag + "' -p " + topic + " > '" + out + "' 2>&1").c_str()) != 0) return {};
+  std::ifstream f(out);
+  std::string line;
+  std::vector<std::string> values;
+  int column = -1;
+  while (std::getline(f, line)) {
+    std::vector<std::string> cells;
+    std::stringstream row(line);
+    for (std::string cell; std::getline(row, cell, ',');) cells.push_back(cell);
+    if (column < 0) {
+      const auto it = std::find(cells.begin(), cells.end(), field);
+      if (it == cells.end()) return {};
+      column = static_cast<int>(it - cells.begin());
+    } else if (column < static_cast<int>(cells.size())) {
+      values.push_back(cells[column]);
+    }
+  }
+  return values;
+}
+
+bool contains(const std::vector<std::string>& values, const std::string& v) {
+  return std::find(values.begin(), values.end(), v) != values.end();
 }
 
 }  // namespace
@@ -29,12 +60,13 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
         states.push_back(*m);
       });
   Watcher w(nh, test.spec);
-  Launch graph({files.launch_file, "task:=" + std::string(scratch) + "/test",
-                "train:=" + std::string(scratch) + "/train", "autostart:=false", "monitor:=true", "run_dir:=" + run_dir,
-                "config:=" + files.config_file});
-  const std::string started = startRun(w, 30.0);
-  ASSERT_TRUE(started.empty()) << started;
-  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING; }, 20.0));
+  Launch graph(
+      {files.launch_file, "task:=" + std::string(scratch) + "/test", "train:=" + std::string(scratch) + "/train",
+       "autostart:=true", "monitor:=true", "run_dir:=" + run_dir, "config:=" + files.config_file},
+      std::string(scratch) + "/launch.log");
+  // Autostart: the coordinator starts the run the moment it may, as early as it can be.
+  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING; }, 40.0))
+      << "state " << w.state().state_name << ": " << w.state().reason;
 
   // During a step: ~state at ~5 Hz, the same state, progress and distance moving.
   {
@@ -82,6 +114,12 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
 
   // The monitor writes the record and ends the launch by itself.
   ASSERT_TRUE(graph.waitExit(30.0)) << "the launch did not end after the run finished";
+  // A clean ending: no error or dead process in the launch's output, and the documented
+  // check says finished.
+  const std::string log = readFile(std::string(scratch) + "/launch.log");
+  for (const std::string bad : {"[ERROR]", "[FATAL]", "has died", "REQUIRED"})
+    EXPECT_EQ(log.find(bad), std::string::npos) << "'" << bad << "' in the output of a finished run:\n" << log;
+  EXPECT_EQ(checkRun(files, run_dir), 0) << "execute_sim --check " << run_dir;
   const std::string result = readFile(run_dir + "/result.json");
   EXPECT_NE(result.find("\"state\": \"finished\""), std::string::npos) << result;
   EXPECT_NE(readFile(run_dir + "/report.txt").find("finished"), std::string::npos);
@@ -92,9 +130,37 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
   for (const std::string topic : {"/ddace/entities", "/coordinator/state", "/robots/R1/segment",
                                   "/robots/R1/segment_status", "/robots/R1/wheels"})
     EXPECT_NE(bag.find(topic), std::string::npos) << topic << " not in the bag:\n" << bag;
+  // The bag holds the run from the start command on (the coordinator starts a run only
+  // once the monitor's ~ready says the recorder is linked to every publisher): the first
+  // decision request (sent by the start itself), and the entities and R1's wheel
+  // commands (published all along) from before it; and the run's first segment.
+  const std::string bag_file = run_dir + "/run.bag";
+  const auto request_ids = bagColumn(bag_file, "/ddace/decision_request", "field.id");
+  const auto request_stamps = bagColumn(bag_file, "/ddace/decision_request", "field.header.stamp");
+  const auto first_request = std::find(request_ids.begin(), request_ids.end(), "1");
+  ASSERT_NE(first_request, request_ids.end()) << "the run's first decision request is not in the bag";
+  ASSERT_EQ(request_ids.size(), request_stamps.size());
+  const uint64_t start_ns = std::stoull(request_stamps[first_request - request_ids.begin()]);
+  for (const std::string topic : {"/ddace/entities", "/robots/R1/wheels"}) {
+    const auto stamps = bagColumn(bag_file, topic, "field.header.stamp");
+    ASSERT_FALSE(stamps.empty()) << topic << " is not in the bag";
+    uint64_t earliest = std::numeric_limits<uint64_t>::max();
+    for (const auto& t : stamps) earliest = std::min<uint64_t>(earliest, std::stoull(t));
+    EXPECT_LE(earliest, start_ns) << topic << ": the bag begins " << (earliest - start_ns) * 1e-9
+                                  << " s after the run's start";
+  }
+  const auto segments = w.segments();
+  ASSERT_FALSE(segments.empty());
+  const auto& [first_id, first_seg] = *segments.begin();
+  const std::string entity = first_seg.key.substr(0, first_seg.key.find(':'));
+  EXPECT_TRUE(
+      contains(bagColumn(bag_file, "/robots/" + entity + "/segment", "field.segment_id"), std::to_string(first_id)))
+      << "the run's first segment (" << first_seg.key << ", id " << first_id << ") is not in the bag";
   const std::string png = readFile(run_dir + "/paths.png");
   ASSERT_GT(png.size(), 1000u) << readFile(run_dir + "/plot.log");
   EXPECT_EQ(png.substr(1, 3), "PNG");
+  EXPECT_NE(result.find("\"plot\": \"paths.png\""), std::string::npos) << result;
+  EXPECT_NE(result.find("\"bag\": \"run.bag\""), std::string::npos) << result;
 }
 
 int main(int argc, char** argv) {

@@ -20,7 +20,6 @@ TEST(ExecStall, SegmentTimeoutAbortsTheRunWithZeroWheels) {
   ASSERT_TRUE(started.empty()) << started;
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 30.0))
       << "state " << w.state().state_name;
-  const ros::Time aborted = w.state().header.stamp;
   ros::Duration(0.5).sleep();
   const auto s = w.state();
   EXPECT_NE(s.reason.find("R2:move:R4"), std::string::npos) << s.reason;
@@ -32,14 +31,29 @@ TEST(ExecStall, SegmentTimeoutAbortsTheRunWithZeroWheels) {
   for (const auto& [id, seg] : w.segments())
     if (seg.key == "R2:move:R4") r2_aborted = seg.end_status == ddace::SegmentStatus::ABORTED;
   EXPECT_TRUE(r2_aborted) << "R2's segment was not reported aborted";
+  // The time-out is checked every control cycle: the coordinator zeroes every robot in the
+  // check that finds it (before it announces the abort), the follower within its cycle.
+  const ros::Time knew = w.firstStamp(ddace::CoordinatorState::ABORTED);
+  ros::Time deadline;
+  for (const auto& [id, seg] : w.segments())
+    if (seg.key == "R2:move:R4") deadline = seg.sent + ros::Duration(8.0);
   for (const auto& [robot, cmds] : w.wheels()) {
     ASSERT_FALSE(cmds.empty());
-    for (const auto& c : cmds) {
-      if (c.stamp > aborted + ros::Duration(0.05)) {
-        ASSERT_TRUE(c.left == 0 && c.right == 0) << robot << " driven after the abort";
-      }
+    const ros::Time zero = firstZeroAfter(from(cmds, "/coordinator"), deadline);
+    ASSERT_NE(zero, ros::Time()) << robot << ": the coordinator published no zero after the time-out";
+    EXPECT_LE(zero, knew) << robot;
+    EXPECT_TRUE(zeroWithinOneCycle(from(cmds, "/path_follower"), zero)) << robot;
+    EXPECT_TRUE(cmds.back().zero()) << robot;
+    if (robot == "R2") {
+      // R2 was driving (stalled) until then: how many of the follower's cycles passed
+      // between the deadline and the coordinator's zero.
+      int cycles = 0;
+      for (const auto& c : from(cmds, "/path_follower"))
+        if (c.stamp > deadline && c.stamp < zero) ++cycles;
+      std::cout << "R2's segment timed out: the coordinator zeroed it " << (zero - deadline).toSec() << " s (" << cycles
+                << " follower cycles) after the deadline\n";
+      EXPECT_LE(cycles, 2) << "the time-out was noticed " << cycles << " control cycles late";
     }
-    EXPECT_EQ(cmds.back().left, 0.0);
   }
 }
 

@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <functional>
+#include <limits>
 #include <mutex>
 #include <thread>
 #include <tuple>
@@ -177,6 +178,133 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
   }
   ASSERT_TRUE(waitFor([] { return requests.size() == 2; }, 5.0)) << "no decision after the real arrival";
   ASSERT_TRUE(waitFor([] { return state.state == ddace::CoordinatorState::FINISHED; }, 5.0)) << state.state_name;
+  run = false;
+  tracker.join();
+}
+
+// The answers of the sequence and path nodes are checked too: a decision for another
+// request id is ignored, one naming an entity the task does not have aborts naming it, and
+// so does a path with a non-finite point (naming the token).
+TEST(ExecVerify, WrongDecisionsAndPathsAreRefused) {
+  ros::NodeHandle nh;
+  ros::Publisher decision_pub = nh.advertise<ddace::Decision>("/ddace/decision", 5);
+  ros::Publisher path_pub = nh.advertise<ddace::PathResponse>("/ddace/path", 5);
+  ros::Publisher entities_pub = nh.advertise<ddace::EntityArray>("/ddace/entities", 5);
+  std::vector<ddace::DecisionRequest> asked;
+  std::vector<ddace::PathRequest> paths_asked;
+  ros::Subscriber a = nh.subscribe<ddace::DecisionRequest>("/ddace/decision_request", 10,
+                                                           [&](const ddace::DecisionRequest::ConstPtr& m) {
+                                                             std::lock_guard<std::mutex> l(mu);
+                                                             asked.push_back(*m);
+                                                           });
+  ros::Subscriber b =
+      nh.subscribe<ddace::PathRequest>("/ddace/path_request", 10, [&](const ddace::PathRequest::ConstPtr& m) {
+        std::lock_guard<std::mutex> l(mu);
+        paths_asked.push_back(*m);
+      });
+  ros::Subscriber c = nh.subscribe<ddace::Segment>("/robots/R1/segment", 10, [&](const ddace::Segment::ConstPtr&) {});
+  ros::Subscriber d = nh.subscribe<ddace::Segment>("/robots/R2/segment", 10, [&](const ddace::Segment::ConstPtr&) {});
+  ros::Subscriber e =
+      nh.subscribe<ddace::CoordinatorState>("/coordinator/state", 10, [&](const ddace::CoordinatorState::ConstPtr& m) {
+        std::lock_guard<std::mutex> l(mu);
+        state = *m;
+      });
+  std::atomic<bool> run{true};
+  std::thread tracker([&] {
+    ros::Rate rate(30);
+    while (run) {
+      ddace::EntityArray arr;
+      arr.header.stamp = ros::Time::now();
+      for (auto [name, kind, px, py] : std::vector<std::tuple<std::string, std::string, double, double>>{
+               {"R1", "robot", 0.2, 0.2}, {"R2", "robot", 0.5, 0.2}, {"G1", "goal", 0.8, 0.8}}) {
+        ddace::Entity en;
+        en.name = name;
+        en.kind = kind;
+        en.pose.x = px;
+        en.pose.y = py;
+        en.visible = true;
+        arr.entities.push_back(en);
+      }
+      entities_pub.publish(arr);
+      rate.sleep();
+    }
+  });
+  auto token = [](const std::string& entity) {
+    ddace::Token t;
+    t.entity = entity;
+    t.action = "move";
+    t.target = "G1";
+    return t;
+  };
+  // A fresh run whose first decision request has come; returns its id.
+  auto startRun = [&]() -> uint32_t {
+    std_srvs::Trigger t;
+    ros::service::call("/coordinator/reset", t);
+    {
+      std::lock_guard<std::mutex> l(mu);
+      asked.clear();
+      paths_asked.clear();
+    }
+    bool started = false;
+    for (int i = 0; i < 100 && !started; ++i) {
+      started = ros::service::call("/coordinator/start", t) && t.response.success;
+      if (!started) ros::WallDuration(0.1).sleep();
+    }
+    EXPECT_TRUE(started) << t.response.message;
+    EXPECT_TRUE(waitFor([&] { return !asked.empty(); }, 10.0));
+    std::lock_guard<std::mutex> l(mu);
+    return asked.empty() ? 0 : asked.front().id;
+  };
+
+  // 1. An answer to another request changes nothing; one naming R9 aborts.
+  uint32_t id = startRun();
+  ASSERT_NE(id, 0u);
+  ddace::Decision other;
+  other.id = id + 100;
+  other.tokens.push_back(token("R1"));
+  decision_pub.publish(other);
+  ros::WallDuration(0.5).sleep();
+  {
+    std::lock_guard<std::mutex> l(mu);
+    EXPECT_EQ(state.state, ddace::CoordinatorState::DECIDING) << state.state_name << ": " << state.reason;
+    EXPECT_TRUE(paths_asked.empty()) << "a decision for another request was acted on";
+  }
+  ddace::Decision unknown;
+  unknown.id = id;
+  unknown.tokens.push_back(token("R9"));
+  decision_pub.publish(unknown);
+  ASSERT_TRUE(waitFor([] { return state.state == ddace::CoordinatorState::ABORTED; }, 5.0)) << state.state_name;
+  {
+    std::lock_guard<std::mutex> l(mu);
+    EXPECT_NE(state.reason.find("R9"), std::string::npos) << state.reason;
+  }
+
+  // 2. A path with a NaN point aborts, naming the token.
+  id = startRun();
+  ASSERT_NE(id, 0u);
+  ddace::Decision right;
+  right.id = id;
+  right.tokens.push_back(token("R1"));
+  decision_pub.publish(right);
+  ASSERT_TRUE(waitFor([&] { return !paths_asked.empty(); }, 5.0));
+  ddace::PathResponse bad;
+  {
+    std::lock_guard<std::mutex> l(mu);
+    bad.id = paths_asked.front().id;
+    for (const auto& p : {paths_asked.front().start, paths_asked.front().goal}) {
+      geometry_msgs::PoseStamped ps;
+      ps.pose.position = p;
+      ps.pose.orientation.w = 1;
+      bad.path.poses.push_back(ps);
+    }
+  }
+  bad.path.poses.front().pose.position.y = std::numeric_limits<double>::quiet_NaN();
+  path_pub.publish(bad);
+  ASSERT_TRUE(waitFor([] { return state.state == ddace::CoordinatorState::ABORTED; }, 5.0)) << state.state_name;
+  {
+    std::lock_guard<std::mutex> l(mu);
+    EXPECT_NE(state.reason.find("R1:move:G1"), std::string::npos) << state.reason;
+  }
   run = false;
   tracker.join();
 }

@@ -67,7 +67,12 @@ class InstallSpace(unittest.TestCase):
         self.sh("roslaunch ddace execute_sim.launch task:=%s/task4/test train:=%s/task4/train run_dir:=%s"
                 % (self.work, self.work, run_dir), 300)
         with open(os.path.join(run_dir, "result.json")) as f:
-            self.assertEqual(json.load(f)["state"], "finished")
+            result = json.load(f)
+        self.assertEqual(result["state"], "finished")
+        # The monitor found the installed plot script next to its own executable.
+        self.assertEqual(result["plot"], "paths.png")
+        self.assertEqual(result["bag"], "run.bag")
+        self.assertGreater(os.path.getsize(os.path.join(run_dir, "paths.png")), 1000)
         # The run's plot script is an installed program too (lib/ddace, python3-matplotlib).
         self.sh("rosrun ddace plot_run.py %s/run.json %s/replot.png" % (run_dir, self.work), 120)
         self.assertGreater(os.path.getsize(os.path.join(self.work, "replot.png")), 1000)

@@ -13,6 +13,12 @@
 // segment done and is tracked at its goal (exec::Coordinator decides); the timers check
 // time-outs, re-send what is unacknowledged (exec::Outbox) and watch the node of every
 // role in ~roles (exec::RoleWatch): a lost one stops every robot and aborts the run.
+// Whenever a segment is cancelled (abort, e-stop, pause, reset, a lost role) the
+// coordinator publishes zero wheels for its robot itself in the same callback, before the
+// STOP segment: the follower may be the node that died. A subscriber's link dropping
+// (a node killed) is acted on in its disconnect callback, not at the next check. A new run
+// starts only when ~roles/recorder (if set) answers its ~ready: the record holds the run
+// from its first message.
 // Parameters: config/execution.yaml, section coordinator.
 #pragma once
 
@@ -38,7 +44,8 @@ class CoordinatorNode {
     std::string frame_id = kTableFrame;  ///< frame of paths, goals and markers
     bool autostart = false;              ///< start as soon as every entity is tracked
     int path_points = 100;               ///< points per requested path
-    double timeout_check_hz = 10.0;      ///< how often time-outs are checked
+    double timeout_check_hz = 50.0;      ///< how often time-outs are checked (the control rate: a
+                                         ///< time-out stops the robots within one cycle)
     double resend_after_s = 1.0;         ///< an unacknowledged request or segment goes out again after this
     double state_rate_hz = 5.0;          ///< ~state goes out at this rate (and on every change)
     double liveness_check_hz = 50.0;     ///< how often the roles' nodes are checked

@@ -11,14 +11,22 @@
 //   run.json     planned paths (with stddev), executed positions, decision times
 //   run.bag      entities, segments, statuses, wheels, coordinator state (rosbag record)
 //   paths.png    planned (±2σ) against executed paths per robot (`plot_script` on run.json)
+// report.txt and result.json ("bag", "plot") say when the bag or the plot is missing, and why.
+//
+// The record starts with the run: `~ready` (std_srvs/Trigger) succeeds only once the bag
+// recorder and this node are linked to every publisher the master lists for each recorded
+// topic (each publisher's own getBusInfo says so); the coordinator, given this node as
+// roles/recorder, starts a new run only then.
 //
 // Also checks the coordinator's contract on the wire: a DecisionRequest while any
 // segment is still running (sent, not yet done/failed/aborted) is a violation.
 //
 //   in  /coordinator/state, /ddace/decision_request, /ddace/entities, /robots/E/segment,
 //       /robots/E/segment_status
+//   srv  ~ready (std_srvs/Trigger)
 //   params  task (absolute task directory), ground_truth_demo (index into demos/, -1 = none),
-//           run_dir / runs_dir (above), record_bag (true), plot_script (path, "" = no plot),
+//           run_dir / runs_dir (above), record_bag (true), plot_script (absolute path, "" = no
+//           plot; default: plot_run.py next to this executable, where the build installs it),
 //           end_launch (true: SIGINT the parent roslaunch after the record is written),
 //           timeout_s (give up; 0 = never)
 #pragma once

@@ -6,8 +6,11 @@
 //                   /robots/R/segment_status (ddace/SegmentStatus)
 // Global:       in  /ddace/estop (std_msgs/Bool, latched): true zeroes every robot at once.
 //
-// Fails safe: no segment, a stale or missing pose, an e-stop, a stop segment, arrival:
-// zero wheels. A pose that stays stale for stale_fail_s fails the segment.
+// Fails safe: no segment, a stale or missing pose, an e-stop, a stop segment, arrival,
+// the coordinator gone (no publisher left on /robots/R/segment, checked every cycle): zero
+// wheels. The e-stop, a STOP segment and a pose flagged stale zero the wheels in the
+// callback that receives them, so within the control cycle under way. A pose that stays
+// stale for stale_fail_s fails the segment.
 // Parameters: config/execution.yaml, section path_follower.
 #pragma once
 

@@ -1,14 +1,17 @@
 #include "ddace/task/owned_dir.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <sstream>
 
@@ -20,11 +23,14 @@ namespace fs = std::filesystem;
 namespace ddace::task {
 namespace {
 
-uint64_t fnv1a64(const std::string& bytes) {
-  uint64_t h = 0xcbf29ce484222325ULL;
-  for (unsigned char c : bytes) h = (h ^ c) * 0x100000001b3ULL;
-  return h;
-}
+/// Marks a temporary directory as ours and unfinished (removed just before the swap).
+constexpr const char* kIncompleteMarker = ".ddace-incomplete";
+
+struct Digest {
+  uint64_t size = 0;
+  std::string fnv;  ///< FNV-1a 64, 16 hex digits
+  bool operator==(const Digest& o) const { return size == o.size && fnv == o.fnv; }
+};
 
 std::string hex16(uint64_t v) {
   char buf[17];
@@ -32,39 +38,69 @@ std::string hex16(uint64_t v) {
   return buf;
 }
 
-struct Entry {
-  uint64_t size = 0;
-  std::string digest;  ///< 16 hex digits
+uint64_t fnvUpdate(uint64_t h, const char* data, size_t n) {
+  for (size_t i = 0; i < n; ++i) h = (h ^ static_cast<unsigned char>(data[i])) * 0x100000001b3ULL;
+  return h;
+}
+constexpr uint64_t kFnvOffset = 0xcbf29ce484222325ULL;
+
+Digest digestOf(const std::string& bytes) {
+  return {bytes.size(), hex16(fnvUpdate(kFnvOffset, bytes.data(), bytes.size()))};
+}
+
+/// The digest of a regular file, streamed (weights can be large). Throws ddace::Error.
+Digest digestOfFile(const fs::path& file) {
+  InputFile in(file.string(), std::numeric_limits<uint64_t>::max());
+  uint64_t h = kFnvOffset, size = 0;
+  char buf[1 << 16];
+  while (in.stream().read(buf, sizeof buf) || in.stream().gcount() > 0) {
+    const auto n = static_cast<size_t>(in.stream().gcount());
+    h = fnvUpdate(h, buf, n);
+    size += n;
+  }
+  return {size, hex16(h)};
+}
+
+/// A manifest: who wrote it and what (relative path -> digest).
+struct Manifest {
+  bool readable = false;
+  std::string writer;
+  std::map<std::string, Digest> files;
 };
 
-/// The manifest's entries (relative path -> entry); false when it is not one we can read.
-bool readManifest(const fs::path& file, std::map<std::string, Entry>& out) {
+constexpr const char* kHeaderTail = " wrote these files (FNV-1a 64, bytes, path); it replaces only these";
+
+Manifest readManifest(const fs::path& file) {
+  Manifest m;
   std::string text;
   try {
     text = readTextFile(file.string());
   } catch (const Error&) {
-    return false;
+    return m;
   }
   std::istringstream in(text);
   std::string line;
-  if (!std::getline(in, line) || line.rfind("# ", 0) != 0) return false;
+  if (!std::getline(in, line) || line.rfind("# ", 0) != 0) return m;
+  const size_t tail = line.find(" wrote these files");
+  if (tail == std::string::npos || tail <= 2) return m;
+  m.writer = line.substr(2, tail - 2);
   while (std::getline(in, line)) {
     std::istringstream fields(line);
-    Entry e;
+    Digest d;
     std::string path;
-    if (!(fields >> e.digest >> e.size) || e.digest.size() != 16) return false;
+    if (!(fields >> d.fnv >> d.size) || d.fnv.size() != 16) return m;
     fields >> std::ws;
     std::getline(fields, path);
-    if (path.empty()) return false;
-    out[path] = e;
+    if (path.empty()) return m;
+    m.files[path] = d;
   }
-  return true;
+  m.readable = true;
+  return m;
 }
 
-std::string manifestText(const std::vector<OwnedFile>& files, const std::string& tool) {
-  std::string text = "# " + tool + " wrote these files (FNV-1a 64, bytes, path); it replaces only these\n";
-  for (const auto& [path, bytes] : files)
-    text += hex16(fnv1a64(bytes)) + " " + std::to_string(bytes.size()) + " " + path + "\n";
+std::string manifestText(const std::map<std::string, Digest>& files, const std::string& tool) {
+  std::string text = "# " + tool + kHeaderTail + "\n";
+  for (const auto& [path, d] : files) text += d.fnv + " " + std::to_string(d.size) + " " + path + "\n";
   return text;
 }
 
@@ -77,6 +113,10 @@ bool isPlainRelative(const std::string& path) {
   return true;
 }
 
+[[noreturn]] void refuse(const fs::path& path, const std::string& message) {
+  throw Error(Diagnostic{path.string(), 0, 0, message});
+}
+
 struct Survey {
   std::vector<std::string> foreign;  ///< "path (why)"
   size_t own = 0;                    ///< files that are the tool's own
@@ -84,22 +124,18 @@ struct Survey {
 
 /// Everything in `dir` judged as the tool's own or not (nothing is followed or opened
 /// but regular files whose size matches a file we know).
-Survey survey(const fs::path& dir, const fs::path& shown, const std::vector<OwnedFile>& incoming,
+Survey survey(const fs::path& dir, const fs::path& shown, const std::map<std::string, Digest>& incoming,
               const std::string& tool) {
   Survey s;
-  std::map<std::string, Entry> manifest;
-  const bool manifest_ok = readManifest(dir / kOwnedManifest, manifest);
-  std::map<std::string, const std::string*> next;
+  const Manifest manifest = readManifest(dir / kOwnedManifest);
+  const bool mine = manifest.readable && manifest.writer == tool;
   std::map<std::string, bool> parents;  // directories the tool's files live in
   auto addParents = [&](const std::string& rel) {
     for (fs::path p = fs::path(rel).parent_path(); !p.empty(); p = p.parent_path()) parents[p.generic_string()] = true;
   };
-  for (const auto& f : incoming) {
-    next[f.first] = &f.second;
-    addParents(f.first);
-  }
-  if (manifest_ok)
-    for (const auto& m : manifest) addParents(m.first);
+  for (const auto& f : incoming) addParents(f.first);
+  if (mine)
+    for (const auto& m : manifest.files) addParents(m.first);
 
   std::error_code ec;
   fs::recursive_directory_iterator it(dir, fs::directory_options::none, ec), end;
@@ -129,35 +165,69 @@ Survey survey(const fs::path& dir, const fs::path& shown, const std::vector<Owne
       continue;
     }
     if (rel == kOwnedManifest) {
-      if (manifest_ok) ++s.own;
+      if (mine) ++s.own;
+      else if (manifest.readable) s.foreign.push_back(name + " (the manifest of " + manifest.writer + "'s output)");
       else s.foreign.push_back(name + " (not a manifest " + tool + " can read)");
       continue;
     }
     const uint64_t size = fs::file_size(p, sec);
-    const auto m = manifest_ok ? manifest.find(rel) : manifest.end();
-    const auto n = next.find(rel);
-    const bool may_be_listed = m != manifest.end() && !sec && m->second.size == size;
-    const bool may_be_same = n != next.end() && !sec && n->second->size() == size;
+    const auto m = mine ? manifest.files.find(rel) : manifest.files.end();
+    const auto n = incoming.find(rel);
+    const bool may_be_listed = m != manifest.files.end() && !sec && m->second.size == size;
+    const bool may_be_same = n != incoming.end() && !sec && n->second.size == size;
     bool own = false;
     if (may_be_listed || may_be_same) {
       try {
-        const std::string bytes = readTextFile(p.string());
-        own = (may_be_listed && hex16(fnv1a64(bytes)) == m->second.digest) || (may_be_same && bytes == *n->second);
+        const Digest d = digestOfFile(p);
+        own = (may_be_listed && d == m->second) || (may_be_same && d == n->second);
       } catch (const Error&) {
         own = false;
       }
     }
     if (own) ++s.own;
-    else
-      s.foreign.push_back(
-          name + (m != manifest.end() ? " (changed since " + tool + " wrote it)" : " (not written by " + tool + ")"));
+    else if (m != manifest.files.end()) s.foreign.push_back(name + " (changed since " + tool + " wrote it)");
+    else if (manifest.readable && !mine && manifest.files.count(rel))
+      s.foreign.push_back(name + " (written by " + manifest.writer + ", not " + tool + ")");
+    else s.foreign.push_back(name + " (not written by " + tool + ")");
   }
   if (ec) s.foreign.push_back(shown.string() + " (cannot read the directory: " + ec.message() + ")");
   return s;
 }
 
-[[noreturn]] void refuse(const fs::path& path, const std::string& message) {
-  throw Error(Diagnostic{path.string(), 0, 0, message});
+/// `dir` made absolute, a symlink to a directory resolved (its directory is replaced).
+fs::path resolveTarget(const std::string& dir) {
+  std::error_code ec;
+  fs::path target = fs::absolute(fs::path(dir), ec).lexically_normal();
+  if (!target.has_filename()) target = target.parent_path();
+  if (ec || target == target.root_path()) refuse(dir, "cannot write into this directory");
+  const fs::file_status st = fs::status(target, ec);
+  if (ec && st.type() != fs::file_type::not_found) refuse(dir, "cannot read: " + ec.message());
+  if (fs::exists(st)) {
+    if (!fs::is_directory(st)) refuse(dir, "exists and is not a directory");
+    target = fs::canonical(target, ec);
+    if (ec) refuse(dir, "cannot read: " + ec.message());
+  }
+  return target;
+}
+
+/// Refuses `target` unless it may be replaced by `incoming`; true when it exists.
+bool checkTarget(const fs::path& target, const std::string& dir, const std::map<std::string, Digest>& incoming,
+                 const std::string& tool, bool replace) {
+  std::error_code ec;
+  const fs::file_status st = fs::symlink_status(target, ec);
+  if (!fs::exists(st)) return false;
+  if (!fs::is_directory(st)) refuse(dir, "exists and is not a directory");
+  const Survey s = survey(target, fs::path(dir), incoming, tool);
+  if (!s.foreign.empty()) {
+    std::string list;
+    for (size_t i = 0; i < s.foreign.size() && i < 10; ++i) list += "\n  " + s.foreign[i];
+    if (s.foreign.size() > 10) list += "\n  ... and " + std::to_string(s.foreign.size() - 10) + " more";
+    refuse(dir, "refusing to write here: it holds " + std::to_string(s.foreign.size()) + " entr" +
+                    (s.foreign.size() == 1 ? "y " : "ies ") + tool +
+                    " did not write (move them away or choose another directory):" + list);
+  }
+  if (s.own > 0 && !replace) refuse(dir, "holds the output of an earlier " + tool + "; --force replaces it");
+  return true;
 }
 
 /// Swaps the directories `a` and `b` in one step; falls back to two renames where the
@@ -185,41 +255,75 @@ void syncDirectory(const fs::path& dir) {
   }
 }
 
-}  // namespace
-
-void writeOwnedDirectory(const std::string& dir, const std::vector<OwnedFile>& files, const std::string& tool,
-                         bool replace) {
-  for (const auto& f : files)
-    if (!isPlainRelative(f.first) || f.first == kOwnedManifest)
-      throw Error("writing " + dir + ": '" + f.first + "' is not a file name inside the directory");
-
+/// Removes the temporary siblings of `target` left by killed runs: named
+/// ".NAME.tmp-PID-N", a real directory holding the incomplete marker, PID not running.
+void removeStaleTemporaries(const fs::path& target) {
+  const std::string prefix = "." + target.filename().string() + ".tmp-";
   std::error_code ec;
-  fs::path target = fs::absolute(fs::path(dir), ec).lexically_normal();
-  if (!target.has_filename()) target = target.parent_path();
-  if (ec || target == target.root_path()) refuse(dir, "cannot write into this directory");
-  const fs::file_status st = fs::status(target, ec);
-  bool exists = false;
-  if (ec && st.type() != fs::file_type::not_found) refuse(dir, "cannot read: " + ec.message());
-  if (fs::exists(st)) {
-    if (!fs::is_directory(st)) refuse(dir, "exists and is not a directory");
-    target = fs::canonical(target, ec);  // a symlink to a directory: replace the directory itself
-    if (ec) refuse(dir, "cannot read: " + ec.message());
-    const Survey s = survey(target, fs::path(dir), files, tool);
-    if (!s.foreign.empty()) {
-      std::string list;
-      for (size_t i = 0; i < s.foreign.size() && i < 10; ++i) list += "\n  " + s.foreign[i];
-      if (s.foreign.size() > 10) list += "\n  ... and " + std::to_string(s.foreign.size() - 10) + " more";
-      refuse(dir, "refusing to write here: it holds " + std::to_string(s.foreign.size()) + " entr" +
-                      (s.foreign.size() == 1 ? "y " : "ies ") + tool +
-                      " did not write (move them away or choose another directory):" + list);
-    }
-    if (s.own > 0 && !replace) refuse(dir, "holds the output of an earlier " + tool + "; --force replaces it");
-    exists = true;
+  for (fs::directory_iterator it(target.parent_path(), ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind(prefix, 0) != 0) continue;
+    const std::string rest = name.substr(prefix.size());
+    const size_t dash = rest.find('-');
+    if (dash == 0 || dash == std::string::npos || rest.find_first_not_of("0123456789-") != std::string::npos) continue;
+    const long pid = std::strtol(rest.substr(0, dash).c_str(), nullptr, 10);
+    std::error_code sec;
+    if (pid <= 0 || pid == ::getpid() || !fs::is_directory(fs::symlink_status(it->path(), sec)) ||
+        !fs::is_regular_file(fs::symlink_status(it->path() / kIncompleteMarker, sec)))
+      continue;
+    if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // still running (or not ours)
+    fs::remove_all(it->path(), sec);
   }
+}
+
+/// `e` with every mention of the temporary directory replaced by the directory's name.
+Error renamed(const Error& e, const std::string& tmp, const std::string& dir) {
+  auto replaceAll = [&](std::string s) {
+    for (size_t at = s.find(tmp); at != std::string::npos; at = s.find(tmp, at + dir.size()))
+      s.replace(at, tmp.size(), dir);
+    return s;
+  };
+  std::vector<Diagnostic> named;
+  for (Diagnostic d : e.diagnostics()) {
+    d.file = replaceAll(d.file);
+    d.message = replaceAll(d.message);
+    named.push_back(d);
+  }
+  return Error(named);
+}
+
+/// Every file `fill` wrote into `tmp` with its digest; anything but regular files and
+/// directories is an error (it would not be the tool's own to replace next time).
+std::map<std::string, Digest> collect(const fs::path& tmp, const std::string& dir) {
+  std::map<std::string, Digest> files;
+  std::error_code ec;
+  fs::recursive_directory_iterator it(tmp, fs::directory_options::none, ec), end;
+  for (; !ec && it != end; it.increment(ec)) {
+    const std::string rel = it->path().lexically_relative(tmp).generic_string();
+    if (rel == kIncompleteMarker) continue;
+    std::error_code sec;
+    const fs::file_status st = it->symlink_status(sec);
+    if (fs::is_directory(st)) continue;
+    if (sec || !fs::is_regular_file(st) || rel == kOwnedManifest)
+      refuse(fs::path(dir) / rel, "not a regular file of the output (internal error: nothing was replaced)");
+    files[rel] = digestOfFile(it->path());
+  }
+  if (ec) refuse(dir, "cannot read the new output: " + ec.message());
+  return files;
+}
+
+/// Both writeOwnedDirectory: `expected` (known before `fill` runs, may be empty) lets
+/// the first check accept files identical to what is about to be written.
+void writeOwned(const std::string& dir, const std::map<std::string, Digest>& expected,
+                const std::function<void(const std::string&)>& fill, const std::string& tool, bool replace) {
+  const fs::path target = resolveTarget(dir);
+  checkTarget(target, dir, expected, tool, replace);
 
   const fs::path parent = target.parent_path();
+  std::error_code ec;
   fs::create_directories(parent, ec);
   if (ec) refuse(parent, "cannot create the directory: " + ec.message());
+  removeStaleTemporaries(target);
   static std::atomic<unsigned> counter{0};
   fs::path tmp;
   for (int attempt = 0; attempt < 100; ++attempt) {
@@ -240,26 +344,21 @@ void writeOwnedDirectory(const std::string& dir, const std::vector<OwnedFile>& f
     }
   } cleanup{tmp};
 
-  auto writeOne = [&](const std::string& rel, const std::string& bytes) {
-    const fs::path file = tmp / rel;
-    try {
-      std::error_code dec;
-      fs::create_directories(file.parent_path(), dec);
-      if (dec)
-        throw Error(Diagnostic{file.parent_path().string(), 0, 0, "cannot create the directory: " + dec.message()});
-      writeTextFile(file.string(), bytes);
-    } catch (const Error& e) {
-      // Name the file as the user will look for it, not its temporary place.
-      std::vector<Diagnostic> named;
-      for (Diagnostic d : e.diagnostics()) {
-        d.file = (fs::path(dir) / rel).string();
-        named.push_back(d);
-      }
-      throw Error(named);
-    }
-  };
-  for (const auto& [rel, bytes] : files) writeOne(rel, bytes);
-  writeOne(kOwnedManifest, manifestText(files, tool));
+  const std::string marker = (tmp / kIncompleteMarker).string();
+  std::map<std::string, Digest> files;
+  bool exists = false;
+  try {
+    writeTextFile(marker, "written by " + tool + ", not finished\n");
+    fill(tmp.string());
+    files = collect(tmp, dir);
+    // Again: the directory may have changed while `fill` ran.
+    exists = checkTarget(target, dir, files, tool, replace);
+    writeTextFile((tmp / kOwnedManifest).string(), manifestText(files, tool));
+  } catch (const Error& e) {
+    throw renamed(e, tmp.string(), dir);
+  }
+  fs::remove(marker, ec);
+  if (ec) refuse(dir, "cannot finish the new output: " + ec.message());
   syncDirectory(tmp);
 
   if (exists) {
@@ -270,6 +369,35 @@ void writeOwnedDirectory(const std::string& dir, const std::vector<OwnedFile>& f
     cleanup.path.clear();
   }
   syncDirectory(parent);
+}
+
+}  // namespace
+
+void writeOwnedDirectory(const std::string& dir, const std::vector<OwnedFile>& files, const std::string& tool,
+                         bool replace) {
+  std::map<std::string, Digest> expected;
+  for (const auto& f : files) {
+    if (!isPlainRelative(f.first) || f.first == kOwnedManifest || f.first == kIncompleteMarker)
+      throw Error("writing " + dir + ": '" + f.first + "' is not a file name inside the directory");
+    expected[f.first] = digestOf(f.second);
+  }
+  writeOwned(
+      dir, expected,
+      [&](const std::string& tmp) {
+        for (const auto& [rel, bytes] : files) {
+          const fs::path file = fs::path(tmp) / rel;
+          std::error_code ec;
+          fs::create_directories(file.parent_path(), ec);
+          if (ec) refuse(file.parent_path(), "cannot create the directory: " + ec.message());
+          writeTextFile(file.string(), bytes);
+        }
+      },
+      tool, replace);
+}
+
+void writeOwnedDirectory(const std::string& dir, const std::function<void(const std::string&)>& fill,
+                         const std::string& tool, bool replace) {
+  writeOwned(dir, {}, fill, tool, replace);
 }
 
 }  // namespace ddace::task

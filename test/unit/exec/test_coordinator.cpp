@@ -1,6 +1,8 @@
 // The coordinator's state machine: event-driven decisions, time-outs, e-stop, pause.
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include "ddace/common/error.h"
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/replay.h"
@@ -454,6 +456,28 @@ TEST_F(Fixture, APathForAnotherGoalAborts) {
   EXPECT_TRUE(out.stop_all);
   EXPECT_EQ(c.state(), RunState::Aborted);
   EXPECT_NE(c.reason().find("from its goal"), std::string::npos) << c.reason();
+}
+
+TEST_F(Fixture, APathWithANonFinitePointOrStddevAborts) {
+  for (const bool in_stddev : {false, true}) {
+    c.reset(0);
+    c.onEntities(observe(start), 0);
+    const auto s = c.start(0);
+    const auto d = c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1);
+    ASSERT_FALSE(d.paths.empty());
+    PlannedPath p = straight(d.paths[0]);
+    if (in_stddev) {
+      p.stddev_m.assign(p.points.size(), 0.01);
+      p.stddev_m[1] = std::numeric_limits<double>::infinity();
+    } else {
+      p.points[1].y() = std::numeric_limits<double>::quiet_NaN();
+    }
+    const auto out = c.onPath(d.paths[0].id, p, "", 0.2);
+    EXPECT_TRUE(out.stop_all);
+    EXPECT_EQ(c.state(), RunState::Aborted);
+    EXPECT_NE(c.reason().find(in_stddev ? "standard deviation" : "non-finite point"), std::string::npos) << c.reason();
+    EXPECT_NE(c.reason().find(task::tokenKey(d.paths[0].token, c.spec())), std::string::npos) << c.reason();
+  }
 }
 
 TEST_F(Fixture, ResetForgetsTheRunAndAStartPlansFromTheCurrentPoses) {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <random>
 
+#include "ddace/common/repository.h"
 #include "ddace/common/error.h"
 #include "ddace/gp/gaussian_process.h"
 
@@ -210,7 +211,9 @@ TEST(Fit, RejectsInvalidOptions) {
 class SklearnParity : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(SklearnParity, OptimumAndPredictionsMatch) {
-  const std::string path = std::string(DDACE_TEST_DATA_DIR) + "/gp/sklearn_" + GetParam() + ".json";
+  const std::string path =
+      (ddace::findRepository("", {"test/data/gp"}) / "test/data/gp" / (std::string("sklearn_") + GetParam() + ".json"))
+          .string();
   const YAML::Node f = YAML::LoadFile(path);
   gp::GpOptions o;
   o.use_constant = f["use_constant"].as<bool>();

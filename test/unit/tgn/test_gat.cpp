@@ -6,6 +6,7 @@
 #include <map>
 #include <sstream>
 
+#include "ddace/common/repository.h"
 #include "ddace/common/error.h"
 #include "ddace/tgn/detail.h"
 #include "ddace/tgn/sequence_model.h"
@@ -37,7 +38,8 @@ std::vector<float> floats(const std::vector<double>& v) {
 }  // namespace
 
 TEST(Gat, EqualsTheGatConvReferenceOnATinyGraph) {
-  auto f = readFixture(std::string(DDACE_TEST_DATA_DIR) + "/tgn/gat_fixture.txt");
+  auto f = readFixture(
+      (ddace::findRepository("", {"test/data/tgn/gat_fixture.txt"}) / "test/data/tgn/gat_fixture.txt").string());
   ASSERT_EQ(f["nodes"].size(), 1u);
   const int nodes = static_cast<int>(f["nodes"][0]);
   tgn::detail::GatWeights w;

@@ -1,0 +1,238 @@
+// `ddace train --out` end to end (the real tool): a model directory holding anything train
+// did not write is refused, naming what is there; --force replaces only train's own earlier
+// model, whole (no stale file survives) and atomically (a killed run leaves the old model);
+// train never writes into the directory it learns from.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <thread>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct ToolRun {
+  int status = -1;
+  std::string out;
+};
+
+fs::path tool() {
+  return fs::read_symlink("/proc/self/exe").parent_path() / "ddace";
+}
+
+/// Runs the ddace tool built next to this test binary; stdout and stderr together.
+ToolRun ddace(const std::string& args) {
+  ToolRun r;
+  FILE* p = ::popen(("'" + tool().string() + "' " + args + " 2>&1").c_str(), "r");
+  if (!p) return r;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int status = ::pclose(p);
+  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string root() {
+  static const std::string r = [] {
+    const std::string dir = ::testing::TempDir() + "/ddace_cli_train_out_" + std::to_string(::getpid());
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir;
+  }();
+  return r;
+}
+
+std::string read(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+/// Every file below `dir` with its bytes.
+std::map<std::string, std::string> tree(const std::string& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    if (e.is_regular_file()) files[fs::relative(e.path(), dir).string()] = read(e.path().string());
+  return files;
+}
+
+/// A small generated task (generate's output: DIR/train, DIR/test), made once per family.
+std::string data(const std::string& family) {
+  const std::string dir = root() + "/data_" + family;
+  if (!fs::exists(dir)) {
+    const ToolRun r = ddace("generate " + family + " --out '" + dir + "' --train 3 --test 1 --seed 2");
+    EXPECT_EQ(r.status, 0) << r.out;
+  }
+  return dir;
+}
+
+/// A short training run (a few epochs: these tests are about the directory, not the model).
+ToolRun train(const std::string& task_dir, const std::string& out, const std::string& extra = "") {
+  return ddace("train '" + task_dir + "' --out '" + out + "' --epochs 2 --quiet " + extra);
+}
+
+}  // namespace
+
+TEST(CliTrainOut, RefusesADirectoryHoldingFilesTrainDidNotWriteEvenWithForce) {
+  const std::string out = root() + "/user";
+  fs::create_directories(out + "/notes");
+  std::ofstream(out + "/README.txt") << "my notes\n";
+  std::ofstream(out + "/notes/run1.csv") << "t,x\n0,1\n";
+  const auto before = tree(out);
+  for (const std::string force : {"", "--force"}) {
+    const ToolRun r = train(data("task1") + "/train", out, force);
+    EXPECT_NE(r.status, 0) << r.out;
+    EXPECT_NE(r.out.find(out + "/README.txt (not written by ddace train)"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(out + "/notes/run1.csv (not written by ddace train)"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("training variant"), std::string::npos) << "refused before training: " << r.out;
+    EXPECT_EQ(tree(out), before);
+  }
+}
+
+TEST(CliTrainOut, AModelWrittenWithoutTrainsManifestIsNotTrainsToReplace) {
+  // A model copied by hand (or left by a ddace that wrote no manifest): nothing says it is
+  // train's own, so it is refused, even with --force.
+  const std::string first = root() + "/copied_src", out = root() + "/copied";
+  ASSERT_EQ(train(data("task1") + "/train", first).status, 0);
+  fs::copy(first, out, fs::copy_options::recursive);
+  fs::remove(out + "/ddace-output.txt");
+  const auto before = tree(out);
+  const ToolRun r = train(data("task1") + "/train", out, "--force");
+  EXPECT_NE(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find(out + "/manifest.yaml (not written by ddace train)"), std::string::npos) << r.out;
+  EXPECT_EQ(tree(out), before);
+}
+
+TEST(CliTrainOut, AnEarlierModelOfAnotherTaskIsReplacedOnlyWithForce) {
+  const std::string out = root() + "/other_task";
+  ToolRun r = train(data("task1") + "/train", out);
+  ASSERT_EQ(r.status, 0) << r.out;
+  const auto task1_model = tree(out);
+  ASSERT_TRUE(task1_model.count("manifest.yaml") && task1_model.count("primitives.yaml"));
+
+  r = train(data("task4") + "/train", out);
+  EXPECT_NE(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find(out + ": holds the output of an earlier ddace train; --force replaces it"), std::string::npos)
+      << r.out;
+  EXPECT_EQ(tree(out), task1_model);
+
+  r = train(data("task4") + "/train", out, "--force");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(read(out + "/task.yaml"), task1_model.at("task.yaml"));
+  EXPECT_EQ(read(out + "/task.yaml"), read(data("task4") + "/train/task.yaml"));
+  // The model that was replaced is gone whole: no temporary sibling is left.
+  for (const auto& e : fs::directory_iterator(root()))
+    EXPECT_EQ(e.path().filename().string().find(".other_task.tmp"), std::string::npos) << e.path();
+}
+
+TEST(CliTrainOut, ForceLeavesNoStaleFileOfTheOldModel) {
+  // gnn writes no primitives.yaml: the old model's must not stay behind (ddace path would
+  // serve the old primitives under the new model).
+  const std::string out = root() + "/stale";
+  ToolRun r = train(data("task4") + "/train", out);
+  ASSERT_EQ(r.status, 0) << r.out;
+  ASSERT_TRUE(fs::exists(out + "/primitives.yaml"));
+  r = train(data("task4") + "/train", out, "--force --variant gnn");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_FALSE(fs::exists(out + "/primitives.yaml"));
+  EXPECT_NE(read(out + "/manifest.yaml").find("gnn"), std::string::npos);
+  // A file the user added to train's model is not train's to delete.
+  std::ofstream(out + "/my_eval.json") << "{}";
+  r = train(data("task4") + "/train", out, "--force");
+  EXPECT_NE(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find(out + "/my_eval.json (not written by ddace train)"), std::string::npos) << r.out;
+  EXPECT_EQ(read(out + "/my_eval.json"), "{}");
+  EXPECT_FALSE(fs::exists(out + "/primitives.yaml"));
+}
+
+TEST(CliTrainOut, AnEditedModelFileIsNotReplaced) {
+  const std::string out = root() + "/edited";
+  ASSERT_EQ(train(data("task1") + "/train", out).status, 0);
+  std::ofstream(out + "/task.yaml", std::ios::app) << "# my note\n";
+  const auto before = tree(out);
+  const ToolRun r = train(data("task1") + "/train", out, "--force");
+  EXPECT_NE(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find(out + "/task.yaml (changed since ddace train wrote it)"), std::string::npos) << r.out;
+  EXPECT_EQ(tree(out), before);
+}
+
+TEST(CliTrainOut, GeneratesOutputIsNotTrainsToReplace) {
+  const std::string out = root() + "/gen_as_model";
+  ASSERT_EQ(ddace("generate task1 --out '" + out + "' --train 2 --test 1").status, 0);
+  const auto before = tree(out);
+  const ToolRun r = train(data("task1") + "/train", out, "--force");
+  EXPECT_NE(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find(out + "/train/task.yaml (written by ddace generate, not ddace train)"), std::string::npos)
+      << r.out;
+  EXPECT_EQ(tree(out), before);
+}
+
+TEST(CliTrainOut, NeverWritesIntoTheTrainingDirectory) {
+  // A hand-written task directory with a comment: `train own --out own` used to rewrite
+  // own/task.yaml, dropping the comment.
+  const std::string own = root() + "/own";
+  fs::copy(data("task1") + "/train", own, fs::copy_options::recursive);
+  fs::remove(own + "/ddace-output.txt");
+  std::ofstream(own + "/task.yaml", std::ios::app) << "# recorded on the lab table\n";
+  const auto before = tree(own);
+  for (const std::string& out : {own, own + "/../own/", own + "/model", root()}) {
+    const ToolRun r = train(own, out, "--force");
+    EXPECT_NE(r.status, 0) << out << ": " << r.out;
+    EXPECT_NE(r.out.find("training directory " + own + ": train writes the model into a directory of its own"),
+              std::string::npos)
+        << r.out;
+    EXPECT_EQ(tree(own), before) << out;
+  }
+  // generate's output given as TASKDIR (train uses its train/ half): neither half is written.
+  const std::string gen = data("task1");
+  const auto gen_before = tree(gen);
+  for (const std::string& out : {gen, gen + "/test"}) {
+    const ToolRun r = train(gen, out, "--force");
+    EXPECT_NE(r.status, 0) << out << ": " << r.out;
+    EXPECT_EQ(tree(gen), gen_before) << out;
+  }
+}
+
+TEST(CliTrainOut, AKilledRunLeavesTheOldModelAndTheNextRunClearsItsTemporary) {
+  const std::string out = root() + "/killed";
+  ASSERT_EQ(train(data("task1") + "/train", out).status, 0);
+  const auto before = tree(out);
+  // A long run killed while it trains (its temporary sibling exists).
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    const std::string t = tool().string(), task = data("task1") + "/train";
+    ::execl(t.c_str(), t.c_str(), "train", task.c_str(), "--out", out.c_str(), "--epochs", "100000", "--patience",
+            "100000", "--force", "--quiet", static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  auto temporaries = [&] {
+    int n = 0;
+    for (const auto& e : fs::directory_iterator(root()))
+      n += e.path().filename().string().rfind(".killed.tmp-", 0) == 0;
+    return n;
+  };
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (temporaries() == 0 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_EQ(temporaries(), 1) << "the run never started writing";
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // into training
+  ::kill(pid, SIGKILL);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  EXPECT_EQ(tree(out), before);
+  EXPECT_EQ(temporaries(), 1);  // what the killed run left
+  // The next run replaces the model and removes the dead run's temporary.
+  const ToolRun r = train(data("task1") + "/train", out, "--force --seed 3");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(temporaries(), 0);
+  EXPECT_TRUE(fs::exists(out + "/manifest.yaml"));
+}

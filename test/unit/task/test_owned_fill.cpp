@@ -1,0 +1,134 @@
+// writeOwnedDirectory with content written by other code (how `ddace train` writes a
+// model): a failed fill leaves the old output, a directory that changed while the fill
+// ran is checked again, errors name the final place, never the temporary one.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+
+#include "ddace/common/error.h"
+#include "ddace/common/file.h"
+#include "ddace/task/owned_dir.h"
+
+using namespace ddace;
+namespace fs = std::filesystem;
+
+namespace {
+
+/// DIR/out in a parent of its own (the tests count what is beside it).
+std::string fresh(const std::string& name) {
+  const std::string parent = ::testing::TempDir() + "/ddace_owned_fill_" + std::to_string(::getpid()) + "/" + name;
+  fs::remove_all(parent);
+  fs::create_directories(parent);
+  return parent + "/out";
+}
+
+std::string read(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+std::map<std::string, std::string> tree(const std::string& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    if (e.is_regular_file()) files[fs::relative(e.path(), dir).string()] = read(e.path().string());
+  return files;
+}
+
+size_t siblings(const std::string& dir) {
+  size_t n = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(dir).parent_path())) n += e.path().string() != dir;
+  return n;
+}
+
+void writeModel(const std::string& dir, const std::string& weights) {
+  fs::create_directories(dir + "/sub");
+  writeTextFile(dir + "/weights.pt", weights);
+  writeTextFile(dir + "/sub/loss.csv", "epoch,loss\n1,0.5\n");
+}
+
+}  // namespace
+
+TEST(OwnedFill, WritesAndReplacesItsOwnOutputWhole) {
+  const std::string dir = fresh("whole");
+  task::writeOwnedDirectory(
+      dir, [](const std::string& tmp) { writeModel(tmp, "old"); }, "ddace train", false);
+  writeTextFile(dir + "/../keep.txt", "not in the directory");
+  ASSERT_EQ(read(dir + "/weights.pt"), "old");
+  ASSERT_TRUE(fs::exists(dir + "/" + task::kOwnedManifest));
+  task::writeOwnedDirectory(
+      dir, [](const std::string& tmp) { writeTextFile(tmp + "/weights.pt", "new"); }, "ddace train", true);
+  EXPECT_EQ(read(dir + "/weights.pt"), "new");
+  EXPECT_FALSE(fs::exists(dir + "/sub"));  // nothing of the old output survives
+  EXPECT_EQ(siblings(dir), 1u);            // keep.txt only: no temporary left
+}
+
+TEST(OwnedFill, AFailingFillLeavesTheOldOutputAndNoTemporary) {
+  const std::string dir = fresh("failing");
+  task::writeOwnedDirectory(
+      dir, [](const std::string& tmp) { writeModel(tmp, "old"); }, "ddace train", false);
+  const auto before = tree(dir);
+  std::string seen_tmp;
+  try {
+    task::writeOwnedDirectory(
+        dir,
+        [&](const std::string& tmp) {
+          seen_tmp = tmp;
+          writeTextFile(tmp + "/weights.pt", "half");
+          throw Error(Diagnostic{tmp + "/weights.pt", 0, 0, "cannot write the weights to " + tmp});
+        },
+        "ddace train", true);
+    FAIL();
+  } catch (const Error& e) {
+    ASSERT_EQ(e.diagnostics().size(), 1u);
+    EXPECT_EQ(e.diagnostics()[0].file, dir + "/weights.pt");
+    EXPECT_EQ(e.diagnostics()[0].message, "cannot write the weights to " + dir);
+  }
+  EXPECT_NE(seen_tmp, dir);
+  EXPECT_EQ(tree(dir), before);
+  EXPECT_FALSE(fs::exists(seen_tmp));
+  EXPECT_EQ(siblings(dir), 0u);
+}
+
+TEST(OwnedFill, AFileAddedWhileTheFillRanIsNotReplaced) {
+  const std::string dir = fresh("raced");
+  task::writeOwnedDirectory(
+      dir, [](const std::string& tmp) { writeModel(tmp, "old"); }, "ddace train", false);
+  try {
+    task::writeOwnedDirectory(
+        dir,
+        [&](const std::string& tmp) {
+          writeModel(tmp, "new");
+          writeTextFile(dir + "/eval.json", "{}");  // the user, meanwhile
+        },
+        "ddace train", true);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(dir + "/eval.json (not written by ddace train)"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(read(dir + "/weights.pt"), "old");
+  EXPECT_EQ(read(dir + "/eval.json"), "{}");
+  EXPECT_EQ(siblings(dir), 0u);
+}
+
+TEST(OwnedFill, AnotherToolsOutputIsNotItsOwn) {
+  const std::string dir = fresh("other_tool");
+  task::writeOwnedDirectory(dir, {{"train/task.yaml", "x: 1\n"}}, "ddace generate", false);
+  try {
+    task::writeOwnedDirectory(
+        dir, [](const std::string& tmp) { writeModel(tmp, "w"); }, "ddace train", true);
+    FAIL();
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(dir + "/train/task.yaml (written by ddace generate, not ddace train)"), std::string::npos)
+        << what;
+    EXPECT_NE(what.find(dir + "/" + task::kOwnedManifest + " (the manifest of ddace generate's output)"),
+              std::string::npos)
+        << what;
+  }
+  EXPECT_EQ(read(dir + "/train/task.yaml"), "x: 1\n");
+}
