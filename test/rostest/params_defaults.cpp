@@ -127,13 +127,17 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
   const YAML::Node seq = yaml["sequence"];
   ASSERT_TRUE(seq && seq["policy"]);
   EXPECT_EQ(SequenceNode::parsePolicy(seq["policy"].as<std::string>(), "sequence/policy"), s.policy);
-  expectDefaults(seq, "sequence", {{"replay_demo", value(s.replay_demo)}}, {"policy"});
+  expectDefaults(seq, "sequence",
+                 {{"replay_demo", value(s.replay_demo)}, {"allow_other_task", value(s.allow_other_task)}}, {"policy"});
 
   const GpPathNode::Params p;
   const YAML::Node gp = yaml["gp_path"];
   ASSERT_TRUE(gp && gp["source"]);
   EXPECT_EQ(GpPathNode::parseSource(gp["source"].as<std::string>(), "gp_path/source"), p.source);
-  expectDefaults(gp, "gp_path", {{"frame_id", value(p.frame_id)}, {"points", value(p.points)}}, {"source"});
+  expectDefaults(
+      gp, "gp_path",
+      {{"frame_id", value(p.frame_id)}, {"points", value(p.points)}, {"allow_other_task", value(p.allow_other_task)}},
+      {"source"});
 }
 
 int main(int argc, char** argv) {
