@@ -1,6 +1,7 @@
-// bench_tgn_decision: latency of one decision (predict the next step) for 11 entities,
+// bench_tgn_decision: latency of one decision (predict the next step) with 11 robots,
 // against the same forward pass in Python/PyTorch (bench/tgn_train_reference.py decision)
 // timed in the same run. Writes docs/bench/tgn_decision.md.
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -23,7 +24,16 @@ using namespace ddace;
 
 namespace {
 
-const fs::path kRepo = fs::path(__FILE__).parent_path().parent_path();
+// The repository (not __FILE__: ccache's base directory makes that a relative path).
+const fs::path kRepo = DDACE_SOURCE_DIR;
+
+/// CPU time of the calling thread, ms: a decision's own compute, without the time the
+/// thread waits for a core on a loaded machine (which the wall-clock p99 includes).
+double threadCpuMs() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return 1e3 * static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_nsec);
+}
 
 }  // namespace
 
@@ -31,7 +41,7 @@ int main() try {
   const int kRepeats = 300, kHistory = 6;
   tasks::GeneratorOptions g;
   g.family = "task2";
-  g.robots = 10;  // + G1: 11 entities
+  g.robots = 11;  // + G1: 12 entities (the goal: one decision with 11 robots)
   g.demos = 10;
   const task::TaskDir train = tasks::generate(g);
   const tgn::TrainOptions o;  // trained to the plateau, as a user would
@@ -46,23 +56,28 @@ int main() try {
                           "' decision '" + tensors.string() + "' --history " + std::to_string(kHistory) +
                           " --repeats " + std::to_string(kRepeats);
 
-  double cpp_ms = 1e30, py_ms = 1e30;
+  double cpp_ms = 1e30, cpp_p99_ms = 1e30, cpu_p99_ms = 1e30, py_ms = 1e30;
   size_t tokens = 0;
   for (int round = 0; round < 2; ++round) {
-    std::vector<double> times;
+    std::vector<double> times, cpu;
     for (int i = 0; i < kRepeats; ++i) {
       const auto t0 = std::chrono::steady_clock::now();
+      const double c0 = threadCpuMs();
       const tgn::Prediction p = model.predictNext(history);
+      cpu.push_back(threadCpuMs() - c0);
       times.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
       tokens = p.tokens.size();
     }
     std::sort(times.begin(), times.end());
+    std::sort(cpu.begin(), cpu.end());
+    cpu_p99_ms = std::min(cpu_p99_ms, cpu[cpu.size() * 99 / 100]);
     cpp_ms = std::min(cpp_ms, times[times.size() / 2]);
+    cpp_p99_ms = std::min(cpp_p99_ms, times[times.size() * 99 / 100]);
     py_ms = std::min(py_ms, bench::jsonNumber(bench::capture(cmd), "median_ms"));
   }
   fs::remove(tensors);
-  std::cout << "one decision, 11 entities, history of " << kHistory << ": C++ " << cpp_ms << " ms (" << tokens
-            << " tokens), Python " << py_ms << " ms\n";
+  std::cout << "one decision, 11 robots, history of " << kHistory << ": C++ median " << cpp_ms << " ms, p99 "
+            << cpp_p99_ms << " ms (thread CPU time p99 " << cpu_p99_ms << " ms; " << tokens << " tokens), Python median " << py_ms << " ms\n";
 
   fs::create_directories(kRepo / "docs" / "bench");
   std::ofstream md(kRepo / "docs" / "bench" / "tgn_decision.md");
@@ -72,17 +87,22 @@ int main() try {
      << std::thread::hardware_concurrency() << "-core machine (1-minute load average " << loadAverage()
      << " after the timings), one thread.\n"
      << "One decision = `SequenceModel::predictNext` on a history of " << kHistory
-     << " keyframe snapshots of Task 2 with 10 robots + G1 (11 entities): GAT encoder over every snapshot, GRU, heads, "
-        "tokens and probabilities. Median of "
+     << " keyframe snapshots of Task 2 with 11 robots + G1 (12 entities): the default network's encoder over every "
+        "snapshot, GRU, heads, tokens and probabilities. Median and 99th percentile of "
      << kRepeats
      << " calls, best of 2 rounds. Reference: the same forward pass in Python/PyTorch "
         "(`bench/tgn_train_reference.py decision`), timed in the same run.\n\n"
      << "| measure | C++ (libtorch) | reference | ratio | goal |\n|---|---|---|---|---|\n";
-  std::snprintf(line, sizeof line, "| one decision | %.3f ms | %.3f ms (Python) | C++ %.2fx faster | < 2 ms |\n",
+  std::snprintf(line, sizeof line, "| one decision, median | %.3f ms | %.3f ms (Python) | C++ %.2fx faster | |\n",
                 cpp_ms, py_ms, py_ms / cpp_ms);
   md << line;
-  std::snprintf(line, sizeof line, "| one decision vs the goal | %.3f ms | 2 ms (goal) | %.2f of the goal | < 2 ms |\n",
-                cpp_ms, cpp_ms / 2.0);
+  std::snprintf(line, sizeof line, "| one decision, p99 vs the goal | %.3f ms | 1 ms (goal) | %.2f of the goal | < 1 ms |\n",
+                cpp_p99_ms, cpp_p99_ms / 1.0);
+  md << line;
+  std::snprintf(line, sizeof line,
+                "| one decision, p99 of the thread's CPU time (without waiting for a core) | %.3f ms | 1 ms (goal) | "
+                "%.2f of the goal | < 1 ms |\n",
+                cpu_p99_ms, cpu_p99_ms / 1.0);
   md << line;
   std::cout << "wrote " << (kRepo / "docs" / "bench" / "tgn_decision.md").string() << "\n";
   return 0;

@@ -24,7 +24,8 @@ using namespace ddace;
 
 namespace {
 
-const fs::path kRepo = fs::path(__FILE__).parent_path().parent_path();
+// The repository (not __FILE__: ccache's base directory makes that a relative path).
+const fs::path kRepo = DDACE_SOURCE_DIR;
 
 }  // namespace
 
