@@ -17,27 +17,16 @@
 #include "ddace/tasks/generators.h"
 #include "ddace/tgn/detail.h"
 #include "ddace/tgn/sequence_model.h"
+#include "ddace/common/clock.h"
+#include "results.h"
 #include "reference_runner.h"
 
 namespace fs = std::filesystem;
 using namespace ddace;
 
-namespace {
-
-// The repository (not __FILE__: ccache's base directory makes that a relative path).
-const fs::path kRepo = DDACE_SOURCE_DIR;
-
-/// CPU time of the calling thread, ms: a decision's own compute, without the time the
-/// thread waits for a core on a loaded machine (which the wall-clock p99 includes).
-double threadCpuMs() {
-  timespec t{};
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-  return 1e3 * static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_nsec);
-}
-
-}  // namespace
-
-int main() try {
+int main(int argc, char** argv) try {
+  // The repository, found at run time (--repo DIR, DDACE_REPO, ...): bench/results.h.
+  const fs::path kRepo = bench::repositoryFromArgs(argc, argv, {"bench/tgn_train_reference.py"});
   const int kRepeats = 300, kHistory = 6;
   tasks::GeneratorOptions g;
   g.family = "task2";
@@ -62,9 +51,9 @@ int main() try {
     std::vector<double> times, cpu;
     for (int i = 0; i < kRepeats; ++i) {
       const auto t0 = std::chrono::steady_clock::now();
-      const double c0 = threadCpuMs();
+      const double c0 = 1e3 * threadCpuS();  // the decision's own compute, without waiting for a core
       const tgn::Prediction p = model.predictNext(history);
-      cpu.push_back(threadCpuMs() - c0);
+      cpu.push_back(1e3 * threadCpuS() - c0);
       times.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
       tokens = p.tokens.size();
     }
@@ -77,7 +66,8 @@ int main() try {
   }
   fs::remove(tensors);
   std::cout << "one decision, 11 robots, history of " << kHistory << ": C++ median " << cpp_ms << " ms, p99 "
-            << cpp_p99_ms << " ms (thread CPU time p99 " << cpu_p99_ms << " ms; " << tokens << " tokens), Python median " << py_ms << " ms\n";
+            << cpp_p99_ms << " ms (thread CPU time p99 " << cpu_p99_ms << " ms; " << tokens
+            << " tokens), Python median " << py_ms << " ms\n";
 
   fs::create_directories(kRepo / "docs" / "bench");
   std::ofstream md(kRepo / "docs" / "bench" / "tgn_decision.md");
@@ -96,8 +86,9 @@ int main() try {
   std::snprintf(line, sizeof line, "| one decision, median | %.3f ms | %.3f ms (Python) | C++ %.2fx faster | |\n",
                 cpp_ms, py_ms, py_ms / cpp_ms);
   md << line;
-  std::snprintf(line, sizeof line, "| one decision, p99 vs the goal | %.3f ms | 1 ms (goal) | %.2f of the goal | < 1 ms |\n",
-                cpp_p99_ms, cpp_p99_ms / 1.0);
+  std::snprintf(line, sizeof line,
+                "| one decision, p99 vs the goal | %.3f ms | 1 ms (goal) | %.2f of the goal | < 1 ms |\n", cpp_p99_ms,
+                cpp_p99_ms / 1.0);
   md << line;
   std::snprintf(line, sizeof line,
                 "| one decision, p99 of the thread's CPU time (without waiting for a core) | %.3f ms | 1 ms (goal) | "

@@ -17,19 +17,15 @@
 #include "ddace/tasks/generators.h"
 #include "ddace/tgn/detail.h"
 #include "ddace/tgn/sequence_model.h"
+#include "results.h"
 #include "reference_runner.h"
 
 namespace fs = std::filesystem;
 using namespace ddace;
 
-namespace {
-
-// The repository (not __FILE__: ccache's base directory makes that a relative path).
-const fs::path kRepo = DDACE_SOURCE_DIR;
-
-}  // namespace
-
-int main() try {
+int main(int argc, char** argv) try {
+  // The repository, found at run time (--repo DIR, DDACE_REPO, ...): bench/results.h.
+  const fs::path kRepo = bench::repositoryFromArgs(argc, argv, {"bench/tgn_train_reference.py"});
   const int kEpochs = 30, kRounds = 2;
   tasks::GeneratorOptions g;
   g.family = "task2";

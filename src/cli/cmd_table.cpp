@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "command.h"
+#include "ddace/common/repository.h"
 #include "ddace/common/file.h"
 #include "ddace/common/machine.h"
 #include "ddace/tasks/generators.h"
@@ -295,11 +296,13 @@ void runPlot(const std::string& command) {
 constexpr const char* kCpuCapability = "avx2";
 
 int runTable(const std::vector<std::string>& argv) {
-  Args args(argv, {"--out", "--docs", "--seed", "--gnn-epochs", "--jobs"}, {"--quick"});
+  Args args(argv, {"--out", "--docs", "--seed", "--gnn-epochs", "--jobs", "--repo"}, {"--quick"});
   ::setenv("ATEN_CPU_CAPABILITY", kCpuCapability, 1);  // before any job touches libtorch
   args.expectAtMostPositional(0);
   Settings s;
-  const fs::path source = DDACE_SOURCE_DIR;
+  // The repository found at run time (--repo DIR, DDACE_REPO, the directories above): its
+  // docs/ get the results, scripts/plot_loss.py draws Fig. 4.
+  const fs::path source = findRepository(args.get("--repo", ""), {"scripts/plot_loss.py", "docs"});
   s.quick = args.has("--quick");
   s.out = args.get("--out", (source / "out" / (s.quick ? "table-quick" : "table")).string());
   // A smoke test must not overwrite the shipped results: --quick writes beside its models.
@@ -484,8 +487,8 @@ int runTable(const std::vector<std::string>& argv) {
       list += (list.empty() ? "" : ", ") + r.task + " (OSR " + fmt(r.m.osr, 2) + ")";
     }
     if (met.empty() && missed.empty()) return;  // --quick: no such rows
-    md << "- " << what << ": " << (missed.empty() ? "**met**" : "**not met**") << ". Met: "
-       << (met.empty() ? "none" : met) << (missed.empty() ? "" : "; not met: " + missed) << ".\n";
+    md << "- " << what << ": " << (missed.empty() ? "**met**" : "**not met**")
+       << ". Met: " << (met.empty() ? "none" : met) << (missed.empty() ? "" : "; not met: " + missed) << ".\n";
   };
   const std::vector<std::string> scene_families = tasks::sceneFamilies();
   if (!s.quick) md << "\n## Goals (the default network, this run)\n\n";  // --quick has no such rows
@@ -519,7 +522,8 @@ int runTable(const std::vector<std::string>& argv) {
 
 }  // namespace
 
-DDACE_COMMAND({"table", "ddace table [--out DIR] [--docs DIR] [--quick] [--seed S] [--gnn-epochs N] [--jobs N]",
+DDACE_COMMAND({"table",
+               "ddace table [--out DIR] [--docs DIR] [--quick] [--seed S] [--gnn-epochs N] [--jobs N] [--repo DIR]",
                "regenerate the paper's Table 2, Fig. 4, the case studies and trajectory overlays into "
                "docs/results.md and docs/bench/table.md (--quick: a smoke test of a few minutes, written to "
                "out/table-quick)",

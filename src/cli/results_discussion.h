@@ -6,11 +6,11 @@
   "- **Two networks, one name each.** `paper` is the paper's network (GAT over E', mean pooling, GRU, one "     \
   "linear output slot per entity); `scene` (the default, docs/tgn.md) sees no absolute position: distances "    \
   "and nearness ranks on the attention edges, entity kinds, per-entity heads and a pointer over the candidate " \
-  "targets. On the paper's four families the step order is fixed and both only have to count keyframes; the "  \
+  "targets. On the paper's four families the step order is fixed and both only have to count keyframes; the "   \
   "scene-dependent families (fetch, nearest_goal, queue, deliver) are where they differ: the paper's network "  \
   "has no path from \"which robot is nearest\" to its output slots. What the default still gets wrong there "   \
-  "(`ddace eval` prints the first differing step of a failed trial) are competitions between candidates: two " \
-  "robots claiming the same goal (nearest_goal) or the same queue slot (queue).\n"                             \
+  "(`ddace eval` prints the first differing step of a failed trial) are competitions between candidates: two "  \
+  "robots claiming the same goal (nearest_goal) or the same queue slot (queue).\n"                              \
   "- **Where E' matters.** The E' rules column counts the observed interaction edges each refinement rule "     \
   "decided. On clean demonstrations of a fixed-order family every observed edge recurs, so the rule "           \
   "\"recurs\" decides all of them and E' is exactly the demonstrated edge set; the ablation (`full-graph`) "    \
@@ -18,11 +18,11 @@
   "to ignore: where its rows equal the paper network's, E' did not matter. The cluster rule and the rare rule " \
   "only have work where edges occur in some demonstrations and not others: mislabelled tokens (the imperfect "  \
   "rows, dropped as rare) and the scene-dependent families, whose edges depend on the configuration (R1 -> G2 " \
-  "in one demonstration, R3 -> G2 in the next: kept by the cluster rule). The default network lifts E' to "    \
+  "in one demonstration, R3 -> G2 in the next: kept by the cluster rule). The default network lifts E' to "     \
   "entity kinds (every pair whose kinds are those of a kept edge), so for it E' only decides which kinds of "   \
-  "entity attend to each other; the table has no ablation of E' for the default network, so it does not show " \
+  "entity attend to each other; the table has no ablation of E' for the default network, so it does not show "  \
   "that E' changes any of its decisions. Where the counts of the cluster and rare rules are zero, E' decided "  \
-  "nothing beyond the demonstrated edge set.\n"                                                                \
+  "nothing beyond the demonstrated edge set.\n"                                                                 \
   "- **Human-timed demonstrations.** Label onsets up to 0.4 s apart within a step are merged by step "          \
   "grouping (`step_window_s`, 0.5 s by default) before anything is learned, so the sequence model sees the "    \
   "same steps as from clean data; what remains is the 2 mm position noise.\n"                                   \
