@@ -99,10 +99,11 @@ int runInspect(const std::vector<std::string>& argv) {
   return 0;
 }
 
-DDACE_COMMAND({"inspect", "ddace inspect MODELDIR [--loss]",
-               "check every file of a model directory (digests, task fingerprint) and print its task, network, training "
-               "result and refined edge set E'",
-               runInspect});
+DDACE_COMMAND(
+    {"inspect", "ddace inspect MODELDIR [--loss]",
+     "check every file of a model directory (digests, task fingerprint) and print its task, network, training "
+     "result and refined edge set E'",
+     runInspect});
 
 }  // namespace
 }  // namespace ddace::cli

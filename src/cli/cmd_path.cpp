@@ -35,8 +35,9 @@ gp::PrimitiveLibrary loadLibrary(const std::string& model) {
       const pipeline::Model m = pipeline::loadModel(model);
       if (!m.primitives)
         throw Error(Diagnostic{model, 0, 0,
-                               "a " + m.sequence.variant() + " model has no primitive library (it rolls out its own "
-                               "trajectories)"});
+                               "a " + m.sequence.variant() +
+                                   " model has no primitive library (it rolls out its own "
+                                   "trajectories)"});
       return *m.primitives;
     }
     const fs::path file = p / gp::kPrimitivesFile;

@@ -38,8 +38,9 @@ class GpPathNode::Impl {
       if (fs::is_directory(path)) {
         // A model directory goes through the one model loader (every file verified).
         if (!fs::exists(fs::path(path) / "manifest.yaml"))
-          throw Error(Diagnostic{path, 0, 0, "not a model directory (no manifest.yaml): give a model directory "
-                                             "written by ddace train, or a primitives.yaml"});
+          throw Error(Diagnostic{path, 0, 0,
+                                 "not a model directory (no manifest.yaml): give a model directory "
+                                 "written by ddace train, or a primitives.yaml"});
         const pipeline::Model model = pipeline::loadModel(path);
         if (!model.primitives)
           throw Error(Diagnostic{path, 0, 0, "a " + model.sequence.variant() + " model has no primitive library"});

@@ -43,8 +43,8 @@ class SequenceNode::Impl {
                               task::fingerprintOfPath(task_path), task_path + " (task '" + spec_.name + "')",
                               "set parameter '" + pnh.resolveName("allow_other_task") + "' to true");
       else
-        ROS_WARN("sequence: %s: the model's task is not checked against %s", pnh.resolveName("allow_other_task").c_str(),
-                 task_path.c_str());
+        ROS_WARN("sequence: %s: the model's task is not checked against %s",
+                 pnh.resolveName("allow_other_task").c_str(), task_path.c_str());
       if (model_->spec().entityNames() != spec_.entityNames())
         throw Error("model " + dir + " was trained on other entities (or another order of them) than the task " +
                     task_path + " has");

@@ -397,10 +397,9 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
     r.fail(root, "not a primitive library (expected a mapping with format: " + std::string(kPrimitivesFormat) + ")");
   const std::string format = r.text(root, "format");
   if (format != kPrimitivesFormat)
-    r.fail(root["format"], "unsupported format '" + format + "' (expected " + kPrimitivesFormat +
-                               (format == "ddace-primitives/1" ? "; this older library names no task: retrain the model"
-                                                               : "") +
-                               ")");
+    r.fail(root["format"],
+           "unsupported format '" + format + "' (expected " + kPrimitivesFormat +
+               (format == "ddace-primitives/1" ? "; this older library names no task: retrain the model" : "") + ")");
 
   PrimitiveLibrary lib;
   lib.task_ = r.text(root, "task");

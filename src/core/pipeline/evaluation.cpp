@@ -74,10 +74,10 @@ void checkSameTask(const Model& model, const std::string& model_dir, const task:
                   "/task.yaml (even with --allow-other-task the entity names and their order must agree)");
     return;
   }
-  task::requireSameTask(model.sequence.info().fingerprint,
-                        (fs::path(model_dir) / "manifest.yaml").string() + ", task '" + model.sequence.spec().name + "'",
-                        task::fingerprintOf(test), test_dir + " (task '" + test.spec.name + "')",
-                        "pass --allow-other-task");
+  task::requireSameTask(
+      model.sequence.info().fingerprint,
+      (fs::path(model_dir) / "manifest.yaml").string() + ", task '" + model.sequence.spec().name + "'",
+      task::fingerprintOf(test), test_dir + " (task '" + test.spec.name + "')", "pass --allow-other-task");
   if (model.sequence.spec().entityNames() != test.spec.entityNames())
     throw Error("the model in " + model_dir + " lists the entities in another order than " + test_dir +
                 "/task.yaml: keep task.yaml's order of the training directory");

@@ -85,12 +85,14 @@ int count(const YAML::Node& n, const std::string& what, const std::string& file)
 
 std::string TaskFingerprint::canonicalText() const {
   return "entities: " + list(entities) + "\nvocabulary: " + list(vocabulary) +
-         "\nvocabulary_declared: " + (vocabulary_declared ? "true" : "false") + "\ngoal_conditions: " +
-         list(goal_conditions) + "\ntoken_types: " + list(token_types) + "\nstep_counts: " + list(step_counts) +
-         "\ndemonstrations: " + std::to_string(demonstrations) + "\n";
+         "\nvocabulary_declared: " + (vocabulary_declared ? "true" : "false") +
+         "\ngoal_conditions: " + list(goal_conditions) + "\ntoken_types: " + list(token_types) +
+         "\nstep_counts: " + list(step_counts) + "\ndemonstrations: " + std::to_string(demonstrations) + "\n";
 }
 
-std::string TaskFingerprint::digest() const { return sha256Hex(canonicalText()); }
+std::string TaskFingerprint::digest() const {
+  return sha256Hex(canonicalText());
+}
 
 TaskFingerprint fingerprintOf(const TaskSpec& spec) {
   TaskFingerprint f;

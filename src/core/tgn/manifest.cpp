@@ -125,13 +125,13 @@ void verifyDigest(const std::string& path, const std::string& bytes, const FileD
                   const std::string& manifest) {
   if (bytes.size() != expected.bytes)
     throw Error(Diagnostic{path, 0, 0,
-                           "truncated or replaced: " + std::to_string(bytes.size()) + " bytes, " + manifest +
-                               " says " + std::to_string(expected.bytes)});
+                           "truncated or replaced: " + std::to_string(bytes.size()) + " bytes, " + manifest + " says " +
+                               std::to_string(expected.bytes)});
   const std::string actual = sha256Hex(bytes);
   if (actual != expected.sha256)
     throw Error(Diagnostic{path, 0, 0,
-                           "edited or corrupted: its SHA-256 " + actual + " is not the " + expected.sha256 +
-                               " that " + manifest + " records"});
+                           "edited or corrupted: its SHA-256 " + actual + " is not the " + expected.sha256 + " that " +
+                               manifest + " records"});
 }
 
 std::string readFile(const std::string& path, uint64_t max_bytes) {
@@ -385,7 +385,8 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     g.nodes = static_cast<int>(spec.entities.size());
     g.demonstrations = as<int>(path, ref, "demonstrations");
     if (g.demonstrations < 1 || g.demonstrations > task::kMaxFingerprintCount)
-      throw errorAt(path, ref["demonstrations"], "demonstrations must be in 1.." + std::to_string(task::kMaxFingerprintCount));
+      throw errorAt(path, ref["demonstrations"],
+                    "demonstrations must be in 1.." + std::to_string(task::kMaxFingerprintCount));
     g.clusters = as<int>(path, ref, "clusters");
     if (g.clusters < 1 || g.clusters > g.nodes)
       throw errorAt(path, ref["clusters"], "clusters must be in 1.." + std::to_string(g.nodes) + " (the entities)");

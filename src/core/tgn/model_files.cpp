@@ -39,8 +39,7 @@ void SequenceModel::save(const std::string& model_dir, const std::vector<std::st
   put(files::kWeights, weights.str());
   put(files::kTask, task::taskYamlText(impl_->spec));
   put(files::kLoss, files::lossCsvText(impl_->info.history));
-  for (const auto& name : bound_files)
-    digests[name] = files::digestOf(files::readFile((dir / name).string()));
+  for (const auto& name : bound_files) digests[name] = files::digestOf(files::readFile((dir / name).string()));
   files::writeFile((dir / files::kManifest).string(), files::manifestText(impl_->info, impl_->spec, digests));
 }
 

@@ -37,7 +37,9 @@ std::string readAll(const fs::path& p) {
   return ss.str();
 }
 
-void writeAll(const fs::path& p, const std::string& s) { std::ofstream(p, std::ios::binary) << s; }
+void writeAll(const fs::path& p, const std::string& s) {
+  std::ofstream(p, std::ios::binary) << s;
+}
 
 struct ToolRun {
   int status = -1;
@@ -135,7 +137,6 @@ TEST(ModelIntegrity, APrimitivesEditOfAnySizeIsRefused) {
   EXPECT_NE(e.find("primitives.yaml"), std::string::npos) << e;
   EXPECT_NE(e.find("edited"), std::string::npos) << e;
 }
-
 
 TEST(ModelIntegrity, Task2WithFourRobotsIsRefusedOnTask4) {
   const pipeline::Model m = pipeline::loadModel(fixture().task2_model);

@@ -45,8 +45,8 @@ TEST(TaskFingerprint, TheSameTaskMatchesAcrossScenesSeedsAndDemoCounts) {
 
 TEST(TaskFingerprint, RecordsTheStepStructureInKindTerms) {
   const task::TaskFingerprint f = task::fingerprintOf(generated("task4", 3, 1));
-  EXPECT_EQ(f.entities, (std::vector<std::string>{"G1:goal", "R1:robot:hamster", "R2:robot:hamster",
-                                                  "R3:robot:hamster", "R4:robot:hamster"}));
+  EXPECT_EQ(f.entities, (std::vector<std::string>{"G1:goal", "R1:robot:hamster", "R2:robot:hamster", "R3:robot:hamster",
+                                                  "R4:robot:hamster"}));
   EXPECT_EQ(f.vocabulary, (std::vector<std::string>{"move"}));
   EXPECT_EQ(f.goal_conditions, (std::vector<std::string>{"R3 at G1", "R4 at G1"}));
   EXPECT_EQ(f.token_types, (std::vector<std::string>{"robot:move:goal", "robot:move:robot"}));

@@ -61,7 +61,9 @@ std::string readAll(const fs::path& p) {
   return ss.str();
 }
 
-void writeAll(const fs::path& p, const std::string& s) { std::ofstream(p, std::ios::binary) << s; }
+void writeAll(const fs::path& p, const std::string& s) {
+  std::ofstream(p, std::ios::binary) << s;
+}
 
 const tgn::SequenceModel& task4Model() {
   static const tgn::SequenceModel model = [] {
