@@ -49,7 +49,7 @@ int runTrain(const std::vector<std::string>& argv) {
   Args args(argv,
             {"--out", "--variant", "--epochs", "--seed", "--threads", "--patience", "--lr", "--attention", "--dropout",
              "--layers", "--gru-hidden", "--head-hidden", "--identity-dim", "--weight-decay"},
-            {"--no-identity", "--no-positions", "--no-displacement", "--quiet", "--force"});
+            {"--no-identity", "--positions", "--displacement", "--quiet", "--force"});
   const std::string given = args.positional(0, "TASKDIR");
   const std::string task_path = trainingDir(given);
   args.expectAtMostPositional(1);
@@ -78,8 +78,10 @@ int runTrain(const std::vector<std::string>& argv) {
   options.identity_dim = static_cast<int>(args.getInt("--identity-dim", options.identity_dim));
   options.weight_decay = args.getDouble("--weight-decay", options.weight_decay);
   if (args.has("--no-identity")) options.identity_embedding = false;
-  if (args.has("--no-positions")) options.node_positions = false;
-  if (args.has("--no-displacement")) options.edge_displacement = false;
+  // The scene network sees distances and nearness ranks only (invariant to moving, rotating,
+  // mirroring the scene); these add the absolute (x, y) and x_j - x_i back (docs/tgn.md).
+  if (args.has("--positions")) options.node_positions = true;
+  if (args.has("--displacement")) options.edge_displacement = true;
   options.validate();
 
   const task::TaskDir train = task::loadTaskDir(task_path);
@@ -126,8 +128,8 @@ DDACE_COMMAND(
      "[--epochs "
      "N=400] [--seed S=1] "
      "[--threads T=1] [--patience P=20] [--lr RATE] [--dropout P=0.1] [--layers L=3] [--gru-hidden H=64] "
-     "[--head-hidden H=32] [--identity-dim D=8] [--weight-decay W=0] [--no-identity] [--no-positions] "
-     "[--no-displacement] [--quiet]",
+     "[--head-hidden H=32] [--identity-dim D=8] [--weight-decay W=0] [--no-identity] [--positions] "
+     "[--displacement] [--quiet]",
      "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR "
      "(refused when it holds anything else; --force replaces an earlier model)",
      runTrain});
