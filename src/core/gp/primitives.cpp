@@ -415,6 +415,8 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
     std::sort(sorted.begin(), sorted.end());
     std::vector<std::string> named;
     for (const auto& e : lib.fingerprint_.entities) named.push_back(e.substr(0, e.find(':')));
+    // The fingerprint sorts "NAME:KIND" strings, where R10:... comes before R1:... (':' > '0').
+    std::sort(named.begin(), named.end());
     if (sorted != named) r.fail(root["task_fingerprint"], "task_fingerprint names other entities than 'entities'");
   }
   // Bounded before anything is allocated from it (every GP holds points x points matrices).

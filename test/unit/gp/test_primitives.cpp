@@ -230,6 +230,17 @@ TEST(PrimitiveLibrary, SaveLoadRoundTrip) {
   }
 }
 
+// Task 2 has R1 and R10: its fingerprint's sorted "NAME:KIND" list puts R10 before R1, the
+// library's sorted names R1 before R10 (a Task 2 model once could not be loaded).
+TEST(PrimitiveLibrary, SaveLoadRoundTripWithNamesThatArePrefixesOfOthers) {
+  const auto& lib = library("task2");
+  const std::string path = tempDir("roundtrip_task2") + "/" + gp::kPrimitivesFile;
+  lib.save(path);
+  const gp::PrimitiveLibrary back = gp::PrimitiveLibrary::load(path);
+  EXPECT_EQ(back.entityNames(), lib.entityNames());
+  EXPECT_EQ(back.taskFingerprint().digest(), lib.taskFingerprint().digest());
+}
+
 TEST(PrimitiveLibrary, CorruptedFilesAreRejectedCleanly) {
   const std::string dir = tempDir("corrupt");
   const std::string good = dir + "/good.yaml";
