@@ -2,7 +2,7 @@
 """Counts test cases in JUnit XML result files (gtest and rostest).
 
 usage: scripts/test_summary.py RESULTS_DIR
-Prints every failed or erroneous test case, then "N passed, N failed[, N skipped]".
+Prints every failed or erroneous test case (with the first lines of its message), then "N passed, N failed[, N skipped]".
 Exit status 1 when any test failed or no result was found.
 (catkin_test_results counts gtest's nested <testsuites> twice, hence this script.)
 """
@@ -34,6 +34,10 @@ def main():
                 failed += 1
                 msg = (bad.get("message") or bad.text or "").strip().splitlines()
                 print(f"FAILED {os.path.basename(path)}: {name}" + (f": {msg[0]}" if msg else ""))
+                # The rest of the message (expected, actual, the test's own words) says what went wrong
+                # where only this summary is kept, as in CI's log.
+                for more in msg[1:8]:
+                    print(f"    {more}")
             elif case.find("skipped") is not None or case.get("status") == "notrun":
                 skipped += 1
             else:
