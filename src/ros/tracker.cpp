@@ -178,7 +178,7 @@ class TrackerNode::Impl {
   void onImage(const sensor_msgs::ImageConstPtr& msg) {
     // A driver that publishes camera_info sends it along with the images: do not measure
     // without the intrinsics it brings (raised markers would be off by centimetres).
-    if (!have_camera_ && info_sub_.getNumPublishers() > 0) {
+    if (!have_camera_ && cameraInfoAdvertised()) {
       ROS_INFO_THROTTLE(2.0, "tracker_node: waiting for %s", info_sub_.getTopic().c_str());
       return;
     }
@@ -191,6 +191,22 @@ class TrackerNode::Impl {
       return;
     }
     process(img->image, msg->header.stamp.isZero() ? ros::Time::now() : msg->header.stamp);
+  }
+
+  /// Whether anyone publishes the camera_info topic. The subscriber's count is not enough:
+  /// it counts connected publishers, and the image topic can connect first (then the first
+  /// frames were measured without the intrinsics, off by millimetres to centimetres). The
+  /// master knows every advertised topic; asked at most once a second.
+  bool cameraInfoAdvertised() {
+    if (info_sub_.getNumPublishers() > 0) return true;
+    const ros::WallTime now = ros::WallTime::now();
+    if (now < next_info_query_) return info_advertised_;
+    next_info_query_ = now + ros::WallDuration(1.0);
+    ros::master::V_TopicInfo topics;
+    info_advertised_ = ros::master::getTopics(topics) &&
+                       std::any_of(topics.begin(), topics.end(),
+                                   [&](const ros::master::TopicInfo& t) { return t.name == info_sub_.getTopic(); });
+    return info_advertised_;
   }
 
   void process(const cv::Mat& image, const ros::Time& stamp) {
@@ -353,6 +369,8 @@ class TrackerNode::Impl {
   std::optional<vision::FrameResult> last_;
   std::optional<vision::ParallaxEstimate> last_parallax_;
   bool warned_no_intrinsics_ = false;
+  bool info_advertised_ = false;  // cameraInfoAdvertised()'s last answer from the master ...
+  ros::WallTime next_info_query_;  // ... and when to ask again
   std::string frame_id_, video_file_;
   int video_device_ = -1;
   bool publish_tf_ = true;
