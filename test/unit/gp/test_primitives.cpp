@@ -255,7 +255,7 @@ TEST(PrimitiveLibrary, CorruptedFilesAreRejectedCleanly) {
 
   const std::string not_yaml = dir + "/not_yaml.yaml";
   writeText(not_yaml, "format: [ddace-primitives/1\n");
-  expectLoadError(not_yaml, "not valid YAML");
+  expectLoadError(not_yaml, "YAML syntax error");
 
   const std::string wrong_format = dir + "/wrong_format.yaml";
   writeText(wrong_format, std::regex_replace(text, std::regex("ddace-primitives/2"), "ddace-primitives/9"));
@@ -282,12 +282,12 @@ TEST(PrimitiveLibrary, CorruptedFilesAreRejectedCleanly) {
   const std::string not_number = dir + "/not_number.yaml";
   writeText(not_number, std::regex_replace(text, std::regex("noise_level: [^\\n]*"), "noise_level: lots",
                                            std::regex_constants::format_first_only));
-  expectLoadError(not_number, "'noise_level' must be a number");
+  expectLoadError(not_number, "primitive R1:move:R3, x: noise_level: 'lots' is not a finite number");
 
   const std::string missing_field = dir + "/missing_field.yaml";
   writeText(missing_field, std::regex_replace(text, std::regex("\\n *residual_ss: [^\\n]*"), "",
                                               std::regex_constants::format_first_only));
-  expectLoadError(missing_field, "missing field 'residual_ss'");
+  expectLoadError(missing_field, "primitive R1:move:R3, x: missing key 'residual_ss'");
 
   const std::string short_means = dir + "/short_means.yaml";
   writeText(short_means, std::regex_replace(text, std::regex("means: \\[[^,]*, "), "means: [",
@@ -306,6 +306,32 @@ TEST(PrimitiveLibrary, CorruptedFilesAreRejectedCleanly) {
   } catch (const Error& e) {
     ASSERT_FALSE(e.diagnostics().empty());
     EXPECT_GT(e.diagnostics()[0].line, 1);
+  }
+}
+
+TEST(PrimitiveLibrary, EveryProblemOfAFileIsReportedAtOnceWithItsPlace) {
+  std::string text = library("task4").text();
+  text = std::regex_replace(text, std::regex("noise_level: [^\\n]*"), "noise_level: lots",
+                            std::regex_constants::format_first_only);
+  text = std::regex_replace(text, std::regex("skipped_segments: 0"), "skipped_segments: 0.5",
+                            std::regex_constants::format_first_only);
+  text = std::regex_replace(text, std::regex("\\npoints:"), "\ncolour: red\npoints:");
+  try {
+    gp::PrimitiveLibrary::parse(text, "lib.yaml");
+    FAIL() << "parsed a library with three problems";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    ASSERT_EQ(e.diagnostics().size(), 3u) << msg;
+    EXPECT_NE(msg.find("unknown key 'colour'"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("skipped_segments must be an integer in 0.."), std::string::npos) << msg;
+    EXPECT_NE(msg.find("noise_level: 'lots' is not a finite number"), std::string::npos) << msg;
+    int line = 0;
+    for (const Diagnostic& d : e.diagnostics()) {
+      EXPECT_EQ(d.file, "lib.yaml");
+      EXPECT_GT(d.line, line) << "in the file's order: " << msg;
+      EXPECT_GT(d.column, 0) << msg;
+      line = d.line;
+    }
   }
 }
 
