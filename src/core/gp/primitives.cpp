@@ -100,8 +100,10 @@ void emitGp(YAML::Emitter& out, const GaussianProcess& gp) {
   out << YAML::EndSeq << YAML::EndMap;
 }
 
-/// One axis' GP; false (with every problem recorded) when it cannot be rebuilt.
-bool readGp(YamlChecker& c, const YAML::Node& node, int points, int segments, const std::string& what,
+/// One axis' GP; false (with every problem recorded) when it cannot be rebuilt. Its
+/// fields are always checked; it is conditioned (points x points matrices, cubic time) and
+/// its likelihood compared only with `condition`.
+bool readGp(YamlChecker& c, const YAML::Node& node, int points, int segments, const std::string& what, bool condition,
             GaussianProcess& out) {
   if (!c.expectMap(node, what)) return false;
   const std::string where = what + ": ";
@@ -132,7 +134,7 @@ bool readGp(YamlChecker& c, const YAML::Node& node, int points, int segments, co
   positive(c, node, "noise_level", where, p.noise_level);
   nonNegative(c, node, "alpha", where, alpha);
   number(c, node, "log_marginal_likelihood", where, stored);
-  if (c.errors().size() != errors) return false;
+  if (c.errors().size() != errors || !condition) return false;
   try {
     out = GaussianProcess::condition(data, p, use_constant, alpha);
   } catch (const Error& e) {
@@ -461,6 +463,8 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
   auto known = [&](const std::string& name) {
     return std::find(lib.entities_.begin(), lib.entities_.end(), name) != lib.entities_.end();
   };
+  size_t means_read = 0;
+  bool aliased = false;
   if (prims && prims.IsSequence())
     for (const auto& node : prims) {
       if (!c.expectMap(node, "a primitive")) continue;
@@ -480,11 +484,18 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
       const bool skipped_ok =
           integer(c, node, "skipped_segments", what + ": ", 0, kMaxPrimitiveSegments, p.skipped_segments);
       const YAML::Node x = field(c, node, "x", what + ": "), y = field(c, node, "y", what + ": ");
-      // A GP is rebuilt only with a valid size: its matrices are points x points.
-      if (!have_points || !counted) continue;
-      const bool fitted = (x && readGp(c, x, lib.options_.points, p.segments, what + ", x", p.x)) &
-                          (y && readGp(c, y, lib.options_.points, p.segments, what + ", y", p.y));
-      if (named && skipped_ok && fitted) lib.primitives_.emplace(p.key, std::move(p));
+      if (!have_points || !counted) continue;  // a GP's size is unknown
+      // Rebuilding GPs costs cubic time: only while the file is sound so far, and only for
+      // as many numbers as the text can hold (YAML aliases are not part of the format).
+      means_read += 2 * static_cast<size_t>(lib.options_.points);
+      if (2 * means_read > text.size() && !aliased) {
+        c.error(node, what + ": more numbers than the file has characters (YAML aliases are not accepted here)");
+        aliased = true;
+      }
+      const bool condition = named && skipped_ok && !aliased && c.errors().empty() && fingerprint_errors.empty();
+      const bool fitted = (x && readGp(c, x, lib.options_.points, p.segments, what + ", x", condition, p.x)) &
+                          (y && readGp(c, y, lib.options_.points, p.segments, what + ", y", condition, p.y));
+      if (fitted) lib.primitives_.emplace(p.key, std::move(p));
     }
   std::vector<Diagnostic> all = c.errors();
   all.insert(all.end(), fingerprint_errors.begin(), fingerprint_errors.end());

@@ -313,7 +313,7 @@ TEST(PrimitiveLibrary, EveryProblemOfAFileIsReportedAtOnceWithItsPlace) {
   std::string text = library("task4").text();
   text = std::regex_replace(text, std::regex("noise_level: [^\\n]*"), "noise_level: lots",
                             std::regex_constants::format_first_only);
-  text = std::regex_replace(text, std::regex("skipped_segments: 0"), "skipped_segments: 0.5",
+  text = std::regex_replace(text, std::regex("(key: R2:move:R4[^]*?skipped_segments: )0"), "$010.5",
                             std::regex_constants::format_first_only);
   text = std::regex_replace(text, std::regex("\\npoints:"), "\ncolour: red\npoints:");
   try {
@@ -323,7 +323,9 @@ TEST(PrimitiveLibrary, EveryProblemOfAFileIsReportedAtOnceWithItsPlace) {
     const std::string msg = e.what();
     ASSERT_EQ(e.diagnostics().size(), 3u) << msg;
     EXPECT_NE(msg.find("unknown key 'colour'"), std::string::npos) << msg;
-    EXPECT_NE(msg.find("skipped_segments must be an integer in 0.."), std::string::npos) << msg;
+    EXPECT_NE(msg.find("primitive R2:move:R4: skipped_segments must be an integer in 0..1000000 (got 0.5)"),
+              std::string::npos)
+        << msg;
     EXPECT_NE(msg.find("noise_level: 'lots' is not a finite number"), std::string::npos) << msg;
     int line = 0;
     for (const Diagnostic& d : e.diagnostics()) {
@@ -332,6 +334,25 @@ TEST(PrimitiveLibrary, EveryProblemOfAFileIsReportedAtOnceWithItsPlace) {
       EXPECT_GT(d.column, 0) << msg;
       line = d.line;
     }
+  }
+}
+
+TEST(PrimitiveLibrary, AliasesThatRepeatAGaussianProcessAreRefused) {
+  // One GP written once and named by every primitive: more numbers than the text holds,
+  // which would rebuild a points x points GP per name.
+  std::string text = library("task4").text();
+  text =
+      std::regex_replace(text, std::regex("\\n    x:\\n"), "\n    x: &gp\n", std::regex_constants::format_first_only);
+  std::string more;
+  for (int i = 0; i < 1000; ++i)
+    more += "  - {key: R1:a" + std::to_string(i) + ":R3, entity: R1, action: a" + std::to_string(i) +
+            ", target: R3, segments: 30, skipped_segments: 0, x: *gp, y: *gp}\n";
+  text += more;
+  try {
+    gp::PrimitiveLibrary::parse(text, "lib.yaml");
+    FAIL() << "parsed a library of aliases";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("YAML aliases are not accepted"), std::string::npos) << e.what();
   }
 }
 
