@@ -109,15 +109,15 @@ class MockRobotNode::Impl {
       if (scene->getType() != XmlRpc::XmlRpcValue::TypeStruct)
         throw Error("parameter '" + pnh.resolveName("scene") + "' must be a map name: [x, y] or [x, y, yaw]");
       for (auto it = scene->begin(); it != scene->end(); ++it) {
-        const std::string where = "parameter " + pnh.resolveName("scene") + "/" + it->first;
+        const std::string where = "parameter '" + pnh.resolveName("scene") + "/" + it->first + "'";
         auto& v = it->second;
         if (v.getType() != XmlRpc::XmlRpcValue::TypeArray || (v.size() != 2 && v.size() != 3))
-          throw Error("'" + where + "' must be [x, y] or [x, y, yaw]");
+          throw Error(where + " must be [x, y] or [x, y, yaw]");
         auto num = [&](int k) {
           auto& x = v[k];
           if (x.getType() == XmlRpc::XmlRpcValue::TypeDouble) return static_cast<double>(x);
           if (x.getType() == XmlRpc::XmlRpcValue::TypeInt) return static_cast<double>(static_cast<int>(x));
-          throw Error("'" + where + "' element " + std::to_string(k) + " is not a number");
+          throw Error(where + " element " + std::to_string(k) + " is not a number");
         };
         named.push_back({it->first, {num(0), num(1), v.size() == 3 ? num(2) : 0.0}, where});
       }

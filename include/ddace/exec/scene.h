@@ -24,7 +24,7 @@ namespace ddace::exec {
 std::vector<Pose2D> startPoses(const task::Demonstration& demo, double min_motion_m = 0.01);
 
 /// A start pose given for an entity by name; `where` names its source for errors (e.g.
-/// the parameter it was read from).
+/// "parameter '/mock_robots/scene/R1'").
 struct NamedPose {
   std::string name;
   Pose2D pose;

@@ -35,9 +35,9 @@ std::vector<Pose2D> sceneStartPoses(const task::TaskSpec& spec, const std::vecto
   std::vector<bool> set(n, !base.empty());
   for (const NamedPose& p : named) {
     const int i = spec.entityIndex(p.name);
-    if (i < 0) throw Error("'" + p.where + "': no entity '" + p.name + "' in task '" + spec.name + "'");
+    if (i < 0) throw Error(p.where + ": no entity '" + p.name + "' in task '" + spec.name + "'");
     if (!std::isfinite(p.pose.x) || !std::isfinite(p.pose.y) || !std::isfinite(p.pose.yaw))
-      throw Error("'" + p.where + "': the pose of '" + p.name + "' is not finite");
+      throw Error(p.where + ": the pose of '" + p.name + "' is not finite");
     poses[i] = p.pose;
     set[i] = true;
   }
