@@ -7,12 +7,14 @@
 // Units: metres, radians, seconds; table frame.
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "ddace/exec/diff_drive.h"
 #include "ddace/task/demonstration.h"
+#include "ddace/task/task_spec.h"
 
 namespace ddace::exec {
 
@@ -20,6 +22,21 @@ namespace ddace::exec {
 /// it first moves more than `min_motion_m` (yaw 0 when it never moves). Throws
 /// ddace::Error for a demonstration without rows.
 std::vector<Pose2D> startPoses(const task::Demonstration& demo, double min_motion_m = 0.01);
+
+/// A start pose given for an entity by name; `where` names its source for errors (e.g.
+/// "parameter '/mock_robots/scene/R1'").
+struct NamedPose {
+  std::string name;
+  Pose2D pose;
+  std::string where;
+};
+
+/// Every entity's start pose in `spec`'s order: `base` (a demonstration's startPoses, or
+/// empty for none) with each of `named` put over it. Throws ddace::Error naming the
+/// `where` of a name that is no entity of the task, for a `base` of the wrong size, and
+/// for the first entity left without a pose (`missing_hint` says how to give one).
+std::vector<Pose2D> sceneStartPoses(const task::TaskSpec& spec, const std::vector<Pose2D>& base,
+                                    const std::vector<NamedPose>& named, const std::string& missing_hint);
 
 /// An object carried along a planned path at a constant speed (ideal following).
 class CarriedObject {

@@ -112,9 +112,11 @@ class PrimitiveLibrary {
   void save(const std::string& path) const;
   /// The text save() writes.
   std::string text() const;
-  /// Reads a library written by save(). Throws ddace::Error naming the file (and the line
-  /// and column where known) and the problem: unreadable, not YAML, wrong format, a missing
-  /// or invalid field, or numbers that do not reproduce the stored likelihood.
+  /// Reads a library written by save(). Throws ddace::Error naming the file and listing
+  /// every problem with its line and column (common/yaml_checker.h): unreadable, not YAML,
+  /// wrong format, an unknown key, a missing or invalid field, YAML aliases, or numbers
+  /// that do not reproduce the stored likelihood (checked once every field is sound: the
+  /// GPs are rebuilt, in cubic time, only then).
   static PrimitiveLibrary load(const std::string& path);
   /// The same from the file's bytes (`path` names it in messages).
   static PrimitiveLibrary parse(const std::string& text, const std::string& path);

@@ -1,12 +1,13 @@
 // mock_robot_node: stands in for the Hamsters, their bridge and the overhead tracker.
 //
-// Every robot of the task is an exec::DiffDriveModel (unicycle at rate_hz, wheel limits,
-// command latency, watchdog, pose noise) driven by /robots/R/wheels. Objects move only
-// through their own segments (/robots/O/segment), following the path ideally at
-// object_speed_mps and reporting /robots/O/segment_status, as in the simulator. Goals
-// stay put. Publishes every entity on `entities_topic` (default /ddace/entities;
-// remap it when a synthetic camera + tracker close the loop) and tf table -> entity.
-// Parameters: config/execution.yaml, section mock_robots.
+// The table is an exec::TableSimulator (include/ddace/exec/table_simulator.h): every
+// robot of the task is an exec::DiffDriveModel (unicycle at rate_hz, wheel limits, command
+// latency, watchdog, pose noise) driven by /robots/R/wheels; objects move only through
+// their own segments (/robots/O/segment), following the path ideally at object_speed_mps
+// and reporting /robots/O/segment_status, as in the simulator; goals stay put. This node
+// only reads the parameters and the scene and converts messages. Publishes every entity on `entities_topic` (default
+// /ddace/entities; remap it when a synthetic camera + tracker close the loop) and tf table -> entity. Parameters:
+// config/execution.yaml, section mock_robots.
 #pragma once
 
 #include <memory>
@@ -14,6 +15,7 @@
 
 #include <ros/node_handle.h>
 
+#include "ddace/exec/table_simulator.h"
 #include "ddace/ros/frames.h"
 
 namespace ddace::nodes {
@@ -25,12 +27,11 @@ class MockRobotNode {
  public:
   /// The node's own parameters (private namespace) and their defaults, as
   /// config/execution.yaml (section mock_robots) documents them; ~robot/* are
-  /// exec::DiffDriveParams.
-  struct Params {
+  /// exec::DiffDriveParams; object_speed_mps is exec::TableSimulatorParams'.
+  struct Params : exec::TableSimulatorParams {
     std::string frame_id = kTableFrame;
     std::string entities_topic = "/ddace/entities";  ///< remap for a synthetic camera + tracker
     bool publish_tf = true;                          ///< tf table -> <entity> for every entity
-    double object_speed_mps = 0.12;                  ///< objects follow their segments at this speed
   };
 
   MockRobotNode(ros::NodeHandle nh, ros::NodeHandle pnh);

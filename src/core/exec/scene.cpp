@@ -25,6 +25,27 @@ std::vector<Pose2D> startPoses(const task::Demonstration& demo, double min_motio
   return poses;
 }
 
+std::vector<Pose2D> sceneStartPoses(const task::TaskSpec& spec, const std::vector<Pose2D>& base,
+                                    const std::vector<NamedPose>& named, const std::string& missing_hint) {
+  const size_t n = spec.entities.size();
+  if (!base.empty() && base.size() != n)
+    throw Error("a scene of " + std::to_string(base.size()) + " poses for task '" + spec.name + "' of " +
+                std::to_string(n) + " entities");
+  std::vector<Pose2D> poses = base.empty() ? std::vector<Pose2D>(n) : base;
+  std::vector<bool> set(n, !base.empty());
+  for (const NamedPose& p : named) {
+    const int i = spec.entityIndex(p.name);
+    if (i < 0) throw Error(p.where + ": no entity '" + p.name + "' in task '" + spec.name + "'");
+    if (!std::isfinite(p.pose.x) || !std::isfinite(p.pose.y) || !std::isfinite(p.pose.yaw))
+      throw Error(p.where + ": the pose of '" + p.name + "' is not finite");
+    poses[i] = p.pose;
+    set[i] = true;
+  }
+  for (size_t i = 0; i < n; ++i)
+    if (!set[i]) throw Error("no start pose for entity '" + spec.entities[i].name + "': " + missing_hint);
+  return poses;
+}
+
 CarriedObject::CarriedObject(std::vector<Eigen::Vector2d> path, const Eigen::Vector2d& from, double speed_mps)
     : path_(std::move(path)), speed_mps_(speed_mps) {
   if (path_.empty()) throw Error("an object's path is empty");

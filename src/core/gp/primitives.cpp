@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <tuple>
 
 #include "ddace/common/error.h"
 #include "ddace/common/file.h"
+#include "ddace/common/yaml_checker.h"
 #include "ddace/gp/canonical.h"
 
 namespace ddace::gp {
@@ -22,61 +24,66 @@ std::string joinKey(const std::string& entity, const std::string& action, const 
   return entity + ":" + action + ":" + target;
 }
 
-/// Field access with diagnostics that name the file, line and column.
-struct Reader {
-  std::string file;
+/// The fields of primitives.yaml through the one YamlChecker: each records its
+/// diagnostic (file:line:column) and says whether the value is usable, so a file is
+/// refused with every problem at once. `where` prefixes the field's name in messages.
+YAML::Node field(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where) {
+  if (!map.IsMap()) return YAML::Node(YAML::NodeType::Undefined);  // reported by the caller's expectMap
+  const YAML::Node n = map[key];
+  if (!n.IsDefined() || n.IsNull()) {
+    c.error(map, where + "missing key '" + key + "'");
+    return YAML::Node(YAML::NodeType::Undefined);
+  }
+  return n;
+}
 
-  [[noreturn]] void fail(const YAML::Node& at, const std::string& message) const {
-    const YAML::Mark m = at.Mark();
-    throw Error(Diagnostic{file, m.line >= 0 ? m.line + 1 : 0, m.column >= 0 ? m.column + 1 : 0, message});
+bool textField(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where,
+               std::string& out) {
+  const YAML::Node n = field(c, map, key, where);
+  return n && c.scalar(n, where + key, out);
+}
+
+bool number(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where, double& out) {
+  const YAML::Node n = field(c, map, key, where);
+  return n && c.number(n, where + key, out);
+}
+
+bool positive(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where, double& out) {
+  const YAML::Node n = field(c, map, key, where);
+  return n && c.positive(n, where + key, out);
+}
+
+bool nonNegative(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where, double& out) {
+  const YAML::Node n = field(c, map, key, where);
+  double v = 0;
+  if (!n || !c.number(n, where + key, v)) return false;
+  if (v < 0) {
+    c.error(n, where + key + " must not be negative (got " + n.Scalar() + ")");
+    return false;
   }
-  YAML::Node need(const YAML::Node& parent, const std::string& key) const {
-    if (!parent.IsMap()) fail(parent, "expected a mapping holding '" + key + "'");
-    const YAML::Node n = parent[key];
-    if (!n.IsDefined() || n.IsNull()) fail(parent, "missing field '" + key + "'");
-    return n;
+  out = v;
+  return true;
+}
+
+bool boolean(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where, bool& out) {
+  const YAML::Node n = field(c, map, key, where);
+  return n && c.boolean(n, where + key, out);
+}
+
+/// A whole number in [lo, hi] (a fraction is an error, never truncated).
+bool integer(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where, int lo, int hi,
+             int& out) {
+  const YAML::Node n = field(c, map, key, where);
+  double v = 0;
+  if (!n || !c.number(n, where + key, v)) return false;
+  if (v != std::floor(v) || v < lo || v > hi) {
+    c.error(n, where + key + " must be an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + " (got " +
+                   n.Scalar() + ")");
+    return false;
   }
-  double number(const YAML::Node& parent, const std::string& key) const {
-    const YAML::Node n = need(parent, key);
-    double v = 0;
-    try {
-      v = n.as<double>();
-    } catch (const YAML::Exception&) {
-      fail(n, "'" + key + "' must be a number");
-    }
-    if (!std::isfinite(v)) fail(n, "'" + key + "' must be a finite number");
-    return v;
-  }
-  double positive(const YAML::Node& parent, const std::string& key) const {
-    const double v = number(parent, key);
-    if (!(v > 0)) fail(need(parent, key), "'" + key + "' must be positive");
-    return v;
-  }
-  int integer(const YAML::Node& parent, const std::string& key, int min, int max) const {
-    const YAML::Node n = need(parent, key);
-    int v = 0;
-    try {
-      v = n.as<int>();
-    } catch (const YAML::Exception&) {
-      fail(n, "'" + key + "' must be an integer");
-    }
-    if (v < min || v > max) fail(n, "'" + key + "' must be in " + std::to_string(min) + ".." + std::to_string(max));
-    return v;
-  }
-  bool boolean(const YAML::Node& parent, const std::string& key) const {
-    const YAML::Node n = need(parent, key);
-    try {
-      return n.as<bool>();
-    } catch (const YAML::Exception&) {
-      fail(n, "'" + key + "' must be true or false");
-    }
-  }
-  std::string text(const YAML::Node& parent, const std::string& key) const {
-    const YAML::Node n = need(parent, key);
-    if (!n.IsScalar()) fail(n, "'" + key + "' must be text");
-    return n.Scalar();
-  }
-};
+  out = static_cast<int>(v);
+  return true;
+}
 
 void emitGp(YAML::Emitter& out, const GaussianProcess& gp) {
   const KernelParams& p = gp.params();
@@ -93,48 +100,57 @@ void emitGp(YAML::Emitter& out, const GaussianProcess& gp) {
   out << YAML::EndSeq << YAML::EndMap;
 }
 
-GaussianProcess readGp(const Reader& r, const YAML::Node& node, int points, int segments, const std::string& what) {
+/// One axis' GP; false (with every problem recorded) when it cannot be rebuilt. Its
+/// fields are always checked; it is conditioned (points x points matrices, cubic time) and
+/// its likelihood compared only with `condition`.
+bool readGp(YamlChecker& c, const YAML::Node& node, int points, int segments, const std::string& what, bool condition,
+            GaussianProcess& out) {
+  if (!c.expectMap(node, what)) return false;
+  const std::string where = what + ": ";
+  c.onlyKeys(node,
+             {"use_constant", "constant", "length_scale", "noise_level", "alpha", "residual_ss",
+              "log_marginal_likelihood", "means"},
+             what);
+  const size_t errors = c.errors().size();
   RepeatedData data;
   data.inputs = progressGrid(points);
   data.counts = Eigen::VectorXd::Constant(points, segments);
   data.total = static_cast<double>(points) * segments;
-  const YAML::Node means = r.need(node, "means");
-  if (!means.IsSequence() || static_cast<int>(means.size()) != points)
-    r.fail(means, what + ": 'means' must be a list of " + std::to_string(points) + " numbers");
   data.means.resize(points);
-  for (int i = 0; i < points; ++i) {
-    try {
-      data.means[i] = means[i].as<double>();
-    } catch (const YAML::Exception&) {
-      r.fail(means[i], what + ": means[" + std::to_string(i) + "] is not a number");
-    }
-    if (!std::isfinite(data.means[i])) r.fail(means[i], what + ": means[" + std::to_string(i) + "] is not finite");
+  const YAML::Node means = field(c, node, "means", where);
+  if (means && (!means.IsSequence() || static_cast<int>(means.size()) != points)) {
+    c.error(means, where + "'means' must be a list of " + std::to_string(points) + " numbers");
+  } else if (means) {
+    for (int i = 0; i < points; ++i) c.number(means[i], where + "means[" + std::to_string(i) + "]", data.means[i]);
   }
-  data.residual_ss = r.number(node, "residual_ss");
-  if (data.residual_ss < 0) r.fail(r.need(node, "residual_ss"), what + ": 'residual_ss' must not be negative");
   KernelParams p;
-  const bool use_constant = r.boolean(node, "use_constant");
-  p.constant = use_constant ? r.positive(node, "constant") : 1.0;
-  p.length_scale = r.positive(node, "length_scale");
-  p.noise_level = r.positive(node, "noise_level");
-  const double alpha = r.number(node, "alpha");
-  if (alpha < 0) r.fail(r.need(node, "alpha"), what + ": 'alpha' must not be negative");
-  const double stored = r.number(node, "log_marginal_likelihood");
-  GaussianProcess gp;
+  bool use_constant = true;
+  double alpha = 0, stored = 0;
+  nonNegative(c, node, "residual_ss", where, data.residual_ss);
+  if (boolean(c, node, "use_constant", where, use_constant) && use_constant)
+    positive(c, node, "constant", where, p.constant);
+  else p.constant = 1.0;
+  positive(c, node, "length_scale", where, p.length_scale);
+  positive(c, node, "noise_level", where, p.noise_level);
+  nonNegative(c, node, "alpha", where, alpha);
+  number(c, node, "log_marginal_likelihood", where, stored);
+  if (c.errors().size() != errors || !condition) return false;
   try {
-    gp = GaussianProcess::condition(data, p, use_constant, alpha);
+    out = GaussianProcess::condition(data, p, use_constant, alpha);
   } catch (const Error& e) {
-    r.fail(node, what + ": " + e.what());
+    c.error(node, where + e.what());
+    return false;
   }
   // The likelihood depends on every stored number: a corrupted or hand-edited value shows here.
-  if (std::abs(gp.logMarginalLikelihood() - stored) > 1e-6 * (1 + std::abs(stored))) {
+  if (std::abs(out.logMarginalLikelihood() - stored) > 1e-6 * (1 + std::abs(stored))) {
     std::ostringstream msg;
     msg.precision(10);
-    msg << what << ": the stored log marginal likelihood " << stored << " does not match the stored data and "
-        << "hyper-parameters (" << gp.logMarginalLikelihood() << "); the file was corrupted or edited";
-    r.fail(node, msg.str());
+    msg << where << "the stored log marginal likelihood " << stored << " does not match the stored data and "
+        << "hyper-parameters (" << out.logMarginalLikelihood() << "); the file was corrupted or edited";
+    c.error(node, msg.str());
+    return false;
   }
-  return gp;
+  return true;
 }
 
 }  // namespace
@@ -386,65 +402,107 @@ PrimitiveLibrary PrimitiveLibrary::load(const std::string& path) {
 }
 
 PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::string& path) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::ParserException& e) {
-    throw Error(Diagnostic{path, e.mark.line + 1, e.mark.column + 1, "not valid YAML: " + e.msg});
+  YamlChecker c(path);
+  const YAML::Node root = c.parse(text);
+  c.throwIfErrors();
+  if (!root.IsMap()) {
+    c.error(root, "not a primitive library (expected a mapping with format: " + std::string(kPrimitivesFormat) + ")");
+    c.throwIfErrors();
   }
-  const Reader r{path};
-  if (!root.IsMap())
-    r.fail(root, "not a primitive library (expected a mapping with format: " + std::string(kPrimitivesFormat) + ")");
-  const std::string format = r.text(root, "format");
-  if (format != kPrimitivesFormat)
-    r.fail(root["format"],
-           "unsupported format '" + format + "' (expected " + kPrimitivesFormat +
-               (format == "ddace-primitives/1" ? "; this older library names no task: retrain the model" : "") + ")");
+  // Another format's fields would only add noise to the one error that matters.
+  std::string format;
+  if (textField(c, root, "format", "", format) && format != kPrimitivesFormat)
+    c.error(root["format"],
+            "unsupported format '" + format + "' (expected " + kPrimitivesFormat +
+                (format == "ddace-primitives/1" ? "; this older library names no task: retrain the model" : "") + ")");
+  c.throwIfErrors();
+  c.onlyKeys(root,
+             {"format", "task", "entities", "task_fingerprint", "points", "pin_endpoints", "min_segment_length_m",
+              "primitives"},
+             "a primitive library");
 
   PrimitiveLibrary lib;
-  lib.task_ = r.text(root, "task");
-  const YAML::Node entities = r.need(root, "entities");
-  if (!entities.IsSequence() || entities.size() == 0) r.fail(entities, "'entities' must be a non-empty list of names");
-  for (const auto& e : entities) {
-    if (!e.IsScalar() || !task::isValidName(e.Scalar())) r.fail(e, "invalid entity name");
-    lib.entities_.push_back(e.Scalar());
+  textField(c, root, "task", "", lib.task_);
+  const YAML::Node entities = field(c, root, "entities", "");
+  bool entities_ok = false;
+  if (entities && (!entities.IsSequence() || entities.size() == 0)) {
+    c.error(entities, "'entities' must be a non-empty list of names");
+  } else if (entities) {
+    entities_ok = true;
+    for (const auto& e : entities) {
+      if (!e.IsScalar() || !task::isValidName(e.Scalar())) {
+        c.error(e, "invalid entity name");
+        entities_ok = false;
+      } else {
+        lib.entities_.push_back(e.Scalar());
+      }
+    }
   }
-  lib.fingerprint_ = task::parseFingerprint(r.need(root, "task_fingerprint"), path);
-  {
-    std::vector<std::string> sorted = lib.entities_;
-    std::sort(sorted.begin(), sorted.end());
-    std::vector<std::string> named;
-    for (const auto& e : lib.fingerprint_.entities) named.push_back(e.substr(0, e.find(':')));
-    // The fingerprint sorts "NAME:KIND" strings, where R10:... comes before R1:... (':' > '0').
-    std::sort(named.begin(), named.end());
-    if (sorted != named) r.fail(root["task_fingerprint"], "task_fingerprint names other entities than 'entities'");
+  // The fingerprint's reader throws its own file:line:column diagnostics; they join ours.
+  std::vector<Diagnostic> fingerprint_errors;
+  if (const YAML::Node fp = field(c, root, "task_fingerprint", "")) {
+    try {
+      lib.fingerprint_ = task::parseFingerprint(fp, path);
+      std::vector<std::string> sorted = lib.entities_;
+      std::sort(sorted.begin(), sorted.end());
+      std::vector<std::string> named;
+      for (const auto& e : lib.fingerprint_.entities) named.push_back(e.substr(0, e.find(':')));
+      // The fingerprint sorts "NAME:KIND" strings, where R10:... comes before R1:... (':' > '0').
+      std::sort(named.begin(), named.end());
+      if (entities_ok && sorted != named) c.error(fp, "task_fingerprint names other entities than 'entities'");
+    } catch (const Error& e) {
+      fingerprint_errors = e.diagnostics();
+    }
   }
   // Bounded before anything is allocated from it (every GP holds points x points matrices).
-  lib.options_.points = r.integer(root, "points", 2, kMaxPrimitivePoints);
-  lib.options_.pin_endpoints = r.boolean(root, "pin_endpoints");
-  lib.options_.min_segment_length_m = r.positive(root, "min_segment_length_m");
-  const YAML::Node prims = r.need(root, "primitives");
-  if (!prims.IsSequence()) r.fail(prims, "'primitives' must be a list");
+  const bool have_points = integer(c, root, "points", "", 2, kMaxPrimitivePoints, lib.options_.points);
+  boolean(c, root, "pin_endpoints", "", lib.options_.pin_endpoints);
+  positive(c, root, "min_segment_length_m", "", lib.options_.min_segment_length_m);
+  const YAML::Node prims = field(c, root, "primitives", "");
+  if (prims && !prims.IsSequence()) c.error(prims, "'primitives' must be a list");
   auto known = [&](const std::string& name) {
     return std::find(lib.entities_.begin(), lib.entities_.end(), name) != lib.entities_.end();
   };
-  for (const auto& node : prims) {
-    Primitive p;
-    p.key = r.text(node, "key");
-    p.entity = r.text(node, "entity");
-    p.action = r.text(node, "action");
-    p.target = r.text(node, "target");
-    if (!known(p.entity)) r.fail(node["entity"], "primitive " + p.key + ": unknown entity '" + p.entity + "'");
-    if (!known(p.target)) r.fail(node["target"], "primitive " + p.key + ": unknown target '" + p.target + "'");
-    if (p.key != joinKey(p.entity, p.action, p.target))
-      r.fail(node["key"], "primitive key '" + p.key + "' does not match its entity, action and target");
-    if (lib.primitives_.count(p.key)) r.fail(node["key"], "primitive " + p.key + " appears twice");
-    p.segments = r.integer(node, "segments", 1, kMaxPrimitiveSegments);
-    p.skipped_segments = r.integer(node, "skipped_segments", 0, kMaxPrimitiveSegments);
-    p.x = readGp(r, r.need(node, "x"), lib.options_.points, p.segments, "primitive " + p.key + ", x");
-    p.y = readGp(r, r.need(node, "y"), lib.options_.points, p.segments, "primitive " + p.key + ", y");
-    lib.primitives_.emplace(p.key, std::move(p));
-  }
+  size_t means_read = 0;
+  bool aliased = false;
+  if (prims && prims.IsSequence())
+    for (const auto& node : prims) {
+      if (!c.expectMap(node, "a primitive")) continue;
+      c.onlyKeys(node, {"key", "entity", "action", "target", "segments", "skipped_segments", "x", "y"}, "a primitive");
+      Primitive p;
+      const bool named = textField(c, node, "key", "", p.key) & textField(c, node, "entity", "", p.entity) &
+                         textField(c, node, "action", "", p.action) & textField(c, node, "target", "", p.target);
+      const std::string what = "primitive " + p.key;
+      if (named) {
+        if (!known(p.entity)) c.error(node["entity"], what + ": unknown entity '" + p.entity + "'");
+        if (!known(p.target)) c.error(node["target"], what + ": unknown target '" + p.target + "'");
+        if (p.key != joinKey(p.entity, p.action, p.target))
+          c.error(node["key"], "primitive key '" + p.key + "' does not match its entity, action and target");
+        if (lib.primitives_.count(p.key)) c.error(node["key"], what + " appears twice");
+      }
+      const bool counted = integer(c, node, "segments", what + ": ", 1, kMaxPrimitiveSegments, p.segments);
+      const bool skipped_ok =
+          integer(c, node, "skipped_segments", what + ": ", 0, kMaxPrimitiveSegments, p.skipped_segments);
+      const YAML::Node x = field(c, node, "x", what + ": "), y = field(c, node, "y", what + ": ");
+      if (!have_points || !counted) continue;  // a GP's size is unknown
+      // Rebuilding GPs costs cubic time: only while the file is sound so far, and only for
+      // as many numbers as the text can hold (YAML aliases are not part of the format).
+      means_read += 2 * static_cast<size_t>(lib.options_.points);
+      if (2 * means_read > text.size() && !aliased) {
+        c.error(node, what + ": more numbers than the file has characters (YAML aliases are not accepted here)");
+        aliased = true;
+      }
+      const bool condition = named && skipped_ok && !aliased && c.errors().empty() && fingerprint_errors.empty();
+      const bool fitted = (x && readGp(c, x, lib.options_.points, p.segments, what + ", x", condition, p.x)) &
+                          (y && readGp(c, y, lib.options_.points, p.segments, what + ", y", condition, p.y));
+      if (fitted) lib.primitives_.emplace(p.key, std::move(p));
+    }
+  std::vector<Diagnostic> all = c.errors();
+  all.insert(all.end(), fingerprint_errors.begin(), fingerprint_errors.end());
+  std::stable_sort(all.begin(), all.end(), [](const Diagnostic& a, const Diagnostic& b) {
+    return std::tie(a.line, a.column) < std::tie(b.line, b.column);
+  });
+  if (!all.empty()) throw Error(all);
   lib.cacheGrid();
   return lib;
 }

@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -12,29 +11,14 @@
 #include "ddace/task/task_dir.h"
 #include "ddace/tasks/generators.h"
 
+#include "../common/run_tool.h"
+
 using namespace ddace;
 namespace fs = std::filesystem;
+using ddace::test::runTool;
+using ddace::test::ToolRun;
 
 namespace {
-
-struct ToolRun {
-  int status = -1;
-  std::string out;
-};
-
-/// Runs the ddace tool built next to this test binary; stdout and stderr together.
-ToolRun runTool(const std::string& args) {
-  const fs::path tool = fs::read_symlink("/proc/self/exe").parent_path() / "ddace";
-  ToolRun r;
-  FILE* p = ::popen(("'" + tool.string() + "' " + args + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = ::pclose(p);
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
 
 /// A model directory with the primitives of a generated Task 4 and its test set.
 struct Model {
@@ -115,5 +99,5 @@ TEST(CliPath, BadInputFailsWithAMessage) {
   r = runTool("path " + broken + " --key R3:move:G1 --start 0,0 --goal 1,1");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.out.find(broken), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("missing field 'entities'"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("missing key 'entities'"), std::string::npos) << r.out;
 }

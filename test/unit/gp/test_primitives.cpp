@@ -4,11 +4,11 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <regex>
 
 #include "ddace/common/error.h"
+#include "ddace/common/file.h"
 #include "ddace/eval/frechet.h"
 #include "ddace/gp/primitives.h"
 #include "ddace/tasks/generators.h"
@@ -65,17 +65,6 @@ std::string tempDir(const std::string& name) {
   const fs::path dir = root.path / name;
   fs::create_directories(dir);
   return dir.string();
-}
-
-std::string readText(const std::string& path) {
-  std::ifstream f(path);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
-
-void writeText(const std::string& path, const std::string& text) {
-  std::ofstream(path) << text;
 }
 
 /// load() must throw a ddace::Error whose message names the file and contains `what`.
@@ -245,58 +234,58 @@ TEST(PrimitiveLibrary, CorruptedFilesAreRejectedCleanly) {
   const std::string dir = tempDir("corrupt");
   const std::string good = dir + "/good.yaml";
   library("task4").save(good);
-  const std::string text = readText(good);
+  const std::string text = readTextFile(good);
 
   expectLoadError(dir + "/missing.yaml", "No such file or directory");  // common/file.h names the reason
 
   const std::string truncated = dir + "/truncated.yaml";
-  writeText(truncated, text.substr(0, text.size() / 2) + "\n  - [unclosed");
+  writeTextFile(truncated, text.substr(0, text.size() / 2) + "\n  - [unclosed");
   expectLoadError(truncated, "");
 
   const std::string not_yaml = dir + "/not_yaml.yaml";
-  writeText(not_yaml, "format: [ddace-primitives/1\n");
-  expectLoadError(not_yaml, "not valid YAML");
+  writeTextFile(not_yaml, "format: [ddace-primitives/1\n");
+  expectLoadError(not_yaml, "YAML syntax error");
 
   const std::string wrong_format = dir + "/wrong_format.yaml";
-  writeText(wrong_format, std::regex_replace(text, std::regex("ddace-primitives/2"), "ddace-primitives/9"));
+  writeTextFile(wrong_format, std::regex_replace(text, std::regex("ddace-primitives/2"), "ddace-primitives/9"));
   expectLoadError(wrong_format, "unsupported format");
 
   // A library of the format before the task fingerprint: retrain.
   const std::string older = dir + "/older.yaml";
-  writeText(older, std::regex_replace(text, std::regex("ddace-primitives/2"), "ddace-primitives/1"));
+  writeTextFile(older, std::regex_replace(text, std::regex("ddace-primitives/2"), "ddace-primitives/1"));
   expectLoadError(older, "retrain");
 
   // The task fingerprint edited (Task 4's goal conditions made Task 2's): its digest refuses it.
   const std::string other_task = dir + "/other_task.yaml";
-  writeText(other_task, std::regex_replace(text, std::regex("goal_conditions: \\[R3 at G1, R4 at G1\\]"),
-                                           "goal_conditions: [R4 at G1]", std::regex_constants::format_first_only));
-  ASSERT_NE(readText(other_task), text);
+  writeTextFile(other_task, std::regex_replace(text, std::regex("goal_conditions: \\[R3 at G1, R4 at G1\\]"),
+                                               "goal_conditions: [R4 at G1]", std::regex_constants::format_first_only));
+  ASSERT_NE(readTextFile(other_task), text);
   expectLoadError(other_task, "digest does not match");
 
   // A hyper-parameter changed by hand: the stored likelihood no longer matches.
   const std::string edited = dir + "/edited.yaml";
-  writeText(edited, std::regex_replace(text, std::regex("length_scale: ([0-9])"), "length_scale: 9$1",
-                                       std::regex_constants::format_first_only));
+  writeTextFile(edited, std::regex_replace(text, std::regex("length_scale: ([0-9])"), "length_scale: 9$1",
+                                           std::regex_constants::format_first_only));
   expectLoadError(edited, "does not match");
 
   const std::string not_number = dir + "/not_number.yaml";
-  writeText(not_number, std::regex_replace(text, std::regex("noise_level: [^\\n]*"), "noise_level: lots",
-                                           std::regex_constants::format_first_only));
-  expectLoadError(not_number, "'noise_level' must be a number");
+  writeTextFile(not_number, std::regex_replace(text, std::regex("noise_level: [^\\n]*"), "noise_level: lots",
+                                               std::regex_constants::format_first_only));
+  expectLoadError(not_number, "primitive R1:move:R3, x: noise_level: 'lots' is not a finite number");
 
   const std::string missing_field = dir + "/missing_field.yaml";
-  writeText(missing_field, std::regex_replace(text, std::regex("\\n *residual_ss: [^\\n]*"), "",
-                                              std::regex_constants::format_first_only));
-  expectLoadError(missing_field, "missing field 'residual_ss'");
+  writeTextFile(missing_field, std::regex_replace(text, std::regex("\\n *residual_ss: [^\\n]*"), "",
+                                                  std::regex_constants::format_first_only));
+  expectLoadError(missing_field, "primitive R1:move:R3, x: missing key 'residual_ss'");
 
   const std::string short_means = dir + "/short_means.yaml";
-  writeText(short_means, std::regex_replace(text, std::regex("means: \\[[^,]*, "), "means: [",
-                                            std::regex_constants::format_first_only));
+  writeTextFile(short_means, std::regex_replace(text, std::regex("means: \\[[^,]*, "), "means: [",
+                                                std::regex_constants::format_first_only));
   expectLoadError(short_means, "'means' must be a list of 100 numbers");
 
   const std::string unknown_entity = dir + "/unknown_entity.yaml";
-  writeText(unknown_entity,
-            std::regex_replace(text, std::regex("entity: R1"), "entity: Q7", std::regex_constants::format_first_only));
+  writeTextFile(unknown_entity, std::regex_replace(text, std::regex("entity: R1"), "entity: Q7",
+                                                   std::regex_constants::format_first_only));
   expectLoadError(unknown_entity, "unknown entity 'Q7'");
 
   // Diagnostics carry a line number (file:line:column).
@@ -306,6 +295,53 @@ TEST(PrimitiveLibrary, CorruptedFilesAreRejectedCleanly) {
   } catch (const Error& e) {
     ASSERT_FALSE(e.diagnostics().empty());
     EXPECT_GT(e.diagnostics()[0].line, 1);
+  }
+}
+
+TEST(PrimitiveLibrary, EveryProblemOfAFileIsReportedAtOnceWithItsPlace) {
+  std::string text = library("task4").text();
+  text = std::regex_replace(text, std::regex("noise_level: [^\\n]*"), "noise_level: lots",
+                            std::regex_constants::format_first_only);
+  text = std::regex_replace(text, std::regex("(key: R2:move:R4[^]*?skipped_segments: )0"), "$010.5",
+                            std::regex_constants::format_first_only);
+  text = std::regex_replace(text, std::regex("\\npoints:"), "\ncolour: red\npoints:");
+  try {
+    gp::PrimitiveLibrary::parse(text, "lib.yaml");
+    FAIL() << "parsed a library with three problems";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    ASSERT_EQ(e.diagnostics().size(), 3u) << msg;
+    EXPECT_NE(msg.find("unknown key 'colour'"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("primitive R2:move:R4: skipped_segments must be an integer in 0..1000000 (got 0.5)"),
+              std::string::npos)
+        << msg;
+    EXPECT_NE(msg.find("noise_level: 'lots' is not a finite number"), std::string::npos) << msg;
+    int line = 0;
+    for (const Diagnostic& d : e.diagnostics()) {
+      EXPECT_EQ(d.file, "lib.yaml");
+      EXPECT_GT(d.line, line) << "in the file's order: " << msg;
+      EXPECT_GT(d.column, 0) << msg;
+      line = d.line;
+    }
+  }
+}
+
+TEST(PrimitiveLibrary, AliasesThatRepeatAGaussianProcessAreRefused) {
+  // One GP written once and named by every primitive: more numbers than the text holds,
+  // which would rebuild a points x points GP per name.
+  std::string text = library("task4").text();
+  text =
+      std::regex_replace(text, std::regex("\\n    x:\\n"), "\n    x: &gp\n", std::regex_constants::format_first_only);
+  std::string more;
+  for (int i = 0; i < 1000; ++i)
+    more += "  - {key: R1:a" + std::to_string(i) + ":R3, entity: R1, action: a" + std::to_string(i) +
+            ", target: R3, segments: 30, skipped_segments: 0, x: *gp, y: *gp}\n";
+  text += more;
+  try {
+    gp::PrimitiveLibrary::parse(text, "lib.yaml");
+    FAIL() << "parsed a library of aliases";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("YAML aliases are not accepted"), std::string::npos) << e.what();
   }
 }
 
@@ -324,7 +360,7 @@ TEST(PrimitiveLibrary, FitIsDeterministic) {
   const std::string a = tempDir("det") + "/a.yaml", b = tempDir("det") + "/b.yaml";
   gp::PrimitiveLibrary::fit(train).save(a);
   gp::PrimitiveLibrary::fit(train).save(b);
-  EXPECT_EQ(readText(a), readText(b));
+  EXPECT_EQ(readTextFile(a), readTextFile(b));
 }
 
 TEST(PrimitiveLibrary, PlainRbfPlusWhiteKernel) {

@@ -2,10 +2,8 @@
 // task's model with the same entity names refused): through pipeline::loadModel, the one
 // loader, and through the real `ddace` binary (eval, inspect, path).
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -16,8 +14,12 @@
 #include "ddace/task/fingerprint.h"
 #include "ddace/tasks/generators.h"
 
+#include "../common/run_tool.h"
+
 using namespace ddace;
 namespace fs = std::filesystem;
+using ddace::test::runTool;
+using ddace::test::ToolRun;
 
 namespace {
 
@@ -39,25 +41,6 @@ std::string readAll(const fs::path& p) {
 
 void writeAll(const fs::path& p, const std::string& s) {
   std::ofstream(p, std::ios::binary) << s;
-}
-
-struct ToolRun {
-  int status = -1;
-  std::string out;
-};
-
-/// Runs the ddace tool built next to this test binary; stdout and stderr together.
-ToolRun runTool(const std::string& args) {
-  const fs::path tool = fs::read_symlink("/proc/self/exe").parent_path() / "ddace";
-  ToolRun r;
-  FILE* p = ::popen(("'" + tool.string() + "' " + args + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = ::pclose(p);
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
 }
 
 /// A Task 2 model trained with 4 robots (entity names R1..R4, G1: those of Task 4), a

@@ -1,36 +1,19 @@
 // `ddace generate` and `ddace validate` end to end: nothing a user owns is lost, every
 // failure is named and exits non-zero, validate goes on past a directory it cannot read.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 
+#include "../common/run_tool.h"
+
 namespace fs = std::filesystem;
+using ddace::test::runTool;
+using ddace::test::ToolRun;
 
 namespace {
-
-struct ToolRun {
-  int status = -1;
-  std::string out;
-};
-
-/// Runs the ddace tool built next to this test binary; stdout and stderr together.
-ToolRun ddace(const std::string& args) {
-  const fs::path tool = fs::read_symlink("/proc/self/exe").parent_path() / "ddace";
-  ToolRun r;
-  FILE* p = ::popen(("'" + tool.string() + "' " + args + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = ::pclose(p);
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
 
 std::string root() {
   const std::string r = ::testing::TempDir() + "/ddace_cli_task_" + std::to_string(::getpid());
@@ -53,7 +36,7 @@ TEST(CliGenerate, RefusesADirectoryHoldingARecordingAndAHandWrittenTaskYamlEvenW
   std::ofstream(out + "/task.yaml") << yaml;
   std::ofstream(out + "/demos/my_recording.csv") << csv;
   for (const std::string force : {"", " --force"}) {
-    const ToolRun r = ddace("generate task1 --out '" + out + "' --train 2 --test 1" + force);
+    const ToolRun r = runTool("generate task1 --out '" + out + "' --train 2 --test 1" + force);
     EXPECT_NE(r.status, 0) << r.out;
     EXPECT_NE(r.out.find(out + "/demos/my_recording.csv (not written by ddace generate)"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find(out + "/task.yaml (not written by ddace generate)"), std::string::npos) << r.out;
@@ -64,45 +47,45 @@ TEST(CliGenerate, RefusesADirectoryHoldingARecordingAndAHandWrittenTaskYamlEvenW
 
 TEST(CliGenerate, ReplacesItsOwnOutputOnlyWithForceAndLeavesNoStaleFile) {
   const std::string out = root() + "/own";
-  ToolRun r = ddace("generate task4 --out '" + out + "' --train 5 --test 1");
+  ToolRun r = runTool("generate task4 --out '" + out + "' --train 5 --test 1");
   ASSERT_EQ(r.status, 0) << r.out;
-  r = ddace("generate task4 --out '" + out + "' --train 2 --test 1");
+  r = runTool("generate task4 --out '" + out + "' --train 2 --test 1");
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.out.find("--force replaces it"), std::string::npos) << r.out;
   EXPECT_TRUE(fs::exists(out + "/train/demos/demo_004.csv"));
-  r = ddace("generate task4 --out '" + out + "' --train 2 --test 1 --force");
+  r = runTool("generate task4 --out '" + out + "' --train 2 --test 1 --force");
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_FALSE(fs::exists(out + "/train/demos/demo_004.csv"));
   EXPECT_TRUE(fs::exists(out + "/train/demos/demo_001.csv"));
   // A model trained into the output (as `ddace train --out DIR/model` would) is not generate's.
   fs::create_directories(out + "/model");
   std::ofstream(out + "/model/weights.pt") << "w";
-  r = ddace("generate task4 --out '" + out + "' --train 2 --test 1 --force");
+  r = runTool("generate task4 --out '" + out + "' --train 2 --test 1 --force");
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.out.find(out + "/model/weights.pt (not written by ddace generate)"), std::string::npos) << r.out;
   EXPECT_EQ(read(out + "/model/weights.pt"), "w");
 }
 
 TEST(CliGenerate, AnOutputThatCannotBeWrittenIsAnError) {
-  ToolRun r = ddace("generate task4 --out /dev/full --train 1 --test 1");
+  ToolRun r = runTool("generate task4 --out /dev/full --train 1 --test 1");
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.out.find("/dev/full: exists and is not a directory"), std::string::npos) << r.out;
-  r = ddace("generate task4 --out /proc/ddace_not_writable --train 1 --test 1");
+  r = runTool("generate task4 --out /proc/ddace_not_writable --train 1 --test 1");
   EXPECT_NE(r.status, 0) << r.out;
   EXPECT_EQ(r.out.find("generated"), std::string::npos) << r.out;
 }
 
 TEST(CliGenerate, OnsetJitterIsMergedBackAndValidateSaysWhere) {
   const std::string out = root() + "/onset";
-  ToolRun r = ddace("generate task4 --out '" + out + "' --train 3 --test 1 --onset-jitter 0.4");
+  ToolRun r = runTool("generate task4 --out '" + out + "' --train 3 --test 1 --onset-jitter 0.4");
   ASSERT_EQ(r.status, 0) << r.out;
-  r = ddace("validate '" + out + "'");
+  r = runTool("validate '" + out + "'");
   EXPECT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("every demonstration has the same 2 steps"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find(out + "/train/demos/demo_000.csv:"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("s after the step's first token (line "), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("test/demos/demo_000.csv:"), std::string::npos) << r.out;  // the test set is clean
-  r = ddace("generate task4 --out '" + out + "2' --onset-jitter 0.6");
+  r = runTool("generate task4 --out '" + out + "2' --onset-jitter 0.6");
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.out.find("--onset-jitter 0.6 is out of range"), std::string::npos) << r.out;
 }
@@ -110,10 +93,10 @@ TEST(CliGenerate, OnsetJitterIsMergedBackAndValidateSaysWhere) {
 TEST(CliValidate, ADirectoryThatCannotBeReadIsOneErrorAndTheRestIsValidated) {
   const std::string base = root();
   const std::string good = base + "/good", loop = base + "/loop";
-  ASSERT_EQ(ddace("generate task4 --out '" + good + "' --train 2 --test 1").status, 0);
+  ASSERT_EQ(runTool("generate task4 --out '" + good + "' --train 2 --test 1").status, 0);
   fs::remove(loop);
   fs::create_symlink(loop, loop);  // a symlink loop
-  const ToolRun r = ddace("validate '" + loop + "' '" + good + "/train'");
+  const ToolRun r = runTool("validate '" + loop + "' '" + good + "/train'");
   EXPECT_EQ(r.status, 1) << r.out;
   EXPECT_NE(r.out.find(loop + ": 1 error(s)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("symbolic links"), std::string::npos) << r.out;

@@ -8,38 +8,20 @@
 #include <unistd.h>
 
 #include <chrono>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <map>
 #include <thread>
 
+#include "../common/run_tool.h"
+
 namespace fs = std::filesystem;
+using ddace::test::runTool;
+using ddace::test::toolPath;
+using ddace::test::ToolRun;
 
 namespace {
-
-struct ToolRun {
-  int status = -1;
-  std::string out;
-};
-
-fs::path tool() {
-  return fs::read_symlink("/proc/self/exe").parent_path() / "ddace";
-}
-
-/// Runs the ddace tool built next to this test binary; stdout and stderr together.
-ToolRun ddace(const std::string& args) {
-  ToolRun r;
-  FILE* p = ::popen(("'" + tool().string() + "' " + args + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = ::pclose(p);
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
 
 std::string root() {
   static const std::string r = [] {
@@ -68,7 +50,7 @@ std::map<std::string, std::string> tree(const std::string& dir) {
 std::string data(const std::string& family) {
   const std::string dir = root() + "/data_" + family;
   if (!fs::exists(dir)) {
-    const ToolRun r = ddace("generate " + family + " --out '" + dir + "' --train 3 --test 1 --seed 2");
+    const ToolRun r = runTool("generate " + family + " --out '" + dir + "' --train 3 --test 1 --seed 2");
     EXPECT_EQ(r.status, 0) << r.out;
   }
   return dir;
@@ -76,7 +58,7 @@ std::string data(const std::string& family) {
 
 /// A short training run (a few epochs: these tests are about the directory, not the model).
 ToolRun train(const std::string& task_dir, const std::string& out, const std::string& extra = "") {
-  return ddace("train '" + task_dir + "' --out '" + out + "' --epochs 2 --quiet " + extra);
+  return runTool("train '" + task_dir + "' --out '" + out + "' --epochs 2 --quiet " + extra);
 }
 
 }  // namespace
@@ -166,7 +148,7 @@ TEST(CliTrainOut, AnEditedModelFileIsNotReplaced) {
 
 TEST(CliTrainOut, GeneratesOutputIsNotTrainsToReplace) {
   const std::string out = root() + "/gen_as_model";
-  ASSERT_EQ(ddace("generate task1 --out '" + out + "' --train 2 --test 1").status, 0);
+  ASSERT_EQ(runTool("generate task1 --out '" + out + "' --train 2 --test 1").status, 0);
   const auto before = tree(out);
   const ToolRun r = train(data("task1") + "/train", out, "--force");
   EXPECT_NE(r.status, 0) << r.out;
@@ -209,7 +191,7 @@ TEST(CliTrainOut, AKilledRunLeavesTheOldModelAndTheNextRunClearsItsTemporary) {
   const pid_t pid = ::fork();
   ASSERT_GE(pid, 0);
   if (pid == 0) {
-    const std::string t = tool().string(), task = data("task1") + "/train";
+    const std::string t = toolPath().string(), task = data("task1") + "/train";
     ::execl(t.c_str(), t.c_str(), "train", task.c_str(), "--out", out.c_str(), "--epochs", "100000", "--patience",
             "100000", "--force", "--quiet", static_cast<char*>(nullptr));
     ::_exit(127);

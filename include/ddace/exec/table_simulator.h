@@ -1,0 +1,114 @@
+// The simulated table of the mock robot node: every entity of a task in time steps of
+// 1/rate_hz. Robots are exec::DiffDriveModel unicycles driven by wheel commands; objects
+// move only through their own segments, carried along the planned path at a constant
+// speed (exec/scene.h's CarriedObject, the execution model of docs/task-format.md, as in
+// the closed-loop simulator); goals never move.
+//
+// Owns: the poses, each object's segment state (accepted, running, done, aborted, failed)
+// and the status reports it produces. Must not: read a clock or talk to ROS: time passes
+// only through step(), every status report is a return value the caller publishes.
+// Units: metres, radians, seconds; table frame.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ddace/exec/coordinator.h"
+#include "ddace/exec/diff_drive.h"
+#include "ddace/exec/scene.h"
+#include "ddace/task/task_spec.h"
+
+namespace ddace::exec {
+
+struct TableSimulatorParams {
+  double object_speed_mps = 0.12;  ///< objects follow their segments at this speed
+  int status_every_cycles = 5;     ///< a moving object reports RUNNING every N steps (10 Hz at 50 Hz)
+  /// Throws ddace::Error naming the first invalid field.
+  void validate() const;
+};
+
+/// What an object reports about one of its segments (SegmentStatus on the wire).
+struct ObjectStatus {
+  int entity = -1;  ///< index in the task's entities
+  uint32_t segment_id = 0;
+  SegmentState state = SegmentState::Accepted;  ///< Accepted, Running, Done, Failed or Aborted
+  double progress = 0;                          ///< arc-length fraction of the path covered, [0, 1]
+  double distance_to_goal_m = 0;                ///< straight line from the object to its path's end
+  std::string message;                          ///< why, for Failed and Aborted
+};
+
+class TableSimulator {
+ public:
+  /// `start`: every entity's pose in the task's order (scene.h's sceneStartPoses).
+  /// `robot`: the parameters of every robot; robot i's noise seed is robot.seed + i.
+  /// `stalled`: names of robots whose wheels are blocked. Throws ddace::Error for a start
+  /// of the wrong size, invalid parameters or a stalled name that is not a robot of the task.
+  TableSimulator(const task::TaskSpec& spec, const std::vector<Pose2D>& start, const DiffDriveParams& robot,
+                 const TableSimulatorParams& params = {}, const std::vector<std::string>& stalled = {});
+
+  /// A wheel command for robot `entity`, effective after the robot's latency. Throws
+  /// ddace::Error when `entity` is not a robot.
+  void commandWheels(int entity, const WheelSpeeds& wheels);
+
+  /// A new segment for object `entity` along `path`, starting where the object is.
+  /// Returns Accepted, or Failed for an empty path (the object then stays put), or
+  /// Aborted while the e-stop is active. A copy of the running segment (same id, re-sent
+  /// by the coordinator) changes nothing and returns no report; another id replaces it.
+  /// Throws ddace::Error when `entity` is not an object.
+  std::optional<ObjectStatus> startSegment(int entity, uint32_t segment_id, const std::vector<Eigen::Vector2d>& path);
+  /// A segment refused before it reached the table (e.g. a malformed message): the running
+  /// one stops where it is and `segment_id` is reported Failed with `reason`.
+  ObjectStatus refuseSegment(int entity, uint32_t segment_id, const std::string& reason);
+  /// MODE_STOP: the running segment, if any, stops where it is and is reported Aborted.
+  std::optional<ObjectStatus> stopSegment(int entity);
+
+  /// While active, every running segment is aborted and new ones are refused. Robots are
+  /// not touched (their followers zero the wheels). Returns the Aborted reports.
+  std::vector<ObjectStatus> setEstop(bool active);
+  bool estopped() const { return estopped_; }
+
+  /// Advances 1/rate_hz: robots integrate their wheels, moving objects advance along
+  /// their paths. Returns Done for each object that arrived, Running every
+  /// status_every_cycles steps for each still moving.
+  std::vector<ObjectStatus> step();
+
+  double time() const { return time_s_; }
+  double periodS() const { return 1.0 / robot_.rate_hz; }
+  size_t size() const { return entities_.size(); }
+  /// The true pose of entity `i`.
+  Pose2D truePose(int i) const;
+  /// The pose a tracker would report: robots with the model's noise (fresh on every call),
+  /// objects and goals exactly.
+  Pose2D measuredPose(int i);
+  /// Whether object `i` is carrying out a segment.
+  bool moving(int i) const { return entity(i).moving; }
+
+ private:
+  struct Entity {
+    task::EntityKind kind;
+    Pose2D pose;                             ///< objects and goals; robots use `robot`
+    std::unique_ptr<DiffDriveModel> robot;   ///< robots only
+    std::unique_ptr<CarriedObject> carried;  ///< the object's current (or last) segment
+    uint32_t segment_id = 0;
+    bool moving = false;
+    int status_cycle = 0;
+  };
+  void checkIndex(int i) const;  ///< throws ddace::Error for an index outside the task
+  const Entity& entity(int i) const;
+  Entity& object(int i);
+  ObjectStatus report(int i, SegmentState state, std::string message = "") const;
+
+  std::vector<std::string> names_;
+  std::vector<Entity> entities_;
+  DiffDriveParams robot_;
+  TableSimulatorParams params_;
+  double time_s_ = 0;
+  bool estopped_ = false;
+};
+
+}  // namespace ddace::exec

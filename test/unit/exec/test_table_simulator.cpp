@@ -1,0 +1,223 @@
+// The mock robot node's table: scenes by name, objects carried along their segments and
+// released at the end, the segment reports, the e-stop, robots on their wheels.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <string>
+
+#include "ddace/common/error.h"
+#include "ddace/exec/scene.h"
+#include "ddace/exec/table_simulator.h"
+
+using namespace ddace;
+using namespace ddace::exec;
+
+namespace {
+
+task::TaskSpec tableTask() {
+  task::TaskSpec spec;
+  spec.name = "carry";
+  spec.entities = {
+      {"R1", task::EntityKind::Robot, ""}, {"O1", task::EntityKind::Object, ""}, {"G1", task::EntityKind::Goal, ""}};
+  return spec;
+}
+constexpr int R1 = 0, O1 = 1, G1 = 2;
+
+/// R1 at the origin facing +x, O1 at (0.2, 0), G1 at (0.5, 0.3); 50 Hz, objects at 0.1 m/s.
+TableSimulator table(const std::vector<std::string>& stalled = {}) {
+  TableSimulatorParams p;
+  p.object_speed_mps = 0.1;
+  return TableSimulator(tableTask(), {{0, 0, 0}, {0.2, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p, stalled);
+}
+
+/// Steps `n` times and returns every report in order.
+std::vector<ObjectStatus> run(TableSimulator& sim, int n) {
+  std::vector<ObjectStatus> all;
+  for (int k = 0; k < n; ++k)
+    for (auto& s : sim.step()) all.push_back(s);
+  return all;
+}
+
+bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+std::string errorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(SceneStartPoses, NamesGoOverTheDemonstrationsFirstRow) {
+  const task::TaskSpec spec = tableTask();
+  const std::vector<Pose2D> base{{0, 0, 0}, {1, 1, 0}, {2, 2, 0}};
+  const auto poses = sceneStartPoses(spec, base, {{"G1", {0.5, 0.6, 0.7}, "scene/G1"}}, "");
+  ASSERT_EQ(poses.size(), 3u);
+  EXPECT_EQ(poses[O1].x, 1.0);
+  EXPECT_EQ(poses[G1].x, 0.5);
+  EXPECT_EQ(poses[G1].y, 0.6);
+  EXPECT_EQ(poses[G1].yaw, 0.7);
+}
+
+TEST(SceneStartPoses, AnUnknownNameIsRefusedNamingWhereItCameFrom) {
+  const std::string e = errorOf([] {
+    sceneStartPoses(tableTask(), {}, {{"R1", {}, "scene/R1"}, {"R9", {}, "parameter '/mock/scene/R9'"}}, "");
+  });
+  EXPECT_EQ(e, "parameter '/mock/scene/R9': no entity 'R9' in task 'carry'");
+}
+
+TEST(SceneStartPoses, AnEntityWithoutAPoseIsRefusedWithTheHint) {
+  const std::string e = errorOf([] {
+    sceneStartPoses(tableTask(), {}, {{"R1", {}, "a"}, {"G1", {}, "b"}}, "set ~scene");
+  });
+  EXPECT_TRUE(contains(e, "no start pose for entity 'O1': set ~scene")) << e;
+  EXPECT_THROW(sceneStartPoses(tableTask(), {{0, 0, 0}}, {}, ""), Error);  // a row of another task
+  EXPECT_THROW(sceneStartPoses(tableTask(), {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}, {{"O1", {NAN, 0, 0}, "o"}}, ""), Error);
+}
+
+TEST(TableSimulator, AnObjectFollowsItsSegmentFromWhereItIsAndIsReleasedAtTheEnd) {
+  TableSimulator sim = table();
+  // The path's first point is replaced by where the object is: it never jumps.
+  const auto accepted = sim.startSegment(O1, 7, {{0, 0}, {0.4, 0}, {0.4, 0.1}});
+  ASSERT_TRUE(accepted);
+  EXPECT_EQ(accepted->state, SegmentState::Accepted);
+  EXPECT_EQ(accepted->segment_id, 7u);
+  EXPECT_EQ(accepted->entity, O1);
+  EXPECT_TRUE(sim.moving(O1));
+
+  // 1 s at 0.1 m/s: 0.1 m along the path; a Running report every 5th step.
+  const auto running = run(sim, 50);
+  EXPECT_NEAR(sim.truePose(O1).x, 0.3, 1e-9);
+  EXPECT_NEAR(sim.truePose(O1).y, 0.0, 1e-9);
+  ASSERT_EQ(running.size(), 10u);
+  for (const auto& s : running) EXPECT_EQ(s.state, SegmentState::Running);
+  EXPECT_NEAR(running.back().progress, 0.1 / 0.3, 1e-9);
+  EXPECT_NEAR(running.back().distance_to_goal_m, std::hypot(0.1, 0.1), 1e-9);
+
+  // The rest of the path (0.2 m) takes 2 s; Done comes once, at the end.
+  const auto rest = run(sim, 100);
+  ASSERT_FALSE(rest.empty());
+  EXPECT_EQ(rest.back().state, SegmentState::Done);
+  EXPECT_EQ(rest.back().segment_id, 7u);
+  EXPECT_NEAR(rest.back().progress, 1.0, 1e-12);
+  EXPECT_NEAR(rest.back().distance_to_goal_m, 0.0, 1e-9);
+  EXPECT_FALSE(sim.moving(O1));
+
+  // Released: it stays at the end of its path and reports nothing more.
+  EXPECT_TRUE(run(sim, 50).empty());
+  EXPECT_NEAR(sim.truePose(O1).x, 0.4, 1e-9);
+  EXPECT_NEAR(sim.truePose(O1).y, 0.1, 1e-9);
+  EXPECT_NEAR(sim.measuredPose(O1).y, 0.1, 1e-9);  // objects are tracked exactly
+}
+
+TEST(TableSimulator, AResentSegmentChangesNothingAndANewIdReplacesIt) {
+  TableSimulator sim = table();
+  ASSERT_TRUE(sim.startSegment(O1, 1, {{0, 0}, {1.2, 0}}));
+  run(sim, 10);
+  const double x = sim.truePose(O1).x;
+  EXPECT_FALSE(sim.startSegment(O1, 1, {{0, 0}, {1.2, 0}}));  // the coordinator's resend
+  run(sim, 10);
+  EXPECT_NEAR(sim.truePose(O1).x, x + 0.02, 1e-9);  // kept going, did not restart
+
+  const auto replaced = sim.startSegment(O1, 2, {{0, 0}, {sim.truePose(O1).x, 0.1}});
+  ASSERT_TRUE(replaced);
+  EXPECT_EQ(replaced->state, SegmentState::Accepted);
+  EXPECT_EQ(replaced->segment_id, 2u);
+  const auto done = run(sim, 100);
+  ASSERT_FALSE(done.empty());
+  EXPECT_EQ(done.back().state, SegmentState::Done);
+  EXPECT_EQ(done.back().segment_id, 2u);
+  EXPECT_NEAR(sim.truePose(O1).y, 0.1, 1e-9);
+}
+
+TEST(TableSimulator, AStoppedOrRefusedSegmentLeavesTheObjectWhereItIs) {
+  TableSimulator sim = table();
+  const auto empty = sim.startSegment(O1, 3, {});
+  ASSERT_TRUE(empty);
+  EXPECT_EQ(empty->state, SegmentState::Failed);
+  EXPECT_TRUE(contains(empty->message, "empty"));
+  EXPECT_FALSE(sim.moving(O1));
+
+  ASSERT_TRUE(sim.startSegment(O1, 4, {{0, 0}, {1, 0}}));
+  run(sim, 25);
+  const auto stopped = sim.stopSegment(O1);
+  ASSERT_TRUE(stopped);
+  EXPECT_EQ(stopped->state, SegmentState::Aborted);
+  EXPECT_EQ(stopped->segment_id, 4u);
+  EXPECT_FALSE(sim.stopSegment(O1));  // nothing is running any more
+  EXPECT_TRUE(run(sim, 25).empty());
+  EXPECT_NEAR(sim.truePose(O1).x, 0.25, 1e-9);
+
+  ASSERT_TRUE(sim.startSegment(O1, 5, {{0, 0}, {1, 0}}));
+  const ObjectStatus refused = sim.refuseSegment(O1, 6, "/robots/O1/segment: path point 2 is not finite");
+  EXPECT_EQ(refused.state, SegmentState::Failed);
+  EXPECT_EQ(refused.segment_id, 6u);
+  EXPECT_EQ(refused.progress, 0.0);
+  EXPECT_EQ(refused.message, "/robots/O1/segment: path point 2 is not finite");
+  EXPECT_TRUE(run(sim, 25).empty());
+  EXPECT_NEAR(sim.truePose(O1).x, 0.25, 1e-9);
+}
+
+TEST(TableSimulator, TheEstopAbortsRunningSegmentsAndRefusesNewOnesUntilReleased) {
+  TableSimulator sim = table();
+  ASSERT_TRUE(sim.startSegment(O1, 1, {{0, 0}, {1, 0}}));
+  run(sim, 10);
+  const auto aborted = sim.setEstop(true);
+  ASSERT_EQ(aborted.size(), 1u);
+  EXPECT_EQ(aborted[0].state, SegmentState::Aborted);
+  EXPECT_EQ(aborted[0].segment_id, 1u);
+  EXPECT_EQ(aborted[0].message, "e-stop");
+  const double x = sim.truePose(O1).x;
+
+  const auto refused = sim.startSegment(O1, 2, {{0, 0}, {1, 0}});
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(refused->state, SegmentState::Aborted);
+  EXPECT_EQ(refused->segment_id, 2u);
+  EXPECT_TRUE(run(sim, 10).empty());
+  EXPECT_EQ(sim.truePose(O1).x, x);
+
+  EXPECT_TRUE(sim.setEstop(false).empty());
+  const auto again = sim.startSegment(O1, 3, {{0, 0}, {1, 0}});
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->state, SegmentState::Accepted);
+}
+
+TEST(TableSimulator, RobotsDriveOnTheirWheelsGoalsNeverMove) {
+  TableSimulator sim = table();
+  for (int k = 0; k < 50; ++k) {
+    sim.commandWheels(R1, {0.1, 0.1});
+    sim.step();
+  }
+  EXPECT_NEAR(sim.truePose(R1).x, 0.1, 1e-9);
+  EXPECT_NEAR(sim.truePose(R1).y, 0.0, 1e-9);
+  EXPECT_NEAR(sim.time(), 1.0, 1e-9);
+  EXPECT_EQ(sim.truePose(G1).x, 0.5);
+  EXPECT_EQ(sim.truePose(G1).y, 0.3);
+  EXPECT_EQ(sim.truePose(O1).x, 0.2);  // objects move only through their own segments
+
+  TableSimulator stuck = table({"R1"});
+  for (int k = 0; k < 50; ++k) {
+    stuck.commandWheels(R1, {0.1, 0.1});
+    stuck.step();
+  }
+  EXPECT_EQ(stuck.truePose(R1).x, 0.0);
+}
+
+TEST(TableSimulator, RefusesWhatDoesNotFitTheTask) {
+  TableSimulator sim = table();
+  EXPECT_TRUE(contains(errorOf([&] { sim.commandWheels(O1, {0.1, 0.1}); }), "'O1' is not a robot"));
+  EXPECT_TRUE(contains(errorOf([&] { sim.startSegment(R1, 1, {{0, 0}, {1, 0}}); }), "'R1' is not an object"));
+  EXPECT_THROW(sim.stopSegment(G1), Error);
+  EXPECT_THROW(sim.truePose(3), Error);
+  EXPECT_TRUE(contains(errorOf([] { table({"O1"}); }), "stalled 'O1' is not a robot"));
+  EXPECT_THROW(TableSimulator(tableTask(), {{0, 0, 0}}, DiffDriveParams{}), Error);
+  TableSimulatorParams slow;
+  slow.object_speed_mps = 0;
+  EXPECT_THROW(TableSimulator(tableTask(), {{}, {}, {}}, DiffDriveParams{}, slow), Error);
+}
