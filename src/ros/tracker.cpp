@@ -369,7 +369,7 @@ class TrackerNode::Impl {
   std::optional<vision::FrameResult> last_;
   std::optional<vision::ParallaxEstimate> last_parallax_;
   bool warned_no_intrinsics_ = false;
-  bool info_advertised_ = false;  // cameraInfoAdvertised()'s last answer from the master ...
+  bool info_advertised_ = false;   // cameraInfoAdvertised()'s last answer from the master ...
   ros::WallTime next_info_query_;  // ... and when to ask again
   std::string frame_id_, video_file_;
   int video_device_ = -1;

@@ -44,6 +44,10 @@ class YamlChecker {
   bool number(const YAML::Node& node, const std::string& what, double& out);
   /// A number > 0; else records "<what> must be > 0 (got <text>)".
   bool positive(const YAML::Node& node, const std::string& what, double& out);
+  /// A whole number in [lo, hi] (a fraction is an error, never truncated); else records
+  /// "<what> must be an integer in <lo>..<hi> (got <text>)".
+  bool integer(const YAML::Node& node, const std::string& what, long lo, long hi, long& out);
+  bool integer(const YAML::Node& node, const std::string& what, int lo, int hi, int& out);
   /// true/True or false/False; else records "<what>: '<text>' is not true or false".
   bool boolean(const YAML::Node& node, const std::string& what, bool& out);
 

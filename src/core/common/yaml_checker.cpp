@@ -62,6 +62,26 @@ bool YamlChecker::number(const YAML::Node& node, const std::string& what, double
   return true;
 }
 
+bool YamlChecker::integer(const YAML::Node& node, const std::string& what, long lo, long hi, long& out) {
+  double v = 0;
+  if (!number(node, what, v)) return false;
+  // Compared as doubles first: a huge value must not overflow the conversion.
+  if (v != std::floor(v) || v < static_cast<double>(lo) || v > static_cast<double>(hi)) {
+    error(node, what + " must be an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + " (got " +
+                    node.Scalar() + ")");
+    return false;
+  }
+  out = static_cast<long>(v);
+  return true;
+}
+
+bool YamlChecker::integer(const YAML::Node& node, const std::string& what, int lo, int hi, int& out) {
+  long v = 0;
+  if (!integer(node, what, static_cast<long>(lo), static_cast<long>(hi), v)) return false;
+  out = static_cast<int>(v);
+  return true;
+}
+
 bool YamlChecker::positive(const YAML::Node& node, const std::string& what, double& out) {
   double v = 0;
   if (!number(node, what, v)) return false;

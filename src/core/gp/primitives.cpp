@@ -74,15 +74,7 @@ bool boolean(YamlChecker& c, const YAML::Node& map, const std::string& key, cons
 bool integer(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where, int lo, int hi,
              int& out) {
   const YAML::Node n = field(c, map, key, where);
-  double v = 0;
-  if (!n || !c.number(n, where + key, v)) return false;
-  if (v != std::floor(v) || v < lo || v > hi) {
-    c.error(n, where + key + " must be an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + " (got " +
-                   n.Scalar() + ")");
-    return false;
-  }
-  out = static_cast<int>(v);
-  return true;
+  return n && c.integer(n, where + key, lo, hi, out);
 }
 
 void emitGp(YAML::Emitter& out, const GaussianProcess& gp) {

@@ -96,14 +96,7 @@ bool parseAdapter(YamlChecker& c, const YAML::Node& node, const std::string& wha
 
 // An optional integer key in 1..max (a fraction or a word is an error, never truncated).
 void positiveInteger(YamlChecker& c, const YAML::Node& node, const std::string& what, int max, int& out) {
-  if (!node) return;
-  double v = 0;
-  if (!c.number(node, what, v)) return;
-  if (v < 1 || v > max || v != std::floor(v)) {
-    c.error(node, what + " must be an integer in 1.." + std::to_string(max) + " (got " + node.Scalar() + ")");
-    return;
-  }
-  out = static_cast<int>(v);
+  if (node) c.integer(node, what, 1, max, out);
 }
 
 // `address_ok` tells whether the robot's address parsed (a bad one is reported here
@@ -194,14 +187,7 @@ RobotConfig parseRobot(YamlChecker& c, const YAML::Node& node, size_t index, con
     if (!(r.calibration.left_mps_per_unit > 0) || !(r.calibration.right_mps_per_unit > 0)) {
       c.error(cal, who + " calibration needs mps_per_unit (or left_mps_per_unit and right_mps_per_unit)");
     }
-    double max_units = kMaxWheelUnits;
-    if (cal["max_units"] && c.number(cal["max_units"], who + " calibration.max_units", max_units)) {
-      if (max_units < 1 || max_units > kMaxWheelUnits || max_units != std::floor(max_units)) {
-        c.error(cal["max_units"], who + " calibration.max_units must be an integer in 1..100");
-      } else {
-        r.calibration.max_units = static_cast<int>(max_units);
-      }
-    }
+    positiveInteger(c, cal["max_units"], who + " calibration.max_units", kMaxWheelUnits, r.calibration.max_units);
     if (cal["track_m"]) c.positive(cal["track_m"], who + " calibration.track_m", r.calibration.track_m);
   }
   return r;

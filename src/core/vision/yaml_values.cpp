@@ -37,20 +37,9 @@ double numberOr(YamlChecker& c, const YAML::Node& map, const std::string& key, d
 int integerOr(YamlChecker& c, const YAML::Node& map, const std::string& key, int fallback, int lo, int hi) {
   const YAML::Node n = map[key];
   if (!n.IsDefined() || n.IsNull()) return fallback;
-  long v = 0;
-  try {
-    if (!n.IsScalar()) throw YAML::Exception(n.Mark(), "not a scalar");
-    v = n.as<long>();
-  } catch (const YAML::Exception&) {
-    c.error(n, "'" + key + "' must be an integer");
-    return fallback;
-  }
-  if (v < lo || v > hi) {
-    c.error(n, "'" + key + "' = " + n.Scalar() + " is out of range [" + std::to_string(lo) + ", " + std::to_string(hi) +
-                   "]");
-    return fallback;
-  }
-  return static_cast<int>(v);
+  int v = fallback;
+  c.integer(n, "'" + key + "'", lo, hi, v);
+  return v;
 }
 
 bool booleanOr(YamlChecker& c, const YAML::Node& map, const std::string& key, bool fallback) {

@@ -68,6 +68,28 @@ TEST(YamlChecker, NumbersMustBeFinite) {
   EXPECT_EQ(c.errors()[3].str(), "c.yaml:4:4: d must be > 0 (got -2)");
 }
 
+TEST(YamlChecker, IntegersAreWholeAndInRangeNeverTruncated) {
+  YamlChecker c("c.yaml");
+  const YAML::Node root = c.parse("a: 12\nb: 2.5\nc: 0\nd: 1e30\ne: many\nf: 1e2\n");
+  int a = -1, b = -1, cc = -1, d = -1, e = -1, f = -1;
+  EXPECT_TRUE(c.integer(root["a"], "a", 1, 100, a));
+  EXPECT_FALSE(c.integer(root["b"], "b", 1, 100, b));
+  EXPECT_FALSE(c.integer(root["c"], "c", 1, 100, cc));
+  EXPECT_FALSE(c.integer(root["d"], "d", 1, 100, d));  // far beyond int: refused, not overflowed
+  EXPECT_FALSE(c.integer(root["e"], "e", 1, 100, e));
+  EXPECT_TRUE(c.integer(root["f"], "f", 1, 100, f));
+  EXPECT_EQ(a, 12);
+  EXPECT_EQ(f, 100);
+  EXPECT_EQ(b, -1);  // untouched on failure
+  EXPECT_EQ(cc, -1);
+  EXPECT_EQ(d, -1);
+  ASSERT_EQ(c.errors().size(), 4u);
+  EXPECT_EQ(c.errors()[0].str(), "c.yaml:2:4: b must be an integer in 1..100 (got 2.5)");
+  EXPECT_EQ(c.errors()[1].str(), "c.yaml:3:4: c must be an integer in 1..100 (got 0)");
+  EXPECT_EQ(c.errors()[2].str(), "c.yaml:4:4: d must be an integer in 1..100 (got 1e30)");
+  EXPECT_EQ(c.errors()[3].str(), "c.yaml:5:4: e: 'many' is not a finite number");
+}
+
 TEST(YamlChecker, BooleansAreTrueOrFalse) {
   YamlChecker c("c.yaml");
   const YAML::Node root = c.parse("a: True\nb: false\nc: yes\n");

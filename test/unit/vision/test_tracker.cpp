@@ -104,7 +104,7 @@ TEST(TrackerConfig, ErrorsNameFileLineAndColumn) {
     parseTrackerTuning("roi:\n  full_frame_every: 0\n", "t.yaml", c);
     FAIL() << "no error";
   } catch (const ddace::Error& e) {
-    EXPECT_EQ(e.diagnostics().front().str(), "t.yaml:2:21: 'full_frame_every' = 0 is out of range [1, 100000]");
+    EXPECT_EQ(e.diagnostics().front().str(), "t.yaml:2:21: 'full_frame_every' must be an integer in 1..100000 (got 0)");
   }
   EXPECT_THROW(loadMarkerConfig(dataDir() + "does_not_exist.yaml"), ddace::Error);
 }
