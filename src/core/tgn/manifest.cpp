@@ -165,6 +165,10 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   task::emitFingerprint(y, info.fingerprint);
   y << YAML::Key << "epochs" << YAML::Value << info.history.size();
   y << YAML::Key << "stop_reason" << YAML::Value << info.stop_reason;
+  y << YAML::Key << "step_rules" << YAML::Value << YAML::Flow << YAML::BeginMap;
+  y << YAML::Key << "exclusive_targets" << YAML::Value << info.step_rules.exclusive_targets;
+  y << YAML::Key << "step_size" << YAML::Value << info.step_rules.step_size;
+  y << YAML::EndMap;
   y << YAML::Key << "entities" << YAML::Value << YAML::Flow << spec.entityNames();
   y << YAML::Key << "vocabulary" << YAML::Value << YAML::Flow << info.vocabulary;
   y << YAML::Key << "hyper_parameters" << YAML::Value << YAML::BeginMap;
@@ -248,11 +252,24 @@ YAML::Node checkedRoot(const std::string& text, const std::string& path) {
   }
   if (!root.IsMap()) throw Error(Diagnostic{path, 1, 1, "not a model manifest (expected a YAML map)"});
   const std::string format = as<std::string>(path, root, "format");
-  if (format.rfind("ddace-model/", 0) == 0 && format != kModelFormat)
-    throw errorAt(path, root["format"],
-                  "format '" + format + "' is an older model format than " + kModelFormat +
-                      " (its files are not bound by digests to the model and its task): retrain the model "
-                      "(ddace train)");
+  // "ddace-model/N": an older N is refused with what it lacks, a newer one as such.
+  const std::string prefix = "ddace-model/";
+  const std::string own = std::string(kModelFormat).substr(prefix.size());
+  if (format.rfind(prefix, 0) == 0 && format != kModelFormat) {
+    const std::string version = format.substr(prefix.size());
+    const bool numeric = !version.empty() && version.size() <= 6 &&
+                         std::all_of(version.begin(), version.end(), [](char c) { return c >= '0' && c <= '9'; });
+    if (numeric && std::stoi(version) < std::stoi(own))
+      throw errorAt(
+          path, root["format"],
+          "format '" + format + "' is an older model format than " + kModelFormat +
+              " (it lacks the step rules learned from the demonstrations" +
+              (std::stoi(version) < 3 ? ", and its files are not bound by digests to the model and its task" : "") +
+              "): retrain the model (ddace train)");
+    if (numeric)
+      throw errorAt(path, root["format"],
+                    "format '" + format + "' is newer than " + kModelFormat + ", the newest this ddace reads");
+  }
   if (format != kModelFormat) throw errorAt(path, root["format"], "format '" + format + "' is not " + kModelFormat);
   // The digest line must be the last line; the digest covers every byte before it.
   const std::string key = std::string("\n") + kManifestDigestKey + ": ";
@@ -312,6 +329,17 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     info.options.variant = info.variant;
     info.options.seed = as<uint64_t>(path, root, "seed");
     info.stop_reason = as<std::string>(path, root, "stop_reason");
+    {
+      const YAML::Node rules = need(path, root, "step_rules");
+      info.step_rules.exclusive_targets = as<bool>(path, rules, "exclusive_targets");
+      info.step_rules.step_size = as<int>(path, rules, "step_size");
+      const int n = static_cast<int>(spec.entities.size());
+      if (info.step_rules.step_size < 0 || info.step_rules.step_size > n)
+        throw errorAt(path, rules["step_size"], "step_size must be in 0.." + std::to_string(n) + " (the entities)");
+      if (info.variant != Variant::Scene && info.step_rules.any())
+        throw errorAt(path, rules,
+                      "step_rules are learned for the scene variant only (the others decode each entity on its own)");
+    }
     info.files = parseFiles(path, root);
     info.fingerprint = task::parseFingerprint(need(path, root, "task_fingerprint"), path);
     for (const std::string& d : task::fingerprintDifferences(info.fingerprint, task::fingerprintOf(spec)))
