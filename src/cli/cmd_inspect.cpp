@@ -41,6 +41,14 @@ int runInspect(const std::vector<std::string>& argv) {
               << (info.variant == tgn::Variant::Gnn ? "frame label" : "step") << " accuracy " << last.step_accuracy
               << ", " << last.seconds << " s\n";
   }
+  const tgn::StepRules& r = info.step_rules;
+  std::cout << "  step rules:  "
+            << (r.any() ? std::string(r.exclusive_targets ? "a target at most once per step" : "") +
+                              (r.exclusive_targets && r.step_size > 0 ? ", " : "") +
+                              (r.step_size > 0 ? std::to_string(r.step_size) + " acting entities per step" : "") +
+                              " (decoded jointly when the entities' own argmax breaks them)"
+                        : std::string("none (each entity decoded on its own)"))
+            << "\n";
   const auto join = [](const auto& items) {
     std::string out;
     for (const auto& i : items) {

@@ -8,9 +8,12 @@
   "and nearness ranks on the attention edges, entity kinds, per-entity heads and a pointer over the candidate " \
   "targets. On the paper's four families the step order is fixed and both only have to count keyframes; the "   \
   "scene-dependent families (fetch, nearest_goal, queue, deliver) are where they differ: the paper's network "  \
-  "has no path from \"which robot is nearest\" to its output slots. What the default still gets wrong there "   \
-  "(`ddace eval` prints the first differing step of a failed trial) are competitions between candidates: two "  \
-  "robots claiming the same goal (nearest_goal) or the same queue slot (queue).\n"                              \
+  "has no path from \"which robot is nearest\" to its output slots. The default also keeps the step rules "     \
+  "its training demonstrations kept (docs/tgn.md, \"Step rules\": a target at most once per step, a fixed "     \
+  "number of acting entities) by decoding a step jointly when the entities' own argmax breaks them; what it "   \
+  "still gets wrong (`ddace eval` prints the first differing step of a failed trial) are choices within those " \
+  "rules: two robots' goals swapped or the goal that should stay free taken (nearest_goal), the wrong robot "   \
+  "stepping next (queue).\n"                                                                                    \
   "- **Where E' matters.** The E' rules column counts the observed interaction edges each refinement rule "     \
   "decided. On clean demonstrations of a fixed-order family every observed edge recurs, so the rule "           \
   "\"recurs\" decides all of them and E' is exactly the demonstrated edge set; the ablation (`full-graph`) "    \

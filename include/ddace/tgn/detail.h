@@ -31,6 +31,18 @@ std::vector<float> gatForward(const GatWeights& w, const std::vector<float>& x, 
 /// The training's stopping rule (see "stopping" above) on the epochs so far.
 bool atPlateau(const std::vector<EpochRecord>& history, int patience, double delta);
 
+/// One entity's decoded output: action class (0 = idle, c = vocabulary[c-1]) and target
+/// slot (0 = no target, k = entity k-1), both in the network's canonical order.
+struct DecodedToken {
+  int action = 0;
+  int target = 0;
+  bool operator==(const DecodedToken& o) const { return action == o.action && target == o.target; }
+};
+/// The step decoder predictNext uses (StepRules in sequence_model.h), on plain arrays:
+/// log_action [n][actions], log_target [n][targets], row-major log-probabilities.
+std::vector<DecodedToken> decodeStep(const std::vector<double>& log_action, int actions,
+                                     const std::vector<double>& log_target, int targets, const StepRules& rules);
+
 }  // namespace detail
 
 }  // namespace ddace::tgn

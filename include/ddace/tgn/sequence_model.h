@@ -53,9 +53,9 @@
 namespace ddace::tgn {
 
 /// Format tag of manifest.yaml in a model directory. /3: SHA-256 digests of every file
-/// and of the manifest itself, and the task fingerprint; older manifests are refused
-/// (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/3";
+/// and of the manifest itself, and the task fingerprint; /4: the step decoding rules
+/// (StepRules). Older manifests are refused (retrain).
+inline constexpr const char* kModelFormat = "ddace-model/4";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {
@@ -122,6 +122,26 @@ struct EpochRecord {
   double seconds = 0;        ///< wall time since training started
 };
 
+/// What every step of the training demonstrations had in common, learned from them by
+/// train() (scene variant only: the paper's networks decode each entity on its own, as
+/// the paper) and applied by predictNext() when the entities' own most probable tokens
+/// break it. The step is then decoded jointly: the tokens maximising the sum over the
+/// entities of log p(action) + log p(target), an idle entity's target being free, under
+/// the rules below (an exact assignment, deterministic and in the canonical entity order).
+/// With no rule set, or when the independent tokens keep the rules, the decision is each
+/// entity's own argmax.
+struct StepRules {
+  /// No two entities of one step had the same target entity: a step's targets are
+  /// used at most once ("no target" is not a target).
+  bool exclusive_targets = false;
+  /// Every step had exactly this many acting entities (0: the number varied).
+  int step_size = 0;
+  bool any() const { return exclusive_targets || step_size > 0; }
+  bool operator==(const StepRules& o) const {
+    return exclusive_targets == o.exclusive_targets && step_size == o.step_size;
+  }
+};
+
 struct Prediction {
   bool end = false;
   double end_probability = 0;
@@ -147,6 +167,7 @@ struct ModelInfo {
   double frame_dt_s = 0.05;                  ///< gnn: time between rolled-out frames
   std::vector<EpochRecord> history;          ///< loss per epoch
   std::string stop_reason;                   ///< "plateau" or "max_epochs"
+  StepRules step_rules;                      ///< scene: learned from the training steps; else none
   task::TaskFingerprint fingerprint;         ///< of the training directory (task.yaml and demos)
   /// The files the manifest binds by digest, by name in the model directory (task.yaml,
   /// weights.pt, loss.csv and, but for gnn, primitives.yaml). Filled by load().

@@ -1,7 +1,10 @@
 #include "manifest.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
+#include <limits>
 #include <cstdio>
 #include <fstream>
 #include <iomanip>
@@ -12,6 +15,7 @@
 #include "ddace/common/error.h"
 #include "ddace/common/file.h"
 #include "ddace/common/sha256.h"
+#include "ddace/common/yaml_checker.h"
 
 namespace ddace::tgn {
 
@@ -77,46 +81,6 @@ void TrainOptions::validate() const {
 
 namespace files {
 
-namespace {
-
-Error errorAt(const std::string& path, const YAML::Node& node, const std::string& message) {
-  const auto mark = node.Mark();
-  return Error(Diagnostic{path, mark.line >= 0 ? mark.line + 1 : 0, mark.column >= 0 ? mark.column + 1 : 0, message});
-}
-
-YAML::Node need(const std::string& path, const YAML::Node& parent, const std::string& key) {
-  const YAML::Node n = parent[key];
-  if (!n) throw errorAt(path, parent, "missing key '" + key + "'");
-  return n;
-}
-
-template <typename T>
-T as(const std::string& path, const YAML::Node& parent, const std::string& key) {
-  const YAML::Node n = need(path, parent, key);
-  try {
-    return n.as<T>();
-  } catch (const YAML::Exception&) {
-    throw errorAt(path, n, "key '" + key + "' has a value of the wrong type");
-  }
-}
-
-int entityIndex(const std::string& path, const YAML::Node& n, const task::TaskSpec& spec) {
-  const std::string name = n.as<std::string>();
-  const int i = spec.entityIndex(name);
-  if (i < 0) throw errorAt(path, n, "unknown entity '" + name + "' (not in task.yaml)");
-  return i;
-}
-
-graph::Decision decisionFromString(const std::string& path, const YAML::Node& n) {
-  const std::string s = n.as<std::string>();
-  for (auto d : {graph::Decision::KeptRecurrent, graph::Decision::KeptSameCluster, graph::Decision::DroppedRare,
-                 graph::Decision::DroppedCrossCluster})
-    if (s == graph::toString(d)) return d;
-  throw errorAt(path, n, "unknown edge decision '" + s + "'");
-}
-
-}  // namespace
-
 FileDigest digestOf(const std::string& bytes) {
   return {bytes.size(), sha256Hex(bytes)};
 }
@@ -165,6 +129,10 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   task::emitFingerprint(y, info.fingerprint);
   y << YAML::Key << "epochs" << YAML::Value << info.history.size();
   y << YAML::Key << "stop_reason" << YAML::Value << info.stop_reason;
+  y << YAML::Key << "step_rules" << YAML::Value << YAML::Flow << YAML::BeginMap;
+  y << YAML::Key << "exclusive_targets" << YAML::Value << info.step_rules.exclusive_targets;
+  y << YAML::Key << "step_size" << YAML::Value << info.step_rules.step_size;
+  y << YAML::EndMap;
   y << YAML::Key << "entities" << YAML::Value << YAML::Flow << spec.entityNames();
   y << YAML::Key << "vocabulary" << YAML::Value << YAML::Flow << info.vocabulary;
   y << YAML::Key << "hyper_parameters" << YAML::Value << YAML::BeginMap;
@@ -238,22 +206,138 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
 
 namespace {
 
-/// The manifest's YAML after the format check and the check of its own digest.
-YAML::Node checkedRoot(const std::string& text, const std::string& path) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::ParserException& e) {
-    throw Error(Diagnostic{path, e.mark.line + 1, e.mark.column + 1, "not valid YAML: " + e.msg});
+/// The manifest's fields through one YamlChecker (file:line:column diagnostics, the one
+/// YAML reader style of the project). A manifest is written by `ddace train` and sealed by
+/// its own digest, so the first problem is thrown at once rather than collected.
+class Reader {
+ public:
+  explicit Reader(const std::string& path) : c_(path) {}
+
+  YAML::Node parse(const std::string& text) {
+    const YAML::Node root = c_.parse(text);
+    c_.throwIfErrors();
+    return root;
   }
+  [[noreturn]] void fail(const YAML::Node& node, const std::string& message) {
+    c_.error(node, message);
+    throwNow();
+  }
+  /// `map[key]`; "missing key" when `map` has none.
+  YAML::Node need(const YAML::Node& map, const std::string& key) {
+    if (!map.IsMap()) fail(map, "expected a mapping with the key '" + key + "'");
+    const YAML::Node n = map[key];
+    if (!n) fail(map, "missing key '" + key + "'");
+    return n;
+  }
+  std::string textAt(const YAML::Node& node, const std::string& what) {
+    std::string s;
+    if (!c_.scalar(node, what, s)) throwNow();
+    return s;
+  }
+  std::string text(const YAML::Node& map, const char* key) {
+    return textAt(need(map, key), std::string("'") + key + "'");
+  }
+  bool boolean(const YAML::Node& map, const char* key) {
+    bool b = false;
+    if (!c_.boolean(need(map, key), std::string("'") + key + "'", b)) throwNow();
+    return b;
+  }
+  double numberAt(const YAML::Node& node, const std::string& what) {
+    double v = 0;
+    if (!c_.number(node, what, v)) throwNow();
+    return v;
+  }
+  double number(const YAML::Node& map, const char* key) {
+    return numberAt(need(map, key), std::string("'") + key + "'");
+  }
+  /// A whole number in [lo, hi] (decimal digits, an optional leading '-').
+  int64_t integerAt(const YAML::Node& node, const std::string& what, int64_t lo, int64_t hi) {
+    const std::string s = textAt(node, what);
+    const bool negative = !s.empty() && s[0] == '-';
+    const std::string digits = negative ? s.substr(1) : s;
+    const bool ok = !digits.empty() && digits.size() <= 19 &&
+                    std::all_of(digits.begin(), digits.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
+    const long long v = ok ? std::strtoll(s.c_str(), nullptr, 10) : 0;
+    if (!ok || v < lo || v > hi)
+      fail(node, what + ": '" + s + "' is not a whole number in " + std::to_string(lo) + ".." + std::to_string(hi));
+    return v;
+  }
+  int integer(const YAML::Node& map, const char* key) {
+    return static_cast<int>(integerAt(need(map, key), std::string("'") + key + "'", std::numeric_limits<int>::min(),
+                                      std::numeric_limits<int>::max()));
+  }
+  /// A non-negative 64-bit whole number (seeds, byte counts).
+  uint64_t count(const YAML::Node& map, const char* key) {
+    const YAML::Node n = need(map, key);
+    const std::string s = textAt(n, std::string("'") + key + "'");
+    const bool ok =
+        !s.empty() && s.size() <= 20 && std::all_of(s.begin(), s.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
+    errno = 0;
+    const unsigned long long v = ok ? std::strtoull(s.c_str(), nullptr, 10) : 0;
+    if (!ok || errno == ERANGE) fail(n, std::string("'") + key + "': '" + s + "' is not a whole number >= 0");
+    return v;
+  }
+  YAML::Node sequence(const YAML::Node& map, const char* key) {
+    const YAML::Node n = need(map, key);
+    if (!n.IsSequence()) fail(n, std::string("'") + key + "' must be a list");
+    return n;
+  }
+  std::vector<std::string> texts(const YAML::Node& map, const char* key) {
+    std::vector<std::string> out;
+    for (const YAML::Node& n : sequence(map, key)) out.push_back(textAt(n, std::string("an item of '") + key + "'"));
+    return out;
+  }
+  std::vector<double> numbers(const YAML::Node& map, const char* key) {
+    std::vector<double> out;
+    for (const YAML::Node& n : sequence(map, key)) out.push_back(numberAt(n, std::string("an item of '") + key + "'"));
+    return out;
+  }
+  /// The index in `spec` of the entity named by `node`.
+  int entity(const YAML::Node& node, const task::TaskSpec& spec) {
+    const std::string name = textAt(node, "an entity name");
+    const int i = spec.entityIndex(name);
+    if (i < 0) fail(node, "unknown entity '" + name + "' (not in task.yaml)");
+    return i;
+  }
+  graph::Decision decision(const YAML::Node& node) {
+    const std::string s = textAt(node, "'decision'");
+    for (auto d : {graph::Decision::KeptRecurrent, graph::Decision::KeptSameCluster, graph::Decision::DroppedRare,
+                   graph::Decision::DroppedCrossCluster})
+      if (s == graph::toString(d)) return d;
+    fail(node, "unknown edge decision '" + s + "'");
+  }
+
+ private:
+  [[noreturn]] void throwNow() {
+    c_.throwIfErrors();
+    throw Error(c_.file() + ": unreadable manifest");  // not reached: a failed check records an error
+  }
+  YamlChecker c_;
+};
+
+/// The manifest's YAML after the format check and the check of its own digest.
+YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& path) {
+  const YAML::Node root = r.parse(text);
   if (!root.IsMap()) throw Error(Diagnostic{path, 1, 1, "not a model manifest (expected a YAML map)"});
-  const std::string format = as<std::string>(path, root, "format");
-  if (format.rfind("ddace-model/", 0) == 0 && format != kModelFormat)
-    throw errorAt(path, root["format"],
-                  "format '" + format + "' is an older model format than " + kModelFormat +
-                      " (its files are not bound by digests to the model and its task): retrain the model "
-                      "(ddace train)");
-  if (format != kModelFormat) throw errorAt(path, root["format"], "format '" + format + "' is not " + kModelFormat);
+  const YAML::Node format_node = r.need(root, "format");
+  const std::string format = r.textAt(format_node, "'format'");
+  // "ddace-model/N": an older N is refused with what it lacks, a newer one as such.
+  const std::string prefix = "ddace-model/";
+  const std::string own = std::string(kModelFormat).substr(prefix.size());
+  if (format.rfind(prefix, 0) == 0 && format != kModelFormat) {
+    const std::string version = format.substr(prefix.size());
+    const bool numeric = !version.empty() && version.size() <= 6 &&
+                         std::all_of(version.begin(), version.end(), [](char c) { return c >= '0' && c <= '9'; });
+    if (numeric && std::stoi(version) < std::stoi(own))
+      r.fail(format_node,
+             "format '" + format + "' is an older model format than " + kModelFormat +
+                 " (it lacks the step rules learned from the demonstrations" +
+                 (std::stoi(version) < 3 ? ", and its files are not bound by digests to the model and its task" : "") +
+                 "): retrain the model (ddace train)");
+    if (numeric)
+      r.fail(format_node, "format '" + format + "' is newer than " + kModelFormat + ", the newest this ddace reads");
+  }
+  if (format != kModelFormat) r.fail(format_node, "format '" + format + "' is not " + kModelFormat);
   // The digest line must be the last line; the digest covers every byte before it.
   const std::string key = std::string("\n") + kManifestDigestKey + ": ";
   const size_t at = text.rfind(key);
@@ -271,56 +355,73 @@ YAML::Node checkedRoot(const std::string& text, const std::string& path) {
   return root;
 }
 
-std::map<std::string, FileDigest> parseFiles(const std::string& path, const YAML::Node& root) {
-  const YAML::Node files = need(path, root, "files");
-  if (!files.IsMap()) throw errorAt(path, files, "'files' must map file names to {bytes, sha256}");
+std::map<std::string, FileDigest> parseFiles(Reader& r, const YAML::Node& root) {
+  const YAML::Node files = r.need(root, "files");
+  if (!files.IsMap()) r.fail(files, "'files' must map file names to {bytes, sha256}");
   std::map<std::string, FileDigest> out;
   for (auto it = files.begin(); it != files.end(); ++it) {
-    const std::string name = it->first.as<std::string>();
+    const std::string name = r.textAt(it->first, "a file name");
     if (name != kTask && name != kWeights && name != kLoss && name != "primitives.yaml")
-      throw errorAt(path, it->first, "'files' names '" + name + "', not a file of a model directory");
+      r.fail(it->first, "'files' names '" + name + "', not a file of a model directory");
     FileDigest d;
-    d.bytes = as<uint64_t>(path, it->second, "bytes");
-    d.sha256 = as<std::string>(path, it->second, "sha256");
-    if (!isSha256Hex(d.sha256)) throw errorAt(path, it->second["sha256"], name + ": sha256 is not 64 hex digits");
+    d.bytes = r.count(it->second, "bytes");
+    d.sha256 = r.text(it->second, "sha256");
+    if (!isSha256Hex(d.sha256)) r.fail(it->second["sha256"], name + ": sha256 is not 64 hex digits");
     out[name] = d;
   }
   for (const char* required : {kTask, kWeights, kLoss})
-    if (!out.count(required)) throw errorAt(path, files, std::string("'files' has no digest of ") + required);
+    if (!out.count(required)) r.fail(files, std::string("'files' has no digest of ") + required);
   return out;
+}
+
+/// yaml-cpp's own exceptions (a subscript of a node of another kind) as a diagnostic.
+Error yamlError(const std::string& path, const YAML::Exception& e) {
+  return Error(
+      Diagnostic{path, e.mark.is_null() ? 0 : e.mark.line + 1, e.mark.is_null() ? 0 : e.mark.column + 1, e.msg});
 }
 
 }  // namespace
 
 std::map<std::string, FileDigest> manifestFiles(const std::string& text, const std::string& path) {
   try {
-    return parseFiles(path, checkedRoot(text, path));
+    Reader r(path);
+    return parseFiles(r, checkedRoot(r, text, path));
   } catch (const YAML::Exception& e) {
-    throw Error(Diagnostic{path, e.mark.line + 1, e.mark.column + 1, e.msg});
+    throw yamlError(path, e);
   }
 }
 
 ModelInfo parseManifest(const std::string& text, const std::string& path, const task::TaskSpec& spec) {
   try {
-    const YAML::Node root = checkedRoot(text, path);
+    Reader r(path);
+    const YAML::Node root = checkedRoot(r, text, path);
     ModelInfo info;
     try {
-      info.variant = variantFromString(as<std::string>(path, root, "variant"));
+      info.variant = variantFromString(r.text(root, "variant"));
     } catch (const Error& e) {
-      throw errorAt(path, root["variant"], e.what());
+      r.fail(root["variant"], e.what());
     }
     info.options.variant = info.variant;
-    info.options.seed = as<uint64_t>(path, root, "seed");
-    info.stop_reason = as<std::string>(path, root, "stop_reason");
-    info.files = parseFiles(path, root);
-    info.fingerprint = task::parseFingerprint(need(path, root, "task_fingerprint"), path);
+    info.options.seed = r.count(root, "seed");
+    info.stop_reason = r.text(root, "stop_reason");
+    {
+      const YAML::Node rules = r.need(root, "step_rules");
+      info.step_rules.exclusive_targets = r.boolean(rules, "exclusive_targets");
+      const int n = static_cast<int>(spec.entities.size());
+      info.step_rules.step_size = static_cast<int>(
+          r.integerAt(r.need(rules, "step_size"),
+                      "step_rules: step_size must be in 0.." + std::to_string(n) + " (the entities)", 0, n));
+      if (info.variant != Variant::Scene && info.step_rules.any())
+        r.fail(rules, "step_rules are learned for the scene variant only (the others decode each entity on its own)");
+    }
+    info.files = parseFiles(r, root);
+    info.fingerprint = task::parseFingerprint(r.need(root, "task_fingerprint"), path);
     for (const std::string& d : task::fingerprintDifferences(info.fingerprint, task::fingerprintOf(spec)))
-      throw errorAt(path, root["task_fingerprint"], "task_fingerprint does not describe the model's task.yaml: " + d);
+      r.fail(root["task_fingerprint"], "task_fingerprint does not describe the model's task.yaml: " + d);
 
-    const YAML::Node ents = need(path, root, "entities");
-    if (ents.as<std::vector<std::string>>() != spec.entityNames())
-      throw errorAt(path, ents, "entities do not match the model's task.yaml");
-    info.vocabulary = as<std::vector<std::string>>(path, root, "vocabulary");
+    if (r.texts(root, "entities") != spec.entityNames())
+      r.fail(root["entities"], "entities do not match the model's task.yaml");
+    info.vocabulary = r.texts(root, "vocabulary");
     {
       // The vocabulary's order is the action head's class order: it must be the training
       // directory's, whose sorted set the fingerprint records.
@@ -328,98 +429,94 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
       std::sort(sorted.begin(), sorted.end());
       if (info.vocabulary.empty() || sorted != info.fingerprint.vocabulary ||
           std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
-        throw errorAt(path, root["vocabulary"], "vocabulary does not match task_fingerprint.vocabulary");
+        r.fail(root["vocabulary"], "vocabulary does not match task_fingerprint.vocabulary");
     }
 
-    const YAML::Node hp = need(path, root, "hyper_parameters");
+    const YAML::Node hp = r.need(root, "hyper_parameters");
     TrainOptions& o = info.options;
-    o.max_epochs = as<int>(path, hp, "max_epochs");
-    o.heads = as<int>(path, hp, "heads");
-    o.head_channels = as<int>(path, hp, "head_channels");
-    o.gat_layers = as<int>(path, hp, "gat_layers");
-    o.gru_layers = as<int>(path, hp, "gru_layers");
-    o.gru_hidden = as<int>(path, hp, "gru_hidden");
-    o.identity_embedding = as<bool>(path, hp, "identity_embedding");
-    o.identity_dim = as<int>(path, hp, "identity_dim");
+    o.max_epochs = r.integer(hp, "max_epochs");
+    o.heads = r.integer(hp, "heads");
+    o.head_channels = r.integer(hp, "head_channels");
+    o.gat_layers = r.integer(hp, "gat_layers");
+    o.gru_layers = r.integer(hp, "gru_layers");
+    o.gru_hidden = r.integer(hp, "gru_hidden");
+    o.identity_embedding = r.boolean(hp, "identity_embedding");
+    o.identity_dim = r.integer(hp, "identity_dim");
     try {
-      o.attention = attentionFromString(as<std::string>(path, hp, "attention"));
+      o.attention = attentionFromString(r.text(hp, "attention"));
     } catch (const Error& e) {
-      throw errorAt(path, hp["attention"], e.what());
+      r.fail(hp["attention"], e.what());
     }
-    o.head_hidden = as<int>(path, hp, "head_hidden");
-    o.node_positions = as<bool>(path, hp, "node_positions");
-    o.edge_displacement = as<bool>(path, hp, "edge_displacement");
-    o.weight_decay = as<double>(path, hp, "weight_decay");
-    o.dropout = as<double>(path, hp, "dropout");
-    o.learning_rate = as<double>(path, hp, "learning_rate");
-    o.batch_demos = as<int>(path, hp, "batch_demos");
-    o.plateau_patience = as<int>(path, hp, "plateau_patience");
-    o.plateau_delta = as<double>(path, hp, "plateau_delta");
-    o.threads = as<int>(path, hp, "threads");
-    o.refinement.keep_support = as<double>(path, hp, "keep_support");
-    o.refinement.drop_support = as<double>(path, hp, "drop_support");
+    o.head_hidden = r.integer(hp, "head_hidden");
+    o.node_positions = r.boolean(hp, "node_positions");
+    o.edge_displacement = r.boolean(hp, "edge_displacement");
+    o.weight_decay = r.number(hp, "weight_decay");
+    o.dropout = r.number(hp, "dropout");
+    o.learning_rate = r.number(hp, "learning_rate");
+    o.batch_demos = r.integer(hp, "batch_demos");
+    o.plateau_patience = r.integer(hp, "plateau_patience");
+    o.plateau_delta = r.number(hp, "plateau_delta");
+    o.threads = r.integer(hp, "threads");
+    o.refinement.keep_support = r.number(hp, "keep_support");
+    o.refinement.drop_support = r.number(hp, "drop_support");
     o.refinement.seed = o.seed;
     try {
       o.validate();
     } catch (const Error& e) {
-      throw errorAt(path, hp, e.what());
+      r.fail(hp, e.what());
     }
 
-    const YAML::Node norm = need(path, root, "normalisation");
-    const auto pair = [&](const std::string& key, double* out, bool positive) {
-      const auto v = as<std::vector<double>>(path, norm, key);
-      if (v.size() != 2 || !std::isfinite(v[0]) || !std::isfinite(v[1]) || (positive && (v[0] <= 0 || v[1] <= 0)))
-        throw errorAt(path, norm[key], key + " must be two finite numbers" + (positive ? " > 0" : ""));
+    const YAML::Node norm = r.need(root, "normalisation");
+    const auto pair = [&](const char* key, double* out, bool positive) {
+      const auto v = r.numbers(norm, key);
+      if (v.size() != 2 || (positive && (v[0] <= 0 || v[1] <= 0)))
+        r.fail(norm[key], std::string(key) + " must be two finite numbers" + (positive ? " > 0" : ""));
       out[0] = v[0];
       out[1] = v[1];
     };
     pair("mean_m", info.mean, false);
     pair("std_m", info.std, true);
     pair("delta_std_m", info.delta_std, true);
-    info.frame_dt_s = as<double>(path, norm, "frame_dt_s");
+    info.frame_dt_s = r.number(norm, "frame_dt_s");
     if (!(info.frame_dt_s > 0 && info.frame_dt_s <= 10))
-      throw errorAt(path, norm["frame_dt_s"], "frame_dt_s must be in (0, 10] seconds");
+      r.fail(norm["frame_dt_s"], "frame_dt_s must be in (0, 10] seconds");
 
-    const YAML::Node ref = need(path, root, "refinement");
+    const YAML::Node ref = r.need(root, "refinement");
     graph::RefinedGraph& g = info.refined;
     g.nodes = static_cast<int>(spec.entities.size());
-    g.demonstrations = as<int>(path, ref, "demonstrations");
-    if (g.demonstrations < 1 || g.demonstrations > task::kMaxFingerprintCount)
-      throw errorAt(path, ref["demonstrations"],
-                    "demonstrations must be in 1.." + std::to_string(task::kMaxFingerprintCount));
-    g.clusters = as<int>(path, ref, "clusters");
-    if (g.clusters < 1 || g.clusters > g.nodes)
-      throw errorAt(path, ref["clusters"], "clusters must be in 1.." + std::to_string(g.nodes) + " (the entities)");
+    g.demonstrations = static_cast<int>(r.integerAt(
+        r.need(ref, "demonstrations"), "demonstrations must be in 1.." + std::to_string(task::kMaxFingerprintCount), 1,
+        task::kMaxFingerprintCount));
+    g.clusters = static_cast<int>(r.integerAt(
+        r.need(ref, "clusters"), "clusters must be in 1.." + std::to_string(g.nodes) + " (the entities)", 1, g.nodes));
     g.cluster.assign(static_cast<size_t>(g.nodes), 0);
-    const YAML::Node cof = need(path, ref, "cluster_of");
-    for (auto it = cof.begin(); it != cof.end(); ++it) {
-      const int c = it->second.as<int>();
-      if (c < 0 || c >= g.clusters) throw errorAt(path, it->second, "cluster index out of 0..clusters-1");
-      g.cluster[static_cast<size_t>(entityIndex(path, it->first, spec))] = c;
-    }
-    const auto eig = as<std::vector<double>>(path, ref, "eigenvalues");
-    if (eig.size() > static_cast<size_t>(g.nodes))
-      throw errorAt(path, ref["eigenvalues"], "more eigenvalues than entities");
+    const YAML::Node cof = r.need(ref, "cluster_of");
+    if (!cof.IsMap()) r.fail(cof, "'cluster_of' must map entity names to cluster indices");
+    for (auto it = cof.begin(); it != cof.end(); ++it)
+      g.cluster[static_cast<size_t>(r.entity(it->first, spec))] =
+          static_cast<int>(r.integerAt(it->second, "a cluster index (0..clusters-1)", 0, g.clusters - 1));
+    const auto eig = r.numbers(ref, "eigenvalues");
+    if (eig.size() > static_cast<size_t>(g.nodes)) r.fail(ref["eigenvalues"], "more eigenvalues than entities");
     g.eigenvalues = Eigen::Map<const Eigen::VectorXd>(eig.data(), static_cast<Eigen::Index>(eig.size()));
-    for (const YAML::Node& e : need(path, ref, "edges")) {
+    for (const YAML::Node& e : r.sequence(ref, "edges")) {
       graph::EdgeStats s;
-      s.edge = {entityIndex(path, need(path, e, "source"), spec), entityIndex(path, need(path, e, "target"), spec)};
-      s.frequency = as<int>(path, e, "frequency");
-      s.demos = as<int>(path, e, "demos");
-      s.support = as<double>(path, e, "support");
-      if (s.frequency < 0 || s.demos < 0 || s.demos > g.demonstrations || !(s.support >= 0 && s.support <= 1))
-        throw errorAt(path, e, "an edge needs frequency >= 0, demos in 0..demonstrations, support in [0, 1]");
-      s.decision = decisionFromString(path, need(path, e, "decision"));
+      s.edge = {r.entity(r.need(e, "source"), spec), r.entity(r.need(e, "target"), spec)};
+      const std::string range = "an edge needs frequency >= 0, demos in 0..demonstrations, support in [0, 1]";
+      s.frequency = static_cast<int>(r.integerAt(r.need(e, "frequency"), range, 0, std::numeric_limits<int>::max()));
+      s.demos = static_cast<int>(r.integerAt(r.need(e, "demos"), range, 0, g.demonstrations));
+      s.support = r.number(e, "support");
+      if (!(s.support >= 0 && s.support <= 1)) r.fail(e, range);
+      s.decision = r.decision(r.need(e, "decision"));
       g.edges.push_back(s);
       if (graph::isKept(s.decision)) g.kept.push_back(s.edge);
     }
-    for (const YAML::Node& e : need(path, root, "attention_edges")) {
-      if (!e.IsSequence() || e.size() != 2) throw errorAt(path, e, "an attention edge is [SOURCE, TARGET]");
-      info.attention_edges.push_back({entityIndex(path, e[0], spec), entityIndex(path, e[1], spec)});
+    for (const YAML::Node& e : r.sequence(root, "attention_edges")) {
+      if (!e.IsSequence() || e.size() != 2) r.fail(e, "an attention edge is [SOURCE, TARGET]");
+      info.attention_edges.push_back({r.entity(e[0], spec), r.entity(e[1], spec)});
     }
     return info;
   } catch (const YAML::Exception& e) {
-    throw Error(Diagnostic{path, e.mark.line + 1, e.mark.column + 1, e.msg});
+    throw yamlError(path, e);
   }
 }
 

@@ -402,6 +402,22 @@ std::vector<graph::Edge> liftedToKinds(const std::vector<graph::Edge>& kept, con
   return out;
 }
 
+/// The rules every step of `demos` kept (StepRules).
+StepRules stepRulesOf(const std::vector<task::Demonstration>& demos) {
+  StepRules r;
+  r.exclusive_targets = true;
+  std::set<size_t> sizes;
+  for (const auto& d : demos)
+    for (const auto& step : d.steps) {
+      sizes.insert(step.tokens.size());
+      std::set<int> targets;
+      for (const auto& t : step.tokens)
+        if (t.target >= 0 && !targets.insert(t.target).second) r.exclusive_targets = false;
+    }
+  r.step_size = sizes.size() == 1 ? static_cast<int>(*sizes.begin()) : 0;
+  return r;
+}
+
 }  // namespace
 
 std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const TrainOptions& options) {
@@ -423,6 +439,7 @@ std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const T
     for (size_t r = 0; r < d.rows(); ++r) requireFinite(d.positions[r], train.spec, d.source, "row", r);
   }
   if (steps == 0) throw Error(Diagnostic{train.path, 0, 0, "the demonstrations have no steps (no labelled actions)"});
+  if (options.variant == Variant::Scene) info.step_rules = stepRulesOf(train.demos);
   // The refinement in canonical order (k-means seeding visits the nodes in order), mapped back.
   std::vector<task::Demonstration> canonical;
   for (const auto& d : train.demos) canonical.push_back(impl->order.toCanonical(d));

@@ -2,8 +2,10 @@
 #include <torch/torch.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include "ddace/common/error.h"
+#include "ddace/tgn/detail.h"
 #include "model_impl.h"
 
 namespace ddace::tgn {
@@ -47,27 +49,26 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
     const Tensor emb = net->encode(x);
     h = net->heads(fused::gru(net->gru, emb.unsqueeze(0)).first.select(1, t - 1).squeeze(0));
   }
-  const Tensor pa = torch::softmax(h.action, -1), pt = torch::softmax(h.target, -1);
+  const Tensor la = torch::log_softmax(h.action, -1).to(torch::kDouble).contiguous();
+  const Tensor lt = torch::log_softmax(h.target, -1).to(torch::kDouble).contiguous();
   Prediction p;
   p.end_probability = torch::softmax(h.end, -1)[1].item<double>();
   p.end = p.end_probability > 0.5;
   if (p.end) return p;
+  const auto values = [](const Tensor& v) {
+    return std::vector<double>(v.data_ptr<double>(), v.data_ptr<double>() + v.numel());
+  };
+  const std::vector<detail::DecodedToken> step =
+      detail::decodeStep(values(la), m.cfg.actions, values(lt), m.cfg.targets, m.info.step_rules);
   std::vector<std::pair<task::Token, double>> scored;
-  auto a = pa.accessor<float, 2>();
-  auto tg = pt.accessor<float, 2>();
   for (int64_t i = 0; i < n; ++i) {
-    int best = 0;
-    for (int c = 1; c < m.cfg.actions; ++c)
-      if (a[i][c] > a[i][best]) best = c;
-    if (best == 0) continue;
-    int target = 0;
-    for (int c = 1; c < m.cfg.targets; ++c)
-      if (tg[i][c] > tg[i][target]) target = c;
+    const detail::DecodedToken& d = step[static_cast<size_t>(i)];
+    if (d.action == 0) continue;
     // Back from the canonical order to the task's.
     const int entity = m.order.task_of[static_cast<size_t>(i)];
-    const int to = target == 0 ? -1 : m.order.task_of[static_cast<size_t>(target - 1)];
-    scored.push_back({{entity, m.info.vocabulary[static_cast<size_t>(best - 1)], to},
-                      static_cast<double>(a[i][best]) * tg[i][target]});
+    const int to = d.target == 0 ? -1 : m.order.task_of[static_cast<size_t>(d.target - 1)];
+    scored.push_back({{entity, m.info.vocabulary[static_cast<size_t>(d.action - 1)], to},
+                      std::exp(la[i][d.action].item<double>() + lt[i][d.target].item<double>())});
   }
   std::sort(scored.begin(), scored.end(), [](const auto& u, const auto& v) { return u.first.entity < v.first.entity; });
   for (const auto& [token, q] : scored) {

@@ -221,7 +221,7 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
   EXPECT_NE(e.find("manifest.yaml records"), std::string::npos) << e;
   e = variant("other_format", [&](const fs::path& d) {
     rewrite(d / "manifest.yaml",
-            [](std::string& s) { s.replace(s.find("format: ddace-model/3"), 21, "format: ddace-model/9"); });
+            [](std::string& s) { s.replace(s.find("format: ddace-model/4"), 21, "format: ddace-model/9"); });
   });
   EXPECT_NE(e.find("manifest.yaml:"), std::string::npos) << e;
   e = variant("loss_row", [&](const fs::path& d) { rewrite(d / "loss.csv", [](std::string& s) { s += "x,y\n"; }); });
@@ -293,11 +293,38 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
   EXPECT_NE(edited("clusters: ", "clusters: 99", true).find("clusters must be in"), std::string::npos);
   // The digest line itself cut or changed.
   EXPECT_NE(edited("manifest_sha256: ", "manifest_sha256: 0", false).find("last line"), std::string::npos);
-  // An older format: retrain.
-  const std::string old = edited("format: ddace-model/3", "format: ddace-model/2", false);
-  EXPECT_NE(old.find("retrain"), std::string::npos) << old;
-  EXPECT_NE(old.find("manifest.yaml:"), std::string::npos) << old;
+  EXPECT_NE(edited("step_size: ", "step_size: 9", true).find("step_size must be in 0.."), std::string::npos);
+  // An older format: retrain, saying what it lacks; a newer one: said so.
+  for (const char* version : {"ddace-model/3", "ddace-model/2"}) {
+    const std::string old = edited("format: ddace-model/4", std::string("format: ") + version, false);
+    EXPECT_NE(old.find("retrain"), std::string::npos) << old;
+    EXPECT_NE(old.find("step rules"), std::string::npos) << old;
+    EXPECT_NE(old.find("manifest.yaml:"), std::string::npos) << old;
+  }
+  EXPECT_NE(edited("format: ddace-model/4", "format: ddace-model/2", false).find("digests"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/4", "format: ddace-model/12", false).find("newer"), std::string::npos);
   fs::remove_all(good);
+}
+
+// The step rules come from the training steps, for the scene variant only, and survive
+// save -> load.
+TEST(SequenceModel, LearnsTheStepRulesItsTrainingDemonstrationsKeep) {
+  tgn::TrainOptions o;
+  o.max_epochs = 2;
+  // nearest_goal: every robot to its own goal, in one step.
+  const auto goals = tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr);
+  EXPECT_TRUE(goals.info().step_rules.exclusive_targets);
+  EXPECT_EQ(goals.info().step_rules.step_size, 3);
+  // fetch: the fetcher and the box carry to the same goal in one step; steps of 1 and 2.
+  const auto fetch = tgn::SequenceModel::train(generate("fetch", 4), o, nullptr);
+  EXPECT_FALSE(fetch.info().step_rules.any());
+  // The paper's network decodes each entity on its own.
+  o.variant = tgn::Variant::Paper;
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr).info().step_rules.any());
+  const std::string dir = tempDir("step_rules");
+  goals.save(dir);
+  EXPECT_EQ(tgn::SequenceModel::load(dir).info().step_rules, goals.info().step_rules);
+  fs::remove_all(dir);
 }
 
 TEST(SequenceModel, RecordsTheTaskFingerprintOfItsTrainingDirectory) {
