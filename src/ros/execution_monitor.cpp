@@ -4,6 +4,7 @@
 #include "ddace/task/task_dir.h"
 
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -32,6 +33,7 @@
 #include <ddace/SegmentStatus.h>
 
 #include "exec_conversions.h"
+#include "heartbeat.h"
 #include "params.h"
 #include "ddace/common/file.h"
 #include "ddace/eval/metrics.h"
@@ -165,6 +167,8 @@ class ExecutionMonitorNode::Impl {
       listeners_[bagNode()] = topics;
     }
     ready_srv_ = pnh.advertiseService("ready", &Impl::srvReady, this);
+    // The coordinator treats this node as the recorder role: a run without its record stops.
+    heartbeat_ = std::make_unique<ros_exec::HeartbeatPublisher>(pnh, [this] { return bagProblem(); });
     if (timeout_s > 0)
       timer_ = nh.createTimer(
           ros::Duration(timeout_s),
@@ -215,12 +219,18 @@ class ExecutionMonitorNode::Impl {
     return true;
   }
 
-  std::string notRecording() {
+  /// Why the bag cannot hold the run ("" while rosbag record runs, or no bag is wanted).
+  std::string bagProblem() {
+    if (reported_) return "";  // the run's record is written; the bag was stopped on purpose
     if (bag_pid_ > 0 && ::waitpid(bag_pid_, nullptr, WNOHANG) == bag_pid_) {
       bag_pid_ = -1;
       bag_failed_ = true;
     }
-    if (bag_failed_) return "rosbag record exited: no bag can be recorded (is Debian's rosbag installed?)";
+    return bag_failed_ ? "rosbag record exited: no bag can be recorded (is Debian's rosbag installed?)" : "";
+  }
+
+  std::string notRecording() {
+    if (const std::string bag = bagProblem(); !bag.empty()) return bag;
     TopicNodes publishers, subscribers;
     if (!systemState(publishers, subscribers)) return "the ROS master does not answer getSystemState";
     std::map<std::string, std::set<std::pair<std::string, std::string>>> links;  // publisher node -> its links
@@ -243,8 +253,13 @@ class ExecutionMonitorNode::Impl {
     std::vector<std::string> args = {
         "rosbag", "record", "--quiet", "-O", run_dir_ + "/run.bag", "__name:=" + bagNodeName()};
     args.insert(args.end(), topics.begin(), topics.end());
+    const pid_t monitor = ::getpid();
     bag_pid_ = ::fork();
     if (bag_pid_ == 0) {
+      // When this node dies (SIGKILL too) the recorder gets SIGINT and closes the bag:
+      // the run's bag then holds it up to this node's death.
+      ::prctl(PR_SET_PDEATHSIG, SIGINT);
+      if (::getppid() != monitor) ::_exit(1);  // it died before the line above
       std::vector<char*> argv;
       for (auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
       argv.push_back(nullptr);
@@ -559,6 +574,7 @@ class ExecutionMonitorNode::Impl {
   bool record_bag_ = true, bag_failed_ = false;
   std::map<std::string, std::vector<std::string>> listeners_;  ///< node (this one, the recorder) -> its topics
   ros::ServiceServer ready_srv_;
+  std::unique_ptr<ros_exec::HeartbeatPublisher> heartbeat_;
 };
 
 ExecutionMonitorNode::ExecutionMonitorNode(ros::NodeHandle nh, ros::NodeHandle pnh)

@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iostream>
 #include <map>
 #include <mutex>
 #include <set>
@@ -105,10 +106,11 @@ inline std::string writeConfig(const std::string& shipped, const std::string& ou
 }
 
 /// roslaunch as a child process group; killed (SIGINT, then SIGKILL) on destruction.
-/// With `log` its output goes to that file instead of the test's.
+/// With `log` its output goes to that file instead of the test's, and is printed when
+/// the test has failed (the nodes' own account of what went wrong).
 class Launch {
  public:
-  explicit Launch(const std::vector<std::string>& args, const std::string& log = "") {
+  explicit Launch(const std::vector<std::string>& args, const std::string& log = "") : log_(log) {
     pid_ = ::fork();
     if (pid_ == 0) {
       ::setpgid(0, 0);
@@ -143,6 +145,16 @@ class Launch {
     return pid_ <= 0;
   }
   ~Launch() {
+    stop();
+    if (!log_.empty() && ::testing::Test::HasFailure()) {
+      std::ifstream f(log_);
+      std::cout << "---- output of the launch (" << log_ << ") ----\n"
+                << f.rdbuf() << "\n---- end of the launch's output\n";
+    }
+  }
+
+ private:
+  void stop() {
     if (pid_ <= 0) return;
     ::kill(-pid_, SIGINT);
     for (int i = 0; i < 150; ++i) {
@@ -153,8 +165,8 @@ class Launch {
     ::waitpid(pid_, nullptr, 0);
   }
 
- private:
   pid_t pid_ = -1;
+  std::string log_;
 };
 
 /// The process id of a running node, from its own XML-RPC getPid (-1 when unknown).

@@ -49,6 +49,8 @@ class CoordinatorNode {
     double resend_after_s = 1.0;         ///< an unacknowledged request or segment goes out again after this
     double state_rate_hz = 5.0;          ///< ~state goes out at this rate (and on every change)
     double liveness_check_hz = 50.0;     ///< how often the roles' nodes are checked
+    double heartbeat_timeout_s = 1.0;  ///< roles/: a follower (wheels) or a node's ~heartbeat silent this long is lost
+    double pose_timeout_s = 1.0;       ///< roles/: no /ddace/entities from the pose source this long: lost
   };
 
   CoordinatorNode(ros::NodeHandle nh, ros::NodeHandle pnh);
