@@ -33,7 +33,7 @@
 #include <ddace/SegmentStatus.h>
 
 #include "exec_conversions.h"
-#include "heartbeat.h"
+#include "ddace/ros/heartbeat.h"
 #include "params.h"
 #include "ddace/common/file.h"
 #include "ddace/eval/metrics.h"
@@ -168,7 +168,7 @@ class ExecutionMonitorNode::Impl {
     }
     ready_srv_ = pnh.advertiseService("ready", &Impl::srvReady, this);
     // The coordinator treats this node as the recorder role: a run without its record stops.
-    heartbeat_ = std::make_unique<ros_exec::HeartbeatPublisher>(pnh, [this] { return bagProblem(); });
+    heartbeat_ = std::make_unique<HeartbeatPublisher>(pnh, [this] { return bagProblem(); });
     if (timeout_s > 0)
       timer_ = nh.createTimer(
           ros::Duration(timeout_s),
@@ -222,15 +222,20 @@ class ExecutionMonitorNode::Impl {
   /// Why the bag cannot hold the run ("" while rosbag record runs, or no bag is wanted).
   std::string bagProblem() {
     if (reported_) return "";  // the run's record is written; the bag was stopped on purpose
-    if (bag_pid_ > 0 && ::waitpid(bag_pid_, nullptr, WNOHANG) == bag_pid_) {
+    int status = 0;
+    if (bag_pid_ > 0 && ::waitpid(bag_pid_, &status, WNOHANG) == bag_pid_) {
       bag_pid_ = -1;
       bag_failed_ = true;
+      bag_exit_ = WIFSIGNALED(status) ? "killed by signal " + std::to_string(WTERMSIG(status))
+                                      : "exit status " + std::to_string(WEXITSTATUS(status));
+      ROS_ERROR("execution_monitor: rosbag record exited (%s): the run's bag is incomplete", bag_exit_.c_str());
     }
-    return bag_failed_ ? "rosbag record exited: no bag can be recorded (is Debian's rosbag installed?)" : "";
+    return bag_failed_ ? "rosbag record exited (" + bag_exit_ + "): the run's bag is incomplete" : "";
   }
 
   std::string notRecording() {
-    if (const std::string bag = bagProblem(); !bag.empty()) return bag;
+    if (const std::string bag = bagProblem(); !bag.empty())
+      return bag + "; no bag can be recorded (is Debian's rosbag installed?)";
     TopicNodes publishers, subscribers;
     if (!systemState(publishers, subscribers)) return "the ROS master does not answer getSystemState";
     std::map<std::string, std::set<std::pair<std::string, std::string>>> links;  // publisher node -> its links
@@ -260,6 +265,10 @@ class ExecutionMonitorNode::Impl {
       // the run's bag then holds it up to this node's death.
       ::prctl(PR_SET_PDEATHSIG, SIGINT);
       if (::getppid() != monitor) ::_exit(1);  // it died before the line above
+      // None of this node's sockets: a copy held open by the recorder would keep this node's
+      // links up after it died, and the coordinator would learn of the death only when the
+      // recorder, too, has exited.
+      ::close_range(3, ~0U, 0);
       std::vector<char*> argv;
       for (auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
       argv.push_back(nullptr);
@@ -270,6 +279,7 @@ class ExecutionMonitorNode::Impl {
     if (bag_pid_ < 0) {
       ROS_ERROR("execution_monitor: cannot start rosbag record: %s", std::strerror(errno));
       bag_failed_ = true;
+      bag_exit_ = std::string("fork failed: ") + std::strerror(errno);
     }
   }
 
@@ -572,9 +582,10 @@ class ExecutionMonitorNode::Impl {
   ros::NodeHandle nh_;
   pid_t bag_pid_ = -1;
   bool record_bag_ = true, bag_failed_ = false;
+  std::string bag_exit_;  ///< how rosbag record ended, when it did by itself
   std::map<std::string, std::vector<std::string>> listeners_;  ///< node (this one, the recorder) -> its topics
   ros::ServiceServer ready_srv_;
-  std::unique_ptr<ros_exec::HeartbeatPublisher> heartbeat_;
+  std::unique_ptr<HeartbeatPublisher> heartbeat_;
 };
 
 ExecutionMonitorNode::ExecutionMonitorNode(ros::NodeHandle nh, ros::NodeHandle pnh)
