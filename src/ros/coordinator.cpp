@@ -337,8 +337,9 @@ class CoordinatorNode::Impl {
     const CoordinatorNode::Params defaults;
     const double heartbeat_s = rosparam::param(r, "heartbeat_timeout_s", defaults.heartbeat_timeout_s);
     const double pose_s = rosparam::param(r, "pose_timeout_s", defaults.pose_timeout_s);
-    if (!(heartbeat_s > 0)) throw Error("parameter '" + r.resolveName("heartbeat_timeout_s") + "' must be positive");
-    if (!(pose_s > 0)) throw Error("parameter '" + r.resolveName("pose_timeout_s") + "' must be positive");
+    // 0: presence only (a test that plays the nodes itself).
+    if (!(heartbeat_s >= 0)) throw Error("parameter '" + r.resolveName("heartbeat_timeout_s") + "' must be >= 0");
+    if (!(pose_s >= 0)) throw Error("parameter '" + r.resolveName("pose_timeout_s") + "' must be >= 0");
     // A node serving requests: present while subscribed to them, alive while its ~heartbeat comes.
     auto serving = [&](const std::string& role, const std::string& node, const std::string& topic) {
       const size_t k = roles_.add(role, node, "subscribed to " + topic, heartbeat_s);
