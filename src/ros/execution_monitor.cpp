@@ -364,6 +364,18 @@ class ExecutionMonitorNode::Impl {
   void onState(const ddace::CoordinatorState& s) {
     last_state_ = s;
     have_state_ = true;
+    // ~reset: the record is of the run that ends, not of the one reset before it (its
+    // segments would count as motions that never arrived). Stamps, not arrival order: the
+    // next run's first segments may come on their own connections before this state.
+    if (s.state == ddace::CoordinatorState::IDLE && s.steps.empty()) {
+      for (auto it = segments_.begin(); it != segments_.end();)
+        it = it->second.sent != ros::Time() && it->second.sent < s.header.stamp ? segments_.erase(it) : std::next(it);
+      for (auto it = running_.begin(); it != running_.end();)
+        it = segments_.count(it->second) ? std::next(it) : running_.erase(it);
+      requests_.erase(
+          std::remove_if(requests_.begin(), requests_.end(), [&](const ros::Time& t) { return t < s.header.stamp; }),
+          requests_.end());
+    }
     if (s.state == ddace::CoordinatorState::FINISHED || s.state == ddace::CoordinatorState::ABORTED ||
         s.state == ddace::CoordinatorState::ESTOPPED) {
       if (final_timer_.isValid()) return;
@@ -582,7 +594,7 @@ class ExecutionMonitorNode::Impl {
   ros::NodeHandle nh_;
   pid_t bag_pid_ = -1;
   bool record_bag_ = true, bag_failed_ = false;
-  std::string bag_exit_;  ///< how rosbag record ended, when it did by itself
+  std::string bag_exit_;                                       ///< how rosbag record ended, when it did by itself
   std::map<std::string, std::vector<std::string>> listeners_;  ///< node (this one, the recorder) -> its topics
   ros::ServiceServer ready_srv_;
   std::unique_ptr<HeartbeatPublisher> heartbeat_;

@@ -224,8 +224,7 @@ TEST_P(HangRole, IsLostByItsHeartbeatAndEveryRobotStops) {
   ASSERT_EQ(::kill(pid, SIGSTOP), 0);
   const bool aborted = waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 5.0 + timeout_s);
   ::kill(pid, SIGCONT);
-  ASSERT_TRUE(aborted) << "state " << w.state().state_name << " " << timeout_s + 5.0 << " s after " << node
-                       << " hung";
+  ASSERT_TRUE(aborted) << "state " << w.state().state_name << " " << timeout_s + 5.0 << " s after " << node << " hung";
   ros::Duration(0.3).sleep();
   const auto s = w.state();
   EXPECT_NE(s.reason.find(node), std::string::npos) << s.reason;

@@ -144,13 +144,12 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
   const YAML::Node gp = yaml["gp_path"];
   ASSERT_TRUE(gp && gp["source"]);
   EXPECT_EQ(GpPathNode::parseSource(gp["source"].as<std::string>(), "gp_path/source"), p.source);
-  expectDefaults(
-      gp, "gp_path",
-      {{"frame_id", value(p.frame_id)},
-       {"points", value(p.points)},
-       {"allow_other_task", value(p.allow_other_task)},
-       {"heartbeat_rate_hz", value(beat_hz)}},
-      {"source"});
+  expectDefaults(gp, "gp_path",
+                 {{"frame_id", value(p.frame_id)},
+                  {"points", value(p.points)},
+                  {"allow_other_task", value(p.allow_other_task)},
+                  {"heartbeat_rate_hz", value(beat_hz)}},
+                 {"source"});
 }
 
 int main(int argc, char** argv) {
