@@ -206,22 +206,26 @@ struct Wheel {
 };
 
 /// The stop rule in control cycles, not wall time: of `cmds` (one publisher's, in the order
-/// it published them) those stamped after `event` are at most one non-zero command (the
-/// cycle under way when the event reached it) and then only zeros, at least one of them.
-inline ::testing::AssertionResult zeroWithinOneCycle(const std::vector<Wheel>& cmds, const ros::Time& event) {
+/// it published them) those stamped after `event` are at most `cycles` non-zero commands
+/// (1: the cycle under way when the event reached it) and then only zeros, at least one.
+inline ::testing::AssertionResult zeroWithinCycles(const std::vector<Wheel>& cmds, const ros::Time& event, int cycles) {
   int after = 0, zeros = 0;
   for (const auto& c : cmds) {
     if (c.stamp <= event) continue;
     ++after;
     if (c.zero()) {
       ++zeros;
-    } else if (after > 1 || zeros > 0) {
+    } else if (after > cycles || zeros > 0) {
       return ::testing::AssertionFailure() << "command " << after << " after the event (" << (c.stamp - event).toSec()
                                            << " s) is non-zero: " << c.left << ", " << c.right;
     }
   }
   if (zeros == 0) return ::testing::AssertionFailure() << "no zero command after the event (" << after << " commands)";
   return ::testing::AssertionSuccess();
+}
+
+inline ::testing::AssertionResult zeroWithinOneCycle(const std::vector<Wheel>& cmds, const ros::Time& event) {
+  return zeroWithinCycles(cmds, event, 1);
 }
 
 /// The commands of `cmds` published by `node`.
