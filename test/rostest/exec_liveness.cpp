@@ -239,12 +239,13 @@ TEST_P(HangRole, IsLostByItsHeartbeatAndEveryRobotStops) {
     // written on its own; the signal can stop the node between the two writes).
     ros::Time last_beat;
     const YAML::Node config = YAML::LoadFile(g.files.config_file);
-    double beat_s = 1.0 / config[node.substr(1)]["heartbeat_rate_hz"].as<double>();
+    double beat_s = 0;
     if (node == "/path_follower") {
       beat_s = 1.0 / config["path_follower"]["rate_hz"].as<double>();  // its control cycle
       for (const auto& c : from(cmds, "/path_follower"))
         if (c.stamp < zero) last_beat = c.stamp;
     } else {
+      beat_s = 1.0 / config[node.substr(1)]["heartbeat_rate_hz"].as<double>();
       last_beat = beats.lastBefore(zero);
       // A living follower stops within its control cycle under way.
       EXPECT_TRUE(zeroWithinOneCycle(from(cmds, "/path_follower"), zero)) << robot;
