@@ -18,6 +18,7 @@
 #include <ddace/Decision.h>
 #include <ddace/DecisionRequest.h>
 #include <ddace/EntityArray.h>
+#include <ddace/Heartbeat.h>
 #include <ddace/PathRequest.h>
 #include <ddace/PathResponse.h>
 #include <ddace/Segment.h>
@@ -88,13 +89,19 @@ class CoordinatorNode::Impl {
                                             boost::function<void(const ros::MessageEvent<const ddace::WheelCommand>&)>(
                                                 [this, role](const ros::MessageEvent<const ddace::WheelCommand>& ev) {
                                                   if (ev.getPublisherName() == roles_.node(role))
-                                                    roles_.heartbeat(role, now());
+                                                    roles_.heartbeat(role, steadyNow());
                                                 })));
     }
     decision_pub_ = advertiseWatched<ddace::DecisionRequest>(nh, "/ddace/decision_request", 5);
     path_pub_ = advertiseWatched<ddace::PathRequest>(nh, "/ddace/path_request", 50);
     estop_pub_ = nh.advertise<std_msgs::Bool>("/ddace/estop", 1, true);
-    state_pub_ = pnh.advertise<ddace::CoordinatorState>("state", 1, true);
+    // The recorder's link on ~state is its presence: a monitor killed mid-run stops the run.
+    state_pub_ = advertiseWatched<ddace::CoordinatorState>(pnh, "state", 1, true);
+    for (const auto& [role, node] : heartbeat_roles_)
+      heartbeat_subs_.push_back(nh.subscribe<ddace::Heartbeat>(
+          node + "/heartbeat", 5,
+          boost::function<void(const ros::MessageEvent<const ddace::Heartbeat>&)>(
+              [this, role = role](const ros::MessageEvent<const ddace::Heartbeat>& ev) { onHeartbeat(role, ev); })));
     marker_pub_ = pnh.advertise<visualization_msgs::MarkerArray>("markers", 1, true);
     entities_sub_ = nh.subscribe("/ddace/entities", 5, &Impl::onEntities, this);
     decision_sub_ = nh.subscribe("/ddace/decision", 5, &Impl::onDecision, this);
@@ -118,6 +125,15 @@ class CoordinatorNode::Impl {
 
  private:
   static double now() { return ros::Time::now().toSec(); }
+  /// The liveness clock: monotonic, so a step of the system clock is nobody's silence.
+  static double steadyNow() { return ros::SteadyTime::now().toSec(); }
+
+  /// ~heartbeat of a role's node: counts only from that node; a problem it reports loses the role.
+  void onHeartbeat(size_t role, const ros::MessageEvent<const ddace::Heartbeat>& ev) {
+    if (ev.getPublisherName() != roles_.node(role)) return;
+    roles_.heartbeat(role, steadyNow());
+    roles_.fault(role, ev.getConstMessage()->problem);
+  }
 
   void apply(const exec::CoordinatorOutput& out) {
     for (const auto& line : out.log) ROS_INFO("coordinator: %s", line.c_str());
@@ -210,7 +226,7 @@ class CoordinatorNode::Impl {
 
   void onEntities(const ros::MessageEvent<const ddace::EntityArray>& ev) {
     const ddace::EntityArray& m = *ev.getConstMessage();
-    if (pose_role_ && ev.getPublisherName() == roles_.node(*pose_role_)) roles_.heartbeat(*pose_role_, now());
+    if (pose_role_ && ev.getPublisherName() == roles_.node(*pose_role_)) roles_.heartbeat(*pose_role_, steadyNow());
     apply(coordinator_->onEntities(ros_exec::toObservation(m, spec_), now()));
     if (++entity_msgs_ % 5 == 0) publishMarkers();  // entity labels follow the robots
   }
@@ -318,15 +334,21 @@ class CoordinatorNode::Impl {
       if (!n.empty() && n[0] != '/') n = "/" + n;
       return n;
     };
-    const double heartbeat_s = rosparam::param(r, "heartbeat_timeout_s", 0.5);
-    const double pose_s = rosparam::param(r, "pose_timeout_s", 1.0);
+    const CoordinatorNode::Params defaults;
+    const double heartbeat_s = rosparam::param(r, "heartbeat_timeout_s", defaults.heartbeat_timeout_s);
+    const double pose_s = rosparam::param(r, "pose_timeout_s", defaults.pose_timeout_s);
+    // 0: presence only (a test that plays the nodes itself).
+    if (!(heartbeat_s >= 0)) throw Error("parameter '" + r.resolveName("heartbeat_timeout_s") + "' must be >= 0");
+    if (!(pose_s >= 0)) throw Error("parameter '" + r.resolveName("pose_timeout_s") + "' must be >= 0");
+    // A node serving requests: present while subscribed to them, alive while its ~heartbeat comes.
+    auto serving = [&](const std::string& role, const std::string& node, const std::string& topic) {
+      const size_t k = roles_.add(role, node, "subscribed to " + topic, heartbeat_s);
+      watched_.push_back({k, topic, node});
+      heartbeat_roles_.emplace_back(k, node);
+    };
     const std::string seq = name("sequence", "/sequence"), paths = name("paths", "/gp_path");
-    if (!seq.empty())
-      watched_.push_back(
-          {roles_.add("sequence node", seq, "subscribed to /ddace/decision_request"), "/ddace/decision_request", seq});
-    if (!paths.empty())
-      watched_.push_back(
-          {roles_.add("path node", paths, "subscribed to /ddace/path_request"), "/ddace/path_request", paths});
+    if (!seq.empty()) serving("sequence node", seq, "/ddace/decision_request");
+    if (!paths.empty()) serving("path node", paths, "/ddace/path_request");
     const std::string follower = name("follower", "/path_follower"), objects = name("object_executor", "/mock_robots");
     const std::string driver = name("driver", "/mock_robots");
     for (size_t i = 0; i < spec_.entities.size(); ++i) {
@@ -348,6 +370,7 @@ class CoordinatorNode::Impl {
       }
     }
     recorder_ = name("recorder", "");
+    if (!recorder_.empty()) serving("recorder", recorder_, pnh.resolveName("state"));
     const std::string pose = name("pose_source", "/mock_robots");
     if (!pose.empty()) pose_role_ = roles_.add("pose source", pose, "publishing /ddace/entities", pose_s);
   }
@@ -355,7 +378,8 @@ class CoordinatorNode::Impl {
   /// Advertises `topic` and keeps track of which nodes are subscribed to it (roscpp calls
   /// the disconnect callback as soon as a subscriber's connection drops, e.g. it was killed).
   template <typename M>
-  ros::Publisher advertiseWatched(ros::NodeHandle& nh, const std::string& topic, uint32_t queue) {
+  ros::Publisher advertiseWatched(ros::NodeHandle& nh, const std::string& name, uint32_t queue, bool latch = false) {
+    const std::string topic = nh.resolveName(name);
     auto connect = [this, topic](const ros::SingleSubscriberPublisher& p) {
       std::lock_guard<std::mutex> l(links_mutex_);
       links_.insert({topic, p.getSubscriberName()});
@@ -369,7 +393,7 @@ class CoordinatorNode::Impl {
       // A dropped link is the first sign of a dead node: act on it now, not at the next check.
       checkRoles();
     };
-    return nh.advertise<M>(topic, queue, connect, disconnect);
+    return nh.advertise<M>(topic, queue, connect, disconnect, ros::VoidConstPtr(), latch);
   }
 
   /// Whether each role's node is connected on its topic.
@@ -386,11 +410,13 @@ class CoordinatorNode::Impl {
   void checkRoles() {
     updatePresence();
     if (!coordinator_->running()) {
+      if (roles_.armed())
+        ROS_INFO("coordinator: longest heartbeat silences of the run: %s", roles_.longestSilences().c_str());
       roles_.disarm();
       return;
     }
-    if (!roles_.armed()) roles_.arm(now());
-    if (const auto lost = roles_.lost(now())) {
+    if (!roles_.armed()) roles_.arm(steadyNow());
+    if (const auto lost = roles_.check(steadyNow())) {
       ROS_ERROR("coordinator: %s: stopping every robot", lost->c_str());
       apply(coordinator_->abortRun(*lost, now()));  // stop_all: zero wheels first
     }
@@ -401,7 +427,7 @@ class CoordinatorNode::Impl {
   /// `missing` says what is not there yet.
   bool connected(std::string& missing) {
     updatePresence();
-    const auto m = roles_.missing();
+    const auto m = roles_.missing(steadyNow());
     missing.clear();
     for (const auto& r : m) missing += (missing.empty() ? "" : ", ") + r;
     return m.empty() && recorderReady(missing);
@@ -634,6 +660,8 @@ class CoordinatorNode::Impl {
   std::mutex links_mutex_;
   std::multiset<std::pair<std::string, std::string>> links_;  ///< (our topic, subscribed node)
   std::map<int, size_t> follower_role_;
+  std::vector<std::pair<size_t, std::string>> heartbeat_roles_;  ///< (role, node) watched by ~heartbeat
+  std::vector<ros::Subscriber> heartbeat_subs_;
   std::optional<size_t> pose_role_;
   std::string recorder_;  ///< node whose ~ready must succeed before a new run ("" = none)
   ros::WallTime next_autostart_try_;

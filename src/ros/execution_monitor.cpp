@@ -4,6 +4,7 @@
 #include "ddace/task/task_dir.h"
 
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -32,6 +33,7 @@
 #include <ddace/SegmentStatus.h>
 
 #include "exec_conversions.h"
+#include "ddace/ros/heartbeat.h"
 #include "params.h"
 #include "ddace/common/file.h"
 #include "ddace/eval/metrics.h"
@@ -165,6 +167,8 @@ class ExecutionMonitorNode::Impl {
       listeners_[bagNode()] = topics;
     }
     ready_srv_ = pnh.advertiseService("ready", &Impl::srvReady, this);
+    // The coordinator treats this node as the recorder role: a run without its record stops.
+    heartbeat_ = std::make_unique<HeartbeatPublisher>(pnh, [this] { return bagProblem(); });
     if (timeout_s > 0)
       timer_ = nh.createTimer(
           ros::Duration(timeout_s),
@@ -215,12 +219,23 @@ class ExecutionMonitorNode::Impl {
     return true;
   }
 
-  std::string notRecording() {
-    if (bag_pid_ > 0 && ::waitpid(bag_pid_, nullptr, WNOHANG) == bag_pid_) {
+  /// Why the bag cannot hold the run ("" while rosbag record runs, or no bag is wanted).
+  std::string bagProblem() {
+    if (reported_) return "";  // the run's record is written; the bag was stopped on purpose
+    int status = 0;
+    if (bag_pid_ > 0 && ::waitpid(bag_pid_, &status, WNOHANG) == bag_pid_) {
       bag_pid_ = -1;
       bag_failed_ = true;
+      bag_exit_ = WIFSIGNALED(status) ? "killed by signal " + std::to_string(WTERMSIG(status))
+                                      : "exit status " + std::to_string(WEXITSTATUS(status));
+      ROS_ERROR("execution_monitor: rosbag record exited (%s): the run's bag is incomplete", bag_exit_.c_str());
     }
-    if (bag_failed_) return "rosbag record exited: no bag can be recorded (is Debian's rosbag installed?)";
+    return bag_failed_ ? "rosbag record exited (" + bag_exit_ + "): the run's bag is incomplete" : "";
+  }
+
+  std::string notRecording() {
+    if (const std::string bag = bagProblem(); !bag.empty())
+      return bag + "; no bag can be recorded (is Debian's rosbag installed?)";
     TopicNodes publishers, subscribers;
     if (!systemState(publishers, subscribers)) return "the ROS master does not answer getSystemState";
     std::map<std::string, std::set<std::pair<std::string, std::string>>> links;  // publisher node -> its links
@@ -243,8 +258,17 @@ class ExecutionMonitorNode::Impl {
     std::vector<std::string> args = {
         "rosbag", "record", "--quiet", "-O", run_dir_ + "/run.bag", "__name:=" + bagNodeName()};
     args.insert(args.end(), topics.begin(), topics.end());
+    const pid_t monitor = ::getpid();
     bag_pid_ = ::fork();
     if (bag_pid_ == 0) {
+      // When this node dies (SIGKILL too) the recorder gets SIGINT and closes the bag:
+      // the run's bag then holds it up to this node's death.
+      ::prctl(PR_SET_PDEATHSIG, SIGINT);
+      if (::getppid() != monitor) ::_exit(1);  // it died before the line above
+      // None of this node's sockets: a copy held open by the recorder would keep this node's
+      // links up after it died, and the coordinator would learn of the death only when the
+      // recorder, too, has exited.
+      ::close_range(3, ~0U, 0);
       std::vector<char*> argv;
       for (auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
       argv.push_back(nullptr);
@@ -255,6 +279,7 @@ class ExecutionMonitorNode::Impl {
     if (bag_pid_ < 0) {
       ROS_ERROR("execution_monitor: cannot start rosbag record: %s", std::strerror(errno));
       bag_failed_ = true;
+      bag_exit_ = std::string("fork failed: ") + std::strerror(errno);
     }
   }
 
@@ -339,6 +364,18 @@ class ExecutionMonitorNode::Impl {
   void onState(const ddace::CoordinatorState& s) {
     last_state_ = s;
     have_state_ = true;
+    // ~reset: the record is of the run that ends, not of the one reset before it (its
+    // segments would count as motions that never arrived). Stamps, not arrival order: the
+    // next run's first segments may come on their own connections before this state.
+    if (s.state == ddace::CoordinatorState::IDLE && s.steps.empty()) {
+      for (auto it = segments_.begin(); it != segments_.end();)
+        it = it->second.sent != ros::Time() && it->second.sent < s.header.stamp ? segments_.erase(it) : std::next(it);
+      for (auto it = running_.begin(); it != running_.end();)
+        it = segments_.count(it->second) ? std::next(it) : running_.erase(it);
+      requests_.erase(
+          std::remove_if(requests_.begin(), requests_.end(), [&](const ros::Time& t) { return t < s.header.stamp; }),
+          requests_.end());
+    }
     if (s.state == ddace::CoordinatorState::FINISHED || s.state == ddace::CoordinatorState::ABORTED ||
         s.state == ddace::CoordinatorState::ESTOPPED) {
       if (final_timer_.isValid()) return;
@@ -557,8 +594,10 @@ class ExecutionMonitorNode::Impl {
   ros::NodeHandle nh_;
   pid_t bag_pid_ = -1;
   bool record_bag_ = true, bag_failed_ = false;
+  std::string bag_exit_;                                       ///< how rosbag record ended, when it did by itself
   std::map<std::string, std::vector<std::string>> listeners_;  ///< node (this one, the recorder) -> its topics
   ros::ServiceServer ready_srv_;
+  std::unique_ptr<HeartbeatPublisher> heartbeat_;
 };
 
 ExecutionMonitorNode::ExecutionMonitorNode(ros::NodeHandle nh, ros::NodeHandle pnh)

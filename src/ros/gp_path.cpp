@@ -11,6 +11,7 @@
 #include <ddace/PathResponse.h>
 
 #include "exec_conversions.h"
+#include "ddace/ros/heartbeat.h"
 #include "params.h"
 #include "ddace/exec/replay.h"
 #include "ddace/gp/primitives.h"
@@ -76,6 +77,7 @@ class GpPathNode::Impl {
     }
     pub_ = nh.advertise<ddace::PathResponse>("/ddace/path", 50);
     sub_ = nh.subscribe("/ddace/path_request", 50, &Impl::onRequest, this);
+    heartbeat_ = std::make_unique<HeartbeatPublisher>(pnh);  // the coordinator watches it
   }
 
  private:
@@ -111,6 +113,7 @@ class GpPathNode::Impl {
   std::function<exec::PlannedPath(const task::Token&, const Eigen::Vector2d&, const Eigen::Vector2d&)> generate_;
   ros::Publisher pub_;
   ros::Subscriber sub_;
+  std::unique_ptr<HeartbeatPublisher> heartbeat_;
 };
 
 GpPathNode::Source GpPathNode::parseSource(const std::string& value, const std::string& param_name) {

@@ -13,6 +13,7 @@
 #include <ddace/DecisionRequest.h>
 
 #include "exec_conversions.h"
+#include "ddace/ros/heartbeat.h"
 #include "params.h"
 #include "ddace/exec/replay.h"
 #include "ddace/pipeline/evaluation.h"
@@ -69,6 +70,7 @@ class SequenceNode::Impl {
     }
     pub_ = nh.advertise<ddace::Decision>("/ddace/decision", 5);
     sub_ = nh.subscribe("/ddace/decision_request", 5, &Impl::onRequest, this);
+    heartbeat_ = std::make_unique<HeartbeatPublisher>(pnh);  // the coordinator watches it
   }
 
  private:
@@ -132,6 +134,7 @@ class SequenceNode::Impl {
   std::function<exec::Decision(const std::vector<task::Snapshot>&)> policy_;
   ros::Publisher pub_;
   ros::Subscriber sub_;
+  std::unique_ptr<HeartbeatPublisher> heartbeat_;
 };
 
 SequenceNode::Policy SequenceNode::parsePolicy(const std::string& value, const std::string& param_name) {

@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iostream>
 #include <map>
 #include <mutex>
 #include <set>
@@ -79,8 +80,10 @@ inline void generateTask(const std::string& dir, const std::string& family, int 
 /// Trains DIR/train into DIR/model as `ddace train --variant paper` does (pipeline::trainModel:
 /// the temporal graph network and the GP primitive library). Returns the model directory.
 /// These tests are of the execution graph, so they use the paper's network, which learns the
-/// paper's fixed-order tasks from 10 demonstrations without a miss (docs/results.md); the
-/// default `scene` network missed one Task 2 scene of 20 with 10 demonstrations (docs/tgn.md).
+/// paper's fixed-order tasks from 10 demonstrations without a miss (docs/results.md). The
+/// default `scene` network, trained the same way, drives exec_task2's scene on the mock
+/// robots through 8 correct steps and then returns a step with no token and no END (the
+/// run aborts: "the policy returned a step without tokens"), in every run tried.
 inline std::string trainModel(const std::string& dir) {
   const ddace::task::TaskDir train = ddace::task::loadTaskDir(dir + "/train");
   const std::string model_dir = dir + "/model";
@@ -105,10 +108,11 @@ inline std::string writeConfig(const std::string& shipped, const std::string& ou
 }
 
 /// roslaunch as a child process group; killed (SIGINT, then SIGKILL) on destruction.
-/// With `log` its output goes to that file instead of the test's.
+/// With `log` its output goes to that file instead of the test's, and is printed when
+/// the test has failed (the nodes' own account of what went wrong).
 class Launch {
  public:
-  explicit Launch(const std::vector<std::string>& args, const std::string& log = "") {
+  explicit Launch(const std::vector<std::string>& args, const std::string& log = "") : log_(log) {
     pid_ = ::fork();
     if (pid_ == 0) {
       ::setpgid(0, 0);
@@ -143,6 +147,16 @@ class Launch {
     return pid_ <= 0;
   }
   ~Launch() {
+    stop();
+    if (!log_.empty() && ::testing::Test::HasFailure()) {
+      std::ifstream f(log_);
+      std::cout << "---- output of the launch (" << log_ << ") ----\n"
+                << f.rdbuf() << "\n---- end of the launch's output\n";
+    }
+  }
+
+ private:
+  void stop() {
     if (pid_ <= 0) return;
     ::kill(-pid_, SIGINT);
     for (int i = 0; i < 150; ++i) {
@@ -153,8 +167,8 @@ class Launch {
     ::waitpid(pid_, nullptr, 0);
   }
 
- private:
   pid_t pid_ = -1;
+  std::string log_;
 };
 
 /// The process id of a running node, from its own XML-RPC getPid (-1 when unknown).
@@ -192,22 +206,26 @@ struct Wheel {
 };
 
 /// The stop rule in control cycles, not wall time: of `cmds` (one publisher's, in the order
-/// it published them) those stamped after `event` are at most one non-zero command (the
-/// cycle under way when the event reached it) and then only zeros, at least one of them.
-inline ::testing::AssertionResult zeroWithinOneCycle(const std::vector<Wheel>& cmds, const ros::Time& event) {
+/// it published them) those stamped after `event` are at most `cycles` non-zero commands
+/// (1: the cycle under way when the event reached it) and then only zeros, at least one.
+inline ::testing::AssertionResult zeroWithinCycles(const std::vector<Wheel>& cmds, const ros::Time& event, int cycles) {
   int after = 0, zeros = 0;
   for (const auto& c : cmds) {
     if (c.stamp <= event) continue;
     ++after;
     if (c.zero()) {
       ++zeros;
-    } else if (after > 1 || zeros > 0) {
+    } else if (after > cycles || zeros > 0) {
       return ::testing::AssertionFailure() << "command " << after << " after the event (" << (c.stamp - event).toSec()
                                            << " s) is non-zero: " << c.left << ", " << c.right;
     }
   }
   if (zeros == 0) return ::testing::AssertionFailure() << "no zero command after the event (" << after << " commands)";
   return ::testing::AssertionSuccess();
+}
+
+inline ::testing::AssertionResult zeroWithinOneCycle(const std::vector<Wheel>& cmds, const ros::Time& event) {
+  return zeroWithinCycles(cmds, event, 1);
 }
 
 /// The commands of `cmds` published by `node`.

@@ -122,6 +122,9 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
   EXPECT_EQ(checkRun(files, run_dir), 0) << "execute_sim --check " << run_dir;
   const std::string result = readFile(run_dir + "/result.json");
   EXPECT_NE(result.find("\"state\": \"finished\""), std::string::npos) << result;
+  // The record is of the run after the reset: the reset run's cut segments are not its motions.
+  EXPECT_NE(result.find("\"gcr\": 1.0"), std::string::npos) << result;
+  EXPECT_NE(result.find("\"osr\": 1"), std::string::npos) << result;
   EXPECT_NE(readFile(run_dir + "/report.txt").find("finished"), std::string::npos);
   ASSERT_TRUE(fs::exists(run_dir + "/run.bag")) << "no bag in " << run_dir;
   const std::string info = run_dir + "/bag_info.txt";

@@ -17,6 +17,7 @@
 #include "ddace/exec/path_follower.h"
 #include "ddace/ros/coordinator.h"
 #include "ddace/ros/gp_path.h"
+#include "ddace/ros/heartbeat.h"
 #include "ddace/ros/mock_robot.h"
 #include "ddace/ros/path_follower.h"
 #include "ddace/ros/sequence.h"
@@ -81,6 +82,12 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"segment_timeout_per_m_s", value(cc.segment_timeout_per_m_s)},
                   {"max_steps", value(cc.max_steps)}},
                  {"arrival_radius_m", "roles"});
+  // roles/: the node names are the launch file's; the time-outs are CoordinatorNode's.
+  const YAML::Node roles = yaml["coordinator"]["roles"];
+  ASSERT_TRUE(roles && roles.IsMap());
+  EXPECT_DOUBLE_EQ(roles["heartbeat_timeout_s"].as<double>(), c.heartbeat_timeout_s);
+  EXPECT_DOUBLE_EQ(roles["pose_timeout_s"].as<double>(), c.pose_timeout_s);
+  const double beat_hz = ddace::nodes::HeartbeatPublisher::kDefaultRateHz;
 
   const PathFollowerNode::Params f;
   const ddace::exec::FollowerGains g;
@@ -128,16 +135,21 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
   ASSERT_TRUE(seq && seq["policy"]);
   EXPECT_EQ(SequenceNode::parsePolicy(seq["policy"].as<std::string>(), "sequence/policy"), s.policy);
   expectDefaults(seq, "sequence",
-                 {{"replay_demo", value(s.replay_demo)}, {"allow_other_task", value(s.allow_other_task)}}, {"policy"});
+                 {{"replay_demo", value(s.replay_demo)},
+                  {"allow_other_task", value(s.allow_other_task)},
+                  {"heartbeat_rate_hz", value(beat_hz)}},
+                 {"policy"});
 
   const GpPathNode::Params p;
   const YAML::Node gp = yaml["gp_path"];
   ASSERT_TRUE(gp && gp["source"]);
   EXPECT_EQ(GpPathNode::parseSource(gp["source"].as<std::string>(), "gp_path/source"), p.source);
-  expectDefaults(
-      gp, "gp_path",
-      {{"frame_id", value(p.frame_id)}, {"points", value(p.points)}, {"allow_other_task", value(p.allow_other_task)}},
-      {"source"});
+  expectDefaults(gp, "gp_path",
+                 {{"frame_id", value(p.frame_id)},
+                  {"points", value(p.points)},
+                  {"allow_other_task", value(p.allow_other_task)},
+                  {"heartbeat_rate_hz", value(beat_hz)}},
+                 {"source"});
 }
 
 int main(int argc, char** argv) {

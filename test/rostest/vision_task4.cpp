@@ -24,7 +24,7 @@ TEST(VisionTask4, CompletesOnTrackedPoses) {
                                        {{"coordinator", "roles",
                                          "{sequence: /sequence, paths: /gp_path, follower: /path_follower,"
                                          " driver: /mock_robots, object_executor: /mock_robots,"
-                                         " pose_source: /tracker, heartbeat_timeout_s: 0.5,"
+                                         " pose_source: /tracker, heartbeat_timeout_s: 1.0,"
                                          " pose_timeout_s: 1.0}"}}}));
   // Count what the tracker publishes, to be sure the run drove on it.
   std::atomic<int> tracked{0};

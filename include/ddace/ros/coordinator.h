@@ -2,7 +2,8 @@
 //
 //   in   /ddace/entities (EntityArray), /ddace/decision (Decision), /ddace/path (PathResponse),
 //        /robots/E/segment_status (SegmentStatus) for every robot and object E,
-//        /robots/R/wheels (the follower's commands: its heartbeat),
+//        /robots/R/wheels (the follower's commands: its heartbeat), <node>/heartbeat
+//        (Heartbeat) of the sequence, path and recorder roles' nodes,
 //        /ddace/estop (std_msgs/Bool, latched; true from anyone e-stops the run)
 //   out  /ddace/decision_request, /ddace/path_request, /robots/E/segment,
 //        /robots/R/wheels (zeros, when a role is lost or on ~estop), /ddace/estop (latched),
@@ -12,7 +13,9 @@
 // Decisions are requested only when the run starts or every active entity reported its
 // segment done and is tracked at its goal (exec::Coordinator decides); the timers check
 // time-outs, re-send what is unacknowledged (exec::Outbox) and watch the node of every
-// role in ~roles (exec::RoleWatch): a lost one stops every robot and aborts the run.
+// role in ~roles (exec::RoleWatch): a lost one (gone, silent for heartbeat_timeout_s, or
+// reporting a problem on its heartbeat) stops every robot and aborts the run; a run starts
+// only once every role's node is linked and its heartbeat heard.
 // Whenever a segment is cancelled (abort, e-stop, pause, reset, a lost role) the
 // coordinator publishes zero wheels for its robot itself in the same callback, before the
 // STOP segment: the follower may be the node that died. A subscriber's link dropping
@@ -49,6 +52,8 @@ class CoordinatorNode {
     double resend_after_s = 1.0;         ///< an unacknowledged request or segment goes out again after this
     double state_rate_hz = 5.0;          ///< ~state goes out at this rate (and on every change)
     double liveness_check_hz = 50.0;     ///< how often the roles' nodes are checked
+    double heartbeat_timeout_s = 1.0;  ///< roles/: a follower (wheels) or a node's ~heartbeat silent this long is lost
+    double pose_timeout_s = 1.0;       ///< roles/: no /ddace/entities from the pose source this long: lost
   };
 
   CoordinatorNode(ros::NodeHandle nh, ros::NodeHandle pnh);

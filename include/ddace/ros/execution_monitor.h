@@ -16,13 +16,18 @@
 // The record starts with the run: `~ready` (std_srvs/Trigger) succeeds only once the bag
 // recorder and this node are linked to every publisher the master lists for each recorded
 // topic (each publisher's own getBusInfo says so); the coordinator, given this node as
-// roles/recorder, starts a new run only then.
+// roles/recorder, starts a new run only then. It is a role of the run, too: its link on
+// /coordinator/state and its ~heartbeat (Heartbeat, ~heartbeat_rate_hz), which reports
+// "rosbag record exited" when the recorder dies, are watched, and losing either stops the
+// robots and aborts the run (a run without its record does not go on). The recorder gets
+// SIGINT from the kernel when this node dies, so its bag is closed even then.
 //
 // Also checks the coordinator's contract on the wire: a DecisionRequest while any
 // segment is still running (sent, not yet done/failed/aborted) is a violation.
 //
 //   in  /coordinator/state, /ddace/decision_request, /ddace/entities, /robots/E/segment,
 //       /robots/E/segment_status
+//   out ~heartbeat (Heartbeat)
 //   srv  ~ready (std_srvs/Trigger)
 //   params  task (absolute task directory), ground_truth_demo (index into demos/, -1 = none),
 //           run_dir / runs_dir (above), record_bag (true), plot_script (absolute path, "" = no

@@ -2,7 +2,8 @@
 // parameterised path and its per-point standard deviation.
 //
 //   in  /ddace/path_request (PathRequest)
-//   out /ddace/path (PathResponse)
+//   out /ddace/path (PathResponse), ~heartbeat (Heartbeat, ~heartbeat_rate_hz: the
+//       coordinator's role watch notices a hung node by its silence)
 //
 // Path sources (parameter `source`):
 //   library        the Gaussian-process primitive library (`library`: a primitives.yaml or a

@@ -1,7 +1,8 @@
 // sequence_node: answers the coordinator's decision requests with the next step or END.
 //
 //   in  /ddace/decision_request (DecisionRequest: the snapshot history)
-//   out /ddace/decision (Decision)
+//   out /ddace/decision (Decision), ~heartbeat (Heartbeat, ~heartbeat_rate_hz: the
+//       coordinator's role watch notices a hung node by its silence)
 //
 // Policy sources (parameter `policy`):
 //   model   the temporal graph network of a model directory (`model`, written by
