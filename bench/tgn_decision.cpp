@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <sstream>
 #include <thread>
 
 #include "ddace/common/error.h"
@@ -69,8 +70,7 @@ int main(int argc, char** argv) try {
             << cpp_p99_ms << " ms (thread CPU time p99 " << cpu_p99_ms << " ms; " << tokens
             << " tokens), Python median " << py_ms << " ms\n";
 
-  fs::create_directories(kRepo / "docs" / "bench");
-  std::ofstream md(kRepo / "docs" / "bench" / "tgn_decision.md");
+  std::ostringstream md;  // written whole and checked by bench::writeResults
   char line[512];
   md << "# bench: tgn_decision\n\n"
      << "Written by `bench_tgn_decision` (`ddace bench tgn_decision`), " << utcNow() << ", "
@@ -95,7 +95,7 @@ int main(int argc, char** argv) try {
                 "%.2f of the goal | < 1 ms |\n",
                 cpu_p99_ms, cpu_p99_ms / 1.0);
   md << line;
-  std::cout << "wrote " << (kRepo / "docs" / "bench" / "tgn_decision.md").string() << "\n";
+  bench::writeResults(kRepo, "tgn_decision", md.str());
   return 0;
 } catch (const std::exception& e) {
   std::cerr << "bench_tgn_decision: " << e.what() << "\n";

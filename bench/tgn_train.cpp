@@ -62,8 +62,7 @@ int main(int argc, char** argv) try {
   std::cout << "to the plateau: " << plateau_s << " s, " << last.epoch << " epochs (" << model.info().stop_reason
             << "), step accuracy " << last.step_accuracy << "\n";
 
-  fs::create_directories(kRepo / "docs" / "bench");
-  std::ofstream md(kRepo / "docs" / "bench" / "tgn_train.md");
+  std::ostringstream md;  // written whole and checked by bench::writeResults
   char line[512];
   md << "# bench: tgn_train\n\n"
      << "Written by `bench_tgn_train` (`ddace bench tgn_train`), " << utcNow() << ", "
@@ -130,7 +129,7 @@ int main(int argc, char** argv) try {
       std::cout << line << std::flush;
     }
   }
-  std::cout << "wrote " << (kRepo / "docs" / "bench" / "tgn_train.md").string() << "\n";
+  bench::writeResults(kRepo, "tgn_train", md.str());
   return 0;
 } catch (const std::exception& e) {
   std::cerr << "bench_tgn_train: " << e.what() << "\n";
