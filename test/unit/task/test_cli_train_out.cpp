@@ -14,9 +14,12 @@
 #include <map>
 #include <thread>
 
+#include "../common/file_tree.h"
 #include "../common/run_tool.h"
 
 namespace fs = std::filesystem;
+using ddace::test::fileBytes;
+using ddace::test::fileTree;
 using ddace::test::runTool;
 using ddace::test::toolPath;
 using ddace::test::ToolRun;
@@ -31,19 +34,6 @@ std::string root() {
     return dir;
   }();
   return r;
-}
-
-std::string read(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-/// Every file below `dir` with its bytes.
-std::map<std::string, std::string> tree(const std::string& dir) {
-  std::map<std::string, std::string> files;
-  for (const auto& e : fs::recursive_directory_iterator(dir))
-    if (e.is_regular_file()) files[fs::relative(e.path(), dir).string()] = read(e.path().string());
-  return files;
 }
 
 /// A small generated task (generate's output: DIR/train, DIR/test), made once per family.
@@ -68,14 +58,14 @@ TEST(CliTrainOut, RefusesADirectoryHoldingFilesTrainDidNotWriteEvenWithForce) {
   fs::create_directories(out + "/notes");
   std::ofstream(out + "/README.txt") << "my notes\n";
   std::ofstream(out + "/notes/run1.csv") << "t,x\n0,1\n";
-  const auto before = tree(out);
+  const auto before = fileTree(out);
   for (const std::string force : {"", "--force"}) {
     const ToolRun r = train(data("task1") + "/train", out, force);
     EXPECT_NE(r.status, 0) << r.out;
     EXPECT_NE(r.out.find(out + "/README.txt (not written by ddace train)"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find(out + "/notes/run1.csv (not written by ddace train)"), std::string::npos) << r.out;
     EXPECT_EQ(r.out.find("training variant"), std::string::npos) << "refused before training: " << r.out;
-    EXPECT_EQ(tree(out), before);
+    EXPECT_EQ(fileTree(out), before);
   }
 }
 
@@ -86,30 +76,30 @@ TEST(CliTrainOut, AModelWrittenWithoutTrainsManifestIsNotTrainsToReplace) {
   ASSERT_EQ(train(data("task1") + "/train", first).status, 0);
   fs::copy(first, out, fs::copy_options::recursive);
   fs::remove(out + "/ddace-output.txt");
-  const auto before = tree(out);
+  const auto before = fileTree(out);
   const ToolRun r = train(data("task1") + "/train", out, "--force");
   EXPECT_NE(r.status, 0) << r.out;
   EXPECT_NE(r.out.find(out + "/manifest.yaml (not written by ddace train)"), std::string::npos) << r.out;
-  EXPECT_EQ(tree(out), before);
+  EXPECT_EQ(fileTree(out), before);
 }
 
 TEST(CliTrainOut, AnEarlierModelOfAnotherTaskIsReplacedOnlyWithForce) {
   const std::string out = root() + "/other_task";
   ToolRun r = train(data("task1") + "/train", out);
   ASSERT_EQ(r.status, 0) << r.out;
-  const auto task1_model = tree(out);
+  const auto task1_model = fileTree(out);
   ASSERT_TRUE(task1_model.count("manifest.yaml") && task1_model.count("primitives.yaml"));
 
   r = train(data("task4") + "/train", out);
   EXPECT_NE(r.status, 0) << r.out;
   EXPECT_NE(r.out.find(out + ": holds the output of an earlier ddace train; --force replaces it"), std::string::npos)
       << r.out;
-  EXPECT_EQ(tree(out), task1_model);
+  EXPECT_EQ(fileTree(out), task1_model);
 
   r = train(data("task4") + "/train", out, "--force");
   ASSERT_EQ(r.status, 0) << r.out;
-  EXPECT_NE(read(out + "/task.yaml"), task1_model.at("task.yaml"));
-  EXPECT_EQ(read(out + "/task.yaml"), read(data("task4") + "/train/task.yaml"));
+  EXPECT_NE(fileBytes(out + "/task.yaml"), task1_model.at("task.yaml"));
+  EXPECT_EQ(fileBytes(out + "/task.yaml"), fileBytes(data("task4") + "/train/task.yaml"));
   // The model that was replaced is gone whole: no temporary sibling is left.
   for (const auto& e : fs::directory_iterator(root()))
     EXPECT_EQ(e.path().filename().string().find(".other_task.tmp"), std::string::npos) << e.path();
@@ -125,13 +115,13 @@ TEST(CliTrainOut, ForceLeavesNoStaleFileOfTheOldModel) {
   r = train(data("task4") + "/train", out, "--force --variant gnn");
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_FALSE(fs::exists(out + "/primitives.yaml"));
-  EXPECT_NE(read(out + "/manifest.yaml").find("gnn"), std::string::npos);
+  EXPECT_NE(fileBytes(out + "/manifest.yaml").find("gnn"), std::string::npos);
   // A file the user added to train's model is not train's to delete.
   std::ofstream(out + "/my_eval.json") << "{}";
   r = train(data("task4") + "/train", out, "--force");
   EXPECT_NE(r.status, 0) << r.out;
   EXPECT_NE(r.out.find(out + "/my_eval.json (not written by ddace train)"), std::string::npos) << r.out;
-  EXPECT_EQ(read(out + "/my_eval.json"), "{}");
+  EXPECT_EQ(fileBytes(out + "/my_eval.json"), "{}");
   EXPECT_FALSE(fs::exists(out + "/primitives.yaml"));
 }
 
@@ -139,22 +129,22 @@ TEST(CliTrainOut, AnEditedModelFileIsNotReplaced) {
   const std::string out = root() + "/edited";
   ASSERT_EQ(train(data("task1") + "/train", out).status, 0);
   std::ofstream(out + "/task.yaml", std::ios::app) << "# my note\n";
-  const auto before = tree(out);
+  const auto before = fileTree(out);
   const ToolRun r = train(data("task1") + "/train", out, "--force");
   EXPECT_NE(r.status, 0) << r.out;
   EXPECT_NE(r.out.find(out + "/task.yaml (changed since ddace train wrote it)"), std::string::npos) << r.out;
-  EXPECT_EQ(tree(out), before);
+  EXPECT_EQ(fileTree(out), before);
 }
 
 TEST(CliTrainOut, GeneratesOutputIsNotTrainsToReplace) {
   const std::string out = root() + "/gen_as_model";
   ASSERT_EQ(runTool("generate task1 --out '" + out + "' --train 2 --test 1").status, 0);
-  const auto before = tree(out);
+  const auto before = fileTree(out);
   const ToolRun r = train(data("task1") + "/train", out, "--force");
   EXPECT_NE(r.status, 0) << r.out;
   EXPECT_NE(r.out.find(out + "/train/task.yaml (written by ddace generate, not ddace train)"), std::string::npos)
       << r.out;
-  EXPECT_EQ(tree(out), before);
+  EXPECT_EQ(fileTree(out), before);
 }
 
 TEST(CliTrainOut, NeverWritesIntoTheTrainingDirectory) {
@@ -164,29 +154,29 @@ TEST(CliTrainOut, NeverWritesIntoTheTrainingDirectory) {
   fs::copy(data("task1") + "/train", own, fs::copy_options::recursive);
   fs::remove(own + "/ddace-output.txt");
   std::ofstream(own + "/task.yaml", std::ios::app) << "# recorded on the lab table\n";
-  const auto before = tree(own);
+  const auto before = fileTree(own);
   for (const std::string& out : {own, own + "/../own/", own + "/model", root()}) {
     const ToolRun r = train(own, out, "--force");
     EXPECT_NE(r.status, 0) << out << ": " << r.out;
     EXPECT_NE(r.out.find("training directory " + own + ": train writes the model into a directory of its own"),
               std::string::npos)
         << r.out;
-    EXPECT_EQ(tree(own), before) << out;
+    EXPECT_EQ(fileTree(own), before) << out;
   }
   // generate's output given as TASKDIR (train uses its train/ half): neither half is written.
   const std::string gen = data("task1");
-  const auto gen_before = tree(gen);
+  const auto gen_before = fileTree(gen);
   for (const std::string& out : {gen, gen + "/test"}) {
     const ToolRun r = train(gen, out, "--force");
     EXPECT_NE(r.status, 0) << out << ": " << r.out;
-    EXPECT_EQ(tree(gen), gen_before) << out;
+    EXPECT_EQ(fileTree(gen), gen_before) << out;
   }
 }
 
 TEST(CliTrainOut, AKilledRunLeavesTheOldModelAndTheNextRunClearsItsTemporary) {
   const std::string out = root() + "/killed";
   ASSERT_EQ(train(data("task1") + "/train", out).status, 0);
-  const auto before = tree(out);
+  const auto before = fileTree(out);
   // A long run killed while it trains (its temporary sibling exists).
   const pid_t pid = ::fork();
   ASSERT_GE(pid, 0);
@@ -210,7 +200,7 @@ TEST(CliTrainOut, AKilledRunLeavesTheOldModelAndTheNextRunClearsItsTemporary) {
   ::kill(pid, SIGKILL);
   int status = 0;
   ::waitpid(pid, &status, 0);
-  EXPECT_EQ(tree(out), before);
+  EXPECT_EQ(fileTree(out), before);
   EXPECT_EQ(temporaries(), 1);  // what the killed run left
   // The next run replaces the model and removes the dead run's temporary.
   const ToolRun r = train(data("task1") + "/train", out, "--force --seed 3");

@@ -12,8 +12,11 @@
 #include "ddace/common/error.h"
 #include "ddace/common/file.h"
 #include "ddace/task/owned_dir.h"
+#include "../common/file_tree.h"
 
 using namespace ddace;
+using ddace::test::fileBytes;
+using ddace::test::fileTree;
 namespace fs = std::filesystem;
 
 namespace {
@@ -24,18 +27,6 @@ std::string fresh(const std::string& name) {
   fs::remove_all(parent);
   fs::create_directories(parent);
   return parent + "/out";
-}
-
-std::string read(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-std::map<std::string, std::string> tree(const std::string& dir) {
-  std::map<std::string, std::string> files;
-  for (const auto& e : fs::recursive_directory_iterator(dir))
-    if (e.is_regular_file()) files[fs::relative(e.path(), dir).string()] = read(e.path().string());
-  return files;
 }
 
 size_t siblings(const std::string& dir) {
@@ -57,11 +48,11 @@ TEST(OwnedFill, WritesAndReplacesItsOwnOutputWhole) {
   task::writeOwnedDirectory(
       dir, [](const std::string& tmp) { writeModel(tmp, "old"); }, "ddace train", false);
   writeTextFile(dir + "/../keep.txt", "not in the directory");
-  ASSERT_EQ(read(dir + "/weights.pt"), "old");
+  ASSERT_EQ(fileBytes(dir + "/weights.pt"), "old");
   ASSERT_TRUE(fs::exists(dir + "/" + task::kOwnedManifest));
   task::writeOwnedDirectory(
       dir, [](const std::string& tmp) { writeTextFile(tmp + "/weights.pt", "new"); }, "ddace train", true);
-  EXPECT_EQ(read(dir + "/weights.pt"), "new");
+  EXPECT_EQ(fileBytes(dir + "/weights.pt"), "new");
   EXPECT_FALSE(fs::exists(dir + "/sub"));  // nothing of the old output survives
   EXPECT_EQ(siblings(dir), 1u);            // keep.txt only: no temporary left
 }
@@ -70,7 +61,7 @@ TEST(OwnedFill, AFailingFillLeavesTheOldOutputAndNoTemporary) {
   const std::string dir = fresh("failing");
   task::writeOwnedDirectory(
       dir, [](const std::string& tmp) { writeModel(tmp, "old"); }, "ddace train", false);
-  const auto before = tree(dir);
+  const auto before = fileTree(dir);
   std::string seen_tmp;
   try {
     task::writeOwnedDirectory(
@@ -88,7 +79,7 @@ TEST(OwnedFill, AFailingFillLeavesTheOldOutputAndNoTemporary) {
     EXPECT_EQ(e.diagnostics()[0].message, "cannot write the weights to " + dir);
   }
   EXPECT_NE(seen_tmp, dir);
-  EXPECT_EQ(tree(dir), before);
+  EXPECT_EQ(fileTree(dir), before);
   EXPECT_FALSE(fs::exists(seen_tmp));
   EXPECT_EQ(siblings(dir), 0u);
 }
@@ -110,8 +101,8 @@ TEST(OwnedFill, AFileAddedWhileTheFillRanIsNotReplaced) {
     EXPECT_NE(std::string(e.what()).find(dir + "/eval.json (not written by ddace train)"), std::string::npos)
         << e.what();
   }
-  EXPECT_EQ(read(dir + "/weights.pt"), "old");
-  EXPECT_EQ(read(dir + "/eval.json"), "{}");
+  EXPECT_EQ(fileBytes(dir + "/weights.pt"), "old");
+  EXPECT_EQ(fileBytes(dir + "/eval.json"), "{}");
   EXPECT_EQ(siblings(dir), 0u);
 }
 
@@ -130,5 +121,5 @@ TEST(OwnedFill, AnotherToolsOutputIsNotItsOwn) {
               std::string::npos)
         << what;
   }
-  EXPECT_EQ(read(dir + "/train/task.yaml"), "x: 1\n");
+  EXPECT_EQ(fileBytes(dir + "/train/task.yaml"), "x: 1\n");
 }
