@@ -31,6 +31,10 @@ class Emitter;
 class Node;
 }  // namespace YAML
 
+namespace ddace {
+class YamlChecker;
+}  // namespace ddace
+
 namespace ddace::task {
 
 /// Largest number of steps or of demonstrations a stored fingerprint may claim.
@@ -78,9 +82,13 @@ void requireSameTask(const TaskFingerprint& model, const std::string& model_file
 
 /// Writes the fields and `digest` as a YAML map value (after a key).
 void emitFingerprint(YAML::Emitter& out, const TaskFingerprint& fingerprint);
-/// Reads a map written by emitFingerprint; throws ddace::Error naming `file` with line
-/// and column for a missing or invalid field, a count out of 0..kMaxFingerprintCount, or
-/// a digest that does not match the fields (an edited fingerprint).
+/// Reads a map written by emitFingerprint through `checker` (the reader of the file that
+/// holds it), recording every problem at its line and column: a missing, unknown or
+/// invalid field, a count out of 0..kMaxFingerprintCount, a list that is not sorted and
+/// distinct, or a digest that does not match the fields (an edited fingerprint; compared
+/// only when every field is valid). True, and `out` set, when there is none.
+bool parseFingerprint(YamlChecker& checker, const YAML::Node& node, TaskFingerprint& out);
+/// The same with a checker of its own for `file`: throws ddace::Error with every problem.
 TaskFingerprint parseFingerprint(const YAML::Node& node, const std::string& file);
 
 }  // namespace ddace::task

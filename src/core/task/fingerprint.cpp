@@ -8,6 +8,7 @@
 
 #include "ddace/common/error.h"
 #include "ddace/common/sha256.h"
+#include "ddace/common/yaml_checker.h"
 
 namespace ddace::task {
 
@@ -45,40 +46,46 @@ std::vector<std::string> specGoals(const TaskSpec& spec) {
   return sortedUnique(out);
 }
 
-[[noreturn]] void failAt(const std::string& file, const YAML::Node& node, const std::string& message) {
-  const YAML::Mark m = node.Mark();
-  throw Error(Diagnostic{file, m.line >= 0 ? m.line + 1 : 0, m.column >= 0 ? m.column + 1 : 0, message});
-}
-
-YAML::Node need(const YAML::Node& parent, const std::string& key, const std::string& file) {
-  if (!parent.IsMap()) failAt(file, parent, "task_fingerprint must be a map");
-  const YAML::Node n = parent[key];
-  if (!n) failAt(file, parent, "task_fingerprint: missing key '" + key + "'");
+/// The fields of a stored fingerprint through the caller's YamlChecker: each records
+/// its diagnostic at its node and says whether the value is usable.
+YAML::Node field(YamlChecker& c, const YAML::Node& map, const std::string& key) {
+  const YAML::Node n = map[key];
+  if (!n.IsDefined()) {
+    c.error(map, "task_fingerprint: missing key '" + key + "'");
+    return YAML::Node(YAML::NodeType::Undefined);
+  }
   return n;
 }
 
-std::vector<std::string> texts(const YAML::Node& parent, const std::string& key, const std::string& file) {
-  const YAML::Node n = need(parent, key, file);
-  if (!n.IsSequence()) failAt(file, n, "task_fingerprint: '" + key + "' must be a list");
-  std::vector<std::string> out;
-  for (const auto& e : n) {
-    if (!e.IsScalar() || e.Scalar().empty()) failAt(file, e, "task_fingerprint: '" + key + "' holds a non-text item");
-    out.push_back(e.Scalar());
+/// A list of non-empty texts, sorted and distinct (as emitFingerprint writes it).
+bool texts(YamlChecker& c, const YAML::Node& map, const std::string& key, std::vector<std::string>& out) {
+  const YAML::Node n = field(c, map, key);
+  if (!n) return false;
+  if (!n.IsSequence()) {
+    c.error(n, "task_fingerprint: '" + key + "' must be a list");
+    return false;
   }
-  if (out != sortedUnique(out)) failAt(file, n, "task_fingerprint: '" + key + "' is not sorted and distinct");
-  return out;
+  bool ok = true;
+  std::vector<std::string> v;
+  for (const auto& e : n) {
+    if (!e.IsScalar() || e.Scalar().empty()) {
+      c.error(e, "task_fingerprint: '" + key + "' holds a non-text item");
+      ok = false;
+    } else {
+      v.push_back(e.Scalar());
+    }
+  }
+  if (ok && v != sortedUnique(v)) {
+    c.error(n, "task_fingerprint: '" + key + "' is not sorted and distinct");
+    ok = false;
+  }
+  if (ok) out = std::move(v);
+  return ok;
 }
 
-int count(const YAML::Node& n, const std::string& what, const std::string& file) {
-  long long v = -1;
-  try {
-    v = n.as<long long>();
-  } catch (const YAML::Exception&) {
-    failAt(file, n, "task_fingerprint: " + what + " must be an integer");
-  }
-  if (v < 0 || v > kMaxFingerprintCount)
-    failAt(file, n, "task_fingerprint: " + what + " must be in 0.." + std::to_string(kMaxFingerprintCount));
-  return static_cast<int>(v);
+/// A count in 0..kMaxFingerprintCount.
+bool count(YamlChecker& c, const YAML::Node& n, const std::string& what, int& out) {
+  return n && c.integer(n, "task_fingerprint: " + what, 0, kMaxFingerprintCount, out);
 }
 
 }  // namespace
@@ -181,29 +188,57 @@ void emitFingerprint(YAML::Emitter& y, const TaskFingerprint& f) {
   y << YAML::EndMap;
 }
 
-TaskFingerprint parseFingerprint(const YAML::Node& node, const std::string& file) {
+bool parseFingerprint(YamlChecker& c, const YAML::Node& node, TaskFingerprint& out) {
+  if (!c.expectMap(node, "task_fingerprint")) return false;
+  c.onlyKeys(node,
+             {"entities", "vocabulary", "vocabulary_declared", "goal_conditions", "token_types", "step_counts",
+              "demonstrations", "digest"},
+             "task_fingerprint");
   TaskFingerprint f;
-  f.entities = texts(node, "entities", file);
-  f.vocabulary = texts(node, "vocabulary", file);
-  {
-    const YAML::Node declared = need(node, "vocabulary_declared", file);
-    try {
-      f.vocabulary_declared = declared.as<bool>();
-    } catch (const YAML::Exception&) {
-      failAt(file, declared, "task_fingerprint: vocabulary_declared must be true or false");
+  // `&`, not `&&`: every field is checked, so one pass reports every problem.
+  bool ok = texts(c, node, "entities", f.entities) & texts(c, node, "vocabulary", f.vocabulary);
+  if (const YAML::Node declared = field(c, node, "vocabulary_declared"))
+    ok &= c.boolean(declared, "task_fingerprint: vocabulary_declared", f.vocabulary_declared);
+  else ok = false;
+  ok &= texts(c, node, "goal_conditions", f.goal_conditions) & texts(c, node, "token_types", f.token_types);
+  if (const YAML::Node steps = field(c, node, "step_counts")) {
+    if (!steps.IsSequence()) {
+      c.error(steps, "task_fingerprint: 'step_counts' must be a list");
+      ok = false;
+    } else {
+      bool counts_ok = true;
+      for (size_t i = 0; i < steps.size(); ++i) {
+        int n = 0;
+        if (count(c, steps[i], "step_counts[" + std::to_string(i) + "]", n)) f.step_counts.push_back(n);
+        else counts_ok = false;
+      }
+      if (counts_ok && f.step_counts != sortedUnique(f.step_counts)) {
+        c.error(steps, "task_fingerprint: 'step_counts' is not sorted and distinct");
+        counts_ok = false;
+      }
+      ok &= counts_ok;
     }
+  } else {
+    ok = false;
   }
-  f.goal_conditions = texts(node, "goal_conditions", file);
-  f.token_types = texts(node, "token_types", file);
-  const YAML::Node steps = need(node, "step_counts", file);
-  if (!steps.IsSequence()) failAt(file, steps, "task_fingerprint: 'step_counts' must be a list");
-  for (const auto& s : steps) f.step_counts.push_back(count(s, "a step count", file));
-  if (f.step_counts != sortedUnique(f.step_counts))
-    failAt(file, steps, "task_fingerprint: 'step_counts' is not sorted and distinct");
-  f.demonstrations = count(need(node, "demonstrations", file), "demonstrations", file);
-  const YAML::Node digest = need(node, "digest", file);
-  if (!digest.IsScalar() || digest.Scalar() != f.digest())
-    failAt(file, digest, "task_fingerprint: the digest does not match the fields (the fingerprint was edited)");
+  ok &= count(c, field(c, node, "demonstrations"), "demonstrations", f.demonstrations);
+  const YAML::Node digest = field(c, node, "digest");
+  if (!digest) return false;
+  // Compared only when every field was read: a digest of half the fields says nothing.
+  if (!ok) return false;
+  if (!digest.IsScalar() || digest.Scalar() != f.digest()) {
+    c.error(digest, "task_fingerprint: the digest does not match the fields (the fingerprint was edited)");
+    return false;
+  }
+  out = std::move(f);
+  return true;
+}
+
+TaskFingerprint parseFingerprint(const YAML::Node& node, const std::string& file) {
+  YamlChecker c(file);
+  TaskFingerprint f;
+  parseFingerprint(c, node, f);
+  c.throwIfErrors();
   return f;
 }
 

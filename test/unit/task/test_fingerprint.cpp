@@ -121,6 +121,34 @@ TEST(TaskFingerprint, RoundTripsThroughYamlAndRefusesEdits) {
   EXPECT_NE(refusal("digest:", "dig:").find("missing key 'digest'"), std::string::npos);
 }
 
+TEST(TaskFingerprint, AStoredFingerprintReportsEveryProblemAtItsLineAndColumn) {
+  // As the readers of the files that hold it do: one pass, every problem, file:line:column.
+  const std::string text =
+      "task_fingerprint:\n"
+      "  entities: [R1:robot, R2:robot]\n"
+      "  vocabulary: [move]\n"
+      "  vocabulary_declared: perhaps\n"
+      "  goal_conditions: []\n"
+      "  token_types: robot:move:robot\n"
+      "  step_counts: [2, 1.5]\n"
+      "  demonstrations: -1\n"
+      "  colour: blue\n";
+  std::vector<std::string> got;
+  try {
+    task::parseFingerprint(YAML::Load(text)["task_fingerprint"], "m.yaml");
+  } catch (const Error& e) {
+    for (const auto& d : e.diagnostics()) got.push_back(d.str());
+  }
+  EXPECT_EQ(joined(got),
+            "m.yaml:9:3: unknown key 'colour' in task_fingerprint (allowed: demonstrations, digest, entities, "
+            "goal_conditions, step_counts, token_types, vocabulary, vocabulary_declared)\n"
+            "m.yaml:4:24: task_fingerprint: vocabulary_declared: 'perhaps' is not true or false\n"
+            "m.yaml:6:16: task_fingerprint: 'token_types' must be a list\n"
+            "m.yaml:7:20: task_fingerprint: step_counts[1] must be an integer in 0..1000000 (got 1.5)\n"
+            "m.yaml:8:19: task_fingerprint: demonstrations must be an integer in 0..1000000 (got -1)\n"
+            "m.yaml:2:3: task_fingerprint: missing key 'digest'\n");
+}
+
 TEST(TaskFingerprint, AnUndeclaredVocabularyNeedOnlyBeAmongTheModels) {
   // Without `actions` in task.yaml a test set that never shows `stop` is the same task...
   const task::TaskDir train = generated("task2", 3, 1, 4);
