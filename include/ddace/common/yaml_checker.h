@@ -42,6 +42,9 @@ class YamlChecker {
   /// A finite number (the whole scalar, strtod syntax); else records
   /// "<what>: '<text>' is not a finite number".
   bool number(const YAML::Node& node, const std::string& what, double& out);
+  /// A finite number in [lo, hi]; else records "<what> must be in <lo>..<hi> (got <text>)"
+  /// (the bounds as %g prints them).
+  bool number(const YAML::Node& node, const std::string& what, double lo, double hi, double& out);
   /// A number > 0; else records "<what> must be > 0 (got <text>)".
   bool positive(const YAML::Node& node, const std::string& what, double& out);
   /// A whole number in [lo, hi] (a fraction is an error, never truncated); else records

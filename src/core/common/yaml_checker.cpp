@@ -1,6 +1,7 @@
 #include "ddace/common/yaml_checker.h"
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 
 namespace ddace {
@@ -56,6 +57,19 @@ bool YamlChecker::number(const YAML::Node& node, const std::string& what, double
   const double v = std::strtod(s.c_str(), &end);
   if (s.empty() || *end != '\0' || !std::isfinite(v)) {
     error(node, what + ": '" + s + "' is not a finite number");
+    return false;
+  }
+  out = v;
+  return true;
+}
+
+bool YamlChecker::number(const YAML::Node& node, const std::string& what, double lo, double hi, double& out) {
+  double v = 0;
+  if (!number(node, what, v)) return false;
+  if (v < lo || v > hi) {
+    char range[64];
+    std::snprintf(range, sizeof range, "%g..%g", lo, hi);
+    error(node, what + " must be in " + range + " (got " + node.Scalar() + ")");
     return false;
   }
   out = v;

@@ -1,8 +1,5 @@
 #include "yaml_values.h"
 
-#include <cmath>
-#include <sstream>
-
 namespace ddace::vision::detail {
 
 YAML::Node parseRoot(YamlChecker& c, const std::string& text, const std::string& what) {
@@ -14,54 +11,41 @@ YAML::Node parseRoot(YamlChecker& c, const std::string& text, const std::string&
   return root;
 }
 
-double numberOr(YamlChecker& c, const YAML::Node& map, const std::string& key, double fallback, double lo, double hi) {
+namespace {
+
+/// `map[key]` when it is given (neither absent nor null), else an undefined node.
+YAML::Node given(const YAML::Node& map, const std::string& key) {
   const YAML::Node n = map[key];
-  if (!n.IsDefined() || n.IsNull()) return fallback;
-  double v = 0;
-  try {
-    if (!n.IsScalar()) throw YAML::Exception(n.Mark(), "not a scalar");
-    v = n.as<double>();
-  } catch (const YAML::Exception&) {
-    c.error(n, "'" + key + "' must be a number");
-    return fallback;
-  }
-  if (!std::isfinite(v) || v < lo || v > hi) {
-    std::ostringstream os;
-    os << "'" << key << "' = " << n.Scalar() << " is out of range [" << lo << ", " << hi << "]";
-    c.error(n, os.str());
-    return fallback;
-  }
+  return n.IsDefined() && !n.IsNull() ? n : YAML::Node(YAML::NodeType::Undefined);
+}
+
+}  // namespace
+
+// Each value is checked by the common YamlChecker, so the vision configs word their
+// errors as every other reader does; a rejected value records its error and the
+// fallback stands (throwIfErrors() then refuses the file).
+double numberOr(YamlChecker& c, const YAML::Node& map, const std::string& key, double fallback, double lo, double hi) {
+  double v = fallback;
+  if (const YAML::Node n = given(map, key)) c.number(n, "'" + key + "'", lo, hi, v);
   return v;
 }
 
 int integerOr(YamlChecker& c, const YAML::Node& map, const std::string& key, int fallback, int lo, int hi) {
-  const YAML::Node n = map[key];
-  if (!n.IsDefined() || n.IsNull()) return fallback;
   int v = fallback;
-  c.integer(n, "'" + key + "'", lo, hi, v);
+  if (const YAML::Node n = given(map, key)) c.integer(n, "'" + key + "'", lo, hi, v);
   return v;
 }
 
 bool booleanOr(YamlChecker& c, const YAML::Node& map, const std::string& key, bool fallback) {
-  const YAML::Node n = map[key];
-  if (!n.IsDefined() || n.IsNull()) return fallback;
-  try {
-    if (!n.IsScalar()) throw YAML::Exception(n.Mark(), "not a scalar");
-    return n.as<bool>();
-  } catch (const YAML::Exception&) {
-    c.error(n, "'" + key + "' must be true or false");
-    return fallback;
-  }
+  bool v = fallback;
+  if (const YAML::Node n = given(map, key)) c.boolean(n, "'" + key + "'", v);
+  return v;
 }
 
 std::string stringOr(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& fallback) {
-  const YAML::Node n = map[key];
-  if (!n.IsDefined() || n.IsNull()) return fallback;
-  if (!n.IsScalar()) {
-    c.error(n, "'" + key + "' must be a string");
-    return fallback;
-  }
-  return n.Scalar();
+  std::string v = fallback;
+  if (const YAML::Node n = given(map, key)) c.scalar(n, "'" + key + "'", v);
+  return v;
 }
 
 }  // namespace ddace::vision::detail

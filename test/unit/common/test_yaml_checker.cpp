@@ -90,6 +90,25 @@ TEST(YamlChecker, IntegersAreWholeAndInRangeNeverTruncated) {
   EXPECT_EQ(c.errors()[3].str(), "c.yaml:5:4: e: 'many' is not a finite number");
 }
 
+TEST(YamlChecker, NumbersInARangeSayTheRangeAndTheValue) {
+  YamlChecker c("c.yaml");
+  const YAML::Node root = c.parse("a: 0.5\nb: 1.25\nc: -0.001\nd: 1e-3\ne: wide\n");
+  double a = -1, b = -1, cc = -1, d = -1, e = -1;
+  EXPECT_TRUE(c.number(root["a"], "a", 0.0, 1.0, a));
+  EXPECT_FALSE(c.number(root["b"], "b", 0.0, 1.0, b));
+  EXPECT_FALSE(c.number(root["c"], "c", 0.0, 1.0, cc));
+  EXPECT_TRUE(c.number(root["d"], "d", 1e-3, 1.0, d));  // the bounds belong to the range
+  EXPECT_FALSE(c.number(root["e"], "e", 0.0, 1.0, e));
+  EXPECT_EQ(a, 0.5);
+  EXPECT_EQ(d, 1e-3);
+  EXPECT_EQ(b, -1);  // untouched on failure
+  EXPECT_EQ(cc, -1);
+  ASSERT_EQ(c.errors().size(), 3u);
+  EXPECT_EQ(c.errors()[0].str(), "c.yaml:2:4: b must be in 0..1 (got 1.25)");
+  EXPECT_EQ(c.errors()[1].str(), "c.yaml:3:4: c must be in 0..1 (got -0.001)");
+  EXPECT_EQ(c.errors()[2].str(), "c.yaml:5:4: e: 'wide' is not a finite number");
+}
+
 TEST(YamlChecker, BooleansAreTrueOrFalse) {
   YamlChecker c("c.yaml");
   const YAML::Node root = c.parse("a: True\nb: false\nc: yes\n");

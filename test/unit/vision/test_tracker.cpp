@@ -99,13 +99,23 @@ TEST(TrackerConfig, ErrorsNameFileLineAndColumn) {
   EXPECT_NE(firstError("entities: [\n").find("m.yaml:"), std::string::npos);
   EXPECT_NE(firstError("entities:\n  - {id: 1, name: R1, kind: robit}\n").find("kind must be robot, object or goal"),
             std::string::npos);
+  // The tuning's values are worded as every YAML reader words them, all in one report.
   TrackerConfig c;
+  std::string all;
   try {
-    parseTrackerTuning("roi:\n  full_frame_every: 0\n", "t.yaml", c);
-    FAIL() << "no error";
+    parseTrackerTuning(
+        "roi:\n  full_frame_every: 0\n  margin: 25\n  enabled: perhaps\ntable:\n  smoothing: lots\n"
+        "apriltag:\n  decimate: 0.5\n",
+        "t.yaml", c);
   } catch (const ddace::Error& e) {
-    EXPECT_EQ(e.diagnostics().front().str(), "t.yaml:2:21: 'full_frame_every' must be an integer in 1..100000 (got 0)");
+    for (const auto& d : e.diagnostics()) all += d.str() + "\n";
   }
+  EXPECT_EQ(all,
+            "t.yaml:6:14: 'smoothing': 'lots' is not a finite number\n"
+            "t.yaml:8:13: 'decimate' must be in 1..8 (got 0.5)\n"
+            "t.yaml:4:12: 'enabled': 'perhaps' is not true or false\n"
+            "t.yaml:2:21: 'full_frame_every' must be an integer in 1..100000 (got 0)\n"
+            "t.yaml:3:11: 'margin' must be in 0..20 (got 25)\n");
   EXPECT_THROW(loadMarkerConfig(dataDir() + "does_not_exist.yaml"), ddace::Error);
 }
 
