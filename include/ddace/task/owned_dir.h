@@ -2,8 +2,13 @@
 // --out MODELDIR`, a task directory written by writeTaskDir): written so that nothing a
 // user put there is lost.
 //
-// The directory gets a manifest, kOwnedManifest, naming the tool and listing every file
-// it wrote with its size and FNV-1a 64 digest. Writing again:
+// The directory gets a manifest, kOwnedManifest (the ownership record), naming the tool
+// and listing every file it wrote, one line each, sorted by path:
+//   # ddace generate wrote these files (SHA-256, bytes, path); it replaces only these
+//   <64 hex digits> <bytes> <path relative to the directory, '/'-separated>
+// Records written before SHA-256 name "FNV-1a 64" in the header and hold 16 hex
+// digits; they are still read (so --force replaces such an output), never written.
+// Writing again:
 //   - an empty or missing directory is written;
 //   - a directory holding anything else is refused, naming what is there, unless
 //     `replace` is set and everything in it is this tool's own: listed in a manifest of

@@ -17,6 +17,7 @@
 
 #include "ddace/common/error.h"
 #include "ddace/common/file.h"
+#include "ddace/common/sha256.h"
 
 namespace fs = std::filesystem;
 
@@ -26,49 +27,71 @@ namespace {
 /// Marks a temporary directory as ours and unfinished (removed just before the swap).
 constexpr const char* kIncompleteMarker = ".ddace-incomplete";
 
+/// A file as the record lists it: size and digest (lower-case hex, of the record's hash).
 struct Digest {
   uint64_t size = 0;
-  std::string fnv;  ///< FNV-1a 64, 16 hex digits
-  bool operator==(const Digest& o) const { return size == o.size && fnv == o.fnv; }
+  std::string hex;
+  bool operator==(const Digest& o) const { return size == o.size && hex == o.hex; }
 };
 
-std::string hex16(uint64_t v) {
-  char buf[17];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(v));
-  return buf;
+/// The hash of a record. Records are written with SHA-256 only; FNV-1a 64 is read so
+/// that an output written before the switch is still recognised as the tool's own.
+enum class RecordHash { Sha256, Fnv1a64 };
+
+const char* hashName(RecordHash h) {
+  return h == RecordHash::Sha256 ? "SHA-256" : "FNV-1a 64";
 }
 
-uint64_t fnvUpdate(uint64_t h, const char* data, size_t n) {
-  for (size_t i = 0; i < n; ++i) h = (h ^ static_cast<unsigned char>(data[i])) * 0x100000001b3ULL;
-  return h;
+/// FNV-1a 64 for reading old records only (nothing is written with it).
+struct Fnv1a64 {
+  uint64_t h = 0xcbf29ce484222325ULL;
+  void update(const char* data, size_t n) {
+    for (size_t i = 0; i < n; ++i) h = (h ^ static_cast<unsigned char>(data[i])) * 0x100000001b3ULL;
+  }
+  std::string hex() const {
+    char buf[17];
+    std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+    return buf;
+  }
+};
+
+bool isDigestHex(const std::string& hex, RecordHash h) {
+  if (h == RecordHash::Sha256) return isSha256Hex(hex);
+  return hex.size() == 16 && hex.find_first_not_of("0123456789abcdef") == std::string::npos;
 }
-constexpr uint64_t kFnvOffset = 0xcbf29ce484222325ULL;
 
 Digest digestOf(const std::string& bytes) {
-  return {bytes.size(), hex16(fnvUpdate(kFnvOffset, bytes.data(), bytes.size()))};
+  return {bytes.size(), sha256Hex(bytes)};
 }
 
-/// The digest of a regular file, streamed (weights can be large). Throws ddace::Error.
-Digest digestOfFile(const fs::path& file) {
+/// The digest of a regular file with `hash`, streamed (weights can be large). Throws
+/// ddace::Error.
+Digest digestOfFile(const fs::path& file, RecordHash hash = RecordHash::Sha256) {
   InputFile in(file.string(), std::numeric_limits<uint64_t>::max());
-  uint64_t h = kFnvOffset, size = 0;
+  Sha256 sha;
+  Fnv1a64 fnv;
+  uint64_t size = 0;
   char buf[1 << 16];
   while (in.stream().read(buf, sizeof buf) || in.stream().gcount() > 0) {
     const auto n = static_cast<size_t>(in.stream().gcount());
-    h = fnvUpdate(h, buf, n);
+    if (hash == RecordHash::Sha256) sha.update(std::string_view(buf, n));
+    else fnv.update(buf, n);
     size += n;
   }
-  return {size, hex16(h)};
+  return {size, hash == RecordHash::Sha256 ? sha.hex() : fnv.hex()};
 }
 
-/// A manifest: who wrote it and what (relative path -> digest).
+/// A record: who wrote it and what (relative path -> digest of `hash`).
 struct Manifest {
   bool readable = false;
   std::string writer;
+  RecordHash hash = RecordHash::Sha256;
   std::map<std::string, Digest> files;
 };
 
-constexpr const char* kHeaderTail = " wrote these files (FNV-1a 64, bytes, path); it replaces only these";
+// The header: "# TOOL wrote these files (HASH, bytes, path); it replaces only these".
+constexpr const char* kHeaderMiddle = " wrote these files (";
+constexpr const char* kHeaderTail = ", bytes, path); it replaces only these";
 
 Manifest readManifest(const fs::path& file) {
   Manifest m;
@@ -81,14 +104,22 @@ Manifest readManifest(const fs::path& file) {
   std::istringstream in(text);
   std::string line;
   if (!std::getline(in, line) || line.rfind("# ", 0) != 0) return m;
-  const size_t tail = line.find(" wrote these files");
-  if (tail == std::string::npos || tail <= 2) return m;
-  m.writer = line.substr(2, tail - 2);
+  const size_t middle = line.find(kHeaderMiddle);
+  if (middle == std::string::npos || middle <= 2) return m;
+  const std::string hash_and_tail = line.substr(middle + std::strlen(kHeaderMiddle));
+  bool known = false;
+  for (RecordHash h : {RecordHash::Sha256, RecordHash::Fnv1a64})
+    if (hash_and_tail == std::string(hashName(h)) + kHeaderTail) {
+      m.hash = h;
+      known = true;
+    }
+  if (!known) return m;
+  m.writer = line.substr(2, middle - 2);
   while (std::getline(in, line)) {
     std::istringstream fields(line);
     Digest d;
     std::string path;
-    if (!(fields >> d.fnv >> d.size) || d.fnv.size() != 16) return m;
+    if (!(fields >> d.hex >> d.size) || !isDigestHex(d.hex, m.hash)) return m;
     fields >> std::ws;
     std::getline(fields, path);
     if (path.empty()) return m;
@@ -98,9 +129,10 @@ Manifest readManifest(const fs::path& file) {
   return m;
 }
 
+/// A new record, always SHA-256.
 std::string manifestText(const std::map<std::string, Digest>& files, const std::string& tool) {
-  std::string text = "# " + tool + kHeaderTail + "\n";
-  for (const auto& [path, d] : files) text += d.fnv + " " + std::to_string(d.size) + " " + path + "\n";
+  std::string text = "# " + tool + kHeaderMiddle + hashName(RecordHash::Sha256) + kHeaderTail + "\n";
+  for (const auto& [path, d] : files) text += d.hex + " " + std::to_string(d.size) + " " + path + "\n";
   return text;
 }
 
@@ -178,8 +210,12 @@ Survey survey(const fs::path& dir, const fs::path& shown, const std::map<std::st
     bool own = false;
     if (may_be_listed || may_be_same) {
       try {
-        const Digest d = digestOfFile(p);
-        own = (may_be_listed && d == m->second) || (may_be_same && d == n->second);
+        // The incoming digest is SHA-256, the listed one of the record's hash (FNV-1a 64
+        // in an old record: the file is then read once more).
+        const Digest sha = digestOfFile(p);
+        const bool legacy = may_be_listed && manifest.hash != RecordHash::Sha256;
+        const Digest listed = legacy ? digestOfFile(p, manifest.hash) : sha;
+        own = (may_be_listed && listed == m->second) || (may_be_same && sha == n->second);
       } catch (const Error&) {
         own = false;
       }
