@@ -1,11 +1,12 @@
-// Snapshots of files for tests that check nothing was changed: the one copy for every
-// test binary of test/unit/.
+// Snapshots of files for tests that check nothing was changed, and the writes that set
+// them up: the one copy for every test binary of test/unit/.
 #pragma once
 
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <stdexcept>
 #include <string>
 
 namespace ddace::test {
@@ -14,6 +15,15 @@ namespace ddace::test {
 inline std::string fileBytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+/// Writes `bytes` to `path` (replacing it); throws std::runtime_error naming `path` when
+/// the write fails, so a test never goes on with a file it did not make.
+inline void writeBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << bytes;
+  out.close();
+  if (!out) throw std::runtime_error("cannot write " + path);
 }
 
 /// Every regular file below `dir` (path relative to it) with its bytes.

@@ -18,9 +18,12 @@
 #include "ddace/common/error.h"
 #include "ddace/common/file.h"
 
+#include "error_of.h"
+
 namespace fs = std::filesystem;
 using ddace::readTextFile;
 using ddace::writeTextFile;
+using ddace::test::errorOf;
 
 namespace {
 
@@ -47,17 +50,6 @@ class TempDir {
  private:
   fs::path path_;
 };
-
-// The message of the ddace::Error `f` throws ("" when it does not throw).
-template <typename F>
-std::string errorOf(F f) {
-  try {
-    f();
-  } catch (const ddace::Error& e) {
-    return e.what();
-  }
-  return "";
-}
 
 }  // namespace
 

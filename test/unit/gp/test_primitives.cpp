@@ -11,21 +11,15 @@
 #include "ddace/common/file.h"
 #include "ddace/eval/frechet.h"
 #include "ddace/gp/primitives.h"
-#include "ddace/tasks/generators.h"
+
+#include "../common/generated_task.h"
 
 using namespace ddace;
+using ddace::test::generated;
 using Eigen::Vector2d;
 namespace fs = std::filesystem;
 
 namespace {
-
-task::TaskDir generated(const std::string& family, int demos, uint64_t seed) {
-  tasks::GeneratorOptions o;
-  o.family = family;
-  o.demos = demos;
-  o.seed = seed;
-  return tasks::generate(o);
-}
 
 /// Trained on 30 demonstrations (seed 1), shared by the tests of one family.
 const gp::PrimitiveLibrary& library(const std::string& family) {

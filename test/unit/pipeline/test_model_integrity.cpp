@@ -5,43 +5,25 @@
 #include <unistd.h>
 
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
 #include "ddace/common/error.h"
 #include "ddace/gp/primitives.h"
 #include "ddace/pipeline/evaluation.h"
 #include "ddace/task/fingerprint.h"
-#include "ddace/tasks/generators.h"
 
+#include "../common/file_tree.h"
+#include "../common/generated_task.h"
 #include "../common/run_tool.h"
 
 using namespace ddace;
 namespace fs = std::filesystem;
+using ddace::test::fileBytes;
+using ddace::test::generated;
 using ddace::test::runTool;
 using ddace::test::ToolRun;
+using ddace::test::writeBytes;
 
 namespace {
-
-task::TaskDir generated(const std::string& family, int demos, uint64_t seed, int robots = 11) {
-  tasks::GeneratorOptions o;
-  o.family = family;
-  o.demos = demos;
-  o.seed = seed;
-  o.robots = robots;
-  return tasks::generate(o);
-}
-
-std::string readAll(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-void writeAll(const fs::path& p, const std::string& s) {
-  std::ofstream(p, std::ios::binary) << s;
-}
 
 /// A Task 2 model trained with 4 robots (entity names R1..R4, G1: those of Task 4), a
 /// Task 4 model, and a Task 4 test set, written once.
@@ -109,13 +91,13 @@ TEST(ModelIntegrity, AnotherTasksPrimitiveLibraryInsideAModelIsRefused) {
 
 TEST(ModelIntegrity, APrimitivesEditOfAnySizeIsRefused) {
   const std::string dir = fixture().copy(fixture().task4_model, "primitives_edit");
-  std::string text = readAll(fs::path(dir) / gp::kPrimitivesFile);
+  std::string text = fileBytes(fs::path(dir) / gp::kPrimitivesFile);
   // The last digit of the first stored mean: far below the likelihood check's tolerance.
   const size_t means = text.find("means: [");
   const size_t comma = text.find(',', means);
   ASSERT_NE(comma, std::string::npos);
   text[comma - 1] = text[comma - 1] == '1' ? '2' : '1';
-  writeAll(fs::path(dir) / gp::kPrimitivesFile, text);
+  writeBytes(fs::path(dir) / gp::kPrimitivesFile, text);
   const std::string e = loadError(dir);
   EXPECT_NE(e.find("primitives.yaml"), std::string::npos) << e;
   EXPECT_NE(e.find("edited"), std::string::npos) << e;
@@ -168,7 +150,7 @@ TEST(CliModel, InspectVerifiesEveryFile) {
   EXPECT_NE(r.out.find("task fingerprint"), std::string::npos) << r.out;
   for (const char* f : {"primitives.yaml", "loss.csv", "task.yaml", "weights.pt", "manifest.yaml"}) {
     const std::string broken = fixture().copy(fixture().task4_model, std::string("broken_") + f);
-    writeAll(fs::path(broken) / f, readAll(fs::path(broken) / f) + "#\n");
+    writeBytes(fs::path(broken) / f, fileBytes(fs::path(broken) / f) + "#\n");
     r = runTool("inspect " + broken);
     EXPECT_NE(r.status, 0) << f << ": " << r.out;
     EXPECT_NE(r.out.find(f), std::string::npos) << f << ": " << r.out;

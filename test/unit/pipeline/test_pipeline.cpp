@@ -7,20 +7,14 @@
 #include <nlohmann/json.hpp>
 
 #include "ddace/pipeline/evaluation.h"
-#include "ddace/tasks/generators.h"
+
+#include "../common/generated_task.h"
 
 using namespace ddace;
+using ddace::test::generated;
 namespace fs = std::filesystem;
 
 namespace {
-
-task::TaskDir generated(const std::string& family, int demos, uint64_t seed) {
-  tasks::GeneratorOptions o;
-  o.family = family;
-  o.demos = demos;
-  o.seed = seed;
-  return tasks::generate(o);
-}
 
 class Pipeline : public ::testing::Test {
  protected:

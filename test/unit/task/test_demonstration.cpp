@@ -6,14 +6,16 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 
 #include "ddace/common/random.h"
 #include "ddace/task/demonstration.h"
 #include "ddace/task/summary.h"
 
+#include "../common/file_tree.h"
+
 using namespace ddace;
 using namespace ddace::task;
+using ddace::test::writeBytes;
 
 namespace {
 
@@ -451,10 +453,6 @@ namespace {
 
 std::string tempPath(const std::string& name) {
   return ::testing::TempDir() + "/ddace_demo_" + name;
-}
-
-void writeBytes(const std::string& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary) << bytes;
 }
 
 }  // namespace

@@ -11,18 +11,15 @@
 #include "ddace/task/fingerprint.h"
 #include "ddace/tasks/generators.h"
 
+#include "../common/error_of.h"
+#include "../common/generated_task.h"
+
 using namespace ddace;
+using ddace::test::diagnosticsOf;
+using ddace::test::errorOf;
+using ddace::test::generated;
 
 namespace {
-
-task::TaskDir generated(const std::string& family, int demos, uint64_t seed, int robots = 0) {
-  tasks::GeneratorOptions o;
-  o.family = family;
-  o.demos = demos;
-  o.seed = seed;
-  if (robots) o.robots = robots;
-  return tasks::generate(o);
-}
 
 std::string joined(const std::vector<std::string>& lines) {
   std::string out;
@@ -107,12 +104,7 @@ TEST(TaskFingerprint, RoundTripsThroughYamlAndRefusesEdits) {
     const size_t at = edited.find(from);
     if (at == std::string::npos) return std::string("'" + from + "' not in the text");
     edited.replace(at, from.size(), to);
-    try {
-      task::parseFingerprint(YAML::Load(edited)["task_fingerprint"], "f.yaml");
-    } catch (const Error& e) {
-      return std::string(e.what());
-    }
-    return std::string();
+    return errorOf([&] { task::parseFingerprint(YAML::Load(edited)["task_fingerprint"], "f.yaml"); });
   };
   EXPECT_NE(refusal("[move, stop]", "[move, stops]").find("digest does not match"), std::string::npos);
   EXPECT_NE(refusal("demonstrations: 3", "demonstrations: 4").find("f.yaml:"), std::string::npos);
@@ -133,13 +125,7 @@ TEST(TaskFingerprint, AStoredFingerprintReportsEveryProblemAtItsLineAndColumn) {
       "  step_counts: [2, 1.5]\n"
       "  demonstrations: -1\n"
       "  colour: blue\n";
-  std::vector<std::string> got;
-  try {
-    task::parseFingerprint(YAML::Load(text)["task_fingerprint"], "m.yaml");
-  } catch (const Error& e) {
-    for (const auto& d : e.diagnostics()) got.push_back(d.str());
-  }
-  EXPECT_EQ(joined(got),
+  EXPECT_EQ(diagnosticsOf([&] { task::parseFingerprint(YAML::Load(text)["task_fingerprint"], "m.yaml"); }),
             "m.yaml:9:3: unknown key 'colour' in task_fingerprint (allowed: demonstrations, digest, entities, "
             "goal_conditions, step_counts, token_types, vocabulary, vocabulary_declared)\n"
             "m.yaml:4:24: task_fingerprint: vocabulary_declared: 'perhaps' is not true or false\n"

@@ -3,14 +3,17 @@
 #include <sys/stat.h>
 
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <map>
 
 #include "ddace/task/task_dir.h"
-#include "ddace/tasks/generators.h"
+
+#include "../common/file_tree.h"
+#include "../common/generated_task.h"
 
 using namespace ddace;
+using ddace::test::fileBytes;
+using ddace::test::generated;
+using ddace::test::writeBytes;
 namespace fs = std::filesystem;
 
 namespace {
@@ -18,15 +21,8 @@ namespace {
 std::string makeDir(const std::string& name) {
   const std::string path = ::testing::TempDir() + "/ddace_taskdir_" + name;
   fs::remove_all(path);
-  tasks::GeneratorOptions o;
-  o.family = "task4";
-  o.demos = 3;
-  task::writeTaskDir(tasks::generate(o), path);
+  task::writeTaskDir(generated("task4", 3, 1), path);
   return path;
-}
-
-void write(const std::string& path, const std::string& text) {
-  std::ofstream(path) << text;
 }
 
 }  // namespace
@@ -42,8 +38,8 @@ TEST(TaskDir, ReadsDemosInFileNameOrder) {
 
 TEST(TaskDir, OneBadFileMeansNothingIsLoadedAndEveryErrorIsListed) {
   const std::string path = makeDir("bad");
-  write(path + "/demos/demo_001.csv", "t,R1.x\n0,1\n");
-  write(path + "/demos/demo_002.csv", "");
+  writeBytes(path + "/demos/demo_001.csv", "t,R1.x\n0,1\n");
+  writeBytes(path + "/demos/demo_002.csv", "");
   const task::TaskDirReport report = task::checkTaskDir(path);
   EXPECT_GE(report.errors.size(), 2u);
   EXPECT_EQ(report.dir.demos.size(), 1u);  // only the good one
@@ -77,9 +73,7 @@ TEST(TaskDir, MissingPiecesAreNamed) {
 
 TEST(TaskDir, RewritingRemovesOldDemonstrations) {
   const std::string path = makeDir("rewrite");
-  tasks::GeneratorOptions o;
-  o.demos = 1;
-  task::writeTaskDir(tasks::generate(o), path);
+  task::writeTaskDir(generated("task4", 1, 1), path);
   EXPECT_EQ(task::loadTaskDir(path).demos.size(), 1u);
 }
 
@@ -87,16 +81,12 @@ TEST(TaskDir, RewritingRemovesOldDemonstrations) {
 
 namespace {
 
-std::string read(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
 /// Everything under `dir`, path -> bytes (directories as "<dir>/").
 std::map<std::string, std::string> tree(const std::string& dir) {
   std::map<std::string, std::string> out;
   for (const auto& e : fs::recursive_directory_iterator(dir))
-    out[fs::relative(e.path(), dir).string() + (e.is_directory() ? "/" : "")] = e.is_directory() ? "" : read(e.path());
+    out[fs::relative(e.path(), dir).string() + (e.is_directory() ? "/" : "")] =
+        e.is_directory() ? "" : fileBytes(e.path());
   return out;
 }
 
@@ -106,23 +96,16 @@ std::string freshDir(const std::string& name) {
   return path;
 }
 
-task::TaskDir task4(int demos) {
-  tasks::GeneratorOptions o;
-  o.family = "task4";
-  o.demos = demos;
-  return tasks::generate(o);
-}
-
 }  // namespace
 
 TEST(OwnedOutput, AUsersRecordingAndHandWrittenTaskYamlAreNeverReplaced) {
   const std::string path = freshDir("user");
   fs::create_directories(path + "/demos");
-  write(path + "/task.yaml", "format: ddace-task/1\n# my scene\nentities: [{name: R1, kind: robot}]\n");
-  write(path + "/demos/my_recording.csv", "t,R1.x,R1.y\n0,0.1,0.1\n");
+  writeBytes(path + "/task.yaml", "format: ddace-task/1\n# my scene\nentities: [{name: R1, kind: robot}]\n");
+  writeBytes(path + "/demos/my_recording.csv", "t,R1.x,R1.y\n0,0.1,0.1\n");
   const auto before = tree(path);
   try {
-    task::writeTaskDir(task4(2), path);
+    task::writeTaskDir(generated("task4", 2, 1), path);
     FAIL();
   } catch (const Error& e) {
     const std::string what = e.what();
@@ -137,15 +120,15 @@ TEST(OwnedOutput, AUsersRecordingAndHandWrittenTaskYamlAreNeverReplaced) {
 
 TEST(OwnedOutput, ItsOwnOutputIsReplacedWholeSoNoStaleDemonstrationSurvives) {
   const std::string path = freshDir("own");
-  task::writeTaskDir(task4(5), path);
+  task::writeTaskDir(generated("task4", 5, 1), path);
   EXPECT_TRUE(fs::exists(path + "/" + task::kOwnedManifest));
-  task::writeTaskDir(task4(2), path);
+  task::writeTaskDir(generated("task4", 2, 1), path);
   EXPECT_EQ(task::loadTaskDir(path).demos.size(), 2u);
   EXPECT_FALSE(fs::exists(path + "/demos/demo_004.csv"));
   // A file it wrote, then changed by hand, is no longer its own.
-  write(path + "/demos/demo_001.csv", read(path + "/demos/demo_001.csv") + "\n");
+  writeBytes(path + "/demos/demo_001.csv", fileBytes(path + "/demos/demo_001.csv") + "\n");
   try {
-    task::writeTaskDir(task4(2), path);
+    task::writeTaskDir(generated("task4", 2, 1), path);
     FAIL();
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("demo_001.csv (changed since ddace wrote it)"), std::string::npos) << e.what();
@@ -154,7 +137,7 @@ TEST(OwnedOutput, ItsOwnOutputIsReplacedWholeSoNoStaleDemonstrationSurvives) {
 
 TEST(OwnedOutput, WithoutReplaceItsOwnEarlierOutputIsRefusedToo) {
   const std::string path = freshDir("noreplace");
-  const auto files = task::taskDirFiles(task4(1));
+  const auto files = task::taskDirFiles(generated("task4", 1, 1));
   task::writeOwnedDirectory(path, files, "ddace generate", false);
   try {
     task::writeOwnedDirectory(path, files, "ddace generate", false);
@@ -171,24 +154,24 @@ TEST(OwnedOutput, WithoutReplaceItsOwnEarlierOutputIsRefusedToo) {
 
 TEST(OwnedOutput, OutputWrittenBeforeManifestsExistedIsReplacedOnlyWhereIdentical) {
   const std::string path = freshDir("legacy");
-  task::writeOwnedDirectory(path, task::taskDirFiles(task4(3)), "ddace", true);
+  task::writeOwnedDirectory(path, task::taskDirFiles(generated("task4", 3, 1)), "ddace", true);
   fs::remove(path + "/" + task::kOwnedManifest);  // as an older ddace left it
   // demo_002.csv would not be rewritten, and without a manifest nothing says it is ours.
   try {
-    task::writeOwnedDirectory(path, task::taskDirFiles(task4(2)), "ddace", true);
+    task::writeOwnedDirectory(path, task::taskDirFiles(generated("task4", 2, 1)), "ddace", true);
     FAIL();
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("demo_002.csv (not written by ddace)"), std::string::npos) << e.what();
   }
   // Every file byte-identical to what replaces it: nothing can be lost.
-  EXPECT_NO_THROW(task::writeOwnedDirectory(path, task::taskDirFiles(task4(3)), "ddace", true));
+  EXPECT_NO_THROW(task::writeOwnedDirectory(path, task::taskDirFiles(generated("task4", 3, 1)), "ddace", true));
 }
 
 TEST(OwnedOutput, AFailedWriteLeavesTheOldOutputIntactAndNoTemporaryBehind) {
   const std::string path = freshDir("failed");
-  task::writeTaskDir(task4(3), path);
+  task::writeTaskDir(generated("task4", 3, 1), path);
   const auto before = tree(path);
-  std::vector<task::OwnedFile> files = task::taskDirFiles(task4(2));
+  std::vector<task::OwnedFile> files = task::taskDirFiles(generated("task4", 2, 1));
   files.emplace_back("demos/" + std::string(300, 'x') + ".csv", "t\n");  // a name too long for the file system
   try {
     task::writeOwnedDirectory(path, files, "ddace", true);
@@ -208,9 +191,9 @@ TEST(OwnedOutput, AFailedWriteLeavesTheOldOutputIntactAndNoTemporaryBehind) {
 
 TEST(OwnedOutput, NotADirectoryIsRefused) {
   const std::string path = freshDir("file");
-  write(path, "mine");
-  EXPECT_THROW(task::writeTaskDir(task4(1), path), Error);
-  EXPECT_EQ(read(path), "mine");
+  writeBytes(path, "mine");
+  EXPECT_THROW(task::writeTaskDir(generated("task4", 1, 1), path), Error);
+  EXPECT_EQ(fileBytes(path), "mine");
 }
 
 // ---- unreadable directories and special files are one error each, nothing hangs

@@ -7,7 +7,6 @@
 #include <filesystem>
 #include <limits>
 #include <set>
-#include <fstream>
 #include <sstream>
 
 #include "ddace/common/error.h"
@@ -15,6 +14,8 @@
 #include "ddace/tasks/generators.h"
 #include "ddace/tgn/detail.h"
 #include "ddace/tgn/sequence_model.h"
+
+#include "../common/file_tree.h"
 
 using namespace ddace;
 namespace fs = std::filesystem;
@@ -52,17 +53,6 @@ void reseal(std::string& manifest) {
   const size_t at = manifest.rfind("\nmanifest_sha256: ");
   manifest = manifest.substr(0, at + 1);
   manifest += "manifest_sha256: " + sha256Hex(manifest) + "\n";
-}
-
-std::string readAll(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-void writeAll(const fs::path& p, const std::string& s) {
-  std::ofstream(p, std::ios::binary) << s;
 }
 
 const tgn::SequenceModel& task4Model() {
@@ -186,13 +176,9 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
     return loadError(dir);
   };
   auto rewrite = [](const fs::path& p, auto edit) {
-    std::ifstream in(p, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    in.close();
-    std::string s = ss.str();
+    std::string s = test::fileBytes(p);
     edit(s);
-    std::ofstream(p, std::ios::binary) << s;
+    test::writeBytes(p, s);
   };
   EXPECT_NE(loadError(tempDir("nothing")).find("does not exist"), std::string::npos);
   for (const char* f : {"manifest.yaml", "task.yaml", "weights.pt", "loss.csv"}) {
@@ -250,7 +236,7 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
   const std::string good = tempDir("edits");
   tgn::SequenceModel::train(tasks::generate(g), o, nullptr).save(good);
   ASSERT_EQ(loadError(good), "");
-  const std::string manifest = readAll(fs::path(good) / "manifest.yaml");
+  const std::string manifest = test::fileBytes(fs::path(good) / "manifest.yaml");
   ASSERT_NE(manifest.find("vocabulary: [move, stop]"), std::string::npos) << manifest;
   const auto edited = [&](const std::string& from, const std::string& to, bool seal) {
     std::string s = manifest;
@@ -260,7 +246,7 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
     if (seal) reseal(s);
     const std::string dir = tempDir("edited");
     fs::copy(good, dir);
-    writeAll(fs::path(dir) / "manifest.yaml", s);
+    test::writeBytes(fs::path(dir) / "manifest.yaml", s);
     const std::string e = loadError(dir);
     fs::remove_all(dir);
     return e;
@@ -336,7 +322,7 @@ TEST(SequenceModel, RecordsTheTaskFingerprintOfItsTrainingDirectory) {
   EXPECT_EQ(l.info().fingerprint.digest(), m.info().fingerprint.digest());
   for (const char* f : {"task.yaml", "weights.pt", "loss.csv"}) {
     ASSERT_TRUE(l.info().files.count(f)) << f;
-    EXPECT_EQ(l.info().files.at(f).sha256, sha256Hex(readAll(fs::path(dir) / f))) << f;
+    EXPECT_EQ(l.info().files.at(f).sha256, sha256Hex(test::fileBytes(fs::path(dir) / f))) << f;
   }
   fs::remove_all(dir);
 }

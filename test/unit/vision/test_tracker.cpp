@@ -15,7 +15,11 @@
 #include "ddace/vision/synthetic_camera.h"
 #include "ddace/vision/tracker.h"
 
+#include "../common/error_of.h"
+
 using namespace ddace::vision;
+using ddace::test::diagnosticsOf;
+using ddace::test::firstErrorOf;
 
 namespace {
 
@@ -79,14 +83,7 @@ TEST(TrackerConfig, ShippedFilesLoad) {
 }
 
 TEST(TrackerConfig, ErrorsNameFileLineAndColumn) {
-  auto firstError = [](const std::string& text) {
-    try {
-      parseMarkerConfig(text, "m.yaml");
-    } catch (const ddace::Error& e) {
-      return e.diagnostics().front().str();
-    }
-    return std::string("no error");
-  };
+  auto firstError = [](const std::string& text) { return firstErrorOf([&] { parseMarkerConfig(text, "m.yaml"); }); };
   EXPECT_EQ(firstError("family: DICT_4X4_50\nentities:\n  - {id: 1, name: R1}\n  - {id: 1, name: R2}\n"),
             "m.yaml:4:10: marker id 1 is used twice");
   EXPECT_EQ(firstError("entities:\n  - {id: 60, name: R1}\n"),
@@ -101,16 +98,12 @@ TEST(TrackerConfig, ErrorsNameFileLineAndColumn) {
             std::string::npos);
   // The tuning's values are worded as every YAML reader words them, all in one report.
   TrackerConfig c;
-  std::string all;
-  try {
-    parseTrackerTuning(
-        "roi:\n  full_frame_every: 0\n  margin: 25\n  enabled: perhaps\ntable:\n  smoothing: lots\n"
-        "apriltag:\n  decimate: 0.5\n",
-        "t.yaml", c);
-  } catch (const ddace::Error& e) {
-    for (const auto& d : e.diagnostics()) all += d.str() + "\n";
-  }
-  EXPECT_EQ(all,
+  EXPECT_EQ(diagnosticsOf([&] {
+              parseTrackerTuning(
+                  "roi:\n  full_frame_every: 0\n  margin: 25\n  enabled: perhaps\ntable:\n  smoothing: lots\n"
+                  "apriltag:\n  decimate: 0.5\n",
+                  "t.yaml", c);
+            }),
             "t.yaml:6:14: 'smoothing': 'lots' is not a finite number\n"
             "t.yaml:8:13: 'decimate' must be in 1..8 (got 0.5)\n"
             "t.yaml:4:12: 'enabled': 'perhaps' is not true or false\n"
@@ -434,12 +427,7 @@ TEST(CameraCalibration, ReadsTheRosCameraInfoFormat) {
   SyntheticCamera cam(loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml"), shippedConfig().markers);
   for (int i = 0; i < 9; ++i) EXPECT_NEAR(cal.camera.K.val[i], cam.camera().K.val[i], 1e-9);
   auto firstError = [](const std::string& text) {
-    try {
-      parseCameraCalibration(text, "c.yaml");
-    } catch (const ddace::Error& e) {
-      return e.diagnostics().front().str();
-    }
-    return std::string("no error");
+    return firstErrorOf([&] { parseCameraCalibration(text, "c.yaml"); });
   };
   const std::string good_k = "camera_matrix: {rows: 3, cols: 3, data: [900, 0, 640, 0, 900, 360, 0, 0, 1]}\n";
   const std::string good_d =
