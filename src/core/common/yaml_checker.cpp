@@ -35,6 +35,14 @@ void YamlChecker::onlyKeys(const YAML::Node& map, const std::set<std::string>& a
   }
 }
 
+YAML::Node YamlChecker::required(const YAML::Node& map, const std::string& key, const std::string& where) {
+  if (!map.IsMap()) return YAML::Node(YAML::NodeType::Undefined);
+  const YAML::Node n = map[key];
+  if (n.IsDefined() && !n.IsNull()) return n;
+  error(map, where + "missing key '" + key + "'");
+  return YAML::Node(YAML::NodeType::Undefined);
+}
+
 bool YamlChecker::expectMap(const YAML::Node& node, const std::string& where) {
   if (node.IsMap()) return true;
   error(node, where + " must be a mapping (key: value)");

@@ -49,12 +49,7 @@ std::vector<std::string> specGoals(const TaskSpec& spec) {
 /// The fields of a stored fingerprint through the caller's YamlChecker: each records
 /// its diagnostic at its node and says whether the value is usable.
 YAML::Node field(YamlChecker& c, const YAML::Node& map, const std::string& key) {
-  const YAML::Node n = map[key];
-  if (!n.IsDefined()) {
-    c.error(map, "task_fingerprint: missing key '" + key + "'");
-    return YAML::Node(YAML::NodeType::Undefined);
-  }
-  return n;
+  return c.required(map, key, "task_fingerprint: ");
 }
 
 /// A list of non-empty texts, sorted and distinct (as emitFingerprint writes it).

@@ -62,7 +62,7 @@ CameraCalibration parseCameraCalibration(const std::string& text, const std::str
   CameraCalibration cal;
   for (const char* key :
        {"image_width", "image_height", "camera_matrix", "distortion_model", "distortion_coefficients"})
-    if (!root[key]) c.error(root, std::string("missing key '") + key + "'");
+    c.required(root, key);
   cal.camera.image_size.width = integerOr(c, root, "image_width", 0, 1, 100000);
   cal.camera.image_size.height = integerOr(c, root, "image_height", 0, 1, 100000);
   cal.camera_name = stringOr(c, root, "camera_name", "");

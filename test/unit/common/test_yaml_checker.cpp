@@ -109,6 +109,20 @@ TEST(YamlChecker, NumbersInARangeSayTheRangeAndTheValue) {
   EXPECT_EQ(c.errors()[2].str(), "c.yaml:5:4: e: 'wide' is not a finite number");
 }
 
+TEST(YamlChecker, ARequiredKeyNeedsAValue) {
+  YamlChecker c("c.yaml");
+  const YAML::Node root = c.parse("a: 1\nb:\nc: ~\n");
+  EXPECT_EQ(c.required(root, "a").Scalar(), "1");
+  EXPECT_FALSE(c.required(root, "b", "the test: "));  // a key without a value ...
+  EXPECT_FALSE(c.required(root, "c"));                // ... or with a null one has none
+  EXPECT_FALSE(c.required(root, "d"));
+  EXPECT_FALSE(c.required(root["a"], "x"));  // not a mapping: for expectMap to say
+  ASSERT_EQ(c.errors().size(), 3u);
+  EXPECT_EQ(c.errors()[0].str(), "c.yaml:1:1: the test: missing key 'b'");
+  EXPECT_EQ(c.errors()[1].str(), "c.yaml:1:1: missing key 'c'");
+  EXPECT_EQ(c.errors()[2].str(), "c.yaml:1:1: missing key 'd'");
+}
+
 TEST(YamlChecker, BooleansAreTrueOrFalse) {
   YamlChecker c("c.yaml");
   const YAML::Node root = c.parse("a: True\nb: false\nc: yes\n");

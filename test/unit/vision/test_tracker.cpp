@@ -446,6 +446,8 @@ TEST(CameraCalibration, ReadsTheRosCameraInfoFormat) {
                  "distortion_model: plumb_bob\ndistortion_coefficients: {rows: 1, cols: 4, data: [0, 0, 0, 0]}\n"),
       "c.yaml:5:26: distortion_model plumb_bob needs 5 coefficients (got 4)");
   EXPECT_EQ(firstError("image_width: 1280\n" + good_k + good_d), "c.yaml:1:1: missing key 'image_height'");
+  // A key without a value is no value: not a calibration of width 0.
+  EXPECT_EQ(firstError("image_width:\nimage_height: 720\n" + good_k + good_d), "c.yaml:1:1: missing key 'image_width'");
   EXPECT_EQ(firstError(size + good_k + good_d + "lens: wide\n"),
             "c.yaml:6:1: unknown key 'lens' in the camera calibration (allowed: camera_matrix, camera_name, "
             "distortion_coefficients, distortion_model, image_height, image_width, projection_matrix, "
