@@ -129,7 +129,9 @@ struct EpochRecord {
 /// entities of log p(action) + log p(target), an idle entity's target being free, under
 /// the rules below (an exact assignment, deterministic and in the canonical entity order).
 /// With no rule set, or when the independent tokens keep the rules, the decision is each
-/// entity's own argmax.
+/// entity's own argmax. Every variant: a step in which no entity would act is never handed
+/// on; it becomes the most probable step in which one does, or END when END is the more
+/// probable of the two (docs/tgn.md, "No empty step").
 struct StepRules {
   /// No two entities of one step had the same target entity: a step's targets are
   /// used at most once ("no target" is not a target).
@@ -145,7 +147,7 @@ struct StepRules {
 struct Prediction {
   bool end = false;
   double end_probability = 0;
-  std::vector<task::Token> tokens;          ///< the next step, sorted by entity (empty when end)
+  std::vector<task::Token> tokens;          ///< the next step, sorted by entity: at least one token, none when end
   std::vector<double> token_probabilities;  ///< one per token: p(action) * p(target)
 };
 
