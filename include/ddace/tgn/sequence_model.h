@@ -28,6 +28,9 @@
 //   loss            sum of the mean cross-entropies of action, target (the scene variant:
 //                   over the entities that act) and END; Adam with the gradient norm
 //                   clipped at 1; mini-batches of whole demonstrations in a seeded order.
+//   identity        scene: when the network with the identity embedding stops short of
+//                   step accuracy 1 on its training demonstrations, one without it is
+//                   trained too and kept if it fits them better (docs/tgn.md).
 //   stopping        at `max_epochs`, or at a plateau: the best loss of the last
 //                   `plateau_patience` epochs differs by less than `plateau_delta` from the
 //                   best loss of the `plateau_patience` epochs before them, and the last
