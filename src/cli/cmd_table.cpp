@@ -95,6 +95,7 @@ fs::path dataset(const Settings& s, const std::string& name, tasks::GeneratorOpt
   o.seed = s.seed * 2654435761ULL + 0x7e57;  // as `ddace generate`: fresh test configurations
   o.jitter_m = 0;
   o.mislabel_fraction = 0;
+  o.onset_jitter_s = 0;
   task::writeTaskDir(tasks::generate(o), (dir / "test").string());
   return dir;
 }

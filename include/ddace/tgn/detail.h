@@ -42,6 +42,26 @@ struct DecodedToken {
 /// log_action [n][actions], log_target [n][targets], row-major log-probabilities.
 std::vector<DecodedToken> decodeStep(const std::vector<double>& log_action, int actions,
                                      const std::vector<double>& log_target, int targets, const StepRules& rules);
+/// log P(step) under the heads: the sum over the entities of log p(action), plus
+/// log p(target) for those that act (log-probabilities floored at -1000, as decodeStep).
+double stepLogProbability(const std::vector<DecodedToken>& step, const std::vector<double>& log_action, int actions,
+                          const std::vector<double>& log_target, int targets);
+
+/// END is decided when p(END) is above this.
+inline constexpr double kEndThreshold = 0.5;
+
+/// What predictNext hands on: END, or a step in which at least one entity acts.
+struct StepDecision {
+  bool end = false;
+  std::vector<DecodedToken> tokens;  ///< one per entity (all idle when end)
+};
+/// The decision of one step, never an empty step: END when p(END) > kEndThreshold; else
+/// decodeStep's step; when every entity of that is idle, the most probable step S* in which
+/// one acts (the joint decoder's best under `rules` with some entity forced to act; the
+/// lowest such entity on ties), or END instead when p(END) >= (1 - p(END)) * P(S*), the
+/// more probable of the two. Throws ddace::Error for a p(END) that is not a probability.
+StepDecision decideStep(double end_probability, const std::vector<double>& log_action, int actions,
+                        const std::vector<double>& log_target, int targets, const StepRules& rules);
 
 }  // namespace detail
 

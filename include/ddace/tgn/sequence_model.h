@@ -28,6 +28,9 @@
 //   loss            sum of the mean cross-entropies of action, target (the scene variant:
 //                   over the entities that act) and END; Adam with the gradient norm
 //                   clipped at 1; mini-batches of whole demonstrations in a seeded order.
+//   identity        scene: when the network with the identity embedding stops short of
+//                   step accuracy 1 on its training demonstrations, one without it is
+//                   trained too and kept if it fits them better (docs/tgn.md).
 //   stopping        at `max_epochs`, or at a plateau: the best loss of the last
 //                   `plateau_patience` epochs differs by less than `plateau_delta` from the
 //                   best loss of the `plateau_patience` epochs before them, and the last
@@ -129,7 +132,9 @@ struct EpochRecord {
 /// entities of log p(action) + log p(target), an idle entity's target being free, under
 /// the rules below (an exact assignment, deterministic and in the canonical entity order).
 /// With no rule set, or when the independent tokens keep the rules, the decision is each
-/// entity's own argmax.
+/// entity's own argmax. Every variant: a step in which no entity would act is never handed
+/// on; it becomes the most probable step in which one does, or END when END is the more
+/// probable of the two (docs/tgn.md, "No empty step").
 struct StepRules {
   /// No two entities of one step had the same target entity: a step's targets are
   /// used at most once ("no target" is not a target).
@@ -145,7 +150,7 @@ struct StepRules {
 struct Prediction {
   bool end = false;
   double end_probability = 0;
-  std::vector<task::Token> tokens;          ///< the next step, sorted by entity (empty when end)
+  std::vector<task::Token> tokens;          ///< the next step, sorted by entity: at least one token, none when end
   std::vector<double> token_probabilities;  ///< one per token: p(action) * p(target)
 };
 

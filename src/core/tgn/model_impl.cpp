@@ -204,8 +204,17 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos, floa
   const int n = cfg.nodes;
   const double scale = info.std[0];  // isotropic for the scene variant
   std::vector<double> d(static_cast<size_t>(n * n));
+  // Entities at one place: a demonstration's motion ends on its target, a closed-loop one
+  // within the arrival radius of it (the coordinator's DONE), so two entities that went to
+  // one target can stand up to two radii apart. Nearer than that they count as together
+  // (distance 0, tied ranks), as in the demonstrations: otherwise a few millimetres of
+  // stopping error reorder the nearness ranks of a cluster and change the decision.
+  const double together = kTogetherRadii * spec.arrival_radius;
   for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j) d[static_cast<size_t>(i * n + j)] = (pos[j] - pos[i]).norm() / scale;
+    for (int j = 0; j < n; ++j) {
+      const double m = (pos[j] - pos[i]).norm();
+      d[static_cast<size_t>(i * n + j)] = (m <= together ? 0.0 : m) / scale;
+    }
   const auto kind = [&](int i) { return spec.entities[static_cast<size_t>(order.task_of[i])].kind; };
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j) {

@@ -53,13 +53,14 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
   const Tensor lt = torch::log_softmax(h.target, -1).to(torch::kDouble).contiguous();
   Prediction p;
   p.end_probability = torch::softmax(h.end, -1)[1].item<double>();
-  p.end = p.end_probability > 0.5;
-  if (p.end) return p;
   const auto values = [](const Tensor& v) {
     return std::vector<double>(v.data_ptr<double>(), v.data_ptr<double>() + v.numel());
   };
-  const std::vector<detail::DecodedToken> step =
-      detail::decodeStep(values(la), m.cfg.actions, values(lt), m.cfg.targets, m.info.step_rules);
+  const detail::StepDecision decision =
+      detail::decideStep(p.end_probability, values(la), m.cfg.actions, values(lt), m.cfg.targets, m.info.step_rules);
+  p.end = decision.end;
+  if (p.end) return p;
+  const std::vector<detail::DecodedToken>& step = decision.tokens;
   std::vector<std::pair<task::Token, double>> scored;
   for (int64_t i = 0; i < n; ++i) {
     const detail::DecodedToken& d = step[static_cast<size_t>(i)];

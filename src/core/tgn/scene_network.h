@@ -10,6 +10,8 @@
 //                   the same for i seen from j (1 = the nearest of its kind); the
 //                   displacement x_j - x_i only with TrainOptions::edge_displacement (off by
 //                   default: the rest is invariant to moving, rotating, mirroring the scene).
+//                   Entities within kTogetherRadii arrival radii of each other are at one
+//                   place: distance 0, and they do not outrank each other.
 //   spatial         `gat_layers` x attention over the attention edges plus self-loops; the
 //                   message from j to i is W_s x_j + W_e r_ij (it carries the edge
 //                   features: a convex combination of W x_j alone cannot form x_j - x_i);
@@ -34,6 +36,9 @@ namespace ddace::tgn {
 
 /// Relative features per pair (see above).
 inline constexpr int kRelativeFeatures = 5;
+/// Entities nearer than this many of the task's arrival radii count as at one place: two
+/// that each arrived at one target (within a radius of it) are at most two radii apart.
+inline constexpr double kTogetherRadii = 2.0;
 
 struct SceneLayerImpl : torch::nn::Module {
   SceneLayerImpl(int in, int heads, int channels, AttentionKind kind);

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <set>
+#include <utility>
 
 #include "ddace/common/error.h"
 #include "ddace/tgn/detail.h"
@@ -18,6 +19,8 @@ constexpr double kLogFloor = -1e3;
 /// Added to the idle columns when the step size is fixed, so that the optimum uses every
 /// one of them (exactly n - step_size idle entities): larger than any sum of floored scores.
 constexpr double kIdleBonus = 1e7;
+/// The score of a column an entity may not take: below any sum of bonuses and floors.
+constexpr double kForbidden = 1e9;
 
 /// Rows to distinct columns minimising the summed cost (Hungarian method, O(n^2 m),
 /// n <= m); returns the column of every row. Ties resolve by row and column order.
@@ -89,29 +92,41 @@ bool keepsRules(const std::vector<DecodedToken>& step, const StepRules& rules) {
   return rules.step_size <= 0 || acting == rules.step_size;
 }
 
-}  // namespace
+/// An entity's head outputs, floored, and its best acting class and best target.
+struct Heads {
+  int n = 0, actions = 0, targets = 0;
+  const std::vector<double>* log_action = nullptr;
+  const std::vector<double>* log_target = nullptr;
+  std::vector<int> best_action, best_target;
+  double la(int i, int c) const { return std::max(kLogFloor, (*log_action)[static_cast<size_t>(i * actions + c)]); }
+  double lt(int i, int c) const { return std::max(kLogFloor, (*log_target)[static_cast<size_t>(i * targets + c)]); }
+};
 
-std::vector<DecodedToken> decodeStep(const std::vector<double>& log_action, int actions,
-                                     const std::vector<double>& log_target, int targets, const StepRules& rules) {
+Heads headsOf(const std::vector<double>& log_action, int actions, const std::vector<double>& log_target, int targets,
+              const StepRules& rules) {
   if (actions < 2 || targets < 1 || log_action.size() % static_cast<size_t>(actions) != 0)
     throw Error("decodeStep: log_action is not [n][actions] with at least one action besides idle");
-  const int n = static_cast<int>(log_action.size() / static_cast<size_t>(actions));
-  if (log_target.size() != static_cast<size_t>(n) * static_cast<size_t>(targets))
+  Heads h;
+  h.n = static_cast<int>(log_action.size() / static_cast<size_t>(actions));
+  h.actions = actions;
+  h.targets = targets;
+  if (log_target.size() != static_cast<size_t>(h.n) * static_cast<size_t>(targets))
     throw Error("decodeStep: log_target is not [n][targets]");
-  if (rules.step_size > n) throw Error("decodeStep: step_size is larger than the number of entities");
-  const auto la = [&](int i, int c) { return std::max(kLogFloor, log_action[static_cast<size_t>(i * actions + c)]); };
-  const auto lt = [&](int i, int c) { return std::max(kLogFloor, log_target[static_cast<size_t>(i * targets + c)]); };
-  std::vector<DecodedToken> independent(static_cast<size_t>(n));
-  std::vector<int> best_action(static_cast<size_t>(n)), best_target(static_cast<size_t>(n));
-  for (int i = 0; i < n; ++i) {
+  if (rules.step_size > h.n) throw Error("decodeStep: step_size is larger than the number of entities");
+  h.log_action = &log_action;
+  h.log_target = &log_target;
+  for (int i = 0; i < h.n; ++i) {
     const size_t a0 = static_cast<size_t>(i * actions), t0 = static_cast<size_t>(i * targets);
-    best_action[static_cast<size_t>(i)] = 1 + argmax(log_action, a0 + 1, a0 + static_cast<size_t>(actions));
-    best_target[static_cast<size_t>(i)] = argmax(log_target, t0, t0 + static_cast<size_t>(targets));
-    const int a = argmax(log_action, a0, a0 + static_cast<size_t>(actions));
-    if (a != 0) independent[static_cast<size_t>(i)] = {a, best_target[static_cast<size_t>(i)]};
+    h.best_action.push_back(1 + argmax(log_action, a0 + 1, a0 + static_cast<size_t>(actions)));
+    h.best_target.push_back(argmax(log_target, t0, t0 + static_cast<size_t>(targets)));
   }
-  if (!rules.any() || keepsRules(independent, rules)) return independent;
+  return h;
+}
 
+/// The best joint assignment under `rules` (see StepRules); with `must_act` >= 0 that
+/// entity may not be idle. Returns the tokens and the assignment's summed score.
+std::pair<std::vector<DecodedToken>, double> jointAssignment(const Heads& h, const StepRules& rules, int must_act) {
+  const int n = h.n;
   // Columns an entity can be assigned to, each once: acting with target slot t (one column
   // per target entity when targets are exclusive, else acting with its own best target),
   // acting without a target, idle (its target is free: the target head's best).
@@ -121,7 +136,7 @@ std::vector<DecodedToken> decodeStep(const std::vector<double>& log_action, int 
   };
   std::vector<Column> columns;
   if (rules.exclusive_targets) {
-    for (int t = 1; t < targets; ++t) columns.push_back({t, false});
+    for (int t = 1; t < h.targets; ++t) columns.push_back({t, false});
     for (int i = 0; i < n; ++i) columns.push_back({0, false});
   } else {
     for (int i = 0; i < n; ++i) columns.push_back({0, true});
@@ -131,24 +146,90 @@ std::vector<DecodedToken> decodeStep(const std::vector<double>& log_action, int 
   const int m = static_cast<int>(columns.size());
   std::vector<double> cost(static_cast<size_t>(n) * static_cast<size_t>(m));
   for (int i = 0; i < n; ++i) {
-    const int a = best_action[static_cast<size_t>(i)], bt = best_target[static_cast<size_t>(i)];
+    const int a = h.best_action[static_cast<size_t>(i)], bt = h.best_target[static_cast<size_t>(i)];
     for (int j = 0; j < m; ++j) {
       const Column& c = columns[static_cast<size_t>(j)];
       double score;
-      if (c.target < 0) score = la(i, 0) + lt(i, bt) + (rules.step_size > 0 ? kIdleBonus : 0);
-      else score = la(i, a) + lt(i, c.own_best ? bt : c.target);
+      if (c.target < 0)
+        score = i == must_act ? -kForbidden : h.la(i, 0) + h.lt(i, bt) + (rules.step_size > 0 ? kIdleBonus : 0);
+      else score = h.la(i, a) + h.lt(i, c.own_best ? bt : c.target);
       cost[static_cast<size_t>(i * m + j)] = -score;
     }
   }
   const std::vector<int> column = minCostAssignment(cost, n, m);
   std::vector<DecodedToken> joint(static_cast<size_t>(n));
+  double total = 0;
   for (int i = 0; i < n; ++i) {
-    const Column& c = columns[static_cast<size_t>(column[static_cast<size_t>(i)])];
+    const int j = column[static_cast<size_t>(i)];
+    const Column& c = columns[static_cast<size_t>(j)];
+    total -= cost[static_cast<size_t>(i * m + j)];
     if (c.target >= 0)
-      joint[static_cast<size_t>(i)] = {best_action[static_cast<size_t>(i)],
-                                       c.own_best ? best_target[static_cast<size_t>(i)] : c.target};
+      joint[static_cast<size_t>(i)] = {h.best_action[static_cast<size_t>(i)],
+                                       c.own_best ? h.best_target[static_cast<size_t>(i)] : c.target};
   }
-  return joint;
+  return {joint, total};
+}
+
+bool isEmpty(const std::vector<DecodedToken>& step) {
+  return std::all_of(step.begin(), step.end(), [](const DecodedToken& t) { return t.action == 0; });
+}
+
+}  // namespace
+
+std::vector<DecodedToken> decodeStep(const std::vector<double>& log_action, int actions,
+                                     const std::vector<double>& log_target, int targets, const StepRules& rules) {
+  const Heads h = headsOf(log_action, actions, log_target, targets, rules);
+  std::vector<DecodedToken> independent(static_cast<size_t>(h.n));
+  for (int i = 0; i < h.n; ++i) {
+    const size_t a0 = static_cast<size_t>(i * actions);
+    const int a = argmax(log_action, a0, a0 + static_cast<size_t>(actions));
+    if (a != 0) independent[static_cast<size_t>(i)] = {a, h.best_target[static_cast<size_t>(i)]};
+  }
+  if (!rules.any() || keepsRules(independent, rules)) return independent;
+  return jointAssignment(h, rules, -1).first;
+}
+
+double stepLogProbability(const std::vector<DecodedToken>& step, const std::vector<double>& log_action, int actions,
+                          const std::vector<double>& log_target, int targets) {
+  const Heads h = headsOf(log_action, actions, log_target, targets, StepRules{});
+  if (step.size() != static_cast<size_t>(h.n)) throw Error("stepLogProbability: the step is not one token per entity");
+  double sum = 0;
+  for (int i = 0; i < h.n; ++i) {
+    const DecodedToken& t = step[static_cast<size_t>(i)];
+    sum += h.la(i, t.action) + (t.action == 0 ? 0 : h.lt(i, t.target));
+  }
+  return sum;
+}
+
+StepDecision decideStep(double end_probability, const std::vector<double>& log_action, int actions,
+                        const std::vector<double>& log_target, int targets, const StepRules& rules) {
+  if (!std::isfinite(end_probability) || end_probability < 0 || end_probability > 1)
+    throw Error("decideStep: p(END) = " + std::to_string(end_probability) + " is not a probability");
+  StepDecision d;
+  if (end_probability > kEndThreshold) {
+    d.end = true;
+    return d;
+  }
+  d.tokens = decodeStep(log_action, actions, log_target, targets, rules);
+  if (!isEmpty(d.tokens)) return d;
+  // Every entity would stay idle, which is no step: the most probable step in which some
+  // entity acts (the joint decoder's best with entity k forced to act, best k, the first
+  // on ties), unless END is at least as probable as it.
+  const Heads h = headsOf(log_action, actions, log_target, targets, rules);
+  double best = -std::numeric_limits<double>::infinity();
+  for (int k = 0; k < h.n; ++k) {
+    auto [step, score] = jointAssignment(h, rules, k);
+    if (score > best) {
+      best = score;
+      d.tokens = std::move(step);
+    }
+  }
+  const double log_step = stepLogProbability(d.tokens, log_action, actions, log_target, targets);
+  if (std::log(end_probability) >= std::log1p(-end_probability) + log_step) {
+    d.end = true;
+    d.tokens.assign(static_cast<size_t>(h.n), DecodedToken{});
+  }
+  return d;
 }
 
 }  // namespace ddace::tgn::detail

@@ -31,9 +31,9 @@ class ThreadCount {
   int saved_;
 };
 
-}  // namespace
-
-SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& options, std::ostream* progress) {
+/// One training run with exactly `options`.
+std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, const TrainOptions& options,
+                                                  std::ostream* progress) {
   auto impl = prepare(train, options);
   const auto started = std::chrono::steady_clock::now();
   const ThreadCount threads(options.threads);
@@ -88,6 +88,31 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
     }
   }
   net.eval();
+  return impl;
+}
+
+}  // namespace
+
+SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& options, std::ostream* progress) {
+  std::shared_ptr<Impl> impl = trainNetwork(train, options, progress);
+  // The identity embedding lets the scene network tell entities apart by name, which the
+  // fixed-order tasks need; where the decision is the scene's (nearest_goal), it can also
+  // settle on fitting the demonstrations by name and stall short of them. Then a network
+  // that must decide from the scene alone is trained too, and kept when it fits better.
+  const double fit = impl->info.history.back().step_accuracy;
+  if (options.variant == Variant::Scene && options.identity_embedding && fit < 1) {
+    TrainOptions without = options;
+    without.identity_embedding = false;
+    if (progress)
+      *progress << "step accuracy " << fit << " with the identity embedding: training without it" << std::endl;
+    std::shared_ptr<Impl> alternative = trainNetwork(train, without, progress);
+    const double alternative_fit = alternative->info.history.back().step_accuracy;
+    const bool better = alternative_fit > fit;
+    if (progress)
+      *progress << "step accuracy " << alternative_fit << " without the identity embedding: keeping the network "
+                << (better ? "without" : "with") << " it" << std::endl;
+    if (better) impl = alternative;
+  }
   return SequenceModel(impl);
 }
 
