@@ -13,7 +13,6 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <map>
 #include <set>
@@ -55,9 +54,11 @@ std::string keyOf(const ddace::Token& t) {
 
 /// True when process `pid` runs roslaunch (only then is it ours to end).
 bool isRoslaunch(pid_t pid) {
-  std::ifstream f("/proc/" + std::to_string(pid) + "/cmdline");
-  std::string cmd((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  return cmd.find("roslaunch") != std::string::npos;
+  try {
+    return readTextFile("/proc/" + std::to_string(pid) + "/cmdline").find("roslaunch") != std::string::npos;
+  } catch (const Error&) {
+    return false;  // gone, or not ours to read
+  }
 }
 
 /// scripts/plot_run.py as the build installs it: next to this executable (devel/lib/ddace
