@@ -13,7 +13,6 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <map>
 #include <set>
@@ -55,9 +54,11 @@ std::string keyOf(const ddace::Token& t) {
 
 /// True when process `pid` runs roslaunch (only then is it ours to end).
 bool isRoslaunch(pid_t pid) {
-  std::ifstream f("/proc/" + std::to_string(pid) + "/cmdline");
-  std::string cmd((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  return cmd.find("roslaunch") != std::string::npos;
+  try {
+    return readTextFile("/proc/" + std::to_string(pid) + "/cmdline").find("roslaunch") != std::string::npos;
+  } catch (const Error&) {
+    return false;  // gone, or not ours to read
+  }
 }
 
 /// scripts/plot_run.py as the build installs it: next to this executable (devel/lib/ddace
@@ -114,7 +115,8 @@ class ExecutionMonitorNode::Impl {
   Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) : nh_(nh) {
     const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
     spec_ = ros_exec::loadTaskSpec(task_path);
-    const int gt = rosparam::param(pnh, "ground_truth_demo", -1);
+    const ExecutionMonitorNode::Params defaults;
+    const int gt = rosparam::param(pnh, "ground_truth_demo", defaults.ground_truth_demo);
     if (gt >= 0) {
       gt_file_ = task::demoFile(task_path, gt, "parameter '" + pnh.resolveName("ground_truth_demo") + "'");
       gt_ = task::readDemonstrationCsv(gt_file_, spec_);
@@ -143,8 +145,8 @@ class ExecutionMonitorNode::Impl {
     if (!plot_script_.empty() && fs::path(plot_script_).is_relative())
       throw Error("parameter '" + pnh.resolveName("plot_script") + "' = '" + plot_script_ +
                   "' is relative: nodes run in ROS_HOME, give an absolute path");
-    end_launch_ = rosparam::param(pnh, "end_launch", true);
-    const double timeout_s = rosparam::param(pnh, "timeout_s", 0.0);
+    end_launch_ = rosparam::param(pnh, "end_launch", defaults.end_launch);
+    const double timeout_s = rosparam::param(pnh, "timeout_s", defaults.timeout_s);
     std::vector<std::string> topics = {"/ddace/entities", "/ddace/decision_request", "/coordinator/state",
                                        "/ddace/estop"};
     for (const auto& e : spec_.entities) {
@@ -161,7 +163,7 @@ class ExecutionMonitorNode::Impl {
     subs_.push_back(nh.subscribe("/coordinator/state", 10, &Impl::onState, this));
     subs_.push_back(nh.subscribe("/ddace/entities", 10, &Impl::onEntities, this));
     for (const auto& sub : subs_) listeners_[ros::this_node::getName()].push_back(sub.getTopic());
-    record_bag_ = rosparam::param(pnh, "record_bag", true);
+    record_bag_ = rosparam::param(pnh, "record_bag", defaults.record_bag);
     if (record_bag_) {
       startBag(topics);
       listeners_[bagNode()] = topics;

@@ -44,7 +44,7 @@ class MockHamsterNode::Impl {
     const auto only = ddace::rosparam::param(pnh, "robots", std::vector<std::string>{});
     const std::optional<double> true_mps = ddace::rosparam::optionalParam<double>(pnh, "true_mps_per_unit");
     if (true_mps && !(*true_mps > 0.0)) throw ddace::Error("parameter ~true_mps_per_unit must be > 0");
-    const double robot_timeout_s = ddace::rosparam::param(pnh, "robot_timeout_s", 0.0);
+    const double robot_timeout_s = ddace::rosparam::param(pnh, "robot_timeout_s", MockRobotSettings{}.robot_timeout_s);
     frame_id_ = ddace::rosparam::param<std::string>(pnh, "frame_id", kTableFrame);
     const std::vector<RobotConfig> chosen = selectRobots(config, only, "parameter ~robots", config_path);
     for (size_t index = 0; index < chosen.size(); ++index) {

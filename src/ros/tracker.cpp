@@ -135,7 +135,7 @@ class TrackerNode::Impl {
     raw_pub_ = it_.advertise("image_raw", 1);
     info_pub_ = nh_.advertise<sensor_msgs::CameraInfo>("camera_info", 1);
     const double camera_fps = capture_.get(cv::CAP_PROP_FPS);
-    capture_rate_hz_ = rosparam::param(pnh_, "video_rate_hz", camera_fps > 0 ? camera_fps : 30.0);
+    capture_rate_hz_ = rosparam::param(pnh_, "video_rate_hz", camera_fps > 0 ? camera_fps : defaults_.video_rate_hz);
     if (!(capture_rate_hz_ > 0 && capture_rate_hz_ <= 1000))
       throw Error("parameter " + pnh_.resolveName("video_rate_hz") + " must be in (0, 1000] Hz");
   }

@@ -48,6 +48,16 @@ namespace ddace::nodes {
 /// of a run that has not ended (interrupted).
 class ExecutionMonitorNode {
  public:
+  /// The node's own parameters (private namespace) with a fixed default, as
+  /// config/execution.yaml (section execution_monitor) documents them. run_dir, runs_dir
+  /// and plot_script default to places found at run time (above).
+  struct Params {
+    int ground_truth_demo = -1;  ///< index into the task's demos/ scored against; -1 = none
+    bool record_bag = true;      ///< record run.bag (rosbag record)
+    bool end_launch = true;      ///< SIGINT the parent roslaunch once the record is written
+    double timeout_s = 0.0;      ///< give up and write the record after this long; 0 = never
+  };
+
   ExecutionMonitorNode(ros::NodeHandle nh, ros::NodeHandle pnh);
   ~ExecutionMonitorNode();
 

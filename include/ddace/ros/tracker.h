@@ -36,6 +36,7 @@ class TrackerNode {
     int video_device = -1;               ///< V4L2 device number; < 0 = none
     int video_width = 0;                 ///< requested capture size; 0 = the device's
     int video_height = 0;
+    double video_rate_hz = 30.0;  ///< frames read per second when the source reports no rate
   };
 
   TrackerNode(ros::NodeHandle nh, ros::NodeHandle pnh);

@@ -24,37 +24,27 @@ std::string joinKey(const std::string& entity, const std::string& action, const 
   return entity + ":" + action + ":" + target;
 }
 
-/// The fields of primitives.yaml through the one YamlChecker: each records its
-/// diagnostic (file:line:column) and says whether the value is usable, so a file is
-/// refused with every problem at once. `where` prefixes the field's name in messages.
-YAML::Node field(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where) {
-  if (!map.IsMap()) return YAML::Node(YAML::NodeType::Undefined);  // reported by the caller's expectMap
-  const YAML::Node n = map[key];
-  if (!n.IsDefined() || n.IsNull()) {
-    c.error(map, where + "missing key '" + key + "'");
-    return YAML::Node(YAML::NodeType::Undefined);
-  }
-  return n;
-}
-
+// The fields of primitives.yaml through the one YamlChecker: each records its
+// diagnostic (file:line:column) and says whether the value is usable, so a file is
+// refused with every problem at once. `where` prefixes the field's name in messages.
 bool textField(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where,
                std::string& out) {
-  const YAML::Node n = field(c, map, key, where);
+  const YAML::Node n = c.required(map, key, where);
   return n && c.scalar(n, where + key, out);
 }
 
 bool number(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where, double& out) {
-  const YAML::Node n = field(c, map, key, where);
+  const YAML::Node n = c.required(map, key, where);
   return n && c.number(n, where + key, out);
 }
 
 bool positive(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where, double& out) {
-  const YAML::Node n = field(c, map, key, where);
+  const YAML::Node n = c.required(map, key, where);
   return n && c.positive(n, where + key, out);
 }
 
 bool nonNegative(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where, double& out) {
-  const YAML::Node n = field(c, map, key, where);
+  const YAML::Node n = c.required(map, key, where);
   double v = 0;
   if (!n || !c.number(n, where + key, v)) return false;
   if (v < 0) {
@@ -66,14 +56,14 @@ bool nonNegative(YamlChecker& c, const YAML::Node& map, const std::string& key, 
 }
 
 bool boolean(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where, bool& out) {
-  const YAML::Node n = field(c, map, key, where);
+  const YAML::Node n = c.required(map, key, where);
   return n && c.boolean(n, where + key, out);
 }
 
 /// A whole number in [lo, hi] (a fraction is an error, never truncated).
 bool integer(YamlChecker& c, const YAML::Node& map, const std::string& key, const std::string& where, int lo, int hi,
              int& out) {
-  const YAML::Node n = field(c, map, key, where);
+  const YAML::Node n = c.required(map, key, where);
   return n && c.integer(n, where + key, lo, hi, out);
 }
 
@@ -109,7 +99,7 @@ bool readGp(YamlChecker& c, const YAML::Node& node, int points, int segments, co
   data.counts = Eigen::VectorXd::Constant(points, segments);
   data.total = static_cast<double>(points) * segments;
   data.means.resize(points);
-  const YAML::Node means = field(c, node, "means", where);
+  const YAML::Node means = c.required(node, "means", where);
   if (means && (!means.IsSequence() || static_cast<int>(means.size()) != points)) {
     c.error(means, where + "'means' must be a list of " + std::to_string(points) + " numbers");
   } else if (means) {
@@ -415,7 +405,7 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
 
   PrimitiveLibrary lib;
   textField(c, root, "task", "", lib.task_);
-  const YAML::Node entities = field(c, root, "entities", "");
+  const YAML::Node entities = c.required(root, "entities");
   bool entities_ok = false;
   if (entities && (!entities.IsSequence() || entities.size() == 0)) {
     c.error(entities, "'entities' must be a non-empty list of names");
@@ -430,11 +420,8 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
       }
     }
   }
-  // The fingerprint's reader throws its own file:line:column diagnostics; they join ours.
-  std::vector<Diagnostic> fingerprint_errors;
-  if (const YAML::Node fp = field(c, root, "task_fingerprint", "")) {
-    try {
-      lib.fingerprint_ = task::parseFingerprint(fp, path);
+  if (const YAML::Node fp = c.required(root, "task_fingerprint")) {
+    if (task::parseFingerprint(c, fp, lib.fingerprint_)) {
       std::vector<std::string> sorted = lib.entities_;
       std::sort(sorted.begin(), sorted.end());
       std::vector<std::string> named;
@@ -442,15 +429,13 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
       // The fingerprint sorts "NAME:KIND" strings, where R10:... comes before R1:... (':' > '0').
       std::sort(named.begin(), named.end());
       if (entities_ok && sorted != named) c.error(fp, "task_fingerprint names other entities than 'entities'");
-    } catch (const Error& e) {
-      fingerprint_errors = e.diagnostics();
     }
   }
   // Bounded before anything is allocated from it (every GP holds points x points matrices).
   const bool have_points = integer(c, root, "points", "", 2, kMaxPrimitivePoints, lib.options_.points);
   boolean(c, root, "pin_endpoints", "", lib.options_.pin_endpoints);
   positive(c, root, "min_segment_length_m", "", lib.options_.min_segment_length_m);
-  const YAML::Node prims = field(c, root, "primitives", "");
+  const YAML::Node prims = c.required(root, "primitives");
   if (prims && !prims.IsSequence()) c.error(prims, "'primitives' must be a list");
   auto known = [&](const std::string& name) {
     return std::find(lib.entities_.begin(), lib.entities_.end(), name) != lib.entities_.end();
@@ -475,7 +460,7 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
       const bool counted = integer(c, node, "segments", what + ": ", 1, kMaxPrimitiveSegments, p.segments);
       const bool skipped_ok =
           integer(c, node, "skipped_segments", what + ": ", 0, kMaxPrimitiveSegments, p.skipped_segments);
-      const YAML::Node x = field(c, node, "x", what + ": "), y = field(c, node, "y", what + ": ");
+      const YAML::Node x = c.required(node, "x", what + ": "), y = c.required(node, "y", what + ": ");
       if (!have_points || !counted) continue;  // a GP's size is unknown
       // Rebuilding GPs costs cubic time: only while the file is sound so far, and only for
       // as many numbers as the text can hold (YAML aliases are not part of the format).
@@ -484,13 +469,13 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
         c.error(node, what + ": more numbers than the file has characters (YAML aliases are not accepted here)");
         aliased = true;
       }
-      const bool condition = named && skipped_ok && !aliased && c.errors().empty() && fingerprint_errors.empty();
+      const bool condition = named && skipped_ok && !aliased && c.errors().empty();
       const bool fitted = (x && readGp(c, x, lib.options_.points, p.segments, what + ", x", condition, p.x)) &
                           (y && readGp(c, y, lib.options_.points, p.segments, what + ", y", condition, p.y));
       if (fitted) lib.primitives_.emplace(p.key, std::move(p));
     }
+  // In file order: a hand-edited file's keys may come in any order.
   std::vector<Diagnostic> all = c.errors();
-  all.insert(all.end(), fingerprint_errors.begin(), fingerprint_errors.end());
   std::stable_sort(all.begin(), all.end(), [](const Diagnostic& a, const Diagnostic& b) {
     return std::tie(a.line, a.column) < std::tie(b.line, b.column);
   });

@@ -113,21 +113,19 @@ RobotConfig parseRobot(YamlChecker& c, const YAML::Node& node, size_t index, con
     return r;
   }
   c.onlyKeys(node, {"name", "address", "model", "port_hints", "transport", "ble_adapter", "calibration"}, where);
-  if (!node["name"]) {
-    c.error(node, where + ": missing key 'name'");
-  } else if (c.scalar(node["name"], where + ".name", r.name)) {
+  const YAML::Node name = c.required(node, "name", where + ": ");
+  if (name && c.scalar(name, where + ".name", r.name)) {
     bool ok = !r.name.empty() && (std::isalpha(static_cast<unsigned char>(r.name[0])) != 0);
     for (char ch : r.name) ok = ok && (std::isalnum(static_cast<unsigned char>(ch)) || ch == '_');
-    if (!ok) c.error(node["name"], where + ".name '" + r.name + "' is not a valid ROS name (letters, digits, _)");
+    if (!ok) c.error(name, where + ".name '" + r.name + "' is not a valid ROS name (letters, digits, _)");
   }
   const std::string who = r.name.empty() ? where : "robot " + r.name;
   std::string address;
-  if (!node["address"]) {
-    c.error(node, who + ": missing key 'address' (12 hex digits as on the wire, or AA:BB:CC:DD:EE:FF)");
-  } else if (c.scalar(node["address"], who + " address", address)) {
+  const YAML::Node address_node = c.required(node, "address", who + ": ");
+  if (address_node && c.scalar(address_node, who + " address", address)) {
     const auto a = Address::parse(address);
     if (!a) {
-      c.error(node["address"],
+      c.error(address_node,
               who + ": address '" + address + "' is neither 12 hex digits (wire order) nor AA:BB:CC:DD:EE:FF");
     } else {
       r.address = *a;
@@ -166,12 +164,10 @@ RobotConfig parseRobot(YamlChecker& c, const YAML::Node& node, size_t index, con
   } else if (node["ble_adapter"]) {
     c.error(node["ble_adapter"], who + ": ble_adapter applies to transport ble only");
   }
-  const YAML::Node cal = node["calibration"];
-  if (!cal) {
-    c.error(node, who + ": missing key 'calibration' (measure it with scripts/calibrate_hamster.py)");
-  } else if (!cal.IsMap()) {
+  const YAML::Node cal = c.required(node, "calibration", who + ": ");
+  if (cal && !cal.IsMap()) {
     c.error(cal, who + " calibration must be a mapping");
-  } else {
+  } else if (cal) {
     c.onlyKeys(cal, {"mps_per_unit", "left_mps_per_unit", "right_mps_per_unit", "max_units", "track_m"},
                who + " calibration");
     double both = 0;
@@ -235,12 +231,10 @@ BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& 
     c.error(root["battery_empty_v"], "battery_empty_v (" + std::to_string(cfg.battery_empty_v) +
                                          ") must be below battery_low_v (" + std::to_string(cfg.battery_low_v) + ")");
   }
-  const YAML::Node robots = root["robots"];
-  if (!robots) {
-    c.error(root, "missing key 'robots' (a list of {name, address, calibration})");
-  } else if (!robots.IsSequence() || robots.size() == 0) {
+  const YAML::Node robots = c.required(root, "robots");
+  if (robots && (!robots.IsSequence() || robots.size() == 0)) {
     c.error(robots, "robots must be a non-empty list of {name, address, calibration}");
-  } else {
+  } else if (robots) {
     std::map<std::string, size_t> names, addresses;
     for (size_t i = 0; i < robots.size(); ++i) {
       bool address_ok = false;

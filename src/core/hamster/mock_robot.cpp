@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstring>
 
+#include "ddace/common/angle.h"
 #include "ddace/common/error.h"
 
 namespace ddace::hamster {
@@ -171,7 +172,7 @@ void MockRobot::step(double now_s) {
     const double mid = settings_.theta_rad + 0.5 * w * dt;
     settings_.x_m += v * std::cos(mid) * dt;
     settings_.y_m += v * std::sin(mid) * dt;
-    settings_.theta_rad = std::remainder(settings_.theta_rad + w * dt, 2.0 * M_PI);
+    settings_.theta_rad = wrapAngle(settings_.theta_rad + w * dt);
   }
   last_step_s_ = now_s;
 

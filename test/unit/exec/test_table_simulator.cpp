@@ -3,15 +3,17 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <functional>
 #include <string>
 
 #include "ddace/common/error.h"
 #include "ddace/exec/scene.h"
 #include "ddace/exec/table_simulator.h"
 
+#include "../common/error_of.h"
+
 using namespace ddace;
 using namespace ddace::exec;
+using ddace::test::errorOf;
 
 namespace {
 
@@ -41,15 +43,6 @@ std::vector<ObjectStatus> run(TableSimulator& sim, int n) {
 
 bool contains(const std::string& text, const std::string& part) {
   return text.find(part) != std::string::npos;
-}
-
-std::string errorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
 }
 
 }  // namespace

@@ -2,23 +2,27 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <map>
+#include <regex>
+#include <sstream>
 
 #include "ddace/common/error.h"
+#include "ddace/common/file.h"
 #include "ddace/common/repository.h"
 #include "ddace/hamster/config.h"
 #include "ddace/hamster/mock_robot.h"
+#include "ddace/hamster/transport.h"
+
+#include "../common/error_of.h"
 
 using namespace ddace::hamster;
 
 namespace {
 
+/// What parseBridgeConfig says of `yaml` as h.yaml ("" when it accepts it).
 std::string errorOf(const std::string& yaml) {
-  try {
-    parseBridgeConfig(yaml, "h.yaml");
-  } catch (const ddace::Error& e) {
-    return e.what();
-  }
-  return "";
+  return ddace::test::errorOf([&] { parseBridgeConfig(yaml, "h.yaml"); });
 }
 
 const char* kRobot = "robots:\n  - name: R1\n    address: 67E1A48B4BD9\n    calibration: {mps_per_unit: 0.002}\n";
@@ -53,6 +57,72 @@ TEST(HamsterConfig, ShippedConfigIsValid) {
   const BridgeConfig c =
       loadBridgeConfig((ddace::findRepository("", {"config/hamsters.yaml"}) / "config/hamsters.yaml").string());
   EXPECT_GE(c.robots.size(), 1u);
+}
+
+// The header comment of config/hamsters.yaml is the reference users read for what an
+// omitted key means: "key: type  text ... (default V" (the text may go on over indented
+// lines). Every default it states must be the one the parser applies.
+TEST(HamsterConfig, TheShippedConfigStatesTheDefaultsTheParserApplies) {
+  const std::string file = (ddace::findRepository("", {"config/hamsters.yaml"}) / "config/hamsters.yaml").string();
+  std::map<std::string, std::string> documented;  // key -> its "(default ...)" text
+  const std::regex key_line(R"(^#( {3}| {5}- | {7}| {9})([a-z_]+):)");
+  const std::regex default_text(R"(\(default (\[[^\]]*\]|[^,;)]+))");
+  std::istringstream lines(ddace::readTextFile(file));
+  std::string key;
+  for (std::string line; std::getline(lines, line);) {
+    std::smatch m;
+    if (line.rfind("#  ", 0) != 0) {
+      key.clear();  // the end of the schema block
+      continue;
+    }
+    if (std::regex_search(line, m, key_line)) key = m[2].str();
+    if (!key.empty() && !documented.count(key) && std::regex_search(line, m, default_text))
+      documented[key] = m[1].str();
+  }
+  const BridgeConfig c;
+  const RobotConfig r;
+  const Calibration cal;
+  auto number = [](double v) {
+    std::ostringstream out;
+    out.precision(17);  // round-trips: compared as a number below
+    out << v;
+    return out.str();
+  };
+  std::string scan;
+  for (const auto& p : defaultScanPatterns()) scan += (scan.empty() ? "" : ", ") + p;
+  const std::map<std::string, std::string> applied = {
+      {"port_dir", c.port_dir},
+      {"scan", "[" + scan + "]"},
+      {"rtscts", c.rtscts ? "true" : "false"},
+      {"command_timeout_s", number(c.command_timeout_s)},
+      {"command_max_age_s", number(c.command_max_age_s)},
+      {"link_timeout_s", number(c.link_timeout_s)},
+      {"identify_interval_s", number(c.identify_interval_s)},
+      {"identify_retries", number(c.identify_retries)},
+      {"rescan_interval_s", number(c.rescan_interval_s)},
+      {"transport", r.transport == TransportKind::Serial ? "serial" : "ble"},
+      {"ble_adapter", r.ble_adapter},
+      {"ble_connect_timeout_s", number(c.ble_connect_timeout_s)},
+      {"battery_low_v", number(c.battery_low_v)},
+      {"battery_empty_v", number(c.battery_empty_v)},
+      {"battery_samples", number(c.battery_samples)},
+      {"model", r.model == Model::Unknown ? "auto" : "not auto"},
+      {"max_units", number(cal.max_units)},
+      {"track_m", number(cal.track_m)},
+  };
+  for (const auto& [k, value] : applied) {
+    ASSERT_TRUE(documented.count(k)) << file << " states no default for " << k;
+    // "serial = USB dongle", "auto: whatever ...", "3.6, the official ...": the value is the first word.
+    const std::string stated = documented.at(k).substr(0, documented.at(k).find_first_of(k == "scan" ? "" : " :"));
+    // Numbers as numbers: "3.0" states 3.
+    char* end = nullptr;
+    const double stated_number = std::strtod(stated.c_str(), &end);
+    if (*end == '\0' && !stated.empty())
+      EXPECT_EQ(stated_number, std::stod(value)) << file << ": the default of " << k << " is " << value;
+    else EXPECT_EQ(stated, value) << file << ": the default of " << k;
+  }
+  // A default stated for a key this test does not know is checked nowhere: add it above.
+  for (const auto& [k, text] : documented) EXPECT_TRUE(applied.count(k)) << k << " (default " << text << ")";
 }
 
 TEST(HamsterConfig, ErrorsNameFileLineAndColumn) {
