@@ -16,6 +16,7 @@
 #include "ddace/exec/diff_drive.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/ros/coordinator.h"
+#include "ddace/ros/execution_monitor.h"
 #include "ddace/ros/gp_path.h"
 #include "ddace/ros/heartbeat.h"
 #include "ddace/ros/mock_robot.h"
@@ -139,6 +140,13 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"allow_other_task", value(s.allow_other_task)},
                   {"heartbeat_rate_hz", value(beat_hz)}},
                  {"policy"});
+
+  const ddace::nodes::ExecutionMonitorNode::Params e;
+  expectDefaults(yaml["execution_monitor"], "execution_monitor",
+                 {{"record_bag", value(e.record_bag)},
+                  {"end_launch", value(e.end_launch)},
+                  {"timeout_s", value(e.timeout_s)},
+                  {"heartbeat_rate_hz", value(beat_hz)}});
 
   const GpPathNode::Params p;
   const YAML::Node gp = yaml["gp_path"];

@@ -33,9 +33,11 @@ class YamlChecker {
   /// `map` that is not in `allowed`. Does nothing when `map` is not a mapping.
   void onlyKeys(const YAML::Node& map, const std::set<std::string>& allowed, const std::string& where);
   /// `map[key]` when `map` holds `key` with a value; else records "<where>missing key
-  /// '<key>'" at `map` (a null value is no value) and returns an undefined node (false in
-  /// a condition). Records nothing when `map` is not a mapping (expectMap says so).
-  YAML::Node required(const YAML::Node& map, const std::string& key, const std::string& where = "");
+  /// '<key>'" at `map` (a null value is no value), followed by " (<hint>)" when a hint is
+  /// given (how to get the value), and returns an undefined node (false in a condition).
+  /// Records nothing when `map` is not a mapping (expectMap says so).
+  YAML::Node required(const YAML::Node& map, const std::string& key, const std::string& where = "",
+                      const std::string& hint = "");
   /// True when `node` is a mapping; else records "<where> must be a mapping (key: value)".
   bool expectMap(const YAML::Node& node, const std::string& where);
 

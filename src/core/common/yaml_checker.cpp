@@ -35,11 +35,12 @@ void YamlChecker::onlyKeys(const YAML::Node& map, const std::set<std::string>& a
   }
 }
 
-YAML::Node YamlChecker::required(const YAML::Node& map, const std::string& key, const std::string& where) {
+YAML::Node YamlChecker::required(const YAML::Node& map, const std::string& key, const std::string& where,
+                                 const std::string& hint) {
   if (!map.IsMap()) return YAML::Node(YAML::NodeType::Undefined);
   const YAML::Node n = map[key];
   if (n.IsDefined() && !n.IsNull()) return n;
-  error(map, where + "missing key '" + key + "'");
+  error(map, where + "missing key '" + key + "'" + (hint.empty() ? "" : " (" + hint + ")"));
   return YAML::Node(YAML::NodeType::Undefined);
 }
 

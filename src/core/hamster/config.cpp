@@ -164,7 +164,7 @@ RobotConfig parseRobot(YamlChecker& c, const YAML::Node& node, size_t index, con
   } else if (node["ble_adapter"]) {
     c.error(node["ble_adapter"], who + ": ble_adapter applies to transport ble only");
   }
-  const YAML::Node cal = c.required(node, "calibration", who + ": ");
+  const YAML::Node cal = c.required(node, "calibration", who + ": ", "measure it with scripts/calibrate_hamster.py");
   if (cal && !cal.IsMap()) {
     c.error(cal, who + " calibration must be a mapping");
   } else if (cal) {

@@ -34,16 +34,13 @@ SyntheticCameraConfig parseSyntheticCameraConfig(const std::string& text, const 
       r.error(v, std::string("'") + key + "' must be a list of " + std::to_string(n) + " numbers");
       return fallback;
     }
-    std::vector<double> out;
-    for (const auto& x : v) {
-      try {
-        out.push_back(x.as<double>());
-      } catch (const YAML::Exception&) {
-        r.error(x, std::string("'") + key + "' must hold numbers");
-        return fallback;
-      }
-    }
-    return out;
+    // Each element through the checker: the whole scalar, finite (a .nan camera position
+    // would render nothing, silently).
+    std::vector<double> out(n);
+    bool ok = true;
+    for (int i = 0; i < n; ++i)
+      ok = r.number(v[i], std::string("'") + key + "[" + std::to_string(i) + "]'", out[i]) && ok;
+    return ok ? out : fallback;
   };
   const auto pos = vec("position", 3, {c.position[0], c.position[1], c.position[2]});
   c.position = {pos[0], pos[1], pos[2]};

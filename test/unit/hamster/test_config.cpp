@@ -130,7 +130,7 @@ TEST(HamsterConfig, ErrorsNameFileLineAndColumn) {
             "h.yaml:3:14: robot R1: address '67E1A48B4BZZ' is neither 12 hex digits (wire order) nor "
             "AA:BB:CC:DD:EE:FF");
   EXPECT_NE(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BD9\n")
-                .find("h.yaml:2:5: robot R1: missing key 'calibration'"),
+                .find("h.yaml:2:5: robot R1: missing key 'calibration' (measure it with scripts/calibrate_hamster.py)"),
             std::string::npos);
   EXPECT_NE(errorOf("robots:\n  - name: R1\n    address: 67E1A48B4BD9\n    calibration: {mps_per_unit: -1}\n")
                 .find("mps_per_unit must be > 0"),

@@ -82,6 +82,23 @@ TEST(TrackerConfig, ShippedFilesLoad) {
   EXPECT_NO_THROW(loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml"));
 }
 
+TEST(SyntheticCameraConfig, PositionsMustBeFiniteNumbersWithTheirPlace) {
+  auto errorsOf = [](const std::string& text) {
+    return ddace::test::errorOf([&] { parseSyntheticCameraConfig(text, "cam.yaml"); });
+  };
+  // Every bad element is named, at its line and column; yaml-cpp's .nan and .inf are numbers
+  // to it, never a usable camera pose.
+  const std::string e = errorsOf("position: [.nan, 0, 1.5]\nlook_at: [.inf, x]\n");
+  EXPECT_NE(e.find("cam.yaml:1:12: 'position[0]': '.nan' is not a finite number"), std::string::npos) << e;
+  EXPECT_NE(e.find("cam.yaml:2:11: 'look_at[0]': '.inf' is not a finite number"), std::string::npos) << e;
+  EXPECT_NE(e.find("cam.yaml:2:17: 'look_at[1]': 'x' is not a finite number"), std::string::npos) << e;
+  EXPECT_NE(errorsOf("table_size: [1]\n").find("'table_size' must be a list of 2 numbers"), std::string::npos);
+  const SyntheticCameraConfig c = parseSyntheticCameraConfig("position: [0.1, -0.2, 1.25]\n", "cam.yaml");
+  EXPECT_DOUBLE_EQ(c.position[0], 0.1);
+  EXPECT_DOUBLE_EQ(c.position[1], -0.2);
+  EXPECT_DOUBLE_EQ(c.position[2], 1.25);
+}
+
 TEST(TrackerConfig, ErrorsNameFileLineAndColumn) {
   auto firstError = [](const std::string& text) { return firstErrorOf([&] { parseMarkerConfig(text, "m.yaml"); }); };
   EXPECT_EQ(firstError("family: DICT_4X4_50\nentities:\n  - {id: 1, name: R1}\n  - {id: 1, name: R2}\n"),
