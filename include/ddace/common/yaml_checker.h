@@ -6,6 +6,7 @@
 // every problem of a file; throwIfErrors() then throws them all at once.
 #pragma once
 
+#include <initializer_list>
 #include <set>
 #include <string>
 #include <vector>
@@ -59,6 +60,14 @@ class YamlChecker {
   bool integer(const YAML::Node& node, const std::string& what, int lo, int hi, int& out);
   /// true/True or false/False; else records "<what>: '<text>' is not true or false".
   bool boolean(const YAML::Node& node, const std::string& what, bool& out);
+
+  /// True when every check passed. Each is evaluated (a braced list runs left to right,
+  /// unlike `&&`), so one pass reports every problem: allOf({c.number(..), c.integer(..)}).
+  static bool allOf(std::initializer_list<bool> checks) {
+    bool all = true;
+    for (const bool passed : checks) all = all && passed;
+    return all;
+  }
 
   const std::string& file() const { return file_; }
   const std::vector<Diagnostic>& errors() const { return errors_; }

@@ -447,8 +447,9 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
       if (!c.expectMap(node, "a primitive")) continue;
       c.onlyKeys(node, {"key", "entity", "action", "target", "segments", "skipped_segments", "x", "y"}, "a primitive");
       Primitive p;
-      const bool named = textField(c, node, "key", "", p.key) & textField(c, node, "entity", "", p.entity) &
-                         textField(c, node, "action", "", p.action) & textField(c, node, "target", "", p.target);
+      const bool named =
+          YamlChecker::allOf({textField(c, node, "key", "", p.key), textField(c, node, "entity", "", p.entity),
+                              textField(c, node, "action", "", p.action), textField(c, node, "target", "", p.target)});
       const std::string what = "primitive " + p.key;
       if (named) {
         if (!known(p.entity)) c.error(node["entity"], what + ": unknown entity '" + p.entity + "'");
@@ -470,8 +471,9 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
         aliased = true;
       }
       const bool condition = named && skipped_ok && !aliased && c.errors().empty();
-      const bool fitted = (x && readGp(c, x, lib.options_.points, p.segments, what + ", x", condition, p.x)) &
-                          (y && readGp(c, y, lib.options_.points, p.segments, what + ", y", condition, p.y));
+      const bool fitted =
+          YamlChecker::allOf({x && readGp(c, x, lib.options_.points, p.segments, what + ", x", condition, p.x),
+                              y && readGp(c, y, lib.options_.points, p.segments, what + ", y", condition, p.y)});
       if (fitted) lib.primitives_.emplace(p.key, std::move(p));
     }
   // In file order: a hand-edited file's keys may come in any order.

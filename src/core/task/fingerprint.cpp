@@ -190,12 +190,12 @@ bool parseFingerprint(YamlChecker& c, const YAML::Node& node, TaskFingerprint& o
               "demonstrations", "digest"},
              "task_fingerprint");
   TaskFingerprint f;
-  // `&`, not `&&`: every field is checked, so one pass reports every problem.
-  bool ok = texts(c, node, "entities", f.entities) & texts(c, node, "vocabulary", f.vocabulary);
+  bool ok = YamlChecker::allOf({texts(c, node, "entities", f.entities), texts(c, node, "vocabulary", f.vocabulary)});
   if (const YAML::Node declared = field(c, node, "vocabulary_declared"))
     ok &= c.boolean(declared, "task_fingerprint: vocabulary_declared", f.vocabulary_declared);
   else ok = false;
-  ok &= texts(c, node, "goal_conditions", f.goal_conditions) & texts(c, node, "token_types", f.token_types);
+  ok = YamlChecker::allOf(
+      {texts(c, node, "goal_conditions", f.goal_conditions), texts(c, node, "token_types", f.token_types), ok});
   if (const YAML::Node steps = field(c, node, "step_counts")) {
     if (!steps.IsSequence()) {
       c.error(steps, "task_fingerprint: 'step_counts' must be a list");
