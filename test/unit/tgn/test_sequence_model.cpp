@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <limits>
 #include <set>
@@ -477,6 +478,44 @@ TEST(SequenceModel, SceneDecisionsDoNotDependOnWhereTheSceneIsOnTheTable) {
         EXPECT_EQ(named(p, m.spec()), named(q, m.spec())) << d.source << " step " << k << " mirror " << mirror;
       }
     }
+}
+
+// A demonstrated motion ends on its target; on robots it ends within the arrival radius of
+// it, short of it on the way there. The same scenes with every entity that arrived on
+// another stopping 0.8 radii short (the path follower stops within the radius less its
+// tracking tolerance) get the same decisions.
+TEST(SequenceModel, StoppingWithinTheArrivalRadiusOfATargetChangesNoDecision) {
+  // Task 2: R1 and R2 join R3, ..., R7 and R8 join R9, before R9 and R10 move on.
+  const tgn::SequenceModel m = tgn::SequenceModel::train(generate("task2", 10), tgn::TrainOptions{}, nullptr);
+  const task::TaskDir test = generate("task2", 3, 5);
+  const double radius = test.spec.arrival_radius;
+  int stopped_short = 0;
+  for (const auto& d : test.demos) {
+    std::vector<task::Snapshot> stopped = d.snapshots;
+    std::vector<Eigen::Vector2d> offset(d.entities(), Eigen::Vector2d::Zero());
+    for (size_t k = 1; k < d.snapshots.size(); ++k) {
+      const std::vector<Eigen::Vector2d>& now = d.snapshots[k].positions;
+      for (size_t i = 0; i < now.size(); ++i) {
+        if ((now[i] - d.snapshots[k - 1].positions[i]).norm() < 1e-9) continue;  // did not move
+        offset[i].setZero();
+        for (size_t j = 0; j < now.size(); ++j)
+          if (j != i && (now[j] - now[i]).norm() < 1e-9) {
+            // Short of it along its way there, as the path follower stops.
+            offset[i] = -0.8 * radius * (now[i] - d.snapshots[k - 1].positions[i]).normalized();
+            ++stopped_short;
+            break;
+          }
+      }
+      for (size_t i = 0; i < now.size(); ++i) stopped[k].positions[i] = now[i] + offset[i];
+    }
+    for (size_t k = 1; k <= d.snapshots.size(); ++k) {
+      const auto p = m.predictNext({d.snapshots.begin(), d.snapshots.begin() + static_cast<long>(k)});
+      const auto q = m.predictNext({stopped.begin(), stopped.begin() + static_cast<long>(k)});
+      EXPECT_EQ(p.end, q.end) << d.source << " step " << k;
+      EXPECT_EQ(named(p, m.spec()), named(q, m.spec())) << d.source << " step " << k;
+    }
+  }
+  EXPECT_GT(stopped_short, 0) << "no entity arrived on another: the test tests nothing";
 }
 
 TEST(SequenceModel, RefusesANonFinitePositionNamingTheEntityAndSnapshot) {
