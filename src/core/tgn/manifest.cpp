@@ -225,8 +225,8 @@ class Reader {
   /// `map[key]`; "missing key" when `map` has none.
   YAML::Node need(const YAML::Node& map, const std::string& key) {
     if (!map.IsMap()) fail(map, "expected a mapping with the key '" + key + "'");
-    const YAML::Node n = map[key];
-    if (!n) fail(map, "missing key '" + key + "'");
+    const YAML::Node n = c_.required(map, key);  // a key without a value is missing too
+    if (!n) throwNow();
     return n;
   }
   std::string textAt(const YAML::Node& node, const std::string& what) {
@@ -247,19 +247,19 @@ class Reader {
     if (!c_.number(node, what, v)) throwNow();
     return v;
   }
+  double numberIn(const YAML::Node& node, const std::string& what, double lo, double hi) {
+    double v = 0;
+    if (!c_.number(node, what, lo, hi, v)) throwNow();
+    return v;
+  }
   double number(const YAML::Node& map, const char* key) {
     return numberAt(need(map, key), std::string("'") + key + "'");
   }
-  /// A whole number in [lo, hi] (decimal digits, an optional leading '-').
+  /// A whole number in [lo, hi], checked and worded as every YAML reader does
+  /// ("<what> must be an integer in lo..hi (got x)").
   int64_t integerAt(const YAML::Node& node, const std::string& what, int64_t lo, int64_t hi) {
-    const std::string s = textAt(node, what);
-    const bool negative = !s.empty() && s[0] == '-';
-    const std::string digits = negative ? s.substr(1) : s;
-    const bool ok = !digits.empty() && digits.size() <= 19 &&
-                    std::all_of(digits.begin(), digits.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
-    const long long v = ok ? std::strtoll(s.c_str(), nullptr, 10) : 0;
-    if (!ok || v < lo || v > hi)
-      fail(node, what + ": '" + s + "' is not a whole number in " + std::to_string(lo) + ".." + std::to_string(hi));
+    long v = 0;
+    if (!c_.integer(node, what, static_cast<long>(lo), static_cast<long>(hi), v)) throwNow();
     return v;
   }
   int integer(const YAML::Node& map, const char* key) {
@@ -409,8 +409,7 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
       info.step_rules.exclusive_targets = r.boolean(rules, "exclusive_targets");
       const int n = static_cast<int>(spec.entities.size());
       info.step_rules.step_size = static_cast<int>(
-          r.integerAt(r.need(rules, "step_size"),
-                      "step_rules: step_size must be in 0.." + std::to_string(n) + " (the entities)", 0, n));
+          r.integerAt(r.need(rules, "step_size"), "step_rules: step_size (at most the entities)", 0, n));
       if (info.variant != Variant::Scene && info.step_rules.any())
         r.fail(rules, "step_rules are learned for the scene variant only (the others decode each entity on its own)");
     }
@@ -484,28 +483,27 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     const YAML::Node ref = r.need(root, "refinement");
     graph::RefinedGraph& g = info.refined;
     g.nodes = static_cast<int>(spec.entities.size());
-    g.demonstrations = static_cast<int>(r.integerAt(
-        r.need(ref, "demonstrations"), "demonstrations must be in 1.." + std::to_string(task::kMaxFingerprintCount), 1,
-        task::kMaxFingerprintCount));
-    g.clusters = static_cast<int>(r.integerAt(
-        r.need(ref, "clusters"), "clusters must be in 1.." + std::to_string(g.nodes) + " (the entities)", 1, g.nodes));
+    g.demonstrations = static_cast<int>(
+        r.integerAt(r.need(ref, "demonstrations"), "refinement: demonstrations", 1, task::kMaxFingerprintCount));
+    g.clusters = static_cast<int>(
+        r.integerAt(r.need(ref, "clusters"), "refinement: clusters (at most the entities)", 1, g.nodes));
     g.cluster.assign(static_cast<size_t>(g.nodes), 0);
     const YAML::Node cof = r.need(ref, "cluster_of");
     if (!cof.IsMap()) r.fail(cof, "'cluster_of' must map entity names to cluster indices");
     for (auto it = cof.begin(); it != cof.end(); ++it)
       g.cluster[static_cast<size_t>(r.entity(it->first, spec))] =
-          static_cast<int>(r.integerAt(it->second, "a cluster index (0..clusters-1)", 0, g.clusters - 1));
+          static_cast<int>(r.integerAt(it->second, "a cluster index (below clusters)", 0, g.clusters - 1));
     const auto eig = r.numbers(ref, "eigenvalues");
     if (eig.size() > static_cast<size_t>(g.nodes)) r.fail(ref["eigenvalues"], "more eigenvalues than entities");
     g.eigenvalues = Eigen::Map<const Eigen::VectorXd>(eig.data(), static_cast<Eigen::Index>(eig.size()));
     for (const YAML::Node& e : r.sequence(ref, "edges")) {
       graph::EdgeStats s;
       s.edge = {r.entity(r.need(e, "source"), spec), r.entity(r.need(e, "target"), spec)};
-      const std::string range = "an edge needs frequency >= 0, demos in 0..demonstrations, support in [0, 1]";
-      s.frequency = static_cast<int>(r.integerAt(r.need(e, "frequency"), range, 0, std::numeric_limits<int>::max()));
-      s.demos = static_cast<int>(r.integerAt(r.need(e, "demos"), range, 0, g.demonstrations));
-      s.support = r.number(e, "support");
-      if (!(s.support >= 0 && s.support <= 1)) r.fail(e, range);
+      s.frequency = static_cast<int>(
+          r.integerAt(r.need(e, "frequency"), "an edge's frequency", 0, std::numeric_limits<int>::max()));
+      s.demos = static_cast<int>(
+          r.integerAt(r.need(e, "demos"), "an edge's demos (at most demonstrations)", 0, g.demonstrations));
+      s.support = r.numberIn(r.need(e, "support"), "an edge's support", 0, 1);
       s.decision = r.decision(r.need(e, "decision"));
       g.edges.push_back(s);
       if (graph::isKept(s.decision)) g.kept.push_back(s.edge);

@@ -277,10 +277,17 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
   EXPECT_NE(edited("vocabulary: [move, stop]", "vocabulary: [stop, move]", true).find("task_fingerprint"),
             std::string::npos);
   EXPECT_NE(edited("threads: 1", "threads: 100000", true).find("threads: must be in 1..64"), std::string::npos);
-  EXPECT_NE(edited("clusters: ", "clusters: 99", true).find("clusters must be in"), std::string::npos);
+  {
+    const std::string e = edited("clusters: ", "clusters: 99", true);
+    EXPECT_NE(e.find("refinement: clusters (at most the entities) must be an integer in 1.."), std::string::npos) << e;
+  }
   // The digest line itself cut or changed.
   EXPECT_NE(edited("manifest_sha256: ", "manifest_sha256: 0", false).find("last line"), std::string::npos);
-  EXPECT_NE(edited("step_size: ", "step_size: 9", true).find("step_size must be in 0.."), std::string::npos);
+  {
+    const std::string e = edited("step_size: ", "step_size: 9", true);
+    EXPECT_NE(e.find("step_rules: step_size (at most the entities) must be an integer in 0.."), std::string::npos) << e;
+    EXPECT_NE(edited("step_size: ", "step_size:", true).find("missing key 'step_size'"), std::string::npos);
+  }
   // An older format: retrain, saying what it lacks; a newer one: said so.
   for (const char* version : {"ddace-model/3", "ddace-model/2"}) {
     const std::string old = edited("format: ddace-model/4", std::string("format: ") + version, false);
