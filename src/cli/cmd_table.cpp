@@ -101,7 +101,9 @@ fs::path dataset(const Settings& s, const std::string& name, tasks::GeneratorOpt
 }
 
 struct Row {
-  std::string task, variant, condition;
+  std::string task;
+  tgn::Variant variant = tgn::Variant::Scene;
+  std::string condition;
   eval::Summary m;
   double train_s = 0;
   int epochs = 0;
@@ -119,11 +121,11 @@ void countRules(const graph::RefinedGraph& g, int* rules) {
 /// Trains one model on data/train, evaluates it on data/test. `overlay`: also write the
 /// first trial's paths for the trajectory overlay figure.
 Row trainAndEvaluate(const Settings& s, const fs::path& data, const std::string& model_name, const std::string& family,
-                     const std::string& variant, const std::string& condition, bool overlay = false) {
+                     tgn::Variant variant, const std::string& condition, bool overlay = false) {
   const task::TaskDir train = task::loadTaskDir((data / "train").string());
   const task::TaskDir test = task::loadTaskDir((data / "test").string());
   tgn::TrainOptions opt;
-  opt.variant = tgn::variantFromString(variant);
+  opt.variant = variant;
   opt.seed = static_cast<uint64_t>(s.seed);
   if (s.max_epochs > 0) opt.max_epochs = s.max_epochs;
   if (opt.variant == tgn::Variant::Gnn && s.gnn_epochs > 0) opt.max_epochs = std::min(opt.max_epochs, s.gnn_epochs);
@@ -159,7 +161,7 @@ Row trainAndEvaluate(const Settings& s, const fs::path& data, const std::string&
             << ex.planned[i].y() << "\n";
   }
   std::printf("  %-12s %-10s %-26s OSR %.3f SSR %.3f GCR %.3f FD %.4f  (%d epochs, %s, %.1f s)\n", r.task.c_str(),
-              variant.c_str(), condition.c_str(), r.m.osr, r.m.ssr, r.m.gcr, r.m.fd, r.epochs, r.stop.c_str(),
+              tgn::toString(variant), condition.c_str(), r.m.osr, r.m.ssr, r.m.gcr, r.m.fd, r.epochs, r.stop.c_str(),
               r.train_s);
   std::fflush(stdout);
   return r;
@@ -168,7 +170,9 @@ Row trainAndEvaluate(const Settings& s, const fs::path& data, const std::string&
 /// One model of the table: trained on data/train, evaluated on data/test.
 struct Job {
   fs::path data;
-  std::string model_name, family, variant, condition;
+  std::string model_name, family;
+  tgn::Variant variant = tgn::Variant::Scene;
+  std::string condition;
   bool overlay = false;
 };
 
@@ -176,7 +180,7 @@ struct Job {
 void writeRow(const fs::path& path, const Row& r) {
   std::ofstream out(path);
   out << std::setprecision(17) << r.task << "\n"
-      << r.variant << "\n"
+      << tgn::toString(r.variant) << "\n"
       << r.condition << "\n"
       << r.stop << "\n"
       << r.m.trials << " " << r.m.osr << " " << r.m.ssr << " " << r.m.gcr << " " << r.m.fd << " " << r.m.fd_tokens
@@ -190,7 +194,9 @@ Row readRow(const fs::path& path) {
   Row r;
   std::string fd;  // "nan" when no motion token matched: not readable by operator>>
   std::getline(in, r.task);
-  std::getline(in, r.variant);
+  std::string variant;
+  std::getline(in, variant);
+  r.variant = tgn::variantFromString(variant);
   std::getline(in, r.condition);
   std::getline(in, r.stop);
   in >> r.m.trials >> r.m.osr >> r.m.ssr >> r.m.gcr >> fd >> r.m.fd_tokens >> r.train_s >> r.epochs >> r.demos >>
@@ -209,7 +215,7 @@ Row readRow(const fs::path& path) {
 std::vector<Row> runJobs(const Settings& s, const std::vector<Job>& jobs) {
   std::vector<size_t> order(jobs.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::stable_partition(order.begin(), order.end(), [&](size_t i) { return jobs[i].variant == "gnn"; });
+  std::stable_partition(order.begin(), order.end(), [&](size_t i) { return jobs[i].variant == tgn::Variant::Gnn; });
   const fs::path row_dir = s.out / "rows";
   fs::create_directories(row_dir);
   auto row_file = [&](size_t i) { return row_dir / (jobs[i].model_name + ".txt"); };
@@ -329,9 +335,9 @@ int runTable(const std::vector<std::string>& argv) {
       s.quick ? std::vector<std::string>{"task4", "fetch"} : tasks::allFamilies();
   const std::vector<std::string> human_families = s.quick ? std::vector<std::string>{"task4"} : paper_families;
   const std::vector<int> sizes = s.quick ? std::vector<int>{3} : std::vector<int>{10, 20};
-  std::vector<std::string> variants;  // the paper's network, the default, the ablation, the baseline
-  for (tgn::Variant v : {tgn::Variant::Paper, tgn::Variant::Scene, tgn::Variant::FullGraph, tgn::Variant::Gnn})
-    variants.push_back(tgn::toString(v));
+  // The paper's network, the default, the ablation, the baseline.
+  const std::vector<tgn::Variant> variants = {tgn::Variant::Paper, tgn::Variant::Scene, tgn::Variant::FullGraph,
+                                              tgn::Variant::Gnn};
   std::cout << "Table 2 (tasks 1-4, " << s.train << " demonstrations) and beyond: every family with "
             << (s.quick ? "3" : "10 and 20") << " demonstrations, human-timed demonstrations (onset jitter "
             << kHumanOnsetJitter << " s, " << kHumanNoise * 1000 << " mm noise), imperfect demonstrations; " << s.test
@@ -348,7 +354,8 @@ int runTable(const std::vector<std::string>& argv) {
     o.family = f;
     const fs::path data = dataset(s, f, o, s.train, s.test);
     for (const auto& v : variants)
-      add(table2, {data, f + "-" + v, f, v, std::to_string(s.train) + " demos", v == "paper"});
+      add(table2,
+          {data, f + "-" + tgn::toString(v), f, v, std::to_string(s.train) + " demos", v == tgn::Variant::Paper});
   }
   for (const auto& f : few_families)
     for (int n : sizes) {
@@ -356,7 +363,8 @@ int runTable(const std::vector<std::string>& argv) {
       o.family = f;
       const std::string name = f + "-" + std::to_string(n);
       const fs::path data = dataset(s, name, o, n, s.test);
-      for (const auto& v : variants) add(few, {data, name + "-" + v, f, v, std::to_string(n) + " demos", false});
+      for (const auto& v : variants)
+        add(few, {data, name + "-" + tgn::toString(v), f, v, std::to_string(n) + " demos", false});
     }
   for (const auto& f : human_families)
     for (int n : sizes) {
@@ -367,7 +375,7 @@ int runTable(const std::vector<std::string>& argv) {
       const std::string name = f + "-human-" + std::to_string(n);
       const fs::path data = dataset(s, name, o, n, s.test);
       for (const auto& v : variants)
-        add(human, {data, name + "-" + v, f, v, "human-timed, " + std::to_string(n) + " demos", false});
+        add(human, {data, name + "-" + tgn::toString(v), f, v, "human-timed, " + std::to_string(n) + " demos", false});
     }
   for (const auto& f : s.quick ? human_families : paper_families) {
     tasks::GeneratorOptions o;
@@ -377,8 +385,9 @@ int runTable(const std::vector<std::string>& argv) {
     const std::string name = f + "-imperfect";
     const fs::path data = dataset(s, name, o, s.train, s.test);
     for (const auto& v : variants)
-      if (v != "gnn")
-        add(imperfect, {data, name + "-" + v, f, v, "imperfect, " + std::to_string(s.train) + " demos", false});
+      if (v != tgn::Variant::Gnn)
+        add(imperfect,
+            {data, name + "-" + tgn::toString(v), f, v, "imperfect, " + std::to_string(s.train) + " demos", false});
   }
   const std::vector<Row> rows = runJobs(s, jobs);
 
@@ -395,10 +404,10 @@ int runTable(const std::vector<std::string>& argv) {
             (figs / ("overlay_" + f + ".png")).string() + "'");
 
   // docs/results.md
-  const std::map<std::string, std::string> method = {{"paper", "DDACE (the paper's network)"},
-                                                     {"scene", "DDACE, scene network (default)"},
-                                                     {"full-graph", "w/o spectral clustering"},
-                                                     {"gnn", "GNN"}};
+  const std::map<tgn::Variant, std::string> method = {{tgn::Variant::Paper, "DDACE (the paper's network)"},
+                                                      {tgn::Variant::Scene, "DDACE, scene network (default)"},
+                                                      {tgn::Variant::FullGraph, "w/o spectral clustering"},
+                                                      {tgn::Variant::Gnn, "GNN"}};
   auto rules = [](const Row& r) {
     return std::to_string(r.rules[0]) + " / " + std::to_string(r.rules[1]) + " / " + std::to_string(r.rules[2]) +
            " / " + std::to_string(r.rules[3]);
@@ -432,8 +441,8 @@ int runTable(const std::vector<std::string>& argv) {
      << "|---|---|---|---|---|---|---|---|---|---|\n";
   for (size_t i : table2) {
     const Row& r = rows[i];
-    md << "| " << r.task << " | " << method.at(r.variant) << " | " << metrics(r) << " | " << paperRow(r.task, r.variant)
-       << " | " << rules(r) << " | " << training(r) << " |\n";
+    md << "| " << r.task << " | " << method.at(r.variant) << " | " << metrics(r) << " | "
+       << paperRow(r.task, tgn::toString(r.variant)) << " | " << rules(r) << " | " << training(r) << " |\n";
   }
   for (const auto& f : paper_families)
     md << "| " << f << " | LLM (GPT-5.2) | – | – | – | – | " << paperRow(f, "llm")
@@ -474,7 +483,7 @@ int runTable(const std::vector<std::string>& argv) {
      << "Demonstrated (grey) and generated (colour) paths of the first test trial of each task:\n\n";
   for (const auto& f : paper_families) md << "![" << f << "](figures/overlay_" << f << ".png)\n";
   // The accuracy goals, judged on this run's rows of the default network.
-  const std::string default_variant = tgn::toString(tgn::TrainOptions{}.variant);
+  const tgn::Variant default_variant = tgn::TrainOptions{}.variant;
   auto goal = [&](const std::string& what, const std::vector<size_t>& section, const std::vector<std::string>& fams,
                   const std::string& condition, double bound, bool every_metric) {
     std::string met, missed;
