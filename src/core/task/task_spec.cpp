@@ -70,16 +70,14 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
              "task.yaml");
 
   std::string format;
-  if (!root["format"]) {
-    c.error(root, std::string("missing key 'format' (expected '") + kFormat + "')");
-  } else if (c.scalar(root["format"], "format", format) && format != kFormat) {
-    c.error(root["format"], "format '" + format + "' is not supported (expected '" + kFormat + "')");
-  }
+  if (const YAML::Node f = c.required(root, "format", "", std::string("expected '") + kFormat + "'");
+      f && c.scalar(f, "format", format) && format != kFormat)
+    c.error(f, "format '" + format + "' is not supported (expected '" + kFormat + "')");
   if (root["name"]) c.scalar(root["name"], "name", spec.name);
 
   std::set<std::string> names;
-  if (!root["entities"]) {
-    c.error(root, "missing key 'entities'");
+  if (!c.required(root, "entities")) {
+    // said by required()
   } else if (!root["entities"].IsSequence() || root["entities"].size() == 0) {
     c.error(root["entities"], "entities must be a non-empty list of {name, kind, type}");
   } else {

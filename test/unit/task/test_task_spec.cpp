@@ -122,6 +122,10 @@ TEST(TaskSpec, WrongFormatAndMissingEntitiesAreErrors) {
   EXPECT_NE(onlyError("format: ddace-task/2\nentities:\n  - {name: R1, kind: robot}\n").message.find("not supported"),
             std::string::npos);
   EXPECT_NE(onlyError("format: ddace-task/1\n").message.find("missing key 'entities'"), std::string::npos);
+  // A key without a value is missing, and the format's says what it must be.
+  EXPECT_NE(onlyError("format: ddace-task/1\nentities:\n").message.find("missing key 'entities'"), std::string::npos);
+  EXPECT_EQ(onlyError("format:\nentities: [{name: R1, kind: robot}]\n").message,
+            "missing key 'format' (expected 'ddace-task/1')");
 }
 
 TEST(TaskSpec, BadArrivalRadiusIsAnError) {
