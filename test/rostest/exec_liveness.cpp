@@ -87,6 +87,26 @@ struct Graph {
   }
 };
 
+/// Starts a run and waits until it is executing with some robot driving.
+::testing::AssertionResult runUnderWay(Watcher& w) {
+  const std::string started = startRun(w, 30.0);
+  if (!started.empty()) return ::testing::AssertionFailure() << started;
+  if (!waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING && anyDriving(w); }, 20.0))
+    return ::testing::AssertionFailure() << "the run did not get under way (state " << w.state().state_name << ")";
+  return ::testing::AssertionSuccess();
+}
+
+/// SIGKILLs `pid` (`killed`: the moment just before the signal) and waits for the run to
+/// abort, then lets the last wheel commands and states arrive.
+::testing::AssertionResult killAndAwaitAbort(Watcher& w, int pid, ros::Time& killed) {
+  killed = ros::Time::now();
+  if (::kill(pid, SIGKILL) != 0) return ::testing::AssertionFailure() << "cannot kill pid " << pid;
+  if (!waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 5.0))
+    return ::testing::AssertionFailure() << "no abort after the kill (state " << w.state().state_name << ")";
+  ros::Duration(0.3).sleep();
+  return ::testing::AssertionSuccess();
+}
+
 }  // namespace
 
 class KillRole : public ::testing::TestWithParam<std::string> {};
@@ -96,19 +116,14 @@ TEST_P(KillRole, StopsEveryRobotAtOnceAndAbortsNamingTheNode) {
   Graph g(node.substr(1));
   Watcher w(g.nh, g.test.spec);
   Launch graph(g.args());
-  const std::string started = startRun(w, 30.0);
-  ASSERT_TRUE(started.empty()) << started;
-  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING && anyDriving(w); }, 20.0));
+  ASSERT_TRUE(runUnderWay(w));
   ros::Duration(0.5).sleep();
   const int pid = pidOfNode(node);
   ASSERT_GT(pid, 0) << "no pid for " << node;
   DeathProbe probe(g.nh, node);
   ASSERT_TRUE(waitFor([&] { return probe.linked(); }, 10.0)) << node << " did not subscribe to the probe";
-  const ros::Time killed = ros::Time::now();
-  ASSERT_EQ(::kill(pid, SIGKILL), 0);
-  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 5.0))
-      << "state " << w.state().state_name;
-  ros::Duration(0.3).sleep();
+  ros::Time killed;
+  ASSERT_TRUE(killAndAwaitAbort(w, pid, killed));
   const auto s = w.state();
   EXPECT_NE(s.reason.find(node), std::string::npos) << s.reason;
   // Known through the link dropping, not a heartbeat time-out.
@@ -213,9 +228,7 @@ TEST_P(HangRole, IsLostByItsHeartbeatAndEveryRobotStops) {
   Watcher w(g.nh, g.test.spec);
   HeartbeatLog beats(g.nh, node);
   Launch graph(g.args());
-  const std::string started = startRun(w, 30.0);
-  ASSERT_TRUE(started.empty()) << started;
-  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING && anyDriving(w); }, 20.0));
+  ASSERT_TRUE(runUnderWay(w));
   ASSERT_TRUE(waitFor([&] { return beats.heard(); }, 5.0)) << "no heartbeat of " << node;
   ros::Duration(0.5).sleep();
   const int pid = pidOfNode(node);
@@ -275,17 +288,12 @@ TEST(Recorder, AKilledMonitorStopsTheRunAndItsBagIsClosed) {
   Graph g("monitor");
   Watcher w(g.nh, g.test.spec);
   Launch graph(g.args());
-  const std::string started = startRun(w, 30.0);
-  ASSERT_TRUE(started.empty()) << started;
-  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING && anyDriving(w); }, 20.0));
+  ASSERT_TRUE(runUnderWay(w));
   ros::Duration(0.5).sleep();
   const int pid = pidOfNode("/execution_monitor");
   ASSERT_GT(pid, 0);
-  const ros::Time killed = ros::Time::now();
-  ASSERT_EQ(::kill(pid, SIGKILL), 0);
-  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 5.0))
-      << "state " << w.state().state_name;
-  ros::Duration(0.3).sleep();
+  ros::Time killed;
+  ASSERT_TRUE(killAndAwaitAbort(w, pid, killed));
   const auto s = w.state();
   EXPECT_NE(s.reason.find("/execution_monitor is gone"), std::string::npos) << s.reason;
   const ros::Time knew = w.firstStamp(ddace::CoordinatorState::ABORTED);
@@ -315,17 +323,12 @@ TEST(Recorder, ADeadBagStopsTheRunAndTheReportSaysWhy) {
   Graph g("bag");
   Watcher w(g.nh, g.test.spec);
   Launch graph(g.args());
-  const std::string started = startRun(w, 30.0);
-  ASSERT_TRUE(started.empty()) << started;
-  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING && anyDriving(w); }, 20.0));
+  ASSERT_TRUE(runUnderWay(w));
   ros::Duration(0.5).sleep();
   const int pid = pidOfNode("/execution_monitor_bag");
   ASSERT_GT(pid, 0) << "no rosbag record node /execution_monitor_bag";
-  const ros::Time killed = ros::Time::now();
-  ASSERT_EQ(::kill(pid, SIGKILL), 0);
-  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 5.0))
-      << "state " << w.state().state_name;
-  ros::Duration(0.3).sleep();
+  ros::Time killed;
+  ASSERT_TRUE(killAndAwaitAbort(w, pid, killed));
   const auto s = w.state();
   EXPECT_NE(s.reason.find("/execution_monitor reports: rosbag record exited"), std::string::npos) << s.reason;
   for (const auto& [robot, cmds] : w.wheels()) {
@@ -342,9 +345,7 @@ TEST(Sigint, AnInterruptedRunLeavesItsReport) {
   Graph g("sigint");
   Watcher w(g.nh, g.test.spec);
   Launch graph(g.args());
-  const std::string started = startRun(w, 30.0);
-  ASSERT_TRUE(started.empty()) << started;
-  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING && anyDriving(w); }, 20.0));
+  ASSERT_TRUE(runUnderWay(w));
   graph.interrupt();
   ASSERT_TRUE(graph.waitExit(30.0));
   const std::string report = readFile(g.run_dir + "/report.txt");
