@@ -255,6 +255,337 @@ struct GruRecurrenceFn : torch::autograd::Function<GruRecurrenceFn> {
   }
 };
 
+// ------------------------------------------------------------------ scene attention
+//
+// The inner loops run over all H * C channels of a pair at once (contiguous, independent
+// elements the compiler vectorises); per-head sums over C channels use 8 partial sums.
+
+float leaky(float v) {
+  return v > 0 ? v : kSlope * v;
+}
+
+/// sum_{c < n} x[c], in 8 partial sums (vectorisable; the order differs from a plain loop
+/// only by float rounding).
+float sum8(const float* __restrict x, int64_t n) {
+  float part[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int64_t c = 0;
+  for (; c + 8 <= n; c += 8)
+    for (int l = 0; l < 8; ++l) part[l] += x[c + l];
+  float s = 0;
+  for (; c < n; ++c) s += x[c];
+  return s + ((part[0] + part[4]) + (part[1] + part[5])) + ((part[2] + part[6]) + (part[3] + part[7]));
+}
+
+/// out[k * C + c] = per_head[k] for every head k and channel c.
+void expand(const float* __restrict per_head, int64_t h_n, int64_t c_n, float* __restrict out) {
+  for (int64_t k = 0; k < h_n; ++k) std::fill(out + k * c_n, out + (k + 1) * c_n, per_head[k]);
+}
+
+// GCC does not vectorise a select on a float comparison while it must keep the comparison's
+// floating-point exception flags (-ftrapping-math); nothing here reads them, and the values
+// are the same either way.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC push_options
+#pragma GCC optimize("no-trapping-math")
+#endif
+
+/// m = s + e; t = att * LeakyReLU(d + m) (GATv2's logit terms).
+void v2Terms(const float* __restrict d, const float* __restrict s, const float* __restrict e,
+             const float* __restrict att, float* __restrict m, float* __restrict t, int64_t n) {
+  for (int64_t c = 0; c < n; ++c) {
+    m[c] = s[c] + e[c];
+    const float pre = d[c] + m[c], neg = kSlope * pre;
+    t[c] = att[c] * (pre > 0 ? pre : neg);
+  }
+}
+
+/// The gradient through one GATv2 pair: dlogit (per channel: its head's), alpha (same),
+/// g = dL/dout_i, m the message. LeakyReLU's derivative as torch's: the slope where the
+/// input is not > 0.
+void v2PairBackward(const float* __restrict d, const float* __restrict m, const float* __restrict att,
+                    const float* __restrict dlogit, const float* __restrict alpha, const float* __restrict g,
+                    float* __restrict datt, float* __restrict dd, float* __restrict ds, float* __restrict de,
+                    int64_t n) {
+  for (int64_t c = 0; c < n; ++c) {
+    const float pre = d[c] + m[c], neg = kSlope * pre;
+    const bool pos = pre > 0;
+    datt[c] += dlogit[c] * (pos ? pre : neg);
+    const float dpre = dlogit[c] * att[c] * (pos ? 1.f : kSlope);
+    dd[c] += dpre;
+    const float dm = alpha[c] * g[c] + dpre;
+    ds[c] += dm;
+    de[c] = dm;
+  }
+}
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC pop_options
+#endif
+
+/// The same for GATConv: dpre per channel is its head's gradient of the logit's LeakyReLU input.
+void gatPairBackward(const float* __restrict d, const float* __restrict s, const float* __restrict e,
+                     const float* __restrict att, const float* __restrict dpre, const float* __restrict alpha,
+                     const float* __restrict g, float* __restrict datt, float* __restrict dd, float* __restrict ds,
+                     float* __restrict de, int64_t n) {
+  const float *ad = att, *as = att + n, *ae = att + 2 * n;
+  float *dad = datt, *das = datt + n, *dae = datt + 2 * n;
+  for (int64_t c = 0; c < n; ++c) {
+    dd[c] += dpre[c] * ad[c];
+    dad[c] += dpre[c] * d[c];
+    das[c] += dpre[c] * s[c];
+    dae[c] += dpre[c] * e[c];
+    const float dm = alpha[c] * g[c];
+    ds[c] += dm + dpre[c] * as[c];
+    de[c] = dm + dpre[c] * ae[c];
+  }
+}
+
+/// GATConv's logit input of head k: <att_dst, d> + <att_src, s> + <att_edge, e> over its C channels.
+float gatPre(const float* d, const float* s, const float* e, const float* att, int64_t hc, int64_t k, int64_t c_n) {
+  const int64_t at = k * c_n;
+  return dot(att + at, d + at, c_n) + dot(att + hc + at, s + at, c_n) + dot(att + 2 * hc + at, e + at, c_n);
+}
+
+// att [A, H, C]: A = 1 is GATv2's att, A = 3 GATConv's att_dst, att_src, att_edge.
+struct SceneAttentionFn : torch::autograd::Function<SceneAttentionFn> {
+  static Tensor forward(AutogradContext* ctx, Tensor hs, Tensor hd, Tensor he, Tensor att, Tensor bias, Tensor offset,
+                        Tensor source) {
+    hs = hs.contiguous();
+    hd = hd.contiguous();
+    he = he.contiguous();
+    att = att.contiguous();
+    bias = bias.contiguous();
+    const int64_t s_n = hs.size(0), n_n = hs.size(1), h_n = hs.size(2), c_n = hs.size(3), e_n = source.size(0);
+    const int64_t hc = h_n * c_n;
+    const bool v2 = att.size(0) == 1;
+    Tensor out = torch::empty({s_n, n_n, hc});
+    Tensor alpha = torch::empty({s_n, e_n, h_n});
+    const float *hsp = hs.data_ptr<float>(), *hdp = hd.data_ptr<float>(), *hep = he.data_ptr<float>(),
+                *ap = att.data_ptr<float>(), *bp = bias.data_ptr<float>();
+    float* op = out.data_ptr<float>();
+    float* al = alpha.data_ptr<float>();
+    const int64_t* off = offset.data_ptr<int64_t>();
+    const int64_t* src = source.data_ptr<int64_t>();
+    std::vector<float> m(static_cast<size_t>(n_n * hc)), terms(static_cast<size_t>(hc)), ac(static_cast<size_t>(hc)),
+        logit(static_cast<size_t>(n_n * h_n)), top(static_cast<size_t>(h_n)), sum(static_cast<size_t>(h_n));
+    for (int64_t s = 0; s < s_n; ++s)
+      for (int64_t i = 0; i < n_n; ++i) {
+        const float* di = hdp + (s * n_n + i) * hc;
+        const int64_t first = off[i], deg = off[i + 1] - first;
+        std::fill(top.begin(), top.end(), -std::numeric_limits<float>::infinity());
+        for (int64_t q = 0; q < deg; ++q) {
+          const int64_t j = src[first + q];
+          const float* sj = hsp + (s * n_n + j) * hc;
+          const float* eij = hep + ((s * n_n + i) * n_n + j) * hc;
+          float* mq = m.data() + q * hc;
+          float* lq = logit.data() + q * h_n;
+          if (v2) {
+            v2Terms(di, sj, eij, ap, mq, terms.data(), hc);
+            for (int64_t k = 0; k < h_n; ++k) lq[k] = sum8(terms.data() + k * c_n, c_n);
+          } else {
+            for (int64_t c = 0; c < hc; ++c) mq[c] = sj[c] + eij[c];
+            for (int64_t k = 0; k < h_n; ++k) lq[k] = leaky(gatPre(di, sj, eij, ap, hc, k, c_n));
+          }
+          for (int64_t k = 0; k < h_n; ++k) top[k] = std::max(top[k], lq[k]);
+        }
+        // Softmax over i's incoming edges, per head.
+        std::fill(sum.begin(), sum.end(), 0.f);
+        for (int64_t q = 0; q < deg; ++q)
+          for (int64_t k = 0; k < h_n; ++k) {
+            float& v = logit[static_cast<size_t>(q * h_n + k)];
+            v = std::exp(v - top[k]);
+            sum[k] += v;
+          }
+        float* oi = op + (s * n_n + i) * hc;
+        std::fill(oi, oi + hc, 0.f);
+        for (int64_t q = 0; q < deg; ++q) {
+          float* aq = al + (s * e_n + first + q) * h_n;
+          for (int64_t k = 0; k < h_n; ++k) aq[k] = logit[static_cast<size_t>(q * h_n + k)] / sum[k];
+          expand(aq, h_n, c_n, ac.data());
+          const float* mq = m.data() + q * hc;
+          for (int64_t c = 0; c < hc; ++c) oi[c] += ac[c] * mq[c];
+        }
+        for (int64_t c = 0; c < hc; ++c) oi[c] += bp[c];
+      }
+    for (const auto& [name, t] : {std::pair<const char*, Tensor>{"hs", hs},
+                                  {"hd", hd},
+                                  {"he", he},
+                                  {"att", att},
+                                  {"alpha", alpha},
+                                  {"offset", offset},
+                                  {"source", source}})
+      ctx->saved_data[name] = t;
+    return out;
+  }
+
+  static variable_list backward(AutogradContext* ctx, variable_list grads) {
+    const Tensor hs = saved(ctx, "hs"), hd = saved(ctx, "hd"), he = saved(ctx, "he"), att = saved(ctx, "att");
+    const Tensor alpha = saved(ctx, "alpha"), offset = saved(ctx, "offset"), source = saved(ctx, "source");
+    const Tensor dout = grads[0].contiguous();
+    const int64_t s_n = hs.size(0), n_n = hs.size(1), h_n = hs.size(2), c_n = hs.size(3), e_n = source.size(0);
+    const bool v2 = att.size(0) == 1;
+    const int64_t hc = h_n * c_n;
+    // he's gradient is written at every edge; only pairs that are not edges need zeros.
+    Tensor dhs = torch::zeros_like(hs), dhd = torch::zeros_like(hd),
+           dhe = e_n == n_n * n_n ? torch::empty_like(he) : torch::zeros_like(he), datt = torch::zeros_like(att),
+           dbias = torch::zeros({hc});
+    const float *hsp = hs.data_ptr<float>(), *hdp = hd.data_ptr<float>(), *hep = he.data_ptr<float>(),
+                *ap = att.data_ptr<float>(), *al = alpha.data_ptr<float>(), *go = dout.data_ptr<float>();
+    float *dhsp = dhs.data_ptr<float>(), *dhdp = dhd.data_ptr<float>(), *dhep = dhe.data_ptr<float>(),
+          *dap = datt.data_ptr<float>(), *dbp = dbias.data_ptr<float>();
+    const int64_t* off = offset.data_ptr<int64_t>();
+    const int64_t* src = source.data_ptr<int64_t>();
+    std::vector<float> m(static_cast<size_t>(n_n * hc)), terms(static_cast<size_t>(hc)),
+        d_alpha(static_cast<size_t>(n_n * h_n)), weighted(static_cast<size_t>(h_n)), dl(static_cast<size_t>(h_n)),
+        dlc(static_cast<size_t>(hc)), ac(static_cast<size_t>(hc));
+    for (int64_t s = 0; s < s_n; ++s)
+      for (int64_t i = 0; i < n_n; ++i) {
+        const float* g = go + (s * n_n + i) * hc;
+        const float* di = hdp + (s * n_n + i) * hc;
+        float* ddi = dhdp + (s * n_n + i) * hc;
+        const int64_t first = off[i], deg = off[i + 1] - first;
+        for (int64_t c = 0; c < hc; ++c) dbp[c] += g[c];
+        // out_i = sum_q alpha_q m_q: the gradient to alpha, then through the softmax.
+        std::fill(weighted.begin(), weighted.end(), 0.f);
+        for (int64_t q = 0; q < deg; ++q) {
+          const int64_t j = src[first + q];
+          const float* sj = hsp + (s * n_n + j) * hc;
+          const float* eij = hep + ((s * n_n + i) * n_n + j) * hc;
+          float* mq = m.data() + q * hc;
+          for (int64_t c = 0; c < hc; ++c) {
+            mq[c] = sj[c] + eij[c];
+            terms[c] = g[c] * mq[c];
+          }
+          const float* aq = al + (s * e_n + first + q) * h_n;
+          for (int64_t k = 0; k < h_n; ++k) {
+            const float d = sum8(terms.data() + k * c_n, c_n);
+            d_alpha[static_cast<size_t>(q * h_n + k)] = d;
+            weighted[static_cast<size_t>(k)] += aq[k] * d;
+          }
+        }
+        for (int64_t q = 0; q < deg; ++q) {
+          const int64_t j = src[first + q];
+          const float* aq = al + (s * e_n + first + q) * h_n;
+          for (int64_t k = 0; k < h_n; ++k)
+            dl[static_cast<size_t>(k)] = aq[k] * (d_alpha[static_cast<size_t>(q * h_n + k)] - weighted[k]);
+          expand(aq, h_n, c_n, ac.data());
+          const float* mq = m.data() + q * hc;
+          float* dsj = dhsp + (s * n_n + j) * hc;
+          float* deij = dhep + ((s * n_n + i) * n_n + j) * hc;
+          if (v2) {
+            expand(dl.data(), h_n, c_n, dlc.data());
+            v2PairBackward(di, mq, ap, dlc.data(), ac.data(), g, dap, ddi, dsj, deij, hc);
+          } else {
+            const float* sj = hsp + (s * n_n + j) * hc;
+            const float* eij = hep + ((s * n_n + i) * n_n + j) * hc;
+            for (int64_t k = 0; k < h_n; ++k)
+              if (!(gatPre(di, sj, eij, ap, hc, k, c_n) > 0)) dl[static_cast<size_t>(k)] *= kSlope;
+            expand(dl.data(), h_n, c_n, dlc.data());
+            gatPairBackward(di, sj, eij, ap, dlc.data(), ac.data(), g, dap, ddi, dsj, deij, hc);
+          }
+        }
+      }
+    return {dhs, dhd, dhe, datt, dbias, Tensor(), Tensor()};
+  }
+};
+
+// ------------------------------------------------------------------ pointer scores
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC push_options
+#pragma GCC optimize("no-trapping-math")  // as for the scene attention above
+#endif
+
+/// t = v * ReLU(u + b + r), u = a_i + z.
+void pointerTerms(const float* __restrict u, const float* __restrict b, const float* __restrict r,
+                  const float* __restrict v, float* __restrict t, int64_t n) {
+  for (int64_t c = 0; c < n; ++c) {
+    const float pre = u[c] + b[c] + r[c];
+    t[c] = v[c] * std::max(pre, 0.f);
+  }
+}
+
+/// ReLU's derivative as torch's: 0 where the output is not > 0.
+void pointerPairBackward(const float* __restrict u, const float* __restrict b, const float* __restrict r,
+                         const float* __restrict v, float g, float* __restrict dv, float* __restrict du,
+                         float* __restrict db, float* __restrict dr, int64_t n) {
+  for (int64_t c = 0; c < n; ++c) {
+    const float pre = u[c] + b[c] + r[c], dpre_pos = g * v[c], dv_pos = g * pre;
+    const bool pos = pre > 0;
+    const float dpre = pos ? dpre_pos : 0.f;
+    dv[c] += pos ? dv_pos : 0.f;
+    dr[c] = dpre;
+    du[c] += dpre;
+    db[c] += dpre;
+  }
+}
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC pop_options
+#endif
+
+struct PointerScoresFn : torch::autograd::Function<PointerScoresFn> {
+  static Tensor forward(AutogradContext* ctx, Tensor a, Tensor b, Tensor r, Tensor z, Tensor v) {
+    a = a.contiguous();
+    b = b.contiguous();
+    r = r.contiguous();
+    z = z.contiguous();
+    v = v.contiguous();
+    const int64_t p_n = a.size(0), n_n = a.size(1), k_n = a.size(2);
+    Tensor out = torch::empty({p_n, n_n, n_n});
+    const float *ap = a.data_ptr<float>(), *bp = b.data_ptr<float>(), *rp = r.data_ptr<float>(),
+                *zp = z.data_ptr<float>(), *vp = v.data_ptr<float>();
+    float* op = out.data_ptr<float>();
+    std::vector<float> u(static_cast<size_t>(k_n)), terms(static_cast<size_t>(k_n));
+    for (int64_t p = 0; p < p_n; ++p)
+      for (int64_t i = 0; i < n_n; ++i) {
+        const float* ai = ap + (p * n_n + i) * k_n;
+        const float* zz = zp + p * k_n;
+        for (int64_t c = 0; c < k_n; ++c) u[static_cast<size_t>(c)] = ai[c] + zz[c];
+        for (int64_t j = 0; j < n_n; ++j) {
+          pointerTerms(u.data(), bp + (p * n_n + j) * k_n, rp + ((p * n_n + i) * n_n + j) * k_n, vp, terms.data(), k_n);
+          op[(p * n_n + i) * n_n + j] = sum8(terms.data(), k_n);
+        }
+      }
+    for (const auto& [name, t] : {std::pair<const char*, Tensor>{"a", a}, {"b", b}, {"r", r}, {"z", z}, {"v", v}})
+      ctx->saved_data[name] = t;
+    return out;
+  }
+
+  static variable_list backward(AutogradContext* ctx, variable_list grads) {
+    const Tensor a = saved(ctx, "a"), b = saved(ctx, "b"), r = saved(ctx, "r"), z = saved(ctx, "z"),
+                 v = saved(ctx, "v");
+    const Tensor dout = grads[0].contiguous();
+    const int64_t p_n = a.size(0), n_n = a.size(1), k_n = a.size(2);
+    Tensor da = torch::zeros_like(a), db = torch::zeros_like(b), dr = torch::empty_like(r), dz = torch::zeros_like(z),
+           dv = torch::zeros_like(v);
+    const float *ap = a.data_ptr<float>(), *bp = b.data_ptr<float>(), *rp = r.data_ptr<float>(),
+                *zp = z.data_ptr<float>(), *vp = v.data_ptr<float>(), *go = dout.data_ptr<float>();
+    float *dap = da.data_ptr<float>(), *dbp = db.data_ptr<float>(), *drp = dr.data_ptr<float>(),
+          *dzp = dz.data_ptr<float>(), *dvp = dv.data_ptr<float>();
+    std::vector<float> u(static_cast<size_t>(k_n)), du(static_cast<size_t>(k_n));
+    for (int64_t p = 0; p < p_n; ++p)
+      for (int64_t i = 0; i < n_n; ++i) {
+        const float* ai = ap + (p * n_n + i) * k_n;
+        const float* zz = zp + p * k_n;
+        for (int64_t c = 0; c < k_n; ++c) u[static_cast<size_t>(c)] = ai[c] + zz[c];
+        std::fill(du.begin(), du.end(), 0.f);
+        for (int64_t j = 0; j < n_n; ++j)
+          pointerPairBackward(u.data(), bp + (p * n_n + j) * k_n, rp + ((p * n_n + i) * n_n + j) * k_n, vp,
+                              go[(p * n_n + i) * n_n + j], dvp, du.data(), dbp + (p * n_n + j) * k_n,
+                              drp + ((p * n_n + i) * n_n + j) * k_n, k_n);
+        // u = a_i + z: both get du.
+        float* dai = dap + (p * n_n + i) * k_n;
+        float* dzz = dzp + p * k_n;
+        for (int64_t c = 0; c < k_n; ++c) {
+          dai[c] += du[static_cast<size_t>(c)];
+          dzz[c] += du[static_cast<size_t>(c)];
+        }
+      }
+    return {da, db, dr, dz, dv};
+  }
+};
+
 }  // namespace
 
 InEdges inEdgesFromMask(const torch::Tensor& mask) {
@@ -279,6 +610,48 @@ torch::Tensor gatAttention(const torch::Tensor& h, const torch::Tensor& att_src,
       att_src.size(1) != h.size(3) || edges.offset.size(0) != h.size(1) + 1)
     throw Error("gat attention: h must be [S, N, H, C] with att [H, C] and N + 1 edge offsets");
   return GatAttentionFn::apply(h, att_src, att_dst, edges.offset, edges.source);
+}
+
+namespace {
+
+void checkScene(const Tensor& hs, const Tensor& hd, const Tensor& he, const Tensor& att, const Tensor& bias,
+                const InEdges& edges) {
+  const bool ok = hs.dim() == 4 && hd.sizes() == hs.sizes() && he.dim() == 5 && he.size(0) == hs.size(0) &&
+                  he.size(1) == hs.size(1) && he.size(2) == hs.size(1) && he.size(3) == hs.size(2) &&
+                  he.size(4) == hs.size(3) && att.size(-2) == hs.size(2) && att.size(-1) == hs.size(3) &&
+                  bias.dim() == 1 && bias.size(0) == hs.size(2) * hs.size(3) && edges.offset.size(0) == hs.size(1) + 1;
+  if (!ok)
+    throw Error(
+        "scene attention: hs and hd must be [S, N, H, C], he [S, N, N, H, C], att [H, C], bias [H * C] and the "
+        "edges N + 1 offsets");
+}
+
+}  // namespace
+
+torch::Tensor sceneAttentionV2(const torch::Tensor& hs, const torch::Tensor& hd, const torch::Tensor& he,
+                               const torch::Tensor& att, const torch::Tensor& bias, const InEdges& edges) {
+  checkScene(hs, hd, he, att, bias, edges);
+  if (att.dim() != 2) throw Error("scene attention: att must be [H, C]");
+  return SceneAttentionFn::apply(hs, hd, he, att.unsqueeze(0), bias, edges.offset, edges.source);
+}
+
+torch::Tensor sceneAttentionGat(const torch::Tensor& hs, const torch::Tensor& hd, const torch::Tensor& he,
+                                const torch::Tensor& att_dst, const torch::Tensor& att_src,
+                                const torch::Tensor& att_edge, const torch::Tensor& bias, const InEdges& edges) {
+  checkScene(hs, hd, he, att_dst, bias, edges);
+  if (att_dst.dim() != 2 || att_src.sizes() != att_dst.sizes() || att_edge.sizes() != att_dst.sizes())
+    throw Error("scene attention: att_dst, att_src and att_edge must be [H, C]");
+  return SceneAttentionFn::apply(hs, hd, he, torch::stack({att_dst, att_src, att_edge}), bias, edges.offset,
+                                 edges.source);
+}
+
+torch::Tensor pointerScores(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& r,
+                            const torch::Tensor& z, const torch::Tensor& v) {
+  const bool ok = a.dim() == 3 && b.sizes() == a.sizes() && r.dim() == 4 && r.size(0) == a.size(0) &&
+                  r.size(1) == a.size(1) && r.size(2) == a.size(1) && r.size(3) == a.size(2) && z.dim() == 2 &&
+                  z.size(0) == a.size(0) && z.size(1) == a.size(2) && v.dim() == 1 && v.size(0) == a.size(2);
+  if (!ok) throw Error("pointer scores: a and b must be [P, N, K], r [P, N, N, K], z [P, K] and v [K]");
+  return PointerScoresFn::apply(a, b, r, z, v);
 }
 
 torch::Tensor gruRecurrence(const torch::Tensor& gi, const torch::Tensor& w_hh, const torch::Tensor& b_hh,

@@ -1,6 +1,7 @@
 #include "scene_network.h"
 
 #include <string>
+#include <vector>
 
 namespace ddace::tgn {
 
@@ -8,8 +9,6 @@ using torch::Tensor;
 namespace nn = torch::nn;
 
 namespace {
-
-constexpr double kSlope = 0.2;  // LeakyReLU negative slope, as GATConv / GATv2Conv
 
 nn::Linear linear(int in, int out, bool bias = true) {
   return nn::Linear(nn::LinearOptions(in, out).bias(bias));
@@ -36,24 +35,20 @@ SceneLayerImpl::SceneLayerImpl(int in, int heads, int channels, AttentionKind ki
   bias = register_parameter("bias", torch::zeros({width}));
 }
 
-Tensor SceneLayerImpl::forward(const Tensor& x, const Tensor& rel, const Tensor& mask) {
+Tensor SceneLayerImpl::forward(const Tensor& x, const Tensor& rel, const fused::InEdges& in) {
   const int64_t s = x.size(0), n = x.size(1);
-  const Tensor hs = lin_src(x).view({s, 1, n, heads_, channels_});  // sender j
-  const Tensor hd = lin_dst(x).view({s, n, 1, heads_, channels_});  // receiver i
+  const Tensor hs = lin_src(x).view({s, n, heads_, channels_});  // sender j
+  const Tensor hd = lin_dst(x).view({s, n, heads_, channels_});  // receiver i
   const Tensor he = lin_edge(rel).view({s, n, n, heads_, channels_});
-  const Tensor msg = hs + he;  // [S, i, j, H, C]
-  Tensor logit;
-  if (kind_ == AttentionKind::GatV2) {
-    logit = (torch::leaky_relu(hd + msg, kSlope) * att).sum(-1);
-  } else {
-    logit = torch::leaky_relu((hd * att_dst).sum(-1) + (hs * att_src).sum(-1) + (he * att_edge).sum(-1), kSlope);
-  }
-  const Tensor alpha = torch::softmax(logit.masked_fill(mask.logical_not(), -1e30), 2);  // over j
-  return (alpha.unsqueeze(-1) * msg).sum(2).view({s, n, heads_ * channels_}) + bias;
+  if (kind_ == AttentionKind::GatV2) return fused::sceneAttentionV2(hs, hd, he, att, bias, in);
+  return fused::sceneAttentionGat(hs, hd, he, att_dst, att_src, att_edge, bias, in);
 }
 
 SceneNetworkImpl::SceneNetworkImpl(const NetConfig& c, const Tensor& attention)
-    : cfg(c), mask(attention.to(torch::kBool).view({1, c.nodes, c.nodes, 1})), drop(c.o.dropout, c.o.seed) {
+    : cfg(c),
+      mask(attention.to(torch::kBool).view({1, c.nodes, c.nodes, 1})),
+      in_edges(fused::inEdgesFromMask(attention)),
+      drop(c.o.dropout, c.o.seed) {
   const TrainOptions& o = c.o;
   int in = c.features;
   if (o.identity_embedding) {
@@ -84,7 +79,7 @@ Tensor SceneNetworkImpl::encode(const Tensor& features, const Tensor& rel) {
   Tensor x = features;
   if (identity) x = torch::cat({x, identity->weight.unsqueeze(0).expand({s, n, cfg.o.identity_dim})}, 2);
   for (size_t l = 0; l < layers.size(); ++l) {
-    Tensor y = drop(torch::relu(layers[l]->forward(x, rel, mask)), is_training());
+    Tensor y = drop(torch::relu(layers[l]->forward(x, rel, in_edges)), is_training());
     x = l == 0 ? y : x + y;
   }
   return x;
@@ -95,8 +90,16 @@ Heads SceneNetworkImpl::heads(const Tensor& nodes, const Tensor& rel, const Tens
   const Tensor hidden = torch::relu(act_h(nodes) + act_z(zu));  // [..., N, hidden]
   Heads h;
   h.action = act_out(hidden);
-  const Tensor pre = ptr_i(nodes).unsqueeze(-2) + ptr_j(nodes).unsqueeze(-3) + ptr_r(rel) + ptr_z(zu).unsqueeze(-2);
-  const Tensor scores = ptr_out(torch::relu(pre)).squeeze(-1) + self_mask;  // [..., N, N]
+  // v . ReLU(P_i h_i + P_j h_j + P_r r_ij + P_z z) in one fused kernel over [P, N, N, hidden].
+  const int64_t n = nodes.size(-2), k = ptr_out->weight.size(1);
+  std::vector<int64_t> lead(nodes.sizes().begin(), nodes.sizes().end() - 2);
+  lead.push_back(n);
+  lead.push_back(n);
+  const Tensor scores =
+      fused::pointerScores(ptr_i(nodes).reshape({-1, n, k}), ptr_j(nodes).reshape({-1, n, k}),
+                           ptr_r(rel).reshape({-1, n, n, k}), ptr_z(z).reshape({-1, k}), ptr_out->weight.view({k}))
+          .view(lead) +
+      ptr_out->bias + self_mask;  // [..., N, N]
   h.target = torch::cat({none_out(hidden), scores}, -1);
   h.end = end(z);
   return h;

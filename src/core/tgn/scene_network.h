@@ -30,6 +30,7 @@
 
 #include <torch/torch.h>
 
+#include "fused_kernels.h"
 #include "network.h"
 
 namespace ddace::tgn {
@@ -42,9 +43,9 @@ inline constexpr double kTogetherRadii = 2.0;
 
 struct SceneLayerImpl : torch::nn::Module {
   SceneLayerImpl(int in, int heads, int channels, AttentionKind kind);
-  /// x [S, N, in], rel [S, N, N, R] (pair i <- j), mask [1, N, N, 1] bool (i receives from j)
-  /// -> [S, N, heads * channels].
-  torch::Tensor forward(const torch::Tensor& x, const torch::Tensor& rel, const torch::Tensor& mask);
+  /// x [S, N, in], rel [S, N, N, R] (pair i <- j), `in` the incoming edges (i receives from
+  /// j) -> [S, N, heads * channels]; the attention is one fused kernel (fused_kernels.h).
+  torch::Tensor forward(const torch::Tensor& x, const torch::Tensor& rel, const fused::InEdges& in);
 
   int heads_, channels_;
   AttentionKind kind_;
@@ -63,7 +64,8 @@ struct SceneNetworkImpl : torch::nn::Module {
   Heads heads(const torch::Tensor& nodes, const torch::Tensor& rel, const torch::Tensor& z);
 
   NetConfig cfg;
-  torch::Tensor mask;  ///< [1, N, N, 1]
+  torch::Tensor mask;       ///< [1, N, N, 1]
+  fused::InEdges in_edges;  ///< the same as incoming edge lists
   Dropout drop;
   torch::Tensor self_mask;  ///< [N, N]: -1e9 on the diagonal
   torch::nn::Embedding identity{nullptr};

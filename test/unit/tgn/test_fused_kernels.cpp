@@ -1,5 +1,6 @@
-// The fused kernels (src/core/tgn/fused_kernels.h) against autograd of the op-by-op
-// PyTorch formulation: values and every gradient, and Adam on the flat buffer against
+// The fused kernels (src/core/tgn/fused_kernels.h: GAT attention, the scene network's
+// attention layer and pointer scores, the GRU) against autograd of the op-by-op PyTorch
+// formulation: values and every gradient, and Adam on the flat buffer against
 // torch::optim::Adam.
 #include <gtest/gtest.h>
 #include <torch/torch.h>
@@ -52,7 +53,104 @@ void checkGat(const Tensor& mask) {
   expectClose(gd, wd.grad(), 1e-4, "d/datt_dst");
 }
 
+/// The scene layer's attention written op by op on dense [S, i, j, H, C] tensors (as
+/// SceneLayer did before the fused kernel, and as bench/tgn_train_reference.py does);
+/// att = {att} for GATv2, {att_dst, att_src, att_edge} for GATConv.
+Tensor sceneReference(const Tensor& hs, const Tensor& hd, const Tensor& he, const std::vector<Tensor>& att,
+                      const Tensor& bias, const Tensor& mask) {
+  const int64_t s = hs.size(0), n = hs.size(1), h = hs.size(2), c = hs.size(3);
+  const Tensor src = hs.view({s, 1, n, h, c}), dst = hd.view({s, n, 1, h, c});
+  const Tensor msg = src + he;
+  const Tensor logit =
+      att.size() == 1 ? (torch::leaky_relu(dst + msg, 0.2) * att[0]).sum(-1)
+                      : torch::leaky_relu((dst * att[0]).sum(-1) + (src * att[1]).sum(-1) + (he * att[2]).sum(-1), 0.2);
+  const Tensor alpha = torch::softmax(logit.masked_fill(mask.logical_not().view({1, n, n, 1}), -1e30), 2);
+  return (alpha.unsqueeze(-1) * msg).sum(2).view({s, n, h * c}) + bias;
+}
+
+/// Gradients of `leaves`, cleared afterwards.
+std::vector<Tensor> gradsOf(const std::vector<Tensor>& leaves) {
+  std::vector<Tensor> out;
+  for (const auto& l : leaves) {
+    out.push_back(l.grad().clone());
+    l.mutable_grad().zero_();
+  }
+  return out;
+}
+
+void checkScene(const Tensor& mask, bool v2) {
+  const int64_t s = 3, n = mask.size(0), h = 2, c = 4;
+  const Tensor hs = leaf({s, n, h, c}), hd = leaf({s, n, h, c}), he = leaf({s, n, n, h, c}), bias = leaf({h * c});
+  std::vector<Tensor> att{leaf({h, c})};
+  if (!v2) att = {leaf({h, c}), leaf({h, c}), leaf({h, c})};
+  std::vector<Tensor> leaves{hs, hd, he, bias};
+  leaves.insert(leaves.end(), att.begin(), att.end());
+  const Tensor weights = torch::randn({s, n, h * c});
+  const fused::InEdges edges = fused::inEdgesFromMask(mask);
+  const Tensor out = v2 ? fused::sceneAttentionV2(hs, hd, he, att[0], bias, edges)
+                        : fused::sceneAttentionGat(hs, hd, he, att[0], att[1], att[2], bias, edges);
+  (out * weights).sum().backward();
+  const std::vector<Tensor> fused_grads = gradsOf(leaves);
+  const Tensor ref = sceneReference(hs, hd, he, att, bias, mask);
+  (ref * weights).sum().backward();
+  const std::vector<Tensor> ref_grads = gradsOf(leaves);
+  const std::string kind = v2 ? "gatv2 " : "gat ";
+  expectClose(out, ref, 1e-5, kind + "output");
+  const char* names[] = {"hs", "hd", "he", "bias", "att (dst)", "att_src", "att_edge"};
+  for (size_t i = 0; i < leaves.size(); ++i) expectClose(fused_grads[i], ref_grads[i], 1e-4, kind + "d/d" + names[i]);
+}
+
 }  // namespace
+
+TEST(FusedKernels, SceneAttentionEqualsTheOpByOpFormulationAndItsGradients) {
+  torch::manual_seed(11);
+  const Tensor random = torch::rand({7, 7}).lt(0.4).logical_or(torch::eye(7, torch::kBool));
+  ASSERT_GT(random.sum().item<int64_t>(), 7) << "the random mask has edges besides the self-loops";
+  ASSERT_LT(random.sum().item<int64_t>(), 49) << "the random mask is not the full graph";
+  for (const bool v2 : {true, false}) {
+    checkScene(random, v2);
+    checkScene(torch::ones({5, 5}, torch::kBool), v2);
+  }
+}
+
+TEST(FusedKernels, SceneAttentionRefusesMisshapenInputs) {
+  const fused::InEdges edges = fused::inEdgesFromMask(torch::ones({4, 4}, torch::kBool));
+  const Tensor h = torch::zeros({2, 4, 2, 3}), he = torch::zeros({2, 4, 4, 2, 3}), att = torch::zeros({2, 3}),
+               bias = torch::zeros({6});
+  torch::NoGradGuard no_grad;
+  EXPECT_EQ(fused::sceneAttentionV2(h, h, he, att, bias, edges).sizes(), (std::vector<int64_t>{2, 4, 6}));
+  EXPECT_THROW(fused::sceneAttentionV2(h, h, torch::zeros({2, 4, 3, 2, 3}), att, bias, edges), ddace::Error) << "pairs";
+  EXPECT_THROW(fused::sceneAttentionV2(h, h, he, torch::zeros({2, 4}), bias, edges), ddace::Error) << "att";
+  EXPECT_THROW(fused::sceneAttentionV2(h, h, he, att, torch::zeros({5}), edges), ddace::Error) << "bias";
+  EXPECT_THROW(fused::sceneAttentionGat(h, h, he, att, att, torch::zeros({3, 2}), bias, edges), ddace::Error)
+      << "att_edge";
+  EXPECT_THROW(fused::sceneAttentionV2(torch::zeros({2, 5, 2, 3}), torch::zeros({2, 5, 2, 3}),
+                                       torch::zeros({2, 5, 5, 2, 3}), att, bias, edges),
+               ddace::Error)
+      << "nodes against the edges";
+}
+
+TEST(FusedKernels, PointerScoresEqualTheOpByOpFormulationAndItsGradients) {
+  torch::manual_seed(13);
+  const int64_t p = 4, n = 6, k = 5;
+  const Tensor a = leaf({p, n, k}), b = leaf({p, n, k}), r = leaf({p, n, n, k}), z = leaf({p, k}), v = leaf({k});
+  const std::vector<Tensor> leaves{a, b, r, z, v};
+  const Tensor weights = torch::randn({p, n, n});
+  const Tensor out = fused::pointerScores(a, b, r, z, v);
+  (out * weights).sum().backward();
+  const std::vector<Tensor> fused_grads = gradsOf(leaves);
+  const Tensor pre = a.unsqueeze(-2) + b.unsqueeze(-3) + r + z.unsqueeze(-2).unsqueeze(-2);
+  const Tensor ref = torch::matmul(torch::relu(pre), v);
+  (ref * weights).sum().backward();
+  const std::vector<Tensor> ref_grads = gradsOf(leaves);
+  expectClose(out, ref, 1e-5, "scores");
+  const char* names[] = {"a", "b", "r", "z", "v"};
+  for (size_t i = 0; i < leaves.size(); ++i)
+    expectClose(fused_grads[i], ref_grads[i], 1e-4, std::string("d/d") + names[i]);
+  torch::NoGradGuard no_grad;
+  EXPECT_THROW(fused::pointerScores(a, b, torch::zeros({p, n, n - 1, k}), z, v), ddace::Error) << "pairs";
+  EXPECT_THROW(fused::pointerScores(a, b, r, z, torch::zeros({k + 1})), ddace::Error) << "v";
+}
 
 TEST(FusedKernels, GatAttentionEqualsTheOpByOpFormulationAndItsGradients) {
   torch::manual_seed(3);
