@@ -49,7 +49,7 @@ int runTrain(const std::vector<std::string>& argv) {
   Args args(argv,
             {"--out", "--variant", "--epochs", "--seed", "--threads", "--patience", "--lr", "--attention", "--dropout",
              "--layers", "--gru-hidden", "--head-hidden", "--identity-dim", "--weight-decay"},
-            {"--no-identity", "--positions", "--displacement", "--quiet", "--force"});
+            {"--no-identity", "--positions", "--displacement", "--no-relative", "--relative", "--quiet", "--force"});
   const std::string given = args.positional(0, "TASKDIR");
   const std::string task_path = trainingDir(given);
   args.expectAtMostPositional(1);
@@ -82,6 +82,8 @@ int runTrain(const std::vector<std::string>& argv) {
   // mirroring the scene); these add the absolute (x, y) and x_j - x_i back (docs/tgn.md).
   if (args.has("--positions")) options.node_positions = true;
   if (args.has("--displacement")) options.edge_displacement = true;
+  if (args.has("--no-relative")) options.relative_features = false;
+  if (args.has("--relative")) options.fixed_order_rule = false;
   options.validate();
 
   const task::TaskDir train = task::loadTaskDir(task_path);
@@ -129,7 +131,7 @@ DDACE_COMMAND(
      "N=400] [--seed S=1] "
      "[--threads T=1] [--patience P=20] [--lr RATE] [--dropout P=0.1] [--layers L=3] [--gru-hidden H=64] "
      "[--head-hidden H=32] [--identity-dim D=8] [--weight-decay W=0] [--no-identity] [--positions] "
-     "[--displacement] [--quiet]",
+     "[--displacement] [--no-relative] [--relative] [--quiet]",
      "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR "
      "(refused when it holds anything else; --force replaces an earlier model)",
      runTrain});

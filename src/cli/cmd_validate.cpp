@@ -35,13 +35,9 @@ bool validateOne(const std::string& path, bool verbose) {
   for (size_t i = 0; i < vocab.size(); ++i) std::cout << (i ? ", " : "") << vocab[i];
   std::cout << "], " << dir.demos.size() << " demonstrations\n";
 
-  std::string first_structure;
   bool same = true;
   for (const auto& d : dir.demos) {
-    std::string structure;
-    for (const auto& s : d.steps) structure += stepText(s, spec) + " ";
-    if (first_structure.empty()) first_structure = structure;
-    same = same && structure == first_structure;
+    same = same && task::sameSteps(d.steps, dir.demos.front().steps);
     std::printf("  %s: %zu rows (%.2f s), %zu keyframes, %zu steps, %zu segments\n",
                 fs::path(d.source).filename().c_str(), d.rows, d.t_last - d.t_first, d.steps.size(), d.steps.size(),
                 d.segments);

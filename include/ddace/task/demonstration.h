@@ -57,6 +57,10 @@ struct Step {
   std::vector<LateOnset> late;  ///< the tokens that joined after keyframe_row, in row order
 };
 
+/// The same number of steps with the same tokens, step by step (keyframe rows and late
+/// onsets aside): two demonstrations of one fixed step order.
+bool sameSteps(const std::vector<Step>& a, const std::vector<Step>& b);
+
 /// The rows during which a token's label holds: [first_row, last_row].
 struct Segment {
   Token token;

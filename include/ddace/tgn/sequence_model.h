@@ -57,8 +57,9 @@ namespace ddace::tgn {
 
 /// Format tag of manifest.yaml in a model directory. /3: SHA-256 digests of every file
 /// and of the manifest itself, and the task fingerprint; /4: the step decoding rules
-/// (StepRules). Older manifests are refused (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/4";
+/// (StepRules); /5: whether the scene network saw the relative features
+/// (`relative_features`, the "Fixed order" rule). Older manifests are refused (retrain).
+inline constexpr const char* kModelFormat = "ddace-model/5";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {
@@ -101,7 +102,14 @@ struct TrainOptions {
   bool node_positions = false;                     ///< scene variant: absolute (x, y) among the node features
   bool edge_displacement = false;                  ///< scene variant: x_j - x_i among the edge features (else only
                                                    ///< distance and nearness ranks: invariant to rotating the scene)
-  double weight_decay = 0;                         ///< Adam's L2 penalty (as torch.optim.Adam's weight_decay)
+  /// Scene variant: the relative edge features at all. Off, a decision depends on the
+  /// entities' names and kinds and on the steps so far, never on the configuration.
+  bool relative_features = true;
+  /// Scene variant, training only: when every training demonstration has the same steps
+  /// (the scene decided nothing in them), train with relative_features off (docs/tgn.md,
+  /// "Fixed order"). The manifest records the outcome in relative_features.
+  bool fixed_order_rule = true;
+  double weight_decay = 0;  ///< Adam's L2 penalty (as torch.optim.Adam's weight_decay)
   double dropout = 0.1;
   double learning_rate = 5e-3;
   int batch_demos = 8;                  ///< at most this many demonstrations per mini-batch, and at

@@ -18,6 +18,11 @@ bool Token::operator<(const Token& o) const {
   return target < o.target;
 }
 
+bool sameSteps(const std::vector<Step>& a, const std::vector<Step>& b) {
+  return std::equal(a.begin(), a.end(), b.begin(), b.end(),
+                    [](const Step& x, const Step& y) { return x.tokens == y.tokens; });
+}
+
 std::string tokenKey(const Token& token, const TaskSpec& spec) {
   auto name = [&](int i) {
     return i >= 0 && i < static_cast<int>(spec.entities.size()) ? spec.entities[i].name : "#" + std::to_string(i);

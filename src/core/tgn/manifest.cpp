@@ -148,6 +148,7 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   y << YAML::Key << "head_hidden" << YAML::Value << o.head_hidden;
   y << YAML::Key << "node_positions" << YAML::Value << o.node_positions;
   y << YAML::Key << "edge_displacement" << YAML::Value << o.edge_displacement;
+  y << YAML::Key << "relative_features" << YAML::Value << o.relative_features;
   y << YAML::Key << "weight_decay" << YAML::Value << o.weight_decay;
   y << YAML::Key << "dropout" << YAML::Value << o.dropout;
   y << YAML::Key << "learning_rate" << YAML::Value << o.learning_rate;
@@ -328,12 +329,14 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
     const std::string version = format.substr(prefix.size());
     const bool numeric = !version.empty() && version.size() <= 6 &&
                          std::all_of(version.begin(), version.end(), [](char c) { return c >= '0' && c <= '9'; });
-    if (numeric && std::stoi(version) < std::stoi(own))
-      r.fail(format_node,
-             "format '" + format + "' is an older model format than " + kModelFormat +
-                 " (it lacks the step rules learned from the demonstrations" +
-                 (std::stoi(version) < 3 ? ", and its files are not bound by digests to the model and its task" : "") +
-                 "): retrain the model (ddace train)");
+    if (numeric && std::stoi(version) < std::stoi(own)) {
+      const int v = std::stoi(version);
+      r.fail(format_node, "format '" + format + "' is an older model format than " + kModelFormat +
+                              " (it lacks the record of whether the network saw the relative features" +
+                              (v < 4 ? ", the step rules learned from the demonstrations" : "") +
+                              (v < 3 ? ", and its files are not bound by digests to the model and its task" : "") +
+                              "): retrain the model (ddace train)");
+    }
     if (numeric)
       r.fail(format_node, "format '" + format + "' is newer than " + kModelFormat + ", the newest this ddace reads");
   }
@@ -449,6 +452,7 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     o.head_hidden = r.integer(hp, "head_hidden");
     o.node_positions = r.boolean(hp, "node_positions");
     o.edge_displacement = r.boolean(hp, "edge_displacement");
+    o.relative_features = r.boolean(hp, "relative_features");
     o.weight_decay = r.number(hp, "weight_decay");
     o.dropout = r.number(hp, "dropout");
     o.learning_rate = r.number(hp, "learning_rate");

@@ -202,6 +202,10 @@ void SequenceModel::Impl::features(const std::vector<Eigen::Vector2d>& pos, cons
 
 void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos, float* out) const {
   const int n = cfg.nodes;
+  if (!info.options.relative_features) {  // "Fixed order": the configuration reaches no decision
+    std::fill(out, out + static_cast<size_t>(n) * n * kRelativeFeatures, 0.f);
+    return;
+  }
   const double scale = info.std[0];  // isotropic for the scene variant
   std::vector<double> d(static_cast<size_t>(n * n));
   // Entities at one place: a demonstration's motion ends on its target, a closed-loop one

@@ -58,7 +58,8 @@ struct SceneNetworkImpl : torch::nn::Module {
   /// `attention`: [N, N] bool, i receives from j (self-loops included).
   SceneNetworkImpl(const NetConfig& c, const torch::Tensor& attention);
 
-  /// x [S, N, F], rel [S, N, N, R] -> node embeddings [S, N, width].
+  /// x [S, N, F], rel [S, N, N, R] -> node embeddings [S, N, width]: the last layer's output, and
+  /// without the relative features each entity's own input beside it.
   torch::Tensor encode(const torch::Tensor& x, const torch::Tensor& rel);
   /// nodes [..., N, width], rel [..., N, N, R], z [..., hidden] -> the heads.
   Heads heads(const torch::Tensor& nodes, const torch::Tensor& rel, const torch::Tensor& z);

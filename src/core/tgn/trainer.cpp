@@ -93,7 +93,25 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
 
 }  // namespace
 
-SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& options, std::ostream* progress) {
+SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& requested, std::ostream* progress) {
+  // Fixed order: when every demonstration has the same steps, the configuration decided
+  // nothing in them, and what the relative features could teach is only coincidence of
+  // the few start configurations seen (measured: Task 2 with 10 demonstrations and 2 mm
+  // position noise, OSR 0.73 with them, 1.00 without). Then the decision is the names' and
+  // the steps so far: a new configuration cannot change it.
+  TrainOptions options = requested;
+  const bool fixed_order =
+      train.demos.size() >= 2 && std::all_of(train.demos.begin(), train.demos.end(), [&](const auto& d) {
+        return task::sameSteps(d.steps, train.demos.front().steps);
+      });
+  if (options.variant == Variant::Scene && options.relative_features && options.fixed_order_rule && fixed_order) {
+    options.relative_features = false;
+    if (progress)
+      *progress << "every demonstration has the same " << train.demos.front().steps.size()
+                << " steps: training without the relative features (a decision cannot depend on the configuration; "
+                   "--relative keeps them)"
+                << std::endl;
+  }
   std::shared_ptr<Impl> impl = trainNetwork(train, options, progress);
   // The identity embedding lets the scene network tell entities apart by name, which the
   // fixed-order tasks need; where the decision is the scene's (nearest_goal), it can also

@@ -77,9 +77,14 @@ TEST_P(ReachesFullStepAccuracy, OnTheTrainingDemonstrations) {
   EXPECT_DOUBLE_EQ(m.stepAccuracy(train.demos), 1.0) << progress.str();
   EXPECT_EQ(m.info().history.back().step_accuracy, 1.0);
   EXPECT_LT(static_cast<int>(m.info().history.size()), o.max_epochs) << "no plateau reached";
-  // One progress line per epoch.
+  // One progress line per epoch (and one saying the fixed order was seen: these tasks have one).
   const std::string text = progress.str();
-  EXPECT_EQ(static_cast<size_t>(std::count(text.begin(), text.end(), '\n')), m.info().history.size());
+  size_t epoch_lines = 0;
+  for (size_t at = 0; (at = text.find("epoch ", at)) != std::string::npos; ++at)
+    if (at == 0 || text[at - 1] == '\n') ++epoch_lines;
+  EXPECT_EQ(epoch_lines, m.info().history.size());
+  EXPECT_NE(text.find("every demonstration has the same"), std::string::npos) << text;
+  EXPECT_FALSE(m.info().options.relative_features);
   EXPECT_NE(text.find("epoch 1/"), std::string::npos);
   EXPECT_NE(text.find("step accuracy"), std::string::npos);
 }
@@ -208,7 +213,7 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
   EXPECT_NE(e.find("manifest.yaml records"), std::string::npos) << e;
   e = variant("other_format", [&](const fs::path& d) {
     rewrite(d / "manifest.yaml",
-            [](std::string& s) { s.replace(s.find("format: ddace-model/4"), 21, "format: ddace-model/9"); });
+            [](std::string& s) { s.replace(s.find("format: ddace-model/5"), 21, "format: ddace-model/9"); });
   });
   EXPECT_NE(e.find("manifest.yaml:"), std::string::npos) << e;
   e = variant("loss_row", [&](const fs::path& d) { rewrite(d / "loss.csv", [](std::string& s) { s += "x,y\n"; }); });
@@ -289,14 +294,14 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
     EXPECT_NE(edited("step_size: ", "step_size:", true).find("missing key 'step_size'"), std::string::npos);
   }
   // An older format: retrain, saying what it lacks; a newer one: said so.
-  for (const char* version : {"ddace-model/3", "ddace-model/2"}) {
-    const std::string old = edited("format: ddace-model/4", std::string("format: ") + version, false);
+  for (const char* version : {"ddace-model/4", "ddace-model/3", "ddace-model/2"}) {
+    const std::string old = edited("format: ddace-model/5", std::string("format: ") + version, false);
     EXPECT_NE(old.find("retrain"), std::string::npos) << old;
-    EXPECT_NE(old.find("step rules"), std::string::npos) << old;
+    EXPECT_NE(old.find("relative features"), std::string::npos) << old;
     EXPECT_NE(old.find("manifest.yaml:"), std::string::npos) << old;
   }
-  EXPECT_NE(edited("format: ddace-model/4", "format: ddace-model/2", false).find("digests"), std::string::npos);
-  EXPECT_NE(edited("format: ddace-model/4", "format: ddace-model/12", false).find("newer"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/5", "format: ddace-model/2", false).find("digests"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/5", "format: ddace-model/12", false).find("newer"), std::string::npos);
   fs::remove_all(good);
 }
 
