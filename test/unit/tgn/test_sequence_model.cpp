@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "ddace/common/error.h"
+#include "ddace/common/random.h"
 #include "ddace/common/sha256.h"
 #include "ddace/tasks/generators.h"
 #include "ddace/tgn/detail.h"
@@ -492,13 +493,61 @@ TEST(SequenceModel, SceneDecisionsDoNotDependOnWhereTheSceneIsOnTheTable) {
     }
 }
 
+// Fixed order: every training demonstration has the same steps, so the network learns
+// without the relative features, and no configuration (here: every entity anywhere on the
+// table, at every snapshot) changes a decision; saved and loaded, it stays so. Where the
+// steps vary (fetch: the robot nearest the box fetches it), the features stay.
+TEST(SequenceModel, FixedOrderTasksDecideFromTheStepsSoFarNotTheConfiguration) {
+  const tgn::SequenceModel& m = task4Model();
+  EXPECT_FALSE(m.info().options.relative_features);
+  const task::TaskDir test = generate("task4", 3, 41);
+  SplitMix64 rng(7);
+  const std::string dir = tempDir("fixed_order");
+  m.save(dir);
+  const tgn::SequenceModel loaded = tgn::SequenceModel::load(dir);
+  EXPECT_FALSE(loaded.info().options.relative_features);
+  for (const auto& d : test.demos)
+    for (size_t k = 1; k <= d.snapshots.size(); ++k) {
+      std::vector<task::Snapshot> h(d.snapshots.begin(), d.snapshots.begin() + static_cast<long>(k));
+      const auto p = m.predictNext(h);
+      EXPECT_EQ(p.end, k == d.snapshots.size()) << d.source << " step " << k;
+      if (!p.end) {
+        EXPECT_EQ(p.tokens, d.steps[k - 1].tokens) << d.source << " step " << k;
+      }
+      for (auto& snap : h)
+        for (auto& pos : snap.positions) pos = {rng.uniform(0.03, 1.17), rng.uniform(0.03, 0.77)};
+      const auto q = m.predictNext(h), r = loaded.predictNext(h);
+      EXPECT_EQ(named(p, m.spec()), named(q, m.spec())) << d.source << " step " << k;
+      EXPECT_EQ(named(p, m.spec()), named(r, m.spec())) << d.source << " step " << k;
+    }
+  fs::remove_all(dir);
+
+  const task::TaskDir fetch = generate("fetch", 8);
+  ASSERT_FALSE(std::all_of(fetch.demos.begin(), fetch.demos.end(), [&](const task::Demonstration& d) {
+    return task::sameSteps(d.steps, fetch.demos.front().steps);
+  })) << "the fetch demonstrations all have the same steps: the test tests nothing";
+  tgn::TrainOptions o;
+  o.max_epochs = 2;
+  EXPECT_TRUE(tgn::SequenceModel::train(fetch, o, nullptr).info().options.relative_features);
+  // --relative: kept on a fixed order too; --no-relative: off on any task.
+  o.fixed_order_rule = false;
+  EXPECT_TRUE(tgn::SequenceModel::train(generate("task4", 3), o, nullptr).info().options.relative_features);
+  o.relative_features = false;
+  EXPECT_FALSE(tgn::SequenceModel::train(fetch, o, nullptr).info().options.relative_features);
+}
+
 // A demonstrated motion ends on its target; on robots it ends within the arrival radius of
 // it, short of it on the way there. The same scenes with every entity that arrived on
 // another stopping 0.8 radii short (the path follower stops within the radius less its
 // tracking tolerance) get the same decisions.
 TEST(SequenceModel, StoppingWithinTheArrivalRadiusOfATargetChangesNoDecision) {
-  // Task 2: R1 and R2 join R3, ..., R7 and R8 join R9, before R9 and R10 move on.
-  const tgn::SequenceModel m = tgn::SequenceModel::train(generate("task2", 10), tgn::TrainOptions{}, nullptr);
+  // Task 2: R1 and R2 join R3, ..., R7 and R8 join R9, before R9 and R10 move on. With the
+  // relative features kept (a fixed order would switch them off, and then nothing about
+  // where an entity stopped could change a decision: "Fixed order").
+  tgn::TrainOptions o;
+  o.fixed_order_rule = false;
+  const tgn::SequenceModel m = tgn::SequenceModel::train(generate("task2", 10), o, nullptr);
+  ASSERT_TRUE(m.info().options.relative_features);
   const task::TaskDir test = generate("task2", 3, 5);
   const double radius = test.spec.arrival_radius;
   int stopped_short = 0;
