@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <string>
 
@@ -33,6 +34,11 @@ void axpy(float alpha, const float* x, float* y, int64_t n) {
 
 Tensor saved(AutogradContext* ctx, const char* name) {
   return ctx->saved_data.at(name).toTensor();
+}
+
+/// Keeps the tensors a backward pass reads, by name (saved() gets them back).
+void save(AutogradContext* ctx, std::initializer_list<std::pair<const char*, Tensor>> tensors) {
+  for (const auto& [name, t] : tensors) ctx->saved_data[name] = t;
 }
 
 // ------------------------------------------------------------------ GAT attention
@@ -84,15 +90,14 @@ struct GatAttentionFn : torch::autograd::Function<GatAttentionFn> {
             axpy(v, hp + ((s * n_n + src[e]) * h_n + k) * c_n, oi, c_n);
           }
         }
-    for (const auto& [name, t] : {std::pair<const char*, Tensor>{"h", h},
-                                  {"att_src", att_src},
-                                  {"att_dst", att_dst},
-                                  {"alpha", alpha},
-                                  {"a_src", a_src},
-                                  {"a_dst", a_dst},
-                                  {"offset", offset},
-                                  {"source", source}})
-      ctx->saved_data[name] = t;
+    save(ctx, {{"h", h},
+               {"att_src", att_src},
+               {"att_dst", att_dst},
+               {"alpha", alpha},
+               {"a_src", a_src},
+               {"a_dst", a_dst},
+               {"offset", offset},
+               {"source", source}});
     return out;
   }
 
@@ -202,9 +207,7 @@ struct GruRecurrenceFn : torch::autograd::Function<GruRecurrenceFn> {
         }
       }
     }
-    for (const auto& [name, t] :
-         {std::pair<const char*, Tensor>{"w_hh", w_hh}, {"h_prev", h_prev}, {"gates", gates}, {"gh_n", gh_n}})
-      ctx->saved_data[name] = t;
+    save(ctx, {{"w_hh", w_hh}, {"h_prev", h_prev}, {"gates", gates}, {"gh_n", gh_n}});
     return hs;
   }
 
@@ -407,14 +410,8 @@ struct SceneAttentionFn : torch::autograd::Function<SceneAttentionFn> {
         }
         for (int64_t c = 0; c < hc; ++c) oi[c] += bp[c];
       }
-    for (const auto& [name, t] : {std::pair<const char*, Tensor>{"hs", hs},
-                                  {"hd", hd},
-                                  {"he", he},
-                                  {"att", att},
-                                  {"alpha", alpha},
-                                  {"offset", offset},
-                                  {"source", source}})
-      ctx->saved_data[name] = t;
+    save(ctx,
+         {{"hs", hs}, {"hd", hd}, {"he", he}, {"att", att}, {"alpha", alpha}, {"offset", offset}, {"source", source}});
     return out;
   }
 
@@ -547,8 +544,7 @@ struct PointerScoresFn : torch::autograd::Function<PointerScoresFn> {
           op[(p * n_n + i) * n_n + j] = sum8(terms.data(), k_n);
         }
       }
-    for (const auto& [name, t] : {std::pair<const char*, Tensor>{"a", a}, {"b", b}, {"r", r}, {"z", z}, {"v", v}})
-      ctx->saved_data[name] = t;
+    save(ctx, {{"a", a}, {"b", b}, {"r", r}, {"z", z}, {"v", v}});
     return out;
   }
 
