@@ -7,6 +7,8 @@
 // markers merge in the image (impossible with real 4 cm Hamsters).
 #include "exec_common.h"
 
+#include <mutex>
+
 #include "ddace/EntityArray.h"
 
 TEST(VisionTask4, CompletesOnTrackedPoses) {
@@ -33,9 +35,32 @@ TEST(VisionTask4, CompletesOnTrackedPoses) {
         if (!m->entities.empty() && m->entities.front().visible) ++tracked;
       });
   std::atomic<int> truth{0};
-  ros::Subscriber sub_truth = nh.subscribe<ddace::EntityArray>("/ddace/true_entities", 50,
-                                                               [&](const ddace::EntityArray::ConstPtr&) { ++truth; });
+  std::mutex last_mutex;
+  ddace::EntityArray last_truth, last_tracked;
+  ros::Subscriber sub_truth =
+      nh.subscribe<ddace::EntityArray>("/ddace/true_entities", 50, [&](const ddace::EntityArray::ConstPtr& m) {
+        ++truth;
+        const std::lock_guard<std::mutex> lock(last_mutex);
+        last_truth = *m;
+      });
+  ros::Subscriber sub_last =
+      nh.subscribe<ddace::EntityArray>("/ddace/entities", 50, [&](const ddace::EntityArray::ConstPtr& m) {
+        const std::lock_guard<std::mutex> lock(last_mutex);
+        last_tracked = *m;
+      });
   exec_test::runTaskEndToEnd("task4", 4, /*learned=*/true, 100.0);
+  if (testing::Test::HasFailure()) {
+    // Where everything stood at the end, seen by the mock robots and by the tracker.
+    const std::lock_guard<std::mutex> lock(last_mutex);
+    for (const auto& t : last_truth.entities) {
+      std::printf("vision_task4: %s truth (%.4f, %.4f, %.3f)", t.name.c_str(), t.pose.x, t.pose.y, t.pose.theta);
+      for (const auto& m : last_tracked.entities)
+        if (m.name == t.name)
+          std::printf(" tracked (%.4f, %.4f, %.3f) visible %d stale %d last seen %.2f s before", m.pose.x, m.pose.y,
+                      m.pose.theta, m.visible, m.stale, (last_tracked.header.stamp - m.last_seen).toSec());
+      std::printf("\n");
+    }
+  }
   EXPECT_GT(truth.load(), 0) << "the mock robots did not publish on /ddace/true_entities";
   EXPECT_GT(tracked.load(), 100) << "the tracker published too few measured poses";
   std::printf("vision_task4: %d tracker outputs, %d truth messages\n", tracked.load(), truth.load());

@@ -214,8 +214,28 @@ cv::Mat SyntheticCamera::render(const std::vector<TrueEntity>& entities, double 
       if (e.name == te.name) return &e;
     return nullptr;
   };
-  // Bodies first, then the markers on top of them (lowest first): robots that come
-  // closer than their size in a simulation overlap, but their markers stay on top.
+  std::vector<std::pair<const EntityMarker*, PlanarPose>> prints, raised;  // goals / on a body
+  for (const auto& te : entities)
+    if (const EntityMarker* em = markerOf(te)) {
+      PlanarPose marker_pose = te.pose;
+      marker_pose.yaw = te.pose.yaw - em->yaw_offset_rad;
+      (em->kind == task::EntityKind::Goal ? prints : raised).emplace_back(em, marker_pose);
+    }
+  std::stable_sort(prints.begin(), prints.end(),
+                   [](const auto& a, const auto& b) { return a.first->height_m < b.first->height_m; });
+  std::stable_sort(raised.begin(), raised.end(),
+                   [](const auto& a, const auto& b) { return a.first->height_m < b.first->height_m; });
+  // White margins of a layer's markers first, then their black squares over them: two
+  // markers closer than their margins still show both squares (as prints would).
+  auto drawLayer = [&](const std::vector<std::pair<const EntityMarker*, PlanarPose>>& layer) {
+    for (const auto& [em, pose] : layer) drawMarker(img, em->id, em->size_m, pose, em->height_m, MarkerPart::QuietZone);
+    for (const auto& [em, pose] : layer) drawMarker(img, em->id, em->size_m, pose, em->height_m, MarkerPart::Square);
+  };
+  // In the order things stack: prints lying on the table (goals), the bodies standing on
+  // it (a robot parked on a goal covers the goal's print), the markers on the bodies.
+  // Robots that come closer than their size in a simulation overlap, but their markers
+  // stay on top.
+  drawLayer(prints);
   for (const auto& te : entities) {
     const EntityMarker* em = markerOf(te);
     if (!em || em->kind == task::EntityKind::Goal || config_.body_size_m <= 0) continue;
@@ -225,19 +245,7 @@ cv::Mat SyntheticCamera::render(const std::vector<TrueEntity>& entities, double 
       body.emplace_back(te.pose.x + c * lx - s * ly, te.pose.y + s * lx + c * ly, 0.0);
     drawQuad(img, body, em->kind == task::EntityKind::Robot ? 45 : 120);
   }
-  std::vector<std::pair<const EntityMarker*, PlanarPose>> to_draw;
-  for (const auto& te : entities)
-    if (const EntityMarker* em = markerOf(te)) {
-      PlanarPose marker_pose = te.pose;
-      marker_pose.yaw = te.pose.yaw - em->yaw_offset_rad;
-      to_draw.emplace_back(em, marker_pose);
-    }
-  std::stable_sort(to_draw.begin(), to_draw.end(),
-                   [](const auto& a, const auto& b) { return a.first->height_m < b.first->height_m; });
-  // White margins of every marker first, then every marker's black square over them: two
-  // markers closer than their margins still show both squares (as prints would).
-  for (const auto& [em, pose] : to_draw) drawMarker(img, em->id, em->size_m, pose, em->height_m, MarkerPart::QuietZone);
-  for (const auto& [em, pose] : to_draw) drawMarker(img, em->id, em->size_m, pose, em->height_m, MarkerPart::Square);
+  drawLayer(raised);
   for (const auto& te : entities) {
     if (!te.occluded && !occluded(te.name, t_s)) continue;
     // A hand: a blob over the marker with a shadow beside it.

@@ -219,6 +219,29 @@ TEST(Tracker, ParallaxOfRaisedMarkersIsCorrectedWithIntrinsics) {
   EXPECT_GT(std::hypot(b.x - 0.9, b.y - 0.95), 0.015);
 }
 
+TEST(Tracker, ARobotParkedOnAGoalIsSeenOnItsBody) {
+  // A goal is a print on the table; a robot standing on it covers it with its body, and
+  // its own marker sits on top. (When the goal's print was drawn over the body, the
+  // robot's marker lay inside the goal's black square and neither was found.)
+  const TrackerConfig c = shippedConfig();
+  auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml");
+  cam_cfg.occlusions.clear();
+  ASSERT_GT(cam_cfg.body_size_m, 0.04);  // the body covers the goal's 4 cm print
+  SyntheticCamera cam(cam_cfg, c.markers);
+  const PlanarPose goal{0.6, 0.55, 0.0};
+  for (const double dx : {0.0, 0.01, -0.015}) {
+    Tracker tracker(c);  // a first sighting each time, not a jump of a filtered pose
+    tracker.setCamera(cam.camera());
+    const std::vector<TrueEntity> truth = {
+        {"R1", {0.2, 0.2, 0.3}}, {"R3", {goal.x + dx, goal.y - dx, 0.7}}, {"G1", goal}};
+    const FrameResult fr = tracker.process(cam.render(truth, 0.0), 0.0);
+    const EntityState& r3 = fr.entities[2];
+    ASSERT_EQ(r3.name, "R3");
+    EXPECT_TRUE(r3.visible) << "R3 " << dx << " m from the goal's centre";
+    EXPECT_LT(std::hypot(r3.pose.x - truth[1].pose.x, r3.pose.y - truth[1].pose.y), 0.005) << dx;
+  }
+}
+
 TEST(Tracker, HoldsThroughAHalfSecondOcclusionThenGoesStale) {
   TrackerConfig c = shippedConfig();
   auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml");  // R2 hidden 1.0 .. 1.5 s
