@@ -56,6 +56,9 @@ struct SequenceModel::Impl {
   Heads run(const Batch& batch);
   /// Exact-step (gnn: frame label) accuracy, eval mode.
   double accuracy(const std::vector<Sequence>& seqs);
+  /// The same on a batch of every sequence (collateAll): training collates it once and
+  /// reuses it after every epoch (the data do not change; the pass only reads the batch).
+  double accuracy(const Batch& everything);
 };
 
 /// Spec, vocabulary, E', attention edges and normalisation: everything but the weights.
