@@ -61,6 +61,10 @@ struct SequenceModel::Impl {
   double accuracy(const Batch& everything);
 };
 
+/// `requested` with the "Fixed order" rule (docs/tgn.md) applied to `train`: the options
+/// SequenceModel::train trains with (and the benchmarks' reference tensors are written for).
+TrainOptions withFixedOrderRule(const task::TaskDir& train, const TrainOptions& requested);
+
 /// Spec, vocabulary, E', attention edges and normalisation: everything but the weights.
 std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const TrainOptions& options);
 

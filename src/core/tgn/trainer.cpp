@@ -96,7 +96,7 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
 
 }  // namespace
 
-SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& requested, std::ostream* progress) {
+TrainOptions withFixedOrderRule(const task::TaskDir& train, const TrainOptions& requested) {
   // Fixed order: when every demonstration has the same steps, the configuration decided
   // nothing in them, and what the relative features could teach is only coincidence of
   // the few start configurations seen (measured: Task 2 with 10 demonstrations and 2 mm
@@ -107,14 +107,18 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
       train.demos.size() >= 2 && std::all_of(train.demos.begin(), train.demos.end(), [&](const auto& d) {
         return task::sameSteps(d.steps, train.demos.front().steps);
       });
-  if (options.variant == Variant::Scene && options.relative_features && options.fixed_order_rule && fixed_order) {
+  if (options.variant == Variant::Scene && options.relative_features && options.fixed_order_rule && fixed_order)
     options.relative_features = false;
-    if (progress)
-      *progress << "every demonstration has the same " << train.demos.front().steps.size()
-                << " steps: training without the relative features (a decision cannot depend on the configuration; "
-                   "--relative keeps them)"
-                << std::endl;
-  }
+  return options;
+}
+
+SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& requested, std::ostream* progress) {
+  const TrainOptions options = withFixedOrderRule(train, requested);
+  if (progress && options.relative_features != requested.relative_features)
+    *progress << "every demonstration has the same " << train.demos.front().steps.size()
+              << " steps: training without the relative features (a decision cannot depend on the configuration; "
+                 "--relative keeps them)"
+              << std::endl;
   std::shared_ptr<Impl> impl = trainNetwork(train, options, progress);
   // The identity embedding lets the scene network tell entities apart by name, which the
   // fixed-order tasks need; where the decision is the scene's (nearest_goal), it can also
