@@ -6,7 +6,9 @@ every epoch) as src/core/tgn, on the tensors that ddace::tgn::writeTrainingTenso
 (their `variant` line picks the network):
   scene  (src/core/tgn/scene_network.cpp) GATv2 attention with relative edge features in the
          logits and the messages, ReLU, dropout, residuals, mean pooling, 2-layer GRU,
-         per-entity action heads and a pointer over the candidate targets;
+         per-entity action heads and a pointer over the candidate targets; with
+         `relative_features 0` ("Fixed order", docs/tgn.md: the tensors' rel is all zero) the
+         GRU and the heads read each entity's own input beside the last layer's output;
   paper  (src/core/tgn/network.cpp) 3 GAT layers with GATConv semantics, BatchNorm, ReLU,
          dropout, mean pooling, 2-layer GRU, linear heads with the self-target mask.
 Prints one JSON object.
@@ -151,10 +153,12 @@ class SceneNetwork(torch.nn.Module):
         self.mask = mask.view(1, self.n, self.n, 1)
         self.dropout, self.identity_dim = a.dropout, a.identity_dim
         self.identity = torch.nn.Embedding(self.n, a.identity_dim)
-        width, hidden = a.heads * a.head_channels, a.head_hidden
+        attention_width, hidden = a.heads * a.head_channels, a.head_hidden
         fin = meta["features"] + a.identity_dim
         self.layers = torch.nn.ModuleList(
-            [SceneLayer(fin if l == 0 else width, rel, a.heads, a.head_channels) for l in range(3)])
+            [SceneLayer(fin if l == 0 else attention_width, rel, a.heads, a.head_channels) for l in range(3)])
+        self.relative = meta.get("relative_features", 1) == 1
+        width = attention_width + (0 if self.relative else fin)
         self.gru = torch.nn.GRU(width, a.gru_hidden, num_layers=2, batch_first=True)
         self.act_h = torch.nn.Linear(width, hidden)
         self.act_z = torch.nn.Linear(a.gru_hidden, hidden, bias=False)
@@ -171,10 +175,11 @@ class SceneNetwork(torch.nn.Module):
     def encode(self, x, rel):
         s, n = x.shape[0], x.shape[1]
         x = torch.cat([x, self.identity.weight.unsqueeze(0).expand(s, n, self.identity_dim)], 2)
+        inputs = x
         for l, layer in enumerate(self.layers):
             y = F.dropout(F.relu(layer(x, rel, self.mask)), self.dropout, self.training)
             x = y if l == 0 else x + y
-        return x
+        return x if self.relative else torch.cat([x, inputs], 2)
 
     def heads(self, nodes, rel, z):
         zu = z.unsqueeze(-2)
@@ -272,12 +277,19 @@ def main():
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--history", type=int, default=6)
     p.add_argument("--repeats", type=int, default=200)
+    p.add_argument("--same-shapes", metavar="WEIGHTS",
+                   help="a C++ model's weights.pt: refuse to run unless the parameters have the same shapes")
     a = p.parse_args()
     torch.set_num_threads(1)
     torch.manual_seed(a.seed)
     meta, mask, seqs = read_tensors(a.tensors)
     scene = meta.get("variant") == "scene"
     net = SceneNetwork(meta, mask, a, seqs[0]["rel"].shape[-1]) if scene else Network(meta, mask, a)
+    if a.same_shapes:  # names differ (layers.0 / layer0): the sorted shapes must agree
+        theirs = sorted(tuple(p.shape) for p in torch.jit.load(a.same_shapes).parameters())
+        ours = sorted(tuple(p.shape) for p in net.parameters())
+        if theirs != ours:
+            raise SystemExit(f"not the same network: parameter shapes {ours} here, {theirs} in {a.same_shapes}")
     if a.mode == "train":
         adam = torch.optim.Adam(net.parameters(), lr=a.lr)
         rng = random.Random(a.seed)
@@ -302,7 +314,8 @@ def main():
             accs.append(accuracy(net, everything))
         seconds = time.perf_counter() - start
         print(json.dumps({"epochs": a.epochs, "seconds": seconds, "ms_per_epoch": 1000 * seconds / a.epochs,
-                          "final_loss": losses[-1], "final_step_accuracy": accs[-1]}))
+                          "final_loss": losses[-1], "final_step_accuracy": accs[-1],
+                          "relative_features": int(getattr(net, "relative", True))}))
     else:
         net.eval()
         x = seqs[0]["x"][: a.history]

@@ -12,7 +12,8 @@
 namespace ddace::tgn {
 
 /// For the benchmarks' Python reference: writes the keyframe training tensors of `train`
-/// (normalised inputs, targets, masks, attention mask) as whitespace-separated text.
+/// (normalised inputs, targets, masks, attention mask) as whitespace-separated text, for the
+/// network SequenceModel::train(train, options) trains ("Fixed order" rule applied).
 void writeTrainingTensors(const task::TaskDir& train, const TrainOptions& options, const std::string& path);
 
 namespace detail {

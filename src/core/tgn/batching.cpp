@@ -43,4 +43,10 @@ Batch collate(const std::vector<Sequence>& seqs, const std::vector<size_t>& whic
   return batch;
 }
 
+Batch collateAll(const std::vector<Sequence>& seqs, bool gnn) {
+  std::vector<size_t> all(seqs.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = i;
+  return collate(seqs, all, gnn);
+}
+
 }  // namespace ddace::tgn

@@ -30,5 +30,7 @@ struct Batch {
 
 /// The sequences `which` of `seqs` as one batch.
 Batch collate(const std::vector<Sequence>& seqs, const std::vector<size_t>& which, bool gnn);
+/// Every sequence of `seqs`, in order, as one batch (the eval pass).
+Batch collateAll(const std::vector<Sequence>& seqs, bool gnn);
 
 }  // namespace ddace::tgn

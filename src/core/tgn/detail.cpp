@@ -14,13 +14,16 @@ namespace ddace::tgn {
 using torch::Tensor;
 
 void writeTrainingTensors(const task::TaskDir& train, const TrainOptions& options, const std::string& path) {
-  auto impl = prepare(train, options);
+  // The network SequenceModel::train runs on `train` (the "Fixed order" rule included).
+  auto impl = prepare(train, withFixedOrderRule(train, options));
   impl->build();
   const std::vector<Sequence> seqs = impl->sequences(train.demos);
   std::ostringstream out;
   const NetConfig& c = impl->cfg;
   out << "# ddace tgn training tensors (keyframe variants); read by bench/tgn_train_reference.py\n";
   out << "variant " << toString(impl->info.variant) << "\n";
+  // Without them (scene, "Fixed order") rel is all zero and the heads read each entity's input too.
+  out << "relative_features " << (impl->info.options.relative_features ? 1 : 0) << "\n";
   out << "nodes " << c.nodes << "\nactions " << c.actions << "\ntargets " << c.targets << "\nfeatures " << c.features
       << "\ndemos " << seqs.size() << "\nmask";
   const Tensor mask =

@@ -333,11 +333,12 @@ Heads SequenceModel::Impl::run(const Batch& batch) {
 }
 
 double SequenceModel::Impl::accuracy(const std::vector<Sequence>& seqs) {
+  return accuracy(collateAll(seqs, cfg.gnn));
+}
+
+double SequenceModel::Impl::accuracy(const Batch& batch) {
   torch::NoGradGuard no_grad;
   module().eval();
-  std::vector<size_t> all(seqs.size());
-  for (size_t i = 0; i < all.size(); ++i) all[i] = i;
-  const Batch batch = collate(seqs, all, cfg.gnn);
   const Tensor ok = correctOf(run(batch), batch, cfg.gnn).to(torch::kFloat) * batch.valid;
   return (ok.sum() / batch.valid.sum()).item<double>();
 }

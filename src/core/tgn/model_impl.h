@@ -56,7 +56,14 @@ struct SequenceModel::Impl {
   Heads run(const Batch& batch);
   /// Exact-step (gnn: frame label) accuracy, eval mode.
   double accuracy(const std::vector<Sequence>& seqs);
+  /// The same on a batch of every sequence (collateAll): training collates it once and
+  /// reuses it after every epoch (the data do not change; the pass only reads the batch).
+  double accuracy(const Batch& everything);
 };
+
+/// `requested` with the "Fixed order" rule (docs/tgn.md) applied to `train`: the options
+/// SequenceModel::train trains with (and the benchmarks' reference tensors are written for).
+TrainOptions withFixedOrderRule(const task::TaskDir& train, const TrainOptions& requested);
 
 /// Spec, vocabulary, E', attention edges and normalisation: everything but the weights.
 std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const TrainOptions& options);

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "ddace/common/error.h"
+#include "ddace/common/file.h"
 #include "ddace/common/random.h"
 #include "ddace/common/sha256.h"
 #include "ddace/tasks/generators.h"
@@ -534,6 +535,39 @@ TEST(SequenceModel, FixedOrderTasksDecideFromTheStepsSoFarNotTheConfiguration) {
   EXPECT_TRUE(tgn::SequenceModel::train(generate("task4", 3), o, nullptr).info().options.relative_features);
   o.relative_features = false;
   EXPECT_FALSE(tgn::SequenceModel::train(fetch, o, nullptr).info().options.relative_features);
+}
+
+// The benchmarks' Python reference trains the network the tensors are written for: they
+// follow the "Fixed order" rule as training does (no relative features, all zero), and
+// with the rule off they carry the features.
+TEST(SequenceModel, TrainingTensorsAreThoseOfTheNetworkTrainRuns) {
+  const task::TaskDir fixed = generate("task4", 3);
+  const auto written = [&](const tgn::TrainOptions& o) {
+    const std::string path = tempDir("tensors") + ".txt";
+    tgn::writeTrainingTensors(fixed, o, path);
+    std::istringstream in(readTextFile(path));
+    fs::remove(path);
+    std::string line, relative;
+    bool nonzero = false;
+    int rel_lines = 0;
+    while (std::getline(in, line)) {
+      std::istringstream words(line);
+      std::string key, value;
+      words >> key;
+      if (key == "relative_features") words >> relative;
+      if (key != "rel") continue;
+      ++rel_lines;
+      while (words >> value) nonzero = nonzero || std::stod(value) != 0;
+    }
+    EXPECT_EQ(rel_lines, static_cast<int>(fixed.demos.size()));
+    return std::make_pair(relative, nonzero);
+  };
+  tgn::TrainOptions o;
+  o.max_epochs = 1;
+  ASSERT_FALSE(tgn::SequenceModel::train(fixed, o, nullptr).info().options.relative_features);
+  EXPECT_EQ(written(o), std::make_pair(std::string("0"), false));
+  o.fixed_order_rule = false;
+  EXPECT_EQ(written(o), std::make_pair(std::string("1"), true));
 }
 
 // A demonstrated motion ends on its target; on robots it ends within the arrival radius of
