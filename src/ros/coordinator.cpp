@@ -64,6 +64,10 @@ class CoordinatorNode::Impl {
     const double tick_hz = rosparam::param(pnh, "timeout_check_hz", defaults.timeout_check_hz);
     if (!(tick_hz > 0)) throw Error("parameter '" + pnh.resolveName("timeout_check_hz") + "' must be positive");
     autostart_ = rosparam::param(pnh, "autostart", defaults.autostart);
+    start_timeout_s_ = rosparam::param(pnh, "start_timeout_s", defaults.start_timeout_s);
+    if (!(start_timeout_s_ >= 0))
+      throw Error("parameter '" + pnh.resolveName("start_timeout_s") + "' must be 0 (wait on) or positive");
+    autostart_deadline_ = ros::WallTime::now() + ros::WallDuration(start_timeout_s_);
     const double resend_after_s = rosparam::param(pnh, "resend_after_s", defaults.resend_after_s);
     if (!(resend_after_s > 0)) throw Error("parameter '" + pnh.resolveName("resend_after_s") + "' must be positive");
     outbox_ = std::make_unique<exec::Outbox>(resend_after_s);
@@ -296,6 +300,14 @@ class CoordinatorNode::Impl {
       if (connected(missing)) {
         autostart_ = false;
         apply(coordinator_->start(now()));
+      } else if (start_timeout_s_ > 0 && ros::WallTime::now() >= autostart_deadline_) {
+        // A node that died at startup would otherwise leave the launch waiting for ever.
+        autostart_ = false;
+        ROS_ERROR("coordinator: autostart gave up after start_timeout_s = %g s; waiting for: %s", start_timeout_s_,
+                  missing.c_str());
+        std::ostringstream why;
+        why << "not started within start_timeout_s = " << start_timeout_s_ << " s; waiting for: " << missing;
+        apply(coordinator_->abortStart(why.str(), now()));
       } else {
         ROS_INFO_THROTTLE(5.0, "coordinator: autostart waits for: %s", missing.c_str());
       }
@@ -665,6 +677,8 @@ class CoordinatorNode::Impl {
   std::optional<size_t> pose_role_;
   std::string recorder_;  ///< node whose ~ready must succeed before a new run ("" = none)
   ros::WallTime next_autostart_try_;
+  ros::WallTime autostart_deadline_;
+  double start_timeout_s_ = 0;
   std::map<int, ros::Publisher> wheel_pubs_;
   std::vector<ros::Subscriber> wheel_subs_;
 

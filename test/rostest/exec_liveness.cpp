@@ -1,7 +1,8 @@
 // A node serving a role dies mid-run (SIGKILL: no goodbye) or hangs (SIGSTOP): the
 // coordinator publishes zero wheels on every robot, aborts the run naming the node, and the
 // monitor writes the report of the partial run; the monitor (the recorder) is a role too.
-// Ctrl-C (SIGINT) of a running launch also leaves a report.
+// Ctrl-C (SIGINT) of a running launch also leaves a report, and so does an autostart that
+// never could start (start_timeout_s).
 #include <ddace/Heartbeat.h>
 #include <ddace/PathRequest.h>
 
@@ -354,6 +355,33 @@ TEST(Sigint, AnInterruptedRunLeavesItsReport) {
   const std::string result = readFile(g.run_dir + "/result.json");
   EXPECT_NE(result.find("\"state\": \"interrupted\""), std::string::npos) << result;
   EXPECT_EQ(checkRun(g.files, g.run_dir), 1) << "execute_sim --check must fail an interrupted run";
+}
+
+TEST(Autostart, ANodeMissingAtStartupAbortsAndEndsTheLaunchWithAReport) {
+  // The sequence role names a node that never comes up (as if it died at startup): without
+  // start_timeout_s the launch would wait for it for ever.
+  Graph g("no_sequence");
+  const std::string config =
+      writeConfig(g.files.config_file, std::string(g.scratch) + "/execution.yaml",
+                  {{{"coordinator", "start_timeout_s", "3.0"}},
+                   {{"coordinator", "roles",
+                     "{sequence: /no_such_sequence, paths: /gp_path, follower: /path_follower, driver: /mock_robots,"
+                     " object_executor: /mock_robots, pose_source: /mock_robots, heartbeat_timeout_s: 1.0,"
+                     " pose_timeout_s: 1.0}"}}});
+  std::vector<std::string> args = g.args();
+  for (auto& a : args) {
+    if (a == "autostart:=false") a = "autostart:=true";
+    if (a.rfind("config:=", 0) == 0) a = "config:=" + config;
+  }
+  Watcher w(g.nh, g.test.spec);
+  Launch graph(args);
+  ASSERT_TRUE(graph.waitExit(60.0)) << "the launch did not end after start_timeout_s";
+  const std::string report = readFile(g.run_dir + "/report.txt");
+  EXPECT_NE(report.find("start_timeout_s"), std::string::npos) << report;
+  EXPECT_NE(report.find("/no_such_sequence"), std::string::npos) << "the report names the missing node\n" << report;
+  EXPECT_EQ(checkRun(g.files, g.run_dir), 1) << "execute_sim --check must fail a run that never started";
+  for (const auto& [robot, cmds] : w.wheels())
+    for (const auto& c : cmds) EXPECT_TRUE(c.zero()) << robot << " was driven although nothing started";
 }
 
 int main(int argc, char** argv) {

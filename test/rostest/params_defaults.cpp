@@ -71,6 +71,7 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
   expectDefaults(yaml["coordinator"], "coordinator",
                  {{"frame_id", value(c.frame_id)},
                   {"autostart", value(c.autostart)},
+                  {"start_timeout_s", value(c.start_timeout_s)},
                   {"path_points", value(c.path_points)},
                   {"timeout_check_hz", value(c.timeout_check_hz)},
                   {"resend_after_s", value(c.resend_after_s)},

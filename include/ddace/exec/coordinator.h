@@ -196,6 +196,10 @@ class Coordinator {
   /// Something the run depends on is gone (a node serving a role, the pose source): stops
   /// every robot and aborts with `why`. No effect unless a run is under way (or paused).
   CoordinatorOutput abortRun(const std::string& why, double now_s);
+  /// A run that was to start never could (autostart waited longer than its limit for a
+  /// node, an entity or the recorder): from Idle only, Aborted with `why` and every robot
+  /// told to stop, so that the record says why nothing ran. No effect in any other state.
+  CoordinatorOutput abortStart(const std::string& why, double now_s);
   /// True while a run is under way: WaitingForEntities, Deciding, Planning, Executing, Paused.
   bool running() const;
 

@@ -46,6 +46,8 @@ class CoordinatorNode {
   struct Params {
     std::string frame_id = kTableFrame;  ///< frame of paths, goals and markers
     bool autostart = false;              ///< start as soon as every entity is tracked
+    double start_timeout_s = 60.0;       ///< autostart: not started this long after the node came up ->
+                                         ///< the run is aborted naming what it waited for (0 = wait on)
     int path_points = 100;               ///< points per requested path
     double timeout_check_hz = 50.0;      ///< how often time-outs are checked (the control rate: a
                                          ///< time-out stops the robots within one cycle)

@@ -528,6 +528,16 @@ CoordinatorOutput Coordinator::abortRun(const std::string& why, double) {
   return out;
 }
 
+CoordinatorOutput Coordinator::abortStart(const std::string& why, double) {
+  CoordinatorOutput out;
+  if (state_ != RunState::Idle) return out;
+  history_.clear();
+  steps_.clear();
+  abort(why, out);
+  out.state_changed = true;
+  return out;
+}
+
 CoordinatorOutput Coordinator::onTick(double now_s) {
   CoordinatorOutput out;
   if (state_ == RunState::Deciding && now_s - pending_since_s_ > config_.decision_timeout_s) {

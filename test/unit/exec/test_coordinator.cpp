@@ -510,6 +510,21 @@ TEST_F(Fixture, ALostRoleAbortsARunningRunOnly) {
   EXPECT_NE(c.reason().find("/sequence"), std::string::npos);
 }
 
+TEST_F(Fixture, ARunThatCouldNotStartIsAbortedWithWhyFromIdleOnly) {
+  const auto out = c.abortStart("not started within start_timeout_s = 60 s; waiting for: node /sequence", 60.0);
+  EXPECT_TRUE(out.stop_all) << "every robot is told to stop";
+  EXPECT_TRUE(out.state_changed);
+  EXPECT_EQ(c.state(), RunState::Aborted);
+  EXPECT_NE(c.reason().find("node /sequence"), std::string::npos) << c.reason();
+  EXPECT_FALSE(c.start(61.0).decision) << "an aborted run needs a reset first";
+  // Once a run is under way, abortStart changes nothing (abortRun is for that).
+  Coordinator k{dir.spec, CoordinatorConfig{}};
+  k.onEntities(observe(start), 0);
+  ASSERT_TRUE(k.start(0).decision);
+  EXPECT_FALSE(k.abortStart("late", 1.0).stop_all);
+  EXPECT_EQ(k.state(), RunState::Deciding);
+}
+
 TEST_F(Fixture, TheLastDecisionKeepsItsProbabilities) {
   c.onEntities(observe(start), 0);
   const auto s = c.start(0);
