@@ -38,6 +38,15 @@ TEST(TableQuick, WritesResultsAndEveryFigure) {
         "## Few-shot, every family", "| fetch | 3 demos | GNN |", "## Human-timed demonstrations",
         "| task4 | human-timed, 3 demos |", "## Imperfect demonstrations", "--quick"})
     EXPECT_NE(results.find(needle), std::string::npos) << needle;
+  // The default network's few-shot and human-timed models also ran in closed loop.
+  const size_t closed = results.find("## Closed loop: simulated differential-drive robots");
+  ASSERT_NE(closed, std::string::npos);
+  EXPECT_NE(results.find("| fetch | 3 demos |", closed), std::string::npos) << results.substr(closed);
+  EXPECT_NE(results.find("| task4 | human-timed, 3 demos |", closed), std::string::npos) << results.substr(closed);
+  std::ifstream closed_json((out / "run" / "eval" / "fetch-3-scene-diffdrive.json").string());
+  std::stringstream closed_text;
+  closed_text << closed_json.rdbuf();
+  EXPECT_NE(closed_text.str().find("diffdrive"), std::string::npos) << "no closed-loop evaluation of fetch-3-scene";
   for (const char* fig :
        {"loss_fig4.png", "loss_task2_robots.png", "loss_task3_actions.png", "overlay_task1.png", "overlay_task4.png"})
     EXPECT_TRUE(fs::exists(out / "docs" / "figures" / fig)) << fig;
