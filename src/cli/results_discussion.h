@@ -29,6 +29,12 @@
   "- **Human-timed demonstrations.** Label onsets up to 0.4 s apart within a step are merged by step "          \
   "grouping (`step_window_s`, 0.5 s by default) before anything is learned, so the sequence model sees the "    \
   "same steps as from clean data; what remains is the 2 mm position noise.\n"                                   \
+  "- **Closed loop.** The ideal rows end every motion on its target, as the paper's evaluation; the "           \
+  "closed-loop rows drive the same models' paths with the path follower's control law, so robots stop "         \
+  "within the arrival radius and the next decision and path start from there. The network treats entities "     \
+  "within two arrival radii of each other as at one place (docs/tgn.md, \"Entities at one place\"), which is "  \
+  "what keeps such stops from changing a decision; where a closed-loop OSR is below the ideal one, a stop "     \
+  "short of a target did.\n"                                                                                    \
   "- **GNN baseline.** It is trained as seriously as DDACE — the same encoder, GRU, optimiser and "           \
   "plateau rule, to its loss plateau (epochs column) — but on every frame, to predict the next "              \
   "positions and labels, and it rolls out its own trajectories: small errors in the predicted "                 \
