@@ -29,6 +29,15 @@ struct GatWeights {
 /// are added. Returns [nodes][heads*channels] row-major.
 std::vector<float> gatForward(const GatWeights& w, const std::vector<float>& x, int nodes,
                               const std::vector<graph::Edge>& edges);
+/// The groups of entities (task indices, each ascending; groups by their first) whose
+/// identity embeddings training shuffles among themselves (TrainOptions::shuffle_names).
+/// An entity's role in a demonstration is what its tokens are, per step: as actor (the
+/// action and the target's kind) and as target (the action and the actor's kind). An
+/// entity keeps its name when it plays one role in every demonstration and no other
+/// entity of its kind plays that role too (queue's slots Q1, Q2, Q3: the name says
+/// which step fills it); the other entities of each kind form a group (only groups of two
+/// or more are returned).
+std::vector<std::vector<int>> interchangeableNames(const task::TaskDir& train);
 /// The training's stopping rule (see "stopping" above) on the epochs so far.
 bool atPlateau(const std::vector<EpochRecord>& history, int patience, double delta);
 

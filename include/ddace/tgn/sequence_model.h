@@ -31,6 +31,9 @@
 //   identity        scene: when the network with the identity embedding stops short of
 //                   step accuracy 1 on its training demonstrations, one without it is
 //                   trained too and kept if it fits them better (docs/tgn.md).
+//   shuffled names  scene, with the relative features: each training demonstration of a
+//                   mini-batch permutes the identity embeddings among the entities whose
+//                   roles the scene decides (detail::interchangeableNames; docs/tgn.md).
 //   stopping        at `max_epochs`, or at a plateau: the best loss of the last
 //                   `plateau_patience` epochs differs by less than `plateau_delta` from the
 //                   best loss of the `plateau_patience` epochs before them, and the last
@@ -109,6 +112,13 @@ struct TrainOptions {
   /// (the scene decided nothing in them), train with relative_features off (docs/tgn.md,
   /// "Fixed order"). The manifest records the outcome in relative_features.
   bool fixed_order_rule = true;
+  /// Scene variant with the relative features, training only, when the demonstrations'
+  /// steps vary (not on a fixed order): every demonstration of a mini-batch gives the
+  /// entities whose names are interchangeable
+  /// (detail::interchangeableNames) a random permutation of their identity embeddings,
+  /// so that a name cannot stand in for the scene (docs/tgn.md, "Shuffled names"). Not in
+  /// the manifest: the network and its use are unchanged.
+  bool shuffle_names = true;
   double weight_decay = 0;  ///< Adam's L2 penalty (as torch.optim.Adam's weight_decay)
   double dropout = 0.1;
   double learning_rate = 5e-3;

@@ -26,6 +26,9 @@ struct Batch {
   torch::Tensor x, slot, valid, action, target, end, delta;
   torch::Tensor rel;        ///< scene: [S, N, N, R], the real elements
   torch::Tensor rel_slots;  ///< scene: [B, T, N, N, R]
+  /// scene, training with shuffled names: [S, N] long, the row of the identity embedding
+  /// each entity reads (undefined: its own).
+  torch::Tensor names;
 };
 
 /// The sequences `which` of `seqs` as one batch.

@@ -324,7 +324,7 @@ Heads SequenceModel::Impl::run(const Batch& batch) {
     Tensor seq = torch::zeros({batch.b * batch.t, emb.size(1)}).index_copy(0, batch.slot, emb);
     return net->heads(fused::gru(net->gru, seq.view({batch.b, batch.t, emb.size(1)})).first);
   }
-  const Tensor nodes = scene->encode(batch.x, batch.rel);  // [S, N, W]
+  const Tensor nodes = scene->encode(batch.x, batch.rel, batch.names);  // [S, N, W]
   const int64_t n = nodes.size(1), w = nodes.size(2), bt = batch.b * batch.t;
   const Tensor pooled = torch::zeros({bt, w}).index_copy(0, batch.slot, nodes.mean(1));
   const Tensor z = fused::gru(scene->gru, pooled.view({batch.b, batch.t, w})).first;

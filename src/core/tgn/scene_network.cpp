@@ -81,10 +81,14 @@ SceneNetworkImpl::SceneNetworkImpl(const NetConfig& c, const Tensor& attention)
   self_mask = torch::eye(c.nodes) * -1e9;
 }
 
-Tensor SceneNetworkImpl::encode(const Tensor& features, const Tensor& rel) {
+Tensor SceneNetworkImpl::encode(const Tensor& features, const Tensor& rel, const Tensor& names) {
   const int64_t s = features.size(0), n = features.size(1);
   Tensor input = features;
-  if (identity) input = torch::cat({input, identity->weight.unsqueeze(0).expand({s, n, cfg.o.identity_dim})}, 2);
+  if (identity) {
+    const Tensor id = names.defined() ? identity->weight.index_select(0, names.view({-1})).view({s, n, -1})
+                                      : identity->weight.unsqueeze(0).expand({s, n, cfg.o.identity_dim});
+    input = torch::cat({input, id}, 2);
+  }
   Tensor x = input;
   for (size_t l = 0; l < layers.size(); ++l) {
     Tensor y = drop(torch::relu(layers[l]->forward(x, rel, in_edges)), is_training());

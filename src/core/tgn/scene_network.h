@@ -59,8 +59,9 @@ struct SceneNetworkImpl : torch::nn::Module {
   SceneNetworkImpl(const NetConfig& c, const torch::Tensor& attention);
 
   /// x [S, N, F], rel [S, N, N, R] -> node embeddings [S, N, width]: the last layer's output, and
-  /// without the relative features each entity's own input beside it.
-  torch::Tensor encode(const torch::Tensor& x, const torch::Tensor& rel);
+  /// without the relative features each entity's own input beside it. `names` [S, N] long,
+  /// when defined: the identity embedding's row each entity reads (shuffled names).
+  torch::Tensor encode(const torch::Tensor& x, const torch::Tensor& rel, const torch::Tensor& names = {});
   /// nodes [..., N, width], rel [..., N, N, R], z [..., hidden] -> the heads.
   Heads heads(const torch::Tensor& nodes, const torch::Tensor& rel, const torch::Tensor& z);
 

@@ -31,6 +31,13 @@ class ThreadCount {
   int saved_;
 };
 
+/// Every training demonstration has the same steps (docs/tgn.md, "Fixed order").
+bool fixedOrder(const task::TaskDir& train) {
+  return train.demos.size() >= 2 && std::all_of(train.demos.begin(), train.demos.end(), [&](const auto& d) {
+           return task::sameSteps(d.steps, train.demos.front().steps);
+         });
+}
+
 /// One training run with exactly `options`.
 std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, const TrainOptions& options,
                                                   std::ostream* progress) {
@@ -50,6 +57,35 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
   ModelInfo& info = impl->info;
   info.stop_reason = "max_epochs";
+  // Shuffled names (docs/tgn.md): groups of canonical indices whose identity embeddings
+  // each demonstration of a batch permutes, where the scene decides the steps (not on a
+  // fixed order, even with the relative features kept); its own generator, so that without
+  // groups training is the same to the bit.
+  std::vector<std::vector<int64_t>> name_groups;
+  if (impl->isScene() && options.relative_features && options.shuffle_names && options.identity_embedding &&
+      !fixedOrder(train))
+    for (const auto& g : detail::interchangeableNames(train)) {
+      std::vector<int64_t> canonical;
+      for (int e : g) canonical.push_back(impl->order.canonical_of[static_cast<size_t>(e)]);
+      std::sort(canonical.begin(), canonical.end());
+      name_groups.push_back(canonical);
+    }
+  SplitMix64 name_rng(options.seed ^ 0x94D049BB133111EBULL);
+  const auto shuffledNames = [&](const std::vector<size_t>& which) {
+    const int64_t n = impl->cfg.nodes;
+    std::vector<int64_t> rows;
+    for (size_t i : which) {
+      std::vector<int64_t> row(static_cast<size_t>(n));
+      for (int64_t k = 0; k < n; ++k) row[static_cast<size_t>(k)] = k;
+      for (const auto& g : name_groups) {
+        std::vector<int64_t> perm = g;
+        for (size_t k = perm.size(); k > 1; --k) std::swap(perm[k - 1], perm[name_rng.next() % k]);
+        for (size_t k = 0; k < g.size(); ++k) row[static_cast<size_t>(g[k])] = perm[k];
+      }
+      for (int64_t t = 0; t < seqs[i].x.size(0); ++t) rows.insert(rows.end(), row.begin(), row.end());
+    }
+    return torch::tensor(rows, torch::kLong);
+  };
   // At least 4 optimiser steps per epoch when there are few demonstrations (few-shot).
   const size_t bs = std::min(static_cast<size_t>(options.batch_demos), std::max<size_t>(1, (seqs.size() + 3) / 4));
   for (int epoch = 1; epoch <= options.max_epochs; ++epoch) {
@@ -60,7 +96,8 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
     for (size_t from = 0; from < order.size(); from += bs) {
       const std::vector<size_t> which(order.begin() + static_cast<long>(from),
                                       order.begin() + static_cast<long>(std::min(order.size(), from + bs)));
-      const Batch batch = collate(seqs, which, gnn);
+      Batch batch = collate(seqs, which, gnn);
+      if (!name_groups.empty()) batch.names = shuffledNames(which);
       parameters.zeroGrad();
       const Tensor loss = lossOf(impl->run(batch), batch, gnn, acting_targets);
       loss.backward();
@@ -103,11 +140,7 @@ TrainOptions withFixedOrderRule(const task::TaskDir& train, const TrainOptions& 
   // position noise, OSR 0.73 with them, 1.00 without). Then the decision is the names' and
   // the steps so far: a new configuration cannot change it.
   TrainOptions options = requested;
-  const bool fixed_order =
-      train.demos.size() >= 2 && std::all_of(train.demos.begin(), train.demos.end(), [&](const auto& d) {
-        return task::sameSteps(d.steps, train.demos.front().steps);
-      });
-  if (options.variant == Variant::Scene && options.relative_features && options.fixed_order_rule && fixed_order)
+  if (options.variant == Variant::Scene && options.relative_features && options.fixed_order_rule && fixedOrder(train))
     options.relative_features = false;
   return options;
 }
@@ -142,6 +175,44 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
 }
 
 namespace detail {
+
+std::vector<std::vector<int>> interchangeableNames(const task::TaskDir& train) {
+  const std::vector<task::Entity>& entities = train.spec.entities;
+  const size_t n = entities.size();
+  const auto kind = [&](int i) { return std::string(task::toString(entities[static_cast<size_t>(i)].kind)); };
+  // roles[e][d]: entity e's tokens in demonstration d, names of the others replaced by kinds.
+  std::vector<std::vector<std::vector<std::string>>> roles(n);
+  for (const auto& d : train.demos) {
+    std::vector<std::vector<std::string>> role(n);
+    for (size_t k = 0; k < d.steps.size(); ++k)
+      for (const auto& t : d.steps[k].tokens) {
+        const std::string step = std::to_string(k) + ":" + t.action;
+        role[static_cast<size_t>(t.entity)].push_back(step + ":acts:" + (t.target >= 0 ? kind(t.target) : "-"));
+        if (t.target >= 0) role[static_cast<size_t>(t.target)].push_back(step + ":target of:" + kind(t.entity));
+      }
+    for (size_t e = 0; e < n; ++e) {
+      std::sort(role[e].begin(), role[e].end());
+      roles[e].push_back(role[e]);
+    }
+  }
+  const auto fixed = [&](size_t e) {
+    return std::all_of(roles[e].begin(), roles[e].end(), [&](const auto& r) { return r == roles[e].front(); });
+  };
+  std::vector<std::vector<int>> groups;
+  for (task::EntityKind k : {task::EntityKind::Robot, task::EntityKind::Object, task::EntityKind::Goal}) {
+    std::vector<int> group;
+    for (size_t e = 0; e < n; ++e) {
+      if (entities[e].kind != k) continue;
+      bool named = !train.demos.empty() && fixed(e);
+      for (size_t o = 0; o < n && named; ++o)
+        if (o != e && entities[o].kind == k && fixed(o) && roles[o].front() == roles[e].front()) named = false;
+      if (!named) group.push_back(static_cast<int>(e));
+    }
+    if (group.size() >= 2) groups.push_back(group);
+  }
+  std::sort(groups.begin(), groups.end());
+  return groups;
+}
 
 bool atPlateau(const std::vector<EpochRecord>& history, int patience, double delta) {
   // The best loss of the last `p` epochs within delta of the best of the `p` before them (a

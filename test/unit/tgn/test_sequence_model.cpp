@@ -672,3 +672,52 @@ TEST(SequenceModel, GnnBaselineRollsOutItsOwnTrajectories) {
   for (size_t i = 0; i < r.rows(); ++i) EXPECT_EQ(r2.positions[i], r.positions[i]);
   fs::remove_all(dir);
 }
+
+namespace {
+
+/// interchangeableNames as entity names.
+std::vector<std::vector<std::string>> nameGroups(const task::TaskDir& train) {
+  std::vector<std::vector<std::string>> out;
+  for (const auto& g : tgn::detail::interchangeableNames(train)) {
+    out.emplace_back();
+    for (int e : g) out.back().push_back(train.spec.entities[static_cast<size_t>(e)].name);
+  }
+  return out;
+}
+
+using Groups = std::vector<std::vector<std::string>>;
+
+}  // namespace
+
+// "Shuffled names": which robot or goal does what is the scene's in every scene family but
+// queue's slots, whose names say which step fills them.
+TEST(ShuffledNames, AreTheEntitiesWhoseRolesTheSceneDecides) {
+  EXPECT_EQ(nameGroups(generate("nearest_goal", 10)), (Groups{{"R1", "R2", "R3"}, {"G1", "G2", "G3", "G4"}}));
+  EXPECT_EQ(nameGroups(generate("queue", 10)), (Groups{{"R1", "R2", "R3"}}));
+  EXPECT_EQ(nameGroups(generate("fetch", 10)), (Groups{{"R1", "R2"}}));
+  EXPECT_EQ(nameGroups(generate("deliver", 10)), (Groups{{"R1", "R2"}, {"G1", "G2"}}));
+  // One demonstration shows no role varying: only entities that share a role are grouped.
+  EXPECT_EQ(nameGroups(generate("queue", 1)), Groups{});
+}
+
+// Shuffling changes the training of a scene family, and nothing on a fixed order, even
+// with the relative features kept (--relative): there the names are what the steps follow.
+TEST(ShuffledNames, ChangeTheSceneFamiliesTrainingOnly) {
+  tgn::TrainOptions on, off;
+  on.max_epochs = off.max_epochs = 6;
+  off.shuffle_names = false;
+  const auto losses = [](const tgn::SequenceModel& m) {
+    std::vector<double> l;
+    for (const auto& r : m.info().history) l.push_back(r.loss);
+    return l;
+  };
+  const task::TaskDir queue = generate("queue", 6), task2 = generate("task2", 6);
+  EXPECT_NE(losses(tgn::SequenceModel::train(queue, on, nullptr)),
+            losses(tgn::SequenceModel::train(queue, off, nullptr)));
+  ASSERT_FALSE(tgn::detail::interchangeableNames(task2).empty()) << "Task 2 has no robots sharing a role";
+  EXPECT_EQ(losses(tgn::SequenceModel::train(task2, on, nullptr)),
+            losses(tgn::SequenceModel::train(task2, off, nullptr)));
+  on.fixed_order_rule = off.fixed_order_rule = false;
+  EXPECT_EQ(losses(tgn::SequenceModel::train(task2, on, nullptr)),
+            losses(tgn::SequenceModel::train(task2, off, nullptr)));
+}
