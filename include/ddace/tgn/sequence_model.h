@@ -61,8 +61,11 @@ namespace ddace::tgn {
 /// Format tag of manifest.yaml in a model directory. /3: SHA-256 digests of every file
 /// and of the manifest itself, and the task fingerprint; /4: the step decoding rules
 /// (StepRules); /5: whether the scene network saw the relative features
-/// (`relative_features`, the "Fixed order" rule). Older manifests are refused (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/5";
+/// (`relative_features`, the "Fixed order" rule); /6: whether its training shuffled the
+/// names (`shuffle_names`). /5 manifests are still read, as trained without shuffled names
+/// (they predate it); older ones are refused (retrain).
+inline constexpr const char* kModelFormat = "ddace-model/6";
+inline constexpr const char* kModelFormatBeforeShuffledNames = "ddace-model/5";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {
@@ -116,8 +119,8 @@ struct TrainOptions {
   /// steps vary (not on a fixed order): every demonstration of a mini-batch gives the
   /// entities whose names are interchangeable
   /// (detail::interchangeableNames) a random permutation of their identity embeddings,
-  /// so that a name cannot stand in for the scene (docs/tgn.md, "Shuffled names"). Not in
-  /// the manifest: the network and its use are unchanged.
+  /// so that a name cannot stand in for the scene (docs/tgn.md, "Shuffled names"). The
+  /// manifest records the outcome: true only when some names were shuffled.
   bool shuffle_names = true;
   double weight_decay = 0;  ///< Adam's L2 penalty (as torch.optim.Adam's weight_decay)
   double dropout = 0.1;

@@ -70,6 +70,7 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
       std::sort(canonical.begin(), canonical.end());
       name_groups.push_back(canonical);
     }
+  info.options.shuffle_names = !name_groups.empty();  // the manifest records what training did
   SplitMix64 name_rng(options.seed ^ 0x94D049BB133111EBULL);
   const auto shuffledNames = [&](const std::vector<size_t>& which) {
     const int64_t n = impl->cfg.nodes;

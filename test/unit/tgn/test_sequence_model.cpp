@@ -215,7 +215,7 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
   EXPECT_NE(e.find("manifest.yaml records"), std::string::npos) << e;
   e = variant("other_format", [&](const fs::path& d) {
     rewrite(d / "manifest.yaml",
-            [](std::string& s) { s.replace(s.find("format: ddace-model/5"), 21, "format: ddace-model/9"); });
+            [](std::string& s) { s.replace(s.find("format: ddace-model/6"), 21, "format: ddace-model/9"); });
   });
   EXPECT_NE(e.find("manifest.yaml:"), std::string::npos) << e;
   e = variant("loss_row", [&](const fs::path& d) { rewrite(d / "loss.csv", [](std::string& s) { s += "x,y\n"; }); });
@@ -297,13 +297,37 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
   }
   // An older format: retrain, saying what it lacks; a newer one: said so.
   for (const char* version : {"ddace-model/4", "ddace-model/3", "ddace-model/2"}) {
-    const std::string old = edited("format: ddace-model/5", std::string("format: ") + version, false);
+    const std::string old = edited("format: ddace-model/6", std::string("format: ") + version, false);
     EXPECT_NE(old.find("retrain"), std::string::npos) << old;
     EXPECT_NE(old.find("relative features"), std::string::npos) << old;
     EXPECT_NE(old.find("manifest.yaml:"), std::string::npos) << old;
   }
-  EXPECT_NE(edited("format: ddace-model/5", "format: ddace-model/2", false).find("digests"), std::string::npos);
-  EXPECT_NE(edited("format: ddace-model/5", "format: ddace-model/12", false).find("newer"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/6", "format: ddace-model/2", false).find("digests"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/6", "format: ddace-model/12", false).find("newer"), std::string::npos);
+  {
+    // A /5 model (before shuffled names, which it lacks the key of) still loads, as
+    // trained without them, and decides as before.
+    std::string s = manifest;
+    s.replace(s.find("format: ddace-model/6"), 21, "format: ddace-model/5");
+    const size_t key = s.find("  shuffle_names: ");
+    ASSERT_NE(key, std::string::npos);
+    s.erase(key, s.find('\n', key) + 1 - key);
+    reseal(s);
+    const std::string dir = tempDir("format5");
+    fs::copy(good, dir);
+    test::writeBytes(fs::path(dir) / "manifest.yaml", s);
+    EXPECT_FALSE(tgn::SequenceModel::load(dir).info().options.shuffle_names);
+    fs::remove_all(dir);
+    // The record is what training did: fetch's robots were shuffled, Task 2's names not.
+    tasks::GeneratorOptions f;
+    f.family = "fetch";
+    f.demos = 4;
+    const std::string fetch = tempDir("fetch_names");
+    tgn::SequenceModel::train(tasks::generate(f), o, nullptr).save(fetch);
+    EXPECT_TRUE(tgn::SequenceModel::load(fetch).info().options.shuffle_names);
+    EXPECT_FALSE(tgn::SequenceModel::load(good).info().options.shuffle_names);
+    fs::remove_all(fetch);
+  }
   fs::remove_all(good);
 }
 
