@@ -69,6 +69,8 @@ RecorderConfig parseRecorderConfig(const std::string& text, const std::string& f
           cond.entity = stringOr(r, gc, "entity", "");
           cond.at = stringOr(r, gc, "at", "");
           cond.tolerance = numberOr(r, gc, "tolerance", cond.tolerance, 0.0, 10.0);
+          if (!(cond.tolerance > 0))  // as task.yaml's reader (found by fuzzing: 0 was accepted)
+            r.error(gc["tolerance"], "tolerance must be positive (metres)");
           for (const auto* name : {&cond.entity, &cond.at})
             if (c.spec.entityIndex(*name) < 0)
               r.error(gc, "goal condition names '" + *name + "', which is not an entity of markers.yaml");
@@ -78,6 +80,13 @@ RecorderConfig parseRecorderConfig(const std::string& text, const std::string& f
     }
   }
   r.throwIfErrors();
+  // The recorder writes this task into every task directory it records: a task that the
+  // task module's own reader would refuse is refused here, before anything is recorded.
+  try {
+    task::parseTaskYaml(task::taskYamlText(c.spec), "task.yaml");
+  } catch (const Error& e) {
+    throw Error(Diagnostic{file, 0, 0, std::string("the task.yaml it would write is refused: ") + e.what()});
+  }
   return c;
 }
 

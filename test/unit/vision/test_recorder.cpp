@@ -69,6 +69,15 @@ TEST(Recorder, ConfigErrorsNameTheLine) {
     EXPECT_EQ(e.diagnostics().front().str(),
               "r.yaml:5:7: goal condition names 'R9', which is not an entity of markers.yaml");
   }
+  // A tolerance of 0 (task.yaml's reader refuses it; found by fuzzing).
+  try {
+    parseRecorderConfig(
+        "output_dir: /tmp/x\ntask:\n  name: t\n  goal_conditions:\n    - {entity: R4, at: G1, tolerance: 0.00}\n",
+        "r.yaml", m);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.diagnostics().front().str(), "r.yaml:5:39: tolerance must be positive (metres)");
+  }
   EXPECT_THROW(parseRecorderConfig("task: {name: t}\n", "r.yaml", m), Error);  // no output_dir
   EXPECT_THROW(parseRecorderConfig("output_dir: /tmp/x\ntask: {name: t}\nrate: 3\n", "r.yaml", m), Error);
 }
