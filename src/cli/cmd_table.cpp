@@ -435,9 +435,10 @@ int runTable(const std::vector<std::string>& argv) {
     return std::to_string(r.rules[0]) + " / " + std::to_string(r.rules[1]) + " / " + std::to_string(r.rules[2]) +
            " / " + std::to_string(r.rules[3]);
   };
-  auto metrics = [&](const Row& r) {
-    return fmt(r.m.osr, 2) + " | " + fmt(r.m.ssr, 2) + " | " + fmt(r.m.gcr, 2) + " | " + fmt(r.m.fd, 4);
+  auto metricsOf = [&](const eval::Summary& m) {
+    return fmt(m.osr, 2) + " | " + fmt(m.ssr, 2) + " | " + fmt(m.gcr, 2) + " | " + fmt(m.fd, 4);
   };
+  auto metrics = [&](const Row& r) { return metricsOf(r.m); };
   auto training = [&](const Row& r) {
     return std::to_string(r.epochs) + " (" + r.stop + ") | " + fmt(r.train_s, 1) + " s";
   };
@@ -514,8 +515,7 @@ int runTable(const std::vector<std::string>& argv) {
     for (size_t i : *which) {
       const Row& r = rows[i];
       if (r.closed.trials == 0) continue;
-      md << "| " << r.task << " | " << r.condition << " | " << metrics(r) << " | " << fmt(r.closed.osr, 2) << " | "
-         << fmt(r.closed.ssr, 2) << " | " << fmt(r.closed.gcr, 2) << " | " << fmt(r.closed.fd, 4) << " |\n";
+      md << "| " << r.task << " | " << r.condition << " | " << metrics(r) << " | " << metricsOf(r.closed) << " |\n";
     }
   md << "\n## Figures\n\n"
      << "Training loss vs epoch for 10, 20 and 30 demonstrations (Fig. 4):\n\n"

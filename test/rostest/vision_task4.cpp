@@ -28,25 +28,22 @@ TEST(VisionTask4, CompletesOnTrackedPoses) {
                                          " driver: /mock_robots, object_executor: /mock_robots,"
                                          " pose_source: /tracker, heartbeat_timeout_s: 1.0,"
                                          " pose_timeout_s: 1.0}"}}}));
-  // Count what the tracker publishes, to be sure the run drove on it.
-  std::atomic<int> tracked{0};
+  // Count what the tracker publishes, to be sure the run drove on it, and keep the last
+  // message of each side for a failure's report.
+  std::atomic<int> tracked{0}, truth{0};
+  std::mutex last_mutex;
+  ddace::EntityArray last_truth, last_tracked;
   ros::Subscriber sub =
       nh.subscribe<ddace::EntityArray>("/ddace/entities", 50, [&](const ddace::EntityArray::ConstPtr& m) {
         if (!m->entities.empty() && m->entities.front().visible) ++tracked;
+        const std::lock_guard<std::mutex> lock(last_mutex);
+        last_tracked = *m;
       });
-  std::atomic<int> truth{0};
-  std::mutex last_mutex;
-  ddace::EntityArray last_truth, last_tracked;
   ros::Subscriber sub_truth =
       nh.subscribe<ddace::EntityArray>("/ddace/true_entities", 50, [&](const ddace::EntityArray::ConstPtr& m) {
         ++truth;
         const std::lock_guard<std::mutex> lock(last_mutex);
         last_truth = *m;
-      });
-  ros::Subscriber sub_last =
-      nh.subscribe<ddace::EntityArray>("/ddace/entities", 50, [&](const ddace::EntityArray::ConstPtr& m) {
-        const std::lock_guard<std::mutex> lock(last_mutex);
-        last_tracked = *m;
       });
   exec_test::runTaskEndToEnd("task4", 4, /*learned=*/true, 100.0);
   if (testing::Test::HasFailure()) {
