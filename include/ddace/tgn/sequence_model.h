@@ -62,9 +62,11 @@ namespace ddace::tgn {
 /// and of the manifest itself, and the task fingerprint; /4: the step decoding rules
 /// (StepRules); /5: whether the scene network saw the relative features
 /// (`relative_features`, the "Fixed order" rule); /6: whether its training shuffled the
-/// names (`shuffle_names`). /5 manifests are still read, as trained without shuffled names
-/// (they predate it); older ones are refused (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/6";
+/// names (`shuffle_names`); /7: whether it decides a step token by token
+/// (`token_by_token`). /5 and /6 manifests are still read, as trained without what they
+/// predate; older ones are refused (retrain).
+inline constexpr const char* kModelFormat = "ddace-model/7";
+inline constexpr const char* kModelFormatBeforeTokenByToken = "ddace-model/6";
 inline constexpr const char* kModelFormatBeforeShuffledNames = "ddace-model/5";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
@@ -122,6 +124,13 @@ struct TrainOptions {
   /// so that a name cannot stand in for the scene (docs/tgn.md, "Shuffled names"). The
   /// manifest records the outcome: true only when some names were shuffled.
   bool shuffle_names = true;
+  /// Scene variant with the relative features, when every training step's targets were
+  /// exclusive (StepRules::exclusive_targets) and some step had several tokens: a step is
+  /// decided one token at a time, each conditioned on those already chosen (their targets
+  /// taken, their entities out of the nearness ranks), and trained so, with a random part
+  /// of each step's tokens given (docs/tgn.md, "Token by token"). The manifest records
+  /// the outcome: true only when training did so (predictNext then decodes so).
+  bool token_by_token = true;
   double weight_decay = 0;  ///< Adam's L2 penalty (as torch.optim.Adam's weight_decay)
   double dropout = 0.1;
   double learning_rate = 5e-3;

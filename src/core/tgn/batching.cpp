@@ -37,6 +37,12 @@ Batch collate(const std::vector<Sequence>& seqs, const std::vector<size_t>& whic
   batch.end = scatter(torch::cat(ends), {batch.b, batch.t});
   if (gnn) batch.delta = scatter(torch::cat(deltas), {batch.b, batch.t, n, 2});
   if (!rels.empty()) {
+    batch.positions.resize(static_cast<size_t>(bt));
+    for (size_t k = 0; k < which.size(); ++k) {
+      const Sequence& s = seqs[which[k]];
+      for (size_t j = 0; j < s.positions.size(); ++j)
+        batch.positions[k * static_cast<size_t>(batch.t) + j] = s.positions[j];
+    }
     batch.rel = torch::cat(rels);
     batch.rel_slots = scatter(batch.rel, {batch.b, batch.t, n, n, batch.rel.size(3)});
   }

@@ -5,6 +5,8 @@
 
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "network.h"
 
 namespace ddace::tgn {
@@ -17,6 +19,9 @@ struct Sequence {
   torch::Tensor end;     ///< [T] long
   torch::Tensor delta;   ///< gnn: [T, N, 2] normalised next displacement
   torch::Tensor rel;     ///< scene: [T, N, N, R] relative features of every pair
+  /// scene: the snapshots' positions [T][N] (canonical order, metres), for the relative
+  /// features of a step's later tokens ("Token by token").
+  std::vector<std::vector<Eigen::Vector2d>> positions;
 };
 
 /// A padded mini-batch: the encoder sees only real elements (BatchNorm statistics
@@ -29,6 +34,15 @@ struct Batch {
   /// scene, training with shuffled names: [S, N] long, the row of the identity embedding
   /// each entity reads (undefined: its own).
   torch::Tensor names;
+  /// scene: every slot's positions (canonical order, metres; empty for padding), [B * T].
+  std::vector<std::vector<Eigen::Vector2d>> positions;
+  /// scene, training token by token: [B, T, N] float, 1 where an entity's token of the
+  /// step is given (it takes no loss) ...
+  torch::Tensor given;
+  /// ... and 1 where an entity is a given token's target (no other entity may point at
+  /// it: the step's targets are exclusive). rel_slots then holds the relative features
+  /// with the given entities out of the nearness ranks. Undefined: nothing given.
+  torch::Tensor taken;
 };
 
 /// The sequences `which` of `seqs` as one batch.

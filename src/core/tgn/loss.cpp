@@ -15,10 +15,25 @@ Tensor nll(const Tensor& logits, const Tensor& target) {
 Tensor lossOf(const Heads& h, const Batch& batch, bool gnn, bool acting_targets) {
   const Tensor valid = batch.valid;
   const Tensor count = valid.sum();
-  const Tensor vn = valid.unsqueeze(-1);
   const int64_t n = batch.action.size(2);
+  // Training token by token: an entity whose token of the step is given takes no loss.
+  const Tensor vn = batch.given.defined() ? valid.unsqueeze(-1) * (1 - batch.given) : valid.unsqueeze(-1);
   Tensor target_loss;
-  if (acting_targets) {
+  if (batch.given.defined()) {
+    // Token by token: the step's next token is whichever of its remaining tokens the
+    // decoder is surest of, so the loss asks only that the remaining true tokens together
+    // be likely among every (acting entity, target) pair: -log of their summed
+    // probability under one softmax over the pairs' logits. An entity whose target
+    // depends on the others' (its nearest goal is another's) need not be sure of it
+    // before they are chosen. With one entity left it is that entity's own loss.
+    const Tensor open = vn * batch.action.gt(0).to(torch::kFloat);  // [B, T, N]
+    const Tensor closed = (1 - open) * -1e9;
+    const Tensor pairs = (h.target + closed.unsqueeze(-1)).flatten(-2);                         // [B, T, N * (1 + N)]
+    const Tensor truth = h.target.gather(-1, batch.target.unsqueeze(-1)).squeeze(-1) + closed;  // [B, T, N]
+    const Tensor steps = open.sum(-1).gt(0).to(torch::kFloat);
+    target_loss =
+        ((torch::logsumexp(pairs, -1) - torch::logsumexp(truth, -1)) * steps).sum() / steps.sum().clamp_min(1);
+  } else if (acting_targets) {
     const Tensor acting = vn * batch.action.gt(0).to(torch::kFloat);
     target_loss = (nll(h.target, batch.target) * acting).sum() / acting.sum().clamp_min(1);
   } else {

@@ -150,6 +150,7 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   y << YAML::Key << "edge_displacement" << YAML::Value << o.edge_displacement;
   y << YAML::Key << "relative_features" << YAML::Value << o.relative_features;
   y << YAML::Key << "shuffle_names" << YAML::Value << o.shuffle_names;
+  y << YAML::Key << "token_by_token" << YAML::Value << o.token_by_token;
   y << YAML::Key << "weight_decay" << YAML::Value << o.weight_decay;
   y << YAML::Key << "dropout" << YAML::Value << o.dropout;
   y << YAML::Key << "learning_rate" << YAML::Value << o.learning_rate;
@@ -326,7 +327,9 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
   // "ddace-model/N": an older N is refused with what it lacks, a newer one as such.
   const std::string prefix = "ddace-model/";
   const std::string own = std::string(kModelFormat).substr(prefix.size());
-  if (format.rfind(prefix, 0) == 0 && format != kModelFormat && format != kModelFormatBeforeShuffledNames) {
+  const bool readable =
+      format == kModelFormat || format == kModelFormatBeforeTokenByToken || format == kModelFormatBeforeShuffledNames;
+  if (format.rfind(prefix, 0) == 0 && !readable) {
     const std::string version = format.substr(prefix.size());
     const bool numeric = !version.empty() && version.size() <= 6 &&
                          std::all_of(version.begin(), version.end(), [](char c) { return c >= '0' && c <= '9'; });
@@ -341,8 +344,7 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
     if (numeric)
       r.fail(format_node, "format '" + format + "' is newer than " + kModelFormat + ", the newest this ddace reads");
   }
-  if (format != kModelFormat && format != kModelFormatBeforeShuffledNames)
-    r.fail(format_node, "format '" + format + "' is not " + kModelFormat);
+  if (!readable) r.fail(format_node, "format '" + format + "' is not " + kModelFormat);
   // The digest line must be the last line; the digest covers every byte before it.
   const std::string key = std::string("\n") + kManifestDigestKey + ": ";
   const size_t at = text.rfind(key);
@@ -455,8 +457,14 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     o.node_positions = r.boolean(hp, "node_positions");
     o.edge_displacement = r.boolean(hp, "edge_displacement");
     o.relative_features = r.boolean(hp, "relative_features");
-    // A /5 model was trained before shuffled names existed: without them.
-    o.shuffle_names = r.text(root, "format") == kModelFormat && r.boolean(hp, "shuffle_names");
+    // A model of an older format was trained before what it lacks existed: without it.
+    const std::string format = r.text(root, "format");
+    o.shuffle_names = format != kModelFormatBeforeShuffledNames && r.boolean(hp, "shuffle_names");
+    o.token_by_token = format == kModelFormat && r.boolean(hp, "token_by_token");
+    if (o.token_by_token &&
+        !(info.variant == Variant::Scene && o.relative_features && info.step_rules.exclusive_targets))
+      r.fail(hp["token_by_token"],
+             "token_by_token is trained only for the scene variant with the relative features and exclusive targets");
     o.weight_decay = r.number(hp, "weight_decay");
     o.dropout = r.number(hp, "dropout");
     o.learning_rate = r.number(hp, "learning_rate");

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <mutex>
 #include <numeric>
 #include <set>
@@ -200,7 +201,8 @@ void SequenceModel::Impl::features(const std::vector<Eigen::Vector2d>& pos, cons
   }
 }
 
-void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos, float* out) const {
+void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos, float* out,
+                                   const std::vector<bool>* competing) const {
   const int n = cfg.nodes;
   if (!info.options.relative_features) {  // "Fixed order": the configuration reaches no decision
     std::fill(out, out + static_cast<size_t>(n) * n * kRelativeFeatures, 0.f);
@@ -229,7 +231,7 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos, floa
       // How many entities of j's kind are nearer to i than j; of i's kind nearer to j than i.
       int rank_j = 0, rank_i = 0;
       for (int k = 0; k < n; ++k) {
-        if (k == i || k == j) continue;
+        if (k == i || k == j || (competing && !(*competing)[static_cast<size_t>(k)])) continue;
         if (kind(k) == kind(j) && d[static_cast<size_t>(i * n + k)] < dij) ++rank_j;
         if (kind(k) == kind(i) && d[static_cast<size_t>(j * n + k)] < dij) ++rank_i;
       }
@@ -250,7 +252,10 @@ Sequence SequenceModel::Impl::keyframeSequence(const task::Demonstration& d) con
   s.action = torch::zeros({t, n}, torch::kLong);
   s.target = torch::zeros({t, n}, torch::kLong);
   s.end = torch::zeros({t}, torch::kLong);
-  if (isScene()) s.rel = torch::zeros({t, n, n, kRelativeFeatures});
+  if (isScene()) {
+    s.rel = torch::zeros({t, n, n, kRelativeFeatures});
+    for (const auto& snapshot : d.snapshots) s.positions.push_back(snapshot.positions);
+  }
   auto act = s.action.accessor<int64_t, 2>();
   auto tgt = s.target.accessor<int64_t, 2>();
   for (int64_t k = 0; k < t; ++k) {
@@ -318,7 +323,7 @@ std::vector<Sequence> SequenceModel::Impl::sequences(const std::vector<task::Dem
   return out;
 }
 
-Heads SequenceModel::Impl::run(const Batch& batch) {
+Heads SequenceModel::Impl::run(const Batch& batch, Tensor* nodes_out, Tensor* z_out) {
   if (!isScene()) {
     const Tensor emb = net->encode(batch.x);
     Tensor seq = torch::zeros({batch.b * batch.t, emb.size(1)}).index_copy(0, batch.slot, emb);
@@ -329,7 +334,48 @@ Heads SequenceModel::Impl::run(const Batch& batch) {
   const Tensor pooled = torch::zeros({bt, w}).index_copy(0, batch.slot, nodes.mean(1));
   const Tensor z = fused::gru(scene->gru, pooled.view({batch.b, batch.t, w})).first;
   const Tensor slots = torch::zeros({bt, n, w}).index_copy(0, batch.slot, nodes).view({batch.b, batch.t, n, w});
-  return scene->heads(slots, batch.rel_slots, z);
+  Heads h = scene->heads(slots, batch.rel_slots, z);
+  if (batch.taken.defined()) h.target = h.target + takenMask(batch.taken);
+  if (nodes_out) *nodes_out = slots;
+  if (z_out) *z_out = z;
+  return h;
+}
+
+std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTargets(
+    const Heads& first, const Tensor& nodes, const Tensor& z, const std::vector<Eigen::Vector2d>& pos,
+    const std::vector<bool>& acting) const {
+  const int64_t n = cfg.nodes, targets = cfg.targets;
+  std::vector<int> target(static_cast<size_t>(n), 0);
+  std::vector<double> log_p(static_cast<size_t>(n), 0);
+  std::vector<bool> open = acting, competing(static_cast<size_t>(n), true);
+  Tensor taken = torch::zeros({n});
+  Tensor logits = first.target;
+  SceneNetwork net = scene;
+  while (std::any_of(open.begin(), open.end(), [](bool o) { return o; })) {
+    const Tensor l = logits.to(torch::kDouble).contiguous();
+    const Tensor own = torch::log_softmax(l, -1);
+    const auto logit = l.accessor<double, 2>();
+    int64_t bi = -1, bj = -1;
+    double best = -std::numeric_limits<double>::infinity();
+    for (int64_t i = 0; i < n; ++i) {
+      if (!open[static_cast<size_t>(i)]) continue;
+      for (int64_t j = 0; j < targets; ++j)
+        if (logit[i][j] > best) best = logit[i][j], bi = i, bj = j;  // the first on ties: canonical order
+    }
+    target[static_cast<size_t>(bi)] = static_cast<int>(bj);
+    log_p[static_cast<size_t>(bi)] = own[bi][bj].item<double>();
+    open[static_cast<size_t>(bi)] = false;
+    competing[static_cast<size_t>(bi)] = false;
+    if (bj > 0) {
+      competing[static_cast<size_t>(bj - 1)] = false;
+      taken[bj - 1] = 1;
+    }
+    if (std::none_of(open.begin(), open.end(), [](bool o) { return o; })) break;
+    Tensor given = torch::zeros({n, n, kRelativeFeatures});
+    relative(pos, given.data_ptr<float>(), &competing);
+    logits = net->heads(nodes, given, z).target + takenMask(taken).squeeze(0);
+  }
+  return {target, log_p};
 }
 
 double SequenceModel::Impl::accuracy(const std::vector<Sequence>& seqs) {
@@ -339,8 +385,43 @@ double SequenceModel::Impl::accuracy(const std::vector<Sequence>& seqs) {
 double SequenceModel::Impl::accuracy(const Batch& batch) {
   torch::NoGradGuard no_grad;
   module().eval();
-  const Tensor ok = correctOf(run(batch), batch, cfg.gnn).to(torch::kFloat) * batch.valid;
-  return (ok.sum() / batch.valid.sum()).item<double>();
+  if (!info.options.token_by_token) {
+    const Tensor ok = correctOf(run(batch), batch, cfg.gnn).to(torch::kFloat) * batch.valid;
+    return (ok.sum() / batch.valid.sum()).item<double>();
+  }
+  // Token by token: a step is right when END and every entity's action are, and the acting
+  // entities' targets, chosen as predictNext chooses them.
+  Tensor nodes, z;
+  const Heads h = run(batch, &nodes, &z);
+  const Tensor act = h.action.argmax(-1);
+  const Tensor head_ok =
+      h.end.argmax(-1).eq(batch.end).logical_and(batch.end.eq(1).logical_or(act.eq(batch.action).all(-1)));
+  auto ok = head_ok.accessor<bool, 2>();
+  auto valid = batch.valid.accessor<float, 2>();
+  auto end = batch.end.accessor<int64_t, 2>();
+  auto acts = act.accessor<int64_t, 3>();
+  auto gold = batch.target.accessor<int64_t, 3>();
+  double right = 0;
+  for (int64_t b = 0; b < batch.b; ++b)
+    for (int64_t t = 0; t < batch.t; ++t) {
+      if (valid[b][t] == 0 || !ok[b][t]) continue;
+      if (end[b][t] == 1) {
+        right += 1;
+        continue;
+      }
+      std::vector<bool> acting(static_cast<size_t>(cfg.nodes));
+      for (int64_t i = 0; i < cfg.nodes; ++i) acting[static_cast<size_t>(i)] = acts[b][t][i] > 0;
+      Heads first;
+      first.target = h.target[b][t];
+      const std::vector<int> chosen =
+          chooseTargets(first, nodes[b][t], z[b][t], batch.positions[static_cast<size_t>(b * batch.t + t)], acting)
+              .first;
+      bool all = true;
+      for (int64_t i = 0; i < cfg.nodes; ++i)
+        if (acting[static_cast<size_t>(i)] && chosen[static_cast<size_t>(i)] != gold[b][t][i]) all = false;
+      right += all ? 1 : 0;
+    }
+  return right / batch.valid.sum().item<double>();
 }
 
 SequenceModel::SequenceModel(std::shared_ptr<Impl> impl) : impl_(std::move(impl)) {}

@@ -46,14 +46,29 @@ struct SequenceModel::Impl {
   /// Normalised node features of one row / snapshot (canonical order) into out[N][features].
   void features(const std::vector<Eigen::Vector2d>& pos, const std::vector<task::Label>* labels, float* out) const;
   /// Relative features of every pair (canonical order) into out[N][N][kRelativeFeatures].
-  void relative(const std::vector<Eigen::Vector2d>& pos, float* out) const;
+  /// `competing`, when given ([N], canonical): the nearness ranks count only these
+  /// entities as rivals ("Token by token": those not yet given a part in the step).
+  void relative(const std::vector<Eigen::Vector2d>& pos, float* out,
+                const std::vector<bool>* competing = nullptr) const;
   Sequence keyframeSequence(const task::Demonstration& canonical) const;
   Sequence frameSequence(const task::Demonstration& canonical) const;
   /// Every demonstration (task order) as a Sequence (keyframes, or frames for gnn); throws
   /// ddace::Error naming the demonstration when it does not fit the model.
   std::vector<Sequence> sequences(const std::vector<task::Demonstration>& demos) const;
-  /// The network on a batch: outputs [B, T, ...].
-  Heads run(const Batch& batch);
+  /// The network on a batch: outputs [B, T, ...]; scene: the node embeddings [B, T, N, W]
+  /// and the GRU outputs [B, T, H] into `nodes` and `z` when given.
+  Heads run(const Batch& batch, torch::Tensor* nodes = nullptr, torch::Tensor* z = nullptr);
+  /// Token by token (scene; docs/tgn.md): the targets of the entities `acting` (canonical)
+  /// of one step, chosen one at a time, the surest (entity, target) pair of the pointer's
+  /// logits first, each chosen one then given to the heads (its target taken, both out of
+  /// the nearness ranks of `pos`, the snapshot's canonical positions) before the next.
+  /// `first` are the heads on `nodes` [N, W], rel [N, N, R] and `z` [H], nothing given.
+  /// Returns per entity the target slot (0 = none) and its log-probability when chosen
+  /// (entities not acting: 0 and 0).
+  std::pair<std::vector<int>, std::vector<double>> chooseTargets(const Heads& first, const torch::Tensor& nodes,
+                                                                 const torch::Tensor& z,
+                                                                 const std::vector<Eigen::Vector2d>& pos,
+                                                                 const std::vector<bool>& acting) const;
   /// Exact-step (gnn: frame label) accuracy, eval mode.
   double accuracy(const std::vector<Sequence>& seqs);
   /// The same on a batch of every sequence (collateAll): training collates it once and

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "ddace/common/error.h"
 #include "ddace/tgn/detail.h"
@@ -38,26 +39,49 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
     m.features(pos, nullptr, x[k].data_ptr<float>());
     if (m.isScene()) m.relative(pos, rel[k].data_ptr<float>());
   }
-  Heads h;
+  const auto values = [](const Tensor& v) {
+    return std::vector<double>(v.data_ptr<double>(), v.data_ptr<double>() + v.numel());
+  };
+  const auto logSoftmax = [&](const Tensor& logits) {
+    return values(torch::log_softmax(logits, -1).to(torch::kDouble).contiguous());
+  };
+  Prediction p;
+  std::vector<double> la, lt;  // [N][actions], [N][targets], canonical order
+  detail::StepDecision decision;
   if (m.isScene()) {
     SceneNetwork net = m.scene;
     const Tensor nodes = net->encode(x, rel);
     const Tensor z = fused::gru(net->gru, nodes.mean(1).unsqueeze(0)).first.select(1, t - 1).squeeze(0);
-    h = net->heads(nodes[t - 1], rel[t - 1], z);
+    const Heads h = net->heads(nodes[t - 1], rel[t - 1], z);
+    p.end_probability = torch::softmax(h.end, -1)[1].item<double>();
+    la = logSoftmax(h.action);
+    lt = logSoftmax(h.target);
+    decision = detail::decideStep(p.end_probability, la, m.cfg.actions, lt, m.cfg.targets, m.info.step_rules);
+    if (!decision.end && m.info.options.token_by_token) {
+      // Token by token (docs/tgn.md): who acts, and how, is the decoded step's; their targets
+      // are chosen one at a time.
+      std::vector<Eigen::Vector2d> last(static_cast<size_t>(n));
+      for (int64_t c = 0; c < n; ++c)
+        last[static_cast<size_t>(c)] = history.back().positions[static_cast<size_t>(m.order.task_of[c])];
+      std::vector<bool> acting(static_cast<size_t>(n));
+      for (int64_t i = 0; i < n; ++i)
+        acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
+      const auto [target, log_p] = m.chooseTargets(h, nodes[t - 1], z, last, acting);
+      for (int64_t i = 0; i < n; ++i)
+        if (acting[static_cast<size_t>(i)]) {
+          decision.tokens[static_cast<size_t>(i)].target = target[static_cast<size_t>(i)];
+          lt[static_cast<size_t>(i * m.cfg.targets + target[static_cast<size_t>(i)])] = log_p[static_cast<size_t>(i)];
+        }
+    }
   } else {
     Network net = m.net;
     const Tensor emb = net->encode(x);
-    h = net->heads(fused::gru(net->gru, emb.unsqueeze(0)).first.select(1, t - 1).squeeze(0));
+    const Heads h = net->heads(fused::gru(net->gru, emb.unsqueeze(0)).first.select(1, t - 1).squeeze(0));
+    p.end_probability = torch::softmax(h.end, -1)[1].item<double>();
+    la = logSoftmax(h.action);
+    lt = logSoftmax(h.target);
+    decision = detail::decideStep(p.end_probability, la, m.cfg.actions, lt, m.cfg.targets, m.info.step_rules);
   }
-  const Tensor la = torch::log_softmax(h.action, -1).to(torch::kDouble).contiguous();
-  const Tensor lt = torch::log_softmax(h.target, -1).to(torch::kDouble).contiguous();
-  Prediction p;
-  p.end_probability = torch::softmax(h.end, -1)[1].item<double>();
-  const auto values = [](const Tensor& v) {
-    return std::vector<double>(v.data_ptr<double>(), v.data_ptr<double>() + v.numel());
-  };
-  const detail::StepDecision decision =
-      detail::decideStep(p.end_probability, values(la), m.cfg.actions, values(lt), m.cfg.targets, m.info.step_rules);
   p.end = decision.end;
   if (p.end) return p;
   const std::vector<detail::DecodedToken>& step = decision.tokens;
@@ -69,7 +93,8 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
     const int entity = m.order.task_of[static_cast<size_t>(i)];
     const int to = d.target == 0 ? -1 : m.order.task_of[static_cast<size_t>(d.target - 1)];
     scored.push_back({{entity, m.info.vocabulary[static_cast<size_t>(d.action - 1)], to},
-                      std::exp(la[i][d.action].item<double>() + lt[i][d.target].item<double>())});
+                      std::exp(la[static_cast<size_t>(i * m.cfg.actions + d.action)] +
+                               lt[static_cast<size_t>(i * m.cfg.targets + d.target)])});
   }
   std::sort(scored.begin(), scored.end(), [](const auto& u, const auto& v) { return u.first.entity < v.first.entity; });
   for (const auto& [token, q] : scored) {

@@ -16,6 +16,10 @@ nn::Linear linear(int in, int out, bool bias = true) {
 
 }  // namespace
 
+Tensor takenMask(const Tensor& taken) {
+  return torch::cat({torch::zeros_like(taken.narrow(-1, 0, 1)), taken * -1e9}, -1).unsqueeze(-2);
+}
+
 SceneLayerImpl::SceneLayerImpl(int in, int heads, int channels, AttentionKind kind)
     : heads_(heads), channels_(channels), kind_(kind) {
   const int width = heads * channels;

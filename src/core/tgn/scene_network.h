@@ -41,6 +41,10 @@ inline constexpr int kRelativeFeatures = 5;
 /// that each arrived at one target (within a radius of it) are at most two radii apart.
 inline constexpr double kTogetherRadii = 2.0;
 
+/// taken [..., N] (1 = a target no entity may point at) -> [..., 1, 1 + N], added to the
+/// pointer's logits [..., N, 1 + N]: -1e9 on the taken targets' columns ("none" stays).
+torch::Tensor takenMask(const torch::Tensor& taken);
+
 struct SceneLayerImpl : torch::nn::Module {
   SceneLayerImpl(int in, int heads, int channels, AttentionKind kind);
   /// x [S, N, in], rel [S, N, N, R] (pair i <- j), `in` the incoming edges (i receives from

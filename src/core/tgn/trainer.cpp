@@ -87,6 +87,51 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
     }
     return torch::tensor(rows, torch::kLong);
   };
+  // Token by token (docs/tgn.md): where every step's targets were exclusive and some step
+  // had several tokens, each step of a batch gets a random part of its tokens given (fewer
+  // than all; none as often as any other count), as predictNext will have chosen them
+  // before deciding the rest. Its own generator: elsewhere training is the same to the bit.
+  const bool token_by_token =
+      impl->isScene() && options.relative_features && options.token_by_token && info.step_rules.exclusive_targets &&
+      std::any_of(train.demos.begin(), train.demos.end(), [](const task::Demonstration& d) {
+        return std::any_of(d.steps.begin(), d.steps.end(), [](const task::Step& s) { return s.tokens.size() >= 2; });
+      });
+  info.options.token_by_token = token_by_token;  // the manifest records what training did
+  SplitMix64 given_rng(options.seed ^ 0xBF58476D1CE4E5B9ULL);
+  const auto giveTokens = [&](Batch& batch, const std::vector<size_t>& which) {
+    const int64_t n = impl->cfg.nodes;
+    batch.given = torch::zeros({batch.b, batch.t, n});
+    batch.taken = torch::zeros({batch.b, batch.t, n});
+    batch.rel_slots = batch.rel_slots.clone();
+    auto given = batch.given.accessor<float, 3>();
+    auto taken = batch.taken.accessor<float, 3>();
+    for (size_t b = 0; b < which.size(); ++b) {
+      const Sequence& s = seqs[which[b]];
+      auto act = s.action.accessor<int64_t, 2>();
+      auto tgt = s.target.accessor<int64_t, 2>();
+      for (int64_t t = 0; t < s.x.size(0); ++t) {
+        std::vector<int64_t> acting;
+        for (int64_t i = 0; i < n; ++i)
+          if (act[t][i] > 0) acting.push_back(i);
+        if (acting.size() < 2) continue;
+        const size_t count = given_rng.next() % acting.size();
+        if (count == 0) continue;
+        for (size_t k = acting.size(); k > 1; --k) std::swap(acting[k - 1], acting[given_rng.next() % k]);
+        std::vector<bool> competing(static_cast<size_t>(n), true);
+        for (size_t k = 0; k < count; ++k) {
+          const int64_t i = acting[k];
+          given[static_cast<int64_t>(b)][t][i] = 1;
+          competing[static_cast<size_t>(i)] = false;
+          if (tgt[t][i] > 0) {
+            taken[static_cast<int64_t>(b)][t][tgt[t][i] - 1] = 1;
+            competing[static_cast<size_t>(tgt[t][i] - 1)] = false;
+          }
+        }
+        impl->relative(s.positions[static_cast<size_t>(t)],
+                       batch.rel_slots[static_cast<int64_t>(b)][t].data_ptr<float>(), &competing);
+      }
+    }
+  };
   // At least 4 optimiser steps per epoch when there are few demonstrations (few-shot).
   const size_t bs = std::min(static_cast<size_t>(options.batch_demos), std::max<size_t>(1, (seqs.size() + 3) / 4));
   for (int epoch = 1; epoch <= options.max_epochs; ++epoch) {
@@ -99,6 +144,7 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
                                       order.begin() + static_cast<long>(std::min(order.size(), from + bs)));
       Batch batch = collate(seqs, which, gnn);
       if (!name_groups.empty()) batch.names = shuffledNames(which);
+      if (token_by_token) giveTokens(batch, which);
       parameters.zeroGrad();
       const Tensor loss = lossOf(impl->run(batch), batch, gnn, acting_targets);
       loss.backward();

@@ -215,7 +215,7 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
   EXPECT_NE(e.find("manifest.yaml records"), std::string::npos) << e;
   e = variant("other_format", [&](const fs::path& d) {
     rewrite(d / "manifest.yaml",
-            [](std::string& s) { s.replace(s.find("format: ddace-model/6"), 21, "format: ddace-model/9"); });
+            [](std::string& s) { s.replace(s.find("format: ddace-model/7"), 21, "format: ddace-model/9"); });
   });
   EXPECT_NE(e.find("manifest.yaml:"), std::string::npos) << e;
   e = variant("loss_row", [&](const fs::path& d) { rewrite(d / "loss.csv", [](std::string& s) { s += "x,y\n"; }); });
@@ -288,6 +288,9 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
     const std::string e = edited("clusters: ", "clusters: 99", true);
     EXPECT_NE(e.find("refinement: clusters (at most the entities) must be an integer in 1.."), std::string::npos) << e;
   }
+  // A model of Task 2 (shared targets) claiming to decide token by token.
+  EXPECT_NE(edited("token_by_token: false", "token_by_token: true", true).find("token_by_token is trained only"),
+            std::string::npos);
   // The digest line itself cut or changed.
   EXPECT_NE(edited("manifest_sha256: ", "manifest_sha256: 0", false).find("last line"), std::string::npos);
   {
@@ -297,27 +300,14 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
   }
   // An older format: retrain, saying what it lacks; a newer one: said so.
   for (const char* version : {"ddace-model/4", "ddace-model/3", "ddace-model/2"}) {
-    const std::string old = edited("format: ddace-model/6", std::string("format: ") + version, false);
+    const std::string old = edited("format: ddace-model/7", std::string("format: ") + version, false);
     EXPECT_NE(old.find("retrain"), std::string::npos) << old;
     EXPECT_NE(old.find("relative features"), std::string::npos) << old;
     EXPECT_NE(old.find("manifest.yaml:"), std::string::npos) << old;
   }
-  EXPECT_NE(edited("format: ddace-model/6", "format: ddace-model/2", false).find("digests"), std::string::npos);
-  EXPECT_NE(edited("format: ddace-model/6", "format: ddace-model/12", false).find("newer"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/7", "format: ddace-model/2", false).find("digests"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/7", "format: ddace-model/12", false).find("newer"), std::string::npos);
   {
-    // A /5 model (before shuffled names, which it lacks the key of) still loads, as
-    // trained without them, and decides as before.
-    std::string s = manifest;
-    s.replace(s.find("format: ddace-model/6"), 21, "format: ddace-model/5");
-    const size_t key = s.find("  shuffle_names: ");
-    ASSERT_NE(key, std::string::npos);
-    s.erase(key, s.find('\n', key) + 1 - key);
-    reseal(s);
-    const std::string dir = tempDir("format5");
-    fs::copy(good, dir);
-    test::writeBytes(fs::path(dir) / "manifest.yaml", s);
-    EXPECT_FALSE(tgn::SequenceModel::load(dir).info().options.shuffle_names);
-    fs::remove_all(dir);
     // The record is what training did: fetch's robots were shuffled, Task 2's names not.
     tasks::GeneratorOptions f;
     f.family = "fetch";
@@ -329,6 +319,50 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
     fs::remove_all(fetch);
   }
   fs::remove_all(good);
+}
+
+// Token by token (docs/tgn.md): trained, and so decoded, where every step's targets were
+// exclusive and some step had several tokens (nearest_goal); nowhere else, and not when
+// switched off. The manifest keeps the record.
+TEST(TokenByToken, IsTrainedWhereAStepHasSeveralExclusiveTargets) {
+  tgn::TrainOptions o;
+  o.max_epochs = 2;
+  const auto goals = tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr);
+  EXPECT_TRUE(goals.info().options.token_by_token);
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("fetch", 4), o, nullptr).info().options.token_by_token)
+      << "the fetcher and the box share a target";
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("queue", 4), o, nullptr).info().options.token_by_token)
+      << "one token per step";
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("task4", 4), o, nullptr).info().options.token_by_token);
+  const std::string dir = tempDir("token_by_token");
+  goals.save(dir);
+  EXPECT_TRUE(tgn::SequenceModel::load(dir).info().options.token_by_token);
+  // A model of an older format still loads, as trained without what it lacks the key of:
+  // /6 before token by token, /5 also before shuffled names.
+  const std::string manifest = test::fileBytes(fs::path(dir) / "manifest.yaml");
+  const auto olderFormat = [&](const std::string& format, const std::vector<std::string>& keys) {
+    std::string s = manifest;
+    s.replace(s.find("format: ddace-model/7"), 21, "format: " + format);
+    for (const std::string& k : keys) {
+      const size_t key = s.find("  " + k + ": ");
+      if (key == std::string::npos) return "no key " + k;
+      s.erase(key, s.find('\n', key) + 1 - key);
+    }
+    reseal(s);
+    const std::string older = tempDir("older_format");
+    fs::copy(dir, older);
+    test::writeBytes(fs::path(older) / "manifest.yaml", s);
+    const tgn::TrainOptions loaded = tgn::SequenceModel::load(older).info().options;
+    fs::remove_all(older);
+    return std::string(loaded.shuffle_names ? "shuffled" : "names kept") +
+           (loaded.token_by_token ? ", token by token" : "");
+  };
+  EXPECT_EQ(olderFormat("ddace-model/7", {}), "shuffled, token by token");
+  EXPECT_EQ(olderFormat("ddace-model/6", {"token_by_token"}), "shuffled");
+  EXPECT_EQ(olderFormat("ddace-model/5", {"shuffle_names", "token_by_token"}), "names kept");
+  fs::remove_all(dir);
+  o.token_by_token = false;
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr).info().options.token_by_token);
 }
 
 // The step rules come from the training steps, for the scene variant only, and survive
