@@ -50,7 +50,7 @@ int runTrain(const std::vector<std::string>& argv) {
             {"--out", "--variant", "--epochs", "--seed", "--threads", "--patience", "--lr", "--attention", "--dropout",
              "--layers", "--gru-hidden", "--head-hidden", "--identity-dim", "--weight-decay"},
             {"--no-identity", "--positions", "--displacement", "--no-relative", "--relative", "--keep-names",
-             "--all-at-once", "--quiet", "--force"});
+             "--all-at-once", "--parked-rivals", "--quiet", "--force"});
   const std::string given = args.positional(0, "TASKDIR");
   const std::string task_path = trainingDir(given);
   args.expectAtMostPositional(1);
@@ -87,6 +87,7 @@ int runTrain(const std::vector<std::string>& argv) {
   if (args.has("--relative")) options.fixed_order_rule = false;
   if (args.has("--keep-names")) options.shuffle_names = false;
   if (args.has("--all-at-once")) options.token_by_token = false;
+  if (args.has("--parked-rivals")) options.parked_out_of_ranks = false;
   options.validate();
 
   const task::TaskDir train = task::loadTaskDir(task_path);
@@ -134,7 +135,7 @@ DDACE_COMMAND(
      "N=400] [--seed S=1] "
      "[--threads T=1] [--patience P=20] [--lr RATE] [--dropout P=0.1] [--layers L=3] [--gru-hidden H=64] "
      "[--head-hidden H=32] [--identity-dim D=8] [--weight-decay W=0] [--no-identity] [--positions] "
-     "[--displacement] [--no-relative] [--relative] [--keep-names] [--all-at-once] [--quiet]",
+     "[--displacement] [--no-relative] [--relative] [--keep-names] [--all-at-once] [--parked-rivals] [--quiet]",
      "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR "
      "(refused when it holds anything else; --force replaces an earlier model)",
      runTrain});

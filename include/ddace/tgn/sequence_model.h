@@ -63,7 +63,8 @@ namespace ddace::tgn {
 /// (StepRules); /5: whether the scene network saw the relative features
 /// (`relative_features`, the "Fixed order" rule); /6: whether its training shuffled the
 /// names (`shuffle_names`); /7: whether it decides a step token by token
-/// (`token_by_token`). /5 and /6 manifests are still read, as trained without what they
+/// (`token_by_token`) and keeps parked entities out of the nearness ranks
+/// (`parked_out_of_ranks`). /5 and /6 manifests are still read, as trained without what they
 /// predate; older ones are refused (retrain).
 inline constexpr const char* kModelFormat = "ddace-model/7";
 inline constexpr const char* kModelFormatBeforeTokenByToken = "ddace-model/6";
@@ -131,6 +132,11 @@ struct TrainOptions {
   /// of each step's tokens given (docs/tgn.md, "Token by token"). The manifest records
   /// the outcome: true only when training did so (predictNext then decodes so).
   bool token_by_token = true;
+  /// Scene variant with the relative features: an entity at one place with another (within
+  /// kTogetherRadii arrival radii: a robot on the goal it drove to, a box picked up) is no
+  /// rival in the others' nearness ranks (docs/tgn.md, "Parked entities"). The manifest
+  /// records it (false for a model without the relative features, and for /5 and /6 ones).
+  bool parked_out_of_ranks = true;
   double weight_decay = 0;  ///< Adam's L2 penalty (as torch.optim.Adam's weight_decay)
   double dropout = 0.1;
   double learning_rate = 5e-3;

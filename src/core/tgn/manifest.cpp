@@ -151,6 +151,7 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   y << YAML::Key << "relative_features" << YAML::Value << o.relative_features;
   y << YAML::Key << "shuffle_names" << YAML::Value << o.shuffle_names;
   y << YAML::Key << "token_by_token" << YAML::Value << o.token_by_token;
+  y << YAML::Key << "parked_out_of_ranks" << YAML::Value << o.parked_out_of_ranks;
   y << YAML::Key << "weight_decay" << YAML::Value << o.weight_decay;
   y << YAML::Key << "dropout" << YAML::Value << o.dropout;
   y << YAML::Key << "learning_rate" << YAML::Value << o.learning_rate;
@@ -461,6 +462,10 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     const std::string format = r.text(root, "format");
     o.shuffle_names = format != kModelFormatBeforeShuffledNames && r.boolean(hp, "shuffle_names");
     o.token_by_token = format == kModelFormat && r.boolean(hp, "token_by_token");
+    o.parked_out_of_ranks = format == kModelFormat && r.boolean(hp, "parked_out_of_ranks");
+    if (o.parked_out_of_ranks && !(info.variant == Variant::Scene && o.relative_features))
+      r.fail(hp["parked_out_of_ranks"],
+             "parked_out_of_ranks applies only to the scene variant with the relative features");
     if (o.token_by_token &&
         !(info.variant == Variant::Scene && o.relative_features && info.step_rules.exclusive_targets))
       r.fail(hp["token_by_token"],

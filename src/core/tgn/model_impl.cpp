@@ -222,6 +222,14 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos, floa
       d[static_cast<size_t>(i * n + j)] = (m <= together ? 0.0 : m) / scale;
     }
   const auto kind = [&](int i) { return spec.entities[static_cast<size_t>(order.task_of[i])].kind; };
+  std::vector<bool> rival(static_cast<size_t>(n), true);
+  if (competing) rival = *competing;
+  // Parked entities (docs/tgn.md): one at one place with another has had its part (a robot
+  // on the goal it drove to, a box picked up) and is no rival in "the nearest of its kind".
+  if (info.options.parked_out_of_ranks)
+    for (int k = 0; k < n; ++k)
+      for (int m = 0; m < n; ++m)
+        if (m != k && d[static_cast<size_t>(k * n + m)] == 0.0) rival[static_cast<size_t>(k)] = false;
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j) {
       float* r = out + (static_cast<size_t>(i) * n + j) * kRelativeFeatures;
@@ -231,7 +239,7 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos, floa
       // How many entities of j's kind are nearer to i than j; of i's kind nearer to j than i.
       int rank_j = 0, rank_i = 0;
       for (int k = 0; k < n; ++k) {
-        if (k == i || k == j || (competing && !(*competing)[static_cast<size_t>(k)])) continue;
+        if (k == i || k == j || !rival[static_cast<size_t>(k)]) continue;
         if (kind(k) == kind(j) && d[static_cast<size_t>(i * n + k)] < dij) ++rank_j;
         if (kind(k) == kind(i) && d[static_cast<size_t>(j * n + k)] < dij) ++rank_i;
       }
@@ -525,6 +533,10 @@ std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const T
   info.variant = options.variant;
   info.options = options;
   info.options.refinement.seed = options.seed;
+  // The manifest records what the features are: parked entities matter only where the
+  // scene network sees the relative features at all.
+  info.options.parked_out_of_ranks =
+      options.parked_out_of_ranks && options.variant == Variant::Scene && options.relative_features;
   info.vocabulary = train.vocabulary();
   info.fingerprint = task::fingerprintOf(train);
   const int n = static_cast<int>(train.spec.entities.size());

@@ -355,14 +355,44 @@ TEST(TokenByToken, IsTrainedWhereAStepHasSeveralExclusiveTargets) {
     const tgn::TrainOptions loaded = tgn::SequenceModel::load(older).info().options;
     fs::remove_all(older);
     return std::string(loaded.shuffle_names ? "shuffled" : "names kept") +
-           (loaded.token_by_token ? ", token by token" : "");
+           (loaded.token_by_token ? ", token by token" : "") + (loaded.parked_out_of_ranks ? ", parked out" : "");
   };
-  EXPECT_EQ(olderFormat("ddace-model/7", {}), "shuffled, token by token");
-  EXPECT_EQ(olderFormat("ddace-model/6", {"token_by_token"}), "shuffled");
-  EXPECT_EQ(olderFormat("ddace-model/5", {"shuffle_names", "token_by_token"}), "names kept");
+  EXPECT_EQ(olderFormat("ddace-model/7", {}), "shuffled, token by token, parked out");
+  EXPECT_EQ(olderFormat("ddace-model/6", {"token_by_token", "parked_out_of_ranks"}), "shuffled");
+  EXPECT_EQ(olderFormat("ddace-model/5", {"shuffle_names", "token_by_token", "parked_out_of_ranks"}), "names kept");
   fs::remove_all(dir);
   o.token_by_token = false;
   EXPECT_FALSE(tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr).info().options.token_by_token);
+}
+
+// Parked entities (docs/tgn.md): where the scene network sees the relative features, an
+// entity at one place with another is no rival in the nearness ranks; not on a fixed order
+// (no relative features), nor for the paper's network, nor when switched off. The manifest
+// keeps the record, and a claim that does not fit the model is refused.
+TEST(ParkedEntities, AreOutOfTheRanksWhereTheSceneDecides) {
+  tgn::TrainOptions o;
+  o.max_epochs = 2;
+  const auto queue = tgn::SequenceModel::train(generate("queue", 4), o, nullptr);
+  EXPECT_TRUE(queue.info().options.parked_out_of_ranks);
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("task4", 4), o, nullptr).info().options.parked_out_of_ranks);
+  o.parked_out_of_ranks = false;
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("queue", 4), o, nullptr).info().options.parked_out_of_ranks);
+  o.parked_out_of_ranks = true;
+  o.variant = tgn::Variant::Paper;
+  const auto paper = tgn::SequenceModel::train(generate("queue", 4), o, nullptr);
+  EXPECT_FALSE(paper.info().options.parked_out_of_ranks);
+  const std::string dir = tempDir("parked");
+  queue.save(dir);
+  EXPECT_TRUE(tgn::SequenceModel::load(dir).info().options.parked_out_of_ranks);
+  fs::remove_all(dir);
+  paper.save(dir);
+  std::string s = test::fileBytes(fs::path(dir) / "manifest.yaml");
+  s.replace(s.find("parked_out_of_ranks: false"), 26, "parked_out_of_ranks: true");
+  reseal(s);
+  test::writeBytes(fs::path(dir) / "manifest.yaml", s);
+  EXPECT_NE(loadError(dir).find("parked_out_of_ranks applies only to the scene variant"), std::string::npos)
+      << loadError(dir);
+  fs::remove_all(dir);
 }
 
 // The step rules come from the training steps, for the scene variant only, and survive
