@@ -4,8 +4,8 @@
 // asks for no more threads than a machine has (issue: `threads: 100000` made inspect and
 // eval start 2,386 threads and hang). The task is test/fuzz/manifest_task.yaml. Parses
 // from memory (tgn::files::parseManifest takes the text). Most inputs stop at the
-// manifest's own digest: the corpus holds valid manifests (sealed: task4_scene.yaml, ddace-model/6, and
-// task4_scene_format5.yaml, the /5 it still reads) so the
+// manifest's own digest: the corpus holds valid manifests (sealed: task4_scene.yaml, ddace-model/7, and
+// task4_scene_format6.yaml and task4_scene_format5.yaml, the /6 and /5 it still reads) so the
 // fuzzer also reaches the field checks through its dictionary-free mutations of them.
 // fuzz-modules: task graph
 // fuzz-sources: src/core/tgn/manifest.cpp
