@@ -23,8 +23,8 @@ int runInspect(const std::vector<std::string>& argv) {
   const auto name = [&](int i) { return spec.entities.at(static_cast<size_t>(i)).name; };
   const tgn::TrainOptions& o = info.options;
 
-  std::cout << dir << ": " << tgn::kModelFormat << ", variant '" << tgn::toString(info.variant) << "', task '"
-            << spec.name << "'\n";
+  std::cout << dir << ": " << info.format << ", variant '" << tgn::toString(info.variant) << "', task '" << spec.name
+            << "'\n";
   std::cout << "  entities:   ";
   for (const auto& e : spec.entities) std::cout << " " << e.name;
   std::cout << "\n  vocabulary: ";
@@ -49,6 +49,12 @@ int runInspect(const std::vector<std::string>& argv) {
                               " (decoded jointly when the entities' own argmax breaks them)"
                         : std::string("none (each entity decoded on its own)"))
             << "\n";
+  if (info.variant == tgn::Variant::Scene) {
+    const auto on = [](bool b) { return b ? "yes" : "no"; };
+    std::cout << "  scene:       relative features " << on(o.relative_features) << ", names shuffled "
+              << on(o.shuffle_names) << ", token by token " << on(o.token_by_token)
+              << ", parked entities out of the ranks " << on(o.parked_out_of_ranks) << " (docs/tgn.md)\n";
+  }
   const auto join = [](const auto& items) {
     std::string out;
     for (const auto& i : items) {

@@ -35,9 +35,9 @@ bool validateOne(const std::string& path, bool verbose) {
   for (size_t i = 0; i < vocab.size(); ++i) std::cout << (i ? ", " : "") << vocab[i];
   std::cout << "], " << dir.demos.size() << " demonstrations\n";
 
-  bool same = true;
+  std::vector<std::vector<task::Step>> steps_of;
   for (const auto& d : dir.demos) {
-    same = same && task::sameSteps(d.steps, dir.demos.front().steps);
+    steps_of.push_back(d.steps);
     std::printf("  %s: %zu rows (%.2f s), %zu keyframes, %zu steps, %zu segments\n",
                 fs::path(d.source).filename().c_str(), d.rows, d.t_last - d.t_first, d.steps.size(), d.steps.size(),
                 d.segments);
@@ -51,13 +51,24 @@ bool validateOne(const std::string& path, bool verbose) {
       std::printf("    END @ row %d\n", d.end_row);
     }
   }
-  if (!dir.demos.empty() && same && !verbose) {
-    const auto& d = dir.demos.front();
-    std::cout << "  every demonstration has the same " << d.steps.size() << " steps:\n";
-    for (size_t k = 0; k < d.steps.size(); ++k)
-      std::cout << "    step " << k + 1 << ": " << stepText(d.steps[k], spec) << "\n";
+  const task::CommonSteps common = task::commonSteps(steps_of);
+  // A labelling slip (one token unlike every other demonstration's) is reported even with
+  // --verbose: training takes the steps as fixed all the same (docs/tgn.md, "Fixed order").
+  if (common.fixed && !common.slips.empty()) {
+    std::cout << "  every demonstration has the same " << common.steps.size() << " steps but for "
+              << common.slips.size() << " labelling slip" << (common.slips.size() == 1 ? "" : "s") << ":\n";
+    for (const auto& slip : common.slips)
+      std::cout << "    " << fs::path(dir.demos[slip.demo].source).filename().string() << ": step " << slip.step + 1
+                << ": " << task::tokenKey(slip.token, spec) << " where the others have "
+                << task::tokenKey(slip.expected, spec) << "\n";
+  }
+  const bool same = common.fixed && common.slips.empty();
+  if (!dir.demos.empty() && common.fixed && !verbose) {
+    if (same) std::cout << "  every demonstration has the same " << common.steps.size() << " steps:\n";
+    for (size_t k = 0; k < common.steps.size(); ++k)
+      std::cout << "    step " << k + 1 << ": " << stepText(common.steps[k], spec) << "\n";
     std::cout << "    then END\n";
-  } else if (!same && !verbose) {
+  } else if (!dir.demos.empty() && !common.fixed && !verbose) {
     std::cout << "  the demonstrations differ in their steps (--verbose lists them)\n";
   }
   return true;

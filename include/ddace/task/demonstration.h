@@ -61,6 +61,26 @@ struct Step {
 /// onsets aside): two demonstrations of one fixed step order.
 bool sameSteps(const std::vector<Step>& a, const std::vector<Step>& b);
 
+/// A labelling slip: a demonstration whose steps are the others' but for one token, the
+/// same entity labelled with another action or target.
+struct StepSlip {
+  size_t demo = 0;  ///< index of the demonstration
+  size_t step = 0;  ///< 0-based step index
+  Token token;      ///< as labelled
+  Token expected;   ///< as in the other demonstrations
+};
+/// What the demonstrations' steps have in common. `fixed`: every demonstration has the most
+/// common step sequence, `steps`, except at most one in ten of them (rounded down: none of
+/// fewer than ten), each of those different in a single token (a slip, listed in `slips`).
+/// Unset when the steps vary otherwise: the scene decided them (docs/tgn.md, "Fixed order").
+struct CommonSteps {
+  bool fixed = false;
+  std::vector<Step> steps;
+  std::vector<StepSlip> slips;
+};
+/// `steps_of`: every demonstration's steps, in order (at least one demonstration).
+CommonSteps commonSteps(const std::vector<std::vector<Step>>& steps_of);
+
 /// The rows during which a token's label holds: [first_row, last_row].
 struct Segment {
   Token token;

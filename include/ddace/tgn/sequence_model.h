@@ -198,6 +198,7 @@ struct FileDigest {
 
 /// Everything a model directory records besides the weights (manifest.yaml, loss.csv).
 struct ModelInfo {
+  std::string format = kModelFormat;  ///< of the manifest it was read from (an older one is read too)
   Variant variant = Variant::Scene;
   TrainOptions options;                      ///< hyper-parameters and seed used
   std::vector<std::string> vocabulary;       ///< actions; class 0 of the action head is idle

@@ -2,6 +2,7 @@
 #include "ddace/task/summary.h"
 
 #include <algorithm>
+#include <optional>
 #include <cstdio>
 #include <map>
 #include <sstream>
@@ -21,6 +22,48 @@ bool Token::operator<(const Token& o) const {
 bool sameSteps(const std::vector<Step>& a, const std::vector<Step>& b) {
   return std::equal(a.begin(), a.end(), b.begin(), b.end(),
                     [](const Step& x, const Step& y) { return x.tokens == y.tokens; });
+}
+
+CommonSteps commonSteps(const std::vector<std::vector<Step>>& steps_of) {
+  CommonSteps out;
+  if (steps_of.empty()) return out;
+  // The most common sequence (the first of the most common, in demonstration order).
+  size_t modal = 0, modal_count = 0;
+  for (size_t i = 0; i < steps_of.size(); ++i) {
+    const size_t count = static_cast<size_t>(
+        std::count_if(steps_of.begin(), steps_of.end(), [&](const auto& s) { return sameSteps(s, steps_of[i]); }));
+    if (count > modal_count) modal = i, modal_count = count;
+  }
+  out.steps = steps_of[modal];
+  // A slip: the same steps and tokens but one, which names the same entity.
+  const auto slipOf = [&](size_t d) -> std::optional<StepSlip> {
+    const std::vector<Step>& s = steps_of[d];
+    if (s.size() != out.steps.size()) return std::nullopt;
+    std::optional<StepSlip> slip;
+    for (size_t k = 0; k < s.size(); ++k) {
+      const auto& a = s[k].tokens;
+      const auto& b = out.steps[k].tokens;
+      if (a.size() != b.size()) return std::nullopt;
+      for (size_t t = 0; t < a.size(); ++t) {
+        if (a[t] == b[t]) continue;
+        if (slip || a[t].entity != b[t].entity) return std::nullopt;
+        slip = StepSlip{d, k, a[t], b[t]};
+      }
+    }
+    return slip;
+  };
+  const size_t allowed = steps_of.size() / 10;
+  for (size_t d = 0; d < steps_of.size(); ++d) {
+    if (sameSteps(steps_of[d], out.steps)) continue;
+    const std::optional<StepSlip> slip = slipOf(d);
+    if (!slip || out.slips.size() == allowed) {
+      out.slips.clear();
+      return out;
+    }
+    out.slips.push_back(*slip);
+  }
+  out.fixed = true;
+  return out;
 }
 
 std::string tokenKey(const Token& token, const TaskSpec& spec) {

@@ -404,6 +404,7 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     Reader r(path);
     const YAML::Node root = checkedRoot(r, text, path);
     ModelInfo info;
+    info.format = r.text(root, "format");
     try {
       info.variant = variantFromString(r.text(root, "variant"));
     } catch (const Error& e) {

@@ -31,11 +31,17 @@ class ThreadCount {
   int saved_;
 };
 
-/// Every training demonstration has the same steps (docs/tgn.md, "Fixed order").
+/// What the training demonstrations' steps have in common (task::commonSteps).
+task::CommonSteps commonStepsOf(const task::TaskDir& train) {
+  std::vector<std::vector<task::Step>> steps_of;
+  for (const auto& d : train.demos) steps_of.push_back(d.steps);
+  return task::commonSteps(steps_of);
+}
+
+/// Every training demonstration has the same steps, but for a few labelling slips
+/// (docs/tgn.md, "Fixed order").
 bool fixedOrder(const task::TaskDir& train) {
-  return train.demos.size() >= 2 && std::all_of(train.demos.begin(), train.demos.end(), [&](const auto& d) {
-           return task::sameSteps(d.steps, train.demos.front().steps);
-         });
+  return train.demos.size() >= 2 && commonStepsOf(train).fixed;
 }
 
 /// One training run with exactly `options`.
@@ -70,6 +76,8 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
       std::sort(canonical.begin(), canonical.end());
       name_groups.push_back(canonical);
     }
+  // In canonical order, groups too: the draws must not depend on task.yaml's order.
+  std::sort(name_groups.begin(), name_groups.end());
   info.options.shuffle_names = !name_groups.empty();  // the manifest records what training did
   SplitMix64 name_rng(options.seed ^ 0x94D049BB133111EBULL);
   const auto shuffledNames = [&](const std::vector<size_t>& which) {
@@ -194,11 +202,16 @@ TrainOptions withFixedOrderRule(const task::TaskDir& train, const TrainOptions& 
 
 SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& requested, std::ostream* progress) {
   const TrainOptions options = withFixedOrderRule(train, requested);
-  if (progress && options.relative_features != requested.relative_features)
-    *progress << "every demonstration has the same " << train.demos.front().steps.size()
-              << " steps: training without the relative features (a decision cannot depend on the configuration; "
+  if (progress && options.relative_features != requested.relative_features) {
+    const task::CommonSteps common = commonStepsOf(train);
+    *progress << "every demonstration has the same " << common.steps.size() << " steps";
+    if (!common.slips.empty())
+      *progress << " but for " << common.slips.size() << " labelling slip" << (common.slips.size() == 1 ? "" : "s")
+                << " (ddace validate lists them)";
+    *progress << ": training without the relative features (a decision cannot depend on the configuration; "
                  "--relative keeps them)"
               << std::endl;
+  }
   std::shared_ptr<Impl> impl = trainNetwork(train, options, progress);
   // The identity embedding lets the scene network tell entities apart by name, which the
   // fixed-order tasks need; where the decision is the scene's (nearest_goal), it can also
@@ -242,17 +255,27 @@ std::vector<std::vector<int>> interchangeableNames(const task::TaskDir& train) {
       roles[e].push_back(role[e]);
     }
   }
-  const auto fixed = [&](size_t e) {
-    return std::all_of(roles[e].begin(), roles[e].end(), [&](const auto& r) { return r == roles[e].front(); });
-  };
+  // An entity's role is fixed when it is the same in every demonstration but labelling
+  // slips: at most one in ten of them (rounded down), as task::commonSteps allows.
+  const size_t slips = train.demos.size() / 10;
+  std::vector<std::vector<std::string>> modal(n);
+  std::vector<bool> fixed(n, false);
+  for (size_t e = 0; e < n && !train.demos.empty(); ++e) {
+    size_t best = 0;
+    for (const auto& r : roles[e]) {
+      const size_t count = static_cast<size_t>(std::count(roles[e].begin(), roles[e].end(), r));
+      if (count > best) best = count, modal[e] = r;
+    }
+    fixed[e] = best + slips >= roles[e].size();
+  }
   std::vector<std::vector<int>> groups;
   for (task::EntityKind k : {task::EntityKind::Robot, task::EntityKind::Object, task::EntityKind::Goal}) {
     std::vector<int> group;
     for (size_t e = 0; e < n; ++e) {
       if (entities[e].kind != k) continue;
-      bool named = !train.demos.empty() && fixed(e);
+      bool named = fixed[e];
       for (size_t o = 0; o < n && named; ++o)
-        if (o != e && entities[o].kind == k && fixed(o) && roles[o].front() == roles[e].front()) named = false;
+        if (o != e && entities[o].kind == k && fixed[o] && modal[o] == modal[e]) named = false;
       if (!named) group.push_back(static_cast<int>(e));
     }
     if (group.size() >= 2) groups.push_back(group);

@@ -90,6 +90,20 @@ TEST(CliGenerate, OnsetJitterIsMergedBackAndValidateSaysWhere) {
   EXPECT_NE(r.out.find("--onset-jitter 0.6 is out of range"), std::string::npos) << r.out;
 }
 
+// A demonstration whose steps are the others' but for one mislabelled token is a labelling
+// slip: validate names the file, the step and both tokens, and still lists the common steps.
+TEST(CliValidate, SaysWhereALabellingSlipIs) {
+  const std::string out = root() + "/slips";
+  ToolRun r = runTool("generate task4 --out '" + out + "' --train 10 --test 1 --mislabel 0.1");
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = runTool("validate '" + out + "/train'");
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("every demonstration has the same 2 steps but for 1 labelling slip:"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find(" where the others have R"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("step 2: [R3:move:G1 R4:move:G1]"), std::string::npos) << r.out;
+}
+
 TEST(CliValidate, ADirectoryThatCannotBeReadIsOneErrorAndTheRestIsValidated) {
   const std::string base = root();
   const std::string good = base + "/good", loop = base + "/loop";

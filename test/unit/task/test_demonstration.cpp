@@ -707,3 +707,64 @@ TEST(DemonstrationFiles, ASummaryIsWhatReadingDerivesWithoutTheRows) {
   writeBytes(tempPath("bad_summary.csv"), std::string(kHeader) + row(0, "fly", "G1", "", ""));
   EXPECT_THROW(summarizeDemonstrationCsv(tempPath("bad_summary.csv"), scene()), Error);
 }
+
+namespace {
+
+/// Steps from token lists: {{"0:move:2", "1:move:3"}, {"2:move:4"}} (entity:action:target).
+std::vector<Step> stepsOf(const std::vector<std::vector<std::string>>& keys) {
+  std::vector<Step> out;
+  for (const auto& step : keys) {
+    Step s;
+    for (const auto& k : step) {
+      Token t;
+      const size_t a = k.find(':'), b = k.rfind(':');
+      t.entity = std::stoi(k.substr(0, a));
+      t.action = k.substr(a + 1, b - a - 1);
+      t.target = std::stoi(k.substr(b + 1));
+      s.tokens.push_back(t);
+    }
+    std::sort(s.tokens.begin(), s.tokens.end());
+    out.push_back(s);
+  }
+  return out;
+}
+
+}  // namespace
+
+// "Fixed order" tolerates labelling slips: at most one demonstration in ten whose steps
+// differ from all the others' in one token of one entity; anything else varies.
+TEST(CommonSteps, AFewOneTokenSlipsKeepTheStepsFixedAndAreListed) {
+  const auto usual = stepsOf({{"0:move:2", "1:move:3"}, {"2:move:4"}});
+  const auto slip = stepsOf({{"0:move:3", "1:move:3"}, {"2:move:4"}});  // entity 0's target
+  std::vector<std::vector<Step>> demos(9, usual);
+  EXPECT_TRUE(commonSteps(demos).fixed);
+  EXPECT_TRUE(commonSteps(demos).slips.empty());
+  // 9 demonstrations: no slip allowed (fewer than ten).
+  demos.back() = slip;
+  EXPECT_FALSE(commonSteps(demos).fixed);
+  // 10: one.
+  demos.push_back(usual);
+  const CommonSteps c = commonSteps(demos);
+  ASSERT_TRUE(c.fixed);
+  EXPECT_TRUE(sameSteps(c.steps, usual));
+  ASSERT_EQ(c.slips.size(), 1u);
+  EXPECT_EQ(c.slips[0].demo, 8u);
+  EXPECT_EQ(c.slips[0].step, 0u);
+  EXPECT_EQ(c.slips[0].token.target, 3);
+  EXPECT_EQ(c.slips[0].expected.target, 2);
+  // Two slips in ten: more than one in ten.
+  demos[0] = slip;
+  EXPECT_FALSE(commonSteps(demos).fixed);
+  demos[0] = usual;
+  // Not slips: two tokens changed, another entity acting, a step more or less.
+  for (const auto& other :
+       {stepsOf({{"0:move:3", "1:move:2"}, {"2:move:4"}}), stepsOf({{"0:move:2", "4:move:3"}, {"2:move:4"}}),
+        stepsOf({{"0:move:2", "1:move:3"}, {"2:move:4"}, {"3:move:4"}}), stepsOf({{"0:move:2", "1:move:3"}})}) {
+    demos[8] = other;
+    EXPECT_FALSE(commonSteps(demos).fixed);
+  }
+  // Where the scene decides, the steps vary in many ways: never fixed.
+  std::vector<std::vector<Step>> scene;
+  for (int i = 0; i < 20; ++i) scene.push_back(stepsOf({{"0:move:" + std::to_string(2 + i % 2)}}));
+  EXPECT_FALSE(commonSteps(scene).fixed);
+}
