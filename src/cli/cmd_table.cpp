@@ -322,6 +322,14 @@ void runPlot(const std::string& command) {
 /// inherit it; a CPU without AVX2 falls back to its best and the table says which it used.
 constexpr const char* kCpuCapability = "avx2";
 
+/// Which OpenBLAS kernels the jobs use, as the results record it (the environment decides:
+/// `OPENBLAS_CORETYPE`, else OpenBLAS's own choice for the processor).
+std::string openBlasKernel() {
+  const char* core = std::getenv("OPENBLAS_CORETYPE");
+  return core && *core ? std::string("kernels: `OPENBLAS_CORETYPE=") + core + "` (from the environment)"
+                       : std::string("kernels: chosen by OpenBLAS for this processor (`OPENBLAS_CORETYPE` unset)");
+}
+
 int runTable(const std::vector<std::string>& argv) {
   Args args(argv, {"--out", "--docs", "--seed", "--gnn-epochs", "--jobs", "--repo"}, {"--quick"});
   ::setenv("ATEN_CPU_CAPABILITY", kCpuCapability, 1);  // before any job touches libtorch
@@ -454,7 +462,10 @@ int runTable(const std::vector<std::string>& argv) {
      << "Each cell: " << s.test << " closed-loop trials on fresh start-goal configurations (ideal path "
      << "following, as the paper), models trained to their loss plateau. OSR, SSR, GCR, FD as defined in "
      << "docs/task-format.md. libtorch's kernels run with `ATEN_CPU_CAPABILITY=" << kCpuCapability
-     << "` in every job, so that the numbers do not depend on the host's vector instruction set. **E' rules**: how "
+     << "` in every job, so that the numbers do not depend on the host's vector instruction set; OpenBLAS "
+     << openBlasKernel()
+     << " (OpenBLAS picks its kernels by the processor unless told; they round differently too, so a run "
+        "with other kernels can train to other epochs and rows). **E' rules**: how "
         "many of the observed interaction edges each refinement rule "
      << "decided (kept: recurs / kept: same cluster / dropped: rare / dropped: crosses clusters; docs/tgn.md)."
      << (s.gnn_epochs > 0 ? " The GNN baseline was capped at " + std::to_string(s.gnn_epochs) +
