@@ -10,13 +10,13 @@
   "scene-dependent families (fetch, nearest_goal, queue, deliver) are where they differ: the paper's network "  \
   "has no path from \"which robot is nearest\" to its output slots. The default also keeps the step rules "     \
   "its training demonstrations kept (docs/tgn.md, \"Step rules\": a target at most once per step, a fixed "     \
-  "number of acting entities) by decoding a step jointly when the entities' own argmax breaks them; where a "  \
+  "number of acting entities) by decoding a step jointly when the entities' own argmax breaks them; where a "   \
   "step's targets exclude each other it chooses them token by token, each conditioned on those chosen "         \
   "(nearest_goal), and an entity that arrived where another stands is no rival in the nearness ranks "          \
   "(queue; docs/tgn.md, \"Token by token\", \"Parked entities\"). `ddace eval` prints the first differing "     \
   "step of a failed trial.\n"                                                                                   \
   "- **Imperfect demonstrations.** A mislabelled token is a labelling slip: the demonstrations of a fixed "     \
-  "order still have the same steps but for one token in a few of them (at most one in ten), and training "     \
+  "order still have the same steps but for one token in a few of them (at most one in ten), and training "      \
   "reads them as a fixed order (docs/tgn.md, \"Fixed order\"; `ddace validate` lists the slips); E' drops "     \
   "the slipped edges as rare.\n"                                                                                \
   "- **Where E' matters.** The E' rules column counts the observed interaction edges each refinement rule "     \
