@@ -31,56 +31,48 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
   torch::NoGradGuard no_grad;
   Tensor x = torch::zeros({t, n, m.cfg.features});
   Tensor rel = m.isScene() ? torch::zeros({t, n, n, kRelativeFeatures}) : Tensor();
+  std::vector<Eigen::Vector2d> pos(static_cast<size_t>(n));  // canonical order; the last snapshot's after the loop
   for (int64_t k = 0; k < t; ++k) {
-    std::vector<Eigen::Vector2d> pos(static_cast<size_t>(n));
     for (int64_t c = 0; c < n; ++c)
       pos[static_cast<size_t>(c)] =
           history[static_cast<size_t>(k)].positions[static_cast<size_t>(m.order.task_of[static_cast<size_t>(c)])];
     m.features(pos, nullptr, x[k].data_ptr<float>());
     if (m.isScene()) m.relative(pos, rel[k].data_ptr<float>());
   }
-  const auto values = [](const Tensor& v) {
-    return std::vector<double>(v.data_ptr<double>(), v.data_ptr<double>() + v.numel());
-  };
-  const auto logSoftmax = [&](const Tensor& logits) {
-    return values(torch::log_softmax(logits, -1).to(torch::kDouble).contiguous());
-  };
-  Prediction p;
-  std::vector<double> la, lt;  // [N][actions], [N][targets], canonical order
-  detail::StepDecision decision;
+  Heads h;
+  Tensor nodes, z;  // scene: the node embeddings and the GRU output, for token by token
   if (m.isScene()) {
     SceneNetwork net = m.scene;
-    const Tensor nodes = net->encode(x, rel);
-    const Tensor z = fused::gru(net->gru, nodes.mean(1).unsqueeze(0)).first.select(1, t - 1).squeeze(0);
-    const Heads h = net->heads(nodes[t - 1], rel[t - 1], z);
-    p.end_probability = torch::softmax(h.end, -1)[1].item<double>();
-    la = logSoftmax(h.action);
-    lt = logSoftmax(h.target);
-    decision = detail::decideStep(p.end_probability, la, m.cfg.actions, lt, m.cfg.targets, m.info.step_rules);
-    if (!decision.end && m.info.options.token_by_token) {
-      // Token by token (docs/tgn.md): who acts, and how, is the decoded step's; their targets
-      // are chosen one at a time.
-      std::vector<Eigen::Vector2d> last(static_cast<size_t>(n));
-      for (int64_t c = 0; c < n; ++c)
-        last[static_cast<size_t>(c)] = history.back().positions[static_cast<size_t>(m.order.task_of[c])];
-      std::vector<bool> acting(static_cast<size_t>(n));
-      for (int64_t i = 0; i < n; ++i)
-        acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
-      const auto [target, log_p] = m.chooseTargets(h, nodes[t - 1], z, last, acting);
-      for (int64_t i = 0; i < n; ++i)
-        if (acting[static_cast<size_t>(i)]) {
-          decision.tokens[static_cast<size_t>(i)].target = target[static_cast<size_t>(i)];
-          lt[static_cast<size_t>(i * m.cfg.targets + target[static_cast<size_t>(i)])] = log_p[static_cast<size_t>(i)];
-        }
-    }
+    nodes = net->encode(x, rel);
+    z = fused::gru(net->gru, nodes.mean(1).unsqueeze(0)).first.select(1, t - 1).squeeze(0);
+    h = net->heads(nodes[t - 1], rel[t - 1], z);
   } else {
     Network net = m.net;
     const Tensor emb = net->encode(x);
-    const Heads h = net->heads(fused::gru(net->gru, emb.unsqueeze(0)).first.select(1, t - 1).squeeze(0));
-    p.end_probability = torch::softmax(h.end, -1)[1].item<double>();
-    la = logSoftmax(h.action);
-    lt = logSoftmax(h.target);
-    decision = detail::decideStep(p.end_probability, la, m.cfg.actions, lt, m.cfg.targets, m.info.step_rules);
+    h = net->heads(fused::gru(net->gru, emb.unsqueeze(0)).first.select(1, t - 1).squeeze(0));
+  }
+  const auto logSoftmax = [](const Tensor& logits) {
+    const Tensor v = torch::log_softmax(logits, -1).to(torch::kDouble).contiguous();
+    return std::vector<double>(v.data_ptr<double>(), v.data_ptr<double>() + v.numel());
+  };
+  Prediction p;
+  p.end_probability = torch::softmax(h.end, -1)[1].item<double>();
+  const std::vector<double> la = logSoftmax(h.action);  // [N][actions], canonical order
+  std::vector<double> lt = logSoftmax(h.target);        // [N][targets]
+  detail::StepDecision decision =
+      detail::decideStep(p.end_probability, la, m.cfg.actions, lt, m.cfg.targets, m.info.step_rules);
+  if (!decision.end && m.info.options.token_by_token) {
+    // Token by token (docs/tgn.md): who acts, and how, is the decoded step's; their targets
+    // are chosen one at a time.
+    std::vector<bool> acting(static_cast<size_t>(n));
+    for (int64_t i = 0; i < n; ++i)
+      acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
+    const auto [target, log_p] = m.chooseTargets(h, nodes[t - 1], z, pos, acting);
+    for (int64_t i = 0; i < n; ++i)
+      if (acting[static_cast<size_t>(i)]) {
+        decision.tokens[static_cast<size_t>(i)].target = target[static_cast<size_t>(i)];
+        lt[static_cast<size_t>(i * m.cfg.targets + target[static_cast<size_t>(i)])] = log_p[static_cast<size_t>(i)];
+      }
   }
   p.end = decision.end;
   if (p.end) return p;

@@ -40,13 +40,13 @@ task::CommonSteps commonStepsOf(const task::TaskDir& train) {
 
 /// Every training demonstration has the same steps, but for a few labelling slips
 /// (docs/tgn.md, "Fixed order").
-bool fixedOrder(const task::TaskDir& train) {
-  return train.demos.size() >= 2 && commonStepsOf(train).fixed;
+bool fixedOrder(const task::TaskDir& train, const task::CommonSteps& common) {
+  return train.demos.size() >= 2 && common.fixed;
 }
 
-/// One training run with exactly `options`.
+/// One training run with exactly `options`; `fixed_order`: fixedOrder of `train`.
 std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, const TrainOptions& options,
-                                                  std::ostream* progress) {
+                                                  bool fixed_order, std::ostream* progress) {
   auto impl = prepare(train, options);
   const auto started = std::chrono::steady_clock::now();
   const ThreadCount threads(options.threads);
@@ -69,7 +69,7 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
   // groups training is the same to the bit.
   std::vector<std::vector<int64_t>> name_groups;
   if (impl->isScene() && options.relative_features && options.shuffle_names && options.identity_embedding &&
-      !fixedOrder(train))
+      !fixed_order)
     for (const auto& g : detail::interchangeableNames(train)) {
       std::vector<int64_t> canonical;
       for (int e : g) canonical.push_back(impl->order.canonical_of[static_cast<size_t>(e)]);
@@ -109,8 +109,7 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
   const auto giveTokens = [&](Batch& batch, const std::vector<size_t>& which) {
     const int64_t n = impl->cfg.nodes;
     batch.given = torch::zeros({batch.b, batch.t, n});
-    batch.taken = torch::zeros({batch.b, batch.t, n});
-    batch.rel_slots = batch.rel_slots.clone();
+    batch.taken = torch::zeros({batch.b, batch.t, n});  // rel_slots is this batch's own copy (collate)
     auto given = batch.given.accessor<float, 3>();
     auto taken = batch.taken.accessor<float, 3>();
     for (size_t b = 0; b < which.size(); ++b) {
@@ -188,22 +187,31 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
 
 }  // namespace
 
-TrainOptions withFixedOrderRule(const task::TaskDir& train, const TrainOptions& requested) {
+namespace {
+
+TrainOptions withFixedOrderRule(const TrainOptions& requested, bool fixed_order) {
   // Fixed order: when every demonstration has the same steps, the configuration decided
   // nothing in them, and what the relative features could teach is only coincidence of
   // the few start configurations seen (measured: Task 2 with 10 demonstrations and 2 mm
   // position noise, OSR 0.73 with them, 1.00 without). Then the decision is the names' and
   // the steps so far: a new configuration cannot change it.
   TrainOptions options = requested;
-  if (options.variant == Variant::Scene && options.relative_features && options.fixed_order_rule && fixedOrder(train))
+  if (options.variant == Variant::Scene && options.relative_features && options.fixed_order_rule && fixed_order)
     options.relative_features = false;
   return options;
 }
 
+}  // namespace
+
+TrainOptions withFixedOrderRule(const task::TaskDir& train, const TrainOptions& requested) {
+  return withFixedOrderRule(requested, fixedOrder(train, commonStepsOf(train)));
+}
+
 SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& requested, std::ostream* progress) {
-  const TrainOptions options = withFixedOrderRule(train, requested);
+  const task::CommonSteps common = commonStepsOf(train);
+  const bool fixed_order = fixedOrder(train, common);  // once: the second network below reuses it
+  const TrainOptions options = withFixedOrderRule(requested, fixed_order);
   if (progress && options.relative_features != requested.relative_features) {
-    const task::CommonSteps common = commonStepsOf(train);
     *progress << "every demonstration has the same " << common.steps.size() << " steps";
     if (!common.slips.empty())
       *progress << " but for " << common.slips.size() << " labelling slip" << (common.slips.size() == 1 ? "" : "s")
@@ -212,7 +220,7 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
                  "--relative keeps them)"
               << std::endl;
   }
-  std::shared_ptr<Impl> impl = trainNetwork(train, options, progress);
+  std::shared_ptr<Impl> impl = trainNetwork(train, options, fixed_order, progress);
   // The identity embedding lets the scene network tell entities apart by name, which the
   // fixed-order tasks need; where the decision is the scene's (nearest_goal), it can also
   // settle on fitting the demonstrations by name and stall short of them. Then a network
@@ -223,7 +231,7 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
     without.identity_embedding = false;
     if (progress)
       *progress << "step accuracy " << fit << " with the identity embedding: training without it" << std::endl;
-    std::shared_ptr<Impl> alternative = trainNetwork(train, without, progress);
+    std::shared_ptr<Impl> alternative = trainNetwork(train, without, fixed_order, progress);
     const double alternative_fit = alternative->info.history.back().step_accuracy;
     const bool better = alternative_fit > fit;
     if (progress)
