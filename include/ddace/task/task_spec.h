@@ -48,9 +48,10 @@ struct Entity {
   EntityKind kind = EntityKind::Robot;
   std::string type;  ///< free text ("hamster", "uav"), may be empty
   /// As stated in task.yaml (`radius`, `obstacle`); unset = the default of the kind.
-  /// Read them through footprint(), which resolves the defaults.
-  std::optional<double> radius_m;
-  std::optional<bool> obstacle;
+  /// Read them through footprint(), which resolves the defaults. (Initialised, so that
+  /// {name, kind, type} still initialises an entity without a warning.)
+  std::optional<double> radius_m = std::nullopt;
+  std::optional<bool> obstacle = std::nullopt;
 };
 
 /// The footprint of `e`: its stated radius and obstacle flag, else the defaults of its
