@@ -151,17 +151,13 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
       }
       if (node["radius"]) {
         double r = 0;
-        if (c.positive(node["radius"], "radius", r))
-          e.radius_m = r;
-        else
-          ok = false;
+        if (c.positive(node["radius"], "radius", r)) e.radius_m = r;
+        else ok = false;
       }
       if (node["obstacle"]) {
         bool b = true;
-        if (c.boolean(node["obstacle"], "obstacle", b))
-          e.obstacle = b;
-        else
-          ok = false;
+        if (c.boolean(node["obstacle"], "obstacle", b)) e.obstacle = b;
+        else ok = false;
       }
       if (ok) spec.entities.push_back(e);
     }
