@@ -84,8 +84,7 @@ EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstrati
 
 /// The offset the rule uses for `step[i]` (approach frame, metres): the key's, its class's,
 /// or the footprints' default (see the header comment).
-Eigen::Vector2d endOffset(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
-                          size_t i);
+Eigen::Vector2d endOffset(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step, size_t i);
 
 /// The end point of the motion token `step[i]` decided with entity positions `decided`
 /// (table frame, metres). An in-place token ends where it is. Throws ddace::Error for a

@@ -63,7 +63,8 @@ EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstrati
       const Vector2d p = decided.at(static_cast<size_t>(seg.token.target));
       const Vector2d u = approach(s, p);
       if (u.isZero()) continue;
-      const Vector2d rel = d.positions.at(static_cast<size_t>(seg.last_row)).at(static_cast<size_t>(seg.token.entity)) - p;
+      const Vector2d rel =
+          d.positions.at(static_cast<size_t>(seg.last_row)).at(static_cast<size_t>(seg.token.entity)) - p;
       const Vector2d offset(rel.dot(u), rel.dot(Vector2d(-u.y(), u.x())));
       const std::vector<Token>& step = d.steps[static_cast<size_t>(seg.step)].tokens;
       const auto at = std::find(step.begin(), step.end(), seg.token);

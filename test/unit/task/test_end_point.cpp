@@ -107,8 +107,8 @@ TEST(EndPoint, WithoutDemonstrationsTheFootprintsDecide) {
   EXPECT_NEAR(endOffset(spec, none, carry, 0).x(), -spec.contactDistance(r1, b1), 1e-12);
   // Toward a robot with a load: the load at contact with it, the carrier behind the load.
   const std::vector<Token> hand_over = {{r1, "carry", r2}, {b1, "carry", r2}};
-  EXPECT_NEAR(endOffset(spec, none, hand_over, 0).x(),
-              -(spec.contactDistance(b1, r2) + spec.contactDistance(r1, b1)), 1e-12);
+  EXPECT_NEAR(endOffset(spec, none, hand_over, 0).x(), -(spec.contactDistance(b1, r2) + spec.contactDistance(r1, b1)),
+              1e-12);
   // A model of the old format: every motion ends at its target's centre.
   EndPointModel centres;
   centres.centres = true;
