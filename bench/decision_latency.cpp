@@ -60,12 +60,12 @@ struct Stats {
 
 /// Answers the coordinator's requests in-process and times each decision.
 Stats run(const task::TaskSpec& spec, const std::vector<task::Demonstration>& scenes, const PolicyFn& policy,
-          const PathFn& paths) {
+          const PathFn& paths, const task::EndPointModel& ends) {
   Stats st;
   double now = 0;
   for (int run = 0; static_cast<int>(st.ms.size()) < kDecisions; ++run) {
     const int scene = run % static_cast<int>(scenes.size());
-    exec::Coordinator c(spec, {});
+    exec::Coordinator c(spec, {}, ends);
     std::vector<Eigen::Vector2d> pos = scenes[scene].positions.front();
     const std::vector<bool> tracked(pos.size(), true);
     c.onEntities({pos, tracked}, now);
@@ -157,11 +157,11 @@ int main(int argc, char** argv) {
     };
 
     // Warm-up, then the best of two rounds of each (the machine is shared).
-    run(train.spec, scenes.demos, learned_policy, learned_paths);
+    run(train.spec, scenes.demos, learned_policy, learned_paths, library.endPoints());
     Stats learned, reference;
     for (int round = 0; round < 3; ++round) {
-      Stats a = run(train.spec, scenes.demos, learned_policy, learned_paths);
-      Stats b = run(train.spec, scenes.demos, replay_policy, replay_paths);
+      Stats a = run(train.spec, scenes.demos, learned_policy, learned_paths, library.endPoints());
+      Stats b = run(train.spec, scenes.demos, replay_policy, replay_paths, library.endPoints());
       if (round == 0 || a.pct(0.99) < learned.pct(0.99)) learned = a;
       if (round == 0 || b.pct(0.99) < reference.pct(0.99)) reference = b;
     }

@@ -15,6 +15,7 @@
 #include "ddace/eval/frechet.h"
 #include "ddace/gp/canonical.h"
 #include "ddace/gp/primitives.h"
+#include "ddace/task/end_point.h"
 #include "ddace/pipeline/evaluation.h"
 #include "ddace/task/fingerprint.h"
 #include "ddace/task/task_dir.h"
@@ -117,7 +118,8 @@ int demoPaths(const Args& args, const gp::PrimitiveLibrary& lib) {
       const std::vector<Eigen::Vector2d> truth = demo.segmentPath(seg);
       if ((truth.back() - truth.front()).norm() < gp::kMinMotionLength) continue;
       const std::string key = task::tokenKey(seg.token, task.spec);
-      const gp::GeneratedPath g = lib.generate(seg.token, truth.front(), demo.segmentGoal(seg));
+      const gp::GeneratedPath g =
+          lib.generate(seg.token, truth.front(), task::segmentEndPoint(task.spec, lib.endPoints(), demo, seg));
       fell_back += g.fell_back;
       for (size_t i = 0; i < truth.size(); ++i)
         f << name << "," << s << "," << key << "," << g.source_key << ",demo," << i << "," << truth[i].x() << ","

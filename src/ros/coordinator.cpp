@@ -2,6 +2,7 @@
 #include "ddace/ros/coordinator.h"
 
 #include <algorithm>
+#include <filesystem>
 #include <map>
 #include <mutex>
 #include <set>
@@ -30,6 +31,9 @@
 #include "ddace/exec/liveness.h"
 #include "ddace/exec/outbox.h"
 #include "ddace/exec/path_band.h"
+#include "ddace/gp/primitives.h"
+#include "ddace/task/end_point.h"
+#include "ddace/task/task_dir.h"
 
 namespace ddace::nodes {
 
@@ -46,20 +50,15 @@ class CoordinatorNode::Impl {
     cfg.arrival_radius_m = rosparam::param(pnh, "arrival_radius_m", spec_.arrival_radius);
     cfg.arrival_tolerance_m = rosparam::param(pnh, "arrival_tolerance_m", cfg.arrival_tolerance_m);
     try {
-      coordinator_ = std::make_unique<exec::Coordinator>(spec_, cfg);
+      coordinator_ = std::make_unique<exec::Coordinator>(spec_, cfg, loadEndPoints(pnh));
     } catch (const Error& e) {
       throw Error(std::string(e.what()) + " (parameters under " + pnh.getNamespace() + ")");
     }
     const CoordinatorNode::Params defaults;
     frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
     arrival_radius_m_ = cfg.arrival_radius_m;
-    // The executor is asked to stop that much inside the radius that a DONE is checked
-    // against from outside it: tracking noise between the executor's reading, ours and the
-    // record's cannot flip an arrival either way.
-    stop_radius_m_ = cfg.arrival_radius_m - cfg.arrival_tolerance_m;
-    if (!(stop_radius_m_ > 0))
-      throw Error("parameter '" + pnh.resolveName("arrival_tolerance_m") +
-                  "' must be smaller than the arrival radius (" + std::to_string(cfg.arrival_radius_m) + " m)");
+    // The executor stops inside the radius a DONE is checked against (task/end_point.h).
+    stop_radius_m_ = task::stopRadius(cfg.arrival_radius_m);
     path_points_ = rosparam::param(pnh, "path_points", defaults.path_points);
     const double tick_hz = rosparam::param(pnh, "timeout_check_hz", defaults.timeout_check_hz);
     if (!(tick_hz > 0)) throw Error("parameter '" + pnh.resolveName("timeout_check_hz") + "' must be positive");
@@ -128,6 +127,30 @@ class CoordinatorNode::Impl {
   }
 
  private:
+  /// Where motions end (task/end_point.h): the model's learned end points (~model, a model
+  /// directory), else learned from the demonstrations of ~train (a task directory: the
+  /// replay's; default ~task), else the footprints' defaults (a task.yaml alone).
+  task::EndPointModel loadEndPoints(ros::NodeHandle& pnh) const {
+    namespace fs = std::filesystem;
+    const std::string model = rosparam::param<std::string>(pnh, "model", "");
+    if (!model.empty()) {
+      ros_exec::requireAbsolute(model, pnh.resolveName("model"));
+      const std::string file = (fs::path(model) / gp::kPrimitivesFile).string();
+      const gp::PrimitiveLibrary lib = gp::PrimitiveLibrary::load(file);
+      if (lib.entityNames() != spec_.entityNames())
+        throw Error(Diagnostic{
+            file, 0, 0, "the model's entities are not the task's (parameter '" + pnh.resolveName("model") + "')"});
+      return lib.endPoints();
+    }
+    std::string train = rosparam::param<std::string>(pnh, "train", "");
+    if (train.empty()) train = rosparam::param<std::string>(pnh, "task", "");
+    if (!train.empty() && fs::is_directory(fs::path(train) / "demos")) {
+      ros_exec::requireAbsolute(train, pnh.resolveName("train"));
+      return task::learnEndPoints(spec_, task::loadTaskDir(train).demos);
+    }
+    return {};
+  }
+
   static double now() { return ros::Time::now().toSec(); }
   /// The liveness clock: monotonic, so a step of the system clock is nobody's silence.
   static double steadyNow() { return ros::SteadyTime::now().toSec(); }
@@ -597,6 +620,19 @@ class CoordinatorNode::Impl {
       return q;
     };
     const auto& obs = coordinator_->observation();
+    // Footprints (task.yaml's bodies): obstacles as grey discs, goals as flat green prints.
+    for (size_t i = 0; i < obs.positions.size(); ++i) {
+      const task::Footprint f = spec_.footprint(static_cast<int>(i));
+      Marker body = base("footprints", Marker::CYLINDER);
+      body.scale.x = body.scale.y = 2 * f.radius_m;
+      body.scale.z = f.obstacle ? 0.03 : 0.001;
+      body.pose.position = point(obs.positions[i], body.scale.z / 2);
+      body.color.r = f.obstacle ? 0.6f : 0.2f;
+      body.color.g = f.obstacle ? 0.6f : 0.8f;
+      body.color.b = f.obstacle ? 0.6f : 0.3f;
+      body.color.a = obs.tracked[i] ? 0.6f : 0.2f;
+      arr.markers.push_back(body);
+    }
     // Entity labels.
     for (size_t i = 0; i < obs.positions.size(); ++i) {
       Marker t = base("labels", Marker::TEXT_VIEW_FACING);
@@ -631,7 +667,7 @@ class CoordinatorNode::Impl {
         band.color.a = 0.25;
         for (const auto& p : exec::sigmaBandTriangles(tr.path, 2.0)) band.points.push_back(point(p, 0.001));
         if (!band.points.empty()) arr.markers.push_back(band);
-        // ... and its goal.
+        // ... and its end point.
         Marker goal = base("goals", Marker::CYLINDER);
         goal.pose.position = point(tr.goal, 0.001);
         goal.scale.x = goal.scale.y = 2 * arrival_radius_m_;

@@ -6,9 +6,10 @@
 //
 // A decision is requested only when the run starts or when *every* segment of the
 // current step has been reported done: never on a timer. onTick() only checks time-outs.
-// Goals of motion tokens are the targets' positions when the step was decided (the
-// spec's semantics); every motion token, a robot's or an object's, becomes one segment
-// for that entity; in-place tokens complete when decided.
+// The goal of a motion token is its end point (task/end_point.h) from the positions when
+// the step was decided: at contact with a body, on a goal, a carrier behind its load;
+// every motion token, a robot's or an object's, becomes one segment for that entity whose
+// path ends there; in-place tokens complete when decided.
 //
 // Owns: the run's state, the requests and segments it sends, the record of what was
 // executed. Must not: talk ROS, read clocks (time comes in as `now_s`), plan paths or
@@ -27,6 +28,7 @@
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/simulator.h"
 #include "ddace/task/demonstration.h"
+#include "ddace/task/end_point.h"
 #include "ddace/task/task_spec.h"
 
 namespace ddace::exec {
@@ -55,9 +57,10 @@ struct CoordinatorConfig {
   double segment_timeout_s = 30;        ///< base time a segment may take ...
   double segment_timeout_per_m_s = 20;  ///< ... plus this much per metre of path
   int max_steps = 50;                   ///< more decided steps than this -> abort
-  /// A DONE counts only when the coordinator's own tracked position of the entity is
-  /// within arrival_radius_m + arrival_tolerance_m of the segment's goal. The tolerance
-  /// covers the tracker's noise between the executor's reading and the coordinator's.
+  /// A DONE counts only when the coordinator's own tracked position of the entity has
+  /// arrived (task::arrived) within arrival_radius_m + arrival_tolerance_m of the segment's
+  /// end point. The tolerance covers the tracker's noise between the executor's reading
+  /// and the coordinator's; executors stop within task::stopRadius(arrival_radius_m).
   double arrival_radius_m = task::kDefaultArrivalRadius;
   double arrival_tolerance_m = 0.005;
   /// Throws ddace::Error naming the first invalid field.
@@ -104,7 +107,7 @@ struct PathRequest {
   int step = 0;
   task::Token token;
   Eigen::Vector2d start{0, 0};  ///< the entity's position when the step was decided
-  Eigen::Vector2d goal{0, 0};   ///< the target's position when the step was decided
+  Eigen::Vector2d goal{0, 0};   ///< the token's end point (task/end_point.h): where the path ends
 };
 
 /// One entity's part of a step, sent to the entity's executor.
@@ -137,7 +140,7 @@ struct CoordinatorOutput {
 struct TokenRecord {
   task::Token token;
   Eigen::Vector2d start{0, 0};
-  Eigen::Vector2d goal{0, 0};  ///< = start for in-place tokens
+  Eigen::Vector2d goal{0, 0};  ///< the end point (task/end_point.h); = start for in-place tokens
   uint32_t segment_id = 0;     ///< 0 for in-place tokens
   SegmentState state = SegmentState::Sent;
   double progress = 0;   ///< last reported, [0, 1]
@@ -160,8 +163,10 @@ struct StepRecord {
 
 class Coordinator {
  public:
-  /// Throws ddace::Error when the config is invalid.
-  Coordinator(task::TaskSpec spec, CoordinatorConfig config);
+  /// `end_points`: where motions end (the model's, gp::PrimitiveLibrary::endPoints(), or
+  /// learned from the demonstrations a replay runs). Throws ddace::Error when the config
+  /// is invalid.
+  Coordinator(task::TaskSpec spec, CoordinatorConfig config, task::EndPointModel end_points);
 
   /// Idle -> start a run; Paused -> resume (re-plans the unfinished tokens of the step).
   /// Refused (empty output and a log line) in any other state.
@@ -183,9 +188,8 @@ class Coordinator {
   CoordinatorOutput onPath(uint32_t request_id, const PlannedPath& path, const std::string& error, double now_s);
   /// Counted only when the report's entity, topic and segment id agree with the running
   /// segment and its code is valid; anything else is logged and ignored. A DONE counts
-  /// only when the tracked position of the entity is within the arrival radius of the
-  /// goal; until then the segment runs on (checked again on every observation) until it
-  /// really arrives or times out. A disagreeing DONE is logged once per segment.
+  /// only when the tracked position of the entity has arrived at the end point; until then the segment runs on (checked
+  /// again on every observation) until it really arrives or times out. A disagreeing DONE is logged once per segment.
   CoordinatorOutput onSegmentStatus(const StatusReport& report, double now_s);
   /// The same for an in-process executor reporting on `entity`'s own topic (simulations,
   /// benchmarks): every check above still applies.
@@ -235,6 +239,7 @@ class Coordinator {
 
   task::TaskSpec spec_;
   CoordinatorConfig config_;
+  task::EndPointModel end_points_;
   RunState state_ = RunState::Idle;
   std::string reason_;
   EntityObservation observation_;

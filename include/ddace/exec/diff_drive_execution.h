@@ -16,9 +16,8 @@ namespace ddace::exec {
 
 class DiffDriveExecution : public ExecutionModel {
  public:
-  /// The control law reports done within this fraction of the task's arrival radius.
-  static constexpr double kStopFraction = 0.5;
-  /// `arrival_radius_m`: the task's; `noise_m`: std-dev of measured x and y.
+  /// `arrival_radius_m`: the task's (the control law stops within task::stopRadius() of
+  /// it); `noise_m`: std-dev of measured x and y.
   DiffDriveExecution(double arrival_radius_m, double noise_m, uint64_t seed, const FollowerGains& gains = {},
                      const DiffDriveParams& robot = {});
   std::string name() const override { return "diffdrive"; }

@@ -3,9 +3,12 @@
 // One trial: every entity starts at the test demonstration's first row; then, until the
 // policy predicts END or the number of predicted steps exceeds the ground truth's by 2:
 // take a snapshot, ask the policy for the next step, generate a path for every motion
-// token (its goal is the target's position when the step is decided), move each entity
-// along its path with the execution model, and repeat. In-place tokens do not move.
-// Objects move only through their own tokens, exactly like robots (ideal following).
+// token to its end point (task/end_point.h: from the positions when the step is decided
+// and the learned end offsets -- at contact with a body, on a goal, a carrier behind its
+// load and the load on the target), move each entity along its path with the execution
+// model, and repeat. In-place tokens do not move. Objects move only through their own
+// tokens, exactly like robots (ideal following): a carried load's path is its own and
+// ends on the target, its carrier's ends behind it.
 //
 // Owns: the loop and what happened in it. Must not: know how the policy or the paths are
 // learned (they come in as functions), or compute metrics (eval/metrics.h does).
@@ -20,6 +23,7 @@
 #include <Eigen/Core>
 
 #include "ddace/task/demonstration.h"
+#include "ddace/task/end_point.h"
 
 namespace ddace::exec {
 
@@ -32,7 +36,8 @@ struct Decision {
 };
 using Policy = std::function<Decision(const std::vector<task::Snapshot>& history)>;
 
-/// A path from `start` to `goal` for a motion token (table frame, metres).
+/// A path from `start` to `goal` (the motion's end point) for a motion token (table frame,
+/// metres).
 using PathGenerator =
     std::function<Path(const task::Token& token, const Eigen::Vector2d& start, const Eigen::Vector2d& goal)>;
 
@@ -58,9 +63,10 @@ struct ExecutedToken {
   task::Token token;
   int step = 0;                 ///< index of the predicted step
   Eigen::Vector2d start{0, 0};  ///< entity position when the step was decided
-  Eigen::Vector2d goal{0, 0};   ///< target position when the step was decided (= start when in place)
-  Path planned;                 ///< the generated path (empty for in-place tokens)
-  Path executed;                ///< the positions actually passed through
+  /// The motion's end point (task/end_point.h) when the step was decided (= start when in place).
+  Eigen::Vector2d goal{0, 0};
+  Path planned;   ///< the generated path (empty for in-place tokens)
+  Path executed;  ///< the positions actually passed through
 };
 
 struct Trial {
@@ -75,9 +81,11 @@ struct SimulatorOptions {
   int extra_steps = 2;  ///< stop after (ground-truth steps + extra_steps) predicted steps
 };
 
-/// Runs one trial from `ground_truth`'s first row. Throws ddace::Error when the policy
+/// Runs one trial from `ground_truth`'s first row; motions end where `end_points` says
+/// (the model's, gp::PrimitiveLibrary::endPoints()). Throws ddace::Error when the policy
 /// returns a token naming an entity that does not exist.
 Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& ground_truth, const Policy& policy,
-               const PathGenerator& paths, ExecutionModel& execution, const SimulatorOptions& options = {});
+               const PathGenerator& paths, ExecutionModel& execution, const task::EndPointModel& end_points,
+               const SimulatorOptions& options = {});
 
 }  // namespace ddace::exec

@@ -28,7 +28,13 @@
 // within 1 and 2 the primitive with the most segments wins, ties by key order.
 // The result says so (fell_back, source_key).
 //
-// File: <modeldir>/primitives.yaml (format ddace-primitives/2), documented in docs/gp.md.
+// End points. The library also holds where the demonstrated motions ended relative to
+// their targets (task/end_point.h, learned by fit()): the paths a caller asks for run from
+// the start to the end point that rule gives (generate() takes it as `goal`).
+//
+// File: <modeldir>/primitives.yaml (format ddace-primitives/3), documented in docs/gp.md.
+// A /2 file (before end points were learned) still reads: its motions end at their
+// targets' centres, as its model was trained.
 //
 // A library is immutable after fit()/load(): generate() may be called from several
 // threads at once.
@@ -44,6 +50,7 @@
 #include <Eigen/Core>
 
 #include "ddace/gp/gaussian_process.h"
+#include "ddace/task/end_point.h"
 #include "ddace/task/demonstration.h"
 #include "ddace/task/fingerprint.h"
 #include "ddace/task/task_dir.h"
@@ -51,7 +58,12 @@
 namespace ddace::gp {
 
 /// /2: the library names the task fingerprint it was fitted on (task/fingerprint.h).
-inline constexpr const char* kPrimitivesFormat = "ddace-primitives/2";
+/// /3: and the learned end points (task/end_point.h).
+inline constexpr const char* kPrimitivesFormat = "ddace-primitives/3";
+/// Read as: every motion ends at its target's centre.
+inline constexpr const char* kPrimitivesFormatWithoutEndPoints = "ddace-primitives/2";
+/// Largest end offset a file may hold, metres (a table is about 1 m).
+inline constexpr double kMaxEndOffsetM = 10.0;
 inline constexpr const char* kPrimitivesFile = "primitives.yaml";
 inline constexpr const char* kStraightLine = "straight line";
 
@@ -107,7 +119,7 @@ class PrimitiveLibrary {
   /// Fits one primitive per motion key of `train`. Throws ddace::Error for invalid options.
   static PrimitiveLibrary fit(const task::TaskDir& train, const PrimitiveOptions& options = {});
 
-  /// Writes the library as YAML (format ddace-primitives/2). Throws ddace::Error naming
+  /// Writes the library as YAML (format ddace-primitives/3). Throws ddace::Error naming
   /// the file when it cannot be written.
   void save(const std::string& path) const;
   /// The text save() writes.
@@ -142,6 +154,8 @@ class PrimitiveLibrary {
   /// The fingerprint of the training directory the library was fitted on.
   const task::TaskFingerprint& taskFingerprint() const { return fingerprint_; }
   const PrimitiveOptions& options() const { return options_; }
+  /// Where the demonstrated motions ended (task/end_point.h).
+  const task::EndPointModel& endPoints() const { return end_points_; }
 
  private:
   /// The primitive for (entity, action, target) names after the fallback rule, or null.
@@ -155,6 +169,7 @@ class PrimitiveLibrary {
   std::vector<std::string> entities_;
   task::TaskFingerprint fingerprint_;
   PrimitiveOptions options_;
+  task::EndPointModel end_points_;
   std::map<std::string, Primitive> primitives_;
   /// Canonical mean/stddev on the training grid, per key: generation at the default
   /// number of points needs no GP evaluation.

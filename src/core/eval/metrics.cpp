@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "ddace/eval/frechet.h"
+#include "ddace/task/end_point.h"
 
 namespace ddace::eval {
 
@@ -49,7 +50,7 @@ TrialScore scoreTrial(const task::TaskSpec& spec, const task::Demonstration& gt,
     if (robot) ++s.gt_robot_motions;
     if (i < 0) continue;
     const exec::ExecutedToken& ex = trial.executed[i];
-    if (robot && (ex.executed.back() - ex.goal).norm() <= spec.arrival_radius) ++s.achieved_robot_motions;
+    if (robot && task::arrived(ex.executed.back(), ex.goal, spec.arrival_radius)) ++s.achieved_robot_motions;
     const exec::Path& generated = use_executed_paths || ex.planned.empty() ? ex.executed : ex.planned;
     const auto truth = gt.segmentPath(seg);
     if (generated.size() >= 2 && truth.size() >= 2 && (truth.back() - truth.front()).norm() > 1e-9)

@@ -74,7 +74,8 @@ void CoordinatorConfig::validate() const {
     throw Error("coordinator parameter 'arrival_tolerance_m' must be >= 0");
 }
 
-Coordinator::Coordinator(task::TaskSpec spec, CoordinatorConfig config) : spec_(std::move(spec)), config_(config) {
+Coordinator::Coordinator(task::TaskSpec spec, CoordinatorConfig config, task::EndPointModel end_points)
+    : spec_(std::move(spec)), config_(config), end_points_(std::move(end_points)) {
   config_.validate();
   if (spec_.entities.empty()) throw Error("coordinator: the task has no entities");
 }
@@ -259,7 +260,7 @@ CoordinatorOutput Coordinator::onEntities(const EntityObservation& obs, double n
 bool Coordinator::arrived(const TokenRecord& t) const {
   const auto e = static_cast<size_t>(t.token.entity);
   if (observation_.positions.size() <= e || !observation_.tracked[e]) return false;
-  return (observation_.positions[e] - t.goal).norm() <= config_.arrival_radius_m + config_.arrival_tolerance_m;
+  return task::arrived(observation_.positions[e], t.goal, config_.arrival_radius_m + config_.arrival_tolerance_m);
 }
 
 void Coordinator::updateDistances() {
@@ -301,7 +302,8 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
   step.decided_s = now_s;
   const auto& decided = history_.back().positions;
   std::vector<bool> seen(n, false);
-  for (const auto& tok : d.tokens) {
+  for (size_t i = 0; i < d.tokens.size(); ++i) {
+    const task::Token& tok = d.tokens[i];
     if (tok.entity < 0 || tok.entity >= n || tok.target >= n || tok.target == tok.entity || tok.action.empty()) {
       abort("the policy returned an invalid token (entity " + std::to_string(tok.entity) + ", target " +
                 std::to_string(tok.target) + ", action '" + tok.action + "')",
@@ -316,11 +318,13 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
     TokenRecord r;
     r.token = tok;
     r.start = decided[tok.entity];
-    r.goal = tok.isMotion() ? decided[tok.target] : r.start;
     r.state = tok.isMotion() ? SegmentState::Sent : SegmentState::Done;
     if (!tok.isMotion()) r.progress = 1.0;
     step.tokens.push_back(std::move(r));
   }
+  // Once every token is known valid: an end point depends on the step's other tokens (a load).
+  for (size_t i = 0; i < d.tokens.size(); ++i)
+    step.tokens[i].goal = task::endPoint(spec_, end_points_, d.tokens, i, decided);
   std::ostringstream os;
   os << "step " << step.step + 1 << ":";
   for (const auto& t : step.tokens) os << " " << task::tokenKey(t.token, spec_);
@@ -397,7 +401,7 @@ CoordinatorOutput Coordinator::onPath(uint32_t id, const PlannedPath& path, cons
   if (end_error > config_.arrival_radius_m) {
     std::ostringstream os;
     os << "the path for " << key << " ends " << end_error
-       << " m from its goal (more than arrival_radius_m = " << config_.arrival_radius_m
+       << " m from its end point (more than arrival_radius_m = " << config_.arrival_radius_m
        << " m): not a path for this token";
     abort(os.str(), out);
     return out;
@@ -480,7 +484,7 @@ CoordinatorOutput Coordinator::onSegmentStatus(const StatusReport& r, double now
     if (!rec->done_claimed) {
       std::ostringstream os;
       os << "ignoring DONE of " << key << " (segment " << r.segment_id << "): the tracked position is "
-         << rec->distance_to_goal_m << " m from the goal (arrival radius " << config_.arrival_radius_m
+         << rec->distance_to_goal_m << " m from its end point (arrival radius " << config_.arrival_radius_m
          << " m); the segment runs on until it arrives or times out";
       out.log.push_back(os.str());
     }

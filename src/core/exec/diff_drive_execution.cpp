@@ -2,14 +2,14 @@
 
 #include <cmath>
 
+#include "ddace/task/end_point.h"
+
 namespace ddace::exec {
 
 DiffDriveExecution::DiffDriveExecution(double arrival_radius_m, double noise_m, uint64_t seed,
                                        const FollowerGains& gains, const DiffDriveParams& robot)
     : gains_(gains), robot_(robot) {
-  // Aim inside the task's radius: stopping right on its edge leaves a noisy robot outside
-  // half of the time.
-  gains_.arrival_radius_m = kStopFraction * arrival_radius_m;
+  gains_.arrival_radius_m = task::stopRadius(arrival_radius_m);
   robot_.position_noise_m = noise_m;
   robot_.seed = seed;
   gains_.validate();

@@ -6,7 +6,8 @@
 namespace ddace::exec {
 
 Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const Policy& policy,
-               const PathGenerator& paths, ExecutionModel& execution, const SimulatorOptions& options) {
+               const PathGenerator& paths, ExecutionModel& execution, const task::EndPointModel& end_points,
+               const SimulatorOptions& options) {
   Trial trial;
   if (gt.rows() == 0) throw Error(Diagnostic{gt.source, 0, 0, "test demonstration has no rows"});
   const int n = static_cast<int>(spec.entities.size());
@@ -27,14 +28,16 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
     const int k = static_cast<int>(trial.predicted.size());
     // Goals are fixed when the step is decided; all tokens then run concurrently.
     const std::vector<Eigen::Vector2d> decided = pos;
-    for (const auto& token : d.tokens) {
+    for (const auto& token : d.tokens)
       if (token.entity < 0 || token.entity >= n || token.target >= n)
         throw Error("policy returned a token for a non-existent entity");
+    for (size_t i = 0; i < d.tokens.size(); ++i) {
+      const task::Token& token = d.tokens[i];
       ExecutedToken ex;
       ex.token = token;
       ex.step = k;
       ex.start = decided[token.entity];
-      ex.goal = token.isMotion() ? decided[token.target] : ex.start;
+      ex.goal = task::endPoint(spec, end_points, d.tokens, i, decided);
       if (token.isMotion()) {
         ex.planned = paths(token, ex.start, ex.goal);
         if (ex.planned.empty()) ex.planned = {ex.start, ex.goal};

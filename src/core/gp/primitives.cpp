@@ -67,6 +67,63 @@ bool integer(YamlChecker& c, const YAML::Node& map, const std::string& key, cons
   return n && c.integer(n, where + key, lo, hi, out);
 }
 
+/// end_points: {by_key: [{motion, offset: [x, y], segments}], by_class: [...]}.
+void readEndPoints(YamlChecker& c, const YAML::Node& root, const std::vector<std::string>& entities,
+                   task::EndPointModel& model) {
+  const YAML::Node ends = c.required(root, "end_points", "", "where the demonstrated motions ended; retrain the model");
+  if (!ends || !c.expectMap(ends, "end_points")) return;
+  c.onlyKeys(ends, {"by_key", "by_class"}, "end_points");
+  auto known = [&](const std::string& name) {
+    return std::find(entities.begin(), entities.end(), name) != entities.end();
+  };
+  auto kind = [](const std::string& k) { return k == "robot" || k == "object" || k == "goal"; };
+  for (const char* group : {"by_key", "by_class"}) {
+    const bool by_key = std::string(group) == "by_key";
+    const YAML::Node list = c.required(ends, group, "end_points: ");
+    if (!list) continue;
+    if (!list.IsSequence()) {
+      c.error(list, std::string("end_points: ") + group + " must be a list");
+      continue;
+    }
+    for (const auto& node : list) {
+      if (!c.expectMap(node, std::string("an entry of end_points: ") + group)) continue;
+      c.onlyKeys(node, {"motion", "offset", "segments"}, std::string("an entry of end_points: ") + group);
+      std::string name;
+      task::EndOffset e;
+      bool ok = textField(c, node, "motion", "end point ", name);
+      if (ok && by_key) {
+        const auto a = name.find(':'), b = name.rfind(':');
+        ok = a != std::string::npos && b > a + 1 && known(name.substr(0, a)) && known(name.substr(b + 1));
+        if (!ok)
+          c.error(node["motion"], "end point key '" + name + "' is not ENTITY:ACTION:TARGET of the library's entities");
+      } else if (ok) {
+        const auto arrow = name.find("->");
+        std::string mover = arrow == std::string::npos ? "" : name.substr(0, arrow);
+        if (mover.size() > 5 && mover.substr(mover.size() - 5) == "+load") mover.resize(mover.size() - 5);
+        ok = arrow != std::string::npos && kind(mover) && kind(name.substr(arrow + 2));
+        if (!ok)
+          c.error(node["motion"], "end point class '" + name + "' is not KIND[+load]->KIND (robot, object, goal)");
+      }
+      const YAML::Node off = c.required(node, "offset", "end point " + name + ": ");
+      if (off && (!off.IsSequence() || off.size() != 2)) {
+        c.error(off, "end point " + name + ": offset must be [x, y] (metres)");
+        ok = false;
+      } else if (off) {
+        for (int i = 0; i < 2; ++i) {
+          double v = 0;
+          if (!c.number(off[i], "end point " + name + ": offset", -kMaxEndOffsetM, kMaxEndOffsetM, v)) ok = false;
+          e.offset[i] = v;
+        }
+      } else {
+        ok = false;
+      }
+      ok = integer(c, node, "segments", "end point " + name + ": ", 1, kMaxPrimitiveSegments, e.segments) && ok;
+      auto& into = by_key ? model.by_key : model.by_class;
+      if (ok && !into.emplace(name, e).second) c.error(node["motion"], "end point " + name + " appears twice");
+    }
+  }
+}
+
 void emitGp(YAML::Emitter& out, const GaussianProcess& gp) {
   const KernelParams& p = gp.params();
   out << YAML::BeginMap;
@@ -179,6 +236,7 @@ PrimitiveLibrary PrimitiveLibrary::fit(const task::TaskDir& train, const Primiti
   lib.entities_ = train.spec.entityNames();
   lib.fingerprint_ = task::fingerprintOf(train);
   lib.options_ = options;
+  lib.end_points_ = task::learnEndPoints(train.spec, train.demos);
   const int n = options.points;
   for (const auto& [key, c] : by_key) {
     Primitive p;
@@ -360,6 +418,17 @@ std::string PrimitiveLibrary::text() const {
   out << YAML::Key << "points" << YAML::Value << options_.points;
   out << YAML::Key << "pin_endpoints" << YAML::Value << options_.pin_endpoints;
   out << YAML::Key << "min_segment_length_m" << YAML::Value << options_.min_segment_length_m;
+  // Where the demonstrated motions ended: metres in the approach frame (task/end_point.h).
+  out << YAML::Key << "end_points" << YAML::Value << YAML::BeginMap;
+  for (const char* group : {"by_key", "by_class"}) {
+    out << YAML::Key << group << YAML::Value << YAML::BeginSeq;
+    for (const auto& [name, e] : std::string(group) == "by_key" ? end_points_.by_key : end_points_.by_class)
+      out << YAML::Flow << YAML::BeginMap << YAML::Key << "motion" << YAML::Value << name << YAML::Key << "offset"
+          << YAML::Value << YAML::Flow << std::vector<double>{e.offset.x(), e.offset.y()} << YAML::Key << "segments"
+          << YAML::Value << e.segments << YAML::EndMap;
+    out << YAML::EndSeq;
+  }
+  out << YAML::EndMap;
   out << YAML::Key << "primitives" << YAML::Value << YAML::BeginSeq;
   for (const auto& [key, p] : primitives_) {
     out << YAML::BeginMap;
@@ -393,17 +462,23 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
   }
   // Another format's fields would only add noise to the one error that matters.
   std::string format;
-  if (textField(c, root, "format", "", format) && format != kPrimitivesFormat)
+  if (textField(c, root, "format", "", format) && format != kPrimitivesFormat &&
+      format != kPrimitivesFormatWithoutEndPoints)
     c.error(root["format"],
             "unsupported format '" + format + "' (expected " + kPrimitivesFormat +
                 (format == "ddace-primitives/1" ? "; this older library names no task: retrain the model" : "") + ")");
   c.throwIfErrors();
   c.onlyKeys(root,
              {"format", "task", "entities", "task_fingerprint", "points", "pin_endpoints", "min_segment_length_m",
-              "primitives"},
+              "end_points", "primitives"},
              "a primitive library");
 
   PrimitiveLibrary lib;
+  if (format == kPrimitivesFormatWithoutEndPoints) {
+    lib.end_points_.centres = true;
+    if (root["end_points"])
+      c.error(root["end_points"], std::string(kPrimitivesFormatWithoutEndPoints) + " has no end_points");
+  }
   textField(c, root, "task", "", lib.task_);
   const YAML::Node entities = c.required(root, "entities");
   bool entities_ok = false;
@@ -435,6 +510,7 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
   const bool have_points = integer(c, root, "points", "", 2, kMaxPrimitivePoints, lib.options_.points);
   boolean(c, root, "pin_endpoints", "", lib.options_.pin_endpoints);
   positive(c, root, "min_segment_length_m", "", lib.options_.min_segment_length_m);
+  if (!lib.end_points_.centres) readEndPoints(c, root, lib.entities_, lib.end_points_);
   const YAML::Node prims = c.required(root, "primitives");
   if (prims && !prims.IsSequence()) c.error(prims, "'primitives' must be a list");
   auto known = [&](const std::string& name) {

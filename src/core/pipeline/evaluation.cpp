@@ -96,7 +96,7 @@ exec::Trial trialFromRollout(const task::Demonstration& r, int max_rows) {
     ex.step = seg.step;
     ex.executed = r.segmentPath(seg);
     ex.start = ex.executed.front();
-    ex.goal = r.segmentGoal(seg);
+    ex.goal = r.segmentGoal(seg);  // the gnn learns no end points: its own rollout's goal
     t.executed.push_back(std::move(ex));
   }
   t.snapshots = r.snapshots;
@@ -154,7 +154,7 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
       const auto paths = [&](const task::Token& token, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
         return model.primitives->generate(token, s, g).points;
       };
-      trial = exec::runTrial(spec, gt, policy, paths, *execution);
+      trial = exec::runTrial(spec, gt, policy, paths, *execution, model.primitives->endPoints());
     }
     e.scores.push_back(eval::scoreTrial(spec, gt, trial, gnn));
     e.first_difference.push_back(firstDifference(spec, gt.steps, trial.predicted));

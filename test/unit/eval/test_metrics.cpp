@@ -44,6 +44,11 @@ exec::PathGenerator truthPaths(const task::Demonstration& gt) {
   };
 }
 
+/// Where the test set's own motions end (task/end_point.h).
+task::EndPointModel ends(const task::TaskDir& dir) {
+  return task::learnEndPoints(dir.spec, dir.demos);
+}
+
 exec::PathGenerator straight() {
   return [](const task::Token&, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
     exec::Path p;
@@ -60,7 +65,7 @@ TEST(ClosedLoop, ReplayingTheGroundTruthIsAPerfectTrial) {
     exec::IdealExecution ideal;
     std::vector<eval::TrialScore> scores;
     for (const auto& gt : dir.demos) {
-      const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt), truthPaths(gt), ideal);
+      const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt), truthPaths(gt), ideal, ends(dir));
       EXPECT_TRUE(trial.ended);
       EXPECT_EQ(trial.snapshots.size(), gt.steps.size() + 1);
       scores.push_back(eval::scoreTrial(dir.spec, gt, trial));
@@ -76,16 +81,41 @@ TEST(ClosedLoop, ReplayingTheGroundTruthIsAPerfectTrial) {
   }
 }
 
-TEST(ClosedLoop, GoalsAreTheTargetsPositionsWhenTheStepIsDecided) {
+TEST(ClosedLoop, GoalsAreTheEndPointsWhenTheStepIsDecided) {
   const auto dir = testSet("task4", 1);
   const auto& gt = dir.demos[0];
   exec::IdealExecution ideal;
-  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt), straight(), ideal);
-  // Step 2: R3 -> G1 starts where R3 was at the start (it did not move in step 1).
+  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt), straight(), ideal, ends(dir));
   for (const auto& ex : trial.executed) {
-    EXPECT_LT((ex.goal - trial.snapshots[ex.step].positions[ex.token.target]).norm(), 1e-12);
+    const auto& decided = trial.snapshots[ex.step].positions;
+    const auto& step = trial.predicted[ex.step].tokens;
+    const size_t i = static_cast<size_t>(std::find(step.begin(), step.end(), ex.token) - step.begin());
+    EXPECT_LT((ex.goal - task::endPoint(dir.spec, ends(dir), step, i, decided)).norm(), 1e-12);
     EXPECT_LT((ex.executed.back() - ex.goal).norm(), 1e-12);
   }
+}
+
+TEST(ClosedLoop, GcrCountsArrivalAtTheEndPointNotAtTheTargetsCentre) {
+  const auto dir = testSet("task2", 1);
+  const auto& gt = dir.demos[0];
+  exec::IdealExecution ideal;
+  // Robots that stop at contact with the robot they drive to (4.4 cm from its centre,
+  // more than the 3 cm arrival radius) have arrived: GCR measures at the end point.
+  task::EndPointModel contact;
+  contact.by_class["robot->robot"] = {Eigen::Vector2d(-dir.spec.contactDistance(0, 1), 0), 10};
+  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt), straight(), ideal, contact);
+  double farthest = 0;
+  for (const auto& ex : trial.executed)
+    if (ex.token.isMotion() && dir.spec.entities[ex.token.target].kind == task::EntityKind::Robot)
+      farthest = std::max(farthest, (ex.executed.back() - trial.snapshots[ex.step].positions[ex.token.target]).norm());
+  EXPECT_GT(farthest, dir.spec.arrival_radius);
+  const auto s = eval::scoreTrial(dir.spec, gt, trial);
+  EXPECT_DOUBLE_EQ(s.gcr(), 1.0);
+  // The same motions judged at the targets' centres (the old rule) would not have arrived.
+  exec::Trial at_centres = trial;
+  for (auto& ex : at_centres.executed)
+    if (ex.token.isMotion()) ex.goal = at_centres.snapshots[ex.step].positions[ex.token.target];
+  EXPECT_LT(eval::scoreTrial(dir.spec, gt, at_centres).gcr(), 1.0);
 }
 
 TEST(ClosedLoop, StraightPathsOnCurvedDemonstrationsRaiseOnlyFd) {
@@ -93,7 +123,8 @@ TEST(ClosedLoop, StraightPathsOnCurvedDemonstrationsRaiseOnlyFd) {
   exec::IdealExecution ideal;
   std::vector<eval::TrialScore> scores;
   for (const auto& gt : dir.demos)
-    scores.push_back(eval::scoreTrial(dir.spec, gt, exec::runTrial(dir.spec, gt, replay(gt), straight(), ideal)));
+    scores.push_back(
+        eval::scoreTrial(dir.spec, gt, exec::runTrial(dir.spec, gt, replay(gt), straight(), ideal, ends(dir))));
   const eval::Summary m = eval::summarise(scores);
   EXPECT_DOUBLE_EQ(m.osr, 1.0);
   EXPECT_GT(m.fd, 0.1);  // arcs of 0.3 and spirals are far from straight lines
@@ -107,7 +138,8 @@ TEST(ClosedLoop, AWrongStepLowersSsrAndOsr) {
   auto drop = [](size_t k, exec::Decision& d) {
     if (k == 1) d.tokens.pop_back();
   };
-  const auto s = eval::scoreTrial(dir.spec, gt, exec::runTrial(dir.spec, gt, replay(gt, drop), straight(), ideal));
+  const auto s =
+      eval::scoreTrial(dir.spec, gt, exec::runTrial(dir.spec, gt, replay(gt, drop), straight(), ideal, ends(dir)));
   EXPECT_EQ(s.correct_steps, 1);
   EXPECT_DOUBLE_EQ(s.ssr(), 0.5);
   EXPECT_DOUBLE_EQ(s.gcr(), 0.75);
@@ -125,7 +157,7 @@ TEST(ClosedLoop, NeverEndingPolicyStopsTwoStepsAfterTheGroundTruth) {
       d.tokens = gt.steps[0].tokens;
     }
   };
-  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt, never_end), straight(), ideal);
+  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt, never_end), straight(), ideal, ends(dir));
   EXPECT_FALSE(trial.ended);
   EXPECT_EQ(trial.predicted.size(), gt.steps.size() + 2);
   const auto s = eval::scoreTrial(dir.spec, gt, trial);
@@ -143,7 +175,8 @@ TEST(ClosedLoop, StoppingShortOfTheGoalLowersGcr) {
       return exec::Path(p.begin(), p.begin() + static_cast<long>(p.size() * 0.8));
     }
   } short_model;
-  const auto s = eval::scoreTrial(dir.spec, gt, exec::runTrial(dir.spec, gt, replay(gt), straight(), short_model));
+  const auto s =
+      eval::scoreTrial(dir.spec, gt, exec::runTrial(dir.spec, gt, replay(gt), straight(), short_model, ends(dir)));
   EXPECT_DOUBLE_EQ(s.ssr(), 1.0);
   EXPECT_DOUBLE_EQ(s.gcr(), 0.0);
   EXPECT_FALSE(s.success);
@@ -159,7 +192,7 @@ TEST(ClosedLoop, AnEarlyEndLosesTheRemainingSteps) {
       d.tokens.clear();
     }
   };
-  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt, early), straight(), ideal);
+  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt, early), straight(), ideal, ends(dir));
   EXPECT_TRUE(trial.ended);
   const auto s = eval::scoreTrial(dir.spec, gt, trial);
   EXPECT_EQ(s.correct_steps, 1);
@@ -178,7 +211,7 @@ TEST(ClosedLoop, AnExtraStepBeforeEndIsNotASuccess) {
       d.tokens = {task::Token{0, "move", 4}};
     }
   };
-  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt, extra), straight(), ideal);
+  const exec::Trial trial = exec::runTrial(dir.spec, gt, replay(gt, extra), straight(), ideal, ends(dir));
   EXPECT_TRUE(trial.ended);
   EXPECT_EQ(trial.predicted.size(), gt.steps.size() + 1);
   const auto s = eval::scoreTrial(dir.spec, gt, trial);
@@ -206,7 +239,7 @@ TEST(ClosedLoop, FdOfAPathWithAKnownOffset) {
       }
     return p;
   };
-  const auto s = eval::scoreTrial(dir.spec, gt, exec::runTrial(dir.spec, gt, replay(gt), shifted, ideal));
+  const auto s = eval::scoreTrial(dir.spec, gt, exec::runTrial(dir.spec, gt, replay(gt), shifted, ideal, ends(dir)));
   ASSERT_FALSE(s.fd.empty());
   for (double fd : s.fd) EXPECT_NEAR(fd, 0.05, 1e-6);
 }

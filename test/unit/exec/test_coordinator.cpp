@@ -69,7 +69,8 @@ std::vector<SegmentCommand> answerPaths(Coordinator& c, const CoordinatorOutput&
 struct Fixture : ::testing::Test {
   task::TaskDir dir = task4();
   const task::Demonstration& demo = dir.demos.front();
-  Coordinator c{dir.spec, CoordinatorConfig{}};
+  task::EndPointModel ends = task::learnEndPoints(dir.spec, dir.demos);
+  Coordinator c{dir.spec, CoordinatorConfig{}, ends};
   std::vector<Vector2d> start = demo.positions.front();
 
   /// Starts and answers the first decision with step 1 of the demonstration.
@@ -104,15 +105,18 @@ TEST_F(Fixture, WaitsUntilEveryEntityIsTracked) {
   EXPECT_EQ(c.state(), RunState::Deciding);
 }
 
-TEST_F(Fixture, SegmentsGoToEveryMotionTokenWithTheTargetsPositionAsGoal) {
+TEST_F(Fixture, SegmentsGoToEveryMotionTokenWithItsEndPointAsGoal) {
   const auto segs = runToFirstStep();
   ASSERT_EQ(segs.size(), 2u);
   EXPECT_EQ(c.state(), RunState::Executing);
   const auto& spec = dir.spec;
   EXPECT_EQ(segs[0].token, tok(spec, "R1:move:R3"));
   EXPECT_EQ(segs[0].entity, spec.entityIndex("R1"));
-  EXPECT_EQ(segs[0].goal, start[spec.entityIndex("R3")]);
-  EXPECT_EQ(segs[1].goal, start[spec.entityIndex("R4")]);
+  // The end points the rule gives (task/end_point.h), learned from the demonstration.
+  const std::vector<task::Token> step = {segs[0].token, segs[1].token};
+  EXPECT_EQ(segs[0].goal, task::endPoint(spec, ends, step, 0, start));
+  EXPECT_EQ(segs[1].goal, task::endPoint(spec, ends, step, 1, start));
+
   EXPECT_NE(segs[0].segment_id, segs[1].segment_id);
   EXPECT_GT(segs[0].timeout_s, 0.0);
   EXPECT_EQ(c.activeEntities().size(), 2u);
@@ -175,11 +179,30 @@ TEST_F(Fixture, RunsTheWholeTaskAndFinishesOnEnd) {
   for (bool met : c.goalConditionsMet()) EXPECT_TRUE(met);
 }
 
+TEST_F(Fixture, DoneCountsAtTheEndPointNotAtTheTargetsCentre) {
+  // Demonstrations that stopped at contact with the robot driven to.
+  ends.by_class["robot->robot"] = {Vector2d(-dir.spec.contactDistance(0, 2), 0), 10};
+  c = Coordinator(dir.spec, CoordinatorConfig{}, ends);
+  const auto segs = runToFirstStep();
+  EXPECT_NEAR((segs[0].goal - start[segs[0].token.target]).norm(), dir.spec.contactDistance(0, 2), 1e-9);
+  const SegmentCommand& s = segs[0];
+  // A robot that drove onto its target's centre (pushing it) has not arrived ...
+  EntityObservation obs = c.observation();
+  obs.positions[s.entity] = start[s.token.target];
+  c.onEntities(obs, 1.0);
+  c.onSegmentStatus(report(c, s.entity, s.segment_id, SegmentState::Done, 1.0), 1.0);
+  EXPECT_NE(c.steps().back().tokens[0].state, SegmentState::Done);
+  // ... one stopped at contact, within the arrival radius of the end point, has.
+  obs.positions[s.entity] = s.goal + Vector2d(0.01, 0.0);
+  c.onEntities(obs, 1.5);
+  EXPECT_EQ(c.steps().back().tokens[0].state, SegmentState::Done);
+}
+
 TEST_F(Fixture, SegmentTimeoutAbortsAndStopsTheRobots) {
   CoordinatorConfig cfg;
   cfg.segment_timeout_s = 2.0;
   cfg.segment_timeout_per_m_s = 0;
-  c = Coordinator(dir.spec, cfg);
+  c = Coordinator(dir.spec, cfg, ends);
   const auto segs = runToFirstStep();
   arriveDone(c, segs[0], 1.0);
   EXPECT_TRUE(c.onTick(2.1).empty()) << "aborted before the time-out";
@@ -209,7 +232,7 @@ TEST_F(Fixture, DecisionAndPathTimeoutsAbort) {
   CoordinatorConfig cfg;
   cfg.decision_timeout_s = 1;
   cfg.path_timeout_s = 1;
-  Coordinator a(dir.spec, cfg);
+  Coordinator a(dir.spec, cfg, ends);
   a.onEntities(observe(start), 0);
   a.start(0);
   EXPECT_TRUE(a.onTick(0.9).empty());
@@ -217,7 +240,7 @@ TEST_F(Fixture, DecisionAndPathTimeoutsAbort) {
   EXPECT_EQ(a.state(), RunState::Aborted);
   EXPECT_NE(a.reason().find("decision"), std::string::npos);
 
-  Coordinator b(dir.spec, cfg);
+  Coordinator b(dir.spec, cfg, ends);
   b.onEntities(observe(start), 0);
   const auto s = b.start(0);
   const auto d = b.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.5);
@@ -324,7 +347,7 @@ TEST_F(Fixture, InPlaceTokensCompleteWhenDecided) {
   o.demos = 1;
   o.robots = 6;
   const auto d2 = tasks::generate(o);
-  Coordinator k(d2.spec, {});
+  Coordinator k(d2.spec, {}, task::learnEndPoints(d2.spec, d2.demos));
   k.onEntities(observe(d2.demos[0].positions.front()), 0);
   auto s = k.start(0);
   Decision stop;
@@ -339,7 +362,7 @@ TEST_F(Fixture, InPlaceTokensCompleteWhenDecided) {
 TEST_F(Fixture, StepLimitAborts) {
   CoordinatorConfig cfg;
   cfg.max_steps = 1;
-  Coordinator k(dir.spec, cfg);
+  Coordinator k(dir.spec, cfg, ends);
   std::vector<Vector2d> pos = start;
   k.onEntities(observe(pos), 0);
   const auto s = k.start(0);
@@ -354,7 +377,7 @@ TEST_F(Fixture, ObservationOfTheWrongSizeIsRefused) {
   EXPECT_THROW(c.onEntities(observe({{0, 0}}), 0), Error);
   CoordinatorConfig cfg;
   cfg.segment_timeout_s = 0;
-  EXPECT_THROW(Coordinator(dir.spec, cfg), Error);
+  EXPECT_THROW(Coordinator(dir.spec, cfg, ends), Error);
 }
 
 TEST(Replay, RetargetMapsEndsAndKeepsShape) {
@@ -455,7 +478,7 @@ TEST_F(Fixture, APathForAnotherGoalAborts) {
   const auto out = c.onPath(d.paths[0].id, p, "", 0.2);
   EXPECT_TRUE(out.stop_all);
   EXPECT_EQ(c.state(), RunState::Aborted);
-  EXPECT_NE(c.reason().find("from its goal"), std::string::npos) << c.reason();
+  EXPECT_NE(c.reason().find("from its end point"), std::string::npos) << c.reason();
 }
 
 TEST_F(Fixture, APathWithANonFinitePointOrStddevAborts) {
@@ -518,7 +541,7 @@ TEST_F(Fixture, ARunThatCouldNotStartIsAbortedWithWhyFromIdleOnly) {
   EXPECT_NE(c.reason().find("node /sequence"), std::string::npos) << c.reason();
   EXPECT_FALSE(c.start(61.0).decision) << "an aborted run needs a reset first";
   // Once a run is under way, abortStart changes nothing (abortRun is for that).
-  Coordinator k{dir.spec, CoordinatorConfig{}};
+  Coordinator k{dir.spec, CoordinatorConfig{}, ends};
   k.onEntities(observe(start), 0);
   ASSERT_TRUE(k.start(0).decision);
   EXPECT_FALSE(k.abortStart("late", 1.0).stop_all);
@@ -537,7 +560,7 @@ TEST_F(Fixture, TheLastDecisionKeepsItsProbabilities) {
   EXPECT_EQ(c.lastDecision()->probabilities.tokens, p.tokens);
   EXPECT_DOUBLE_EQ(c.lastDecision()->probabilities.end, 0.01);
   // Probabilities that do not fit the tokens are refused.
-  Coordinator k{dir.spec, CoordinatorConfig{}};
+  Coordinator k{dir.spec, CoordinatorConfig{}, ends};
   k.onEntities(observe(start), 0);
   const auto s2 = k.start(0);
   p.tokens.push_back(0.5);

@@ -241,12 +241,12 @@ TEST(PrimitiveLibrary, CorruptedFilesAreRejectedCleanly) {
   expectLoadError(not_yaml, "YAML syntax error");
 
   const std::string wrong_format = dir + "/wrong_format.yaml";
-  writeTextFile(wrong_format, std::regex_replace(text, std::regex("ddace-primitives/2"), "ddace-primitives/9"));
+  writeTextFile(wrong_format, std::regex_replace(text, std::regex("ddace-primitives/3"), "ddace-primitives/9"));
   expectLoadError(wrong_format, "unsupported format");
 
   // A library of the format before the task fingerprint: retrain.
   const std::string older = dir + "/older.yaml";
-  writeTextFile(older, std::regex_replace(text, std::regex("ddace-primitives/2"), "ddace-primitives/1"));
+  writeTextFile(older, std::regex_replace(text, std::regex("ddace-primitives/3"), "ddace-primitives/1"));
   expectLoadError(older, "retrain");
 
   // The task fingerprint edited (Task 4's goal conditions made Task 2's): its digest refuses it.
@@ -377,5 +377,53 @@ TEST(PrimitiveLibrary, PlainRbfPlusWhiteKernel) {
     EXPECT_FALSE(p.x.usesConstant());
     EXPECT_EQ(p.x.params().constant, 1.0);
     EXPECT_EQ(p.y.params().length_scale, lib.primitives().at(key).y.params().length_scale);
+  }
+}
+
+TEST(PrimitiveLibrary, StoresWhereMotionsEndAndPathsEndThere) {
+  const gp::PrimitiveLibrary& lib = library("task2");
+  const task::TaskDir test = generated("task2", 1, 5);
+  const task::TaskSpec& spec = test.spec;
+  // The library learned where the training demonstrations' motions ended.
+  const task::EndPointModel learned = task::learnEndPoints(spec, generated("task2", 30, 1).demos);
+  ASSERT_TRUE(lib.endPoints().by_class.count("robot->robot"));
+  EXPECT_EQ(lib.endPoints().by_class.at("robot->robot").offset, learned.by_class.at("robot->robot").offset);
+  // A path generated to the rule's end point ends there.
+  const auto& demo = test.demos.front();
+  const task::Step& first = demo.steps.front();
+  const auto& decided = demo.snapshots.front().positions;
+  for (size_t i = 0; i < first.tokens.size(); ++i) {
+    const task::Token& t = first.tokens[i];
+    const Vector2d end = task::endPoint(spec, lib.endPoints(), first.tokens, i, decided);
+    const gp::GeneratedPath p = lib.generate(t, decided[t.entity], end);
+    EXPECT_LT((p.points.back() - end).norm(), 1e-12);
+  }
+  // Saved and read back exactly; a library of /2 (before end points) reads as ending at centres.
+  const std::string dir = ::testing::TempDir() + "/ddace_end_points";
+  fs::create_directories(dir);
+  lib.save(dir + "/primitives.yaml");
+  const gp::PrimitiveLibrary back = gp::PrimitiveLibrary::load(dir + "/primitives.yaml");
+  EXPECT_FALSE(back.endPoints().centres);
+  ASSERT_EQ(back.endPoints().by_key.size(), lib.endPoints().by_key.size());
+  for (const auto& [key, e] : lib.endPoints().by_key) {
+    EXPECT_EQ(back.endPoints().by_key.at(key).offset, e.offset) << key;
+    EXPECT_EQ(back.endPoints().by_key.at(key).segments, e.segments) << key;
+  }
+  std::string old = std::regex_replace(readTextFile(dir + "/primitives.yaml"), std::regex("ddace-primitives/3"),
+                                       "ddace-primitives/2");
+  old = std::regex_replace(old, std::regex("end_points:[^\\n]*\\n(  [^\\n]*\\n)*"), "");
+  writeTextFile(dir + "/old.yaml", old);
+  const gp::PrimitiveLibrary older = gp::PrimitiveLibrary::load(dir + "/old.yaml");
+  EXPECT_TRUE(older.endPoints().centres);
+  EXPECT_EQ(older.primitives().size(), lib.primitives().size());
+  // An end point that is no number, or a class that is none, is refused by line.
+  std::string bad = std::regex_replace(readTextFile(dir + "/primitives.yaml"), std::regex("robot->robot"),
+                                       "robot->table", std::regex_constants::format_first_only);
+  writeTextFile(dir + "/bad.yaml", bad);
+  try {
+    gp::PrimitiveLibrary::load(dir + "/bad.yaml");
+    ADD_FAILURE() << "a bad end point class was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("is not KIND[+load]->KIND"), std::string::npos) << e.what();
   }
 }
