@@ -134,9 +134,12 @@ cv::Mat TrackerSceneRenderer::render(const std::vector<TrueEntity>& truth, doubl
 }
 
 std::vector<Detection> referenceDetect(const cv::Mat& gray, DetectorBackend backend) {
+  // Made once, as a program that detects in every frame would (building
+  // DICT_APRILTAG_36h11's 587 codes takes longer than a detection).
   static const auto params = cv::aruco::DetectorParameters::create();
-  const auto dict = cv::aruco::getPredefinedDictionary(
-      backend == DetectorBackend::Aruco ? cv::aruco::DICT_4X4_50 : cv::aruco::DICT_APRILTAG_36h11);
+  static const auto aruco = cv::aruco::getPredefinedDictionary(cv::aruco::DICT_4X4_50);
+  static const auto apriltag = cv::aruco::getPredefinedDictionary(cv::aruco::DICT_APRILTAG_36h11);
+  const auto& dict = backend == DetectorBackend::Aruco ? aruco : apriltag;
   std::vector<std::vector<cv::Point2f>> corners;
   std::vector<int> ids;
   cv::aruco::detectMarkers(gray, dict, corners, ids, params);
