@@ -4,9 +4,19 @@
 
 #include "command.h"
 #include "ddace/tasks/generators.h"
+#include "ddace/tasks/rule_zoo.h"
 
 namespace ddace::cli {
 namespace {
+
+/// DIR as a whole: refused when it holds anything generate did not write; its own
+/// earlier output is replaced (--force) in one step, or not at all.
+void writeSplit(const std::string& out, const task::TaskDir& train_dir, const task::TaskDir& test_dir, bool force) {
+  std::vector<task::OwnedFile> files = task::taskDirFiles(train_dir, "train/");
+  const std::vector<task::OwnedFile> test_files = task::taskDirFiles(test_dir, "test/");
+  files.insert(files.end(), test_files.begin(), test_files.end());
+  task::writeOwnedDirectory(out, files, "ddace generate", force);
+}
 
 int runGenerate(const std::vector<std::string>& argv) {
   Args args(
@@ -17,7 +27,7 @@ int runGenerate(const std::vector<std::string>& argv) {
   tasks::GeneratorOptions o;
   std::string names;
   for (const auto& f : tasks::allFamilies()) names += (names.empty() ? "" : ", ") + f;
-  o.family = args.positional(0, "FAMILY (" + names + ")");
+  o.family = args.positional(0, "FAMILY (" + names + ", zoo:<id>)");
   const std::string out = args.require("--out");
   const long train = args.getInt("--train", 30), test = args.getInt("--test", 15);
   if (train < 1) throw Error("--train must be at least 1");
@@ -25,6 +35,19 @@ int runGenerate(const std::vector<std::string>& argv) {
   const long seed = args.getInt("--seed", 1);
   if (seed < 0) throw Error("--seed must not be negative");
   o.seed = static_cast<uint64_t>(seed);
+  uint64_t zoo_rule = 0;
+  if (tasks::parseZooFamily(o.family, zoo_rule)) {
+    // A rule of the zoo (rule_zoo.h): clean demonstrations; the family options do not apply.
+    for (const char* flag : {"--robots", "--actions", "--jitter", "--mislabel", "--onset-jitter"})
+      if (args.has(flag)) throw Error(std::string(flag) + " does not apply to a zoo rule (" + o.family + ")");
+    const task::TaskDir train_dir = tasks::generateZoo(zoo_rule, static_cast<int>(train), o.seed);
+    const task::TaskDir test_dir =
+        tasks::generateZoo(zoo_rule, static_cast<int>(test), o.seed * 2654435761ULL + 0x7e57);
+    writeSplit(out, train_dir, test_dir, args.has("--force"));
+    std::cout << "generated " << o.family << " '" << train_dir.spec.name << "': " << train
+              << " training demonstrations in " << out << "/train, " << test << " test in " << out << "/test\n";
+    return 0;
+  }
   o.robots = static_cast<int>(args.getInt("--robots", 11));
   o.actions = static_cast<int>(args.getInt("--actions", 4));
   o.jitter_m = args.getDouble("--jitter", 0.0);
@@ -42,12 +65,7 @@ int runGenerate(const std::vector<std::string>& argv) {
   o.onset_jitter_s = 0;
   const task::TaskDir test_dir = tasks::generate(o);
 
-  // DIR as a whole: refused when it holds anything generate did not write; its own
-  // earlier output is replaced (--force) in one step, or not at all.
-  std::vector<task::OwnedFile> files = task::taskDirFiles(train_dir, "train/");
-  const std::vector<task::OwnedFile> test_files = task::taskDirFiles(test_dir, "test/");
-  files.insert(files.end(), test_files.begin(), test_files.end());
-  task::writeOwnedDirectory(out, files, "ddace generate", args.has("--force"));
+  writeSplit(out, train_dir, test_dir, args.has("--force"));
   const std::string train_path = (std::filesystem::path(out) / "train").string();
   const std::string test_path = (std::filesystem::path(out) / "test").string();
   std::cout << "generated " << o.family << " '" << train_dir.spec.name << "': " << train
@@ -56,10 +74,10 @@ int runGenerate(const std::vector<std::string>& argv) {
 }
 
 DDACE_COMMAND({"generate",
-               "ddace generate FAMILY --out DIR [--force] [--train N] [--test M] [--seed S] [--robots K] "
+               "ddace generate FAMILY|zoo:ID --out DIR [--force] [--train N] [--test M] [--seed S] [--robots K] "
                "[--actions K] [--jitter SIGMA_M] [--mislabel FRACTION] [--onset-jitter SECONDS]",
                "write DIR/train and DIR/test task directories of a task family (task1..task4, fetch, "
-               "nearest_goal, queue, deliver)",
+               "nearest_goal, queue, deliver) or of rule <id> of the rule zoo (zoo:<id>, docs/tgn.md)",
                runGenerate});
 
 }  // namespace

@@ -17,16 +17,23 @@ void printHelp(std::ostream& out) {
 
 int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
-  if (args.empty() || args[0] == "help" || args[0] == "--help" || args[0] == "-h") {
+  if (args.empty() || (args.size() == 1 && (args[0] == "help" || args[0] == "--help" || args[0] == "-h"))) {
     printHelp(args.empty() ? std::cerr : std::cout);
     return args.empty() ? 2 : 0;
   }
   auto& commands = ddace::cli::commands();
-  auto it = commands.find(args[0]);
+  // `ddace help SUBCOMMAND` and `ddace SUBCOMMAND --help` (or -h): that subcommand's usage.
+  const bool asked = args.size() == 2 && (args[0] == "help" || args[1] == "--help" || args[1] == "-h");
+  const std::string name = asked && args[0] == "help" ? args[1] : args[0];
+  auto it = commands.find(name);
   if (it == commands.end()) {
-    std::cerr << "ddace: unknown subcommand '" << args[0] << "'\n\n";
+    std::cerr << "ddace: unknown subcommand '" << name << "'\n\n";
     printHelp(std::cerr);
     return 2;
+  }
+  if (asked) {
+    std::cout << "usage: " << it->second.usage << "\n\n" << it->second.summary << "\n";
+    return 0;
   }
   try {
     return it->second.run(std::vector<std::string>(args.begin() + 1, args.end()));

@@ -2,6 +2,7 @@
 #include "ddace/ros/recorder.h"
 
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include <ros/ros.h>
@@ -26,6 +27,13 @@ class RecorderNode::Impl {
     const std::string dir = rosparam::param<std::string>(pnh, "output_dir", "");
     if (!dir.empty()) config_.output_dir = dir;
     recorder_ = std::make_unique<vision::DemoRecorder>(config_.spec, config_.output_dir, config_.flush_period_s);
+    // Without labels from the keyboard, they are inferred from the motion when a
+    // demonstration is stopped (docs/labels.md); the example names the actions.
+    std::optional<label::Example> example;
+    if (!config_.example.empty())
+      example =
+          label::Example::fromDemonstration(task::readDemonstrationCsv(config_.example, config_.spec), config_.spec);
+    recorder_->inferLabels(config_.infer_labels, std::move(example));
     positions_ = std::make_unique<vision::LatestPositions>(config_.spec);
 
     state_pub_ = pnh.advertise<std_msgs::String>("state", 1, true);
@@ -122,6 +130,13 @@ class RecorderNode::Impl {
         os << "saved " << path << ": " << rows << " rows, " << duration << " s, start stamp " << std::fixed
            << t0_.toSec();
         if (stale_rows_ > 0) os << "; WARNING: " << stale_rows_ << " rows hold a stale pose";
+        if (!recorder_->inferredSteps().empty()) os << "; labels inferred: " << recorder_->inferredSteps();
+        const auto& notes = recorder_->inferenceNotes();
+        if (!notes.empty()) os << "; " << notes.size() << " to check:";
+        for (const auto& n : notes) {
+          os << "\n  " << n;
+          ROS_WARN("recorder_node: check %s", n.c_str());
+        }
         res.message = os.str();
         res.success = true;
       } catch (const Error& e) {

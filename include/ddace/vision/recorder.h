@@ -21,6 +21,7 @@
 
 #include <Eigen/Core>
 
+#include "ddace/label/label.h"
 #include "ddace/task/demonstration.h"
 #include "ddace/task/task_spec.h"
 #include "ddace/vision/tracker.h"
@@ -29,7 +30,11 @@ namespace ddace::vision {
 
 /// config/recorder.yaml.
 struct RecorderConfig {
-  std::string output_dir;       ///< the task directory (created); "~/" is expanded
+  std::string output_dir;  ///< the task directory (created); "~/" is expanded
+  /// Infer the labels from the motion when a demonstration without any label is stopped
+  /// (docs/labels.md): people only demonstrate. Labels set during the recording win.
+  bool infer_labels = true;
+  std::string example;          ///< a demonstration labelled by hand for the action words ("" for none)
   double rate_hz = 30.0;        ///< rows per second
   double flush_period_s = 1.0;  ///< rows reach the disk at least this often
   task::TaskSpec spec;          ///< entities from markers.yaml, the rest from `task:`
@@ -87,8 +92,16 @@ class DemoRecorder {
   /// dropped (returns false). Throws ddace::Error naming the file when the write fails.
   bool addRow(double t, const std::vector<Eigen::Vector2d>& positions);
   /// Flushes, re-reads the file with the task module (errors keep it .partial and
-  /// throw), renames it to .csv and returns that path.
+  /// throw), renames it to .csv and returns that path. With inferLabels() set and no
+  /// label recorded, the .csv is the recording with labels inferred from its motion
+  /// (streamed: any length), and inferenceNotes() lists what the person should check.
   std::string stop();
+  /// Labels inferred on stop() (nullopt: never); the example names the action words.
+  void inferLabels(bool on, std::optional<label::Example> example = std::nullopt);
+  /// The inferred steps of the last stop(), as "[R1:move:G1 R2:move:G2] [...]" ("" when not inferred).
+  const std::string& inferredSteps() const { return inferred_steps_; }
+  /// What the last stop() could not infer surely, "demos/demo_003.csv:47: ..." each.
+  const std::vector<std::string>& inferenceNotes() const { return notes_; }
   /// Stops and deletes the current recording.
   void discard();
   /// Forces the rows written so far to the disk now (fdatasync).
@@ -111,6 +124,12 @@ class DemoRecorder {
   double flush_period_s_;
   void writeWhole(const std::string& bytes);
   void closeFile();
+
+  bool infer_ = false;
+  std::optional<label::Example> example_;
+  std::string inferred_steps_;
+  std::vector<std::string> notes_;
+  bool labelled_ = false;  ///< a label was set during this recording
 
   int fd_ = -1;
   std::string header_;  // written with the first row

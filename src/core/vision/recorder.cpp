@@ -13,6 +13,8 @@
 #include <utility>
 
 #include "ddace/common/file.h"
+#include "ddace/label/recording.h"
+#include "ddace/task/summary.h"
 #include "yaml_values.h"
 
 namespace ddace::vision {
@@ -26,7 +28,7 @@ RecorderConfig parseRecorderConfig(const std::string& text, const std::string& f
   YamlChecker r(file);
   RecorderConfig c;
   const YAML::Node root = parseRoot(r, text, "recorder.yaml");
-  r.onlyKeys(root, {"output_dir", "rate_hz", "flush_period", "task"}, "recorder.yaml");
+  r.onlyKeys(root, {"output_dir", "rate_hz", "flush_period", "infer_labels", "example", "task"}, "recorder.yaml");
   c.output_dir = stringOr(r, root, "output_dir", "");
   if (c.output_dir.empty()) r.error(root, "'output_dir' (the task directory to record into) is required");
   if (c.output_dir.rfind("~/", 0) == 0) {
@@ -34,6 +36,12 @@ RecorderConfig parseRecorderConfig(const std::string& text, const std::string& f
     c.output_dir = std::string(home ? home : "") + c.output_dir.substr(1);
   }
   c.rate_hz = numberOr(r, root, "rate_hz", c.rate_hz, 0.1, 1000.0);
+  if (const YAML::Node n = root["infer_labels"]; n.IsDefined()) {
+    if (!n.IsScalar() || (n.Scalar() != "true" && n.Scalar() != "false"))
+      r.error(n, "'infer_labels' must be true or false");
+    else c.infer_labels = n.Scalar() == "true";
+  }
+  c.example = stringOr(r, root, "example", "");
   c.flush_period_s = numberOr(r, root, "flush_period", c.flush_period_s, 0.01, 1.0);
 
   for (const auto& m : markers.entities) c.spec.entities.push_back({m.name, m.kind, m.type});
@@ -161,6 +169,9 @@ std::string DemoRecorder::start(double t0) {
   header += "\n";
   header_ = header;
   clearLabels();
+  labelled_ = false;
+  inferred_steps_.clear();
+  notes_.clear();
   t0_ = t0;
   last_t_ = -1;
   last_flush_ = 0;
@@ -191,6 +202,12 @@ void DemoRecorder::setLabel(const std::string& entity, const std::string& action
     }
   }
   labels_[static_cast<size_t>(e)] = l;
+  labelled_ = labelled_ || !l.isNull();
+}
+
+void DemoRecorder::inferLabels(bool on, std::optional<label::Example> example) {
+  infer_ = on;
+  example_ = std::move(example);
 }
 
 void DemoRecorder::clearLabels() {
@@ -240,7 +257,29 @@ std::string DemoRecorder::stop() {
   closeFile();
   if (rows_ == 0)
     throw Error(Diagnostic{partial_path_, 0, 0, "no rows were recorded (no entity poses arrived?); file left as is"});
-  task::readDemonstrationCsv(partial_path_, spec_);  // throws with file:line:column
+  const task::DemonstrationSummary recorded =
+      task::summarizeDemonstrationCsv(partial_path_, spec_);  // file:line:column
+  if (infer_ && !labelled_ && recorded.steps.empty()) {
+    // The labelled copy is written beside the recording and checked before it replaces it.
+    const label::Inference inf = label::inferRecording(partial_path_, spec_, example_ ? &*example_ : nullptr);
+    {
+      OutputFile out(final_path_);
+      label::writeLabelledRecording(partial_path_, spec_, inf, out.stream());
+      out.commit();
+    }
+    task::summarizeDemonstrationCsv(final_path_, spec_);
+    const std::string shown = "demos/" + fs::path(final_path_).filename().string();
+    for (const auto& st : inf.steps) {
+      inferred_steps_ += inferred_steps_.empty() ? "[" : " [";
+      for (size_t i = 0; i < st.tokens.size(); ++i)
+        inferred_steps_ += (i ? " " : "") + task::tokenKey(st.tokens[i].token, spec_);
+      inferred_steps_ += "]";
+    }
+    for (const auto& n : inf.notes) notes_.push_back(shown + ":" + std::to_string(n.row + 2) + ": " + n.message);
+    std::error_code ec;
+    fs::remove(partial_path_, ec);
+    return final_path_;
+  }
   std::error_code ec;
   fs::rename(partial_path_, final_path_, ec);
   if (ec) throw Error(Diagnostic{partial_path_, 0, 0, "cannot rename to " + final_path_ + ": " + ec.message()});

@@ -1,0 +1,65 @@
+// Demonstrations moved as a person moves robots by hand and seen through a tracker, made
+// from a generated demonstration (tasks/generators.h), to measure label inference on every
+// family (docs/labels.md): the same steps, tokens and paths, re-timed and disturbed.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "ddace/common/random.h"
+#include "ddace/label/label.h"
+#include "ddace/task/demonstration.h"
+#include "ddace/task/task_dir.h"
+
+namespace ddace::label {
+
+struct HumanMotionOptions {
+  double rate_hz = 30;                             ///< the recorder's rate
+  double onset_spread_s = 1.0;                     ///< the robots of a step start up to this far apart
+  double speed_min = 0.6, speed_max = 1.6;         ///< each motion's speed, times the generated one
+  double pause_probability = 0.3;                  ///< a motion stops once on the way...
+  double pause_min_s = 0.4, pause_max_s = 1.2;     ///< ...for this long
+  double nudge_probability = 0.3;                  ///< after a step, a resting robot is bumped and put back...
+  double nudge_min_m = 0.01, nudge_max_m = 0.025;  ///< ...this far
+  double gap_min_s = 0.5, gap_max_s = 1.5;         ///< a person's time between two steps
+  double in_place_s = 1.0;                         ///< an in-place-only step lasts this long
+  double noise_m = 0.0015;                         ///< tracker noise, std-dev per coordinate
+  double hold_probability = 0.02;                  ///< a dropped frame starts a hold (the tracker repeats the pose)...
+  int hold_max_rows = 6;                           ///< ...of up to this many rows
+};
+
+/// `clean` (analyzed, labelled, as generated) moved by a person: per step, each motion
+/// starts up to onset_spread_s after the first (a load with its carrier), at its own speed,
+/// perhaps pausing; robots bumped between steps; noise and held poses. The labels are the
+/// true ones: every token of a step from the step's first onset to the end of its own motion
+/// (in-place tokens: to the step's end). The result is analyzed and has clean's steps.
+task::Demonstration humanMotion(const task::Demonstration& clean, const task::TaskSpec& spec,
+                                const HumanMotionOptions& options, SplitMix64& rng);
+
+/// How inferred labels compare with the true ones on one or more demonstrations.
+struct LabelScore {
+  int true_tokens = 0, inferred_tokens = 0, matched = 0;  ///< same entity, action, target, step
+  int demos = 0, demos_exact = 0;                         ///< demonstrations with exactly the true steps
+  int notes = 0;                                          ///< uncertain items reported
+  std::vector<double> onset_error_s, offset_error_s;      ///< per matched token, seconds
+  double accuracy() const;                                ///< matched / max(true, inferred); 1 when both are empty
+  void add(const LabelScore& o);
+};
+
+/// Compares `inferred` (labels applied by applyLabels) with `truth` (same rows).
+LabelScore scoreLabels(const task::Demonstration& truth, const task::Demonstration& inferred, int notes);
+
+/// A training set moved by a person (`generated`'s demonstrations through humanMotion) with
+/// its true labels, and the same set labelled from its motion: the first demonstration
+/// labelled by hand (kept as it is, and the example of the others), the others inferred.
+/// `score` compares the inferred ones with the truth.
+struct InferredDataset {
+  task::TaskDir truth, inferred;
+  LabelScore score;
+};
+InferredDataset inferredDataset(const task::TaskDir& generated, const HumanMotionOptions& options, uint64_t seed);
+
+/// The median of `v` (0 for none).
+double median(std::vector<double> v);
+
+}  // namespace ddace::label

@@ -1,0 +1,62 @@
+// The rule zoo: tasks drawn from a grammar of the rules people state about a table, the
+// benchmark of what the sequence model can learn (bench/rule_zoo.cpp, docs/tgn.md).
+//
+// A rule is a template with referring expressions in its slots. A referring expression
+// picks one entity of a kind:
+//   - by distance to a reference entity: the nearest, the farthest, the 2nd nearest, the
+//     2nd farthest (the reference is an entity of the task or an entity an earlier step
+//     chose: "its nearest teammate", "the goal nearest to the one who received the box");
+//   - by order along the table's axes: leftmost / rightmost (x, table frame), frontmost /
+//     backmost (y; the front is the edge y = 0), and the 2nd of each;
+// and a matching assigns several at once ("each robot to its nearest free goal", matched
+// greedily by increasing distance; "robots take goals in left-to-right order"). Entities
+// already chosen are no longer free. The templates (ZooRule::kind):
+//   assign     one step: every robot to a goal of its own (greedy nearest / farthest
+//              free goal, or in order along an axis)
+//   sequence   one robot per step in order along an axis, each to its nearest / farthest
+//              free goal
+//   queue      slot goals Q1..Qn: one robot per step takes the next slot, the robots in
+//              order of distance to Q1 or along an axis
+//   fetch      a robot chosen relative to the box B1 fetches it and carries it to a goal
+//              chosen relative to B1 (optionally: then the others go to the carrier)
+//   relay      the fetcher hands B1 to a teammate chosen relative to itself, who
+//              carries it to a goal chosen relative to it (optionally: the giver follows)
+//   boxes      two or three boxes, each fetched by a free robot (matching), then each
+//              carried to a goal of its own (matching)
+//   gather     the others meet at a robot chosen relative to G1, which then goes to a
+//              goal chosen relative to itself
+// 2-6 robots, 0-3 boxes, 1-6 goals (at most 10 entities), 1-4 steps. Motions are straight
+// at the generators' speed and rate (generators.h), a carried box moves with its carrier
+// (same target, same step). Start configurations are uniform over the table with the
+// generators' border and separation; one in which any decision is a near tie (the chosen
+// and a competing entity's distance, or coordinate, closer than kSceneDecisionMargin) is
+// drawn again. The same rule id, seed and count give byte-identical output.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ddace/task/task_dir.h"
+
+namespace ddace::tasks {
+
+struct ZooRule {
+  uint64_t id = 0;
+  std::string kind;  ///< the template: assign, sequence, queue, fetch, relay, boxes, gather
+  std::string name;  ///< the rule in words, with its entity counts (also the task's name)
+  int robots = 0, objects = 0, goals = 0;
+};
+
+/// The rule with this id (any id is a rule; different ids may state the same rule).
+ZooRule zooRule(uint64_t id);
+/// The ids of the first `count` rules with distinct names, in increasing id order.
+std::vector<uint64_t> distinctZooRules(int count);
+/// `demos` demonstrations of rule `rule_id` over start configurations drawn from `seed`.
+/// Throws ddace::Error when no unambiguous configuration is found.
+task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed);
+/// Parses "zoo:<id>" (as `ddace generate` takes it); false for any other family name.
+/// Throws ddace::Error naming the text when the id is not a non-negative integer.
+bool parseZooFamily(const std::string& family, uint64_t& id);
+
+}  // namespace ddace::tasks

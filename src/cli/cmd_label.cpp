@@ -1,0 +1,116 @@
+// ddace label: infer the labels of unlabelled demonstrations from their motion
+// (docs/labels.md). IN is only read; OUT gets task.yaml as it is and labelled copies.
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <optional>
+
+#include "command.h"
+#include "ddace/common/error.h"
+#include "ddace/common/file.h"
+#include "ddace/label/recording.h"
+#include "ddace/task/owned_dir.h"
+#include "ddace/task/summary.h"
+
+namespace ddace::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// True when `inner` is `outer` or below it (after resolving what exists of both).
+bool within(const fs::path& inner, const fs::path& outer) {
+  const fs::path a = fs::weakly_canonical(fs::absolute(inner)), b = fs::weakly_canonical(fs::absolute(outer));
+  auto ia = a.begin(), ib = b.begin();
+  for (; ib != b.end(); ++ia, ++ib) {
+    if (ib->empty()) continue;  // a trailing separator
+    if (ia == a.end() || *ia != *ib) return false;
+  }
+  return true;
+}
+
+std::string stepsText(const label::Inference& inf, const task::TaskSpec& spec) {
+  std::string s;
+  for (const auto& step : inf.steps) {
+    s += " [";
+    for (size_t i = 0; i < step.tokens.size(); ++i) s += (i ? " " : "") + task::tokenKey(step.tokens[i].token, spec);
+    s += "]";
+  }
+  return s;
+}
+
+int runLabel(const std::vector<std::string>& argv) {
+  Args args(argv, {"--out", "--example"}, {"--strict", "--force"});
+  args.expectAtMostPositional(1);
+  const std::string in = args.positional(0, "IN (the task directory of unlabelled demonstrations)");
+  const std::string out = args.require("--out");
+  if (within(out, in))
+    throw Error("--out " + out + " is " + (within(in, out) ? "IN itself" : "inside IN (" + in + ")") +
+                ": ddace label never writes into its input; choose another directory");
+
+  // The same checks as `ddace validate`, reading every file as a stream.
+  const task::TaskDirSummary dir = task::summarizeTaskDir(in);
+  if (!dir.errors.empty()) throw Error(dir.errors);
+  const task::TaskSpec& spec = dir.spec;
+  std::vector<Diagnostic> labelled;
+  for (const auto& d : dir.demos)
+    if (!d.steps.empty())
+      labelled.push_back({d.source, d.steps.front().keyframe_row + 2, 0,
+                          "already labelled (" + std::to_string(d.steps.size()) +
+                              " steps): ddace label infers the labels of unlabelled demonstrations only"});
+  if (!labelled.empty()) throw Error(labelled);
+  if (dir.demos.empty()) throw Error(Diagnostic{in, 0, 0, "no demonstrations in demos/ to label"});
+
+  std::optional<label::Example> example;
+  if (args.has("--example")) {
+    const std::string path = args.get("--example", "");
+    example = label::Example::fromDemonstration(task::readDemonstrationCsv(path, spec), spec);
+  }
+
+  // Pass 1: infer every demonstration, report what is uncertain.
+  std::vector<label::Inference> inferred;
+  size_t notes = 0;
+  for (const auto& d : dir.demos) {
+    inferred.push_back(label::inferRecording(d.source, spec, example ? &*example : nullptr));
+    std::cout << fs::path(d.source).filename().string() << ": " << inferred.back().steps.size()
+              << " steps:" << stepsText(inferred.back(), spec) << "\n";
+    for (const auto& n : inferred.back().notes) std::cerr << d.source << ":" << n.row + 2 << ": " << n.message << "\n";
+    notes += inferred.back().notes.size();
+  }
+  if (notes > 0 && args.has("--strict")) {
+    std::cerr << "ddace label: " << notes << " uncertain item(s) above; --strict: nothing written\n";
+    return 1;
+  }
+
+  // Pass 2: task.yaml as it is, labelled copies of the demonstrations, checked as they are read back.
+  task::writeOwnedDirectory(
+      out,
+      [&](const std::string& tmp) {
+        fs::create_directories(fs::path(tmp) / "demos");
+        writeTextFile((fs::path(tmp) / "task.yaml").string(), readTextFile((fs::path(in) / "task.yaml").string()));
+        for (size_t i = 0; i < dir.demos.size(); ++i) {
+          const std::string target = (fs::path(tmp) / "demos" / fs::path(dir.demos[i].source).filename()).string();
+          OutputFile file(target);
+          label::writeLabelledRecording(dir.demos[i].source, spec, inferred[i], file.stream());
+          file.commit();
+          const task::DemonstrationSummary back = task::summarizeDemonstrationCsv(target, spec);
+          if (back.steps.size() != inferred[i].steps.size())
+            throw Error(Diagnostic{target, 0, 0,
+                                   "reads back with " + std::to_string(back.steps.size()) + " steps, inferred " +
+                                       std::to_string(inferred[i].steps.size()) + " (a bug in ddace label)"});
+        }
+      },
+      "ddace label", args.has("--force"));
+  std::cout << "wrote " << out << ": " << dir.demos.size() << " labelled demonstrations"
+            << (notes ? ", " + std::to_string(notes) + " item(s) to check (above)" : std::string()) << "\n";
+  return 0;
+}
+
+}  // namespace
+
+DDACE_COMMAND({"label", "ddace label IN --out OUT [--example CSV] [--strict] [--force]",
+               "infer the labels of unlabelled demonstrations from their motion, writing a labelled copy of IN "
+               "(--example: words from a demonstration labelled by hand; --strict: write nothing when anything is "
+               "uncertain; docs/labels.md)",
+               runLabel});
+
+}  // namespace ddace::cli

@@ -1,0 +1,247 @@
+#include "ddace/label/inference.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace ddace::label {
+
+using Eigen::Vector2d;
+
+SegmentationOptions SegmentationOptions::forTask(const task::TaskSpec& spec) {
+  SegmentationOptions o;
+  const double r = spec.arrival_radius;
+  o.arrival_m = r;
+  o.start_m = r / 2;
+  o.still_m = r / 6;
+  o.nudge_m = r;
+  return o;
+}
+
+namespace {
+
+/// Body radius of an entity, metres (docs/task-format.md, "Bodies": a Hamster's disc,
+/// an object with its marker); 0 for a goal, a flat print driven onto.
+double bodyRadius(const task::Entity& e) {
+  switch (e.kind) {
+    case task::EntityKind::Robot:
+      return 0.022;
+    case task::EntityKind::Object:
+      return 0.02;
+    case task::EntityKind::Goal:
+      return 0;
+  }
+  return 0;
+}
+
+}  // namespace
+
+double contactDistance(const task::TaskSpec& spec, int a, int b) {
+  const double ra = bodyRadius(spec.entities[a]), rb = bodyRadius(spec.entities[b]);
+  return ra > 0 && rb > 0 ? ra + rb : 0;
+}
+
+EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& end, const std::vector<Vector2d>& where,
+                  const std::vector<bool>& candidates) {
+  const double r = spec.arrival_radius;
+  EndPoint ep;
+  ep.nearest_m = std::numeric_limits<double>::infinity();
+  std::vector<std::pair<double, int>> arrived;  // (residual, entity)
+  for (size_t c = 0; c < where.size(); ++c) {
+    if (!candidates[c] || static_cast<int>(c) == mover) continue;
+    const double d = (end - where[c]).norm();
+    if (d < ep.nearest_m) ep.nearest_m = d, ep.nearest = static_cast<int>(c);
+    // The two readings of an end point: on the target's centre, or at contact with its body.
+    double residual = d;
+    const double contact = contactDistance(spec, mover, static_cast<int>(c));
+    if (contact > 0) residual = std::min(residual, std::abs(d - contact));
+    if (residual <= r) arrived.push_back({residual, static_cast<int>(c)});
+  }
+  if (arrived.empty()) return ep;
+  std::sort(arrived.begin(), arrived.end());
+  ep.target = arrived[0].second;
+  ep.residual = arrived[0].first;
+  // End points closer than half the arrival radius in residual are a tie: the motion does
+  // not say which one was meant.
+  for (size_t i = 1; i < arrived.size(); ++i)
+    if (arrived[i].first - arrived[0].first < r / 2) ep.tied.push_back(arrived[i].second);
+  return ep;
+}
+
+MotionSegmenter::MotionSegmenter(size_t entities, const SegmentationOptions& options) : o_(options), state_(entities) {}
+
+void MotionSegmenter::row(double t, const std::vector<Vector2d>& positions) {
+  history_.push_back({row_, t, positions});
+  while (history_.size() > 1 && t - history_.front().t > o_.history_s) history_.pop_front();
+  for (size_t e = 0; e < state_.size(); ++e) {
+    EntityState& st = state_[e];
+    const Vector2d& p = positions[e];
+    if (!st.moving) {
+      const double d = (p - st.anchor).norm();
+      if (st.anchor_n == 0 || d <= 2 * o_.edge_m) {
+        // The rest position: a running mean of the rows that differ from it by noise only
+        // (bounded weight, so a slow drift of the tracker is followed; a slow start is not).
+        st.anchor_n = std::min(st.anchor_n + 1, 100);
+        st.anchor += (p - st.anchor) / st.anchor_n;
+      } else if (d > o_.start_m) {
+        startMotion(e);
+      } else if (Vector2d rest; stillAt(e, o_.still_m, rest)) {
+        // Come to rest a little off (a nudge not put back exactly): rest there.
+        st.anchor = rest;
+        st.anchor_n = 1;
+      }
+      continue;
+    }
+    trackDistances(st.motion, history_.size() - 1);
+    Vector2d rest;
+    size_t first = 0;
+    if (stopped(e, rest, first)) endMotion(e, rest, first);
+  }
+  last_t_ = t;
+  ++row_;
+}
+
+void MotionSegmenter::startMotion(size_t e) {
+  EntityState& st = state_[e];
+  // The onset: the last row still at rest (within edge_m of the rest position).
+  size_t k = history_.size() - 1;
+  while (k > 0 && (smoothed(k, e) - st.anchor).norm() > o_.edge_m) --k;
+  // Sharper: when it left, extrapolated from how it sped up.
+  // Not before the 5-row average says it was at rest (it reaches 2 rows ahead).
+  if (const auto t0 = restTime(k, history_.size() - 1, e, st.anchor); t0 && *t0 >= history_[k >= 2 ? k - 2 : 0].t) {
+    size_t j = k;
+    while (j > 0 && history_[j].t > *t0 + 1e-9) --j;
+    while (j + 1 < history_.size() && history_[j + 1].t <= *t0 + 1e-9) ++j;
+    k = j;
+  }
+  const Sample& s = history_[k];
+  Motion& m = st.motion;
+  m = Motion{};
+  m.entity = static_cast<int>(e);
+  m.on_row = s.row;
+  m.on_t = s.t;
+  m.start = st.anchor;
+  m.at_onset = s.p;
+  m.max_distance.assign(s.p.size(), 0);
+  const Eigen::Vector2d away = history_.back().p[e] - st.anchor;
+  if (away.norm() > 0) m.start_dir = away.normalized();
+  for (size_t i = k; i < history_.size(); ++i) trackDistances(m, i);
+  st.moving = true;
+}
+
+bool MotionSegmenter::stillAt(size_t e, double within, Vector2d& rest) const {
+  const double now = history_.back().t;
+  size_t w = history_.size() - 1;
+  while (w > 0 && now - history_[w - 1].t <= o_.still_s + 1e-9) --w;
+  if (now - history_[w].t < o_.still_s - 1e-9 || w == 0) return false;  // not yet still_s of rows
+  Vector2d mean = Vector2d::Zero();
+  for (size_t i = w; i < history_.size(); ++i) mean += history_[i].p[e];
+  mean /= static_cast<double>(history_.size() - w);
+  for (size_t i = w; i < history_.size(); ++i)
+    if ((history_[i].p[e] - mean).norm() > within) return false;
+  rest = mean;
+  return true;
+}
+
+bool MotionSegmenter::stopped(size_t e, Vector2d& rest, size_t& first) const {
+  if (!stillAt(e, o_.still_m, rest)) return false;
+  // The offset: the first row at rest after the last one clearly moving.
+  size_t b = history_.size() - 1;
+  while (b > 0 && (history_[b].p[e] - rest).norm() <= o_.still_m) --b;
+  first = b + 1;
+  while (first < history_.size() - 1 && (smoothed(first, e) - rest).norm() > o_.edge_m) ++first;
+  // Sharper: when it arrived, extrapolated from how it slowed down.
+  size_t from = first;
+  while (from > 0 && (smoothed(from - 1, e) - rest).norm() <= o_.start_m) --from;
+  if (const auto t1 = restTime(from, first, e, rest);
+      t1 && *t1 <= history_[std::min(first + 2, history_.size() - 1)].t) {
+    size_t j = first;
+    while (j > from && history_[j - 1].t >= *t1 - 1e-9) --j;
+    while (j + 1 < history_.size() && history_[j].t < *t1 - 1e-9) ++j;
+    first = j;
+  }
+  return true;
+}
+
+void MotionSegmenter::trackDistances(Motion& m, size_t i) const {
+  // A held pose (the tracker repeating the last one for a dropped frame: the same numbers
+  // exactly) lags a moving entity; such a row says nothing about how far apart two are.
+  auto held = [&](size_t e) { return i > 0 && history_[i].p[e] == history_[i - 1].p[e]; };
+  if (held(m.entity)) return;
+  const auto& p = history_[i].p;
+  for (size_t j = 0; j < p.size(); ++j)
+    if (!held(j)) m.max_distance[j] = std::max(m.max_distance[j], (p[m.entity] - p[j]).norm());
+}
+
+std::optional<double> MotionSegmenter::restTime(size_t from, size_t to, size_t e, const Vector2d& rest) const {
+  // At constant acceleration the distance from rest grows with the square of the time
+  // since (or until) rest: its square root is a line in time, zero at the moment of rest.
+  double n = 0, st = 0, sr = 0, stt = 0, str = 0;
+  const double t_ref = history_[from].t;
+  for (size_t i = from; i <= to; ++i) {
+    // Raw positions (an average over rows would start the rise before the motion did),
+    // far enough from rest to be above the tracker's noise.
+    const double d = (history_[i].p[e] - rest).norm();
+    if (d < 2 * o_.edge_m || d > o_.start_m) continue;
+    const double t = history_[i].t - t_ref, r = std::sqrt(d);
+    n += 1, st += t, sr += r, stt += t * t, str += t * r;
+  }
+  const double det = n * stt - st * st;
+  if (n < 3 || det <= 0) return std::nullopt;
+  const double a = (n * str - st * sr) / det, b = (sr - a * st) / n;
+  if (a == 0) return std::nullopt;
+  const double t0 = t_ref - b / a;
+  // Only a correction within the rows it was fitted on and a second around them.
+  if (!(t0 >= history_[from].t - 1.0 && t0 <= history_[to].t + 1.0)) return std::nullopt;
+  return t0;
+}
+
+Vector2d MotionSegmenter::smoothed(size_t i, size_t e) const {
+  const size_t lo = i >= 2 ? i - 2 : 0, hi = std::min(i + 2, history_.size() - 1);
+  Vector2d sum = Vector2d::Zero();
+  for (size_t j = lo; j <= hi; ++j) sum += history_[j].p[e];
+  return sum / static_cast<double>(hi - lo + 1);
+}
+
+void MotionSegmenter::endMotion(size_t e, const Vector2d& rest, size_t first) {
+  EntityState& st = state_[e];
+  Motion& m = st.motion;
+  const Sample& s = history_[std::max<size_t>(first, 0)];
+  m.off_row = std::max(s.row, m.on_row);
+  m.off_t = std::max(s.t, m.on_t);
+  m.end = rest;
+  m.at_offset = s.p;
+  // The heading it came in: from the last row start_m away from where it stopped.
+  for (size_t i = history_.size(); i-- > 0;) {
+    const Vector2d in = rest - history_[i].p[e];
+    if (in.norm() > o_.start_m) {
+      m.end_dir = in.normalized();
+      break;
+    }
+  }
+  if ((m.end - m.start).norm() >= o_.nudge_m) done_.push_back(std::move(m));
+  st.moving = false;
+  st.anchor = rest;
+  st.anchor_n = 1;
+}
+
+void MotionSegmenter::finish() {
+  if (history_.empty()) return;
+  for (size_t e = 0; e < state_.size(); ++e)
+    if (state_[e].moving) endMotion(e, history_.back().p[e], history_.size() - 1);
+  for (auto& st : state_) st.moving = false;
+}
+
+std::vector<Motion> MotionSegmenter::take() {
+  std::vector<Motion> out;
+  out.swap(done_);
+  return out;
+}
+
+bool MotionSegmenter::allResting() const {
+  for (const auto& st : state_)
+    if (st.moving) return false;
+  return true;
+}
+
+}  // namespace ddace::label

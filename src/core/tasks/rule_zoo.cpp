@@ -1,0 +1,464 @@
+#include "ddace/tasks/rule_zoo.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <set>
+
+#include "ddace/common/random.h"
+#include "ddace/tasks/generators.h"
+
+namespace ddace::tasks {
+
+namespace {
+
+using Eigen::Vector2d;
+using task::EntityKind;
+
+constexpr int kMaxAttempts = 200000;
+constexpr double kSpeed = 0.15;           // m/s, the generators' nominal robot speed
+constexpr double kMinStepDuration = 1.0;  // s
+constexpr int kIdleRowsBefore = 4, kIdleRowsBetween = 3, kIdleRowsAfter = 4;
+constexpr int kMaxEntities = 10;
+
+/// A referring expression: which entity of a set of candidates.
+struct Selector {
+  enum Mode { Nearest, Farthest, Axis } mode = Nearest;
+  int rank = 0;          ///< 0: the first, 1: the second
+  int axis = 0;          ///< Axis: 0 = x (left to right), 1 = y (front to back)
+  bool reverse = false;  ///< Axis: right to left / back to front
+
+  /// Sort key: the chosen entity has the rank-th smallest.
+  double key(const Vector2d& p, const Vector2d& ref) const {
+    switch (mode) {
+      case Nearest:
+        return (p - ref).norm();
+      case Farthest:
+        return -(p - ref).norm();
+      case Axis:
+        return reverse ? -p[axis] : p[axis];
+    }
+    return 0;
+  }
+  bool relative() const { return mode != Axis; }
+
+  std::string adjective() const {
+    static const char* ends[2][2] = {{"leftmost", "rightmost"}, {"frontmost", "backmost"}};
+    static const char* from[2][2] = {{"from the left", "from the right"}, {"from the front", "from the back"}};
+    const std::string nth = rank == 0 ? "" : "2nd ";
+    switch (mode) {
+      case Nearest:
+        return nth + "nearest";
+      case Farthest:
+        return nth + "farthest";
+      case Axis:
+        return rank == 0 ? ends[axis][reverse] : std::string("2nd ") + from[axis][reverse];
+    }
+    return "";
+  }
+  /// "the robot nearest to B1", "the leftmost goal", "the 2nd from the left goal".
+  std::string phrase(const std::string& kind, const std::string& ref) const {
+    if (relative()) return "the " + kind + " " + adjective() + (mode == Nearest ? " to " : " from ") + ref;
+    if (rank == 0) return "the " + adjective() + " " + kind;
+    return "the " + kind + " " + adjective();
+  }
+  /// For matchings: "nearest", "farthest", "left-to-right".
+  std::string order() const {
+    static const char* names[2][2] = {{"left-to-right", "right-to-left"}, {"front-to-back", "back-to-front"}};
+    return relative() ? adjective() : names[axis][reverse];
+  }
+};
+
+/// The rule: a template and the referring expressions in its slots.
+struct Rule {
+  ZooRule info;
+  Selector a, b, c;
+  bool extra = false;  ///< fetch: the others go to the carrier; relay: the giver follows
+};
+
+/// One token: entity, action, target (entity indices).
+struct Move {
+  int entity;
+  std::string action;
+  int target;
+};
+using Steps = std::vector<std::vector<Move>>;
+
+/// A selector over `candidates` for a draw: ranks beyond the first only with three or more.
+Selector drawSelector(SplitMix64& rng, int candidates, bool relative_allowed = true, bool rank_allowed = true) {
+  Selector s;
+  const int mode = static_cast<int>(rng.index(relative_allowed ? 3 : 1));
+  s.mode = relative_allowed ? static_cast<Selector::Mode>(mode) : Selector::Axis;
+  if (s.mode == Selector::Axis) {
+    s.axis = static_cast<int>(rng.index(2));
+    s.reverse = rng.index(2) == 1;
+  }
+  if (rank_allowed && candidates >= 3 && rng.index(4) == 0) s.rank = 1;
+  return s;
+}
+
+/// A selector for matchings (several at once): nearest / farthest greedy, or an axis order.
+Selector drawMatching(SplitMix64& rng) {
+  Selector s = drawSelector(rng, 0, true, false);
+  return s;
+}
+
+int drawCount(SplitMix64& rng, int lo, int hi) {
+  return lo + static_cast<int>(rng.index(static_cast<size_t>(hi - lo + 1)));
+}
+
+std::string counts(const ZooRule& r) {
+  std::string s = "(" + std::to_string(r.robots) + " robots";
+  if (r.objects) s += ", " + std::to_string(r.objects) + (r.objects == 1 ? " box" : " boxes");
+  s += ", " + std::to_string(r.goals) + (r.goals == 1 ? " goal)" : " goals)");
+  return s;
+}
+
+Rule drawRule(uint64_t id) {
+  SplitMix64 rng(id * 0x9E3779B97F4A7C15ULL + 0x2545F4914F6CDD1DULL);
+  static const char* kinds[] = {"assign", "sequence", "queue", "fetch", "relay", "boxes", "gather"};
+  Rule r;
+  r.info.id = id;
+  r.info.kind = kinds[rng.index(7)];
+  ZooRule& z = r.info;
+  std::string words;
+  if (z.kind == "assign") {
+    z.robots = drawCount(rng, 2, 5);
+    z.goals = std::min(kMaxEntities - z.robots, z.robots + drawCount(rng, 0, 2));
+    r.a = drawMatching(rng);
+    words = r.a.relative() ? "each robot to its " + r.a.adjective() + " free goal, all at once"
+                           : "robots take goals in " + r.a.order() + " order, all at once";
+  } else if (z.kind == "sequence") {
+    z.robots = drawCount(rng, 2, 4);
+    z.goals = std::min(6, z.robots + drawCount(rng, 0, 2));
+    r.a = drawSelector(rng, 0, false, false);
+    r.b = drawSelector(rng, 0, true, false);
+    if (!r.b.relative()) r.b.mode = Selector::Nearest;
+    words = "one robot per step, " + r.a.order() + ", each to its " + r.b.adjective() + " free goal";
+  } else if (z.kind == "queue") {
+    z.robots = drawCount(rng, 2, 4);
+    z.goals = z.robots;
+    r.a = drawMatching(rng);
+    words = "robots take the slots Q1..Q" + std::to_string(z.goals) + " one per step, " +
+            (r.a.relative() ? "the " + r.a.adjective() + (r.a.mode == Selector::Nearest ? " to" : " from") + " Q1 first"
+                            : "in " + r.a.order() + " order");
+  } else if (z.kind == "fetch") {
+    z.robots = drawCount(rng, 2, 5);
+    z.objects = 1;
+    z.goals = drawCount(rng, 1, 4);
+    r.a = drawSelector(rng, z.robots);
+    r.b = drawSelector(rng, z.goals);
+    r.extra = rng.index(2) == 1;
+    words = r.a.phrase("robot", "B1") + " fetches B1 and carries it to " +
+            (z.goals == 1 ? std::string("G1") : r.b.phrase("goal", "B1")) +
+            (r.extra ? ", then the others go to the carrier" : "");
+  } else if (z.kind == "relay") {
+    z.robots = drawCount(rng, 3, 5);
+    z.objects = 1;
+    z.goals = drawCount(rng, 1, 3);
+    r.a = drawSelector(rng, z.robots);
+    r.b = drawSelector(rng, z.robots - 1);
+    if (!r.b.relative()) r.b.mode = Selector::Nearest;  // the teammate is chosen relative to the giver
+    r.c = drawSelector(rng, z.goals);
+    r.extra = rng.index(2) == 1;
+    words = r.a.phrase("robot", "B1") + " fetches B1 and hands it to " + r.b.phrase("teammate", "it") +
+            ", who carries it to " + (z.goals == 1 ? std::string("G1") : r.c.phrase("goal", "the receiver")) +
+            (r.extra ? ", then the giver follows the receiver" : "");
+  } else if (z.kind == "boxes") {
+    z.objects = drawCount(rng, 2, 3);
+    z.robots = std::min(5, z.objects + drawCount(rng, 0, 1));
+    z.goals = std::min(kMaxEntities - z.robots - z.objects, z.objects + drawCount(rng, 0, 1));
+    r.a = drawMatching(rng);
+    r.b = drawMatching(rng);
+    words = std::string("each box fetched by ") +
+            (r.a.relative() ? "its " + r.a.adjective() + " free robot" : "the robots in " + r.a.order() + " order") +
+            ", then carried to " +
+            (r.b.relative() ? "its " + r.b.adjective() + " free goal" : "the goals in " + r.b.order() + " order");
+  } else {  // gather
+    z.robots = drawCount(rng, 3, 6);
+    z.goals = drawCount(rng, 1, 3);
+    r.a = drawSelector(rng, z.robots);
+    r.b = drawSelector(rng, z.goals);
+    words = "the others meet at " + r.a.phrase("robot", "G1") + ", which then goes to " +
+            (z.goals == 1 ? std::string("G1") : r.b.phrase("goal", "itself"));
+  }
+  z.name = z.kind + ": " + words + " " + counts(z);
+  return r;
+}
+
+/// The task's entities: R1.., B1.., then G1.. (Q1.. for a queue's slots).
+task::TaskSpec zooSpec(const ZooRule& z) {
+  task::TaskSpec spec;
+  spec.name = "zoo " + std::to_string(z.id) + " " + z.name;
+  spec.actions = {"move"};
+  if (z.objects) spec.actions.push_back("carry");
+  spec.actions_declared = true;
+  for (int i = 0; i < z.robots; ++i)
+    spec.entities.push_back({"R" + std::to_string(i + 1), EntityKind::Robot, "hamster"});
+  for (int i = 0; i < z.objects; ++i) spec.entities.push_back({"B" + std::to_string(i + 1), EntityKind::Object, "box"});
+  const bool slots = z.kind == "queue";
+  for (int i = 0; i < z.goals; ++i)
+    spec.entities.push_back({(slots ? "Q" : "G") + std::to_string(i + 1), EntityKind::Goal, slots ? "slot" : ""});
+  return spec;
+}
+
+/// Decides the steps of a rule on one start configuration, moving the entities as it goes
+/// (a motion ends at its target's position at the start of the step).
+class Decider {
+ public:
+  Decider(const Rule& rule, std::vector<Vector2d> start) : rule_(rule), pos_(std::move(start)) {
+    const ZooRule& z = rule.info;
+    for (int i = 0; i < z.robots; ++i) robots_.push_back(i);
+    for (int i = 0; i < z.objects; ++i) boxes_.push_back(z.robots + i);
+    for (int i = 0; i < z.goals; ++i) goals_.push_back(z.robots + z.objects + i);
+  }
+
+  /// The steps, or false when a decision is a near tie.
+  bool decide(Steps& steps) {
+    const ZooRule& z = rule_.info;
+    try {
+      if (z.kind == "assign") {
+        step({});
+        for (auto [r, g] : match(robots_, goals_, rule_.a)) add(r, "move", g);
+      } else if (z.kind == "sequence") {
+        std::vector<int> free = goals_;
+        for (int r : ordered(robots_, rule_.a, {0, 0})) {
+          step({});
+          const int g = pick(free, rule_.b, pos_[r]);
+          free.erase(std::find(free.begin(), free.end(), g));
+          add(r, "move", g);
+          finish();
+        }
+      } else if (z.kind == "queue") {
+        const std::vector<int> order = ordered(robots_, rule_.a, pos_[goals_[0]]);
+        for (size_t k = 0; k < order.size(); ++k) {
+          step({});
+          add(order[k], "move", goals_[k]);
+          finish();
+        }
+      } else if (z.kind == "fetch") {
+        const int box = boxes_[0];
+        const int a = pick(robots_, rule_.a, pos_[box]);
+        step({}), add(a, "move", box), finish();
+        const int g = goals_.size() == 1 ? goals_[0] : pick(goals_, rule_.b, pos_[box]);
+        step({}), add(a, "carry", g), add(box, "carry", g), finish();
+        if (rule_.extra) {
+          step({});
+          for (int r : robots_)
+            if (r != a) add(r, "move", a);
+        }
+      } else if (z.kind == "relay") {
+        const int box = boxes_[0];
+        const int a = pick(robots_, rule_.a, pos_[box]);
+        step({}), add(a, "move", box), finish();
+        std::vector<int> mates = robots_;
+        mates.erase(std::find(mates.begin(), mates.end(), a));
+        const int b = pick(mates, rule_.b, pos_[a]);
+        step({}), add(a, "carry", b), add(box, "carry", b), finish();
+        const int g = goals_.size() == 1 ? goals_[0] : pick(goals_, rule_.c, pos_[b]);
+        step({}), add(b, "carry", g), add(box, "carry", g), finish();
+        if (rule_.extra) step({}), add(a, "move", b);
+      } else if (z.kind == "boxes") {
+        step({});
+        std::vector<std::pair<int, int>> carriers;  // (box, robot)
+        for (auto [box, r] : match(boxes_, robots_, rule_.a)) carriers.push_back({box, r}), add(r, "move", box);
+        finish();
+        step({});
+        for (auto [box, g] : match(boxes_, goals_, rule_.b)) {
+          const int r = std::find_if(carriers.begin(), carriers.end(), [&](auto& c) { return c.first == box; })->second;
+          add(r, "carry", g), add(box, "carry", g);
+        }
+      } else {  // gather
+        const int a = pick(robots_, rule_.a, pos_[goals_[0]]);
+        step({});
+        for (int r : robots_)
+          if (r != a) add(r, "move", a);
+        finish();
+        const int g = goals_.size() == 1 ? goals_[0] : pick(goals_, rule_.b, pos_[a]);
+        step({}), add(a, "move", g);
+      }
+      finish();
+    } catch (const Tie&) {
+      return false;
+    }
+    steps = steps_;
+    return true;
+  }
+
+ private:
+  struct Tie {};
+
+  void step(std::vector<Move> moves) { steps_.push_back(std::move(moves)); }
+  void add(int entity, const std::string& action, int target) { steps_.back().push_back({entity, action, target}); }
+  /// Applies the last step's motions: each entity ends where its target was.
+  void finish() {
+    if (steps_.empty() || applied_ == steps_.size()) return;
+    std::vector<Vector2d> next = pos_;
+    for (const auto& m : steps_.back()) next[m.entity] = pos_[m.target];
+    pos_ = next;
+    applied_ = steps_.size();
+  }
+
+  /// `candidates` sorted by the selector's key; a tie (keys closer than the margin between
+  /// the chosen rank and its neighbours) throws Tie.
+  std::vector<int> ordered(std::vector<int> candidates, const Selector& s, const Vector2d& ref, bool all_ranks = true) {
+    auto key = [&](int e) { return s.key(pos_[e], ref); };
+    std::sort(candidates.begin(), candidates.end(), [&](int x, int y) { return key(x) < key(y); });
+    for (size_t k = 0; k + 1 < candidates.size(); ++k)
+      if ((all_ranks || k == static_cast<size_t>(s.rank) || k + 1 == static_cast<size_t>(s.rank)) &&
+          key(candidates[k + 1]) - key(candidates[k]) < kSceneDecisionMargin)
+        throw Tie{};
+    return candidates;
+  }
+  int pick(const std::vector<int>& candidates, const Selector& s, const Vector2d& ref) {
+    if (static_cast<int>(candidates.size()) <= s.rank) throw Tie{};
+    return ordered(candidates, s, ref, false)[s.rank];
+  }
+  /// Each of `left` to one of `right` (|left| <= |right|): greedy by the selector's key
+  /// over all free pairs (each match beats every competing pair by the margin), or the
+  /// k-th of `left` to the k-th of `right` in the selector's axis order.
+  std::vector<std::pair<int, int>> match(const std::vector<int>& left, const std::vector<int>& right,
+                                         const Selector& s) {
+    std::vector<std::pair<int, int>> out;
+    if (!s.relative()) {
+      const std::vector<int> l = ordered(left, s, {0, 0}), r = ordered(right, s, {0, 0});
+      for (size_t k = 0; k < l.size(); ++k) out.push_back({l[k], r[k]});
+      return out;
+    }
+    std::set<int> used_l, used_r;
+    auto key = [&](int x, int y) { return s.key(pos_[x], pos_[y]); };
+    for (size_t round = 0; round < left.size(); ++round) {
+      int bl = -1, br = -1;
+      for (int x : left)
+        for (int y : right)
+          if (!used_l.count(x) && !used_r.count(y) && (bl < 0 || key(x, y) < key(bl, br))) bl = x, br = y;
+      for (int x : left)
+        for (int y : right)
+          if (!used_l.count(x) && !used_r.count(y) && (x == bl) != (y == br) &&
+              key(x, y) < key(bl, br) + kSceneDecisionMargin)
+            throw Tie{};
+      used_l.insert(bl), used_r.insert(br);
+      out.push_back({bl, br});
+    }
+    return out;
+  }
+
+  const Rule& rule_;
+  std::vector<Vector2d> pos_;
+  std::vector<int> robots_, boxes_, goals_;
+  Steps steps_;
+  size_t applied_ = 0;
+};
+
+/// `v` rounded to six decimals as printf rounds it (the digits a file holds), read back.
+double micrometres(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6f", v);
+  return std::strtod(buf, nullptr);
+}
+
+double smoothstep(double s) {
+  return s * s * (3 - 2 * s);
+}
+
+/// One demonstration: straight motions, the tokens of a step starting and ending together.
+task::Demonstration simulate(const task::TaskSpec& spec, std::vector<Vector2d> pos, const Steps& steps) {
+  const size_t m = pos.size();
+  task::Demonstration d;
+  d.has_label_columns.assign(m, false);
+  for (const auto& step : steps)
+    for (const auto& mv : step) d.has_label_columns[mv.entity] = true;
+  auto emit = [&](const std::vector<task::Label>& labels) {
+    d.t.push_back(static_cast<double>(d.t.size()) / kGeneratorRateHz);
+    std::vector<Vector2d> row(m);
+    for (size_t e = 0; e < m; ++e) row[e] = {micrometres(pos[e].x()), micrometres(pos[e].y())};
+    d.positions.push_back(row);
+    d.labels.push_back(labels);
+  };
+  const std::vector<task::Label> idle(m);
+  for (int i = 0; i < kIdleRowsBefore; ++i) emit(idle);
+  for (size_t s = 0; s < steps.size(); ++s) {
+    std::vector<task::Label> labels(m);
+    std::vector<Vector2d> from = pos, to = pos;
+    double longest = 0;
+    for (const auto& mv : steps[s]) {
+      labels[mv.entity].action = mv.action;
+      labels[mv.entity].target = mv.target;
+      to[mv.entity] = pos[mv.target];
+      longest = std::max(longest, (to[mv.entity] - from[mv.entity]).norm());
+    }
+    const double duration = std::max(kMinStepDuration, longest / kSpeed);
+    const int n = static_cast<int>(std::ceil(duration * kGeneratorRateHz));
+    for (int j = 0; j <= n; ++j) {
+      const double u = smoothstep(static_cast<double>(j) / n);
+      for (const auto& mv : steps[s]) pos[mv.entity] = from[mv.entity] + u * (to[mv.entity] - from[mv.entity]);
+      emit(labels);
+    }
+    const int gap = s + 1 < steps.size() ? kIdleRowsBetween : kIdleRowsAfter;
+    for (int i = 0; i < gap; ++i) emit(idle);
+  }
+  d.step_window_s = spec.step_window_s;
+  d.analyze();
+  return d;
+}
+
+}  // namespace
+
+ZooRule zooRule(uint64_t id) {
+  return drawRule(id).info;
+}
+
+std::vector<uint64_t> distinctZooRules(int count) {
+  std::vector<uint64_t> ids;
+  std::set<std::string> seen;
+  for (uint64_t id = 0; static_cast<int>(ids.size()) < count; ++id)
+    if (seen.insert(zooRule(id).name).second) ids.push_back(id);
+  return ids;
+}
+
+bool parseZooFamily(const std::string& family, uint64_t& id) {
+  const std::string prefix = "zoo:";
+  if (family.rfind(prefix, 0) != 0) return false;
+  const std::string digits = family.substr(prefix.size());
+  if (digits.empty() || digits.size() > 18 || !std::all_of(digits.begin(), digits.end(), ::isdigit))
+    throw Error("family '" + family + "': a zoo rule is zoo:<id>, the id a non-negative integer (e.g. zoo:17)");
+  id = std::stoull(digits);
+  return true;
+}
+
+task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed) {
+  if (demos < 0) throw Error("the number of demonstrations must not be negative");
+  const Rule rule = drawRule(rule_id);
+  const ZooRule& z = rule.info;
+  if (z.robots + z.objects + z.goals > kMaxEntities)
+    throw Error("zoo rule " + std::to_string(rule_id) + " has more than " + std::to_string(kMaxEntities) + " entities");
+  task::TaskDir dir;
+  dir.spec = zooSpec(z);
+  SplitMix64 rng(seed * 0x9E3779B97F4A7C15ULL + 0x7A00C0DE5EEDULL + rule_id * 0xD1B54A32D192ED03ULL);
+  const size_t m = dir.spec.entities.size();
+  for (int i = 0; i < demos; ++i) {
+    bool found = false;
+    for (int attempt = 0; attempt < kMaxAttempts && !found; ++attempt) {
+      std::vector<Vector2d> start(m);
+      for (auto& p : start)
+        p = {rng.uniform(kSceneBorder, kTableSize - kSceneBorder),
+             rng.uniform(kSceneBorder, kTableSize - kSceneBorder)};
+      bool apart = true;
+      for (size_t x = 0; x < m && apart; ++x)
+        for (size_t y = x + 1; y < m && apart; ++y) apart = (start[x] - start[y]).norm() >= kSceneMinSeparation;
+      if (!apart) continue;
+      Steps steps;
+      if (!Decider(rule, start).decide(steps)) continue;
+      dir.demos.push_back(simulate(dir.spec, start, steps));
+      found = true;
+    }
+    if (!found)
+      throw Error("zoo rule " + std::to_string(rule_id) + " '" + z.name + "': no unambiguous start configuration in " +
+                  std::to_string(kMaxAttempts) + " draws");
+  }
+  return dir;
+}
+
+}  // namespace ddace::tasks

@@ -1,0 +1,121 @@
+// `ddace label` end to end: IN is never touched, OUT holds labelled copies that read back
+// with the demonstrated steps, --strict writes nothing when anything is uncertain.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+
+#include "../common/run_tool.h"
+#include "ddace/label/human_motion.h"
+#include "ddace/task/task_dir.h"
+#include "ddace/tasks/generators.h"
+
+namespace fs = std::filesystem;
+using namespace ddace;
+using ddace::test::runTool;
+using ddace::test::ToolRun;
+
+namespace {
+
+std::string root(const std::string& name) {
+  const std::string r = ::testing::TempDir() + "/ddace_cli_label_" + std::to_string(::getpid()) + "/" + name;
+  fs::remove_all(r);
+  fs::create_directories(r);
+  return r;
+}
+
+std::map<std::string, std::string> contents(const std::string& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& f : fs::recursive_directory_iterator(dir))
+    if (f.is_regular_file()) {
+      std::ifstream in(f.path(), std::ios::binary);
+      files[f.path().string()] = std::string(std::istreambuf_iterator<char>(in), {});
+    }
+  return files;
+}
+
+/// A task directory of fetch demonstrations moved by a person, without labels, at IN; the
+/// truth is returned, and the first demonstration, labelled, is written to `example`.
+task::TaskDir unlabelledTask(const std::string& in, const std::string& example, const std::string& family) {
+  tasks::GeneratorOptions o;
+  o.family = family;
+  o.demos = 4;
+  task::TaskDir truth = tasks::generate(o);
+  SplitMix64 rng(5);
+  for (auto& d : truth.demos) d = label::humanMotion(d, truth.spec, {}, rng);
+  task::writeDemonstrationCsv(truth.demos[0], truth.spec, example);
+  task::TaskDir bare = truth;
+  bare.demos.erase(bare.demos.begin());
+  for (auto& d : bare.demos) {
+    d.has_label_columns.assign(d.entities(), false);
+    d.analyze();
+  }
+  task::writeTaskDir(bare, in);
+  truth.demos.erase(truth.demos.begin());
+  return truth;
+}
+
+}  // namespace
+
+TEST(CliLabel, LabelsACopyWithTheDemonstratedStepsAndLeavesInUntouched) {
+  const std::string r = root("copy"), in = r + "/in", out = r + "/out", ex = r + "/example.csv";
+  const task::TaskDir truth = unlabelledTask(in, ex, "fetch");
+  const auto before = contents(in);
+  const ToolRun run = runTool("label '" + in + "' --out '" + out + "' --example '" + ex + "' --strict");
+  ASSERT_EQ(run.status, 0) << run.out;
+  EXPECT_EQ(contents(in), before);
+  const task::TaskDir labelled = task::loadTaskDir(out);
+  ASSERT_EQ(labelled.demos.size(), truth.demos.size());
+  for (size_t i = 0; i < truth.demos.size(); ++i)
+    EXPECT_TRUE(task::sameSteps(labelled.demos[i].steps, truth.demos[i].steps)) << i << "\n" << run.out;
+  std::ifstream a(in + "/task.yaml"), b(out + "/task.yaml");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(a), {}), std::string(std::istreambuf_iterator<char>(b), {}));
+  // Without the example every motion has the task's first action: 'move', never 'carry'.
+  const std::string out2 = r + "/out2";
+  ASSERT_EQ(runTool("label '" + in + "' --out '" + out2 + "'").status, 0);
+  for (const auto& d : task::loadTaskDir(out2).demos)
+    for (const auto& s : d.segments) EXPECT_EQ(s.token.action, "move");
+}
+
+TEST(CliLabel, StrictWritesNothingWhenSomethingIsUncertain) {
+  // task2 without an example: a robot that drives onto a spot two robots share is a tie.
+  const std::string r = root("strict"), in = r + "/in", out = r + "/out", ex = r + "/example.csv";
+  unlabelledTask(in, ex, "task2");
+  const ToolRun strict = runTool("label '" + in + "' --out '" + out + "' --strict");
+  EXPECT_EQ(strict.status, 1) << strict.out;
+  EXPECT_NE(strict.out.find("ended between"), std::string::npos) << strict.out;
+  EXPECT_NE(strict.out.find(".csv:"), std::string::npos) << strict.out;
+  EXPECT_FALSE(fs::exists(out));
+  const ToolRun loose = runTool("label '" + in + "' --out '" + out + "'");
+  EXPECT_EQ(loose.status, 0) << loose.out;
+  EXPECT_TRUE(fs::exists(out + "/task.yaml"));
+}
+
+TEST(CliLabel, RefusesToWriteIntoItsInputOrOverAnotherOnesFiles) {
+  const std::string r = root("refuse"), in = r + "/in", ex = r + "/example.csv";
+  unlabelledTask(in, ex, "task4");
+  const auto before = contents(in);
+  for (const std::string& out : {in, in + "/labelled"}) {
+    const ToolRun run = runTool("label '" + in + "' --out '" + out + "'");
+    EXPECT_NE(run.status, 0) << run.out;
+    EXPECT_NE(run.out.find("never writes into its input"), std::string::npos) << run.out;
+  }
+  EXPECT_EQ(contents(in), before);
+  const std::string mine = r + "/mine";
+  fs::create_directories(mine);
+  std::ofstream(mine + "/notes.txt") << "mine";
+  const ToolRun run = runTool("label '" + in + "' --out '" + mine + "' --force");
+  EXPECT_NE(run.status, 0) << run.out;
+  EXPECT_TRUE(fs::exists(mine + "/notes.txt"));
+  // A labelled task directory is not relabelled.
+  const std::string labelled = r + "/labelled";
+  tasks::GeneratorOptions o;
+  o.demos = 2;
+  task::writeTaskDir(tasks::generate(o), labelled);
+  const ToolRun again = runTool("label '" + labelled + "' --out '" + r + "/again'");
+  EXPECT_NE(again.status, 0);
+  EXPECT_NE(again.out.find("already labelled"), std::string::npos) << again.out;
+}

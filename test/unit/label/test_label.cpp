@@ -1,0 +1,222 @@
+// Labels inferred from motion: the edge cases people make, and every generated family.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "ddace/label/human_motion.h"
+#include "ddace/label/label.h"
+#include "ddace/tasks/generators.h"
+
+using namespace ddace;
+using Eigen::Vector2d;
+
+namespace {
+
+/// A small scene: R1, R2, box B1, goals G1, G2; a script of straight motions at 30 Hz.
+struct Scene {
+  task::TaskSpec spec;
+  task::Demonstration d;
+  std::vector<Vector2d> pos;
+
+  Scene() {
+    spec.name = "scene";
+    spec.entities = {{"R1", task::EntityKind::Robot, "hamster"},
+                     {"R2", task::EntityKind::Robot, "hamster"},
+                     {"B1", task::EntityKind::Object, "box"},
+                     {"G1", task::EntityKind::Goal, ""},
+                     {"G2", task::EntityKind::Goal, ""}};
+    spec.actions = {"move", "carry"};
+    spec.actions_declared = true;
+    pos = {{0.1, 0.1}, {0.1, 0.8}, {0.5, 0.5}, {0.9, 0.9}, {0.9, 0.1}};
+    d.has_label_columns.assign(5, false);
+  }
+  void emit() {
+    d.t.push_back(static_cast<double>(d.t.size()) / 30);
+    d.positions.push_back(pos);
+    d.labels.emplace_back(5);
+  }
+  void rest(double s) {
+    for (int i = 0; i < std::round(s * 30); ++i) emit();
+  }
+  /// Moves the listed entities (each from where it is to `to`, starting `delay` seconds in,
+  /// taking `seconds`), all in parallel.
+  struct Move {
+    int entity;
+    Vector2d to;
+    double delay = 0, seconds = 2;
+  };
+  void move(const std::vector<Move>& moves) {
+    std::vector<Vector2d> from;
+    double end = 0;
+    for (const auto& m : moves) from.push_back(pos[m.entity]), end = std::max(end, m.delay + m.seconds);
+    for (int i = 0; i <= std::round(end * 30); ++i) {
+      const double tau = i / 30.0;
+      for (size_t k = 0; k < moves.size(); ++k) {
+        const double u = std::clamp((tau - moves[k].delay) / moves[k].seconds, 0.0, 1.0);
+        pos[moves[k].entity] = from[k] + (moves[k].to - from[k]) * (u * u * (3 - 2 * u));
+      }
+      emit();
+    }
+  }
+  label::Inference infer(const label::Example* ex = nullptr) { return label::inferLabels(d, spec, ex); }
+};
+
+std::vector<std::vector<std::string>> tokens(const label::Inference& inf, const task::TaskSpec& spec) {
+  std::vector<std::vector<std::string>> out;
+  for (const auto& s : inf.steps) {
+    out.emplace_back();
+    for (const auto& t : s.tokens) out.back().push_back(task::tokenKey(t.token, spec));
+  }
+  return out;
+}
+
+using Steps = std::vector<std::vector<std::string>>;
+
+}  // namespace
+
+TEST(Label, PauseMidMotionIsOneToken) {
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.5, 0.3}, 0, 1.5}});  // stops halfway, away from everything...
+  s.rest(0.8);
+  s.move({{0, s.spec.entities.size() ? Vector2d(0.9, 0.9) : Vector2d(), 0, 1.5}});  // ...and goes on to G1
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1"}}));
+  EXPECT_TRUE(inf.notes.empty());
+}
+
+TEST(Label, NudgedBackIntoPlaceIsNoToken) {
+  Scene s;
+  s.rest(1);
+  s.move({{1, {0.12, 0.8}, 0, 0.3}});  // R2 bumped 2 cm...
+  s.rest(0.5);
+  s.move({{1, {0.1, 0.8}, 0, 0.3}});  // ...and put back
+  s.rest(0.5);
+  s.move({{0, {0.9, 0.1}}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G2"}}));
+}
+
+TEST(Label, RobotsStartedASecondApartAreOneStep) {
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}, 0, 2}, {1, {0.9, 0.1}, 1.0, 2}});
+  s.rest(1);
+  const auto inf = s.infer();
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1", "R2:move:G2"}}));
+  // Both labels begin when the step was decided: the first onset (about 1 s in).
+  EXPECT_EQ(inf.steps[0].tokens[0].first_row, inf.steps[0].tokens[1].first_row);
+  EXPECT_NEAR(s.d.t[inf.steps[0].keyframe_row], 1.0, 0.1);
+  EXPECT_NEAR(s.d.t[inf.steps[0].tokens[1].onset_row], 2.0, 0.15);
+}
+
+TEST(Label, LoadCarriedThenDroppedWithWordsFromAnExample) {
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.5, 0.5}}});  // R1 to the box
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}}, {2, {0.9, 0.9}}});  // carries it to G1
+  s.rest(1);
+  s.move({{0, {0.9, 0.1}}});  // leaves it there, drives to G2
+  s.rest(1);
+  const Steps expected = {{"R1:move:B1"}, {"R1:carry:G1", "B1:carry:G1"}, {"R1:move:G2"}};
+  // Without an example every motion gets the task's first action.
+  EXPECT_EQ(tokens(s.infer(), s.spec), (Steps{{"R1:move:B1"}, {"R1:move:G1", "B1:move:G1"}, {"R1:move:G2"}}));
+
+  // The example: the same scene labelled by hand (a robot with a load carries).
+  task::Demonstration ex = s.d;
+  ex.has_label_columns = {true, false, true, false, false};
+  label::applyLabels(ex, s.infer());
+  for (auto& row : ex.labels)
+    for (int e : {0, 2})
+      if (row[e].target == 3) row[e].action = "carry";
+  ex.analyze();
+  const auto example = label::Example::fromDemonstration(ex, s.spec);
+  const auto inf = s.infer(&example);
+  EXPECT_EQ(tokens(inf, s.spec), expected);
+  EXPECT_EQ(inf.steps[1].tokens[1].carrier, 0);
+  EXPECT_TRUE(inf.notes.empty());
+}
+
+TEST(Label, AnEntityThatNeverMovesHasNoToken) {
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}}});
+  s.rest(1);
+  task::Demonstration d = s.d;
+  label::applyLabels(d, s.infer());
+  EXPECT_TRUE(d.has_label_columns[0]);
+  EXPECT_FALSE(d.has_label_columns[1]);
+  for (const auto& row : d.labels) EXPECT_TRUE(row[1].isNull());
+}
+
+TEST(Label, UncertainItemsAreReportedOnTheirRow) {
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.5, 0.2}}});  // stops halfway and stays
+  s.rest(1);
+  s.move({{2, {0.9, 0.1}}});  // the box moves on its own
+  s.rest(4);
+  const auto inf = s.infer();
+  ASSERT_EQ(inf.notes.size(), 2u);
+  EXPECT_NE(inf.notes[0].message.find("R1 stopped halfway"), std::string::npos) << inf.notes[0].message;
+  EXPECT_NE(inf.notes[1].message.find("object B1 moved alone"), std::string::npos) << inf.notes[1].message;
+  EXPECT_NEAR(s.d.t[inf.notes[1].row], 4.0, 0.5);
+}
+
+TEST(Label, TwoEntitiesOnOneSpotAreATie) {
+  Scene s;
+  s.rest(1);
+  s.move({{1, {0.9, 0.9}}});  // R2 onto G1
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}}});  // R1 to R2, or to G1?
+  s.rest(1);
+  const auto inf = s.infer();
+  ASSERT_EQ(inf.notes.size(), 1u);
+  EXPECT_NE(inf.notes[0].message.find("ended between"), std::string::npos) << inf.notes[0].message;
+}
+
+// Every family `ddace generate` has, clean and moved by a person (human_motion.h): the
+// inferred steps are the generated ones, given one demonstration labelled by hand.
+TEST(Label, EveryFamilyClean) {
+  for (const auto& family : tasks::allFamilies()) {
+    tasks::GeneratorOptions o;
+    o.family = family;
+    o.demos = 4;
+    const task::TaskDir dir = tasks::generate(o);
+    const auto example = label::Example::fromDemonstration(dir.demos[0], dir.spec);
+    for (size_t i = 1; i < dir.demos.size(); ++i) {
+      task::Demonstration d = dir.demos[i];
+      label::applyLabels(d, label::inferLabels(d, dir.spec, &example));
+      EXPECT_TRUE(task::sameSteps(d.steps, dir.demos[i].steps)) << family << " demo " << i;
+    }
+  }
+}
+
+TEST(Label, EveryFamilyHumanMotion) {
+  for (const auto& family : tasks::allFamilies()) {
+    tasks::GeneratorOptions o;
+    o.family = family;
+    o.demos = 9;
+    const task::TaskDir dir = tasks::generate(o);
+    SplitMix64 rng(11);
+    std::vector<task::Demonstration> human;
+    for (const auto& d : dir.demos) human.push_back(label::humanMotion(d, dir.spec, {}, rng));
+    for (const auto& h : human)
+      ASSERT_TRUE(task::sameSteps(h.steps, dir.demos[0].steps) || family == "fetch" || family == "nearest_goal" ||
+                  family == "queue" || family == "deliver");
+    const auto example = label::Example::fromDemonstration(human[0], dir.spec);
+    label::LabelScore score;
+    for (size_t i = 1; i < human.size(); ++i) {
+      task::Demonstration d = human[i];
+      const auto inf = label::inferLabels(d, dir.spec, &example);
+      label::applyLabels(d, inf);
+      score.add(label::scoreLabels(human[i], d, static_cast<int>(inf.notes.size())));
+    }
+    EXPECT_GE(score.accuracy(), 0.98) << family;
+    EXPECT_LT(label::median(score.onset_error_s), 0.2) << family;
+    EXPECT_LT(label::median(score.offset_error_s), 0.2) << family;
+  }
+}
