@@ -2,16 +2,17 @@
 // camera frame. ROS-free; tracker_node wraps it.
 //
 // Search strategy: a full-frame pass every `roi.full_frame_every` frames (and whenever
-// the table frame is not known yet); in between, only regions around every marker
-// seen within filter.hold_s (corner markers included). A region covers the marker's
-// last position and the one its pixel velocity predicts, grown by roi.margin and by
-// filter.max_speed x the time since the marker was seen: every position the pose
-// filter would accept is searched, in the very next frame too when a marker was
-// missed. When the regions would cover most of the image the whole frame is
-// searched instead. Corner markers are searched like the others (set
-// roi.track_corners false to search them on full-frame passes only). With a
-// decimating AprilTag detector, a marker missing near its last position is looked
-// for again there at full resolution.
+// the table frame is not known yet, and in every frame of the first filter.hold
+// seconds while a configured marker has not been seen); in between, each marker seen
+// within filter.hold is looked for where its pixel velocity predicts it (its box +
+// roi.margin + filter.gate_margin), for markers of its size only (aruco: one threshold
+// window matched to its edge). A marker missed there is looked for again at once, in
+// the same frame: in the region of every position the pose filter would accept
+// (filter.max_speed x the time since it was seen) with the detector's full search,
+// then, for AprilTag, with libapriltag at full resolution. When the regions would
+// cover most of the image the whole frame is searched instead. Corner markers are
+// searched like the others (set roi.track_corners false to search them on full-frame
+// passes only).
 //
 // Configuration comes from two commented YAML files: config/markers.yaml (which
 // markers exist: family, corner markers, entity markers) and config/tracker.yaml
@@ -122,6 +123,8 @@ struct FrameResult {
   bool full_frame = false;            ///< this frame was searched whole
   std::vector<cv::Rect> rois;         ///< searched regions: first looks, then the wider second
                                       ///< regions of markers missed in them (empty for a full frame)
+  int first_look_misses = 0;          ///< tracked markers not found where expected (first look),
+                                      ///< searched again at once
   bool second_look = false;           ///< a marker missed where expected was looked for again
                                       ///< with the second-look detector
   std::vector<Detection> detections;  ///< every configured marker found, raw image pixels

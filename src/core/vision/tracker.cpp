@@ -399,6 +399,7 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
   // (what the first could not see: a decimated image), so it never waits for a
   // full-frame pass.
   if (const std::set<int> lost = missing(); !lost.empty() && !result.full_frame) {
+    result.first_look_misses = static_cast<int>(lost.size());
     const std::vector<Region> wide = regions(gray_.size(), stamp, Reach::MaxSpeed, lost);
     if (tooLarge(wide)) {
       search(*detector_, whole, false);
