@@ -91,12 +91,14 @@ struct EndPoint {
 /// positions in `where`, [entity]). Two readings are accepted: the centre within the
 /// arrival radius of the target's (a goal, or a generated demonstration that ends on its
 /// target) or at contact with its body (centres contact distance apart, within the
-/// arrival radius: a robot pushing against a box or another robot). Bodies are discs of
-/// the radii of docs/task-format.md's "Bodies"; goals are flat (only the centre reading).
+/// arrival radius: a robot pushing against a box or another robot). Bodies are the task's
+/// footprints (task::TaskSpec::footprint, docs/task-format.md "Bodies"); a flat print that
+/// is no obstacle (a goal) has only the centre reading.
 EndPoint endPoint(const task::TaskSpec& spec, int mover, const Eigen::Vector2d& end,
                   const std::vector<Eigen::Vector2d>& where, const std::vector<bool>& candidates);
 
-/// The contact distance of two entities' bodies, metres (0 when either is a goal).
+/// The contact distance of two entities' bodies (TaskSpec::contactDistance), metres; 0 when
+/// either is no obstacle (a goal).
 double contactDistance(const task::TaskSpec& spec, int a, int b);
 
 /// Finds motions row by row. Call row() for every row in order, then finish().

@@ -18,27 +18,11 @@ SegmentationOptions SegmentationOptions::forTask(const task::TaskSpec& spec) {
   return o;
 }
 
-namespace {
-
-/// Body radius of an entity, metres (docs/task-format.md, "Bodies": a Hamster's disc,
-/// an object with its marker); 0 for a goal, a flat print driven onto.
-double bodyRadius(const task::Entity& e) {
-  switch (e.kind) {
-    case task::EntityKind::Robot:
-      return 0.022;
-    case task::EntityKind::Object:
-      return 0.02;
-    case task::EntityKind::Goal:
-      return 0;
-  }
-  return 0;
-}
-
-}  // namespace
-
 double contactDistance(const task::TaskSpec& spec, int a, int b) {
-  const double ra = bodyRadius(spec.entities[a]), rb = bodyRadius(spec.entities[b]);
-  return ra > 0 && rb > 0 ? ra + rb : 0;
+  // The task module's bodies (docs/task-format.md, "Bodies"): a flat print (a goal) is
+  // driven onto, never touched.
+  if (!spec.footprint(a).obstacle || !spec.footprint(b).obstacle) return 0;
+  return spec.contactDistance(a, b);
 }
 
 EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& end, const std::vector<Vector2d>& where,

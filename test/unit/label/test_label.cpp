@@ -184,6 +184,21 @@ TEST(Label, UncertainItemsAreReportedOnTheirRow) {
   EXPECT_NEAR(s.d.t[inf.notes[1].row], 4.0, 0.5);
 }
 
+TEST(Label, EndsAtContactWithTheTasksBodies) {
+  // A robot stops against another robot (Hamster discs touch 4.4 cm apart), then against
+  // the box, whose body task.yaml states 5 cm in radius: 7.2 cm centre to centre.
+  Scene s;
+  s.spec.entities[2].radius_m = 0.05;
+  s.rest(1);
+  s.move({{0, {0.1, 0.8 - 0.044}}});
+  s.rest(1);
+  s.move({{0, {0.5 - 0.072, 0.5}}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2"}, {"R1:move:B1"}}));
+  EXPECT_TRUE(inf.notes.empty());
+}
+
 TEST(Label, TwoEntitiesOnOneSpotAreATie) {
   Scene s;
   s.rest(1);
