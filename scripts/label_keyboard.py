@@ -20,18 +20,31 @@ Run it in a terminal next to the recorder:
 Labels go to /ddace/labels (ddace/Label). Demonstrations are step-synchronous
 (docs/task-format.md): give the labels of one step together, and the next
 step's only after every motion of the previous one has ended.
+
+Without any label the recorder infers them from the motion when the
+demonstration is stopped (docs/labels.md); the tool then steps through the
+inferred tokens for review (the ones to check first):
+
+    n / p     next / previous token
+    a / A     next / previous action for this token
+    t / T     next / previous target for this token
+    x         drop this token (the entity did nothing)
+    w         write the corrections into the demonstration
+    q         leave the review (unwritten corrections are dropped)
+
+The review also runs without ROS on a saved demonstration:
+    label_keyboard.py --review TASKDIR/demos/demo_000.csv
 """
+import csv
+import io
+import os
+import re
 import select
 import sys
 import termios
 import tty
 
-import rospy
 import yaml
-from std_msgs.msg import String
-from std_srvs.srv import Trigger
-
-from ddace.msg import Label
 
 
 class Labeller:
@@ -85,6 +98,134 @@ class Labeller:
         return []
 
 
+class Reviewer:
+    """Steps through the tokens of a labelled demonstration CSV (ddace-task/1) to accept
+    or correct them; ROS- and terminal-free. A token is a run of rows in which an entity's
+    (action, target) stays the same and is not idle; corrections change exactly its rows."""
+
+    def __init__(self, text, entities, actions, notes=()):
+        self.rows = list(csv.reader(io.StringIO(text)))
+        if not self.rows:
+            raise ValueError("empty demonstration")
+        self.header = self.rows[0]
+        self.entities = entities
+        self.actions = list(actions) or ["move"]
+        self.columns = {}  # entity -> (action column, target column)
+        for e in entities:
+            if e + ".action" in self.header and e + ".target" in self.header:
+                self.columns[e] = (self.header.index(e + ".action"), self.header.index(e + ".target"))
+        self.tokens = []  # dicts: entity, action, target, first, last (data row indices)
+        for e, (ca, ct) in self.columns.items():
+            run = None
+            for i, row in enumerate(self.rows[1:]):
+                label = (row[ca], row[ct]) if row[ca] not in ("", "idle") else None
+                if run and label == (run["action"], run["target"]):
+                    run["last"] = i
+                    continue
+                run = None
+                if label:
+                    run = {"entity": e, "action": label[0], "target": label[1], "first": i, "last": i}
+                    self.tokens.append(run)
+        self.tokens.sort(key=lambda t: (t["first"], entities.index(t["entity"])))
+        # Notes name file lines (the header is line 1): a token whose rows hold one is to check.
+        self.notes = {}
+        for line, message in notes:
+            for t in self.tokens:
+                if t["first"] <= line - 2 <= t["last"] + 1:
+                    self.notes.setdefault(id(t), []).append(message)
+                    break
+        checked = [t for t in self.tokens if id(t) in self.notes]
+        self.current = self.tokens.index(checked[0]) if checked else 0
+        self.changed = False
+
+    def token(self):
+        return self.tokens[self.current] if self.tokens else None
+
+    def status(self):
+        t = self.token()
+        if t is None:
+            return "no tokens"
+        t_first = self.rows[1 + t["first"]][self.header.index("t")]
+        text = "token %d/%d: %s:%s%s from t = %s s" % (self.current + 1, len(self.tokens), t["entity"], t["action"],
+                                                       ":" + t["target"] if t["target"] else "", t_first)
+        return text + ("  CHECK: " + "; ".join(self.notes[id(t)]) if id(t) in self.notes else "")
+
+    def handle(self, key):
+        """Returns 'write', 'quit' or None."""
+        t = self.token()
+        if key == "q":
+            return "quit"
+        if key == "w":
+            return "write"
+        if t is None:
+            return None
+        if key in "np":
+            self.current = (self.current + (1 if key == "n" else -1)) % len(self.tokens)
+        elif key in "aA":
+            i = self.actions.index(t["action"]) if t["action"] in self.actions else -1
+            self._set(t, action=self.actions[(i + (1 if key == "a" else -1)) % len(self.actions)])
+        elif key in "tT":
+            options = [""] + [e for e in self.entities if e != t["entity"]]
+            i = options.index(t["target"]) if t["target"] in options else 0
+            self._set(t, target=options[(i + (1 if key == "t" else -1)) % len(options)])
+        elif key == "x":
+            self._set(t, action="", target="")
+            self.tokens.remove(t)
+            self.current = min(self.current, max(len(self.tokens) - 1, 0))
+        return None
+
+    def _set(self, t, action=None, target=None):
+        ca, ct = self.columns[t["entity"]]
+        for row in self.rows[1 + t["first"]:2 + t["last"]]:
+            if action is not None:
+                row[ca] = action
+            if target is not None:
+                row[ct] = target
+        if action is not None:
+            t["action"] = action
+        if target is not None:
+            t["target"] = target
+        self.changed = True
+
+    def text(self):
+        out = io.StringIO()
+        csv.writer(out, lineterminator="\n").writerows(self.rows)
+        return out.getvalue()
+
+
+def write_atomically(path, text):
+    tmp = "%s.review-%d" % (path, os.getpid())
+    with open(tmp, "w") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def notes_of(message):
+    """(line, message) of every 'demos/demo_000.csv:47: ...' line of a recorder message."""
+    return [(int(m.group(1)), m.group(2)) for m in re.finditer(r"\.csv:(\d+): (.*)", message)]
+
+
+def review(reviewer, path, read_key, say):
+    """The review loop: keys from read_key(), lines to say(); writes `path` on 'w'."""
+    say(reviewer.status())
+    while True:
+        key = read_key()
+        if key is None:
+            return
+        what = reviewer.handle(key)
+        if what == "quit":
+            say("review left" + (" (corrections not written)" if reviewer.changed else ""))
+            return
+        if what == "write":
+            write_atomically(path, reviewer.text())
+            reviewer.changed = False
+            say("wrote " + path)
+            continue
+        say(reviewer.status())
+
+
 def load(path, what):
     try:
         with open(path) as f:
@@ -93,7 +234,35 @@ def load(path, what):
         sys.exit("label_keyboard: cannot read %s %s: %s" % (what, path, e))
 
 
+def read_key_blocking():
+    return sys.stdin.read(1)
+
+
+def review_file(path):
+    """--review PATH: the review of a saved demonstration, without ROS."""
+    task = load(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(path))), "task.yaml"), "task file")
+    entities = [e["name"] for e in task.get("entities", [])]
+    with open(path) as f:
+        reviewer = Reviewer(f.read(), entities, task.get("actions") or [])
+    if not sys.stdin.isatty():
+        sys.exit("label_keyboard: needs a terminal for its keys")
+    old = termios.tcgetattr(sys.stdin)
+    tty.setcbreak(sys.stdin.fileno())
+    try:
+        review(reviewer, path, read_key_blocking, lambda line: print("\r\033[K" + line))
+    finally:
+        termios.tcsetattr(sys.stdin, termios.TCSADRAIN, old)
+
+
 def main():
+    if len(sys.argv) >= 3 and sys.argv[1] == "--review":
+        return review_file(sys.argv[2])
+    import rospy
+    from std_msgs.msg import String
+    from std_srvs.srv import Trigger
+
+    from ddace.msg import Label
+
     rospy.init_node("label_keyboard", disable_signals=True)
     markers = load(rospy.get_param("~markers_file"), "markers file")
     recorder_cfg = load(rospy.get_param("~recorder_file"), "recorder file")
@@ -158,6 +327,15 @@ def main():
                         print("\r\033[K%s: %s" % (what[1], res.message))
                     except (rospy.ServiceException, rospy.ROSException) as e:
                         print("\r\033[K%s failed: %s (is recorder_node running as %s?)" % (what[1], e, recorder))
+                        continue
+                    # Labels inferred on stop: step through them to accept or correct them.
+                    saved = re.match(r"saved (\S+):", res.message)
+                    if what[1] == "stop" and res.success and saved and "labels inferred" in res.message:
+                        path = saved.group(1)
+                        with open(path) as f:
+                            reviewer = Reviewer(f.read(), entities, actions, notes_of(res.message))
+                        print("review of %s (n/p token, a/A action, t/T target, x drop, w write, q leave)" % path)
+                        review(reviewer, path, read_key_blocking, lambda line: print("\r\033[K" + line))
                 last = None
     finally:
         termios.tcsetattr(sys.stdin, termios.TCSADRAIN, old)

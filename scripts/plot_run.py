@@ -1,8 +1,10 @@
 #!/usr/bin/python3
-"""Draw one run of the execution graph: per robot, the planned paths (with their +-2 sigma
-band) against the positions the robot actually passed through, with the decision times
-marked along the executed paths. Reads the run.json that execution_monitor_node writes
-into the run directory.
+"""Draw one run of the execution graph as one view of the whole table: every body's
+footprint where it started (dashed) and where it ended (solid), every planned path (thin,
+with its +-2 sigma band) and every executed path, one colour per entity, the goals as flat
+prints, and the run's closest approach between two bodies marked in red (with its
+clearance; collisions are listed in the title). Reads the run.json that
+execution_monitor_node writes into the run directory.
 
 usage: scripts/plot_run.py RUN_DIR/run.json OUT.png
 """
@@ -13,6 +15,7 @@ import sys
 import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.patches import Circle  # noqa: E402
 
 
 def band(points, sd, k=2.0):
@@ -35,39 +38,57 @@ def main():
         sys.exit(__doc__)
     with open(sys.argv[1]) as f:
         run = json.load(f)
-    robots = sorted({s["entity"] for s in run["segments"] if s.get("kind") == "robot"})
-    if not robots:
-        robots = sorted({s["entity"] for s in run["segments"]})
-    cols = max(1, min(4, len(robots)))
-    rows = max(1, math.ceil(len(robots) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 4 * rows), squeeze=False)
-    for ax in axes.flat:
-        ax.set_visible(False)
-    for ax, robot in zip(axes.flat, robots):
-        ax.set_visible(True)
-        for seg in (s for s in run["segments"] if s["entity"] == robot):
-            planned = seg.get("planned") or []
-            executed = seg.get("executed") or []
-            if len(planned) >= 2:
-                poly = band(planned, seg.get("stddev_m") or [])
-                ax.fill(*zip(*poly), color="tab:blue", alpha=0.2, lw=0)
-                ax.plot(*zip(*planned), color="tab:blue", lw=1.2, label="planned (±2σ)")
-            if executed:
-                ax.plot(*zip(*executed), color="tab:orange", lw=1.2, label="executed")
-                # The step's decision: where the robot was when its segment went out.
-                ax.plot(*executed[0], marker="o", color="black", ms=4)
-                ax.annotate("t=%.1fs" % seg["sent_s"], executed[0], fontsize=7, xytext=(3, 3),
-                            textcoords="offset points")
-            ax.plot(*seg["goal"], marker="x", color="tab:green", ms=7)
-        ax.set_title(robot)
-        ax.set_aspect("equal")
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
-        handles, labels = ax.get_legend_handles_labels()
-        uniq = dict(zip(labels, handles))
-        ax.legend(uniq.values(), uniq.keys(), fontsize=7, loc="best")
-    decisions = ", ".join("%.1f" % t for t in run.get("decisions_s", []))
-    fig.suptitle("%s: %s (decisions at %s s)" % (run["task"], run["state"], decisions), fontsize=9)
+    bodies = run.get("bodies") or []
+    names = [b["name"] for b in bodies] or sorted({s["entity"] for s in run["segments"]})
+    cmap = plt.get_cmap("tab20")
+    colour = {n: cmap(i % 20) for i, n in enumerate(names)}
+    fig, ax = plt.subplots(figsize=(9, 9))
+    for seg in run["segments"]:
+        c = colour.get(seg["entity"], "grey")
+        planned = seg.get("planned") or []
+        executed = seg.get("executed") or []
+        if len(planned) >= 2:
+            ax.fill(*zip(*band(planned, seg.get("stddev_m") or [])), color=c, alpha=0.12, lw=0)
+            ax.plot(*zip(*planned), color=c, lw=0.8, ls="--")
+        if executed:
+            ax.plot(*zip(*executed), color=c, lw=1.6)
+            ax.annotate("t=%.1fs" % seg["sent_s"], executed[0], fontsize=6, xytext=(2, -8),
+                        textcoords="offset points", color=c)
+    for b in bodies:
+        c = colour[b["name"]]
+        r = b.get("radius_m", 0.02)
+        flat = not b.get("obstacle", True)
+        for key, style in (("start", "--"), ("end", "-")):
+            if key not in b:
+                continue
+            if flat:
+                ax.add_patch(Circle(b[key], r, color=c, alpha=0.25, lw=0))
+            else:
+                ax.add_patch(Circle(b[key], r, fill=False, ec=c, ls=style, lw=1.2))
+        if "end" in b:
+            ax.annotate(b["name"], b["end"], fontsize=8, ha="center", va="center", color="black")
+    near = run.get("closest")
+    if near:
+        (xa, ya), (xb, yb) = near["at_a"], near["at_b"]
+        ax.plot([xa, xb], [ya, yb], color="red", lw=2.5)
+        for name, at in ((near["a"], near["at_a"]), (near["b"], near["at_b"])):
+            r = next((b.get("radius_m", 0.02) for b in bodies if b["name"] == name), 0.02)
+            ax.add_patch(Circle(at, r, fill=False, ec="red", lw=1.5))
+        ax.annotate("closest: %s-%s %.1f cm at t=%.1fs" % (near["a"], near["b"], 100 * near["clearance_m"],
+                                                           near["time_s"]),
+                    ((xa + xb) / 2, (ya + yb) / 2), fontsize=8, color="red", xytext=(6, 6),
+                    textcoords="offset points")
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.grid(alpha=0.3)
+    hits = run.get("collisions") or []
+    collided = ", ".join("%s-%s at %.1fs" % (c["a"], c["b"], c["time_s"]) for c in hits[:6])
+    fig.suptitle("%s: %s; %d collision%s%s\nfootprints: dashed at the start, solid at the end; paths: dashed "
+                 "planned, solid executed" % (run["task"], run["state"], len(hits), "" if len(hits) == 1 else "s",
+                                              (" (" + collided + (", ..." if len(hits) > 6 else "") + ")")
+                                              if hits else ""), fontsize=9)
     fig.tight_layout()
     fig.savefig(sys.argv[2], dpi=110)
 

@@ -133,6 +133,26 @@ exec::FollowerGains loadFollowerGains(const ros::NodeHandle& nh) {
   return g;
 }
 
+exec::SafetyParams loadSafetyParams(const ros::NodeHandle& nh) {
+  exec::SafetyParams p;
+  p.enabled = param(nh, "enabled", p.enabled);
+  p.margin_m = param(nh, "margin_m", p.margin_m);
+  p.projection_m = param(nh, "projection_m", p.projection_m);
+  p.barrier_gain_hz = param(nh, "barrier_gain_hz", p.barrier_gain_hz);
+  p.range_m = param(nh, "range_m", p.range_m);
+  p.pose_max_age_s = param(nh, "pose_max_age_s", p.pose_max_age_s);
+  p.blocked_fraction = param(nh, "blocked_fraction", p.blocked_fraction);
+  p.resolve_after_s = param(nh, "resolve_after_s", p.resolve_after_s);
+  p.progress_m = param(nh, "progress_m", p.progress_m);
+  p.deadlock_after_s = param(nh, "deadlock_after_s", p.deadlock_after_s);
+  try {
+    p.validate();
+  } catch (const Error& e) {
+    throw Error(std::string(e.what()) + " (parameters under " + nh.getNamespace() + ")");
+  }
+  return p;
+}
+
 exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh) {
   exec::DiffDriveParams p;
   p.rate_hz = param(nh, "rate_hz", p.rate_hz);

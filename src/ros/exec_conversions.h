@@ -19,6 +19,7 @@
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/diff_drive.h"
 #include "ddace/exec/path_follower.h"
+#include "ddace/exec/safety_filter.h"
 #include "ddace/task/task_dir.h"
 
 namespace ddace::ros_exec {
@@ -50,6 +51,9 @@ exec::EntityObservation toObservation(const ddace::EntityArray& msg, const task:
 
 /// Follower gains from `~follower/*` style parameters under `nh` (defaults from FollowerGains).
 exec::FollowerGains loadFollowerGains(const ros::NodeHandle& nh);
+/// exec::SafetyParams from `nh` (the follower's ~safety), defaults where unset; throws
+/// ddace::Error naming the invalid parameter and namespace.
+exec::SafetyParams loadSafetyParams(const ros::NodeHandle& nh);
 /// Diff-drive parameters from parameters under `nh`.
 exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh);
 

@@ -32,6 +32,8 @@
 #include <ddace/SegmentStatus.h>
 
 #include "exec_conversions.h"
+#include "ddace/exec/clearance.h"
+#include "ddace/exec/safety_filter.h"
 #include "ddace/ros/heartbeat.h"
 #include "params.h"
 #include "ddace/common/file.h"
@@ -116,6 +118,15 @@ class ExecutionMonitorNode::Impl {
     const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
     spec_ = ros_exec::loadTaskSpec(task_path);
     const ExecutionMonitorNode::Params defaults;
+    std::vector<double> radii;
+    for (size_t i = 0; i < spec_.entities.size(); ++i) {
+      const exec::BodyShape b = exec::bodyShape(spec_, static_cast<int>(i));
+      radii.push_back(b.obstacle ? b.radius_m : 0.0);
+    }
+    const double overlap_m = rosparam::param(pnh, "collision_overlap_m", defaults.collision_overlap_m);
+    if (!(overlap_m >= 0)) throw Error("parameter '" + pnh.resolveName("collision_overlap_m") + "' must be >= 0");
+    clearance_ = std::make_unique<exec::ClearanceMeter>(radii, overlap_m);
+    at_.assign(spec_.entities.size(), Eigen::Vector2d::Constant(NAN));
     const int gt = rosparam::param(pnh, "ground_truth_demo", defaults.ground_truth_demo);
     if (gt >= 0) {
       gt_file_ = task::demoFile(task_path, gt, "parameter '" + pnh.resolveName("ground_truth_demo") + "'");
@@ -311,13 +322,27 @@ class ExecutionMonitorNode::Impl {
       if (!std::isfinite(e.pose.x) || !std::isfinite(e.pose.y)) continue;
       const Eigen::Vector2d p(e.pose.x, e.pose.y);
       positions_[e.name] = p;
+      const int i = spec_.entityIndex(e.name);
+      if (i >= 0) {
+        at_[i] = p;
+        if (!starts_.count(e.name)) starts_[e.name] = p;
+      }
       auto it = running_.find(e.name);
       if (it != running_.end()) {
         auto& trace = segments_[it->second].executed;
         if (trace.empty() || (trace.back() - p).norm() > 0.002) trace.push_back(p);
       }
     }
+    const size_t before = clearance_->collisions().size();
+    clearance_->update(m.header.stamp.toSec(), at_);
+    for (size_t k = before; k < clearance_->collisions().size(); ++k) {
+      const auto& c = clearance_->collisions()[k];
+      ROS_WARN("execution_monitor: collision: %s and %s overlap", spec_.entities[c.a].name.c_str(),
+               spec_.entities[c.b].name.c_str());
+    }
   }
+
+  std::string nameOf(int i) const { return i >= 0 ? spec_.entities.at(i).name : std::string("none"); }
 
   // Topics from different publishers may arrive in any order, so the check compares the
   // stamps: a request stamped after a segment was sent and before it ended is a violation.
@@ -492,15 +517,28 @@ class ExecutionMonitorNode::Impl {
       os << "metrics: SSR " << score.ssr() << " (" << score.correct_steps << "/" << score.gt_steps << " steps), GCR "
          << score.gcr() << " (" << score.achieved_robot_motions << "/" << score.gt_robot_motions
          << " robot motion tokens arrived), goal conditions " << (score.goal_conditions_hold ? "hold" : "do NOT hold")
-         << ", FD " << score.meanFd() << ", OSR " << (score.success ? 1 : 0) << "\n";
+         << ", FD " << score.meanFd() << ", OSR " << (score.success && clearance_->collisions().empty() ? 1 : 0)
+         << (score.success && !clearance_->collisions().empty() ? " (a collision: no success)" : "") << "\n";
       j["ground_truth"] = fs::path(gt_file_).filename().string();
       j["ssr"] = score.ssr();
       j["gcr"] = score.gcr();
       j["fd"] = num(score.meanFd());
-      j["osr"] = score.success ? 1 : 0;
+      j["osr"] = score.success && clearance_->collisions().empty() ? 1 : 0;  // a collision is no success
       j["ended_correctly"] = score.ended_correctly;
       j["goal_conditions_hold"] = score.goal_conditions_hold;
     }
+    const exec::ClosestApproach& near = clearance_->closest();
+    const auto& hits = clearance_->collisions();
+    os << "bodies: " << hits.size() << " collision" << (hits.size() == 1 ? "" : "s");
+    for (const auto& c : hits) os << (&c == &hits.front() ? " (" : ", ") << nameOf(c.a) << "-" << nameOf(c.b);
+    os << (hits.empty() ? "" : ")");
+    if (near.a >= 0)
+      os << ", minimum clearance " << near.clearance_m * 100 << " cm (" << nameOf(near.a) << "-" << nameOf(near.b)
+         << ")";
+    os << "\n";
+    j["collisions"] = hits.size();
+    j["min_clearance_m"] = near.a >= 0 ? nlohmann::json(near.clearance_m) : nlohmann::json(nullptr);
+    j["closest_pair"] = near.a >= 0 ? nlohmann::json({nameOf(near.a), nameOf(near.b)}) : nlohmann::json(nullptr);
     const int violations = this->violations();
     os << "decisions requested while a segment was running: " << violations << "\n";
     j["decisions_while_running"] = violations;
@@ -550,6 +588,31 @@ class ExecutionMonitorNode::Impl {
       for (const auto& p : seg.executed) g["executed"].push_back({p.x(), p.y()});
       j["segments"].push_back(g);
     }
+    // Bodies: the whole table in one view (footprints at the start and the end, the closest approach).
+    j["bodies"] = nlohmann::json::array();
+    for (size_t i = 0; i < spec_.entities.size(); ++i) {
+      const auto& e = spec_.entities[i];
+      const exec::BodyShape b = exec::bodyShape(spec_, static_cast<int>(i));
+      nlohmann::json o;
+      o["name"] = e.name;
+      o["kind"] = task::toString(e.kind);
+      o["radius_m"] = b.radius_m;
+      o["obstacle"] = b.obstacle;
+      if (auto it = starts_.find(e.name); it != starts_.end()) o["start"] = {it->second.x(), it->second.y()};
+      if (auto it = positions_.find(e.name); it != positions_.end()) o["end"] = {it->second.x(), it->second.y()};
+      j["bodies"].push_back(o);
+    }
+    const exec::ClosestApproach& near = clearance_->closest();
+    if (near.a >= 0)
+      j["closest"] = {{"a", nameOf(near.a)},
+                      {"b", nameOf(near.b)},
+                      {"clearance_m", near.clearance_m},
+                      {"time_s", near.time_s - t0},
+                      {"at_a", {near.at_a.x(), near.at_a.y()}},
+                      {"at_b", {near.at_b.x(), near.at_b.y()}}};
+    j["collisions"] = nlohmann::json::array();
+    for (const auto& c : clearance_->collisions())
+      j["collisions"].push_back({{"a", nameOf(c.a)}, {"b", nameOf(c.b)}, {"time_s", c.time_s - t0}});
     writeRecord("run.json", j.dump() + "\n");
   }
 
@@ -589,6 +652,9 @@ class ExecutionMonitorNode::Impl {
   std::map<uint32_t, Seg> segments_;
   std::map<std::string, uint32_t> running_;  ///< entity -> its latest segment
   std::map<std::string, Eigen::Vector2d> positions_;
+  std::map<std::string, Eigen::Vector2d> starts_;  ///< first tracked position of each entity
+  std::unique_ptr<exec::ClearanceMeter> clearance_;
+  std::vector<Eigen::Vector2d> at_;  ///< latest positions in the task's order (NaN = not seen)
   std::vector<ros::Time> requests_;
   std::set<uint32_t> request_ids_;
   std::vector<ros::Subscriber> subs_;

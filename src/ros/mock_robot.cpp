@@ -57,6 +57,10 @@ class MockRobotNode::Impl {
     sp.object_speed_mps = rosparam::param(pnh, "object_speed_mps", defaults.object_speed_mps);
     if (!(sp.object_speed_mps > 0))
       throw Error("parameter '" + pnh.resolveName("object_speed_mps") + "' must be positive");
+    sp.bodies = rosparam::param(pnh, "bodies", defaults.bodies);
+    sp.object_damping_hz = rosparam::param(pnh, "object_damping_hz", defaults.object_damping_hz);
+    if (!(sp.object_damping_hz >= 0) || !std::isfinite(sp.object_damping_hz))
+      throw Error("parameter '" + pnh.resolveName("object_damping_hz") + "' must be >= 0");
     const exec::DiffDriveParams dp = ros_exec::loadDiffDriveParams(ros::NodeHandle(pnh, "robot"));
     const auto stalled = rosparam::param(pnh, "stalled", std::vector<std::string>{});
     for (const auto& s : stalled) {
@@ -88,7 +92,8 @@ class MockRobotNode::Impl {
     estop_sub_ = nh.subscribe("/ddace/estop", 5, &Impl::onEstop, this);
     timer_ = nh.createTimer(ros::Duration(sim_->periodS()), &Impl::onTimer, this);
     if (publish_tf_) publishStaticFrames();
-    ROS_INFO("mock_robots: task '%s', %zu entities at %.0f Hz on %s", spec_.name.c_str(), n, dp.rate_hz, topic.c_str());
+    ROS_INFO("mock_robots: task '%s', %zu entities at %.0f Hz on %s, %s", spec_.name.c_str(), n, dp.rate_hz,
+             topic.c_str(), sp.bodies ? "with bodies (Box2D)" : "points without bodies");
   }
 
  private:
@@ -187,6 +192,11 @@ class MockRobotNode::Impl {
 
   void onTimer(const ros::TimerEvent&) {
     for (const auto& s : sim_->step()) publish(s);
+    for (; contacts_seen_ < sim_->contacts().size(); ++contacts_seen_) {
+      const auto& c = sim_->contacts()[contacts_seen_];
+      ROS_WARN("mock_robots: contact %zu: %s touched %s at t = %.2f s", contacts_seen_ + 1,
+               spec_.entities[c.a].name.c_str(), spec_.entities[c.b].name.c_str(), c.time_s);
+    }
     ddace::EntityArray msg;
     msg.header.stamp = ros::Time::now();
     msg.header.frame_id = frame_id_;
@@ -210,6 +220,7 @@ class MockRobotNode::Impl {
 
   task::TaskSpec spec_;
   std::unique_ptr<exec::TableSimulator> sim_;
+  size_t contacts_seen_ = 0;  ///< contacts already logged
   std::string frame_id_;
   bool publish_tf_ = true;  // set from the parameters
   std::vector<ros::Subscriber> subs_;

@@ -21,14 +21,19 @@ class PathFollowerNode::Impl {
  public:
   Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
     std::vector<std::string> names = rosparam::param(pnh, "robots", std::vector<std::string>{});
-    if (names.empty()) {
-      const task::TaskSpec spec = ros_exec::loadTaskSpec(rosparam::param<std::string>(pnh, "task", ""));
-      for (const auto& e : spec.entities)
-        if (e.kind == task::EntityKind::Robot) names.push_back(e.name);
+    const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
+    const bool every_robot = names.empty();
+    if (every_robot || !task_path.empty()) {
+      const task::TaskSpec spec = ros_exec::loadTaskSpec(task_path);
+      for (const auto& e : spec.entities) {
+        if (every_robot && e.kind == task::EntityKind::Robot) names.push_back(e.name);
+        task_entities_[e.name] = e;
+      }
       default_arrival_m_ = spec.arrival_radius;
     }
     if (names.empty()) throw Error("no robots to drive: set '" + pnh.resolveName("robots") + "' or a task with robots");
     gains_ = ros_exec::loadFollowerGains(ros::NodeHandle(pnh, "gains"));
+    safety_ = ros_exec::loadSafetyParams(ros::NodeHandle(pnh, "safety"));
     if (!pnh.hasParam("gains/arrival_radius_m")) gains_.arrival_radius_m = default_arrival_m_;
     const PathFollowerNode::Params defaults;
     rate_hz_ = rosparam::param(pnh, "rate_hz", defaults.rate_hz);
@@ -42,6 +47,8 @@ class PathFollowerNode::Impl {
     for (const auto& name : names) {
       auto r = std::make_unique<Robot>();
       r->name = name;
+      r->safety = std::make_unique<exec::SafetyFilter>(safety_, gains_.wheel_base_m, gains_.max_wheel_speed_mps,
+                                                       gains_.max_turn_rate_radps);
       r->wheels = nh.advertise<ddace::WheelCommand>("/robots/" + name + "/wheels", 10);
       r->status = nh.advertise<ddace::SegmentStatus>("/robots/" + name + "/segment_status", 20);
       Robot* raw = r.get();
@@ -52,8 +59,11 @@ class PathFollowerNode::Impl {
     entities_sub_ = nh.subscribe("/ddace/entities", 5, &Impl::onEntities, this);
     estop_sub_ = nh.subscribe("/ddace/estop", 5, &Impl::onEstop, this);
     timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz_), &Impl::onTimer, this);
-    ROS_INFO("path_follower: driving %zu robots at %.0f Hz (cruise %.3f m/s, lookahead %.3f m, arrival %.3f m)",
-             robots_.size(), rate_hz_, gains_.cruise_speed_mps, gains_.lookahead_m, gains_.arrival_radius_m);
+    ROS_INFO(
+        "path_follower: driving %zu robots at %.0f Hz (cruise %.3f m/s, lookahead %.3f m, arrival %.3f m), "
+        "safety filter %s (margin %.3f m)",
+        robots_.size(), rate_hz_, gains_.cruise_speed_mps, gains_.lookahead_m, gains_.arrival_radius_m,
+        safety_.enabled ? "on" : "OFF", safety_.margin_m);
   }
 
  private:
@@ -62,6 +72,8 @@ class PathFollowerNode::Impl {
     ros::Publisher wheels, status;
     ros::Subscriber segment_sub;
     std::unique_ptr<exec::PathFollower> follower;  ///< null = no segment
+    std::unique_ptr<exec::SafetyFilter> safety;    ///< between the follower and the wheels
+    std::string target;                            ///< the segment's target entity ("" = none)
     uint32_t segment_id = 0;
     exec::Pose2D pose;
     bool pose_known = false, pose_stale = true;
@@ -125,6 +137,8 @@ class PathFollowerNode::Impl {
       auto f = std::make_unique<exec::PathFollower>(g);
       f->setPath(path);
       r.follower = std::move(f);
+      r.target = m.token.target;
+      r.safety->reset();
       r.segment_id = m.segment_id;
       r.cycle = 0;
       publishStatus(r, m.segment_id, ddace::SegmentStatus::ACCEPTED, 0, 0, "");
@@ -135,8 +149,36 @@ class PathFollowerNode::Impl {
     }
   }
 
+  /// A tracked body as the safety filters see it (robots, objects; goals are flat).
+  struct Tracked {
+    exec::SafetyBody body;
+    ros::Time seen;  ///< when measured (the tracker's last_seen, else when received)
+  };
+
   void onEntities(const ddace::EntityArray& m) {
     const ros::Time now = ros::Time::now();
+    for (const auto& e : m.entities) {
+      const bool ok = std::isfinite(e.pose.x) && std::isfinite(e.pose.y);
+      auto known = task_entities_.find(e.name);
+      task::Entity te;
+      if (known != task_entities_.end()) {
+        te = known->second;
+      } else {
+        te.name = e.name;
+        te.kind = task::entityKindFromString(e.kind).value_or(task::EntityKind::Object);  // unknown kind: keep off it
+      }
+      const exec::BodyShape shape = exec::bodyShape(te);
+      if (shape.obstacle) {
+        Tracked& t = bodies_[e.name];
+        t.body.name = e.name;
+        t.body.radius_m = shape.radius_m;
+        t.body.robot = te.kind == task::EntityKind::Robot;
+        if (ok) t.body.position = {e.pose.x, e.pose.y};
+        t.body.stale = e.stale || !ok;
+        // Trust a measurement time only when it is not in the future.
+        t.seen = (!e.last_seen.isZero() && e.last_seen <= now) ? e.last_seen : now;
+      }
+    }
     for (const auto& e : m.entities) {
       auto it = robots_.find(e.name);
       if (it == robots_.end()) continue;
@@ -190,9 +232,35 @@ class PathFollowerNode::Impl {
         }
         continue;
       }
-      r.stale_counting = false;
       const exec::FollowerOutput o = r.follower->compute(r.pose);
-      publishWheels(r, o.wheels.left_mps, o.wheels.right_mps);
+      exec::WheelSpeeds wheels = o.wheels;
+      if (!o.done) {
+        const exec::SafetyCommand c = filterCommand(r, o.wheels, now);
+        if (c.deadlock) {
+          ROS_ERROR("path_follower: %s: %s: failing segment %u", name.c_str(), c.reason.c_str(), r.segment_id);
+          stopRobot(r, ddace::SegmentStatus::FAILED, c.reason);
+          continue;
+        }
+        if (c.stale) {  // a body nearby is stale: as for the robot's own pose
+          if (!r.stale_counting) r.stale_since = now, r.stale_counting = true;
+          publishWheels(r, 0, 0);
+          const double for_s = (now - r.stale_since).toSec();
+          if (for_s > stale_fail_s_) {
+            ROS_ERROR("path_follower: %s: %s for %.2f s, failing segment %u", name.c_str(), c.reason.c_str(), for_s,
+                      r.segment_id);
+            stopRobot(r, ddace::SegmentStatus::FAILED, c.reason + " for longer than stale_fail_s");
+          } else {
+            ROS_WARN_THROTTLE(1.0, "path_follower: %s: %s, wheels zero", name.c_str(), c.reason.c_str());
+          }
+          continue;
+        }
+        if (c.blocked)
+          ROS_WARN_THROTTLE(1.0, "path_follower: %s: held by the safety filter (%zu bodies)", name.c_str(),
+                            c.blocking.size());
+        wheels = c.wheels;
+      }
+      r.stale_counting = false;
+      publishWheels(r, wheels.left_mps, wheels.right_mps);
       if (o.done) {
         publishStatus(r, r.segment_id, ddace::SegmentStatus::DONE, 1.0, o.distance_to_goal_m, "");
         r.follower.reset();
@@ -202,8 +270,31 @@ class PathFollowerNode::Impl {
     }
   }
 
+  /// The follower's command through the robot's own safety filter, from the tracked
+  /// poses of every other body.
+  exec::SafetyCommand filterCommand(Robot& r, const exec::WheelSpeeds& nominal, const ros::Time& now) {
+    others_.clear();
+    double self_age = 1e9, self_radius = exec::bodyShape(task::Entity{r.name, task::EntityKind::Robot, ""}).radius_m;
+    for (auto& [name, t] : bodies_) {
+      const double age = (now - t.seen).toSec();
+      if (name == r.name) {
+        self_age = t.body.stale ? 1e9 : age;
+        self_radius = t.body.radius_m;
+        continue;
+      }
+      others_.push_back(t.body);
+      others_.back().age_s = age;
+    }
+    return r.safety->filter(r.name, r.pose, self_radius, self_age, nominal,
+                            r.follower->progress() * r.follower->lengthM(), others_, r.target, now.toSec());
+  }
+
   std::map<std::string, std::unique_ptr<Robot>> robots_;
+  std::map<std::string, task::Entity> task_entities_;  ///< by name, when the task is known
+  std::map<std::string, Tracked> bodies_;              ///< every tracked body by name
+  std::vector<exec::SafetyBody> others_;               ///< scratch of filterCommand
   exec::FollowerGains gains_;
+  exec::SafetyParams safety_;
   double default_arrival_m_ = task::kDefaultArrivalRadius;
   double rate_hz_ = 0, pose_timeout_s_ = 0, stale_fail_s_ = 0;  // set from the parameters
   int status_every_ = 1;

@@ -26,7 +26,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       again.arrival_radius != spec.arrival_radius || again.goal_conditions.size() != spec.goal_conditions.size())
     std::abort();
   for (size_t i = 0; i < spec.entities.size(); ++i)
-    if (again.entities[i].kind != spec.entities[i].kind || again.entities[i].type != spec.entities[i].type)
+    if (again.entities[i].kind != spec.entities[i].kind || again.entities[i].type != spec.entities[i].type ||
+        again.entities[i].radius_m != spec.entities[i].radius_m ||
+        again.entities[i].obstacle != spec.entities[i].obstacle)
       std::abort();
   return 0;
 }

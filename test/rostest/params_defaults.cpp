@@ -15,6 +15,7 @@
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/diff_drive.h"
 #include "ddace/exec/path_follower.h"
+#include "ddace/exec/safety_filter.h"
 #include "ddace/ros/coordinator.h"
 #include "ddace/ros/execution_monitor.h"
 #include "ddace/ros/gp_path.h"
@@ -98,8 +99,23 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"pose_timeout_s", value(f.pose_timeout_s)},
                   {"stale_fail_s", value(f.stale_fail_s)},
                   {"status_every_cycles", value(f.status_every_cycles)},
-                  {"gains", YAML::Node()}},
+                  {"gains", YAML::Node()},
+                  {"safety", YAML::Node()}},
                  {"robots"});
+  // The shipped graph runs the filter off until motions end at contact (docs/execution.md,
+  // "Collision avoidance"); exec::SafetyParams, used on its own, filters.
+  const ddace::exec::SafetyParams sf;
+  expectDefaults(yaml["path_follower"]["safety"], "path_follower/safety",
+                 {{"margin_m", value(sf.margin_m)},
+                  {"projection_m", value(sf.projection_m)},
+                  {"barrier_gain_hz", value(sf.barrier_gain_hz)},
+                  {"range_m", value(sf.range_m)},
+                  {"pose_max_age_s", value(sf.pose_max_age_s)},
+                  {"blocked_fraction", value(sf.blocked_fraction)},
+                  {"resolve_after_s", value(sf.resolve_after_s)},
+                  {"deadlock_after_s", value(sf.deadlock_after_s)},
+                  {"progress_m", value(sf.progress_m)}},
+                 {"enabled"});
   expectDefaults(yaml["path_follower"]["gains"], "path_follower/gains",
                  {{"cruise_speed_mps", value(g.cruise_speed_mps)},
                   {"min_speed_mps", value(g.min_speed_mps)},
@@ -120,6 +136,8 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"entities_topic", value(m.entities_topic)},
                   {"publish_tf", value(m.publish_tf)},
                   {"object_speed_mps", value(m.object_speed_mps)},
+                  {"bodies", value(m.bodies)},
+                  {"object_damping_hz", value(m.object_damping_hz)},
                   {"robot", YAML::Node()}},
                  {"stalled", "scene_csv", "scene_demo", "scene"});
   // The simulated Hamster's latency and tracking noise are deliberately not
@@ -147,6 +165,7 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                  {{"record_bag", value(e.record_bag)},
                   {"end_launch", value(e.end_launch)},
                   {"timeout_s", value(e.timeout_s)},
+                  {"collision_overlap_m", value(e.collision_overlap_m)},
                   {"heartbeat_rate_hz", value(beat_hz)}});
 
   const GpPathNode::Params p;

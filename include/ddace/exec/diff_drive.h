@@ -67,6 +67,8 @@ class DiffDriveModel {
 
   double time() const { return time_s_; }
   const Pose2D& truePose() const { return pose_; }
+  /// Moves the robot to where something else put it (a collision in the table simulator).
+  void setTruePose(const Pose2D& pose) { pose_ = {pose.x, pose.y, wrapAngle(pose.yaw)}; }
   /// The true pose plus measurement noise (fresh noise on every call).
   Pose2D measuredPose();
   /// The wheel speeds currently applied (after latency, clamping and watchdog).

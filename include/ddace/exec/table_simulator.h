@@ -1,23 +1,34 @@
 // The simulated table of the mock robot node: every entity of a task in time steps of
-// 1/rate_hz. Robots are exec::DiffDriveModel unicycles driven by wheel commands; objects
-// move only through their own segments, carried along the planned path at a constant
-// speed (exec/scene.h's CarriedObject, the execution model of docs/task-format.md, as in
-// the closed-loop simulator); goals never move.
+// 1/rate_hz, with bodies. Robots are exec::DiffDriveModel unicycles driven by wheel
+// commands; objects move through their own segments, carried along the planned path at a
+// constant speed (exec/scene.h's CarriedObject, the execution model of
+// docs/task-format.md), and when something pushes them; goals are flat and never move.
 //
-// Owns: the poses, each object's segment state (accepted, running, done, aborted, failed)
-// and the status reports it produces. Must not: read a clock or talk to ROS: time passes
-// only through step(), every status report is a return value the caller publishes.
-// Units: metres, radians, seconds; table frame.
+// Bodies (params.bodies): every robot and object is a disc (exec/safety_filter.h's
+// bodyShape) in a Box2D 2.4 world seen from above (no gravity). Each step a robot's unicycle decides where its
+// wheels would take it; that motion becomes the body's velocity, Box2D resolves the
+// contacts, and the robot ends where its body ends. Objects slide to rest by table
+// friction (object_damping_hz) after a push. Every contact that begins is recorded
+// (contacts()) and the closest approach of any two bodies kept (closestApproach()). Two
+// bodies that overlap at the start (a load placed on its carrier) do not collide with each
+// other and are not measured (loadedPairs()).
+//
+// Owns: the poses, the bodies, each object's segment state (accepted, running, done,
+// aborted, failed) and the status reports it produces. Must not: read a clock or talk to
+// ROS: time passes only through step(), every status report is a return value the caller
+// publishes. Units: metres, radians, seconds; table frame.
 #pragma once
 
 #include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "ddace/exec/clearance.h"
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/diff_drive.h"
 #include "ddace/exec/scene.h"
@@ -26,7 +37,11 @@
 namespace ddace::exec {
 
 struct TableSimulatorParams {
+  /// true: robots and objects are Box2D bodies that collide; false: points that pass
+  /// through each other (the paper's execution model; clearance is still measured).
+  bool bodies = false;
   double object_speed_mps = 0.12;  ///< objects follow their segments at this speed
+  double object_damping_hz = 8.0;  ///< table friction: a pushed object's speed decays at this rate
   int status_every_cycles = 5;     ///< a moving object reports RUNNING every N steps (10 Hz at 50 Hz)
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
@@ -50,6 +65,8 @@ class TableSimulator {
   /// of the wrong size, invalid parameters or a stalled name that is not a robot of the task.
   TableSimulator(const task::TaskSpec& spec, const std::vector<Pose2D>& start, const DiffDriveParams& robot,
                  const TableSimulatorParams& params = {}, const std::vector<std::string>& stalled = {});
+  ~TableSimulator();
+  TableSimulator(TableSimulator&&) noexcept;
 
   /// A wheel command for robot `entity`, effective after the robot's latency. Throws
   /// ddace::Error when `entity` is not a robot.
@@ -87,11 +104,21 @@ class TableSimulator {
   Pose2D measuredPose(int i);
   /// Whether object `i` is carrying out a segment.
   bool moving(int i) const { return entity(i).moving; }
+  /// Every contact between two bodies that began, in time order.
+  const std::vector<BodyContact>& contacts() const { return contacts_; }
+  /// The closest two bodies came (true poses, every step).
+  const ClosestApproach& closestApproach() const { return meter_->closest(); }
+  /// Pairs of bodies that overlapped at the start: they never collide with each other.
+  const std::vector<std::pair<int, int>>& loadedPairs() const { return meter_->loadedPairs(); }
+  /// The body radius of entity `i` (0 for a goal: no body).
+  double radiusM(int i) const { return entity(i).radius_m; }
 
  private:
+  struct Physics;  // the Box2D world (table_simulator.cpp)
   struct Entity {
     task::EntityKind kind;
-    Pose2D pose;                             ///< objects and goals; robots use `robot`
+    double radius_m = 0;                     ///< 0 = no body (goals)
+    Pose2D pose;                             ///< every entity's true pose
     std::unique_ptr<DiffDriveModel> robot;   ///< robots only
     std::unique_ptr<CarriedObject> carried;  ///< the object's current (or last) segment
     uint32_t segment_id = 0;
@@ -102,6 +129,8 @@ class TableSimulator {
   const Entity& entity(int i) const;
   Entity& object(int i);
   ObjectStatus report(int i, SegmentState state, std::string message = "") const;
+  void measureClearance();
+  void halt(int i);  ///< object i stops following its segment and comes to rest
 
   std::vector<std::string> names_;
   std::vector<Entity> entities_;
@@ -109,6 +138,9 @@ class TableSimulator {
   TableSimulatorParams params_;
   double time_s_ = 0;
   bool estopped_ = false;
+  std::unique_ptr<Physics> physics_;
+  std::vector<BodyContact> contacts_;
+  std::unique_ptr<ClearanceMeter> meter_;
 };
 
 }  // namespace ddace::exec

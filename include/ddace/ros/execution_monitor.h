@@ -56,6 +56,8 @@ class ExecutionMonitorNode {
     bool record_bag = true;      ///< record run.bag (rosbag record)
     bool end_launch = true;      ///< SIGINT the parent roslaunch once the record is written
     double timeout_s = 0.0;      ///< give up and write the record after this long; 0 = never
+    /// Two bodies overlapping deeper than this (tracking noise aside) collide, metres.
+    double collision_overlap_m = 0.003;
   };
 
   ExecutionMonitorNode(ros::NodeHandle nh, ros::NodeHandle pnh);

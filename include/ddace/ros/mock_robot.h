@@ -4,7 +4,10 @@
 // robot of the task is an exec::DiffDriveModel (unicycle at rate_hz, wheel limits, command
 // latency, watchdog, pose noise) driven by /robots/R/wheels; objects move only through
 // their own segments (/robots/O/segment), following the path ideally at object_speed_mps
-// and reporting /robots/O/segment_status, as in the simulator; goals stay put. This node
+// and reporting /robots/O/segment_status, as in the simulator; goals stay put. With
+// `bodies`, robots and objects are Box2D discs that collide and push each other, and every
+// contact is logged as it begins (the execution monitor counts collisions from the
+// tracked poses, on the real table alike). This node
 // only reads the parameters and the scene and converts messages. Publishes every entity on `entities_topic` (default
 // /ddace/entities; remap it when a synthetic camera + tracker close the loop) and tf table -> entity. Parameters:
 // config/execution.yaml, section mock_robots.
@@ -27,7 +30,8 @@ class MockRobotNode {
  public:
   /// The node's own parameters (private namespace) and their defaults, as
   /// config/execution.yaml (section mock_robots) documents them; ~robot/* are
-  /// exec::DiffDriveParams; object_speed_mps is exec::TableSimulatorParams'.
+  /// exec::DiffDriveParams; bodies, object_speed_mps and object_damping_hz are
+  /// exec::TableSimulatorParams'.
   struct Params : exec::TableSimulatorParams {
     std::string frame_id = kTableFrame;
     std::string entities_topic = "/ddace/entities";  ///< remap for a synthetic camera + tracker

@@ -1,5 +1,8 @@
 // path_follower_node: drives every robot of the task along its current segment with the
-// pure-pursuit-with-progress law of exec::PathFollower, from the tracked poses.
+// pure-pursuit-with-progress law of exec::PathFollower, from the tracked poses. Each
+// robot's command passes through its own exec::SafetyFilter (exec/safety_filter.h), fed
+// with the tracked poses of every other body on /ddace/entities (robots, objects, idle or
+// not): no two bodies closer than contact + ~safety/margin_m, except the segment's target.
 //
 // Per robot R:  in  /robots/R/segment (ddace/Segment), /ddace/entities (ddace/EntityArray)
 //               out /robots/R/wheels (ddace/WheelCommand, every control cycle),
@@ -10,7 +13,9 @@
 // the coordinator gone (no publisher left on /robots/R/segment, checked every cycle): zero
 // wheels. The e-stop, a STOP segment and a pose flagged stale zero the wheels in the
 // callback that receives them, so within the control cycle under way. A pose that stays
-// stale for stale_fail_s fails the segment.
+// stale for stale_fail_s fails the segment; so does a stale body near the robot (the
+// filter zeroes the wheels) and a deadlock the filter reports (the status names the robot
+// and the bodies that block it).
 // Parameters: config/execution.yaml, section path_follower.
 #pragma once
 

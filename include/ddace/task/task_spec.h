@@ -25,11 +25,39 @@ const char* toString(EntityKind kind);
 /// Parses "robot"/"object"/"goal"; nullopt otherwise.
 std::optional<EntityKind> entityKindFromString(const std::string& s);
 
+/// Footprint defaults (docs/task-format.md, "Bodies"), metres. A Hamster's body is about
+/// 3.2 cm x 3.0 cm (3.5 cm tall): the disc around it has a radius of 2.2 cm, so two
+/// Hamsters touch at most 4.4 cm apart, centre to centre. Robots of any other type get the
+/// same disc (the testbed's robots are Hamsters; state another robot's radius).
+inline constexpr double kDefaultRobotRadius = 0.022;
+/// An object (a box, a ball, cargo) with the default 3 cm marker on top: a 4 cm body.
+inline constexpr double kDefaultObjectRadius = 0.02;
+/// A goal: a flat print of the default 4 cm goal marker; robots drive onto it.
+inline constexpr double kDefaultGoalRadius = 0.02;
+
+/// An entity's body on the table: a disc around its tracked centre.
+struct Footprint {
+  double radius_m = kDefaultRobotRadius;  ///< metres, > 0
+  /// True for a body that others must not overlap (robots, objects); false for a flat
+  /// print that robots drive onto (goals).
+  bool obstacle = true;
+};
+
 struct Entity {
   std::string name;  ///< [A-Za-z][A-Za-z0-9_]*, unique within the task
   EntityKind kind = EntityKind::Robot;
   std::string type;  ///< free text ("hamster", "uav"), may be empty
+  /// As stated in task.yaml (`radius`, `obstacle`); unset = the default of the kind.
+  /// Read them through footprint(), which resolves the defaults. (Initialised, so that
+  /// {name, kind, type} still initialises an entity without a warning.)
+  std::optional<double> radius_m = std::nullopt;
+  std::optional<bool> obstacle = std::nullopt;
 };
+
+/// The footprint of `e`: its stated radius and obstacle flag, else the defaults of its
+/// kind (robot: kDefaultRobotRadius, obstacle; object: kDefaultObjectRadius, obstacle;
+/// goal: kDefaultGoalRadius, not an obstacle). The one accessor every part uses.
+Footprint footprint(const Entity& e);
 
 /// At the end of an execution, `entity` must be within `tolerance` metres of `at`.
 struct GoalCondition {
@@ -53,6 +81,11 @@ struct TaskSpec {
   bool allowsAction(const std::string& action) const;
   /// Names of all entities, in order.
   std::vector<std::string> entityNames() const;
+  /// footprint(entities[i]).
+  Footprint footprint(int i) const;
+  /// The centre distance at which the bodies of entities a and b touch: the sum of
+  /// their radii (metres).
+  double contactDistance(int a, int b) const;
 };
 
 /// True for names matching [A-Za-z][A-Za-z0-9_]*.

@@ -2,10 +2,48 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
+
+#include <box2d/box2d.h>
 
 #include "ddace/common/error.h"
+#include "ddace/exec/safety_filter.h"
 
 namespace ddace::exec {
+
+namespace {
+// Box2D is tuned for bodies of 0.1 to 10 units and keeps contacts within a 5 mm "slop" of
+// a unit: one unit is 10 cm here, so a 2 cm Hamster is 0.2 units and the slop 0.5 mm.
+constexpr double kUnitsPerMetre = 10.0;
+b2Vec2 toWorld(const Eigen::Vector2d& p) {
+  return {static_cast<float>(p.x() * kUnitsPerMetre), static_cast<float>(p.y() * kUnitsPerMetre)};
+}
+Eigen::Vector2d fromWorld(const b2Vec2& p) {
+  return {p.x / kUnitsPerMetre, p.y / kUnitsPerMetre};
+}
+}  // namespace
+
+/// The Box2D world of the table: one body per robot and object, a listener recording every
+/// contact that begins and a filter keeping loaded pairs apart.
+struct TableSimulator::Physics : public b2ContactListener, public b2ContactFilter {
+  b2World world{b2Vec2(0, 0)};
+  std::vector<b2Body*> bodies;  ///< by entity index; null for goals
+  std::set<std::pair<int, int>> loaded;
+  std::vector<std::pair<int, int>> began;  ///< contacts begun during the current step
+
+  static int indexOf(b2Fixture* f) { return static_cast<int>(f->GetBody()->GetUserData().pointer) - 1; }
+  bool ShouldCollide(b2Fixture* a, b2Fixture* b) override {
+    const int i = indexOf(a), j = indexOf(b);
+    return !loaded.count({std::min(i, j), std::max(i, j)});
+  }
+  void BeginContact(b2Contact* c) override {
+    const int i = indexOf(c->GetFixtureA()), j = indexOf(c->GetFixtureB());
+    began.emplace_back(std::min(i, j), std::max(i, j));
+  }
+};
+
+TableSimulator::~TableSimulator() = default;
+TableSimulator::TableSimulator(TableSimulator&&) noexcept = default;
 
 void TableSimulatorParams::validate() const {
   if (!(object_speed_mps > 0) || !std::isfinite(object_speed_mps))
@@ -39,6 +77,58 @@ TableSimulator::TableSimulator(const task::TaskSpec& spec, const std::vector<Pos
     e.robot = std::make_unique<DiffDriveModel>(p, start[i]);
     e.robot->setStalled(std::find(stalled.begin(), stalled.end(), names_[i]) != stalled.end());
   }
+
+  physics_ = std::make_unique<Physics>();
+  physics_->world.SetContactListener(physics_.get());
+  physics_->world.SetContactFilter(physics_.get());
+  physics_->bodies.assign(n, nullptr);
+  std::vector<double> radii(n, 0.0);
+  for (size_t i = 0; i < n; ++i) {
+    const BodyShape shape = bodyShape(spec, static_cast<int>(i));
+    if (shape.obstacle && shape.radius_m > 0) radii[i] = entities_[i].radius_m = shape.radius_m;
+  }
+  // The start decides which pairs are loaded (overlapping): they never collide.
+  meter_ = std::make_unique<ClearanceMeter>(radii, 0.0);
+  measureClearance();
+  for (const auto& p : meter_->loadedPairs()) physics_->loaded.insert(p);
+  for (size_t i = 0; i < n; ++i) {
+    if (!params_.bodies || !(radii[i] > 0)) continue;
+    b2BodyDef def;
+    def.type = b2_dynamicBody;
+    def.position = toWorld(start[i].position());
+    def.angle = static_cast<float>(start[i].yaw);
+    def.bullet = true;  // no tunnelling between small fast discs
+    const bool robot = entities_[i].kind == task::EntityKind::Robot;
+    if (!robot) {
+      def.linearDamping = static_cast<float>(params_.object_damping_hz);
+      def.angularDamping = static_cast<float>(params_.object_damping_hz);
+    }
+    def.userData.pointer = i + 1;
+    b2Body* body = physics_->world.CreateBody(&def);
+    b2CircleShape circle;
+    circle.m_radius = static_cast<float>(radii[i] * kUnitsPerMetre);
+    b2FixtureDef fixture;
+    fixture.shape = &circle;
+    fixture.density = robot ? 4.0f : 1.0f;  // a driven robot outweighs a box it pushes
+    fixture.friction = 0.3f;
+    fixture.restitution = 0.0f;
+    body->CreateFixture(&fixture);
+    physics_->bodies[i] = body;
+  }
+}
+
+void TableSimulator::halt(int i) {
+  entities_[i].moving = false;
+  if (b2Body* body = physics_->bodies[i]) {  // at rest where it is, table friction back on
+    body->SetLinearVelocity(b2Vec2(0, 0));
+    body->SetLinearDamping(static_cast<float>(params_.object_damping_hz));
+  }
+}
+
+void TableSimulator::measureClearance() {
+  std::vector<Eigen::Vector2d> at(entities_.size());
+  for (size_t i = 0; i < entities_.size(); ++i) at[i] = entities_[i].pose.position();
+  meter_->update(time_s_, at);
 }
 
 void TableSimulator::checkIndex(int i) const {
@@ -83,6 +173,7 @@ std::optional<ObjectStatus> TableSimulator::startSegment(int i, uint32_t segment
   Entity& e = object(i);
   if (estopped_) {
     e.segment_id = segment_id;
+    halt(i);
     e.carried.reset();
     return report(i, SegmentState::Aborted, "e-stop is active");
   }
@@ -97,7 +188,7 @@ std::optional<ObjectStatus> TableSimulator::startSegment(int i, uint32_t segment
 ObjectStatus TableSimulator::refuseSegment(int i, uint32_t segment_id, const std::string& reason) {
   Entity& e = object(i);
   e.segment_id = segment_id;
-  e.moving = false;
+  halt(i);
   e.carried.reset();  // the refused segment has no progress of its own
   return report(i, SegmentState::Failed, reason);
 }
@@ -105,7 +196,7 @@ ObjectStatus TableSimulator::refuseSegment(int i, uint32_t segment_id, const std
 std::optional<ObjectStatus> TableSimulator::stopSegment(int i) {
   Entity& e = object(i);
   if (!e.moving) return std::nullopt;
-  e.moving = false;
+  halt(i);
   return report(i, SegmentState::Aborted, "stopped");
 }
 
@@ -115,7 +206,7 @@ std::vector<ObjectStatus> TableSimulator::setEstop(bool active) {
   if (!active) return out;
   for (size_t i = 0; i < entities_.size(); ++i)
     if (entities_[i].moving) {
-      entities_[i].moving = false;
+      halt(static_cast<int>(i));
       out.push_back(report(static_cast<int>(i), SegmentState::Aborted, "e-stop"));
     }
   return out;
@@ -124,24 +215,65 @@ std::vector<ObjectStatus> TableSimulator::setEstop(bool active) {
 std::vector<ObjectStatus> TableSimulator::step() {
   const double dt = periodS();
   std::vector<ObjectStatus> out;
+  // Where each body is driven this step: robots by their wheels (the unicycle's motion),
+  // objects along their segments; Box2D then resolves the contacts.
   for (size_t i = 0; i < entities_.size(); ++i) {
     Entity& e = entities_[i];
+    b2Body* body = physics_->bodies[i];
     if (e.robot) {
+      const Pose2D before = e.robot->truePose();
       e.robot->step();
-      e.pose = e.robot->truePose();
+      const Pose2D after = e.robot->truePose();
+      if (body) {
+        const Eigen::Vector2d v = (after.position() - before.position()) / dt;
+        body->SetLinearVelocity(toWorld(v));
+        body->SetAngularVelocity(static_cast<float>(wrapAngle(after.yaw - before.yaw) / dt));
+      } else {
+        e.pose = after;
+      }
     } else if (e.moving) {
       const Eigen::Vector2d p = e.carried->advance(dt);
-      e.pose.x = p.x();
-      e.pose.y = p.y();
-      if (e.carried->arrived()) {
-        e.moving = false;
-        out.push_back(report(static_cast<int>(i), SegmentState::Done));
-      } else if (++e.status_cycle % params_.status_every_cycles == 0) {
-        out.push_back(report(static_cast<int>(i), SegmentState::Running));
+      if (body) {
+        // Toward the carried point, at most twice the segment's speed (a blocked object
+        // is blocked, it does not teleport).
+        Eigen::Vector2d v = (p - fromWorld(body->GetPosition())) / dt;
+        const double cap = 2 * params_.object_speed_mps;
+        if (v.norm() > cap) v *= cap / v.norm();
+        body->SetLinearVelocity(toWorld(v));
+        body->SetLinearDamping(0);  // carried: no friction of its own
+      } else {
+        e.pose.x = p.x();
+        e.pose.y = p.y();
       }
     }
   }
+  physics_->began.clear();
+  physics_->world.Step(static_cast<float>(dt), 8, 3);
   time_s_ += dt;
+  for (size_t i = 0; i < entities_.size(); ++i) {
+    b2Body* body = physics_->bodies[i];
+    if (!body) continue;
+    Entity& e = entities_[i];
+    const Eigen::Vector2d p = fromWorld(body->GetPosition());
+    e.pose = {p.x(), p.y(), wrapAngle(body->GetAngle())};
+    if (e.robot) {
+      e.robot->setTruePose(e.pose);
+      body->SetLinearVelocity(b2Vec2(0, 0));  // the wheels decide again next step
+      body->SetAngularVelocity(0);
+    }
+  }
+  for (const auto& [a, b] : physics_->began) contacts_.push_back({time_s_, a, b});
+  measureClearance();
+  for (size_t i = 0; i < entities_.size(); ++i) {
+    Entity& e = entities_[i];
+    if (!e.moving) continue;
+    if (e.carried->arrived()) {
+      halt(static_cast<int>(i));
+      out.push_back(report(static_cast<int>(i), SegmentState::Done));
+    } else if (++e.status_cycle % params_.status_every_cycles == 0) {
+      out.push_back(report(static_cast<int>(i), SegmentState::Running));
+    }
+  }
   return out;
 }
 

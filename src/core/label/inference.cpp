@@ -133,7 +133,8 @@ bool MotionSegmenter::stillAt(size_t e, double within, Vector2d& rest) const {
   const double now = history_.back().t;
   size_t w = history_.size() - 1;
   while (w > 0 && now - history_[w - 1].t <= o_.still_s + 1e-9) --w;
-  if (now - history_[w].t < o_.still_s - 1e-9 || w == 0) return false;  // not yet still_s of rows
+  // Rows older than the window exist (it spans still_s), and it holds at least 3 rows.
+  if (w == 0 || history_.size() - w < 3) return false;
   Vector2d mean = Vector2d::Zero();
   for (size_t i = w; i < history_.size(); ++i) mean += history_[i].p[e];
   mean /= static_cast<double>(history_.size() - w);

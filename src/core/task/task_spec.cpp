@@ -58,6 +58,32 @@ std::vector<std::string> TaskSpec::entityNames() const {
   return names;
 }
 
+Footprint footprint(const Entity& e) {
+  Footprint f;
+  switch (e.kind) {
+    case EntityKind::Robot:
+      f = {kDefaultRobotRadius, true};
+      break;
+    case EntityKind::Object:
+      f = {kDefaultObjectRadius, true};
+      break;
+    case EntityKind::Goal:
+      f = {kDefaultGoalRadius, false};
+      break;
+  }
+  if (e.radius_m) f.radius_m = *e.radius_m;
+  if (e.obstacle) f.obstacle = *e.obstacle;
+  return f;
+}
+
+Footprint TaskSpec::footprint(int i) const {
+  return task::footprint(entities.at(static_cast<size_t>(i)));
+}
+
+double TaskSpec::contactDistance(int a, int b) const {
+  return footprint(a).radius_m + footprint(b).radius_m;
+}
+
 TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
   YamlChecker c(file);
   const YAML::Node root = c.parse(text);
@@ -86,7 +112,7 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
         c.error(node, "an entity must be a mapping {name, kind, type}");
         continue;
       }
-      c.onlyKeys(node, {"name", "kind", "type"}, "an entity");
+      c.onlyKeys(node, {"name", "kind", "type", "radius", "obstacle"}, "an entity");
       Entity e;
       bool ok = true;
       if (!node["name"]) {
@@ -122,6 +148,16 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
                       [](char ch) { return std::iscntrl(static_cast<unsigned char>(ch)); })) {
         c.error(node["type"], "type must be printable text (it has a control character)");
         ok = false;
+      }
+      if (node["radius"]) {
+        double r = 0;
+        if (c.positive(node["radius"], "radius", r)) e.radius_m = r;
+        else ok = false;
+      }
+      if (node["obstacle"]) {
+        bool b = true;
+        if (c.boolean(node["obstacle"], "obstacle", b)) e.obstacle = b;
+        else ok = false;
       }
       if (ok) spec.entities.push_back(e);
     }
@@ -227,6 +263,8 @@ std::string taskYamlText(const TaskSpec& spec) {
       type << e.type;
       out << ", type: " << type.c_str();
     }
+    if (e.radius_m) out << ", radius: " << detail::shortestNumber(*e.radius_m);
+    if (e.obstacle) out << ", obstacle: " << (*e.obstacle ? "true" : "false");
     out << "}\n";
   }
   if (spec.actions_declared) {

@@ -26,9 +26,11 @@ task::TaskSpec tableTask() {
 }
 constexpr int R1 = 0, O1 = 1, G1 = 2;
 
-/// R1 at the origin facing +x, O1 at (0.2, 0), G1 at (0.5, 0.3); 50 Hz, objects at 0.1 m/s.
+/// R1 at the origin facing +x, O1 at (0.2, 0), G1 at (0.5, 0.3); 50 Hz, objects at 0.1 m/s;
+/// with bodies (Box2D).
 TableSimulator table(const std::vector<std::string>& stalled = {}) {
   TableSimulatorParams p;
+  p.bodies = true;
   p.object_speed_mps = 0.1;
   return TableSimulator(tableTask(), {{0, 0, 0}, {0.2, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p, stalled);
 }
@@ -86,12 +88,12 @@ TEST(TableSimulator, AnObjectFollowsItsSegmentFromWhereItIsAndIsReleasedAtTheEnd
 
   // 1 s at 0.1 m/s: 0.1 m along the path; a Running report every 5th step.
   const auto running = run(sim, 50);
-  EXPECT_NEAR(sim.truePose(O1).x, 0.3, 1e-9);
-  EXPECT_NEAR(sim.truePose(O1).y, 0.0, 1e-9);
+  EXPECT_NEAR(sim.truePose(O1).x, 0.3, 1e-6);  // Box2D computes in float
+  EXPECT_NEAR(sim.truePose(O1).y, 0.0, 1e-6);
   ASSERT_EQ(running.size(), 10u);
   for (const auto& s : running) EXPECT_EQ(s.state, SegmentState::Running);
   EXPECT_NEAR(running.back().progress, 0.1 / 0.3, 1e-9);
-  EXPECT_NEAR(running.back().distance_to_goal_m, std::hypot(0.1, 0.1), 1e-9);
+  EXPECT_NEAR(running.back().distance_to_goal_m, std::hypot(0.1, 0.1), 1e-6);
 
   // The rest of the path (0.2 m) takes 2 s; Done comes once, at the end.
   const auto rest = run(sim, 100);
@@ -99,14 +101,14 @@ TEST(TableSimulator, AnObjectFollowsItsSegmentFromWhereItIsAndIsReleasedAtTheEnd
   EXPECT_EQ(rest.back().state, SegmentState::Done);
   EXPECT_EQ(rest.back().segment_id, 7u);
   EXPECT_NEAR(rest.back().progress, 1.0, 1e-12);
-  EXPECT_NEAR(rest.back().distance_to_goal_m, 0.0, 1e-9);
+  EXPECT_NEAR(rest.back().distance_to_goal_m, 0.0, 1e-6);
   EXPECT_FALSE(sim.moving(O1));
 
   // Released: it stays at the end of its path and reports nothing more.
   EXPECT_TRUE(run(sim, 50).empty());
-  EXPECT_NEAR(sim.truePose(O1).x, 0.4, 1e-9);
-  EXPECT_NEAR(sim.truePose(O1).y, 0.1, 1e-9);
-  EXPECT_NEAR(sim.measuredPose(O1).y, 0.1, 1e-9);  // objects are tracked exactly
+  EXPECT_NEAR(sim.truePose(O1).x, 0.4, 1e-6);
+  EXPECT_NEAR(sim.truePose(O1).y, 0.1, 1e-6);
+  EXPECT_NEAR(sim.measuredPose(O1).y, 0.1, 1e-6);  // objects are tracked exactly
 }
 
 TEST(TableSimulator, AResentSegmentChangesNothingAndANewIdReplacesIt) {
@@ -116,7 +118,7 @@ TEST(TableSimulator, AResentSegmentChangesNothingAndANewIdReplacesIt) {
   const double x = sim.truePose(O1).x;
   EXPECT_FALSE(sim.startSegment(O1, 1, {{0, 0}, {1.2, 0}}));  // the coordinator's resend
   run(sim, 10);
-  EXPECT_NEAR(sim.truePose(O1).x, x + 0.02, 1e-9);  // kept going, did not restart
+  EXPECT_NEAR(sim.truePose(O1).x, x + 0.02, 1e-6);  // kept going, did not restart
 
   const auto replaced = sim.startSegment(O1, 2, {{0, 0}, {sim.truePose(O1).x, 0.1}});
   ASSERT_TRUE(replaced);
@@ -126,7 +128,7 @@ TEST(TableSimulator, AResentSegmentChangesNothingAndANewIdReplacesIt) {
   ASSERT_FALSE(done.empty());
   EXPECT_EQ(done.back().state, SegmentState::Done);
   EXPECT_EQ(done.back().segment_id, 2u);
-  EXPECT_NEAR(sim.truePose(O1).y, 0.1, 1e-9);
+  EXPECT_NEAR(sim.truePose(O1).y, 0.1, 1e-6);
 }
 
 TEST(TableSimulator, AStoppedOrRefusedSegmentLeavesTheObjectWhereItIs) {
@@ -145,7 +147,7 @@ TEST(TableSimulator, AStoppedOrRefusedSegmentLeavesTheObjectWhereItIs) {
   EXPECT_EQ(stopped->segment_id, 4u);
   EXPECT_FALSE(sim.stopSegment(O1));  // nothing is running any more
   EXPECT_TRUE(run(sim, 25).empty());
-  EXPECT_NEAR(sim.truePose(O1).x, 0.25, 1e-9);
+  EXPECT_NEAR(sim.truePose(O1).x, 0.25, 1e-6);
 
   ASSERT_TRUE(sim.startSegment(O1, 5, {{0, 0}, {1, 0}}));
   const ObjectStatus refused = sim.refuseSegment(O1, 6, "/robots/O1/segment: path point 2 is not finite");
@@ -154,7 +156,7 @@ TEST(TableSimulator, AStoppedOrRefusedSegmentLeavesTheObjectWhereItIs) {
   EXPECT_EQ(refused.progress, 0.0);
   EXPECT_EQ(refused.message, "/robots/O1/segment: path point 2 is not finite");
   EXPECT_TRUE(run(sim, 25).empty());
-  EXPECT_NEAR(sim.truePose(O1).x, 0.25, 1e-9);
+  EXPECT_NEAR(sim.truePose(O1).x, 0.25, 1e-6);
 }
 
 TEST(TableSimulator, TheEstopAbortsRunningSegmentsAndRefusesNewOnesUntilReleased) {
@@ -187,19 +189,84 @@ TEST(TableSimulator, RobotsDriveOnTheirWheelsGoalsNeverMove) {
     sim.commandWheels(R1, {0.1, 0.1});
     sim.step();
   }
-  EXPECT_NEAR(sim.truePose(R1).x, 0.1, 1e-9);
-  EXPECT_NEAR(sim.truePose(R1).y, 0.0, 1e-9);
+  EXPECT_NEAR(sim.truePose(R1).x, 0.1, 1e-6);
+  EXPECT_NEAR(sim.truePose(R1).y, 0.0, 1e-6);
   EXPECT_NEAR(sim.time(), 1.0, 1e-9);
   EXPECT_EQ(sim.truePose(G1).x, 0.5);
   EXPECT_EQ(sim.truePose(G1).y, 0.3);
-  EXPECT_EQ(sim.truePose(O1).x, 0.2);  // objects move only through their own segments
+  EXPECT_NEAR(sim.truePose(O1).x, 0.2, 1e-6);  // untouched, an object stays where it is
 
   TableSimulator stuck = table({"R1"});
   for (int k = 0; k < 50; ++k) {
     stuck.commandWheels(R1, {0.1, 0.1});
     stuck.step();
   }
-  EXPECT_EQ(stuck.truePose(R1).x, 0.0);
+  EXPECT_NEAR(stuck.truePose(R1).x, 0.0, 1e-9);
+}
+
+TEST(TableSimulator, ARobotPushesAnObjectAndTheContactIsCounted) {
+  TableSimulator sim = table();  // R1 at the origin facing O1, 0.2 m ahead
+  EXPECT_TRUE(sim.contacts().empty());
+  EXPECT_NEAR(sim.closestApproach().clearance_m, 0.2 - sim.radiusM(R1) - sim.radiusM(O1), 1e-6);
+  for (int k = 0; k < 150; ++k) {  // 3 s at 0.1 m/s: 0.3 m, through where O1 was
+    sim.commandWheels(R1, {0.1, 0.1});
+    sim.step();
+  }
+  EXPECT_GT(sim.truePose(O1).x, 0.2 + 0.05) << "the pushed object did not move";
+  EXPECT_GT(sim.truePose(O1).x, sim.truePose(R1).x);  // ahead of its pusher, not passed through
+  ASSERT_GE(sim.contacts().size(), 1u);
+  EXPECT_EQ(sim.contacts().front().a, R1);
+  EXPECT_EQ(sim.contacts().front().b, O1);
+  EXPECT_NEAR(sim.contacts().front().time_s, (0.2 - 0.042) / 0.1, 0.1);  // when the discs met
+  EXPECT_LT(sim.closestApproach().clearance_m, 0.001);
+  EXPECT_GT(sim.closestApproach().clearance_m, -0.003) << "bodies overlap: no physics";
+  EXPECT_EQ(sim.closestApproach().a, R1);
+  EXPECT_EQ(sim.closestApproach().b, O1);
+
+  // Without bodies (the paper's points) the robot drives through it, measured all the same.
+  TableSimulatorParams points;
+  points.bodies = false;
+  TableSimulator ghost(tableTask(), {{0, 0, 0}, {0.2, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, points);
+  for (int k = 0; k < 150; ++k) {
+    ghost.commandWheels(R1, {0.1, 0.1});
+    ghost.step();
+  }
+  EXPECT_NEAR(ghost.truePose(O1).x, 0.2, 1e-12);
+  EXPECT_TRUE(ghost.contacts().empty());
+  EXPECT_LT(ghost.closestApproach().clearance_m, -0.04);
+}
+
+TEST(TableSimulator, TwoRobotsDrivingIntoEachOtherDoNotPassThrough) {
+  task::TaskSpec spec;
+  spec.name = "two";
+  spec.entities = {{"R1", task::EntityKind::Robot, ""}, {"R2", task::EntityKind::Robot, ""}};
+  TableSimulatorParams bodies;
+  bodies.bodies = true;
+  TableSimulator sim(spec, {{0, 0, 0}, {0.2, 0, M_PI}}, DiffDriveParams{}, bodies);
+  double min_gap = 1;
+  for (int k = 0; k < 150; ++k) {
+    sim.commandWheels(0, {0.1, 0.1});
+    sim.commandWheels(1, {0.1, 0.1});
+    sim.step();
+    min_gap = std::min(min_gap, sim.truePose(1).x - sim.truePose(0).x - sim.radiusM(0) - sim.radiusM(1));
+  }
+  EXPECT_GT(min_gap, -0.003);
+  EXPECT_EQ(sim.contacts().size(), 1u);  // they met once and stayed in contact
+}
+
+TEST(TableSimulator, ALoadPlacedOnItsCarrierIsNoCollision) {
+  task::TaskSpec spec = tableTask();
+  TableSimulatorParams bodies;
+  bodies.bodies = true;
+  TableSimulator sim(spec, {{0, 0, 0}, {0, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, bodies);
+  ASSERT_EQ(sim.loadedPairs().size(), 1u);
+  EXPECT_EQ(sim.loadedPairs()[0], std::make_pair(R1, O1));
+  for (int k = 0; k < 50; ++k) {
+    sim.commandWheels(R1, {0.1, 0.1});
+    sim.step();
+  }
+  EXPECT_TRUE(sim.contacts().empty());
+  EXPECT_NEAR(sim.truePose(O1).x, 0.0, 1e-6);  // the robot drove off from under it
 }
 
 TEST(TableSimulator, RefusesWhatDoesNotFitTheTask) {

@@ -140,6 +140,24 @@ TEST(Label, LoadCarriedThenDroppedWithWordsFromAnExample) {
   EXPECT_TRUE(inf.notes.empty());
 }
 
+TEST(Label, RowsAtAnIrregularLowRate) {
+  // A loaded recorder writes rows when it can: about 10 Hz, unevenly.
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}, 0, 2.5}, {1, {0.9, 0.1}, 0.6, 2}});
+  s.rest(1.3);
+  s.move({{0, {0.5, 0.5}, 0, 2}});
+  s.rest(1);
+  task::Demonstration sparse = s.d;
+  sparse.t.clear(), sparse.positions.clear(), sparse.labels.clear();
+  for (size_t i = 0; i < s.d.rows(); i += 2 + i % 3) {
+    sparse.t.push_back(s.d.t[i]);
+    sparse.positions.push_back(s.d.positions[i]);
+    sparse.labels.push_back(s.d.labels[i]);
+  }
+  EXPECT_EQ(tokens(label::inferLabels(sparse, s.spec), s.spec), (Steps{{"R1:move:G1", "R2:move:G2"}, {"R1:move:B1"}}));
+}
+
 TEST(Label, AnEntityThatNeverMovesHasNoToken) {
   Scene s;
   s.rest(1);

@@ -186,3 +186,53 @@ TEST(TaskSpec, StepWindowIsOptionalValidatedAndRoundTrips) {
   }
   EXPECT_NE(onlyError(head + "step_window_s: -1\n").message.find(">= 0"), std::string::npos);
 }
+
+TEST(TaskSpec, FootprintDefaultsByKind) {
+  // A task.yaml without footprints (every task file before them) reads with the defaults.
+  const TaskSpec s = parseTaskYaml(kGood, "task.yaml");
+  const Footprint robot = s.footprint(0), object = s.footprint(2), goal = s.footprint(3);
+  EXPECT_DOUBLE_EQ(robot.radius_m, kDefaultRobotRadius);
+  EXPECT_TRUE(robot.obstacle);
+  EXPECT_DOUBLE_EQ(object.radius_m, kDefaultObjectRadius);
+  EXPECT_TRUE(object.obstacle);
+  EXPECT_DOUBLE_EQ(goal.radius_m, kDefaultGoalRadius);
+  EXPECT_FALSE(goal.obstacle);  // a flat print: robots drive onto it
+  // Two Hamsters touch 3-4.5 cm apart (a 3.2 x 3.0 cm body); the disc is the outer bound.
+  EXPECT_GE(s.contactDistance(0, 1), 0.03);
+  EXPECT_LE(s.contactDistance(0, 1), 0.045);
+  EXPECT_DOUBLE_EQ(s.contactDistance(0, 2), kDefaultRobotRadius + kDefaultObjectRadius);
+  // Nothing stated, nothing written: the file stays as it was.
+  EXPECT_EQ(taskYamlText(s).find(", radius:"), std::string::npos);
+}
+
+TEST(TaskSpec, StatedFootprintsOverrideTheDefaultsAndRoundTrip) {
+  const TaskSpec s = parseTaskYaml(
+      "format: ddace-task/1\nentities:\n  - {name: R1, kind: robot, type: uav, radius: 0.05}\n"
+      "  - {name: B1, kind: object, obstacle: false}\n  - {name: G1, kind: goal, radius: 0.1, obstacle: true}\n",
+      "task.yaml");
+  EXPECT_DOUBLE_EQ(s.footprint(0).radius_m, 0.05);
+  EXPECT_TRUE(s.footprint(0).obstacle);
+  EXPECT_DOUBLE_EQ(s.footprint(1).radius_m, kDefaultObjectRadius);
+  EXPECT_FALSE(s.footprint(1).obstacle);
+  EXPECT_DOUBLE_EQ(s.footprint(2).radius_m, 0.1);
+  EXPECT_TRUE(s.footprint(2).obstacle);
+  EXPECT_DOUBLE_EQ(s.contactDistance(0, 2), 0.15);
+  const TaskSpec again = parseTaskYaml(taskYamlText(s), "again.yaml");
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(again.entities[i].radius_m, s.entities[i].radius_m) << i;
+    EXPECT_EQ(again.entities[i].obstacle, s.entities[i].obstacle) << i;
+  }
+  EXPECT_EQ(taskYamlText(again), taskYamlText(s));
+}
+
+TEST(TaskSpec, BadFootprintIsAnErrorAtItsPosition) {
+  Diagnostic d = onlyError("format: ddace-task/1\nentities:\n  - {name: R1, kind: robot, radius: 0}\n");
+  EXPECT_EQ(d.line, 3);
+  EXPECT_EQ(d.column, 37);
+  EXPECT_NE(d.message.find("radius must be > 0"), std::string::npos) << d.message;
+  d = onlyError("format: ddace-task/1\nentities:\n  - {name: R1, kind: robot, radius: nan}\n");
+  EXPECT_NE(d.message.find("not a finite number"), std::string::npos) << d.message;
+  d = onlyError("format: ddace-task/1\nentities:\n  - {name: G1, kind: goal, obstacle: maybe}\n");
+  EXPECT_EQ(d.line, 3);
+  EXPECT_NE(d.message.find("obstacle: 'maybe' is not true or false"), std::string::npos) << d.message;
+}

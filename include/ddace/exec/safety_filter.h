@@ -1,0 +1,136 @@
+// The collision-avoidance safety filter between a robot's path follower and its wheels.
+//
+// Each robot runs its own filter from the tracked poses of the bodies around it (no
+// central planner). The filter changes the follower's command as little as possible so
+// that the robot's body stays at least `margin_m` beyond contact with every other body
+// (robots, objects; goals are flat and drive-on), except its motion's own target, which
+// it may touch (docs/execution.md, "Collision avoidance").
+//
+// How: a control barrier function on a point `projection_m` ahead of the axle (the
+// Robotarium's unicycle barrier certificates). That point moves like a single integrator
+// (p' = v e + w l e_perp), so keeping p at least contact + margin + l from a neighbour's
+// centre keeps the bodies at least contact + margin apart. Per neighbour j, with
+// h = |p - c_j| - (r_i + r_j + margin + l) and n the unit vector from c_j to p:
+//   n . p'  >=  -share * gain * h       (share 1/2 for a robot, which runs its own
+//                                        filter and takes the other half; 1 otherwise)
+// The right side is never above 0, so a pair already inside the margin (a start scene,
+// a pushed robot) may separate but never close in. The motion's
+// target gets the same constraint on the centres at contact distance. Together with the
+// wheel limits these are half-planes in (v, l w); the least change of (v, l w) -- equal to
+// the least change of p' -- is a quadratic programme in two variables, solved exactly by
+// enumerating active sets (the command itself, each constraint's line, each vertex).
+// Standing still always satisfies every constraint, so the programme is never
+// infeasible.
+//
+// Deadlock: a robot whose command the filter keeps changing and that does not advance
+// `progress_m` along its path is held -- frozen, or circling with others. Held for
+// `resolve_after_s`, its point goes around the nearest body, keeping it on the left, for
+// the next `resolve_after_s` (every robot turns the same way, so two robots face to face
+// pass each other). Held for `deadlock_after_s`, the filter reports a deadlock naming the
+// robot and the bodies holding it (the caller stops the robot and reports it).
+//
+// Fail safe: its own pose or a body within `range_m` older than `pose_max_age_s` (or
+// marked stale) -> zero wheels and a report naming the stale body.
+//
+// Owns: the barrier constraints, the QP, blocked/deadlock timing. Must not: know ROS,
+// read a clock (time comes in), or decide where a motion ends (the follower does).
+// Units: metres, radians, seconds, m/s; table frame.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ddace/exec/diff_drive.h"
+#include "ddace/task/task_spec.h"
+
+namespace ddace::exec {
+
+struct SafetyParams {
+  bool enabled = true;             ///< false: commands pass through (measurements of the unfiltered law)
+  double margin_m = 0.01;          ///< clearance kept beyond contact between two bodies
+  double projection_m = 0.01;      ///< the controlled point lies this far ahead of the axle
+  double barrier_gain_hz = 3.0;    ///< how fast a gap may close: at most gain x (gap beyond the margin) per second
+  double range_m = 0.25;           ///< bodies whose centres are farther than this are ignored
+  double pose_max_age_s = 0.15;    ///< a pose older than this (a tracker frame is 33 ms) is stale
+  double blocked_fraction = 0.25;  ///< filtered point speed below this fraction of the nominal = blocked
+  double resolve_after_s = 0.5;    ///< held this long: go around the nearest body (right-hand rule) for as long
+  double deadlock_after_s = 5.0;   ///< held without progress this long: deadlock reported naming the robots
+  double progress_m = 0.02;        ///< advancing this much along the path is progress
+  /// Throws ddace::Error naming the first invalid field.
+  void validate() const;
+};
+
+/// A body the filter must keep clear of, as tracked.
+struct SafetyBody {
+  std::string name;
+  Eigen::Vector2d position{0, 0};  ///< centre, table frame
+  double radius_m = 0;             ///< disc around the centre
+  bool robot = false;              ///< runs its own filter: takes half of each pair's constraint
+  double age_s = 0;                ///< how old its pose is
+  bool stale = false;              ///< the tracker says: never drive on it
+};
+
+/// The body of an entity as the filter and the simulator see it: its disc radius and
+/// whether others must keep off it (goals are flat: not an obstacle). The one place the
+/// execution reads the task's footprints.
+struct BodyShape {
+  double radius_m = 0;
+  bool obstacle = false;
+};
+BodyShape bodyShape(const task::Entity& e);
+inline BodyShape bodyShape(const task::TaskSpec& spec, int i) {
+  return bodyShape(spec.entities.at(i));
+}
+
+/// What the filter decided for one control cycle.
+struct SafetyCommand {
+  WheelSpeeds wheels;                 ///< what goes to the wheels
+  double v_mps = 0, w_radps = 0;      ///< the same as a twist
+  bool modified = false;              ///< the nominal command was changed
+  bool blocked = false;               ///< the nominal moves, the filtered command hardly does
+  bool deadlock = false;              ///< blocked for deadlock_after_s: stop and report `reason`
+  bool stale = false;                 ///< a pose was stale: wheels zero, `reason` names it
+  std::vector<std::string> blocking;  ///< bodies whose constraints hold the robot (active ones)
+  double clearance_m = 1e9;           ///< smallest gap between this body and another (beyond contact)
+  std::string reason;                 ///< for stale and deadlock
+};
+
+class SafetyFilter {
+ public:
+  /// `wheel_base_m` and `max_wheel_speed_mps` as the robot's (FollowerGains);
+  /// `max_turn_rate_radps` bounds the filtered yaw rate. Throws ddace::Error for invalid
+  /// parameters.
+  SafetyFilter(const SafetyParams& params, double wheel_base_m, double max_wheel_speed_mps, double max_turn_rate_radps);
+
+  /// One control cycle at time `now_s` for robot `self_name` at `self` (pose `self_age_s`
+  /// old) with body radius `self_radius_m`, the follower's `nominal` wheels, the arc
+  /// length of its path covered so far (`progress_m`, never decreasing), the other
+  /// `bodies` (self excluded) and the name of the motion's `target` ("" for none).
+  SafetyCommand filter(const std::string& self_name, const Pose2D& self, double self_radius_m, double self_age_s,
+                       const WheelSpeeds& nominal, double progress_m, const std::vector<SafetyBody>& bodies,
+                       const std::string& target, double now_s);
+  /// Forgets the blocked and deadlock clocks (a new segment, the robot idle).
+  void reset() { resolve_until_s_ = stuck_since_s_ = -1; }
+  const SafetyParams& params() const { return params_; }
+
+ private:
+  SafetyParams params_;
+  double wheel_base_m_, max_wheel_mps_, max_turn_radps_;
+  double resolve_until_s_ = -1;  ///< the nominal turns right until then
+  double stuck_since_s_ = -1;    ///< since when the filter holds the robot without progress
+  double stuck_progress_m_ = 0;  ///< its progress then
+};
+
+/// A half-plane a . z <= b in two variables.
+struct HalfPlane {
+  Eigen::Vector2d a{0, 0};
+  double b = 0;
+};
+/// The point of the half-planes' intersection closest to `z0` (exact, by enumerating the
+/// active sets). The intersection must not be empty (e.g. contain the origin); returns
+/// the origin when no candidate is feasible (numerically empty).
+Eigen::Vector2d closestFeasible(const Eigen::Vector2d& z0, const std::vector<HalfPlane>& constraints);
+
+}  // namespace ddace::exec

@@ -1,0 +1,239 @@
+// The safety filter closed-loop against unicycles at the camera's rate: robots follow
+// their paths through ExecFollower + SafetyFilter, seeing each other's poses 30 times a
+// second and a frame old, wheels 40 ms late (as the mock robots and the real table).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "ddace/common/error.h"
+#include "ddace/exec/diff_drive.h"
+#include "ddace/exec/path_follower.h"
+#include "ddace/exec/safety_filter.h"
+
+using namespace ddace;
+using namespace ddace::exec;
+using Eigen::Vector2d;
+
+namespace {
+
+constexpr double kRadius = 0.022;  // a Hamster's disc
+
+struct Mover {
+  std::string name;
+  Pose2D start;
+  std::vector<Vector2d> path;  ///< empty: stands still (a parked robot)
+  std::string target;
+};
+struct Obstacle {
+  std::string name;
+  Vector2d at;
+};
+
+struct Outcome {
+  std::vector<bool> done;
+  double min_gap_m = 1e9;              ///< smallest centre distance minus contact, any pair, any time
+  double min_gap_untargeted_m = 1e9;   ///< the same over pairs that are not a motion and its target
+  std::vector<std::string> deadlocks;  ///< reasons, in order
+  double deadlock_time_s = -1;
+  double end_s = 0;
+};
+
+Outcome run(const std::vector<Mover>& movers, const std::vector<Obstacle>& obstacles, double limit_s,
+            const SafetyParams& sp = {}, double arrival_m = 0.03) {
+  DiffDriveParams dp;
+  dp.latency_s = 0.04;
+  FollowerGains g;
+  g.arrival_radius_m = arrival_m;
+  std::vector<DiffDriveModel> robots;
+  std::vector<PathFollower> followers;
+  std::vector<SafetyFilter> filters;
+  for (size_t i = 0; i < movers.size(); ++i) {
+    DiffDriveParams p = dp;
+    p.seed = 11 + i;
+    p.position_noise_m = 0.001;
+    robots.emplace_back(p, movers[i].start);
+    followers.emplace_back(g);
+    if (!movers[i].path.empty()) followers.back().setPath({movers[i].path, {}});
+    filters.emplace_back(sp, g.wheel_base_m, g.max_wheel_speed_mps, g.max_turn_rate_radps);
+  }
+  Outcome o;
+  o.done.assign(movers.size(), false);
+  std::vector<Pose2D> seen(movers.size());
+  double seen_at = -1;
+  const double frame = 1.0 / 30;
+  for (double t = 0; t < limit_s; t += 1.0 / dp.rate_hz) {
+    if (seen_at < 0 || t - seen_at >= frame - 1e-9) {  // a camera frame, used a frame later
+      for (size_t i = 0; i < movers.size(); ++i) seen[i] = robots[i].measuredPose();
+      seen_at = t;
+    }
+    const double age = t - seen_at + frame;
+    bool all_done = true;
+    for (size_t i = 0; i < movers.size(); ++i) {
+      if (movers[i].path.empty() || o.done[i]) {
+        robots[i].command({}, robots[i].time());
+        continue;
+      }
+      const FollowerOutput f = followers[i].compute(seen[i]);
+      if (f.done) {
+        o.done[i] = true;
+        robots[i].command({}, robots[i].time());
+        continue;
+      }
+      all_done = false;
+      std::vector<SafetyBody> bodies;
+      for (size_t j = 0; j < movers.size(); ++j)
+        if (j != i) bodies.push_back({movers[j].name, seen[j].position(), kRadius, true, age, false});
+      for (const Obstacle& ob : obstacles) bodies.push_back({ob.name, ob.at, kRadius, false, age, false});
+      const SafetyCommand c =
+          filters[i].filter(movers[i].name, seen[i], kRadius, age, f.wheels,
+                            followers[i].progress() * followers[i].lengthM(), bodies, movers[i].target, t);
+      if (c.deadlock) {
+        o.deadlocks.push_back(c.reason);
+        if (o.deadlock_time_s < 0) o.deadlock_time_s = t;
+        o.done[i] = true;  // the caller stops the robot and reports it
+        robots[i].command({}, robots[i].time());
+        continue;
+      }
+      robots[i].command(c.wheels, robots[i].time());
+    }
+    for (auto& r : robots) r.step();
+    for (size_t i = 0; i < movers.size(); ++i) {
+      const Vector2d xi = robots[i].truePose().position();
+      auto gap = [&](const Vector2d& y, const std::string& other) {
+        const double d = (xi - y).norm() - 2 * kRadius;
+        o.min_gap_m = std::min(o.min_gap_m, d);
+        if (movers[i].target != other) o.min_gap_untargeted_m = std::min(o.min_gap_untargeted_m, d);
+      };
+      for (size_t j = i + 1; j < movers.size(); ++j)
+        if (movers[j].target != movers[i].name) gap(robots[j].truePose().position(), movers[j].name);
+      for (const Obstacle& ob : obstacles) gap(ob.at, ob.name);
+    }
+    o.end_s = t;
+    if (all_done) break;
+  }
+  return o;
+}
+
+std::vector<Vector2d> line(Vector2d a, Vector2d b, int n = 50) {
+  std::vector<Vector2d> p;
+  for (int i = 0; i < n; ++i) p.push_back(a + (b - a) * i / (n - 1.0));
+  return p;
+}
+
+}  // namespace
+
+TEST(SafetyFilter, FreeRoadPassesTheCommandUnchanged) {
+  SafetyFilter f({}, 0.03, 0.2, 4.0);
+  const WheelSpeeds nominal{0.10, 0.12};
+  const SafetyCommand c = f.filter("R1", {0.1, 0.1, 0}, kRadius, 0.03, nominal, 0.0,
+                                   {{"R2", {0.5, 0.5}, kRadius, true, 0.03, false}}, "", 0);
+  EXPECT_FALSE(c.modified);
+  EXPECT_NEAR(c.wheels.left_mps, 0.10, 1e-12);
+  EXPECT_NEAR(c.wheels.right_mps, 0.12, 1e-12);
+  EXPECT_FALSE(c.blocked);
+}
+
+TEST(SafetyFilter, HeadOnBothArriveWithoutContact) {
+  const Vector2d a(0.1, 0.3), b(0.5, 0.3);
+  const Outcome o =
+      run({{"R1", {a.x(), a.y(), 0}, line(a, b), ""}, {"R2", {b.x(), b.y(), M_PI}, line(b, a), ""}}, {}, 30);
+  EXPECT_TRUE(o.done[0] && o.done[1]);
+  EXPECT_TRUE(o.deadlocks.empty()) << o.deadlocks.front();
+  EXPECT_GT(o.min_gap_m, 0.0) << "bodies overlapped";
+}
+
+TEST(SafetyFilter, CrossingBothArriveWithoutContact) {
+  const Outcome o = run({{"R1", {0.1, 0.3, 0}, line({0.1, 0.3}, {0.5, 0.3}), ""},
+                         {"R2", {0.3, 0.1, M_PI / 2}, line({0.3, 0.1}, {0.3, 0.5}), ""}},
+                        {}, 30);
+  EXPECT_TRUE(o.done[0] && o.done[1]);
+  EXPECT_TRUE(o.deadlocks.empty());
+  EXPECT_GT(o.min_gap_m, 0.0);
+  // Without the filter the same robots collide: the test can tell.
+  SafetyParams off;
+  off.enabled = false;
+  const Outcome u = run({{"R1", {0.1, 0.3, 0}, line({0.1, 0.3}, {0.5, 0.3}), ""},
+                         {"R2", {0.3, 0.1, M_PI / 2}, line({0.3, 0.1}, {0.3, 0.5}), ""}},
+                        {}, 30, off);
+  EXPECT_LT(u.min_gap_m, 0.0);
+}
+
+TEST(SafetyFilter, FourRobotsToOneTargetTouchItButNotEachOther) {
+  const Vector2d t(0.4, 0.4);
+  std::vector<Mover> m;
+  for (int k = 0; k < 4; ++k) {
+    const double ang = k * M_PI / 2 + 0.3;
+    const Vector2d dir(std::cos(ang), std::sin(ang));
+    const Vector2d from = t + 0.25 * dir, to = t + (2 * kRadius + 0.004) * dir;  // ends at contact
+    m.push_back({"R" + std::to_string(k + 1), {from.x(), from.y(), ang + M_PI}, line(from, to), "T"});
+  }
+  const Outcome o = run(m, {{"T", t}}, 40, {}, 0.006);  // they must really reach contact
+  for (int k = 0; k < 4; ++k) EXPECT_TRUE(o.done[k]) << "R" << k + 1;
+  EXPECT_TRUE(o.deadlocks.empty());
+  EXPECT_GT(o.min_gap_m, -0.002) << "a robot pushed into its target";
+  EXPECT_GT(o.min_gap_untargeted_m, 0.0) << "two robots touched";
+}
+
+TEST(SafetyFilter, BoxedInRobotStaysPutAndIsReportedByName) {
+  std::vector<Obstacle> box;
+  const Vector2d c(0.4, 0.4);
+  for (int k = 0; k < 6; ++k)
+    box.push_back({"B" + std::to_string(k + 1), c + 0.06 * Vector2d(std::cos(k * M_PI / 3), std::sin(k * M_PI / 3))});
+  const Outcome o = run({{"R1", {c.x(), c.y(), 0.2}, line(c, {0.8, 0.45}), ""}}, box, 20);
+  EXPECT_GT(o.min_gap_m, 0.0);
+  ASSERT_EQ(o.deadlocks.size(), 1u) << "a boxed-in robot must be reported, not left frozen";
+  EXPECT_NE(o.deadlocks[0].find("R1"), std::string::npos) << o.deadlocks[0];
+  EXPECT_NE(o.deadlocks[0].find("B"), std::string::npos) << o.deadlocks[0];
+  EXPECT_LT(o.deadlock_time_s, 7.0);
+}
+
+TEST(SafetyFilter, StalePoseZeroesTheWheelsNamingIt) {
+  SafetyFilter f({}, 0.03, 0.2, 4.0);
+  const WheelSpeeds nominal{0.1, 0.1};
+  SafetyCommand c = f.filter("R1", {0.1, 0.1, 0}, kRadius, 0.5, nominal, 0.0, {}, "", 0);
+  EXPECT_TRUE(c.stale);
+  EXPECT_TRUE(c.wheels.isZero());
+  EXPECT_NE(c.reason.find("R1"), std::string::npos);
+  c = f.filter("R1", {0.1, 0.1, 0}, kRadius, 0.03, nominal, 0.0, {{"R2", {0.2, 0.1}, kRadius, true, 0.03, true}}, "",
+               0);
+  EXPECT_TRUE(c.stale);
+  EXPECT_TRUE(c.wheels.isZero());
+  EXPECT_NE(c.reason.find("R2"), std::string::npos);
+  // Far away, a stale body does not stop the robot.
+  c = f.filter("R1", {0.1, 0.1, 0}, kRadius, 0.03, nominal, 0.0, {{"R2", {0.9, 0.9}, kRadius, true, 5.0, true}}, "", 0);
+  EXPECT_FALSE(c.stale);
+  EXPECT_FALSE(c.wheels.isZero());
+}
+
+TEST(SafetyFilter, QuadraticProgrammeIsExact) {
+  // Against a dense search of the feasible set: the enumerated optimum is never beaten.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int trial = 0; trial < 200; ++trial) {
+    std::vector<HalfPlane> cs;
+    for (int k = 0; k < 1 + trial % 6; ++k) cs.push_back({{u(rng), u(rng)}, 0.3 * std::abs(u(rng))});
+    const Vector2d z0(2 * u(rng), 2 * u(rng));
+    const Vector2d z = closestFeasible(z0, cs);
+    for (const auto& c : cs) ASSERT_LE(c.a.dot(z), c.b + 1e-9);
+    double best = 1e9;
+    for (double x = -2.5; x <= 2.5; x += 0.02)
+      for (double y = -2.5; y <= 2.5; y += 0.02) {
+        bool ok = true;
+        for (const auto& c : cs) ok = ok && c.a.x() * x + c.a.y() * y <= c.b;
+        if (ok) best = std::min(best, (Vector2d(x, y) - z0).norm());
+      }
+    EXPECT_LE((z - z0).norm(), best + 1e-9) << "trial " << trial;
+  }
+}
+
+TEST(SafetyFilter, InvalidParametersAreNamed) {
+  SafetyParams p;
+  p.margin_m = -1;
+  try {
+    SafetyFilter f(p, 0.03, 0.2, 4.0);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("margin_m"), std::string::npos);
+  }
+}
