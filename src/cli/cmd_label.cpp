@@ -28,9 +28,12 @@ bool within(const fs::path& inner, const fs::path& outer) {
   return true;
 }
 
+/// The first steps (a long recording has thousands): " [R1:move:G1 R2:move:G2] [...] ...".
 std::string stepsText(const label::Inference& inf, const task::TaskSpec& spec) {
+  constexpr size_t kShown = 12;
   std::string s;
   for (const auto& step : inf.steps) {
+    if (&step - inf.steps.data() == kShown) return s + " ...";
     s += " [";
     for (size_t i = 0; i < step.tokens.size(); ++i) s += (i ? " " : "") + task::tokenKey(step.tokens[i].token, spec);
     s += "]";

@@ -73,8 +73,8 @@ struct SafetyBody {
 };
 
 /// The body of an entity as the filter and the simulator see it: its disc radius and
-/// whether others must keep off it (goals are flat: not an obstacle). The one place the
-/// execution reads the task's footprints.
+/// whether others must keep off it (goals are flat: not an obstacle), from the task's
+/// footprint (task::footprint, docs/task-format.md). The one place the execution reads it.
 struct BodyShape {
   double radius_m = 0;
   bool obstacle = false;

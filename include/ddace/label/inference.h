@@ -87,16 +87,17 @@ struct EndPoint {
   double nearest_m = 0;  ///< its distance, metres
 };
 
-/// The entity a motion of `mover` ending at `end` ended at, among `candidates` (their
-/// positions in `where`, [entity]). Two readings are accepted: the centre within the
-/// arrival radius of the target's (a goal, or a generated demonstration that ends on its
-/// target) or at contact with its body (centres contact distance apart, within the
-/// arrival radius: a robot pushing against a box or another robot). Bodies are discs of
-/// the radii of docs/task-format.md's "Bodies"; goals are flat (only the centre reading).
-EndPoint endPoint(const task::TaskSpec& spec, int mover, const Eigen::Vector2d& end,
-                  const std::vector<Eigen::Vector2d>& where, const std::vector<bool>& candidates);
+/// The entity a motion of `mover` from `start` to `end` ended at, among `candidates` (their
+/// positions in `where`, [entity], when the motion began). Two readings are accepted, each
+/// within the arrival radius: the centre of the target (a generated demonstration ends on
+/// its target), or the end point the task's one end-point rule gives this motion without
+/// anything learned (task/end_point.h: at contact with an obstacle's body, on a flat goal,
+/// a carrier behind its `load`, -1 for none).
+EndPoint endPoint(const task::TaskSpec& spec, int mover, const Eigen::Vector2d& start, const Eigen::Vector2d& end,
+                  const std::vector<Eigen::Vector2d>& where, const std::vector<bool>& candidates, int load = -1);
 
-/// The contact distance of two entities' bodies, metres (0 when either is a goal).
+/// The contact distance of two entities' bodies (TaskSpec::contactDistance), metres; 0 when
+/// either is no obstacle (a goal).
 double contactDistance(const task::TaskSpec& spec, int a, int b);
 
 /// Finds motions row by row. Call row() for every row in order, then finish().

@@ -56,8 +56,9 @@ class ExecutionMonitorNode {
     bool record_bag = true;      ///< record run.bag (rosbag record)
     bool end_launch = true;      ///< SIGINT the parent roslaunch once the record is written
     double timeout_s = 0.0;      ///< give up and write the record after this long; 0 = never
-    /// Two bodies overlapping deeper than this (tracking noise aside) collide, metres.
-    double collision_overlap_m = 0.003;
+    /// Two bodies overlapping deeper than this collide, metres: two touching bodies'
+    /// measured gap carries both poses' noise (1 mm per axis each: 3.5 sigma).
+    double collision_overlap_m = 0.005;
   };
 
   ExecutionMonitorNode(ros::NodeHandle nh, ros::NodeHandle pnh);

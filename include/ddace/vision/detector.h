@@ -37,6 +37,16 @@ std::string toString(DetectorBackend backend);
 /// The backend named `name` ("aruco", "apriltag"); nullopt for any other name.
 std::optional<DetectorBackend> parseDetectorBackend(const std::string& name);
 
+/// What reads AprilTag prints (backend apriltag): OpenCV's aruco module with its
+/// DICT_APRILTAG_* dictionaries (tag16h5, tag25h9, tag36h10, tag36h11), or libapriltag
+/// (every family). docs/vision.md gives the measurement behind the default.
+enum class AprilTagEngine { OpenCv, LibAprilTag };
+/// "opencv", "libapriltag": the names tracker.yaml uses.
+std::string toString(AprilTagEngine engine);
+std::optional<AprilTagEngine> parseAprilTagEngine(const std::string& name);
+/// The engine that is not `engine`.
+AprilTagEngine otherEngine(AprilTagEngine engine);
+
 /// Which detector and which marker family. Loaded from tracker.yaml (tracker.h).
 struct DetectorConfig {
   DetectorBackend backend = DetectorBackend::Aruco;
@@ -49,7 +59,12 @@ struct DetectorConfig {
   int aruco_window_min = 3;       ///< adaptive threshold windows, pixels: min, max, step
   int aruco_window_max = 23;      ///< (OpenCV's defaults; one window = one thresholding pass)
   int aruco_window_step = 10;
+  double aruco_sized_window = 0.5;  ///< where the markers' size is known (a tracked marker's
+                                    ///< region): ONE threshold window of this x the marker's
+                                    ///< edge (odd, >= 3 px), perimeters within 0.6..1.6 x its
+                                    ///< own; 0 = always the window range above
   // apriltag
+  AprilTagEngine apriltag_engine = AprilTagEngine::OpenCv;  ///< tracker.yaml apriltag.engine
   double apriltag_decimate = 2.0;  ///< quad_decimate: segment a 1/d-size image (d = 1 is ~4x slower)
   double apriltag_sigma = 0.0;     ///< quad_sigma (Gaussian blur before segmentation), pixels
   int apriltag_max_hamming = 1;    ///< bits corrected when decoding (0..2)
@@ -63,8 +78,12 @@ class FiducialDetector {
   virtual ~FiducialDetector() = default;
   /// Detects markers inside `roi` of the 8-bit single-channel `gray` (the whole
   /// image when roi is empty). Corners are returned in full-image pixels.
-  /// A marker that is cut by the ROI border is not found.
-  virtual std::vector<Detection> detect(const cv::Mat& gray, const cv::Rect& roi = cv::Rect()) = 0;
+  /// A marker that is cut by the ROI border is not found. `expected_side_px`: the edge
+  /// of the markers expected in the region (pixels), when known: the detector may then
+  /// look for that size only (aruco: one threshold window matched to it, see
+  /// DetectorConfig::aruco_sized_window); 0 = any size, the detector's full search.
+  virtual std::vector<Detection> detect(const cv::Mat& gray, const cv::Rect& roi = cv::Rect(),
+                                        double expected_side_px = 0) = 0;
   /// "aruco DICT_4X4_50", "apriltag tag36h11".
   virtual std::string name() const = 0;
 };

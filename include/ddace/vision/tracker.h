@@ -2,16 +2,17 @@
 // camera frame. ROS-free; tracker_node wraps it.
 //
 // Search strategy: a full-frame pass every `roi.full_frame_every` frames (and whenever
-// the table frame is not known yet); in between, only regions around every marker
-// seen within filter.hold_s (corner markers included). A region covers the marker's
-// last position and the one its pixel velocity predicts, grown by roi.margin and by
-// filter.max_speed x the time since the marker was seen: every position the pose
-// filter would accept is searched, in the very next frame too when a marker was
-// missed. When the regions would cover most of the image the whole frame is
-// searched instead. Corner markers are searched like the others (set
-// roi.track_corners false to search them on full-frame passes only). With a
-// decimating AprilTag detector, a marker missing near its last position is looked
-// for again there at full resolution.
+// the table frame is not known yet, and in every frame of the first filter.hold
+// seconds while a configured marker has not been seen); in between, each marker seen
+// within filter.hold is looked for where its pixel velocity predicts it (its box +
+// roi.margin + filter.gate_margin), for markers of its size only (aruco: one threshold
+// window matched to its edge). A marker missed there is looked for again at once, in
+// the same frame: in the region of every position the pose filter would accept
+// (filter.max_speed x the time since it was seen) with the detector's full search,
+// then, for AprilTag, with libapriltag at full resolution. When the regions would
+// cover most of the image the whole frame is searched instead. Corner markers are
+// searched like the others (set roi.track_corners false to search them on full-frame
+// passes only).
 //
 // Configuration comes from two commented YAML files: config/markers.yaml (which
 // markers exist: family, corner markers, entity markers) and config/tracker.yaml
@@ -120,7 +121,12 @@ struct EntityState {
 struct FrameResult {
   double stamp = 0;
   bool full_frame = false;            ///< this frame was searched whole
-  std::vector<cv::Rect> rois;         ///< searched regions (empty for a full frame)
+  std::vector<cv::Rect> rois;         ///< searched regions: first looks, then the wider second
+                                      ///< regions of markers missed in them (empty for a full frame)
+  int first_look_misses = 0;          ///< tracked markers not found where expected (first look),
+                                      ///< searched again at once
+  bool second_look = false;           ///< a marker missed where expected was looked for again
+                                      ///< with the second-look detector
   std::vector<Detection> detections;  ///< every configured marker found, raw image pixels
   bool table_valid = false;           ///< a table frame is known
   bool table_updated = false;         ///< re-estimated from the corner markers in this frame
@@ -162,14 +168,29 @@ class Tracker {
   long frames() const { return frames_; }
 
  private:
-  /// Search regions around the last positions (of the ids in `only`, when given).
-  std::vector<cv::Rect> regions(const cv::Size& size, double stamp, const std::set<int>* only = nullptr) const;
+  /// How far from its prediction a search region reaches.
+  enum class Reach {
+    Predicted,  ///< the predicted box + filter.gate_margin (the first look)
+    MaxSpeed,   ///< + filter.max_speed x the time since it was seen, last box included
+  };
+  /// A search region and the edge of the markers expected in it (pixels).
+  struct Region {
+    cv::Rect rect;
+    double side_px = 0;
+  };
+  /// Merged search regions around the markers `ids` that were seen within filter.hold.
+  std::vector<Region> regions(const cv::Size& size, double stamp, Reach reach, const std::set<int>& ids) const;
+  /// Markers seen within filter.hold that this frame must search (corner markers only
+  /// on full frames when roi.track_corners is false).
+  std::set<int> trackedIds(bool full_frame) const;
+  /// A configured marker never seen yet, in the first filter.hold seconds.
+  bool newcomerExpected(double stamp) const;
   /// Re-fits the table frame when all corner markers are among `undistorted`.
   void updateTable(const std::vector<Detection>& undistorted, FrameResult& result);
 
   TrackerConfig config_;
   std::unique_ptr<FiducialDetector> detector_;
-  std::unique_ptr<FiducialDetector> fine_detector_;  // AprilTag without decimation, for misses
+  std::unique_ptr<FiducialDetector> second_look_;  // for markers missed where expected
   CameraModel camera_;
   std::optional<TableFrame> table_;
   bool fixed_table_ = false;
@@ -180,6 +201,8 @@ class Tracker {
   std::map<int, Detection> corner_average_;  // corner marker id -> smoothed undistorted detection
   cv::Size image_size_;
   long frames_ = 0;
+  double first_stamp_ = 0;   // stamp of the first frame
+  std::set<int> ever_seen_;  // marker ids seen at least once
   cv::Mat gray_;
 };
 

@@ -32,15 +32,8 @@ void SafetyParams::validate() const {
 }
 
 BodyShape bodyShape(const task::Entity& e) {
-  switch (e.kind) {
-    case task::EntityKind::Robot:
-      return {0.022, true};  // a Hamster: 3.2 x 3.0 cm, the disc around it
-    case task::EntityKind::Object:
-      return {0.02, true};  // a box under the default 3 cm marker
-    case task::EntityKind::Goal:
-      break;
-  }
-  return {0.02, false};  // a flat print robots drive onto
+  const task::Footprint f = task::footprint(e);  // task.yaml's footprint or its kind's default
+  return {f.radius_m, f.obstacle};
 }
 
 Eigen::Vector2d closestFeasible(const Eigen::Vector2d& z0, const std::vector<HalfPlane>& cs) {

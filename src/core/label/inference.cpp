@@ -1,5 +1,7 @@
 #include "ddace/label/inference.h"
 
+#include "ddace/task/end_point.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -18,44 +20,32 @@ SegmentationOptions SegmentationOptions::forTask(const task::TaskSpec& spec) {
   return o;
 }
 
-namespace {
-
-/// Body radius of an entity, metres (docs/task-format.md, "Bodies": a Hamster's disc,
-/// an object with its marker); 0 for a goal, a flat print driven onto.
-double bodyRadius(const task::Entity& e) {
-  switch (e.kind) {
-    case task::EntityKind::Robot:
-      return 0.022;
-    case task::EntityKind::Object:
-      return 0.02;
-    case task::EntityKind::Goal:
-      return 0;
-  }
-  return 0;
-}
-
-}  // namespace
-
 double contactDistance(const task::TaskSpec& spec, int a, int b) {
-  const double ra = bodyRadius(spec.entities[a]), rb = bodyRadius(spec.entities[b]);
-  return ra > 0 && rb > 0 ? ra + rb : 0;
+  // The task module's bodies (docs/task-format.md, "Bodies"): a flat print (a goal) is
+  // driven onto, never touched.
+  if (!spec.footprint(a).obstacle || !spec.footprint(b).obstacle) return 0;
+  return spec.contactDistance(a, b);
 }
 
-EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& end, const std::vector<Vector2d>& where,
-                  const std::vector<bool>& candidates) {
+EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, const Vector2d& end,
+                  const std::vector<Vector2d>& where, const std::vector<bool>& candidates, int load) {
   const double r = spec.arrival_radius;
   EndPoint ep;
   ep.nearest_m = std::numeric_limits<double>::infinity();
   std::vector<std::pair<double, int>> arrived;  // (residual, entity)
+  const task::EndPointModel bodies;             // nothing learned: the footprints decide
   for (size_t c = 0; c < where.size(); ++c) {
     if (!candidates[c] || static_cast<int>(c) == mover) continue;
+    const int target = static_cast<int>(c);
     const double d = (end - where[c]).norm();
-    if (d < ep.nearest_m) ep.nearest_m = d, ep.nearest = static_cast<int>(c);
-    // The two readings of an end point: on the target's centre, or at contact with its body.
-    double residual = d;
-    const double contact = contactDistance(spec, mover, static_cast<int>(c));
-    if (contact > 0) residual = std::min(residual, std::abs(d - contact));
-    if (residual <= r) arrived.push_back({residual, static_cast<int>(c)});
+    if (d < ep.nearest_m) ep.nearest_m = d, ep.nearest = target;
+    // The two readings: on the target's centre, or where the task's end-point rule puts the
+    // end of this motion (task/end_point.h: at contact with an obstacle, behind a load).
+    std::vector<task::Token> step = {{mover, "move", target}};
+    if (load >= 0 && load != target) step.push_back({load, "move", target});
+    const Vector2d rule = task::endPointFrom(start, where[c], task::endOffset(spec, bodies, step, 0));
+    const double residual = std::min(d, (end - rule).norm());
+    if (residual <= r) arrived.push_back({residual, target});
   }
   if (arrived.empty()) return ep;
   std::sort(arrived.begin(), arrived.end());

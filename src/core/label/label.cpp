@@ -95,7 +95,7 @@ Inference Labeller::finish() {
   // 1. A pause: a motion that stopped away from every entity, or over one but goes on in
   // the heading it came in (not taking along what it stopped at), goes on within pause_s.
   auto pausedOnItsWay = [&](const Motion& a, const Motion& b) {
-    const EndPoint ep = endPoint(spec_, a.entity, a.end, a.at_onset, candidatesOf(a));
+    const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a));
     if (ep.target < 0) return true;
     if (a.end_dir.dot(b.start_dir) < std::cos(options_.heading_rad)) return false;
     // Went to an object and moves on with it: a fetch, then a carry.
@@ -259,7 +259,10 @@ Inference Labeller::finish() {
           tok.carrier = g[carrier[i]].entity;
           tok.token.target = tokens[carrier[i]].token.target;
         } else {
-          const EndPoint ep = endPoint(spec_, m.entity, m.end, m.at_onset, candidatesOf(m));
+          int load = -1;
+          for (size_t j = 0; j < g.size() && load < 0; ++j)
+            if (carrier[j] == static_cast<int>(i)) load = g[j].entity;
+          const EndPoint ep = endPoint(spec_, m.entity, m.start, m.end, m.at_onset, candidatesOf(m), load);
           tok.token.target = ep.target;
           if (ep.target < 0) {
             tok.token.target = ep.nearest;

@@ -99,12 +99,14 @@ void checkImage(const cv::Mat& gray) {
 
 class ArucoDetector : public FiducialDetector {
  public:
-  explicit ArucoDetector(const DetectorConfig& config) : config_(config) {
-    const auto it = arucoDictionaries().find(config.family);
+  /// `dictionary`: the aruco name of config.family (itself, or DICT_APRILTAG_36h11 for
+  /// AprilTag's tag36h11 read by the OpenCV engine).
+  ArucoDetector(const DetectorConfig& config, const std::string& dictionary) : config_(config) {
+    const auto it = arucoDictionaries().find(dictionary);
     if (it == arucoDictionaries().end()) unknownFamily(config);
     dictionary_ = cv::aruco::getPredefinedDictionary(it->second);
     params_ = cv::aruco::DetectorParameters::create();
-    apriltag_print_ = config.family.rfind("DICT_APRILTAG", 0) == 0;
+    apriltag_print_ = dictionary.rfind("DICT_APRILTAG", 0) == 0;
     if (config.aruco_subpixel) params_->cornerRefinementMethod = cv::aruco::CORNER_REFINE_SUBPIX;
     if (config.aruco_subpixel_window < 1) throw Error("aruco subpixel_window must be >= 1");
     params_->cornerRefinementWinSize = config.aruco_subpixel_window;
@@ -114,11 +116,12 @@ class ArucoDetector : public FiducialDetector {
     params_->adaptiveThreshWinSizeMin = config.aruco_window_min;
     params_->adaptiveThreshWinSizeMax = config.aruco_window_max;
     params_->adaptiveThreshWinSizeStep = config.aruco_window_step;
+    if (config.aruco_sized_window < 0) throw Error("aruco sized_window must be >= 0");
     roi_params_ = cv::aruco::DetectorParameters::create();
     *roi_params_ = *params_;
   }
 
-  std::vector<Detection> detect(const cv::Mat& gray, const cv::Rect& roi_in) override {
+  std::vector<Detection> detect(const cv::Mat& gray, const cv::Rect& roi_in, double expected_side_px) override {
     checkImage(gray);
     const cv::Rect roi = clampRoi(gray, roi_in);
     std::vector<Detection> out;
@@ -127,11 +130,23 @@ class ArucoDetector : public FiducialDetector {
     std::vector<int> ids;
     // The perimeter limits are relative to the searched image: keep the full image's
     // absolute limits in a region, or every speck of noise there becomes a candidate.
-    const double scale = static_cast<double>(std::max(gray.cols, gray.rows)) / std::max(roi.width, roi.height);
+    const double roi_px = std::max(roi.width, roi.height);
+    const double scale = static_cast<double>(std::max(gray.cols, gray.rows)) / roi_px;
+    *roi_params_ = *params_;
     roi_params_->minMarkerPerimeterRate = std::min(4.0, params_->minMarkerPerimeterRate * scale);
     roi_params_->maxMarkerPerimeterRate =
         std::max(roi_params_->minMarkerPerimeterRate, params_->maxMarkerPerimeterRate * scale);
-    cv::aruco::detectMarkers(gray(roi), dictionary_, corners, ids, scale > 1.0 ? roi_params_ : params_);
+    const bool sized = expected_side_px > 0 && config_.aruco_sized_window > 0;
+    if (sized) {
+      // The markers' size is known: one thresholding pass with a window matched to it
+      // instead of OpenCV's three, and only contours of about that perimeter.
+      const int window =
+          std::max(3, 2 * static_cast<int>(std::lround(config_.aruco_sized_window * expected_side_px / 2)) + 1);
+      roi_params_->adaptiveThreshWinSizeMin = roi_params_->adaptiveThreshWinSizeMax = window;
+      roi_params_->minMarkerPerimeterRate = 4 * 0.6 * expected_side_px / roi_px;
+      roi_params_->maxMarkerPerimeterRate = 4 * 1.6 * expected_side_px / roi_px;
+    }
+    cv::aruco::detectMarkers(gray(roi), dictionary_, corners, ids, sized || scale > 1.0 ? roi_params_ : params_);
     const cv::Point2f offset(static_cast<float>(roi.x), static_cast<float>(roi.y));
     for (size_t i = 0; i < ids.size(); ++i) {
       Detection d;
@@ -145,7 +160,10 @@ class ArucoDetector : public FiducialDetector {
     return out;
   }
 
-  std::string name() const override { return "aruco " + config_.family; }
+  std::string name() const override {
+    return config_.backend == DetectorBackend::Aruco ? "aruco " + config_.family
+                                                     : "apriltag " + config_.family + " (opencv)";
+  }
 
  private:
   DetectorConfig config_;
@@ -178,7 +196,7 @@ class AprilTagDetector : public FiducialDetector {
   AprilTagDetector(const AprilTagDetector&) = delete;
   AprilTagDetector& operator=(const AprilTagDetector&) = delete;
 
-  std::vector<Detection> detect(const cv::Mat& gray, const cv::Rect& roi_in) override {
+  std::vector<Detection> detect(const cv::Mat& gray, const cv::Rect& roi_in, double /*expected_side_px*/) override {
     checkImage(gray);
     const cv::Rect roi = clampRoi(gray, roi_in);
     std::vector<Detection> out;
@@ -205,7 +223,7 @@ class AprilTagDetector : public FiducialDetector {
     return out;
   }
 
-  std::string name() const override { return "apriltag " + config_.family; }
+  std::string name() const override { return "apriltag " + config_.family + " (libapriltag)"; }
 
  private:
   DetectorConfig config_;
@@ -236,9 +254,29 @@ std::vector<std::string> knownFamilies(DetectorBackend backend) {
   return names;
 }
 
+std::string toString(AprilTagEngine engine) {
+  return engine == AprilTagEngine::OpenCv ? "opencv" : "libapriltag";
+}
+
+std::optional<AprilTagEngine> parseAprilTagEngine(const std::string& name) {
+  if (name == "opencv") return AprilTagEngine::OpenCv;
+  if (name == "libapriltag") return AprilTagEngine::LibAprilTag;
+  return std::nullopt;
+}
+
+AprilTagEngine otherEngine(AprilTagEngine engine) {
+  return engine == AprilTagEngine::OpenCv ? AprilTagEngine::LibAprilTag : AprilTagEngine::OpenCv;
+}
+
 std::unique_ptr<FiducialDetector> makeDetector(const DetectorConfig& config) {
-  if (config.backend == DetectorBackend::Aruco) return std::make_unique<ArucoDetector>(config);
-  return std::make_unique<AprilTagDetector>(config);
+  if (config.backend == DetectorBackend::Aruco) return std::make_unique<ArucoDetector>(config, config.family);
+  if (config.apriltag_engine == AprilTagEngine::LibAprilTag) return std::make_unique<AprilTagDetector>(config);
+  // OpenCV's names of the AprilTag families it reads: "tag36h11" -> DICT_APRILTAG_36h11.
+  if (aprilFamilies().count(config.family) && arucoDictionaries().count("DICT_APRILTAG_" + config.family.substr(3)))
+    return std::make_unique<ArucoDetector>(config, "DICT_APRILTAG_" + config.family.substr(3));
+  if (!aprilFamilies().count(config.family)) unknownFamily(config);
+  throw Error("apriltag engine 'opencv' does not read " + config.family +
+              " (it reads tag16h5, tag25h9, tag36h10 and tag36h11): use engine 'libapriltag'");
 }
 
 int familySize(const DetectorConfig& config) {

@@ -137,7 +137,9 @@ void parseTrackerTuning(const std::string& text, const std::string& file, Tracke
   }
   DetectorConfig& d = config.detector;
   if (const YAML::Node a = root["aruco"]; a.IsDefined() && r.expectMap(a, "'aruco'")) {
-    r.onlyKeys(a, {"subpixel", "subpixel_window", "window_min", "window_max", "window_step"}, "'aruco'");
+    r.onlyKeys(a, {"subpixel", "subpixel_window", "window_min", "window_max", "window_step", "sized_window"},
+               "'aruco'");
+    d.aruco_sized_window = numberOr(r, a, "sized_window", d.aruco_sized_window, 0.0, 10.0);
     d.aruco_subpixel = booleanOr(r, a, "subpixel", d.aruco_subpixel);
     d.aruco_subpixel_window = integerOr(r, a, "subpixel_window", d.aruco_subpixel_window, 1, 50);
     d.aruco_window_min = integerOr(r, a, "window_min", d.aruco_window_min, 3, 999);
@@ -146,7 +148,10 @@ void parseTrackerTuning(const std::string& text, const std::string& file, Tracke
     if (d.aruco_window_max < d.aruco_window_min) r.error(a, "aruco window_max must be >= window_min");
   }
   if (const YAML::Node a = root["apriltag"]; a.IsDefined() && r.expectMap(a, "'apriltag'")) {
-    r.onlyKeys(a, {"decimate", "sigma", "max_hamming"}, "'apriltag'");
+    r.onlyKeys(a, {"engine", "decimate", "sigma", "max_hamming"}, "'apriltag'");
+    const std::string engine = stringOr(r, a, "engine", toString(d.apriltag_engine));
+    if (const auto e = parseAprilTagEngine(engine)) d.apriltag_engine = *e;
+    else r.error(a["engine"], "apriltag engine must be 'opencv' or 'libapriltag' (got '" + engine + "')");
     d.apriltag_decimate = numberOr(r, a, "decimate", d.apriltag_decimate, 1.0, 8.0);
     d.apriltag_sigma = numberOr(r, a, "sigma", d.apriltag_sigma, 0.0, 5.0);
     d.apriltag_max_hamming = integerOr(r, a, "max_hamming", d.apriltag_max_hamming, 0, 2);
@@ -226,10 +231,16 @@ Tracker::Tracker(TrackerConfig config) : config_(std::move(config)) {
   config_.detector.backend = config_.markers.backend;
   config_.detector.family = config_.markers.family;
   detector_ = makeDetector(config_.detector);
-  if (config_.detector.backend == DetectorBackend::AprilTag && config_.detector.apriltag_decimate > 1.0) {
+  // The second look at an AprilTag missed where it was expected: libapriltag at full
+  // resolution, which reads the small cells (3 px) that OpenCV's bit sampling and a
+  // decimated segmentation miss now and then. Aruco's second look is the wide region
+  // with OpenCV's every threshold window.
+  if (config_.detector.backend == DetectorBackend::AprilTag &&
+      (config_.detector.apriltag_engine == AprilTagEngine::OpenCv || config_.detector.apriltag_decimate > 1.0)) {
     DetectorConfig fine = config_.detector;
+    fine.apriltag_engine = AprilTagEngine::LibAprilTag;
     fine.apriltag_decimate = 1.0;
-    fine_detector_ = makeDetector(fine);
+    second_look_ = makeDetector(fine);
   }
   filters_.assign(config_.markers.entities.size(), PoseFilter(config_.filter));
 }
@@ -261,32 +272,71 @@ void Tracker::setFixedTableFrame(const TableFrame& frame) {
   fixed_table_ = true;
 }
 
-std::vector<cv::Rect> Tracker::regions(const cv::Size& size, double stamp, const std::set<int>* only) const {
+std::vector<Tracker::Region> Tracker::regions(const cv::Size& size, double stamp, Reach reach,
+                                              const std::set<int>& ids) const {
   std::vector<cv::Rect> rects;
+  std::vector<double> sides;
   const cv::Rect whole(0, 0, size.width, size.height);
-  for (const auto& [id, det] : last_seen_px_) {
-    if (only && !only->count(id)) continue;
-    if (!only && !config_.roi.track_corners && table_ && config_.markers.isCorner(id)) continue;
-    cv::Rect box = cv::boundingRect(std::vector<cv::Point2f>(det.corners.begin(), det.corners.end()));
-    // Since it was seen, the marker may have moved anywhere within max_speed x dt
-    // (what the filter accepts): cover that, and where its velocity says it went.
+  for (const int id : ids) {
+    const auto seen = last_seen_px_.find(id);
+    if (seen == last_seen_px_.end()) continue;
+    const Detection& det = seen->second;
+    const cv::Rect last = cv::boundingRect(std::vector<cv::Point2f>(det.corners.begin(), det.corners.end()));
     const double dt = std::max(0.0, stamp - last_seen_t_.at(id));
     const EntityMarker* em = config_.markers.entityById(id);
     const double px_per_m = det.sidePx() / (em ? em->size_m : config_.markers.corner_size_m);
-    const double reach_m = config_.filter.max_speed_mps * dt + config_.filter.gate_margin_m;
+    cv::Rect predicted = last;
+    if (const auto v = velocity_px_.find(id); v != velocity_px_.end())
+      predicted = cv::Rect(last.tl() + cv::Point(cvRound(v->second.x * dt), cvRound(v->second.y * dt)), last.size());
+    // Context for the thresholding around the marker, plus how far it may be from where
+    // it was expected: gate_margin from the prediction (what the filter always accepts),
+    // or, for a second look, anywhere the filter would accept it since it was seen
+    // (max_speed x dt), around its last position and the predicted one.
+    double reach_m = config_.filter.gate_margin_m;
+    cv::Rect box = predicted;
+    if (reach == Reach::MaxSpeed) {
+      reach_m += config_.filter.max_speed_mps * dt;
+      box |= last;
+    }
     const double margin =
         std::max<double>(config_.roi.min_margin_px, config_.roi.margin * det.sidePx()) + reach_m * px_per_m;
-    if (const auto v = velocity_px_.find(id); v != velocity_px_.end()) {
-      const cv::Point shift(cvRound(v->second.x * dt), cvRound(v->second.y * dt));
-      box |= cv::Rect(box.tl() + shift, box.size());
-    }
     const int m = static_cast<int>(std::ceil(margin));
     // Even origins keep a decimating detector (AprilTag) on the full frame's sampling grid.
     const int x0 = (box.x - m) & ~1, y0 = (box.y - m) & ~1;
     box = cv::Rect(x0, y0, box.x + box.width + m - x0, box.y + box.height + m - y0) & whole;
-    if (!box.empty()) rects.push_back(box);
+    if (box.empty()) continue;
+    rects.push_back(box);
+    sides.push_back(det.sidePx());
   }
-  return mergeRegions(rects);
+  // A merged region expects the mean size of the markers it was merged from.
+  std::vector<Region> out;
+  for (const cv::Rect& merged : mergeRegions(rects)) {
+    double sum = 0;
+    int n = 0;
+    for (size_t i = 0; i < rects.size(); ++i)
+      if ((rects[i] & merged) == rects[i]) sum += sides[i], ++n;
+    out.push_back({merged, n > 0 ? sum / n : 0.0});
+  }
+  return out;
+}
+
+std::set<int> Tracker::trackedIds(bool full_frame) const {
+  std::set<int> ids;
+  for (const auto& [id, det] : last_seen_px_)
+    if (full_frame || config_.roi.track_corners || !table_ || !config_.markers.isCorner(id)) ids.insert(id);
+  return ids;
+}
+
+bool Tracker::newcomerExpected(double stamp) const {
+  // Every configured marker is expected on the table: one not seen yet is looked for in
+  // the whole frame, in every frame of the tracker's first filter.hold seconds (after
+  // that, a marker still unseen is treated as one lost for longer than the hold).
+  if (stamp - first_stamp_ > config_.filter.hold_s) return false;
+  for (const auto& e : config_.markers.entities)
+    if (!ever_seen_.count(e.id)) return true;
+  for (const auto& c : config_.markers.corners)
+    if (!ever_seen_.count(c.id)) return true;
+  return false;
 }
 
 FrameResult Tracker::process(const cv::Mat& image, double stamp) {
@@ -301,48 +351,70 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
                 " but the camera calibration is for " + std::to_string(camera_.image_size.width) + "x" +
                 std::to_string(camera_.image_size.height));
   image_size_ = gray_.size();
+  if (frames_ == 0) first_stamp_ = stamp;
   FrameResult result;
   result.stamp = stamp;
   const bool need_table = !table_ && !config_.markers.corners.empty();
-  result.full_frame =
-      !config_.roi.enabled || need_table || last_seen_px_.empty() || frames_ % config_.roi.full_frame_every == 0;
+  result.full_frame = !config_.roi.enabled || need_table || last_seen_px_.empty() ||
+                      frames_ % config_.roi.full_frame_every == 0 || newcomerExpected(stamp);
   ++frames_;
-  if (!result.full_frame) {
-    result.rois = regions(gray_.size(), stamp);
-    // Regions grown around missed or fast markers can cost more than the whole frame.
-    double area = 0;
-    for (const auto& r : result.rois) area += r.area();
-    constexpr double kFullFrameAbove = 0.75;  // fraction of the image (merged regions cost about their area)
-    if (area > kFullFrameAbove * gray_.total()) {
-      result.full_frame = true;
-      result.rois.clear();
-    }
-  }
 
   std::vector<Detection> found;
-  if (result.full_frame) {
-    found = detector_->detect(gray_);
-  } else {
-    std::set<int> seen;
-    for (const auto& roi : result.rois)
-      for (const auto& d : detector_->detect(gray_, roi))
-        if (seen.insert(d.id).second) found.push_back(d);
-  }
+  std::set<int> found_ids;
+  // `sized`: tell the detector the size of the markers expected in each region.
+  const auto search = [&](FiducialDetector& detector, const std::vector<Region>& rois, bool sized) {
+    for (const auto& roi : rois)
+      for (const auto& d : detector.detect(gray_, roi.rect, sized ? roi.side_px : 0.0))
+        if (found_ids.insert(d.id).second) found.push_back(d);
+  };
+  const auto missing = [&] {
+    std::set<int> ids = trackedIds(result.full_frame);
+    for (const int id : found_ids) ids.erase(id);
+    return ids;
+  };
+  // Regions grown around missed or fast markers can cost more than the whole frame.
+  constexpr double kFullFrameAbove = 0.75;  // fraction of the image (merged regions cost about their area)
+  const auto tooLarge = [&](const std::vector<Region>& rois) {
+    double area = 0;
+    for (const auto& r : rois) area += r.rect.area();
+    return area > kFullFrameAbove * static_cast<double>(gray_.total());
+  };
+  const auto addRois = [&](const std::vector<Region>& rois) {
+    for (const auto& r : rois) result.rois.push_back(r.rect);
+  };
+  const std::vector<Region> whole = {{cv::Rect(), 0.0}};
 
-  // A decimating detector misses small markers now and then: look again at full
-  // resolution, but only where a marker that was there a moment ago is missing.
-  if (fine_detector_) {
-    std::set<int> missing;
-    for (const auto& [id, det] : last_seen_px_) missing.insert(id);
-    for (const auto& d : found) missing.erase(d.id);
-    if (!result.full_frame && !config_.roi.track_corners && table_)
-      for (const auto& c : config_.markers.corners) missing.erase(c.id);
-    if (!missing.empty()) {
-      std::set<int> seen;
-      for (const auto& d : found) seen.insert(d.id);
-      for (const auto& roi : regions(gray_.size(), stamp, &missing))
-        for (const auto& d : fine_detector_->detect(gray_, roi))
-          if (seen.insert(d.id).second) found.push_back(d);
+  // First look: where each tracked marker is predicted, for markers of its size.
+  std::vector<Region> first;
+  if (!result.full_frame) {
+    first = regions(gray_.size(), stamp, Reach::Predicted, trackedIds(false));
+    if (tooLarge(first)) result.full_frame = true;
+  }
+  if (result.full_frame) search(*detector_, whole, false);
+  else search(*detector_, first, true), addRois(first);
+
+  // A marker missing where it was expected is looked for again at once, in this frame:
+  // everywhere the filter would accept it (it moved unexpectedly), with the detector's
+  // full search (every threshold window), then there with the second-look detector
+  // (what the first could not see: a decimated image), so it never waits for a
+  // full-frame pass.
+  if (const std::set<int> lost = missing(); !lost.empty() && !result.full_frame) {
+    result.first_look_misses = static_cast<int>(lost.size());
+    const std::vector<Region> wide = regions(gray_.size(), stamp, Reach::MaxSpeed, lost);
+    if (tooLarge(wide)) {
+      search(*detector_, whole, false);
+      result.full_frame = true;
+      result.rois.clear();
+    } else {
+      search(*detector_, wide, false);
+      addRois(wide);
+    }
+  }
+  if (const std::set<int> lost = missing(); !lost.empty() && second_look_) {
+    const std::vector<Region> wide = regions(gray_.size(), stamp, Reach::MaxSpeed, lost);
+    if (!tooLarge(wide)) {
+      search(*second_look_, wide, false);
+      result.second_look = true;
     }
   }
 
@@ -372,6 +444,7 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
       velocity_px_.erase(id);  // first sighting, or after a gap: no velocity to trust
     }
     last_seen_px_[id] = d;
+    ever_seen_.insert(id);
     last_seen_t_[id] = stamp;
   }
   // Regions follow markers seen recently; those unseen for longer than the hold are

@@ -184,6 +184,39 @@ TEST(Label, UncertainItemsAreReportedOnTheirRow) {
   EXPECT_NEAR(s.d.t[inf.notes[1].row], 4.0, 0.5);
 }
 
+TEST(Label, EndsAtContactWithTheTasksBodies) {
+  // A robot stops against another robot (Hamster discs touch 4.4 cm apart), then against
+  // the box, whose body task.yaml states 5 cm in radius: 7.2 cm centre to centre, on the
+  // line it came in (task/end_point.h).
+  Scene s;
+  s.spec.entities[2].radius_m = 0.05;
+  s.rest(1);
+  s.move({{0, {0.1, 0.8 - 0.044}}});
+  s.rest(1);
+  const Vector2d box(0.5, 0.5), u = (box - s.pos[0]).normalized();  // the approach direction
+  s.move({{0, box - 0.072 * u}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2"}, {"R1:move:B1"}}));
+  EXPECT_TRUE(inf.notes.empty());
+}
+
+TEST(Label, ACarrierEndsBehindItsLoad) {
+  // task/end_point.h: R1 pushes the box onto G1 and stops behind it, 4.2 cm short of G1's
+  // centre (more than the arrival radius): still a motion toward G1.
+  Scene s;
+  const Vector2d u = Vector2d(1, 1).normalized();
+  s.pos[0] = {0.2, 0.2};
+  s.rest(1);
+  s.move({{0, Vector2d(0.5, 0.5) - 0.042 * u}});
+  s.rest(1);
+  s.move({{0, Vector2d(0.9, 0.9) - 0.042 * u}, {2, {0.9, 0.9}}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:B1"}, {"R1:move:G1", "B1:move:G1"}}));
+  EXPECT_TRUE(inf.notes.empty());
+}
+
 TEST(Label, TwoEntitiesOnOneSpotAreATie) {
   Scene s;
   s.rest(1);

@@ -60,14 +60,46 @@ TEST(Detector, AprilTagFindsEveryMarkerWithCornersInPrintedOrder) {
   DetectorConfig cfg;
   cfg.backend = DetectorBackend::AprilTag;
   cfg.family = "tag36h11";
-  expectFindsAll(cfg);
+  for (const AprilTagEngine engine : {AprilTagEngine::LibAprilTag, AprilTagEngine::OpenCv}) {
+    cfg.apriltag_engine = engine;
+    expectFindsAll(cfg);
+  }
 }
 
 TEST(Detector, AprilTagStandard41h12HasItsBorderInside) {
   DetectorConfig cfg;
   cfg.backend = DetectorBackend::AprilTag;
   cfg.family = "tagStandard41h12";
+  cfg.apriltag_engine = AprilTagEngine::LibAprilTag;
   expectFindsAll(cfg);
+  // OpenCV has no dictionary for it: a clear error, not another family.
+  cfg.apriltag_engine = AprilTagEngine::OpenCv;
+  try {
+    makeDetector(cfg);
+    FAIL() << "no error";
+  } catch (const ddace::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("engine 'libapriltag'"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(parseAprilTagEngine("opencv"), AprilTagEngine::OpenCv);
+  EXPECT_EQ(toString(*parseAprilTagEngine("libapriltag")), "libapriltag");
+  EXPECT_FALSE(parseAprilTagEngine("OpenCV").has_value());
+}
+
+TEST(Detector, ArucoSearchesForTheExpectedMarkerSize) {
+  // A 30 px marker in a region: found with its size given (one threshold window), and
+  // not when the region is said to hold markers four times larger.
+  DetectorConfig cfg;
+  auto det = makeDetector(cfg);
+  cv::Mat img(300, 400, CV_8UC1, cv::Scalar(230));
+  const auto expected = paste(img, cfg, 5, 200, 120, 5);
+  cv::GaussianBlur(img, img, cv::Size(0, 0), 0.8);
+  const cv::Rect region(170, 90, 100, 100);
+  const auto found = det->detect(img, region, 30.0);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].id, 5);
+  for (int k = 0; k < 4; ++k) EXPECT_LT(cv::norm(found[0].corners[k] - expected[k]), 0.6) << "corner " << k;
+  EXPECT_TRUE(det->detect(img, region, 120.0).empty());
+  EXPECT_EQ(det->detect(img, region).size(), 1u);  // size unknown: the full search
 }
 
 TEST(Detector, BothBackendsAgreeOnTheSameAprilTagPrint) {

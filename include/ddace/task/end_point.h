@@ -1,0 +1,110 @@
+// Where a motion ends and when it counts as arrived: the one rule every part uses
+// (docs/task-format.md, "Where a motion ends").
+//
+// A motion token (E, action, T) is decided with every entity's position: E starts at S,
+// its target is at P. It ends at its *end point*
+//
+//     end = P + R(phi) * offset,   phi = the direction of P - S (the approach frame:
+//                                  x from S toward P, y to its left)
+//
+// where `offset` (metres, approach frame) is learned from the demonstrations: for every
+// demonstrated motion segment, the entity's last position relative to the target's
+// position when its step was decided, in that segment's approach frame; the
+// component-wise median over the segments of one key ("R1:move:R3") when the key has at
+// least kMinKeySegments of them, else over the segments of its *motion class*, else the
+// footprints' default. A motion class is the mover's kind, whether it carries a load, and
+// the target's kind: "robot->robot", "robot+load->goal", "object->goal". A robot carries
+// a load when an object of its step has a token with the same action and target.
+//
+// So demonstrations that stop at contact teach end points at contact, and demonstrations
+// that end at the target's centre teach end points at centres: recordings and generated
+// demonstrations are read the same way. Without any demonstration the footprints decide:
+// toward an obstacle (a robot, an object) the motion ends at contact, toward a goal on it;
+// a carrier ends behind its load (contact with the target plus the load's diameter), the
+// load on the target (or at contact with an obstacle target).
+//
+// A motion counts as arrived when the entity is within the task's arrival_radius of its
+// end point (arrived()); a path follower stops within stopRadius() of it, inside the
+// arrival radius so that measurement noise cannot leave a stopped robot outside.
+//
+// Meant for: gp path generation (a path runs from S to the end point), the closed-loop
+// simulator and the coordinator (end points of a decided step, the DONE check), the path
+// follower's stop, eval's GCR; the model stores the learned offsets (primitives.yaml).
+// (Issue 23: those users are being switched to it.)
+//
+// Owns: the end point of a motion and the arrival test. Units: metres, table frame.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ddace/task/demonstration.h"
+#include "ddace/task/task_spec.h"
+
+namespace ddace::task {
+
+/// A key's own offset is used when it has at least this many demonstrated segments
+/// (fewer: its motion class's), so one mislabelled segment cannot place a key's end.
+inline constexpr int kMinKeySegments = 3;
+/// Segments whose start is closer to the target than this have no approach direction
+/// and teach nothing (metres).
+inline constexpr double kMinApproachM = 0.005;
+/// A path follower stops within this fraction of the arrival radius of the end point:
+/// inside the radius, since stopping right on its edge leaves a noisy robot outside half of
+/// the time.
+inline constexpr double kStopFraction = 0.5;
+
+/// A learned end offset: metres in the approach frame, and the segments it comes from.
+struct EndOffset {
+  Eigen::Vector2d offset{0, 0};
+  int segments = 0;
+};
+
+/// The learned end points of a task's motions.
+struct EndPointModel {
+  std::map<std::string, EndOffset> by_key;    ///< "R1:move:R3"
+  std::map<std::string, EndOffset> by_class;  ///< "robot->robot", "robot+load->goal", ...
+  /// True for a model trained before end points were learned: every motion ends at its
+  /// target's centre, as those models were trained (primitives.yaml /2).
+  bool centres = false;
+};
+
+/// The index in `step` of the object token that the robot token `step[i]` carries (same
+/// action and target), or -1 (not a robot, not a motion, no load).
+int carriedLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i);
+/// The motion class of `step[i]` (a motion token): "<mover kind>[+load]-><target kind>".
+std::string motionClass(const TaskSpec& spec, const std::vector<Token>& step, size_t i);
+
+/// Learns the offsets from every motion segment of `demos` (analyzed demonstrations of
+/// `spec`).
+EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstration>& demos);
+
+/// The offset the rule uses for `step[i]` (approach frame, metres): the key's, its class's,
+/// or the footprints' default (see the header comment).
+Eigen::Vector2d endOffset(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step, size_t i);
+
+/// The end point of the motion token `step[i]` decided with entity positions `decided`
+/// (table frame, metres). An in-place token ends where it is. Throws ddace::Error for a
+/// token naming an entity outside `decided`.
+Eigen::Vector2d endPoint(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step, size_t i,
+                         const std::vector<Eigen::Vector2d>& decided);
+
+/// The end point the rule gives a demonstrated segment (its step's tokens, decided with the
+/// step's snapshot); the segment's goal (Demonstration::segmentGoal) when its step is unknown.
+Eigen::Vector2d segmentEndPoint(const TaskSpec& spec, const EndPointModel& model, const Demonstration& demo,
+                                const Segment& segment);
+
+/// The end point from a start, the target's position and an offset (the rule's geometry):
+/// S when S is within kMinApproachM of P (already there).
+Eigen::Vector2d endPointFrom(const Eigen::Vector2d& start, const Eigen::Vector2d& target,
+                             const Eigen::Vector2d& offset);
+
+/// A motion has arrived when `position` is within `arrival_radius` of its end point.
+bool arrived(const Eigen::Vector2d& position, const Eigen::Vector2d& end_point, double arrival_radius);
+/// How close to the end point a path follower stops: kStopFraction * arrival_radius.
+double stopRadius(double arrival_radius);
+
+}  // namespace ddace::task

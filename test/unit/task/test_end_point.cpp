@@ -1,0 +1,128 @@
+// Where a motion ends (task/end_point.h): learned from where the demonstrations stopped,
+// at contact or at centres alike, and the footprints' rule when nothing was demonstrated.
+#include <gtest/gtest.h>
+
+#include "ddace/task/end_point.h"
+
+using namespace ddace;
+using namespace ddace::task;
+using Eigen::Vector2d;
+
+namespace {
+
+TaskSpec scene() {
+  return parseTaskYaml(
+      "format: ddace-task/1\nentities:\n  - {name: R1, kind: robot, type: hamster}\n"
+      "  - {name: R2, kind: robot, type: hamster}\n  - {name: B1, kind: object}\n  - {name: G1, kind: goal}\n",
+      "task.yaml");
+}
+
+/// One demonstration: R1 drives straight from `from` toward R2 (resting at `r2`) and stops
+/// `stop` metres short of R2's centre (0: on it), then R2 drives onto G1.
+Demonstration demo(const TaskSpec& spec, const Vector2d& from, const Vector2d& r2, double stop) {
+  Demonstration d;
+  d.has_label_columns = {true, true, false, false};
+  const Vector2d b1(0.9, 0.9), g1(0.1, 0.9);
+  const Vector2d end = r2 - stop * (r2 - from).normalized();
+  auto row = [&](const Vector2d& p1, const Vector2d& p2, int a1, int a2) {
+    d.t.push_back(0.05 * static_cast<double>(d.t.size()));
+    d.positions.push_back({p1, p2, b1, g1});
+    std::vector<Label> l(4);
+    if (a1 >= 0) l[0] = {"move", a1};
+    if (a2 >= 0) l[1] = {"move", a2};
+    d.labels.push_back(l);
+  };
+  row(from, r2, -1, -1);
+  for (int i = 0; i <= 20; ++i) row(from + (end - from) * (i / 20.0), r2, spec.entityIndex("R2"), -1);
+  row(end, r2, -1, -1);
+  for (int i = 0; i <= 20; ++i) row(end, r2 + (g1 - r2) * (i / 20.0), -1, spec.entityIndex("G1"));
+  row(end, g1, -1, -1);
+  d.analyze();
+  return d;
+}
+
+std::vector<Demonstration> demos(const TaskSpec& spec, double stop) {
+  std::vector<Demonstration> out;
+  for (int k = 0; k < 5; ++k)
+    out.push_back(demo(spec, Vector2d(0.1 + 0.05 * k, 0.1), Vector2d(0.5, 0.3 + 0.04 * k), stop));
+  return out;
+}
+
+}  // namespace
+
+TEST(EndPoint, LearnedFromDemonstrationsThatStopAtContact) {
+  const TaskSpec spec = scene();
+  const double contact = spec.contactDistance(0, 1);
+  const EndPointModel m = learnEndPoints(spec, demos(spec, contact));
+  ASSERT_TRUE(m.by_class.count("robot->robot"));
+  EXPECT_NEAR(m.by_class.at("robot->robot").offset.x(), -contact, 1e-9);
+  EXPECT_NEAR(m.by_class.at("robot->robot").offset.y(), 0.0, 1e-9);
+  EXPECT_EQ(m.by_key.at("R1:move:R2").segments, 5);
+  EXPECT_NEAR(m.by_class.at("robot->goal").offset.norm(), 0.0, 1e-9);
+  // A new scene: R1 stops at contact with R2, on the side it comes from.
+  const std::vector<Token> step = {{0, "move", 1}};
+  const std::vector<Vector2d> at = {{0.2, 0.7}, {0.6, 0.4}, {0.9, 0.9}, {0.1, 0.9}};
+  const Vector2d end = endPoint(spec, m, step, 0, at);
+  EXPECT_NEAR((end - at[1]).norm(), contact, 1e-9);
+  EXPECT_LT((end - at[0]).norm(), (at[1] - at[0]).norm());
+}
+
+TEST(EndPoint, DemonstrationsThatEndAtCentresAreReadTheSameWay) {
+  // The same rule on recordings whose motions end at the target's centre (the generators
+  // before bodies, or points without bodies) teaches centres.
+  const TaskSpec spec = scene();
+  const EndPointModel m = learnEndPoints(spec, demos(spec, 0.0));
+  EXPECT_NEAR(m.by_class.at("robot->robot").offset.norm(), 0.0, 1e-9);
+  const std::vector<Vector2d> at = {{0.2, 0.7}, {0.6, 0.4}, {0.9, 0.9}, {0.1, 0.9}};
+  EXPECT_NEAR((endPoint(spec, m, {{0, "move", 1}}, 0, at) - at[1]).norm(), 0.0, 1e-9);
+}
+
+TEST(EndPoint, AKeyWithEnoughSegmentsUsesItsOwnOffsetRobustToASlip) {
+  const TaskSpec spec = scene();
+  std::vector<Demonstration> ds = demos(spec, 0.03);
+  // Two demonstrations stopped far short (a slip, a hesitation): the median ignores them.
+  ds.push_back(demo(spec, Vector2d(0.1, 0.5), Vector2d(0.5, 0.5), 0.10));
+  ds.push_back(demo(spec, Vector2d(0.1, 0.5), Vector2d(0.5, 0.5), 0.25));
+  const EndPointModel m = learnEndPoints(spec, ds);
+  EXPECT_EQ(m.by_key.at("R1:move:R2").segments, 7);
+  EXPECT_NEAR(m.by_key.at("R1:move:R2").offset.x(), -0.03, 1e-9);  // the median, not the mean
+  const std::vector<Vector2d> at = {{0.2, 0.7}, {0.6, 0.4}, {0.9, 0.9}, {0.1, 0.9}};
+  EXPECT_NEAR((endPoint(spec, m, {{0, "move", 1}}, 0, at) - at[1]).norm(), 0.03, 1e-9);
+}
+
+TEST(EndPoint, WithoutDemonstrationsTheFootprintsDecide) {
+  const TaskSpec spec = scene();
+  const EndPointModel none;
+  const int r1 = 0, r2 = 1, b1 = 2, g1 = 3;
+  // Toward a robot: contact; onto a goal: its centre.
+  EXPECT_NEAR(endOffset(spec, none, {{r1, "move", r2}}, 0).x(), -spec.contactDistance(r1, r2), 1e-12);
+  EXPECT_NEAR(endOffset(spec, none, {{r1, "move", g1}}, 0).norm(), 0.0, 1e-12);
+  // A carrier and its load toward a goal: the load on it, the carrier behind the load.
+  const std::vector<Token> carry = {{r1, "carry", g1}, {b1, "carry", g1}};
+  EXPECT_EQ(carriedLoad(spec, carry, 0), 1);
+  EXPECT_EQ(carriedLoad(spec, carry, 1), -1);
+  EXPECT_EQ(motionClass(spec, carry, 0), "robot+load->goal");
+  EXPECT_EQ(motionClass(spec, carry, 1), "object->goal");
+  EXPECT_NEAR(endOffset(spec, none, carry, 1).norm(), 0.0, 1e-12);
+  EXPECT_NEAR(endOffset(spec, none, carry, 0).x(), -spec.contactDistance(r1, b1), 1e-12);
+  // Toward a robot with a load: the load at contact with it, the carrier behind the load.
+  const std::vector<Token> hand_over = {{r1, "carry", r2}, {b1, "carry", r2}};
+  EXPECT_NEAR(endOffset(spec, none, hand_over, 0).x(), -(spec.contactDistance(b1, r2) + spec.contactDistance(r1, b1)),
+              1e-12);
+  // A model of the old format: every motion ends at its target's centre.
+  EndPointModel centres;
+  centres.centres = true;
+  EXPECT_NEAR(endOffset(spec, centres, {{r1, "move", r2}}, 0).norm(), 0.0, 1e-12);
+  // In place, or already at the target: where it is.
+  const std::vector<Vector2d> at = {{0.5, 0.5}, {0.5, 0.5 + 1e-3}, {0.9, 0.9}, {0.1, 0.9}};
+  EXPECT_EQ(endPoint(spec, none, {{r1, "stop", -1}}, 0, at), at[0]);
+  EXPECT_EQ(endPoint(spec, none, {{r1, "move", r2}}, 0, at), at[0]);
+  EXPECT_THROW(endPoint(spec, none, {{7, "move", r2}}, 0, at), Error);
+}
+
+TEST(EndPoint, ArrivedWithinTheRadiusAndFollowersStopInsideIt) {
+  EXPECT_TRUE(arrived({0.03, 0}, {0, 0}, 0.03));
+  EXPECT_FALSE(arrived({0.0301, 0}, {0, 0}, 0.03));
+  EXPECT_LT(stopRadius(0.03), 0.03);
+  EXPECT_GT(stopRadius(0.03), 0.0);
+}
