@@ -47,10 +47,9 @@ void checkApart(const std::string& out, const std::string& input) {
 
 int runTrain(const std::vector<std::string>& argv) {
   Args args(argv,
-            {"--out", "--variant", "--epochs", "--seed", "--threads", "--patience", "--lr", "--attention", "--dropout",
-             "--layers", "--gru-hidden", "--head-hidden", "--identity-dim", "--weight-decay"},
-            {"--no-identity", "--positions", "--displacement", "--no-relative", "--relative", "--keep-names",
-             "--all-at-once", "--parked-rivals", "--quiet", "--force"});
+            {"--out", "--variant", "--epochs", "--seed", "--threads", "--patience", "--lr", "--dropout", "--layers",
+             "--gru-hidden", "--head-hidden", "--identity-dim", "--weight-decay", "--without"},
+            {"--quiet", "--force"});
   const std::string given = args.positional(0, "TASKDIR");
   const std::string task_path = trainingDir(given);
   args.expectAtMostPositional(1);
@@ -61,9 +60,8 @@ int runTrain(const std::vector<std::string>& argv) {
   tgn::TrainOptions options;
   try {
     options.variant = tgn::variantFromString(args.get("--variant", tgn::toString(options.variant)));
-    options.attention = tgn::attentionFromString(args.get("--attention", tgn::toString(options.attention)));
   } catch (const Error& e) {
-    throw Error(std::string("option --variant/--attention: ") + e.what());
+    throw Error(std::string("option --variant: ") + e.what());
   }
   options.max_epochs = static_cast<int>(args.getInt("--epochs", options.max_epochs));
   const long seed = args.getInt("--seed", static_cast<long>(options.seed));
@@ -78,16 +76,22 @@ int runTrain(const std::vector<std::string>& argv) {
   options.head_hidden = static_cast<int>(args.getInt("--head-hidden", options.head_hidden));
   options.identity_dim = static_cast<int>(args.getInt("--identity-dim", options.identity_dim));
   options.weight_decay = args.getDouble("--weight-decay", options.weight_decay);
-  if (args.has("--no-identity")) options.identity_embedding = false;
-  // The scene network sees distances and nearness ranks only (invariant to moving, rotating,
-  // mirroring the scene); these add the absolute (x, y) and x_j - x_i back (docs/tgn.md).
-  if (args.has("--positions")) options.node_positions = true;
-  if (args.has("--displacement")) options.edge_displacement = true;
-  if (args.has("--no-relative")) options.relative_features = false;
-  if (args.has("--relative")) options.fixed_order_rule = false;
-  if (args.has("--keep-names")) options.shuffle_names = false;
-  if (args.has("--all-at-once")) options.token_by_token = false;
-  if (args.has("--parked-rivals")) options.parked_out_of_ranks = false;
+  // The scene network's learning rules, each on by default (docs/tgn.md): --without names
+  // those to switch off, comma-separated.
+  std::string without = args.get("--without", "");
+  for (size_t from = 0; !without.empty() && from <= without.size();) {
+    const size_t comma = std::min(without.find(',', from), without.size());
+    const std::string rule = without.substr(from, comma - from);
+    if (rule == "relative") options.relative_features = false;
+    else if (rule == "fixed-order") options.fixed_order_rule = false;
+    else if (rule == "shuffled-names") options.shuffle_names = false;
+    else if (rule == "token-by-token") options.token_by_token = false;
+    else if (rule == "parked") options.parked_out_of_ranks = false;
+    else
+      throw Error("option --without: '" + rule +
+                  "' is not a rule (relative, fixed-order, shuffled-names, token-by-token, parked)");
+    from = comma + 1;
+  }
   options.validate();
 
   const task::TaskDir train = task::loadTaskDir(task_path);
@@ -130,12 +134,10 @@ int runTrain(const std::vector<std::string>& argv) {
 
 DDACE_COMMAND(
     {"train",
-     "ddace train TASKDIR --out MODELDIR [--force] [--variant scene|paper|full-graph|gnn] [--attention gatv2|gat] "
-     "[--epochs "
-     "N=400] [--seed S=1] "
-     "[--threads T=1] [--patience P=20] [--lr RATE] [--dropout P=0.1] [--layers L=3] [--gru-hidden H=64] "
-     "[--head-hidden H=32] [--identity-dim D=8] [--weight-decay W=0] [--no-identity] [--positions] "
-     "[--displacement] [--no-relative] [--relative] [--keep-names] [--all-at-once] [--parked-rivals] [--quiet]",
+     "ddace train TASKDIR --out MODELDIR [--force] [--variant scene|paper|full-graph|gnn] [--epochs N=400] "
+     "[--seed S=1] [--threads T=1] [--patience P=20] [--lr RATE=0.005] [--dropout P=0.1] [--layers L=3] "
+     "[--gru-hidden H=64] [--head-hidden H=32] [--identity-dim D=8] [--weight-decay W=0] "
+     "[--without relative,fixed-order,shuffled-names,token-by-token,parked] [--quiet]",
      "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR "
      "(refused when it holds anything else; --force replaces an earlier model)",
      runTrain});

@@ -74,6 +74,22 @@ struct StepDecision {
 StepDecision decideStep(double end_probability, const std::vector<double>& log_action, int actions,
                         const std::vector<double>& log_target, int targets, const StepRules& rules);
 
+/// An object and the entities at its place (not objects) as a step begins: who can carry it.
+struct Load {
+  int object = 0;
+  std::vector<int> carriers;
+};
+/// Carried loads (StepRules::load_actions): a load and its carrier are one decision. For
+/// each load whose tokens in `step` break the rule (the load takes a load action that no
+/// entity at its place takes with the same target, or one of them takes a load action
+/// without it), the most probable of: the load idle and none of them with a load action
+/// (each falls back to its best token without one), or the load and one of them with the
+/// same load action and target. `load_action` [actions]: true for the load actions'
+/// classes. The heads as decodeStep's. Steps that keep the rule are left as they are.
+void coupleLoads(std::vector<DecodedToken>& step, const std::vector<double>& log_action, int actions,
+                 const std::vector<double>& log_target, int targets, const std::vector<Load>& loads,
+                 const std::vector<bool>& load_action);
+
 }  // namespace detail
 
 }  // namespace ddace::tgn

@@ -64,11 +64,10 @@ namespace ddace::tgn {
 /// (`relative_features`, the "Fixed order" rule); /6: whether its training shuffled the
 /// names (`shuffle_names`); /7: whether it decides a step token by token
 /// (`token_by_token`) and keeps parked entities out of the nearness ranks
-/// (`parked_out_of_ranks`). /5 and /6 manifests are still read, as trained without what they
-/// predate; older ones are refused (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/7";
-inline constexpr const char* kModelFormatBeforeTokenByToken = "ddace-model/6";
-inline constexpr const char* kModelFormatBeforeShuffledNames = "ddace-model/5";
+/// (`parked_out_of_ranks`); /8: the scene network's relational basis (farness ranks, axis
+/// orders, the last step) and the carried loads among the step rules. Older ones are
+/// refused (retrain): their networks see another basis.
+inline constexpr const char* kModelFormat = "ddace-model/8";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {
@@ -177,9 +176,16 @@ struct StepRules {
   bool exclusive_targets = false;
   /// Every step had exactly this many acting entities (0: the number varied).
   int step_size = 0;
+  /// Carried loads: the actions objects took (sorted), when in every training step an
+  /// object took one only together with an entity at its place (not an object) taking the
+  /// same action and target, and an entity at an object's place took one only together
+  /// with the object: a carrier and its load are one decision (detail::coupleLoads).
+  /// Empty: no such rule (no object acted, or a step broke it).
+  std::vector<std::string> load_actions;
+  /// The rules of the joint decoder (decodeStep); the carried loads apply after it.
   bool any() const { return exclusive_targets || step_size > 0; }
   bool operator==(const StepRules& o) const {
-    return exclusive_targets == o.exclusive_targets && step_size == o.step_size;
+    return exclusive_targets == o.exclusive_targets && step_size == o.step_size && load_actions == o.load_actions;
   }
 };
 

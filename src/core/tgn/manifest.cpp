@@ -132,6 +132,7 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   y << YAML::Key << "step_rules" << YAML::Value << YAML::Flow << YAML::BeginMap;
   y << YAML::Key << "exclusive_targets" << YAML::Value << info.step_rules.exclusive_targets;
   y << YAML::Key << "step_size" << YAML::Value << info.step_rules.step_size;
+  y << YAML::Key << "load_actions" << YAML::Value << YAML::Flow << info.step_rules.load_actions;
   y << YAML::EndMap;
   y << YAML::Key << "entities" << YAML::Value << YAML::Flow << spec.entityNames();
   y << YAML::Key << "vocabulary" << YAML::Value << YAML::Flow << info.vocabulary;
@@ -328,8 +329,7 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
   // "ddace-model/N": an older N is refused with what it lacks, a newer one as such.
   const std::string prefix = "ddace-model/";
   const std::string own = std::string(kModelFormat).substr(prefix.size());
-  const bool readable =
-      format == kModelFormat || format == kModelFormatBeforeTokenByToken || format == kModelFormatBeforeShuffledNames;
+  const bool readable = format == kModelFormat;
   if (format.rfind(prefix, 0) == 0 && !readable) {
     const std::string version = format.substr(prefix.size());
     const bool numeric = !version.empty() && version.size() <= 6 &&
@@ -337,7 +337,7 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
     if (numeric && std::stoi(version) < std::stoi(own)) {
       const int v = std::stoi(version);
       r.fail(format_node, "format '" + format + "' is an older model format than " + kModelFormat +
-                              " (it lacks the record of whether the network saw the relative features" +
+                              " (its scene network saw another relational basis" +
                               (v < 4 ? ", the step rules learned from the demonstrations" : "") +
                               (v < 3 ? ", and its files are not bound by digests to the model and its task" : "") +
                               "): retrain the model (ddace train)");
@@ -419,7 +419,8 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
       const int n = static_cast<int>(spec.entities.size());
       info.step_rules.step_size = static_cast<int>(
           r.integerAt(r.need(rules, "step_size"), "step_rules: step_size (at most the entities)", 0, n));
-      if (info.variant != Variant::Scene && info.step_rules.any())
+      info.step_rules.load_actions = r.texts(rules, "load_actions");
+      if (info.variant != Variant::Scene && (info.step_rules.any() || !info.step_rules.load_actions.empty()))
         r.fail(rules, "step_rules are learned for the scene variant only (the others decode each entity on its own)");
     }
     info.files = parseFiles(r, root);
@@ -438,6 +439,9 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
       if (info.vocabulary.empty() || sorted != info.fingerprint.vocabulary ||
           std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
         r.fail(root["vocabulary"], "vocabulary does not match task_fingerprint.vocabulary");
+      for (const std::string& a : info.step_rules.load_actions)
+        if (std::find(sorted.begin(), sorted.end(), a) == sorted.end())
+          r.fail(root["step_rules"], "step_rules: load_actions names '" + a + "', not an action of the vocabulary");
     }
 
     const YAML::Node hp = r.need(root, "hyper_parameters");
@@ -459,11 +463,9 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     o.node_positions = r.boolean(hp, "node_positions");
     o.edge_displacement = r.boolean(hp, "edge_displacement");
     o.relative_features = r.boolean(hp, "relative_features");
-    // A model of an older format was trained before what it lacks existed: without it.
-    const std::string format = r.text(root, "format");
-    o.shuffle_names = format != kModelFormatBeforeShuffledNames && r.boolean(hp, "shuffle_names");
-    o.token_by_token = format == kModelFormat && r.boolean(hp, "token_by_token");
-    o.parked_out_of_ranks = format == kModelFormat && r.boolean(hp, "parked_out_of_ranks");
+    o.shuffle_names = r.boolean(hp, "shuffle_names");
+    o.token_by_token = r.boolean(hp, "token_by_token");
+    o.parked_out_of_ranks = r.boolean(hp, "parked_out_of_ranks");
     if (o.parked_out_of_ranks && !(info.variant == Variant::Scene && o.relative_features))
       r.fail(hp["parked_out_of_ranks"],
              "parked_out_of_ranks applies only to the scene variant with the relative features");

@@ -5,6 +5,8 @@
 #include <ATen/CPUGeneratorImpl.h>
 
 #include <algorithm>
+#include <array>
+#include <map>
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -201,7 +203,8 @@ void SequenceModel::Impl::features(const std::vector<Eigen::Vector2d>& pos, cons
   }
 }
 
-void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos, float* out,
+void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos,
+                                   const std::vector<Eigen::Vector2d>* previous, float* out,
                                    const std::vector<bool>* competing) const {
   const int n = cfg.nodes;
   if (!info.options.relative_features) {  // "Fixed order": the configuration reaches no decision
@@ -230,26 +233,62 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos, floa
     for (int k = 0; k < n; ++k)
       for (int m = 0; m < n; ++m)
         if (m != k && d[static_cast<size_t>(k * n + m)] == 0.0) rival[static_cast<size_t>(k)] = false;
+  // Order along the table's axes: 1 / (1 + the number of rivals of e's kind before e), from
+  // the left (x), the right, the front (y) and the back; coordinates within `together`
+  // are tied.
+  std::vector<std::array<float, 4>> axis(static_cast<size_t>(n));
+  for (int e = 0; e < n; ++e) {
+    int before[4] = {0, 0, 0, 0};
+    for (int k = 0; k < n; ++k) {
+      if (k == e || !rival[static_cast<size_t>(k)] || kind(k) != kind(e)) continue;
+      const Eigen::Vector2d delta = pos[k] - pos[e];
+      before[0] += delta.x()<-together, before[1] += delta.x()> together;
+      before[2] += delta.y()<-together, before[3] += delta.y()> together;
+    }
+    for (int a = 0; a < 4; ++a) axis[static_cast<size_t>(e)][a] = 1.f / static_cast<float>(1 + before[a]);
+  }
+  // The last step (from the previous snapshot): e went to f when e moved and now stands
+  // where f stood (a motion ends on its target as the step began).
+  const auto wentTo = [&](int e, int f) {
+    if (!previous) return false;
+    const auto& was = *previous;
+    return (pos[e] - was[e]).norm() > together && (pos[e] - was[f]).norm() <= together;
+  };
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j) {
       float* r = out + (static_cast<size_t>(i) * n + j) * kRelativeFeatures;
       std::fill(r, r + kRelativeFeatures, 0.f);
       if (i == j) continue;
       const double dij = d[static_cast<size_t>(i * n + j)];
-      // How many entities of j's kind are nearer to i than j; of i's kind nearer to j than i.
-      int rank_j = 0, rank_i = 0;
+      // How many entities of j's kind are nearer to i than j (and farther); of i's kind
+      // nearer to j than i (and farther).
+      int near_j = 0, near_i = 0, far_j = 0, far_i = 0;
       for (int k = 0; k < n; ++k) {
         if (k == i || k == j || !rival[static_cast<size_t>(k)]) continue;
-        if (kind(k) == kind(j) && d[static_cast<size_t>(i * n + k)] < dij) ++rank_j;
-        if (kind(k) == kind(i) && d[static_cast<size_t>(j * n + k)] < dij) ++rank_i;
+        if (kind(k) == kind(j)) {
+          near_j += d[static_cast<size_t>(i * n + k)] < dij;
+          far_j += d[static_cast<size_t>(i * n + k)] > dij;
+        }
+        if (kind(k) == kind(i)) {
+          near_i += d[static_cast<size_t>(j * n + k)] < dij;
+          far_i += d[static_cast<size_t>(j * n + k)] > dij;
+        }
       }
       if (info.options.edge_displacement) {
         r[0] = static_cast<float>((pos[j].x() - pos[i].x()) / scale);
         r[1] = static_cast<float>((pos[j].y() - pos[i].y()) / scale);
       }
       r[2] = static_cast<float>(dij);
-      r[3] = 1.f / static_cast<float>(1 + rank_j);
-      r[4] = 1.f / static_cast<float>(1 + rank_i);
+      r[3] = 1.f / static_cast<float>(1 + near_j);
+      r[4] = 1.f / static_cast<float>(1 + near_i);
+      r[5] = 1.f / static_cast<float>(1 + far_j);
+      r[6] = 1.f / static_cast<float>(1 + far_i);
+      for (int a = 0; a < 4; ++a) {
+        r[7 + a] = axis[static_cast<size_t>(j)][a];
+        r[11 + a] = axis[static_cast<size_t>(i)][a];
+      }
+      r[15] = wentTo(i, j) ? 1.f : 0.f;
+      r[16] = wentTo(j, i) ? 1.f : 0.f;
     }
 }
 
@@ -268,7 +307,8 @@ Sequence SequenceModel::Impl::keyframeSequence(const task::Demonstration& d) con
   auto tgt = s.target.accessor<int64_t, 2>();
   for (int64_t k = 0; k < t; ++k) {
     features(d.snapshots[k].positions, nullptr, s.x[k].data_ptr<float>());
-    if (isScene()) relative(d.snapshots[k].positions, s.rel[k].data_ptr<float>());
+    if (isScene())
+      relative(d.snapshots[k].positions, k > 0 ? &d.snapshots[k - 1].positions : nullptr, s.rel[k].data_ptr<float>());
     if (d.snapshots[k].end) {
       s.end[k] = 1;
       continue;
@@ -351,7 +391,7 @@ Heads SequenceModel::Impl::run(const Batch& batch, Tensor* nodes_out, Tensor* z_
 
 std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTargets(
     const Heads& first, const Tensor& nodes, const Tensor& z, const std::vector<Eigen::Vector2d>& pos,
-    const std::vector<bool>& acting) const {
+    const std::vector<Eigen::Vector2d>* previous, const std::vector<bool>& acting) const {
   const int64_t n = cfg.nodes, targets = cfg.targets;
   std::vector<int> target(static_cast<size_t>(n), 0);
   std::vector<double> log_p(static_cast<size_t>(n), 0);
@@ -380,7 +420,7 @@ std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTarg
     }
     if (std::none_of(open.begin(), open.end(), [](bool o) { return o; })) break;
     Tensor given = torch::zeros({n, n, kRelativeFeatures});
-    relative(pos, given.data_ptr<float>(), &competing);
+    relative(pos, previous, given.data_ptr<float>(), &competing);
     logits = net->heads(nodes, given, z).target + takenMask(taken).squeeze(0);
   }
   return {target, log_p};
@@ -422,7 +462,8 @@ double SequenceModel::Impl::accuracy(const Batch& batch) {
       Heads first;
       first.target = h.target[b][t];
       const std::vector<int> chosen =
-          chooseTargets(first, nodes[b][t], z[b][t], batch.positions[static_cast<size_t>(b * batch.t + t)], acting)
+          chooseTargets(first, nodes[b][t], z[b][t], batch.positions[static_cast<size_t>(b * batch.t + t)],
+                        t > 0 ? &batch.positions[static_cast<size_t>(b * batch.t + t - 1)] : nullptr, acting)
               .first;
       bool all = true;
       for (int64_t i = 0; i < cfg.nodes; ++i)
@@ -505,19 +546,49 @@ std::vector<graph::Edge> liftedToKinds(const std::vector<graph::Edge>& kept, con
   return out;
 }
 
-/// The rules every step of `demos` kept (StepRules).
-StepRules stepRulesOf(const std::vector<task::Demonstration>& demos) {
+/// The rules every step of `train`'s demonstrations kept (StepRules).
+StepRules stepRulesOf(const task::TaskDir& train) {
   StepRules r;
   r.exclusive_targets = true;
   std::set<size_t> sizes;
-  for (const auto& d : demos)
-    for (const auto& step : d.steps) {
+  std::set<std::string> loads;
+  bool carried = true;
+  const double together = kTogetherRadii * train.spec.arrival_radius;
+  const auto isObject = [&](int e) {
+    return train.spec.entities[static_cast<size_t>(e)].kind == task::EntityKind::Object;
+  };
+  for (const auto& d : train.demos)
+    for (const auto& t : d.segments)
+      if (isObject(t.token.entity)) loads.insert(t.token.action);
+  for (const auto& d : train.demos)
+    for (size_t k = 0; k < d.steps.size(); ++k) {
+      const auto& step = d.steps[k];
       sizes.insert(step.tokens.size());
       std::set<int> targets;
       for (const auto& t : step.tokens)
         if (t.target >= 0 && !targets.insert(t.target).second) r.exclusive_targets = false;
+      // Carried loads: who stands at an object's place as the step begins.
+      const auto& pos = d.snapshots[k].positions;
+      std::map<int, const task::Token*> token;
+      for (const auto& t : step.tokens) token[t.entity] = &t;
+      const auto same = [&](int a, int b) {
+        return token.count(a) && token.count(b) && token[a]->action == token[b]->action &&
+               token[a]->target == token[b]->target;
+      };
+      for (int o = 0; o < static_cast<int>(pos.size()); ++o) {
+        if (!isObject(o)) continue;
+        bool with_carrier = false;
+        for (int c = 0; c < static_cast<int>(pos.size()); ++c) {
+          if (c == o || isObject(c) || (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() > together)
+            continue;
+          with_carrier = with_carrier || same(o, c);
+          if (token.count(c) && loads.count(token[c]->action) && !same(o, c)) carried = false;
+        }
+        if (token.count(o) && !with_carrier) carried = false;
+      }
     }
   r.step_size = sizes.size() == 1 ? static_cast<int>(*sizes.begin()) : 0;
+  if (carried) r.load_actions.assign(loads.begin(), loads.end());
   return r;
 }
 
@@ -546,7 +617,7 @@ std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const T
     for (size_t r = 0; r < d.rows(); ++r) requireFinite(d.positions[r], train.spec, d.source, "row", r);
   }
   if (steps == 0) throw Error(Diagnostic{train.path, 0, 0, "the demonstrations have no steps (no labelled actions)"});
-  if (options.variant == Variant::Scene) info.step_rules = stepRulesOf(train.demos);
+  if (options.variant == Variant::Scene) info.step_rules = stepRulesOf(train);
   // The refinement in canonical order (k-means seeding visits the nodes in order), mapped back.
   std::vector<task::Demonstration> canonical;
   for (const auto& d : train.demos) canonical.push_back(impl->order.toCanonical(d));

@@ -48,7 +48,9 @@ struct SequenceModel::Impl {
   /// Relative features of every pair (canonical order) into out[N][N][kRelativeFeatures].
   /// `competing`, when given ([N], canonical): the nearness ranks count only these
   /// entities as rivals ("Token by token": those not yet given a part in the step).
-  void relative(const std::vector<Eigen::Vector2d>& pos, float* out,
+  /// `previous`: the snapshot before (canonical), for the last step's relation (null at the
+  /// first snapshot).
+  void relative(const std::vector<Eigen::Vector2d>& pos, const std::vector<Eigen::Vector2d>* previous, float* out,
                 const std::vector<bool>* competing = nullptr) const;
   Sequence keyframeSequence(const task::Demonstration& canonical) const;
   Sequence frameSequence(const task::Demonstration& canonical) const;
@@ -68,6 +70,7 @@ struct SequenceModel::Impl {
   std::pair<std::vector<int>, std::vector<double>> chooseTargets(const Heads& first, const torch::Tensor& nodes,
                                                                  const torch::Tensor& z,
                                                                  const std::vector<Eigen::Vector2d>& pos,
+                                                                 const std::vector<Eigen::Vector2d>* previous,
                                                                  const std::vector<bool>& acting) const;
   /// Exact-step (gnn: frame label) accuracy, eval mode.
   double accuracy(const std::vector<Sequence>& seqs);

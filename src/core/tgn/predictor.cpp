@@ -32,12 +32,14 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
   Tensor x = torch::zeros({t, n, m.cfg.features});
   Tensor rel = m.isScene() ? torch::zeros({t, n, n, kRelativeFeatures}) : Tensor();
   std::vector<Eigen::Vector2d> pos(static_cast<size_t>(n));  // canonical order; the last snapshot's after the loop
+  std::vector<Eigen::Vector2d> previous;                     // the snapshot before pos (none at the first)
   for (int64_t k = 0; k < t; ++k) {
+    if (k > 0) previous = pos;
     for (int64_t c = 0; c < n; ++c)
       pos[static_cast<size_t>(c)] =
           history[static_cast<size_t>(k)].positions[static_cast<size_t>(m.order.task_of[static_cast<size_t>(c)])];
     m.features(pos, nullptr, x[k].data_ptr<float>());
-    if (m.isScene()) m.relative(pos, rel[k].data_ptr<float>());
+    if (m.isScene()) m.relative(pos, k > 0 ? &previous : nullptr, rel[k].data_ptr<float>());
   }
   Heads h;
   Tensor nodes, z;  // scene: the node embeddings and the GRU output, for token by token
@@ -67,12 +69,33 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
     std::vector<bool> acting(static_cast<size_t>(n));
     for (int64_t i = 0; i < n; ++i)
       acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
-    const auto [target, log_p] = m.chooseTargets(h, nodes[t - 1], z, pos, acting);
+    const auto [target, log_p] = m.chooseTargets(h, nodes[t - 1], z, pos, t > 1 ? &previous : nullptr, acting);
     for (int64_t i = 0; i < n; ++i)
       if (acting[static_cast<size_t>(i)]) {
         decision.tokens[static_cast<size_t>(i)].target = target[static_cast<size_t>(i)];
         lt[static_cast<size_t>(i * m.cfg.targets + target[static_cast<size_t>(i)])] = log_p[static_cast<size_t>(i)];
       }
+  }
+  if (!decision.end && !m.info.step_rules.load_actions.empty()) {
+    // Carried loads: a load and the entities at its place decide as one (StepRules).
+    const double together = kTogetherRadii * m.spec.arrival_radius;
+    const auto isObject = [&](int64_t c) {
+      return m.spec.entities[static_cast<size_t>(m.order.task_of[static_cast<size_t>(c)])].kind ==
+             task::EntityKind::Object;
+    };
+    std::vector<detail::Load> loads;
+    for (int64_t o = 0; o < n; ++o) {
+      if (!isObject(o)) continue;
+      detail::Load load{static_cast<int>(o), {}};
+      for (int64_t c = 0; c < n; ++c)
+        if (c != o && !isObject(c) && (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() <= together)
+          load.carriers.push_back(static_cast<int>(c));
+      loads.push_back(load);
+    }
+    std::vector<bool> load_action(static_cast<size_t>(m.cfg.actions), false);
+    for (const std::string& a : m.info.step_rules.load_actions)
+      if (m.vocabIndex(a) >= 0) load_action[static_cast<size_t>(m.vocabIndex(a) + 1)] = true;
+    detail::coupleLoads(decision.tokens, la, m.cfg.actions, lt, m.cfg.targets, loads, load_action);
   }
   p.end = decision.end;
   if (p.end) return p;

@@ -5,11 +5,18 @@
 //                   embedding keyed by the entity's name; (x, y) normalised isotropically
 //                   only with TrainOptions::node_positions (off by default: a decision
 //                   depends on how the scene is arranged, not where it is on the table).
-//   edge features   for the pair i <- j: the distance and two nearness ranks:
-//                   1 / (1 + the number of entities of j's kind nearer to i than j), and
-//                   the same for i seen from j (1 = the nearest of its kind); the
-//                   displacement x_j - x_i only with TrainOptions::edge_displacement (off by
-//                   default: the rest is invariant to moving, rotating, mirroring the scene).
+//   edge features   the relational basis of the pair i <- j (model_impl.cpp, relative()):
+//                   the distance; nearness ranks 1 / (1 + the number of entities of j's kind
+//                   nearer to i than j), the same for i seen from j, and the farness ranks
+//                   (farther instead of nearer: "the farthest"); the order of j and of i
+//                   along the table's axes among their kind, 1 / (1 + the number before
+//                   it) from the left, the right, the front and the back (these four
+//                   depend on the table's own axes: "the leftmost"); and the last step:
+//                   i went to j, j went to i (moved, and now stands where the other stood
+//                   as the step began: "the one who received the box"). Ranks count only
+//                   rivals: an entity parked with another (or, token by token, one already
+//                   given its part) is none. The displacement x_j - x_i only with
+//                   TrainOptions::edge_displacement (off by default).
 //                   Entities within kTogetherRadii arrival radii of each other are at one
 //                   place: distance 0, and they do not outrank each other.
 //   spatial         `gat_layers` x attention over the attention edges plus self-loops; the
@@ -35,8 +42,9 @@
 
 namespace ddace::tgn {
 
-/// Relative features per pair (see above).
-inline constexpr int kRelativeFeatures = 5;
+/// Relative features per pair (see above): displacement (2), distance, near ranks (2),
+/// far ranks (2), axis orders of j (4) and of i (4), the last step's relation (2).
+inline constexpr int kRelativeFeatures = 17;
 /// Entities nearer than this many of the task's arrival radii count as at one place: two
 /// that each arrived at one target (within a radius of it) are at most two radii apart.
 inline constexpr double kTogetherRadii = 2.0;

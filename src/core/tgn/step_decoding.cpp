@@ -232,4 +232,65 @@ StepDecision decideStep(double end_probability, const std::vector<double>& log_a
   return d;
 }
 
+void coupleLoads(std::vector<DecodedToken>& step, const std::vector<double>& log_action, int actions,
+                 const std::vector<double>& log_target, int targets, const std::vector<Load>& loads,
+                 const std::vector<bool>& load_action) {
+  const Heads h = headsOf(log_action, actions, log_target, targets, StepRules{});
+  if (step.size() != static_cast<size_t>(h.n)) throw Error("coupleLoads: the step is not one token per entity");
+  if (load_action.size() != static_cast<size_t>(actions)) throw Error("coupleLoads: load_action is not one per class");
+  const auto isLoad = [&](int a) { return a > 0 && load_action[static_cast<size_t>(a)]; };
+  const auto score = [&](int i, const DecodedToken& t) {
+    return h.la(i, t.action) + (t.action == 0 ? 0 : h.lt(i, t.target));
+  };
+  // An entity's best token without a load action (idle, or another action with its best target).
+  const auto unloaded = [&](int i) {
+    DecodedToken best{};
+    double s = h.la(i, 0);
+    for (int a = 1; a < actions; ++a)
+      if (!isLoad(a) && h.la(i, a) + h.lt(i, h.best_target[static_cast<size_t>(i)]) > s)
+        s = h.la(i, a) + h.lt(i, h.best_target[static_cast<size_t>(i)]),
+        best = {a, h.best_target[static_cast<size_t>(i)]};
+    return best;
+  };
+  for (const Load& load : loads) {
+    const int o = load.object;
+    const DecodedToken mine = step[static_cast<size_t>(o)];
+    bool kept = !isLoad(mine.action) || std::any_of(load.carriers.begin(), load.carriers.end(),
+                                                    [&](int c) { return step[static_cast<size_t>(c)] == mine; });
+    for (int c : load.carriers)
+      if (isLoad(step[static_cast<size_t>(c)].action) && !(step[static_cast<size_t>(c)] == mine)) kept = false;
+    if (kept) continue;
+    // One decision for the load and the entities at its place: the load idle and none of them
+    // with a load action, or the load and one of them with the same load action and target;
+    // the most probable of these (the first on ties: idle, then carriers and tokens in order).
+    std::vector<DecodedToken> base(load.carriers.size());
+    double base_score = 0;
+    for (size_t k = 0; k < load.carriers.size(); ++k) {
+      const int c = load.carriers[k];
+      base[k] = isLoad(step[static_cast<size_t>(c)].action) ? unloaded(c) : step[static_cast<size_t>(c)];
+      base_score += score(c, base[k]);
+    }
+    double best = base_score + h.la(o, 0);
+    int best_k = -1;
+    DecodedToken best_token{};
+    for (size_t k = 0; k < load.carriers.size(); ++k) {
+      const int c = load.carriers[k];
+      for (int a = 1; a < actions; ++a) {
+        if (!isLoad(a)) continue;
+        for (int t = 0; t < targets; ++t) {
+          const DecodedToken tok{a, t};
+          const double v = base_score - score(c, base[k]) + score(c, tok) + score(o, tok);
+          if (v > best) best = v, best_k = static_cast<int>(k), best_token = tok;
+        }
+      }
+    }
+    for (size_t k = 0; k < load.carriers.size(); ++k) step[static_cast<size_t>(load.carriers[k])] = base[k];
+    step[static_cast<size_t>(o)] = DecodedToken{};
+    if (best_k >= 0) {
+      step[static_cast<size_t>(load.carriers[static_cast<size_t>(best_k)])] = best_token;
+      step[static_cast<size_t>(o)] = best_token;
+    }
+  }
+}
+
 }  // namespace ddace::tgn::detail

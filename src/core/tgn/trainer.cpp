@@ -134,7 +134,7 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
             competing[static_cast<size_t>(tgt[t][i] - 1)] = false;
           }
         }
-        impl->relative(s.positions[static_cast<size_t>(t)],
+        impl->relative(s.positions[static_cast<size_t>(t)], t > 0 ? &s.positions[static_cast<size_t>(t - 1)] : nullptr,
                        batch.rel_slots[static_cast<int64_t>(b)][t].data_ptr<float>(), &competing);
       }
     }
@@ -217,7 +217,7 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
       *progress << " but for " << common.slips.size() << " labelling slip" << (common.slips.size() == 1 ? "" : "s")
                 << " (ddace validate lists them)";
     *progress << ": training without the relative features (a decision cannot depend on the configuration; "
-                 "--relative keeps them)"
+                 "--without fixed-order keeps them)"
               << std::endl;
   }
   std::shared_ptr<Impl> impl = trainNetwork(train, options, fixed_order, progress);

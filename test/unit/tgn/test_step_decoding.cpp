@@ -280,3 +280,51 @@ TEST(StepDecision, NeverAnEmptyStepAndTheMostProbableAlternative) {
   EXPECT_GT(replaced, 20);
   EXPECT_GT(ended, 20);
 }
+
+// Carried loads: entity 0 a robot, entity 1 the box at its place, entities 2 and 3 goals
+// (target slots 3 and 4); actions: idle, move, carry (the load action).
+namespace {
+struct LoadScene {
+  std::vector<double> la, lt;
+  std::vector<tgn::detail::Load> loads = {{1, {0}}};
+  std::vector<bool> load_action = {false, false, true};
+  std::vector<DecodedToken> couple(std::vector<DecodedToken> step) const {
+    tgn::detail::coupleLoads(step, la, 3, lt, 5, loads, load_action);
+    return step;
+  }
+};
+}  // namespace
+
+TEST(CarriedLoads, TheLoadGoesWhereItsCarrierGoesAsOneDecision) {
+  LoadScene s;
+  // The robot: carry to G1 (slot 3) 0.6, to G2 0.4; the box: carry, to G2 0.7, to G1 0.3.
+  s.la = logOf({{0.1, 0.1, 0.8}, {0.1, 0.1, 0.8}, {1, 1e-9, 1e-9}, {1, 1e-9, 1e-9}});
+  s.lt = logOf({{0.0, 0.0, 0.0, 0.6, 0.4}, {0.0, 0.0, 0.0, 0.3, 0.7}, {1, 0, 0, 0, 0}, {1, 0, 0, 0, 0}});
+  for (auto& v : s.lt) v = std::max(v, -1e3);
+  // Each on its own would split them (R1 to G1, its box to G2); one decision: both to G2
+  // (0.4 * 0.7 > 0.6 * 0.3).
+  const auto step = s.couple({{2, 3}, {2, 4}, {}, {}});
+  EXPECT_EQ(step[0], (DecodedToken{2, 4}));
+  EXPECT_EQ(step[1], (DecodedToken{2, 4}));
+}
+
+TEST(CarriedLoads, NeverOneWithoutTheOther) {
+  LoadScene s;
+  s.lt = logOf({{0.05, 0.05, 0.05, 0.8, 0.05}, {0.05, 0.05, 0.05, 0.8, 0.05}, {1, 0, 0, 0, 0}, {1, 0, 0, 0, 0}});
+  for (auto& v : s.lt) v = std::max(v, -1e3);
+  // The box would be carried while its robot stays: the robot is sure it stays, so the box stays too.
+  s.la = logOf({{0.9, 0.05, 0.05}, {0.4, 0.1, 0.5}, {1, 1e-9, 1e-9}, {1, 1e-9, 1e-9}});
+  auto step = s.couple({{}, {2, 3}, {}, {}});
+  EXPECT_EQ(step[0], DecodedToken{});
+  EXPECT_EQ(step[1], DecodedToken{});
+  // The robot would carry while its box stays: the box is unsure, so it goes along.
+  s.la = logOf({{0.05, 0.05, 0.9}, {0.6, 0.1, 0.3}, {1, 1e-9, 1e-9}, {1, 1e-9, 1e-9}});
+  step = s.couple({{2, 3}, {}, {}, {}});
+  EXPECT_EQ(step[0], (DecodedToken{2, 3}));
+  EXPECT_EQ(step[1], (DecodedToken{2, 3}));
+  // A step that keeps the rule (the robot moves without a load action) is left as it is.
+  s.la = logOf({{0.05, 0.9, 0.05}, {0.9, 0.05, 0.05}, {1, 1e-9, 1e-9}, {1, 1e-9, 1e-9}});
+  step = s.couple({{1, 3}, {}, {}, {}});
+  EXPECT_EQ(step[0], (DecodedToken{1, 3}));
+  EXPECT_EQ(step[1], DecodedToken{});
+}
