@@ -29,7 +29,7 @@
 // pass each other). Held for `deadlock_after_s`, the filter reports a deadlock naming the
 // robot and the bodies holding it (the caller stops the robot and reports it).
 //
-// Fail safe: its own pose or a body within `range_m` older than `pose_max_age_s` (or
+// Fail safe (when enabled): its own pose or a body within `range_m` older than `pose_max_age_s` (or
 // marked stale) -> zero wheels and a report naming the stale body.
 //
 // Owns: the barrier constraints, the QP, blocked/deadlock timing. Must not: know ROS,

@@ -98,9 +98,9 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
     reset();
     return out;
   };
-  if (!(self_age_s <= params_.pose_max_age_s) || !x.allFinite() || !std::isfinite(self.yaw))
-    return stop("pose of " + self_name + " is stale");
-
+  // Disabled, the filter is a pass-through: the follower's own stale-pose rule (the
+  // tracker's stale flag) governs, as without a filter; its pose-age bound is part of the
+  // filter (a barrier built on old poses is no barrier).
   if (!params_.enabled) {  // pass-through: only the clearance is measured
     for (const SafetyBody& b : bodies)
       if (b.radius_m > 0 && b.position.allFinite())
@@ -110,6 +110,8 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
     out.w_radps = (nominal.right_mps - nominal.left_mps) / wheel_base_m_;
     return out;
   }
+  if (!(self_age_s <= params_.pose_max_age_s) || !x.allFinite() || !std::isfinite(self.yaw))
+    return stop("pose of " + self_name + " is stale");
 
   // z = (v, l w): p' = z1 e + z2 e_perp, so |z - z0| is the change of p'.
   const double v0 = (nominal.left_mps + nominal.right_mps) / 2;
