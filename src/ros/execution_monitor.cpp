@@ -126,6 +126,7 @@ class ExecutionMonitorNode::Impl {
     const double overlap_m = rosparam::param(pnh, "collision_overlap_m", defaults.collision_overlap_m);
     if (!(overlap_m >= 0)) throw Error("parameter '" + pnh.resolveName("collision_overlap_m") + "' must be >= 0");
     clearance_ = std::make_unique<exec::ClearanceMeter>(radii, overlap_m);
+    collisions_fail_ = rosparam::param(pnh, "collisions_fail", defaults.collisions_fail);
     at_.assign(spec_.entities.size(), Eigen::Vector2d::Constant(NAN));
     const int gt = rosparam::param(pnh, "ground_truth_demo", defaults.ground_truth_demo);
     if (gt >= 0) {
@@ -513,17 +514,18 @@ class ExecutionMonitorNode::Impl {
     if (have_gt_) {
       // One definition of every metric: the same scoring as `ddace eval`.
       const eval::TrialScore score = eval::scoreTrial(spec_, gt_, run);
+      const bool collided = collisions_fail_ && !clearance_->collisions().empty();
       auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
       os << "metrics: SSR " << score.ssr() << " (" << score.correct_steps << "/" << score.gt_steps << " steps), GCR "
          << score.gcr() << " (" << score.achieved_robot_motions << "/" << score.gt_robot_motions
          << " robot motion tokens arrived), goal conditions " << (score.goal_conditions_hold ? "hold" : "do NOT hold")
-         << ", FD " << score.meanFd() << ", OSR " << (score.success && clearance_->collisions().empty() ? 1 : 0)
-         << (score.success && !clearance_->collisions().empty() ? " (a collision: no success)" : "") << "\n";
+         << ", FD " << score.meanFd() << ", OSR " << (score.success && !collided ? 1 : 0)
+         << (score.success && collided ? " (a collision: no success)" : "") << "\n";
       j["ground_truth"] = fs::path(gt_file_).filename().string();
       j["ssr"] = score.ssr();
       j["gcr"] = score.gcr();
       j["fd"] = num(score.meanFd());
-      j["osr"] = score.success && clearance_->collisions().empty() ? 1 : 0;  // a collision is no success
+      j["osr"] = score.success && !collided ? 1 : 0;  // a collision is no success (collisions_fail)
       j["ended_correctly"] = score.ended_correctly;
       j["goal_conditions_hold"] = score.goal_conditions_hold;
     }
@@ -654,6 +656,7 @@ class ExecutionMonitorNode::Impl {
   std::map<std::string, Eigen::Vector2d> positions_;
   std::map<std::string, Eigen::Vector2d> starts_;  ///< first tracked position of each entity
   std::unique_ptr<exec::ClearanceMeter> clearance_;
+  bool collisions_fail_ = true;      ///< Params::collisions_fail
   std::vector<Eigen::Vector2d> at_;  ///< latest positions in the task's order (NaN = not seen)
   std::vector<ros::Time> requests_;
   std::set<uint32_t> request_ids_;

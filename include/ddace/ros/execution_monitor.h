@@ -59,6 +59,11 @@ class ExecutionMonitorNode {
     /// Two bodies overlapping deeper than this collide, metres: two touching bodies'
     /// measured gap carries both poses' noise (1 mm per axis each: 3.5 sigma).
     double collision_overlap_m = 0.005;
+    /// A run with a collision is no success (OSR 0). True on real robots, where bodies
+    /// are real; execute_sim.launch sets it to whether the simulated table has bodies
+    /// (bodies:=true): on the points table (the paper's model, which ends a motion toward a
+    /// robot at its centre) overlaps are counted and reported, not judged.
+    bool collisions_fail = true;
   };
 
   ExecutionMonitorNode(ros::NodeHandle nh, ros::NodeHandle pnh);
