@@ -58,7 +58,7 @@ class CoordinatorNode::Impl {
     frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
     arrival_radius_m_ = cfg.arrival_radius_m;
     // The executor stops inside the radius a DONE is checked against (task/end_point.h).
-    stop_radius_m_ = task::stopRadius(cfg.arrival_radius_m);
+    stop_radius_m_ = task::stopRadius(cfg.arrival_radius_m, cfg.arrival_tolerance_m);
     path_points_ = rosparam::param(pnh, "path_points", defaults.path_points);
     const double tick_hz = rosparam::param(pnh, "timeout_check_hz", defaults.timeout_check_hz);
     if (!(tick_hz > 0)) throw Error("parameter '" + pnh.resolveName("timeout_check_hz") + "' must be positive");

@@ -2,7 +2,7 @@
 // is accepted or refused with a ddace::Error, never a crash or another exception. The
 // markers are the shipped config/markers.yaml. An accepted config's task must survive
 // the task.yaml writer and reader (the recorder writes it into the task directory).
-// fuzz-modules: vision task
+// fuzz-modules: vision task label
 // fuzz-max-len: 16384
 #include <cstdint>
 #include <cstdlib>

@@ -60,9 +60,10 @@ struct CoordinatorConfig {
   /// A DONE counts only when the coordinator's own tracked position of the entity has
   /// arrived (task::arrived) within arrival_radius_m + arrival_tolerance_m of the segment's
   /// end point. The tolerance covers the tracker's noise between the executor's reading
-  /// and the coordinator's; executors stop within task::stopRadius(arrival_radius_m).
+  /// and the coordinator's; executors stop within task::stopRadius(arrival_radius_m,
+  /// arrival_tolerance_m): the radius less the same tolerance.
   double arrival_radius_m = task::kDefaultArrivalRadius;
-  double arrival_tolerance_m = 0.005;
+  double arrival_tolerance_m = task::kArrivalToleranceM;
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
 };

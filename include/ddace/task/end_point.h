@@ -24,8 +24,9 @@
 // load on the target (or at contact with an obstacle target).
 //
 // A motion counts as arrived when the entity is within the task's arrival_radius of its
-// end point (arrived()); a path follower stops within stopRadius() of it, inside the
-// arrival radius so that measurement noise cannot leave a stopped robot outside.
+// end point (arrived()); a path follower stops within stopRadius() of it: the arrival radius
+// less the tracking noise, so that noise cannot leave a stopped robot outside it (and the
+// coordinator counts a DONE within the radius plus the same tolerance).
 //
 // Meant for: gp path generation (a path runs from S to the end point), the closed-loop
 // simulator and the coordinator (end points of a decided step, the DONE check), the path
@@ -52,10 +53,10 @@ inline constexpr int kMinKeySegments = 3;
 /// Segments whose start is closer to the target than this have no approach direction
 /// and teach nothing (metres).
 inline constexpr double kMinApproachM = 0.005;
-/// A path follower stops within this fraction of the arrival radius of the end point:
-/// inside the radius, since stopping right on its edge leaves a noisy robot outside half of
-/// the time.
-inline constexpr double kStopFraction = 0.5;
+/// The tracking noise one reading of a pose may carry (metres): a follower stops this far
+/// inside the arrival radius, and a DONE counts this far outside it (the coordinator's
+/// arrival_tolerance_m, whose default this is).
+inline constexpr double kArrivalToleranceM = 0.005;
 
 /// A learned end offset: metres in the approach frame, and the segments it comes from.
 struct EndOffset {
@@ -104,7 +105,8 @@ Eigen::Vector2d endPointFrom(const Eigen::Vector2d& start, const Eigen::Vector2d
 
 /// A motion has arrived when `position` is within `arrival_radius` of its end point.
 bool arrived(const Eigen::Vector2d& position, const Eigen::Vector2d& end_point, double arrival_radius);
-/// How close to the end point a path follower stops: kStopFraction * arrival_radius.
-double stopRadius(double arrival_radius);
+/// How close to the end point a path follower stops: arrival_radius - tolerance, never
+/// less than half the arrival radius (a radius within the noise itself).
+double stopRadius(double arrival_radius, double tolerance = kArrivalToleranceM);
 
 }  // namespace ddace::task

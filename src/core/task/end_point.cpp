@@ -126,8 +126,8 @@ bool arrived(const Vector2d& position, const Vector2d& end_point, double arrival
   return (position - end_point).norm() <= arrival_radius;
 }
 
-double stopRadius(double arrival_radius) {
-  return kStopFraction * arrival_radius;
+double stopRadius(double arrival_radius, double tolerance) {
+  return std::max(arrival_radius - tolerance, 0.5 * arrival_radius);
 }
 
 }  // namespace ddace::task
