@@ -152,6 +152,7 @@ Row trainAndEvaluate(const Settings& s, const fs::path& data, const std::string&
   if (closed_loop) {
     EvalOptions o;
     o.execution = "diffdrive";
+    o.bodies = false;  // this section's robots are points; the section "Bodies" has bodies
     o.noise_m = kClosedLoopNoise;
     o.seed = static_cast<uint64_t>(s.seed);
     const Evaluation c = evaluate(model, test, o);

@@ -15,7 +15,8 @@
 //                                        filter and takes the other half; 1 otherwise)
 // The right side is never above 0, so a pair already inside the margin (a start scene,
 // a pushed robot) may separate but never close in. The motion's
-// target gets the same constraint on the centres at contact distance. Together with the
+// target (and a body marked touchable: a carrier's load) gets the same constraint on the
+// centres at contact distance. Together with the
 // wheel limits these are half-planes in (v, l w); the least change of (v, l w) -- equal to
 // the least change of p' -- is a quadratic programme in two variables, solved exactly by
 // enumerating active sets (the command itself, each constraint's line, each vertex).
@@ -70,6 +71,9 @@ struct SafetyBody {
   bool robot = false;              ///< runs its own filter: takes half of each pair's constraint
   double age_s = 0;                ///< how old its pose is
   bool stale = false;              ///< the tracker says: never drive on it
+  /// The motion may end touching it, as its target (the carrier's load it pushes ahead);
+  /// the segment's `target` is always touchable.
+  bool touchable = false;
 };
 
 /// The body of an entity as the filter and the simulator see it: its disc radius and

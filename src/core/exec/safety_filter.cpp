@@ -133,7 +133,7 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
     out.clearance_m = std::min(out.clearance_m, centres - contact);
     const double share = b.robot ? 0.5 : 1.0;
     HalfPlane c;
-    if (b.name == target) {
+    if (b.name == target || b.touchable) {
       // The motion's own target: the centres may close in to contact, no margin.
       if (centres < 1e-9) continue;
       const Eigen::Vector2d n = (x - b.position) / centres;
