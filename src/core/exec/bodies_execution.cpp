@@ -143,6 +143,7 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
           others.push_back({names_[j], measured[j].position(), radius_m_[j], robot_[j]});
           others.back().touchable = load_of[i] == j;  // a carrier pushes its load ahead
         }
+      markBodiesAtEnd(others, mv.follower->endPoint(), radius_m_[i], params_.safety);
       const int target = motions[m].target;
       const SafetyCommand c =
           filters_[i].filter(names_[i], measured[i], radius_m_[i], 0.0, o.wheels, o.progress * mv.follower->lengthM(),
@@ -167,6 +168,13 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     for (size_t m = 0; m < motions.size(); ++m)
       if (movers[m].running) out.executed[m].push_back(table_->truePose(motions[m].entity).position());
 
+    // The bodies a robot's motion ends against (its end point touches them).
+    auto endContact = [&](int mover, int other) {
+      const int m = motion_of[mover];
+      return m >= 0 && movers[m].follower &&
+             endsAgainst(movers[m].follower->endPoint(), radius_m_[mover], table_->truePose(other).position(),
+                         radius_m_[other], params_.safety.margin_m);
+    };
     // The closest approach of two bodies that keep apart, on the true poses; a pair in
     // contact is apart again once its gap exceeds kPartedM.
     for (int a = 0; a < n; ++a) {
@@ -178,17 +186,19 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
         const double gap = (pa - pb).norm() - radius_m_[a] - radius_m_[b];
         char& touching = touching_[a * n + b];
         if (touching && gap > kPartedM) touching = 0;
-        if (!touching && !exempt.count({a, b}) && gap < report_.closest.clearance_m)
+        if (!touching && !exempt.count({a, b}) && gap < report_.closest.clearance_m && !endContact(a, b) &&
+            !endContact(b, a))
           report_.closest = {gap, a, b, table_->time(), pa, pb};
       }
     }
     // Collisions: contacts that began between bodies that were apart, except the motions'
-    // own targets and loads.
+    // own targets and loads, and the bodies a robot's motion ends against.
     const auto& contacts = table_->contacts();
     for (; contacts_seen_ < contacts.size(); ++contacts_seen_) {
       const BodyContact& c = contacts[contacts_seen_];
       char& touching = touching_[c.a * n + c.b];
-      if (!touching && !exempt.count({c.a, c.b})) report_.collisions.push_back(c);
+      if (!touching && !exempt.count({c.a, c.b}) && !endContact(c.a, c.b) && !endContact(c.b, c.a))
+        report_.collisions.push_back(c);
       touching = 1;
     }
   }
