@@ -6,7 +6,7 @@
 // from its measured pose, and its command goes through the robot's own safety filter
 // (exec/safety_filter.h) fed with the others' poses, as path_follower_node does; without
 // the filter (SafetyParams::enabled false) the bodies still collide, and every collision
-// is counted.
+// is counted. A carrier and its load ride together during their step (setRiding).
 //
 // A step ends when every robot's control law reports it arrived and every object's segment
 // is done, or when its filter reports a deadlock (the robot stops there; the failure names

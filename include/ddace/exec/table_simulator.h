@@ -68,6 +68,12 @@ class TableSimulator {
   ~TableSimulator();
   TableSimulator(TableSimulator&&) noexcept;
 
+  /// While `riding`, object `load` rides with robot `carrier` (a carry step of
+  /// `ddace eval`'s simulator): their bodies pass through each other, as a load placed on its
+  /// carrier does, so a load that starts beside its carrier can swing round to its front.
+  /// Throws ddace::Error for an index outside the task.
+  void setRiding(int carrier, int load, bool riding);
+
   /// A wheel command for robot `entity`, effective after the robot's latency. Throws
   /// ddace::Error when `entity` is not a robot.
   void commandWheels(int entity, const WheelSpeeds& wheels);

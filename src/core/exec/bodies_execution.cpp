@@ -77,9 +77,10 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     if (!tokens[i].isMotion()) continue;
     if (tokens[i].target >= 0) exempt.insert(ordered(tokens[i].entity, tokens[i].target));
     const int load = task::carriedLoad(spec, tokens, i);
-    if (load >= 0) {
+    if (load >= 0 && tokens[i].entity >= 0 && tokens[i].entity < n) {
       exempt.insert(ordered(tokens[i].entity, tokens[load].entity));
-      if (tokens[i].entity >= 0 && tokens[i].entity < n) load_of[tokens[i].entity] = tokens[load].entity;
+      load_of[tokens[i].entity] = tokens[load].entity;
+      table_->setRiding(tokens[i].entity, tokens[load].entity, true);  // the load rides with it
     }
   }
   std::set<std::pair<int, int>> loaded(table_->loadedPairs().begin(), table_->loadedPairs().end());
@@ -216,6 +217,8 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
                   names_[e].c_str(), limit_s);
     out.failures.push_back(why);
   }
+  for (int i = 0; i < n; ++i)
+    if (load_of[i] >= 0) table_->setRiding(i, load_of[i], false);
   out.duration_s = table_->time() - t0;
   out.positions.resize(n);
   for (int i = 0; i < n; ++i) out.positions[i] = table_->truePose(i).position();

@@ -29,12 +29,14 @@ struct TableSimulator::Physics : public b2ContactListener, public b2ContactFilte
   b2World world{b2Vec2(0, 0)};
   std::vector<b2Body*> bodies;  ///< by entity index; null for goals
   std::set<std::pair<int, int>> loaded;
+  std::set<std::pair<int, int>> riding;    ///< carrier and load of a carry step (setRiding)
   std::vector<std::pair<int, int>> began;  ///< contacts begun during the current step
 
   static int indexOf(b2Fixture* f) { return static_cast<int>(f->GetBody()->GetUserData().pointer) - 1; }
   bool ShouldCollide(b2Fixture* a, b2Fixture* b) override {
     const int i = indexOf(a), j = indexOf(b);
-    return !loaded.count({std::min(i, j), std::max(i, j)});
+    const std::pair<int, int> p{std::min(i, j), std::max(i, j)};
+    return !loaded.count(p) && !riding.count(p);
   }
   void BeginContact(b2Contact* c) override {
     const int i = indexOf(c->GetFixtureA()), j = indexOf(c->GetFixtureB());
@@ -160,6 +162,17 @@ ObjectStatus TableSimulator::report(int i, SegmentState state, std::string messa
   }
   s.message = std::move(message);
   return s;
+}
+
+void TableSimulator::setRiding(int carrier, int load, bool riding) {
+  checkIndex(carrier);
+  checkIndex(load);
+  const std::pair<int, int> p{std::min(carrier, load), std::max(carrier, load)};
+  if (riding) physics_->riding.insert(p);
+  else physics_->riding.erase(p);
+  for (int i : {carrier, load})  // contacts already made are filtered again
+    if (b2Body* body = physics_->bodies[i])
+      for (b2Fixture* f = body->GetFixtureList(); f; f = f->GetNext()) f->Refilter();
 }
 
 void TableSimulator::commandWheels(int i, const WheelSpeeds& wheels) {

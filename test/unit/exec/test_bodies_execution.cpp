@@ -148,6 +148,20 @@ TEST(BodiesExecution, ACarriedLoadRidesItsOwnPathToTheGoalAheadOfItsCarrier) {
   EXPECT_TRUE(with.report().collisions.empty());
 }
 
+TEST(BodiesExecution, ALoadBehindItsCarrierSwingsRoundToItsFront) {
+  // O1 starts behind R1 (away from G1); both go to G1, the load's path round the carrier.
+  const auto s =
+      spec({{"R1", task::EntityKind::Robot}, {"O1", task::EntityKind::Object}, {"G1", task::EntityKind::Goal}});
+  const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
+  const std::vector<Pose2D> start{{0.2, 0.3, 0}, {0.2 - contact - 0.002, 0.3, 0}, {0.6, 0.3, 0}};
+  Path load{{0.2 - contact - 0.002, 0.3}, {0.2, 0.3 + contact}, {0.2 + contact, 0.3}, {0.6, 0.3}};
+  BodiesExecution with = model(true);
+  const StepExecution a =
+      runStep(with, s, start, {token(0, 2), token(1, 2)}, {line({0.2, 0.3}, {0.6 - contact, 0.3}), load});
+  EXPECT_LT((a.positions[1] - Vector2d(0.6, 0.3)).norm(), 0.01) << "the load ends on the goal, not blocked behind";
+  EXPECT_TRUE(with.report().collisions.empty());
+}
+
 TEST(BodiesExecution, Task2WithMotionsEndingAtContactHasNoCollisionWithTheFilterAndSomeWithout) {
   // Eleven robots, the generated Task 2 replayed; every motion ends where the footprints
   // say (at contact with a robot target, task/end_point.h's default without offsets).
