@@ -102,11 +102,10 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"gains", YAML::Node()},
                   {"safety", YAML::Node()}},
                  {"robots"});
-  // The shipped graph runs the filter off until motions end at contact (docs/execution.md,
-  // "Collision avoidance"); exec::SafetyParams, used on its own, filters.
   const ddace::exec::SafetyParams sf;
   expectDefaults(yaml["path_follower"]["safety"], "path_follower/safety",
-                 {{"margin_m", value(sf.margin_m)},
+                 {{"enabled", value(sf.enabled)},
+                  {"margin_m", value(sf.margin_m)},
                   {"projection_m", value(sf.projection_m)},
                   {"barrier_gain_hz", value(sf.barrier_gain_hz)},
                   {"range_m", value(sf.range_m)},
@@ -114,8 +113,7 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"blocked_fraction", value(sf.blocked_fraction)},
                   {"resolve_after_s", value(sf.resolve_after_s)},
                   {"deadlock_after_s", value(sf.deadlock_after_s)},
-                  {"progress_m", value(sf.progress_m)}},
-                 {"enabled"});
+                  {"progress_m", value(sf.progress_m)}});
   expectDefaults(yaml["path_follower"]["gains"], "path_follower/gains",
                  {{"cruise_speed_mps", value(g.cruise_speed_mps)},
                   {"min_speed_mps", value(g.min_speed_mps)},

@@ -33,6 +33,7 @@ class MockRobotNode {
   /// exec::DiffDriveParams; bodies, object_speed_mps and object_damping_hz are
   /// exec::TableSimulatorParams'.
   struct Params : exec::TableSimulatorParams {
+    Params() { bodies = true; }  // the mock table has bodies (exec::TableSimulatorParams alone: points)
     std::string frame_id = kTableFrame;
     std::string entities_topic = "/ddace/entities";  ///< remap for a synthetic camera + tracker
     bool publish_tf = true;                          ///< tf table -> <entity> for every entity
