@@ -5,6 +5,7 @@
 
 #include <iosfwd>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -53,6 +54,8 @@ struct EvalOptions {
 struct Evaluation {
   std::string task, variant, execution;
   std::vector<std::string> entity_names;  ///< the test task's, in its order
+  std::set<int> robot_entities;           ///< indices of its robots
+  double arrival_radius_m = 0;            ///< its arrival radius
   std::vector<eval::TrialScore> scores;
   std::vector<exec::Trial> trials;
   /// Per trial: "" when every step matched, else the first step that differs, as

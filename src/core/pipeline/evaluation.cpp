@@ -12,6 +12,7 @@
 #include "ddace/common/sha256.h"
 #include "ddace/exec/bodies_execution.h"
 #include "ddace/exec/diff_drive_execution.h"
+#include "ddace/task/end_point.h"
 
 namespace ddace::pipeline {
 
@@ -134,6 +135,9 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
     e.execution += options.bodies ? (options.safety_filter ? " with bodies" : " with bodies, no filter") : " (points)";
   const task::TaskSpec& spec = test.spec;
   e.entity_names = spec.entityNames();
+  e.arrival_radius_m = spec.arrival_radius;
+  for (size_t i = 0; i < spec.entities.size(); ++i)
+    if (spec.entities[i].kind == task::EntityKind::Robot) e.robot_entities.insert(static_cast<int>(i));
 
   std::unique_ptr<exec::ExecutionModel> execution;
   if (options.execution == "ideal") {
@@ -196,6 +200,14 @@ void printEvaluation(const Evaluation& e, std::ostream& out) {
         out << "    collision at " << c.time_s << " s: " << e.entity_names.at(c.a) << " touched "
             << e.entity_names.at(c.b) << "\n";
       for (const auto& f : t.failures) out << "    " << f << "\n";
+      for (const auto& ex : t.executed)  // robots that stopped outside the arrival radius
+        if (ex.token.isMotion() && e.robot_entities.count(ex.token.entity) &&
+            !task::arrived(ex.executed.back(), ex.goal, e.arrival_radius_m)) {
+          std::snprintf(line, sizeof line, "    step %d: %s:%s stopped %.1f cm from its end point\n", ex.step + 1,
+                        e.entity_names.at(ex.token.entity).c_str(), ex.token.action.c_str(),
+                        (ex.executed.back() - ex.goal).norm() * 100);
+          out << line;
+        }
     }
   }
   const auto& m = e.summary;
