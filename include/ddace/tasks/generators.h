@@ -104,7 +104,8 @@ using PlannedStep = std::vector<PlannedToken>;
 /// goal or at contact with an obstacle target, the carrier behind it. An end point inside
 /// a standing body, or inside an end point placed before it in the step, is turned about
 /// the target in steps of kEndTurnStepRad (at most kMaxEndTurnRad either way) to the
-/// nearest free place at the same distance: the motion still ends at contact; where no
+/// nearest place at the same distance that is kEndTurnGapM clear of every other body: the
+/// motion still ends at contact, touching its target only; where no
 /// turn frees it (a goal another body already stands on), it stops short on its way, where
 /// its body first fits (so two robots sent onto one goal end touching, one on it). Throws
 /// ddace::Error for a token naming an entity outside `positions`.
@@ -133,13 +134,15 @@ inline constexpr double kMinStepDurationS = 1.0;  ///< s
 inline constexpr int kIdleRowsBefore = 4, kIdleRowsBetween = 3, kIdleRowsAfter = 4;
 inline constexpr double kEndTurnStepRad = M_PI / 36;  ///< 5 degrees
 inline constexpr double kMaxEndTurnRad = M_PI / 2;
+/// A turned end point stays this far (metres) from every body but its target.
+inline constexpr double kEndTurnGapM = 0.01;
 inline constexpr double kLoadSwingFraction = 0.3;
 /// Extra arcs tried to keep a path clear, fractions of the start-to-end distance.
-inline constexpr double kAvoidBends[] = {0, 0.15, -0.15, 0.3, -0.3, 0.45, -0.45, 0.6, -0.6};
+inline constexpr double kAvoidBends[] = {0, 0.05, -0.05, 0.1, -0.1, 0.15, -0.15, 0.3, -0.3, 0.45, -0.45, 0.6, -0.6};
 /// Lags tried (progress u^lag: the mover arrives after those placed before it).
 inline constexpr double kAvoidLags[] = {1, 2, 3, 5};
 /// Turns of a path's start tried to leave the bodies a mover touches, radians.
-inline constexpr double kAvoidHooks[] = {0,         M_PI / 4,     -M_PI / 4,     M_PI / 2,
-                                         -M_PI / 2, 3 * M_PI / 4, -3 * M_PI / 4, M_PI};
+inline constexpr double kAvoidHooks[] = {0,        M_PI / 8,  -M_PI / 8,    M_PI / 4,      -M_PI / 4,
+                                         M_PI / 2, -M_PI / 2, 3 * M_PI / 4, -3 * M_PI / 4, M_PI};
 
 }  // namespace ddace::tasks

@@ -21,6 +21,8 @@ constexpr int kCheckSamples = 200;
 /// Distances within this of contact count as contact (floating point, not geometry).
 constexpr double kContactSlack = 1e-9;
 constexpr double kBackOffStepM = 0.001;
+/// A load rides with its carrier when it starts within this of touching it (metres).
+constexpr double kRideReachM = 0.01;
 
 /// `v` rounded to six decimals as printf rounds it (the digits a file holds), read back.
 double micrometres(double v) {
@@ -50,7 +52,8 @@ struct Path {
   PathShape shape;
   double bend = 0, align = 0;
   /// A hook (x and y in the path's frame) times u (1 - u)^4: zero at both ends and in slope
-  /// at the end, it turns the start of the path (a robot leaving the bodies it touches).
+  /// at the end, it turns the start of the path (a robot leaving the bodies it touches); at
+  /// most 0.082 of the hook, at u = 0.2.
   Vector2d hook = Vector2d::Zero();
   /// Progress along the path at time progress u is u^lag: a mover with lag > 1 falls
   /// behind and catches up at the end (it arrives after the movers before it).
@@ -162,23 +165,27 @@ struct StepRoles {
   std::vector<bool> moving;  ///< [entity] moves in this step (mover or load)
 };
 
-StepRoles roles(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t entities) {
+StepRoles roles(const task::TaskSpec& spec, const std::vector<task::Token>& step, const std::vector<Vector2d>& at) {
+  const size_t entities = at.size();
   StepRoles r;
   r.load_of.assign(step.size(), -1);
   r.moving.assign(entities, false);
-  std::vector<bool> carried(step.size(), false);
-  for (size_t i = 0; i < step.size(); ++i) {
-    const task::Token& t = step[i];
+  for (const task::Token& t : step)
     if (t.entity < 0 || static_cast<size_t>(t.entity) >= entities || t.target >= static_cast<int>(entities))
       throw Error("a planned token names an entity outside the " + std::to_string(entities) + " of task '" + spec.name +
                   "'");
-    if (!t.isMotion()) continue;
+  std::vector<bool> carried(step.size(), false);
+  for (size_t i = 0; i < step.size(); ++i) {
+    if (!step[i].isMotion()) continue;
     const int load = task::carriedLoad(spec, step, i);
-    // A load carried by two robots rides with the first.
-    if (load >= 0 && !carried[static_cast<size_t>(load)]) {
-      r.load_of[i] = load;
-      carried[static_cast<size_t>(load)] = true;
-    }
+    // A load rides with its carrier when it is at the carrier (a ball passed from afar to
+    // where a robot also goes moves on its own); one carried by two robots rides with the first.
+    if (load < 0 || carried[static_cast<size_t>(load)]) continue;
+    const int e = step[i].entity, l = step[static_cast<size_t>(load)].entity;
+    if ((at[static_cast<size_t>(l)] - at[static_cast<size_t>(e)]).norm() > spec.contactDistance(e, l) + kRideReachM)
+      continue;
+    r.load_of[i] = load;
+    carried[static_cast<size_t>(load)] = true;
   }
   for (size_t i = 0; i < step.size(); ++i) {
     if (!step[i].isMotion() || carried[i]) continue;
@@ -198,6 +205,35 @@ double edgeGap(const task::TaskSpec& spec, int e, const Vector2d& p) {
   return std::min({p.x(), p.y(), kTableSize - p.x(), kTableSize - p.y()}) - spec.footprint(e).radius_m;
 }
 
+/// One way of shaping a mover's path to keep clear of the others.
+struct Candidate {
+  double bend = 0, hook = 0, lag = 1;
+  bool long_way = false;
+  double deviation = 0;  ///< how far the path moves from its shape, in start-to-end distances
+};
+
+/// Every combination of kAvoidBends, kAvoidHooks, kAvoidLags and the load's swing, the
+/// least changed path first: by how far it moves from the shape (an arc b: |b|; a hook
+/// turning the start by a: at most 0.164 |sin(a / 2)|), then by lag (timing only, the path
+/// unchanged), then the swing; ties in the order of the lists.
+const std::vector<Candidate>& candidates() {
+  static const std::vector<Candidate> all = [] {
+    std::vector<Candidate> c;
+    for (bool long_way : {false, true})
+      for (double hook : kAvoidHooks)
+        for (double bend : kAvoidBends)
+          for (double lag : kAvoidLags)
+            c.push_back({bend, hook, lag, long_way, std::abs(bend) + 0.164 * std::abs(std::sin(hook / 2))});
+    std::stable_sort(c.begin(), c.end(), [](const Candidate& a, const Candidate& b) {
+      if (a.deviation != b.deviation) return a.deviation < b.deviation;
+      if (a.lag != b.lag) return a.lag < b.lag;
+      return a.long_way < b.long_way;
+    });
+    return c;
+  }();
+  return all;
+}
+
 }  // namespace
 
 std::vector<Vector2d> stepEndPositions(const task::TaskSpec& spec, const std::vector<Vector2d>& positions,
@@ -205,18 +241,21 @@ std::vector<Vector2d> stepEndPositions(const task::TaskSpec& spec, const std::ve
   if (positions.size() != spec.entities.size())
     throw Error("positions of " + std::to_string(positions.size()) + " entities for the " +
                 std::to_string(spec.entities.size()) + " of task '" + spec.name + "'");
-  const StepRoles r = roles(spec, step, positions.size());
+  const StepRoles r = roles(spec, step, positions);
   std::vector<Vector2d> ends = positions;
   // Bodies an end point must keep clear of: standing ones, then ends placed before.
   std::vector<int> placed;
   for (size_t e = 0; e < positions.size(); ++e)
     if (!r.moving[e] && isObstacle(spec, static_cast<int>(e))) placed.push_back(static_cast<int>(e));
-  auto free = [&](int entity, const Vector2d& at, int partner) {
+  // Free: on the table, and no closer than contact to a placed body (plus `gap` to any but
+  // the motion's target).
+  auto free = [&](int entity, const Vector2d& at, int partner, int target, double gap) {
     if (edgeGap(spec, entity, at) < std::min(0.0, edgeGap(spec, entity, positions[static_cast<size_t>(entity)])))
       return false;
     if (!isObstacle(spec, entity)) return true;
     for (int b : placed)
-      if (b != partner && (at - ends[static_cast<size_t>(b)]).norm() < spec.contactDistance(entity, b) - kContactSlack)
+      if (b != partner && (at - ends[static_cast<size_t>(b)]).norm() <
+                              spec.contactDistance(entity, b) + (b == target ? 0.0 : gap) - kContactSlack)
         return false;
     return true;
   };
@@ -244,7 +283,10 @@ std::vector<Vector2d> stepEndPositions(const task::TaskSpec& spec, const std::ve
         if (k == 0 && sign < 0) continue;
         const double angle = sign * k * kEndTurnStepRad;
         const Vector2d e = target + rotated(end - target, angle), l = target + rotated(load_end - target, angle);
-        if (free(t.entity, e, load) && (load < 0 || free(load, l, t.entity))) {
+        // A turned end keeps kEndTurnGapM from the bodies it turned away from: it touches
+        // its target only (what it touches says where it went).
+        const double gap = k == 0 ? 0.0 : kEndTurnGapM;
+        if (free(t.entity, e, load, t.target, gap) && (load < 0 || free(load, l, t.entity, t.target, gap))) {
           e_best = e, l_best = l, found = true;
           break;
         }
@@ -255,7 +297,8 @@ std::vector<Vector2d> stepEndPositions(const task::TaskSpec& spec, const std::ve
     const Vector2d back = end - start;
     for (double off = kBackOffStepM; !found && off < back.norm(); off += kBackOffStepM) {
       const Vector2d shift = -off * back.normalized();
-      if (free(t.entity, end + shift, load) && (load < 0 || free(load, load_end + shift, t.entity)))
+      if (free(t.entity, end + shift, load, t.target, 0) &&
+          (load < 0 || free(load, load_end + shift, t.entity, t.target, 0)))
         e_best = end + shift, l_best = load_end + shift, found = true;
     }
     ends[static_cast<size_t>(t.entity)] = e_best;
@@ -295,7 +338,7 @@ task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<
     std::vector<task::Token> tokens;
     for (const auto& pt : steps[s]) tokens.push_back(pt.token);
     const std::vector<Vector2d> ends = stepEndPositions(spec, pos, tokens);
-    const StepRoles r = roles(spec, tokens, m);
+    const StepRoles r = roles(spec, tokens, pos);
 
     // Bodies whose path is fixed: standing ones, then each mover (and its load) as chosen.
     struct Body {
@@ -352,8 +395,8 @@ task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<
       riders.push_back(rider);
       std::vector<Body> candidate = {{e, static_cast<int>(index), -1}};
       if (rider.load >= 0) candidate.push_back({rider.load, static_cast<int>(index), static_cast<int>(index)});
-      // The first free of: the shape, with an extra arc, with its start turned, with its
-      // load swung in the long way round; else the one with the most clearance.
+      // The first free of the candidates, least changed first; else the one with the most
+      // clearance.
       auto shapeWith = [&](double bend, double hook, double lag, bool long_way) {
         paths[index].lag = lag;
         paths[index].bend = bend;
@@ -362,27 +405,27 @@ task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<
         paths[index].hookStart(hook);
         riders[index].long_way = long_way;
       };
+      const Candidate* best = &candidates().front();
       double best_clearance = -std::numeric_limits<double>::infinity();
-      double best_bend = 0, best_hook = 0, best_lag = 1;
-      bool best_long = false, clear = false;
-      for (bool long_way : {false, true}) {
-        if (long_way && rider.load < 0) break;
-        for (double hook : kAvoidHooks) {
-          for (double lag : kAvoidLags) {
-            for (double bend : kAvoidBends) {
-              shapeWith(bend, hook, lag, long_way);
-              const double c = clearance(candidate);
-              if (c > best_clearance + 1e-12)
-                best_clearance = c, best_bend = bend, best_hook = hook, best_lag = lag, best_long = long_way;
-              if ((clear = c >= -kContactSlack)) break;
-            }
-            if (clear) break;
-          }
-          if (clear) break;
+      const auto& all = candidates();
+      for (size_t i = 0; i < all.size(); ++i) {
+        const Candidate& k = all[i];
+        if (k.long_way && rider.load < 0) continue;
+        shapeWith(k.bend, k.hook, k.lag, k.long_way);
+        const double c = clearance(candidate);
+        if (c > best_clearance + 1e-12) best_clearance = c, best = &k;
+        if (c < -kContactSlack) continue;
+        // Free. Of the equally small changes (its mirror image), the one with the most
+        // clearance: the side a path turns to follows the layout, not the order of a list.
+        for (size_t j = i + 1; j < all.size() && all[j].deviation == k.deviation && all[j].lag == k.lag; ++j) {
+          if (all[j].long_way && rider.load < 0) continue;
+          shapeWith(all[j].bend, all[j].hook, all[j].lag, all[j].long_way);
+          const double cj = clearance(candidate);
+          if (cj > best_clearance + 1e-12) best_clearance = cj, best = &all[j];
         }
-        if (clear) break;
+        break;
       }
-      shapeWith(best_bend, best_hook, best_lag, best_long);
+      shapeWith(best->bend, best->hook, best->lag, best->long_way);
       for (const Body& b : candidate) fixed.push_back(b);
     }
 
