@@ -11,7 +11,7 @@ using namespace ddace::pipeline;
 namespace {
 
 int runEval(const std::vector<std::string>& argv) {
-  Args args(argv, {"--json", "--execution", "--noise", "--seed"}, {"--allow-other-task"});
+  Args args(argv, {"--json", "--execution", "--noise", "--seed"}, {"--allow-other-task", "--no-bodies", "--no-filter"});
   args.expectAtMostPositional(2);
   const std::string model_dir = args.positional(0, "MODELDIR");
   const std::string test_dir = args.positional(1, "TESTDIR");
@@ -23,6 +23,12 @@ int runEval(const std::vector<std::string>& argv) {
   if (o.noise_m < 0) throw Error("--noise must not be negative (metres)");
   if (o.noise_m > 0 && o.execution != "diffdrive") throw Error("--noise needs --execution diffdrive");
   o.seed = static_cast<uint64_t>(args.getInt("--seed", 1));
+  o.bodies = !args.has("--no-bodies");
+  o.safety_filter = !args.has("--no-filter");
+  if ((args.has("--no-bodies") || args.has("--no-filter")) && o.execution != "diffdrive")
+    throw Error("--no-bodies and --no-filter need --execution diffdrive");
+  if (args.has("--no-bodies") && args.has("--no-filter"))
+    throw Error("--no-filter needs bodies: without --no-bodies (points have no filter)");
 
   const Model model = loadModel(model_dir);
   const task::TaskDir test = task::loadTaskDir(test_dir);
@@ -39,9 +45,13 @@ int runEval(const std::vector<std::string>& argv) {
 
 DDACE_COMMAND({"eval",
                "ddace eval MODELDIR TESTDIR [--json FILE] [--execution ideal|diffdrive] [--noise SIGMA_M] [--seed S] "
-               "[--allow-other-task]",
+               "[--no-bodies] [--no-filter] [--allow-other-task]",
                "run the learned task in closed loop on every test demonstration's start configuration and "
-               "report OSR, SSR, GCR and FD (a model of another task is refused unless --allow-other-task)",
+               "report OSR, SSR, GCR and FD (a model of another task is refused unless --allow-other-task). "
+               "ideal: every entity traverses its path exactly (the paper). diffdrive: the robots of a step drive "
+               "together on the simulated table with bodies, each through its safety filter; every trial reports "
+               "its collisions, minimum clearance and makespan, and a collision fails it (--no-filter: without "
+               "the filter; --no-bodies: points, each motion alone)",
                runEval});
 
 }  // namespace

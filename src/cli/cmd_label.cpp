@@ -112,8 +112,8 @@ int runLabel(const std::vector<std::string>& argv) {
 
 DDACE_COMMAND({"label", "ddace label IN --out OUT [--example CSV] [--strict] [--force]",
                "infer the labels of unlabelled demonstrations from their motion, writing a labelled copy of IN "
-               "(--example: words from a demonstration labelled by hand; --strict: write nothing when anything is "
-               "uncertain; docs/labels.md)",
+               "(--example: words from a demonstration labelled by hand, before task.yaml's action_rules; --strict: "
+               "write nothing when anything is uncertain; docs/labels.md)",
                runLabel});
 
 }  // namespace ddace::cli

@@ -117,6 +117,8 @@ struct Row {
   int rules[4] = {0, 0, 0, 0};
   /// The same model on the same test set in closed loop (Job::closed_loop), else trials 0.
   eval::Summary closed;
+  /// ... with bodies, with and without the safety filter (Job::bodies), else trials 0.
+  eval::Summary bodies, unfiltered;
 };
 
 /// The E' decisions of a model, counted per rule.
@@ -127,7 +129,7 @@ void countRules(const graph::RefinedGraph& g, int* rules) {
 /// Trains one model on data/train, evaluates it on data/test. `overlay`: also write the
 /// first trial's paths for the trajectory overlay figure.
 Row trainAndEvaluate(const Settings& s, const fs::path& data, const std::string& model_name, const std::string& family,
-                     tgn::Variant variant, const std::string& condition, bool overlay, bool closed_loop) {
+                     tgn::Variant variant, const std::string& condition, bool overlay, bool closed_loop, bool bodies) {
   const task::TaskDir train = task::loadTaskDir((data / "train").string());
   const task::TaskDir test = task::loadTaskDir((data / "test").string());
   tgn::TrainOptions opt;
@@ -152,11 +154,25 @@ Row trainAndEvaluate(const Settings& s, const fs::path& data, const std::string&
   if (closed_loop) {
     EvalOptions o;
     o.execution = "diffdrive";
+    o.bodies = false;  // this section's robots are points; the section "Bodies" has bodies
     o.noise_m = kClosedLoopNoise;
     o.seed = static_cast<uint64_t>(s.seed);
     const Evaluation c = evaluate(model, test, o);
     r.closed = c.summary;
     writeTextFile((s.out / "eval" / (model_name + "-diffdrive.json")).string(), evaluationJson(c));
+  }
+  if (bodies) {
+    EvalOptions o;
+    o.execution = "diffdrive";
+    o.noise_m = kClosedLoopNoise;
+    o.seed = static_cast<uint64_t>(s.seed);
+    for (const bool filter : {true, false}) {
+      o.safety_filter = filter;
+      const Evaluation b = evaluate(model, test, o);
+      (filter ? r.bodies : r.unfiltered) = b.summary;
+      writeTextFile((s.out / "eval" / (model_name + (filter ? "-bodies.json" : "-bodies-unfiltered.json"))).string(),
+                    evaluationJson(b));
+    }
   }
   // The first trial's paths, for the trajectory overlay figure.
   if (!e.trials.empty() && overlay) {
@@ -190,6 +206,7 @@ struct Job {
   std::string condition;
   bool overlay = false;
   bool closed_loop = false;  ///< also run the test set on the differential-drive simulation
+  bool bodies = false;       ///< also run it with bodies, with and without the safety filter
 };
 
 /// A row through a file, from the job's process to the table's.
@@ -204,6 +221,9 @@ void writeRow(const fs::path& path, const Row& r) {
       << r.rules[2] << " " << r.rules[3] << "\n"
       << r.closed.trials << " " << r.closed.osr << " " << r.closed.ssr << " " << r.closed.gcr << " " << r.closed.fd
       << "\n";
+  for (const eval::Summary* b : {&r.bodies, &r.unfiltered})
+    out << b->trials << " " << b->osr << " " << b->gcr << " " << b->collisions << " " << b->trials_with_collision << " "
+        << b->min_clearance_m << " " << b->makespan_s << "\n";
   if (!out) throw Error(Diagnostic{path.string(), 0, 0, "cannot write"});
 }
 
@@ -223,6 +243,12 @@ Row readRow(const fs::path& path) {
   if (!in) throw Error(Diagnostic{path.string(), 0, 0, "not a complete result row"});
   r.m.fd = std::strtod(fd.c_str(), nullptr);
   r.closed.fd = std::strtod(closed_fd.c_str(), nullptr);
+  for (eval::Summary* b : {&r.bodies, &r.unfiltered}) {
+    std::string clearance;  // "nan" when no two bodies were measured
+    in >> b->trials >> b->osr >> b->gcr >> b->collisions >> b->trials_with_collision >> clearance >> b->makespan_s;
+    if (!in) throw Error(Diagnostic{path.string(), 0, 0, "not a complete result row (bodies)"});
+    b->min_clearance_m = std::strtod(clearance.c_str(), nullptr);
+  }
   return r;
 }
 
@@ -263,7 +289,7 @@ std::vector<Row> runJobs(const Settings& s, const std::vector<Job>& jobs) {
         try {
           const Job& j = jobs[i];
           writeRow(row_file(i), trainAndEvaluate(s, j.data, j.model_name, j.family, j.variant, j.condition, j.overlay,
-                                                 j.closed_loop));
+                                                 j.closed_loop, j.bodies));
         } catch (const std::exception& e) {
           std::fprintf(stderr, "ddace table: %s: %s\n", jobs[i].model_name.c_str(), e.what());
           rc = 1;
@@ -394,8 +420,8 @@ int runTable(const std::vector<std::string>& argv) {
       const std::string name = f + "-" + std::to_string(n);
       const fs::path data = dataset(s, name, o, n, s.test);
       for (const auto& v : variants)
-        add(few,
-            {data, name + "-" + tgn::toString(v), f, v, std::to_string(n) + " demos", false, v == default_variant});
+        add(few, {data, name + "-" + tgn::toString(v), f, v, std::to_string(n) + " demos", false, v == default_variant,
+                  v == default_variant});
     }
   for (const auto& f : human_families)
     for (int n : sizes) {
@@ -598,6 +624,57 @@ int runTable(const std::vector<std::string>& argv) {
       if (r.closed.trials == 0) continue;
       md << "| " << r.task << " | " << r.condition << " | " << metrics(r) << " | " << metricsOf(r.closed) << " |\n";
     }
+  // The few-shot default-network models again, the robots with bodies (issue 23).
+  md << "\n## Bodies\n\n"
+     << "The default network's models of \"Few-shot, every family\" on the same test configurations, executed with "
+        "bodies: every robot and object a disc of the task's footprint on the mock robots' Box2D table, the robots of "
+        "a step driving at the same time, each steered by the path follower's control law from positions measured "
+        "with "
+     << fmt(kClosedLoopNoise * 1000, 0)
+     << " mm noise, its command through its own safety filter fed with the others' poses; objects carried along "
+        "their own paths, and pushed when something drives into them (`ddace eval --execution diffdrive --noise "
+     << kClosedLoopNoise
+     << "`; without the filter: `--no-filter`). **Collisions**: contacts that began between two bodies apart, "
+        "except a motion and its own target, a carrier and its load, and a motion and a body its end point touches "
+        "(in how many trials); a trial with a collision is no success. **Min clearance**: the smallest gap between two "
+        "bodies that keep apart, over every trial. "
+        "**Makespan**: simulated time of a trial's steps, mean over the trials. Ideal OSR: the row of \"Few-shot, "
+        "every family\".\n\n"
+     << "| family | demonstrations | ideal OSR | OSR with bodies | GCR | collisions | min clearance | makespan | "
+        "OSR without filter | collisions | min clearance | makespan | makespan with / without |\n"
+     << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  {
+    auto collisions = [](const eval::Summary& b) {
+      return std::to_string(b.collisions) + " (" + std::to_string(b.trials_with_collision) + "/" +
+             std::to_string(b.trials) + ")";
+    };
+    auto mm = [](double m) { return std::isfinite(m) ? fmt(m * 1000, 1) + " mm" : std::string("–"); };
+    std::string no_collision, collided, osr_met, osr_missed, time_met, time_missed;
+    auto add_to = [](std::string& list, const std::string& item) { list += (list.empty() ? "" : ", ") + item; };
+    for (size_t i : few) {
+      const Row& r = rows[i];
+      if (r.bodies.trials == 0) continue;
+      const double ratio = r.unfiltered.makespan_s > 0 ? r.bodies.makespan_s / r.unfiltered.makespan_s : NAN;
+      md << "| " << r.task << " | " << r.condition << " | " << fmt(r.m.osr, 2) << " | " << fmt(r.bodies.osr, 2) << " | "
+         << fmt(r.bodies.gcr, 2) << " | " << collisions(r.bodies) << " | " << mm(r.bodies.min_clearance_m) << " | "
+         << fmt(r.bodies.makespan_s, 1) << " s | " << fmt(r.unfiltered.osr, 2) << " | " << collisions(r.unfiltered)
+         << " | " << mm(r.unfiltered.min_clearance_m) << " | " << fmt(r.unfiltered.makespan_s, 1) << " s | "
+         << fmt(ratio, 2) << " |\n";
+      const std::string name = r.task + " (" + r.condition + ")";
+      add_to(r.bodies.collisions == 0 ? no_collision : collided, name);
+      add_to(r.bodies.osr >= 0.95 * r.m.osr - 1e-9 ? osr_met : osr_missed,
+             name + " " + fmt(r.bodies.osr, 2) + " vs " + fmt(r.m.osr, 2));
+      add_to(ratio <= 1.15 + 1e-9 ? time_met : time_missed, name + " " + fmt(ratio, 2));
+    }
+    auto judged = [&](const std::string& what, const std::string& met, const std::string& missed) {
+      md << "- " << what << ": " << (missed.empty() ? "**met**" : "**not met**")
+         << ". Met: " << (met.empty() ? "none" : met) << (missed.empty() ? "" : "; not met: " + missed) << ".\n";
+    };
+    md << "\nGoals (issue 23), with the filter:\n\n";
+    judged("Zero collisions on every family", no_collision, collided);
+    judged("OSR with bodies >= 0.95 x the ideal OSR", osr_met, osr_missed);
+    judged("Makespan with the filter <= 1.15 x without", time_met, time_missed);
+  }
   md << "\n## Figures\n\n"
      << "Training loss vs epoch for 10, 20 and 30 demonstrations (Fig. 4):\n\n"
      << "![Fig. 4](figures/loss_fig4.png)\n\n"

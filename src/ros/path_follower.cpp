@@ -285,6 +285,8 @@ class PathFollowerNode::Impl {
       others_.push_back(t.body);
       others_.back().age_s = age;
     }
+    // The bodies the motion ends against (a robot already on the goal) may be touched.
+    exec::markBodiesAtEnd(others_, r.follower->endPoint(), self_radius, safety_);
     return r.safety->filter(r.name, r.pose, self_radius, self_age, nominal,
                             r.follower->progress() * r.follower->lengthM(), others_, r.target, now.toSec());
   }

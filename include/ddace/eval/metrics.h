@@ -6,6 +6,7 @@
 // (measured in the ground-truth segment's canonical frame, where start-goal distance = 1).
 #pragma once
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -24,7 +25,12 @@ struct TrialScore {
   int achieved_robot_motions = 0;    ///< ... executed (same entity, action, target) and arrived
   bool goal_conditions_hold = true;  ///< every goal_conditions entry at the end
   std::vector<double> fd;            ///< normalised Fréchet distance per matched motion token
-  bool success = false;              ///< OSR: all of the above
+  /// Executed with bodies (exec::Trial::bodies): the collisions count against success.
+  bool bodies = false;
+  int collisions = 0;            ///< bodies that touched (exec::BodyReport), 0 without bodies
+  double min_clearance_m = NAN;  ///< smallest gap between two bodies (NaN: not measured)
+  double makespan_s = 0;         ///< simulated time of the trial's steps (0: the model has no time)
+  bool success = false;          ///< OSR: all of the above, and no collision
 
   double ssr() const { return gt_steps ? static_cast<double>(correct_steps) / gt_steps : 1.0; }
   double gcr() const { return gt_robot_motions ? static_cast<double>(achieved_robot_motions) / gt_robot_motions : 1.0; }
@@ -43,6 +49,11 @@ struct Summary {
   double gcr = 0;  ///< achieved robot motions / ground-truth robot motions, over all trials
   double fd = 0;   ///< mean over every matched motion token of every trial (NaN when none)
   int fd_tokens = 0;
+  bool bodies = false;  ///< the trials had bodies
+  int collisions = 0;   ///< over all trials
+  int trials_with_collision = 0;
+  double min_clearance_m = NAN;  ///< the smallest over all trials (NaN: not measured)
+  double makespan_s = 0;         ///< mean over the trials
 };
 
 Summary summarise(const std::vector<TrialScore>& scores);

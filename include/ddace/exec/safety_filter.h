@@ -15,7 +15,8 @@
 //                                        filter and takes the other half; 1 otherwise)
 // The right side is never above 0, so a pair already inside the margin (a start scene,
 // a pushed robot) may separate but never close in. The motion's
-// target gets the same constraint on the centres at contact distance. Together with the
+// target (and a body marked touchable: a carrier's load, a body the motion's end point
+// touches) gets the same constraint on the centres at contact distance. Together with the
 // wheel limits these are half-planes in (v, l w); the least change of (v, l w) -- equal to
 // the least change of p' -- is a quadratic programme in two variables, solved exactly by
 // enumerating active sets (the command itself, each constraint's line, each vertex).
@@ -70,6 +71,9 @@ struct SafetyBody {
   bool robot = false;              ///< runs its own filter: takes half of each pair's constraint
   double age_s = 0;                ///< how old its pose is
   bool stale = false;              ///< the tracker says: never drive on it
+  /// The motion may end touching it, as its target (the carrier's load it pushes ahead);
+  /// the segment's `target` is always touchable.
+  bool touchable = false;
 };
 
 /// The body of an entity as the filter and the simulator see it: its disc radius and
@@ -83,6 +87,19 @@ BodyShape bodyShape(const task::Entity& e);
 inline BodyShape bodyShape(const task::TaskSpec& spec, int i) {
   return bodyShape(spec.entities.at(i));
 }
+
+/// Whether a body at `position` with `radius_m` is one the motion ends against: the
+/// robot's disc standing at the motion's `end_point` would be within `margin_m` of contact
+/// with it (the end-point rule ends a motion at contact with a robot already on the goal, a
+/// queue's last robot, ...). Such a body is touchable like the target (else the filter
+/// would hold the robot a margin off its end point), and its contact with the robot is no
+/// collision (exec/bodies_execution.h).
+bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const Eigen::Vector2d& position,
+                 double radius_m, double margin_m);
+/// Marks touchable every body of `bodies` the motion ends against (endsAgainst with the
+/// filter's margin), from their current positions: called every cycle, as bodies arrive.
+void markBodiesAtEnd(std::vector<SafetyBody>& bodies, const Eigen::Vector2d& end_point, double self_radius_m,
+                     const SafetyParams& params);
 
 /// What the filter decided for one control cycle.
 struct SafetyCommand {

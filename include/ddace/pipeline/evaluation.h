@@ -43,10 +43,16 @@ struct EvalOptions {
   std::string execution = "ideal";  ///< ideal | diffdrive
   double noise_m = 0;               ///< diffdrive: std-dev of the measured position, metres
   uint64_t seed = 1;                ///< diffdrive noise seed
+  /// diffdrive: the robots of a step move together on the table with bodies
+  /// (exec/bodies_execution.h); false: points, each motion alone (exec/diff_drive_execution.h).
+  bool bodies = true;
+  /// diffdrive with bodies: each robot's command goes through its safety filter.
+  bool safety_filter = true;
 };
 
 struct Evaluation {
   std::string task, variant, execution;
+  std::vector<std::string> entity_names;  ///< the test task's, in its order
   std::vector<eval::TrialScore> scores;
   std::vector<exec::Trial> trials;
   /// Per trial: "" when every step matched, else the first step that differs, as
@@ -60,7 +66,9 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
 /// Human-readable table: one line per trial (a failed one adds its first differing step),
 /// then the summary.
 void printEvaluation(const Evaluation& e, std::ostream& out);
-/// {"task", "variant", "execution", "trials", "osr", "ssr", "gcr", "fd", "per_trial": [...]}
+/// {"task", "variant", "execution", "trials", "osr", "ssr", "gcr", "fd", "per_trial": [...]}, with bodies
+/// also "collisions", "trials_with_collision", "min_clearance_m", "makespan_s" (and per trial,
+/// with its "failures").
 std::string evaluationJson(const Evaluation& e);
 
 }  // namespace ddace::pipeline

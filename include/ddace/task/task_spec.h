@@ -59,6 +59,26 @@ struct Entity {
 /// goal: kDefaultGoalRadius, not an obstacle). The one accessor every part uses.
 Footprint footprint(const Entity& e);
 
+/// The action word of a kind of motion, for labels inferred from motion (`ddace label`,
+/// docs/labels.md; task.yaml `action_rules`). Every stated field must match; the first
+/// matching rule of the list names the word.
+struct ActionRule {
+  enum class Load { Any, None, Carries, Carried };
+  std::optional<EntityKind> mover_kind;   ///< unset: any mover
+  std::string mover_type;                 ///< empty: any type
+  std::optional<EntityKind> target_kind;  ///< unset: any target
+  std::string target_type;                ///< empty: any type
+  Load load = Load::Any;                  ///< None: moved without a load; Carries: with one; Carried: was one
+  std::string action;                     ///< the word (in `actions` when the task declares them)
+
+  /// True for a motion of `mover` ending at `target`; `load` as label::kindKey takes it
+  /// (0 none, 1 it carried a load, 2 it was one).
+  bool matches(const Entity& mover, const Entity& target, int load) const;
+};
+
+/// "none", "carries", "carried" ("" for Any).
+const char* toString(ActionRule::Load load);
+
 /// At the end of an execution, `entity` must be within `tolerance` metres of `at`.
 struct GoalCondition {
   std::string entity;
@@ -74,6 +94,7 @@ struct TaskSpec {
   double arrival_radius = kDefaultArrivalRadius;  ///< metres
   double step_window_s = kDefaultStepWindow;      ///< seconds, >= 0
   std::vector<GoalCondition> goal_conditions;
+  std::vector<ActionRule> action_rules;  ///< in task.yaml's order (the first match wins)
 
   /// Index of the entity called `name`, or -1.
   int entityIndex(const std::string& name) const;

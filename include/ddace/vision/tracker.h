@@ -2,17 +2,20 @@
 // camera frame. ROS-free; tracker_node wraps it.
 //
 // Search strategy: a full-frame pass every `roi.full_frame_every` frames (and whenever
-// the table frame is not known yet, and in every frame of the first filter.hold
-// seconds while a configured marker has not been seen); in between, each marker seen
+// the table frame is not known yet); in between, each marker seen
 // within filter.hold is looked for where its pixel velocity predicts it (its box +
 // roi.margin + filter.gate_margin), for markers of its size only (aruco: one threshold
 // window matched to its edge). A marker missed there is looked for again at once, in
 // the same frame: in the region of every position the pose filter would accept
 // (filter.max_speed x the time since it was seen) with the detector's full search,
-// then, for AprilTag, with libapriltag at full resolution. When the regions would
-// cover most of the image the whole frame is searched instead. Corner markers are
-// searched like the others (set roi.track_corners false to search them on full-frame
-// passes only).
+// then, for AprilTag, with libapriltag at full resolution. When the first looks would
+// cover most of the image the whole frame is searched instead. A configured marker that
+// no region follows (never seen yet, unseen for longer than filter.hold, or missing so
+// long that its region would cover most of the image) is searched for in the same frame
+// too, over the area no region covered: dark quadrilaterals of its expected size in pixels (its edge x the pixels per
+// metre of the tracked markers), found on an image reduced to about 12 px per marker edge, are read by the detector in
+// a region around each. Corner markers are searched like the others (set roi.track_corners false to search them on
+// full-frame passes only).
 //
 // Configuration comes from two commented YAML files: config/markers.yaml (which
 // markers exist: family, corner markers, entity markers) and config/tracker.yaml
@@ -122,9 +125,16 @@ struct FrameResult {
   double stamp = 0;
   bool full_frame = false;            ///< this frame was searched whole
   std::vector<cv::Rect> rois;         ///< searched regions: first looks, then the wider second
-                                      ///< regions of markers missed in them (empty for a full frame)
+                                      ///< regions of markers missed in them, then the candidates
+                                      ///< read for absent markers (empty for a full frame)
   int first_look_misses = 0;          ///< tracked markers not found where expected (first look),
                                       ///< searched again at once
+  int absent = 0;                     ///< configured markers the regions do not follow (never
+                                      ///< seen, unseen for longer than filter.hold, or missing
+                                      ///< so long that their region would cover most of the
+                                      ///< image), searched for over the rest of the image
+                                      ///< (region frames only; a full frame searches them all)
+  int absent_candidates = 0;          ///< regions of marker-sized quadrilaterals read for them
   bool second_look = false;           ///< a marker missed where expected was looked for again
                                       ///< with the second-look detector
   std::vector<Detection> detections;  ///< every configured marker found, raw image pixels
@@ -183,8 +193,15 @@ class Tracker {
   /// Markers seen within filter.hold that this frame must search (corner markers only
   /// on full frames when roi.track_corners is false).
   std::set<int> trackedIds(bool full_frame) const;
-  /// A configured marker never seen yet, in the first filter.hold seconds.
-  bool newcomerExpected(double stamp) const;
+  /// Configured markers the regions do not follow (never seen, or unseen for longer than
+  /// filter.hold), less those in `found`.
+  std::set<int> absentIds(const std::set<int>& found) const;
+  /// The edge in pixels expected of marker `id`: its size x the median pixels per metre of
+  /// the tracked markers (0 when none is tracked).
+  double expectedSidePx(int id) const;
+  /// Regions around the dark quadrilaterals with edges of side_min..side_max pixels
+  /// (perspective and rotation allowed for) whose centres lie outside `covered`.
+  std::vector<Region> quadCandidates(double side_min, double side_max, const std::vector<cv::Rect>& covered);
   /// Re-fits the table frame when all corner markers are among `undistorted`.
   void updateTable(const std::vector<Detection>& undistorted, FrameResult& result);
 
@@ -201,9 +218,8 @@ class Tracker {
   std::map<int, Detection> corner_average_;  // corner marker id -> smoothed undistorted detection
   cv::Size image_size_;
   long frames_ = 0;
-  double first_stamp_ = 0;   // stamp of the first frame
-  std::set<int> ever_seen_;  // marker ids seen at least once
   cv::Mat gray_;
+  cv::Mat small_, binary_;  // the reduced image and its threshold (quadCandidates)
 };
 
 /// How the tracker is doing, from its last frame (the tracker node's diagnostics).

@@ -63,8 +63,14 @@ TrialScore scoreTrial(const task::TaskSpec& spec, const task::Demonstration& gt,
         (trial.final_positions[a] - trial.final_positions[b]).norm() > g.tolerance)
       s.goal_conditions_hold = false;
   }
+  s.bodies = trial.bodies;
+  s.makespan_s = trial.makespan_s;
+  if (trial.bodies) {
+    s.collisions = static_cast<int>(trial.body_report.collisions.size());
+    if (trial.body_report.closest.a >= 0) s.min_clearance_m = trial.body_report.closest.clearance_m;
+  }
   s.success = s.correct_steps == s.gt_steps && s.ended_correctly && s.achieved_robot_motions == s.gt_robot_motions &&
-              s.goal_conditions_hold;
+              s.goal_conditions_hold && s.collisions == 0;
   return s;
 }
 
@@ -81,7 +87,14 @@ Summary summarise(const std::vector<TrialScore>& scores) {
     achieved += s.achieved_robot_motions;
     for (double v : s.fd) fd += v;
     m.fd_tokens += static_cast<int>(s.fd.size());
+    m.bodies = m.bodies || s.bodies;
+    m.collisions += s.collisions;
+    m.trials_with_collision += s.collisions > 0;
+    if (std::isfinite(s.min_clearance_m) && !(m.min_clearance_m <= s.min_clearance_m))
+      m.min_clearance_m = s.min_clearance_m;
+    m.makespan_s += s.makespan_s;
   }
+  if (m.trials) m.makespan_s /= m.trials;
   m.osr = m.trials ? static_cast<double>(ok) / m.trials : 0;
   m.ssr = steps ? static_cast<double>(correct) / steps : 0;
   m.gcr = motions ? static_cast<double>(achieved) / motions : 0;

@@ -36,6 +36,17 @@ BodyShape bodyShape(const task::Entity& e) {
   return {f.radius_m, f.obstacle};
 }
 
+bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const Eigen::Vector2d& position,
+                 double radius_m, double margin_m) {
+  return radius_m > 0 && position.allFinite() && (position - end_point).norm() < self_radius_m + radius_m + margin_m;
+}
+
+void markBodiesAtEnd(std::vector<SafetyBody>& bodies, const Eigen::Vector2d& end_point, double self_radius_m,
+                     const SafetyParams& params) {
+  for (SafetyBody& b : bodies)
+    if (endsAgainst(end_point, self_radius_m, b.position, b.radius_m, params.margin_m)) b.touchable = true;
+}
+
 Eigen::Vector2d closestFeasible(const Eigen::Vector2d& z0, const std::vector<HalfPlane>& cs) {
   constexpr double kTol = 1e-10;
   auto feasible = [&](const Eigen::Vector2d& z) {
@@ -133,7 +144,7 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
     out.clearance_m = std::min(out.clearance_m, centres - contact);
     const double share = b.robot ? 0.5 : 1.0;
     HalfPlane c;
-    if (b.name == target) {
+    if (b.name == target || b.touchable) {
       // The motion's own target: the centres may close in to contact, no margin.
       if (centres < 1e-9) continue;
       const Eigen::Vector2d n = (x - b.position) / centres;

@@ -5,6 +5,13 @@
 
 namespace ddace::exec {
 
+StepExecution ExecutionModel::executeStep(const task::TaskSpec&, const std::vector<task::Token>&,
+                                          const std::vector<Eigen::Vector2d>&, const std::vector<StepMotion>& motions) {
+  StepExecution out;
+  for (const StepMotion& m : motions) out.executed.push_back(follow(m.planned, m.robot, m.entity));
+  return out;
+}
+
 Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const Policy& policy,
                const PathGenerator& paths, ExecutionModel& execution, const task::EndPointModel& end_points,
                const SimulatorOptions& options) {
@@ -12,7 +19,10 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
   if (gt.rows() == 0) throw Error(Diagnostic{gt.source, 0, 0, "test demonstration has no rows"});
   const int n = static_cast<int>(spec.entities.size());
   std::vector<Eigen::Vector2d> pos;  // the scene, as the mock robots start it
-  for (const Pose2D& p : startPoses(gt)) pos.push_back(p.position());
+  const std::vector<Pose2D> start = startPoses(gt);
+  for (const Pose2D& p : start) pos.push_back(p.position());
+  execution.beginTrial(spec, start);
+  trial.bodies = execution.bodies();
   const int max_steps = static_cast<int>(gt.steps.size()) + options.extra_steps;
 
   while (static_cast<int>(trial.predicted.size()) < max_steps) {
@@ -31,6 +41,8 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
     for (const auto& token : d.tokens)
       if (token.entity < 0 || token.entity >= n || token.target >= n)
         throw Error("policy returned a token for a non-existent entity");
+    std::vector<StepMotion> motions;
+    const size_t first = trial.executed.size();
     for (size_t i = 0; i < d.tokens.size(); ++i) {
       const task::Token& token = d.tokens[i];
       ExecutedToken ex;
@@ -41,18 +53,29 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
       if (token.isMotion()) {
         ex.planned = paths(token, ex.start, ex.goal);
         if (ex.planned.empty()) ex.planned = {ex.start, ex.goal};
-        const bool robot = spec.entities[token.entity].kind == task::EntityKind::Robot;
-        ex.executed = execution.follow(ex.planned, robot, token.entity);
-        if (ex.executed.empty()) ex.executed = {ex.start};
-        pos[token.entity] = ex.executed.back();
+        motions.push_back(
+            {i, token.entity, token.target, spec.entities[token.entity].kind == task::EntityKind::Robot, ex.planned});
       } else {
         ex.executed = {ex.start};
       }
       trial.executed.push_back(std::move(ex));
     }
+    // Every motion of the step runs at once (a model with bodies moves them together).
+    StepExecution done = execution.executeStep(spec, d.tokens, decided, motions);
+    if (done.executed.size() != motions.size()) throw Error("execution model returned paths for another step");
+    for (size_t m = 0; m < motions.size(); ++m) {
+      ExecutedToken& ex = trial.executed[first + motions[m].token];
+      ex.executed = std::move(done.executed[m]);
+      if (ex.executed.empty()) ex.executed = {ex.start};
+      pos[ex.token.entity] = ex.executed.back();
+    }
+    if (done.positions.size() == pos.size()) pos = done.positions;  // pushed bodies moved too
+    trial.makespan_s += done.duration_s;
+    for (const std::string& f : done.failures) trial.failures.push_back("step " + std::to_string(k + 1) + ": " + f);
     trial.predicted.push_back(std::move(step));
   }
   trial.final_positions = pos;
+  trial.body_report = execution.report();
   return trial;
 }
 

@@ -182,13 +182,26 @@ Inference Labeller::finish() {
     note(0, "the example's in-place actions are not placed: this demonstration's motion has other steps than " +
                 example_->source + "'s");
 
+  // Action words: the example's, then task.yaml's action_rules (the first that matches),
+  // else the task's first action (said when an example or rules were there to ask).
+  auto rule = [&](int mover, int target, int load) -> const task::ActionRule* {
+    for (const auto& r : spec_.action_rules)
+      if (r.matches(E[mover], E[target], load)) return &r;
+    return nullptr;
+  };
   auto word = [&](int mover, int target, int load, int row) -> std::string {
     if (example_) {
       for (const auto& k : {kindKey(spec_, mover, target, load), coarseKindKey(spec_, mover, target, load)}) {
         auto it = example_->words.find(k);
         if (it != example_->words.end()) return it->second;
       }
-      note(row, "no motion of the kind " + kindKey(spec_, mover, target, load) + " in the example " + example_->source +
+    }
+    if (const task::ActionRule* r = rule(mover, target, load)) return r->action;
+    if (example_ || !spec_.action_rules.empty()) {
+      std::string where;
+      if (example_) where = "in the example " + example_->source;
+      if (!spec_.action_rules.empty()) where += std::string(example_ ? " nor " : "") + "in task.yaml's action_rules";
+      note(row, "no motion of the kind " + kindKey(spec_, mover, target, load) + " " + where +
                     "; took the task's first action");
     }
     return spec_.actions.empty() ? "move" : spec_.actions.front();
@@ -296,7 +309,12 @@ Inference Labeller::finish() {
         }
         if (tok.token.target < 0) continue;
         tok.kind = kindKey(spec_, m.entity, tok.token.target, tok.load);
-        if (E[m.entity].kind == task::EntityKind::Object && !is_load && !(example_ && example_->words.count(tok.kind)))
+        // An object moving alone is reported unless the example shows such a motion or a
+        // rule of task.yaml names the word of an object's motion there.
+        const task::ActionRule* object_rule = rule(m.entity, tok.token.target, tok.load);
+        const bool object_rule_stated = object_rule && object_rule->mover_kind == task::EntityKind::Object;
+        if (E[m.entity].kind == task::EntityKind::Object && !is_load &&
+            !(example_ && example_->words.count(tok.kind)) && !object_rule_stated)
           note(m.on_row, "object " + E[m.entity].name + " moved alone (no robot with it) to " +
                              E[tok.token.target].name + "; check it");
         tok.token.action = word(m.entity, tok.token.target, tok.load, m.on_row);

@@ -10,6 +10,7 @@
 
 #include "ddace/common/file.h"
 #include "ddace/common/sha256.h"
+#include "ddace/exec/bodies_execution.h"
 #include "ddace/exec/diff_drive_execution.h"
 
 namespace ddace::pipeline {
@@ -129,11 +130,21 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
   e.variant = model.sequence.variant();
   const bool gnn = model.sequence.info().variant == tgn::Variant::Gnn;
   e.execution = options.execution;
+  if (options.execution == "diffdrive")
+    e.execution += options.bodies ? (options.safety_filter ? " with bodies" : " with bodies, no filter") : " (points)";
   const task::TaskSpec& spec = test.spec;
+  e.entity_names = spec.entityNames();
 
   std::unique_ptr<exec::ExecutionModel> execution;
   if (options.execution == "ideal") {
     execution = std::make_unique<exec::IdealExecution>();
+  } else if (options.execution == "diffdrive" && options.bodies) {
+    exec::BodiesExecutionParams p;
+    p.arrival_radius_m = spec.arrival_radius;
+    p.noise_m = options.noise_m;
+    p.seed = options.seed;
+    p.safety.enabled = options.safety_filter;
+    execution = std::make_unique<exec::BodiesExecution>(p);
   } else if (options.execution == "diffdrive") {
     execution = std::make_unique<exec::DiffDriveExecution>(spec.arrival_radius, options.noise_m, options.seed);
   } else {
@@ -176,11 +187,27 @@ void printEvaluation(const Evaluation& e, std::ostream& out) {
     out << line;
     if (!s.success && i < e.first_difference.size() && !e.first_difference[i].empty())
       out << "    " << e.first_difference[i] << "\n";
+    if (s.bodies) {
+      std::snprintf(line, sizeof line, "    bodies: %d collisions, min clearance %.1f mm, makespan %.1f s\n",
+                    s.collisions, s.min_clearance_m * 1000, s.makespan_s);
+      out << line;
+      const exec::Trial& t = e.trials[i];
+      for (const auto& c : t.body_report.collisions)
+        out << "    collision at " << c.time_s << " s: " << e.entity_names.at(c.a) << " touched "
+            << e.entity_names.at(c.b) << "\n";
+      for (const auto& f : t.failures) out << "    " << f << "\n";
+    }
   }
   const auto& m = e.summary;
   std::snprintf(line, sizeof line, "%s, variant %s, execution %s: %d trials  OSR %.3f  SSR %.3f  GCR %.3f  FD %.4f\n",
                 e.task.c_str(), e.variant.c_str(), e.execution.c_str(), m.trials, m.osr, m.ssr, m.gcr, m.fd);
   out << line;
+  if (m.bodies) {
+    std::snprintf(line, sizeof line,
+                  "bodies: %d collisions in %d of %d trials, min clearance %.1f mm, mean makespan %.1f s\n",
+                  m.collisions, m.trials_with_collision, m.trials, m.min_clearance_m * 1000, m.makespan_s);
+    out << line;
+  }
 }
 
 std::string evaluationJson(const Evaluation& e) {
@@ -194,6 +221,12 @@ std::string evaluationJson(const Evaluation& e) {
   j["ssr"] = e.summary.ssr;
   j["gcr"] = e.summary.gcr;
   j["fd"] = num(e.summary.fd);
+  if (e.summary.bodies) {
+    j["collisions"] = e.summary.collisions;
+    j["trials_with_collision"] = e.summary.trials_with_collision;
+    j["min_clearance_m"] = num(e.summary.min_clearance_m);
+    j["makespan_s"] = e.summary.makespan_s;
+  }
   j["per_trial"] = nlohmann::json::array();
   for (size_t i = 0; i < e.scores.size(); ++i) {
     const auto& s = e.scores[i];
@@ -208,6 +241,13 @@ std::string evaluationJson(const Evaluation& e) {
                               {"ended_correctly", s.ended_correctly},
                               {"goal_conditions_hold", s.goal_conditions_hold},
                               {"first_difference", i < e.first_difference.size() ? e.first_difference[i] : ""}});
+    if (s.bodies) {
+      auto& t = j["per_trial"].back();
+      t["collisions"] = s.collisions;
+      t["min_clearance_m"] = num(s.min_clearance_m);
+      t["makespan_s"] = s.makespan_s;
+      t["failures"] = e.trials[i].failures;
+    }
   }
   return j.dump(2) + "\n";
 }

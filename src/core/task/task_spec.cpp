@@ -84,6 +84,65 @@ double TaskSpec::contactDistance(int a, int b) const {
   return footprint(a).radius_m + footprint(b).radius_m;
 }
 
+bool ActionRule::matches(const Entity& mover, const Entity& target, int load_kind) const {
+  if (mover_kind && *mover_kind != mover.kind) return false;
+  if (!mover_type.empty() && mover_type != mover.type) return false;
+  if (target_kind && *target_kind != target.kind) return false;
+  if (!target_type.empty() && target_type != target.type) return false;
+  switch (load) {
+    case Load::Any:
+      return true;
+    case Load::None:
+      return load_kind == 0;
+    case Load::Carries:
+      return load_kind == 1;
+    case Load::Carried:
+      return load_kind == 2;
+  }
+  return false;
+}
+
+const char* toString(ActionRule::Load load) {
+  switch (load) {
+    case ActionRule::Load::Any:
+      return "";
+    case ActionRule::Load::None:
+      return "none";
+    case ActionRule::Load::Carries:
+      return "carries";
+    case ActionRule::Load::Carried:
+      return "carried";
+  }
+  return "";
+}
+
+namespace {
+
+/// "KIND" or "KIND/TYPE" (the type is the rest: free text) of an action rule's mover or target.
+bool parseKindAndType(YamlChecker& c, const YAML::Node& node, const char* what, std::optional<EntityKind>& kind,
+                      std::string& type) {
+  std::string text;
+  if (!c.scalar(node, what, text)) return false;
+  const size_t slash = text.find('/');
+  const auto k = entityKindFromString(text.substr(0, slash));
+  if (!k) {
+    c.error(node, std::string(what) + " '" + text + "' must be robot, object or goal, optionally with /TYPE");
+    return false;
+  }
+  kind = *k;
+  if (slash != std::string::npos) {
+    type = text.substr(slash + 1);
+    if (type.empty() ||
+        std::any_of(type.begin(), type.end(), [](char ch) { return std::iscntrl(static_cast<unsigned char>(ch)); })) {
+      c.error(node, std::string(what) + " '" + text + "': the type after '/' must be printable text");
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
 TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
   YamlChecker c(file);
   const YAML::Node root = c.parse(text);
@@ -92,8 +151,10 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
   if (!root.IsMap()) {
     throw Error(Diagnostic{file, 1, 1, "task.yaml must be a mapping with format, entities, ..."});
   }
-  c.onlyKeys(root, {"format", "name", "entities", "actions", "arrival_radius", "step_window_s", "goal_conditions"},
-             "task.yaml");
+  c.onlyKeys(
+      root,
+      {"format", "name", "entities", "actions", "arrival_radius", "step_window_s", "goal_conditions", "action_rules"},
+      "task.yaml");
 
   std::string format;
   if (const YAML::Node f = c.required(root, "format", "", std::string("expected '") + kFormat + "'");
@@ -241,6 +302,57 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
     }
   }
 
+  if (root["action_rules"]) {
+    if (!root["action_rules"].IsSequence()) {
+      c.error(root["action_rules"], "action_rules must be a list of {mover, target, load, action}");
+    } else {
+      for (const auto& node : root["action_rules"]) {
+        if (!node.IsMap()) {
+          c.error(node, "an action rule must be a mapping {mover, target, load, action}");
+          continue;
+        }
+        c.onlyKeys(node, {"mover", "target", "load", "action"}, "an action rule");
+        ActionRule rule;
+        bool ok = true;
+        if (node["mover"]) {
+          ok = parseKindAndType(c, node["mover"], "mover", rule.mover_kind, rule.mover_type) && ok;
+          if (ok && rule.mover_kind == EntityKind::Goal) {
+            c.error(node["mover"], "a goal does not act: mover must be robot or object");
+            ok = false;
+          }
+        }
+        if (node["target"])
+          ok = parseKindAndType(c, node["target"], "target", rule.target_kind, rule.target_type) && ok;
+        if (node["load"]) {
+          std::string load;
+          if (!c.scalar(node["load"], "load", load)) ok = false;
+          else if (load == "none") rule.load = ActionRule::Load::None;
+          else if (load == "carries") rule.load = ActionRule::Load::Carries;
+          else if (load == "carried") rule.load = ActionRule::Load::Carried;
+          else {
+            c.error(node["load"], "load '" + load + "' must be none, carries or carried");
+            ok = false;
+          }
+        }
+        if (!node["action"]) {
+          c.error(node, "action rule without 'action'");
+          ok = false;
+        } else if (c.scalar(node["action"], "action", rule.action)) {
+          if (!isValidName(rule.action) || rule.action == "idle") {
+            c.error(node["action"], "action '" + rule.action + "' must match [A-Za-z][A-Za-z0-9_]* and not be idle");
+            ok = false;
+          } else if (!spec.allowsAction(rule.action)) {
+            c.error(node["action"], "action '" + rule.action + "' is not in the task's actions");
+            ok = false;
+          }
+        } else {
+          ok = false;
+        }
+        if (ok) spec.action_rules.push_back(rule);
+      }
+    }
+  }
+
   c.throwIfErrors();
   return spec;
 }
@@ -281,6 +393,21 @@ std::string taskYamlText(const TaskSpec& spec) {
     for (const auto& g : spec.goal_conditions) {
       out << "  - {entity: " << g.entity << ", at: " << g.at << ", tolerance: " << detail::shortestNumber(g.tolerance)
           << "}\n";
+    }
+  }
+  if (!spec.action_rules.empty()) {
+    out << "action_rules:                    # action words of motions for ddace label; the first match wins\n";
+    const auto kindAndType = [](EntityKind kind, const std::string& type) {
+      YAML::Emitter e;
+      e << (std::string(toString(kind)) + (type.empty() ? "" : "/" + type));
+      return std::string(e.c_str());
+    };
+    for (const auto& r : spec.action_rules) {
+      out << "  - {";
+      if (r.mover_kind) out << "mover: " << kindAndType(*r.mover_kind, r.mover_type) << ", ";
+      if (r.target_kind) out << "target: " << kindAndType(*r.target_kind, r.target_type) << ", ";
+      if (r.load != ActionRule::Load::Any) out << "load: " << toString(r.load) << ", ";
+      out << "action: " << r.action << "}\n";
     }
   }
   return out.str();

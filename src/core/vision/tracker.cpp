@@ -327,16 +327,80 @@ std::set<int> Tracker::trackedIds(bool full_frame) const {
   return ids;
 }
 
-bool Tracker::newcomerExpected(double stamp) const {
-  // Every configured marker is expected on the table: one not seen yet is looked for in
-  // the whole frame, in every frame of the tracker's first filter.hold seconds (after
-  // that, a marker still unseen is treated as one lost for longer than the hold).
-  if (stamp - first_stamp_ > config_.filter.hold_s) return false;
-  for (const auto& e : config_.markers.entities)
-    if (!ever_seen_.count(e.id)) return true;
-  for (const auto& c : config_.markers.corners)
-    if (!ever_seen_.count(c.id)) return true;
-  return false;
+std::set<int> Tracker::absentIds(const std::set<int>& found) const {
+  // Every configured marker is expected on the table; corner markers only while they are
+  // searched between full-frame passes at all.
+  std::set<int> ids;
+  for (const auto& e : config_.markers.entities) ids.insert(e.id);
+  if (config_.roi.track_corners || !table_)
+    for (const auto& c : config_.markers.corners) ids.insert(c.id);
+  for (const auto& [id, det] : last_seen_px_) ids.erase(id);
+  for (const int id : found) ids.erase(id);
+  return ids;
+}
+
+double Tracker::expectedSidePx(int id) const {
+  // Pixels per metre from the markers tracked now (a tilted camera changes it by some
+  // 10 % across the table; the candidates allow for more).
+  std::vector<double> px_per_m;
+  for (const auto& [seen, det] : last_seen_px_) {
+    const EntityMarker* em = config_.markers.entityById(seen);
+    px_per_m.push_back(det.sidePx() / (em ? em->size_m : config_.markers.corner_size_m));
+  }
+  if (px_per_m.empty()) return 0;
+  std::nth_element(px_per_m.begin(), px_per_m.begin() + static_cast<long>(px_per_m.size() / 2), px_per_m.end());
+  const EntityMarker* em = config_.markers.entityById(id);
+  return px_per_m[px_per_m.size() / 2] * (em ? em->size_m : config_.markers.corner_size_m);
+}
+
+std::vector<Tracker::Region> Tracker::quadCandidates(double side_min, double side_max,
+                                                     const std::vector<cv::Rect>& covered) {
+  // The black square of a marker, outlined as the detectors do (an adaptive threshold
+  // with a window of half its edge, the contour's polygon), on an image reduced to about
+  // kSidePx per marker edge: a quarter or less of the pixels of one thresholding pass of
+  // the whole frame. Only the detector, run in a region around each candidate, decides.
+  constexpr double kSidePx = 12;  // edge of the smallest expected marker in the reduced image
+  const int k = std::max(1, static_cast<int>(side_min / kSidePx));
+  if (k > 1) cv::resize(gray_, small_, cv::Size(gray_.cols / k, gray_.rows / k), 0, 0, cv::INTER_AREA);
+  else small_ = gray_;
+  const double lo = side_min / k, hi = side_max / k;
+  const int window = std::max(3, 2 * static_cast<int>(std::lround(0.25 * lo)) + 1);
+  cv::adaptiveThreshold(small_, binary_, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, window, 7);
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(binary_, contours, cv::RETR_LIST, cv::CHAIN_APPROX_NONE);
+  const cv::Rect whole(0, 0, gray_.cols, gray_.rows);
+  std::vector<cv::Rect> rects;
+  std::vector<double> sides;
+  std::vector<cv::Point> quad;
+  for (const auto& c : contours) {
+    // Contour points of a square of edge s: 4 s, down to 2.8 s turned by 45 degrees.
+    const double n = static_cast<double>(c.size());
+    if (n < 0.5 * 4 * lo || n > 1.6 * 4 * hi) continue;
+    cv::approxPolyDP(c, quad, 0.05 * n, true);
+    if (quad.size() != 4 || !cv::isContourConvex(quad)) continue;
+    const double side = cv::arcLength(quad, true) / 4 * k;
+    if (side < 0.6 * side_min || side > 1.6 * side_max) continue;
+    const cv::Rect b = cv::boundingRect(quad);
+    const cv::Rect box(b.x * k, b.y * k, b.width * k, b.height * k);
+    const cv::Point centre = (box.tl() + box.br()) / 2;
+    if (std::any_of(covered.begin(), covered.end(), [&](const cv::Rect& r) { return r.contains(centre); })) continue;
+    const int m =
+        static_cast<int>(std::ceil(std::max<double>(config_.roi.min_margin_px, config_.roi.margin * side))) + k;
+    const int x0 = (box.x - m) & ~1, y0 = (box.y - m) & ~1;
+    const cv::Rect grown = cv::Rect(x0, y0, box.x + box.width + m - x0, box.y + box.height + m - y0) & whole;
+    if (grown.empty()) continue;
+    rects.push_back(grown);
+    sides.push_back(side);
+  }
+  std::vector<Region> out;
+  for (const cv::Rect& merged : mergeRegions(rects)) {
+    double sum = 0;
+    int count = 0;
+    for (size_t i = 0; i < rects.size(); ++i)
+      if ((rects[i] & merged) == rects[i]) sum += sides[i], ++count;
+    out.push_back({merged, count > 0 ? sum / count : 0.0});
+  }
+  return out;
 }
 
 FrameResult Tracker::process(const cv::Mat& image, double stamp) {
@@ -351,12 +415,11 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
                 " but the camera calibration is for " + std::to_string(camera_.image_size.width) + "x" +
                 std::to_string(camera_.image_size.height));
   image_size_ = gray_.size();
-  if (frames_ == 0) first_stamp_ = stamp;
   FrameResult result;
   result.stamp = stamp;
   const bool need_table = !table_ && !config_.markers.corners.empty();
-  result.full_frame = !config_.roi.enabled || need_table || last_seen_px_.empty() ||
-                      frames_ % config_.roi.full_frame_every == 0 || newcomerExpected(stamp);
+  result.full_frame =
+      !config_.roi.enabled || need_table || last_seen_px_.empty() || frames_ % config_.roi.full_frame_every == 0;
   ++frames_;
 
   std::vector<Detection> found;
@@ -397,14 +460,14 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
   // everywhere the filter would accept it (it moved unexpectedly), with the detector's
   // full search (every threshold window), then there with the second-look detector
   // (what the first could not see: a decimated image), so it never waits for a
-  // full-frame pass.
+  // full-frame pass. Once those regions would cover most of the image (a marker missing
+  // for a while: they grow at filter.max_speed), it is searched for as an absent one.
+  std::set<int> unfollowed;
   if (const std::set<int> lost = missing(); !lost.empty() && !result.full_frame) {
     result.first_look_misses = static_cast<int>(lost.size());
     const std::vector<Region> wide = regions(gray_.size(), stamp, Reach::MaxSpeed, lost);
     if (tooLarge(wide)) {
-      search(*detector_, whole, false);
-      result.full_frame = true;
-      result.rois.clear();
+      unfollowed = lost;
     } else {
       search(*detector_, wide, false);
       addRois(wide);
@@ -415,6 +478,47 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
     if (!tooLarge(wide)) {
       search(*second_look_, wide, false);
       result.second_look = true;
+    }
+  }
+
+  // A configured marker the regions do not follow (never seen, gone for longer than the
+  // hold: carried away, put back, missed by the first full-frame pass; or missing for so
+  // long that its region would cover most of the image) does not wait for the next
+  // full-frame pass either: the rest of the image is searched for marker-sized
+  // quadrilaterals, and the detector reads each, at the marker's size.
+  std::set<int> absent = absentIds(found_ids);
+  for (const int id : unfollowed)
+    if (!found_ids.count(id)) absent.insert(id);
+  if (!absent.empty() && !result.full_frame) {
+    result.absent = static_cast<int>(absent.size());
+    double side_min = 0, side_max = 0;
+    for (const int id : absent) {
+      const double side = expectedSidePx(id);
+      side_min = side_min > 0 ? std::min(side_min, side) : side;
+      side_max = std::max(side_max, side);
+    }
+    // Quadrilaterals that are markers found in this frame are known; any other is read,
+    // even inside a region (a first look searched it for its own marker's size only).
+    std::vector<cv::Rect> covered;
+    for (const Detection& d : found)
+      covered.push_back(cv::boundingRect(std::vector<cv::Point2f>(d.corners.begin(), d.corners.end())));
+    const std::vector<Region> candidates = quadCandidates(side_min, side_max, covered);
+    result.absent_candidates = static_cast<int>(candidates.size());
+    if (tooLarge(candidates)) {
+      search(*detector_, {{cv::Rect(), side_min > 0 ? 0.5 * (side_min + side_max) : 0.0}}, side_min > 0);
+      result.full_frame = true;
+      result.rois.clear();
+    } else {
+      // Every threshold window in these small regions, then the second-look detector
+      // there for what is still missing (as for a marker missed where it was expected).
+      search(*detector_, candidates, false);
+      addRois(candidates);
+      const bool still_missing =
+          std::any_of(absent.begin(), absent.end(), [&](int id) { return !found_ids.count(id); });
+      if (still_missing && second_look_) {
+        search(*second_look_, candidates, false);
+        result.second_look = true;
+      }
     }
   }
 
@@ -444,11 +548,10 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
       velocity_px_.erase(id);  // first sighting, or after a gap: no velocity to trust
     }
     last_seen_px_[id] = d;
-    ever_seen_.insert(id);
     last_seen_t_[id] = stamp;
   }
   // Regions follow markers seen recently; those unseen for longer than the hold are
-  // left to the full-frame passes.
+  // searched for as absent ones.
   for (auto it = last_seen_px_.begin(); it != last_seen_px_.end();)
     it = stamp - last_seen_t_.at(it->first) <= config_.filter.hold_s ? std::next(it) : last_seen_px_.erase(it);
 

@@ -140,6 +140,50 @@ TEST(Label, LoadCarriedThenDroppedWithWordsFromAnExample) {
   EXPECT_TRUE(inf.notes.empty());
 }
 
+TEST(Label, ActionWordsFromTheTasksRulesAfterTheExample) {
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.5, 0.5}}});  // R1 to the box
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}}, {2, {0.9, 0.9}}});  // carries it to G1
+  s.rest(1);
+  s.move({{0, {0.9, 0.1}}});  // leaves it there, drives to G2
+  s.rest(1);
+  // task.yaml's rules: a robot with a load and its load carry, a hamster to a goal moves;
+  // nothing says what a robot driving to a box does.
+  s.spec.action_rules.resize(3);
+  s.spec.action_rules[0].mover_kind = task::EntityKind::Robot;
+  s.spec.action_rules[0].load = task::ActionRule::Load::Carries;
+  s.spec.action_rules[0].action = "carry";
+  s.spec.action_rules[1].load = task::ActionRule::Load::Carried;
+  s.spec.action_rules[1].action = "carry";
+  s.spec.action_rules[2].mover_kind = task::EntityKind::Robot;
+  s.spec.action_rules[2].mover_type = "hamster";
+  s.spec.action_rules[2].target_kind = task::EntityKind::Goal;
+  s.spec.action_rules[2].action = "move";
+  s.spec.actions = {"push", "move", "carry"};  // the first action: what no rule names
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:push:B1"}, {"R1:carry:G1", "B1:carry:G1"}, {"R1:move:G2"}}));
+  ASSERT_EQ(inf.notes.size(), 1u);  // R1 to the box: no rule, the task's first action
+  EXPECT_NE(inf.notes[0].message.find("no motion of the kind robot/hamster>object/box in task.yaml's action_rules"),
+            std::string::npos)
+      << inf.notes[0].message;
+  EXPECT_NEAR(s.d.t[inf.notes[0].row], 1.0, 0.2);
+
+  // An example comes first: labelled by hand, the robot with its load "moves" there.
+  task::Demonstration ex = s.d;
+  ex.has_label_columns = {true, false, true, false, false};
+  label::applyLabels(ex, inf);
+  for (auto& row : ex.labels)
+    for (int e : {0, 2})
+      if (!row[e].isNull()) row[e].action = row[e].target == 2 ? "push" : "move";
+  ex.analyze();
+  const auto example = label::Example::fromDemonstration(ex, s.spec);
+  const auto with_example = s.infer(&example);
+  EXPECT_EQ(tokens(with_example, s.spec), (Steps{{"R1:push:B1"}, {"R1:move:G1", "B1:move:G1"}, {"R1:move:G2"}}));
+  EXPECT_TRUE(with_example.notes.empty());
+}
+
 TEST(Label, RowsAtAnIrregularLowRate) {
   // A loaded recorder writes rows when it can: about 10 Hz, unevenly.
   Scene s;

@@ -43,6 +43,17 @@ TEST(TableQuick, WritesResultsAndEveryFigure) {
   ASSERT_NE(closed, std::string::npos);
   EXPECT_NE(results.find("| fetch | 3 demos |", closed), std::string::npos) << results.substr(closed);
   EXPECT_NE(results.find("| task4 | human-timed, 3 demos |", closed), std::string::npos) << results.substr(closed);
+  // ... and with bodies, with and without the safety filter, every trial's collisions judged.
+  const size_t bodies = results.find("## Bodies");
+  ASSERT_NE(bodies, std::string::npos);
+  EXPECT_NE(results.find("| fetch | 3 demos |", bodies), std::string::npos) << results.substr(bodies);
+  EXPECT_NE(results.find("Zero collisions on every family", bodies), std::string::npos) << results.substr(bodies);
+  for (const char* file : {"fetch-3-scene-bodies.json", "fetch-3-scene-bodies-unfiltered.json"}) {
+    std::ifstream json((out / "run" / "eval" / file).string());
+    std::stringstream json_text;
+    json_text << json.rdbuf();
+    EXPECT_NE(json_text.str().find("\"collisions\""), std::string::npos) << file;
+  }
   std::ifstream closed_json((out / "run" / "eval" / "fetch-3-scene-diffdrive.json").string());
   std::stringstream closed_text;
   closed_text << closed_json.rdbuf();

@@ -236,3 +236,49 @@ TEST(TaskSpec, BadFootprintIsAnErrorAtItsPosition) {
   EXPECT_EQ(d.line, 3);
   EXPECT_NE(d.message.find("obstacle: 'maybe' is not true or false"), std::string::npos) << d.message;
 }
+
+TEST(TaskSpec, ActionRulesParseMatchAndRoundTrip) {
+  const TaskSpec s = parseTaskYaml(std::string(kGood) + R"(action_rules:
+  - {mover: robot, load: carries, action: carry}
+  - {mover: object, target: robot/hamster, action: pass}
+  - {mover: robot/hamster, target: goal, load: none, action: move}
+  - {action: move}
+)",
+                                   "task.yaml");
+  ASSERT_EQ(s.action_rules.size(), 4u);
+  const ActionRule& carry = s.action_rules[0];
+  EXPECT_EQ(carry.mover_kind, EntityKind::Robot);
+  EXPECT_FALSE(carry.target_kind.has_value());
+  EXPECT_EQ(carry.load, ActionRule::Load::Carries);
+  // entities: R1, R2 (robots, hamster), B1 (object), G1 (goal); load as label::kindKey: 0, 1, 2.
+  EXPECT_TRUE(carry.matches(s.entities[0], s.entities[3], 1));
+  EXPECT_FALSE(carry.matches(s.entities[0], s.entities[3], 0));
+  const ActionRule& pass = s.action_rules[1];
+  EXPECT_TRUE(pass.matches(s.entities[2], s.entities[1], 0));
+  EXPECT_FALSE(pass.matches(s.entities[2], s.entities[3], 0));               // a goal, not a hamster
+  EXPECT_FALSE(s.action_rules[2].matches(s.entities[0], s.entities[3], 1));  // load: none
+  EXPECT_TRUE(s.action_rules[3].matches(s.entities[2], s.entities[3], 2));   // no field: every motion
+  const TaskSpec again = parseTaskYaml(taskYamlText(s), "again.yaml");
+  ASSERT_EQ(again.action_rules.size(), 4u);
+  EXPECT_EQ(again.action_rules[2].mover_type, "hamster");
+  EXPECT_EQ(again.action_rules[2].load, ActionRule::Load::None);
+  EXPECT_EQ(taskYamlText(again), taskYamlText(s));
+}
+
+TEST(TaskSpec, BadActionRuleIsAnErrorAtItsPosition) {
+  const std::string head = std::string(kGood) + "action_rules:\n";  // the rule is on line 13
+  Diagnostic d = onlyError(head + "  - {mover: robot, action: fly}\n");
+  EXPECT_EQ(d.line, 13);
+  EXPECT_NE(d.message.find("action 'fly' is not in the task's actions"), std::string::npos) << d.message;
+  d = onlyError(head + "  - {mover: goal, action: move}\n");
+  EXPECT_EQ(d.line, 13);
+  EXPECT_NE(d.message.find("a goal does not act"), std::string::npos) << d.message;
+  d = onlyError(head + "  - {mover: robot, load: maybe, action: move}\n");
+  EXPECT_NE(d.message.find("load 'maybe' must be none, carries or carried"), std::string::npos) << d.message;
+  d = onlyError(head + "  - {target: table, action: move}\n");
+  EXPECT_NE(d.message.find("target 'table' must be robot, object or goal"), std::string::npos) << d.message;
+  d = onlyError(head + "  - {mover: robot}\n");
+  EXPECT_NE(d.message.find("action rule without 'action'"), std::string::npos) << d.message;
+  d = onlyError(head + "  - {mover: robot, speed: 2, action: move}\n");
+  EXPECT_NE(d.message.find("speed"), std::string::npos) << d.message;
+}

@@ -1,0 +1,82 @@
+// The closed-loop simulator's execution model with bodies (`ddace eval --execution
+// diffdrive`): every motion of a step runs at the same time on the simulated table of the
+// mock robots (exec/table_simulator.h: Box2D discs of the task's footprints, objects
+// carried along their own paths and pushed when something drives into them). Each robot is
+// steered along its planned path by the path follower's control law (exec/path_follower.h)
+// from its measured pose, and its command goes through the robot's own safety filter
+// (exec/safety_filter.h) fed with the others' poses, as path_follower_node does; without
+// the filter (SafetyParams::enabled false) the bodies still collide, and every collision
+// is counted.
+//
+// A step ends when every robot's control law reports it arrived and every object's segment
+// is done, or when its filter reports a deadlock (the robot stops there; the failure names
+// it), or at the time limit (3x the longest path at cruise speed + 10 s, as the model
+// without bodies). Collisions: two bodies apart that touch (a Box2D contact begins), except
+// a motion and its own target in that step and a carrier and its load (the bodies a motion
+// may end against); a pair in contact (a motion that ended at its target) counts again only
+// after it parted (kPartedM), so a robot leaving a neighbour it touches is no collision;
+// bodies placed overlapping at the start never collide. The closest approach is measured on
+// the true poses every cycle over the pairs that are apart, with the same exceptions.
+//
+// Owns: the step's control loop and its measurements. Must not: decide where motions end
+// (task/end_point.h, via the planned paths) or score the trial (eval/metrics.h).
+// Units: metres, radians, seconds; table frame.
+#pragma once
+
+#include <memory>
+#include <set>
+#include <utility>
+
+#include "ddace/exec/path_follower.h"
+#include "ddace/exec/safety_filter.h"
+#include "ddace/exec/simulator.h"
+#include "ddace/exec/table_simulator.h"
+
+namespace ddace::exec {
+
+struct BodiesExecutionParams {
+  double arrival_radius_m =
+      0.03;            ///< the task's; the control law stops within task::stopRadius of it (3 sigma of noise)
+  double noise_m = 0;  ///< std-dev of measured x and y
+  uint64_t seed = 1;
+  FollowerGains gains;                           ///< the path follower's (its arrival radius is set from the above)
+  DiffDriveParams robot{50, 0.030, 0.20, 0.04};  ///< as the mock robots (config/execution.yaml: 40 ms latency)
+  SafetyParams safety;                           ///< enabled = false: the follower's command goes to the wheels
+  TableSimulatorParams table{/*bodies=*/true};   ///< Box2D bodies
+};
+
+/// Two bodies in contact have parted when their gap exceeds this (metres): Box2D keeps
+/// resting bodies within a fraction of a millimetre of each other.
+inline constexpr double kPartedM = 0.002;
+
+class BodiesExecution : public ExecutionModel {
+ public:
+  /// Throws ddace::Error for invalid parameters, naming the first.
+  explicit BodiesExecution(const BodiesExecutionParams& params);
+  ~BodiesExecution() override;
+  std::string name() const override { return params_.safety.enabled ? "diffdrive" : "diffdrive-unfiltered"; }
+  bool bodies() const override { return true; }
+  void beginTrial(const task::TaskSpec& spec, const std::vector<Pose2D>& start) override;
+  StepExecution executeStep(const task::TaskSpec& spec, const std::vector<task::Token>& tokens,
+                            const std::vector<Eigen::Vector2d>& positions,
+                            const std::vector<StepMotion>& motions) override;
+  BodyReport report() const override { return report_; }
+  /// Not used: motions run together (executeStep). Throws ddace::Error.
+  Path follow(const Path& planned, bool is_robot, int entity) override;
+
+ private:
+  BodiesExecutionParams params_;
+  FollowerGains gains_;  ///< with the stop radius
+  std::unique_ptr<TableSimulator> table_;
+  std::vector<SafetyFilter> filters_;  ///< one per entity (used for robots)
+  std::vector<double> radius_m_;       ///< every entity's body (0: a goal)
+  std::vector<bool> robot_;
+  std::vector<std::string> names_;
+  size_t contacts_seen_ = 0;    ///< table_->contacts() already judged
+  std::vector<char> touching_;  ///< a * n + b (a < b): in contact since it began, until parted
+  uint32_t next_segment_ = 1;
+  uint64_t trials_ = 0;
+  BodyReport report_;
+};
+
+}  // namespace ddace::exec

@@ -1,0 +1,225 @@
+#include "ddace/exec/bodies_execution.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+#include "ddace/common/error.h"
+#include "ddace/task/end_point.h"
+
+namespace ddace::exec {
+
+namespace {
+double lengthOf(const Path& p) {
+  double s = 0;
+  for (size_t i = 1; i < p.size(); ++i) s += (p[i] - p[i - 1]).norm();
+  return s;
+}
+std::pair<int, int> ordered(int a, int b) {
+  return {std::min(a, b), std::max(a, b)};
+}
+}  // namespace
+
+BodiesExecution::BodiesExecution(const BodiesExecutionParams& params) : params_(params), gains_(params.gains) {
+  if (!(params_.noise_m >= 0) || !std::isfinite(params_.noise_m))
+    throw Error("diffdrive execution: noise_m must be a finite number >= 0");
+  // The one stop rule with this model's own noise as the tolerance (as DiffDriveExecution).
+  gains_.arrival_radius_m =
+      task::stopRadius(params_.arrival_radius_m, std::max(task::kArrivalToleranceM, 3 * params_.noise_m));
+  gains_.wheel_base_m = params_.robot.wheel_base_m;
+  gains_.max_wheel_speed_mps = params_.robot.max_wheel_speed_mps;
+  gains_.validate();
+  params_.robot.position_noise_m = params_.noise_m;
+  params_.robot.validate();
+  params_.safety.validate();
+  params_.table.validate();
+}
+
+BodiesExecution::~BodiesExecution() = default;
+
+Path BodiesExecution::follow(const Path&, bool, int) {
+  throw Error("diffdrive execution with bodies runs the motions of a step together (executeStep), not one by one");
+}
+
+void BodiesExecution::beginTrial(const task::TaskSpec& spec, const std::vector<Pose2D>& start) {
+  DiffDriveParams robot = params_.robot;
+  robot.seed = params_.seed * 1000003ULL + (++trials_);  // fresh, reproducible noise per trial
+  table_ = std::make_unique<TableSimulator>(spec, start, robot, params_.table);
+  const size_t n = spec.entities.size();
+  filters_.clear();
+  radius_m_.assign(n, 0);
+  robot_.assign(n, false);
+  names_ = spec.entityNames();
+  for (size_t i = 0; i < n; ++i) {
+    filters_.emplace_back(params_.safety, gains_.wheel_base_m, gains_.max_wheel_speed_mps, gains_.max_turn_rate_radps);
+    radius_m_[i] = table_->radiusM(static_cast<int>(i));
+    robot_[i] = spec.entities[i].kind == task::EntityKind::Robot;
+  }
+  contacts_seen_ = table_->contacts().size();
+  touching_.assign(n * n, 0);
+  report_ = {};
+}
+
+StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std::vector<task::Token>& tokens,
+                                           const std::vector<Eigen::Vector2d>&,
+                                           const std::vector<StepMotion>& motions) {
+  if (!table_) throw Error("diffdrive execution: executeStep before beginTrial");
+  const int n = static_cast<int>(table_->size());
+  StepExecution out;
+  out.executed.resize(motions.size());
+  const double t0 = table_->time();
+
+  // The bodies a motion may end against: its own target, and a carrier's load.
+  std::set<std::pair<int, int>> exempt;
+  std::vector<int> load_of(n, -1);  // the load each carrier of the step pushes
+  for (size_t i = 0; i < tokens.size(); ++i) {
+    if (!tokens[i].isMotion()) continue;
+    if (tokens[i].target >= 0) exempt.insert(ordered(tokens[i].entity, tokens[i].target));
+    const int load = task::carriedLoad(spec, tokens, i);
+    if (load >= 0) {
+      exempt.insert(ordered(tokens[i].entity, tokens[load].entity));
+      if (tokens[i].entity >= 0 && tokens[i].entity < n) load_of[tokens[i].entity] = tokens[load].entity;
+    }
+  }
+  std::set<std::pair<int, int>> loaded(table_->loadedPairs().begin(), table_->loadedPairs().end());
+
+  struct Mover {
+    std::unique_ptr<PathFollower> follower;  ///< robots
+    double length_m = 0;
+    bool running = true;
+  };
+  std::vector<Mover> movers(motions.size());
+  std::vector<int> motion_of(n, -1);
+  double limit_s = 0;
+  int running = 0;
+  for (size_t m = 0; m < motions.size(); ++m) {
+    const StepMotion& mo = motions[m];
+    if (mo.entity < 0 || mo.entity >= n) throw Error("diffdrive execution: a motion of an entity outside the task");
+    motion_of[mo.entity] = static_cast<int>(m);
+    out.executed[m] = {table_->truePose(mo.entity).position()};
+    Mover& mv = movers[m];
+    mv.length_m = lengthOf(mo.planned);
+    if (mo.robot) {
+      mv.follower = std::make_unique<PathFollower>(gains_);
+      mv.follower->setPath(PlannedPath{mo.planned, {}});
+      filters_[mo.entity].reset();
+      limit_s = std::max(limit_s, 3.0 * mv.length_m / gains_.cruise_speed_mps + 10.0);
+    } else {
+      const auto status = table_->startSegment(mo.entity, next_segment_++, mo.planned);
+      if (status && status->state != SegmentState::Accepted) {
+        mv.running = false;
+        out.failures.push_back(names_[mo.entity] + ": " + status->message);
+        continue;
+      }
+      limit_s = std::max(limit_s, 3.0 * mv.length_m / params_.table.object_speed_mps + 10.0);
+    }
+    ++running;
+  }
+
+  std::vector<Pose2D> measured(n);
+  std::vector<SafetyBody> others;
+  others.reserve(n);
+  while (running > 0 && table_->time() - t0 < limit_s) {
+    for (int i = 0; i < n; ++i) measured[i] = table_->measuredPose(i);  // one tracker frame for everybody
+    for (int i = 0; i < n; ++i) {
+      if (!robot_[i]) continue;
+      const int m = motion_of[i];
+      if (m < 0 || !movers[m].running) {
+        table_->commandWheels(i, {});  // idle: zeros every cycle, as the follower node
+        continue;
+      }
+      Mover& mv = movers[m];
+      const FollowerOutput o = mv.follower->compute(measured[i]);
+      if (o.done) {
+        mv.running = false;
+        --running;
+        table_->commandWheels(i, {});
+        continue;
+      }
+      others.clear();
+      for (int j = 0; j < n; ++j)
+        if (j != i && radius_m_[j] > 0) {
+          others.push_back({names_[j], measured[j].position(), radius_m_[j], robot_[j]});
+          others.back().touchable = load_of[i] == j;  // a carrier pushes its load ahead
+        }
+      markBodiesAtEnd(others, mv.follower->endPoint(), radius_m_[i], params_.safety);
+      const int target = motions[m].target;
+      const SafetyCommand c =
+          filters_[i].filter(names_[i], measured[i], radius_m_[i], 0.0, o.wheels, o.progress * mv.follower->lengthM(),
+                             others, target >= 0 ? names_[target] : std::string(), table_->time());
+      if (c.deadlock || c.stale) {  // the follower node fails the segment: the robot stops there
+        mv.running = false;
+        --running;
+        table_->commandWheels(i, {});
+        out.failures.push_back(c.reason);
+        continue;
+      }
+      table_->commandWheels(i, c.wheels);
+    }
+    for (const ObjectStatus& s : table_->step()) {
+      const int m = motion_of[s.entity];
+      if (s.state == SegmentState::Done && m >= 0 && movers[m].running) {
+        movers[m].running = false;
+        --running;
+        out.executed[m].push_back(table_->truePose(s.entity).position());
+      }
+    }
+    for (size_t m = 0; m < motions.size(); ++m)
+      if (movers[m].running) out.executed[m].push_back(table_->truePose(motions[m].entity).position());
+
+    // The bodies a robot's motion ends against (its end point touches them).
+    auto endContact = [&](int mover, int other) {
+      const int m = motion_of[mover];
+      return m >= 0 && movers[m].follower &&
+             endsAgainst(movers[m].follower->endPoint(), radius_m_[mover], table_->truePose(other).position(),
+                         radius_m_[other], params_.safety.margin_m);
+    };
+    // The closest approach of two bodies that keep apart, on the true poses; a pair in
+    // contact is apart again once its gap exceeds kPartedM.
+    for (int a = 0; a < n; ++a) {
+      if (!(radius_m_[a] > 0)) continue;
+      const Eigen::Vector2d pa = table_->truePose(a).position();
+      for (int b = a + 1; b < n; ++b) {
+        if (!(radius_m_[b] > 0) || loaded.count({a, b})) continue;
+        const Eigen::Vector2d pb = table_->truePose(b).position();
+        const double gap = (pa - pb).norm() - radius_m_[a] - radius_m_[b];
+        char& touching = touching_[a * n + b];
+        if (touching && gap > kPartedM) touching = 0;
+        if (!touching && !exempt.count({a, b}) && gap < report_.closest.clearance_m && !endContact(a, b) &&
+            !endContact(b, a))
+          report_.closest = {gap, a, b, table_->time(), pa, pb};
+      }
+    }
+    // Collisions: contacts that began between bodies that were apart, except the motions'
+    // own targets and loads, and the bodies a robot's motion ends against.
+    const auto& contacts = table_->contacts();
+    for (; contacts_seen_ < contacts.size(); ++contacts_seen_) {
+      const BodyContact& c = contacts[contacts_seen_];
+      char& touching = touching_[c.a * n + c.b];
+      if (!touching && !exempt.count({c.a, c.b}) && !endContact(c.a, c.b) && !endContact(c.b, c.a))
+        report_.collisions.push_back(c);
+      touching = 1;
+    }
+  }
+  // The time limit: whoever still moves stops where it is.
+  for (size_t m = 0; m < motions.size(); ++m) {
+    if (!movers[m].running) continue;
+    const int e = motions[m].entity;
+    if (motions[m].robot) {
+      table_->commandWheels(e, {});
+    } else {
+      table_->stopSegment(e);
+    }
+    char why[160];
+    std::snprintf(why, sizeof why, "%s did not arrive within %.1f s (3x its path at cruise speed + 10 s)",
+                  names_[e].c_str(), limit_s);
+    out.failures.push_back(why);
+  }
+  out.duration_s = table_->time() - t0;
+  out.positions.resize(n);
+  for (int i = 0; i < n; ++i) out.positions[i] = table_->truePose(i).position();
+  return out;
+}
+
+}  // namespace ddace::exec

@@ -1,0 +1,193 @@
+// `ddace eval --execution diffdrive`'s model with bodies: the robots of a step move at the
+// same time on the Box2D table, each through the path follower's control law and its own
+// safety filter; collisions and the closest approach are measured, pushed bodies stay
+// where they were pushed, and a trial with a collision is no success.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "ddace/eval/metrics.h"
+#include "ddace/exec/bodies_execution.h"
+#include "ddace/exec/replay.h"
+#include "ddace/tasks/generators.h"
+
+using namespace ddace;
+using namespace ddace::exec;
+using Eigen::Vector2d;
+
+namespace {
+
+Path line(Vector2d a, Vector2d b, int n = 50) {
+  Path p;
+  for (int i = 0; i < n; ++i) p.push_back(a + (b - a) * i / (n - 1.0));
+  return p;
+}
+
+task::TaskSpec spec(const std::vector<std::pair<std::string, task::EntityKind>>& entities) {
+  task::TaskSpec s;
+  s.name = "bodies";
+  for (const auto& [name, kind] : entities) s.entities.push_back({name, kind, ""});
+  return s;
+}
+
+task::Token token(int entity, int target) {
+  return {entity, "move", target};
+}
+
+BodiesExecution model(bool filter) {
+  BodiesExecutionParams p;
+  p.noise_m = 0.001;
+  p.safety.enabled = filter;
+  return BodiesExecution(p);
+}
+
+/// Runs one step of `tokens` with `paths` (one per token, all motions) from `start`.
+StepExecution runStep(BodiesExecution& m, const task::TaskSpec& s, const std::vector<Pose2D>& start,
+                      const std::vector<task::Token>& tokens, const std::vector<Path>& paths) {
+  m.beginTrial(s, start);
+  std::vector<StepMotion> motions;
+  std::vector<Vector2d> at;
+  for (const Pose2D& p : start) at.push_back(p.position());
+  for (size_t i = 0; i < tokens.size(); ++i)
+    motions.push_back({i, tokens[i].entity, tokens[i].target,
+                       s.entities[tokens[i].entity].kind == task::EntityKind::Robot, paths[i]});
+  return m.executeStep(s, tokens, at, motions);
+}
+
+}  // namespace
+
+TEST(BodiesExecution, CrossingRobotsMoveTogetherAndTheFilterKeepsThemApart) {
+  // R1 along x, R2 along y through the same point at the same time.
+  const auto s = spec({{"R1", task::EntityKind::Robot},
+                       {"R2", task::EntityKind::Robot},
+                       {"G1", task::EntityKind::Goal},
+                       {"G2", task::EntityKind::Goal}});
+  const std::vector<Pose2D> start{{0.1, 0.3, 0}, {0.3, 0.1, M_PI / 2}, {0.5, 0.3, 0}, {0.3, 0.5, 0}};
+  const std::vector<task::Token> tokens{token(0, 2), token(1, 3)};
+  const std::vector<Path> paths{line({0.1, 0.3}, {0.5, 0.3}), line({0.3, 0.1}, {0.3, 0.5})};
+
+  BodiesExecution with = model(true);
+  const StepExecution a = runStep(with, s, start, tokens, paths);
+  EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+  EXPECT_LT((a.executed[0].back() - Vector2d(0.5, 0.3)).norm(), 0.03);
+  EXPECT_LT((a.executed[1].back() - Vector2d(0.3, 0.5)).norm(), 0.03);
+  EXPECT_TRUE(with.report().collisions.empty());
+  EXPECT_GT(with.report().closest.clearance_m, 0.0);
+  // Together: the step takes less than the two motions one after the other.
+  BodiesExecution alone = model(true);
+  const double r1 = runStep(alone, s, start, {tokens[0]}, {paths[0]}).duration_s;
+  const double r2 = runStep(alone, s, start, {tokens[1]}, {paths[1]}).duration_s;
+  EXPECT_LT(a.duration_s, 0.9 * (r1 + r2)) << r1 << " + " << r2;
+
+  BodiesExecution without = model(false);
+  runStep(without, s, start, tokens, paths);
+  ASSERT_FALSE(without.report().collisions.empty()) << "the same robots without the filter must collide";
+  EXPECT_EQ(without.report().collisions[0].a, 0);
+  EXPECT_EQ(without.report().collisions[0].b, 1);
+  EXPECT_LT(without.report().closest.clearance_m, 0.0);
+}
+
+TEST(BodiesExecution, ARobotSentIntoItsTargetIsHeldAtContactAndReportedNotFrozen) {
+  // R1's path ends at R2's centre: its own target, so touching is no collision, but it
+  // cannot get there; the filter holds it at contact and reports a deadlock naming both.
+  const auto s = spec({{"R1", task::EntityKind::Robot}, {"R2", task::EntityKind::Robot}});
+  const std::vector<Pose2D> start{{0.1, 0.3, 0}, {0.4, 0.3, 0}};
+  BodiesExecution with = model(true);
+  const StepExecution a = runStep(with, s, start, {token(0, 1)}, {line({0.1, 0.3}, {0.4, 0.3})});
+  ASSERT_EQ(a.failures.size(), 1u);
+  EXPECT_NE(a.failures[0].find("deadlock: R1"), std::string::npos) << a.failures[0];
+  EXPECT_NE(a.failures[0].find("R2"), std::string::npos) << a.failures[0];
+  EXPECT_TRUE(with.report().collisions.empty());
+  const double gap = (a.positions[0] - a.positions[1]).norm() - 2 * task::kDefaultRobotRadius;
+  EXPECT_GT(gap, -0.001);
+  EXPECT_LT(gap, 0.01);
+  EXPECT_LT(a.duration_s, 10.0) << "reported within seconds, not at the time limit";
+}
+
+TEST(BodiesExecution, AMotionEndingAgainstARobotOnTheGoalArrivesThere) {
+  // R1 stands on G1; R2's motion to G1 ends at contact with R1 (as the end-point rule ends
+  // the second robot to a goal). R1 is not its target, but the filter lets it end there.
+  const auto s =
+      spec({{"R1", task::EntityKind::Robot}, {"R2", task::EntityKind::Robot}, {"G1", task::EntityKind::Goal}});
+  const std::vector<Pose2D> start{{0.5, 0.3, 0}, {0.1, 0.3, 0}, {0.5, 0.3, 0}};
+  const Vector2d end(0.5 - 2 * task::kDefaultRobotRadius, 0.3);
+  BodiesExecution with = model(true);
+  const StepExecution a = runStep(with, s, start, {token(1, 2)}, {line({0.1, 0.3}, end)});
+  EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+  EXPECT_TRUE(task::arrived(a.executed[0].back(), end, 0.03)) << a.executed[0].back().transpose();
+  EXPECT_TRUE(with.report().collisions.empty());
+}
+
+TEST(BodiesExecution, APushedBodyStaysWhereItWasPushedAndTheContactIsACollision) {
+  // Without the filter R1 drives through O1, which is not its target.
+  const auto s =
+      spec({{"R1", task::EntityKind::Robot}, {"O1", task::EntityKind::Object}, {"G1", task::EntityKind::Goal}});
+  const std::vector<Pose2D> start{{0.1, 0.3, 0}, {0.25, 0.3, 0}, {0.5, 0.3, 0}};
+  BodiesExecution without = model(false);
+  const StepExecution a = runStep(without, s, start, {token(0, 2)}, {line({0.1, 0.3}, {0.5, 0.3})});
+  ASSERT_EQ(a.positions.size(), 3u);
+  EXPECT_GT(a.positions[1].x(), 0.3) << "the object was pushed along";
+  ASSERT_EQ(without.report().collisions.size(), 1u);
+  EXPECT_EQ(without.report().collisions[0].a, 0);
+  EXPECT_EQ(without.report().collisions[0].b, 1);
+}
+
+TEST(BodiesExecution, ACarriedLoadRidesItsOwnPathToTheGoalAheadOfItsCarrier) {
+  // R1 behind O1, both toward G1 (the carrier's path ends behind the load's).
+  const auto s =
+      spec({{"R1", task::EntityKind::Robot}, {"O1", task::EntityKind::Object}, {"G1", task::EntityKind::Goal}});
+  const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
+  const std::vector<Pose2D> start{{0.1, 0.3, 0}, {0.1 + contact + 0.002, 0.3, 0}, {0.6, 0.3, 0}};
+  const std::vector<task::Token> tokens{token(0, 2), token(1, 2)};
+  BodiesExecution with = model(true);
+  const StepExecution a =
+      runStep(with, s, start, tokens, {line({0.1, 0.3}, {0.6 - contact, 0.3}), line({0.1 + contact, 0.3}, {0.6, 0.3})});
+  EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+  EXPECT_LT((a.positions[1] - Vector2d(0.6, 0.3)).norm(), 0.01) << "the load ends on the goal";
+  EXPECT_LT(a.positions[0].x(), a.positions[1].x()) << "the carrier ends behind it";
+  EXPECT_TRUE(with.report().collisions.empty());
+}
+
+TEST(BodiesExecution, Task2WithMotionsEndingAtContactHasNoCollisionWithTheFilterAndSomeWithout) {
+  // Eleven robots, the generated Task 2 replayed; every motion ends where the footprints
+  // say (at contact with a robot target, task/end_point.h's default without offsets).
+  tasks::GeneratorOptions o;
+  o.family = "task2";
+  o.demos = 1;
+  o.seed = 3;
+  const task::TaskDir dir = tasks::generate(o);
+  const task::Demonstration& demo = dir.demos.front();
+  const DemonstrationPaths paths(dir.spec, dir.demos);
+  const auto policy = [&](const std::vector<task::Snapshot>& h) { return replayDecision(demo, h); };
+  const auto gen = [&](const task::Token& t, const Vector2d& a, const Vector2d& b) {
+    return paths.generate(t, a, b).points;
+  };
+  BodiesExecution with = model(true), without = model(false);
+  const Trial a = runTrial(dir.spec, demo, policy, gen, with, task::EndPointModel{});
+  const eval::TrialScore sa = eval::scoreTrial(dir.spec, demo, a);
+  // A robot whose end point another occupies (R7 touching R9 where R8 would end) may be
+  // held short of it: reported as a deadlock naming it, never left frozen.
+  // Every robot that did not arrive is named (a robot whose end point another occupies
+  // may be held short of it: a deadlock), never left frozen; nobody collides.
+  for (const auto& ex : a.executed) {
+    if (!ex.token.isMotion() || task::arrived(ex.executed.back(), ex.goal, dir.spec.arrival_radius)) continue;
+    const std::string name = dir.spec.entities[ex.token.entity].name;
+    bool named = false;
+    for (const auto& f : a.failures) named = named || f.find("deadlock: " + name + " ") != std::string::npos;
+    EXPECT_TRUE(named) << name << " did not arrive and no failure names it";
+  }
+  EXPECT_TRUE(a.body_report.collisions.empty());
+  EXPECT_GT(a.body_report.closest.clearance_m, 0.0);
+  EXPECT_GE(sa.gcr(), 0.9);
+  Trial collided = a;  // the same trial with one collision is no success
+  collided.body_report.collisions.push_back({1.0, 0, 1});
+  EXPECT_FALSE(eval::scoreTrial(dir.spec, demo, collided).success);
+  const Trial b = runTrial(dir.spec, demo, policy, gen, without, task::EndPointModel{});
+  const eval::TrialScore sb = eval::scoreTrial(dir.spec, demo, b);
+  EXPECT_FALSE(b.body_report.collisions.empty());
+  EXPECT_FALSE(sb.success) << "a trial with a collision is no success";
+  EXPECT_GT(a.makespan_s, 0.0);
+  std::cout << "task2 with the filter: " << a.failures.size() << " deadlocks, makespan " << a.makespan_s
+            << " s, min clearance " << a.body_report.closest.clearance_m * 1000 << " mm; without: " << b.makespan_s
+            << " s, " << b.body_report.collisions.size() << " collisions\n";
+}
