@@ -3,14 +3,17 @@
 // rendered by the synthetic camera and measured by the tracker, every frame, as a person
 // would record it. The tracker keeps every robot at contact apart, the end points learned
 // from the recording are at contact, and a model trained on it runs: replayed in the
-// closed loop with its own paths and end points, every motion arrives (task::arrived, the
-// coordinator's DONE test).
+// closed loop with its own paths and end points every motion arrives, and the coordinator,
+// sent the recording's steps and seeing the robots where the camera saw them stop, counts
+// every motion done.
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "ddace/common/repository.h"
 #include "ddace/eval/metrics.h"
+#include "ddace/exec/coordinator.h"
+#include "ddace/exec/replay.h"
 #include "ddace/exec/simulator.h"
 #include "ddace/gp/primitives.h"
 #include "ddace/task/end_point.h"
@@ -73,7 +76,7 @@ task::Demonstration recordThroughCamera(const task::Demonstration& truth, const 
 TEST(ContactRecording, RobotsStoppingAtContactAreTrackedLearnedAndRun) {
   tasks::GeneratorOptions o;
   o.family = "task4";
-  o.demos = 4;
+  o.demos = 3;  // three segments per key: the key's own end offset is learned
   o.seed = 3;
   const task::TaskDir truth = tasks::generate(o);
   const vision::TrackerConfig config =
@@ -103,6 +106,59 @@ TEST(ContactRecording, RobotsStoppingAtContactAreTrackedLearnedAndRun) {
   EXPECT_NEAR(ends.by_class.at("robot->robot").offset.x(), -contact, 0.003);
   EXPECT_NEAR(ends.by_class.at("robot->robot").offset.y(), 0.0, 0.003);
   EXPECT_NEAR(ends.by_key.at("R1:move:R3").offset.x(), -contact, 0.003);
+
+  // The coordinator with the learned end points: each recorded step decided again (the
+  // decision the demonstration made), and the robots observed where the camera saw them
+  // stop, touching their targets; their executors report DONE. It counts every motion
+  // done and finishes.
+  struct Counted {
+    bool finished = false;
+    size_t done = 0, motions = 0;
+  };
+  const auto coordinate = [&](const task::Demonstration& d, const task::EndPointModel& model) {
+    exec::Coordinator c(recorded.spec, exec::CoordinatorConfig{}, model);
+    const auto observe = [&](const std::vector<Vector2d>& p) {
+      return exec::EntityObservation{p, std::vector<bool>(p.size(), true)};
+    };
+    c.onEntities(observe(d.positions.front()), 0.0);
+    exec::CoordinatorOutput out = c.start(0.0);
+    double t = 0;
+    size_t step = 0;
+    Counted n;
+    while (out.decision && c.state() != exec::RunState::Finished) {
+      t += 1;
+      out = c.onDecision(out.decision->id, exec::replayDecision(d, out.decision->history), t);
+      if (c.state() == exec::RunState::Finished) break;
+      std::vector<exec::SegmentCommand> segments;
+      for (const auto& r : out.paths) {
+        const auto o = c.onPath(r.id, {{r.start, r.goal}, {0, 0}}, "", t);
+        segments.insert(segments.end(), o.segments.begin(), o.segments.end());
+      }
+      if (step + 1 >= d.snapshots.size()) break;
+      const std::vector<Vector2d>& stopped = d.snapshots[++step].positions;  // where the step ended
+      out = c.onEntities(observe(stopped), t + 0.5);
+      for (const auto& s : segments) {
+        const auto o = c.onSegmentStatus(s.entity, s.segment_id, exec::SegmentState::Done, 1.0, "", t + 0.5);
+        if (o.decision) out = o;
+      }
+      for (const auto& tr : c.steps().back().tokens)
+        if (tr.token.isMotion()) ++n.motions, n.done += tr.state == exec::SegmentState::Done;
+      if (n.done < n.motions) break;  // the run waits for the robot that has not arrived
+    }
+    n.finished = c.state() == exec::RunState::Finished;
+    return n;
+  };
+  const task::EndPointModel centres{{}, {}, true};  // a model whose motions end on the targets
+  for (const auto& d : recorded.demos) {
+    const Counted learned = coordinate(d, ends);
+    EXPECT_TRUE(learned.finished);
+    EXPECT_EQ(learned.done, learned.motions);
+    EXPECT_EQ(learned.motions, 4u);  // [R1:move:R3 R2:move:R4] [R3:move:G1 R4:move:G1]
+    // Told the motions end on the robots' centres, it waits for R1 and R2 forever.
+    const Counted centred = coordinate(d, centres);
+    EXPECT_FALSE(centred.finished);
+    EXPECT_EQ(centred.done, 0u);
+  }
 
   // Run: each recording's steps decided again, paths from the library toward the learned
   // end points; every motion arrives within the arrival radius of its end point.
