@@ -72,10 +72,10 @@ int main(int argc, char** argv) try {
   g.family = "nearest_goal";
   const task::TaskDir goals = tasks::generate(g);
   tgn::TrainOptions at_once;
-  at_once.token_by_token = false;
+  at_once.without = {tgn::Rule::TokenByToken};
   const auto by_token = tgn::SequenceModel::train(goals, tgn::TrainOptions{}, nullptr);
   const auto all_at_once = tgn::SequenceModel::train(goals, at_once, nullptr);
-  if (!by_token.info().options.token_by_token || all_at_once.info().options.token_by_token)
+  if (!by_token.info().plan.token_by_token || all_at_once.info().plan.token_by_token)
     throw Error("nearest_goal did not train token by token (and all at once when told)");
   const std::vector<task::Snapshot> first(goals.demos.front().snapshots.begin(),
                                           goals.demos.front().snapshots.begin() + 1);

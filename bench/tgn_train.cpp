@@ -63,9 +63,9 @@ int main(int argc, char** argv) try {
     // After 30 epochs the network is short of its demonstrations, so "Names or the scene"
     // trains a second one without the identity embedding; the time per epoch is the kept
     // network's own, and the reference has the identity embedding: it must be that one.
-    if (!m.info().options.identity_embedding)
+    if (!m.info().plan.identity_embedding)
       throw Error("the kept network has no identity embedding, the reference's has: not the same network");
-    relative = m.info().options.relative_features;
+    relative = m.info().plan.relative_features;
     std::string extra;
     if (round == 0) {  // the reference refuses to run when its parameters' shapes are not these
       m.save((scratch / "model").string());
@@ -165,7 +165,7 @@ int main(int argc, char** argv) try {
       const auto [m, seconds] = timedTrain(tr, o);
       const auto& r = m.info().history.back();
       std::snprintf(line, sizeof line, "| %s | %d | %s | %s | %d | %.1f s | %.3f | %.3f |\n", family.c_str(), demos,
-                    tgn::toString(variant), m.info().options.identity_embedding ? "on" : "off", r.epoch, seconds,
+                    tgn::toString(variant), m.info().plan.identity_embedding ? "on" : "off", r.epoch, seconds,
                     m.stepAccuracy(tr.demos), m.stepAccuracy(te.demos));
       md << line;
       std::cout << line << std::flush;

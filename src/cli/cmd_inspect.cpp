@@ -31,7 +31,7 @@ int runInspect(const std::vector<std::string>& argv) {
   for (const auto& a : info.vocabulary) std::cout << " " << a;
   std::cout << "\n  network:     " << o.gat_layers << " GAT layers x " << o.heads << " heads x " << o.head_channels
             << " channels, GRU " << o.gru_layers << " x " << o.gru_hidden << ", identity embedding "
-            << (o.identity_embedding ? "on (" + std::to_string(o.identity_dim) + ")" : std::string("off"))
+            << (info.plan.identity_embedding ? "on (" + std::to_string(o.identity_dim) + ")" : std::string("off"))
             << ", dropout " << o.dropout << "\n";
   std::cout << "  training:    seed " << o.seed << ", Adam lr " << o.learning_rate << ", " << o.batch_demos
             << " demos per batch, plateau " << o.plateau_patience << " epochs / " << o.plateau_delta << "\n";
@@ -41,7 +41,7 @@ int runInspect(const std::vector<std::string>& argv) {
               << (info.variant == tgn::Variant::Gnn ? "frame label" : "step") << " accuracy " << last.step_accuracy
               << ", " << last.seconds << " s\n";
   }
-  const tgn::StepRules& r = info.step_rules;
+  const tgn::StepRules& r = info.plan.step_rules;
   std::cout << "  step rules:  "
             << (r.any() ? std::string(r.exclusive_targets ? "a target at most once per step" : "") +
                               (r.exclusive_targets && r.step_size > 0 ? ", " : "") +
@@ -51,9 +51,14 @@ int runInspect(const std::vector<std::string>& argv) {
             << "\n";
   if (info.variant == tgn::Variant::Scene) {
     const auto on = [](bool b) { return b ? "yes" : "no"; };
-    std::cout << "  scene:       relative features " << on(o.relative_features) << ", names shuffled "
-              << on(o.shuffle_names) << ", token by token " << on(o.token_by_token)
-              << ", parked entities out of the ranks " << on(o.parked_out_of_ranks) << " (docs/tgn.md)\n";
+    const tgn::TrainingPlan& plan = info.plan;
+    std::string without;
+    for (tgn::Rule rule : o.without) without += std::string(without.empty() ? "" : ",") + tgn::toString(rule);
+    std::cout << "  plan:        fixed order " << on(plan.fixed_order) << " (" << plan.slips
+              << " slips), relative features " << on(plan.relative_features) << ", names or the scene "
+              << on(plan.names_or_scene) << ", name groups shuffled " << plan.name_groups.size() << ", token by token "
+              << on(plan.token_by_token) << ", parked entities out of the ranks " << on(plan.parked_out_of_ranks)
+              << (without.empty() ? std::string() : "; asked --without " + without) << " (docs/tgn.md)\n";
   }
   const auto join = [](const auto& items) {
     std::string out;
@@ -100,7 +105,7 @@ int runInspect(const std::vector<std::string>& argv) {
   }
   std::cout << "E' (" << g.kept.size() << " edges):";
   for (const auto& e : g.kept) std::cout << " " << name(e.source) << "->" << name(e.target);
-  std::cout << "\nthe network attends over " << info.attention_edges.size() << " directed edges"
+  std::cout << "\nthe network attends over " << info.plan.attention_edges.size() << " directed edges"
             << (info.variant == tgn::Variant::Paper   ? " (E', both directions, plus self-loops)"
                 : info.variant == tgn::Variant::Scene ? " (E' lifted to entity kinds, both directions, plus self-loops)"
                                                       : " (every pair, plus self-loops)")

@@ -78,19 +78,10 @@ int runTrain(const std::vector<std::string>& argv) {
   options.weight_decay = args.getDouble("--weight-decay", options.weight_decay);
   // The scene network's learning rules, each on by default (docs/tgn.md): --without names
   // those to switch off, comma-separated.
-  std::string without = args.get("--without", "");
-  for (size_t from = 0; !without.empty() && from <= without.size();) {
-    const size_t comma = std::min(without.find(',', from), without.size());
-    const std::string rule = without.substr(from, comma - from);
-    if (rule == "relative") options.relative_features = false;
-    else if (rule == "fixed-order") options.fixed_order_rule = false;
-    else if (rule == "shuffled-names") options.shuffle_names = false;
-    else if (rule == "token-by-token") options.token_by_token = false;
-    else if (rule == "parked") options.parked_out_of_ranks = false;
-    else
-      throw Error("option --without: '" + rule +
-                  "' is not a rule (relative, fixed-order, shuffled-names, token-by-token, parked)");
-    from = comma + 1;
+  try {
+    options.without = tgn::rulesFromList(args.get("--without", ""));
+  } catch (const Error& e) {
+    throw Error(std::string("option --without: ") + e.what());
   }
   options.validate();
 
@@ -117,8 +108,8 @@ int runTrain(const std::vector<std::string>& argv) {
   std::cout << "stopped after " << last.epoch << " epochs (" << info.stop_reason << "): loss " << last.loss << ", "
             << (options.variant == tgn::Variant::Gnn ? "frame label" : "step") << " accuracy " << last.step_accuracy
             << ", " << last.seconds << " s\n";
-  std::cout << "attention edges: " << info.attention_edges.size() << " (E' has " << info.refined.kept.size() << " of "
-            << info.refined.edges.size() << " observed edges)\n";
+  std::cout << "attention edges: " << info.plan.attention_edges.size() << " (E' has " << info.refined.kept.size()
+            << " of " << info.refined.edges.size() << " observed edges)\n";
   if (trained.primitives) {
     std::cout << "motion primitives: " << trained.primitives->primitives().size() << " (";
     bool first = true;

@@ -92,7 +92,10 @@ struct EndPoint {
 /// within the arrival radius: the centre of the target (a generated demonstration ends on
 /// its target), or the end point the task's one end-point rule gives this motion without
 /// anything learned (task/end_point.h: at contact with an obstacle's body, on a flat goal,
-/// a carrier behind its `load`, -1 for none).
+/// a carrier behind its `load`, -1 for none). Two more count half the arrival radius worse
+/// (where a body already stood, the generators end a motion so, generators.h): touching an
+/// obstacle target from another side (within a quarter of the radius of contact), and
+/// stopped on the way short of a goal by up to the mover's diameter.
 EndPoint endPoint(const task::TaskSpec& spec, int mover, const Eigen::Vector2d& start, const Eigen::Vector2d& end,
                   const std::vector<Eigen::Vector2d>& where, const std::vector<bool>& candidates, int load = -1);
 

@@ -30,10 +30,14 @@
 //                 [F:carry:G B1:carry:G]; the other robot stays.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
+#include "ddace/task/demonstration.h"
 #include "ddace/task/task_dir.h"
 
 namespace ddace::tasks {
@@ -74,5 +78,71 @@ std::vector<std::string> families();
 /// Generates one task directory (spec + demos, analyzed). Throws ddace::Error
 /// for an unknown family or an option out of range, naming the option.
 task::TaskDir generate(const GeneratorOptions& options);
+
+// ---- the motion of a generated demonstration (the generators' and the rule zoo's)
+
+/// The shape of a motion's path in its own frame: x from the start toward the end, y to
+/// the left, both in units of the start-to-end distance.
+struct PathShape {
+  enum Kind { Straight, Arc, SCurve, Spiral } kind = Straight;
+  double amplitude = 0;  ///< lateral size, a fraction of the start-to-end distance (+ left)
+};
+
+/// One token of a planned step: entity indices of the task.
+struct PlannedToken {
+  task::Token token;
+  PathShape shape;           ///< a motion's path shape (ignored in place)
+  int label_delay_rows = 0;  ///< its label begins this many rows after the step's motion (>= 0)
+};
+using PlannedStep = std::vector<PlannedToken>;
+
+/// Where every entity stands after `step` from `positions` (table frame, metres): where
+/// simulateSteps() ends the step's motions. A motion ends at the end point the task's
+/// footprints give when nothing is learned (task::endPoint with an empty
+/// task::EndPointModel: at contact with a robot or an object, on a goal); a carried load
+/// (task::carriedLoad) ends in front of its carrier, at their contact distance, so on a
+/// goal or at contact with an obstacle target, the carrier behind it. An end point inside
+/// a standing body, or inside an end point placed before it in the step, is turned about
+/// the target in steps of kEndTurnStepRad (at most kMaxEndTurnRad either way) to the
+/// nearest place at the same distance that is kEndTurnGapM clear of every other body: the
+/// motion still ends at contact, touching its target only; where no
+/// turn frees it (a goal another body already stands on), it stops short on its way, where
+/// its body first fits (so two robots sent onto one goal end touching, one on it). Throws
+/// ddace::Error for a token naming an entity outside `positions`.
+std::vector<Eigen::Vector2d> stepEndPositions(const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& positions,
+                                              const std::vector<task::Token>& step);
+
+/// The demonstration of `steps` from the start configuration `start` (one position per
+/// entity of `spec`, table frame, metres): kIdleRows... idle rows around and between the
+/// steps at kGeneratorRateHz; the tokens of a step start and end together (their labels
+/// begin label_delay_rows late), at kGeneratorSpeed along the longest path of the step
+/// and no shorter than kMinStepDurationS, eased in and out (smoothstep). Motions end at
+/// stepEndPositions(); a carried load rides in front of its carrier at their contact
+/// distance along the carrier's heading (it swings there over the first kLoadSwingFraction
+/// of the carry), and the carrier's path ends heading at it. Every mover's path is its
+/// shape plus the smallest extra arc (kAvoidBends, in order) that keeps its body, and its
+/// load's, from coming closer than contact to a standing body or to a mover placed before
+/// it in the step (no closer than the pair starts or ends, when that is already below
+/// contact); with none free, the bend with the most clearance. Positions are rounded to
+/// whole micrometres (what a CSV holds); the demonstration is analyzed with the task's
+/// step_window_s. Throws ddace::Error for a token naming an entity outside the task.
+task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& start,
+                                  const std::vector<PlannedStep>& steps);
+
+inline constexpr double kGeneratorSpeed = 0.15;   ///< m/s, the nominal robot speed
+inline constexpr double kMinStepDurationS = 1.0;  ///< s
+inline constexpr int kIdleRowsBefore = 4, kIdleRowsBetween = 3, kIdleRowsAfter = 4;
+inline constexpr double kEndTurnStepRad = M_PI / 36;  ///< 5 degrees
+inline constexpr double kMaxEndTurnRad = M_PI / 2;
+/// A turned end point stays this far (metres) from every body but its target.
+inline constexpr double kEndTurnGapM = 0.01;
+inline constexpr double kLoadSwingFraction = 0.3;
+/// Extra arcs tried to keep a path clear, fractions of the start-to-end distance.
+inline constexpr double kAvoidBends[] = {0, 0.05, -0.05, 0.1, -0.1, 0.15, -0.15, 0.3, -0.3, 0.45, -0.45, 0.6, -0.6};
+/// Lags tried (progress u^lag: the mover arrives after those placed before it).
+inline constexpr double kAvoidLags[] = {1, 2, 3, 5};
+/// Turns of a path's start tried to leave the bodies a mover touches, radians.
+inline constexpr double kAvoidHooks[] = {0,        M_PI / 8,  -M_PI / 8,    M_PI / 4,      -M_PI / 4,
+                                         M_PI / 2, -M_PI / 2, 3 * M_PI / 4, -3 * M_PI / 4, M_PI};
 
 }  // namespace ddace::tasks

@@ -30,7 +30,7 @@ struct GatWeights {
 std::vector<float> gatForward(const GatWeights& w, const std::vector<float>& x, int nodes,
                               const std::vector<graph::Edge>& edges);
 /// The groups of entities (task indices, each ascending; groups by their first) whose
-/// identity embeddings training shuffles among themselves (TrainOptions::shuffle_names).
+/// identity embeddings training shuffles among themselves (TrainingPlan::name_groups).
 /// An entity's role in a demonstration is what its tokens are, per step: as actor (the
 /// action and the target's kind) and as target (the action and the actor's kind). An
 /// entity keeps its name when it plays one role in every demonstration and no other

@@ -28,12 +28,10 @@
 //   loss            sum of the mean cross-entropies of action, target (the scene variant:
 //                   over the entities that act) and END; Adam with the gradient norm
 //                   clipped at 1; mini-batches of whole demonstrations in a seeded order.
-//   identity        scene: when the network with the identity embedding stops short of
-//                   step accuracy 1 on its training demonstrations, one without it is
-//                   trained too and kept if it fits them better (docs/tgn.md).
-//   shuffled names  scene, with the relative features: each training demonstration of a
-//                   mini-batch permutes the identity embeddings among the entities whose
-//                   roles the scene decides (detail::interchangeableNames; docs/tgn.md).
+//   plan            what the demonstrations decide about training (fixed order, names
+//                   shuffled, token by token, parked entities, step rules, attention
+//                   edges, the identity embedding kept or not) is a TrainingPlan,
+//                   computed once by planTraining and recorded apart from the options.
 //   stopping        at `max_epochs`, or at a plateau: the best loss of the last
 //                   `plateau_patience` epochs differs by less than `plateau_delta` from the
 //                   best loss of the `plateau_patience` epochs before them, and the last
@@ -46,11 +44,11 @@
 
 #include <cstdint>
 #include <iosfwd>
+#include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
-
-#include <map>
 
 #include "ddace/graph/refinement.h"
 #include "ddace/task/fingerprint.h"
@@ -65,9 +63,10 @@ namespace ddace::tgn {
 /// names (`shuffle_names`); /7: whether it decides a step token by token
 /// (`token_by_token`) and keeps parked entities out of the nearness ranks
 /// (`parked_out_of_ranks`); /8: the scene network's relational basis (farness ranks, axis
-/// orders, the last step) and the carried loads among the step rules. Older ones are
-/// refused (retrain): their networks see another basis.
-inline constexpr const char* kModelFormat = "ddace-model/8";
+/// orders, the last step) and the carried loads among the step rules; /9: what training
+/// decided (TrainingPlan, `plan`) apart from the requested `hyper_parameters` (the rules
+/// switched off: `without`). Older ones are refused (retrain).
+inline constexpr const char* kModelFormat = "ddace-model/9";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {
@@ -94,6 +93,24 @@ AttentionKind attentionFromString(const std::string& name);
 /// than this machine has cores only slow tiny tensors down).
 inline constexpr int kMaxThreads = 64;
 
+/// The scene network's learning rules (docs/tgn.md: what each does, why, its test), each
+/// on unless switched off by name with `ddace train --without LIST`.
+enum class Rule {
+  Relative,       ///< "relative": the relative edge features at all
+  FixedOrder,     ///< "fixed-order": drop them when every demonstration has the same steps
+  ShuffledNames,  ///< "shuffled-names": permute interchangeable names' embeddings in training
+  TokenByToken,   ///< "token-by-token": decide a step's targets one token at a time
+  Parked,         ///< "parked": parked entities are no rivals in the nearness ranks
+};
+const char* toString(Rule r);
+/// Throws ddace::Error listing the names for an unknown one.
+Rule ruleFromString(const std::string& name);
+std::vector<Rule> allRules();
+/// A comma-separated list of rule names ("" is none); throws ddace::Error naming a bad one.
+std::set<Rule> rulesFromList(const std::string& list);
+
+/// What the user asked of training (hyper-parameters, seed, rules switched off); what the
+/// demonstrations decide is the TrainingPlan.
 struct TrainOptions {
   Variant variant = Variant::Scene;
   int max_epochs = 400;
@@ -103,39 +120,17 @@ struct TrainOptions {
   int gat_layers = 3;
   int gru_layers = 2;
   int gru_hidden = 64;
-  bool identity_embedding = true;  ///< learned per-entity embedding concatenated to (x, y)
+  bool identity_embedding = true;  ///< learned per-entity embedding (training may still drop it: TrainingPlan)
   int identity_dim = 8;
   AttentionKind attention = AttentionKind::GatV2;  ///< scene variant
   int head_hidden = 32;                            ///< scene variant: hidden units of the action and pointer heads
   bool node_positions = false;                     ///< scene variant: absolute (x, y) among the node features
   bool edge_displacement = false;                  ///< scene variant: x_j - x_i among the edge features (else only
                                                    ///< distance and nearness ranks: invariant to rotating the scene)
-  /// Scene variant: the relative edge features at all. Off, a decision depends on the
-  /// entities' names and kinds and on the steps so far, never on the configuration.
-  bool relative_features = true;
-  /// Scene variant, training only: when every training demonstration has the same steps
-  /// (the scene decided nothing in them), train with relative_features off (docs/tgn.md,
-  /// "Fixed order"). The manifest records the outcome in relative_features.
-  bool fixed_order_rule = true;
-  /// Scene variant with the relative features, training only, when the demonstrations'
-  /// steps vary (not on a fixed order): every demonstration of a mini-batch gives the
-  /// entities whose names are interchangeable
-  /// (detail::interchangeableNames) a random permutation of their identity embeddings,
-  /// so that a name cannot stand in for the scene (docs/tgn.md, "Shuffled names"). The
-  /// manifest records the outcome: true only when some names were shuffled.
-  bool shuffle_names = true;
-  /// Scene variant with the relative features, when every training step's targets were
-  /// exclusive (StepRules::exclusive_targets) and some step had several tokens: a step is
-  /// decided one token at a time, each conditioned on those already chosen (their targets
-  /// taken, their entities out of the nearness ranks), and trained so, with a random part
-  /// of each step's tokens given (docs/tgn.md, "Token by token"). The manifest records
-  /// the outcome: true only when training did so (predictNext then decodes so).
-  bool token_by_token = true;
-  /// Scene variant with the relative features: an entity at one place with another (within
-  /// kTogetherRadii arrival radii: a robot on the goal it drove to, a box picked up) is no
-  /// rival in the others' nearness ranks (docs/tgn.md, "Parked entities"). The manifest
-  /// records it (false for a model without the relative features, and for /5 and /6 ones).
-  bool parked_out_of_ranks = true;
+  /// The learning rules the user switched off (`ddace train --without LIST`); each is on
+  /// by default. What each decides is computed from the demonstrations by planTraining.
+  std::set<Rule> without;
+  bool uses(Rule r) const { return without.count(r) == 0; }
   double weight_decay = 0;  ///< Adam's L2 penalty (as torch.optim.Adam's weight_decay)
   double dropout = 0.1;
   double learning_rate = 5e-3;
@@ -189,6 +184,47 @@ struct StepRules {
   }
 };
 
+/// What the training demonstrations decide about training, computed once from them and the
+/// request (planTraining) and recorded in the manifest apart from the TrainOptions. Every
+/// enabling condition of a rule is stated there and nowhere else: the trainer, the network
+/// and the decoder read the plan. Entity indices in the task's order.
+struct TrainingPlan {
+  /// Every demonstration has the same steps but for `slips` labelling slips (task::commonSteps).
+  bool fixed_order = false;
+  int slips = 0;
+  /// Scene: the network sees the relative edge features (off on a fixed order: "Fixed order").
+  bool relative_features = false;
+  /// Scene: the network has the identity embedding (dropped when the network without it fit
+  /// the training demonstrations better: "Names or the scene").
+  bool identity_embedding = false;
+  /// Scene: "Names or the scene" may try the network without the identity embedding: only
+  /// where no name alone tells an entity from another of its kind (every entity of a kind
+  /// with several is in a name group); else the names say what no scene can (queue's slots).
+  bool names_or_scene = false;
+  /// Scene: the groups whose identity embeddings training permutes ("Shuffled names";
+  /// detail::interchangeableNames), each ascending.
+  std::vector<std::vector<int>> name_groups;
+  /// Scene: a step's targets are decided one token at a time and trained so ("Token by token").
+  bool token_by_token = false;
+  /// Scene: an entity at one place with another is no rival in the ranks ("Parked entities").
+  bool parked_out_of_ranks = false;
+  StepRules step_rules;                      ///< scene: learned from the training steps; else none
+  std::vector<graph::Edge> attention_edges;  ///< directed edges the network attends over (no self-loops)
+  /// The same plan for the network without the identity embedding (no names to shuffle).
+  TrainingPlan withoutIdentity() const;
+  bool operator==(const TrainingPlan& o) const {
+    return fixed_order == o.fixed_order && slips == o.slips && relative_features == o.relative_features &&
+           identity_embedding == o.identity_embedding && names_or_scene == o.names_or_scene &&
+           name_groups == o.name_groups && token_by_token == o.token_by_token &&
+           parked_out_of_ranks == o.parked_out_of_ranks && step_rules == o.step_rules &&
+           attention_edges == o.attention_edges;
+  }
+};
+
+/// The plan of training `options.variant` on `train` whose E' is `refined` (the one place
+/// where the demonstrations decide which rules apply). Throws ddace::Error for bad options.
+TrainingPlan planTraining(const task::TaskDir& train, const TrainOptions& options, const graph::RefinedGraph& refined);
+
 struct Prediction {
   bool end = false;
   double end_probability = 0;
@@ -206,16 +242,15 @@ struct FileDigest {
 struct ModelInfo {
   std::string format = kModelFormat;  ///< of the manifest it was read from (an older one is read too)
   Variant variant = Variant::Scene;
-  TrainOptions options;                      ///< hyper-parameters and seed used
+  TrainOptions options;                      ///< what the user asked (hyper-parameters, seed, rules off)
+  TrainingPlan plan;                         ///< what the demonstrations decided
   std::vector<std::string> vocabulary;       ///< actions; class 0 of the action head is idle
   graph::RefinedGraph refined;               ///< the spectral refinement (ddace; computed for all variants)
-  std::vector<graph::Edge> attention_edges;  ///< directed edges the GAT attends over (no self-loops)
   double mean[2] = {0, 0}, std[2] = {1, 1};  ///< position normalisation, metres
   double delta_std[2] = {1, 1};              ///< gnn: displacement normalisation, metres per frame
   double frame_dt_s = 0.05;                  ///< gnn: time between rolled-out frames
   std::vector<EpochRecord> history;          ///< loss per epoch
   std::string stop_reason;                   ///< "plateau" or "max_epochs"
-  StepRules step_rules;                      ///< scene: learned from the training steps; else none
   task::TaskFingerprint fingerprint;         ///< of the training directory (task.yaml and demos)
   /// The files the manifest binds by digest, by name in the model directory (task.yaml,
   /// weights.pt, loss.csv and, but for gnn, primitives.yaml). Filled by load().

@@ -80,18 +80,20 @@ task::Demonstration humanMotion(const task::Demonstration& clean, const task::Ta
     for (const auto& s : clean.segments)
       if (s.step == static_cast<int>(k)) segs.push_back(&s);
     std::vector<Moved> moved;
-    std::vector<int> leader;  // [moved] index of the motion it follows (a load), or -1
+    std::vector<int> leader;                // [moved] index of the motion it follows (a load), or -1
+    std::vector<task::Token> moved_tokens;  // [moved]
     for (const auto* s : segs) {
       if (!s->token.isMotion()) continue;
       auto path = clean.segmentPath(*s);
       if ((path.back() - path.front()).norm() < 1e-3) continue;
       Moved mv{s->token.entity, path, 0, 0, 0, 0};
+      // A load moves with its carrier (task::carriedLoad: a robot of the step with the same
+      // action and target; its path runs in front of the carrier's, docs/task-format.md).
       int follows = -1;
       if (spec.entities[mv.entity].kind == task::EntityKind::Object)
         for (size_t j = 0; j < moved.size(); ++j)
           if (spec.entities[moved[j].entity].kind == task::EntityKind::Robot &&
-              (moved[j].path.front() - path.front()).norm() < 1e-3 &&
-              (moved[j].path.back() - path.back()).norm() < 1e-3)
+              moved_tokens[j].action == s->token.action && moved_tokens[j].target == s->token.target)
             follows = static_cast<int>(j);
       const double generated = clean.t[s->last_row] - clean.t[s->first_row];
       if (follows >= 0) {
@@ -104,6 +106,7 @@ task::Demonstration humanMotion(const task::Demonstration& clean, const task::Ta
           mv.pause_at = rng.uniform(0.3, 0.7), mv.pause = rng.uniform(o.pause_min_s, o.pause_max_s);
       }
       moved.push_back(mv);
+      moved_tokens.push_back(s->token);
       leader.push_back(follows);
     }
     // The first motion starts the step.

@@ -44,7 +44,21 @@ EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, 
     std::vector<task::Token> step = {{mover, "move", target}};
     if (load >= 0 && load != target) step.push_back({load, "move", target});
     const Vector2d rule = task::endPointFrom(start, where[c], task::endOffset(spec, bodies, step, 0));
-    const double residual = std::min(d, (end - rule).norm());
+    double residual = std::min(d, (end - rule).norm());
+    // Two weaker readings, half the arrival radius worse than a perfect one (so the rule's
+    // reading decides ties), of where a body already stood (generators.h, stepEndPositions):
+    // touching an obstacle target from another side, or stopped on the way short of a goal
+    // by up to the mover's diameter, touching the body on it.
+    const task::Footprint mover_body = spec.footprint(mover);
+    if (const double contact = contactDistance(spec, mover, target); contact > 0 && load < 0) {
+      // Touching is tight: within a quarter of the arrival radius (7.5 mm by default, five
+      // times the tracker's noise), so a body it merely passed close to is not read.
+      if (std::abs(d - contact) <= r / 4) residual = std::min(residual, std::abs(d - contact) + r / 2);
+    } else if (!spec.footprint(target).obstacle && load < 0 && (where[c] - start).norm() > task::kMinApproachM) {
+      const Vector2d u = (where[c] - start).normalized();
+      const double along = std::clamp((where[c] - end).dot(u), 0.0, 2 * mover_body.radius_m);
+      residual = std::min(residual, (end - (where[c] - along * u)).norm() + r / 2);
+    }
     if (residual <= r) arrived.push_back({residual, target});
   }
   if (arrived.empty()) return ep;

@@ -17,28 +17,7 @@ namespace {
 using Eigen::Vector2d;
 using task::EntityKind;
 
-/// A path shape in the canonical frame: f(0) = (0,0), f(1) = (1,0).
-struct Shape {
-  enum Kind { Straight, Arc, SCurve, Spiral } kind = Straight;
-  double amplitude = 0;  ///< fraction of the start-goal distance
-
-  Vector2d at(double u, double a) const {
-    switch (kind) {
-      case Straight:
-        return {u, 0};
-      case Arc:
-        return {u, a * std::sin(M_PI * u)};
-      case SCurve:
-        return {u, a * std::sin(2 * M_PI * u)};
-      case Spiral: {
-        // A loop and a half whose radius swells and vanishes: a spiral-like path.
-        const double r = a * std::sin(M_PI * u), th = 3 * M_PI * u;
-        return {u + r * std::sin(th), r * (1 - std::cos(th))};
-      }
-    }
-    return {u, 0};
-  }
-};
+using Shape = PathShape;
 
 /// One token of a planned step; target empty = in-place action.
 struct Move {
@@ -52,10 +31,6 @@ struct Plan {
   double layout_jitter = 0.06;             ///< uniform +- per coordinate, metres
   std::vector<std::vector<Move>> steps;
 };
-
-constexpr double kSpeed = 0.15;           // m/s, nominal robot speed
-constexpr double kMinStepDuration = 1.0;  // s
-constexpr int kIdleRowsBefore = 4, kIdleRowsBetween = 3, kIdleRowsAfter = 4;
 
 void addEntity(Plan& p, const std::string& name, EntityKind kind, const std::string& type, Vector2d where) {
   p.spec.entities.push_back({name, kind, type});
@@ -373,29 +348,6 @@ double micrometres(double v) {
   return std::strtod(buf, nullptr);
 }
 
-double smoothstep(double s) {
-  return s * s * (3 - 2 * s);
-}
-
-/// The path of a motion from `from` to `to` with `shape` and amplitude `a`, at progress u.
-Vector2d pathPoint(const Shape& shape, double a, const Vector2d& from, const Vector2d& to, double u) {
-  const Vector2d d = to - from;
-  const Vector2d c = shape.at(u, a);
-  const Vector2d perp(-d.y(), d.x());
-  return from + c.x() * d + c.y() * perp;
-}
-
-double pathLength(const Shape& shape, double a, const Vector2d& from, const Vector2d& to) {
-  double len = 0;
-  Vector2d prev = from;
-  for (int i = 1; i <= 200; ++i) {
-    const Vector2d q = pathPoint(shape, a, from, to, i / 200.0);
-    len += (q - prev).norm();
-    prev = q;
-  }
-  return len;
-}
-
 /// One demonstration of `plan`. Onset jitter delays each token's label (not its motion)
 /// by a whole number of rows, drawn from `onset_rng` in [0, onset_jitter_s) seconds.
 task::Demonstration simulate(const Plan& plan, SplitMix64& rng, double jitter_m, double onset_jitter_s,
@@ -403,80 +355,65 @@ task::Demonstration simulate(const Plan& plan, SplitMix64& rng, double jitter_m,
   const auto& spec = plan.spec;
   const size_t m = spec.entities.size();
   std::vector<Vector2d> pos(m);
-  // Entities sharing a template position (cargo on its robot) keep sharing it.
-  std::map<std::pair<double, double>, Vector2d> placed;
+  // Entities sharing a template position (cargo on its robot) start together: the later
+  // one in front of the first, at their contact distance, toward its own first target.
+  std::map<std::pair<double, double>, int> first_at;
+  std::vector<int> rides_on(m, -1);
   for (size_t e = 0; e < m; ++e) {
     const Vector2d base = plan.layout.at(spec.entities[e].name);
-    auto key = std::make_pair(base.x(), base.y());
-    auto it = placed.find(key);
-    if (it == placed.end()) {
-      Vector2d p = base;
-      if (plan.layout_jitter > 0) p += Vector2d(rng.uniform(-1, 1), rng.uniform(-1, 1)) * plan.layout_jitter;
-      p = p.cwiseMax(0.03).cwiseMin(kTableSize - 0.03);
-      it = placed.emplace(key, p).first;
+    const auto key = std::make_pair(base.x(), base.y());
+    if (auto it = first_at.find(key); it != first_at.end()) {
+      rides_on[e] = it->second;
+      continue;
     }
-    pos[e] = it->second;
+    Vector2d p = base;
+    if (plan.layout_jitter > 0) p += Vector2d(rng.uniform(-1, 1), rng.uniform(-1, 1)) * plan.layout_jitter;
+    pos[e] = p.cwiseMax(0.03).cwiseMin(kTableSize - 0.03);
+    first_at.emplace(key, static_cast<int>(e));
+  }
+  for (size_t e = 0; e < m; ++e) {
+    if (rides_on[e] < 0) continue;
+    const Vector2d carrier = pos[static_cast<size_t>(rides_on[e])];
+    Vector2d toward(1, 0);
+    for (const auto& step : plan.steps) {
+      const auto mv = std::find_if(step.begin(), step.end(), [&](const Move& x) {
+        return x.entity == spec.entities[e].name && !x.target.empty();
+      });
+      if (mv == step.end()) continue;
+      const Vector2d d = pos[static_cast<size_t>(spec.entityIndex(mv->target))] - carrier;
+      if (d.norm() > 1e-9) toward = d.normalized();
+      break;
+    }
+    pos[e] = carrier + spec.contactDistance(static_cast<int>(e), rides_on[e]) * toward;
   }
 
-  task::Demonstration d;
-  d.has_label_columns.assign(m, false);
-  for (const auto& step : plan.steps)
-    for (const auto& mv : step) d.has_label_columns[spec.entityIndex(mv.entity)] = true;
-
-  const std::vector<task::Label> idle(m);
-  auto emit = [&](const std::vector<task::Label>& labels) {
-    d.t.push_back(static_cast<double>(d.t.size()) / kGeneratorRateHz);
-    d.positions.push_back(pos);
-    d.labels.push_back(labels);
-  };
-  for (int i = 0; i < kIdleRowsBefore; ++i) emit(idle);
-
-  for (size_t s = 0; s < plan.steps.size(); ++s) {
-    const auto& step = plan.steps[s];
-    struct Active {
-      int entity;
-      Vector2d from, to;
-      Shape shape;
-      double a;
-    };
-    std::vector<Active> moving;
-    std::vector<task::Label> labels(m);
-    std::vector<int> onset_rows(m, 0);
-    double longest = 0;
+  std::vector<PlannedStep> steps;
+  for (const auto& step : plan.steps) {
+    steps.emplace_back();
     for (const auto& mv : step) {
-      const int e = spec.entityIndex(mv.entity);
-      labels[e].action = mv.action;
+      PlannedToken pt;
+      pt.token.entity = spec.entityIndex(mv.entity);
+      pt.token.action = mv.action;
       // floor: the label's lag never exceeds the drawn delay, so it stays below step_window_s.
       if (onset_jitter_s > 0)
-        onset_rows[e] = static_cast<int>(std::floor(onset_rng.uniform(0, onset_jitter_s) * kGeneratorRateHz));
-      if (mv.target.empty()) continue;
-      labels[e].target = spec.entityIndex(mv.target);
-      // Small per-demonstration variation of the shape: demonstrations are never identical.
-      const double a = mv.shape.amplitude * (1 + 0.05 * rng.uniform(-1, 1));
-      moving.push_back({e, pos[e], pos[labels[e].target], mv.shape, a});
-      longest = std::max(longest, pathLength(mv.shape, a, pos[e], pos[labels[e].target]));
+        pt.label_delay_rows = static_cast<int>(std::floor(onset_rng.uniform(0, onset_jitter_s) * kGeneratorRateHz));
+      if (!mv.target.empty()) {
+        pt.token.target = spec.entityIndex(mv.target);
+        // Small per-demonstration variation of the shape: demonstrations are never identical.
+        pt.shape = {mv.shape.kind, mv.shape.amplitude * (1 + 0.05 * rng.uniform(-1, 1))};
+      }
+      steps.back().push_back(pt);
     }
-    // All tokens of a step end together (step-synchronous demonstrations).
-    const double duration = std::max(kMinStepDuration, longest / kSpeed);
-    const int n = static_cast<int>(std::ceil(duration * kGeneratorRateHz));
-    std::vector<task::Label> row_labels(m);
-    for (int j = 0; j <= n; ++j) {
-      const double u = smoothstep(static_cast<double>(j) / n);
-      for (const auto& mv : moving) pos[mv.entity] = pathPoint(mv.shape, mv.a, mv.from, mv.to, u);
-      for (size_t e = 0; e < m; ++e) row_labels[e] = j >= onset_rows[e] ? labels[e] : task::Label{};
-      emit(row_labels);
-    }
-    const int gap = s + 1 < plan.steps.size() ? kIdleRowsBetween : kIdleRowsAfter;
-    for (int i = 0; i < gap; ++i) emit(idle);
   }
-
-  if (jitter_m > 0)
+  task::Demonstration d = simulateSteps(spec, pos, steps);
+  if (jitter_m > 0) {
     for (auto& row : d.positions)
-      for (auto& p : row) p += Vector2d(rng.normal(), rng.normal()) * jitter_m;
-  // Positions in whole micrometres, exactly the values a file holds: a demonstration in
-  // memory equals the one read back, and the files keep their six decimals.
-  for (auto& row : d.positions)
-    for (auto& p : row) p = {micrometres(p.x()), micrometres(p.y())};
+      for (auto& p : row) {
+        p += Vector2d(rng.normal(), rng.normal()) * jitter_m;
+        // Positions in whole micrometres, exactly the values a file holds.
+        p = {micrometres(p.x()), micrometres(p.y())};
+      }
+  }
   return d;
 }
 

@@ -18,9 +18,6 @@ using Eigen::Vector2d;
 using task::EntityKind;
 
 constexpr int kMaxAttempts = 200000;
-constexpr double kSpeed = 0.15;           // m/s, the generators' nominal robot speed
-constexpr double kMinStepDuration = 1.0;  // s
-constexpr int kIdleRowsBefore = 4, kIdleRowsBetween = 3, kIdleRowsAfter = 4;
 constexpr int kMaxEntities = 10;
 
 /// A referring expression: which entity of a set of candidates.
@@ -205,10 +202,11 @@ task::TaskSpec zooSpec(const ZooRule& z) {
 }
 
 /// Decides the steps of a rule on one start configuration, moving the entities as it goes
-/// (a motion ends at its target's position at the start of the step).
+/// (a motion ends where the demonstration ends it: stepEndPositions, generators.h).
 class Decider {
  public:
-  Decider(const Rule& rule, std::vector<Vector2d> start) : rule_(rule), pos_(std::move(start)) {
+  Decider(const task::TaskSpec& spec, const Rule& rule, std::vector<Vector2d> start)
+      : spec_(spec), rule_(rule), pos_(std::move(start)) {
     const ZooRule& z = rule.info;
     for (int i = 0; i < z.robots; ++i) robots_.push_back(i);
     for (int i = 0; i < z.objects; ++i) boxes_.push_back(z.robots + i);
@@ -292,12 +290,12 @@ class Decider {
 
   void step(std::vector<Move> moves) { steps_.push_back(std::move(moves)); }
   void add(int entity, const std::string& action, int target) { steps_.back().push_back({entity, action, target}); }
-  /// Applies the last step's motions: each entity ends where its target was.
+  /// Applies the last step's motions: each entity ends where the demonstration ends it.
   void finish() {
     if (steps_.empty() || applied_ == steps_.size()) return;
-    std::vector<Vector2d> next = pos_;
-    for (const auto& m : steps_.back()) next[m.entity] = pos_[m.target];
-    pos_ = next;
+    std::vector<task::Token> tokens;
+    for (const auto& m : steps_.back()) tokens.push_back({m.entity, m.action, m.target});
+    pos_ = stepEndPositions(spec_, pos_, tokens);
     applied_ = steps_.size();
   }
 
@@ -345,6 +343,7 @@ class Decider {
     return out;
   }
 
+  const task::TaskSpec& spec_;
   const Rule& rule_;
   std::vector<Vector2d> pos_;
   std::vector<int> robots_, boxes_, goals_;
@@ -352,56 +351,14 @@ class Decider {
   size_t applied_ = 0;
 };
 
-/// `v` rounded to six decimals as printf rounds it (the digits a file holds), read back.
-double micrometres(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6f", v);
-  return std::strtod(buf, nullptr);
-}
-
-double smoothstep(double s) {
-  return s * s * (3 - 2 * s);
-}
-
-/// One demonstration: straight motions, the tokens of a step starting and ending together.
-task::Demonstration simulate(const task::TaskSpec& spec, std::vector<Vector2d> pos, const Steps& steps) {
-  const size_t m = pos.size();
-  task::Demonstration d;
-  d.has_label_columns.assign(m, false);
-  for (const auto& step : steps)
-    for (const auto& mv : step) d.has_label_columns[mv.entity] = true;
-  auto emit = [&](const std::vector<task::Label>& labels) {
-    d.t.push_back(static_cast<double>(d.t.size()) / kGeneratorRateHz);
-    std::vector<Vector2d> row(m);
-    for (size_t e = 0; e < m; ++e) row[e] = {micrometres(pos[e].x()), micrometres(pos[e].y())};
-    d.positions.push_back(row);
-    d.labels.push_back(labels);
-  };
-  const std::vector<task::Label> idle(m);
-  for (int i = 0; i < kIdleRowsBefore; ++i) emit(idle);
-  for (size_t s = 0; s < steps.size(); ++s) {
-    std::vector<task::Label> labels(m);
-    std::vector<Vector2d> from = pos, to = pos;
-    double longest = 0;
-    for (const auto& mv : steps[s]) {
-      labels[mv.entity].action = mv.action;
-      labels[mv.entity].target = mv.target;
-      to[mv.entity] = pos[mv.target];
-      longest = std::max(longest, (to[mv.entity] - from[mv.entity]).norm());
-    }
-    const double duration = std::max(kMinStepDuration, longest / kSpeed);
-    const int n = static_cast<int>(std::ceil(duration * kGeneratorRateHz));
-    for (int j = 0; j <= n; ++j) {
-      const double u = smoothstep(static_cast<double>(j) / n);
-      for (const auto& mv : steps[s]) pos[mv.entity] = from[mv.entity] + u * (to[mv.entity] - from[mv.entity]);
-      emit(labels);
-    }
-    const int gap = s + 1 < steps.size() ? kIdleRowsBetween : kIdleRowsAfter;
-    for (int i = 0; i < gap; ++i) emit(idle);
+/// The planned steps of `steps`: straight motions (the generators' motion, generators.h).
+std::vector<PlannedStep> planned(const Steps& steps) {
+  std::vector<PlannedStep> out;
+  for (const auto& step : steps) {
+    out.emplace_back();
+    for (const auto& mv : step) out.back().push_back({{mv.entity, mv.action, mv.target}, {}, 0});
   }
-  d.step_window_s = spec.step_window_s;
-  d.analyze();
-  return d;
+  return out;
 }
 
 }  // namespace
@@ -450,8 +407,8 @@ task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed) {
         for (size_t y = x + 1; y < m && apart; ++y) apart = (start[x] - start[y]).norm() >= kSceneMinSeparation;
       if (!apart) continue;
       Steps steps;
-      if (!Decider(rule, start).decide(steps)) continue;
-      dir.demos.push_back(simulate(dir.spec, start, steps));
+      if (!Decider(dir.spec, rule, start).decide(steps)) continue;
+      dir.demos.push_back(simulateSteps(dir.spec, start, planned(steps)));
       found = true;
     }
     if (!found)

@@ -15,7 +15,7 @@ using torch::Tensor;
 
 void writeTrainingTensors(const task::TaskDir& train, const TrainOptions& options, const std::string& path) {
   // The network SequenceModel::train runs on `train` (the "Fixed order" rule included).
-  auto impl = prepare(train, withFixedOrderRule(train, options));
+  auto impl = prepare(train, options);
   impl->build();
   const std::vector<Sequence> seqs = impl->sequences(train.demos);
   std::ostringstream out;
@@ -23,7 +23,7 @@ void writeTrainingTensors(const task::TaskDir& train, const TrainOptions& option
   out << "# ddace tgn training tensors (keyframe variants); read by bench/tgn_train_reference.py\n";
   out << "variant " << toString(impl->info.variant) << "\n";
   // Without them (scene, "Fixed order") rel is all zero and the heads read each entity's input too.
-  out << "relative_features " << (impl->info.options.relative_features ? 1 : 0) << "\n";
+  out << "relative_features " << (impl->info.plan.relative_features ? 1 : 0) << "\n";
   out << "nodes " << c.nodes << "\nactions " << c.actions << "\ntargets " << c.targets << "\nfeatures " << c.features
       << "\ndemos " << seqs.size() << "\nmask";
   const Tensor mask =

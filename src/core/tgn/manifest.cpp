@@ -56,6 +56,46 @@ AttentionKind attentionFromString(const std::string& name) {
   throw Error("attention '" + name + "' is not one of gatv2, gat");
 }
 
+namespace {
+
+const std::pair<Rule, const char*> kRuleNames[] = {
+    {Rule::Relative, "relative"},           {Rule::FixedOrder, "fixed-order"}, {Rule::ShuffledNames, "shuffled-names"},
+    {Rule::TokenByToken, "token-by-token"}, {Rule::Parked, "parked"},
+};
+
+}  // namespace
+
+const char* toString(Rule r) {
+  for (const auto& [rule, name] : kRuleNames)
+    if (rule == r) return name;
+  return "?";
+}
+
+std::vector<Rule> allRules() {
+  std::vector<Rule> out;
+  for (const auto& [rule, name] : kRuleNames) out.push_back(rule);
+  return out;
+}
+
+Rule ruleFromString(const std::string& name) {
+  std::string names;
+  for (const auto& [rule, n] : kRuleNames) {
+    if (name == n) return rule;
+    names += std::string(names.empty() ? "" : ", ") + n;
+  }
+  throw Error("'" + name + "' is not a learning rule (" + names + ")");
+}
+
+std::set<Rule> rulesFromList(const std::string& list) {
+  std::set<Rule> out;
+  for (size_t from = 0; !list.empty() && from <= list.size();) {
+    const size_t comma = std::min(list.find(',', from), list.size());
+    out.insert(ruleFromString(list.substr(from, comma - from)));
+    from = comma + 1;
+  }
+  return out;
+}
+
 void TrainOptions::validate() const {
   auto bad = [](const std::string& what) { throw Error("train option " + what); };
   if (max_epochs < 1) bad("max_epochs: must be at least 1");
@@ -129,11 +169,6 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   task::emitFingerprint(y, info.fingerprint);
   y << YAML::Key << "epochs" << YAML::Value << info.history.size();
   y << YAML::Key << "stop_reason" << YAML::Value << info.stop_reason;
-  y << YAML::Key << "step_rules" << YAML::Value << YAML::Flow << YAML::BeginMap;
-  y << YAML::Key << "exclusive_targets" << YAML::Value << info.step_rules.exclusive_targets;
-  y << YAML::Key << "step_size" << YAML::Value << info.step_rules.step_size;
-  y << YAML::Key << "load_actions" << YAML::Value << YAML::Flow << info.step_rules.load_actions;
-  y << YAML::EndMap;
   y << YAML::Key << "entities" << YAML::Value << YAML::Flow << spec.entityNames();
   y << YAML::Key << "vocabulary" << YAML::Value << YAML::Flow << info.vocabulary;
   y << YAML::Key << "hyper_parameters" << YAML::Value << YAML::BeginMap;
@@ -149,10 +184,9 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   y << YAML::Key << "head_hidden" << YAML::Value << o.head_hidden;
   y << YAML::Key << "node_positions" << YAML::Value << o.node_positions;
   y << YAML::Key << "edge_displacement" << YAML::Value << o.edge_displacement;
-  y << YAML::Key << "relative_features" << YAML::Value << o.relative_features;
-  y << YAML::Key << "shuffle_names" << YAML::Value << o.shuffle_names;
-  y << YAML::Key << "token_by_token" << YAML::Value << o.token_by_token;
-  y << YAML::Key << "parked_out_of_ranks" << YAML::Value << o.parked_out_of_ranks;
+  std::vector<std::string> without;
+  for (Rule rule : o.without) without.push_back(toString(rule));
+  y << YAML::Key << "without" << YAML::Value << YAML::Flow << without;
   y << YAML::Key << "weight_decay" << YAML::Value << o.weight_decay;
   y << YAML::Key << "dropout" << YAML::Value << o.dropout;
   y << YAML::Key << "learning_rate" << YAML::Value << o.learning_rate;
@@ -193,15 +227,38 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   }
   y << YAML::EndSeq;
   y << YAML::EndMap;
+  const TrainingPlan& plan = info.plan;
+  y << YAML::Key << "plan" << YAML::Value << YAML::BeginMap;
+  y << YAML::Key << "fixed_order" << YAML::Value << plan.fixed_order;
+  y << YAML::Key << "slips" << YAML::Value << plan.slips;
+  y << YAML::Key << "relative_features" << YAML::Value << plan.relative_features;
+  y << YAML::Key << "identity_embedding" << YAML::Value << plan.identity_embedding;
+  y << YAML::Key << "names_or_scene" << YAML::Value << plan.names_or_scene;
+  y << YAML::Key << "name_groups" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+  for (const auto& g : plan.name_groups) {
+    std::vector<std::string> names;
+    for (int e : g) names.push_back(name(e));
+    y << YAML::Flow << names;
+  }
+  y << YAML::EndSeq;
+  y << YAML::Key << "token_by_token" << YAML::Value << plan.token_by_token;
+  y << YAML::Key << "parked_out_of_ranks" << YAML::Value << plan.parked_out_of_ranks;
+  y << YAML::Key << "step_rules" << YAML::Value << YAML::Flow << YAML::BeginMap;
+  y << YAML::Key << "exclusive_targets" << YAML::Value << plan.step_rules.exclusive_targets;
+  y << YAML::Key << "step_size" << YAML::Value << plan.step_rules.step_size;
+  y << YAML::Key << "load_actions" << YAML::Value << YAML::Flow << plan.step_rules.load_actions;
+  y << YAML::EndMap;
   y << YAML::Key << "attention_edges" << YAML::Value << YAML::BeginSeq;
-  for (const auto& e : info.attention_edges)
+  for (const auto& e : plan.attention_edges)
     y << YAML::Flow << std::vector<std::string>{name(e.source), name(e.target)};
   y << YAML::EndSeq;
+  y << YAML::EndMap;
   y << YAML::EndMap;
   const std::string body =
       std::string("# ddace model manifest (") + kModelFormat +
       "): written by `ddace train`, read by `ddace inspect` and the sequence node.\n"
-      "# E' is refinement.edges with a 'kept' decision; attention_edges is what the network\n"
+      "# hyper_parameters: what the user asked; plan: what the demonstrations decided (docs/tgn.md).\n"
+      "# E' is refinement.edges with a 'kept' decision; plan.attention_edges is what the network\n"
       "# attends over (paper: E'; scene: E' lifted to entity kinds; full-graph, gnn: every pair),\n"
       "# made symmetric. files: size and SHA-256 of each file; the last line is the SHA-256 of\n"
       "# everything before it. Do not edit: any change is refused.\n" +
@@ -337,7 +394,8 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
     if (numeric && std::stoi(version) < std::stoi(own)) {
       const int v = std::stoi(version);
       r.fail(format_node, "format '" + format + "' is an older model format than " + kModelFormat +
-                              " (its scene network saw another relational basis" +
+                              " (its manifest records no training plan" +
+                              (v < 8 ? ", its scene network saw another relational basis" : "") +
                               (v < 4 ? ", the step rules learned from the demonstrations" : "") +
                               (v < 3 ? ", and its files are not bound by digests to the model and its task" : "") +
                               "): retrain the model (ddace train)");
@@ -413,16 +471,6 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     info.options.variant = info.variant;
     info.options.seed = r.count(root, "seed");
     info.stop_reason = r.text(root, "stop_reason");
-    {
-      const YAML::Node rules = r.need(root, "step_rules");
-      info.step_rules.exclusive_targets = r.boolean(rules, "exclusive_targets");
-      const int n = static_cast<int>(spec.entities.size());
-      info.step_rules.step_size = static_cast<int>(
-          r.integerAt(r.need(rules, "step_size"), "step_rules: step_size (at most the entities)", 0, n));
-      info.step_rules.load_actions = r.texts(rules, "load_actions");
-      if (info.variant != Variant::Scene && (info.step_rules.any() || !info.step_rules.load_actions.empty()))
-        r.fail(rules, "step_rules are learned for the scene variant only (the others decode each entity on its own)");
-    }
     info.files = parseFiles(r, root);
     info.fingerprint = task::parseFingerprint(r.need(root, "task_fingerprint"), path);
     for (const std::string& d : task::fingerprintDifferences(info.fingerprint, task::fingerprintOf(spec)))
@@ -439,9 +487,6 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
       if (info.vocabulary.empty() || sorted != info.fingerprint.vocabulary ||
           std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
         r.fail(root["vocabulary"], "vocabulary does not match task_fingerprint.vocabulary");
-      for (const std::string& a : info.step_rules.load_actions)
-        if (std::find(sorted.begin(), sorted.end(), a) == sorted.end())
-          r.fail(root["step_rules"], "step_rules: load_actions names '" + a + "', not an action of the vocabulary");
     }
 
     const YAML::Node hp = r.need(root, "hyper_parameters");
@@ -462,17 +507,13 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     o.head_hidden = r.integer(hp, "head_hidden");
     o.node_positions = r.boolean(hp, "node_positions");
     o.edge_displacement = r.boolean(hp, "edge_displacement");
-    o.relative_features = r.boolean(hp, "relative_features");
-    o.shuffle_names = r.boolean(hp, "shuffle_names");
-    o.token_by_token = r.boolean(hp, "token_by_token");
-    o.parked_out_of_ranks = r.boolean(hp, "parked_out_of_ranks");
-    if (o.parked_out_of_ranks && !(info.variant == Variant::Scene && o.relative_features))
-      r.fail(hp["parked_out_of_ranks"],
-             "parked_out_of_ranks applies only to the scene variant with the relative features");
-    if (o.token_by_token &&
-        !(info.variant == Variant::Scene && o.relative_features && info.step_rules.exclusive_targets))
-      r.fail(hp["token_by_token"],
-             "token_by_token is trained only for the scene variant with the relative features and exclusive targets");
+    for (const YAML::Node& w : r.sequence(hp, "without")) {
+      try {
+        o.without.insert(ruleFromString(r.textAt(w, "an item of 'without'")));
+      } catch (const Error& e) {
+        r.fail(w, std::string("without: ") + e.what());
+      }
+    }
     o.weight_decay = r.number(hp, "weight_decay");
     o.dropout = r.number(hp, "dropout");
     o.learning_rate = r.number(hp, "learning_rate");
@@ -532,9 +573,37 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
       g.edges.push_back(s);
       if (graph::isKept(s.decision)) g.kept.push_back(s.edge);
     }
-    for (const YAML::Node& e : r.sequence(root, "attention_edges")) {
+    const YAML::Node pn = r.need(root, "plan");
+    TrainingPlan& plan = info.plan;
+    const int n = static_cast<int>(spec.entities.size());
+    plan.fixed_order = r.boolean(pn, "fixed_order");
+    plan.slips = static_cast<int>(
+        r.integerAt(r.need(pn, "slips"), "plan: slips (at most the demonstrations)", 0, g.demonstrations));
+    plan.relative_features = r.boolean(pn, "relative_features");
+    plan.identity_embedding = r.boolean(pn, "identity_embedding");
+    plan.names_or_scene = r.boolean(pn, "names_or_scene");
+    for (const YAML::Node& group : r.sequence(pn, "name_groups")) {
+      if (!group.IsSequence() || group.size() < 2 || group.size() > spec.entities.size())
+        r.fail(group, "a name group is a list of two or more entity names");
+      std::vector<int> members;
+      for (const YAML::Node& e : group) members.push_back(r.entity(e, spec));
+      plan.name_groups.push_back(members);
+    }
+    plan.token_by_token = r.boolean(pn, "token_by_token");
+    plan.parked_out_of_ranks = r.boolean(pn, "parked_out_of_ranks");
+    {
+      const YAML::Node rules = r.need(pn, "step_rules");
+      plan.step_rules.exclusive_targets = r.boolean(rules, "exclusive_targets");
+      plan.step_rules.step_size = static_cast<int>(
+          r.integerAt(r.need(rules, "step_size"), "step_rules: step_size (at most the entities)", 0, n));
+      plan.step_rules.load_actions = r.texts(rules, "load_actions");
+      for (const std::string& a : plan.step_rules.load_actions)
+        if (std::find(info.vocabulary.begin(), info.vocabulary.end(), a) == info.vocabulary.end())
+          r.fail(rules, "step_rules: load_actions names '" + a + "', not an action of the vocabulary");
+    }
+    for (const YAML::Node& e : r.sequence(pn, "attention_edges")) {
       if (!e.IsSequence() || e.size() != 2) r.fail(e, "an attention edge is [SOURCE, TARGET]");
-      info.attention_edges.push_back({r.entity(e[0], spec), r.entity(e[1], spec)});
+      plan.attention_edges.push_back({r.entity(e[0], spec), r.entity(e[1], spec)});
     }
     return info;
   } catch (const YAML::Exception& e) {

@@ -162,12 +162,14 @@ void SequenceModel::Impl::build() {
   cfg.gnn = info.variant == Variant::Gnn;
   cfg.features = cfg.gnn ? 2 + cfg.actions + cfg.targets : isScene() ? 5 : 2;
   cfg.o = info.options;
+  cfg.identity_embedding = info.plan.identity_embedding;
+  cfg.relative_features = info.plan.relative_features;
   kinds.assign(static_cast<size_t>(cfg.nodes) * 3, 0.f);
   for (int k = 0; k < cfg.nodes; ++k)
     kinds[static_cast<size_t>(k) * 3 + static_cast<size_t>(spec.entities[static_cast<size_t>(order.task_of[k])].kind)] =
         1.f;
   std::vector<graph::Edge> edges;
-  for (const auto& e : info.attention_edges)
+  for (const auto& e : info.plan.attention_edges)
     edges.push_back(
         {order.canonical_of[static_cast<size_t>(e.source)], order.canonical_of[static_cast<size_t>(e.target)]});
   const Tensor mask = maskFromEdges(cfg.nodes, edges, true);
@@ -207,7 +209,7 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos,
                                    const std::vector<Eigen::Vector2d>* previous, float* out,
                                    const std::vector<bool>* competing) const {
   const int n = cfg.nodes;
-  if (!info.options.relative_features) {  // "Fixed order": the configuration reaches no decision
+  if (!info.plan.relative_features) {  // "Fixed order": the configuration reaches no decision
     std::fill(out, out + static_cast<size_t>(n) * n * kRelativeFeatures, 0.f);
     return;
   }
@@ -229,7 +231,7 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos,
   if (competing) rival = *competing;
   // Parked entities (docs/tgn.md): one at one place with another has had its part (a robot
   // on the goal it drove to, a box picked up) and is no rival in "the nearest of its kind".
-  if (info.options.parked_out_of_ranks)
+  if (info.plan.parked_out_of_ranks)
     for (int k = 0; k < n; ++k)
       for (int m = 0; m < n; ++m)
         if (m != k && d[static_cast<size_t>(k * n + m)] == 0.0) rival[static_cast<size_t>(k)] = false;
@@ -389,43 +391,6 @@ Heads SequenceModel::Impl::run(const Batch& batch, Tensor* nodes_out, Tensor* z_
   return h;
 }
 
-std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTargets(
-    const Heads& first, const Tensor& nodes, const Tensor& z, const std::vector<Eigen::Vector2d>& pos,
-    const std::vector<Eigen::Vector2d>* previous, const std::vector<bool>& acting) const {
-  const int64_t n = cfg.nodes, targets = cfg.targets;
-  std::vector<int> target(static_cast<size_t>(n), 0);
-  std::vector<double> log_p(static_cast<size_t>(n), 0);
-  std::vector<bool> open = acting, competing(static_cast<size_t>(n), true);
-  Tensor taken = torch::zeros({n});
-  Tensor logits = first.target;
-  SceneNetwork net = scene;
-  while (std::any_of(open.begin(), open.end(), [](bool o) { return o; })) {
-    const Tensor l = logits.to(torch::kDouble).contiguous();
-    const Tensor own = torch::log_softmax(l, -1);
-    const auto logit = l.accessor<double, 2>();
-    int64_t bi = -1, bj = -1;
-    double best = -std::numeric_limits<double>::infinity();
-    for (int64_t i = 0; i < n; ++i) {
-      if (!open[static_cast<size_t>(i)]) continue;
-      for (int64_t j = 0; j < targets; ++j)
-        if (logit[i][j] > best) best = logit[i][j], bi = i, bj = j;  // the first on ties: canonical order
-    }
-    target[static_cast<size_t>(bi)] = static_cast<int>(bj);
-    log_p[static_cast<size_t>(bi)] = own[bi][bj].item<double>();
-    open[static_cast<size_t>(bi)] = false;
-    competing[static_cast<size_t>(bi)] = false;
-    if (bj > 0) {
-      competing[static_cast<size_t>(bj - 1)] = false;
-      taken[bj - 1] = 1;
-    }
-    if (std::none_of(open.begin(), open.end(), [](bool o) { return o; })) break;
-    Tensor given = torch::zeros({n, n, kRelativeFeatures});
-    relative(pos, previous, given.data_ptr<float>(), &competing);
-    logits = net->heads(nodes, given, z).target + takenMask(taken).squeeze(0);
-  }
-  return {target, log_p};
-}
-
 double SequenceModel::Impl::accuracy(const std::vector<Sequence>& seqs) {
   return accuracy(collateAll(seqs, cfg.gnn));
 }
@@ -433,42 +398,45 @@ double SequenceModel::Impl::accuracy(const std::vector<Sequence>& seqs) {
 double SequenceModel::Impl::accuracy(const Batch& batch) {
   torch::NoGradGuard no_grad;
   module().eval();
-  if (!info.options.token_by_token) {
-    const Tensor ok = correctOf(run(batch), batch, cfg.gnn).to(torch::kFloat) * batch.valid;
+  if (cfg.gnn) {
+    const Tensor ok = correctOf(run(batch), batch, true).to(torch::kFloat) * batch.valid;
     return (ok.sum() / batch.valid.sum()).item<double>();
   }
-  // Token by token: a step is right when END and every entity's action are, and the acting
-  // entities' targets, chosen as predictNext chooses them.
+  // Every step decoded as predictNext decodes it (decide()): right when END and, for a step,
+  // every entity's action and the acting entities' targets are.
   Tensor nodes, z;
-  const Heads h = run(batch, &nodes, &z);
-  const Tensor act = h.action.argmax(-1);
-  const Tensor head_ok =
-      h.end.argmax(-1).eq(batch.end).logical_and(batch.end.eq(1).logical_or(act.eq(batch.action).all(-1)));
-  auto ok = head_ok.accessor<bool, 2>();
+  const Heads h = run(batch, isScene() ? &nodes : nullptr, isScene() ? &z : nullptr);
+  const int64_t n = cfg.nodes, actions = cfg.actions, targets = cfg.targets;
+  const Tensor la_all = torch::log_softmax(h.action, -1).to(torch::kDouble).contiguous();  // [B, T, N, A]
+  const Tensor lt_all = torch::log_softmax(h.target, -1).to(torch::kDouble).contiguous();  // [B, T, N, 1 + N]
+  const Tensor end_all = torch::softmax(h.end, -1).select(-1, 1).to(torch::kDouble).contiguous();
+  auto p_end = end_all.accessor<double, 2>();
   auto valid = batch.valid.accessor<float, 2>();
   auto end = batch.end.accessor<int64_t, 2>();
-  auto acts = act.accessor<int64_t, 3>();
-  auto gold = batch.target.accessor<int64_t, 3>();
+  auto act = batch.action.accessor<int64_t, 3>();
+  auto tgt = batch.target.accessor<int64_t, 3>();
+  const bool by_token = info.plan.token_by_token;
+  static const std::vector<Eigen::Vector2d> kNoPositions;
   double right = 0;
   for (int64_t b = 0; b < batch.b; ++b)
     for (int64_t t = 0; t < batch.t; ++t) {
-      if (valid[b][t] == 0 || !ok[b][t]) continue;
-      if (end[b][t] == 1) {
-        right += 1;
-        continue;
+      if (valid[b][t] == 0) continue;
+      const int64_t slot = b * batch.t + t;
+      const double* la0 = la_all.data_ptr<double>() + slot * n * actions;
+      const double* lt0 = lt_all.data_ptr<double>() + slot * n * targets;
+      const std::vector<double> la(la0, la0 + n * actions);
+      std::vector<double> lt(lt0, lt0 + n * targets);
+      const bool scene = isScene();
+      const detail::StepDecision d =
+          decide(p_end[b][t], la, lt, by_token ? h.target[b][t] : Tensor(), by_token ? nodes[b][t] : Tensor(),
+                 by_token ? z[b][t] : Tensor(), scene ? batch.positions[static_cast<size_t>(slot)] : kNoPositions,
+                 scene && t > 0 ? &batch.positions[static_cast<size_t>(slot - 1)] : nullptr);
+      bool ok = d.end == (end[b][t] == 1);
+      for (int64_t i = 0; ok && !d.end && i < n; ++i) {
+        const detail::DecodedToken& k = d.tokens[static_cast<size_t>(i)];
+        ok = k.action == act[b][t][i] && (k.action == 0 || k.target == tgt[b][t][i]);
       }
-      std::vector<bool> acting(static_cast<size_t>(cfg.nodes));
-      for (int64_t i = 0; i < cfg.nodes; ++i) acting[static_cast<size_t>(i)] = acts[b][t][i] > 0;
-      Heads first;
-      first.target = h.target[b][t];
-      const std::vector<int> chosen =
-          chooseTargets(first, nodes[b][t], z[b][t], batch.positions[static_cast<size_t>(b * batch.t + t)],
-                        t > 0 ? &batch.positions[static_cast<size_t>(b * batch.t + t - 1)] : nullptr, acting)
-              .first;
-      bool all = true;
-      for (int64_t i = 0; i < cfg.nodes; ++i)
-        if (acting[static_cast<size_t>(i)] && chosen[static_cast<size_t>(i)] != gold[b][t][i]) all = false;
-      right += all ? 1 : 0;
+      right += ok ? 1 : 0;
     }
   return right / batch.valid.sum().item<double>();
 }
@@ -530,68 +498,6 @@ void normalisation(const task::TaskDir& dir, Variant variant, ModelInfo& info) {
   info.frame_dt_s = pairs > 0 ? dt / pairs : 0.05;
 }
 
-/// E' lifted to entity kinds: every pair whose kinds are those of a kept edge.
-std::vector<graph::Edge> liftedToKinds(const std::vector<graph::Edge>& kept, const task::TaskSpec& spec) {
-  std::set<std::pair<task::EntityKind, task::EntityKind>> kinds;
-  for (const auto& e : kept)
-    kinds.insert(
-        {spec.entities[static_cast<size_t>(e.source)].kind, spec.entities[static_cast<size_t>(e.target)].kind});
-  std::vector<graph::Edge> out;
-  const int n = static_cast<int>(spec.entities.size());
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j)
-      if (i != j &&
-          kinds.count({spec.entities[static_cast<size_t>(i)].kind, spec.entities[static_cast<size_t>(j)].kind}))
-        out.push_back({i, j});
-  return out;
-}
-
-/// The rules every step of `train`'s demonstrations kept (StepRules).
-StepRules stepRulesOf(const task::TaskDir& train) {
-  StepRules r;
-  r.exclusive_targets = true;
-  std::set<size_t> sizes;
-  std::set<std::string> loads;
-  bool carried = true;
-  const double together = kTogetherRadii * train.spec.arrival_radius;
-  const auto isObject = [&](int e) {
-    return train.spec.entities[static_cast<size_t>(e)].kind == task::EntityKind::Object;
-  };
-  for (const auto& d : train.demos)
-    for (const auto& t : d.segments)
-      if (isObject(t.token.entity)) loads.insert(t.token.action);
-  for (const auto& d : train.demos)
-    for (size_t k = 0; k < d.steps.size(); ++k) {
-      const auto& step = d.steps[k];
-      sizes.insert(step.tokens.size());
-      std::set<int> targets;
-      for (const auto& t : step.tokens)
-        if (t.target >= 0 && !targets.insert(t.target).second) r.exclusive_targets = false;
-      // Carried loads: who stands at an object's place as the step begins.
-      const auto& pos = d.snapshots[k].positions;
-      std::map<int, const task::Token*> token;
-      for (const auto& t : step.tokens) token[t.entity] = &t;
-      const auto same = [&](int a, int b) {
-        return token.count(a) && token.count(b) && token[a]->action == token[b]->action &&
-               token[a]->target == token[b]->target;
-      };
-      for (int o = 0; o < static_cast<int>(pos.size()); ++o) {
-        if (!isObject(o)) continue;
-        bool with_carrier = false;
-        for (int c = 0; c < static_cast<int>(pos.size()); ++c) {
-          if (c == o || isObject(c) || (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() > together)
-            continue;
-          with_carrier = with_carrier || same(o, c);
-          if (token.count(c) && loads.count(token[c]->action) && !same(o, c)) carried = false;
-        }
-        if (token.count(o) && !with_carrier) carried = false;
-      }
-    }
-  r.step_size = sizes.size() == 1 ? static_cast<int>(*sizes.begin()) : 0;
-  if (carried) r.load_actions.assign(loads.begin(), loads.end());
-  return r;
-}
-
 }  // namespace
 
 std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const TrainOptions& options) {
@@ -604,10 +510,6 @@ std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const T
   info.variant = options.variant;
   info.options = options;
   info.options.refinement.seed = options.seed;
-  // The manifest records what the features are: parked entities matter only where the
-  // scene network sees the relative features at all.
-  info.options.parked_out_of_ranks =
-      options.parked_out_of_ranks && options.variant == Variant::Scene && options.relative_features;
   info.vocabulary = train.vocabulary();
   info.fingerprint = task::fingerprintOf(train);
   const int n = static_cast<int>(train.spec.entities.size());
@@ -617,23 +519,11 @@ std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const T
     for (size_t r = 0; r < d.rows(); ++r) requireFinite(d.positions[r], train.spec, d.source, "row", r);
   }
   if (steps == 0) throw Error(Diagnostic{train.path, 0, 0, "the demonstrations have no steps (no labelled actions)"});
-  if (options.variant == Variant::Scene) info.step_rules = stepRulesOf(train);
   // The refinement in canonical order (k-means seeding visits the nodes in order), mapped back.
   std::vector<task::Demonstration> canonical;
   for (const auto& d : train.demos) canonical.push_back(impl->order.toCanonical(d));
   info.refined = graph::permuted(graph::refine(canonical, n, info.options.refinement), impl->order.task_of);
-  switch (options.variant) {
-    case Variant::Paper:
-      info.attention_edges = info.refined.kept;
-      break;
-    case Variant::Scene:
-      info.attention_edges = liftedToKinds(info.refined.kept, train.spec);
-      break;
-    case Variant::FullGraph:
-    case Variant::Gnn:
-      info.attention_edges = graph::fullyConnected(n);
-      break;
-  }
+  info.plan = planTraining(train, info.options, info.refined);
   normalisation(train, options.variant, info);
   return impl;
 }

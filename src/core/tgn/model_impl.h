@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "batching.h"
+#include "ddace/tgn/detail.h"
 #include "ddace/tgn/sequence_model.h"
 #include "network.h"
 #include "scene_network.h"
@@ -60,30 +61,38 @@ struct SequenceModel::Impl {
   /// The network on a batch: outputs [B, T, ...]; scene: the node embeddings [B, T, N, W]
   /// and the GRU outputs [B, T, H] into `nodes` and `z` when given.
   Heads run(const Batch& batch, torch::Tensor* nodes = nullptr, torch::Tensor* z = nullptr);
+  /// The step decoder, the one predictNext and the accuracy check use: one step's decision
+  /// (canonical order) from the heads at it. detail::decideStep under the plan's step
+  /// rules; token by token, the acting entities' targets chosen one at a time
+  /// (chooseTargets); then the carried loads (detail::coupleLoads). `p_end` p(END); `la`
+  /// [N][actions] and `lt` [N][targets] log-probabilities (token by token puts the chosen
+  /// targets' log-probabilities into `lt`). Scene, token by token: `target_logits` [N,
+  /// targets], `nodes` [N, W] and `z` [H] are the network's at the step (else unread).
+  /// `pos`: the snapshot's canonical positions, `previous` the one before (null at the first).
+  detail::StepDecision decide(double p_end, const std::vector<double>& la, std::vector<double>& lt,
+                              const torch::Tensor& target_logits, const torch::Tensor& nodes, const torch::Tensor& z,
+                              const std::vector<Eigen::Vector2d>& pos,
+                              const std::vector<Eigen::Vector2d>* previous) const;
   /// Token by token (scene; docs/tgn.md): the targets of the entities `acting` (canonical)
   /// of one step, chosen one at a time, the surest (entity, target) pair of the pointer's
   /// logits first, each chosen one then given to the heads (its target taken, both out of
-  /// the nearness ranks of `pos`, the snapshot's canonical positions) before the next.
-  /// `first` are the heads on `nodes` [N, W], rel [N, N, R] and `z` [H], nothing given.
-  /// Returns per entity the target slot (0 = none) and its log-probability when chosen
-  /// (entities not acting: 0 and 0).
-  std::pair<std::vector<int>, std::vector<double>> chooseTargets(const Heads& first, const torch::Tensor& nodes,
-                                                                 const torch::Tensor& z,
+  /// the nearness ranks of `pos`) before the next. `target_logits` [N, targets] are the
+  /// heads' with nothing given, on `nodes` [N, W] and `z` [H]. Returns per entity the
+  /// target slot (0 = none) and its log-probability when chosen (not acting: 0 and 0).
+  std::pair<std::vector<int>, std::vector<double>> chooseTargets(const torch::Tensor& target_logits,
+                                                                 const torch::Tensor& nodes, const torch::Tensor& z,
                                                                  const std::vector<Eigen::Vector2d>& pos,
                                                                  const std::vector<Eigen::Vector2d>* previous,
                                                                  const std::vector<bool>& acting) const;
-  /// Exact-step (gnn: frame label) accuracy, eval mode.
+  /// Exact-step accuracy, eval mode: the steps (and END) decide() decodes exactly from
+  /// their true history; gnn: frames whose next labels are all right.
   double accuracy(const std::vector<Sequence>& seqs);
   /// The same on a batch of every sequence (collateAll): training collates it once and
   /// reuses it after every epoch (the data do not change; the pass only reads the batch).
   double accuracy(const Batch& everything);
 };
 
-/// `requested` with the "Fixed order" rule (docs/tgn.md) applied to `train`: the options
-/// SequenceModel::train trains with (and the benchmarks' reference tensors are written for).
-TrainOptions withFixedOrderRule(const task::TaskDir& train, const TrainOptions& requested);
-
-/// Spec, vocabulary, E', attention edges and normalisation: everything but the weights.
+/// Spec, vocabulary, E', the TrainingPlan and normalisation: everything but the weights.
 std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const TrainOptions& options);
 
 /// Throws ddace::Error naming the entity and the snapshot (or row) when a position is not

@@ -36,7 +36,7 @@ Tensor GatLayerImpl::forward(const Tensor& x, const Attention& att) {
 NetworkImpl::NetworkImpl(const NetConfig& c, Tensor attention) : cfg(c), att(std::move(attention)) {
   const TrainOptions& o = c.o;
   int in = c.features;
-  if (o.identity_embedding) {
+  if (c.identity_embedding) {
     identity = register_module("identity", torch::nn::Embedding(c.nodes, o.identity_dim));
     in += o.identity_dim;
   }

@@ -56,7 +56,9 @@ struct NetConfig {
   int targets = 1;   ///< classes of the target head: none + entities
   int features = 2;  ///< input features per node (before the identity embedding)
   bool gnn = false;
-  TrainOptions o;
+  TrainOptions o;                  ///< the requested hyper-parameters
+  bool identity_embedding = true;  ///< the plan's (TrainingPlan)
+  bool relative_features = true;   ///< the plan's (scene: "Fixed order")
 };
 
 /// The heads' outputs for a batch of sequence elements.

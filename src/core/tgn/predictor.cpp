@@ -1,4 +1,4 @@
-// SequenceModel::predictNext and stepAccuracy.
+// The step decoder (Impl::decide), SequenceModel::predictNext and stepAccuracy.
 #include <torch/torch.h>
 
 #include <algorithm>
@@ -7,6 +7,7 @@
 
 #include "ddace/common/error.h"
 #include "ddace/tgn/detail.h"
+#include "loss.h"
 #include "model_impl.h"
 
 namespace ddace::tgn {
@@ -16,6 +17,87 @@ using torch::Tensor;
 double SequenceModel::stepAccuracy(const std::vector<task::Demonstration>& demos) const {
   if (demos.empty()) throw Error("step accuracy: no demonstrations");
   return impl_->accuracy(impl_->sequences(demos));
+}
+
+detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector<double>& la, std::vector<double>& lt,
+                                                 const Tensor& target_logits, const Tensor& nodes, const Tensor& z,
+                                                 const std::vector<Eigen::Vector2d>& pos,
+                                                 const std::vector<Eigen::Vector2d>* previous) const {
+  const int64_t n = cfg.nodes;
+  const StepRules& rules = info.plan.step_rules;
+  detail::StepDecision decision = detail::decideStep(p_end, la, cfg.actions, lt, cfg.targets, rules);
+  if (decision.end) return decision;
+  if (info.plan.token_by_token) {
+    // Token by token (docs/tgn.md): who acts, and how, is the decoded step's; their targets
+    // are chosen one at a time.
+    std::vector<bool> acting(static_cast<size_t>(n));
+    for (int64_t i = 0; i < n; ++i)
+      acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
+    const auto [target, log_p] = chooseTargets(target_logits, nodes, z, pos, previous, acting);
+    for (int64_t i = 0; i < n; ++i)
+      if (acting[static_cast<size_t>(i)]) {
+        decision.tokens[static_cast<size_t>(i)].target = target[static_cast<size_t>(i)];
+        lt[static_cast<size_t>(i * cfg.targets + target[static_cast<size_t>(i)])] = log_p[static_cast<size_t>(i)];
+      }
+  }
+  if (!rules.load_actions.empty()) {
+    // Carried loads: a load and the entities at its place decide as one (StepRules).
+    const double together = kTogetherRadii * spec.arrival_radius;
+    const auto isObject = [&](int64_t c) {
+      return spec.entities[static_cast<size_t>(order.task_of[static_cast<size_t>(c)])].kind == task::EntityKind::Object;
+    };
+    std::vector<detail::Load> loads;
+    for (int64_t o = 0; o < n; ++o) {
+      if (!isObject(o)) continue;
+      detail::Load load{static_cast<int>(o), {}};
+      for (int64_t c = 0; c < n; ++c)
+        if (c != o && !isObject(c) && (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() <= together)
+          load.carriers.push_back(static_cast<int>(c));
+      loads.push_back(load);
+    }
+    std::vector<bool> load_action(static_cast<size_t>(cfg.actions), false);
+    for (const std::string& a : rules.load_actions)
+      if (vocabIndex(a) >= 0) load_action[static_cast<size_t>(vocabIndex(a) + 1)] = true;
+    detail::coupleLoads(decision.tokens, la, cfg.actions, lt, cfg.targets, loads, load_action);
+  }
+  return decision;
+}
+
+std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTargets(
+    const Tensor& target_logits, const Tensor& nodes, const Tensor& z, const std::vector<Eigen::Vector2d>& pos,
+    const std::vector<Eigen::Vector2d>* previous, const std::vector<bool>& acting) const {
+  const int64_t n = cfg.nodes, targets = cfg.targets;
+  std::vector<int> target(static_cast<size_t>(n), 0);
+  std::vector<double> log_p(static_cast<size_t>(n), 0);
+  std::vector<bool> open = acting, competing(static_cast<size_t>(n), true);
+  Tensor taken = torch::zeros({n});
+  Tensor logits = target_logits;
+  SceneNetwork net = scene;
+  while (std::any_of(open.begin(), open.end(), [](bool o) { return o; })) {
+    const Tensor l = logits.to(torch::kDouble).contiguous();
+    const Tensor own = torch::log_softmax(l, -1);
+    const auto logit = l.accessor<double, 2>();
+    int64_t bi = -1, bj = -1;
+    double best = -std::numeric_limits<double>::infinity();
+    for (int64_t i = 0; i < n; ++i) {
+      if (!open[static_cast<size_t>(i)]) continue;
+      for (int64_t j = 0; j < targets; ++j)
+        if (logit[i][j] > best) best = logit[i][j], bi = i, bj = j;  // the first on ties: canonical order
+    }
+    target[static_cast<size_t>(bi)] = static_cast<int>(bj);
+    log_p[static_cast<size_t>(bi)] = own[bi][bj].item<double>();
+    open[static_cast<size_t>(bi)] = false;
+    competing[static_cast<size_t>(bi)] = false;
+    if (bj > 0) {
+      competing[static_cast<size_t>(bj - 1)] = false;
+      taken[bj - 1] = 1;
+    }
+    if (std::none_of(open.begin(), open.end(), [](bool o) { return o; })) break;
+    Tensor given = torch::zeros({n, n, kRelativeFeatures});
+    relative(pos, previous, given.data_ptr<float>(), &competing);
+    logits = net->heads(nodes, given, z).target + takenMask(taken).squeeze(0);
+  }
+  return {target, log_p};
 }
 
 Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history) const {
@@ -61,42 +143,10 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
   p.end_probability = torch::softmax(h.end, -1)[1].item<double>();
   const std::vector<double> la = logSoftmax(h.action);  // [N][actions], canonical order
   std::vector<double> lt = logSoftmax(h.target);        // [N][targets]
-  detail::StepDecision decision =
-      detail::decideStep(p.end_probability, la, m.cfg.actions, lt, m.cfg.targets, m.info.step_rules);
-  if (!decision.end && m.info.options.token_by_token) {
-    // Token by token (docs/tgn.md): who acts, and how, is the decoded step's; their targets
-    // are chosen one at a time.
-    std::vector<bool> acting(static_cast<size_t>(n));
-    for (int64_t i = 0; i < n; ++i)
-      acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
-    const auto [target, log_p] = m.chooseTargets(h, nodes[t - 1], z, pos, t > 1 ? &previous : nullptr, acting);
-    for (int64_t i = 0; i < n; ++i)
-      if (acting[static_cast<size_t>(i)]) {
-        decision.tokens[static_cast<size_t>(i)].target = target[static_cast<size_t>(i)];
-        lt[static_cast<size_t>(i * m.cfg.targets + target[static_cast<size_t>(i)])] = log_p[static_cast<size_t>(i)];
-      }
-  }
-  if (!decision.end && !m.info.step_rules.load_actions.empty()) {
-    // Carried loads: a load and the entities at its place decide as one (StepRules).
-    const double together = kTogetherRadii * m.spec.arrival_radius;
-    const auto isObject = [&](int64_t c) {
-      return m.spec.entities[static_cast<size_t>(m.order.task_of[static_cast<size_t>(c)])].kind ==
-             task::EntityKind::Object;
-    };
-    std::vector<detail::Load> loads;
-    for (int64_t o = 0; o < n; ++o) {
-      if (!isObject(o)) continue;
-      detail::Load load{static_cast<int>(o), {}};
-      for (int64_t c = 0; c < n; ++c)
-        if (c != o && !isObject(c) && (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() <= together)
-          load.carriers.push_back(static_cast<int>(c));
-      loads.push_back(load);
-    }
-    std::vector<bool> load_action(static_cast<size_t>(m.cfg.actions), false);
-    for (const std::string& a : m.info.step_rules.load_actions)
-      if (m.vocabIndex(a) >= 0) load_action[static_cast<size_t>(m.vocabIndex(a) + 1)] = true;
-    detail::coupleLoads(decision.tokens, la, m.cfg.actions, lt, m.cfg.targets, loads, load_action);
-  }
+  const bool by_token = m.info.plan.token_by_token;
+  const detail::StepDecision decision =
+      m.decide(p.end_probability, la, lt, by_token ? h.target : Tensor(), by_token ? nodes[t - 1] : Tensor(), z, pos,
+               t > 1 ? &previous : nullptr);
   p.end = decision.end;
   if (p.end) return p;
   const std::vector<detail::DecodedToken>& step = decision.tokens;

@@ -55,7 +55,7 @@ SceneNetworkImpl::SceneNetworkImpl(const NetConfig& c, const Tensor& attention)
       drop(c.o.dropout, c.o.seed) {
   const TrainOptions& o = c.o;
   int in = c.features;
-  if (o.identity_embedding) {
+  if (c.identity_embedding) {
     identity = register_module("identity", nn::Embedding(c.nodes, o.identity_dim));
     in += o.identity_dim;
   }
@@ -69,7 +69,7 @@ SceneNetworkImpl::SceneNetworkImpl(const NetConfig& c, const Tensor& attention)
   // entities' outputs nearly equal and the pointer must still tell them apart (Task 4 with
   // 10 demonstrations: step accuracy 0.67 without it, 1.00 with). With the relative
   // features it is left out: it made the scene families lean on names (queue, 10 demos).
-  const int width = attention_width + (o.relative_features ? 0 : in);
+  const int width = attention_width + (c.relative_features ? 0 : in);
   gru = register_module("gru", nn::GRU(nn::GRUOptions(width, o.gru_hidden).num_layers(o.gru_layers).batch_first(true)));
   const int hidden = o.head_hidden;
   act_h = register_module("act_h", linear(width, hidden));
@@ -98,7 +98,7 @@ Tensor SceneNetworkImpl::encode(const Tensor& features, const Tensor& rel, const
     Tensor y = drop(torch::relu(layers[l]->forward(x, rel, in_edges)), is_training());
     x = l == 0 ? y : x + y;
   }
-  return cfg.o.relative_features ? x : torch::cat({x, input}, 2);
+  return cfg.relative_features ? x : torch::cat({x, input}, 2);
 }
 
 Heads SceneNetworkImpl::heads(const Tensor& nodes, const Tensor& rel, const Tensor& z) {

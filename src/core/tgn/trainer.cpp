@@ -31,23 +31,13 @@ class ThreadCount {
   int saved_;
 };
 
-/// What the training demonstrations' steps have in common (task::commonSteps).
-task::CommonSteps commonStepsOf(const task::TaskDir& train) {
-  std::vector<std::vector<task::Step>> steps_of;
-  for (const auto& d : train.demos) steps_of.push_back(d.steps);
-  return task::commonSteps(steps_of);
-}
-
-/// Every training demonstration has the same steps, but for a few labelling slips
-/// (docs/tgn.md, "Fixed order").
-bool fixedOrder(const task::TaskDir& train, const task::CommonSteps& common) {
-  return train.demos.size() >= 2 && common.fixed;
-}
-
-/// One training run with exactly `options`; `fixed_order`: fixedOrder of `train`.
-std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, const TrainOptions& options,
-                                                  bool fixed_order, std::ostream* progress) {
-  auto impl = prepare(train, options);
+/// Trains the network `prepared` describes (options and plan; prepare()) on `train`.
+std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train,
+                                                  const std::shared_ptr<const SequenceModel::Impl>& prepared,
+                                                  std::ostream* progress) {
+  auto impl = std::make_shared<SequenceModel::Impl>(*prepared);
+  const TrainOptions& options = impl->info.options;
+  const TrainingPlan& plan = impl->info.plan;
   const auto started = std::chrono::steady_clock::now();
   const ThreadCount threads(options.threads);
   impl->build();
@@ -63,22 +53,18 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
   ModelInfo& info = impl->info;
   info.stop_reason = "max_epochs";
-  // Shuffled names (docs/tgn.md): groups of canonical indices whose identity embeddings
-  // each demonstration of a batch permutes, where the scene decides the steps (not on a
-  // fixed order, even with the relative features kept); its own generator, so that without
+  // Shuffled names (docs/tgn.md): the plan's groups in canonical indices, whose identity
+  // embeddings each demonstration of a batch permutes; its own generator, so that without
   // groups training is the same to the bit.
   std::vector<std::vector<int64_t>> name_groups;
-  if (impl->isScene() && options.relative_features && options.shuffle_names && options.identity_embedding &&
-      !fixed_order)
-    for (const auto& g : detail::interchangeableNames(train)) {
-      std::vector<int64_t> canonical;
-      for (int e : g) canonical.push_back(impl->order.canonical_of[static_cast<size_t>(e)]);
-      std::sort(canonical.begin(), canonical.end());
-      name_groups.push_back(canonical);
-    }
+  for (const auto& g : plan.name_groups) {
+    std::vector<int64_t> canonical;
+    for (int e : g) canonical.push_back(impl->order.canonical_of[static_cast<size_t>(e)]);
+    std::sort(canonical.begin(), canonical.end());
+    name_groups.push_back(canonical);
+  }
   // In canonical order, groups too: the draws must not depend on task.yaml's order.
   std::sort(name_groups.begin(), name_groups.end());
-  info.options.shuffle_names = !name_groups.empty();  // the manifest records what training did
   SplitMix64 name_rng(options.seed ^ 0x94D049BB133111EBULL);
   const auto shuffledNames = [&](const std::vector<size_t>& which) {
     const int64_t n = impl->cfg.nodes;
@@ -95,16 +81,11 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
     }
     return torch::tensor(rows, torch::kLong);
   };
-  // Token by token (docs/tgn.md): where every step's targets were exclusive and some step
-  // had several tokens, each step of a batch gets a random part of its tokens given (fewer
-  // than all; none as often as any other count), as predictNext will have chosen them
-  // before deciding the rest. Its own generator: elsewhere training is the same to the bit.
-  const bool token_by_token =
-      impl->isScene() && options.relative_features && options.token_by_token && info.step_rules.exclusive_targets &&
-      std::any_of(train.demos.begin(), train.demos.end(), [](const task::Demonstration& d) {
-        return std::any_of(d.steps.begin(), d.steps.end(), [](const task::Step& s) { return s.tokens.size() >= 2; });
-      });
-  info.options.token_by_token = token_by_token;  // the manifest records what training did
+  // Token by token (docs/tgn.md): each step of a batch gets a random part of its tokens
+  // given (fewer than all; none as often as any other count), as predictNext will have
+  // chosen them before deciding the rest. Its own generator: elsewhere training is the same
+  // to the bit.
+  const bool token_by_token = plan.token_by_token;
   SplitMix64 given_rng(options.seed ^ 0xBF58476D1CE4E5B9ULL);
   const auto giveTokens = [&](Batch& batch, const std::vector<size_t>& which) {
     const int64_t n = impl->cfg.nodes;
@@ -187,51 +168,31 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train, co
 
 }  // namespace
 
-namespace {
-
-TrainOptions withFixedOrderRule(const TrainOptions& requested, bool fixed_order) {
-  // Fixed order: when every demonstration has the same steps, the configuration decided
-  // nothing in them, and what the relative features could teach is only coincidence of
-  // the few start configurations seen (measured: Task 2 with 10 demonstrations and 2 mm
-  // position noise, OSR 0.73 with them, 1.00 without). Then the decision is the names' and
-  // the steps so far: a new configuration cannot change it.
-  TrainOptions options = requested;
-  if (options.variant == Variant::Scene && options.relative_features && options.fixed_order_rule && fixed_order)
-    options.relative_features = false;
-  return options;
-}
-
-}  // namespace
-
-TrainOptions withFixedOrderRule(const task::TaskDir& train, const TrainOptions& requested) {
-  return withFixedOrderRule(requested, fixedOrder(train, commonStepsOf(train)));
-}
-
-SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& requested, std::ostream* progress) {
-  const task::CommonSteps common = commonStepsOf(train);
-  const bool fixed_order = fixedOrder(train, common);  // once: the second network below reuses it
-  const TrainOptions options = withFixedOrderRule(requested, fixed_order);
-  if (progress && options.relative_features != requested.relative_features) {
-    *progress << "every demonstration has the same " << common.steps.size() << " steps";
-    if (!common.slips.empty())
-      *progress << " but for " << common.slips.size() << " labelling slip" << (common.slips.size() == 1 ? "" : "s")
+SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& options, std::ostream* progress) {
+  const std::shared_ptr<const Impl> prepared = prepare(train, options);
+  const TrainingPlan& plan = prepared->info.plan;
+  if (progress && plan.fixed_order && !plan.relative_features && options.uses(Rule::Relative)) {
+    *progress << "every demonstration has the same steps";
+    if (plan.slips > 0)
+      *progress << " but for " << plan.slips << " labelling slip" << (plan.slips == 1 ? "" : "s")
                 << " (ddace validate lists them)";
     *progress << ": training without the relative features (a decision cannot depend on the configuration; "
                  "--without fixed-order keeps them)"
               << std::endl;
   }
-  std::shared_ptr<Impl> impl = trainNetwork(train, options, fixed_order, progress);
-  // The identity embedding lets the scene network tell entities apart by name, which the
-  // fixed-order tasks need; where the decision is the scene's (nearest_goal), it can also
-  // settle on fitting the demonstrations by name and stall short of them. Then a network
-  // that must decide from the scene alone is trained too, and kept when it fits better.
+  std::shared_ptr<Impl> impl = trainNetwork(train, prepared, progress);
+  // Names or the scene: the identity embedding lets the scene network tell entities apart
+  // by name, which the fixed-order tasks need; where the decision is the scene's
+  // (nearest_goal), it can also settle on fitting the demonstrations by name and stall
+  // short of them. Then a network that must decide from the scene alone is trained too,
+  // and kept when it fits better (the fit: the accuracy check, predictNext's decoder).
   const double fit = impl->info.history.back().step_accuracy;
-  if (options.variant == Variant::Scene && options.identity_embedding && fit < 1) {
-    TrainOptions without = options;
-    without.identity_embedding = false;
+  if (plan.names_or_scene && fit < 1) {
+    auto without = std::make_shared<Impl>(*prepared);
+    without->info.plan = plan.withoutIdentity();
     if (progress)
       *progress << "step accuracy " << fit << " with the identity embedding: training without it" << std::endl;
-    std::shared_ptr<Impl> alternative = trainNetwork(train, without, fixed_order, progress);
+    std::shared_ptr<Impl> alternative = trainNetwork(train, without, progress);
     const double alternative_fit = alternative->info.history.back().step_accuracy;
     const bool better = alternative_fit > fit;
     if (progress)

@@ -81,12 +81,23 @@ TEST(CliLabel, LabelsACopyWithTheDemonstratedStepsAndLeavesInUntouched) {
 }
 
 TEST(CliLabel, StrictWritesNothingWhenSomethingIsUncertain) {
-  // task2 without an example: a robot that drives onto a spot two robots share is a tie.
+  // task4 in which a person stopped R1 halfway to R3 (its rows from the middle of its first
+  // motion on stay there): where it went is uncertain. (Generated robots never share a spot,
+  // so a tie needs a person's mistake too.)
   const std::string r = root("strict"), in = r + "/in", out = r + "/out", ex = r + "/example.csv";
-  unlabelledTask(in, ex, "task2");
+  unlabelledTask(in, ex, "task4");
+  task::TaskDir dir = task::loadTaskDir(in);
+  task::Demonstration& d = dir.demos[0];
+  const int r1 = dir.spec.entityIndex("R1");
+  size_t first = 0, last = d.rows() - 1;
+  while (first < d.rows() && (d.positions[first][r1] - d.positions[0][r1]).norm() < 0.01) ++first;
+  while (last > first && (d.positions[last][r1] - d.positions.back()[r1]).norm() < 0.01) --last;
+  const size_t middle = (first + last) / 2;
+  for (size_t k = middle; k < d.rows(); ++k) d.positions[k][r1] = d.positions[middle][r1];
+  task::writeDemonstrationCsv(d, dir.spec, in + "/demos/" + std::filesystem::path(d.source).filename().string());
   const ToolRun strict = runTool("label '" + in + "' --out '" + out + "' --strict");
   EXPECT_EQ(strict.status, 1) << strict.out;
-  EXPECT_NE(strict.out.find("ended between"), std::string::npos) << strict.out;
+  EXPECT_NE(strict.out.find("R1 stopped halfway"), std::string::npos) << strict.out;
   EXPECT_NE(strict.out.find(".csv:"), std::string::npos) << strict.out;
   EXPECT_FALSE(fs::exists(out));
   const ToolRun loose = runTool("label '" + in + "' --out '" + out + "'");

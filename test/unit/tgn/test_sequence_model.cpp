@@ -90,7 +90,7 @@ TEST_P(ReachesFullStepAccuracy, OnTheTrainingDemonstrations) {
     if (at == 0 || text[at - 1] == '\n') ++epoch_lines;
   EXPECT_EQ(epoch_lines, m.info().history.size());
   EXPECT_NE(text.find("every demonstration has the same"), std::string::npos) << text;
-  EXPECT_FALSE(m.info().options.relative_features);
+  EXPECT_FALSE(m.info().plan.relative_features);
   EXPECT_NE(text.find("epoch 1/"), std::string::npos);
   EXPECT_NE(text.find("step accuracy"), std::string::npos);
 }
@@ -161,7 +161,8 @@ TEST(SequenceModel, SaveThenLoadGivesIdenticalPredictions) {
   EXPECT_EQ(l.spec().entityNames(), m.spec().entityNames());
   EXPECT_EQ(l.info().vocabulary, m.info().vocabulary);
   EXPECT_EQ(l.info().refined.kept, m.info().refined.kept);
-  EXPECT_EQ(l.info().attention_edges, m.info().attention_edges);
+  EXPECT_EQ(l.info().plan, m.info().plan);
+  EXPECT_EQ(l.info().options.without, m.info().options.without);
   ASSERT_EQ(l.info().history.size(), m.info().history.size());
   EXPECT_DOUBLE_EQ(l.info().history.back().loss, m.info().history.back().loss);
   const task::TaskDir test = generate("task4", 3, 7);
@@ -219,7 +220,7 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
   EXPECT_NE(e.find("manifest.yaml records"), std::string::npos) << e;
   e = variant("other_format", [&](const fs::path& d) {
     rewrite(d / "manifest.yaml",
-            [](std::string& s) { s.replace(s.find("format: ddace-model/8"), 21, "format: ddace-model/9"); });
+            [](std::string& s) { s.replace(s.find("format: ddace-model/9"), 21, "format: ddace-model/10"); });
   });
   EXPECT_NE(e.find("manifest.yaml:"), std::string::npos) << e;
   e = variant("loss_row", [&](const fs::path& d) { rewrite(d / "loss.csv", [](std::string& s) { s += "x,y\n"; }); });
@@ -277,9 +278,9 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
   }
   // attention_edges cut to one: everything after the first edge dropped.
   {
-    const size_t first = manifest.find("attention_edges:\n  - ");
+    const size_t first = manifest.find("attention_edges:\n    - ");
     ASSERT_NE(first, std::string::npos);
-    const size_t second = manifest.find("\n  - ", first + 20);
+    const size_t second = manifest.find("\n    - ", first + 20);
     const size_t end = manifest.rfind("\nmanifest_sha256: ");
     const std::string e = edited(manifest.substr(second, end - second), "", false);
     EXPECT_NE(e.find("its own digest"), std::string::npos) << e;
@@ -292,9 +293,10 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
     const std::string e = edited("clusters: ", "clusters: 99", true);
     EXPECT_NE(e.find("refinement: clusters (at most the entities) must be an integer in 1.."), std::string::npos) << e;
   }
-  // A model of Task 2 (shared targets) claiming to decide token by token.
-  EXPECT_NE(edited("token_by_token: false", "token_by_token: true", true).find("token_by_token is trained only"),
+  // A rule switched off that does not exist; a name group naming no entity.
+  EXPECT_NE(edited("without: []", "without: [nearest]", true).find("'nearest' is not a learning rule"),
             std::string::npos);
+  EXPECT_NE(edited("name_groups: []", "name_groups: [[R1, R9]]", true).find("unknown entity 'R9'"), std::string::npos);
   // The digest line itself cut or changed.
   EXPECT_NE(edited("manifest_sha256: ", "manifest_sha256: 0", false).find("last line"), std::string::npos);
   {
@@ -303,14 +305,15 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
     EXPECT_NE(edited("step_size: ", "step_size:", true).find("missing key 'step_size'"), std::string::npos);
   }
   // An older format: retrain, saying what it lacks; a newer one: said so.
-  for (const char* version : {"ddace-model/7", "ddace-model/5", "ddace-model/4", "ddace-model/2"}) {
-    const std::string old = edited("format: ddace-model/8", std::string("format: ") + version, false);
+  for (const char* version : {"ddace-model/8", "ddace-model/7", "ddace-model/5", "ddace-model/4", "ddace-model/2"}) {
+    const std::string old = edited("format: ddace-model/9", std::string("format: ") + version, false);
     EXPECT_NE(old.find("retrain"), std::string::npos) << old;
-    EXPECT_NE(old.find("relational basis"), std::string::npos) << old;
+    EXPECT_NE(old.find("no training plan"), std::string::npos) << old;
+    EXPECT_EQ(old.find("relational basis") != std::string::npos, std::string(version) != "ddace-model/8") << old;
     EXPECT_NE(old.find("manifest.yaml:"), std::string::npos) << old;
   }
-  EXPECT_NE(edited("format: ddace-model/8", "format: ddace-model/2", false).find("digests"), std::string::npos);
-  EXPECT_NE(edited("format: ddace-model/8", "format: ddace-model/12", false).find("newer"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/9", "format: ddace-model/2", false).find("digests"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/9", "format: ddace-model/12", false).find("newer"), std::string::npos);
   {
     // The record is what training did: fetch's robots were shuffled, Task 2's names not.
     tasks::GeneratorOptions f;
@@ -318,8 +321,8 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
     f.demos = 4;
     const std::string fetch = tempDir("fetch_names");
     tgn::SequenceModel::train(tasks::generate(f), o, nullptr).save(fetch);
-    EXPECT_TRUE(tgn::SequenceModel::load(fetch).info().options.shuffle_names);
-    EXPECT_FALSE(tgn::SequenceModel::load(good).info().options.shuffle_names);
+    EXPECT_FALSE(tgn::SequenceModel::load(fetch).info().plan.name_groups.empty());
+    EXPECT_TRUE(tgn::SequenceModel::load(good).info().plan.name_groups.empty());
     fs::remove_all(fetch);
   }
   fs::remove_all(good);
@@ -344,9 +347,11 @@ TEST(SequenceModel, LabellingSlipsKeepAFixedOrderFixed) {
         return task::sameSteps(d.steps, train.demos.front().steps);
       })) << "no slip was generated";
     }
-    const tgn::TrainOptions used = tgn::SequenceModel::train(train, o, nullptr).info().options;
-    EXPECT_EQ(used.relative_features, !fixed) << family;
-    EXPECT_FALSE(fixed && used.shuffle_names) << family;
+    const tgn::TrainingPlan plan = tgn::SequenceModel::train(train, o, nullptr).info().plan;
+    EXPECT_EQ(plan.fixed_order, fixed) << family;
+    EXPECT_EQ(plan.slips > 0, fixed) << family;
+    EXPECT_EQ(plan.relative_features, !fixed) << family;
+    EXPECT_FALSE(fixed && !plan.name_groups.empty()) << family;
   }
   // The names the scene decides are read past a slip too: queue's slots keep theirs.
   tasks::GeneratorOptions q;
@@ -368,18 +373,18 @@ TEST(TokenByToken, IsTrainedWhereAStepHasSeveralExclusiveTargets) {
   tgn::TrainOptions o;
   o.max_epochs = 2;
   const auto goals = tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr);
-  EXPECT_TRUE(goals.info().options.token_by_token);
-  EXPECT_FALSE(tgn::SequenceModel::train(generate("fetch", 4), o, nullptr).info().options.token_by_token)
+  EXPECT_TRUE(goals.info().plan.token_by_token);
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("fetch", 4), o, nullptr).info().plan.token_by_token)
       << "the fetcher and the box share a target";
-  EXPECT_FALSE(tgn::SequenceModel::train(generate("queue", 4), o, nullptr).info().options.token_by_token)
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("queue", 4), o, nullptr).info().plan.token_by_token)
       << "one token per step";
-  EXPECT_FALSE(tgn::SequenceModel::train(generate("task4", 4), o, nullptr).info().options.token_by_token);
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("task4", 4), o, nullptr).info().plan.token_by_token);
   const std::string dir = tempDir("token_by_token");
   goals.save(dir);
-  EXPECT_TRUE(tgn::SequenceModel::load(dir).info().options.token_by_token);
+  EXPECT_TRUE(tgn::SequenceModel::load(dir).info().plan.token_by_token);
   fs::remove_all(dir);
-  o.token_by_token = false;
-  EXPECT_FALSE(tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr).info().options.token_by_token);
+  o.without = {tgn::Rule::TokenByToken};
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr).info().plan.token_by_token);
 }
 
 // Parked entities (docs/tgn.md): where the scene network sees the relative features, an
@@ -390,25 +395,16 @@ TEST(ParkedEntities, AreOutOfTheRanksWhereTheSceneDecides) {
   tgn::TrainOptions o;
   o.max_epochs = 2;
   const auto queue = tgn::SequenceModel::train(generate("queue", 4), o, nullptr);
-  EXPECT_TRUE(queue.info().options.parked_out_of_ranks);
-  EXPECT_FALSE(tgn::SequenceModel::train(generate("task4", 4), o, nullptr).info().options.parked_out_of_ranks);
-  o.parked_out_of_ranks = false;
-  EXPECT_FALSE(tgn::SequenceModel::train(generate("queue", 4), o, nullptr).info().options.parked_out_of_ranks);
-  o.parked_out_of_ranks = true;
+  EXPECT_TRUE(queue.info().plan.parked_out_of_ranks);
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("task4", 4), o, nullptr).info().plan.parked_out_of_ranks);
+  o.without = {tgn::Rule::Parked};
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("queue", 4), o, nullptr).info().plan.parked_out_of_ranks);
+  o.without.clear();
   o.variant = tgn::Variant::Paper;
-  const auto paper = tgn::SequenceModel::train(generate("queue", 4), o, nullptr);
-  EXPECT_FALSE(paper.info().options.parked_out_of_ranks);
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("queue", 4), o, nullptr).info().plan.parked_out_of_ranks);
   const std::string dir = tempDir("parked");
   queue.save(dir);
-  EXPECT_TRUE(tgn::SequenceModel::load(dir).info().options.parked_out_of_ranks);
-  fs::remove_all(dir);
-  paper.save(dir);
-  std::string s = test::fileBytes(fs::path(dir) / "manifest.yaml");
-  s.replace(s.find("parked_out_of_ranks: false"), 26, "parked_out_of_ranks: true");
-  reseal(s);
-  test::writeBytes(fs::path(dir) / "manifest.yaml", s);
-  EXPECT_NE(loadError(dir).find("parked_out_of_ranks applies only to the scene variant"), std::string::npos)
-      << loadError(dir);
+  EXPECT_TRUE(tgn::SequenceModel::load(dir).info().plan.parked_out_of_ranks);
   fs::remove_all(dir);
 }
 
@@ -419,17 +415,17 @@ TEST(SequenceModel, LearnsTheStepRulesItsTrainingDemonstrationsKeep) {
   o.max_epochs = 2;
   // nearest_goal: every robot to its own goal, in one step.
   const auto goals = tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr);
-  EXPECT_TRUE(goals.info().step_rules.exclusive_targets);
-  EXPECT_EQ(goals.info().step_rules.step_size, 3);
+  EXPECT_TRUE(goals.info().plan.step_rules.exclusive_targets);
+  EXPECT_EQ(goals.info().plan.step_rules.step_size, 3);
   // fetch: the fetcher and the box carry to the same goal in one step; steps of 1 and 2.
   const auto fetch = tgn::SequenceModel::train(generate("fetch", 4), o, nullptr);
-  EXPECT_FALSE(fetch.info().step_rules.any());
+  EXPECT_FALSE(fetch.info().plan.step_rules.any());
   // The paper's network decodes each entity on its own.
   o.variant = tgn::Variant::Paper;
-  EXPECT_FALSE(tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr).info().step_rules.any());
+  EXPECT_FALSE(tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr).info().plan.step_rules.any());
   const std::string dir = tempDir("step_rules");
   goals.save(dir);
-  EXPECT_EQ(tgn::SequenceModel::load(dir).info().step_rules, goals.info().step_rules);
+  EXPECT_EQ(tgn::SequenceModel::load(dir).info().plan.step_rules, goals.info().plan.step_rules);
   fs::remove_all(dir);
 }
 
@@ -472,18 +468,19 @@ TEST(SequenceModel, FullGraphVariantAttendsOverEveryPair) {
   o.max_epochs = 3;
   const auto m = tgn::SequenceModel::train(train, o, nullptr);
   const size_t n = train.spec.entities.size();
-  EXPECT_EQ(m.info().attention_edges.size(), n * (n - 1));
+  EXPECT_EQ(m.info().plan.attention_edges.size(), n * (n - 1));
   o.variant = tgn::Variant::Paper;
   const auto paper = tgn::SequenceModel::train(train, o, nullptr);
-  EXPECT_LT(paper.info().attention_edges.size(), n * (n - 1));
-  EXPECT_EQ(paper.info().attention_edges, paper.info().refined.kept);
+  EXPECT_LT(paper.info().plan.attention_edges.size(), n * (n - 1));
+  EXPECT_EQ(paper.info().plan.attention_edges, paper.info().refined.kept);
   // The scene variant: E' lifted to entity kinds (every pair whose kinds a kept edge has).
   const tgn::ModelInfo& scene = task4Model().info();
-  EXPECT_LT(scene.attention_edges.size(), n * (n - 1));
+  EXPECT_LT(scene.plan.attention_edges.size(), n * (n - 1));
   for (const auto& e : scene.refined.kept)
-    EXPECT_NE(std::find(scene.attention_edges.begin(), scene.attention_edges.end(), e), scene.attention_edges.end());
+    EXPECT_NE(std::find(scene.plan.attention_edges.begin(), scene.plan.attention_edges.end(), e),
+              scene.plan.attention_edges.end());
   const auto& ents = task4Model().spec().entities;
-  for (const auto& a : scene.attention_edges) {
+  for (const auto& a : scene.plan.attention_edges) {
     bool kinds_kept = false;
     for (const auto& e : scene.refined.kept)
       kinds_kept =
@@ -559,7 +556,7 @@ TEST_P(EntityOrder, InTaskYamlChangesNoDecision) {
     return out;
   };
   EXPECT_EQ(names(a, a.info().refined.kept), names(b, b.info().refined.kept));
-  EXPECT_EQ(names(a, a.info().attention_edges), names(b, b.info().attention_edges));
+  EXPECT_EQ(names(a, a.info().plan.attention_edges), names(b, b.info().plan.attention_edges));
   // The same decisions on the same scenes.
   for (const auto& d : test.demos)
     for (size_t k = 1; k <= d.snapshots.size(); ++k) {
@@ -616,13 +613,13 @@ TEST(SequenceModel, SceneDecisionsDoNotDependOnWhereTheSceneIsOnTheTable) {
 // steps vary (fetch: the robot nearest the box fetches it), the features stay.
 TEST(SequenceModel, FixedOrderTasksDecideFromTheStepsSoFarNotTheConfiguration) {
   const tgn::SequenceModel& m = task4Model();
-  EXPECT_FALSE(m.info().options.relative_features);
+  EXPECT_FALSE(m.info().plan.relative_features);
   const task::TaskDir test = generate("task4", 3, 41);
   SplitMix64 rng(7);
   const std::string dir = tempDir("fixed_order");
   m.save(dir);
   const tgn::SequenceModel loaded = tgn::SequenceModel::load(dir);
-  EXPECT_FALSE(loaded.info().options.relative_features);
+  EXPECT_FALSE(loaded.info().plan.relative_features);
   for (const auto& d : test.demos)
     for (size_t k = 1; k <= d.snapshots.size(); ++k) {
       std::vector<task::Snapshot> h(d.snapshots.begin(), d.snapshots.begin() + static_cast<long>(k));
@@ -645,12 +642,12 @@ TEST(SequenceModel, FixedOrderTasksDecideFromTheStepsSoFarNotTheConfiguration) {
   })) << "the fetch demonstrations all have the same steps: the test tests nothing";
   tgn::TrainOptions o;
   o.max_epochs = 2;
-  EXPECT_TRUE(tgn::SequenceModel::train(fetch, o, nullptr).info().options.relative_features);
-  // --relative: kept on a fixed order too; --no-relative: off on any task.
-  o.fixed_order_rule = false;
-  EXPECT_TRUE(tgn::SequenceModel::train(generate("task4", 3), o, nullptr).info().options.relative_features);
-  o.relative_features = false;
-  EXPECT_FALSE(tgn::SequenceModel::train(fetch, o, nullptr).info().options.relative_features);
+  EXPECT_TRUE(tgn::SequenceModel::train(fetch, o, nullptr).info().plan.relative_features);
+  // --without fixed-order: kept on a fixed order too; --without relative: off on any task.
+  o.without = {tgn::Rule::FixedOrder};
+  EXPECT_TRUE(tgn::SequenceModel::train(generate("task4", 3), o, nullptr).info().plan.relative_features);
+  o.without = {tgn::Rule::Relative};
+  EXPECT_FALSE(tgn::SequenceModel::train(fetch, o, nullptr).info().plan.relative_features);
 }
 
 // The benchmarks' Python reference trains the network the tensors are written for: they
@@ -680,9 +677,9 @@ TEST(SequenceModel, TrainingTensorsAreThoseOfTheNetworkTrainRuns) {
   };
   tgn::TrainOptions o;
   o.max_epochs = 1;
-  ASSERT_FALSE(tgn::SequenceModel::train(fixed, o, nullptr).info().options.relative_features);
+  ASSERT_FALSE(tgn::SequenceModel::train(fixed, o, nullptr).info().plan.relative_features);
   EXPECT_EQ(written(o), std::make_pair(std::string("0"), false));
-  o.fixed_order_rule = false;
+  o.without = {tgn::Rule::FixedOrder};
   EXPECT_EQ(written(o), std::make_pair(std::string("1"), true));
 }
 
@@ -695,9 +692,9 @@ TEST(SequenceModel, StoppingWithinTheArrivalRadiusOfATargetChangesNoDecision) {
   // relative features kept (a fixed order would switch them off, and then nothing about
   // where an entity stopped could change a decision: "Fixed order").
   tgn::TrainOptions o;
-  o.fixed_order_rule = false;
+  o.without = {tgn::Rule::FixedOrder};
   const tgn::SequenceModel m = tgn::SequenceModel::train(generate("task2", 10), o, nullptr);
-  ASSERT_TRUE(m.info().options.relative_features);
+  ASSERT_TRUE(m.info().plan.relative_features);
   const task::TaskDir test = generate("task2", 3, 5);
   const double radius = test.spec.arrival_radius;
   int stopped_short = 0;
@@ -821,7 +818,7 @@ TEST(ShuffledNames, AreTheEntitiesWhoseRolesTheSceneDecides) {
 TEST(ShuffledNames, ChangeTheSceneFamiliesTrainingOnly) {
   tgn::TrainOptions on, off;
   on.max_epochs = off.max_epochs = 6;
-  off.shuffle_names = false;
+  off.without = {tgn::Rule::ShuffledNames};
   const auto losses = [](const tgn::SequenceModel& m) {
     std::vector<double> l;
     for (const auto& r : m.info().history) l.push_back(r.loss);
@@ -833,7 +830,8 @@ TEST(ShuffledNames, ChangeTheSceneFamiliesTrainingOnly) {
   ASSERT_FALSE(tgn::detail::interchangeableNames(task2).empty()) << "Task 2 has no robots sharing a role";
   EXPECT_EQ(losses(tgn::SequenceModel::train(task2, on, nullptr)),
             losses(tgn::SequenceModel::train(task2, off, nullptr)));
-  on.fixed_order_rule = off.fixed_order_rule = false;
+  on.without = {tgn::Rule::FixedOrder};
+  off.without = {tgn::Rule::FixedOrder, tgn::Rule::ShuffledNames};
   EXPECT_EQ(losses(tgn::SequenceModel::train(task2, on, nullptr)),
             losses(tgn::SequenceModel::train(task2, off, nullptr)));
 }

@@ -1,0 +1,463 @@
+// The motion of generated demonstrations: where motions end, how loads ride, how paths
+// keep bodies apart (generators.h, "the motion of a generated demonstration").
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+
+#include "ddace/common/error.h"
+#include "ddace/task/end_point.h"
+#include "ddace/tasks/generators.h"
+
+namespace ddace::tasks {
+
+namespace {
+
+using Eigen::Vector2d;
+
+/// Collision checks sample a step at this many progress values (plus one).
+constexpr int kCheckSamples = 200;
+/// Distances within this of contact count as contact (floating point, not geometry).
+constexpr double kContactSlack = 1e-9;
+constexpr double kBackOffStepM = 0.001;
+/// A load rides with its carrier when it starts within this of touching it (metres).
+constexpr double kRideReachM = 0.01;
+
+/// `v` rounded to six decimals as printf rounds it (the digits a file holds), read back.
+double micrometres(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.6f", v);
+  return std::strtod(buf, nullptr);
+}
+
+double smoothstep(double s) {
+  return s * s * (3 - 2 * s);
+}
+
+double wrapAngle(double a) {
+  return std::remainder(a, 2 * M_PI);
+}
+
+Vector2d rotated(const Vector2d& v, double angle) {
+  const double c = std::cos(angle), s = std::sin(angle);
+  return {c * v.x() - s * v.y(), s * v.x() + c * v.y()};
+}
+
+/// A mover's path: `shape` plus an extra arc `bend`, plus `align` times u^3 - u^2 (zero at
+/// both ends and in slope at the start; it sets the final heading), all lateral, in the
+/// frame from `from` to `to`.
+struct Path {
+  Vector2d from, to;
+  PathShape shape;
+  double bend = 0, align = 0;
+  /// A hook (x and y in the path's frame) times u (1 - u)^4: zero at both ends and in slope
+  /// at the end, it turns the start of the path (a robot leaving the bodies it touches); at
+  /// most 0.082 of the hook, at u = 0.2.
+  Vector2d hook = Vector2d::Zero();
+  /// Progress along the path at time progress u is u^lag: a mover with lag > 1 falls
+  /// behind and catches up at the end (it arrives after the movers before it).
+  double lag = 1;
+
+  double progress(double u) const { return lag == 1 ? u : std::pow(u, lag); }
+
+  /// The shape in its own frame at progress u (x, y) and its derivative in u.
+  void canonical(double u, Vector2d& c, Vector2d& dc) const {
+    const double a = shape.amplitude;
+    c = Vector2d::Zero(), dc = Vector2d::Zero();
+    switch (shape.kind) {
+      case PathShape::Straight:
+        c = {u, 0}, dc = {1, 0};
+        break;
+      case PathShape::Arc:
+        c = {u, a * std::sin(M_PI * u)}, dc = {1, a * M_PI * std::cos(M_PI * u)};
+        break;
+      case PathShape::SCurve:
+        c = {u, a * std::sin(2 * M_PI * u)}, dc = {1, 2 * M_PI * a * std::cos(2 * M_PI * u)};
+        break;
+      case PathShape::Spiral: {
+        // A loop and a half whose radius swells and vanishes: a spiral-like path.
+        const double r = a * std::sin(M_PI * u), dr = a * M_PI * std::cos(M_PI * u), th = 3 * M_PI * u;
+        c = {u + r * std::sin(th), r * (1 - std::cos(th))};
+        dc = {1 + dr * std::sin(th) + 3 * M_PI * r * std::cos(th),
+              dr * (1 - std::cos(th)) + 3 * M_PI * r * std::sin(th)};
+        break;
+      }
+    }
+    c.y() += bend * std::sin(M_PI * u) + align * (u * u * u - u * u);
+    dc.y() += bend * M_PI * std::cos(M_PI * u) + align * (3 * u * u - 2 * u);
+    const double v = 1 - u;
+    c += hook * (u * v * v * v * v);
+    dc += hook * (v * v * v * v - 4 * u * v * v * v);
+  }
+  /// Turns the start of the path `angle` radians from where it heads without a hook.
+  void hookStart(double angle) {
+    hook = Vector2d::Zero();
+    if (angle == 0) return;
+    Vector2d c = Vector2d::Zero(), dc = Vector2d::Zero();
+    canonical(0, c, dc);
+    hook = rotated(dc, angle) - dc;
+  }
+  /// Where the mover is at time progress u.
+  Vector2d at(double u) const {
+    Vector2d c = Vector2d::Zero(), dc = Vector2d::Zero();
+    canonical(progress(u), c, dc);
+    const Vector2d d = to - from, perp(-d.y(), d.x());
+    return from + c.x() * d + c.y() * perp;
+  }
+  /// The path's direction (d position / d progress, table frame) at time progress u.
+  Vector2d tangent(double u) const {
+    Vector2d c = Vector2d::Zero(), dc = Vector2d::Zero();
+    canonical(progress(u), c, dc);
+    const Vector2d d = to - from, perp(-d.y(), d.x());
+    return dc.x() * d + dc.y() * perp;
+  }
+  /// Makes the path end heading along `heading` (a carrier toward its load's end): the
+  /// final slope in its frame is tan of the angle from the chord to `heading`.
+  void alignEnd(const Vector2d& heading) {
+    align = 0;
+    const Vector2d d = to - from;
+    if (d.norm() < task::kMinApproachM || heading.norm() == 0) return;
+    const double beta = std::atan2(d.x() * heading.y() - d.y() * heading.x(), d.dot(heading));
+    const double limit = 75 * M_PI / 180;  // a steeper turn would loop: keep the nearest heading
+    Vector2d c = Vector2d::Zero(), dc = Vector2d::Zero();
+    canonical(1, c, dc);
+    align = std::tan(std::clamp(beta, -limit, limit)) * dc.x() - dc.y();
+  }
+  double length() const {
+    double len = 0;
+    Vector2d prev = from;
+    for (int i = 1; i <= 200; ++i) {
+      const Vector2d q = at(i / 200.0);
+      len += (q - prev).norm();
+      prev = q;
+    }
+    return len;
+  }
+};
+
+/// A carried load: rides in front of its carrier's path.
+struct Rider {
+  int load = -1;
+  bool long_way = false;                ///< swing in front the long way round
+  Vector2d offset0 = Vector2d::Zero();  ///< load - carrier at the start of the step
+  double contact = 0;                   ///< their contact distance
+
+  Vector2d at(const Path& carrier, double u) const {
+    const Vector2d c = carrier.at(u);
+    const double r0 = offset0.norm(), a0 = std::atan2(offset0.y(), offset0.x());
+    const Vector2d t0 = carrier.tangent(0), t = carrier.tangent(u);
+    // A carrier that does not move keeps its load where it is.
+    if (t0.norm() < 1e-12 || t.norm() < 1e-12) return c + offset0;
+    const double h0 = std::atan2(t0.y(), t0.x()), h = std::atan2(t.y(), t.x());
+    const double w = smoothstep(std::min(1.0, carrier.progress(u) / kLoadSwingFraction));
+    double turn = wrapAngle(a0 - h0);
+    if (long_way) turn -= std::copysign(2 * M_PI, turn);
+    const double r = r0 + (contact - r0) * w, a = h + (1 - w) * turn;
+    return c + r * Vector2d(std::cos(a), std::sin(a));
+  }
+};
+
+/// The step's tokens: who moves on their own (movers), who rides (loads), who stands.
+struct StepRoles {
+  std::vector<int> movers;   ///< token indices of motions not carried
+  std::vector<int> load_of;  ///< [token] index of its carried load's token, or -1
+  std::vector<bool> moving;  ///< [entity] moves in this step (mover or load)
+};
+
+StepRoles roles(const task::TaskSpec& spec, const std::vector<task::Token>& step, const std::vector<Vector2d>& at) {
+  const size_t entities = at.size();
+  StepRoles r;
+  r.load_of.assign(step.size(), -1);
+  r.moving.assign(entities, false);
+  for (const task::Token& t : step)
+    if (t.entity < 0 || static_cast<size_t>(t.entity) >= entities || t.target >= static_cast<int>(entities))
+      throw Error("a planned token names an entity outside the " + std::to_string(entities) + " of task '" + spec.name +
+                  "'");
+  std::vector<bool> carried(step.size(), false);
+  for (size_t i = 0; i < step.size(); ++i) {
+    if (!step[i].isMotion()) continue;
+    const int load = task::carriedLoad(spec, step, i);
+    // A load rides with its carrier when it is at the carrier (a ball passed from afar to
+    // where a robot also goes moves on its own); one carried by two robots rides with the first.
+    if (load < 0 || carried[static_cast<size_t>(load)]) continue;
+    const int e = step[i].entity, l = step[static_cast<size_t>(load)].entity;
+    if ((at[static_cast<size_t>(l)] - at[static_cast<size_t>(e)]).norm() > spec.contactDistance(e, l) + kRideReachM)
+      continue;
+    r.load_of[i] = load;
+    carried[static_cast<size_t>(load)] = true;
+  }
+  for (size_t i = 0; i < step.size(); ++i) {
+    if (!step[i].isMotion() || carried[i]) continue;
+    r.movers.push_back(static_cast<int>(i));
+    r.moving[static_cast<size_t>(step[i].entity)] = true;
+    if (r.load_of[i] >= 0) r.moving[static_cast<size_t>(step[static_cast<size_t>(r.load_of[i])].entity)] = true;
+  }
+  return r;
+}
+
+bool isObstacle(const task::TaskSpec& spec, int e) {
+  return spec.footprint(e).obstacle;
+}
+
+/// How far the body of `e` at `p` is inside the table's edges (metres; < 0: over one).
+double edgeGap(const task::TaskSpec& spec, int e, const Vector2d& p) {
+  return std::min({p.x(), p.y(), kTableSize - p.x(), kTableSize - p.y()}) - spec.footprint(e).radius_m;
+}
+
+/// One way of shaping a mover's path to keep clear of the others.
+struct Candidate {
+  double bend = 0, hook = 0, lag = 1;
+  bool long_way = false;
+  double deviation = 0;  ///< how far the path moves from its shape, in start-to-end distances
+};
+
+/// Every combination of kAvoidBends, kAvoidHooks, kAvoidLags and the load's swing, the
+/// least changed path first: by how far it moves from the shape (an arc b: |b|; a hook
+/// turning the start by a: at most 0.164 |sin(a / 2)|), then by lag (timing only, the path
+/// unchanged), then the swing; ties in the order of the lists.
+const std::vector<Candidate>& candidates() {
+  static const std::vector<Candidate> all = [] {
+    std::vector<Candidate> c;
+    for (bool long_way : {false, true})
+      for (double hook : kAvoidHooks)
+        for (double bend : kAvoidBends)
+          for (double lag : kAvoidLags)
+            c.push_back({bend, hook, lag, long_way, std::abs(bend) + 0.164 * std::abs(std::sin(hook / 2))});
+    std::stable_sort(c.begin(), c.end(), [](const Candidate& a, const Candidate& b) {
+      if (a.deviation != b.deviation) return a.deviation < b.deviation;
+      if (a.lag != b.lag) return a.lag < b.lag;
+      return a.long_way < b.long_way;
+    });
+    return c;
+  }();
+  return all;
+}
+
+}  // namespace
+
+std::vector<Vector2d> stepEndPositions(const task::TaskSpec& spec, const std::vector<Vector2d>& positions,
+                                       const std::vector<task::Token>& step) {
+  if (positions.size() != spec.entities.size())
+    throw Error("positions of " + std::to_string(positions.size()) + " entities for the " +
+                std::to_string(spec.entities.size()) + " of task '" + spec.name + "'");
+  const StepRoles r = roles(spec, step, positions);
+  std::vector<Vector2d> ends = positions;
+  // Bodies an end point must keep clear of: standing ones, then ends placed before.
+  std::vector<int> placed;
+  for (size_t e = 0; e < positions.size(); ++e)
+    if (!r.moving[e] && isObstacle(spec, static_cast<int>(e))) placed.push_back(static_cast<int>(e));
+  // Free: on the table, and no closer than contact to a placed body (plus `gap` to any but
+  // the motion's target).
+  auto free = [&](int entity, const Vector2d& at, int partner, int target, double gap) {
+    if (edgeGap(spec, entity, at) < std::min(0.0, edgeGap(spec, entity, positions[static_cast<size_t>(entity)])))
+      return false;
+    if (!isObstacle(spec, entity)) return true;
+    for (int b : placed)
+      if (b != partner && (at - ends[static_cast<size_t>(b)]).norm() <
+                              spec.contactDistance(entity, b) + (b == target ? 0.0 : gap) - kContactSlack)
+        return false;
+    return true;
+  };
+  const task::EndPointModel footprints;  // nothing learned: the footprints decide
+  for (int i : r.movers) {
+    const task::Token& t = step[static_cast<size_t>(i)];
+    const Vector2d start = positions[static_cast<size_t>(t.entity)], target = positions[static_cast<size_t>(t.target)];
+    const Vector2d end = task::endPoint(spec, footprints, step, static_cast<size_t>(i), positions);
+    const int load = r.load_of[static_cast<size_t>(i)] >= 0
+                         ? step[static_cast<size_t>(r.load_of[static_cast<size_t>(i)])].entity
+                         : -1;
+    Vector2d load_end = Vector2d::Zero();
+    if (load >= 0) {
+      const Vector2d d = target - start;
+      const Vector2d u = d.norm() < task::kMinApproachM
+                             ? Vector2d(positions[static_cast<size_t>(load)] - start).normalized()
+                             : Vector2d(d.normalized());
+      load_end = end + spec.contactDistance(t.entity, load) * u;
+    }
+    // The rule's end point, else the nearest turn about the target that is free.
+    Vector2d e_best = end, l_best = load_end;
+    bool found = false;
+    for (int k = 0; !found && k * kEndTurnStepRad <= kMaxEndTurnRad + 1e-12; ++k) {
+      for (int sign : {1, -1}) {
+        if (k == 0 && sign < 0) continue;
+        const double angle = sign * k * kEndTurnStepRad;
+        const Vector2d e = target + rotated(end - target, angle), l = target + rotated(load_end - target, angle);
+        // A turned end keeps kEndTurnGapM from the bodies it turned away from: it touches
+        // its target only (what it touches says where it went).
+        const double gap = k == 0 ? 0.0 : kEndTurnGapM;
+        if (free(t.entity, e, load, t.target, gap) && (load < 0 || free(load, l, t.entity, t.target, gap))) {
+          e_best = e, l_best = l, found = true;
+          break;
+        }
+      }
+    }
+    // Onto a goal already taken (turning about its centre changes nothing): stop short of
+    // it, on the way, where the body first fits (metres, kBackOffStepM at a time).
+    const Vector2d back = end - start;
+    for (double off = kBackOffStepM; !found && off < back.norm(); off += kBackOffStepM) {
+      const Vector2d shift = -off * back.normalized();
+      if (free(t.entity, end + shift, load, t.target, 0) &&
+          (load < 0 || free(load, load_end + shift, t.entity, t.target, 0)))
+        e_best = end + shift, l_best = load_end + shift, found = true;
+    }
+    ends[static_cast<size_t>(t.entity)] = e_best;
+    if (isObstacle(spec, t.entity)) placed.push_back(t.entity);
+    if (load >= 0) {
+      ends[static_cast<size_t>(load)] = l_best;
+      if (isObstacle(spec, load)) placed.push_back(load);
+    }
+  }
+  return ends;
+}
+
+task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<Vector2d>& start,
+                                  const std::vector<PlannedStep>& steps) {
+  const size_t m = spec.entities.size();
+  if (start.size() != m)
+    throw Error("a start configuration of " + std::to_string(start.size()) + " positions for the " + std::to_string(m) +
+                " entities of task '" + spec.name + "'");
+  std::vector<Vector2d> pos = start;
+  task::Demonstration d;
+  d.has_label_columns.assign(m, false);
+  for (const auto& step : steps)
+    for (const auto& pt : step)
+      if (pt.token.entity >= 0 && static_cast<size_t>(pt.token.entity) < m)
+        d.has_label_columns[static_cast<size_t>(pt.token.entity)] = true;
+  auto emit = [&](const std::vector<task::Label>& labels) {
+    d.t.push_back(static_cast<double>(d.t.size()) / kGeneratorRateHz);
+    std::vector<Vector2d> row(m);
+    for (size_t e = 0; e < m; ++e) row[e] = {micrometres(pos[e].x()), micrometres(pos[e].y())};
+    d.positions.push_back(row);
+    d.labels.push_back(labels);
+  };
+  const std::vector<task::Label> idle(m);
+  for (int i = 0; i < kIdleRowsBefore; ++i) emit(idle);
+
+  for (size_t s = 0; s < steps.size(); ++s) {
+    std::vector<task::Token> tokens;
+    for (const auto& pt : steps[s]) tokens.push_back(pt.token);
+    const std::vector<Vector2d> ends = stepEndPositions(spec, pos, tokens);
+    const StepRoles r = roles(spec, tokens, pos);
+
+    // Bodies whose path is fixed: standing ones, then each mover (and its load) as chosen.
+    struct Body {
+      int entity;
+      int mover;  ///< index into `paths`, -1 standing
+      int rider;  ///< index into `riders` for a load, -1 otherwise
+    };
+    std::vector<Body> fixed;
+    for (size_t e = 0; e < m; ++e)
+      if (!r.moving[e] && isObstacle(spec, static_cast<int>(e))) fixed.push_back({static_cast<int>(e), -1, -1});
+    std::vector<Path> paths;
+    std::vector<Rider> riders;  // [mover] (load -1: none)
+    auto where = [&](const Body& b, double u) -> Vector2d {
+      if (b.mover < 0) return pos[static_cast<size_t>(b.entity)];
+      if (b.rider >= 0) return riders[static_cast<size_t>(b.rider)].at(paths[static_cast<size_t>(b.mover)], u);
+      return paths[static_cast<size_t>(b.mover)].at(u);
+    };
+    // The least clearance of `candidate` bodies against the fixed ones over the step:
+    // distance less contact, measured from no closer than the pair starts or ends.
+    auto clearance = [&](const std::vector<Body>& candidate) {
+      double worst = std::numeric_limits<double>::infinity();
+      for (const Body& a : candidate) {
+        // Its body stays on the table.
+        const double g0 = edgeGap(spec, a.entity, where(a, 0)), g1 = edgeGap(spec, a.entity, where(a, 1));
+        for (int k = 0; k <= kCheckSamples; ++k)
+          worst = std::min(worst, edgeGap(spec, a.entity, where(a, static_cast<double>(k) / kCheckSamples)) -
+                                      std::min({0.0, g0, g1}));
+        if (!isObstacle(spec, a.entity)) continue;
+        for (const Body& b : fixed) {
+          const double contact = spec.contactDistance(a.entity, b.entity);
+          const double d0 = (where(a, 0) - where(b, 0)).norm(), d1 = (where(a, 1) - where(b, 1)).norm();
+          const double allowed = std::min({contact, d0, d1});
+          for (int k = 0; k <= kCheckSamples; ++k) {
+            const double u = static_cast<double>(k) / kCheckSamples;
+            worst = std::min(worst, (where(a, u) - where(b, u)).norm() - allowed);
+          }
+        }
+      }
+      return worst;
+    };
+
+    for (int i : r.movers) {
+      const PlannedToken& pt = steps[s][static_cast<size_t>(i)];
+      const int e = pt.token.entity;
+      const int load_token = r.load_of[static_cast<size_t>(i)];
+      Rider rider;
+      if (load_token >= 0) {
+        rider.load = tokens[static_cast<size_t>(load_token)].entity;
+        rider.offset0 = pos[static_cast<size_t>(rider.load)] - pos[static_cast<size_t>(e)];
+        rider.contact = spec.contactDistance(e, rider.load);
+      }
+      const size_t index = paths.size();
+      paths.push_back({pos[static_cast<size_t>(e)], ends[static_cast<size_t>(e)], pt.shape});
+      riders.push_back(rider);
+      std::vector<Body> candidate = {{e, static_cast<int>(index), -1}};
+      if (rider.load >= 0) candidate.push_back({rider.load, static_cast<int>(index), static_cast<int>(index)});
+      // The first free of the candidates, least changed first; else the one with the most
+      // clearance.
+      auto shapeWith = [&](double bend, double hook, double lag, bool long_way) {
+        paths[index].lag = lag;
+        paths[index].bend = bend;
+        if (rider.load >= 0)
+          paths[index].alignEnd(ends[static_cast<size_t>(rider.load)] - ends[static_cast<size_t>(e)]);
+        paths[index].hookStart(hook);
+        riders[index].long_way = long_way;
+      };
+      const Candidate* best = &candidates().front();
+      double best_clearance = -std::numeric_limits<double>::infinity();
+      const auto& all = candidates();
+      for (size_t i = 0; i < all.size(); ++i) {
+        const Candidate& k = all[i];
+        if (k.long_way && rider.load < 0) continue;
+        shapeWith(k.bend, k.hook, k.lag, k.long_way);
+        const double c = clearance(candidate);
+        if (c > best_clearance + 1e-12) best_clearance = c, best = &k;
+        if (c < -kContactSlack) continue;
+        // Free. Of the equally small changes (its mirror image), the one with the most
+        // clearance: the side a path turns to follows the layout, not the order of a list.
+        for (size_t j = i + 1; j < all.size() && all[j].deviation == k.deviation && all[j].lag == k.lag; ++j) {
+          if (all[j].long_way && rider.load < 0) continue;
+          shapeWith(all[j].bend, all[j].hook, all[j].lag, all[j].long_way);
+          const double cj = clearance(candidate);
+          if (cj > best_clearance + 1e-12) best_clearance = cj, best = &all[j];
+        }
+        break;
+      }
+      shapeWith(best->bend, best->hook, best->lag, best->long_way);
+      for (const Body& b : candidate) fixed.push_back(b);
+    }
+
+    // All tokens of a step end together (step-synchronous demonstrations).
+    double longest = 0;
+    for (const Path& p : paths) longest = std::max(longest, p.length());
+    const double duration = std::max(kMinStepDurationS, longest / kGeneratorSpeed);
+    const int n = static_cast<int>(std::ceil(duration * kGeneratorRateHz));
+    std::vector<task::Label> labels(m);
+    for (const auto& pt : steps[s]) labels[static_cast<size_t>(pt.token.entity)] = {pt.token.action, pt.token.target};
+    std::vector<task::Label> row_labels(m);
+    for (int j = 0; j <= n; ++j) {
+      const double u = j == n ? 1.0 : smoothstep(static_cast<double>(j) / n);
+      for (size_t k = 0; k < paths.size(); ++k) {
+        const int e = tokens[static_cast<size_t>(r.movers[k])].entity;
+        pos[static_cast<size_t>(e)] = j == n ? ends[static_cast<size_t>(e)] : paths[k].at(u);
+        if (riders[k].load >= 0)
+          pos[static_cast<size_t>(riders[k].load)] =
+              j == n ? ends[static_cast<size_t>(riders[k].load)] : riders[k].at(paths[k], u);
+      }
+      for (size_t e = 0; e < m; ++e) row_labels[e] = task::Label{};
+      for (const auto& pt : steps[s])
+        if (j >= pt.label_delay_rows)
+          row_labels[static_cast<size_t>(pt.token.entity)] = labels[static_cast<size_t>(pt.token.entity)];
+      emit(row_labels);
+    }
+    const int gap = s + 1 < steps.size() ? kIdleRowsBetween : kIdleRowsAfter;
+    for (int i = 0; i < gap; ++i) emit(idle);
+  }
+  d.step_window_s = spec.step_window_s;
+  d.analyze();
+  return d;
+}
+
+}  // namespace ddace::tasks

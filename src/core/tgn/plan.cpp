@@ -1,0 +1,146 @@
+// planTraining: what the training demonstrations decide about training (TrainingPlan), in
+// one place. Every rule's enabling condition is stated here; the trainer, the network, the
+// decoder and the manifest read the plan (docs/tgn.md, "The plan").
+#include <algorithm>
+#include <map>
+#include <set>
+
+#include "ddace/common/error.h"
+#include "ddace/tgn/detail.h"
+#include "ddace/tgn/sequence_model.h"
+#include "scene_network.h"
+
+namespace ddace::tgn {
+
+namespace {
+
+/// E' lifted to entity kinds: every pair whose kinds are those of a kept edge.
+std::vector<graph::Edge> liftedToKinds(const std::vector<graph::Edge>& kept, const task::TaskSpec& spec) {
+  std::set<std::pair<task::EntityKind, task::EntityKind>> kinds;
+  for (const auto& e : kept)
+    kinds.insert(
+        {spec.entities[static_cast<size_t>(e.source)].kind, spec.entities[static_cast<size_t>(e.target)].kind});
+  std::vector<graph::Edge> out;
+  const int n = static_cast<int>(spec.entities.size());
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      if (i != j &&
+          kinds.count({spec.entities[static_cast<size_t>(i)].kind, spec.entities[static_cast<size_t>(j)].kind}))
+        out.push_back({i, j});
+  return out;
+}
+
+/// The rules every step of `train`'s demonstrations kept (StepRules).
+StepRules stepRulesOf(const task::TaskDir& train) {
+  StepRules r;
+  r.exclusive_targets = true;
+  std::set<size_t> sizes;
+  std::set<std::string> loads;
+  bool carried = true;
+  const double together = kTogetherRadii * train.spec.arrival_radius;
+  const auto isObject = [&](int e) {
+    return train.spec.entities[static_cast<size_t>(e)].kind == task::EntityKind::Object;
+  };
+  for (const auto& d : train.demos)
+    for (const auto& t : d.segments)
+      if (isObject(t.token.entity)) loads.insert(t.token.action);
+  for (const auto& d : train.demos)
+    for (size_t k = 0; k < d.steps.size(); ++k) {
+      const auto& step = d.steps[k];
+      sizes.insert(step.tokens.size());
+      std::set<int> targets;
+      for (const auto& t : step.tokens)
+        if (t.target >= 0 && !targets.insert(t.target).second) r.exclusive_targets = false;
+      // Carried loads: who stands at an object's place as the step begins.
+      const auto& pos = d.snapshots[k].positions;
+      std::map<int, const task::Token*> token;
+      for (const auto& t : step.tokens) token[t.entity] = &t;
+      const auto same = [&](int a, int b) {
+        return token.count(a) && token.count(b) && token[a]->action == token[b]->action &&
+               token[a]->target == token[b]->target;
+      };
+      for (int o = 0; o < static_cast<int>(pos.size()); ++o) {
+        if (!isObject(o)) continue;
+        bool with_carrier = false;
+        for (int c = 0; c < static_cast<int>(pos.size()); ++c) {
+          if (c == o || isObject(c) || (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() > together)
+            continue;
+          with_carrier = with_carrier || same(o, c);
+          if (token.count(c) && loads.count(token[c]->action) && !same(o, c)) carried = false;
+        }
+        if (token.count(o) && !with_carrier) carried = false;
+      }
+    }
+  r.step_size = sizes.size() == 1 ? static_cast<int>(*sizes.begin()) : 0;
+  if (carried) r.load_actions.assign(loads.begin(), loads.end());
+  return r;
+}
+
+}  // namespace
+
+TrainingPlan planTraining(const task::TaskDir& train, const TrainOptions& options, const graph::RefinedGraph& refined) {
+  options.validate();
+  TrainingPlan p;
+  std::vector<std::vector<task::Step>> steps_of;
+  for (const auto& d : train.demos) steps_of.push_back(d.steps);
+  const task::CommonSteps common = task::commonSteps(steps_of);
+  // One demonstration shows no order: nothing is "the same in every one" yet.
+  p.fixed_order = train.demos.size() >= 2 && common.fixed;
+  p.slips = p.fixed_order ? static_cast<int>(common.slips.size()) : 0;
+  p.identity_embedding = options.identity_embedding;
+  const int n = static_cast<int>(train.spec.entities.size());
+  switch (options.variant) {
+    case Variant::Paper:
+      p.attention_edges = refined.kept;
+      break;
+    case Variant::Scene:
+      p.attention_edges = liftedToKinds(refined.kept, train.spec);
+      break;
+    case Variant::FullGraph:
+    case Variant::Gnn:
+      p.attention_edges = graph::fullyConnected(n);
+      break;
+  }
+  if (options.variant != Variant::Scene) return p;  // the paper's networks: none of the rules below
+  p.step_rules = stepRulesOf(train);
+  // Fixed order: when every demonstration has the same steps, the configuration decided
+  // nothing in them, and what the relative features could teach is only coincidence of
+  // the few start configurations seen.
+  p.relative_features = options.uses(Rule::Relative) && !(options.uses(Rule::FixedOrder) && p.fixed_order);
+  if (!p.relative_features) return p;  // the rules below shape what the scene says
+  p.parked_out_of_ranks = options.uses(Rule::Parked);
+  // Token by token: where every step's targets were exclusive and some step had several.
+  p.token_by_token =
+      options.uses(Rule::TokenByToken) && p.step_rules.exclusive_targets &&
+      std::any_of(train.demos.begin(), train.demos.end(), [](const task::Demonstration& d) {
+        return std::any_of(d.steps.begin(), d.steps.end(), [](const task::Step& s) { return s.tokens.size() >= 2; });
+      });
+  // Shuffled names: only names to shuffle (the identity embedding) and steps the scene decides.
+  const std::vector<std::vector<int>> groups =
+      p.fixed_order ? std::vector<std::vector<int>>{} : detail::interchangeableNames(train);
+  if (options.uses(Rule::ShuffledNames) && p.identity_embedding) p.name_groups = groups;
+  // Names or the scene: a network without the identity embedding tells the entities of a
+  // kind apart by the scene alone. It can fit the training demonstrations by coincidences
+  // of their scenes where a name decides a role (which of queue's slots is the head), and
+  // then fails every fresh scene; so it is tried only where the scene decides the role of
+  // every entity of a kind with several (each in a name group).
+  std::vector<bool> grouped(static_cast<size_t>(n), false);
+  for (const auto& g : groups)
+    for (int e : g) grouped[static_cast<size_t>(e)] = true;
+  const auto kind = [&](int e) { return train.spec.entities[static_cast<size_t>(e)].kind; };
+  p.names_or_scene = p.identity_embedding;
+  for (int e = 0; e < n; ++e)
+    for (int o = 0; o < n; ++o)
+      if (o != e && kind(o) == kind(e) && !grouped[static_cast<size_t>(e)]) p.names_or_scene = false;
+  return p;
+}
+
+TrainingPlan TrainingPlan::withoutIdentity() const {
+  TrainingPlan p = *this;
+  p.identity_embedding = false;
+  p.names_or_scene = false;
+  p.name_groups.clear();  // no names to shuffle
+  return p;
+}
+
+}  // namespace ddace::tgn

@@ -1,0 +1,228 @@
+// The training plan (tgn::TrainingPlan): what the demonstrations decide about training,
+// computed once (tgn::planTraining), and what each of its rules does to what the network
+// sees and decides. The step decoder: one, for predictNext and the accuracy check.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <set>
+
+#include "ddace/common/error.h"
+#include "ddace/common/sha256.h"
+#include "ddace/tasks/generators.h"
+#include "ddace/tasks/rule_zoo.h"
+#include "ddace/tgn/detail.h"
+#include "ddace/tgn/sequence_model.h"
+#include "model_impl.h"
+
+#include "../common/file_tree.h"
+
+using namespace ddace;
+namespace fs = std::filesystem;
+
+namespace {
+
+task::TaskDir generate(const std::string& family, int demos, uint64_t seed = 1) {
+  uint64_t rule = 0;
+  if (tasks::parseZooFamily(family, rule)) return tasks::generateZoo(rule, demos, seed);
+  tasks::GeneratorOptions o;
+  o.family = family;
+  o.demos = demos;
+  o.seed = seed;
+  return tasks::generate(o);
+}
+
+tgn::TrainingPlan planOf(const task::TaskDir& train, const tgn::TrainOptions& o = {}) {
+  return tgn::planTraining(train, o, graph::refine(train.demos, static_cast<int>(train.spec.entities.size())));
+}
+
+std::vector<std::vector<std::string>> names(const task::TaskDir& dir, const std::vector<std::vector<int>>& groups) {
+  std::vector<std::vector<std::string>> out;
+  for (const auto& g : groups) {
+    out.emplace_back();
+    for (int e : g) out.back().push_back(dir.spec.entities[static_cast<size_t>(e)].name);
+  }
+  return out;
+}
+
+using Groups = std::vector<std::vector<std::string>>;
+
+}  // namespace
+
+// Each family's plan, from its demonstrations alone (no training): the paper's fixed order
+// (Task 4), the scene's choices (fetch: a carried box; nearest_goal: one step of exclusive
+// targets; queue: one robot per step to named slots), and the paper's network.
+TEST(TrainingPlan, IsWhatTheDemonstrationsDecide) {
+  const task::TaskDir task4 = generate("task4", 4), fetch = generate("fetch", 6), goals = generate("nearest_goal", 10),
+                      queue = generate("queue", 6);
+  const tgn::TrainingPlan fixed = planOf(task4);
+  EXPECT_TRUE(fixed.fixed_order);
+  EXPECT_FALSE(fixed.relative_features);
+  EXPECT_TRUE(fixed.identity_embedding);
+  EXPECT_TRUE(fixed.name_groups.empty());
+  EXPECT_FALSE(fixed.token_by_token || fixed.parked_out_of_ranks);
+  EXPECT_EQ(fixed.step_rules.step_size, 2);
+
+  const tgn::TrainingPlan f = planOf(fetch);
+  EXPECT_FALSE(f.fixed_order);
+  EXPECT_TRUE(f.relative_features && f.parked_out_of_ranks);
+  EXPECT_FALSE(f.token_by_token) << "the fetcher and its box share a target";
+  EXPECT_EQ(names(fetch, f.name_groups), (Groups{{"R1", "R2"}}));
+  EXPECT_EQ(f.step_rules.load_actions, std::vector<std::string>{"carry"});
+
+  const tgn::TrainingPlan g = planOf(goals);
+  EXPECT_TRUE(g.names_or_scene) << "every robot's and goal's role is the scene's";
+  EXPECT_TRUE(g.token_by_token);
+  EXPECT_TRUE(g.step_rules.exclusive_targets);
+  EXPECT_EQ(g.step_rules.step_size, 3);
+
+  const tgn::TrainingPlan q = planOf(queue);
+  EXPECT_FALSE(q.token_by_token) << "one token per step";
+  EXPECT_EQ(names(queue, q.name_groups), (Groups{{"R1", "R2", "R3"}})) << "the slots keep their names";
+  EXPECT_FALSE(q.names_or_scene) << "only its name says which slot is the head of the line";
+  EXPECT_FALSE(fixed.names_or_scene);
+  EXPECT_FALSE(planOf(generate("zoo:5", 10)).names_or_scene) << "a queue by left-to-right order";
+
+  // The user's --without turns each rule off, and only that one.
+  for (tgn::Rule rule : tgn::allRules()) {
+    tgn::TrainOptions o;
+    o.without = {rule};
+    const tgn::TrainingPlan off = planOf(goals, o);
+    EXPECT_EQ(off.relative_features, rule != tgn::Rule::Relative) << tgn::toString(rule);
+    EXPECT_EQ(off.token_by_token, rule != tgn::Rule::Relative && rule != tgn::Rule::TokenByToken)
+        << tgn::toString(rule);
+    EXPECT_EQ(off.parked_out_of_ranks, rule != tgn::Rule::Relative && rule != tgn::Rule::Parked) << tgn::toString(rule);
+    EXPECT_EQ(off.name_groups.empty(), rule == tgn::Rule::Relative || rule == tgn::Rule::ShuffledNames)
+        << tgn::toString(rule);
+  }
+  tgn::TrainOptions keep;
+  keep.without = {tgn::Rule::FixedOrder};
+  EXPECT_TRUE(planOf(task4, keep).relative_features);
+  EXPECT_TRUE(planOf(task4, keep).name_groups.empty()) << "a fixed order's names are what its steps follow";
+
+  tgn::TrainOptions paper;
+  paper.variant = tgn::Variant::Paper;
+  const tgn::TrainingPlan p = planOf(goals, paper);
+  EXPECT_FALSE(p.relative_features || p.token_by_token || p.parked_out_of_ranks || !p.name_groups.empty());
+  EXPECT_FALSE(p.step_rules.any()) << "the paper's network decodes each entity on its own";
+  EXPECT_EQ(p.attention_edges, graph::refine(goals.demos, 7).kept);
+}
+
+TEST(TrainingPlan, RuleNamesAreTheCommandLineOnes) {
+  EXPECT_EQ(tgn::rulesFromList("fixed-order,parked"), (std::set<tgn::Rule>{tgn::Rule::FixedOrder, tgn::Rule::Parked}));
+  EXPECT_TRUE(tgn::rulesFromList("").empty());
+  for (tgn::Rule r : tgn::allRules()) EXPECT_EQ(tgn::ruleFromString(tgn::toString(r)), r);
+  try {
+    tgn::rulesFromList("parked,nearest");
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("'nearest' is not a learning rule (relative, fixed-order"), std::string::npos)
+        << e.what();
+  }
+}
+
+// Parked entities: after R? parked on Q1 in queue, the nearest free robot to Q1 is again
+// the nearest (rank 1, as at the first step) for the network; without the rule it is the
+// 2nd, the parked one counted in.
+TEST(ParkedEntities, AParkedRobotIsNoRivalOfTheFreeOnes) {
+  const task::TaskDir queue = generate("queue", 4);
+  auto impl = tgn::prepare(queue, tgn::TrainOptions{});
+  ASSERT_TRUE(impl->info.plan.parked_out_of_ranks);
+  impl->build();
+  const task::Demonstration d = impl->order.toCanonical(queue.demos.front());
+  ASSERT_GE(d.snapshots.size(), 3u);
+  const int n = impl->cfg.nodes;
+  const int parked = d.steps[0].tokens.at(0).entity, q1 = d.steps[0].tokens.at(0).target;
+  const auto& pos = d.snapshots[1].positions;
+  int free = -1;
+  for (int e = 0; e < n; ++e)
+    if (e != parked &&
+        queue.spec.entities[static_cast<size_t>(impl->order.task_of[static_cast<size_t>(e)])].kind ==
+            task::EntityKind::Robot &&
+        (free < 0 || (pos[static_cast<size_t>(e)] - pos[static_cast<size_t>(q1)]).norm() <
+                         (pos[static_cast<size_t>(free)] - pos[static_cast<size_t>(q1)]).norm()))
+      free = e;
+  ASSERT_GE(free, 0);
+  const auto rank = [&](bool rule) {
+    impl->info.plan.parked_out_of_ranks = rule;
+    std::vector<float> rel(static_cast<size_t>(n * n * tgn::kRelativeFeatures));
+    impl->relative(pos, &d.snapshots[0].positions, rel.data());
+    return rel[static_cast<size_t>((q1 * n + free) * tgn::kRelativeFeatures + 3)];  // j's nearness rank seen from i
+  };
+  EXPECT_FLOAT_EQ(rank(true), 1.f);
+  EXPECT_FLOAT_EQ(rank(false), 0.5f);
+}
+
+// One decoder: the step accuracy training prints and stepAccuracy returns is the fraction of
+// steps (and END) predictNext decides exactly from the true history, on rules where the
+// decoder does more than each entity's argmax: token by token (nearest_goal), carried
+// loads (fetch), a fixed step size (queue).
+TEST(OneDecoder, StepAccuracyIsThatOfPredictNext) {
+  for (const char* family : {"nearest_goal", "fetch", "queue"}) {
+    tgn::TrainOptions o;
+    o.max_epochs = 12;  // short of the demonstrations: some steps wrong
+    const task::TaskDir train = generate(family, 6);
+    const tgn::SequenceModel m = tgn::SequenceModel::train(train, o, nullptr);
+    const task::TaskDir test = generate(family, 6, 9);
+    int right = 0, steps = 0;
+    for (const auto& d : test.demos)
+      for (size_t k = 1; k <= d.snapshots.size(); ++k) {
+        const auto p = m.predictNext({d.snapshots.begin(), d.snapshots.begin() + static_cast<long>(k)});
+        const bool end = k == d.snapshots.size();
+        right += p.end == end && (end || p.tokens == d.steps[k - 1].tokens);
+        ++steps;
+      }
+    EXPECT_DOUBLE_EQ(m.stepAccuracy(test.demos), static_cast<double>(right) / steps) << family;
+  }
+}
+
+// Token by token is the plan's: the same weights loaded with the rule recorded off decide
+// a step's targets all at once, and a token's probability is then its pointer's, not the
+// one of the target chosen after the others.
+TEST(TokenByToken, IsHowThePlanSaysAStepIsDecoded) {
+  tgn::TrainOptions o;
+  o.max_epochs = 8;
+  const task::TaskDir goals = generate("nearest_goal", 4);
+  const tgn::SequenceModel m = tgn::SequenceModel::train(goals, o, nullptr);
+  ASSERT_TRUE(m.info().plan.token_by_token);
+  const std::string dir = (fs::temp_directory_path() / ("ddace_test_plan_" + std::to_string(::getpid()))).string();
+  m.save(dir);
+  std::string s = test::fileBytes(fs::path(dir) / "manifest.yaml");
+  const size_t at = s.find("token_by_token: true");
+  ASSERT_NE(at, std::string::npos);
+  s.replace(at, 20, "token_by_token: false");
+  s = s.substr(0, s.rfind("\nmanifest_sha256: ") + 1);
+  s += "manifest_sha256: " + sha256Hex(s) + "\n";
+  test::writeBytes(fs::path(dir) / "manifest.yaml", s);
+  const tgn::SequenceModel at_once = tgn::SequenceModel::load(dir);
+  fs::remove_all(dir);
+  ASSERT_FALSE(at_once.info().plan.token_by_token);
+  const std::vector<task::Snapshot> first(goals.demos.front().snapshots.begin(),
+                                          goals.demos.front().snapshots.begin() + 1);
+  const tgn::Prediction p = m.predictNext(first), q = at_once.predictNext(first);
+  ASSERT_GE(p.tokens.size(), 2u);
+  ASSERT_EQ(p.tokens.size(), q.tokens.size());
+  EXPECT_NE(p.token_probabilities, q.token_probabilities);
+}
+
+// Names or the scene, gated: a queue filled in left-to-right order (zoo:5) from 20
+// demonstrations. Only a slot's name says which slot is the head; the network without the
+// identity embedding fitted the training scenes by their coincidences and was kept, and
+// sent the leftmost robot to Q2 or Q3 in every fresh scene (OSR 0.00). The plan keeps the
+// names: every step of at least 8 of 10 fresh scenes decided as the rule says.
+TEST(NamesOrTheScene, KeepsTheNamesWhereANameAloneTellsARole) {
+  const task::TaskDir train = generate("zoo:5", 20), test = generate("zoo:5", 10, 77);
+  const tgn::SequenceModel m = tgn::SequenceModel::train(train, tgn::TrainOptions{}, nullptr);
+  EXPECT_FALSE(m.info().plan.names_or_scene);
+  EXPECT_TRUE(m.info().plan.identity_embedding);
+  int right = 0;
+  for (const auto& d : test.demos) {
+    bool all = true;
+    for (size_t k = 1; k <= d.snapshots.size() && all; ++k) {
+      const auto p = m.predictNext({d.snapshots.begin(), d.snapshots.begin() + static_cast<long>(k)});
+      all = p.end == (k == d.snapshots.size()) && (p.end || p.tokens == d.steps[k - 1].tokens);
+    }
+    right += all;
+  }
+  EXPECT_GE(right, 8);
+}
