@@ -12,11 +12,16 @@
 // Both passes stream the file: memory holds a few seconds of rows and the motions found,
 // so the peak grows with the number of motions (steps), never with the rows' bytes.
 // Writes docs/bench/label_memory.md under the repository it finds at run time (--repo DIR).
+// Usage: bench_label_memory [--repo DIR] [--mb N]  (N: the long recording's size in MiB,
+// about: later plays have longer times, some 4 % more; default 200. --mb 960 gives the
+// largest recording ddace reads, just under kMaxDemonstrationBytes (1 GiB): some 3 GB of
+// scratch space and minutes).
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -37,7 +42,7 @@ using namespace ddace;
 
 namespace {
 
-constexpr std::uint64_t kTargetBytes = std::uint64_t{200} << 20;
+constexpr std::uint64_t kDefaultMb = 200;
 
 long statusKb(const std::string& key) {
   std::ifstream in("/proc/self/status");
@@ -84,7 +89,8 @@ Measure labelTool(const fs::path& tool, const std::string& dir, int& status) {
   const pid_t pid = ::fork();
   if (pid < 0) throw Error("fork failed");
   if (pid == 0) {
-    if (!std::freopen("/dev/null", "w", stdout) || !std::freopen("/dev/null", "w", stderr)) ::_exit(126);
+    if (!std::freopen("/dev/null", "w", stdout) || !std::freopen((dir + "-stderr.txt").c_str(), "w", stderr))
+      ::_exit(126);
     ::execl(tool.c_str(), tool.c_str(), "label", dir.c_str(), "--out", (dir + "-out").c_str(),
             static_cast<char*>(nullptr));
     ::_exit(127);
@@ -142,6 +148,18 @@ int main(int argc, char** argv) {
     const fs::path self = fs::read_symlink("/proc/self/exe");
     const fs::path tool = self.parent_path() / "ddace";
     const fs::path repo = bench::repositoryFromArgs(argc, argv);
+    std::uint64_t target_mb = kDefaultMb;
+    for (int i = 1; i < argc; ++i) {
+      const std::string a = argv[i];
+      if (a == "--mb" && i + 1 < argc) {
+        const long v = std::atol(argv[++i]);
+        if (v < 1 || v > 65536) throw Error("--mb must be a size in MB, 1..65536 (got '" + std::string(argv[i]) + "')");
+        target_mb = static_cast<std::uint64_t>(v);
+      } else {
+        throw Error("usage: bench_label_memory [--repo DIR] [--mb N]");
+      }
+    }
+    const std::uint64_t target_bytes = target_mb << 20;
     const std::string load = loadAverage();
     const fs::path work = fs::temp_directory_path() / ("ddace_bench_label_memory_" + std::to_string(::getpid()));
     fs::remove_all(work);
@@ -161,8 +179,8 @@ int main(int argc, char** argv) {
     const task::Demonstration demo = label::humanMotion(source.demos[0], source.spec, {}, rng);
     const std::string small = (work / "small").string(), big = (work / "big").string();
     const std::uint64_t small_bytes = writePlays(demo, source.spec, small, 1);
-    const size_t plays = static_cast<size_t>(kTargetBytes / small_bytes) + 1;
-    std::cout << "writing a " << mb(static_cast<long>(kTargetBytes >> 10)) << " MB recording (" << plays
+    const size_t plays = static_cast<size_t>(target_bytes / small_bytes) + 1;
+    std::cout << "writing a " << mb(static_cast<long>(target_bytes >> 10)) << " MB recording (" << plays
               << " plays forward and back)\n"
               << std::flush;
     const std::uint64_t big_bytes = writePlays(demo, source.spec, big, plays);
@@ -176,7 +194,10 @@ int main(int argc, char** argv) {
     if (have_tool) {
       small_tool = labelTool(tool, small, small_status);
       big_tool = labelTool(tool, big, big_status);
-      if (small_status != 0 || big_status != 0) throw Error("ddace label failed on a generated recording");
+      for (const auto& [status, dir] : {std::pair{small_status, small}, std::pair{big_status, big}})
+        if (status != 0)
+          throw Error("ddace label failed on the generated recording " + dir + ": " +
+                      readTextFile(dir + "-stderr.txt"));
     }
     const long growth_kb = big_in.peak_kb - small_in.peak_kb;
     const double per_token =
@@ -191,8 +212,8 @@ int main(int argc, char** argv) {
        << " rows at 30 Hz) played forward and backward in turn, without labels: once (the reference) and " << plays
        << " times (the long recording), in the same run. In process: `label::inferRecording` and "
           "`label::writeLabelledRecording` (what `ddace label` runs), peak resident set (VmHWM) reset before each. "
-          "Tool: `ddace label DIR --out OUT` in a child process, peak resident set from wait4. "
-       << utcNow() << ", 1-minute load average at the start: " << load << ".\n\n"
+          "Tool: `ddace label DIR --out OUT` in a child process, peak resident set from wait4. `--mb "
+       << target_mb << "`, " << utcNow() << ", 1-minute load average at the start: " << load << ".\n\n"
        << "| recording | CSV size | inferred steps | tokens | in process: peak RSS (MB) | in process: wall (s) "
           "| `ddace label`: peak RSS (MB) | `ddace label`: wall (s) |\n"
        << "|---|---:|---:|---:|---:|---:|---:|---:|\n";

@@ -4,8 +4,12 @@
 //
 // Everything happens on a 1 m x 1 m table (table frame, metres, origin at a corner);
 // trajectories are smooth and near noise-free, sampled at kGeneratorRateHz; the tokens of
-// a step start and end together, with idle rows between steps. The same options give
-// byte-identical output (own RNG arithmetic, no implementation-defined distributions).
+// a step start and end together, with idle rows between steps. Entities have the task's
+// bodies (docs/task-format.md, "Bodies", "Generated demonstrations"): a motion toward a
+// robot or an object ends at contact with it, onto a goal on it, a carried load rides in
+// front of its carrier and ends on the target, and paths are shaped so that bodies do not
+// pass through each other (simulateSteps() below). The same options give byte-identical
+// output (own RNG arithmetic, no implementation-defined distributions).
 //
 // The paper's families (task1..task4) jitter a fixed template layout and always have the
 // same steps. The scene-dependent families draw every start configuration uniformly over
@@ -100,7 +104,7 @@ using PlannedStep = std::vector<PlannedToken>;
 /// simulateSteps() ends the step's motions. A motion ends at the end point the task's
 /// footprints give when nothing is learned (task::endPoint with an empty
 /// task::EndPointModel: at contact with a robot or an object, on a goal); a carried load
-/// (task::carriedLoad) ends in front of its carrier, at their contact distance, so on a
+/// (task::carriedLoad, starting at its carrier) ends in front of its carrier, at their contact distance, so on a
 /// goal or at contact with an obstacle target, the carrier behind it. An end point inside
 /// a standing body, or inside an end point placed before it in the step, is turned about
 /// the target in steps of kEndTurnStepRad (at most kMaxEndTurnRad either way) to the
@@ -113,19 +117,25 @@ std::vector<Eigen::Vector2d> stepEndPositions(const task::TaskSpec& spec, const 
                                               const std::vector<task::Token>& step);
 
 /// The demonstration of `steps` from the start configuration `start` (one position per
-/// entity of `spec`, table frame, metres): kIdleRows... idle rows around and between the
-/// steps at kGeneratorRateHz; the tokens of a step start and end together (their labels
-/// begin label_delay_rows late), at kGeneratorSpeed along the longest path of the step
-/// and no shorter than kMinStepDurationS, eased in and out (smoothstep). Motions end at
-/// stepEndPositions(); a carried load rides in front of its carrier at their contact
-/// distance along the carrier's heading (it swings there over the first kLoadSwingFraction
-/// of the carry), and the carrier's path ends heading at it. Every mover's path is its
-/// shape plus the smallest extra arc (kAvoidBends, in order) that keeps its body, and its
-/// load's, from coming closer than contact to a standing body or to a mover placed before
-/// it in the step (no closer than the pair starts or ends, when that is already below
-/// contact); with none free, the bend with the most clearance. Positions are rounded to
-/// whole micrometres (what a CSV holds); the demonstration is analyzed with the task's
-/// step_window_s. Throws ddace::Error for a token naming an entity outside the task.
+/// entity of `spec`, table frame, metres): kIdleRowsBefore idle rows, then per step its
+/// rows and kIdleRowsBetween (kIdleRowsAfter after the last) idle rows, at
+/// kGeneratorRateHz. The tokens of a step start and end together (their labels begin
+/// label_delay_rows late), at kGeneratorSpeed along the longest path of the step and no
+/// shorter than kMinStepDurationS, eased in and out (smoothstep). Motions end at
+/// stepEndPositions(). A carried load (task::carriedLoad, starting within 1 cm of touching
+/// its carrier) rides in front of its carrier at their contact distance along the
+/// carrier's heading (it swings there over the first kLoadSwingFraction of the carry), and
+/// the carrier's path ends heading at the load's end. Each mover of a step, in token
+/// order, takes the least changed candidate path (its shape plus an extra arc
+/// kAvoidBends, a turned start kAvoidHooks, a lag kAvoidLags, its load swung the other way
+/// round; ordered by how far the path moves from its shape, then by lag) that keeps its
+/// body, and its load's, on the table and no closer than contact to a standing body or to
+/// a mover placed before it (no closer than the pair starts or ends, when that is already
+/// below contact); of a mirror pair the one with more clearance; with none free, the one
+/// with the most clearance. Positions are rounded to whole micrometres (what a CSV
+/// holds); the demonstration is analyzed with the task's step_window_s. Throws
+/// ddace::Error for a token naming an entity outside the task or a start configuration
+/// of the wrong size.
 task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& start,
                                   const std::vector<PlannedStep>& steps);
 
@@ -139,7 +149,8 @@ inline constexpr double kEndTurnGapM = 0.01;
 inline constexpr double kLoadSwingFraction = 0.3;
 /// Extra arcs tried to keep a path clear, fractions of the start-to-end distance.
 inline constexpr double kAvoidBends[] = {0, 0.05, -0.05, 0.1, -0.1, 0.15, -0.15, 0.3, -0.3, 0.45, -0.45, 0.6, -0.6};
-/// Lags tried (progress u^lag: the mover arrives after those placed before it).
+/// Lags tried (progress along the path is (time progress)^lag: the mover falls behind and
+/// arrives after those placed before it; the path itself is unchanged).
 inline constexpr double kAvoidLags[] = {1, 2, 3, 5};
 /// Turns of a path's start tried to leave the bodies a mover touches, radians.
 inline constexpr double kAvoidHooks[] = {0,        M_PI / 8,  -M_PI / 8,    M_PI / 4,      -M_PI / 4,

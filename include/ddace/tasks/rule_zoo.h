@@ -25,9 +25,11 @@
 //              carried to a goal of its own (matching)
 //   gather     the others meet at a robot chosen relative to G1, which then goes to a
 //              goal chosen relative to itself
-// 2-6 robots, 0-3 boxes, 1-6 goals (at most 10 entities), 1-4 steps. Motions are straight
-// at the generators' speed and rate (generators.h), a carried box moves with its carrier
-// (same target, same step). Start configurations are uniform over the table with the
+// 2-6 robots, 0-3 boxes, 1-6 goals (at most 10 entities), 1-4 steps. Motions are the
+// generators' (tasks::simulateSteps, generators.h): straight unless bodies are in the way,
+// ending at contact with a robot or a box and on a goal, a carried box in front of its
+// carrier (same target, same step); later steps are decided where the earlier ones ended
+// (tasks::stepEndPositions). Start configurations are uniform over the table with the
 // generators' border and separation; one in which any decision is a near tie (the chosen
 // and a competing entity's distance, or coordinate, closer than kSceneDecisionMargin) is
 // drawn again. The same rule id, seed and count give byte-identical output.

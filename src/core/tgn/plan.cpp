@@ -1,6 +1,6 @@
 // planTraining: what the training demonstrations decide about training (TrainingPlan), in
 // one place. Every rule's enabling condition is stated here; the trainer, the network, the
-// decoder and the manifest read the plan (docs/tgn.md, "The plan").
+// decoder and the manifest read the plan (docs/tgn.md, "The training plan").
 #include <algorithm>
 #include <map>
 #include <set>

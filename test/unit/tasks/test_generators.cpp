@@ -510,3 +510,30 @@ TEST(Bodies, NoTwoBodiesOverlapInAnyRowOfAnyFamily) {
   }
   EXPECT_LE(overlapping, 3);
 }
+
+TEST(Bodies, TheEndPointRuleLearnedFromGeneratedDemonstrationsIsTheContactOffset) {
+  // What the coordinator and path generation use after training on generated data: a
+  // robot stops 4.4 cm before a robot it drove to (two Hamster discs), 4.2 cm before a box,
+  // on a goal; a carrier 4.2 cm before the goal its load ends on; the load on the goal.
+  const double mm = 0.001;
+  const auto learned = [](const std::string& family) {
+    const task::TaskDir dir = gen(family, 20, 5);
+    return task::learnEndPoints(dir.spec, dir.demos);
+  };
+  const task::EndPointModel task2 = learned("task2"), fetch = learned("fetch"), queue = learned("queue");
+  const auto expect = [&](const task::EndPointModel& m, const std::string& cls, double x) {
+    ASSERT_TRUE(m.by_class.count(cls)) << cls;
+    EXPECT_NEAR(m.by_class.at(cls).offset.x(), x, mm) << cls;
+    EXPECT_NEAR(m.by_class.at(cls).offset.y(), 0.0, mm) << cls;
+  };
+  const double hamsters = 2 * task::kDefaultRobotRadius,
+               hamster_box = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
+  expect(task2, "robot->robot", -hamsters);
+  expect(task2, "robot->goal", 0.0);
+  expect(fetch, "robot->object", -hamster_box);
+  expect(fetch, "robot+load->goal", -hamster_box);
+  expect(fetch, "object->goal", 0.0);
+  expect(queue, "robot->goal", 0.0);
+  // Per key too, where turned ends are the exception: the median stays at contact.
+  EXPECT_NEAR(task2.by_key.at("R1:move:R3").offset.x(), -hamsters, mm);
+}
