@@ -106,6 +106,13 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
       mv.follower->setPath(PlannedPath{mo.planned, {}});
       filters_[mo.entity].reset();
       limit_s = std::max(limit_s, 3.0 * mv.length_m / gains_.cruise_speed_mps + 10.0);
+    } else if (spec.entities[mo.entity].kind != task::EntityKind::Object) {
+      // A predicted token that moves a goal: a flat print takes no segment (the ROS
+      // coordinator refuses it too). The trial fails; the evaluation goes on.
+      mv.running = false;
+      out.failures.push_back(names_[mo.entity] + ": a " + task::toString(spec.entities[mo.entity].kind) +
+                             " cannot move");
+      continue;
     } else {
       const auto status = table_->startSegment(mo.entity, next_segment_++, mo.planned);
       if (status && status->state != SegmentState::Accepted) {

@@ -132,6 +132,21 @@ TEST(BodiesExecution, APushedBodyStaysWhereItWasPushedAndTheContactIsACollision)
   EXPECT_EQ(without.report().collisions[0].b, 1);
 }
 
+TEST(BodiesExecution, APredictedMotionOfAGoalFailsTheTrialAndTheEvaluationGoesOn) {
+  // A badly predicted token may move a goal (a flat print takes no segment): that trial
+  // fails with the goal named; the other motion of the step still runs.
+  const auto s =
+      spec({{"R1", task::EntityKind::Robot}, {"G1", task::EntityKind::Goal}, {"G2", task::EntityKind::Goal}});
+  const std::vector<Pose2D> start{{0.1, 0.3, 0}, {0.5, 0.3, 0}, {0.5, 0.6, 0}};
+  BodiesExecution with = model(true);
+  const StepExecution a =
+      runStep(with, s, start, {token(0, 1), token(1, 2)}, {line({0.1, 0.3}, {0.5, 0.3}), line({0.5, 0.3}, {0.5, 0.6})});
+  ASSERT_EQ(a.failures.size(), 1u);
+  EXPECT_NE(a.failures[0].find("G1"), std::string::npos) << a.failures[0];
+  EXPECT_TRUE(task::arrived(a.positions[0], {0.5, 0.3}, 0.03)) << a.positions[0].transpose();
+  EXPECT_TRUE(task::arrived(a.positions[1], {0.5, 0.3}, 1e-9)) << "the goal stays where it lies";
+}
+
 TEST(BodiesExecution, ACarriedLoadRidesItsOwnPathToTheGoalAheadOfItsCarrier) {
   // R1 behind O1, both toward G1 (the carrier's path ends behind the load's).
   const auto s =
