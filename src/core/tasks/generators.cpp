@@ -432,6 +432,26 @@ void mislabel(task::Demonstration& d, const task::TaskSpec& spec, SplitMix64& rn
   for (int r = seg.first_row; r <= seg.last_row; ++r) d.labels[r][seg.token.entity].target = wrong;
 }
 
+/// Two bodies cannot both stand on one goal: where goal conditions put several entities
+/// "at" one target, the second ends at contact with the first (the end-point rule), so each
+/// such condition's tolerance grows to the contact distance to the farthest-reaching other
+/// entity plus the arrival radius (where the follower may stop), rounded up to whole
+/// centimetres. A condition alone at its target keeps its tolerance.
+void shareTargetsByBodies(task::TaskSpec& spec) {
+  std::vector<double> grown;
+  for (const auto& c : spec.goal_conditions) {
+    double tolerance = c.tolerance;
+    for (const auto& other : spec.goal_conditions)
+      if (other.at == c.at && other.entity != c.entity) {
+        const double reach =
+            spec.contactDistance(spec.entityIndex(c.entity), spec.entityIndex(other.entity)) + spec.arrival_radius;
+        tolerance = std::max(tolerance, std::ceil(reach * 100 - 1e-9) / 100);
+      }
+    grown.push_back(tolerance);
+  }
+  for (size_t i = 0; i < grown.size(); ++i) spec.goal_conditions[i].tolerance = grown[i];
+}
+
 }  // namespace
 
 std::vector<std::string> paperFamilies() {
@@ -476,6 +496,7 @@ task::TaskDir generate(const GeneratorOptions& o) {
   if (o.jitter_m < 0 || !std::isfinite(o.jitter_m)) throw Error("jitter must be a non-negative number of metres");
   if (o.mislabel_fraction < 0 || o.mislabel_fraction > 1) throw Error("mislabel fraction must be in [0, 1]");
   plan.spec.actions_declared = true;
+  shareTargetsByBodies(plan.spec);
   const double window = plan.spec.step_window_s;
   if (!(o.onset_jitter_s >= 0 && o.onset_jitter_s < window)) {
     char buf[160];
