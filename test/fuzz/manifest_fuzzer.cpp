@@ -10,7 +10,7 @@
 // its dictionary-free mutations of them; task4_scene_format7/6/5.yaml are older formats,
 // refused with "retrain".
 // fuzz-modules: task graph
-// fuzz-sources: src/core/tgn/manifest.cpp
+// fuzz-sources: src/core/tgn/manifest.cpp src/core/tgn/plan_check.cpp
 // fuzz-max-len: 16384
 #include <cstdint>
 #include <cstdlib>

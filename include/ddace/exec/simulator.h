@@ -67,8 +67,9 @@ struct StepExecution {
 
 /// What a model with bodies measured over a trial.
 struct BodyReport {
-  /// Collisions: two bodies that touched, except a motion touching its own target and a
-  /// carrier touching its load (docs/execution.md, "The closed-loop simulator with bodies").
+  /// Collisions: two bodies that touched, except a motion touching its own target, a
+  /// carrier touching its load and a motion touching the body its end point touches
+  /// (exec/bodies_execution.h; docs/execution.md, "The closed-loop simulator with bodies").
   std::vector<BodyContact> collisions;
   ClosestApproach closest;  ///< the smallest gap between two bodies, the same exceptions
 };
@@ -131,7 +132,7 @@ struct SimulatorOptions {
 
 /// Runs one trial from `ground_truth`'s first row; motions end where `end_points` says
 /// (the model's, gp::PrimitiveLibrary::endPoints()). Throws ddace::Error when the policy
-/// returns a token naming an entity that does not exist.
+/// returns a token naming an entity that does not exist, or two tokens of one entity in a step.
 Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& ground_truth, const Policy& policy,
                const PathGenerator& paths, ExecutionModel& execution, const task::EndPointModel& end_points,
                const SimulatorOptions& options = {});

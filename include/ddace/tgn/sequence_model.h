@@ -212,6 +212,10 @@ struct TrainingPlan {
   std::vector<graph::Edge> attention_edges;  ///< directed edges the network attends over (no self-loops)
   /// The same plan for the network without the identity embedding (no names to shuffle).
   TrainingPlan withoutIdentity() const;
+  /// Empty when planTraining() could have made this plan for `options` (of its variant);
+  /// else what could not be, for a reader of a manifest to report (a plan it cannot decode
+  /// with must be refused, not run).
+  std::string inconsistency(const TrainOptions& options) const;
   bool operator==(const TrainingPlan& o) const {
     return fixed_order == o.fixed_order && slips == o.slips && relative_features == o.relative_features &&
            identity_embedding == o.identity_embedding && names_or_scene == o.names_or_scene &&

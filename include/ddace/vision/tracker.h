@@ -12,10 +12,10 @@
 // cover most of the image the whole frame is searched instead. A configured marker that
 // no region follows (never seen yet, unseen for longer than filter.hold, or missing so
 // long that its region would cover most of the image) is searched for in the same frame
-// too, over the area no region covered: dark quadrilaterals of its expected size in pixels (its edge x the pixels per
-// metre of the tracked markers), found on an image reduced to about 12 px per marker edge, are read by the detector in
-// a region around each. Corner markers are searched like the others (set roi.track_corners false to search them on
-// full-frame passes only).
+// too, over the whole image but the markers found in it: dark quadrilaterals of its expected size in pixels (its edge x
+// the pixels per metre of the tracked markers), found on an image reduced to about 12 px per marker edge, are read by
+// the detector in a region around each. Corner markers are searched like the others (set roi.track_corners false to
+// search them on full-frame passes only).
 //
 // Configuration comes from two commented YAML files: config/markers.yaml (which
 // markers exist: family, corner markers, entity markers) and config/tracker.yaml

@@ -125,6 +125,25 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     ++running;
   }
 
+  // The bodies a robot's motion ends against, decided once for the step: its end point
+  // touches a body that stands still in the step, or the end point of another motion (the
+  // second robot to a goal ends at the first). Not every body near it now: a robot passing
+  // by, or driving into the robot already at its end, is no such body.
+  std::set<std::pair<int, int>> ends_against;
+  {
+    std::vector<Eigen::Vector2d> final_at(n);
+    for (int j = 0; j < n; ++j) final_at[j] = table_->truePose(j).position();
+    for (const StepMotion& mo : motions)
+      if (!mo.planned.empty()) final_at[mo.entity] = mo.planned.back();
+    for (const StepMotion& mo : motions) {
+      if (!mo.robot || mo.planned.empty() || !(radius_m_[mo.entity] > 0)) continue;
+      for (int j = 0; j < n; ++j)
+        if (j != mo.entity && radius_m_[j] > 0 &&
+            endsAgainst(mo.planned.back(), radius_m_[mo.entity], final_at[j], radius_m_[j], params_.safety.margin_m))
+          ends_against.insert(ordered(mo.entity, j));
+    }
+  }
+
   std::vector<Pose2D> measured(n);
   std::vector<SafetyBody> others;
   others.reserve(n);
@@ -149,9 +168,9 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
       for (int j = 0; j < n; ++j)
         if (j != i && radius_m_[j] > 0) {
           others.push_back({names_[j], measured[j].position(), radius_m_[j], robot_[j]});
-          others.back().touchable = load_of[i] == j;  // a carrier pushes its load ahead
+          // A carrier pushes its load ahead; a motion ends against the bodies decided above.
+          others.back().touchable = load_of[i] == j || ends_against.count(ordered(i, j)) > 0;
         }
-      markBodiesAtEnd(others, mv.follower->endPoint(), radius_m_[i], params_.safety);
       const int target = motions[m].target;
       const SafetyCommand c =
           filters_[i].filter(names_[i], measured[i], radius_m_[i], 0.0, o.wheels, o.progress * mv.follower->lengthM(),
@@ -176,13 +195,6 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     for (size_t m = 0; m < motions.size(); ++m)
       if (movers[m].running) out.executed[m].push_back(table_->truePose(motions[m].entity).position());
 
-    // The bodies a robot's motion ends against (its end point touches them).
-    auto endContact = [&](int mover, int other) {
-      const int m = motion_of[mover];
-      return m >= 0 && movers[m].follower &&
-             endsAgainst(movers[m].follower->endPoint(), radius_m_[mover], table_->truePose(other).position(),
-                         radius_m_[other], params_.safety.margin_m);
-    };
     // The closest approach of two bodies that keep apart, on the true poses; a pair in
     // contact is apart again once its gap exceeds kPartedM.
     for (int a = 0; a < n; ++a) {
@@ -194,8 +206,7 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
         const double gap = (pa - pb).norm() - radius_m_[a] - radius_m_[b];
         char& touching = touching_[a * n + b];
         if (touching && gap > kPartedM) touching = 0;
-        if (!touching && !exempt.count({a, b}) && gap < report_.closest.clearance_m && !endContact(a, b) &&
-            !endContact(b, a))
+        if (!touching && !exempt.count({a, b}) && !ends_against.count({a, b}) && gap < report_.closest.clearance_m)
           report_.closest = {gap, a, b, table_->time(), pa, pb};
       }
     }
@@ -205,7 +216,7 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     for (; contacts_seen_ < contacts.size(); ++contacts_seen_) {
       const BodyContact& c = contacts[contacts_seen_];
       char& touching = touching_[c.a * n + c.b];
-      if (!touching && !exempt.count({c.a, c.b}) && !endContact(c.a, c.b) && !endContact(c.b, c.a))
+      if (!touching && !exempt.count({c.a, c.b}) && !ends_against.count(ordered(c.a, c.b)))
         report_.collisions.push_back(c);
       touching = 1;
     }

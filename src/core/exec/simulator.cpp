@@ -38,9 +38,17 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
     const int k = static_cast<int>(trial.predicted.size());
     // Goals are fixed when the step is decided; all tokens then run concurrently.
     const std::vector<Eigen::Vector2d> decided = pos;
-    for (const auto& token : d.tokens)
+    std::vector<bool> acts(static_cast<size_t>(n), false);
+    for (const auto& token : d.tokens) {
       if (token.entity < 0 || token.entity >= n || token.target >= n)
         throw Error("policy returned a token for a non-existent entity");
+      // One token per entity and step (the step's motions run at once; a second would
+      // replace the first mid-step).
+      if (acts[static_cast<size_t>(token.entity)])
+        throw Error("policy returned two tokens of '" + spec.entities[token.entity].name + "' in step " +
+                    std::to_string(k + 1));
+      acts[static_cast<size_t>(token.entity)] = true;
+    }
     std::vector<StepMotion> motions;
     const size_t first = trial.executed.size();
     for (size_t i = 0; i < d.tokens.size(); ++i) {

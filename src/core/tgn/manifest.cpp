@@ -605,6 +605,8 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
       if (!e.IsSequence() || e.size() != 2) r.fail(e, "an attention edge is [SOURCE, TARGET]");
       plan.attention_edges.push_back({r.entity(e[0], spec), r.entity(e[1], spec)});
     }
+    if (const std::string why = plan.inconsistency(info.options); !why.empty())
+      r.fail(pn, "plan: " + why + " (no training makes this plan; retrain)");
     return info;
   } catch (const YAML::Exception& e) {
     throw yamlError(path, e);

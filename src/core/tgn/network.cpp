@@ -1,4 +1,4 @@
-// The network modules (see network.h); the fused kernels are in fused_kernels.cpp.
+// The network modules (see network.h); the fused kernels are in kernel_*.cpp, one per file.
 #include "network.h"
 
 #include <string>

@@ -1,6 +1,7 @@
 // planTraining: what the training demonstrations decide about training (TrainingPlan), in
-// one place. Every rule's enabling condition is stated here; the trainer, the network, the
-// decoder and the manifest read the plan (docs/tgn.md, "The training plan").
+// one place. Every rule's enabling condition is stated here (plan_check.cpp reads them
+// backwards for the manifest reader); the trainer, the network, the decoder and the manifest
+// read the plan (docs/tgn.md, "The training plan").
 #include <algorithm>
 #include <map>
 #include <set>

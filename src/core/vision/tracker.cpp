@@ -505,7 +505,9 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
     const std::vector<Region> candidates = quadCandidates(side_min, side_max, covered);
     result.absent_candidates = static_cast<int>(candidates.size());
     if (tooLarge(candidates)) {
-      search(*detector_, {{cv::Rect(), side_min > 0 ? 0.5 * (side_min + side_max) : 0.0}}, side_min > 0);
+      // A full-frame pass as any other (every threshold window): the absent markers' sizes
+      // may differ (corners and entities), and the frame is reported as searched whole.
+      search(*detector_, whole, false);
       result.full_frame = true;
       result.rois.clear();
     } else {

@@ -118,6 +118,22 @@ TEST(BodiesExecution, AMotionEndingAgainstARobotOnTheGoalArrivesThere) {
   EXPECT_TRUE(with.report().collisions.empty());
 }
 
+TEST(BodiesExecution, DrivingIntoARobotStandingAtItsEndPointIsACollision) {
+  // R1 reaches G1 first and stands there; R3's path (to G2) runs through it. Only the
+  // bodies a motion ends against are exempt, decided for the step: R3 does not end at R1,
+  // and R1's end point touching R3 once R3 is on top of it makes it no such body.
+  const auto s = spec({{"R1", task::EntityKind::Robot},
+                       {"R3", task::EntityKind::Robot},
+                       {"G1", task::EntityKind::Goal},
+                       {"G2", task::EntityKind::Goal}});
+  const std::vector<Pose2D> start{{0.2, 0.3, 0}, {0.3, 0.02, M_PI / 2}, {0.3, 0.3, 0}, {0.3, 0.6, 0}};
+  BodiesExecution without = model(false);
+  runStep(without, s, start, {token(0, 2), token(1, 3)}, {line({0.2, 0.3}, {0.3, 0.3}), line({0.3, 0.02}, {0.3, 0.6})});
+  ASSERT_FALSE(without.report().collisions.empty());
+  EXPECT_EQ(without.report().collisions[0].a, 0);
+  EXPECT_EQ(without.report().collisions[0].b, 1);
+}
+
 TEST(BodiesExecution, APushedBodyStaysWhereItWasPushedAndTheContactIsACollision) {
   // Without the filter R1 drives through O1, which is not its target.
   const auto s =
@@ -203,5 +219,31 @@ TEST(BodiesExecution, GeneratedTask2ReplayedWithBodiesFinishesWithoutACollision)
     Trial collided = a;  // the same trial with one collision is no success
     collided.body_report.collisions.push_back({1.0, 0, 1});
     EXPECT_FALSE(eval::scoreTrial(dir.spec, demo, collided).success);
+  }
+}
+
+TEST(BodiesExecution, TwoTokensOfOneEntityInAStepAreRefusedByName) {
+  // The step's motions run at once: a second motion of R1 would replace its first mid-step
+  // and leave the step waiting for a motion that never runs.
+  const auto s =
+      spec({{"R1", task::EntityKind::Robot}, {"G1", task::EntityKind::Goal}, {"G2", task::EntityKind::Goal}});
+  task::Demonstration gt;
+  gt.t = {0.0};
+  gt.positions = {{{0.1, 0.3}, {0.5, 0.3}, {0.5, 0.6}}};
+  gt.labels = {{{}, {}, {}}};
+  gt.has_label_columns = {true, false, false};
+  gt.analyze();
+  const auto policy = [](const std::vector<task::Snapshot>&) {
+    Decision d;
+    d.tokens = {token(0, 1), token(0, 2)};
+    return d;
+  };
+  const auto straight = [](const task::Token&, const Vector2d& a, const Vector2d& b) { return line(a, b); };
+  BodiesExecution with = model(true);
+  try {
+    runTrial(s, gt, policy, straight, with, task::EndPointModel{});
+    ADD_FAILURE() << "ran a step with two motions of R1";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("two tokens of 'R1' in step 1"), std::string::npos) << e.what();
   }
 }

@@ -205,6 +205,35 @@ TEST(TokenByToken, IsHowThePlanSaysAStepIsDecoded) {
   EXPECT_NE(p.token_probabilities, q.token_probabilities);
 }
 
+// A manifest is another process's file: a plan no training makes (the scene network's
+// token-by-token decoding on the paper's network, which has no scene to decode with) is
+// refused by name when the model is loaded, never run.
+TEST(TrainingPlan, AManifestWithAPlanNoTrainingMakesIsRefused) {
+  tgn::TrainOptions o;
+  o.variant = tgn::Variant::Paper;
+  o.max_epochs = 2;
+  const tgn::SequenceModel m = tgn::SequenceModel::train(generate("nearest_goal", 3), o, nullptr);
+  ASSERT_FALSE(m.info().plan.token_by_token);
+  const std::string dir = (fs::temp_directory_path() / ("ddace_test_plan_bad_" + std::to_string(::getpid()))).string();
+  m.save(dir);
+  std::string s = test::fileBytes(fs::path(dir) / "manifest.yaml");
+  const size_t at = s.find("token_by_token: false");
+  ASSERT_NE(at, std::string::npos);
+  s.replace(at, 21, "token_by_token: true");
+  s = s.substr(0, s.rfind("\nmanifest_sha256: ") + 1);
+  s += "manifest_sha256: " + sha256Hex(s) + "\n";
+  test::writeBytes(fs::path(dir) / "manifest.yaml", s);
+  try {
+    tgn::SequenceModel::load(dir);
+    ADD_FAILURE() << "loaded a paper model that decodes token by token";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("plan: rules of the scene network for the paper variant"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("manifest.yaml"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
+}
+
 // Names or the scene, gated: a queue filled in left-to-right order (zoo:5) from 20
 // demonstrations. Only a slot's name says which slot is the head; the network without the
 // identity embedding fitted the training scenes by their coincidences and was kept, and

@@ -1,0 +1,33 @@
+// TrainingPlan::inconsistency: planTraining()'s enabling conditions (plan.cpp) read
+// backwards, for the manifest reader. Without libtorch, so the manifest fuzz target links it.
+#include <string>
+
+#include "ddace/tgn/sequence_model.h"
+
+namespace ddace::tgn {
+
+std::string TrainingPlan::inconsistency(const TrainOptions& options) const {
+  // The enabling conditions of planTraining() above, read backwards.
+  if (slips > 0 && !fixed_order) return "slips without a fixed order";
+  if (identity_embedding && !options.identity_embedding) return "identity_embedding where the options have none";
+  if (options.variant != Variant::Scene &&
+      (relative_features || step_rules.any() || !step_rules.load_actions.empty() || token_by_token ||
+       parked_out_of_ranks || names_or_scene || !name_groups.empty()))
+    return std::string("rules of the scene network for the ") + toString(options.variant) + " variant";
+  if (relative_features && !options.uses(Rule::Relative)) return "relative_features, switched off by the options";
+  if (relative_features && fixed_order && options.uses(Rule::FixedOrder)) return "relative_features on a fixed order";
+  if (!relative_features && (token_by_token || parked_out_of_ranks || names_or_scene || !name_groups.empty()))
+    return "token_by_token, parked_out_of_ranks, names_or_scene or name_groups without the relative features";
+  if (token_by_token && !(options.uses(Rule::TokenByToken) && step_rules.exclusive_targets))
+    return "token_by_token without exclusive targets";
+  if (parked_out_of_ranks && !options.uses(Rule::Parked)) return "parked_out_of_ranks, switched off by the options";
+  if ((names_or_scene || !name_groups.empty()) && !identity_embedding)
+    return "names_or_scene or name_groups without the identity embedding";
+  if (!name_groups.empty() && !options.uses(Rule::ShuffledNames)) return "name_groups, switched off by the options";
+  for (const auto& g : name_groups)
+    for (size_t i = 1; i < g.size(); ++i)
+      if (g[i] <= g[i - 1]) return "a name group not in ascending order of distinct entities";
+  return "";
+}
+
+}  // namespace ddace::tgn
