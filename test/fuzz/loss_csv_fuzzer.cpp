@@ -3,7 +3,7 @@
 // The reader takes a path only (tgn::files::readLossCsv): the input goes through an
 // in-memory file. A text API (parseLossCsv(text, file)) would let this parse from memory.
 // fuzz-modules: task graph
-// fuzz-sources: src/core/tgn/manifest.cpp
+// fuzz-sources: src/core/tgn/manifest.cpp src/core/tgn/plan_check.cpp
 #include <cstdint>
 #include <cstdlib>
 #include <string>
