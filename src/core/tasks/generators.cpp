@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "ddace/common/random.h"
+#include "micrometres.h"
 
 namespace ddace::tasks {
 
@@ -341,12 +342,7 @@ Plan sampleScene(const SceneFamily& family, SplitMix64& rng) {
               std::to_string(kMaxSceneAttempts) + " draws");
 }
 
-/// `v` rounded to six decimals as printf rounds it (the digits a file holds), read back.
-double micrometres(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6f", v);
-  return std::strtod(buf, nullptr);
-}
+using detail::micrometres;
 
 /// One demonstration of `plan`. Onset jitter delays each token's label (not its motion)
 /// by a whole number of rows, drawn from `onset_rng` in [0, onset_jitter_s) seconds.

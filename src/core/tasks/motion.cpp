@@ -9,6 +9,7 @@
 #include "ddace/common/error.h"
 #include "ddace/task/end_point.h"
 #include "ddace/tasks/generators.h"
+#include "micrometres.h"
 
 namespace ddace::tasks {
 
@@ -24,12 +25,7 @@ constexpr double kBackOffStepM = 0.001;
 /// A load rides with its carrier when it starts within this of touching it (metres).
 constexpr double kRideReachM = 0.01;
 
-/// `v` rounded to six decimals as printf rounds it (the digits a file holds), read back.
-double micrometres(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6f", v);
-  return std::strtod(buf, nullptr);
-}
+using detail::micrometres;
 
 double smoothstep(double s) {
   return s * s * (3 - 2 * s);

@@ -176,6 +176,23 @@ TEST(OneDecoder, StepAccuracyIsThatOfPredictNext) {
   }
 }
 
+namespace {
+
+/// Replaces `from` by `to` in the saved model's manifest and seals it again (as an edit by
+/// hand whose author recomputed the hash). False when `from` is not there.
+bool editManifest(const std::string& dir, const std::string& from, const std::string& to) {
+  std::string s = test::fileBytes(fs::path(dir) / "manifest.yaml");
+  const size_t at = s.find(from);
+  if (at == std::string::npos) return false;
+  s.replace(at, from.size(), to);
+  s = s.substr(0, s.rfind("\nmanifest_sha256: ") + 1);
+  s += "manifest_sha256: " + sha256Hex(s) + "\n";
+  test::writeBytes(fs::path(dir) / "manifest.yaml", s);
+  return true;
+}
+
+}  // namespace
+
 // Token by token is the plan's: the same weights loaded with the rule recorded off decide
 // a step's targets all at once, and a token's probability is then its pointer's, not the
 // one of the target chosen after the others.
@@ -187,13 +204,7 @@ TEST(TokenByToken, IsHowThePlanSaysAStepIsDecoded) {
   ASSERT_TRUE(m.info().plan.token_by_token);
   const std::string dir = (fs::temp_directory_path() / ("ddace_test_plan_" + std::to_string(::getpid()))).string();
   m.save(dir);
-  std::string s = test::fileBytes(fs::path(dir) / "manifest.yaml");
-  const size_t at = s.find("token_by_token: true");
-  ASSERT_NE(at, std::string::npos);
-  s.replace(at, 20, "token_by_token: false");
-  s = s.substr(0, s.rfind("\nmanifest_sha256: ") + 1);
-  s += "manifest_sha256: " + sha256Hex(s) + "\n";
-  test::writeBytes(fs::path(dir) / "manifest.yaml", s);
+  ASSERT_TRUE(editManifest(dir, "token_by_token: true", "token_by_token: false"));
   const tgn::SequenceModel at_once = tgn::SequenceModel::load(dir);
   fs::remove_all(dir);
   ASSERT_FALSE(at_once.info().plan.token_by_token);
@@ -216,13 +227,7 @@ TEST(TrainingPlan, AManifestWithAPlanNoTrainingMakesIsRefused) {
   ASSERT_FALSE(m.info().plan.token_by_token);
   const std::string dir = (fs::temp_directory_path() / ("ddace_test_plan_bad_" + std::to_string(::getpid()))).string();
   m.save(dir);
-  std::string s = test::fileBytes(fs::path(dir) / "manifest.yaml");
-  const size_t at = s.find("token_by_token: false");
-  ASSERT_NE(at, std::string::npos);
-  s.replace(at, 21, "token_by_token: true");
-  s = s.substr(0, s.rfind("\nmanifest_sha256: ") + 1);
-  s += "manifest_sha256: " + sha256Hex(s) + "\n";
-  test::writeBytes(fs::path(dir) / "manifest.yaml", s);
+  ASSERT_TRUE(editManifest(dir, "token_by_token: false", "token_by_token: true"));
   try {
     tgn::SequenceModel::load(dir);
     ADD_FAILURE() << "loaded a paper model that decodes token by token";
