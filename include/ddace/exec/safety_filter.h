@@ -101,10 +101,6 @@ inline BodyShape bodyShape(const task::TaskSpec& spec, int i) {
 /// collision (exec/bodies_execution.h).
 bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const Eigen::Vector2d& position,
                  double radius_m, double margin_m);
-/// Marks touchable every body of `bodies` the motion ends against (endsAgainst with the
-/// filter's margin), from their current positions: called every cycle, as bodies arrive.
-void markBodiesAtEnd(std::vector<SafetyBody>& bodies, const Eigen::Vector2d& end_point, double self_radius_m,
-                     const SafetyParams& params);
 
 /// What the filter decided for one control cycle.
 struct SafetyCommand {

@@ -174,4 +174,11 @@ class TableSimulator {
   std::unique_ptr<ClearanceMeter> meter_;
 };
 
+/// Whether the segment of robot token `carrier` (decided in step `carrier_step`) carries the
+/// load of object token `load` (step `load_step`): the same step, and task::carriedLoad of
+/// the two (same action and target). The mock robots see a step's segments one by one, in
+/// any order, and pair them with this.
+bool carries(const task::TaskSpec& spec, int carrier_step, const task::Token& carrier, int load_step,
+             const task::Token& load);
+
 }  // namespace ddace::exec

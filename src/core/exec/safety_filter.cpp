@@ -41,12 +41,6 @@ bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const E
   return radius_m > 0 && position.allFinite() && (position - end_point).norm() < self_radius_m + radius_m + margin_m;
 }
 
-void markBodiesAtEnd(std::vector<SafetyBody>& bodies, const Eigen::Vector2d& end_point, double self_radius_m,
-                     const SafetyParams& params) {
-  for (SafetyBody& b : bodies)
-    if (endsAgainst(end_point, self_radius_m, b.position, b.radius_m, params.margin_m)) b.touchable = true;
-}
-
 Eigen::Vector2d closestFeasible(const Eigen::Vector2d& z0, const std::vector<HalfPlane>& cs) {
   constexpr double kTol = 1e-10;
   auto feasible = [&](const Eigen::Vector2d& z) {

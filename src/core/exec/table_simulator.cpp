@@ -9,6 +9,7 @@
 
 #include "ddace/common/error.h"
 #include "ddace/exec/safety_filter.h"
+#include "ddace/task/end_point.h"
 
 namespace ddace::exec {
 
@@ -249,7 +250,10 @@ ObjectStatus TableSimulator::refuseSegment(int i, uint32_t segment_id, const std
 
 std::optional<ObjectStatus> TableSimulator::stopSegment(int i) {
   Entity& e = object(i);
-  if (!e.moving) return std::nullopt;
+  if (!e.moving) {
+    if (e.carrier >= 0) halt(i);  // ends its ride
+    return std::nullopt;
+  }
   halt(i);
   return report(i, SegmentState::Aborted, "stopped");
 }
@@ -363,6 +367,14 @@ Pose2D TableSimulator::truePose(int i) const {
 Pose2D TableSimulator::measuredPose(int i) {
   const Entity& e = entity(i);
   return e.robot ? e.robot->measuredPose() : e.pose;
+}
+
+bool carries(const task::TaskSpec& spec, int carrier_step, const task::Token& carrier, int load_step,
+             const task::Token& load) {
+  const int n = static_cast<int>(spec.entities.size());
+  for (const task::Token& t : {carrier, load})
+    if (t.entity < 0 || t.entity >= n || t.target >= n) return false;
+  return carrier_step == load_step && task::carriedLoad(spec, {carrier, load}, 0) == 1;
 }
 
 }  // namespace ddace::exec
