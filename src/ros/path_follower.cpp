@@ -13,8 +13,9 @@
 #include <ddace/SegmentStatus.h>
 #include <ddace/WheelCommand.h>
 
-#include "exec_conversions.h"
 #include "ddace/exec/table_simulator.h"
+#include "ddace/task/end_point.h"
+#include "exec_conversions.h"
 #include "params.h"
 
 namespace ddace::nodes {
@@ -197,7 +198,7 @@ class PathFollowerNode::Impl {
   /// then): the bodies its end point touches -- standing at it, or ending at it in this
   /// step (the second robot to a goal) -- as exec::BodiesExecution decides them; and the
   /// load it carries: an object of the same step with the same action and target at the
-  /// robot (exec::carries, within contact + exec::kRideReachM), whose end points decide
+  /// robot (exec::carries, within task::togetherDistance of it), whose end points decide
   /// the bodies the load ends against the same way.
   void decide(Robot& r, double self_radius) {
     r.decided = true;
@@ -208,7 +209,7 @@ class PathFollowerNode::Impl {
       auto t = bodies_.find(name);
       if (o.step != r.step || o.action != r.action || o.target != r.target || t == bodies_.end()) continue;
       if ((t->second.body.position - r.pose.position()).norm() <=
-          self_radius + t->second.body.radius_m + exec::kRideReachM) {
+          task::togetherDistance(self_radius + t->second.body.radius_m, default_arrival_m_)) {
         r.load = name;
         break;
       }

@@ -36,9 +36,6 @@
 
 namespace ddace::exec {
 
-/// A load rides with its carrier when it is within this of touching it (metres; as the
-/// generated demonstrations, tasks/motion.cpp).
-inline constexpr double kRideReachM = 0.01;
 /// A riding load reaches its carrier's front after the carrier has travelled this far (metres).
 inline constexpr double kRideSwingM = 0.05;
 
@@ -80,10 +77,10 @@ class TableSimulator {
   /// distance, over the carrier's first kRideSwingM of travel, and then turns and moves
   /// with it. Their bodies pass through each other, as a load placed on its carrier does.
   /// A segment of the load keeps running (RUNNING reports, progress toward its goal) until
-  /// endRide(). Returns false and changes nothing when the load is farther than their
-  /// contact distance + kRideReachM from its carrier (a ball passed from afar moves on its
-  /// own segment), or either has no body. Throws ddace::Error when `carrier` is not a robot
-  /// or `load` not an object.
+  /// endRide(). Returns false and changes nothing when the load is farther than
+  /// task::togetherDistance from its carrier, where the carrier counts as at it (a ball
+  /// passed from afar moves on its own segment), or either has no body. Throws ddace::Error when `carrier` is not a
+  /// robot or `load` not an object.
   bool ride(int carrier, int load);
   /// The load stops riding (its carrier arrived). Its running segment, if any, goes on
   /// from where the load is straight to the segment's end -- the few centimetres its
@@ -163,6 +160,7 @@ class TableSimulator {
   void measureClearance();
   void halt(int i);  ///< object i stops following its segment and comes to rest
 
+  task::TaskSpec spec_;  ///< footprints and arrival radius: who rides (ride())
   std::vector<std::string> names_;
   std::vector<Entity> entities_;
   DiffDriveParams robot_;
