@@ -119,6 +119,20 @@ TEST(Label, RobotsStartedASecondApartAreOneStep) {
   EXPECT_NEAR(s.d.t[inf.steps[0].tokens[1].onset_row], 2.0, 0.15);
 }
 
+TEST(Label, SimultaneousStartsAreOneStepEachWithItsOwnTarget) {
+  // Two robots started in the same row, crossing the table side by side: one step, each
+  // token with its own target, both labels beginning in the row they started.
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}, 0, 2}, {1, {0.9, 0.1}, 0, 2}});
+  s.rest(1);
+  const auto inf = s.infer();
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1", "R2:move:G2"}}));
+  EXPECT_EQ(inf.steps[0].tokens[0].first_row, inf.steps[0].tokens[1].first_row);
+  EXPECT_NEAR(s.d.t[inf.steps[0].tokens[0].onset_row], 1.0, 0.1);
+  EXPECT_NEAR(s.d.t[inf.steps[0].tokens[1].onset_row], 1.0, 0.1);
+}
+
 TEST(Label, LoadCarriedThenDroppedWithWordsFromAnExample) {
   Scene s;
   s.rest(1);
