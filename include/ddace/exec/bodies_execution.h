@@ -1,12 +1,13 @@
 // The closed-loop simulator's execution model with bodies (`ddace eval --execution
 // diffdrive`): every motion of a step runs at the same time on the simulated table of the
 // mock robots (exec/table_simulator.h: Box2D discs of the task's footprints, objects
-// carried along their own paths and pushed when something drives into them). Each robot is
+// carried along their own paths or riding with their carriers, pushed when something drives into them). Each robot is
 // steered along its planned path by the path follower's control law (exec/path_follower.h)
 // from its measured pose, and its command goes through the robot's own safety filter
 // (exec/safety_filter.h) fed with the others' poses, as path_follower_node does; without
 // the filter (SafetyParams::enabled false) the bodies still collide, and every collision
-// is counted. A carrier and its load ride together during their step (setRiding).
+// is counted. A load at its carrier rides in front of it during their step
+// (TableSimulator::ride), part of the carrier's body for its filter.
 //
 // A step ends when every robot's control law reports it arrived and every object's segment
 // is done, or when its filter reports a deadlock (the robot stops there; the failure names

@@ -105,6 +105,14 @@ Eigen::Vector2d endPointFrom(const Eigen::Vector2d& start, const Eigen::Vector2d
 
 /// A motion has arrived when `position` is within `arrival_radius` of its end point.
 bool arrived(const Eigen::Vector2d& position, const Eigen::Vector2d& end_point, double arrival_radius);
+/// How far apart entities `a` and `b` of `spec` may stand when one has arrived where a
+/// motion toward the other ends, or both at one target (metres): "at one place". A motion
+/// toward an obstacle ends at contact, so one arrived at the other is within the contact
+/// distance plus the arrival radius; two that arrived on one goal are each within the
+/// radius of it, at most two radii apart. The larger of the two (goals are no obstacles:
+/// contact 0). The scene network's "together" (docs/tgn.md) reads places with it, so a
+/// robot stopped where the follower stops counts as at its load, as in demonstrations.
+double togetherDistance(const TaskSpec& spec, int a, int b);
 /// How close to the end point a path follower stops: arrival_radius - tolerance, never
 /// less than half the arrival radius (a radius within the noise itself).
 double stopRadius(double arrival_radius, double tolerance = kArrivalToleranceM);

@@ -126,6 +126,12 @@ bool arrived(const Vector2d& position, const Vector2d& end_point, double arrival
   return (position - end_point).norm() <= arrival_radius;
 }
 
+double togetherDistance(const TaskSpec& spec, int a, int b) {
+  const Footprint fa = spec.footprint(a), fb = spec.footprint(b);
+  const double contact = fa.obstacle && fb.obstacle ? fa.radius_m + fb.radius_m : 0.0;
+  return std::max(2.0 * spec.arrival_radius, contact + spec.arrival_radius);
+}
+
 double stopRadius(double arrival_radius, double tolerance) {
   return std::max(arrival_radius - tolerance, 0.5 * arrival_radius);
 }

@@ -129,3 +129,19 @@ TEST(EndPoint, ArrivedWithinTheRadiusAndFollowersStopInsideIt) {
   // A radius within the noise itself: half of it, never zero or below.
   EXPECT_DOUBLE_EQ(stopRadius(0.004), 0.002);
 }
+
+// Together: one arrived where a motion toward the other ends (contact plus the arrival
+// radius), or two on one goal (two radii).
+TEST(TogetherDistance, IsContactPlusTheArrivalRadiusAndTwoRadiiOnAGoal) {
+  task::TaskSpec spec;
+  spec.arrival_radius = 0.03;
+  spec.entities = {{"R1", task::EntityKind::Robot, "hamster"},
+                   {"B1", task::EntityKind::Object, "box"},
+                   {"G1", task::EntityKind::Goal, ""}};
+  const double contact = spec.contactDistance(0, 1);
+  EXPECT_DOUBLE_EQ(task::togetherDistance(spec, 0, 1), contact + 0.03);
+  EXPECT_DOUBLE_EQ(task::togetherDistance(spec, 1, 0), contact + 0.03);
+  EXPECT_DOUBLE_EQ(task::togetherDistance(spec, 0, 2), 0.06) << "a goal is driven onto";
+  spec.entities[1].radius_m = 0.001;
+  EXPECT_DOUBLE_EQ(task::togetherDistance(spec, 0, 1), 0.06) << "never less than two on one goal";
+}
