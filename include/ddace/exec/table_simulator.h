@@ -31,14 +31,12 @@
 #include "ddace/exec/clearance.h"
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/diff_drive.h"
+#include "ddace/exec/safety_filter.h"
 #include "ddace/exec/scene.h"
 #include "ddace/task/task_spec.h"
 
 namespace ddace::exec {
 
-/// A load rides with its carrier when it is within this of touching it (metres; as the
-/// generated demonstrations, tasks/motion.cpp).
-inline constexpr double kRideReachM = 0.01;
 /// A riding load reaches its carrier's front after the carrier has travelled this far (metres).
 inline constexpr double kRideSwingM = 0.05;
 
