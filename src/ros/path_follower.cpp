@@ -13,8 +13,6 @@
 #include <ddace/SegmentStatus.h>
 #include <ddace/WheelCommand.h>
 
-#include "ddace/exec/table_simulator.h"
-#include "ddace/task/end_point.h"
 #include "exec_conversions.h"
 #include "params.h"
 
@@ -195,34 +193,32 @@ class PathFollowerNode::Impl {
   }
 
   /// Once per segment, at its first filtered cycle (the step's segments are all in by
-  /// then): the bodies its end point touches -- standing at it, or ending at it in this
-  /// step (the second robot to a goal) -- as exec::BodiesExecution decides them; and the
-  /// load it carries: an object of the same step with the same action and target at the
-  /// robot (exec::carries, within task::togetherDistance of it), whose end points decide
-  /// the bodies the load ends against the same way.
+  /// then): its load and the bodies its end point and its load's touch
+  /// (exec::segmentContacts, as exec::BodiesExecution decides them for a step).
   void decide(Robot& r, double self_radius) {
     r.decided = true;
-    r.ends_against.clear();
-    r.load_ends_against.clear();
-    r.load.clear();
-    for (const auto& [name, o] : object_segments_) {
-      auto t = bodies_.find(name);
-      if (o.step != r.step || o.action != r.action || o.target != r.target || t == bodies_.end()) continue;
-      if ((t->second.body.position - r.pose.position()).norm() <=
-          task::togetherDistance(self_radius + t->second.body.radius_m, default_arrival_m_)) {
-        r.load = name;
-        break;
-      }
-    }
-    const Eigen::Vector2d end = r.follower->endPoint();
+    std::vector<exec::BodyAtStart> at;
     for (const auto& [name, t] : bodies_) {
-      if (name == r.name || name == r.load) continue;
-      const Eigen::Vector2d at = finalPosition(name, t.body.position);
-      if (exec::endsAgainst(end, self_radius, at, t.body.radius_m, safety_.margin_m)) r.ends_against.insert(name);
-      if (!r.load.empty() && exec::endsAgainst(object_segments_.at(r.load).end, bodies_.at(r.load).body.radius_m, at,
-                                               t.body.radius_m, safety_.margin_m))
-        r.load_ends_against.insert(name);
+      if (name == r.name) continue;
+      exec::BodyAtStart b;
+      b.name = name;
+      b.position = t.body.position;
+      b.final_position = finalPosition(name, t.body.position);
+      b.radius_m = t.body.radius_m;
+      if (auto o = object_segments_.find(name); o != object_segments_.end()) {
+        b.object = true;
+        b.step = o->second.step;
+        b.action = o->second.action;
+        b.target = o->second.target;
+      }
+      at.push_back(b);
     }
+    const exec::SegmentContacts c = exec::segmentContacts(r.pose.position(), self_radius, r.follower->endPoint(),
+                                                          r.step, r.action, r.target, at, safety_.margin_m,
+                                                          default_arrival_m_);
+    r.load = c.load;
+    r.ends_against = {c.ends_against.begin(), c.ends_against.end()};
+    r.load_ends_against = {c.load_ends_against.begin(), c.load_ends_against.end()};
   }
 
   /// A tracked body as the safety filters see it (robots, objects; goals are flat).

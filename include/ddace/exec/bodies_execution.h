@@ -41,10 +41,10 @@ struct BodiesExecutionParams {
       0.03;            ///< the task's; the control law stops within task::stopRadius of it (3 sigma of noise)
   double noise_m = 0;  ///< std-dev of measured x and y
   uint64_t seed = 1;
-  FollowerGains gains;                           ///< the path follower's (its arrival radius is set from the above)
-  DiffDriveParams robot{50, 0.030, 0.20, 0.04};  ///< as the mock robots (config/execution.yaml: 40 ms latency)
-  SafetyParams safety;                           ///< enabled = false: the follower's command goes to the wheels
-  TableSimulatorParams table{/*bodies=*/true};   ///< Box2D bodies
+  FollowerGains gains;                          ///< the path follower's (its arrival radius is set from the above)
+  DiffDriveParams robot = simulatedHamster();   ///< as the mock robots' (noise: noise_m)
+  SafetyParams safety;                          ///< enabled = false: the follower's command goes to the wheels
+  TableSimulatorParams table{/*bodies=*/true};  ///< Box2D bodies
 };
 
 /// Two bodies in contact have parted when their gap exceeds this (metres): Box2D keeps

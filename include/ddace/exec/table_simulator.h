@@ -31,6 +31,7 @@
 #include "ddace/exec/clearance.h"
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/diff_drive.h"
+#include "ddace/exec/safety_filter.h"
 #include "ddace/exec/scene.h"
 #include "ddace/task/task_spec.h"
 

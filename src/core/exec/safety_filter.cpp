@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "ddace/common/error.h"
+#include "ddace/task/end_point.h"
 
 namespace ddace::exec {
 
@@ -39,6 +40,27 @@ BodyShape bodyShape(const task::Entity& e) {
 bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const Eigen::Vector2d& position,
                  double radius_m, double margin_m) {
   return radius_m > 0 && position.allFinite() && (position - end_point).norm() < self_radius_m + radius_m + margin_m;
+}
+
+SegmentContacts segmentContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
+                                int step, const std::string& action, const std::string& target,
+                                const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m) {
+  SegmentContacts out;
+  const BodyAtStart* load = nullptr;
+  for (const BodyAtStart& b : bodies)
+    if (b.object && b.step >= 0 && b.step == step && b.action == action && b.target == target &&
+        (b.position - position).norm() <= task::togetherDistance(radius_m + b.radius_m, arrival_radius_m)) {
+      load = &b;
+      out.load = b.name;
+      break;
+    }
+  for (const BodyAtStart& b : bodies) {
+    if (&b == load) continue;
+    if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, margin_m)) out.ends_against.push_back(b.name);
+    if (load && endsAgainst(load->final_position, load->radius_m, b.final_position, b.radius_m, margin_m))
+      out.load_ends_against.push_back(b.name);
+  }
+  return out;
 }
 
 Eigen::Vector2d closestFeasible(const Eigen::Vector2d& z0, const std::vector<HalfPlane>& cs) {

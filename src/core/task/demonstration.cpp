@@ -2,6 +2,7 @@
 #include "ddace/task/summary.h"
 
 #include <algorithm>
+#include <limits>
 #include <optional>
 #include <cstdio>
 #include <map>
@@ -609,9 +610,9 @@ Demonstration parseDemonstrationCsv(const std::string& text, const TaskSpec& spe
 
 namespace {
 
-/// Streams the CSV at `path` through `parser`.
-void readCsv(const std::string& path, CsvParser& parser) {
-  InputFile in(path, kMaxDemonstrationBytes);
+/// Streams the CSV at `path` through `parser`, refusing more than `max_bytes`.
+void readCsv(const std::string& path, CsvParser& parser, std::uint64_t max_bytes) {
+  InputFile in(path, max_bytes);
   LineSplitter lines(parser);
   char chunk[65536];
   std::streambuf* buf = in.stream().rdbuf();
@@ -621,9 +622,8 @@ void readCsv(const std::string& path, CsvParser& parser) {
     lines.feed(std::string_view(chunk, static_cast<size_t>(n)));
   }
   if (in.exceeded())
-    throw Error(Diagnostic{path, 0, 0,
-                           "cannot read: more than the limit of " + std::to_string(kMaxDemonstrationBytes) +
-                               " bytes for a demonstration"});
+    throw Error(Diagnostic{
+        path, 0, 0, "cannot read: more than the limit of " + std::to_string(max_bytes) + " bytes for a demonstration"});
   lines.finish();
 }
 
@@ -631,13 +631,14 @@ void readCsv(const std::string& path, CsvParser& parser) {
 
 Demonstration readDemonstrationCsv(const std::string& path, const TaskSpec& spec) {
   CsvParser parser(spec, path);
-  readCsv(path, parser);
+  readCsv(path, parser, kMaxDemonstrationBytes);
   return parser.finish();
 }
 
 DemonstrationSummary summarizeDemonstrationCsv(const std::string& path, const TaskSpec& spec) {
   CsvParser parser(spec, path, false);
-  readCsv(path, parser);
+  // No byte limit: no row is kept, a file of any length streams through.
+  readCsv(path, parser, std::numeric_limits<std::uint64_t>::max());
   return parser.summary();
 }
 
