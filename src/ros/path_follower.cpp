@@ -309,8 +309,10 @@ class PathFollowerNode::Impl {
       if (!o.done) {
         const exec::SafetyCommand c = filterCommand(r, o.wheels, now);
         if (c.deadlock) {
-          ROS_ERROR("path_follower: %s: %s: failing segment %u", name.c_str(), c.reason.c_str(), r.segment_id);
-          stopRobot(r, ddace::SegmentStatus::FAILED, c.reason);
+          char where[64];
+          std::snprintf(where, sizeof where, ", %.1f cm from its end point", 100 * o.distance_to_goal_m);
+          ROS_ERROR("path_follower: %s: %s%s: failing segment %u", name.c_str(), c.reason.c_str(), where, r.segment_id);
+          stopRobot(r, ddace::SegmentStatus::FAILED, c.reason + where);
           continue;
         }
         if (c.stale) {  // a body nearby is stale: as for the robot's own pose
@@ -324,6 +326,18 @@ class PathFollowerNode::Impl {
           } else {
             ROS_WARN_THROTTLE(1.0, "path_follower: %s: %s, wheels zero", name.c_str(), c.reason.c_str());
           }
+          continue;
+        }
+        if (!c.at_contact_with.empty() && o.distance_to_goal_m <= default_arrival_m_) {
+          // A motion toward a body ends at contact with it: held there by a body it ends
+          // against, within the task's arrival radius of its end point, it has arrived.
+          ROS_INFO("path_follower: %s: ended at contact with %s, %.1f cm from its end point", name.c_str(),
+                   c.at_contact_with.c_str(), 100 * o.distance_to_goal_m);
+          r.stale_counting = false;
+          publishWheels(r, 0, 0);
+          publishStatus(r, r.segment_id, ddace::SegmentStatus::DONE, 1.0, o.distance_to_goal_m,
+                        "ended at contact with " + c.at_contact_with);
+          r.follower.reset();
           continue;
         }
         if (c.blocked)
@@ -358,12 +372,15 @@ class PathFollowerNode::Impl {
       others_.back().age_s = age;
     }
     // The bodies the motion ends against (a robot already on the goal) may be touched,
-    // decided once for the segment; its load is part of its body.
+    // decided once for the segment, and only once they stand where they end (within the
+    // arrival radius of it): one still on its way there is passed with the margin, as
+    // any other. Its load is part of its body.
     if (!r.decided) decide(r, self_radius);
     const exec::SafetyBody* load = nullptr;
     for (exec::SafetyBody& b : others_) {
-      b.touchable = r.ends_against.count(b.name) > 0;
-      b.load_touchable = r.load_ends_against.count(b.name) > 0;
+      const bool there = (finalPosition(b.name, b.position) - b.position).norm() <= default_arrival_m_;
+      b.touchable = there && r.ends_against.count(b.name) > 0;
+      b.load_touchable = there && r.load_ends_against.count(b.name) > 0;
       if (b.name == r.load) load = &b;
     }
     return r.safety->filter(r.name, r.pose, self_radius, self_age, nominal,

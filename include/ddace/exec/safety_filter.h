@@ -143,6 +143,12 @@ struct SafetyCommand {
   std::vector<std::string> blocking;  ///< bodies whose constraints hold the robot (active ones)
   double clearance_m = 1e9;           ///< smallest gap between this body and another (beyond contact)
   std::string reason;                 ///< for stale and deadlock
+  /// Held at contact by a body the motion may end against: blocked, every body holding it
+  /// is its target or touchable, and it is within the margin of touching one of them
+  /// (named here; "" otherwise). A motion toward a body ends at contact with it: within the
+  /// arrival radius of its end point, the caller counts it arrived (it ended against this
+  /// body, which stands a little off where the step decided it would be).
+  std::string at_contact_with;
 };
 
 class SafetyFilter {

@@ -133,8 +133,8 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
   // second robot to a goal ends at the first). Not every body near it now: a robot passing
   // by, or driving into the robot already at its end, is no such body.
   std::set<std::pair<int, int>> ends_against;
+  std::vector<Eigen::Vector2d> final_at(n);  // where each body ends this step
   {
-    std::vector<Eigen::Vector2d> final_at(n);
     for (int j = 0; j < n; ++j) final_at[j] = table_->truePose(j).position();
     for (const StepMotion& mo : motions)
       if (!mo.planned.empty()) final_at[mo.entity] = mo.planned.back();
@@ -191,9 +191,11 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
       for (int j = 0; j < n; ++j)
         if (j != i && radius_m_[j] > 0) {
           others.push_back({names_[j], measured[j].position(), radius_m_[j], robot_[j]});
-          // A motion ends against the bodies decided above; its load against its own.
-          others.back().touchable = ends_against.count(ordered(i, j)) > 0;
-          others.back().load_touchable = load >= 0 && ends_against.count(ordered(load, j)) > 0;
+          // A motion ends against the bodies decided above, once they stand where they
+          // end (one still on its way is passed with the margin); its load against its own.
+          const bool there = (measured[j].position() - final_at[j]).norm() <= params_.arrival_radius_m;
+          others.back().touchable = there && ends_against.count(ordered(i, j)) > 0;
+          others.back().load_touchable = there && load >= 0 && ends_against.count(ordered(load, j)) > 0;
         }
       SafetyBody carried;
       if (load >= 0) carried = {names_[load], measured[load].position(), radius_m_[load], false};
@@ -207,6 +209,15 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
         table_->commandWheels(i, {});
         endRide(i, false);
         out.failures.push_back(c.reason);
+        continue;
+      }
+      if (!c.at_contact_with.empty() && o.distance_to_goal_m <= params_.arrival_radius_m) {
+        // Ended at contact with a body its motion ends against, within the arrival radius
+        // of its end point: arrived, as the follower node decides it.
+        mv.running = false;
+        --running;
+        table_->commandWheels(i, {});
+        endRide(i, true);
         continue;
       }
       table_->commandWheels(i, c.wheels);

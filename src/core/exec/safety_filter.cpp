@@ -185,6 +185,10 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
       const double h = centres - contact;
       c.a = Eigen::Vector2d(-n.dot(e), 0.0);  // the centre moves with v alone
       c.b = std::max(0.0, share * params_.barrier_gain_hz * h);
+      // A body it ends against but not its target, in the way short of the end (a robot
+      // parked where this one ends touching it, approached from the wrong side): held, it
+      // is gone round as any other body. Its target it ends at, not round.
+      if (b.name != target && h < nearest_h) nearest_h = h, nearest_away = Eigen::Vector2d(n.dot(e), n.dot(e_perp));
     } else {
       const Eigen::Vector2d d = p - b.position;
       const double dist = d.norm();
@@ -228,6 +232,20 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   for (size_t i = 0; i < cs.size(); ++i)
     if (owner[i] >= 0 && cs[i].a.dot(z) >= cs[i].b - 1e-6 * (1e-3 + std::abs(cs[i].b)) - 1e-9)
       out.blocking.push_back(bodies[owner[i]].name);
+  if (out.blocked && !out.blocking.empty()) {
+    std::string touching;
+    bool only_ends = true;
+    for (const std::string& name : out.blocking) {
+      const auto b = std::find_if(bodies.begin(), bodies.end(), [&](const SafetyBody& s) { return s.name == name; });
+      if (b == bodies.end() || !(b->name == target || b->touchable)) {
+        only_ends = false;
+        break;
+      }
+      if (touching.empty() && (b->position - x).norm() - self_radius_m - b->radius_m <= params_.margin_m)
+        touching = b->name;
+    }
+    if (only_ends) out.at_contact_with = touching;
+  }
 
   // Held: the filter keeps changing the command and the robot does not advance progress_m
   // along its path -- frozen in place, or circling with others (a livelock) alike. Held

@@ -175,6 +175,31 @@ TEST(SafetyFilter, FourRobotsToOneTargetTouchItButNotEachOther) {
   EXPECT_GT(o.min_gap_untargeted_m, 0.0) << "two robots touched";
 }
 
+// A motion toward a body ends at contact with it: R1's end point touches R2's, but R2
+// stopped 2 cm nearer (within its stop radius); R1, driving on, is held at contact by R2
+// alone, so the filter says so (the follower then counts it arrived when it is within the
+// arrival radius of its end point). Held by a body its motion does not end against, it
+// says nothing: that is being blocked, not arriving.
+TEST(SafetyFilter, HeldAtContactByABodyItEndsAgainstIsNamed) {
+  const WheelSpeeds forward{0.1, 0.1};
+  for (const bool touchable : {true, false}) {
+    SafetyFilter f({}, 0.03, 0.2, 4.0);
+    SafetyBody r2{"R2", {0.1 + 2 * kRadius + 0.001, 0.3}, kRadius, true, 0.03, false};
+    r2.touchable = touchable;
+    const SafetyCommand c = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, forward, 0.0, {r2}, "G1", 0);
+    ASSERT_TRUE(c.blocked);
+    EXPECT_EQ(c.at_contact_with, touchable ? "R2" : "") << "touchable " << touchable;
+  }
+  // Its target at contact alike; a body it may end against but still far is no contact.
+  SafetyFilter f({}, 0.03, 0.2, 4.0);
+  const SafetyCommand at_target = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, forward, 0.0,
+                                           {{"R2", {0.1 + 2 * kRadius, 0.3}, kRadius, true, 0.03, false}}, "R2", 0);
+  EXPECT_EQ(at_target.at_contact_with, "R2");
+  const SafetyCommand free = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, forward, 0.0,
+                                      {{"R2", {0.3, 0.3}, kRadius, true, 0.03, false}}, "R2", 0);
+  EXPECT_EQ(free.at_contact_with, "");
+}
+
 TEST(SafetyFilter, BoxedInRobotStaysPutAndIsReportedByName) {
   std::vector<Obstacle> box;
   const Vector2d c(0.4, 0.4);
