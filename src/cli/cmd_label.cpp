@@ -28,17 +28,11 @@ bool within(const fs::path& inner, const fs::path& outer) {
   return true;
 }
 
-/// The first steps (a long recording has thousands): " [R1:move:G1 R2:move:G2] [...] ...".
-std::string stepsText(const label::Inference& inf, const task::TaskSpec& spec) {
-  constexpr size_t kShown = 12;
-  std::string s;
-  for (const auto& step : inf.steps) {
-    if (&step - inf.steps.data() == kShown) return s + " ...";
-    s += " [";
-    for (size_t i = 0; i < step.tokens.size(); ++i) s += (i ? " " : "") + task::tokenKey(step.tokens[i].token, spec);
-    s += "]";
-  }
-  return s;
+/// A step as its tokens: "[R1:move:G1 R2:move:G2]".
+std::string stepText(const label::InferredStep& step, const task::TaskSpec& spec) {
+  std::string s = "[";
+  for (size_t i = 0; i < step.tokens.size(); ++i) s += (i ? " " : "") + task::tokenKey(step.tokens[i].token, spec);
+  return s + "]";
 }
 
 int runLabel(const std::vector<std::string>& argv) {
@@ -69,16 +63,29 @@ int runLabel(const std::vector<std::string>& argv) {
     example = label::Example::fromDemonstration(task::readDemonstrationCsv(path, spec), spec);
   }
 
-  // Pass 1: infer every demonstration, report what is uncertain.
-  std::vector<label::Inference> inferred;
+  // Pass 1: infer every demonstration, report what is uncertain. The tokens go to a
+  // temporary file as they are decided, so memory does not grow with a recording's length.
+  constexpr size_t kShownSteps = 12;  // a long recording has thousands
+  label::TokenSpill spill;
+  std::vector<label::RecordingInference> inferred;
+  std::vector<size_t> spill_from;
   size_t notes = 0;
   for (const auto& d : dir.demos) {
-    inferred.push_back(label::inferRecording(d.source, spec, example ? &*example : nullptr));
-    std::cout << fs::path(d.source).filename().string() << ": " << inferred.back().steps.size()
-              << " steps:" << stepsText(inferred.back(), spec) << "\n";
-    for (const auto& n : inferred.back().notes) std::cerr << d.source << ":" << n.row + 2 << ": " << n.message << "\n";
-    notes += inferred.back().notes.size();
+    spill_from.push_back(spill.size());
+    std::string shown;
+    size_t steps = 0;
+    inferred.push_back(label::inferRecording(
+        d.source, spec, example ? &*example : nullptr,
+        [&](label::InferredStep&& step) {
+          spill.add(step);
+          if (steps++ < kShownSteps) shown += " " + stepText(step, spec);
+        },
+        [&](label::Note&& n) { std::cerr << d.source << ":" << n.row + 2 << ": " << n.message << "\n"; }));
+    std::cout << fs::path(d.source).filename().string() << ": " << steps << " steps:" << shown
+              << (steps > kShownSteps ? " ..." : "") << "\n";
+    notes += inferred.back().notes;
   }
+  spill_from.push_back(spill.size());
   if (notes > 0 && args.has("--strict")) {
     std::cerr << "ddace label: " << notes << " uncertain item(s) above; --strict: nothing written\n";
     return 1;
@@ -93,13 +100,15 @@ int runLabel(const std::vector<std::string>& argv) {
         for (size_t i = 0; i < dir.demos.size(); ++i) {
           const std::string target = (fs::path(tmp) / "demos" / fs::path(dir.demos[i].source).filename()).string();
           OutputFile file(target);
-          label::writeLabelledRecording(dir.demos[i].source, spec, inferred[i], file.stream());
+          label::LabelCursor cursor(spill.reader(spill_from[i], spill_from[i + 1]), spec.entities.size());
+          label::writeLabelledRecording(dir.demos[i].source, spec, inferred[i].labelled, cursor, file.stream());
           file.commit();
-          const task::DemonstrationSummary back = task::summarizeDemonstrationCsv(target, spec);
-          if (back.steps.size() != inferred[i].steps.size())
+          // Counting the steps only: memory independent of the recording's steps too.
+          const task::DemonstrationSummary back = task::summarizeDemonstrationCsv(target, spec, false);
+          if (back.step_count != inferred[i].steps)
             throw Error(Diagnostic{target, 0, 0,
-                                   "reads back with " + std::to_string(back.steps.size()) + " steps, inferred " +
-                                       std::to_string(inferred[i].steps.size()) + " (a bug in ddace label)"});
+                                   "reads back with " + std::to_string(back.step_count) + " steps, inferred " +
+                                       std::to_string(inferred[i].steps) + " (a bug in ddace label)"});
         }
       },
       "ddace label", args.has("--force"));

@@ -631,8 +631,9 @@ int runTable(const std::vector<std::string>& argv) {
         "a step driving at the same time, each steered by the path follower's control law from positions measured "
         "with "
      << fmt(kClosedLoopNoise * 1000, 0)
-     << " mm noise, its command through its own safety filter fed with the others' poses; objects carried along "
-        "their own paths, and pushed when something drives into them (`ddace eval --execution diffdrive --noise "
+     << " mm noise, its command through its own safety filter fed with the others' poses; a load riding in front "
+        "of its carrier (part of the carrier's body for its filter), other objects carried along their own paths, and "
+        "pushed when something drives into them (`ddace eval --execution diffdrive --noise "
      << kClosedLoopNoise
      << "`; without the filter: `--no-filter`). **Collisions**: contacts that began between two bodies apart, "
         "except a motion and its own target, a carrier and its load, and a motion and a body its end point touches "

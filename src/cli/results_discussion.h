@@ -37,7 +37,8 @@
   "- **Closed loop.** The ideal rows end every motion on its target, as the paper's evaluation; the "           \
   "closed-loop rows drive the same models' paths with the path follower's control law, so robots stop "         \
   "within the arrival radius and the next decision and path start from there. The network treats entities "     \
-  "within two arrival radii of each other as at one place (docs/tgn.md, \"Entities at one place\"), which is "  \
+  "within contact plus the arrival radius of each other as at one place (docs/tgn.md, \"Entities at one "       \
+  "place\"), which is "                                                                                         \
   "what keeps such stops from changing a decision; where a closed-loop OSR is below the ideal one, a stop "     \
   "short of a target did.\n"                                                                                    \
   "- **GNN baseline.** It is trained as seriously as DDACE — the same encoder, GRU, optimiser and "           \

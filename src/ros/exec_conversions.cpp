@@ -154,7 +154,7 @@ exec::SafetyParams loadSafetyParams(const ros::NodeHandle& nh) {
 }
 
 exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh) {
-  exec::DiffDriveParams p;
+  exec::DiffDriveParams p = exec::simulatedHamster();  // the mock robots' Hamster
   p.rate_hz = param(nh, "rate_hz", p.rate_hz);
   p.wheel_base_m = param(nh, "wheel_base_m", p.wheel_base_m);
   p.max_wheel_speed_mps = param(nh, "max_wheel_speed_mps", p.max_wheel_speed_mps);

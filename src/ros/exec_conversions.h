@@ -54,7 +54,7 @@ exec::FollowerGains loadFollowerGains(const ros::NodeHandle& nh);
 /// exec::SafetyParams from `nh` (the follower's ~safety), defaults where unset; throws
 /// ddace::Error naming the invalid parameter and namespace.
 exec::SafetyParams loadSafetyParams(const ros::NodeHandle& nh);
-/// Diff-drive parameters from parameters under `nh`.
+/// Diff-drive parameters from parameters under `nh`, exec::simulatedHamster() where unset.
 exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh);
 
 }  // namespace ddace::ros_exec

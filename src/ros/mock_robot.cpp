@@ -3,6 +3,7 @@
 
 #include <map>
 #include <memory>
+#include <optional>
 
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
@@ -80,6 +81,14 @@ class MockRobotNode::Impl {
                                                           [this, k](const ddace::WheelCommand::ConstPtr& m) {
                                                             sim_->commandWheels(k, {m->left_mps, m->right_mps});
                                                           }));
+        // A carrier's segments and their ends: its load rides with it (issue 23: in every
+        // simulator a carried object stays in front of its carrier).
+        subs_.push_back(
+            nh.subscribe<ddace::Segment>("/robots/" + te.name + "/segment", 10,
+                                         [this, k](const ddace::Segment::ConstPtr& m) { onRobotSegment(k, *m); }));
+        subs_.push_back(nh.subscribe<ddace::SegmentStatus>(
+            "/robots/" + te.name + "/segment_status", 20,
+            [this, k](const ddace::SegmentStatus::ConstPtr& m) { onRobotStatus(k, *m); }));
       } else if (te.kind == task::EntityKind::Object) {
         status_pubs_[k] = nh.advertise<ddace::SegmentStatus>("/robots/" + te.name + "/segment_status", 10);
         subs_.push_back(
@@ -148,6 +157,7 @@ class MockRobotNode::Impl {
   }
 
   void onObjectSegment(int i, const ddace::Segment& m) {
+    running_.erase(i);
     if (m.mode == ddace::Segment::MODE_STOP) return publish(sim_->stopSegment(i));
     const std::string topic = "/robots/" + spec_.entities[i].name + "/segment";
     exec::PlannedPath p;
@@ -156,7 +166,63 @@ class MockRobotNode::Impl {
     } catch (const std::exception& ex) {
       return publish(sim_->refuseSegment(i, m.segment_id, ex.what()));
     }
-    publish(sim_->startSegment(i, m.segment_id, p.points));
+    const auto status = sim_->startSegment(i, m.segment_id, p.points);
+    publish(status);
+    if (status && status->state != exec::SegmentState::Accepted) return;
+    if (auto t = token(m)) {
+      running_[i] = {m.step, m.segment_id, *t};
+      for (const auto& [r, seg] : running_)
+        if (spec_.entities[r].kind == task::EntityKind::Robot) pair(r, i);
+    }
+  }
+
+  /// The segment's token, or nothing (a malformed token: the follower refuses the segment).
+  std::optional<task::Token> token(const ddace::Segment& m) const {
+    try {
+      return ros_exec::fromMsg(m.token, spec_);
+    } catch (const std::exception&) {
+      return std::nullopt;
+    }
+  }
+
+  void onRobotSegment(int r, const ddace::Segment& m) {
+    running_.erase(r);
+    if (m.mode == ddace::Segment::MODE_STOP) return dropLoad(r);
+    if (auto t = token(m)) {
+      running_[r] = {m.step, m.segment_id, *t};
+      for (const auto& [o, seg] : running_)
+        if (spec_.entities[o].kind == task::EntityKind::Object) pair(r, o);
+    }
+  }
+
+  /// Robot r's running segment and object o's are a carry: the load rides with it (when it
+  /// is at the carrier; else it moves along its own path).
+  void pair(int r, int o) {
+    const Running& a = running_.at(r);
+    const Running& b = running_.at(o);
+    if (sim_->carrierOf(o) >= 0 || !exec::carries(spec_, a.step, a.token, b.step, b.token)) return;
+    if (sim_->ride(r, o))
+      ROS_INFO("mock_robots: %s rides with %s (step %d)", spec_.entities[o].name.c_str(),
+               spec_.entities[r].name.c_str(), a.step + 1);
+  }
+
+  /// The carrier's segment ended: DONE -- its load goes on to its end (on the target) and
+  /// reports DONE there; FAILED or ABORTED -- the load stops where it is (ABORTED).
+  void onRobotStatus(int r, const ddace::SegmentStatus& m) {
+    const auto it = running_.find(r);
+    if (it == running_.end() || m.segment_id != it->second.segment_id) return;
+    if (m.status == ddace::SegmentStatus::DONE) {
+      for (size_t o = 0; o < spec_.entities.size(); ++o)
+        if (sim_->carrierOf(static_cast<int>(o)) == r) sim_->endRide(static_cast<int>(o));
+      running_.erase(it);
+    } else if (m.status == ddace::SegmentStatus::FAILED || m.status == ddace::SegmentStatus::ABORTED) {
+      running_.erase(it);
+      dropLoad(r);
+    }
+  }
+  void dropLoad(int r) {
+    for (size_t o = 0; o < spec_.entities.size(); ++o)
+      if (sim_->carrierOf(static_cast<int>(o)) == r) publish(sim_->stopSegment(static_cast<int>(o)));
   }
 
   /// Goals never move: their frames go on /tf_static once (latched), not at 50 Hz on /tf.
@@ -220,7 +286,13 @@ class MockRobotNode::Impl {
 
   task::TaskSpec spec_;
   std::unique_ptr<exec::TableSimulator> sim_;
-  size_t contacts_seen_ = 0;  ///< contacts already logged
+  struct Running {
+    int step = -1;
+    uint32_t segment_id = 0;
+    task::Token token;
+  };
+  std::map<int, Running> running_;  ///< each entity's running segment (robots: as sent to their follower)
+  size_t contacts_seen_ = 0;        ///< contacts already logged
   std::string frame_id_;
   bool publish_tf_ = true;  // set from the parameters
   std::vector<ros::Subscriber> subs_;

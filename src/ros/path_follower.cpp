@@ -2,6 +2,7 @@
 #include "ddace/ros/path_follower.h"
 
 #include <map>
+#include <set>
 #include <memory>
 
 #include <ros/ros.h>
@@ -56,6 +57,13 @@ class PathFollowerNode::Impl {
           "/robots/" + name + "/segment", 10, [this, raw](const ddace::Segment::ConstPtr& m) { onSegment(*raw, *m); });
       robots_[name] = std::move(r);
     }
+    // Objects' segments: where they end (bodies a motion ends against) and which load a
+    // carrier carries (part of its body for its filter).
+    for (const auto& [name, e] : task_entities_)
+      if (e.kind == task::EntityKind::Object)
+        object_subs_.push_back(nh.subscribe<ddace::Segment>(
+            "/robots/" + name + "/segment", 10,
+            [this, name = name](const ddace::Segment::ConstPtr& m) { onObjectSegment(name, *m); }));
     entities_sub_ = nh.subscribe("/ddace/entities", 5, &Impl::onEntities, this);
     estop_sub_ = nh.subscribe("/ddace/estop", 5, &Impl::onEstop, this);
     timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz_), &Impl::onTimer, this);
@@ -74,6 +82,13 @@ class PathFollowerNode::Impl {
     std::unique_ptr<exec::PathFollower> follower;  ///< null = no segment
     std::unique_ptr<exec::SafetyFilter> safety;    ///< between the follower and the wheels
     std::string target;                            ///< the segment's target entity ("" = none)
+    int step = -1;                                 ///< the segment's step
+    std::string action;                            ///< the segment's token's action
+    /// Decided at the segment's first filtered cycle: the bodies its end point touches
+    /// (standing there, or ending there in this step) and its load's.
+    bool decided = false;
+    std::set<std::string> ends_against, load_ends_against;
+    std::string load;  ///< the object it carries ("" = none)
     uint32_t segment_id = 0;
     exec::Pose2D pose;
     bool pose_known = false, pose_stale = true;
@@ -138,6 +153,10 @@ class PathFollowerNode::Impl {
       f->setPath(path);
       r.follower = std::move(f);
       r.target = m.token.target;
+      r.step = m.step;
+      r.action = m.token.action;
+      r.decided = false;
+      r.load.clear();
       r.safety->reset();
       r.segment_id = m.segment_id;
       r.cycle = 0;
@@ -147,6 +166,59 @@ class PathFollowerNode::Impl {
       publishStatus(r, m.segment_id, ddace::SegmentStatus::FAILED, 0, 0, e.what());
       publishWheels(r, 0, 0);
     }
+  }
+
+  /// An object's segment: its step, token and end point (MODE_STOP forgets it).
+  struct ObjectSegment {
+    int step = -1;
+    std::string action, target;
+    Eigen::Vector2d end{0, 0};
+  };
+  void onObjectSegment(const std::string& name, const ddace::Segment& m) {
+    if (m.mode != ddace::Segment::MODE_FOLLOW || m.path.poses.empty()) {
+      object_segments_.erase(name);
+      return;
+    }
+    const auto& last = m.path.poses.back().pose.position;
+    object_segments_[name] = {m.step, m.token.action, m.token.target, {last.x, last.y}};
+  }
+
+  /// Where body `name` ends this step: its segment's end point (a robot driven here, an
+  /// object), else where it is now.
+  Eigen::Vector2d finalPosition(const std::string& name, const Eigen::Vector2d& now) const {
+    if (auto it = robots_.find(name); it != robots_.end() && it->second->follower)
+      return it->second->follower->endPoint();
+    if (auto it = object_segments_.find(name); it != object_segments_.end()) return it->second.end;
+    return now;
+  }
+
+  /// Once per segment, at its first filtered cycle (the step's segments are all in by
+  /// then): its load and the bodies its end point and its load's touch
+  /// (exec::segmentContacts, as exec::BodiesExecution decides them for a step).
+  void decide(Robot& r, double self_radius) {
+    r.decided = true;
+    std::vector<exec::BodyAtStart> at;
+    for (const auto& [name, t] : bodies_) {
+      if (name == r.name) continue;
+      exec::BodyAtStart b;
+      b.name = name;
+      b.position = t.body.position;
+      b.final_position = finalPosition(name, t.body.position);
+      b.radius_m = t.body.radius_m;
+      if (auto o = object_segments_.find(name); o != object_segments_.end()) {
+        b.object = true;
+        b.step = o->second.step;
+        b.action = o->second.action;
+        b.target = o->second.target;
+      }
+      at.push_back(b);
+    }
+    const exec::SegmentContacts c =
+        exec::segmentContacts(r.pose.position(), self_radius, r.follower->endPoint(), r.step, r.action, r.target, at,
+                              safety_.margin_m, default_arrival_m_);
+    r.load = c.load;
+    r.ends_against = {c.ends_against.begin(), c.ends_against.end()};
+    r.load_ends_against = {c.load_ends_against.begin(), c.load_ends_against.end()};
   }
 
   /// A tracked body as the safety filters see it (robots, objects; goals are flat).
@@ -285,16 +357,25 @@ class PathFollowerNode::Impl {
       others_.push_back(t.body);
       others_.back().age_s = age;
     }
-    // The bodies the motion ends against (a robot already on the goal) may be touched.
-    exec::markBodiesAtEnd(others_, r.follower->endPoint(), self_radius, safety_);
+    // The bodies the motion ends against (a robot already on the goal) may be touched,
+    // decided once for the segment; its load is part of its body.
+    if (!r.decided) decide(r, self_radius);
+    const exec::SafetyBody* load = nullptr;
+    for (exec::SafetyBody& b : others_) {
+      b.touchable = r.ends_against.count(b.name) > 0;
+      b.load_touchable = r.load_ends_against.count(b.name) > 0;
+      if (b.name == r.load) load = &b;
+    }
     return r.safety->filter(r.name, r.pose, self_radius, self_age, nominal,
-                            r.follower->progress() * r.follower->lengthM(), others_, r.target, now.toSec());
+                            r.follower->progress() * r.follower->lengthM(), others_, r.target, now.toSec(), load);
   }
 
   std::map<std::string, std::unique_ptr<Robot>> robots_;
-  std::map<std::string, task::Entity> task_entities_;  ///< by name, when the task is known
-  std::map<std::string, Tracked> bodies_;              ///< every tracked body by name
-  std::vector<exec::SafetyBody> others_;               ///< scratch of filterCommand
+  std::map<std::string, task::Entity> task_entities_;     ///< by name, when the task is known
+  std::map<std::string, Tracked> bodies_;                 ///< every tracked body by name
+  std::vector<exec::SafetyBody> others_;                  ///< scratch of filterCommand
+  std::map<std::string, ObjectSegment> object_segments_;  ///< by object name
+  std::vector<ros::Subscriber> object_subs_;
   exec::FollowerGains gains_;
   exec::SafetyParams safety_;
   double default_arrival_m_ = task::kDefaultArrivalRadius;

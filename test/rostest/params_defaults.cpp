@@ -128,7 +128,6 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                  {"arrival_radius_m"});
 
   const MockRobotNode::Params m;
-  const ddace::exec::DiffDriveParams r;
   expectDefaults(yaml["mock_robots"], "mock_robots",
                  {{"frame_id", value(m.frame_id)},
                   {"entities_topic", value(m.entities_topic)},
@@ -138,15 +137,17 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"object_damping_hz", value(m.object_damping_hz)},
                   {"robot", YAML::Node()}},
                  {"stalled", "scene_csv", "scene_demo", "scene"});
-  // The simulated Hamster's latency and tracking noise are deliberately not
-  // exec::DiffDriveParams' defaults (an ideal robot, for the core's own tests).
+  // The simulated Hamster (exec::simulatedHamster, also `ddace eval --execution diffdrive`'s);
+  // its tracking noise is the mock robots' own (eval: --noise).
+  const ddace::exec::DiffDriveParams hamster = ddace::exec::simulatedHamster();
   expectDefaults(yaml["mock_robots"]["robot"], "mock_robots/robot",
-                 {{"rate_hz", value(r.rate_hz)},
-                  {"wheel_base_m", value(r.wheel_base_m)},
-                  {"max_wheel_speed_mps", value(r.max_wheel_speed_mps)},
-                  {"command_timeout_s", value(r.command_timeout_s)},
-                  {"seed", value(r.seed)}},
-                 {"latency_s", "position_noise_m", "yaw_noise_rad"});
+                 {{"rate_hz", value(hamster.rate_hz)},
+                  {"wheel_base_m", value(hamster.wheel_base_m)},
+                  {"max_wheel_speed_mps", value(hamster.max_wheel_speed_mps)},
+                  {"latency_s", value(hamster.latency_s)},
+                  {"command_timeout_s", value(hamster.command_timeout_s)},
+                  {"seed", value(hamster.seed)}},
+                 {"position_noise_m", "yaw_noise_rad"});
 
   const SequenceNode::Params s;
   const YAML::Node seq = yaml["sequence"];

@@ -1,12 +1,13 @@
 // The closed-loop simulator's execution model with bodies (`ddace eval --execution
 // diffdrive`): every motion of a step runs at the same time on the simulated table of the
 // mock robots (exec/table_simulator.h: Box2D discs of the task's footprints, objects
-// carried along their own paths and pushed when something drives into them). Each robot is
+// carried along their own paths or riding with their carriers, pushed when something drives into them). Each robot is
 // steered along its planned path by the path follower's control law (exec/path_follower.h)
 // from its measured pose, and its command goes through the robot's own safety filter
 // (exec/safety_filter.h) fed with the others' poses, as path_follower_node does; without
 // the filter (SafetyParams::enabled false) the bodies still collide, and every collision
-// is counted. A carrier and its load ride together during their step (setRiding).
+// is counted. A load at its carrier rides in front of it during their step
+// (TableSimulator::ride), part of the carrier's body for its filter.
 //
 // A step ends when every robot's control law reports it arrived and every object's segment
 // is done, or when its filter reports a deadlock (the robot stops there; the failure names
@@ -40,10 +41,10 @@ struct BodiesExecutionParams {
       0.03;            ///< the task's; the control law stops within task::stopRadius of it (3 sigma of noise)
   double noise_m = 0;  ///< std-dev of measured x and y
   uint64_t seed = 1;
-  FollowerGains gains;                           ///< the path follower's (its arrival radius is set from the above)
-  DiffDriveParams robot{50, 0.030, 0.20, 0.04};  ///< as the mock robots (config/execution.yaml: 40 ms latency)
-  SafetyParams safety;                           ///< enabled = false: the follower's command goes to the wheels
-  TableSimulatorParams table{/*bodies=*/true};   ///< Box2D bodies
+  FollowerGains gains;                          ///< the path follower's (its arrival radius is set from the above)
+  DiffDriveParams robot = simulatedHamster();   ///< as the mock robots' (noise: noise_m)
+  SafetyParams safety;                          ///< enabled = false: the follower's command goes to the wheels
+  TableSimulatorParams table{/*bodies=*/true};  ///< Box2D bodies
 };
 
 /// Two bodies in contact have parted when their gap exceeds this (metres): Box2D keeps

@@ -46,6 +46,16 @@ struct DiffDriveParams {
   void validate() const;
 };
 
+/// The simulated Hamster of the mock robots (config/execution.yaml's mock_robots/robot,
+/// checked against this by the params_defaults rostest) and of `ddace eval --execution
+/// diffdrive`: 40 ms from a command to the wheels (radio + firmware). Tracking noise is
+/// each user's own (eval: --noise).
+inline DiffDriveParams simulatedHamster() {
+  DiffDriveParams p;
+  p.latency_s = 0.04;
+  return p;
+}
+
 /// Wraps an angle to (-pi, pi] (the one definition is in common/angle.h).
 using ddace::wrapAngle;
 

@@ -15,8 +15,10 @@
 //                                        filter and takes the other half; 1 otherwise)
 // The right side is never above 0, so a pair already inside the margin (a start scene,
 // a pushed robot) may separate but never close in. The motion's
-// target (and a body marked touchable: a carrier's load, a body the motion's end point
-// touches) gets the same constraint on the centres at contact distance. Together with the
+// target (and a body marked touchable: a body the motion's end point touches) gets the
+// same constraint on the centres at contact distance. A carried load is part of the
+// robot's body: its centre q, rigidly ahead of the axle, moves as q' = v e + w (q - x)^perp,
+// and gets the same constraint per neighbour on its own disc. Together with the
 // wheel limits these are half-planes in (v, l w); the least change of (v, l w) -- equal to
 // the least change of p' -- is a quadratic programme in two variables, solved exactly by
 // enumerating active sets (the command itself, each constraint's line, each vertex).
@@ -71,9 +73,12 @@ struct SafetyBody {
   bool robot = false;              ///< runs its own filter: takes half of each pair's constraint
   double age_s = 0;                ///< how old its pose is
   bool stale = false;              ///< the tracker says: never drive on it
-  /// The motion may end touching it, as its target (the carrier's load it pushes ahead);
-  /// the segment's `target` is always touchable.
+  /// The motion may end touching it, as its target; the segment's `target` is always
+  /// touchable.
   bool touchable = false;
+  /// The robot's carried load (filter()'s `load`) may end touching it; the segment's
+  /// `target` (the load's too: task::carriedLoad) always may.
+  bool load_touchable = false;
 };
 
 /// The body of an entity as the filter and the simulator see it: its disc radius and
@@ -96,10 +101,36 @@ inline BodyShape bodyShape(const task::TaskSpec& spec, int i) {
 /// collision (exec/bodies_execution.h).
 bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const Eigen::Vector2d& position,
                  double radius_m, double margin_m);
-/// Marks touchable every body of `bodies` the motion ends against (endsAgainst with the
-/// filter's margin), from their current positions: called every cycle, as bodies arrive.
-void markBodiesAtEnd(std::vector<SafetyBody>& bodies, const Eigen::Vector2d& end_point, double self_radius_m,
-                     const SafetyParams& params);
+
+/// A body as a robot's segment sees it when it starts (the path follower node's view).
+struct BodyAtStart {
+  std::string name;
+  Eigen::Vector2d position{0, 0};        ///< where it is now
+  Eigen::Vector2d final_position{0, 0};  ///< where it ends this step: its segment's end point, else `position`
+  double radius_m = 0;
+  bool object = false;
+  /// Its segment's step, action and target (step -1: no segment), for an object that may
+  /// be the robot's load.
+  int step = -1;
+  std::string action, target;
+};
+/// What a robot's segment may touch, decided once when it starts.
+struct SegmentContacts {
+  std::string load;                            ///< the object it carries ("" = none)
+  std::vector<std::string> ends_against;       ///< bodies its end point touches (SafetyBody::touchable)
+  std::vector<std::string> load_ends_against;  ///< bodies its load's end point touches (load_touchable)
+};
+/// Decides, when a robot's segment (`step`, `action`, `target`, ending at `end_point`)
+/// starts, with the robot at `position`: its load -- an object whose segment has the same
+/// step, action and target (exec::carries) within task::togetherDistance of it (contact plus
+/// `arrival_radius_m`: where the robot counts as at it, as the generators and
+/// TableSimulator::ride decide who rides) -- and the
+/// bodies its end point and its load's end point touch (endsAgainst with `margin_m`, at
+/// the bodies' final positions: one standing there, or ending there this step, not one
+/// only passing by). The same decision exec::BodiesExecution makes for a step.
+SegmentContacts segmentContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
+                                int step, const std::string& action, const std::string& target,
+                                const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m);
 
 /// What the filter decided for one control cycle.
 struct SafetyCommand {
@@ -125,9 +156,12 @@ class SafetyFilter {
   /// old) with body radius `self_radius_m`, the follower's `nominal` wheels, the arc
   /// length of its path covered so far (`progress_m`, never decreasing), the other
   /// `bodies` (self excluded) and the name of the motion's `target` ("" for none).
+  /// `load`: the load the robot carries (it rides in front, exec::TableSimulator::ride),
+  /// part of the robot's body: kept clear of every body as the robot's own disc is (except
+  /// the target and the bodies marked load_touchable), its entry in `bodies` ignored.
   SafetyCommand filter(const std::string& self_name, const Pose2D& self, double self_radius_m, double self_age_s,
                        const WheelSpeeds& nominal, double progress_m, const std::vector<SafetyBody>& bodies,
-                       const std::string& target, double now_s);
+                       const std::string& target, double now_s, const SafetyBody* load = nullptr);
   /// Forgets the blocked and deadlock clocks (a new segment, the robot idle).
   void reset() { resolve_until_s_ = stuck_since_s_ = -1; }
   const SafetyParams& params() const { return params_; }

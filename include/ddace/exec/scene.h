@@ -50,6 +50,7 @@ class CarriedObject {
   bool arrived() const { return s_m_ >= cum_m_.back(); }
   double progress() const { return cum_m_.back() > 0 ? std::min(1.0, s_m_ / cum_m_.back()) : 1.0; }
   const Eigen::Vector2d& goal() const { return path_.back(); }
+  const Eigen::Vector2d& start() const { return path_.front(); }
 
  private:
   std::vector<Eigen::Vector2d> path_;

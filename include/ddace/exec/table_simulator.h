@@ -31,10 +31,14 @@
 #include "ddace/exec/clearance.h"
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/diff_drive.h"
+#include "ddace/exec/safety_filter.h"
 #include "ddace/exec/scene.h"
 #include "ddace/task/task_spec.h"
 
 namespace ddace::exec {
+
+/// A riding load reaches its carrier's front after the carrier has travelled this far (metres).
+inline constexpr double kRideSwingM = 0.05;
 
 struct TableSimulatorParams {
   /// true: robots and objects are Box2D bodies that collide; false: points that pass
@@ -68,11 +72,25 @@ class TableSimulator {
   ~TableSimulator();
   TableSimulator(TableSimulator&&) noexcept;
 
-  /// While `riding`, object `load` rides with robot `carrier` (a carry step of
-  /// `ddace eval`'s simulator): their bodies pass through each other, as a load placed on its
-  /// carrier does, so a load that starts beside its carrier can swing round to its front.
-  /// Throws ddace::Error for an index outside the task.
-  void setRiding(int carrier, int load, bool riding);
+  /// Object `load` rides with robot `carrier` (a carry step, task::carriedLoad): from now
+  /// on it is carried in front of the carrier, not along its own segment -- from where it
+  /// is relative to the carrier it swings round to the carrier's front, at their contact
+  /// distance, over the carrier's first kRideSwingM of travel, and then turns and moves
+  /// with it. Their bodies pass through each other, as a load placed on its carrier does.
+  /// A segment of the load keeps running (RUNNING reports, progress toward its goal) until
+  /// endRide(). Returns false and changes nothing when the load is farther than
+  /// task::togetherDistance from its carrier, where the carrier counts as at it (a ball
+  /// passed from afar moves on its own segment), or either has no body. Throws ddace::Error when `carrier` is not a
+  /// robot or `load` not an object.
+  bool ride(int carrier, int load);
+  /// The load stops riding (its carrier arrived). Its running segment, if any, goes on
+  /// from where the load is straight to the segment's end -- the few centimetres its
+  /// carrier stopped short (task::stopRadius): the load ends on its target -- and reports
+  /// Done there (step()). No-op for a load that does not ride. A carrier that fails: stop
+  /// the load's segment (stopSegment) instead.
+  void endRide(int load);
+  /// The robot `load` rides with, or -1.
+  int carrierOf(int load) const;
 
   /// A wheel command for robot `entity`, effective after the robot's latency. Throws
   /// ddace::Error when `entity` is not a robot.
@@ -129,6 +147,11 @@ class TableSimulator {
     std::unique_ptr<CarriedObject> carried;  ///< the object's current (or last) segment
     uint32_t segment_id = 0;
     bool moving = false;
+    // Riding (ride()): the carrier, the load's start offset in the carrier's frame, the
+    // carrier's travel since, and the load's distance to its goal when it began.
+    int carrier = -1;
+    Eigen::Vector2d ride_offset0{0, 0};
+    double ride_contact_m = 0, ride_travel_m = 0;
     int status_cycle = 0;
   };
   void checkIndex(int i) const;  ///< throws ddace::Error for an index outside the task
@@ -138,6 +161,7 @@ class TableSimulator {
   void measureClearance();
   void halt(int i);  ///< object i stops following its segment and comes to rest
 
+  task::TaskSpec spec_;  ///< footprints and arrival radius: who rides (ride())
   std::vector<std::string> names_;
   std::vector<Entity> entities_;
   DiffDriveParams robot_;
@@ -148,5 +172,12 @@ class TableSimulator {
   std::vector<BodyContact> contacts_;
   std::unique_ptr<ClearanceMeter> meter_;
 };
+
+/// Whether the segment of robot token `carrier` (decided in step `carrier_step`) carries the
+/// load of object token `load` (step `load_step`): the same step, and task::carriedLoad of
+/// the two (same action and target). The mock robots see a step's segments one by one, in
+/// any order, and pair them with this.
+bool carries(const task::TaskSpec& spec, int carrier_step, const task::Token& carrier, int load_step,
+             const task::Token& load);
 
 }  // namespace ddace::exec

@@ -117,6 +117,11 @@ class MotionSegmenter {
   std::vector<Motion> take();
   /// True when no entity is moving: a step may be over.
   bool allResting() const;
+  /// No motion handed over later begins before this row (its time: horizonT()): the
+  /// onset of a running motion, else the oldest row kept (an onset is dated back within
+  /// the rows kept). INT_MAX after finish().
+  int horizonRow() const;
+  double horizonT() const;
   /// The row index of the next row().
   int rows() const { return row_; }
   /// Time of the last row.
@@ -154,6 +159,7 @@ class MotionSegmenter {
   std::vector<Motion> done_;
   int row_ = 0;
   double last_t_ = 0;
+  bool finished_ = false;
 };
 
 }  // namespace ddace::label

@@ -3,7 +3,9 @@
 // reported as a note on the row where it happens.
 #pragma once
 
+#include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -60,40 +62,93 @@ struct Example {
   static Example fromDemonstration(const task::Demonstration& d, const task::TaskSpec& spec);
 };
 
-/// Infers the labels of one demonstration, row by row.
+/// Infers the labels of one demonstration, row by row. A step is decided as soon as no
+/// later row can change it (every entity of it has rested for pause_s beyond the rows
+/// the segmenter keeps, and no running motion began before its end): take() hands over
+/// what is decided, so a recording of any length is labelled in memory bounded by a few
+/// seconds of rows and motions (with an example: plus the example's steps, held until
+/// the demonstration is known to have more steps than it). The steps are the same
+/// whether or not take() is called.
 class Labeller {
  public:
   explicit Labeller(const task::TaskSpec& spec, const Example* example = nullptr);
   void row(double t, const std::vector<Eigen::Vector2d>& positions);
-  /// The steps and notes; call once after the last row.
+  /// The steps decided since the last take() (in row order) and their notes (in row
+  /// order within one take()).
+  Inference take();
+  /// The steps and notes not taken yet (everything when take() was never called, notes
+  /// in row order); call once after the last row.
   Inference finish();
   int rows() const { return segmenter_.rows(); }
 
  private:
+  struct Group {
+    std::vector<Motion> motions;
+    std::vector<Note> notes;  ///< of its grouping, handed over with its step
+  };
+  /// Goal motions become notes; the others wait in pending_.
+  void arrive(std::vector<Motion> found);
+  /// Merges pauses and groups the pending motions; hands over the groups no later row
+  /// can change (all of them `at_end`).
+  void decide(bool at_end);
+  /// A final group: straight to emit(), or held while the example's alignment is open.
+  void handOver(Group g);
+  /// The example's alignment is settled: emits the held groups.
+  void settle(bool aligned);
+  /// The step(s) of one group (and the example's in-place steps before it) into out_.
+  void emit(Group& g, bool aligned);
+  void note(int row, const std::string& message) { out_.notes.push_back({row, message}); }
+  bool staysWith(const Motion& m, int j) const;
+  std::vector<bool> candidatesOf(const Motion& m) const;
+  bool pausedOnItsWay(const Motion& a, const Motion& b) const;
+  const task::ActionRule* rule(int mover, int target, int load) const;
+  std::string word(int mover, int target, int load, int row);
+  void placeInPlace(const std::vector<const task::Step*>& steps, int from, int to);
+
   const task::TaskSpec& spec_;
   const Example* example_;
   SegmentationOptions options_;
   MotionSegmenter segmenter_;
-  std::vector<Motion> motions_;
+  std::vector<Motion> pending_;  ///< motions of steps not decided yet
+  double next_check_t_;          ///< decide() again once the horizon passes this time
+  // The example's motion steps and the in-place-only steps before each of them.
+  std::vector<const task::Step*> ex_motion_;
+  std::vector<std::vector<const task::Step*>> ex_inplace_before_;
+  bool ex_has_inplace_ = false;
+  enum class Alignment { Open, Aligned, NotAligned } alignment_;
+  std::vector<Group> held_;  ///< final groups while alignment_ is Open
+  size_t emitted_groups_ = 0;
+  int prev_off_ = -1;  ///< the last emitted group's offset row
+  Inference out_;      ///< decided, not taken
 };
 
 /// inferLabels over a demonstration in memory.
 Inference inferLabels(const task::Demonstration& d, const task::TaskSpec& spec, const Example* example = nullptr);
 
-/// The label of every entity row by row, from an inference (for writing a recording as a
-/// stream): call at(row) with increasing rows.
+/// The label of every entity row by row, from an inference or a stream of token spans
+/// (for writing a recording as a stream): call at(row) with increasing rows.
 class LabelCursor {
  public:
-  LabelCursor(const Inference& inference, size_t entities);
-  const std::vector<task::Label>& at(int row);
-
- private:
+  /// The rows a token's label holds (first..last), in order of `first`.
   struct Span {
-    int first, last, entity;
+    int first = 0, last = 0, entity = 0;
     task::Label label;
   };
-  std::vector<Span> spans_;  ///< by first row
-  size_t next_ = 0;
+  LabelCursor(const Inference& inference, size_t entities);
+  /// Spans from `next` (false at the end), in order of their first row: a span out of
+  /// order throws ddace::Error.
+  LabelCursor(std::function<bool(Span&)> next, size_t entities);
+  const std::vector<task::Label>& at(int row);
+  /// True when every span was reached by at().
+  bool exhausted();
+
+ private:
+  bool peek();
+  std::function<bool(Span&)> next_;
+  std::vector<Span> spans_;  ///< from an inference, by first row
+  size_t index_ = 0;
+  std::optional<Span> ahead_;
+  int last_first_ = -1;
   std::vector<Span> open_;
   std::vector<task::Label> labels_;
 };

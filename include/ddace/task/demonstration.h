@@ -131,9 +131,10 @@ class Demonstration {
 /// (line L); merged into the step" (line = row + 2: the header is line 1).
 std::vector<Diagnostic> mergedOnsetNotes(const Demonstration& demo, const TaskSpec& spec);
 
-/// The largest demonstration CSV the readers accept: 1 GiB. They read it as a stream,
-/// never holding its text: readDemonstrationCsv keeps the parsed rows (about 90 bytes per
-/// entity and row), summarizeDemonstrationCsv (task/summary.h) none of them.
+/// The largest demonstration CSV readDemonstrationCsv accepts: 1 GiB. It reads it as a
+/// stream, never holding its text, but keeps the parsed rows (about 90 bytes per entity
+/// and row); summarizeDemonstrationCsv (task/summary.h) keeps none of them and reads a
+/// file of any length.
 inline constexpr std::uint64_t kMaxDemonstrationBytes = std::uint64_t{1} << 30;
 
 /// Parses CSV text against `spec`. `file` is used in diagnostics. Throws

@@ -72,15 +72,18 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
 
   // The bodies a motion may end against: its own target, and a carrier's load.
   std::set<std::pair<int, int>> exempt;
-  std::vector<int> load_of(n, -1);  // the load each carrier of the step pushes
+  std::vector<int> load_of(n, -1);  // the load riding with each carrier of the step
   for (size_t i = 0; i < tokens.size(); ++i) {
     if (!tokens[i].isMotion()) continue;
     if (tokens[i].target >= 0) exempt.insert(ordered(tokens[i].entity, tokens[i].target));
     const int load = task::carriedLoad(spec, tokens, i);
     if (load >= 0 && tokens[i].entity >= 0 && tokens[i].entity < n) {
-      exempt.insert(ordered(tokens[i].entity, tokens[load].entity));
-      load_of[tokens[i].entity] = tokens[load].entity;
-      table_->setRiding(tokens[i].entity, tokens[load].entity, true);  // the load rides with it
+      const int carrier = tokens[i].entity, object = tokens[load].entity;
+      exempt.insert(ordered(carrier, object));
+      // At its carrier the load rides in front of it, part of its body for the filter;
+      // one passed from afar moves along its own path.
+      if (load_of[carrier] < 0 && table_->carrierOf(object) < 0 && table_->ride(carrier, object))
+        load_of[carrier] = object;
     }
   }
   std::set<std::pair<int, int>> loaded(table_->loadedPairs().begin(), table_->loadedPairs().end());
@@ -135,14 +138,32 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     for (int j = 0; j < n; ++j) final_at[j] = table_->truePose(j).position();
     for (const StepMotion& mo : motions)
       if (!mo.planned.empty()) final_at[mo.entity] = mo.planned.back();
-    for (const StepMotion& mo : motions) {
-      if (!mo.robot || mo.planned.empty() || !(radius_m_[mo.entity] > 0)) continue;
+    for (const StepMotion& mo : motions) {  // robots and loads alike
+      if (mo.planned.empty() || !(radius_m_[mo.entity] > 0)) continue;
       for (int j = 0; j < n; ++j)
         if (j != mo.entity && radius_m_[j] > 0 &&
             endsAgainst(mo.planned.back(), radius_m_[mo.entity], final_at[j], radius_m_[j], params_.safety.margin_m))
           ends_against.insert(ordered(mo.entity, j));
     }
   }
+
+  // A carrier stopped: arrived (its load goes on the last bit to its end alone), or failed
+  // (the load stops where it is). The two touch: no collision until they part.
+  const auto endRide = [&](int carrier, bool arrived) {
+    const int load = load_of[carrier];
+    if (load < 0) return;
+    load_of[carrier] = -1;
+    touching_[std::min(carrier, load) * n + std::max(carrier, load)] = 1;
+    const int m = motion_of[load];
+    if (arrived || m < 0 || !movers[m].running) {
+      table_->endRide(load);
+      return;
+    }
+    table_->stopSegment(load);
+    movers[m].running = false;
+    --running;
+    out.executed[m].push_back(table_->truePose(load).position());
+  };
 
   std::vector<Pose2D> measured(n);
   std::vector<SafetyBody> others;
@@ -162,23 +183,29 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
         mv.running = false;
         --running;
         table_->commandWheels(i, {});
+        endRide(i, true);  // the load arrived with it
         continue;
       }
+      const int load = load_of[i];
       others.clear();
       for (int j = 0; j < n; ++j)
         if (j != i && radius_m_[j] > 0) {
           others.push_back({names_[j], measured[j].position(), radius_m_[j], robot_[j]});
-          // A carrier pushes its load ahead; a motion ends against the bodies decided above.
-          others.back().touchable = load_of[i] == j || ends_against.count(ordered(i, j)) > 0;
+          // A motion ends against the bodies decided above; its load against its own.
+          others.back().touchable = ends_against.count(ordered(i, j)) > 0;
+          others.back().load_touchable = load >= 0 && ends_against.count(ordered(load, j)) > 0;
         }
+      SafetyBody carried;
+      if (load >= 0) carried = {names_[load], measured[load].position(), radius_m_[load], false};
       const int target = motions[m].target;
-      const SafetyCommand c =
-          filters_[i].filter(names_[i], measured[i], radius_m_[i], 0.0, o.wheels, o.progress * mv.follower->lengthM(),
-                             others, target >= 0 ? names_[target] : std::string(), table_->time());
+      const SafetyCommand c = filters_[i].filter(
+          names_[i], measured[i], radius_m_[i], 0.0, o.wheels, o.progress * mv.follower->lengthM(), others,
+          target >= 0 ? names_[target] : std::string(), table_->time(), load >= 0 ? &carried : nullptr);
       if (c.deadlock || c.stale) {  // the follower node fails the segment: the robot stops there
         mv.running = false;
         --running;
         table_->commandWheels(i, {});
+        endRide(i, false);
         out.failures.push_back(c.reason);
         continue;
       }
@@ -235,8 +262,7 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
                   names_[e].c_str(), limit_s);
     out.failures.push_back(why);
   }
-  for (int i = 0; i < n; ++i)
-    if (load_of[i] >= 0) table_->setRiding(i, load_of[i], false);
+  for (int i = 0; i < n; ++i) endRide(i, false);
   out.duration_s = table_->time() - t0;
   out.positions.resize(n);
   for (int i = 0; i < n; ++i) out.positions[i] = table_->truePose(i).position();

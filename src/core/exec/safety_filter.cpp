@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "ddace/common/error.h"
+#include "ddace/task/end_point.h"
 
 namespace ddace::exec {
 
@@ -41,10 +42,25 @@ bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const E
   return radius_m > 0 && position.allFinite() && (position - end_point).norm() < self_radius_m + radius_m + margin_m;
 }
 
-void markBodiesAtEnd(std::vector<SafetyBody>& bodies, const Eigen::Vector2d& end_point, double self_radius_m,
-                     const SafetyParams& params) {
-  for (SafetyBody& b : bodies)
-    if (endsAgainst(end_point, self_radius_m, b.position, b.radius_m, params.margin_m)) b.touchable = true;
+SegmentContacts segmentContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
+                                int step, const std::string& action, const std::string& target,
+                                const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m) {
+  SegmentContacts out;
+  const BodyAtStart* load = nullptr;
+  for (const BodyAtStart& b : bodies)
+    if (b.object && b.step >= 0 && b.step == step && b.action == action && b.target == target &&
+        (b.position - position).norm() <= task::togetherDistance(radius_m + b.radius_m, arrival_radius_m)) {
+      load = &b;
+      out.load = b.name;
+      break;
+    }
+  for (const BodyAtStart& b : bodies) {
+    if (&b == load) continue;
+    if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, margin_m)) out.ends_against.push_back(b.name);
+    if (load && endsAgainst(load->final_position, load->radius_m, b.final_position, b.radius_m, margin_m))
+      out.load_ends_against.push_back(b.name);
+  }
+  return out;
 }
 
 Eigen::Vector2d closestFeasible(const Eigen::Vector2d& z0, const std::vector<HalfPlane>& cs) {
@@ -93,7 +109,8 @@ SafetyFilter::SafetyFilter(const SafetyParams& params, double wheel_base_m, doub
 
 SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& self, double self_radius_m,
                                    double self_age_s, const WheelSpeeds& nominal, double progress_m,
-                                   const std::vector<SafetyBody>& bodies, const std::string& target, double now_s) {
+                                   const std::vector<SafetyBody>& bodies, const std::string& target, double now_s,
+                                   const SafetyBody* load) {
   SafetyCommand out;
   const double l = params_.projection_m;
   const Eigen::Vector2d x = self.position();
@@ -112,9 +129,10 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   // Disabled, the filter is a pass-through: the follower's own stale-pose rule (the
   // tracker's stale flag) governs, as without a filter; its pose-age bound is part of the
   // filter (a barrier built on old poses is no barrier).
+  auto isLoad = [&](const SafetyBody& b) { return load && b.name == load->name; };
   if (!params_.enabled) {  // pass-through: only the clearance is measured
     for (const SafetyBody& b : bodies)
-      if (b.radius_m > 0 && b.position.allFinite())
+      if (b.radius_m > 0 && b.position.allFinite() && !isLoad(b))
         out.clearance_m = std::min(out.clearance_m, (b.position - x).norm() - self_radius_m - b.radius_m);
     out.wheels = nominal;
     out.v_mps = (nominal.left_mps + nominal.right_mps) / 2;
@@ -123,6 +141,9 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   }
   if (!(self_age_s <= params_.pose_max_age_s) || !x.allFinite() || !std::isfinite(self.yaw))
     return stop("pose of " + self_name + " is stale");
+  const bool carrying = load && load->radius_m > 0;
+  if (carrying && (load->stale || !(load->age_s <= params_.pose_max_age_s) || !load->position.allFinite()))
+    return stop("pose of " + load->name + " is stale");
 
   // z = (v, l w): p' = z1 e + z2 e_perp, so |z - z0| is the change of p'.
   const double v0 = (nominal.left_mps + nominal.right_mps) / 2;
@@ -136,13 +157,26 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   cs.reserve(bodies.size() + 6);
   for (size_t j = 0; j < bodies.size(); ++j) {
     const SafetyBody& b = bodies[j];
-    if (b.radius_m <= 0 || !b.position.allFinite()) continue;
+    if (b.radius_m <= 0 || !b.position.allFinite() || isLoad(b)) continue;
     const double centres = (b.position - x).norm();
-    if (centres > params_.range_m) continue;
+    const double load_centres = carrying ? (b.position - load->position).norm() : 1e9;
+    if (centres > params_.range_m && load_centres > params_.range_m) continue;
     if (b.stale || !(b.age_s <= params_.pose_max_age_s)) return stop("pose of " + b.name + " is stale");
+    const double share = b.robot ? 0.5 : 1.0;
+    if (carrying && load_centres > 1e-9) {
+      // The load's disc: q' = v e + w r^perp with r = q - x, i.e. z1 e + (z2 / l) r^perp.
+      const Eigen::Vector2d n = (load->position - b.position) / load_centres;
+      const Eigen::Vector2d r = load->position - x, r_perp(-r.y(), r.x());
+      const bool touch = b.name == target || b.load_touchable;
+      const double h = load_centres - (load->radius_m + b.radius_m + (touch ? 0.0 : params_.margin_m));
+      out.clearance_m = std::min(out.clearance_m, load_centres - load->radius_m - b.radius_m);
+      cs.push_back(
+          {Eigen::Vector2d(-n.dot(e), -n.dot(r_perp) / l), std::max(0.0, share * params_.barrier_gain_hz * h)});
+      owner.push_back(static_cast<int>(j));
+    }
+    if (centres > params_.range_m) continue;
     const double contact = self_radius_m + b.radius_m;
     out.clearance_m = std::min(out.clearance_m, centres - contact);
-    const double share = b.robot ? 0.5 : 1.0;
     HalfPlane c;
     if (b.name == target || b.touchable) {
       // The motion's own target: the centres may close in to contact, no margin.

@@ -4,10 +4,12 @@
 #include <cmath>
 #include <set>
 
+#include <Eigen/Geometry>
 #include <box2d/box2d.h>
 
 #include "ddace/common/error.h"
 #include "ddace/exec/safety_filter.h"
+#include "ddace/task/end_point.h"
 
 namespace ddace::exec {
 
@@ -29,7 +31,7 @@ struct TableSimulator::Physics : public b2ContactListener, public b2ContactFilte
   b2World world{b2Vec2(0, 0)};
   std::vector<b2Body*> bodies;  ///< by entity index; null for goals
   std::set<std::pair<int, int>> loaded;
-  std::set<std::pair<int, int>> riding;    ///< carrier and load of a carry step (setRiding)
+  std::set<std::pair<int, int>> riding;    ///< carrier and load of a carry step (ride())
   std::vector<std::pair<int, int>> began;  ///< contacts begun during the current step
 
   static int indexOf(b2Fixture* f) { return static_cast<int>(f->GetBody()->GetUserData().pointer) - 1; }
@@ -56,7 +58,7 @@ void TableSimulatorParams::validate() const {
 TableSimulator::TableSimulator(const task::TaskSpec& spec, const std::vector<Pose2D>& start,
                                const DiffDriveParams& robot, const TableSimulatorParams& params,
                                const std::vector<std::string>& stalled)
-    : names_(spec.entityNames()), robot_(robot), params_(params) {
+    : spec_(spec), names_(spec.entityNames()), robot_(robot), params_(params) {
   robot_.validate();
   params_.validate();
   const size_t n = spec.entities.size();
@@ -120,7 +122,15 @@ TableSimulator::TableSimulator(const task::TaskSpec& spec, const std::vector<Pos
 }
 
 void TableSimulator::halt(int i) {
-  entities_[i].moving = false;
+  Entity& e = entities_[i];
+  e.moving = false;
+  if (const int carrier = e.carrier; carrier >= 0) {  // a riding load stays where it is
+    e.carrier = -1;
+    physics_->riding.erase({std::min(carrier, i), std::max(carrier, i)});
+    for (int k : {carrier, i})  // contacts already made are filtered again
+      if (b2Body* body = physics_->bodies[k])
+        for (b2Fixture* f = body->GetFixtureList(); f; f = f->GetNext()) f->Refilter();
+  }
   if (b2Body* body = physics_->bodies[i]) {  // at rest where it is, table friction back on
     body->SetLinearVelocity(b2Vec2(0, 0));
     body->SetLinearDamping(static_cast<float>(params_.object_damping_hz));
@@ -156,7 +166,12 @@ ObjectStatus TableSimulator::report(int i, SegmentState state, std::string messa
   s.entity = i;
   s.segment_id = e.segment_id;
   s.state = state;
-  if (e.carried) {
+  if (e.carried && e.carrier >= 0) {  // riding: how much nearer its goal it came
+    const double from = (e.carried->goal() - e.carried->start()).norm();
+    const double left = (e.carried->goal() - e.pose.position()).norm();
+    s.progress = from > 0 ? std::clamp(1 - left / from, 0.0, 1.0) : 1.0;
+    s.distance_to_goal_m = left;
+  } else if (e.carried) {
     s.progress = e.carried->progress();
     s.distance_to_goal_m = (e.carried->goal() - e.pose.position()).norm();
   }
@@ -164,15 +179,42 @@ ObjectStatus TableSimulator::report(int i, SegmentState state, std::string messa
   return s;
 }
 
-void TableSimulator::setRiding(int carrier, int load, bool riding) {
-  checkIndex(carrier);
-  checkIndex(load);
-  const std::pair<int, int> p{std::min(carrier, load), std::max(carrier, load)};
-  if (riding) physics_->riding.insert(p);
-  else physics_->riding.erase(p);
+bool TableSimulator::ride(int carrier, int load) {
+  const Entity& c = entity(carrier);
+  if (!c.robot) throw Error("'" + names_[carrier] + "' is not a robot: it carries nothing");
+  Entity& l = object(load);
+  if (l.carrier == carrier) return true;
+  if (!(c.radius_m > 0) || !(l.radius_m > 0) || l.carrier >= 0) return false;
+  const double contact = c.radius_m + l.radius_m;
+  const Eigen::Vector2d d = l.pose.position() - c.pose.position();
+  if (d.norm() > task::togetherDistance(spec_, carrier, load)) return false;
+  l.carrier = carrier;
+  l.ride_offset0 = Eigen::Rotation2Dd(-c.pose.yaw) * d;
+  l.ride_contact_m = contact;
+  l.ride_travel_m = 0;
+  physics_->riding.insert({std::min(carrier, load), std::max(carrier, load)});
   for (int i : {carrier, load})  // contacts already made are filtered again
     if (b2Body* body = physics_->bodies[i])
       for (b2Fixture* f = body->GetFixtureList(); f; f = f->GetNext()) f->Refilter();
+  return true;
+}
+
+void TableSimulator::endRide(int load) {
+  Entity& l = object(load);
+  if (l.carrier < 0) return;
+  if (!l.moving) {
+    halt(load);  // ends the ride
+    return;
+  }
+  const Eigen::Vector2d goal = l.carried->goal();
+  halt(load);
+  l.carried = std::make_unique<CarriedObject>(std::vector<Eigen::Vector2d>{l.pose.position(), goal}, l.pose.position(),
+                                              params_.object_speed_mps);
+  l.moving = true;
+}
+
+int TableSimulator::carrierOf(int load) const {
+  return entity(load).carrier;
 }
 
 void TableSimulator::commandWheels(int i, const WheelSpeeds& wheels) {
@@ -208,7 +250,10 @@ ObjectStatus TableSimulator::refuseSegment(int i, uint32_t segment_id, const std
 
 std::optional<ObjectStatus> TableSimulator::stopSegment(int i) {
   Entity& e = object(i);
-  if (!e.moving) return std::nullopt;
+  if (!e.moving) {
+    if (e.carrier >= 0) halt(i);  // ends its ride
+    return std::nullopt;
+  }
   halt(i);
   return report(i, SegmentState::Aborted, "stopped");
 }
@@ -228,6 +273,8 @@ std::vector<ObjectStatus> TableSimulator::setEstop(bool active) {
 std::vector<ObjectStatus> TableSimulator::step() {
   const double dt = periodS();
   std::vector<ObjectStatus> out;
+  std::vector<Eigen::Vector2d> before(entities_.size());
+  for (size_t i = 0; i < entities_.size(); ++i) before[i] = entities_[i].pose.position();
   // Where each body is driven this step: robots by their wheels (the unicycle's motion),
   // objects along their segments; Box2D then resolves the contacts.
   for (size_t i = 0; i < entities_.size(); ++i) {
@@ -244,6 +291,8 @@ std::vector<ObjectStatus> TableSimulator::step() {
       } else {
         e.pose = after;
       }
+    } else if (e.carrier >= 0) {
+      continue;  // rides: placed after its carrier, below
     } else if (e.moving) {
       const Eigen::Vector2d p = e.carried->advance(dt);
       if (body) {
@@ -258,6 +307,27 @@ std::vector<ObjectStatus> TableSimulator::step() {
         e.pose.x = p.x();
         e.pose.y = p.y();
       }
+    }
+  }
+  // Riding loads: toward where the carrier's front is after this step. The offset swings
+  // from where the load began (carrier frame) to straight ahead at contact, the short way
+  // round, over the carrier's first kRideSwingM of travel.
+  for (size_t i = 0; i < entities_.size(); ++i) {
+    Entity& e = entities_[i];
+    if (e.carrier < 0) continue;
+    const Entity& c = entities_[static_cast<size_t>(e.carrier)];
+    const Pose2D now = c.robot->truePose();  // the unicycle's pose after this step
+    e.ride_travel_m += (now.position() - before[static_cast<size_t>(e.carrier)]).norm();
+    const double s = std::min(1.0, e.ride_travel_m / kRideSwingM), w = s * s * (3 - 2 * s);
+    const double r0 = e.ride_offset0.norm(), a0 = std::atan2(e.ride_offset0.y(), e.ride_offset0.x());
+    const double r = r0 + (e.ride_contact_m - r0) * w, a = now.yaw + (1 - w) * a0;
+    const Eigen::Vector2d want = now.position() + r * Eigen::Vector2d(std::cos(a), std::sin(a));
+    if (b2Body* body = physics_->bodies[i]) {
+      body->SetLinearVelocity(toWorld((want - fromWorld(body->GetPosition())) / dt));
+      body->SetAngularVelocity(static_cast<float>(wrapAngle(now.yaw - e.pose.yaw) / dt));
+      body->SetLinearDamping(0);
+    } else {
+      e.pose = {want.x(), want.y(), now.yaw};
     }
   }
   physics_->began.clear();
@@ -280,7 +350,7 @@ std::vector<ObjectStatus> TableSimulator::step() {
   for (size_t i = 0; i < entities_.size(); ++i) {
     Entity& e = entities_[i];
     if (!e.moving) continue;
-    if (e.carried->arrived()) {
+    if (e.carrier < 0 && e.carried->arrived()) {
       halt(static_cast<int>(i));
       out.push_back(report(static_cast<int>(i), SegmentState::Done));
     } else if (++e.status_cycle % params_.status_every_cycles == 0) {
@@ -297,6 +367,14 @@ Pose2D TableSimulator::truePose(int i) const {
 Pose2D TableSimulator::measuredPose(int i) {
   const Entity& e = entity(i);
   return e.robot ? e.robot->measuredPose() : e.pose;
+}
+
+bool carries(const task::TaskSpec& spec, int carrier_step, const task::Token& carrier, int load_step,
+             const task::Token& load) {
+  const int n = static_cast<int>(spec.entities.size());
+  for (const task::Token& t : {carrier, load})
+    if (t.entity < 0 || t.entity >= n || t.target >= n) return false;
+  return carrier_step == load_step && task::carriedLoad(spec, {carrier, load}, 0) == 1;
 }
 
 }  // namespace ddace::exec

@@ -231,16 +231,34 @@ void MotionSegmenter::endMotion(size_t e, const Vector2d& rest, size_t first) {
 }
 
 void MotionSegmenter::finish() {
+  finished_ = true;
   if (history_.empty()) return;
   for (size_t e = 0; e < state_.size(); ++e)
     if (state_[e].moving) endMotion(e, history_.back().p[e], history_.size() - 1);
   for (auto& st : state_) st.moving = false;
+  finished_ = true;
 }
 
 std::vector<Motion> MotionSegmenter::take() {
   std::vector<Motion> out;
   out.swap(done_);
   return out;
+}
+
+int MotionSegmenter::horizonRow() const {
+  if (finished_ || history_.empty()) return finished_ ? std::numeric_limits<int>::max() : 0;
+  int h = history_.front().row;
+  for (const auto& st : state_)
+    if (st.moving) h = std::min(h, st.motion.on_row);
+  return h;
+}
+
+double MotionSegmenter::horizonT() const {
+  if (finished_ || history_.empty()) return finished_ ? std::numeric_limits<double>::infinity() : 0;
+  double h = history_.front().t;
+  for (const auto& st : state_)
+    if (st.moving) h = std::min(h, st.motion.on_t);
+  return h;
 }
 
 bool MotionSegmenter::allResting() const {

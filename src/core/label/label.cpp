@@ -1,7 +1,9 @@
 #include "ddace/label/label.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <limits>
 #include <set>
 
 #include "ddace/common/error.h"
@@ -54,55 +56,90 @@ Labeller::Labeller(const task::TaskSpec& spec, const Example* example)
     : spec_(spec),
       example_(example),
       options_(SegmentationOptions::forTask(spec)),
-      segmenter_(spec.entities.size(), options_) {}
+      segmenter_(spec.entities.size(), options_),
+      next_check_t_(std::numeric_limits<double>::infinity()),
+      ex_inplace_before_(1),
+      alignment_(example ? Alignment::Open : Alignment::NotAligned) {
+  if (!example_) return;
+  for (const auto& s : example_->steps) {
+    const bool motion =
+        std::any_of(s.tokens.begin(), s.tokens.end(), [](const task::Token& t) { return t.isMotion(); });
+    for (const auto& t : s.tokens) ex_has_inplace_ = ex_has_inplace_ || !t.isMotion();
+    if (motion) {
+      ex_motion_.push_back(&s);
+      ex_inplace_before_.emplace_back();
+    } else {
+      ex_inplace_before_.back().push_back(&s);
+    }
+  }
+}
 
 void Labeller::row(double t, const std::vector<Vector2d>& positions) {
   segmenter_.row(t, positions);
-  auto found = segmenter_.take();
-  for (auto& m : found) motions_.push_back(std::move(m));
+  std::vector<Motion> found = segmenter_.take();
+  const bool arrived = !found.empty();
+  if (arrived) arrive(std::move(found));
+  if (arrived || segmenter_.horizonT() > next_check_t_) decide(false);
+}
+
+Inference Labeller::take() {
+  Inference out;
+  std::swap(out, out_);
+  std::stable_sort(out.notes.begin(), out.notes.end(), [](const Note& a, const Note& b) { return a.row < b.row; });
+  return out;
 }
 
 Inference Labeller::finish() {
   segmenter_.finish();
-  for (auto& m : segmenter_.take()) motions_.push_back(std::move(m));
-  Inference out;
-  const auto& E = spec_.entities;
-  const size_t n = E.size();
-  const double r = spec_.arrival_radius;
-  const int last_row = segmenter_.rows() - 1;
-  auto note = [&](int row, const std::string& message) { out.notes.push_back({row, message}); };
+  arrive(segmenter_.take());
+  decide(true);
+  if (alignment_ == Alignment::Open) settle(held_.size() == ex_motion_.size());
+  if (alignment_ == Alignment::Aligned) placeInPlace(ex_inplace_before_.back(), prev_off_ + 1, segmenter_.rows() - 1);
+  return take();
+}
 
-  // A goal is a mark on the table: its motion (a print pushed aside) is no token.
-  std::vector<Motion> ms;
-  for (auto& m : motions_) {
+void Labeller::arrive(std::vector<Motion> found) {
+  const auto& E = spec_.entities;
+  for (auto& m : found) {
+    // A goal is a mark on the table: its motion (a print pushed aside) is no token.
     if (E[m.entity].kind == task::EntityKind::Goal)
       note(m.on_row, "goal " + E[m.entity].name + " moved " + metres((m.end - m.start).norm()) +
                          " m; a goal does not act, its motion is no token (check the marker)");
-    else ms.push_back(std::move(m));
+    else pending_.push_back(std::move(m));
   }
-  motions_.clear();
-  // Entities that moved with a motion all the way (at most touching): its loads or carrier.
-  auto staysWith = [&](const Motion& m, int j) {
-    return m.max_distance[j] <= contactDistance(spec_, m.entity, j) + r &&
-           (m.at_offset[j] - m.at_onset[j]).norm() >= options_.nudge_m;
-  };
-  auto candidatesOf = [&](const Motion& m) {
-    std::vector<bool> c(n, true);
-    for (size_t j = 0; j < n; ++j) c[j] = static_cast<int>(j) != m.entity && !staysWith(m, static_cast<int>(j));
-    return c;
-  };
+}
 
-  // 1. A pause: a motion that stopped away from every entity, or over one but goes on in
-  // the heading it came in (not taking along what it stopped at), goes on within pause_s.
-  auto pausedOnItsWay = [&](const Motion& a, const Motion& b) {
-    const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a));
-    if (ep.target < 0) return true;
-    if (a.end_dir.dot(b.start_dir) < std::cos(options_.heading_rad)) return false;
-    // Went to an object and moves on with it: a fetch, then a carry.
-    for (int c : ep.tied)
-      if (staysWith(b, c)) return false;
-    return !staysWith(b, ep.target);
-  };
+// Entities that moved with a motion all the way (at most touching): its loads or carrier.
+bool Labeller::staysWith(const Motion& m, int j) const {
+  return m.max_distance[j] <= contactDistance(spec_, m.entity, j) + spec_.arrival_radius &&
+         (m.at_offset[j] - m.at_onset[j]).norm() >= options_.nudge_m;
+}
+
+std::vector<bool> Labeller::candidatesOf(const Motion& m) const {
+  std::vector<bool> c(spec_.entities.size(), true);
+  for (size_t j = 0; j < c.size(); ++j) c[j] = static_cast<int>(j) != m.entity && !staysWith(m, static_cast<int>(j));
+  return c;
+}
+
+// A pause: a motion that stopped away from every entity, or over one but goes on in the
+// heading it came in (not taking along what it stopped at), goes on within pause_s.
+bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
+  const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a));
+  if (ep.target < 0) return true;
+  if (a.end_dir.dot(b.start_dir) < std::cos(options_.heading_rad)) return false;
+  // Went to an object and moves on with it: a fetch, then a carry.
+  for (int c : ep.tied)
+    if (staysWith(b, c)) return false;
+  return !staysWith(b, ep.target);
+}
+
+void Labeller::decide(bool at_end) {
+  const auto& E = spec_.entities;
+  const size_t n = E.size();
+  next_check_t_ = std::numeric_limits<double>::infinity();
+  if (pending_.empty()) return;
+  // 1. Pauses: a motion and the next one of its entity, within pause_s, are one.
+  std::vector<Motion> ms = pending_;
   std::stable_sort(ms.begin(), ms.end(), [](const Motion& a, const Motion& b) {
     return a.entity != b.entity ? a.entity < b.entity : a.on_row < b.on_row;
   });
@@ -123,20 +160,26 @@ Inference Labeller::finish() {
     }
     merged.push_back(std::move(m));
   }
+  // The last motion of each entity may still be joined by a later one across a pause.
+  std::vector<int> last_on(n, -1);
+  for (const auto& m : merged) last_on[m.entity] = std::max(last_on[m.entity], m.on_row);
   std::stable_sort(merged.begin(), merged.end(), [](const Motion& a, const Motion& b) { return a.on_row < b.on_row; });
 
   // 2. Steps: motions that overlap in time; a step ends when every one of them has stopped.
-  std::vector<std::vector<Motion>> groups;
+  std::vector<Group> groups;
+  std::vector<int> group_off;  // [group] its last offset row
   int max_off = -1;
   for (auto& m : merged) {
-    if (groups.empty() || m.on_row > max_off) groups.emplace_back();
+    if (groups.empty() || m.on_row > max_off) groups.emplace_back(), group_off.push_back(-1);
     max_off = std::max(max_off, m.off_row);
+    group_off.back() = max_off;
     // One token per entity and step: a second motion of the same entity joins its first.
-    auto& g = groups.back();
+    auto& g = groups.back().motions;
     auto same = std::find_if(g.begin(), g.end(), [&](const Motion& o) { return o.entity == m.entity; });
     if (same != g.end()) {
-      note(m.on_row, E[m.entity].name + " moved again in the same step (first motion ended at line " +
-                         std::to_string(same->off_row + 2) + "); taken as one motion");
+      groups.back().notes.push_back({m.on_row, E[m.entity].name +
+                                                   " moved again in the same step (first motion ended at line " +
+                                                   std::to_string(same->off_row + 2) + "); taken as one motion"});
       same->off_row = m.off_row;
       same->off_t = m.off_t;
       same->end = m.end;
@@ -148,200 +191,225 @@ Inference Labeller::finish() {
     g.push_back(std::move(m));
   }
 
-  // The example's steps: its motion steps, and the in-place-only steps before each of them.
-  std::vector<const task::Step*> ex_motion;
-  std::vector<std::vector<const task::Step*>> ex_inplace_before(1);
-  bool ex_has_inplace = false;
+  // A group is final when no later motion can begin within it (the horizon is past its
+  // end) nor join one of its motions across a pause (the horizon is pause_s past it, or
+  // the entity has moved again since); groups are final in order.
+  const int h_row = segmenter_.horizonRow();
+  const double h_t = segmenter_.horizonT();
+  size_t final_groups = 0;
+  for (; final_groups < groups.size() && !at_end; ++final_groups) {
+    const Group& g = groups[final_groups];
+    bool final = group_off[final_groups] < h_row;
+    for (const auto& m : g.motions) final = final && (h_t - m.off_t > options_.pause_s || last_on[m.entity] > m.on_row);
+    if (!final) break;
+  }
+  if (at_end) final_groups = groups.size();
+  if (final_groups > 0) {
+    const int last_off = group_off[final_groups - 1];
+    pending_.erase(
+        std::remove_if(pending_.begin(), pending_.end(), [&](const Motion& m) { return m.on_row <= last_off; }),
+        pending_.end());
+    for (size_t k = 0; k < final_groups; ++k) handOver(std::move(groups[k]));
+  }
+  // Again when the horizon passes a time that can make a group final (a motion's end, or
+  // pause_s after it); none ahead: when motions arrive (a running motion holds it back).
+  for (const auto& m : pending_)
+    for (const double when : {m.off_t, m.off_t + options_.pause_s})
+      if (when >= h_t) next_check_t_ = std::min(next_check_t_, when);
+}
+
+void Labeller::handOver(Group g) {
+  if (alignment_ != Alignment::Open) return emit(g, alignment_ == Alignment::Aligned);
+  // With an example: aligned when its motion steps have the example's moving entities,
+  // step by step, and as many steps (known at the end; a step too many settles it now).
+  const size_t k = held_.size();
+  bool fits = k < ex_motion_.size();
+  if (fits) {
+    std::set<int> a, b;
+    for (const auto& m : g.motions) a.insert(m.entity);
+    for (const auto& t : ex_motion_[k]->tokens)
+      if (t.isMotion()) b.insert(t.entity);
+    fits = a == b;
+  }
+  held_.push_back(std::move(g));
+  if (!fits) settle(false);
+}
+
+void Labeller::settle(bool aligned) {
+  alignment_ = aligned ? Alignment::Aligned : Alignment::NotAligned;
+  if (!aligned && ex_has_inplace_)
+    note(0, "the example's in-place actions are not placed: this demonstration's motion has other steps than " +
+                example_->source + "'s");
+  for (auto& g : held_) emit(g, aligned);
+  held_.clear();
+}
+
+// Action words: the example's, then task.yaml's action_rules (the first that matches),
+// else the task's first action (said when an example or rules were there to ask).
+const task::ActionRule* Labeller::rule(int mover, int target, int load) const {
+  for (const auto& r : spec_.action_rules)
+    if (r.matches(spec_.entities[mover], spec_.entities[target], load)) return &r;
+  return nullptr;
+}
+
+std::string Labeller::word(int mover, int target, int load, int row) {
   if (example_) {
-    for (const auto& s : example_->steps) {
-      const bool motion =
-          std::any_of(s.tokens.begin(), s.tokens.end(), [](const task::Token& t) { return t.isMotion(); });
-      for (const auto& t : s.tokens) ex_has_inplace = ex_has_inplace || !t.isMotion();
-      if (motion) {
-        ex_motion.push_back(&s);
-        ex_inplace_before.emplace_back();
-      } else {
-        ex_inplace_before.back().push_back(&s);
-      }
+    for (const auto& k : {kindKey(spec_, mover, target, load), coarseKindKey(spec_, mover, target, load)}) {
+      auto it = example_->words.find(k);
+      if (it != example_->words.end()) return it->second;
     }
   }
-  bool aligned = example_ && ex_motion.size() == groups.size();
-  for (size_t k = 0; aligned && k < groups.size(); ++k) {
-    std::set<int> a, b;
-    for (const auto& m : groups[k]) a.insert(m.entity);
-    for (const auto& t : ex_motion[k]->tokens)
-      if (t.isMotion()) b.insert(t.entity);
-    aligned = a == b;
+  if (const task::ActionRule* r = rule(mover, target, load)) return r->action;
+  if (example_ || !spec_.action_rules.empty()) {
+    std::string where;
+    if (example_) where = "in the example " + example_->source;
+    if (!spec_.action_rules.empty()) where += std::string(example_ ? " nor " : "") + "in task.yaml's action_rules";
+    note(row, "no motion of the kind " + kindKey(spec_, mover, target, load) + " " + where +
+                  "; took the task's first action");
   }
-  auto exampleTarget = [&](size_t k, int entity) {
-    for (const auto& t : ex_motion[k]->tokens)
+  return spec_.actions.empty() ? "move" : spec_.actions.front();
+}
+
+// In-place-only steps of the example, spread over the rows between two motion steps.
+void Labeller::placeInPlace(const std::vector<const task::Step*>& steps, int from, int to) {
+  const int count = static_cast<int>(steps.size());
+  if (count == 0) return;
+  const int span = to - from + 1;
+  if (span < 2 * count + 1) {
+    note(std::max(from, 0), "no still time to place the example's in-place step(s) here");
+    return;
+  }
+  for (int j = 0; j < count; ++j) {
+    InferredStep st;
+    st.keyframe_row = from + span * (2 * j + 1) / (2 * count + 1);
+    const int last = from + span * (2 * j + 2) / (2 * count + 1) - 1;
+    for (const auto& t : steps[j]->tokens) {
+      InferredToken it;
+      it.token = t;
+      it.first_row = it.onset_row = st.keyframe_row;
+      it.last_row = std::max(last, st.keyframe_row);
+      it.in_place = true;
+      it.kind = "in-place";
+      st.tokens.push_back(it);
+    }
+    out_.steps.push_back(std::move(st));
+  }
+}
+
+void Labeller::emit(Group& group, bool aligned) {
+  const auto& E = spec_.entities;
+  const double r = spec_.arrival_radius;
+  const size_t k = emitted_groups_++;
+  for (auto& nt : group.notes) out_.notes.push_back(std::move(nt));
+  auto& g = group.motions;
+  auto exampleTarget = [&](int entity) {
+    for (const auto& t : ex_motion_[k]->tokens)
       if (t.entity == entity) return t.target;
     return -1;
   };
-  if (example_ && ex_has_inplace && !aligned)
-    note(0, "the example's in-place actions are not placed: this demonstration's motion has other steps than " +
-                example_->source + "'s");
 
-  // Action words: the example's, then task.yaml's action_rules (the first that matches),
-  // else the task's first action (said when an example or rules were there to ask).
-  auto rule = [&](int mover, int target, int load) -> const task::ActionRule* {
-    for (const auto& r : spec_.action_rules)
-      if (r.matches(E[mover], E[target], load)) return &r;
-    return nullptr;
-  };
-  auto word = [&](int mover, int target, int load, int row) -> std::string {
-    if (example_) {
-      for (const auto& k : {kindKey(spec_, mover, target, load), coarseKindKey(spec_, mover, target, load)}) {
-        auto it = example_->words.find(k);
-        if (it != example_->words.end()) return it->second;
-      }
-    }
-    if (const task::ActionRule* r = rule(mover, target, load)) return r->action;
-    if (example_ || !spec_.action_rules.empty()) {
-      std::string where;
-      if (example_) where = "in the example " + example_->source;
-      if (!spec_.action_rules.empty()) where += std::string(example_ ? " nor " : "") + "in task.yaml's action_rules";
-      note(row, "no motion of the kind " + kindKey(spec_, mover, target, load) + " " + where +
-                    "; took the task's first action");
-    }
-    return spec_.actions.empty() ? "move" : spec_.actions.front();
-  };
+  InferredStep step;
+  step.keyframe_row = g.front().on_row;
+  int step_off = 0;
+  for (const auto& m : g)
+    step.keyframe_row = std::min(step.keyframe_row, m.on_row), step_off = std::max(step_off, m.off_row);
+  if (aligned) placeInPlace(ex_inplace_before_[k], prev_off_ + 1, step.keyframe_row - 1);
 
-  // In-place-only steps of the example, spread over the rows between two motion steps.
-  auto placeInPlace = [&](const std::vector<const task::Step*>& steps, int from, int to) {
-    const int count = static_cast<int>(steps.size());
-    if (count == 0) return;
-    const int span = to - from + 1;
-    if (span < 2 * count + 1) {
-      note(std::max(from, 0), "no still time to place the example's in-place step(s) here");
-      return;
+  // 3. Loads: an object that stayed with a moving robot of the step all the way.
+  std::vector<int> carrier(g.size(), -1);
+  for (size_t i = 0; i < g.size(); ++i) {
+    if (E[g[i].entity].kind != task::EntityKind::Object) continue;
+    double best = 1e9;
+    for (size_t j = 0; j < g.size(); ++j) {
+      const int rb = g[j].entity;
+      if (j == i || E[rb].kind != task::EntityKind::Robot || !staysWith(g[i], rb)) continue;
+      if (g[i].max_distance[rb] < best) best = g[i].max_distance[rb], carrier[i] = static_cast<int>(j);
     }
-    for (int j = 0; j < count; ++j) {
-      InferredStep st;
-      st.keyframe_row = from + span * (2 * j + 1) / (2 * count + 1);
-      const int last = from + span * (2 * j + 2) / (2 * count + 1) - 1;
-      for (const auto& t : steps[j]->tokens) {
-        InferredToken it;
-        it.token = t;
-        it.first_row = it.onset_row = st.keyframe_row;
-        it.last_row = std::max(last, st.keyframe_row);
-        it.in_place = true;
-        it.kind = "in-place";
-        st.tokens.push_back(it);
-      }
-      out.steps.push_back(std::move(st));
-    }
-  };
-
-  int prev_off = -1;
-  for (size_t k = 0; k < groups.size(); ++k) {
-    auto& g = groups[k];
-    InferredStep step;
-    step.keyframe_row = g.front().on_row;
-    int step_off = 0;
-    for (const auto& m : g)
-      step.keyframe_row = std::min(step.keyframe_row, m.on_row), step_off = std::max(step_off, m.off_row);
-    if (aligned) placeInPlace(ex_inplace_before[k], prev_off + 1, step.keyframe_row - 1);
-
-    // 3. Loads: an object that stayed with a moving robot of the step all the way.
-    std::vector<int> carrier(g.size(), -1);
+  }
+  // 4. Targets: carriers and lone movers first, then their loads.
+  std::vector<InferredToken> tokens(g.size());
+  for (int pass = 0; pass < 2; ++pass) {
     for (size_t i = 0; i < g.size(); ++i) {
-      if (E[g[i].entity].kind != task::EntityKind::Object) continue;
-      double best = 1e9;
-      for (size_t j = 0; j < g.size(); ++j) {
-        const int rb = g[j].entity;
-        if (j == i || E[rb].kind != task::EntityKind::Robot || !staysWith(g[i], rb)) continue;
-        if (g[i].max_distance[rb] < best) best = g[i].max_distance[rb], carrier[i] = static_cast<int>(j);
-      }
-    }
-    // 4. Targets: carriers and lone movers first, then their loads.
-    std::vector<InferredToken> tokens(g.size());
-    for (int pass = 0; pass < 2; ++pass) {
-      for (size_t i = 0; i < g.size(); ++i) {
-        const Motion& m = g[i];
-        const bool is_load = carrier[i] >= 0;
-        if (is_load != (pass == 1)) continue;
-        InferredToken& tok = tokens[i];
-        tok.token.entity = m.entity;
-        tok.first_row = step.keyframe_row;
-        tok.onset_row = m.on_row;
-        tok.last_row = m.off_row;
-        const bool has_load = std::find(carrier.begin(), carrier.end(), static_cast<int>(i)) != carrier.end();
-        tok.load = is_load ? 2 : has_load ? 1 : 0;
-        if (is_load) {
-          tok.carrier = g[carrier[i]].entity;
-          tok.token.target = tokens[carrier[i]].token.target;
-        } else {
-          int load = -1;
-          for (size_t j = 0; j < g.size() && load < 0; ++j)
-            if (carrier[j] == static_cast<int>(i)) load = g[j].entity;
-          const EndPoint ep = endPoint(spec_, m.entity, m.start, m.end, m.at_onset, candidatesOf(m), load);
-          tok.token.target = ep.target;
-          if (ep.target < 0) {
-            tok.token.target = ep.nearest;
-            if (ep.nearest >= 0)
-              note(m.off_row, E[m.entity].name + " stopped halfway: " + metres(ep.nearest_m) + " m from " +
-                                  E[ep.nearest].name + ", the nearest entity, taken as its target");
-          } else if (!ep.tied.empty()) {
-            std::vector<int> all = ep.tied;
-            all.push_back(ep.target);
-            tok.tied = all;
-            bool resolved = false;
-            if (aligned) {
-              const int want = exampleTarget(k, m.entity);
-              if (std::find(all.begin(), all.end(), want) != all.end()) tok.token.target = want, resolved = true;
-            }
-            if (!resolved && example_) {
-              auto it = example_->tie_kind.find(tiedKinds(spec_, all));
-              int found = -1, count = 0;
-              if (it != example_->tie_kind.end())
-                for (int c : all)
-                  if (E[c].kind == it->second) found = c, ++count;
-              if (count == 1) tok.token.target = found, resolved = true;
-            }
-            if (!resolved) {
-              std::string names;
-              for (int c : all) names += (names.empty() ? "" : " and ") + E[c].name;
-              note(m.off_row, E[m.entity].name + " ended between " + names + " (the same distance within " +
-                                  metres(r / 2) + " m); took " + E[ep.target].name);
-            }
+      const Motion& m = g[i];
+      const bool is_load = carrier[i] >= 0;
+      if (is_load != (pass == 1)) continue;
+      InferredToken& tok = tokens[i];
+      tok.token.entity = m.entity;
+      tok.first_row = step.keyframe_row;
+      tok.onset_row = m.on_row;
+      tok.last_row = m.off_row;
+      const bool has_load = std::find(carrier.begin(), carrier.end(), static_cast<int>(i)) != carrier.end();
+      tok.load = is_load ? 2 : has_load ? 1 : 0;
+      if (is_load) {
+        tok.carrier = g[carrier[i]].entity;
+        tok.token.target = tokens[carrier[i]].token.target;
+      } else {
+        int load = -1;
+        for (size_t j = 0; j < g.size() && load < 0; ++j)
+          if (carrier[j] == static_cast<int>(i)) load = g[j].entity;
+        const EndPoint ep = endPoint(spec_, m.entity, m.start, m.end, m.at_onset, candidatesOf(m), load);
+        tok.token.target = ep.target;
+        if (ep.target < 0) {
+          tok.token.target = ep.nearest;
+          if (ep.nearest >= 0)
+            note(m.off_row, E[m.entity].name + " stopped halfway: " + metres(ep.nearest_m) + " m from " +
+                                E[ep.nearest].name + ", the nearest entity, taken as its target");
+        } else if (!ep.tied.empty()) {
+          std::vector<int> all = ep.tied;
+          all.push_back(ep.target);
+          tok.tied = all;
+          bool resolved = false;
+          if (aligned) {
+            const int want = exampleTarget(m.entity);
+            if (std::find(all.begin(), all.end(), want) != all.end()) tok.token.target = want, resolved = true;
+          }
+          if (!resolved && example_) {
+            auto it = example_->tie_kind.find(tiedKinds(spec_, all));
+            int found = -1, count = 0;
+            if (it != example_->tie_kind.end())
+              for (int c : all)
+                if (E[c].kind == it->second) found = c, ++count;
+            if (count == 1) tok.token.target = found, resolved = true;
+          }
+          if (!resolved) {
+            std::string names;
+            for (int c : all) names += (names.empty() ? "" : " and ") + E[c].name;
+            note(m.off_row, E[m.entity].name + " ended between " + names + " (the same distance within " +
+                                metres(r / 2) + " m); took " + E[ep.target].name);
           }
         }
-        if (tok.token.target < 0) continue;
-        tok.kind = kindKey(spec_, m.entity, tok.token.target, tok.load);
-        // An object moving alone is reported unless the example shows such a motion or a
-        // rule of task.yaml names the word of an object's motion there.
-        const task::ActionRule* object_rule = rule(m.entity, tok.token.target, tok.load);
-        const bool object_rule_stated = object_rule && object_rule->mover_kind == task::EntityKind::Object;
-        if (E[m.entity].kind == task::EntityKind::Object && !is_load &&
-            !(example_ && example_->words.count(tok.kind)) && !object_rule_stated)
-          note(m.on_row, "object " + E[m.entity].name + " moved alone (no robot with it) to " +
-                             E[tok.token.target].name + "; check it");
-        tok.token.action = word(m.entity, tok.token.target, tok.load, m.on_row);
       }
+      if (tok.token.target < 0) continue;
+      tok.kind = kindKey(spec_, m.entity, tok.token.target, tok.load);
+      // An object moving alone is reported unless the example shows such a motion or a
+      // rule of task.yaml names the word of an object's motion there.
+      const task::ActionRule* object_rule = rule(m.entity, tok.token.target, tok.load);
+      const bool object_rule_stated = object_rule && object_rule->mover_kind == task::EntityKind::Object;
+      if (E[m.entity].kind == task::EntityKind::Object && !is_load && !(example_ && example_->words.count(tok.kind)) &&
+          !object_rule_stated)
+        note(m.on_row, "object " + E[m.entity].name + " moved alone (no robot with it) to " + E[tok.token.target].name +
+                           "; check it");
+      tok.token.action = word(m.entity, tok.token.target, tok.load, m.on_row);
     }
-    // 5. In-place actions of the aligned example step, for the entities that did not move.
-    if (aligned)
-      for (const auto& t : ex_motion[k]->tokens)
-        if (!t.isMotion()) {
-          InferredToken it;
-          it.token = t;
-          it.first_row = it.onset_row = step.keyframe_row;
-          it.last_row = step_off;
-          it.in_place = true;
-          it.kind = "in-place";
-          tokens.push_back(it);
-        }
-    for (auto& t : tokens)
-      if (t.token.target >= 0 || t.in_place) step.tokens.push_back(std::move(t));
-    std::sort(step.tokens.begin(), step.tokens.end(),
-              [](const InferredToken& a, const InferredToken& b) { return a.token.entity < b.token.entity; });
-    if (!step.tokens.empty()) out.steps.push_back(std::move(step));
-    prev_off = step_off;
   }
-  if (aligned) placeInPlace(ex_inplace_before.back(), prev_off + 1, last_row);
-  std::stable_sort(out.notes.begin(), out.notes.end(), [](const Note& a, const Note& b) { return a.row < b.row; });
-  return out;
+  // 5. In-place actions of the aligned example step, for the entities that did not move.
+  if (aligned)
+    for (const auto& t : ex_motion_[k]->tokens)
+      if (!t.isMotion()) {
+        InferredToken it;
+        it.token = t;
+        it.first_row = it.onset_row = step.keyframe_row;
+        it.last_row = step_off;
+        it.in_place = true;
+        it.kind = "in-place";
+        tokens.push_back(it);
+      }
+  for (auto& t : tokens)
+    if (t.token.target >= 0 || t.in_place) step.tokens.push_back(std::move(t));
+  std::sort(step.tokens.begin(), step.tokens.end(),
+            [](const InferredToken& a, const InferredToken& b) { return a.token.entity < b.token.entity; });
+  if (!step.tokens.empty()) out_.steps.push_back(std::move(step));
+  prev_off_ = step_off;
 }
 
 Inference inferLabels(const task::Demonstration& d, const task::TaskSpec& spec, const Example* example) {
@@ -384,15 +452,45 @@ LabelCursor::LabelCursor(const Inference& inference, size_t entities) : labels_(
     for (const auto& t : s.tokens)
       spans_.push_back({t.first_row, t.last_row, t.token.entity, {t.token.action, t.token.target}});
   std::stable_sort(spans_.begin(), spans_.end(), [](const Span& a, const Span& b) { return a.first < b.first; });
+  next_ = [this](Span& s) {
+    if (index_ == spans_.size()) return false;
+    s = spans_[index_++];
+    return true;
+  };
+}
+
+LabelCursor::LabelCursor(std::function<bool(Span&)> next, size_t entities)
+    : next_(std::move(next)), labels_(entities) {}
+
+bool LabelCursor::peek() {
+  if (ahead_) return true;
+  Span s;
+  if (!next_(s)) return false;
+  if (s.first < last_first_)
+    throw Error("label spans out of order: one begins at row " + std::to_string(s.first) + " after one at row " +
+                std::to_string(last_first_) + " (a bug in ddace label)");
+  if (s.entity < 0 || static_cast<size_t>(s.entity) >= labels_.size())
+    throw Error("label span of entity " + std::to_string(s.entity) + ", the task has " +
+                std::to_string(labels_.size()) + " (a bug in ddace label)");
+  last_first_ = s.first;
+  ahead_ = std::move(s);
+  return true;
 }
 
 const std::vector<task::Label>& LabelCursor::at(int row) {
   open_.erase(std::remove_if(open_.begin(), open_.end(), [&](const Span& s) { return s.last < row; }), open_.end());
-  while (next_ < spans_.size() && spans_[next_].first <= row) open_.push_back(spans_[next_++]);
+  while (peek() && ahead_->first <= row) {
+    open_.push_back(std::move(*ahead_));
+    ahead_.reset();
+  }
   std::fill(labels_.begin(), labels_.end(), task::Label{});
   for (const auto& s : open_)
     if (s.first <= row) labels_[s.entity] = s.label;
   return labels_;
+}
+
+bool LabelCursor::exhausted() {
+  return !peek();
 }
 
 void applyLabels(task::Demonstration& d, const Inference& inference) {

@@ -1,7 +1,13 @@
 #include "ddace/label/recording.h"
 
+#include <cstdint>
 #include <cstdlib>
+#include <cstring>
+#include <limits>
 #include <string_view>
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
 
 #include "ddace/common/error.h"
 #include "ddace/common/file.h"
@@ -16,7 +22,8 @@ namespace {
 /// Streams the lines of `path` (LF, CRLF or CR endings, a UTF-8 byte-order mark dropped,
 /// blank lines skipped) to `line(number, text)`.
 void forEachLine(const std::string& path, const std::function<void(int, std::string_view)>& line) {
-  InputFile in(path, task::kMaxDemonstrationBytes);
+  // No byte limit: nothing of the file is held, a recording of any length streams.
+  InputFile in(path, std::numeric_limits<std::uint64_t>::max());
   std::streambuf* buf = in.stream().rdbuf();
   std::string current;
   int number = 0;
@@ -85,12 +92,18 @@ Columns header(const std::string& path, std::string_view text, const task::TaskS
   return c;
 }
 
-double number(const std::string& path, int line, std::string_view field) {
+/// The 1-based byte column of `field`, a view into `text`.
+int columnOf(std::string_view text, std::string_view field) {
+  return static_cast<int>(field.data() - text.data()) + 1;
+}
+
+double number(const std::string& path, int line, std::string_view text, std::string_view field) {
   const std::string s(field);
   char* end = nullptr;
   const double v = std::strtod(s.c_str(), &end);
-  if (s.empty() || end != s.c_str() + s.size())
-    throw Error(Diagnostic{path, line, 0, "'" + s + "' is not a number (the file changed since it was checked?)"});
+  if (s.empty() || end != s.c_str() + s.size() || !std::isfinite(v))
+    throw Error(Diagnostic{path, line, columnOf(text, field),
+                           "'" + s + "' is not a finite number (the file changed since it was checked?)"});
   return v;
 }
 
@@ -110,10 +123,14 @@ void forEachParsedRow(const std::string& path, const task::TaskSpec& spec,
     }
     split(text, fields);
     if (fields.size() != cols.count)
-      throw Error(Diagnostic{path, line, 0, "row has another number of fields than the header (the file changed?)"});
-    const double t = number(path, line, fields[cols.t]);
+      throw Error(Diagnostic{
+          path, line,
+          fields.size() > cols.count ? columnOf(text, fields[cols.count]) : static_cast<int>(text.size()) + 1,
+          "row has " + std::to_string(fields.size()) + " fields, the header " + std::to_string(cols.count) +
+              " (the file changed since it was checked?)"});
+    const double t = number(path, line, text, fields[cols.t]);
     for (size_t e = 0; e < p.size(); ++e)
-      p[e] = {number(path, line, fields[cols.x[e]]), number(path, line, fields[cols.y[e]])};
+      p[e] = {number(path, line, text, fields[cols.x[e]]), number(path, line, text, fields[cols.y[e]])};
     row(cols, line, fields, t, p);
   });
 }
@@ -127,18 +144,91 @@ void forEachRow(const std::string& path, const task::TaskSpec& spec,
                        const std::vector<Vector2d>& p) { row(line, t, p); });
 }
 
+RecordingInference inferRecording(const std::string& path, const task::TaskSpec& spec, const Example* example,
+                                  const std::function<void(InferredStep&&)>& on_step,
+                                  const std::function<void(Note&&)>& on_note) {
+  RecordingInference r;
+  r.labelled.assign(spec.entities.size(), false);
+  auto hand = [&](Inference inf) {
+    for (auto& s : inf.steps) {
+      ++r.steps;
+      r.tokens += s.tokens.size();
+      for (const auto& t : s.tokens) r.labelled[t.token.entity] = true;
+      on_step(std::move(s));
+    }
+    r.notes += inf.notes.size();
+    for (auto& n : inf.notes) on_note(std::move(n));
+  };
+  Labeller labeller(spec, example);
+  forEachRow(path, spec, [&](int, double t, const std::vector<Vector2d>& p) {
+    labeller.row(t, p);
+    hand(labeller.take());
+  });
+  r.rows = static_cast<size_t>(labeller.rows());
+  hand(labeller.finish());
+  return r;
+}
+
 Inference inferRecording(const std::string& path, const task::TaskSpec& spec, const Example* example) {
   Labeller labeller(spec, example);
   forEachRow(path, spec, [&](int, double t, const std::vector<Vector2d>& p) { labeller.row(t, p); });
   return labeller.finish();
 }
 
+namespace {
+
+/// One token on disk: its span and an index into the spill's action words.
+struct SpillRecord {
+  std::int32_t first, last, entity, target, action;
+};
+
+}  // namespace
+
+TokenSpill::TokenSpill() : file_(std::tmpfile()) {
+  if (!file_) throw Error(std::string("cannot make a temporary file for the inferred tokens: ") + std::strerror(errno));
+}
+
+TokenSpill::~TokenSpill() {
+  std::fclose(file_);
+}
+
+void TokenSpill::add(const InferredStep& step) {
+  for (const auto& t : step.tokens) {
+    auto it = std::find(actions_.begin(), actions_.end(), t.token.action);
+    if (it == actions_.end()) it = actions_.insert(actions_.end(), t.token.action);
+    const SpillRecord r{t.first_row, t.last_row, t.token.entity, t.token.target,
+                        static_cast<std::int32_t>(it - actions_.begin())};
+    if (std::fseek(file_, 0, SEEK_END) != 0 || std::fwrite(&r, sizeof r, 1, file_) != 1)
+      throw Error(std::string("cannot write the inferred tokens to a temporary file: ") + std::strerror(errno));
+    ++written_;
+  }
+}
+
+std::function<bool(LabelCursor::Span&)> TokenSpill::reader(size_t from, size_t to) {
+  if (std::fflush(file_) != 0) throw Error(std::string("cannot write the temporary file: ") + std::strerror(errno));
+  return [this, at = from, to](LabelCursor::Span& s) mutable {
+    if (at >= to) return false;
+    SpillRecord r;
+    if (std::fseek(file_, static_cast<long>(at * sizeof r), SEEK_SET) != 0 || std::fread(&r, sizeof r, 1, file_) != 1)
+      throw Error(std::string("cannot read the inferred tokens back from a temporary file: ") + std::strerror(errno));
+    ++at;
+    s = {r.first, r.last, r.entity, {actions_.at(static_cast<size_t>(r.action)), r.target}};
+    return true;
+  };
+}
+
 void writeLabelledRecording(const std::string& path, const task::TaskSpec& spec, const Inference& inference,
                             std::ostream& out) {
-  const size_t m = spec.entities.size();
-  std::vector<bool> labelled(m, false);
+  std::vector<bool> labelled(spec.entities.size(), false);
   for (const auto& s : inference.steps)
     for (const auto& t : s.tokens) labelled[t.token.entity] = true;
+  LabelCursor cursor(inference, spec.entities.size());
+  writeLabelledRecording(path, spec, labelled, cursor, out);
+}
+
+void writeLabelledRecording(const std::string& path, const task::TaskSpec& spec, const std::vector<bool>& labelled,
+                            LabelCursor& cursor, std::ostream& out) {
+  const size_t m = spec.entities.size();
   std::string line = "t";
   for (size_t e = 0; e < m; ++e) {
     const std::string& n = spec.entities[e].name;
@@ -146,7 +236,6 @@ void writeLabelledRecording(const std::string& path, const task::TaskSpec& spec,
     if (labelled[e]) line += "," + n + ".action," + n + ".target";
   }
   out << line << '\n';
-  LabelCursor cursor(inference, m);
   int row = 0;
   forEachParsedRow(
       path, spec,
@@ -166,6 +255,8 @@ void writeLabelledRecording(const std::string& path, const task::TaskSpec& spec,
         }
         out << line << '\n';
       });
+  if (!cursor.exhausted())
+    throw Error(Diagnostic{path, 0, 0, "inferred tokens beyond its last row (the file changed since it was read?)"});
 }
 
 }  // namespace ddace::label

@@ -15,6 +15,7 @@
 
 #include "ddace/common/error.h"
 #include "ddace/common/random.h"
+#include "ddace/task/end_point.h"
 #include "loss.h"
 
 namespace ddace::tgn {
@@ -217,16 +218,20 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
   }
   const double scale = info.std[0];  // isotropic for the scene variant
   std::vector<double> d(static_cast<size_t>(n * n));
-  // Entities at one place: a demonstration's motion ends on its target, a closed-loop one
-  // within the arrival radius of it (the coordinator's DONE), so two entities that went to
-  // one target can stand up to two radii apart. Nearer than that they count as together
-  // (distance 0, tied ranks), as in the demonstrations: otherwise a few millimetres of
-  // stopping error reorder the nearness ranks of a cluster and change the decision.
-  const double together = kTogetherRadii * spec.arrival_radius;
+  // Entities at one place (task::togetherDistance, the end-point rule): a motion ends at
+  // contact with its target or on it, a closed-loop one within the arrival radius of that
+  // (the coordinator's DONE). Nearer than that they count as together (distance 0, tied
+  // ranks), as in the demonstrations: otherwise a few millimetres of stopping error reorder
+  // the nearness ranks of a cluster and change the decision.
+  std::vector<double> together(static_cast<size_t>(n * n));
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      together[static_cast<size_t>(i * n + j)] = task::togetherDistance(spec, order.task_of[i], order.task_of[j]);
+  const auto at = [&](int i, int j) { return together[static_cast<size_t>(i * n + j)]; };
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j) {
       const double m = (pos[j] - pos[i]).norm();
-      d[static_cast<size_t>(i * n + j)] = (m <= together ? 0.0 : m) / scale;
+      d[static_cast<size_t>(i * n + j)] = (m <= at(i, j) ? 0.0 : m) / scale;
     }
   const auto kind = [&](int i) { return spec.entities[static_cast<size_t>(order.task_of[i])].kind; };
   std::vector<bool> rival(static_cast<size_t>(n), true);
@@ -238,16 +243,17 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
       for (int m = 0; m < n; ++m)
         if (m != k && d[static_cast<size_t>(k * n + m)] == 0.0) rival[static_cast<size_t>(k)] = false;
   // Order along the table's axes: 1 / (1 + the number of rivals of e's kind before e), from
-  // the left (x), the right, the front (y) and the back; coordinates within `together`
-  // are tied.
+  // the left (x), the right, the front (y) and the back; coordinates within the pair's
+  // together distance are tied.
   std::vector<std::array<float, 4>> axis(static_cast<size_t>(n));
   for (int e = 0; e < n; ++e) {
     int before[4] = {0, 0, 0, 0};
     for (int k = 0; k < n; ++k) {
       if (k == e || !rival[static_cast<size_t>(k)] || kind(k) != kind(e)) continue;
       const Eigen::Vector2d delta = pos[k] - pos[e];
-      before[0] += delta.x()<-together, before[1] += delta.x()> together;
-      before[2] += delta.y()<-together, before[3] += delta.y()> together;
+      const double tie = at(k, e);
+      before[0] += delta.x()<-tie, before[1] += delta.x()> tie;
+      before[2] += delta.y()<-tie, before[3] += delta.y()> tie;
     }
     for (int a = 0; a < 4; ++a) axis[static_cast<size_t>(e)][a] = 1.f / static_cast<float>(1 + before[a]);
   }
@@ -256,7 +262,7 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
   const auto wentTo = [&](int e, int f) {
     if (!previous) return false;
     const auto& was = *previous;
-    return (pos[e] - was[e]).norm() > together && (pos[e] - was[f]).norm() <= together;
+    return (pos[e] - was[e]).norm() > at(e, f) && (pos[e] - was[f]).norm() <= at(e, f);
   };
   // Each entity's last move (the latest step in which it moved more than the arrival
   // radius): the entity it went to, or -1 (never moved). The target is where the motion

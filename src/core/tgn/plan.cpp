@@ -7,6 +7,7 @@
 #include <set>
 
 #include "ddace/common/error.h"
+#include "ddace/task/end_point.h"
 #include "ddace/tgn/detail.h"
 #include "ddace/tgn/sequence_model.h"
 #include "scene_network.h"
@@ -42,7 +43,6 @@ StepRules stepRulesOf(const task::TaskDir& train) {
   std::set<size_t> sizes[2];
   std::set<std::string> loads;
   bool carried = true;
-  const double together = kTogetherRadii * train.spec.arrival_radius;
   const auto isObject = [&](int e) {
     return train.spec.entities[static_cast<size_t>(e)].kind == task::EntityKind::Object;
   };
@@ -74,7 +74,9 @@ StepRules stepRulesOf(const task::TaskDir& train) {
         if (!isObject(o)) continue;
         bool with_carrier = false;
         for (int c = 0; c < static_cast<int>(pos.size()); ++c) {
-          if (c == o || isObject(c) || (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() > together)
+          if (c == o || isObject(c) ||
+              (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() >
+                  task::togetherDistance(train.spec, c, o))
             continue;
           with_carrier = with_carrier || same(o, c);
           if (token.count(c) && loads.count(token[c]->action) && !same(o, c)) carried = false;

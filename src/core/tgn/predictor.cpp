@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "ddace/common/error.h"
+#include "ddace/task/end_point.h"
 #include "ddace/tgn/detail.h"
 #include "loss.h"
 #include "model_impl.h"
@@ -34,7 +35,6 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
   std::vector<bool> load_action(static_cast<size_t>(cfg.actions), false);
   std::vector<double> la_joint = la, lt_joint = lt;
   if (!rules.load_actions.empty()) {
-    const double together = kTogetherRadii * spec.arrival_radius;
     const auto isObject = [&](int64_t c) {
       return spec.entities[static_cast<size_t>(order.task_of[static_cast<size_t>(c)])].kind == task::EntityKind::Object;
     };
@@ -42,7 +42,10 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
       if (!isObject(o)) continue;
       detail::Load load{static_cast<int>(o), {}};
       for (int64_t c = 0; c < n; ++c)
-        if (c != o && !isObject(c) && (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() <= together)
+        if (c != o && !isObject(c) &&
+            (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() <=
+                task::togetherDistance(spec, order.task_of[static_cast<size_t>(c)],
+                                       order.task_of[static_cast<size_t>(o)]))
           load.carriers.push_back(static_cast<int>(c));
       loads.push_back(load);
     }

@@ -19,8 +19,9 @@
 //                   rivals: an entity parked with another (or, token by token, one already
 //                   given its part) is none. The displacement x_j - x_i only with
 //                   TrainOptions::edge_displacement (off by default).
-//                   Entities within kTogetherRadii arrival radii of each other are at one
-//                   place: distance 0, and they do not outrank each other.
+//                   Entities within task::togetherDistance of each other (the end-point
+//                   rule: contact plus the arrival radius) are at one place: distance 0,
+//                   and they do not outrank each other.
 //   spatial         `gat_layers` x attention over the attention edges plus self-loops; the
 //                   message from j to i is W_s x_j + W_e r_ij (it carries the edge
 //                   features: a convex combination of W x_j alone cannot form x_j - x_i);
@@ -48,9 +49,6 @@ namespace ddace::tgn {
 /// far ranks (2), axis orders of j (4) and of i (4), the last step's relation (2), the
 /// relation of i's and of j's last move (2).
 inline constexpr int kRelativeFeatures = 19;
-/// Entities nearer than this many of the task's arrival radii count as at one place: two
-/// that each arrived at one target (within a radius of it) are at most two radii apart.
-inline constexpr double kTogetherRadii = 2.0;
 
 /// taken [..., N] (1 = a target no entity may point at) -> [..., 1, 1 + N], added to the
 /// pointer's logits [..., N, 1 + N]: -1e9 on the taken targets' columns ("none" stays).

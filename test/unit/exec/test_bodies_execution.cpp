@@ -163,7 +163,7 @@ TEST(BodiesExecution, APredictedMotionOfAGoalFailsTheTrialAndTheEvaluationGoesOn
   EXPECT_TRUE(task::arrived(a.positions[1], {0.5, 0.3}, 1e-9)) << "the goal stays where it lies";
 }
 
-TEST(BodiesExecution, ACarriedLoadRidesItsOwnPathToTheGoalAheadOfItsCarrier) {
+TEST(BodiesExecution, ACarriedLoadRidesInFrontOfItsCarrierToTheGoal) {
   // R1 behind O1, both toward G1 (the carrier's path ends behind the load's).
   const auto s =
       spec({{"R1", task::EntityKind::Robot}, {"O1", task::EntityKind::Object}, {"G1", task::EntityKind::Goal}});
@@ -174,13 +174,17 @@ TEST(BodiesExecution, ACarriedLoadRidesItsOwnPathToTheGoalAheadOfItsCarrier) {
   const StepExecution a =
       runStep(with, s, start, tokens, {line({0.1, 0.3}, {0.6 - contact, 0.3}), line({0.1 + contact, 0.3}, {0.6, 0.3})});
   EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+  // In front of its carrier all the way; where the carrier stops short (task::stopRadius)
+  // the load goes on to its end: on the goal.
   EXPECT_LT((a.positions[1] - Vector2d(0.6, 0.3)).norm(), 0.01) << "the load ends on the goal";
-  EXPECT_LT(a.positions[0].x(), a.positions[1].x()) << "the carrier ends behind it";
+  EXPECT_LT(a.positions[0].x(), a.positions[1].x() - contact + 0.002) << "the carrier ends behind it";
+  for (size_t k = 0; k < a.executed[0].size() && k < a.executed[1].size(); ++k)
+    ASSERT_NEAR((a.executed[1][k] - a.executed[0][k]).norm(), contact, 0.003) << "the load left its carrier's front";
   EXPECT_TRUE(with.report().collisions.empty());
 }
 
 TEST(BodiesExecution, ALoadBehindItsCarrierSwingsRoundToItsFront) {
-  // O1 starts behind R1 (away from G1); both go to G1, the load's path round the carrier.
+  // O1 starts behind R1 (away from G1); both go to G1.
   const auto s =
       spec({{"R1", task::EntityKind::Robot}, {"O1", task::EntityKind::Object}, {"G1", task::EntityKind::Goal}});
   const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
@@ -191,6 +195,36 @@ TEST(BodiesExecution, ALoadBehindItsCarrierSwingsRoundToItsFront) {
       runStep(with, s, start, {token(0, 2), token(1, 2)}, {line({0.2, 0.3}, {0.6 - contact, 0.3}), load});
   EXPECT_LT((a.positions[1] - Vector2d(0.6, 0.3)).norm(), 0.01) << "the load ends on the goal, not blocked behind";
   EXPECT_TRUE(with.report().collisions.empty());
+}
+
+TEST(BodiesExecution, TheFilterKeepsACarriedLoadClearOfAStandingRobot) {
+  // R1 carries O1 to G1 round a corner; R2 stands beyond the corner, clear of R1's own
+  // disc but where the load in front of R1 sweeps: the load is part of R1's body.
+  const auto s = spec({{"R1", task::EntityKind::Robot},
+                       {"O1", task::EntityKind::Object},
+                       {"G1", task::EntityKind::Goal},
+                       {"R2", task::EntityKind::Robot}});
+  const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
+  const std::vector<Pose2D> start{{0.1, 0.3, 0}, {0.1 + contact, 0.3, 0}, {0.3, 0.6, 0}, {0.36, 0.3, 0}};
+  Path carrier = line({0.1, 0.3}, {0.3, 0.3});
+  for (const Vector2d& p : line({0.3, 0.3}, {0.3, 0.6 - contact})) carrier.push_back(p);
+  Path load = line({0.1 + contact, 0.3}, {0.3, 0.3 + contact});
+  for (const Vector2d& p : line({0.3, 0.3 + contact}, {0.3, 0.6})) load.push_back(p);
+  const std::vector<task::Token> tokens{token(0, 2), token(1, 2)};
+
+  BodiesExecution with = model(true);
+  const StepExecution a = runStep(with, s, start, tokens, {carrier, load});
+  EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+  EXPECT_TRUE(with.report().collisions.empty()) << "the load touched R2";
+  EXPECT_GT(with.report().closest.clearance_m, 0.0);
+  EXPECT_LT((a.positions[1] - Vector2d(0.3, 0.6)).norm(), 0.01) << a.positions[1].transpose();
+  EXPECT_NEAR((a.positions[3] - Vector2d(0.36, 0.3)).norm(), 0.0, 1e-6) << "R2 was pushed";
+
+  BodiesExecution without = model(false);  // the same step unfiltered: the load sweeps into R2
+  runStep(without, s, start, tokens, {carrier, load});
+  ASSERT_FALSE(without.report().collisions.empty());
+  EXPECT_EQ(without.report().collisions.front().a, 1);
+  EXPECT_EQ(without.report().collisions.front().b, 3);
 }
 
 TEST(BodiesExecution, GeneratedTask2ReplayedWithBodiesFinishesWithoutACollision) {

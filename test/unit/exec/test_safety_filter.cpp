@@ -237,3 +237,40 @@ TEST(SafetyFilter, InvalidParametersAreNamed) {
     EXPECT_NE(std::string(e.what()).find("margin_m"), std::string::npos);
   }
 }
+
+TEST(SegmentContacts, AreDecidedFromWhereBodiesEndNotWhereTheyAreNow) {
+  // R1 at the origin, its segment (step 2, move G1) ends at (0.3, 0). Robots of radius r,
+  // objects of radius o.
+  const double r = task::kDefaultRobotRadius, o = task::kDefaultObjectRadius;
+  const Eigen::Vector2d end(0.3, 0);
+  auto body = [](std::string name, Eigen::Vector2d now, Eigen::Vector2d final_at, double radius) {
+    BodyAtStart b;
+    b.name = std::move(name);
+    b.position = now;
+    b.final_position = final_at;
+    b.radius_m = radius;
+    return b;
+  };
+  std::vector<BodyAtStart> bodies{
+      body("R2", {0.3, r + r}, {0.3, r + r}, r),                          // stands touching its end point
+      body("R3", {0.3, 0.0}, {0.6, 0.6}, r),                              // on its end point now, leaving this step
+      body("R4", {0.8, 0.8}, {0.3, -(r + r)}, r),                         // ends touching it this step
+      body("R5", {0.3 + r + o + o + r, 0}, {0.3 + r + o + o + r, 0}, r),  // touches where the load ends
+  };
+  BodyAtStart load = body("O1", {r + o, 0}, {0.3 + r + o, 0}, o);
+  load.object = true, load.step = 2, load.action = "move", load.target = "G1";
+  BodyAtStart other = load;  // an object of another step beside it is no load
+  other.name = "O2", other.position = {0, r + o}, other.final_position = other.position, other.step = 1;
+  bodies.push_back(other);
+  bodies.push_back(load);
+
+  const SegmentContacts c = segmentContacts({0, 0}, r, end, 2, "move", "G1", bodies, 0.01, 0.03);
+  EXPECT_EQ(c.load, "O1");
+  EXPECT_EQ(c.ends_against, (std::vector<std::string>{"R2", "R4"}));
+  EXPECT_EQ(c.load_ends_against, (std::vector<std::string>{"R5"}));
+
+  bodies.back().position = {0.2, 0};  // out of reach: moves on its own, no load
+  const SegmentContacts far = segmentContacts({0, 0}, r, end, 2, "move", "G1", bodies, 0.01, 0.03);
+  EXPECT_EQ(far.load, "");
+  EXPECT_TRUE(far.load_ends_against.empty());
+}

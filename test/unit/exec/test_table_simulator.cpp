@@ -8,6 +8,7 @@
 #include "ddace/common/error.h"
 #include "ddace/exec/scene.h"
 #include "ddace/exec/table_simulator.h"
+#include "ddace/task/end_point.h"
 
 #include "../common/error_of.h"
 
@@ -280,4 +281,50 @@ TEST(TableSimulator, RefusesWhatDoesNotFitTheTask) {
   TableSimulatorParams slow;
   slow.object_speed_mps = 0;
   EXPECT_THROW(TableSimulator(tableTask(), {{}, {}, {}}, DiffDriveParams{}, slow), Error);
+}
+
+TEST(TableSimulator, ALoadRidesInFrontOfItsCarrierAndEndsOnItsGoal) {
+  // R1 at the origin facing +x, O1 at its left side touching it; O1's segment to (0.4, 0).
+  task::TaskSpec spec = tableTask();
+  TableSimulatorParams p;
+  p.bodies = true;
+  const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
+  TableSimulator sim(spec, {{0, 0, 0}, {0, contact, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
+  ASSERT_TRUE(sim.startSegment(O1, 7, {{0, contact}, {0.4, 0}}));
+  ASSERT_TRUE(sim.ride(R1, O1));
+  EXPECT_EQ(sim.carrierOf(O1), R1);
+  for (int k = 0; k < 100; ++k) {  // 2 s at 0.1 m/s
+    sim.commandWheels(R1, {0.1, 0.1});
+    for (const ObjectStatus& s : sim.step()) EXPECT_NE(s.state, SegmentState::Done) << "done before its carrier";
+  }
+  const Eigen::Vector2d r = sim.truePose(R1).position(), o = sim.truePose(O1).position();
+  EXPECT_NEAR(o.x() - r.x(), contact, 0.002) << "in front of its carrier";
+  EXPECT_NEAR(o.y(), r.y(), 0.002);
+  EXPECT_TRUE(sim.contacts().empty());
+  for (int k = 0; k < 10; ++k) {  // the carrier stops; the load goes on to its end alone
+    sim.commandWheels(R1, {});
+    sim.step();
+  }
+  sim.endRide(O1);
+  EXPECT_EQ(sim.carrierOf(O1), -1);
+  bool done = false;
+  for (int k = 0; k < 100 && !done; ++k)
+    for (const ObjectStatus& s : sim.step()) done = done || (s.segment_id == 7 && s.state == SegmentState::Done);
+  EXPECT_TRUE(done);
+  EXPECT_LT((sim.truePose(O1).position() - Eigen::Vector2d(0.4, 0)).norm(), 0.005) << "on its goal";
+
+  // A load out of reach does not ride; a robot's segment carries an object's of its step
+  // with the same action and target only.
+  TableSimulator far(spec, {{0, 0, 0}, {0.2, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
+  EXPECT_FALSE(far.ride(R1, O1));
+  // A carrier that stopped where the path follower stops (the stop radius short of contact)
+  // is at its load: task::togetherDistance, as the network reads it.
+  const double stopped = contact + task::stopRadius(spec.arrival_radius);
+  ASSERT_LT(stopped, task::togetherDistance(spec, R1, O1));
+  TableSimulator near(spec, {{0, 0, 0}, {stopped, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
+  EXPECT_TRUE(near.ride(R1, O1));
+  EXPECT_TRUE(carries(spec, 2, {R1, "move", G1}, 2, {O1, "move", G1}));
+  EXPECT_FALSE(carries(spec, 2, {R1, "move", G1}, 3, {O1, "move", G1}));
+  EXPECT_FALSE(carries(spec, 2, {R1, "move", G1}, 2, {O1, "push", G1}));
+  EXPECT_FALSE(carries(spec, 2, {O1, "move", G1}, 2, {R1, "move", G1}));
 }

@@ -1,10 +1,17 @@
 // Labels inferred from motion: the edge cases people make, and every generated family.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
 
 #include "ddace/label/human_motion.h"
+#include "ddace/common/error.h"
 #include "ddace/label/label.h"
+#include "ddace/label/recording.h"
 #include "ddace/tasks/generators.h"
 
 using namespace ddace;
@@ -110,6 +117,20 @@ TEST(Label, RobotsStartedASecondApartAreOneStep) {
   EXPECT_EQ(inf.steps[0].tokens[0].first_row, inf.steps[0].tokens[1].first_row);
   EXPECT_NEAR(s.d.t[inf.steps[0].keyframe_row], 1.0, 0.1);
   EXPECT_NEAR(s.d.t[inf.steps[0].tokens[1].onset_row], 2.0, 0.15);
+}
+
+TEST(Label, SimultaneousStartsAreOneStepEachWithItsOwnTarget) {
+  // Two robots started in the same row, crossing the table side by side: one step, each
+  // token with its own target, both labels beginning in the row they started.
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}, 0, 2}, {1, {0.9, 0.1}, 0, 2}});
+  s.rest(1);
+  const auto inf = s.infer();
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1", "R2:move:G2"}}));
+  EXPECT_EQ(inf.steps[0].tokens[0].first_row, inf.steps[0].tokens[1].first_row);
+  EXPECT_NEAR(s.d.t[inf.steps[0].tokens[0].onset_row], 1.0, 0.1);
+  EXPECT_NEAR(s.d.t[inf.steps[0].tokens[1].onset_row], 1.0, 0.1);
 }
 
 TEST(Label, LoadCarriedThenDroppedWithWordsFromAnExample) {
@@ -314,4 +335,120 @@ TEST(Label, EveryFamilyHumanMotion) {
     EXPECT_LT(label::median(score.onset_error_s), 0.2) << family;
     EXPECT_LT(label::median(score.offset_error_s), 0.2) << family;
   }
+}
+
+namespace {
+
+/// `demo` (moved by a person) played forward and backward `plays` times each, without
+/// labels: one long recording of many steps (the robots drive back where they started).
+task::Demonstration plays(const task::Demonstration& demo, size_t plays) {
+  task::Demonstration out;
+  out.source = "plays.csv";
+  const size_t n = demo.rows(), m = demo.entities();
+  const double period = demo.t.back() + 1.0 / 30;
+  for (size_t k = 0; k < 2 * plays; ++k)
+    for (size_t i = 0; i < n; ++i) {
+      out.t.push_back(static_cast<double>(k) * period + demo.t[i]);
+      out.positions.push_back(demo.positions[k % 2 ? n - 1 - i : i]);
+      out.labels.emplace_back(m);
+    }
+  out.has_label_columns.assign(m, false);
+  out.analyze();
+  return out;
+}
+
+std::vector<std::string> spans(const std::vector<label::InferredStep>& steps, const task::TaskSpec& spec) {
+  std::vector<std::string> out;
+  for (const auto& s : steps)
+    for (const auto& t : s.tokens)
+      out.push_back(task::tokenKey(t.token, spec) + " rows " + std::to_string(t.first_row) + ".." +
+                    std::to_string(t.last_row));
+  return out;
+}
+
+}  // namespace
+
+TEST(Label, StepsAreHandedOverWhileALongRecordingStreams) {
+  // Memory bounded on a recording of any length: the Labeller decides a step a few seconds
+  // after it ends, and what it hands over while the rows stream is what it finds at once.
+  tasks::GeneratorOptions o;
+  o.family = "task4";
+  o.demos = 1;
+  const task::TaskDir dir = tasks::generate(o);
+  SplitMix64 rng(1);
+  const task::Demonstration human = label::humanMotion(dir.demos[0], dir.spec, {}, rng);
+  const auto example = label::Example::fromDemonstration(human, dir.spec);
+  const task::Demonstration d = plays(human, 6);
+  for (const label::Example* ex : {static_cast<const label::Example*>(nullptr), &example}) {
+    const label::Inference whole = label::inferLabels(d, dir.spec, ex);
+    ASSERT_GE(whole.steps.size(), 12u) << (ex ? "with" : "without") << " the example";
+    label::Labeller streamed(dir.spec, ex);
+    std::vector<label::InferredStep> taken;
+    size_t most_pending_rows = 0;
+    for (size_t i = 0; i < d.rows(); ++i) {
+      streamed.row(d.t[i], d.positions[i]);
+      for (auto& s : streamed.take().steps) taken.push_back(std::move(s));
+      // Rows since the keyframe of the first step not handed over yet.
+      const size_t next = taken.size();
+      if (next < whole.steps.size() && static_cast<size_t>(whole.steps[next].keyframe_row) <= i)
+        most_pending_rows = std::max(most_pending_rows, i - whole.steps[next].keyframe_row);
+    }
+    for (auto& s : streamed.finish().steps) taken.push_back(std::move(s));
+    EXPECT_EQ(spans(taken, dir.spec), spans(whole.steps, dir.spec));
+    // A step waits for its motions, a pause and the rows the segmenter keeps (with an
+    // example: until there is a step more than the example's): some seconds, never the
+    // recording's length (12 plays, 136 s).
+    EXPECT_LT(most_pending_rows, d.rows() / 4) << (ex ? "with" : "without") << " the example";
+  }
+}
+
+TEST(Label, ARecordingLabelledAsAStreamIsTheSameFileAndABadRowIsNamed) {
+  tasks::GeneratorOptions o;
+  o.family = "task4";
+  o.demos = 1;
+  const task::TaskDir dir = tasks::generate(o);
+  SplitMix64 rng(2);
+  const task::Demonstration d = plays(label::humanMotion(dir.demos[0], dir.spec, {}, rng), 3);
+  const std::string path = ::testing::TempDir() + "/ddace_label_stream_" + std::to_string(::getpid()) + ".csv";
+  task::writeDemonstrationCsv(d, dir.spec, path);
+  // In memory (the recorder node) and streamed through a spill (`ddace label`, twice into
+  // one spill as for two recordings): the same bytes.
+  std::ostringstream in_memory;
+  label::writeLabelledRecording(path, dir.spec, label::inferRecording(path, dir.spec, nullptr), in_memory);
+  label::TokenSpill spill;
+  std::vector<size_t> from;
+  label::RecordingInference r;
+  for (int k = 0; k < 2; ++k) {
+    from.push_back(spill.size());
+    r = label::inferRecording(
+        path, dir.spec, nullptr, [&](label::InferredStep&& s) { spill.add(s); }, [](label::Note&&) {});
+  }
+  from.push_back(spill.size());
+  EXPECT_EQ(r.rows, d.rows());
+  EXPECT_EQ(from[1] - from[0], r.tokens);
+  for (int k = 0; k < 2; ++k) {
+    label::LabelCursor cursor(spill.reader(from[k], from[k + 1]), dir.spec.entities.size());
+    std::ostringstream streamed;
+    label::writeLabelledRecording(path, dir.spec, r.labelled, cursor, streamed);
+    EXPECT_EQ(streamed.str(), in_memory.str()) << k;
+  }
+  // A row that changed after the check: file:line:column of the field.
+  int column = 0;
+  {
+    std::string text = task::demonstrationCsvText(d, dir.spec);
+    const size_t line3 = text.find('\n', text.find('\n') + 1) + 1;
+    const size_t comma = text.find(',', line3);
+    text.replace(comma + 1, text.find(',', comma + 1) - comma - 1, "x0.1");
+    column = static_cast<int>(comma + 1 - line3) + 1;
+    std::ofstream(path, std::ios::binary) << text;
+  }
+  try {
+    label::inferRecording(path, dir.spec, nullptr);
+    ADD_FAILURE() << "a bad row was read";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(path + ":3:" + std::to_string(column) + ":"), std::string::npos) << what;
+    EXPECT_NE(what.find("'x0.1' is not a finite number"), std::string::npos) << what;
+  }
+  std::remove(path.c_str());
 }
