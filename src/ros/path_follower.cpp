@@ -222,8 +222,9 @@ class PathFollowerNode::Impl {
       }
       at.push_back(b);
     }
-    const exec::SegmentContacts c = exec::segmentContacts(r.pose.position(), self_radius, r.follower->endPoint(),
-                                                          r.step, r.action, r.target, at, safety_.margin_m);
+    const exec::SegmentContacts c =
+        exec::segmentContacts(r.pose.position(), self_radius, r.follower->endPoint(), r.step, r.action, r.target, at,
+                              safety_.margin_m, default_arrival_m_);
     r.load = c.load;
     r.ends_against = {c.ends_against.begin(), c.ends_against.end()};
     r.load_ends_against = {c.load_ends_against.begin(), c.load_ends_against.end()};

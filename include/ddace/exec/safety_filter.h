@@ -65,10 +65,6 @@ struct SafetyParams {
   void validate() const;
 };
 
-/// A load rides with its carrier when it is within this of touching it (metres; as the
-/// generated demonstrations, tasks/motion.cpp): TableSimulator::ride, segmentContacts.
-inline constexpr double kRideReachM = 0.01;
-
 /// A body the filter must keep clear of, as tracked.
 struct SafetyBody {
   std::string name;
@@ -129,13 +125,15 @@ struct SegmentContacts {
 };
 /// Decides, when a robot's segment (`step`, `action`, `target`, ending at `end_point`)
 /// starts, with the robot at `position`: its load -- an object whose segment has the same
-/// step, action and target (exec::carries) within contact + kRideReachM of it -- and the
+/// step, action and target (exec::carries) within task::togetherDistance of it (contact plus
+/// `arrival_radius_m`: where the robot counts as at it, as the generators and
+/// TableSimulator::ride decide who rides) -- and the
 /// bodies its end point and its load's end point touch (endsAgainst with `margin_m`, at
 /// the bodies' final positions: one standing there, or ending there this step, not one
 /// only passing by). The same decision exec::BodiesExecution makes for a step.
 SegmentContacts segmentContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
                                 int step, const std::string& action, const std::string& target,
-                                const std::vector<BodyAtStart>& bodies, double margin_m);
+                                const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m);
 
 /// What the filter decided for one control cycle.
 struct SafetyCommand {

@@ -78,10 +78,10 @@ class TableSimulator {
   /// distance, over the carrier's first kRideSwingM of travel, and then turns and moves
   /// with it. Their bodies pass through each other, as a load placed on its carrier does.
   /// A segment of the load keeps running (RUNNING reports, progress toward its goal) until
-  /// endRide(). Returns false and changes nothing when the load is farther than their
-  /// contact distance + kRideReachM from its carrier (a ball passed from afar moves on its
-  /// own segment), or either has no body. Throws ddace::Error when `carrier` is not a robot
-  /// or `load` not an object.
+  /// endRide(). Returns false and changes nothing when the load is farther than
+  /// task::togetherDistance from its carrier, where the carrier counts as at it (a ball
+  /// passed from afar moves on its own segment), or either has no body. Throws ddace::Error when `carrier` is not a
+  /// robot or `load` not an object.
   bool ride(int carrier, int load);
   /// The load stops riding (its carrier arrived). Its running segment, if any, goes on
   /// from where the load is straight to the segment's end -- the few centimetres its
@@ -161,6 +161,7 @@ class TableSimulator {
   void measureClearance();
   void halt(int i);  ///< object i stops following its segment and comes to rest
 
+  task::TaskSpec spec_;  ///< footprints and arrival radius: who rides (ride())
   std::vector<std::string> names_;
   std::vector<Entity> entities_;
   DiffDriveParams robot_;

@@ -37,10 +37,12 @@
 #pragma once
 
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "ddace/task/demonstration.h"
 #include "ddace/task/task_spec.h"
@@ -103,6 +105,38 @@ Eigen::Vector2d segmentEndPoint(const TaskSpec& spec, const EndPointModel& model
 Eigen::Vector2d endPointFrom(const Eigen::Vector2d& start, const Eigen::Vector2d& target,
                              const Eigen::Vector2d& offset);
 
+/// Where bodies fit (stepEndPositions): a turned end point is searched in steps of
+/// kEndTurnStepRad, at most kMaxEndTurnRad either way about the target, and stays
+/// kEndTurnGapM (metres) from every body but its target; onto a taken goal the motion backs
+/// off kBackOffStepM (metres) at a time.
+inline constexpr double kEndTurnStepRad = M_PI / 36;  // 5 degrees
+inline constexpr double kMaxEndTurnRad = M_PI / 2;
+inline constexpr double kEndTurnGapM = 0.01;
+inline constexpr double kBackOffStepM = 0.001;
+/// The index in `step` of the load the robot token `step[i]` carries *and that rides with
+/// it* (carriedLoad(), starting within togetherDistance() of its carrier in `at`; a load
+/// of two carriers rides with the first), or -1. A ball passed from afar to where a robot
+/// also goes moves on its own.
+int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, const std::vector<Eigen::Vector2d>& at);
+
+/// Where every entity stands after `step` decided with entity positions `decided` when
+/// bodies must fit (table frame, metres). Each motion ends at its endPoint() under `model`;
+/// a riding load (ridingLoad()) ends in front of its carrier at their contact distance
+/// along the carrier's approach (on the target, the carrier behind it). An end point inside
+/// a standing body, or inside an end placed before it in the step (token order), is turned
+/// about the target to the nearest place at the same distance kEndTurnGapM clear of every
+/// other body (the motion still touches its target, and only it); where no turn frees it (a
+/// goal another body already stands on) it stops short on its way where its body first
+/// fits: two robots sent onto one goal end touching, one on it. With `table` (its corners),
+/// no end is moved further over its edge than its entity starts. Used wherever a step is
+/// executed with bodies: the generated demonstrations (with nothing learned), `ddace eval`
+/// with bodies and the coordinator. Throws ddace::Error for a token naming an entity outside
+/// `decided`.
+std::vector<Eigen::Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model,
+                                              const std::vector<Token>& step,
+                                              const std::vector<Eigen::Vector2d>& decided,
+                                              const std::optional<Eigen::AlignedBox2d>& table = std::nullopt);
+
 /// A motion has arrived when `position` is within `arrival_radius` of its end point.
 bool arrived(const Eigen::Vector2d& position, const Eigen::Vector2d& end_point, double arrival_radius);
 /// How far apart entities `a` and `b` of `spec` may stand when one has arrived where a
@@ -112,7 +146,11 @@ bool arrived(const Eigen::Vector2d& position, const Eigen::Vector2d& end_point, 
 /// radius of it, at most two radii apart. The larger of the two (goals are no obstacles:
 /// contact 0). The scene network's "together" (docs/tgn.md) reads places with it, so a
 /// robot stopped where the follower stops counts as at its load, as in demonstrations.
+/// Also the reach of a ride: a load rides with its carrier when it starts within it.
 double togetherDistance(const TaskSpec& spec, int a, int b);
+/// The same from the two bodies' contact distance (0 when either is no obstacle) and the
+/// task's arrival radius, metres.
+double togetherDistance(double contact_m, double arrival_radius);
 /// How close to the end point a path follower stops: arrival_radius - tolerance, never
 /// less than half the arrival radius (a radius within the noise itself).
 double stopRadius(double arrival_radius, double tolerance = kArrivalToleranceM);

@@ -17,13 +17,16 @@ struct DemonstrationSummary {
   double t_first = 0, t_last = 0;  ///< seconds
   std::vector<Step> steps;         ///< exactly Demonstration::steps of the same file
   std::vector<double> keyframe_t;  ///< [step] t at its keyframe, seconds
+  size_t step_count = 0;           ///< steps.size(), or all of them when only the last is kept
   size_t segments = 0;
   int end_row = 0;  ///< the END snapshot's row (the last row)
 };
 
 /// Reads one CSV as readDemonstrationCsv does (same checks, same errors) and keeps only
-/// what it derives.
-DemonstrationSummary summarizeDemonstrationCsv(const std::string& path, const TaskSpec& spec);
+/// what it derives, of a file of any size. `keep_steps` false: `steps` holds the last
+/// step only and keyframe_t none (step_count and segments count them all), so memory
+/// does not grow with the steps either (`ddace label`'s read-back check).
+DemonstrationSummary summarizeDemonstrationCsv(const std::string& path, const TaskSpec& spec, bool keep_steps = true);
 
 /// mergedOnsetNotes() of the steps of `source`.
 std::vector<Diagnostic> mergedOnsetNotes(const std::string& source, const std::vector<Step>& steps,

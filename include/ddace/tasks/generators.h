@@ -40,6 +40,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "ddace/task/demonstration.h"
 #include "ddace/task/task_dir.h"
@@ -47,7 +48,9 @@
 namespace ddace::tasks {
 
 inline constexpr double kGeneratorRateHz = 20.0;
-inline constexpr double kTableSize = 1.0;             // metres
+inline constexpr double kTableSize = 1.0;  // metres
+/// The generators' table: its corners (metres).
+inline const Eigen::AlignedBox2d kTable{Eigen::Vector2d(0, 0), Eigen::Vector2d(kTableSize, kTableSize)};
 inline constexpr double kSceneBorder = 0.08;          // metres
 inline constexpr double kSceneMinSeparation = 0.15;   // metres
 inline constexpr double kSceneDecisionMargin = 0.05;  // metres
@@ -100,52 +103,29 @@ struct PlannedToken {
 };
 using PlannedStep = std::vector<PlannedToken>;
 
-/// Where every entity stands after `step` from `positions` (table frame, metres): where
-/// simulateSteps() ends the step's motions. A motion ends at the end point the task's
-/// footprints give when nothing is learned (task::endPoint with an empty
-/// task::EndPointModel: at contact with a robot or an object, on a goal); a carried load
-/// (task::carriedLoad, starting at its carrier) ends in front of its carrier, at their contact distance, so on a
-/// goal or at contact with an obstacle target, the carrier behind it. An end point inside
-/// a standing body, or inside an end point placed before it in the step, is turned about
-/// the target in steps of kEndTurnStepRad (at most kMaxEndTurnRad either way) to the
-/// nearest place at the same distance that is kEndTurnGapM clear of every other body: the
-/// motion still ends at contact, touching its target only; where no
-/// turn frees it (a goal another body already stands on), it stops short on its way, where
-/// its body first fits (so two robots sent onto one goal end touching, one on it). Throws
-/// ddace::Error for a token naming an entity outside `positions`.
-std::vector<Eigen::Vector2d> stepEndPositions(const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& positions,
-                                              const std::vector<task::Token>& step);
-
 /// The demonstration of `steps` from the start configuration `start` (one position per
 /// entity of `spec`, table frame, metres): kIdleRowsBefore idle rows, then per step its
 /// rows and kIdleRowsBetween (kIdleRowsAfter after the last) idle rows, at
 /// kGeneratorRateHz. The tokens of a step start and end together (their labels begin
 /// label_delay_rows late), at kGeneratorSpeed along the longest path of the step and no
 /// shorter than kMinStepDurationS, eased in and out (smoothstep). Motions end at
-/// stepEndPositions(). A carried load (task::carriedLoad, starting within 1 cm of touching
-/// its carrier) rides in front of its carrier at their contact distance along the
-/// carrier's heading (it swings there over the first kLoadSwingFraction of the carry), and
-/// the carrier's path ends heading at the load's end. Each mover of a step, in token
-/// order, takes the least changed candidate path (its shape plus an extra arc
-/// kAvoidBends, a turned start kAvoidHooks, a lag kAvoidLags, its load swung the other way
-/// round; ordered by how far the path moves from its shape, then by lag) that keeps its
-/// body, and its load's, on the table and no closer than contact to a standing body or to
-/// a mover placed before it (no closer than the pair starts or ends, when that is already
-/// below contact); of a mirror pair the one with more clearance; with none free, the one
-/// with the most clearance. Positions are rounded to whole micrometres (what a CSV
-/// holds); the demonstration is analyzed with the task's step_window_s. Throws
-/// ddace::Error for a token naming an entity outside the task or a start configuration
-/// of the wrong size.
+/// task::stepEndPositions() with nothing learned (the footprints' end points) on kTable. A carried load
+/// (task::carriedLoad, starting within 1 cm of touching its carrier) rides in front of its carrier at their contact
+/// distance along the carrier's heading (it swings there over the first kLoadSwingFraction of the carry), and the
+/// carrier's path ends heading at the load's end. Each mover of a step, in token order, takes the least changed
+/// candidate path (its shape plus an extra arc kAvoidBends, a turned start kAvoidHooks, a lag kAvoidLags, its load
+/// swung the other way round; ordered by how far the path moves from its shape, then by lag) that keeps its body, and
+/// its load's, on the table and no closer than contact to a standing body or to a mover placed before it (no closer
+/// than the pair starts or ends, when that is already below contact); of a mirror pair the one with more clearance;
+/// with none free, the one with the most clearance. Positions are rounded to whole micrometres (what a CSV holds); the
+/// demonstration is analyzed with the task's step_window_s. Throws ddace::Error for a token naming an entity outside
+/// the task or a start configuration of the wrong size.
 task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& start,
                                   const std::vector<PlannedStep>& steps);
 
 inline constexpr double kGeneratorSpeed = 0.15;   ///< m/s, the nominal robot speed
 inline constexpr double kMinStepDurationS = 1.0;  ///< s
 inline constexpr int kIdleRowsBefore = 4, kIdleRowsBetween = 3, kIdleRowsAfter = 4;
-inline constexpr double kEndTurnStepRad = M_PI / 36;  ///< 5 degrees
-inline constexpr double kMaxEndTurnRad = M_PI / 2;
-/// A turned end point stays this far (metres) from every body but its target.
-inline constexpr double kEndTurnGapM = 0.01;
 inline constexpr double kLoadSwingFraction = 0.3;
 /// Extra arcs tried to keep a path clear, fractions of the start-to-end distance.
 inline constexpr double kAvoidBends[] = {0, 0.05, -0.05, 0.1, -0.1, 0.15, -0.15, 0.3, -0.3, 0.45, -0.45, 0.6, -0.6};

@@ -322,9 +322,10 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
     if (!tok.isMotion()) r.progress = 1.0;
     step.tokens.push_back(std::move(r));
   }
-  // Once every token is known valid: an end point depends on the step's other tokens (a load).
-  for (size_t i = 0; i < d.tokens.size(); ++i)
-    step.tokens[i].goal = task::endPoint(spec_, end_points_, d.tokens, i, decided);
+  // Once every token is known valid: where the step's bodies end, together (an end point
+  // depends on the step's other tokens: a load, an end another motion takes).
+  const std::vector<Eigen::Vector2d> ends = task::stepEndPositions(spec_, end_points_, d.tokens, decided);
+  for (size_t i = 0; i < d.tokens.size(); ++i) step.tokens[i].goal = ends[static_cast<size_t>(d.tokens[i].entity)];
   std::ostringstream os;
   os << "step " << step.step + 1 << ":";
   for (const auto& t : step.tokens) os << " " << task::tokenKey(t.token, spec_);

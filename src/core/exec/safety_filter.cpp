@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "ddace/common/error.h"
+#include "ddace/task/end_point.h"
 
 namespace ddace::exec {
 
@@ -43,12 +44,12 @@ bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const E
 
 SegmentContacts segmentContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
                                 int step, const std::string& action, const std::string& target,
-                                const std::vector<BodyAtStart>& bodies, double margin_m) {
+                                const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m) {
   SegmentContacts out;
   const BodyAtStart* load = nullptr;
   for (const BodyAtStart& b : bodies)
     if (b.object && b.step >= 0 && b.step == step && b.action == action && b.target == target &&
-        (b.position - position).norm() <= radius_m + b.radius_m + kRideReachM) {
+        (b.position - position).norm() <= task::togetherDistance(radius_m + b.radius_m, arrival_radius_m)) {
       load = &b;
       out.load = b.name;
       break;

@@ -49,6 +49,10 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
                     std::to_string(k + 1));
       acts[static_cast<size_t>(token.entity)] = true;
     }
+    // With bodies, the step's ends are placed where bodies fit (two robots sent onto one goal
+    // end touching); points end where the rule puts each motion alone (the paper's Table 2).
+    const std::vector<Eigen::Vector2d> ends =
+        execution.bodies() ? task::stepEndPositions(spec, end_points, d.tokens, decided) : decided;
     std::vector<StepMotion> motions;
     const size_t first = trial.executed.size();
     for (size_t i = 0; i < d.tokens.size(); ++i) {
@@ -57,7 +61,8 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
       ex.token = token;
       ex.step = k;
       ex.start = decided[token.entity];
-      ex.goal = task::endPoint(spec, end_points, d.tokens, i, decided);
+      ex.goal = execution.bodies() ? ends[static_cast<size_t>(token.entity)]
+                                   : task::endPoint(spec, end_points, d.tokens, i, decided);
       if (token.isMotion()) {
         ex.planned = paths(token, ex.start, ex.goal);
         if (ex.planned.empty()) ex.planned = {ex.start, ex.goal};

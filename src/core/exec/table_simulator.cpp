@@ -58,7 +58,7 @@ void TableSimulatorParams::validate() const {
 TableSimulator::TableSimulator(const task::TaskSpec& spec, const std::vector<Pose2D>& start,
                                const DiffDriveParams& robot, const TableSimulatorParams& params,
                                const std::vector<std::string>& stalled)
-    : names_(spec.entityNames()), robot_(robot), params_(params) {
+    : spec_(spec), names_(spec.entityNames()), robot_(robot), params_(params) {
   robot_.validate();
   params_.validate();
   const size_t n = spec.entities.size();
@@ -187,7 +187,7 @@ bool TableSimulator::ride(int carrier, int load) {
   if (!(c.radius_m > 0) || !(l.radius_m > 0) || l.carrier >= 0) return false;
   const double contact = c.radius_m + l.radius_m;
   const Eigen::Vector2d d = l.pose.position() - c.pose.position();
-  if (d.norm() > contact + kRideReachM) return false;
+  if (d.norm() > task::togetherDistance(spec_, carrier, load)) return false;
   l.carrier = carrier;
   l.ride_offset0 = Eigen::Rotation2Dd(-c.pose.yaw) * d;
   l.ride_contact_m = contact;

@@ -211,7 +211,11 @@ void Labeller::decide(bool at_end) {
         pending_.end());
     for (size_t k = 0; k < final_groups; ++k) handOver(std::move(groups[k]));
   }
-  for (const auto& m : pending_) next_check_t_ = std::min(next_check_t_, m.off_t + options_.pause_s);
+  // Again when the horizon passes a time that can make a group final (a motion's end, or
+  // pause_s after it); none ahead: when motions arrive (a running motion holds it back).
+  for (const auto& m : pending_)
+    for (const double when : {m.off_t, m.off_t + options_.pause_s})
+      if (when >= h_t) next_check_t_ = std::min(next_check_t_, when);
 }
 
 void Labeller::handOver(Group g) {

@@ -106,7 +106,10 @@ namespace {
 /// the summary reader, which keeps no rows, compute the same steps.
 class StepGrouper {
  public:
-  StepGrouper(size_t entities, double window) : prev_(entities), active_(entities, {-1, -1}), window_(window) {}
+  /// `keep` false: only the open step is kept (its predecessors, their segments and
+  /// snapshots are counted, not stored), for a summary in memory independent of the steps.
+  StepGrouper(size_t entities, double window, bool keep = true)
+      : prev_(entities), active_(entities, {-1, -1}), window_(window), keep_(keep) {}
 
   void row(int i, double t, const std::vector<Label>& labels, const std::vector<Eigen::Vector2d>& positions) {
     const size_t m = labels.size();
@@ -114,8 +117,8 @@ class StepGrouper {
     for (size_t e = 0; e < m; ++e) {
       if (labels[e] == prev_[e] || active_[e].first < 0) continue;
       const auto [k, s] = active_[e];
-      step_segments_[k][s].last_row = i - 1;
-      if (k == static_cast<int>(steps_.size()) - 1) open_ended_ = true;
+      if (keep_) step_segments_[k][s].last_row = i - 1;
+      if (k == step_count_ - 1) open_ended_ = true;
       active_[e] = {-1, -1};
     }
     std::vector<Token> starting;  // tokens whose label begins in row i, by entity
@@ -130,13 +133,18 @@ class StepGrouper {
       // labels only end while others hold; with grouping only a beginning label opens a step.
       if (window_ == 0 && !all_null && labels != prev_) openStep(i, t, positions);
     } else {
-      const bool joins = !steps_.empty() && !open_ended_ && t - keyframe_t_.back() <= window_;
+      const bool joins = step_count_ > 0 && !open_ended_ && t - last_keyframe_t_ <= window_;
       if (!joins) openStep(i, t, positions);
-      const int k = static_cast<int>(steps_.size()) - 1;
+      const int k = step_count_ - 1;
       Step& step = steps_.back();
       for (const Token& token : starting) {
         step.tokens.push_back(token);
-        if (joins) step.late.push_back({token, i, t - keyframe_t_.back()});
+        if (joins) step.late.push_back({token, i, t - last_keyframe_t_});
+        ++segment_count_;
+        if (!keep_) {
+          active_[token.entity] = {k, 0};
+          continue;
+        }
         active_[token.entity] = {k, static_cast<int>(step_segments_[k].size())};
         step_segments_[k].push_back({token, k, i, i});
       }
@@ -151,7 +159,7 @@ class StepGrouper {
   void finish(std::vector<int>& keyframes, std::vector<Step>& steps, std::vector<Segment>& segments,
               std::vector<Snapshot>& snapshots) {
     for (const auto& [k, s] : active_)
-      if (k >= 0) step_segments_[k][s].last_row = last_row_;
+      if (k >= 0 && keep_) step_segments_[k][s].last_row = last_row_;
     for (auto& segs : step_segments_) {
       std::sort(segs.begin(), segs.end(), [](const Segment& a, const Segment& b) { return a.token < b.token; });
       segments.insert(segments.end(), segs.begin(), segs.end());
@@ -161,14 +169,20 @@ class StepGrouper {
     snapshots = std::move(snapshots_);
   }
   const std::vector<double>& keyframeTimes() const { return keyframe_t_; }
+  int stepCount() const { return step_count_; }
+  size_t segmentCount() const { return segment_count_; }
 
  private:
   void openStep(int i, double t, const std::vector<Eigen::Vector2d>& positions) {
+    ++step_count_;
+    last_keyframe_t_ = t;
+    open_ended_ = false;
+    if (!keep_) steps_.clear();
     steps_.push_back({i, {}, {}});
+    if (!keep_) return;
     step_segments_.emplace_back();
     snapshots_.push_back({i, false, positions});
     keyframe_t_.push_back(t);
-    open_ended_ = false;
   }
 
   std::vector<Label> prev_;
@@ -179,6 +193,10 @@ class StepGrouper {
   std::vector<Snapshot> snapshots_;
   std::vector<double> keyframe_t_;
   bool open_ended_ = false;  ///< a token of the open step has ended
+  bool keep_ = true;
+  int step_count_ = 0;
+  size_t segment_count_ = 0;
+  double last_keyframe_t_ = 0;
   int last_row_ = -1;
 };
 
@@ -285,9 +303,13 @@ constexpr size_t kMaxErrorsPerFile = 50;
 /// grows with the rows' numbers and labels, never with the text.
 class CsvParser {
  public:
-  /// `keep_rows` false: the rows are analyzed as they come and dropped (summary()).
-  CsvParser(const TaskSpec& spec, std::string file, bool keep_rows = true)
-      : spec_(spec), file_(std::move(file)), keep_rows_(keep_rows), grouper_(spec.entities.size(), spec.step_window_s) {
+  /// `keep_rows` false: the rows are analyzed as they come and dropped (summary());
+  /// `keep_steps` false as well: only the last step is kept, the others counted.
+  CsvParser(const TaskSpec& spec, std::string file, bool keep_rows = true, bool keep_steps = true)
+      : spec_(spec),
+        file_(std::move(file)),
+        keep_rows_(keep_rows),
+        grouper_(spec.entities.size(), spec.step_window_s, keep_rows || keep_steps) {
     demo_.source = file_;
     demo_.step_window_s = spec.step_window_s;
   }
@@ -331,8 +353,9 @@ class CsvParser {
     std::vector<int> keyframes;
     std::vector<Segment> segments;
     std::vector<Snapshot> snapshots;
+    s.step_count = static_cast<size_t>(grouper_.stepCount());
+    s.segments = grouper_.segmentCount();
     grouper_.finish(keyframes, s.steps, segments, snapshots);
-    s.segments = segments.size();
     s.end_row = rows_ - 1;
     return s;
   }
@@ -635,8 +658,8 @@ Demonstration readDemonstrationCsv(const std::string& path, const TaskSpec& spec
   return parser.finish();
 }
 
-DemonstrationSummary summarizeDemonstrationCsv(const std::string& path, const TaskSpec& spec) {
-  CsvParser parser(spec, path, false);
+DemonstrationSummary summarizeDemonstrationCsv(const std::string& path, const TaskSpec& spec, bool keep_steps) {
+  CsvParser parser(spec, path, false, keep_steps);
   // No byte limit: no row is kept, a file of any length streams through.
   readCsv(path, parser, std::numeric_limits<std::uint64_t>::max());
   return parser.summary();

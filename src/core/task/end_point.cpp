@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "ddace/common/error.h"
 
@@ -128,12 +129,126 @@ bool arrived(const Vector2d& position, const Vector2d& end_point, double arrival
 
 double togetherDistance(const TaskSpec& spec, int a, int b) {
   const Footprint fa = spec.footprint(a), fb = spec.footprint(b);
-  const double contact = fa.obstacle && fb.obstacle ? fa.radius_m + fb.radius_m : 0.0;
-  return std::max(2.0 * spec.arrival_radius, contact + spec.arrival_radius);
+  return togetherDistance(fa.obstacle && fb.obstacle ? fa.radius_m + fb.radius_m : 0.0, spec.arrival_radius);
+}
+
+double togetherDistance(double contact_m, double arrival_radius) {
+  return std::max(2.0 * arrival_radius, contact_m + arrival_radius);
 }
 
 double stopRadius(double arrival_radius, double tolerance) {
   return std::max(arrival_radius - tolerance, 0.5 * arrival_radius);
+}
+
+int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, const std::vector<Vector2d>& at) {
+  const auto n = static_cast<int>(at.size());
+  // carriedLoad(step[k]) when it is at its carrier, else -1.
+  const auto atCarrier = [&](size_t k) {
+    const int load = carriedLoad(spec, step, k);
+    if (load < 0) return -1;
+    const int e = step[k].entity, l = step[static_cast<size_t>(load)].entity;
+    if (e < 0 || e >= n || l < 0 || l >= n)
+      throw Error("a token names an entity outside the " + std::to_string(n) + " positions given");
+    return (at[static_cast<size_t>(l)] - at[static_cast<size_t>(e)]).norm() <= togetherDistance(spec, e, l) ? load : -1;
+  };
+  const int load = atCarrier(i);
+  for (size_t k = 0; load >= 0 && k < i; ++k)  // a load of two carriers rides with the first
+    if (step[k].isMotion() && atCarrier(k) == load) return -1;
+  return load;
+}
+
+std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
+                                       const std::vector<Vector2d>& decided,
+                                       const std::optional<Eigen::AlignedBox2d>& table) {
+  const auto n = static_cast<int>(decided.size());
+  for (const Token& t : step)
+    if (t.entity < 0 || t.entity >= n || t.target >= n)
+      throw Error("a token names an entity outside the " + std::to_string(n) + " positions given");
+  // Who moves: the motions and the loads riding with them.
+  std::vector<int> load_of(step.size(), -1);
+  std::vector<bool> rides(step.size(), false), moving(decided.size(), false);
+  for (size_t i = 0; i < step.size(); ++i)
+    if (step[i].isMotion() && (load_of[i] = ridingLoad(spec, step, i, decided)) >= 0)
+      rides[static_cast<size_t>(load_of[i])] = true;
+  std::vector<size_t> movers;
+  for (size_t i = 0; i < step.size(); ++i) {
+    if (!step[i].isMotion() || rides[i]) continue;
+    movers.push_back(i);
+    moving[static_cast<size_t>(step[i].entity)] = true;
+    if (load_of[i] >= 0) moving[static_cast<size_t>(step[static_cast<size_t>(load_of[i])].entity)] = true;
+  }
+  const auto obstacle = [&](int e) { return spec.footprint(e).obstacle; };
+  // How far the body of e at p is inside the table's edges (metres; < 0: over one).
+  const auto edgeGap = [&](int e, const Vector2d& p) {
+    if (!table) return std::numeric_limits<double>::infinity();
+    const Vector2d lo = p - table->min(), hi = table->max() - p;
+    return std::min({lo.x(), lo.y(), hi.x(), hi.y()}) - spec.footprint(e).radius_m;
+  };
+  std::vector<Vector2d> ends = decided;
+  // Bodies an end point must keep clear of: standing ones, then ends placed before.
+  std::vector<int> placed;
+  for (int e = 0; e < n; ++e)
+    if (!moving[static_cast<size_t>(e)] && obstacle(e)) placed.push_back(e);
+  constexpr double kSlack = 1e-9;  // floating point, not geometry
+  // Free: on the table, and no closer than contact to a placed body (plus `gap` to any but
+  // the motion's target).
+  const auto free = [&](int entity, const Vector2d& at, int partner, int target, double gap) {
+    if (edgeGap(entity, at) < std::min(0.0, edgeGap(entity, decided[static_cast<size_t>(entity)]))) return false;
+    if (!obstacle(entity)) return true;
+    for (int b : placed)
+      if (b != partner && (at - ends[static_cast<size_t>(b)]).norm() <
+                              spec.contactDistance(entity, b) + (b == target ? 0.0 : gap) - kSlack)
+        return false;
+    return true;
+  };
+  const auto rotated = [](const Vector2d& v, double a) {
+    return Vector2d(std::cos(a) * v.x() - std::sin(a) * v.y(), std::sin(a) * v.x() + std::cos(a) * v.y());
+  };
+  for (size_t i : movers) {
+    const Token& t = step[i];
+    const Vector2d start = decided[static_cast<size_t>(t.entity)], target = decided[static_cast<size_t>(t.target)];
+    const Vector2d end = endPoint(spec, model, step, i, decided);
+    const int load = load_of[i] >= 0 ? step[static_cast<size_t>(load_of[i])].entity : -1;
+    Vector2d load_end = Vector2d::Zero();
+    if (load >= 0) {
+      const Vector2d d = target - start;
+      const Vector2d u = d.norm() < kMinApproachM ? Vector2d(decided[static_cast<size_t>(load)] - start).normalized()
+                                                  : Vector2d(d.normalized());
+      load_end = end + spec.contactDistance(t.entity, load) * u;
+    }
+    // The rule's end point, else the nearest turn about the target that is free.
+    Vector2d e_best = end, l_best = load_end;
+    bool found = false;
+    for (int k = 0; !found && k * kEndTurnStepRad <= kMaxEndTurnRad + 1e-12; ++k)
+      for (int sign : {1, -1}) {
+        if (k == 0 && sign < 0) continue;
+        const double angle = sign * k * kEndTurnStepRad;
+        const Vector2d e = target + rotated(end - target, angle), l = target + rotated(load_end - target, angle);
+        // A turned end keeps kEndTurnGapM from the bodies it turned away from: it touches
+        // its target only (what it touches says where it went).
+        const double gap = k == 0 ? 0.0 : kEndTurnGapM;
+        if (free(t.entity, e, load, t.target, gap) && (load < 0 || free(load, l, t.entity, t.target, gap))) {
+          e_best = e, l_best = l, found = true;
+          break;
+        }
+      }
+    // Onto a goal already taken (turning about its centre changes nothing): stop short of
+    // it, on the way, where the body first fits.
+    const Vector2d back = end - start;
+    for (double off = kBackOffStepM; !found && off < back.norm(); off += kBackOffStepM) {
+      const Vector2d shift = -off * back.normalized();
+      if (free(t.entity, end + shift, load, t.target, 0) &&
+          (load < 0 || free(load, load_end + shift, t.entity, t.target, 0)))
+        e_best = end + shift, l_best = load_end + shift, found = true;
+    }
+    ends[static_cast<size_t>(t.entity)] = e_best;
+    if (obstacle(t.entity)) placed.push_back(t.entity);
+    if (load >= 0) {
+      ends[static_cast<size_t>(load)] = l_best;
+      if (obstacle(load)) placed.push_back(load);
+    }
+  }
+  return ends;
 }
 
 }  // namespace ddace::task

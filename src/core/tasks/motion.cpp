@@ -21,9 +21,6 @@ using Eigen::Vector2d;
 constexpr int kCheckSamples = 200;
 /// Distances within this of contact count as contact (floating point, not geometry).
 constexpr double kContactSlack = 1e-9;
-constexpr double kBackOffStepM = 0.001;
-/// A load rides with its carrier when it starts within this of touching it (metres).
-constexpr double kRideReachM = 0.01;
 
 using detail::micrometres;
 
@@ -171,18 +168,9 @@ StepRoles roles(const task::TaskSpec& spec, const std::vector<task::Token>& step
       throw Error("a planned token names an entity outside the " + std::to_string(entities) + " of task '" + spec.name +
                   "'");
   std::vector<bool> carried(step.size(), false);
-  for (size_t i = 0; i < step.size(); ++i) {
-    if (!step[i].isMotion()) continue;
-    const int load = task::carriedLoad(spec, step, i);
-    // A load rides with its carrier when it is at the carrier (a ball passed from afar to
-    // where a robot also goes moves on its own); one carried by two robots rides with the first.
-    if (load < 0 || carried[static_cast<size_t>(load)]) continue;
-    const int e = step[i].entity, l = step[static_cast<size_t>(load)].entity;
-    if ((at[static_cast<size_t>(l)] - at[static_cast<size_t>(e)]).norm() > spec.contactDistance(e, l) + kRideReachM)
-      continue;
-    r.load_of[i] = load;
-    carried[static_cast<size_t>(load)] = true;
-  }
+  for (size_t i = 0; i < step.size(); ++i)
+    if (step[i].isMotion() && (r.load_of[i] = task::ridingLoad(spec, step, i, at)) >= 0)
+      carried[static_cast<size_t>(r.load_of[i])] = true;
   for (size_t i = 0; i < step.size(); ++i) {
     if (!step[i].isMotion() || carried[i]) continue;
     r.movers.push_back(static_cast<int>(i));
@@ -232,81 +220,6 @@ const std::vector<Candidate>& candidates() {
 
 }  // namespace
 
-std::vector<Vector2d> stepEndPositions(const task::TaskSpec& spec, const std::vector<Vector2d>& positions,
-                                       const std::vector<task::Token>& step) {
-  if (positions.size() != spec.entities.size())
-    throw Error("positions of " + std::to_string(positions.size()) + " entities for the " +
-                std::to_string(spec.entities.size()) + " of task '" + spec.name + "'");
-  const StepRoles r = roles(spec, step, positions);
-  std::vector<Vector2d> ends = positions;
-  // Bodies an end point must keep clear of: standing ones, then ends placed before.
-  std::vector<int> placed;
-  for (size_t e = 0; e < positions.size(); ++e)
-    if (!r.moving[e] && isObstacle(spec, static_cast<int>(e))) placed.push_back(static_cast<int>(e));
-  // Free: on the table, and no closer than contact to a placed body (plus `gap` to any but
-  // the motion's target).
-  auto free = [&](int entity, const Vector2d& at, int partner, int target, double gap) {
-    if (edgeGap(spec, entity, at) < std::min(0.0, edgeGap(spec, entity, positions[static_cast<size_t>(entity)])))
-      return false;
-    if (!isObstacle(spec, entity)) return true;
-    for (int b : placed)
-      if (b != partner && (at - ends[static_cast<size_t>(b)]).norm() <
-                              spec.contactDistance(entity, b) + (b == target ? 0.0 : gap) - kContactSlack)
-        return false;
-    return true;
-  };
-  const task::EndPointModel footprints;  // nothing learned: the footprints decide
-  for (int i : r.movers) {
-    const task::Token& t = step[static_cast<size_t>(i)];
-    const Vector2d start = positions[static_cast<size_t>(t.entity)], target = positions[static_cast<size_t>(t.target)];
-    const Vector2d end = task::endPoint(spec, footprints, step, static_cast<size_t>(i), positions);
-    const int load = r.load_of[static_cast<size_t>(i)] >= 0
-                         ? step[static_cast<size_t>(r.load_of[static_cast<size_t>(i)])].entity
-                         : -1;
-    Vector2d load_end = Vector2d::Zero();
-    if (load >= 0) {
-      const Vector2d d = target - start;
-      const Vector2d u = d.norm() < task::kMinApproachM
-                             ? Vector2d(positions[static_cast<size_t>(load)] - start).normalized()
-                             : Vector2d(d.normalized());
-      load_end = end + spec.contactDistance(t.entity, load) * u;
-    }
-    // The rule's end point, else the nearest turn about the target that is free.
-    Vector2d e_best = end, l_best = load_end;
-    bool found = false;
-    for (int k = 0; !found && k * kEndTurnStepRad <= kMaxEndTurnRad + 1e-12; ++k) {
-      for (int sign : {1, -1}) {
-        if (k == 0 && sign < 0) continue;
-        const double angle = sign * k * kEndTurnStepRad;
-        const Vector2d e = target + rotated(end - target, angle), l = target + rotated(load_end - target, angle);
-        // A turned end keeps kEndTurnGapM from the bodies it turned away from: it touches
-        // its target only (what it touches says where it went).
-        const double gap = k == 0 ? 0.0 : kEndTurnGapM;
-        if (free(t.entity, e, load, t.target, gap) && (load < 0 || free(load, l, t.entity, t.target, gap))) {
-          e_best = e, l_best = l, found = true;
-          break;
-        }
-      }
-    }
-    // Onto a goal already taken (turning about its centre changes nothing): stop short of
-    // it, on the way, where the body first fits (metres, kBackOffStepM at a time).
-    const Vector2d back = end - start;
-    for (double off = kBackOffStepM; !found && off < back.norm(); off += kBackOffStepM) {
-      const Vector2d shift = -off * back.normalized();
-      if (free(t.entity, end + shift, load, t.target, 0) &&
-          (load < 0 || free(load, load_end + shift, t.entity, t.target, 0)))
-        e_best = end + shift, l_best = load_end + shift, found = true;
-    }
-    ends[static_cast<size_t>(t.entity)] = e_best;
-    if (isObstacle(spec, t.entity)) placed.push_back(t.entity);
-    if (load >= 0) {
-      ends[static_cast<size_t>(load)] = l_best;
-      if (isObstacle(spec, load)) placed.push_back(load);
-    }
-  }
-  return ends;
-}
-
 task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<Vector2d>& start,
                                   const std::vector<PlannedStep>& steps) {
   const size_t m = spec.entities.size();
@@ -333,7 +246,7 @@ task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<
   for (size_t s = 0; s < steps.size(); ++s) {
     std::vector<task::Token> tokens;
     for (const auto& pt : steps[s]) tokens.push_back(pt.token);
-    const std::vector<Vector2d> ends = stepEndPositions(spec, pos, tokens);
+    const std::vector<Vector2d> ends = task::stepEndPositions(spec, task::EndPointModel{}, tokens, pos, kTable);
     const StepRoles r = roles(spec, tokens, pos);
 
     // Bodies whose path is fixed: standing ones, then each mover (and its load) as chosen.

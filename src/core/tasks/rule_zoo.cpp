@@ -8,6 +8,7 @@
 #include <set>
 
 #include "ddace/common/random.h"
+#include "ddace/task/end_point.h"
 #include "ddace/tasks/generators.h"
 
 namespace ddace::tasks {
@@ -202,7 +203,7 @@ task::TaskSpec zooSpec(const ZooRule& z) {
 }
 
 /// Decides the steps of a rule on one start configuration, moving the entities as it goes
-/// (a motion ends where the demonstration ends it: stepEndPositions, generators.h).
+/// (a motion ends where the demonstration ends it: task::stepEndPositions).
 class Decider {
  public:
   Decider(const task::TaskSpec& spec, const Rule& rule, std::vector<Vector2d> start)
@@ -295,7 +296,7 @@ class Decider {
     if (steps_.empty() || applied_ == steps_.size()) return;
     std::vector<task::Token> tokens;
     for (const auto& m : steps_.back()) tokens.push_back({m.entity, m.action, m.target});
-    pos_ = stepEndPositions(spec_, pos_, tokens);
+    pos_ = task::stepEndPositions(spec_, task::EndPointModel{}, tokens, pos_, kTable);
     applied_ = steps_.size();
   }
 

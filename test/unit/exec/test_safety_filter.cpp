@@ -264,13 +264,13 @@ TEST(SegmentContacts, AreDecidedFromWhereBodiesEndNotWhereTheyAreNow) {
   bodies.push_back(other);
   bodies.push_back(load);
 
-  const SegmentContacts c = segmentContacts({0, 0}, r, end, 2, "move", "G1", bodies, 0.01);
+  const SegmentContacts c = segmentContacts({0, 0}, r, end, 2, "move", "G1", bodies, 0.01, 0.03);
   EXPECT_EQ(c.load, "O1");
   EXPECT_EQ(c.ends_against, (std::vector<std::string>{"R2", "R4"}));
   EXPECT_EQ(c.load_ends_against, (std::vector<std::string>{"R5"}));
 
   bodies.back().position = {0.2, 0};  // out of reach: moves on its own, no load
-  const SegmentContacts far = segmentContacts({0, 0}, r, end, 2, "move", "G1", bodies, 0.01);
+  const SegmentContacts far = segmentContacts({0, 0}, r, end, 2, "move", "G1", bodies, 0.01, 0.03);
   EXPECT_EQ(far.load, "");
   EXPECT_TRUE(far.load_ends_against.empty());
 }

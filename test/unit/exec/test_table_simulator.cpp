@@ -8,6 +8,7 @@
 #include "ddace/common/error.h"
 #include "ddace/exec/scene.h"
 #include "ddace/exec/table_simulator.h"
+#include "ddace/task/end_point.h"
 
 #include "../common/error_of.h"
 
@@ -316,6 +317,12 @@ TEST(TableSimulator, ALoadRidesInFrontOfItsCarrierAndEndsOnItsGoal) {
   // with the same action and target only.
   TableSimulator far(spec, {{0, 0, 0}, {0.2, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
   EXPECT_FALSE(far.ride(R1, O1));
+  // A carrier that stopped where the path follower stops (the stop radius short of contact)
+  // is at its load: task::togetherDistance, as the network reads it.
+  const double stopped = contact + task::stopRadius(spec.arrival_radius);
+  ASSERT_LT(stopped, task::togetherDistance(spec, R1, O1));
+  TableSimulator near(spec, {{0, 0, 0}, {stopped, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
+  EXPECT_TRUE(near.ride(R1, O1));
   EXPECT_TRUE(carries(spec, 2, {R1, "move", G1}, 2, {O1, "move", G1}));
   EXPECT_FALSE(carries(spec, 2, {R1, "move", G1}, 3, {O1, "move", G1}));
   EXPECT_FALSE(carries(spec, 2, {R1, "move", G1}, 2, {O1, "push", G1}));

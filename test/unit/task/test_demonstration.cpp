@@ -701,6 +701,17 @@ TEST(DemonstrationFiles, ASummaryIsWhatReadingDerivesWithoutTheRows) {
         for (size_t j = 0; j < d.steps[k].late.size(); ++j) EXPECT_EQ(s.steps[k].late[j].row, d.steps[k].late[j].row);
       }
       EXPECT_EQ(mergedOnsetNotes(s.source, s.steps, spec).size(), mergedOnsetNotes(d, spec).size());
+      // Counting only (ddace label's read-back of a long recording): the same counts, the last step.
+      const DemonstrationSummary c = summarizeDemonstrationCsv(path, spec, false);
+      EXPECT_EQ(s.step_count, d.steps.size());
+      EXPECT_EQ(c.step_count, d.steps.size());
+      EXPECT_EQ(c.segments, d.segments.size());
+      EXPECT_EQ(c.rows, d.rows());
+      ASSERT_EQ(c.steps.size(), d.steps.empty() ? 0u : 1u);
+      if (!d.steps.empty()) {
+        EXPECT_EQ(c.steps[0].keyframe_row, d.steps.back().keyframe_row);
+        EXPECT_EQ(c.steps[0].tokens, d.steps.back().tokens);
+      }
     }
   }
   // The same errors as reading.

@@ -145,3 +145,46 @@ TEST(TogetherDistance, IsContactPlusTheArrivalRadiusAndTwoRadiiOnAGoal) {
   spec.entities[1].radius_m = 0.001;
   EXPECT_DOUBLE_EQ(task::togetherDistance(spec, 0, 1), 0.06) << "never less than two on one goal";
 }
+
+// Where a step's bodies end, together (stepEndPositions): two robots sent onto one goal end
+// touching, one on it, the other short on its way; an end inside a standing body turns
+// about the target and still touches the target only; a load rides where its carrier
+// counts as at it (togetherDistance: where the follower stops, not only at contact).
+TEST(StepEndPositions, BodiesOfAStepEndWhereTheyFit) {
+  const TaskSpec spec = scene();
+  const EndPointModel none;
+  const int r1 = 0, r2 = 1, b1 = 2, g1 = 3;
+  const double robots = spec.contactDistance(r1, r2);
+  {
+    const std::vector<Vector2d> at = {{0.1, 0.5}, {0.5, 0.1}, {0.9, 0.9}, {0.5, 0.5}};
+    const auto ends = stepEndPositions(spec, none, {{r1, "move", g1}, {r2, "move", g1}}, at);
+    EXPECT_NEAR((ends[r1] - at[g1]).norm(), 0.0, 1e-9) << "the first onto the goal";
+    EXPECT_NEAR((ends[r2] - ends[r1]).norm(), robots, 0.002) << "the second touching it";
+    EXPECT_NEAR((ends[r2] - at[g1]).normalized().dot((at[r2] - at[g1]).normalized()), 1.0, 1e-9) << "short on its way";
+    // Each alone would end on the goal: the rule for one motion does not see the other.
+    EXPECT_NEAR((endPoint(spec, none, {{r1, "move", g1}, {r2, "move", g1}}, 1, at) - at[g1]).norm(), 0.0, 1e-9);
+  }
+  {
+    // R1 to R2 from the left, but B1 stands at R2's left: the end turns about R2.
+    const std::vector<Vector2d> at = {{0.1, 0.5}, {0.5, 0.5}, {0.5 - spec.contactDistance(r2, b1), 0.5}, {0.9, 0.9}};
+    const auto ends = stepEndPositions(spec, none, {{r1, "move", r2}}, at);
+    EXPECT_NEAR((ends[r1] - at[r2]).norm(), robots, 1e-9) << "at contact with its target";
+    EXPECT_GE((ends[r1] - at[b1]).norm(), spec.contactDistance(r1, b1) + kEndTurnGapM - 1e-9) << "clear of B1";
+    EXPECT_EQ(ends[b1], at[b1]);
+  }
+  {
+    // R1 stopped 2.4 cm short of contact with B1 (where the follower stops): B1 rides with it
+    // and ends on G1, R1 behind it; farther than togetherDistance, B1 goes alone.
+    const std::vector<Token> carry = {{r1, "carry", g1}, {b1, "carry", g1}};
+    const double gap = spec.contactDistance(r1, b1) + 0.024;
+    ASSERT_LT(gap, togetherDistance(spec, r1, b1));
+    std::vector<Vector2d> at = {{0.2, 0.5}, {0.9, 0.1}, {0.2 + gap, 0.5}, {0.8, 0.5}};
+    EXPECT_EQ(ridingLoad(spec, carry, 0, at), 1);
+    auto ends = stepEndPositions(spec, none, carry, at);
+    EXPECT_NEAR((ends[b1] - at[g1]).norm(), 0.0, 1e-9);
+    EXPECT_NEAR((ends[r1] - ends[b1]).norm(), spec.contactDistance(r1, b1), 1e-9);
+    at[b1].x() = 0.2 + togetherDistance(spec, r1, b1) + 0.001;
+    EXPECT_EQ(ridingLoad(spec, carry, 0, at), -1) << "a load passed from afar moves on its own";
+  }
+  EXPECT_THROW(stepEndPositions(spec, none, {{r1, "move", 9}}, {{0, 0}, {1, 1}, {2, 2}, {3, 3}}), Error);
+}
