@@ -57,13 +57,15 @@ class PathFollowerNode::Impl {
           "/robots/" + name + "/segment", 10, [this, raw](const ddace::Segment::ConstPtr& m) { onSegment(*raw, *m); });
       robots_[name] = std::move(r);
     }
-    // Objects' segments: where they end (bodies a motion ends against) and which load a
-    // carrier carries (part of its body for its filter).
+    // The other entities' segments (objects, robots driven elsewhere): where they end
+    // (bodies a motion ends against) and which load a carrier carries.
     for (const auto& [name, e] : task_entities_)
-      if (e.kind == task::EntityKind::Object)
+      if (e.kind != task::EntityKind::Goal && !robots_.count(name))
         object_subs_.push_back(nh.subscribe<ddace::Segment>(
             "/robots/" + name + "/segment", 10,
-            [this, name = name](const ddace::Segment::ConstPtr& m) { onObjectSegment(name, *m); }));
+            [this, name = name, object = e.kind == task::EntityKind::Object](const ddace::Segment::ConstPtr& m) {
+              noteSegment(name, object, *m);
+            }));
     entities_sub_ = nh.subscribe("/ddace/entities", 5, &Impl::onEntities, this);
     estop_sub_ = nh.subscribe("/ddace/estop", 5, &Impl::onEstop, this);
     timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz_), &Impl::onTimer, this);
@@ -128,6 +130,7 @@ class PathFollowerNode::Impl {
   }
 
   void onSegment(Robot& r, const ddace::Segment& m) {
+    noteSegment(r.name, false, m);
     if (m.mode == ddace::Segment::MODE_STOP) {
       stopRobot(r, ddace::SegmentStatus::ABORTED, "stopped by the coordinator");
       return;
@@ -169,22 +172,28 @@ class PathFollowerNode::Impl {
   }
 
   /// An object's segment: its step, token and end point (MODE_STOP forgets it).
+  /// An entity's latest segment: its step, token and end point (MODE_STOP forgets it).
   struct ObjectSegment {
     int step = -1;
     std::string action, target;
     Eigen::Vector2d end{0, 0};
+    bool object = false;
   };
-  void onObjectSegment(const std::string& name, const ddace::Segment& m) {
+  /// Every entity's segment as it is sent. A new one of a step makes the robots here
+  /// running that step decide again what they end against (a step's segments arrive one by
+  /// one, in any order, within milliseconds).
+  void noteSegment(const std::string& name, bool object, const ddace::Segment& m) {
     if (m.mode != ddace::Segment::MODE_FOLLOW || m.path.poses.empty()) {
       object_segments_.erase(name);
       return;
     }
     const auto& last = m.path.poses.back().pose.position;
-    object_segments_[name] = {m.step, m.token.action, m.token.target, {last.x, last.y}};
+    object_segments_[name] = {m.step, m.token.action, m.token.target, {last.x, last.y}, object};
+    for (auto& [other, r] : robots_)
+      if (other != name && r->follower && r->step == m.step) r->decided = false;
   }
 
-  /// Where body `name` ends this step: its segment's end point (a robot driven here, an
-  /// object), else where it is now.
+  /// Where body `name` ends this step: its segment's end point, else where it is now.
   Eigen::Vector2d finalPosition(const std::string& name, const Eigen::Vector2d& now) const {
     if (auto it = robots_.find(name); it != robots_.end() && it->second->follower)
       return it->second->follower->endPoint();
@@ -192,9 +201,9 @@ class PathFollowerNode::Impl {
     return now;
   }
 
-  /// Once per segment, at its first filtered cycle (the step's segments are all in by
-  /// then): its load and the bodies its end point and its load's touch
-  /// (exec::segmentContacts, as exec::BodiesExecution decides them for a step).
+  /// Once per segment, at its first filtered cycle and again when another segment of its
+  /// step arrives (never from where bodies are while they move): its load and the bodies its end point and its load's
+  /// touch (exec::segmentContacts, as exec::BodiesExecution decides them for a step).
   void decide(Robot& r, double self_radius) {
     r.decided = true;
     std::vector<exec::BodyAtStart> at;
@@ -205,7 +214,7 @@ class PathFollowerNode::Impl {
       b.position = t.body.position;
       b.final_position = finalPosition(name, t.body.position);
       b.radius_m = t.body.radius_m;
-      if (auto o = object_segments_.find(name); o != object_segments_.end()) {
+      if (auto o = object_segments_.find(name); o != object_segments_.end() && o->second.object) {
         b.object = true;
         b.step = o->second.step;
         b.action = o->second.action;
@@ -372,16 +381,18 @@ class PathFollowerNode::Impl {
       others_.back().age_s = age;
     }
     // The bodies the motion ends against (a robot already on the goal) may be touched,
-    // decided once for the segment, and only once they stand where they end (within the
-    // arrival radius of it): one still on its way there is passed with the margin, as
-    // any other. Its load is part of its body.
+    // decided once for the segment; its load is part of its body.
     if (!r.decided) decide(r, self_radius);
     const exec::SafetyBody* load = nullptr;
-    for (exec::SafetyBody& b : others_) {
-      const bool there = (finalPosition(b.name, b.position) - b.position).norm() <= default_arrival_m_;
-      b.touchable = there && r.ends_against.count(b.name) > 0;
-      b.load_touchable = there && r.load_ends_against.count(b.name) > 0;
+    for (exec::SafetyBody& b : others_)
       if (b.name == r.load) load = &b;
+    const Eigen::Vector2d end = r.follower->endPoint();
+    for (exec::SafetyBody& b : others_) {  // touched as its ending: while it is at the end point
+      b.touchable = r.ends_against.count(b.name) > 0 &&
+                    exec::endsAgainst(end, self_radius, b.position, b.radius_m, safety_.margin_m);
+      b.load_touchable =
+          load && r.load_ends_against.count(b.name) > 0 &&
+          exec::endsAgainst(object_segments_.at(r.load).end, load->radius_m, b.position, b.radius_m, safety_.margin_m);
     }
     return r.safety->filter(r.name, r.pose, self_radius, self_age, nominal,
                             r.follower->progress() * r.follower->lengthM(), others_, r.target, now.toSec(), load);

@@ -98,7 +98,10 @@ inline BodyShape bodyShape(const task::TaskSpec& spec, int i) {
 /// with it (the end-point rule ends a motion at contact with a robot already on the goal, a
 /// queue's last robot, ...). Such a body is touchable like the target (else the filter
 /// would hold the robot a margin off its end point), and its contact with the robot is no
-/// collision (exec/bodies_execution.h).
+/// collision (exec/bodies_execution.h). Decided once, from where the bodies end (a step's
+/// or a segment's start); while it runs, such a body is touchable only while it is at the
+/// end point (endsAgainst from its current position): two robots bound for one goal keep
+/// a margin on the way, and one that stopped short elsewhere is gone round, not pushed.
 bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const Eigen::Vector2d& position,
                  double radius_m, double margin_m);
 

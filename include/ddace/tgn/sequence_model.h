@@ -66,7 +66,7 @@ namespace ddace::tgn {
 /// orders, the last step) and the carried loads among the step rules; /9: what training
 /// decided (TrainingPlan, `plan`) apart from the requested `hyper_parameters` (the rules
 /// switched off: `without`). Older ones are refused (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/9";
+inline constexpr const char* kModelFormat = "ddace-model/10";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {
@@ -166,10 +166,12 @@ struct EpochRecord {
 /// on; it becomes the most probable step in which one does, or END when END is the more
 /// probable of the two (docs/tgn.md, "No empty step").
 struct StepRules {
-  /// No two entities of one step had the same target entity: a step's targets are
-  /// used at most once ("no target" is not a target).
+  /// No two decisions of one step had the same target entity: a step's targets are
+  /// used at most once ("no target" is not a target). With carried loads (load_actions) a
+  /// load and its carrier are one decision: the load's token is not counted.
   bool exclusive_targets = false;
-  /// Every step had exactly this many acting entities (0: the number varied).
+  /// Every step had exactly this many decisions (acting entities, carried loads not
+  /// counted; 0: the number varied).
   int step_size = 0;
   /// Carried loads: the actions objects took (sorted), when in every training step an
   /// object took one only together with an entity at its place (not an object) taking the

@@ -133,11 +133,12 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
   // second robot to a goal ends at the first). Not every body near it now: a robot passing
   // by, or driving into the robot already at its end, is no such body.
   std::set<std::pair<int, int>> ends_against;
-  std::vector<Eigen::Vector2d> final_at(n);  // where each body ends this step
+  std::vector<Eigen::Vector2d> final_at(n);
+  std::vector<bool> has_end(n, false);
   {
     for (int j = 0; j < n; ++j) final_at[j] = table_->truePose(j).position();
     for (const StepMotion& mo : motions)
-      if (!mo.planned.empty()) final_at[mo.entity] = mo.planned.back();
+      if (!mo.planned.empty()) final_at[mo.entity] = mo.planned.back(), has_end[mo.entity] = true;
     for (const StepMotion& mo : motions) {  // robots and loads alike
       if (mo.planned.empty() || !(radius_m_[mo.entity] > 0)) continue;
       for (int j = 0; j < n; ++j)
@@ -146,6 +147,14 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
           ends_against.insert(ordered(mo.entity, j));
     }
   }
+
+  // Whether `a` touches `b` (at `pb`) as its ending: they end against each other (decided
+  // above) and `b` is at `a`'s end point now. On the way they keep a margin apart like any
+  // two bodies, and a body that stopped short elsewhere is gone round, not pushed.
+  const auto ending = [&](int a, int b, const Eigen::Vector2d& pb) {
+    return has_end[a] && ends_against.count(ordered(a, b)) &&
+           endsAgainst(final_at[a], radius_m_[a], pb, radius_m_[b], params_.safety.margin_m);
+  };
 
   // A carrier stopped: arrived (its load goes on the last bit to its end alone), or failed
   // (the load stops where it is). The two touch: no collision until they part.
@@ -191,11 +200,9 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
       for (int j = 0; j < n; ++j)
         if (j != i && radius_m_[j] > 0) {
           others.push_back({names_[j], measured[j].position(), radius_m_[j], robot_[j]});
-          // A motion ends against the bodies decided above, once they stand where they
-          // end (one still on its way is passed with the margin); its load against its own.
-          const bool there = (measured[j].position() - final_at[j]).norm() <= params_.arrival_radius_m;
-          others.back().touchable = there && ends_against.count(ordered(i, j)) > 0;
-          others.back().load_touchable = there && load >= 0 && ends_against.count(ordered(load, j)) > 0;
+          // A motion ends against the bodies decided above; its load against its own.
+          others.back().touchable = ending(i, j, measured[j].position());
+          others.back().load_touchable = load >= 0 && ending(load, j, measured[j].position());
         }
       SafetyBody carried;
       if (load >= 0) carried = {names_[load], measured[load].position(), radius_m_[load], false};
@@ -244,7 +251,8 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
         const double gap = (pa - pb).norm() - radius_m_[a] - radius_m_[b];
         char& touching = touching_[a * n + b];
         if (touching && gap > kPartedM) touching = 0;
-        if (!touching && !exempt.count({a, b}) && !ends_against.count({a, b}) && gap < report_.closest.clearance_m)
+        if (!touching && !exempt.count({a, b}) && !ending(a, b, pb) && !ending(b, a, pa) &&
+            gap < report_.closest.clearance_m)
           report_.closest = {gap, a, b, table_->time(), pa, pb};
       }
     }
@@ -254,7 +262,8 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     for (; contacts_seen_ < contacts.size(); ++contacts_seen_) {
       const BodyContact& c = contacts[contacts_seen_];
       char& touching = touching_[c.a * n + c.b];
-      if (!touching && !exempt.count({c.a, c.b}) && !ends_against.count(ordered(c.a, c.b)))
+      if (!touching && !exempt.count({c.a, c.b}) && !ending(c.a, c.b, table_->truePose(c.b).position()) &&
+          !ending(c.b, c.a, table_->truePose(c.a).position()))
         report_.collisions.push_back(c);
       touching = 1;
     }

@@ -394,8 +394,9 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
     if (numeric && std::stoi(version) < std::stoi(own)) {
       const int v = std::stoi(version);
       r.fail(format_node, "format '" + format + "' is an older model format than " + kModelFormat +
-                              " (its manifest records no training plan" +
-                              (v < 8 ? ", its scene network saw another relational basis" : "") +
+                              " (its scene network saw another relational basis, its step rules counted a "
+                              "carried load as an actor" +
+                              (v < 9 ? ", its manifest records no training plan" : "") +
                               (v < 4 ? ", the step rules learned from the demonstrations" : "") +
                               (v < 3 ? ", and its files are not bound by digests to the model and its task" : "") +
                               "): retrain the model (ddace train)");

@@ -206,10 +206,12 @@ void SequenceModel::Impl::features(const std::vector<Eigen::Vector2d>& pos, cons
   }
 }
 
-void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos,
-                                   const std::vector<Eigen::Vector2d>* previous, float* out,
+void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, size_t count, float* out,
                                    const std::vector<bool>* competing) const {
   const int n = cfg.nodes;
+  if (count == 0) throw Error("relative features: no snapshot");
+  const std::vector<Eigen::Vector2d>& pos = history[count - 1];
+  const std::vector<Eigen::Vector2d>* previous = count > 1 ? &history[count - 2] : nullptr;
   if (!info.plan.relative_features) {  // "Fixed order": the configuration reaches no decision
     std::fill(out, out + static_cast<size_t>(n) * n * kRelativeFeatures, 0.f);
     return;
@@ -262,6 +264,30 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos,
     const auto& was = *previous;
     return (pos[e] - was[e]).norm() > at(e, f) && (pos[e] - was[f]).norm() <= at(e, f);
   };
+  // Each entity's last move (the latest step in which it moved more than the arrival
+  // radius): the entity it went to, or -1 (never moved). The target is where the motion
+  // headed, not where it stopped: a motion ends at contact with an obstacle target (a
+  // carrier further back, behind its load), so "within a distance" would depend on bodies.
+  // It is the entity whose place as the step began lies ahead (beyond the motion's
+  // midpoint, along it) and nearest to where the mover stopped; what it carried started
+  // beside it, behind. Chains over steps: "the giver follows the receiver" two steps after
+  // the handover.
+  std::vector<int> last_went(static_cast<size_t>(n), -1);
+  for (int e = 0; e < n; ++e)
+    for (size_t k = count - 1; k >= 1; --k) {
+      const auto& now = history[k];
+      const auto& was = history[k - 1];
+      const Eigen::Vector2d step = now[static_cast<size_t>(e)] - was[static_cast<size_t>(e)];
+      if (step.norm() <= spec.arrival_radius) continue;
+      double best = std::numeric_limits<double>::infinity();
+      for (int f = 0; f < n; ++f) {
+        if (f == e || (was[static_cast<size_t>(f)] - was[static_cast<size_t>(e)]).dot(step) < 0.5 * step.squaredNorm())
+          continue;
+        const double m = (now[static_cast<size_t>(e)] - was[static_cast<size_t>(f)]).norm();
+        if (m < best) best = m, last_went[static_cast<size_t>(e)] = f;
+      }
+      break;
+    }
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j) {
       float* r = out + (static_cast<size_t>(i) * n + j) * kRelativeFeatures;
@@ -297,6 +323,8 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>& pos,
       }
       r[15] = wentTo(i, j) ? 1.f : 0.f;
       r[16] = wentTo(j, i) ? 1.f : 0.f;
+      r[17] = last_went[static_cast<size_t>(i)] == j ? 1.f : 0.f;
+      r[18] = last_went[static_cast<size_t>(j)] == i ? 1.f : 0.f;
     }
 }
 
@@ -315,8 +343,7 @@ Sequence SequenceModel::Impl::keyframeSequence(const task::Demonstration& d) con
   auto tgt = s.target.accessor<int64_t, 2>();
   for (int64_t k = 0; k < t; ++k) {
     features(d.snapshots[k].positions, nullptr, s.x[k].data_ptr<float>());
-    if (isScene())
-      relative(d.snapshots[k].positions, k > 0 ? &d.snapshots[k - 1].positions : nullptr, s.rel[k].data_ptr<float>());
+    if (isScene()) relative(s.positions.data(), static_cast<size_t>(k) + 1, s.rel[k].data_ptr<float>());
     if (d.snapshots[k].end) {
       s.end[k] = 1;
       continue;
@@ -433,10 +460,10 @@ double SequenceModel::Impl::accuracy(const Batch& batch) {
       const std::vector<double> la(la0, la0 + n * actions);
       std::vector<double> lt(lt0, lt0 + n * targets);
       const bool scene = isScene();
-      const detail::StepDecision d =
-          decide(p_end[b][t], la, lt, by_token ? h.target[b][t] : Tensor(), by_token ? nodes[b][t] : Tensor(),
-                 by_token ? z[b][t] : Tensor(), scene ? batch.positions[static_cast<size_t>(slot)] : kNoPositions,
-                 scene && t > 0 ? &batch.positions[static_cast<size_t>(slot - 1)] : nullptr);
+      const detail::StepDecision d = decide(p_end[b][t], la, lt, by_token ? h.target[b][t] : Tensor(),
+                                            by_token ? nodes[b][t] : Tensor(), by_token ? z[b][t] : Tensor(),
+                                            scene ? &batch.positions[static_cast<size_t>(b * batch.t)] : &kNoPositions,
+                                            scene ? static_cast<size_t>(t) + 1 : 1);
       bool ok = d.end == (end[b][t] == 1);
       for (int64_t i = 0; ok && !d.end && i < n; ++i) {
         const detail::DecodedToken& k = d.tokens[static_cast<size_t>(i)];

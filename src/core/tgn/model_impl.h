@@ -49,9 +49,10 @@ struct SequenceModel::Impl {
   /// Relative features of every pair (canonical order) into out[N][N][kRelativeFeatures].
   /// `competing`, when given ([N], canonical): the nearness ranks count only these
   /// entities as rivals ("Token by token": those not yet given a part in the step).
-  /// `previous`: the snapshot before (canonical), for the last step's relation (null at the
-  /// first snapshot).
-  void relative(const std::vector<Eigen::Vector2d>& pos, const std::vector<Eigen::Vector2d>* previous, float* out,
+  /// `history[0 .. count)`: the snapshots so far (canonical), the last the one whose
+  /// features these are; the ones before it for the relations of the last step and of each
+  /// entity's last move.
+  void relative(const std::vector<Eigen::Vector2d>* history, size_t count, float* out,
                 const std::vector<bool>* competing = nullptr) const;
   Sequence keyframeSequence(const task::Demonstration& canonical) const;
   Sequence frameSequence(const task::Demonstration& canonical) const;
@@ -68,22 +69,20 @@ struct SequenceModel::Impl {
   /// [N][actions] and `lt` [N][targets] log-probabilities (token by token puts the chosen
   /// targets' log-probabilities into `lt`). Scene, token by token: `target_logits` [N,
   /// targets], `nodes` [N, W] and `z` [H] are the network's at the step (else unread).
-  /// `pos`: the snapshot's canonical positions, `previous` the one before (null at the first).
+  /// `history[0 .. count)`: the snapshots so far (canonical), the last the step's.
   detail::StepDecision decide(double p_end, const std::vector<double>& la, std::vector<double>& lt,
                               const torch::Tensor& target_logits, const torch::Tensor& nodes, const torch::Tensor& z,
-                              const std::vector<Eigen::Vector2d>& pos,
-                              const std::vector<Eigen::Vector2d>* previous) const;
+                              const std::vector<Eigen::Vector2d>* history, size_t count) const;
   /// Token by token (scene; docs/tgn.md): the targets of the entities `acting` (canonical)
   /// of one step, chosen one at a time, the surest (entity, target) pair of the pointer's
   /// logits first, each chosen one then given to the heads (its target taken, both out of
-  /// the nearness ranks of `pos`) before the next. `target_logits` [N, targets] are the
+  /// the nearness ranks of the last snapshot of `history`) before the next. `target_logits` [N, targets] are the
   /// heads' with nothing given, on `nodes` [N, W] and `z` [H]. Returns per entity the
   /// target slot (0 = none) and its log-probability when chosen (not acting: 0 and 0).
   std::pair<std::vector<int>, std::vector<double>> chooseTargets(const torch::Tensor& target_logits,
                                                                  const torch::Tensor& nodes, const torch::Tensor& z,
-                                                                 const std::vector<Eigen::Vector2d>& pos,
-                                                                 const std::vector<Eigen::Vector2d>* previous,
-                                                                 const std::vector<bool>& acting) const;
+                                                                 const std::vector<Eigen::Vector2d>* history,
+                                                                 size_t count, const std::vector<bool>& acting) const;
   /// Exact-step accuracy, eval mode: the steps (and END) decide() decodes exactly from
   /// their true history; gnn: frames whose next labels are all right.
   double accuracy(const std::vector<Sequence>& seqs);

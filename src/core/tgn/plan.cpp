@@ -32,11 +32,15 @@ std::vector<graph::Edge> liftedToKinds(const std::vector<graph::Edge>& kept, con
   return out;
 }
 
-/// The rules every step of `train`'s demonstrations kept (StepRules).
+/// The rules every step of `train`'s demonstrations kept (StepRules). Where a carrier and
+/// its load are one decision (carried loads), the step size and the exclusive targets count
+/// decisions: the load's token is its carrier's, not a second actor nor a second use of the
+/// target.
 StepRules stepRulesOf(const task::TaskDir& train) {
   StepRules r;
-  r.exclusive_targets = true;
-  std::set<size_t> sizes;
+  // [0]: every token; [1]: the decisions (objects' tokens left out).
+  bool exclusive[2] = {true, true};
+  std::set<size_t> sizes[2];
   std::set<std::string> loads;
   bool carried = true;
   const auto isObject = [&](int e) {
@@ -48,10 +52,16 @@ StepRules stepRulesOf(const task::TaskDir& train) {
   for (const auto& d : train.demos)
     for (size_t k = 0; k < d.steps.size(); ++k) {
       const auto& step = d.steps[k];
-      sizes.insert(step.tokens.size());
-      std::set<int> targets;
-      for (const auto& t : step.tokens)
-        if (t.target >= 0 && !targets.insert(t.target).second) r.exclusive_targets = false;
+      for (int decisions = 0; decisions < 2; ++decisions) {
+        std::set<int> targets;
+        size_t size = 0;
+        for (const auto& t : step.tokens) {
+          if (decisions == 1 && isObject(t.entity)) continue;
+          ++size;
+          if (t.target >= 0 && !targets.insert(t.target).second) exclusive[decisions] = false;
+        }
+        sizes[decisions].insert(size);
+      }
       // Carried loads: who stands at an object's place as the step begins.
       const auto& pos = d.snapshots[k].positions;
       std::map<int, const task::Token*> token;
@@ -74,8 +84,10 @@ StepRules stepRulesOf(const task::TaskDir& train) {
         if (token.count(o) && !with_carrier) carried = false;
       }
     }
-  r.step_size = sizes.size() == 1 ? static_cast<int>(*sizes.begin()) : 0;
   if (carried) r.load_actions.assign(loads.begin(), loads.end());
+  const int by = r.load_actions.empty() ? 0 : 1;
+  r.exclusive_targets = exclusive[by];
+  r.step_size = sizes[by].size() == 1 ? static_cast<int>(*sizes[by].begin()) : 0;
   return r;
 }
 
@@ -112,11 +124,18 @@ TrainingPlan planTraining(const task::TaskDir& train, const TrainOptions& option
   p.relative_features = options.uses(Rule::Relative) && !(options.uses(Rule::FixedOrder) && p.fixed_order);
   if (!p.relative_features) return p;  // the rules below shape what the scene says
   p.parked_out_of_ranks = options.uses(Rule::Parked);
-  // Token by token: where every step's targets were exclusive and some step had several.
+  // Token by token: where every step's targets were exclusive and some step had several
+  // (decisions: a carried load's token is its carrier's).
+  const bool loads_carried = !p.step_rules.load_actions.empty();
+  const auto decisions = [&](const task::Step& s) {
+    return std::count_if(s.tokens.begin(), s.tokens.end(), [&](const task::Token& t) {
+      return !loads_carried || train.spec.entities[static_cast<size_t>(t.entity)].kind != task::EntityKind::Object;
+    });
+  };
   p.token_by_token =
       options.uses(Rule::TokenByToken) && p.step_rules.exclusive_targets &&
-      std::any_of(train.demos.begin(), train.demos.end(), [](const task::Demonstration& d) {
-        return std::any_of(d.steps.begin(), d.steps.end(), [](const task::Step& s) { return s.tokens.size() >= 2; });
+      std::any_of(train.demos.begin(), train.demos.end(), [&](const task::Demonstration& d) {
+        return std::any_of(d.steps.begin(), d.steps.end(), [&](const task::Step& s) { return decisions(s) >= 2; });
       });
   // Shuffled names: only names to shuffle (the identity embedding) and steps the scene decides.
   const std::vector<std::vector<int>> groups =

@@ -22,31 +22,22 @@ double SequenceModel::stepAccuracy(const std::vector<task::Demonstration>& demos
 
 detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector<double>& la, std::vector<double>& lt,
                                                  const Tensor& target_logits, const Tensor& nodes, const Tensor& z,
-                                                 const std::vector<Eigen::Vector2d>& pos,
-                                                 const std::vector<Eigen::Vector2d>* previous) const {
+                                                 const std::vector<Eigen::Vector2d>* history, size_t count) const {
   const int64_t n = cfg.nodes;
+  const std::vector<Eigen::Vector2d>& pos = history[count - 1];
   const StepRules& rules = info.plan.step_rules;
-  detail::StepDecision decision = detail::decideStep(p_end, la, cfg.actions, lt, cfg.targets, rules);
-  if (decision.end) return decision;
-  if (info.plan.token_by_token) {
-    // Token by token (docs/tgn.md): who acts, and how, is the decoded step's; their targets
-    // are chosen one at a time.
-    std::vector<bool> acting(static_cast<size_t>(n));
-    for (int64_t i = 0; i < n; ++i)
-      acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
-    const auto [target, log_p] = chooseTargets(target_logits, nodes, z, pos, previous, acting);
-    for (int64_t i = 0; i < n; ++i)
-      if (acting[static_cast<size_t>(i)]) {
-        decision.tokens[static_cast<size_t>(i)].target = target[static_cast<size_t>(i)];
-        lt[static_cast<size_t>(i * cfg.targets + target[static_cast<size_t>(i)])] = log_p[static_cast<size_t>(i)];
-      }
-  }
+  // Carried loads (StepRules::load_actions): a load and the entities at its place decide as
+  // one. The joint decoder sees the decisions only: each load's heads join those of the
+  // entities at its place (log p(carrier's token) + log p(the load's: the same load action
+  // and target, else idle)) and the load itself stays out; it then takes the token of the
+  // one who carries it.
+  std::vector<detail::Load> loads;
+  std::vector<bool> load_action(static_cast<size_t>(cfg.actions), false);
+  std::vector<double> la_joint = la, lt_joint = lt;
   if (!rules.load_actions.empty()) {
-    // Carried loads: a load and the entities at its place decide as one (StepRules).
     const auto isObject = [&](int64_t c) {
       return spec.entities[static_cast<size_t>(order.task_of[static_cast<size_t>(c)])].kind == task::EntityKind::Object;
     };
-    std::vector<detail::Load> loads;
     for (int64_t o = 0; o < n; ++o) {
       if (!isObject(o)) continue;
       detail::Load load{static_cast<int>(o), {}};
@@ -58,17 +49,59 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
           load.carriers.push_back(static_cast<int>(c));
       loads.push_back(load);
     }
-    std::vector<bool> load_action(static_cast<size_t>(cfg.actions), false);
     for (const std::string& a : rules.load_actions)
       if (vocabIndex(a) >= 0) load_action[static_cast<size_t>(vocabIndex(a) + 1)] = true;
+    const int64_t actions = cfg.actions, targets = cfg.targets;
+    for (const detail::Load& load : loads) {
+      const int64_t o = load.object;
+      for (int c : load.carriers) {
+        int best = 1;  // the carrier's most probable acting class, with the load's part
+        for (int64_t a = 0; a < actions; ++a) {
+          la_joint[static_cast<size_t>(c * actions + a)] +=
+              la[static_cast<size_t>(o * actions + (load_action[static_cast<size_t>(a)] ? a : 0))];
+          if (a > 0 &&
+              la_joint[static_cast<size_t>(c * actions + a)] > la_joint[static_cast<size_t>(c * actions + best)])
+            best = static_cast<int>(a);
+        }
+        if (load_action[static_cast<size_t>(best)])
+          for (int64_t t = 0; t < targets; ++t)
+            lt_joint[static_cast<size_t>(c * targets + t)] += lt[static_cast<size_t>(o * targets + t)];
+      }
+      for (int64_t a = 0; a < actions; ++a) la_joint[static_cast<size_t>(o * actions + a)] = a == 0 ? 0.0 : -1e9;
+    }
+  }
+  detail::StepDecision decision = detail::decideStep(p_end, la_joint, cfg.actions, lt_joint, cfg.targets, rules);
+  if (decision.end) return decision;
+  if (info.plan.token_by_token) {
+    // Token by token (docs/tgn.md): who acts, and how, is the decoded step's; their targets
+    // are chosen one at a time.
+    std::vector<bool> acting(static_cast<size_t>(n));
+    for (int64_t i = 0; i < n; ++i)
+      acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
+    const auto [target, log_p] = chooseTargets(target_logits, nodes, z, history, count, acting);
+    for (int64_t i = 0; i < n; ++i)
+      if (acting[static_cast<size_t>(i)]) {
+        decision.tokens[static_cast<size_t>(i)].target = target[static_cast<size_t>(i)];
+        lt[static_cast<size_t>(i * cfg.targets + target[static_cast<size_t>(i)])] = log_p[static_cast<size_t>(i)];
+      }
+  }
+  if (!rules.load_actions.empty()) {
+    for (const detail::Load& load : loads)
+      for (int c : load.carriers)
+        if (load_action[static_cast<size_t>(decision.tokens[static_cast<size_t>(c)].action)]) {
+          decision.tokens[static_cast<size_t>(load.object)] = decision.tokens[static_cast<size_t>(c)];
+          break;
+        }
+    // Where two carriers took a load action with one load: the more probable of the ways
+    // the rule allows (detail::coupleLoads).
     detail::coupleLoads(decision.tokens, la, cfg.actions, lt, cfg.targets, loads, load_action);
   }
   return decision;
 }
 
 std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTargets(
-    const Tensor& target_logits, const Tensor& nodes, const Tensor& z, const std::vector<Eigen::Vector2d>& pos,
-    const std::vector<Eigen::Vector2d>* previous, const std::vector<bool>& acting) const {
+    const Tensor& target_logits, const Tensor& nodes, const Tensor& z, const std::vector<Eigen::Vector2d>* history,
+    size_t count, const std::vector<bool>& acting) const {
   const int64_t n = cfg.nodes, targets = cfg.targets;
   std::vector<int> target(static_cast<size_t>(n), 0);
   std::vector<double> log_p(static_cast<size_t>(n), 0);
@@ -97,7 +130,7 @@ std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTarg
     }
     if (std::none_of(open.begin(), open.end(), [](bool o) { return o; })) break;
     Tensor given = torch::zeros({n, n, kRelativeFeatures});
-    relative(pos, previous, given.data_ptr<float>(), &competing);
+    relative(history, count, given.data_ptr<float>(), &competing);
     logits = net->heads(nodes, given, z).target + takenMask(taken).squeeze(0);
   }
   return {target, log_p};
@@ -116,15 +149,14 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
   torch::NoGradGuard no_grad;
   Tensor x = torch::zeros({t, n, m.cfg.features});
   Tensor rel = m.isScene() ? torch::zeros({t, n, n, kRelativeFeatures}) : Tensor();
-  std::vector<Eigen::Vector2d> pos(static_cast<size_t>(n));  // canonical order; the last snapshot's after the loop
-  std::vector<Eigen::Vector2d> previous;                     // the snapshot before pos (none at the first)
+  // The snapshots in canonical order.
+  std::vector<std::vector<Eigen::Vector2d>> canonical(static_cast<size_t>(t), std::vector<Eigen::Vector2d>(n));
   for (int64_t k = 0; k < t; ++k) {
-    if (k > 0) previous = pos;
     for (int64_t c = 0; c < n; ++c)
-      pos[static_cast<size_t>(c)] =
+      canonical[static_cast<size_t>(k)][static_cast<size_t>(c)] =
           history[static_cast<size_t>(k)].positions[static_cast<size_t>(m.order.task_of[static_cast<size_t>(c)])];
-    m.features(pos, nullptr, x[k].data_ptr<float>());
-    if (m.isScene()) m.relative(pos, k > 0 ? &previous : nullptr, rel[k].data_ptr<float>());
+    m.features(canonical[static_cast<size_t>(k)], nullptr, x[k].data_ptr<float>());
+    if (m.isScene()) m.relative(canonical.data(), static_cast<size_t>(k) + 1, rel[k].data_ptr<float>());
   }
   Heads h;
   Tensor nodes, z;  // scene: the node embeddings and the GRU output, for token by token
@@ -148,8 +180,8 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
   std::vector<double> lt = logSoftmax(h.target);        // [N][targets]
   const bool by_token = m.info.plan.token_by_token;
   const detail::StepDecision decision =
-      m.decide(p.end_probability, la, lt, by_token ? h.target : Tensor(), by_token ? nodes[t - 1] : Tensor(), z, pos,
-               t > 1 ? &previous : nullptr);
+      m.decide(p.end_probability, la, lt, by_token ? h.target : Tensor(), by_token ? nodes[t - 1] : Tensor(), z,
+               canonical.data(), static_cast<size_t>(t));
   p.end = decision.end;
   if (p.end) return p;
   const std::vector<detail::DecodedToken>& step = decision.tokens;

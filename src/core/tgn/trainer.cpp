@@ -87,6 +87,10 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train,
   // to the bit.
   const bool token_by_token = plan.token_by_token;
   SplitMix64 given_rng(options.seed ^ 0xBF58476D1CE4E5B9ULL);
+  const bool loads_carried = !plan.step_rules.load_actions.empty();
+  std::vector<bool> is_object(static_cast<size_t>(impl->cfg.nodes));
+  for (size_t c = 0; c < is_object.size(); ++c)
+    is_object[c] = impl->spec.entities[static_cast<size_t>(impl->order.task_of[c])].kind == task::EntityKind::Object;
   const auto giveTokens = [&](Batch& batch, const std::vector<size_t>& which) {
     const int64_t n = impl->cfg.nodes;
     batch.given = torch::zeros({batch.b, batch.t, n});
@@ -98,9 +102,11 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train,
       auto act = s.action.accessor<int64_t, 2>();
       auto tgt = s.target.accessor<int64_t, 2>();
       for (int64_t t = 0; t < s.x.size(0); ++t) {
+        // The decisions: a carried load is given with its carrier (the same token; targets
+        // are exclusive, so no other carrier has it), never on its own.
         std::vector<int64_t> acting;
         for (int64_t i = 0; i < n; ++i)
-          if (act[t][i] > 0) acting.push_back(i);
+          if (act[t][i] > 0 && !(loads_carried && is_object[static_cast<size_t>(i)])) acting.push_back(i);
         if (acting.size() < 2) continue;
         const size_t count = given_rng.next() % acting.size();
         if (count == 0) continue;
@@ -110,12 +116,17 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train,
           const int64_t i = acting[k];
           given[static_cast<int64_t>(b)][t][i] = 1;
           competing[static_cast<size_t>(i)] = false;
+          for (int64_t o = 0; loads_carried && o < n; ++o)
+            if (is_object[static_cast<size_t>(o)] && act[t][o] == act[t][i] && tgt[t][o] == tgt[t][i]) {
+              given[static_cast<int64_t>(b)][t][o] = 1;
+              competing[static_cast<size_t>(o)] = false;
+            }
           if (tgt[t][i] > 0) {
             taken[static_cast<int64_t>(b)][t][tgt[t][i] - 1] = 1;
             competing[static_cast<size_t>(tgt[t][i] - 1)] = false;
           }
         }
-        impl->relative(s.positions[static_cast<size_t>(t)], t > 0 ? &s.positions[static_cast<size_t>(t - 1)] : nullptr,
+        impl->relative(s.positions.data(), static_cast<size_t>(t) + 1,
                        batch.rel_slots[static_cast<int64_t>(b)][t].data_ptr<float>(), &competing);
       }
     }

@@ -227,6 +227,31 @@ TEST(BodiesExecution, TheFilterKeepsACarriedLoadClearOfAStandingRobot) {
   EXPECT_EQ(without.report().collisions.front().b, 3);
 }
 
+TEST(BodiesExecution, TwoRobotsEndingAgainstEachOtherKeepApartOnTheWay) {
+  // R1 ends on G1; R2 ends touching R1 there (the second robot to a goal), but their paths
+  // cross on the way at the same time: there they are bodies like any others.
+  const auto s =
+      spec({{"R1", task::EntityKind::Robot}, {"R2", task::EntityKind::Robot}, {"G1", task::EntityKind::Goal}});
+  const double contact = 2 * task::kDefaultRobotRadius;
+  const std::vector<Pose2D> start{{0.1, 0.3, 0}, {0.3, 0.5, -M_PI / 2}, {0.5, 0.3, 0}};
+  Path r2 = line({0.3, 0.5}, {0.3, 0.1});
+  for (const Vector2d& p : line({0.3, 0.1}, {0.5, 0.1})) r2.push_back(p);
+  for (const Vector2d& p : line({0.5, 0.1}, {0.5, 0.3 - contact})) r2.push_back(p);
+  const std::vector<task::Token> tokens{token(0, 2), token(1, 2)};
+  const std::vector<Path> paths{line({0.1, 0.3}, {0.5, 0.3}), r2};
+
+  BodiesExecution without = model(false);
+  runStep(without, s, start, tokens, paths);
+  EXPECT_FALSE(without.report().collisions.empty()) << "running into each other on the way is a collision";
+
+  BodiesExecution with = model(true);
+  const StepExecution a = runStep(with, s, start, tokens, paths);
+  EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+  EXPECT_TRUE(with.report().collisions.empty());
+  EXPECT_GT(with.report().closest.clearance_m, 0.005) << "the filter kept its margin on the way";
+  EXPECT_LT((a.positions[1] - a.positions[0]).norm(), contact + 0.03) << "R2 ends at R1";
+}
+
 TEST(BodiesExecution, GeneratedTask2ReplayedWithBodiesFinishesWithoutACollision) {
   // Eleven robots, the generated Task 2 (demonstrations that stop at contact) replayed; every
   // motion ends where the end points learned from the demonstrations say.

@@ -70,6 +70,14 @@ TEST(TrainingPlan, IsWhatTheDemonstrationsDecide) {
   EXPECT_FALSE(f.token_by_token) << "the fetcher and its box share a target";
   EXPECT_EQ(names(fetch, f.name_groups), (Groups{{"R1", "R2"}}));
   EXPECT_EQ(f.step_rules.load_actions, std::vector<std::string>{"carry"});
+  EXPECT_EQ(f.step_rules.step_size, 1) << "a carrier and its load are one decision, not two actors";
+  EXPECT_TRUE(f.step_rules.exclusive_targets) << "the load's target is its carrier's";
+  // Several loads at once (zoo: each box fetched by its nearest free robot, then carried to
+  // the goals): three decisions a step, each target once, decided token by token.
+  const tgn::TrainingPlan boxes = planOf(generate("zoo:50", 6));
+  EXPECT_EQ(boxes.step_rules.load_actions, std::vector<std::string>{"carry"});
+  EXPECT_EQ(boxes.step_rules.step_size, 3);
+  EXPECT_TRUE(boxes.step_rules.exclusive_targets && boxes.token_by_token);
 
   const tgn::TrainingPlan g = planOf(goals);
   EXPECT_TRUE(g.names_or_scene) << "every robot's and goal's role is the scene's";
@@ -147,11 +155,47 @@ TEST(ParkedEntities, AParkedRobotIsNoRivalOfTheFreeOnes) {
   const auto rank = [&](bool rule) {
     impl->info.plan.parked_out_of_ranks = rule;
     std::vector<float> rel(static_cast<size_t>(n * n * tgn::kRelativeFeatures));
-    impl->relative(pos, &d.snapshots[0].positions, rel.data());
+    const std::vector<std::vector<Eigen::Vector2d>> history = {d.snapshots[0].positions, pos};
+    impl->relative(history.data(), history.size(), rel.data());
     return rel[static_cast<size_t>((q1 * n + free) * tgn::kRelativeFeatures + 3)];  // j's nearness rank seen from i
   };
   EXPECT_FLOAT_EQ(rank(true), 1.f);
   EXPECT_FLOAT_EQ(rank(false), 0.5f);
+}
+
+// Each one's last move: in a relay ("... hands it to the teammate nearest to it, who carries
+// it to the goal ..., then the giver follows the receiver"), as the last step begins the
+// giver's last move (the handover, two steps back) went to the receiver, which the last
+// step's relation (the receiver carried the box on) no longer says.
+TEST(RelationalBasis, RemembersEachOnesLastMove) {
+  const task::TaskDir relay = generate("zoo:16", 2);
+  auto impl = tgn::prepare(relay, tgn::TrainOptions{});
+  impl->build();
+  const task::Demonstration d = impl->order.toCanonical(relay.demos.front());
+  ASSERT_EQ(d.steps.size(), 4u);
+  // Step 2: the giver carries the box to the receiver; step 4: the giver moves to it.
+  const task::Token* handover = nullptr;
+  for (const auto& t : d.steps[1].tokens)
+    if (relay.spec.entities[static_cast<size_t>(impl->order.task_of[static_cast<size_t>(t.entity)])].kind ==
+        task::EntityKind::Robot)
+      handover = &t;
+  ASSERT_NE(handover, nullptr);
+  const int giver = handover->entity, receiver = handover->target, n = impl->cfg.nodes;
+  ASSERT_EQ(d.steps[3].tokens, (std::vector<task::Token>{{giver, "move", receiver}}));
+  std::vector<std::vector<Eigen::Vector2d>> history;
+  for (size_t k = 0; k <= 3; ++k) history.push_back(d.snapshots[k].positions);
+  std::vector<float> rel(static_cast<size_t>(n * n * tgn::kRelativeFeatures));
+  impl->relative(history.data(), history.size(), rel.data());
+  const auto feature = [&](int i, int j, int f) {
+    return rel[static_cast<size_t>((i * n + j) * tgn::kRelativeFeatures + f)];
+  };
+  EXPECT_FLOAT_EQ(feature(giver, receiver, 15), 0.f) << "the giver did not move in the last step";
+  EXPECT_FLOAT_EQ(feature(giver, receiver, 17), 1.f) << "its last move went to the receiver";
+  EXPECT_FLOAT_EQ(feature(receiver, giver, 18), 1.f) << "seen from the receiver";
+  for (int j = 0; j < n; ++j)
+    if (j != receiver) {
+      EXPECT_FLOAT_EQ(feature(giver, j, 17), 0.f) << "one entity per last move";
+    }
 }
 
 // One decoder: the step accuracy training prints and stepAccuracy returns is the fraction of
