@@ -186,7 +186,12 @@ class MockRobotNode::Impl {
   }
 
   void onRobotSegment(int r, const ddace::Segment& m) {
-    running_.erase(r);
+    const auto was = running_.find(r);
+    if (was != running_.end()) {
+      if (m.mode != ddace::Segment::MODE_STOP && m.segment_id == was->second.segment_id) return;  // a re-sent copy
+      running_.erase(was);
+      dropLoad(r);  // replaced before it ended: its load no longer rides (the follower drops it too)
+    }
     if (m.mode == ddace::Segment::MODE_STOP) return dropLoad(r);
     if (auto t = token(m)) {
       running_[r] = {m.step, m.segment_id, *t};

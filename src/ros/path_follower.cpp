@@ -90,7 +90,8 @@ class PathFollowerNode::Impl {
     /// (standing there, or ending there in this step) and its load's.
     bool decided = false;
     std::set<std::string> ends_against, load_ends_against;
-    std::string load;  ///< the object it carries ("" = none)
+    std::string load;                ///< the object it carries ("" = none)
+    Eigen::Vector2d load_end{0, 0};  ///< its load's end point, as decided
     uint32_t segment_id = 0;
     exec::Pose2D pose;
     bool pose_known = false, pose_stale = true;
@@ -171,7 +172,6 @@ class PathFollowerNode::Impl {
     }
   }
 
-  /// An object's segment: its step, token and end point (MODE_STOP forgets it).
   /// An entity's latest segment: its step, token and end point (MODE_STOP forgets it).
   struct ObjectSegment {
     int step = -1;
@@ -185,6 +185,8 @@ class PathFollowerNode::Impl {
   void noteSegment(const std::string& name, bool object, const ddace::Segment& m) {
     if (m.mode != ddace::Segment::MODE_FOLLOW || m.path.poses.empty()) {
       object_segments_.erase(name);
+      for (auto& [other, r] : robots_)  // a carrier of it decides again: no load any more
+        if (r->load == name) r->decided = false;
       return;
     }
     const auto& last = m.path.poses.back().pose.position;
@@ -226,6 +228,9 @@ class PathFollowerNode::Impl {
         exec::segmentContacts(r.pose.position(), self_radius, r.follower->endPoint(), r.step, r.action, r.target, at,
                               safety_.margin_m, default_arrival_m_);
     r.load = c.load;
+    if (auto it = object_segments_.find(r.load); !r.load.empty() && it != object_segments_.end())
+      r.load_end = it->second.end;
+    else r.load.clear();
     r.ends_against = {c.ends_against.begin(), c.ends_against.end()};
     r.load_ends_against = {c.load_ends_against.begin(), c.load_ends_against.end()};
   }
@@ -339,7 +344,9 @@ class PathFollowerNode::Impl {
         }
         if (!c.at_contact_with.empty() && o.distance_to_goal_m <= default_arrival_m_) {
           // A motion toward a body ends at contact with it: held there by a body it ends
-          // against, within the task's arrival radius of its end point, it has arrived.
+          // against, within the task's arrival radius of its end point, it has arrived. (The
+          // coordinator checks the DONE with its own arrival_radius_m, the task's by default:
+          // set smaller, it ignores such a DONE and the step times out, wheels at zero.)
           ROS_INFO("path_follower: %s: ended at contact with %s, %.1f cm from its end point", name.c_str(),
                    c.at_contact_with.c_str(), 100 * o.distance_to_goal_m);
           r.stale_counting = false;
@@ -390,9 +397,8 @@ class PathFollowerNode::Impl {
     for (exec::SafetyBody& b : others_) {  // touched as its ending: while it is at the end point
       b.touchable = r.ends_against.count(b.name) > 0 &&
                     exec::endsAgainst(end, self_radius, b.position, b.radius_m, safety_.margin_m);
-      b.load_touchable =
-          load && r.load_ends_against.count(b.name) > 0 &&
-          exec::endsAgainst(object_segments_.at(r.load).end, load->radius_m, b.position, b.radius_m, safety_.margin_m);
+      b.load_touchable = load && r.load_ends_against.count(b.name) > 0 &&
+                         exec::endsAgainst(r.load_end, load->radius_m, b.position, b.radius_m, safety_.margin_m);
     }
     return r.safety->filter(r.name, r.pose, self_radius, self_age, nominal,
                             r.follower->progress() * r.follower->lengthM(), others_, r.target, now.toSec(), load);
@@ -402,7 +408,7 @@ class PathFollowerNode::Impl {
   std::map<std::string, task::Entity> task_entities_;     ///< by name, when the task is known
   std::map<std::string, Tracked> bodies_;                 ///< every tracked body by name
   std::vector<exec::SafetyBody> others_;                  ///< scratch of filterCommand
-  std::map<std::string, ObjectSegment> object_segments_;  ///< by object name
+  std::map<std::string, ObjectSegment> object_segments_;  ///< by entity name (robots and objects)
   std::vector<ros::Subscriber> object_subs_;
   exec::FollowerGains gains_;
   exec::SafetyParams safety_;

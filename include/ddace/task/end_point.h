@@ -127,18 +127,14 @@ int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, c
 /// about the target to the nearest place at the same distance kEndTurnGapM clear of every
 /// other body (the motion still touches its target, and only it); where no turn frees it (a
 /// goal another body already stands on) it stops short on its way where its body first
-/// fits: two robots sent onto one goal end touching, one on it. `order`: which end is placed
-/// first -- the tokens' order (a demonstration, where the person paces the motions so) or the
-/// order of arrival (a step executed at once: the nearest end first, the first to get there
-/// takes the place; ties in token order). With `table` (its corners),
+/// fits: two robots sent onto one goal end touching, one on it. With `table` (its corners),
 /// no end is moved further over its edge than its entity starts. Used wherever a step is
 /// executed with bodies: the generated demonstrations (with nothing learned), `ddace eval`
-/// with bodies and the coordinator (arrival order). Throws ddace::Error for a token naming an
-/// entity outside `decided`.
-enum class PlacementOrder { Tokens, Arrival };
+/// with bodies and the coordinator. Throws ddace::Error for a token naming an entity outside
+/// `decided`.
 std::vector<Eigen::Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model,
                                               const std::vector<Token>& step,
-                                              const std::vector<Eigen::Vector2d>& decided, PlacementOrder order,
+                                              const std::vector<Eigen::Vector2d>& decided,
                                               const std::optional<Eigen::AlignedBox2d>& table = std::nullopt);
 
 /// A motion has arrived when `position` is within `arrival_radius` of its end point.

@@ -110,9 +110,9 @@ using PlannedStep = std::vector<PlannedToken>;
 /// label_delay_rows late), at kGeneratorSpeed along the longest path of the step and no
 /// shorter than kMinStepDurationS, eased in and out (smoothstep). Motions end at
 /// task::stepEndPositions() with nothing learned (the footprints' end points) on kTable. A carried load
-/// (task::carriedLoad, starting within 1 cm of touching its carrier) rides in front of its carrier at their contact
-/// distance along the carrier's heading (it swings there over the first kLoadSwingFraction of the carry), and the
-/// carrier's path ends heading at the load's end. Each mover of a step, in token order, takes the least changed
+/// (task::ridingLoad: starting within task::togetherDistance of its carrier) rides in front of its carrier at their
+/// contact distance along the carrier's heading (it swings there over the first kLoadSwingFraction of the carry), and
+/// the carrier's path ends heading at the load's end. Each mover of a step, in token order, takes the least changed
 /// candidate path (its shape plus an extra arc kAvoidBends, a turned start kAvoidHooks, a lag kAvoidLags, its load
 /// swung the other way round; ordered by how far the path moves from its shape, then by lag) that keeps its body, and
 /// its load's, on the table and no closer than contact to a standing body or to a mover placed before it (no closer

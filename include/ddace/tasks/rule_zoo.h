@@ -29,7 +29,7 @@
 // generators' (tasks::simulateSteps, generators.h): straight unless bodies are in the way,
 // ending at contact with a robot or a box and on a goal, a carried box in front of its
 // carrier (same target, same step); later steps are decided where the earlier ones ended
-// (tasks::stepEndPositions). Start configurations are uniform over the table with the
+// (task::stepEndPositions). Start configurations are uniform over the table with the
 // generators' border and separation; one in which any decision is a near tie (the chosen
 // and a competing entity's distance, or coordinate, closer than kSceneDecisionMargin) is
 // drawn again. The same rule id, seed and count give byte-identical output.

@@ -324,8 +324,7 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
   }
   // Once every token is known valid: where the step's bodies end, together (an end point
   // depends on the step's other tokens: a load, an end another motion takes).
-  const std::vector<Eigen::Vector2d> ends =
-      task::stepEndPositions(spec_, end_points_, d.tokens, decided, task::PlacementOrder::Arrival);
+  const std::vector<Eigen::Vector2d> ends = task::stepEndPositions(spec_, end_points_, d.tokens, decided);
   for (size_t i = 0; i < d.tokens.size(); ++i) step.tokens[i].goal = ends[static_cast<size_t>(d.tokens[i].entity)];
   std::ostringstream os;
   os << "step " << step.step + 1 << ":";

@@ -236,7 +236,6 @@ void MotionSegmenter::finish() {
   for (size_t e = 0; e < state_.size(); ++e)
     if (state_[e].moving) endMotion(e, history_.back().p[e], history_.size() - 1);
   for (auto& st : state_) st.moving = false;
-  finished_ = true;
 }
 
 std::vector<Motion> MotionSegmenter::take() {

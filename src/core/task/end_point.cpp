@@ -70,23 +70,6 @@ EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstrati
       const std::vector<Token>& step = d.steps[static_cast<size_t>(seg.step)].tokens;
       const auto at = std::find(step.begin(), step.end(), seg.token);
       if (at == step.end()) continue;
-      // A motion that stopped touching another mover of its step with the same target
-      // (the second robot onto a goal) ended where the first left room, not where motions
-      // onto that target end: it teaches nothing (stepEndPositions places it).
-      const std::vector<Vector2d>& last = d.positions.at(static_cast<size_t>(seg.last_row));
-      const int load = carriedLoad(spec, step, static_cast<size_t>(at - step.begin()));
-      bool displaced = false;
-      for (size_t j = 0; j < step.size() && !displaced; ++j) {
-        const int other = step[j].entity;
-        displaced = step[j].isMotion() && other != seg.token.entity && step[j].target == seg.token.target &&
-                    (load < 0 || other != step[static_cast<size_t>(load)].entity) && spec.footprint(other).obstacle &&
-                    spec.footprint(seg.token.entity).obstacle &&
-                    (last.at(static_cast<size_t>(other)) - last.at(static_cast<size_t>(seg.token.entity))).norm() <=
-                        spec.contactDistance(other, seg.token.entity) + kArrivalToleranceM &&
-                    (last.at(static_cast<size_t>(other)) - p).norm() <
-                        (last.at(static_cast<size_t>(seg.token.entity)) - p).norm();
-      }
-      if (displaced) continue;
       keys[tokenKey(seg.token, spec)].push_back(offset);
       classes[motionClass(spec, step, static_cast<size_t>(at - step.begin()))].push_back(offset);
     }
@@ -175,7 +158,7 @@ int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, c
 }
 
 std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
-                                       const std::vector<Vector2d>& decided, PlacementOrder order,
+                                       const std::vector<Vector2d>& decided,
                                        const std::optional<Eigen::AlignedBox2d>& table) {
   const auto n = static_cast<int>(decided.size());
   for (const Token& t : step)
@@ -193,12 +176,6 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
     movers.push_back(i);
     moving[static_cast<size_t>(step[i].entity)] = true;
     if (load_of[i] >= 0) moving[static_cast<size_t>(step[static_cast<size_t>(load_of[i])].entity)] = true;
-  }
-  if (order == PlacementOrder::Arrival) {
-    std::vector<double> way(step.size(), 0.0);
-    for (size_t i : movers)
-      way[i] = (endPoint(spec, model, step, i, decided) - decided[static_cast<size_t>(step[i].entity)]).norm();
-    std::stable_sort(movers.begin(), movers.end(), [&](size_t a, size_t b) { return way[a] < way[b]; });
   }
   const auto obstacle = [&](int e) { return spec.footprint(e).obstacle; };
   // How far the body of e at p is inside the table's edges (metres; < 0: over one).

@@ -246,8 +246,7 @@ task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<
   for (size_t s = 0; s < steps.size(); ++s) {
     std::vector<task::Token> tokens;
     for (const auto& pt : steps[s]) tokens.push_back(pt.token);
-    const std::vector<Vector2d> ends =
-        task::stepEndPositions(spec, task::EndPointModel{}, tokens, pos, task::PlacementOrder::Tokens, kTable);
+    const std::vector<Vector2d> ends = task::stepEndPositions(spec, task::EndPointModel{}, tokens, pos, kTable);
     const StepRoles r = roles(spec, tokens, pos);
 
     // Bodies whose path is fixed: standing ones, then each mover (and its load) as chosen.

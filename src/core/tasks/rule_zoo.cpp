@@ -296,7 +296,7 @@ class Decider {
     if (steps_.empty() || applied_ == steps_.size()) return;
     std::vector<task::Token> tokens;
     for (const auto& m : steps_.back()) tokens.push_back({m.entity, m.action, m.target});
-    pos_ = task::stepEndPositions(spec_, task::EndPointModel{}, tokens, pos_, task::PlacementOrder::Tokens, kTable);
+    pos_ = task::stepEndPositions(spec_, task::EndPointModel{}, tokens, pos_, kTable);
     applied_ = steps_.size();
   }
 

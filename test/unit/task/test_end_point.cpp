@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 
 #include "ddace/task/end_point.h"
-#include "ddace/tasks/generators.h"
 
 using namespace ddace;
 using namespace ddace::task;
@@ -158,24 +157,17 @@ TEST(StepEndPositions, BodiesOfAStepEndWhereTheyFit) {
   const double robots = spec.contactDistance(r1, r2);
   {
     const std::vector<Vector2d> at = {{0.1, 0.5}, {0.5, 0.1}, {0.9, 0.9}, {0.5, 0.5}};
-    const auto ends = stepEndPositions(spec, none, {{r1, "move", g1}, {r2, "move", g1}}, at, PlacementOrder::Tokens);
+    const auto ends = stepEndPositions(spec, none, {{r1, "move", g1}, {r2, "move", g1}}, at);
     EXPECT_NEAR((ends[r1] - at[g1]).norm(), 0.0, 1e-9) << "the first onto the goal";
     EXPECT_NEAR((ends[r2] - ends[r1]).norm(), robots, 0.002) << "the second touching it";
     EXPECT_NEAR((ends[r2] - at[g1]).normalized().dot((at[r2] - at[g1]).normalized()), 1.0, 1e-9) << "short on its way";
-    // Executed at once, the nearer one (R2, 0.4 m against R1's 0.4 m + 0.1) gets there first.
-    std::vector<Vector2d> near = at;
-    near[r1] = {0.0, 0.5};
-    const auto arrived =
-        stepEndPositions(spec, none, {{r1, "move", g1}, {r2, "move", g1}}, near, PlacementOrder::Arrival);
-    EXPECT_NEAR((arrived[r2] - at[g1]).norm(), 0.0, 1e-9);
-    EXPECT_NEAR((arrived[r1] - arrived[r2]).norm(), robots, 0.002);
     // Each alone would end on the goal: the rule for one motion does not see the other.
     EXPECT_NEAR((endPoint(spec, none, {{r1, "move", g1}, {r2, "move", g1}}, 1, at) - at[g1]).norm(), 0.0, 1e-9);
   }
   {
     // R1 to R2 from the left, but B1 stands at R2's left: the end turns about R2.
     const std::vector<Vector2d> at = {{0.1, 0.5}, {0.5, 0.5}, {0.5 - spec.contactDistance(r2, b1), 0.5}, {0.9, 0.9}};
-    const auto ends = stepEndPositions(spec, none, {{r1, "move", r2}}, at, PlacementOrder::Tokens);
+    const auto ends = stepEndPositions(spec, none, {{r1, "move", r2}}, at);
     EXPECT_NEAR((ends[r1] - at[r2]).norm(), robots, 1e-9) << "at contact with its target";
     EXPECT_GE((ends[r1] - at[b1]).norm(), spec.contactDistance(r1, b1) + kEndTurnGapM - 1e-9) << "clear of B1";
     EXPECT_EQ(ends[b1], at[b1]);
@@ -188,31 +180,11 @@ TEST(StepEndPositions, BodiesOfAStepEndWhereTheyFit) {
     ASSERT_LT(gap, togetherDistance(spec, r1, b1));
     std::vector<Vector2d> at = {{0.2, 0.5}, {0.9, 0.1}, {0.2 + gap, 0.5}, {0.8, 0.5}};
     EXPECT_EQ(ridingLoad(spec, carry, 0, at), 1);
-    auto ends = stepEndPositions(spec, none, carry, at, PlacementOrder::Arrival);
+    auto ends = stepEndPositions(spec, none, carry, at);
     EXPECT_NEAR((ends[b1] - at[g1]).norm(), 0.0, 1e-9);
     EXPECT_NEAR((ends[r1] - ends[b1]).norm(), spec.contactDistance(r1, b1), 1e-9);
     at[b1].x() = 0.2 + togetherDistance(spec, r1, b1) + 0.001;
     EXPECT_EQ(ridingLoad(spec, carry, 0, at), -1) << "a load passed from afar moves on its own";
   }
-  EXPECT_THROW(
-      stepEndPositions(spec, none, {{r1, "move", 9}}, {{0, 0}, {1, 1}, {2, 2}, {3, 3}}, PlacementOrder::Tokens), Error);
-}
-
-// The second robot onto a goal the first took stops short, touching it (Task 4's R4 behind
-// R3 on G1): where it stopped is the placement's doing, not where motions onto G1 end, so
-// it teaches no offset; every learned end onto G1 is on it.
-TEST(EndPoint, TheSecondOntoATakenGoalTeachesNothing) {
-  tasks::GeneratorOptions o;
-  o.family = "task4";
-  o.demos = 6;
-  const TaskDir dir = tasks::generate(o);
-  const EndPointModel m = learnEndPoints(dir.spec, dir.demos);
-  int onto_goal = 0;
-  for (const auto& [key, end] : m.by_key)
-    if (key.size() > 3 && key.compare(key.size() - 3, 3, ":G1") == 0) {
-      EXPECT_LT(end.offset.norm(), 0.005) << key;
-      ++onto_goal;
-    }
-  EXPECT_GE(onto_goal, 1);
-  EXPECT_LT(m.by_class.at("robot->goal").offset.norm(), 0.005);
+  EXPECT_THROW(stepEndPositions(spec, none, {{r1, "move", 9}}, {{0, 0}, {1, 1}, {2, 2}, {3, 3}}), Error);
 }

@@ -154,10 +154,12 @@ TEST(ContactRecording, RobotsStoppingAtContactAreTrackedLearnedAndRun) {
     EXPECT_TRUE(learned.finished);
     EXPECT_EQ(learned.done, learned.motions);
     EXPECT_EQ(learned.motions, 4u);  // [R1:move:R3 R2:move:R4] [R3:move:G1 R4:move:G1]
-    // Told the motions end on the robots' centres, it waits for R1 and R2 forever.
+    // Told the motions end on the robots' centres, the step's placement still ends them
+    // where bodies fit (task::stepEndPositions: an end inside a standing robot backs off to
+    // contact), so it counts them done too: the bodies decide, not the model's format.
     const Counted centred = coordinate(d, centres);
-    EXPECT_FALSE(centred.finished);
-    EXPECT_EQ(centred.done, 0u);
+    EXPECT_TRUE(centred.finished);
+    EXPECT_EQ(centred.done, centred.motions);
   }
 
   // Run: each recording's steps decided again, paths from the library toward the learned
