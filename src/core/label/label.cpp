@@ -7,6 +7,7 @@
 #include <set>
 
 #include "ddace/common/error.h"
+#include "ddace/task/end_point.h"
 
 namespace ddace::label {
 
@@ -109,9 +110,10 @@ void Labeller::arrive(std::vector<Motion> found) {
   }
 }
 
-// Entities that moved with a motion all the way (at most touching): its loads or carrier.
+// Entities that moved with a motion all the way (at one place with it, task::togetherDistance:
+// as the end-point rule reads a carrier and its load): its loads or carrier.
 bool Labeller::staysWith(const Motion& m, int j) const {
-  return m.max_distance[j] <= contactDistance(spec_, m.entity, j) + spec_.arrival_radius &&
+  return m.max_distance[j] <= task::togetherDistance(spec_, m.entity, j) &&
          (m.at_offset[j] - m.at_onset[j]).norm() >= options_.nudge_m;
 }
 

@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "ddace/common/random.h"
+#include "ddace/task/end_point.h"
 #include "micrometres.h"
 
 namespace ddace::tasks {
@@ -439,8 +440,7 @@ void shareTargetsByBodies(task::TaskSpec& spec) {
     double tolerance = c.tolerance;
     for (const auto& other : spec.goal_conditions)
       if (other.at == c.at && other.entity != c.entity) {
-        const double reach =
-            spec.contactDistance(spec.entityIndex(c.entity), spec.entityIndex(other.entity)) + spec.arrival_radius;
+        const double reach = task::togetherDistance(spec, spec.entityIndex(c.entity), spec.entityIndex(other.entity));
         tolerance = std::max(tolerance, std::ceil(reach * 100 - 1e-9) / 100);
       }
     grown.push_back(tolerance);
