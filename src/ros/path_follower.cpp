@@ -196,6 +196,7 @@ class PathFollowerNode::Impl {
     if (m.mode == ddace::Segment::MODE_FOLLOW) {
       try {
         const exec::PlannedPath p = ros_exec::fromMsg(m.path, m.stddev_m, "/robots/" + name + "/segment");
+        if (p.points.empty()) throw Error("its path has no points");
         object_segments_[name] = {m.segment_id, m.step, m.token.action, m.token.target, p.points.back(), object};
         redecideStep(name, m.step);
         return;
