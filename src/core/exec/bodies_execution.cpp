@@ -200,6 +200,7 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
       for (int j = 0; j < n; ++j)
         if (j != i && radius_m_[j] > 0) {
           others.push_back({names_[j], measured[j].position(), radius_m_[j], robot_[j]});
+          others.back().standing = motion_of[j] < 0 || !movers[motion_of[j]].running;
           // A motion ends against the bodies decided above; its load against its own.
           others.back().touchable = ending(i, j, measured[j].position());
           others.back().load_touchable = load >= 0 && ending(load, j, measured[j].position());
@@ -218,9 +219,9 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
         out.failures.push_back(c.reason);
         continue;
       }
-      if (!c.at_contact_with.empty() && o.distance_to_goal_m <= params_.arrival_radius_m) {
-        // Ended at contact with a body its motion ends against, within the arrival radius
-        // of its end point: arrived, as the follower node decides it.
+      if (endedAtContact(c, o.distance_to_goal_m, gains_.arrival_radius_m)) {
+        // Ended at contact with a body its motion ends against: arrived, as the follower
+        // node decides it.
         mv.running = false;
         --running;
         table_->commandWheels(i, {});
