@@ -139,6 +139,7 @@ int main(int argc, char** argv) {
     const fs::path self = fs::read_symlink("/proc/self/exe");
     const fs::path tool = self.parent_path() / "ddace";
     const fs::path repo = bench::repositoryFromArgs(argc, argv);
+    bench::noOtherOptions(argc, argv, "bench_csv_memory");
     const std::string load = loadAverage();
     const fs::path work = fs::temp_directory_path() / ("ddace_bench_csv_memory_" + std::to_string(::getpid()));
     fs::remove_all(work);

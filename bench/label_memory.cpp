@@ -13,7 +13,8 @@
 // inferred tokens go to a temporary file, the read-back check counts the steps: nothing
 // grows with the recording's rows or steps.
 // Writes docs/bench/label_memory.md under the repository it finds at run time (--repo DIR).
-// Usage: bench_label_memory [--repo DIR] [--mb N]  (N: the long recording's size in MiB,
+// Usage: ddace bench label_memory [--repo DIR] [--mb N], or the binary bench_label_memory
+// with the same options (N: the long recording's size in MiB,
 // about: later plays have longer times, some 4 % more; default 200. --mb 1024: a 1 GiB
 // recording, some 3.5 GB of scratch space and minutes).
 #include <sys/resource.h>
@@ -218,14 +219,15 @@ int main(int argc, char** argv) {
     const bool met = reset_ok && growth_kb * 1024.0 < 0.01 * static_cast<double>(big_bytes);
     std::ostringstream md;
     md << "# Peak memory of labelling a long recording\n\n"
-       << "Written by `bench_label_memory` (bench/label_memory.cpp; `ddace bench label_memory`). Do not edit.\n\n"
+       << "Written by `ddace bench label_memory --mb " << target_mb
+       << "` (bench/label_memory.cpp; the goal's 1 GiB: `--mb 1024`). Do not edit.\n\n"
        << "A Task 4 demonstration moved by a person (`label::humanMotion`, seed 1, " << demo.rows()
        << " rows at 30 Hz) played forward and backward in turn, without labels: once (the reference) and " << plays
        << " times (the long recording), in the same run. In process: what `ddace label` runs on a recording (the "
           "check, `label::inferRecording` into a `label::TokenSpill`, `label::writeLabelledRecording`, the read-back "
           "check), peak resident set (VmHWM) reset before each. "
-          "Tool: `ddace label DIR --out OUT` in a child process, peak resident set from wait4. `--mb "
-       << target_mb << "`, " << utcNow() << ", 1-minute load average at the start: " << load << ".\n\n"
+          "Tool: `ddace label DIR --out OUT` in a child process, peak resident set from wait4. "
+       << utcNow() << ", 1-minute load average at the start: " << load << ".\n\n"
        << "| recording | CSV size | inferred steps | tokens | in process: peak RSS (MB) | in process: wall (s) "
           "| `ddace label`: peak RSS (MB) | `ddace label`: wall (s) |\n"
        << "|---|---:|---:|---:|---:|---:|---:|---:|\n";

@@ -32,6 +32,12 @@ inline std::filesystem::path repositoryFromArgs(int& argc, char** argv, std::vec
   return findRepository(given, needs);
 }
 
+/// For a benchmark that takes no options but --repo (after repositoryFromArgs): throws
+/// ddace::Error naming the first other argument (`ddace bench NAME ...` hands them on).
+inline void noOtherOptions(int argc, char** argv, const std::string& name) {
+  if (argc > 1) throw Error(name + " takes no options but --repo DIR (got '" + argv[1] + "')");
+}
+
 /// Writes `markdown` as docs/bench/<name>.md under `repo` and says where on stdout.
 inline void writeResults(const std::filesystem::path& repo, const std::string& name, const std::string& markdown) {
   const std::filesystem::path out = repo / "docs" / "bench" / (name + ".md");

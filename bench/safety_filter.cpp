@@ -118,6 +118,7 @@ Run run(int repeat) {
 int main(int argc, char** argv) {
   try {
     const auto repo = bench::repositoryFromArgs(argc, argv);
+    bench::noOtherOptions(argc, argv, "bench_safety_filter");
     const std::string load = loadAverage();
     Run all;
     std::ostringstream runs;

@@ -27,6 +27,7 @@ using namespace ddace;
 int main(int argc, char** argv) try {
   // The repository, found at run time (--repo DIR, DDACE_REPO, ...): bench/results.h.
   const fs::path kRepo = bench::repositoryFromArgs(argc, argv, {"bench/tgn_train_reference.py"});
+  bench::noOtherOptions(argc, argv, "bench_tgn_train");
   const int kEpochs = 30, kRounds = 2;
   tasks::GeneratorOptions g;
   g.family = "task2";

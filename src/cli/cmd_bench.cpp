@@ -14,8 +14,29 @@ namespace {
 
 namespace fs = std::filesystem;
 
+/// `a` quoted for /bin/sh.
+std::string shellQuoted(const std::string& a) {
+  std::string q = "'";
+  for (char c : a) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
 int runBench(const std::vector<std::string>& argv) {
-  Args args(argv, {"--repo"}, {"--list"});
+  // ddace bench's own arguments (NAME..., --list, --repo DIR) and, from the first other
+  // --option on, the options of the one benchmark named, handed to it as they are
+  // (`ddace bench label_memory --mb 1024`); each benchmark refuses what it does not take.
+  std::vector<std::string> own, passed;
+  for (size_t i = 0; i < argv.size(); ++i) {
+    if (argv[i] == "--repo" || argv[i] == "--list") {
+      own.push_back(argv[i]);
+      if (argv[i] == "--repo" && i + 1 < argv.size()) own.push_back(argv[++i]);
+    } else if (!passed.empty() || argv[i].rfind("--", 0) == 0) {
+      passed.push_back(argv[i]);
+    } else {
+      own.push_back(argv[i]);
+    }
+  }
+  Args args(own, {"--repo"}, {"--list"});
   const fs::path self = fs::read_symlink("/proc/self/exe");
   std::vector<fs::path> benches;
   for (const auto& entry : fs::directory_iterator(self.parent_path())) {
@@ -34,6 +55,9 @@ int runBench(const std::vector<std::string>& argv) {
     if (it == benches.end()) throw Error("unknown benchmark '" + want + "' (ddace bench --list shows them)");
     chosen.push_back(*it);
   }
+  if (!passed.empty() && chosen.size() != 1)
+    throw Error("ddace bench: options for a benchmark (" + passed.front() +
+                ") need exactly one benchmark named before them, e.g. ddace bench label_memory --mb 1024");
   if (chosen.empty()) chosen = benches;
   if (chosen.empty()) throw Error("no benchmarks built next to " + self.string());
   // Every benchmark writes into the same repository: found once here (an error before any
@@ -43,7 +67,9 @@ int runBench(const std::vector<std::string>& argv) {
   int failed = 0;
   for (const auto& b : chosen) {
     std::cout << "== " << b.filename().string().substr(6) << "\n" << std::flush;
-    const int rc = std::system(("'" + b.string() + "'").c_str());
+    std::string command = shellQuoted(b.string());
+    for (const auto& a : passed) command += " " + shellQuoted(a);
+    const int rc = std::system(command.c_str());
     if (rc != 0) {
       std::cerr << "ddace bench: " << b.filename().string() << " exited with status " << rc << "\n";
       ++failed;
@@ -53,8 +79,11 @@ int runBench(const std::vector<std::string>& argv) {
   return failed ? 1 : 0;
 }
 
-DDACE_COMMAND({"bench", "ddace bench [NAME...] [--list] [--repo DIR]",
-               "run the benchmarks (all by default); each writes docs/bench/<name>.md of the repository", runBench});
+DDACE_COMMAND({"bench",
+               "ddace bench [NAME...] [--list] [--repo DIR] | ddace bench NAME [--repo DIR] [BENCH-OPTIONS...]",
+               "run the benchmarks (all by default); each writes docs/bench/<name>.md of the repository. Options "
+               "after one NAME go to that benchmark (ddace bench label_memory --mb 1024)",
+               runBench});
 
 }  // namespace
 }  // namespace ddace::cli

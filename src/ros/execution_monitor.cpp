@@ -126,6 +126,9 @@ class ExecutionMonitorNode::Impl {
     const double overlap_m = rosparam::param(pnh, "collision_overlap_m", defaults.collision_overlap_m);
     if (!(overlap_m >= 0)) throw Error("parameter '" + pnh.resolveName("collision_overlap_m") + "' must be >= 0");
     clearance_ = std::make_unique<exec::ClearanceMeter>(radii, overlap_m);
+    radii_ = radii;
+    contact_margin_m_ = rosparam::param(pnh, "contact_margin_m", defaults.contact_margin_m);
+    if (!(contact_margin_m_ >= 0)) throw Error("parameter '" + pnh.resolveName("contact_margin_m") + "' must be >= 0");
     collisions_fail_ = rosparam::param(pnh, "collisions_fail", defaults.collisions_fail);
     at_.assign(spec_.entities.size(), Eigen::Vector2d::Constant(NAN));
     const int gt = rosparam::param(pnh, "ground_truth_demo", defaults.ground_truth_demo);
@@ -335,7 +338,7 @@ class ExecutionMonitorNode::Impl {
       }
     }
     const size_t before = clearance_->collisions().size();
-    clearance_->update(m.header.stamp.toSec(), at_);
+    clearance_->update(m.header.stamp.toSec(), at_, allowed_);
     for (size_t k = before; k < clearance_->collisions().size(); ++k) {
       const auto& c = clearance_->collisions()[k];
       ROS_WARN("execution_monitor: collision: %s and %s overlap", spec_.entities[c.a].name.c_str(),
@@ -358,9 +361,41 @@ class ExecutionMonitorNode::Impl {
     seg.goal = {m.goal.x, m.goal.y};
     for (const auto& p : m.path.poses) seg.planned.emplace_back(p.pose.position.x, p.pose.position.y);
     seg.stddev_m = m.stddev_m;
+    noteStepSegment(m);
     auto pos = positions_.find(m.entity);
     if (pos != positions_.end()) seg.executed.push_back(pos->second);
     running_[m.entity] = m.segment_id;
+  }
+
+  /// The running step's motions, as their segments arrive (one by one, within
+  /// milliseconds): who may touch whom (exec::AllowedContacts, the rule `ddace eval` uses),
+  /// from the segments' end points and where the other bodies stand.
+  void noteStepSegment(const ddace::Segment& m) {
+    const int i = spec_.entityIndex(m.entity);
+    if (i < 0 || m.path.poses.empty()) return;
+    task::Token token;
+    try {
+      token = ros_exec::fromMsg(m.token, spec_);
+    } catch (const std::exception& e) {
+      ROS_WARN("execution_monitor: segment %u of %s: %s", m.segment_id, m.entity.c_str(), e.what());
+      return;
+    }
+    if (m.step != allowed_step_) step_ends_.clear(), allowed_step_ = m.step;
+    const auto& last = m.path.poses.back().pose.position;
+    step_ends_[i] = {token, Eigen::Vector2d(last.x, last.y)};
+    std::vector<task::Token> tokens;
+    std::vector<Eigen::Vector2d> ends = at_;
+    std::vector<bool> moves(at_.size(), false);
+    for (const auto& [e, te] : step_ends_) {
+      tokens.push_back(te.first);
+      ends[e] = te.second;
+      moves[e] = true;
+    }
+    try {
+      allowed_ = exec::AllowedContacts(spec_, tokens, ends, moves, radii_, contact_margin_m_);
+    } catch (const std::exception& e) {
+      ROS_WARN("execution_monitor: step %d: %s", m.step + 1, e.what());
+    }
   }
 
   void onStatus(const ddace::SegmentStatus& m) {
@@ -656,7 +691,12 @@ class ExecutionMonitorNode::Impl {
   std::map<std::string, Eigen::Vector2d> positions_;
   std::map<std::string, Eigen::Vector2d> starts_;  ///< first tracked position of each entity
   std::unique_ptr<exec::ClearanceMeter> clearance_;
-  bool collisions_fail_ = true;      ///< Params::collisions_fail
+  std::vector<double> radii_;  ///< every entity's footprint (0: a goal)
+  double contact_margin_m_ = 0;
+  int allowed_step_ = -1;                                             ///< the step of step_ends_
+  std::map<int, std::pair<task::Token, Eigen::Vector2d>> step_ends_;  ///< its motions: token, end point
+  exec::AllowedContacts allowed_;                                     ///< who may touch whom in it
+  bool collisions_fail_ = true;                                       ///< Params::collisions_fail
   std::vector<Eigen::Vector2d> at_;  ///< latest positions in the task's order (NaN = not seen)
   std::vector<ros::Time> requests_;
   std::set<uint32_t> request_ids_;

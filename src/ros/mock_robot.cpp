@@ -151,6 +151,12 @@ class MockRobotNode::Impl {
     m.distance_to_goal_m = s.distance_to_goal_m;
     m.message = s.message;
     status_pubs_.at(s.entity).publish(m);
+    // Ended: the object's segment is forgotten (a later robot segment must not pair with it).
+    const auto it = running_.find(s.entity);
+    if (it != running_.end() && it->second.segment_id == s.segment_id &&
+        (s.state == exec::SegmentState::Done || s.state == exec::SegmentState::Failed ||
+         s.state == exec::SegmentState::Aborted))
+      running_.erase(it);
   }
   void publish(const std::optional<exec::ObjectStatus>& s) {
     if (s) publish(*s);

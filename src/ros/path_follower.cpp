@@ -59,13 +59,19 @@ class PathFollowerNode::Impl {
     }
     // The other entities' segments (objects, robots driven elsewhere): where they end
     // (bodies a motion ends against) and which load a carrier carries.
+    // A segment is forgotten when it ends (its status DONE, FAILED or ABORTED) or another
+    // replaces it.
     for (const auto& [name, e] : task_entities_)
-      if (e.kind != task::EntityKind::Goal && !robots_.count(name))
+      if (e.kind != task::EntityKind::Goal && !robots_.count(name)) {
         object_subs_.push_back(nh.subscribe<ddace::Segment>(
             "/robots/" + name + "/segment", 10,
             [this, name = name, object = e.kind == task::EntityKind::Object](const ddace::Segment::ConstPtr& m) {
               noteSegment(name, object, *m);
             }));
+        object_subs_.push_back(nh.subscribe<ddace::SegmentStatus>(
+            "/robots/" + name + "/segment_status", 20,
+            [this, name = name](const ddace::SegmentStatus::ConstPtr& m) { noteStatus(name, *m); }));
+      }
     entities_sub_ = nh.subscribe("/ddace/entities", 5, &Impl::onEntities, this);
     estop_sub_ = nh.subscribe("/ddace/estop", 5, &Impl::onEstop, this);
     timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz_), &Impl::onTimer, this);
@@ -131,7 +137,6 @@ class PathFollowerNode::Impl {
   }
 
   void onSegment(Robot& r, const ddace::Segment& m) {
-    noteSegment(r.name, false, m);
     if (m.mode == ddace::Segment::MODE_STOP) {
       stopRobot(r, ddace::SegmentStatus::ABORTED, "stopped by the coordinator");
       return;
@@ -165,6 +170,7 @@ class PathFollowerNode::Impl {
       r.segment_id = m.segment_id;
       r.cycle = 0;
       publishStatus(r, m.segment_id, ddace::SegmentStatus::ACCEPTED, 0, 0, "");
+      redecideStep(r.name, m.step);  // validated and accepted: the others of its step decide again
     } catch (const std::exception& e) {
       ROS_ERROR("path_follower: %s: refusing segment %u: %s", r.name.c_str(), m.segment_id, e.what());
       publishStatus(r, m.segment_id, ddace::SegmentStatus::FAILED, 0, 0, e.what());
@@ -172,35 +178,66 @@ class PathFollowerNode::Impl {
     }
   }
 
-  /// An entity's latest segment: its step, token and end point (MODE_STOP forgets it).
+  /// The running segment of an entity driven elsewhere (an object, a robot of another
+  /// follower): its id, step, token and end point.
   struct ObjectSegment {
+    uint32_t id = 0;
     int step = -1;
     std::string action, target;
     Eigen::Vector2d end{0, 0};
     bool object = false;
   };
-  /// Every entity's segment as it is sent. A new one of a step makes the robots here
-  /// running that step decide again what they end against (a step's segments arrive one by
-  /// one, in any order, within milliseconds).
+  /// The segments of the entities driven elsewhere, as they are sent: a valid one replaces
+  /// the entity's last; MODE_STOP, or one its own executor will refuse (a malformed path),
+  /// forgets it. A new one of a step makes the robots here running that step decide again
+  /// what they end against (a step's segments arrive one by one, in any order, within
+  /// milliseconds).
   void noteSegment(const std::string& name, bool object, const ddace::Segment& m) {
-    if (m.mode != ddace::Segment::MODE_FOLLOW || m.path.poses.empty()) {
-      object_segments_.erase(name);
-      for (auto& [other, r] : robots_)  // a carrier of it decides again: no load any more
-        if (r->load == name) r->decided = false;
-      return;
+    if (m.mode == ddace::Segment::MODE_FOLLOW) {
+      try {
+        const exec::PlannedPath p = ros_exec::fromMsg(m.path, m.stddev_m, "/robots/" + name + "/segment");
+        if (p.points.empty()) throw Error("its path has no points");
+        object_segments_[name] = {m.segment_id, m.step, m.token.action, m.token.target, p.points.back(), object};
+        redecideStep(name, m.step);
+        return;
+      } catch (const std::exception& e) {
+        ROS_WARN("path_follower: ignoring segment %u of %s: %s", m.segment_id, name.c_str(), e.what());
+      }
     }
-    const auto& last = m.path.poses.back().pose.position;
-    object_segments_[name] = {m.step, m.token.action, m.token.target, {last.x, last.y}, object};
+    forgetSegment(name);
+  }
+  /// The status of an entity driven elsewhere: its segment ended, it stands where it is.
+  void noteStatus(const std::string& name, const ddace::SegmentStatus& m) {
+    const auto it = object_segments_.find(name);
+    if (it == object_segments_.end() || it->second.id != m.segment_id) return;
+    if (m.status == ddace::SegmentStatus::DONE || m.status == ddace::SegmentStatus::FAILED ||
+        m.status == ddace::SegmentStatus::ABORTED)
+      forgetSegment(name);
+  }
+  void forgetSegment(const std::string& name) {
+    if (!object_segments_.erase(name)) return;
+    for (auto& [other, r] : robots_)  // a carrier of it decides again: no load any more
+      if (r->load == name) r->decided = false;
+  }
+  /// The robots here running step `step` decide again what they end against: `name`'s
+  /// segment of that step arrived.
+  void redecideStep(const std::string& name, int step) {
     for (auto& [other, r] : robots_)
-      if (other != name && r->follower && r->step == m.step) r->decided = false;
+      if (other != name && r->follower && r->step == step) r->decided = false;
   }
 
-  /// Where body `name` ends this step: its segment's end point, else where it is now.
+  /// Where body `name` ends this step: its running segment's end point, else where it is
+  /// now.
   Eigen::Vector2d finalPosition(const std::string& name, const Eigen::Vector2d& now) const {
-    if (auto it = robots_.find(name); it != robots_.end() && it->second->follower)
-      return it->second->follower->endPoint();
+    if (auto it = robots_.find(name); it != robots_.end())
+      return it->second->follower ? it->second->follower->endPoint() : now;
     if (auto it = object_segments_.find(name); it != object_segments_.end()) return it->second.end;
     return now;
+  }
+  /// Whether body `name` stands still: no running segment (exec::SafetyBody::standing).
+  bool standing(const std::string& name) const {
+    if (auto it = robots_.find(name); it != robots_.end()) return !it->second->follower;
+    return !object_segments_.count(name);
   }
 
   /// Once per segment, at its first filtered cycle and again when another segment of its
@@ -342,11 +379,10 @@ class PathFollowerNode::Impl {
           }
           continue;
         }
-        if (!c.at_contact_with.empty() && o.distance_to_goal_m <= default_arrival_m_) {
+        if (exec::endedAtContact(c, o.distance_to_goal_m, r.follower->gains().arrival_radius_m)) {
           // A motion toward a body ends at contact with it: held there by a body it ends
-          // against, within the task's arrival radius of its end point, it has arrived. (The
-          // coordinator checks the DONE with its own arrival_radius_m, the task's by default:
-          // set smaller, it ignores such a DONE and the step times out, wheels at zero.)
+          // against, within the segment's stop radius of its end point, it has arrived (the
+          // coordinator checks the DONE within its arrival radius plus the tolerance).
           ROS_INFO("path_follower: %s: ended at contact with %s, %.1f cm from its end point", name.c_str(),
                    c.at_contact_with.c_str(), 100 * o.distance_to_goal_m);
           r.stale_counting = false;
@@ -395,6 +431,7 @@ class PathFollowerNode::Impl {
       if (b.name == r.load) load = &b;
     const Eigen::Vector2d end = r.follower->endPoint();
     for (exec::SafetyBody& b : others_) {  // touched as its ending: while it is at the end point
+      b.standing = standing(b.name);
       b.touchable = r.ends_against.count(b.name) > 0 &&
                     exec::endsAgainst(end, self_radius, b.position, b.radius_m, safety_.margin_m);
       b.load_touchable = load && r.load_ends_against.count(b.name) > 0 &&
@@ -408,7 +445,7 @@ class PathFollowerNode::Impl {
   std::map<std::string, task::Entity> task_entities_;     ///< by name, when the task is known
   std::map<std::string, Tracked> bodies_;                 ///< every tracked body by name
   std::vector<exec::SafetyBody> others_;                  ///< scratch of filterCommand
-  std::map<std::string, ObjectSegment> object_segments_;  ///< by entity name (robots and objects)
+  std::map<std::string, ObjectSegment> object_segments_;  ///< running ones, by name (driven elsewhere)
   std::vector<ros::Subscriber> object_subs_;
   exec::FollowerGains gains_;
   exec::SafetyParams safety_;

@@ -1,12 +1,14 @@
 // SyntheticCameraNode: see include/ddace/ros/synthetic_camera.h.
 #include "ddace/ros/synthetic_camera.h"
 
+#include <map>
 #include <memory>
 
 #include <cv_bridge/cv_bridge.h>
 #include <image_transport/image_transport.h>
 #include <ros/ros.h>
 
+#include "exec_conversions.h"
 #include "params.h"
 #include "vision_ros.h"
 #include "ddace/EntityArray.h"
@@ -24,6 +26,13 @@ class SyntheticCameraNode::Impl {
                                                         vision::loadMarkerConfig(markers));
     const SyntheticCameraNode::Params defaults;
     frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
+    // Bodies as the task states them; without a task, the default footprint of each kind.
+    const std::string task = rosparam::param<std::string>(pnh, "task", "");
+    if (!task.empty()) {
+      const task::TaskSpec spec = ros_exec::loadTaskSpec(task);
+      for (int i = 0; i < static_cast<int>(spec.entities.size()); ++i)
+        footprints_[spec.entities[static_cast<size_t>(i)].name] = spec.footprint(i);
+    }
     const double rate_hz = rosparam::param(pnh, "rate_hz", defaults.rate_hz);
     if (!(rate_hz > 0 && rate_hz <= 1000))
       throw Error("parameter " + pnh.resolveName("rate_hz") + " must be in (0, 1000]");
@@ -45,7 +54,10 @@ class SyntheticCameraNode::Impl {
     if (!truth_ || truth_->header.stamp <= last_) return;
     if (pub_.getNumSubscribers() == 0) return;  // nobody looks: render nothing
     last_ = truth_->header.stamp;
-    const cv::Mat img = camera_->render(ros_vision::trueEntities(*truth_), (last_ - first_).toSec());
+    std::vector<vision::TrueEntity> truth = ros_vision::trueEntities(*truth_);
+    for (auto& te : truth)
+      if (const auto it = footprints_.find(te.name); it != footprints_.end()) te.footprint = it->second;
+    const cv::Mat img = camera_->render(truth, (last_ - first_).toSec());
     std_msgs::Header h;
     h.stamp = last_;
     h.frame_id = frame_id_;
@@ -62,6 +74,7 @@ class SyntheticCameraNode::Impl {
   std::unique_ptr<vision::SyntheticCamera> camera_;
   sensor_msgs::CameraInfo info_;
   std::string frame_id_;
+  std::map<std::string, task::Footprint> footprints_;  // by entity name, from ~task
   ddace::EntityArray::ConstPtr truth_;
   ros::Time first_, last_;
 };

@@ -13,12 +13,13 @@
 // is done, or when its filter reports a deadlock (the robot stops there; the failure names
 // it), or at the time limit (3x the longest path at cruise speed + 10 s, as the model
 // without bodies). Collisions: two bodies apart that touch (a Box2D contact begins), except
-// the bodies a motion may end against, decided when the step begins: its own target, a
-// carrier's load, and a body its end point touches (one standing still in the step, or the
-// end point of another motion: the second robot to a goal), while that body is at the end point; a pair in contact (a
-// motion that ended at its target) counts again only after it parted (kPartedM), so a robot leaving a neighbour it
-// touches is no collision; bodies placed overlapping at the start never collide. The closest approach is measured on
-// the true poses every cycle over the pairs that are apart, with the same exceptions.
+// the pairs allowed to touch in the step (exec::AllowedContacts, decided when the step
+// begins, the same rule as the run report's: a motion and its own target, a carrier and its
+// load, a motion and a body its end point touches while that body is at the end point); a
+// pair in contact (a motion that ended at its target) counts again only after it parted
+// (kPartedM), so a robot leaving a neighbour it touches is no collision; bodies placed
+// overlapping at the start never collide. The closest approach is measured on the true
+// poses every cycle over the pairs that are apart, with the same exceptions.
 //
 // Owns: the step's control loop and its measurements. Must not: decide where motions end
 // (task/end_point.h, via the planned paths) or score the trial (eval/metrics.h).

@@ -2,20 +2,63 @@
 // smallest gap between any two discs (the closest approach) and every collision (two
 // discs overlapping deeper than a tolerance for tracking noise, counted once per contact
 // until they are again more than the tolerance apart). Two bodies that overlap when both are first seen (a load
-// placed on its carrier) are never measured against each other.
+// placed on its carrier) are never measured against each other, and two bodies allowed to
+// touch in the running step (AllowedContacts) are not measured while they touch.
+//
+// AllowedContacts is the one rule of which bodies may touch while a step runs, used by the
+// execution monitor's run report and `ddace eval` with bodies (exec::BodiesExecution) alike.
 //
 // Used by the execution monitor (mock robots and the real table alike: it reads
-// /ddace/entities). Owns: the measurement. Must not: know ROS or where positions come
-// from. Units: metres, seconds; table frame.
+// /ddace/entities). Owns: the measurement, the allowed contacts. Must not: know ROS or
+// where positions come from. Units: metres, seconds; table frame.
 #pragma once
 
 #include <string>
 #include <utility>
 #include <vector>
 
+#include <set>
+
 #include <Eigen/Core>
 
+#include "ddace/task/demonstration.h"
+#include "ddace/task/task_spec.h"
+
 namespace ddace::exec {
+
+/// The pairs of bodies allowed to touch while a step runs -- their contact is no collision
+/// and their gap no clearance: a motion and its own target; a carrier and its load
+/// (task::carriedLoad); a motion and a body its end point touches (exec::endsAgainst with
+/// the filter's margin, from where that body ends the step: its own end point, or where it
+/// stands -- the second robot onto a goal ends at the first), while that body is at the
+/// end point (two robots bound for one goal keep apart on the way). Decided once per step,
+/// from the step's tokens and end points.
+class AllowedContacts {
+ public:
+  /// None: every contact counts.
+  AllowedContacts() = default;
+  /// `tokens`: the step's; `ends`: every entity's position at the end of the step (a
+  /// motion's end point, else where it stands; non-finite = unknown); `moves`: whether the
+  /// entity has a motion (an end point) this step; `radii`: every entity's disc (0 = no
+  /// body); `margin_m`: the safety filter's margin. Throws ddace::Error when the sizes
+  /// differ or a token names an entity outside them.
+  AllowedContacts(const task::TaskSpec& spec, const std::vector<task::Token>& tokens,
+                  const std::vector<Eigen::Vector2d>& ends, const std::vector<bool>& moves,
+                  const std::vector<double>& radii, double margin_m);
+  /// Whether `a` (at `pa`) and `b` (at `pb`) may touch now.
+  bool allowed(int a, int b, const Eigen::Vector2d& pa, const Eigen::Vector2d& pb) const;
+  /// Whether `a`'s motion ends against `b` and `b` (at `pb`) is at `a`'s end point: the
+  /// filter lets `a` touch it (SafetyBody::touchable).
+  bool endsAgainstNow(int a, int b, const Eigen::Vector2d& pb) const;
+
+ private:
+  std::set<std::pair<int, int>> exempt_;        ///< (a, b), a < b: a motion and its target, a carrier and its load
+  std::set<std::pair<int, int>> ends_against_;  ///< (a, b), a < b: an end point touches the other's end
+  std::vector<Eigen::Vector2d> ends_;
+  std::vector<bool> moves_;
+  std::vector<double> radii_;
+  double margin_m_ = 0;
+};
 
 /// The closest two bodies came (gap between their discs; negative = overlap).
 struct ClosestApproach {
@@ -37,14 +80,18 @@ class ClearanceMeter {
   /// `overlap_tolerance_m`: an overlap deeper than this is a collision (tracking noise
   /// makes touching bodies overlap a little).
   explicit ClearanceMeter(std::vector<double> radii, double overlap_tolerance_m = 0.002);
-  /// Every entity's position at `time_s` (a non-finite one = not known).
-  void update(double time_s, const std::vector<Eigen::Vector2d>& positions);
+  /// Every entity's position at `time_s` (a non-finite one = not known). Two bodies that
+  /// touch while `allowed` (the running step's) are not measured until they are apart
+  /// again.
+  void update(double time_s, const std::vector<Eigen::Vector2d>& positions, const AllowedContacts& allowed = {});
   const ClosestApproach& closest() const { return closest_; }
   const std::vector<BodyContact>& collisions() const { return collisions_; }
   const std::vector<std::pair<int, int>>& loadedPairs() const { return loaded_; }
 
  private:
-  enum class Pair : char { Unseen, Apart, Touching, Loaded };
+  /// Touching: a collision, measured; TouchingAllowed: touched while allowed, not measured
+  /// until apart (a motion that ended at its target, a carried load).
+  enum class Pair : char { Unseen, Apart, Touching, TouchingAllowed, Loaded };
   std::vector<double> radii_;
   double tolerance_m_;
   std::vector<Pair> pairs_;  ///< a * n + b for a < b

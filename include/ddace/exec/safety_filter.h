@@ -27,9 +27,12 @@
 //
 // Deadlock: a robot whose command the filter keeps changing and that does not advance
 // `progress_m` along its path is held -- frozen, or circling with others. Held for
-// `resolve_after_s`, its point goes around the nearest body, keeping it on the left, for
-// the next `resolve_after_s` (every robot turns the same way, so two robots face to face
-// pass each other). Held for `deadlock_after_s`, the filter reports a deadlock naming the
+// `resolve_after_s`, it goes around the body nearest to holding it or its load (carrier and
+// load go round as one body) for the next `resolve_after_s`:
+// a moving body keeping it on the left (every robot turns the same way, so two robots face
+// to face pass each other), a standing one (SafetyBody::standing) on the side the robot's
+// command turns to, the shorter way to its end point (the right-hand rule on a tie). Held
+// for `deadlock_after_s`, the filter reports a deadlock naming the
 // robot and the bodies holding it (the caller stops the robot and reports it).
 //
 // Fail safe (when enabled): its own pose or a body within `range_m` older than `pose_max_age_s` (or
@@ -58,7 +61,7 @@ struct SafetyParams {
   double range_m = 0.25;           ///< bodies whose centres are farther than this are ignored
   double pose_max_age_s = 0.15;    ///< a pose older than this (a tracker frame is 33 ms) is stale
   double blocked_fraction = 0.25;  ///< filtered point speed below this fraction of the nominal = blocked
-  double resolve_after_s = 0.5;    ///< held this long: go around the nearest body (right-hand rule) for as long
+  double resolve_after_s = 0.5;    ///< held this long: go around the nearest body for as long
   double deadlock_after_s = 5.0;   ///< held without progress this long: deadlock reported naming the robots
   double progress_m = 0.02;        ///< advancing this much along the path is progress
   /// Throws ddace::Error naming the first invalid field.
@@ -79,6 +82,10 @@ struct SafetyBody {
   /// The robot's carried load (filter()'s `load`) may end touching it; the segment's
   /// `target` (the load's too: task::carriedLoad) always may.
   bool load_touchable = false;
+  /// It stands still (an idle robot, an object without a motion): a go-round passes it on
+  /// the side the robot's command turns to, not by the right-hand rule two moving robots
+  /// share.
+  bool standing = false;
 };
 
 /// The body of an entity as the filter and the simulator see it: its disc radius and
@@ -148,11 +155,18 @@ struct SafetyCommand {
   std::string reason;                 ///< for stale and deadlock
   /// Held at contact by a body the motion may end against: blocked, every body holding it
   /// is its target or touchable, and it is within the margin of touching one of them
-  /// (named here; "" otherwise). A motion toward a body ends at contact with it: within the
-  /// arrival radius of its end point, the caller counts it arrived (it ended against this
-  /// body, which stands a little off where the step decided it would be).
+  /// (named here; "" otherwise). A motion toward a body ends at contact with it: near
+  /// enough its end point, the caller counts it arrived (endedAtContact: it ended against
+  /// this body, which stands a little off where the step decided it would be).
   std::string at_contact_with;
 };
+
+/// Whether the motion the filter holds (`c`) has arrived: held at contact with a body it
+/// ends against (at_contact_with) and its measured distance to its end point within
+/// `stop_radius_m`, the follower's own stop radius (task::stopRadius: the arrival radius less
+/// the tracking noise) -- so that, as for a robot that stops by itself, its true position is
+/// within the arrival radius. The one rule of the follower node and `ddace eval`.
+bool endedAtContact(const SafetyCommand& c, double distance_to_end_m, double stop_radius_m);
 
 class SafetyFilter {
  public:
@@ -178,7 +192,8 @@ class SafetyFilter {
  private:
   SafetyParams params_;
   double wheel_base_m_, max_wheel_mps_, max_turn_radps_;
-  double resolve_until_s_ = -1;  ///< the nominal turns right until then
+  double resolve_until_s_ = -1;  ///< the point goes round the nearest body until then
+  double resolve_side_ = 1;      ///< +1: keeping it on the left (the right-hand rule), -1: on the right
   double stuck_since_s_ = -1;    ///< since when the filter holds the robot without progress
   double stuck_progress_m_ = 0;  ///< its progress then
 };

@@ -117,11 +117,15 @@ class MotionSegmenter {
   std::vector<Motion> take();
   /// True when no entity is moving: a step may be over.
   bool allResting() const;
-  /// No motion handed over later begins before this row (its time: horizonT()): the
-  /// onset of a running motion, else the oldest row kept (an onset is dated back within
-  /// the rows kept). INT_MAX after finish().
-  int horizonRow() const;
-  double horizonT() const;
+  /// A row and its time, seconds.
+  struct Horizon {
+    int row = 0;
+    double t = 0;
+  };
+  /// No motion handed over later begins before this row: the onset of a running motion,
+  /// else the oldest row kept (an onset is dated back within the rows kept). After
+  /// finish(): INT_MAX and infinity.
+  Horizon horizon() const;
   /// The row index of the next row().
   int rows() const { return row_; }
   /// Time of the last row.

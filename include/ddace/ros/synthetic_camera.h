@@ -7,6 +7,8 @@
 // Each frame shows the latest truth and carries its stamp, so the tracker's output
 // can be compared with the truth at exactly that time; a frame is rendered only when a
 // newer truth arrived (the camera never publishes two frames with one stamp).
+// Bodies are drawn as the task states their footprints (~task: a task directory or its
+// task.yaml, absolute path; optional: without it, the default footprint of each kind).
 // An entity whose truth says visible = false gets a hand drawn over it (tests script
 // occlusions this way, to the frame); occlusion times in the camera file count from the
 // first truth message.

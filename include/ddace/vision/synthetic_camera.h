@@ -8,11 +8,13 @@
 // Units: metres and radians in the table frame; pixels; seconds.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
 
+#include "ddace/task/task_spec.h"
 #include "ddace/vision/table_frame.h"
 #include "ddace/vision/tracker.h"
 
@@ -32,7 +34,6 @@ struct SyntheticCameraConfig {
   double roll_deg = 0.0;                ///< rotation about the optical axis
   cv::Size2d table_size{0.8, 0.6};      ///< the working area, metres from the origin
   double table_margin_m = 0.06;         ///< the white table top extends this far beyond it
-  double body_size_m = 0.045;           ///< robots' dark bodies under their markers
   double blur_sigma_px = 0.7;           ///< Gaussian blur (defocus)
   double noise_sigma = 2.0;             ///< Gaussian pixel noise (grey levels)
   double light_amplitude = 0.15;        ///< brightness varies by +-this fraction ...
@@ -52,6 +53,10 @@ struct TrueEntity {
   std::string name;
   PlanarPose pose;        ///< table frame; the marker is drawn at yaw - the marker's yaw_offset
   bool occluded = false;  ///< draw a hand over it (as well as the configured occlusions)
+  /// Its body on the table (task.yaml's footprint): an obstacle is drawn as a dark disc of
+  /// this radius under its marker, a flat print (a goal) as its marker alone. Unset: the
+  /// default footprint of the marker's kind (task::footprint).
+  std::optional<task::Footprint> footprint = std::nullopt;
 };
 
 class SyntheticCamera {
@@ -75,7 +80,7 @@ class SyntheticCamera {
  private:
   enum class MarkerPart { Whole, QuietZone, Square };
   void drawMarker(cv::Mat& img, int id, double size_m, const PlanarPose& pose, double height_m, MarkerPart part);
-  void drawQuad(cv::Mat& img, const std::vector<cv::Vec3d>& corners, int grey);
+  void drawConvex(cv::Mat& img, const std::vector<cv::Vec3d>& corners, int grey);
 
   SyntheticCameraConfig config_;
   MarkerConfig markers_;

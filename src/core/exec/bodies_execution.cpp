@@ -16,9 +16,6 @@ double lengthOf(const Path& p) {
   for (size_t i = 1; i < p.size(); ++i) s += (p[i] - p[i - 1]).norm();
   return s;
 }
-std::pair<int, int> ordered(int a, int b) {
-  return {std::min(a, b), std::max(a, b)};
-}
 }  // namespace
 
 BodiesExecution::BodiesExecution(const BodiesExecutionParams& params) : params_(params), gains_(params.gains) {
@@ -70,18 +67,14 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
   out.executed.resize(motions.size());
   const double t0 = table_->time();
 
-  // The bodies a motion may end against: its own target, and a carrier's load.
-  std::set<std::pair<int, int>> exempt;
+  // A load at its carrier rides in front of it, part of its body for the filter; one
+  // passed from afar moves along its own path.
   std::vector<int> load_of(n, -1);  // the load riding with each carrier of the step
   for (size_t i = 0; i < tokens.size(); ++i) {
     if (!tokens[i].isMotion()) continue;
-    if (tokens[i].target >= 0) exempt.insert(ordered(tokens[i].entity, tokens[i].target));
     const int load = task::carriedLoad(spec, tokens, i);
     if (load >= 0 && tokens[i].entity >= 0 && tokens[i].entity < n) {
       const int carrier = tokens[i].entity, object = tokens[load].entity;
-      exempt.insert(ordered(carrier, object));
-      // At its carrier the load rides in front of it, part of its body for the filter;
-      // one passed from afar moves along its own path.
       if (load_of[carrier] < 0 && table_->carrierOf(object) < 0 && table_->ride(carrier, object))
         load_of[carrier] = object;
     }
@@ -128,33 +121,18 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     ++running;
   }
 
-  // The bodies a robot's motion ends against, decided once for the step: its end point
-  // touches a body that stands still in the step, or the end point of another motion (the
-  // second robot to a goal ends at the first). Not every body near it now: a robot passing
-  // by, or driving into the robot already at its end, is no such body.
-  std::set<std::pair<int, int>> ends_against;
+  // Who may touch whom in this step (exec::AllowedContacts, decided once from where the
+  // step's bodies end: the motions' end points, else where they stand): a motion and its
+  // target, a carrier and its load, a motion and a body its end point touches while that
+  // body is at the end point -- not every body near it now: a robot passing by, or driving
+  // into the robot already at its end, is no such body. On the way they keep a margin apart
+  // like any two bodies, and a body that stopped short elsewhere is gone round, not pushed.
   std::vector<Eigen::Vector2d> final_at(n);
   std::vector<bool> has_end(n, false);
-  {
-    for (int j = 0; j < n; ++j) final_at[j] = table_->truePose(j).position();
-    for (const StepMotion& mo : motions)
-      if (!mo.planned.empty()) final_at[mo.entity] = mo.planned.back(), has_end[mo.entity] = true;
-    for (const StepMotion& mo : motions) {  // robots and loads alike
-      if (mo.planned.empty() || !(radius_m_[mo.entity] > 0)) continue;
-      for (int j = 0; j < n; ++j)
-        if (j != mo.entity && radius_m_[j] > 0 &&
-            endsAgainst(mo.planned.back(), radius_m_[mo.entity], final_at[j], radius_m_[j], params_.safety.margin_m))
-          ends_against.insert(ordered(mo.entity, j));
-    }
-  }
-
-  // Whether `a` touches `b` (at `pb`) as its ending: they end against each other (decided
-  // above) and `b` is at `a`'s end point now. On the way they keep a margin apart like any
-  // two bodies, and a body that stopped short elsewhere is gone round, not pushed.
-  const auto ending = [&](int a, int b, const Eigen::Vector2d& pb) {
-    return has_end[a] && ends_against.count(ordered(a, b)) &&
-           endsAgainst(final_at[a], radius_m_[a], pb, radius_m_[b], params_.safety.margin_m);
-  };
+  for (int j = 0; j < n; ++j) final_at[j] = table_->truePose(j).position();
+  for (const StepMotion& mo : motions)
+    if (!mo.planned.empty()) final_at[mo.entity] = mo.planned.back(), has_end[mo.entity] = true;
+  const AllowedContacts allowed(spec, tokens, final_at, has_end, radius_m_, params_.safety.margin_m);
 
   // A carrier stopped: arrived (its load goes on the last bit to its end alone), or failed
   // (the load stops where it is). The two touch: no collision until they part.
@@ -200,9 +178,10 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
       for (int j = 0; j < n; ++j)
         if (j != i && radius_m_[j] > 0) {
           others.push_back({names_[j], measured[j].position(), radius_m_[j], robot_[j]});
+          others.back().standing = motion_of[j] < 0 || !movers[motion_of[j]].running;
           // A motion ends against the bodies decided above; its load against its own.
-          others.back().touchable = ending(i, j, measured[j].position());
-          others.back().load_touchable = load >= 0 && ending(load, j, measured[j].position());
+          others.back().touchable = allowed.endsAgainstNow(i, j, measured[j].position());
+          others.back().load_touchable = load >= 0 && allowed.endsAgainstNow(load, j, measured[j].position());
         }
       SafetyBody carried;
       if (load >= 0) carried = {names_[load], measured[load].position(), radius_m_[load], false};
@@ -218,9 +197,9 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
         out.failures.push_back(c.reason);
         continue;
       }
-      if (!c.at_contact_with.empty() && o.distance_to_goal_m <= params_.arrival_radius_m) {
-        // Ended at contact with a body its motion ends against, within the arrival radius
-        // of its end point: arrived, as the follower node decides it.
+      if (endedAtContact(c, o.distance_to_goal_m, gains_.arrival_radius_m)) {
+        // Ended at contact with a body its motion ends against: arrived, as the follower
+        // node decides it.
         mv.running = false;
         --running;
         table_->commandWheels(i, {});
@@ -251,8 +230,7 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
         const double gap = (pa - pb).norm() - radius_m_[a] - radius_m_[b];
         char& touching = touching_[a * n + b];
         if (touching && gap > kPartedM) touching = 0;
-        if (!touching && !exempt.count({a, b}) && !ending(a, b, pb) && !ending(b, a, pa) &&
-            gap < report_.closest.clearance_m)
+        if (!touching && !allowed.allowed(a, b, pa, pb) && gap < report_.closest.clearance_m)
           report_.closest = {gap, a, b, table_->time(), pa, pb};
       }
     }
@@ -262,8 +240,7 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     for (; contacts_seen_ < contacts.size(); ++contacts_seen_) {
       const BodyContact& c = contacts[contacts_seen_];
       char& touching = touching_[c.a * n + c.b];
-      if (!touching && !exempt.count({c.a, c.b}) && !ending(c.a, c.b, table_->truePose(c.b).position()) &&
-          !ending(c.b, c.a, table_->truePose(c.a).position()))
+      if (!touching && !allowed.allowed(c.a, c.b, table_->truePose(c.a).position(), table_->truePose(c.b).position()))
         report_.collisions.push_back(c);
       touching = 1;
     }

@@ -42,6 +42,10 @@ bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const E
   return radius_m > 0 && position.allFinite() && (position - end_point).norm() < self_radius_m + radius_m + margin_m;
 }
 
+bool endedAtContact(const SafetyCommand& c, double distance_to_end_m, double stop_radius_m) {
+  return !c.at_contact_with.empty() && distance_to_end_m <= stop_radius_m;
+}
+
 SegmentContacts segmentContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
                                 int step, const std::string& action, const std::string& target,
                                 const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m) {
@@ -152,8 +156,27 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
 
   std::vector<HalfPlane> cs;
   std::vector<int> owner;  // body index of each constraint, -1 for the limits
+  // The body nearest to holding the robot or its load (not the target): the command z that
+  // moves the held disc round it keeping it on the left, and whether it stands still.
   double nearest_h = std::numeric_limits<double>::infinity();
-  Eigen::Vector2d nearest_away(0, 0);  // unit vector from the nearest body (not the target) to p
+  Eigen::Vector2d round_left(0, 0);
+  bool nearest_standing = false;
+  // Going round keeping the body on the left is moving the disc along the tangent t =
+  // (-a.y, a.x), a the unit vector from the body to the disc in the robot's frame. For the
+  // robot's point, z = t; for the load at r = q - x (q' = z1 e + (z2 / l) r^perp), the z
+  // that moves q along t.
+  const auto nearest = [&](double h, const Eigen::Vector2d& a, const SafetyBody& b, bool of_load) {
+    if (!(h < nearest_h)) return;
+    const Eigen::Vector2d t(-a.y(), a.x());
+    Eigen::Vector2d z = t;
+    if (of_load) {
+      const Eigen::Vector2d r = load->position - x;
+      const double rx = r.dot(e), ry = r.dot(e_perp);  // the load ahead: rx > 0
+      if (!(rx > 1e-6)) return;                        // beside or behind: no lever to go round with
+      z = Eigen::Vector2d(t.x() + t.y() * ry / rx, l * t.y() / rx);
+    }
+    nearest_h = h, round_left = z.normalized(), nearest_standing = b.standing;
+  };
   cs.reserve(bodies.size() + 6);
   for (size_t j = 0; j < bodies.size(); ++j) {
     const SafetyBody& b = bodies[j];
@@ -169,6 +192,7 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
       const Eigen::Vector2d r = load->position - x, r_perp(-r.y(), r.x());
       const bool touch = b.name == target || b.load_touchable;
       const double h = load_centres - (load->radius_m + b.radius_m + (touch ? 0.0 : params_.margin_m));
+      if (b.name != target) nearest(h, Eigen::Vector2d(n.dot(e), n.dot(e_perp)), b, true);
       out.clearance_m = std::min(out.clearance_m, load_centres - load->radius_m - b.radius_m);
       cs.push_back(
           {Eigen::Vector2d(-n.dot(e), -n.dot(r_perp) / l), std::max(0.0, share * params_.barrier_gain_hz * h)});
@@ -188,7 +212,7 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
       // A body it ends against but not its target, in the way short of the end (a robot
       // parked where this one ends touching it, approached from the wrong side): held, it
       // is gone round as any other body. Its target it ends at, not round.
-      if (b.name != target && h < nearest_h) nearest_h = h, nearest_away = Eigen::Vector2d(n.dot(e), n.dot(e_perp));
+      if (b.name != target) nearest(h, Eigen::Vector2d(n.dot(e), n.dot(e_perp)), b, false);
     } else {
       const Eigen::Vector2d d = p - b.position;
       const double dist = d.norm();
@@ -197,7 +221,7 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
       const double h = dist - (contact + params_.margin_m + l);
       c.a = Eigen::Vector2d(-n.dot(e), -n.dot(e_perp));
       c.b = std::max(0.0, share * params_.barrier_gain_hz * h);
-      if (h < nearest_h) nearest_h = h, nearest_away = -c.a;  // away from it, in the robot's frame
+      nearest(h, -c.a, b, false);  // -c.a: away from it, in the robot's frame
     }
     cs.push_back(c);
     owner.push_back(static_cast<int>(j));
@@ -213,13 +237,13 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
     owner.push_back(-1);
   }
 
-  // Deadlock resolution (right-hand rule): while resolving, the point goes around the
-  // nearest body keeping it on its left, so two robots face to face both veer right and
-  // pass. At least a quarter of the top speed: a nominal that only turns on the spot
-  // would not get round anything.
+  // Deadlock resolution: while resolving, the point goes around the nearest body on the
+  // side decided when the go-round began (resolve_side_: +1 keeps it on the left). At least
+  // a quarter of the top speed: a nominal that only turns on the spot would not get round
+  // anything.
   Eigen::Vector2d goal_z = z0;
   if (now_s < resolve_until_s_ && std::isfinite(nearest_h))
-    goal_z = std::max(z0.norm(), 0.25 * vmax) * Eigen::Vector2d(-nearest_away.y(), nearest_away.x());
+    goal_z = std::max(z0.norm(), 0.25 * vmax) * resolve_side_ * round_left;
   const Eigen::Vector2d z = closestFeasible(goal_z, cs);
   out.v_mps = z.x();
   out.w_radps = z.y() / l;
@@ -260,8 +284,16 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
     stuck_progress_m_ = progress_m;
   }
   const double stuck_s = now_s - stuck_since_s_;
-  if (stuck_s >= params_.resolve_after_s && now_s >= resolve_until_s_)
+  if (stuck_s >= params_.resolve_after_s && now_s >= resolve_until_s_) {
     resolve_until_s_ = now_s + params_.resolve_after_s;
+    // Which way round. A body that moves too runs its own filter: both keep each other on
+    // the left (the right-hand rule), so two robots face to face veer apart, never the
+    // same way. A body standing still decides nothing: the robot goes round on the side its
+    // own command turns to (toward its end point, the shorter way), the right-hand rule on
+    // a tie -- the other way it would go the long way round and its command would turn it
+    // back into the body before it got there.
+    resolve_side_ = nearest_standing && z0.dot(round_left) < 0 ? -1 : 1;
+  }
   if (stuck_s >= params_.deadlock_after_s) {
     out.deadlock = true;
     std::vector<std::string> near = out.blocking;

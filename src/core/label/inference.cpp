@@ -244,19 +244,12 @@ std::vector<Motion> MotionSegmenter::take() {
   return out;
 }
 
-int MotionSegmenter::horizonRow() const {
-  if (finished_ || history_.empty()) return finished_ ? std::numeric_limits<int>::max() : 0;
-  int h = history_.front().row;
+MotionSegmenter::Horizon MotionSegmenter::horizon() const {
+  if (finished_) return {std::numeric_limits<int>::max(), std::numeric_limits<double>::infinity()};
+  if (history_.empty()) return {};
+  Horizon h{history_.front().row, history_.front().t};
   for (const auto& st : state_)
-    if (st.moving) h = std::min(h, st.motion.on_row);
-  return h;
-}
-
-double MotionSegmenter::horizonT() const {
-  if (finished_ || history_.empty()) return finished_ ? std::numeric_limits<double>::infinity() : 0;
-  double h = history_.front().t;
-  for (const auto& st : state_)
-    if (st.moving) h = std::min(h, st.motion.on_t);
+    if (st.moving && st.motion.on_row < h.row) h = {st.motion.on_row, st.motion.on_t};
   return h;
 }
 

@@ -80,7 +80,7 @@ void Labeller::row(double t, const std::vector<Vector2d>& positions) {
   std::vector<Motion> found = segmenter_.take();
   const bool arrived = !found.empty();
   if (arrived) arrive(std::move(found));
-  if (arrived || segmenter_.horizonT() > next_check_t_) decide(false);
+  if (arrived || segmenter_.horizon().t > next_check_t_) decide(false);
 }
 
 Inference Labeller::take() {
@@ -196,8 +196,9 @@ void Labeller::decide(bool at_end) {
   // A group is final when no later motion can begin within it (the horizon is past its
   // end) nor join one of its motions across a pause (the horizon is pause_s past it, or
   // the entity has moved again since); groups are final in order.
-  const int h_row = segmenter_.horizonRow();
-  const double h_t = segmenter_.horizonT();
+  const MotionSegmenter::Horizon horizon = segmenter_.horizon();
+  const int h_row = horizon.row;
+  const double h_t = horizon.t;
   size_t final_groups = 0;
   for (; final_groups < groups.size() && !at_end; ++final_groups) {
     const Group& g = groups[final_groups];

@@ -19,11 +19,10 @@ SyntheticCameraConfig parseSyntheticCameraConfig(const std::string& text, const 
   YamlChecker r(file);
   SyntheticCameraConfig c;
   const YAML::Node root = parseRoot(r, text, "the synthetic camera configuration");
-  r.onlyKeys(
-      root,
-      {"width", "height", "hfov_deg", "position", "look_at", "roll_deg", "table_size", "table_margin", "body_size",
-       "blur_sigma", "noise_sigma", "light_amplitude", "light_period", "light_gradient", "occlusions", "seed"},
-      "the synthetic camera configuration");
+  r.onlyKeys(root,
+             {"width", "height", "hfov_deg", "position", "look_at", "roll_deg", "table_size", "table_margin",
+              "blur_sigma", "noise_sigma", "light_amplitude", "light_period", "light_gradient", "occlusions", "seed"},
+             "the synthetic camera configuration");
   c.width = integerOr(r, root, "width", c.width, 64, 8192);
   c.height = integerOr(r, root, "height", c.height, 64, 8192);
   c.hfov_deg = numberOr(r, root, "hfov_deg", c.hfov_deg, 5.0, 170.0);
@@ -50,7 +49,6 @@ SyntheticCameraConfig parseSyntheticCameraConfig(const std::string& text, const 
   c.table_size = {table[0], table[1]};
   c.roll_deg = numberOr(r, root, "roll_deg", c.roll_deg, -180, 180);
   c.table_margin_m = numberOr(r, root, "table_margin", c.table_margin_m, 0.0, 10.0);
-  c.body_size_m = numberOr(r, root, "body_size", c.body_size_m, 0.0, 1.0);
   c.blur_sigma_px = numberOr(r, root, "blur_sigma", c.blur_sigma_px, 0.0, 20.0);
   c.noise_sigma = numberOr(r, root, "noise_sigma", c.noise_sigma, 0.0, 100.0);
   c.light_amplitude = numberOr(r, root, "light_amplitude", c.light_amplitude, 0.0, 0.9);
@@ -108,7 +106,7 @@ SyntheticCamera::SyntheticCamera(SyntheticCameraConfig config, MarkerConfig mark
   background_ = cv::Mat(config_.height, config_.width, CV_8UC1, cv::Scalar(70));
   const double tw = config_.table_size.width, th = config_.table_size.height;
   const double mg = config_.table_margin_m;
-  drawQuad(background_, {{-mg, -mg, 0}, {tw + mg, -mg, 0}, {tw + mg, th + mg, 0}, {-mg, th + mg, 0}}, 215);
+  drawConvex(background_, {{-mg, -mg, 0}, {tw + mg, -mg, 0}, {tw + mg, th + mg, 0}, {-mg, th + mg, 0}}, 215);
   // Some clutter on the table: darker blotches (wood grain, stains) that are not markers.
   cv::RNG clutter(config_.seed + 17);
   for (int i = 0; i < 25; ++i) {
@@ -146,7 +144,7 @@ bool SyntheticCamera::occluded(const std::string& entity, double t_s) const {
   return false;
 }
 
-void SyntheticCamera::drawQuad(cv::Mat& img, const std::vector<cv::Vec3d>& corners, int grey) {
+void SyntheticCamera::drawConvex(cv::Mat& img, const std::vector<cv::Vec3d>& corners, int grey) {
   std::vector<cv::Point> pts;
   for (const auto& c : corners) {
     const cv::Point2d p = project(c);
@@ -233,17 +231,21 @@ cv::Mat SyntheticCamera::render(const std::vector<TrueEntity>& entities, double 
   };
   // In the order things stack: prints lying on the table (goals), the bodies standing on
   // it (a robot parked on a goal covers the goal's print), the markers on the bodies.
-  // Robots that come closer than their size in a simulation overlap, but their markers
-  // stay on top.
+  // Bodies are the task's footprints, so bodies that keep apart in a simulation are drawn
+  // apart, and robots stopped at contact touch; markers stay on top of overlapping ones.
   drawLayer(prints);
   for (const auto& te : entities) {
     const EntityMarker* em = markerOf(te);
-    if (!em || em->kind == task::EntityKind::Goal || config_.body_size_m <= 0) continue;
-    const double c = std::cos(te.pose.yaw), s = std::sin(te.pose.yaw), b = config_.body_size_m / 2;
-    std::vector<cv::Vec3d> body;
-    for (const auto& [lx, ly] : {std::pair{-b, -b}, {b, -b}, {b, b}, {-b, b}})
-      body.emplace_back(te.pose.x + c * lx - s * ly, te.pose.y + s * lx + c * ly, 0.0);
-    drawQuad(img, body, em->kind == task::EntityKind::Robot ? 45 : 120);
+    if (!em) continue;
+    const task::Footprint body = te.footprint ? *te.footprint : task::footprint(task::Entity{te.name, em->kind, ""});
+    if (!body.obstacle) continue;
+    constexpr int kRim = 48;  // polygon corners of a disc: smooth at a few pixels per cm
+    std::vector<cv::Vec3d> rim;
+    for (int k = 0; k < kRim; ++k) {
+      const double a = 2 * M_PI * k / kRim;
+      rim.emplace_back(te.pose.x + body.radius_m * std::cos(a), te.pose.y + body.radius_m * std::sin(a), 0.0);
+    }
+    drawConvex(img, rim, em->kind == task::EntityKind::Robot ? 45 : 120);
   }
   drawLayer(raised);
   for (const auto& te : entities) {

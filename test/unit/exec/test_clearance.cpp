@@ -49,3 +49,48 @@ TEST(ClearanceMeter, UnknownPositionsWaitUntilSeen) {
   m.update(1, {{0, 0}, {0.1, 0}});
   EXPECT_NEAR(m.closest().clearance_m, 0.06, 1e-12);
 }
+
+// The run report measures what `ddace eval` measures: a carrier and the load riding in
+// front of it touch by design (the run report showed -0.33 cm for them), a robot ending at
+// its target or at the robot already on the goal touches it -- none of that is a collision
+// or the closest approach; two robots that only pass each other are.
+TEST(ClearanceMeter, PairsAllowedToTouchInTheStepAreNotMeasured) {
+  using ddace::task::EntityKind;
+  ddace::task::TaskSpec spec;
+  for (const auto& [name, kind] : std::vector<std::pair<std::string, EntityKind>>{{"R1", EntityKind::Robot},
+                                                                                  {"B", EntityKind::Object},
+                                                                                  {"R2", EntityKind::Robot},
+                                                                                  {"R3", EntityKind::Robot},
+                                                                                  {"G1", EntityKind::Goal}})
+    spec.entities.push_back({name, kind, ""});
+  const double r = 0.022;
+  const std::vector<double> radii{r, r, r, r, 0};
+  // R1 carries B onto G1; R3, sent to G1 too, ends at contact with R2, which stands still.
+  const std::vector<ddace::task::Token> step{{0, "move", 4}, {1, "move", 4}, {3, "move", 4}};
+  const Vector2d g1(0.5, 0.3), r2(0.3, 0.6), r3_end = r2 + Vector2d(2 * r, 0);
+  const std::vector<Vector2d> ends{g1 - Vector2d(2 * r, 0), g1, r2, r3_end, g1};
+  const AllowedContacts allowed(spec, step, ends, {true, true, false, true, false}, radii, 0.01);
+  EXPECT_TRUE(allowed.allowed(0, 1, {0, 0}, {1, 1})) << "a carrier and its load, wherever they are";
+  EXPECT_TRUE(allowed.allowed(3, 2, r3_end, r2)) << "R3 at its end against R2";
+  EXPECT_FALSE(allowed.allowed(3, 2, r3_end, r2 + Vector2d(0, 0.1))) << "R2 elsewhere than R3's end point";
+  EXPECT_FALSE(allowed.allowed(0, 3, {0, 0}, {0.044, 0}));
+
+  ClearanceMeter m(radii);
+  // The load rides 3.3 mm into its carrier; R3 touches R2 at its end, then drives off.
+  m.update(0, {{0.1, 0.3}, {0.2, 0.3}, r2, r2 + Vector2d(0.2, 0), g1}, allowed);
+  m.update(1, {{0.2, 0.3}, {0.2 + 2 * r - 0.0033, 0.3}, r2, r3_end - Vector2d(0.001, 0), g1}, allowed);
+  EXPECT_TRUE(m.collisions().empty());
+  EXPECT_GT(m.closest().clearance_m, 0.05) << m.closest().a << "-" << m.closest().b;
+  // Without the step's allowed contacts both are measured, and the load's overlap is a collision.
+  ClearanceMeter plain(radii);
+  plain.update(0, {{0.1, 0.3}, {0.2, 0.3}, r2, r2 + Vector2d(0.2, 0), g1});
+  plain.update(1, {{0.2, 0.3}, {0.2 + 2 * r - 0.0033, 0.3}, r2, r3_end - Vector2d(0.001, 0), g1});
+  EXPECT_NEAR(plain.closest().clearance_m, -0.0033, 1e-9);
+  // The carrier driving into R2 on its way is a collision and the closest approach.
+  const Vector2d r1 = r2 - Vector2d(0, 0.03);
+  m.update(2, {r1, r1 - Vector2d(2 * r - 0.0033, 0), r2, r3_end - Vector2d(0.001, 0), g1}, allowed);
+  ASSERT_EQ(m.collisions().size(), 1u);
+  EXPECT_EQ(m.collisions()[0].a, 0);
+  EXPECT_EQ(m.collisions()[0].b, 2);
+  EXPECT_NEAR(m.closest().clearance_m, 0.03 - 2 * r, 1e-9);
+}

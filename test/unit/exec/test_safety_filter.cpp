@@ -177,8 +177,8 @@ TEST(SafetyFilter, FourRobotsToOneTargetTouchItButNotEachOther) {
 
 // A motion toward a body ends at contact with it: R1's end point touches R2's, but R2
 // stopped 2 cm nearer (within its stop radius); R1, driving on, is held at contact by R2
-// alone, so the filter says so (the follower then counts it arrived when it is within the
-// arrival radius of its end point). Held by a body its motion does not end against, it
+// alone, so the filter says so (the follower then counts it arrived when it is within its
+// stop radius of its end point: endedAtContact). Held by a body its motion does not end against, it
 // says nothing: that is being blocked, not arriving.
 TEST(SafetyFilter, HeldAtContactByABodyItEndsAgainstIsNamed) {
   const WheelSpeeds forward{0.1, 0.1};
@@ -198,6 +198,53 @@ TEST(SafetyFilter, HeldAtContactByABodyItEndsAgainstIsNamed) {
   const SafetyCommand free = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, forward, 0.0,
                                       {{"R2", {0.3, 0.3}, kRadius, true, 0.03, false}}, "R2", 0);
   EXPECT_EQ(free.at_contact_with, "");
+}
+
+// Held by a body in its way, a robot goes round it. A body standing still (the first of
+// two robots sent onto one goal, stopped short of its place in the second's way) is gone
+// round on the side the robot's command turns to -- toward its end point, the short way:
+// the right-hand rule took the second robot of Task 4 the long way round, its path turned
+// it back into the parked one every time, and it circled without arriving. A robot that
+// moves too is gone round by the right-hand rule both share, whatever the command.
+TEST(SafetyFilter, GoesRoundAStandingBodyOnTheSideItsCommandTurnsTo) {
+  const SafetyParams sp;
+  const WheelSpeeds ahead_left{0.08, 0.12};  // forward, turning left: its end point lies left
+  for (const bool standing : {true, false}) {
+    SafetyFilter f(sp, 0.03, 0.2, 4.0);
+    // B right ahead, at the margin: forward is blocked.
+    SafetyBody b{"B", {0.1 + 2 * kRadius + sp.margin_m + sp.projection_m, 0.3}, kRadius, true, 0.03, false};
+    b.standing = standing;
+    SafetyCommand c;
+    for (double t = 0; t <= sp.resolve_after_s + 0.2; t += 0.1) {
+      c = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, ahead_left, 0.0, {b}, "G1", t);
+      ASSERT_FALSE(c.deadlock);
+    }
+    ASSERT_TRUE(c.modified);
+    if (standing) EXPECT_GT(c.w_radps, 0.1) << "a standing body is gone round on the left, where the command turns";
+    else EXPECT_LT(c.w_radps, -0.1) << "a moving robot is gone round by the right-hand rule";
+  }
+}
+
+// A carrier and its load are one body: held because its load cannot go on (A right ahead
+// of the load), the carrier goes round A with its load -- not round B, which stands beside
+// the carrier's own disc, nearer it than A but holding nothing.
+TEST(SafetyFilter, ACarrierGoesRoundTheBodyItsLoadIsHeldBy) {
+  const SafetyParams sp;
+  const Vector2d x(0.1, 0.3), q = x + Vector2d(2 * kRadius, 0);  // the load rides in front
+  SafetyBody load{"L", q, kRadius, false, 0.03, false};
+  SafetyBody a{"A", q + Vector2d(2 * kRadius + sp.margin_m, 0), kRadius, false, 0.03, false};
+  SafetyBody b{"B",  x + Vector2d(0, -(2 * kRadius + sp.margin_m + sp.projection_m + 0.005)), kRadius, false, 0.03,
+               false};
+  a.standing = b.standing = true;
+  SafetyFilter f(sp, 0.03, 0.2, 4.0);
+  const WheelSpeeds ahead_left{0.09, 0.11};  // its end point lies ahead, a little to the left
+  SafetyCommand c;
+  for (double t = 0; t <= sp.resolve_after_s + 0.2; t += 0.1) {
+    c = f.filter("R1", {x.x(), x.y(), 0}, kRadius, 0.03, ahead_left, 0.0, {load, a, b}, "G1", t, &load);
+    ASSERT_FALSE(c.deadlock);
+  }
+  EXPECT_GT(c.w_radps, 0.1) << "the carrier turns its load round A, on the left";
+  EXPECT_GT(c.v_mps, -1e-3) << "it backs away from B instead";
 }
 
 TEST(SafetyFilter, BoxedInRobotStaysPutAndIsReportedByName) {

@@ -130,3 +130,24 @@ TEST(CliLabel, RefusesToWriteIntoItsInputOrOverAnotherOnesFiles) {
   EXPECT_NE(again.status, 0);
   EXPECT_NE(again.out.find("already labelled"), std::string::npos) << again.out;
 }
+
+TEST(CliLabel, TheMemoryBenchTakesItsRecordingSizeThroughDdaceBench) {
+  // `ddace bench label_memory --mb N` hands --mb to the benchmark (the goal's 1 GiB is
+  // --mb 1024); an option with no benchmark named before it is refused and nothing runs.
+  const std::string repo = root("bench_repo");
+  fs::create_directories(repo + "/docs/bench");
+  std::ofstream(repo + "/package.xml") << "<package><name>ddace</name></package>\n";
+  const std::string md = repo + "/docs/bench/label_memory.md";
+  const ToolRun none = runTool("bench --mb 1 --repo '" + repo + "'");
+  EXPECT_NE(none.status, 0) << none.out;
+  EXPECT_NE(none.out.find("options for a benchmark (--mb) need exactly one benchmark named"), std::string::npos)
+      << none.out;
+  EXPECT_FALSE(fs::exists(md));
+  const ToolRun bad = runTool("bench label_memory --mb 0 --repo '" + repo + "'");
+  EXPECT_NE(bad.status, 0) << bad.out;
+  EXPECT_NE(bad.out.find("--mb must be a size in MB"), std::string::npos) << bad.out;
+  runTool("bench label_memory --mb 1 --repo '" + repo + "'");  // its goal is for long recordings
+  std::ifstream in(md);
+  const std::string text{std::istreambuf_iterator<char>(in), {}};
+  EXPECT_NE(text.find("Written by `ddace bench label_memory --mb 1`"), std::string::npos) << text;
+}

@@ -55,6 +55,14 @@ TEST(TableQuick, WritesResultsAndEveryFigure) {
     json_text << json.rdbuf();
     EXPECT_NE(json_text.str().find("\"collisions\""), std::string::npos) << file;
   }
+  // Labels inferred from motion: both trainings with every training seed (a row each), the
+  // OSR columns their mean and range, and the difference inferred - true with its error.
+  const size_t labels = results.find("## Labels inferred from motion");
+  ASSERT_NE(labels, std::string::npos);
+  EXPECT_NE(results.find("training seeds 1-2", labels), std::string::npos) << results.substr(labels);
+  EXPECT_NE(results.find(" ± ", labels), std::string::npos) << results.substr(labels);
+  for (const char* row : {"task4-motion-3-true-scene-seed1.txt", "task4-motion-3-inferred-scene-seed2.txt"})
+    EXPECT_TRUE(fs::exists(out / "run" / "rows" / row)) << row;
   std::ifstream closed_json((out / "run" / "eval" / "fetch-3-scene-diffdrive.json").string());
   std::stringstream closed_text;
   closed_text << closed_json.rdbuf();

@@ -52,7 +52,7 @@ task::Demonstration recordThroughCamera(const task::Demonstration& truth, const 
         const Vector2d v = p - truth.positions[r - 1][e];
         yaw[e] = std::atan2(v.y(), v.x());  // a robot faces where it drives
       }
-      scene.push_back({spec.entities[e].name, {p.x(), p.y(), yaw[e]}});
+      scene.push_back({spec.entities[e].name, {p.x(), p.y(), yaw[e]}, false, spec.footprint(static_cast<int>(e))});
     }
     const vision::FrameResult fr = tracker.process(camera.render(scene, truth.t[r]), truth.t[r]);
     std::vector<Vector2d> row(spec.entities.size());

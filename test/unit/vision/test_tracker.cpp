@@ -226,7 +226,8 @@ TEST(Tracker, ARobotParkedOnAGoalIsSeenOnItsBody) {
   const TrackerConfig c = shippedConfig();
   auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml");
   cam_cfg.occlusions.clear();
-  ASSERT_GT(cam_cfg.body_size_m, 0.04);  // the body covers the goal's 4 cm print
+  // The body (the default Hamster footprint) covers the goal's 4 cm print.
+  ASSERT_GT(2 * ddace::task::footprint(ddace::task::Entity{"R1", ddace::task::EntityKind::Robot, ""}).radius_m, 0.04);
   SyntheticCamera cam(cam_cfg, c.markers);
   const PlanarPose goal{0.6, 0.55, 0.0};
   for (const double dx : {0.0, 0.01, -0.015}) {
@@ -240,6 +241,30 @@ TEST(Tracker, ARobotParkedOnAGoalIsSeenOnItsBody) {
     EXPECT_TRUE(r3.visible) << "R3 " << dx << " m from the goal's centre";
     EXPECT_LT(std::hypot(r3.pose.x - truth[1].pose.x, r3.pose.y - truth[1].pose.y), 0.005) << dx;
   }
+}
+
+TEST(SyntheticCamera, DrawsEachBodyAsItsFootprint) {
+  // Robots stopped at contact must touch in the image as on the table: the camera draws the
+  // task's footprints, not one size for every body, and no body under a goal's print.
+  const TrackerConfig c = shippedConfig();
+  auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera_clear.yaml");
+  cam_cfg.noise_sigma = 0;
+  cam_cfg.light_gradient = 0;
+  SyntheticCamera cam(cam_cfg, c.markers);
+  ddace::task::Footprint large;
+  large.radius_m = 0.04;
+  const std::vector<TrueEntity> truth = {
+      {"R1", {0.3, 0.5, 0.0}}, {"R2", {0.6, 0.5, 0.0}, false, large}, {"G1", {0.45, 0.2, 0.0}}};
+  const cv::Mat img = cam.render(truth, 0.0);
+  auto grey = [&](double x, double y) {
+    const cv::Point2d p = cam.project({x, y, 0.0});
+    return static_cast<int>(img.at<uint8_t>(cvRound(p.y), cvRound(p.x)));
+  };
+  const int table = grey(0.45, 0.5);
+  // 3 cm below the centre (beside the marker, outside the 2.2 cm default disc, inside 4 cm).
+  EXPECT_GT(grey(0.3, 0.47), table - 20) << "R1's default 2.2 cm body";
+  EXPECT_LT(grey(0.6, 0.47), table / 2) << "R2's stated 4 cm body";
+  EXPECT_GT(grey(0.45, 0.2 - 0.03), table - 20) << "a goal is a print: no body around it";
 }
 
 TEST(Tracker, HoldsThroughAHalfSecondOcclusionThenGoesStale) {
