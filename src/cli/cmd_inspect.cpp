@@ -58,6 +58,7 @@ int runInspect(const std::vector<std::string>& argv) {
               << " slips), relative features " << on(plan.relative_features) << ", names or the scene "
               << on(plan.names_or_scene) << ", name groups shuffled " << plan.name_groups.size() << ", token by token "
               << on(plan.token_by_token) << ", parked entities out of the ranks " << on(plan.parked_out_of_ranks)
+              << ", ensemble of " << plan.ensemble << (plan.ensemble == 1 ? " network" : " networks")
               << (without.empty() ? std::string() : "; asked --without " + without) << " (docs/tgn.md)\n";
   }
   const auto join = [](const auto& items) {

@@ -66,6 +66,10 @@ struct StepDecision {
   bool end = false;
   std::vector<DecodedToken> tokens;  ///< one per entity (all idle when end)
 };
+/// "Ensemble" (docs/tgn.md): the index of the decision to keep of those its networks
+/// decoded, one each: the one most of them decoded (END, or the same tokens), on a tie the
+/// first network's of the tied ones. Throws ddace::Error for none.
+size_t majorityDecision(const std::vector<StepDecision>& decisions);
 /// The decision of one step, never an empty step: END when p(END) > kEndThreshold; else
 /// decodeStep's step; when every entity of that is idle, the most probable step S* in which
 /// one acts (the joint decoder's best under `rules` with some entity forced to act; the

@@ -65,8 +65,9 @@ namespace ddace::tgn {
 /// (`parked_out_of_ranks`); /8: the scene network's relational basis (farness ranks, axis
 /// orders, the last step) and the carried loads among the step rules; /9: what training
 /// decided (TrainingPlan, `plan`) apart from the requested `hyper_parameters` (the rules
-/// switched off: `without`). Older ones are refused (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/10";
+/// switched off: `without`); /11: the ensemble (`plan.ensemble`; weights.pt holds its other
+/// members' weights as `member1`, `member2`, ...). Older ones are refused (retrain).
+inline constexpr const char* kModelFormat = "ddace-model/11";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {
@@ -101,6 +102,7 @@ enum class Rule {
   ShuffledNames,  ///< "shuffled-names": permute interchangeable names' embeddings in training
   TokenByToken,   ///< "token-by-token": decide a step's targets one token at a time
   Parked,         ///< "parked": parked entities are no rivals in the nearness ranks
+  Ensemble,       ///< "ensemble": average the logits of networks trained from several seeds
 };
 const char* toString(Rule r);
 /// Throws ddace::Error listing the names for an unknown one.
@@ -186,6 +188,12 @@ struct StepRules {
   }
 };
 
+/// "Ensemble" (docs/tgn.md): where the scene decides the steps, this many networks from
+/// different seeds decide together (the mean of their logits); at most kMaxEnsemble in a
+/// manifest.
+inline constexpr int kEnsembleMembers = 3;
+inline constexpr int kMaxEnsemble = 8;
+
 /// What the training demonstrations decide about training, computed once from them and the
 /// request (planTraining) and recorded in the manifest apart from the TrainOptions. Every
 /// enabling condition of a rule is stated there and nowhere else: the trainer, the network
@@ -210,6 +218,9 @@ struct TrainingPlan {
   bool token_by_token = false;
   /// Scene: an entity at one place with another is no rival in the ranks ("Parked entities").
   bool parked_out_of_ranks = false;
+  /// Scene: the number of networks whose logits are averaged ("Ensemble"): trained alike
+  /// from seeds derived from the model's (the first from the model's own); 1: one network.
+  int ensemble = 1;
   StepRules step_rules;                      ///< scene: learned from the training steps; else none
   std::vector<graph::Edge> attention_edges;  ///< directed edges the network attends over (no self-loops)
   /// The same plan for the network without the identity embedding (no names to shuffle).
@@ -222,7 +233,7 @@ struct TrainingPlan {
     return fixed_order == o.fixed_order && slips == o.slips && relative_features == o.relative_features &&
            identity_embedding == o.identity_embedding && names_or_scene == o.names_or_scene &&
            name_groups == o.name_groups && token_by_token == o.token_by_token &&
-           parked_out_of_ranks == o.parked_out_of_ranks && step_rules == o.step_rules &&
+           parked_out_of_ranks == o.parked_out_of_ranks && ensemble == o.ensemble && step_rules == o.step_rules &&
            attention_edges == o.attention_edges;
   }
 };

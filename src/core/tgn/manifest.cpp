@@ -60,7 +60,7 @@ namespace {
 
 const std::pair<Rule, const char*> kRuleNames[] = {
     {Rule::Relative, "relative"},           {Rule::FixedOrder, "fixed-order"}, {Rule::ShuffledNames, "shuffled-names"},
-    {Rule::TokenByToken, "token-by-token"}, {Rule::Parked, "parked"},
+    {Rule::TokenByToken, "token-by-token"}, {Rule::Parked, "parked"},          {Rule::Ensemble, "ensemble"},
 };
 
 }  // namespace
@@ -243,6 +243,7 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   y << YAML::EndSeq;
   y << YAML::Key << "token_by_token" << YAML::Value << plan.token_by_token;
   y << YAML::Key << "parked_out_of_ranks" << YAML::Value << plan.parked_out_of_ranks;
+  y << YAML::Key << "ensemble" << YAML::Value << plan.ensemble;
   y << YAML::Key << "step_rules" << YAML::Value << YAML::Flow << YAML::BeginMap;
   y << YAML::Key << "exclusive_targets" << YAML::Value << plan.step_rules.exclusive_targets;
   y << YAML::Key << "step_size" << YAML::Value << plan.step_rules.step_size;
@@ -393,12 +394,15 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
                          std::all_of(version.begin(), version.end(), [](char c) { return c >= '0' && c <= '9'; });
     if (numeric && std::stoi(version) < std::stoi(own)) {
       const int v = std::stoi(version);
-      r.fail(format_node, "format '" + format + "' is an older model format than " + kModelFormat +
-                              " (its scene network saw another relational basis, its step rules counted a "
-                              "carried load as an actor" +
-                              (v < 9 ? ", its manifest records no training plan" : "") +
-                              (v < 4 ? ", the step rules learned from the demonstrations" : "") +
-                              (v < 3 ? ", and its files are not bound by digests to the model and its task" : "") +
+      const std::string lacks =
+          v >= 10 ? "its plan has no ensemble: one network decides where the scene decides"
+                  : std::string(
+                        "its scene network saw another relational basis, its step rules counted a "
+                        "carried load as an actor") +
+                        (v < 9 ? ", its manifest records no training plan" : "") +
+                        (v < 4 ? ", the step rules learned from the demonstrations" : "") +
+                        (v < 3 ? ", and its files are not bound by digests to the model and its task" : "");
+      r.fail(format_node, "format '" + format + "' is an older model format than " + kModelFormat + " (" + lacks +
                               "): retrain the model (ddace train)");
     }
     if (numeric)
@@ -592,6 +596,9 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     }
     plan.token_by_token = r.boolean(pn, "token_by_token");
     plan.parked_out_of_ranks = r.boolean(pn, "parked_out_of_ranks");
+    plan.ensemble = static_cast<int>(
+        r.integerAt(r.need(pn, "ensemble"), "plan: ensemble (networks, at most " + std::to_string(kMaxEnsemble) + ")",
+                    1, kMaxEnsemble));
     {
       const YAML::Node rules = r.need(pn, "step_rules");
       plan.step_rules.exclusive_targets = r.boolean(rules, "exclusive_targets");

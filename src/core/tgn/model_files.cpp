@@ -25,6 +25,12 @@ void SequenceModel::save(const std::string& model_dir, const std::vector<std::st
   try {
     torch::serialize::OutputArchive archive;
     impl_->module().save(archive);
+    // An ensemble's other members, each an archive of its own (member1, member2, ...).
+    for (size_t k = 0; k < impl_->others.size(); ++k) {
+      torch::serialize::OutputArchive member;
+      impl_->others[k]->save(member);
+      archive.write("member" + std::to_string(k + 1), member);
+    }
     archive.save_to(weights);
   } catch (const c10::Error& e) {
     throw Error(Diagnostic{(dir / files::kWeights).string(), 0, 0,
@@ -67,27 +73,44 @@ SequenceModel SequenceModel::load(const std::string& model_dir) {
   if (static_cast<int>(impl->info.history.size()) > impl->info.options.max_epochs)
     throw Error(Diagnostic{(dir / files::kLoss).string(), 0, 0, "more epochs than the manifest's max_epochs"});
   const std::string weight_bytes = verified(files::kWeights, files::kMaxWeightsBytes);
-  impl->build();  // the loaded weights replace the initial ones
+  impl->build(impl->info.plan.ensemble);  // the loaded weights replace the initial ones
   // Module::load replaces tensors whatever their shape, so the shapes are checked here.
-  std::vector<std::pair<std::string, std::vector<int64_t>>> expected;
-  for (const auto& p : impl->module().named_parameters()) expected.emplace_back(p.key(), p.value().sizes().vec());
-  for (const auto& b : impl->module().named_buffers()) expected.emplace_back(b.key(), b.value().sizes().vec());
+  std::vector<torch::nn::Module*> modules = {&impl->module()};
+  for (SceneNetwork& o : impl->others) modules.push_back(o.get());
+  const auto shapes = [&] {
+    std::vector<std::pair<std::string, std::vector<int64_t>>> out;
+    for (size_t k = 0; k < modules.size(); ++k) {
+      const std::string prefix = k == 0 ? "" : "member" + std::to_string(k) + ".";
+      for (const auto& p : modules[k]->named_parameters()) out.emplace_back(prefix + p.key(), p.value().sizes().vec());
+      for (const auto& b : modules[k]->named_buffers()) out.emplace_back(prefix + b.key(), b.value().sizes().vec());
+    }
+    return out;
+  };
+  const auto expected = shapes();
   try {
     torch::serialize::InputArchive archive;
     archive.load_from(weight_bytes.data(), weight_bytes.size());
     impl->module().load(archive);
+    for (size_t k = 0; k < impl->others.size(); ++k) {
+      torch::serialize::InputArchive member;
+      if (!archive.try_read("member" + std::to_string(k + 1), member))
+        throw Error(Diagnostic{weights, 0, 0,
+                               "does not fit the manifest's network: no weights of the ensemble's member " +
+                                   std::to_string(k + 1) + " (plan: ensemble " +
+                                   std::to_string(impl->others.size() + 1) + ")"});
+      impl->others[k]->load(member);
+    }
   } catch (const c10::Error& e) {
     throw Error(
         Diagnostic{weights, 0, 0, std::string("does not fit the manifest's network: ") + e.what_without_backtrace()});
   }
   std::map<std::string, std::vector<int64_t>> loaded;
-  for (const auto& p : impl->module().named_parameters()) loaded[p.key()] = p.value().sizes().vec();
-  for (const auto& b : impl->module().named_buffers()) loaded[b.key()] = b.value().sizes().vec();
+  for (const auto& [name, shape] : shapes()) loaded[name] = shape;
   for (const auto& [name, shape] : expected)
     if (loaded[name] != shape)
       throw Error(Diagnostic{weights, 0, 0,
                              "does not fit the network of " + manifest + ": tensor '" + name + "' has another shape"});
-  impl->module().eval();
+  for (torch::nn::Module* m : modules) m->eval();
   return SequenceModel(impl);
 }
 

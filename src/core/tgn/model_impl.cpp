@@ -155,7 +155,17 @@ int SequenceModel::Impl::vocabIndex(const std::string& action) const {
   return it == info.vocabulary.end() ? -1 : static_cast<int>(it - info.vocabulary.begin());
 }
 
-void SequenceModel::Impl::build() {
+uint64_t memberSeed(uint64_t seed, int k) {
+  return k == 0 ? seed : SplitMix64(seed ^ (0xE7037ED1A0B428DBULL * static_cast<uint64_t>(k))).next();
+}
+
+std::vector<SceneNetwork> SequenceModel::Impl::members() const {
+  std::vector<SceneNetwork> all = {scene};
+  all.insert(all.end(), others.begin(), others.end());
+  return all;
+}
+
+void SequenceModel::Impl::build(int members) {
   order = EntityOrder(spec);
   cfg.nodes = static_cast<int>(spec.entities.size());
   cfg.actions = static_cast<int>(info.vocabulary.size()) + 1;
@@ -177,9 +187,11 @@ void SequenceModel::Impl::build() {
   SeededInit seeded(info.options.seed);
   net = nullptr;
   scene = nullptr;
+  others.clear();
   if (isScene()) {
     scene = SceneNetwork(cfg, mask);
     if (scene->identity) initIdentity(scene->identity, spec, order, info.options.seed);
+    for (int k = 1; k < members; ++k) others.push_back(SceneNetwork(cfg, mask));  // the loaded weights replace these
   } else {
     net = Network(cfg, mask);
     if (net->identity) initIdentity(net->identity, spec, order, info.options.seed);
@@ -406,18 +418,19 @@ std::vector<Sequence> SequenceModel::Impl::sequences(const std::vector<task::Dem
   return out;
 }
 
-Heads SequenceModel::Impl::run(const Batch& batch, Tensor* nodes_out, Tensor* z_out) {
+Heads SequenceModel::Impl::run(const Batch& batch, Tensor* nodes_out, Tensor* z_out, int member) {
   if (!isScene()) {
     const Tensor emb = net->encode(batch.x);
     Tensor seq = torch::zeros({batch.b * batch.t, emb.size(1)}).index_copy(0, batch.slot, emb);
     return net->heads(fused::gru(net->gru, seq.view({batch.b, batch.t, emb.size(1)})).first);
   }
-  const Tensor nodes = scene->encode(batch.x, batch.rel, batch.names);  // [S, N, W]
+  SceneNetwork net = members().at(static_cast<size_t>(member));
+  const Tensor nodes = net->encode(batch.x, batch.rel, batch.names);  // [S, N, W]
   const int64_t n = nodes.size(1), w = nodes.size(2), bt = batch.b * batch.t;
   const Tensor pooled = torch::zeros({bt, w}).index_copy(0, batch.slot, nodes.mean(1));
-  const Tensor z = fused::gru(scene->gru, pooled.view({batch.b, batch.t, w})).first;
+  const Tensor z = fused::gru(net->gru, pooled.view({batch.b, batch.t, w})).first;
   const Tensor slots = torch::zeros({bt, n, w}).index_copy(0, batch.slot, nodes).view({batch.b, batch.t, n, w});
-  Heads h = scene->heads(slots, batch.rel_slots, z);
+  Heads h = net->heads(slots, batch.rel_slots, z);
   if (batch.taken.defined()) h.target = h.target + takenMask(batch.taken);
   if (nodes_out) *nodes_out = slots;
   if (z_out) *z_out = z;
@@ -431,39 +444,50 @@ double SequenceModel::Impl::accuracy(const std::vector<Sequence>& seqs) {
 double SequenceModel::Impl::accuracy(const Batch& batch) {
   torch::NoGradGuard no_grad;
   module().eval();
+  for (SceneNetwork o : others) o->eval();
   if (cfg.gnn) {
     const Tensor ok = correctOf(run(batch), batch, true).to(torch::kFloat) * batch.valid;
     return (ok.sum() / batch.valid.sum()).item<double>();
   }
-  // Every step decoded as predictNext decodes it (decide()): right when END and, for a step,
-  // every entity's action and the acting entities' targets are.
-  Tensor nodes, z;
-  const Heads h = run(batch, isScene() ? &nodes : nullptr, isScene() ? &z : nullptr);
+  // Every step decoded as predictNext decodes it (decide(), an ensemble's majority): right
+  // when END and, for a step, every entity's action and the acting entities' targets are.
+  struct Outputs {
+    Heads h;
+    Tensor nodes, z, la, lt, p_end;
+  };
+  const bool scene = isScene(), by_token = info.plan.token_by_token;
+  std::vector<Outputs> out(scene ? 1 + others.size() : 1);
+  for (size_t m = 0; m < out.size(); ++m) {
+    Outputs& o = out[m];
+    o.h = run(batch, scene ? &o.nodes : nullptr, scene ? &o.z : nullptr, static_cast<int>(m));
+    o.la = torch::log_softmax(o.h.action, -1).to(torch::kDouble).contiguous();  // [B, T, N, A]
+    o.lt = torch::log_softmax(o.h.target, -1).to(torch::kDouble).contiguous();  // [B, T, N, 1 + N]
+    o.p_end = torch::softmax(o.h.end, -1).select(-1, 1).to(torch::kDouble).contiguous();
+  }
   const int64_t n = cfg.nodes, actions = cfg.actions, targets = cfg.targets;
-  const Tensor la_all = torch::log_softmax(h.action, -1).to(torch::kDouble).contiguous();  // [B, T, N, A]
-  const Tensor lt_all = torch::log_softmax(h.target, -1).to(torch::kDouble).contiguous();  // [B, T, N, 1 + N]
-  const Tensor end_all = torch::softmax(h.end, -1).select(-1, 1).to(torch::kDouble).contiguous();
-  auto p_end = end_all.accessor<double, 2>();
   auto valid = batch.valid.accessor<float, 2>();
   auto end = batch.end.accessor<int64_t, 2>();
   auto act = batch.action.accessor<int64_t, 3>();
   auto tgt = batch.target.accessor<int64_t, 3>();
-  const bool by_token = info.plan.token_by_token;
   static const std::vector<Eigen::Vector2d> kNoPositions;
   double right = 0;
   for (int64_t b = 0; b < batch.b; ++b)
     for (int64_t t = 0; t < batch.t; ++t) {
       if (valid[b][t] == 0) continue;
       const int64_t slot = b * batch.t + t;
-      const double* la0 = la_all.data_ptr<double>() + slot * n * actions;
-      const double* lt0 = lt_all.data_ptr<double>() + slot * n * targets;
-      const std::vector<double> la(la0, la0 + n * actions);
-      std::vector<double> lt(lt0, lt0 + n * targets);
-      const bool scene = isScene();
-      const detail::StepDecision d = decide(p_end[b][t], la, lt, by_token ? h.target[b][t] : Tensor(),
-                                            by_token ? nodes[b][t] : Tensor(), by_token ? z[b][t] : Tensor(),
-                                            scene ? &batch.positions[static_cast<size_t>(b * batch.t)] : &kNoPositions,
-                                            scene ? static_cast<size_t>(t) + 1 : 1);
+      std::vector<detail::StepDecision> decisions;
+      for (size_t m = 0; m < out.size(); ++m) {
+        const Outputs& o = out[m];
+        const double* la0 = o.la.data_ptr<double>() + slot * n * actions;
+        const double* lt0 = o.lt.data_ptr<double>() + slot * n * targets;
+        const std::vector<double> la(la0, la0 + n * actions);
+        std::vector<double> lt(lt0, lt0 + n * targets);
+        decisions.push_back(decide(o.p_end.data_ptr<double>()[slot], la, lt, by_token ? o.h.target[b][t] : Tensor(),
+                                   by_token ? o.nodes[b][t] : Tensor(), by_token ? o.z[b][t] : Tensor(),
+                                   scene ? &batch.positions[static_cast<size_t>(b * batch.t)] : &kNoPositions,
+                                   scene ? static_cast<size_t>(t) + 1 : 1, static_cast<int>(m)));
+      }
+      const detail::StepDecision& d = decisions[detail::majorityDecision(decisions)];
       bool ok = d.end == (end[b][t] == 1);
       for (int64_t i = 0; ok && !d.end && i < n; ++i) {
         const detail::DecodedToken& k = d.tokens[static_cast<size_t>(i)];

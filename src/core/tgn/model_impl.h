@@ -34,16 +34,22 @@ struct SequenceModel::Impl {
   ModelInfo info;  ///< entity indices in the task's order
   NetConfig cfg;
   Network net{nullptr};         ///< paper, full-graph, gnn
-  SceneNetwork scene{nullptr};  ///< scene
-  std::vector<float> kinds;     ///< [canonical][3] one-hot entity kind
+  SceneNetwork scene{nullptr};  ///< scene: the network training trains (an ensemble's first member)
+  /// scene, an ensemble (TrainingPlan::ensemble > 1): its other members, trained as `scene`
+  /// from other seeds (memberSeed); each decodes a step, the majority decides.
+  std::vector<SceneNetwork> others;
+  std::vector<float> kinds;  ///< [canonical][3] one-hot entity kind
 
   bool isScene() const { return info.variant == Variant::Scene; }
   torch::nn::Module& module();
   /// Index of `action` in the vocabulary, or -1.
   int vocabIndex(const std::string& action) const;
   /// The network of `info` (shapes, attention edges), weights initialised from the model's
-  /// seed; torch's process-wide generator is left as it was.
-  void build();
+  /// seed; torch's process-wide generator is left as it was. `members`: the scene
+  /// ensemble's networks to build (training builds and trains one at a time).
+  void build(int members = 1);
+  /// Scene: every member of the ensemble, `scene` first.
+  std::vector<SceneNetwork> members() const;
   /// Normalised node features of one row / snapshot (canonical order) into out[N][features].
   void features(const std::vector<Eigen::Vector2d>& pos, const std::vector<task::Label>* labels, float* out) const;
   /// Relative features of every pair (canonical order) into out[N][N][kRelativeFeatures].
@@ -60,8 +66,9 @@ struct SequenceModel::Impl {
   /// ddace::Error naming the demonstration when it does not fit the model.
   std::vector<Sequence> sequences(const std::vector<task::Demonstration>& demos) const;
   /// The network on a batch: outputs [B, T, ...]; scene: the node embeddings [B, T, N, W]
-  /// and the GRU outputs [B, T, H] into `nodes` and `z` when given.
-  Heads run(const Batch& batch, torch::Tensor* nodes = nullptr, torch::Tensor* z = nullptr);
+  /// and the GRU outputs [B, T, H] into `nodes` and `z` when given. `member`: the scene
+  /// ensemble's network to run (0: `scene`).
+  Heads run(const Batch& batch, torch::Tensor* nodes = nullptr, torch::Tensor* z = nullptr, int member = 0);
   /// The step decoder, the one predictNext and the accuracy check use: one step's decision
   /// (canonical order) from the heads at it. detail::decideStep under the plan's step
   /// rules; token by token, the acting entities' targets chosen one at a time
@@ -70,9 +77,11 @@ struct SequenceModel::Impl {
   /// targets' log-probabilities into `lt`). Scene, token by token: `target_logits` [N,
   /// targets], `nodes` [N, W] and `z` [H] are the network's at the step (else unread).
   /// `history[0 .. count)`: the snapshots so far (canonical), the last the step's.
+  /// `member`: the scene ensemble's network whose heads these are (token by token runs its
+  /// heads again); an ensemble keeps its members' majority (detail::majorityDecision).
   detail::StepDecision decide(double p_end, const std::vector<double>& la, std::vector<double>& lt,
                               const torch::Tensor& target_logits, const torch::Tensor& nodes, const torch::Tensor& z,
-                              const std::vector<Eigen::Vector2d>* history, size_t count) const;
+                              const std::vector<Eigen::Vector2d>* history, size_t count, int member = 0) const;
   /// Token by token (scene; docs/tgn.md): the targets of the entities `acting` (canonical)
   /// of one step, chosen one at a time, the surest (entity, target) pair of the pointer's
   /// logits first, each chosen one then given to the heads (its target taken, both out of
@@ -82,7 +91,8 @@ struct SequenceModel::Impl {
   std::pair<std::vector<int>, std::vector<double>> chooseTargets(const torch::Tensor& target_logits,
                                                                  const torch::Tensor& nodes, const torch::Tensor& z,
                                                                  const std::vector<Eigen::Vector2d>* history,
-                                                                 size_t count, const std::vector<bool>& acting) const;
+                                                                 size_t count, const std::vector<bool>& acting,
+                                                                 int member = 0) const;
   /// Exact-step accuracy, eval mode: the steps (and END) decide() decodes exactly from
   /// their true history; gnn: frames whose next labels are all right.
   double accuracy(const std::vector<Sequence>& seqs);
@@ -90,6 +100,9 @@ struct SequenceModel::Impl {
   /// reuses it after every epoch (the data do not change; the pass only reads the batch).
   double accuracy(const Batch& everything);
 };
+
+/// The seed of an ensemble's member k (0: the model's own).
+uint64_t memberSeed(uint64_t seed, int k);
 
 /// Spec, vocabulary, E', the TrainingPlan and normalisation: everything but the weights.
 std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const TrainOptions& options);

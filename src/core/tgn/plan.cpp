@@ -124,6 +124,11 @@ TrainingPlan planTraining(const task::TaskDir& train, const TrainOptions& option
   p.relative_features = options.uses(Rule::Relative) && !(options.uses(Rule::FixedOrder) && p.fixed_order);
   if (!p.relative_features) return p;  // the rules below shape what the scene says
   p.parked_out_of_ranks = options.uses(Rule::Parked);
+  // Ensemble: where the scene decides, a few demonstrations are fitted exactly by networks
+  // that generalise differently (the training seed's initial weights, dropout, batch order
+  // and name draws); the mean of several networks' logits decides as the majority of them.
+  // A fixed order is decided by the steps so far, which any seed learns: one network.
+  p.ensemble = options.uses(Rule::Ensemble) ? kEnsembleMembers : 1;
   // Token by token: where every step's targets were exclusive and some step had several
   // (decisions: a carried load's token is its carrier's).
   const bool loads_carried = !p.step_rules.load_actions.empty();

@@ -22,7 +22,8 @@ double SequenceModel::stepAccuracy(const std::vector<task::Demonstration>& demos
 
 detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector<double>& la, std::vector<double>& lt,
                                                  const Tensor& target_logits, const Tensor& nodes, const Tensor& z,
-                                                 const std::vector<Eigen::Vector2d>* history, size_t count) const {
+                                                 const std::vector<Eigen::Vector2d>* history, size_t count,
+                                                 int member) const {
   const int64_t n = cfg.nodes;
   const std::vector<Eigen::Vector2d>& pos = history[count - 1];
   const StepRules& rules = info.plan.step_rules;
@@ -78,7 +79,7 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
     std::vector<bool> acting(static_cast<size_t>(n));
     for (int64_t i = 0; i < n; ++i)
       acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
-    const auto [target, log_p] = chooseTargets(target_logits, nodes, z, history, count, acting);
+    const auto [target, log_p] = chooseTargets(target_logits, nodes, z, history, count, acting, member);
     for (int64_t i = 0; i < n; ++i)
       if (acting[static_cast<size_t>(i)]) {
         decision.tokens[static_cast<size_t>(i)].target = target[static_cast<size_t>(i)];
@@ -101,14 +102,14 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
 
 std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTargets(
     const Tensor& target_logits, const Tensor& nodes, const Tensor& z, const std::vector<Eigen::Vector2d>* history,
-    size_t count, const std::vector<bool>& acting) const {
+    size_t count, const std::vector<bool>& acting, int member) const {
   const int64_t n = cfg.nodes, targets = cfg.targets;
   std::vector<int> target(static_cast<size_t>(n), 0);
   std::vector<double> log_p(static_cast<size_t>(n), 0);
   std::vector<bool> open = acting, competing(static_cast<size_t>(n), true);
   Tensor taken = torch::zeros({n});
   Tensor logits = target_logits;
-  SceneNetwork net = scene;
+  SceneNetwork net = members().at(static_cast<size_t>(member));
   while (std::any_of(open.begin(), open.end(), [](bool o) { return o; })) {
     const Tensor l = logits.to(torch::kDouble).contiguous();
     const Tensor own = torch::log_softmax(l, -1);
@@ -158,30 +159,46 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
     m.features(canonical[static_cast<size_t>(k)], nullptr, x[k].data_ptr<float>());
     if (m.isScene()) m.relative(canonical.data(), static_cast<size_t>(k) + 1, rel[k].data_ptr<float>());
   }
-  Heads h;
-  Tensor nodes, z;  // scene: the node embeddings and the GRU output, for token by token
-  if (m.isScene()) {
-    SceneNetwork net = m.scene;
-    nodes = net->encode(x, rel);
-    z = fused::gru(net->gru, nodes.mean(1).unsqueeze(0)).first.select(1, t - 1).squeeze(0);
-    h = net->heads(nodes[t - 1], rel[t - 1], z);
-  } else {
-    Network net = m.net;
-    const Tensor emb = net->encode(x);
-    h = net->heads(fused::gru(net->gru, emb.unsqueeze(0)).first.select(1, t - 1).squeeze(0));
-  }
   const auto logSoftmax = [](const Tensor& logits) {
     const Tensor v = torch::log_softmax(logits, -1).to(torch::kDouble).contiguous();
     return std::vector<double>(v.data_ptr<double>(), v.data_ptr<double>() + v.numel());
   };
-  Prediction p;
-  p.end_probability = torch::softmax(h.end, -1)[1].item<double>();
-  const std::vector<double> la = logSoftmax(h.action);  // [N][actions], canonical order
-  std::vector<double> lt = logSoftmax(h.target);        // [N][targets]
+  // Each network decides (an ensemble's members each; docs/tgn.md), the majority is kept.
+  struct Decided {
+    double p_end = 0;
+    std::vector<double> la, lt;  ///< [N][actions], [N][targets], canonical order
+    detail::StepDecision decision;
+  };
+  std::vector<Decided> decided;
   const bool by_token = m.info.plan.token_by_token;
-  const detail::StepDecision decision =
-      m.decide(p.end_probability, la, lt, by_token ? h.target : Tensor(), by_token ? nodes[t - 1] : Tensor(), z,
-               canonical.data(), static_cast<size_t>(t));
+  if (m.isScene()) {
+    const std::vector<SceneNetwork> members = m.members();
+    for (size_t k = 0; k < members.size(); ++k) {
+      SceneNetwork net = members[k];
+      const Tensor nodes = net->encode(x, rel);  // the node embeddings and the GRU output, for token by token
+      const Tensor z = fused::gru(net->gru, nodes.mean(1).unsqueeze(0)).first.select(1, t - 1).squeeze(0);
+      const Heads h = net->heads(nodes[t - 1], rel[t - 1], z);
+      Decided d{torch::softmax(h.end, -1)[1].item<double>(), logSoftmax(h.action), logSoftmax(h.target), {}};
+      d.decision = m.decide(d.p_end, d.la, d.lt, by_token ? h.target : Tensor(), by_token ? nodes[t - 1] : Tensor(), z,
+                            canonical.data(), static_cast<size_t>(t), static_cast<int>(k));
+      decided.push_back(std::move(d));
+    }
+  } else {
+    Network net = m.net;
+    const Tensor emb = net->encode(x);
+    const Heads h = net->heads(fused::gru(net->gru, emb.unsqueeze(0)).first.select(1, t - 1).squeeze(0));
+    Decided d{torch::softmax(h.end, -1)[1].item<double>(), logSoftmax(h.action), logSoftmax(h.target), {}};
+    d.decision = m.decide(d.p_end, d.la, d.lt, Tensor(), Tensor(), Tensor(), canonical.data(), static_cast<size_t>(t));
+    decided.push_back(std::move(d));
+  }
+  std::vector<detail::StepDecision> decisions;
+  for (const Decided& d : decided) decisions.push_back(d.decision);
+  const Decided& kept = decided[detail::majorityDecision(decisions)];
+  const detail::StepDecision& decision = kept.decision;
+  const std::vector<double>& la = kept.la;
+  const std::vector<double>& lt = kept.lt;
+  Prediction p;
+  p.end_probability = kept.p_end;
   p.end = decision.end;
   if (p.end) return p;
   const std::vector<detail::DecodedToken>& step = decision.tokens;

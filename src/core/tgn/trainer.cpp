@@ -211,6 +211,22 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
                 << (better ? "without" : "with") << " it" << std::endl;
     if (better) impl = alternative;
   }
+  // Ensemble: the other members trained as the first (with its identity embedding or
+  // not), each from a seed of its own; each decodes a step and the majority decides
+  // (detail::majorityDecision).
+  const int members = impl->info.plan.ensemble;
+  for (int k = 1; k < members; ++k) {
+    auto member = std::make_shared<Impl>(*prepared);
+    member->info.plan = impl->info.plan;
+    member->info.options.seed = memberSeed(options.seed, k);
+    if (progress)
+      *progress << "ensemble: network " << k + 1 << " of " << members << " (seed " << member->info.options.seed << ")"
+                << std::endl;
+    impl->others.push_back(trainNetwork(train, member, progress)->scene);
+  }
+  if (progress && members > 1)
+    *progress << "ensemble of " << members << ": step accuracy " << impl->accuracy(impl->sequences(train.demos))
+              << std::endl;
   return SequenceModel(impl);
 }
 

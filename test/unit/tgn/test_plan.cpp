@@ -63,6 +63,7 @@ TEST(TrainingPlan, IsWhatTheDemonstrationsDecide) {
   EXPECT_TRUE(fixed.name_groups.empty());
   EXPECT_FALSE(fixed.token_by_token || fixed.parked_out_of_ranks);
   EXPECT_EQ(fixed.step_rules.step_size, 2);
+  EXPECT_EQ(fixed.ensemble, 1) << "a fixed order is the steps', which any seed learns";
 
   const tgn::TrainingPlan f = planOf(fetch);
   EXPECT_FALSE(f.fixed_order);
@@ -84,6 +85,7 @@ TEST(TrainingPlan, IsWhatTheDemonstrationsDecide) {
   EXPECT_TRUE(g.token_by_token);
   EXPECT_TRUE(g.step_rules.exclusive_targets);
   EXPECT_EQ(g.step_rules.step_size, 3);
+  EXPECT_EQ(g.ensemble, tgn::kEnsembleMembers);
 
   const tgn::TrainingPlan q = planOf(queue);
   EXPECT_FALSE(q.token_by_token) << "one token per step";
@@ -103,6 +105,7 @@ TEST(TrainingPlan, IsWhatTheDemonstrationsDecide) {
     EXPECT_EQ(off.parked_out_of_ranks, rule != tgn::Rule::Relative && rule != tgn::Rule::Parked) << tgn::toString(rule);
     EXPECT_EQ(off.name_groups.empty(), rule == tgn::Rule::Relative || rule == tgn::Rule::ShuffledNames)
         << tgn::toString(rule);
+    EXPECT_EQ(off.ensemble == 1, rule == tgn::Rule::Relative || rule == tgn::Rule::Ensemble) << tgn::toString(rule);
   }
   tgn::TrainOptions keep;
   keep.without = {tgn::Rule::FixedOrder};
@@ -353,4 +356,50 @@ TEST(CarriedLoads, ACarrierStoppedWhereTheFollowerStopsStillCarries) {
     ++checked;
   }
   EXPECT_EQ(checked, 5);
+}
+
+// Ensemble: queue from 10 demonstrations (data seed 1). The network of training seed 1 fits
+// its demonstrations exactly and still sends the right robot to Q2 instead of Q1 in a fresh
+// scene (test demonstration 4: the head slot tied to where it happened to lie); the plan's
+// three networks (seed 1's the first of them, trained to the bit as alone) decide every
+// step of the 15 fresh scenes as the rule says: the other two outvote it.
+TEST(Ensemble, TheMajorityOfSeedsDecides) {
+  const task::TaskDir train = generate("queue", 10), test = generate("queue", 15, 1 * 2654435761ULL + 0x7e57);
+  tgn::TrainOptions alone;
+  alone.without = {tgn::Rule::Ensemble};
+  const tgn::SequenceModel one = tgn::SequenceModel::train(train, alone, nullptr);
+  const tgn::SequenceModel three = tgn::SequenceModel::train(train, tgn::TrainOptions{}, nullptr);
+  ASSERT_EQ(one.info().plan.ensemble, 1);
+  ASSERT_EQ(three.info().plan.ensemble, tgn::kEnsembleMembers);
+  EXPECT_EQ(one.info().history.size(), three.info().history.size()) << "the first network is the one alone";
+  EXPECT_DOUBLE_EQ(one.stepAccuracy(train.demos), 1.0);
+  EXPECT_LT(one.stepAccuracy(test.demos), 1.0);
+  EXPECT_DOUBLE_EQ(three.stepAccuracy(test.demos), 1.0);
+  const std::vector<task::Snapshot> first(test.demos[4].snapshots.begin(), test.demos[4].snapshots.begin() + 1);
+  EXPECT_NE(one.predictNext(first).tokens, test.demos[4].steps[0].tokens);
+  EXPECT_EQ(three.predictNext(first).tokens, test.demos[4].steps[0].tokens);
+  // Saved and loaded: every network, the same decisions.
+  const std::string dir = (fs::temp_directory_path() / ("ddace_test_ensemble_" + std::to_string(::getpid()))).string();
+  three.save(dir);
+  const tgn::SequenceModel loaded = tgn::SequenceModel::load(dir);
+  fs::remove_all(dir);
+  EXPECT_EQ(loaded.info().plan.ensemble, tgn::kEnsembleMembers);
+  EXPECT_DOUBLE_EQ(loaded.stepAccuracy(test.demos), 1.0);
+  EXPECT_EQ(loaded.predictNext(first).tokens, three.predictNext(first).tokens);
+}
+
+// The majority of an ensemble's decoded steps: the most voted, the first network's on a tie.
+TEST(Ensemble, MajorityDecision) {
+  const auto step = [](int target) {
+    tgn::detail::StepDecision d;
+    d.tokens = {{1, target}, {0, 0}};
+    return d;
+  };
+  tgn::detail::StepDecision end;
+  end.end = true;
+  EXPECT_EQ(tgn::detail::majorityDecision({step(1), step(2), step(2)}), 1u);
+  EXPECT_EQ(tgn::detail::majorityDecision({step(1), step(2), step(3)}), 0u);
+  EXPECT_EQ(tgn::detail::majorityDecision({step(1), end, end}), 1u);
+  EXPECT_EQ(tgn::detail::majorityDecision({step(1)}), 0u);
+  EXPECT_THROW(tgn::detail::majorityDecision({}), Error);
 }
