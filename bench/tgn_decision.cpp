@@ -110,8 +110,9 @@ int main(int argc, char** argv) try {
     throw Error("zoo:nearest-goals did not train an ensemble (and one network when told)");
   const std::vector<task::Snapshot> big_first(big.demos.front().snapshots.begin(),
                                               big.demos.front().snapshots.begin() + 1);
-  const auto p99Ms = [&](const tgn::SequenceModel& m) {  // the better of 2 rounds
+  const auto p99Ms = [&](const tgn::SequenceModel& m, double* median) {  // the better of 2 rounds
     double best = 1e30;
+    *median = 1e30;
     for (int round = 0; round < 2; ++round) {
       std::vector<double> times;
       for (int i = 0; i < kRepeats; ++i) {
@@ -121,13 +122,16 @@ int main(int argc, char** argv) try {
       }
       std::sort(times.begin(), times.end());
       best = std::min(best, times[times.size() * 99 / 100]);
+      *median = std::min(*median, times[times.size() / 2]);
     }
     return best;
   };
-  const double ensemble_p99_ms = p99Ms(ensemble), single_p99_ms = p99Ms(single);
+  double ensemble_median_ms = 0, single_median_ms = 0;
+  const double ensemble_p99_ms = p99Ms(ensemble, &ensemble_median_ms), single_p99_ms = p99Ms(single, &single_median_ms);
   std::cout << "nearest_goal, one decision: token by token " << token_ms << " ms, all at once " << once_ms << " ms\n";
-  std::cout << "zoo:nearest-goals, one decision p99: ensemble of " << tgn::kEnsembleMembers << " " << ensemble_p99_ms
-            << " ms, one network " << single_p99_ms << " ms\n";
+  std::cout << "zoo:nearest-goals, one decision median / p99: ensemble of " << tgn::kEnsembleMembers << " "
+            << ensemble_median_ms << " / " << ensemble_p99_ms << " ms, one network " << single_median_ms << " / "
+            << single_p99_ms << " ms\n";
   std::cout << "one decision, 11 robots, history of " << kHistory << ": C++ median " << cpp_ms << " ms, p99 "
             << cpp_p99_ms << " ms (thread CPU time p99 " << cpu_p99_ms << " ms; " << tokens
             << " tokens), Python median " << py_ms << " ms\n";
@@ -163,9 +167,14 @@ int main(int argc, char** argv) try {
                 token_ms, once_ms, token_ms / once_ms);
   md << line;
   std::snprintf(line, sizeof line,
-                "| zoo:nearest-goals's step (6 robots, 7 goals, first snapshot), p99: the ensemble of %d networks | "
-                "%.3f ms | %.3f ms (one network, --without ensemble) | %.2fx the time | < 1 ms |\n",
-                tgn::kEnsembleMembers, ensemble_p99_ms, single_p99_ms, ensemble_p99_ms / single_p99_ms);
+                "| zoo:nearest-goals's step (6 robots, 7 goals, first snapshot), median: the ensemble of %d networks | "
+                "%.3f ms | %.3f ms (one network, --without ensemble) | %.2fx the time | |\n",
+                tgn::kEnsembleMembers, ensemble_median_ms, single_median_ms, ensemble_median_ms / single_median_ms);
+  md << line;
+  std::snprintf(line, sizeof line,
+                "| zoo:nearest-goals's step, p99: the ensemble of %d networks | %.3f ms | %.3f ms (one network) | "
+                "%.2f of the goal | < 1 ms |\n",
+                tgn::kEnsembleMembers, ensemble_p99_ms, single_p99_ms, ensemble_p99_ms / 1.0);
   md << line;
   bench::writeResults(kRepo, "tgn_decision", md.str());
   return 0;

@@ -212,7 +212,8 @@ struct TrainingPlan {
   /// with several is in a name group); else the names say what no scene can (queue's slots).
   bool names_or_scene = false;
   /// Scene: the groups whose identity embeddings training permutes ("Shuffled names";
-  /// detail::interchangeableNames), each ascending.
+  /// detail::interchangeableNames), each ascending; none when training kept the names
+  /// (shuffled, the network fit its demonstrations worse: withNamesKept).
   std::vector<std::vector<int>> name_groups;
   /// Scene: a step's targets are decided one token at a time and trained so ("Token by token").
   bool token_by_token = false;
@@ -225,6 +226,9 @@ struct TrainingPlan {
   std::vector<graph::Edge> attention_edges;  ///< directed edges the network attends over (no self-loops)
   /// The same plan for the network without the identity embedding (no names to shuffle).
   TrainingPlan withoutIdentity() const;
+  /// The same plan without shuffled names (training fell short with them: the trainer's
+  /// "Shuffled names, unless they cost the fit").
+  TrainingPlan withNamesKept() const;
   /// Empty when planTraining() could have made this plan for `options` (of its variant);
   /// else what could not be, for a reader of a manifest to report (a plan it cannot decode
   /// with must be refused, not run).

@@ -162,6 +162,12 @@ TrainingPlan planTraining(const task::TaskDir& train, const TrainOptions& option
   return p;
 }
 
+TrainingPlan TrainingPlan::withNamesKept() const {
+  TrainingPlan p = *this;
+  p.name_groups.clear();
+  return p;
+}
+
 TrainingPlan TrainingPlan::withoutIdentity() const {
   TrainingPlan p = *this;
   p.identity_embedding = false;

@@ -192,25 +192,33 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
               << std::endl;
   }
   std::shared_ptr<Impl> impl = trainNetwork(train, prepared, progress);
-  // Names or the scene: the identity embedding lets the scene network tell entities apart
-  // by name, which the fixed-order tasks need; where the decision is the scene's
-  // (nearest_goal), it can also settle on fitting the demonstrations by name and stall
-  // short of them. Then a network that must decide from the scene alone is trained too,
-  // and kept when it fits better (the fit: the accuracy check, predictNext's decoder).
-  const double fit = impl->info.history.back().step_accuracy;
-  if (plan.names_or_scene && fit < 1) {
+  // A network that fits its training demonstrations short of every step may have been
+  // denied what it needed; the plan's alternatives are trained in turn and each kept when it
+  // fits better (the fit: the accuracy check, predictNext's decoder).
+  const auto tryInstead = [&](const TrainingPlan& alternative_plan, const std::string& what) {
+    const double fit = impl->info.history.back().step_accuracy;
+    if (fit >= 1) return;
     auto without = std::make_shared<Impl>(*prepared);
-    without->info.plan = plan.withoutIdentity();
-    if (progress)
-      *progress << "step accuracy " << fit << " with the identity embedding: training without it" << std::endl;
+    without->info.plan = alternative_plan;
+    if (progress) *progress << "step accuracy " << fit << ": training " << what << std::endl;
     std::shared_ptr<Impl> alternative = trainNetwork(train, without, progress);
     const double alternative_fit = alternative->info.history.back().step_accuracy;
     const bool better = alternative_fit > fit;
     if (progress)
-      *progress << "step accuracy " << alternative_fit << " without the identity embedding: keeping the network "
-                << (better ? "without" : "with") << " it" << std::endl;
+      *progress << "step accuracy " << alternative_fit << " " << what << ": keeping " << (better ? "it" : "the first")
+                << std::endl;
     if (better) impl = alternative;
-  }
+  };
+  // Names or the scene: the identity embedding lets the scene network tell entities apart
+  // by name, which the fixed-order tasks need; where the decision is the scene's
+  // (nearest_goal), it can also settle on fitting the demonstrations by name and stall
+  // short of them. Then a network that must decide from the scene alone is tried.
+  if (plan.names_or_scene) tryInstead(plan.withoutIdentity(), "without the identity embedding");
+  // Shuffled names, unless they cost the fit: the groups are read from the tokens, but a
+  // rule may refer to an entity no token tells apart ("the robot 2nd farthest from G1",
+  // G1 a target only in some demonstrations, as G2): shuffled with G2, G1's name is lost,
+  // and the network fits short of the demonstrations. Then the names are kept.
+  if (!impl->info.plan.name_groups.empty()) tryInstead(impl->info.plan.withNamesKept(), "with the names kept");
   // Ensemble: the other members trained as the first (with its identity embedding or
   // not), each from a seed of its own; each decodes a step and the majority decides
   // (detail::majorityDecision).

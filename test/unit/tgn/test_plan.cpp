@@ -403,3 +403,20 @@ TEST(Ensemble, MajorityDecision) {
   EXPECT_EQ(tgn::detail::majorityDecision({step(1)}), 0u);
   EXPECT_THROW(tgn::detail::majorityDecision({}), Error);
 }
+
+// Shuffled names, unless they cost the fit: "the others meet at the robot 2nd farthest from
+// G1, which then goes to the frontmost goal" (zoo:10, 20 demonstrations). G1 and G2 are each
+// a target in some demonstrations only, so the tokens call them interchangeable; shuffled,
+// G1's name is lost, the network fits 59 of 60 steps and sent the others to the wrong robot
+// in 7 of 10 fresh scenes. Trained with the names kept it fits every step and is kept.
+TEST(ShuffledNames, AreKeptWhereShufflingThemCostsTheFit) {
+  const task::TaskDir train = generate("zoo:10", 20), test = generate("zoo:10", 10, 1 * 2654435761ULL + 0x7e57);
+  tgn::TrainOptions o;
+  o.without = {tgn::Rule::Ensemble};  // the rule is the first network's; one is enough here
+  EXPECT_EQ(names(train, planOf(train, o).name_groups), (Groups{{"R1", "R2", "R3", "R4"}, {"G1", "G2"}}));
+  const tgn::SequenceModel m = tgn::SequenceModel::train(train, o, nullptr);
+  EXPECT_TRUE(m.info().plan.name_groups.empty());
+  EXPECT_TRUE(m.info().plan.identity_embedding);
+  EXPECT_DOUBLE_EQ(m.stepAccuracy(train.demos), 1.0);
+  EXPECT_GE(m.stepAccuracy(test.demos), 0.85);
+}
