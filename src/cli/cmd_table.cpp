@@ -510,6 +510,24 @@ int runTable(const std::vector<std::string>& argv) {
                 std::to_string(n) + " demos"});
     }
   }
+  // The kinds of task users name (rule_zoo.h, userKinds), each its zoo rule, with the zoo.
+  std::vector<size_t> kind_jobs;
+  std::vector<tasks::ZooKind> kinds;
+  if (s.zoo_rules > 0) kinds = tasks::userKinds();
+  if (s.quick && kinds.size() > 1) kinds.resize(1);
+  for (const tasks::ZooKind& k : kinds) {
+    uint64_t id = 0;
+    tasks::parseZooFamily(k.family, id);
+    for (int n : sizes) {
+      const std::string name = "kind-" + k.family.substr(4) + "-" + std::to_string(n);
+      const fs::path dir = s.out / "data" / name;
+      task::writeTaskDir(tasks::generateZoo(id, n, static_cast<uint64_t>(s.seed)), (dir / "train").string());
+      task::writeTaskDir(tasks::generateZoo(id, s.test, static_cast<uint64_t>(s.seed) * 2654435761ULL + 0x7e57),
+                         (dir / "test").string());
+      add(kind_jobs,
+          {dir, name + "-" + tgn::toString(default_variant), k.family, default_variant, std::to_string(n) + " demos"});
+    }
+  }
   const std::vector<Row> rows = runJobs(s, jobs);
 
   const std::string py = "/usr/bin/python3 '" + (source / "scripts").string() + "/";
@@ -666,12 +684,6 @@ int runTable(const std::vector<std::string>& argv) {
   }
   if (!zoo_rules.empty()) {
     // OSR of rule k at sizes[m] is rows[zoo[k * sizes.size() + m]].
-    const auto quantile = [](std::vector<double> v, double q) {  // linear between order statistics
-      std::sort(v.begin(), v.end());
-      const double at = q * static_cast<double>(v.size() - 1);
-      const size_t lo = static_cast<size_t>(at), hi = std::min(lo + 1, v.size() - 1);
-      return v[lo] + (at - static_cast<double>(lo)) * (v[hi] - v[lo]);
-    };
     md << "\n## Rule zoo\n\n"
        << "The default network on the first " << zoo_rules.size()
        << " distinct rules of the rule zoo (rules people state about a table, docs/tgn.md; `--zoo-rules N`), " << s.test
@@ -685,12 +697,29 @@ int runTable(const std::vector<std::string>& argv) {
       size_t worst = 0;
       for (size_t k = 1; k < v.size(); ++k)
         if (v[k] < v[worst]) worst = k;
-      double mean = 0;
-      for (double x : v) mean += x / static_cast<double>(v.size());
-      md << "| " << sizes[m] << " | " << v.size() << " | " << fmt(quantile(v, 0.5), 2) << " | "
-         << fmt(quantile(v, 0.1), 2) << " | " << fmt(mean, 2) << " | "
-         << std::count_if(v.begin(), v.end(), [](double x) { return x >= 0.9; }) << " | zoo:" << zoo_rules[worst].id
-         << " " << zoo_rules[worst].name << " (" << fmt(v[worst], 2) << ") |\n";
+      const tasks::OsrDistribution d = tasks::osrDistribution(v);
+      md << "| " << sizes[m] << " | " << d.rules << " | " << fmt(d.median, 2) << " | " << fmt(d.p10, 2) << " | "
+         << fmt(d.mean, 2) << " | " << d.at_least_0_9 << " | zoo:" << zoo_rules[worst].id << " "
+         << zoo_rules[worst].name << " (" << fmt(v[worst], 2) << ") |\n";
+    }
+  }
+  if (!kinds.empty()) {
+    // OSR of kind k at sizes[m] is rows[kind_jobs[k * sizes.size() + m]].
+    md << "\n### Kinds of task users name\n\n"
+       << "Each kind as the zoo rule that states it (rule_zoo.h, `userKinds`; goal: OSR >= 0.9 at 20 "
+          "demonstrations), "
+       << s.test << " fresh scenes each, ideal execution.\n\n| kind | zoo rule |";
+    for (int n : sizes) md << " OSR, " << n << " demos |";
+    md << "\n|---|---|";
+    for (size_t m = 0; m < sizes.size(); ++m) md << "---|";
+    md << "\n";
+    for (size_t k = 0; k < kinds.size(); ++k) {
+      uint64_t id = 0;
+      tasks::parseZooFamily(kinds[k].family, id);
+      md << "| " << kinds[k].kind << " | " << kinds[k].family << " " << tasks::zooRule(id).name << " |";
+      for (size_t m = 0; m < sizes.size(); ++m)
+        md << " " << fmt(rows[kind_jobs[k * sizes.size() + m]].m.osr, 2) << " |";
+      md << "\n";
     }
   }
   // The default network's models of the sections above, run again in closed loop.

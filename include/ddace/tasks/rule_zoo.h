@@ -45,20 +45,53 @@ namespace ddace::tasks {
 
 struct ZooRule {
   uint64_t id = 0;
-  std::string kind;  ///< the template: assign, sequence, queue, fetch, relay, boxes, gather
-  std::string name;  ///< the rule in words, with its entity counts (also the task's name)
+  std::string kind;    ///< the template: assign, sequence, queue, fetch, relay, boxes, gather
+  std::string name;    ///< the rule in words, with its entity counts (also the task's name)
+  std::string family;  ///< as `ddace generate` takes it: "zoo:<id>", or "zoo:<key>" for a named rule
   int robots = 0, objects = 0, goals = 0;
 };
 
-/// The rule with this id (any id is a rule; different ids may state the same rule).
+/// Ids from here on are the named rules' (namedZooRules), in their order; the drawn rules
+/// are the ids below (`zoo:<id>` takes at most 18 digits).
+inline constexpr uint64_t kNamedZooRuleIds = uint64_t{1} << 62;
+
+/// The rule with this id (any id below kNamedZooRuleIds is a drawn rule; different ids may
+/// state the same rule). Throws ddace::Error for an id past the named rules.
 ZooRule zooRule(uint64_t id);
+/// Named rules: fixed rules of the grammar that the drawn ones do not state, for the kinds
+/// of task users name (docs/tgn.md, "Kinds of task"): zoo:nearest-goals (each of 6 robots
+/// to its nearest free goal of 7, all at once: more entities than a drawn rule has),
+/// zoo:left-to-right (3 robots take 3 goals in left-to-right order), zoo:two-boxes (2
+/// boxes, each fetched by its nearest free robot of 3; then the goals in turn, G1 first,
+/// each take the free box nearest to them).
+std::vector<ZooRule> namedZooRules();
+
+/// The kinds of task users name (docs/tgn.md, "Kinds of task"), each with the zoo rule
+/// that states it: the named rules above, and drawn rules (the first id stating the kind
+/// with at least 3 robots).
+struct ZooKind {
+  std::string kind;    ///< in words
+  std::string family;  ///< "zoo:<id>" or "zoo:<key>"
+};
+std::vector<ZooKind> userKinds();
+
+/// The distribution of OSR over a sample of rules, as `ddace bench rule_zoo` and `ddace
+/// table` report it.
+struct OsrDistribution {
+  size_t rules = 0;
+  double median = 0, p10 = 0, mean = 0;  ///< quantiles linear between order statistics
+  size_t at_least_0_9 = 0;               ///< rules with OSR >= 0.9
+};
+/// Throws ddace::Error when `osr` is empty.
+OsrDistribution osrDistribution(const std::vector<double>& osr);
 /// The ids of the first `count` rules with distinct names, in increasing id order.
 std::vector<uint64_t> distinctZooRules(int count);
 /// `demos` demonstrations of rule `rule_id` over start configurations drawn from `seed`.
 /// Throws ddace::Error when no unambiguous configuration is found.
 task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed);
-/// Parses "zoo:<id>" (as `ddace generate` takes it); false for any other family name.
-/// Throws ddace::Error naming the text when the id is not a non-negative integer.
+/// Parses "zoo:<id>" or "zoo:<key>" of a named rule (as `ddace generate` takes it) into
+/// the rule's id; false for any other family name. Throws ddace::Error naming the text when
+/// it is neither.
 bool parseZooFamily(const std::string& family, uint64_t& id);
 
 }  // namespace ddace::tasks

@@ -74,6 +74,9 @@ struct Rule {
   ZooRule info;
   Selector a, b, c;
   bool extra = false;  ///< fetch: the others go to the carrier; relay: the giver follows
+  /// boxes (named rules only): the goals in name order each take the free box nearest to
+  /// them ("the box nearer G1 goes to it, the other to G2") instead of the matching `b`.
+  bool goals_in_turn = false;
 };
 
 /// One token: entity, action, target (entity indices).
@@ -114,6 +117,42 @@ std::string counts(const ZooRule& r) {
   return s;
 }
 
+/// The rule in words (from its template, counts and selectors).
+std::string words(const Rule& r) {
+  const ZooRule& z = r.info;
+  if (z.kind == "assign")
+    return r.a.relative() ? "each robot to its " + r.a.adjective() + " free goal, all at once"
+                          : "robots take goals in " + r.a.order() + " order, all at once";
+  if (z.kind == "sequence")
+    return "one robot per step, " + r.a.order() + ", each to its " + r.b.adjective() + " free goal";
+  if (z.kind == "queue")
+    return "robots take the slots Q1..Q" + std::to_string(z.goals) + " one per step, " +
+           (r.a.relative() ? "the " + r.a.adjective() + (r.a.mode == Selector::Nearest ? " to" : " from") + " Q1 first"
+                           : "in " + r.a.order() + " order");
+  if (z.kind == "fetch")
+    return r.a.phrase("robot", "B1") + " fetches B1 and carries it to " +
+           (z.goals == 1 ? std::string("G1") : r.b.phrase("goal", "B1")) +
+           (r.extra ? ", then the others go to the carrier" : "");
+  if (z.kind == "relay")
+    return r.a.phrase("robot", "B1") + " fetches B1 and hands it to " + r.b.phrase("teammate", "it") +
+           ", who carries it to " + (z.goals == 1 ? std::string("G1") : r.c.phrase("goal", "the receiver")) +
+           (r.extra ? ", then the giver follows the receiver" : "");
+  if (z.kind == "boxes")
+    return std::string("each box fetched by ") +
+           (r.a.relative() ? "its " + r.a.adjective() + " free robot" : "the robots in " + r.a.order() + " order") +
+           ", then carried to " +
+           (r.goals_in_turn  ? "the goals in turn, G1 first, each taking the free box nearest to it"
+            : r.b.relative() ? "its " + r.b.adjective() + " free goal"
+                             : "the goals in " + r.b.order() + " order");
+  return "the others meet at " + r.a.phrase("robot", "G1") + ", which then goes to " +
+         (z.goals == 1 ? std::string("G1") : r.b.phrase("goal", "itself"));
+}
+
+void name(Rule& r) {
+  r.info.name = r.info.kind + ": " + words(r) + " " + counts(r.info);
+  r.info.family = "zoo:" + std::to_string(r.info.id);
+}
+
 Rule drawRule(uint64_t id) {
   SplitMix64 rng(id * 0x9E3779B97F4A7C15ULL + 0x2545F4914F6CDD1DULL);
   static const char* kinds[] = {"assign", "sequence", "queue", "fetch", "relay", "boxes", "gather"};
@@ -121,27 +160,20 @@ Rule drawRule(uint64_t id) {
   r.info.id = id;
   r.info.kind = kinds[rng.index(7)];
   ZooRule& z = r.info;
-  std::string words;
   if (z.kind == "assign") {
     z.robots = drawCount(rng, 2, 5);
     z.goals = std::min(kMaxEntities - z.robots, z.robots + drawCount(rng, 0, 2));
     r.a = drawMatching(rng);
-    words = r.a.relative() ? "each robot to its " + r.a.adjective() + " free goal, all at once"
-                           : "robots take goals in " + r.a.order() + " order, all at once";
   } else if (z.kind == "sequence") {
     z.robots = drawCount(rng, 2, 4);
     z.goals = std::min(6, z.robots + drawCount(rng, 0, 2));
     r.a = drawSelector(rng, 0, false, false);
     r.b = drawSelector(rng, 0, true, false);
     if (!r.b.relative()) r.b.mode = Selector::Nearest;
-    words = "one robot per step, " + r.a.order() + ", each to its " + r.b.adjective() + " free goal";
   } else if (z.kind == "queue") {
     z.robots = drawCount(rng, 2, 4);
     z.goals = z.robots;
     r.a = drawMatching(rng);
-    words = "robots take the slots Q1..Q" + std::to_string(z.goals) + " one per step, " +
-            (r.a.relative() ? "the " + r.a.adjective() + (r.a.mode == Selector::Nearest ? " to" : " from") + " Q1 first"
-                            : "in " + r.a.order() + " order");
   } else if (z.kind == "fetch") {
     z.robots = drawCount(rng, 2, 5);
     z.objects = 1;
@@ -149,9 +181,6 @@ Rule drawRule(uint64_t id) {
     r.a = drawSelector(rng, z.robots);
     r.b = drawSelector(rng, z.goals);
     r.extra = rng.index(2) == 1;
-    words = r.a.phrase("robot", "B1") + " fetches B1 and carries it to " +
-            (z.goals == 1 ? std::string("G1") : r.b.phrase("goal", "B1")) +
-            (r.extra ? ", then the others go to the carrier" : "");
   } else if (z.kind == "relay") {
     z.robots = drawCount(rng, 3, 5);
     z.objects = 1;
@@ -161,35 +190,62 @@ Rule drawRule(uint64_t id) {
     if (!r.b.relative()) r.b.mode = Selector::Nearest;  // the teammate is chosen relative to the giver
     r.c = drawSelector(rng, z.goals);
     r.extra = rng.index(2) == 1;
-    words = r.a.phrase("robot", "B1") + " fetches B1 and hands it to " + r.b.phrase("teammate", "it") +
-            ", who carries it to " + (z.goals == 1 ? std::string("G1") : r.c.phrase("goal", "the receiver")) +
-            (r.extra ? ", then the giver follows the receiver" : "");
   } else if (z.kind == "boxes") {
     z.objects = drawCount(rng, 2, 3);
     z.robots = std::min(5, z.objects + drawCount(rng, 0, 1));
     z.goals = std::min(kMaxEntities - z.robots - z.objects, z.objects + drawCount(rng, 0, 1));
     r.a = drawMatching(rng);
     r.b = drawMatching(rng);
-    words = std::string("each box fetched by ") +
-            (r.a.relative() ? "its " + r.a.adjective() + " free robot" : "the robots in " + r.a.order() + " order") +
-            ", then carried to " +
-            (r.b.relative() ? "its " + r.b.adjective() + " free goal" : "the goals in " + r.b.order() + " order");
   } else {  // gather
     z.robots = drawCount(rng, 3, 6);
     z.goals = drawCount(rng, 1, 3);
     r.a = drawSelector(rng, z.robots);
     r.b = drawSelector(rng, z.goals);
-    words = "the others meet at " + r.a.phrase("robot", "G1") + ", which then goes to " +
-            (z.goals == 1 ? std::string("G1") : r.b.phrase("goal", "itself"));
   }
-  z.name = z.kind + ": " + words + " " + counts(z);
+  name(r);
   return r;
+}
+
+/// The named rules (rule_zoo.h, namedZooRules): fixed rules of the grammar, some beyond
+/// the drawn rules' counts.
+struct Named {
+  const char* key;
+  Rule rule;
+};
+
+std::vector<Named> namedRules() {
+  std::vector<Named> out;
+  const auto add = [&](const char* key, const char* kind, int robots, int objects, int goals) -> Rule& {
+    Rule r;
+    r.info.kind = kind;
+    r.info.robots = robots, r.info.objects = objects, r.info.goals = goals;
+    out.push_back({key, r});
+    return out.back().rule;
+  };
+  add("nearest-goals", "assign", 6, 0, 7).a.mode = Selector::Nearest;
+  Rule& left_to_right = add("left-to-right", "assign", 3, 0, 3);
+  left_to_right.a.mode = Selector::Axis, left_to_right.a.axis = 0;
+  Rule& two_boxes = add("two-boxes", "boxes", 3, 2, 2);
+  two_boxes.a.mode = Selector::Nearest, two_boxes.goals_in_turn = true;
+  for (size_t k = 0; k < out.size(); ++k) {
+    out[k].rule.info.id = kNamedZooRuleIds + k;
+    name(out[k].rule);
+    out[k].rule.info.family = std::string("zoo:") + out[k].key;
+  }
+  return out;
+}
+
+Rule ruleOf(uint64_t id) {
+  if (id < kNamedZooRuleIds) return drawRule(id);
+  const std::vector<Named> named = namedRules();
+  if (id - kNamedZooRuleIds >= named.size()) throw Error("no named zoo rule has id " + std::to_string(id));
+  return named[id - kNamedZooRuleIds].rule;
 }
 
 /// The task's entities: R1.., B1.., then G1.. (Q1.. for a queue's slots).
 task::TaskSpec zooSpec(const ZooRule& z) {
   task::TaskSpec spec;
-  spec.name = "zoo " + std::to_string(z.id) + " " + z.name;
+  spec.name = "zoo " + z.family.substr(4) + " " + z.name;  // "zoo 17 ...", "zoo two-boxes ..."
   spec.actions = {"move"};
   if (z.objects) spec.actions.push_back("carry");
   spec.actions_declared = true;
@@ -265,7 +321,18 @@ class Decider {
         for (auto [box, r] : match(boxes_, robots_, rule_.a)) carriers.push_back({box, r}), add(r, "move", box);
         finish();
         step({});
-        for (auto [box, g] : match(boxes_, goals_, rule_.b)) {
+        std::vector<std::pair<int, int>> delivered;  // (box, goal)
+        if (rule_.goals_in_turn) {
+          std::vector<int> free = boxes_;
+          for (size_t k = 0; k < goals_.size() && !free.empty(); ++k) {
+            const int box = pick(free, Selector{}, pos_[goals_[k]]);
+            free.erase(std::find(free.begin(), free.end(), box));
+            delivered.push_back({box, goals_[k]});
+          }
+        } else {
+          delivered = match(boxes_, goals_, rule_.b);
+        }
+        for (auto [box, g] : delivered) {
           const int r = std::find_if(carriers.begin(), carriers.end(), [&](auto& c) { return c.first == box; })->second;
           add(r, "carry", g), add(box, "carry", g);
         }
@@ -365,7 +432,13 @@ std::vector<PlannedStep> planned(const Steps& steps) {
 }  // namespace
 
 ZooRule zooRule(uint64_t id) {
-  return drawRule(id).info;
+  return ruleOf(id).info;
+}
+
+std::vector<ZooRule> namedZooRules() {
+  std::vector<ZooRule> out;
+  for (const Named& n : namedRules()) out.push_back(n.rule.info);
+  return out;
 }
 
 std::vector<uint64_t> distinctZooRules(int count) {
@@ -380,17 +453,64 @@ bool parseZooFamily(const std::string& family, uint64_t& id) {
   const std::string prefix = "zoo:";
   if (family.rfind(prefix, 0) != 0) return false;
   const std::string digits = family.substr(prefix.size());
+  for (const Named& n : namedRules())
+    if (digits == n.key) {
+      id = n.rule.info.id;
+      return true;
+    }
   if (digits.empty() || digits.size() > 18 || !std::all_of(digits.begin(), digits.end(), ::isdigit))
-    throw Error("family '" + family + "': a zoo rule is zoo:<id>, the id a non-negative integer (e.g. zoo:17)");
+    throw Error("family '" + family +
+                "': a zoo rule is zoo:<id>, the id a non-negative integer (e.g. zoo:17), or a named rule (" +
+                [] {
+                  std::string keys;
+                  for (const Named& n : namedRules()) keys += (keys.empty() ? "zoo:" : ", zoo:") + std::string(n.key);
+                  return keys;
+                }() +
+                ")");
   id = std::stoull(digits);
   return true;
 }
 
+std::vector<ZooKind> userKinds() {
+  // The drawn rules: the first id (distinctZooRules order) stating the kind with at least 3 robots.
+  return {
+      {"six robots, seven goals, each robot to its own nearest goal", "zoo:nearest-goals"},
+      {"the robot farthest from a box fetches it and carries it to a goal", "zoo:140"},
+      {"three robots take three goals by left-to-right order on the table", "zoo:left-to-right"},
+      {"a relay: the robot nearest the box fetches it, carries it to its own nearest teammate, who takes it to the "
+       "goal",
+       "zoo:87"},
+      {"two boxes, each fetched by the robot nearest it; then the box nearer the goal goes to it, the other to a "
+       "second "
+       "goal",
+       "zoo:two-boxes"},
+      {"robots line up behind each other by their distance to a goal", "zoo:21"},
+  };
+}
+
+OsrDistribution osrDistribution(const std::vector<double>& osr) {
+  if (osr.empty()) throw Error("the OSR distribution of no rules");
+  std::vector<double> v = osr;
+  std::sort(v.begin(), v.end());
+  const auto quantile = [&](double q) {  // linear between order statistics
+    const double at = q * static_cast<double>(v.size() - 1);
+    const size_t lo = static_cast<size_t>(std::floor(at)), hi = std::min(lo + 1, v.size() - 1);
+    return v[lo] + (at - static_cast<double>(lo)) * (v[hi] - v[lo]);
+  };
+  OsrDistribution d;
+  d.rules = v.size();
+  d.median = quantile(0.5);
+  d.p10 = quantile(0.1);
+  for (double x : v) d.mean += x / static_cast<double>(v.size());
+  d.at_least_0_9 = static_cast<size_t>(std::count_if(v.begin(), v.end(), [](double x) { return x >= 0.9; }));
+  return d;
+}
+
 task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed) {
   if (demos < 0) throw Error("the number of demonstrations must not be negative");
-  const Rule rule = drawRule(rule_id);
+  const Rule rule = ruleOf(rule_id);
   const ZooRule& z = rule.info;
-  if (z.robots + z.objects + z.goals > kMaxEntities)
+  if (rule_id < kNamedZooRuleIds && z.robots + z.objects + z.goals > kMaxEntities)
     throw Error("zoo rule " + std::to_string(rule_id) + " has more than " + std::to_string(kMaxEntities) + " entities");
   task::TaskDir dir;
   dir.spec = zooSpec(z);
@@ -400,12 +520,27 @@ task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed) {
     bool found = false;
     for (int attempt = 0; attempt < kMaxAttempts && !found; ++attempt) {
       std::vector<Vector2d> start(m);
-      for (auto& p : start)
-        p = {rng.uniform(kSceneBorder, kTableSize - kSceneBorder),
-             rng.uniform(kSceneBorder, kTableSize - kSceneBorder)};
+      const auto draw = [&] {
+        return Vector2d(rng.uniform(kSceneBorder, kTableSize - kSceneBorder),
+                        rng.uniform(kSceneBorder, kTableSize - kSceneBorder));
+      };
       bool apart = true;
-      for (size_t x = 0; x < m && apart; ++x)
-        for (size_t y = x + 1; y < m && apart; ++y) apart = (start[x] - start[y]).norm() >= kSceneMinSeparation;
+      if (rule_id < kNamedZooRuleIds) {
+        for (auto& p : start) p = draw();
+        for (size_t x = 0; x < m && apart; ++x)
+          for (size_t y = x + 1; y < m && apart; ++y) apart = (start[x] - start[y]).norm() >= kSceneMinSeparation;
+      } else {
+        // Named rules may have more entities than a whole draw keeps apart often enough
+        // (13: about 1 in 3000): each entity is drawn again until apart from those before it.
+        for (size_t x = 0; x < m && apart; ++x) {
+          apart = false;
+          for (int again = 0; again < 1000 && !apart; ++again) {
+            start[x] = draw();
+            apart = std::all_of(start.begin(), start.begin() + static_cast<long>(x),
+                                [&](const Vector2d& p) { return (p - start[x]).norm() >= kSceneMinSeparation; });
+          }
+        }
+      }
       if (!apart) continue;
       Steps steps;
       if (!Decider(dir.spec, rule, start).decide(steps)) continue;

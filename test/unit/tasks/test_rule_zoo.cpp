@@ -107,3 +107,54 @@ TEST(RuleZoo, DecisionsFollowTheStatedRule) {
     }
   }
 }
+
+TEST(RuleZoo, NamedRulesStateTheKindsUsersName) {
+  // Every kind names a rule `ddace generate` takes, and the rule generates.
+  for (const tasks::ZooKind& k : tasks::userKinds()) {
+    uint64_t id = 0;
+    ASSERT_TRUE(tasks::parseZooFamily(k.family, id)) << k.family;
+    EXPECT_EQ(tasks::zooRule(id).family, k.family);
+    EXPECT_EQ(tasks::generateZoo(id, 1, 2).demos.size(), 1u) << k.family;
+  }
+  uint64_t id = 0;
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:nearest-goals", id));
+  const tasks::ZooRule nearest = tasks::zooRule(id);
+  EXPECT_EQ(nearest.robots, 6);
+  EXPECT_EQ(nearest.goals, 7);
+  try {
+    tasks::parseZooFamily("zoo:farthest-goals", id);
+    ADD_FAILURE() << "an unknown named rule was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("zoo:two-boxes"), std::string::npos) << e.what();
+  }
+  // Drawn rules keep their ids and names: the zoo's sample is the same.
+  EXPECT_EQ(tasks::zooRule(4).family, "zoo:4");
+  EXPECT_EQ(tasks::generateZoo(4, 1, 1).spec.name.rfind("zoo 4 boxes: ", 0), 0u);
+  // "then the box nearer G1 goes to it, the other to G2".
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:two-boxes", id));
+  const tasks::ZooRule boxes = tasks::zooRule(id);
+  const int b1 = boxes.robots, g1 = boxes.robots + boxes.objects;
+  for (const auto& d : tasks::generateZoo(id, 5, 3).demos) {
+    ASSERT_EQ(d.steps.size(), 2u);
+    const auto& p = d.snapshots[1].positions;  // as the second step begins
+    const int nearer = (p[b1] - p[g1]).norm() < (p[b1 + 1] - p[g1]).norm() ? b1 : b1 + 1;
+    int to_g1 = -1;
+    for (const auto& t : d.steps[1].tokens)
+      if (t.entity == b1 || t.entity == b1 + 1) {
+        if (t.target == g1) to_g1 = t.entity;
+        EXPECT_TRUE(t.target == g1 || t.target == g1 + 1);
+      }
+    EXPECT_EQ(to_g1, nearer);
+  }
+}
+
+TEST(RuleZoo, OsrDistributionIsLinearBetweenOrderStatistics) {
+  const tasks::OsrDistribution d = tasks::osrDistribution({1.0, 0.0, 0.5, 1.0, 1.0, 0.9, 1.0, 1.0, 0.8, 1.0, 1.0});
+  EXPECT_EQ(d.rules, 11u);
+  EXPECT_DOUBLE_EQ(d.median, 1.0);
+  EXPECT_DOUBLE_EQ(d.p10, 0.5);  // the 2nd of 11 sorted: 0.0, 0.5, ...
+  EXPECT_NEAR(d.mean, 9.2 / 11, 1e-12);
+  EXPECT_EQ(d.at_least_0_9, 8u);
+  EXPECT_DOUBLE_EQ(tasks::osrDistribution({0.0, 1.0}).p10, 0.1);
+  EXPECT_THROW(tasks::osrDistribution({}), Error);
+}
