@@ -392,7 +392,7 @@ class ExecutionMonitorNode::Impl {
       moves[e] = true;
     }
     try {
-      allowed_ = exec::AllowedContacts(spec_, tokens, ends, moves, radii_, contact_margin_m_);
+      allowed_ = exec::AllowedContacts(spec_, tokens, at_, ends, moves, radii_, contact_margin_m_);
     } catch (const std::exception& e) {
       ROS_WARN("execution_monitor: step %d: %s", m.step + 1, e.what());
     }
