@@ -225,6 +225,30 @@ TEST(SafetyFilter, GoesRoundAStandingBodyOnTheSideItsCommandTurnsTo) {
   }
 }
 
+// The side is decided for a body, not for whichever is nearest later: R1, held by robot A
+// moving too, goes round it by the right-hand rule; A gone and B, standing, nearest in the
+// same place while it goes round, R1 goes round B on the side its command turns to (left),
+// not on the side decided for A.
+TEST(SafetyFilter, TheGoRoundSideIsDecidedAgainForAnotherBody) {
+  const SafetyParams sp;
+  const WheelSpeeds ahead_left{0.08, 0.12};
+  SafetyFilter f(sp, 0.03, 0.2, 4.0);
+  const Vector2d ahead(0.1 + 2 * kRadius + sp.margin_m + sp.projection_m, 0.3);
+  SafetyBody a{"A", ahead, kRadius, true, 0.03, false}, b{"B", ahead, kRadius, true, 0.03, false};
+  a.standing = false;
+  b.standing = true;
+  SafetyCommand c;
+  double t = 0;
+  for (; t <= sp.resolve_after_s + 0.2; t += 0.1) {
+    c = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, ahead_left, 0.0, {a}, "G1", t);
+    ASSERT_FALSE(c.deadlock);
+  }
+  ASSERT_LT(c.w_radps, -0.1) << "round A by the right-hand rule";
+  c = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, ahead_left, 0.0, {b}, "G1", t);
+  ASSERT_FALSE(c.deadlock);
+  EXPECT_GT(c.w_radps, 0.1) << "B stands: gone round on the left, where the command turns";
+}
+
 // A carrier and its load are one body: held because its load cannot go on (A right ahead
 // of the load), the carrier goes round A with its load -- not round B, which stands beside
 // the carrier's own disc, nearer it than A but holding nothing.
