@@ -10,6 +10,7 @@
 #include "ddace/exec/diff_drive.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/safety_filter.h"
+#include "ddace/task/end_point.h"
 
 using namespace ddace;
 using namespace ddace::exec;
@@ -198,6 +199,26 @@ TEST(SafetyFilter, HeldAtContactByABodyItEndsAgainstIsNamed) {
   const SafetyCommand free = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, forward, 0.0,
                                       {{"R2", {0.3, 0.3}, kRadius, true, 0.03, false}}, "R2", 0);
   EXPECT_EQ(free.at_contact_with, "");
+}
+
+// A motion held at contact with its target has arrived within the follower's stop radius
+// of its end point (the default 3 cm arrival radius less the 5 mm tolerance: 2.5 cm), so
+// that its true position is within the arrival radius; 2.6 cm away it has not (held, it
+// is reported as a deadlock after deadlock_after_s), nor is one held by a body it does not
+// end against.
+TEST(SafetyFilter, EndedAtContactWithinTheStopRadiusOnly) {
+  const double stop = ddace::task::stopRadius(0.03);
+  ASSERT_NEAR(stop, 0.025, 1e-12);
+  const WheelSpeeds forward{0.1, 0.1};
+  SafetyFilter f({}, 0.03, 0.2, 4.0);
+  const SafetyBody r2{"R2", {0.1 + 2 * kRadius, 0.3}, kRadius, true, 0.03, false};
+  const SafetyCommand held = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, forward, 0.0, {r2}, "R2", 0);
+  ASSERT_EQ(held.at_contact_with, "R2");
+  EXPECT_TRUE(endedAtContact(held, 0.023, stop));
+  EXPECT_FALSE(endedAtContact(held, 0.026, stop));
+  const SafetyCommand other = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, forward, 0.0, {r2}, "G1", 0.1);
+  ASSERT_TRUE(other.blocked);
+  EXPECT_FALSE(endedAtContact(other, 0.0, stop)) << "held by a body it does not end against";
 }
 
 // Held by a body in its way, a robot goes round it. A body standing still (the first of
