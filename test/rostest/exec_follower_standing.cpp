@@ -4,7 +4,9 @@
 // command turns to; by a moving one, by the right-hand rule (exec::SafetyFilter). The test
 // plays coordinator, tracker and the box's executor: B1 right in front of R1 (within the
 // filter's margin), R1's path leading ahead and to the left. While B1's segment runs, R1,
-// held, turns right; once B1 reported DONE, R1's next segment turns it left.
+// held, turns right; once B1 reported DONE, R1's next segment turns it left. B1's next
+// segment's DONE arriving before the segment itself (separate connections, or the
+// coordinator re-sending it): the segment has ended, B1 still stands, R1 still turns left.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -138,6 +140,14 @@ TEST(ExecFollowerStanding, ABodyGoneRoundByTheRightHandRuleUntilItsSegmentEnded)
   ros::WallDuration(0.3).sleep();
   const double standing = turn(3, 1.5);
   EXPECT_GT(standing, 0.01) << "held by a standing body, R1 does not turn left, where its path leads";
+  done.header.stamp = ros::Time::now();
+  done.segment_id = 4;
+  b1_status.publish(done);
+  ros::WallDuration(0.2).sleep();
+  b1.publish(segment("B1", "carry", 4, 2, bx, ry, bx + 0.1, ry));  // arrives after its end
+  ros::WallDuration(0.3).sleep();
+  const double late = turn(5, 1.5);
+  EXPECT_GT(late, 0.01) << "a segment that arrived after its end status is kept: B1 counted as moving";
 }
 
 int main(int argc, char** argv) {
