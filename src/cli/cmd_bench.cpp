@@ -27,7 +27,8 @@ int runBench(const std::vector<std::string>& argv) {
   // (`ddace bench label_memory --mb 1024`); each benchmark refuses what it does not take.
   std::vector<std::string> own, passed;
   for (size_t i = 0; i < argv.size(); ++i) {
-    if (argv[i] == "--repo" || argv[i] == "--list") {
+    const std::string flag = argv[i].substr(0, argv[i].find('='));  // --repo=DIR as Args reads it
+    if (flag == "--repo" || flag == "--list") {
       own.push_back(argv[i]);
       if (argv[i] == "--repo" && i + 1 < argv.size()) own.push_back(argv[++i]);
     } else if (!passed.empty() || argv[i].rfind("--", 0) == 0) {
@@ -45,6 +46,8 @@ int runBench(const std::vector<std::string>& argv) {
   }
   std::sort(benches.begin(), benches.end());
   if (args.has("--list")) {
+    if (!passed.empty())
+      throw Error("ddace bench --list runs nothing: the options " + passed.front() + " ... would be lost");
     for (const auto& b : benches) std::cout << b.filename().string().substr(6) << "\n";
     return 0;
   }

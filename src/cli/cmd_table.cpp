@@ -17,6 +17,7 @@
 #include <iomanip>
 #include <iostream>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <thread>
 #include <vector>
@@ -135,12 +136,12 @@ void countRules(const graph::RefinedGraph& g, int* rules) {
 /// first trial's paths for the trajectory overlay figure.
 Row trainAndEvaluate(const Settings& s, const fs::path& data, const std::string& model_name, const std::string& family,
                      tgn::Variant variant, const std::string& condition, bool overlay, bool closed_loop, bool bodies,
-                     int train_seed) {
+                     std::optional<int> train_seed) {
   const task::TaskDir train = task::loadTaskDir((data / "train").string());
   const task::TaskDir test = task::loadTaskDir((data / "test").string());
   tgn::TrainOptions opt;
   opt.variant = variant;
-  opt.seed = static_cast<uint64_t>(train_seed > 0 ? train_seed : s.seed);
+  opt.seed = static_cast<uint64_t>(train_seed.value_or(s.seed));
   if (s.max_epochs > 0) opt.max_epochs = s.max_epochs;
   if (opt.variant == tgn::Variant::Gnn && s.gnn_epochs > 0) opt.max_epochs = std::min(opt.max_epochs, s.gnn_epochs);
   const auto t0 = Clock::now();
@@ -211,9 +212,9 @@ struct Job {
   tgn::Variant variant = tgn::Variant::Scene;
   std::string condition;
   bool overlay = false;
-  bool closed_loop = false;  ///< also run the test set on the differential-drive simulation
-  bool bodies = false;       ///< also run it with bodies, with and without the safety filter
-  int train_seed = 0;        ///< the training seed; 0: the table's (--seed)
+  bool closed_loop = false;                      ///< also run the test set on the differential-drive simulation
+  bool bodies = false;                           ///< also run it with bodies, with and without the safety filter
+  std::optional<int> train_seed = std::nullopt;  ///< the training seed; unset: the table's (--seed)
 };
 
 /// A row through a file, from the job's process to the table's.
@@ -376,7 +377,9 @@ int runTable(const std::vector<std::string>& argv) {
   s.out = args.get("--out", (source / "out" / (s.quick ? "table-quick" : "table")).string());
   // A smoke test must not overwrite the shipped results: --quick writes beside its models.
   s.docs = args.get("--docs", s.quick ? (s.out / "docs").string() : (source / "docs").string());
-  s.seed = static_cast<int>(args.getInt("--seed", 1));
+  const long seed = args.getInt("--seed", 1);
+  if (seed < 0 || seed > 1000000000) throw Error("--seed must be in [0, 1e9]");
+  s.seed = static_cast<int>(seed);
   s.gnn_epochs = static_cast<int>(args.getInt("--gnn-epochs", 0));
   if (s.gnn_epochs < 0) throw Error("--gnn-epochs must not be negative");
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));  // 0: unknown

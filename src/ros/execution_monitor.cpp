@@ -127,8 +127,12 @@ class ExecutionMonitorNode::Impl {
     if (!(overlap_m >= 0)) throw Error("parameter '" + pnh.resolveName("collision_overlap_m") + "' must be >= 0");
     clearance_ = std::make_unique<exec::ClearanceMeter>(radii, overlap_m);
     radii_ = radii;
-    contact_margin_m_ = rosparam::param(pnh, "contact_margin_m", defaults.contact_margin_m);
-    if (!(contact_margin_m_ >= 0)) throw Error("parameter '" + pnh.resolveName("contact_margin_m") + "' must be >= 0");
+    // One setting, the path followers' own margin: the contacts their filters let happen
+    // are the ones the report leaves out.
+    if (pnh.hasParam("contact_margin_m"))
+      throw Error("parameter '" + pnh.resolveName("contact_margin_m") + "' is no longer read: the monitor uses '" +
+                  nh.resolveName("path_follower/safety/margin_m") + "', the path followers' margin");
+    contact_margin_m_ = ros_exec::loadSafetyParams(ros::NodeHandle(nh, "path_follower/safety")).margin_m;
     collisions_fail_ = rosparam::param(pnh, "collisions_fail", defaults.collisions_fail);
     at_.assign(spec_.entities.size(), Eigen::Vector2d::Constant(NAN));
     const int gt = rosparam::param(pnh, "ground_truth_demo", defaults.ground_truth_demo);
@@ -392,7 +396,7 @@ class ExecutionMonitorNode::Impl {
       moves[e] = true;
     }
     try {
-      allowed_ = exec::AllowedContacts(spec_, tokens, ends, moves, radii_, contact_margin_m_);
+      allowed_ = exec::AllowedContacts(spec_, tokens, at_, ends, moves, radii_, contact_margin_m_);
     } catch (const std::exception& e) {
       ROS_WARN("execution_monitor: step %d: %s", m.step + 1, e.what());
     }

@@ -193,6 +193,13 @@ class PathFollowerNode::Impl {
   /// what they end against (a step's segments arrive one by one, in any order, within
   /// milliseconds).
   void noteSegment(const std::string& name, bool object, const ddace::Segment& m) {
+    const auto ended = ended_segment_.find(name);
+    if (m.mode == ddace::Segment::MODE_FOLLOW && ended != ended_segment_.end() && ended->second == m.segment_id) {
+      // Its end status came first (another connection), or the coordinator re-sent it:
+      // it ended, the entity stands.
+      ROS_DEBUG("path_follower: segment %u of %s has already ended", m.segment_id, name.c_str());
+      return;
+    }
     if (m.mode == ddace::Segment::MODE_FOLLOW) {
       try {
         const exec::PlannedPath p = ros_exec::fromMsg(m.path, m.stddev_m, "/robots/" + name + "/segment");
@@ -207,12 +214,15 @@ class PathFollowerNode::Impl {
     forgetSegment(name);
   }
   /// The status of an entity driven elsewhere: its segment ended, it stands where it is.
+  /// An end status may arrive before its segment (separate connections): remembered, the
+  /// segment is ignored when it comes.
   void noteStatus(const std::string& name, const ddace::SegmentStatus& m) {
+    if (m.status != ddace::SegmentStatus::DONE && m.status != ddace::SegmentStatus::FAILED &&
+        m.status != ddace::SegmentStatus::ABORTED)
+      return;
+    ended_segment_[name] = m.segment_id;
     const auto it = object_segments_.find(name);
-    if (it == object_segments_.end() || it->second.id != m.segment_id) return;
-    if (m.status == ddace::SegmentStatus::DONE || m.status == ddace::SegmentStatus::FAILED ||
-        m.status == ddace::SegmentStatus::ABORTED)
-      forgetSegment(name);
+    if (it != object_segments_.end() && it->second.id == m.segment_id) forgetSegment(name);
   }
   void forgetSegment(const std::string& name) {
     if (!object_segments_.erase(name)) return;
@@ -446,6 +456,7 @@ class PathFollowerNode::Impl {
   std::map<std::string, Tracked> bodies_;                 ///< every tracked body by name
   std::vector<exec::SafetyBody> others_;                  ///< scratch of filterCommand
   std::map<std::string, ObjectSegment> object_segments_;  ///< running ones, by name (driven elsewhere)
+  std::map<std::string, uint32_t> ended_segment_;         ///< the last segment id reported ended, by name
   std::vector<ros::Subscriber> object_subs_;
   exec::FollowerGains gains_;
   exec::SafetyParams safety_;

@@ -165,7 +165,6 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"end_launch", value(e.end_launch)},
                   {"timeout_s", value(e.timeout_s)},
                   {"collision_overlap_m", value(e.collision_overlap_m)},
-                  {"contact_margin_m", value(e.contact_margin_m)},
                   {"collisions_fail", value(e.collisions_fail)},
                   {"heartbeat_rate_hz", value(beat_hz)}});
 

@@ -14,12 +14,13 @@
 // it), or at the time limit (3x the longest path at cruise speed + 10 s, as the model
 // without bodies). Collisions: two bodies apart that touch (a Box2D contact begins), except
 // the pairs allowed to touch in the step (exec::AllowedContacts, decided when the step
-// begins, the same rule as the run report's: a motion and its own target, a carrier and its
-// load, a motion and a body its end point touches while that body is at the end point); a
-// pair in contact (a motion that ended at its target) counts again only after it parted
-// (kPartedM), so a robot leaving a neighbour it touches is no collision; bodies placed
-// overlapping at the start never collide. The closest approach is measured on the true
-// poses every cycle over the pairs that are apart, with the same exceptions.
+// begins, the same rule as the run report's: a motion and its own target, a carrier and the
+// load riding with it, a motion and a body its end point touches while that body is at the
+// end point); a pair that touched while allowed (a motion that ended at its target) counts
+// again after it parted (kPartedM), or when, no longer allowed, it overlaps deeper than
+// kPartedM (exec::PairContact, the run report's rule), so a robot leaving a neighbour it
+// touches is no collision; bodies placed overlapping at the start never collide. The closest approach is measured on
+// the true poses every cycle over the pairs that are apart, with the same exceptions.
 //
 // Owns: the step's control loop and its measurements. Must not: decide where motions end
 // (task/end_point.h, via the planned paths) or score the trial (eval/metrics.h).
@@ -30,6 +31,7 @@
 #include <set>
 #include <utility>
 
+#include "ddace/exec/clearance.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/safety_filter.h"
 #include "ddace/exec/simulator.h"
@@ -75,8 +77,8 @@ class BodiesExecution : public ExecutionModel {
   std::vector<double> radius_m_;       ///< every entity's body (0: a goal)
   std::vector<bool> robot_;
   std::vector<std::string> names_;
-  size_t contacts_seen_ = 0;    ///< table_->contacts() already judged
-  std::vector<char> touching_;  ///< a * n + b (a < b): in contact since it began, until parted
+  size_t contacts_seen_ = 0;           ///< table_->contacts() already judged
+  std::vector<PairContact> touching_;  ///< a * n + b (a < b): the run report's contact rule
   uint32_t next_segment_ = 1;
   uint64_t trials_ = 0;
   BodyReport report_;

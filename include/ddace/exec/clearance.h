@@ -2,8 +2,10 @@
 // smallest gap between any two discs (the closest approach) and every collision (two
 // discs overlapping deeper than a tolerance for tracking noise, counted once per contact
 // until they are again more than the tolerance apart). Two bodies that overlap when both are first seen (a load
-// placed on its carrier) are never measured against each other, and two bodies allowed to
-// touch in the running step (AllowedContacts) are not measured while they touch.
+// placed on its carrier) are never measured against each other, and two bodies that came
+// into contact while allowed to touch (AllowedContacts) are not measured while they touch --
+// unless, no longer allowed (a later step), they overlap deeper than the tolerance: a robot
+// that ended against a body and later shoves into it collides (PairContact, the one rule).
 //
 // AllowedContacts is the one rule of which bodies may touch while a step runs, used by the
 // execution monitor's run report and `ddace eval` with bodies (exec::BodiesExecution) alike.
@@ -27,9 +29,10 @@
 namespace ddace::exec {
 
 /// The pairs of bodies allowed to touch while a step runs -- their contact is no collision
-/// and their gap no clearance: a motion and its own target; a carrier and its load
-/// (task::carriedLoad); a motion and a body its end point touches (exec::endsAgainst with
-/// the filter's margin, from where that body ends the step: its own end point, or where it
+/// and their gap no clearance: a motion and its own target; a carrier and the load riding
+/// with it (task::ridingLoad: within task::togetherDistance of it when the step begins; a
+/// load passed from afar on its own path is measured against its carrier); a motion and a body its end point touches
+/// (exec::endsAgainst with the filter's margin, from where that body ends the step: its own end point, or where it
 /// stands -- the second robot onto a goal ends at the first), while that body is at the
 /// end point (two robots bound for one goal keep apart on the way). Decided once per step,
 /// from the step's tokens and end points.
@@ -37,14 +40,15 @@ class AllowedContacts {
  public:
   /// None: every contact counts.
   AllowedContacts() = default;
-  /// `tokens`: the step's; `ends`: every entity's position at the end of the step (a
+  /// `tokens`: the step's; `starts`: every entity's position when the step begins (which
+  /// loads ride); `ends`: every entity's position at the end of the step (a
   /// motion's end point, else where it stands; non-finite = unknown); `moves`: whether the
   /// entity has a motion (an end point) this step; `radii`: every entity's disc (0 = no
   /// body); `margin_m`: the safety filter's margin. Throws ddace::Error when the sizes
   /// differ or a token names an entity outside them.
   AllowedContacts(const task::TaskSpec& spec, const std::vector<task::Token>& tokens,
-                  const std::vector<Eigen::Vector2d>& ends, const std::vector<bool>& moves,
-                  const std::vector<double>& radii, double margin_m);
+                  const std::vector<Eigen::Vector2d>& starts, const std::vector<Eigen::Vector2d>& ends,
+                  const std::vector<bool>& moves, const std::vector<double>& radii, double margin_m);
   /// Whether `a` (at `pa`) and `b` (at `pb`) may touch now.
   bool allowed(int a, int b, const Eigen::Vector2d& pa, const Eigen::Vector2d& pb) const;
   /// Whether `a`'s motion ends against `b` and `b` (at `pb`) is at `a`'s end point: the
@@ -52,7 +56,7 @@ class AllowedContacts {
   bool endsAgainstNow(int a, int b, const Eigen::Vector2d& pb) const;
 
  private:
-  std::set<std::pair<int, int>> exempt_;        ///< (a, b), a < b: a motion and its target, a carrier and its load
+  std::set<std::pair<int, int>> exempt_;  ///< (a, b), a < b: a motion and its target, a carrier and its riding load
   std::set<std::pair<int, int>> ends_against_;  ///< (a, b), a < b: an end point touches the other's end
   std::vector<Eigen::Vector2d> ends_;
   std::vector<bool> moves_;
@@ -74,6 +78,30 @@ struct BodyContact {
   int a = -1, b = -1;  ///< entity indices, a < b
 };
 
+/// The one rule of when two bodies' contact is a collision, for the run report
+/// (ClearanceMeter) and `ddace eval` with bodies (BodiesExecution) alike. A pair that comes
+/// within the tolerance while allowed to touch is touching-allowed: not measured until it
+/// parts (gap > tolerance), or until, no longer allowed, it overlaps deeper than the
+/// tolerance (a robot that ended against a body shoves it in a later step: a collision). A
+/// pair apart that touches while not allowed collides, once until it parts.
+class PairContact {
+ public:
+  /// One observation: `gap` (metres, negative = overlap); `contact`: the two touch now as
+  /// the caller detects contact (an overlap deeper than the tolerance; a Box2D contact that
+  /// began); `allowed`: whether they may touch now (AllowedContacts::allowed). Returns true
+  /// when a collision begins.
+  bool update(double gap, bool contact, bool allowed, double tolerance_m);
+  /// Whether the pair's gap counts for the closest approach now (not while touching-allowed,
+  /// nor while allowed).
+  bool measured(bool allowed) const { return !allowed && state_ != State::TouchingAllowed; }
+  /// The two touch by design from now on (a carrier and the load it set down).
+  void touchAllowed() { state_ = State::TouchingAllowed; }
+
+ private:
+  enum class State : char { Apart, Collided, TouchingAllowed };
+  State state_ = State::Apart;
+};
+
 class ClearanceMeter {
  public:
   /// `radii`: every entity's disc radius in the task's order (0 = no body: a goal).
@@ -82,19 +110,18 @@ class ClearanceMeter {
   explicit ClearanceMeter(std::vector<double> radii, double overlap_tolerance_m = 0.002);
   /// Every entity's position at `time_s` (a non-finite one = not known). Two bodies that
   /// touch while `allowed` (the running step's) are not measured until they are apart
-  /// again.
+  /// again, or overlap beyond the tolerance when no longer allowed (PairContact).
   void update(double time_s, const std::vector<Eigen::Vector2d>& positions, const AllowedContacts& allowed = {});
   const ClosestApproach& closest() const { return closest_; }
   const std::vector<BodyContact>& collisions() const { return collisions_; }
   const std::vector<std::pair<int, int>>& loadedPairs() const { return loaded_; }
 
  private:
-  /// Touching: a collision, measured; TouchingAllowed: touched while allowed, not measured
-  /// until apart (a motion that ended at its target, a carried load).
-  enum class Pair : char { Unseen, Apart, Touching, TouchingAllowed, Loaded };
+  enum class Seen : char { Unseen, Tracked, Loaded };
   std::vector<double> radii_;
   double tolerance_m_;
-  std::vector<Pair> pairs_;  ///< a * n + b for a < b
+  std::vector<Seen> seen_;             ///< a * n + b for a < b
+  std::vector<PairContact> contacts_;  ///< a * n + b for a < b
   ClosestApproach closest_;
   std::vector<BodyContact> collisions_;
   std::vector<std::pair<int, int>> loaded_;

@@ -186,16 +186,21 @@ class SafetyFilter {
                        const WheelSpeeds& nominal, double progress_m, const std::vector<SafetyBody>& bodies,
                        const std::string& target, double now_s, const SafetyBody* load = nullptr);
   /// Forgets the blocked and deadlock clocks (a new segment, the robot idle).
-  void reset() { resolve_until_s_ = stuck_since_s_ = -1; }
+  void reset() {
+    resolve_until_s_ = stuck_since_s_ = -1;
+    resolve_body_.clear();
+  }
   const SafetyParams& params() const { return params_; }
 
  private:
   SafetyParams params_;
   double wheel_base_m_, max_wheel_mps_, max_turn_radps_;
-  double resolve_until_s_ = -1;  ///< the point goes round the nearest body until then
-  double resolve_side_ = 1;      ///< +1: keeping it on the left (the right-hand rule), -1: on the right
-  double stuck_since_s_ = -1;    ///< since when the filter holds the robot without progress
-  double stuck_progress_m_ = 0;  ///< its progress then
+  double resolve_until_s_ = -1;   ///< the point goes round the nearest body until then
+  double resolve_side_ = 1;       ///< +1: keeping it on the left (the right-hand rule), -1: on the right
+  std::string resolve_body_;      ///< the body resolve_side_ was decided for
+  bool resolve_of_load_ = false;  ///< ... held by the load's disc (else the robot's)
+  double stuck_since_s_ = -1;     ///< since when the filter holds the robot without progress
+  double stuck_progress_m_ = 0;   ///< its progress then
 };
 
 /// A half-plane a . z <= b in two variables.

@@ -59,10 +59,6 @@ class ExecutionMonitorNode {
     /// Two bodies overlapping deeper than this collide, metres: two touching bodies'
     /// measured gap carries both poses' noise (1 mm per axis each: 3.5 sigma).
     double collision_overlap_m = 0.005;
-    /// The path followers' safety margin (path_follower/safety/margin_m), metres: a motion
-    /// whose end point lies within it of touching another body's end ends against it, and
-    /// their contact there is no collision (exec::AllowedContacts).
-    double contact_margin_m = 0.01;
     /// A run with a collision is no success (OSR 0). True on real robots, where bodies
     /// are real; execute_sim.launch sets it to whether the simulated table has bodies
     /// (bodies:=true): on the points table (the paper's model, which ends a motion toward a

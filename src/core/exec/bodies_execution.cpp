@@ -54,7 +54,7 @@ void BodiesExecution::beginTrial(const task::TaskSpec& spec, const std::vector<P
     robot_[i] = spec.entities[i].kind == task::EntityKind::Robot;
   }
   contacts_seen_ = table_->contacts().size();
-  touching_.assign(n * n, 0);
+  touching_.assign(n * n, PairContact());
   report_ = {};
 }
 
@@ -127,12 +127,12 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
   // body is at the end point -- not every body near it now: a robot passing by, or driving
   // into the robot already at its end, is no such body. On the way they keep a margin apart
   // like any two bodies, and a body that stopped short elsewhere is gone round, not pushed.
-  std::vector<Eigen::Vector2d> final_at(n);
+  std::vector<Eigen::Vector2d> final_at(n), start_at(n);
   std::vector<bool> has_end(n, false);
-  for (int j = 0; j < n; ++j) final_at[j] = table_->truePose(j).position();
+  for (int j = 0; j < n; ++j) final_at[j] = start_at[j] = table_->truePose(j).position();
   for (const StepMotion& mo : motions)
     if (!mo.planned.empty()) final_at[mo.entity] = mo.planned.back(), has_end[mo.entity] = true;
-  const AllowedContacts allowed(spec, tokens, final_at, has_end, radius_m_, params_.safety.margin_m);
+  const AllowedContacts allowed(spec, tokens, start_at, final_at, has_end, radius_m_, params_.safety.margin_m);
 
   // A carrier stopped: arrived (its load goes on the last bit to its end alone), or failed
   // (the load stops where it is). The two touch: no collision until they part.
@@ -140,7 +140,7 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     const int load = load_of[carrier];
     if (load < 0) return;
     load_of[carrier] = -1;
-    touching_[std::min(carrier, load) * n + std::max(carrier, load)] = 1;
+    touching_[std::min(carrier, load) * n + std::max(carrier, load)].touchAllowed();
     const int m = motion_of[load];
     if (arrived || m < 0 || !movers[m].running) {
       table_->endRide(load);
@@ -153,6 +153,7 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
   };
 
   std::vector<Pose2D> measured(n);
+  std::set<std::pair<int, int>> began;  // contacts begun in this cycle
   std::vector<SafetyBody> others;
   others.reserve(n);
   while (running > 0 && table_->time() - t0 < limit_s) {
@@ -219,8 +220,15 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     for (size_t m = 0; m < motions.size(); ++m)
       if (movers[m].running) out.executed[m].push_back(table_->truePose(motions[m].entity).position());
 
-    // The closest approach of two bodies that keep apart, on the true poses; a pair in
-    // contact is apart again once its gap exceeds kPartedM.
+    // Collisions and the closest approach, on the true poses, by the run report's rule
+    // (PairContact): a contact that began between bodies apart and not allowed to touch; a
+    // pair touching by design (a motion that ended at its target) once it pushes in
+    // deeper than kPartedM when no longer allowed. Box2D keeps resting bodies within
+    // kPartedM, so the contacts come from its events.
+    const auto& contacts = table_->contacts();
+    began.clear();
+    for (; contacts_seen_ < contacts.size(); ++contacts_seen_)
+      began.insert({contacts[contacts_seen_].a, contacts[contacts_seen_].b});
     for (int a = 0; a < n; ++a) {
       if (!(radius_m_[a] > 0)) continue;
       const Eigen::Vector2d pa = table_->truePose(a).position();
@@ -228,21 +236,13 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
         if (!(radius_m_[b] > 0) || loaded.count({a, b})) continue;
         const Eigen::Vector2d pb = table_->truePose(b).position();
         const double gap = (pa - pb).norm() - radius_m_[a] - radius_m_[b];
-        char& touching = touching_[a * n + b];
-        if (touching && gap > kPartedM) touching = 0;
-        if (!touching && !allowed.allowed(a, b, pa, pb) && gap < report_.closest.clearance_m)
+        const bool ok = allowed.allowed(a, b, pa, pb);
+        PairContact& pair = touching_[a * n + b];
+        if (pair.update(gap, began.count({a, b}) > 0, ok, kPartedM))
+          report_.collisions.push_back({table_->time(), a, b});
+        if (pair.measured(ok) && gap < report_.closest.clearance_m)
           report_.closest = {gap, a, b, table_->time(), pa, pb};
       }
-    }
-    // Collisions: contacts that began between bodies that were apart, except the motions'
-    // own targets and loads, and the bodies a robot's motion ends against.
-    const auto& contacts = table_->contacts();
-    for (; contacts_seen_ < contacts.size(); ++contacts_seen_) {
-      const BodyContact& c = contacts[contacts_seen_];
-      char& touching = touching_[c.a * n + c.b];
-      if (!touching && !allowed.allowed(c.a, c.b, table_->truePose(c.a).position(), table_->truePose(c.b).position()))
-        report_.collisions.push_back(c);
-      touching = 1;
     }
   }
   // The time limit: whoever still moves stops where it is.

@@ -16,20 +16,21 @@ std::pair<int, int> ordered(int a, int b) {
 }  // namespace
 
 AllowedContacts::AllowedContacts(const task::TaskSpec& spec, const std::vector<task::Token>& tokens,
-                                 const std::vector<Eigen::Vector2d>& ends, const std::vector<bool>& moves,
-                                 const std::vector<double>& radii, double margin_m)
+                                 const std::vector<Eigen::Vector2d>& starts, const std::vector<Eigen::Vector2d>& ends,
+                                 const std::vector<bool>& moves, const std::vector<double>& radii, double margin_m)
     : ends_(ends), moves_(moves), radii_(radii), margin_m_(margin_m) {
   const auto n = static_cast<int>(ends.size());
-  if (moves.size() != ends.size() || radii.size() != ends.size())
-    throw Error("allowed contacts: " + std::to_string(ends.size()) + " end positions, " + std::to_string(moves.size()) +
-                " motion flags and " + std::to_string(radii.size()) + " radii");
+  if (moves.size() != ends.size() || radii.size() != ends.size() || starts.size() != ends.size())
+    throw Error("allowed contacts: " + std::to_string(starts.size()) + " start positions, " +
+                std::to_string(ends.size()) + " end positions, " + std::to_string(moves.size()) + " motion flags and " +
+                std::to_string(radii.size()) + " radii");
   for (size_t i = 0; i < tokens.size(); ++i) {
     const task::Token& t = tokens[i];
     if (!t.isMotion()) continue;
     if (t.entity < 0 || t.entity >= n || t.target >= n)
       throw Error("allowed contacts: a token names an entity outside the " + std::to_string(n) + " given");
     if (t.target >= 0) exempt_.insert(ordered(t.entity, t.target));
-    const int load = task::carriedLoad(spec, tokens, i);
+    const int load = task::ridingLoad(spec, tokens, i, starts);  // one passed from afar keeps apart
     if (load >= 0) exempt_.insert(ordered(t.entity, tokens[static_cast<size_t>(load)].entity));
   }
   for (int a = 0; a < n; ++a) {
@@ -50,10 +51,35 @@ bool AllowedContacts::allowed(int a, int b, const Eigen::Vector2d& pa, const Eig
   return exempt_.count(ordered(a, b)) || endsAgainstNow(a, b, pb) || endsAgainstNow(b, a, pa);
 }
 
+bool PairContact::update(double gap, bool contact, bool allowed, double tolerance_m) {
+  if (state_ == State::TouchingAllowed) {
+    if (gap > tolerance_m) {
+      state_ = State::Apart;  // parted: measured again
+    } else if (!allowed && gap < -tolerance_m) {
+      state_ = State::Collided;  // no longer allowed and pushing in: a robot shoving what it ended at
+      return true;
+    } else {
+      return false;
+    }
+  }
+  if (state_ == State::Collided) {
+    if (!(gap > tolerance_m)) return false;
+    state_ = State::Apart;  // clearly separated (not noise): the next contact is another collision
+  }
+  if (allowed) {
+    if (gap <= tolerance_m) state_ = State::TouchingAllowed;
+    return false;
+  }
+  if (!contact) return false;
+  state_ = State::Collided;
+  return true;
+}
+
 ClearanceMeter::ClearanceMeter(std::vector<double> radii, double overlap_tolerance_m)
     : radii_(std::move(radii)),
       tolerance_m_(overlap_tolerance_m),
-      pairs_(radii_.size() * radii_.size(), Pair::Unseen) {}
+      seen_(radii_.size() * radii_.size(), Seen::Unseen),
+      contacts_(radii_.size() * radii_.size()) {}
 
 void ClearanceMeter::update(double time_s, const std::vector<Eigen::Vector2d>& positions,
                             const AllowedContacts& allowed) {
@@ -62,29 +88,18 @@ void ClearanceMeter::update(double time_s, const std::vector<Eigen::Vector2d>& p
     if (!(radii_[a] > 0) || !positions[a].allFinite()) continue;
     for (size_t b = a + 1; b < n; ++b) {
       if (!(radii_[b] > 0) || !positions[b].allFinite()) continue;
-      Pair& state = pairs_[a * radii_.size() + b];
+      const size_t k = a * radii_.size() + b;
       const double gap = (positions[a] - positions[b]).norm() - radii_[a] - radii_[b];
-      if (state == Pair::Unseen) {
-        state = gap < 0 ? Pair::Loaded : Pair::Apart;
-        if (state == Pair::Loaded) loaded_.emplace_back(static_cast<int>(a), static_cast<int>(b));
+      if (seen_[k] == Seen::Unseen) {
+        seen_[k] = gap < 0 ? Seen::Loaded : Seen::Tracked;
+        if (seen_[k] == Seen::Loaded) loaded_.emplace_back(static_cast<int>(a), static_cast<int>(b));
       }
-      if (state == Pair::Loaded) continue;
-      if (state == Pair::TouchingAllowed) {
-        if (gap <= tolerance_m_) continue;
-        state = Pair::Apart;  // parted: measured again
-      }
-      if (allowed.allowed(static_cast<int>(a), static_cast<int>(b), positions[a], positions[b])) {
-        if (state == Pair::Apart && gap <= tolerance_m_) state = Pair::TouchingAllowed;
-        continue;
-      }
-      if (gap < closest_.clearance_m)
-        closest_ = {gap, static_cast<int>(a), static_cast<int>(b), time_s, positions[a], positions[b]};
-      if (state == Pair::Apart && gap < -tolerance_m_) {
-        state = Pair::Touching;
-        collisions_.push_back({time_s, static_cast<int>(a), static_cast<int>(b)});
-      } else if (state == Pair::Touching && gap > tolerance_m_) {
-        state = Pair::Apart;  // clearly separated (not noise): the next overlap is another collision
-      }
+      if (seen_[k] == Seen::Loaded) continue;
+      const int ia = static_cast<int>(a), ib = static_cast<int>(b);
+      const bool ok = allowed.allowed(ia, ib, positions[a], positions[b]);
+      if (contacts_[k].update(gap, gap < -tolerance_m_, ok, tolerance_m_)) collisions_.push_back({time_s, ia, ib});
+      if (contacts_[k].measured(ok) && gap < closest_.clearance_m)
+        closest_ = {gap, ia, ib, time_s, positions[a], positions[b]};
     }
   }
 }

@@ -161,6 +161,8 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   double nearest_h = std::numeric_limits<double>::infinity();
   Eigen::Vector2d round_left(0, 0);
   bool nearest_standing = false;
+  const SafetyBody* nearest_body = nullptr;  // the go-round's side is decided per body (and disc: robot or load)
+  bool nearest_of_load = false;
   // Going round keeping the body on the left is moving the disc along the tangent t =
   // (-a.y, a.x), a the unit vector from the body to the disc in the robot's frame. For the
   // robot's point, z = t; for the load at r = q - x (q' = z1 e + (z2 / l) r^perp), the z
@@ -176,6 +178,7 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
       z = Eigen::Vector2d(t.x() + t.y() * ry / rx, l * t.y() / rx);
     }
     nearest_h = h, round_left = z.normalized(), nearest_standing = b.standing;
+    nearest_body = &b, nearest_of_load = of_load;
   };
   cs.reserve(bodies.size() + 6);
   for (size_t j = 0; j < bodies.size(); ++j) {
@@ -241,9 +244,22 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   // side decided when the go-round began (resolve_side_: +1 keeps it on the left). At least
   // a quarter of the top speed: a nominal that only turns on the spot would not get round
   // anything.
+  // Which way round. A body that moves too runs its own filter: both keep each other on
+  // the left (the right-hand rule), so two robots face to face veer apart, never the
+  // same way. A body standing still decides nothing: the robot goes round on the side its
+  // own command turns to (toward its end point, the shorter way), the right-hand rule on
+  // a tie -- the other way it would go the long way round and its command would turn it
+  // back into the body before it got there. Decided for one body: another body nearest
+  // later in the go-round is decided for again (its own standing flag and side).
+  const auto decideSide = [&] {
+    resolve_side_ = nearest_standing && z0.dot(round_left) < 0 ? -1 : 1;
+    if (nearest_body) resolve_body_ = nearest_body->name, resolve_of_load_ = nearest_of_load;
+  };
   Eigen::Vector2d goal_z = z0;
-  if (now_s < resolve_until_s_ && std::isfinite(nearest_h))
+  if (now_s < resolve_until_s_ && nearest_body) {
+    if (nearest_body->name != resolve_body_ || nearest_of_load != resolve_of_load_) decideSide();
     goal_z = std::max(z0.norm(), 0.25 * vmax) * resolve_side_ * round_left;
+  }
   const Eigen::Vector2d z = closestFeasible(goal_z, cs);
   out.v_mps = z.x();
   out.w_radps = z.y() / l;
@@ -286,13 +302,7 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   const double stuck_s = now_s - stuck_since_s_;
   if (stuck_s >= params_.resolve_after_s && now_s >= resolve_until_s_) {
     resolve_until_s_ = now_s + params_.resolve_after_s;
-    // Which way round. A body that moves too runs its own filter: both keep each other on
-    // the left (the right-hand rule), so two robots face to face veer apart, never the
-    // same way. A body standing still decides nothing: the robot goes round on the side its
-    // own command turns to (toward its end point, the shorter way), the right-hand rule on
-    // a tie -- the other way it would go the long way round and its command would turn it
-    // back into the body before it got there.
-    resolve_side_ = nearest_standing && z0.dot(round_left) < 0 ? -1 : 1;
+    decideSide();  // which way round (above)
   }
   if (stuck_s >= params_.deadlock_after_s) {
     out.deadlock = true;

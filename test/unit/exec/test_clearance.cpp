@@ -69,8 +69,9 @@ TEST(ClearanceMeter, PairsAllowedToTouchInTheStepAreNotMeasured) {
   const std::vector<ddace::task::Token> step{{0, "move", 4}, {1, "move", 4}, {3, "move", 4}};
   const Vector2d g1(0.5, 0.3), r2(0.3, 0.6), r3_end = r2 + Vector2d(2 * r, 0);
   const std::vector<Vector2d> ends{g1 - Vector2d(2 * r, 0), g1, r2, r3_end, g1};
-  const AllowedContacts allowed(spec, step, ends, {true, true, false, true, false}, radii, 0.01);
-  EXPECT_TRUE(allowed.allowed(0, 1, {0, 0}, {1, 1})) << "a carrier and its load, wherever they are";
+  const std::vector<Vector2d> starts{{0.2, 0.3}, {0.2 + 2 * r, 0.3}, r2, r2 + Vector2d(0.2, 0), g1};
+  const AllowedContacts allowed(spec, step, starts, ends, {true, true, false, true, false}, radii, 0.01);
+  EXPECT_TRUE(allowed.allowed(0, 1, {0, 0}, {1, 1})) << "a carrier and the load riding with it, wherever they are";
   EXPECT_TRUE(allowed.allowed(3, 2, r3_end, r2)) << "R3 at its end against R2";
   EXPECT_FALSE(allowed.allowed(3, 2, r3_end, r2 + Vector2d(0, 0.1))) << "R2 elsewhere than R3's end point";
   EXPECT_FALSE(allowed.allowed(0, 3, {0, 0}, {0.044, 0}));
@@ -93,4 +94,63 @@ TEST(ClearanceMeter, PairsAllowedToTouchInTheStepAreNotMeasured) {
   EXPECT_EQ(m.collisions()[0].a, 0);
   EXPECT_EQ(m.collisions()[0].b, 2);
   EXPECT_NEAR(m.closest().clearance_m, 0.03 - 2 * r, 1e-9);
+}
+
+// The step after: nothing is allowed any more. R3, which ended against R2, resting there
+// (noise within the tolerance) is no collision; pushing into R2 is one; and once it drove
+// off, the pair is measured again.
+TEST(ClearanceMeter, AContactAllowedInAStepIsACollisionWhenLaterPushedIn) {
+  using ddace::task::EntityKind;
+  ddace::task::TaskSpec spec;
+  spec.entities.push_back({"R2", EntityKind::Robot, ""});
+  spec.entities.push_back({"R3", EntityKind::Robot, ""});
+  const double r = 0.022;
+  const std::vector<double> radii{r, r};
+  const Vector2d r2(0.3, 0.6), r3_end = r2 + Vector2d(2 * r, 0);
+  const std::vector<ddace::task::Token> step{{1, "move", 0}};  // R3 to R2
+  const AllowedContacts to_r2(spec, step, {r2, r2 + Vector2d(0.3, 0)}, {r2, r3_end}, {false, true}, radii, 0.01);
+  ClearanceMeter m(radii);
+  m.update(0, {r2, r2 + Vector2d(0.3, 0)}, to_r2);
+  m.update(1, {r2, r3_end - Vector2d(0.0015, 0)}, to_r2);  // ended at contact
+  EXPECT_TRUE(m.collisions().empty());
+  m.update(2, {r2, r3_end - Vector2d(0.001, 0)});  // the next step: still resting there
+  EXPECT_TRUE(m.collisions().empty());
+  EXPECT_GT(m.closest().clearance_m, 0.2);
+  m.update(3, {r2, r3_end - Vector2d(0.006, 0)});  // shoves into R2
+  ASSERT_EQ(m.collisions().size(), 1u);
+  EXPECT_NEAR(m.collisions()[0].time_s, 3, 1e-12);
+  EXPECT_NEAR(m.closest().clearance_m, -0.006, 1e-9);
+
+  ClearanceMeter off(radii);
+  off.update(0, {r2, r2 + Vector2d(0.3, 0)}, to_r2);
+  off.update(1, {r2, r3_end - Vector2d(0.0015, 0)}, to_r2);
+  off.update(2, {r2, r3_end + Vector2d(0.03, 0)});  // drives off
+  off.update(3, {r2, r3_end + Vector2d(0.01, 0)});  // and comes back near: measured
+  EXPECT_TRUE(off.collisions().empty());
+  EXPECT_NEAR(off.closest().clearance_m, 0.01, 1e-9);
+}
+
+// A load passed from afar moves on its own path: its carrier hitting it from the side is a
+// collision; a load riding with its carrier (within task::togetherDistance at the start)
+// touches it by design.
+TEST(ClearanceMeter, ACarrierAndALoadFromAfarKeepApart) {
+  using ddace::task::EntityKind;
+  ddace::task::TaskSpec spec;
+  spec.entities.push_back({"R1", EntityKind::Robot, ""});
+  spec.entities.push_back({"B", EntityKind::Object, ""});
+  spec.entities.push_back({"G1", EntityKind::Goal, ""});
+  const double r = 0.022;
+  const std::vector<double> radii{r, r, 0};
+  const std::vector<ddace::task::Token> step{{0, "move", 2}, {1, "move", 2}};
+  const Vector2d g1(0.5, 0.3);
+  const std::vector<Vector2d> ends{g1 - Vector2d(2 * r, 0), g1, g1};
+  const AllowedContacts afar(spec, step, {{0.1, 0.3}, {0.5, 0.0}, g1}, ends, {true, true, false}, radii, 0.01);
+  EXPECT_FALSE(afar.allowed(0, 1, {0.4, 0.2}, {0.4 + 2 * r - 0.005, 0.2}));
+  ClearanceMeter m(radii);
+  m.update(0, {{0.1, 0.3}, {0.5, 0.0}, g1}, afar);
+  m.update(1, {{0.4, 0.2}, {0.4 + 2 * r - 0.005, 0.2}, g1}, afar);  // hit from the side on the way
+  ASSERT_EQ(m.collisions().size(), 1u);
+
+  const AllowedContacts rides(spec, step, {{0.1, 0.3}, {0.1 + 2 * r, 0.3}, g1}, ends, {true, true, false}, radii, 0.01);
+  EXPECT_TRUE(rides.allowed(0, 1, {0.4, 0.2}, {0.4 + 2 * r - 0.005, 0.2}));
 }

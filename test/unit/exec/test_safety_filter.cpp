@@ -10,6 +10,7 @@
 #include "ddace/exec/diff_drive.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/safety_filter.h"
+#include "ddace/task/end_point.h"
 
 using namespace ddace;
 using namespace ddace::exec;
@@ -200,6 +201,26 @@ TEST(SafetyFilter, HeldAtContactByABodyItEndsAgainstIsNamed) {
   EXPECT_EQ(free.at_contact_with, "");
 }
 
+// A motion held at contact with its target has arrived within the follower's stop radius
+// of its end point (the default 3 cm arrival radius less the 5 mm tolerance: 2.5 cm), so
+// that its true position is within the arrival radius; 2.6 cm away it has not (held, it
+// is reported as a deadlock after deadlock_after_s), nor is one held by a body it does not
+// end against.
+TEST(SafetyFilter, EndedAtContactWithinTheStopRadiusOnly) {
+  const double stop = ddace::task::stopRadius(0.03);
+  ASSERT_NEAR(stop, 0.025, 1e-12);
+  const WheelSpeeds forward{0.1, 0.1};
+  SafetyFilter f({}, 0.03, 0.2, 4.0);
+  const SafetyBody r2{"R2", {0.1 + 2 * kRadius, 0.3}, kRadius, true, 0.03, false};
+  const SafetyCommand held = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, forward, 0.0, {r2}, "R2", 0);
+  ASSERT_EQ(held.at_contact_with, "R2");
+  EXPECT_TRUE(endedAtContact(held, 0.023, stop));
+  EXPECT_FALSE(endedAtContact(held, 0.026, stop));
+  const SafetyCommand other = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, forward, 0.0, {r2}, "G1", 0.1);
+  ASSERT_TRUE(other.blocked);
+  EXPECT_FALSE(endedAtContact(other, 0.0, stop)) << "held by a body it does not end against";
+}
+
 // Held by a body in its way, a robot goes round it. A body standing still (the first of
 // two robots sent onto one goal, stopped short of its place in the second's way) is gone
 // round on the side the robot's command turns to -- toward its end point, the short way:
@@ -223,6 +244,30 @@ TEST(SafetyFilter, GoesRoundAStandingBodyOnTheSideItsCommandTurnsTo) {
     if (standing) EXPECT_GT(c.w_radps, 0.1) << "a standing body is gone round on the left, where the command turns";
     else EXPECT_LT(c.w_radps, -0.1) << "a moving robot is gone round by the right-hand rule";
   }
+}
+
+// The side is decided for a body, not for whichever is nearest later: R1, held by robot A
+// moving too, goes round it by the right-hand rule; A gone and B, standing, nearest in the
+// same place while it goes round, R1 goes round B on the side its command turns to (left),
+// not on the side decided for A.
+TEST(SafetyFilter, TheGoRoundSideIsDecidedAgainForAnotherBody) {
+  const SafetyParams sp;
+  const WheelSpeeds ahead_left{0.08, 0.12};
+  SafetyFilter f(sp, 0.03, 0.2, 4.0);
+  const Vector2d ahead(0.1 + 2 * kRadius + sp.margin_m + sp.projection_m, 0.3);
+  SafetyBody a{"A", ahead, kRadius, true, 0.03, false}, b{"B", ahead, kRadius, true, 0.03, false};
+  a.standing = false;
+  b.standing = true;
+  SafetyCommand c;
+  double t = 0;
+  for (; t <= sp.resolve_after_s + 0.2; t += 0.1) {
+    c = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, ahead_left, 0.0, {a}, "G1", t);
+    ASSERT_FALSE(c.deadlock);
+  }
+  ASSERT_LT(c.w_radps, -0.1) << "round A by the right-hand rule";
+  c = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, ahead_left, 0.0, {b}, "G1", t);
+  ASSERT_FALSE(c.deadlock);
+  EXPECT_GT(c.w_radps, 0.1) << "B stands: gone round on the left, where the command turns";
 }
 
 // A carrier and its load are one body: held because its load cannot go on (A right ahead

@@ -146,8 +146,12 @@ TEST(CliLabel, TheMemoryBenchTakesItsRecordingSizeThroughDdaceBench) {
   const ToolRun bad = runTool("bench label_memory --mb 0 --repo '" + repo + "'");
   EXPECT_NE(bad.status, 0) << bad.out;
   EXPECT_NE(bad.out.find("--mb must be a size in MB"), std::string::npos) << bad.out;
-  runTool("bench label_memory --mb 1 --repo '" + repo + "'");  // its goal is for long recordings
+  // --repo=DIR is ddace bench's own, wherever it stands (as --repo DIR above).
+  runTool("bench label_memory --repo='" + repo + "' --mb 1");  // its goal is for long recordings
   std::ifstream in(md);
   const std::string text{std::istreambuf_iterator<char>(in), {}};
   EXPECT_NE(text.find("Written by `ddace bench label_memory --mb 1`"), std::string::npos) << text;
+  const ToolRun list = runTool("bench label_memory --mb 1 --list");
+  EXPECT_NE(list.status, 0) << list.out;
+  EXPECT_NE(list.out.find("would be lost"), std::string::npos) << list.out;
 }

@@ -1,0 +1,120 @@
+// mock_robots forgets an object's segment when it ends: a later robot segment that would
+// carry it (same step, action and target -- a new run's step numbers start again) must not
+// make the finished object ride. The test plays coordinator and follower: B1 is moved 2 cm
+// along its own segment to DONE, then R1, beside it, gets a segment "R1:carry:G1" of the
+// same step and drives backwards; B1 must stay where its segment left it.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <mutex>
+
+#include <ros/ros.h>
+
+#include <ddace/EntityArray.h>
+#include <ddace/Segment.h>
+#include <ddace/SegmentStatus.h>
+#include <ddace/WheelCommand.h>
+
+namespace {
+
+std::mutex mu;
+
+bool waitFor(const std::function<bool()>& pred, double timeout_s) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  while (ros::WallTime::now() < end) {
+    {
+      std::lock_guard<std::mutex> l(mu);
+      if (pred()) return true;
+    }
+    ros::WallDuration(0.01).sleep();
+  }
+  std::lock_guard<std::mutex> l(mu);
+  return pred();
+}
+
+ddace::Segment segment(const std::string& entity, uint32_t id, const std::string& action, double x0, double x1) {
+  ddace::Segment s;
+  s.header.stamp = ros::Time::now();
+  s.header.frame_id = "table";
+  s.mode = ddace::Segment::MODE_FOLLOW;
+  s.entity = entity;
+  s.segment_id = id;
+  s.step = 0;
+  s.token.entity = entity;
+  s.token.action = action;
+  s.token.target = "G1";
+  s.token.probability = 1;
+  for (int i = 0; i <= 10; ++i) {
+    geometry_msgs::PoseStamped p;
+    p.header = s.header;
+    p.pose.position.x = x0 + (x1 - x0) * i / 10.0;
+    p.pose.position.y = 0.30;
+    p.pose.orientation.w = 1;
+    s.path.poses.push_back(p);
+  }
+  s.path.header = s.header;
+  s.goal.x = x1;
+  s.goal.y = 0.30;
+  s.arrival_radius_m = 0.005;
+  s.timeout_s = 30;
+  return s;
+}
+
+}  // namespace
+
+TEST(ExecMockSegments, AFinishedObjectSegmentDoesNotMakeTheObjectRide) {
+  ros::NodeHandle nh;
+  std::map<std::string, ddace::Entity> at;
+  uint8_t b1_status = 255;
+  auto entities = nh.subscribe<ddace::EntityArray>("/ddace/entities", 10, [&](const ddace::EntityArray::ConstPtr& m) {
+    std::lock_guard<std::mutex> l(mu);
+    for (const auto& e : m->entities) at[e.name] = e;
+  });
+  auto status =
+      nh.subscribe<ddace::SegmentStatus>("/robots/B1/segment_status", 10, [&](const ddace::SegmentStatus::ConstPtr& m) {
+        std::lock_guard<std::mutex> l(mu);
+        if (m->segment_id == 1) b1_status = m->status;
+      });
+  ros::Publisher b1 = nh.advertise<ddace::Segment>("/robots/B1/segment", 5, true);
+  ros::Publisher r1 = nh.advertise<ddace::Segment>("/robots/R1/segment", 5, true);
+  ros::Publisher wheels = nh.advertise<ddace::WheelCommand>("/robots/R1/wheels", 5);
+  ASSERT_TRUE(waitFor([&] { return at.count("B1") && at.count("R1"); }, 20.0)) << "no /ddace/entities";
+  ASSERT_TRUE(waitFor([&] { return b1.getNumSubscribers() > 0 && r1.getNumSubscribers() > 0; }, 10.0));
+
+  b1.publish(segment("B1", 1, "carry", 0.30, 0.32));
+  ASSERT_TRUE(waitFor([&] { return b1_status == ddace::SegmentStatus::DONE; }, 15.0))
+      << "B1's segment did not finish (status " << int(b1_status) << ")";
+  double bx, by;
+  {
+    std::lock_guard<std::mutex> l(mu);
+    bx = at["B1"].pose.x, by = at["B1"].pose.y;
+  }
+  // R1, 7 cm from B1 (where a carrier counts as at its load), carries to G1 in step 0.
+  r1.publish(segment("R1", 2, "carry", 0.25, 0.60));
+  ros::WallDuration(0.5).sleep();
+  for (int i = 0; i < 50; ++i) {  // 1 s backwards, away from B1
+    ddace::WheelCommand w;
+    w.header.stamp = ros::Time::now();
+    w.left_mps = w.right_mps = -0.05;
+    wheels.publish(w);
+    ros::WallDuration(0.02).sleep();
+  }
+  ddace::WheelCommand stop;
+  stop.header.stamp = ros::Time::now();
+  wheels.publish(stop);
+  ros::WallDuration(0.3).sleep();
+  std::lock_guard<std::mutex> l(mu);
+  EXPECT_LT(at["R1"].pose.x, 0.23) << "R1 did not drive backwards";
+  EXPECT_LT(std::hypot(at["B1"].pose.x - bx, at["B1"].pose.y - by), 0.005)
+      << "B1 moved with R1 from (" << bx << ", " << by << ") to (" << at["B1"].pose.x << ", " << at["B1"].pose.y
+      << "): its finished segment paired with R1's";
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "exec_mock_segments");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  return RUN_ALL_TESTS();
+}
