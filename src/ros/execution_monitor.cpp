@@ -132,7 +132,8 @@ class ExecutionMonitorNode::Impl {
     if (pnh.hasParam("contact_margin_m"))
       throw Error("parameter '" + pnh.resolveName("contact_margin_m") + "' is no longer read: the monitor uses '" +
                   nh.resolveName("path_follower/safety/margin_m") + "', the path followers' margin");
-    contact_margin_m_ = ros_exec::loadSafetyParams(ros::NodeHandle(nh, "path_follower/safety")).margin_m;
+    contacts_ = std::make_unique<exec::StepContacts>(
+        spec_, radii_, ros_exec::loadSafetyParams(ros::NodeHandle(nh, "path_follower/safety")).margin_m);
     collisions_fail_ = rosparam::param(pnh, "collisions_fail", defaults.collisions_fail);
     at_.assign(spec_.entities.size(), Eigen::Vector2d::Constant(NAN));
     const int gt = rosparam::param(pnh, "ground_truth_demo", defaults.ground_truth_demo);
@@ -342,7 +343,7 @@ class ExecutionMonitorNode::Impl {
       }
     }
     const size_t before = clearance_->collisions().size();
-    clearance_->update(m.header.stamp.toSec(), at_, allowed_);
+    clearance_->update(m.header.stamp.toSec(), at_, contacts_->allowed());
     for (size_t k = before; k < clearance_->collisions().size(); ++k) {
       const auto& c = clearance_->collisions()[k];
       ROS_WARN("execution_monitor: collision: %s and %s overlap", spec_.entities[c.a].name.c_str(),
@@ -375,30 +376,16 @@ class ExecutionMonitorNode::Impl {
   /// milliseconds): who may touch whom (exec::AllowedContacts, the rule `ddace eval` uses),
   /// from the segments' end points and where the other bodies stand.
   void noteStepSegment(const ddace::Segment& m) {
+    contacts_->beginStep(m.step);
     const int i = spec_.entityIndex(m.entity);
     if (i < 0 || m.path.poses.empty()) return;
-    task::Token token;
     try {
-      token = ros_exec::fromMsg(m.token, spec_);
+      const task::Token token = ros_exec::fromMsg(m.token, spec_);
+      const auto& last = m.path.poses.back().pose.position;
+      contacts_->note(m.step, i, token, Eigen::Vector2d(last.x, last.y), at_);
     } catch (const std::exception& e) {
-      ROS_WARN("execution_monitor: segment %u of %s: %s", m.segment_id, m.entity.c_str(), e.what());
-      return;
-    }
-    if (m.step != allowed_step_) step_ends_.clear(), allowed_step_ = m.step;
-    const auto& last = m.path.poses.back().pose.position;
-    step_ends_[i] = {token, Eigen::Vector2d(last.x, last.y)};
-    std::vector<task::Token> tokens;
-    std::vector<Eigen::Vector2d> ends = at_;
-    std::vector<bool> moves(at_.size(), false);
-    for (const auto& [e, te] : step_ends_) {
-      tokens.push_back(te.first);
-      ends[e] = te.second;
-      moves[e] = true;
-    }
-    try {
-      allowed_ = exec::AllowedContacts(spec_, tokens, at_, ends, moves, radii_, contact_margin_m_);
-    } catch (const std::exception& e) {
-      ROS_WARN("execution_monitor: step %d: %s", m.step + 1, e.what());
+      ROS_WARN("execution_monitor: step %d, segment %u of %s: %s", m.step + 1, m.segment_id, m.entity.c_str(),
+               e.what());
     }
   }
 
@@ -695,13 +682,10 @@ class ExecutionMonitorNode::Impl {
   std::map<std::string, Eigen::Vector2d> positions_;
   std::map<std::string, Eigen::Vector2d> starts_;  ///< first tracked position of each entity
   std::unique_ptr<exec::ClearanceMeter> clearance_;
-  std::vector<double> radii_;  ///< every entity's footprint (0: a goal)
-  double contact_margin_m_ = 0;
-  int allowed_step_ = -1;                                             ///< the step of step_ends_
-  std::map<int, std::pair<task::Token, Eigen::Vector2d>> step_ends_;  ///< its motions: token, end point
-  exec::AllowedContacts allowed_;                                     ///< who may touch whom in it
-  bool collisions_fail_ = true;                                       ///< Params::collisions_fail
-  std::vector<Eigen::Vector2d> at_;  ///< latest positions in the task's order (NaN = not seen)
+  std::vector<double> radii_;                     ///< every entity's footprint (0: a goal)
+  std::unique_ptr<exec::StepContacts> contacts_;  ///< who may touch whom in the running step
+  bool collisions_fail_ = true;                   ///< Params::collisions_fail
+  std::vector<Eigen::Vector2d> at_;               ///< latest positions in the task's order (NaN = not seen)
   std::vector<ros::Time> requests_;
   std::set<uint32_t> request_ids_;
   std::vector<ros::Subscriber> subs_;

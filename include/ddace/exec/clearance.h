@@ -19,6 +19,7 @@
 #include <utility>
 #include <vector>
 
+#include <map>
 #include <set>
 
 #include <Eigen/Core>
@@ -62,6 +63,33 @@ class AllowedContacts {
   std::vector<bool> moves_;
   std::vector<double> radii_;
   double margin_m_ = 0;
+};
+
+/// The running step's allowed contacts, as its segments arrive one by one within
+/// milliseconds (the execution monitor): rebuilt from the step's motions so far at each.
+class StepContacts {
+ public:
+  /// `radii`: every entity's disc (0 = no body); `margin_m`: the path followers' margin.
+  StepContacts(task::TaskSpec spec, std::vector<double> radii, double margin_m);
+  /// The segment of `entity` (index) in `step` with `token`, ending at `end`; `at`: every
+  /// entity's position now (table frame, metres; NaN = unknown). A new step forgets the
+  /// last one's contacts first. Throws ddace::Error naming both when the token is another
+  /// entity's (the segment is not counted), or when the contacts cannot be decided (then
+  /// none are allowed: every contact counts).
+  void note(int step, int entity, const task::Token& token, const Eigen::Vector2d& end,
+            const std::vector<Eigen::Vector2d>& at);
+  /// A segment of `step` arrived (also one that cannot be noted): a new step forgets the
+  /// last one's contacts.
+  void beginStep(int step);
+  const AllowedContacts& allowed() const { return allowed_; }
+
+ private:
+  task::TaskSpec spec_;
+  std::vector<double> radii_;
+  double margin_m_;
+  int step_ = -1;
+  std::map<int, std::pair<task::Token, Eigen::Vector2d>> ends_;  ///< the step's motions: token, end point
+  AllowedContacts allowed_;
 };
 
 /// The closest two bodies came (gap between their discs; negative = overlap).

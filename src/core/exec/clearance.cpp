@@ -75,6 +75,39 @@ bool PairContact::update(double gap, bool contact, bool allowed, double toleranc
   return true;
 }
 
+StepContacts::StepContacts(task::TaskSpec spec, std::vector<double> radii, double margin_m)
+    : spec_(std::move(spec)), radii_(std::move(radii)), margin_m_(margin_m) {}
+
+void StepContacts::beginStep(int step) {
+  if (step != step_) ends_.clear(), allowed_ = {}, step_ = step;  // no exemption of the last step stays
+}
+
+void StepContacts::note(int step, int entity, const task::Token& token, const Eigen::Vector2d& end,
+                        const std::vector<Eigen::Vector2d>& at) {
+  beginStep(step);
+  const auto n = static_cast<int>(spec_.entities.size());
+  const auto name = [&](int i) { return i >= 0 && i < n ? spec_.entities[i].name : "entity " + std::to_string(i); };
+  if (token.entity != entity)
+    throw Error("the segment of " + name(entity) + " carries a token of " + name(token.entity) +
+                ": not counted for the allowed contacts");
+  ends_[entity] = {token, end};
+  std::vector<task::Token> tokens;
+  std::vector<Eigen::Vector2d> ends = at;
+  std::vector<bool> moves(at.size(), false);
+  for (const auto& [e, te] : ends_) {
+    if (e < 0 || e >= static_cast<int>(at.size())) continue;  // AllowedContacts names it
+    tokens.push_back(te.first);
+    ends[e] = te.second;
+    moves[e] = true;
+  }
+  try {
+    allowed_ = AllowedContacts(spec_, tokens, at, ends, moves, radii_, margin_m_);
+  } catch (const Error&) {
+    allowed_ = {};  // every contact counts
+    throw;
+  }
+}
+
 ClearanceMeter::ClearanceMeter(std::vector<double> radii, double overlap_tolerance_m)
     : radii_(std::move(radii)),
       tolerance_m_(overlap_tolerance_m),

@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "ddace/common/error.h"
 #include "ddace/exec/clearance.h"
 
 using namespace ddace::exec;
@@ -153,4 +154,34 @@ TEST(ClearanceMeter, ACarrierAndALoadFromAfarKeepApart) {
 
   const AllowedContacts rides(spec, step, {{0.1, 0.3}, {0.1 + 2 * r, 0.3}, g1}, ends, {true, true, false}, radii, 0.01);
   EXPECT_TRUE(rides.allowed(0, 1, {0.4, 0.2}, {0.4 + 2 * r - 0.005, 0.2}));
+}
+
+// The execution monitor's contacts of the running step, as its segments arrive: a token of
+// another entity is refused naming both, a new step forgets the last one's exemptions,
+// and contacts that cannot be decided allow nothing (no stale exemption stays).
+TEST(StepContacts, RefuseAnotherEntitysTokenAndKeepNoStaleExemption) {
+  using ddace::task::EntityKind;
+  ddace::task::TaskSpec spec;
+  for (const char* name : {"R1", "R2", "R3"}) spec.entities.push_back({name, EntityKind::Robot, ""});
+  const double r = 0.022;
+  const Vector2d r2(0.3, 0.6), r3_end = r2 + Vector2d(2 * r, 0);
+  const std::vector<Vector2d> at{{0.1, 0.1}, r2, r2 + Vector2d(0.3, 0)};
+  StepContacts sc(spec, {r, r, r}, 0.01);
+  sc.note(0, 2, {2, "move", 1}, r3_end, at);  // R3 to R2
+  EXPECT_TRUE(sc.allowed().allowed(2, 1, r3_end, r2));
+  try {
+    sc.note(0, 0, {2, "move", 0}, {0.2, 0.1}, at);  // R1's segment with R3's token
+    FAIL() << "another entity's token was counted";
+  } catch (const ddace::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("R1"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("R3"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(sc.allowed().allowed(2, 1, r3_end, r2)) << "the step's own contacts stay";
+  EXPECT_FALSE(sc.allowed().allowed(2, 0, r3_end, {0.2, 0.1}));
+
+  sc.note(1, 0, {0, "move", 1}, {0.2, 0.1}, at);  // the next step: R1 to R2
+  EXPECT_FALSE(sc.allowed().allowed(2, 1, r3_end, r2)) << "the last step's exemption stays";
+  EXPECT_TRUE(sc.allowed().allowed(0, 1, {0.2, 0.1}, r2));
+  EXPECT_THROW(sc.note(1, 2, {2, "move", 7}, r3_end, at), ddace::Error);  // a target outside the task
+  EXPECT_FALSE(sc.allowed().allowed(0, 1, {0.2, 0.1}, r2)) << "undecided: every contact counts";
 }
