@@ -182,6 +182,13 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
       d.decision = m.decide(d.p_end, d.la, d.lt, by_token ? h.target : Tensor(), by_token ? nodes[t - 1] : Tensor(), z,
                             canonical.data(), static_cast<size_t>(t), static_cast<int>(k));
       decided.push_back(std::move(d));
+      // A majority already: the networks left cannot change the decision (nor which
+      // network's it is: the first of the most voted), so they are not run.
+      const detail::StepDecision& last = decided.back().decision;
+      const size_t votes = static_cast<size_t>(std::count_if(decided.begin(), decided.end(), [&](const Decided& o) {
+        return o.decision.end == last.end && (last.end || o.decision.tokens == last.tokens);
+      }));
+      if (2 * votes > members.size()) break;
     }
   } else {
     Network net = m.net;
