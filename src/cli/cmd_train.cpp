@@ -128,7 +128,7 @@ DDACE_COMMAND(
      "ddace train TASKDIR --out MODELDIR [--force] [--variant scene|paper|full-graph|gnn] [--epochs N=400] "
      "[--seed S=1] [--threads T=1] [--patience P=20] [--lr RATE=0.005] [--dropout P=0.1] [--layers L=3] "
      "[--gru-hidden H=64] [--head-hidden H=32] [--identity-dim D=8] [--weight-decay W=0] "
-     "[--without relative,fixed-order,shuffled-names,token-by-token,parked] [--quiet]",
+     "[--without relative,fixed-order,shuffled-names,token-by-token,parked,ensemble] [--quiet]",
      "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR "
      "(refused when it holds anything else; --force replaces an earlier model)",
      runTrain});

@@ -198,6 +198,7 @@ class PathFollowerNode::Impl {
       // Its end status came first (another connection), or the coordinator re-sent it:
       // it ended, the entity stands.
       ROS_DEBUG("path_follower: segment %u of %s has already ended", m.segment_id, name.c_str());
+      forgetSegment(name);  // an older one whose end status was lost: it stands all the same
       return;
     }
     if (m.mode == ddace::Segment::MODE_FOLLOW) {

@@ -102,7 +102,7 @@ enum class Rule {
   ShuffledNames,  ///< "shuffled-names": permute interchangeable names' embeddings in training
   TokenByToken,   ///< "token-by-token": decide a step's targets one token at a time
   Parked,         ///< "parked": parked entities are no rivals in the nearness ranks
-  Ensemble,       ///< "ensemble": average the logits of networks trained from several seeds
+  Ensemble,       ///< "ensemble": networks trained from several seeds vote on each decoded step
 };
 const char* toString(Rule r);
 /// Throws ddace::Error listing the names for an unknown one.
@@ -189,8 +189,8 @@ struct StepRules {
 };
 
 /// "Ensemble" (docs/tgn.md): where the scene decides the steps, this many networks from
-/// different seeds decide together (the mean of their logits); at most kMaxEnsemble in a
-/// manifest.
+/// different seeds decide together (each decodes the step, the majority's is kept); a
+/// manifest holds at most kMaxEnsemble and exactly what training makes (1 or this).
 inline constexpr int kEnsembleMembers = 3;
 inline constexpr int kMaxEnsemble = 8;
 
@@ -219,7 +219,7 @@ struct TrainingPlan {
   bool token_by_token = false;
   /// Scene: an entity at one place with another is no rival in the ranks ("Parked entities").
   bool parked_out_of_ranks = false;
-  /// Scene: the number of networks whose logits are averaged ("Ensemble"): trained alike
+  /// Scene: the number of networks voting on each decoded step ("Ensemble"): trained alike
   /// from seeds derived from the model's (the first from the model's own); 1: one network.
   int ensemble = 1;
   StepRules step_rules;                      ///< scene: learned from the training steps; else none

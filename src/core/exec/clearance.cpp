@@ -90,12 +90,17 @@ void StepContacts::note(int step, int entity, const task::Token& token, const Ei
   if (token.entity != entity)
     throw Error("the segment of " + name(entity) + " carries a token of " + name(token.entity) +
                 ": not counted for the allowed contacts");
-  ends_[entity] = {token, end};
+  if (entity < 0 || entity >= static_cast<int>(at.size()))
+    throw Error("the segment of " + name(entity) +
+                " names no entity with a pose: not counted for the allowed contacts");
+  // Kept only once the step's contacts are worked out with it: a bad segment leaves the
+  // step's others as they were.
+  auto step_ends = ends_;
+  step_ends[entity] = {token, end};
   std::vector<task::Token> tokens;
   std::vector<Eigen::Vector2d> ends = at;
   std::vector<bool> moves(at.size(), false);
-  for (const auto& [e, te] : ends_) {
-    if (e < 0 || e >= static_cast<int>(at.size())) continue;  // AllowedContacts names it
+  for (const auto& [e, te] : step_ends) {
     tokens.push_back(te.first);
     ends[e] = te.second;
     moves[e] = true;
@@ -106,6 +111,7 @@ void StepContacts::note(int step, int entity, const task::Token& token, const Ei
     allowed_ = {};  // every contact counts
     throw;
   }
+  ends_ = std::move(step_ends);
 }
 
 ClearanceMeter::ClearanceMeter(std::vector<double> radii, double overlap_tolerance_m)

@@ -100,6 +100,11 @@ SequenceModel SequenceModel::load(const std::string& model_dir) {
                                    std::to_string(impl->others.size() + 1) + ")"});
       impl->others[k]->load(member);
     }
+    torch::serialize::InputArchive extra;
+    if (archive.try_read("member" + std::to_string(impl->others.size() + 1), extra))
+      throw Error(Diagnostic{weights, 0, 0,
+                             "does not fit the manifest's network: it holds more networks than the plan's ensemble " +
+                                 std::to_string(impl->others.size() + 1)});
   } catch (const c10::Error& e) {
     throw Error(
         Diagnostic{weights, 0, 0, std::string("does not fit the manifest's network: ") + e.what_without_backtrace()});

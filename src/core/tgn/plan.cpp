@@ -126,7 +126,7 @@ TrainingPlan planTraining(const task::TaskDir& train, const TrainOptions& option
   p.parked_out_of_ranks = options.uses(Rule::Parked);
   // Ensemble: where the scene decides, a few demonstrations are fitted exactly by networks
   // that generalise differently (the training seed's initial weights, dropout, batch order
-  // and name draws); the mean of several networks' logits decides as the majority of them.
+  // and name draws); each of several networks decodes the step and the majority decides.
   // A fixed order is decided by the steps so far, which any seed learns: one network.
   p.ensemble = options.uses(Rule::Ensemble) ? kEnsembleMembers : 1;
   // Token by token: where every step's targets were exclusive and some step had several

@@ -21,9 +21,12 @@ std::string TrainingPlan::inconsistency(const TrainOptions& options) const {
   if (token_by_token && !(options.uses(Rule::TokenByToken) && step_rules.exclusive_targets))
     return "token_by_token without exclusive targets";
   if (parked_out_of_ranks && !options.uses(Rule::Parked)) return "parked_out_of_ranks, switched off by the options";
-  if (ensemble < 1 || ensemble > kMaxEnsemble) return "an ensemble of " + std::to_string(ensemble) + " networks";
-  if (ensemble > 1 && !(relative_features && options.uses(Rule::Ensemble)))
-    return "an ensemble without the relative features or switched off by the options";
+  // Exactly what planTraining() makes: a manifest edited to fewer networks than weights.pt
+  // holds would decide with some of them silently.
+  const int ensemble_made = relative_features && options.uses(Rule::Ensemble) ? kEnsembleMembers : 1;
+  if (ensemble != ensemble_made)
+    return "an ensemble of " + std::to_string(ensemble) + " networks (training makes " + std::to_string(ensemble_made) +
+           " for this plan and options)";
   if ((names_or_scene || !name_groups.empty()) && !identity_embedding)
     return "names_or_scene or name_groups without the identity embedding";
   if (!name_groups.empty() && !options.uses(Rule::ShuffledNames)) return "name_groups, switched off by the options";

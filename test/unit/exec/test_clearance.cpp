@@ -184,4 +184,8 @@ TEST(StepContacts, RefuseAnotherEntitysTokenAndKeepNoStaleExemption) {
   EXPECT_TRUE(sc.allowed().allowed(0, 1, {0.2, 0.1}, r2));
   EXPECT_THROW(sc.note(1, 2, {2, "move", 7}, r3_end, at), ddace::Error);  // a target outside the task
   EXPECT_FALSE(sc.allowed().allowed(0, 1, {0.2, 0.1}, r2)) << "undecided: every contact counts";
+  // The bad segment is not kept: the step's next one is worked out with the good ones.
+  sc.note(1, 1, {1, "move", 2}, at[2] - Vector2d(2 * r, 0), at);  // R2 to R3
+  EXPECT_TRUE(sc.allowed().allowed(0, 1, {0.2, 0.1}, r2));
+  EXPECT_TRUE(sc.allowed().allowed(1, 2, at[2] - Vector2d(2 * r, 0), at[2]));
 }

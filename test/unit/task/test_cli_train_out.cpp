@@ -16,6 +16,7 @@
 
 #include "../common/file_tree.h"
 #include "../common/run_tool.h"
+#include "ddace/tgn/sequence_model.h"
 
 namespace fs = std::filesystem;
 using ddace::test::fileBytes;
@@ -207,4 +208,17 @@ TEST(CliTrainOut, AKilledRunLeavesTheOldModelAndTheNextRunClearsItsTemporary) {
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_EQ(temporaries(), 0);
   EXPECT_TRUE(fs::exists(out + "/manifest.yaml"));
+}
+
+TEST(CliTrain, HelpPrintsTheUsageWithEveryLearningRuleToSwitchOff) {
+  // `ddace train --help` is the reference a user reads for --without: every rule of the
+  // scene network is named there (the usage once missed 'ensemble').
+  const ToolRun run = runTool("train --help");
+  EXPECT_EQ(run.status, 0) << run.out;
+  EXPECT_NE(run.out.find("ddace train TASKDIR --out MODELDIR"), std::string::npos) << run.out;
+  const size_t without = run.out.find("--without ");
+  ASSERT_NE(without, std::string::npos) << run.out;
+  const std::string list = run.out.substr(without, run.out.find(']', without) - without);
+  for (const ddace::tgn::Rule r : ddace::tgn::allRules())
+    EXPECT_NE(list.find(ddace::tgn::toString(r)), std::string::npos) << ddace::tgn::toString(r) << " in " << list;
 }

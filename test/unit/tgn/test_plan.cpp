@@ -388,6 +388,31 @@ TEST(Ensemble, TheMajorityOfSeedsDecides) {
   EXPECT_EQ(loaded.predictNext(first).tokens, three.predictNext(first).tokens);
 }
 
+// A manifest edited to another number of networks than training made (and weights.pt
+// holds) is refused by name, never decided with some of the networks silently.
+TEST(Ensemble, AManifestWithAnotherNumberOfNetworksIsRefused) {
+  tgn::TrainOptions o;
+  o.max_epochs = 3;
+  const tgn::SequenceModel m = tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr);
+  ASSERT_EQ(m.info().plan.ensemble, tgn::kEnsembleMembers);
+  const std::string dir =
+      (fs::temp_directory_path() / ("ddace_test_ensemble_count_" + std::to_string(::getpid()))).string();
+  for (const int edited : {1, 2, tgn::kEnsembleMembers + 1}) {
+    fs::remove_all(dir);
+    m.save(dir);
+    ASSERT_TRUE(
+        editManifest(dir, "ensemble: " + std::to_string(tgn::kEnsembleMembers), "ensemble: " + std::to_string(edited)));
+    try {
+      tgn::SequenceModel::load(dir);
+      ADD_FAILURE() << "loaded a model of " << tgn::kEnsembleMembers << " networks as " << edited;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("an ensemble of " + std::to_string(edited) + " networks"), std::string::npos)
+          << e.what();
+    }
+  }
+  fs::remove_all(dir);
+}
+
 // The majority of an ensemble's decoded steps: the most voted, the first network's on a tie.
 TEST(Ensemble, MajorityDecision) {
   const auto step = [](int target) {
