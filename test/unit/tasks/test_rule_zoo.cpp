@@ -116,6 +116,19 @@ TEST(RuleZoo, NamedRulesStateTheKindsUsersName) {
     EXPECT_EQ(tasks::zooRule(id).family, k.family);
     EXPECT_EQ(tasks::generateZoo(id, 1, 2).demos.size(), 1u) << k.family;
   }
+  // The drawn rules chosen for a kind state it (an id chosen once by its words: a change of
+  // the grammar's draw must not leave a kind measured on another rule).
+  const std::pair<const char*, const char*> drawn[] = {
+      {"zoo:140", "the robot farthest from B1 fetches B1 and carries it to"},
+      {"zoo:87", "the robot nearest to B1 fetches B1 and hands it to the teammate nearest to it, who carries it to"},
+      {"zoo:21", "robots take the slots Q1..Q3 one per step, the nearest to Q1 first"}};
+  for (const auto& [family, words] : drawn) {
+    uint64_t drawn_id = 0;
+    ASSERT_TRUE(tasks::parseZooFamily(family, drawn_id));
+    const tasks::ZooRule rule = tasks::zooRule(drawn_id);
+    EXPECT_NE(rule.name.find(words), std::string::npos) << family << ": " << rule.name;
+    EXPECT_GE(rule.robots, 3) << family;
+  }
   uint64_t id = 0;
   ASSERT_TRUE(tasks::parseZooFamily("zoo:nearest-goals", id));
   const tasks::ZooRule nearest = tasks::zooRule(id);
