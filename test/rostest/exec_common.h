@@ -191,6 +191,48 @@ inline bool waitFor(const std::function<bool()>& pred, double timeout_s) {
   return pred();
 }
 
+/// waitFor with `pred` read under `mu`, the lock the test's callbacks write under.
+inline bool waitFor(std::mutex& mu, const std::function<bool()>& pred, double timeout_s) {
+  return waitFor(
+      [&] {
+        std::lock_guard<std::mutex> l(mu);
+        return pred();
+      },
+      timeout_s);
+}
+
+/// A follow segment of `entity` along the straight line (x0, y0) -> (x1, y1) (table frame,
+/// metres, 21 points), with token `entity`:`action`:G1 of step `step`, as the coordinator
+/// sends one.
+inline ddace::Segment straightSegment(const std::string& entity, const std::string& action, uint32_t id, int step,
+                                      double x0, double y0, double x1, double y1, double arrival_radius_m) {
+  ddace::Segment s;
+  s.header.stamp = ros::Time::now();
+  s.header.frame_id = "table";
+  s.mode = ddace::Segment::MODE_FOLLOW;
+  s.entity = entity;
+  s.segment_id = id;
+  s.step = step;
+  s.token.entity = entity;
+  s.token.action = action;
+  s.token.target = "G1";
+  s.token.probability = 1;
+  for (int i = 0; i <= 20; ++i) {
+    geometry_msgs::PoseStamped p;
+    p.header = s.header;
+    p.pose.position.x = x0 + (x1 - x0) * i / 20.0;
+    p.pose.position.y = y0 + (y1 - y0) * i / 20.0;
+    p.pose.orientation.w = 1;
+    s.path.poses.push_back(p);
+  }
+  s.path.header = s.header;
+  s.goal.x = x1;
+  s.goal.y = y1;
+  s.arrival_radius_m = arrival_radius_m;
+  s.timeout_s = 30;
+  return s;
+}
+
 /// A wheel command as received: its stamp, its speeds and the node that published it.
 struct Wheel {
   ros::Time stamp;

@@ -24,38 +24,12 @@
 #include "ddace/exec/safety_filter.h"
 #include "ddace/task/task_spec.h"
 
+#include "exec_common.h"
+
 namespace {
 
 std::mutex mu;
-
-ddace::Segment segment(const std::string& entity, const std::string& action, uint32_t id, int step, double x0,
-                       double y0, double x1, double y1) {
-  ddace::Segment s;
-  s.header.stamp = ros::Time::now();
-  s.header.frame_id = "table";
-  s.mode = ddace::Segment::MODE_FOLLOW;
-  s.entity = entity;
-  s.segment_id = id;
-  s.step = step;
-  s.token.entity = entity;
-  s.token.action = action;
-  s.token.target = "G1";
-  s.token.probability = 1;
-  for (int i = 0; i <= 20; ++i) {
-    geometry_msgs::PoseStamped p;
-    p.header = s.header;
-    p.pose.position.x = x0 + (x1 - x0) * i / 20.0;
-    p.pose.position.y = y0 + (y1 - y0) * i / 20.0;
-    p.pose.orientation.w = 1;
-    s.path.poses.push_back(p);
-  }
-  s.path.header = s.header;
-  s.goal.x = x1;
-  s.goal.y = y1;
-  s.arrival_radius_m = 0.024;
-  s.timeout_s = 30;
-  return s;
-}
+constexpr double kArrivalM = 0.024;  // the segments' arrival radius (a stop radius)
 
 }  // namespace
 
@@ -98,12 +72,7 @@ TEST(ExecFollowerStanding, ABodyGoneRoundByTheRightHandRuleUntilItsSegmentEnded)
     }
     entities.publish(a);
   });
-  const auto wait = [](const std::function<bool()>& pred, double s) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(s);
-    while (ros::WallTime::now() < end && !pred()) ros::WallDuration(0.01).sleep();
-    return pred();
-  };
-  ASSERT_TRUE(wait(
+  ASSERT_TRUE(exec_test::waitFor(
       [&] {
         return entities.getNumSubscribers() > 0 && r1.getNumSubscribers() > 0 && b1.getNumSubscribers() > 0 &&
                b1_status.getNumSubscribers() > 0 && wheel_sub.getNumPublishers() > 0;
@@ -114,7 +83,8 @@ TEST(ExecFollowerStanding, ABodyGoneRoundByTheRightHandRuleUntilItsSegmentEnded)
 
   // The mean yaw rate commanded over the last 0.4 s of `for_s` seconds of segment `id`.
   const auto turn = [&](uint32_t id, double for_s) {
-    r1.publish(segment("R1", "move", id, 1, rx, ry, rx + 0.25, ry + 0.08));  // ahead, to the left
+    r1.publish(exec_test::straightSegment("R1", "move", id, 1, rx, ry, rx + 0.25, ry + 0.08,
+                                          kArrivalM));  // ahead, to the left
     ros::WallDuration(for_s).sleep();
     std::lock_guard<std::mutex> l(mu);
     const ros::Time from = ros::Time::now() - ros::Duration(0.4);
@@ -125,7 +95,8 @@ TEST(ExecFollowerStanding, ABodyGoneRoundByTheRightHandRuleUntilItsSegmentEnded)
     return n ? w / n : 0.0;
   };
   // B1 is on its way (its segment runs): a moving body, gone round keeping it on the left.
-  b1.publish(segment("B1", "carry", 1, 1, bx, ry, bx + 0.1, ry));  // not R1's load: another action
+  b1.publish(exec_test::straightSegment("B1", "carry", 1, 1, bx, ry, bx + 0.1, ry,
+                                        kArrivalM));  // not R1's load: another action
   ros::WallDuration(0.3).sleep();
   const double moving = turn(2, 1.5);
   EXPECT_LT(moving, -0.01) << "held by a moving body, R1 does not turn right (right-hand rule)";
@@ -144,7 +115,8 @@ TEST(ExecFollowerStanding, ABodyGoneRoundByTheRightHandRuleUntilItsSegmentEnded)
   done.segment_id = 4;
   b1_status.publish(done);
   ros::WallDuration(0.2).sleep();
-  b1.publish(segment("B1", "carry", 4, 2, bx, ry, bx + 0.1, ry));  // arrives after its end
+  b1.publish(
+      exec_test::straightSegment("B1", "carry", 4, 2, bx, ry, bx + 0.1, ry, kArrivalM));  // arrives after its end
   ros::WallDuration(0.3).sleep();
   const double late = turn(5, 1.5);
   EXPECT_GT(late, 0.01) << "a segment that arrived after its end status is kept: B1 counted as moving";

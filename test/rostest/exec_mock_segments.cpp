@@ -16,50 +16,11 @@
 #include <ddace/SegmentStatus.h>
 #include <ddace/WheelCommand.h>
 
+#include "exec_common.h"
+
 namespace {
 
 std::mutex mu;
-
-bool waitFor(const std::function<bool()>& pred, double timeout_s) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  while (ros::WallTime::now() < end) {
-    {
-      std::lock_guard<std::mutex> l(mu);
-      if (pred()) return true;
-    }
-    ros::WallDuration(0.01).sleep();
-  }
-  std::lock_guard<std::mutex> l(mu);
-  return pred();
-}
-
-ddace::Segment segment(const std::string& entity, uint32_t id, const std::string& action, double x0, double x1) {
-  ddace::Segment s;
-  s.header.stamp = ros::Time::now();
-  s.header.frame_id = "table";
-  s.mode = ddace::Segment::MODE_FOLLOW;
-  s.entity = entity;
-  s.segment_id = id;
-  s.step = 0;
-  s.token.entity = entity;
-  s.token.action = action;
-  s.token.target = "G1";
-  s.token.probability = 1;
-  for (int i = 0; i <= 10; ++i) {
-    geometry_msgs::PoseStamped p;
-    p.header = s.header;
-    p.pose.position.x = x0 + (x1 - x0) * i / 10.0;
-    p.pose.position.y = 0.30;
-    p.pose.orientation.w = 1;
-    s.path.poses.push_back(p);
-  }
-  s.path.header = s.header;
-  s.goal.x = x1;
-  s.goal.y = 0.30;
-  s.arrival_radius_m = 0.005;
-  s.timeout_s = 30;
-  return s;
-}
 
 }  // namespace
 
@@ -79,11 +40,14 @@ TEST(ExecMockSegments, AFinishedObjectSegmentDoesNotMakeTheObjectRide) {
   ros::Publisher b1 = nh.advertise<ddace::Segment>("/robots/B1/segment", 5, true);
   ros::Publisher r1 = nh.advertise<ddace::Segment>("/robots/R1/segment", 5, true);
   ros::Publisher wheels = nh.advertise<ddace::WheelCommand>("/robots/R1/wheels", 5);
-  ASSERT_TRUE(waitFor([&] { return at.count("B1") && at.count("R1"); }, 20.0)) << "no /ddace/entities";
-  ASSERT_TRUE(waitFor([&] { return b1.getNumSubscribers() > 0 && r1.getNumSubscribers() > 0; }, 10.0));
+  ASSERT_TRUE(exec_test::waitFor(
+      mu, [&] { return at.count("B1") && at.count("R1"); }, 20.0))
+      << "no /ddace/entities";
+  ASSERT_TRUE(exec_test::waitFor([&] { return b1.getNumSubscribers() > 0 && r1.getNumSubscribers() > 0; }, 10.0));
 
-  b1.publish(segment("B1", 1, "carry", 0.30, 0.32));
-  ASSERT_TRUE(waitFor([&] { return b1_status == ddace::SegmentStatus::DONE; }, 15.0))
+  b1.publish(exec_test::straightSegment("B1", "carry", 1, 0, 0.30, 0.30, 0.32, 0.30, 0.005));
+  ASSERT_TRUE(exec_test::waitFor(
+      mu, [&] { return b1_status == ddace::SegmentStatus::DONE; }, 15.0))
       << "B1's segment did not finish (status " << int(b1_status) << ")";
   double bx, by;
   {
@@ -91,7 +55,7 @@ TEST(ExecMockSegments, AFinishedObjectSegmentDoesNotMakeTheObjectRide) {
     bx = at["B1"].pose.x, by = at["B1"].pose.y;
   }
   // R1, 7 cm from B1 (where a carrier counts as at its load), carries to G1 in step 0.
-  r1.publish(segment("R1", 2, "carry", 0.25, 0.60));
+  r1.publish(exec_test::straightSegment("R1", "carry", 2, 0, 0.25, 0.30, 0.60, 0.30, 0.005));
   ros::WallDuration(0.5).sleep();
   for (int i = 0; i < 50; ++i) {  // 1 s backwards, away from B1
     ddace::WheelCommand w;

@@ -22,25 +22,14 @@
 #include <ddace/Segment.h>
 #include <ddace/SegmentStatus.h>
 
+#include "exec_common.h"
+
 namespace {
 
 std::mutex mu;
 std::map<uint32_t, int> decision_copies, path_copies, segment_copies;
 std::vector<uint32_t> decision_ids;
 ddace::CoordinatorState state;
-
-bool waitFor(const std::function<bool()>& pred, double timeout_s) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  while (ros::WallTime::now() < end) {
-    {
-      std::lock_guard<std::mutex> l(mu);
-      if (pred()) return true;
-    }
-    ros::WallDuration(0.01).sleep();
-  }
-  std::lock_guard<std::mutex> l(mu);
-  return pred();
-}
 
 }  // namespace
 
@@ -148,7 +137,8 @@ TEST(ExecResend, LostMessagesAreSentAgainWithTheSameId) {
     if (!started) ros::WallDuration(0.1).sleep();
   }
   ASSERT_TRUE(started);
-  const bool finished = waitFor([&] { return state.state == ddace::CoordinatorState::FINISHED; }, 20.0);
+  const bool finished = exec_test::waitFor(
+      mu, [&] { return state.state == ddace::CoordinatorState::FINISHED; }, 20.0);
   run = false;
   tracker.join();
   std::lock_guard<std::mutex> l(mu);

@@ -24,6 +24,8 @@
 #include <ddace/SegmentStatus.h>
 #include <ddace/WheelCommand.h>
 
+#include "exec_common.h"
+
 namespace {
 
 std::mutex mu;
@@ -31,20 +33,6 @@ std::vector<ddace::DecisionRequest> requests;
 std::vector<ddace::Segment> segments;
 ddace::CoordinatorState state;
 double r1_x = 0.2, r1_y = 0.2;
-
-template <typename F>
-bool waitFor(F pred, double timeout_s) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  while (ros::WallTime::now() < end) {
-    {
-      std::lock_guard<std::mutex> l(mu);
-      if (pred()) return true;
-    }
-    ros::WallDuration(0.01).sleep();
-  }
-  std::lock_guard<std::mutex> l(mu);
-  return pred();
-}
 
 }  // namespace
 
@@ -138,7 +126,8 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
     if (!started) ros::WallDuration(0.1).sleep();
   }
   ASSERT_TRUE(started) << why;
-  ASSERT_TRUE(waitFor([] { return !segments.empty(); }, 10.0));
+  ASSERT_TRUE(exec_test::waitFor(
+      mu, [] { return !segments.empty(); }, 10.0));
   const uint32_t id = segments.front().segment_id;
   auto status = [&](ros::Publisher& pub, const std::string& entity, uint32_t seg, uint8_t code) {
     ddace::SegmentStatus s;
@@ -176,8 +165,12 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
     std::lock_guard<std::mutex> l(mu);
     r1_x = 0.8 - 0.01;
   }
-  ASSERT_TRUE(waitFor([] { return requests.size() == 2; }, 5.0)) << "no decision after the real arrival";
-  ASSERT_TRUE(waitFor([] { return state.state == ddace::CoordinatorState::FINISHED; }, 5.0)) << state.state_name;
+  ASSERT_TRUE(exec_test::waitFor(
+      mu, [] { return requests.size() == 2; }, 5.0))
+      << "no decision after the real arrival";
+  ASSERT_TRUE(exec_test::waitFor(
+      mu, [] { return state.state == ddace::CoordinatorState::FINISHED; }, 5.0))
+      << state.state_name;
   run = false;
   tracker.join();
 }
@@ -251,7 +244,8 @@ TEST(ExecVerify, WrongDecisionsAndPathsAreRefused) {
       if (!started) ros::WallDuration(0.1).sleep();
     }
     EXPECT_TRUE(started) << t.response.message;
-    EXPECT_TRUE(waitFor([&] { return !asked.empty(); }, 10.0));
+    EXPECT_TRUE(exec_test::waitFor(
+        mu, [&] { return !asked.empty(); }, 10.0));
     std::lock_guard<std::mutex> l(mu);
     return asked.empty() ? 0 : asked.front().id;
   };
@@ -273,7 +267,9 @@ TEST(ExecVerify, WrongDecisionsAndPathsAreRefused) {
   unknown.id = id;
   unknown.tokens.push_back(token("R9"));
   decision_pub.publish(unknown);
-  ASSERT_TRUE(waitFor([] { return state.state == ddace::CoordinatorState::ABORTED; }, 5.0)) << state.state_name;
+  ASSERT_TRUE(exec_test::waitFor(
+      mu, [] { return state.state == ddace::CoordinatorState::ABORTED; }, 5.0))
+      << state.state_name;
   {
     std::lock_guard<std::mutex> l(mu);
     EXPECT_NE(state.reason.find("R9"), std::string::npos) << state.reason;
@@ -286,7 +282,8 @@ TEST(ExecVerify, WrongDecisionsAndPathsAreRefused) {
   right.id = id;
   right.tokens.push_back(token("R1"));
   decision_pub.publish(right);
-  ASSERT_TRUE(waitFor([&] { return !paths_asked.empty(); }, 5.0));
+  ASSERT_TRUE(exec_test::waitFor(
+      mu, [&] { return !paths_asked.empty(); }, 5.0));
   ddace::PathResponse bad;
   {
     std::lock_guard<std::mutex> l(mu);
@@ -300,7 +297,9 @@ TEST(ExecVerify, WrongDecisionsAndPathsAreRefused) {
   }
   bad.path.poses.front().pose.position.y = std::numeric_limits<double>::quiet_NaN();
   path_pub.publish(bad);
-  ASSERT_TRUE(waitFor([] { return state.state == ddace::CoordinatorState::ABORTED; }, 5.0)) << state.state_name;
+  ASSERT_TRUE(exec_test::waitFor(
+      mu, [] { return state.state == ddace::CoordinatorState::ABORTED; }, 5.0))
+      << state.state_name;
   {
     std::lock_guard<std::mutex> l(mu);
     EXPECT_NE(state.reason.find("R1:move:G1"), std::string::npos) << state.reason;
