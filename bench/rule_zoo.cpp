@@ -82,33 +82,11 @@ int main(int argc, char** argv) try {
   const std::vector<uint64_t> distinct = tasks::distinctZooRules(static_cast<int>(rules * every));
   const fs::path scratch = fs::temp_directory_path() / ("ddace_bench_rule_zoo_" + std::to_string(getpid()));
   const auto start = std::chrono::steady_clock::now();
-  std::vector<Result> results;
-  for (size_t k = 0; k < distinct.size(); k += static_cast<size_t>(every)) {
-    Result r;
-    r.rule = tasks::zooRule(distinct[k]);
-    // Test scenes from a stream of their own, as `ddace generate` draws them.
-    const task::TaskDir test = tasks::generateZoo(r.rule.id, static_cast<int>(test_demos), 1 * 2654435761ULL + 0x7e57);
-    for (int demos : sizes) {
-      const task::TaskDir train = tasks::generateZoo(r.rule.id, demos, 1);
-      const auto t0 = std::chrono::steady_clock::now();
-      const pipeline::Model model =
-          pipeline::trainModel(train, options, (scratch / std::to_string(demos)).string(), nullptr);
-      r.seconds[demos] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      r.osr[demos] = pipeline::evaluate(model, test, {}).summary.osr;
-      fs::remove_all(scratch / std::to_string(demos));
-    }
-    std::cout << "zoo " << r.rule.id << " " << r.rule.name << ": OSR " << fmt(r.osr[10]) << " (10), " << fmt(r.osr[20])
-              << " (20)\n"
-              << std::flush;
-    results.push_back(r);
-  }
-  // The kinds of task users name, each its zoo rule (rule_zoo.h, userKinds), as the rules above.
-  std::vector<std::pair<tasks::ZooKind, Result>> kinds;
-  for (const tasks::ZooKind& kind : tasks::userKinds()) {
-    uint64_t id = 0;
-    tasks::parseZooFamily(kind.family, id);
+  // One rule trained at every size and evaluated on its own test scenes.
+  const auto measure = [&](uint64_t id) {
     Result r;
     r.rule = tasks::zooRule(id);
+    // Test scenes from a stream of their own, as `ddace generate` draws them.
     const task::TaskDir test = tasks::generateZoo(id, static_cast<int>(test_demos), 1 * 2654435761ULL + 0x7e57);
     for (int demos : sizes) {
       const task::TaskDir train = tasks::generateZoo(id, demos, 1);
@@ -119,6 +97,22 @@ int main(int argc, char** argv) try {
       r.osr[demos] = pipeline::evaluate(model, test, {}).summary.osr;
       fs::remove_all(scratch / std::to_string(demos));
     }
+    return r;
+  };
+  std::vector<Result> results;
+  for (size_t k = 0; k < distinct.size(); k += static_cast<size_t>(every)) {
+    Result r = measure(distinct[k]);
+    std::cout << "zoo " << r.rule.id << " " << r.rule.name << ": OSR " << fmt(r.osr[10]) << " (10), " << fmt(r.osr[20])
+              << " (20)\n"
+              << std::flush;
+    results.push_back(r);
+  }
+  // The kinds of task users name, each its zoo rule (rule_zoo.h, userKinds), as the rules above.
+  std::vector<std::pair<tasks::ZooKind, Result>> kinds;
+  for (const tasks::ZooKind& kind : tasks::userKinds()) {
+    uint64_t id = 0;
+    tasks::parseZooFamily(kind.family, id);
+    Result r = measure(id);
     std::cout << kind.family << " " << kind.kind << ": OSR " << fmt(r.osr[10]) << " (10), " << fmt(r.osr[20])
               << " (20)\n"
               << std::flush;
