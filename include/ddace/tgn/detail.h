@@ -70,6 +70,8 @@ struct StepDecision {
 /// decoded, one each: the one most of them decoded (END, or the same tokens), on a tie the
 /// first network's of the tied ones. Throws ddace::Error for none.
 size_t majorityDecision(const std::vector<StepDecision>& decisions);
+/// Two networks decided the same step: both END, or the same tokens (the vote's equality).
+bool sameDecision(const StepDecision& a, const StepDecision& b);
 /// The decision of one step, never an empty step: END when p(END) > kEndThreshold; else
 /// decodeStep's step; when every entity of that is idle, the most probable step S* in which
 /// one acts (the joint decoder's best under `rules` with some entity forced to act; the

@@ -185,9 +185,8 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
       // A majority already: the networks left cannot change the decision (nor which
       // network's it is: the first of the most voted), so they are not run.
       const detail::StepDecision& last = decided.back().decision;
-      const size_t votes = static_cast<size_t>(std::count_if(decided.begin(), decided.end(), [&](const Decided& o) {
-        return o.decision.end == last.end && (last.end || o.decision.tokens == last.tokens);
-      }));
+      const size_t votes = static_cast<size_t>(std::count_if(
+          decided.begin(), decided.end(), [&](const Decided& o) { return detail::sameDecision(o.decision, last); }));
       if (2 * votes > members.size()) break;
     }
   } else {

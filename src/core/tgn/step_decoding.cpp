@@ -201,15 +201,16 @@ double stepLogProbability(const std::vector<DecodedToken>& step, const std::vect
   return sum;
 }
 
+bool sameDecision(const StepDecision& a, const StepDecision& b) {
+  return a.end == b.end && (a.end || a.tokens == b.tokens);
+}
+
 size_t majorityDecision(const std::vector<StepDecision>& decisions) {
   if (decisions.empty()) throw Error("majorityDecision: no decisions");
-  const auto same = [](const StepDecision& a, const StepDecision& b) {
-    return a.end == b.end && (a.end || a.tokens == b.tokens);
-  };
   size_t best = 0, best_votes = 0;
   for (size_t i = 0; i < decisions.size(); ++i) {
     const size_t votes = static_cast<size_t>(std::count_if(
-        decisions.begin(), decisions.end(), [&](const StepDecision& d) { return same(d, decisions[i]); }));
+        decisions.begin(), decisions.end(), [&](const StepDecision& d) { return sameDecision(d, decisions[i]); }));
     if (votes > best_votes) best = i, best_votes = votes;  // the first of the most voted
   }
   return best;
