@@ -194,6 +194,25 @@ struct StepRules {
 inline constexpr int kEnsembleMembers = 3;
 inline constexpr int kMaxEnsemble = 8;
 
+/// "Shuffled names" decided on demonstrations held out of training (docs/tgn.md): a network
+/// trained on the others with the names shuffled and one with them kept, each one's
+/// exact-step accuracy (0..1) on the held-out ones; the names are kept only when that
+/// generalises strictly better. held_out 0: not compared (no names to shuffle, or fewer than
+/// kMinNamesHeldOutDemos training demonstrations).
+struct NamesHeldOut {
+  int held_out = 0;     ///< training demonstrations held out (a seeded quarter)
+  double shuffled = 0;  ///< step accuracy on them with the names shuffled
+  double kept = 0;      ///< step accuracy on them with the names kept
+  bool keepsNames() const { return held_out > 0 && kept > shuffled; }
+  bool operator==(const NamesHeldOut& o) const {
+    return held_out == o.held_out && shuffled == o.shuffled && kept == o.kept;
+  }
+};
+
+/// Fewest training demonstrations for the held-out comparison of NamesHeldOut (a quarter
+/// of them, at least one, held out).
+inline constexpr int kMinNamesHeldOutDemos = 4;
+
 /// What the training demonstrations decide about training, computed once from them and the
 /// request (planTraining) and recorded in the manifest apart from the TrainOptions. Every
 /// enabling condition of a rule is stated there and nowhere else: the trainer, the network
@@ -213,8 +232,10 @@ struct TrainingPlan {
   bool names_or_scene = false;
   /// Scene: the groups whose identity embeddings training permutes ("Shuffled names";
   /// detail::interchangeableNames), each ascending; none when training kept the names
-  /// (shuffled, the network fit its demonstrations worse: withNamesKept).
+  /// (shuffled, the network generalised worse to held-out demonstrations: names_held_out).
   std::vector<std::vector<int>> name_groups;
+  /// Scene: the held-out comparison that decided whether name_groups are shuffled (the trainer).
+  NamesHeldOut names_held_out;
   /// Scene: a step's targets are decided one token at a time and trained so ("Token by token").
   bool token_by_token = false;
   /// Scene: an entity at one place with another is no rival in the ranks ("Parked entities").
@@ -226,8 +247,7 @@ struct TrainingPlan {
   std::vector<graph::Edge> attention_edges;  ///< directed edges the network attends over (no self-loops)
   /// The same plan for the network without the identity embedding (no names to shuffle).
   TrainingPlan withoutIdentity() const;
-  /// The same plan without shuffled names (training fell short with them: the trainer's
-  /// "Shuffled names, unless they cost the fit").
+  /// The same plan without shuffled names (the held-out demonstrations kept them).
   TrainingPlan withNamesKept() const;
   /// Empty when planTraining() could have made this plan for `options` (of its variant);
   /// else what could not be, for a reader of a manifest to report (a plan it cannot decode
@@ -236,7 +256,7 @@ struct TrainingPlan {
   bool operator==(const TrainingPlan& o) const {
     return fixed_order == o.fixed_order && slips == o.slips && relative_features == o.relative_features &&
            identity_embedding == o.identity_embedding && names_or_scene == o.names_or_scene &&
-           name_groups == o.name_groups && token_by_token == o.token_by_token &&
+           name_groups == o.name_groups && names_held_out == o.names_held_out && token_by_token == o.token_by_token &&
            parked_out_of_ranks == o.parked_out_of_ranks && ensemble == o.ensemble && step_rules == o.step_rules &&
            attention_edges == o.attention_edges;
   }

@@ -241,6 +241,11 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
     y << YAML::Flow << names;
   }
   y << YAML::EndSeq;
+  y << YAML::Key << "names_held_out" << YAML::Value << YAML::Flow << YAML::BeginMap;
+  y << YAML::Key << "held_out" << YAML::Value << plan.names_held_out.held_out;
+  y << YAML::Key << "shuffled" << YAML::Value << plan.names_held_out.shuffled;
+  y << YAML::Key << "kept" << YAML::Value << plan.names_held_out.kept;
+  y << YAML::EndMap;
   y << YAML::Key << "token_by_token" << YAML::Value << plan.token_by_token;
   y << YAML::Key << "parked_out_of_ranks" << YAML::Value << plan.parked_out_of_ranks;
   y << YAML::Key << "ensemble" << YAML::Value << plan.ensemble;
@@ -593,6 +598,14 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
       std::vector<int> members;
       for (const YAML::Node& e : group) members.push_back(r.entity(e, spec));
       plan.name_groups.push_back(members);
+    }
+    // Absent in the manifests of format /11 written before the held-out comparison: none made.
+    if (const YAML::Node h = pn["names_held_out"]) {
+      NamesHeldOut& held = plan.names_held_out;
+      held.held_out = static_cast<int>(r.integerAt(
+          r.need(h, "held_out"), "names_held_out: held_out (at most the demonstrations)", 0, g.demonstrations));
+      held.shuffled = r.numberIn(r.need(h, "shuffled"), "names_held_out: shuffled (a step accuracy)", 0, 1);
+      held.kept = r.numberIn(r.need(h, "kept"), "names_held_out: kept (a step accuracy)", 0, 1);
     }
     plan.token_by_token = r.boolean(pn, "token_by_token");
     plan.parked_out_of_ranks = r.boolean(pn, "parked_out_of_ranks");
