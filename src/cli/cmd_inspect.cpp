@@ -67,7 +67,12 @@ int runInspect(const std::vector<std::string>& argv) {
                       ? " (names " + std::string(plan.names_held_out.keepsNames() ? "kept" : "shuffled") +
                             " by step accuracy on " + std::to_string(plan.names_held_out.held_out) +
                             " held-out demonstrations: shuffled " + fixed2(plan.names_held_out.shuffled) + ", kept " +
-                            fixed2(plan.names_held_out.kept) + ")"
+                            fixed2(plan.names_held_out.kept) +
+                            (plan.names_held_out.kept == plan.names_held_out.shuffled
+                                 ? "; tied, fit on all " + fixed2(plan.names_held_out.shuffled_fit) + ", " +
+                                       fixed2(plan.names_held_out.kept_fit)
+                                 : std::string()) +
+                            ")"
                       : std::string())
               << ", token by token " << on(plan.token_by_token) << ", parked entities out of the ranks "
               << on(plan.parked_out_of_ranks) << ", ensemble of " << plan.ensemble

@@ -196,16 +196,22 @@ inline constexpr int kMaxEnsemble = 8;
 
 /// "Shuffled names" decided on demonstrations held out of training (docs/tgn.md): a network
 /// trained on the others with the names shuffled and one with them kept, each one's
-/// exact-step accuracy (0..1) on the held-out ones; the names are kept only when that
-/// generalises strictly better. held_out 0: not compared (no names to shuffle, or fewer than
-/// kMinNamesHeldOutDemos training demonstrations).
+/// exact-step accuracy (0..1) on the held-out ones. The names are kept when that is strictly
+/// better; where the held-out steps cannot tell them apart (equal), by the fit instead: the
+/// step accuracy on every training demonstration of the networks trained on all of them,
+/// the names kept only when that fits strictly better (a network that fits every step with
+/// them shuffled is kept without training the other: kept_fit 0). held_out 0: not compared
+/// (no names to shuffle, or fewer than kMinNamesHeldOutDemos training demonstrations).
 struct NamesHeldOut {
-  int held_out = 0;     ///< training demonstrations held out (a seeded quarter)
-  double shuffled = 0;  ///< step accuracy on them with the names shuffled
-  double kept = 0;      ///< step accuracy on them with the names kept
-  bool keepsNames() const { return held_out > 0 && kept > shuffled; }
+  int held_out = 0;         ///< training demonstrations held out (a seeded quarter)
+  double shuffled = 0;      ///< step accuracy on them with the names shuffled
+  double kept = 0;          ///< step accuracy on them with the names kept
+  double shuffled_fit = 0;  ///< on a tie: the fit with the names shuffled (else 0)
+  double kept_fit = 0;      ///< on a tie and a shuffled fit short of 1: the fit with them kept (else 0)
+  bool keepsNames() const { return held_out > 0 && (kept > shuffled || (kept == shuffled && kept_fit > shuffled_fit)); }
   bool operator==(const NamesHeldOut& o) const {
-    return held_out == o.held_out && shuffled == o.shuffled && kept == o.kept;
+    return held_out == o.held_out && shuffled == o.shuffled && kept == o.kept && shuffled_fit == o.shuffled_fit &&
+           kept_fit == o.kept_fit;
   }
 };
 

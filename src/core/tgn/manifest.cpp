@@ -245,6 +245,8 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   y << YAML::Key << "held_out" << YAML::Value << plan.names_held_out.held_out;
   y << YAML::Key << "shuffled" << YAML::Value << plan.names_held_out.shuffled;
   y << YAML::Key << "kept" << YAML::Value << plan.names_held_out.kept;
+  y << YAML::Key << "shuffled_fit" << YAML::Value << plan.names_held_out.shuffled_fit;
+  y << YAML::Key << "kept_fit" << YAML::Value << plan.names_held_out.kept_fit;
   y << YAML::EndMap;
   y << YAML::Key << "token_by_token" << YAML::Value << plan.token_by_token;
   y << YAML::Key << "parked_out_of_ranks" << YAML::Value << plan.parked_out_of_ranks;
@@ -606,6 +608,8 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
           r.need(h, "held_out"), "names_held_out: held_out (at most the demonstrations)", 0, g.demonstrations));
       held.shuffled = r.numberIn(r.need(h, "shuffled"), "names_held_out: shuffled (a step accuracy)", 0, 1);
       held.kept = r.numberIn(r.need(h, "kept"), "names_held_out: kept (a step accuracy)", 0, 1);
+      held.shuffled_fit = r.numberIn(r.need(h, "shuffled_fit"), "names_held_out: shuffled_fit (a step accuracy)", 0, 1);
+      held.kept_fit = r.numberIn(r.need(h, "kept_fit"), "names_held_out: kept_fit (a step accuracy)", 0, 1);
     }
     plan.token_by_token = r.boolean(pn, "token_by_token");
     plan.parked_out_of_ranks = r.boolean(pn, "parked_out_of_ranks");
