@@ -66,7 +66,8 @@ namespace ddace::tgn {
 /// orders, the last step) and the carried loads among the step rules; /9: what training
 /// decided (TrainingPlan, `plan`) apart from the requested `hyper_parameters` (the rules
 /// switched off: `without`); /11: the ensemble (`plan.ensemble`; weights.pt holds its other
-/// members' weights as `member1`, `member2`, ...). Older ones are refused (retrain).
+/// members' weights as `member1`, `member2`, ...; later `plan.names_held_out`, absent in the
+/// /11 manifests written before it: no comparison made). Older ones are refused (retrain).
 inline constexpr const char* kModelFormat = "ddace-model/11";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
