@@ -231,9 +231,10 @@ class ExecutionMonitorNode::Impl {
   }
 
   /// ~ready: succeeds once the bag recorder and this node's own subscriptions are linked
-  /// to every publisher the master lists for each of their topics; the coordinator starts
-  /// a new run only then (roles/recorder), so the record holds the run from its first
-  /// message. Otherwise the message names the first link still missing.
+  /// to every publisher the master lists for each of their topics, and a /ddace/entities
+  /// message stamped after that has arrived; the coordinator starts a new run only then
+  /// (roles/recorder), so the record holds the table at the start and the run from its
+  /// first message. Otherwise the message names what is still missing.
   bool srvReady(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
     res.message = notRecording();
     res.success = res.message.empty();
@@ -258,6 +259,23 @@ class ExecutionMonitorNode::Impl {
   std::string notRecording() {
     if (const std::string bag = bagProblem(); !bag.empty())
       return bag + "; no bag can be recorded (is Debian's rosbag installed?)";
+    if (const std::string link = missingLink(); !link.empty()) {
+      linked_at_ = ros::Time();
+      return link;
+    }
+    // A link says that later messages arrive, not that one has: the record begins with the
+    // table as it was only once a pose stamped after every link was seen (a publisher
+    // sends each message to all of its linked subscribers at once, so the recorder has it).
+    if (linked_at_.isZero()) linked_at_ = ros::Time::now();
+    if (entities_stamp_ <= linked_at_)
+      return "waiting for a /ddace/entities message stamped after every link (the record begins with the table "
+             "at the start)";
+    return "";
+  }
+
+  /// The first link still missing between a recorded topic's publishers and this node or the
+  /// recorder ("" when all are up).
+  std::string missingLink() {
     TopicNodes publishers, subscribers;
     if (!systemState(publishers, subscribers)) return "the ROS master does not answer getSystemState";
     std::map<std::string, std::set<std::pair<std::string, std::string>>> links;  // publisher node -> its links
@@ -327,6 +345,7 @@ class ExecutionMonitorNode::Impl {
   }
 
   void onEntities(const ddace::EntityArray& m) {
+    entities_stamp_ = std::max(entities_stamp_, m.header.stamp);
     for (const auto& e : m.entities) {
       if (!std::isfinite(e.pose.x) || !std::isfinite(e.pose.y)) continue;
       const Eigen::Vector2d p(e.pose.x, e.pose.y);
@@ -693,7 +712,9 @@ class ExecutionMonitorNode::Impl {
   ros::NodeHandle nh_;
   pid_t bag_pid_ = -1;
   bool record_bag_ = true, bag_failed_ = false;
-  std::string bag_exit_;                                       ///< how rosbag record ended, when it did by itself
+  ros::Time linked_at_;       ///< when every link was first seen up (zero while one is missing)
+  ros::Time entities_stamp_;  ///< the newest /ddace/entities stamp received
+  std::string bag_exit_;      ///< how rosbag record ended, when it did by itself
   std::map<std::string, std::vector<std::string>> listeners_;  ///< node (this one, the recorder) -> its topics
   ros::ServiceServer ready_srv_;
   std::unique_ptr<HeartbeatPublisher> heartbeat_;
