@@ -112,6 +112,21 @@ exec::EntityObservation toObservation(const ddace::EntityArray& msg, const task:
   return obs;
 }
 
+namespace {
+
+/// `params` once its validate() passes; its error names the parameters' namespace.
+template <typename Params>
+Params validated(const ros::NodeHandle& nh, Params params) {
+  try {
+    params.validate();
+  } catch (const Error& e) {
+    throw Error(std::string(e.what()) + " (parameters under " + nh.getNamespace() + ")");
+  }
+  return params;
+}
+
+}  // namespace
+
 exec::FollowerGains loadFollowerGains(const ros::NodeHandle& nh) {
   exec::FollowerGains g;
   g.cruise_speed_mps = param(nh, "cruise_speed_mps", g.cruise_speed_mps);
@@ -125,12 +140,7 @@ exec::FollowerGains loadFollowerGains(const ros::NodeHandle& nh) {
   g.arrival_radius_m = param(nh, "arrival_radius_m", g.arrival_radius_m);
   g.wheel_base_m = param(nh, "wheel_base_m", g.wheel_base_m);
   g.max_wheel_speed_mps = param(nh, "max_wheel_speed_mps", g.max_wheel_speed_mps);
-  try {
-    g.validate();
-  } catch (const Error& e) {
-    throw Error(std::string(e.what()) + " (parameters under " + nh.getNamespace() + ")");
-  }
-  return g;
+  return validated(nh, g);
 }
 
 exec::SafetyParams loadSafetyParams(const ros::NodeHandle& nh) {
@@ -145,12 +155,7 @@ exec::SafetyParams loadSafetyParams(const ros::NodeHandle& nh) {
   p.resolve_after_s = param(nh, "resolve_after_s", p.resolve_after_s);
   p.progress_m = param(nh, "progress_m", p.progress_m);
   p.deadlock_after_s = param(nh, "deadlock_after_s", p.deadlock_after_s);
-  try {
-    p.validate();
-  } catch (const Error& e) {
-    throw Error(std::string(e.what()) + " (parameters under " + nh.getNamespace() + ")");
-  }
-  return p;
+  return validated(nh, p);
 }
 
 exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh) {
@@ -163,12 +168,7 @@ exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh) {
   p.position_noise_m = param(nh, "position_noise_m", p.position_noise_m);
   p.yaw_noise_rad = param(nh, "yaw_noise_rad", p.yaw_noise_rad);
   p.seed = static_cast<uint64_t>(param(nh, "seed", static_cast<int>(p.seed)));
-  try {
-    p.validate();
-  } catch (const Error& e) {
-    throw Error(std::string(e.what()) + " (parameters under " + nh.getNamespace() + ")");
-  }
-  return p;
+  return validated(nh, p);
 }
 
 }  // namespace ddace::ros_exec
