@@ -26,7 +26,7 @@
 #include "ddace/common/machine.h"
 #include "ddace/task/summary.h"
 #include "ddace/tasks/generators.h"
-#include "memory.h"
+#include "peak_memory.h"
 #include "results.h"
 
 namespace fs = std::filesystem;

@@ -35,7 +35,7 @@
 #include "ddace/label/recording.h"
 #include "ddace/task/summary.h"
 #include "ddace/tasks/generators.h"
-#include "memory.h"
+#include "peak_memory.h"
 #include "results.h"
 
 namespace fs = std::filesystem;

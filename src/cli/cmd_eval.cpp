@@ -32,6 +32,8 @@ int runEval(const std::vector<std::string>& argv) {
     throw Error("--no-filter needs bodies: without --no-bodies (points have no filter)");
   if (args.has("--config")) {
     if (o.execution != "diffdrive") throw Error("--config needs --execution diffdrive");
+    if (args.has("--no-bodies"))
+      throw Error("--config runs the table with bodies; --no-bodies (points) runs the built-in control law");
     o.config = exec::readExecutionConfig(args.get("--config", ""));
   }
 

@@ -161,7 +161,9 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
   ASSERT_TRUE(received.count("R1")) << "the test received no wheel command of R1";
   for (const auto& cmd : received.at("R1")) {
     const uint64_t t = cmd.stamp.toNSec();
-    if (t < start_ns || t > *wheels.rbegin()) continue;  // before the run, or after the bag closed
+    // Before the run, or near the bag's end: R1's wheels have two publishers (the follower
+    // and the coordinator), and one's last command may still be on its way when it closes.
+    if (t < start_ns || t + 500'000'000ull > *wheels.rbegin()) continue;
     ++seen;
     EXPECT_TRUE(wheels.count(t)) << "R1's wheel command stamped " << (t - start_ns) * 1e-9
                                  << " s after the run's start is not in the bag";

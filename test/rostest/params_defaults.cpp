@@ -112,7 +112,10 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"safety", YAML::Node()}},
                  {"robots"});
   expectDefaults(yaml["path_follower"]["safety"], "path_follower/safety", defaultsOf(ddace::exec::SafetyParams{}));
-  expectDefaults(yaml["path_follower"]["gains"], "path_follower/gains", defaultsOf(ddace::exec::FollowerGains{}));
+  // gains/arrival_radius_m: the node's default is the task's radius (segments carry it).
+  Defaults gains = defaultsOf(ddace::exec::FollowerGains{});
+  gains.erase("arrival_radius_m");
+  expectDefaults(yaml["path_follower"]["gains"], "path_follower/gains", gains, {"arrival_radius_m"});
 
   const MockRobotNode::Params m;
   Defaults mock = defaultsOf<ddace::exec::TableSimulatorParams>(m);

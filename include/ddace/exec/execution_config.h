@@ -4,11 +4,14 @@
 // ROS nodes read them (each struct's visitParams() is the one list of names).
 //
 // Read: path_follower/gains, path_follower/safety, mock_robots/robot and mock_robots'
-// bodies, object_speed_mps, object_damping_hz. A section or key that is absent keeps the
-// built-in default (the shipped file states them all); the other keys of path_follower and
-// mock_robots, and the other nodes' sections, are the nodes' own and are not read. The
-// simulated Hamster's tracking noise and its seed are read but eval's are its own
-// (--noise, --seed).
+// bodies, object_speed_mps, object_damping_hz. A section or key that is absent (or a
+// section whose keys are all commented out) keeps the built-in default (the shipped file
+// states them all). An unknown key in gains, safety or robot is an error; the other keys of
+// path_follower and mock_robots, and the other nodes' sections, are the nodes' own and are
+// not read nor checked here (the params_defaults rostest holds the shipped file's keys to
+// the nodes'). The simulated Hamster's tracking noise and its seed are read but eval's are
+// its own (--noise, --seed); gains/arrival_radius_m is the task's, as segments carry it;
+// `bodies: false` is refused (eval's points take no config).
 // Units: metres, seconds, radians, as the file states them.
 #pragma once
 
@@ -31,7 +34,8 @@ struct ExecutionConfig {
 /// Parses `text` (the contents of `file`, which the diagnostics name). Throws ddace::Error
 /// with every problem at its file:line:column: a mistyped value, a key of gains, safety or
 /// robot that is no parameter (a typo would silently change nothing), a value that
-/// validate() refuses, a file with neither path_follower nor mock_robots.
+/// validate() refuses (at its section, naming the field), a file with neither
+/// path_follower nor mock_robots.
 ExecutionConfig parseExecutionConfig(const std::string& text, const std::string& file);
 /// Reads and parses the file at `path`.
 ExecutionConfig readExecutionConfig(const std::string& path);

@@ -57,17 +57,20 @@ TEST(ExecutionConfig, TheShippedFileIsTheBuiltInDefaults) {
 TEST(ExecutionConfig, ReadsTheValuesUnderTheNodesKeys) {
   const ExecutionConfig c = parseExecutionConfig(
       "path_follower:\n  rate_hz: 50\n  gains:\n    cruise_speed_mps: 0.06\n  safety:\n    enabled: false\n"
-      "    margin_m: 0.02\nmock_robots:\n  frame_id: table\n  bodies: false\n  object_damping_hz: 4\n"
+      "    margin_m: 0.02\nmock_robots:\n  frame_id: table\n  bodies: true\n  object_damping_hz: 4\n"
       "  robot:\n    latency_s: 0.1\n    seed: 7\ncoordinator:\n  autostart: true\n",
       "exec.yaml");
   EXPECT_DOUBLE_EQ(c.gains.cruise_speed_mps, 0.06);
   EXPECT_DOUBLE_EQ(c.gains.lookahead_m, FollowerGains{}.lookahead_m) << "an absent key keeps its default";
   EXPECT_FALSE(c.safety.enabled);
   EXPECT_DOUBLE_EQ(c.safety.margin_m, 0.02);
-  EXPECT_FALSE(c.table.bodies);
+  EXPECT_TRUE(c.table.bodies);
   EXPECT_DOUBLE_EQ(c.table.object_damping_hz, 4);
   EXPECT_DOUBLE_EQ(c.robot.latency_s, 0.1);
   EXPECT_EQ(c.robot.seed, 7u);
+  // A section whose keys are all commented out is the defaults, as for the nodes.
+  const ExecutionConfig empty = parseExecutionConfig("path_follower:\n  gains:\n  safety:\n", "exec.yaml");
+  EXPECT_DOUBLE_EQ(empty.gains.cruise_speed_mps, FollowerGains{}.cruise_speed_mps);
 }
 
 // A typo or a wrong value is an error at its line and column, never a silent default.
@@ -83,6 +86,12 @@ TEST(ExecutionConfig, BadValuesAreNamedWhereTheyStand) {
   EXPECT_NE(e.find("max_wheel_speed_mps"), std::string::npos) << e;
   e = errorOf("mock_robots:\n  bodies: maybe\n");
   EXPECT_NE(e.find("exec.yaml:2:11: mock_robots/bodies: 'maybe' is not true or false"), std::string::npos) << e;
+  e = errorOf("mock_robots:\n  robot:\n    seed: 9223372036854775807\n");
+  EXPECT_NE(e.find("exec.yaml:3:11: mock_robots/robot/seed must be an integer in 0..9007199254740992"),
+            std::string::npos)
+      << e;
+  e = errorOf("mock_robots:\n  bodies: false\n");
+  EXPECT_NE(e.find("exec.yaml:2:11: mock_robots/bodies: false: eval's points"), std::string::npos) << e;
   e = errorOf("name: a task\nentities: []\n");
   EXPECT_NE(e.find("not an execution config"), std::string::npos) << e;
   e = errorOf("path_follower: [1, 2\n");

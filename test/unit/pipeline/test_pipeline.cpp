@@ -66,8 +66,8 @@ TEST_F(Pipeline, JsonReportHasTheDocumentedKeys) {
 }
 
 // `ddace eval --execution diffdrive --config FILE`: the file's follower gains and table
-// drive the simulated robots (robots at half the cruise speed take longer; a table without
-// bodies runs points).
+// drive the simulated robots (robots at half the cruise speed take longer; a filter turned
+// off runs without it).
 TEST_F(Pipeline, TheExecutionConfigDrivesTheSimulatedRobots) {
   const task::TaskDir test = generated("task4", 1, 5);
   pipeline::EvalOptions o;
@@ -78,8 +78,8 @@ TEST_F(Pipeline, TheExecutionConfigDrivesTheSimulatedRobots) {
   EXPECT_DOUBLE_EQ(slow.summary.osr, base.summary.osr);
   EXPECT_GT(slow.summary.makespan_s, 1.4 * base.summary.makespan_s)
       << "half the cruise speed: " << slow.summary.makespan_s << " s against " << base.summary.makespan_s << " s";
-  o.config = exec::parseExecutionConfig("mock_robots:\n  bodies: false\n", "points.yaml");
-  EXPECT_EQ(pipeline::evaluate(*model_, test, o).execution, "diffdrive (points)");
+  o.config = exec::parseExecutionConfig("path_follower:\n  safety:\n    enabled: false\n", "off.yaml");
+  EXPECT_EQ(pipeline::evaluate(*model_, test, o).execution, "diffdrive with bodies, no filter");
 }
 
 TEST_F(Pipeline, AModelOfAnotherTaskIsRefused) {
