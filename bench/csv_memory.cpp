@@ -11,8 +11,6 @@
 //     (its peak resident set from wait4).
 // The readers stream the CSV (task/demonstration.h): the peak must not grow with the rows.
 // Writes docs/bench/csv_memory.md under the repository it finds at run time (--repo DIR, see bench/results.h).
-#include <sys/resource.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -28,6 +26,7 @@
 #include "ddace/common/machine.h"
 #include "ddace/task/summary.h"
 #include "ddace/tasks/generators.h"
+#include "peak_memory.h"
 #include "results.h"
 
 namespace fs = std::filesystem;
@@ -36,23 +35,6 @@ using namespace ddace;
 namespace {
 
 constexpr std::uint64_t kTargetBytes = std::uint64_t{200} << 20;
-
-/// A kB value of /proc/self/status ("VmHWM", "VmRSS").
-long statusKb(const std::string& key) {
-  std::ifstream in("/proc/self/status");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind(key + ":", 0) == 0) return std::stol(line.substr(key.size() + 1));
-  return -1;
-}
-
-/// Resets VmHWM to the current resident set; false where the kernel cannot.
-bool resetPeak() {
-  std::ofstream clear("/proc/self/clear_refs");
-  clear << "5";
-  clear.flush();
-  return static_cast<bool>(clear);
-}
 
 struct Measure {
   long peak_kb = 0;   ///< peak resident set while validating
@@ -64,12 +46,12 @@ struct Measure {
 
 Measure validateInProcess(const std::string& dir, bool& reset_ok) {
   Measure m;
-  reset_ok = resetPeak() && reset_ok;
-  m.start_kb = statusKb("VmRSS");
+  reset_ok = bench::resetPeak() && reset_ok;
+  m.start_kb = bench::statusKb("VmRSS");
   const auto t0 = std::chrono::steady_clock::now();
   const task::TaskDirSummary summary = task::summarizeTaskDir(dir);
   m.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  m.peak_kb = statusKb("VmHWM");
+  m.peak_kb = bench::statusKb("VmHWM");
   m.errors = summary.errors.size();
   for (const auto& d : summary.demos) m.rows += d.rows;
   for (const auto& e : summary.errors) std::cerr << e.str() << "\n";
@@ -78,21 +60,11 @@ Measure validateInProcess(const std::string& dir, bool& reset_ok) {
 
 /// `ddace validate DIR` in a child process: its peak resident set (kB) and exit status.
 Measure validateTool(const fs::path& tool, const std::string& dir, int& status) {
+  const bench::ChildRun run = bench::runChild({tool.string(), "validate", dir});
   Measure m;
-  const auto t0 = std::chrono::steady_clock::now();
-  const pid_t pid = ::fork();
-  if (pid < 0) throw Error("fork failed");
-  if (pid == 0) {
-    if (!std::freopen("/dev/null", "w", stdout)) ::_exit(126);
-    ::execl(tool.c_str(), tool.c_str(), "validate", dir.c_str(), static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  int wstatus = 0;
-  rusage usage{};
-  if (::wait4(pid, &wstatus, 0, &usage) != pid) throw Error("wait4 failed");
-  m.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  m.peak_kb = usage.ru_maxrss;
-  status = WIFEXITED(wstatus) ? WEXITSTATUS(wstatus) : -1;
+  m.peak_kb = run.peak_kb;
+  m.seconds = run.seconds;
+  status = run.status;
   return m;
 }
 
@@ -123,15 +95,6 @@ std::uint64_t writeStretched(const task::TaskDir& source, const std::string& dir
   return fs::file_size(dir + "/demos/demo_000.csv");
 }
 
-std::string fixed(double v, int decimals) {
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(decimals) << v;
-  return s.str();
-}
-std::string mb(long kb) {
-  return fixed(kb / 1024.0, 1);
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -141,15 +104,8 @@ int main(int argc, char** argv) {
     const fs::path repo = bench::repositoryFromArgs(argc, argv);
     bench::noOtherOptions(argc, argv, "bench_csv_memory");
     const std::string load = loadAverage();
-    const fs::path work = fs::temp_directory_path() / ("ddace_bench_csv_memory_" + std::to_string(::getpid()));
-    fs::remove_all(work);
-    struct Remove {
-      fs::path p;
-      ~Remove() {
-        std::error_code ec;
-        fs::remove_all(p, ec);
-      }
-    } remove{work};
+    const bench::ScratchDir scratch("ddace_bench_csv_memory");
+    const fs::path& work = scratch.path();
 
     tasks::GeneratorOptions o;
     o.family = "task4";
@@ -161,7 +117,7 @@ int main(int argc, char** argv) {
     // One pass at 1 repeat gives the bytes per row; then enough repeats for the target.
     const std::uint64_t one = writeStretched(source, big, 1, static_cast<size_t>(-1));
     const size_t repeat = static_cast<size_t>(kTargetBytes / one) + 1;
-    std::cout << "writing a " << mb(static_cast<long>(kTargetBytes >> 10)) << " MB demonstration (each of "
+    std::cout << "writing a " << bench::mb(static_cast<long>(kTargetBytes >> 10)) << " MB demonstration (each of "
               << source.demos[0].rows() << " rows x" << repeat << ")\n"
               << std::flush;
     const std::uint64_t big_bytes = writeStretched(source, big, repeat, static_cast<size_t>(-1));
@@ -197,18 +153,19 @@ int main(int argc, char** argv) {
        << "|---|---:|---:|---:|---:|---:|---:|\n";
     auto row = [&](const char* name, std::uint64_t bytes, const Measure& in, const Measure& t) {
       md << "| " << name << " | "
-         << (bytes < (1u << 20) ? std::to_string(bytes) + " bytes" : fixed(bytes / 1048576.0, 1) + " MB") << " | "
-         << in.rows << " | " << mb(in.peak_kb) << " | " << fixed(in.seconds, 2) << " | "
-         << (have_tool ? mb(t.peak_kb) : "not built") << " | " << (have_tool ? fixed(t.seconds, 2) : "") << " |\n";
+         << (bytes < (1u << 20) ? std::to_string(bytes) + " bytes" : bench::fixed(bytes / 1048576.0, 1) + " MB")
+         << " | " << in.rows << " | " << bench::mb(in.peak_kb) << " | " << bench::fixed(in.seconds, 2) << " | "
+         << (have_tool ? bench::mb(t.peak_kb) : "not built") << " | " << (have_tool ? bench::fixed(t.seconds, 2) : "")
+         << " |\n";
     };
     row("2 rows (reference)", small_bytes, small_in, small_tool);
     row("stretched", big_bytes, big_in, big_tool);
-    md << "\nPeak growth from the 2-row file to the " << fixed(big_bytes / 1048576.0, 0)
-       << " MB file: " << mb(growth_kb) << " MB in process ("
-       << fixed(static_cast<double>(big_in.peak_kb) / static_cast<double>(small_in.peak_kb), 2) << "x)";
+    md << "\nPeak growth from the 2-row file to the " << bench::fixed(big_bytes / 1048576.0, 0)
+       << " MB file: " << bench::mb(growth_kb) << " MB in process ("
+       << bench::fixed(static_cast<double>(big_in.peak_kb) / static_cast<double>(small_in.peak_kb), 2) << "x)";
     if (have_tool)
-      md << ", " << mb(big_tool.peak_kb - small_tool.peak_kb) << " MB for the tool ("
-         << fixed(static_cast<double>(big_tool.peak_kb) / static_cast<double>(small_tool.peak_kb), 2) << "x)";
+      md << ", " << bench::mb(big_tool.peak_kb - small_tool.peak_kb) << " MB for the tool ("
+         << bench::fixed(static_cast<double>(big_tool.peak_kb) / static_cast<double>(small_tool.peak_kb), 2) << "x)";
     md << ".\n\nGoal (issue 14): memory independent of the number of rows, i.e. the peak grows by less than 1% "
           "of the file's size: "
        << (met ? "met" : (reset_ok ? "NOT met" : "not measured (the kernel cannot reset VmHWM)")) << ".\n";

@@ -17,8 +17,6 @@
 // with the same options (N: the long recording's size in MiB,
 // about: later plays have longer times, some 4 % more; default 200. --mb 1024: a 1 GiB
 // recording, some 3.5 GB of scratch space and minutes).
-#include <sys/resource.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -37,6 +35,7 @@
 #include "ddace/label/recording.h"
 #include "ddace/task/summary.h"
 #include "ddace/tasks/generators.h"
+#include "peak_memory.h"
 #include "results.h"
 
 namespace fs = std::filesystem;
@@ -46,21 +45,6 @@ namespace {
 
 constexpr std::uint64_t kDefaultMb = 200;
 
-long statusKb(const std::string& key) {
-  std::ifstream in("/proc/self/status");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind(key + ":", 0) == 0) return std::stol(line.substr(key.size() + 1));
-  return -1;
-}
-
-bool resetPeak() {
-  std::ofstream clear("/proc/self/clear_refs");
-  clear << "5";
-  clear.flush();
-  return static_cast<bool>(clear);
-}
-
 struct Measure {
   long peak_kb = 0;
   double seconds = 0;
@@ -69,7 +53,7 @@ struct Measure {
 
 Measure labelInProcess(const std::string& dir, const task::TaskSpec& spec, bool& reset_ok) {
   Measure m;
-  reset_ok = resetPeak() && reset_ok;
+  reset_ok = bench::resetPeak() && reset_ok;
   const auto t0 = std::chrono::steady_clock::now();
   const std::string csv = dir + "/demos/demo_000.csv", labelled = dir + "/labelled.csv";
   // What `ddace label` runs on one recording: the check, pass 1 into a spill, pass 2, the read-back.
@@ -88,31 +72,21 @@ Measure labelInProcess(const std::string& dir, const task::TaskSpec& spec, bool&
     throw Error(labelled + " reads back with " + std::to_string(back.step_count) + " steps, inferred " +
                 std::to_string(inf.steps));
   m.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  m.peak_kb = statusKb("VmHWM");
+  m.peak_kb = bench::statusKb("VmHWM");
   m.steps = inf.steps;
   m.tokens = inf.tokens;
   fs::remove(labelled);
   return m;
 }
 
+/// `ddace label DIR --out DIR-out` in a child process (its stderr in DIR-stderr.txt).
 Measure labelTool(const fs::path& tool, const std::string& dir, int& status) {
+  const bench::ChildRun run =
+      bench::runChild({tool.string(), "label", dir, "--out", dir + "-out"}, dir + "-stderr.txt");
   Measure m;
-  const auto t0 = std::chrono::steady_clock::now();
-  const pid_t pid = ::fork();
-  if (pid < 0) throw Error("fork failed");
-  if (pid == 0) {
-    if (!std::freopen("/dev/null", "w", stdout) || !std::freopen((dir + "-stderr.txt").c_str(), "w", stderr))
-      ::_exit(126);
-    ::execl(tool.c_str(), tool.c_str(), "label", dir.c_str(), "--out", (dir + "-out").c_str(),
-            static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  int wstatus = 0;
-  rusage usage{};
-  if (::wait4(pid, &wstatus, 0, &usage) != pid) throw Error("wait4 failed");
-  m.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  m.peak_kb = usage.ru_maxrss;
-  status = WIFEXITED(wstatus) ? WEXITSTATUS(wstatus) : -1;
+  m.peak_kb = run.peak_kb;
+  m.seconds = run.seconds;
+  status = run.status;
   return m;
 }
 
@@ -144,15 +118,6 @@ std::uint64_t writePlays(const task::Demonstration& demo, const task::TaskSpec& 
   return fs::file_size(dir + "/demos/demo_000.csv");
 }
 
-std::string fixed(double v, int decimals) {
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(decimals) << v;
-  return s.str();
-}
-std::string mb(long kb) {
-  return fixed(kb / 1024.0, 1);
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -173,15 +138,8 @@ int main(int argc, char** argv) {
     }
     const std::uint64_t target_bytes = target_mb << 20;
     const std::string load = loadAverage();
-    const fs::path work = fs::temp_directory_path() / ("ddace_bench_label_memory_" + std::to_string(::getpid()));
-    fs::remove_all(work);
-    struct Remove {
-      fs::path p;
-      ~Remove() {
-        std::error_code ec;
-        fs::remove_all(p, ec);
-      }
-    } remove{work};
+    const bench::ScratchDir scratch("ddace_bench_label_memory");
+    const fs::path& work = scratch.path();
 
     tasks::GeneratorOptions o;
     o.family = "task4";
@@ -192,7 +150,7 @@ int main(int argc, char** argv) {
     const std::string small = (work / "small").string(), big = (work / "big").string();
     const std::uint64_t small_bytes = writePlays(demo, source.spec, small, 1);
     const size_t plays = static_cast<size_t>(target_bytes / small_bytes) + 1;
-    std::cout << "writing a " << mb(static_cast<long>(target_bytes >> 10)) << " MB recording (" << plays
+    std::cout << "writing a " << bench::mb(static_cast<long>(target_bytes >> 10)) << " MB recording (" << plays
               << " plays forward and back)\n"
               << std::flush;
     const std::uint64_t big_bytes = writePlays(demo, source.spec, big, plays);
@@ -232,17 +190,18 @@ int main(int argc, char** argv) {
           "| `ddace label`: peak RSS (MB) | `ddace label`: wall (s) |\n"
        << "|---|---:|---:|---:|---:|---:|---:|---:|\n";
     auto row = [&](const char* name, std::uint64_t bytes, const Measure& in, const Measure& t) {
-      md << "| " << name << " | " << fixed(bytes / 1048576.0, 1) << " MB | " << in.steps << " | " << in.tokens << " | "
-         << mb(in.peak_kb) << " | " << fixed(in.seconds, 2) << " | " << (have_tool ? mb(t.peak_kb) : "not built")
-         << " | " << (have_tool ? fixed(t.seconds, 2) : "") << " |\n";
+      md << "| " << name << " | " << bench::fixed(bytes / 1048576.0, 1) << " MB | " << in.steps << " | " << in.tokens
+         << " | " << bench::mb(in.peak_kb) << " | " << bench::fixed(in.seconds, 2) << " | "
+         << (have_tool ? bench::mb(t.peak_kb) : "not built") << " | " << (have_tool ? bench::fixed(t.seconds, 2) : "")
+         << " |\n";
     };
     row("one play forward and back (reference)", small_bytes, small_in, small_tool);
     row("long", big_bytes, big_in, big_tool);
-    md << "\nPeak growth from the reference to the long recording: " << mb(growth_kb) << " MB in process, "
-       << fixed(per_token, 0) << " bytes per inferred token";
-    if (have_tool) md << "; " << mb(big_tool.peak_kb - small_tool.peak_kb) << " MB for the tool";
+    md << "\nPeak growth from the reference to the long recording: " << bench::mb(growth_kb) << " MB in process, "
+       << bench::fixed(per_token, 0) << " bytes per inferred token";
+    if (have_tool) md << "; " << bench::mb(big_tool.peak_kb - small_tool.peak_kb) << " MB for the tool";
     if (have_tool && small_tool.peak_kb > 0)
-      md << " (the tool's peak " << fixed(static_cast<double>(big_tool.peak_kb) / small_tool.peak_kb, 2)
+      md << " (the tool's peak " << bench::fixed(static_cast<double>(big_tool.peak_kb) / small_tool.peak_kb, 2)
          << "x the reference's)";
     md << ".\n\nGoal (issue 25: a 1 GiB recording labels with bounded memory): memory independent of the "
           "recording's rows and steps, i.e. the peak in process grows by less than 1 % of the long recording's "

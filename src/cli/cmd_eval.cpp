@@ -11,7 +11,8 @@ using namespace ddace::pipeline;
 namespace {
 
 int runEval(const std::vector<std::string>& argv) {
-  Args args(argv, {"--json", "--execution", "--noise", "--seed"}, {"--allow-other-task", "--no-bodies", "--no-filter"});
+  Args args(argv, {"--json", "--execution", "--noise", "--seed", "--config"},
+            {"--allow-other-task", "--no-bodies", "--no-filter"});
   args.expectAtMostPositional(2);
   const std::string model_dir = args.positional(0, "MODELDIR");
   const std::string test_dir = args.positional(1, "TESTDIR");
@@ -29,6 +30,12 @@ int runEval(const std::vector<std::string>& argv) {
     throw Error("--no-bodies and --no-filter need --execution diffdrive");
   if (args.has("--no-bodies") && args.has("--no-filter"))
     throw Error("--no-filter needs bodies: without --no-bodies (points have no filter)");
+  if (args.has("--config")) {
+    if (o.execution != "diffdrive") throw Error("--config needs --execution diffdrive");
+    if (args.has("--no-bodies"))
+      throw Error("--config runs the table with bodies; --no-bodies (points) runs the built-in control law");
+    o.config = exec::readExecutionConfig(args.get("--config", ""));
+  }
 
   const Model model = loadModel(model_dir);
   const task::TaskDir test = task::loadTaskDir(test_dir);
@@ -45,13 +52,15 @@ int runEval(const std::vector<std::string>& argv) {
 
 DDACE_COMMAND({"eval",
                "ddace eval MODELDIR TESTDIR [--json FILE] [--execution ideal|diffdrive] [--noise SIGMA_M] [--seed S] "
-               "[--no-bodies] [--no-filter] [--allow-other-task]",
+               "[--no-bodies] [--no-filter] [--config EXECUTION_YAML] [--allow-other-task]",
                "run the learned task in closed loop on every test demonstration's start configuration and "
                "report OSR, SSR, GCR and FD (a model of another task is refused unless --allow-other-task). "
                "ideal: every entity traverses its path exactly (the paper). diffdrive: the robots of a step drive "
                "together on the simulated table with bodies, each through its safety filter; every trial reports "
                "its collisions, minimum clearance and makespan, and a collision fails it (--no-filter: without "
-               "the filter; --no-bodies: points, each motion alone)",
+               "the filter; --no-bodies: points, each motion alone; --config: the follower gains, safety filter, "
+               "simulated Hamster and table of an execution config such as config/execution.yaml, whose values "
+               "are the built-in defaults; its position noise is --noise's)",
                runEval});
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <algorithm>
 #include <filesystem>
+#include <type_traits>
 
 #include <tf2/LinearMath/Quaternion.h>
 
@@ -112,63 +113,43 @@ exec::EntityObservation toObservation(const ddace::EntityArray& msg, const task:
   return obs;
 }
 
-exec::FollowerGains loadFollowerGains(const ros::NodeHandle& nh) {
-  exec::FollowerGains g;
-  g.cruise_speed_mps = param(nh, "cruise_speed_mps", g.cruise_speed_mps);
-  g.min_speed_mps = param(nh, "min_speed_mps", g.min_speed_mps);
-  g.lookahead_m = param(nh, "lookahead_m", g.lookahead_m);
-  g.slowdown_radius_m = param(nh, "slowdown_radius_m", g.slowdown_radius_m);
-  g.rotate_in_place_rad = param(nh, "rotate_in_place_rad", g.rotate_in_place_rad);
-  g.heading_gain = param(nh, "heading_gain", g.heading_gain);
-  g.max_turn_rate_radps = param(nh, "max_turn_rate_radps", g.max_turn_rate_radps);
-  g.search_window_m = param(nh, "search_window_m", g.search_window_m);
-  g.arrival_radius_m = param(nh, "arrival_radius_m", g.arrival_radius_m);
-  g.wheel_base_m = param(nh, "wheel_base_m", g.wheel_base_m);
-  g.max_wheel_speed_mps = param(nh, "max_wheel_speed_mps", g.max_wheel_speed_mps);
+namespace {
+
+/// `params` with every field its visitParams() lists read from the parameter of that name
+/// under `nh` (a field keeps its value when the parameter is not set; a mistyped one
+/// throws), once its validate() passes; an error names the parameters' namespace.
+template <typename Params>
+Params loadParams(const ros::NodeHandle& nh, Params params) {
+  exec::visitParams(params, [&](const char* name, auto& field) {
+    using T = std::decay_t<decltype(field)>;
+    if constexpr (std::is_same_v<T, uint64_t>)  // ROS parameters have no unsigned type
+      field = static_cast<uint64_t>(param(nh, name, static_cast<int>(field)));
+    else field = param(nh, name, field);
+  });
   try {
-    g.validate();
+    params.validate();
   } catch (const Error& e) {
     throw Error(std::string(e.what()) + " (parameters under " + nh.getNamespace() + ")");
   }
-  return g;
+  return params;
+}
+
+}  // namespace
+
+exec::FollowerGains loadFollowerGains(const ros::NodeHandle& nh) {
+  return loadParams(nh, exec::FollowerGains{});
 }
 
 exec::SafetyParams loadSafetyParams(const ros::NodeHandle& nh) {
-  exec::SafetyParams p;
-  p.enabled = param(nh, "enabled", p.enabled);
-  p.margin_m = param(nh, "margin_m", p.margin_m);
-  p.projection_m = param(nh, "projection_m", p.projection_m);
-  p.barrier_gain_hz = param(nh, "barrier_gain_hz", p.barrier_gain_hz);
-  p.range_m = param(nh, "range_m", p.range_m);
-  p.pose_max_age_s = param(nh, "pose_max_age_s", p.pose_max_age_s);
-  p.blocked_fraction = param(nh, "blocked_fraction", p.blocked_fraction);
-  p.resolve_after_s = param(nh, "resolve_after_s", p.resolve_after_s);
-  p.progress_m = param(nh, "progress_m", p.progress_m);
-  p.deadlock_after_s = param(nh, "deadlock_after_s", p.deadlock_after_s);
-  try {
-    p.validate();
-  } catch (const Error& e) {
-    throw Error(std::string(e.what()) + " (parameters under " + nh.getNamespace() + ")");
-  }
-  return p;
+  return loadParams(nh, exec::SafetyParams{});
 }
 
 exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh) {
-  exec::DiffDriveParams p = exec::simulatedHamster();  // the mock robots' Hamster
-  p.rate_hz = param(nh, "rate_hz", p.rate_hz);
-  p.wheel_base_m = param(nh, "wheel_base_m", p.wheel_base_m);
-  p.max_wheel_speed_mps = param(nh, "max_wheel_speed_mps", p.max_wheel_speed_mps);
-  p.latency_s = param(nh, "latency_s", p.latency_s);
-  p.command_timeout_s = param(nh, "command_timeout_s", p.command_timeout_s);
-  p.position_noise_m = param(nh, "position_noise_m", p.position_noise_m);
-  p.yaw_noise_rad = param(nh, "yaw_noise_rad", p.yaw_noise_rad);
-  p.seed = static_cast<uint64_t>(param(nh, "seed", static_cast<int>(p.seed)));
-  try {
-    p.validate();
-  } catch (const Error& e) {
-    throw Error(std::string(e.what()) + " (parameters under " + nh.getNamespace() + ")");
-  }
-  return p;
+  return loadParams(nh, exec::simulatedHamster());  // the mock robots' Hamster
+}
+
+exec::TableSimulatorParams loadTableParams(const ros::NodeHandle& nh, const exec::TableSimulatorParams& defaults) {
+  return loadParams(nh, defaults);
 }
 
 }  // namespace ddace::ros_exec

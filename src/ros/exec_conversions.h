@@ -20,6 +20,7 @@
 #include "ddace/exec/diff_drive.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/safety_filter.h"
+#include "ddace/exec/table_simulator.h"
 #include "ddace/task/task_dir.h"
 
 namespace ddace::ros_exec {
@@ -56,5 +57,8 @@ exec::FollowerGains loadFollowerGains(const ros::NodeHandle& nh);
 exec::SafetyParams loadSafetyParams(const ros::NodeHandle& nh);
 /// Diff-drive parameters from parameters under `nh`, exec::simulatedHamster() where unset.
 exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh);
+/// The simulated table's parameters under `nh` (mock_robots: bodies, object_speed_mps,
+/// object_damping_hz), `defaults` where unset; throws as above.
+exec::TableSimulatorParams loadTableParams(const ros::NodeHandle& nh, const exec::TableSimulatorParams& defaults);
 
 }  // namespace ddace::ros_exec

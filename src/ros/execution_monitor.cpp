@@ -189,6 +189,9 @@ class ExecutionMonitorNode::Impl {
       listeners_[bagNode()] = topics;
     }
     ready_srv_ = pnh.advertiseService("ready", &Impl::srvReady, this);
+    // The links are watched all along, so that ~ready already knows the poses that came
+    // since they were up (one call alone would always find none).
+    link_timer_ = nh.createWallTimer(ros::WallDuration(0.2), [this](const ros::WallTimerEvent&) { notRecording(); });
     // The coordinator treats this node as the recorder role: a run without its record stops.
     heartbeat_ = std::make_unique<HeartbeatPublisher>(pnh, [this] { return bagProblem(); });
     if (timeout_s > 0)
@@ -231,9 +234,10 @@ class ExecutionMonitorNode::Impl {
   }
 
   /// ~ready: succeeds once the bag recorder and this node's own subscriptions are linked
-  /// to every publisher the master lists for each of their topics; the coordinator starts
-  /// a new run only then (roles/recorder), so the record holds the run from its first
-  /// message. Otherwise the message names the first link still missing.
+  /// to every publisher the master lists for each of their topics, and /ddace/entities
+  /// messages published after that have arrived; the coordinator starts a new run only then
+  /// (roles/recorder), so the record holds the table at the start and the run from its
+  /// first message. Otherwise the message names what is still missing.
   bool srvReady(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
     res.message = notRecording();
     res.success = res.message.empty();
@@ -258,6 +262,26 @@ class ExecutionMonitorNode::Impl {
   std::string notRecording() {
     if (const std::string bag = bagProblem(); !bag.empty())
       return bag + "; no bag can be recorded (is Debian's rosbag installed?)";
+    if (const std::string link = missingLink(); !link.empty()) {
+      poses_since_linked_ = -1;
+      return link;
+    }
+    // A link says that later messages arrive, not that one has: the record begins with the
+    // table as it was only once a pose published after every link was up has come (a
+    // publisher sends each message to all of its linked subscribers at once, so the
+    // recorder has it too). The first one received after the links were seen may have been
+    // on its way before; the second was published after it, so after the links. Counted on
+    // arrival, not by stamps: the tracker stamps with its camera's clock.
+    if (poses_since_linked_ < 0) poses_since_linked_ = 0;
+    if (poses_since_linked_ < 2)
+      return "waiting for /ddace/entities messages published after every link (the record begins with the table "
+             "at the start)";
+    return "";
+  }
+
+  /// The first link still missing between a recorded topic's publishers and this node or the
+  /// recorder ("" when all are up).
+  std::string missingLink() {
     TopicNodes publishers, subscribers;
     if (!systemState(publishers, subscribers)) return "the ROS master does not answer getSystemState";
     std::map<std::string, std::set<std::pair<std::string, std::string>>> links;  // publisher node -> its links
@@ -327,6 +351,7 @@ class ExecutionMonitorNode::Impl {
   }
 
   void onEntities(const ddace::EntityArray& m) {
+    if (poses_since_linked_ >= 0 && poses_since_linked_ < 2) ++poses_since_linked_;
     for (const auto& e : m.entities) {
       if (!std::isfinite(e.pose.x) || !std::isfinite(e.pose.y)) continue;
       const Eigen::Vector2d p(e.pose.x, e.pose.y);
@@ -693,6 +718,8 @@ class ExecutionMonitorNode::Impl {
   ros::NodeHandle nh_;
   pid_t bag_pid_ = -1;
   bool record_bag_ = true, bag_failed_ = false;
+  int poses_since_linked_ = -1;  ///< /ddace/entities messages received since every link was seen up (-1: one is not)
+  ros::WallTimer link_timer_;
   std::string bag_exit_;                                       ///< how rosbag record ended, when it did by itself
   std::map<std::string, std::vector<std::string>> listeners_;  ///< node (this one, the recorder) -> its topics
   ros::ServiceServer ready_srv_;

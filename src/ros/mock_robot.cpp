@@ -54,14 +54,7 @@ class MockRobotNode::Impl {
     const MockRobotNode::Params defaults;
     frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
     publish_tf_ = rosparam::param(pnh, "publish_tf", defaults.publish_tf);
-    exec::TableSimulatorParams sp = defaults;
-    sp.object_speed_mps = rosparam::param(pnh, "object_speed_mps", defaults.object_speed_mps);
-    if (!(sp.object_speed_mps > 0))
-      throw Error("parameter '" + pnh.resolveName("object_speed_mps") + "' must be positive");
-    sp.bodies = rosparam::param(pnh, "bodies", defaults.bodies);
-    sp.object_damping_hz = rosparam::param(pnh, "object_damping_hz", defaults.object_damping_hz);
-    if (!(sp.object_damping_hz >= 0) || !std::isfinite(sp.object_damping_hz))
-      throw Error("parameter '" + pnh.resolveName("object_damping_hz") + "' must be >= 0");
+    const exec::TableSimulatorParams sp = ros_exec::loadTableParams(pnh, defaults);
     const exec::DiffDriveParams dp = ros_exec::loadDiffDriveParams(ros::NodeHandle(pnh, "robot"));
     const auto stalled = rosparam::param(pnh, "stalled", std::vector<std::string>{});
     for (const auto& s : stalled) {

@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -33,6 +34,9 @@
 
 #include <ddace/CoordinatorState.h>
 #include <ddace/DecisionRequest.h>
+#include <ddace/EntityArray.h>
+#include <ddace/PathRequest.h>
+#include <ddace/PathResponse.h>
 #include <ddace/Segment.h>
 #include <ddace/SegmentStatus.h>
 #include <ddace/WheelCommand.h>
@@ -232,6 +236,64 @@ inline ddace::Segment straightSegment(const std::string& entity, const std::stri
   s.timeout_s = 30;
   return s;
 }
+
+/// A path node's answer to `m`: the straight line from its start to its goal.
+inline ddace::PathResponse straightPath(const ddace::PathRequest& m) {
+  ddace::PathResponse r;
+  r.id = m.id;
+  r.path.header.frame_id = "table";
+  for (const auto& p : {m.start, m.goal}) {
+    geometry_msgs::PoseStamped ps;
+    ps.pose.position = p;
+    ps.pose.orientation.w = 1;
+    r.path.poses.push_back(ps);
+  }
+  return r;
+}
+
+/// One entity as a tracker reports it (table frame, metres).
+struct TrackedEntity {
+  std::string name, kind;
+  double x, y;
+};
+
+/// The tracker's stand-in: publishes /ddace/entities at 30 Hz, each frame from `now()` (so
+/// a test moves an entity by changing what `now` returns), until destroyed.
+class FakeTracker {
+ public:
+  explicit FakeTracker(std::function<std::vector<TrackedEntity>()> now)
+      : pub_(ros::NodeHandle().advertise<ddace::EntityArray>("/ddace/entities", 5)),
+        now_(std::move(now)),
+        thread_([this] {
+          ros::Rate rate(30);
+          while (run_) {
+            ddace::EntityArray arr;
+            arr.header.stamp = ros::Time::now();
+            arr.header.frame_id = "table";
+            for (const auto& e : now_()) {
+              ddace::Entity en;
+              en.name = e.name;
+              en.kind = e.kind;
+              en.pose.x = e.x;
+              en.pose.y = e.y;
+              en.visible = true;
+              arr.entities.push_back(en);
+            }
+            pub_.publish(arr);
+            rate.sleep();
+          }
+        }) {}
+  ~FakeTracker() {
+    run_ = false;
+    thread_.join();
+  }
+
+ private:
+  ros::Publisher pub_;
+  std::function<std::vector<TrackedEntity>()> now_;
+  std::atomic<bool> run_{true};
+  std::thread thread_;
+};
 
 /// A wheel command as received: its stamp, its speeds and the node that published it.
 struct Wheel {

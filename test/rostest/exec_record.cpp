@@ -1,7 +1,7 @@
 // What an operator watches and keeps: ~state at its rate during a step with live progress
 // and distance; reset returns the run to its initial state and a start after it runs the
 // task from the current poses; the run's directory holds a readable bag and the plot.
-#include <limits>
+#include <set>
 #include <sstream>
 
 #include "exec_common.h"
@@ -134,9 +134,10 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
                                   "/robots/R1/segment_status", "/robots/R1/wheels"})
     EXPECT_NE(bag.find(topic), std::string::npos) << topic << " not in the bag:\n" << bag;
   // The bag holds the run from the start command on (the coordinator starts a run only
-  // once the monitor's ~ready says the recorder is linked to every publisher): the first
-  // decision request (sent by the start itself), and the entities and R1's wheel
-  // commands (published all along) from before it; and the run's first segment.
+  // once the monitor's ~ready says the recorder is linked to every publisher and a pose
+  // stamped after that has come): the first decision request (sent by the start itself),
+  // the entities from before it, every wheel command of R1 published from it on, and the
+  // run's first segment.
   const std::string bag_file = run_dir + "/run.bag";
   const auto request_ids = bagColumn(bag_file, "/ddace/decision_request", "field.id");
   const auto request_stamps = bagColumn(bag_file, "/ddace/decision_request", "field.header.stamp");
@@ -144,14 +145,30 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
   ASSERT_NE(first_request, request_ids.end()) << "the run's first decision request is not in the bag";
   ASSERT_EQ(request_ids.size(), request_stamps.size());
   const uint64_t start_ns = std::stoull(request_stamps[first_request - request_ids.begin()]);
-  for (const std::string topic : {"/ddace/entities", "/robots/R1/wheels"}) {
-    const auto stamps = bagColumn(bag_file, topic, "field.header.stamp");
-    ASSERT_FALSE(stamps.empty()) << topic << " is not in the bag";
-    uint64_t earliest = std::numeric_limits<uint64_t>::max();
-    for (const auto& t : stamps) earliest = std::min<uint64_t>(earliest, std::stoull(t));
-    EXPECT_LE(earliest, start_ns) << topic << ": the bag begins " << (earliest - start_ns) * 1e-9
-                                  << " s after the run's start";
+  const auto stampsIn = [&](const std::string& topic) {
+    std::set<uint64_t> out;
+    for (const auto& t : bagColumn(bag_file, topic, "field.header.stamp")) out.insert(std::stoull(t));
+    return out;
+  };
+  const auto entities = stampsIn("/ddace/entities");
+  ASSERT_FALSE(entities.empty()) << "/ddace/entities is not in the bag";
+  EXPECT_LE(*entities.begin(), start_ns) << "/ddace/entities: the bag begins " << (*entities.begin() - start_ns) * 1e-9
+                                         << " s after the run's start";
+  const auto wheels = stampsIn("/robots/R1/wheels");
+  ASSERT_FALSE(wheels.empty()) << "/robots/R1/wheels is not in the bag";
+  size_t seen = 0;
+  const auto received = w.wheels();  // a copy: the watcher still receives
+  ASSERT_TRUE(received.count("R1")) << "the test received no wheel command of R1";
+  for (const auto& cmd : received.at("R1")) {
+    const uint64_t t = cmd.stamp.toNSec();
+    // Before the run, or near the bag's end: R1's wheels have two publishers (the follower
+    // and the coordinator), and one's last command may still be on its way when it closes.
+    if (t < start_ns || t + 500'000'000ull > *wheels.rbegin()) continue;
+    ++seen;
+    EXPECT_TRUE(wheels.count(t)) << "R1's wheel command stamped " << (t - start_ns) * 1e-9
+                                 << " s after the run's start is not in the bag";
   }
+  EXPECT_GT(seen, 0u) << "no wheel command of R1 during the run";
   const auto segments = w.segments();
   ASSERT_FALSE(segments.empty());
   const auto& [first_id, first_seg] = *segments.begin();

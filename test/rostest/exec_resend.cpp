@@ -38,7 +38,6 @@ TEST(ExecResend, LostMessagesAreSentAgainWithTheSameId) {
   ros::Publisher decision_pub = nh.advertise<ddace::Decision>("/ddace/decision", 5);
   ros::Publisher path_pub = nh.advertise<ddace::PathResponse>("/ddace/path", 5);
   ros::Publisher status_pub = nh.advertise<ddace::SegmentStatus>("/robots/R1/segment_status", 5);
-  ros::Publisher entities_pub = nh.advertise<ddace::EntityArray>("/ddace/entities", 5);
 
   // Sequence node: drops the first copy of each request; step 1 = R1:move:G1, then END.
   auto on_request = [&](const ddace::DecisionRequest::ConstPtr& m) {
@@ -65,17 +64,7 @@ TEST(ExecResend, LostMessagesAreSentAgainWithTheSameId) {
   // Path node: drops the first copy; answers with a straight line.
   auto on_path = [&](const ddace::PathRequest::ConstPtr& m) {
     std::lock_guard<std::mutex> l(mu);
-    if (++path_copies[m->id] != 2) return;
-    ddace::PathResponse r;
-    r.id = m->id;
-    r.path.header.frame_id = "table";
-    for (const auto& p : {m->start, m->goal}) {
-      geometry_msgs::PoseStamped ps;
-      ps.pose.position = p;
-      ps.pose.orientation.w = 1;
-      r.path.poses.push_back(ps);
-    }
-    path_pub.publish(r);
+    if (++path_copies[m->id] == 2) path_pub.publish(exec_test::straightPath(*m));
   };
   // R1's executor: drops the first copy of the segment, reports the second done.
   auto on_segment = [&](const ddace::Segment::ConstPtr& m) {
@@ -99,48 +88,15 @@ TEST(ExecResend, LostMessagesAreSentAgainWithTheSameId) {
         state = *m;
       });
   // The tracker: R1 at (0.2, 0.2), R2 at (0.5, 0.2), G1 at (0.8, 0.8); R1 "arrives" when done.
-  std::atomic<bool> run{true};
-  std::thread tracker([&] {
-    ros::Rate rate(30);
-    while (run) {
-      ddace::EntityArray arr;
-      arr.header.stamp = ros::Time::now();
-      arr.header.frame_id = "table";
-      bool done;
-      {
-        std::lock_guard<std::mutex> l(mu);
-        done = !segment_copies.empty() && segment_copies.begin()->second >= 2;
-      }
-      for (auto [name, kind, x, y] : std::vector<std::tuple<std::string, std::string, double, double>>{
-               {"R1", "robot", done ? 0.8 : 0.2, done ? 0.8 : 0.2},
-               {"R2", "robot", 0.5, 0.2},
-               {"G1", "goal", 0.8, 0.8}}) {
-        ddace::Entity en;
-        en.name = name;
-        en.kind = kind;
-        en.pose.x = x;
-        en.pose.y = y;
-        en.visible = true;
-        arr.entities.push_back(en);
-      }
-      entities_pub.publish(arr);
-      rate.sleep();
-    }
+  exec_test::FakeTracker tracker([&]() -> std::vector<exec_test::TrackedEntity> {
+    std::lock_guard<std::mutex> l(mu);
+    const bool done = !segment_copies.empty() && segment_copies.begin()->second >= 2;
+    return {{"R1", "robot", done ? 0.8 : 0.2, done ? 0.8 : 0.2}, {"R2", "robot", 0.5, 0.2}, {"G1", "goal", 0.8, 0.8}};
   });
-
-  bool started = false;
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(20);
-  while (!started && ros::WallTime::now() < end) {
-    std_srvs::Trigger t;
-    started = ros::service::exists("/coordinator/start", false) && ros::service::call("/coordinator/start", t) &&
-              t.response.success;
-    if (!started) ros::WallDuration(0.1).sleep();
-  }
-  ASSERT_TRUE(started);
+  std::string why;
+  ASSERT_TRUE(exec_test::trigger("/coordinator/start", 20.0, &why)) << why;
   const bool finished = exec_test::waitFor(
       mu, [&] { return state.state == ddace::CoordinatorState::FINISHED; }, 20.0);
-  run = false;
-  tracker.join();
   std::lock_guard<std::mutex> l(mu);
   ASSERT_TRUE(finished) << "state " << state.state_name << ": " << state.reason;
   ASSERT_EQ(decision_ids.size(), 2u) << "one decision per step plus END, whatever the copies";

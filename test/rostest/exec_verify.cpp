@@ -42,7 +42,6 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
   ros::Publisher path_pub = nh.advertise<ddace::PathResponse>("/ddace/path", 5);
   ros::Publisher status_pub = nh.advertise<ddace::SegmentStatus>("/robots/R1/segment_status", 5);
   ros::Publisher status2_pub = nh.advertise<ddace::SegmentStatus>("/robots/R2/segment_status", 5);
-  ros::Publisher entities_pub = nh.advertise<ddace::EntityArray>("/ddace/entities", 5);
   // Sequence node: step 1 = R1:move:G1, then END.
   auto on_request = [&](const ddace::DecisionRequest::ConstPtr& m) {
     std::lock_guard<std::mutex> l(mu);
@@ -63,18 +62,7 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
     }
     decision_pub.publish(d);
   };
-  auto on_path = [&](const ddace::PathRequest::ConstPtr& m) {
-    ddace::PathResponse r;
-    r.id = m->id;
-    r.path.header.frame_id = "table";
-    for (const auto& p : {m->start, m->goal}) {
-      geometry_msgs::PoseStamped ps;
-      ps.pose.position = p;
-      ps.pose.orientation.w = 1;
-      r.path.poses.push_back(ps);
-    }
-    path_pub.publish(r);
-  };
+  auto on_path = [&](const ddace::PathRequest::ConstPtr& m) { path_pub.publish(exec_test::straightPath(*m)); };
   auto on_segment = [&](const ddace::Segment::ConstPtr& m) {
     std::lock_guard<std::mutex> l(mu);
     if (m->mode == ddace::Segment::MODE_FOLLOW) segments.push_back(*m);
@@ -88,44 +76,12 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
         std::lock_guard<std::mutex> l(mu);
         state = *m;
       });
-  std::atomic<bool> run{true};
-  std::thread tracker([&] {
-    ros::Rate rate(30);
-    while (run) {
-      ddace::EntityArray arr;
-      arr.header.stamp = ros::Time::now();
-      arr.header.frame_id = "table";
-      double x, y;
-      {
-        std::lock_guard<std::mutex> l(mu);
-        x = r1_x, y = r1_y;
-      }
-      for (auto [name, kind, px, py] : std::vector<std::tuple<std::string, std::string, double, double>>{
-               {"R1", "robot", x, y}, {"R2", "robot", 0.5, 0.2}, {"G1", "goal", 0.8, 0.8}}) {
-        ddace::Entity en;
-        en.name = name;
-        en.kind = kind;
-        en.pose.x = px;
-        en.pose.y = py;
-        en.visible = true;
-        arr.entities.push_back(en);
-      }
-      entities_pub.publish(arr);
-      rate.sleep();
-    }
+  exec_test::FakeTracker tracker([&]() -> std::vector<exec_test::TrackedEntity> {
+    std::lock_guard<std::mutex> l(mu);
+    return {{"R1", "robot", r1_x, r1_y}, {"R2", "robot", 0.5, 0.2}, {"G1", "goal", 0.8, 0.8}};
   });
-
-  bool started = false;
   std::string why;
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(20);
-  while (!started && ros::WallTime::now() < end) {
-    std_srvs::Trigger t;
-    started = ros::service::exists("/coordinator/start", false) && ros::service::call("/coordinator/start", t) &&
-              t.response.success;
-    why = t.response.message;
-    if (!started) ros::WallDuration(0.1).sleep();
-  }
-  ASSERT_TRUE(started) << why;
+  ASSERT_TRUE(exec_test::trigger("/coordinator/start", 20.0, &why)) << why;
   ASSERT_TRUE(exec_test::waitFor(
       mu, [] { return !segments.empty(); }, 10.0));
   const uint32_t id = segments.front().segment_id;
@@ -171,8 +127,6 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
   ASSERT_TRUE(exec_test::waitFor(
       mu, [] { return state.state == ddace::CoordinatorState::FINISHED; }, 5.0))
       << state.state_name;
-  run = false;
-  tracker.join();
 }
 
 // The answers of the sequence and path nodes are checked too: a decision for another
@@ -182,7 +136,6 @@ TEST(ExecVerify, WrongDecisionsAndPathsAreRefused) {
   ros::NodeHandle nh;
   ros::Publisher decision_pub = nh.advertise<ddace::Decision>("/ddace/decision", 5);
   ros::Publisher path_pub = nh.advertise<ddace::PathResponse>("/ddace/path", 5);
-  ros::Publisher entities_pub = nh.advertise<ddace::EntityArray>("/ddace/entities", 5);
   std::vector<ddace::DecisionRequest> asked;
   std::vector<ddace::PathRequest> paths_asked;
   ros::Subscriber a = nh.subscribe<ddace::DecisionRequest>("/ddace/decision_request", 10,
@@ -202,25 +155,8 @@ TEST(ExecVerify, WrongDecisionsAndPathsAreRefused) {
         std::lock_guard<std::mutex> l(mu);
         state = *m;
       });
-  std::atomic<bool> run{true};
-  std::thread tracker([&] {
-    ros::Rate rate(30);
-    while (run) {
-      ddace::EntityArray arr;
-      arr.header.stamp = ros::Time::now();
-      for (auto [name, kind, px, py] : std::vector<std::tuple<std::string, std::string, double, double>>{
-               {"R1", "robot", 0.2, 0.2}, {"R2", "robot", 0.5, 0.2}, {"G1", "goal", 0.8, 0.8}}) {
-        ddace::Entity en;
-        en.name = name;
-        en.kind = kind;
-        en.pose.x = px;
-        en.pose.y = py;
-        en.visible = true;
-        arr.entities.push_back(en);
-      }
-      entities_pub.publish(arr);
-      rate.sleep();
-    }
+  exec_test::FakeTracker tracker([]() -> std::vector<exec_test::TrackedEntity> {
+    return {{"R1", "robot", 0.2, 0.2}, {"R2", "robot", 0.5, 0.2}, {"G1", "goal", 0.8, 0.8}};
   });
   auto token = [](const std::string& entity) {
     ddace::Token t;
@@ -238,12 +174,8 @@ TEST(ExecVerify, WrongDecisionsAndPathsAreRefused) {
       asked.clear();
       paths_asked.clear();
     }
-    bool started = false;
-    for (int i = 0; i < 100 && !started; ++i) {
-      started = ros::service::call("/coordinator/start", t) && t.response.success;
-      if (!started) ros::WallDuration(0.1).sleep();
-    }
-    EXPECT_TRUE(started) << t.response.message;
+    std::string why;
+    EXPECT_TRUE(exec_test::trigger("/coordinator/start", 10.0, &why)) << why;
     EXPECT_TRUE(exec_test::waitFor(
         mu, [&] { return !asked.empty(); }, 10.0));
     std::lock_guard<std::mutex> l(mu);
@@ -287,13 +219,7 @@ TEST(ExecVerify, WrongDecisionsAndPathsAreRefused) {
   ddace::PathResponse bad;
   {
     std::lock_guard<std::mutex> l(mu);
-    bad.id = paths_asked.front().id;
-    for (const auto& p : {paths_asked.front().start, paths_asked.front().goal}) {
-      geometry_msgs::PoseStamped ps;
-      ps.pose.position = p;
-      ps.pose.orientation.w = 1;
-      bad.path.poses.push_back(ps);
-    }
+    bad = exec_test::straightPath(paths_asked.front());
   }
   bad.path.poses.front().pose.position.y = std::numeric_limits<double>::quiet_NaN();
   path_pub.publish(bad);
@@ -304,8 +230,6 @@ TEST(ExecVerify, WrongDecisionsAndPathsAreRefused) {
     std::lock_guard<std::mutex> l(mu);
     EXPECT_NE(state.reason.find("R1:move:G1"), std::string::npos) << state.reason;
   }
-  run = false;
-  tracker.join();
 }
 
 int main(int argc, char** argv) {

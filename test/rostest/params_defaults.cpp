@@ -16,6 +16,7 @@
 #include "ddace/exec/diff_drive.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/safety_filter.h"
+#include "ddace/exec/table_simulator.h"
 #include "ddace/ros/coordinator.h"
 #include "ddace/ros/execution_monitor.h"
 #include "ddace/ros/gp_path.h"
@@ -31,6 +32,15 @@ using Defaults = std::map<std::string, YAML::Node>;
 template <typename T>
 YAML::Node value(const T& v) {
   return YAML::Node(v);
+}
+
+/// The defaults of a core parameter struct, under the names its visitParams() gives them
+/// (the names the nodes read).
+template <typename Params>
+Defaults defaultsOf(Params params) {
+  Defaults d;
+  ddace::exec::visitParams(params, [&](const char* name, auto& field) { d[name] = value(field); });
+  return d;
 }
 
 /// Every key of `section` is in `known`; those with a default equal it (numbers compared
@@ -93,7 +103,6 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
   const double beat_hz = ddace::nodes::HeartbeatPublisher::kDefaultRateHz;
 
   const PathFollowerNode::Params f;
-  const ddace::exec::FollowerGains g;
   expectDefaults(yaml["path_follower"], "path_follower",
                  {{"rate_hz", value(f.rate_hz)},
                   {"pose_timeout_s", value(f.pose_timeout_s)},
@@ -102,52 +111,25 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"gains", YAML::Node()},
                   {"safety", YAML::Node()}},
                  {"robots"});
-  const ddace::exec::SafetyParams sf;
-  expectDefaults(yaml["path_follower"]["safety"], "path_follower/safety",
-                 {{"enabled", value(sf.enabled)},
-                  {"margin_m", value(sf.margin_m)},
-                  {"projection_m", value(sf.projection_m)},
-                  {"barrier_gain_hz", value(sf.barrier_gain_hz)},
-                  {"range_m", value(sf.range_m)},
-                  {"pose_max_age_s", value(sf.pose_max_age_s)},
-                  {"blocked_fraction", value(sf.blocked_fraction)},
-                  {"resolve_after_s", value(sf.resolve_after_s)},
-                  {"deadlock_after_s", value(sf.deadlock_after_s)},
-                  {"progress_m", value(sf.progress_m)}});
-  expectDefaults(yaml["path_follower"]["gains"], "path_follower/gains",
-                 {{"cruise_speed_mps", value(g.cruise_speed_mps)},
-                  {"min_speed_mps", value(g.min_speed_mps)},
-                  {"lookahead_m", value(g.lookahead_m)},
-                  {"slowdown_radius_m", value(g.slowdown_radius_m)},
-                  {"rotate_in_place_rad", value(g.rotate_in_place_rad)},
-                  {"heading_gain", value(g.heading_gain)},
-                  {"max_turn_rate_radps", value(g.max_turn_rate_radps)},
-                  {"search_window_m", value(g.search_window_m)},
-                  {"wheel_base_m", value(g.wheel_base_m)},
-                  {"max_wheel_speed_mps", value(g.max_wheel_speed_mps)}},
-                 {"arrival_radius_m"});
+  expectDefaults(yaml["path_follower"]["safety"], "path_follower/safety", defaultsOf(ddace::exec::SafetyParams{}));
+  // gains/arrival_radius_m: the node's default is the task's radius (segments carry it).
+  Defaults gains = defaultsOf(ddace::exec::FollowerGains{});
+  gains.erase("arrival_radius_m");
+  expectDefaults(yaml["path_follower"]["gains"], "path_follower/gains", gains, {"arrival_radius_m"});
 
   const MockRobotNode::Params m;
-  expectDefaults(yaml["mock_robots"], "mock_robots",
-                 {{"frame_id", value(m.frame_id)},
-                  {"entities_topic", value(m.entities_topic)},
-                  {"publish_tf", value(m.publish_tf)},
-                  {"object_speed_mps", value(m.object_speed_mps)},
-                  {"bodies", value(m.bodies)},
-                  {"object_damping_hz", value(m.object_damping_hz)},
-                  {"robot", YAML::Node()}},
-                 {"stalled", "scene_csv", "scene_demo", "scene"});
+  Defaults mock = defaultsOf<ddace::exec::TableSimulatorParams>(m);
+  mock.insert({{"frame_id", value(m.frame_id)},
+               {"entities_topic", value(m.entities_topic)},
+               {"publish_tf", value(m.publish_tf)},
+               {"robot", YAML::Node()}});
+  expectDefaults(yaml["mock_robots"], "mock_robots", mock, {"stalled", "scene_csv", "scene_demo", "scene"});
   // The simulated Hamster (exec::simulatedHamster, also `ddace eval --execution diffdrive`'s);
   // its tracking noise is the mock robots' own (eval: --noise).
-  const ddace::exec::DiffDriveParams hamster = ddace::exec::simulatedHamster();
-  expectDefaults(yaml["mock_robots"]["robot"], "mock_robots/robot",
-                 {{"rate_hz", value(hamster.rate_hz)},
-                  {"wheel_base_m", value(hamster.wheel_base_m)},
-                  {"max_wheel_speed_mps", value(hamster.max_wheel_speed_mps)},
-                  {"latency_s", value(hamster.latency_s)},
-                  {"command_timeout_s", value(hamster.command_timeout_s)},
-                  {"seed", value(hamster.seed)}},
-                 {"position_noise_m", "yaw_noise_rad"});
+  Defaults hamster = defaultsOf(ddace::exec::simulatedHamster());
+  hamster.erase("position_noise_m");
+  hamster.erase("yaw_noise_rad");
+  expectDefaults(yaml["mock_robots"]["robot"], "mock_robots/robot", hamster, {"position_noise_m", "yaw_noise_rad"});
 
   const SequenceNode::Params s;
   const YAML::Node seq = yaml["sequence"];

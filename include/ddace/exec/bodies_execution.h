@@ -44,7 +44,7 @@ struct BodiesExecutionParams {
       0.03;            ///< the task's; the control law stops within task::stopRadius of it (3 sigma of noise)
   double noise_m = 0;  ///< std-dev of measured x and y
   uint64_t seed = 1;
-  FollowerGains gains;                          ///< the path follower's (its arrival radius is set from the above)
+  FollowerGains gains;  ///< the path follower's own, as its node has them (its arrival radius is set from the above)
   DiffDriveParams robot = simulatedHamster();   ///< as the mock robots' (noise: noise_m)
   SafetyParams safety;                          ///< enabled = false: the follower's command goes to the wheels
   TableSimulatorParams table{/*bodies=*/true};  ///< Box2D bodies

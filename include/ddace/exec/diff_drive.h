@@ -46,6 +46,20 @@ struct DiffDriveParams {
   void validate() const;
 };
 
+/// Calls `visit(name, field)` for every field, by the name config/execution.yaml gives it
+/// (mock_robots/robot): the one list the ROS parameters and `ddace eval --config` read.
+template <typename Visit>
+void visitParams(DiffDriveParams& p, Visit&& visit) {
+  visit("rate_hz", p.rate_hz);
+  visit("wheel_base_m", p.wheel_base_m);
+  visit("max_wheel_speed_mps", p.max_wheel_speed_mps);
+  visit("latency_s", p.latency_s);
+  visit("command_timeout_s", p.command_timeout_s);
+  visit("position_noise_m", p.position_noise_m);
+  visit("yaw_noise_rad", p.yaw_noise_rad);
+  visit("seed", p.seed);
+}
+
 /// The simulated Hamster of the mock robots (config/execution.yaml's mock_robots/robot,
 /// checked against this by the params_defaults rostest) and of `ddace eval --execution
 /// diffdrive`: 40 ms from a command to the wheels (radio + firmware). Tracking noise is

@@ -57,6 +57,23 @@ struct FollowerGains {
   void validate() const;
 };
 
+/// Calls `visit(name, field)` for every gain, by the name config/execution.yaml gives it
+/// (path_follower/gains): the one list the ROS parameters and `ddace eval --config` read.
+template <typename Visit>
+void visitParams(FollowerGains& g, Visit&& visit) {
+  visit("cruise_speed_mps", g.cruise_speed_mps);
+  visit("min_speed_mps", g.min_speed_mps);
+  visit("lookahead_m", g.lookahead_m);
+  visit("slowdown_radius_m", g.slowdown_radius_m);
+  visit("rotate_in_place_rad", g.rotate_in_place_rad);
+  visit("heading_gain", g.heading_gain);
+  visit("max_turn_rate_radps", g.max_turn_rate_radps);
+  visit("search_window_m", g.search_window_m);
+  visit("arrival_radius_m", g.arrival_radius_m);
+  visit("wheel_base_m", g.wheel_base_m);
+  visit("max_wheel_speed_mps", g.max_wheel_speed_mps);
+}
+
 /// What the control law decided for one pose.
 struct FollowerOutput {
   WheelSpeeds wheels;             ///< zero when done

@@ -68,6 +68,22 @@ struct SafetyParams {
   void validate() const;
 };
 
+/// Calls `visit(name, field)` for every field, by the name config/execution.yaml gives it
+/// (path_follower/safety): the one list the ROS parameters and `ddace eval --config` read.
+template <typename Visit>
+void visitParams(SafetyParams& p, Visit&& visit) {
+  visit("enabled", p.enabled);
+  visit("margin_m", p.margin_m);
+  visit("projection_m", p.projection_m);
+  visit("barrier_gain_hz", p.barrier_gain_hz);
+  visit("range_m", p.range_m);
+  visit("pose_max_age_s", p.pose_max_age_s);
+  visit("blocked_fraction", p.blocked_fraction);
+  visit("resolve_after_s", p.resolve_after_s);
+  visit("deadlock_after_s", p.deadlock_after_s);
+  visit("progress_m", p.progress_m);
+}
+
 /// A body the filter must keep clear of, as tracked.
 struct SafetyBody {
   std::string name;

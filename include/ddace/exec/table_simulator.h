@@ -51,6 +51,16 @@ struct TableSimulatorParams {
   void validate() const;
 };
 
+/// Calls `visit(name, field)` for the fields config/execution.yaml sets under mock_robots
+/// (status_every_cycles is the node's own reporting): the one list the ROS parameters and
+/// `ddace eval --config` read.
+template <typename Visit>
+void visitParams(TableSimulatorParams& p, Visit&& visit) {
+  visit("bodies", p.bodies);
+  visit("object_speed_mps", p.object_speed_mps);
+  visit("object_damping_hz", p.object_damping_hz);
+}
+
 /// What an object reports about one of its segments (SegmentStatus on the wire).
 struct ObjectStatus {
   int entity = -1;  ///< index in the task's entities

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "ddace/eval/metrics.h"
+#include "ddace/exec/execution_config.h"
 #include "ddace/exec/simulator.h"
 #include "ddace/gp/primitives.h"
 #include "ddace/task/task_dir.h"
@@ -49,6 +50,10 @@ struct EvalOptions {
   bool bodies = true;
   /// diffdrive with bodies: each robot's command goes through its safety filter.
   bool safety_filter = true;
+  /// diffdrive with bodies: the follower, filter, robot and table parameters (the built-in
+  /// defaults, which config/execution.yaml states; `--config FILE` reads another file's).
+  /// Its filter off or its table without bodies turn the above off too.
+  exec::ExecutionConfig config;
 };
 
 struct Evaluation {

@@ -15,7 +15,9 @@
 //
 // The record starts with the run: `~ready` (std_srvs/Trigger) succeeds only once the bag
 // recorder and this node are linked to every publisher the master lists for each recorded
-// topic (each publisher's own getBusInfo says so); the coordinator, given this node as
+// topic (each publisher's own getBusInfo says so, checked 5 times a second) and a
+// /ddace/entities message published after that has arrived (the second received since),
+// so the bag holds the table at the start; the coordinator, given this node as
 // roles/recorder, starts a new run only then. It is a role of the run, too: its link on
 // /coordinator/state and its ~heartbeat (Heartbeat, ~heartbeat_rate_hz), which reports
 // "rosbag record exited" when the recorder dies, are watched, and losing either stops the

@@ -89,7 +89,9 @@ bool YamlChecker::integer(const YAML::Node& node, const std::string& what, long 
   double v = 0;
   if (!number(node, what, v)) return false;
   // Compared as doubles first: a huge value must not overflow the conversion.
-  if (v != std::floor(v) || v < static_cast<double>(lo) || v > static_cast<double>(hi)) {
+  // A long's limits are not doubles: 2^63 rounds to LONG_MAX's double and would overflow.
+  if (v != std::floor(v) || v < static_cast<double>(lo) || v > static_cast<double>(hi) ||
+      !(v < 9223372036854775808.0 && v >= -9223372036854775808.0)) {
     error(node, what + " must be an integer in " + std::to_string(lo) + ".." + std::to_string(hi) + " (got " +
                     node.Scalar() + ")");
     return false;

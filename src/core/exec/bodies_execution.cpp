@@ -24,8 +24,6 @@ BodiesExecution::BodiesExecution(const BodiesExecutionParams& params) : params_(
   // The one stop rule with this model's own noise as the tolerance (as DiffDriveExecution).
   gains_.arrival_radius_m =
       task::stopRadius(params_.arrival_radius_m, std::max(task::kArrivalToleranceM, 3 * params_.noise_m));
-  gains_.wheel_base_m = params_.robot.wheel_base_m;
-  gains_.max_wheel_speed_mps = params_.robot.max_wheel_speed_mps;
   gains_.validate();
   params_.robot.position_noise_m = params_.noise_m;
   params_.robot.validate();

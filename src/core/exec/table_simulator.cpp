@@ -52,6 +52,8 @@ TableSimulator::TableSimulator(TableSimulator&&) noexcept = default;
 void TableSimulatorParams::validate() const {
   if (!(object_speed_mps > 0) || !std::isfinite(object_speed_mps))
     throw Error("object_speed_mps must be positive and finite");
+  if (!(object_damping_hz >= 0) || !std::isfinite(object_damping_hz))
+    throw Error("object_damping_hz must be a finite number >= 0");
   if (status_every_cycles < 1) throw Error("status_every_cycles must be at least 1");
 }
 

@@ -131,8 +131,10 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
   e.variant = model.sequence.variant();
   const bool gnn = model.sequence.info().variant == tgn::Variant::Gnn;
   e.execution = options.execution;
+  const bool bodies = options.bodies && options.config.table.bodies;
+  const bool filter = options.safety_filter && options.config.safety.enabled;
   if (options.execution == "diffdrive")
-    e.execution += options.bodies ? (options.safety_filter ? " with bodies" : " with bodies, no filter") : " (points)";
+    e.execution += bodies ? (filter ? " with bodies" : " with bodies, no filter") : " (points)";
   const task::TaskSpec& spec = test.spec;
   e.entity_names = spec.entityNames();
   e.arrival_radius_m = spec.arrival_radius;
@@ -142,12 +144,21 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
   std::unique_ptr<exec::ExecutionModel> execution;
   if (options.execution == "ideal") {
     execution = std::make_unique<exec::IdealExecution>();
-  } else if (options.execution == "diffdrive" && options.bodies) {
+  } else if (options.execution == "diffdrive" && bodies) {
     exec::BodiesExecutionParams p;
     p.arrival_radius_m = spec.arrival_radius;
     p.noise_m = options.noise_m;
     p.seed = options.seed;
-    p.safety.enabled = options.safety_filter;
+    p.gains = options.config.gains;
+    p.robot = options.config.robot;
+    // Tracking noise is eval's own (--noise, --seed), not the mock robots' of the config.
+    const exec::DiffDriveParams hamster = exec::simulatedHamster();
+    p.robot.position_noise_m = hamster.position_noise_m;
+    p.robot.yaw_noise_rad = hamster.yaw_noise_rad;
+    p.robot.seed = hamster.seed;
+    p.table = options.config.table;
+    p.safety = options.config.safety;
+    p.safety.enabled = filter;
     execution = std::make_unique<exec::BodiesExecution>(p);
   } else if (options.execution == "diffdrive") {
     execution = std::make_unique<exec::DiffDriveExecution>(spec.arrival_radius, options.noise_m, options.seed);

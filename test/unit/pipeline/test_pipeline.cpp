@@ -65,6 +65,23 @@ TEST_F(Pipeline, JsonReportHasTheDocumentedKeys) {
   EXPECT_EQ(j["per_trial"].size(), 2u);
 }
 
+// `ddace eval --execution diffdrive --config FILE`: the file's follower gains and table
+// drive the simulated robots (robots at half the cruise speed take longer; a filter turned
+// off runs without it).
+TEST_F(Pipeline, TheExecutionConfigDrivesTheSimulatedRobots) {
+  const task::TaskDir test = generated("task4", 1, 5);
+  pipeline::EvalOptions o;
+  o.execution = "diffdrive";
+  const auto base = pipeline::evaluate(*model_, test, o);
+  o.config = exec::parseExecutionConfig("path_follower:\n  gains:\n    cruise_speed_mps: 0.06\n", "slow.yaml");
+  const auto slow = pipeline::evaluate(*model_, test, o);
+  EXPECT_DOUBLE_EQ(slow.summary.osr, base.summary.osr);
+  EXPECT_GT(slow.summary.makespan_s, 1.4 * base.summary.makespan_s)
+      << "half the cruise speed: " << slow.summary.makespan_s << " s against " << base.summary.makespan_s << " s";
+  o.config = exec::parseExecutionConfig("path_follower:\n  safety:\n    enabled: false\n", "off.yaml");
+  EXPECT_EQ(pipeline::evaluate(*model_, test, o).execution, "diffdrive with bodies, no filter");
+}
+
 TEST_F(Pipeline, AModelOfAnotherTaskIsRefused) {
   const task::TaskDir other = generated("task3", 1, 1);
   try {

@@ -1,0 +1,87 @@
+#include "ddace/exec/execution_config.h"
+
+#include <cstdint>
+#include <limits>
+#include <set>
+#include <type_traits>
+
+#include "ddace/common/file.h"
+#include "ddace/common/yaml_checker.h"
+
+namespace ddace::exec {
+namespace {
+
+/// The largest whole number a YAML number (a double) holds exactly.
+constexpr long kMaxSeed = 1L << 53;
+
+/// Reads `params`' fields (visitParams) from the mapping `map` at `where` (with
+/// `only_fields`, a key that is no field is an error), then checks validate() (its error
+/// at the mapping).
+template <typename Params>
+void readSection(YamlChecker& c, const YAML::Node& map, const std::string& where, Params& params,
+                 bool only_fields = true) {
+  if (!map || map.IsNull()) return;  // absent, or every key commented out: the defaults
+  if (!c.expectMap(map, where)) return;
+  if (only_fields) {
+    std::set<std::string> names;
+    visitParams(params, [&](const char* name, auto&) { names.insert(name); });
+    c.onlyKeys(map, names, where);
+  }
+  const size_t errors = c.errors().size();
+  visitParams(params, [&](const char* name, auto& field) {
+    const YAML::Node v = map[name];
+    if (!v) return;
+    const std::string what = where + "/" + name;
+    using T = std::decay_t<decltype(field)>;
+    if constexpr (std::is_same_v<T, bool>) {
+      c.boolean(v, what, field);
+    } else if constexpr (std::is_same_v<T, int>) {
+      c.integer(v, what, std::numeric_limits<int>::min(), std::numeric_limits<int>::max(), field);
+    } else if constexpr (std::is_same_v<T, uint64_t>) {
+      long n = 0;
+      if (c.integer(v, what, 0L, kMaxSeed, n)) field = static_cast<uint64_t>(n);
+    } else {
+      c.number(v, what, field);
+    }
+  });
+  if (c.errors().size() != errors) return;  // validate() would only restate them
+  try {
+    params.validate();
+  } catch (const Error& e) {
+    c.error(map, where + ": " + e.what());
+  }
+}
+
+}  // namespace
+
+ExecutionConfig parseExecutionConfig(const std::string& text, const std::string& file) {
+  YamlChecker c(file);
+  const YAML::Node root = c.parse(text);
+  ExecutionConfig config;
+  if (c.errors().empty() && c.expectMap(root, "an execution config (config/execution.yaml)")) {
+    const YAML::Node follower = root["path_follower"], mock = root["mock_robots"];
+    if (!follower && !mock)
+      c.error(root, "neither path_follower nor mock_robots: not an execution config (config/execution.yaml)");
+    if (follower && !follower.IsNull() && c.expectMap(follower, "path_follower")) {
+      readSection(c, follower["gains"], "path_follower/gains", config.gains);
+      readSection(c, follower["safety"], "path_follower/safety", config.safety);
+    }
+    if (mock && !mock.IsNull() && c.expectMap(mock, "mock_robots")) {
+      readSection(c, mock["robot"], "mock_robots/robot", config.robot);
+      // mock_robots holds the node's own keys too: only the table's are read here.
+      readSection(c, mock, "mock_robots", config.table, /*only_fields=*/false);
+      if (!config.table.bodies)
+        c.error(mock["bodies"],
+                "mock_robots/bodies: false: eval's points (--no-bodies) run the built-in control law and take no "
+                "config; a config runs the table with bodies");
+    }
+  }
+  c.throwIfErrors();
+  return config;
+}
+
+ExecutionConfig readExecutionConfig(const std::string& path) {
+  return parseExecutionConfig(readTextFile(path), path);
+}
+
+}  // namespace ddace::exec
