@@ -209,7 +209,9 @@ struct NamesHeldOut {
   double kept = 0;          ///< step accuracy on them with the names kept
   double shuffled_fit = 0;  ///< on a tie: the fit with the names shuffled (else 0)
   double kept_fit = 0;      ///< on a tie and a shuffled fit short of 1: the fit with them kept (else 0)
-  bool keepsNames() const { return held_out > 0 && (kept > shuffled || (kept == shuffled && kept_fit > shuffled_fit)); }
+  /// The held-out demonstrations could not tell (compared, equal accuracies): the fit decides.
+  bool tied() const { return held_out > 0 && kept == shuffled; }
+  bool keepsNames() const { return held_out > 0 && (kept > shuffled || (tied() && kept_fit > shuffled_fit)); }
   bool operator==(const NamesHeldOut& o) const {
     return held_out == o.held_out && shuffled == o.shuffled && kept == o.kept && shuffled_fit == o.shuffled_fit &&
            kept_fit == o.kept_fit;
@@ -239,7 +241,8 @@ struct TrainingPlan {
   bool names_or_scene = false;
   /// Scene: the groups whose identity embeddings training permutes ("Shuffled names";
   /// detail::interchangeableNames), each ascending; none when training kept the names
-  /// (shuffled, the network generalised worse to held-out demonstrations: names_held_out).
+  /// (names_held_out.keepsNames(): shuffled, the network decided fewer held-out steps, or as
+  /// many and fit the training demonstrations worse) or dropped the identity embedding.
   std::vector<std::vector<int>> name_groups;
   /// Scene: the held-out comparison that decided whether name_groups are shuffled (the trainer).
   NamesHeldOut names_held_out;

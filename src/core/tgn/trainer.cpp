@@ -200,6 +200,8 @@ TrainingPlan namesDecided(const task::TaskDir& train, const std::shared_ptr<cons
   for (size_t k = 0; k < held; ++k) is_held[order[k]] = true;
   std::vector<task::Demonstration> rest, held_out;
   for (size_t i = 0; i < n; ++i) (is_held[i] ? held_out : rest).push_back(train.demos[i]);
+  if (progress)
+    *progress << "holding out " << held << " of " << n << " demonstrations to decide the names" << std::endl;
   const auto heldOutAccuracy = [&](const TrainingPlan& p) {
     auto prepared_p = std::make_shared<SequenceModel::Impl>(*prepared);
     prepared_p->info.plan = p;
@@ -215,9 +217,9 @@ TrainingPlan namesDecided(const task::TaskDir& train, const std::shared_ptr<cons
   if (progress)
     *progress << "names: step accuracy on " << held << " held-out demonstrations " << h.shuffled << " shuffled, "
               << h.kept << " kept: "
-              << (h.keepsNames()         ? "keeping them"
-                  : h.kept == h.shuffled ? "tied, by the fit"
-                                         : "shuffling them")
+              << (h.keepsNames() ? "keeping them"
+                  : h.tied()     ? "tied, by the fit"
+                                 : "shuffling them")
               << std::endl;
   return chosen;
 }
@@ -245,7 +247,7 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
   // Shuffled names where the held-out demonstrations could not tell (namesDecided): kept
   // when the network with them shuffled fits its demonstrations short of every step and
   // one with them kept fits better ("the robot 2nd farthest from G1": 59 of 60 steps).
-  if (NamesHeldOut& h = impl->info.plan.names_held_out; h.held_out > 0 && h.kept == h.shuffled) {
+  if (NamesHeldOut& h = impl->info.plan.names_held_out; h.tied()) {
     h.shuffled_fit = impl->info.history.back().step_accuracy;
     if (h.shuffled_fit < 1) {
       auto kept = std::make_shared<Impl>(*prepared);
