@@ -68,9 +68,10 @@ int runInspect(const std::vector<std::string>& argv) {
                             " by step accuracy on " + std::to_string(plan.names_held_out.held_out) +
                             " held-out demonstrations: shuffled " + fixed2(plan.names_held_out.shuffled) + ", kept " +
                             fixed2(plan.names_held_out.kept) +
-                            (plan.names_held_out.kept == plan.names_held_out.shuffled
+                            (plan.names_held_out.tied()
                                  ? "; tied, fit on all " + fixed2(plan.names_held_out.shuffled_fit) + ", " +
-                                       fixed2(plan.names_held_out.kept_fit)
+                                       (plan.names_held_out.shuffled_fit == 1 ? std::string("not trained")
+                                                                              : fixed2(plan.names_held_out.kept_fit))
                                  : std::string()) +
                             ")"
                       : std::string())
