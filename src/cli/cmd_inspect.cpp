@@ -11,12 +11,6 @@
 namespace ddace::cli {
 namespace {
 
-std::string fixed2(double v) {
-  std::ostringstream s;
-  s << std::fixed << std::setprecision(2) << v;
-  return s.str();
-}
-
 int runInspect(const std::vector<std::string>& argv) {
   Args args(argv, {}, {"--loss"});
   const std::string dir = args.positional(0, "MODELDIR");
@@ -62,22 +56,9 @@ int runInspect(const std::vector<std::string>& argv) {
     for (tgn::Rule rule : o.without) without += std::string(without.empty() ? "" : ",") + tgn::toString(rule);
     std::cout << "  plan:        fixed order " << on(plan.fixed_order) << " (" << plan.slips
               << " slips), relative features " << on(plan.relative_features) << ", names or the scene "
-              << on(plan.names_or_scene) << ", name groups shuffled " << plan.name_groups.size()
-              << (plan.names_held_out.held_out > 0
-                      ? " (names " + std::string(plan.names_held_out.keepsNames() ? "kept" : "shuffled") +
-                            " by step accuracy on " + std::to_string(plan.names_held_out.held_out) +
-                            " held-out demonstrations: shuffled " + fixed2(plan.names_held_out.shuffled) + ", kept " +
-                            fixed2(plan.names_held_out.kept) +
-                            (plan.names_held_out.tied()
-                                 ? "; tied, fit on all " + fixed2(plan.names_held_out.shuffled_fit) + ", " +
-                                       (plan.names_held_out.shuffled_fit == 1 ? std::string("not trained")
-                                                                              : fixed2(plan.names_held_out.kept_fit))
-                                 : std::string()) +
-                            ")"
-                      : std::string())
-              << ", token by token " << on(plan.token_by_token) << ", parked entities out of the ranks "
-              << on(plan.parked_out_of_ranks) << ", ensemble of " << plan.ensemble
-              << (plan.ensemble == 1 ? " network" : " networks")
+              << on(plan.names_or_scene) << ", name groups shuffled " << plan.name_groups.size() << ", token by token "
+              << on(plan.token_by_token) << ", parked entities out of the ranks " << on(plan.parked_out_of_ranks)
+              << ", ensemble of " << plan.ensemble << (plan.ensemble == 1 ? " network" : " networks")
               << (without.empty() ? std::string() : "; asked --without " + without) << " (docs/tgn.md)\n";
   }
   const auto join = [](const auto& items) {

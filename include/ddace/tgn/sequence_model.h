@@ -66,8 +66,7 @@ namespace ddace::tgn {
 /// orders, the last step) and the carried loads among the step rules; /9: what training
 /// decided (TrainingPlan, `plan`) apart from the requested `hyper_parameters` (the rules
 /// switched off: `without`); /11: the ensemble (`plan.ensemble`; weights.pt holds its other
-/// members' weights as `member1`, `member2`, ...; later `plan.names_held_out`, absent in the
-/// /11 manifests written before it: no comparison made). Older ones are refused (retrain).
+/// members' weights as `member1`, `member2`, ...). Older ones are refused (retrain).
 inline constexpr const char* kModelFormat = "ddace-model/11";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
@@ -195,33 +194,6 @@ struct StepRules {
 inline constexpr int kEnsembleMembers = 3;
 inline constexpr int kMaxEnsemble = 8;
 
-/// "Shuffled names" decided on demonstrations held out of training (docs/tgn.md): a network
-/// trained on the others with the names shuffled and one with them kept, each one's
-/// exact-step accuracy (0..1) on the held-out ones. The names are kept when that is strictly
-/// better; where the held-out steps cannot tell them apart (equal), by the fit instead: the
-/// step accuracy on every training demonstration of the networks trained on all of them,
-/// the names kept only when that fits strictly better (a network that fits every step with
-/// them shuffled is kept without training the other: kept_fit 0). held_out 0: not compared
-/// (no names to shuffle, or fewer than kMinNamesHeldOutDemos training demonstrations).
-struct NamesHeldOut {
-  int held_out = 0;         ///< training demonstrations held out (a seeded quarter)
-  double shuffled = 0;      ///< step accuracy on them with the names shuffled
-  double kept = 0;          ///< step accuracy on them with the names kept
-  double shuffled_fit = 0;  ///< on a tie: the fit with the names shuffled (else 0)
-  double kept_fit = 0;      ///< on a tie and a shuffled fit short of 1: the fit with them kept (else 0)
-  /// The held-out demonstrations could not tell (compared, equal accuracies): the fit decides.
-  bool tied() const { return held_out > 0 && kept == shuffled; }
-  bool keepsNames() const { return held_out > 0 && (kept > shuffled || (tied() && kept_fit > shuffled_fit)); }
-  bool operator==(const NamesHeldOut& o) const {
-    return held_out == o.held_out && shuffled == o.shuffled && kept == o.kept && shuffled_fit == o.shuffled_fit &&
-           kept_fit == o.kept_fit;
-  }
-};
-
-/// Fewest training demonstrations for the held-out comparison of NamesHeldOut (a quarter
-/// of them, at least one, held out).
-inline constexpr int kMinNamesHeldOutDemos = 4;
-
 /// What the training demonstrations decide about training, computed once from them and the
 /// request (planTraining) and recorded in the manifest apart from the TrainOptions. Every
 /// enabling condition of a rule is stated there and nowhere else: the trainer, the network
@@ -241,11 +213,8 @@ struct TrainingPlan {
   bool names_or_scene = false;
   /// Scene: the groups whose identity embeddings training permutes ("Shuffled names";
   /// detail::interchangeableNames), each ascending; none when training kept the names
-  /// (names_held_out.keepsNames(): shuffled, the network decided fewer held-out steps, or as
-  /// many and fit the training demonstrations worse) or dropped the identity embedding.
+  /// (shuffled, the network fit its demonstrations worse: withNamesKept).
   std::vector<std::vector<int>> name_groups;
-  /// Scene: the held-out comparison that decided whether name_groups are shuffled (the trainer).
-  NamesHeldOut names_held_out;
   /// Scene: a step's targets are decided one token at a time and trained so ("Token by token").
   bool token_by_token = false;
   /// Scene: an entity at one place with another is no rival in the ranks ("Parked entities").
@@ -257,7 +226,8 @@ struct TrainingPlan {
   std::vector<graph::Edge> attention_edges;  ///< directed edges the network attends over (no self-loops)
   /// The same plan for the network without the identity embedding (no names to shuffle).
   TrainingPlan withoutIdentity() const;
-  /// The same plan without shuffled names (the held-out demonstrations kept them).
+  /// The same plan without shuffled names (training fell short with them: the trainer's
+  /// "Shuffled names, unless they cost the fit").
   TrainingPlan withNamesKept() const;
   /// Empty when planTraining() could have made this plan for `options` (of its variant);
   /// else what could not be, for a reader of a manifest to report (a plan it cannot decode
@@ -266,7 +236,7 @@ struct TrainingPlan {
   bool operator==(const TrainingPlan& o) const {
     return fixed_order == o.fixed_order && slips == o.slips && relative_features == o.relative_features &&
            identity_embedding == o.identity_embedding && names_or_scene == o.names_or_scene &&
-           name_groups == o.name_groups && names_held_out == o.names_held_out && token_by_token == o.token_by_token &&
+           name_groups == o.name_groups && token_by_token == o.token_by_token &&
            parked_out_of_ranks == o.parked_out_of_ranks && ensemble == o.ensemble && step_rules == o.step_rules &&
            attention_edges == o.attention_edges;
   }

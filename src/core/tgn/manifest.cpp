@@ -241,13 +241,6 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
     y << YAML::Flow << names;
   }
   y << YAML::EndSeq;
-  y << YAML::Key << "names_held_out" << YAML::Value << YAML::Flow << YAML::BeginMap;
-  y << YAML::Key << "held_out" << YAML::Value << plan.names_held_out.held_out;
-  y << YAML::Key << "shuffled" << YAML::Value << plan.names_held_out.shuffled;
-  y << YAML::Key << "kept" << YAML::Value << plan.names_held_out.kept;
-  y << YAML::Key << "shuffled_fit" << YAML::Value << plan.names_held_out.shuffled_fit;
-  y << YAML::Key << "kept_fit" << YAML::Value << plan.names_held_out.kept_fit;
-  y << YAML::EndMap;
   y << YAML::Key << "token_by_token" << YAML::Value << plan.token_by_token;
   y << YAML::Key << "parked_out_of_ranks" << YAML::Value << plan.parked_out_of_ranks;
   y << YAML::Key << "ensemble" << YAML::Value << plan.ensemble;
@@ -600,29 +593,6 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
       std::vector<int> members;
       for (const YAML::Node& e : group) members.push_back(r.entity(e, spec));
       plan.name_groups.push_back(members);
-    }
-    // Absent in the manifests of format /11 written before the held-out comparison: none made.
-    if (const YAML::Node h = pn["names_held_out"]) {
-      if (!h.IsMap()) r.fail(h, "names_held_out must be a map (held_out, shuffled, kept, shuffled_fit, kept_fit)");
-      NamesHeldOut& held = plan.names_held_out;
-      held.held_out = static_cast<int>(r.integerAt(
-          r.need(h, "held_out"), "names_held_out: held_out (at most the demonstrations)", 0, g.demonstrations));
-      held.shuffled = r.numberIn(r.need(h, "shuffled"), "names_held_out: shuffled (a step accuracy)", 0, 1);
-      held.kept = r.numberIn(r.need(h, "kept"), "names_held_out: kept (a step accuracy)", 0, 1);
-      held.shuffled_fit = r.numberIn(r.need(h, "shuffled_fit"), "names_held_out: shuffled_fit (a step accuracy)", 0, 1);
-      held.kept_fit = r.numberIn(r.need(h, "kept_fit"), "names_held_out: kept_fit (a step accuracy)", 0, 1);
-      // What the trainer records, read backwards (namesDecided, SequenceModel::train).
-      if (held.held_out == 0 && (held.shuffled != 0 || held.kept != 0 || held.shuffled_fit != 0 || held.kept_fit != 0))
-        r.fail(h, "names_held_out: held_out 0 (no comparison) with step accuracies or fits (must all be 0)");
-      if (held.held_out > 0 && held.held_out != g.demonstrations / kMinNamesHeldOutDemos)
-        r.fail(h, "names_held_out: held_out must be 0 or a quarter of the demonstrations (" +
-                      std::to_string(g.demonstrations / kMinNamesHeldOutDemos) + ")");
-      if ((held.shuffled_fit != 0 || held.kept_fit != 0) && !held.tied())
-        r.fail(h, "names_held_out: shuffled_fit or kept_fit without a tie (shuffled != kept)");
-      if (held.kept_fit != 0 && held.shuffled_fit == 1)
-        r.fail(h, "names_held_out: kept_fit where shuffled_fit is 1 (the network with the names kept is not trained)");
-      if (held.held_out > 0 && plan.fixed_order)
-        r.fail(h, "names_held_out: held_out on a fixed order (no names to shuffle, nothing compared)");
     }
     plan.token_by_token = r.boolean(pn, "token_by_token");
     plan.parked_out_of_ranks = r.boolean(pn, "parked_out_of_ranks");

@@ -142,8 +142,7 @@ TrainingPlan planTraining(const task::TaskDir& train, const TrainOptions& option
       std::any_of(train.demos.begin(), train.demos.end(), [&](const task::Demonstration& d) {
         return std::any_of(d.steps.begin(), d.steps.end(), [&](const task::Step& s) { return decisions(s) >= 2; });
       });
-  // Shuffled names: only names to shuffle (the identity embedding) and steps the scene decides;
-  // whether they stay shuffled the trainer decides on held-out demonstrations (names_held_out).
+  // Shuffled names: only names to shuffle (the identity embedding) and steps the scene decides.
   const std::vector<std::vector<int>> groups =
       p.fixed_order ? std::vector<std::vector<int>>{} : detail::interchangeableNames(train);
   if (options.uses(Rule::ShuffledNames) && p.identity_embedding) p.name_groups = groups;
@@ -174,7 +173,6 @@ TrainingPlan TrainingPlan::withoutIdentity() const {
   p.identity_embedding = false;
   p.names_or_scene = false;
   p.name_groups.clear();  // no names to shuffle
-  p.names_held_out = {};
   return p;
 }
 

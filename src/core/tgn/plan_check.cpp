@@ -30,13 +30,6 @@ std::string TrainingPlan::inconsistency(const TrainOptions& options) const {
   if ((names_or_scene || !name_groups.empty()) && !identity_embedding)
     return "names_or_scene or name_groups without the identity embedding";
   if (!name_groups.empty() && !options.uses(Rule::ShuffledNames)) return "name_groups, switched off by the options";
-  // The held-out comparison (the trainer's): where names were shuffled or kept by it, as it decided.
-  const NamesHeldOut& h = names_held_out;
-  if (h.held_out > 0 && !(identity_embedding && options.uses(Rule::ShuffledNames) && relative_features))
-    return "names_held_out without names to shuffle";
-  if (h.held_out > 0 && h.keepsNames() != name_groups.empty())
-    return std::string("name groups ") + (name_groups.empty() ? "kept" : "shuffled") +
-           " though the held-out demonstrations chose otherwise";
   for (const auto& g : name_groups)
     for (size_t i = 1; i < g.size(); ++i)
       if (g[i] <= g[i - 1]) return "a name group not in ascending order of distinct entities";

@@ -31,8 +31,8 @@ class ThreadCount {
   int saved_;
 };
 
-/// Trains the network `prepared` describes (options and plan; prepare()) on `demos`.
-std::shared_ptr<SequenceModel::Impl> trainNetwork(const std::vector<task::Demonstration>& demos,
+/// Trains the network `prepared` describes (options and plan; prepare()) on `train`.
+std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train,
                                                   const std::shared_ptr<const SequenceModel::Impl>& prepared,
                                                   std::ostream* progress) {
   auto impl = std::make_shared<SequenceModel::Impl>(*prepared);
@@ -43,7 +43,7 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const std::vector<task::Demons
   impl->build();
   torch::nn::Module& net = impl->module();
   const bool gnn = impl->cfg.gnn, acting_targets = impl->isScene();
-  const std::vector<Sequence> seqs = impl->sequences(demos);
+  const std::vector<Sequence> seqs = impl->sequences(train.demos);
   // The eval pass after every epoch reads every sequence, collated once: the data do not
   // change and the pass only reads the batch (the same losses and weights to the bit).
   const Batch everything = collateAll(seqs, gnn);
@@ -177,53 +177,6 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const std::vector<task::Demons
   return impl;
 }
 
-/// Shuffled names, decided on held-out demonstrations: the groups are read from the tokens,
-/// but a rule may refer to an entity no token tells apart ("the others meet at the robot
-/// nearest to G1", G1 a target in some demonstrations only, as G2): shuffled with G2, G1's
-/// name is lost, and the network may still fit its demonstrations exactly by coincidences
-/// of their scenes. So a seeded quarter of the demonstrations is held out, one network is
-/// trained on the rest with the names shuffled and one with them kept, and the names are
-/// kept when that decides more held-out steps exactly. A few held-out demonstrations often
-/// cannot tell (equal): then the fit decides (SequenceModel::train). The plan records the
-/// comparison (names_held_out); the model is then trained on every demonstration.
-TrainingPlan namesDecided(const task::TaskDir& train, const std::shared_ptr<const SequenceModel::Impl>& prepared,
-                          std::ostream* progress) {
-  const TrainingPlan& plan = prepared->info.plan;
-  const size_t n = train.demos.size();
-  if (plan.name_groups.empty() || n < static_cast<size_t>(kMinNamesHeldOutDemos)) return plan;
-  std::vector<size_t> order(n);
-  for (size_t i = 0; i < n; ++i) order[i] = i;
-  SplitMix64 rng(prepared->info.options.seed ^ 0x2545F4914F6CDD1DULL);
-  for (size_t i = n; i > 1; --i) std::swap(order[i - 1], order[rng.next() % i]);
-  const size_t held = n / 4;
-  std::vector<bool> is_held(n, false);
-  for (size_t k = 0; k < held; ++k) is_held[order[k]] = true;
-  std::vector<task::Demonstration> rest, held_out;
-  for (size_t i = 0; i < n; ++i) (is_held[i] ? held_out : rest).push_back(train.demos[i]);
-  if (progress)
-    *progress << "holding out " << held << " of " << n << " demonstrations to decide the names" << std::endl;
-  const auto heldOutAccuracy = [&](const TrainingPlan& p) {
-    auto prepared_p = std::make_shared<SequenceModel::Impl>(*prepared);
-    prepared_p->info.plan = p;
-    const std::shared_ptr<SequenceModel::Impl> net = trainNetwork(rest, prepared_p, nullptr);
-    return net->accuracy(net->sequences(held_out));
-  };
-  NamesHeldOut h;
-  h.held_out = static_cast<int>(held);
-  h.shuffled = heldOutAccuracy(plan);
-  h.kept = heldOutAccuracy(plan.withNamesKept());
-  TrainingPlan chosen = h.keepsNames() ? plan.withNamesKept() : plan;
-  chosen.names_held_out = h;
-  if (progress)
-    *progress << "names: step accuracy on " << held << " held-out demonstrations " << h.shuffled << " shuffled, "
-              << h.kept << " kept: "
-              << (h.keepsNames() ? "keeping them"
-                  : h.tied()     ? "tied, by the fit"
-                                 : "shuffling them")
-              << std::endl;
-  return chosen;
-}
-
 }  // namespace
 
 SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOptions& options, std::ostream* progress) {
@@ -238,48 +191,34 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
                  "--without fixed-order keeps them)"
               << std::endl;
   }
-  std::shared_ptr<Impl> impl;
-  {
-    auto decided = std::make_shared<Impl>(*prepared);
-    decided->info.plan = namesDecided(train, prepared, progress);
-    impl = trainNetwork(train.demos, decided, progress);
-  }
-  // Shuffled names where the held-out demonstrations could not tell (namesDecided): kept
-  // when the network with them shuffled fits its demonstrations short of every step and
-  // one with them kept fits better ("the robot 2nd farthest from G1": 59 of 60 steps).
-  if (NamesHeldOut& h = impl->info.plan.names_held_out; h.tied()) {
-    h.shuffled_fit = impl->info.history.back().step_accuracy;
-    if (h.shuffled_fit < 1) {
-      auto kept = std::make_shared<Impl>(*prepared);
-      kept->info.plan = impl->info.plan.withNamesKept();
-      if (progress) *progress << "step accuracy " << h.shuffled_fit << ": training with the names kept" << std::endl;
-      std::shared_ptr<Impl> alternative = trainNetwork(train.demos, kept, progress);
-      h.kept_fit = alternative->info.history.back().step_accuracy;
-      alternative->info.plan.names_held_out = h;
-      if (progress)
-        *progress << "step accuracy " << h.kept_fit << " with the names kept: keeping "
-                  << (h.keepsNames() ? "them" : "them shuffled") << std::endl;
-      if (h.keepsNames()) impl = alternative;
-    }
-  }
-  // Names or the scene: the identity embedding lets the scene network tell entities apart
-  // by name, which the fixed-order tasks need; where the decision is the scene's
-  // (nearest_goal), it can also settle on fitting the demonstrations by name and stall
-  // short of them. Then a network that must decide from the scene alone is trained and
-  // kept when it fits them better (the fit: the accuracy check, predictNext's decoder).
-  if (plan.names_or_scene && impl->info.history.back().step_accuracy < 1) {
+  std::shared_ptr<Impl> impl = trainNetwork(train, prepared, progress);
+  // A network that fits its training demonstrations short of every step may have been
+  // denied what it needed; the plan's alternatives are trained in turn and each kept when it
+  // fits better (the fit: the accuracy check, predictNext's decoder).
+  const auto tryInstead = [&](const TrainingPlan& alternative_plan, const std::string& what) {
     const double fit = impl->info.history.back().step_accuracy;
+    if (fit >= 1) return;
     auto without = std::make_shared<Impl>(*prepared);
-    without->info.plan = plan.withoutIdentity();
-    if (progress) *progress << "step accuracy " << fit << ": training without the identity embedding" << std::endl;
-    std::shared_ptr<Impl> alternative = trainNetwork(train.demos, without, progress);
+    without->info.plan = alternative_plan;
+    if (progress) *progress << "step accuracy " << fit << ": training " << what << std::endl;
+    std::shared_ptr<Impl> alternative = trainNetwork(train, without, progress);
     const double alternative_fit = alternative->info.history.back().step_accuracy;
     const bool better = alternative_fit > fit;
     if (progress)
-      *progress << "step accuracy " << alternative_fit << " without the identity embedding: keeping "
-                << (better ? "it" : "the first") << std::endl;
+      *progress << "step accuracy " << alternative_fit << " " << what << ": keeping " << (better ? "it" : "the first")
+                << std::endl;
     if (better) impl = alternative;
-  }
+  };
+  // Names or the scene: the identity embedding lets the scene network tell entities apart
+  // by name, which the fixed-order tasks need; where the decision is the scene's
+  // (nearest_goal), it can also settle on fitting the demonstrations by name and stall
+  // short of them. Then a network that must decide from the scene alone is tried.
+  if (plan.names_or_scene) tryInstead(plan.withoutIdentity(), "without the identity embedding");
+  // Shuffled names, unless they cost the fit: the groups are read from the tokens, but a
+  // rule may refer to an entity no token tells apart ("the robot 2nd farthest from G1",
+  // G1 a target only in some demonstrations, as G2): shuffled with G2, G1's name is lost,
+  // and the network fits short of the demonstrations. Then the names are kept.
+  if (!impl->info.plan.name_groups.empty()) tryInstead(impl->info.plan.withNamesKept(), "with the names kept");
   // Ensemble: the other members trained as the first (with its identity embedding or
   // not), each from a seed of its own; each decodes a step and the majority decides
   // (detail::majorityDecision).
@@ -291,7 +230,7 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
     if (progress)
       *progress << "ensemble: network " << k + 1 << " of " << members << " (seed " << member->info.options.seed << ")"
                 << std::endl;
-    impl->others.push_back(trainNetwork(train.demos, member, progress)->scene);
+    impl->others.push_back(trainNetwork(train, member, progress)->scene);
   }
   if (progress && members > 1)
     *progress << "ensemble of " << members << ": step accuracy " << impl->accuracy(impl->sequences(train.demos))

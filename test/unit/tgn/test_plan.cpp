@@ -429,62 +429,19 @@ TEST(Ensemble, MajorityDecision) {
   EXPECT_THROW(tgn::detail::majorityDecision({}), Error);
 }
 
-// Where the held-out demonstrations cannot tell (equal step accuracy), the fit decides:
-// "the others meet at the robot 2nd farthest from G1, which then goes to the frontmost
-// goal" (zoo:10, 20 demonstrations; G1 and G2 interchangeable by the tokens). Shuffled, the
-// network fits 59 of 60 steps and left a gatherer idle in 6 of 10 fresh scenes; the names
-// kept fit every step, and are kept.
-TEST(ShuffledNames, AreKeptByTheFitWhereTheHeldOutDemonstrationsCannotTell) {
+// Shuffled names, unless they cost the fit: "the others meet at the robot 2nd farthest from
+// G1, which then goes to the frontmost goal" (zoo:10, 20 demonstrations). G1 and G2 are each
+// a target in some demonstrations only, so the tokens call them interchangeable; shuffled,
+// G1's name is lost, the network fits 59 of 60 steps and sent the others to the wrong robot
+// in 7 of 10 fresh scenes. Trained with the names kept it fits every step and is kept.
+TEST(ShuffledNames, AreKeptWhereShufflingThemCostsTheFit) {
   const task::TaskDir train = generate("zoo:10", 20), test = generate("zoo:10", 10, 1 * 2654435761ULL + 0x7e57);
   tgn::TrainOptions o;
   o.without = {tgn::Rule::Ensemble};  // the rule is the first network's; one is enough here
   EXPECT_EQ(names(train, planOf(train, o).name_groups), (Groups{{"R1", "R2", "R3", "R4"}, {"G1", "G2"}}));
   const tgn::SequenceModel m = tgn::SequenceModel::train(train, o, nullptr);
-  const tgn::NamesHeldOut& h = m.info().plan.names_held_out;
-  EXPECT_EQ(h.held_out, 5);
-  EXPECT_EQ(h.kept, h.shuffled);
-  EXPECT_LT(h.shuffled_fit, 1.0);
-  EXPECT_DOUBLE_EQ(h.kept_fit, 1.0);
-  EXPECT_TRUE(m.info().plan.name_groups.empty());
-  EXPECT_DOUBLE_EQ(m.stepAccuracy(train.demos), 1.0);
-  EXPECT_GE(m.stepAccuracy(test.demos), 0.85);
-}
-
-// Shuffled names, decided on held-out demonstrations: "the others meet at the robot nearest
-// to G1, which then goes to the leftmost goal" (zoo:43, 20 demonstrations). G1 and G2 are
-// each a target in some demonstrations only, so the tokens call them interchangeable;
-// shuffled, G1's name is lost, yet the network fits its 20 demonstrations exactly by their
-// scenes (the fit check kept it: OSR 0.50). On a held-out quarter the names kept decide
-// more steps exactly, so the plan keeps them and records why; fresh scenes are decided as
-// the rule says, and the record survives save and load (a manifest contradicting it is refused).
-TEST(ShuffledNames, AreKeptWhereTheyGeneraliseBetterToHeldOutDemonstrations) {
-  const task::TaskDir train = generate("zoo:43", 20), test = generate("zoo:43", 10, 1 * 2654435761ULL + 0x7e57);
-  tgn::TrainOptions o;
-  o.without = {tgn::Rule::Ensemble};  // the rule is the first network's; one is enough here
-  EXPECT_EQ(names(train, planOf(train, o).name_groups), (Groups{{"R1", "R3", "R4"}, {"G1", "G2"}}));
-  const tgn::SequenceModel m = tgn::SequenceModel::train(train, o, nullptr);
-  const tgn::NamesHeldOut& h = m.info().plan.names_held_out;
-  EXPECT_EQ(h.held_out, 5);
-  EXPECT_GT(h.kept, h.shuffled);
   EXPECT_TRUE(m.info().plan.name_groups.empty());
   EXPECT_TRUE(m.info().plan.identity_embedding);
-  EXPECT_GE(m.stepAccuracy(test.demos), 0.9);
-  const std::string dir = (fs::temp_directory_path() / ("ddace_test_names_" + std::to_string(::getpid()))).string();
-  m.save(dir);
-  EXPECT_EQ(tgn::SequenceModel::load(dir).info().plan, m.info().plan);
-  const std::string manifest = test::fileBytes(fs::path(dir) / "manifest.yaml");
-  const size_t from = manifest.find("names_held_out: {");
-  ASSERT_NE(from, std::string::npos);
-  const std::string record = manifest.substr(from, manifest.find('}', from) + 1 - from);
-  ASSERT_TRUE(editManifest(dir, record,
-                           "names_held_out: {held_out: 5, shuffled: 0.8, kept: 0.6, shuffled_fit: 0, kept_fit: 0}"));
-  try {
-    tgn::SequenceModel::load(dir);
-    ADD_FAILURE() << "loaded names kept where the recorded held-out comparison shuffles them";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("name groups kept though the held-out demonstrations chose otherwise"),
-              std::string::npos)
-        << e.what();
-  }
-  fs::remove_all(dir);
+  EXPECT_DOUBLE_EQ(m.stepAccuracy(train.demos), 1.0);
+  EXPECT_GE(m.stepAccuracy(test.demos), 0.85);
 }

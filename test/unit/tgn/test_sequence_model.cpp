@@ -297,34 +297,6 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
   EXPECT_NE(edited("without: []", "without: [nearest]", true).find("'nearest' is not a learning rule"),
             std::string::npos);
   EXPECT_NE(edited("name_groups: []", "name_groups: [[R1, R9]]", true).find("unknown entity 'R9'"), std::string::npos);
-  // The held-out comparison of the names (Task 2 has none: held_out 0): a sub-key missing,
-  // out of range, of the wrong type, not a map, or contradicting what the trainer records.
-  {
-    const std::string record = "names_held_out: {held_out: 0, shuffled: 0, kept: 0, shuffled_fit: 0, kept_fit: 0}";
-    ASSERT_NE(manifest.find(record), std::string::npos) << manifest;
-    const auto names = [&](const std::string& to) { return edited(record, "names_held_out: " + to, true); };
-    EXPECT_NE(names("{held_out: 0, shuffled: 0, kept: 0, shuffled_fit: 0}").find("missing key 'kept_fit'"),
-              std::string::npos);
-    EXPECT_NE(names("{held_out: 0, shuffled: 0, kept: 2, shuffled_fit: 0, kept_fit: 0}")
-                  .find("names_held_out: kept (a step accuracy)"),
-              std::string::npos);
-    EXPECT_NE(names("{held_out: x, shuffled: 0, kept: 0, shuffled_fit: 0, kept_fit: 0}")
-                  .find("names_held_out: held_out (at most the demonstrations)"),
-              std::string::npos);
-    EXPECT_NE(names("~").find("names_held_out must be a map"), std::string::npos);
-    EXPECT_NE(names("3").find("names_held_out must be a map"), std::string::npos);
-    EXPECT_NE(names("{held_out: 0, shuffled: 0.5, kept: 0, shuffled_fit: 0, kept_fit: 0}").find("held_out 0"),
-              std::string::npos);
-    // Task 2 has 4 demonstrations (a quarter: 1) and a fixed order.
-    EXPECT_NE(names("{held_out: 2, shuffled: 0, kept: 0, shuffled_fit: 0, kept_fit: 0}").find("a quarter"),
-              std::string::npos);
-    EXPECT_NE(names("{held_out: 1, shuffled: 0, kept: 0, shuffled_fit: 0, kept_fit: 0}").find("on a fixed order"),
-              std::string::npos);
-    EXPECT_NE(names("{held_out: 1, shuffled: 0.5, kept: 0, shuffled_fit: 0.5, kept_fit: 0}").find("without a tie"),
-              std::string::npos);
-    EXPECT_NE(names("{held_out: 1, shuffled: 0, kept: 0, shuffled_fit: 1, kept_fit: 0.5}").find("shuffled_fit is 1"),
-              std::string::npos);
-  }
   // The digest line itself cut or changed.
   EXPECT_NE(edited("manifest_sha256: ", "manifest_sha256: 0", false).find("last line"), std::string::npos);
   {
@@ -349,9 +321,8 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
   EXPECT_NE(edited("format: ddace-model/11", "format: ddace-model/2", false).find("digests"), std::string::npos);
   EXPECT_NE(edited("format: ddace-model/11", "format: ddace-model/13", false).find("newer"), std::string::npos);
   {
-    // The record is what training did: fetch's robots shuffled, or none where the held-out
-    // comparison kept the names or (after 2 epochs) the network without names was kept;
-    // Task 2's names not.
+    // The record is what training did: fetch's robots were shuffled (or, after 2 epochs, the
+    // network without names kept: then none), Task 2's names not.
     tasks::GeneratorOptions f;
     f.family = "fetch";
     f.demos = 4;
@@ -359,7 +330,7 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
     const tgn::SequenceModel trained = tgn::SequenceModel::train(tasks::generate(f), o, nullptr);
     trained.save(fetch);
     const tgn::TrainingPlan& done = trained.info().plan;
-    EXPECT_EQ(done.name_groups.empty(), !done.identity_embedding || done.names_held_out.keepsNames());
+    EXPECT_EQ(done.name_groups.empty(), !done.identity_embedding);
     EXPECT_EQ(tgn::SequenceModel::load(fetch).info().plan.name_groups, done.name_groups);
     EXPECT_EQ(tgn::SequenceModel::load(fetch).info().plan.identity_embedding, done.identity_embedding);
     EXPECT_TRUE(tgn::SequenceModel::load(good).info().plan.name_groups.empty());
