@@ -33,7 +33,9 @@
 // to face pass each other), a standing one (SafetyBody::standing) on the side the robot's
 // command turns to, the shorter way to its end point (the right-hand rule on a tie). Held
 // for `deadlock_after_s`, the filter reports a deadlock naming the
-// robot and the bodies holding it (the caller stops the robot and reports it).
+// robot and the bodies holding it (the caller stops the robot and reports it): every body
+// whose constraint shaped the command, or that it went round, since it last advanced --
+// not only those active in the cycle the clock runs out in (going round, none is).
 //
 // Fail safe (when enabled): its own pose or a body within `range_m` older than `pose_max_age_s` (or
 // marked stale) -> zero wheels and a report naming the stale body.
@@ -205,18 +207,20 @@ class SafetyFilter {
   void reset() {
     resolve_until_s_ = stuck_since_s_ = -1;
     resolve_body_.clear();
+    held_by_.clear();
   }
   const SafetyParams& params() const { return params_; }
 
  private:
   SafetyParams params_;
   double wheel_base_m_, max_wheel_mps_, max_turn_radps_;
-  double resolve_until_s_ = -1;   ///< the point goes round the nearest body until then
-  double resolve_side_ = 1;       ///< +1: keeping it on the left (the right-hand rule), -1: on the right
-  std::string resolve_body_;      ///< the body resolve_side_ was decided for
-  bool resolve_of_load_ = false;  ///< ... held by the load's disc (else the robot's)
-  double stuck_since_s_ = -1;     ///< since when the filter holds the robot without progress
-  double stuck_progress_m_ = 0;   ///< its progress then
+  double resolve_until_s_ = -1;       ///< the point goes round the nearest body until then
+  double resolve_side_ = 1;           ///< +1: keeping it on the left (the right-hand rule), -1: on the right
+  std::string resolve_body_;          ///< the body resolve_side_ was decided for
+  bool resolve_of_load_ = false;      ///< ... held by the load's disc (else the robot's)
+  double stuck_since_s_ = -1;         ///< since when the filter holds the robot without progress
+  double stuck_progress_m_ = 0;       ///< its progress then
+  std::vector<std::string> held_by_;  ///< bodies that held it since then (named in a deadlock)
 };
 
 /// A half-plane a . z <= b in two variables.

@@ -256,7 +256,8 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
     if (nearest_body) resolve_body_ = nearest_body->name, resolve_of_load_ = nearest_of_load;
   };
   Eigen::Vector2d goal_z = z0;
-  if (now_s < resolve_until_s_ && nearest_body) {
+  const bool going_round = now_s < resolve_until_s_ && nearest_body;
+  if (going_round) {
     if (nearest_body->name != resolve_body_ || nearest_of_load != resolve_of_load_) decideSide();
     goal_z = std::max(z0.norm(), 0.25 * vmax) * resolve_side_ * round_left;
   }
@@ -293,12 +294,21 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   // deadlock, reported.
   if (!out.modified && !out.blocked) {
     stuck_since_s_ = -1;
+    held_by_.clear();
     return out;
   }
   if (stuck_since_s_ < 0 || progress_m >= stuck_progress_m_ + params_.progress_m) {
     stuck_since_s_ = now_s;
     stuck_progress_m_ = progress_m;
+    held_by_.clear();
   }
+  // Who holds it since it last advanced: the bodies whose constraints shape the command,
+  // and the one it goes round (a go-round command may touch no constraint at all).
+  const auto held = [&](const std::string& name) {
+    if (!name.empty() && std::find(held_by_.begin(), held_by_.end(), name) == held_by_.end()) held_by_.push_back(name);
+  };
+  for (const std::string& name : out.blocking) held(name);
+  if (going_round) held(resolve_body_);
   const double stuck_s = now_s - stuck_since_s_;
   if (stuck_s >= params_.resolve_after_s && now_s >= resolve_until_s_) {
     resolve_until_s_ = now_s + params_.resolve_after_s;
@@ -306,8 +316,8 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   }
   if (stuck_s >= params_.deadlock_after_s) {
     out.deadlock = true;
-    std::vector<std::string> near = out.blocking;
-    if (near.empty())  // circling: the bodies within a margin of holding it
+    std::vector<std::string> near = held_by_;
+    if (near.empty())  // none recorded: the bodies within a margin of holding it
       for (const SafetyBody& b : bodies)
         if (b.radius_m > 0 && (b.position - x).norm() - self_radius_m - b.radius_m < 3 * params_.margin_m + l)
           near.push_back(b.name);

@@ -305,6 +305,29 @@ TEST(SafetyFilter, BoxedInRobotStaysPutAndIsReportedByName) {
   EXPECT_LT(o.deadlock_time_s, 7.0);
 }
 
+// A deadlock names the bodies that held the robot while it did not advance, whichever
+// cycle the clock runs out in. Here B, standing 5 cm ahead (beyond the 4 cm within which
+// a body counts as near), slows R1's command, and R1 then goes round it: in a go-round
+// cycle no constraint is active, and the report used to name nobody ("held by the safety
+// filter" alone, as in vision_task4, where R3 circled a parked R4 3 to 5 cm away), at
+// every control rate below.
+TEST(SafetyFilter, ADeadlockNamesTheBodyHoldingItWhileGoingRound) {
+  const SafetyParams sp;
+  const WheelSpeeds forward{0.1, 0.1};
+  SafetyBody b{"B", {0.1 + 2 * kRadius + 0.05, 0.3}, kRadius, true, 0.03, false};
+  b.standing = true;
+  for (const double dt : {0.02, 1.0 / 30, 0.05, 0.1}) {
+    SafetyFilter f(sp, 0.03, 0.2, 4.0);
+    SafetyCommand c;
+    double t = 0;
+    for (; t < 2 * sp.deadlock_after_s && !c.deadlock; t += dt)
+      c = f.filter("R1", {0.1, 0.3, 0}, kRadius, 0.03, forward, 0.0, {b}, "G1", t);
+    ASSERT_TRUE(c.deadlock) << "dt " << dt;
+    EXPECT_NE(c.reason.find("R1"), std::string::npos) << c.reason;
+    EXPECT_NE(c.reason.find("against B"), std::string::npos) << "dt " << dt << ": " << c.reason;
+  }
+}
+
 TEST(SafetyFilter, StalePoseZeroesTheWheelsNamingIt) {
   SafetyFilter f({}, 0.03, 0.2, 4.0);
   const WheelSpeeds nominal{0.1, 0.1};
