@@ -31,7 +31,9 @@
 // load go round as one body) for the next `resolve_after_s`:
 // a moving body keeping it on the left (every robot turns the same way, so two robots face
 // to face pass each other), a standing one (SafetyBody::standing) on the side the robot's
-// command turns to, the shorter way to its end point (the right-hand rule on a tie). Held
+// command turns to, the shorter way to its end point (the right-hand rule on a tie); the
+// side is decided once per body while the robot is held (a command pointing at the body
+// would flip it with the noise, back and forth round it). Held
 // for `deadlock_after_s`, the filter reports a deadlock naming the
 // robot and the bodies holding it (the caller stops the robot and reports it): every body
 // whose constraint shaped the command, or that it went round, since it last advanced --

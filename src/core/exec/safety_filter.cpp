@@ -295,6 +295,7 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   if (!out.modified && !out.blocked) {
     stuck_since_s_ = -1;
     held_by_.clear();
+    resolve_body_.clear();  // free: the next hold decides its side afresh
     return out;
   }
   if (stuck_since_s_ < 0 || progress_m >= stuck_progress_m_ + params_.progress_m) {
@@ -312,7 +313,11 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   const double stuck_s = now_s - stuck_since_s_;
   if (stuck_s >= params_.resolve_after_s && now_s >= resolve_until_s_) {
     resolve_until_s_ = now_s + params_.resolve_after_s;
-    decideSide();  // which way round (above)
+    // Which way round (above), once per body while it is held: decided again every
+    // go-round, a command pointing at a standing body (its path runs on behind it) turns
+    // it to one side or the other with the noise, and the robot goes back and forth round
+    // it without getting past.
+    if (!nearest_body || nearest_body->name != resolve_body_ || nearest_of_load != resolve_of_load_) decideSide();
   }
   if (stuck_s >= params_.deadlock_after_s) {
     out.deadlock = true;
