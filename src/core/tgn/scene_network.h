@@ -48,7 +48,7 @@ namespace ddace::tgn {
 /// Relative features per pair (see above): displacement (2), distance, near ranks (2),
 /// far ranks (2), axis orders of j (4) and of i (4), the last step's relation (2), the
 /// relation of i's and of j's last move (2).
-inline constexpr int kRelativeFeatures = 19;
+inline constexpr int kRelativeFeatures = 35;
 
 /// taken [..., N] (1 = a target no entity may point at) -> [..., 1, 1 + N], added to the
 /// pointer's logits [..., N, 1 + N]: -1e9 on the taken targets' columns ("none" stays).

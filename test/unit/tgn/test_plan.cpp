@@ -201,6 +201,95 @@ TEST(RelationalBasis, RemembersEachOnesLastMove) {
     }
 }
 
+// Ranks among all of a kind: in "two boxes" both boxes stand with their carriers as step 2
+// begins, so neither is a rival of the other in the ranks of the free ones (both rank 1
+// seen from G1); "the box nearest to G1", carried or not, is the rank among all.
+TEST(RelationalBasis, RanksAmongAllOfAKindSeeCarriedLoads) {
+  const task::TaskDir boxes = generate("zoo:two-boxes", 2);
+  auto impl = tgn::prepare(boxes, tgn::TrainOptions{});
+  ASSERT_TRUE(impl->info.plan.parked_out_of_ranks);
+  impl->build();
+  const task::Demonstration d = impl->order.toCanonical(boxes.demos.front());
+  ASSERT_EQ(d.steps.size(), 2u);
+  const int n = impl->cfg.nodes;
+  const auto canonical = [&](const std::string& name) {
+    for (int c = 0; c < n; ++c)
+      if (boxes.spec.entities[static_cast<size_t>(impl->order.task_of[static_cast<size_t>(c)])].name == name) return c;
+    return -1;
+  };
+  const int g1 = canonical("G1"), b1 = canonical("B1"), b2 = canonical("B2");
+  const std::vector<std::vector<Eigen::Vector2d>> history = {d.snapshots[0].positions, d.snapshots[1].positions};
+  const auto& pos = history.back();
+  const bool b1_nearer = (pos[static_cast<size_t>(b1)] - pos[static_cast<size_t>(g1)]).norm() <
+                         (pos[static_cast<size_t>(b2)] - pos[static_cast<size_t>(g1)]).norm();
+  std::vector<float> rel(static_cast<size_t>(n * n * tgn::kRelativeFeatures));
+  impl->relative(history.data(), history.size(), rel.data());
+  const auto feature = [&](int i, int j, int f) {
+    return rel[static_cast<size_t>((i * n + j) * tgn::kRelativeFeatures + f)];
+  };
+  // i's nearness rank among its kind seen from j: 4 among the rivals, 20 among all.
+  EXPECT_FLOAT_EQ(feature(b1, g1, 4), 1.f) << "parked: no rival";
+  EXPECT_FLOAT_EQ(feature(b2, g1, 4), 1.f) << "parked: no rival";
+  EXPECT_FLOAT_EQ(feature(b1, g1, 20), b1_nearer ? 1.f : 0.5f);
+  EXPECT_FLOAT_EQ(feature(b2, g1, 20), b1_nearer ? 0.5f : 1.f);
+  // G1 takes the box nearest to it in step 2 (the rule): the rank among all tells which.
+  for (const auto& t : d.steps[1].tokens)
+    if (t.target == g1 && (t.entity == b1 || t.entity == b2)) {
+      EXPECT_FLOAT_EQ(feature(t.entity, g1, 20), 1.f);
+    }
+}
+
+// The same place in two kinds' orders: "robots take goals in left-to-right order" pairs
+// the k-th robot from the left with the k-th goal from the left, which is one feature
+// (from the left: 31) of exactly the demonstrated pairs.
+TEST(RelationalBasis, SaysWhichPairsHoldTheSamePlaceInTheirKindsOrders) {
+  const task::TaskDir l2r = generate("zoo:left-to-right", 3);
+  auto impl = tgn::prepare(l2r, tgn::TrainOptions{});
+  impl->build();
+  const int n = impl->cfg.nodes;
+  for (const auto& demo : l2r.demos) {
+    const task::Demonstration d = impl->order.toCanonical(demo);
+    ASSERT_EQ(d.steps.size(), 1u);
+    std::vector<float> rel(static_cast<size_t>(n * n * tgn::kRelativeFeatures));
+    impl->relative(&d.snapshots[0].positions, 1, rel.data());
+    for (const auto& t : d.steps[0].tokens)
+      for (int j = 0; j < n; ++j)
+        if (l2r.spec.entities[static_cast<size_t>(impl->order.task_of[static_cast<size_t>(j)])].kind ==
+            task::EntityKind::Goal) {
+          EXPECT_FLOAT_EQ(rel[static_cast<size_t>((t.entity * n + j) * tgn::kRelativeFeatures + 31)],
+                          j == t.target ? 1.f : 0.f)
+              << "robot " << t.entity << ", goal " << j;
+        }
+  }
+}
+
+// Demonstrated tokens: whatever the heads say, a decided step holds only tokens whose type
+// (the actor's kind, action, the target's kind) the training demonstrations showed. A
+// network stopped after one epoch decides nearly at random; the decoder still never lets
+// a goal or a box act on its own, nor a robot carry toward a box.
+TEST(DemonstratedTokens, AreTheOnlyTokensADecidedStepHolds) {
+  tgn::TrainOptions o;
+  o.max_epochs = 1;
+  o.without = {tgn::Rule::Ensemble};
+  const task::TaskDir train = generate("zoo:two-boxes", 6);
+  const tgn::SequenceModel m = tgn::SequenceModel::train(train, o, nullptr);
+  const std::vector<std::string>& types = m.info().fingerprint.token_types;
+  ASSERT_EQ(types, (std::vector<std::string>{"object:carry:goal", "robot:carry:goal", "robot:move:object"}));
+  const task::TaskDir test = generate("zoo:two-boxes", 12, 5);
+  const auto kind = [&](int e) { return std::string(task::toString(test.spec.entities.at(static_cast<size_t>(e)).kind)); };
+  int tokens = 0;
+  for (const auto& d : test.demos)
+    for (size_t k = 1; k <= d.snapshots.size(); ++k) {
+      const auto p = m.predictNext({d.snapshots.begin(), d.snapshots.begin() + static_cast<long>(k)});
+      for (const auto& t : p.tokens) {
+        ++tokens;
+        const std::string type = kind(t.entity) + ":" + t.action + (t.isMotion() ? ":" + kind(t.target) : "");
+        EXPECT_TRUE(std::count(types.begin(), types.end(), type)) << type << " at snapshot " << k;
+      }
+    }
+  EXPECT_GT(tokens, 20);
+}
+
 // One decoder: the step accuracy training prints and stepAccuracy returns is the fraction of
 // steps (and END) predictNext decides exactly from the true history, on rules where the
 // decoder does more than each entity's argmax: token by token (nearest_goal), carried
