@@ -316,18 +316,22 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
       const double dij = d[static_cast<size_t>(i * n + j)];
       // How many entities of j's kind are nearer to i than j (and farther); of i's kind
       // nearer to j than i (and farther).
-      int near_j = 0, near_i = 0, far_j = 0, far_i = 0;  // among the rivals
+      int near_j = 0, near_i = 0, far_j = 0, far_i = 0;                  // among the rivals
       int all_near_j = 0, all_near_i = 0, all_far_j = 0, all_far_i = 0;  // among all of the kind
       for (int k = 0; k < n; ++k) {
         if (k == i || k == j) continue;
         const bool r_k = rival[static_cast<size_t>(k)];
         if (kind(k) == kind(j)) {
-          const bool nearer = d[static_cast<size_t>(i * n + k)] < dij, farther = d[static_cast<size_t>(i * n + k)] > dij;
+          const double dk = d[static_cast<size_t>(i * n + k)];
+          const bool nearer = dk < dij;
+          const bool farther = dk > dij;
           all_near_j += nearer, all_far_j += farther;
           if (r_k) near_j += nearer, far_j += farther;
         }
         if (kind(k) == kind(i)) {
-          const bool nearer = d[static_cast<size_t>(j * n + k)] < dij, farther = d[static_cast<size_t>(j * n + k)] > dij;
+          const double dk = d[static_cast<size_t>(j * n + k)];
+          const bool nearer = dk < dij;
+          const bool farther = dk > dij;
           all_near_i += nearer, all_far_i += farther;
           if (r_k) near_i += nearer, far_i += farther;
         }
@@ -356,9 +360,6 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
       for (int a = 0; a < 4; ++a) {
         r[23 + a] = axis_all[static_cast<size_t>(j)][a];
         r[27 + a] = axis_all[static_cast<size_t>(i)][a];
-        // i and j hold the same place in their kinds' orders ("left to right": the k-th
-        // robot from the left to the k-th goal from the left).
-        r[31 + a] = axis[static_cast<size_t>(i)][a] == axis[static_cast<size_t>(j)][a] ? 1.f : 0.f;
       }
     }
 }

@@ -22,7 +22,8 @@ double SequenceModel::stepAccuracy(const std::vector<task::Demonstration>& demos
 
 std::pair<std::vector<bool>, std::vector<bool>> SequenceModel::Impl::demonstratedTokens() const {
   const int64_t n = cfg.nodes, actions = cfg.actions, targets = cfg.targets;
-  std::vector<bool> action_ok(static_cast<size_t>(n * actions), true), target_ok(static_cast<size_t>(n * targets), true);
+  std::vector<bool> action_ok(static_cast<size_t>(n * actions), true),
+      target_ok(static_cast<size_t>(n * targets), true);
   if (!isScene()) return {action_ok, target_ok};  // the paper's networks decode as the paper's
   const auto kindOf = [&](int64_t c) {
     return std::string(task::toString(spec.entities[static_cast<size_t>(order.task_of[static_cast<size_t>(c)])].kind));
