@@ -394,14 +394,12 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
                          std::all_of(version.begin(), version.end(), [](char c) { return c >= '0' && c <= '9'; });
     if (numeric && std::stoi(version) < std::stoi(own)) {
       const int v = std::stoi(version);
-      const std::string lacks =
-          v >= 10 ? "its plan has no ensemble: one network decides where the scene decides"
-                  : std::string(
-                        "its scene network saw another relational basis, its step rules counted a "
-                        "carried load as an actor") +
-                        (v < 9 ? ", its manifest records no training plan" : "") +
-                        (v < 4 ? ", the step rules learned from the demonstrations" : "") +
-                        (v < 3 ? ", and its files are not bound by digests to the model and its task" : "");
+      const std::string lacks = std::string("its scene network saw another relational basis") +
+                                (v < 11 ? ", its plan has no ensemble" : "") +
+                                (v < 10 ? ", its step rules counted a carried load as an actor" : "") +
+                                (v < 9 ? ", its manifest records no training plan" : "") +
+                                (v < 4 ? ", the step rules learned from the demonstrations" : "") +
+                                (v < 3 ? ", and its files are not bound by digests to the model and its task" : "");
       r.fail(format_node, "format '" + format + "' is an older model format than " + kModelFormat + " (" + lacks +
                               "): retrain the model (ddace train)");
     }

@@ -88,11 +88,17 @@ struct SequenceModel::Impl {
   /// the nearness ranks of the last snapshot of `history`) before the next. `target_logits` [N, targets] are the
   /// heads' with nothing given, on `nodes` [N, W] and `z` [H]. Returns per entity the
   /// target slot (0 = none) and its log-probability when chosen (not acting: 0 and 0).
+  /// `target_ok` [N][targets]: the demonstrated targets (demonstratedTokens).
   std::pair<std::vector<int>, std::vector<double>> chooseTargets(const torch::Tensor& target_logits,
                                                                  const torch::Tensor& nodes, const torch::Tensor& z,
                                                                  const std::vector<Eigen::Vector2d>* history,
                                                                  size_t count, const std::vector<bool>& acting,
+                                                                 const std::vector<bool>& target_ok,
                                                                  int member = 0) const;
+  /// Demonstrated tokens (scene; docs/tgn.md): per entity (canonical) the action classes
+  /// [N][actions] and target slots [N][targets] its kind took in the training
+  /// demonstrations (info.fingerprint.token_types); idle always. Other variants: all.
+  std::pair<std::vector<bool>, std::vector<bool>> demonstratedTokens() const;
   /// Exact-step accuracy, eval mode: the steps (and END) decide() decodes exactly from
   /// their true history; gnn: frames whose next labels are all right.
   double accuracy(const std::vector<Sequence>& seqs);

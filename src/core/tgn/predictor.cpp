@@ -20,13 +20,56 @@ double SequenceModel::stepAccuracy(const std::vector<task::Demonstration>& demos
   return impl_->accuracy(impl_->sequences(demos));
 }
 
-detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector<double>& la, std::vector<double>& lt,
-                                                 const Tensor& target_logits, const Tensor& nodes, const Tensor& z,
+std::pair<std::vector<bool>, std::vector<bool>> SequenceModel::Impl::demonstratedTokens() const {
+  const int64_t n = cfg.nodes, actions = cfg.actions, targets = cfg.targets;
+  std::vector<bool> action_ok(static_cast<size_t>(n * actions), true),
+      target_ok(static_cast<size_t>(n * targets), true);
+  if (!isScene()) return {action_ok, target_ok};  // the paper's networks decode as the paper's
+  const auto kindOf = [&](int64_t c) {
+    return std::string(task::toString(spec.entities[static_cast<size_t>(order.task_of[static_cast<size_t>(c)])].kind));
+  };
+  for (int64_t i = 0; i < n; ++i) {
+    const std::string kind = kindOf(i);
+    for (int64_t a = 1; a < actions; ++a) action_ok[static_cast<size_t>(i * actions + a)] = false;
+    for (int64_t t = 0; t < targets; ++t) target_ok[static_cast<size_t>(i * targets + t)] = false;
+    // token_types: "kind:action" (in place) or "kind:action:target kind", task::fingerprintOf.
+    for (const std::string& type : info.fingerprint.token_types) {
+      const size_t c1 = type.find(':');
+      if (type.compare(0, c1, kind) != 0) continue;
+      const size_t c2 = type.find(':', c1 + 1);
+      const int a = vocabIndex(type.substr(c1 + 1, c2 == std::string::npos ? std::string::npos : c2 - c1 - 1));
+      if (a >= 0) action_ok[static_cast<size_t>(i * actions + a + 1)] = true;
+      if (c2 == std::string::npos) {
+        target_ok[static_cast<size_t>(i * targets)] = true;
+        continue;
+      }
+      for (int64_t j = 0; j < n; ++j)
+        if (j != i && kindOf(j) == type.substr(c2 + 1)) target_ok[static_cast<size_t>(i * targets + j + 1)] = true;
+    }
+    // an entity that never acts keeps its (unread) target head as it is
+    if (std::none_of(target_ok.begin() + i * targets, target_ok.begin() + (i + 1) * targets, [](bool b) { return b; }))
+      std::fill(target_ok.begin() + i * targets, target_ok.begin() + (i + 1) * targets, true);
+  }
+  return {action_ok, target_ok};
+}
+
+detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector<double>& la_net,
+                                                 std::vector<double>& lt, const Tensor& target_logits,
+                                                 const Tensor& nodes, const Tensor& z,
                                                  const std::vector<Eigen::Vector2d>* history, size_t count,
                                                  int member) const {
   const int64_t n = cfg.nodes;
   const std::vector<Eigen::Vector2d>& pos = history[count - 1];
   const StepRules& rules = info.plan.step_rules;
+  // Demonstrated tokens only: an entity takes an action, and points at a kind of target,
+  // that its kind took in the training demonstrations (the fingerprint's token types; a
+  // goal never moves, whatever the step size asks).
+  std::vector<double> la = la_net;
+  const auto [action_ok, target_ok] = demonstratedTokens();
+  for (size_t k = 0; k < la.size(); ++k)
+    if (!action_ok[k]) la[k] = -1e9;
+  for (size_t k = 0; k < lt.size(); ++k)
+    if (!target_ok[k]) lt[k] = -1e9;
   // Carried loads (StepRules::load_actions): a load and the entities at its place decide as
   // one. The joint decoder sees the decisions only: each load's heads join those of the
   // entities at its place (log p(carrier's token) + log p(the load's: the same load action
@@ -79,7 +122,7 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
     std::vector<bool> acting(static_cast<size_t>(n));
     for (int64_t i = 0; i < n; ++i)
       acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
-    const auto [target, log_p] = chooseTargets(target_logits, nodes, z, history, count, acting, member);
+    const auto [target, log_p] = chooseTargets(target_logits, nodes, z, history, count, acting, target_ok, member);
     for (int64_t i = 0; i < n; ++i)
       if (acting[static_cast<size_t>(i)]) {
         decision.tokens[static_cast<size_t>(i)].target = target[static_cast<size_t>(i)];
@@ -102,13 +145,16 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
 
 std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTargets(
     const Tensor& target_logits, const Tensor& nodes, const Tensor& z, const std::vector<Eigen::Vector2d>* history,
-    size_t count, const std::vector<bool>& acting, int member) const {
+    size_t count, const std::vector<bool>& acting, const std::vector<bool>& target_ok, int member) const {
   const int64_t n = cfg.nodes, targets = cfg.targets;
+  Tensor undemonstrated = torch::zeros({n, targets});
+  for (int64_t k = 0; k < n * targets; ++k)
+    if (!target_ok[static_cast<size_t>(k)]) undemonstrated[k / targets][k % targets] = -1e9;
   std::vector<int> target(static_cast<size_t>(n), 0);
   std::vector<double> log_p(static_cast<size_t>(n), 0);
   std::vector<bool> open = acting, competing(static_cast<size_t>(n), true);
   Tensor taken = torch::zeros({n});
-  Tensor logits = target_logits;
+  Tensor logits = target_logits + undemonstrated;
   SceneNetwork net = members().at(static_cast<size_t>(member));
   while (std::any_of(open.begin(), open.end(), [](bool o) { return o; })) {
     const Tensor l = logits.to(torch::kDouble).contiguous();
@@ -132,7 +178,7 @@ std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTarg
     if (std::none_of(open.begin(), open.end(), [](bool o) { return o; })) break;
     Tensor given = torch::zeros({n, n, kRelativeFeatures});
     relative(history, count, given.data_ptr<float>(), &competing);
-    logits = net->heads(nodes, given, z).target + takenMask(taken).squeeze(0);
+    logits = net->heads(nodes, given, z).target + takenMask(taken).squeeze(0) + undemonstrated;
   }
   return {target, log_p};
 }
