@@ -65,10 +65,11 @@ namespace ddace::tgn {
 /// (`parked_out_of_ranks`); /8: the scene network's relational basis (farness ranks, axis
 /// orders, the last step) and the carried loads among the step rules; /9: what training
 /// decided (TrainingPlan, `plan`) apart from the requested `hyper_parameters` (the rules
-/// switched off: `without`); /11: the ensemble (`plan.ensemble`; weights.pt holds its other
-/// members' weights as `member1`, `member2`, ...); /12: the relational basis orders along
-/// the axes strictly (tied only at one place) and ranks and orders among all of a kind
-/// beside the rivals. Older ones are refused (retrain).
+/// switched off: `without`); /10: a carried load and its carrier one decision in the step
+/// rules (`load_actions`), each one's last move in the relational basis; /11: the ensemble
+/// (`plan.ensemble`; weights.pt holds its other members' weights as `member1`, `member2`,
+/// ...); /12: the relational basis orders along the axes strictly (tied only at one
+/// place). Older ones are refused (retrain).
 inline constexpr const char* kModelFormat = "ddace-model/12";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".

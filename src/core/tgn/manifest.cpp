@@ -394,7 +394,7 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
                          std::all_of(version.begin(), version.end(), [](char c) { return c >= '0' && c <= '9'; });
     if (numeric && std::stoi(version) < std::stoi(own)) {
       const int v = std::stoi(version);
-      const std::string lacks = std::string("its scene network saw another relational basis") +
+      const std::string lacks = std::string("the scene network's relational basis changed") +
                                 (v < 11 ? ", its plan has no ensemble" : "") +
                                 (v < 10 ? ", its step rules counted a carried load as an actor" : "") +
                                 (v < 9 ? ", its manifest records no training plan" : "") +

@@ -257,25 +257,18 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
   // Order along the table's axes: 1 / (1 + the number of rivals of e's kind before e), from
   // the left (x), the right, the front (y) and the back; two at one place are tied, any
   // others ordered however near their coordinates (side by side, 5 cm apart in x, one is
-  // still the leftmost). Each is read twice, as the ranks below: among the rivals and among
-  // all of the kind.
-  std::vector<std::array<float, 4>> axis(static_cast<size_t>(n)), axis_all(static_cast<size_t>(n));
+  // still the leftmost).
+  std::vector<std::array<float, 4>> axis(static_cast<size_t>(n));
   for (int e = 0; e < n; ++e) {
-    int before[4] = {0, 0, 0, 0}, before_all[4] = {0, 0, 0, 0};
+    int before[4] = {0, 0, 0, 0};
     for (int k = 0; k < n; ++k) {
-      if (k == e || kind(k) != kind(e)) continue;
+      if (k == e || !rival[static_cast<size_t>(k)] || kind(k) != kind(e)) continue;
       if (d[static_cast<size_t>(k * n + e)] == 0.0) continue;  // at one place: neither is before the other
       const Eigen::Vector2d delta = pos[k] - pos[e];
-      const int b[4] = {delta.x() < 0, delta.x() > 0, delta.y() < 0, delta.y() > 0};
-      for (int a = 0; a < 4; ++a) {
-        before_all[a] += b[a];
-        if (rival[static_cast<size_t>(k)]) before[a] += b[a];
-      }
+      before[0] += delta.x()<0, before[1] += delta.x()> 0;
+      before[2] += delta.y()<0, before[3] += delta.y()> 0;
     }
-    for (int a = 0; a < 4; ++a) {
-      axis[static_cast<size_t>(e)][a] = 1.f / static_cast<float>(1 + before[a]);
-      axis_all[static_cast<size_t>(e)][a] = 1.f / static_cast<float>(1 + before_all[a]);
-    }
+    for (int a = 0; a < 4; ++a) axis[static_cast<size_t>(e)][a] = 1.f / static_cast<float>(1 + before[a]);
   }
   // The last step (from the previous snapshot): e went to f when e moved and now stands
   // where f stood (a motion ends on its target as the step began).
@@ -316,24 +309,16 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
       const double dij = d[static_cast<size_t>(i * n + j)];
       // How many entities of j's kind are nearer to i than j (and farther); of i's kind
       // nearer to j than i (and farther).
-      int near_j = 0, near_i = 0, far_j = 0, far_i = 0;                  // among the rivals
-      int all_near_j = 0, all_near_i = 0, all_far_j = 0, all_far_i = 0;  // among all of the kind
+      int near_j = 0, near_i = 0, far_j = 0, far_i = 0;
       for (int k = 0; k < n; ++k) {
-        if (k == i || k == j) continue;
-        const bool r_k = rival[static_cast<size_t>(k)];
+        if (k == i || k == j || !rival[static_cast<size_t>(k)]) continue;
         if (kind(k) == kind(j)) {
-          const double dk = d[static_cast<size_t>(i * n + k)];
-          const bool nearer = dk < dij;
-          const bool farther = dk > dij;
-          all_near_j += nearer, all_far_j += farther;
-          if (r_k) near_j += nearer, far_j += farther;
+          near_j += d[static_cast<size_t>(i * n + k)] < dij;
+          far_j += d[static_cast<size_t>(i * n + k)] > dij;
         }
         if (kind(k) == kind(i)) {
-          const double dk = d[static_cast<size_t>(j * n + k)];
-          const bool nearer = dk < dij;
-          const bool farther = dk > dij;
-          all_near_i += nearer, all_far_i += farther;
-          if (r_k) near_i += nearer, far_i += farther;
+          near_i += d[static_cast<size_t>(j * n + k)] < dij;
+          far_i += d[static_cast<size_t>(j * n + k)] > dij;
         }
       }
       if (info.options.edge_displacement) {
@@ -353,14 +338,6 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
       r[16] = wentTo(j, i) ? 1.f : 0.f;
       r[17] = last_went[static_cast<size_t>(i)] == j ? 1.f : 0.f;
       r[18] = last_went[static_cast<size_t>(j)] == i ? 1.f : 0.f;
-      r[19] = 1.f / static_cast<float>(1 + all_near_j);
-      r[20] = 1.f / static_cast<float>(1 + all_near_i);
-      r[21] = 1.f / static_cast<float>(1 + all_far_j);
-      r[22] = 1.f / static_cast<float>(1 + all_far_i);
-      for (int a = 0; a < 4; ++a) {
-        r[23 + a] = axis_all[static_cast<size_t>(j)][a];
-        r[27 + a] = axis_all[static_cast<size_t>(i)][a];
-      }
     }
 }
 

@@ -53,7 +53,7 @@ struct SequenceModel::Impl {
   /// Normalised node features of one row / snapshot (canonical order) into out[N][features].
   void features(const std::vector<Eigen::Vector2d>& pos, const std::vector<task::Label>* labels, float* out) const;
   /// Relative features of every pair (canonical order) into out[N][N][kRelativeFeatures].
-  /// `competing`, when given ([N], canonical): the nearness ranks count only these
+  /// `competing`, when given ([N], canonical): the ranks and axis orders count only these
   /// entities as rivals ("Token by token": those not yet given a part in the step).
   /// `history[0 .. count)`: the snapshots so far (canonical), the last the one whose
   /// features these are; the ones before it for the relations of the last step and of each
@@ -79,16 +79,18 @@ struct SequenceModel::Impl {
   /// `history[0 .. count)`: the snapshots so far (canonical), the last the step's.
   /// `member`: the scene ensemble's network whose heads these are (token by token runs its
   /// heads again); an ensemble keeps its members' majority (detail::majorityDecision).
+  /// First, scene only, demonstrated tokens (demonstratedTokens): the actions and targets
+  /// an entity's kind never took are set to -1e9 (the joint decoder's floor), in `lt` too.
   detail::StepDecision decide(double p_end, const std::vector<double>& la, std::vector<double>& lt,
                               const torch::Tensor& target_logits, const torch::Tensor& nodes, const torch::Tensor& z,
                               const std::vector<Eigen::Vector2d>* history, size_t count, int member = 0) const;
   /// Token by token (scene; docs/tgn.md): the targets of the entities `acting` (canonical)
   /// of one step, chosen one at a time, the surest (entity, target) pair of the pointer's
   /// logits first, each chosen one then given to the heads (its target taken, both out of
-  /// the nearness ranks of the last snapshot of `history`) before the next. `target_logits` [N, targets] are the
-  /// heads' with nothing given, on `nodes` [N, W] and `z` [H]. Returns per entity the
-  /// target slot (0 = none) and its log-probability when chosen (not acting: 0 and 0).
-  /// `target_ok` [N][targets]: the demonstrated targets (demonstratedTokens).
+  /// the ranks and orders of the last snapshot of `history`) before the next. `target_logits` [N, targets] are
+  /// the heads' with nothing given, on `nodes` [N, W] and `z` [H]. Returns per entity the target slot (0 = none) and
+  /// its log-probability when chosen (not acting: 0 and 0). `target_ok` [N][targets]: the demonstrated targets
+  /// (demonstratedTokens).
   std::pair<std::vector<int>, std::vector<double>> chooseTargets(const torch::Tensor& target_logits,
                                                                  const torch::Tensor& nodes, const torch::Tensor& z,
                                                                  const std::vector<Eigen::Vector2d>* history,

@@ -147,9 +147,10 @@ std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTarg
     const Tensor& target_logits, const Tensor& nodes, const Tensor& z, const std::vector<Eigen::Vector2d>* history,
     size_t count, const std::vector<bool>& acting, const std::vector<bool>& target_ok, int member) const {
   const int64_t n = cfg.nodes, targets = cfg.targets;
-  Tensor undemonstrated = torch::zeros({n, targets});
-  for (int64_t k = 0; k < n * targets; ++k)
-    if (!target_ok[static_cast<size_t>(k)]) undemonstrated[k / targets][k % targets] = -1e9;
+  std::vector<float> mask(static_cast<size_t>(n * targets), 0.f);  // one tensor op, not one per element
+  for (size_t k = 0; k < mask.size(); ++k)
+    if (!target_ok[k]) mask[k] = -1e9f;
+  const Tensor undemonstrated = torch::from_blob(mask.data(), {n, targets}, torch::kFloat).clone();
   std::vector<int> target(static_cast<size_t>(n), 0);
   std::vector<double> log_p(static_cast<size_t>(n), 0);
   std::vector<bool> open = acting, competing(static_cast<size_t>(n), true);

@@ -16,9 +16,9 @@
 //                   as the step began: "the one who received the box"); and each one's
 //                   last move, however many steps ago: i's last move went to j, j's to i
 //                   ("the giver follows the receiver" after the receiver moved on). Ranks and
-//                   orders twice: among the rivals (an entity parked with another, or, token
-//                   by token, one already given its part, is none) and among all of the
-//                   kind. Orders are strict but for two at one place. The displacement x_j - x_i only with
+//                   orders count only rivals: an entity parked with another (or, token by
+//                   token, one already given its part) is none. Orders are strict but for
+//                   two at one place. The displacement x_j - x_i only with
 //                   TrainOptions::edge_displacement (off by default).
 //                   Entities within task::togetherDistance of each other (the end-point
 //                   rule: contact plus the arrival radius) are at one place: distance 0,
@@ -48,9 +48,8 @@ namespace ddace::tgn {
 
 /// Relative features per pair (see above): displacement (2), distance, near ranks (2),
 /// far ranks (2), axis orders of j (4) and of i (4), the last step's relation (2), the
-/// relation of i's and of j's last move (2); then, among all of the kind, near ranks (2),
-/// far ranks (2), axis orders of j (4) and of i (4).
-inline constexpr int kRelativeFeatures = 31;
+/// relation of i's and of j's last move (2).
+inline constexpr int kRelativeFeatures = 19;
 
 /// taken [..., N] (1 = a target no entity may point at) -> [..., 1, 1 + N], added to the
 /// pointer's logits [..., N, 1 + N]: -1e9 on the taken targets' columns ("none" stays).

@@ -216,8 +216,9 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
   if (plan.names_or_scene) tryInstead(plan.withoutIdentity(), "without the identity embedding");
   // Shuffled names, unless they cost the fit: the groups are read from the tokens, but a
   // rule may refer to an entity no token tells apart ("the robot 2nd farthest from G1",
-  // G1 a target only in some demonstrations, as G2): shuffled with G2, G1's name is lost,
-  // and the network fits short of the demonstrations. Then the names are kept.
+  // G1 a target only in some demonstrations, as G2): shuffled with G2, G1's name is lost.
+  // Where the network then fits short of the demonstrations, the names are kept (a fit
+  // reached by other coincidences of the scenes is not caught: docs/tgn-log.md).
   if (!impl->info.plan.name_groups.empty()) tryInstead(impl->info.plan.withNamesKept(), "with the names kept");
   // Ensemble: the other members trained as the first (with its identity embedding or
   // not), each from a seed of its own; each decodes a step and the majority decides

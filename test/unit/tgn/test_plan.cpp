@@ -203,44 +203,6 @@ TEST(RelationalBasis, RemembersEachOnesLastMove) {
     }
 }
 
-// Ranks among all of a kind: in "two boxes" both boxes stand with their carriers as step 2
-// begins, so neither is a rival of the other in the ranks of the free ones (both rank 1
-// seen from G1); "the box nearest to G1", carried or not, is the rank among all.
-TEST(RelationalBasis, RanksAmongAllOfAKindSeeCarriedLoads) {
-  const task::TaskDir boxes = generate("zoo:two-boxes", 2);
-  auto impl = tgn::prepare(boxes, tgn::TrainOptions{});
-  ASSERT_TRUE(impl->info.plan.parked_out_of_ranks);
-  impl->build();
-  const task::Demonstration d = impl->order.toCanonical(boxes.demos.front());
-  ASSERT_EQ(d.steps.size(), 2u);
-  const int n = impl->cfg.nodes;
-  const auto canonical = [&](const std::string& name) {
-    for (int c = 0; c < n; ++c)
-      if (boxes.spec.entities[static_cast<size_t>(impl->order.task_of[static_cast<size_t>(c)])].name == name) return c;
-    return -1;
-  };
-  const int g1 = canonical("G1"), b1 = canonical("B1"), b2 = canonical("B2");
-  const std::vector<std::vector<Eigen::Vector2d>> history = {d.snapshots[0].positions, d.snapshots[1].positions};
-  const auto& pos = history.back();
-  const bool b1_nearer = (pos[static_cast<size_t>(b1)] - pos[static_cast<size_t>(g1)]).norm() <
-                         (pos[static_cast<size_t>(b2)] - pos[static_cast<size_t>(g1)]).norm();
-  std::vector<float> rel(static_cast<size_t>(n * n * tgn::kRelativeFeatures));
-  impl->relative(history.data(), history.size(), rel.data());
-  const auto feature = [&](int i, int j, int f) {
-    return rel[static_cast<size_t>((i * n + j) * tgn::kRelativeFeatures + f)];
-  };
-  // i's nearness rank among its kind seen from j: 4 among the rivals, 20 among all.
-  EXPECT_FLOAT_EQ(feature(b1, g1, 4), 1.f) << "parked: no rival";
-  EXPECT_FLOAT_EQ(feature(b2, g1, 4), 1.f) << "parked: no rival";
-  EXPECT_FLOAT_EQ(feature(b1, g1, 20), b1_nearer ? 1.f : 0.5f);
-  EXPECT_FLOAT_EQ(feature(b2, g1, 20), b1_nearer ? 0.5f : 1.f);
-  // G1 takes the box nearest to it in step 2 (the rule): the rank among all tells which.
-  for (const auto& t : d.steps[1].tokens)
-    if (t.target == g1 && (t.entity == b1 || t.entity == b2)) {
-      EXPECT_FLOAT_EQ(feature(t.entity, g1, 20), 1.f);
-    }
-}
-
 // Orders along the table's axes are strict but for entities at one place: "robots take
 // goals in left-to-right order" pairs the k-th robot from the left (i's order from the
 // left: feature 11) with the k-th goal from the left (j's: 7), also where two robots or two
@@ -305,6 +267,12 @@ TEST(DemonstratedTokens, AreTheOnlyTokensADecidedStepHolds) {
         EXPECT_TRUE(actions.count(kind(t.entity) + ":" + t.action)) << kind(t.entity) << " " << t.action;
         ASSERT_TRUE(t.isMotion());
         EXPECT_TRUE(targets.count(kind(t.entity) + ":" + kind(t.target))) << kind(t.entity) << " to " << kind(t.target);
+        if (kind(t.entity) != "object") continue;
+        // never on its own: a robot takes the same token (its carrier)
+        const bool carried = std::any_of(p.tokens.begin(), p.tokens.end(), [&](const task::Token& c) {
+          return kind(c.entity) == "robot" && c.action == t.action && c.target == t.target;
+        });
+        EXPECT_TRUE(carried) << "box " << t.entity << " " << t.action << " alone";
       }
     }
   EXPECT_GT(tokens, 20);
