@@ -868,7 +868,9 @@ TEST(ShuffledNames, ChangeTheSceneFamiliesTrainingOnly) {
     for (const auto& r : m.info().history) l.push_back(r.loss);
     return l;
   };
-  const task::TaskDir queue = generate("queue", 6), task2 = generate("task2", 6);
+  // queue's data seed 2: at seed 1 the network with the names shuffled fits short after 6
+  // epochs and the one with them kept ("unless they cost the fit") replaces it.
+  const task::TaskDir queue = generate("queue", 6, 2), task2 = generate("task2", 6);
   EXPECT_NE(losses(tgn::SequenceModel::train(queue, on, nullptr)),
             losses(tgn::SequenceModel::train(queue, off, nullptr)));
   ASSERT_FALSE(tgn::detail::interchangeableNames(task2).empty()) << "Task 2 has no robots sharing a role";
