@@ -265,8 +265,10 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
       if (k == e || !rival[static_cast<size_t>(k)] || kind(k) != kind(e)) continue;
       if (d[static_cast<size_t>(k * n + e)] == 0.0) continue;  // at one place: neither is before the other
       const Eigen::Vector2d delta = pos[k] - pos[e];
-      before[0] += delta.x()<0, before[1] += delta.x()> 0;
-      before[2] += delta.y()<0, before[3] += delta.y()> 0;
+      before[0] += delta.x() < 0;
+      before[1] += delta.x() > 0;
+      before[2] += delta.y() < 0;
+      before[3] += delta.y() > 0;
     }
     for (int a = 0; a < 4; ++a) axis[static_cast<size_t>(e)][a] = 1.f / static_cast<float>(1 + before[a]);
   }
@@ -457,6 +459,7 @@ double SequenceModel::Impl::accuracy(const Batch& batch) {
     Tensor nodes, z, la, lt, p_end;
   };
   const bool scene = isScene(), by_token = info.plan.token_by_token;
+  const DemonstratedTokens demonstrated = demonstratedTokens();
   std::vector<Outputs> out(scene ? 1 + others.size() : 1);
   for (size_t m = 0; m < out.size(); ++m) {
     Outputs& o = out[m];
@@ -486,7 +489,7 @@ double SequenceModel::Impl::accuracy(const Batch& batch) {
         decisions.push_back(decide(o.p_end.data_ptr<double>()[slot], la, lt, by_token ? o.h.target[b][t] : Tensor(),
                                    by_token ? o.nodes[b][t] : Tensor(), by_token ? o.z[b][t] : Tensor(),
                                    scene ? &batch.positions[static_cast<size_t>(b * batch.t)] : &kNoPositions,
-                                   scene ? static_cast<size_t>(t) + 1 : 1, static_cast<int>(m)));
+                                   scene ? static_cast<size_t>(t) + 1 : 1, demonstrated, static_cast<int>(m)));
       }
       const detail::StepDecision& d = decisions[detail::majorityDecision(decisions)];
       bool ok = d.end == (end[b][t] == 1);

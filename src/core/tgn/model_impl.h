@@ -28,6 +28,12 @@ struct EntityOrder {
   task::Demonstration rowsToTask(const task::Demonstration& d) const;
 };
 
+/// Demonstrated tokens (Impl::demonstratedTokens): per entity (canonical order) the action
+/// classes [N][actions] and target slots [N][targets] the decoder may choose.
+struct DemonstratedTokens {
+  std::vector<bool> action_ok, target_ok;
+};
+
 struct SequenceModel::Impl {
   task::TaskSpec spec;  ///< in the task's order (as task.yaml)
   EntityOrder order;
@@ -81,9 +87,12 @@ struct SequenceModel::Impl {
   /// heads again); an ensemble keeps its members' majority (detail::majorityDecision).
   /// First, scene only, demonstrated tokens (demonstratedTokens): the actions and targets
   /// an entity's kind never took are set to -1e9 (the joint decoder's floor), in `lt` too.
+  /// `demonstrated`: demonstratedTokens(), computed once by the caller (it does not change
+  /// from step to step).
   detail::StepDecision decide(double p_end, const std::vector<double>& la, std::vector<double>& lt,
                               const torch::Tensor& target_logits, const torch::Tensor& nodes, const torch::Tensor& z,
-                              const std::vector<Eigen::Vector2d>* history, size_t count, int member = 0) const;
+                              const std::vector<Eigen::Vector2d>* history, size_t count,
+                              const DemonstratedTokens& demonstrated, int member = 0) const;
   /// Token by token (scene; docs/tgn.md): the targets of the entities `acting` (canonical)
   /// of one step, chosen one at a time, the surest (entity, target) pair of the pointer's
   /// logits first, each chosen one then given to the heads (its target taken, both out of
@@ -100,7 +109,7 @@ struct SequenceModel::Impl {
   /// Demonstrated tokens (scene; docs/tgn.md): per entity (canonical) the action classes
   /// [N][actions] and target slots [N][targets] its kind took in the training
   /// demonstrations (info.fingerprint.token_types); idle always. Other variants: all.
-  std::pair<std::vector<bool>, std::vector<bool>> demonstratedTokens() const;
+  DemonstratedTokens demonstratedTokens() const;
   /// Exact-step accuracy, eval mode: the steps (and END) decide() decodes exactly from
   /// their true history; gnn: frames whose next labels are all right.
   double accuracy(const std::vector<Sequence>& seqs);

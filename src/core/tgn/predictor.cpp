@@ -20,7 +20,7 @@ double SequenceModel::stepAccuracy(const std::vector<task::Demonstration>& demos
   return impl_->accuracy(impl_->sequences(demos));
 }
 
-std::pair<std::vector<bool>, std::vector<bool>> SequenceModel::Impl::demonstratedTokens() const {
+DemonstratedTokens SequenceModel::Impl::demonstratedTokens() const {
   const int64_t n = cfg.nodes, actions = cfg.actions, targets = cfg.targets;
   std::vector<bool> action_ok(static_cast<size_t>(n * actions), true),
       target_ok(static_cast<size_t>(n * targets), true);
@@ -57,7 +57,7 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
                                                  std::vector<double>& lt, const Tensor& target_logits,
                                                  const Tensor& nodes, const Tensor& z,
                                                  const std::vector<Eigen::Vector2d>* history, size_t count,
-                                                 int member) const {
+                                                 const DemonstratedTokens& demonstrated, int member) const {
   const int64_t n = cfg.nodes;
   const std::vector<Eigen::Vector2d>& pos = history[count - 1];
   const StepRules& rules = info.plan.step_rules;
@@ -65,7 +65,8 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
   // that its kind took in the training demonstrations (the fingerprint's token types; a
   // goal never moves, whatever the step size asks).
   std::vector<double> la = la_net;
-  const auto [action_ok, target_ok] = demonstratedTokens();
+  const std::vector<bool>& action_ok = demonstrated.action_ok;
+  const std::vector<bool>& target_ok = demonstrated.target_ok;
   for (size_t k = 0; k < la.size(); ++k)
     if (!action_ok[k]) la[k] = -1e9;
   for (size_t k = 0; k < lt.size(); ++k)
@@ -218,6 +219,7 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
   };
   std::vector<Decided> decided;
   const bool by_token = m.info.plan.token_by_token;
+  const DemonstratedTokens demonstrated = m.demonstratedTokens();
   if (m.isScene()) {
     const std::vector<SceneNetwork> members = m.members();
     for (size_t k = 0; k < members.size(); ++k) {
@@ -227,7 +229,7 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
       const Heads h = net->heads(nodes[t - 1], rel[t - 1], z);
       Decided d{torch::softmax(h.end, -1)[1].item<double>(), logSoftmax(h.action), logSoftmax(h.target), {}};
       d.decision = m.decide(d.p_end, d.la, d.lt, by_token ? h.target : Tensor(), by_token ? nodes[t - 1] : Tensor(), z,
-                            canonical.data(), static_cast<size_t>(t), static_cast<int>(k));
+                            canonical.data(), static_cast<size_t>(t), demonstrated, static_cast<int>(k));
       decided.push_back(std::move(d));
       // A majority already: the networks left cannot change the decision (nor which
       // network's it is: the first of the most voted), so they are not run.
@@ -241,7 +243,8 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
     const Tensor emb = net->encode(x);
     const Heads h = net->heads(fused::gru(net->gru, emb.unsqueeze(0)).first.select(1, t - 1).squeeze(0));
     Decided d{torch::softmax(h.end, -1)[1].item<double>(), logSoftmax(h.action), logSoftmax(h.target), {}};
-    d.decision = m.decide(d.p_end, d.la, d.lt, Tensor(), Tensor(), Tensor(), canonical.data(), static_cast<size_t>(t));
+    d.decision = m.decide(d.p_end, d.la, d.lt, Tensor(), Tensor(), Tensor(), canonical.data(), static_cast<size_t>(t),
+                          demonstrated);
     decided.push_back(std::move(d));
   }
   std::vector<detail::StepDecision> decisions;
