@@ -241,54 +241,6 @@ SequenceModel SequenceModel::train(const task::TaskDir& train, const TrainOption
 
 namespace detail {
 
-std::vector<std::vector<int>> interchangeableNames(const task::TaskDir& train) {
-  const std::vector<task::Entity>& entities = train.spec.entities;
-  const size_t n = entities.size();
-  const auto kind = [&](int i) { return std::string(task::toString(entities[static_cast<size_t>(i)].kind)); };
-  // roles[e][d]: entity e's tokens in demonstration d, names of the others replaced by kinds.
-  std::vector<std::vector<std::vector<std::string>>> roles(n);
-  for (const auto& d : train.demos) {
-    std::vector<std::vector<std::string>> role(n);
-    for (size_t k = 0; k < d.steps.size(); ++k)
-      for (const auto& t : d.steps[k].tokens) {
-        const std::string step = std::to_string(k) + ":" + t.action;
-        role[static_cast<size_t>(t.entity)].push_back(step + ":acts:" + (t.target >= 0 ? kind(t.target) : "-"));
-        if (t.target >= 0) role[static_cast<size_t>(t.target)].push_back(step + ":target of:" + kind(t.entity));
-      }
-    for (size_t e = 0; e < n; ++e) {
-      std::sort(role[e].begin(), role[e].end());
-      roles[e].push_back(role[e]);
-    }
-  }
-  // An entity's role is fixed when it is the same in every demonstration but labelling
-  // slips: at most one in ten of them (rounded down), as task::commonSteps allows.
-  const size_t slips = train.demos.size() / 10;
-  std::vector<std::vector<std::string>> modal(n);
-  std::vector<bool> fixed(n, false);
-  for (size_t e = 0; e < n && !train.demos.empty(); ++e) {
-    size_t best = 0;
-    for (const auto& r : roles[e]) {
-      const size_t count = static_cast<size_t>(std::count(roles[e].begin(), roles[e].end(), r));
-      if (count > best) best = count, modal[e] = r;
-    }
-    fixed[e] = best + slips >= roles[e].size();
-  }
-  std::vector<std::vector<int>> groups;
-  for (task::EntityKind k : {task::EntityKind::Robot, task::EntityKind::Object, task::EntityKind::Goal}) {
-    std::vector<int> group;
-    for (size_t e = 0; e < n; ++e) {
-      if (entities[e].kind != k) continue;
-      bool named = fixed[e];
-      for (size_t o = 0; o < n && named; ++o)
-        if (o != e && entities[o].kind == k && fixed[o] && modal[o] == modal[e]) named = false;
-      if (!named) group.push_back(static_cast<int>(e));
-    }
-    if (group.size() >= 2) groups.push_back(group);
-  }
-  std::sort(groups.begin(), groups.end());
-  return groups;
-}
-
 bool atPlateau(const std::vector<EpochRecord>& history, int patience, double delta) {
   // The best loss of the last `p` epochs within delta of the best of the `p` before them (a
   // recovering spike is not a plateau), and the last epoch's too: the weights kept are the
