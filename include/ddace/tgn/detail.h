@@ -35,9 +35,13 @@ std::vector<float> gatForward(const GatWeights& w, const std::vector<float>& x, 
 /// action and the target's kind) and as target (the action and the actor's kind). An
 /// entity keeps its name when it plays one role in every demonstration and no other
 /// entity of its kind plays that role too (queue's slots Q1, Q2, Q3: the name says
-/// which step fills it); the other entities of each kind form a group (only groups of two
-/// or more are returned). "Every demonstration" allows labelling slips: one role in all
-/// but at most one in ten of them (rounded down), as task::commonSteps.
+/// which step fills it), and when the rule refers to it by name: a nearness or farness
+/// rank of it to a token's participant has one value in every demonstration and, for its
+/// mates, so rarely that the names are not interchangeable ("the others meet at the robot
+/// nearest to G1"; binomial tail at the mates' rate < 1e-3). The other entities of each
+/// kind form a group (only groups of two or more are returned). "Every demonstration"
+/// allows labelling slips: all but at most one in ten of them (rounded down), as
+/// task::commonSteps.
 std::vector<std::vector<int>> interchangeableNames(const task::TaskDir& train);
 /// The training's stopping rule (see "stopping" above) on the epochs so far.
 bool atPlateau(const std::vector<EpochRecord>& history, int patience, double delta);
