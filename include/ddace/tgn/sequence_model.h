@@ -70,7 +70,7 @@ namespace ddace::tgn {
 /// (`plan.ensemble`; weights.pt holds its other members' weights as `member1`, `member2`,
 /// ...); /12: the relational basis orders along the axes strictly (tied only at one
 /// place). Older ones are refused (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/12";
+inline constexpr const char* kModelFormat = "ddace-model/13";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {

@@ -5,6 +5,7 @@
 #include <ATen/CPUGeneratorImpl.h>
 
 #include <algorithm>
+#include <functional>
 #include <array>
 #include <map>
 #include <cmath>
@@ -240,11 +241,34 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
     for (int j = 0; j < n; ++j)
       together[static_cast<size_t>(i * n + j)] = task::togetherDistance(spec, order.task_of[i], order.task_of[j]);
   const auto at = [&](int i, int j) { return together[static_cast<size_t>(i * n + j)]; };
+  // Entities at one place are seen from elsewhere as one place, their mean: a carrier and
+  // its load (or a robot and the goal it stands on) then have the same nearest of every
+  // kind, as they have one part in the rule ("the teammate nearest to it"), instead of two
+  // views a contact apart (a carrier stops behind its load) that disagree where two
+  // teammates are nearly as near.
+  std::vector<int> cluster(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) cluster[static_cast<size_t>(i)] = i;
+  const std::function<int(int)> root = [&](int i) {
+    return cluster[static_cast<size_t>(i)] == i
+               ? i
+               : cluster[static_cast<size_t>(i)] = root(cluster[static_cast<size_t>(i)]);
+  };
   for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j) {
-      const double m = (pos[j] - pos[i]).norm();
-      d[static_cast<size_t>(i * n + j)] = (m <= at(i, j) ? 0.0 : m) / scale;
-    }
+    for (int j = i + 1; j < n; ++j)
+      if ((pos[j] - pos[i]).norm() <= at(i, j)) cluster[static_cast<size_t>(root(j))] = root(i);
+  std::vector<Eigen::Vector2d> place(static_cast<size_t>(n), Eigen::Vector2d::Zero());
+  std::vector<int> members(static_cast<size_t>(n), 0);
+  for (int i = 0; i < n; ++i) {
+    place[static_cast<size_t>(root(i))] += pos[static_cast<size_t>(i)];
+    ++members[static_cast<size_t>(root(i))];
+  }
+  std::vector<Eigen::Vector2d> seen(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i)
+    seen[static_cast<size_t>(i)] = place[static_cast<size_t>(root(i))] / members[static_cast<size_t>(root(i))];
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      d[static_cast<size_t>(i * n + j)] =
+          root(i) == root(j) ? 0.0 : (seen[static_cast<size_t>(j)] - seen[static_cast<size_t>(i)]).norm() / scale;
   const auto kind = [&](int i) { return spec.entities[static_cast<size_t>(order.task_of[i])].kind; };
   std::vector<bool> rival(static_cast<size_t>(n), true);
   if (competing) rival = *competing;
@@ -264,7 +288,7 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
     for (int k = 0; k < n; ++k) {
       if (k == e || !rival[static_cast<size_t>(k)] || kind(k) != kind(e)) continue;
       if (d[static_cast<size_t>(k * n + e)] == 0.0) continue;  // at one place: neither is before the other
-      const Eigen::Vector2d delta = pos[k] - pos[e];
+      const Eigen::Vector2d delta = seen[static_cast<size_t>(k)] - seen[static_cast<size_t>(e)];
       before[0] += delta.x() < 0;
       before[1] += delta.x() > 0;
       before[2] += delta.y() < 0;

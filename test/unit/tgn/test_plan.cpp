@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -200,6 +201,55 @@ TEST(RelationalBasis, RemembersEachOnesLastMove) {
   for (int j = 0; j < n; ++j)
     if (j != receiver) {
       EXPECT_FLOAT_EQ(feature(giver, j, 17), 0.f) << "one entity per last move";
+    }
+}
+
+// Entities at one place are seen from one place: "the robot nearest B1 fetches it and
+// hands it to the teammate nearest to it" (zoo:87). At the handover the giver stands a
+// contact (4.2 cm) behind the box; in this scene (a fresh one the relay failed on) R3 is the
+// giver's nearest teammate by 6.7 cm, but from the box's own place R1 is 4 mm nearer. Seen
+// from their one place, R3 is the nearest robot to both, and every distance is the same
+// (features 2: distance, 3: j's nearness rank among its kind seen from i).
+TEST(RelationalBasis, SeesEntitiesAtOnePlaceFromOnePlace) {
+  const task::TaskDir relay = generate("zoo:87", 10);
+  auto impl = tgn::prepare(relay, tgn::TrainOptions{});
+  impl->build();
+  const int n = impl->cfg.nodes;
+  const auto at = [&](const std::map<std::string, Eigen::Vector2d>& where) {
+    std::vector<Eigen::Vector2d> pos(static_cast<size_t>(n));
+    for (int c = 0; c < n; ++c)
+      pos[static_cast<size_t>(c)] =
+          where.at(relay.spec.entities[static_cast<size_t>(impl->order.task_of[static_cast<size_t>(c)])].name);
+    return pos;
+  };
+  const std::vector<std::vector<Eigen::Vector2d>> history = {at({{"R1", {0.11, 0.14}},
+                                                                 {"R2", {0.52, 0.42}},
+                                                                 {"R3", {0.75, 0.32}},
+                                                                 {"R4", {0.89, 0.65}},
+                                                                 {"B1", {0.41, 0.30}},
+                                                                 {"G1", {0.84, 0.08}}}),
+                                                             at({{"R1", {0.11, 0.14}},
+                                                                 {"R2", {0.44, 0.33}},
+                                                                 {"R3", {0.75, 0.32}},
+                                                                 {"R4", {0.89, 0.65}},
+                                                                 {"B1", {0.41, 0.30}},
+                                                                 {"G1", {0.84, 0.08}}})};
+  std::vector<float> rel(static_cast<size_t>(n * n * tgn::kRelativeFeatures));
+  impl->relative(history.data(), history.size(), rel.data());
+  const auto canonical = [&](const std::string& name) {
+    for (int c = 0; c < n; ++c)
+      if (relay.spec.entities[static_cast<size_t>(impl->order.task_of[static_cast<size_t>(c)])].name == name) return c;
+    return -1;
+  };
+  const int giver = canonical("R2"), box = canonical("B1"), receiver = canonical("R3");
+  const auto feature = [&](int i, int j, int f) {
+    return rel[static_cast<size_t>((i * n + j) * tgn::kRelativeFeatures + f)];
+  };
+  EXPECT_FLOAT_EQ(feature(giver, receiver, 3), 1.f) << "the receiver, seen from the giver";
+  EXPECT_FLOAT_EQ(feature(box, receiver, 3), 1.f) << "the receiver, seen from the box";
+  for (int j = 0; j < n; ++j)
+    if (j != giver && j != box) {
+      EXPECT_FLOAT_EQ(feature(giver, j, 2), feature(box, j, 2)) << "distance to " << j;
     }
 }
 
