@@ -50,7 +50,9 @@ class CoordinatorNode::Impl {
     cfg.arrival_radius_m = rosparam::param(pnh, "arrival_radius_m", spec_.arrival_radius);
     cfg.arrival_tolerance_m = rosparam::param(pnh, "arrival_tolerance_m", cfg.arrival_tolerance_m);
     try {
-      coordinator_ = std::make_unique<exec::Coordinator>(spec_, cfg, loadEndPoints(pnh));
+      // Ids past every id of a coordinator this one replaces (exec::firstIdAt).
+      coordinator_ = std::make_unique<exec::Coordinator>(spec_, cfg, loadEndPoints(pnh),
+                                                         exec::firstIdAt(ros::WallTime::now().toSec()));
     } catch (const Error& e) {
       throw Error(std::string(e.what()) + " (parameters under " + pnh.getNamespace() + ")");
     }

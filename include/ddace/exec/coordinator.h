@@ -162,12 +162,21 @@ struct StepRecord {
   bool complete = false;
 };
 
+/// The first request and segment id of a coordinator started at `wall_clock_s` (seconds
+/// since the epoch): its milliseconds, modulo 2^31, never 0. A follower takes a segment with
+/// the id of the one it runs for a re-sent copy (and ignores it), the planner and the
+/// sequence node answer by request id; so a coordinator restarted mid-session starts past
+/// every id of the one before, which issued a few ids per step, not one per millisecond.
+uint32_t firstIdAt(double wall_clock_s);
+
 class Coordinator {
  public:
   /// `end_points`: where motions end (the model's, gp::PrimitiveLibrary::endPoints(), or
-  /// learned from the demonstrations a replay runs). Throws ddace::Error when the config
-  /// is invalid.
-  Coordinator(task::TaskSpec spec, CoordinatorConfig config, task::EndPointModel end_points);
+  /// learned from the demonstrations a replay runs). `first_id`: this coordinator's first
+  /// request and segment id (then counting up, never 0); a coordinator restarted in a
+  /// session must not repeat the ids of the one before, which the nodes may still hold (see
+  /// firstIdAt). Throws ddace::Error when the config is invalid.
+  Coordinator(task::TaskSpec spec, CoordinatorConfig config, task::EndPointModel end_points, uint32_t first_id = 1);
 
   /// Idle -> start a run; Paused -> resume (re-plans the unfinished tokens of the step).
   /// Refused (empty output and a log line) in any other state.
@@ -247,6 +256,7 @@ class Coordinator {
   std::vector<task::Snapshot> history_;
   std::vector<StepRecord> steps_;
   uint32_t next_id_ = 1;
+  uint32_t nextId();  ///< next_id_, then counts up past 0
   uint32_t pending_decision_ = 0;
   double pending_since_s_ = 0;
   std::vector<uint32_t> pending_paths_;  ///< request id per token of the current step (0 = none)

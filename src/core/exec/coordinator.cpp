@@ -74,10 +74,27 @@ void CoordinatorConfig::validate() const {
     throw Error("coordinator parameter 'arrival_tolerance_m' must be >= 0");
 }
 
-Coordinator::Coordinator(task::TaskSpec spec, CoordinatorConfig config, task::EndPointModel end_points)
-    : spec_(std::move(spec)), config_(config), end_points_(std::move(end_points)) {
+uint32_t firstIdAt(double wall_clock_s) {
+  if (!std::isfinite(wall_clock_s) || wall_clock_s < 0) return 1;
+  const auto ms = static_cast<uint64_t>(wall_clock_s * 1000.0);
+  const auto id = static_cast<uint32_t>(ms & 0x7fffffffu);
+  return id == 0 ? 1 : id;
+}
+
+Coordinator::Coordinator(task::TaskSpec spec, CoordinatorConfig config, task::EndPointModel end_points,
+                         uint32_t first_id)
+    : spec_(std::move(spec)),
+      config_(config),
+      end_points_(std::move(end_points)),
+      next_id_(first_id == 0 ? 1 : first_id) {
   config_.validate();
   if (spec_.entities.empty()) throw Error("coordinator: the task has no entities");
+}
+
+uint32_t Coordinator::nextId() {
+  const uint32_t id = next_id_++;
+  if (next_id_ == 0) next_id_ = 1;  // 0 means "none" on the wire
+  return id;
 }
 
 const StepRecord* Coordinator::currentStep() const {
@@ -153,7 +170,7 @@ void Coordinator::requestDecisionOrWait(double now_s, CoordinatorOutput& out) {
   snap.positions = observation_.positions;
   history_.push_back(snap);
   DecisionRequest req;
-  req.id = next_id_++;
+  req.id = nextId();
   req.step = static_cast<int>(steps_.size());
   req.history = history_;
   pending_decision_ = req.id;
@@ -350,7 +367,7 @@ void Coordinator::requestPaths(double now_s, CoordinatorOutput& out) {
     TokenRecord& t = s.tokens[i];
     if (!t.token.isMotion() || t.state == SegmentState::Done) continue;
     PathRequest req;
-    req.id = next_id_++;
+    req.id = nextId();
     req.step = s.step;
     req.token = t.token;
     // After a pause the entity continues from where it stopped; the goal stays fixed.
@@ -417,7 +434,7 @@ CoordinatorOutput Coordinator::onPath(uint32_t id, const PlannedPath& path, cons
     if (!t.token.isMotion() || t.state == SegmentState::Done) continue;
     SegmentCommand cmd;
     cmd.entity = t.token.entity;
-    cmd.segment_id = next_id_++;
+    cmd.segment_id = nextId();
     cmd.step = s.step;
     cmd.token = t.token;
     cmd.path = t.path;

@@ -1,6 +1,7 @@
 // The coordinator's state machine: event-driven decisions, time-outs, e-stop, pause.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <limits>
 
 #include "ddace/common/error.h"
@@ -566,4 +567,74 @@ TEST_F(Fixture, TheLastDecisionKeepsItsProbabilities) {
   p.tokens.push_back(0.5);
   k.onDecision(s2.decision->id, d, 0.1, p);
   EXPECT_EQ(k.state(), RunState::Aborted);
+}
+
+namespace {
+
+/// Runs `demo`'s task on `c` with ideal execution; returns every request and segment id it
+/// issued, in order.
+std::vector<uint32_t> runTaskIds(Coordinator& c, const task::Demonstration& demo) {
+  std::vector<uint32_t> ids;
+  std::vector<Vector2d> pos = demo.positions.front();
+  c.onEntities(observe(pos), 0);
+  auto out = c.start(0);
+  double t = 0;
+  while (out.decision) {
+    ids.push_back(out.decision->id);
+    t += 1;
+    out = c.onDecision(out.decision->id, replayDecision(demo, out.decision->history), t);
+    if (c.state() == RunState::Finished) break;
+    for (const auto& r : out.paths) ids.push_back(r.id);
+    const auto segs = answerPaths(c, out, t);
+    out = {};
+    for (const auto& s : segs) {
+      ids.push_back(s.segment_id);
+      pos[s.entity] = s.goal;
+      c.onEntities(observe(pos), t);
+      auto o = arriveDone(c, s, t);
+      if (o.decision) out = o;
+    }
+  }
+  EXPECT_EQ(c.state(), RunState::Finished);
+  return ids;
+}
+
+}  // namespace
+
+// A coordinator restarted mid-session (its node died and came back) must not repeat the ids
+// of the one before: a follower still running a segment of it takes a segment with the same
+// id for a re-sent copy and ignores it, and a late answer of the sequence node or planner to
+// an old request would be taken for the new one's. The node starts each coordinator's ids
+// at its wall clock's milliseconds (firstIdAt).
+TEST(CoordinatorIds, ARestartedCoordinatorNeverRepeatsTheIdsOfTheOneBefore) {
+  const task::TaskDir dir = task4();
+  const task::EndPointModel ends = task::learnEndPoints(dir.spec, dir.demos);
+  const double t0 = 1796256000.0;  // 2026-12-03, seconds since the epoch
+  Coordinator before(dir.spec, CoordinatorConfig{}, ends, firstIdAt(t0));
+  const std::vector<uint32_t> old_ids = runTaskIds(before, dir.demos.front());
+  ASSERT_FALSE(old_ids.empty());
+  // Restarted a second later, it runs the task again.
+  Coordinator after(dir.spec, CoordinatorConfig{}, ends, firstIdAt(t0 + 1.0));
+  const std::vector<uint32_t> new_ids = runTaskIds(after, dir.demos.front());
+  for (uint32_t id : new_ids) {
+    EXPECT_EQ(std::count(old_ids.begin(), old_ids.end(), id), 0) << "id " << id << " repeated";
+    EXPECT_NE(id, 0u);
+  }
+  // Two coordinators constructed alike (the default: 1) would repeat every one of them.
+  Coordinator a(dir.spec, CoordinatorConfig{}, ends), b(dir.spec, CoordinatorConfig{}, ends);
+  EXPECT_EQ(runTaskIds(a, dir.demos.front()), runTaskIds(b, dir.demos.front()));
+}
+
+// Ids count up past 0 (0 is "none" on the wire), and no wall clock gives 0.
+TEST(CoordinatorIds, AreNeverZero) {
+  const task::TaskDir dir = task4();
+  Coordinator c(dir.spec, CoordinatorConfig{}, task::learnEndPoints(dir.spec, dir.demos), 0xfffffffeu);
+  const std::vector<uint32_t> ids = runTaskIds(c, dir.demos.front());
+  ASSERT_GE(ids.size(), 3u);
+  EXPECT_EQ(ids[0], 0xfffffffeu);
+  EXPECT_EQ(ids[1], 0xffffffffu);
+  EXPECT_EQ(ids[2], 1u);
+  EXPECT_EQ(firstIdAt(2147483.648), 1u);  // 2^31 ms: 0 modulo 2^31
+  EXPECT_EQ(firstIdAt(-1.0), 1u);
+  EXPECT_EQ(firstIdAt(std::numeric_limits<double>::quiet_NaN()), 1u);
 }
