@@ -87,6 +87,10 @@ bool systemState(TopicNodes& publishers, TopicNodes& subscribers) {
   return true;
 }
 
+/// How long a node may take to answer getBusInfo (seconds): a live node answers in
+/// milliseconds; well under the heartbeat time-out (config/execution.yaml, 1 s).
+constexpr double kBusInfoTimeoutS = 0.2;
+
 /// (topic, subscriber node) of every outbound link of `node`, from its own getBusInfo: a
 /// publisher lists a subscriber only once the handshake is done, so from then on every
 /// message it publishes on that topic reaches it. False when the node does not answer.
@@ -101,8 +105,15 @@ bool outboundLinks(const std::string& node, std::set<std::pair<std::string, std:
   XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
   XmlRpc::XmlRpcValue a, r;
   a[0] = ros::this_node::getName();
-  if (!client.execute("getBusInfo", a, r) || r.getType() != XmlRpc::XmlRpcValue::TypeArray || r.size() < 3)
-    return false;
+  // Not execute(): it waits for ever, and a hung node (stopped, deadlocked) never answers;
+  // this node's heartbeat would stop with it, and the coordinator would abort the run for
+  // a lost recorder instead of the hung node. A node that does not answer within
+  // kBusInfoTimeoutS is taken as not linked (for now: the check runs again).
+  if (!client.executeNonBlock("getBusInfo", a)) return false;
+  client._disp.work(kBusInfoTimeoutS);
+  const bool answered = client.executeCheckDone(r);
+  client.close();
+  if (!answered || r.getType() != XmlRpc::XmlRpcValue::TypeArray || r.size() < 3) return false;
   XmlRpc::XmlRpcValue& info = r[2];
   for (int i = 0; i < info.size(); ++i)
     if (info[i].size() >= 5 && std::string(info[i][2]) == "o")

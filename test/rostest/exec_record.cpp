@@ -139,12 +139,19 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
   // the entities from before it, every wheel command of R1 published from it on, and the
   // run's first segment.
   const std::string bag_file = run_dir + "/run.bag";
+  // The coordinator's ids start at its wall clock (exec::firstIdAt) and count up: the run's
+  // first request is the bag's first one for step 0, and no request has a smaller id.
   const auto request_ids = bagColumn(bag_file, "/ddace/decision_request", "field.id");
+  const auto request_steps = bagColumn(bag_file, "/ddace/decision_request", "field.step");
   const auto request_stamps = bagColumn(bag_file, "/ddace/decision_request", "field.header.stamp");
-  const auto first_request = std::find(request_ids.begin(), request_ids.end(), "1");
-  ASSERT_NE(first_request, request_ids.end()) << "the run's first decision request is not in the bag";
   ASSERT_EQ(request_ids.size(), request_stamps.size());
-  const uint64_t start_ns = std::stoull(request_stamps[first_request - request_ids.begin()]);
+  ASSERT_EQ(request_ids.size(), request_steps.size());
+  const auto first_request = std::find(request_steps.begin(), request_steps.end(), "0");
+  ASSERT_NE(first_request, request_steps.end()) << "the run's first decision request is not in the bag";
+  const std::string first_request_id = request_ids[static_cast<size_t>(first_request - request_steps.begin())];
+  for (const auto& id : request_ids)
+    EXPECT_GE(std::stoull(id), std::stoull(first_request_id)) << "a request before the run's first is in the bag";
+  const uint64_t start_ns = std::stoull(request_stamps[static_cast<size_t>(first_request - request_steps.begin())]);
   const auto stampsIn = [&](const std::string& topic) {
     std::set<uint64_t> out;
     for (const auto& t : bagColumn(bag_file, topic, "field.header.stamp")) out.insert(std::stoull(t));
