@@ -5,7 +5,6 @@
 #include <ATen/CPUGeneratorImpl.h>
 
 #include <algorithm>
-#include <functional>
 #include <array>
 #include <map>
 #include <cmath>
@@ -246,29 +245,33 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
   // kind, as they have one part in the rule ("the teammate nearest to it"), instead of two
   // views a contact apart (a carrier stops behind its load) that disagree where two
   // teammates are nearly as near.
-  std::vector<int> cluster(static_cast<size_t>(n));
-  for (int i = 0; i < n; ++i) cluster[static_cast<size_t>(i)] = i;
-  const std::function<int(int)> root = [&](int i) {
-    return cluster[static_cast<size_t>(i)] == i
-               ? i
-               : cluster[static_cast<size_t>(i)] = root(cluster[static_cast<size_t>(i)]);
-  };
+  // place_of[i]: the lowest index of the entities at one place with i (transitively).
+  std::vector<int> place_of(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) place_of[static_cast<size_t>(i)] = i;
   for (int i = 0; i < n; ++i)
     for (int j = i + 1; j < n; ++j)
-      if ((pos[j] - pos[i]).norm() <= at(i, j)) cluster[static_cast<size_t>(root(j))] = root(i);
-  std::vector<Eigen::Vector2d> place(static_cast<size_t>(n), Eigen::Vector2d::Zero());
-  std::vector<int> members(static_cast<size_t>(n), 0);
+      if ((pos[j] - pos[i]).norm() <= at(i, j)) {
+        const int a = place_of[static_cast<size_t>(i)], b = place_of[static_cast<size_t>(j)];
+        if (a != b)
+          for (int& p : place_of) p = p == std::max(a, b) ? std::min(a, b) : p;
+      }
+  std::vector<Eigen::Vector2d> sum(static_cast<size_t>(n), Eigen::Vector2d::Zero());
+  std::vector<double> members(static_cast<size_t>(n), 0.0);
   for (int i = 0; i < n; ++i) {
-    place[static_cast<size_t>(root(i))] += pos[static_cast<size_t>(i)];
-    ++members[static_cast<size_t>(root(i))];
+    sum[static_cast<size_t>(place_of[static_cast<size_t>(i)])] += pos[static_cast<size_t>(i)];
+    members[static_cast<size_t>(place_of[static_cast<size_t>(i)])] += 1;
   }
   std::vector<Eigen::Vector2d> seen(static_cast<size_t>(n));
-  for (int i = 0; i < n; ++i)
-    seen[static_cast<size_t>(i)] = place[static_cast<size_t>(root(i))] / members[static_cast<size_t>(root(i))];
+  for (int i = 0; i < n; ++i) {
+    const auto p = static_cast<size_t>(place_of[static_cast<size_t>(i)]);
+    seen[static_cast<size_t>(i)] = sum[p] / members[p];
+  }
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j)
       d[static_cast<size_t>(i * n + j)] =
-          root(i) == root(j) ? 0.0 : (seen[static_cast<size_t>(j)] - seen[static_cast<size_t>(i)]).norm() / scale;
+          place_of[static_cast<size_t>(i)] == place_of[static_cast<size_t>(j)]
+              ? 0.0
+              : (seen[static_cast<size_t>(j)] - seen[static_cast<size_t>(i)]).norm() / scale;
   const auto kind = [&](int i) { return spec.entities[static_cast<size_t>(order.task_of[i])].kind; };
   std::vector<bool> rival(static_cast<size_t>(n), true);
   if (competing) rival = *competing;
