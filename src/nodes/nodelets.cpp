@@ -5,11 +5,14 @@
 // execute_real.launch) run them this way.
 #include <exception>
 #include <memory>
+#include <string>
 #include <thread>
+#include <vector>
 
 #include <nodelet/nodelet.h>
 #include <pluginlib/class_list_macros.hpp>
 
+#include "ddace/ros/node_runner.h"
 #include "ddace/ros/synthetic_camera.h"
 #include "ddace/ros/tracker.h"
 
@@ -24,7 +27,9 @@ class NodeNodelet : public nodelet::Nodelet {
   /// half a node.
   void construct() {
     try {
+      const std::vector<std::string> given = givenParams(getPrivateNodeHandle());
       node_ = std::make_unique<Node>(getNodeHandle(), getPrivateNodeHandle());
+      rejectUnknownParams(getPrivateNodeHandle(), given);
     } catch (const std::exception& e) {
       ROS_FATAL("%s: %s", getName().c_str(), e.what());
       throw;

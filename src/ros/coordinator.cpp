@@ -134,6 +134,7 @@ class CoordinatorNode::Impl {
   /// replay's; default ~task), else the footprints' defaults (a task.yaml alone).
   task::EndPointModel loadEndPoints(ros::NodeHandle& pnh) const {
     namespace fs = std::filesystem;
+    rosparam::alsoReads(pnh, {"train"});  // read only without ~model
     const std::string model = rosparam::param<std::string>(pnh, "model", "");
     if (!model.empty()) {
       ros_exec::requireAbsolute(model, pnh.resolveName("model"));

@@ -140,9 +140,6 @@ class ExecutionMonitorNode::Impl {
     radii_ = radii;
     // One setting, the path followers' own margin: the contacts their filters let happen
     // are the ones the report leaves out.
-    if (pnh.hasParam("contact_margin_m"))
-      throw Error("parameter '" + pnh.resolveName("contact_margin_m") + "' is no longer read: the monitor uses '" +
-                  nh.resolveName("path_follower/safety/margin_m") + "', the path followers' margin");
     contacts_ = std::make_unique<exec::StepContacts>(
         spec_, radii_, ros_exec::loadSafetyParams(ros::NodeHandle(nh, "path_follower/safety")).margin_m);
     collisions_fail_ = rosparam::param(pnh, "collisions_fail", defaults.collisions_fail);
@@ -153,6 +150,7 @@ class ExecutionMonitorNode::Impl {
       gt_ = task::readDemonstrationCsv(gt_file_, spec_);
       have_gt_ = true;
     }
+    rosparam::alsoReads(pnh, {"runs_dir"});  // read only without ~run_dir
     std::string run_dir = rosparam::param<std::string>(pnh, "run_dir", "");
     if (run_dir.empty()) {
       const char* home = std::getenv("HOME");

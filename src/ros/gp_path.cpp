@@ -31,6 +31,7 @@ class GpPathNode::Impl {
     const auto source_name = rosparam::optionalParam<std::string>(pnh, "source");
     const GpPathNode::Source source =
         source_name ? GpPathNode::parseSource(*source_name, pnh.resolveName("source")) : defaults.source;
+    rosparam::alsoReads(pnh, {"library", "allow_other_task"});  // source 'library' only
     if (source == GpPathNode::Source::Library) {
       std::string path = rosparam::param<std::string>(pnh, "library", "");
       if (path.empty()) throw Error("source 'library' needs parameter '" + pnh.resolveName("library") + "'");

@@ -29,6 +29,7 @@ using namespace hamster;
 class HamsterBridgeNode::Impl {
  public:
   Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) : updater_(nh, pnh) {
+    ddace::rosparam::alsoReads(pnh, {"diagnostic_period"});  // diagnostic_updater's
     const std::string config_path =
         ddace::rosparam::requireString(pnh, "config", "path of the Hamster config YAML, e.g. config/hamsters.yaml");
     config_ = loadBridgeConfig(config_path);

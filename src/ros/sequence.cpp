@@ -31,6 +31,8 @@ class SequenceNode::Impl {
     const auto policy_name = rosparam::optionalParam<std::string>(pnh, "policy");
     const SequenceNode::Policy policy =
         policy_name ? SequenceNode::parsePolicy(*policy_name, pnh.resolveName("policy")) : defaults.policy;
+    // Each policy's own parameters; the other's are known too (config/execution.yaml sets both).
+    rosparam::alsoReads(pnh, {"model", "allow_other_task", "replay_csv", "replay_demo"});
     if (policy == SequenceNode::Policy::Model) {
       const std::string dir = rosparam::param<std::string>(pnh, "model", "");
       if (dir.empty())

@@ -31,6 +31,9 @@ namespace ddace::nodes {
 class TrackerNode::Impl {
  public:
   Impl(ros::NodeHandle nh, ros::NodeHandle pnh) : nh_(nh), pnh_(pnh), it_(nh), pit_(pnh), updater_(nh, pnh) {
+    // Read in some input modes only, or by diagnostic_updater (~diagnostic_period).
+    rosparam::alsoReads(
+        pnh_, {"camera_matrix", "distortion", "video_width", "video_height", "video_rate_hz", "diagnostic_period"});
     const std::string markers = rosparam::requireString(pnh_, "markers_file", "path to config/markers.yaml");
     const std::string tuning = rosparam::param<std::string>(pnh_, "tracker_file", "");
     tracker_ = std::make_unique<vision::Tracker>(vision::loadTrackerConfig(markers, tuning));

@@ -1,5 +1,5 @@
-// Nodes started with one mistyped parameter must exit non-zero with an error naming the
-// parameter, never run on its default (src/ros/params.h). Each node is started with
+// Nodes started with one mistyped parameter, or one that is not theirs, must exit
+// non-zero with an error naming the parameter, never run on its default (src/ros/params.h). Each node is started with
 // rosrun against rostest's master; `timeout` turns a node that keeps running into a failure.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -18,8 +18,8 @@ struct NodeRun {
   std::string output;
 };
 
-NodeRun runNode(const std::string& node, const std::string& args) {
-  const std::string cmd = "timeout 30 rosrun ddace " + node + " " + args + " 2>&1";
+NodeRun runNode(const std::string& node, const std::string& args, int timeout_s = 30) {
+  const std::string cmd = "timeout " + std::to_string(timeout_s) + " rosrun ddace " + node + " " + args + " 2>&1";
   NodeRun r;
   FILE* p = ::popen(cmd.c_str(), "r");
   if (!p) return r;
@@ -68,6 +68,29 @@ TEST(ParamsMistyped, MockHamsterRobotTimeout) {
   EXPECT_NE(r.output.find("parameter '/params_mock/robot_timeout_s' has the wrong type (expected a number)"),
             std::string::npos)
       << r.output;
+}
+
+// A misspelt parameter ("rate_hzz") is not the node's: it stops the node, naming it, and
+// the node's own parameters (a follower left on its 50 Hz would drive at another rate
+// than the launch file asks).
+TEST(ParamsUnknown, AMisspeltOneStopsTheNode) {
+  const NodeRun r =
+      runNode("path_follower_node", "__name:=params_follower _task:=" + kPkg + "/test/data/exec/carry _rate_hzz:=20");
+  EXPECT_NE(r.status, 0) << r.output;
+  EXPECT_NE(r.status, 124) << "the node ran on the default: " << r.output;
+  EXPECT_NE(r.output.find("parameter /params_follower/rate_hzz is not one of node /params_follower's"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("rate_hz, robots"), std::string::npos) << "its own listed: " << r.output;
+}
+
+// ... while every parameter the node reads, nested ones included, is known: it runs.
+TEST(ParamsUnknown, TheNodesOwnAreKnown) {
+  const NodeRun r = runNode("path_follower_node",
+                            "__name:=params_follower_own _task:=" + kPkg +
+                                "/test/data/exec/carry _rate_hz:=20 _gains/lookahead_m:=0.05 _safety/enabled:=false",
+                            5);
+  EXPECT_EQ(r.status, 124) << "the node should still be running when the time-out ends it: " << r.output;
 }
 
 int main(int argc, char** argv) {

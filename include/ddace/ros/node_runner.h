@@ -9,8 +9,10 @@
 #pragma once
 
 #include <exception>
+#include <string>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 #include <ros/ros.h>
 
@@ -23,8 +25,16 @@ template <typename Node>
 struct HasRun<Node, std::void_t<decltype(std::declval<Node&>().run())>> : std::true_type {};
 }  // namespace detail
 
-/// ros::init as `default_name`, construct Node, run or spin it until shutdown.
-/// Returns the process exit status.
+/// The parameters set under the private namespace `pnh` before the node class is
+/// constructed (the user's: launch file, command line, a loaded YAML).
+std::vector<std::string> givenParams(const ros::NodeHandle& pnh);
+/// Throws ddace::Error naming every parameter of `given` that the node did not read
+/// (src/ros/params.h): called once the node class is constructed, so a misspelt or
+/// misplaced parameter stops the node instead of leaving it on a default.
+void rejectUnknownParams(const ros::NodeHandle& pnh, const std::vector<std::string>& given);
+
+/// ros::init as `default_name`, construct Node (its parameters checked:
+/// rejectUnknownParams), run or spin it until shutdown. Returns the process exit status.
 template <typename Node>
 int runNode(int argc, char** argv, const char* default_name) {
   ros::init(argc, argv, default_name);
@@ -32,7 +42,9 @@ int runNode(int argc, char** argv, const char* default_name) {
   // rosconsole, which would swallow the error below).
   ros::NodeHandle nh, pnh("~");
   try {
+    const std::vector<std::string> given = givenParams(pnh);
     Node node(nh, pnh);
+    rejectUnknownParams(pnh, given);
     if constexpr (detail::HasRun<Node>::value) {
       ros::AsyncSpinner spinner(1);  // declared after the node: stops before it is destroyed
       spinner.start();
