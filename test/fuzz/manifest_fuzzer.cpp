@@ -4,7 +4,7 @@
 // asks for no more threads than a machine has (issue: `threads: 100000` made inspect and
 // eval start 2,386 threads and hang). The task is test/fuzz/manifest_task.yaml. Parses
 // from memory (tgn::files::parseManifest takes the text). Most inputs stop at the
-// manifest's own digest: the corpus holds valid manifests (sealed: task4_scene.yaml, ddace-model/13,
+// manifest's own digest: the corpus holds valid manifests (sealed: task4_scene.yaml, ddace-model/14,
 // and task4_scene_plan.yaml, the same with every field of its training plan set: name groups,
 // token by token, parked, load actions) so the fuzzer also reaches the field checks through
 // its dictionary-free mutations of them; task4_scene_format9/7/6/5.yaml are older formats,

@@ -69,8 +69,10 @@ namespace ddace::tgn {
 /// rules (`load_actions`), each one's last move in the relational basis; /11: the ensemble
 /// (`plan.ensemble`; weights.pt holds its other members' weights as `member1`, `member2`,
 /// ...); /12: the relational basis orders along the axes strictly (tied only at one
-/// place). Older ones are refused (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/13";
+/// place); /13: entities at one place seen from one place in the relational basis; /14:
+/// token by token chooses who acts too, a carrier's pairs are its load's, and a parked
+/// entity is ranked among every one of its kind. Older ones are refused (retrain).
+inline constexpr const char* kModelFormat = "ddace-model/14";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {

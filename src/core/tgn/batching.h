@@ -43,6 +43,14 @@ struct Batch {
   /// it: the step's targets are exclusive). rel_slots then holds the relative features
   /// with the given entities out of the nearness ranks. Undefined: nothing given.
   torch::Tensor taken;
+  /// scene, training token by token: [N, 1 + N] float, 1 where an entity that does not act
+  /// in a step may still be chosen for the pair (DemonstratedTokens::may_point): the
+  /// decoder chooses who acts one token at a time too.
+  torch::Tensor may_point;
+  /// scene, training token by token with carried loads: [B, T, N, N] float, 1 where the
+  /// object j is a load at entity i's place (SequenceModel::Impl::loadsAt): i's pairs are
+  /// j's too, one decision (their pointer logits add), and j's own are none.
+  torch::Tensor carried;
 };
 
 /// The sequences `which` of `seqs` as one batch.

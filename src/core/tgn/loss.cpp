@@ -21,15 +21,24 @@ Tensor lossOf(const Heads& h, const Batch& batch, bool gnn, bool acting_targets)
   Tensor target_loss;
   if (batch.given.defined()) {
     // Token by token: the step's next token is whichever of its remaining tokens the
-    // decoder is surest of, so the loss asks only that the remaining true tokens together
-    // be likely among every (acting entity, target) pair: -log of their summed
-    // probability under one softmax over the pairs' logits. An entity whose target
-    // depends on the others' (its nearest goal is another's) need not be sure of it
-    // before they are chosen. With one entity left it is that entity's own loss.
-    const Tensor open = vn * batch.action.gt(0).to(torch::kFloat);  // [B, T, N]
-    const Tensor closed = (1 - open) * -1e9;
-    const Tensor pairs = (h.target + closed.unsqueeze(-1)).flatten(-2);                         // [B, T, N * (1 + N)]
-    const Tensor truth = h.target.gather(-1, batch.target.unsqueeze(-1)).squeeze(-1) + closed;  // [B, T, N]
+    // decoder is surest of, among the pairs of every entity that may still act (acting or
+    // not: who acts is chosen token by token too), so the loss asks only that the remaining
+    // true tokens together be likely among those pairs: -log of their summed probability
+    // under one softmax over the pairs' logits. An entity whose target depends on the
+    // others' (its nearest goal is another's; the nearest free robot) need not be sure of
+    // it before they are chosen. With one entity left that may act, it is its own loss.
+    // A carrier's pairs are its loads' too (one decision), and a load's are none of its own.
+    const Tensor acts = batch.action.gt(0).to(torch::kFloat);  // [B, T, N]
+    Tensor logits = h.target, acting = acts;
+    if (batch.carried.defined()) {
+      logits = logits + torch::matmul(batch.carried, h.target);
+      acting = acting * (1 - batch.carried.amax(-2));  // 0 for a load at some carrier
+    }
+    const Tensor open = vn * acting;
+    Tensor pointable = open.unsqueeze(-1).expand_as(logits);
+    if (batch.may_point.defined()) pointable = pointable + (vn * (1 - acts)).unsqueeze(-1) * batch.may_point;
+    const Tensor pairs = (logits + (1 - pointable) * -1e9).flatten(-2);  // [B, T, N * (1 + N)]
+    const Tensor truth = logits.gather(-1, batch.target.unsqueeze(-1)).squeeze(-1) + (1 - open) * -1e9;  // [B, T, N]
     const Tensor steps = open.sum(-1).gt(0).to(torch::kFloat);
     target_loss =
         ((torch::logsumexp(pairs, -1) - torch::logsumexp(truth, -1)) * steps).sum() / steps.sum().clamp_min(1);

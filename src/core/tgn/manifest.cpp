@@ -394,7 +394,10 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
                          std::all_of(version.begin(), version.end(), [](char c) { return c >= '0' && c <= '9'; });
     if (numeric && std::stoi(version) < std::stoi(own)) {
       const int v = std::stoi(version);
-      const std::string lacks = std::string("the scene network's relational basis changed") +
+      const std::string lacks = std::string(
+                                    "token by token, it chose the acting entities' targets only, not who acts, "
+                                    "and it ranked a parked entity among the free ones") +
+                                (v < 13 ? ", the scene network's relational basis changed" : "") +
                                 (v < 11 ? ", its plan has no ensemble" : "") +
                                 (v < 10 ? ", its step rules counted a carried load as an actor" : "") +
                                 (v < 9 ? ", its manifest records no training plan" : "") +

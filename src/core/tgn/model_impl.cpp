@@ -276,11 +276,19 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
   std::vector<bool> rival(static_cast<size_t>(n), true);
   if (competing) rival = *competing;
   // Parked entities (docs/tgn.md): one at one place with another has had its part (a robot
-  // on the goal it drove to, a box picked up) and is no rival in "the nearest of its kind".
+  // on the goal it drove to, a box picked up) and is no rival of the free ones in "the
+  // nearest of its kind"; the parked ones rank among themselves (the boxes in hand, back
+  // to front).
+  std::vector<bool> parked(static_cast<size_t>(n), false);
   if (info.plan.parked_out_of_ranks)
     for (int k = 0; k < n; ++k)
       for (int m = 0; m < n; ++m)
-        if (m != k && d[static_cast<size_t>(k * n + m)] == 0.0) rival[static_cast<size_t>(k)] = false;
+        if (m != k && d[static_cast<size_t>(k * n + m)] == 0.0) parked[static_cast<size_t>(k)] = true;
+  // k is a rival of e: of its kind, not given its part yet, and free unless e is parked.
+  const auto rivals = [&](int k, int e) {
+    return rival[static_cast<size_t>(k)] && kind(k) == kind(e) &&
+           (parked[static_cast<size_t>(e)] || !parked[static_cast<size_t>(k)]);
+  };
   // Order along the table's axes: 1 / (1 + the number of rivals of e's kind before e), from
   // the left (x), the right, the front (y) and the back; two at one place are tied, any
   // others ordered however near their coordinates (side by side, 5 cm apart in x, one is
@@ -289,7 +297,7 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
   for (int e = 0; e < n; ++e) {
     int before[4] = {0, 0, 0, 0};
     for (int k = 0; k < n; ++k) {
-      if (k == e || !rival[static_cast<size_t>(k)] || kind(k) != kind(e)) continue;
+      if (k == e || !rivals(k, e)) continue;
       if (d[static_cast<size_t>(k * n + e)] == 0.0) continue;  // at one place: neither is before the other
       const Eigen::Vector2d delta = seen[static_cast<size_t>(k)] - seen[static_cast<size_t>(e)];
       before[0] += delta.x() < 0;
@@ -340,12 +348,12 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
       // nearer to j than i (and farther).
       int near_j = 0, near_i = 0, far_j = 0, far_i = 0;
       for (int k = 0; k < n; ++k) {
-        if (k == i || k == j || !rival[static_cast<size_t>(k)]) continue;
-        if (kind(k) == kind(j)) {
+        if (k == i || k == j) continue;
+        if (rivals(k, j)) {
           near_j += d[static_cast<size_t>(i * n + k)] < dij;
           far_j += d[static_cast<size_t>(i * n + k)] > dij;
         }
-        if (kind(k) == kind(i)) {
+        if (rivals(k, i)) {
           near_i += d[static_cast<size_t>(j * n + k)] < dij;
           far_i += d[static_cast<size_t>(j * n + k)] > dij;
         }

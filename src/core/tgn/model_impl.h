@@ -32,6 +32,10 @@ struct EntityOrder {
 /// classes [N][actions] and target slots [N][targets] the decoder may choose.
 struct DemonstratedTokens {
   std::vector<bool> action_ok, target_ok;
+  /// Token by token: [N][targets], the (entity, target) pairs an entity the action heads
+  /// left idle may still be chosen for (its kind acted, it is not a carried load, and the
+  /// target is a demonstrated entity, not "none").
+  std::vector<bool> may_point;
 };
 
 struct SequenceModel::Impl {
@@ -77,8 +81,8 @@ struct SequenceModel::Impl {
   Heads run(const Batch& batch, torch::Tensor* nodes = nullptr, torch::Tensor* z = nullptr, int member = 0);
   /// The step decoder, the one predictNext and the accuracy check use: one step's decision
   /// (canonical order) from the heads at it. detail::decideStep under the plan's step
-  /// rules; token by token, the acting entities' targets chosen one at a time
-  /// (chooseTargets); then the carried loads (detail::coupleLoads). `p_end` p(END); `la`
+  /// rules; token by token, who acts and at what chosen one token at a time
+  /// (chooseTokens); then the carried loads (detail::coupleLoads). `p_end` p(END); `la`
   /// [N][actions] and `lt` [N][targets] log-probabilities (token by token puts the chosen
   /// targets' log-probabilities into `lt`). Scene, token by token: `target_logits` [N,
   /// targets], `nodes` [N, W] and `z` [H] are the network's at the step (else unread).
@@ -93,19 +97,28 @@ struct SequenceModel::Impl {
                               const torch::Tensor& target_logits, const torch::Tensor& nodes, const torch::Tensor& z,
                               const std::vector<Eigen::Vector2d>* history, size_t count,
                               const DemonstratedTokens& demonstrated, int member = 0) const;
-  /// Token by token (scene; docs/tgn.md): the targets of the entities `acting` (canonical)
-  /// of one step, chosen one at a time, the surest (entity, target) pair of the pointer's
-  /// logits first, each chosen one then given to the heads (its target taken, both out of
-  /// the ranks and orders of the last snapshot of `history`) before the next. `target_logits` [N, targets] are
-  /// the heads' with nothing given, on `nodes` [N, W] and `z` [H]. Returns per entity the target slot (0 = none) and
-  /// its log-probability when chosen (not acting: 0 and 0). `target_ok` [N][targets]: the demonstrated targets
-  /// (demonstratedTokens).
-  std::pair<std::vector<int>, std::vector<double>> chooseTargets(const torch::Tensor& target_logits,
-                                                                 const torch::Tensor& nodes, const torch::Tensor& z,
-                                                                 const std::vector<Eigen::Vector2d>* history,
-                                                                 size_t count, const std::vector<bool>& acting,
-                                                                 const std::vector<bool>& target_ok,
-                                                                 int member = 0) const;
+  /// Carried loads (StepRules::load_actions): every object of the task (canonical) with the
+  /// entities, not objects, within task::togetherDistance of it in `pos` (canonical).
+  std::vector<detail::Load> loadsAt(const std::vector<Eigen::Vector2d>& pos) const;
+  /// `loads` (loadsAt) as a matrix [N, N] float: 1 where object j is a load at entity i's
+  /// place. Token by token, i's pointer logits are then `logits + carried.mm(logits)` (one
+  /// decision with its loads), in training and decoding alike.
+  torch::Tensor carriedBy(const std::vector<detail::Load>& loads) const;
+  /// Token by token (scene; docs/tgn.md): who acts in one step and at what, one token at a
+  /// time. The step has as many tokens as the action heads chose entities (`acting`,
+  /// canonical); each is the surest (entity, target) pair of the pointer's logits among the
+  /// entities not yet given one (an acting entity at any demonstrated target, another at a
+  /// pair of `demonstrated.may_point`), then given to the heads (its target taken, both out
+  /// of the ranks and orders of the last snapshot of `history`) before the next.
+  /// `target_logits` [N, targets] are the heads' with nothing given, on `nodes` [N, W] and
+  /// `z` [H]. Returns per entity the target slot (0 = none; -1: given no token, idle) and
+  /// its log-probability when chosen.
+  std::pair<std::vector<int>, std::vector<double>> chooseTokens(const torch::Tensor& target_logits,
+                                                                const torch::Tensor& nodes, const torch::Tensor& z,
+                                                                const std::vector<Eigen::Vector2d>* history,
+                                                                size_t count, const std::vector<bool>& acting,
+                                                                const DemonstratedTokens& demonstrated,
+                                                                const torch::Tensor& carried, int member = 0) const;
   /// Demonstrated tokens (scene; docs/tgn.md): per entity (canonical) the action classes
   /// [N][actions] and target slots [N][targets] its kind took in the training
   /// demonstrations (info.fingerprint.token_types); idle always. Other variants: all.

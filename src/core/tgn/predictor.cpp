@@ -24,7 +24,7 @@ DemonstratedTokens SequenceModel::Impl::demonstratedTokens() const {
   const int64_t n = cfg.nodes, actions = cfg.actions, targets = cfg.targets;
   std::vector<bool> action_ok(static_cast<size_t>(n * actions), true),
       target_ok(static_cast<size_t>(n * targets), true);
-  if (!isScene()) return {action_ok, target_ok};  // the paper's networks decode as the paper's
+  if (!isScene()) return {action_ok, target_ok, {}};  // the paper's networks decode as the paper's
   const auto kindOf = [&](int64_t c) {
     return std::string(task::toString(spec.entities[static_cast<size_t>(order.task_of[static_cast<size_t>(c)])].kind));
   };
@@ -50,7 +50,46 @@ DemonstratedTokens SequenceModel::Impl::demonstratedTokens() const {
     if (std::none_of(target_ok.begin() + i * targets, target_ok.begin() + (i + 1) * targets, [](bool b) { return b; }))
       std::fill(target_ok.begin() + i * targets, target_ok.begin() + (i + 1) * targets, true);
   }
-  return {action_ok, target_ok};
+  // Token by token, an entity left idle may be given a token at an entity it could act on:
+  // its kind acted, and it is no carried load (a load's token is its carrier's).
+  const bool loads_carried = !info.plan.step_rules.load_actions.empty();
+  std::vector<bool> may_point(static_cast<size_t>(n * targets), false);
+  for (int64_t i = 0; i < n; ++i) {
+    const bool acts = std::any_of(action_ok.begin() + i * actions + 1, action_ok.begin() + (i + 1) * actions,
+                                  [](bool b) { return b; });
+    if (!acts || (loads_carried && kindOf(i) == task::toString(task::EntityKind::Object))) continue;
+    for (int64_t t = 1; t < targets; ++t)
+      may_point[static_cast<size_t>(i * targets + t)] = target_ok[static_cast<size_t>(i * targets + t)];
+  }
+  return {action_ok, target_ok, may_point};
+}
+
+std::vector<detail::Load> SequenceModel::Impl::loadsAt(const std::vector<Eigen::Vector2d>& pos) const {
+  const int64_t n = cfg.nodes;
+  const auto isObject = [&](int64_t c) {
+    return spec.entities[static_cast<size_t>(order.task_of[static_cast<size_t>(c)])].kind == task::EntityKind::Object;
+  };
+  std::vector<detail::Load> loads;
+  for (int64_t o = 0; o < n; ++o) {
+    if (!isObject(o)) continue;
+    detail::Load load{static_cast<int>(o), {}};
+    for (int64_t c = 0; c < n; ++c)
+      if (c != o && !isObject(c) &&
+          (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() <=
+              task::togetherDistance(spec, order.task_of[static_cast<size_t>(c)],
+                                     order.task_of[static_cast<size_t>(o)]))
+        load.carriers.push_back(static_cast<int>(c));
+    loads.push_back(load);
+  }
+  return loads;
+}
+
+Tensor SequenceModel::Impl::carriedBy(const std::vector<detail::Load>& loads) const {
+  const int64_t n = cfg.nodes;
+  std::vector<float> m(static_cast<size_t>(n * n), 0.f);
+  for (const detail::Load& load : loads)
+    for (int c : load.carriers) m[static_cast<size_t>(c * n + load.object)] = 1.f;
+  return torch::from_blob(m.data(), {n, n}, torch::kFloat).clone();
 }
 
 detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector<double>& la_net,
@@ -80,20 +119,7 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
   std::vector<bool> load_action(static_cast<size_t>(cfg.actions), false);
   std::vector<double> la_joint = la, lt_joint = lt;
   if (!rules.load_actions.empty()) {
-    const auto isObject = [&](int64_t c) {
-      return spec.entities[static_cast<size_t>(order.task_of[static_cast<size_t>(c)])].kind == task::EntityKind::Object;
-    };
-    for (int64_t o = 0; o < n; ++o) {
-      if (!isObject(o)) continue;
-      detail::Load load{static_cast<int>(o), {}};
-      for (int64_t c = 0; c < n; ++c)
-        if (c != o && !isObject(c) &&
-            (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() <=
-                task::togetherDistance(spec, order.task_of[static_cast<size_t>(c)],
-                                       order.task_of[static_cast<size_t>(o)]))
-          load.carriers.push_back(static_cast<int>(c));
-      loads.push_back(load);
-    }
+    loads = loadsAt(pos);
     for (const std::string& a : rules.load_actions)
       if (vocabIndex(a) >= 0) load_action[static_cast<size_t>(vocabIndex(a) + 1)] = true;
     const int64_t actions = cfg.actions, targets = cfg.targets;
@@ -118,17 +144,32 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
   detail::StepDecision decision = detail::decideStep(p_end, la_joint, cfg.actions, lt_joint, cfg.targets, rules);
   if (decision.end) return decision;
   if (info.plan.token_by_token) {
-    // Token by token (docs/tgn.md): who acts, and how, is the decoded step's; their targets
-    // are chosen one at a time.
+    // Token by token (docs/tgn.md): how many act is the decoded step's; who, and at what,
+    // is chosen one token at a time. An entity chosen that the heads left idle takes its
+    // most probable acting class.
     std::vector<bool> acting(static_cast<size_t>(n));
     for (int64_t i = 0; i < n; ++i)
       acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
-    const auto [target, log_p] = chooseTargets(target_logits, nodes, z, history, count, acting, target_ok, member);
-    for (int64_t i = 0; i < n; ++i)
-      if (acting[static_cast<size_t>(i)]) {
-        decision.tokens[static_cast<size_t>(i)].target = target[static_cast<size_t>(i)];
-        lt[static_cast<size_t>(i * cfg.targets + target[static_cast<size_t>(i)])] = log_p[static_cast<size_t>(i)];
+    // A carrier's pairs are its loads' too (one decision): their pointer logits join.
+    const Tensor carried = rules.load_actions.empty() ? Tensor() : carriedBy(loads);
+    const auto [target, log_p] =
+        chooseTokens(target_logits, nodes, z, history, count, acting, demonstrated, carried, member);
+    for (int64_t i = 0; i < n; ++i) {
+      detail::DecodedToken& token = decision.tokens[static_cast<size_t>(i)];
+      if (target[static_cast<size_t>(i)] < 0) {
+        token = {};
+        continue;
       }
+      if (token.action == 0) {
+        token.action = 1;
+        for (int64_t a = 2; a < cfg.actions; ++a)
+          if (la_joint[static_cast<size_t>(i * cfg.actions + a)] >
+              la_joint[static_cast<size_t>(i * cfg.actions + token.action)])
+            token.action = static_cast<int>(a);
+      }
+      token.target = target[static_cast<size_t>(i)];
+      lt[static_cast<size_t>(i * cfg.targets + token.target)] = log_p[static_cast<size_t>(i)];
+    }
   }
   if (!rules.load_actions.empty()) {
     for (const detail::Load& load : loads)
@@ -144,21 +185,32 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
   return decision;
 }
 
-std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTargets(
+std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTokens(
     const Tensor& target_logits, const Tensor& nodes, const Tensor& z, const std::vector<Eigen::Vector2d>* history,
-    size_t count, const std::vector<bool>& acting, const std::vector<bool>& target_ok, int member) const {
+    size_t count, const std::vector<bool>& acting, const DemonstratedTokens& demonstrated, const Tensor& carried,
+    int member) const {
   const int64_t n = cfg.nodes, targets = cfg.targets;
-  std::vector<float> mask(static_cast<size_t>(n * targets), 0.f);  // one tensor op, not one per element
-  for (size_t k = 0; k < mask.size(); ++k)
-    if (!target_ok[k]) mask[k] = -1e9f;
-  const Tensor undemonstrated = torch::from_blob(mask.data(), {n, targets}, torch::kFloat).clone();
-  std::vector<int> target(static_cast<size_t>(n), 0);
+  const auto joined = [&](const Tensor& own) { return carried.defined() ? own + carried.mm(own) : own; };
+  // The pairs each entity may be chosen for: an acting one any demonstrated target, another
+  // the pairs it may point at; one tensor op, not one per element.
+  std::vector<float> mask(static_cast<size_t>(n * targets), -1e9f);
+  std::vector<bool> open(static_cast<size_t>(n), false), competing(static_cast<size_t>(n), true);
+  for (int64_t i = 0; i < n; ++i)
+    for (int64_t j = 0; j < targets; ++j) {
+      const size_t k = static_cast<size_t>(i * targets + j);
+      if (acting[static_cast<size_t>(i)] ? demonstrated.target_ok[k] : demonstrated.may_point[k]) {
+        mask[k] = 0.f;
+        open[static_cast<size_t>(i)] = true;
+      }
+    }
+  const Tensor pointable = torch::from_blob(mask.data(), {n, targets}, torch::kFloat).clone();
+  std::vector<int> target(static_cast<size_t>(n), -1);
   std::vector<double> log_p(static_cast<size_t>(n), 0);
-  std::vector<bool> open = acting, competing(static_cast<size_t>(n), true);
+  int64_t left = std::count(acting.begin(), acting.end(), true);
   Tensor taken = torch::zeros({n});
-  Tensor logits = target_logits + undemonstrated;
+  Tensor logits = joined(target_logits) + pointable;
   SceneNetwork net = members().at(static_cast<size_t>(member));
-  while (std::any_of(open.begin(), open.end(), [](bool o) { return o; })) {
+  while (left > 0) {
     const Tensor l = logits.to(torch::kDouble).contiguous();
     const Tensor own = torch::log_softmax(l, -1);
     const auto logit = l.accessor<double, 2>();
@@ -169,18 +221,22 @@ std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseTarg
       for (int64_t j = 0; j < targets; ++j)
         if (logit[i][j] > best) best = logit[i][j], bi = i, bj = j;  // the first on ties: canonical order
     }
+    if (bi < 0) break;  // no entity left that may act (unreachable: the acting ones are open)
     target[static_cast<size_t>(bi)] = static_cast<int>(bj);
     log_p[static_cast<size_t>(bi)] = own[bi][bj].item<double>();
     open[static_cast<size_t>(bi)] = false;
     competing[static_cast<size_t>(bi)] = false;
+    if (carried.defined())  // its loads are given with it
+      for (int64_t o = 0; o < n; ++o)
+        if (carried[bi][o].item<float>() > 0) competing[static_cast<size_t>(o)] = false;
     if (bj > 0) {
       competing[static_cast<size_t>(bj - 1)] = false;
       taken[bj - 1] = 1;
     }
-    if (std::none_of(open.begin(), open.end(), [](bool o) { return o; })) break;
+    if (--left == 0) break;
     Tensor given = torch::zeros({n, n, kRelativeFeatures});
     relative(history, count, given.data_ptr<float>(), &competing);
-    logits = net->heads(nodes, given, z).target + takenMask(taken).squeeze(0) + undemonstrated;
+    logits = joined(net->heads(nodes, given, z).target) + takenMask(taken).squeeze(0) + pointable;
   }
   return {target, log_p};
 }

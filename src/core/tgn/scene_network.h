@@ -16,8 +16,9 @@
 //                   as the step began: "the one who received the box"); and each one's
 //                   last move, however many steps ago: i's last move went to j, j's to i
 //                   ("the giver follows the receiver" after the receiver moved on). Ranks and
-//                   orders count only rivals: an entity parked with another (or, token by
-//                   token, one already given its part) is none. Orders are strict but for
+//                   orders count only rivals: an entity parked with another is none of a
+//                   free one's (a parked one's are every one of its kind), and token by
+//                   token one already given its part is nobody's. Orders are strict but for
 //                   two at one place. The displacement x_j - x_i only with
 //                   TrainOptions::edge_displacement (off by default).
 //                   Entities within task::togetherDistance of each other (the end-point

@@ -91,8 +91,31 @@ std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train,
   std::vector<bool> is_object(static_cast<size_t>(impl->cfg.nodes));
   for (size_t c = 0; c < is_object.size(); ++c)
     is_object[c] = impl->spec.entities[static_cast<size_t>(impl->order.task_of[c])].kind == task::EntityKind::Object;
+  Tensor may_point;
+  if (token_by_token) {
+    const std::vector<bool> pairs = impl->demonstratedTokens().may_point;
+    std::vector<float> m(pairs.begin(), pairs.end());
+    may_point = torch::from_blob(m.data(), {impl->cfg.nodes, impl->cfg.targets}, torch::kFloat).clone();
+  }
+  // Carried loads: which load stands at which entity's place, in every snapshot (they do
+  // not change from epoch to epoch).
+  std::vector<Tensor> carried_of;
+  if (token_by_token && loads_carried)
+    for (const Sequence& s : seqs) {
+      std::vector<Tensor> snapshots;
+      for (const auto& pos : s.positions) snapshots.push_back(impl->carriedBy(impl->loadsAt(pos)));
+      carried_of.push_back(torch::stack(snapshots));
+    }
   const auto giveTokens = [&](Batch& batch, const std::vector<size_t>& which) {
     const int64_t n = impl->cfg.nodes;
+    batch.may_point = may_point;
+    if (!carried_of.empty()) {
+      batch.carried = torch::zeros({batch.b, batch.t, n, n});
+      for (size_t b = 0; b < which.size(); ++b) {
+        const Tensor& c = carried_of[which[b]];
+        batch.carried[static_cast<int64_t>(b)].narrow(0, 0, c.size(0)).copy_(c);
+      }
+    }
     batch.given = torch::zeros({batch.b, batch.t, n});
     batch.taken = torch::zeros({batch.b, batch.t, n});  // rel_slots is this batch's own copy (collate)
     auto given = batch.given.accessor<float, 3>();

@@ -220,7 +220,7 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
   EXPECT_NE(e.find("manifest.yaml records"), std::string::npos) << e;
   e = variant("other_format", [&](const fs::path& d) {
     rewrite(d / "manifest.yaml",
-            [](std::string& s) { s.replace(s.find("format: ddace-model/13"), 22, "format: ddace-model/14"); });
+            [](std::string& s) { s.replace(s.find("format: ddace-model/14"), 22, "format: ddace-model/15"); });
   });
   EXPECT_NE(e.find("manifest.yaml:"), std::string::npos) << e;
   e = variant("loss_row", [&](const fs::path& d) { rewrite(d / "loss.csv", [](std::string& s) { s += "x,y\n"; }); });
@@ -307,22 +307,25 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
   // An older format: retrain, saying what it lacks; a newer one: said so.
   for (const char* version :
        {"ddace-model/9", "ddace-model/8", "ddace-model/7", "ddace-model/5", "ddace-model/4", "ddace-model/2"}) {
-    const std::string old = edited("format: ddace-model/13", std::string("format: ") + version, false);
+    const std::string old = edited("format: ddace-model/14", std::string("format: ") + version, false);
     EXPECT_NE(old.find("retrain"), std::string::npos) << old;
     EXPECT_NE(old.find("relational basis"), std::string::npos) << old;
     EXPECT_EQ(old.find("no training plan") != std::string::npos, std::string(version) != "ddace-model/9") << old;
     EXPECT_NE(old.find("manifest.yaml:"), std::string::npos) << old;
   }
   {
-    const std::string old = edited("format: ddace-model/13", "format: ddace-model/10", false);
+    const std::string old = edited("format: ddace-model/14", "format: ddace-model/10", false);
     EXPECT_NE(old.find("retrain"), std::string::npos) << old;
     EXPECT_NE(old.find("no ensemble"), std::string::npos) << old;
-    const std::string last = edited("format: ddace-model/13", "format: ddace-model/12", false);
-    EXPECT_NE(last.find("relational basis"), std::string::npos) << last;
-    EXPECT_EQ(last.find("no ensemble"), std::string::npos) << last;
+    const std::string twelve = edited("format: ddace-model/14", "format: ddace-model/12", false);
+    EXPECT_NE(twelve.find("relational basis"), std::string::npos) << twelve;
+    EXPECT_EQ(twelve.find("no ensemble"), std::string::npos) << twelve;
+    const std::string last = edited("format: ddace-model/14", "format: ddace-model/13", false);
+    EXPECT_NE(last.find("who acts"), std::string::npos) << last;
+    EXPECT_EQ(last.find("relational basis"), std::string::npos) << last;
   }
-  EXPECT_NE(edited("format: ddace-model/13", "format: ddace-model/2", false).find("digests"), std::string::npos);
-  EXPECT_NE(edited("format: ddace-model/13", "format: ddace-model/15", false).find("newer"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/14", "format: ddace-model/2", false).find("digests"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/14", "format: ddace-model/16", false).find("newer"), std::string::npos);
   {
     // The record is what training did: fetch's robots were shuffled (or, after 2 epochs, the
     // network without names kept: then none), Task 2's names not.
@@ -399,6 +402,39 @@ TEST(TokenByToken, IsTrainedWhereAStepHasSeveralExclusiveTargets) {
   fs::remove_all(dir);
   o.without = {tgn::Rule::TokenByToken};
   EXPECT_FALSE(tgn::SequenceModel::train(generate("nearest_goal", 4), o, nullptr).info().plan.token_by_token);
+}
+
+// Token by token, who acts is chosen one token at a time too, not only at what. In "each
+// box fetched by its nearest free robot" (zoo:two-boxes: 3 robots, 2 boxes), where one
+// robot is the nearest to both boxes, it takes the box nearer to it, and the other box is
+// fetched by its nearest robot of the two left: a relation to a token already chosen.
+// The action heads alone, deciding who acts before any token, were wrong in 8 of the 24
+// such fresh scenes below (the third robot acted instead of the other box's nearest free
+// one; training data seed 2, 2 of 24 at seeds 1 and 3); the decoder now misses 1.
+TEST(TokenByToken, ChoosesWhoActsOneTokenAtATime) {
+  const tgn::SequenceModel m =
+      tgn::SequenceModel::train(generate("zoo:two-boxes", 20, 2), tgn::TrainOptions{}, nullptr);
+  ASSERT_TRUE(m.info().plan.token_by_token);
+  const task::TaskDir fresh = generate("zoo:two-boxes", 80, 77);
+  const auto nearestRobot = [&](const std::vector<Eigen::Vector2d>& pos, const std::string& box) {
+    const int b = fresh.spec.entityIndex(box);
+    int best = -1;
+    for (int r = 0; r < static_cast<int>(pos.size()); ++r)
+      if (fresh.spec.entities[static_cast<size_t>(r)].kind == task::EntityKind::Robot &&
+          (best < 0 || (pos[static_cast<size_t>(r)] - pos[static_cast<size_t>(b)]).norm() <
+                           (pos[static_cast<size_t>(best)] - pos[static_cast<size_t>(b)]).norm()))
+        best = r;
+    return best;
+  };
+  int scenes = 0, right = 0;
+  for (const auto& d : fresh.demos) {
+    const std::vector<Eigen::Vector2d>& start = d.snapshots[0].positions;
+    if (nearestRobot(start, "B1") != nearestRobot(start, "B2")) continue;
+    ++scenes;
+    right += m.predictNext({d.snapshots[0]}).tokens == d.steps[0].tokens;
+  }
+  ASSERT_GE(scenes, 15) << "fresh scenes in which one robot is the nearest to both boxes";
+  EXPECT_GE(right, scenes - 2) << "the second box fetched by its nearest free robot";
 }
 
 // Parked entities (docs/tgn.md): where the scene network sees the relative features, an
@@ -915,9 +951,9 @@ TEST(ShuffledNames, ChangeTheSceneFamiliesTrainingOnly) {
     for (const auto& r : m.info().history) l.push_back(r.loss);
     return l;
   };
-  // queue's data seed 2: at seed 1 the network with the names shuffled fits short after 6
+  // queue's data seed 1: at seed 2 the network with the names shuffled fits short after 6
   // epochs and the one with them kept ("unless they cost the fit") replaces it.
-  const task::TaskDir queue = generate("queue", 6, 2), task2 = generate("task2", 6);
+  const task::TaskDir queue = generate("queue", 6, 1), task2 = generate("task2", 6);
   EXPECT_NE(losses(tgn::SequenceModel::train(queue, on, nullptr)),
             losses(tgn::SequenceModel::train(queue, off, nullptr)));
   ASSERT_FALSE(tgn::detail::interchangeableNames(task2).empty()) << "Task 2 has no robots sharing a role";
