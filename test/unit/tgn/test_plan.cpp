@@ -9,6 +9,8 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "ddace/common/error.h"
 #include "ddace/common/sha256.h"
@@ -521,43 +523,66 @@ TEST(CarriedLoads, ACarrierStoppedWhereTheFollowerStopsStillCarries) {
   EXPECT_EQ(checked, 5);
 }
 
-// Ensemble: queue from 10 demonstrations (data seed 4). The network of training seed 1 fits
-// its demonstrations exactly and still decides a step of the 15 fresh scenes otherwise than
-// the rule (the head slot tied to where it happened to lie); the plan's three networks
-// (seed 1's the first of them, trained to the bit as alone) decide every step as the rule
-// says: the other two outvote it.
+// Ensemble: three networks trained alike from three seeds (the first the model's own,
+// trained to the bit as alone) each decode a step, and the majority decides. On fresh
+// scenes of queue from 4 demonstrations (networks that fit their demonstrations exactly
+// and still generalise differently), every step the ensemble takes is the majority of the
+// three networks trained alone, and somewhere the first network is outvoted. Which steps
+// the networks disagree on depends on the CPU's floating-point kernels, so the data sets
+// are searched (data seeds 4..11) until the first network is outvoted (on the first, on
+// each kind of CPU tried).
 TEST(Ensemble, TheMajorityOfSeedsDecides) {
-  const task::TaskDir train = generate("queue", 10, 4), test = generate("queue", 15, 4 * 2654435761ULL + 0x7e57);
-  tgn::TrainOptions alone;
-  alone.without = {tgn::Rule::Ensemble};
-  const tgn::SequenceModel one = tgn::SequenceModel::train(train, alone, nullptr);
-  const tgn::SequenceModel three = tgn::SequenceModel::train(train, tgn::TrainOptions{}, nullptr);
-  ASSERT_EQ(one.info().plan.ensemble, 1);
-  ASSERT_EQ(three.info().plan.ensemble, tgn::kEnsembleMembers);
-  EXPECT_EQ(one.info().history.size(), three.info().history.size()) << "the first network is the one alone";
-  EXPECT_DOUBLE_EQ(one.stepAccuracy(train.demos), 1.0);
-  EXPECT_LT(one.stepAccuracy(test.demos), 1.0);
-  EXPECT_DOUBLE_EQ(three.stepAccuracy(test.demos), 1.0);
-  // A step the first network alone decides wrong: the three decide it right.
-  std::vector<task::Snapshot> wrong;
-  for (size_t d = 0; d < test.demos.size() && wrong.empty(); ++d)
-    for (size_t k = 1; k < test.demos[d].snapshots.size() && wrong.empty(); ++k) {
-      const std::vector<task::Snapshot> history(test.demos[d].snapshots.begin(),
-                                                test.demos[d].snapshots.begin() + static_cast<long>(k));
-      if (one.predictNext(history).tokens != test.demos[d].steps[k - 1].tokens) {
-        wrong = history;
-        EXPECT_EQ(three.predictNext(history).tokens, test.demos[d].steps[k - 1].tokens) << "demonstration " << d;
-      }
+  const auto same = [](const tgn::Prediction& a, const tgn::Prediction& b) {
+    return a.end == b.end && a.tokens == b.tokens;
+  };
+  bool outvoted = false;
+  int decided = 0;
+  for (uint64_t data_seed = 4; data_seed < 12 && !outvoted; ++data_seed) {
+    const task::TaskDir train = generate("queue", 4, data_seed),
+                        test = generate("queue", 15, data_seed * 2654435761ULL + 0x7e57);
+    const tgn::SequenceModel three = tgn::SequenceModel::train(train, tgn::TrainOptions{}, nullptr);
+    ASSERT_EQ(three.info().plan.ensemble, tgn::kEnsembleMembers);
+    std::vector<tgn::SequenceModel> alone;
+    for (int k = 0; k < tgn::kEnsembleMembers; ++k) {
+      tgn::TrainOptions o;
+      o.without = {tgn::Rule::Ensemble};
+      o.seed = tgn::memberSeed(1, k);
+      alone.push_back(tgn::SequenceModel::train(train, o, nullptr));
+      ASSERT_EQ(alone.back().info().plan.ensemble, 1);
+      // The member trained as the ensemble's (the same plan: no fit guard chose otherwise).
+      ASSERT_EQ(alone.back().info().plan.identity_embedding, three.info().plan.identity_embedding);
+      ASSERT_EQ(alone.back().info().plan.name_groups, three.info().plan.name_groups);
     }
-  ASSERT_FALSE(wrong.empty());
-  // Saved and loaded: every network, the same decisions.
-  const std::string dir = (fs::temp_directory_path() / ("ddace_test_ensemble_" + std::to_string(::getpid()))).string();
-  three.save(dir);
-  const tgn::SequenceModel loaded = tgn::SequenceModel::load(dir);
-  fs::remove_all(dir);
-  EXPECT_EQ(loaded.info().plan.ensemble, tgn::kEnsembleMembers);
-  EXPECT_DOUBLE_EQ(loaded.stepAccuracy(test.demos), 1.0);
-  EXPECT_EQ(loaded.predictNext(wrong).tokens, three.predictNext(wrong).tokens);
+    EXPECT_EQ(alone[0].info().history.size(), three.info().history.size()) << "the first network is the one alone";
+    for (const task::Demonstration& d : test.demos)
+      for (size_t k = 1; k < d.snapshots.size(); ++k) {
+        const std::vector<task::Snapshot> history(d.snapshots.begin(), d.snapshots.begin() + static_cast<long>(k));
+        std::vector<tgn::Prediction> votes;
+        for (const tgn::SequenceModel& m : alone) votes.push_back(m.predictNext(history));
+        // The majority: a decision more than half the networks took; else the first's.
+        tgn::Prediction majority = votes[0];
+        for (const tgn::Prediction& v : votes)
+          if (2 * std::count_if(votes.begin(), votes.end(), [&](const tgn::Prediction& o) { return same(o, v); }) >
+              static_cast<long>(votes.size()))
+            majority = v;
+        const tgn::Prediction p = three.predictNext(history);
+        EXPECT_TRUE(same(p, majority)) << d.source << " snapshot " << k;
+        outvoted = outvoted || !same(p, votes[0]);
+        ++decided;
+      }
+    if (outvoted) {
+      // Saved and loaded: every network, the same decisions.
+      const std::string dir =
+          (fs::temp_directory_path() / ("ddace_test_ensemble_" + std::to_string(::getpid()))).string();
+      three.save(dir);
+      const tgn::SequenceModel loaded = tgn::SequenceModel::load(dir);
+      fs::remove_all(dir);
+      EXPECT_EQ(loaded.info().plan.ensemble, tgn::kEnsembleMembers);
+      EXPECT_DOUBLE_EQ(loaded.stepAccuracy(test.demos), three.stepAccuracy(test.demos));
+    }
+  }
+  EXPECT_TRUE(outvoted) << "in " << decided << " steps of queue's fresh scenes (data seeds 4..11) the first network "
+                        << "was never outvoted";
 }
 
 // A manifest edited to another number of networks than training made (and weights.pt
@@ -602,20 +627,37 @@ TEST(Ensemble, MajorityDecision) {
 }
 
 // Shuffled names, unless they cost the fit: where the network with the names shuffled fits
-// its demonstrations short of every step, one with them kept is trained next and kept when
-// it fits better. "Each box fetched by the robots in front-to-back order, then carried to
-// its farthest free goal" (zoo:11, 10 demonstrations): the robots' and the goals' names
-// are shuffled (B1 keeps its name); that network decides 0.97 of the steps, the one with
-// the names kept every one.
+// its demonstrations short of every step, one with them kept is trained next, and the
+// better fit of the two is the model. zoo:11 at 10 demonstrations ("each box fetched by the
+// robots in front-to-back order, then carried to its farthest free goal": the robots' and
+// the goals' names shuffled). Trained to the end, its networks fit every step on most
+// machines (which seeds fall short depends on the CPU's floating-point kernels), so training
+// is cut to 2 epochs: the first network falls short wherever it is tried, and the model kept
+// must be the better fit, the names kept exactly when they fit better.
 TEST(ShuffledNames, AreKeptWhereShufflingThemCostsTheFit) {
   const task::TaskDir train = generate("zoo:11", 10);
-  tgn::TrainOptions o;
-  o.without = {tgn::Rule::Ensemble};  // the rule is the first network's; one is enough here
-  ASSERT_FALSE(planOf(train, o).name_groups.empty());
-  std::ostringstream progress;
-  const tgn::SequenceModel m = tgn::SequenceModel::train(train, o, &progress);
-  EXPECT_NE(progress.str().find("training with the names kept"), std::string::npos) << progress.str();
-  EXPECT_TRUE(m.info().plan.name_groups.empty());
-  EXPECT_TRUE(m.info().plan.identity_embedding);
-  EXPECT_DOUBLE_EQ(m.stepAccuracy(train.demos), 1.0);
+  for (uint64_t seed = 1; seed <= 3; ++seed) {
+    tgn::TrainOptions o;
+    o.without = {tgn::Rule::Ensemble};  // the rule is the first network's; one is enough here
+    o.seed = seed;
+    o.max_epochs = 2;
+    ASSERT_FALSE(planOf(train, o).name_groups.empty());
+    std::ostringstream progress;
+    const tgn::SequenceModel m = tgn::SequenceModel::train(train, o, &progress);
+    const std::string log = progress.str();
+    // "step accuracy F: training with the names kept", then "step accuracy G with the
+    // names kept: keeping it|the first".
+    const size_t tried = log.find("training with the names kept");
+    ASSERT_NE(tried, std::string::npos) << log;
+    const double shuffled_fit = std::stod(log.substr(log.rfind("step accuracy ", tried) + 14));
+    const size_t verdict = log.find("with the names kept: keeping", tried);
+    ASSERT_NE(verdict, std::string::npos) << log;
+    const double kept_fit = std::stod(log.substr(log.rfind("step accuracy ", verdict) + 14));
+    EXPECT_LT(shuffled_fit, 1.0) << log;
+    EXPECT_EQ(m.info().plan.name_groups.empty(), kept_fit > shuffled_fit) << log;
+    if (kept_fit > shuffled_fit) {
+      EXPECT_TRUE(m.info().plan.identity_embedding) << log;
+    }
+    EXPECT_NEAR(m.stepAccuracy(train.demos), std::max(shuffled_fit, kept_fit), 1e-5) << log;  // printed to 6 digits
+  }
 }
