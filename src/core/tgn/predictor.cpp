@@ -190,10 +190,19 @@ std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseToke
     size_t count, const std::vector<bool>& acting, const DemonstratedTokens& demonstrated, const Tensor& carried,
     int member) const {
   const int64_t n = cfg.nodes, targets = cfg.targets;
-  const auto joined = [&](const Tensor& own) { return carried.defined() ? own + carried.mm(own) : own; };
+  const size_t cells = static_cast<size_t>(n * targets);
+  // The loads at each entity's place (carried [N, N]): their pointer logits join its own.
+  std::vector<std::vector<int64_t>> loads_of(static_cast<size_t>(n));
+  if (carried.defined()) {
+    const Tensor c = carried.contiguous();
+    const float* cp = c.data_ptr<float>();
+    for (int64_t i = 0; i < n; ++i)
+      for (int64_t o = 0; o < n; ++o)
+        if (cp[i * n + o] > 0) loads_of[static_cast<size_t>(i)].push_back(o);
+  }
   // The pairs each entity may be chosen for: an acting one any demonstrated target, another
-  // the pairs it may point at; one tensor op, not one per element.
-  std::vector<float> mask(static_cast<size_t>(n * targets), -1e9f);
+  // the pairs it may point at.
+  std::vector<float> mask(cells, -1e9f);
   std::vector<bool> open(static_cast<size_t>(n), false), competing(static_cast<size_t>(n), true);
   for (int64_t i = 0; i < n; ++i)
     for (int64_t j = 0; j < targets; ++j) {
@@ -203,40 +212,54 @@ std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseToke
         open[static_cast<size_t>(i)] = true;
       }
     }
-  const Tensor pointable = torch::from_blob(mask.data(), {n, targets}, torch::kFloat).clone();
   std::vector<int> target(static_cast<size_t>(n), -1);
   std::vector<double> log_p(static_cast<size_t>(n), 0);
+  std::vector<bool> taken(static_cast<size_t>(targets), false);  // slot 0, "none", is never taken
   int64_t left = std::count(acting.begin(), acting.end(), true);
-  Tensor taken = torch::zeros({n});
-  Tensor logits = joined(target_logits) + pointable;
   SceneNetwork net = members().at(static_cast<size_t>(member));
+  // The pointer's terms that stay from token to token, computed once.
+  const SceneNetworkImpl::PointerParts parts = net->pointerParts(nodes, z, net->hiddenOf(nodes, z));
+  std::vector<float> own(cells), logit(cells);
+  Tensor heads_logits = target_logits;
   while (left > 0) {
-    const Tensor l = logits.to(torch::kDouble).contiguous();
-    const Tensor own = torch::log_softmax(l, -1);
-    const auto logit = l.accessor<double, 2>();
+    // The logits of every pair: its own, its loads' added, the masks (as floats, in the
+    // order the training's tensors add them).
+    const Tensor t = heads_logits.contiguous();
+    std::copy(t.data_ptr<float>(), t.data_ptr<float>() + cells, own.begin());
+    for (int64_t i = 0; i < n; ++i)
+      for (int64_t j = 0; j < targets; ++j) {
+        const size_t k = static_cast<size_t>(i * targets + j);
+        float joined = 0;
+        for (int64_t o : loads_of[static_cast<size_t>(i)]) joined += own[static_cast<size_t>(o * targets + j)];
+        logit[k] = own[k] + joined + (taken[static_cast<size_t>(j)] ? -1e9f : 0.f) + mask[k];
+      }
     int64_t bi = -1, bj = -1;
     double best = -std::numeric_limits<double>::infinity();
     for (int64_t i = 0; i < n; ++i) {
       if (!open[static_cast<size_t>(i)]) continue;
       for (int64_t j = 0; j < targets; ++j)
-        if (logit[i][j] > best) best = logit[i][j], bi = i, bj = j;  // the first on ties: canonical order
+        if (logit[static_cast<size_t>(i * targets + j)] > best)
+          best = logit[static_cast<size_t>(i * targets + j)], bi = i, bj = j;  // the first on ties: canonical order
     }
     if (bi < 0) break;  // no entity left that may act (unreachable: the acting ones are open)
+    // The chosen pair's log-probability among its entity's pairs (a log-softmax of its row).
+    const float* row = logit.data() + bi * targets;
+    const double top = *std::max_element(row, row + targets);
+    double sum = 0;
+    for (int64_t j = 0; j < targets; ++j) sum += std::exp(static_cast<double>(row[j]) - top);
     target[static_cast<size_t>(bi)] = static_cast<int>(bj);
-    log_p[static_cast<size_t>(bi)] = own[bi][bj].item<double>();
+    log_p[static_cast<size_t>(bi)] = static_cast<double>(row[bj]) - top - std::log(sum);
     open[static_cast<size_t>(bi)] = false;
     competing[static_cast<size_t>(bi)] = false;
-    if (carried.defined())  // its loads are given with it
-      for (int64_t o = 0; o < n; ++o)
-        if (carried[bi][o].item<float>() > 0) competing[static_cast<size_t>(o)] = false;
+    for (int64_t o : loads_of[static_cast<size_t>(bi)]) competing[static_cast<size_t>(o)] = false;  // given with it
     if (bj > 0) {
       competing[static_cast<size_t>(bj - 1)] = false;
-      taken[bj - 1] = 1;
+      taken[static_cast<size_t>(bj)] = true;
     }
     if (--left == 0) break;
     Tensor given = torch::zeros({n, n, kRelativeFeatures});
     relative(history, count, given.data_ptr<float>(), &competing);
-    logits = joined(net->heads(nodes, given, z).target) + takenMask(taken).squeeze(0) + pointable;
+    heads_logits = net->pointerLogits(parts, given);
   }
   return {target, log_p};
 }

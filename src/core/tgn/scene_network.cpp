@@ -101,22 +101,39 @@ Tensor SceneNetworkImpl::encode(const Tensor& features, const Tensor& rel, const
   return cfg.relative_features ? x : torch::cat({x, input}, 2);
 }
 
+Tensor SceneNetworkImpl::hiddenOf(const Tensor& nodes, const Tensor& z) {
+  return torch::relu(act_h(nodes) + act_z(z.unsqueeze(-2)));  // [..., N, hidden]
+}
+
+SceneNetworkImpl::PointerParts SceneNetworkImpl::pointerParts(const Tensor& nodes, const Tensor& z,
+                                                              const Tensor& hidden) {
+  const int64_t n = nodes.size(-2), k = ptr_out->weight.size(1);
+  PointerParts p;
+  p.pi = ptr_i(nodes).reshape({-1, n, k});
+  p.pj = ptr_j(nodes).reshape({-1, n, k});
+  p.pz = ptr_z(z).reshape({-1, k});
+  p.none = none_out(hidden);
+  p.lead.assign(nodes.sizes().begin(), nodes.sizes().end() - 2);
+  p.lead.push_back(n);
+  p.lead.push_back(n);
+  return p;
+}
+
+Tensor SceneNetworkImpl::pointerLogits(const PointerParts& p, const Tensor& rel) {
+  // v . ReLU(P_i h_i + P_j h_j + P_r r_ij + P_z z) in one fused kernel over [P, N, N, k].
+  const int64_t n = p.pi.size(1), k = p.pi.size(2);
+  const Tensor scores =
+      fused::pointerScores(p.pi, p.pj, ptr_r(rel).reshape({-1, n, n, k}), p.pz, ptr_out->weight.view({k}))
+          .view(p.lead) +
+      ptr_out->bias + self_mask;  // [..., N, N]
+  return torch::cat({p.none, scores}, -1);
+}
+
 Heads SceneNetworkImpl::heads(const Tensor& nodes, const Tensor& rel, const Tensor& z) {
-  const Tensor zu = z.unsqueeze(-2);                            // [..., 1, hidden]
-  const Tensor hidden = torch::relu(act_h(nodes) + act_z(zu));  // [..., N, hidden]
+  const Tensor hidden = hiddenOf(nodes, z);
   Heads h;
   h.action = act_out(hidden);
-  // v . ReLU(P_i h_i + P_j h_j + P_r r_ij + P_z z) in one fused kernel over [P, N, N, hidden].
-  const int64_t n = nodes.size(-2), k = ptr_out->weight.size(1);
-  std::vector<int64_t> lead(nodes.sizes().begin(), nodes.sizes().end() - 2);
-  lead.push_back(n);
-  lead.push_back(n);
-  const Tensor scores =
-      fused::pointerScores(ptr_i(nodes).reshape({-1, n, k}), ptr_j(nodes).reshape({-1, n, k}),
-                           ptr_r(rel).reshape({-1, n, n, k}), ptr_z(z).reshape({-1, k}), ptr_out->weight.view({k}))
-          .view(lead) +
-      ptr_out->bias + self_mask;  // [..., N, N]
-  h.target = torch::cat({none_out(hidden), scores}, -1);
+  h.target = pointerLogits(pointerParts(nodes, z, hidden), rel);
   h.end = end(z);
   return h;
 }

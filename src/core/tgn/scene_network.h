@@ -40,6 +40,9 @@
 //                   are equivariant under a permutation of the entities.
 #pragma once
 
+#include <cstdint>
+#include <vector>
+
 #include <torch/torch.h>
 
 #include "fused_kernels.h"
@@ -79,6 +82,24 @@ struct SceneNetworkImpl : torch::nn::Module {
   torch::Tensor encode(const torch::Tensor& x, const torch::Tensor& rel, const torch::Tensor& names = {});
   /// nodes [..., N, width], rel [..., N, N, R], z [..., hidden] -> the heads.
   Heads heads(const torch::Tensor& nodes, const torch::Tensor& rel, const torch::Tensor& z);
+
+  /// The pointer's terms that do not depend on the relative features: token by token
+  /// (docs/tgn.md) they stay from token to token of a step while `rel` changes, so a
+  /// token costs one pointerLogits, not the whole heads.
+  struct PointerParts {
+    torch::Tensor pi, pj;       ///< P_i h_i, P_j h_j: [P, N, k]
+    torch::Tensor pz;           ///< P_z z: [P, k]
+    torch::Tensor none;         ///< the "none" score: [..., N, 1]
+    std::vector<int64_t> lead;  ///< the leading sizes of the scores: [..., N, N]
+  };
+  /// nodes [..., N, width], z [..., hidden], `hidden` the action MLP's hidden layer
+  /// (hiddenOf) -> the parts.
+  PointerParts pointerParts(const torch::Tensor& nodes, const torch::Tensor& z, const torch::Tensor& hidden);
+  /// The action MLP's hidden layer ReLU(A_h h_i + A_z z): [..., N, hidden].
+  torch::Tensor hiddenOf(const torch::Tensor& nodes, const torch::Tensor& z);
+  /// The pointer's logits [..., N, 1 + N] ("none", then every entity; self masked) on `rel`
+  /// [..., N, N, R]: heads().target.
+  torch::Tensor pointerLogits(const PointerParts& parts, const torch::Tensor& rel);
 
   NetConfig cfg;
   torch::Tensor mask;       ///< [1, N, N, 1]
