@@ -48,6 +48,12 @@ int runGenerate(const std::vector<std::string>& argv) {
               << " training demonstrations in " << out << "/train, " << test << " test in " << out << "/test\n";
     return 0;
   }
+  // The team size and the vocabulary are task2's and task3's case-study settings: given to
+  // another family they would change nothing, so they are refused rather than ignored.
+  if (args.has("--robots") && o.family != "task2")
+    throw Error("--robots applies to task2 only (the team size of the scalability study), not to " + o.family);
+  if (args.has("--actions") && o.family != "task3")
+    throw Error("--actions applies to task3 only (the vocabulary size study), not to " + o.family);
   o.robots = static_cast<int>(args.getInt("--robots", 11));
   o.actions = static_cast<int>(args.getInt("--actions", 4));
   o.jitter_m = args.getDouble("--jitter", 0.0);

@@ -1,5 +1,8 @@
 // `ddace` — the command-line tool: generate, validate, train, eval, ... without a ROS master.
+#include <algorithm>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "command.h"
 #include "ddace/common/error.h"
@@ -22,8 +25,11 @@ int main(int argc, char** argv) {
     return args.empty() ? 2 : 0;
   }
   auto& commands = ddace::cli::commands();
-  // `ddace help SUBCOMMAND` and `ddace SUBCOMMAND --help` (or -h): that subcommand's usage.
-  const bool asked = args.size() == 2 && (args[0] == "help" || args[1] == "--help" || args[1] == "-h");
+  // `ddace help SUBCOMMAND` and `ddace SUBCOMMAND ... --help` (or -h, anywhere after the
+  // subcommand: a user adds it to the line that failed): that subcommand's usage.
+  const bool asked =
+      (args.size() == 2 && args[0] == "help") ||
+      std::any_of(args.begin() + 1, args.end(), [](const std::string& a) { return a == "--help" || a == "-h"; });
   const std::string name = asked && args[0] == "help" ? args[1] : args[0];
   auto it = commands.find(name);
   if (it == commands.end()) {

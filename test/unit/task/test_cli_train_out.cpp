@@ -222,3 +222,34 @@ TEST(CliTrain, HelpPrintsTheUsageWithEveryLearningRuleToSwitchOff) {
   for (const ddace::tgn::Rule r : ddace::tgn::allRules())
     EXPECT_NE(list.find(ddace::tgn::toString(r)), std::string::npos) << ddace::tgn::toString(r) << " in " << list;
 }
+
+TEST(CliTrain, HelpAfterTheArgumentsPrintsTheUsageAndDoesNothing) {
+  // A user appends --help to the line that failed: the usage, exit 0, and nothing trained
+  // or written.
+  const fs::path out = fs::temp_directory_path() / "ddace_cli_help_after_args";
+  fs::remove_all(out);
+  const ToolRun run = runTool("train no/such/taskdir --out " + out.string() + " --help");
+  EXPECT_EQ(run.status, 0) << run.out;
+  EXPECT_NE(run.out.find("usage: ddace train TASKDIR --out MODELDIR"), std::string::npos) << run.out;
+  EXPECT_FALSE(fs::exists(out));
+  const ToolRun short_form = runTool("generate nearest_goal -h");
+  EXPECT_EQ(short_form.status, 0) << short_form.out;
+  EXPECT_NE(short_form.out.find("usage: ddace generate"), std::string::npos) << short_form.out;
+}
+
+TEST(CliGenerate, RefusesASettingTheFamilyWouldIgnore) {
+  // --robots is task2's team size: given to nearest_goal it once generated 3 robots
+  // silently; it is refused, naming the flag, and nothing is written.
+  const fs::path out = fs::temp_directory_path() / "ddace_cli_generate_ignored";
+  fs::remove_all(out);
+  const ToolRun robots = runTool("generate nearest_goal --robots 11 --out " + out.string());
+  EXPECT_NE(robots.status, 0) << robots.out;
+  EXPECT_NE(robots.out.find("--robots applies to task2 only"), std::string::npos) << robots.out;
+  const ToolRun actions = runTool("generate task1 --actions 3 --out " + out.string());
+  EXPECT_NE(actions.status, 0) << actions.out;
+  EXPECT_NE(actions.out.find("--actions applies to task3 only"), std::string::npos) << actions.out;
+  EXPECT_FALSE(fs::exists(out));
+  const ToolRun task2 = runTool("generate task2 --robots 4 --train 1 --test 0 --out " + out.string());
+  EXPECT_EQ(task2.status, 0) << task2.out;
+  fs::remove_all(out);
+}
