@@ -61,8 +61,24 @@ def fit_through_origin(xs, ys):
     return k, residual
 
 
+PARAMS = ("robot", "config", "speeds", "run_s", "settle_s", "output", "entities_topic")
+
+
+def unknown_params(node, names, known):
+    """The parameters of `names` under `node`'s private namespace that are not `known` (as
+    the C++ nodes' check, src/ros/params.cpp): a typo or another node's would leave a
+    setting on its default."""
+    return sorted(n for n in names if n.startswith(node + "/") and n[len(node) + 1:].split("/")[0] not in known)
+
+
 class Calibrator:
     def __init__(self):
+        unknown = unknown_params(rospy.get_name(), rospy.get_param_names(), PARAMS)
+        if unknown:
+            raise ValueError("parameter%s %s %s not one of node %s's (a typo, or a parameter of another node, would "
+                             "leave it on its default); its parameters: %s"
+                             % ("s" if len(unknown) > 1 else "", ", ".join(unknown), "are" if len(unknown) > 1 else "is",
+                                rospy.get_name(), ", ".join(PARAMS)))
         self.robot = rospy.get_param("~robot", "")
         if not self.robot:
             raise ValueError("parameter ~robot (robot name, e.g. R1) is required")

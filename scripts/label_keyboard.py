@@ -264,6 +264,19 @@ def main():
     from ddace.msg import Label
 
     rospy.init_node("label_keyboard", disable_signals=True)
+    node, params = rospy.get_name(), ("markers_file", "recorder_file", "recorder")
+    # As the C++ nodes (src/ros/params.cpp): a parameter of its namespace it does not read
+    # (a typo, another node's) stops it rather than leaving a setting on its default.
+    unknown = sorted(n for n in rospy.get_param_names()
+                     if n.startswith(node + "/") and n[len(node) + 1:].split("/")[0] not in params)
+    if unknown:
+        sys.exit("label_keyboard: parameter%s %s %s not one of node %s's (a typo, or a parameter of another node, "
+                 "would leave it on its default); its parameters: %s"
+                 % ("s" if len(unknown) > 1 else "", ", ".join(unknown), "are" if len(unknown) > 1 else "is", node,
+                    ", ".join(params)))
+    for required in params[:2]:
+        if not rospy.has_param("~" + required):
+            sys.exit("label_keyboard: parameter %s/%s is required" % (node, required))
     markers = load(rospy.get_param("~markers_file"), "markers file")
     recorder_cfg = load(rospy.get_param("~recorder_file"), "recorder file")
     recorder = rospy.get_param("~recorder", "/recorder")

@@ -93,6 +93,25 @@ TEST(ParamsUnknown, TheNodesOwnAreKnown) {
   EXPECT_EQ(r.status, 124) << "the node should still be running when the time-out ends it: " << r.output;
 }
 
+// The Python nodes check their namespace as the C++ ones: the calibration tool would run
+// its default speeds, the keyboard its default recorder.
+TEST(ParamsUnknown, APythonNodeStopsToo) {
+  const NodeRun calibrate = runNode("calibrate_hamster.py", "__name:=params_calibrate _robot:=R1 _speedz:=[0.05]");
+  EXPECT_NE(calibrate.status, 0) << calibrate.output;
+  EXPECT_NE(calibrate.status, 124) << "the node ran on the default: " << calibrate.output;
+  EXPECT_NE(calibrate.output.find("parameter /params_calibrate/speedz is not one of node /params_calibrate's"),
+            std::string::npos)
+      << calibrate.output;
+  EXPECT_NE(calibrate.output.find("robot, config, speeds"), std::string::npos) << calibrate.output;
+  const NodeRun keyboard = runNode("label_keyboard.py", "__name:=params_keyboard _markers_file:=" + kPkg +
+                                                            "/config/markers.yaml _recorder_file:=none _recordr:=/rec");
+  EXPECT_NE(keyboard.status, 0) << keyboard.output;
+  EXPECT_NE(keyboard.status, 124) << keyboard.output;
+  EXPECT_NE(keyboard.output.find("parameter /params_keyboard/recordr is not one of node /params_keyboard's"),
+            std::string::npos)
+      << keyboard.output;
+}
+
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "params_mistyped");
