@@ -6,11 +6,11 @@
 // Read: path_follower/gains, path_follower/safety, mock_robots/robot and mock_robots'
 // bodies, object_speed_mps, object_damping_hz. A section or key that is absent (or a
 // section whose keys are all commented out) keeps the built-in default (the shipped file
-// states them all). An unknown key in gains, safety or robot is an error; the other keys of
-// path_follower and mock_robots, and the other nodes' sections, are the nodes' own and are
-// not read nor checked here (the params_defaults rostest holds the shipped file's keys to
-// the nodes'). The simulated Hamster's tracking noise and its seed are read but eval's are
-// its own (--noise, --seed); gains/arrival_radius_m is the task's, as segments carry it;
+// states them all). An unknown key in path_follower, gains, safety, mock_robots or robot is an
+// error; the other keys of path_follower and mock_robots are the nodes' own (known, not
+// read here), and the other nodes' sections are not read nor checked here (the
+// params_defaults rostest holds the shipped file's keys to the nodes'). The simulated Hamster's tracking noise and its
+// seed are read but eval's are its own (--noise, --seed); gains/arrival_radius_m is the task's, as segments carry it;
 // `bodies: false` is refused (eval's points take no config).
 // Units: metres, seconds, radians, as the file states them.
 #pragma once

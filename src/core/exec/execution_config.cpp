@@ -52,6 +52,23 @@ void readSection(YamlChecker& c, const YAML::Node& map, const std::string& where
   }
 }
 
+/// The names of `params`' fields (visitParams).
+template <typename Params>
+std::set<std::string> fieldNames(Params& params) {
+  std::set<std::string> names;
+  visitParams(params, [&](const char* name, auto&) { names.insert(name); });
+  return names;
+}
+
+// The keys of path_follower and mock_robots that only their nodes read (src/ros/
+// path_follower.cpp, mock_robot.cpp): not read here, but known, so that any other key is a
+// typo. The shipped file holds every key (ExecutionConfig.TheShippedFileIsTheBuiltInDefaults
+// parses it here; the params_defaults rostest holds its keys to the nodes').
+const std::set<std::string> kFollowerNodeKeys = {
+    "rate_hz", "pose_timeout_s", "stale_fail_s", "status_every_cycles", "robots", "task"};
+const std::set<std::string> kMockRobotsNodeKeys = {"task",           "frame_id",  "publish_tf", "stalled",
+                                                   "entities_topic", "scene_csv", "scene_demo", "scene"};
+
 }  // namespace
 
 ExecutionConfig parseExecutionConfig(const std::string& text, const std::string& file) {
@@ -63,11 +80,18 @@ ExecutionConfig parseExecutionConfig(const std::string& text, const std::string&
     if (!follower && !mock)
       c.error(root, "neither path_follower nor mock_robots: not an execution config (config/execution.yaml)");
     if (follower && !follower.IsNull() && c.expectMap(follower, "path_follower")) {
+      std::set<std::string> keys = kFollowerNodeKeys;
+      keys.insert({"gains", "safety"});
+      c.onlyKeys(follower, keys, "path_follower");
       readSection(c, follower["gains"], "path_follower/gains", config.gains);
       readSection(c, follower["safety"], "path_follower/safety", config.safety);
     }
     if (mock && !mock.IsNull() && c.expectMap(mock, "mock_robots")) {
       readSection(c, mock["robot"], "mock_robots/robot", config.robot);
+      std::set<std::string> keys = fieldNames(config.table);
+      keys.insert(kMockRobotsNodeKeys.begin(), kMockRobotsNodeKeys.end());
+      keys.insert("robot");
+      c.onlyKeys(mock, keys, "mock_robots");
       // mock_robots holds the node's own keys too: only the table's are read here.
       readSection(c, mock, "mock_robots", config.table, /*only_fields=*/false);
       if (!config.table.bodies)

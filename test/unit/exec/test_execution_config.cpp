@@ -81,6 +81,15 @@ TEST(ExecutionConfig, BadValuesAreNamedWhereTheyStand) {
       << e;
   e = errorOf("path_follower:\n  safety:\n    margin_mm: 0.01\n");
   EXPECT_NE(e.find("exec.yaml:3:5: unknown key 'margin_mm' in path_follower/safety"), std::string::npos) << e;
+  // A misspelt key of the nodes' own part of a section: eval would run the table on the
+  // default (object_damping_hz 8), the node would refuse it.
+  e = errorOf("mock_robots:\n  bodies: true\n  object_dampign_hz: 2\n");
+  EXPECT_NE(e.find("exec.yaml:3:3: unknown key 'object_dampign_hz' in mock_robots"), std::string::npos) << e;
+  e = errorOf("path_follower:\n  rate_hzz: 20\n");
+  EXPECT_NE(e.find("exec.yaml:2:3: unknown key 'rate_hzz' in path_follower"), std::string::npos) << e;
+  EXPECT_EQ(errorOf("path_follower:\n  robots: [R1]\n  rate_hz: 20\nmock_robots:\n  scene_demo: 1\n  stalled: [R2]\n"),
+            "")
+      << "the nodes' own keys are known";
   e = errorOf("mock_robots:\n  robot:\n    max_wheel_speed_mps: -1\n");
   EXPECT_NE(e.find("exec.yaml:3:5: mock_robots/robot: "), std::string::npos) << e;
   EXPECT_NE(e.find("max_wheel_speed_mps"), std::string::npos) << e;
