@@ -246,6 +246,7 @@ class Coordinator {
   void completeStepIfDone(double now_s, CoordinatorOutput& out);
   bool arrived(const TokenRecord& t) const;
   void updateDistances();
+  uint32_t nextId();  ///< next_id_, then counts up past 0
 
   task::TaskSpec spec_;
   CoordinatorConfig config_;
@@ -256,7 +257,6 @@ class Coordinator {
   std::vector<task::Snapshot> history_;
   std::vector<StepRecord> steps_;
   uint32_t next_id_ = 1;
-  uint32_t nextId();  ///< next_id_, then counts up past 0
   uint32_t pending_decision_ = 0;
   double pending_since_s_ = 0;
   std::vector<uint32_t> pending_paths_;  ///< request id per token of the current step (0 = none)
