@@ -37,10 +37,10 @@ int runEval(const std::vector<std::string>& argv) {
     o.config = exec::readExecutionConfig(args.get("--config", ""));
   }
 
-  const Model model = loadModel(model_dir);
   const task::TaskDir test = task::loadTaskDir(test_dir);
-  checkSameTask(model, model_dir, test, test_dir, args.has("--allow-other-task"));
-  const Evaluation e = evaluate(model, test, o);
+  const ModelForTask bound = modelForTask(loadModel(model_dir), model_dir, test, test_dir, args.has("--allow-other-task"));
+  if (!bound.note.empty()) std::cout << bound.note << "\n";
+  const Evaluation e = evaluate(bound.model, test, o);
   printEvaluation(e, std::cout);
   if (args.has("--json")) {
     const std::string path = args.get("--json", "");
@@ -54,7 +54,9 @@ DDACE_COMMAND({"eval",
                "ddace eval MODELDIR TESTDIR [--json FILE] [--execution ideal|diffdrive] [--noise SIGMA_M] [--seed S] "
                "[--no-bodies] [--no-filter] [--config EXECUTION_YAML] [--allow-other-task]",
                "run the learned task in closed loop on every test demonstration's start configuration and "
-               "report OSR, SSR, GCR and FD (a model of another task is refused unless --allow-other-task). "
+               "report OSR, SSR, GCR and FD (a model of another task is refused unless --allow-other-task; a test set "
+               "of the same task with other numbers of robots, goals or boxes runs the model bound by kind, with a "
+               "note, where the rule it learned is stated by the scene). "
                "ideal: every entity traverses its path exactly (the paper). diffdrive: the robots of a step drive "
                "together on the simulated table with bodies, each through its safety filter; every trial reports "
                "its collisions, minimum clearance and makespan, and a collision fails it (--no-filter: without "

@@ -61,6 +61,7 @@ int runInspect(const std::vector<std::string>& argv) {
               << ", ensemble of " << plan.ensemble << (plan.ensemble == 1 ? " network" : " networks")
               << (without.empty() ? std::string() : "; asked --without " + without) << " (docs/tgn.md)\n";
   }
+  std::cout << "  transfer:    runs on " << model.transfer().text() << "\n";
   const auto join = [](const auto& items) {
     std::string out;
     for (const auto& i : items) {

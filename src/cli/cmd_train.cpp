@@ -119,6 +119,7 @@ int runTrain(const std::vector<std::string>& argv) {
     }
     std::cout << ")\n";
   }
+  std::cout << "transfer: runs on " << model.transfer().text() << "\n";
   std::cout << "wrote " << out << " (ddace inspect " << out << " shows it)\n";
   return 0;
 }

@@ -140,10 +140,15 @@ class CoordinatorNode::Impl {
       ros_exec::requireAbsolute(model, pnh.resolveName("model"));
       const std::string file = (fs::path(model) / gp::kPrimitivesFile).string();
       const gp::PrimitiveLibrary lib = gp::PrimitiveLibrary::load(file);
-      if (lib.entityNames() != spec_.entityNames())
-        throw Error(Diagnostic{
-            file, 0, 0, "the model's entities are not the task's (parameter '" + pnh.resolveName("model") + "')"});
-      return lib.endPoints();
+      if (lib.entityNames() == spec_.entityNames()) return lib.endPoints();
+      // The same kinds in other numbers (the sequence node checks the model can run on them).
+      try {
+        return lib.boundTo(spec_).endPoints();
+      } catch (const Error& e) {
+        throw Error(Diagnostic{file, 0, 0,
+                               "the model's entities are not the task's (parameter '" + pnh.resolveName("model") +
+                                   "'): " + e.what()});
+      }
     }
     std::string train = rosparam::param<std::string>(pnh, "train", "");
     if (train.empty()) train = rosparam::param<std::string>(pnh, "task", "");

@@ -43,18 +43,23 @@ class GpPathNode::Impl {
           throw Error(Diagnostic{path, 0, 0,
                                  "not a model directory (no manifest.yaml): give a model directory "
                                  "written by ddace train, or a primitives.yaml"});
-        const pipeline::Model model = pipeline::loadModel(path);
-        if (!model.primitives)
-          throw Error(Diagnostic{path, 0, 0, "a " + model.sequence.variant() + " model has no primitive library"});
-        library_ = std::make_unique<gp::PrimitiveLibrary>(*model.primitives);
+        // A task of the same kinds in other numbers: the library bound to its entities.
+        const bool allow_other_task = rosparam::param(pnh, "allow_other_task", defaults.allow_other_task);
+        const pipeline::ModelForTask model = pipeline::modelForTask(
+            pipeline::loadModel(path), path, spec_, task::fingerprintOfPath(task_path), task_path, allow_other_task,
+            "set parameter '" + pnh.resolveName("allow_other_task") + "' to true");
+        if (!model.model.primitives)
+          throw Error(Diagnostic{path, 0, 0, "a " + model.model.sequence.variant() + " model has no primitive library"});
+        library_ = std::make_unique<gp::PrimitiveLibrary>(*model.model.primitives);
+        if (!model.note.empty()) ROS_INFO("gp_path: %s", model.note.c_str());
       } else {
         library_ = std::make_unique<gp::PrimitiveLibrary>(gp::PrimitiveLibrary::load(path));
+        if (!rosparam::param(pnh, "allow_other_task", defaults.allow_other_task))
+          task::requireSameTask(library_->taskFingerprint(), path + " (task '" + library_->taskName() + "')",
+                                task::fingerprintOfPath(task_path), task_path + " (task '" + spec_.name + "')",
+                                "set parameter '" + pnh.resolveName("allow_other_task") + "' to true");
       }
-      if (!rosparam::param(pnh, "allow_other_task", defaults.allow_other_task))
-        task::requireSameTask(library_->taskFingerprint(), path + " (task '" + library_->taskName() + "')",
-                              task::fingerprintOfPath(task_path), task_path + " (task '" + spec_.name + "')",
-                              "set parameter '" + pnh.resolveName("allow_other_task") + "' to true");
-      else
+      if (rosparam::param(pnh, "allow_other_task", defaults.allow_other_task))
         ROS_WARN("gp_path: %s: the library's task is not checked against %s",
                  pnh.resolveName("allow_other_task").c_str(), task_path.c_str());
       generate_ = [this](const task::Token& t, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {

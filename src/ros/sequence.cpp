@@ -39,18 +39,16 @@ class SequenceNode::Impl {
         throw Error("policy 'model' needs parameter '" + pnh.resolveName("model") + "' (a model directory)");
       ros_exec::requireAbsolute(dir, pnh.resolveName("model"));
       // The one model loader: every file of the directory is verified, primitives.yaml too.
-      model_ = std::make_unique<tgn::SequenceModel>(pipeline::loadModel(dir).sequence);
+      // A task of the same kinds in other numbers runs the model bound to its entities.
       const bool allow_other_task = rosparam::param(pnh, "allow_other_task", defaults.allow_other_task);
-      if (!allow_other_task)
-        task::requireSameTask(model_->info().fingerprint, dir + " (task '" + model_->spec().name + "')",
-                              task::fingerprintOfPath(task_path), task_path + " (task '" + spec_.name + "')",
-                              "set parameter '" + pnh.resolveName("allow_other_task") + "' to true");
-      else
+      if (allow_other_task)
         ROS_WARN("sequence: %s: the model's task is not checked against %s",
                  pnh.resolveName("allow_other_task").c_str(), task_path.c_str());
-      if (model_->spec().entityNames() != spec_.entityNames())
-        throw Error("model " + dir + " was trained on other entities (or another order of them) than the task " +
-                    task_path + " has");
+      const pipeline::ModelForTask bound = pipeline::modelForTask(
+          pipeline::loadModel(dir), dir, spec_, task::fingerprintOfPath(task_path), task_path, allow_other_task,
+          "set parameter '" + pnh.resolveName("allow_other_task") + "' to true");
+      if (!bound.note.empty()) ROS_INFO("sequence: %s", bound.note.c_str());
+      model_ = std::make_unique<tgn::SequenceModel>(bound.model.sequence);
       policy_ = [this](const std::vector<task::Snapshot>& h) {
         const tgn::Prediction p = model_->predictNext(h);
         exec::Decision d;

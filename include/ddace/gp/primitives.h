@@ -22,10 +22,12 @@
 // in metres; it does not depend on the direction of G - S.
 //
 // Fallback for a key that was never demonstrated, in this order:
-//   1. the same entity and action toward another target,
-//   2. the same action by any entity,
-//   3. a straight line from S to G with stddev 0 (source_key "straight line");
-// within 1 and 2 the primitive with the most segments wins, ties by key order.
+//   1. the same entity and action toward another target of the same kind,
+//   2. the same action by an entity of the same kind toward a target of the same kind (a
+//      robot the library never saw, boundTo),
+//   3. the same entity and action toward any target, 4. the same action by any entity,
+//   5. a straight line from S to G with stddev 0 (source_key "straight line");
+// within 1-4 the primitive with the most segments wins, ties by key order.
 // The result says so (fell_back, source_key).
 //
 // End points. The library also holds where the demonstrated motions ended relative to
@@ -143,6 +145,12 @@ class PrimitiveLibrary {
   GeneratedPath generate(const std::string& key, const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
                          int points = 100) const;
 
+  /// The library on the entities of `other`, a task of the same kinds of entity in other
+  /// numbers or names (tgn::SequenceModel::boundTo): tokens and keys name other's entities;
+  /// a motion of an entity the library never saw falls back as any undemonstrated key.
+  /// Throws ddace::Error naming a kind of entity one of them has and the other lacks.
+  PrimitiveLibrary boundTo(const task::TaskSpec& other) const;
+
   /// Canonical mean and per-axis standard deviation of a primitive at `points` progress
   /// values (before retargeting; endpoint pinning applied when enabled).
   void canonical(const Primitive& primitive, int points, std::vector<Eigen::Vector2d>& mean,
@@ -164,10 +172,15 @@ class PrimitiveLibrary {
   GeneratedPath generateFrom(const Primitive* primitive, bool fell_back, const Eigen::Vector2d& start,
                              const Eigen::Vector2d& goal, int points) const;
   void cacheGrid();
+  /// Entity name -> "KIND" or "KIND:TYPE", from a fingerprint's entities.
+  static std::map<std::string, std::string> kindsOf(const task::TaskFingerprint& fingerprint);
 
   std::string task_;
   std::vector<std::string> entities_;
   task::TaskFingerprint fingerprint_;
+  /// The kinds of the entities tokens name (the task bound to, boundTo) and of the
+  /// training task's (the primitives').
+  std::map<std::string, std::string> kinds_, trained_kinds_;
   PrimitiveOptions options_;
   task::EndPointModel end_points_;
   std::map<std::string, Primitive> primitives_;

@@ -34,12 +34,25 @@ Model trainModel(const task::TaskDir& train, const tgn::TrainOptions& options, c
 /// Throws ddace::Error naming the file at fault and what differs.
 Model loadModel(const std::string& model_dir);
 
-/// Refuses (ddace::Error) a task directory (task.yaml and its demonstrations) of another
-/// task than the model's, listing what differs (task::requireSameTask: entities, kinds,
-/// vocabulary, goal conditions, demonstrated step structure). With `allow_other_task`
-/// (a deliberate transfer) only the entity names and their order must agree.
-void checkSameTask(const Model& model, const std::string& model_dir, const task::TaskDir& test,
-                   const std::string& test_dir, bool allow_other_task);
+/// The model to run on a task (`spec` and `fingerprint`, read from `task_file`): `model`
+/// itself on its own task's entities; on a task of the same name and kinds of entity in
+/// other numbers (more or fewer robots, goals, boxes), the model bound to the task's
+/// entities (tgn::SequenceModel::boundTo, gp::PrimitiveLibrary::boundTo), with `note` saying
+/// so. Refuses (ddace::Error) another task, listing what differs (task::requireSameTask:
+/// entities, kinds, vocabulary, goal conditions, demonstrated step structure; for other
+/// numbers all but the entities, goal conditions and step counts), unless
+/// `allow_other_task` (a deliberate transfer); `override_hint` says how to allow it. A model
+/// that cannot run on other entities is refused naming why (tgn::Transfer), with or without.
+struct ModelForTask {
+  Model model;
+  std::string note;  ///< "" on the model's own entities
+};
+ModelForTask modelForTask(const Model& model, const std::string& model_dir, const task::TaskSpec& spec,
+                          const task::TaskFingerprint& fingerprint, const std::string& task_file,
+                          bool allow_other_task, const std::string& override_hint);
+/// The same for a test set (a task directory) as `ddace eval` takes it ("pass --allow-other-task").
+ModelForTask modelForTask(const Model& model, const std::string& model_dir, const task::TaskDir& test,
+                          const std::string& test_dir, bool allow_other_task);
 
 struct EvalOptions {
   std::string execution = "ideal";  ///< ideal | diffdrive

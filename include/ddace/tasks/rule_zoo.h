@@ -63,7 +63,8 @@ ZooRule zooRule(uint64_t id);
 /// to its nearest free goal of 7, all at once: more entities than a drawn rule has),
 /// zoo:left-to-right (3 robots take 3 goals in left-to-right order), zoo:two-boxes (2
 /// boxes, each fetched by its nearest free robot of 3; then the goals in turn, G1 first,
-/// each take the free box nearest to them).
+/// each take the free box nearest to them), zoo:two-pairs (the same with 2 robots: two
+/// carrier-load pairs carry at once).
 std::vector<ZooRule> namedZooRules();
 
 /// The kinds of task users name (docs/tgn.md, "Kinds of task"), each with the zoo rule
@@ -89,6 +90,11 @@ std::vector<uint64_t> distinctZooRules(int count);
 /// `demos` demonstrations of rule `rule_id` over start configurations drawn from `seed`.
 /// Throws ddace::Error when no unambiguous configuration is found.
 task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed);
+/// The same rule with other numbers of entities (docs/tgn.md, "Other team sizes"): `robots`,
+/// `objects` and `goals` of them (the rule's own where 0). The task's name is the rule's
+/// (the rule in words; the counts are the entities'), so a model of the rule meets it as the
+/// same task. Throws ddace::Error when no unambiguous configuration is found.
+task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed, int robots, int objects, int goals);
 /// Parses "zoo:<id>" or "zoo:<key>" of a named rule (as `ddace generate` takes it) into
 /// the rule's id; false for any other family name. Throws ddace::Error naming the text when
 /// it is neither.

@@ -1,5 +1,6 @@
-// Test- and bench-only entry points of the tgn module: not part of the API that the
-// commands and nodes use. No torch here either.
+// The tgn module's internals on plain arrays and task data (the step decoder, the name
+// groups, the attention edges), which the networks use and the tests and benchmarks reach
+// directly: not the API of the commands and nodes (sequence_model.h). No torch here.
 #pragma once
 
 #include <string>
@@ -43,6 +44,10 @@ std::vector<float> gatForward(const GatWeights& w, const std::vector<float>& x, 
 /// allows labelling slips: all but at most one in ten of them (rounded down), as
 /// task::commonSteps.
 std::vector<std::vector<int>> interchangeableNames(const task::TaskDir& train);
+/// E' lifted to entity kinds (the scene network's attention edges): every ordered pair of
+/// distinct entities of `to` whose kinds are those of one of `edges` (entities of `from`).
+std::vector<graph::Edge> liftedToKinds(const std::vector<graph::Edge>& edges, const task::TaskSpec& from,
+                                       const task::TaskSpec& to);
 /// The training's stopping rule (see "stopping" above) on the epochs so far.
 bool atPlateau(const std::vector<EpochRecord>& history, int patience, double delta);
 

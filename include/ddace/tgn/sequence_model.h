@@ -283,6 +283,28 @@ struct ModelInfo {
   std::map<std::string, FileDigest> files;
 };
 
+/// What a model can run on besides its own task's entities (docs/tgn.md, "Other team
+/// sizes"): the same kinds of entity in other numbers, where the rule it learned is stated by
+/// the scene. An entity the network knows by name (an identity embedding whose name training
+/// did not shuffle: a role of its own, or the rule refers to it) must be there by that name;
+/// the others of its kind are interchangeable, any number of them.
+struct Transfer {
+  /// Why the model runs on its own task's entities only ("": it transfers): the paper's
+  /// networks have one output slot per entity; a fixed order (Task 2's chain) or training
+  /// without the relative features learned the names' order, not a rule of the scene.
+  std::string refusal;
+  std::vector<std::string> named;  ///< the entities known by name (task order)
+  /// The kinds ("robot", "object:box", ...) of any number: their entities' names were shuffled
+  /// in training, or the network has no identity embedding.
+  std::vector<std::string> any_number;
+  /// One line, as the manifest's `transfer` and `ddace inspect` say it.
+  std::string text() const;
+};
+/// The transfer of a model of `spec` (its own task) with `info`'s variant and plan.
+Transfer transferOf(const ModelInfo& info, const task::TaskSpec& spec);
+/// An entity's kind as transfer compares kinds: "robot", or "object:box" with a type.
+std::string kindKey(const task::Entity& e);
+
 class SequenceModel {
  public:
   /// Trains on the demonstrations of `train` (spec + demos). One progress line per epoch
@@ -305,6 +327,17 @@ class SequenceModel {
   /// an empty history or a snapshot with the wrong number of entities.
   Prediction predictNext(const std::vector<task::Snapshot>& history) const;
 
+  /// What the model can run on besides its own task's entities (transferOf).
+  Transfer transfer() const;
+  /// This model on the entities of `other` (docs/tgn.md, "Other team sizes"): the same
+  /// kinds, other numbers or names. Each of other's entities reads the identity embedding of
+  /// the model's entity of that name, or (a name the model does not know) of one of its kind's
+  /// interchangeable entities; the attention edges are E' lifted to other's entities; a step
+  /// size that was every actor's grows with them. Throws ddace::Error naming why not (the
+  /// model's transfer refusal, a kind either lacks, an entity known by name that other lacks,
+  /// or a new entity of a kind known by name only). The result predicts on other's snapshots
+  /// (its spec() is other) and is not saved.
+  SequenceModel boundTo(const task::TaskSpec& other) const;
   const task::TaskSpec& spec() const;
   /// The variant's name (for messages; info().variant is the enum).
   std::string variant() const;

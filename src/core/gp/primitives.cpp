@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 #include <sstream>
 #include <tuple>
 
@@ -235,6 +236,7 @@ PrimitiveLibrary PrimitiveLibrary::fit(const task::TaskDir& train, const Primiti
   lib.task_ = train.spec.name;
   lib.entities_ = train.spec.entityNames();
   lib.fingerprint_ = task::fingerprintOf(train);
+  lib.kinds_ = lib.trained_kinds_ = kindsOf(lib.fingerprint_);
   lib.options_ = options;
   lib.end_points_ = task::learnEndPoints(train.spec, train.demos);
   const int n = options.points;
@@ -315,17 +317,30 @@ const Primitive* PrimitiveLibrary::lookup(const std::string& entity, const std::
   auto exact = primitives_.find(joinKey(entity, action, target));
   if (exact != primitives_.end()) return &exact->second;
   fell_back = true;
+  // Kinds: of the requested names in the task tokens name (bound: boundTo's), of the
+  // primitives' in the training task.
+  const auto kindIn = [](const std::map<std::string, std::string>& kinds, const std::string& name) {
+    const auto it = kinds.find(name);
+    return it == kinds.end() ? std::string() : it->second;
+  };
+  const std::string entity_kind = kindIn(kinds_, entity), target_kind = kindIn(kinds_, target);
   // primitives_ is ordered by key, so the first of equally many segments wins the tie.
-  auto best = [&](bool same_entity) -> const Primitive* {
+  const auto best = [&](bool same_entity, bool same_kinds) -> const Primitive* {
     const Primitive* chosen = nullptr;
     for (const auto& [key, p] : primitives_) {
       if (p.action != action || (same_entity && p.entity != entity)) continue;
+      if (same_kinds && (kindIn(trained_kinds_, p.entity) != entity_kind || kindIn(trained_kinds_, p.target) != target_kind))
+        continue;
       if (!chosen || p.segments > chosen->segments) chosen = &p;
     }
     return chosen;
   };
-  if (const Primitive* p = best(true)) return p;
-  return best(false);
+  // The same entity toward a target of the same kind; the same action by an entity of its
+  // kind toward one of the target's kind (a robot the library never saw); then any.
+  const std::pair<bool, bool> order[] = {{true, true}, {false, true}, {true, false}, {false, false}};
+  for (const auto& [same_entity, same_kinds] : order)
+    if (const Primitive* p = best(same_entity, same_kinds)) return p;
+  return nullptr;
 }
 
 GeneratedPath PrimitiveLibrary::generateFrom(const Primitive* primitive, bool fell_back, const Eigen::Vector2d& start,
@@ -394,6 +409,28 @@ GeneratedPath PrimitiveLibrary::generate(const std::string& key, const Eigen::Ve
   bool fell_back = false;
   const Primitive* p = lookup(parts[0], parts[1], parts[2], fell_back);
   return generateFrom(p, fell_back, start, goal, points);
+}
+
+std::map<std::string, std::string> PrimitiveLibrary::kindsOf(const task::TaskFingerprint& fingerprint) {
+  std::map<std::string, std::string> kinds;  // "NAME:KIND" or "NAME:KIND:TYPE"
+  for (const std::string& e : fingerprint.entities) kinds[e.substr(0, e.find(':'))] = e.substr(e.find(':') + 1);
+  return kinds;
+}
+
+PrimitiveLibrary PrimitiveLibrary::boundTo(const task::TaskSpec& other) const {
+  // The fingerprint's entities are "NAME:KIND" or "NAME:KIND:TYPE".
+  std::set<std::string> mine, theirs;
+  for (const std::string& e : fingerprint_.entities) mine.insert(e.substr(e.find(':') + 1));
+  for (const std::string& e : task::fingerprintOf(other).entities) theirs.insert(e.substr(e.find(':') + 1));
+  for (const auto& k : mine)
+    if (!theirs.count(k)) throw Error("task '" + other.name + "' has no entity of kind " + k + ", the library's has");
+  for (const auto& k : theirs)
+    if (!mine.count(k)) throw Error("the library of task '" + task_ + "' was fitted on no entity of kind " + k);
+  PrimitiveLibrary bound = *this;
+  bound.entities_ = other.entityNames();
+  bound.kinds_ = kindsOf(task::fingerprintOf(other));
+  bound.trained_kinds_ = trained_kinds_;
+  return bound;
 }
 
 void PrimitiveLibrary::save(const std::string& path) const {
@@ -504,6 +541,7 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
       // The fingerprint sorts "NAME:KIND" strings, where R10:... comes before R1:... (':' > '0').
       std::sort(named.begin(), named.end());
       if (entities_ok && sorted != named) c.error(fp, "task_fingerprint names other entities than 'entities'");
+      lib.kinds_ = lib.trained_kinds_ = kindsOf(lib.fingerprint_);
     }
   }
   // Bounded before anything is allocated from it (every GP holds points x points matrices).

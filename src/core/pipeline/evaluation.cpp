@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <ostream>
 
 #include <nlohmann/json.hpp>
@@ -66,23 +67,66 @@ Model loadModel(const std::string& model_dir) {
   return m;
 }
 
-void checkSameTask(const Model& model, const std::string& model_dir, const task::TaskDir& test,
-                   const std::string& test_dir, bool allow_other_task) {
-  if (allow_other_task) {
-    // Transfer on purpose still needs the entities the network has slots for, in the order
-    // the snapshots are given in.
-    if (model.sequence.spec().entityNames() != test.spec.entityNames())
-      throw Error("the model in " + model_dir + " has entities other than " + test_dir +
-                  "/task.yaml (even with --allow-other-task the entity names and their order must agree)");
-    return;
+namespace {
+
+/// "3 robot, 1 object:box, 2 goal": the entities of `spec` counted by kind.
+std::string countsByKind(const task::TaskSpec& spec) {
+  std::map<std::string, int> counts;
+  for (const auto& e : spec.entities) ++counts[tgn::kindKey(e)];
+  std::string s;
+  for (const auto& [kind, n] : counts) s += (s.empty() ? "" : ", ") + std::to_string(n) + " " + kind;
+  return s;
+}
+
+}  // namespace
+
+ModelForTask modelForTask(const Model& model, const std::string& model_dir, const task::TaskSpec& spec,
+                          const task::TaskFingerprint& fingerprint, const std::string& task_file,
+                          bool allow_other_task, const std::string& override_hint) {
+  const task::TaskSpec& own = model.sequence.spec();
+  const std::string manifest = (fs::path(model_dir) / "manifest.yaml").string() + ", task '" + own.name + "'";
+  const std::string task = task_file + " (task '" + spec.name + "')";
+  std::vector<std::string> own_names = own.entityNames(), names = spec.entityNames();
+  if (own_names == names) {
+    if (!allow_other_task) task::requireSameTask(model.sequence.info().fingerprint, manifest, fingerprint, task, override_hint);
+    return {model, ""};
   }
-  task::requireSameTask(
-      model.sequence.info().fingerprint,
-      (fs::path(model_dir) / "manifest.yaml").string() + ", task '" + model.sequence.spec().name + "'",
-      task::fingerprintOf(test), test_dir + " (task '" + test.spec.name + "')", "pass --allow-other-task");
-  if (model.sequence.spec().entityNames() != test.spec.entityNames())
-    throw Error("the model in " + model_dir + " lists the entities in another order than " + test_dir +
-                "/task.yaml: keep task.yaml's order of the training directory");
+  std::sort(own_names.begin(), own_names.end());
+  std::sort(names.begin(), names.end());
+  if (own_names == names)
+    throw Error("the model in " + model_dir + " lists the entities in another order than " + task_file +
+                ": keep task.yaml's order of the training directory");
+  if (!allow_other_task) {
+    // Other numbers of the same kinds: the same task but for the entities and what names
+    // or counts them (goal conditions, steps per demonstration).
+    task::TaskFingerprint as_model = fingerprint;
+    const task::TaskFingerprint& trained = model.sequence.info().fingerprint;
+    if (own.name == spec.name) {
+      as_model.entities = trained.entities;
+      as_model.goal_conditions = trained.goal_conditions;
+      if (!as_model.step_counts.empty()) as_model.step_counts = trained.step_counts;
+    }
+    task::requireSameTask(trained, manifest, as_model, task, override_hint);
+  }
+  ModelForTask bound{model, ""};
+  try {
+    bound.model.sequence = model.sequence.boundTo(spec);
+    if (model.primitives)
+      bound.model.primitives = std::make_shared<gp::PrimitiveLibrary>(model.primitives->boundTo(spec));
+  } catch (const Error& e) {
+    throw Error("the model in " + model_dir + " (" + countsByKind(own) + ") cannot run on the entities of " +
+                task + " (" + countsByKind(spec) + "): " + e.what());
+  }
+  bound.note = "note: the model in " + model_dir + " was trained on " + countsByKind(own) + ", " + task_file +
+               " has " + countsByKind(spec) + ": entities bound by kind (the model runs on " +
+               model.sequence.transfer().text() + ")";
+  return bound;
+}
+
+ModelForTask modelForTask(const Model& model, const std::string& model_dir, const task::TaskDir& test,
+                          const std::string& test_dir, bool allow_other_task) {
+  return modelForTask(model, model_dir, test.spec, task::fingerprintOf(test), test_dir + "/task.yaml", allow_other_task,
+                      "pass --allow-other-task");
 }
 
 namespace {

@@ -227,6 +227,10 @@ std::vector<Named> namedRules() {
   left_to_right.a.mode = Selector::Axis, left_to_right.a.axis = 0;
   Rule& two_boxes = add("two-boxes", "boxes", 3, 2, 2);
   two_boxes.a.mode = Selector::Nearest, two_boxes.goals_in_turn = true;
+  // Two carrier-load pairs in one step: each robot fetches its nearest box, then both carry
+  // at once, the box nearer G1 to G1 and the other to G2.
+  Rule& two_pairs = add("two-pairs", "boxes", 2, 2, 2);
+  two_pairs.a.mode = Selector::Nearest, two_pairs.goals_in_turn = true;
   for (size_t k = 0; k < out.size(); ++k) {
     out[k].rule.info.id = kNamedZooRuleIds + k;
     name(out[k].rule);
@@ -245,7 +249,9 @@ Rule ruleOf(uint64_t id) {
 /// The task's entities: R1.., B1.., then G1.. (Q1.. for a queue's slots).
 task::TaskSpec zooSpec(const ZooRule& z) {
   task::TaskSpec spec;
-  spec.name = "zoo " + z.family.substr(4) + " " + z.name;  // "zoo 17 ...", "zoo two-boxes ..."
+  // "zoo 17 assign: ...", "zoo two-boxes ...": the rule in words, not its counts (other
+  // numbers of entities are the same task).
+  spec.name = "zoo " + z.family.substr(4) + " " + z.name.substr(0, z.name.rfind(" ("));
   spec.actions = {"move"};
   if (z.objects) spec.actions.push_back("carry");
   spec.actions_declared = true;
@@ -507,10 +513,20 @@ OsrDistribution osrDistribution(const std::vector<double>& osr) {
 }
 
 task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed) {
+  return generateZoo(rule_id, demos, seed, 0, 0, 0);
+}
+
+task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed, int robots, int objects, int goals) {
   if (demos < 0) throw Error("the number of demonstrations must not be negative");
-  const Rule rule = ruleOf(rule_id);
-  const ZooRule& z = rule.info;
-  if (rule_id < kNamedZooRuleIds && z.robots + z.objects + z.goals > kMaxEntities)
+  if (robots < 0 || objects < 0 || goals < 0) throw Error("the numbers of entities must not be negative");
+  Rule rule = ruleOf(rule_id);
+  ZooRule& z = rule.info;
+  const bool own_counts = (robots == 0 || robots == z.robots) && (objects == 0 || objects == z.objects) &&
+                          (goals == 0 || goals == z.goals);
+  if (robots) z.robots = robots;
+  if (objects) z.objects = objects;
+  if (goals) z.goals = goals;
+  if (own_counts && rule_id < kNamedZooRuleIds && z.robots + z.objects + z.goals > kMaxEntities)
     throw Error("zoo rule " + std::to_string(rule_id) + " has more than " + std::to_string(kMaxEntities) + " entities");
   task::TaskDir dir;
   dir.spec = zooSpec(z);
@@ -525,12 +541,12 @@ task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed) {
                         rng.uniform(kSceneBorder, kTableSize - kSceneBorder));
       };
       bool apart = true;
-      if (rule_id < kNamedZooRuleIds) {
+      if (rule_id < kNamedZooRuleIds && own_counts) {
         for (auto& p : start) p = draw();
         for (size_t x = 0; x < m && apart; ++x)
           for (size_t y = x + 1; y < m && apart; ++y) apart = (start[x] - start[y]).norm() >= kSceneMinSeparation;
       } else {
-        // Named rules may have more entities than a whole draw keeps apart often enough
+        // Named rules and other counts may have more entities than a whole draw keeps apart often enough
         // (13: about 1 in 3000): each entity is drawn again until apart from those before it.
         for (size_t x = 0; x < m && apart; ++x) {
           apart = false;

@@ -254,6 +254,7 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
     y << YAML::Flow << std::vector<std::string>{name(e.source), name(e.target)};
   y << YAML::EndSeq;
   y << YAML::EndMap;
+  y << YAML::Key << "transfer" << YAML::Value << transferOf(info, spec).text();
   y << YAML::EndMap;
   const std::string body =
       std::string("# ddace model manifest (") + kModelFormat +
@@ -616,6 +617,13 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     }
     if (const std::string why = plan.inconsistency(info.options); !why.empty())
       r.fail(pn, "plan: " + why + " (no training makes this plan; retrain)");
+    // What the model can transfer follows from the variant and the plan; the manifest says
+    // it for a reader (a manifest written before it was recorded reads without it).
+    if (const YAML::Node tn = root["transfer"]; tn) {
+      const std::string derived = transferOf(info, spec).text();
+      if (r.textAt(tn, "'transfer'") != derived)
+        r.fail(tn, "transfer does not follow from the variant and the plan, which say: " + derived);
+    }
     return info;
   } catch (const YAML::Exception& e) {
     throw yamlError(path, e);

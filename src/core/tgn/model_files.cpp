@@ -17,6 +17,8 @@ using torch::Tensor;
 namespace fs = std::filesystem;
 
 void SequenceModel::save(const std::string& model_dir, const std::vector<std::string>& bound_files) const {
+  if (impl_->bound)
+    throw Error(Diagnostic{model_dir, 0, 0, "a model bound to another task's entities is not saved (its own is)"});
   std::error_code ec;
   fs::create_directories(model_dir, ec);
   if (ec) throw Error(Diagnostic{model_dir, 0, 0, "cannot create the model directory: " + ec.message()});

@@ -49,6 +49,8 @@ struct SequenceModel::Impl {
   /// from other seeds (memberSeed); each decodes a step, the majority decides.
   std::vector<SceneNetwork> others;
   std::vector<float> kinds;  ///< [canonical][3] one-hot entity kind
+  /// Bound to another task's entities (SequenceModel::boundTo): runs, is not saved.
+  bool bound = false;
 
   bool isScene() const { return info.variant == Variant::Scene; }
   torch::nn::Module& module();

@@ -16,22 +16,6 @@ namespace ddace::tgn {
 
 namespace {
 
-/// E' lifted to entity kinds: every pair whose kinds are those of a kept edge.
-std::vector<graph::Edge> liftedToKinds(const std::vector<graph::Edge>& kept, const task::TaskSpec& spec) {
-  std::set<std::pair<task::EntityKind, task::EntityKind>> kinds;
-  for (const auto& e : kept)
-    kinds.insert(
-        {spec.entities[static_cast<size_t>(e.source)].kind, spec.entities[static_cast<size_t>(e.target)].kind});
-  std::vector<graph::Edge> out;
-  const int n = static_cast<int>(spec.entities.size());
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j)
-      if (i != j &&
-          kinds.count({spec.entities[static_cast<size_t>(i)].kind, spec.entities[static_cast<size_t>(j)].kind}))
-        out.push_back({i, j});
-  return out;
-}
-
 /// The rules every step of `train`'s demonstrations kept (StepRules). Where a carrier and
 /// its load are one decision (carried loads), the step size and the exclusive targets count
 /// decisions: the load's token is its carrier's, not a second actor nor a second use of the
@@ -93,6 +77,21 @@ StepRules stepRulesOf(const task::TaskDir& train) {
 
 }  // namespace
 
+std::vector<graph::Edge> detail::liftedToKinds(const std::vector<graph::Edge>& edges, const task::TaskSpec& from,
+                                              const task::TaskSpec& to) {
+  std::set<std::pair<task::EntityKind, task::EntityKind>> kinds;
+  for (const auto& e : edges)
+    kinds.insert(
+        {from.entities[static_cast<size_t>(e.source)].kind, from.entities[static_cast<size_t>(e.target)].kind});
+  std::vector<graph::Edge> out;
+  const int n = static_cast<int>(to.entities.size());
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      if (i != j && kinds.count({to.entities[static_cast<size_t>(i)].kind, to.entities[static_cast<size_t>(j)].kind}))
+        out.push_back({i, j});
+  return out;
+}
+
 TrainingPlan planTraining(const task::TaskDir& train, const TrainOptions& options, const graph::RefinedGraph& refined) {
   options.validate();
   TrainingPlan p;
@@ -109,7 +108,7 @@ TrainingPlan planTraining(const task::TaskDir& train, const TrainOptions& option
       p.attention_edges = refined.kept;
       break;
     case Variant::Scene:
-      p.attention_edges = liftedToKinds(refined.kept, train.spec);
+      p.attention_edges = detail::liftedToKinds(refined.kept, train.spec, train.spec);
       break;
     case Variant::FullGraph:
     case Variant::Gnn:

@@ -1,6 +1,9 @@
 // TrainingPlan::inconsistency: planTraining()'s enabling conditions (plan.cpp) read
-// backwards, for the manifest reader. Without libtorch, so the manifest fuzz target links it.
+// backwards, for the manifest reader; and what a plan lets the model transfer (transferOf).
+// Without libtorch, so the manifest fuzz target links it.
+#include <set>
 #include <string>
+#include <vector>
 
 #include "ddace/tgn/sequence_model.h"
 
@@ -34,6 +37,52 @@ std::string TrainingPlan::inconsistency(const TrainOptions& options) const {
     for (size_t i = 1; i < g.size(); ++i)
       if (g[i] <= g[i - 1]) return "a name group not in ascending order of distinct entities";
   return "";
+}
+
+}  // namespace ddace::tgn
+
+namespace ddace::tgn {
+
+std::string kindKey(const task::Entity& e) {
+  return std::string(task::toString(e.kind)) + (e.type.empty() ? "" : ":" + e.type);
+}
+
+Transfer transferOf(const ModelInfo& info, const task::TaskSpec& spec) {
+  Transfer t;
+  const TrainingPlan& p = info.plan;
+  if (info.variant != Variant::Scene)
+    t.refusal = std::string("the ") + toString(info.variant) + " network has one output slot per entity of its task";
+  else if (!p.relative_features)
+    t.refusal = p.fixed_order ? "every training demonstration had the same steps (a fixed order): the model learned "
+                                "the order of the names, not a rule of the scene"
+                              : "trained without the relative features: its decisions depend on the names alone";
+  if (!t.refusal.empty()) return t;
+  // Without the identity embedding no entity has a name the network sees.
+  std::vector<bool> interchangeable(spec.entities.size(), !p.identity_embedding);
+  for (const auto& g : p.name_groups)
+    for (int e : g)
+      if (e >= 0 && static_cast<size_t>(e) < interchangeable.size()) interchangeable[static_cast<size_t>(e)] = true;
+  std::set<std::string> kinds;
+  for (size_t e = 0; e < spec.entities.size(); ++e) {
+    if (interchangeable[e])
+      kinds.insert(kindKey(spec.entities[e]));
+    else
+      t.named.push_back(spec.entities[e].name);
+  }
+  t.any_number.assign(kinds.begin(), kinds.end());
+  if (t.any_number.empty())
+    t.refusal = "training kept every entity's name (a name alone decides a role, or shuffling the names cost the fit)";
+  return t;
+}
+
+std::string Transfer::text() const {
+  const auto join = [](const std::vector<std::string>& v) {
+    std::string s;
+    for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
+    return s;
+  };
+  if (!refusal.empty()) return "its own task's entities only: " + refusal;
+  return "any number of " + join(any_number) + (named.empty() ? "" : "; by name: " + join(named));
 }
 
 }  // namespace ddace::tgn

@@ -166,10 +166,11 @@ TEST(Primitives, SpreadFollowsTheDemonstrations) {
 
 TEST(Primitives, FallbackRule) {
   const auto& lib = library("task4");
-  // Same entity and action toward another target.
+  // Same entity and action toward another target of the same kind: none (R1 moved only
+  // toward a robot); then the same action by a robot toward a goal, ties by key.
   gp::GeneratedPath g = lib.generate("R1:move:G1", {0, 0}, {1, 0});
   EXPECT_TRUE(g.fell_back);
-  EXPECT_EQ(g.source_key, "R1:move:R3");
+  EXPECT_EQ(g.source_key, "R3:move:G1");
   // Same action by another entity (R2 never moves toward R1; R2:move:R4 exists).
   g = lib.generate("R2:move:R1", {0, 0}, {1, 0});
   EXPECT_EQ(g.source_key, "R2:move:R4");
@@ -188,6 +189,26 @@ TEST(Primitives, FallbackRule) {
   g = lib.generate("R3:move:G1", {0, 0}, {1, 0});
   EXPECT_FALSE(g.fell_back);
   EXPECT_EQ(g.source_key, "R3:move:G1");
+}
+
+// Other team sizes (docs/gp.md): a library bound to a task with a robot it never saw gives
+// that robot the motion of a robot toward the same kind of target.
+TEST(Primitives, ANewRobotGetsAPathOfItsKind) {
+  const auto& lib = library("task4");
+  task::TaskSpec more = generated("task4", 1, 1).spec;
+  more.entities.push_back({"R9", task::EntityKind::Robot, more.entities[0].type});
+  const gp::PrimitiveLibrary bound = lib.boundTo(more);
+  gp::GeneratedPath g = bound.generate("R9:move:G1", {0, 0}, {1, 0});
+  EXPECT_TRUE(g.fell_back);
+  EXPECT_EQ(g.source_key, "R3:move:G1") << "a robot toward a goal";
+  const gp::GeneratedPath spiral = lib.generate("R3:move:G1", {0, 0}, {1, 0});
+  for (size_t i = 0; i < g.points.size(); ++i) EXPECT_TRUE(g.points[i].isApprox(spiral.points[i]));
+  g = bound.generate("R9:move:R1", {0, 0}, {1, 0});
+  EXPECT_EQ(g.source_key, "R1:move:R3") << "a robot toward a robot";
+  EXPECT_THROW(lib.generate("R9:move:G1", {0, 0}, {1, 0}), Error) << "unbound, R9 is no entity of the library's";
+  task::TaskSpec boxes = more;
+  boxes.entities.push_back({"B1", task::EntityKind::Object, "box"});
+  EXPECT_THROW(lib.boundTo(boxes), Error) << "a kind the library was fitted on none of";
 }
 
 TEST(Primitives, GenerateRejectsBadRequests) {

@@ -108,7 +108,7 @@ TEST(ModelIntegrity, Task2WithFourRobotsIsRefusedOnTask4) {
   const task::TaskDir test = task::loadTaskDir(fixture().task4_test);
   ASSERT_EQ(m.sequence.spec().entityNames(), test.spec.entityNames());
   try {
-    pipeline::checkSameTask(m, fixture().task2_model, test, fixture().task4_test, false);
+    pipeline::modelForTask(m, fixture().task2_model, test, fixture().task4_test, false);
     FAIL() << "accepted another task's model";
   } catch (const Error& e) {
     const std::string what = e.what();
@@ -116,8 +116,8 @@ TEST(ModelIntegrity, Task2WithFourRobotsIsRefusedOnTask4) {
     EXPECT_NE(what.find("manifest.yaml"), std::string::npos) << what;
     EXPECT_NE(what.find(fixture().task4_test), std::string::npos) << what;
   }
-  EXPECT_NO_THROW(pipeline::checkSameTask(m, fixture().task2_model, test, fixture().task4_test, true));
-  EXPECT_NO_THROW(pipeline::checkSameTask(m, fixture().task2_model, task::loadTaskDir(fixture().task2_test),
+  EXPECT_NO_THROW(pipeline::modelForTask(m, fixture().task2_model, test, fixture().task4_test, true));
+  EXPECT_NO_THROW(pipeline::modelForTask(m, fixture().task2_model, task::loadTaskDir(fixture().task2_test),
                                           fixture().task2_test, false));
 }
 

@@ -6,7 +6,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "ddace/common/error.h"
 #include "ddace/pipeline/evaluation.h"
+#include "ddace/tasks/rule_zoo.h"
 
 #include "../common/generated_task.h"
 
@@ -85,14 +87,14 @@ TEST_F(Pipeline, TheExecutionConfigDrivesTheSimulatedRobots) {
 TEST_F(Pipeline, AModelOfAnotherTaskIsRefused) {
   const task::TaskDir other = generated("task3", 1, 1);
   try {
-    pipeline::checkSameTask(*model_, dir_, other, "task3/test", false);
+    pipeline::modelForTask(*model_, dir_, other, "task3/test", false);
     FAIL();
   } catch (const Error& e) {
     const std::string what = e.what();
     EXPECT_NE(what.find("task4_trajectory_shape"), std::string::npos) << what;
     EXPECT_NE(what.find("task3/test"), std::string::npos) << what;
   }
-  EXPECT_NO_THROW(pipeline::checkSameTask(*model_, dir_, generated("task4", 1, 2), "t", false));
+  EXPECT_NO_THROW(pipeline::modelForTask(*model_, dir_, generated("task4", 1, 2), "t", false));
 }
 
 TEST(PipelineFiles, AMissingPrimitiveLibraryIsNamed) {
@@ -167,3 +169,28 @@ TEST_P(FewShotSceneFamily, IsLearnedFromAFewDemonstrations) {
 INSTANTIATE_TEST_SUITE_P(Families, FewShotSceneFamily,
                          ::testing::Values(FewShotCase{"nearest_goal", 10}, FewShotCase{"queue", 20}),
                          [](const auto& info) { return std::string(info.param.family); });
+
+// Other team sizes (docs/tgn.md): `ddace eval` and the nodes run a model on a test set of
+// the same task with other numbers of robots and goals, bound by kind, with a note.
+TEST(OtherTeamSizes, EvalRunsTheModelBoundByKindWithANote) {
+  uint64_t rule = 0;
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:left-to-right", rule));
+  const std::string dir = ::testing::TempDir() + "/ddace_pipeline_other_sizes";
+  fs::remove_all(dir);
+  tgn::TrainOptions o;
+  o.without = {tgn::Rule::Ensemble};  // one network: a few seconds of training
+  const pipeline::Model model = pipeline::trainModel(tasks::generateZoo(rule, 10, 1, 3, 0, 3), o, dir, nullptr);
+  const task::TaskDir five = tasks::generateZoo(rule, 6, 7, 5, 0, 5);
+  const pipeline::ModelForTask bound = pipeline::modelForTask(model, dir, five, "five", false);
+  EXPECT_NE(bound.note.find("3 robot:hamster"), std::string::npos) << bound.note;
+  EXPECT_NE(bound.note.find("5 robot:hamster"), std::string::npos) << bound.note;
+  const pipeline::Evaluation e = pipeline::evaluate(bound.model, five, {});
+  EXPECT_GE(e.summary.osr, 0.8) << "closed loop, 5 robots, a model trained with 3";
+  EXPECT_EQ(e.summary.gcr, 1.0);
+  // Another task of other numbers is another task: refused, unless on purpose.
+  task::TaskDir renamed = five;
+  renamed.spec.name = "another task";
+  EXPECT_THROW(pipeline::modelForTask(model, dir, renamed, "renamed", false), Error);
+  EXPECT_NO_THROW(pipeline::modelForTask(model, dir, renamed, "renamed", true));
+  fs::remove_all(dir);
+}

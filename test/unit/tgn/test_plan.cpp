@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <set>
 #include <sstream>
@@ -660,4 +661,44 @@ TEST(ShuffledNames, AreKeptWhereShufflingThemCostsTheFit) {
     }
     EXPECT_NEAR(m.stepAccuracy(train.demos), std::max(shuffled_fit, kept_fit), 1e-5) << log;  // printed to 6 digits
   }
+}
+
+// Every message of TrainingPlan::inconsistency (plan_check.cpp): what the manifest reader
+// refuses, each from the plan of a valid scene model changed in one place.
+TEST(PlanCheck, NamesEachPlanNoTrainingMakes) {
+  tgn::TrainOptions o;
+  tgn::TrainingPlan valid;  // a scene model of a task the scene decides
+  valid.relative_features = true;
+  valid.identity_embedding = true;
+  valid.names_or_scene = true;
+  valid.name_groups = {{0, 1}};
+  valid.token_by_token = true;
+  valid.step_rules.exclusive_targets = true;
+  valid.parked_out_of_ranks = true;
+  valid.ensemble = tgn::kEnsembleMembers;
+  ASSERT_EQ(valid.inconsistency(o), "");
+  const auto why = [&](const std::function<void(tgn::TrainingPlan&, tgn::TrainOptions&)>& change) {
+    tgn::TrainingPlan p = valid;
+    tgn::TrainOptions options = o;
+    change(p, options);
+    return p.inconsistency(options);
+  };
+  using P = tgn::TrainingPlan;
+  using O = tgn::TrainOptions;
+  EXPECT_EQ(why([](P& p, O&) { p.slips = 1; }), "slips without a fixed order");
+  EXPECT_EQ(why([](P&, O& x) { x.identity_embedding = false; }), "identity_embedding where the options have none");
+  EXPECT_EQ(why([](P&, O& x) { x.variant = tgn::Variant::Paper; }), "rules of the scene network for the paper variant");
+  EXPECT_EQ(why([](P&, O& x) { x.without = {tgn::Rule::Relative}; }), "relative_features, switched off by the options");
+  EXPECT_EQ(why([](P& p, O&) { p.fixed_order = true; }), "relative_features on a fixed order");
+  EXPECT_EQ(why([](P& p, O&) { p.relative_features = false; }),
+            "token_by_token, parked_out_of_ranks, names_or_scene or name_groups without the relative features");
+  EXPECT_EQ(why([](P& p, O&) { p.step_rules.exclusive_targets = false; }), "token_by_token without exclusive targets");
+  EXPECT_EQ(why([](P&, O& x) { x.without = {tgn::Rule::Parked}; }), "parked_out_of_ranks, switched off by the options");
+  EXPECT_EQ(why([](P& p, O&) { p.ensemble = 1; }),
+            "an ensemble of 1 networks (training makes 3 for this plan and options)");
+  EXPECT_EQ(why([](P& p, O&) { p.identity_embedding = false; }),
+            "names_or_scene or name_groups without the identity embedding");
+  EXPECT_EQ(why([](P&, O& x) { x.without = {tgn::Rule::ShuffledNames}; }), "name_groups, switched off by the options");
+  EXPECT_EQ(why([](P& p, O&) { p.name_groups = {{1, 0}}; }), "a name group not in ascending order of distinct entities");
+  EXPECT_EQ(why([](P& p, O&) { p.name_groups = {{1, 1}}; }), "a name group not in ascending order of distinct entities");
 }

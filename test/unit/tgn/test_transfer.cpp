@@ -1,0 +1,145 @@
+// Other team sizes (docs/tgn.md): a model bound to a task of the same kinds of entity in
+// other numbers, and a model whose rule depends on names refused.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <map>
+#include <set>
+#include <string>
+
+#include "ddace/common/error.h"
+#include "ddace/tasks/generators.h"
+#include "ddace/tasks/rule_zoo.h"
+#include "ddace/tgn/sequence_model.h"
+
+using namespace ddace;
+
+namespace {
+
+uint64_t zooId(const std::string& family) {
+  uint64_t id = 0;
+  EXPECT_TRUE(tasks::parseZooFamily(family, id)) << family;
+  return id;
+}
+
+/// The message of the ddace::Error `f` throws, or "" when it throws none.
+template <class F>
+std::string errorOf(F&& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+/// Trained on `robots` robots of a zoo rule stated by the scene (10 demonstrations, one network).
+tgn::SequenceModel trainedOn(uint64_t rule, int robots, int goals) {
+  tgn::TrainOptions o;
+  o.without = {tgn::Rule::Ensemble};  // one network: a few seconds of training
+  return tgn::SequenceModel::train(tasks::generateZoo(rule, 10, 1, robots, 0, goals), o, nullptr);
+}
+
+}  // namespace
+
+// Two rules stated by the scene, each trained with 3 robots and run on 5 in fresh scenes:
+// each robot to its own nearest free goal (distances), robots take goals left to right
+// (axis orders).
+TEST(OtherTeamSizes, AModelTrainedWithThreeRobotsDecidesForFive) {
+  const std::pair<std::string, int> rules[] = {{"zoo:nearest-goals", 1}, {"zoo:left-to-right", 0}};
+  for (const auto& [family, extra_goals] : rules) {
+    const uint64_t rule = zooId(family);
+    const tgn::SequenceModel model = trainedOn(rule, 3, 3 + extra_goals);
+    const tgn::Transfer t = model.transfer();
+    EXPECT_EQ(t.refusal, "") << family;
+    EXPECT_EQ(t.any_number, (std::vector<std::string>{"goal", "robot:hamster"})) << family;
+    const task::TaskDir five = tasks::generateZoo(rule, 10, 2, 5, 0, 5 + extra_goals);
+    EXPECT_EQ(five.spec.name, model.spec().name) << "the same rule is the same task";
+    const tgn::SequenceModel bound = model.boundTo(five.spec);
+    EXPECT_EQ(bound.spec().entityNames(), five.spec.entityNames());
+    EXPECT_EQ(bound.info().plan.step_rules.step_size, model.info().plan.step_rules.step_size == 3 ? 5 : 0) << family;
+    const double accuracy = bound.stepAccuracy(five.demos);
+    EXPECT_GE(accuracy, 0.9) << family << ": steps decided exactly for 5 robots";
+    // The decision the coordinator would ask for: every robot of the five gets a goal of its own.
+    const tgn::Prediction p = bound.predictNext({five.demos[0].snapshots[0]});
+    EXPECT_FALSE(p.end) << family;
+    EXPECT_EQ(p.tokens.size(), 5u) << family;
+    EXPECT_THROW(model.boundTo(tasks::generateZoo(zooId("zoo:two-boxes"), 1, 1).spec), Error)
+        << family << ": a task with boxes has a kind the model never saw";
+  }
+}
+
+TEST(OtherTeamSizes, AFixedOrderModelIsRefusedNamingWhy) {
+  tasks::GeneratorOptions g;
+  g.family = "task2";
+  g.demos = 3;
+  g.robots = 5;
+  tgn::TrainOptions o;
+  o.max_epochs = 2;  // what it may transfer follows from the plan, not from the weights
+  const tgn::SequenceModel model = tgn::SequenceModel::train(tasks::generate(g), o, nullptr);
+  EXPECT_NE(model.transfer().refusal.find("fixed order"), std::string::npos) << model.transfer().refusal;
+  g.robots = 7;
+  const std::string why = errorOf([&] { model.boundTo(tasks::generate(g).spec); });
+  EXPECT_NE(why.find("fixed order"), std::string::npos) << why;
+  EXPECT_NE(why.find("own task"), std::string::npos) << why;
+}
+
+TEST(OtherTeamSizes, AnEntityKnownByNameMustBeThere) {
+  // Queue: the slots Q1.. each have a role of their own (a name alone says which step fills
+  // it); the robots are interchangeable.
+  tgn::TrainOptions o;
+  o.max_epochs = 2;
+  o.without = {tgn::Rule::Ensemble};
+  const task::TaskDir queue = tasks::generateZoo(21, 4, 1);
+  const tgn::SequenceModel model = tgn::SequenceModel::train(queue, o, nullptr);
+  const tgn::Transfer t = model.transfer();
+  ASSERT_EQ(t.refusal, "");
+  EXPECT_NE(std::find(t.named.begin(), t.named.end(), "Q1"), t.named.end());
+  task::TaskSpec fewer = queue.spec;
+  fewer.entities.erase(std::find_if(fewer.entities.begin(), fewer.entities.end(),
+                                    [](const task::Entity& e) { return e.name == "Q1"; }));
+  const std::string why = errorOf([&] { model.boundTo(fewer); });
+  EXPECT_NE(why.find("knows Q1 by name"), std::string::npos) << why;
+  task::TaskSpec more = queue.spec;
+  more.entities.push_back({"Q9", task::EntityKind::Goal, "slot"});
+  const std::string none = errorOf([&] { model.boundTo(more); });
+  EXPECT_NE(none.find("Q9"), std::string::npos) << none;
+  more.entities.back() = {"R9", task::EntityKind::Robot, "hamster"};
+  EXPECT_EQ(errorOf([&] { model.boundTo(more); }), "") << "a robot more is one more of the interchangeable ones";
+}
+
+// Two carrier-load pairs in one step (zoo:two-pairs): each robot fetches its nearest box,
+// then both carry at once, the box nearer G1 to G1 and the other to G2. Each pair is one
+// decision: the two go to distinct goals, each robot with the box it fetched.
+TEST(SeveralPairs, TwoPairsCarryingAtOnceGoToDistinctGoalsWithTheirOwnBoxes) {
+  const uint64_t rule = zooId("zoo:two-pairs");
+  tgn::TrainOptions o;
+  o.without = {tgn::Rule::Ensemble};  // one network: a few seconds of training
+  const tgn::SequenceModel model = tgn::SequenceModel::train(tasks::generateZoo(rule, 20, 1), o, nullptr);
+  const task::TaskDir fresh = tasks::generateZoo(rule, 10, 5);
+  const task::TaskSpec& spec = fresh.spec;
+  int right = 0;
+  for (const auto& d : fresh.demos) {
+    ASSERT_EQ(d.steps.size(), 2u);
+    const tgn::Prediction p = model.predictNext({d.snapshots[0], d.snapshots[1]});
+    ASSERT_FALSE(p.end);
+    std::map<int, int> goal_of;  // entity -> goal
+    for (const auto& t : p.tokens) goal_of[t.entity] = t.target;
+    std::set<int> goals;
+    bool own_boxes = true;
+    for (const auto& t : p.tokens) {
+      if (spec.entities[static_cast<size_t>(t.entity)].kind != task::EntityKind::Robot) continue;
+      goals.insert(t.target);
+      // The box this robot fetched in the first step carries with it, to the same goal.
+      for (const auto& f : d.steps[0].tokens)
+        if (f.entity == t.entity) own_boxes = own_boxes && goal_of.count(f.target) && goal_of[f.target] == t.target;
+    }
+    EXPECT_EQ(goals.size(), 2u) << d.source << ": two carriers, two goals";
+    EXPECT_TRUE(own_boxes) << d.source << ": each carrier with the box it fetched";
+    std::vector<task::Token> predicted = p.tokens, demonstrated = d.steps[1].tokens;
+    std::sort(predicted.begin(), predicted.end());
+    std::sort(demonstrated.begin(), demonstrated.end());
+    right += predicted == demonstrated;
+  }
+  EXPECT_GE(right, 9) << "the box nearer G1 to G1, the other to G2";
+}
