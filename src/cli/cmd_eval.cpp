@@ -38,7 +38,8 @@ int runEval(const std::vector<std::string>& argv) {
   }
 
   const task::TaskDir test = task::loadTaskDir(test_dir);
-  const ModelForTask bound = modelForTask(loadModel(model_dir), model_dir, test, test_dir, args.has("--allow-other-task"));
+  const ModelForTask bound =
+      modelForTask(loadModel(model_dir), model_dir, test, test_dir, args.has("--allow-other-task"));
   if (!bound.note.empty()) std::cout << bound.note << "\n";
   const Evaluation e = evaluate(bound.model, test, o);
   printEvaluation(e, std::cout);

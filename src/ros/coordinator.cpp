@@ -145,9 +145,9 @@ class CoordinatorNode::Impl {
       try {
         return lib.boundTo(spec_).endPoints();
       } catch (const Error& e) {
-        throw Error(Diagnostic{file, 0, 0,
-                               "the model's entities are not the task's (parameter '" + pnh.resolveName("model") +
-                                   "'): " + e.what()});
+        throw Error(Diagnostic{
+            file, 0, 0,
+            "the model's entities are not the task's (parameter '" + pnh.resolveName("model") + "'): " + e.what()});
       }
     }
     std::string train = rosparam::param<std::string>(pnh, "train", "");

@@ -49,7 +49,8 @@ class GpPathNode::Impl {
             pipeline::loadModel(path), path, spec_, task::fingerprintOfPath(task_path), task_path, allow_other_task,
             "set parameter '" + pnh.resolveName("allow_other_task") + "' to true");
         if (!model.model.primitives)
-          throw Error(Diagnostic{path, 0, 0, "a " + model.model.sequence.variant() + " model has no primitive library"});
+          throw Error(
+              Diagnostic{path, 0, 0, "a " + model.model.sequence.variant() + " model has no primitive library"});
         library_ = std::make_unique<gp::PrimitiveLibrary>(*model.model.primitives);
         if (!model.note.empty()) ROS_INFO("gp_path: %s", model.note.c_str());
       } else {

@@ -48,8 +48,8 @@ struct ModelForTask {
   std::string note;  ///< "" on the model's own entities
 };
 ModelForTask modelForTask(const Model& model, const std::string& model_dir, const task::TaskSpec& spec,
-                          const task::TaskFingerprint& fingerprint, const std::string& task_file,
-                          bool allow_other_task, const std::string& override_hint);
+                          const task::TaskFingerprint& fingerprint, const std::string& task_file, bool allow_other_task,
+                          const std::string& override_hint);
 /// The same for a test set (a task directory) as `ddace eval` takes it ("pass --allow-other-task").
 ModelForTask modelForTask(const Model& model, const std::string& model_dir, const task::TaskDir& test,
                           const std::string& test_dir, bool allow_other_task);

@@ -329,7 +329,8 @@ const Primitive* PrimitiveLibrary::lookup(const std::string& entity, const std::
     const Primitive* chosen = nullptr;
     for (const auto& [key, p] : primitives_) {
       if (p.action != action || (same_entity && p.entity != entity)) continue;
-      if (same_kinds && (kindIn(trained_kinds_, p.entity) != entity_kind || kindIn(trained_kinds_, p.target) != target_kind))
+      if (same_kinds &&
+          (kindIn(trained_kinds_, p.entity) != entity_kind || kindIn(trained_kinds_, p.target) != target_kind))
         continue;
       if (!chosen || p.segments > chosen->segments) chosen = &p;
     }

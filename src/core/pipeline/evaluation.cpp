@@ -81,14 +81,15 @@ std::string countsByKind(const task::TaskSpec& spec) {
 }  // namespace
 
 ModelForTask modelForTask(const Model& model, const std::string& model_dir, const task::TaskSpec& spec,
-                          const task::TaskFingerprint& fingerprint, const std::string& task_file,
-                          bool allow_other_task, const std::string& override_hint) {
+                          const task::TaskFingerprint& fingerprint, const std::string& task_file, bool allow_other_task,
+                          const std::string& override_hint) {
   const task::TaskSpec& own = model.sequence.spec();
   const std::string manifest = (fs::path(model_dir) / "manifest.yaml").string() + ", task '" + own.name + "'";
   const std::string task = task_file + " (task '" + spec.name + "')";
   std::vector<std::string> own_names = own.entityNames(), names = spec.entityNames();
   if (own_names == names) {
-    if (!allow_other_task) task::requireSameTask(model.sequence.info().fingerprint, manifest, fingerprint, task, override_hint);
+    if (!allow_other_task)
+      task::requireSameTask(model.sequence.info().fingerprint, manifest, fingerprint, task, override_hint);
     return {model, ""};
   }
   std::sort(own_names.begin(), own_names.end());
@@ -114,12 +115,12 @@ ModelForTask modelForTask(const Model& model, const std::string& model_dir, cons
     if (model.primitives)
       bound.model.primitives = std::make_shared<gp::PrimitiveLibrary>(model.primitives->boundTo(spec));
   } catch (const Error& e) {
-    throw Error("the model in " + model_dir + " (" + countsByKind(own) + ") cannot run on the entities of " +
-                task + " (" + countsByKind(spec) + "): " + e.what());
+    throw Error("the model in " + model_dir + " (" + countsByKind(own) + ") cannot run on the entities of " + task +
+                " (" + countsByKind(spec) + "): " + e.what());
   }
-  bound.note = "note: the model in " + model_dir + " was trained on " + countsByKind(own) + ", " + task_file +
-               " has " + countsByKind(spec) + ": entities bound by kind (the model runs on " +
-               model.sequence.transfer().text() + ")";
+  bound.note = "note: the model in " + model_dir + " was trained on " + countsByKind(own) + ", " + task_file + " has " +
+               countsByKind(spec) + ": entities bound by kind (the model runs on " + model.sequence.transfer().text() +
+               ")";
   return bound;
 }
 

@@ -521,8 +521,8 @@ task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed, int robots
   if (robots < 0 || objects < 0 || goals < 0) throw Error("the numbers of entities must not be negative");
   Rule rule = ruleOf(rule_id);
   ZooRule& z = rule.info;
-  const bool own_counts = (robots == 0 || robots == z.robots) && (objects == 0 || objects == z.objects) &&
-                          (goals == 0 || goals == z.goals);
+  const bool own_counts =
+      (robots == 0 || robots == z.robots) && (objects == 0 || objects == z.objects) && (goals == 0 || goals == z.goals);
   if (robots) z.robots = robots;
   if (objects) z.objects = objects;
   if (goals) z.goals = goals;

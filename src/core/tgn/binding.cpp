@@ -18,8 +18,7 @@ namespace {
 /// identity embedding it reads: the one of its name, else one of its kind's interchangeable
 /// ones (those no name took first, then again in order). Throws ddace::Error naming what
 /// keeps an entity from having one.
-std::vector<int> identitySources(const task::TaskSpec& trained, const Transfer& transfer,
-                                 const task::TaskSpec& other) {
+std::vector<int> identitySources(const task::TaskSpec& trained, const Transfer& transfer, const task::TaskSpec& other) {
   const std::set<std::string> named(transfer.named.begin(), transfer.named.end());
   const auto kindsOf = [](const task::TaskSpec& s) {
     std::set<std::string> k;
@@ -33,8 +32,8 @@ std::vector<int> identitySources(const task::TaskSpec& trained, const Transfer& 
     if (!model_kinds.count(k)) throw Error("the model was trained with no entity of kind " + k);
   for (const auto& name : transfer.named)
     if (other.entityIndex(name) < 0)
-      throw Error("the model knows " + name + " by name (it has a role of its own, or the rule refers to it), and the " +
-                  "task has no " + name);
+      throw Error("the model knows " + name +
+                  " by name (it has a role of its own, or the rule refers to it), and the " + "task has no " + name);
   // The interchangeable entities of each kind (task order): a name group, or every one of
   // the kind without the identity embedding.
   std::map<std::string, std::vector<int>> pool;
@@ -129,8 +128,7 @@ SequenceModel SequenceModel::boundTo(const task::TaskSpec& other) const {
     std::vector<int64_t> rows;
     for (int k = 0; k < impl->order.size(); ++k)
       rows.push_back(from.order.canonical_of[static_cast<size_t>(source[static_cast<size_t>(impl->order.task_of[k])])]);
-    after[m]->identity->weight.copy_(
-        before[m]->identity->weight.index_select(0, torch::tensor(rows, torch::kLong)));
+    after[m]->identity->weight.copy_(before[m]->identity->weight.index_select(0, torch::tensor(rows, torch::kLong)));
   }
   return SequenceModel(impl);
 }

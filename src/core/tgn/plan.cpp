@@ -78,7 +78,7 @@ StepRules stepRulesOf(const task::TaskDir& train) {
 }  // namespace
 
 std::vector<graph::Edge> detail::liftedToKinds(const std::vector<graph::Edge>& edges, const task::TaskSpec& from,
-                                              const task::TaskSpec& to) {
+                                               const task::TaskSpec& to) {
   std::set<std::pair<task::EntityKind, task::EntityKind>> kinds;
   for (const auto& e : edges)
     kinds.insert(

@@ -64,10 +64,8 @@ Transfer transferOf(const ModelInfo& info, const task::TaskSpec& spec) {
       if (e >= 0 && static_cast<size_t>(e) < interchangeable.size()) interchangeable[static_cast<size_t>(e)] = true;
   std::set<std::string> kinds;
   for (size_t e = 0; e < spec.entities.size(); ++e) {
-    if (interchangeable[e])
-      kinds.insert(kindKey(spec.entities[e]));
-    else
-      t.named.push_back(spec.entities[e].name);
+    if (interchangeable[e]) kinds.insert(kindKey(spec.entities[e]));
+    else t.named.push_back(spec.entities[e].name);
   }
   t.any_number.assign(kinds.begin(), kinds.end());
   if (t.any_number.empty())

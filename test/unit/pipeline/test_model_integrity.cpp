@@ -118,7 +118,7 @@ TEST(ModelIntegrity, Task2WithFourRobotsIsRefusedOnTask4) {
   }
   EXPECT_NO_THROW(pipeline::modelForTask(m, fixture().task2_model, test, fixture().task4_test, true));
   EXPECT_NO_THROW(pipeline::modelForTask(m, fixture().task2_model, task::loadTaskDir(fixture().task2_test),
-                                          fixture().task2_test, false));
+                                         fixture().task2_test, false));
 }
 
 TEST(CliModel, EvalRefusesAnotherTasksModelUnlessAllowed) {

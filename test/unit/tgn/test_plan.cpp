@@ -699,6 +699,12 @@ TEST(PlanCheck, NamesEachPlanNoTrainingMakes) {
   EXPECT_EQ(why([](P& p, O&) { p.identity_embedding = false; }),
             "names_or_scene or name_groups without the identity embedding");
   EXPECT_EQ(why([](P&, O& x) { x.without = {tgn::Rule::ShuffledNames}; }), "name_groups, switched off by the options");
-  EXPECT_EQ(why([](P& p, O&) { p.name_groups = {{1, 0}}; }), "a name group not in ascending order of distinct entities");
-  EXPECT_EQ(why([](P& p, O&) { p.name_groups = {{1, 1}}; }), "a name group not in ascending order of distinct entities");
+  EXPECT_EQ(why([](P& p, O&) {
+              p.name_groups = {{1, 0}};
+            }),
+            "a name group not in ascending order of distinct entities");
+  EXPECT_EQ(why([](P& p, O&) {
+              p.name_groups = {{1, 1}};
+            }),
+            "a name group not in ascending order of distinct entities");
 }

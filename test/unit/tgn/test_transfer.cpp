@@ -96,8 +96,8 @@ TEST(OtherTeamSizes, AnEntityKnownByNameMustBeThere) {
   ASSERT_EQ(t.refusal, "");
   EXPECT_NE(std::find(t.named.begin(), t.named.end(), "Q1"), t.named.end());
   task::TaskSpec fewer = queue.spec;
-  fewer.entities.erase(std::find_if(fewer.entities.begin(), fewer.entities.end(),
-                                    [](const task::Entity& e) { return e.name == "Q1"; }));
+  fewer.entities.erase(
+      std::find_if(fewer.entities.begin(), fewer.entities.end(), [](const task::Entity& e) { return e.name == "Q1"; }));
   const std::string why = errorOf([&] { model.boundTo(fewer); });
   EXPECT_NE(why.find("knows Q1 by name"), std::string::npos) << why;
   task::TaskSpec more = queue.spec;
