@@ -179,8 +179,8 @@ TEST(OtherTeamSizes, EvalRunsTheModelBoundByKindWithANote) {
   fs::remove_all(dir);
   tgn::TrainOptions o;
   o.without = {tgn::Rule::Ensemble};  // one network: a few seconds of training
-  const pipeline::Model model = pipeline::trainModel(tasks::generateZoo(rule, 10, 1, 3, 0, 4), o, dir, nullptr);
-  const task::TaskDir five = tasks::generateZoo(rule, 6, 7, 5, 0, 6);
+  const pipeline::Model model = pipeline::trainModel(tasks::generateZoo(rule, 10, 1, {}, {3, 0, 4}), o, dir, nullptr);
+  const task::TaskDir five = tasks::generateZoo(rule, 6, 7, {}, {5, 0, 6});
   const pipeline::ModelForTask bound = pipeline::modelForTask(model, dir, five, "five", false);
   EXPECT_NE(bound.note.find("3 robot:hamster"), std::string::npos) << bound.note;
   EXPECT_NE(bound.note.find("5 robot:hamster"), std::string::npos) << bound.note;

@@ -37,7 +37,7 @@ std::string errorOf(F&& f) {
 tgn::SequenceModel trainedOn(uint64_t rule, int robots, int goals) {
   tgn::TrainOptions o;
   o.without = {tgn::Rule::Ensemble};  // one network: a few seconds of training
-  return tgn::SequenceModel::train(tasks::generateZoo(rule, 10, 1, robots, 0, goals), o, nullptr);
+  return tgn::SequenceModel::train(tasks::generateZoo(rule, 10, 1, {}, {robots, 0, goals}), o, nullptr);
 }
 
 }  // namespace
@@ -53,7 +53,7 @@ TEST(OtherTeamSizes, AModelTrainedWithThreeRobotsDecidesForFive) {
     const tgn::Transfer t = model.transfer();
     EXPECT_EQ(t.refusal, "") << family;
     EXPECT_EQ(t.any_number, (std::vector<std::string>{"goal", "robot:hamster"})) << family;
-    const task::TaskDir five = tasks::generateZoo(rule, 10, 2, 5, 0, 5 + extra_goals);
+    const task::TaskDir five = tasks::generateZoo(rule, 10, 2, {}, {5, 0, 5 + extra_goals});
     EXPECT_EQ(five.spec.name, model.spec().name) << "the same rule is the same task";
     const tgn::SequenceModel bound = model.boundTo(five.spec);
     EXPECT_EQ(bound.spec().entityNames(), five.spec.entityNames());
