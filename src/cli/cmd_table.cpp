@@ -763,6 +763,48 @@ int runTable(const std::vector<std::string>& argv) {
     md << "\nRules the direct motion cannot demonstrate (no scene whose bodies keep clear without bending around "
           "each other), not in its row: "
        << (zoo_undrawable.empty() ? std::string("none") : zoo_undrawable) << ".\n";
+    // Other team sizes (docs/tgn.md): each rule's model at the largest size run on the same
+    // rule with other numbers of robots (goals too where they come one per robot).
+    md << "\n### Other team sizes\n\n"
+       << "Each rule's model of " << sizes.back()
+       << " demonstrations (the default network, at the rule's own counts) on " << s.test
+       << " fresh scenes of the same rule with other numbers of robots (and of goals where the rule has one per robot "
+          "or more: the surplus kept), bound by kind as `ddace eval` binds it (docs/tgn.md, \"Other team sizes\"), "
+          "ideal execution. Refused: models whose rule depends on names (a fixed order, an entity known by name that "
+          "the other count lacks or adds); no scene: the rule cannot be stated at that count.\n\n"
+       << "| robots | rules run | refused | no scene | median OSR | 10th percentile | rules at OSR >= 0.9 |\n"
+       << "|---|---|---|---|---|---|---|\n";
+    for (const double factor : {0.5, 1.5, 2.0}) {
+      std::vector<double> v;
+      int refused = 0, no_scene = 0;
+      for (size_t k = 0; k < zoo_rules.size(); ++k) {
+        const tasks::ZooRule& z = zoo_rules[k];
+        tasks::ZooCounts c;
+        c.robots = std::max(1, static_cast<int>(std::lround(factor * z.robots)));
+        c.goals = z.goals >= z.robots ? c.robots + z.goals - z.robots : z.goals;
+        const std::string model_dir = (s.out / "models" / jobs[zoo[(k + 1) * sizes.size() - 1]].model_name).string();
+        task::TaskDir test;
+        try {
+          test = tasks::generateZoo(z.id, s.test, static_cast<uint64_t>(s.seed) * 2654435761ULL + 0x7e57, {}, c);
+        } catch (const Error&) {
+          ++no_scene;
+          continue;
+        }
+        try {
+          const ModelForTask bound = modelForTask(loadModel(model_dir), model_dir, test, "other", false);
+          v.push_back(evaluate(bound.model, test, {}).summary.osr);
+        } catch (const Error&) {
+          ++refused;
+        }
+      }
+      md << "| " << fmt(factor, 1) << "x | " << v.size() << " | " << refused << " | " << no_scene << " | ";
+      if (v.empty()) {
+        md << "– | – | – |\n";
+        continue;
+      }
+      const tasks::OsrDistribution d = tasks::osrDistribution(v);
+      md << fmt(d.median, 2) << " | " << fmt(d.p10, 2) << " | " << d.at_least_0_9 << " |\n";
+    }
   }
   if (!kinds.empty()) {
     // OSR of kind k at sizes[m] is rows[kind_jobs[k * sizes.size() + m]].

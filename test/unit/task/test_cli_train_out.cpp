@@ -253,3 +253,22 @@ TEST(CliGenerate, RefusesASettingTheFamilyWouldIgnore) {
   EXPECT_EQ(task2.status, 0) << task2.out;
   fs::remove_all(out);
 }
+
+TEST(CliTrain, ThreadsAreCheckedAndRecordedAndWhatTheModelTransfersIsPrinted) {
+  const ToolRun none = train(data("task1") + "/train", root() + "/threads0", "--threads 0");
+  EXPECT_NE(none.status, 0) << none.out;
+  EXPECT_NE(none.out.find("threads"), std::string::npos) << none.out;
+  EXPECT_FALSE(fs::exists(root() + "/threads0/manifest.yaml"));
+  const ToolRun two = train(data("task1") + "/train", root() + "/threads2", "--threads 2");
+  ASSERT_EQ(two.status, 0) << two.out;
+  std::ifstream manifest(root() + "/threads2/manifest.yaml");
+  const std::string text((std::istreambuf_iterator<char>(manifest)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("threads: 2"), std::string::npos);
+  // Task 1 is a fixed order: the model runs on its own task's entities only, and says why.
+  EXPECT_NE(two.out.find("transfer: runs on its own task's entities only"), std::string::npos) << two.out;
+  EXPECT_NE(text.find("transfer: its own task's entities only"), std::string::npos);
+  // The network's hyper-parameters are no flags.
+  const ToolRun lr = train(data("task1") + "/train", root() + "/lr", "--lr 0.01");
+  EXPECT_NE(lr.status, 0) << lr.out;
+  EXPECT_NE(lr.out.find("--lr"), std::string::npos) << lr.out;
+}
