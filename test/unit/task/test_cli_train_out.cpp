@@ -266,7 +266,7 @@ TEST(CliTrain, ThreadsAreCheckedAndRecordedAndWhatTheModelTransfersIsPrinted) {
   EXPECT_NE(text.find("threads: 2"), std::string::npos);
   // Task 1 is a fixed order: the model runs on its own task's entities only, and says why.
   EXPECT_NE(two.out.find("transfer: runs on its own task's entities only"), std::string::npos) << two.out;
-  EXPECT_NE(text.find("transfer: its own task's entities only"), std::string::npos);
+  EXPECT_NE(text.find("transfer: \"its own task's entities only"), std::string::npos);
   // The network's hyper-parameters are no flags.
   const ToolRun lr = train(data("task1") + "/train", root() + "/lr", "--lr 0.01");
   EXPECT_NE(lr.status, 0) << lr.out;

@@ -297,6 +297,12 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
   EXPECT_NE(edited("without: []", "without: [nearest]", true).find("'nearest' is not a learning rule"),
             std::string::npos);
   EXPECT_NE(edited("name_groups: []", "name_groups: [[R1, R9]]", true).find("unknown entity 'R9'"), std::string::npos);
+  // What the model can transfer follows from the plan (Task 2: a fixed order): a manifest
+  // claiming more is refused, naming what the plan says.
+  const std::string transfer =
+      edited("transfer: \"its own task's entities only", "transfer: \"any number of robot", true);
+  EXPECT_NE(transfer.find("transfer does not follow from the variant and the plan"), std::string::npos) << transfer;
+  EXPECT_NE(transfer.find("fixed order"), std::string::npos) << transfer;
   // The digest line itself cut or changed.
   EXPECT_NE(edited("manifest_sha256: ", "manifest_sha256: 0", false).find("last line"), std::string::npos);
   {
