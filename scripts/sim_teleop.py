@@ -16,6 +16,7 @@ The chosen robot's wheel speeds go to /robots/<robot>/wheels (ddace/WheelCommand
 20 Hz; the robots are those sim_table publishes on /ddace/true_entities. A robot stops by
 itself when no speeds come (sim_table's watchdog), so a closed terminal stops it.
 """
+import os
 import select
 import sys
 import termios
@@ -104,8 +105,9 @@ def main():
         print("robots: " + "  ".join("%d=%s" % (i + 1, n) for i, n in enumerate(robots)))
 
     show_help()
-    old = termios.tcgetattr(sys.stdin)
-    tty.setcbreak(sys.stdin.fileno())
+    fd = sys.stdin.fileno()
+    old = termios.tcgetattr(fd)
+    tty.setcbreak(fd)
     try:
         last = None
         while not rospy.is_shutdown():
@@ -114,19 +116,26 @@ def main():
                 sys.stdout.write("\r\033[K" + line)
                 sys.stdout.flush()
                 last = line
-            if select.select([sys.stdin], [], [], 1.0 / RATE_HZ)[0]:
-                key = sys.stdin.read(1)
-                if not key:  # the terminal closed
+            keys = ""
+            if select.select([fd], [], [], 1.0 / RATE_HZ)[0]:
+                # Every key typed since (a buffered read(1) would hold the others back).
+                keys = os.read(fd, 64).decode(errors="replace")
+                if not keys:  # the terminal closed
                     break
+            quit_now = False
+            for key in keys:
                 if key == "h":
                     print()
                     show_help()
                     last = None
                 what = teleop.handle(key)
                 if what == "quit":
+                    quit_now = True
                     break
                 if what:
                     send(what, 0.0, 0.0)
+            if quit_now:
+                break
             send(robots[teleop.chosen], *teleop.wheels())
         send(robots[teleop.chosen], 0.0, 0.0)
     finally:
