@@ -1,4 +1,5 @@
 // ddace eval: closed-loop evaluation of a trained model on a test set (OSR, SSR, GCR, FD).
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 
@@ -15,7 +16,12 @@ int runEval(const std::vector<std::string>& argv) {
             {"--allow-other-task", "--no-bodies", "--no-filter"});
   args.expectAtMostPositional(2);
   const std::string model_dir = args.positional(0, "MODELDIR");
-  const std::string test_dir = args.positional(1, "TESTDIR");
+  std::string test_dir = args.positional(1, "TESTDIR");
+  // The output of `ddace generate` (train/ and test/): its test set, as validate and execute_sim take it.
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::exists(fs::path(test_dir) / "task.yaml", ec) && fs::exists(fs::path(test_dir) / "test" / "task.yaml", ec))
+    test_dir = (fs::path(test_dir) / "test").string();
   EvalOptions o;
   o.execution = args.get("--execution", "ideal");
   if (o.execution != "ideal" && o.execution != "diffdrive")
@@ -59,8 +65,8 @@ int runEval(const std::vector<std::string>& argv) {
 
 DDACE_COMMAND(
     {"eval",
-     "ddace eval MODELDIR TESTDIR [--json FILE] [--execution ideal|diffdrive] [--noise SIGMA_M] [--seed S] "
-     "[--no-bodies] [--no-filter] [--config EXECUTION_YAML] [--dispatch steps|async] [--allow-other-task]",
+     "ddace eval MODELDIR TESTDIR|GENERATED_DIR [--json FILE] [--execution ideal|diffdrive] [--noise SIGMA_M] "
+     "[--seed S] [--no-bodies] [--no-filter] [--config EXECUTION_YAML] [--dispatch steps|async] [--allow-other-task]",
      "run the learned task in closed loop on every test demonstration's start configuration and "
      "report OSR, SSR, GCR and FD (a model of another task is refused unless --allow-other-task). "
      "ideal: every entity traverses its path exactly (the paper). diffdrive: the robots of a step drive "
