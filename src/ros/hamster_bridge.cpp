@@ -5,6 +5,7 @@
 #include <ros/ros.h>
 #include <diagnostic_updater/diagnostic_updater.h>
 
+#include <algorithm>
 #include <atomic>
 #include <memory>
 #include <mutex>
@@ -16,6 +17,7 @@
 
 #include "ddace/common/clock.h"
 #include "ddace/common/error.h"
+#include "ddace/task/task_spec.h"
 #include "ddace/hamster/config.h"
 #include "ddace/hamster/link.h"
 #include "ddace/ros/hamster_conversions.h"
@@ -27,6 +29,31 @@ namespace ddace::nodes {
 
 using namespace hamster;
 
+namespace {
+
+/// The robots of the task in `task_dir` (~task, as the launch files pass it): only they are
+/// connected. The configured robots the task does not have are named, so that a config
+/// of another task never goes unnoticed.
+std::vector<std::string> taskRobots(const std::string& task_dir, const BridgeConfig& config,
+                                    const std::string& config_path) {
+  const task::TaskSpec spec = task::readTaskYaml(task_dir + "/task.yaml");
+  std::vector<std::string> robots;
+  std::string others;
+  for (const auto& e : spec.entities)
+    if (e.kind == task::EntityKind::Robot) robots.push_back(e.name);
+  for (const auto& r : config.robots)
+    if (std::find(robots.begin(), robots.end(), r.name) == robots.end())
+      others += (others.empty() ? "" : ", ") + r.name;
+  if (!others.empty())
+    ROS_WARN(
+        "hamster_bridge: %s also configures %s, which task '%s' does not have: not connected (no action "
+        "needed; remove them from the file to silence this)",
+        config_path.c_str(), others.c_str(), spec.name.c_str());
+  return robots;
+}
+
+}  // namespace
+
 class HamsterBridgeNode::Impl {
  public:
   Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) : updater_(nh, pnh) {
@@ -36,7 +63,9 @@ class HamsterBridgeNode::Impl {
     config_ = loadBridgeConfig(config_path);
     config_.port_dir = ddace::rosparam::param(pnh, "port_dir", config_.port_dir);
     config_.scan = ddace::rosparam::param(pnh, "scan", config_.scan);
-    const auto only = ddace::rosparam::param(pnh, "robots", std::vector<std::string>{});
+    auto only = ddace::rosparam::param(pnh, "robots", std::vector<std::string>{});
+    const std::string task = ddace::rosparam::param<std::string>(pnh, "task", "");
+    if (!task.empty() && only.empty()) only = taskRobots(task, config_, config_path);
     updater_.setHardwareID("hamster_bridge");
     auto ports = std::make_shared<PortDirectory>();
     for (const auto& r : selectRobots(config_, only, "parameter ~robots", config_path)) {
