@@ -60,8 +60,17 @@ TEST(SimFetch, ExecuteRealSimCarriesTheBoxToItsGoal) {
       100.0);
   ros::Duration(0.3).sleep();
   const ddace::CoordinatorState s = watch.state();
-  ASSERT_TRUE(ended) << "run did not end; state " << s.state_name;
-  ASSERT_EQ(s.state, ddace::CoordinatorState::FINISHED) << s.state_name << ": " << s.reason;
+  const auto where = [&] {  // the true poses, for a failure's message
+    const std::lock_guard<std::mutex> l(mu);
+    std::string w;
+    for (const auto& [name, e] : last_truth)
+      w += " " + name + " (" + std::to_string(first_truth[name].pose.x) + ", " +
+           std::to_string(first_truth[name].pose.y) + ") -> (" + std::to_string(e.pose.x) + ", " +
+           std::to_string(e.pose.y) + ")";
+    return w;
+  };
+  ASSERT_TRUE(ended) << "run did not end; state " << s.state_name << ";" << where();
+  ASSERT_EQ(s.state, ddace::CoordinatorState::FINISHED) << s.state_name << ": " << s.reason << ";" << where();
   EXPECT_EQ(exec_test::executedSteps(s), exec_test::truthSteps(test.demos.front(), test.spec));
   for (size_t i = 0; i < s.goal_conditions_met.size(); ++i)
     EXPECT_TRUE(s.goal_conditions_met[i]) << s.goal_conditions[i];
