@@ -371,11 +371,13 @@ InferredDataset inferredDataset(const task::TaskDir& generated, const HumanMotio
   if (out.truth.demos.empty()) return out;
   const Example example = Example::fromDemonstration(out.truth.demos.front(), generated.spec);
   out.inferred.demos.push_back(out.truth.demos.front());
+  out.notes.emplace_back();
   for (size_t i = 1; i < out.truth.demos.size(); ++i) {
     task::Demonstration d = out.truth.demos[i];
     const Inference inf = inferLabels(d, generated.spec, &example);
     applyLabels(d, inf);
     out.score.add(scoreLabels(out.truth.demos[i], d, inf));
+    out.notes.push_back(inf.notes);
     out.inferred.demos.push_back(std::move(d));
   }
   return out;
