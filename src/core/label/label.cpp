@@ -562,6 +562,14 @@ void Labeller::emit(Group& group, bool aligned) {
                 if (kindClass(E[c].kind, bodies) == kindClass(it->second, bodies)) found = c, ++count;
             if (count == 1) tok.token.target = found, resolved = true;
           }
+          // Else the one end the example has a motion of that kind to (a robot sent to a
+          // robot, never to a goal, in the example).
+          if (!resolved && example_) {
+            int found = -1, count = 0;
+            for (int c : all)
+              if (example_->words.count(kindKey(spec_, m.entity, c, tok.load))) found = c, ++count;
+            if (count == 1) tok.token.target = found, resolved = true;
+          }
           if (!resolved) {
             std::string names;
             for (int c : all) names += (names.empty() ? "" : " and ") + E[c].name;
