@@ -53,7 +53,10 @@ int runLabel(const std::vector<std::string>& argv) {
     if (!d.steps.empty())
       labelled.push_back({d.source, d.steps.front().keyframe_row + 2, 0,
                           "already labelled (" + std::to_string(d.steps.size()) +
-                              " steps): ddace label infers the labels of unlabelled demonstrations only"});
+                              " steps): ddace label infers the labels of unlabelled demonstrations only. The "
+                              "recorder labels what it records when its recorder.yaml says infer_labels: true "
+                              "(the default): such a directory needs no ddace label, check it with ddace "
+                              "validate. Record with infer_labels: false to label afterwards"});
   if (!labelled.empty()) throw Error(labelled);
   if (dir.demos.empty()) throw Error(Diagnostic{in, 0, 0, "no demonstrations in demos/ to label"});
 
