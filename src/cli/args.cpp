@@ -13,6 +13,36 @@ std::map<std::string, Command>& commands() {
   return registry;
 }
 
+namespace {
+
+/// Edits (insert, delete, replace, swap two neighbours) that turn `a` into `b`.
+size_t editDistance(const std::string& a, const std::string& b) {
+  std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1));
+  for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (size_t i = 1; i <= a.size(); ++i)
+    for (size_t j = 1; j <= b.size(); ++j) {
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  return d[a.size()][b.size()];
+}
+
+}  // namespace
+
+std::string didYouMean(const std::string& word, const std::vector<std::string>& candidates) {
+  // A slip, not another word: at most two edits, and fewer than a third of the word's letters.
+  const size_t allowed = std::min<size_t>(2, std::max<size_t>(1, word.size() / 3));
+  std::string best;
+  size_t best_d = allowed + 1;
+  for (const auto& c : candidates) {
+    const size_t d = editDistance(word, c);
+    if (d < best_d) best = c, best_d = d;
+  }
+  return best.empty() ? "" : " (did you mean " + best + "?)";
+}
+
 Registrar::Registrar(Command command) {
   commands()[command.name] = std::move(command);
 }
@@ -42,7 +72,9 @@ Args::Args(const std::vector<std::string>& argv, const std::vector<std::string>&
         }
         values_[flag] = value;
       } else {
-        throw Error("unknown option " + flag);
+        std::vector<std::string> known = options;
+        known.insert(known.end(), switches.begin(), switches.end());
+        throw Error("unknown option " + flag + didYouMean(flag, known));
       }
     } else {
       positional_.push_back(a);

@@ -36,13 +36,14 @@ int runGenerate(const std::vector<std::string>& argv) {
   if (seed < 0) throw Error("--seed must not be negative");
   o.seed = static_cast<uint64_t>(seed);
   uint64_t zoo_rule = 0;
-  if (tasks::parseZooFamily(o.family, zoo_rule)) {
+  tasks::ZooMotion zoo_motion;
+  if (tasks::parseZooFamily(o.family, zoo_rule, &zoo_motion)) {
     // A rule of the zoo (rule_zoo.h): clean demonstrations; the family options do not apply.
     for (const char* flag : {"--robots", "--actions", "--jitter", "--mislabel", "--onset-jitter"})
       if (args.has(flag)) throw Error(std::string(flag) + " does not apply to a zoo rule (" + o.family + ")");
-    const task::TaskDir train_dir = tasks::generateZoo(zoo_rule, static_cast<int>(train), o.seed);
+    const task::TaskDir train_dir = tasks::generateZoo(zoo_rule, static_cast<int>(train), o.seed, zoo_motion);
     const task::TaskDir test_dir =
-        tasks::generateZoo(zoo_rule, static_cast<int>(test), o.seed * 2654435761ULL + 0x7e57);
+        tasks::generateZoo(zoo_rule, static_cast<int>(test), o.seed * 2654435761ULL + 0x7e57, zoo_motion);
     writeSplit(out, train_dir, test_dir, args.has("--force"));
     std::cout << "generated " << o.family << " '" << train_dir.spec.name << "': " << train
               << " training demonstrations in " << out << "/train, " << test << " test in " << out << "/test\n";
@@ -83,7 +84,9 @@ DDACE_COMMAND({"generate",
                "ddace generate FAMILY|zoo:ID --out DIR [--force] [--train N] [--test M] [--seed S] [--robots K] "
                "[--actions K] [--jitter SIGMA_M] [--mislabel FRACTION] [--onset-jitter SECONDS]",
                "write DIR/train and DIR/test task directories of a task family (task1..task4, fetch, "
-               "nearest_goal, queue, deliver) or of rule <id> of the rule zoo (zoo:<id>, docs/tgn.md)",
+               "nearest_goal, queue, deliver) or of rule <id> of the rule zoo (zoo:<id>, docs/tgn.md; zoo:<id>/direct "
+               "or /direct-<N>mm: paths bent around "
+               "nothing, stops N mm short of contact)",
                runGenerate});
 
 }  // namespace

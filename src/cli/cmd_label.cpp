@@ -53,7 +53,10 @@ int runLabel(const std::vector<std::string>& argv) {
     if (!d.steps.empty())
       labelled.push_back({d.source, d.steps.front().keyframe_row + 2, 0,
                           "already labelled (" + std::to_string(d.steps.size()) +
-                              " steps): ddace label infers the labels of unlabelled demonstrations only"});
+                              " steps): ddace label infers the labels of unlabelled demonstrations only. The "
+                              "recorder labels what it records when its recorder.yaml says infer_labels: true "
+                              "(the default): such a directory needs no ddace label, check it with ddace "
+                              "validate. Record with infer_labels: false to label afterwards"});
   if (!labelled.empty()) throw Error(labelled);
   if (dir.demos.empty()) throw Error(Diagnostic{in, 0, 0, "no demonstrations in demos/ to label"});
 
@@ -70,22 +73,33 @@ int runLabel(const std::vector<std::string>& argv) {
   std::vector<label::RecordingInference> inferred;
   std::vector<size_t> spill_from;
   size_t notes = 0;
+  std::vector<std::string> to_review;  // demonstrations with something to check
   for (const auto& d : dir.demos) {
     spill_from.push_back(spill.size());
     std::string shown;
-    size_t steps = 0;
+    size_t steps = 0, unsure = 0;
     inferred.push_back(label::inferRecording(
         d.source, spec, example ? &*example : nullptr,
         [&](label::InferredStep&& step) {
           spill.add(step);
+          for (const auto& t : step.tokens) unsure += t.unsure;
           if (steps++ < kShownSteps) shown += " " + stepText(step, spec);
         },
         [&](label::Note&& n) { std::cerr << d.source << ":" << n.row + 2 << ": " << n.message << "\n"; }));
-    std::cout << fs::path(d.source).filename().string() << ": " << steps << " steps:" << shown
-              << (steps > kShownSteps ? " ..." : "") << "\n";
-    notes += inferred.back().notes;
+    const std::string name = fs::path(d.source).filename().string();
+    const size_t demo_notes = inferred.back().notes;
+    std::cout << name << ": " << steps << " steps:" << shown << (steps > kShownSteps ? " ..." : "") << "; "
+              << (demo_notes ? "to review (" + std::to_string(unsure) + " token(s) listed, " +
+                                   std::to_string(demo_notes) + " item(s))"
+                             : std::string("usable"))
+              << "\n";
+    if (demo_notes) to_review.push_back(name);
+    notes += demo_notes;
   }
   spill_from.push_back(spill.size());
+  std::cout << dir.demos.size() - to_review.size() << " of " << dir.demos.size() << " demonstrations usable";
+  for (size_t i = 0; i < to_review.size(); ++i) std::cout << (i ? ", " : "; to review: ") << to_review[i];
+  std::cout << "\n";
   if (notes > 0 && args.has("--strict")) {
     std::cerr << "ddace label: " << notes << " uncertain item(s) above; --strict: nothing written\n";
     return 1;

@@ -137,7 +137,7 @@ void countRules(const graph::RefinedGraph& g, int* rules) {
 /// first trial's paths for the trajectory overlay figure.
 Row trainAndEvaluate(const Settings& s, const fs::path& data, const std::string& model_name, const std::string& family,
                      tgn::Variant variant, const std::string& condition, bool overlay, bool closed_loop, bool bodies,
-                     std::optional<int> train_seed) {
+                     bool bodies_unfiltered, std::optional<int> train_seed) {
   const task::TaskDir train = task::loadTaskDir((data / "train").string());
   const task::TaskDir test = task::loadTaskDir((data / "test").string());
   tgn::TrainOptions opt;
@@ -175,6 +175,7 @@ Row trainAndEvaluate(const Settings& s, const fs::path& data, const std::string&
     o.noise_m = kClosedLoopNoise;
     o.seed = static_cast<uint64_t>(s.seed);
     for (const bool filter : {true, false}) {
+      if (!filter && !bodies_unfiltered) continue;
       o.safety_filter = filter;
       const Evaluation b = evaluate(model, test, o);
       (filter ? r.bodies : r.unfiltered) = b.summary;
@@ -216,6 +217,7 @@ struct Job {
   bool closed_loop = false;                      ///< also run the test set on the differential-drive simulation
   bool bodies = false;                           ///< also run it with bodies, with and without the safety filter
   std::optional<int> train_seed = std::nullopt;  ///< the training seed; unset: the table's (--seed)
+  bool bodies_unfiltered = true;                 ///< with bodies: also without the filter
 };
 
 /// A row through a file, from the job's process to the table's.
@@ -232,7 +234,7 @@ void writeRow(const fs::path& path, const Row& r) {
       << "\n";
   for (const eval::Summary* b : {&r.bodies, &r.unfiltered})
     out << b->trials << " " << b->osr << " " << b->gcr << " " << b->collisions << " " << b->trials_with_collision << " "
-        << b->min_clearance_m << " " << b->makespan_s << "\n";
+        << b->min_clearance_m << " " << b->makespan_s << " " << b->fd << "\n";
   if (!out) throw Error(Diagnostic{path.string(), 0, 0, "cannot write"});
 }
 
@@ -253,10 +255,12 @@ Row readRow(const fs::path& path) {
   r.m.fd = std::strtod(fd.c_str(), nullptr);
   r.closed.fd = std::strtod(closed_fd.c_str(), nullptr);
   for (eval::Summary* b : {&r.bodies, &r.unfiltered}) {
-    std::string clearance;  // "nan" when no two bodies were measured
-    in >> b->trials >> b->osr >> b->gcr >> b->collisions >> b->trials_with_collision >> clearance >> b->makespan_s;
+    std::string clearance, fd;  // "nan" when no two bodies were measured, no motion token matched
+    in >> b->trials >> b->osr >> b->gcr >> b->collisions >> b->trials_with_collision >> clearance >> b->makespan_s >>
+        fd;
     if (!in) throw Error(Diagnostic{path.string(), 0, 0, "not a complete result row (bodies)"});
     b->min_clearance_m = std::strtod(clearance.c_str(), nullptr);
+    b->fd = std::strtod(fd.c_str(), nullptr);
   }
   return r;
 }
@@ -298,7 +302,7 @@ std::vector<Row> runJobs(const Settings& s, const std::vector<Job>& jobs) {
         try {
           const Job& j = jobs[i];
           writeRow(row_file(i), trainAndEvaluate(s, j.data, j.model_name, j.family, j.variant, j.condition, j.overlay,
-                                                 j.closed_loop, j.bodies, j.train_seed));
+                                                 j.closed_loop, j.bodies, j.bodies_unfiltered, j.train_seed));
         } catch (const std::exception& e) {
           std::fprintf(stderr, "ddace table: %s: %s\n", jobs[i].model_name.c_str(), e.what());
           rc = 1;
@@ -499,20 +503,40 @@ int runTable(const std::vector<std::string>& argv) {
       }
       label_rows.push_back(row);
     }
-  // The rule zoo (docs/tgn.md): the default network on a sample of rules, as bench rule_zoo.
-  std::vector<size_t> zoo;
+  // The rule zoo (docs/tgn.md): the default network on a sample of rules, as bench rule_zoo;
+  // at the largest size also with bodies, and on the direct motion (rule_zoo.h, ZooMotion;
+  // its stop gap cycling over the rules) ideal and with bodies.
+  std::vector<size_t> zoo, zoo_direct;  // zoo_direct: the direct rows, of the rules it can demonstrate
+  std::string zoo_undrawable;           // rules the direct motion cannot demonstrate
   std::vector<tasks::ZooRule> zoo_rules;
+  const std::vector<tasks::ZooMotion> direct_motions = tasks::directZooMotions();
   for (uint64_t id : tasks::distinctZooRules(s.zoo_rules)) {
+    const tasks::ZooMotion direct = direct_motions[zoo_rules.size() % direct_motions.size()];
     zoo_rules.push_back(tasks::zooRule(id));
-    for (int n : sizes) {
-      const std::string name = "zoo-" + std::to_string(id) + "-" + std::to_string(n);
-      const fs::path dir = s.out / "data" / name;
-      task::writeTaskDir(tasks::generateZoo(id, n, static_cast<uint64_t>(s.seed)), (dir / "train").string());
-      task::writeTaskDir(tasks::generateZoo(id, s.test, static_cast<uint64_t>(s.seed) * 2654435761ULL + 0x7e57),
-                         (dir / "test").string());
-      add(zoo, {dir, name + "-" + tgn::toString(default_variant), "zoo:" + std::to_string(id), default_variant,
-                std::to_string(n) + " demos"});
-    }
+    for (const tasks::ZooMotion& motion : {tasks::ZooMotion{}, direct})
+      for (int n : sizes) {
+        if (motion.direct && n != sizes.back()) continue;
+        const std::string name =
+            "zoo-" + std::to_string(id) + (motion.direct ? "-direct" : "") + "-" + std::to_string(n);
+        const fs::path dir = s.out / "data" / name;
+        try {
+          task::writeTaskDir(tasks::generateZoo(id, n, static_cast<uint64_t>(s.seed), motion),
+                             (dir / "train").string());
+          task::writeTaskDir(
+              tasks::generateZoo(id, s.test, static_cast<uint64_t>(s.seed) * 2654435761ULL + 0x7e57, motion),
+              (dir / "test").string());
+        } catch (const Error&) {
+          if (!motion.direct) throw;
+          // No scene whose bodies keep clear on straight paths and arcs: not on this motion.
+          zoo_undrawable += (zoo_undrawable.empty() ? "zoo:" : ", zoo:") + std::to_string(id);
+          continue;
+        }
+        Job j{dir, name + "-" + tgn::toString(default_variant), "zoo:" + std::to_string(id) + motion.suffix(),
+              default_variant, std::to_string(n) + " demos"};
+        j.bodies = n == sizes.back();
+        j.bodies_unfiltered = false;
+        add(motion.direct ? zoo_direct : zoo, j);
+      }
   }
   // The kinds of task users name (rule_zoo.h, userKinds), each its zoo rule, with the zoo.
   std::vector<size_t> kind_jobs;
@@ -706,6 +730,39 @@ int runTable(const std::vector<std::string>& argv) {
          << fmt(d.mean, 2) << " | " << d.at_least_0_9 << " | zoo:" << zoo_rules[worst].id << " "
          << zoo_rules[worst].name << " (" << fmt(v[worst], 2) << ") |\n";
     }
+    // With bodies: rule k's rows at the largest size, the generators' motion and the direct one.
+    md << "\n### Rule zoo with bodies\n\n"
+       << "The same rules at " << sizes.back()
+       << " demonstrations on two motion models (rule_zoo.h, `ZooMotion`): the generators' (paths bent around "
+          "bodies, stops touching) and a direct one (paths straight or arcs bent around nothing, stops touching, "
+          "4 mm and 1 cm short of contact in turn over the rules), each trained on its own demonstrations, ideal and "
+          "with bodies as in \"Bodies\" below (the filter on). Ratios per rule, bodies over ideal. Goals: OSR ratio >= "
+       << tasks::kBodiesOsrRatioMedian << " at the median and >= " << tasks::kBodiesOsrRatioP10
+       << " at the 10th percentile, zero collisions, FD ratio <= " << tasks::kBodiesFdRatioMedian
+       << " at the median (`ddace bench rule_zoo` lists every rule).\n\n"
+       << "| motion | rules | median OSR ideal / bodies | OSR ratio median | p10 | collisions (trials) | min clearance "
+          "| FD ratio median | makespan, mean | goals |\n|---|---|---|---|---|---|---|---|---|---|\n";
+    for (const bool direct : {false, true}) {
+      std::vector<std::pair<eval::Summary, eval::Summary>> runs;
+      if (direct)
+        for (size_t i : zoo_direct) runs.push_back({rows[i].m, rows[i].bodies});
+      else
+        for (size_t k = 0; k < zoo_rules.size(); ++k) {
+          const Row& r = rows[zoo[k * sizes.size() + sizes.size() - 1]];
+          runs.push_back({r.m, r.bodies});
+        }
+      if (runs.empty()) continue;
+      const tasks::BodiesComparison c = tasks::compareBodies(runs);
+      const auto mm = [](double m) { return std::isfinite(m) ? fmt(m * 1000, 1) + " mm" : std::string("–"); };
+      md << "| " << (direct ? "direct (touching, 4 mm, 1 cm)" : "the generators'") << " | " << c.rules << " | "
+         << fmt(c.ideal_osr_median, 2) << " / " << fmt(c.bodies_osr_median, 2) << " | " << fmt(c.osr_ratio_median, 2)
+         << " | " << fmt(c.osr_ratio_p10, 2) << " | " << c.collisions << " (" << c.trials_with_collision << "/"
+         << c.trials << ") | " << mm(c.min_clearance_m) << " | " << fmt(c.fd_ratio_median, 2) << " | "
+         << fmt(c.makespan_s, 1) << " s | " << (c.goalsMet() ? "met" : "**not met**") << " |\n";
+    }
+    md << "\nRules the direct motion cannot demonstrate (no scene whose bodies keep clear without bending around "
+          "each other), not in its row: "
+       << (zoo_undrawable.empty() ? std::string("none") : zoo_undrawable) << ".\n";
   }
   if (!kinds.empty()) {
     // OSR of kind k at sizes[m] is rows[kind_jobs[k * sizes.size() + m]].

@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "command.h"
+#include "ddace/common/error.h"
 #include "ddace/task/summary.h"
 
 namespace ddace::cli {
@@ -17,9 +18,37 @@ std::string stepText(const task::Step& step, const task::TaskSpec& spec) {
   return s + "]";
 }
 
+/// True when `path`/demos holds no recording at all (`ddace init` made it, nothing recorded yet).
+bool nothingRecorded(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(fs::path(path) / "task.yaml", ec)) return false;
+  for (fs::directory_iterator it(fs::path(path) / "demos", ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.size() >= 4 && (name.compare(name.size() - 4, 4, ".csv") == 0 || name.find(".csv.") != std::string::npos))
+      return false;
+  }
+  return !ec;
+}
+
 /// Validates one task directory; prints its summary or its errors. Returns true when valid.
 /// Demonstrations are summarised while they are read (no rows kept): any length validates.
+/// A new task with nothing recorded yet validates its task.yaml and says so.
 bool validateOne(const std::string& path, bool verbose) {
+  if (nothingRecorded(path)) {
+    task::TaskSpec spec;
+    try {
+      spec = task::readTaskYaml((fs::path(path) / "task.yaml").string());
+    } catch (const Error& e) {
+      std::cerr << path << ": " << e.diagnostics().size() << " error(s)\n" << e.what() << "\n";
+      return false;
+    }
+    std::cout << path << ": task '" << spec.name << "', " << spec.entities.size() << " entities (";
+    for (size_t i = 0; i < spec.entities.size(); ++i)
+      std::cout << (i ? ", " : "") << spec.entities[i].name << " " << task::toString(spec.entities[i].kind);
+    std::cout << "), " << spec.goal_conditions.size()
+              << " goal conditions, no demonstrations yet (record some: README, \"Your own task\")\n";
+    return true;
+  }
   const task::TaskDirSummary dir = task::summarizeTaskDir(path);
   if (!dir.errors.empty()) {
     std::cerr << path << ": " << dir.errors.size() << " error(s)\n";

@@ -43,6 +43,10 @@ struct Command {
   std::function<int(const std::vector<std::string>&)> run;  ///< args after the name
 };
 
+/// " (did you mean X?)" for the candidate closest to a mistyped `word` (a slip of one or two
+/// letters, a swapped pair), "" when none is that close.
+std::string didYouMean(const std::string& word, const std::vector<std::string>& candidates);
+
 /// All registered subcommands, by name.
 std::map<std::string, Command>& commands();
 

@@ -9,6 +9,8 @@
 
 #include <tf2/LinearMath/Quaternion.h>
 
+#include "ddace/exec/scene.h"
+
 namespace ddace::ros_exec {
 
 using rosparam::param;
@@ -171,6 +173,47 @@ exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh) {
 
 exec::TableSimulatorParams loadTableParams(const ros::NodeHandle& nh, const exec::TableSimulatorParams& defaults) {
   return loadParams(nh, defaults);
+}
+
+}  // namespace ddace::ros_exec
+
+namespace ddace::ros_exec {
+
+std::vector<exec::Pose2D> loadScene(const ros::NodeHandle& pnh, const task::TaskSpec& spec,
+                                    const std::string& task_path,
+                                    const std::function<std::vector<exec::Pose2D>()>& fallback) {
+  std::vector<exec::Pose2D> base;
+  std::string csv = param<std::string>(pnh, "scene_csv", "");
+  const int demo_index = param(pnh, "scene_demo", -1);
+  if (csv.empty() && demo_index >= 0)
+    csv = task::demoFile(task_path, demo_index, "parameter '" + pnh.resolveName("scene_demo") + "'");
+  if (!csv.empty()) {
+    base = exec::startPoses(task::readDemonstrationCsv(csv, spec));
+    ROS_INFO("%s: scene from the first row of %s", ros::this_node::getName().c_str(), csv.c_str());
+  } else if (fallback) {
+    base = fallback();
+  }
+  std::vector<exec::NamedPose> named;
+  if (auto scene = rosparam::optionalParam<XmlRpc::XmlRpcValue>(pnh, "scene")) {
+    if (scene->getType() != XmlRpc::XmlRpcValue::TypeStruct)
+      throw Error("parameter '" + pnh.resolveName("scene") + "' must be a map name: [x, y] or [x, y, yaw]");
+    for (auto it = scene->begin(); it != scene->end(); ++it) {
+      const std::string where = "parameter '" + pnh.resolveName("scene") + "/" + it->first + "'";
+      auto& v = it->second;
+      if (v.getType() != XmlRpc::XmlRpcValue::TypeArray || (v.size() != 2 && v.size() != 3))
+        throw Error(where + " must be [x, y] or [x, y, yaw]");
+      auto num = [&](int k) {
+        auto& x = v[k];
+        if (x.getType() == XmlRpc::XmlRpcValue::TypeDouble) return static_cast<double>(x);
+        if (x.getType() == XmlRpc::XmlRpcValue::TypeInt) return static_cast<double>(static_cast<int>(x));
+        throw Error(where + " element " + std::to_string(k) + " is not a number");
+      };
+      named.push_back({it->first, {num(0), num(1), v.size() == 3 ? num(2) : 0.0}, where});
+    }
+  }
+  return exec::sceneStartPoses(spec, base, named,
+                               "set '" + pnh.resolveName("scene_csv") + "', '" + pnh.resolveName("scene_demo") +
+                                   "' or '" + pnh.resolveName("scene") + "'");
 }
 
 }  // namespace ddace::ros_exec

@@ -5,6 +5,7 @@
 // nodes then refuse the message (log + error status), they never act on a default.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -68,5 +69,14 @@ exec::DiffDriveParams loadDiffDriveParams(const ros::NodeHandle& nh);
 /// The simulated table's parameters under `nh` (mock_robots: bodies, object_speed_mps,
 /// object_damping_hz), `defaults` where unset; throws as above.
 exec::TableSimulatorParams loadTableParams(const ros::NodeHandle& nh, const exec::TableSimulatorParams& defaults);
+
+/// Start poses of a simulated table (mock_robots, sim_table), every entity of `spec` in its
+/// order: a demonstration's first row (~scene_csv, or the ~scene_demo-th of the task
+/// directory `task_path`), else `fallback()` (none: empty), with a ~scene map name ->
+/// [x, y] or [x, y, yaw] put over it. Throws ddace::Error naming the parameter at fault,
+/// or the first entity left without a pose.
+std::vector<exec::Pose2D> loadScene(const ros::NodeHandle& pnh, const task::TaskSpec& spec,
+                                    const std::string& task_path,
+                                    const std::function<std::vector<exec::Pose2D>()>& fallback = {});
 
 }  // namespace ddace::ros_exec

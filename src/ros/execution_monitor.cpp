@@ -216,7 +216,10 @@ class ExecutionMonitorNode::Impl {
 
   ~Impl() {
     // SIGINT (roslaunch shutting down, Ctrl-C): whatever ran is recorded as interrupted.
-    if (!reported_) report("interrupted (SIGINT) in state " + last_state_.state_name, last_state_, "interrupted");
+    if (!reported_)
+      report("interrupted (SIGINT) " +
+                 (have_state_ ? "in state " + last_state_.state_name : "before the coordinator reported any state"),
+             last_state_, "interrupted");
     stopBag();
   }
 

@@ -13,6 +13,7 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <tuple>
 
 #include <ddace/EntityArray.h>
 #include <ddace/HamsterMockFault.h>
@@ -116,6 +117,7 @@ class MockHamsterNode::Impl {
       s.driven = r->driven(now);
       s.left_units = r->leftUnits();
       s.right_units = r->rightUnits();
+      std::tie(s.left_mps, s.right_mps) = r->wheelMps(now);
       const Effector& e = r->effector();
       auto colour = [](const std::array<uint8_t, 3>& rgb) {
         std_msgs::ColorRGBA c;

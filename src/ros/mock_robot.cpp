@@ -62,7 +62,7 @@ class MockRobotNode::Impl {
       if (i < 0 || spec_.entities[i].kind != task::EntityKind::Robot)
         throw Error("parameter '" + pnh.resolveName("stalled") + "' names '" + s + "', not a robot of the task");
     }
-    sim_ = std::make_unique<exec::TableSimulator>(spec_, loadScene(pnh, task_path), dp, sp, stalled);
+    sim_ = std::make_unique<exec::TableSimulator>(spec_, ros_exec::loadScene(pnh, spec_, task_path), dp, sp, stalled);
     for (const auto& s : stalled) ROS_WARN("mock_robots: %s is stalled (its wheels do not turn)", s.c_str());
 
     const size_t n = spec_.entities.size();
@@ -99,41 +99,6 @@ class MockRobotNode::Impl {
   }
 
  private:
-  /// Start poses: a demonstration's first row (`scene_csv`, or demos/ of the task
-  /// directory by `scene_demo` index), with a `scene` map name -> [x, y(, yaw)] over it.
-  std::vector<exec::Pose2D> loadScene(ros::NodeHandle& pnh, const std::string& task_path) {
-    std::vector<exec::Pose2D> base;
-    std::string csv = rosparam::param<std::string>(pnh, "scene_csv", "");
-    const int demo_index = rosparam::param(pnh, "scene_demo", -1);
-    if (csv.empty() && demo_index >= 0)
-      csv = task::demoFile(task_path, demo_index, "parameter '" + pnh.resolveName("scene_demo") + "'");
-    if (!csv.empty()) {
-      base = exec::startPoses(task::readDemonstrationCsv(csv, spec_));
-      ROS_INFO("mock_robots: scene from the first row of %s", csv.c_str());
-    }
-    std::vector<exec::NamedPose> named;
-    if (auto scene = rosparam::optionalParam<XmlRpc::XmlRpcValue>(pnh, "scene")) {
-      if (scene->getType() != XmlRpc::XmlRpcValue::TypeStruct)
-        throw Error("parameter '" + pnh.resolveName("scene") + "' must be a map name: [x, y] or [x, y, yaw]");
-      for (auto it = scene->begin(); it != scene->end(); ++it) {
-        const std::string where = "parameter '" + pnh.resolveName("scene") + "/" + it->first + "'";
-        auto& v = it->second;
-        if (v.getType() != XmlRpc::XmlRpcValue::TypeArray || (v.size() != 2 && v.size() != 3))
-          throw Error(where + " must be [x, y] or [x, y, yaw]");
-        auto num = [&](int k) {
-          auto& x = v[k];
-          if (x.getType() == XmlRpc::XmlRpcValue::TypeDouble) return static_cast<double>(x);
-          if (x.getType() == XmlRpc::XmlRpcValue::TypeInt) return static_cast<double>(static_cast<int>(x));
-          throw Error(where + " element " + std::to_string(k) + " is not a number");
-        };
-        named.push_back({it->first, {num(0), num(1), v.size() == 3 ? num(2) : 0.0}, where});
-      }
-    }
-    return exec::sceneStartPoses(spec_, base, named,
-                                 "set '" + pnh.resolveName("scene_csv") + "', '" + pnh.resolveName("scene_demo") +
-                                     "' or '" + pnh.resolveName("scene") + "'");
-  }
-
   void publish(const exec::ObjectStatus& s) {
     ddace::SegmentStatus m;
     m.header.stamp = ros::Time::now();

@@ -58,7 +58,7 @@ class RecorderNode::Impl {
     latest_ = msg;
     for (const auto& e : msg->entities) {
       const bool measured = !(e.stale && !e.visible && e.last_seen.isZero());
-      positions_->update(e.name, Eigen::Vector2d(e.pose.x, e.pose.y), e.stale, measured);
+      positions_->update(e.name, Eigen::Vector2d(e.pose.x, e.pose.y), e.stale, measured, msg->header.stamp.toSec());
     }
   }
 
@@ -85,7 +85,7 @@ class RecorderNode::Impl {
     try {
       if (recorder_->addRow(latest_->header.stamp.toSec(), *p)) {
         last_row_ = latest_->header.stamp;
-        if (positions_->stale() > 0) ++stale_rows_;
+        positions_->countRow();
       }
     } catch (const Error& e) {
       ROS_ERROR_THROTTLE(1.0, "recorder_node: %s", e.what());
@@ -100,13 +100,21 @@ class RecorderNode::Impl {
       res.message = "no /ddace/entities received yet (is the tracker running?)";
     } else if (!p) {
       res.message = "not every entity has been seen yet: " + positions_->missing() + " (are their markers visible?)";
+    } else if (const std::string moving = positions_->moving(latest_->header.stamp.toSec()); !moving.empty()) {
+      // The first row is every entity's start: a robot still being placed would start the
+      // demonstration with a motion (and a goal moving then reads as a moved goal).
+      std::ostringstream os;
+      os << "not started: " << moving << " moved within the last " << positions_->stillSeconds()
+         << " s; a demonstration starts from a scene at rest: let go of everything, then start again";
+      res.message = os.str();
     } else {
       try {
         t0_ = latest_->header.stamp;
         path_ = recorder_->start(t0_.toSec());
         recorder_->addRow(t0_.toSec(), *p);
         last_row_ = t0_;
-        stale_rows_ = positions_->stale() > 0 ? 1 : 0;
+        positions_->resetRows();
+        positions_->countRow();
         res.success = true;
         res.message = "recording " + path_;
       } catch (const Error& e) {
@@ -129,7 +137,7 @@ class RecorderNode::Impl {
         os.precision(9);
         os << "saved " << path << ": " << rows << " rows, " << duration << " s, start stamp " << std::fixed
            << t0_.toSec();
-        if (stale_rows_ > 0) os << "; WARNING: " << stale_rows_ << " rows hold a stale pose";
+        if (const std::string hidden = positions_->staleRowsReport(); !hidden.empty()) os << "; " << hidden;
         if (!recorder_->inferredSteps().empty()) os << "; labels inferred: " << recorder_->inferredSteps();
         const auto& notes = recorder_->inferenceNotes();
         if (!notes.empty()) os << "; " << notes.size() << " to check:";
@@ -169,7 +177,6 @@ class RecorderNode::Impl {
   std::unique_ptr<vision::LatestPositions> positions_;
   ros::Time t0_, last_row_;
   std::string path_;
-  long stale_rows_ = 0;
 };
 
 RecorderNode::RecorderNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}

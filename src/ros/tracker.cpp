@@ -128,7 +128,9 @@ class TrackerNode::Impl {
   void openCapture() {
     if (!video_file_.empty() ? !capture_.open(video_file_) : !capture_.open(video_device_, cv::CAP_V4L2))
       throw Error(!video_file_.empty() ? "cannot open video file " + video_file_
-                                       : "cannot open V4L2 device /dev/video" + std::to_string(video_device_));
+                                       : "cannot open V4L2 device /dev/video" + std::to_string(video_device_) +
+                                             " (another camera: video_device:=N; a recording: video_file:=FILE;"
+                                             " no camera or robots: sim:=true rehearses on a simulated table)");
     const int width = rosparam::param(pnh_, "video_width", defaults_.video_width);
     const int height = rosparam::param(pnh_, "video_height", defaults_.video_height);
     if (width > 0) capture_.set(cv::CAP_PROP_FRAME_WIDTH, width);

@@ -209,9 +209,11 @@ class HeartbeatLog {
   }
 
  private:
-  ros::Subscriber sub_;
+  // Declared before the subscription, so they outlive it: its callback may still run while
+  // the log is destroyed, and the subscription's destructor waits for it.
   std::mutex mu_;
   std::vector<ros::Time> stamps_;
+  ros::Subscriber sub_;
 };
 
 }  // namespace

@@ -5,6 +5,9 @@
 // ~allow_other_task lets a deliberate transfer through.
 #include "exec_common.h"
 
+#include <chrono>
+#include <cstdio>
+
 #include "ddace/ros/gp_path.h"
 #include "ddace/ros/sequence.h"
 
@@ -102,6 +105,34 @@ TEST(OtherTask, TheRunDoesNotStartAndNoWheelTurns) {
   const std::string report = readFile(run_dir + "/report.txt");
   EXPECT_NE(report, "") << "no report in " << run_dir;
   EXPECT_EQ(report.find("finished"), std::string::npos) << report;
+}
+
+// scripts/execute_sim with another task's model ends on its own within seconds, not when
+// the coordinator's start time-out (60 s) runs out: non-zero, the nodes' refusal on the
+// terminal and in the report.
+TEST(OtherTask, ExecuteSimEndsWithinSecondsNamingTheRefusal) {
+  const Files files = Files::fromParams();
+  ASSERT_FALSE(files.execute_sim.empty()) << "the .test file must set ~execute_sim";
+  const std::string run_dir = std::string(setup().scratch) + "/execute_sim_run";
+  const std::string out = std::string(setup().scratch) + "/execute_sim.out";
+  const auto started = std::chrono::steady_clock::now();
+  // `timeout` only keeps a hang from blocking the suite; the bound checked is below.
+  const int status = std::system(("timeout -s INT 120 '" + files.execute_sim + "' '" + setup().task4 + "' --model '" +
+                                  setup().model + "' --no-build --run-dir '" + run_dir + "' > '" + out + "' 2>&1")
+                                     .c_str());
+  const double took_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  const std::string printed = readFile(out);
+  ASSERT_TRUE(WIFEXITED(status)) << printed;
+  EXPECT_EQ(WEXITSTATUS(status), 1) << printed;
+  EXPECT_LT(took_s, 45.0) << "execute_sim waited for the coordinator's start time-out:\n" << printed;
+  for (const std::string& why :
+       {std::string("[FATAL]"), std::string("/sequence"), std::string("vocabulary: model [move, stop], task [move]"),
+        std::string("process has died")})
+    EXPECT_NE(printed.find(why), std::string::npos) << "'" << why << "' not on the terminal:\n" << printed;
+  const std::string report = readFile(run_dir + "/report.txt");
+  EXPECT_NE(report.find("nodes that died"), std::string::npos) << report;
+  EXPECT_NE(report.find("vocabulary: model [move, stop], task [move]"), std::string::npos) << report;
+  std::printf("exec_other_task: execute_sim ended after %.1f s\n", took_s);
 }
 
 int main(int argc, char** argv) {

@@ -76,6 +76,11 @@ class FollowerTest : public ::testing::Test {
     ros::Duration(0.2).sleep();
   }
   void TearDown() override {
+    // The subscriptions end before the fixture's members do: a callback still running on the
+    // spinner's threads would otherwise push into wheels_ or statuses_ while they are destroyed
+    // (seen once as "double free or corruption" under load). shutdown() waits for it.
+    wheels_sub_.shutdown();
+    status_sub_.shutdown();
     running_ = false;
     tracker_.join();
   }

@@ -14,6 +14,7 @@
 #include <optional>
 #include <random>
 #include <string>
+#include <utility>
 
 #include "ddace/hamster/config.h"
 #include "ddace/hamster/protocol.h"
@@ -82,6 +83,9 @@ class MockRobot {
   int8_t leftUnits() const { return effector_.left_wheel; }
   int8_t rightUnits() const { return effector_.right_wheel; }
   const Effector& effector() const { return effector_; }
+  /// Ground speeds of the wheels at `now_s`, m/s (left, right): the last valid motoring
+  /// line's units times the true m/s per unit; zero once robot_timeout_s passed without one.
+  std::pair<double, double> wheelMps(double now_s) const;
   /// True while motoring lines arrive (one within the last 100 ms).
   bool driven(double now_s) const { return motoring_lines_ > 0 && now_s - last_motoring_s_ < 0.1; }
   uint64_t motoringLines() const { return motoring_lines_; }

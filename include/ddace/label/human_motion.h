@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "ddace/common/random.h"
@@ -26,7 +27,26 @@ struct HumanMotionOptions {
   double noise_m = 0.0015;                         ///< tracker noise, std-dev per coordinate
   double hold_probability = 0.02;                  ///< a dropped frame starts a hold (the tracker repeats the pose)...
   int hold_max_rows = 6;                           ///< ...of up to this many rows
+  /// How a motion gathers and sheds speed along its path: Eased as generated (smoothstep),
+  /// Constant, Brisk (quick start, long braking), Late (slow start, hard stop). Mixed: one
+  /// of the four drawn per motion.
+  enum class Profile { Eased, Constant, Brisk, Late, Mixed } profile = Profile::Eased;
+  /// A robot driven to touch a robot or an object stops this much short of contact.
+  double contact_gap_min_m = 0, contact_gap_max_m = 0;
+  /// A robot sent to a goal another body stands on ends touching the body it reaches there,
+  /// turned about that body by up to this (either side) from where the generator put it.
+  double beside_max_rad = 0;
 };
+
+/// A named way of demonstrating (`ddace bench label_styles`): one aspect of a person's
+/// motion varied from `calm` (steps a second apart, robots of a step starting together,
+/// the generated motion, no camera), or all of them at once.
+struct DemonstrationStyle {
+  std::string name, description;
+  HumanMotionOptions options;
+};
+/// calm, pause, onset, speed, contact, occupied, bump, camera, all.
+std::vector<DemonstrationStyle> demonstrationStyles();
 
 /// `clean` (analyzed, labelled, as generated) moved by a person: per step, each motion
 /// starts up to onset_spread_s after the first (a load with its carrier), at its own speed,
@@ -41,13 +61,20 @@ struct LabelScore {
   int true_tokens = 0, inferred_tokens = 0, matched = 0;  ///< same entity, action, target, step
   int demos = 0, demos_exact = 0;                         ///< demonstrations with exactly the true steps
   int notes = 0;                                          ///< uncertain items reported
-  std::vector<double> onset_error_s, offset_error_s;      ///< per matched token, seconds
-  double accuracy() const;                                ///< matched / max(true, inferred); 1 when both are empty
+  /// Inferred tokens: not matched (wrong), listed to check (unsure), and both.
+  int wrong = 0, listed = 0, wrong_listed = 0;
+  int demos_wrong = 0, demos_wrong_listed = 0;        ///< demonstrations with a wrong token; of them, with one listed
+  double wrongListed() const;                         ///< wrong_listed / wrong; 1 when none is wrong
+  double listedWrong() const;                         ///< wrong_listed / listed; 0 when none is listed
+  std::vector<double> onset_error_s, offset_error_s;  ///< per matched token, seconds
+  double accuracy() const;                            ///< matched / max(true, inferred); 1 when both are empty
   void add(const LabelScore& o);
 };
 
-/// Compares `inferred` (labels applied by applyLabels) with `truth` (same rows).
-LabelScore scoreLabels(const task::Demonstration& truth, const task::Demonstration& inferred, int notes);
+/// Compares `inferred` (labels applied by applyLabels from `inference`) with `truth`
+/// (same rows); a token is listed when the inference is unsure of it.
+LabelScore scoreLabels(const task::Demonstration& truth, const task::Demonstration& inferred,
+                       const Inference& inference);
 
 /// A training set moved by a person (`generated`'s demonstrations through humanMotion) with
 /// its true labels, and the same set labelled from its motion: the first demonstration

@@ -72,6 +72,10 @@ struct Motion {
   /// [entity] the largest distance to that entity over the motion (load detection).
   std::vector<double> max_distance;
   bool resumed = false;  ///< joined from two motions across a pause
+  /// Cut where what moved with it changed (label.h): the whole motion's offset (row, time);
+  /// the motion's own for one not cut.
+  int whole_off_row = -1;
+  double whole_off_t = 0;
   /// Unit headings: of the first start_m of the motion and of its last start_m.
   Eigen::Vector2d start_dir = Eigen::Vector2d::UnitX(), end_dir = Eigen::Vector2d::UnitX();
 };

@@ -24,6 +24,7 @@ struct InferredToken {
   bool in_place = false;  ///< an in-place action taken from the example
   std::vector<int> tied;  ///< the entities its end point could not tell apart (target among them)
   std::string kind;       ///< kindKey(): what decides its word
+  bool unsure = false;    ///< listed to check: a note names it and the alternative considered
 };
 
 struct InferredStep {
@@ -35,6 +36,7 @@ struct InferredStep {
 struct Note {
   int row = 0;
   std::string message;
+  int entity = -1;  ///< the entity whose token it doubts (-1: no one token)
 };
 
 struct Inference {
@@ -97,7 +99,12 @@ class Labeller {
   void settle(bool aligned);
   /// The step(s) of one group (and the example's in-place steps before it) into out_.
   void emit(Group& g, bool aligned);
-  void note(int row, const std::string& message) { out_.notes.push_back({row, message}); }
+  void note(int row, const std::string& message, int entity = -1) { out_.notes.push_back({row, message, entity}); }
+  /// Cuts motions where what moves with them changes: a robot that reaches an object and
+  /// pushes it on without stopping (at the object's onset), an object handed on at contact
+  /// from one robot to another (where the receiver starts).
+  void cutAtContacts(std::vector<Motion>& motions) const;
+  bool together(const std::vector<Eigen::Vector2d>& at, int a, int b) const;
   bool staysWith(const Motion& m, int j) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
   bool pausedOnItsWay(const Motion& a, const Motion& b) const;
@@ -118,8 +125,9 @@ class Labeller {
   enum class Alignment { Open, Aligned, NotAligned } alignment_;
   std::vector<Group> held_;  ///< final groups while alignment_ is Open
   size_t emitted_groups_ = 0;
-  int prev_off_ = -1;  ///< the last emitted group's offset row
-  Inference out_;      ///< decided, not taken
+  int prev_off_ = -1;    ///< the last emitted group's offset row
+  int handed_off_ = -1;  ///< the last offset row of the groups handed over
+  Inference out_;        ///< decided, not taken
 };
 
 /// inferLabels over a demonstration in memory.

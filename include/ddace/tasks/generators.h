@@ -43,6 +43,7 @@
 #include <Eigen/Geometry>
 
 #include "ddace/task/demonstration.h"
+#include "ddace/task/end_point.h"
 #include "ddace/task/task_dir.h"
 
 namespace ddace::tasks {
@@ -120,8 +121,19 @@ using PlannedStep = std::vector<PlannedToken>;
 /// with none free, the one with the most clearance. Positions are rounded to whole micrometres (what a CSV holds); the
 /// demonstration is analyzed with the task's step_window_s. Throws ddace::Error for a token naming an entity outside
 /// the task or a start configuration of the wrong size.
+///
+/// `motion` changes how the person moves: other end points (where motions toward a body
+/// stop: touching, a few millimetres short), and with `avoid` false every path keeps its
+/// planned shape, bent around nothing; `bodies_clear` (when given) then says whether every
+/// body kept clear of the others as the candidates above must (false: one passed through
+/// another, and the caller draws the scene again).
+struct DemoMotion {
+  bool avoid = true;               ///< shape each path around the bodies (above); false: keep the planned shape
+  task::EndPointModel end_points;  ///< where motions end (nothing learned: the footprints' contact)
+};
 task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& start,
-                                  const std::vector<PlannedStep>& steps);
+                                  const std::vector<PlannedStep>& steps, const DemoMotion& motion = {},
+                                  bool* bodies_clear = nullptr);
 
 inline constexpr double kGeneratorSpeed = 0.15;   ///< m/s, the nominal robot speed
 inline constexpr double kMinStepDurationS = 1.0;  ///< s

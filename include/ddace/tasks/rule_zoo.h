@@ -25,20 +25,26 @@
 //              carried to a goal of its own (matching)
 //   gather     the others meet at a robot chosen relative to G1, which then goes to a
 //              goal chosen relative to itself
-// 2-6 robots, 0-3 boxes, 1-6 goals (at most 10 entities), 1-4 steps. Motions are the
-// generators' (tasks::simulateSteps, generators.h): straight unless bodies are in the way,
-// ending at contact with a robot or a box and on a goal, a carried box in front of its
-// carrier (same target, same step); later steps are decided where the earlier ones ended
-// (task::stepEndPositions). Start configurations are uniform over the table with the
-// generators' border and separation; one in which any decision is a near tie (the chosen
-// and a competing entity's distance, or coordinate, closer than kSceneDecisionMargin) is
-// drawn again. The same rule id, seed and count give byte-identical output.
+// 2-6 robots, 0-3 boxes, 1-6 goals (at most 10 entities), 1-4 steps. Motions come in two
+// models (ZooMotion), so that a rule of execution is measured on more than one way of
+// moving: the generators' (tasks::simulateSteps, generators.h): straight unless bodies are
+// in the way, the path then bent around them, ending at contact with a robot or a box and
+// on a goal; and direct: each path straight or an arc drawn per motion, bent around
+// nothing, stopping a set gap short of contact with a robot or a box (touching, 4 mm, 1 cm:
+// people stop where they like), a scene in which a body would pass through another drawn
+// again. In both a carried box rides in front of its carrier (same target, same step);
+// later steps are decided where the earlier ones ended (task::stepEndPositions). Start configurations are uniform over
+// the table with the generators' border and separation; one in which any decision is a near tie (the chosen and a
+// competing entity's distance, or coordinate, closer than kSceneDecisionMargin) is drawn again. The same rule id, seed
+// and count give byte-identical output.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "ddace/eval/metrics.h"
 #include "ddace/task/task_dir.h"
 
 namespace ddace::tasks {
@@ -50,6 +56,23 @@ struct ZooRule {
   std::string family;  ///< as `ddace generate` takes it: "zoo:<id>", or "zoo:<key>" for a named rule
   int robots = 0, objects = 0, goals = 0;
 };
+
+/// How the demonstrations of a rule move (see the header comment).
+struct ZooMotion {
+  /// false: the generators' motion; true: paths straight or arcs, bent around nothing.
+  bool direct = false;
+  /// direct only: where a motion toward a robot or a box stops, metres short of contact
+  /// (whole millimetres, at most kMaxZooStopGapM).
+  double stop_gap_m = 0;
+  /// The family suffix: "" (the generators'), "/direct", "/direct-4mm".
+  std::string suffix() const;
+  /// In words, for a task's name and the benchmark's tables.
+  std::string words() const;
+};
+inline constexpr double kMaxZooStopGapM = 0.02;
+/// The direct motions the benchmarks cycle through over a sample of rules: touching, 4 mm
+/// and 1 cm short.
+std::vector<ZooMotion> directZooMotions();
 
 /// Ids from here on are the named rules' (namedZooRules), in their order; the drawn rules
 /// are the ids below (`zoo:<id>` takes at most 18 digits).
@@ -84,14 +107,37 @@ struct OsrDistribution {
 };
 /// Throws ddace::Error when `osr` is empty.
 OsrDistribution osrDistribution(const std::vector<double>& osr);
+/// Execution with bodies beside ideal over a sample of rules (one motion model), as `ddace
+/// bench rule_zoo` and `ddace table` report it. Ratios are per rule, bodies over ideal: OSR
+/// over the rules with an ideal OSR above 0, FD over those with both FDs finite and the
+/// ideal above 0 (NaN when none).
+struct BodiesComparison {
+  size_t rules = 0;
+  double ideal_osr_median = NAN, bodies_osr_median = NAN;
+  double osr_ratio_median = NAN, osr_ratio_p10 = NAN, fd_ratio_median = NAN;
+  int collisions = 0, trials_with_collision = 0, trials = 0;
+  double min_clearance_m = NAN;  ///< the smallest over the rules (NaN: none measured)
+  double makespan_s = NAN;       ///< mean over the rules
+  /// The goals: OSR ratio >= 0.95 at the median and >= 0.9 at the 10th percentile, zero
+  /// collisions, FD ratio <= 2 at the median.
+  bool goalsMet() const;
+};
+inline constexpr double kBodiesOsrRatioMedian = 0.95, kBodiesOsrRatioP10 = 0.9, kBodiesFdRatioMedian = 2.0;
+/// `runs`: per rule, its ideal and its bodies summary. Throws ddace::Error when empty.
+BodiesComparison compareBodies(const std::vector<std::pair<eval::Summary, eval::Summary>>& runs);
+
 /// The ids of the first `count` rules with distinct names, in increasing id order.
 std::vector<uint64_t> distinctZooRules(int count);
-/// `demos` demonstrations of rule `rule_id` over start configurations drawn from `seed`.
-/// Throws ddace::Error when no unambiguous configuration is found.
-task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed);
-/// Parses "zoo:<id>" or "zoo:<key>" of a named rule (as `ddace generate` takes it) into
-/// the rule's id; false for any other family name. Throws ddace::Error naming the text when
-/// it is neither.
-bool parseZooFamily(const std::string& family, uint64_t& id);
+/// `demos` demonstrations of rule `rule_id` over start configurations drawn from `seed`,
+/// moving as `motion` says. Throws ddace::Error when no unambiguous configuration is found
+/// (direct: none whose bodies keep clear, as for a robot boxed in by those that met at it
+/// and then leaving: such a rule cannot be demonstrated without bending around bodies).
+task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed, const ZooMotion& motion = {});
+/// Parses "zoo:<id>" or "zoo:<key>" of a named rule (as `ddace generate` takes it), with an
+/// optional motion suffix "/direct" or "/direct-<N>mm" (N whole millimetres, 0..20), into
+/// the rule's id and `motion`; false for any other family name. Throws ddace::Error naming
+/// the text when it is neither, or when it has a suffix and `motion` is null (the caller
+/// takes the generators' motion only).
+bool parseZooFamily(const std::string& family, uint64_t& id, ZooMotion* motion = nullptr);
 
 }  // namespace ddace::tasks

@@ -47,24 +47,48 @@ RecorderConfig loadRecorderConfig(const std::string& path, const MarkerConfig& m
 
 /// The latest measured position of each entity of a task, from the tracker's reports:
 /// what a recorded row holds. An entity never measured has no position (not (0, 0)),
-/// so no row can be written before every entity was seen once.
+/// so no row can be written before every entity was seen once. It also tells whether the
+/// scene is at rest (a demonstration starts from one: its first row is every entity's
+/// start) and which entities were hidden in how many rows.
 class LatestPositions {
  public:
+  /// "At rest" is the label inference's (label::SegmentationOptions::forTask: positions
+  /// within still_m for still_s), so that the first row is a rest for the inference too.
   explicit LatestPositions(const task::TaskSpec& spec);
-  /// A tracker report for `name`; `measured` false (never seen yet) and names outside
-  /// the task are ignored. `stale`: the tracker holds the pose without seeing it.
-  void update(const std::string& name, const Eigen::Vector2d& position_m, bool stale, bool measured);
+  /// A tracker report for `name` at time `t` (seconds, any monotonic clock); `measured`
+  /// false (never seen yet) and names outside the task are ignored. `stale`: the tracker
+  /// holds the pose without seeing it.
+  void update(const std::string& name, const Eigen::Vector2d& position_m, bool stale, bool measured, double t);
   /// Every entity's position in task order once all were measured, else nullopt.
   std::optional<std::vector<Eigen::Vector2d>> all() const;
   /// The entities never measured, comma-separated in task order ("" when none).
   std::string missing() const;
+  /// The entities not at rest for still_s at time `t` (moved, or measured only since),
+  /// comma-separated in task order ("" when the whole scene is at rest).
+  std::string moving(double t) const;
+  /// Seconds the scene must be at rest before a demonstration starts.
+  double stillSeconds() const { return still_s_; }
   /// How many entities' latest positions are stale.
   int stale() const;
+  /// A row was written: every entity stale now counts it. resetRows() starts a new count.
+  void countRow();
+  void resetRows();
+  /// The entities hidden in some rows since resetRows(), each with the count and whether
+  /// the user has to act: "" when none was. A goal (does not move) or an entity that
+  /// reappeared where it was hidden is harmless; one that reappeared elsewhere moved
+  /// unseen (a jump in its path).
+  std::string staleRowsReport() const;
 
  private:
   std::vector<std::string> names_;  // task order
+  std::vector<task::EntityKind> kinds_;
   std::vector<std::optional<Eigen::Vector2d>> positions_;
   std::vector<bool> stale_;
+  std::vector<Eigen::Vector2d> rest_;  // where each entity rests (or last started to move)
+  std::vector<double> rest_since_;     // since when
+  std::vector<long> stale_rows_;
+  std::vector<bool> moved_hidden_;  // reappeared farther than start_m from where it was hidden
+  double still_m_ = 0, still_s_ = 0, start_m_ = 0;
 };
 
 class DemoRecorder {

@@ -150,6 +150,11 @@ void MockRobot::handleLine(std::string_view line, double now_s) {
   last_motoring_s_ = now_s;
 }
 
+std::pair<double, double> MockRobot::wheelMps(double now_s) const {
+  if (settings_.robot_timeout_s > 0 && now_s - last_motoring_s_ > settings_.robot_timeout_s) return {0.0, 0.0};
+  return {effector_.left_wheel * settings_.left_mps_per_unit, effector_.right_wheel * settings_.right_mps_per_unit};
+}
+
 void MockRobot::step(double now_s) {
   if (fault_ != MockFault::None && now_s >= fault_end_s_) setFault(MockFault::None, 0.0, now_s);
 
@@ -166,9 +171,7 @@ void MockRobot::step(double now_s) {
   // The robot moves with the wheels it was last told (unicycle model).
   if (last_step_s_ >= 0.0 && now_s > last_step_s_) {
     const double dt = now_s - last_step_s_;
-    int8_t l = effector_.left_wheel, r = effector_.right_wheel;
-    if (settings_.robot_timeout_s > 0 && now_s - last_motoring_s_ > settings_.robot_timeout_s) l = r = 0;
-    const double vl = l * settings_.left_mps_per_unit, vr = r * settings_.right_mps_per_unit;
+    const auto [vl, vr] = wheelMps(now_s);
     const double v = 0.5 * (vl + vr), w = (vr - vl) / settings_.track_m;
     const exec::Pose2D p = exec::integrateUnicycle({settings_.x_m, settings_.y_m, settings_.theta_rad}, v, w, dt);
     settings_.x_m = p.x, settings_.y_m = p.y, settings_.theta_rad = p.yaw;

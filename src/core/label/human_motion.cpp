@@ -18,20 +18,70 @@ double micrometres(double v) {
   return std::strtod(buf, nullptr);
 }
 
-/// One motion of a step as the person makes it.
+using Profile = HumanMotionOptions::Profile;
+
+/// The fraction of its path a motion of `profile` has covered at time fraction u (Eased:
+/// none here, the generated timing is kept).
+double covered(Profile profile, double u) {
+  switch (profile) {
+    case Profile::Constant:
+      return u;
+    case Profile::Brisk:
+      return 1 - (1 - u) * (1 - u);
+    case Profile::Late:
+      return u * u;
+    default:
+      return u;
+  }
+}
+
+/// One motion of a step as the person makes it: the generated path, re-timed, and moved
+/// from where the entity really is (`from_shift` off the path's start) to `to_shift` off
+/// the path's end.
 struct Moved {
-  int entity;
-  std::vector<Vector2d> path;               ///< the generated positions, evenly in time
-  double delay, duration, pause_at, pause;  ///< seconds from the step's start; pause_at in [0, 1] of duration
+  int entity = -1;
+  std::vector<Vector2d> path;                               ///< the generated positions, evenly in time
+  double delay = 0, duration = 0, pause_at = 0, pause = 0;  ///< seconds from the step's start; pause_at in [0, 1]
+  Profile profile = Profile::Eased;
+  Vector2d from_shift = Vector2d::Zero(), to_shift = Vector2d::Zero();
+  std::vector<double> arc;  ///< [i] path length up to path[i]
   double end() const { return delay + duration + pause; }
+  void measure() {
+    arc.assign(path.size(), 0);
+    for (size_t i = 1; i < path.size(); ++i) arc[i] = arc[i - 1] + (path[i] - path[i - 1]).norm();
+  }
+  /// The point at index position u (fractional) and its fraction of the path's length.
+  Vector2d atIndex(double u, double& fraction) const {
+    const size_t i = std::min(static_cast<size_t>(u), path.size() - 1);
+    const double f = i + 1 < path.size() ? u - static_cast<double>(i) : 0;
+    const double len = arc.back() > 0 ? arc.back() : 1;
+    fraction = (i + 1 < path.size() ? arc[i] + f * (arc[i + 1] - arc[i]) : arc.back()) / len;
+    return i + 1 < path.size() ? Vector2d(path[i] + f * (path[i + 1] - path[i])) : path.back();
+  }
   Vector2d at(double tau) const {
     double q = tau - delay;
-    if (q <= 0) return path.front();
+    if (q <= 0) return path.front() + from_shift;
     if (pause > 0 && q > pause_at * duration) q = std::max(pause_at * duration, q - pause);
-    const double u = std::min(q / duration, 1.0) * static_cast<double>(path.size() - 1);
-    const size_t i = std::min(static_cast<size_t>(u), path.size() - 1);
-    if (i + 1 >= path.size()) return path.back();
-    return path[i] + (u - static_cast<double>(i)) * (path[i + 1] - path[i]);
+    const double u = std::min(q / duration, 1.0);
+    double fraction = 0;
+    Vector2d p;
+    if (profile == Profile::Eased) {
+      p = atIndex(u * static_cast<double>(path.size() - 1), fraction);
+    } else {  // the index whose arc length is the profile's
+      const double want = covered(profile, u) * arc.back();
+      const size_t i = static_cast<size_t>(std::lower_bound(arc.begin(), arc.end(), want) - arc.begin());
+      double x = static_cast<double>(std::min(i, path.size() - 1));
+      if (i > 0 && i < path.size() && arc[i] > arc[i - 1]) x = (i - 1) + (want - arc[i - 1]) / (arc[i] - arc[i - 1]);
+      p = atIndex(x, fraction);
+    }
+    return p + (1 - fraction) * from_shift + fraction * to_shift;
+  }
+  /// The heading of the path's last centimetre.
+  Vector2d endHeading() const {
+    size_t i = path.size() - 1;
+    while (i > 0 && (path.back() - path[i]).norm() < 0.01) --i;
+    const Vector2d d = path.back() - path[i];
+    return d.norm() > 1e-9 ? Vector2d(d.normalized()) : Vector2d::UnitX();
   }
 };
 
@@ -63,6 +113,7 @@ task::Demonstration humanMotion(const task::Demonstration& clean, const task::Ta
       if (spec.entities[e].kind == task::EntityKind::Robot) robots.push_back(static_cast<int>(e));
     if (robots.empty() || rng.uniform() >= o.nudge_probability) return rest(g);
     const int r = robots[rng.index(robots.size())];
+    if (o.nudge_max_m <= 0) return rest(g);
     const Vector2d home = pos[r];
     const double a = rng.uniform(0, 2 * M_PI), dist = rng.uniform(o.nudge_min_m, o.nudge_max_m);
     const Vector2d away = home + dist * Vector2d(std::cos(a), std::sin(a));
@@ -72,6 +123,40 @@ task::Demonstration humanMotion(const task::Demonstration& clean, const task::Ta
     rest(0.3);
     for (int i = 1; i <= n; ++i) pos[r] = away + (home - away) * i / n, emit(idle);
     rest(std::max(o.gap_min_s, g - 1.1));  // the hand goes on to the next robot
+  };
+
+  // Where a motion of a robot that carries nothing ends, off its generated end: short of
+  // contact with a body it touches, beside a goal another body stands on.
+  auto endShift = [&](const task::Segment& seg, const std::vector<Vector2d>& path, const Vector2d& heading) {
+    const int mover = seg.token.entity, target = seg.token.target;
+    if (spec.entities[mover].kind != task::EntityKind::Robot || target < 0) return Vector2d(Vector2d::Zero());
+    for (const auto& other : clean.segments)
+      if (other.step == seg.step && other.token.entity != mover && other.token.action == seg.token.action &&
+          other.token.target == target && spec.entities[other.token.entity].kind == task::EntityKind::Object)
+        return Vector2d(Vector2d::Zero());  // a carrier: its load ends the motion
+    const task::EntityKind kind = spec.entities[target].kind;
+    if (kind != task::EntityKind::Goal && o.contact_gap_max_m > 0)
+      return Vector2d(-rng.uniform(o.contact_gap_min_m, o.contact_gap_max_m) * heading);
+    const Vector2d goal = clean.positions[seg.last_row][target];
+    if (kind == task::EntityKind::Goal && o.beside_max_rad > 0 && (path.back() - goal).norm() > spec.arrival_radius) {
+      // The body it stopped at: the obstacle nearest its generated end.
+      int body = -1;
+      double best = 1e9;
+      for (size_t j = 0; j < spec.entities.size(); ++j) {
+        const double d = (clean.positions[seg.last_row][j] - path.back()).norm();
+        if (static_cast<int>(j) != mover && spec.footprint(static_cast<int>(j)).obstacle && d < best)
+          best = d, body = static_cast<int>(j);
+      }
+      if (body >= 0) {
+        const Vector2d at = clean.positions[seg.last_row][body];
+        const double turn = rng.uniform(-o.beside_max_rad, o.beside_max_rad);
+        const Vector2d from = (path.back() - at).norm() > 1e-9 ? Vector2d((path.back() - at).normalized()) : -heading;
+        const Vector2d turned(std::cos(turn) * from.x() - std::sin(turn) * from.y(),
+                              std::sin(turn) * from.x() + std::cos(turn) * from.y());
+        return Vector2d(at + spec.contactDistance(mover, body) * turned - path.back());
+      }
+    }
+    return Vector2d(Vector2d::Zero());
   };
 
   rest(rng.uniform(0.5, 1.0));
@@ -86,7 +171,11 @@ task::Demonstration humanMotion(const task::Demonstration& clean, const task::Ta
       if (!s->token.isMotion()) continue;
       auto path = clean.segmentPath(*s);
       if ((path.back() - path.front()).norm() < 1e-3) continue;
-      Moved mv{s->token.entity, path, 0, 0, 0, 0};
+      Moved mv;
+      mv.entity = s->token.entity;
+      mv.path = path;
+      mv.measure();
+      mv.from_shift = pos[mv.entity] - path.front();
       // A load moves with its carrier (task::carriedLoad: a robot of the step with the same
       // action and target; its path runs in front of the carrier's, docs/task-format.md).
       int follows = -1;
@@ -99,11 +188,14 @@ task::Demonstration humanMotion(const task::Demonstration& clean, const task::Ta
       if (follows >= 0) {
         const Moved& l = moved[follows];
         mv.delay = l.delay, mv.duration = l.duration, mv.pause_at = l.pause_at, mv.pause = l.pause;
+        mv.profile = l.profile;
       } else {
         mv.delay = rng.uniform(0, o.onset_spread_s);
         mv.duration = generated / rng.uniform(o.speed_min, o.speed_max);
         if (rng.uniform() < o.pause_probability)
           mv.pause_at = rng.uniform(0.3, 0.7), mv.pause = rng.uniform(o.pause_min_s, o.pause_max_s);
+        mv.profile = o.profile != Profile::Mixed ? o.profile : static_cast<Profile>(rng.index(4));
+        mv.to_shift = endShift(*s, path, mv.endHeading());
       }
       moved.push_back(mv);
       moved_tokens.push_back(s->token);
@@ -157,6 +249,57 @@ task::Demonstration humanMotion(const task::Demonstration& clean, const task::Ta
   return d;
 }
 
+std::vector<DemonstrationStyle> demonstrationStyles() {
+  HumanMotionOptions calm;
+  calm.onset_spread_s = 0;
+  calm.speed_min = calm.speed_max = 1;
+  calm.pause_probability = 0;
+  calm.nudge_probability = 0;
+  calm.gap_min_s = calm.gap_max_s = 1.0;
+  calm.noise_m = 0;
+  calm.hold_probability = 0;
+  std::vector<DemonstrationStyle> styles;
+  auto add = [&](const std::string& name, const std::string& description, auto change) {
+    HumanMotionOptions o = calm;
+    change(o);
+    styles.push_back({name, description, o});
+  };
+  add("calm", "steps 1 s apart, the robots of a step start together, generated speed, no camera", [](auto&) {});
+  add("pause", "0-1 s between steps", [](HumanMotionOptions& o) { o.gap_min_s = 0, o.gap_max_s = 1; });
+  add("onset", "each robot of a step starts 0-1 s after the first",
+      [](HumanMotionOptions& o) { o.onset_spread_s = 1; });
+  add("speed", "0.5-2x speed, constant, brisk, late-braking or eased, a pause on the way in 3 of 10",
+      [](HumanMotionOptions& o) {
+        o.speed_min = 0.5, o.speed_max = 2, o.profile = Profile::Mixed;
+        o.pause_probability = 0.3;
+      });
+  add("contact", "a robot sent to a body stops 0-1 cm short of touching it",
+      [](HumanMotionOptions& o) { o.contact_gap_min_m = 0, o.contact_gap_max_m = 0.01; });
+  add("occupied", "a robot sent to a goal a body stands on ends touching that body from another side (up to 60 deg)",
+      [](HumanMotionOptions& o) { o.beside_max_rad = M_PI / 3; });
+  add("bump", "after every step a resting robot is bumped 1-3 cm and put back",
+      [](HumanMotionOptions& o) { o.nudge_probability = 1, o.nudge_min_m = 0.01, o.nudge_max_m = 0.03; });
+  add("camera", "1.5 mm noise, 5 % of frames dropped (held)",
+      [](HumanMotionOptions& o) { o.noise_m = 0.0015, o.hold_probability = 0.03, o.hold_max_rows = 4; });
+  HumanMotionOptions all;
+  for (const auto& s : styles) {
+    const HumanMotionOptions& o = s.options;
+    if (s.name == "pause") all.gap_min_s = o.gap_min_s, all.gap_max_s = o.gap_max_s;
+    if (s.name == "onset") all.onset_spread_s = o.onset_spread_s;
+    if (s.name == "speed")
+      all.speed_min = o.speed_min, all.speed_max = o.speed_max, all.profile = o.profile,
+      all.pause_probability = o.pause_probability;
+    if (s.name == "contact") all.contact_gap_min_m = o.contact_gap_min_m, all.contact_gap_max_m = o.contact_gap_max_m;
+    if (s.name == "occupied") all.beside_max_rad = o.beside_max_rad;
+    if (s.name == "bump")
+      all.nudge_probability = o.nudge_probability, all.nudge_min_m = o.nudge_min_m, all.nudge_max_m = o.nudge_max_m;
+    if (s.name == "camera")
+      all.noise_m = o.noise_m, all.hold_probability = o.hold_probability, all.hold_max_rows = o.hold_max_rows;
+  }
+  styles.push_back({"all", "all of the above at once", all});
+  return styles;
+}
+
 double LabelScore::accuracy() const {
   const int denom = std::max(true_tokens, inferred_tokens);
   return denom == 0 ? 1.0 : static_cast<double>(matched) / denom;
@@ -169,15 +312,25 @@ void LabelScore::add(const LabelScore& o) {
   demos += o.demos;
   demos_exact += o.demos_exact;
   notes += o.notes;
+  wrong += o.wrong, listed += o.listed, wrong_listed += o.wrong_listed;
+  demos_wrong += o.demos_wrong, demos_wrong_listed += o.demos_wrong_listed;
   onset_error_s.insert(onset_error_s.end(), o.onset_error_s.begin(), o.onset_error_s.end());
   offset_error_s.insert(offset_error_s.end(), o.offset_error_s.begin(), o.offset_error_s.end());
 }
 
-LabelScore scoreLabels(const task::Demonstration& truth, const task::Demonstration& inferred, int notes) {
+double LabelScore::wrongListed() const {
+  return wrong == 0 ? 1.0 : static_cast<double>(wrong_listed) / wrong;
+}
+double LabelScore::listedWrong() const {
+  return listed == 0 ? 0.0 : static_cast<double>(wrong_listed) / listed;
+}
+
+LabelScore scoreLabels(const task::Demonstration& truth, const task::Demonstration& inferred,
+                       const Inference& inference) {
   LabelScore s;
   s.demos = 1;
   s.demos_exact = task::sameSteps(truth.steps, inferred.steps) ? 1 : 0;
-  s.notes = notes;
+  s.notes = static_cast<int>(inference.notes.size());
   s.true_tokens = static_cast<int>(truth.segments.size());
   s.inferred_tokens = static_cast<int>(inferred.segments.size());
   std::vector<bool> used(inferred.segments.size(), false);
@@ -192,6 +345,21 @@ LabelScore scoreLabels(const task::Demonstration& truth, const task::Demonstrati
       s.offset_error_s.push_back(std::abs(inferred.t[is.last_row] - truth.t[ts.last_row]));
       break;
     }
+  for (size_t j = 0; j < inferred.segments.size(); ++j) {
+    const auto& is = inferred.segments[j];
+    bool unsure = false;
+    for (const auto& step : inference.steps)
+      for (const auto& t : step.tokens)
+        unsure = unsure || (t.unsure && t.token.entity == is.token.entity && t.first_row <= is.last_row &&
+                            t.last_row >= is.first_row);
+    s.listed += unsure;
+    s.wrong += !used[j];
+    s.wrong_listed += unsure && !used[j];
+  }
+  // A demonstration that lost a token is wrong even when every token it has is right.
+  const bool wrong = s.wrong > 0 || s.matched < s.true_tokens;
+  s.demos_wrong = wrong;
+  s.demos_wrong_listed = wrong && (s.listed > 0 || !inference.notes.empty());
   return s;
 }
 
@@ -207,7 +375,7 @@ InferredDataset inferredDataset(const task::TaskDir& generated, const HumanMotio
     task::Demonstration d = out.truth.demos[i];
     const Inference inf = inferLabels(d, generated.spec, &example);
     applyLabels(d, inf);
-    out.score.add(scoreLabels(out.truth.demos[i], d, static_cast<int>(inf.notes.size())));
+    out.score.add(scoreLabels(out.truth.demos[i], d, inf));
     out.inferred.demos.push_back(std::move(d));
   }
   return out;

@@ -27,6 +27,30 @@ double contactDistance(const task::TaskSpec& spec, int a, int b) {
   return spec.contactDistance(a, b);
 }
 
+namespace {
+
+/// How far from touching `mover`'s body at `end` is the nearest body standing on goal
+/// `goal` or touching one that does (positions `where`); infinity when none stands there.
+double touchOnGoal(const task::TaskSpec& spec, int mover, int goal, const Vector2d& end,
+                   const std::vector<Vector2d>& where) {
+  const double r = spec.arrival_radius;
+  const int n = static_cast<int>(where.size());
+  std::vector<bool> on(where.size(), false);
+  for (int j = 0; j < n; ++j)
+    on[j] = j != mover && j != goal && spec.footprint(j).obstacle && (where[j] - where[goal]).norm() <= r;
+  std::vector<bool> cluster = on;
+  for (int j = 0; j < n; ++j)
+    for (int k = 0; k < n && !cluster[j]; ++k)
+      cluster[j] = on[k] && j != mover && j != goal && spec.footprint(j).obstacle &&
+                   (where[j] - where[k]).norm() <= contactDistance(spec, j, k) + r / 4;
+  double best = std::numeric_limits<double>::infinity();
+  for (int j = 0; j < n; ++j)
+    if (cluster[j]) best = std::min(best, std::abs((end - where[j]).norm() - contactDistance(spec, mover, j)));
+  return best;
+}
+
+}  // namespace
+
 EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, const Vector2d& end,
                   const std::vector<Vector2d>& where, const std::vector<bool>& candidates, int load) {
   const double r = spec.arrival_radius;
@@ -58,6 +82,11 @@ EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, 
       const Vector2d u = (where[c] - start).normalized();
       const double along = std::clamp((where[c] - end).dot(u), 0.0, 2 * mover_body.radius_m);
       residual = std::min(residual, (end - (where[c] - along * u)).norm() + r / 2);
+      // A goal bodies stand on (one on it, others touching that one): touching any of them
+      // from any side is a reading of the goal too, as good as the body's own side touch, so
+      // a motion that ends there ties the goal with the body it touches.
+      if (const double touch = touchOnGoal(spec, mover, c, end, where); touch <= r / 4)
+        residual = std::min(residual, touch + r / 4);
     }
     if (residual <= r) arrived.push_back({residual, target});
   }
@@ -216,6 +245,8 @@ void MotionSegmenter::endMotion(size_t e, const Vector2d& rest, size_t first) {
   m.off_t = std::max(s.t, m.on_t);
   m.end = rest;
   m.at_offset = s.p;
+  m.whole_off_row = m.off_row;
+  m.whole_off_t = m.off_t;
   // The heading it came in: from the last row start_m away from where it stopped.
   for (size_t i = history_.size(); i-- > 0;) {
     const Vector2d in = rest - history_[i].p[e];

@@ -135,6 +135,100 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
   return !staysWith(b, ep.target);
 }
 
+bool Labeller::together(const std::vector<Vector2d>& at, int a, int b) const {
+  return (at[a] - at[b]).norm() <= task::togetherDistance(spec_, a, b);
+}
+
+namespace {
+
+/// `m` up to (from) a cut at row `row`, time `t`, where every entity stood at `at`.
+Motion before(const Motion& m, int row, double t, const std::vector<Vector2d>& at) {
+  Motion a = m;
+  a.off_row = std::max(row - 1, a.on_row);
+  a.off_t = std::max(t, a.on_t);
+  a.end = at[m.entity];
+  a.at_offset = at;
+  if ((a.end - a.start).norm() > 0) a.end_dir = (a.end - a.start).normalized();
+  return a;
+}
+Motion after(const Motion& m, int row, double t, const std::vector<Vector2d>& at) {
+  Motion b = m;
+  b.on_row = row;
+  b.on_t = t;
+  b.start = at[m.entity];
+  b.at_onset = at;
+  b.resumed = false;
+  if ((b.end - b.start).norm() > 0) b.start_dir = (b.end - b.start).normalized();
+  return b;
+}
+
+}  // namespace
+
+void Labeller::cutAtContacts(std::vector<Motion>& ms) const {
+  using task::EntityKind;
+  const auto& E = spec_.entities;
+  auto kind = [&](const Motion& m) { return E[m.entity].kind; };
+  // 1. An object handed on: a robot that was with it stops while another that touches it
+  // starts (within pause_s), the object going on: one piece of the object's motion each.
+  for (bool cut = true; cut;) {
+    cut = false;
+    for (size_t o = 0; o < ms.size() && !cut; ++o) {
+      if (kind(ms[o]) != EntityKind::Object) continue;
+      for (size_t a = 0; a < ms.size() && !cut; ++a) {
+        const Motion& giver = ms[a];
+        if (kind(giver) != EntityKind::Robot || giver.off_row <= ms[o].on_row || giver.off_row >= ms[o].off_row ||
+            !together(giver.at_offset, giver.entity, ms[o].entity))
+          continue;
+        for (size_t b = 0; b < ms.size() && !cut; ++b) {
+          const Motion& taker = ms[b];
+          if (kind(taker) != EntityKind::Robot || taker.entity == giver.entity || taker.on_row <= giver.on_row ||
+              taker.on_row <= ms[o].on_row || taker.on_row >= ms[o].off_row ||
+              taker.on_t > giver.off_t + options_.pause_s || !together(taker.at_onset, taker.entity, ms[o].entity))
+            continue;
+          const int row = taker.on_row;
+          const double t = taker.on_t;
+          Motion first = before(ms[o], row, t, taker.at_onset), second = after(ms[o], row, t, taker.at_onset);
+          // Each piece went with its robot: as far apart as at its ends.
+          first.max_distance[giver.entity] = std::max((first.at_onset[giver.entity] - first.start).norm(),
+                                                      (first.at_offset[giver.entity] - first.end).norm());
+          second.max_distance[taker.entity] = std::max((second.at_onset[taker.entity] - second.start).norm(),
+                                                       (second.at_offset[taker.entity] - second.end).norm());
+          ms[a].off_row = std::min(ms[a].off_row, row - 1);
+          ms[o] = std::move(first);
+          ms.insert(ms.begin() + static_cast<long>(o) + 1, std::move(second));
+          cut = true;
+        }
+      }
+    }
+  }
+  // 2. A robot that reached an object and went on with it without stopping: its approach,
+  // then its push, cut at the object's onset.
+  for (bool cut = true; cut;) {
+    cut = false;
+    for (size_t o = 0; o < ms.size() && !cut; ++o) {
+      const Motion& load = ms[o];
+      if (kind(load) != EntityKind::Object) continue;
+      for (size_t r = 0; r < ms.size() && !cut; ++r) {
+        const Motion& m = ms[r];
+        const int R = m.entity;
+        if (kind(m) != EntityKind::Robot || m.on_row >= load.on_row || m.off_row <= load.on_row) continue;
+        // Touching it as it started, having come from elsewhere, and still with it when the
+        // first of the two stopped.
+        const auto& at_end = m.off_row <= load.off_row ? m.at_offset : load.at_offset;
+        if (!together(load.at_onset, R, load.entity) || !together(at_end, R, load.entity) ||
+            (load.at_onset[R] - m.start).norm() < options_.nudge_m)
+          continue;
+        Motion approach = before(m, load.on_row, load.on_t, load.at_onset);
+        Motion push = after(m, load.on_row, load.on_t, load.at_onset);
+        push.max_distance[load.entity] = load.max_distance[R];
+        ms[r] = std::move(approach);
+        ms.insert(ms.begin() + static_cast<long>(r) + 1, std::move(push));
+        cut = true;
+      }
+    }
+  }
+}
+
 void Labeller::decide(bool at_end) {
   const auto& E = spec_.entities;
   const size_t n = E.size();
@@ -150,8 +244,8 @@ void Labeller::decide(bool at_end) {
     if (!merged.empty() && merged.back().entity == m.entity) {
       Motion& a = merged.back();
       if (m.on_t - a.off_t <= options_.pause_s && pausedOnItsWay(a, m)) {
-        a.off_row = m.off_row;
-        a.off_t = m.off_t;
+        a.off_row = a.whole_off_row = m.off_row;
+        a.off_t = a.whole_off_t = m.off_t;
         a.end = m.end;
         a.end_dir = m.end_dir;
         a.at_offset = m.at_offset;
@@ -162,6 +256,10 @@ void Labeller::decide(bool at_end) {
     }
     merged.push_back(std::move(m));
   }
+  cutAtContacts(merged);
+  // Pieces of steps handed over already (a motion cut in two waits for its second piece).
+  merged.erase(std::remove_if(merged.begin(), merged.end(), [&](const Motion& m) { return m.on_row <= handed_off_; }),
+               merged.end());
   // The last motion of each entity may still be joined by a later one across a pause.
   std::vector<int> last_on(n, -1);
   for (const auto& m : merged) last_on[m.entity] = std::max(last_on[m.entity], m.on_row);
@@ -179,11 +277,14 @@ void Labeller::decide(bool at_end) {
     auto& g = groups.back().motions;
     auto same = std::find_if(g.begin(), g.end(), [&](const Motion& o) { return o.entity == m.entity; });
     if (same != g.end()) {
-      groups.back().notes.push_back({m.on_row, E[m.entity].name +
-                                                   " moved again in the same step (first motion ended at line " +
-                                                   std::to_string(same->off_row + 2) + "); taken as one motion"});
+      groups.back().notes.push_back({m.on_row,
+                                     E[m.entity].name + " moved again in the same step (first motion ended at line " +
+                                         std::to_string(same->off_row + 2) + "); taken as one motion, not two steps",
+                                     m.entity});
       same->off_row = m.off_row;
       same->off_t = m.off_t;
+      same->whole_off_row = std::max(same->whole_off_row, m.whole_off_row);
+      same->whole_off_t = std::max(same->whole_off_t, m.whole_off_t);
       same->end = m.end;
       same->end_dir = m.end_dir;
       same->at_offset = m.at_offset;
@@ -203,15 +304,19 @@ void Labeller::decide(bool at_end) {
   for (; final_groups < groups.size() && !at_end; ++final_groups) {
     const Group& g = groups[final_groups];
     bool final = group_off[final_groups] < h_row;
-    for (const auto& m : g.motions) final = final && (h_t - m.off_t > options_.pause_s || last_on[m.entity] > m.on_row);
+    for (const auto& m : g.motions)
+      final =
+          final && m.whole_off_row < h_row && (h_t - m.whole_off_t > options_.pause_s || last_on[m.entity] > m.on_row);
     if (!final) break;
   }
   if (at_end) final_groups = groups.size();
   if (final_groups > 0) {
     const int last_off = group_off[final_groups - 1];
+    // A motion cut in two stays while its second piece is in a step not decided yet.
     pending_.erase(
-        std::remove_if(pending_.begin(), pending_.end(), [&](const Motion& m) { return m.on_row <= last_off; }),
+        std::remove_if(pending_.begin(), pending_.end(), [&](const Motion& m) { return m.off_row <= last_off; }),
         pending_.end());
+    handed_off_ = std::max(handed_off_, last_off);
     for (size_t k = 0; k < final_groups; ++k) handOver(std::move(groups[k]));
   }
   // Again when the horizon passes a time that can make a group final (a motion's end, or
@@ -267,8 +372,10 @@ std::string Labeller::word(int mover, int target, int load, int row) {
     std::string where;
     if (example_) where = "in the example " + example_->source;
     if (!spec_.action_rules.empty()) where += std::string(example_ ? " nor " : "") + "in task.yaml's action_rules";
-    note(row, "no motion of the kind " + kindKey(spec_, mover, target, load) + " " + where +
-                  "; took the task's first action");
+    note(
+        row,
+        "no motion of the kind " + kindKey(spec_, mover, target, load) + " " + where + "; took the task's first action",
+        mover);
   }
   return spec_.actions.empty() ? "move" : spec_.actions.front();
 }
@@ -303,6 +410,7 @@ void Labeller::emit(Group& group, bool aligned) {
   const auto& E = spec_.entities;
   const double r = spec_.arrival_radius;
   const size_t k = emitted_groups_++;
+  const size_t notes_from = out_.notes.size();
   for (auto& nt : group.notes) out_.notes.push_back(std::move(nt));
   auto& g = group.motions;
   auto exampleTarget = [&](int entity) {
@@ -355,8 +463,10 @@ void Labeller::emit(Group& group, bool aligned) {
         if (ep.target < 0) {
           tok.token.target = ep.nearest;
           if (ep.nearest >= 0)
-            note(m.off_row, E[m.entity].name + " stopped halfway: " + metres(ep.nearest_m) + " m from " +
-                                E[ep.nearest].name + ", the nearest entity, taken as its target");
+            note(m.off_row,
+                 E[m.entity].name + " stopped halfway: " + metres(ep.nearest_m) + " m from " + E[ep.nearest].name +
+                     ", the nearest entity, taken as its target; or it went on later to another",
+                 m.entity);
         } else if (!ep.tied.empty()) {
           std::vector<int> all = ep.tied;
           all.push_back(ep.target);
@@ -377,8 +487,10 @@ void Labeller::emit(Group& group, bool aligned) {
           if (!resolved) {
             std::string names;
             for (int c : all) names += (names.empty() ? "" : " and ") + E[c].name;
-            note(m.off_row, E[m.entity].name + " ended between " + names + " (the same distance within " +
-                                metres(r / 2) + " m); took " + E[ep.target].name);
+            note(m.off_row,
+                 E[m.entity].name + " ended between " + names + " (the same distance within " + metres(r / 2) +
+                     " m); took " + E[ep.target].name,
+                 m.entity);
           }
         }
       }
@@ -390,8 +502,10 @@ void Labeller::emit(Group& group, bool aligned) {
       const bool object_rule_stated = object_rule && object_rule->mover_kind == task::EntityKind::Object;
       if (E[m.entity].kind == task::EntityKind::Object && !is_load && !(example_ && example_->words.count(tok.kind)) &&
           !object_rule_stated)
-        note(m.on_row, "object " + E[m.entity].name + " moved alone (no robot with it) to " + E[tok.token.target].name +
-                           "; check it");
+        note(m.on_row,
+             "object " + E[m.entity].name + " moved alone (no robot with it) to " + E[tok.token.target].name +
+                 "; or a robot carried it",
+             m.entity);
       tok.token.action = word(m.entity, tok.token.target, tok.load, m.on_row);
     }
   }
@@ -407,6 +521,11 @@ void Labeller::emit(Group& group, bool aligned) {
         it.kind = "in-place";
         tokens.push_back(it);
       }
+  // A token some note of this step doubts is listed to check.
+  for (size_t i = notes_from; i < out_.notes.size(); ++i)
+    for (auto& t : tokens) t.unsure = t.unsure || (!t.in_place && t.token.entity == out_.notes[i].entity);
+  for (auto& t : tokens)  // a load goes where its carrier went
+    for (const auto& c : tokens) t.unsure = t.unsure || (t.carrier >= 0 && c.token.entity == t.carrier && c.unsure);
   for (auto& t : tokens)
     if (t.token.target >= 0 || t.in_place) step.tokens.push_back(std::move(t));
   std::sort(step.tokens.begin(), step.tokens.end(),

@@ -221,7 +221,8 @@ const std::vector<Candidate>& candidates() {
 }  // namespace
 
 task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<Vector2d>& start,
-                                  const std::vector<PlannedStep>& steps) {
+                                  const std::vector<PlannedStep>& steps, const DemoMotion& motion, bool* bodies_clear) {
+  if (bodies_clear) *bodies_clear = true;
   const size_t m = spec.entities.size();
   if (start.size() != m)
     throw Error("a start configuration of " + std::to_string(start.size()) + " positions for the " + std::to_string(m) +
@@ -246,7 +247,7 @@ task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<
   for (size_t s = 0; s < steps.size(); ++s) {
     std::vector<task::Token> tokens;
     for (const auto& pt : steps[s]) tokens.push_back(pt.token);
-    const std::vector<Vector2d> ends = task::stepEndPositions(spec, task::EndPointModel{}, tokens, pos, kTable);
+    const std::vector<Vector2d> ends = task::stepEndPositions(spec, motion.end_points, tokens, pos, kTable);
     const StepRoles r = roles(spec, tokens, pos);
 
     // Bodies whose path is fixed: standing ones, then each mover (and its load) as chosen.
@@ -317,7 +318,11 @@ task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<
       const Candidate* best = &candidates().front();
       double best_clearance = -std::numeric_limits<double>::infinity();
       const auto& all = candidates();
-      for (size_t i = 0; i < all.size(); ++i) {
+      if (!motion.avoid) {  // the planned shape as it is (candidates' first: unchanged)
+        shapeWith(best->bend, best->hook, best->lag, best->long_way);
+        if (bodies_clear && clearance(candidate) < -kContactSlack) *bodies_clear = false;
+      }
+      for (size_t i = 0; i < all.size() && motion.avoid; ++i) {
         const Candidate& k = all[i];
         if (k.long_way && rider.load < 0) continue;
         shapeWith(k.bend, k.hook, k.lag, k.long_way);

@@ -19,6 +19,13 @@ using Eigen::Vector2d;
 using task::EntityKind;
 
 constexpr int kMaxAttempts = 200000;
+/// Direct motion: draws per demonstration before a rule counts as one its bodies cannot
+/// keep clear without bending around each other (e.g. a robot boxed in by those that met
+/// at it, then leaving).
+constexpr int kMaxDirectAttempts = 20000;
+/// Direct motion: a path is an arc with this probability (else straight), its amplitude
+/// uniform in [kArcMin, kArcMax] of the start-to-end distance, to either side.
+constexpr double kArcFraction = 0.5, kArcMin = 0.1, kArcMax = 0.3;
 constexpr int kMaxEntities = 10;
 
 /// A referring expression: which entity of a set of candidates.
@@ -262,8 +269,9 @@ task::TaskSpec zooSpec(const ZooRule& z) {
 /// (a motion ends where the demonstration ends it: task::stepEndPositions).
 class Decider {
  public:
-  Decider(const task::TaskSpec& spec, const Rule& rule, std::vector<Vector2d> start)
-      : spec_(spec), rule_(rule), pos_(std::move(start)) {
+  Decider(const task::TaskSpec& spec, const Rule& rule, const task::EndPointModel& end_points,
+          std::vector<Vector2d> start)
+      : spec_(spec), rule_(rule), end_points_(end_points), pos_(std::move(start)) {
     const ZooRule& z = rule.info;
     for (int i = 0; i < z.robots; ++i) robots_.push_back(i);
     for (int i = 0; i < z.objects; ++i) boxes_.push_back(z.robots + i);
@@ -363,7 +371,7 @@ class Decider {
     if (steps_.empty() || applied_ == steps_.size()) return;
     std::vector<task::Token> tokens;
     for (const auto& m : steps_.back()) tokens.push_back({m.entity, m.action, m.target});
-    pos_ = task::stepEndPositions(spec_, task::EndPointModel{}, tokens, pos_, kTable);
+    pos_ = task::stepEndPositions(spec_, end_points_, tokens, pos_, kTable);
     applied_ = steps_.size();
   }
 
@@ -413,20 +421,56 @@ class Decider {
 
   const task::TaskSpec& spec_;
   const Rule& rule_;
+  const task::EndPointModel& end_points_;
   std::vector<Vector2d> pos_;
   std::vector<int> robots_, boxes_, goals_;
   Steps steps_;
   size_t applied_ = 0;
 };
 
-/// The planned steps of `steps`: straight motions (the generators' motion, generators.h).
-std::vector<PlannedStep> planned(const Steps& steps) {
+/// The planned steps of `steps`: straight motions (the generators' motion, generators.h),
+/// or with `direct` each motion straight or an arc, drawn from `rng`.
+std::vector<PlannedStep> planned(const Steps& steps, bool direct, SplitMix64& rng) {
   std::vector<PlannedStep> out;
   for (const auto& step : steps) {
     out.emplace_back();
-    for (const auto& mv : step) out.back().push_back({{mv.entity, mv.action, mv.target}, {}, 0});
+    for (const auto& mv : step) {
+      PathShape shape;
+      if (direct && rng.uniform(0, 1) < kArcFraction) {
+        shape.kind = PathShape::Arc;
+        shape.amplitude = (rng.index(2) ? 1 : -1) * rng.uniform(kArcMin, kArcMax);
+      }
+      out.back().push_back({{mv.entity, mv.action, mv.target}, shape, 0});
+    }
   }
   return out;
+}
+
+/// Where motions end when a person stops `gap` metres short of contact with a robot or a
+/// box: the footprints' end points (task/end_point.h) moved back by the gap, as the
+/// classes of motions toward an obstacle (the zoo's robots share one footprint, its boxes
+/// another). A load ends the gap short of an obstacle target, its carrier behind it.
+task::EndPointModel gapEndPoints(const task::TaskSpec& spec, double gap) {
+  task::EndPointModel m;
+  if (gap == 0) return m;
+  const auto first = [&](EntityKind kind) {
+    for (size_t e = 0; e < spec.entities.size(); ++e)
+      if (spec.entities[e].kind == kind) return static_cast<int>(e);
+    return -1;
+  };
+  const int robot = first(EntityKind::Robot), box = first(EntityKind::Object);
+  const std::string mover = task::toString(EntityKind::Robot);
+  for (int target : {robot, box}) {
+    if (target < 0 || !spec.footprint(target).obstacle) continue;
+    const std::string to = std::string("->") + task::toString(spec.entities[static_cast<size_t>(target)].kind);
+    const double contact = spec.contactDistance(robot, target);
+    m.by_class[mover + to] = {Vector2d(-(contact + gap), 0), 1};
+    if (box >= 0) {  // carrying a box: the box stops short, the carrier behind it
+      const double load_end = spec.contactDistance(box, target) + gap;
+      m.by_class[mover + "+load" + to] = {Vector2d(-(load_end + spec.contactDistance(robot, box)), 0), 1};
+    }
+  }
+  return m;
 }
 
 }  // namespace
@@ -449,10 +493,49 @@ std::vector<uint64_t> distinctZooRules(int count) {
   return ids;
 }
 
-bool parseZooFamily(const std::string& family, uint64_t& id) {
+std::string ZooMotion::suffix() const {
+  if (!direct) return "";
+  const long mm = std::lround(stop_gap_m * 1000);
+  return mm == 0 ? "/direct" : "/direct-" + std::to_string(mm) + "mm";
+}
+
+std::string ZooMotion::words() const {
+  if (!direct) return "paths bent around bodies, stops touching";
+  const long mm = std::lround(stop_gap_m * 1000);
+  return "direct paths, stops " + (mm == 0 ? std::string("touching") : std::to_string(mm) + " mm short");
+}
+
+std::vector<ZooMotion> directZooMotions() {
+  return {{true, 0}, {true, 0.004}, {true, 0.01}};
+}
+
+bool parseZooFamily(const std::string& family, uint64_t& id, ZooMotion* motion) {
   const std::string prefix = "zoo:";
   if (family.rfind(prefix, 0) != 0) return false;
-  const std::string digits = family.substr(prefix.size());
+  std::string digits = family.substr(prefix.size());
+  if (const size_t slash = digits.find('/'); slash != std::string::npos) {
+    const std::string suffix = digits.substr(slash + 1);
+    digits.resize(slash);
+    const std::string usage = "family '" + family +
+                              "': the motion of a zoo rule is /direct (stops touching) or /direct-<N>mm (N whole "
+                              "millimetres, 0 to " +
+                              std::to_string(std::lround(kMaxZooStopGapM * 1000)) + "), e.g. zoo:17/direct-4mm";
+    ZooMotion m{true, 0};
+    if (suffix != "direct") {
+      const std::string head = "direct-", tail = "mm";
+      const bool shaped = suffix.size() > head.size() + tail.size() && suffix.rfind(head, 0) == 0 &&
+                          suffix.compare(suffix.size() - tail.size(), tail.size(), tail) == 0;
+      const std::string mm = shaped ? suffix.substr(head.size(), suffix.size() - head.size() - tail.size()) : "";
+      if (mm.empty() || mm.size() > 3 || !std::all_of(mm.begin(), mm.end(), ::isdigit)) throw Error(usage);
+      m.stop_gap_m = std::stoi(mm) / 1000.0;
+      if (m.stop_gap_m > kMaxZooStopGapM + 1e-12) throw Error(usage);
+    }
+    if (!motion)
+      throw Error("family '" + family + "': a motion suffix is not taken here (the generators' motion only)");
+    *motion = m;
+  } else if (motion) {
+    *motion = ZooMotion{};
+  }
   for (const Named& n : namedRules())
     if (digits == n.key) {
       id = n.rule.info.id;
@@ -506,19 +589,59 @@ OsrDistribution osrDistribution(const std::vector<double>& osr) {
   return d;
 }
 
-task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed) {
+bool BodiesComparison::goalsMet() const {
+  return osr_ratio_median >= kBodiesOsrRatioMedian - 1e-9 && osr_ratio_p10 >= kBodiesOsrRatioP10 - 1e-9 &&
+         collisions == 0 && fd_ratio_median <= kBodiesFdRatioMedian + 1e-9;
+}
+
+BodiesComparison compareBodies(const std::vector<std::pair<eval::Summary, eval::Summary>>& runs) {
+  if (runs.empty()) throw Error("a comparison with bodies of no rules");
+  std::vector<double> ideal, with, osr_ratio, fd_ratio;
+  BodiesComparison c;
+  c.rules = runs.size();
+  double makespan = 0;
+  for (const auto& [i, b] : runs) {
+    ideal.push_back(i.osr), with.push_back(b.osr);
+    if (i.osr > 0) osr_ratio.push_back(b.osr / i.osr);
+    if (std::isfinite(i.fd) && std::isfinite(b.fd) && i.fd > 0) fd_ratio.push_back(b.fd / i.fd);
+    c.collisions += b.collisions, c.trials_with_collision += b.trials_with_collision, c.trials += b.trials;
+    if (std::isfinite(b.min_clearance_m) && !(b.min_clearance_m >= c.min_clearance_m))
+      c.min_clearance_m = b.min_clearance_m;
+    makespan += b.makespan_s;
+  }
+  c.ideal_osr_median = osrDistribution(ideal).median;
+  c.bodies_osr_median = osrDistribution(with).median;
+  if (!osr_ratio.empty()) {
+    const OsrDistribution d = osrDistribution(osr_ratio);
+    c.osr_ratio_median = d.median, c.osr_ratio_p10 = d.p10;
+  }
+  if (!fd_ratio.empty()) c.fd_ratio_median = osrDistribution(fd_ratio).median;
+  c.makespan_s = makespan / static_cast<double>(runs.size());
+  return c;
+}
+
+task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed, const ZooMotion& motion) {
   if (demos < 0) throw Error("the number of demonstrations must not be negative");
+  if (!(motion.stop_gap_m >= 0 && motion.stop_gap_m <= kMaxZooStopGapM + 1e-12) ||
+      (!motion.direct && motion.stop_gap_m != 0))
+    throw Error("a zoo motion's stop gap must be 0 to " + std::to_string(kMaxZooStopGapM) +
+                " m, and only for direct motion");
   const Rule rule = ruleOf(rule_id);
   const ZooRule& z = rule.info;
   if (rule_id < kNamedZooRuleIds && z.robots + z.objects + z.goals > kMaxEntities)
     throw Error("zoo rule " + std::to_string(rule_id) + " has more than " + std::to_string(kMaxEntities) + " entities");
   task::TaskDir dir;
   dir.spec = zooSpec(z);
+  if (motion.direct) dir.spec.name = "zoo " + z.family.substr(4) + motion.suffix() + " " + z.name;
+  DemoMotion demo_motion;
+  demo_motion.avoid = !motion.direct;
+  demo_motion.end_points = gapEndPoints(dir.spec, motion.stop_gap_m);
   SplitMix64 rng(seed * 0x9E3779B97F4A7C15ULL + 0x7A00C0DE5EEDULL + rule_id * 0xD1B54A32D192ED03ULL);
   const size_t m = dir.spec.entities.size();
   for (int i = 0; i < demos; ++i) {
     bool found = false;
-    for (int attempt = 0; attempt < kMaxAttempts && !found; ++attempt) {
+    const int attempts = motion.direct ? kMaxDirectAttempts : kMaxAttempts;
+    for (int attempt = 0; attempt < attempts && !found; ++attempt) {
       std::vector<Vector2d> start(m);
       const auto draw = [&] {
         return Vector2d(rng.uniform(kSceneBorder, kTableSize - kSceneBorder),
@@ -543,13 +666,18 @@ task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed) {
       }
       if (!apart) continue;
       Steps steps;
-      if (!Decider(dir.spec, rule, start).decide(steps)) continue;
-      dir.demos.push_back(simulateSteps(dir.spec, start, planned(steps)));
+      if (!Decider(dir.spec, rule, demo_motion.end_points, start).decide(steps)) continue;
+      bool clear = true;
+      task::Demonstration demo =
+          simulateSteps(dir.spec, start, planned(steps, motion.direct, rng), demo_motion, &clear);
+      if (!clear) continue;  // a body would pass through another: draw the scene again
+      dir.demos.push_back(std::move(demo));
       found = true;
     }
     if (!found)
-      throw Error("zoo rule " + std::to_string(rule_id) + " '" + z.name + "': no unambiguous start configuration in " +
-                  std::to_string(kMaxAttempts) + " draws");
+      throw Error("zoo rule " + std::to_string(rule_id) + motion.suffix() + " '" + z.name +
+                  "': no unambiguous start configuration" + (motion.direct ? " whose bodies keep clear" : "") + " in " +
+                  std::to_string(attempts) + " draws");
   }
   return dir;
 }

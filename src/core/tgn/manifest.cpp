@@ -254,6 +254,8 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
     y << YAML::Flow << std::vector<std::string>{name(e.source), name(e.target)};
   y << YAML::EndSeq;
   y << YAML::EndMap;
+  y << YAML::Key << "dependencies" << YAML::Value;
+  graph::emitDependencies(y, info.dependencies);
   y << YAML::EndMap;
   const std::string body =
       std::string("# ddace model manifest (") + kModelFormat +
@@ -616,6 +618,8 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     }
     if (const std::string why = plan.inconsistency(info.options); !why.empty())
       r.fail(pn, "plan: " + why + " (no training makes this plan; retrain)");
+    // A model trained before dependencies were learned runs step by step (learned false).
+    if (const YAML::Node deps = root["dependencies"]) info.dependencies = graph::parseDependencies(deps, path, spec);
     return info;
   } catch (const YAML::Exception& e) {
     throw yamlError(path, e);

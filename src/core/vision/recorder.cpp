@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "ddace/common/file.h"
+#include "ddace/label/inference.h"
 #include "ddace/label/recording.h"
 #include "ddace/task/summary.h"
 #include "yaml_values.h"
@@ -296,15 +297,33 @@ void DemoRecorder::discard() {
 }
 
 LatestPositions::LatestPositions(const task::TaskSpec& spec)
-    : positions_(spec.entities.size()), stale_(spec.entities.size(), false) {
-  for (const auto& e : spec.entities) names_.push_back(e.name);
+    : positions_(spec.entities.size()),
+      stale_(spec.entities.size(), false),
+      rest_(spec.entities.size(), Eigen::Vector2d::Zero()),
+      rest_since_(spec.entities.size(), 0.0),
+      stale_rows_(spec.entities.size(), 0),
+      moved_hidden_(spec.entities.size(), false) {
+  for (const auto& e : spec.entities) {
+    names_.push_back(e.name);
+    kinds_.push_back(e.kind);
+  }
+  const label::SegmentationOptions o = label::SegmentationOptions::forTask(spec);
+  still_m_ = o.still_m;
+  still_s_ = o.still_s;
+  start_m_ = o.start_m;
 }
 
-void LatestPositions::update(const std::string& name, const Eigen::Vector2d& position_m, bool stale, bool measured) {
+void LatestPositions::update(const std::string& name, const Eigen::Vector2d& position_m, bool stale, bool measured,
+                             double t) {
   if (!measured) return;
   const auto it = std::find(names_.begin(), names_.end(), name);
   if (it == names_.end()) return;
   const size_t i = static_cast<size_t>(it - names_.begin());
+  if (!positions_[i] || (position_m - rest_[i]).norm() > still_m_) {
+    rest_[i] = position_m;
+    rest_since_[i] = t;
+  }
+  if (positions_[i] && stale_[i] && !stale && (position_m - *positions_[i]).norm() > start_m_) moved_hidden_[i] = true;
   positions_[i] = position_m;
   stale_[i] = stale;
 }
@@ -325,10 +344,47 @@ std::string LatestPositions::missing() const {
   return out;
 }
 
+std::string LatestPositions::moving(double t) const {
+  std::string out;
+  for (size_t i = 0; i < names_.size(); ++i)
+    if (positions_[i] && t - rest_since_[i] < still_s_) out += (out.empty() ? "" : ", ") + names_[i];
+  return out;
+}
+
 int LatestPositions::stale() const {
   int n = 0;
   for (size_t i = 0; i < names_.size(); ++i) n += positions_[i] && stale_[i];
   return n;
+}
+
+void LatestPositions::countRow() {
+  for (size_t i = 0; i < names_.size(); ++i) stale_rows_[i] += positions_[i] && stale_[i];
+}
+
+void LatestPositions::resetRows() {
+  std::fill(stale_rows_.begin(), stale_rows_.end(), 0);
+  std::fill(moved_hidden_.begin(), moved_hidden_.end(), false);
+}
+
+std::string LatestPositions::staleRowsReport() const {
+  std::string out;
+  for (size_t i = 0; i < names_.size(); ++i) {
+    if (stale_rows_[i] == 0) continue;
+    out += (out.empty() ? "" : "; ") + names_[i] + " hidden in " + std::to_string(stale_rows_[i]) +
+           " rows (its last seen position recorded): ";
+    if (moved_hidden_[i])
+      out +=
+          "ACT: it reappeared elsewhere, so it moved unseen and its path jumps; record this "
+          "demonstration again with its marker in view (or discard it)";
+    else if (kinds_[i] == task::EntityKind::Goal)
+      out += "harmless, a goal does not move (e.g. one under a parked robot)";
+    else if (stale_[i])
+      out +=
+          "CHECK: still hidden at the end; if it moved unseen, its recorded end is wrong (record again with "
+          "its marker in view)";
+    else out += "harmless, it reappeared where it was hidden";
+  }
+  return out;
 }
 
 }  // namespace ddace::vision

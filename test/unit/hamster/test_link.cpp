@@ -40,8 +40,10 @@ class LinkTest : public ::testing::Test {
     std::filesystem::remove_all(dir_);
   }
 
-  MockRobot& addMock(const std::string& name, const std::string& address, Model model, double mps_per_unit) {
+  MockRobot& addMock(const std::string& name, const std::string& address, Model model, double mps_per_unit,
+                     double robot_timeout_s = 0.0) {
     MockRobotSettings s;
+    s.robot_timeout_s = robot_timeout_s;
     s.name = name;
     s.address = *Address::parse(address);
     s.model = model;
@@ -151,6 +153,26 @@ TEST_F(LinkTest, WatchdogZeroesWheelsWhenCommandsStop) {
   EXPECT_LE(elapsed, 0.5);
   EXPECT_EQ(l.state(), LinkState::Streaming);
   EXPECT_GT(l.stats().stale_command_cycles, 0u);
+}
+
+// What the simulated table's bodies are driven by (sim_table_node): the units on the wire
+// times the robot's true m/s per unit, and nothing once its firmware time-out passed
+// without a motoring line, while the last units are still what the wire said.
+TEST_F(LinkTest, MockWheelSpeedsAreTheUnitsOnTheWireUntilTheRobotTimesOut) {
+  MockRobot& m = addMock("a", "0000000000AA", Model::Hamster, 0.003, 0.3);
+  RobotLink& l = addLink("R1", "0000000000AA");
+  commands_ = {{&l, 0.1, -0.05}};
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 50 && m.rightUnits() == -25; }, 3.0));
+  const auto [left, right] = m.wheelMps(monotonicS());
+  EXPECT_DOUBLE_EQ(left, 50 * 0.003);  // the bridge's calibration (0.002) is not the robot's truth
+  EXPECT_DOUBLE_EQ(right, -25 * 0.003);
+  // The radio goes quiet (no link polls): the robot stops by itself after its time-out.
+  const double quiet = monotonicS();
+  while (monotonicS() < quiet + 0.2) m.step(monotonicS());
+  EXPECT_GT(m.wheelMps(monotonicS()).first, 0.0);
+  while (monotonicS() < quiet + 0.4) m.step(monotonicS());
+  EXPECT_EQ(m.wheelMps(monotonicS()), std::make_pair(0.0, 0.0));
+  EXPECT_EQ(m.leftUnits(), 50);
 }
 
 TEST_F(LinkTest, OneWayStallIsALinkLossThatStopsTheRobotAndRecovers) {

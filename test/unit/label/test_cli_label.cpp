@@ -99,6 +99,11 @@ TEST(CliLabel, StrictWritesNothingWhenSomethingIsUncertain) {
   EXPECT_EQ(strict.status, 1) << strict.out;
   EXPECT_NE(strict.out.find("R1 stopped halfway"), std::string::npos) << strict.out;
   EXPECT_NE(strict.out.find(".csv:"), std::string::npos) << strict.out;
+  // Summarised per demonstration: the one with R1 stopped is to review, the others usable.
+  const std::string name = std::filesystem::path(d.source).filename().string();
+  EXPECT_NE(strict.out.find(name + ": "), std::string::npos) << strict.out;
+  EXPECT_NE(strict.out.find("to review (1 token(s) listed"), std::string::npos) << strict.out;
+  EXPECT_NE(strict.out.find("2 of 3 demonstrations usable; to review: " + name), std::string::npos) << strict.out;
   EXPECT_FALSE(fs::exists(out));
   const ToolRun loose = runTool("label '" + in + "' --out '" + out + "'");
   EXPECT_EQ(loose.status, 0) << loose.out;
@@ -154,4 +159,20 @@ TEST(CliLabel, TheMemoryBenchTakesItsRecordingSizeThroughDdaceBench) {
   const ToolRun list = runTool("bench label_memory --mb 1 --list");
   EXPECT_NE(list.status, 0) << list.out;
   EXPECT_NE(list.out.find("would be lost"), std::string::npos) << list.out;
+}
+
+TEST(CliLabel, TheStylesBenchRunsQuickly) {
+  // `ddace bench label_styles --quick`: a few families and styles, the report on stdout,
+  // no results file written; each cell's accuracy and the doubt table are there.
+  const std::string repo = root("styles_repo");
+  fs::create_directories(repo + "/docs/bench");
+  std::ofstream(repo + "/package.xml") << "<package><name>ddace</name></package>\n";
+  const ToolRun run = runTool("bench label_styles --quick --repo '" + repo + "'");
+  ASSERT_EQ(run.status, 0) << run.out;
+  EXPECT_NE(run.out.find("| zoo:87 |"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("| every style |"), std::string::npos) << run.out;
+  EXPECT_FALSE(fs::exists(repo + "/docs/bench/label_styles.md"));
+  const ToolRun bad = runTool("bench label_styles --demos 1 --repo '" + repo + "'");
+  EXPECT_NE(bad.status, 0) << bad.out;
+  EXPECT_NE(bad.out.find("--demos must be 2..200"), std::string::npos) << bad.out;
 }

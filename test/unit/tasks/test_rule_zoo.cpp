@@ -2,6 +2,8 @@
 // rules' decisions checked against the scenes (nearest, axis order, carrier with its load).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <functional>
 #include <set>
@@ -170,4 +172,103 @@ TEST(RuleZoo, OsrDistributionIsLinearBetweenOrderStatistics) {
   EXPECT_EQ(d.at_least_0_9, 8u);
   EXPECT_DOUBLE_EQ(tasks::osrDistribution({0.0, 1.0}).p10, 0.1);
   EXPECT_THROW(tasks::osrDistribution({}), Error);
+}
+
+TEST(RuleZoo, TheMotionModelIsAFamilySuffix) {
+  uint64_t id = 0;
+  tasks::ZooMotion m;
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:17/direct", id, &m));
+  EXPECT_EQ(id, 17u);
+  EXPECT_TRUE(m.direct);
+  EXPECT_EQ(m.stop_gap_m, 0.0);
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:two-boxes/direct-4mm", id, &m));
+  EXPECT_TRUE(m.direct);
+  EXPECT_NEAR(m.stop_gap_m, 0.004, 1e-12);
+  EXPECT_EQ(m.suffix(), "/direct-4mm");
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:17", id, &m));
+  EXPECT_FALSE(m.direct);
+  EXPECT_EQ(m.suffix(), "");
+  for (const char* bad : {"zoo:17/straight", "zoo:17/direct-", "zoo:17/direct-4", "zoo:17/direct-25mm",
+                          "zoo:17/direct-x4mm", "zoo:/direct"}) {
+    try {
+      tasks::parseZooFamily(bad, id, &m);
+      ADD_FAILURE() << bad << " was taken";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(bad), std::string::npos) << e.what();
+    }
+  }
+  // A caller that takes the generators' motion only refuses a suffix instead of dropping it.
+  EXPECT_THROW(tasks::parseZooFamily("zoo:17/direct", id), Error);
+  EXPECT_THROW(tasks::generateZoo(17, 1, 1, tasks::ZooMotion{false, 0.004}), Error);
+}
+
+namespace {
+
+/// The smallest gap between two obstacle bodies over every row (metres; < 0: overlapping),
+/// and the largest lateral deviation of a robot's path from its chord over the robot
+/// moves not carrying, in chord lengths.
+struct DirectShape {
+  double clearance = 1e9, max_bend = 0;
+  int straight = 0, curved = 0;
+};
+
+DirectShape directShape(const task::TaskDir& dir) {
+  DirectShape s;
+  const auto& spec = dir.spec;
+  const int m = static_cast<int>(spec.entities.size());
+  for (const auto& d : dir.demos) {
+    for (size_t r = 0; r < d.rows(); ++r)
+      for (int a = 0; a < m; ++a)
+        for (int b = a + 1; b < m; ++b)
+          if (spec.footprint(a).obstacle && spec.footprint(b).obstacle)
+            s.clearance =
+                std::min(s.clearance, (d.positions[r][a] - d.positions[r][b]).norm() - spec.contactDistance(a, b));
+    for (const auto& seg : d.segments) {
+      if (seg.token.action != "move" || spec.entities[seg.token.entity].kind != task::EntityKind::Robot) continue;
+      const auto path = d.segmentPath(seg);
+      const Eigen::Vector2d chord = path.back() - path.front();
+      if (chord.norm() < 0.05) continue;
+      const Eigen::Vector2d n = Eigen::Vector2d(-chord.y(), chord.x()).normalized();
+      double bend = 0;
+      for (const auto& p : path) bend = std::max(bend, std::abs((p - path.front()).dot(n)) / chord.norm());
+      s.max_bend = std::max(s.max_bend, bend);
+      (bend < 0.01 ? s.straight : s.curved) += 1;
+    }
+  }
+  return s;
+}
+
+}  // namespace
+
+TEST(RuleZoo, DirectMotionStopsAtItsGapBendsAroundNothingAndKeepsBodiesApart) {
+  const uint64_t fetch = findRule({"fetch: the robot farthest from B1"});
+  for (double gap : {0.0, 0.004, 0.01}) {
+    const tasks::ZooMotion motion{true, gap};
+    const task::TaskDir dir = tasks::generateZoo(fetch, 8, 3, motion);
+    EXPECT_EQ(dir.spec.name.rfind("zoo " + std::to_string(fetch) + motion.suffix() + " fetch: ", 0), 0u)
+        << dir.spec.name;
+    // The person stops `gap` short of the box: what training learns as the end point.
+    const task::EndPointModel learned = task::learnEndPoints(dir.spec, dir.demos);
+    ASSERT_TRUE(learned.by_class.count("robot->object"));
+    const int robot = 0, box = tasks::zooRule(fetch).robots;
+    EXPECT_NEAR(learned.by_class.at("robot->object").offset.x(), -(dir.spec.contactDistance(robot, box) + gap), 2e-4)
+        << gap;
+    // The carried box still rides touching its carrier, and no body passes through another
+    // (the scene is drawn again instead).
+    const DirectShape s = directShape(dir);
+    EXPECT_GT(s.clearance, -0.001) << gap;
+    // Paths are straight or arcs of at most 0.3 chords, bent around nothing.
+    EXPECT_LE(s.max_bend, 0.3 * 1.05 + 0.01) << gap;
+    // Byte-identical for the same options.
+    EXPECT_EQ(tasks::generateZoo(fetch, 8, 3, motion).demos.back().positions, dir.demos.back().positions);
+  }
+  // Over a few rules of every kind: both straight and curved paths, no overlap.
+  int straight = 0, curved = 0;
+  for (uint64_t id : tasks::distinctZooRules(8)) {
+    const DirectShape s = directShape(tasks::generateZoo(id, 3, 2, tasks::ZooMotion{true, 0.004}));
+    EXPECT_GT(s.clearance, -0.001) << tasks::zooRule(id).name;
+    straight += s.straight, curved += s.curved;
+  }
+  EXPECT_GT(straight, 0);
+  EXPECT_GT(curved, 0);
 }

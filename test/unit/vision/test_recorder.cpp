@@ -283,16 +283,16 @@ TEST(Recorder, ARowNeedsEveryEntityMeasuredOnceAndCountsStalePoses) {
   EXPECT_EQ(latest.missing(), all_names);
 
   const std::string first = c.spec.entities[0].name;
-  latest.update(first, {0.3, 0.4}, false, true);
-  latest.update(c.spec.entities[1].name, {0.9, 0.9}, true, false);  // never measured: not a position
-  latest.update("not_in_the_task", {0.5, 0.5}, false, true);
+  latest.update(first, {0.3, 0.4}, false, true, 0.0);
+  latest.update(c.spec.entities[1].name, {0.9, 0.9}, true, false, 0.0);  // never measured: not a position
+  latest.update("not_in_the_task", {0.5, 0.5}, false, true, 0.0);
   EXPECT_FALSE(latest.all().has_value());
   EXPECT_EQ(latest.missing().find(first), std::string::npos);
   EXPECT_NE(latest.missing().find(c.spec.entities[1].name), std::string::npos);
 
   for (size_t i = 1; i < c.spec.entities.size(); ++i)
-    latest.update(c.spec.entities[i].name, {0.1 * static_cast<double>(i), 0.2}, false, true);
-  latest.update(first, {0.35, 0.45}, true, true);  // held by the tracker: the latest pose, stale
+    latest.update(c.spec.entities[i].name, {0.1 * static_cast<double>(i), 0.2}, false, true, 0.0);
+  latest.update(first, {0.35, 0.45}, true, true, 0.0);  // held by the tracker: the latest pose, stale
   const auto p = latest.all();
   ASSERT_TRUE(p.has_value());
   ASSERT_EQ(p->size(), c.spec.entities.size());
@@ -300,6 +300,69 @@ TEST(Recorder, ARowNeedsEveryEntityMeasuredOnceAndCountsStalePoses) {
   EXPECT_EQ((*p)[1], Eigen::Vector2d(0.1, 0.2));
   EXPECT_EQ(latest.missing(), "");
   EXPECT_EQ(latest.stale(), 1);
-  latest.update(first, {0.36, 0.45}, false, true);
+  latest.update(first, {0.36, 0.45}, false, true, 0.0);
   EXPECT_EQ(latest.stale(), 0);
+}
+
+// The first row of a demonstration is every entity's start: the recorder starts only once
+// the scene has been at rest for the label inference's still_s (a robot still being placed
+// would make the demonstration start with a motion, a goal being placed read as moved).
+TEST(Recorder, TheSceneIsAtRestOnlyWhenNothingMovedForStillSeconds) {
+  const RecorderConfig c = shippedConfig();
+  LatestPositions latest(c.spec);
+  const double still_s = latest.stillSeconds();
+  ASSERT_GT(still_s, 0.0);
+  auto all = [&](double t, double dx) {
+    for (size_t i = 0; i < c.spec.entities.size(); ++i)
+      latest.update(c.spec.entities[i].name, {0.1 * static_cast<double>(i) + (i == 0 ? dx : 0.0), 0.5}, false, true, t);
+  };
+  const std::string r1 = c.spec.entities[0].name;
+  // Just seen: not known to be at rest yet.
+  all(0.0, 0.0);
+  EXPECT_NE(latest.moving(0.1), "");
+  // At rest (tracker noise of a millimetre is no motion) for still_s: ready.
+  for (double t = 0.0; t <= still_s + 0.05; t += 0.05) all(t, 0.001 * std::sin(40 * t));
+  EXPECT_EQ(latest.moving(still_s + 0.05), "");
+  // R1 is moved by a hand (2 cm): it is named, the others are not, until it rests again.
+  double t = still_s + 0.1;
+  for (int k = 0; k < 5; ++k, t += 0.05) all(t, 0.005 * k);
+  EXPECT_EQ(latest.moving(t), r1);
+  all(t + still_s / 2, 0.02);
+  EXPECT_EQ(latest.moving(t + still_s / 2), r1);
+  all(t + still_s + 0.01, 0.02);
+  EXPECT_EQ(latest.moving(t + still_s + 0.01), "");
+}
+
+TEST(Recorder, HiddenEntitiesAreNamedWithWhetherToAct) {
+  const RecorderConfig c = shippedConfig();
+  LatestPositions latest(c.spec);
+  size_t goal = 0, robot = 0;
+  for (size_t i = 0; i < c.spec.entities.size(); ++i)
+    (c.spec.entities[i].kind == ddace::task::EntityKind::Goal ? goal : robot) = i;
+  const std::string g = c.spec.entities[goal].name, r = c.spec.entities[robot].name;
+  auto row = [&](double t, bool goal_hidden, bool robot_hidden, double robot_x) {
+    for (size_t i = 0; i < c.spec.entities.size(); ++i) {
+      const bool hidden = (i == goal && goal_hidden) || (i == robot && robot_hidden);
+      latest.update(c.spec.entities[i].name, {i == robot ? robot_x : 0.1 * static_cast<double>(i), 0.5}, hidden, true,
+                    t);
+    }
+    latest.countRow();
+  };
+  row(0.0, false, false, 0.7);
+  EXPECT_EQ(latest.staleRowsReport(), "");
+  // The goal under a parked robot for 3 rows: named, harmless.
+  for (int k = 1; k <= 3; ++k) row(0.1 * k, true, false, 0.7);
+  row(0.4, false, false, 0.7);
+  std::string report = latest.staleRowsReport();
+  EXPECT_NE(report.find(g + " hidden in 3 rows"), std::string::npos) << report;
+  EXPECT_NE(report.find("harmless"), std::string::npos) << report;
+  EXPECT_EQ(report.find("ACT"), std::string::npos) << report;
+  // The robot hidden under a hand while it was carried 10 cm: the user has to act.
+  latest.resetRows();
+  for (int k = 1; k <= 2; ++k) row(0.4 + 0.1 * k, false, true, 0.7);
+  row(0.7, false, false, 0.8);
+  report = latest.staleRowsReport();
+  EXPECT_EQ(report.find(g + " hidden"), std::string::npos) << report;
+  EXPECT_NE(report.find(r + " hidden in 2 rows"), std::string::npos) << report;
+  EXPECT_NE(report.find("ACT"), std::string::npos) << report;
 }
