@@ -48,6 +48,7 @@ struct Wait {
   TokenRef token;
   TokenRef released_by;  ///< the predecessor that ended last before it started
   double ready_s = 0;    ///< when that predecessor ended: the token could start from here
+  double start_s = 0;    ///< when it started (later than ready_s while a decision was awaited)
 };
 
 class Dispatch {
@@ -88,7 +89,8 @@ class Dispatch {
   int violations() const;
   /// From the first decision to the last end (0 before anything ended).
   double makespan() const;
-  /// For every started token that had a predecessor: who released it and when.
+  /// For every started token that had a predecessor: who released it and when (seconds
+  /// from the first decision).
   std::vector<Wait> waits() const;
 
  private:

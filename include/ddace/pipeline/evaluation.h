@@ -81,6 +81,9 @@ struct Evaluation {
   /// and the tokens that started before a predecessor under the learned dependencies ended.
   std::string dispatch;
   int precedence_violations = 0;
+  /// Per trial with a dispatch: every token that had predecessors, "step 2 R3:move:G1 at
+  /// 4.10 s, released by R1:move:R3 at 4.10 s" (who it waited for, and when).
+  std::vector<std::vector<std::string>> waits;
 };
 
 Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOptions& options);

@@ -145,6 +145,8 @@ std::vector<Wait> Dispatch::waits() const {
       w.ready_s = -std::numeric_limits<double>::infinity();
       for (const TokenRef& p : r.predecessors)
         if (at(p).end_s > w.ready_s) w.ready_s = at(p).end_s, w.released_by = p;
+      w.ready_s -= first_decision_s_;
+      w.start_s = r.start_s - first_decision_s_;
       out.push_back(w);
     }
   return out;

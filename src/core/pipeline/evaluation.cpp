@@ -208,6 +208,14 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
       trial.makespan_s = d.makespan();
       e.dispatch = exec::toString(options.dispatch);
       e.precedence_violations += d.violations();
+      e.waits.emplace_back();
+      for (const exec::Wait& w : d.waits()) {
+        char line[256];
+        std::snprintf(line, sizeof line, "step %d %s at %.2f s, released by %s at %.2f s", w.token.step + 1,
+                      task::tokenKey(d.token(w.token), spec).c_str(), w.start_s,
+                      task::tokenKey(d.token(w.released_by), spec).c_str(), w.ready_s);
+        e.waits.back().push_back(line);
+      }
     }
     e.scores.push_back(eval::scoreTrial(spec, gt, trial, gnn));
     e.first_difference.push_back(firstDifference(spec, gt.steps, trial.predicted));
@@ -229,6 +237,8 @@ void printEvaluation(const Evaluation& e, std::ostream& out) {
     out << line;
     if (!s.success && i < e.first_difference.size() && !e.first_difference[i].empty())
       out << "    " << e.first_difference[i] << "\n";
+    if (i < e.waits.size())
+      for (const std::string& w : e.waits[i]) out << "    " << w << "\n";
     if (s.bodies) {
       std::snprintf(line, sizeof line, "    bodies: %d collisions, min clearance %.1f mm, makespan %.1f s\n",
                     s.collisions, s.min_clearance_m * 1000, s.makespan_s);
@@ -309,6 +319,7 @@ std::string evaluationJson(const Evaluation& e) {
       t["failures"] = e.trials[i].failures;
     } else if (!e.dispatch.empty()) {
       j["per_trial"].back()["makespan_s"] = s.makespan_s;
+      if (i < e.waits.size()) j["per_trial"].back()["waits"] = e.waits[i];
     }
   }
   return j.dump(2) + "\n";

@@ -67,6 +67,8 @@ TEST(Dispatch, AsyncStartsATokenWhenItsOwnPredecessorsAreDone) {
   ASSERT_EQ(waits.size(), 2u);
   EXPECT_TRUE(waits[0].released_by == (TokenRef{0, 0}));  // R3 waited for R1
   EXPECT_TRUE(waits[1].released_by == (TokenRef{0, 1}));  // R4 for R2
+  EXPECT_DOUBLE_EQ(waits[0].ready_s, 2);
+  EXPECT_DOUBLE_EQ(waits[1].start_s, 3);
 }
 
 TEST(Dispatch, StepsWaitForEveryEarlierTokenAndAStepsRecordCanBeChecked) {

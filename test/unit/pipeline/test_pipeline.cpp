@@ -106,6 +106,13 @@ TEST_F(Pipeline, AsyncDispatchFinishesTask4SoonerOnPointsWithoutAPrecedenceViola
   const auto j = nlohmann::json::parse(pipeline::evaluationJson(async));
   EXPECT_EQ(j["dispatch"], "async");
   EXPECT_EQ(j["precedence_violations"], 0);
+  // Who each token waited for: R3 for R1, who met it.
+  ASSERT_EQ(async.waits.size(), 4u);
+  bool r3_released_by_r1 = false;
+  for (const std::string& w : async.waits[0])
+    r3_released_by_r1 = r3_released_by_r1 || (w.find("R3:move:G1 at") != std::string::npos &&
+                                              w.find("released by R1:move:R3") != std::string::npos);
+  EXPECT_TRUE(r3_released_by_r1);
 }
 
 TEST_F(Pipeline, AModelOfAnotherTaskIsRefused) {
