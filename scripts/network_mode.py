@@ -13,7 +13,7 @@ graph on one machine (docs/trust-boundary.md).
         what is exposed to whom and the firewall rule the lab needs; else exit 1
 
 On success it prints the mode and stays until interrupted (the launch marks it required:
-its exit 1 ends the launch before anything drives a robot).
+its exit 1 ends the launch before anything drives a robot); --check-only exits 0 instead.
 """
 import argparse
 import ipaddress
@@ -106,9 +106,10 @@ def lab_mode():
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--lab-network", choices=["true", "false"], required=True)
+    parser.add_argument("--check-only", action="store_true", help="exit after the check (0: passed)")
     args, _ = parser.parse_known_args()  # roslaunch appends __name:= and __log:=
     status = lab_mode() if args.lab_network == "true" else loopback_mode()
-    if status != 0:
+    if status != 0 or args.check_only:
         return status
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
     try:
