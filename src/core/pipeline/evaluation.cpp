@@ -167,19 +167,15 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
     execution = std::make_unique<exec::IdealExecution>();
   } else if (options.execution == "diffdrive" && bodies) {
     exec::BodiesExecutionParams p;
+    p.config = options.config;
     p.arrival_radius_m = spec.arrival_radius;
     p.noise_m = options.noise_m;
     p.seed = options.seed;
-    p.gains = options.config.gains;
-    p.robot = options.config.robot;
     // Tracking noise is eval's own (--noise, --seed), not the mock robots' of the config.
     const exec::DiffDriveParams hamster = exec::simulatedHamster();
-    p.robot.position_noise_m = hamster.position_noise_m;
-    p.robot.yaw_noise_rad = hamster.yaw_noise_rad;
-    p.robot.seed = hamster.seed;
-    p.table = options.config.table;
-    p.safety = options.config.safety;
-    p.safety.enabled = filter;
+    p.config.robot.yaw_noise_rad = hamster.yaw_noise_rad;
+    p.config.robot.seed = hamster.seed;
+    p.config.safety.enabled = filter;
     execution = std::make_unique<exec::BodiesExecution>(p);
   } else if (options.execution == "diffdrive") {
     execution = std::make_unique<exec::DiffDriveExecution>(spec.arrival_radius, options.noise_m, options.seed);
