@@ -172,6 +172,9 @@ int main(int argc, char** argv) {
           if (!task::sameSteps(data.truth.demos[d].steps, data.inferred.demos[d].steps))
             std::cout << "demo " << d << "\n  true:    " << stepsText(data.truth.demos[d], dir.spec)
                       << "\n  inferred:" << stepsText(data.inferred.demos[d], dir.spec) << "\n";
+        for (size_t d = 1; show && d < data.notes.size(); ++d)
+          for (const auto& n : data.notes[d])
+            std::cout << "  demo " << d << " line " << n.row + 2 << ": " << n.message << "\n";
         table << " " << fixed(acc) << " |";
         if (acc < worst) worst = acc, worst_style = styles[k].name;
         by_style[k].add(data.score);

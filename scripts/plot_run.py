@@ -2,8 +2,8 @@
 """Draw one run of the execution graph as one view of the whole table: every body's
 footprint where it started (dashed) and where it ended (solid), every planned path (thin,
 with its +-2 sigma band) and every executed path, one colour per entity, the goals as flat
-prints, and the run's closest approach between two bodies marked in red (with its
-clearance; collisions are listed in the title). Reads the run.json that
+prints, and the run's closest approach between two bodies (with its clearance): red
+only when that pair collided, else grey; collisions are listed in the title. Reads the run.json that
 execution_monitor_node writes into the run directory.
 
 usage: scripts/plot_run.py RUN_DIR/run.json OUT.png
@@ -66,17 +66,27 @@ def main():
             else:
                 ax.add_patch(Circle(b[key], r, fill=False, ec=c, ls=style, lw=1.2))
         if "end" in b:
-            ax.annotate(b["name"], b["end"], fontsize=8, ha="center", va="center", color="black")
+            # Goals are labelled below their print, bodies above theirs: a box on its goal
+            # keeps both names legible.
+            below = flat
+            ax.annotate(b["name"], b["end"], fontsize=8, ha="center", va="top" if below else "bottom",
+                        xytext=(0, -(r * 400 + 2) if below else (r * 400 + 2)), textcoords="offset points",
+                        color="black", bbox=dict(boxstyle="round,pad=0.15", fc="white", ec=c, alpha=0.8, lw=0.6))
     near = run.get("closest")
     if near:
+        # Red is for an alarm only: the closest pair collided. Otherwise the closest approach
+        # is information (grey).
+        hits = run.get("collisions") or []
+        alarm = any({h["a"], h["b"]} == {near["a"], near["b"]} for h in hits)
+        tone = "red" if alarm else "dimgrey"
         (xa, ya), (xb, yb) = near["at_a"], near["at_b"]
-        ax.plot([xa, xb], [ya, yb], color="red", lw=2.5)
+        ax.plot([xa, xb], [ya, yb], color=tone, lw=2.5 if alarm else 1.2, ls="-" if alarm else ":")
         for name, at in ((near["a"], near["at_a"]), (near["b"], near["at_b"])):
             r = next((b.get("radius_m", 0.02) for b in bodies if b["name"] == name), 0.02)
-            ax.add_patch(Circle(at, r, fill=False, ec="red", lw=1.5))
-        ax.annotate("closest: %s-%s %.1f cm at t=%.1fs" % (near["a"], near["b"], 100 * near["clearance_m"],
-                                                           near["time_s"]),
-                    ((xa + xb) / 2, (ya + yb) / 2), fontsize=8, color="red", xytext=(6, 6),
+            ax.add_patch(Circle(at, r, fill=False, ec=tone, lw=1.5 if alarm else 0.8, ls="-" if alarm else ":"))
+        ax.annotate("%s: %s-%s %.1f cm at t=%.1fs" % ("collision" if alarm else "closest approach", near["a"],
+                                                        near["b"], 100 * near["clearance_m"], near["time_s"]),
+                    ((xa + xb) / 2, (ya + yb) / 2), fontsize=8, color=tone, xytext=(6, 6),
                     textcoords="offset points")
     ax.set_aspect("equal")
     ax.autoscale_view()

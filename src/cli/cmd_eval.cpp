@@ -12,7 +12,7 @@ using namespace ddace::pipeline;
 namespace {
 
 int runEval(const std::vector<std::string>& argv) {
-  Args args(argv, {"--json", "--execution", "--noise", "--seed", "--config"},
+  Args args(argv, {"--json", "--execution", "--noise", "--seed", "--config", "--dispatch"},
             {"--allow-other-task", "--no-bodies", "--no-filter"});
   args.expectAtMostPositional(2);
   const std::string model_dir = args.positional(0, "MODELDIR");
@@ -43,6 +43,13 @@ int runEval(const std::vector<std::string>& argv) {
     o.config = exec::readExecutionConfig(args.get("--config", ""));
   }
 
+  if (args.has("--dispatch")) {
+    o.dispatch = exec::parseDispatchMode(args.get("--dispatch", ""), "--dispatch");
+    if (o.execution != "diffdrive" || o.bodies)
+      throw Error(
+          "--dispatch schedules the tokens of points (--execution diffdrive --no-bodies); with bodies the "
+          "motions of one step run together and several steps' at once are not simulated yet");
+  }
   const task::TaskDir test = task::loadTaskDir(test_dir);
   const ModelForTask bound =
       modelForTask(loadModel(model_dir), model_dir, test, test_dir, args.has("--allow-other-task"));
@@ -57,21 +64,23 @@ int runEval(const std::vector<std::string>& argv) {
   return 0;
 }
 
-DDACE_COMMAND({"eval",
-               "ddace eval MODELDIR TESTDIR|GENERATED_DIR [--json FILE] [--execution ideal|diffdrive] [--noise "
-               "SIGMA_M] [--seed S] "
-               "[--no-bodies] [--no-filter] [--config EXECUTION_YAML] [--allow-other-task]",
-               "run the learned task in closed loop on every test demonstration's start configuration and "
-               "report OSR, SSR, GCR and FD (a model of another task is refused unless --allow-other-task; a test set "
-               "of the same task with other numbers of robots, goals or boxes runs the model bound by kind, with a "
-               "note, where the rule it learned is stated by the scene). "
-               "ideal: every entity traverses its path exactly (the paper). diffdrive: the robots of a step drive "
-               "together on the simulated table with bodies, each through its safety filter; every trial reports "
-               "its collisions, minimum clearance and makespan, and a collision fails it (--no-filter: without "
-               "the filter; --no-bodies: points, each motion alone; --config: the follower gains, safety filter, "
-               "simulated Hamster and table of an execution config such as config/execution.yaml, whose values "
-               "are the built-in defaults; its position noise is --noise's)",
-               runEval});
+DDACE_COMMAND(
+    {"eval",
+     "ddace eval MODELDIR TESTDIR|GENERATED_DIR [--json FILE] [--execution ideal|diffdrive] [--noise SIGMA_M] "
+     "[--seed S] [--no-bodies] [--no-filter] [--config EXECUTION_YAML] [--dispatch steps|async] [--allow-other-task]",
+     "run the learned task in closed loop on every test demonstration's start configuration and "
+     "report OSR, SSR, GCR and FD (a model of another task is refused unless --allow-other-task; a test set "
+      "of the same task with other numbers of robots, goals or boxes runs the model bound by kind, with a "
+      "note, where the rule it learned is stated by the scene). "
+     "ideal: every entity traverses its path exactly (the paper). diffdrive: the robots of a step drive "
+     "together on the simulated table with bodies, each through its safety filter; every trial reports "
+     "its collisions, minimum clearance and makespan, and a collision fails it (--no-filter: without "
+     "the filter; --no-bodies: points, each motion alone; --config: the follower gains, safety filter, "
+     "simulated Hamster and table of an execution config such as config/execution.yaml, whose values "
+     "are the built-in defaults; its position noise is --noise's). --dispatch (points): steps, every token of a "
+     "step after the last step ended (the default), or async, each token when its own predecessors under "
+     "the model's learned dependencies ended; prints the makespan and the precedence violations",
+     runEval});
 
 }  // namespace
 }  // namespace ddace::cli

@@ -11,6 +11,31 @@
 namespace ddace::cli {
 namespace {
 
+/// Which earlier tokens each token waits for (graph/dependencies.h).
+void printDependencies(const graph::Dependencies& d) {
+  if (!d.learned) {
+    std::cout << "\ndependencies: not in this manifest (trained before they were learned): every token waits for "
+                 "every earlier one (step by step)\n";
+    return;
+  }
+  std::cout
+      << "\ndependencies over " << d.demonstrations
+      << " demonstrations: a token waits for the earlier tokens whose entities (its own, its target, its load) it "
+         "involves, and for those below marked 'waits'\n";
+  if (d.evidence.empty()) {
+    std::cout << "  no demonstration shows a token waiting for, or starting before the end of, a token it shares no "
+                 "entity with\n";
+    return;
+  }
+  std::cout << "  " << std::left << std::setw(20) << "token" << std::setw(20) << "after" << std::right << std::setw(14)
+            << "shown waiting" << std::setw(15) << "started early"
+            << "  decision\n";
+  for (const graph::WaitEvidence& e : d.evidence)
+    std::cout << "  " << std::left << std::setw(20) << e.token << std::setw(20) << e.after << std::right
+              << std::setw(14) << e.shown_waiting << std::setw(15) << e.started_early << "  "
+              << (e.waits() ? "waits" : "does not wait") << "\n";
+}
+
 int runInspect(const std::vector<std::string>& argv) {
   Args args(argv, {}, {"--loss"});
   const std::string dir = args.positional(0, "MODELDIR");
@@ -112,6 +137,7 @@ int runInspect(const std::vector<std::string>& argv) {
                 : info.variant == tgn::Variant::Scene ? " (E' lifted to entity kinds, both directions, plus self-loops)"
                                                       : " (every pair, plus self-loops)")
             << "\n";
+  printDependencies(info.dependencies);
   if (args.has("--loss")) {
     std::cout << "\nepoch,loss,step_accuracy,seconds\n";
     for (const auto& r : info.history)
@@ -123,7 +149,7 @@ int runInspect(const std::vector<std::string>& argv) {
 DDACE_COMMAND(
     {"inspect", "ddace inspect MODELDIR [--loss]",
      "check every file of a model directory (digests, task fingerprint) and print its task, network, training "
-     "result and refined edge set E'",
+     "result, refined edge set E' and which earlier tokens each token waits for",
      runInspect});
 
 }  // namespace

@@ -15,6 +15,27 @@ namespace ddace::ros_exec {
 
 using rosparam::param;
 
+ddace::WheelCommand toMsg(const exec::WheelSpeeds& wheels) {
+  ddace::WheelCommand m;
+  m.header.stamp = ros::Time::now();
+  m.left_mps = wheels.left_mps;
+  m.right_mps = wheels.right_mps;
+  return m;
+}
+
+ddace::SegmentStatus statusMsg(const std::string& entity, uint32_t segment_id, uint8_t status, double progress,
+                               double distance_to_goal_m, const std::string& message) {
+  ddace::SegmentStatus s;
+  s.header.stamp = ros::Time::now();
+  s.entity = entity;
+  s.segment_id = segment_id;
+  s.status = status;
+  s.progress = progress;
+  s.distance_to_goal_m = distance_to_goal_m;
+  s.message = message;
+  return s;
+}
+
 task::TaskSpec loadTaskSpec(const std::string& task_path) {
   namespace fs = std::filesystem;
   if (task_path.empty()) throw Error("no task given (parameter 'task': a task directory or its task.yaml)");

@@ -14,6 +14,8 @@
 #include <ddace/Decision.h>
 #include <ddace/EntityArray.h>
 #include <ddace/Segment.h>
+#include <ddace/SegmentStatus.h>
+#include <ddace/WheelCommand.h>
 #include <ddace/Token.h>
 #include <nav_msgs/Path.h>
 
@@ -25,6 +27,12 @@
 #include "ddace/task/task_dir.h"
 
 namespace ddace::ros_exec {
+
+/// A wheel command stamped now.
+ddace::WheelCommand toMsg(const exec::WheelSpeeds& wheels);
+/// A segment status of `entity` stamped now.
+ddace::SegmentStatus statusMsg(const std::string& entity, uint32_t segment_id, uint8_t status, double progress,
+                               double distance_to_goal_m, const std::string& message);
 
 /// The task spec from a task directory or a task.yaml path. Throws ddace::Error; a
 /// relative path is refused (nodes run in ROS_HOME, not in the caller's directory).

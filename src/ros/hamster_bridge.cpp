@@ -5,6 +5,7 @@
 #include <ros/ros.h>
 #include <diagnostic_updater/diagnostic_updater.h>
 
+#include <algorithm>
 #include <atomic>
 #include <memory>
 #include <mutex>
@@ -16,15 +17,42 @@
 
 #include "ddace/common/clock.h"
 #include "ddace/common/error.h"
+#include "ddace/task/task_spec.h"
 #include "ddace/hamster/config.h"
 #include "ddace/hamster/link.h"
 #include "ddace/ros/hamster_conversions.h"
 
+#include "command_sources.h"
 #include "params.h"
 
 namespace ddace::nodes {
 
 using namespace hamster;
+
+namespace {
+
+/// The robots of the task in `task_dir` (~task, as the launch files pass it): only they are
+/// connected. The configured robots the task does not have are named, so that a config
+/// of another task never goes unnoticed.
+std::vector<std::string> taskRobots(const std::string& task_dir, const BridgeConfig& config,
+                                    const std::string& config_path) {
+  const task::TaskSpec spec = task::readTaskYaml(task_dir + "/task.yaml");
+  std::vector<std::string> robots;
+  std::string others;
+  for (const auto& e : spec.entities)
+    if (e.kind == task::EntityKind::Robot) robots.push_back(e.name);
+  for (const auto& r : config.robots)
+    if (std::find(robots.begin(), robots.end(), r.name) == robots.end())
+      others += (others.empty() ? "" : ", ") + r.name;
+  if (!others.empty())
+    ROS_WARN(
+        "hamster_bridge: %s also configures %s, which task '%s' does not have: not connected (no action "
+        "needed; remove them from the file to silence this)",
+        config_path.c_str(), others.c_str(), spec.name.c_str());
+  return robots;
+}
+
+}  // namespace
 
 class HamsterBridgeNode::Impl {
  public:
@@ -35,17 +63,21 @@ class HamsterBridgeNode::Impl {
     config_ = loadBridgeConfig(config_path);
     config_.port_dir = ddace::rosparam::param(pnh, "port_dir", config_.port_dir);
     config_.scan = ddace::rosparam::param(pnh, "scan", config_.scan);
-    const auto only = ddace::rosparam::param(pnh, "robots", std::vector<std::string>{});
+    auto only = ddace::rosparam::param(pnh, "robots", std::vector<std::string>{});
+    const std::string task = ddace::rosparam::param<std::string>(pnh, "task", "");
+    if (!task.empty() && only.empty()) only = taskRobots(task, config_, config_path);
     updater_.setHardwareID("hamster_bridge");
     auto ports = std::make_shared<PortDirectory>();
     for (const auto& r : selectRobots(config_, only, "parameter ~robots", config_path)) {
-      auto robot = std::make_unique<Robot>();
+      auto robot = std::make_unique<Robot>(ddace::ros_command::load(pnh, r.name));
       robot->link = std::make_unique<RobotLink>(r, config_, ports, transportFactoryFor(r, config_));
       const std::string base = "/robots/" + r.name;
       Robot* raw = robot.get();
       robot->sensors = nh.advertise<ddace::HamsterSensors>(base + "/sensors", 10);
       robot->wheels = nh.subscribe<ddace::WheelCommand>(
-          base + "/wheels", 1, [this, raw](const ddace::WheelCommand::ConstPtr& m) { onWheels(*raw, *m); },
+          base + "/wheels", 1,
+          boost::function<void(const ros::MessageEvent<const ddace::WheelCommand>&)>(
+              [this, raw](const ros::MessageEvent<const ddace::WheelCommand>& ev) { onWheels(*raw, ev); }),
           ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
       robot->effects = nh.subscribe<ddace::HamsterEffects>(
           base + "/effects", 1, [this, raw](const ddace::HamsterEffects::ConstPtr& m) { onEffects(*raw, *m); });
@@ -53,8 +85,9 @@ class HamsterBridgeNode::Impl {
                    [this, raw](diagnostic_updater::DiagnosticStatusWrapper& s) { diagnose(*raw, s); });
       const std::string reach = r.transport == TransportKind::Ble ? "direct BLE via " + r.ble_adapter
                                                                   : "port hints [" + join(r.port_hints) + "]";
-      ROS_INFO("hamster_bridge: %s = %s (%s), %s", r.name.c_str(), r.address.display().c_str(),
-               r.model == Model::Unknown ? "model auto" : modelName(r.model).c_str(), reach.c_str());
+      ROS_INFO("hamster_bridge: %s = %s (%s), %s; wheel commands from [%s] only", r.name.c_str(),
+               r.address.display().c_str(), r.model == Model::Unknown ? "model auto" : modelName(r.model).c_str(),
+               reach.c_str(), raw->sources.allowedList().c_str());
       robots_.push_back(std::move(robot));
     }
     ROS_INFO("hamster_bridge: %zu robots; ports under %s, scanning [%s]", robots_.size(), config_.port_dir.c_str(),
@@ -109,6 +142,9 @@ class HamsterBridgeNode::Impl {
 
  private:
   struct Robot {
+    explicit Robot(CommandSources s) : sources(std::move(s)) {}
+    CommandSources sources;  // guarded by mutex_, as the link
+    uint64_t diag_foreign = 0;
     std::unique_ptr<RobotLink> link;
     ros::Publisher sensors;
     ros::Subscriber wheels, effects;
@@ -143,11 +179,13 @@ class HamsterBridgeNode::Impl {
     }
   }
 
-  void onWheels(Robot& r, const ddace::WheelCommand& m) {
+  void onWheels(Robot& r, const ros::MessageEvent<const ddace::WheelCommand>& ev) {
+    const ddace::WheelCommand& m = *ev.getMessage();
     // The stale-stamp rule is RobotLink's (command_max_age_s); the age is on ROS time.
-    std::optional<double> age;
-    if (!m.header.stamp.isZero()) age = (ros::Time::now() - m.header.stamp).toSec();
+    // Unstamped commands never get here (the interlock refuses them).
+    const double age = (ros::Time::now() - m.header.stamp).toSec();
     std::lock_guard<std::mutex> lock(mutex_);
+    if (!ddace::ros_command::accept(r.sources, ev, "hamster_bridge", r.link->robot().name)) return;
     try {
       r.link->setWheelCommand(m.left_mps, m.right_mps, monotonicS(), age);
     } catch (const ddace::Error& e) {
@@ -173,6 +211,7 @@ class HamsterBridgeNode::Impl {
     Model model;
     double last_line, battery_v;
     LinkHealth health;
+    std::optional<CommandSources> sources;
     const double now = monotonicS();
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -184,6 +223,7 @@ class HamsterBridgeNode::Impl {
       battery_v = r.link->batteryV();
       // A flapping link must show even if it happens to be up at the moment of the report.
       health = r.link->health(now, st.link_losses - r.diag_losses);
+      sources = r.sources;
     }
     double rate = 0.0;
     if (r.diag_time_s > 0 && now > r.diag_time_s) rate = (st.lines_ok - r.diag_lines) / (now - r.diag_time_s);
@@ -216,6 +256,14 @@ class HamsterBridgeNode::Impl {
     s.add("battery (V)", battery_v);
     s.add("signal (dBm)", r.last_rssi_dbm.load());
     s.add("last error", st.last_error);
+    s.add("command sources", sources->allowedList());
+    s.add("foreign commands", sources->foreignReport());
+    s.add("unstamped commands", sources->unstampedReport());
+    // A node the launch did not name is publishing wheel commands right now: say so.
+    if (sources->foreign() > r.diag_foreign)
+      s.mergeSummary(diagnostic_msgs::DiagnosticStatus::WARN,
+                     "wheel commands from " + sources->lastForeign() + " refused (not a command source)");
+    r.diag_foreign = sources->foreign();
   }
 
   BridgeConfig config_;

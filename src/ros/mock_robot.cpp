@@ -17,6 +17,7 @@
 #include <ddace/SegmentStatus.h>
 #include <ddace/WheelCommand.h>
 
+#include "command_sources.h"
 #include "exec_conversions.h"
 #include "params.h"
 #include "ddace/exec/scene.h"
@@ -70,10 +71,15 @@ class MockRobotNode::Impl {
       const auto& te = spec_.entities[i];
       const int k = static_cast<int>(i);
       if (te.kind == task::EntityKind::Robot) {
-        subs_.push_back(nh.subscribe<ddace::WheelCommand>("/robots/" + te.name + "/wheels", 10,
-                                                          [this, k](const ddace::WheelCommand::ConstPtr& m) {
-                                                            sim_->commandWheels(k, {m->left_mps, m->right_mps});
-                                                          }));
+        // Wheel commands count from the nodes the launch names only, as on the real bridge.
+        auto& sources = sources_.emplace(k, ros_command::load(pnh, te.name)).first->second;
+        subs_.push_back(nh.subscribe<ddace::WheelCommand>(
+            "/robots/" + te.name + "/wheels", 10,
+            boost::function<void(const ros::MessageEvent<const ddace::WheelCommand>&)>(
+                [this, k, &sources, name = te.name](const ros::MessageEvent<const ddace::WheelCommand>& ev) {
+                  if (ros_command::accept(sources, ev, "mock_robots", name))
+                    sim_->commandWheels(k, {ev.getMessage()->left_mps, ev.getMessage()->right_mps});
+                })));
         // A carrier's segments and their ends: its load rides with it (issue 23: in every
         // simulator a carried object stays in front of its carrier).
         subs_.push_back(
@@ -263,7 +269,8 @@ class MockRobotNode::Impl {
   std::map<int, Running> running_;  ///< each entity's running segment (robots: as sent to their follower)
   size_t contacts_seen_ = 0;        ///< contacts already logged
   std::string frame_id_;
-  bool publish_tf_ = true;  // set from the parameters
+  bool publish_tf_ = true;                 // set from the parameters
+  std::map<int, CommandSources> sources_;  ///< by robot index: whose wheel commands count
   std::vector<ros::Subscriber> subs_;
   std::map<int, ros::Publisher> status_pubs_;  ///< by object index
   ros::Publisher entities_pub_;

@@ -2,6 +2,8 @@
 #include "ddace/ros/sim_table.h"
 
 #include <chrono>
+#include <cmath>
+#include <utility>
 #include <map>
 #include <memory>
 #include <set>
@@ -34,11 +36,9 @@ class SimTableNode::Impl {
     const SimTableNode::Params defaults;
     const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
     const task::TaskSpec spec = loadSpec(pnh, task_path);
-    const auto table = rosparam::param(pnh, "table_size", defaults.table_size);
-    if (table.size() != 2)
-      throw Error("parameter '" + pnh.resolveName("table_size") + "' must be [width, depth] in metres");
+    const auto [table_min, table_max] = tableExtent(pnh, defaults);
     const auto start =
-        ros_exec::loadScene(pnh, spec, task_path, [&] { return exec::layoutScene(spec, table[0], table[1]); });
+        ros_exec::loadScene(pnh, spec, task_path, [&] { return exec::layoutScene(spec, table_min, table_max); });
     sim_ = std::make_unique<exec::SimTable>(spec, start, ros_exec::loadDiffDriveParams(ros::NodeHandle(pnh, "robot")));
     frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
     const std::string wheels = rosparam::param(pnh, "wheels", defaults.wheels);
@@ -76,12 +76,35 @@ class SimTableNode::Impl {
   static task::TaskSpec loadSpec(ros::NodeHandle& pnh, const std::string& task_path) {
     const std::string recorder = rosparam::param<std::string>(pnh, "recorder_file", "");
     const std::string markers = rosparam::param<std::string>(pnh, "markers_file", "");
-    if (task_path.empty() == recorder.empty() || recorder.empty() != markers.empty())
+    if (task_path.empty() == recorder.empty() || (!recorder.empty() && markers.empty()))
       throw Error("give either '" + pnh.resolveName("task") + "' (a task directory) or '" +
                   pnh.resolveName("recorder_file") + "' and '" + pnh.resolveName("markers_file") +
                   "' (the task being recorded)");
     if (!task_path.empty()) return ros_exec::loadTaskSpec(task_path);
     return vision::loadRecorderConfig(recorder, vision::loadMarkerConfig(markers)).spec;
+  }
+
+  /// Where a scene is laid out: between the corner markers of ~markers_file, else on
+  /// ~table_size from the origin (also when it is given).
+  static std::pair<Eigen::Vector2d, Eigen::Vector2d> tableExtent(ros::NodeHandle& pnh,
+                                                                 const SimTableNode::Params& defaults) {
+    const std::string markers = rosparam::param<std::string>(pnh, "markers_file", "");
+    const auto size = rosparam::optionalParam<std::vector<double>>(pnh, "table_size");
+    if (size && size->size() != 2)
+      throw Error("parameter '" + pnh.resolveName("table_size") + "' must be [width, depth] in metres");
+    if (!size && !markers.empty()) {
+      const vision::MarkerConfig config = vision::loadMarkerConfig(markers);
+      if (!config.corners.empty()) {
+        Eigen::Vector2d lo(INFINITY, INFINITY), hi(-INFINITY, -INFINITY);
+        for (const auto& c : config.corners) {
+          lo = lo.cwiseMin(Eigen::Vector2d(c.table_xy.x, c.table_xy.y));
+          hi = hi.cwiseMax(Eigen::Vector2d(c.table_xy.x, c.table_xy.y));
+        }
+        return {lo, hi};
+      }
+    }
+    const std::vector<double> wd = size.value_or(defaults.table_size);
+    return {Eigen::Vector2d::Zero(), Eigen::Vector2d(wd[0], wd[1])};
   }
 
   void drive(const std::string& robot, const exec::WheelSpeeds& w, const std::string& source) {

@@ -2,6 +2,9 @@
 // pseudo-terminals. Checks what is on the wire, not what the bridge says it did.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cmath>
@@ -28,6 +31,7 @@ const std::vector<std::string> kRobots = {"R1", "R2", "R3", "R4"};
 
 struct Diag {
   int level = -1;
+  std::string message;
   std::map<std::string, std::string> values;
 };
 
@@ -58,6 +62,7 @@ class World {
                                                        [this](const ddace::HamsterMockState::ConstPtr& m) {
                                                          std::lock_guard<std::mutex> lock(mutex_);
                                                          states_[m->robot] = *m;
+                                                         seen_[m->robot].insert({m->left_units, m->right_units});
                                                        });
     diag_sub_ = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
         "/diagnostics", 50, [this](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
@@ -69,6 +74,7 @@ class World {
                   s.name.compare(s.name.size() - suffix.size(), suffix.size(), suffix) == 0) {
                 Diag& d = diags_[name];
                 d.level = s.level;
+                d.message = s.message;
                 for (const auto& kv : s.values) d.values[kv.key] = kv.value;
                 if (s.level != diagnostic_msgs::DiagnosticStatus::OK) non_ok_seen_.insert(name);
               }
@@ -149,6 +155,10 @@ class World {
     std::lock_guard<std::mutex> lock(mutex_);
     return diags_.count(name) && diags_[name].values.count(key) ? std::stod(diags_[name].values[key]) : -1.0;
   }
+  std::string diagText(const std::string& name, const std::string& key) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return diags_.count(name) && diags_[name].values.count(key) ? diags_[name].values[key] : "";
+  }
 
   void inject(const std::string& robot, const std::string& fault, double duration_s) {
     ddace::HamsterMockFault f;
@@ -173,6 +183,7 @@ class World {
   ros::Subscriber state_sub_, diag_sub_;
   std::vector<ros::Subscriber> sensor_subs_;
   std::map<std::string, ddace::HamsterMockState> states_;
+  std::map<std::string, std::set<std::pair<int, int>>> seen_;  ///< wheel units on the wire, per robot
   std::map<std::string, ddace::HamsterSensors> sensors_;
   std::map<std::string, int> sensor_count_;
   std::map<std::string, Diag> diags_;
@@ -187,6 +198,35 @@ World* world = nullptr;
 class HamsterBridgeTest : public ::testing::Test {
  protected:
   void SetUp() override { world->commandAll(); }
+};
+
+/// A node the launch did not name, publishing stamped wheel commands for as long as it
+/// lives: `rostopic pub` as /intruder (its own process, so its own caller id).
+class Intruder {
+ public:
+  Intruder(const std::string& robot, double mps) {
+    const std::string msg =
+        "{header: {stamp: now}, left_mps: " + std::to_string(mps) + ", right_mps: " + std::to_string(mps) + "}";
+    pid_ = fork();
+    if (pid_ == 0) {
+      execlp("rostopic", "rostopic", "pub", "-s", "-r", "20", ("/robots/" + robot + "/wheels").c_str(),
+             "ddace/WheelCommand", msg.c_str(), "__name:=intruder", static_cast<char*>(nullptr));
+      _exit(127);
+    }
+  }
+  ~Intruder() {
+    if (pid_ <= 0) return;
+    kill(pid_, SIGTERM);
+    int status = 0;
+    for (int i = 0; i < 100 && waitpid(pid_, &status, WNOHANG) == 0; ++i) ros::WallDuration(0.02).sleep();
+    if (waitpid(pid_, &status, WNOHANG) == 0) {  // still there after 2 s
+      kill(pid_, SIGKILL);
+      waitpid(pid_, &status, 0);
+    }
+  }
+
+ private:
+  pid_t pid_ = -1;
 };
 
 }  // namespace
@@ -329,6 +369,62 @@ TEST_F(HamsterBridgeTest, LedsAndSoundReachTheRobotAndBadValuesAreRefused) {
   std::lock_guard<std::mutex> lock(world->mutex_);
   EXPECT_EQ(world->states_["R4"].note, 49);
   EXPECT_TRUE(world->onWire("R1", 30, 30));  // effects never disturb the wheels
+}
+
+TEST_F(HamsterBridgeTest, OnlyTheNamedCommandSourcesDriveTheWheelsAndAStrangerIsNamed) {
+  ASSERT_TRUE(world->wait([&] { return world->allDrivenAsCommanded(); }, 20.0));
+  {
+    std::lock_guard<std::mutex> lock(world->mutex_);
+    world->non_ok_seen_.clear();
+  }
+  // 0.1 m/s is 50 units on R1; the test node, a named source, commands 0.06 m/s (30 units).
+  Intruder intruder("R1", 0.1);
+  ASSERT_TRUE(world->wait(  // wait() holds the lock: read the values directly
+      [&] {
+        const auto& v = world->diags_["R1"].values;
+        return v.count("foreign commands") && std::stod(v.at("foreign commands")) >= 10.0;
+      },
+      20.0))
+      << "the bridge's diagnostics never counted the intruder's commands";
+  {
+    std::lock_guard<std::mutex> lock(world->mutex_);
+    world->seen_["R1"].clear();
+  }
+  ros::WallDuration(1.0).sleep();  // 20 more of the intruder's commands
+  EXPECT_GE(world->diagValue("R1", "foreign commands"), 25.0);
+  const std::string foreign = world->diagText("R1", "foreign commands");
+  EXPECT_NE(foreign.find(", last from /intruder"), std::string::npos) << foreign;
+  EXPECT_EQ(world->diagText("R1", "command sources"), "/hamster_bridge_rostest");
+  EXPECT_EQ(world->diagText("R2", "foreign commands"), "0");
+  std::lock_guard<std::mutex> lock(world->mutex_);
+  const std::set<std::pair<int, int>> follower_only = {{30, 30}};
+  EXPECT_EQ(world->seen_["R1"], follower_only) << "the intruder's 50 units reached the wire";
+  EXPECT_TRUE(world->non_ok_seen_.count("R1")) << "a foreign publisher left R1's diagnostics OK";
+  EXPECT_NE(world->diags_["R1"].message.find("/intruder"), std::string::npos) << world->diags_["R1"].message;
+  EXPECT_TRUE(world->onWire("R2", 25, -20));
+}
+
+TEST_F(HamsterBridgeTest, AnUnstampedCommandIsRefusedAndTheWatchdogStopsTheRobot) {
+  ASSERT_TRUE(world->wait([&] { return world->allDrivenAsCommanded(); }, 20.0));
+  world->silence("R1");
+  const double unstamped_before = std::max(0.0, world->diagValue("R1", "unstamped commands"));
+  {
+    std::lock_guard<std::mutex> lock(world->mutex_);
+    world->seen_["R1"].clear();
+  }
+  ddace::WheelCommand c;  // stamp 0: it would skip the age check
+  c.left_mps = c.right_mps = 0.08;
+  for (int i = 0; i < 50; ++i) {  // 1 s at 50 Hz
+    world->wheels_["R1"].publish(c);
+    ros::WallDuration(0.02).sleep();
+  }
+  ASSERT_TRUE(world->wait([&] { return world->onWire("R1", 0, 0); }, 1.0)) << "R1 kept moving on unstamped commands";
+  ros::WallDuration(0.3).sleep();  // a fresh diagnostics message
+  EXPECT_GE(world->diagValue("R1", "unstamped commands") - unstamped_before, 40.0);
+  const std::string unstamped = world->diagText("R1", "unstamped commands");
+  EXPECT_NE(unstamped.find(", last from /hamster_bridge_rostest"), std::string::npos) << unstamped;
+  std::lock_guard<std::mutex> lock(world->mutex_);
+  EXPECT_EQ(world->seen_["R1"].count({40, 40}), 0u) << "an unstamped command reached the wire";
 }
 
 int main(int argc, char** argv) {

@@ -1,5 +1,6 @@
-// launch/record.launch sim:=true with the shipped recorder and marker files (Task 4's
-// robots R1..R4 and goal G1, laid out in rows): the test steers R2 onto G1 from what the
+// launch/record.launch sim:=true with the files of a task of one's own, as `ddace init`
+// writes them (robots R1, R2 and goal G1, laid out in rows; recorded into the task
+// directory init made, whose task.yaml the recorder accepts): the test steers R2 onto G1 from what the
 // simulated table shows, as a person at the teleop's keys would, between /recorder/start
 // and /recorder/stop. The saved demonstration must hold that motion as the tracker saw it
 // -- R2 from its row onto G1, the others still -- and the label the recorder inferred
@@ -11,6 +12,8 @@
 #include <poll.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <mutex>
 
 namespace {
@@ -89,7 +92,12 @@ TEST(SimRecord, RecordsARobotDrivenOnTheSimulatedTable) {
   ASSERT_TRUE(pnh.getParam("teleop", teleop));
   const exec_test::ScratchDir scratch("sim_record");
   const std::string& dir = scratch;
-  const std::string out = dir + "/demos_task";
+  const std::string out = dir + "/own_task";
+  const std::string tool = (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "ddace").string();
+  ASSERT_EQ(std::system(
+                ("'" + tool + "' init '" + out + "' --robots R1,R2 --goals G1 > '" + dir + "/init.log' 2>&1").c_str()),
+            0)
+      << "ddace init failed (" << dir << "/init.log)";
 
   std::mutex mu;
   std::map<std::string, Pose> truth;
@@ -100,9 +108,9 @@ TEST(SimRecord, RecordsARobotDrivenOnTheSimulatedTable) {
       });
   ros::Publisher wheels = nh.advertise<ddace::WheelCommand>("/robots/R2/wheels", 5);
 
-  exec_test::Launch graph(
-      {launch_file, "sim:=true", "keyboard:=false", "teleop:=false", "rviz:=false", "output_dir:=" + out},
-      dir + "/launch.log");
+  exec_test::Launch graph({launch_file, "sim:=true", "keyboard:=false", "teleop:=false", "rviz:=false",
+                           "markers:=" + out + "/config/markers.yaml", "recorder:=" + out + "/config/recorder.yaml"},
+                          dir + "/launch.log");
   std::string message;
   ASSERT_TRUE(exec_test::trigger("/recorder/start", 40.0, &message)) << "the recorder did not start: " << message;
   ASSERT_EQ(wheels.getNumSubscribers(), 1u) << "sim_table does not listen to /robots/R2/wheels";

@@ -1,11 +1,12 @@
 // The closed-loop simulator's execution model with bodies (`ddace eval --execution
 // diffdrive`): every motion of a step runs at the same time on the simulated table of the
 // mock robots (exec/table_simulator.h: Box2D discs of the task's footprints, objects
-// carried along their own paths or riding with their carriers, pushed when something drives into them). Each robot is
-// steered along its planned path by the path follower's control law (exec/path_follower.h)
-// from its measured pose, and its command goes through the robot's own safety filter
-// (exec/safety_filter.h) fed with the others' poses, as path_follower_node does; without
-// the filter (SafetyParams::enabled false) the bodies still collide, and every collision
+// carried along their own paths or riding with their carriers, pushed when something
+// drives into them). Each robot runs exec::RobotController -- the very control cycle of
+// path_follower_node (path following, safety filter, deadlocks, ended at contact) -- from
+// its measured pose and the others'; what each motion may touch is decided once when the
+// step begins from the step's end points (exec::motionContacts, the node's answer too).
+// Without the filter (safety.enabled false) the bodies still collide, and every collision
 // is counted. A load at its carrier rides in front of it during their step
 // (TableSimulator::ride), part of the carrier's body for its filter.
 //
@@ -32,22 +33,20 @@
 #include <utility>
 
 #include "ddace/exec/clearance.h"
-#include "ddace/exec/path_follower.h"
-#include "ddace/exec/safety_filter.h"
+#include "ddace/exec/execution_config.h"
+#include "ddace/exec/robot_controller.h"
 #include "ddace/exec/simulator.h"
 #include "ddace/exec/table_simulator.h"
+#include "ddace/task/end_point.h"
 
 namespace ddace::exec {
 
 struct BodiesExecutionParams {
-  double arrival_radius_m =
-      0.03;            ///< the task's; the control law stops within task::stopRadius of it (3 sigma of noise)
-  double noise_m = 0;  ///< std-dev of measured x and y
+  ExecutionConfig config;  ///< the robots' controller, the simulated Hamster, the table (bodies)
+  /// The task's; each motion stops within task::stopRadius of it (3 sigma of the noise).
+  double arrival_radius_m = task::kDefaultArrivalRadius;
+  double noise_m = 0;  ///< std-dev of measured x and y (the simulated Hamster's noise is replaced)
   uint64_t seed = 1;
-  FollowerGains gains;  ///< the path follower's own, as its node has them (its arrival radius is set from the above)
-  DiffDriveParams robot = simulatedHamster();   ///< as the mock robots' (noise: noise_m)
-  SafetyParams safety;                          ///< enabled = false: the follower's command goes to the wheels
-  TableSimulatorParams table{/*bodies=*/true};  ///< Box2D bodies
 };
 
 /// Two bodies in contact have parted when their gap exceeds this (metres): Box2D keeps
@@ -59,7 +58,7 @@ class BodiesExecution : public ExecutionModel {
   /// Throws ddace::Error for invalid parameters, naming the first.
   explicit BodiesExecution(const BodiesExecutionParams& params);
   ~BodiesExecution() override;
-  std::string name() const override { return params_.safety.enabled ? "diffdrive" : "diffdrive-unfiltered"; }
+  std::string name() const override { return params_.config.safety.enabled ? "bodies" : "bodies-unfiltered"; }
   bool bodies() const override { return true; }
   void beginTrial(const task::TaskSpec& spec, const std::vector<Pose2D>& start) override;
   StepExecution executeStep(const task::TaskSpec& spec, const std::vector<task::Token>& tokens,
@@ -71,10 +70,11 @@ class BodiesExecution : public ExecutionModel {
 
  private:
   BodiesExecutionParams params_;
-  FollowerGains gains_;  ///< with the stop radius
+  ControllerParams controller_;
+  double stop_radius_m_ = 0;  ///< task::stopRadius of the arrival radius, with this model's noise
   std::unique_ptr<TableSimulator> table_;
-  std::vector<SafetyFilter> filters_;  ///< one per entity (used for robots)
-  std::vector<double> radius_m_;       ///< every entity's body (0: a goal)
+  std::vector<std::unique_ptr<RobotController>> controllers_;  ///< one per entity (robots only)
+  std::vector<double> radius_m_;                               ///< every entity's body (0: a goal)
   std::vector<bool> robot_;
   std::vector<std::string> names_;
   size_t contacts_seen_ = 0;           ///< table_->contacts() already judged

@@ -43,7 +43,8 @@ struct CarriedObjectParams {
   /// tracker's latency and a box still sliding), seconds.
   double settle_s = 2.0;
   /// An object segment with no carrier segment of its step after this long fails, seconds
-  /// (the coordinator sends a step's segments together).
+  /// (the coordinator sends a step's segments together; a dispatch that released a carrier
+  /// later than its load would need the time it waits here).
   double pairing_s = 1.0;
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;

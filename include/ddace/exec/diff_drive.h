@@ -75,6 +75,10 @@ using ddace::wrapAngle;
 
 /// Converts a body twist (v m/s forward, w rad/s counter-clockwise) to wheel speeds.
 WheelSpeeds twistToWheels(double v_mps, double w_radps, double wheel_base_m);
+/// The unicycle's pose after `dt_s` at forward speed `v_mps` and yaw rate `w_radps`, by
+/// exact arc integration (the pose stays on the unicycle's circle at any rate): the one
+/// integrator of every simulated robot (DiffDriveModel, the mock Hamster).
+Pose2D integrateUnicycle(const Pose2D& pose, double v_mps, double w_radps, double dt_s);
 
 /// One simulated robot. Not thread-safe.
 class DiffDriveModel {

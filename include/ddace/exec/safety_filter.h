@@ -132,36 +132,6 @@ inline BodyShape bodyShape(const task::TaskSpec& spec, int i) {
 bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const Eigen::Vector2d& position,
                  double radius_m, double margin_m);
 
-/// A body as a robot's segment sees it when it starts (the path follower node's view).
-struct BodyAtStart {
-  std::string name;
-  Eigen::Vector2d position{0, 0};        ///< where it is now
-  Eigen::Vector2d final_position{0, 0};  ///< where it ends this step: its segment's end point, else `position`
-  double radius_m = 0;
-  bool object = false;
-  /// Its segment's step, action and target (step -1: no segment), for an object that may
-  /// be the robot's load.
-  int step = -1;
-  std::string action, target;
-};
-/// What a robot's segment may touch, decided once when it starts.
-struct SegmentContacts {
-  std::string load;                            ///< the object it carries ("" = none)
-  std::vector<std::string> ends_against;       ///< bodies its end point touches (SafetyBody::touchable)
-  std::vector<std::string> load_ends_against;  ///< bodies its load's end point touches (load_touchable)
-};
-/// Decides, when a robot's segment (`step`, `action`, `target`, ending at `end_point`)
-/// starts, with the robot at `position`: its load -- an object whose segment has the same
-/// step, action and target (exec::carries) within task::togetherDistance of it (contact plus
-/// `arrival_radius_m`: where the robot counts as at it, as the generators and
-/// TableSimulator::ride decide who rides) -- and the
-/// bodies its end point and its load's end point touch (endsAgainst with `margin_m`, at
-/// the bodies' final positions: one standing there, or ending there this step, not one
-/// only passing by). The same decision exec::BodiesExecution makes for a step.
-SegmentContacts segmentContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
-                                int step, const std::string& action, const std::string& target,
-                                const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m);
-
 /// What the filter decided for one control cycle.
 struct SafetyCommand {
   WheelSpeeds wheels;                 ///< what goes to the wheels

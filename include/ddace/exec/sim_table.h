@@ -17,18 +17,20 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "ddace/exec/diff_drive.h"
 #include "ddace/exec/table_simulator.h"
 #include "ddace/task/task_spec.h"
 
 namespace ddace::exec {
 
-/// Every entity's start pose in `spec`'s order when no demonstration gives one, on a
-/// table of `width_m` x `depth_m` from the origin: robots in a row along the near edge
-/// (facing +y), objects across the middle, goals along the far edge; each row spread
-/// evenly, so no two bodies touch. Throws ddace::Error when a row does not fit (its
-/// bodies would touch or leave the table).
-std::vector<Pose2D> layoutScene(const task::TaskSpec& spec, double width_m, double depth_m);
+/// Every entity's start pose in `spec`'s order when no demonstration gives one, on the
+/// table from corner `min` to corner `max` (metres, table frame): robots in a row along
+/// the near edge (facing +y), objects across the middle, goals along the far edge; each
+/// row spread evenly, so no two bodies touch. Throws ddace::Error when a row does not fit
+/// (its bodies would touch or leave the table).
+std::vector<Pose2D> layoutScene(const task::TaskSpec& spec, const Eigen::Vector2d& min, const Eigen::Vector2d& max);
 
 /// One entity as the camera sees it.
 struct SimEntity {

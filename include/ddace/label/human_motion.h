@@ -83,6 +83,7 @@ LabelScore scoreLabels(const task::Demonstration& truth, const task::Demonstrati
 struct InferredDataset {
   task::TaskDir truth, inferred;
   LabelScore score;
+  std::vector<std::vector<Note>> notes;  ///< [demo] the inference's (none for the example)
 };
 InferredDataset inferredDataset(const task::TaskDir& generated, const HumanMotionOptions& options, uint64_t seed);
 

@@ -69,9 +69,14 @@ struct Motion {
   Eigen::Vector2d start = Eigen::Vector2d::Zero(), end = Eigen::Vector2d::Zero();
   std::vector<Eigen::Vector2d> at_onset;   ///< [entity] positions at on_row
   std::vector<Eigen::Vector2d> at_offset;  ///< [entity] positions at off_row
-  /// [entity] the largest distance to that entity over the motion (load detection).
-  std::vector<double> max_distance;
-  bool resumed = false;  ///< joined from two motions across a pause
+  /// [entity] the largest distance to that entity over the motion (load detection), and
+  /// the smallest (what it touched on its way).
+  std::vector<double> max_distance, min_distance;
+  /// [entity] the mover's least speed while it was closest to that entity (within still_m
+  /// of its least distance), m/s: a stop there.
+  std::vector<double> closest_speed;
+  std::vector<Eigen::Vector2d> closest_at;  ///< [entity] where the mover was when closest to it
+  bool resumed = false;                     ///< joined from two motions across a pause
   /// Cut where what moved with it changed (label.h): the whole motion's offset (row, time);
   /// the motion's own for one not cut.
   int whole_off_row = -1;
@@ -158,6 +163,8 @@ class MotionSegmenter {
   std::optional<double> restTime(size_t from, size_t to, size_t e, const Eigen::Vector2d& rest) const;
   /// Updates m.max_distance with history row i (rows with a held pose left out).
   void trackDistances(Motion& m, size_t i) const;
+  /// Entity e's speed at history index i, m/s, over the rows of the last still_s / 2.
+  double speed(size_t i, size_t e) const;
   /// Entity e's position at history index i, averaged over 5 rows (fewer at the ends).
   Eigen::Vector2d smoothed(size_t i, size_t e) const;
 

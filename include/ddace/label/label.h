@@ -6,6 +6,7 @@
 #include <functional>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -56,9 +57,10 @@ std::string coarseKindKey(const task::TaskSpec& spec, int mover, int target, int
 /// and which kind of entity it chose when an end point was a tie.
 struct Example {
   std::string source;
-  std::map<std::string, std::string> words;          ///< kindKey / coarseKindKey -> action
-  std::vector<task::Step> steps;                     ///< as labelled
-  std::map<std::string, task::EntityKind> tie_kind;  ///< tied kinds ("goal,object,robot") -> chosen
+  std::map<std::string, std::string> words;  ///< kindKey / coarseKindKey -> action
+  std::vector<task::Step> steps;             ///< as labelled
+  /// tied kinds ("goal,object,robot", and as classes "body,goal") -> the kind chosen
+  std::map<std::string, task::EntityKind> tie_kind;
   /// Reads the example's words off its own motion and labels. Throws ddace::Error naming
   /// `d.source` when it has no labelled motion.
   static Example fromDemonstration(const task::Demonstration& d, const task::TaskSpec& spec);
@@ -93,8 +95,15 @@ class Labeller {
   /// Merges pauses and groups the pending motions; hands over the groups no later row
   /// can change (all of them `at_end`).
   void decide(bool at_end);
-  /// A final group: straight to emit(), or held while the example's alignment is open.
+  /// A final group: joined with the next when together they are the example's step
+  /// (partial_), then place()d.
   void handOver(Group g);
+  /// A group of its own: straight to emit(), or held while the example's alignment is open.
+  void place(Group g);
+  /// The movers of the example's motion step k (none past its last).
+  std::set<int> exampleMovers(size_t k) const;
+  /// How many of each kind `entities` has.
+  std::map<task::EntityKind, int> kindsOf(const std::set<int>& entities) const;
   /// The example's alignment is settled: emits the held groups.
   void settle(bool aligned);
   /// The step(s) of one group (and the example's in-place steps before it) into out_.
@@ -124,6 +133,10 @@ class Labeller {
   bool ex_has_inplace_ = false;
   enum class Alignment { Open, Aligned, NotAligned } alignment_;
   std::vector<Group> held_;  ///< final groups while alignment_ is Open
+  /// A final group with some of the movers of the example's next step, waiting for a
+  /// group with the others (robots of one step started apart).
+  std::optional<Group> partial_;
+  size_t groups_seen_ = 0;  ///< groups place()d
   size_t emitted_groups_ = 0;
   int prev_off_ = -1;    ///< the last emitted group's offset row
   int handed_off_ = -1;  ///< the last offset row of the groups handed over

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "ddace/eval/metrics.h"
+#include "ddace/exec/dispatch.h"
 #include "ddace/exec/execution_config.h"
 #include "ddace/exec/simulator.h"
 #include "ddace/gp/primitives.h"
@@ -67,7 +68,16 @@ struct EvalOptions {
   /// defaults, which config/execution.yaml states; `--config FILE` reads another file's).
   /// Its filter off or its table without bodies turn the above off too.
   exec::ExecutionConfig config;
+  /// diffdrive on points: when each token starts (exec/dispatch.h): steps, or async (its
+  /// own predecessors under the model's learned dependencies). The points do not meet, so
+  /// a trial's tokens take the same time either way and the makespan is their schedule.
+  exec::DispatchMode dispatch = exec::DispatchMode::Steps;
 };
+
+/// Whether the model's decisions read the scene (positions): every variant but a scene
+/// network of a fixed order, whose decisions follow from the steps so far. Async dispatch
+/// asks such a policy for the next step only once every entity has settled.
+bool policyReadsScene(const Model& model);
 
 struct Evaluation {
   std::string task, variant, execution;
@@ -80,6 +90,13 @@ struct Evaluation {
   /// "step K: predicted {R1:move:G2} demonstrated {R2:move:G2}" (K 1-based).
   std::vector<std::string> first_difference;
   eval::Summary summary;
+  /// diffdrive on points: the dispatch the makespans were scheduled with ("" otherwise),
+  /// and the tokens that started before a predecessor under the learned dependencies ended.
+  std::string dispatch;
+  int precedence_violations = 0;
+  /// Per trial with a dispatch: every token that had predecessors, "step 2 R3:move:G1 at
+  /// 4.10 s, released by R1:move:R3 at 4.10 s" (who it waited for, and when).
+  std::vector<std::vector<std::string>> waits;
 };
 
 Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOptions& options);

@@ -15,8 +15,9 @@
 // Parameters (private): the task, either ~task (a task directory or its task.yaml,
 // absolute) or ~recorder_file + ~markers_file (the task record.launch records); where the
 // entities start:
-// ~scene_demo / ~scene_csv (a demonstration's first row), else laid out in rows on a table
-// of ~table_size [width, depth] m; ~scene (map name: [x, y(, yaw)]) over either;
+// ~scene_demo / ~scene_csv (a demonstration's first row), else laid out in rows between
+// the corner markers of ~markers_file (or on ~table_size [width, depth] m from the
+// origin, when given or when there are no corners); ~scene (map name: [x, y(, yaw)]) over either;
 // ~robot/* (exec::DiffDriveParams); ~frame_id.
 #pragma once
 
@@ -40,7 +41,7 @@ class SimTableNode {
     std::string wheels = "mock_hamster";  ///< mock_hamster | commands
     std::string mock_state_topic = "/mock_hamster/state";
     std::string entities_topic = "/ddace/true_entities";
-    std::vector<double> table_size{1.0, 1.0};  ///< the table of config/markers.yaml's corners
+    std::vector<double> table_size{1.0, 1.0};  ///< without corners: as config/markers.yaml's
     std::string frame_id = kTableFrame;
     /// A robot of the task whose wheels are not heard of within this long is reported.
     double wheels_grace_s = 5.0;

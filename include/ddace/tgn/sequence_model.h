@@ -50,6 +50,7 @@
 #include <string>
 #include <vector>
 
+#include "ddace/graph/dependencies.h"
 #include "ddace/graph/refinement.h"
 #include "ddace/task/fingerprint.h"
 #include "ddace/task/task_dir.h"
@@ -272,6 +273,7 @@ struct ModelInfo {
   TrainingPlan plan;                         ///< what the demonstrations decided
   std::vector<std::string> vocabulary;       ///< actions; class 0 of the action head is idle
   graph::RefinedGraph refined;               ///< the spectral refinement (ddace; computed for all variants)
+  graph::Dependencies dependencies;          ///< which earlier tokens each token waits for (graph/dependencies.h)
   double mean[2] = {0, 0}, std[2] = {1, 1};  ///< position normalisation, metres
   double delta_std[2] = {1, 1};              ///< gnn: displacement normalisation, metres per frame
   double frame_dt_s = 0.05;                  ///< gnn: time between rolled-out frames

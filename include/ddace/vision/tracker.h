@@ -116,7 +116,9 @@ struct EntityState {
   bool visible = false;  ///< measured (and accepted) in this frame
   bool stale = true;     ///< never seen, not seen for longer than filter.hold_s, or held
                          ///< while its speed says it may have moved more than
-                         ///< filter.max_drift: never publish it as a current pose
+                         ///< filter.max_drift: never publish it as a current pose. A goal
+                         ///< (a print fixed to the table) once seen is never stale: hidden
+                         ///< under robots parked on it, it keeps its last pose
   double last_seen = 0;  ///< stamp of the last accepted measurement, seconds
   double drift_m = 0;    ///< speed estimate x time since last seen (0 while visible)
 };

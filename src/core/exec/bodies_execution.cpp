@@ -18,38 +18,39 @@ double lengthOf(const Path& p) {
 }
 }  // namespace
 
-BodiesExecution::BodiesExecution(const BodiesExecutionParams& params) : params_(params), gains_(params.gains) {
+BodiesExecution::BodiesExecution(const BodiesExecutionParams& params) : params_(params) {
   if (!(params_.noise_m >= 0) || !std::isfinite(params_.noise_m))
-    throw Error("diffdrive execution: noise_m must be a finite number >= 0");
-  // The one stop rule with this model's own noise as the tolerance (as DiffDriveExecution).
-  gains_.arrival_radius_m =
-      task::stopRadius(params_.arrival_radius_m, std::max(task::kArrivalToleranceM, 3 * params_.noise_m));
-  gains_.validate();
-  params_.robot.position_noise_m = params_.noise_m;
-  params_.robot.validate();
-  params_.safety.validate();
-  params_.table.validate();
+    throw Error("bodies execution: noise_m must be a finite number >= 0");
+  // The one stop rule with this model's own noise as the tolerance.
+  stop_radius_m_ = task::stopRadius(params_.arrival_radius_m, std::max(task::kArrivalToleranceM, 3 * params_.noise_m));
+  controller_.gains = params_.config.gains;
+  controller_.safety = params_.config.safety;
+  controller_.validate();
+  params_.config.robot.position_noise_m = params_.noise_m;
+  params_.config.robot.validate();
+  params_.config.table.validate();
 }
 
 BodiesExecution::~BodiesExecution() = default;
 
 Path BodiesExecution::follow(const Path&, bool, int) {
-  throw Error("diffdrive execution with bodies runs the motions of a step together (executeStep), not one by one");
+  throw Error("execution with bodies runs the motions of a step together (executeStep), not one by one");
 }
 
 void BodiesExecution::beginTrial(const task::TaskSpec& spec, const std::vector<Pose2D>& start) {
-  DiffDriveParams robot = params_.robot;
+  DiffDriveParams robot = params_.config.robot;
   robot.seed = params_.seed * 1000003ULL + (++trials_);  // fresh, reproducible noise per trial
-  table_ = std::make_unique<TableSimulator>(spec, start, robot, params_.table);
+  table_ = std::make_unique<TableSimulator>(spec, start, robot, params_.config.table);
   const size_t n = spec.entities.size();
-  filters_.clear();
+  controllers_.clear();
+  controllers_.resize(n);
   radius_m_.assign(n, 0);
   robot_.assign(n, false);
   names_ = spec.entityNames();
   for (size_t i = 0; i < n; ++i) {
-    filters_.emplace_back(params_.safety, gains_.wheel_base_m, gains_.max_wheel_speed_mps, gains_.max_turn_rate_radps);
     radius_m_[i] = table_->radiusM(static_cast<int>(i));
     robot_[i] = spec.entities[i].kind == task::EntityKind::Robot;
+    if (robot_[i]) controllers_[i] = std::make_unique<RobotController>(names_[i], controller_);
   }
   contacts_seen_ = table_->contacts().size();
   touching_.assign(n * n, PairContact());
@@ -59,47 +60,84 @@ void BodiesExecution::beginTrial(const task::TaskSpec& spec, const std::vector<P
 StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std::vector<task::Token>& tokens,
                                            const std::vector<Eigen::Vector2d>&,
                                            const std::vector<StepMotion>& motions) {
-  if (!table_) throw Error("diffdrive execution: executeStep before beginTrial");
+  if (!table_) throw Error("bodies execution: executeStep before beginTrial");
   const int n = static_cast<int>(table_->size());
   StepExecution out;
   out.executed.resize(motions.size());
   const double t0 = table_->time();
 
-  // A load at its carrier rides in front of it, part of its body for the filter; one
-  // passed from afar moves along its own path.
-  std::vector<int> load_of(n, -1);  // the load riding with each carrier of the step
-  for (size_t i = 0; i < tokens.size(); ++i) {
-    if (!tokens[i].isMotion()) continue;
-    const int load = task::carriedLoad(spec, tokens, i);
-    if (load >= 0 && tokens[i].entity >= 0 && tokens[i].entity < n) {
-      const int carrier = tokens[i].entity, object = tokens[load].entity;
-      if (load_of[carrier] < 0 && table_->carrierOf(object) < 0 && table_->ride(carrier, object))
-        load_of[carrier] = object;
-    }
-  }
-  std::set<std::pair<int, int>> loaded(table_->loadedPairs().begin(), table_->loadedPairs().end());
-
   struct Mover {
-    std::unique_ptr<PathFollower> follower;  ///< robots
     double length_m = 0;
     bool running = true;
   };
   std::vector<Mover> movers(motions.size());
   std::vector<int> motion_of(n, -1);
+  for (size_t m = 0; m < motions.size(); ++m) {
+    const StepMotion& mo = motions[m];
+    if (mo.entity < 0 || mo.entity >= n) throw Error("bodies execution: a motion of an entity outside the task");
+    motion_of[mo.entity] = static_cast<int>(m);
+  }
+
+  // Where the step's bodies end (the motions' end points, else where they stand) and what
+  // each motion may touch: decided once, as the coordinator decides them for the robots'
+  // segments (exec::motionContacts, the path follower node's answer).
+  std::vector<Eigen::Vector2d> final_at(n), start_at(n);
+  std::vector<bool> has_end(n, false);
+  for (int j = 0; j < n; ++j) final_at[j] = start_at[j] = table_->truePose(j).position();
+  for (const StepMotion& mo : motions)
+    if (!mo.planned.empty()) final_at[mo.entity] = mo.planned.back(), has_end[mo.entity] = true;
+  std::vector<BodyAtStart> bodies;
+  for (int j = 0; j < n; ++j) {
+    if (!(radius_m_[j] > 0)) continue;
+    BodyAtStart b;
+    b.name = names_[j], b.position = start_at[j], b.final_position = final_at[j], b.radius_m = radius_m_[j];
+    b.object = spec.entities[j].kind == task::EntityKind::Object;
+    if (const int m = motion_of[j]; m >= 0) {
+      const task::Token& t = tokens.at(motions[m].token);
+      b.step = 0;
+      b.action = t.action;
+      b.target = t.target >= 0 && t.target < n ? names_[t.target] : "";
+    }
+    bodies.push_back(b);
+  }
+  const auto contactsOf = [&](int i) {
+    std::vector<BodyAtStart> others;
+    for (const BodyAtStart& b : bodies)
+      if (b.name != names_[i]) others.push_back(b);
+    const task::Token& t = tokens.at(motions[motion_of[i]].token);
+    return motionContacts(start_at[i], radius_m_[i], final_at[i], 0, t.action,
+                          t.target >= 0 && t.target < n ? names_[t.target] : "", others, controller_.safety.margin_m,
+                          params_.arrival_radius_m);
+  };
+  // Its load at its carrier rides in front of it, part of its body for the filter; one
+  // passed from afar moves along its own path.
+  std::vector<int> load_of(n, -1);  // the load riding with each carrier of the step
+  std::vector<MotionContacts> contacts(n);
+  for (const StepMotion& mo : motions) {
+    if (!mo.robot) continue;
+    contacts[mo.entity] = contactsOf(mo.entity);
+    const int load = spec.entityIndex(contacts[mo.entity].load);
+    if (load >= 0 && !(table_->carrierOf(load) < 0 && table_->ride(mo.entity, load))) {
+      contacts[mo.entity].load.clear();  // another carrier's, or too far to ride
+      contacts[mo.entity].load_ends_against.clear();
+    } else if (load >= 0) {
+      load_of[mo.entity] = load;
+    }
+  }
+  std::set<std::pair<int, int>> loaded(table_->loadedPairs().begin(), table_->loadedPairs().end());
+
   double limit_s = 0;
   int running = 0;
   for (size_t m = 0; m < motions.size(); ++m) {
     const StepMotion& mo = motions[m];
-    if (mo.entity < 0 || mo.entity >= n) throw Error("diffdrive execution: a motion of an entity outside the task");
-    motion_of[mo.entity] = static_cast<int>(m);
     out.executed[m] = {table_->truePose(mo.entity).position()};
     Mover& mv = movers[m];
     mv.length_m = lengthOf(mo.planned);
     if (mo.robot) {
-      mv.follower = std::make_unique<PathFollower>(gains_);
-      mv.follower->setPath(PlannedPath{mo.planned, {}});
-      filters_[mo.entity].reset();
-      limit_s = std::max(limit_s, 3.0 * mv.length_m / gains_.cruise_speed_mps + 10.0);
+      RobotController& c = *controllers_.at(mo.entity);
+      c.start(PlannedPath{mo.planned, {}}, mo.target >= 0 ? names_[mo.target] : std::string(), stop_radius_m_);
+      c.setContacts(contacts[mo.entity]);
+      limit_s = std::max(limit_s, 3.0 * mv.length_m / controller_.gains.cruise_speed_mps + 10.0);
     } else if (spec.entities[mo.entity].kind != task::EntityKind::Object) {
       // A predicted token that moves a goal: a flat print takes no segment (the ROS
       // coordinator refuses it too). The trial fails; the evaluation goes on.
@@ -114,23 +152,12 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
         out.failures.push_back(names_[mo.entity] + ": " + status->message);
         continue;
       }
-      limit_s = std::max(limit_s, 3.0 * mv.length_m / params_.table.object_speed_mps + 10.0);
+      limit_s = std::max(limit_s, 3.0 * mv.length_m / params_.config.table.object_speed_mps + 10.0);
     }
     ++running;
   }
-
-  // Who may touch whom in this step (exec::AllowedContacts, decided once from where the
-  // step's bodies end: the motions' end points, else where they stand): a motion and its
-  // target, a carrier and its load, a motion and a body its end point touches while that
-  // body is at the end point -- not every body near it now: a robot passing by, or driving
-  // into the robot already at its end, is no such body. On the way they keep a margin apart
-  // like any two bodies, and a body that stopped short elsewhere is gone round, not pushed.
-  std::vector<Eigen::Vector2d> final_at(n), start_at(n);
-  std::vector<bool> has_end(n, false);
-  for (int j = 0; j < n; ++j) final_at[j] = start_at[j] = table_->truePose(j).position();
-  for (const StepMotion& mo : motions)
-    if (!mo.planned.empty()) final_at[mo.entity] = mo.planned.back(), has_end[mo.entity] = true;
-  const AllowedContacts allowed(spec, tokens, start_at, final_at, has_end, radius_m_, params_.safety.margin_m);
+  // The collisions are judged by the run report's rule of who may touch whom in the step.
+  const AllowedContacts allowed(spec, tokens, start_at, final_at, has_end, radius_m_, controller_.safety.margin_m);
 
   // A carrier stopped: arrived (its load goes on the last bit to its end alone), or failed
   // (the load stops where it is). The two touch: no collision until they part.
@@ -163,49 +190,19 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
         table_->commandWheels(i, {});  // idle: zeros every cycle, as the follower node
         continue;
       }
-      Mover& mv = movers[m];
-      const FollowerOutput o = mv.follower->compute(measured[i]);
-      if (o.done) {
-        mv.running = false;
-        --running;
-        table_->commandWheels(i, {});
-        endRide(i, true);  // the load arrived with it
-        continue;
-      }
-      const int load = load_of[i];
       others.clear();
       for (int j = 0; j < n; ++j)
         if (j != i && radius_m_[j] > 0) {
           others.push_back({names_[j], measured[j].position(), radius_m_[j], robot_[j]});
           others.back().standing = motion_of[j] < 0 || !movers[motion_of[j]].running;
-          // A motion ends against the bodies decided above; its load against its own.
-          others.back().touchable = allowed.endsAgainstNow(i, j, measured[j].position());
-          others.back().load_touchable = load >= 0 && allowed.endsAgainstNow(load, j, measured[j].position());
         }
-      SafetyBody carried;
-      if (load >= 0) carried = {names_[load], measured[load].position(), radius_m_[load], false};
-      const int target = motions[m].target;
-      const SafetyCommand c = filters_[i].filter(
-          names_[i], measured[i], radius_m_[i], 0.0, o.wheels, o.progress * mv.follower->lengthM(), others,
-          target >= 0 ? names_[target] : std::string(), table_->time(), load >= 0 ? &carried : nullptr);
-      if (c.deadlock || c.stale) {  // the follower node fails the segment: the robot stops there
-        mv.running = false;
-        --running;
-        table_->commandWheels(i, {});
-        endRide(i, false);
-        out.failures.push_back(c.reason);
-        continue;
-      }
-      if (endedAtContact(c, o.distance_to_goal_m, gains_.arrival_radius_m)) {
-        // Ended at contact with a body its motion ends against: arrived, as the follower
-        // node decides it.
-        mv.running = false;
-        --running;
-        table_->commandWheels(i, {});
-        endRide(i, true);
-        continue;
-      }
+      const ControlOutput c = controllers_[i]->cycle(measured[i], false, 0.0, radius_m_[i], others, table_->time());
       table_->commandWheels(i, c.wheels);
+      if (c.state == MotionState::Running) continue;
+      movers[m].running = false;  // done, or failed (a deadlock): the robot stops there
+      --running;
+      endRide(i, c.state == MotionState::Done);  // the load arrived with it, or stops
+      if (c.state == MotionState::Failed) out.failures.push_back(c.message);
     }
     for (const ObjectStatus& s : table_->step()) {
       const int m = motion_of[s.entity];

@@ -27,6 +27,20 @@ WheelSpeeds twistToWheels(double v_mps, double w_radps, double wheel_base_m) {
   return {v_mps - w_radps * wheel_base_m / 2, v_mps + w_radps * wheel_base_m / 2};
 }
 
+Pose2D integrateUnicycle(const Pose2D& pose, double v_mps, double w_radps, double dt_s) {
+  Pose2D out = pose;
+  if (std::abs(w_radps) < 1e-9) {
+    out.x += v_mps * dt_s * std::cos(pose.yaw);
+    out.y += v_mps * dt_s * std::sin(pose.yaw);
+  } else {
+    const double yaw1 = pose.yaw + w_radps * dt_s;
+    out.x += v_mps / w_radps * (std::sin(yaw1) - std::sin(pose.yaw));
+    out.y -= v_mps / w_radps * (std::cos(yaw1) - std::cos(pose.yaw));
+    out.yaw = wrapAngle(yaw1);
+  }
+  return out;
+}
+
 DiffDriveModel::DiffDriveModel(const DiffDriveParams& params, const Pose2D& initial)
     : params_(params), pose_(initial), rng_(params.seed) {
   params_.validate();
@@ -53,16 +67,7 @@ void DiffDriveModel::step() {
   if (!stalled_) {
     const double v = (applied_.left_mps + applied_.right_mps) / 2;
     const double w = (applied_.right_mps - applied_.left_mps) / params_.wheel_base_m;
-    // Exact arc integration: the pose stays on the unicycle's circle at any rate.
-    if (std::abs(w) < 1e-9) {
-      pose_.x += v * dt * std::cos(pose_.yaw);
-      pose_.y += v * dt * std::sin(pose_.yaw);
-    } else {
-      const double yaw1 = pose_.yaw + w * dt;
-      pose_.x += v / w * (std::sin(yaw1) - std::sin(pose_.yaw));
-      pose_.y -= v / w * (std::cos(yaw1) - std::cos(pose_.yaw));
-      pose_.yaw = wrapAngle(yaw1);
-    }
+    pose_ = integrateUnicycle(pose_, v, w, dt);
   }
   time_s_ += dt;
 }

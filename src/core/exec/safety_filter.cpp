@@ -46,27 +46,6 @@ bool endedAtContact(const SafetyCommand& c, double distance_to_end_m, double sto
   return !c.at_contact_with.empty() && distance_to_end_m <= stop_radius_m;
 }
 
-SegmentContacts segmentContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
-                                int step, const std::string& action, const std::string& target,
-                                const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m) {
-  SegmentContacts out;
-  const BodyAtStart* load = nullptr;
-  for (const BodyAtStart& b : bodies)
-    if (b.object && b.step >= 0 && b.step == step && b.action == action && b.target == target &&
-        (b.position - position).norm() <= task::togetherDistance(radius_m + b.radius_m, arrival_radius_m)) {
-      load = &b;
-      out.load = b.name;
-      break;
-    }
-  for (const BodyAtStart& b : bodies) {
-    if (&b == load) continue;
-    if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, margin_m)) out.ends_against.push_back(b.name);
-    if (load && endsAgainst(load->final_position, load->radius_m, b.final_position, b.radius_m, margin_m))
-      out.load_ends_against.push_back(b.name);
-  }
-  return out;
-}
-
 Eigen::Vector2d closestFeasible(const Eigen::Vector2d& z0, const std::vector<HalfPlane>& cs) {
   constexpr double kTol = 1e-10;
   auto feasible = [&](const Eigen::Vector2d& z) {

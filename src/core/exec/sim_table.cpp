@@ -26,7 +26,8 @@ constexpr double kLayoutGapM = 0.01;
 
 }  // namespace
 
-std::vector<Pose2D> layoutScene(const task::TaskSpec& spec, double width_m, double depth_m) {
+std::vector<Pose2D> layoutScene(const task::TaskSpec& spec, const Eigen::Vector2d& min, const Eigen::Vector2d& max) {
+  const double width_m = max.x() - min.x(), depth_m = max.y() - min.y();
   if (!(width_m > 0) || !(depth_m > 0) || !std::isfinite(width_m) || !std::isfinite(depth_m))
     throw Error("a table of " + std::to_string(width_m) + " x " + std::to_string(depth_m) + " m has no room");
   std::vector<Pose2D> poses(spec.entities.size());
@@ -45,7 +46,8 @@ std::vector<Pose2D> layoutScene(const task::TaskSpec& spec, double width_m, doub
                   "s do not fit side by side on a table " + std::to_string(width_m) +
                   " m wide; give their start poses (a demonstration or a scene)");
     for (size_t k = 0; k < row.size(); ++k)
-      poses[row[k]] = {spacing_m * static_cast<double>(k + 1), depth_m * rowFraction(kind), M_PI / 2};
+      poses[row[k]] = {min.x() + spacing_m * static_cast<double>(k + 1), min.y() + depth_m * rowFraction(kind),
+                       M_PI / 2};
   }
   return poses;
 }

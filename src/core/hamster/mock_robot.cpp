@@ -12,6 +12,7 @@
 
 #include "ddace/common/angle.h"
 #include "ddace/common/error.h"
+#include "ddace/exec/diff_drive.h"
 
 namespace ddace::hamster {
 
@@ -172,10 +173,8 @@ void MockRobot::step(double now_s) {
     const double dt = now_s - last_step_s_;
     const auto [vl, vr] = wheelMps(now_s);
     const double v = 0.5 * (vl + vr), w = (vr - vl) / settings_.track_m;
-    const double mid = settings_.theta_rad + 0.5 * w * dt;
-    settings_.x_m += v * std::cos(mid) * dt;
-    settings_.y_m += v * std::sin(mid) * dt;
-    settings_.theta_rad = wrapAngle(settings_.theta_rad + w * dt);
+    const exec::Pose2D p = exec::integrateUnicycle({settings_.x_m, settings_.y_m, settings_.theta_rad}, v, w, dt);
+    settings_.x_m = p.x, settings_.y_m = p.y, settings_.theta_rad = p.yaw;
   }
   last_step_s_ = now_s;
 

@@ -58,22 +58,24 @@ struct Moved {
     fraction = (i + 1 < path.size() ? arc[i] + f * (arc[i + 1] - arc[i]) : arc.back()) / len;
     return i + 1 < path.size() ? Vector2d(path[i] + f * (path[i + 1] - path[i])) : path.back();
   }
-  Vector2d at(double tau) const {
+  /// How far along its generated timing the motion is at tau, [0, 1] of its rows.
+  double progress(double tau) const {
     double q = tau - delay;
-    if (q <= 0) return path.front() + from_shift;
+    if (q <= 0) return 0;
     if (pause > 0 && q > pause_at * duration) q = std::max(pause_at * duration, q - pause);
     const double u = std::min(q / duration, 1.0);
+    if (profile == Profile::Eased || path.size() < 2) return u;
+    // The row whose arc length is the profile's.
+    const double want = covered(profile, u) * arc.back();
+    const size_t i = static_cast<size_t>(std::lower_bound(arc.begin(), arc.end(), want) - arc.begin());
+    double x = static_cast<double>(std::min(i, path.size() - 1));
+    if (i > 0 && i < path.size() && arc[i] > arc[i - 1]) x = (i - 1) + (want - arc[i - 1]) / (arc[i] - arc[i - 1]);
+    return x / static_cast<double>(path.size() - 1);
+  }
+  /// Where it is at `progress` (of its rows), moved from from_shift to to_shift.
+  Vector2d place(double progress) const {
     double fraction = 0;
-    Vector2d p;
-    if (profile == Profile::Eased) {
-      p = atIndex(u * static_cast<double>(path.size() - 1), fraction);
-    } else {  // the index whose arc length is the profile's
-      const double want = covered(profile, u) * arc.back();
-      const size_t i = static_cast<size_t>(std::lower_bound(arc.begin(), arc.end(), want) - arc.begin());
-      double x = static_cast<double>(std::min(i, path.size() - 1));
-      if (i > 0 && i < path.size() && arc[i] > arc[i - 1]) x = (i - 1) + (want - arc[i - 1]) / (arc[i] - arc[i - 1]);
-      p = atIndex(x, fraction);
-    }
+    const Vector2d p = atIndex(progress * static_cast<double>(path.size() - 1), fraction);
     return p + (1 - fraction) * from_shift + fraction * to_shift;
   }
   /// The heading of the path's last centimetre.
@@ -219,7 +221,9 @@ task::Demonstration humanMotion(const task::Demonstration& clean, const task::Ta
     for (size_t i = first_row;; ++i) {
       const double tau = static_cast<double>(i - first_row) * dt;
       if (tau > end + 1e-9) break;
-      for (const auto& mv : moved) pos[mv.entity] = mv.at(tau);
+      // A load keeps to its carrier's timing (their generated rows go together).
+      for (size_t j = 0; j < moved.size(); ++j)
+        pos[moved[j].entity] = moved[j].place(moved[leader[j] >= 0 ? leader[j] : j].progress(tau));
       for (size_t e = 0; e < m; ++e) row_labels[e] = tau <= label_end[e] + 1e-9 ? label[e] : task::Label{};
       emit(row_labels);
     }
@@ -371,11 +375,13 @@ InferredDataset inferredDataset(const task::TaskDir& generated, const HumanMotio
   if (out.truth.demos.empty()) return out;
   const Example example = Example::fromDemonstration(out.truth.demos.front(), generated.spec);
   out.inferred.demos.push_back(out.truth.demos.front());
+  out.notes.emplace_back();
   for (size_t i = 1; i < out.truth.demos.size(); ++i) {
     task::Demonstration d = out.truth.demos[i];
     const Inference inf = inferLabels(d, generated.spec, &example);
     applyLabels(d, inf);
     out.score.add(scoreLabels(out.truth.demos[i], d, inf));
+    out.notes.push_back(inf.notes);
     out.inferred.demos.push_back(std::move(d));
   }
   return out;

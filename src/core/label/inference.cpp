@@ -156,6 +156,9 @@ void MotionSegmenter::startMotion(size_t e) {
   m.start = st.anchor;
   m.at_onset = s.p;
   m.max_distance.assign(s.p.size(), 0);
+  m.min_distance.assign(s.p.size(), std::numeric_limits<double>::infinity());
+  m.closest_speed.assign(s.p.size(), std::numeric_limits<double>::infinity());
+  m.closest_at.assign(s.p.size(), s.p[e]);
   const Eigen::Vector2d away = history_.back().p[e] - st.anchor;
   if (away.norm() > 0) m.start_dir = away.normalized();
   for (size_t i = k; i < history_.size(); ++i) trackDistances(m, i);
@@ -203,8 +206,15 @@ void MotionSegmenter::trackDistances(Motion& m, size_t i) const {
   auto held = [&](size_t e) { return i > 0 && history_[i].p[e] == history_[i - 1].p[e]; };
   if (held(m.entity)) return;
   const auto& p = history_[i].p;
-  for (size_t j = 0; j < p.size(); ++j)
-    if (!held(j)) m.max_distance[j] = std::max(m.max_distance[j], (p[m.entity] - p[j]).norm());
+  for (size_t j = 0; j < p.size(); ++j) {
+    const double d = (p[m.entity] - p[j]).norm();
+    if (!held(j)) m.max_distance[j] = std::max(m.max_distance[j], d);
+    // The slowest it went while closest (within still_m of the closest distance); a held
+    // pose of a resting entity is where it rests.
+    if (d < m.min_distance[j] - o_.still_m) m.closest_speed[j] = std::numeric_limits<double>::infinity();
+    if (d < m.min_distance[j]) m.min_distance[j] = d, m.closest_at[j] = p[m.entity];
+    if (d <= m.min_distance[j] + o_.still_m) m.closest_speed[j] = std::min(m.closest_speed[j], speed(i, m.entity));
+  }
 }
 
 std::optional<double> MotionSegmenter::restTime(size_t from, size_t to, size_t e, const Vector2d& rest) const {
@@ -228,6 +238,14 @@ std::optional<double> MotionSegmenter::restTime(size_t from, size_t to, size_t e
   // Only a correction within the rows it was fitted on and a second around them.
   if (!(t0 >= history_[from].t - 1.0 && t0 <= history_[to].t + 1.0)) return std::nullopt;
   return t0;
+}
+
+double MotionSegmenter::speed(size_t i, size_t e) const {
+  // Over the last still_s / 2 (shorter: noise; longer: a brief stop is averaged away).
+  size_t k = i;
+  while (k > 0 && history_[i].t - history_[k].t < o_.still_s / 2) --k;
+  const double dt = history_[i].t - history_[k].t;
+  return dt > 0 ? (history_[i].p[e] - history_[k].p[e]).norm() / dt : 0;
 }
 
 Vector2d MotionSegmenter::smoothed(size_t i, size_t e) const {

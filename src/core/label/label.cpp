@@ -29,10 +29,15 @@ std::string key(const task::TaskSpec& spec, int mover, int target, int load, boo
   return s;
 }
 
-/// "goal,robot": the kinds among `entities`, sorted, each once.
-std::string tiedKinds(const task::TaskSpec& spec, const std::vector<int>& entities) {
+/// A kind as a tie tells it: with `bodies`, every kind but a goal is a body.
+std::string kindClass(task::EntityKind kind, bool bodies) {
+  return bodies && kind != task::EntityKind::Goal ? "body" : task::toString(kind);
+}
+
+/// "goal,robot": the kinds (classes) among `entities`, sorted, each once.
+std::string tiedKinds(const task::TaskSpec& spec, const std::vector<int>& entities, bool bodies) {
   std::set<std::string> kinds;
-  for (int e : entities) kinds.insert(task::toString(spec.entities[e].kind));
+  for (int e : entities) kinds.insert(kindClass(spec.entities[e].kind, bodies));
   std::string s;
   for (const auto& k : kinds) s += (s.empty() ? "" : ",") + k;
   return s;
@@ -94,6 +99,11 @@ Inference Labeller::finish() {
   segmenter_.finish();
   arrive(segmenter_.take());
   decide(true);
+  if (partial_) {
+    Group last = std::move(*partial_);
+    partial_.reset();
+    place(std::move(last));
+  }
   if (alignment_ == Alignment::Open) settle(held_.size() == ex_motion_.size());
   if (alignment_ == Alignment::Aligned) placeInPlace(ex_inplace_before_.back(), prev_off_ + 1, segmenter_.rows() - 1);
   return take();
@@ -249,7 +259,12 @@ void Labeller::decide(bool at_end) {
         a.end = m.end;
         a.end_dir = m.end_dir;
         a.at_offset = m.at_offset;
-        for (size_t j = 0; j < n; ++j) a.max_distance[j] = std::max(a.max_distance[j], m.max_distance[j]);
+        for (size_t j = 0; j < n; ++j) {
+          a.max_distance[j] = std::max(a.max_distance[j], m.max_distance[j]);
+          if (m.min_distance[j] < a.min_distance[j])
+            a.min_distance[j] = m.min_distance[j], a.closest_speed[j] = m.closest_speed[j],
+            a.closest_at[j] = m.closest_at[j];
+        }
         a.resumed = true;
         continue;
       }
@@ -288,7 +303,12 @@ void Labeller::decide(bool at_end) {
       same->end = m.end;
       same->end_dir = m.end_dir;
       same->at_offset = m.at_offset;
-      for (size_t j = 0; j < n; ++j) same->max_distance[j] = std::max(same->max_distance[j], m.max_distance[j]);
+      for (size_t j = 0; j < n; ++j) {
+        same->max_distance[j] = std::max(same->max_distance[j], m.max_distance[j]);
+        if (m.min_distance[j] < same->min_distance[j])
+          same->min_distance[j] = m.min_distance[j], same->closest_speed[j] = m.closest_speed[j],
+          same->closest_at[j] = m.closest_at[j];
+      }
       continue;
     }
     g.push_back(std::move(m));
@@ -326,19 +346,74 @@ void Labeller::decide(bool at_end) {
       if (when >= h_t) next_check_t_ = std::min(next_check_t_, when);
 }
 
+namespace {
+
+std::set<int> moversOf(const std::vector<Motion>& motions) {
+  std::set<int> out;
+  for (const auto& m : motions) out.insert(m.entity);
+  return out;
+}
+
+}  // namespace
+
+std::map<task::EntityKind, int> Labeller::kindsOf(const std::set<int>& entities) const {
+  std::map<task::EntityKind, int> n;
+  for (const int e : entities) ++n[spec_.entities[e].kind];
+  return n;
+}
+
+std::set<int> Labeller::exampleMovers(size_t k) const {
+  std::set<int> want;
+  if (k < ex_motion_.size())
+    for (const auto& t : ex_motion_[k]->tokens)
+      if (t.isMotion()) want.insert(t.entity);
+  return want;
+}
+
 void Labeller::handOver(Group g) {
+  if (partial_) {
+    // Robots of one step started apart, the first done before the next began: one step
+    // when the example's step has their movers, or as many of each kind (its scene may
+    // have chosen other robots) and the second began within the task's step window.
+    std::set<int> both = moversOf(partial_->motions);
+    bool disjoint = true;
+    for (const int e : moversOf(g.motions)) disjoint = both.insert(e).second && disjoint;
+    double first_on = g.motions.front().on_t, partial_off = 0;
+    for (const auto& m : g.motions) first_on = std::min(first_on, m.on_t);
+    for (const auto& m : partial_->motions) partial_off = std::max(partial_off, m.off_t);
+    const std::set<int> want = exampleMovers(groups_seen_);
+    Group first = std::move(*partial_);
+    partial_.reset();
+    if (disjoint &&
+        (both == want || (first_on - partial_off < spec_.step_window_s && kindsOf(both) == kindsOf(want)))) {
+      for (auto& m : g.motions) first.motions.push_back(std::move(m));
+      for (auto& n : g.notes) first.notes.push_back(std::move(n));
+      g = std::move(first);
+    } else {
+      place(std::move(first));
+    }
+  }
+  // Fewer movers of each kind than the example's step: the rest of it may follow.
+  const std::set<int> movers = moversOf(g.motions), want = exampleMovers(groups_seen_);
+  if (example_ && movers != want && movers.size() < want.size()) {
+    const auto have = kindsOf(movers), need = kindsOf(want);
+    bool part = true;
+    for (const auto& [kind, count] : have) part = part && need.count(kind) && need.at(kind) >= count;
+    if (part) {
+      partial_ = std::move(g);
+      return;
+    }
+  }
+  place(std::move(g));
+}
+
+void Labeller::place(Group g) {
+  ++groups_seen_;
   if (alignment_ != Alignment::Open) return emit(g, alignment_ == Alignment::Aligned);
   // With an example: aligned when its motion steps have the example's moving entities,
   // step by step, and as many steps (known at the end; a step too many settles it now).
   const size_t k = held_.size();
-  bool fits = k < ex_motion_.size();
-  if (fits) {
-    std::set<int> a, b;
-    for (const auto& m : g.motions) a.insert(m.entity);
-    for (const auto& t : ex_motion_[k]->tokens)
-      if (t.isMotion()) b.insert(t.entity);
-    fits = a == b;
-  }
+  const bool fits = k < ex_motion_.size() && moversOf(g.motions) == exampleMovers(k);
   held_.push_back(std::move(g));
   if (!fits) settle(false);
 }
@@ -476,12 +551,23 @@ void Labeller::emit(Group& group, bool aligned) {
             const int want = exampleTarget(m.entity);
             if (std::find(all.begin(), all.end(), want) != all.end()) tok.token.target = want, resolved = true;
           }
-          if (!resolved && example_) {
-            auto it = example_->tie_kind.find(tiedKinds(spec_, all));
+          // The example's choice between the same kinds, else between a goal and the bodies
+          // on it (the goal, or the body touched).
+          for (const bool bodies : {false, true}) {
+            if (resolved || !example_) break;
+            auto it = example_->tie_kind.find(tiedKinds(spec_, all, bodies));
             int found = -1, count = 0;
             if (it != example_->tie_kind.end())
               for (int c : all)
-                if (E[c].kind == it->second) found = c, ++count;
+                if (kindClass(E[c].kind, bodies) == kindClass(it->second, bodies)) found = c, ++count;
+            if (count == 1) tok.token.target = found, resolved = true;
+          }
+          // Else the one end the example has a motion of that kind to (a robot sent to a
+          // robot, never to a goal, in the example).
+          if (!resolved && example_) {
+            int found = -1, count = 0;
+            for (int c : all)
+              if (example_->words.count(kindKey(spec_, m.entity, c, tok.load))) found = c, ++count;
             if (count == 1) tok.token.target = found, resolved = true;
           }
           if (!resolved) {
@@ -507,6 +593,31 @@ void Labeller::emit(Group& group, bool aligned) {
                  "; or a robot carried it",
              m.entity);
       tok.token.action = word(m.entity, tok.token.target, tok.load, m.on_row);
+    }
+  }
+  // What the motion leaves open: a body touched on the way (more than the arrival radius
+  // from where it began and ended), nearly stopping there (a stop without a pause: two
+  // steps?).
+  for (size_t i = 0; i < g.size(); ++i) {
+    const Motion& m = g[i];
+    const InferredToken& tok = tokens[i];
+    if (tok.token.target < 0 || carrier[i] >= 0) continue;
+    // Nearly stopped there: a quarter of its mean speed.
+    const double stop_speed = (m.end - m.start).norm() / std::max(m.off_t - m.on_t, 1e-9) / 4;
+    for (size_t j = 0; j < E.size(); ++j) {
+      const int b = static_cast<int>(j);
+      const double touch = contactDistance(spec_, m.entity, b) + r / 4;
+      const bool load = std::any_of(tokens.begin(), tokens.end(), [&](const InferredToken& t) {
+        return t.token.entity == b && t.carrier == m.entity;
+      });
+      if (b == m.entity || b == tok.token.target || load || contactDistance(spec_, m.entity, b) <= 0 ||
+          m.min_distance[j] > touch || m.closest_speed[j] > stop_speed || (m.closest_at[j] - m.start).norm() <= r ||
+          (m.closest_at[j] - m.end).norm() <= r)
+        continue;
+      note(m.off_row,
+           E[m.entity].name + " touched " + E[b].name + " on its way to " + E[tok.token.target].name +
+               ": one motion, or a step to " + E[b].name + " and another on; taken as one",
+           m.entity);
     }
   }
   // 5. In-place actions of the aligned example step, for the entities that did not move.
@@ -555,7 +666,8 @@ Example Example::fromDemonstration(const task::Demonstration& d, const task::Tas
       ++votes[kindKey(spec, t.token.entity, l.target, t.load)][l.action];
       ++votes[coarseKindKey(spec, t.token.entity, l.target, t.load)][l.action];
       if (!t.tied.empty() && std::find(t.tied.begin(), t.tied.end(), l.target) != t.tied.end())
-        ex.tie_kind[tiedKinds(spec, t.tied)] = spec.entities[l.target].kind;
+        for (const bool bodies : {false, true})
+          ex.tie_kind[tiedKinds(spec, t.tied, bodies)] = spec.entities[l.target].kind;
     }
   for (const auto& [k, words] : votes) {
     auto best =

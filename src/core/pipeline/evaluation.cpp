@@ -168,7 +168,28 @@ std::string firstDifference(const task::TaskSpec& spec, const std::vector<task::
   return "";
 }
 
+/// Each token's time in a trial on points: a robot's control cycles along its executed
+/// path (the points model's default robot), an object its path at cruise speed (carried),
+/// an in-place token none.
+std::vector<std::vector<double>> pointDurations(const task::TaskSpec& spec, const exec::Trial& trial) {
+  std::vector<std::vector<double>> out(trial.predicted.size());
+  const double rate_hz = exec::DiffDriveParams{}.rate_hz, speed = exec::FollowerGains{}.cruise_speed_mps;
+  for (const exec::ExecutedToken& ex : trial.executed) {
+    double length = 0;
+    for (size_t i = 1; i < ex.executed.size(); ++i) length += (ex.executed[i] - ex.executed[i - 1]).norm();
+    const bool robot = spec.entities[static_cast<size_t>(ex.token.entity)].kind == task::EntityKind::Robot;
+    const double steps = ex.executed.empty() ? 0 : static_cast<double>(ex.executed.size() - 1);
+    out.at(static_cast<size_t>(ex.step)).push_back(!ex.token.isMotion() ? 0 : robot ? steps / rate_hz : length / speed);
+  }
+  return out;
+}
+
 }  // namespace
+
+bool policyReadsScene(const Model& model) {
+  const tgn::ModelInfo& info = model.sequence.info();
+  return info.variant != tgn::Variant::Scene || info.plan.relative_features;
+}
 
 Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOptions& options) {
   Evaluation e;
@@ -191,19 +212,15 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
     execution = std::make_unique<exec::IdealExecution>();
   } else if (options.execution == "diffdrive" && bodies) {
     exec::BodiesExecutionParams p;
+    p.config = options.config;
     p.arrival_radius_m = spec.arrival_radius;
     p.noise_m = options.noise_m;
     p.seed = options.seed;
-    p.gains = options.config.gains;
-    p.robot = options.config.robot;
     // Tracking noise is eval's own (--noise, --seed), not the mock robots' of the config.
     const exec::DiffDriveParams hamster = exec::simulatedHamster();
-    p.robot.position_noise_m = hamster.position_noise_m;
-    p.robot.yaw_noise_rad = hamster.yaw_noise_rad;
-    p.robot.seed = hamster.seed;
-    p.table = options.config.table;
-    p.safety = options.config.safety;
-    p.safety.enabled = filter;
+    p.config.robot.yaw_noise_rad = hamster.yaw_noise_rad;
+    p.config.robot.seed = hamster.seed;
+    p.config.safety.enabled = filter;
     execution = std::make_unique<exec::BodiesExecution>(p);
   } else if (options.execution == "diffdrive") {
     execution = std::make_unique<exec::DiffDriveExecution>(spec.arrival_radius, options.noise_m, options.seed);
@@ -227,6 +244,24 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
       };
       trial = exec::runTrial(spec, gt, policy, paths, *execution, model.primitives->endPoints());
     }
+    if (options.execution == "diffdrive" && !bodies && !gnn) {
+      std::vector<std::vector<task::Token>> steps;
+      for (const task::Step& k : trial.predicted) steps.push_back(k.tokens);
+      const exec::Dispatch d =
+          exec::scheduleSteps(spec, model.sequence.info().dependencies, options.dispatch, policyReadsScene(model),
+                              steps, pointDurations(spec, trial), nullptr);
+      trial.makespan_s = d.makespan();
+      e.dispatch = exec::toString(options.dispatch);
+      e.precedence_violations += d.violations();
+      e.waits.emplace_back();
+      for (const exec::Wait& w : d.waits()) {
+        char line[256];
+        std::snprintf(line, sizeof line, "step %d %s at %.2f s, released by %s at %.2f s", w.token.step + 1,
+                      task::tokenKey(d.token(w.token), spec).c_str(), w.start_s,
+                      task::tokenKey(d.token(w.released_by), spec).c_str(), w.ready_s);
+        e.waits.back().push_back(line);
+      }
+    }
     e.scores.push_back(eval::scoreTrial(spec, gt, trial, gnn));
     e.first_difference.push_back(firstDifference(spec, gt.steps, trial.predicted));
     e.trials.push_back(std::move(trial));
@@ -247,6 +282,8 @@ void printEvaluation(const Evaluation& e, std::ostream& out) {
     out << line;
     if (!s.success && i < e.first_difference.size() && !e.first_difference[i].empty())
       out << "    " << e.first_difference[i] << "\n";
+    if (i < e.waits.size())
+      for (const std::string& w : e.waits[i]) out << "    " << w << "\n";
     if (s.bodies) {
       std::snprintf(line, sizeof line, "    bodies: %d collisions, min clearance %.1f mm, makespan %.1f s\n",
                     s.collisions, s.min_clearance_m * 1000, s.makespan_s);
@@ -276,6 +313,11 @@ void printEvaluation(const Evaluation& e, std::ostream& out) {
                   m.collisions, m.trials_with_collision, m.trials, m.min_clearance_m * 1000, m.makespan_s);
     out << line;
   }
+  if (!e.dispatch.empty()) {
+    std::snprintf(line, sizeof line, "dispatch %s: mean makespan %.2f s, %d precedence violations\n",
+                  e.dispatch.c_str(), m.makespan_s, e.precedence_violations);
+    out << line;
+  }
 }
 
 std::string evaluationJson(const Evaluation& e) {
@@ -294,6 +336,11 @@ std::string evaluationJson(const Evaluation& e) {
     j["trials_with_collision"] = e.summary.trials_with_collision;
     j["min_clearance_m"] = num(e.summary.min_clearance_m);
     j["makespan_s"] = e.summary.makespan_s;
+  }
+  if (!e.dispatch.empty()) {
+    j["dispatch"] = e.dispatch;
+    j["makespan_s"] = e.summary.makespan_s;
+    j["precedence_violations"] = e.precedence_violations;
   }
   j["per_trial"] = nlohmann::json::array();
   for (size_t i = 0; i < e.scores.size(); ++i) {
@@ -315,6 +362,9 @@ std::string evaluationJson(const Evaluation& e) {
       t["min_clearance_m"] = num(s.min_clearance_m);
       t["makespan_s"] = s.makespan_s;
       t["failures"] = e.trials[i].failures;
+    } else if (!e.dispatch.empty()) {
+      j["per_trial"].back()["makespan_s"] = s.makespan_s;
+      if (i < e.waits.size()) j["per_trial"].back()["waits"] = e.waits[i];
     }
   }
   return j.dump(2) + "\n";

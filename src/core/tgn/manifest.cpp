@@ -254,6 +254,8 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
     y << YAML::Flow << std::vector<std::string>{name(e.source), name(e.target)};
   y << YAML::EndSeq;
   y << YAML::EndMap;
+  y << YAML::Key << "dependencies" << YAML::Value;
+  graph::emitDependencies(y, info.dependencies);
   y << YAML::Key << "transfer" << YAML::Value << transferOf(info, spec).text();
   y << YAML::EndMap;
   const std::string body =
@@ -617,6 +619,8 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     }
     if (const std::string why = plan.inconsistency(info.options); !why.empty())
       r.fail(pn, "plan: " + why + " (no training makes this plan; retrain)");
+    // A model trained before dependencies were learned runs step by step (learned false).
+    if (const YAML::Node deps = root["dependencies"]) info.dependencies = graph::parseDependencies(deps, path, spec);
     // What the model can transfer follows from the variant and the plan; the manifest says
     // it for a reader (a manifest written before it was recorded reads without it).
     if (const YAML::Node tn = root["transfer"]; tn) {

@@ -620,6 +620,7 @@ std::shared_ptr<SequenceModel::Impl> prepare(const task::TaskDir& train, const T
   for (const auto& d : train.demos) canonical.push_back(impl->order.toCanonical(d));
   info.refined = graph::permuted(graph::refine(canonical, n, info.options.refinement), impl->order.task_of);
   info.plan = planTraining(train, info.options, info.refined);
+  info.dependencies = graph::learnDependencies(train.spec, train.demos);
   normalisation(train, options.variant, info);
   return impl;
 }

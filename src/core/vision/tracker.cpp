@@ -628,7 +628,9 @@ std::vector<EntityState> Tracker::states(double stamp) const {
     s.kind = em.kind;
     s.pose = f.pose();
     s.visible = f.visibleAt(stamp);
-    s.stale = f.staleAt(stamp);
+    // A goal is a print fixed to the table: hidden (robots parked on it), it is where it
+    // was last seen, however long -- a run ending on it must not wait for it to reappear.
+    s.stale = f.staleAt(stamp) && !(em.kind == task::EntityKind::Goal && f.everSeen());
     s.last_seen = f.everSeen() ? f.lastSeen() : 0.0;
     s.drift_m = f.driftAt(stamp);
     out.push_back(s);

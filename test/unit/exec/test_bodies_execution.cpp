@@ -37,7 +37,7 @@ task::Token token(int entity, int target) {
 BodiesExecution model(bool filter) {
   BodiesExecutionParams p;
   p.noise_m = 0.001;
-  p.safety.enabled = filter;
+  p.config.safety.enabled = filter;
   return BodiesExecution(p);
 }
 

@@ -84,16 +84,17 @@ TEST(SimTable, RefusesWheelsOfWhatIsNoRobotNamingTheSource) {
 
 TEST(LayoutScene, RowsOfEachKindThatDoNotTouchOnTheTable) {
   const task::TaskSpec spec = boxTask();
-  const auto poses = layoutScene(spec, 1.0, 0.8);
+  const auto poses = layoutScene(spec, {0.1, 0.2}, {1.1, 1.0});  // 1.0 x 0.8 m
   ASSERT_EQ(poses.size(), 4u);
   EXPECT_NEAR(poses[R1].y, poses[R2].y, 1e-12);
   EXPECT_LT(poses[R1].y, poses[B1].y);
   EXPECT_LT(poses[B1].y, poses[G1].y);
   for (size_t i = 0; i < poses.size(); ++i) {
     const double r = spec.footprint(static_cast<int>(i)).radius_m;
-    EXPECT_GE(poses[i].x - r, 0.0);
-    EXPECT_LE(poses[i].x + r, 1.0);
-    EXPECT_LE(poses[i].y + r, 0.8);
+    EXPECT_GE(poses[i].x - r, 0.1);
+    EXPECT_LE(poses[i].x + r, 1.1);
+    EXPECT_GE(poses[i].y - r, 0.2);
+    EXPECT_LE(poses[i].y + r, 1.0);
   }
   EXPECT_GT(std::abs(poses[R1].x - poses[R2].x), spec.contactDistance(R1, R2));
   // The laid-out scene is a valid start: the table takes it.
@@ -104,7 +105,7 @@ TEST(LayoutScene, SaysWhenARowDoesNotFit) {
   task::TaskSpec spec;
   spec.name = "crowd";
   for (int k = 1; k <= 30; ++k) spec.entities.push_back({"R" + std::to_string(k), task::EntityKind::Robot, ""});
-  const std::string e = errorOf([&] { layoutScene(spec, 1.0, 1.0); });
+  const std::string e = errorOf([&] { layoutScene(spec, {0, 0}, {1.0, 1.0}); });
   EXPECT_TRUE(contains(e, "30 robots do not fit")) << e;
   EXPECT_TRUE(contains(e, "give their start poses")) << e;
 }

@@ -406,6 +406,44 @@ TEST(Label, TheExamplesCarryingWordIsNotGivenToAPlainDrive) {
   EXPECT_TRUE(drive.unsure);
 }
 
+TEST(Label, ATouchOnTheWayWithoutAPauseIsListed) {
+  // R1 drives to R2, touches it and drives on to G1 at once: the motion alone reads one
+  // token (nothing else moves there to show a second step), a wrong reading if R2 was a
+  // target. It is listed, naming the body touched, so a person checks it.
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.1, 0.8 - 0.044}, 0, 2}});
+  s.move({{0, {0.9, 0.9}, 0, 2}});
+  s.rest(1);
+  const auto inf = s.infer();
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1"}}));
+  EXPECT_TRUE(inf.steps[0].tokens[0].unsure);
+  ASSERT_EQ(inf.notes.size(), 1u);
+  EXPECT_NE(inf.notes[0].message.find("R1 touched R2 on its way to G1"), std::string::npos) << inf.notes[0].message;
+  EXPECT_EQ(inf.notes[0].entity, 0);
+}
+
+TEST(Label, RobotsOfOneStepStartedApartAreOneStepAsTheExampleShows) {
+  // R1 is done before R2 starts (a person moving one robot after the other): two steps by
+  // the motion alone; the example, in which both move in one step, makes them one.
+  Scene ex_scene;
+  ex_scene.rest(1);
+  ex_scene.move({{0, {0.9, 0.9}, 0, 2}, {1, {0.9, 0.1}, 0, 2}});
+  ex_scene.rest(1);
+  task::Demonstration ex = ex_scene.d;
+  label::applyLabels(ex, ex_scene.infer());
+  const auto example = label::Example::fromDemonstration(ex, ex_scene.spec);
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}, 0, 1}});
+  s.move({{1, {0.9, 0.1}, 0.2, 2}});
+  s.rest(1);
+  EXPECT_EQ(tokens(s.infer(), s.spec), (Steps{{"R1:move:G1"}, {"R2:move:G2"}}));
+  const auto inf = s.infer(&example);
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1", "R2:move:G2"}}));
+  EXPECT_EQ(inf.steps[0].tokens[0].first_row, inf.steps[0].tokens[1].first_row);
+}
+
 // Every family `ddace generate` has, clean and moved by a person (human_motion.h): the
 // inferred steps are the generated ones, given one demonstration labelled by hand.
 TEST(Label, EveryFamilyClean) {

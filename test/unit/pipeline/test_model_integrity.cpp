@@ -133,6 +133,15 @@ TEST(CliModel, EvalRefusesAnotherTasksModelUnlessAllowed) {
   EXPECT_EQ(r.status, 0) << r.out;
 }
 
+// `ddace eval MODEL DIR` takes generate's output directory (DIR/test) as validate does.
+TEST(CliModel, EvalTakesAGeneratedDirectory) {
+  const std::string generated_dir = (fixture().root / "task4_generated").string();
+  task::writeTaskDir(task::loadTaskDir(fixture().task4_test), generated_dir + "/test");
+  const ToolRun r = runTool("eval " + fixture().task4_model + " " + generated_dir);
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("OSR"), std::string::npos) << r.out;
+}
+
 TEST(CliModel, PathRefusesAnotherTasksDemonstrationsUnlessAllowed) {
   const std::string csv = (fixture().root / "paths.csv").string();
   ToolRun r = runTool("path " + fixture().task2_model + " --demos " + fixture().task4_test + " --csv " + csv);

@@ -84,6 +84,39 @@ TEST_F(Pipeline, TheExecutionConfigDrivesTheSimulatedRobots) {
   EXPECT_EQ(pipeline::evaluate(*model_, test, o).execution, "diffdrive with bodies, no filter");
 }
 
+// `ddace eval --execution diffdrive --no-bodies --dispatch async`: each token starts when
+// its own predecessors under the dependencies `ddace train` recorded have ended.
+TEST_F(Pipeline, AsyncDispatchFinishesTask4SoonerOnPointsWithoutAPrecedenceViolation) {
+  const pipeline::Model loaded = pipeline::loadModel(dir_);
+  const graph::Dependencies& deps = loaded.sequence.info().dependencies;
+  EXPECT_TRUE(deps.learned);  // read back from the manifest
+  EXPECT_EQ(deps.demonstrations, 12);
+  EXPECT_FALSE(pipeline::policyReadsScene(loaded));  // Task 4's fixed order
+  const task::TaskDir test = generated("task4", 4, 7);
+  pipeline::EvalOptions o;
+  o.execution = "diffdrive";
+  o.bodies = false;
+  const auto steps = pipeline::evaluate(loaded, test, o);
+  o.dispatch = exec::DispatchMode::Async;
+  const auto async = pipeline::evaluate(loaded, test, o);
+  EXPECT_EQ(steps.dispatch, "steps");
+  EXPECT_EQ(async.dispatch, "async");
+  EXPECT_DOUBLE_EQ(async.summary.osr, steps.summary.osr);
+  EXPECT_EQ(steps.precedence_violations, 0);
+  EXPECT_EQ(async.precedence_violations, 0);
+  EXPECT_LT(async.summary.makespan_s, steps.summary.makespan_s);
+  const auto j = nlohmann::json::parse(pipeline::evaluationJson(async));
+  EXPECT_EQ(j["dispatch"], "async");
+  EXPECT_EQ(j["precedence_violations"], 0);
+  // Who each token waited for: R3 for R1, who met it.
+  ASSERT_EQ(async.waits.size(), 4u);
+  bool r3_released_by_r1 = false;
+  for (const std::string& w : async.waits[0])
+    r3_released_by_r1 = r3_released_by_r1 || (w.find("R3:move:G1 at") != std::string::npos &&
+                                              w.find("released by R1:move:R3") != std::string::npos);
+  EXPECT_TRUE(r3_released_by_r1);
+}
+
 TEST_F(Pipeline, AModelOfAnotherTaskIsRefused) {
   const task::TaskDir other = generated("task3", 1, 1);
   try {

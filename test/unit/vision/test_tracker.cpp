@@ -243,6 +243,34 @@ TEST(Tracker, ARobotParkedOnAGoalIsSeenOnItsBody) {
   }
 }
 
+TEST(Tracker, AGoalHiddenUnderARobotParkedOnItKeepsItsPoseLongAfterTheHold) {
+  // Two robots sent to one goal cover its print for the rest of the run: the goal stays
+  // where it was seen (held, not stale), while a robot hidden as long goes stale.
+  const TrackerConfig c = shippedConfig();
+  auto cam_cfg = loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml");
+  cam_cfg.occlusions.clear();
+  SyntheticCamera cam(cam_cfg, c.markers);
+  Tracker tracker(c);
+  tracker.setCamera(cam.camera());
+  const PlanarPose goal{0.6, 0.55, 0.0};
+  const FrameResult first =
+      tracker.process(cam.render({{"R1", {0.2, 0.2, 0.3}}, {"R3", {0.4, 0.5, 0.0}}, {"G1", goal}}, 0.0), 0.0);
+  ASSERT_TRUE(first.entities[4].visible) << first.entities[4].name;
+  const double later = 2 * c.filter.hold_s + 0.5;
+  FrameResult fr;
+  for (double t = 0.25; t <= later; t += 0.25) {
+    // R3 on the goal; R1 under a hand.
+    std::vector<TrueEntity> truth = {{"R1", {0.2, 0.2, 0.3}, true}, {"R3", {goal.x, goal.y, 0.7}}, {"G1", goal}};
+    fr = tracker.process(cam.render(truth, t), t);
+  }
+  const EntityState& g1 = fr.entities[4];
+  ASSERT_EQ(g1.name, "G1");
+  EXPECT_FALSE(g1.visible) << "the goal's print is under R3";
+  EXPECT_FALSE(g1.stale);
+  EXPECT_LT(std::hypot(g1.pose.x - goal.x, g1.pose.y - goal.y), 0.005);
+  EXPECT_TRUE(fr.entities[0].stale) << "a robot hidden as long is stale";
+}
+
 TEST(SyntheticCamera, DrawsEachBodyAsItsFootprint) {
   // Robots stopped at contact must touch in the image as on the table: the camera draws the
   // task's footprints, not one size for every body, and no body under a goal's print.

@@ -1,0 +1,128 @@
+// When each decided token of a run may start: the coordinator's dispatch rule.
+//
+//   steps  (the paper's): a token starts when every token of every earlier step has ended;
+//          the next decision is asked for when every token has ended.
+//   async: a token starts when its own predecessors have ended (graph/dependencies.h:
+//          the earlier tokens it involves an entity of, and those people showed it
+//          waiting for), never before. The next decision is asked for as soon as the last
+//          one was made when the policy does not read the scene (a fixed order: its
+//          decisions follow from the steps so far); a policy that reads the scene decides
+//          from the scene as it is once every entity it reads has settled -- the scene
+//          network reads every entity, so once every started token has ended.
+//
+// Dispatch keeps the record: when each token started and ended, whom it waited for, and
+// the precedence violations of the record (a token that started before one of its
+// predecessors under the learned dependencies ended), counted from the times alone so
+// that a record of either mode can be checked.
+//
+// Owns: the precedence of a run's tokens and the record of their times. Must not: plan
+// paths, talk to executors or read clocks (time comes in as `now_s`).
+// Units: seconds.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ddace/graph/dependencies.h"
+#include "ddace/task/demonstration.h"
+#include "ddace/task/task_spec.h"
+
+namespace ddace::exec {
+
+enum class DispatchMode : uint8_t { Steps = 0, Async = 1 };
+/// "steps", "async".
+const char* toString(DispatchMode mode);
+/// Parses "steps" or "async"; throws ddace::Error naming `what` and the choices otherwise.
+DispatchMode parseDispatchMode(const std::string& text, const std::string& what);
+
+/// A token of a run: its step and its index in the step's tokens.
+struct TokenRef {
+  int step = 0;
+  int index = 0;
+  bool operator==(const TokenRef& o) const { return step == o.step && index == o.index; }
+};
+
+/// Whom a started token waited for: the predecessor whose end released it.
+struct Wait {
+  TokenRef token;
+  TokenRef released_by;  ///< the predecessor that ended last before it started
+  double ready_s = 0;    ///< when that predecessor ended: the token could start from here
+  double start_s = 0;    ///< when it started (later than ready_s while a decision was awaited)
+};
+
+class Dispatch {
+ public:
+  /// `deps`: the learned dependencies (a model's manifest); in steps mode they are only
+  /// the measure of violations.
+  Dispatch(task::TaskSpec spec, DispatchMode mode, graph::Dependencies deps);
+
+  DispatchMode mode() const { return mode_; }
+  /// Appends a decided step. Its tokens' predecessors are the earlier steps' tokens the
+  /// mode makes them wait for.
+  void addStep(const std::vector<task::Token>& tokens, double decided_s);
+  int steps() const { return static_cast<int>(steps_.size()); }
+  const std::vector<task::Token>& tokens(int step) const;
+  const task::Token& token(TokenRef t) const;
+  /// The tokens `t` waits for under the mode.
+  const std::vector<TokenRef>& predecessors(TokenRef t) const;
+  /// Under the learned dependencies (what violations() checks against).
+  std::vector<TokenRef> learnedPredecessors(TokenRef t) const;
+
+  /// Not started, and every predecessor has ended.
+  bool ready(TokenRef t) const;
+  /// Every ready token, in step then token order.
+  std::vector<TokenRef> readyTokens() const;
+  /// Records the start; throws ddace::Error when `t` is not ready (never starts a token
+  /// before a predecessor ended).
+  void start(TokenRef t, double now_s);
+  /// Records the end; throws ddace::Error when `t` has not started or already ended.
+  void end(TokenRef t, double now_s);
+  bool started(TokenRef t) const;
+  bool ended(TokenRef t) const;
+  /// Every token of every step has ended.
+  bool allEnded() const;
+  /// Whether the next decision may be asked for now (see the header comment).
+  bool mayDecide(bool policy_reads_scene) const;
+
+  /// Tokens that started before one of their learned predecessors ended (from the times).
+  int violations() const;
+  /// From the first decision to the last end (0 before anything ended).
+  double makespan() const;
+  /// For every started token that had a predecessor: who released it and when (seconds
+  /// from the first decision).
+  std::vector<Wait> waits() const;
+
+ private:
+  struct Record {
+    task::Token token;
+    std::vector<TokenRef> predecessors;
+    double start_s = -1, end_s = -1;
+  };
+  Record& at(TokenRef t);
+  const Record& at(TokenRef t) const;
+
+  task::TaskSpec spec_;
+  DispatchMode mode_;
+  graph::Dependencies deps_;
+  std::vector<std::vector<Record>> steps_;
+  std::vector<std::vector<task::Token>> tokens_;
+  double first_decision_s_ = -1;
+};
+
+/// One token's time under a dispatch mode, in a schedule of known durations.
+struct ScheduledToken {
+  TokenRef token;
+  double start_s = 0, end_s = 0;
+};
+
+/// The run of `steps` (decided in order, each token taking `durations[step][index]`
+/// seconds once started, decisions taking no time) under `mode`: every token started as
+/// soon as Dispatch allows it, every decision asked for as soon as mayDecide() allows.
+/// For execution models whose motions do not interact (points), this is the run itself.
+/// Fills `schedule` (may be null) and returns the Dispatch with its record.
+Dispatch scheduleSteps(const task::TaskSpec& spec, const graph::Dependencies& deps, DispatchMode mode,
+                       bool policy_reads_scene, const std::vector<std::vector<task::Token>>& steps,
+                       const std::vector<std::vector<double>>& durations, std::vector<ScheduledToken>* schedule);
+
+}  // namespace ddace::exec

@@ -1,0 +1,144 @@
+// One robot's control cycle: the code that drives a robot, on the real table
+// (path_follower_node) and in every simulator with bodies (exec::BodiesExecution) alike.
+//
+// Each cycle, from the robot's measured pose and the other bodies as tracked:
+//   1. its own pose stale (the tracker says so, or too old): zero wheels at once; stale for
+//      stale_fail_s, the motion fails naming the robot;
+//   2. the path-following law (exec::PathFollower) gives the nominal wheels; within the
+//      stop radius of the end point, the motion is done;
+//   3. the safety filter (exec::SafetyFilter) changes them as little as keeps every body
+//      clear, except what the motion may touch; a stale body near the robot counts as 1, a
+//      deadlock the filter reports fails the motion naming the bodies that hold it;
+//   4. held at contact with a body its motion ends against, within the stop radius of its
+//      end point (exec::endedAtContact), the motion is done there;
+//   5. the filtered wheels go out.
+//
+// What a motion may touch -- its target, the bodies its end point touches, its load and
+// the bodies its load's end point touches (MotionContacts) -- is decided once per step
+// from the step's end points (exec::motionContacts) by the caller and given here; the
+// controller never decides it from where bodies are while they move. A body it may touch
+// as its ending is touchable only while that body is at the end point (endsAgainst from
+// its measured position): two robots bound for one goal keep apart on the way.
+//
+// Owns: the order of the cycle, the stale clock, when a motion ends. Must not: know ROS,
+// read a clock (time comes in), or decide where a motion ends or what it may touch.
+// Units: metres, radians, seconds; table frame.
+#pragma once
+
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "ddace/exec/path_follower.h"
+#include "ddace/exec/safety_filter.h"
+
+namespace ddace::exec {
+
+/// A robot's controller: its path-following law, its safety filter, and how long a stale
+/// pose may last before the motion fails. config/execution.yaml, section path_follower.
+struct ControllerParams {
+  FollowerGains gains;        ///< path_follower/gains
+  SafetyParams safety;        ///< path_follower/safety
+  double stale_fail_s = 2.0;  ///< a pose stale this long during a motion fails it
+  /// Throws ddace::Error naming the first invalid field.
+  void validate() const;
+};
+
+/// What a motion may touch, decided once per step from the step's end points.
+struct MotionContacts {
+  std::string load;                         ///< the object it carries, riding in front ("" = none)
+  Eigen::Vector2d load_end{0, 0};           ///< where the load ends
+  std::set<std::string> ends_against;       ///< bodies its end point touches (SafetyBody::touchable)
+  std::set<std::string> load_ends_against;  ///< bodies the load's end point touches (load_touchable)
+};
+
+enum class MotionState : char { Idle, Running, Done, Failed };
+
+/// What one control cycle decided.
+struct ControlOutput {
+  WheelSpeeds wheels;  ///< to the wheels now (zero unless Running and free to move)
+  /// Running, or Done / Failed in the cycle the motion ends (the controller is Idle after).
+  MotionState state = MotionState::Idle;
+  double progress = 0;            ///< arc-length fraction of the path covered
+  double distance_to_goal_m = 0;  ///< measured distance to the end point
+  /// Failed: why, naming the robot and the cause; Done at contact: "ended at contact with
+  /// X"; Running with wheels zero for a stale pose: whose (`waiting_stale`).
+  std::string message;
+  bool waiting_stale = false;         ///< wheels zero for a stale pose, not failed yet
+  bool held = false;                  ///< the filter holds the robot (blocked)
+  std::vector<std::string> blocking;  ///< the bodies holding it, when held
+  std::string ended_at_contact_with;  ///< Done at contact: the body
+};
+
+class RobotController {
+ public:
+  /// Throws ddace::Error for invalid parameters, naming the first.
+  RobotController(std::string name, const ControllerParams& params);
+
+  /// A new motion along `path` toward `target` ("" = none), stopping within
+  /// `stop_radius_m` of its end point (task::stopRadius); the last one is forgotten, and
+  /// what it may touch is none until setContacts(). Throws ddace::Error for an empty path
+  /// or a non-finite point or stop radius.
+  void start(const PlannedPath& path, const std::string& target, double stop_radius_m);
+  /// What the running motion may touch (decided for its step).
+  void setContacts(MotionContacts contacts);
+  /// Forgets the motion (stopped, replaced, e-stop): the controller is Idle.
+  void cancel();
+
+  /// One control cycle at `now_s` for the robot at `pose` (measured; `pose_stale`: the
+  /// tracker's flag or a pose too old; `pose_age_s` how old it is) with body radius
+  /// `radius_m`. `others`: every other body as tracked, `standing` set by the caller (no
+  /// running motion); their touchable flags are set here. Idle: zero wheels.
+  ControlOutput cycle(const Pose2D& pose, bool pose_stale, double pose_age_s, double radius_m,
+                      std::vector<SafetyBody>& others, double now_s);
+
+  bool running() const { return follower_.hasPath(); }
+  const std::string& name() const { return name_; }
+  const std::string& target() const { return target_; }
+  const MotionContacts& contacts() const { return contacts_; }
+  /// The running motion's end point (idle: the origin).
+  Eigen::Vector2d endPoint() const { return follower_.endPoint(); }
+  double progress() const { return follower_.progress(); }
+  const ControllerParams& params() const { return params_; }
+
+ private:
+  ControlOutput end(ControlOutput out, MotionState state, std::string message);
+  ControlOutput stale(ControlOutput out, const std::string& why, double now_s);
+
+  std::string name_;
+  ControllerParams params_;
+  PathFollower follower_;
+  SafetyFilter filter_;
+  std::string target_;
+  MotionContacts contacts_;
+  double stop_radius_m_ = 0;   ///< the motion's (start())
+  double stale_since_s_ = -1;  ///< since when the motion waits on a stale pose (-1: not)
+};
+
+/// A body as a step's motions see it when the step begins.
+struct BodyAtStart {
+  std::string name;
+  Eigen::Vector2d position{0, 0};        ///< where it is now
+  Eigen::Vector2d final_position{0, 0};  ///< where it ends this step: its motion's end point, else `position`
+  double radius_m = 0;
+  bool object = false;
+  /// Its motion's step, action and target (step -1: no motion), for an object that may
+  /// be the robot's load.
+  int step = -1;
+  std::string action, target;
+};
+
+/// What a robot's motion (`step`, `action`, `target`, ending at `end_point`) may touch,
+/// decided when its step begins with the robot at `position`: its load -- an object whose
+/// motion has the same step, action and target (exec::carries) within
+/// task::togetherDistance of it (contact plus `arrival_radius_m`, as
+/// TableSimulator::ride decides who rides) -- and the bodies its end point and its load's
+/// end point touch (endsAgainst with `margin_m`, at the bodies' final positions: one
+/// standing there, or ending there this step, not one only passing by). The one answer
+/// of the path follower node and the simulator with bodies.
+MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
+                              int step, const std::string& action, const std::string& target,
+                              const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m);
+
+}  // namespace ddace::exec

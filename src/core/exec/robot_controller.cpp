@@ -1,0 +1,151 @@
+#include "ddace/exec/robot_controller.h"
+
+#include <cmath>
+#include <cstdio>
+
+#include "ddace/common/error.h"
+#include "ddace/task/end_point.h"
+
+namespace ddace::exec {
+
+void ControllerParams::validate() const {
+  gains.validate();
+  safety.validate();
+  if (!(stale_fail_s > 0) || !std::isfinite(stale_fail_s))
+    throw Error("controller parameter 'stale_fail_s' must be a positive number of seconds");
+}
+
+RobotController::RobotController(std::string name, const ControllerParams& params)
+    : name_(std::move(name)),
+      params_(params),
+      follower_(params.gains),
+      filter_(params.safety, params.gains.wheel_base_m, params.gains.max_wheel_speed_mps,
+              params.gains.max_turn_rate_radps) {
+  params_.validate();
+}
+
+void RobotController::start(const PlannedPath& path, const std::string& target, double stop_radius_m) {
+  if (!(stop_radius_m > 0) || !std::isfinite(stop_radius_m))
+    throw Error("the stop radius of " + name_ + "'s motion must be a positive number of metres");
+  FollowerGains g = params_.gains;
+  g.arrival_radius_m = stop_radius_m;
+  PathFollower f(g);
+  f.setPath(path);  // throws for an empty or non-finite path, the last motion kept
+  follower_ = std::move(f);
+  stop_radius_m_ = stop_radius_m;
+  target_ = target;
+  contacts_ = {};
+  filter_.reset();
+  stale_since_s_ = -1;
+}
+
+void RobotController::setContacts(MotionContacts contacts) {
+  contacts_ = std::move(contacts);
+}
+
+void RobotController::cancel() {
+  follower_.clear();
+  target_.clear();
+  contacts_ = {};
+  filter_.reset();
+  stale_since_s_ = -1;
+}
+
+ControlOutput RobotController::end(ControlOutput out, MotionState state, std::string message) {
+  out.wheels = {};
+  out.state = state;
+  out.message = std::move(message);
+  out.held = out.waiting_stale = false;
+  cancel();
+  return out;
+}
+
+ControlOutput RobotController::stale(ControlOutput out, const std::string& why, double now_s) {
+  if (stale_since_s_ < 0) stale_since_s_ = now_s;
+  out.wheels = {};
+  const double for_s = now_s - stale_since_s_;
+  if (for_s > params_.stale_fail_s) {
+    char t[64];
+    std::snprintf(t, sizeof t, " for %.2f s (longer than stale_fail_s)", for_s);
+    return end(out, MotionState::Failed, why + t);
+  }
+  out.waiting_stale = true;
+  out.message = why;
+  return out;
+}
+
+ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double pose_age_s, double radius_m,
+                                     std::vector<SafetyBody>& others, double now_s) {
+  ControlOutput out;
+  if (!running()) return out;
+  out.state = MotionState::Running;
+  out.progress = follower_.progress();
+  if (pose_stale || !pose.position().allFinite() || !std::isfinite(pose.yaw))
+    return stale(out, "pose of " + name_ + " is stale", now_s);
+
+  const FollowerOutput o = follower_.compute(pose);
+  out.progress = o.progress;
+  out.distance_to_goal_m = o.distance_to_goal_m;
+  if (o.done) {
+    stale_since_s_ = -1;
+    return end(out, MotionState::Done, "");
+  }
+
+  // What the motion may touch, as decided for its step: a body it ends against while that
+  // body is at the end point, its load's likewise.
+  const SafetyBody* load = nullptr;
+  for (const SafetyBody& b : others)
+    if (!contacts_.load.empty() && b.name == contacts_.load) load = &b;
+  const Eigen::Vector2d end_point = follower_.endPoint();
+  const double margin = params_.safety.margin_m;
+  for (SafetyBody& b : others) {
+    b.touchable =
+        contacts_.ends_against.count(b.name) && endsAgainst(end_point, radius_m, b.position, b.radius_m, margin);
+    b.load_touchable = load && contacts_.load_ends_against.count(b.name) &&
+                       endsAgainst(contacts_.load_end, load->radius_m, b.position, b.radius_m, margin);
+  }
+  const SafetyCommand c = filter_.filter(name_, pose, radius_m, pose_age_s, o.wheels, o.progress * follower_.lengthM(),
+                                         others, target_, now_s, load);
+  if (c.stale) return stale(out, c.reason, now_s);  // a body nearby is stale: as the robot's own pose
+  stale_since_s_ = -1;
+  if (c.deadlock) {
+    char where[64];
+    std::snprintf(where, sizeof where, ", %.1f cm from its end point", 100 * o.distance_to_goal_m);
+    return end(out, MotionState::Failed, c.reason + where);
+  }
+  if (endedAtContact(c, o.distance_to_goal_m, stop_radius_m_)) {
+    // A motion toward a body ends at contact with it: held there by a body it ends
+    // against, within the stop radius of its end point, it has arrived.
+    out.ended_at_contact_with = c.at_contact_with;
+    out.progress = 1.0;
+    return end(out, MotionState::Done, "ended at contact with " + c.at_contact_with);
+  }
+  out.wheels = c.wheels;
+  out.held = c.blocked;
+  if (c.blocked) out.blocking = c.blocking;
+  return out;
+}
+
+MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
+                              int step, const std::string& action, const std::string& target,
+                              const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m) {
+  MotionContacts out;
+  const BodyAtStart* load = nullptr;
+  for (const BodyAtStart& b : bodies)
+    if (b.object && b.step >= 0 && b.step == step && b.action == action && b.target == target &&
+        (b.position - position).norm() <= task::togetherDistance(radius_m + b.radius_m, arrival_radius_m)) {
+      load = &b;
+      out.load = b.name;
+      out.load_end = b.final_position;
+      break;
+    }
+  for (const BodyAtStart& b : bodies) {
+    if (&b == load) continue;
+    if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, margin_m)) out.ends_against.insert(b.name);
+    if (load && endsAgainst(load->final_position, load->radius_m, b.final_position, b.radius_m, margin_m))
+      out.load_ends_against.insert(b.name);
+  }
+  return out;
+}
+
+}  // namespace ddace::exec

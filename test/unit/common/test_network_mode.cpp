@@ -1,0 +1,74 @@
+// scripts/network_mode.py, the network-mode check of launch/execute_real.launch, run in
+// network namespaces this test makes (unshare --map-root-user --net): only loopback, plus
+// a private lab address put on it. No traffic leaves them.
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "ddace/common/repository.h"
+
+namespace {
+
+struct ScriptRun {
+  int status = -1;
+  std::string out;
+};
+
+/// Runs `env` + network_mode.py `args` --check-only in a new network namespace whose
+/// loopback is up and also holds 10.9.9.9 (a private address of "this host").
+ScriptRun inNamespace(const std::string& env, const std::string& args) {
+  const std::string script =
+      (ddace::findRepository("", {"scripts/network_mode.py"}) / "scripts/network_mode.py").string();
+  const std::string inner = "ip link set lo up && ip addr add 10.9.9.9/32 dev lo && env -u ROS_HOSTNAME -u ROS_IP " +
+                            env + " /usr/bin/python3 '" + script + "' " + args + " --check-only";
+  ScriptRun r;
+  FILE* p = ::popen(("unshare --map-root-user --net -- /bin/sh -c \"" + inner + "\" 2>&1").c_str(), "r");
+  if (!p) return r;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int status = ::pclose(p);
+  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+bool namespacesWork() {
+  return std::system("unshare --map-root-user --net -- true >/dev/null 2>&1") == 0;
+}
+
+}  // namespace
+
+TEST(NetworkMode, OneMachineModePassesInALoopbackOnlyNamespace) {
+  if (!namespacesWork()) GTEST_SKIP() << "no user and network namespaces here (docs/trust-boundary.md)";
+  const ScriptRun r = inNamespace("", "--lab-network false");
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("only loopback"), std::string::npos) << r.out;
+}
+
+TEST(NetworkMode, LabModeNeedsROS_IPOnAPrivateAddressOfThisHostAndSaysWhatIsExposed) {
+  if (!namespacesWork()) GTEST_SKIP() << "no user and network namespaces here (docs/trust-boundary.md)";
+  ScriptRun r = inNamespace("ROS_IP=10.9.9.9 ROS_MASTER_URI=http://10.9.9.9:11311", "--lab-network true");
+  EXPECT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("reachable from other hosts through lo (10.9.9.9)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("exposed:"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("ip saddr != {"), std::string::npos) << "no firewall rule:\n" << r.out;
+
+  r = inNamespace("", "--lab-network true");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("needs ROS_IP"), std::string::npos) << r.out;
+  r = inNamespace("ROS_IP=127.0.0.1", "--lab-network true");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("is loopback"), std::string::npos) << r.out;
+  r = inNamespace("ROS_IP=8.8.8.8", "--lab-network true");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("not a private address"), std::string::npos) << r.out;
+  r = inNamespace("ROS_IP=10.9.9.8", "--lab-network true");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("is no address of this host"), std::string::npos) << r.out;
+  r = inNamespace("ROS_IP=10.9.9.9 ROS_HOSTNAME=localhost", "--lab-network true");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("unset ROS_HOSTNAME"), std::string::npos) << r.out;
+}

@@ -1,0 +1,177 @@
+// Contact rules that hold for any demonstration, on hand-made scenes (not the project's
+// generator): a motion touches its target, a carrier its load, a receiving robot the box
+// handed to it, a box is fetched with others standing near it, two pairs carry at once. Each scene runs step by step
+// through the model with bodies (exec::BodiesExecution: the robots' own controller and filter on the Box2D table), end
+// points from the task's end-point rule: the run finishes, no collision is counted for a contact the task demands, and
+// one is for any other.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "ddace/exec/bodies_execution.h"
+#include "ddace/task/end_point.h"
+
+using namespace ddace;
+using namespace ddace::exec;
+using Eigen::Vector2d;
+
+namespace {
+
+constexpr double kR = task::kDefaultRobotRadius, kO = task::kDefaultObjectRadius;
+
+task::TaskSpec spec(const std::string& entities) {  // "R1 R2 O1 G1": kinds from the letters
+  task::TaskSpec s;
+  s.name = "contacts";
+  std::string name;
+  for (size_t i = 0; i <= entities.size(); ++i) {
+    if (i < entities.size() && entities[i] != ' ') {
+      name += entities[i];
+      continue;
+    }
+    if (name.empty()) continue;
+    const task::EntityKind kind = name[0] == 'R'   ? task::EntityKind::Robot
+                                  : name[0] == 'O' ? task::EntityKind::Object
+                                                   : task::EntityKind::Goal;
+    s.entities.push_back({name, kind, ""});
+    name.clear();
+  }
+  return s;
+}
+
+Path line(const Vector2d& a, const Vector2d& b) {
+  Path p;
+  const int n = std::max(2, static_cast<int>((b - a).norm() / 0.005) + 1);
+  for (int i = 0; i < n; ++i) p.push_back(a + (b - a) * i / (n - 1.0));
+  return p;
+}
+
+struct Outcome {
+  std::vector<StepExecution> steps;
+  BodyReport report;
+  std::vector<Vector2d> positions;  ///< at the end
+  bool finished() const {
+    for (const StepExecution& s : steps)
+      if (!s.failures.empty()) return false;
+    return true;
+  }
+  std::string failures() const {
+    std::string out;
+    for (const StepExecution& s : steps)
+      for (const std::string& f : s.failures) out += f + "; ";
+    return out;
+  }
+};
+
+/// Runs `steps` ("R1 move G1, O1 move G1" per step: entity action target) from `start`,
+/// each motion on a straight path to its end point (task::stepEndPositions under `model`).
+Outcome run(const task::TaskSpec& s, const std::vector<Pose2D>& start, const std::vector<std::string>& steps,
+            const task::EndPointModel& model = {}, double noise_m = 0.001, bool filter = true) {
+  BodiesExecutionParams p;
+  p.noise_m = noise_m;
+  p.arrival_radius_m = s.arrival_radius;
+  p.config.safety.enabled = filter;
+  BodiesExecution m(p);
+  m.beginTrial(s, start);
+  std::vector<Vector2d> at;
+  for (const Pose2D& q : start) at.push_back(q.position());
+  Outcome out;
+  for (const std::string& text : steps) {
+    std::vector<task::Token> tokens;
+    std::string rest = text;
+    while (!rest.empty()) {
+      const size_t comma = rest.find(',');
+      std::string one = rest.substr(0, comma);
+      rest = comma == std::string::npos ? "" : rest.substr(comma + 1);
+      char e[16], a[16], t[16];
+      if (std::sscanf(one.c_str(), " %15s %15s %15s", e, a, t) != 3) ADD_FAILURE() << "bad token " << one;
+      tokens.push_back({s.entityIndex(e), a, s.entityIndex(t)});
+    }
+    const std::vector<Vector2d> ends = task::stepEndPositions(s, model, tokens, at);
+    std::vector<StepMotion> motions;
+    for (size_t i = 0; i < tokens.size(); ++i) {
+      const int e = tokens[i].entity;
+      motions.push_back({i, e, tokens[i].target, s.entities[e].kind == task::EntityKind::Robot, line(at[e], ends[e])});
+    }
+    out.steps.push_back(m.executeStep(s, tokens, at, motions));
+    at = out.steps.back().positions;
+  }
+  out.report = m.report();
+  out.positions = at;
+  return out;
+}
+
+std::string collisions(const task::TaskSpec& s, const BodyReport& r) {
+  std::string out;
+  for (const BodyContact& c : r.collisions)
+    out += s.entities[c.a].name + "-" + s.entities[c.b].name + " at " + std::to_string(c.time_s) + " s; ";
+  return out;
+}
+
+}  // namespace
+
+TEST(ContactRules, AFetchWithTwoBystandersWithin5cmOfTheBoxFinishesWithoutACollision) {
+  // R1, the farthest, fetches O1 past R2 and R3 standing 3 and 4 cm from the box, and
+  // carries it to G1.
+  const auto s = spec("R1 R2 R3 O1 G1");
+  const Vector2d box(0.5, 0.4);
+  const std::vector<Pose2D> start{{0.1, 0.4, 0},
+                                  {box.x(), box.y() + kO + kR + 0.03, 0},
+                                  {box.x(), box.y() - kO - kR - 0.04, 0},
+                                  {box.x(), box.y(), 0},
+                                  {0.8, 0.4, 0}};
+  const Outcome r = run(s, start, {"R1 fetch O1", "R1 carry G1, O1 carry G1"});
+  EXPECT_TRUE(r.finished()) << r.failures();
+  EXPECT_TRUE(r.report.collisions.empty()) << collisions(s, r.report);
+  EXPECT_TRUE(task::arrived(r.positions[3], {0.8, 0.4}, s.arrival_radius)) << r.positions[3].transpose();
+  EXPECT_LT((r.positions[1] - start[1].position()).norm(), 1e-3) << "R2 was pushed";
+  EXPECT_LT((r.positions[2] - start[2].position()).norm(), 1e-3) << "R3 was pushed";
+}
+
+TEST(ContactRules, TheSecondNearestFetchesWhileTheNearestStandsCloseToTheBox) {
+  // R2 stands 1 cm from O1 on the side R1 comes from, a little off its line: R1 goes round
+  // it to the box and carries the box away.
+  const auto s = spec("R1 R2 O1 G1");
+  const std::vector<Pose2D> start{{0.2, 0.4, 0}, {0.5 - kO - kR - 0.01, 0.43, 0}, {0.5, 0.4, 0}, {0.5, 0.7, 0}};
+  const Outcome r = run(s, start, {"R1 fetch O1", "R1 carry G1, O1 carry G1"});
+  EXPECT_TRUE(r.finished()) << r.failures();
+  EXPECT_TRUE(r.report.collisions.empty()) << collisions(s, r.report);
+  EXPECT_TRUE(task::arrived(r.positions[2], {0.5, 0.7}, s.arrival_radius)) << r.positions[2].transpose();
+}
+
+TEST(ContactRules, AThreeHandRelayHandsTheBoxOnWithoutACollision) {
+  // R1 brings O1 to R2, R2 brings it on to R3, R3 carries it to G1; each giver stays
+  // where it handed the box on.
+  const auto s = spec("R1 R2 R3 O1 G1");
+  const std::vector<Pose2D> start{
+      {0.1, 0.3, 0}, {0.4, 0.3, 0}, {0.4, 0.6, 0}, {0.1 + kR + kO + 0.002, 0.3, 0}, {0.8, 0.6, 0}};
+  const Outcome r = run(s, start, {"R1 pass R2, O1 pass R2", "R2 pass R3, O1 pass R3", "R3 carry G1, O1 carry G1"});
+  EXPECT_TRUE(r.finished()) << r.failures();
+  EXPECT_TRUE(r.report.collisions.empty()) << collisions(s, r.report);
+  EXPECT_TRUE(task::arrived(r.positions[3], {0.8, 0.6}, s.arrival_radius)) << r.positions[3].transpose();
+}
+
+TEST(ContactRules, TwoPairsCarryAtOnceWithoutACollision) {
+  // R1 carries O1 to G1 and R2 carries O2 to G2, side by side in one step.
+  const auto s = spec("R1 O1 G1 R2 O2 G2");
+  const double c = kR + kO + 0.002;
+  const std::vector<Pose2D> start{{0.1, 0.3, 0},  {0.1 + c, 0.3, 0},  {0.7, 0.45, 0},
+                                  {0.1, 0.45, 0}, {0.1 + c, 0.45, 0}, {0.7, 0.3, 0}};
+  const Outcome r = run(s, start, {"R1 carry G1, O1 carry G1, R2 carry G2, O2 carry G2"});
+  EXPECT_TRUE(r.finished()) << r.failures();
+  EXPECT_TRUE(r.report.collisions.empty()) << collisions(s, r.report);
+  EXPECT_TRUE(task::arrived(r.positions[1], {0.7, 0.45}, s.arrival_radius)) << r.positions[1].transpose();
+  EXPECT_TRUE(task::arrived(r.positions[4], {0.7, 0.3}, s.arrival_radius)) << r.positions[4].transpose();
+}
+
+TEST(ContactRules, TouchingABodyNoMotionInvolvesIsACollision) {
+  // R1's path to G1 runs through R2, standing: without the filter it drives into R2 (a
+  // collision), with it R1 goes round.
+  const auto s = spec("R1 R2 G1");
+  const std::vector<Pose2D> start{{0.1, 0.3, 0}, {0.3, 0.3, 0}, {0.5, 0.3, 0}};
+  const Outcome without = run(s, start, {"R1 go G1"}, {}, 0.001, /*filter=*/false);
+  ASSERT_FALSE(without.report.collisions.empty());
+  EXPECT_EQ(collisions(s, without.report).substr(0, 5), "R1-R2");
+  const Outcome with = run(s, start, {"R1 go G1"});
+  EXPECT_TRUE(with.finished()) << with.failures();
+  EXPECT_TRUE(with.report.collisions.empty()) << collisions(s, with.report);
+}

@@ -1,0 +1,136 @@
+// One robot's control cycle (exec::RobotController): what a motion may touch is decided
+// once per step from where bodies end; the cycle stops a robot on a stale pose and fails
+// the motion after stale_fail_s; a motion held at contact with what it ends against near
+// its end point is done there.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "ddace/common/error.h"
+#include "ddace/exec/robot_controller.h"
+#include "ddace/task/end_point.h"
+
+using namespace ddace;
+using namespace ddace::exec;
+using Eigen::Vector2d;
+
+TEST(MotionContacts, AreDecidedFromWhereBodiesEndNotWhereTheyAreNow) {
+  // R1 at the origin, its segment (step 2, move G1) ends at (0.3, 0). Robots of radius r,
+  // objects of radius o.
+  const double r = task::kDefaultRobotRadius, o = task::kDefaultObjectRadius;
+  const Eigen::Vector2d end(0.3, 0);
+  auto body = [](std::string name, Eigen::Vector2d now, Eigen::Vector2d final_at, double radius) {
+    BodyAtStart b;
+    b.name = std::move(name);
+    b.position = now;
+    b.final_position = final_at;
+    b.radius_m = radius;
+    return b;
+  };
+  std::vector<BodyAtStart> bodies{
+      body("R2", {0.3, r + r}, {0.3, r + r}, r),                          // stands touching its end point
+      body("R3", {0.3, 0.0}, {0.6, 0.6}, r),                              // on its end point now, leaving this step
+      body("R4", {0.8, 0.8}, {0.3, -(r + r)}, r),                         // ends touching it this step
+      body("R5", {0.3 + r + o + o + r, 0}, {0.3 + r + o + o + r, 0}, r),  // touches where the load ends
+  };
+  BodyAtStart load = body("O1", {r + o, 0}, {0.3 + r + o, 0}, o);
+  load.object = true, load.step = 2, load.action = "move", load.target = "G1";
+  BodyAtStart other = load;  // an object of another step beside it is no load
+  other.name = "O2", other.position = {0, r + o}, other.final_position = other.position, other.step = 1;
+  bodies.push_back(other);
+  bodies.push_back(load);
+
+  const MotionContacts c = motionContacts({0, 0}, r, end, 2, "move", "G1", bodies, 0.01, 0.03);
+  EXPECT_EQ(c.load, "O1");
+  EXPECT_EQ(c.ends_against, (std::set<std::string>{"R2", "R4"}));
+  EXPECT_EQ(c.load_ends_against, (std::set<std::string>{"R5"}));
+
+  bodies.back().position = {0.2, 0};  // out of reach: moves on its own, no load
+  const MotionContacts far = motionContacts({0, 0}, r, end, 2, "move", "G1", bodies, 0.01, 0.03);
+  EXPECT_EQ(far.load, "");
+  EXPECT_TRUE(far.load_ends_against.empty());
+}
+
+namespace {
+
+ControllerParams params() {
+  ControllerParams p;
+  p.stale_fail_s = 0.5;
+  return p;
+}
+
+PlannedPath straight(Vector2d a, Vector2d b) {
+  PlannedPath p;
+  for (int i = 0; i <= 20; ++i) p.points.push_back(a + (b - a) * i / 20.0);
+  return p;
+}
+
+}  // namespace
+
+TEST(RobotController, IdleGivesZeroWheelsAndRunningDrivesTowardTheEnd) {
+  RobotController c("R1", params());
+  std::vector<SafetyBody> none;
+  ControlOutput o = c.cycle({0, 0, 0}, false, 0, 0.022, none, 0);
+  EXPECT_EQ(o.state, MotionState::Idle);
+  EXPECT_TRUE(o.wheels.isZero());
+  c.start(straight({0, 0}, {0.3, 0}), "", 0.025);
+  o = c.cycle({0, 0, 0}, false, 0, 0.022, none, 0.02);
+  EXPECT_EQ(o.state, MotionState::Running);
+  EXPECT_GT(o.wheels.left_mps + o.wheels.right_mps, 0.0);
+}
+
+TEST(RobotController, AStalePoseZeroesTheWheelsAtOnceAndFailsTheMotionAfterStaleFailS) {
+  RobotController c("R1", params());
+  std::vector<SafetyBody> none;
+  c.start(straight({0, 0}, {0.3, 0}), "", 0.025);
+  ControlOutput o = c.cycle({0, 0, 0}, true, 1e9, 0.022, none, 1.0);
+  EXPECT_EQ(o.state, MotionState::Running);
+  EXPECT_TRUE(o.waiting_stale);
+  EXPECT_TRUE(o.wheels.isZero());
+  o = c.cycle({0, 0, 0}, false, 0, 0.022, none, 1.2);  // fresh again: drives, the clock restarts
+  EXPECT_FALSE(o.waiting_stale);
+  EXPECT_FALSE(o.wheels.isZero());
+  c.cycle({0, 0, 0}, true, 1e9, 0.022, none, 2.0);
+  o = c.cycle({0, 0, 0}, true, 1e9, 0.022, none, 2.4);
+  EXPECT_EQ(o.state, MotionState::Running) << "not stale for stale_fail_s yet";
+  o = c.cycle({0, 0, 0}, true, 1e9, 0.022, none, 2.6);
+  EXPECT_EQ(o.state, MotionState::Failed);
+  EXPECT_NE(o.message.find("pose of R1"), std::string::npos) << o.message;
+  EXPECT_TRUE(o.wheels.isZero());
+  EXPECT_FALSE(c.running());
+}
+
+TEST(RobotController, AStaleBodyNearbyStopsTheRobotAsItsOwnPoseWould) {
+  RobotController c("R1", params());
+  c.start(straight({0, 0}, {0.3, 0}), "", 0.025);
+  std::vector<SafetyBody> others{{"R2", {0.1, 0}, 0.022, true}};
+  others[0].stale = true;
+  const ControlOutput o = c.cycle({0, 0, 0}, false, 0, 0.022, others, 0);
+  EXPECT_TRUE(o.waiting_stale);
+  EXPECT_TRUE(o.wheels.isZero());
+  EXPECT_NE(o.message.find("R2"), std::string::npos) << o.message;
+}
+
+TEST(RobotController, AMotionHeldOffItsEndPointFailsAsADeadlockNamingWhatHoldsIt) {
+  // R2 stands on R1's end point, and R1's motion does not end against it: held off it,
+  // R1 fails within deadlock_after_s (and the time it goes round), wheels zero, R2 named.
+  const double r = 0.022;
+  RobotController c("R1", params());
+  c.start(straight({0, 0}, {0.2, 0}), "G1", 0.025);
+  std::vector<SafetyBody> others{{"R2", {0.2, 0}, r, true}};
+  others[0].standing = true;
+  Pose2D pose{0, 0, 0};
+  ControlOutput o;
+  double t = 0;
+  for (; t < 20 && o.state != MotionState::Failed; t += 0.02) {
+    o = c.cycle(pose, false, 0, r, others, t);
+    const double v = (o.wheels.left_mps + o.wheels.right_mps) / 2;
+    pose = integrateUnicycle(pose, v, (o.wheels.right_mps - o.wheels.left_mps) / c.params().gains.wheel_base_m, 0.02);
+    ASSERT_NE(o.state, MotionState::Done) << "arrived inside R2 at t = " << t;
+  }
+  ASSERT_EQ(o.state, MotionState::Failed) << "still running after 20 s";
+  EXPECT_NE(o.message.find("deadlock: R1"), std::string::npos) << o.message;
+  EXPECT_NE(o.message.find("R2"), std::string::npos) << o.message;
+  EXPECT_TRUE(o.wheels.isZero());
+  EXPECT_GT((pose.position() - Vector2d(0.2, 0)).norm(), 2 * r) << "R1 pushed into R2";
+}
