@@ -10,6 +10,7 @@
 
 #include "ddace/ros/gp_path.h"
 #include "ddace/ros/sequence.h"
+#include "ddace/tasks/rule_zoo.h"
 
 using namespace exec_test;
 
@@ -75,6 +76,32 @@ TEST(OtherTask, TheGpPathNodeRefusesAnotherTasksLibrary) {
   EXPECT_NE(e.find("vocabulary: model [move, stop], task [move]"), std::string::npos) << e;
   EXPECT_NE(e.find("allow_other_task"), std::string::npos) << e;
   EXPECT_EQ(refusal<ddace::nodes::GpPathNode>("gp_path_transfer", params, true), "");
+}
+
+// Other team sizes (docs/tgn.md): a model of a rule the scene states, trained with 3 robots,
+// is taken by the sequence and gp_path nodes for the same rule with 5 robots (bound by kind,
+// without ~allow_other_task); a fixed order (Task 2 with 4 robots) is refused for 5 naming why,
+// even as a deliberate transfer (Task 2's name has its team size: another task without it).
+TEST(OtherTask, TheNodesTakeAModelOfAnotherTeamSizeWhereTheSceneStatesTheRule) {
+  const std::string dir = std::string(setup().scratch) + "/sizes";
+  uint64_t rule = 0;
+  ASSERT_TRUE(ddace::tasks::parseZooFamily("zoo:nearest-goals", rule));
+  ddace::task::writeTaskDir(ddace::tasks::generateZoo(rule, 6, 1, {}, {3, 0, 4}), dir + "/three");
+  ddace::task::writeTaskDir(ddace::tasks::generateZoo(rule, 1, 2, {}, {5, 0, 6}), dir + "/five");
+  ddace::tgn::TrainOptions o;
+  o.max_epochs = 5;  // what is checked is the binding, not how well it was learned
+  o.without = {ddace::tgn::Rule::Ensemble};
+  ddace::pipeline::trainModel(ddace::task::loadTaskDir(dir + "/three"), o, dir + "/model", nullptr);
+  EXPECT_EQ(refusal<ddace::nodes::SequenceNode>(
+                "sequence_five", {{"task", dir + "/five"}, {"policy", "model"}, {"model", dir + "/model"}}, false),
+            "");
+  EXPECT_EQ(refusal<ddace::nodes::GpPathNode>(
+                "gp_path_five", {{"task", dir + "/five"}, {"source", "library"}, {"library", dir + "/model"}}, false),
+            "");
+  generateTask(dir + "/task2_five", "task2", 1, 1, 5);
+  const std::string e = refusal<ddace::nodes::SequenceNode>(
+      "sequence_task2_five", {{"task", dir + "/task2_five/test"}, {"policy", "model"}, {"model", setup().model}}, true);
+  EXPECT_NE(e.find("fixed order"), std::string::npos) << e;
 }
 
 TEST(OtherTask, TheRunDoesNotStartAndNoWheelTurns) {
