@@ -70,8 +70,8 @@ DDACE_COMMAND(
      "[--seed S] [--no-bodies] [--no-filter] [--config EXECUTION_YAML] [--dispatch steps|async] [--allow-other-task]",
      "run the learned task in closed loop on every test demonstration's start configuration and "
      "report OSR, SSR, GCR and FD (a model of another task is refused unless --allow-other-task; a test set "
-      "of the same task with other numbers of robots, goals or boxes runs the model bound by kind, with a "
-      "note, where the rule it learned is stated by the scene). "
+     "of the same task with other numbers of robots, goals or boxes runs the model bound by kind, with a "
+     "note, where the rule it learned is stated by the scene). "
      "ideal: every entity traverses its path exactly (the paper). diffdrive: the robots of a step drive "
      "together on the simulated table with bodies, each through its safety filter; every trial reports "
      "its collisions, minimum clearance and makespan, and a collision fails it (--no-filter: without "
