@@ -235,7 +235,15 @@ def load(path, what):
 
 
 def read_key_blocking():
-    return sys.stdin.read(1)
+    # From the file descriptor, never through sys.stdin's buffer: a buffered read takes every
+    # key typed so far into Python's buffer, where select() on the descriptor no longer sees
+    # them, so keys typed together (or pasted) were held back until the next one.
+    return os.read(sys.stdin.fileno(), 1).decode(errors="replace")
+
+
+def read_pending_keys():
+    """Every key typed since the last look, once select() said there is one."""
+    return os.read(sys.stdin.fileno(), 64).decode(errors="replace")
 
 
 def review_file(path):
@@ -313,43 +321,43 @@ def main():
                 last = line
             if not select.select([sys.stdin], [], [], 0.1)[0]:
                 continue
-            key = sys.stdin.read(1)
-            if key == "h":
-                print()
-                show_help()
-                last = None
-                continue
-            for what in lab.handle(key):
-                if what[0] == "quit":
-                    return
-                if what[0] == "label":
-                    msg = Label()
-                    msg.header.stamp = rospy.Time.now()
-                    msg.entity, msg.action, msg.target = what[1], what[2], what[3]
-                    pub.publish(msg)
-                    print("\r\033[Klabel: %s %s %s" % (msg.entity, msg.action or "idle", msg.target))
-                elif what[0] == "service":
-                    if what[1] == "discard":
-                        sys.stdout.write("\r\033[Kdiscard the current demonstration? [y/n] ")
-                        sys.stdout.flush()
-                        if sys.stdin.read(1) != "y":
-                            print("kept")
+            for key in read_pending_keys():
+                if key == "h":
+                    print()
+                    show_help()
+                    last = None
+                    continue
+                for what in lab.handle(key):
+                    if what[0] == "quit":
+                        return
+                    if what[0] == "label":
+                        msg = Label()
+                        msg.header.stamp = rospy.Time.now()
+                        msg.entity, msg.action, msg.target = what[1], what[2], what[3]
+                        pub.publish(msg)
+                        print("\r\033[Klabel: %s %s %s" % (msg.entity, msg.action or "idle", msg.target))
+                    elif what[0] == "service":
+                        if what[1] == "discard":
+                            sys.stdout.write("\r\033[Kdiscard the current demonstration? [y/n] ")
+                            sys.stdout.flush()
+                            if read_key_blocking() != "y":
+                                print("kept")
+                                continue
+                        try:
+                            res = services[what[1]]()
+                            print("\r\033[K%s: %s" % (what[1], res.message))
+                        except (rospy.ServiceException, rospy.ROSException) as e:
+                            print("\r\033[K%s failed: %s (is recorder_node running as %s?)" % (what[1], e, recorder))
                             continue
-                    try:
-                        res = services[what[1]]()
-                        print("\r\033[K%s: %s" % (what[1], res.message))
-                    except (rospy.ServiceException, rospy.ROSException) as e:
-                        print("\r\033[K%s failed: %s (is recorder_node running as %s?)" % (what[1], e, recorder))
-                        continue
-                    # Labels inferred on stop: step through them to accept or correct them.
-                    saved = re.match(r"saved (\S+):", res.message)
-                    if what[1] == "stop" and res.success and saved and "labels inferred" in res.message:
-                        path = saved.group(1)
-                        with open(path) as f:
-                            reviewer = Reviewer(f.read(), entities, actions, notes_of(res.message))
-                        print("review of %s (n/p token, a/A action, t/T target, x drop, w write, q leave)" % path)
-                        review(reviewer, path, read_key_blocking, lambda line: print("\r\033[K" + line))
-                last = None
+                        # Labels inferred on stop: step through them to accept or correct them.
+                        saved = re.match(r"saved (\S+):", res.message)
+                        if what[1] == "stop" and res.success and saved and "labels inferred" in res.message:
+                            path = saved.group(1)
+                            with open(path) as f:
+                                reviewer = Reviewer(f.read(), entities, actions, notes_of(res.message))
+                            print("review of %s (n/p token, a/A action, t/T target, x drop, w write, q leave)" % path)
+                            review(reviewer, path, read_key_blocking, lambda line: print("\r\033[K" + line))
+                    last = None
     finally:
         termios.tcsetattr(sys.stdin, termios.TCSADRAIN, old)
         print()
