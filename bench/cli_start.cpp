@@ -10,7 +10,7 @@
 //   ddace generate --help, and generate task1 --out DIR --train 1 --test 1 (start and work)
 //   ddace label --help
 //   ddace_learn help                          what every subcommand cost before the split
-// Goal (issue 39): help, validate, generate and label start (--help: parse, print, exit)
+// Goal: help, validate, generate and label start (--help: parse, print, exit)
 // under 0.1 s; validate of a new task included.
 // Writes docs/bench/cli_start.md under the repository it finds at run time (--repo DIR, see bench/results.h).
 #include <unistd.h>
@@ -101,7 +101,7 @@ int main(int argc, char** argv) {
          << std::setprecision(3) << " | " << c.status << " |\n";
       if (c.goal && (m >= kGoalS || c.status != 0)) met = false;
     }
-    md << "\nGoal (issue 39): `ddace help`, `validate`, `generate` and `label` under " << kGoalS
+    md << "\nGoal: `ddace help`, `validate`, `generate` and `label` under " << kGoalS
        << " s, without libtorch: " << (met ? "met" : "NOT met") << ".\n";
     bench::writeResults(repo, "cli_start", md.str());
     std::cout << md.str();

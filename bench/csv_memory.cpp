@@ -166,7 +166,7 @@ int main(int argc, char** argv) {
     if (have_tool)
       md << ", " << bench::mb(big_tool.peak_kb - small_tool.peak_kb) << " MB for the tool ("
          << bench::fixed(static_cast<double>(big_tool.peak_kb) / static_cast<double>(small_tool.peak_kb), 2) << "x)";
-    md << ".\n\nGoal (issue 14): memory independent of the number of rows, i.e. the peak grows by less than 1% "
+    md << ".\n\nGoal: memory independent of the number of rows, i.e. the peak grows by less than 1% "
           "of the file's size: "
        << (met ? "met" : (reset_ok ? "NOT met" : "not measured (the kernel cannot reset VmHWM)")) << ".\n";
     std::cout << md.str();

@@ -253,7 +253,7 @@ int main(int argc, char** argv) {
        << generate.wall_ms << " | " << generate.cpu_ms << " | | |\n"
        << "| retargeted primitive path (x and y, 101 points, GP evaluated) | " << generate_other.wall_ms << " | "
        << generate_other.cpu_ms << " | | |\n\n"
-       << "Goals (issue 4): fit >= 1000x faster than scikit-learn at 500 samples with an equal or better LML; "
+       << "Goals: fit >= 1000x faster than scikit-learn at 500 samples with an equal or better LML; "
        << "20-demo fit < 50 ms; 100-point prediction < 0.2 ms.\n";
     std::cout << md.str();
     bench::writeResults(repo, "gp_fit", md.str());

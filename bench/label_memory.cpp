@@ -203,7 +203,7 @@ int main(int argc, char** argv) {
     if (have_tool && small_tool.peak_kb > 0)
       md << " (the tool's peak " << bench::fixed(static_cast<double>(big_tool.peak_kb) / small_tool.peak_kb, 2)
          << "x the reference's)";
-    md << ".\n\nGoal (issue 25: a 1 GiB recording labels with bounded memory): memory independent of the "
+    md << ".\n\nGoal (a 1 GiB recording labels with bounded memory): memory independent of the "
           "recording's rows and steps, i.e. the peak in process grows by less than 1 % of the long recording's "
           "size (this recording, a motion every 1.5 s, is denser in motions than a person's): "
        << (met ? "met" : (reset_ok ? "NOT met" : "not measured (the kernel cannot reset VmHWM)")) << ".\n";

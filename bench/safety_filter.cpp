@@ -146,7 +146,7 @@ int main(int argc, char** argv) {
        << "| path follower (reference) | " << all.follower_us.size() << " | " << c50 << " | " << c99 << " |\n"
        << "| ratio filter / follower | | " << f50 / c50 << "x | " << f99 / c99 << "x |\n\n"
        << "| run | arrived | deadlocks reported | minimum clearance (cm) | end (s) |\n|---:|---:|---:|---:|---:|\n"
-       << runs.str() << "\nGoal (issue 23): < 50 us per robot per control cycle with 11 robots.\n";
+       << runs.str() << "\nGoal: < 50 us per robot per control cycle with 11 robots.\n";
     std::cout << md.str();
     bench::writeResults(repo, "safety_filter", md.str());
     return 0;

@@ -317,7 +317,7 @@ int main(int argc, char** argv) try {
         "reports visible, against the true poses; the reference's: the centres of its detections mapped through "
         "the true table frame (with the markers' heights).\n\n"
      << summary.str() << details.str()
-     << "\nGoals (issue 26): no marker lost that the reference finds; every entity visible in at least 99 % of the "
+     << "\nGoals: no marker lost that the reference finds; every entity visible in at least 99 % of the "
         "frames in which the reference finds it; aruco at most 0.5x and AprilTag at most 1.0x the reference's time "
         "per frame.\n\n"
      << "Written by `bench_vision_track` (`ddace bench vision_track`), " << ddace::utcNow() << ", load average "

@@ -843,7 +843,7 @@ int runTable(const std::vector<std::string>& argv) {
       if (r.closed.trials == 0) continue;
       md << "| " << r.task << " | " << r.condition << " | " << metrics(r) << " | " << metricsOf(r.closed) << " |\n";
     }
-  // The few-shot default-network models again, the robots with bodies (issue 23).
+  // The few-shot default-network models again, the robots with bodies.
   md << "\n## Bodies\n\n"
      << "The default network's models of \"Few-shot, every family\" on the same test configurations, executed with "
         "bodies: every robot and object a disc of the task's footprint on the mock robots' Box2D table, the robots of "
@@ -890,7 +890,7 @@ int runTable(const std::vector<std::string>& argv) {
       md << "- " << what << ": " << (missed.empty() ? "**met**" : "**not met**")
          << ". Met: " << (met.empty() ? "none" : met) << (missed.empty() ? "" : "; not met: " + missed) << ".\n";
     };
-    md << "\nGoals (issue 23), with the filter:\n\n";
+    md << "\nGoals of the bodies, with the filter:\n\n";
     judged("Zero collisions on every family", no_collision, collided);
     judged("OSR with bodies >= 0.95 x the ideal OSR", osr_met, osr_missed);
     judged("Makespan with the filter <= 1.15 x without", time_met, time_missed);

@@ -80,8 +80,8 @@ class MockRobotNode::Impl {
                   if (ros_command::accept(sources, ev, "mock_robots", name))
                     sim_->commandWheels(k, {ev.getMessage()->left_mps, ev.getMessage()->right_mps});
                 })));
-        // A carrier's segments and their ends: its load rides with it (issue 23: in every
-        // simulator a carried object stays in front of its carrier).
+        // A carrier's segments and their ends: its load rides with it (in every simulator a
+        // carried object stays in front of its carrier).
         subs_.push_back(
             nh.subscribe<ddace::Segment>("/robots/" + te.name + "/segment", 10,
                                          [this, k](const ddace::Segment::ConstPtr& m) { onRobotSegment(k, *m); }));

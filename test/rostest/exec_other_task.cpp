@@ -1,4 +1,4 @@
-// Issue 13: a model of another task with the same entity names — Task 2 trained with 4
+// A model of another task with the same entity names — Task 2 trained with 4
 // robots (R1..R4, G1) given for Task 4 — is refused by the sequence node and the gp_path
 // node with a message that says what differs; the launched graph then never starts a run
 // (the start is refused, no wheel ever turns) and the monitor still leaves a report.

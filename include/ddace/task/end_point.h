@@ -31,7 +31,6 @@
 // Meant for: gp path generation (a path runs from S to the end point), the closed-loop
 // simulator and the coordinator (end points of a decided step, the DONE check), the path
 // follower's stop, eval's GCR; the model stores the learned offsets (primitives.yaml).
-// (Issue 23: those users are being switched to it.)
 //
 // Owns: the end point of a motion and the arrival test. Units: metres, table frame.
 #pragma once

@@ -1,4 +1,4 @@
-// Round-trip properties of the writers (issue 14): whatever a writer writes, the matching
+// Round-trip properties of the writers: whatever a writer writes, the matching
 // reader gives back exactly (bit for bit), and writing what was read gives the same bytes.
 // Over many generated inputs, not hand-picked examples.
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
-// Issue 14 (every model file bound to the model and the task) and issue 13 (another
-// task's model with the same entity names refused): through pipeline::loadModel, the one
+// Every model file bound to the model and the task, and another task's model with the
+// same entity names refused: through pipeline::loadModel, the one
 // loader, and through the real `ddace` binary (eval, inspect, path).
 #include <gtest/gtest.h>
 #include <unistd.h>

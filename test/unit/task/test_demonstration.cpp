@@ -447,7 +447,7 @@ TEST(DemonstrationErrors, CrlfLineEndingsAndByteOrderMarkAreAccepted) {
   EXPECT_NO_THROW(parseDemonstrationCsv(csv, scene(), "demo.csv"));
 }
 
-// ---- numbers, line endings, files (issue 14: inputs are files of bounded size; exact round trips)
+// ---- numbers, line endings, files (inputs are files of bounded size; exact round trips)
 
 namespace {
 

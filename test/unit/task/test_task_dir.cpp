@@ -77,7 +77,7 @@ TEST(TaskDir, RewritingRemovesOldDemonstrations) {
   EXPECT_EQ(task::loadTaskDir(path).demos.size(), 1u);
 }
 
-// ---- nothing a user owns is lost (issue 14): the data-loss cases first
+// ---- nothing a user owns is lost: the data-loss cases first
 
 namespace {
 

@@ -423,7 +423,7 @@ TEST(OnsetJitter, OutOfRangeIsRefusedNamingTheOption) {
 
 TEST(Generators, ThePaperFamiliesAreByteIdenticalToTheDataOfTheTable2Rows) {
   // FNV-1a 64 of task.yaml and the CSVs of 4 demonstrations (seed 1), clean and imperfect,
-  // as the generators write them since motions end where bodies can be (issue 23: at
+  // as the generators write them since motions end where bodies can be (at
   // contact, loads in front of their carriers; goal conditions that share a target
   // wide enough for two bodies). A change here changes the paper's Table 2
   // rows: regenerate them (`ddace table`) and update these digests.

@@ -237,7 +237,7 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
   fs::remove_all(good);
 }
 
-// Issue 14: edits of the manifest that used to load silently. Each is a small, plausible
+// Edits of the manifest that used to load silently. Each is a small, plausible
 // hand edit; the manifest's own digest refuses every one, naming the file.
 TEST(SequenceModel, RefusesEveryManifestEdit) {
   tgn::TrainOptions o;
