@@ -19,36 +19,6 @@ namespace ddace::nodes {
 
 namespace {
 
-uint8_t toMsg(exec::SegmentState s) {
-  switch (s) {
-    case exec::SegmentState::Accepted:
-      return ddace::SegmentStatus::ACCEPTED;
-    case exec::SegmentState::Running:
-      return ddace::SegmentStatus::RUNNING;
-    case exec::SegmentState::Done:
-      return ddace::SegmentStatus::DONE;
-    case exec::SegmentState::Failed:
-      return ddace::SegmentStatus::FAILED;
-    case exec::SegmentState::Aborted:
-    case exec::SegmentState::Sent:
-      break;
-  }
-  return ddace::SegmentStatus::ABORTED;
-}
-
-std::optional<exec::SegmentState> fromMsg(uint8_t status) {
-  switch (status) {
-    case ddace::SegmentStatus::DONE:
-      return exec::SegmentState::Done;
-    case ddace::SegmentStatus::FAILED:
-      return exec::SegmentState::Failed;
-    case ddace::SegmentStatus::ABORTED:
-      return exec::SegmentState::Aborted;
-    default:
-      return std::nullopt;  // accepted, running: nothing ends
-  }
-}
-
 /// The task spec; with a task directory holding demos/, refused when a demonstration moves
 /// an object no robot carries.
 task::TaskSpec loadChecked(const std::string& task_path, const std::string& param) {
@@ -123,7 +93,7 @@ class CarriedObjectsNode::Impl {
   }
 
   void onRobotStatus(int r, const ddace::SegmentStatus& m) {
-    if (const auto s = fromMsg(m.status)) publish(judge_->onRobotStatus(r, m.segment_id, *s, now()));
+    if (const auto s = ros_exec::endedState(m.status)) publish(judge_->onRobotStatus(r, m.segment_id, *s, now()));
   }
 
   void onObjectSegment(int o, const ddace::Segment& m) {
@@ -150,7 +120,7 @@ class CarriedObjectsNode::Impl {
       m.header.stamp = ros::Time::now();
       m.entity = spec_.entities[s.entity].name;
       m.segment_id = s.segment_id;
-      m.status = toMsg(s.state);
+      m.status = ros_exec::statusCode(s.state);
       m.progress = s.progress;
       m.distance_to_goal_m = s.distance_to_goal_m;
       m.message = s.message;

@@ -23,6 +23,36 @@ ddace::WheelCommand toMsg(const exec::WheelSpeeds& wheels) {
   return m;
 }
 
+uint8_t statusCode(exec::SegmentState s) {
+  switch (s) {
+    case exec::SegmentState::Accepted:
+      return ddace::SegmentStatus::ACCEPTED;
+    case exec::SegmentState::Running:
+      return ddace::SegmentStatus::RUNNING;
+    case exec::SegmentState::Done:
+      return ddace::SegmentStatus::DONE;
+    case exec::SegmentState::Failed:
+      return ddace::SegmentStatus::FAILED;
+    case exec::SegmentState::Aborted:
+    case exec::SegmentState::Sent:
+      break;
+  }
+  return ddace::SegmentStatus::ABORTED;
+}
+
+std::optional<exec::SegmentState> endedState(uint8_t status) {
+  switch (status) {
+    case ddace::SegmentStatus::DONE:
+      return exec::SegmentState::Done;
+    case ddace::SegmentStatus::FAILED:
+      return exec::SegmentState::Failed;
+    case ddace::SegmentStatus::ABORTED:
+      return exec::SegmentState::Aborted;
+    default:
+      return std::nullopt;  // accepted, running: nothing ends
+  }
+}
+
 ddace::SegmentStatus statusMsg(const std::string& entity, uint32_t segment_id, uint8_t status, double progress,
                                double distance_to_goal_m, const std::string& message) {
   ddace::SegmentStatus s;

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,11 @@ namespace ddace::ros_exec {
 
 /// A wheel command stamped now.
 ddace::WheelCommand toMsg(const exec::WheelSpeeds& wheels);
+/// The SegmentStatus code of an executor's segment state (an executor never reports Sent).
+uint8_t statusCode(exec::SegmentState state);
+/// The state a SegmentStatus code ends a segment in: Done, Failed or Aborted; nothing for
+/// accepted and running.
+std::optional<exec::SegmentState> endedState(uint8_t status);
 /// A segment status of `entity` stamped now.
 ddace::SegmentStatus statusMsg(const std::string& entity, uint32_t segment_id, uint8_t status, double progress,
                                double distance_to_goal_m, const std::string& message);

@@ -26,27 +26,6 @@
 
 namespace ddace::nodes {
 
-namespace {
-
-uint8_t toMsg(exec::SegmentState s) {
-  switch (s) {
-    case exec::SegmentState::Accepted:
-      return ddace::SegmentStatus::ACCEPTED;
-    case exec::SegmentState::Running:
-      return ddace::SegmentStatus::RUNNING;
-    case exec::SegmentState::Done:
-      return ddace::SegmentStatus::DONE;
-    case exec::SegmentState::Failed:
-      return ddace::SegmentStatus::FAILED;
-    case exec::SegmentState::Aborted:
-    case exec::SegmentState::Sent:
-      break;  // an executor never reports Sent
-  }
-  return ddace::SegmentStatus::ABORTED;
-}
-
-}  // namespace
-
 class MockRobotNode::Impl {
  public:
   Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
@@ -110,7 +89,7 @@ class MockRobotNode::Impl {
     m.header.stamp = ros::Time::now();
     m.entity = spec_.entities[s.entity].name;
     m.segment_id = s.segment_id;
-    m.status = toMsg(s.state);
+    m.status = ros_exec::statusCode(s.state);
     m.progress = s.progress;
     m.distance_to_goal_m = s.distance_to_goal_m;
     m.message = s.message;

@@ -12,8 +12,10 @@
 #include "ddace/tasks/generators.h"
 #include "ddace/tasks/rule_zoo.h"
 #include "ddace/tgn/sequence_model.h"
+#include "../common/error_of.h"
 
 using namespace ddace;
+using ddace::test::errorOf;
 
 namespace {
 
@@ -21,17 +23,6 @@ uint64_t zooId(const std::string& family) {
   uint64_t id = 0;
   EXPECT_TRUE(tasks::parseZooFamily(family, id)) << family;
   return id;
-}
-
-/// The message of the ddace::Error `f` throws, or "" when it throws none.
-template <class F>
-std::string errorOf(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
 }
 
 /// Trained on `robots` robots of a zoo rule stated by the scene (10 demonstrations, one network).
