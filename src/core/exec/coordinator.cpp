@@ -13,6 +13,7 @@ std::string seconds(double s) {
 }  // namespace
 
 #include "ddace/common/error.h"
+#include "ddace/exec/push_path.h"
 
 namespace ddace::exec {
 
@@ -424,7 +425,7 @@ CoordinatorOutput Coordinator::onPath(uint32_t id, const PlannedPath& path, cons
     abort(os.str(), out);
     return out;
   }
-  s.tokens[slot].path = path;
+  s.tokens[slot].path = carrierPath(s, slot, path);
   pending_paths_[slot] = 0;
   for (uint32_t p : pending_paths_)
     if (p != 0) return out;
@@ -454,6 +455,25 @@ CoordinatorOutput Coordinator::onPath(uint32_t id, const PlannedPath& path, cons
   segments_since_s_ = now_s;
   setState(RunState::Executing, out);
   updateDistances();
+  return out;
+}
+
+PlannedPath Coordinator::carrierPath(const StepRecord& s, size_t slot, const PlannedPath& planned) const {
+  std::vector<task::Token> step;
+  for (const TokenRecord& t : s.tokens) step.push_back(t.token);
+  const std::optional<int> load = pushedLoad(spec_, step, slot, history_.back().positions);
+  if (!load) return planned;
+  const TokenRecord* l = nullptr;
+  for (const TokenRecord& t : s.tokens)
+    if (t.token.entity == *load) l = &t;
+  // A re-plan after a pause starts where the load is now.
+  const auto e = static_cast<size_t>(*load);
+  const bool seen = s.segments_sent_s >= 0 && observation_.positions.size() > e && observation_.tracked[e];
+  const TokenRecord& c = s.tokens[slot];
+  PlannedPath out;
+  out.points = pushPath(planned.points.front(), c.goal, seen ? observation_.positions[e] : l->start, l->goal,
+                        spec_.contactDistance(c.token.entity, *load), static_cast<int>(planned.points.size()));
+  out.stddev_m.assign(out.points.size(), 0.0);
   return out;
 }
 

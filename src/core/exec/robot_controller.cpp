@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "ddace/common/error.h"
+#include "ddace/exec/push_path.h"
 #include "ddace/task/end_point.h"
 
 namespace ddace::exec {
@@ -83,19 +84,25 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   if (pose_stale || !pose.position().allFinite() || !std::isfinite(pose.yaw))
     return stale(out, "pose of " + name_ + " is stale", now_s);
 
-  const FollowerOutput o = follower_.compute(pose);
+  FollowerOutput o = follower_.compute(pose);
   out.progress = o.progress;
   out.distance_to_goal_m = o.distance_to_goal_m;
-  if (o.done) {
-    stale_since_s_ = -1;
-    return end(out, MotionState::Done, "");
-  }
-
-  // What the motion may touch, as decided for its step: a body it ends against while that
-  // body is at the end point, its load's likewise.
   const SafetyBody* load = nullptr;
   for (const SafetyBody& b : others)
     if (!contacts_.load.empty() && b.name == contacts_.load) load = &b;
+  // Behind its load, a carrier steers the load to the load's end point (exec/push_path.h),
+  // and the load's arrival, not its own, ends the push.
+  const auto push = load ? pushWheels(pose, load->position, contacts_.load_end, follower_.endPoint(),
+                                      radius_m + load->radius_m, params_.gains)
+                         : std::nullopt;
+  if (push ? push->load_arrived : o.done) {
+    stale_since_s_ = -1;
+    return end(out, MotionState::Done, "");
+  }
+  if (push) o.wheels = push->wheels;
+
+  // What the motion may touch, as decided for its step: a body it ends against while that
+  // body is at the end point, its load's likewise.
   const Eigen::Vector2d end_point = follower_.endPoint();
   const double margin = params_.safety.margin_m;
   for (SafetyBody& b : others) {

@@ -1,0 +1,87 @@
+// How a robot moves a load it carries: it pushes it. A box has no wheels and a Hamster
+// cannot hold one, so the carrier goes round the load to its far side from where the load
+// ends, then drives straight through where the load stands toward its own end point, the
+// load in front of it:
+//
+//        carrier
+//           \  round the load, kPushClearanceM clear of contact
+//            )
+//   run-up o-(-- load ======================> load's end point
+//            behind it          the push       (the carrier's end point behind it)
+//
+// The carrier's end point (task::stepEndPositions: behind the load's end at their contact
+// distance) decides where the push stops; the load's end point decides the direction of
+// the push. The planned path of the carrier (the learned primitive's) says how a robot
+// moves alone; a push goes straight, the one way a disc moves a disc without losing it.
+//
+// One rule for everything that drives a carrier: the coordinator's segments (ROS graph:
+// mock robots, the real table, its simulation) and the closed-loop simulator.
+//
+// Owns: the carrier's path when it moves a load. Must not: decide end points
+// (task/end_point.h) or who carries what (task::ridingLoad). Units: metres, table frame.
+#pragma once
+
+#include <cmath>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ddace/exec/diff_drive.h"
+#include "ddace/exec/path_follower.h"
+#include "ddace/task/demonstration.h"
+#include "ddace/task/task_spec.h"
+
+namespace ddace::exec {
+
+/// How far outside contact with its load the carrier goes round it (metres): its run-up
+/// before touching the load, more than the path follower's lookahead needs to line up.
+inline constexpr double kPushClearanceM = 0.06;
+/// The arc round the load is drawn in steps of this angle (radians).
+inline constexpr double kPushArcStepRad = 0.2;
+/// A carrier pushes (pushWheels()) while its load is within this angle of the push
+/// direction, seen from the carrier, and within kPushClearanceM / 3 of contact (radians).
+inline constexpr double kPushConeRad = M_PI / 4;
+/// How far the carrier over-steers the load's side drift (pushWheels()): a disc pushed off
+/// its centre slides sideways, so the carrier heads as far past the contact line, the other
+/// way, as the load has drifted from its push direction; at most kMaxPushLeadRad.
+inline constexpr double kPushLead = 0.5;
+inline constexpr double kMaxPushLeadRad = M_PI / 3;
+/// A pushed load heads for its push line this far ahead of itself (metres).
+inline constexpr double kPushLookaheadM = 0.2;
+
+/// The path of a carrier at `from` that pushes a load standing at `load` (their contact
+/// distance `contact_m`) until the load is at `load_end` and the carrier at `end`: round the
+/// load at contact + kPushClearanceM (the shorter way) to behind it, then straight to `end`.
+/// `points` points evenly spaced by arc length (at least 2). A load already at its end
+/// point (within task::kMinApproachM) is not pushed: from straight to `end`.
+std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::Vector2d& end,
+                                      const Eigen::Vector2d& load, const Eigen::Vector2d& load_end, double contact_m,
+                                      int points);
+
+/// One control cycle of a carrier pushing its load.
+struct PushCommand {
+  WheelSpeeds wheels;
+  bool load_arrived = false;  ///< the load reached its end point: the carrier is done
+};
+
+/// Steering a pushed load to its end point from the measured poses: the load follows the
+/// push line (through `load_end`, from the carrier's end point `carrier_end` behind it),
+/// heading for the line kPushLookaheadM ahead of itself; the carrier at `carrier` (contact
+/// distance `contact_m` with its load at `load`) heads along their contact line, turned
+/// by kPushLead of the load's drift from where it should head, at the path follower's speeds
+/// (`gains`: cruise, slowdown by the load's distance to its end, turn limits). Nothing when
+/// the carrier is not behind its load (kPushConeRad, within kPushClearanceM / 3 of
+/// contact): it follows its path, round the load. The load has arrived once it reaches
+/// its end point along the push line (the carrier stops there: the load's end point, not
+/// the carrier's, ends the push).
+std::optional<PushCommand> pushWheels(const Pose2D& carrier, const Eigen::Vector2d& load,
+                                      const Eigen::Vector2d& load_end, const Eigen::Vector2d& carrier_end,
+                                      double contact_m, const FollowerGains& gains);
+
+/// What the motion `step[i]` pushes when its step is decided at `decided` (every entity's
+/// position): the entity index of its load (task::ridingLoad), or nothing.
+std::optional<int> pushedLoad(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,
+                              const std::vector<Eigen::Vector2d>& decided);
+
+}  // namespace ddace::exec

@@ -1,0 +1,90 @@
+#include "ddace/exec/push_path.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "ddace/common/angle.h"
+#include "ddace/exec/path_follower.h"
+
+#include "ddace/task/end_point.h"
+
+namespace ddace::exec {
+
+namespace {
+
+Eigen::Vector2d onCircle(const Eigen::Vector2d& centre, double radius, double angle) {
+  return centre + radius * Eigen::Vector2d(std::cos(angle), std::sin(angle));
+}
+
+}  // namespace
+
+std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::Vector2d& end,
+                                      const Eigen::Vector2d& load, const Eigen::Vector2d& load_end, double contact_m,
+                                      int points) {
+  const auto evenly = [&](std::vector<Eigen::Vector2d> corners) {
+    return resampleByArcLength(PlannedPath{std::move(corners), {}}, std::max(points, 2)).points;
+  };
+  const Eigen::Vector2d push = load_end - load;
+  if (push.norm() < task::kMinApproachM) return evenly({from, end});
+  const Eigen::Vector2d w = push.normalized();
+  const double radius = contact_m + kPushClearanceM;
+  const double behind = std::atan2(-w.y(), -w.x());  // the run-up's bearing from the load
+  std::vector<Eigen::Vector2d> out{from};
+  const Eigen::Vector2d rel = from - load;
+  if (rel.norm() > 1e-9) {
+    // Out to the circle (or in, from afar), round it the shorter way to the run-up.
+    const double bearing = std::atan2(rel.y(), rel.x());
+    const double turn = wrapAngle(behind - bearing);
+    const int steps = static_cast<int>(std::ceil(std::abs(turn) / kPushArcStepRad));
+    for (int k = 0; k <= steps; ++k)
+      out.push_back(onCircle(load, radius, bearing + turn * k / std::max(steps, 1)));
+  } else {
+    out.push_back(onCircle(load, radius, behind));
+  }
+  out.push_back(end);
+  return evenly(std::move(out));
+}
+
+std::optional<PushCommand> pushWheels(const Pose2D& carrier, const Eigen::Vector2d& load,
+                                      const Eigen::Vector2d& load_end, const Eigen::Vector2d& carrier_end,
+                                      double contact_m, const FollowerGains& gains) {
+  const Eigen::Vector2d contact = load - carrier.position();
+  if (contact.norm() > contact_m + kPushClearanceM / 3 || contact.norm() < 1e-9) return std::nullopt;
+  PushCommand out;
+  // The push line runs through the load's end point, from the carrier's end behind it.
+  const Eigen::Vector2d line = load_end - carrier_end;
+  const Eigen::Vector2d w = line.norm() > 1e-9 ? Eigen::Vector2d(line.normalized()) : contact.normalized();
+  const double along = (load - load_end).dot(w);  // < 0: short of the end
+  if (along >= 0) {
+    out.load_arrived = true;
+    return out;
+  }
+  // The load heads for the line kPushLookaheadM ahead of where it is along it.
+  const Eigen::Vector2d aim = load_end + (along + kPushLookaheadM) * w - load;
+  const double normal = std::atan2(contact.y(), contact.x()), wanted = std::atan2(aim.y(), aim.x());
+  const double drift = wrapAngle(normal - wanted);
+  if (std::abs(drift) > kPushConeRad) return std::nullopt;
+  const double lead = std::clamp(kPushLead * drift, -kMaxPushLeadRad, kMaxPushLeadRad);
+  const double alpha = wrapAngle(normal + lead - carrier.yaw);
+  double v = 0, turn = std::clamp(gains.heading_gain * alpha, -gains.max_turn_rate_radps, gains.max_turn_rate_radps);
+  if (std::abs(alpha) <= gains.rotate_in_place_rad) {
+    const double ramp = std::min(1.0, -along / gains.slowdown_radius_m);
+    v = std::max(gains.min_speed_mps, gains.cruise_speed_mps * ramp) * std::max(0.0, std::cos(alpha));
+  }
+  out.wheels = twistToWheels(v, turn, gains.wheel_base_m);
+  const double peak = std::max(std::abs(out.wheels.left_mps), std::abs(out.wheels.right_mps));
+  if (peak > gains.max_wheel_speed_mps) {
+    out.wheels.left_mps *= gains.max_wheel_speed_mps / peak;
+    out.wheels.right_mps *= gains.max_wheel_speed_mps / peak;
+  }
+  return out;
+}
+
+std::optional<int> pushedLoad(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,
+                              const std::vector<Eigen::Vector2d>& decided) {
+  const int k = task::ridingLoad(spec, step, i, decided);
+  if (k < 0) return std::nullopt;
+  return step[static_cast<size_t>(k)].entity;
+}
+
+}  // namespace ddace::exec

@@ -1,0 +1,120 @@
+// A carrier moves its load by pushing it: its path goes round the load to the far side
+// from the load's end point, and its controller (exec::RobotController, the path follower
+// node's and the simulators' control cycle) steers the load along the push line on the
+// simulated table with bodies (exec::SimTable: nothing carries the box, a disc pushes a
+// disc), ending when the load is at its end point.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "ddace/exec/push_path.h"
+#include "ddace/exec/robot_controller.h"
+#include "ddace/exec/sim_table.h"
+#include "ddace/task/end_point.h"
+
+using namespace ddace;
+using namespace ddace::exec;
+
+namespace {
+
+task::TaskSpec fetchTask() {
+  task::TaskSpec spec;
+  spec.name = "fetch";
+  spec.entities = {{"R1", task::EntityKind::Robot, ""},
+                   {"R2", task::EntityKind::Robot, ""},
+                   {"B1", task::EntityKind::Object, ""},
+                   {"G1", task::EntityKind::Goal, ""}};
+  return spec;
+}
+constexpr int R1 = 0, B1 = 2, G1 = 3;
+
+struct PushRun {
+  bool done = false;
+  double seconds = 0;
+  Eigen::Vector2d box{0, 0}, carrier{0, 0};
+};
+
+/// R1 at `carrier` (facing `yaw`) pushes B1 from `box` onto G1 at `goal` on the simulated
+/// table: the push path, then the controller's cycles on exact poses, at most 60 s.
+PushRun push(const Eigen::Vector2d& carrier, double yaw, const Eigen::Vector2d& box, const Eigen::Vector2d& goal) {
+  const task::TaskSpec spec = fetchTask();
+  SimTable sim(spec, {{carrier.x(), carrier.y(), yaw}, {0.9, 0.1, 0}, {box.x(), box.y(), 0}, {goal.x(), goal.y(), 0}},
+               DiffDriveParams{});
+  const double contact = spec.contactDistance(R1, B1);
+  const Eigen::Vector2d u = (goal - box).normalized();
+  const Eigen::Vector2d end = goal - contact * u;  // the carrier's end point: behind the load on its goal
+  ControllerParams params;
+  RobotController c("R1", params);
+  c.start(PlannedPath{pushPath(carrier, end, box, goal, contact, 50), {}}, "G1",
+          task::stopRadius(task::kDefaultArrivalRadius));
+  MotionContacts contacts;
+  contacts.load = "B1";
+  contacts.load_end = goal;
+  c.setContacts(contacts);
+  PushRun out;
+  for (; sim.time() < 60.0; sim.step()) {
+    const auto e = sim.entities();
+    std::vector<SafetyBody> others;
+    for (size_t i = 1; i < e.size(); ++i) {
+      const task::Footprint f = spec.footprint(static_cast<int>(i));
+      if (f.obstacle) others.push_back({e[i].name, e[i].pose.position(), f.radius_m, i == 1});
+    }
+    const ControlOutput o = c.cycle(e[R1].pose, false, 0.0, spec.footprint(R1).radius_m, others, sim.time());
+    sim.drive("R1", o.wheels, "test");
+    if (o.state == MotionState::Done) {
+      out.done = true;
+      break;
+    }
+    if (o.state == MotionState::Failed) {
+      std::printf("failed: %s\n", o.message.c_str());
+      break;
+    }
+  }
+  for (int k = 0; k < 50; ++k) sim.step();  // the box slides to rest
+  const auto e = sim.entities();
+  out.seconds = sim.time();
+  out.box = e[B1].pose.position();
+  out.carrier = e[R1].pose.position();
+  return out;
+}
+
+}  // namespace
+
+TEST(PushPath, GoesRoundTheLoadToItsFarSideThenStraightThroughIt) {
+  const Eigen::Vector2d from(0.3, 0.45), box(0.3, 0.4), load_end(0.8, 0.4), end(0.76, 0.4);
+  const auto path = pushPath(from, end, box, load_end, 0.04, 60);
+  ASSERT_EQ(path.size(), 60u);
+  EXPECT_NEAR((path.front() - from).norm(), 0, 1e-9);
+  EXPECT_NEAR((path.back() - end).norm(), 0, 1e-9);
+  // Never closer to the load than contact before the run-up behind it; the run-up lies
+  // on the push line behind the load.
+  bool behind = false;
+  for (const auto& p : path) {
+    if (!behind) {
+      EXPECT_GE((p - box).norm(), 0.04 - 1e-6) << p.transpose();
+    }
+    behind = behind || (p.x() < box.x() - 0.04 && std::abs(p.y() - box.y()) < 0.01);
+  }
+  EXPECT_TRUE(behind) << "the path never reaches the run-up behind the load";
+  // A load already at its end point is not pushed: straight to the end.
+  const auto still = pushPath(from, end, load_end, load_end, 0.04, 10);
+  for (const auto& p : still) EXPECT_LT(std::abs((p - from).x() * (end - from).y() - (p - from).y() * (end - from).x()), 1e-9);
+}
+
+TEST(PushPath, TheCarrierPushesTheBoxOntoItsGoalFromAnySide) {
+  // The fetch that failed on the simulated table: the carrier came from above the box and
+  // its goal lies up and to the right; and from the goal's side, and from behind.
+  struct Case {
+    Eigen::Vector2d carrier;
+    double yaw;
+  };
+  const Eigen::Vector2d box(0.256, 0.390), goal(0.871, 0.737);
+  for (const Case& k : {Case{{0.262, 0.435}, -M_PI / 2}, Case{{0.296, 0.412}, M_PI}, Case{{0.217, 0.368}, 0.5}}) {
+    const PushRun r = push(k.carrier, k.yaw, box, goal);
+    EXPECT_TRUE(r.done) << "from " << k.carrier.transpose() << ": the box at " << r.box.transpose();
+    EXPECT_LT((r.box - goal).norm(), task::kDefaultArrivalRadius)
+        << "from " << k.carrier.transpose() << ": the box at " << r.box.transpose() << " after " << r.seconds << " s";
+  }
+}
