@@ -36,8 +36,7 @@ std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::
     const double bearing = std::atan2(rel.y(), rel.x());
     const double turn = wrapAngle(behind - bearing);
     const int steps = static_cast<int>(std::ceil(std::abs(turn) / kPushArcStepRad));
-    for (int k = 0; k <= steps; ++k)
-      out.push_back(onCircle(load, radius, bearing + turn * k / std::max(steps, 1)));
+    for (int k = 0; k <= steps; ++k) out.push_back(onCircle(load, radius, bearing + turn * k / std::max(steps, 1)));
   } else {
     out.push_back(onCircle(load, radius, behind));
   }

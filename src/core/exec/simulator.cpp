@@ -69,8 +69,9 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
         if (ex.planned.empty()) ex.planned = {ex.start, ex.goal};
         // With bodies a carrier pushes its load, as the coordinator plans it for the robots.
         if (const auto load = execution.bodies() ? pushedLoad(spec, d.tokens, i, decided) : std::nullopt)
-          ex.planned = pushPath(ex.start, ex.goal, decided[static_cast<size_t>(*load)], ends[static_cast<size_t>(*load)],
-                                spec.contactDistance(token.entity, *load), static_cast<int>(ex.planned.size()));
+          ex.planned =
+              pushPath(ex.start, ex.goal, decided[static_cast<size_t>(*load)], ends[static_cast<size_t>(*load)],
+                       spec.contactDistance(token.entity, *load), static_cast<int>(ex.planned.size()));
         motions.push_back(
             {i, token.entity, token.target, spec.entities[token.entity].kind == task::EntityKind::Robot, ex.planned});
       } else {

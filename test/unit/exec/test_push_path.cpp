@@ -100,7 +100,8 @@ TEST(PushPath, GoesRoundTheLoadToItsFarSideThenStraightThroughIt) {
   EXPECT_TRUE(behind) << "the path never reaches the run-up behind the load";
   // A load already at its end point is not pushed: straight to the end.
   const auto still = pushPath(from, end, load_end, load_end, 0.04, 10);
-  for (const auto& p : still) EXPECT_LT(std::abs((p - from).x() * (end - from).y() - (p - from).y() * (end - from).x()), 1e-9);
+  for (const auto& p : still)
+    EXPECT_LT(std::abs((p - from).x() * (end - from).y() - (p - from).y() * (end - from).x()), 1e-9);
 }
 
 TEST(PushPath, TheCarrierPushesTheBoxOntoItsGoalFromAnySide) {
