@@ -38,6 +38,7 @@ class PathFollowerNode::Impl {
     pose_timeout_s_ = rosparam::param(pnh, "pose_timeout_s", defaults.pose_timeout_s);
     params_.stale_fail_s = rosparam::param(pnh, "stale_fail_s", defaults.stale_fail_s);
     status_every_ = std::max(1, rosparam::param(pnh, "status_every_cycles", defaults.status_every_cycles));
+    loads_ride_ = rosparam::param(pnh, "loads_ride", defaults.loads_ride);
     for (const auto& [p, v] :
          {std::pair{"rate_hz", rate_hz_}, {"pose_timeout_s", pose_timeout_s_}, {"stale_fail_s", params_.stale_fail_s}})
       if (!(v > 0)) throw Error("parameter '" + pnh.resolveName(p) + "' must be positive");
@@ -187,9 +188,10 @@ class PathFollowerNode::Impl {
       }
       at.push_back(b);
     }
-    r.controller.setContacts(exec::motionContacts(r.pose.position(), self_radius, r.controller.endPoint(), r.step,
-                                                  r.action, r.controller.target(), at, params_.safety.margin_m,
-                                                  arrival_m_));
+    exec::MotionContacts c =
+        exec::motionContacts(r.pose.position(), self_radius, r.controller.endPoint(), r.step, r.action,
+                             r.controller.target(), at, params_.safety.margin_m, arrival_m_);
+    c.load_rides = loads_ride_, r.controller.setContacts(std::move(c));
   }
 
   void onEntities(const ddace::EntityArray& m) {
@@ -284,6 +286,7 @@ class PathFollowerNode::Impl {
   std::vector<ros::Subscriber> subs_;
   exec::ControllerParams params_;
   double arrival_m_ = task::kDefaultArrivalRadius;
+  bool loads_ride_ = false;
   double rate_hz_ = 0, pose_timeout_s_ = 0;
   int status_every_ = 1;
   bool estopped_ = false;

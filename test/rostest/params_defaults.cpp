@@ -108,6 +108,7 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"pose_timeout_s", value(f.pose_timeout_s)},
                   {"stale_fail_s", value(f.stale_fail_s)},
                   {"status_every_cycles", value(f.status_every_cycles)},
+                  {"loads_ride", value(f.loads_ride)},
                   {"gains", YAML::Node()},
                   {"safety", YAML::Node()}},
                  {"robots"});

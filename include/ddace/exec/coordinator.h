@@ -242,8 +242,9 @@ class Coordinator {
   void requestDecisionOrWait(double now_s, CoordinatorOutput& out);
   void requestPaths(double now_s, CoordinatorOutput& out);
   /// The path of token `slot` of step `s` from its planned one: a carrier's pushes its
-  /// load (exec/push_path.h), any other is `planned`.
-  PlannedPath carrierPath(const StepRecord& s, size_t slot, const PlannedPath& planned) const;
+  /// load (exec/push_path.h) and ends behind the load's end point (its goal moves there),
+  /// any other is `planned`.
+  PlannedPath carrierPath(StepRecord& s, size_t slot, const PlannedPath& planned);
   void abort(const std::string& why, CoordinatorOutput& out);
   void stopActive(CoordinatorOutput& out);
   void completeStepIfDone(double now_s, CoordinatorOutput& out);

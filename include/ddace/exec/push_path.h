@@ -9,10 +9,10 @@
 //   run-up o-(-- load ======================> load's end point
 //            behind it          the push       (the carrier's end point behind it)
 //
-// The carrier's end point (task::stepEndPositions: behind the load's end at their contact
-// distance) decides where the push stops; the load's end point decides the direction of
-// the push. The planned path of the carrier (the learned primitive's) says how a robot
-// moves alone; a push goes straight, the one way a disc moves a disc without losing it.
+// The load's end point decides the direction of the push and where it stops: the carrier
+// ends behind it at their contact distance (on the push line; where the learned end point
+// of the carrier puts it elsewhere, the push line wins). The planned path of the carrier (the learned primitive's) says
+// how a robot moves alone; a push goes straight, the one way a disc moves a disc without losing it.
 //
 // One rule for everything that drives a carrier: the coordinator's segments (ROS graph:
 // mock robots, the real table, its simulation) and the closed-loop simulator.
@@ -51,13 +51,15 @@ inline constexpr double kMaxPushLeadRad = M_PI / 3;
 inline constexpr double kPushLookaheadM = 0.2;
 
 /// The path of a carrier at `from` that pushes a load standing at `load` (their contact
-/// distance `contact_m`) until the load is at `load_end` and the carrier at `end`: round the
-/// load at contact + kPushClearanceM (the shorter way) to behind it, then straight to `end`.
-/// `points` points evenly spaced by arc length (at least 2). A load already at its end
-/// point (within task::kMinApproachM) is not pushed: from straight to `end`.
-std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::Vector2d& end,
-                                      const Eigen::Vector2d& load, const Eigen::Vector2d& load_end, double contact_m,
-                                      int points);
+/// distance `contact_m`) until the load is at `load_end`: round the load at contact +
+/// kPushClearanceM (the shorter way) to behind it, then straight along the push line to
+/// behind the load's end point at contact (the carrier's end point: the load's end decides
+/// where the carrier stops), `points` points evenly spaced by arc length (at least 2). A
+/// load already at its end point (within task::kMinApproachM) is not pushed: from straight
+/// to `from`'s own end, `fallback_end`.
+std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::Vector2d& load,
+                                      const Eigen::Vector2d& load_end, double contact_m,
+                                      const Eigen::Vector2d& fallback_end, int points);
 
 /// One control cycle of a carrier pushing its load.
 struct PushCommand {

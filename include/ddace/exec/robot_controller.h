@@ -47,7 +47,11 @@ struct ControllerParams {
 
 /// What a motion may touch, decided once per step from the step's end points.
 struct MotionContacts {
-  std::string load;                         ///< the object it carries, riding in front ("" = none)
+  std::string load;  ///< the object it carries, riding in front ("" = none)
+  /// The table carries the load in front of its carrier once met (TableSimulator::ride: the
+  /// mock robots, the simulator) instead of leaving it to be pushed (the real table, its
+  /// simulation): no push steering (exec/push_path.h's pushWheels).
+  bool load_rides = false;
   Eigen::Vector2d load_end{0, 0};           ///< where the load ends
   std::set<std::string> ends_against;       ///< bodies its end point touches (SafetyBody::touchable)
   std::set<std::string> load_ends_against;  ///< bodies the load's end point touches (load_touchable)

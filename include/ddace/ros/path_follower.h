@@ -39,6 +39,9 @@ class PathFollowerNode {
     double pose_timeout_s = 0.25;  ///< no pose of a robot for this long = stale -> zero wheels
     double stale_fail_s = 2.0;     ///< stale for this long during a segment -> segment FAILED
     int status_every_cycles = 5;   ///< RUNNING status every N cycles
+    /// The table carries a load in front of its carrier once met (mock robots) instead of
+    /// leaving it to be pushed (exec::MotionContacts::load_rides).
+    bool loads_ride = false;
   };
 
   PathFollowerNode(ros::NodeHandle nh, ros::NodeHandle pnh);

@@ -122,6 +122,7 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
       contacts[mo.entity].load_ends_against.clear();
     } else if (load >= 0) {
       load_of[mo.entity] = load;
+      contacts[mo.entity].load_rides = true;
     }
   }
   std::set<std::pair<int, int>> loaded(table_->loadedPairs().begin(), table_->loadedPairs().end());

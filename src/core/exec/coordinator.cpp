@@ -458,7 +458,7 @@ CoordinatorOutput Coordinator::onPath(uint32_t id, const PlannedPath& path, cons
   return out;
 }
 
-PlannedPath Coordinator::carrierPath(const StepRecord& s, size_t slot, const PlannedPath& planned) const {
+PlannedPath Coordinator::carrierPath(StepRecord& s, size_t slot, const PlannedPath& planned) {
   std::vector<task::Token> step;
   for (const TokenRecord& t : s.tokens) step.push_back(t.token);
   const std::optional<int> load = pushedLoad(spec_, step, slot, history_.back().positions);
@@ -469,11 +469,12 @@ PlannedPath Coordinator::carrierPath(const StepRecord& s, size_t slot, const Pla
   // A re-plan after a pause starts where the load is now.
   const auto e = static_cast<size_t>(*load);
   const bool seen = s.segments_sent_s >= 0 && observation_.positions.size() > e && observation_.tracked[e];
-  const TokenRecord& c = s.tokens[slot];
+  TokenRecord& c = s.tokens[slot];
   PlannedPath out;
-  out.points = pushPath(planned.points.front(), c.goal, seen ? observation_.positions[e] : l->start, l->goal,
-                        spec_.contactDistance(c.token.entity, *load), static_cast<int>(planned.points.size()));
+  out.points = pushPath(planned.points.front(), seen ? observation_.positions[e] : l->start, l->goal,
+                        spec_.contactDistance(c.token.entity, *load), c.goal, static_cast<int>(planned.points.size()));
   out.stddev_m.assign(out.points.size(), 0.0);
+  c.goal = out.points.back();  // behind the load's end point: where the push stops
   return out;
 }
 

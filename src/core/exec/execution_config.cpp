@@ -64,8 +64,8 @@ std::set<std::string> fieldNames(Params& params) {
 // path_follower.cpp, mock_robot.cpp): not read here, but known, so that any other key is a
 // typo. The shipped file holds every key (ExecutionConfig.TheShippedFileIsTheBuiltInDefaults
 // parses it here; the params_defaults rostest holds its keys to the nodes').
-const std::set<std::string> kFollowerNodeKeys = {
-    "rate_hz", "pose_timeout_s", "stale_fail_s", "status_every_cycles", "robots", "task"};
+const std::set<std::string> kFollowerNodeKeys = {"rate_hz",    "pose_timeout_s", "stale_fail_s", "status_every_cycles",
+                                                 "loads_ride", "robots",         "task"};
 const std::set<std::string> kMockRobotsNodeKeys = {"task",           "frame_id",  "publish_tf", "stalled",
                                                    "entities_topic", "scene_csv", "scene_demo", "scene"};
 

@@ -18,14 +18,14 @@ Eigen::Vector2d onCircle(const Eigen::Vector2d& centre, double radius, double an
 
 }  // namespace
 
-std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::Vector2d& end,
-                                      const Eigen::Vector2d& load, const Eigen::Vector2d& load_end, double contact_m,
-                                      int points) {
+std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::Vector2d& load,
+                                      const Eigen::Vector2d& load_end, double contact_m,
+                                      const Eigen::Vector2d& fallback_end, int points) {
   const auto evenly = [&](std::vector<Eigen::Vector2d> corners) {
     return resampleByArcLength(PlannedPath{std::move(corners), {}}, std::max(points, 2)).points;
   };
   const Eigen::Vector2d push = load_end - load;
-  if (push.norm() < task::kMinApproachM) return evenly({from, end});
+  if (push.norm() < task::kMinApproachM) return evenly({from, fallback_end});
   const Eigen::Vector2d w = push.normalized();
   const double radius = contact_m + kPushClearanceM;
   const double behind = std::atan2(-w.y(), -w.x());  // the run-up's bearing from the load
@@ -40,7 +40,7 @@ std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::
   } else {
     out.push_back(onCircle(load, radius, behind));
   }
-  out.push_back(end);
+  out.push_back(load_end - contact_m * w);
   return evenly(std::move(out));
 }
 

@@ -92,9 +92,10 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
     if (!contacts_.load.empty() && b.name == contacts_.load) load = &b;
   // Behind its load, a carrier steers the load to the load's end point (exec/push_path.h),
   // and the load's arrival, not its own, ends the push.
-  const auto push = load ? pushWheels(pose, load->position, contacts_.load_end, follower_.endPoint(),
-                                      radius_m + load->radius_m, params_.gains)
-                         : std::nullopt;
+  const auto push = load && !contacts_.load_rides
+                        ? pushWheels(pose, load->position, contacts_.load_end, follower_.endPoint(),
+                                     radius_m + load->radius_m, params_.gains)
+                        : std::nullopt;
   if (push ? push->load_arrived : o.done) {
     stale_since_s_ = -1;
     return end(out, MotionState::Done, "");

@@ -47,7 +47,7 @@ PushRun push(const Eigen::Vector2d& carrier, double yaw, const Eigen::Vector2d& 
   const Eigen::Vector2d end = goal - contact * u;  // the carrier's end point: behind the load on its goal
   ControllerParams params;
   RobotController c("R1", params);
-  c.start(PlannedPath{pushPath(carrier, end, box, goal, contact, 50), {}}, "G1",
+  c.start(PlannedPath{pushPath(carrier, box, goal, contact, end, 50), {}}, "G1",
           task::stopRadius(task::kDefaultArrivalRadius));
   MotionContacts contacts;
   contacts.load = "B1";
@@ -84,7 +84,7 @@ PushRun push(const Eigen::Vector2d& carrier, double yaw, const Eigen::Vector2d& 
 
 TEST(PushPath, GoesRoundTheLoadToItsFarSideThenStraightThroughIt) {
   const Eigen::Vector2d from(0.3, 0.45), box(0.3, 0.4), load_end(0.8, 0.4), end(0.76, 0.4);
-  const auto path = pushPath(from, end, box, load_end, 0.04, 60);
+  const auto path = pushPath(from, box, load_end, 0.04, Eigen::Vector2d(0, 0), 60);
   ASSERT_EQ(path.size(), 60u);
   EXPECT_NEAR((path.front() - from).norm(), 0, 1e-9);
   EXPECT_NEAR((path.back() - end).norm(), 0, 1e-9);
@@ -99,7 +99,7 @@ TEST(PushPath, GoesRoundTheLoadToItsFarSideThenStraightThroughIt) {
   }
   EXPECT_TRUE(behind) << "the path never reaches the run-up behind the load";
   // A load already at its end point is not pushed: straight to the end.
-  const auto still = pushPath(from, end, load_end, load_end, 0.04, 10);
+  const auto still = pushPath(from, load_end, load_end, 0.04, end, 10);
   for (const auto& p : still)
     EXPECT_LT(std::abs((p - from).x() * (end - from).y() - (p - from).y() * (end - from).x()), 1e-9);
 }
