@@ -256,14 +256,7 @@ class HamsterBridgeNode::Impl {
     s.add("battery (V)", battery_v);
     s.add("signal (dBm)", r.last_rssi_dbm.load());
     s.add("last error", st.last_error);
-    s.add("command sources", sources->allowedList());
-    s.add("foreign commands", sources->foreignReport());
-    s.add("unstamped commands", sources->unstampedReport());
-    // A node the launch did not name is publishing wheel commands right now: say so.
-    if (sources->foreign() > r.diag_foreign)
-      s.mergeSummary(diagnostic_msgs::DiagnosticStatus::WARN,
-                     "wheel commands from " + sources->lastForeign() + " refused (not a command source)");
-    r.diag_foreign = sources->foreign();
+    ddace::ros_command::diagnose(*sources, r.diag_foreign, s);
   }
 
   BridgeConfig config_;
