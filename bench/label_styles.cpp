@@ -12,8 +12,9 @@
 // Writes docs/bench/label_styles.md under the repository (--repo DIR); --quick: two
 // families, three styles, four demonstrations, the report on stdout (no file written).
 // --osr: what the labels change downstream instead: the default network trained on the true
-// labels and on the inferred ones (20 demonstrations, the first the example), OSR on 20
-// fresh scenes, ideal execution, for the families in two styles (`all`, `pause`);
+// labels, on the inferred ones, and on the usable inferred demonstrations only (20
+// demonstrations, the first the example), OSR on 20 fresh scenes, ideal execution, for the
+// issue's families in two styles (`all`, `pause`);
 // writes docs/bench/label_styles_osr.md (with --family/--style: on stdout).
 // Usage: ddace bench label_styles [--repo DIR] [--quick] [--demos N] [--seed S]
 //        [--family F] [--style S] [--show] (one family or style, on stdout; --show: the
@@ -97,25 +98,37 @@ std::string fixed(double v, int digits = 2) {
   return s.str();
 }
 
-/// OSR of the default network trained on `data`'s true and inferred labels, on `test`;
-/// a model that evaluation refuses (its tokens never demonstrated) is -1, `why` says why.
-struct OsrPair {
-  double truth = -1, inferred = -1;
+/// OSR of the default network trained on `data`'s true labels, its inferred ones, and its
+/// usable inferred demonstrations only (nothing listed: what a user keeps without reviewing),
+/// on `test`; a model that evaluation refuses (its tokens never demonstrated) is -1, `why`
+/// says why.
+struct OsrCells {
+  double truth = -1, inferred = -1, usable = -1;
+  int usable_demos = 0;
   std::string why;
 };
 
-OsrPair trainedOsr(const label::InferredDataset& data, const task::TaskDir& test, const std::filesystem::path& scratch,
-                   uint64_t seed) {
+OsrCells trainedOsr(const label::InferredDataset& data, const task::TaskDir& test, const std::filesystem::path& scratch,
+                    uint64_t seed) {
   tgn::TrainOptions options;
   options.seed = seed;
-  OsrPair out;
-  for (const bool inferred : {false, true}) {
-    const std::filesystem::path dir = scratch / (inferred ? "inferred" : "true");
+  OsrCells out;
+  task::TaskDir usable = data.inferred;
+  usable.demos.clear();
+  for (size_t d = 0; d < data.inferred.demos.size(); ++d)
+    if (d == 0 || data.notes[d].empty()) usable.demos.push_back(data.inferred.demos[d]);
+  out.usable_demos = static_cast<int>(usable.demos.size());
+  const std::vector<std::pair<std::string, std::pair<const task::TaskDir*, double*>>> runs = {
+      {"true labels", {&data.truth, &out.truth}},
+      {"inferred labels", {&data.inferred, &out.inferred}},
+      {"usable demonstrations", {&usable, &out.usable}}};
+  for (const auto& [name, run] : runs) {
+    const std::filesystem::path dir = scratch / "model";
     try {
-      const pipeline::Model model = pipeline::trainModel(inferred ? data.inferred : data.truth, options, dir, nullptr);
-      (inferred ? out.inferred : out.truth) = pipeline::evaluate(model, test, {}).summary.osr;
+      const pipeline::Model model = pipeline::trainModel(*run.first, options, dir, nullptr);
+      *run.second = pipeline::evaluate(model, test, {}).summary.osr;
     } catch (const Error& e) {
-      out.why += std::string(inferred ? "inferred" : "true") + " labels: " + e.what() + "; ";
+      out.why += name + ": " + e.what() + "; ";
     }
     std::filesystem::remove_all(dir);
   }
@@ -137,8 +150,9 @@ int osrBench(const std::filesystem::path& repo, const std::string& only_family, 
   const std::filesystem::path scratch =
       std::filesystem::temp_directory_path() / ("ddace_bench_label_styles_" + std::to_string(getpid()));
   std::ostringstream table;
-  table << "| family | style | token accuracy | OSR, true labels | OSR, inferred labels | difference |\n"
-        << "|---|---|---|---|---|---|\n";
+  table << "| family | style | token accuracy | OSR, true labels | OSR, inferred labels | difference | usable "
+           "demonstrations | OSR, usable only |\n"
+        << "|---|---|---|---|---|---|---|---|\n";
   double worst = 0;
   std::string refused;
   for (const auto& f : families) {
@@ -149,17 +163,18 @@ int osrBench(const std::filesystem::path& repo, const std::string& only_family, 
       size_t k = 0;
       while (all[k].name != st.name) ++k;
       const label::InferredDataset data = label::inferredDataset(dir, st.options, seed + 17 * k);
-      const OsrPair osr = trainedOsr(data, test, scratch, seed);
+      const OsrCells osr = trainedOsr(data, test, scratch, seed);
       auto cell = [](double v) { return v < 0 ? std::string("refused") : fixed(v); };
       const double diff = osr.truth >= 0 && osr.inferred >= 0 ? osr.inferred - osr.truth : -1;
       if (osr.truth >= 0 && osr.inferred >= 0) worst = std::min(worst, diff);
       if (!osr.why.empty()) refused += "- " + f + ", " + st.name + ": " + osr.why + "\n";
       table << "| " << f << " | " << st.name << " | " << fixed(data.score.accuracy()) << " | " << cell(osr.truth)
             << " | " << cell(osr.inferred) << " | "
-            << (osr.truth >= 0 && osr.inferred >= 0 ? (diff >= 0 ? "+" : "") + fixed(diff) : std::string("-"))
-            << " |\n";
+            << (osr.truth >= 0 && osr.inferred >= 0 ? (diff >= 0 ? "+" : "") + fixed(diff) : std::string("-")) << " | "
+            << osr.usable_demos << " of " << data.inferred.demos.size() << " | " << cell(osr.usable) << " |\n";
       std::cout << f << " " << st.name << ": accuracy " << fixed(data.score.accuracy(), 3) << ", OSR true "
-                << cell(osr.truth) << ", inferred " << cell(osr.inferred) << "\n"
+                << cell(osr.truth) << ", inferred " << cell(osr.inferred) << ", usable only " << cell(osr.usable)
+                << " (" << osr.usable_demos << " demonstrations)\n"
                 << std::flush;
     }
   }
@@ -170,7 +185,10 @@ int osrBench(const std::filesystem::path& repo, const std::string& only_family, 
      << ", with bodies) moved in the style (`label::humanMotion`), the first labelled by hand (the example), the "
         "others labelled from their motion (`label::inferredDataset`). The default network (`ddace train`'s "
         "defaults, training seed "
-     << seed << ") is trained once on the true labels and once on the inferred ones, and evaluated on " << test_demos
+     << seed
+     << ") is trained on the true labels, on the inferred ones, and on the usable inferred demonstrations only (the "
+        "example and those with nothing listed: what a user keeps without reviewing any), and evaluated on "
+     << test_demos
      << " fresh scenes (ideal execution). One training seed: the seed alone moves OSR by a few hundredths "
         "where few demonstrations leave the network undecided (docs/labels-log.md).\n\n"
      << table.str() << "\nLargest drop, inferred below true: " << fixed(std::max(0.0, -worst))
