@@ -27,6 +27,7 @@
 #include <ddace/WheelCommand.h>
 
 #include "exec_conversions.h"
+#include "launched_nodes.h"
 #include "params.h"
 #include "ddace/exec/liveness.h"
 #include "ddace/exec/outbox.h"
@@ -385,6 +386,7 @@ class CoordinatorNode::Impl {
   }
 
   void onTick(const ros::TimerEvent&) {
+    if (coordinator_->state() == exec::RunState::Idle) abortIfARoleEnded();
     // Autostart tries at most 5 times a second (the recorder's check asks every publisher).
     if (autostart_ && ros::WallTime::now() >= next_autostart_try_) {
       next_autostart_try_ = ros::WallTime::now() + ros::WallDuration(0.2);
@@ -406,6 +408,27 @@ class CoordinatorNode::Impl {
     }
     resendUnanswered();
     apply(coordinator_->onTick(now()));
+  }
+
+  /// A role's node that ended before the run started (as roslaunch tells: a node never
+  /// connected leaves no link to see drop) means the run can never start: it is aborted at
+  /// once naming the node, and the monitor ends the launch. Asked once a second.
+  void abortIfARoleEnded() {
+    if (ros::WallTime::now() < next_ended_check_) return;
+    next_ended_check_ = ros::WallTime::now() + ros::WallDuration(1.0);
+    std::vector<std::string> nodes;
+    for (size_t k = 0; k < roles_.size(); ++k) nodes.push_back(roles_.node(k));
+    std::string why;
+    for (const auto& [node, process] : ros_launch::endedNodes(nodes))
+      why += (why.empty() ? "" : "; ") + ("node " + node + " is not running: it exited before the run started (" +
+                                          process + " in roslaunch's output says why)");
+    ended_before_start_ = why;
+    if (why.empty()) return;
+    std::string missing;
+    if (!connected(missing)) why += "; waiting for: " + missing;
+    ROS_ERROR("coordinator: %s: the run cannot start", why.c_str());
+    autostart_ = false;
+    apply(coordinator_->abortStart(why, now()));
   }
 
   static double wallNow() { return ros::WallTime::now().toSec(); }
@@ -563,6 +586,11 @@ class CoordinatorNode::Impl {
 
   bool srvStart(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
     std::string missing;
+    if (!ended_before_start_.empty()) {
+      res.success = false;
+      res.message = "not started: " + ended_before_start_;
+      return true;
+    }
     if (!connected(missing)) {
       res.success = false;
       res.message = "not started: waiting for " + missing;
@@ -784,6 +812,8 @@ class CoordinatorNode::Impl {
   ros::WallTime next_autostart_try_;
   ros::WallTime autostart_deadline_;
   double start_timeout_s_ = 0;
+  ros::WallTime next_ended_check_;
+  std::string ended_before_start_;  ///< why the run cannot start: a role's node ended
   std::map<int, ros::Publisher> wheel_pubs_;
   std::vector<ros::Subscriber> wheel_subs_;
 

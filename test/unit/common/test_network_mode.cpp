@@ -1,10 +1,12 @@
-// scripts/network_mode.py, the network-mode check of launch/execute_real.launch, run in
-// network namespaces this test makes (unshare --map-root-user --net): only loopback, plus
-// a private lab address put on it. No traffic leaves them.
+// scripts/network_mode.py, the network-mode check of the launch files, run in network
+// namespaces this test makes (unshare --map-root-user --net): only loopback, plus a private
+// lab address put on it. No traffic leaves them. And every launch file that starts a graph
+// runs it, one machine by default.
 #include <sys/wait.h>
 
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -71,4 +73,42 @@ TEST(NetworkMode, LabModeNeedsROS_IPOnAPrivateAddressOfThisHostAndSaysWhatIsExpo
   r = inNamespace("ROS_IP=10.9.9.9 ROS_HOSTNAME=localhost", "--lab-network true");
   EXPECT_EQ(r.status, 1) << r.out;
   EXPECT_NE(r.out.find("unset ROS_HOSTNAME"), std::string::npos) << r.out;
+}
+
+/// The arguments of every network_mode node of each launch file in `files` with
+/// task:=t model:=m `extra`, read by roslaunch's own loader (nothing is started): one line
+/// "FILE: [args, ...]" per file.
+static std::string networkModeArgs(const std::string& dir, const std::vector<std::string>& files,
+                                   const std::string& extra) {
+  std::string cmd =
+      "/usr/bin/python3 -c \"import sys, roslaunch.config as c\n"
+      "for f in sys.argv[2:]:\n"
+      "  cfg = c.load_config_default([(f, ['task:=t', 'model:=m'] + sys.argv[1].split())], None)\n"
+      "  print(f.split('/')[-1] + ':', [n.args for n in cfg.nodes if n.name == 'network_mode'])\n\" '" +
+      extra + "'";
+  for (const auto& f : files) cmd += " '" + dir + "/" + f + "'";
+  std::string out;
+  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
+  if (!p) return out;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  ::pclose(p);
+  return out;
+}
+
+TEST(NetworkMode, EveryLaunchFileThatStartsAGraphStatesItsMode) {
+  const std::string dir = (ddace::findRepository("", {"launch/record.launch"}) / "launch").string();
+  const std::vector<std::string> files{"record.launch", "tabletop.launch", "execute_real.launch"};
+  // One check each: execute_real.launch includes tabletop.launch and turns its check off.
+  std::string out = networkModeArgs(dir, files, "");
+  for (const auto& f : files)
+    EXPECT_NE(out.find(f + ": ['--lab-network false --launch " + f + "']"), std::string::npos)
+        << f << ": one machine is the default\n"
+        << out;
+  out = networkModeArgs(dir, files, "lab_network:=true");
+  for (const auto& f : files)
+    EXPECT_NE(out.find(f + ": ['--lab-network true --launch " + f + "']"), std::string::npos)
+        << f << ": lab_network:=true\n"
+        << out;
 }
