@@ -5,6 +5,8 @@
 #include <sys/wait.h>
 
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -80,11 +82,14 @@ TEST(NetworkMode, LabModeNeedsROS_IPOnAPrivateAddressOfThisHostAndSaysWhatIsExpo
 /// "FILE: [args, ...]" per file.
 static std::string networkModeArgs(const std::string& dir, const std::vector<std::string>& files,
                                    const std::string& extra) {
+  // $(find ddace) is this repository, whatever environment the test runs in.
+  const std::string repo = std::filesystem::path(dir).parent_path().string();
   std::string cmd =
-      "/usr/bin/python3 -c \"import sys, roslaunch.config as c\n"
+      "ROS_PACKAGE_PATH='" + repo +
+      "':\"$ROS_PACKAGE_PATH\" /usr/bin/python3 -c \"import sys, roslaunch.config as c\n"
       "for f in sys.argv[2:]:\n"
       "  cfg = c.load_config_default([(f, ['task:=t', 'model:=m'] + sys.argv[1].split())], None)\n"
-      "  print(f.split('/')[-1] + ':', [n.args for n in cfg.nodes if n.name == 'network_mode'])\n\" '" +
+      "  print(f.split('/')[-1] + ':', [n.args for n in cfg.nodes if n.name.startswith('network_mode')])\n\" '" +
       extra + "'";
   for (const auto& f : files) cmd += " '" + dir + "/" + f + "'";
   std::string out;
@@ -111,4 +116,36 @@ TEST(NetworkMode, EveryLaunchFileThatStartsAGraphStatesItsMode) {
     EXPECT_NE(out.find(f + ": ['--lab-network true --launch " + f + "']"), std::string::npos)
         << f << ": lab_network:=true\n"
         << out;
+}
+
+TEST(NetworkMode, JoinRunsACommandInTheNamespaceOfARunningGraph) {
+  if (!namespacesWork()) GTEST_SKIP() << "no user and network namespaces here (docs/trust-boundary.md)";
+  // A graph in a namespace of its own (the target prints its namespace, then waits), and
+  // `loopback_only --join PID` from outside: the command must run in the target's namespace.
+  const std::string script = (ddace::findRepository("", {"scripts/loopback_only"}) / "scripts/loopback_only").string();
+  const std::string shell = ::testing::TempDir() + "join_check.sh";
+  std::ofstream(shell)
+      << "f=$(mktemp)\n"
+         "unshare --map-root-user --net -- sh -c \"readlink /proc/self/ns/net > $f; exec sleep 30\" &\n"
+         "p=$!\n"
+         "for i in $(seq 100); do [ -s $f ] && break; sleep 0.1; done\n"
+         "echo target $(cat $f)\n"
+         "echo own $(readlink /proc/self/ns/net)\n"
+         "echo joined $(\"$1\" --join $p readlink /proc/self/ns/net)\n"
+         "kill $p; rm -f $f\n";
+  std::string out;
+  FILE* p = ::popen(("/bin/bash '" + shell + "' '" + script + "' 2>&1").c_str(), "r");
+  ASSERT_NE(p, nullptr);
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  ::pclose(p);
+  auto field = [&](const std::string& key) {
+    const size_t at = out.find(key + " ");
+    return at == std::string::npos ? std::string()
+                                   : out.substr(at + key.size() + 1, out.find('\n', at) - at - key.size() - 1);
+  };
+  ASSERT_NE(field("target"), "") << out;
+  EXPECT_EQ(field("joined"), field("target")) << out;
+  EXPECT_NE(field("joined"), field("own")) << out;
 }
