@@ -78,8 +78,8 @@ TEST(NetworkMode, LabModeNeedsROS_IPOnAPrivateAddressOfThisHostAndSaysWhatIsExpo
 }
 
 /// The arguments of every network_mode node of each launch file in `files` with
-/// task:=t model:=m `extra`, read by roslaunch's own loader (nothing is started): one line
-/// "FILE: [args, ...]" per file.
+/// task:=t model:=m `extra`, read by roslaunch's own loader (nothing is started), and the
+/// DDACE_NETWORK its nodes get: one line "FILE: [args, ...] [modes...]" per file.
 static std::string networkModeArgs(const std::string& dir, const std::vector<std::string>& files,
                                    const std::string& extra) {
   // $(find ddace) is this repository, whatever environment the test runs in.
@@ -89,7 +89,8 @@ static std::string networkModeArgs(const std::string& dir, const std::vector<std
       "':\"$ROS_PACKAGE_PATH\" /usr/bin/python3 -c \"import sys, roslaunch.config as c\n"
       "for f in sys.argv[2:]:\n"
       "  cfg = c.load_config_default([(f, ['task:=t', 'model:=m'] + sys.argv[1].split())], None)\n"
-      "  print(f.split('/')[-1] + ':', [n.args for n in cfg.nodes if n.name.startswith('network_mode')])\n\" '" +
+      "  print(f.split('/')[-1] + ':', [n.args for n in cfg.nodes if n.name.startswith('network_mode')],\n"
+      "        sorted(set(dict(n.env_args).get('DDACE_NETWORK') for n in cfg.nodes)))\n\" '" +
       extra + "'";
   for (const auto& f : files) cmd += " '" + dir + "/" + f + "'";
   std::string out;
@@ -108,12 +109,12 @@ TEST(NetworkMode, EveryLaunchFileThatStartsAGraphStatesItsMode) {
   // One check each: execute_real.launch includes tabletop.launch and turns its check off.
   std::string out = networkModeArgs(dir, files, "");
   for (const auto& f : files)
-    EXPECT_NE(out.find(f + ": ['--lab-network false --launch " + f + "']"), std::string::npos)
+    EXPECT_NE(out.find(f + ": ['--lab-network false --launch " + f + "'] ['loopback']"), std::string::npos)
         << f << ": one machine is the default\n"
         << out;
   out = networkModeArgs(dir, files, "lab_network:=true");
   for (const auto& f : files)
-    EXPECT_NE(out.find(f + ": ['--lab-network true --launch " + f + "']"), std::string::npos)
+    EXPECT_NE(out.find(f + ": ['--lab-network true --launch " + f + "'] ['lab']"), std::string::npos)
         << f << ": lab_network:=true\n"
         << out;
 }
@@ -148,4 +149,32 @@ TEST(NetworkMode, JoinRunsACommandInTheNamespaceOfARunningGraph) {
   ASSERT_NE(field("target"), "") << out;
   EXPECT_EQ(field("joined"), field("target")) << out;
   EXPECT_NE(field("joined"), field("own")) << out;
+}
+
+TEST(NetworkMode, ANodeOfAOneMachineLaunchRefusesToOpenAPortOnTheHostsNetwork) {
+  if (!namespacesWork()) GTEST_SKIP() << "no user and network namespaces here (docs/trust-boundary.md)";
+  // A namespace with an interface besides loopback stands for the host's network; no master
+  // is running: the node must stop before it opens anything (before ros::init).
+  const std::string node =
+      (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "path_follower_node").string();
+  ASSERT_TRUE(std::filesystem::exists(node)) << node;
+  const ScriptRun r = [&] {
+    ScriptRun run;
+    FILE* p = ::popen(("unshare --map-root-user --net -- /bin/sh -c \"ip link set lo up && (ip link add eth9 type "
+                       "bridge || ip link add eth9 type veth peer name eth8 || ip tuntap add dev eth9 mode tap) && "
+                       "DDACE_NETWORK=loopback ROS_MASTER_URI=http://127.0.0.1:1 '" +
+                       node + "'\" 2>&1")
+                          .c_str(),
+                      "r");
+    if (!p) return run;
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, p)) > 0) run.out.append(buf, n);
+    const int status = ::pclose(p);
+    run.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return run;
+  }();
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("not started: the launch asked for one machine"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("eth9"), std::string::npos) << r.out;
 }
