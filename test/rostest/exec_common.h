@@ -346,6 +346,7 @@ class Watcher {
  public:
   struct Seg {
     std::string key;
+    int step = -1;
     ros::Time sent, ended;
     uint8_t end_status = 0;
   };
@@ -360,6 +361,7 @@ class Watcher {
             if (m->mode != ddace::Segment::MODE_FOLLOW) return;
             segments_[m->segment_id].key = m->token.entity + ":" + m->token.action + ":" + m->token.target;
             segments_[m->segment_id].sent = m->header.stamp;
+            segments_[m->segment_id].step = m->step;
           }));
       subs_.push_back(nh.subscribe<ddace::SegmentStatus>("/robots/" + n + "/segment_status", 100,
                                                          [this](const ddace::SegmentStatus::ConstPtr& m) {

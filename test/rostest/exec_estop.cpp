@@ -36,7 +36,7 @@ bool zerosArrived(Watcher& w, const ddace::task::TaskSpec& spec, const ros::Time
           if (it == wheels.end() || firstZeroAfter(from(it->second, "/coordinator"), event) == ros::Time())
             return false;
           const auto follower = from(it->second, "/path_follower");
-          if (!follower.empty() && follower.back().stamp > event && !follower.back().zero()) return false;
+          if (!follower.empty() && (follower.back().stamp <= event || !follower.back().zero())) return false;
         }
         return true;
       },

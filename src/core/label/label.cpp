@@ -136,7 +136,7 @@ std::vector<bool> Labeller::candidatesOf(const Motion& m) const {
 // A pause: a motion that stopped away from every entity, or over one but goes on in the
 // heading it came in (not taking along what it stopped at), goes on within pause_s.
 bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
-  const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a));
+  const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a), -1, &a.at_offset);
   if (ep.target < 0) return true;
   if (a.end_dir.dot(b.start_dir) < std::cos(options_.heading_rad)) return false;
   // Went to an object and moves on with it: a fetch, then a carry.
@@ -583,7 +583,7 @@ void Labeller::emit(Group& group, bool aligned) {
         int load = -1;
         for (size_t j = 0; j < g.size() && load < 0; ++j)
           if (carrier[j] == static_cast<int>(i)) load = g[j].entity;
-        const EndPoint ep = endPoint(spec_, m.entity, m.start, m.end, m.at_onset, candidatesOf(m), load);
+        const EndPoint ep = endPoint(spec_, m.entity, m.start, m.end, m.at_onset, candidatesOf(m), load, &m.at_offset);
         tok.token.target = ep.target;
         if (ep.target < 0) {
           tok.token.target = ep.nearest;

@@ -186,9 +186,12 @@ std::vector<std::vector<double>> pointDurations(const task::TaskSpec& spec, cons
 
 }  // namespace
 
-bool policyReadsScene(const Model& model) {
-  const tgn::ModelInfo& info = model.sequence.info();
+bool policyReadsScene(const tgn::ModelInfo& info) {
   return info.variant != tgn::Variant::Scene || info.plan.relative_features;
+}
+
+bool policyReadsScene(const Model& model) {
+  return policyReadsScene(model.sequence.info());
 }
 
 Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOptions& options) {

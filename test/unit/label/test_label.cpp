@@ -391,6 +391,18 @@ TEST(Label, ADriveToAnOccupiedGoalIsToTheGoal) {
   EXPECT_TRUE(inf.notes.empty());
 }
 
+TEST(Label, AGoalTakenInTheSameStepIsTheTargetOfTheOneEndingBesideIt) {
+  // R1 and R2 both sent to G1 at once: R1 takes it, R2 ends touching R1 from the side. G1
+  // was free when R2 set off; it is read as occupied when R2 ended, so G1, not "halfway".
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}}, {1, {0.9, 0.9 - 0.044}}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1", "R2:move:G1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
+}
+
 TEST(Label, TheExamplesCarryingWordIsNotGivenToAPlainDrive) {
   // The example carries a box to G1; the demonstration also drives R2 to G2 with nothing:
   // a motion of a kind the example lacks takes no word of the example's, and is listed.
