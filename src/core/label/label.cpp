@@ -309,8 +309,12 @@ void Labeller::decide(bool at_end) {
   }
   cutAtContacts(merged);
   // Pieces of steps handed over already (a motion cut in two waits for its second piece).
-  merged.erase(std::remove_if(merged.begin(), merged.end(), [&](const Motion& m) { return m.on_row <= handed_off_; }),
+  // A motion that began as the last one handed over ended (a push after a short stop at
+  // the box: the one's onset and the other's offset are dated from the same rows at rest)
+  // begins after it.
+  merged.erase(std::remove_if(merged.begin(), merged.end(), [&](const Motion& m) { return m.off_row <= handed_off_; }),
                merged.end());
+  for (auto& m : merged) m.on_row = std::max(m.on_row, handed_off_ + 1);
   // The last motion of each entity may still be joined by a later one across a pause.
   std::vector<int> last_on(n, -1);
   for (const auto& m : merged) last_on[m.entity] = std::max(last_on[m.entity], m.on_row);
