@@ -76,7 +76,14 @@ struct Motion {
   /// of its least distance), m/s: a stop there.
   std::vector<double> closest_speed;
   std::vector<Eigen::Vector2d> closest_at;  ///< [entity] where the mover was when closest to it
-  bool resumed = false;                     ///< joined from two motions across a pause
+  /// [entity] the row and time it was closest to that entity, and where every entity stood
+  /// then (a cut there: a stop at a body without a pause).
+  std::vector<int> closest_row;
+  std::vector<double> closest_t;
+  std::vector<std::vector<Eigen::Vector2d>> closest_scene;
+  /// Takes `o`'s closest approaches (speed, place, time) to the entities it came closer to.
+  void absorbClosest(const Motion& o);
+  bool resumed = false;  ///< joined from two motions across a pause
   /// Cut where what moved with it changed (label.h): the whole motion's offset (row, time);
   /// the motion's own for one not cut.
   int whole_off_row = -1;
@@ -104,9 +111,12 @@ struct EndPoint {
 /// a carrier behind its `load`, -1 for none). Two more count half the arrival radius worse
 /// (where a body already stood, the generators end a motion so, generators.h): touching an
 /// obstacle target from another side (within a quarter of the radius of contact), and
-/// stopped on the way short of a goal by up to the mover's diameter.
+/// stopped on the way short of a goal by up to the mover's diameter. A goal bodies stand on
+/// when the motion ended (`at_end`, [entity]; `where` when null: one may have arrived in
+/// the same step) is also read where the mover ends touching one of them.
 EndPoint endPoint(const task::TaskSpec& spec, int mover, const Eigen::Vector2d& start, const Eigen::Vector2d& end,
-                  const std::vector<Eigen::Vector2d>& where, const std::vector<bool>& candidates, int load = -1);
+                  const std::vector<Eigen::Vector2d>& where, const std::vector<bool>& candidates, int load = -1,
+                  const std::vector<Eigen::Vector2d>* at_end = nullptr);
 
 /// The contact distance of two entities' bodies (TaskSpec::contactDistance), metres; 0 when
 /// either is no obstacle (a goal).
