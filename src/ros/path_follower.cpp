@@ -10,6 +10,7 @@
 #include <std_msgs/Bool.h>
 
 #include "ddace/exec/robot_controller.h"
+#include "ddace/task/body_geometry.h"
 #include "exec_conversions.h"
 #include "params.h"
 
@@ -124,7 +125,8 @@ class PathFollowerNode::Impl {
         throw Error("segment for '" + m.entity + "' arrived on " + name + "'s topic");
       const exec::PlannedPath path = ros_exec::fromMsg(m.path, m.stddev_m, "/robots/" + name + "/segment");
       const bool given = m.arrival_radius_m > 0 && std::isfinite(m.arrival_radius_m);
-      r.controller.start(path, m.token.target, given ? m.arrival_radius_m : params_.gains.arrival_radius_m);
+      const double stop = given ? m.arrival_radius_m : params_.gains.arrival_radius_m;
+      r.controller.start(path, m.token.target, stopToward(r, m.token.target, path.points.back(), stop), stop);
       r.segment_id = m.segment_id, r.step = m.step, r.action = m.token.action, r.decided = false, r.cycle = 0;
       publishStatus(r, m.segment_id, ddace::SegmentStatus::ACCEPTED, 0, 0, "");
       redecideStep(name, m.step);  // the others of its step decide again with its end point
@@ -168,6 +170,25 @@ class PathFollowerNode::Impl {
   void redecideStep(const std::string& name, int step) {
     for (auto& [other, r] : robots_)
       if (other != name && r->controller.running() && r->step == step) r->decided = false;
+  }
+
+  /// The stop radius of r's motion toward `target` ending at `end` (task::stopRadiusToward):
+  /// near enough that the stopped robot is at one place with a body target, where it ends.
+  double stopToward(const Robot& r, const std::string& target, const Eigen::Vector2d& end, double stop) const {
+    const auto body = bodies_.find(target), self = bodies_.find(r.controller.name());
+    if (body == bodies_.end()) return stop;  // a goal: driven onto
+    Eigen::Vector2d at = body->second.body.position;
+    if (auto o = others_segments_.find(target); o != others_segments_.end()) at = o->second.end;
+    if (auto t = robots_.find(target); t != robots_.end() && t->second->controller.running())
+      at = t->second->controller.endPoint();
+    const double self_radius =
+        self != bodies_.end()
+            ? self->second.body.radius_m
+            : exec::bodyShape(task::Entity{r.controller.name(), task::EntityKind::Robot, ""}).radius_m;
+    const double tolerance = std::max(task::kArrivalToleranceM, arrival_m_ - stop);
+    return task::stopRadiusToward(stop, tolerance,
+                                  task::togetherDistance(self_radius + body->second.body.radius_m, arrival_m_),
+                                  (end - at).norm());
   }
 
   /// What robot r's motion may touch, from where the step's bodies end (exec::motionContacts).

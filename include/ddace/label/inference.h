@@ -108,10 +108,6 @@ struct EndPoint {
 EndPoint endPoint(const task::TaskSpec& spec, int mover, const Eigen::Vector2d& start, const Eigen::Vector2d& end,
                   const std::vector<Eigen::Vector2d>& where, const std::vector<bool>& candidates, int load = -1);
 
-/// The contact distance of two entities' bodies (TaskSpec::contactDistance), metres; 0 when
-/// either is no obstacle (a goal).
-double contactDistance(const task::TaskSpec& spec, int a, int b);
-
 /// Finds motions row by row. Call row() for every row in order, then finish().
 class MotionSegmenter {
  public:

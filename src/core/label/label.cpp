@@ -606,11 +606,11 @@ void Labeller::emit(Group& group, bool aligned) {
     const double stop_speed = (m.end - m.start).norm() / std::max(m.off_t - m.on_t, 1e-9) / 4;
     for (size_t j = 0; j < E.size(); ++j) {
       const int b = static_cast<int>(j);
-      const double touch = contactDistance(spec_, m.entity, b) + r / 4;
+      const double touch = spec_.contactDistance(m.entity, b) + r / 4;
       const bool load = std::any_of(tokens.begin(), tokens.end(), [&](const InferredToken& t) {
         return t.token.entity == b && t.carrier == m.entity;
       });
-      if (b == m.entity || b == tok.token.target || load || contactDistance(spec_, m.entity, b) <= 0 ||
+      if (b == m.entity || b == tok.token.target || load || spec_.contactDistance(m.entity, b) <= 0 ||
           m.min_distance[j] > touch || m.closest_speed[j] > stop_speed || (m.closest_at[j] - m.start).norm() <= r ||
           (m.closest_at[j] - m.end).norm() <= r)
         continue;
