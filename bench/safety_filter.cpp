@@ -146,7 +146,9 @@ int main(int argc, char** argv) {
        << "| path follower (reference) | " << all.follower_us.size() << " | " << c50 << " | " << c99 << " |\n"
        << "| ratio filter / follower | | " << f50 / c50 << "x | " << f99 / c99 << "x |\n\n"
        << "| run | arrived | deadlocks reported | minimum clearance (cm) | end (s) |\n|---:|---:|---:|---:|---:|\n"
-       << runs.str() << "\nGoal: < 50 us per robot per control cycle with 11 robots.\n";
+       << runs.str()
+       << "\nGoals: < 50 us per robot per control cycle with 11 robots; every robot arrives in every run, no deadlock "
+       << "reported, no contact (minimum clearance > 0).\n";
     std::cout << md.str();
     bench::writeResults(repo, "safety_filter", md.str());
     return 0;

@@ -1,13 +1,14 @@
 #!/usr/bin/python3
-"""States and checks the network mode of a ROS graph (launch/execute_real.launch runs it).
+"""States and checks the network mode of a ROS graph (the launch files run it).
 
 ROS 1 has no authentication: whoever reaches a node's ports can publish on its topics and
 call its XML-RPC API (shutdown, publisherUpdate, ...). roscpp's XML-RPC servers listen on
 every interface whatever ROS_HOSTNAME or ROS_IP say, so only a network namespace keeps a
 graph on one machine (docs/trust-boundary.md).
 
-    network_mode.py --lab-network false   one machine: the graph must run in a network
-        namespace with only loopback (scripts/loopback_only roslaunch ...); else exit 1
+    network_mode.py --lab-network false [--launch FILE]   one machine: the graph must run in
+        a network namespace with only loopback (scripts/loopback_only roslaunch ddace FILE);
+        else exit 1
     network_mode.py --lab-network true    a multi-machine lab: ROS_IP must be a private
         address of an interface of this host and ROS_HOSTNAME unset (or the same); prints
         what is exposed to whom and the firewall rule the lab needs; else exit 1
@@ -45,7 +46,7 @@ def fail(lines):
     return 1
 
 
-def loopback_mode():
+def loopback_mode(launch):
     names = interfaces()
     if names != ["lo"]:
         return fail([
@@ -53,7 +54,7 @@ def loopback_mode():
             + ", ".join(names) + "):",
             "every roscpp node's XML-RPC port listens on all of them, reachable from any host on those networks.",
             "Start it in a loopback-only network namespace:",
-            "  scripts/loopback_only roslaunch ddace execute_real.launch task:=... model:=...",
+            f"  scripts/loopback_only roslaunch ddace {launch} ...",
             "or, for a multi-machine lab, ask for it: lab_network:=true with ROS_IP set to this host's lab address.",
         ])
     print("network_mode: one machine: this graph runs in a network namespace with only loopback; "
@@ -106,9 +107,10 @@ def lab_mode():
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--lab-network", choices=["true", "false"], required=True)
+    parser.add_argument("--launch", default="execute_real.launch", help="the launch file, named in the advice")
     parser.add_argument("--check-only", action="store_true", help="exit after the check (0: passed)")
     args, _ = parser.parse_known_args()  # roslaunch appends __name:= and __log:=
-    status = lab_mode() if args.lab_network == "true" else loopback_mode()
+    status = lab_mode() if args.lab_network == "true" else loopback_mode(args.launch)
     if status != 0 or args.check_only:
         return status
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))

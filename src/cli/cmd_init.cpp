@@ -176,7 +176,8 @@ int runInit(const std::vector<std::string>& argv) {
             << "  " << recorder.string() << "  (goal conditions: write your own)\n"
             << "  " << hamsters.string() << "  FILL IN: radio addresses, calibration\n"
             << "next (README, \"Your own task\"):\n"
-            << "  roslaunch ddace record.launch markers:=" << c << "/markers.yaml recorder:=" << c << "/recorder.yaml\n"
+            << "  scripts/loopback_only roslaunch ddace record.launch markers:=" << c << "/markers.yaml recorder:=" << c
+            << "/recorder.yaml   (sim:=true: on a simulated table)\n"
             << "  ddace validate " << dir.string() << "\n";
   return 0;
 }

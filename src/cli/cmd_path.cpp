@@ -76,8 +76,10 @@ int onePath(const Args& args, const gp::PrimitiveLibrary& lib) {
   const std::string key = args.require("--key");
   const long points = args.getInt("--points", 100);
   if (points < 2 || points > 100000) throw Error("--points must be between 2 and 100000");
-  const gp::GeneratedPath path =
-      lib.generate(key, parsePoint(args, "--start"), parsePoint(args, "--goal"), static_cast<int>(points));
+  const long step = args.getInt("--step", -1);
+  if (step < -1 || step > 100000) throw Error("--step must be a step index (0-based) between 0 and 100000");
+  const gp::GeneratedPath path = lib.generate(key, parsePoint(args, "--start"), parsePoint(args, "--goal"),
+                                              static_cast<int>(points), static_cast<int>(step));
   const std::string note = path.fell_back ? "# " + key + " was never demonstrated: fell back to " + path.source_key
                                           : "# primitive " + path.source_key;
   if (args.has("--csv")) {
@@ -93,18 +95,21 @@ int onePath(const Args& args, const gp::PrimitiveLibrary& lib) {
 }
 
 /// Every motion segment of every demonstration in TASKDIR with the path generated for its
-/// start and goal; prints the mean normalised Fréchet distance per key.
-int demoPaths(const Args& args, const gp::PrimitiveLibrary& lib) {
+/// start, goal and step (with --by-name: the names' primitives, not the roles'); prints the
+/// mean normalised Fréchet distance per key.
+int demoPaths(const Args& args, const gp::PrimitiveLibrary& trained) {
   const std::string dir = args.get("--demos", "");
   if (!args.has("--csv")) throw Error("--demos needs --csv FILE for the paths");
   const task::TaskDir task = task::loadTaskDir(dir);
   if (!args.has("--allow-other-task"))
-    task::requireSameTask(lib.taskFingerprint(), args.positional(0, "MODELDIR") + " (task '" + lib.taskName() + "')",
-                          task::fingerprintOf(task), dir + " (task '" + task.spec.name + "')",
-                          "pass --allow-other-task");
-  if (task.spec.entityNames() != lib.entityNames())
-    throw Error("the entities of " + dir + " differ from those the primitives were trained on (task '" +
-                lib.taskName() + "')");
+    task::requireSameTask(
+        trained.taskFingerprint(), args.positional(0, "MODELDIR") + " (task '" + trained.taskName() + "')",
+        task::fingerprintOf(task), dir + " (task '" + task.spec.name + "')", "pass --allow-other-task");
+  // Other numbers or names of the same kinds: the library bound to them (refused naming a
+  // kind one of them lacks).
+  const gp::PrimitiveLibrary lib =
+      task.spec.entityNames() == trained.entityNames() ? trained : trained.boundTo(task.spec);
+  const bool by_name = args.has("--by-name");
   std::ofstream f(args.get("--csv", ""));
   if (!f) throw Error(Diagnostic{args.get("--csv", ""), 0, 0, "cannot open for writing"});
   f << "demo,segment,key,source_key,kind,i,x,y,stddev\n" << std::setprecision(9);
@@ -119,7 +124,8 @@ int demoPaths(const Args& args, const gp::PrimitiveLibrary& lib) {
       if ((truth.back() - truth.front()).norm() < gp::kMinMotionLength) continue;
       const std::string key = task::tokenKey(seg.token, task.spec);
       const gp::GeneratedPath g =
-          lib.generate(seg.token, truth.front(), task::segmentEndPoint(task.spec, lib.endPoints(), demo, seg));
+          lib.generate(seg.token, truth.front(), task::segmentEndPoint(task.spec, lib.endPoints(), demo, seg), 100,
+                       by_name ? -1 : seg.step);
       fell_back += g.fell_back;
       for (size_t i = 0; i < truth.size(); ++i)
         f << name << "," << s << "," << key << "," << g.source_key << ",demo," << i << "," << truth[i].x() << ","
@@ -160,24 +166,28 @@ int listPrimitives(const gp::PrimitiveLibrary& lib) {
 }
 
 int runPath(const std::vector<std::string>& argv) {
-  Args args(argv, {"--key", "--start", "--goal", "--points", "--csv", "--demos"}, {"--list", "--allow-other-task"});
+  Args args(argv, {"--key", "--start", "--goal", "--points", "--step", "--csv", "--demos"},
+            {"--list", "--allow-other-task", "--by-name"});
   args.expectAtMostPositional(1);
   const gp::PrimitiveLibrary lib = loadLibrary(args.positional(0, "MODELDIR"));
   if (args.has("--list")) return listPrimitives(lib);
   if (args.has("--demos")) {
-    for (const char* flag : {"--key", "--start", "--goal", "--points"})
+    for (const char* flag : {"--key", "--start", "--goal", "--points", "--step"})
       if (args.has(flag)) throw Error(std::string("option ") + flag + " cannot be combined with --demos");
     return demoPaths(args, lib);
   }
+  if (args.has("--by-name")) throw Error("option --by-name is for --demos (--key without --step is by name)");
   return onePath(args, lib);
 }
 
 DDACE_COMMAND({"path",
-               "ddace path MODELDIR --key E:ACTION:T --start X,Y --goal X,Y [--points N] [--csv FILE] | "
-               "ddace path MODELDIR --demos TASKDIR --csv FILE [--allow-other-task] | ddace path MODELDIR --list",
-               "print or write a primitive path retargeted to a start and goal (metres, table frame), "
-               "or every motion segment of TASKDIR next to its generated path with the mean FD per key, "
-               "or list the primitives",
+               "ddace path MODELDIR --key E:ACTION:T --start X,Y --goal X,Y [--step K] [--points N] [--csv FILE] | "
+               "ddace path MODELDIR --demos TASKDIR --csv FILE [--by-name] [--allow-other-task] | "
+               "ddace path MODELDIR --list",
+               "print or write a primitive path retargeted to a start and goal (metres, table frame), the motion "
+               "in step K (0-based: a role's primitive where the library keys its class by role), "
+               "or every motion segment of TASKDIR next to its generated path with the mean FD per key "
+               "(--by-name: the names' primitives only), or list the primitives",
                runPath});
 
 }  // namespace

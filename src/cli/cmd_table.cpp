@@ -370,14 +370,13 @@ std::string openBlasKernel() {
                        : std::string("kernels: chosen by OpenBLAS for this processor (`OPENBLAS_CORETYPE` unset)");
 }
 
-int runTable(const std::vector<std::string>& argv) {
-  Args args(argv, {"--out", "--docs", "--seed", "--gnn-epochs", "--jobs", "--repo", "--zoo-rules"}, {"--quick"});
-  ::setenv("ATEN_CPU_CAPABILITY", kCpuCapability, 1);  // before any job touches libtorch
-  args.expectAtMostPositional(0);
+int hardwareCores() {
+  return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}  // 0: unknown
+
+/// The command line: where to write, how much to run.
+Settings parseSettings(const Args& args, const fs::path& source) {
   Settings s;
-  // The repository found at run time (--repo DIR, DDACE_REPO, the directories above): its
-  // docs/ get the results, scripts/plot_loss.py draws Fig. 4.
-  const fs::path source = findRepository(args.get("--repo", ""), {"scripts/plot_loss.py", "docs"});
   s.quick = args.has("--quick");
   s.out = args.get("--out", (source / "out" / (s.quick ? "table-quick" : "table")).string());
   // A smoke test must not overwrite the shipped results: --quick writes beside its models.
@@ -387,8 +386,7 @@ int runTable(const std::vector<std::string>& argv) {
   s.seed = static_cast<int>(seed);
   s.gnn_epochs = static_cast<int>(args.getInt("--gnn-epochs", 0));
   if (s.gnn_epochs < 0) throw Error("--gnn-epochs must not be negative");
-  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));  // 0: unknown
-  s.jobs = static_cast<int>(args.getInt("--jobs", cores));
+  s.jobs = static_cast<int>(args.getInt("--jobs", hardwareCores()));
   if (s.jobs < 1) throw Error("--jobs must be at least 1");
   s.zoo_rules = static_cast<int>(args.getInt("--zoo-rules", 50));
   if (s.zoo_rules < 0) throw Error("--zoo-rules must not be negative");
@@ -398,89 +396,100 @@ int runTable(const std::vector<std::string>& argv) {
     s.test = 3;
     s.max_epochs = 40;
   }
-  for (const char* sub : {"data", "models", "eval", "overlays"}) fs::create_directories(s.out / sub);
-  fs::create_directories(s.docs / "figures");
-  const auto t_all = Clock::now();
+  return s;
+}
 
-  const std::vector<std::string> paper_families = tasks::paperFamilies();
-  // Quick: a smoke test of every kind of row, not every combination.
-  const std::vector<std::string> few_families =
-      s.quick ? std::vector<std::string>{"task4", "fetch"} : tasks::allFamilies();
-  const std::vector<std::string> human_families = s.quick ? std::vector<std::string>{"task4"} : paper_families;
-  const std::vector<int> sizes = s.quick ? std::vector<int>{3} : std::vector<int>{10, 20};
-  // The paper's network, the default, the ablation, the baseline.
-  const std::vector<tgn::Variant> variants = {tgn::Variant::Paper, tgn::Variant::Scene, tgn::Variant::FullGraph,
-                                              tgn::Variant::Gnn};
-  std::cout << "Table 2 (tasks 1-4, " << s.train << " demonstrations) and beyond: every family with "
-            << (s.quick ? "3" : "10 and 20") << " demonstrations, human-timed demonstrations (onset jitter "
-            << kHumanOnsetJitter << " s, " << kHumanNoise * 1000 << " mm noise), imperfect demonstrations; " << s.test
-            << " trials each; " << s.jobs << " models trained at a time\n";
-  // The data sets first (cheap, serial), then every model as one job.
+/// One family's demonstrations of the section "Labels inferred from motion".
+struct LabelRow {
+  std::string family;
+  int demos = 0;
+  label::LabelScore score;
+  std::vector<size_t> truth_jobs, inferred_jobs;  ///< one per training seed, in seed order
+};
+
+/// Every model of a run, and which of them each section of the results reads (indices into
+/// jobs, which are the rows' indices too).
+struct Plan {
   std::vector<Job> jobs;
-  std::vector<size_t> table2, few, human, imperfect;  // indices into jobs (= rows)
-  const tgn::Variant default_variant = tgn::TrainOptions{}.variant;
-  auto add = [&](std::vector<size_t>& section, Job j) {
+  std::vector<size_t> table2, few, human, imperfect, labels, zoo, zoo_direct, kinds;
+  std::vector<int> sizes;  ///< demonstrations per training set
+  int label_seeds = kLabelSeeds;
+  std::vector<LabelRow> label_rows;
+  std::vector<tasks::ZooRule> zoo_rules;  ///< OSR of rule k at sizes[m] is rows[zoo[k * sizes.size() + m]]
+  std::string zoo_undrawable;             ///< rules the direct motion cannot demonstrate
+  std::vector<tasks::ZooKind> kind_list;  ///< OSR of kind k at sizes[m] is rows[kinds[k * sizes.size() + m]]
+
+  void add(std::vector<size_t>& section, Job j) {
     section.push_back(jobs.size());
     jobs.push_back(std::move(j));
-  };
-  for (const auto& f : paper_families) {
+  }
+};
+
+const tgn::Variant kDefaultVariant = tgn::TrainOptions{}.variant;
+/// The paper's network, the default, the ablation, the baseline.
+const std::vector<tgn::Variant> kVariants = {tgn::Variant::Paper, tgn::Variant::Scene, tgn::Variant::FullGraph,
+                                             tgn::Variant::Gnn};
+
+/// Quick: a smoke test of every kind of row, not every combination.
+std::vector<std::string> humanFamilies(const Settings& s) {
+  return s.quick ? std::vector<std::string>{"task4"} : tasks::paperFamilies();
+}
+
+/// Table 2, "Few-shot, every family", "Human-timed demonstrations", "Imperfect demonstrations".
+void planFamilies(const Settings& s, Plan& p) {
+  for (const auto& f : tasks::paperFamilies()) {
     tasks::GeneratorOptions o;
     o.family = f;
     const fs::path data = dataset(s, f, o, s.train, s.test);
-    for (const auto& v : variants)
-      add(table2,
-          {data, f + "-" + tgn::toString(v), f, v, std::to_string(s.train) + " demos", v == tgn::Variant::Paper});
+    for (const auto& v : kVariants)
+      p.add(p.table2,
+            {data, f + "-" + tgn::toString(v), f, v, std::to_string(s.train) + " demos", v == tgn::Variant::Paper});
   }
-  for (const auto& f : few_families)
-    for (int n : sizes) {
+  for (const auto& f : s.quick ? std::vector<std::string>{"task4", "fetch"} : tasks::allFamilies())
+    for (int n : p.sizes) {
       tasks::GeneratorOptions o;
       o.family = f;
       const std::string name = f + "-" + std::to_string(n);
       const fs::path data = dataset(s, name, o, n, s.test);
-      for (const auto& v : variants)
-        add(few, {data, name + "-" + tgn::toString(v), f, v, std::to_string(n) + " demos", false, v == default_variant,
-                  v == default_variant});
+      for (const auto& v : kVariants)
+        p.add(p.few, {data, name + "-" + tgn::toString(v), f, v, std::to_string(n) + " demos", false,
+                      v == kDefaultVariant, v == kDefaultVariant});
     }
-  for (const auto& f : human_families)
-    for (int n : sizes) {
+  for (const auto& f : humanFamilies(s))
+    for (int n : p.sizes) {
       tasks::GeneratorOptions o;
       o.family = f;
       o.onset_jitter_s = kHumanOnsetJitter;
       o.jitter_m = kHumanNoise;
       const std::string name = f + "-human-" + std::to_string(n);
       const fs::path data = dataset(s, name, o, n, s.test);
-      for (const auto& v : variants)
-        add(human, {data, name + "-" + tgn::toString(v), f, v, "human-timed, " + std::to_string(n) + " demos", false,
-                    v == default_variant});
+      for (const auto& v : kVariants)
+        p.add(p.human, {data, name + "-" + tgn::toString(v), f, v, "human-timed, " + std::to_string(n) + " demos",
+                        false, v == kDefaultVariant});
     }
-  for (const auto& f : s.quick ? human_families : paper_families) {
+  for (const auto& f : humanFamilies(s)) {
     tasks::GeneratorOptions o;
     o.family = f;
     o.jitter_m = 0.005;
     o.mislabel_fraction = 0.1;
     const std::string name = f + "-imperfect";
     const fs::path data = dataset(s, name, o, s.train, s.test);
-    for (const auto& v : variants)
+    for (const auto& v : kVariants)
       if (v != tgn::Variant::Gnn)
-        add(imperfect,
-            {data, name + "-" + tgn::toString(v), f, v, "imperfect, " + std::to_string(s.train) + " demos", false});
+        p.add(p.imperfect,
+              {data, name + "-" + tgn::toString(v), f, v, "imperfect, " + std::to_string(s.train) + " demos", false});
   }
-  // Labels inferred from motion (docs/labels.md): the same demonstrations moved by a person,
-  // one labelled by hand, trained on their true labels and on inferred ones, each with
-  // label_seeds training seeds: the seed alone moves OSR by more than the goal's 0.02 where
-  // few demonstrations leave the network undecided (queue at 10: 0.87-1.00 over 15 seeds on
-  // the same data, docs/labels-log.md), so one seed cannot show what the labels change.
-  struct LabelRow {
-    std::string family;
-    int demos = 0;
-    label::LabelScore score;
-    std::vector<size_t> truth_jobs, inferred_jobs;  ///< one per training seed, in seed order
-  };
-  const int label_seeds = s.quick ? 2 : kLabelSeeds;
-  std::vector<LabelRow> label_rows;
-  std::vector<size_t> labels_section;
-  for (const auto& f : s.quick ? human_families : tasks::allFamilies())
-    for (int n : sizes) {
+}
+
+/// Labels inferred from motion (docs/labels.md): the same demonstrations moved by a person,
+/// one labelled by hand, trained on their true labels and on inferred ones, each with
+/// label_seeds training seeds: the seed alone moves OSR by more than the goal's 0.02 where
+/// few demonstrations leave the network undecided (queue at 10: 0.87-1.00 over 15 seeds on
+/// the same data, docs/labels-log.md), so one seed cannot show what the labels change.
+void planLabels(const Settings& s, Plan& p) {
+  p.label_seeds = s.quick ? 2 : kLabelSeeds;
+  for (const auto& f : s.quick ? humanFamilies(s) : tasks::allFamilies())
+    for (int n : p.sizes) {
       tasks::GeneratorOptions o;
       o.family = f;
       const std::string name = f + "-motion-" + std::to_string(n);
@@ -490,111 +499,154 @@ int runTable(const std::vector<std::string>& argv) {
       task::writeTaskDir(ds.truth, (truth / "train").string());
       task::writeTaskDir(ds.inferred, (inferred / "train").string());
       task::writeTaskDir(task::loadTaskDir((truth / "test").string()), (inferred / "test").string());
-      const std::string v = tgn::toString(default_variant);
+      const std::string v = tgn::toString(kDefaultVariant);
       LabelRow row{f, n, ds.score, {}, {}};
-      for (int seed = s.seed; seed < s.seed + label_seeds; ++seed) {
+      for (int seed = s.seed; seed < s.seed + p.label_seeds; ++seed) {
         const std::string suffix = "-" + v + "-seed" + std::to_string(seed), demos = std::to_string(n) + " demos";
-        row.truth_jobs.push_back(jobs.size());
-        add(labels_section,
-            {truth, name + "-true" + suffix, f, default_variant, "true labels, " + demos, false, false, false, seed});
-        row.inferred_jobs.push_back(jobs.size());
-        add(labels_section, {inferred, name + "-inferred" + suffix, f, default_variant, "inferred labels, " + demos,
-                             false, false, false, seed});
+        row.truth_jobs.push_back(p.jobs.size());
+        p.add(p.labels,
+              {truth, name + "-true" + suffix, f, kDefaultVariant, "true labels, " + demos, false, false, false, seed});
+        row.inferred_jobs.push_back(p.jobs.size());
+        p.add(p.labels, {inferred, name + "-inferred" + suffix, f, kDefaultVariant, "inferred labels, " + demos, false,
+                         false, false, seed});
       }
-      label_rows.push_back(row);
+      p.label_rows.push_back(row);
     }
-  // The rule zoo (docs/tgn.md): the default network on a sample of rules, as bench rule_zoo;
-  // at the largest size also with bodies, and on the direct motion (rule_zoo.h, ZooMotion;
-  // its stop gap cycling over the rules) ideal and with bodies.
-  std::vector<size_t> zoo, zoo_direct;  // zoo_direct: the direct rows, of the rules it can demonstrate
-  std::string zoo_undrawable;           // rules the direct motion cannot demonstrate
-  std::vector<tasks::ZooRule> zoo_rules;
+}
+
+/// The seed of a zoo test set: other scenes than its training set's.
+uint64_t zooTestSeed(const Settings& s) {
+  return static_cast<uint64_t>(s.seed) * 2654435761ULL + 0x7e57;
+}
+
+/// The rule zoo (docs/tgn.md): the default network on a sample of rules, as bench rule_zoo;
+/// at the largest size also with bodies, and on the direct motion (rule_zoo.h, ZooMotion;
+/// its stop gap cycling over the rules) ideal and with bodies.
+void planZoo(const Settings& s, Plan& p) {
   const std::vector<tasks::ZooMotion> direct_motions = tasks::directZooMotions();
   for (uint64_t id : tasks::distinctZooRules(s.zoo_rules)) {
-    const tasks::ZooMotion direct = direct_motions[zoo_rules.size() % direct_motions.size()];
-    zoo_rules.push_back(tasks::zooRule(id));
+    const tasks::ZooMotion direct = direct_motions[p.zoo_rules.size() % direct_motions.size()];
+    p.zoo_rules.push_back(tasks::zooRule(id));
     for (const tasks::ZooMotion& motion : {tasks::ZooMotion{}, direct})
-      for (int n : sizes) {
-        if (motion.direct && n != sizes.back()) continue;
+      for (int n : p.sizes) {
+        if (motion.direct && n != p.sizes.back()) continue;
         const std::string name =
             "zoo-" + std::to_string(id) + (motion.direct ? "-direct" : "") + "-" + std::to_string(n);
         const fs::path dir = s.out / "data" / name;
         try {
           task::writeTaskDir(tasks::generateZoo(id, n, static_cast<uint64_t>(s.seed), motion),
                              (dir / "train").string());
-          task::writeTaskDir(
-              tasks::generateZoo(id, s.test, static_cast<uint64_t>(s.seed) * 2654435761ULL + 0x7e57, motion),
-              (dir / "test").string());
+          task::writeTaskDir(tasks::generateZoo(id, s.test, zooTestSeed(s), motion), (dir / "test").string());
         } catch (const Error&) {
           if (!motion.direct) throw;
           // No scene whose bodies keep clear on straight paths and arcs: not on this motion.
-          zoo_undrawable += (zoo_undrawable.empty() ? "zoo:" : ", zoo:") + std::to_string(id);
+          p.zoo_undrawable += (p.zoo_undrawable.empty() ? "zoo:" : ", zoo:") + std::to_string(id);
           continue;
         }
-        Job j{dir, name + "-" + tgn::toString(default_variant), "zoo:" + std::to_string(id) + motion.suffix(),
-              default_variant, std::to_string(n) + " demos"};
-        j.bodies = n == sizes.back();
+        Job j{dir, name + "-" + tgn::toString(kDefaultVariant), "zoo:" + std::to_string(id) + motion.suffix(),
+              kDefaultVariant, std::to_string(n) + " demos"};
+        j.bodies = n == p.sizes.back();
         j.bodies_unfiltered = false;
-        add(motion.direct ? zoo_direct : zoo, j);
+        p.add(motion.direct ? p.zoo_direct : p.zoo, j);
       }
   }
-  // The kinds of task users name (rule_zoo.h, userKinds), each its zoo rule, with the zoo.
-  std::vector<size_t> kind_jobs;
-  std::vector<tasks::ZooKind> kinds;
-  if (s.zoo_rules > 0) kinds = tasks::userKinds();
-  if (s.quick && kinds.size() > 1) kinds.resize(1);
-  for (const tasks::ZooKind& k : kinds) {
+}
+
+/// The kinds of task users name (rule_zoo.h, userKinds), each its zoo rule, with the zoo.
+void planKinds(const Settings& s, Plan& p) {
+  if (s.zoo_rules > 0) p.kind_list = tasks::userKinds();
+  if (s.quick && p.kind_list.size() > 1) p.kind_list.resize(1);
+  for (const tasks::ZooKind& k : p.kind_list) {
     uint64_t id = 0;
     tasks::parseZooFamily(k.family, id);
-    for (int n : sizes) {
+    for (int n : p.sizes) {
       const std::string name = "kind-" + k.family.substr(4) + "-" + std::to_string(n);
       const fs::path dir = s.out / "data" / name;
       task::writeTaskDir(tasks::generateZoo(id, n, static_cast<uint64_t>(s.seed)), (dir / "train").string());
-      task::writeTaskDir(tasks::generateZoo(id, s.test, static_cast<uint64_t>(s.seed) * 2654435761ULL + 0x7e57),
-                         (dir / "test").string());
-      add(kind_jobs,
-          {dir, name + "-" + tgn::toString(default_variant), k.family, default_variant, std::to_string(n) + " demos"});
+      task::writeTaskDir(tasks::generateZoo(id, s.test, zooTestSeed(s)), (dir / "test").string());
+      p.add(p.kinds, {dir, name + "-" + tgn::toString(kDefaultVariant), k.family, kDefaultVariant,
+                      std::to_string(n) + " demos"});
     }
   }
-  const std::vector<Row> rows = runJobs(s, jobs);
+}
 
+/// The data sets (cheap, serial) and every model of the run as one job.
+Plan planRun(const Settings& s) {
+  Plan p;
+  p.sizes = s.quick ? std::vector<int>{3} : std::vector<int>{10, 20};
+  planFamilies(s, p);
+  planLabels(s, p);
+  planZoo(s, p);
+  planKinds(s, p);
+  return p;
+}
+
+/// Fig. 4 and the case studies: plot_loss.py trains (with the same tool and seed) and draws
+/// the curves for 10/20/30 demonstrations, 4..11 robots and 2..4 actions; one trajectory
+/// overlay per paper task.
+void drawFigures(const Settings& s, const fs::path& source) {
   const std::string py = "/usr/bin/python3 '" + (source / "scripts").string() + "/";
   const fs::path figs = s.docs / "figures";
-  // Fig. 4 and the case studies: plot_loss.py trains (with the same tool and seed) and
-  // draws the curves for 10/20/30 demonstrations, 4..11 robots and 2..4 actions.
   std::cout << "Fig. 4 and the case studies (training curves, scripts/plot_loss.py)\n" << std::flush;
   runPlot(py + "plot_loss.py' --seed " + std::to_string(s.seed) + " --jobs " + std::to_string(s.jobs) +
           (s.max_epochs > 0 ? " --epochs " + std::to_string(s.max_epochs) : std::string()) + " --work '" +
           (s.out / "loss").string() + "' --out '" + figs.string() + "'");
-  for (const auto& f : paper_families)
+  for (const auto& f : tasks::paperFamilies())
     runPlot(py + "plot_overlay.py' '" + (s.out / "overlays" / (f + ".csv")).string() + "' --title '" + f + "' --out '" +
             (figs / ("overlay_" + f + ".png")).string() + "'");
+}
 
-  // docs/results.md
-  const std::map<tgn::Variant, std::string> method = {{tgn::Variant::Paper, "DDACE (the paper's network)"},
-                                                      {tgn::Variant::Scene, "DDACE, scene network (default)"},
-                                                      {tgn::Variant::FullGraph, "w/o spectral clustering"},
-                                                      {tgn::Variant::Gnn, "GNN"}};
-  auto rules = [](const Row& r) {
-    return std::to_string(r.rules[0]) + " / " + std::to_string(r.rules[1]) + " / " + std::to_string(r.rules[2]) +
-           " / " + std::to_string(r.rules[3]);
-  };
-  auto metricsOf = [&](const eval::Summary& m) {
-    return fmt(m.osr, 2) + " | " + fmt(m.ssr, 2) + " | " + fmt(m.gcr, 2) + " | " + fmt(m.fd, 4);
-  };
-  auto metrics = [&](const Row& r) { return metricsOf(r.m); };
-  auto training = [&](const Row& r) {
-    return std::to_string(r.epochs) + " (" + r.stop + ") | " + fmt(r.train_s, 1) + " s";
-  };
-  std::ostringstream md;
+/// The rows of a run and what they belong to: what every section of the results reads.
+struct Run {
+  const Settings& s;
+  const Plan& p;
+  const std::vector<Row>& rows;
+  double minutes = 0;  ///< wall time until the results are written
+};
+
+std::string methodName(tgn::Variant v) {
+  static const std::map<tgn::Variant, std::string> names = {{tgn::Variant::Paper, "DDACE (the paper's network)"},
+                                                            {tgn::Variant::Scene, "DDACE, scene network (default)"},
+                                                            {tgn::Variant::FullGraph, "w/o spectral clustering"},
+                                                            {tgn::Variant::Gnn, "GNN"}};
+  return names.at(v);
+}
+std::string rulesCell(const Row& r) {
+  return std::to_string(r.rules[0]) + " / " + std::to_string(r.rules[1]) + " / " + std::to_string(r.rules[2]) + " / " +
+         std::to_string(r.rules[3]);
+}
+std::string metricsCell(const eval::Summary& m) {
+  return fmt(m.osr, 2) + " | " + fmt(m.ssr, 2) + " | " + fmt(m.gcr, 2) + " | " + fmt(m.fd, 4);
+}
+std::string trainingCell(const Row& r) {
+  return std::to_string(r.epochs) + " (" + r.stop + ") | " + fmt(r.train_s, 1) + " s";
+}
+std::string millimetres(double m) {
+  return std::isfinite(m) ? fmt(m * 1000, 1) + " mm" : std::string("–");
+}
+std::string collisionsCell(const eval::Summary& b) {
+  return std::to_string(b.collisions) + " (" + std::to_string(b.trials_with_collision) + "/" +
+         std::to_string(b.trials) + ")";
+}
+/// "- what: met/not met. Met: ...; not met: ..." for a goal judged on several rows.
+void judged(std::ostream& md, const std::string& what, const std::string& met, const std::string& missed) {
+  md << "- " << what << ": " << (missed.empty() ? "**met**" : "**not met**")
+     << ". Met: " << (met.empty() ? "none" : met) << (missed.empty() ? "" : "; not met: " + missed) << ".\n";
+}
+void addTo(std::string& list, const std::string& item) {
+  list += (list.empty() ? "" : ", ") + item;
+}
+
+void writeHeader(std::ostream& md, const Run& run) {
+  const Settings& s = run.s;
   md << "# Results: the paper's Table 2, regenerated, and beyond\n\n"
      << (s.quick ? "**`--quick`: a smoke test of the command (few demonstrations, at most 40 epochs, a few families), "
                    "not the paper's protocol; run `ddace table` for the real numbers.**\n\n"
                  : "")
      << "Written by `ddace table" << (s.quick ? " --quick" : "") << "` (seed " << s.seed
-     << "); every number below comes from that run (" << fmt(secondsSince(t_all) / 60, 1) << " min on this machine, "
-     << s.jobs << " models trained at a time). Models and per-trial JSON are in `"
-     << (s.quick ? s.out.string() : "out/table") << "`.\n\n"
+     << "); every number below comes from that run (" << fmt(run.minutes, 1) << " min on this machine, " << s.jobs
+     << " models trained at a time). Models and per-trial JSON are in `" << (s.quick ? s.out.string() : "out/table")
+     << "`.\n\n"
      << "Each cell: " << s.test << " closed-loop trials on fresh start-goal configurations (ideal path "
      << "following, as the paper), models trained to their loss plateau. OSR, SSR, GCR, FD as defined in "
      << "docs/task-format.md. libtorch's kernels run with `ATEN_CPU_CAPABILITY=" << kCpuCapability
@@ -607,225 +659,269 @@ int runTable(const std::vector<std::string>& argv) {
      << (s.gnn_epochs > 0 ? " The GNN baseline was capped at " + std::to_string(s.gnn_epochs) +
                                 " epochs (`--gnn-epochs`); the epochs column says whether a model reached its plateau."
                           : std::string())
-     << "\n\n## Table 2: the paper's tasks, " << s.train << " demonstrations\n\n"
+     << "\n";
+}
+
+void writeTable2(std::ostream& md, const Run& run) {
+  md << "\n## Table 2: the paper's tasks, " << run.s.train << " demonstrations\n\n"
      << "| task | method | OSR | SSR | GCR | FD | paper (OSR / SSR / GCR / FD) | E' rules | epochs | training |\n"
      << "|---|---|---|---|---|---|---|---|---|---|\n";
-  for (size_t i : table2) {
-    const Row& r = rows[i];
-    md << "| " << r.task << " | " << method.at(r.variant) << " | " << metrics(r) << " | "
-       << paperRow(r.task, tgn::toString(r.variant)) << " | " << rules(r) << " | " << training(r) << " |\n";
+  for (size_t i : run.p.table2) {
+    const Row& r = run.rows[i];
+    md << "| " << r.task << " | " << methodName(r.variant) << " | " << metricsCell(r.m) << " | "
+       << paperRow(r.task, tgn::toString(r.variant)) << " | " << rulesCell(r) << " | " << trainingCell(r) << " |\n";
   }
-  for (const auto& f : paper_families)
+  for (const auto& f : tasks::paperFamilies())
     md << "| " << f << " | LLM (GPT-5.2) | – | – | – | – | " << paperRow(f, "llm")
        << " | | not reproducible offline (needs a hosted LLM) | |\n";
-  auto section = [&](const std::string& title, const std::string& text, const std::vector<size_t>& which) {
-    md << "\n## " << title << "\n\n"
-       << text << "\n\n"
-       << "| family | demonstrations | method | OSR | SSR | GCR | FD | E' rules | epochs | training |\n"
-       << "|---|---|---|---|---|---|---|---|---|---|\n";
-    for (size_t i : which) {
-      const Row& r = rows[i];
-      md << "| " << r.task << " | " << r.condition << " | " << method.at(r.variant) << " | " << metrics(r) << " | "
-         << rules(r) << " | " << training(r) << " |\n";
-    }
-  };
-  section("Few-shot, every family",
-          "The paper's four families (fixed step order) and four where the start configuration decides who acts and "
-          "where (docs/task-format.md, \"Task families\"), with few clean demonstrations; test sets are fresh "
-          "configurations.",
-          few);
-  section("Human-timed demonstrations",
-          "Training demonstrations labelled as a person does: every token's label begins up to " +
-              fmt(kHumanOnsetJitter, 1) +
-              " s late (step grouping, `step_window_s`, merges it into its step), "
-              "with Gaussian position noise of " +
-              fmt(kHumanNoise * 1000, 0) + " mm on every row; test sets are clean.",
-          human);
-  section("Imperfect demonstrations",
-          "Gaussian position jitter σ = 5 mm on every row, and in 10 % of the demonstrations one motion token's target "
-          "mislabelled for its whole segment; test sets are clean. This is where the refinement rules have edges to "
-          "drop.",
-          imperfect);
-  {
-    const label::HumanMotionOptions h;
-    md << "\n## Labels inferred from motion\n\n"
-       << "The training demonstrations moved as a person moves robots by hand (`label::humanMotion`): the robots of a "
-          "step start up to "
-       << fmt(h.onset_spread_s, 1) << " s apart, each at " << fmt(h.speed_min, 1) << "-" << fmt(h.speed_max, 1)
-       << " times the generated speed, " << fmt(h.pause_probability * 100, 0) << " % of them pausing "
-       << fmt(h.pause_min_s, 1) << "-" << fmt(h.pause_max_s, 1) << " s on the way, a resting robot bumped "
-       << fmt(h.nudge_min_m * 100, 0) << "-" << fmt(h.nudge_max_m * 100, 1) << " cm and put back after "
-       << fmt(h.nudge_probability * 100, 0) << " % of the steps, tracked at " << fmt(h.rate_hz, 0) << " Hz with "
-       << fmt(h.noise_m * 1000, 1)
-       << " mm noise and dropped frames held. The first demonstration is labelled by hand "
-          "(the example); the labels of the others are inferred from their motion (`ddace label --example`, "
-          "docs/labels.md). **Accuracy**: inferred tokens equal to the true ones (entity, action, target, step) over "
-          "the larger of both counts; **exact**: demonstrations whose inferred steps are the true ones; **to check**: "
-          "items reported as uncertain; onset and offset errors are medians over matched tokens. OSR: the default "
-          "network trained on the true labels, and on the inferred ones, on the same clean test set, once with each "
-          "of the training seeds "
-       << s.seed << "-" << s.seed + label_seeds - 1
-       << ": the mean (lowest-highest); **difference**: inferred - true, the mean over the seeds ± its standard "
-          "error (of the per-seed differences). The seed alone moves OSR where few demonstrations leave the "
-          "network undecided, and so does the row of a step's snapshot, which is all that inferred labels with the "
-          "true tokens change for the network (docs/labels-log.md).\n\n"
-       << "| family | demonstrations | accuracy | exact | to check | onset error | offset error | OSR, true labels | "
-          "OSR, inferred labels | difference |\n|---|---|---|---|---|---|---|---|---|---|\n";
-    double worst_accuracy = 1, worst_onset = 0, worst_offset = 0, worst_gap = 0, worst_gap_se = 0;
-    std::string worst_gap_row;
-    // OSR over the seeds: mean, lowest, highest.
-    auto osrOf = [&](const std::vector<size_t>& js) {
-      double sum = 0, lo = 1, hi = 0;
-      for (size_t j : js) sum += rows[j].m.osr, lo = std::min(lo, rows[j].m.osr), hi = std::max(hi, rows[j].m.osr);
-      return fmt(sum / static_cast<double>(js.size()), 2) + " (" + fmt(lo, 2) + "-" + fmt(hi, 2) + ")";
-    };
-    for (const auto& lr : label_rows) {
-      const double on = label::median(lr.score.onset_error_s), off = label::median(lr.score.offset_error_s);
-      std::vector<double> diff;  // per seed: inferred - true
-      for (size_t k = 0; k < lr.truth_jobs.size(); ++k)
-        diff.push_back(rows[lr.inferred_jobs[k]].m.osr - rows[lr.truth_jobs[k]].m.osr);
-      double mean = 0, var = 0;
-      for (double d : diff) mean += d / static_cast<double>(diff.size());
-      for (double d : diff) var += (d - mean) * (d - mean) / std::max<double>(1, static_cast<double>(diff.size()) - 1);
-      const double se = std::sqrt(var / static_cast<double>(diff.size()));
-      worst_accuracy = std::min(worst_accuracy, lr.score.accuracy());
-      worst_onset = std::max(worst_onset, on);
-      worst_offset = std::max(worst_offset, off);
-      if (std::abs(mean) > worst_gap) {
-        worst_gap = std::abs(mean), worst_gap_se = se;
-        worst_gap_row = lr.family + " at " + std::to_string(lr.demos);
-      }
-      md << "| " << lr.family << " | " << lr.demos << " | " << fmt(lr.score.accuracy(), 3) << " | "
-         << lr.score.demos_exact << "/" << lr.score.demos << " | " << lr.score.notes << " | " << fmt(on, 3) << " s | "
-         << fmt(off, 3) << " s | " << osrOf(lr.truth_jobs) << " | " << osrOf(lr.inferred_jobs) << " | "
-         << (mean < -0.005 ? "-" : "+") << fmt(std::abs(mean), 2) << " ± " << fmt(se, 2) << " |\n";
-    }
-    md << "\nGoals (issue: labels inferred from motion): token accuracy >= 0.98 on every family: "
-       << (worst_accuracy >= 0.98 ? "**met**" : "**not met**") << " (lowest " << fmt(worst_accuracy, 3)
-       << "); median onset and offset error < 0.2 s: "
-       << (worst_onset < 0.2 && worst_offset < 0.2 ? "**met**" : "**not met**") << " (largest " << fmt(worst_onset, 3)
-       << " s, " << fmt(worst_offset, 3) << " s); OSR on inferred labels within 0.02 of OSR on true labels: "
-       << (worst_gap <= 0.02 + 1e-9 ? "**met**" : "**not met**") << " (largest difference of the means "
-       << fmt(worst_gap, 2)
-       << (worst_gap_row.empty() ? std::string() : ", " + worst_gap_row + ", standard error " + fmt(worst_gap_se, 2))
-       << ").\n";
+}
+
+/// A section of every method's rows: `which` are indices into the rows.
+void writeSection(std::ostream& md, const Run& run, const std::string& title, const std::string& text,
+                  const std::vector<size_t>& which) {
+  md << "\n## " << title << "\n\n"
+     << text << "\n\n"
+     << "| family | demonstrations | method | OSR | SSR | GCR | FD | E' rules | epochs | training |\n"
+     << "|---|---|---|---|---|---|---|---|---|---|\n";
+  for (size_t i : which) {
+    const Row& r = run.rows[i];
+    md << "| " << r.task << " | " << r.condition << " | " << methodName(r.variant) << " | " << metricsCell(r.m) << " | "
+       << rulesCell(r) << " | " << trainingCell(r) << " |\n";
   }
-  if (!zoo_rules.empty()) {
-    // OSR of rule k at sizes[m] is rows[zoo[k * sizes.size() + m]].
-    md << "\n## Rule zoo\n\n"
-       << "The default network on the first " << zoo_rules.size()
-       << " distinct rules of the rule zoo (rules people state about a table, docs/tgn.md; `--zoo-rules N`), " << s.test
-       << " fresh scenes each, ideal execution; the distribution of OSR over the rules "
-       << "(`ddace bench rule_zoo` measures the same with its own sample size: docs/bench/rule_zoo.md).\n\n"
-       << "| demonstrations | rules | median OSR | 10th percentile | mean | rules at OSR >= 0.9 | worst |\n"
-       << "|---|---|---|---|---|---|---|\n";
-    for (size_t m = 0; m < sizes.size(); ++m) {
-      std::vector<double> v;
-      for (size_t k = 0; k < zoo_rules.size(); ++k) v.push_back(rows[zoo[k * sizes.size() + m]].m.osr);
-      size_t worst = 0;
-      for (size_t k = 1; k < v.size(); ++k)
-        if (v[k] < v[worst]) worst = k;
-      const tasks::OsrDistribution d = tasks::osrDistribution(v);
-      md << "| " << sizes[m] << " | " << d.rules << " | " << fmt(d.median, 2) << " | " << fmt(d.p10, 2) << " | "
-         << fmt(d.mean, 2) << " | " << d.at_least_0_9 << " | zoo:" << zoo_rules[worst].id << " "
-         << zoo_rules[worst].name << " (" << fmt(v[worst], 2) << ") |\n";
+}
+
+void writeFamilySections(std::ostream& md, const Run& run) {
+  writeSection(md, run, "Few-shot, every family",
+               "The paper's four families (fixed step order) and four where the start configuration decides who acts "
+               "and where (docs/task-format.md, \"Task families\"), with few clean demonstrations; test sets are fresh "
+               "configurations.",
+               run.p.few);
+  writeSection(md, run, "Human-timed demonstrations",
+               "Training demonstrations labelled as a person does: every token's label begins up to " +
+                   fmt(kHumanOnsetJitter, 1) +
+                   " s late (step grouping, `step_window_s`, merges it into its step), "
+                   "with Gaussian position noise of " +
+                   fmt(kHumanNoise * 1000, 0) + " mm on every row; test sets are clean.",
+               run.p.human);
+  writeSection(md, run, "Imperfect demonstrations",
+               "Gaussian position jitter σ = 5 mm on every row, and in 10 % of the demonstrations one motion token's "
+               "target mislabelled for its whole segment; test sets are clean. This is where the refinement rules have "
+               "edges to drop.",
+               run.p.imperfect);
+}
+
+void writeLabelsIntro(std::ostream& md, const Run& run) {
+  const label::HumanMotionOptions h;
+  md << "\n## Labels inferred from motion\n\n"
+     << "The training demonstrations moved as a person moves robots by hand (`label::humanMotion`): the robots of a "
+        "step start up to "
+     << fmt(h.onset_spread_s, 1) << " s apart, each at " << fmt(h.speed_min, 1) << "-" << fmt(h.speed_max, 1)
+     << " times the generated speed, " << fmt(h.pause_probability * 100, 0) << " % of them pausing "
+     << fmt(h.pause_min_s, 1) << "-" << fmt(h.pause_max_s, 1) << " s on the way, a resting robot bumped "
+     << fmt(h.nudge_min_m * 100, 0) << "-" << fmt(h.nudge_max_m * 100, 1) << " cm and put back after "
+     << fmt(h.nudge_probability * 100, 0) << " % of the steps, tracked at " << fmt(h.rate_hz, 0) << " Hz with "
+     << fmt(h.noise_m * 1000, 1)
+     << " mm noise and dropped frames held. The first demonstration is labelled by hand "
+        "(the example); the labels of the others are inferred from their motion (`ddace label --example`, "
+        "docs/labels.md). **Accuracy**: inferred tokens equal to the true ones (entity, action, target, step) over "
+        "the larger of both counts; **exact**: demonstrations whose inferred steps are the true ones; **to check**: "
+        "items reported as uncertain; onset and offset errors are medians over matched tokens. OSR: the default "
+        "network trained on the true labels, and on the inferred ones, on the same clean test set, once with each "
+        "of the training seeds "
+     << run.s.seed << "-" << run.s.seed + run.p.label_seeds - 1
+     << ": the mean (lowest-highest); **difference**: inferred - true, the mean over the seeds ± its standard "
+        "error (of the per-seed differences). The seed alone moves OSR where few demonstrations leave the "
+        "network undecided, and so does the row of a step's snapshot, which is all that inferred labels with the "
+        "true tokens change for the network (docs/labels-log.md).\n\n"
+     << "| family | demonstrations | accuracy | exact | to check | onset error | offset error | OSR, true labels | "
+        "OSR, inferred labels | difference |\n|---|---|---|---|---|---|---|---|---|---|\n";
+}
+
+/// OSR over the training seeds of `js`: "mean (lowest-highest)".
+std::string osrOverSeeds(const Run& run, const std::vector<size_t>& js) {
+  double sum = 0, lo = 1, hi = 0;
+  for (size_t j : js) {
+    const double osr = run.rows[j].m.osr;
+    sum += osr, lo = std::min(lo, osr), hi = std::max(hi, osr);
+  }
+  return fmt(sum / static_cast<double>(js.size()), 2) + " (" + fmt(lo, 2) + "-" + fmt(hi, 2) + ")";
+}
+
+void writeLabels(std::ostream& md, const Run& run) {
+  writeLabelsIntro(md, run);
+  double worst_accuracy = 1, worst_onset = 0, worst_offset = 0, worst_gap = 0, worst_gap_se = 0;
+  std::string worst_gap_row;
+  for (const auto& lr : run.p.label_rows) {
+    const double on = label::median(lr.score.onset_error_s), off = label::median(lr.score.offset_error_s);
+    std::vector<double> diff;  // per seed: inferred - true
+    for (size_t k = 0; k < lr.truth_jobs.size(); ++k)
+      diff.push_back(run.rows[lr.inferred_jobs[k]].m.osr - run.rows[lr.truth_jobs[k]].m.osr);
+    double mean = 0, var = 0;
+    for (double d : diff) mean += d / static_cast<double>(diff.size());
+    for (double d : diff) var += (d - mean) * (d - mean) / std::max<double>(1, static_cast<double>(diff.size()) - 1);
+    const double se = std::sqrt(var / static_cast<double>(diff.size()));
+    worst_accuracy = std::min(worst_accuracy, lr.score.accuracy());
+    worst_onset = std::max(worst_onset, on);
+    worst_offset = std::max(worst_offset, off);
+    if (std::abs(mean) > worst_gap) {
+      worst_gap = std::abs(mean), worst_gap_se = se;
+      worst_gap_row = lr.family + " at " + std::to_string(lr.demos);
     }
-    // With bodies: rule k's rows at the largest size, the generators' motion and the direct one.
-    md << "\n### Rule zoo with bodies\n\n"
-       << "The same rules at " << sizes.back()
-       << " demonstrations on two motion models (rule_zoo.h, `ZooMotion`): the generators' (paths bent around "
-          "bodies, stops touching) and a direct one (paths straight or arcs bent around nothing, stops touching, "
-          "4 mm and 1 cm short of contact in turn over the rules), each trained on its own demonstrations, ideal and "
-          "with bodies as in \"Bodies\" below (the filter on). Ratios per rule, bodies over ideal. Goals: OSR ratio >= "
-       << tasks::kBodiesOsrRatioMedian << " at the median and >= " << tasks::kBodiesOsrRatioP10
-       << " at the 10th percentile, zero collisions, FD ratio <= " << tasks::kBodiesFdRatioMedian
-       << " at the median (`ddace bench rule_zoo` lists every rule).\n\n"
-       << "| motion | rules | median OSR ideal / bodies | OSR ratio median | p10 | collisions (trials) | min clearance "
-          "| FD ratio median | makespan, mean | goals |\n|---|---|---|---|---|---|---|---|---|---|\n";
-    for (const bool direct : {false, true}) {
-      std::vector<std::pair<eval::Summary, eval::Summary>> runs;
-      if (direct)
-        for (size_t i : zoo_direct) runs.push_back({rows[i].m, rows[i].bodies});
-      else
-        for (size_t k = 0; k < zoo_rules.size(); ++k) {
-          const Row& r = rows[zoo[k * sizes.size() + sizes.size() - 1]];
-          runs.push_back({r.m, r.bodies});
-        }
-      if (runs.empty()) continue;
-      const tasks::BodiesComparison c = tasks::compareBodies(runs);
-      const auto mm = [](double m) { return std::isfinite(m) ? fmt(m * 1000, 1) + " mm" : std::string("–"); };
-      md << "| " << (direct ? "direct (touching, 4 mm, 1 cm)" : "the generators'") << " | " << c.rules << " | "
-         << fmt(c.ideal_osr_median, 2) << " / " << fmt(c.bodies_osr_median, 2) << " | " << fmt(c.osr_ratio_median, 2)
-         << " | " << fmt(c.osr_ratio_p10, 2) << " | " << c.collisions << " (" << c.trials_with_collision << "/"
-         << c.trials << ") | " << mm(c.min_clearance_m) << " | " << fmt(c.fd_ratio_median, 2) << " | "
-         << fmt(c.makespan_s, 1) << " s | " << (c.goalsMet() ? "met" : "**not met**") << " |\n";
+    md << "| " << lr.family << " | " << lr.demos << " | " << fmt(lr.score.accuracy(), 3) << " | "
+       << lr.score.demos_exact << "/" << lr.score.demos << " | " << lr.score.notes << " | " << fmt(on, 3) << " s | "
+       << fmt(off, 3) << " s | " << osrOverSeeds(run, lr.truth_jobs) << " | " << osrOverSeeds(run, lr.inferred_jobs)
+       << " | " << (mean < -0.005 ? "-" : "+") << fmt(std::abs(mean), 2) << " ± " << fmt(se, 2) << " |\n";
+  }
+  md << "\nGoals (labels inferred from motion): token accuracy >= 0.98 on every family: "
+     << (worst_accuracy >= 0.98 ? "**met**" : "**not met**") << " (lowest " << fmt(worst_accuracy, 3)
+     << "); median onset and offset error < 0.2 s: "
+     << (worst_onset < 0.2 && worst_offset < 0.2 ? "**met**" : "**not met**") << " (largest " << fmt(worst_onset, 3)
+     << " s, " << fmt(worst_offset, 3) << " s); OSR on inferred labels within 0.02 of OSR on true labels: "
+     << (worst_gap <= 0.02 + 1e-9 ? "**met**" : "**not met**") << " (largest difference of the means "
+     << fmt(worst_gap, 2)
+     << (worst_gap_row.empty() ? std::string() : ", " + worst_gap_row + ", standard error " + fmt(worst_gap_se, 2))
+     << ").\n";
+}
+
+/// The row of zoo rule k at sizes[m].
+const Row& zooRow(const Run& run, size_t k, size_t m) {
+  return run.rows[run.p.zoo[k * run.p.sizes.size() + m]];
+}
+
+void writeZoo(std::ostream& md, const Run& run) {
+  const Plan& p = run.p;
+  md << "\n## Rule zoo\n\n"
+     << "The default network on the first " << p.zoo_rules.size()
+     << " distinct rules of the rule zoo (rules people state about a table, docs/tgn.md; `--zoo-rules N`), "
+     << run.s.test << " fresh scenes each, ideal execution; the distribution of OSR over the rules "
+     << "(`ddace bench rule_zoo` measures the same with its own sample size: docs/bench/rule_zoo.md).\n\n"
+     << "| demonstrations | rules | median OSR | 10th percentile | mean | rules at OSR >= 0.9 | worst |\n"
+     << "|---|---|---|---|---|---|---|\n";
+  for (size_t m = 0; m < p.sizes.size(); ++m) {
+    std::vector<double> v;
+    for (size_t k = 0; k < p.zoo_rules.size(); ++k) v.push_back(zooRow(run, k, m).m.osr);
+    size_t worst = 0;
+    for (size_t k = 1; k < v.size(); ++k)
+      if (v[k] < v[worst]) worst = k;
+    const tasks::OsrDistribution d = tasks::osrDistribution(v);
+    md << "| " << p.sizes[m] << " | " << d.rules << " | " << fmt(d.median, 2) << " | " << fmt(d.p10, 2) << " | "
+       << fmt(d.mean, 2) << " | " << d.at_least_0_9 << " | zoo:" << p.zoo_rules[worst].id << " "
+       << p.zoo_rules[worst].name << " (" << fmt(v[worst], 2) << ") |\n";
+  }
+}
+
+/// With bodies: rule k's rows at the largest size, the generators' motion and the direct one.
+void writeZooBodies(std::ostream& md, const Run& run) {
+  const Plan& p = run.p;
+  md << "\n### Rule zoo with bodies\n\n"
+     << "The same rules at " << p.sizes.back()
+     << " demonstrations on two motion models (rule_zoo.h, `ZooMotion`): the generators' (paths bent around "
+        "bodies, stops touching) and a direct one (paths straight or arcs bent around nothing, stops touching, "
+        "4 mm and 1 cm short of contact in turn over the rules), each trained on its own demonstrations, ideal and "
+        "with bodies as in \"Bodies\" below (the filter on). Ratios per rule, bodies over ideal. Goals: OSR ratio >= "
+     << tasks::kBodiesOsrRatioMedian << " at the median and >= " << tasks::kBodiesOsrRatioP10
+     << " at the 10th percentile, zero collisions, FD ratio <= " << tasks::kBodiesFdRatioMedian
+     << " at the median (`ddace bench rule_zoo` lists every rule).\n\n"
+     << "| motion | rules | median OSR ideal / bodies | OSR ratio median | p10 | collisions (trials) | min clearance "
+        "| FD ratio median | makespan, mean | goals |\n|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const bool direct : {false, true}) {
+    std::vector<std::pair<eval::Summary, eval::Summary>> runs;
+    if (direct)
+      for (size_t i : p.zoo_direct) runs.push_back({run.rows[i].m, run.rows[i].bodies});
+    else
+      for (size_t k = 0; k < p.zoo_rules.size(); ++k) {
+        const Row& r = zooRow(run, k, p.sizes.size() - 1);
+        runs.push_back({r.m, r.bodies});
+      }
+    if (runs.empty()) continue;
+    const tasks::BodiesComparison c = tasks::compareBodies(runs);
+    md << "| " << (direct ? "direct (touching, 4 mm, 1 cm)" : "the generators'") << " | " << c.rules << " | "
+       << fmt(c.ideal_osr_median, 2) << " / " << fmt(c.bodies_osr_median, 2) << " | " << fmt(c.osr_ratio_median, 2)
+       << " | " << fmt(c.osr_ratio_p10, 2) << " | " << c.collisions << " (" << c.trials_with_collision << "/"
+       << c.trials << ") | " << millimetres(c.min_clearance_m) << " | " << fmt(c.fd_ratio_median, 2) << " | "
+       << fmt(c.makespan_s, 1) << " s | " << (c.goalsMet() ? "met" : "**not met**") << " |\n";
+  }
+  md << "\nRules the direct motion cannot demonstrate (no scene whose bodies keep clear without bending around "
+        "each other), not in its row: "
+     << (p.zoo_undrawable.empty() ? std::string("none") : p.zoo_undrawable) << ".\n";
+}
+
+/// OSR of each zoo rule's model at the largest size on scenes with `factor` times its robots
+/// (goals too where the rule has one per robot or more). Counts the refused and the undrawable.
+std::vector<double> otherTeamSizeOsr(const Run& run, double factor, int& refused, int& no_scene) {
+  const Plan& p = run.p;
+  std::vector<double> v;
+  for (size_t k = 0; k < p.zoo_rules.size(); ++k) {
+    const tasks::ZooRule& z = p.zoo_rules[k];
+    tasks::ZooCounts c;
+    c.robots = std::max(1, static_cast<int>(std::lround(factor * z.robots)));
+    c.goals = z.goals >= z.robots ? c.robots + z.goals - z.robots : z.goals;
+    const std::string model_dir =
+        (run.s.out / "models" / p.jobs[p.zoo[(k + 1) * p.sizes.size() - 1]].model_name).string();
+    task::TaskDir test;
+    try {
+      test = tasks::generateZoo(z.id, run.s.test, zooTestSeed(run.s), {}, c);
+    } catch (const Error&) {
+      ++no_scene;
+      continue;
     }
-    md << "\nRules the direct motion cannot demonstrate (no scene whose bodies keep clear without bending around "
-          "each other), not in its row: "
-       << (zoo_undrawable.empty() ? std::string("none") : zoo_undrawable) << ".\n";
-    // Other team sizes (docs/tgn.md): each rule's model at the largest size run on the same
-    // rule with other numbers of robots (goals too where they come one per robot).
-    md << "\n### Other team sizes\n\n"
-       << "Each rule's model of " << sizes.back()
-       << " demonstrations (the default network, at the rule's own counts) on " << s.test
-       << " fresh scenes of the same rule with other numbers of robots (and of goals where the rule has one per robot "
-          "or more: the surplus kept), bound by kind as `ddace eval` binds it (docs/tgn.md, \"Other team sizes\"), "
-          "ideal execution. Refused: models whose rule depends on names (a fixed order, an entity known by name that "
-          "the other count lacks or adds); no scene: the rule cannot be stated at that count.\n\n"
-       << "| robots | rules run | refused | no scene | median OSR | 10th percentile | rules at OSR >= 0.9 |\n"
-       << "|---|---|---|---|---|---|---|\n";
-    for (const double factor : {0.5, 1.5, 2.0}) {
-      std::vector<double> v;
-      int refused = 0, no_scene = 0;
-      for (size_t k = 0; k < zoo_rules.size(); ++k) {
-        const tasks::ZooRule& z = zoo_rules[k];
-        tasks::ZooCounts c;
-        c.robots = std::max(1, static_cast<int>(std::lround(factor * z.robots)));
-        c.goals = z.goals >= z.robots ? c.robots + z.goals - z.robots : z.goals;
-        const std::string model_dir = (s.out / "models" / jobs[zoo[(k + 1) * sizes.size() - 1]].model_name).string();
-        task::TaskDir test;
-        try {
-          test = tasks::generateZoo(z.id, s.test, static_cast<uint64_t>(s.seed) * 2654435761ULL + 0x7e57, {}, c);
-        } catch (const Error&) {
-          ++no_scene;
-          continue;
-        }
-        try {
-          const ModelForTask bound = modelForTask(loadModel(model_dir), model_dir, test, "other", false);
-          v.push_back(evaluate(bound.model, test, {}).summary.osr);
-        } catch (const Error&) {
-          ++refused;
-        }
-      }
-      md << "| " << fmt(factor, 1) << "x | " << v.size() << " | " << refused << " | " << no_scene << " | ";
-      if (v.empty()) {
-        md << "– | – | – |\n";
-        continue;
-      }
-      const tasks::OsrDistribution d = tasks::osrDistribution(v);
-      md << fmt(d.median, 2) << " | " << fmt(d.p10, 2) << " | " << d.at_least_0_9 << " |\n";
+    try {
+      const ModelForTask bound = modelForTask(loadModel(model_dir), model_dir, test, "other", false);
+      v.push_back(evaluate(bound.model, test, {}).summary.osr);
+    } catch (const Error&) {
+      ++refused;
     }
   }
-  if (!kinds.empty()) {
-    // OSR of kind k at sizes[m] is rows[kind_jobs[k * sizes.size() + m]].
-    md << "\n### Kinds of task users name\n\n"
-       << "Each kind as the zoo rule that states it (rule_zoo.h, `userKinds`; goal: OSR >= 0.9 at 20 "
-          "demonstrations), "
-       << s.test << " fresh scenes each, ideal execution.\n\n| kind | zoo rule |";
-    for (int n : sizes) md << " OSR, " << n << " demos |";
-    md << "\n|---|---|";
-    for (size_t m = 0; m < sizes.size(); ++m) md << "---|";
+  return v;
+}
+
+/// Other team sizes (docs/tgn.md): each rule's model at the largest size run on the same
+/// rule with other numbers of robots.
+void writeOtherTeamSizes(std::ostream& md, const Run& run) {
+  md << "\n### Other team sizes\n\n"
+     << "Each rule's model of " << run.p.sizes.back()
+     << " demonstrations (the default network, at the rule's own counts) on " << run.s.test
+     << " fresh scenes of the same rule with other numbers of robots (and of goals where the rule has one per robot "
+        "or more: the surplus kept), bound by kind as `ddace eval` binds it (docs/tgn.md, \"Other team sizes\"), "
+        "ideal execution. Refused: models whose rule depends on names (a fixed order, an entity known by name that "
+        "the other count lacks or adds); no scene: the rule cannot be stated at that count.\n\n"
+     << "| robots | rules run | refused | no scene | median OSR | 10th percentile | rules at OSR >= 0.9 |\n"
+     << "|---|---|---|---|---|---|---|\n";
+  for (const double factor : {0.5, 1.5, 2.0}) {
+    int refused = 0, no_scene = 0;
+    const std::vector<double> v = otherTeamSizeOsr(run, factor, refused, no_scene);
+    md << "| " << fmt(factor, 1) << "x | " << v.size() << " | " << refused << " | " << no_scene << " | ";
+    if (v.empty()) {
+      md << "– | – | – |\n";
+      continue;
+    }
+    const tasks::OsrDistribution d = tasks::osrDistribution(v);
+    md << fmt(d.median, 2) << " | " << fmt(d.p10, 2) << " | " << d.at_least_0_9 << " |\n";
+  }
+}
+
+void writeKinds(std::ostream& md, const Run& run) {
+  const Plan& p = run.p;
+  md << "\n### Kinds of task users name\n\n"
+     << "Each kind as the zoo rule that states it (rule_zoo.h, `userKinds`; goal: OSR >= 0.9 at 20 "
+        "demonstrations), "
+     << run.s.test << " fresh scenes each, ideal execution.\n\n| kind | zoo rule |";
+  for (int n : p.sizes) md << " OSR, " << n << " demos |";
+  md << "\n|---|---|";
+  for (size_t m = 0; m < p.sizes.size(); ++m) md << "---|";
+  md << "\n";
+  for (size_t k = 0; k < p.kind_list.size(); ++k) {
+    uint64_t id = 0;
+    tasks::parseZooFamily(p.kind_list[k].family, id);
+    md << "| " << p.kind_list[k].kind << " | " << p.kind_list[k].family << " " << tasks::zooRule(id).name << " |";
+    for (size_t m = 0; m < p.sizes.size(); ++m)
+      md << " " << fmt(run.rows[p.kinds[k * p.sizes.size() + m]].m.osr, 2) << " |";
     md << "\n";
-    for (size_t k = 0; k < kinds.size(); ++k) {
-      uint64_t id = 0;
-      tasks::parseZooFamily(kinds[k].family, id);
-      md << "| " << kinds[k].kind << " | " << kinds[k].family << " " << tasks::zooRule(id).name << " |";
-      for (size_t m = 0; m < sizes.size(); ++m)
-        md << " " << fmt(rows[kind_jobs[k * sizes.size() + m]].m.osr, 2) << " |";
-      md << "\n";
-    }
   }
-  // The default network's models of the sections above, run again in closed loop.
+}
+
+/// The default network's models of the sections above, run again in closed loop.
+void writeClosedLoop(std::ostream& md, const Run& run) {
   md << "\n## Closed loop: simulated differential-drive robots\n\n"
      << "The default network's models of \"Few-shot, every family\" and \"Human-timed demonstrations\", on the same "
         "test configurations, executed by differential-drive robots (Hamster wheel base, wheel speeds clamped) steered "
@@ -837,13 +933,16 @@ int runTable(const std::vector<std::string>& argv) {
      << kClosedLoopNoise << "`). Ideal: the rows above.\n\n"
      << "| family | demonstrations | ideal OSR | SSR | GCR | FD | closed-loop OSR | SSR | GCR | FD |\n"
      << "|---|---|---|---|---|---|---|---|---|---|\n";
-  for (const auto* which : {&few, &human})
+  for (const auto* which : {&run.p.few, &run.p.human})
     for (size_t i : *which) {
-      const Row& r = rows[i];
+      const Row& r = run.rows[i];
       if (r.closed.trials == 0) continue;
-      md << "| " << r.task << " | " << r.condition << " | " << metrics(r) << " | " << metricsOf(r.closed) << " |\n";
+      md << "| " << r.task << " | " << r.condition << " | " << metricsCell(r.m) << " | " << metricsCell(r.closed)
+         << " |\n";
     }
-  // The few-shot default-network models again, the robots with bodies.
+}
+
+void writeBodiesIntro(std::ostream& md) {
   md << "\n## Bodies\n\n"
      << "The default network's models of \"Few-shot, every family\" on the same test configurations, executed with "
         "bodies: every robot and object a disc of the task's footprint on the mock robots' Box2D table, the robots of "
@@ -863,88 +962,138 @@ int runTable(const std::vector<std::string>& argv) {
      << "| family | demonstrations | ideal OSR | OSR with bodies | GCR | collisions | min clearance | makespan | "
         "OSR without filter | collisions | min clearance | makespan | makespan with / without |\n"
      << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-  {
-    auto collisions = [](const eval::Summary& b) {
-      return std::to_string(b.collisions) + " (" + std::to_string(b.trials_with_collision) + "/" +
-             std::to_string(b.trials) + ")";
-    };
-    auto mm = [](double m) { return std::isfinite(m) ? fmt(m * 1000, 1) + " mm" : std::string("–"); };
-    std::string no_collision, collided, osr_met, osr_missed, time_met, time_missed;
-    auto add_to = [](std::string& list, const std::string& item) { list += (list.empty() ? "" : ", ") + item; };
-    for (size_t i : few) {
-      const Row& r = rows[i];
-      if (r.bodies.trials == 0) continue;
-      const double ratio = r.unfiltered.makespan_s > 0 ? r.bodies.makespan_s / r.unfiltered.makespan_s : NAN;
-      md << "| " << r.task << " | " << r.condition << " | " << fmt(r.m.osr, 2) << " | " << fmt(r.bodies.osr, 2) << " | "
-         << fmt(r.bodies.gcr, 2) << " | " << collisions(r.bodies) << " | " << mm(r.bodies.min_clearance_m) << " | "
-         << fmt(r.bodies.makespan_s, 1) << " s | " << fmt(r.unfiltered.osr, 2) << " | " << collisions(r.unfiltered)
-         << " | " << mm(r.unfiltered.min_clearance_m) << " | " << fmt(r.unfiltered.makespan_s, 1) << " s | "
-         << fmt(ratio, 2) << " |\n";
-      const std::string name = r.task + " (" + r.condition + ")";
-      add_to(r.bodies.collisions == 0 ? no_collision : collided, name);
-      add_to(r.bodies.osr >= 0.95 * r.m.osr - 1e-9 ? osr_met : osr_missed,
-             name + " " + fmt(r.bodies.osr, 2) + " vs " + fmt(r.m.osr, 2));
-      add_to(ratio <= 1.15 + 1e-9 ? time_met : time_missed, name + " " + fmt(ratio, 2));
-    }
-    auto judged = [&](const std::string& what, const std::string& met, const std::string& missed) {
-      md << "- " << what << ": " << (missed.empty() ? "**met**" : "**not met**")
-         << ". Met: " << (met.empty() ? "none" : met) << (missed.empty() ? "" : "; not met: " + missed) << ".\n";
-    };
-    md << "\nGoals of the bodies, with the filter:\n\n";
-    judged("Zero collisions on every family", no_collision, collided);
-    judged("OSR with bodies >= 0.95 x the ideal OSR", osr_met, osr_missed);
-    judged("Makespan with the filter <= 1.15 x without", time_met, time_missed);
+}
+
+/// The few-shot default-network models again, the robots with bodies, and the goals of bodies.
+void writeBodies(std::ostream& md, const Run& run) {
+  writeBodiesIntro(md);
+  std::string no_collision, collided, osr_met, osr_missed, time_met, time_missed;
+  for (size_t i : run.p.few) {
+    const Row& r = run.rows[i];
+    if (r.bodies.trials == 0) continue;
+    const double ratio = r.unfiltered.makespan_s > 0 ? r.bodies.makespan_s / r.unfiltered.makespan_s : NAN;
+    md << "| " << r.task << " | " << r.condition << " | " << fmt(r.m.osr, 2) << " | " << fmt(r.bodies.osr, 2) << " | "
+       << fmt(r.bodies.gcr, 2) << " | " << collisionsCell(r.bodies) << " | " << millimetres(r.bodies.min_clearance_m)
+       << " | " << fmt(r.bodies.makespan_s, 1) << " s | " << fmt(r.unfiltered.osr, 2) << " | "
+       << collisionsCell(r.unfiltered) << " | " << millimetres(r.unfiltered.min_clearance_m) << " | "
+       << fmt(r.unfiltered.makespan_s, 1) << " s | " << fmt(ratio, 2) << " |\n";
+    const std::string name = r.task + " (" + r.condition + ")";
+    addTo(r.bodies.collisions == 0 ? no_collision : collided, name);
+    addTo(r.bodies.osr >= 0.95 * r.m.osr - 1e-9 ? osr_met : osr_missed,
+          name + " " + fmt(r.bodies.osr, 2) + " vs " + fmt(r.m.osr, 2));
+    addTo(ratio <= 1.15 + 1e-9 ? time_met : time_missed, name + " " + fmt(ratio, 2));
   }
+  md << "\nGoals of the bodies, with the filter:\n\n";
+  judged(md, "Zero collisions on every family", no_collision, collided);
+  judged(md, "OSR with bodies >= 0.95 x the ideal OSR", osr_met, osr_missed);
+  judged(md, "Makespan with the filter <= 1.15 x without", time_met, time_missed);
+}
+
+void writeFigures(std::ostream& md) {
   md << "\n## Figures\n\n"
      << "Training loss vs epoch for 10, 20 and 30 demonstrations (Fig. 4):\n\n"
      << "![Fig. 4](figures/loss_fig4.png)\n\n"
      << "Case study 1, team size on Task 2 (log loss):\n\n![team size](figures/loss_task2_robots.png)\n\n"
      << "Case study 2, number of actions on Task 3:\n\n![actions](figures/loss_task3_actions.png)\n\n"
      << "Demonstrated (grey) and generated (colour) paths of the first test trial of each task:\n\n";
-  for (const auto& f : paper_families) md << "![" << f << "](figures/overlay_" << f << ".png)\n";
-  // The issue's accuracy goals, judged on this run's rows of the default network.
-  auto goal = [&](const std::string& what, const std::vector<size_t>& section, const std::vector<std::string>& fams,
-                  const std::string& condition, double bound, bool every_metric) {
-    std::string met, missed;
-    for (size_t i : section) {
-      const Row& r = rows[i];
-      if (r.variant != default_variant || r.condition != condition ||
-          std::find(fams.begin(), fams.end(), r.task) == fams.end())
-        continue;
-      const bool ok = r.m.osr >= bound && (!every_metric || (r.m.ssr >= bound && r.m.gcr >= bound));
-      std::string& list = ok ? met : missed;
-      list += (list.empty() ? "" : ", ") + r.task + " (OSR " + fmt(r.m.osr, 2) + ")";
-    }
-    if (met.empty() && missed.empty()) return;  // --quick: no such rows
-    md << "- " << what << ": " << (missed.empty() ? "**met**" : "**not met**")
-       << ". Met: " << (met.empty() ? "none" : met) << (missed.empty() ? "" : "; not met: " + missed) << ".\n";
-  };
-  const std::vector<std::string> scene_families = tasks::sceneFamilies();
-  if (!s.quick) md << "\n## Goals (the default network, this run)\n\n";  // --quick has no such rows
-  goal("Scene-dependent families, OSR >= 0.9 with 20 demonstrations", few, scene_families, "20 demos", 0.9, false);
-  goal("Stretch: scene-dependent families, OSR >= 0.9 with 10 demonstrations", few, scene_families, "10 demos", 0.9,
-       false);
-  goal("Human-timed demonstrations (onset jitter " + fmt(kHumanOnsetJitter, 1) + " s, " + fmt(kHumanNoise * 1000, 0) +
-           " mm), OSR >= 0.95 with 20 demonstrations on every fixed-order family",
-       human, paper_families, "human-timed, 20 demos", 0.95, false);
-  goal("The paper's Tasks 1-4, OSR = SSR = GCR = 1 with 10 demonstrations", few, paper_families, "10 demos", 1.0, true);
+  for (const auto& f : tasks::paperFamilies()) md << "![" << f << "](figures/overlay_" << f << ".png)\n";
+}
+
+/// An accuracy goal judged on the default network's rows of `section` for `families` under
+/// `condition` (nothing when the run has no such rows: --quick).
+void writeGoal(std::ostream& md, const Run& run, const std::string& what, const std::vector<size_t>& section,
+               const std::vector<std::string>& families, const std::string& condition, double bound,
+               bool every_metric) {
+  std::string met, missed;
+  for (size_t i : section) {
+    const Row& r = run.rows[i];
+    if (r.variant != kDefaultVariant || r.condition != condition ||
+        std::find(families.begin(), families.end(), r.task) == families.end())
+      continue;
+    const bool ok = r.m.osr >= bound && (!every_metric || (r.m.ssr >= bound && r.m.gcr >= bound));
+    addTo(ok ? met : missed, r.task + " (OSR " + fmt(r.m.osr, 2) + ")");
+  }
+  if (!met.empty() || !missed.empty()) judged(md, what, met, missed);
+}
+
+/// The accuracy goals, judged on this run's rows of the default network.
+void writeGoals(std::ostream& md, const Run& run) {
+  if (run.s.quick) return;  // --quick has no such rows
+  const std::vector<std::string> scene = tasks::sceneFamilies(), paper = tasks::paperFamilies();
+  md << "\n## Goals (the default network, this run)\n\n";
+  writeGoal(md, run, "Scene-dependent families, OSR >= 0.9 with 20 demonstrations", run.p.few, scene, "20 demos", 0.9,
+            false);
+  writeGoal(md, run, "Stretch: scene-dependent families, OSR >= 0.9 with 10 demonstrations", run.p.few, scene,
+            "10 demos", 0.9, false);
+  writeGoal(md, run,
+            "Human-timed demonstrations (onset jitter " + fmt(kHumanOnsetJitter, 1) + " s, " +
+                fmt(kHumanNoise * 1000, 0) + " mm), OSR >= 0.95 with 20 demonstrations on every fixed-order family",
+            run.p.human, paper, "human-timed, 20 demos", 0.95, false);
+  writeGoal(md, run, "The paper's Tasks 1-4, OSR = SSR = GCR = 1 with 10 demonstrations", run.p.few, paper, "10 demos",
+            1.0, true);
+}
+
+/// docs/results.md: every section, from this run's rows.
+std::string resultsText(const Run& run) {
+  std::ostringstream md;
+  writeHeader(md, run);
+  writeTable2(md, run);
+  writeFamilySections(md, run);
+  writeLabels(md, run);
+  if (!run.p.zoo_rules.empty()) {
+    writeZoo(md, run);
+    writeZooBodies(md, run);
+    writeOtherTeamSizes(md, run);
+  }
+  if (!run.p.kind_list.empty()) writeKinds(md, run);
+  writeClosedLoop(md, run);
+  writeBodies(md, run);
+  writeFigures(md);
+  writeGoals(md, run);
   md << "\n## Reading the numbers\n\n" << DDACE_RESULTS_DISCUSSION;
-  const fs::path results = s.docs / "results.md";
-  writeTextFile(results.string(), md.str());
-  // The 20-minute goal is a benchmark: the run's wall time goes next to the other benches.
-  const double minutes = secondsSince(t_all) / 60;
+  return md.str();
+}
+
+/// The 20-minute goal is a benchmark: the run's wall time goes next to the other benches.
+void writeBenchTable(const Run& run) {
+  const Settings& s = run.s;
   fs::create_directories(s.docs / "bench");
   std::ofstream(s.docs / "bench" / "table.md")
-      << "# bench: table\n\nWritten by `ddace table" << (s.quick ? " --quick" : "") << "` on " << cores << " cores, "
-      << s.jobs << " models at a time (1-minute load average " << loadAverage()
-      << " at the end). The whole command: data, " << rows.size()
+      << "# bench: table\n\nWritten by `ddace table" << (s.quick ? " --quick" : "") << "` on " << hardwareCores()
+      << " cores, " << s.jobs << " models at a time (1-minute load average " << loadAverage()
+      << " at the end). The whole command: data, " << run.rows.size()
       << " models trained and evaluated, the training curves (scripts/plot_loss.py), the figures.\n\n"
       << "| measure | time | goal | ratio |\n|---|---|---|---|\n"
-      << "| `ddace table" << (s.quick ? " --quick" : "") << "` wall time | " << fmt(minutes, 1) << " min | "
+      << "| `ddace table" << (s.quick ? " --quick" : "") << "` wall time | " << fmt(run.minutes, 1) << " min | "
       << (s.quick ? "(smoke test, no goal)" : "20 min") << " | "
-      << (s.quick ? "–" : fmt(minutes / 20, 2) + " of the goal") << " |\n";
+      << (s.quick ? "–" : fmt(run.minutes / 20, 2) + " of the goal") << " |\n";
+}
+
+int runTable(const std::vector<std::string>& argv) {
+  Args args(argv, {"--out", "--docs", "--seed", "--gnn-epochs", "--jobs", "--repo", "--zoo-rules"}, {"--quick"});
+  ::setenv("ATEN_CPU_CAPABILITY", kCpuCapability, 1);  // before any job touches libtorch
+  args.expectAtMostPositional(0);
+  // The repository found at run time (--repo DIR, DDACE_REPO, the directories above): its
+  // docs/ get the results, scripts/plot_loss.py draws Fig. 4.
+  const fs::path source = findRepository(args.get("--repo", ""), {"scripts/plot_loss.py", "docs"});
+  const Settings s = parseSettings(args, source);
+  for (const char* sub : {"data", "models", "eval", "overlays"}) fs::create_directories(s.out / sub);
+  fs::create_directories(s.docs / "figures");
+  const auto t_all = Clock::now();
+  std::cout << "Table 2 (tasks 1-4, " << s.train << " demonstrations) and beyond: every family with "
+            << (s.quick ? "3" : "10 and 20") << " demonstrations, human-timed demonstrations (onset jitter "
+            << kHumanOnsetJitter << " s, " << kHumanNoise * 1000 << " mm noise), imperfect demonstrations; " << s.test
+            << " trials each; " << s.jobs << " models trained at a time\n";
+  const Plan plan = planRun(s);
+  const std::vector<Row> rows = runJobs(s, plan.jobs);
+  drawFigures(s, source);
+  Run run{s, plan, rows, secondsSince(t_all) / 60};
+  const fs::path results = s.docs / "results.md";
+  writeTextFile(results.string(), resultsText(run));
+  run.minutes = secondsSince(t_all) / 60;
+  writeBenchTable(run);
   std::cout << "wrote " << results.string() << ", " << (s.docs / "bench" / "table.md").string() << " and "
-            << figs.string() << "/*.png (" << fmt(minutes, 1) << " min)\n";
+            << (s.docs / "figures").string() << "/*.png (" << fmt(run.minutes, 1) << " min)\n";
   if (plot_failures) std::cerr << "ddace table: " << plot_failures << " figure(s) could not be drawn (see above)\n";
   return plot_failures ? 1 : 0;
 }

@@ -58,4 +58,16 @@ bool accept(CommandSources& sources, const ros::MessageEvent<const ddace::WheelC
   return false;
 }
 
+void diagnose(const CommandSources& sources, uint64_t& reported_foreign,
+              diagnostic_updater::DiagnosticStatusWrapper& status) {
+  status.add("command sources", sources.allowedList());
+  status.add("foreign commands", sources.foreignReport());
+  status.add("unstamped commands", sources.unstampedReport());
+  // A node the launch did not name is publishing wheel commands right now: say so.
+  if (sources.foreign() > reported_foreign)
+    status.mergeSummary(diagnostic_msgs::DiagnosticStatus::WARN,
+                        "wheel commands from " + sources.lastForeign() + " refused (not a command source)");
+  reported_foreign = sources.foreign();
+}
+
 }  // namespace ddace::ros_command

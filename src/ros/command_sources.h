@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include <diagnostic_updater/DiagnosticStatusWrapper.h>
 #include <ros/ros.h>
 
 #include <ddace/WheelCommand.h>
@@ -24,5 +25,12 @@ CommandSources load(const ros::NodeHandle& pnh, const std::string& robot);
 /// (at most once a second per robot) naming the robot, the publisher and why.
 bool accept(CommandSources& sources, const ros::MessageEvent<const ddace::WheelCommand>& ev, const std::string& node,
             const std::string& robot);
+
+/// The interlock's account in a robot's diagnostics: "command sources", "foreign commands"
+/// ("40, last from /intruder"), "unstamped commands"; the status turns WARN naming the
+/// stranger while its commands come (more than `reported_foreign`, the count at the last
+/// report, which is updated).
+void diagnose(const CommandSources& sources, uint64_t& reported_foreign,
+              diagnostic_updater::DiagnosticStatusWrapper& status);
 
 }  // namespace ddace::ros_command

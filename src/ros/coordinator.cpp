@@ -27,13 +27,17 @@
 #include <ddace/WheelCommand.h>
 
 #include "exec_conversions.h"
+#include "launched_nodes.h"
 #include "params.h"
 #include "ddace/exec/liveness.h"
 #include "ddace/exec/outbox.h"
 #include "ddace/exec/path_band.h"
 #include "ddace/gp/primitives.h"
+#include "ddace/graph/dependencies.h"
+#include "ddace/pipeline/evaluation.h"
 #include "ddace/task/end_point.h"
 #include "ddace/task/task_dir.h"
+#include "ddace/tgn/sequence_model.h"
 
 namespace ddace::nodes {
 
@@ -49,10 +53,14 @@ class CoordinatorNode::Impl {
     cfg.max_steps = rosparam::param(pnh, "max_steps", cfg.max_steps);
     cfg.arrival_radius_m = rosparam::param(pnh, "arrival_radius_m", spec_.arrival_radius);
     cfg.arrival_tolerance_m = rosparam::param(pnh, "arrival_tolerance_m", cfg.arrival_tolerance_m);
+    cfg.dispatch = exec::parseDispatchMode(rosparam::param<std::string>(pnh, "dispatch", exec::toString(cfg.dispatch)),
+                                           "parameter '" + pnh.resolveName("dispatch") + "'");
     try {
+      const DispatchInputs dispatch = loadDispatchInputs(pnh, cfg.dispatch);
       // Ids past every id of a coordinator this one replaces (exec::firstIdAt).
       coordinator_ = std::make_unique<exec::Coordinator>(spec_, cfg, loadEndPoints(pnh),
-                                                         exec::firstIdAt(ros::WallTime::now().toSec()));
+                                                         exec::firstIdAt(ros::WallTime::now().toSec()),
+                                                         dispatch.dependencies, dispatch.policy_reads_scene);
     } catch (const Error& e) {
       throw Error(std::string(e.what()) + " (parameters under " + pnh.getNamespace() + ")");
     }
@@ -159,6 +167,39 @@ class CoordinatorNode::Impl {
     return {};
   }
 
+  /// Whom each token waits for and whether a decision reads the scene (exec/dispatch.h):
+  /// the model's manifest (~model), else a replay's (~train's demonstrations, replayed in a
+  /// fixed order). Steps dispatch needs neither: every token waits for every earlier one.
+  struct DispatchInputs {
+    graph::Dependencies dependencies;
+    bool policy_reads_scene = true;
+  };
+  DispatchInputs loadDispatchInputs(ros::NodeHandle& pnh, exec::DispatchMode mode) const {
+    DispatchInputs in;
+    if (mode == exec::DispatchMode::Steps) return in;
+    const std::string model = rosparam::param<std::string>(pnh, "model", "");
+    if (!model.empty()) {
+      const tgn::SequenceModel m = tgn::SequenceModel::load(model);
+      in.dependencies = m.info().dependencies;
+      in.policy_reads_scene = pipeline::policyReadsScene(m.info());
+    } else {
+      std::string train = rosparam::param<std::string>(pnh, "train", "");
+      if (train.empty()) train = rosparam::param<std::string>(pnh, "task", "");
+      if (!std::filesystem::is_directory(std::filesystem::path(train) / "demos"))
+        throw Error("parameter '" + pnh.resolveName("dispatch") +
+                    "' is async but there is neither ~model nor ~train demonstrations to learn what each token "
+                    "waits for");
+      in.dependencies = graph::learnDependencies(spec_, task::loadTaskDir(train).demos);
+      in.policy_reads_scene = false;
+    }
+    ROS_INFO(
+        "coordinator: async dispatch, %s; decisions %s",
+        in.dependencies.learned ? "learned dependencies"
+                                : "a model without learned dependencies (every token waits for every earlier one)",
+        in.policy_reads_scene ? "once every entity has settled (the policy reads the scene)" : "ahead (a fixed order)");
+    return in;
+  }
+
   static double now() { return ros::Time::now().toSec(); }
   /// The liveness clock: monotonic, so a step of the system clock is nobody's silence.
   static double steadyNow() { return ros::SteadyTime::now().toSec(); }
@@ -173,13 +214,7 @@ class CoordinatorNode::Impl {
   void apply(const exec::CoordinatorOutput& out) {
     for (const auto& line : out.log) ROS_INFO("coordinator: %s", line.c_str());
     const ros::Time stamp = ros::Time::now();
-    if (out.stop_all || out.state_changed) {
-      // Whatever was asked before no longer needs an answer.
-      using K = exec::Outbox::Kind;
-      if (coordinator_->state() != exec::RunState::Deciding) outbox_->forget(K::Decision), sent_decisions_.clear();
-      if (coordinator_->state() != exec::RunState::Planning) outbox_->forget(K::Path), sent_paths_.clear();
-      if (coordinator_->state() != exec::RunState::Executing) outbox_->forget(K::Segment), sent_segments_.clear();
-    }
+    forgetAnswered();
     // Stops first: a robot must never keep an old segment while a new one is planned.
     std::vector<int> stop = out.stop;
     if (out.stop_all)
@@ -259,6 +294,33 @@ class CoordinatorNode::Impl {
     if (out.state_changed || !out.segments.empty() || !out.stop.empty() || out.decision) publishState();
   }
 
+  /// Whatever the run no longer awaits (a decision made, a path in, a segment ended or
+  /// cancelled) is not sent again.
+  void forgetAnswered() {
+    std::set<uint32_t> paths, segments;
+    for (const auto& step : coordinator_->steps())
+      for (const auto& t : step.tokens) {
+        if (t.path_request != 0) paths.insert(t.path_request);
+        if (t.segment_id != 0 && t.state != exec::SegmentState::Done && t.state != exec::SegmentState::Failed &&
+            t.state != exec::SegmentState::Aborted)
+          segments.insert(t.segment_id);
+      }
+    const uint32_t decision = coordinator_->pendingDecision();
+    using K = exec::Outbox::Kind;
+    const auto prune = [this](auto& sent, K kind, const auto& awaited) {
+      for (auto it = sent.begin(); it != sent.end();)
+        if (awaited(it->first)) {
+          ++it;
+        } else {
+          outbox_->acknowledged(kind, it->first);
+          it = sent.erase(it);
+        }
+    };
+    prune(sent_decisions_, K::Decision, [&](uint32_t id) { return id == decision; });
+    prune(sent_paths_, K::Path, [&](uint32_t id) { return paths.count(id) != 0; });
+    prune(sent_segments_, K::Segment, [&](uint32_t id) { return segments.count(id) != 0; });
+  }
+
   void onEntities(const ros::MessageEvent<const ddace::EntityArray>& ev) {
     const ddace::EntityArray& m = *ev.getConstMessage();
     if (pose_role_ && ev.getPublisherName() == roles_.node(*pose_role_)) roles_.heartbeat(*pose_role_, steadyNow());
@@ -324,6 +386,7 @@ class CoordinatorNode::Impl {
   }
 
   void onTick(const ros::TimerEvent&) {
+    if (coordinator_->state() == exec::RunState::Idle) abortIfARoleEnded();
     // Autostart tries at most 5 times a second (the recorder's check asks every publisher).
     if (autostart_ && ros::WallTime::now() >= next_autostart_try_) {
       next_autostart_try_ = ros::WallTime::now() + ros::WallDuration(0.2);
@@ -345,6 +408,27 @@ class CoordinatorNode::Impl {
     }
     resendUnanswered();
     apply(coordinator_->onTick(now()));
+  }
+
+  /// A role's node that ended before the run started (as roslaunch tells: a node never
+  /// connected leaves no link to see drop) means the run can never start: it is aborted at
+  /// once naming the node, and the monitor ends the launch. Asked once a second.
+  void abortIfARoleEnded() {
+    if (ros::WallTime::now() < next_ended_check_) return;
+    next_ended_check_ = ros::WallTime::now() + ros::WallDuration(1.0);
+    std::vector<std::string> nodes;
+    for (size_t k = 0; k < roles_.size(); ++k) nodes.push_back(roles_.node(k));
+    std::string why;
+    for (const auto& [node, process] : ros_launch::endedNodes(nodes))
+      why += (why.empty() ? "" : "; ") + ("node " + node + " is not running: it exited before the run started (" +
+                                          process + " in roslaunch's output says why)");
+    ended_before_start_ = why;
+    if (why.empty()) return;
+    std::string missing;
+    if (!connected(missing)) why += "; waiting for: " + missing;
+    ROS_ERROR("coordinator: %s: the run cannot start", why.c_str());
+    autostart_ = false;
+    apply(coordinator_->abortStart(why, now()));
   }
 
   static double wallNow() { return ros::WallTime::now().toSec(); }
@@ -502,6 +586,11 @@ class CoordinatorNode::Impl {
 
   bool srvStart(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
     std::string missing;
+    if (!ended_before_start_.empty()) {
+      res.success = false;
+      res.message = "not started: " + ended_before_start_;
+      return true;
+    }
     if (!connected(missing)) {
       res.success = false;
       res.message = "not started: waiting for " + missing;
@@ -560,9 +649,9 @@ class CoordinatorNode::Impl {
       s.steps.push_back(m);
     }
     for (int e : coordinator_->activeEntities()) s.active.push_back(spec_.entities[e].name);
-    if (const exec::StepRecord* step = coordinator_->currentStep()) {
-      for (const auto& t : step->tokens) {
-        if (!t.token.isMotion() || t.state == exec::SegmentState::Done) continue;
+    for (const auto& step : coordinator_->steps()) {
+      for (const auto& t : step.tokens) {
+        if (!t.token.isMotion() || t.started_s < 0 || t.state == exec::SegmentState::Done) continue;
         ddace::ActiveSegment a;
         a.entity = spec_.entities[t.token.entity].name;
         a.segment_id = t.segment_id;
@@ -570,7 +659,7 @@ class CoordinatorNode::Impl {
         a.status = static_cast<uint8_t>(t.state);
         a.progress = t.progress;
         a.distance_to_goal_m = t.distance_to_goal_m;
-        a.elapsed_s = t.segment_id != 0 ? now() - coordinator_->segmentsSince() : 0.0;
+        a.elapsed_s = t.segment_id != 0 ? now() - t.segment_sent_s : 0.0;
         a.timeout_s = t.timeout_s;
         a.done_claimed = t.done_claimed;
         s.segments.push_back(a);
@@ -723,6 +812,8 @@ class CoordinatorNode::Impl {
   ros::WallTime next_autostart_try_;
   ros::WallTime autostart_deadline_;
   double start_timeout_s_ = 0;
+  ros::WallTime next_ended_check_;
+  std::string ended_before_start_;  ///< why the run cannot start: a role's node ended
   std::map<int, ros::Publisher> wheel_pubs_;
   std::vector<ros::Subscriber> wheel_subs_;
 

@@ -63,9 +63,9 @@ class GpPathNode::Impl {
       if (rosparam::param(pnh, "allow_other_task", defaults.allow_other_task))
         ROS_WARN("gp_path: %s: the library's task is not checked against %s",
                  pnh.resolveName("allow_other_task").c_str(), task_path.c_str());
-      generate_ = [this](const task::Token& t, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
-        // The library's own entity indices: map by key.
-        const gp::GeneratedPath p = library_->generate(task::tokenKey(t, spec_), s, g, points_);
+      generate_ = [this](const task::Token& t, const Eigen::Vector2d& s, const Eigen::Vector2d& g, int step) {
+        // The library's own entity indices: map by key; the step chooses a role's primitive.
+        const gp::GeneratedPath p = library_->generate(task::tokenKey(t, spec_), s, g, points_, step);
         if (p.fell_back)
           ROS_WARN("gp_path: %s was never demonstrated; using %s", task::tokenKey(t, spec_).c_str(),
                    p.source_key.c_str());
@@ -77,7 +77,7 @@ class GpPathNode::Impl {
       const task::TaskDir dir = task::loadTaskDir(task_path);
       spec_ = dir.spec;
       demo_paths_ = std::make_unique<exec::DemonstrationPaths>(dir.spec, dir.demos);
-      generate_ = [this](const task::Token& t, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
+      generate_ = [this](const task::Token& t, const Eigen::Vector2d& s, const Eigen::Vector2d& g, int) {
         return demo_paths_->generate(t, s, g);
       };
       ROS_INFO("gp_path: %zu demonstrated motion keys from %s", demo_paths_->size(), task_path.c_str());
@@ -100,7 +100,7 @@ class GpPathNode::Impl {
       if (!start.allFinite() || !goal.allFinite()) throw Error("start or goal is not finite");
       points_ = req.points >= 2 ? req.points : default_points_;
       fell_back_ = false;
-      const exec::PlannedPath p = exec::resampleByArcLength(generate_(token, start, goal), points_);
+      const exec::PlannedPath p = exec::resampleByArcLength(generate_(token, start, goal, req.step), points_);
       out.fell_back = fell_back_;
       ros_exec::toMsg(p, frame_id_, out.header.stamp, out.path, out.progress, out.stddev_m);
     } catch (const std::exception& e) {
@@ -117,7 +117,8 @@ class GpPathNode::Impl {
   std::unique_ptr<gp::PrimitiveLibrary> library_;
   int points_ = 0;  // of the request being answered
   bool fell_back_ = false;
-  std::function<exec::PlannedPath(const task::Token&, const Eigen::Vector2d&, const Eigen::Vector2d&)> generate_;
+  std::function<exec::PlannedPath(const task::Token&, const Eigen::Vector2d&, const Eigen::Vector2d&, int step)>
+      generate_;
   ros::Publisher pub_;
   ros::Subscriber sub_;
   std::unique_ptr<HeartbeatPublisher> heartbeat_;

@@ -38,17 +38,10 @@ std::vector<std::string> taskRobots(const std::string& task_dir, const BridgeCon
                                     const std::string& config_path) {
   const task::TaskSpec spec = task::readTaskYaml(task_dir + "/task.yaml");
   std::vector<std::string> robots;
-  std::string others;
   for (const auto& e : spec.entities)
     if (e.kind == task::EntityKind::Robot) robots.push_back(e.name);
-  for (const auto& r : config.robots)
-    if (std::find(robots.begin(), robots.end(), r.name) == robots.end())
-      others += (others.empty() ? "" : ", ") + r.name;
-  if (!others.empty())
-    ROS_WARN(
-        "hamster_bridge: %s also configures %s, which task '%s' does not have: not connected (no action "
-        "needed; remove them from the file to silence this)",
-        config_path.c_str(), others.c_str(), spec.name.c_str());
+  const std::string warning = unusedRobotsWarning(config, robots, spec.name, config_path);
+  if (!warning.empty()) ROS_WARN("hamster_bridge: %s", warning.c_str());
   return robots;
 }
 
@@ -65,10 +58,14 @@ class HamsterBridgeNode::Impl {
     config_.scan = ddace::rosparam::param(pnh, "scan", config_.scan);
     auto only = ddace::rosparam::param(pnh, "robots", std::vector<std::string>{});
     const std::string task = ddace::rosparam::param<std::string>(pnh, "task", "");
-    if (!task.empty() && only.empty()) only = taskRobots(task, config_, config_path);
+    std::string what = "parameter ~robots";
+    if (!task.empty() && only.empty()) {
+      only = taskRobots(task, config_, config_path);
+      what = "task " + task + " (parameter ~task)";  // a robot of the task the config lacks
+    }
     updater_.setHardwareID("hamster_bridge");
     auto ports = std::make_shared<PortDirectory>();
-    for (const auto& r : selectRobots(config_, only, "parameter ~robots", config_path)) {
+    for (const auto& r : selectRobots(config_, only, what, config_path)) {
       auto robot = std::make_unique<Robot>(ddace::ros_command::load(pnh, r.name));
       robot->link = std::make_unique<RobotLink>(r, config_, ports, transportFactoryFor(r, config_));
       const std::string base = "/robots/" + r.name;
@@ -256,14 +253,7 @@ class HamsterBridgeNode::Impl {
     s.add("battery (V)", battery_v);
     s.add("signal (dBm)", r.last_rssi_dbm.load());
     s.add("last error", st.last_error);
-    s.add("command sources", sources->allowedList());
-    s.add("foreign commands", sources->foreignReport());
-    s.add("unstamped commands", sources->unstampedReport());
-    // A node the launch did not name is publishing wheel commands right now: say so.
-    if (sources->foreign() > r.diag_foreign)
-      s.mergeSummary(diagnostic_msgs::DiagnosticStatus::WARN,
-                     "wheel commands from " + sources->lastForeign() + " refused (not a command source)");
-    r.diag_foreign = sources->foreign();
+    ddace::ros_command::diagnose(*sources, r.diag_foreign, s);
   }
 
   BridgeConfig config_;

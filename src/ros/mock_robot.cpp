@@ -5,6 +5,7 @@
 #include <memory>
 #include <optional>
 
+#include <diagnostic_updater/diagnostic_updater.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
 #include <std_msgs/Bool.h>
@@ -28,7 +29,9 @@ namespace ddace::nodes {
 
 class MockRobotNode::Impl {
  public:
-  Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
+  Impl(ros::NodeHandle& nh, ros::NodeHandle& pnh) : updater_(nh, pnh) {
+    rosparam::alsoReads(pnh, {"diagnostic_period"});  // diagnostic_updater's
+    updater_.setHardwareID("mock_robots");
     const std::string task_path = rosparam::param<std::string>(pnh, "task", "");
     spec_ = ros_exec::loadTaskSpec(task_path);
     const MockRobotNode::Params defaults;
@@ -59,6 +62,11 @@ class MockRobotNode::Impl {
                   if (ros_command::accept(sources, ev, "mock_robots", name))
                     sim_->commandWheels(k, {ev.getMessage()->left_mps, ev.getMessage()->right_mps});
                 })));
+        // What the interlock refused, in the diagnostics as the bridge's.
+        updater_.add("mock robot " + te.name, [this, k](diagnostic_updater::DiagnosticStatusWrapper& s) {
+          s.summary(diagnostic_msgs::DiagnosticStatus::OK, "simulated");
+          ros_command::diagnose(sources_.at(k), reported_foreign_[k], s);
+        });
         // A carrier's segments and their ends: its load rides with it (in every simulator a
         // carried object stays in front of its carrier).
         subs_.push_back(
@@ -79,6 +87,8 @@ class MockRobotNode::Impl {
     estop_sub_ = nh.subscribe("/ddace/estop", 5, &Impl::onEstop, this);
     timer_ = nh.createTimer(ros::Duration(sim_->periodS()), &Impl::onTimer, this);
     if (publish_tf_) publishStaticFrames();
+    diag_timer_ =
+        nh.createSteadyTimer(ros::WallDuration(0.1), [this](const ros::SteadyTimerEvent&) { updater_.update(); });
     ROS_INFO("mock_robots: task '%s', %zu entities at %.0f Hz on %s, %s", spec_.name.c_str(), n, dp.rate_hz,
              topic.c_str(), sp.bodies ? "with bodies (Box2D)" : "points without bodies");
   }
@@ -248,8 +258,11 @@ class MockRobotNode::Impl {
   std::map<int, Running> running_;  ///< each entity's running segment (robots: as sent to their follower)
   size_t contacts_seen_ = 0;        ///< contacts already logged
   std::string frame_id_;
-  bool publish_tf_ = true;                 // set from the parameters
-  std::map<int, CommandSources> sources_;  ///< by robot index: whose wheel commands count
+  bool publish_tf_ = true;                    // set from the parameters
+  std::map<int, CommandSources> sources_;     ///< by robot index: whose wheel commands count
+  std::map<int, uint64_t> reported_foreign_;  ///< by robot index: foreign commands at the last diagnostics
+  diagnostic_updater::Updater updater_;
+  ros::SteadyTimer diag_timer_;
   std::vector<ros::Subscriber> subs_;
   std::map<int, ros::Publisher> status_pubs_;  ///< by object index
   ros::Publisher entities_pub_;

@@ -14,6 +14,7 @@
 #include <ddace/HamsterMockState.h>
 #include <ddace/WheelCommand.h>
 
+#include "command_sources.h"
 #include "exec_conversions.h"
 #include "params.h"
 #include "ddace/common/error.h"
@@ -52,10 +53,15 @@ class SimTableNode::Impl {
       for (const auto& e : spec.entities) {
         if (e.kind != task::EntityKind::Robot) continue;
         const std::string topic = "/robots/" + e.name + "/wheels";
+        // As the robots' own drivers: commands count from the nodes the launch names only.
+        auto& sources = sources_.emplace(e.name, ros_command::load(pnh, e.name)).first->second;
         subs_.push_back(nh.subscribe<ddace::WheelCommand>(
-            topic, 10, [this, name = e.name, topic](const ddace::WheelCommand::ConstPtr& m) {
-              drive(name, {m->left_mps, m->right_mps}, topic);
-            }));
+            topic, 10,
+            boost::function<void(const ros::MessageEvent<const ddace::WheelCommand>&)>(
+                [this, &sources, name = e.name, topic](const ros::MessageEvent<const ddace::WheelCommand>& ev) {
+                  if (ros_command::accept(sources, ev, "sim_table", name))
+                    drive(name, {ev.getMessage()->left_mps, ev.getMessage()->right_mps}, topic);
+                })));
       }
       wheels_from_ = "/robots/<robot>/wheels";
     } else {
@@ -177,6 +183,7 @@ class SimTableNode::Impl {
   std::set<std::string> heard_, strangers_;
   size_t contacts_seen_ = 0;
   std::chrono::steady_clock::time_point last_step_;
+  std::map<std::string, CommandSources> sources_;  ///< wheels: commands; by robot (outlives subs_)
   std::vector<ros::Subscriber> subs_;
   ros::Publisher pub_;
   ros::SteadyTimer timer_, grace_timer_;

@@ -22,8 +22,10 @@ class SyntheticCameraNode::Impl {
   Impl(ros::NodeHandle nh, ros::NodeHandle pnh) : it_(nh) {
     const std::string markers = rosparam::requireString(pnh, "markers_file", "path to config/markers.yaml");
     const std::string camera = rosparam::requireString(pnh, "camera_file", "path to the synthetic camera's YAML");
-    camera_ = std::make_unique<vision::SyntheticCamera>(vision::loadSyntheticCameraConfig(camera),
-                                                        vision::loadMarkerConfig(markers));
+    // The camera frames the table the markers file's corners span (the task's table).
+    const vision::MarkerConfig marker_config = vision::loadMarkerConfig(markers);
+    camera_ = std::make_unique<vision::SyntheticCamera>(
+        vision::framedOnCorners(vision::loadSyntheticCameraConfig(camera), marker_config), marker_config);
     const SyntheticCameraNode::Params defaults;
     frame_id_ = rosparam::param(pnh, "frame_id", defaults.frame_id);
     // Bodies as the task states them; without a task, the default footprint of each kind.
@@ -40,8 +42,10 @@ class SyntheticCameraNode::Impl {
     pub_ = it_.advertiseCamera("image_raw", 2);
     sub_ = nh.subscribe("true_entities", 10, &Impl::onTruth, this);
     timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz), &Impl::onTimer, this);
-    ROS_INFO("synthetic_camera_node: %dx%d at %.1f Hz from %s", camera_->config().width, camera_->config().height,
-             rate_hz, sub_.getTopic().c_str());
+    const auto& c = camera_->config();
+    ROS_INFO("synthetic_camera_node: %dx%d at %.1f Hz from %s; a table of %.2f x %.2f m seen from %.2f m above",
+             c.width, c.height, rate_hz, sub_.getTopic().c_str(), c.table_size.width, c.table_size.height,
+             c.position[2]);
   }
 
  private:

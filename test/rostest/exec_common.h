@@ -346,6 +346,7 @@ class Watcher {
  public:
   struct Seg {
     std::string key;
+    int step = -1;
     ros::Time sent, ended;
     uint8_t end_status = 0;
   };
@@ -360,6 +361,7 @@ class Watcher {
             if (m->mode != ddace::Segment::MODE_FOLLOW) return;
             segments_[m->segment_id].key = m->token.entity + ":" + m->token.action + ":" + m->token.target;
             segments_[m->segment_id].sent = m->header.stamp;
+            segments_[m->segment_id].step = m->step;
           }));
       subs_.push_back(nh.subscribe<ddace::SegmentStatus>("/robots/" + n + "/segment_status", 100,
                                                          [this](const ddace::SegmentStatus::ConstPtr& m) {
@@ -395,21 +397,39 @@ class Watcher {
                                                           }));
   }
 
-  /// Waits until every subscription is connected to a publisher: the graph starts after
-  /// this watcher, and a run started before the links stand loses its first messages
-  /// (seen under load: the first decision request went uncounted). Returns the topics
-  /// still without a publisher (empty when all are connected).
+  /// Waits until every subscription is connected to a publisher, and to every publisher the
+  /// master lists for its topic: the graph starts after this watcher, and a run started
+  /// before the links stand loses its first messages (seen under load: the first decision
+  /// request went uncounted; a robot's wheels linked to its follower but not yet to the
+  /// coordinator missed the coordinator's zeros). Returns the topics still short of a
+  /// publisher (empty when all are connected).
   std::vector<std::string> waitConnected(double timeout_s) {
     std::vector<std::string> missing;
     waitFor(
         [&] {
           missing.clear();
-          for (const auto& sub : subs_)
-            if (sub.getNumPublishers() == 0) missing.push_back(sub.getTopic());
+          const auto listed = masterPublisherCounts();
+          for (const auto& sub : subs_) {
+            auto it = listed.find(sub.getTopic());
+            const size_t want = std::max<size_t>(1, it == listed.end() ? 0 : it->second);
+            if (sub.getNumPublishers() < want) missing.push_back(sub.getTopic());
+          }
           return missing.empty();
         },
         timeout_s);
     return missing;
+  }
+
+  /// The number of publishers the master lists for each topic (empty if it cannot be asked).
+  static std::map<std::string, size_t> masterPublisherCounts() {
+    XmlRpc::XmlRpcValue request, response, payload;
+    request[0] = ros::this_node::getName();
+    std::map<std::string, size_t> out;
+    if (!ros::master::execute("getSystemState", request, response, payload, false)) return out;
+    XmlRpc::XmlRpcValue& publishers = payload[0];
+    for (int i = 0; i < publishers.size(); ++i)
+      out[static_cast<std::string>(publishers[i][0])] = static_cast<size_t>(publishers[i][1].size());
+    return out;
   }
 
   bool haveState() {

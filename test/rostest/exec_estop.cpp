@@ -23,6 +23,26 @@ double expectAllStopped(Watcher& w, const ros::Time& event, const ros::Time& by)
   return worst_s;
 }
 
+/// Waits until every robot of `spec` has a zero from the coordinator and, where the
+/// follower drove it, one from the follower, stamped after `event`. The stamps judge how
+/// fast each stopped; arrival only has to happen (under load a message may take long).
+bool zerosArrived(Watcher& w, const ddace::task::TaskSpec& spec, const ros::Time& event) {
+  return waitFor(
+      [&] {
+        const auto wheels = w.wheels();
+        for (const auto& e : spec.entities) {
+          if (e.kind != ddace::task::EntityKind::Robot) continue;
+          auto it = wheels.find(e.name);
+          if (it == wheels.end() || firstZeroAfter(from(it->second, "/coordinator"), event) == ros::Time())
+            return false;
+          const auto follower = from(it->second, "/path_follower");
+          if (!follower.empty() && (follower.back().stamp <= event || !follower.back().zero())) return false;
+        }
+        return true;
+      },
+      10.0);
+}
+
 bool anyDriving(Watcher& w) {
   for (const auto& [robot, cmds] : w.wheels())
     if (!cmds.empty() && !cmds.back().zero()) return true;
@@ -53,11 +73,18 @@ TEST(ExecEstop, ServiceAndTopicZeroEveryRobotWithinOneCycle) {
   // The coordinator has published the e-stop when the call returns.
   const ros::Time returned = ros::Time::now();
   EXPECT_TRUE(t.response.success) << t.response.message;
-  ros::Duration(0.5).sleep();
-  EXPECT_EQ(w.stateCode(), ddace::CoordinatorState::ESTOPPED);
+  EXPECT_TRUE(zerosArrived(w, spec, call)) << "the zeros after the e-stop did not arrive within 10 s";
+  EXPECT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ESTOPPED; }, 5.0));
   // The coordinator zeroes every robot before it answers.
   std::cout << "~estop: every robot zeroed by the coordinator " << expectAllStopped(w, call, returned)
             << " s after the call\n";
+  waitFor(
+      [&] {
+        for (const auto& [id, s] : w.segments())
+          if (s.ended == ros::Time()) return false;
+        return true;
+      },
+      10.0);
   for (const auto& [id, s] : w.segments())
     EXPECT_NE(s.ended, ros::Time()) << s.key << " (segment " << id << ") never ended after the e-stop";
   const size_t requests = w.requests();
@@ -80,7 +107,7 @@ TEST(ExecEstop, ServiceAndTopicZeroEveryRobotWithinOneCycle) {
   const ros::Time pub = ros::Time::now();
   estop.publish(on);
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ESTOPPED; }, 5.0));
-  ros::Duration(0.5).sleep();
+  EXPECT_TRUE(zerosArrived(w, spec, pub)) << "the zeros after the e-stop did not arrive within 10 s";
   // The coordinator zeroes in the callback that receives the e-stop, before it announces it.
   std::cout << "/ddace/estop: every robot zeroed by the coordinator "
             << expectAllStopped(w, pub, w.firstStamp(ddace::CoordinatorState::ESTOPPED)) << " s after the message\n";

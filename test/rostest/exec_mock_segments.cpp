@@ -2,13 +2,15 @@
 // carry it (same step, action and target -- a new run's step numbers start again) must not
 // make the finished object ride. The test plays coordinator and follower: B1 is moved 2 cm
 // along its own segment to DONE, then R1, beside it, gets a segment "R1:carry:G1" of the
-// same step and drives backwards; B1 must stay where its segment left it.
+// same step and drives backwards; B1 must stay where its segment left it. A node the launch
+// did not name publishes on R1's wheels all along: refused, counted and named.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <functional>
 #include <mutex>
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <ros/ros.h>
 
 #include <ddace/EntityArray.h>
@@ -73,6 +75,35 @@ TEST(ExecMockSegments, AFinishedObjectSegmentDoesNotMakeTheObjectRide) {
   EXPECT_LT(std::hypot(at["B1"].pose.x - bx, at["B1"].pose.y - by), 0.005)
       << "B1 moved with R1 from (" << bx << ", " << by << ") to (" << at["B1"].pose.x << ", " << at["B1"].pose.y
       << "): its finished segment paired with R1's";
+}
+
+// The intruder's commands are refused and counted where a user looks, as on the bridge:
+// the robot's diagnostics name it and turn WARN.
+TEST(ExecMockSegments, TheDiagnosticsCountAndNameTheIntruder) {
+  ros::NodeHandle nh;
+  std::mutex m;
+  diagnostic_msgs::DiagnosticStatus r1;
+  ros::Subscriber sub = nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 10, [&](const diagnostic_msgs::DiagnosticArray::ConstPtr& a) {
+        for (const auto& st : a->status)
+          if (st.name == "mock_robots: mock robot R1" && st.level == diagnostic_msgs::DiagnosticStatus::WARN) {
+            const std::lock_guard<std::mutex> l(m);
+            r1 = st;
+          }
+      });
+  std::string foreign;
+  const bool named = exec_test::waitFor(
+      m,
+      [&] {
+        for (const auto& kv : r1.values)
+          if (kv.key == "foreign commands") foreign = kv.value;
+        return foreign.find("last from /intruder") != std::string::npos;
+      },
+      30.0);
+  const std::lock_guard<std::mutex> l(m);
+  ASSERT_TRUE(named) << "no WARN naming /intruder in R1's diagnostics; last: " << r1.message << " " << foreign;
+  EXPECT_GT(std::stoul(foreign), 0u) << foreign;
+  EXPECT_NE(r1.message.find("wheel commands from /intruder refused"), std::string::npos) << r1.message;
 }
 
 int main(int argc, char** argv) {

@@ -5,7 +5,8 @@
 // and /recorder/stop. The saved demonstration must hold that motion as the tracker saw it
 // -- R2 from its row onto G1, the others still -- and the label the recorder inferred
 // from it: R2 moves to G1. Then a person's own tool: scripts/sim_teleop.py on a
-// pseudo-terminal, keys typed, drives R1 forward and stops it.
+// pseudo-terminal, keys typed, drives R1 forward and stops it; the same tool under another
+// node name moves nothing (the simulated robots obey their command sources only).
 #include "exec_common.h"
 
 #include <fcntl.h>
@@ -14,6 +15,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 
 namespace {
@@ -109,7 +111,8 @@ TEST(SimRecord, RecordsARobotDrivenOnTheSimulatedTable) {
   ros::Publisher wheels = nh.advertise<ddace::WheelCommand>("/robots/R2/wheels", 5);
 
   exec_test::Launch graph({launch_file, "sim:=true", "keyboard:=false", "teleop:=false", "rviz:=false",
-                           "markers:=" + out + "/config/markers.yaml", "recorder:=" + out + "/config/recorder.yaml"},
+                           "markers:=" + out + "/config/markers.yaml", "recorder:=" + out + "/config/recorder.yaml",
+                           "command_sources:=[/sim_teleop, " + ros::this_node::getName() + "]"},
                           dir + "/launch.log");
   std::string message;
   ASSERT_TRUE(exec_test::trigger("/recorder/start", 40.0, &message)) << "the recorder did not start: " << message;
@@ -200,6 +203,23 @@ TEST(SimRecord, RecordsARobotDrivenOnTheSimulatedTable) {
   EXPECT_LT(std::hypot(r1().x - stopped.x, r1().y - stopped.y), 0.002) << "R1 stopped on s";
   ASSERT_TRUE(keys.type("q"));
   EXPECT_EQ(keys.exitStatus(10.0), 0) << keys.output();
+
+  // The same tool started under a name the launch did not give it moves nothing: the
+  // simulated robots obey their command sources as the real ones do.
+  Terminal stranger({"/usr/bin/python3", teleop, "__name:=stranger"});
+  ASSERT_TRUE(stranger.waitOutput("[R1]", 30.0)) << stranger.output();
+  const Pose parked = r1();
+  ASSERT_TRUE(stranger.type("1ww"));
+  auto log = [&] {
+    std::ifstream f(dir + "/launch.log");
+    return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  };
+  EXPECT_TRUE(exec_test::waitFor(
+      [&] { return log().find("/robots/R1/wheels: command from /stranger refused") != std::string::npos; }, 20.0))
+      << "sim_table did not name the stranger's commands";
+  EXPECT_LT(std::hypot(r1().x - parked.x, r1().y - parked.y), 0.002) << "R1 obeyed a node the launch did not name";
+  ASSERT_TRUE(stranger.type("q"));
+  EXPECT_EQ(stranger.exitStatus(10.0), 0) << stranger.output();
 }
 
 int main(int argc, char** argv) {

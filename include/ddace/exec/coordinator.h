@@ -1,15 +1,22 @@
 // The coordinator's state machine: the event-driven execution of a learned task.
 //
 //   Idle --start--> WaitingForEntities --all tracked--> Deciding --step--> Planning
-//     --all paths--> Executing --every active entity done--> (WaitingForEntities|Deciding) ...
-//   Deciding --END--> Finished;  any failure / time-out --> Aborted;  e-stop --> EStopped
+//     --paths--> Executing --tokens end--> ... --END and every token ended--> Finished;
+//   any failure / time-out --> Aborted;  e-stop --> EStopped
 //
-// A decision is requested only when the run starts or when *every* segment of the
-// current step has been reported done: never on a timer. onTick() only checks time-outs.
+// Each decided token starts when the dispatch rule (exec/dispatch.h) lets it: in `steps`
+// when every token of the earlier steps has ended (the paper's execution), in `async` when
+// its own predecessors under the learned dependencies have ended. A decision is requested
+// when the run starts and then when Dispatch::mayDecide allows it (steps, or a policy that
+// reads the scene: once every started token has ended; async with a policy that does not:
+// as soon as the last one was made): never on a timer. onTick() only checks time-outs.
 // The goal of a motion token is its end point (task/end_point.h) from the positions when
-// the step was decided: at contact with a body, on a goal, a carrier behind its load;
-// every motion token, a robot's or an object's, becomes one segment for that entity whose
-// path ends there; in-place tokens complete when decided.
+// it started (the step's tokens that started earlier at their start): at contact with a
+// body, on a goal, a carrier behind its load. Every motion token, a robot's or an
+// object's, becomes one segment for that entity whose path ends there; tokens that start
+// together are planned together and their segments go out together; in-place tokens end
+// when they start. The state is the busiest of what is under way: Executing while a
+// segment runs, else Planning while a path is awaited, else Deciding.
 //
 // Owns: the run's state, the requests and segments it sends, the record of what was
 // executed. Must not: talk ROS, read clocks (time comes in as `now_s`), plan paths or
@@ -25,8 +32,10 @@
 
 #include <Eigen/Core>
 
+#include "ddace/exec/dispatch.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/simulator.h"
+#include "ddace/graph/dependencies.h"
 #include "ddace/task/demonstration.h"
 #include "ddace/task/end_point.h"
 #include "ddace/task/task_spec.h"
@@ -38,7 +47,7 @@ enum class RunState : uint8_t {
   WaitingForEntities = 1,  ///< some entity is not tracked; no decision until all are
   Deciding = 2,            ///< a decision request is out
   Planning = 3,            ///< path requests for the step's motion tokens are out
-  Executing = 4,           ///< segments are out; waiting for every one to be done
+  Executing = 4,           ///< segments are out; waiting for them to be done
   Paused = 5,              ///< stopped by the user; start() resumes
   Finished = 6,            ///< the policy said END
   Aborted = 7,             ///< failure or time-out; reason() says which
@@ -64,6 +73,9 @@ struct CoordinatorConfig {
   /// arrival_tolerance_m): the radius less the same tolerance.
   double arrival_radius_m = task::kDefaultArrivalRadius;
   double arrival_tolerance_m = task::kArrivalToleranceM;
+  /// When a decided token starts (exec/dispatch.h). The one default of the coordinator node
+  /// (config/execution.yaml states it) and of `ddace eval --dispatch`.
+  DispatchMode dispatch = DispatchMode::Steps;
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
 };
@@ -140,13 +152,18 @@ struct CoordinatorOutput {
 /// One token as it ran.
 struct TokenRecord {
   task::Token token;
-  Eigen::Vector2d start{0, 0};
-  Eigen::Vector2d goal{0, 0};  ///< the end point (task/end_point.h); = start for in-place tokens
-  uint32_t segment_id = 0;     ///< 0 for in-place tokens
+  double started_s = -1;        ///< when its predecessors had ended and it started (-1: waiting)
+  Eigen::Vector2d start{0, 0};  ///< the entity's position when it started
+  Eigen::Vector2d goal{0, 0};   ///< the end point (task/end_point.h); = start for in-place tokens
+  uint32_t segment_id = 0;      ///< 0 for in-place tokens
   SegmentState state = SegmentState::Sent;
-  double progress = 0;   ///< last reported, [0, 1]
-  PlannedPath path;      ///< empty for in-place tokens
-  double timeout_s = 0;  ///< the segment's time-out (0 for in-place tokens)
+  double progress = 0;           ///< last reported, [0, 1]
+  PlannedPath path;              ///< empty for in-place tokens
+  double timeout_s = 0;          ///< the segment's time-out (0 for in-place tokens)
+  double segment_sent_s = -1;    ///< when its segment went out (-1: none out)
+  uint32_t path_request = 0;     ///< the path request awaited (0: none)
+  double path_requested_s = -1;  ///< when it was sent
+  uint32_t batch = 0;            ///< tokens that started together share it: their segments go out together
   /// Straight-line distance of the entity's *tracked* position to `goal` (metres; NaN
   /// before the first observation after the segment went out).
   double distance_to_goal_m = std::numeric_limits<double>::quiet_NaN();
@@ -157,8 +174,7 @@ struct StepRecord {
   int step = 0;
   std::vector<TokenRecord> tokens;
   double decided_s = 0;
-  double segments_sent_s = -1;  ///< when every segment went out (-1: not yet)
-  double finished_s = -1;       ///< when the last segment was reported done (-1: not yet)
+  double finished_s = -1;  ///< when its last token ended (-1: not yet)
   bool complete = false;
 };
 
@@ -175,10 +191,14 @@ class Coordinator {
   /// learned from the demonstrations a replay runs). `first_id`: this coordinator's first
   /// request and segment id (then counting up, never 0); a coordinator restarted in a
   /// session must not repeat the ids of the one before, which the nodes may still hold (see
-  /// firstIdAt). Throws ddace::Error when the config is invalid.
-  Coordinator(task::TaskSpec spec, CoordinatorConfig config, task::EndPointModel end_points, uint32_t first_id = 1);
+  /// firstIdAt). `dependencies`: the learned ones (a model's manifest, or learned from the
+  /// demonstrations a replay runs; not learned: every token waits for every earlier one);
+  /// `policy_reads_scene`: whether a decision depends on the positions (Dispatch::mayDecide).
+  /// Throws ddace::Error when the config is invalid.
+  Coordinator(task::TaskSpec spec, CoordinatorConfig config, task::EndPointModel end_points, uint32_t first_id = 1,
+              graph::Dependencies dependencies = {}, bool policy_reads_scene = true);
 
-  /// Idle -> start a run; Paused -> resume (re-plans the unfinished tokens of the step).
+  /// Idle -> start a run; Paused -> resume (re-plans the started tokens that had not ended).
   /// Refused (empty output and a log line) in any other state.
   CoordinatorOutput start(double now_s);
   /// Cancels the running segments (robots stop) and holds. Refused when not running.
@@ -221,46 +241,64 @@ class Coordinator {
   const std::string& reason() const { return reason_; }  ///< why Aborted/EStopped/Finished
   const task::TaskSpec& spec() const { return spec_; }
   const std::vector<StepRecord>& steps() const { return steps_; }
-  /// The step being worked on (decided and not yet complete), or nullptr.
+  /// The earliest step not yet complete, or nullptr.
   const StepRecord* currentStep() const;
   /// The latest observation (empty before the first).
   const EntityObservation& observation() const { return observation_; }
-  /// Entities whose segment of the current step is not done yet.
+  /// Entities whose motion token started and has not ended (in any step).
   std::vector<int> activeEntities() const;
+  /// The run's dispatch record: when each token started and ended, whom it waited for, the
+  /// precedence violations (nullptr before the first start).
+  const Dispatch* dispatch() const { return dispatch_ ? &*dispatch_ : nullptr; }
   /// Every goal condition of task.yaml against the latest positions, in order.
   std::vector<bool> goalConditionsMet() const;
   uint32_t decisionsRequested() const { return decisions_requested_; }
+  /// The decision request awaiting its answer (0: none).
+  uint32_t pendingDecision() const { return pending_decision_; }
   /// The last decision the coordinator accepted (probabilities as the policy gave them).
   const std::optional<AcceptedDecision>& lastDecision() const { return last_decision_; }
-  /// When the current phase (deciding, planning, executing) began, seconds.
-  double phaseSince() const { return pending_since_s_; }
-  double segmentsSince() const { return segments_since_s_; }
 
  private:
   bool allTracked() const;
   void setState(RunState s, CoordinatorOutput& out);
-  void requestDecisionOrWait(double now_s, CoordinatorOutput& out);
-  void requestPaths(double now_s, CoordinatorOutput& out);
+  /// After every event of a run: starts what may start, plans it, completes steps, asks for
+  /// the next decision when it may, finishes after END, and sets the state.
+  void advance(double now_s, CoordinatorOutput& out);
+  void startReady(double now_s, CoordinatorOutput& out);
+  void requestPaths(const std::vector<TokenRef>& tokens, double now_s, CoordinatorOutput& out);
+  void sendBatch(uint32_t batch, double now_s, CoordinatorOutput& out);
+  void requestDecisionIfDue(double now_s, CoordinatorOutput& out);
+  void refreshState(CoordinatorOutput& out);
   void abort(const std::string& why, CoordinatorOutput& out);
   void stopActive(CoordinatorOutput& out);
-  void completeStepIfDone(double now_s, CoordinatorOutput& out);
   bool arrived(const TokenRecord& t) const;
   void updateDistances();
+  /// Marks `t` done and ends it in the dispatch record.
+  void endToken(TokenRef t, double now_s, CoordinatorOutput& out, const std::string& why);
+  TokenRecord& record(TokenRef t) { return steps_[static_cast<size_t>(t.step)].tokens[static_cast<size_t>(t.index)]; }
+  /// The started token whose segment or path request has `id` (segment: `by_segment`).
+  std::optional<TokenRef> findRunning(uint32_t id, bool by_segment) const;
+  void clearRun();
   uint32_t nextId();  ///< next_id_, then counts up past 0
 
   task::TaskSpec spec_;
   CoordinatorConfig config_;
   task::EndPointModel end_points_;
+  graph::Dependencies dependencies_;
+  bool policy_reads_scene_ = true;
+  std::optional<Dispatch> dispatch_;
   RunState state_ = RunState::Idle;
   std::string reason_;
   EntityObservation observation_;
   std::vector<task::Snapshot> history_;
   std::vector<StepRecord> steps_;
   uint32_t next_id_ = 1;
+  uint32_t next_batch_ = 1;
   uint32_t pending_decision_ = 0;
-  double pending_since_s_ = 0;
-  std::vector<uint32_t> pending_paths_;  ///< request id per token of the current step (0 = none)
-  double segments_since_s_ = 0;
+  double decision_since_s_ = 0;
+  bool end_decided_ = false;           ///< the policy said END; finished once every token ended
+  bool waiting_for_entities_ = false;  ///< a decision is due but an entity is not tracked
+  bool blocked_on_tracking_ = false;   ///< a ready token waits for its entities to be tracked
   uint32_t decisions_requested_ = 0;
   std::optional<AcceptedDecision> last_decision_;
 };

@@ -80,6 +80,9 @@ class Dispatch {
   void end(TokenRef t, double now_s);
   bool started(TokenRef t) const;
   bool ended(TokenRef t) const;
+  /// When `t` started, ended (`now_s` as given; -1: not yet).
+  double startTime(TokenRef t) const { return at(t).start_s; }
+  double endTime(TokenRef t) const { return at(t).end_s; }
   /// Every token of every step has ended.
   bool allEnded() const;
   /// Whether the next decision may be asked for now (see the header comment).

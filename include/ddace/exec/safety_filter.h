@@ -25,19 +25,25 @@
 // Standing still always satisfies every constraint, so the programme is never
 // infeasible.
 //
-// Deadlock: a robot whose command the filter keeps changing and that does not advance
-// `progress_m` along its path is held -- frozen, or circling with others. Held for
-// `resolve_after_s`, it goes around the body nearest to holding it or its load (carrier and
-// load go round as one body) for the next `resolve_after_s`:
-// a moving body keeping it on the left (every robot turns the same way, so two robots face
-// to face pass each other), a standing one (SafetyBody::standing) on the side the robot's
-// command turns to, the shorter way to its end point (the right-hand rule on a tie); the
-// side is decided once per body while the robot is held (a command pointing at the body
-// would flip it with the noise, back and forth round it). Held
-// for `deadlock_after_s`, the filter reports a deadlock naming the
-// robot and the bodies holding it (the caller stops the robot and reports it): every body
-// whose constraint shaped the command, or that it went round, since it last advanced --
-// not only those active in the cycle the clock runs out in (going round, none is).
+// Held: a robot whose command the filter keeps changing and that does not advance
+// `progress_m` along its path. Held for `resolve_after_s`, it goes around the body nearest
+// to holding it or its load (carrier and load go round as one body) for the next
+// `resolve_after_s`: a moving body keeping it on the left (every robot turns the same way,
+// so two robots face to face pass each other, and a crowd crossing one spot turns round it
+// and clears one robot after another), a standing one (SafetyBody::standing) on the side
+// the robot's command turns to, the shorter way to its end point (the right-hand rule on a
+// tie); the side is decided once per body while the robot is held (a command pointing at
+// the body would flip it with the noise, back and forth round it).
+//
+// Deadlock: held while neither the robot nor any body holding it moves `progress_m` for
+// `deadlock_after_s` (frozen: boxed in, held off its end point), or held without advancing
+// along its path for `wait_limit_s` while they move (a crowd that never clears, robots
+// circling each other). A held robot whose holders move waits its turn: it is not
+// deadlocked, and stopping it would leave one more body in the others' way. The filter
+// then reports the deadlock naming the robot and the bodies holding it (the caller stops
+// the robot and reports it): every body whose constraint shaped the command, or that it
+// went round, since it last advanced -- not only those active in the cycle the clock runs
+// out in (going round, none is).
 //
 // Fail safe (when enabled): its own pose or a body within `range_m` older than `pose_max_age_s` (or
 // marked stale) -> zero wheels and a report naming the stale body.
@@ -48,6 +54,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -66,7 +73,8 @@ struct SafetyParams {
   double pose_max_age_s = 0.15;    ///< a pose older than this (a tracker frame is 33 ms) is stale
   double blocked_fraction = 0.25;  ///< filtered point speed below this fraction of the nominal = blocked
   double resolve_after_s = 0.5;    ///< held this long: go around the nearest body for as long
-  double deadlock_after_s = 5.0;   ///< held without progress this long: deadlock reported naming the robots
+  double deadlock_after_s = 5.0;   ///< held, neither it nor a body holding it moving, this long: a deadlock
+  double wait_limit_s = 20.0;      ///< held without progress this long while the bodies holding it move: a deadlock
   double progress_m = 0.02;        ///< advancing this much along the path is progress
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
@@ -85,6 +93,7 @@ void visitParams(SafetyParams& p, Visit&& visit) {
   visit("blocked_fraction", p.blocked_fraction);
   visit("resolve_after_s", p.resolve_after_s);
   visit("deadlock_after_s", p.deadlock_after_s);
+  visit("wait_limit_s", p.wait_limit_s);
   visit("progress_m", p.progress_m);
 }
 
@@ -177,9 +186,10 @@ class SafetyFilter {
                        const std::string& target, double now_s, const SafetyBody* load = nullptr);
   /// Forgets the blocked and deadlock clocks (a new segment, the robot idle).
   void reset() {
-    resolve_until_s_ = stuck_since_s_ = -1;
+    resolve_until_s_ = stuck_since_s_ = waiting_since_s_ = -1;
     resolve_body_.clear();
     held_by_.clear();
+    holders_.clear();
   }
   const SafetyParams& params() const { return params_; }
 
@@ -193,6 +203,25 @@ class SafetyFilter {
   double stuck_since_s_ = -1;         ///< since when the filter holds the robot without progress
   double stuck_progress_m_ = 0;       ///< its progress then
   std::vector<std::string> held_by_;  ///< bodies that held it since then (named in a deadlock)
+  double waiting_since_s_ = -1;       ///< since when neither it nor a body holding it has moved
+  std::vector<std::pair<std::string, Eigen::Vector2d>> holders_;  ///< bodies holding it, where they were then
+
+  SafetyCommand passThrough(const Pose2D& self, double self_radius_m, const WheelSpeeds& nominal,
+                            const std::vector<SafetyBody>& bodies, const SafetyBody* load) const;
+  /// Zero wheels, the clocks forgotten, `why` reported (a stale pose).
+  SafetyCommand stop(const WheelSpeeds& nominal, std::string why);
+  /// The robot's own name, its load's or a body's in range whose pose is stale; "" if none.
+  std::string staleName(const std::string& self_name, const Pose2D& self, double self_age_s,
+                        const std::vector<SafetyBody>& bodies, const SafetyBody* load) const;
+  /// The command to filter: the nominal `z0`, or while going round, the command moving the
+  /// held disc round `body` (`round_left` keeps it on the left) on the side decided for it.
+  Eigen::Vector2d goRound(const Eigen::Vector2d& z0, const SafetyBody* body, bool of_load,
+                          const Eigen::Vector2d& round_left, double now_s);
+  void decideSide(const Eigen::Vector2d& z0, const SafetyBody* body, bool of_load, const Eigen::Vector2d& round_left);
+  /// The hold and deadlock clocks after a filtered cycle (`out` gets the deadlock);
+  /// returns whether a go-round begins.
+  bool trackHold(SafetyCommand& out, const std::string& self_name, const Eigen::Vector2d& x, double self_radius_m,
+                 double progress_m, const std::vector<SafetyBody>& bodies, bool going_round, double now_s);
 };
 
 /// A half-plane a . z <= b in two variables.

@@ -21,6 +21,21 @@
 // standard deviations (white noise included, i.e. the spread of demonstrations),
 // in metres; it does not depend on the direction of G - S.
 //
+// Roles. Where the scene decides who does what, one name's key can hold the motions of
+// different roles (in a line-up R2:move:R1 is sometimes the second robot joining the head,
+// sometimes the third joining the second). A motion class (the mover's kind, the action,
+// the target's kind: "robot:hamster/move/goal") is keyed by role when that predicts held-out
+// demonstrations better than the names do: each of the class's segments is predicted by the
+// mean of the others of its group (a group of one: of the whole class), once grouped by key
+// and once by the step the motion stands in, and the smaller summed error wins (the names
+// on a tie, and always where both group alike, as a fixed order's steps and names do). A
+// class keyed by role gets one primitive per demonstrated step, key
+// "robot:hamster/move/goal@2" (0-based step), fitted on every segment of the class in that
+// step whoever moved; generate() with the motion's step takes the class's primitive of
+// that step (or of the nearest demonstrated one), for any entity of those kinds, one
+// never seen included. The per-name primitives are fitted as well: a caller that gives no
+// step (step < 0) gets them, as before.
+//
 // Fallback for a key that was never demonstrated, in this order:
 //   1. the same entity and action toward another target of the same kind,
 //   2. the same action by an entity of the same kind toward a target of the same kind (a
@@ -34,9 +49,9 @@
 // their targets (task/end_point.h, learned by fit()): the paths a caller asks for run from
 // the start to the end point that rule gives (generate() takes it as `goal`).
 //
-// File: <modeldir>/primitives.yaml (format ddace-primitives/3), documented in docs/gp.md.
-// A /2 file (before end points were learned) still reads: its motions end at their
-// targets' centres, as its model was trained.
+// File: <modeldir>/primitives.yaml (format ddace-primitives/4), documented in docs/gp.md.
+// A /3 file (before roles) reads as a library keyed by name; a /2 file (before end points
+// were learned) also reads: its motions end at their targets' centres, as it was trained.
 //
 // A library is immutable after fit()/load(): generate() may be called from several
 // threads at once.
@@ -60,8 +75,10 @@
 namespace ddace::gp {
 
 /// /2: the library names the task fingerprint it was fitted on (task/fingerprint.h).
-/// /3: and the learned end points (task/end_point.h).
-inline constexpr const char* kPrimitivesFormat = "ddace-primitives/3";
+/// /3: and the learned end points (task/end_point.h). /4: and the role primitives.
+inline constexpr const char* kPrimitivesFormat = "ddace-primitives/4";
+/// Read as a library keyed by name only.
+inline constexpr const char* kPrimitivesFormatWithoutRoles = "ddace-primitives/3";
 /// Read as: every motion ends at its target's centre.
 inline constexpr const char* kPrimitivesFormatWithoutEndPoints = "ddace-primitives/2";
 /// Largest end offset a file may hold, metres (a table is about 1 m).
@@ -98,6 +115,7 @@ struct GeneratedPath {
 struct KeySegments {
   task::Token token;
   std::vector<std::vector<Eigen::Vector2d>> canonical;  ///< [segment][point]
+  std::vector<int> steps;                               ///< [segment] the step it stands in
   int skipped = 0;                                      ///< segments shorter than min_segment_length_m
 };
 
@@ -105,13 +123,19 @@ struct KeySegments {
 /// invalid options.
 std::map<std::string, KeySegments> canonicalSegments(const task::TaskDir& train, const PrimitiveOptions& options = {});
 
-/// One learned primitive.
+/// A motion class: "robot:hamster/move/goal" (the mover's kind, the action, the target's).
+std::string motionClass(const std::string& entity_kind, const std::string& action, const std::string& target_kind);
+/// A role primitive's key: "robot:hamster/move/goal@2".
+std::string roleKey(const std::string& motion_class, int step);
+
+/// One learned primitive: of a name's key, or of a role (step >= 0).
 struct Primitive {
-  std::string key;  ///< "R1:move:R3"
-  std::string entity, action, target;
-  int segments = 0;          ///< segments trained on
-  int skipped_segments = 0;  ///< too short to have a canonical frame
-  GaussianProcess x, y;      ///< canonical x and y as functions of progress
+  std::string key;                     ///< "R1:move:R3", or a role's "robot:hamster/move/robot:hamster@1"
+  std::string entity, action, target;  ///< names; of a role: the mover's and the target's kinds
+  int step = -1;                       ///< a role's step (0-based); -1: a name's primitive
+  int segments = 0;                    ///< segments trained on
+  int skipped_segments = 0;            ///< too short to have a canonical frame
+  GaussianProcess x, y;                ///< canonical x and y as functions of progress
 };
 
 class PrimitiveLibrary {
@@ -136,14 +160,17 @@ class PrimitiveLibrary {
   static PrimitiveLibrary parse(const std::string& text, const std::string& path);
 
   /// A path for `token` from `start` to `goal` (table frame, metres) with `points` >= 2
-  /// points. Throws ddace::Error for an in-place token, an entity index outside the
+  /// points, the motion standing in step `step` (0-based; < 0: unknown, the name's
+  /// primitive). Throws ddace::Error for an in-place token, an entity index outside the
   /// library's task, or points < 2. A start within 1 micrometre of the goal gives
   /// `points` copies of the start (nothing to move).
   GeneratedPath generate(const task::Token& token, const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
-                         int points = 100) const;
+                         int points = 100, int step = -1) const;
   /// The same for a key "E:action:T" naming the library's entities (ddace path).
   GeneratedPath generate(const std::string& key, const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
-                         int points = 100) const;
+                         int points = 100, int step = -1) const;
+  /// The motion classes keyed by role (header comment, "Roles").
+  std::vector<std::string> roleClasses() const;
 
   /// The library on the entities of `other`, a task of the same kinds of entity in other
   /// numbers or names (tgn::SequenceModel::boundTo): tokens and keys name other's entities;
@@ -166,9 +193,12 @@ class PrimitiveLibrary {
   const task::EndPointModel& endPoints() const { return end_points_; }
 
  private:
-  /// The primitive for (entity, action, target) names after the fallback rule, or null.
-  const Primitive* lookup(const std::string& entity, const std::string& action, const std::string& target,
+  /// The primitive for (entity, action, target) names in `step` (roles, then names after
+  /// the fallback rule), or null.
+  const Primitive* lookup(const std::string& entity, const std::string& action, const std::string& target, int step,
                           bool& fell_back) const;
+  /// Indexes the role primitives by class and step (after fit() and parse()).
+  void indexRoles();
   GeneratedPath generateFrom(const Primitive* primitive, bool fell_back, const Eigen::Vector2d& start,
                              const Eigen::Vector2d& goal, int points) const;
   void cacheGrid();
@@ -184,6 +214,8 @@ class PrimitiveLibrary {
   PrimitiveOptions options_;
   task::EndPointModel end_points_;
   std::map<std::string, Primitive> primitives_;
+  /// Role primitives' keys by class and step.
+  std::map<std::string, std::map<int, std::string>> roles_;
   /// Canonical mean/stddev on the training grid, per key: generation at the default
   /// number of points needs no GP evaluation.
   std::map<std::string, std::pair<std::vector<Eigen::Vector2d>, std::vector<Eigen::Vector2d>>> grid_;

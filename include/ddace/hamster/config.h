@@ -88,4 +88,11 @@ BridgeConfig loadBridgeConfig(const std::string& path);
 std::vector<RobotConfig> selectRobots(const BridgeConfig& config, const std::vector<std::string>& names,
                                       const std::string& what, const std::string& config_file);
 
+/// The warning for a bridge given a task: the configured robots that the task's `robots` do
+/// not list, which are not connected -- so a config of another task never goes unnoticed:
+/// "<config_file> also configures R3, R4, which task '<task>' does not have: not connected
+/// (no action needed; ...)". "" when the config has no other robot.
+std::string unusedRobotsWarning(const BridgeConfig& config, const std::vector<std::string>& robots,
+                                const std::string& task, const std::string& config_file);
+
 }  // namespace ddace::hamster

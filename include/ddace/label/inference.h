@@ -76,7 +76,14 @@ struct Motion {
   /// of its least distance), m/s: a stop there.
   std::vector<double> closest_speed;
   std::vector<Eigen::Vector2d> closest_at;  ///< [entity] where the mover was when closest to it
-  bool resumed = false;                     ///< joined from two motions across a pause
+  /// [entity] the row and time it was closest to that entity, and where every entity stood
+  /// then (a cut there: a stop at a body without a pause).
+  std::vector<int> closest_row;
+  std::vector<double> closest_t;
+  std::vector<std::vector<Eigen::Vector2d>> closest_scene;
+  /// Takes `o`'s closest approaches (speed, place, time) to the entities it came closer to.
+  void absorbClosest(const Motion& o);
+  bool resumed = false;  ///< joined from two motions across a pause
   /// Cut where what moved with it changed (label.h): the whole motion's offset (row, time);
   /// the motion's own for one not cut.
   int whole_off_row = -1;

@@ -104,6 +104,8 @@ class Labeller {
   std::set<int> exampleMovers(size_t k) const;
   /// How many of each kind `entities` has.
   std::map<task::EntityKind, int> kindsOf(const std::set<int>& entities) const;
+  /// "2 robots and 1 object".
+  static std::string kindsText(const std::map<task::EntityKind, int>& kinds);
   /// The example's alignment is settled: emits the held groups.
   void settle(bool aligned);
   /// The step(s) of one group (and the example's in-place steps before it) into out_.
@@ -111,8 +113,14 @@ class Labeller {
   void note(int row, const std::string& message, int entity = -1) { out_.notes.push_back({row, message, entity}); }
   /// Cuts motions where what moves with them changes: a robot that reaches an object and
   /// pushes it on without stopping (at the object's onset), an object handed on at contact
-  /// from one robot to another (where the receiver starts).
+  /// from one robot to another (where the receiver starts); and where a robot stopped at
+  /// a body without a pause and left in another heading.
   void cutAtContacts(std::vector<Motion>& motions) const;
+  /// `m` came to body `b` on its way (from farther than the arrival radius), touched it,
+  /// nearly stopped there (under a quarter of its mean speed) and left it again (farther
+  /// than the arrival radius): a stop there, or a slow pass. `turn`: radians between the
+  /// heading it came in and the one it left in.
+  bool stoppedAtOnItsWay(const Motion& m, int b, double& turn) const;
   bool together(const std::vector<Eigen::Vector2d>& at, int a, int b) const;
   bool staysWith(const Motion& m, int j) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
@@ -138,6 +146,8 @@ class Labeller {
   std::optional<Group> partial_;
   size_t groups_seen_ = 0;  ///< groups place()d
   size_t emitted_groups_ = 0;
+  /// A step had other kinds of movers than the example's: every token from there is listed.
+  bool steps_differ_ = false;
   int prev_off_ = -1;    ///< the last emitted group's offset row
   int handed_off_ = -1;  ///< the last offset row of the groups handed over
   Inference out_;        ///< decided, not taken

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "ddace/eval/metrics.h"
+#include "ddace/exec/coordinator.h"
 #include "ddace/exec/dispatch.h"
 #include "ddace/exec/execution_config.h"
 #include "ddace/exec/simulator.h"
@@ -71,13 +72,15 @@ struct EvalOptions {
   /// diffdrive on points: when each token starts (exec/dispatch.h): steps, or async (its
   /// own predecessors under the model's learned dependencies). The points do not meet, so
   /// a trial's tokens take the same time either way and the makespan is their schedule.
-  exec::DispatchMode dispatch = exec::DispatchMode::Steps;
+  exec::DispatchMode dispatch = exec::CoordinatorConfig{}.dispatch;
 };
 
 /// Whether the model's decisions read the scene (positions): every variant but a scene
 /// network of a fixed order, whose decisions follow from the steps so far. Async dispatch
 /// asks such a policy for the next step only once every entity has settled.
 bool policyReadsScene(const Model& model);
+/// The same from a model's manifest alone (the coordinator node, which runs no network).
+bool policyReadsScene(const tgn::ModelInfo& info);
 
 struct Evaluation {
   std::string task, variant, execution;

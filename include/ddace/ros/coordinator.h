@@ -10,8 +10,9 @@
 //        ~state (CoordinatorState, latched, every change and ~state_rate_hz), ~markers (MarkerArray)
 //   srv  ~start, ~pause, ~reset, ~estop (std_srvs/Trigger)
 //
-// Decisions are requested only when the run starts or every active entity reported its
-// segment done and is tracked at its goal (exec::Coordinator decides); the timers check
+// Decisions are requested and tokens started as exec::Coordinator decides under ~dispatch
+// (steps: when every active entity reported its segment done and is tracked at its goal;
+// async: each token when its own predecessors have, exec/dispatch.h); the timers check
 // time-outs, re-send what is unacknowledged (exec::Outbox) and watch the node of every
 // role in ~roles (exec::RoleWatch): a lost one (gone, silent for heartbeat_timeout_s, or
 // reporting a problem on its heartbeat) stops every robot and aborts the run; a run starts

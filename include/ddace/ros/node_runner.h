@@ -33,10 +33,17 @@ std::vector<std::string> givenParams(const ros::NodeHandle& pnh);
 /// misplaced parameter stops the node instead of leaving it on a default.
 void rejectUnknownParams(const ros::NodeHandle& pnh, const std::vector<std::string>& given);
 
+/// False (the reason on stderr) when the launch asked for one machine (environment
+/// DDACE_NETWORK=loopback, which the launch files set for their nodes) but this process
+/// runs on the host's network: roscpp's XML-RPC server, started with the first
+/// NodeHandle, would listen on every interface (docs/trust-boundary.md). Asked before.
+bool networkAsLaunched(const char* default_name);
+
 /// ros::init as `default_name`, construct Node (its parameters checked:
 /// rejectUnknownParams), run or spin it until shutdown. Returns the process exit status.
 template <typename Node>
 int runNode(int argc, char** argv, const char* default_name) {
+  if (!networkAsLaunched(default_name)) return 1;
   ros::init(argc, argv, default_name);
   // Held for the whole run: when the last NodeHandle goes, roscpp shuts down (and with it
   // rosconsole, which would swallow the error below).

@@ -8,7 +8,8 @@
 //                 what the protocol-level mock Hamsters' wheels do (left_mps, right_mps),
 //                 driven by the real hamster_bridge over their pseudo-terminals;
 //   commands      /robots/<R>/wheels (ddace/WheelCommand): a teleop or a test driving the
-//                 simulated robots directly.
+//                 simulated robots directly, from the nodes ~command_sources names only
+//                 (as the robots' drivers: src/ros/command_sources.h).
 //   A robot whose speeds stop coming stops after ~robot/command_timeout_s.
 // Out: `true_entities` (ddace/EntityArray, default /ddace/true_entities): every entity's
 // true pose each step, for synthetic_camera_node, whose images the tracker measures.

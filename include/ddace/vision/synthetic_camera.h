@@ -32,7 +32,8 @@ struct SyntheticCameraConfig {
   cv::Vec3d position{0.4, -0.02, 1.0};  ///< camera centre, table frame, metres
   cv::Point2d look_at{0.4, 0.3};        ///< table point on the optical axis
   double roll_deg = 0.0;                ///< rotation about the optical axis
-  cv::Size2d table_size{0.8, 0.6};      ///< the working area, metres from the origin
+  cv::Size2d table_size{0.8, 0.6};      ///< the working area, metres from table_origin
+  cv::Point2d table_origin{0.0, 0.0};   ///< its corner nearest the origin (framedOnCorners sets it)
   double table_margin_m = 0.06;         ///< the white table top extends this far beyond it
   double blur_sigma_px = 0.7;           ///< Gaussian blur (defocus)
   double noise_sigma = 2.0;             ///< Gaussian pixel noise (grey levels)
@@ -47,6 +48,13 @@ struct SyntheticCameraConfig {
 /// it). Throws ddace::Error with file:line:column.
 SyntheticCameraConfig parseSyntheticCameraConfig(const std::string& text, const std::string& file);
 SyntheticCameraConfig loadSyntheticCameraConfig(const std::string& path);
+
+/// `config` moved onto the table the corner markers of `markers` span, for a simulated
+/// table of any size: the camera frames that table as `config` frames its own table_size
+/// (the same view: field, tilt and roll kept; position, look-at and height scaled about the
+/// table's centre by the larger ratio of the sides), and the table top drawn is the
+/// corners' extent. Unchanged when `markers` has no corners.
+SyntheticCameraConfig framedOnCorners(SyntheticCameraConfig config, const MarkerConfig& markers);
 
 /// One entity as the camera should see it.
 struct TrueEntity {

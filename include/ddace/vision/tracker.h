@@ -206,6 +206,20 @@ class Tracker {
   std::vector<Region> quadCandidates(double side_min, double side_max, const std::vector<cv::Rect>& covered);
   /// Re-fits the table frame when all corner markers are among `undistorted`.
   void updateTable(const std::vector<Detection>& undistorted, FrameResult& result);
+  /// The image as 8-bit mono in gray_, checked against the calibration's image size.
+  void toGray(const cv::Mat& image);
+  /// The detections of one frame and where it looked (tracker.cpp).
+  struct FrameSearch;
+  /// Looks where the tracked markers are predicted (or the whole frame), then again for
+  /// those missing there. Returns the markers whose regions would cover most of the image.
+  std::set<int> lookWhereExpected(FrameSearch& s, double stamp);
+  /// Looks for the configured markers the regions do not follow, in marker-sized quads.
+  void lookForAbsent(FrameSearch& s, const std::set<int>& unfollowed);
+  /// Keeps one detection per configured marker (the nearest its last position) in
+  /// result.detections and updates where and how fast each was last seen.
+  void keepConfigured(const std::vector<Detection>& found, double stamp, FrameResult& result);
+  /// Undistorts the detections, re-fits the table, and feeds the entities' pose filters.
+  void updateEntities(double stamp, FrameResult& result);
 
   TrackerConfig config_;
   std::unique_ptr<FiducialDetector> detector_;

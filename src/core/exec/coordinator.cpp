@@ -82,10 +82,12 @@ uint32_t firstIdAt(double wall_clock_s) {
 }
 
 Coordinator::Coordinator(task::TaskSpec spec, CoordinatorConfig config, task::EndPointModel end_points,
-                         uint32_t first_id)
+                         uint32_t first_id, graph::Dependencies dependencies, bool policy_reads_scene)
     : spec_(std::move(spec)),
       config_(config),
       end_points_(std::move(end_points)),
+      dependencies_(std::move(dependencies)),
+      policy_reads_scene_(policy_reads_scene),
       next_id_(first_id == 0 ? 1 : first_id) {
   config_.validate();
   if (spec_.entities.empty()) throw Error("coordinator: the task has no entities");
@@ -98,15 +100,16 @@ uint32_t Coordinator::nextId() {
 }
 
 const StepRecord* Coordinator::currentStep() const {
-  if (steps_.empty() || steps_.back().complete) return nullptr;
-  return &steps_.back();
+  for (const auto& s : steps_)
+    if (!s.complete) return &s;
+  return nullptr;
 }
 
 std::vector<int> Coordinator::activeEntities() const {
   std::vector<int> active;
-  if (const StepRecord* s = currentStep())
-    for (const auto& t : s->tokens)
-      if (t.token.isMotion() && t.state != SegmentState::Done) active.push_back(t.token.entity);
+  for (const auto& s : steps_)
+    for (const auto& t : s.tokens)
+      if (t.token.isMotion() && t.started_s >= 0 && t.state != SegmentState::Done) active.push_back(t.token.entity);
   return active;
 }
 
@@ -141,26 +144,41 @@ void Coordinator::abort(const std::string& why, CoordinatorOutput& out) {
   stopActive(out);
   out.stop_all = true;
   pending_decision_ = 0;
-  pending_paths_.clear();
+  for (auto& s : steps_)
+    for (auto& t : s.tokens) t.path_request = 0;
   setState(RunState::Aborted, out);
 }
 
 void Coordinator::stopActive(CoordinatorOutput& out) {
-  if (StepRecord* s = steps_.empty() ? nullptr : &steps_.back()) {
-    for (auto& t : s->tokens) {
+  for (auto& s : steps_)
+    for (auto& t : s.tokens)
       if (t.segment_id != 0 && t.state != SegmentState::Done && t.state != SegmentState::Failed) {
         out.stop.push_back(t.token.entity);
         t.state = SegmentState::Aborted;
       }
-    }
-  }
 }
 
-void Coordinator::requestDecisionOrWait(double now_s, CoordinatorOutput& out) {
+void Coordinator::clearRun() {
+  history_.clear();
+  steps_.clear();
+  decisions_requested_ = 0;
+  last_decision_.reset();
+  pending_decision_ = 0;
+  end_decided_ = false;
+  waiting_for_entities_ = false;
+  blocked_on_tracking_ = false;
+  dispatch_.reset();
+}
+
+void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
+  if (end_decided_ || pending_decision_ != 0) return;
+  if (!steps_.empty() && !dispatch_->mayDecide(policy_reads_scene_)) return;
   if (!allTracked()) {
-    setState(RunState::WaitingForEntities, out);
+    waiting_for_entities_ = true;
     return;
   }
+  if (waiting_for_entities_) out.log.push_back("every entity is tracked");
+  waiting_for_entities_ = false;
   if (static_cast<int>(steps_.size()) >= config_.max_steps) {
     abort("the policy did not say END within max_steps = " + std::to_string(config_.max_steps) + " steps", out);
     return;
@@ -174,27 +192,131 @@ void Coordinator::requestDecisionOrWait(double now_s, CoordinatorOutput& out) {
   req.step = static_cast<int>(steps_.size());
   req.history = history_;
   pending_decision_ = req.id;
-  pending_since_s_ = now_s;
+  decision_since_s_ = now_s;
   ++decisions_requested_;
   out.log.push_back("requesting decision " + std::to_string(req.step + 1));
   out.decision = std::move(req);
-  setState(RunState::Deciding, out);
+}
+
+void Coordinator::refreshState(CoordinatorOutput& out) {
+  if (state_ == RunState::Finished || state_ == RunState::Aborted || state_ == RunState::EStopped) return;
+  bool segment = false, path = false;
+  for (const auto& s : steps_)
+    for (const auto& t : s.tokens) {
+      segment = segment || (t.segment_id != 0 && t.state != SegmentState::Done);
+      path = path || t.path_request != 0;
+    }
+  setState(segment                  ? RunState::Executing
+           : path                   ? RunState::Planning
+           : pending_decision_ != 0 ? RunState::Deciding
+                                    : RunState::WaitingForEntities,
+           out);
+}
+
+void Coordinator::advance(double now_s, CoordinatorOutput& out) {
+  startReady(now_s, out);
+  for (auto& s : steps_) {
+    if (s.complete) continue;
+    bool all = true;
+    for (const auto& t : s.tokens) all = all && t.state == SegmentState::Done;
+    if (!all) continue;
+    s.complete = true;
+    s.finished_s = now_s;
+    out.log.push_back("step " + std::to_string(s.step + 1) + " complete");
+  }
+  if (end_decided_ && dispatch_->allEnded()) {
+    setState(RunState::Finished, out);
+    return;
+  }
+  requestDecisionIfDue(now_s, out);
+  refreshState(out);
+}
+
+void Coordinator::startReady(double now_s, CoordinatorOutput& out) {
+  blocked_on_tracking_ = false;
+  std::vector<TokenRef> motions;
+  for (bool again = true; again;) {
+    again = false;
+    for (const TokenRef& r : dispatch_->readyTokens()) {
+      TokenRecord& t = record(r);
+      // A token starts from where its entities are: never from a pose the tracker lost.
+      const int e = t.token.entity, target = t.token.target;
+      if (!observation_.tracked.at(static_cast<size_t>(e)) ||
+          (target >= 0 && !observation_.tracked.at(static_cast<size_t>(target)))) {
+        blocked_on_tracking_ = true;
+        continue;
+      }
+      dispatch_->start(r, now_s);
+      t.started_s = now_s;
+      t.start = observation_.positions[static_cast<size_t>(e)];
+      t.goal = t.start;
+      if (t.token.isMotion()) {
+        motions.push_back(r);
+      } else {
+        endToken(r, now_s, out, "");  // in place: ends as it starts, which may release others
+        again = true;
+      }
+    }
+  }
+  if (motions.empty()) return;
+  // Where the started bodies end, per step together (an end point depends on the step's
+  // other tokens: a load, an end another motion takes), each started one at its start.
+  for (size_t k = 0; k < steps_.size(); ++k) {
+    if (std::none_of(motions.begin(), motions.end(), [&](const TokenRef& r) { return r.step == static_cast<int>(k); }))
+      continue;
+    const StepRecord& s = steps_[k];
+    std::vector<task::Token> tokens;
+    std::vector<Eigen::Vector2d> at = observation_.positions;
+    for (const auto& t : s.tokens) {
+      tokens.push_back(t.token);
+      if (t.started_s >= 0) at[static_cast<size_t>(t.token.entity)] = t.start;
+    }
+    const std::vector<Eigen::Vector2d> ends = task::stepEndPositions(spec_, end_points_, tokens, at);
+    for (const TokenRef& r : motions)
+      if (r.step == static_cast<int>(k)) record(r).goal = ends[static_cast<size_t>(record(r).token.entity)];
+  }
+  requestPaths(motions, now_s, out);
+}
+
+void Coordinator::endToken(TokenRef r, double now_s, CoordinatorOutput& out, const std::string& why) {
+  TokenRecord& t = record(r);
+  t.state = SegmentState::Done;
+  t.progress = 1.0;
+  dispatch_->end(r, now_s);
+  if (!why.empty()) out.log.push_back(why);
+}
+
+std::optional<TokenRef> Coordinator::findRunning(uint32_t id, bool by_segment) const {
+  if (id == 0) return std::nullopt;
+  for (size_t k = 0; k < steps_.size(); ++k)
+    for (size_t i = 0; i < steps_[k].tokens.size(); ++i) {
+      const TokenRecord& t = steps_[k].tokens[i];
+      if (t.started_s >= 0 && (by_segment ? t.segment_id : t.path_request) == id)
+        return TokenRef{static_cast<int>(k), static_cast<int>(i)};
+    }
+  return std::nullopt;
 }
 
 CoordinatorOutput Coordinator::start(double now_s) {
   CoordinatorOutput out;
   if (state_ == RunState::Idle) {
     reason_.clear();
-    history_.clear();
-    steps_.clear();
-    decisions_requested_ = 0;
-    last_decision_.reset();
-    requestDecisionOrWait(now_s, out);
+    clearRun();
+    dispatch_.emplace(spec_, config_.dispatch, dependencies_);
+    out.log.push_back(std::string("dispatch: ") + toString(config_.dispatch));
+    advance(now_s, out);
     out.state_changed = true;
   } else if (state_ == RunState::Paused) {
-    if (currentStep() != nullptr)
-      requestPaths(now_s, out);  // re-plan what is left of the step from where robots stopped
-    else requestDecisionOrWait(now_s, out);
+    // Re-plan what had started and not ended from where the robots stopped; goals stay.
+    std::vector<TokenRef> unfinished;
+    for (size_t k = 0; k < steps_.size(); ++k)
+      for (size_t i = 0; i < steps_[k].tokens.size(); ++i) {
+        const TokenRecord& t = steps_[k].tokens[i];
+        if (t.token.isMotion() && t.started_s >= 0 && t.state != SegmentState::Done)
+          unfinished.push_back({static_cast<int>(k), static_cast<int>(i)});
+      }
+    if (!unfinished.empty()) requestPaths(unfinished, now_s, out);
+    advance(now_s, out);
     out.state_changed = true;
   } else {
     out.log.push_back(std::string("start refused in state ") + toString(state_) +
@@ -207,14 +329,14 @@ CoordinatorOutput Coordinator::start(double now_s) {
 
 CoordinatorOutput Coordinator::pause(double) {
   CoordinatorOutput out;
-  if (state_ != RunState::WaitingForEntities && state_ != RunState::Deciding && state_ != RunState::Planning &&
-      state_ != RunState::Executing) {
+  if (!running() || state_ == RunState::Paused) {
     out.log.push_back(std::string("pause refused in state ") + toString(state_));
     return out;
   }
-  if (state_ == RunState::Deciding && !history_.empty()) history_.pop_back();
+  if (pending_decision_ != 0 && !history_.empty()) history_.pop_back();
   pending_decision_ = 0;
-  pending_paths_.clear();
+  for (auto& s : steps_)
+    for (auto& t : s.tokens) t.path_request = 0;
   stopActive(out);
   setState(RunState::Paused, out);
   return out;
@@ -224,12 +346,7 @@ CoordinatorOutput Coordinator::reset(double) {
   CoordinatorOutput out;
   stopActive(out);
   out.stop_all = true;
-  history_.clear();
-  steps_.clear();
-  decisions_requested_ = 0;
-  last_decision_.reset();
-  pending_decision_ = 0;
-  pending_paths_.clear();
+  clearRun();
   reason_.clear();
   setState(RunState::Idle, out);
   out.state_changed = true;
@@ -243,7 +360,8 @@ CoordinatorOutput Coordinator::emergencyStop(double, const std::string& why) {
   stopActive(out);
   out.stop_all = true;
   pending_decision_ = 0;
-  pending_paths_.clear();
+  for (auto& s : steps_)
+    for (auto& t : s.tokens) t.path_request = 0;
   setState(RunState::EStopped, out);
   out.state_changed = true;
   return out;
@@ -255,22 +373,20 @@ CoordinatorOutput Coordinator::onEntities(const EntityObservation& obs, double n
     throw Error("coordinator: an observation must have one position and one tracked flag per task entity (" +
                 std::to_string(spec_.entities.size()) + ")");
   observation_ = obs;
-  if (state_ == RunState::WaitingForEntities && allTracked()) {
-    out.log.push_back("every entity is tracked");
-    requestDecisionOrWait(now_s, out);
-  } else if (state_ == RunState::Executing && !steps_.empty()) {
-    updateDistances();
-    // A DONE that came before the tracked pose agreed counts once it does.
-    bool any = false;
-    for (auto& t : steps_.back().tokens)
-      if (t.done_claimed && t.state != SegmentState::Done && arrived(t)) {
-        t.state = SegmentState::Done;
-        t.progress = 1.0;
-        out.log.push_back("done: " + task::tokenKey(t.token, spec_) + " (tracked pose now within the arrival radius)");
-        any = true;
+  if (!running() || state_ == RunState::Paused) return out;
+  updateDistances();
+  // A DONE that came before the tracked pose agreed counts once it does.
+  bool ended = false;
+  for (size_t k = 0; k < steps_.size(); ++k)
+    for (size_t i = 0; i < steps_[k].tokens.size(); ++i) {
+      const TokenRecord& t = steps_[k].tokens[i];
+      if (t.done_claimed && t.segment_id != 0 && t.state != SegmentState::Done && arrived(t)) {
+        endToken({static_cast<int>(k), static_cast<int>(i)}, now_s, out,
+                 "done: " + task::tokenKey(t.token, spec_) + " (tracked pose now within the arrival radius)");
+        ended = true;
       }
-    if (any) completeStepIfDone(now_s, out);
-  }
+    }
+  if (ended || waiting_for_entities_ || blocked_on_tracking_) advance(now_s, out);
   return out;
 }
 
@@ -281,17 +397,19 @@ bool Coordinator::arrived(const TokenRecord& t) const {
 }
 
 void Coordinator::updateDistances() {
-  for (auto& t : steps_.back().tokens) {
-    const auto e = static_cast<size_t>(t.token.entity);
-    if (t.segment_id != 0 && observation_.positions.size() > e && observation_.tracked[e])
-      t.distance_to_goal_m = (observation_.positions[e] - t.goal).norm();
-  }
+  for (auto& s : steps_)
+    for (auto& t : s.tokens) {
+      const auto e = static_cast<size_t>(t.token.entity);
+      if (t.segment_id != 0 && t.state != SegmentState::Done && observation_.positions.size() > e &&
+          observation_.tracked[e])
+        t.distance_to_goal_m = (observation_.positions[e] - t.goal).norm();
+    }
 }
 
 CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double now_s,
                                           const DecisionProbabilities& prob) {
   CoordinatorOutput out;
-  if (state_ != RunState::Deciding || id != pending_decision_ || id == 0) {
+  if (!running() || state_ == RunState::Paused || id != pending_decision_ || id == 0) {
     out.log.push_back("ignoring decision " + std::to_string(id) + " (not the one asked for)");
     return out;
   }
@@ -304,9 +422,10 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
   }
   last_decision_ = AcceptedDecision{d, prob};
   if (d.end) {
+    end_decided_ = true;
     reason_ = "the policy predicted END after " + std::to_string(steps_.size()) + " steps";
     out.log.push_back(reason_);
-    setState(RunState::Finished, out);
+    advance(now_s, out);  // finished once every token has ended
     return out;
   }
   const int n = static_cast<int>(spec_.entities.size());
@@ -317,7 +436,6 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
   StepRecord step;
   step.step = static_cast<int>(steps_.size());
   step.decided_s = now_s;
-  const auto& decided = history_.back().positions;
   std::vector<bool> seen(n, false);
   for (size_t i = 0; i < d.tokens.size(); ++i) {
     const task::Token& tok = d.tokens[i];
@@ -334,72 +452,54 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
     seen[tok.entity] = true;
     TokenRecord r;
     r.token = tok;
-    r.start = decided[tok.entity];
-    r.state = tok.isMotion() ? SegmentState::Sent : SegmentState::Done;
-    if (!tok.isMotion()) r.progress = 1.0;
     step.tokens.push_back(std::move(r));
   }
-  // Once every token is known valid: where the step's bodies end, together (an end point
-  // depends on the step's other tokens: a load, an end another motion takes).
-  const std::vector<Eigen::Vector2d> ends = task::stepEndPositions(spec_, end_points_, d.tokens, decided);
-  for (size_t i = 0; i < d.tokens.size(); ++i) step.tokens[i].goal = ends[static_cast<size_t>(d.tokens[i].entity)];
   std::ostringstream os;
   os << "step " << step.step + 1 << ":";
   for (const auto& t : step.tokens) os << " " << task::tokenKey(t.token, spec_);
   out.log.push_back(os.str());
   steps_.push_back(std::move(step));
-  requestPaths(now_s, out);
+  dispatch_->addStep(d.tokens, now_s);
+  advance(now_s, out);
   return out;
 }
 
 CoordinatorOutput Coordinator::onDecisionError(uint32_t id, const std::string& error, double) {
   CoordinatorOutput out;
-  if (state_ != RunState::Deciding || id != pending_decision_ || id == 0) return out;
+  if (!running() || state_ == RunState::Paused || id != pending_decision_ || id == 0) return out;
   abort("no decision for step " + std::to_string(steps_.size() + 1) + ": " + error, out);
   return out;
 }
 
-void Coordinator::requestPaths(double now_s, CoordinatorOutput& out) {
-  StepRecord& s = steps_.back();
-  pending_paths_.assign(s.tokens.size(), 0);
-  bool any = false;
-  for (size_t i = 0; i < s.tokens.size(); ++i) {
-    TokenRecord& t = s.tokens[i];
-    if (!t.token.isMotion() || t.state == SegmentState::Done) continue;
+void Coordinator::requestPaths(const std::vector<TokenRef>& tokens, double now_s, CoordinatorOutput& out) {
+  const uint32_t batch = next_batch_++;
+  for (const TokenRef& r : tokens) {
+    TokenRecord& t = record(r);
     PathRequest req;
     req.id = nextId();
-    req.step = s.step;
+    req.step = r.step;
     req.token = t.token;
-    // After a pause the entity continues from where it stopped; the goal stays fixed.
-    req.start = (s.segments_sent_s >= 0 && observation_.positions.size() > static_cast<size_t>(t.token.entity))
-                    ? observation_.positions[t.token.entity]
-                    : t.start;
+    // From where the entity is (after a pause: where it stopped); the goal stays fixed.
+    req.start = observation_.positions.at(static_cast<size_t>(t.token.entity));
     req.goal = t.goal;
-    pending_paths_[i] = req.id;
+    t.path_request = req.id;
+    t.path_requested_s = now_s;
+    t.batch = batch;
     t.path = {};
     t.segment_id = 0;
+    t.segment_sent_s = -1;
     t.state = SegmentState::Sent;
     out.paths.push_back(req);
-    any = true;
-  }
-  pending_since_s_ = now_s;
-  if (any) {
-    setState(RunState::Planning, out);
-  } else {
-    setState(RunState::Executing, out);
-    completeStepIfDone(now_s, out);
   }
 }
 
 CoordinatorOutput Coordinator::onPath(uint32_t id, const PlannedPath& path, const std::string& error, double now_s) {
   CoordinatorOutput out;
-  if (state_ != RunState::Planning || id == 0) return out;
-  StepRecord& s = steps_.back();
-  size_t slot = pending_paths_.size();
-  for (size_t i = 0; i < pending_paths_.size(); ++i)
-    if (pending_paths_[i] == id) slot = i;
-  if (slot == pending_paths_.size()) return out;
-  const std::string key = task::tokenKey(s.tokens[slot].token, spec_);
+  if (!running() || state_ == RunState::Paused) return out;
+  const std::optional<TokenRef> ref = findRunning(id, /*by_segment=*/false);
+  if (!ref) return out;
+  TokenRecord& t = record(*ref);
+  const std::string key = task::tokenKey(t.token, spec_);
   if (!error.empty() || path.points.empty()) {
     abort("no path for " + key + ": " + (error.empty() ? "the path is empty" : error), out);
     return out;
@@ -415,7 +515,7 @@ CoordinatorOutput Coordinator::onPath(uint32_t id, const PlannedPath& path, cons
       return out;
     }
   // A path for another token (another start or goal) must not drive this entity.
-  const double end_error = (path.points.back() - s.tokens[slot].goal).norm();
+  const double end_error = (path.points.back() - t.goal).norm();
   if (end_error > config_.arrival_radius_m) {
     std::ostringstream os;
     os << "the path for " << key << " ends " << end_error
@@ -424,37 +524,41 @@ CoordinatorOutput Coordinator::onPath(uint32_t id, const PlannedPath& path, cons
     abort(os.str(), out);
     return out;
   }
-  s.tokens[slot].path = path;
-  pending_paths_[slot] = 0;
-  for (uint32_t p : pending_paths_)
-    if (p != 0) return out;
-
-  // Every path is in: send all segments together so the robots start together.
-  for (auto& t : s.tokens) {
-    if (!t.token.isMotion() || t.state == SegmentState::Done) continue;
-    SegmentCommand cmd;
-    cmd.entity = t.token.entity;
-    cmd.segment_id = nextId();
-    cmd.step = s.step;
-    cmd.token = t.token;
-    cmd.path = t.path;
-    cmd.goal = t.goal;
-    double length = 0;
-    for (size_t i = 1; i < t.path.points.size(); ++i) length += (t.path.points[i] - t.path.points[i - 1]).norm();
-    cmd.timeout_s = config_.segment_timeout_s + config_.segment_timeout_per_m_s * length;
-    t.segment_id = cmd.segment_id;
-    t.state = SegmentState::Sent;
-    t.progress = 0;
-    t.timeout_s = cmd.timeout_s;
-    t.done_claimed = false;
-    t.distance_to_goal_m = std::numeric_limits<double>::quiet_NaN();
-    out.segments.push_back(std::move(cmd));
-  }
-  s.segments_sent_s = now_s;
-  segments_since_s_ = now_s;
-  setState(RunState::Executing, out);
-  updateDistances();
+  t.path = path;
+  t.path_request = 0;
+  sendBatch(t.batch, now_s, out);
+  refreshState(out);
   return out;
+}
+
+void Coordinator::sendBatch(uint32_t batch, double now_s, CoordinatorOutput& out) {
+  for (const auto& s : steps_)
+    for (const auto& t : s.tokens)
+      if (t.batch == batch && t.path_request != 0) return;
+  // Every path of the batch is in: its segments go out together so its robots start together.
+  for (auto& s : steps_)
+    for (auto& t : s.tokens) {
+      if (t.batch != batch || !t.token.isMotion() || t.state == SegmentState::Done || t.segment_id != 0) continue;
+      SegmentCommand cmd;
+      cmd.entity = t.token.entity;
+      cmd.segment_id = nextId();
+      cmd.step = s.step;
+      cmd.token = t.token;
+      cmd.path = t.path;
+      cmd.goal = t.goal;
+      double length = 0;
+      for (size_t i = 1; i < t.path.points.size(); ++i) length += (t.path.points[i] - t.path.points[i - 1]).norm();
+      cmd.timeout_s = config_.segment_timeout_s + config_.segment_timeout_per_m_s * length;
+      t.segment_id = cmd.segment_id;
+      t.segment_sent_s = now_s;
+      t.state = SegmentState::Sent;
+      t.progress = 0;
+      t.timeout_s = cmd.timeout_s;
+      t.done_claimed = false;
+      t.distance_to_goal_m = std::numeric_limits<double>::quiet_NaN();
+      out.segments.push_back(std::move(cmd));
+    }
+  updateDistances();
 }
 
 CoordinatorOutput Coordinator::onSegmentStatus(const StatusReport& r, double now_s) {
@@ -471,17 +575,13 @@ CoordinatorOutput Coordinator::onSegmentStatus(const StatusReport& r, double now
     out.log.push_back("ignoring a status of " + topic_name + " with invalid code " + std::to_string(r.code));
     return out;
   }
-  if (state_ != RunState::Executing || steps_.empty() || r.segment_id == 0) return out;
-  StepRecord& s = steps_.back();
-  TokenRecord* rec = nullptr;
-  for (auto& t : s.tokens)
-    if (t.segment_id == r.segment_id && t.token.entity == r.topic_entity) rec = &t;
-  if (rec == nullptr) {
-    bool other = false;  // a running segment of another entity: a status on the wrong topic
-    for (const auto& t : s.tokens) other = other || t.segment_id == r.segment_id;
-    if (other)
-      out.log.push_back("ignoring a status for segment " + std::to_string(r.segment_id) + " on " + topic_name +
-                        "'s topic: that segment belongs to another entity");
+  if (!running() || state_ == RunState::Paused || r.segment_id == 0) return out;
+  const std::optional<TokenRef> ref = findRunning(r.segment_id, /*by_segment=*/true);
+  if (!ref) return out;
+  TokenRecord* rec = &record(*ref);
+  if (rec->token.entity != r.topic_entity) {  // a running segment of another entity: a status on the wrong topic
+    out.log.push_back("ignoring a status for segment " + std::to_string(r.segment_id) + " on " + topic_name +
+                      "'s topic: that segment belongs to another entity");
     return out;
   }
   if (rec->state == SegmentState::Done) return out;
@@ -510,10 +610,8 @@ CoordinatorOutput Coordinator::onSegmentStatus(const StatusReport& r, double now
     rec->state = SegmentState::Running;
     return out;
   }
-  rec->state = SegmentState::Done;
-  rec->progress = 1.0;
-  out.log.push_back("done: " + key);
-  completeStepIfDone(now_s, out);
+  endToken(*ref, now_s, out, "done: " + key);
+  advance(now_s, out);
   return out;
 }
 
@@ -527,16 +625,6 @@ CoordinatorOutput Coordinator::onSegmentStatus(int entity, uint32_t segment_id, 
   r.progress = progress;
   r.message = message;
   return onSegmentStatus(r, now_s);
-}
-
-void Coordinator::completeStepIfDone(double now_s, CoordinatorOutput& out) {
-  StepRecord& s = steps_.back();
-  for (const auto& t : s.tokens)
-    if (t.state != SegmentState::Done) return;
-  s.finished_s = now_s;
-  s.complete = true;
-  out.log.push_back("step " + std::to_string(s.step + 1) + " complete");
-  requestDecisionOrWait(now_s, out);
 }
 
 bool Coordinator::running() const {
@@ -553,8 +641,7 @@ CoordinatorOutput Coordinator::abortRun(const std::string& why, double) {
 CoordinatorOutput Coordinator::abortStart(const std::string& why, double) {
   CoordinatorOutput out;
   if (state_ != RunState::Idle) return out;
-  history_.clear();
-  steps_.clear();
+  clearRun();
   abort(why, out);
   out.state_changed = true;
   return out;
@@ -562,23 +649,25 @@ CoordinatorOutput Coordinator::abortStart(const std::string& why, double) {
 
 CoordinatorOutput Coordinator::onTick(double now_s) {
   CoordinatorOutput out;
-  if (state_ == RunState::Deciding && now_s - pending_since_s_ > config_.decision_timeout_s) {
+  if (!running() || state_ == RunState::Paused) return out;
+  if (pending_decision_ != 0 && now_s - decision_since_s_ > config_.decision_timeout_s) {
     abort("no decision within decision_timeout_s = " + seconds(config_.decision_timeout_s), out);
-  } else if (state_ == RunState::Planning && now_s - pending_since_s_ > config_.path_timeout_s) {
-    abort("not every path arrived within path_timeout_s = " + seconds(config_.path_timeout_s), out);
-  } else if (state_ == RunState::Executing && !steps_.empty()) {
-    for (const auto& t : steps_.back().tokens) {
-      if (t.segment_id == 0 || t.state == SegmentState::Done) continue;
-      const double timeout = t.timeout_s;
-      if (now_s - segments_since_s_ > timeout) {
+    return out;
+  }
+  for (const auto& s : steps_)
+    for (const auto& t : s.tokens) {
+      if (t.path_request != 0 && now_s - t.path_requested_s > config_.path_timeout_s) {
+        abort("not every path arrived within path_timeout_s = " + seconds(config_.path_timeout_s), out);
+        return out;
+      }
+      if (t.segment_id != 0 && t.state != SegmentState::Done && now_s - t.segment_sent_s > t.timeout_s) {
         std::ostringstream os;
-        os << "segment " << task::tokenKey(t.token, spec_) << " timed out after " << timeout << " s (progress "
+        os << "segment " << task::tokenKey(t.token, spec_) << " timed out after " << t.timeout_s << " s (progress "
            << t.progress << ")";
         abort(os.str(), out);
-        break;
+        return out;
       }
     }
-  }
   return out;
 }
 

@@ -29,6 +29,8 @@ void SafetyParams::validate() const {
   pos(resolve_after_s, "resolve_after_s");
   pos(deadlock_after_s, "deadlock_after_s");
   if (deadlock_after_s <= resolve_after_s) bad("deadlock_after_s", "must exceed resolve_after_s");
+  if (!(wait_limit_s >= deadlock_after_s) || !std::isfinite(wait_limit_s))
+    bad("wait_limit_s", "must be finite and at least deadlock_after_s");
   pos(progress_m, "progress_m");
 }
 
@@ -90,139 +92,182 @@ SafetyFilter::SafetyFilter(const SafetyParams& params, double wheel_base_m, doub
     throw Error("safety filter: wheel base, wheel speed and turn rate limits must be positive");
 }
 
-SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& self, double self_radius_m,
-                                   double self_age_s, const WheelSpeeds& nominal, double progress_m,
-                                   const std::vector<SafetyBody>& bodies, const std::string& target, double now_s,
-                                   const SafetyBody* load) {
-  SafetyCommand out;
-  const double l = params_.projection_m;
-  const Eigen::Vector2d x = self.position();
-  const Eigen::Vector2d e(std::cos(self.yaw), std::sin(self.yaw)), e_perp(-e.y(), e.x());
-  const Eigen::Vector2d p = x + l * e;
+namespace {
 
-  auto stop = [&](std::string why) {
-    out.wheels = {};
-    out.v_mps = out.w_radps = 0;
-    out.modified = !nominal.isZero();
-    out.stale = true;
-    out.reason = std::move(why);
-    reset();
-    return out;
-  };
-  // Disabled, the filter is a pass-through: the follower's own stale-pose rule (the
-  // tracker's stale flag) governs, as without a filter; its pose-age bound is part of the
-  // filter (a barrier built on old poses is no barrier).
-  auto isLoad = [&](const SafetyBody& b) { return load && b.name == load->name; };
-  if (!params_.enabled) {  // pass-through: only the clearance is measured
-    for (const SafetyBody& b : bodies)
-      if (b.radius_m > 0 && b.position.allFinite() && !isLoad(b))
-        out.clearance_m = std::min(out.clearance_m, (b.position - x).norm() - self_radius_m - b.radius_m);
-    out.wheels = nominal;
-    out.v_mps = (nominal.left_mps + nominal.right_mps) / 2;
-    out.w_radps = (nominal.right_mps - nominal.left_mps) / wheel_base_m_;
-    return out;
-  }
-  if (!(self_age_s <= params_.pose_max_age_s) || !x.allFinite() || !std::isfinite(self.yaw))
-    return stop("pose of " + self_name + " is stale");
-  const bool carrying = load && load->radius_m > 0;
-  if (carrying && (load->stale || !(load->age_s <= params_.pose_max_age_s) || !load->position.allFinite()))
-    return stop("pose of " + load->name + " is stale");
+/// The robot in one cycle: its centre `x`, heading `e`, and the controlled point `p`,
+/// `l` ahead of the axle. A command z = (v, l w) moves p by z1 e + z2 e_perp.
+struct Frame {
+  Eigen::Vector2d x, e, e_perp, p;
+  double l;
+  /// A table-frame vector in the robot's frame (the frame of z).
+  Eigen::Vector2d local(const Eigen::Vector2d& v) const { return {v.dot(e), v.dot(e_perp)}; }
+};
 
-  // z = (v, l w): p' = z1 e + z2 e_perp, so |z - z0| is the change of p'.
-  const double v0 = (nominal.left_mps + nominal.right_mps) / 2;
-  const double w0 = (nominal.right_mps - nominal.left_mps) / wheel_base_m_;
-  const Eigen::Vector2d z0(v0, l * w0);
+/// The body nearest to holding the robot or its load (not the target), to go round.
+struct Nearest {
+  double h = std::numeric_limits<double>::infinity();
+  Eigen::Vector2d round_left{0, 0};  ///< unit z moving the held disc round it, keeping it on the left
+  const SafetyBody* body = nullptr;
+  bool of_load = false;  ///< held by the load's disc (else the robot's)
+};
 
+/// One cycle's half-planes in z, the body each belongs to (-1 for the limits), the body to
+/// go round, and the smallest gap to any body.
+struct Barriers {
   std::vector<HalfPlane> cs;
-  std::vector<int> owner;  // body index of each constraint, -1 for the limits
-  // The body nearest to holding the robot or its load (not the target): the command z that
-  // moves the held disc round it keeping it on the left, and whether it stands still.
-  double nearest_h = std::numeric_limits<double>::infinity();
-  Eigen::Vector2d round_left(0, 0);
-  bool nearest_standing = false;
-  const SafetyBody* nearest_body = nullptr;  // the go-round's side is decided per body (and disc: robot or load)
-  bool nearest_of_load = false;
-  // Going round keeping the body on the left is moving the disc along the tangent t =
-  // (-a.y, a.x), a the unit vector from the body to the disc in the robot's frame. For the
-  // robot's point, z = t; for the load at r = q - x (q' = z1 e + (z2 / l) r^perp), the z
-  // that moves q along t.
-  const auto nearest = [&](double h, const Eigen::Vector2d& a, const SafetyBody& b, bool of_load) {
-    if (!(h < nearest_h)) return;
-    const Eigen::Vector2d t(-a.y(), a.x());
-    Eigen::Vector2d z = t;
-    if (of_load) {
-      const Eigen::Vector2d r = load->position - x;
-      const double rx = r.dot(e), ry = r.dot(e_perp);  // the load ahead: rx > 0
-      if (!(rx > 1e-6)) return;                        // beside or behind: no lever to go round with
-      z = Eigen::Vector2d(t.x() + t.y() * ry / rx, l * t.y() / rx);
-    }
-    nearest_h = h, round_left = z.normalized(), nearest_standing = b.standing;
-    nearest_body = &b, nearest_of_load = of_load;
-  };
-  cs.reserve(bodies.size() + 6);
-  for (size_t j = 0; j < bodies.size(); ++j) {
-    const SafetyBody& b = bodies[j];
-    if (b.radius_m <= 0 || !b.position.allFinite() || isLoad(b)) continue;
-    const double centres = (b.position - x).norm();
-    const double load_centres = carrying ? (b.position - load->position).norm() : 1e9;
-    if (centres > params_.range_m && load_centres > params_.range_m) continue;
-    if (b.stale || !(b.age_s <= params_.pose_max_age_s)) return stop("pose of " + b.name + " is stale");
-    const double share = b.robot ? 0.5 : 1.0;
-    if (carrying && load_centres > 1e-9) {
-      // The load's disc: q' = v e + w r^perp with r = q - x, i.e. z1 e + (z2 / l) r^perp.
-      const Eigen::Vector2d n = (load->position - b.position) / load_centres;
-      const Eigen::Vector2d r = load->position - x, r_perp(-r.y(), r.x());
-      const bool touch = b.name == target || b.load_touchable;
-      const double h = load_centres - (load->radius_m + b.radius_m + (touch ? 0.0 : params_.margin_m));
-      if (b.name != target) nearest(h, Eigen::Vector2d(n.dot(e), n.dot(e_perp)), b, true);
-      out.clearance_m = std::min(out.clearance_m, load_centres - load->radius_m - b.radius_m);
-      cs.push_back(
-          {Eigen::Vector2d(-n.dot(e), -n.dot(r_perp) / l), std::max(0.0, share * params_.barrier_gain_hz * h)});
-      owner.push_back(static_cast<int>(j));
-    }
-    if (centres > params_.range_m) continue;
-    const double contact = self_radius_m + b.radius_m;
-    out.clearance_m = std::min(out.clearance_m, centres - contact);
-    HalfPlane c;
-    if (b.name == target || b.touchable) {
-      // The motion's own target: the centres may close in to contact, no margin.
-      if (centres < 1e-9) continue;
-      const Eigen::Vector2d n = (x - b.position) / centres;
-      const double h = centres - contact;
-      c.a = Eigen::Vector2d(-n.dot(e), 0.0);  // the centre moves with v alone
-      c.b = std::max(0.0, share * params_.barrier_gain_hz * h);
-      // A body it ends against but not its target, in the way short of the end (a robot
-      // parked where this one ends touching it, approached from the wrong side): held, it
-      // is gone round as any other body. Its target it ends at, not round.
-      if (b.name != target) nearest(h, Eigen::Vector2d(n.dot(e), n.dot(e_perp)), b, false);
-    } else {
-      const Eigen::Vector2d d = p - b.position;
-      const double dist = d.norm();
-      if (dist < 1e-9) continue;
-      const Eigen::Vector2d n = d / dist;
-      const double h = dist - (contact + params_.margin_m + l);
-      c.a = Eigen::Vector2d(-n.dot(e), -n.dot(e_perp));
-      c.b = std::max(0.0, share * params_.barrier_gain_hz * h);
-      nearest(h, -c.a, b, false);  // -c.a: away from it, in the robot's frame
-    }
-    cs.push_back(c);
-    owner.push_back(static_cast<int>(j));
+  std::vector<int> owner;
+  Nearest nearest;
+  double clearance_m = 1e9;
+  void add(const HalfPlane& c, int body) { cs.push_back(c), owner.push_back(body); }
+};
+
+bool isLoad(const SafetyBody* load, const SafetyBody& b) {
+  return load && b.name == load->name;
+}
+bool mayTouch(const SafetyBody& b, const std::string& target) {
+  return b.name == target || b.touchable;
+}
+
+/// Records `b` as the body nearest to holding the disc if its barrier value `h` is the
+/// smallest so far; `a` is the unit vector from the body to the disc, robot frame. Going
+/// round keeping the body on the left moves the disc along t = (-a.y, a.x): for the
+/// robot's point z = t; for the load at r = q - x (q' = z1 e + (z2 / l) r^perp), the z
+/// that moves q along t.
+void considerNearest(Nearest& n, double h, const Eigen::Vector2d& a, const SafetyBody& b, const Frame& f,
+                     const SafetyBody* load) {
+  if (!(h < n.h)) return;
+  const Eigen::Vector2d t(-a.y(), a.x());
+  Eigen::Vector2d z = t;
+  if (load) {
+    const Eigen::Vector2d r = f.local(load->position - f.x);  // the load ahead: r.x > 0
+    if (!(r.x() > 1e-6)) return;                              // beside or behind: no lever to go round with
+    z = Eigen::Vector2d(t.x() + t.y() * r.y() / r.x(), f.l * t.y() / r.x());
   }
-  // Limits: |v| and |w| and each wheel, as half-planes in z.
-  const double vmax = max_wheel_mps_, zw = l * max_turn_radps_;
-  const double k = wheel_base_m_ / (2 * l);  // wheel = v -+ w b/2 = z1 -+ k z2
+  n = {h, z.normalized(), &b, load != nullptr};
+}
+
+/// The barrier of body `b` on the carried load's disc: q' = z1 e + (z2 / l) r^perp, r = q - x.
+void loadBarrier(Barriers& out, const SafetyParams& sp, const Frame& f, const SafetyBody& load, const SafetyBody& b,
+                 int index, const std::string& target, double share) {
+  const double centres = (b.position - load.position).norm();
+  if (centres <= 1e-9) return;
+  const Eigen::Vector2d n = (load.position - b.position) / centres;
+  const Eigen::Vector2d r = load.position - f.x, r_perp(-r.y(), r.x());
+  const bool touch = b.name == target || b.load_touchable;
+  const double h = centres - (load.radius_m + b.radius_m + (touch ? 0.0 : sp.margin_m));
+  if (b.name != target) considerNearest(out.nearest, h, f.local(n), b, f, &load);
+  out.clearance_m = std::min(out.clearance_m, centres - load.radius_m - b.radius_m);
+  out.add({Eigen::Vector2d(-n.dot(f.e), -n.dot(r_perp) / f.l), std::max(0.0, share * sp.barrier_gain_hz * h)}, index);
+}
+
+/// The barrier of body `b` on the robot's own disc.
+void robotBarrier(Barriers& out, const SafetyParams& sp, const Frame& f, double self_radius_m, const SafetyBody& b,
+                  int index, const std::string& target, double share) {
+  const double centres = (b.position - f.x).norm();
+  const double contact = self_radius_m + b.radius_m;
+  out.clearance_m = std::min(out.clearance_m, centres - contact);
+  HalfPlane c;
+  if (mayTouch(b, target)) {
+    // The motion's own target: the centres may close in to contact, no margin.
+    if (centres < 1e-9) return;
+    const Eigen::Vector2d n = (f.x - b.position) / centres;
+    const double h = centres - contact;
+    c.a = Eigen::Vector2d(-n.dot(f.e), 0.0);  // the centre moves with v alone
+    c.b = std::max(0.0, share * sp.barrier_gain_hz * h);
+    // A body it ends against but not its target, in the way short of the end (a robot
+    // parked where this one ends touching it, approached from the wrong side): held, it
+    // is gone round as any other body. Its target it ends at, not round.
+    if (b.name != target) considerNearest(out.nearest, h, f.local(n), b, f, nullptr);
+  } else {
+    const Eigen::Vector2d d = f.p - b.position;
+    const double dist = d.norm();
+    if (dist < 1e-9) return;
+    const Eigen::Vector2d n = d / dist;
+    const double h = dist - (contact + sp.margin_m + f.l);
+    c.a = -f.local(n);
+    c.b = std::max(0.0, share * sp.barrier_gain_hz * h);
+    considerNearest(out.nearest, h, -c.a, b, f, nullptr);  // -c.a: away from it, in the robot's frame
+  }
+  out.add(c, index);
+}
+
+/// The wheel limits as half-planes in z: |v|, |w| and each wheel (v -+ w b/2 = z1 -+ k z2).
+void addWheelLimits(Barriers& out, double l, double wheel_base_m, double max_wheel_mps, double max_turn_radps) {
+  const double vmax = max_wheel_mps, zw = l * max_turn_radps, k = wheel_base_m / (2 * l);
   for (const HalfPlane& c :
        {HalfPlane{{1, 0}, vmax}, HalfPlane{{-1, 0}, vmax}, HalfPlane{{0, 1}, zw}, HalfPlane{{0, -1}, zw},
-        HalfPlane{{1, -k}, max_wheel_mps_}, HalfPlane{{-1, k}, max_wheel_mps_}, HalfPlane{{1, k}, max_wheel_mps_},
-        HalfPlane{{-1, -k}, max_wheel_mps_}}) {
-    cs.push_back(c);
-    owner.push_back(-1);
-  }
+        HalfPlane{{1, -k}, vmax}, HalfPlane{{-1, k}, vmax}, HalfPlane{{1, k}, vmax}, HalfPlane{{-1, -k}, vmax}})
+    out.add(c, -1);
+}
 
-  // Deadlock resolution: while resolving, the point goes around the nearest body on the
-  // side decided when the go-round began (resolve_side_: +1 keeps it on the left). At least
-  // a quarter of the top speed: a nominal that only turns on the spot would not get round
-  // anything.
+const SafetyBody* findBody(const std::vector<SafetyBody>& bodies, const std::string& name) {
+  const auto b = std::find_if(bodies.begin(), bodies.end(), [&](const SafetyBody& s) { return s.name == name; });
+  return b == bodies.end() ? nullptr : &*b;
+}
+
+/// Held by bodies the motion may end against only, within the margin of touching one:
+/// that one's name ("" otherwise).
+std::string atContactWith(const std::vector<std::string>& blocking, const std::vector<SafetyBody>& bodies,
+                          const std::string& target, const Eigen::Vector2d& x, double self_radius_m, double margin_m) {
+  std::string touching;
+  for (const std::string& name : blocking) {
+    const SafetyBody* b = findBody(bodies, name);
+    if (!b || !mayTouch(*b, target)) return "";
+    if (touching.empty() && (b->position - x).norm() - self_radius_m - b->radius_m <= margin_m) touching = b->name;
+  }
+  return touching;
+}
+
+}  // namespace
+
+SafetyCommand SafetyFilter::passThrough(const Pose2D& self, double self_radius_m, const WheelSpeeds& nominal,
+                                        const std::vector<SafetyBody>& bodies, const SafetyBody* load) const {
+  SafetyCommand out;
+  for (const SafetyBody& b : bodies)
+    if (b.radius_m > 0 && b.position.allFinite() && !isLoad(load, b))
+      out.clearance_m = std::min(out.clearance_m, (b.position - self.position()).norm() - self_radius_m - b.radius_m);
+  out.wheels = nominal;
+  out.v_mps = (nominal.left_mps + nominal.right_mps) / 2;
+  out.w_radps = (nominal.right_mps - nominal.left_mps) / wheel_base_m_;
+  return out;
+}
+
+SafetyCommand SafetyFilter::stop(const WheelSpeeds& nominal, std::string why) {
+  SafetyCommand out;
+  out.modified = !nominal.isZero();
+  out.stale = true;
+  out.reason = std::move(why);
+  reset();
+  return out;
+}
+
+std::string SafetyFilter::staleName(const std::string& self_name, const Pose2D& self, double self_age_s,
+                                    const std::vector<SafetyBody>& bodies, const SafetyBody* load) const {
+  const Eigen::Vector2d x = self.position();
+  if (!(self_age_s <= params_.pose_max_age_s) || !x.allFinite() || !std::isfinite(self.yaw)) return self_name;
+  const bool carrying = load && load->radius_m > 0;
+  auto stale = [&](const SafetyBody& b) { return b.stale || !(b.age_s <= params_.pose_max_age_s); };
+  if (carrying && (stale(*load) || !load->position.allFinite())) return load->name;
+  for (const SafetyBody& b : bodies) {
+    if (b.radius_m <= 0 || !b.position.allFinite() || isLoad(load, b)) continue;
+    const bool near_load = carrying && (b.position - load->position).norm() <= params_.range_m;
+    if (((b.position - x).norm() <= params_.range_m || near_load) && stale(b)) return b.name;
+  }
+  return "";
+}
+
+Eigen::Vector2d SafetyFilter::goRound(const Eigen::Vector2d& z0, const SafetyBody* body, bool of_load,
+                                      const Eigen::Vector2d& round_left, double now_s) {
+  // While resolving, the point goes around the nearest body on the side decided when the
+  // go-round began (resolve_side_: +1 keeps it on the left). At least a quarter of the top
+  // speed: a nominal that only turns on the spot would not get round anything.
+  if (!(now_s < resolve_until_s_ && body)) return z0;
+  if (body->name != resolve_body_ || of_load != resolve_of_load_) decideSide(z0, body, of_load, round_left);
+  return std::max(z0.norm(), 0.25 * max_wheel_mps_) * resolve_side_ * round_left;
+}
+
+void SafetyFilter::decideSide(const Eigen::Vector2d& z0, const SafetyBody* body, bool of_load,
+                              const Eigen::Vector2d& round_left) {
   // Which way round. A body that moves too runs its own filter: both keep each other on
   // the left (the right-hand rule), so two robots face to face veer apart, never the
   // same way. A body standing still decides nothing: the robot goes round on the side its
@@ -230,17 +275,50 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   // a tie -- the other way it would go the long way round and its command would turn it
   // back into the body before it got there. Decided for one body: another body nearest
   // later in the go-round is decided for again (its own standing flag and side).
-  const auto decideSide = [&] {
-    resolve_side_ = nearest_standing && z0.dot(round_left) < 0 ? -1 : 1;
-    if (nearest_body) resolve_body_ = nearest_body->name, resolve_of_load_ = nearest_of_load;
-  };
-  Eigen::Vector2d goal_z = z0;
-  const bool going_round = now_s < resolve_until_s_ && nearest_body;
-  if (going_round) {
-    if (nearest_body->name != resolve_body_ || nearest_of_load != resolve_of_load_) decideSide();
-    goal_z = std::max(z0.norm(), 0.25 * vmax) * resolve_side_ * round_left;
+  resolve_side_ = body && body->standing && z0.dot(round_left) < 0 ? -1 : 1;
+  if (body) resolve_body_ = body->name, resolve_of_load_ = of_load;
+}
+
+SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& self, double self_radius_m,
+                                   double self_age_s, const WheelSpeeds& nominal, double progress_m,
+                                   const std::vector<SafetyBody>& bodies, const std::string& target, double now_s,
+                                   const SafetyBody* load) {
+  // Disabled, the filter is a pass-through: the follower's own stale-pose rule (the
+  // tracker's stale flag) governs, as without a filter; its pose-age bound is part of the
+  // filter (a barrier built on old poses is no barrier).
+  if (!params_.enabled) return passThrough(self, self_radius_m, nominal, bodies, load);
+  const std::string stale = staleName(self_name, self, self_age_s, bodies, load);
+  if (!stale.empty()) return stop(nominal, "pose of " + stale + " is stale");
+
+  const double l = params_.projection_m;
+  const Eigen::Vector2d x = self.position(), e(std::cos(self.yaw), std::sin(self.yaw));
+  const Frame f{x, e, {-e.y(), e.x()}, x + l * e, l};
+  if (!(load && load->radius_m > 0)) load = nullptr;  // carrying nothing
+
+  // z = (v, l w): p' = z1 e + z2 e_perp, so |z - z0| is the change of p'.
+  const double v0 = (nominal.left_mps + nominal.right_mps) / 2;
+  const double w0 = (nominal.right_mps - nominal.left_mps) / wheel_base_m_;
+  const Eigen::Vector2d z0(v0, l * w0);
+
+  Barriers bs;
+  bs.cs.reserve(bodies.size() + 8);
+  for (size_t j = 0; j < bodies.size(); ++j) {
+    const SafetyBody& b = bodies[j];
+    if (b.radius_m <= 0 || !b.position.allFinite() || isLoad(load, b)) continue;
+    const double share = b.robot ? 0.5 : 1.0;  // a robot runs its own filter: it takes the other half
+    const bool near_robot = (b.position - x).norm() <= params_.range_m;
+    if (!near_robot && !(load && (b.position - load->position).norm() <= params_.range_m)) continue;
+    if (load) loadBarrier(bs, params_, f, *load, b, static_cast<int>(j), target, share);
+    if (near_robot) robotBarrier(bs, params_, f, self_radius_m, b, static_cast<int>(j), target, share);
   }
-  const Eigen::Vector2d z = closestFeasible(goal_z, cs);
+  addWheelLimits(bs, l, wheel_base_m_, max_wheel_mps_, max_turn_radps_);
+
+  const bool going_round = now_s < resolve_until_s_ && bs.nearest.body;
+  const Nearest& nearest = bs.nearest;
+  const Eigen::Vector2d z =
+      closestFeasible(goRound(z0, nearest.body, nearest.of_load, nearest.round_left, now_s), bs.cs);
+  SafetyCommand out;
+  out.clearance_m = bs.clearance_m;
   out.v_mps = z.x();
   out.w_radps = z.y() / l;
   out.wheels = twistToWheels(out.v_mps, out.w_radps, wheel_base_m_);
@@ -249,71 +327,83 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   // Blocked: the nominal moves the point, the filtered command hardly does.
   const double moving = 1e-3;  // m/s of the point: below this the nominal itself stands still
   out.blocked = z0.norm() > moving && z.norm() < params_.blocked_fraction * z0.norm();
-  for (size_t i = 0; i < cs.size(); ++i)
-    if (owner[i] >= 0 && cs[i].a.dot(z) >= cs[i].b - 1e-6 * (1e-3 + std::abs(cs[i].b)) - 1e-9)
-      out.blocking.push_back(bodies[owner[i]].name);
-  if (out.blocked && !out.blocking.empty()) {
-    std::string touching;
-    bool only_ends = true;
-    for (const std::string& name : out.blocking) {
-      const auto b = std::find_if(bodies.begin(), bodies.end(), [&](const SafetyBody& s) { return s.name == name; });
-      if (b == bodies.end() || !(b->name == target || b->touchable)) {
-        only_ends = false;
-        break;
-      }
-      if (touching.empty() && (b->position - x).norm() - self_radius_m - b->radius_m <= params_.margin_m)
-        touching = b->name;
-    }
-    if (only_ends) out.at_contact_with = touching;
-  }
+  for (size_t i = 0; i < bs.cs.size(); ++i)
+    if (bs.owner[i] >= 0 && bs.cs[i].a.dot(z) >= bs.cs[i].b - 1e-6 * (1e-3 + std::abs(bs.cs[i].b)) - 1e-9)
+      out.blocking.push_back(bodies[bs.owner[i]].name);
+  if (out.blocked && !out.blocking.empty())
+    out.at_contact_with = atContactWith(out.blocking, bodies, target, x, self_radius_m, params_.margin_m);
 
+  const bool decide = trackHold(out, self_name, x, self_radius_m, progress_m, bodies, going_round, now_s);
+  // Which way round, once per body while it is held: decided again every go-round, a
+  // command pointing at a standing body (its path runs on behind it) turns it to one
+  // side or the other with the noise, and the robot goes back and forth round it
+  // without getting past.
+  if (decide && (!nearest.body || nearest.body->name != resolve_body_ || nearest.of_load != resolve_of_load_))
+    decideSide(z0, nearest.body, nearest.of_load, nearest.round_left);
+  return out;
+}
+
+bool SafetyFilter::trackHold(SafetyCommand& out, const std::string& self_name, const Eigen::Vector2d& x,
+                             double self_radius_m, double progress_m, const std::vector<SafetyBody>& bodies,
+                             bool going_round, double now_s) {
   // Held: the filter keeps changing the command and the robot does not advance progress_m
-  // along its path -- frozen in place, or circling with others (a livelock) alike. Held
-  // for resolve_after_s: go round (above) for resolve_after_s; for deadlock_after_s: a
-  // deadlock, reported.
+  // along its path. Held for resolve_after_s: go round (goRound) for resolve_after_s.
   if (!out.modified && !out.blocked) {
     stuck_since_s_ = -1;
     held_by_.clear();
+    holders_.clear();
     resolve_body_.clear();  // free: the next hold decides its side afresh
-    return out;
+    return false;
   }
   if (stuck_since_s_ < 0 || progress_m >= stuck_progress_m_ + params_.progress_m) {
-    stuck_since_s_ = now_s;
+    stuck_since_s_ = waiting_since_s_ = now_s;
     stuck_progress_m_ = progress_m;
     held_by_.clear();
+    holders_.clear();
+  }
+  // A body holding it has moved progress_m since it began to: the robot waits its turn in
+  // a crowd that clears (a queue, a crossing gone round one by one), it is not deadlocked.
+  for (const auto& [name, at] : holders_) {
+    const SafetyBody* b = findBody(bodies, name);
+    if (b && (b->position - at).norm() >= params_.progress_m) {
+      waiting_since_s_ = now_s;
+      holders_.clear();
+      break;
+    }
   }
   // Who holds it since it last advanced: the bodies whose constraints shape the command,
   // and the one it goes round (a go-round command may touch no constraint at all).
   const auto held = [&](const std::string& name) {
-    if (!name.empty() && std::find(held_by_.begin(), held_by_.end(), name) == held_by_.end()) held_by_.push_back(name);
+    if (name.empty()) return;
+    if (std::find(held_by_.begin(), held_by_.end(), name) == held_by_.end()) held_by_.push_back(name);
+    const SafetyBody* b = findBody(bodies, name);
+    const bool known = std::any_of(holders_.begin(), holders_.end(), [&](const auto& h) { return h.first == name; });
+    if (b && !known) holders_.emplace_back(name, b->position);
   };
   for (const std::string& name : out.blocking) held(name);
   if (going_round) held(resolve_body_);
   const double stuck_s = now_s - stuck_since_s_;
-  if (stuck_s >= params_.resolve_after_s && now_s >= resolve_until_s_) {
-    resolve_until_s_ = now_s + params_.resolve_after_s;
-    // Which way round (above), once per body while it is held: decided again every
-    // go-round, a command pointing at a standing body (its path runs on behind it) turns
-    // it to one side or the other with the noise, and the robot goes back and forth round
-    // it without getting past.
-    if (!nearest_body || nearest_body->name != resolve_body_ || nearest_of_load != resolve_of_load_) decideSide();
-  }
-  if (stuck_s >= params_.deadlock_after_s) {
-    out.deadlock = true;
-    std::vector<std::string> near = held_by_;
-    if (near.empty())  // none recorded: the bodies within a margin of holding it
-      for (const SafetyBody& b : bodies)
-        if (b.radius_m > 0 && (b.position - x).norm() - self_radius_m - b.radius_m < 3 * params_.margin_m + l)
-          near.push_back(b.name);
-    std::string names;
-    for (const auto& n : near) names += (names.empty() ? "" : ", ") + n;
-    char what[96];
-    std::snprintf(what, sizeof what, " has not advanced %.0f cm along its path in %.1f s", params_.progress_m * 100,
-                  stuck_s);
-    out.reason = "deadlock: " + self_name + what + ", held by the safety filter" +
-                 (names.empty() ? std::string() : " against " + names);
-  }
-  return out;
+  const bool go_round = stuck_s >= params_.resolve_after_s && now_s >= resolve_until_s_;
+  if (go_round) resolve_until_s_ = now_s + params_.resolve_after_s;
+  // A deadlock: neither the robot nor any body holding it has moved for deadlock_after_s,
+  // or the robot has not advanced for wait_limit_s while they move (a crowd that never
+  // clears, robots circling each other).
+  if (now_s - waiting_since_s_ < params_.deadlock_after_s && stuck_s < params_.wait_limit_s) return go_round;
+  out.deadlock = true;
+  std::vector<std::string> near = held_by_;
+  if (near.empty())  // none recorded: the bodies within a margin of holding it
+    for (const SafetyBody& b : bodies)
+      if (b.radius_m > 0 &&
+          (b.position - x).norm() - self_radius_m - b.radius_m < 3 * params_.margin_m + params_.projection_m)
+        near.push_back(b.name);
+  std::string names;
+  for (const auto& n : near) names += (names.empty() ? "" : ", ") + n;
+  char what[96];
+  std::snprintf(what, sizeof what, " has not advanced %.0f cm along its path in %.1f s", params_.progress_m * 100,
+                stuck_s);
+  out.reason = "deadlock: " + self_name + what + ", held by the safety filter" +
+               (names.empty() ? std::string() : " against " + names);
+  return go_round;
 }
 
 }  // namespace ddace::exec

@@ -25,6 +25,62 @@ std::string joinKey(const std::string& entity, const std::string& action, const 
   return entity + ":" + action + ":" + target;
 }
 
+using Canonical = std::vector<Eigen::Vector2d>;
+
+/// The per-progress mean and within-progress sum of squares of `segments` on one axis: all
+/// a GP of repeated inputs needs.
+RepeatedData repeatedData(const std::vector<const Canonical*>& segments, int points, int axis) {
+  RepeatedData d;
+  const auto n = static_cast<double>(segments.size());
+  d.inputs = progressGrid(points);
+  d.counts = Eigen::VectorXd::Constant(points, n);
+  d.means = Eigen::VectorXd::Zero(points);
+  d.total = points * n;
+  for (const Canonical* path : segments)
+    for (int i = 0; i < points; ++i) d.means[i] += (*path)[i][axis];
+  d.means /= n;
+  for (const Canonical* path : segments)
+    for (int i = 0; i < points; ++i) d.residual_ss += std::pow((*path)[i][axis] - d.means[i], 2);
+  return d;
+}
+
+/// How well grouping `segments` by `group` predicts a held-out one: each segment against the
+/// mean of the others of its group (a group of one: of all the others), the RMS distance
+/// over progress, summed (canonical units).
+double heldOutError(const std::vector<const Canonical*>& segments, const std::vector<int>& group) {
+  const size_t n = segments.size(), points = segments.front()->size();
+  std::map<int, std::pair<Canonical, int>> sums;
+  Canonical all(points, Eigen::Vector2d::Zero());
+  for (size_t k = 0; k < n; ++k) {
+    auto& [sum, count] = sums[group[k]];
+    if (sum.empty()) sum.assign(points, Eigen::Vector2d::Zero());
+    for (size_t i = 0; i < points; ++i) sum[i] += (*segments[k])[i], all[i] += (*segments[k])[i];
+    ++count;
+  }
+  double total = 0;
+  for (size_t k = 0; k < n; ++k) {
+    const auto& [sum, count] = sums.at(group[k]);
+    const bool alone = count == 1;
+    const Canonical& from = alone ? all : sum;
+    const double others = alone ? static_cast<double>(n - 1) : count - 1;
+    double ss = 0;
+    for (size_t i = 0; i < points; ++i) {
+      const Eigen::Vector2d x = (*segments[k])[i];
+      ss += ((from[i] - x) / others - x).squaredNorm();
+    }
+    total += std::sqrt(ss / static_cast<double>(points));
+  }
+  return total;
+}
+
+/// Whether two groupings of the same segments are one partition.
+bool samePartition(const std::vector<int>& a, const std::vector<int>& b) {
+  std::map<int, int> ab, ba;
+  for (size_t k = 0; k < a.size(); ++k)
+    if (ab.emplace(a[k], b[k]).first->second != b[k] || ba.emplace(b[k], a[k]).first->second != a[k]) return false;
+  return true;
+}
+
 // The fields of primitives.yaml through the one YamlChecker: each records its
 // diagnostic (file:line:column) and says whether the value is usable, so a file is
 // refused with every problem at once. `where` prefixes the field's name in messages.
@@ -195,6 +251,14 @@ bool readGp(YamlChecker& c, const YAML::Node& node, int points, int segments, co
 
 }  // namespace
 
+std::string motionClass(const std::string& entity_kind, const std::string& action, const std::string& target_kind) {
+  return entity_kind + "/" + action + "/" + target_kind;
+}
+
+std::string roleKey(const std::string& motion_class, int step) {
+  return motion_class + "@" + std::to_string(step);
+}
+
 GpOptions defaultPrimitiveGpOptions() {
   GpOptions o;
   o.use_constant = true;
@@ -225,6 +289,7 @@ std::map<std::string, KeySegments> canonicalSegments(const task::TaskDir& train,
       }
       const CanonicalFrame frame(path.front(), path.back());
       c.canonical.push_back(frame.toCanonical(resampleByProgress(path, options.points)));
+      c.steps.push_back(seg.step);
     }
   }
   return by_key;
@@ -240,32 +305,71 @@ PrimitiveLibrary PrimitiveLibrary::fit(const task::TaskDir& train, const Primiti
   lib.options_ = options;
   lib.end_points_ = task::learnEndPoints(train.spec, train.demos);
   const int n = options.points;
+  const auto fitted = [&](Primitive p, const std::vector<const Canonical*>& segments) {
+    p.segments = static_cast<int>(segments.size());
+    p.x = GaussianProcess::fit(repeatedData(segments, n, 0), options.gp);
+    p.y = GaussianProcess::fit(repeatedData(segments, n, 1), options.gp);
+    return p;
+  };
+  // Each class's segments, grouped once by key and once by step (header comment, "Roles").
+  struct Class {
+    std::vector<const Canonical*> segments;
+    std::vector<int> by_key, by_step;
+  };
+  std::map<std::string, Class> classes;
+  int key_index = 0;
   for (const auto& [key, c] : by_key) {
     Primitive p;
     p.key = key;
     p.entity = train.spec.entities[c.token.entity].name;
     p.action = c.token.action;
     p.target = train.spec.entities[c.token.target].name;
-    p.segments = static_cast<int>(c.canonical.size());
     p.skipped_segments = c.skipped;
-    if (p.segments == 0) continue;  // nothing usable: generation falls back for this key
-    for (int axis = 0; axis < 2; ++axis) {
-      RepeatedData d;
-      d.inputs = progressGrid(n);
-      d.counts = Eigen::VectorXd::Constant(n, p.segments);
-      d.means = Eigen::VectorXd::Zero(n);
-      d.total = static_cast<double>(n) * p.segments;
-      for (const auto& path : c.canonical)
-        for (int i = 0; i < n; ++i) d.means[i] += path[i][axis];
-      d.means /= p.segments;
-      for (const auto& path : c.canonical)
-        for (int i = 0; i < n; ++i) d.residual_ss += std::pow(path[i][axis] - d.means[i], 2);
-      (axis == 0 ? p.x : p.y) = GaussianProcess::fit(d, options.gp);
+    std::vector<const Canonical*> segments;
+    for (const auto& path : c.canonical) segments.push_back(&path);
+    if (segments.empty()) continue;  // nothing usable: generation falls back for this key
+    Class& cls = classes[motionClass(lib.kinds_.at(p.entity), p.action, lib.kinds_.at(p.target))];
+    for (size_t k = 0; k < segments.size(); ++k) {
+      cls.segments.push_back(segments[k]);
+      cls.by_key.push_back(key_index);
+      cls.by_step.push_back(c.steps[k]);
     }
-    lib.primitives_.emplace(key, std::move(p));
+    ++key_index;
+    lib.primitives_.emplace(key, fitted(std::move(p), segments));
   }
+  for (const auto& [name, cls] : classes) {
+    if (cls.segments.size() < 2 || samePartition(cls.by_key, cls.by_step) ||
+        !(heldOutError(cls.segments, cls.by_step) < heldOutError(cls.segments, cls.by_key)))
+      continue;  // keyed by name
+    std::map<int, std::vector<const Canonical*>> by_step;
+    for (size_t k = 0; k < cls.segments.size(); ++k) by_step[cls.by_step[k]].push_back(cls.segments[k]);
+    const auto a = name.find('/'), b = name.rfind('/');
+    for (const auto& [step, segments] : by_step) {
+      const std::string key = roleKey(name, step);
+      Primitive p;
+      p.key = key;
+      p.entity = name.substr(0, a);
+      p.action = name.substr(a + 1, b - a - 1);
+      p.target = name.substr(b + 1);
+      p.step = step;
+      lib.primitives_.emplace(key, fitted(std::move(p), segments));
+    }
+  }
+  lib.indexRoles();
   lib.cacheGrid();
   return lib;
+}
+
+void PrimitiveLibrary::indexRoles() {
+  roles_.clear();
+  for (const auto& [key, p] : primitives_)
+    if (p.step >= 0) roles_[motionClass(p.entity, p.action, p.target)][p.step] = key;
+}
+
+std::vector<std::string> PrimitiveLibrary::roleClasses() const {
+  std::vector<std::string> out;
+  for (const auto& entry : roles_) out.push_back(entry.first);
+  return out;
 }
 
 void PrimitiveLibrary::cacheGrid() {
@@ -312,11 +416,8 @@ void PrimitiveLibrary::canonical(const Primitive& primitive, int points, std::ve
 }
 
 const Primitive* PrimitiveLibrary::lookup(const std::string& entity, const std::string& action,
-                                          const std::string& target, bool& fell_back) const {
+                                          const std::string& target, int step, bool& fell_back) const {
   fell_back = false;
-  auto exact = primitives_.find(joinKey(entity, action, target));
-  if (exact != primitives_.end()) return &exact->second;
-  fell_back = true;
   // Kinds: of the requested names in the task tokens name (bound: boundTo's), of the
   // primitives' in the training task.
   const auto kindIn = [](const std::map<std::string, std::string>& kinds, const std::string& name) {
@@ -324,11 +425,25 @@ const Primitive* PrimitiveLibrary::lookup(const std::string& entity, const std::
     return it == kinds.end() ? std::string() : it->second;
   };
   const std::string entity_kind = kindIn(kinds_, entity), target_kind = kindIn(kinds_, target);
+  // A class keyed by role: its primitive of the step, or of the nearest demonstrated one
+  // (the earlier on a tie).
+  const auto role = roles_.find(motionClass(entity_kind, action, target_kind));
+  if (step >= 0 && role != roles_.end()) {
+    const std::map<int, std::string>& steps = role->second;
+    auto chosen = steps.lower_bound(step);
+    if (chosen == steps.end() || (chosen != steps.begin() && step - std::prev(chosen)->first <= chosen->first - step))
+      chosen = chosen == steps.begin() ? chosen : std::prev(chosen);
+    fell_back = chosen->first != step;
+    return &primitives_.at(chosen->second);
+  }
+  auto exact = primitives_.find(joinKey(entity, action, target));
+  if (exact != primitives_.end()) return &exact->second;
+  fell_back = true;
   // primitives_ is ordered by key, so the first of equally many segments wins the tie.
   const auto best = [&](bool same_entity, bool same_kinds) -> const Primitive* {
     const Primitive* chosen = nullptr;
     for (const auto& [key, p] : primitives_) {
-      if (p.action != action || (same_entity && p.entity != entity)) continue;
+      if (p.step >= 0 || p.action != action || (same_entity && p.entity != entity)) continue;
       if (same_kinds &&
           (kindIn(trained_kinds_, p.entity) != entity_kind || kindIn(trained_kinds_, p.target) != target_kind))
         continue;
@@ -380,7 +495,7 @@ GeneratedPath PrimitiveLibrary::generateFrom(const Primitive* primitive, bool fe
 }
 
 GeneratedPath PrimitiveLibrary::generate(const task::Token& token, const Eigen::Vector2d& start,
-                                         const Eigen::Vector2d& goal, int points) const {
+                                         const Eigen::Vector2d& goal, int points, int step) const {
   const int m = static_cast<int>(entities_.size());
   if (token.entity < 0 || token.entity >= m)
     throw Error("token entity index " + std::to_string(token.entity) + " is not an entity of task '" + task_ + "'");
@@ -389,12 +504,12 @@ GeneratedPath PrimitiveLibrary::generate(const task::Token& token, const Eigen::
   if (token.target >= m)
     throw Error("token target index " + std::to_string(token.target) + " is not an entity of task '" + task_ + "'");
   bool fell_back = false;
-  const Primitive* p = lookup(entities_[token.entity], token.action, entities_[token.target], fell_back);
+  const Primitive* p = lookup(entities_[token.entity], token.action, entities_[token.target], step, fell_back);
   return generateFrom(p, fell_back, start, goal, points);
 }
 
 GeneratedPath PrimitiveLibrary::generate(const std::string& key, const Eigen::Vector2d& start,
-                                         const Eigen::Vector2d& goal, int points) const {
+                                         const Eigen::Vector2d& goal, int points, int step) const {
   std::vector<std::string> parts;
   std::stringstream ss(key);
   for (std::string part; std::getline(ss, part, ':');) parts.push_back(part);
@@ -408,7 +523,7 @@ GeneratedPath PrimitiveLibrary::generate(const std::string& key, const Eigen::Ve
     }
   if (parts[0] == parts[2]) throw Error("key '" + key + "': an entity cannot move toward itself");
   bool fell_back = false;
-  const Primitive* p = lookup(parts[0], parts[1], parts[2], fell_back);
+  const Primitive* p = lookup(parts[0], parts[1], parts[2], step, fell_back);
   return generateFrom(p, fell_back, start, goal, points);
 }
 
@@ -442,7 +557,8 @@ std::string PrimitiveLibrary::text() const {
   YAML::Emitter out;
   out.SetDoublePrecision(17);
   out << YAML::Comment(
-      "ddace motion-primitive library (docs/gp.md). One primitive per (entity, action, target):\n"
+      "ddace motion-primitive library (docs/gp.md). One primitive per (entity, action, target),\n"
+      "and per step of a motion class keyed by role (entity and target then name kinds):\n"
       "an x-GP and a y-GP of canonical coordinates over progress s = linspace(0, 1, points),\n"
       "kernel C*RBF(length_scale) + White(noise_level), trained on `segments` segments.\n"
       "`means`/`residual_ss` are the per-progress mean and the within-progress sum of squares\n"
@@ -474,6 +590,7 @@ std::string PrimitiveLibrary::text() const {
     out << YAML::Key << "entity" << YAML::Value << p.entity;
     out << YAML::Key << "action" << YAML::Value << p.action;
     out << YAML::Key << "target" << YAML::Value << p.target;
+    if (p.step >= 0) out << YAML::Key << "step" << YAML::Value << p.step;
     out << YAML::Key << "segments" << YAML::Value << p.segments;
     out << YAML::Key << "skipped_segments" << YAML::Value << p.skipped_segments;
     out << YAML::Key << "x" << YAML::Value;
@@ -501,7 +618,7 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
   // Another format's fields would only add noise to the one error that matters.
   std::string format;
   if (textField(c, root, "format", "", format) && format != kPrimitivesFormat &&
-      format != kPrimitivesFormatWithoutEndPoints)
+      format != kPrimitivesFormatWithoutRoles && format != kPrimitivesFormatWithoutEndPoints)
     c.error(root["format"],
             "unsupported format '" + format + "' (expected " + kPrimitivesFormat +
                 (format == "ddace-primitives/1" ? "; this older library names no task: retrain the model" : "") + ")");
@@ -555,24 +672,40 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
   auto known = [&](const std::string& name) {
     return std::find(lib.entities_.begin(), lib.entities_.end(), name) != lib.entities_.end();
   };
+  const auto knownKind = [&](const std::string& kind) {
+    for (const auto& entry : lib.trained_kinds_)
+      if (entry.second == kind) return true;
+    return false;
+  };
   size_t means_read = 0;
   bool aliased = false;
   if (prims && prims.IsSequence())
     for (const auto& node : prims) {
       if (!c.expectMap(node, "a primitive")) continue;
-      c.onlyKeys(node, {"key", "entity", "action", "target", "segments", "skipped_segments", "x", "y"}, "a primitive");
+      c.onlyKeys(node, {"key", "entity", "action", "target", "step", "segments", "skipped_segments", "x", "y"},
+                 "a primitive");
       Primitive p;
       const bool named =
           YamlChecker::allOf({textField(c, node, "key", "", p.key), textField(c, node, "entity", "", p.entity),
                               textField(c, node, "action", "", p.action), textField(c, node, "target", "", p.target)});
       const std::string what = "primitive " + p.key;
-      if (named) {
+      // A role's primitive (format /4) names kinds and its step.
+      const bool role = static_cast<bool>(node["step"]);
+      if (role && format != kPrimitivesFormat)
+        c.error(node["step"], what + ": a " + format + " library has no role primitives");
+      else if (role) integer(c, node, "step", what + ": ", 0, kMaxPrimitiveSegments, p.step);
+      if (named && role) {
+        for (const auto& [field, kind] : {std::pair{"entity", p.entity}, std::pair{"target", p.target}})
+          if (!knownKind(kind)) c.error(node[field], what + ": '" + kind + "' is no kind of the library's entities");
+        if (p.key != roleKey(motionClass(p.entity, p.action, p.target), p.step))
+          c.error(node["key"], "primitive key '" + p.key + "' does not match its kinds, action and step");
+      } else if (named) {
         if (!known(p.entity)) c.error(node["entity"], what + ": unknown entity '" + p.entity + "'");
         if (!known(p.target)) c.error(node["target"], what + ": unknown target '" + p.target + "'");
         if (p.key != joinKey(p.entity, p.action, p.target))
           c.error(node["key"], "primitive key '" + p.key + "' does not match its entity, action and target");
-        if (lib.primitives_.count(p.key)) c.error(node["key"], what + " appears twice");
       }
+      if (named && lib.primitives_.count(p.key)) c.error(node["key"], what + " appears twice");
       const bool counted = integer(c, node, "segments", what + ": ", 1, kMaxPrimitiveSegments, p.segments);
       const bool skipped_ok =
           integer(c, node, "skipped_segments", what + ": ", 0, kMaxPrimitiveSegments, p.skipped_segments);
@@ -597,6 +730,7 @@ PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::str
     return std::tie(a.line, a.column) < std::tie(b.line, b.column);
   });
   if (!all.empty()) throw Error(all);
+  lib.indexRoles();
   lib.cacheGrid();
   return lib;
 }

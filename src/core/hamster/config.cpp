@@ -272,4 +272,15 @@ std::vector<RobotConfig> selectRobots(const BridgeConfig& config, const std::vec
   return out;
 }
 
+std::string unusedRobotsWarning(const BridgeConfig& config, const std::vector<std::string>& robots,
+                                const std::string& task, const std::string& config_file) {
+  std::string others;
+  for (const auto& r : config.robots)
+    if (std::find(robots.begin(), robots.end(), r.name) == robots.end())
+      others += (others.empty() ? "" : ", ") + r.name;
+  if (others.empty()) return "";
+  return config_file + " also configures " + others + ", which task '" + task +
+         "' does not have: not connected (no action needed; remove them from the file to silence this)";
+}
+
 }  // namespace ddace::hamster

@@ -78,7 +78,7 @@ EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, 
       // A goal bodies stand on (one on it, others touching that one): touching any of them
       // from any side is a reading of the goal too, as good as the body's own side touch, so
       // a motion that ends there ties the goal with the body it touches.
-      if (const double touch = touchOnGoal(spec, mover, c, end, where); touch <= r / 4)
+      if (const double touch = touchOnGoal(spec, mover, c, end, where); touch <= r)
         residual = std::min(residual, touch + r / 4);
     }
     if (residual <= r) arrived.push_back({residual, target});
@@ -92,6 +92,18 @@ EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, 
   for (size_t i = 1; i < arrived.size(); ++i)
     if (arrived[i].first - arrived[0].first < r / 2) ep.tied.push_back(arrived[i].second);
   return ep;
+}
+
+void Motion::absorbClosest(const Motion& o) {
+  for (size_t j = 0; j < min_distance.size(); ++j) {
+    if (o.min_distance[j] >= min_distance[j]) continue;
+    min_distance[j] = o.min_distance[j];
+    closest_speed[j] = o.closest_speed[j];
+    closest_at[j] = o.closest_at[j];
+    closest_row[j] = o.closest_row[j];
+    closest_t[j] = o.closest_t[j];
+    closest_scene[j] = o.closest_scene[j];
+  }
 }
 
 MotionSegmenter::MotionSegmenter(size_t entities, const SegmentationOptions& options) : o_(options), state_(entities) {}
@@ -152,6 +164,9 @@ void MotionSegmenter::startMotion(size_t e) {
   m.min_distance.assign(s.p.size(), std::numeric_limits<double>::infinity());
   m.closest_speed.assign(s.p.size(), std::numeric_limits<double>::infinity());
   m.closest_at.assign(s.p.size(), s.p[e]);
+  m.closest_row.assign(s.p.size(), s.row);
+  m.closest_t.assign(s.p.size(), s.t);
+  m.closest_scene.assign(s.p.size(), s.p);
   const Eigen::Vector2d away = history_.back().p[e] - st.anchor;
   if (away.norm() > 0) m.start_dir = away.normalized();
   for (size_t i = k; i < history_.size(); ++i) trackDistances(m, i);
@@ -205,7 +220,13 @@ void MotionSegmenter::trackDistances(Motion& m, size_t i) const {
     // The slowest it went while closest (within still_m of the closest distance); a held
     // pose of a resting entity is where it rests.
     if (d < m.min_distance[j] - o_.still_m) m.closest_speed[j] = std::numeric_limits<double>::infinity();
-    if (d < m.min_distance[j]) m.min_distance[j] = d, m.closest_at[j] = p[m.entity];
+    if (d < m.min_distance[j]) {
+      m.min_distance[j] = d;
+      m.closest_at[j] = p[m.entity];
+      m.closest_row[j] = history_[i].row;
+      m.closest_t[j] = history_[i].t;
+      m.closest_scene[j] = p;
+    }
     if (d <= m.min_distance[j] + o_.still_m) m.closest_speed[j] = std::min(m.closest_speed[j], speed(i, m.entity));
   }
 }

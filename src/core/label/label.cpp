@@ -174,6 +174,21 @@ Motion after(const Motion& m, int row, double t, const std::vector<Vector2d>& at
 
 }  // namespace
 
+bool Labeller::stoppedAtOnItsWay(const Motion& m, int b, double& turn) const {
+  const double r = spec_.arrival_radius, contact = spec_.contactDistance(m.entity, b);
+  if (b == m.entity || contact <= 0 || m.closest_row[b] <= m.on_row || m.closest_row[b] >= m.off_row) return false;
+  // Touching: within a quarter of the arrival radius of contact, either side (as endPoint
+  // reads a touch; bodies on a table do not overlap further than the tracker's noise).
+  const double least = m.min_distance[b];
+  if (std::abs(least - contact) > r / 4) return false;
+  if ((m.at_onset[b] - m.start).norm() - least <= r || (m.at_offset[b] - m.end).norm() - least <= r) return false;
+  const double mean_speed = (m.end - m.start).norm() / std::max(m.off_t - m.on_t, 1e-9);
+  if (m.closest_speed[b] > mean_speed / 4) return false;
+  const Vector2d in = m.closest_at[b] - m.start, out = m.end - m.closest_at[b];
+  turn = std::acos(std::clamp(in.normalized().dot(out.normalized()), -1.0, 1.0));
+  return true;
+}
+
 void Labeller::cutAtContacts(std::vector<Motion>& ms) const {
   using task::EntityKind;
   const auto& E = spec_.entities;
@@ -237,6 +252,31 @@ void Labeller::cutAtContacts(std::vector<Motion>& ms) const {
       }
     }
   }
+  // 3. A robot that stopped at a body on its way, without a pause, and left it in another
+  // heading (beyond heading_rad, as a pause that turns): a step to the body and one on, cut
+  // where it was closest. Kept heading, it may have slowed past: listed in emit().
+  for (bool cut = true; cut;) {
+    cut = false;
+    for (size_t i = 0; i < ms.size() && !cut; ++i) {
+      const Motion& m = ms[i];
+      if (kind(m) != EntityKind::Robot) continue;
+      int at = -1;
+      for (int b = 0; b < static_cast<int>(E.size()); ++b) {
+        double turn = 0;
+        if (!staysWith(m, b) && stoppedAtOnItsWay(m, b, turn) && turn > options_.heading_rad &&
+            (at < 0 || m.closest_row[b] < m.closest_row[at]))
+          at = b;
+      }
+      if (at < 0) continue;
+      const int row = m.closest_row[at];
+      const double t = m.closest_t[at];
+      const std::vector<Vector2d> scene = m.closest_scene[at];
+      Motion stop = before(m, row + 1, t, scene), on = after(m, row + 1, t, scene);
+      ms[i] = std::move(stop);
+      ms.insert(ms.begin() + static_cast<long>(i) + 1, std::move(on));
+      cut = true;
+    }
+  }
 }
 
 void Labeller::decide(bool at_end) {
@@ -259,12 +299,8 @@ void Labeller::decide(bool at_end) {
         a.end = m.end;
         a.end_dir = m.end_dir;
         a.at_offset = m.at_offset;
-        for (size_t j = 0; j < n; ++j) {
-          a.max_distance[j] = std::max(a.max_distance[j], m.max_distance[j]);
-          if (m.min_distance[j] < a.min_distance[j])
-            a.min_distance[j] = m.min_distance[j], a.closest_speed[j] = m.closest_speed[j],
-            a.closest_at[j] = m.closest_at[j];
-        }
+        for (size_t j = 0; j < n; ++j) a.max_distance[j] = std::max(a.max_distance[j], m.max_distance[j]);
+        a.absorbClosest(m);
         a.resumed = true;
         continue;
       }
@@ -303,12 +339,8 @@ void Labeller::decide(bool at_end) {
       same->end = m.end;
       same->end_dir = m.end_dir;
       same->at_offset = m.at_offset;
-      for (size_t j = 0; j < n; ++j) {
-        same->max_distance[j] = std::max(same->max_distance[j], m.max_distance[j]);
-        if (m.min_distance[j] < same->min_distance[j])
-          same->min_distance[j] = m.min_distance[j], same->closest_speed[j] = m.closest_speed[j],
-          same->closest_at[j] = m.closest_at[j];
-      }
+      for (size_t j = 0; j < n; ++j) same->max_distance[j] = std::max(same->max_distance[j], m.max_distance[j]);
+      same->absorbClosest(m);
       continue;
     }
     g.push_back(std::move(m));
@@ -360,6 +392,13 @@ std::map<task::EntityKind, int> Labeller::kindsOf(const std::set<int>& entities)
   std::map<task::EntityKind, int> n;
   for (const int e : entities) ++n[spec_.entities[e].kind];
   return n;
+}
+
+std::string Labeller::kindsText(const std::map<task::EntityKind, int>& kinds) {
+  std::string s;
+  for (const auto& [kind, count] : kinds)
+    s += (s.empty() ? "" : " and ") + std::to_string(count) + " " + task::toString(kind) + (count > 1 ? "s" : "");
+  return s.empty() ? "nothing" : s;
 }
 
 std::set<int> Labeller::exampleMovers(size_t k) const {
@@ -499,6 +538,17 @@ void Labeller::emit(Group& group, bool aligned) {
   int step_off = 0;
   for (const auto& m : g)
     step.keyframe_row = std::min(step.keyframe_row, m.on_row), step_off = std::max(step_off, m.off_row);
+  // A step whose movers are not the example's kinds (robots of one step started apart, two
+  // steps run together, a motion lost or added): it and every step after it may be
+  // numbered wrong, so all their tokens are listed, under one note.
+  if (example_ && !steps_differ_ && kindsOf(moversOf(g)) != kindsOf(exampleMovers(k))) {
+    steps_differ_ = true;
+    note(step.keyframe_row, "step " + std::to_string(k + 1) + " moves " + kindsText(kindsOf(moversOf(g))) +
+                                " where the example's step " + std::to_string(k + 1) + " moves " +
+                                kindsText(kindsOf(exampleMovers(k))) +
+                                " (robots of one step started apart, two steps run together, or a motion missed?): "
+                                "this step and the ones after it are listed");
+  }
   if (aligned) placeInPlace(ex_inplace_before_[k], prev_off_ + 1, step.keyframe_row - 1);
 
   // 3. Loads: an object that stayed with a moving robot of the step all the way.
@@ -595,28 +645,22 @@ void Labeller::emit(Group& group, bool aligned) {
       tok.token.action = word(m.entity, tok.token.target, tok.load, m.on_row);
     }
   }
-  // What the motion leaves open: a body touched on the way (more than the arrival radius
-  // from where it began and ended), nearly stopping there (a stop without a pause: two
-  // steps?).
+  // What the motion leaves open: a body it came to on its way, nearly stopping there, and
+  // left in the heading it came in (a turn there is cut): a slow pass, or a stop without a
+  // pause (two steps)?
   for (size_t i = 0; i < g.size(); ++i) {
     const Motion& m = g[i];
     const InferredToken& tok = tokens[i];
     if (tok.token.target < 0 || carrier[i] >= 0) continue;
-    // Nearly stopped there: a quarter of its mean speed.
-    const double stop_speed = (m.end - m.start).norm() / std::max(m.off_t - m.on_t, 1e-9) / 4;
-    for (size_t j = 0; j < E.size(); ++j) {
-      const int b = static_cast<int>(j);
-      const double touch = spec_.contactDistance(m.entity, b) + r / 4;
+    for (int b = 0; b < static_cast<int>(E.size()); ++b) {
       const bool load = std::any_of(tokens.begin(), tokens.end(), [&](const InferredToken& t) {
         return t.token.entity == b && t.carrier == m.entity;
       });
-      if (b == m.entity || b == tok.token.target || load || spec_.contactDistance(m.entity, b) <= 0 ||
-          m.min_distance[j] > touch || m.closest_speed[j] > stop_speed || (m.closest_at[j] - m.start).norm() <= r ||
-          (m.closest_at[j] - m.end).norm() <= r)
-        continue;
+      double turn = 0;
+      if (b == tok.token.target || load || !stoppedAtOnItsWay(m, b, turn)) continue;
       note(m.off_row,
-           E[m.entity].name + " touched " + E[b].name + " on its way to " + E[tok.token.target].name +
-               ": one motion, or a step to " + E[b].name + " and another on; taken as one",
+           E[m.entity].name + " nearly stopped at " + E[b].name + " on its way to " + E[tok.token.target].name +
+               ", keeping its heading: one motion, or a step to " + E[b].name + " and another on; taken as one",
            m.entity);
     }
   }
@@ -635,6 +679,7 @@ void Labeller::emit(Group& group, bool aligned) {
   // A token some note of this step doubts is listed to check.
   for (size_t i = notes_from; i < out_.notes.size(); ++i)
     for (auto& t : tokens) t.unsure = t.unsure || (!t.in_place && t.token.entity == out_.notes[i].entity);
+  for (auto& t : tokens) t.unsure = t.unsure || steps_differ_;
   for (auto& t : tokens)  // a load goes where its carrier went
     for (const auto& c : tokens) t.unsure = t.unsure || (t.carrier >= 0 && c.token.entity == t.carrier && c.unsure);
   for (auto& t : tokens)

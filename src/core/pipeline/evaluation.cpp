@@ -186,9 +186,12 @@ std::vector<std::vector<double>> pointDurations(const task::TaskSpec& spec, cons
 
 }  // namespace
 
-bool policyReadsScene(const Model& model) {
-  const tgn::ModelInfo& info = model.sequence.info();
+bool policyReadsScene(const tgn::ModelInfo& info) {
   return info.variant != tgn::Variant::Scene || info.plan.relative_features;
+}
+
+bool policyReadsScene(const Model& model) {
+  return policyReadsScene(model.sequence.info());
 }
 
 Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOptions& options) {
@@ -235,12 +238,15 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
       const int max_rows = static_cast<int>(gt.rows() * (gt.steps.size() + 2) / std::max<size_t>(1, gt.steps.size()));
       trial = trialFromRollout(tgn::rolloutGnn(model.sequence, gt, max_rows), max_rows);
     } else {
+      // The paths of a step are asked for after its decision: the step they stand in.
+      int step = -1;
       const auto policy = [&](const std::vector<task::Snapshot>& history) {
+        step = static_cast<int>(history.size()) - 1;
         const tgn::Prediction p = model.sequence.predictNext(history);
         return exec::Decision{p.end, p.tokens};
       };
       const auto paths = [&](const task::Token& token, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
-        return model.primitives->generate(token, s, g).points;
+        return model.primitives->generate(token, s, g, 100, step).points;
       };
       trial = exec::runTrial(spec, gt, policy, paths, *execution, model.primitives->endPoints());
     }

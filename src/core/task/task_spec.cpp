@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -142,111 +143,214 @@ bool parseKindAndType(YamlChecker& c, const YAML::Node& node, const char* what, 
   return true;
 }
 
-}  // namespace
-
-TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
-  YamlChecker c(file);
-  const YAML::Node root = c.parse(text);
-  c.throwIfErrors();
-  TaskSpec spec;
-  if (!root.IsMap()) {
-    throw Error(Diagnostic{file, 1, 1, "task.yaml must be a mapping with format, entities, ..."});
+/// One entity of task.yaml's list (nullopt after an error said by `c`); `names` collects the
+/// names seen so far, to refuse a duplicate.
+std::optional<Entity> parseEntity(YamlChecker& c, const YAML::Node& node, std::set<std::string>& names) {
+  c.onlyKeys(node, {"name", "kind", "type", "radius", "obstacle"}, "an entity");
+  Entity e;
+  bool ok = true;
+  if (!node["name"]) {
+    c.error(node, "entity without 'name'");
+    ok = false;
+  } else if (c.scalar(node["name"], "entity name", e.name)) {
+    if (!isValidName(e.name)) {
+      c.error(node["name"], "entity name '" + e.name + "' must match [A-Za-z][A-Za-z0-9_]*");
+      ok = false;
+    } else if (!names.insert(e.name).second) {
+      c.error(node["name"], "duplicate entity name '" + e.name + "'");
+      ok = false;
+    }
+  } else {
+    ok = false;
   }
-  c.onlyKeys(
-      root,
-      {"format", "name", "entities", "actions", "arrival_radius", "step_window_s", "goal_conditions", "action_rules"},
-      "task.yaml");
+  std::string kind;
+  if (!node["kind"]) {
+    c.error(node, "entity '" + e.name + "' without 'kind' (robot, object or goal)");
+    ok = false;
+  } else if (c.scalar(node["kind"], "kind", kind)) {
+    auto k = entityKindFromString(kind);
+    if (!k) {
+      c.error(node["kind"], "unknown kind '" + kind + "' (expected robot, object or goal)");
+      ok = false;
+    } else {
+      e.kind = *k;
+    }
+  }
+  if (node["type"]) c.scalar(node["type"], "type", e.type);
+  // Free text, but text: a control character would not survive taskYamlText (found by fuzzing).
+  if (std::any_of(e.type.begin(), e.type.end(), [](char ch) { return std::iscntrl(static_cast<unsigned char>(ch)); })) {
+    c.error(node["type"], "type must be printable text (it has a control character)");
+    ok = false;
+  }
+  if (node["radius"]) {
+    double r = 0;
+    if (c.positive(node["radius"], "radius", r)) e.radius_m = r;
+    else ok = false;
+  }
+  if (node["obstacle"]) {
+    bool b = true;
+    if (c.boolean(node["obstacle"], "obstacle", b)) e.obstacle = b;
+    else ok = false;
+  }
+  if (!ok) return std::nullopt;
+  return e;
+}
 
+/// task.yaml's entities; returns their names (for the goal conditions).
+std::set<std::string> parseEntities(YamlChecker& c, const YAML::Node& root, TaskSpec& spec) {
+  std::set<std::string> names;
+  if (!c.required(root, "entities")) return names;  // said by required()
+  if (!root["entities"].IsSequence() || root["entities"].size() == 0) {
+    c.error(root["entities"], "entities must be a non-empty list of {name, kind, type}");
+    return names;
+  }
+  for (const auto& node : root["entities"]) {
+    if (!node.IsMap()) {
+      c.error(node, "an entity must be a mapping {name, kind, type}");
+      continue;
+    }
+    if (auto e = parseEntity(c, node, names)) spec.entities.push_back(*e);
+  }
+  return names;
+}
+
+void parseActions(YamlChecker& c, const YAML::Node& root, TaskSpec& spec) {
+  if (!root["actions"]) return;
+  spec.actions_declared = true;
+  if (!root["actions"].IsSequence()) {
+    c.error(root["actions"], "actions must be a list of words");
+    return;
+  }
+  std::set<std::string> seen;
+  for (const auto& node : root["actions"]) {
+    std::string a;
+    if (!c.scalar(node, "action", a)) continue;
+    if (!isValidName(a)) {
+      c.error(node, "action '" + a + "' must match [A-Za-z][A-Za-z0-9_]*");
+    } else if (a == "idle") {
+      c.error(node, "'idle' is reserved for no action and cannot be listed in actions");
+    } else if (!seen.insert(a).second) {
+      c.error(node, "duplicate action '" + a + "'");
+    } else {
+      spec.actions.push_back(a);
+    }
+  }
+}
+
+/// One goal condition {entity, at, tolerance} (nullopt after an error said by `c`).
+std::optional<GoalCondition> parseGoalCondition(YamlChecker& c, const YAML::Node& node,
+                                                const std::set<std::string>& names) {
+  c.onlyKeys(node, {"entity", "at", "tolerance"}, "a goal condition");
+  GoalCondition g;
+  bool ok = true;
+  for (const char* key : {"entity", "at"}) {
+    std::string value;
+    if (!node[key]) {
+      c.error(node, std::string("goal condition without '") + key + "'");
+      ok = false;
+    } else if (c.scalar(node[key], key, value)) {
+      if (!names.count(value)) {
+        c.error(node[key], "goal condition names unknown entity '" + value + "'");
+        ok = false;
+      }
+      (std::string(key) == "entity" ? g.entity : g.at) = value;
+    } else {
+      ok = false;
+    }
+  }
+  if (node["tolerance"]) {
+    if (!c.number(node["tolerance"], "tolerance", g.tolerance)) {
+      ok = false;
+    } else if (g.tolerance <= 0) {
+      c.error(node["tolerance"], "tolerance must be positive (metres)");
+      ok = false;
+    }
+  }
+  if (!ok) return std::nullopt;
+  return g;
+}
+
+void parseGoalConditions(YamlChecker& c, const YAML::Node& root, const std::set<std::string>& names, TaskSpec& spec) {
+  if (!root["goal_conditions"]) return;
+  if (!root["goal_conditions"].IsSequence()) {
+    c.error(root["goal_conditions"], "goal_conditions must be a list of {entity, at, tolerance}");
+    return;
+  }
+  for (const auto& node : root["goal_conditions"]) {
+    if (!node.IsMap()) {
+      c.error(node, "a goal condition must be a mapping {entity, at, tolerance}");
+      continue;
+    }
+    if (auto g = parseGoalCondition(c, node, names)) spec.goal_conditions.push_back(*g);
+  }
+}
+
+/// One action rule {mover, target, load, action} (nullopt after an error said by `c`).
+std::optional<ActionRule> parseActionRule(YamlChecker& c, const YAML::Node& node, const TaskSpec& spec) {
+  c.onlyKeys(node, {"mover", "target", "load", "action"}, "an action rule");
+  ActionRule rule;
+  bool ok = true;
+  if (node["mover"]) {
+    ok = parseKindAndType(c, node["mover"], "mover", rule.mover_kind, rule.mover_type) && ok;
+    if (ok && rule.mover_kind == EntityKind::Goal) {
+      c.error(node["mover"], "a goal does not act: mover must be robot or object");
+      ok = false;
+    }
+  }
+  if (node["target"]) ok = parseKindAndType(c, node["target"], "target", rule.target_kind, rule.target_type) && ok;
+  if (node["load"]) {
+    std::string load;
+    if (!c.scalar(node["load"], "load", load)) ok = false;
+    else if (load == "none") rule.load = ActionRule::Load::None;
+    else if (load == "carries") rule.load = ActionRule::Load::Carries;
+    else if (load == "carried") rule.load = ActionRule::Load::Carried;
+    else {
+      c.error(node["load"], "load '" + load + "' must be none, carries or carried");
+      ok = false;
+    }
+  }
+  if (!node["action"]) {
+    c.error(node, "action rule without 'action'");
+    ok = false;
+  } else if (c.scalar(node["action"], "action", rule.action)) {
+    if (!isValidName(rule.action) || rule.action == "idle") {
+      c.error(node["action"], "action '" + rule.action + "' must match [A-Za-z][A-Za-z0-9_]* and not be idle");
+      ok = false;
+    } else if (!spec.allowsAction(rule.action)) {
+      c.error(node["action"], "action '" + rule.action + "' is not in the task's actions");
+      ok = false;
+    }
+  } else {
+    ok = false;
+  }
+  if (!ok) return std::nullopt;
+  return rule;
+}
+
+void parseActionRules(YamlChecker& c, const YAML::Node& root, TaskSpec& spec) {
+  if (!root["action_rules"]) return;
+  if (!root["action_rules"].IsSequence()) {
+    c.error(root["action_rules"], "action_rules must be a list of {mover, target, load, action}");
+    return;
+  }
+  for (const auto& node : root["action_rules"]) {
+    if (!node.IsMap()) {
+      c.error(node, "an action rule must be a mapping {mover, target, load, action}");
+      continue;
+    }
+    if (auto rule = parseActionRule(c, node, spec)) spec.action_rules.push_back(*rule);
+  }
+}
+
+void parseFormatAndName(YamlChecker& c, const YAML::Node& root, TaskSpec& spec) {
   std::string format;
   if (const YAML::Node f = c.required(root, "format", "", std::string("expected '") + kFormat + "'");
       f && c.scalar(f, "format", format) && format != kFormat)
     c.error(f, "format '" + format + "' is not supported (expected '" + kFormat + "')");
   if (root["name"]) c.scalar(root["name"], "name", spec.name);
+}
 
-  std::set<std::string> names;
-  if (!c.required(root, "entities")) {
-    // said by required()
-  } else if (!root["entities"].IsSequence() || root["entities"].size() == 0) {
-    c.error(root["entities"], "entities must be a non-empty list of {name, kind, type}");
-  } else {
-    for (const auto& node : root["entities"]) {
-      if (!node.IsMap()) {
-        c.error(node, "an entity must be a mapping {name, kind, type}");
-        continue;
-      }
-      c.onlyKeys(node, {"name", "kind", "type", "radius", "obstacle"}, "an entity");
-      Entity e;
-      bool ok = true;
-      if (!node["name"]) {
-        c.error(node, "entity without 'name'");
-        ok = false;
-      } else if (c.scalar(node["name"], "entity name", e.name)) {
-        if (!isValidName(e.name)) {
-          c.error(node["name"], "entity name '" + e.name + "' must match [A-Za-z][A-Za-z0-9_]*");
-          ok = false;
-        } else if (!names.insert(e.name).second) {
-          c.error(node["name"], "duplicate entity name '" + e.name + "'");
-          ok = false;
-        }
-      } else {
-        ok = false;
-      }
-      std::string kind;
-      if (!node["kind"]) {
-        c.error(node, "entity '" + e.name + "' without 'kind' (robot, object or goal)");
-        ok = false;
-      } else if (c.scalar(node["kind"], "kind", kind)) {
-        auto k = entityKindFromString(kind);
-        if (!k) {
-          c.error(node["kind"], "unknown kind '" + kind + "' (expected robot, object or goal)");
-          ok = false;
-        } else {
-          e.kind = *k;
-        }
-      }
-      if (node["type"]) c.scalar(node["type"], "type", e.type);
-      // Free text, but text: a control character would not survive taskYamlText (found by fuzzing).
-      if (std::any_of(e.type.begin(), e.type.end(),
-                      [](char ch) { return std::iscntrl(static_cast<unsigned char>(ch)); })) {
-        c.error(node["type"], "type must be printable text (it has a control character)");
-        ok = false;
-      }
-      if (node["radius"]) {
-        double r = 0;
-        if (c.positive(node["radius"], "radius", r)) e.radius_m = r;
-        else ok = false;
-      }
-      if (node["obstacle"]) {
-        bool b = true;
-        if (c.boolean(node["obstacle"], "obstacle", b)) e.obstacle = b;
-        else ok = false;
-      }
-      if (ok) spec.entities.push_back(e);
-    }
-  }
-
-  if (root["actions"]) {
-    spec.actions_declared = true;
-    if (!root["actions"].IsSequence()) {
-      c.error(root["actions"], "actions must be a list of words");
-    } else {
-      std::set<std::string> seen;
-      for (const auto& node : root["actions"]) {
-        std::string a;
-        if (!c.scalar(node, "action", a)) continue;
-        if (!isValidName(a)) {
-          c.error(node, "action '" + a + "' must match [A-Za-z][A-Za-z0-9_]*");
-        } else if (a == "idle") {
-          c.error(node, "'idle' is reserved for no action and cannot be listed in actions");
-        } else if (!seen.insert(a).second) {
-          c.error(node, "duplicate action '" + a + "'");
-        } else {
-          spec.actions.push_back(a);
-        }
-      }
-    }
-  }
-
+void parseRadiusAndWindow(YamlChecker& c, const YAML::Node& root, TaskSpec& spec) {
   if (root["arrival_radius"]) {
     double r = 0;
     if (c.number(root["arrival_radius"], "arrival_radius", r)) {
@@ -262,98 +366,29 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
       else spec.step_window_s = w;
     }
   }
+}
 
-  if (root["goal_conditions"]) {
-    if (!root["goal_conditions"].IsSequence()) {
-      c.error(root["goal_conditions"], "goal_conditions must be a list of {entity, at, tolerance}");
-    } else {
-      for (const auto& node : root["goal_conditions"]) {
-        if (!node.IsMap()) {
-          c.error(node, "a goal condition must be a mapping {entity, at, tolerance}");
-          continue;
-        }
-        c.onlyKeys(node, {"entity", "at", "tolerance"}, "a goal condition");
-        GoalCondition g;
-        bool ok = true;
-        for (const char* key : {"entity", "at"}) {
-          std::string value;
-          if (!node[key]) {
-            c.error(node, std::string("goal condition without '") + key + "'");
-            ok = false;
-          } else if (c.scalar(node[key], key, value)) {
-            if (!names.count(value)) {
-              c.error(node[key], "goal condition names unknown entity '" + value + "'");
-              ok = false;
-            }
-            (std::string(key) == "entity" ? g.entity : g.at) = value;
-          } else {
-            ok = false;
-          }
-        }
-        if (node["tolerance"]) {
-          if (!c.number(node["tolerance"], "tolerance", g.tolerance)) {
-            ok = false;
-          } else if (g.tolerance <= 0) {
-            c.error(node["tolerance"], "tolerance must be positive (metres)");
-            ok = false;
-          }
-        }
-        if (ok) spec.goal_conditions.push_back(g);
-      }
-    }
+}  // namespace
+
+TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
+  YamlChecker c(file);
+  const YAML::Node root = c.parse(text);
+  c.throwIfErrors();
+  TaskSpec spec;
+  if (!root.IsMap()) {
+    throw Error(Diagnostic{file, 1, 1, "task.yaml must be a mapping with format, entities, ..."});
   }
+  c.onlyKeys(
+      root,
+      {"format", "name", "entities", "actions", "arrival_radius", "step_window_s", "goal_conditions", "action_rules"},
+      "task.yaml");
 
-  if (root["action_rules"]) {
-    if (!root["action_rules"].IsSequence()) {
-      c.error(root["action_rules"], "action_rules must be a list of {mover, target, load, action}");
-    } else {
-      for (const auto& node : root["action_rules"]) {
-        if (!node.IsMap()) {
-          c.error(node, "an action rule must be a mapping {mover, target, load, action}");
-          continue;
-        }
-        c.onlyKeys(node, {"mover", "target", "load", "action"}, "an action rule");
-        ActionRule rule;
-        bool ok = true;
-        if (node["mover"]) {
-          ok = parseKindAndType(c, node["mover"], "mover", rule.mover_kind, rule.mover_type) && ok;
-          if (ok && rule.mover_kind == EntityKind::Goal) {
-            c.error(node["mover"], "a goal does not act: mover must be robot or object");
-            ok = false;
-          }
-        }
-        if (node["target"])
-          ok = parseKindAndType(c, node["target"], "target", rule.target_kind, rule.target_type) && ok;
-        if (node["load"]) {
-          std::string load;
-          if (!c.scalar(node["load"], "load", load)) ok = false;
-          else if (load == "none") rule.load = ActionRule::Load::None;
-          else if (load == "carries") rule.load = ActionRule::Load::Carries;
-          else if (load == "carried") rule.load = ActionRule::Load::Carried;
-          else {
-            c.error(node["load"], "load '" + load + "' must be none, carries or carried");
-            ok = false;
-          }
-        }
-        if (!node["action"]) {
-          c.error(node, "action rule without 'action'");
-          ok = false;
-        } else if (c.scalar(node["action"], "action", rule.action)) {
-          if (!isValidName(rule.action) || rule.action == "idle") {
-            c.error(node["action"], "action '" + rule.action + "' must match [A-Za-z][A-Za-z0-9_]* and not be idle");
-            ok = false;
-          } else if (!spec.allowsAction(rule.action)) {
-            c.error(node["action"], "action '" + rule.action + "' is not in the task's actions");
-            ok = false;
-          }
-        } else {
-          ok = false;
-        }
-        if (ok) spec.action_rules.push_back(rule);
-      }
-    }
-  }
-
+  parseFormatAndName(c, root, spec);
+  const std::set<std::string> names = parseEntities(c, root, spec);
+  parseActions(c, root, spec);
+  parseRadiusAndWindow(c, root, spec);
+  parseGoalConditions(c, root, names, spec);
+  parseActionRules(c, root, spec);
   c.throwIfErrors();
   return spec;
 }

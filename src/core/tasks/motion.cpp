@@ -218,6 +218,166 @@ const std::vector<Candidate>& candidates() {
   return all;
 }
 
+/// A body whose path over a step is fixed: standing, or a mover (and its load) as chosen.
+struct Body {
+  int entity;
+  int mover;  ///< index into StepPaths::paths, -1 standing
+  int rider;  ///< index into StepPaths::riders for a load, -1 otherwise
+};
+
+/// The paths of one step's movers, each chosen in turn so that its body (and its load's)
+/// keeps clear of the bodies already fixed: standing ones and the movers before it.
+class StepPaths {
+ public:
+  StepPaths(const task::TaskSpec& spec, const std::vector<Vector2d>& pos, const StepRoles& r) : spec_(spec), pos_(pos) {
+    for (size_t e = 0; e < pos.size(); ++e)
+      if (!r.moving[e] && isObstacle(spec, static_cast<int>(e))) fixed_.push_back({static_cast<int>(e), -1, -1});
+  }
+
+  std::vector<Path> paths;
+  std::vector<Rider> riders;  // [mover] (load -1: none)
+
+  /// Adds entity e's path to `end` (its load, -1 for none, riding to `load_end`): the first
+  /// free of the candidates, least changed first, else the one with the most clearance;
+  /// without `avoid` the planned shape as it is. Returns whether the bodies keep clear.
+  bool add(int e, const PathShape& shape, const Vector2d& end, int load, const Vector2d& load_end, bool avoid) {
+    Rider rider;
+    if (load >= 0) {
+      rider.load = load;
+      rider.offset0 = pos_[static_cast<size_t>(load)] - pos_[static_cast<size_t>(e)];
+      rider.contact = spec_.contactDistance(e, load);
+    }
+    const size_t index = paths.size();
+    paths.push_back({pos_[static_cast<size_t>(e)], end, shape});
+    riders.push_back(rider);
+    std::vector<Body> candidate = {{e, static_cast<int>(index), -1}};
+    if (load >= 0) candidate.push_back({load, static_cast<int>(index), static_cast<int>(index)});
+    const Vector2d load_offset = load >= 0 ? Vector2d(load_end - end) : Vector2d::Zero();
+    bool clear = true;
+    const Candidate* best = &candidates().front();
+    if (avoid) {
+      best = leastChangedFree(index, candidate, load_offset);
+    } else {  // the planned shape as it is (candidates' first: unchanged)
+      reshape(index, *best, load_offset);
+      clear = clearance(candidate) >= -kContactSlack;
+    }
+    reshape(index, *best, load_offset);
+    for (const Body& b : candidate) fixed_.push_back(b);
+    return clear;
+  }
+
+ private:
+  void reshape(size_t index, const Candidate& k, const Vector2d& load_offset) {
+    paths[index].lag = k.lag;
+    paths[index].bend = k.bend;
+    if (riders[index].load >= 0) paths[index].alignEnd(load_offset);
+    paths[index].hookStart(k.hook);
+    riders[index].long_way = k.long_way;
+  }
+
+  /// The first free candidate; of the equally small changes (its mirror image), the one with
+  /// the most clearance: the side a path turns to follows the layout, not the order of a
+  /// list. None free: the one with the most clearance.
+  const Candidate* leastChangedFree(size_t index, const std::vector<Body>& candidate, const Vector2d& load_offset) {
+    const auto& all = candidates();
+    const bool carries = riders[index].load >= 0;
+    const Candidate* best = &all.front();
+    double best_clearance = -std::numeric_limits<double>::infinity();
+    for (size_t i = 0; i < all.size(); ++i) {
+      const Candidate& k = all[i];
+      if (k.long_way && !carries) continue;
+      reshape(index, k, load_offset);
+      const double c = clearance(candidate);
+      if (c > best_clearance + 1e-12) best_clearance = c, best = &k;
+      if (c < -kContactSlack) continue;
+      for (size_t j = i + 1; j < all.size() && all[j].deviation == k.deviation && all[j].lag == k.lag; ++j) {
+        if (all[j].long_way && !carries) continue;
+        reshape(index, all[j], load_offset);
+        const double cj = clearance(candidate);
+        if (cj > best_clearance + 1e-12) best_clearance = cj, best = &all[j];
+      }
+      break;
+    }
+    return best;
+  }
+
+  Vector2d where(const Body& b, double u) const {
+    if (b.mover < 0) return pos_[static_cast<size_t>(b.entity)];
+    if (b.rider >= 0) return riders[static_cast<size_t>(b.rider)].at(paths[static_cast<size_t>(b.mover)], u);
+    return paths[static_cast<size_t>(b.mover)].at(u);
+  }
+
+  /// The least clearance of `candidate` bodies against the fixed ones over the step:
+  /// distance less contact, measured from no closer than the pair starts or ends.
+  double clearance(const std::vector<Body>& candidate) const {
+    double worst = std::numeric_limits<double>::infinity();
+    for (const Body& a : candidate) {
+      // Its body stays on the table.
+      const double g0 = edgeGap(spec_, a.entity, where(a, 0)), g1 = edgeGap(spec_, a.entity, where(a, 1));
+      for (int k = 0; k <= kCheckSamples; ++k)
+        worst = std::min(worst, edgeGap(spec_, a.entity, where(a, static_cast<double>(k) / kCheckSamples)) -
+                                    std::min({0.0, g0, g1}));
+      if (!isObstacle(spec_, a.entity)) continue;
+      for (const Body& b : fixed_) {
+        const double contact = spec_.contactDistance(a.entity, b.entity);
+        const double d0 = (where(a, 0) - where(b, 0)).norm(), d1 = (where(a, 1) - where(b, 1)).norm();
+        const double allowed = std::min({contact, d0, d1});
+        for (int k = 0; k <= kCheckSamples; ++k) {
+          const double u = static_cast<double>(k) / kCheckSamples;
+          worst = std::min(worst, (where(a, u) - where(b, u)).norm() - allowed);
+        }
+      }
+    }
+    return worst;
+  }
+
+  const task::TaskSpec& spec_;
+  const std::vector<Vector2d>& pos_;
+  std::vector<Body> fixed_;
+};
+
+/// The rows of a demonstration being written: positions in micrometres at the generator's rate.
+struct Rows {
+  task::Demonstration& d;
+  const std::vector<Vector2d>& pos;
+  void emit(const std::vector<task::Label>& labels) {
+    d.t.push_back(static_cast<double>(d.t.size()) / kGeneratorRateHz);
+    std::vector<Vector2d> row(pos.size());
+    for (size_t e = 0; e < pos.size(); ++e) row[e] = {micrometres(pos[e].x()), micrometres(pos[e].y())};
+    d.positions.push_back(row);
+    d.labels.push_back(labels);
+  }
+};
+
+/// Moves the step's bodies along `paths` to `ends`, one row per generator tick; all tokens
+/// of a step end together (step-synchronous demonstrations), each labelled from its delay on.
+void emitStep(const PlannedStep& step, const std::vector<task::Token>& tokens, const StepRoles& r, const StepPaths& sp,
+              const std::vector<Vector2d>& ends, std::vector<Vector2d>& pos, Rows& rows) {
+  const size_t m = pos.size();
+  double longest = 0;
+  for (const Path& p : sp.paths) longest = std::max(longest, p.length());
+  const double duration = std::max(kMinStepDurationS, longest / kGeneratorSpeed);
+  const int n = static_cast<int>(std::ceil(duration * kGeneratorRateHz));
+  std::vector<task::Label> labels(m);
+  for (const auto& pt : step) labels[static_cast<size_t>(pt.token.entity)] = {pt.token.action, pt.token.target};
+  std::vector<task::Label> row_labels(m);
+  for (int j = 0; j <= n; ++j) {
+    const double u = j == n ? 1.0 : smoothstep(static_cast<double>(j) / n);
+    for (size_t k = 0; k < sp.paths.size(); ++k) {
+      const int e = tokens[static_cast<size_t>(r.movers[k])].entity;
+      pos[static_cast<size_t>(e)] = j == n ? ends[static_cast<size_t>(e)] : sp.paths[k].at(u);
+      if (sp.riders[k].load >= 0)
+        pos[static_cast<size_t>(sp.riders[k].load)] =
+            j == n ? ends[static_cast<size_t>(sp.riders[k].load)] : sp.riders[k].at(sp.paths[k], u);
+    }
+    for (size_t e = 0; e < m; ++e) row_labels[e] = task::Label{};
+    for (const auto& pt : step)
+      if (j >= pt.label_delay_rows)
+        row_labels[static_cast<size_t>(pt.token.entity)] = labels[static_cast<size_t>(pt.token.entity)];
+    rows.emit(row_labels);
+  }
+}
+
 }  // namespace
 
 task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<Vector2d>& start,
@@ -234,140 +394,27 @@ task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<
     for (const auto& pt : step)
       if (pt.token.entity >= 0 && static_cast<size_t>(pt.token.entity) < m)
         d.has_label_columns[static_cast<size_t>(pt.token.entity)] = true;
-  auto emit = [&](const std::vector<task::Label>& labels) {
-    d.t.push_back(static_cast<double>(d.t.size()) / kGeneratorRateHz);
-    std::vector<Vector2d> row(m);
-    for (size_t e = 0; e < m; ++e) row[e] = {micrometres(pos[e].x()), micrometres(pos[e].y())};
-    d.positions.push_back(row);
-    d.labels.push_back(labels);
-  };
+  Rows rows{d, pos};
   const std::vector<task::Label> idle(m);
-  for (int i = 0; i < kIdleRowsBefore; ++i) emit(idle);
-
+  for (int i = 0; i < kIdleRowsBefore; ++i) rows.emit(idle);
   for (size_t s = 0; s < steps.size(); ++s) {
     std::vector<task::Token> tokens;
     for (const auto& pt : steps[s]) tokens.push_back(pt.token);
     const std::vector<Vector2d> ends = task::stepEndPositions(spec, motion.end_points, tokens, pos, kTable);
     const StepRoles r = roles(spec, tokens, pos);
-
-    // Bodies whose path is fixed: standing ones, then each mover (and its load) as chosen.
-    struct Body {
-      int entity;
-      int mover;  ///< index into `paths`, -1 standing
-      int rider;  ///< index into `riders` for a load, -1 otherwise
-    };
-    std::vector<Body> fixed;
-    for (size_t e = 0; e < m; ++e)
-      if (!r.moving[e] && isObstacle(spec, static_cast<int>(e))) fixed.push_back({static_cast<int>(e), -1, -1});
-    std::vector<Path> paths;
-    std::vector<Rider> riders;  // [mover] (load -1: none)
-    auto where = [&](const Body& b, double u) -> Vector2d {
-      if (b.mover < 0) return pos[static_cast<size_t>(b.entity)];
-      if (b.rider >= 0) return riders[static_cast<size_t>(b.rider)].at(paths[static_cast<size_t>(b.mover)], u);
-      return paths[static_cast<size_t>(b.mover)].at(u);
-    };
-    // The least clearance of `candidate` bodies against the fixed ones over the step:
-    // distance less contact, measured from no closer than the pair starts or ends.
-    auto clearance = [&](const std::vector<Body>& candidate) {
-      double worst = std::numeric_limits<double>::infinity();
-      for (const Body& a : candidate) {
-        // Its body stays on the table.
-        const double g0 = edgeGap(spec, a.entity, where(a, 0)), g1 = edgeGap(spec, a.entity, where(a, 1));
-        for (int k = 0; k <= kCheckSamples; ++k)
-          worst = std::min(worst, edgeGap(spec, a.entity, where(a, static_cast<double>(k) / kCheckSamples)) -
-                                      std::min({0.0, g0, g1}));
-        if (!isObstacle(spec, a.entity)) continue;
-        for (const Body& b : fixed) {
-          const double contact = spec.contactDistance(a.entity, b.entity);
-          const double d0 = (where(a, 0) - where(b, 0)).norm(), d1 = (where(a, 1) - where(b, 1)).norm();
-          const double allowed = std::min({contact, d0, d1});
-          for (int k = 0; k <= kCheckSamples; ++k) {
-            const double u = static_cast<double>(k) / kCheckSamples;
-            worst = std::min(worst, (where(a, u) - where(b, u)).norm() - allowed);
-          }
-        }
-      }
-      return worst;
-    };
-
+    StepPaths sp(spec, pos, r);
     for (int i : r.movers) {
       const PlannedToken& pt = steps[s][static_cast<size_t>(i)];
       const int e = pt.token.entity;
       const int load_token = r.load_of[static_cast<size_t>(i)];
-      Rider rider;
-      if (load_token >= 0) {
-        rider.load = tokens[static_cast<size_t>(load_token)].entity;
-        rider.offset0 = pos[static_cast<size_t>(rider.load)] - pos[static_cast<size_t>(e)];
-        rider.contact = spec.contactDistance(e, rider.load);
-      }
-      const size_t index = paths.size();
-      paths.push_back({pos[static_cast<size_t>(e)], ends[static_cast<size_t>(e)], pt.shape});
-      riders.push_back(rider);
-      std::vector<Body> candidate = {{e, static_cast<int>(index), -1}};
-      if (rider.load >= 0) candidate.push_back({rider.load, static_cast<int>(index), static_cast<int>(index)});
-      // The first free of the candidates, least changed first; else the one with the most
-      // clearance.
-      auto shapeWith = [&](double bend, double hook, double lag, bool long_way) {
-        paths[index].lag = lag;
-        paths[index].bend = bend;
-        if (rider.load >= 0)
-          paths[index].alignEnd(ends[static_cast<size_t>(rider.load)] - ends[static_cast<size_t>(e)]);
-        paths[index].hookStart(hook);
-        riders[index].long_way = long_way;
-      };
-      const Candidate* best = &candidates().front();
-      double best_clearance = -std::numeric_limits<double>::infinity();
-      const auto& all = candidates();
-      if (!motion.avoid) {  // the planned shape as it is (candidates' first: unchanged)
-        shapeWith(best->bend, best->hook, best->lag, best->long_way);
-        if (bodies_clear && clearance(candidate) < -kContactSlack) *bodies_clear = false;
-      }
-      for (size_t i = 0; i < all.size() && motion.avoid; ++i) {
-        const Candidate& k = all[i];
-        if (k.long_way && rider.load < 0) continue;
-        shapeWith(k.bend, k.hook, k.lag, k.long_way);
-        const double c = clearance(candidate);
-        if (c > best_clearance + 1e-12) best_clearance = c, best = &k;
-        if (c < -kContactSlack) continue;
-        // Free. Of the equally small changes (its mirror image), the one with the most
-        // clearance: the side a path turns to follows the layout, not the order of a list.
-        for (size_t j = i + 1; j < all.size() && all[j].deviation == k.deviation && all[j].lag == k.lag; ++j) {
-          if (all[j].long_way && rider.load < 0) continue;
-          shapeWith(all[j].bend, all[j].hook, all[j].lag, all[j].long_way);
-          const double cj = clearance(candidate);
-          if (cj > best_clearance + 1e-12) best_clearance = cj, best = &all[j];
-        }
-        break;
-      }
-      shapeWith(best->bend, best->hook, best->lag, best->long_way);
-      for (const Body& b : candidate) fixed.push_back(b);
+      const int load = load_token >= 0 ? tokens[static_cast<size_t>(load_token)].entity : -1;
+      const Vector2d load_end = load >= 0 ? ends[static_cast<size_t>(load)] : Vector2d::Zero();
+      const bool clear = sp.add(e, pt.shape, ends[static_cast<size_t>(e)], load, load_end, motion.avoid);
+      if (bodies_clear && !clear) *bodies_clear = false;
     }
-
-    // All tokens of a step end together (step-synchronous demonstrations).
-    double longest = 0;
-    for (const Path& p : paths) longest = std::max(longest, p.length());
-    const double duration = std::max(kMinStepDurationS, longest / kGeneratorSpeed);
-    const int n = static_cast<int>(std::ceil(duration * kGeneratorRateHz));
-    std::vector<task::Label> labels(m);
-    for (const auto& pt : steps[s]) labels[static_cast<size_t>(pt.token.entity)] = {pt.token.action, pt.token.target};
-    std::vector<task::Label> row_labels(m);
-    for (int j = 0; j <= n; ++j) {
-      const double u = j == n ? 1.0 : smoothstep(static_cast<double>(j) / n);
-      for (size_t k = 0; k < paths.size(); ++k) {
-        const int e = tokens[static_cast<size_t>(r.movers[k])].entity;
-        pos[static_cast<size_t>(e)] = j == n ? ends[static_cast<size_t>(e)] : paths[k].at(u);
-        if (riders[k].load >= 0)
-          pos[static_cast<size_t>(riders[k].load)] =
-              j == n ? ends[static_cast<size_t>(riders[k].load)] : riders[k].at(paths[k], u);
-      }
-      for (size_t e = 0; e < m; ++e) row_labels[e] = task::Label{};
-      for (const auto& pt : steps[s])
-        if (j >= pt.label_delay_rows)
-          row_labels[static_cast<size_t>(pt.token.entity)] = labels[static_cast<size_t>(pt.token.entity)];
-      emit(row_labels);
-    }
+    emitStep(steps[s], tokens, r, sp, ends, pos, rows);
     const int gap = s + 1 < steps.size() ? kIdleRowsBetween : kIdleRowsAfter;
-    for (int i = 0; i < gap; ++i) emit(idle);
+    for (int i = 0; i < gap; ++i) rows.emit(idle);
   }
   d.step_window_s = spec.step_window_s;
   d.analyze();

@@ -104,13 +104,15 @@ SyntheticCamera::SyntheticCamera(SyntheticCameraConfig config, MarkerConfig mark
   t_ = -(R_ * C);
 
   background_ = cv::Mat(config_.height, config_.width, CV_8UC1, cv::Scalar(70));
-  const double tw = config_.table_size.width, th = config_.table_size.height;
+  const double x0 = config_.table_origin.x, y0 = config_.table_origin.y;
+  const double x1 = x0 + config_.table_size.width, y1 = y0 + config_.table_size.height;
   const double mg = config_.table_margin_m;
-  drawConvex(background_, {{-mg, -mg, 0}, {tw + mg, -mg, 0}, {tw + mg, th + mg, 0}, {-mg, th + mg, 0}}, 215);
+  drawConvex(background_, {{x0 - mg, y0 - mg, 0}, {x1 + mg, y0 - mg, 0}, {x1 + mg, y1 + mg, 0}, {x0 - mg, y1 + mg, 0}},
+             215);
   // Some clutter on the table: darker blotches (wood grain, stains) that are not markers.
   cv::RNG clutter(config_.seed + 17);
   for (int i = 0; i < 25; ++i) {
-    const cv::Point2d p = project({clutter.uniform(0.0, tw), clutter.uniform(0.0, th), 0});
+    const cv::Point2d p = project({clutter.uniform(x0, x1), clutter.uniform(y0, y1), 0});
     cv::circle(background_, p, clutter.uniform(3, 14), cv::Scalar(clutter.uniform(150, 200)), cv::FILLED, cv::LINE_AA);
   }
   for (const auto& c : markers_.corners)
@@ -120,6 +122,25 @@ SyntheticCamera::SyntheticCamera(SyntheticCameraConfig config, MarkerConfig mark
   for (int r = 0; r < config_.height; ++r)
     for (int c = 0; c < config_.width; ++c)
       light_.at<float>(r, c) = static_cast<float>(1.0 - config_.light_gradient * c / w);
+}
+
+SyntheticCameraConfig framedOnCorners(SyntheticCameraConfig c, const MarkerConfig& markers) {
+  if (markers.corners.empty()) return c;
+  cv::Point2d lo(INFINITY, INFINITY), hi(-INFINITY, -INFINITY);
+  for (const auto& k : markers.corners) {
+    lo = {std::min(lo.x, k.table_xy.x), std::min(lo.y, k.table_xy.y)};
+    hi = {std::max(hi.x, k.table_xy.x), std::max(hi.y, k.table_xy.y)};
+  }
+  const cv::Size2d size(hi.x - lo.x, hi.y - lo.y);
+  if (!(size.width > 0 && size.height > 0)) return c;
+  const double s = std::max(size.width / c.table_size.width, size.height / c.table_size.height);
+  const cv::Point2d from = c.table_origin + cv::Point2d(c.table_size.width, c.table_size.height) / 2;
+  const cv::Point2d to = (lo + hi) / 2;
+  c.position = {to.x + s * (c.position[0] - from.x), to.y + s * (c.position[1] - from.y), s * c.position[2]};
+  c.look_at = to + s * (c.look_at - from);
+  c.table_origin = lo;
+  c.table_size = size;
+  return c;
 }
 
 cv::Point2d SyntheticCamera::project(const cv::Vec3d& X) const {

@@ -403,17 +403,47 @@ std::vector<Tracker::Region> Tracker::quadCandidates(double side_min, double sid
   return out;
 }
 
-FrameResult Tracker::process(const cv::Mat& image, double stamp) {
+void Tracker::toGray(const cv::Mat& image) {
   if (image.empty()) throw Error("tracker: empty image");
   if (image.channels() == 3) cv::cvtColor(image, gray_, cv::COLOR_BGR2GRAY);
   else if (image.channels() == 4) cv::cvtColor(image, gray_, cv::COLOR_BGRA2GRAY);
   else if (image.type() == CV_8UC1) gray_ = image;
   else throw Error("tracker: unsupported image type (need 8-bit mono, BGR or BGRA)");
-
   if (camera_.valid && camera_.image_size.area() > 0 && gray_.size() != camera_.image_size)
     throw Error("tracker: the image is " + std::to_string(gray_.cols) + "x" + std::to_string(gray_.rows) +
                 " but the camera calibration is for " + std::to_string(camera_.image_size.width) + "x" +
                 std::to_string(camera_.image_size.height));
+}
+
+struct Tracker::FrameSearch {
+  const cv::Mat& gray;
+  FrameResult& result;
+  std::vector<Detection> found;
+  std::set<int> found_ids;
+
+  /// Every detection of `detector` in `rois`, the first of each id kept. `sized`: tell
+  /// the detector the size of the markers expected in each region.
+  void search(FiducialDetector& detector, const std::vector<Region>& rois, bool sized) {
+    for (const auto& roi : rois)
+      for (const auto& d : detector.detect(gray, roi.rect, sized ? roi.side_px : 0.0))
+        if (found_ids.insert(d.id).second) found.push_back(d);
+  }
+  /// Regions grown around missed or fast markers can cost more than the whole frame
+  /// (merged regions cost about their area).
+  bool tooLarge(const std::vector<Region>& rois) const {
+    constexpr double kFullFrameAbove = 0.75;  // fraction of the image
+    double area = 0;
+    for (const auto& r : rois) area += r.rect.area();
+    return area > kFullFrameAbove * static_cast<double>(gray.total());
+  }
+  void addRois(const std::vector<Region>& rois) {
+    for (const auto& r : rois) result.rois.push_back(r.rect);
+  }
+  static std::vector<Region> whole() { return {{cv::Rect(), 0.0}}; }
+};
+
+FrameResult Tracker::process(const cv::Mat& image, double stamp) {
+  toGray(image);
   image_size_ = gray_.size();
   FrameResult result;
   result.stamp = stamp;
@@ -421,40 +451,32 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
   result.full_frame =
       !config_.roi.enabled || need_table || last_seen_px_.empty() || frames_ % config_.roi.full_frame_every == 0;
   ++frames_;
+  FrameSearch s{gray_, result, {}, {}};
+  lookForAbsent(s, lookWhereExpected(s, stamp));
+  keepConfigured(s.found, stamp, result);
+  // Regions follow markers seen recently; those unseen for longer than the hold are
+  // searched for as absent ones.
+  for (auto it = last_seen_px_.begin(); it != last_seen_px_.end();)
+    it = stamp - last_seen_t_.at(it->first) <= config_.filter.hold_s ? std::next(it) : last_seen_px_.erase(it);
+  updateEntities(stamp, result);
+  return result;
+}
 
-  std::vector<Detection> found;
-  std::set<int> found_ids;
-  // `sized`: tell the detector the size of the markers expected in each region.
-  const auto search = [&](FiducialDetector& detector, const std::vector<Region>& rois, bool sized) {
-    for (const auto& roi : rois)
-      for (const auto& d : detector.detect(gray_, roi.rect, sized ? roi.side_px : 0.0))
-        if (found_ids.insert(d.id).second) found.push_back(d);
-  };
+std::set<int> Tracker::lookWhereExpected(FrameSearch& s, double stamp) {
+  FrameResult& result = s.result;
   const auto missing = [&] {
     std::set<int> ids = trackedIds(result.full_frame);
-    for (const int id : found_ids) ids.erase(id);
+    for (const int id : s.found_ids) ids.erase(id);
     return ids;
   };
-  // Regions grown around missed or fast markers can cost more than the whole frame.
-  constexpr double kFullFrameAbove = 0.75;  // fraction of the image (merged regions cost about their area)
-  const auto tooLarge = [&](const std::vector<Region>& rois) {
-    double area = 0;
-    for (const auto& r : rois) area += r.rect.area();
-    return area > kFullFrameAbove * static_cast<double>(gray_.total());
-  };
-  const auto addRois = [&](const std::vector<Region>& rois) {
-    for (const auto& r : rois) result.rois.push_back(r.rect);
-  };
-  const std::vector<Region> whole = {{cv::Rect(), 0.0}};
-
   // First look: where each tracked marker is predicted, for markers of its size.
   std::vector<Region> first;
   if (!result.full_frame) {
     first = regions(gray_.size(), stamp, Reach::Predicted, trackedIds(false));
-    if (tooLarge(first)) result.full_frame = true;
+    if (s.tooLarge(first)) result.full_frame = true;
   }
-  if (result.full_frame) search(*detector_, whole, false);
-  else search(*detector_, first, true), addRois(first);
+  if (result.full_frame) s.search(*detector_, FrameSearch::whole(), false);
+  else s.search(*detector_, first, true), s.addRois(first);
 
   // A marker missing where it was expected is looked for again at once, in this frame:
   // everywhere the filter would accept it (it moved unexpectedly), with the detector's
@@ -466,66 +488,70 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
   if (const std::set<int> lost = missing(); !lost.empty() && !result.full_frame) {
     result.first_look_misses = static_cast<int>(lost.size());
     const std::vector<Region> wide = regions(gray_.size(), stamp, Reach::MaxSpeed, lost);
-    if (tooLarge(wide)) {
+    if (s.tooLarge(wide)) {
       unfollowed = lost;
     } else {
-      search(*detector_, wide, false);
-      addRois(wide);
+      s.search(*detector_, wide, false);
+      s.addRois(wide);
     }
   }
   if (const std::set<int> lost = missing(); !lost.empty() && second_look_) {
     const std::vector<Region> wide = regions(gray_.size(), stamp, Reach::MaxSpeed, lost);
-    if (!tooLarge(wide)) {
-      search(*second_look_, wide, false);
+    if (!s.tooLarge(wide)) {
+      s.search(*second_look_, wide, false);
       result.second_look = true;
     }
   }
+  return unfollowed;
+}
 
-  // A configured marker the regions do not follow (never seen, gone for longer than the
-  // hold: carried away, put back, missed by the first full-frame pass; or missing for so
-  // long that its region would cover most of the image) does not wait for the next
-  // full-frame pass either: the rest of the image is searched for marker-sized
-  // quadrilaterals, and the detector reads each, at the marker's size.
-  std::set<int> absent = absentIds(found_ids);
+// A configured marker the regions do not follow (never seen, gone for longer than the
+// hold: carried away, put back, missed by the first full-frame pass; or missing for so
+// long that its region would cover most of the image) does not wait for the next
+// full-frame pass either: the rest of the image is searched for marker-sized
+// quadrilaterals, and the detector reads each, at the marker's size.
+void Tracker::lookForAbsent(FrameSearch& s, const std::set<int>& unfollowed) {
+  FrameResult& result = s.result;
+  std::set<int> absent = absentIds(s.found_ids);
   for (const int id : unfollowed)
-    if (!found_ids.count(id)) absent.insert(id);
-  if (!absent.empty() && !result.full_frame) {
-    result.absent = static_cast<int>(absent.size());
-    double side_min = 0, side_max = 0;
-    for (const int id : absent) {
-      const double side = expectedSidePx(id);
-      side_min = side_min > 0 ? std::min(side_min, side) : side;
-      side_max = std::max(side_max, side);
-    }
-    // Quadrilaterals that are markers found in this frame are known; any other is read,
-    // even inside a region (a first look searched it for its own marker's size only).
-    std::vector<cv::Rect> covered;
-    for (const Detection& d : found)
-      covered.push_back(cv::boundingRect(std::vector<cv::Point2f>(d.corners.begin(), d.corners.end())));
-    const std::vector<Region> candidates = quadCandidates(side_min, side_max, covered);
-    result.absent_candidates = static_cast<int>(candidates.size());
-    if (tooLarge(candidates)) {
-      // A full-frame pass as any other (every threshold window): the absent markers' sizes
-      // may differ (corners and entities), and the frame is reported as searched whole.
-      search(*detector_, whole, false);
-      result.full_frame = true;
-      result.rois.clear();
-    } else {
-      // Every threshold window in these small regions, then the second-look detector
-      // there for what is still missing (as for a marker missed where it was expected).
-      search(*detector_, candidates, false);
-      addRois(candidates);
-      const bool still_missing =
-          std::any_of(absent.begin(), absent.end(), [&](int id) { return !found_ids.count(id); });
-      if (still_missing && second_look_) {
-        search(*second_look_, candidates, false);
-        result.second_look = true;
-      }
-    }
+    if (!s.found_ids.count(id)) absent.insert(id);
+  if (absent.empty() || result.full_frame) return;
+  result.absent = static_cast<int>(absent.size());
+  double side_min = 0, side_max = 0;
+  for (const int id : absent) {
+    const double side = expectedSidePx(id);
+    side_min = side_min > 0 ? std::min(side_min, side) : side;
+    side_max = std::max(side_max, side);
   }
+  // Quadrilaterals that are markers found in this frame are known; any other is read,
+  // even inside a region (a first look searched it for its own marker's size only).
+  std::vector<cv::Rect> covered;
+  for (const Detection& d : s.found)
+    covered.push_back(cv::boundingRect(std::vector<cv::Point2f>(d.corners.begin(), d.corners.end())));
+  const std::vector<Region> candidates = quadCandidates(side_min, side_max, covered);
+  result.absent_candidates = static_cast<int>(candidates.size());
+  if (s.tooLarge(candidates)) {
+    // A full-frame pass as any other (every threshold window): the absent markers' sizes
+    // may differ (corners and entities), and the frame is reported as searched whole.
+    s.search(*detector_, FrameSearch::whole(), false);
+    result.full_frame = true;
+    result.rois.clear();
+    return;
+  }
+  // Every threshold window in these small regions, then the second-look detector there
+  // for what is still missing (as for a marker missed where it was expected).
+  s.search(*detector_, candidates, false);
+  s.addRois(candidates);
+  const bool still_missing = std::any_of(absent.begin(), absent.end(), [&](int id) { return !s.found_ids.count(id); });
+  if (still_missing && second_look_) {
+    s.search(*second_look_, candidates, false);
+    result.second_look = true;
+  }
+}
 
-  // Keep configured markers only; an id seen twice (a reflection, a second print) is
-  // ambiguous: keep the one nearest its last position.
+void Tracker::keepConfigured(const std::vector<Detection>& found, double stamp, FrameResult& result) {
+  // An id seen twice (a reflection, a second print) is ambiguous: keep the one nearest its
+  // last position.
   std::map<int, Detection> by_id;
   for (const auto& d : found) {
     if (!config_.markers.isCorner(d.id) && !config_.markers.entityById(d.id)) continue;
@@ -552,11 +578,9 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
     last_seen_px_[id] = d;
     last_seen_t_[id] = stamp;
   }
-  // Regions follow markers seen recently; those unseen for longer than the hold are
-  // searched for as absent ones.
-  for (auto it = last_seen_px_.begin(); it != last_seen_px_.end();)
-    it = stamp - last_seen_t_.at(it->first) <= config_.filter.hold_s ? std::next(it) : last_seen_px_.erase(it);
+}
 
+void Tracker::updateEntities(double stamp, FrameResult& result) {
   std::vector<Detection> undistorted;
   for (const auto& d : result.detections) {
     Detection u = d;
@@ -564,11 +588,9 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
     for (int k = 0; k < 4; ++k) u.corners[k] = pts[k];
     undistorted.push_back(u);
   }
-
   if (!fixed_table_ && !config_.markers.corners.empty()) updateTable(undistorted, result);
   result.table_valid = table_.has_value();
   result.height_correction = heightCorrection();
-
   if (table_) {
     for (const auto& u : undistorted) {
       for (size_t i = 0; i < config_.markers.entities.size(); ++i) {
@@ -581,7 +603,6 @@ FrameResult Tracker::process(const cv::Mat& image, double stamp) {
     }
   }
   result.entities = states(stamp);
-  return result;
 }
 
 void Tracker::updateTable(const std::vector<Detection>& undistorted, FrameResult& result) {

@@ -1,10 +1,14 @@
-// scripts/network_mode.py, the network-mode check of launch/execute_real.launch, run in
-// network namespaces this test makes (unshare --map-root-user --net): only loopback, plus
-// a private lab address put on it. No traffic leaves them.
+// scripts/network_mode.py, the network-mode check of the launch files, run in network
+// namespaces this test makes (unshare --map-root-user --net): only loopback, plus a private
+// lab address put on it. No traffic leaves them. And every launch file that starts a graph
+// runs it, one machine by default.
 #include <sys/wait.h>
 
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -71,4 +75,106 @@ TEST(NetworkMode, LabModeNeedsROS_IPOnAPrivateAddressOfThisHostAndSaysWhatIsExpo
   r = inNamespace("ROS_IP=10.9.9.9 ROS_HOSTNAME=localhost", "--lab-network true");
   EXPECT_EQ(r.status, 1) << r.out;
   EXPECT_NE(r.out.find("unset ROS_HOSTNAME"), std::string::npos) << r.out;
+}
+
+/// The arguments of every network_mode node of each launch file in `files` with
+/// task:=t model:=m `extra`, read by roslaunch's own loader (nothing is started), and the
+/// DDACE_NETWORK its nodes get: one line "FILE: [args, ...] [modes...]" per file.
+static std::string networkModeArgs(const std::string& dir, const std::vector<std::string>& files,
+                                   const std::string& extra) {
+  // $(find ddace) is this repository, whatever environment the test runs in.
+  const std::string repo = std::filesystem::path(dir).parent_path().string();
+  std::string cmd =
+      "ROS_PACKAGE_PATH='" + repo +
+      "':\"$ROS_PACKAGE_PATH\" /usr/bin/python3 -c \"import sys, roslaunch.config as c\n"
+      "for f in sys.argv[2:]:\n"
+      "  cfg = c.load_config_default([(f, ['task:=t', 'model:=m'] + sys.argv[1].split())], None)\n"
+      "  print(f.split('/')[-1] + ':', [n.args for n in cfg.nodes if n.name.startswith('network_mode')],\n"
+      "        sorted(set(dict(n.env_args).get('DDACE_NETWORK') for n in cfg.nodes)))\n\" '" +
+      extra + "'";
+  for (const auto& f : files) cmd += " '" + dir + "/" + f + "'";
+  std::string out;
+  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
+  if (!p) return out;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  ::pclose(p);
+  return out;
+}
+
+TEST(NetworkMode, EveryLaunchFileThatStartsAGraphStatesItsMode) {
+  const std::string dir = (ddace::findRepository("", {"launch/record.launch"}) / "launch").string();
+  const std::vector<std::string> files{"record.launch", "tabletop.launch", "execute_real.launch"};
+  // One check each: execute_real.launch includes tabletop.launch and turns its check off.
+  std::string out = networkModeArgs(dir, files, "");
+  for (const auto& f : files)
+    EXPECT_NE(out.find(f + ": ['--lab-network false --launch " + f + "'] ['loopback']"), std::string::npos)
+        << f << ": one machine is the default\n"
+        << out;
+  out = networkModeArgs(dir, files, "lab_network:=true");
+  for (const auto& f : files)
+    EXPECT_NE(out.find(f + ": ['--lab-network true --launch " + f + "'] ['lab']"), std::string::npos)
+        << f << ": lab_network:=true\n"
+        << out;
+}
+
+TEST(NetworkMode, JoinRunsACommandInTheNamespaceOfARunningGraph) {
+  if (!namespacesWork()) GTEST_SKIP() << "no user and network namespaces here (docs/trust-boundary.md)";
+  // A graph in a namespace of its own (the target prints its namespace, then waits), and
+  // `loopback_only --join PID` from outside: the command must run in the target's namespace.
+  const std::string script = (ddace::findRepository("", {"scripts/loopback_only"}) / "scripts/loopback_only").string();
+  const std::string shell = ::testing::TempDir() + "join_check.sh";
+  std::ofstream(shell)
+      << "f=$(mktemp)\n"
+         "unshare --map-root-user --net -- sh -c \"readlink /proc/self/ns/net > $f; exec sleep 30\" &\n"
+         "p=$!\n"
+         "for i in $(seq 100); do [ -s $f ] && break; sleep 0.1; done\n"
+         "echo target $(cat $f)\n"
+         "echo own $(readlink /proc/self/ns/net)\n"
+         "echo joined $(\"$1\" --join $p readlink /proc/self/ns/net)\n"
+         "kill $p; rm -f $f\n";
+  std::string out;
+  FILE* p = ::popen(("/bin/bash '" + shell + "' '" + script + "' 2>&1").c_str(), "r");
+  ASSERT_NE(p, nullptr);
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  ::pclose(p);
+  auto field = [&](const std::string& key) {
+    const size_t at = out.find(key + " ");
+    return at == std::string::npos ? std::string()
+                                   : out.substr(at + key.size() + 1, out.find('\n', at) - at - key.size() - 1);
+  };
+  ASSERT_NE(field("target"), "") << out;
+  EXPECT_EQ(field("joined"), field("target")) << out;
+  EXPECT_NE(field("joined"), field("own")) << out;
+}
+
+TEST(NetworkMode, ANodeOfAOneMachineLaunchRefusesToOpenAPortOnTheHostsNetwork) {
+  if (!namespacesWork()) GTEST_SKIP() << "no user and network namespaces here (docs/trust-boundary.md)";
+  // A namespace with an interface besides loopback stands for the host's network; no master
+  // is running: the node must stop before it opens anything (before ros::init).
+  const std::string node =
+      (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "path_follower_node").string();
+  ASSERT_TRUE(std::filesystem::exists(node)) << node;
+  const ScriptRun r = [&] {
+    ScriptRun run;
+    FILE* p = ::popen(("unshare --map-root-user --net -- /bin/sh -c \"ip link set lo up && (ip link add eth9 type "
+                       "bridge || ip link add eth9 type veth peer name eth8 || ip tuntap add dev eth9 mode tap) && "
+                       "DDACE_NETWORK=loopback ROS_MASTER_URI=http://127.0.0.1:1 '" +
+                       node + "'\" 2>&1")
+                          .c_str(),
+                      "r");
+    if (!p) return run;
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, p)) > 0) run.out.append(buf, n);
+    const int status = ::pclose(p);
+    run.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return run;
+  }();
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("not started: the launch asked for one machine"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("eth9"), std::string::npos) << r.out;
 }

@@ -163,6 +163,27 @@ TEST(SafetyFilter, CrossingBothArriveWithoutContact) {
   EXPECT_LT(u.min_gap_m, 0.0);
 }
 
+// Robots on a circle each crossing through its centre to the opposite side: the crowd
+// jams in the middle and clears one by one as the robots go round each other. A robot
+// held there while the robots holding it move is queueing, not deadlocked: every one
+// arrives, and no two bodies touch.
+TEST(SafetyFilter, RobotsCrossingThroughOneCentreAllArriveWithoutContact) {
+  for (const int n : {6, 8}) {
+    std::vector<Mover> m;
+    const Vector2d centre(0.5, 0.5);
+    for (int k = 0; k < n; ++k) {
+      const double ang = 2 * M_PI * k / n + 0.1;
+      const Vector2d from = centre + 0.2 * Vector2d(std::cos(ang), std::sin(ang)), to = 2 * centre - from;
+      m.push_back({"R" + std::to_string(k + 1), {from.x(), from.y(), ang + M_PI}, line(from, to), ""});
+    }
+    const Outcome o = run(m, {}, 60);
+    for (int k = 0; k < n; ++k) EXPECT_TRUE(o.done[k]) << n << " robots: R" << k + 1 << " did not arrive";
+    EXPECT_TRUE(o.deadlocks.empty()) << n << " robots: " << o.deadlocks.size() << " deadlocks, first "
+                                     << o.deadlocks.front();
+    EXPECT_GT(o.min_gap_m, 0.0) << n << " robots: bodies overlapped";
+  }
+}
+
 TEST(SafetyFilter, FourRobotsToOneTargetTouchItButNotEachOther) {
   const Vector2d t(0.4, 0.4);
   std::vector<Mover> m;

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -11,6 +12,7 @@
 #include "ddace/task/task_dir.h"
 #include "ddace/tasks/generators.h"
 
+#include "../common/role_tasks.h"
 #include "../common/run_tool.h"
 
 using namespace ddace;
@@ -100,4 +102,32 @@ TEST(CliPath, BadInputFailsWithAMessage) {
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.out.find(broken), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("missing key 'entities'"), std::string::npos) << r.out;
+}
+
+TEST(CliPath, GeneratesByRoleInTheMotionsStepAndByNameWhenAsked) {
+  const fs::path root = fs::path(model().root) / "line_up";
+  fs::create_directories(root / "model");
+  gp::PrimitiveLibrary::fit(test::lineUp(12, 1)).save((root / "model" / gp::kPrimitivesFile).string());
+  task::writeTaskDir(test::lineUp(3, 2, 5), (root / "test5").string());
+  ToolRun r = runTool("path " + (root / "model").string() +
+                      " --key R2:move:R1 --start 0.1,0.1 --goal 0.5,0.1 --points 3 --step 2");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("# primitive robot:hamster/move/robot:hamster@2"), std::string::npos) << r.out;
+  // The third robot joining the second arcs left: y above the line at mid-progress.
+  const auto mid = r.out.find("\n1,0.5,");
+  ASSERT_NE(mid, std::string::npos) << r.out;
+  double x = 0, y = 0;
+  ASSERT_EQ(std::sscanf(r.out.c_str() + mid, "\n1,0.5,%lf,%lf", &x, &y), 2) << r.out;
+  EXPECT_GT(y, 0.15) << r.out;
+  // Five robots from a library of three: bound by kind, each motion by its step's role.
+  const std::string csv = (root / "paths.csv").string();
+  r = runTool("path " + (root / "model").string() + " --demos " + (root / "test5").string() + " --csv " + csv +
+              " --allow-other-task");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("R5:move:"), std::string::npos) << r.out;
+  r = runTool("path " + (root / "model").string() + " --demos " + (root / "test5").string() + " --csv " + csv);
+  EXPECT_EQ(r.status, 1) << r.out;
+  r = runTool("path " + (root / "model").string() + " --key R2:move:R1 --start 0,0 --goal 1,0 --by-name");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.out.find("--by-name is for --demos"), std::string::npos) << r.out;
 }

@@ -272,6 +272,31 @@ TEST(HamsterConfig, SelectRobotsKeepsTheConfigOrderAndRefusesUnknownNames) {
   }
 }
 
+TEST(HamsterConfig, ABridgeGivenATaskNamesTheConfiguredRobotsTheTaskDoesNotHave) {
+  // The shipped file configures R1..R4; a task of two robots connects those two and says
+  // which others it leaves out (and that nothing needs doing), so a config of another task
+  // never goes unnoticed.
+  const BridgeConfig c = parseBridgeConfig(
+      "robots:\n"
+      "  - {name: R1, address: '000000000001', calibration: {mps_per_unit: 0.002}}\n"
+      "  - {name: R2, address: '000000000002', calibration: {mps_per_unit: 0.002}}\n"
+      "  - {name: R3, address: '000000000003', calibration: {mps_per_unit: 0.002}}\n"
+      "  - {name: R4, address: '000000000004', calibration: {mps_per_unit: 0.002}}\n",
+      "h.yaml");
+  EXPECT_EQ(unusedRobotsWarning(c, {"R2", "R1"}, "fetch2", "h.yaml"),
+            "h.yaml also configures R3, R4, which task 'fetch2' does not have: not connected (no action needed; "
+            "remove them from the file to silence this)");
+  EXPECT_EQ(unusedRobotsWarning(c, {"R1", "R2", "R3", "R4"}, "task4", "h.yaml"), "");
+  EXPECT_EQ(selectRobots(c, {"R2", "R1"}, "task /t (parameter ~task)", "h.yaml").size(), 2u);
+  // A robot of the task the config lacks is an error naming the task, not a robot left out.
+  try {
+    selectRobots(c, {"R1", "R5"}, "task /t (parameter ~task)", "h.yaml");
+    FAIL() << "a robot of the task missing from the config was accepted";
+  } catch (const ddace::Error& e) {
+    EXPECT_STREQ(e.what(), "task /t (parameter ~task): robot 'R5' is not in h.yaml");
+  }
+}
+
 TEST(HamsterConfig, MockRobotsStandInForTheConfiguredOnesInARow) {
   const BridgeConfig c = parseBridgeConfig(
       "robots:\n"

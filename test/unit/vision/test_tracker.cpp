@@ -129,6 +129,35 @@ TEST(TrackerConfig, ErrorsNameFileLineAndColumn) {
   EXPECT_THROW(loadMarkerConfig(dataDir() + "does_not_exist.yaml"), ddace::Error);
 }
 
+// The simulated table takes the size of the task's table (its markers file's corners):
+// the synthetic camera frames a 1.6 x 1.2 m table away from the origin as it frames its own
+// 1 x 1 m one, and the tracker finds the table frame on it.
+TEST(TableFrame, TheSyntheticCameraFramesTheTableItsCornersSpan) {
+  TrackerConfig c = shippedConfig();
+  const SyntheticCameraConfig shipped = loadSyntheticCameraConfig(configDir() + "sim_camera.yaml");
+  // The shipped corners span the shipped camera's table: nothing moves.
+  const SyntheticCameraConfig same = framedOnCorners(shipped, c.markers);
+  EXPECT_LT(cv::norm(same.position - shipped.position), 1e-9);
+  EXPECT_LT(cv::norm(same.look_at - shipped.look_at), 1e-9);
+
+  const cv::Point2d lo(-0.3, 0.1), size(1.6, 1.2);
+  for (auto& k : c.markers.corners) k.table_xy = lo + cv::Point2d(k.table_xy.x * size.x, k.table_xy.y * size.y);
+  const SyntheticCameraConfig framed = framedOnCorners(shipped, c.markers);
+  EXPECT_NEAR(framed.table_size.width, 1.6, 1e-9);
+  EXPECT_NEAR(framed.table_size.height, 1.2, 1e-9);
+  EXPECT_NEAR(framed.position[2], 1.6 * shipped.position[2], 1e-9) << "higher by the longer side's ratio";
+  SyntheticCamera cam(framed, c.markers);
+  const cv::Mat img = cam.render({}, 0.0);
+  const auto frame = TableFrame::fromCornerMarkers(makeDetector(c.detector)->detect(img), c.markers.corners);
+  ASSERT_TRUE(frame.has_value()) << "the tracker does not find the four corners of the larger table";
+  for (double u = 0.0; u <= 1.0; u += 0.25)
+    for (double v = 0.0; v <= 1.0; v += 0.25) {
+      const cv::Point2d q = lo + cv::Point2d(u * size.x, v * size.y);
+      const cv::Point2d p = frame->imageToTable(cam.project({q.x, q.y, 0}));
+      EXPECT_LT(std::hypot(p.x - q.x, p.y - q.y), 0.003) << q;
+    }
+}
+
 TEST(TableFrame, CornerMarkersGiveTheTrueTableFrame) {
   const TrackerConfig c = shippedConfig();
   SyntheticCamera cam(loadSyntheticCameraConfig(dataDir() + "synthetic_camera.yaml"), c.markers);
