@@ -140,9 +140,10 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     mv.length_m = lengthOf(mo.planned);
     if (mo.robot) {
       RobotController& c = *controllers_.at(mo.entity);
-      // Toward a body, it stops where it is still at one place with it (where the body ends).
+      // Toward a body, it stops where it is still at one place with it (where the body ends);
+      // a carrier's load is what ends at the target.
       double stop = stop_radius_m_;
-      if (mo.target >= 0 && mo.target < n && radius_m_[mo.target] > 0)
+      if (mo.target >= 0 && mo.target < n && radius_m_[mo.target] > 0 && contacts[mo.entity].load.empty())
         stop = task::stopRadiusToward(
             stop, stop_tolerance_m_,
             task::togetherDistance(radius_m_[mo.entity] + radius_m_[mo.target], params_.arrival_radius_m),
