@@ -76,7 +76,11 @@ int main(int argc, char** argv) {
   try {
     return it->second.run(std::vector<std::string>(args.begin() + 1, args.end()));
   } catch (const ddace::Error& e) {
-    std::cerr << "ddace " << args[0] << ": error:\n" << e.what() << "\n";
+    // A list of problems (one a line, each naming its file and line) starts on a line of
+    // its own; a single one stays on the error's line.
+    const std::string what = e.what();
+    std::cerr << "ddace " << args[0] << ": error:" << (what.find('\n') == std::string::npos ? " " : "\n") << what
+              << "\n";
   } catch (const std::exception& e) {
     std::cerr << "ddace " << args[0] << ": error: " << e.what() << "\n";
   }

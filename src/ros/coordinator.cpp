@@ -53,6 +53,7 @@ class CoordinatorNode::Impl {
     cfg.max_steps = rosparam::param(pnh, "max_steps", cfg.max_steps);
     cfg.arrival_radius_m = rosparam::param(pnh, "arrival_radius_m", spec_.arrival_radius);
     cfg.arrival_tolerance_m = rosparam::param(pnh, "arrival_tolerance_m", cfg.arrival_tolerance_m);
+    cfg.max_replans = rosparam::param(pnh, "max_replans", cfg.max_replans);
     cfg.dispatch = exec::parseDispatchMode(rosparam::param<std::string>(pnh, "dispatch", exec::toString(cfg.dispatch)),
                                            "parameter '" + pnh.resolveName("dispatch") + "'");
     try {

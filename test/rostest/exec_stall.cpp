@@ -1,4 +1,5 @@
-// A stalled mock robot: its segment times out, the run aborts cleanly, every wheel is zero.
+// A stalled mock robot: its segment times out, the run aborts cleanly (after re-planning it as
+// often as coordinator/max_replans allows), every wheel is zero.
 #include "exec_common.h"
 
 using namespace exec_test;
@@ -54,6 +55,44 @@ TEST(ExecStall, SegmentTimeoutAbortsTheRunWithZeroWheels) {
                 << " follower cycles) after the deadline\n";
       EXPECT_LE(cycles, 2) << "the time-out was noticed " << cycles << " control cycles late";
     }
+  }
+}
+
+// With coordinator/max_replans: 1 the stalled robot's token is re-planned once from where it
+// stands (a new segment), and when that times out too the run aborts naming why.
+TEST(ExecStall, WithReplansAStalledRobotIsReplannedThenTheRunAbortsNamingWhy) {
+  ros::NodeHandle nh;
+  const Files files = Files::fromParams();
+  const ScratchDir scratch("stall_replan");
+  const std::string& dir = scratch;
+  generateTask(dir, "task4", 3, 1);
+  const auto spec = ddace::task::loadTaskDir(dir + "/test").spec;
+  const std::string config = writeConfig(files.config_file, dir + "/execution.yaml",
+                                         {{{"coordinator", "segment_timeout_s", "4.0"},
+                                           {"coordinator", "segment_timeout_per_m_s", "0.0"},
+                                           {"coordinator", "max_replans", "1"}}});
+  Watcher w(nh, spec);
+  Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "autostart:=false",
+                "monitor:=false", "config:=" + config, "stalled:=[R2]"});
+  const std::string started = startRun(w, 30.0);
+  ASSERT_TRUE(started.empty()) << started;
+  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 40.0))
+      << "state " << w.state().state_name;
+  ros::Duration(0.5).sleep();
+  const auto s = w.state();
+  EXPECT_NE(s.reason.find("R2:move:R4"), std::string::npos) << s.reason;
+  EXPECT_NE(s.reason.find("timed out"), std::string::npos) << s.reason;
+  EXPECT_NE(s.reason.find("max_replans = 1"), std::string::npos) << s.reason;
+  std::vector<ros::Time> r2_sent;
+  for (const auto& [id, seg] : w.segments())
+    if (seg.key == "R2:move:R4") r2_sent.push_back(seg.sent);
+  ASSERT_EQ(r2_sent.size(), 2u) << "R2's token was not sent again after its time-out";
+  std::sort(r2_sent.begin(), r2_sent.end());
+  EXPECT_GE((r2_sent[1] - r2_sent[0]).toSec(), 4.0) << "re-planned before its time-out";
+  EXPECT_EQ(w.requests(), 1u) << "no further step was decided";
+  for (const auto& [robot, cmds] : w.wheels()) {
+    ASSERT_FALSE(cmds.empty()) << robot;
+    EXPECT_TRUE(cmds.back().zero()) << robot << " still driving after the abort";
   }
 }
 

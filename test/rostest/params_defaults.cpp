@@ -94,7 +94,8 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"segment_timeout_s", value(cc.segment_timeout_s)},
                   {"segment_timeout_per_m_s", value(cc.segment_timeout_per_m_s)},
                   {"max_steps", value(cc.max_steps)},
-                  {"dispatch", value(std::string(ddace::exec::toString(cc.dispatch)))}},
+                  {"dispatch", value(std::string(ddace::exec::toString(cc.dispatch)))},
+                  {"max_replans", value(cc.max_replans)}},
                  {"arrival_radius_m", "roles"});
   // roles/: the node names are the launch file's; the time-outs are CoordinatorNode's.
   const YAML::Node roles = yaml["coordinator"]["roles"];

@@ -76,6 +76,14 @@ struct CoordinatorConfig {
   /// When a decided token starts (exec/dispatch.h). The one default of the coordinator node
   /// (config/execution.yaml states it) and of `ddace eval --dispatch`.
   DispatchMode dispatch = DispatchMode::Steps;
+  /// When the table changes under a token -- its segment FAILED or ABORTED (a robot pushed
+  /// off its path, blocked), it timed out (stalled), or its target moved more than
+  /// arrival_radius_m + arrival_tolerance_m since it started (a box nudged) -- the token is
+  /// re-planned from the scene as it is (its entity stopped, a path from where it is, to its
+  /// end point, from where the target is now if it moved) at most this many times; after that,
+  /// or when its entity or target is not tracked, the run aborts naming why. 0: any of these
+  /// aborts (the paper's execution).
+  int max_replans = 0;
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
 };
@@ -157,13 +165,15 @@ struct TokenRecord {
   Eigen::Vector2d goal{0, 0};   ///< the end point (task/end_point.h); = start for in-place tokens
   uint32_t segment_id = 0;      ///< 0 for in-place tokens
   SegmentState state = SegmentState::Sent;
-  double progress = 0;           ///< last reported, [0, 1]
-  PlannedPath path;              ///< empty for in-place tokens
-  double timeout_s = 0;          ///< the segment's time-out (0 for in-place tokens)
-  double segment_sent_s = -1;    ///< when its segment went out (-1: none out)
-  uint32_t path_request = 0;     ///< the path request awaited (0: none)
-  double path_requested_s = -1;  ///< when it was sent
-  uint32_t batch = 0;            ///< tokens that started together share it: their segments go out together
+  double progress = 0;                 ///< last reported, [0, 1]
+  PlannedPath path;                    ///< empty for in-place tokens
+  double timeout_s = 0;                ///< the segment's time-out (0 for in-place tokens)
+  double segment_sent_s = -1;          ///< when its segment went out (-1: none out)
+  uint32_t path_request = 0;           ///< the path request awaited (0: none)
+  double path_requested_s = -1;        ///< when it was sent
+  uint32_t batch = 0;                  ///< tokens that started together share it: their segments go out together
+  Eigen::Vector2d target_start{0, 0};  ///< its target's position when it was (re-)planned
+  int replans = 0;                     ///< times it was re-planned (CoordinatorConfig::max_replans)
   /// Straight-line distance of the entity's *tracked* position to `goal` (metres; NaN
   /// before the first observation after the segment went out).
   double distance_to_goal_m = std::numeric_limits<double>::quiet_NaN();
@@ -273,6 +283,12 @@ class Coordinator {
   void stopActive(CoordinatorOutput& out);
   bool arrived(const TokenRecord& t) const;
   void updateDistances();
+  /// Re-plans a started token from the scene as it is, or aborts naming `why` when it may
+  /// not (CoordinatorConfig::max_replans).
+  void replan(TokenRef t, const std::string& why, double now_s, CoordinatorOutput& out);
+  /// The end point of the started token `t` from the positions `at` (the step's other
+  /// started tokens at their start).
+  Eigen::Vector2d endPointOf(TokenRef t, std::vector<Eigen::Vector2d> at) const;
   /// Marks `t` done and ends it in the dispatch record.
   void endToken(TokenRef t, double now_s, CoordinatorOutput& out, const std::string& why);
   TokenRecord& record(TokenRef t) { return steps_[static_cast<size_t>(t.step)].tokens[static_cast<size_t>(t.index)]; }

@@ -111,9 +111,12 @@ struct EndPoint {
 /// a carrier behind its `load`, -1 for none). Two more count half the arrival radius worse
 /// (where a body already stood, the generators end a motion so, generators.h): touching an
 /// obstacle target from another side (within a quarter of the radius of contact), and
-/// stopped on the way short of a goal by up to the mover's diameter.
+/// stopped on the way short of a goal by up to the mover's diameter. A goal bodies stand on
+/// when the motion ended (`at_end`, [entity]; `where` when null: one may have arrived in
+/// the same step) is also read where the mover ends touching one of them.
 EndPoint endPoint(const task::TaskSpec& spec, int mover, const Eigen::Vector2d& start, const Eigen::Vector2d& end,
-                  const std::vector<Eigen::Vector2d>& where, const std::vector<bool>& candidates, int load = -1);
+                  const std::vector<Eigen::Vector2d>& where, const std::vector<bool>& candidates, int load = -1,
+                  const std::vector<Eigen::Vector2d>* at_end = nullptr);
 
 /// Finds motions row by row. Call row() for every row in order, then finish().
 class MotionSegmenter {

@@ -72,6 +72,7 @@ void CoordinatorConfig::validate() const {
   positive(arrival_radius_m, "arrival_radius_m");
   if (!(arrival_tolerance_m >= 0) || !std::isfinite(arrival_tolerance_m))
     throw Error("coordinator parameter 'arrival_tolerance_m' must be >= 0");
+  if (max_replans < 0) throw Error("coordinator parameter 'max_replans' must be >= 0");
 }
 
 uint32_t firstIdAt(double wall_clock_s) {
@@ -275,7 +276,55 @@ void Coordinator::startReady(double now_s, CoordinatorOutput& out) {
     for (const TokenRef& r : motions)
       if (r.step == static_cast<int>(k)) record(r).goal = ends[static_cast<size_t>(record(r).token.entity)];
   }
+  for (const TokenRef& r : motions)
+    if (record(r).token.target >= 0) record(r).target_start = observation_.positions[record(r).token.target];
   requestPaths(motions, now_s, out);
+}
+
+Eigen::Vector2d Coordinator::endPointOf(TokenRef r, std::vector<Eigen::Vector2d> at) const {
+  const StepRecord& s = steps_[static_cast<size_t>(r.step)];
+  std::vector<task::Token> tokens;
+  for (size_t i = 0; i < s.tokens.size(); ++i) {
+    const TokenRecord& t = s.tokens[i];
+    tokens.push_back(t.token);
+    if (t.started_s >= 0 && static_cast<int>(i) != r.index) at[static_cast<size_t>(t.token.entity)] = t.start;
+  }
+  const int e = s.tokens[static_cast<size_t>(r.index)].token.entity;
+  return task::stepEndPositions(spec_, end_points_, tokens, at)[static_cast<size_t>(e)];
+}
+
+void Coordinator::replan(TokenRef r, const std::string& why, double now_s, CoordinatorOutput& out) {
+  TokenRecord& t = record(r);
+  const std::string key = task::tokenKey(t.token, spec_);
+  if (t.replans >= config_.max_replans) {
+    abort(config_.max_replans == 0 ? why
+                                   : why + " (re-planned " + std::to_string(t.replans) +
+                                         " times, max_replans = " + std::to_string(config_.max_replans) + ")",
+          out);
+    return;
+  }
+  for (int e : {t.token.entity, t.token.target})
+    if (e >= 0 && !observation_.tracked.at(static_cast<size_t>(e))) {
+      abort(why + "; no re-plan: " + spec_.entities[static_cast<size_t>(e)].name + " is not tracked", out);
+      return;
+    }
+  ++t.replans;
+  if (t.segment_id != 0) out.stop.push_back(t.token.entity);  // never on with an old segment
+  t.start = observation_.positions[static_cast<size_t>(t.token.entity)];
+  // The end point moves with its target only: a robot pushed aside keeps the end it had.
+  const int target = t.token.target;
+  if (target >= 0 && (observation_.positions[static_cast<size_t>(target)] - t.target_start).norm() >
+                         config_.arrival_radius_m + config_.arrival_tolerance_m) {
+    std::vector<Eigen::Vector2d> at = observation_.positions;
+    at[static_cast<size_t>(t.token.entity)] = t.start;
+    t.goal = endPointOf(r, at);
+    t.target_start = observation_.positions[static_cast<size_t>(target)];
+  }
+  t.done_claimed = false;
+  out.log.push_back("re-planning " + key + " from where it is (" + std::to_string(t.replans) + " of " +
+                    std::to_string(config_.max_replans) + "): " + why);
+  requestPaths({r}, now_s, out);
+  refreshState(out);
 }
 
 void Coordinator::endToken(TokenRef r, double now_s, CoordinatorOutput& out, const std::string& why) {
@@ -387,6 +436,29 @@ CoordinatorOutput Coordinator::onEntities(const EntityObservation& obs, double n
       }
     }
   if (ended || waiting_for_entities_ || blocked_on_tracking_) advance(now_s, out);
+  if (state_ == RunState::Aborted || config_.max_replans == 0) return out;
+  // A target moved under a running token (by a hand, not by a token of the run): its end
+  // point is elsewhere now. Without re-planning the token runs on to its old end point.
+  std::vector<bool> moving(spec_.entities.size(), false);
+  for (const auto& s : steps_)
+    for (const auto& t : s.tokens)
+      if (t.token.isMotion() && t.started_s >= 0 && t.state != SegmentState::Done)
+        moving[static_cast<size_t>(t.token.entity)] = true;
+  for (size_t k = 0; k < steps_.size(); ++k)
+    for (size_t i = 0; i < steps_[k].tokens.size(); ++i) {
+      const TokenRecord& t = steps_[k].tokens[i];
+      const int target = t.token.target;
+      if (!t.token.isMotion() || t.started_s < 0 || t.state == SegmentState::Done || target < 0 ||
+          moving[static_cast<size_t>(target)] || !observation_.tracked[static_cast<size_t>(target)])
+        continue;
+      const double moved = (observation_.positions[static_cast<size_t>(target)] - t.target_start).norm();
+      if (moved <= config_.arrival_radius_m + config_.arrival_tolerance_m) continue;
+      std::ostringstream os;
+      os << spec_.entities[static_cast<size_t>(target)].name << " moved " << moved << " m while "
+         << task::tokenKey(t.token, spec_) << " ran (more than arrival_radius_m + arrival_tolerance_m)";
+      replan({static_cast<int>(k), static_cast<int>(i)}, os.str(), now_s, out);
+      return out;
+    }
   return out;
 }
 
@@ -590,7 +662,7 @@ CoordinatorOutput Coordinator::onSegmentStatus(const StatusReport& r, double now
   if (std::isfinite(r.progress)) rec->progress = std::clamp(r.progress, 0.0, 1.0);
   if (st == SegmentState::Failed || st == SegmentState::Aborted) {
     rec->state = st;
-    abort("segment " + key + " " + toString(st) + (r.message.empty() ? "" : ": " + r.message), out);
+    replan(*ref, "segment " + key + " " + toString(st) + (r.message.empty() ? "" : ": " + r.message), now_s, out);
     return out;
   }
   if (st != SegmentState::Done) {
@@ -655,16 +727,19 @@ CoordinatorOutput Coordinator::onTick(double now_s) {
     return out;
   }
   for (const auto& s : steps_)
-    for (const auto& t : s.tokens) {
+    for (const auto& t : s.tokens)
       if (t.path_request != 0 && now_s - t.path_requested_s > config_.path_timeout_s) {
         abort("not every path arrived within path_timeout_s = " + seconds(config_.path_timeout_s), out);
         return out;
       }
+  for (size_t k = 0; k < steps_.size(); ++k)
+    for (size_t i = 0; i < steps_[k].tokens.size(); ++i) {
+      const TokenRecord& t = steps_[k].tokens[i];
       if (t.segment_id != 0 && t.state != SegmentState::Done && now_s - t.segment_sent_s > t.timeout_s) {
         std::ostringstream os;
         os << "segment " << task::tokenKey(t.token, spec_) << " timed out after " << t.timeout_s << " s (progress "
            << t.progress << ")";
-        abort(os.str(), out);
+        replan({static_cast<int>(k), static_cast<int>(i)}, os.str(), now_s, out);
         return out;
       }
     }

@@ -218,6 +218,23 @@ std::string atContactWith(const std::vector<std::string>& blocking, const std::v
   return touching;
 }
 
+/// The report of a deadlock: the robot, how long it has not advanced, and the bodies that
+/// held it since (`held_by`; none recorded: the bodies within a margin of holding it).
+std::string deadlockReason(const std::string& self_name, double stuck_s, std::vector<std::string> held_by,
+                           const std::vector<SafetyBody>& bodies, const Eigen::Vector2d& x, double self_radius_m,
+                           const SafetyParams& sp) {
+  if (held_by.empty())
+    for (const SafetyBody& b : bodies)
+      if (b.radius_m > 0 && (b.position - x).norm() - self_radius_m - b.radius_m < 3 * sp.margin_m + sp.projection_m)
+        held_by.push_back(b.name);
+  std::string names;
+  for (const auto& n : held_by) names += (names.empty() ? "" : ", ") + n;
+  char what[96];
+  std::snprintf(what, sizeof what, " has not advanced %.0f cm along its path in %.1f s", sp.progress_m * 100, stuck_s);
+  return "deadlock: " + self_name + what + ", held by the safety filter" +
+         (names.empty() ? std::string() : " against " + names);
+}
+
 }  // namespace
 
 SafetyCommand SafetyFilter::passThrough(const Pose2D& self, double self_radius_m, const WheelSpeeds& nominal,
@@ -390,19 +407,7 @@ bool SafetyFilter::trackHold(SafetyCommand& out, const std::string& self_name, c
   // clears, robots circling each other).
   if (now_s - waiting_since_s_ < params_.deadlock_after_s && stuck_s < params_.wait_limit_s) return go_round;
   out.deadlock = true;
-  std::vector<std::string> near = held_by_;
-  if (near.empty())  // none recorded: the bodies within a margin of holding it
-    for (const SafetyBody& b : bodies)
-      if (b.radius_m > 0 &&
-          (b.position - x).norm() - self_radius_m - b.radius_m < 3 * params_.margin_m + params_.projection_m)
-        near.push_back(b.name);
-  std::string names;
-  for (const auto& n : near) names += (names.empty() ? "" : ", ") + n;
-  char what[96];
-  std::snprintf(what, sizeof what, " has not advanced %.0f cm along its path in %.1f s", params_.progress_m * 100,
-                stuck_s);
-  out.reason = "deadlock: " + self_name + what + ", held by the safety filter" +
-               (names.empty() ? std::string() : " against " + names);
+  out.reason = deadlockReason(self_name, stuck_s, held_by_, bodies, x, self_radius_m, params_);
   return go_round;
 }
 

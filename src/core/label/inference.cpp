@@ -45,7 +45,8 @@ double touchOnGoal(const task::TaskSpec& spec, int mover, int goal, const Vector
 }  // namespace
 
 EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, const Vector2d& end,
-                  const std::vector<Vector2d>& where, const std::vector<bool>& candidates, int load) {
+                  const std::vector<Vector2d>& where, const std::vector<bool>& candidates, int load,
+                  const std::vector<Vector2d>* at_end) {
   const double r = spec.arrival_radius;
   EndPoint ep;
   ep.nearest_m = std::numeric_limits<double>::infinity();
@@ -78,7 +79,7 @@ EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, 
       // A goal bodies stand on (one on it, others touching that one): touching any of them
       // from any side is a reading of the goal too, as good as the body's own side touch, so
       // a motion that ends there ties the goal with the body it touches.
-      if (const double touch = touchOnGoal(spec, mover, c, end, where); touch <= r)
+      if (const double touch = touchOnGoal(spec, mover, c, end, at_end ? *at_end : where); touch <= r)
         residual = std::min(residual, touch + r / 4);
     }
     if (residual <= r) arrived.push_back({residual, target});

@@ -136,7 +136,7 @@ std::vector<bool> Labeller::candidatesOf(const Motion& m) const {
 // A pause: a motion that stopped away from every entity, or over one but goes on in the
 // heading it came in (not taking along what it stopped at), goes on within pause_s.
 bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
-  const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a));
+  const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a), -1, &a.at_offset);
   if (ep.target < 0) return true;
   if (a.end_dir.dot(b.start_dir) < std::cos(options_.heading_rad)) return false;
   // Went to an object and moves on with it: a fetch, then a carry.
@@ -309,8 +309,12 @@ void Labeller::decide(bool at_end) {
   }
   cutAtContacts(merged);
   // Pieces of steps handed over already (a motion cut in two waits for its second piece).
-  merged.erase(std::remove_if(merged.begin(), merged.end(), [&](const Motion& m) { return m.on_row <= handed_off_; }),
+  // A motion that began as the last one handed over ended (a push after a short stop at
+  // the box: the one's onset and the other's offset are dated from the same rows at rest)
+  // begins after it.
+  merged.erase(std::remove_if(merged.begin(), merged.end(), [&](const Motion& m) { return m.off_row <= handed_off_; }),
                merged.end());
+  for (auto& m : merged) m.on_row = std::max(m.on_row, handed_off_ + 1);
   // The last motion of each entity may still be joined by a later one across a pause.
   std::vector<int> last_on(n, -1);
   for (const auto& m : merged) last_on[m.entity] = std::max(last_on[m.entity], m.on_row);
@@ -583,7 +587,7 @@ void Labeller::emit(Group& group, bool aligned) {
         int load = -1;
         for (size_t j = 0; j < g.size() && load < 0; ++j)
           if (carrier[j] == static_cast<int>(i)) load = g[j].entity;
-        const EndPoint ep = endPoint(spec_, m.entity, m.start, m.end, m.at_onset, candidatesOf(m), load);
+        const EndPoint ep = endPoint(spec_, m.entity, m.start, m.end, m.at_onset, candidatesOf(m), load, &m.at_offset);
         tok.token.target = ep.target;
         if (ep.target < 0) {
           tok.token.target = ep.nearest;

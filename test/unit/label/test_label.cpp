@@ -340,6 +340,42 @@ TEST(Label, APushWithNoPauseAfterTheApproachIsTwoTokens) {
   EXPECT_TRUE(inf.notes.empty());
 }
 
+TEST(Label, APushThatBeginsAsTheApproachEndsIsTheCarriers) {
+  // fetch, then the other robot to the occupied goal (as bench label_styles makes it),
+  // demonstrated in every style at once: a push that begins on the rows at rest the
+  // approach ended on (a short stop at the box) keeps its pusher; the box never moves
+  // without a robot.
+  tasks::GeneratorOptions o;
+  o.family = "fetch";
+  o.demos = 10;
+  o.seed = 1;
+  task::TaskDir dir = tasks::generate(o);
+  const int g1 = dir.spec.entityIndex("G1"), b1 = dir.spec.entityIndex("B1");
+  for (auto& d : dir.demos) {
+    std::vector<tasks::PlannedStep> steps;
+    for (const auto& step : d.steps) {
+      tasks::PlannedStep planned;
+      for (const auto& t : step.tokens) planned.push_back({t, {}, 0});
+      steps.push_back(planned);
+    }
+    for (auto& t : steps.back()) t.token.target = g1;
+    d = tasks::simulateSteps(dir.spec, d.positions.front(), steps);
+  }
+  const auto styles = label::demonstrationStyles();
+  const auto all = std::find_if(styles.begin(), styles.end(), [](const auto& st) { return st.name == "all"; });
+  ASSERT_NE(all, styles.end());
+  const label::InferredDataset data = label::inferredDataset(dir, all->options, 1 + 17 * 8);
+  for (size_t k = 1; k < data.inferred.demos.size(); ++k)
+    for (const auto& step : data.inferred.demos[k].steps) {
+      const bool box =
+          std::any_of(step.tokens.begin(), step.tokens.end(), [&](const auto& t) { return t.entity == b1; });
+      const bool robot = std::any_of(step.tokens.begin(), step.tokens.end(), [&](const auto& t) {
+        return dir.spec.entities[t.entity].kind == task::EntityKind::Robot;
+      });
+      EXPECT_TRUE(!box || robot) << "demonstration " << k << ": B1 moved without a robot";
+    }
+}
+
 TEST(Label, ABoxHandedOnAtContactIsTwoSteps) {
   // R1 pushes the box to R2 (stopping behind it), R2 takes it on to G2 without a pause:
   // the box never stops, two carriers carry it in turn.
@@ -389,6 +425,18 @@ TEST(Label, ADriveToAnOccupiedGoalIsToTheGoal) {
   const auto inf = b.infer(&example);
   EXPECT_EQ(tokens(inf, b.spec), (Steps{{"R1:move:B1"}, {"R1:carry:G1", "B1:carry:G1"}, {"R2:move:G1"}}));
   EXPECT_TRUE(inf.notes.empty());
+}
+
+TEST(Label, AGoalTakenInTheSameStepIsTheTargetOfTheOneEndingBesideIt) {
+  // R1 and R2 both sent to G1 at once: R1 takes it, R2 ends touching R1 from the side. G1
+  // was free when R2 set off; it is read as occupied when R2 ended, so G1, not "halfway".
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}}, {1, {0.9, 0.9 - 0.044}}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1", "R2:move:G1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
 }
 
 TEST(Label, TheExamplesCarryingWordIsNotGivenToAPlainDrive) {

@@ -96,6 +96,10 @@ TEST(CliInit, ASlipInASubcommandOrOptionGetsASuggestion) {
   const ToolRun opt = runTool("init " + scratch("opt") + " --robot R1");
   EXPECT_NE(opt.status, 0);
   EXPECT_NE(opt.out.find("unknown option --robot (did you mean --robots?)"), std::string::npos) << opt.out;
+  // A single error stays on the line that names the subcommand.
+  const ToolRun missing = runTool("label " + scratch("missing"));
+  EXPECT_EQ(missing.status, 1);
+  EXPECT_NE(missing.out.find("ddace label: error: missing required option --out"), std::string::npos) << missing.out;
   // Another word is not a slip: no suggestion.
   const ToolRun other = runTool("frobnicate");
   EXPECT_EQ(other.out.find("did you mean"), std::string::npos) << other.out;

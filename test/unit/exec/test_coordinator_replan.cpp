@@ -1,0 +1,165 @@
+// The coordinator re-plans a token when the table changes under it
+// (CoordinatorConfig::max_replans): a segment that failed (a robot pushed off its path or
+// blocked), timed out (stalled), or whose target moved; it aborts naming why when it may not.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include "ddace/exec/coordinator.h"
+#include "ddace/exec/replay.h"
+#include "ddace/tasks/generators.h"
+
+using namespace ddace;
+using namespace ddace::exec;
+using Eigen::Vector2d;
+
+namespace {
+
+task::TaskDir task4() {
+  tasks::GeneratorOptions o;
+  o.family = "task4";
+  o.demos = 1;
+  o.seed = 3;
+  return tasks::generate(o);
+}
+
+EntityObservation observe(const std::vector<Vector2d>& positions) {
+  return {positions, std::vector<bool>(positions.size(), true)};
+}
+
+std::vector<SegmentCommand> answer(Coordinator& c, const CoordinatorOutput& out, double now) {
+  std::vector<SegmentCommand> segs;
+  for (const auto& r : out.paths) {
+    const auto o = c.onPath(r.id, {{r.start, r.goal}, {0, 0}}, "", now);
+    segs.insert(segs.end(), o.segments.begin(), o.segments.end());
+  }
+  return segs;
+}
+
+bool stops(const CoordinatorOutput& out, int entity) {
+  return std::find(out.stop.begin(), out.stop.end(), entity) != out.stop.end();
+}
+
+struct Replan : ::testing::Test {
+  task::TaskDir dir = task4();
+  const task::Demonstration& demo = dir.demos.front();
+  std::vector<Vector2d> at = demo.positions.front();
+  Coordinator c{dir.spec, config(), task::learnEndPoints(dir.spec, dir.demos)};
+
+  static CoordinatorConfig config() {
+    CoordinatorConfig cfg;
+    cfg.max_replans = 2;
+    return cfg;
+  }
+  /// Step 1 decided and its segments out (R1:move:R3, R2:move:R4).
+  std::vector<SegmentCommand> firstStep() {
+    c.onEntities(observe(at), 0.0);
+    const auto s = c.start(0.0);
+    const auto d = c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1);
+    return answer(c, d, 0.2);
+  }
+  CoordinatorOutput arrive(const SegmentCommand& s, double now) {
+    at[static_cast<size_t>(s.entity)] = s.goal;
+    c.onEntities(observe(at), now);
+    return c.onSegmentStatus(s.entity, s.segment_id, SegmentState::Done, 1.0, "", now);
+  }
+};
+
+}  // namespace
+
+TEST_F(Replan, ARobotPushedOffItsPathIsReplannedFromWhereItIsAndTheRunGoesOn) {
+  const auto segs = firstStep();
+  ASSERT_EQ(segs.size(), 2u);
+  const SegmentCommand& r1 = segs[0];
+  // Pushed 5 cm off its way; its follower fails the segment.
+  const Vector2d pushed = (at[static_cast<size_t>(r1.entity)] + r1.goal) / 2 + Vector2d(0, 0.05);
+  at[static_cast<size_t>(r1.entity)] = pushed;
+  c.onEntities(observe(at), 1.0);
+  const auto out = c.onSegmentStatus(r1.entity, r1.segment_id, SegmentState::Failed, 0.4, "off the path band", 1.0);
+  EXPECT_TRUE(c.running()) << c.reason();
+  EXPECT_TRUE(stops(out, r1.entity));
+  ASSERT_EQ(out.paths.size(), 1u);
+  EXPECT_EQ(out.paths[0].token, r1.token);
+  EXPECT_EQ(out.paths[0].start, pushed);
+  EXPECT_TRUE(out.paths[0].goal.isApprox(r1.goal, 1e-9));  // its target did not move
+  const auto again = answer(c, out, 1.1);
+  ASSERT_EQ(again.size(), 1u);
+  EXPECT_NE(again[0].segment_id, r1.segment_id);
+  // The old segment's late DONE counts for nothing; the new one's does.
+  EXPECT_FALSE(c.onSegmentStatus(r1.entity, r1.segment_id, SegmentState::Done, 1.0, "", 1.2).decision);
+  arrive(segs[1], 2.0);
+  const auto next = arrive(again[0], 3.0);
+  EXPECT_TRUE(next.decision) << "step 2 is decided once both tokens of step 1 ended; " << toString(c.state()) << " "
+                             << c.reason() << " " << (next.log.empty() ? "" : next.log.back());
+}
+
+TEST_F(Replan, AStalledRobotIsReplannedAfterItsTimeOutThenTheRunAbortsNamingWhy) {
+  const auto segs = firstStep();
+  arrive(segs[0], 1.0);  // R1 arrives; R2 stalls where it is
+  int replans = 0;
+  double now = 1.0;
+  for (int i = 0; i < 20 && c.running(); ++i) {
+    now += 200;  // past any segment's time-out
+    const auto out = c.onTick(now);
+    for (const auto& p : out.paths) {
+      EXPECT_EQ(p.token, segs[1].token);
+      EXPECT_TRUE(stops(out, segs[1].entity));
+      ++replans;
+    }
+    answer(c, out, now);
+  }
+  EXPECT_EQ(c.state(), RunState::Aborted);
+  EXPECT_EQ(replans, 2) << "re-planned max_replans times";
+  EXPECT_NE(c.reason().find("R2:move:R4"), std::string::npos) << c.reason();
+  EXPECT_NE(c.reason().find("timed out"), std::string::npos) << c.reason();
+  EXPECT_NE(c.reason().find("max_replans = 2"), std::string::npos) << c.reason();
+}
+
+TEST_F(Replan, ATargetMovedBeyondTheArrivalRadiusIsReplannedToWhereItIsNow) {
+  const auto segs = firstStep();
+  const SegmentCommand& r1 = segs[0];  // R1:move:R3
+  const auto r3 = static_cast<size_t>(r1.token.target);
+  const Vector2d before = at[r3];
+  // Tracking noise and a nudge within the arrival radius change nothing.
+  at[r3] = before + Vector2d(0.01, 0);
+  const auto small = c.onEntities(observe(at), 1.0);
+  EXPECT_TRUE(small.paths.empty());
+  EXPECT_TRUE(small.stop.empty());
+  // Moved 6 cm by a hand: R1 stops and goes to where R3 is now.
+  at[r3] = before + Vector2d(0.06, 0);
+  const auto moved = c.onEntities(observe(at), 1.5);
+  EXPECT_TRUE(c.running()) << c.reason();
+  EXPECT_TRUE(stops(moved, r1.entity));
+  ASSERT_EQ(moved.paths.size(), 1u);
+  EXPECT_EQ(moved.paths[0].token, r1.token);
+  EXPECT_LT((moved.paths[0].goal - at[r3]).norm(), (r1.goal - at[r3]).norm());
+  EXPECT_NEAR((moved.paths[0].goal - at[r3]).norm(), (r1.goal - before).norm(), 0.02);
+  EXPECT_FALSE(answer(c, moved, 1.6).empty());
+}
+
+TEST_F(Replan, AFailedSegmentOfARobotTheTrackerLostAbortsNamingIt) {
+  const auto segs = firstStep();
+  EntityObservation obs = observe(at);
+  obs.tracked[static_cast<size_t>(segs[0].entity)] = false;
+  c.onEntities(obs, 1.0);
+  const auto out = c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Failed, 0.2, "pose stale", 1.0);
+  EXPECT_EQ(c.state(), RunState::Aborted);
+  EXPECT_TRUE(out.stop_all);
+  EXPECT_NE(c.reason().find("R1 is not tracked"), std::string::npos) << c.reason();
+}
+
+TEST(ReplanOff, WithoutReplansAFailureAbortsAndAMovedTargetIsNotFollowed) {
+  const task::TaskDir dir = task4();
+  Coordinator c{dir.spec, CoordinatorConfig{}, task::learnEndPoints(dir.spec, dir.demos)};
+  std::vector<Vector2d> at = dir.demos.front().positions.front();
+  c.onEntities(observe(at), 0.0);
+  const auto s = c.start(0.0);
+  const auto segs =
+      answer(c, c.onDecision(s.decision->id, replayDecision(dir.demos.front(), s.decision->history), 0.1), 0.2);
+  ASSERT_EQ(segs.size(), 2u);
+  at[static_cast<size_t>(segs[0].token.target)] += Vector2d(0.06, 0);
+  EXPECT_TRUE(c.onEntities(observe(at), 1.0).paths.empty());
+  c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Failed, 0.2, "blocked", 1.0);
+  EXPECT_EQ(c.state(), RunState::Aborted);
+  EXPECT_NE(c.reason().find("blocked"), std::string::npos) << c.reason();
+}
