@@ -4,11 +4,11 @@
 // asks for no more threads than a machine has (issue: `threads: 100000` made inspect and
 // eval start 2,386 threads and hang). The task is test/fuzz/manifest_task.yaml. Parses
 // from memory (tgn::files::parseManifest takes the text). Most inputs stop at the
-// manifest's own digest: the corpus holds valid manifests (sealed: task4_scene.yaml, ddace-model/14,
+// manifest's own digest: the corpus holds manifests sealed at ddace-model/14 (task4_scene.yaml,
 // and task4_scene_plan.yaml, the same with every field of its training plan set: name groups,
-// token by token, parked, load actions) so the fuzzer also reaches the field checks through
-// its dictionary-free mutations of them; task4_scene_format9/7/6/5.yaml are older formats,
-// refused with "retrain".
+// token by token, parked, load actions; reseal them at the current format for the fuzzer to
+// reach the field checks through its dictionary-free mutations of them);
+// task4_scene_format9/7/6/5.yaml are older formats, refused with "retrain".
 // fuzz-modules: task graph
 // fuzz-sources: src/core/tgn/manifest.cpp src/core/tgn/plan_check.cpp
 // fuzz-max-len: 16384

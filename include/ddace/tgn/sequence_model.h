@@ -72,8 +72,10 @@ namespace ddace::tgn {
 /// ...); /12: the relational basis orders along the axes strictly (tied only at one
 /// place); /13: entities at one place seen from one place in the relational basis; /14:
 /// token by token chooses who acts too, a carrier's pairs are its load's, and a parked
-/// entity is ranked among every one of its kind. Older ones are refused (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/14";
+/// entity is ranked among every one of its kind; /15: motion primitives by role
+/// (primitives.yaml /4), the hyper-parameters without `attention`, `node_positions` and
+/// `edge_displacement` (switches nothing set). Older ones are refused (retrain).
+inline constexpr const char* kModelFormat = "ddace-model/15";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {
@@ -87,14 +89,6 @@ const char* toString(Variant v);
 Variant variantFromString(const std::string& name);
 /// Every variant, default first.
 std::vector<Variant> allVariants();
-
-/// How the scene network's attention logits are formed.
-enum class AttentionKind {
-  GatV2,    ///< a . LeakyReLU(W_d x_i + W_s x_j + W_e r_ij) (GATv2Conv with edge features)
-  GatConv,  ///< LeakyReLU(a_d . W_d x_i + a_s . W_s x_j + a_e . W_e r_ij) (GATConv with edge_dim)
-};
-const char* toString(AttentionKind k);  ///< "gatv2", "gat"
-AttentionKind attentionFromString(const std::string& name);
 
 /// Most training threads a model may ask for (manifest.yaml is outside input; more threads
 /// than this machine has cores only slow tiny tensors down).
@@ -130,11 +124,7 @@ struct TrainOptions {
   int gru_hidden = 64;
   bool identity_embedding = true;  ///< learned per-entity embedding (training may still drop it: TrainingPlan)
   int identity_dim = 8;
-  AttentionKind attention = AttentionKind::GatV2;  ///< scene variant
-  int head_hidden = 32;                            ///< scene variant: hidden units of the action and pointer heads
-  bool node_positions = false;                     ///< scene variant: absolute (x, y) among the node features
-  bool edge_displacement = false;                  ///< scene variant: x_j - x_i among the edge features (else only
-                                                   ///< distance and nearness ranks: invariant to rotating the scene)
+  int head_hidden = 32;  ///< scene variant: hidden units of the action and pointer heads
   /// The learning rules the user switched off (`ddace train --without LIST`); each is on
   /// by default. What each decides is computed from the demonstrations by planTraining.
   std::set<Rule> without;

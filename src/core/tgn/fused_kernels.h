@@ -39,17 +39,13 @@ torch::Tensor gatAttention(const torch::Tensor& h, const torch::Tensor& att_src,
 /// The scene network's attention layer (src/core/tgn/scene_network.h) on dense pairs: for
 /// every receiver i, head h and sender j in in(i) (self-loop included), with the message
 /// m_ij = hs_j + he_ij and LeakyReLU slope 0.2,
-///   GATv2:   logit_ij = <att, LeakyReLU(hd_i + m_ij)>,
-///   GATConv: logit_ij = LeakyReLU(<att_dst, hd_i> + <att_src, hs_j> + <att_edge, he_ij>),
+///   logit_ij = <att, LeakyReLU(hd_i + m_ij)>   (GATv2 with edge features),
 ///   out_i = sum_{j in in(i)} softmax_j(logit_ij) m_ij + bias.
 /// hs (sender), hd (receiver) [S, N, H, C], he [S, N, N, H, C] (pair i <- j; pairs that are
-/// not edges are never read), att [H, C] each, bias [H * C]. Returns [S, N, H * C];
-/// differentiable in hs, hd, he, the att tensors and bias (he's gradient is 0 off the edges).
+/// not edges are never read), att [H, C], bias [H * C]. Returns [S, N, H * C];
+/// differentiable in hs, hd, he, att and bias (he's gradient is 0 off the edges).
 torch::Tensor sceneAttentionV2(const torch::Tensor& hs, const torch::Tensor& hd, const torch::Tensor& he,
                                const torch::Tensor& att, const torch::Tensor& bias, const InEdges& edges);
-torch::Tensor sceneAttentionGat(const torch::Tensor& hs, const torch::Tensor& hd, const torch::Tensor& he,
-                                const torch::Tensor& att_dst, const torch::Tensor& att_src,
-                                const torch::Tensor& att_edge, const torch::Tensor& bias, const InEdges& edges);
 
 /// The scene network's pointer scores without the output bias: for every pair (i, j),
 ///   score_ij = <v, ReLU(a_i + b_j + r_ij + z)>,

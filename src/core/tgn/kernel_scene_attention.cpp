@@ -1,4 +1,4 @@
-// The scene network's attention kernel (GATv2 and GATConv with edge features) (fused_kernels.h).
+// The scene network's attention kernel (GATv2 with edge features) (fused_kernels.h).
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -16,10 +16,6 @@ namespace {
 //
 // The inner loops run over all H * C channels of a pair at once (contiguous, independent
 // elements the compiler vectorises); per-head sums over C channels use 8 partial sums.
-
-float leaky(float v) {
-  return v > 0 ? v : kSlope * v;
-}
 
 /// out[k * C + c] = per_head[k] for every head k and channel c.
 void expand(const float* __restrict per_head, int64_t h_n, int64_t c_n, float* __restrict out) {
@@ -67,31 +63,7 @@ void v2PairBackward(const float* __restrict d, const float* __restrict m, const 
 #pragma GCC pop_options
 #endif
 
-/// The same for GATConv: dpre per channel is its head's gradient of the logit's LeakyReLU input.
-void gatPairBackward(const float* __restrict d, const float* __restrict s, const float* __restrict e,
-                     const float* __restrict att, const float* __restrict dpre, const float* __restrict alpha,
-                     const float* __restrict g, float* __restrict datt, float* __restrict dd, float* __restrict ds,
-                     float* __restrict de, int64_t n) {
-  const float *ad = att, *as = att + n, *ae = att + 2 * n;
-  float *dad = datt, *das = datt + n, *dae = datt + 2 * n;
-  for (int64_t c = 0; c < n; ++c) {
-    dd[c] += dpre[c] * ad[c];
-    dad[c] += dpre[c] * d[c];
-    das[c] += dpre[c] * s[c];
-    dae[c] += dpre[c] * e[c];
-    const float dm = alpha[c] * g[c];
-    ds[c] += dm + dpre[c] * as[c];
-    de[c] = dm + dpre[c] * ae[c];
-  }
-}
-
-/// GATConv's logit input of head k: <att_dst, d> + <att_src, s> + <att_edge, e> over its C channels.
-float gatPre(const float* d, const float* s, const float* e, const float* att, int64_t hc, int64_t k, int64_t c_n) {
-  const int64_t at = k * c_n;
-  return dot(att + at, d + at, c_n) + dot(att + hc + at, s + at, c_n) + dot(att + 2 * hc + at, e + at, c_n);
-}
-
-// att [A, H, C]: A = 1 is GATv2's att, A = 3 GATConv's att_dst, att_src, att_edge.
+// att [H, C]: GATv2's att.
 struct SceneAttentionFn : torch::autograd::Function<SceneAttentionFn> {
   static Tensor forward(AutogradContext* ctx, Tensor hs, Tensor hd, Tensor he, Tensor att, Tensor bias, Tensor offset,
                         Tensor source) {
@@ -102,7 +74,6 @@ struct SceneAttentionFn : torch::autograd::Function<SceneAttentionFn> {
     bias = bias.contiguous();
     const int64_t s_n = hs.size(0), n_n = hs.size(1), h_n = hs.size(2), c_n = hs.size(3), e_n = source.size(0);
     const int64_t hc = h_n * c_n;
-    const bool v2 = att.size(0) == 1;
     Tensor out = torch::empty({s_n, n_n, hc});
     Tensor alpha = torch::empty({s_n, e_n, h_n});
     const float *hsp = hs.data_ptr<float>(), *hdp = hd.data_ptr<float>(), *hep = he.data_ptr<float>(),
@@ -124,13 +95,8 @@ struct SceneAttentionFn : torch::autograd::Function<SceneAttentionFn> {
           const float* eij = hep + ((s * n_n + i) * n_n + j) * hc;
           float* mq = m.data() + q * hc;
           float* lq = logit.data() + q * h_n;
-          if (v2) {
-            v2Terms(di, sj, eij, ap, mq, terms.data(), hc);
-            for (int64_t k = 0; k < h_n; ++k) lq[k] = sum8(terms.data() + k * c_n, c_n);
-          } else {
-            for (int64_t c = 0; c < hc; ++c) mq[c] = sj[c] + eij[c];
-            for (int64_t k = 0; k < h_n; ++k) lq[k] = leaky(gatPre(di, sj, eij, ap, hc, k, c_n));
-          }
+          v2Terms(di, sj, eij, ap, mq, terms.data(), hc);
+          for (int64_t k = 0; k < h_n; ++k) lq[k] = sum8(terms.data() + k * c_n, c_n);
           for (int64_t k = 0; k < h_n; ++k) top[k] = std::max(top[k], lq[k]);
         }
         // Softmax over i's incoming edges, per head.
@@ -162,7 +128,6 @@ struct SceneAttentionFn : torch::autograd::Function<SceneAttentionFn> {
     const Tensor alpha = saved(ctx, "alpha"), offset = saved(ctx, "offset"), source = saved(ctx, "source");
     const Tensor dout = grads[0].contiguous();
     const int64_t s_n = hs.size(0), n_n = hs.size(1), h_n = hs.size(2), c_n = hs.size(3), e_n = source.size(0);
-    const bool v2 = att.size(0) == 1;
     const int64_t hc = h_n * c_n;
     // he's gradient is written at every edge; only pairs that are not edges need zeros.
     Tensor dhs = torch::zeros_like(hs), dhd = torch::zeros_like(hd),
@@ -211,17 +176,8 @@ struct SceneAttentionFn : torch::autograd::Function<SceneAttentionFn> {
           const float* mq = m.data() + q * hc;
           float* dsj = dhsp + (s * n_n + j) * hc;
           float* deij = dhep + ((s * n_n + i) * n_n + j) * hc;
-          if (v2) {
-            expand(dl.data(), h_n, c_n, dlc.data());
-            v2PairBackward(di, mq, ap, dlc.data(), ac.data(), g, dap, ddi, dsj, deij, hc);
-          } else {
-            const float* sj = hsp + (s * n_n + j) * hc;
-            const float* eij = hep + ((s * n_n + i) * n_n + j) * hc;
-            for (int64_t k = 0; k < h_n; ++k)
-              if (!(gatPre(di, sj, eij, ap, hc, k, c_n) > 0)) dl[static_cast<size_t>(k)] *= kSlope;
-            expand(dl.data(), h_n, c_n, dlc.data());
-            gatPairBackward(di, sj, eij, ap, dlc.data(), ac.data(), g, dap, ddi, dsj, deij, hc);
-          }
+          expand(dl.data(), h_n, c_n, dlc.data());
+          v2PairBackward(di, mq, ap, dlc.data(), ac.data(), g, dap, ddi, dsj, deij, hc);
         }
       }
     return {dhs, dhd, dhe, datt, dbias, Tensor(), Tensor()};
@@ -250,17 +206,7 @@ torch::Tensor sceneAttentionV2(const torch::Tensor& hs, const torch::Tensor& hd,
                                const torch::Tensor& att, const torch::Tensor& bias, const InEdges& edges) {
   checkScene(hs, hd, he, att, bias, edges);
   if (att.dim() != 2) throw Error("scene attention: att must be [H, C]");
-  return SceneAttentionFn::apply(hs, hd, he, att.unsqueeze(0), bias, edges.offset, edges.source);
-}
-
-torch::Tensor sceneAttentionGat(const torch::Tensor& hs, const torch::Tensor& hd, const torch::Tensor& he,
-                                const torch::Tensor& att_dst, const torch::Tensor& att_src,
-                                const torch::Tensor& att_edge, const torch::Tensor& bias, const InEdges& edges) {
-  checkScene(hs, hd, he, att_dst, bias, edges);
-  if (att_dst.dim() != 2 || att_src.sizes() != att_dst.sizes() || att_edge.sizes() != att_dst.sizes())
-    throw Error("scene attention: att_dst, att_src and att_edge must be [H, C]");
-  return SceneAttentionFn::apply(hs, hd, he, torch::stack({att_dst, att_src, att_edge}), bias, edges.offset,
-                                 edges.source);
+  return SceneAttentionFn::apply(hs, hd, he, att, bias, edges.offset, edges.source);
 }
 
 }  // namespace ddace::tgn::fused

@@ -46,16 +46,6 @@ Variant variantFromString(const std::string& name) {
   throw Error("variant '" + name + "' is not one of " + names);
 }
 
-const char* toString(AttentionKind k) {
-  return k == AttentionKind::GatV2 ? "gatv2" : "gat";
-}
-
-AttentionKind attentionFromString(const std::string& name) {
-  if (name == "gatv2") return AttentionKind::GatV2;
-  if (name == "gat") return AttentionKind::GatConv;
-  throw Error("attention '" + name + "' is not one of gatv2, gat");
-}
-
 namespace {
 
 const std::pair<Rule, const char*> kRuleNames[] = {
@@ -180,10 +170,7 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   y << YAML::Key << "gru_hidden" << YAML::Value << o.gru_hidden;
   y << YAML::Key << "identity_embedding" << YAML::Value << o.identity_embedding;
   y << YAML::Key << "identity_dim" << YAML::Value << o.identity_dim;
-  y << YAML::Key << "attention" << YAML::Value << toString(o.attention);
   y << YAML::Key << "head_hidden" << YAML::Value << o.head_hidden;
-  y << YAML::Key << "node_positions" << YAML::Value << o.node_positions;
-  y << YAML::Key << "edge_displacement" << YAML::Value << o.edge_displacement;
   std::vector<std::string> without;
   for (Rule rule : o.without) without.push_back(toString(rule));
   y << YAML::Key << "without" << YAML::Value << YAML::Flow << without;
@@ -397,9 +384,10 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
                          std::all_of(version.begin(), version.end(), [](char c) { return c >= '0' && c <= '9'; });
     if (numeric && std::stoi(version) < std::stoi(own)) {
       const int v = std::stoi(version);
-      const std::string lacks = std::string(
-                                    "token by token, it chose the acting entities' targets only, not who acts, "
-                                    "and it ranked a parked entity among the free ones") +
+      const std::string lacks = std::string("its motion primitives are keyed by name only") +
+                                (v < 14 ? ", token by token it chose the acting entities' targets only, not who "
+                                          "acts, and it ranked a parked entity among the free ones"
+                                        : "") +
                                 (v < 13 ? ", the scene network's relational basis changed" : "") +
                                 (v < 11 ? ", its plan has no ensemble" : "") +
                                 (v < 10 ? ", its step rules counted a carried load as an actor" : "") +
@@ -508,14 +496,7 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
     o.gru_hidden = r.integer(hp, "gru_hidden");
     o.identity_embedding = r.boolean(hp, "identity_embedding");
     o.identity_dim = r.integer(hp, "identity_dim");
-    try {
-      o.attention = attentionFromString(r.text(hp, "attention"));
-    } catch (const Error& e) {
-      r.fail(hp["attention"], e.what());
-    }
     o.head_hidden = r.integer(hp, "head_hidden");
-    o.node_positions = r.boolean(hp, "node_positions");
-    o.edge_displacement = r.boolean(hp, "edge_displacement");
     for (const YAML::Node& w : r.sequence(hp, "without")) {
       try {
         o.without.insert(ruleFromString(r.textAt(w, "an item of 'without'")));

@@ -204,7 +204,7 @@ void SequenceModel::Impl::features(const std::vector<Eigen::Vector2d>& pos, cons
   for (int i = 0; i < cfg.nodes; ++i) {
     float* row = out + i * f;
     std::fill(row, row + f, 0.f);
-    if (!isScene() || info.options.node_positions) {
+    if (!isScene()) {
       row[0] = static_cast<float>((pos[i].x() - info.mean[0]) / info.std[0]);
       row[1] = static_cast<float>((pos[i].y() - info.mean[1]) / info.std[1]);
     }
@@ -357,10 +357,6 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
           near_i += d[static_cast<size_t>(j * n + k)] < dij;
           far_i += d[static_cast<size_t>(j * n + k)] > dij;
         }
-      }
-      if (info.options.edge_displacement) {
-        r[0] = static_cast<float>((pos[j].x() - pos[i].x()) / scale);
-        r[1] = static_cast<float>((pos[j].y() - pos[i].y()) / scale);
       }
       r[2] = static_cast<float>(dij);
       r[3] = 1.f / static_cast<float>(1 + near_j);

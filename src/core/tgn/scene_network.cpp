@@ -20,22 +20,14 @@ Tensor takenMask(const Tensor& taken) {
   return torch::cat({torch::zeros_like(taken.narrow(-1, 0, 1)), taken * -1e9}, -1).unsqueeze(-2);
 }
 
-SceneLayerImpl::SceneLayerImpl(int in, int heads, int channels, AttentionKind kind)
-    : heads_(heads), channels_(channels), kind_(kind) {
+SceneLayerImpl::SceneLayerImpl(int in, int heads, int channels) : heads_(heads), channels_(channels) {
   const int width = heads * channels;
   lin_src = register_module("lin_src", linear(in, width, false));
   lin_dst = register_module("lin_dst", linear(in, width, false));
   lin_edge = register_module("lin_edge", linear(kRelativeFeatures, width, false));
   for (auto* w : {&lin_src->weight, &lin_dst->weight, &lin_edge->weight}) nn::init::xavier_uniform_(*w);
-  if (kind == AttentionKind::GatV2) {
-    att = register_parameter("att", torch::empty({heads, channels}));
-    nn::init::xavier_uniform_(att);
-  } else {
-    att_src = register_parameter("att_src", torch::empty({heads, channels}));
-    att_dst = register_parameter("att_dst", torch::empty({heads, channels}));
-    att_edge = register_parameter("att_edge", torch::empty({heads, channels}));
-    for (auto* a : {&att_src, &att_dst, &att_edge}) nn::init::xavier_uniform_(*a);
-  }
+  att = register_parameter("att", torch::empty({heads, channels}));
+  nn::init::xavier_uniform_(att);
   bias = register_parameter("bias", torch::zeros({width}));
 }
 
@@ -44,8 +36,7 @@ Tensor SceneLayerImpl::forward(const Tensor& x, const Tensor& rel, const fused::
   const Tensor hs = lin_src(x).view({s, n, heads_, channels_});  // sender j
   const Tensor hd = lin_dst(x).view({s, n, heads_, channels_});  // receiver i
   const Tensor he = lin_edge(rel).view({s, n, n, heads_, channels_});
-  if (kind_ == AttentionKind::GatV2) return fused::sceneAttentionV2(hs, hd, he, att, bias, in);
-  return fused::sceneAttentionGat(hs, hd, he, att_dst, att_src, att_edge, bias, in);
+  return fused::sceneAttentionV2(hs, hd, he, att, bias, in);
 }
 
 SceneNetworkImpl::SceneNetworkImpl(const NetConfig& c, const Tensor& attention)
@@ -62,7 +53,7 @@ SceneNetworkImpl::SceneNetworkImpl(const NetConfig& c, const Tensor& attention)
   const int attention_width = o.heads * o.head_channels;
   for (int l = 0; l < o.gat_layers; ++l)
     layers.push_back(register_module("layer" + std::to_string(l),
-                                     SceneLayer(l == 0 ? in : attention_width, o.heads, o.head_channels, o.attention)));
+                                     SceneLayer(l == 0 ? in : attention_width, o.heads, o.head_channels)));
   // Without the relative features ("Fixed order") entities differ only by their names:
   // encode() then hands the GRU and the heads each entity's own input (kind, identity)
   // beside the last layer's output, since attention over same-kind neighbours makes two

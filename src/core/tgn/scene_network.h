@@ -2,9 +2,9 @@
 // configuration. Internal to the tgn module (includes <torch/torch.h>).
 //
 //   node features   the entity kind (one-hot robot, object, goal) and an identity
-//                   embedding keyed by the entity's name; (x, y) normalised isotropically
-//                   only with TrainOptions::node_positions (off by default: a decision
-//                   depends on how the scene is arranged, not where it is on the table).
+//                   embedding keyed by the entity's name; no position (a decision depends
+//                   on how the scene is arranged, not where it is on the table; the paper's
+//                   two position slots stay 0).
 //   edge features   the relational basis of the pair i <- j (model_impl.cpp, relative()):
 //                   the distance; nearness ranks 1 / (1 + the number of entities of j's kind
 //                   nearer to i than j), the same for i seen from j, and the farness ranks
@@ -19,17 +19,16 @@
 //                   orders count only rivals: an entity parked with another is none of a
 //                   free one's (a parked one's are every one of its kind), and token by
 //                   token one already given its part is nobody's. Orders are strict but for
-//                   two at one place. The displacement x_j - x_i only with
-//                   TrainOptions::edge_displacement (off by default).
+//                   two at one place. The first two slots are 0 (they held the
+//                   displacement x_j - x_i, measured and not kept: docs/tgn.md).
 //                   Entities within task::togetherDistance of each other (the end-point
 //                   rule: contact plus the arrival radius) are at one place: distance 0,
 //                   and they do not outrank each other.
 //   spatial         `gat_layers` x attention over the attention edges plus self-loops; the
 //                   message from j to i is W_s x_j + W_e r_ij (it carries the edge
 //                   features: a convex combination of W x_j alone cannot form x_j - x_i);
-//                   the logit is GATv2's a . LeakyReLU(W_d x_i + W_s x_j + W_e r_ij), or
-//                   GATConv's LeakyReLU(a_d . W_d x_i + a_s . W_s x_j + a_e . W_e r_ij)
-//                   (`attention`); softmax over i's incoming edges; then ReLU, dropout and,
+//                   the logit is GATv2's a . LeakyReLU(W_d x_i + W_s x_j + W_e r_ij);
+//                   softmax over i's incoming edges; then ReLU, dropout and,
 //                   from the second layer, a residual connection.
 //   temporal        the mean over the entities' embeddings -> the 2-layer GRU (as `paper`).
 //   heads           per entity i, from its own embedding h_i and the GRU output z:
@@ -50,7 +49,7 @@
 
 namespace ddace::tgn {
 
-/// Relative features per pair (see above): displacement (2), distance, near ranks (2),
+/// Relative features per pair (see above): two zeros, distance, near ranks (2),
 /// far ranks (2), axis orders of j (4) and of i (4), the last step's relation (2), the
 /// relation of i's and of j's last move (2).
 inline constexpr int kRelativeFeatures = 19;
@@ -60,15 +59,14 @@ inline constexpr int kRelativeFeatures = 19;
 torch::Tensor takenMask(const torch::Tensor& taken);
 
 struct SceneLayerImpl : torch::nn::Module {
-  SceneLayerImpl(int in, int heads, int channels, AttentionKind kind);
+  SceneLayerImpl(int in, int heads, int channels);
   /// x [S, N, in], rel [S, N, N, R] (pair i <- j), `in` the incoming edges (i receives from
   /// j) -> [S, N, heads * channels]; the attention is one fused kernel (fused_kernels.h).
   torch::Tensor forward(const torch::Tensor& x, const torch::Tensor& rel, const fused::InEdges& in);
 
   int heads_, channels_;
-  AttentionKind kind_;
   torch::nn::Linear lin_src{nullptr}, lin_dst{nullptr}, lin_edge{nullptr};
-  torch::Tensor att, att_src, att_dst, att_edge, bias;
+  torch::Tensor att, bias;
 };
 TORCH_MODULE(SceneLayer);
 

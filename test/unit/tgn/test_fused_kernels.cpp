@@ -54,16 +54,13 @@ void checkGat(const Tensor& mask) {
 }
 
 /// The scene layer's attention written op by op on dense [S, i, j, H, C] tensors (as
-/// SceneLayer did before the fused kernel, and as bench/tgn_train_reference.py does);
-/// att = {att} for GATv2, {att_dst, att_src, att_edge} for GATConv.
-Tensor sceneReference(const Tensor& hs, const Tensor& hd, const Tensor& he, const std::vector<Tensor>& att,
-                      const Tensor& bias, const Tensor& mask) {
+/// SceneLayer did before the fused kernel, and as bench/tgn_train_reference.py does).
+Tensor sceneReference(const Tensor& hs, const Tensor& hd, const Tensor& he, const Tensor& att, const Tensor& bias,
+                      const Tensor& mask) {
   const int64_t s = hs.size(0), n = hs.size(1), h = hs.size(2), c = hs.size(3);
   const Tensor src = hs.view({s, 1, n, h, c}), dst = hd.view({s, n, 1, h, c});
   const Tensor msg = src + he;
-  const Tensor logit =
-      att.size() == 1 ? (torch::leaky_relu(dst + msg, 0.2) * att[0]).sum(-1)
-                      : torch::leaky_relu((dst * att[0]).sum(-1) + (src * att[1]).sum(-1) + (he * att[2]).sum(-1), 0.2);
+  const Tensor logit = (torch::leaky_relu(dst + msg, 0.2) * att).sum(-1);
   const Tensor alpha = torch::softmax(logit.masked_fill(mask.logical_not().view({1, n, n, 1}), -1e30), 2);
   return (alpha.unsqueeze(-1) * msg).sum(2).view({s, n, h * c}) + bias;
 }
@@ -78,26 +75,23 @@ std::vector<Tensor> gradsOf(const std::vector<Tensor>& leaves) {
   return out;
 }
 
-void checkScene(const Tensor& mask, bool v2) {
+void checkScene(const Tensor& mask) {
   const int64_t s = 3, n = mask.size(0), h = 2, c = 4;
-  const Tensor hs = leaf({s, n, h, c}), hd = leaf({s, n, h, c}), he = leaf({s, n, n, h, c}), bias = leaf({h * c});
-  std::vector<Tensor> att{leaf({h, c})};
-  if (!v2) att = {leaf({h, c}), leaf({h, c}), leaf({h, c})};
-  std::vector<Tensor> leaves{hs, hd, he, bias};
-  leaves.insert(leaves.end(), att.begin(), att.end());
+  const Tensor hs = leaf({s, n, h, c}), hd = leaf({s, n, h, c}), he = leaf({s, n, n, h, c}), bias = leaf({h * c}),
+               att = leaf({h, c});
+  const std::vector<Tensor> leaves{hs, hd, he, bias, att};
   const Tensor weights = torch::randn({s, n, h * c});
   const fused::InEdges edges = fused::inEdgesFromMask(mask);
-  const Tensor out = v2 ? fused::sceneAttentionV2(hs, hd, he, att[0], bias, edges)
-                        : fused::sceneAttentionGat(hs, hd, he, att[0], att[1], att[2], bias, edges);
+  const Tensor out = fused::sceneAttentionV2(hs, hd, he, att, bias, edges);
   (out * weights).sum().backward();
   const std::vector<Tensor> fused_grads = gradsOf(leaves);
   const Tensor ref = sceneReference(hs, hd, he, att, bias, mask);
   (ref * weights).sum().backward();
   const std::vector<Tensor> ref_grads = gradsOf(leaves);
-  const std::string kind = v2 ? "gatv2 " : "gat ";
-  expectClose(out, ref, 1e-5, kind + "output");
-  const char* names[] = {"hs", "hd", "he", "bias", "att (dst)", "att_src", "att_edge"};
-  for (size_t i = 0; i < leaves.size(); ++i) expectClose(fused_grads[i], ref_grads[i], 1e-4, kind + "d/d" + names[i]);
+  expectClose(out, ref, 1e-5, "output");
+  const char* names[] = {"hs", "hd", "he", "bias", "att"};
+  for (size_t i = 0; i < leaves.size(); ++i)
+    expectClose(fused_grads[i], ref_grads[i], 1e-4, std::string("d/d") + names[i]);
 }
 
 }  // namespace
@@ -107,10 +101,8 @@ TEST(FusedKernels, SceneAttentionEqualsTheOpByOpFormulationAndItsGradients) {
   const Tensor random = torch::rand({7, 7}).lt(0.4).logical_or(torch::eye(7, torch::kBool));
   ASSERT_GT(random.sum().item<int64_t>(), 7) << "the random mask has edges besides the self-loops";
   ASSERT_LT(random.sum().item<int64_t>(), 49) << "the random mask is not the full graph";
-  for (const bool v2 : {true, false}) {
-    checkScene(random, v2);
-    checkScene(torch::ones({5, 5}, torch::kBool), v2);
-  }
+  checkScene(random);
+  checkScene(torch::ones({5, 5}, torch::kBool));
 }
 
 TEST(FusedKernels, SceneAttentionRefusesMisshapenInputs) {
@@ -122,8 +114,6 @@ TEST(FusedKernels, SceneAttentionRefusesMisshapenInputs) {
   EXPECT_THROW(fused::sceneAttentionV2(h, h, torch::zeros({2, 4, 3, 2, 3}), att, bias, edges), ddace::Error) << "pairs";
   EXPECT_THROW(fused::sceneAttentionV2(h, h, he, torch::zeros({2, 4}), bias, edges), ddace::Error) << "att";
   EXPECT_THROW(fused::sceneAttentionV2(h, h, he, att, torch::zeros({5}), edges), ddace::Error) << "bias";
-  EXPECT_THROW(fused::sceneAttentionGat(h, h, he, att, att, torch::zeros({3, 2}), bias, edges), ddace::Error)
-      << "att_edge";
   EXPECT_THROW(fused::sceneAttentionV2(torch::zeros({2, 5, 2, 3}), torch::zeros({2, 5, 2, 3}),
                                        torch::zeros({2, 5, 5, 2, 3}), att, bias, edges),
                ddace::Error)
