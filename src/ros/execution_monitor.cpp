@@ -572,6 +572,7 @@ class ExecutionMonitorNode::Impl {
     j["outcome"] = outcome;
     j["reason"] = s.reason;
     j["steps"] = executed.size();
+    j["goal_conditions"] = s.goal_conditions.size();
     j["goal_conditions_met"] = gc_met;
     j["duration_s"] = duration;
     if (have_gt_) {

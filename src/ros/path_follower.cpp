@@ -10,6 +10,7 @@
 #include <std_msgs/Bool.h>
 
 #include "ddace/exec/robot_controller.h"
+#include "ddace/task/body_geometry.h"
 #include "exec_conversions.h"
 #include "params.h"
 
@@ -125,7 +126,8 @@ class PathFollowerNode::Impl {
         throw Error("segment for '" + m.entity + "' arrived on " + name + "'s topic");
       const exec::PlannedPath path = ros_exec::fromMsg(m.path, m.stddev_m, "/robots/" + name + "/segment");
       const bool given = m.arrival_radius_m > 0 && std::isfinite(m.arrival_radius_m);
-      r.controller.start(path, m.token.target, given ? m.arrival_radius_m : params_.gains.arrival_radius_m);
+      const double stop = given ? m.arrival_radius_m : params_.gains.arrival_radius_m;
+      r.controller.start(path, m.token.target, stopToward(r, m.step, m.token, path.points.back(), stop), stop);
       r.segment_id = m.segment_id, r.step = m.step, r.action = m.token.action, r.decided = false, r.cycle = 0;
       publishStatus(r, m.segment_id, ddace::SegmentStatus::ACCEPTED, 0, 0, "");
       redecideStep(name, m.step);  // the others of its step decide again with its end point
@@ -169,6 +171,33 @@ class PathFollowerNode::Impl {
   void redecideStep(const std::string& name, int step) {
     for (auto& [other, r] : robots_)
       if (other != name && r->controller.running() && r->step == step) r->decided = false;
+  }
+
+  /// r's stop radius toward the target of `token` ending at `end` (task::stopRadiusToward,
+  /// the target where it ends); a goal is driven onto, and a carrier's load (an object's
+  /// segment of the step known now) is what ends at the target: `stop`.
+  double stopToward(const Robot& r, int step, const ddace::Token& token, const Eigen::Vector2d& end,
+                    double stop) const {
+    const std::string& target = token.target;
+    const auto body = bodies_.find(target);
+    if (body == bodies_.end()) return stop;
+    for (const auto& [name, o] : others_segments_)
+      if (o.step == step && o.action == token.action && o.target == target && kinds_.count(name) &&
+          kinds_.at(name).kind == task::EntityKind::Object)
+        return stop;
+    Eigen::Vector2d at = body->second.body.position;
+    if (auto o = others_segments_.find(target); o != others_segments_.end()) at = o->second.end;
+    if (auto t = robots_.find(target); t != robots_.end() && t->second->controller.running())
+      at = t->second->controller.endPoint();
+    const double contact = radiusOf(r.controller.name()) + body->second.body.radius_m;
+    return task::stopRadiusToward(stop, std::max(task::kArrivalToleranceM, arrival_m_ - stop),
+                                  task::togetherDistance(contact, arrival_m_), (end - at).norm());
+  }
+  /// A robot's body radius: as tracked, else a Hamster's.
+  double radiusOf(const std::string& name) const {
+    const auto t = bodies_.find(name);
+    return t != bodies_.end() ? t->second.body.radius_m
+                              : exec::bodyShape(task::Entity{name, task::EntityKind::Robot, ""}).radius_m;
   }
 
   /// What robot r's motion may touch, from where the step's bodies end (exec::motionContacts).
@@ -244,10 +273,11 @@ class PathFollowerNode::Impl {
         continue;
       }
       others_.clear();
-      double self_age = 1e9, self_radius = exec::bodyShape(task::Entity{name, task::EntityKind::Robot, ""}).radius_m;
+      double self_age = 1e9;
+      const double self_radius = radiusOf(name);
       for (auto& [other, t] : bodies_) {
         if (other == name) {
-          self_age = t.body.stale ? 1e9 : (now - t.seen).toSec(), self_radius = t.body.radius_m;
+          self_age = t.body.stale ? 1e9 : (now - t.seen).toSec();
           continue;
         }
         others_.push_back(t.body);

@@ -121,6 +121,18 @@ TEST(ExecRecord, StateIsLiveResetRestartsAndTheRunLeavesARecord) {
     EXPECT_EQ(log.find(bad), std::string::npos) << "'" << bad << "' in the output of a finished run:\n" << log;
   EXPECT_EQ(checkRun(files, run_dir), 0) << "execute_sim --check " << run_dir;
   const std::string result = readFile(run_dir + "/result.json");
+  {
+    // The same record with a goal condition not met: finished, but no success to the check.
+    const std::string unmet_dir = std::string(scratch) + "/unmet";
+    fs::create_directories(unmet_dir);
+    std::string unmet = result;
+    const std::string met = "\"goal_conditions_met\": ";
+    const size_t at = unmet.find(met);
+    ASSERT_NE(at, std::string::npos) << result;
+    unmet.replace(at + met.size(), unmet.find_first_of(",\n}", at + met.size()) - at - met.size(), "0");
+    std::ofstream(unmet_dir + "/result.json") << unmet;
+    EXPECT_EQ(checkRun(files, unmet_dir), 1) << "execute_sim --check must fail a run whose goal condition is not met";
+  }
   EXPECT_NE(result.find("\"state\": \"finished\""), std::string::npos) << result;
   // The record is of the run after the reset: the reset run's cut segments are not its motions.
   EXPECT_NE(result.find("\"gcr\": 1.0"), std::string::npos) << result;

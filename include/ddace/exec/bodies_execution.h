@@ -14,8 +14,8 @@
 // is done, or when its filter reports a deadlock (the robot stops there; the failure names
 // it), or at the time limit (3x the longest path at cruise speed + 10 s, as the model
 // without bodies). Collisions: two bodies apart that touch (a Box2D contact begins), except
-// the pairs allowed to touch in the step (exec::AllowedContacts, decided when the step
-// begins, the same rule as the run report's: a motion and its own target, a carrier and the
+// the pairs allowed to touch in the step (exec::AllowedContacts: what the step's motions
+// may touch, as given to their controllers -- a motion and its own target, a carrier and the
 // load riding with it, a motion and a body its end point touches while that body is at the
 // end point); a pair that touched while allowed (a motion that ended at its target) counts
 // again after it parted (kPartedM), or when, no longer allowed, it overlaps deeper than
@@ -43,7 +43,8 @@ namespace ddace::exec {
 
 struct BodiesExecutionParams {
   ExecutionConfig config;  ///< the robots' controller, the simulated Hamster, the table (bodies)
-  /// The task's; each motion stops within task::stopRadius of it (3 sigma of the noise).
+  /// The task's; each motion stops within task::stopRadius of its end point (with the stop
+  /// tolerance of noise_m), toward a body within task::stopRadiusToward.
   double arrival_radius_m = task::kDefaultArrivalRadius;
   double noise_m = 0;  ///< std-dev of measured x and y (the simulated Hamster's noise is replaced)
   uint64_t seed = 1;
@@ -71,7 +72,8 @@ class BodiesExecution : public ExecutionModel {
  private:
   BodiesExecutionParams params_;
   ControllerParams controller_;
-  double stop_radius_m_ = 0;  ///< task::stopRadius of the arrival radius, with this model's noise
+  double stop_tolerance_m_ = 0;  ///< task::stopTolerance of this model's noise
+  double stop_radius_m_ = 0;     ///< task::stopRadius with it
   std::unique_ptr<TableSimulator> table_;
   std::vector<std::unique_ptr<RobotController>> controllers_;  ///< one per entity (robots only)
   std::vector<double> radius_m_;                               ///< every entity's body (0: a goal)

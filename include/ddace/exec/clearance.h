@@ -7,7 +7,7 @@
 // unless, no longer allowed (a later step), they overlap deeper than the tolerance: a robot
 // that ended against a body and later shoves into it collides (PairContact, the one rule).
 //
-// AllowedContacts is the one rule of which bodies may touch while a step runs, used by the
+// Which bodies may touch while a step runs is exec/motion_contacts.h's (AllowedContacts), the
 // execution monitor's run report and `ddace eval` with bodies (exec::BodiesExecution) alike.
 //
 // Used by the execution monitor (mock robots and the real table alike: it reads
@@ -24,73 +24,9 @@
 
 #include <Eigen/Core>
 
-#include "ddace/task/demonstration.h"
-#include "ddace/task/task_spec.h"
+#include "ddace/exec/motion_contacts.h"
 
 namespace ddace::exec {
-
-/// The pairs of bodies allowed to touch while a step runs -- their contact is no collision
-/// and their gap no clearance: a motion and its own target; a carrier and the load riding
-/// with it (task::ridingLoad: within task::togetherDistance of it when the step begins; a
-/// load passed from afar on its own path is measured against its carrier); a motion and a body its end point touches
-/// (exec::endsAgainst with the filter's margin, from where that body ends the step: its own end point, or where it
-/// stands -- the second robot onto a goal ends at the first), while that body is at the
-/// end point (two robots bound for one goal keep apart on the way). Decided once per step,
-/// from the step's tokens and end points.
-class AllowedContacts {
- public:
-  /// None: every contact counts.
-  AllowedContacts() = default;
-  /// `tokens`: the step's; `starts`: every entity's position when the step begins (which
-  /// loads ride); `ends`: every entity's position at the end of the step (a
-  /// motion's end point, else where it stands; non-finite = unknown); `moves`: whether the
-  /// entity has a motion (an end point) this step; `radii`: every entity's disc (0 = no
-  /// body); `margin_m`: the safety filter's margin. Throws ddace::Error when the sizes
-  /// differ or a token names an entity outside them.
-  AllowedContacts(const task::TaskSpec& spec, const std::vector<task::Token>& tokens,
-                  const std::vector<Eigen::Vector2d>& starts, const std::vector<Eigen::Vector2d>& ends,
-                  const std::vector<bool>& moves, const std::vector<double>& radii, double margin_m);
-  /// Whether `a` (at `pa`) and `b` (at `pb`) may touch now.
-  bool allowed(int a, int b, const Eigen::Vector2d& pa, const Eigen::Vector2d& pb) const;
-  /// Whether `a`'s motion ends against `b` and `b` (at `pb`) is at `a`'s end point: the
-  /// filter lets `a` touch it (SafetyBody::touchable).
-  bool endsAgainstNow(int a, int b, const Eigen::Vector2d& pb) const;
-
- private:
-  std::set<std::pair<int, int>> exempt_;  ///< (a, b), a < b: a motion and its target, a carrier and its riding load
-  std::set<std::pair<int, int>> ends_against_;  ///< (a, b), a < b: an end point touches the other's end
-  std::vector<Eigen::Vector2d> ends_;
-  std::vector<bool> moves_;
-  std::vector<double> radii_;
-  double margin_m_ = 0;
-};
-
-/// The running step's allowed contacts, as its segments arrive one by one within
-/// milliseconds (the execution monitor): rebuilt from the step's motions so far at each.
-class StepContacts {
- public:
-  /// `radii`: every entity's disc (0 = no body); `margin_m`: the path followers' margin.
-  StepContacts(task::TaskSpec spec, std::vector<double> radii, double margin_m);
-  /// The segment of `entity` (index) in `step` with `token`, ending at `end`; `at`: every
-  /// entity's position now (table frame, metres; NaN = unknown). A new step forgets the
-  /// last one's contacts first. Throws ddace::Error naming both when the token is another
-  /// entity's (the segment is not counted), or when the contacts cannot be decided (then
-  /// none are allowed: every contact counts).
-  void note(int step, int entity, const task::Token& token, const Eigen::Vector2d& end,
-            const std::vector<Eigen::Vector2d>& at);
-  /// A segment of `step` arrived (also one that cannot be noted): a new step forgets the
-  /// last one's contacts.
-  void beginStep(int step);
-  const AllowedContacts& allowed() const { return allowed_; }
-
- private:
-  task::TaskSpec spec_;
-  std::vector<double> radii_;
-  double margin_m_;
-  int step_ = -1;
-  std::map<int, std::pair<task::Token, Eigen::Vector2d>> ends_;  ///< the step's motions: token, end point
-  AllowedContacts allowed_;
-};
 
 /// The closest two bodies came (gap between their discs; negative = overlap).
 struct ClosestApproach {

@@ -16,9 +16,8 @@ namespace ddace::exec {
 
 class DiffDriveExecution : public ExecutionModel {
  public:
-  /// `arrival_radius_m`: the task's (the control law stops within task::stopRadius() of it,
-  /// with 3 x noise_m, at least task::kArrivalToleranceM, as the tolerance); `noise_m`:
-  /// std-dev of measured x and y.
+  /// `arrival_radius_m`: the task's (the control law stops within task::stopRadius() of the
+  /// end point, with task::stopTolerance(noise_m)); `noise_m`: std-dev of measured x and y.
   DiffDriveExecution(double arrival_radius_m, double noise_m, uint64_t seed, const FollowerGains& gains = {},
                      const DiffDriveParams& robot = {});
   std::string name() const override { return "diffdrive"; }

@@ -9,13 +9,14 @@
 //   3. the safety filter (exec::SafetyFilter) changes them as little as keeps every body
 //      clear, except what the motion may touch; a stale body near the robot counts as 1, a
 //      deadlock the filter reports fails the motion naming the bodies that hold it;
-//   4. held at contact with a body its motion ends against, within the stop radius of its
-//      end point (exec::endedAtContact), the motion is done there;
+//   4. held at contact with a body its motion ends against (exec::endedAtContact), or short
+//      of its end point by bodies beside it, within the held stop radius of the end point,
+//      the motion is done there;
 //   5. the filtered wheels go out.
 //
 // What a motion may touch -- its target, the bodies its end point touches, its load and
 // the bodies its load's end point touches (MotionContacts) -- is decided once per step
-// from the step's end points (exec::motionContacts) by the caller and given here; the
+// from the step's end points (exec/motion_contacts.h) by the caller and given here; the
 // controller never decides it from where bodies are while they move. A body it may touch
 // as its ending is touchable only while that body is at the end point (endsAgainst from
 // its measured position): two robots bound for one goal keep apart on the way.
@@ -30,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "ddace/exec/motion_contacts.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/safety_filter.h"
 
@@ -43,18 +45,6 @@ struct ControllerParams {
   double stale_fail_s = 2.0;  ///< a pose stale this long during a motion fails it
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
-};
-
-/// What a motion may touch, decided once per step from the step's end points.
-struct MotionContacts {
-  std::string load;  ///< the object it carries, riding in front ("" = none)
-  /// The table carries the load in front of its carrier once met (TableSimulator::ride: the
-  /// mock robots, the simulator) instead of leaving it to be pushed (the real table, its
-  /// simulation): no push steering (exec/push_path.h's pushWheels).
-  bool load_rides = false;
-  Eigen::Vector2d load_end{0, 0};           ///< where the load ends
-  std::set<std::string> ends_against;       ///< bodies its end point touches (SafetyBody::touchable)
-  std::set<std::string> load_ends_against;  ///< bodies the load's end point touches (load_touchable)
 };
 
 enum class MotionState : char { Idle, Running, Done, Failed };
@@ -80,11 +70,13 @@ class RobotController {
   /// Throws ddace::Error for invalid parameters, naming the first.
   RobotController(std::string name, const ControllerParams& params);
 
-  /// A new motion along `path` toward `target` ("" = none), stopping within
-  /// `stop_radius_m` of its end point (task::stopRadius); the last one is forgotten, and
-  /// what it may touch is none until setContacts(). Throws ddace::Error for an empty path
-  /// or a non-finite point or stop radius.
-  void start(const PlannedPath& path, const std::string& target, double stop_radius_m);
+  /// A new motion along `path` toward `target` ("" = none), stopping by itself within
+  /// `stop_radius_m` of its end point (task::stopRadiusToward), or held by its filter --
+  /// at contact with a body it ends against, or short by bodies beside it -- within
+  /// `held_stop_radius_m` of it (task::stopRadius, task/body_geometry.h); the last
+  /// one is forgotten, and what it may touch is none until setContacts(). Throws
+  /// ddace::Error for an empty path or a non-finite point or radius.
+  void start(const PlannedPath& path, const std::string& target, double stop_radius_m, double held_stop_radius_m);
   /// What the running motion may touch (decided for its step).
   void setContacts(MotionContacts contacts);
   /// Forgets the motion (stopped, replaced, e-stop): the controller is Idle.
@@ -116,33 +108,8 @@ class RobotController {
   SafetyFilter filter_;
   std::string target_;
   MotionContacts contacts_;
-  double stop_radius_m_ = 0;   ///< the motion's (start())
-  double stale_since_s_ = -1;  ///< since when the motion waits on a stale pose (-1: not)
+  double held_stop_radius_m_ = 0;  ///< the motion's (start())
+  double stale_since_s_ = -1;      ///< since when the motion waits on a stale pose (-1: not)
 };
-
-/// A body as a step's motions see it when the step begins.
-struct BodyAtStart {
-  std::string name;
-  Eigen::Vector2d position{0, 0};        ///< where it is now
-  Eigen::Vector2d final_position{0, 0};  ///< where it ends this step: its motion's end point, else `position`
-  double radius_m = 0;
-  bool object = false;
-  /// Its motion's step, action and target (step -1: no motion), for an object that may
-  /// be the robot's load.
-  int step = -1;
-  std::string action, target;
-};
-
-/// What a robot's motion (`step`, `action`, `target`, ending at `end_point`) may touch,
-/// decided when its step begins with the robot at `position`: its load -- an object whose
-/// motion has the same step, action and target (exec::carries) within
-/// task::togetherDistance of it (contact plus `arrival_radius_m`, as
-/// TableSimulator::ride decides who rides) -- and the bodies its end point and its load's
-/// end point touch (endsAgainst with `margin_m`, at the bodies' final positions: one
-/// standing there, or ending there this step, not one only passing by). The one answer
-/// of the path follower node and the simulator with bodies.
-MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
-                              int step, const std::string& action, const std::string& target,
-                              const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m);
 
 }  // namespace ddace::exec

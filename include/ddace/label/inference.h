@@ -118,10 +118,6 @@ EndPoint endPoint(const task::TaskSpec& spec, int mover, const Eigen::Vector2d& 
                   const std::vector<Eigen::Vector2d>& where, const std::vector<bool>& candidates, int load = -1,
                   const std::vector<Eigen::Vector2d>* at_end = nullptr);
 
-/// The contact distance of two entities' bodies (TaskSpec::contactDistance), metres; 0 when
-/// either is no obstacle (a goal).
-double contactDistance(const task::TaskSpec& spec, int a, int b);
-
 /// Finds motions row by row. Call row() for every row in order, then finish().
 class MotionSegmenter {
  public:

@@ -23,16 +23,14 @@
 // a carrier ends behind its load (contact with the target plus the load's diameter), the
 // load on the target (or at contact with an obstacle target).
 //
-// A motion counts as arrived when the entity is within the task's arrival_radius of its
-// end point (arrived()); a path follower stops within stopRadius() of it: the arrival radius
-// less the tracking noise, so that noise cannot leave a stopped robot outside it (and the
-// coordinator counts a DONE within the radius plus the same tolerance).
+// When a motion has arrived, where a robot stops and when two bodies are at one place:
+// task/body_geometry.h.
 //
 // Meant for: gp path generation (a path runs from S to the end point), the closed-loop
 // simulator and the coordinator (end points of a decided step, the DONE check), the path
 // follower's stop, eval's GCR; the model stores the learned offsets (primitives.yaml).
 //
-// Owns: the end point of a motion and the arrival test. Units: metres, table frame.
+// Owns: the end point of a motion. Units: metres, table frame.
 #pragma once
 
 #include <map>
@@ -43,6 +41,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "ddace/task/body_geometry.h"
 #include "ddace/task/demonstration.h"
 #include "ddace/task/task_spec.h"
 
@@ -54,10 +53,6 @@ inline constexpr int kMinKeySegments = 3;
 /// Segments whose start is closer to the target than this have no approach direction
 /// and teach nothing (metres).
 inline constexpr double kMinApproachM = 0.005;
-/// The tracking noise one reading of a pose may carry (metres): a follower stops this far
-/// inside the arrival radius, and a DONE counts this far outside it (the coordinator's
-/// arrival_tolerance_m, whose default this is).
-inline constexpr double kArrivalToleranceM = 0.005;
 
 /// A learned end offset: metres in the approach frame, and the segments it comes from.
 struct EndOffset {
@@ -135,23 +130,5 @@ std::vector<Eigen::Vector2d> stepEndPositions(const TaskSpec& spec, const EndPoi
                                               const std::vector<Token>& step,
                                               const std::vector<Eigen::Vector2d>& decided,
                                               const std::optional<Eigen::AlignedBox2d>& table = std::nullopt);
-
-/// A motion has arrived when `position` is within `arrival_radius` of its end point.
-bool arrived(const Eigen::Vector2d& position, const Eigen::Vector2d& end_point, double arrival_radius);
-/// How far apart entities `a` and `b` of `spec` may stand when one has arrived where a
-/// motion toward the other ends, or both at one target (metres): "at one place". A motion
-/// toward an obstacle ends at contact, so one arrived at the other is within the contact
-/// distance plus the arrival radius; two that arrived on one goal are each within the
-/// radius of it, at most two radii apart. The larger of the two (goals are no obstacles:
-/// contact 0). The scene network's "together" (docs/tgn.md) reads places with it, so a
-/// robot stopped where the follower stops counts as at its load, as in demonstrations.
-/// Also the reach of a ride: a load rides with its carrier when it starts within it.
-double togetherDistance(const TaskSpec& spec, int a, int b);
-/// The same from the two bodies' contact distance (0 when either is no obstacle) and the
-/// task's arrival radius, metres.
-double togetherDistance(double contact_m, double arrival_radius);
-/// How close to the end point a path follower stops: arrival_radius - tolerance, never
-/// less than half the arrival radius (a radius within the noise itself).
-double stopRadius(double arrival_radius, double tolerance = kArrivalToleranceM);
 
 }  // namespace ddace::task

@@ -105,7 +105,8 @@ struct TaskSpec {
   /// footprint(entities[i]).
   Footprint footprint(int i) const;
   /// The centre distance at which the bodies of entities a and b touch: the sum of
-  /// their radii (metres).
+  /// their radii, 0 when either is no obstacle (a flat goal is driven onto, never
+  /// touched); metres. The contact of task/body_geometry.h.
   double contactDistance(int a, int b) const;
 };
 

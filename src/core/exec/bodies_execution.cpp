@@ -22,7 +22,8 @@ BodiesExecution::BodiesExecution(const BodiesExecutionParams& params) : params_(
   if (!(params_.noise_m >= 0) || !std::isfinite(params_.noise_m))
     throw Error("bodies execution: noise_m must be a finite number >= 0");
   // The one stop rule with this model's own noise as the tolerance.
-  stop_radius_m_ = task::stopRadius(params_.arrival_radius_m, std::max(task::kArrivalToleranceM, 3 * params_.noise_m));
+  stop_tolerance_m_ = task::stopTolerance(params_.noise_m);
+  stop_radius_m_ = task::stopRadius(params_.arrival_radius_m, stop_tolerance_m_);
   controller_.gains = params_.config.gains;
   controller_.safety = params_.config.safety;
   controller_.validate();
@@ -82,10 +83,9 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
   // each motion may touch: decided once, as the coordinator decides them for the robots'
   // segments (exec::motionContacts, the path follower node's answer).
   std::vector<Eigen::Vector2d> final_at(n), start_at(n);
-  std::vector<bool> has_end(n, false);
   for (int j = 0; j < n; ++j) final_at[j] = start_at[j] = table_->truePose(j).position();
   for (const StepMotion& mo : motions)
-    if (!mo.planned.empty()) final_at[mo.entity] = mo.planned.back(), has_end[mo.entity] = true;
+    if (!mo.planned.empty()) final_at[mo.entity] = mo.planned.back();
   std::vector<BodyAtStart> bodies;
   for (int j = 0; j < n; ++j) {
     if (!(radius_m_[j] > 0)) continue;
@@ -114,8 +114,13 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
   std::vector<int> load_of(n, -1);  // the load riding with each carrier of the step
   std::vector<MotionContacts> contacts(n);
   for (const StepMotion& mo : motions) {
-    if (!mo.robot) continue;
+    if (!(radius_m_[mo.entity] > 0)) continue;
     contacts[mo.entity] = contactsOf(mo.entity);
+    if (!mo.robot) {
+      contacts[mo.entity].load.clear();  // only robots carry
+      contacts[mo.entity].load_ends_against.clear();
+      continue;
+    }
     const int load = spec.entityIndex(contacts[mo.entity].load);
     if (load >= 0 && !(table_->carrierOf(load) < 0 && table_->ride(mo.entity, load))) {
       contacts[mo.entity].load.clear();  // another carrier's, or too far to ride
@@ -136,7 +141,15 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     mv.length_m = lengthOf(mo.planned);
     if (mo.robot) {
       RobotController& c = *controllers_.at(mo.entity);
-      c.start(PlannedPath{mo.planned, {}}, mo.target >= 0 ? names_[mo.target] : std::string(), stop_radius_m_);
+      // Toward a body, it stops where it is still at one place with it (where the body ends);
+      // a carrier's load is what ends at the target.
+      double stop = stop_radius_m_;
+      if (mo.target >= 0 && mo.target < n && radius_m_[mo.target] > 0 && contacts[mo.entity].load.empty())
+        stop = task::stopRadiusToward(
+            stop, stop_tolerance_m_,
+            task::togetherDistance(radius_m_[mo.entity] + radius_m_[mo.target], params_.arrival_radius_m),
+            (final_at[mo.entity] - final_at[mo.target]).norm());
+      c.start(PlannedPath{mo.planned, {}}, mo.target >= 0 ? names_[mo.target] : std::string(), stop, stop_radius_m_);
       c.setContacts(contacts[mo.entity]);
       limit_s = std::max(limit_s, 3.0 * mv.length_m / controller_.gains.cruise_speed_mps + 10.0);
     } else if (spec.entities[mo.entity].kind != task::EntityKind::Object) {
@@ -157,8 +170,11 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
     }
     ++running;
   }
-  // The collisions are judged by the run report's rule of who may touch whom in the step.
-  const AllowedContacts allowed(spec, tokens, start_at, final_at, has_end, radius_m_, controller_.safety.margin_m);
+  // The collisions are judged by what the step's motions may touch, as decided above.
+  std::vector<DecidedMotion> decided;
+  for (const StepMotion& mo : motions)
+    decided.push_back({mo.entity, mo.target, final_at[mo.entity], contacts[mo.entity]});
+  const AllowedContacts allowed(names_, radius_m_, decided, controller_.safety.margin_m);
 
   // A carrier stopped: arrived (its load goes on the last bit to its end alone), or failed
   // (the load stops where it is). The two touch: no collision until they part.

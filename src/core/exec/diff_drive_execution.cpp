@@ -10,9 +10,8 @@ namespace ddace::exec {
 DiffDriveExecution::DiffDriveExecution(double arrival_radius_m, double noise_m, uint64_t seed,
                                        const FollowerGains& gains, const DiffDriveParams& robot)
     : gains_(gains), robot_(robot) {
-  // The one stop rule with this model's own noise as the tolerance: 3 sigma per axis bounds
-  // 99 % of a reading's error, so a robot stopped on a reading is inside the radius.
-  gains_.arrival_radius_m = task::stopRadius(arrival_radius_m, std::max(task::kArrivalToleranceM, 3 * noise_m));
+  // The one stop rule with this model's own noise as the tolerance.
+  gains_.arrival_radius_m = task::stopRadius(arrival_radius_m, task::stopTolerance(noise_m));
   robot_.position_noise_m = noise_m;
   robot_.seed = seed;
   gains_.validate();

@@ -5,7 +5,6 @@
 
 #include "ddace/common/error.h"
 #include "ddace/exec/push_path.h"
-#include "ddace/task/end_point.h"
 
 namespace ddace::exec {
 
@@ -25,15 +24,17 @@ RobotController::RobotController(std::string name, const ControllerParams& param
   params_.validate();
 }
 
-void RobotController::start(const PlannedPath& path, const std::string& target, double stop_radius_m) {
-  if (!(stop_radius_m > 0) || !std::isfinite(stop_radius_m))
-    throw Error("the stop radius of " + name_ + "'s motion must be a positive number of metres");
+void RobotController::start(const PlannedPath& path, const std::string& target, double stop_radius_m,
+                            double held_stop_radius_m) {
+  for (const double r : {stop_radius_m, held_stop_radius_m})
+    if (!(r > 0) || !std::isfinite(r))
+      throw Error("the stop radii of " + name_ + "'s motion must be positive numbers of metres");
   FollowerGains g = params_.gains;
   g.arrival_radius_m = stop_radius_m;
   PathFollower f(g);
   f.setPath(path);  // throws for an empty or non-finite path, the last motion kept
   follower_ = std::move(f);
-  stop_radius_m_ = stop_radius_m;
+  held_stop_radius_m_ = held_stop_radius_m;
   target_ = target;
   contacts_ = {};
   filter_.reset();
@@ -121,38 +122,24 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
     std::snprintf(where, sizeof where, ", %.1f cm from its end point", 100 * o.distance_to_goal_m);
     return end(out, MotionState::Failed, c.reason + where);
   }
-  if (endedAtContact(c, o.distance_to_goal_m, stop_radius_m_)) {
+  if (endedAtContact(c, o.distance_to_goal_m, held_stop_radius_m_)) {
     // A motion toward a body ends at contact with it: held there by a body it ends
-    // against, within the stop radius of its end point, it has arrived.
+    // against, within the held stop radius of its end point, it has arrived.
     out.ended_at_contact_with = c.at_contact_with;
     out.progress = 1.0;
     return end(out, MotionState::Done, "ended at contact with " + c.at_contact_with);
   }
+  if (c.blocked && o.distance_to_goal_m <= held_stop_radius_m_) {
+    // Held short of its end point by bodies beside it (kept at the filter's margin), near
+    // enough that its true position is within the arrival radius: it has arrived there.
+    out.progress = 1.0;
+    std::string by;
+    for (const std::string& b : c.blocking) by += (by.empty() ? "" : ", ") + b;
+    return end(out, MotionState::Done, "held short of its end point by " + by);
+  }
   out.wheels = c.wheels;
   out.held = c.blocked;
   if (c.blocked) out.blocking = c.blocking;
-  return out;
-}
-
-MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
-                              int step, const std::string& action, const std::string& target,
-                              const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m) {
-  MotionContacts out;
-  const BodyAtStart* load = nullptr;
-  for (const BodyAtStart& b : bodies)
-    if (b.object && b.step >= 0 && b.step == step && b.action == action && b.target == target &&
-        (b.position - position).norm() <= task::togetherDistance(radius_m + b.radius_m, arrival_radius_m)) {
-      load = &b;
-      out.load = b.name;
-      out.load_end = b.final_position;
-      break;
-    }
-  for (const BodyAtStart& b : bodies) {
-    if (&b == load) continue;
-    if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, margin_m)) out.ends_against.insert(b.name);
-    if (load && endsAgainst(load->final_position, load->radius_m, b.final_position, b.radius_m, margin_m))
-      out.load_ends_against.insert(b.name);
-  }
   return out;
 }
 

@@ -20,13 +20,6 @@ SegmentationOptions SegmentationOptions::forTask(const task::TaskSpec& spec) {
   return o;
 }
 
-double contactDistance(const task::TaskSpec& spec, int a, int b) {
-  // The task module's bodies (docs/task-format.md, "Bodies"): a flat print (a goal) is
-  // driven onto, never touched.
-  if (!spec.footprint(a).obstacle || !spec.footprint(b).obstacle) return 0;
-  return spec.contactDistance(a, b);
-}
-
 namespace {
 
 /// How far from touching `mover`'s body at `end` is the nearest body standing on goal
@@ -42,10 +35,10 @@ double touchOnGoal(const task::TaskSpec& spec, int mover, int goal, const Vector
   for (int j = 0; j < n; ++j)
     for (int k = 0; k < n && !cluster[j]; ++k)
       cluster[j] = on[k] && j != mover && j != goal && spec.footprint(j).obstacle &&
-                   (where[j] - where[k]).norm() <= contactDistance(spec, j, k) + r / 4;
+                   (where[j] - where[k]).norm() <= spec.contactDistance(j, k) + r / 4;
   double best = std::numeric_limits<double>::infinity();
   for (int j = 0; j < n; ++j)
-    if (cluster[j]) best = std::min(best, std::abs((end - where[j]).norm() - contactDistance(spec, mover, j)));
+    if (cluster[j]) best = std::min(best, std::abs((end - where[j]).norm() - spec.contactDistance(mover, j)));
   return best;
 }
 
@@ -75,7 +68,7 @@ EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, 
     // touching an obstacle target from another side, or stopped on the way short of a goal
     // by up to the mover's diameter, touching the body on it.
     const task::Footprint mover_body = spec.footprint(mover);
-    if (const double contact = contactDistance(spec, mover, target); contact > 0 && load < 0) {
+    if (const double contact = spec.contactDistance(mover, target); contact > 0 && load < 0) {
       // Touching is tight: within a quarter of the arrival radius (7.5 mm by default, five
       // times the tracker's noise), so a body it merely passed close to is not read.
       if (std::abs(d - contact) <= r / 4) residual = std::min(residual, std::abs(d - contact) + r / 2);

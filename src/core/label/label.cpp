@@ -175,7 +175,7 @@ Motion after(const Motion& m, int row, double t, const std::vector<Vector2d>& at
 }  // namespace
 
 bool Labeller::stoppedAtOnItsWay(const Motion& m, int b, double& turn) const {
-  const double r = spec_.arrival_radius, contact = contactDistance(spec_, m.entity, b);
+  const double r = spec_.arrival_radius, contact = spec_.contactDistance(m.entity, b);
   if (b == m.entity || contact <= 0 || m.closest_row[b] <= m.on_row || m.closest_row[b] >= m.off_row) return false;
   // Touching: within a quarter of the arrival radius of contact, either side (as endPoint
   // reads a touch; bodies on a table do not overlap further than the tracker's noise).

@@ -123,23 +123,6 @@ Vector2d segmentEndPoint(const TaskSpec& spec, const EndPointModel& model, const
   return endPoint(spec, model, step, static_cast<size_t>(at - step.begin()), demo.snapshots[k].positions);
 }
 
-bool arrived(const Vector2d& position, const Vector2d& end_point, double arrival_radius) {
-  return (position - end_point).norm() <= arrival_radius;
-}
-
-double togetherDistance(const TaskSpec& spec, int a, int b) {
-  const Footprint fa = spec.footprint(a), fb = spec.footprint(b);
-  return togetherDistance(fa.obstacle && fb.obstacle ? fa.radius_m + fb.radius_m : 0.0, spec.arrival_radius);
-}
-
-double togetherDistance(double contact_m, double arrival_radius) {
-  return std::max(2.0 * arrival_radius, contact_m + arrival_radius);
-}
-
-double stopRadius(double arrival_radius, double tolerance) {
-  return std::max(arrival_radius - tolerance, 0.5 * arrival_radius);
-}
-
 int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, const std::vector<Vector2d>& at) {
   const auto n = static_cast<int>(at.size());
   // carriedLoad(step[k]) when it is at its carrier, else -1.

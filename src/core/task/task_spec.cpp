@@ -82,7 +82,8 @@ Footprint TaskSpec::footprint(int i) const {
 }
 
 double TaskSpec::contactDistance(int a, int b) const {
-  return footprint(a).radius_m + footprint(b).radius_m;
+  const Footprint fa = footprint(a), fb = footprint(b);
+  return fa.obstacle && fb.obstacle ? fa.radius_m + fb.radius_m : 0.0;
 }
 
 bool ActionRule::matches(const Entity& mover, const Entity& target, int load_kind) const {

@@ -10,6 +10,7 @@
 #include "ddace/exec/bodies_execution.h"
 #include "ddace/exec/replay.h"
 #include "ddace/tasks/generators.h"
+#include "ddace/tasks/rule_zoo.h"
 
 using namespace ddace;
 using namespace ddace::exec;
@@ -305,4 +306,74 @@ TEST(BodiesExecution, TwoTokensOfOneEntityInAStepAreRefusedByName) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("two tokens of 'R1' in step 1"), std::string::npos) << e.what();
   }
+}
+
+namespace {
+
+/// Replays `demos` demonstrations of zoo `family` (a rule and a way of moving) with bodies,
+/// the decisions as demonstrated, each motion ending where the end points learned from
+/// them say: every trial finishes without a collision, its goal conditions met; and at
+/// every decision a carrier is at its load (task::togetherDistance) as in the
+/// demonstrations, so the network would see the load in hand.
+void replayZoo(const std::string& family, int demos) {
+  SCOPED_TRACE(family);
+  uint64_t id = 0;
+  tasks::ZooMotion motion;
+  ASSERT_TRUE(tasks::parseZooFamily(family, id, &motion));
+  const task::TaskDir dir = tasks::generateZoo(id, demos, 5, motion);
+  const task::EndPointModel ends = task::learnEndPoints(dir.spec, dir.demos);
+  const DemonstrationPaths paths(dir.spec, dir.demos);
+  const auto gen = [&](const task::Token& t, const Vector2d& a, const Vector2d& b) {
+    return paths.generate(t, a, b).points;
+  };
+  for (const task::Demonstration& demo : dir.demos) {
+    SCOPED_TRACE(demo.source);
+    const auto policy = [&](const std::vector<task::Snapshot>& h) { return replayDecision(demo, h); };
+    BodiesExecution with = model(true);
+    const Trial a = runTrial(dir.spec, demo, policy, gen, with, ends);
+    EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+    for (const BodyContact& c : a.body_report.collisions)
+      ADD_FAILURE() << "collision " << dir.spec.entities[c.a].name << "-" << dir.spec.entities[c.b].name << " at "
+                    << c.time_s << " s";
+    EXPECT_TRUE(eval::scoreTrial(dir.spec, demo, a).success);
+    for (size_t k = 0; k < a.predicted.size() && k < a.snapshots.size(); ++k) {
+      const std::vector<task::Token>& step = a.predicted[k].tokens;
+      const std::vector<Vector2d>& at = a.snapshots[k].positions;
+      for (size_t i = 0; i < step.size(); ++i) {
+        const int load = task::carriedLoad(dir.spec, step, i);
+        if (load < 0) continue;
+        const int e = step[i].entity, l = step[static_cast<size_t>(load)].entity;
+        EXPECT_LE((at[e] - at[l]).norm(), task::togetherDistance(dir.spec, e, l))
+            << "step " << k + 1 << ": " << dir.spec.entities[e].name << " is not at its load "
+            << dir.spec.entities[l].name << " (" << 100 * ((at[e] - at[l]).norm() - dir.spec.contactDistance(e, l))
+            << " cm beyond contact)";
+      }
+    }
+  }
+}
+
+}  // namespace
+
+// Demonstrations that stop 1 cm short of contact: the fetcher stops where they stopped (within
+// the stop tolerance), at its box, and carries it; then the two others go to the carrier at
+// once and end against it and against each other as demonstrated.
+TEST(BodiesExecution, AFetchDemonstratedStoppingOneCentimetreShortEndsAtItsBox) {
+  replayZoo("zoo:20/direct-10mm", 2);
+}
+
+// The same rule demonstrated touching: two robots sent to one robot in the same step end
+// touching it, and the run finishes.
+TEST(BodiesExecution, TwoRobotsSentToOneRobotAtOnceEndTouchingIt) {
+  replayZoo("zoo:20/direct", 2);
+}
+
+// Two carrier-load pairs carrying at once, demonstrated stopping 4 mm short.
+TEST(BodiesExecution, TwoPairsCarryingAtOnceFinishWithoutACollision) {
+  replayZoo("zoo:two-pairs/direct-4mm", 2);
+}
+
+// A box handed from robot to robot: the receiver touches the box handed to it, the giver
+// stays or backs off as demonstrated.
+TEST(BodiesExecution, ARelayHandsItsBoxOnWithoutACollision) {
+  replayZoo("zoo:41/direct-4mm", 2);
 }

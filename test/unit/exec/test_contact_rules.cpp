@@ -175,3 +175,28 @@ TEST(ContactRules, TouchingABodyNoMotionInvolvesIsACollision) {
   EXPECT_TRUE(with.finished()) << with.failures();
   EXPECT_TRUE(with.report.collisions.empty()) << collisions(s, with.report);
 }
+
+// Two and three robots sent to one goal in the same step: one ends on it, the others at the
+// robots before them (within the arrival radius of touching); touching is no collision, the
+// run finishes.
+TEST(ContactRules, RobotsSentToOneGoalAtOnceEndAtEachOtherWithoutACollision) {
+  for (const int robots : {2, 3}) {
+    SCOPED_TRACE(std::to_string(robots) + " robots");
+    const auto s = spec(robots == 2 ? "R1 R2 G1" : "R1 R2 R3 G1");
+    const Vector2d goal(0.6, 0.4);
+    std::vector<Pose2D> start{{0.2, 0.4, 0}, {0.2, 0.6, 0}, {0.2, 0.2, 0}};
+    start.resize(static_cast<size_t>(robots));
+    start.push_back({goal.x(), goal.y(), 0});
+    std::string step;
+    for (int i = 0; i < robots; ++i) step += (i ? ", R" : "R") + std::to_string(i + 1) + " move G1";
+    const Outcome r = run(s, start, {step});
+    EXPECT_TRUE(r.finished()) << r.failures();
+    EXPECT_TRUE(r.report.collisions.empty()) << collisions(s, r.report);
+    EXPECT_TRUE(task::arrived(r.positions[0], goal, s.arrival_radius)) << r.positions[0].transpose();
+    for (int i = 1; i < robots; ++i) {
+      double gap = 1e9;  // to the nearest robot before it
+      for (int j = 0; j < i; ++j) gap = std::min(gap, (r.positions[i] - r.positions[j]).norm() - 2 * kR);
+      EXPECT_LT(gap, s.arrival_radius) << "R" << i + 1 << " ends " << 100 * gap << " cm off";
+    }
+  }
+}

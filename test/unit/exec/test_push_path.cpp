@@ -47,8 +47,8 @@ PushRun push(const Eigen::Vector2d& carrier, double yaw, const Eigen::Vector2d& 
   const Eigen::Vector2d end = goal - contact * u;  // the carrier's end point: behind the load on its goal
   ControllerParams params;
   RobotController c("R1", params);
-  c.start(PlannedPath{pushPath(carrier, box, goal, contact, end, 50), {}}, "G1",
-          task::stopRadius(task::kDefaultArrivalRadius));
+  const double stop = task::stopRadius(task::kDefaultArrivalRadius);
+  c.start(PlannedPath{pushPath(carrier, box, goal, contact, end, 50), {}}, "G1", stop, stop);
   MotionContacts contacts;
   contacts.load = "B1";
   contacts.load_end = goal;

@@ -73,7 +73,7 @@ TEST(RobotController, IdleGivesZeroWheelsAndRunningDrivesTowardTheEnd) {
   ControlOutput o = c.cycle({0, 0, 0}, false, 0, 0.022, none, 0);
   EXPECT_EQ(o.state, MotionState::Idle);
   EXPECT_TRUE(o.wheels.isZero());
-  c.start(straight({0, 0}, {0.3, 0}), "", 0.025);
+  c.start(straight({0, 0}, {0.3, 0}), "", 0.025, 0.025);
   o = c.cycle({0, 0, 0}, false, 0, 0.022, none, 0.02);
   EXPECT_EQ(o.state, MotionState::Running);
   EXPECT_GT(o.wheels.left_mps + o.wheels.right_mps, 0.0);
@@ -82,7 +82,7 @@ TEST(RobotController, IdleGivesZeroWheelsAndRunningDrivesTowardTheEnd) {
 TEST(RobotController, AStalePoseZeroesTheWheelsAtOnceAndFailsTheMotionAfterStaleFailS) {
   RobotController c("R1", params());
   std::vector<SafetyBody> none;
-  c.start(straight({0, 0}, {0.3, 0}), "", 0.025);
+  c.start(straight({0, 0}, {0.3, 0}), "", 0.025, 0.025);
   ControlOutput o = c.cycle({0, 0, 0}, true, 1e9, 0.022, none, 1.0);
   EXPECT_EQ(o.state, MotionState::Running);
   EXPECT_TRUE(o.waiting_stale);
@@ -102,7 +102,7 @@ TEST(RobotController, AStalePoseZeroesTheWheelsAtOnceAndFailsTheMotionAfterStale
 
 TEST(RobotController, AStaleBodyNearbyStopsTheRobotAsItsOwnPoseWould) {
   RobotController c("R1", params());
-  c.start(straight({0, 0}, {0.3, 0}), "", 0.025);
+  c.start(straight({0, 0}, {0.3, 0}), "", 0.025, 0.025);
   std::vector<SafetyBody> others{{"R2", {0.1, 0}, 0.022, true}};
   others[0].stale = true;
   const ControlOutput o = c.cycle({0, 0, 0}, false, 0, 0.022, others, 0);
@@ -116,7 +116,7 @@ TEST(RobotController, AMotionHeldOffItsEndPointFailsAsADeadlockNamingWhatHoldsIt
   // R1 fails within deadlock_after_s (and the time it goes round), wheels zero, R2 named.
   const double r = 0.022;
   RobotController c("R1", params());
-  c.start(straight({0, 0}, {0.2, 0}), "G1", 0.025);
+  c.start(straight({0, 0}, {0.2, 0}), "G1", 0.025, 0.025);
   std::vector<SafetyBody> others{{"R2", {0.2, 0}, r, true}};
   others[0].standing = true;
   Pose2D pose{0, 0, 0};

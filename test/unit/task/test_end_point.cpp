@@ -120,14 +120,33 @@ TEST(EndPoint, WithoutDemonstrationsTheFootprintsDecide) {
   EXPECT_THROW(endPoint(spec, none, {{7, "move", r2}}, 0, at), Error);
 }
 
-TEST(EndPoint, ArrivedWithinTheRadiusAndFollowersStopInsideIt) {
+TEST(BodyGeometry, ArrivedWithinTheRadiusAndFollowersStopInsideIt) {
   EXPECT_TRUE(arrived({0.03, 0}, {0, 0}, 0.03));
   EXPECT_FALSE(arrived({0.0301, 0}, {0, 0}, 0.03));
   // Inside the radius by the tracking noise, so a noisy stopped robot still counts.
   EXPECT_DOUBLE_EQ(stopRadius(0.03), 0.03 - kArrivalToleranceM);
   EXPECT_DOUBLE_EQ(stopRadius(0.03, 0.01), 0.02);
+  EXPECT_DOUBLE_EQ(stopTolerance(0.001), kArrivalToleranceM);
+  EXPECT_DOUBLE_EQ(stopTolerance(0.002), 0.006) << "three sigma";
   // A radius within the noise itself: half of it, never zero or below.
   EXPECT_DOUBLE_EQ(stopRadius(0.004), 0.002);
+}
+
+// Toward a body, a robot stops near enough its end point to be at one place with the body
+// (togetherDistance), whatever gap the demonstrations stopped at: the stop and the gap never
+// add up beyond "together". Demonstrations that stop touching keep the whole stop radius.
+TEST(BodyGeometry, TheStopTowardABodyKeepsTheStoppedRobotTogetherWithIt) {
+  task::TaskSpec spec;
+  spec.entities = {{"R1", task::EntityKind::Robot, ""}, {"B1", task::EntityKind::Object, ""}};
+  const double tol = stopTolerance(0.002), stop = stopRadius(spec.arrival_radius, tol);
+  const double contact = spec.contactDistance(0, 1), together = togetherDistance(spec, 0, 1);
+  EXPECT_DOUBLE_EQ(stopRadiusToward(stop, tol, together, contact), stop) << "touching";
+  for (const double gap : {0.004, 0.01, 0.015}) {  // up to the arrival radius less twice the tolerance
+    const double toward = stopRadiusToward(stop, tol, together, contact + gap);
+    EXPECT_LE(contact + gap + toward, together - tol + 1e-12) << gap;
+    EXPECT_GE(toward, tol) << gap;
+  }
+  EXPECT_DOUBLE_EQ(stopRadiusToward(stop, tol, together, contact + 0.1), tol) << "never below the tolerance";
 }
 
 // Together: one arrived where a motion toward the other ends (contact plus the arrival

@@ -217,6 +217,7 @@ TEST(TaskSpec, StatedFootprintsOverrideTheDefaultsAndRoundTrip) {
   EXPECT_DOUBLE_EQ(s.footprint(2).radius_m, 0.1);
   EXPECT_TRUE(s.footprint(2).obstacle);
   EXPECT_DOUBLE_EQ(s.contactDistance(0, 2), 0.15);
+  EXPECT_DOUBLE_EQ(s.contactDistance(0, 1), 0.0) << "a flat object is driven onto, never touched";
   const TaskSpec again = parseTaskYaml(taskYamlText(s), "again.yaml");
   for (int i = 0; i < 3; ++i) {
     EXPECT_EQ(again.entities[i].radius_m, s.entities[i].radius_m) << i;

@@ -1,0 +1,71 @@
+// The geometry of bodies at the end of a motion: the one owner of when two bodies touch,
+// when they are at one place, where a robot stops and when a motion has arrived
+// (docs/task-format.md, "Bodies" and "Where a motion ends"). Every part reads them here:
+// the end points (task/end_point.h), the controller and the simulators (exec), the
+// coordinator, the labeller and the scene network.
+//
+// Contact: TaskSpec::contactDistance, the sum of two bodies' radii, 0 when either is no
+// obstacle (a flat goal is driven onto, never touched).
+//
+// Radii about a motion's end point, each named for what it is:
+//   - the *arrival radius* (task.yaml's arrival_radius): a motion counts as arrived when
+//     the entity is within it (arrived());
+//   - the *stop radius*: a robot stops by itself within it of its end point -- the arrival
+//     radius less the stop tolerance (the tracking noise a measured pose carries), so
+//     noise cannot leave a stopped robot outside it; and for a motion toward a body, near
+//     enough that the stopped robot is still at one place with it (togetherDistance):
+//     where demonstrations stop short of contact (4 mm, 1 cm), the robot stops that much
+//     nearer its end point, so the stop and the demonstrated gap never add up beyond
+//     "together" (stopRadiusToward);
+//   - held by its safety filter at contact with a body it ends against, or short of its
+//     end point by bodies beside it, a robot has arrived within the arrival radius less
+//     the tolerance of it (stopRadius, not reduced: its true position is within the
+//     arrival radius).
+// And "at one place" (togetherDistance): contact plus the arrival radius.
+//
+// Owns: these rules and their tolerance. Must not: decide where a motion ends (the end
+// point rule does, task/end_point.h). Units: metres.
+#pragma once
+
+#include <Eigen/Core>
+
+#include "ddace/task/task_spec.h"
+
+namespace ddace::task {
+
+/// The tracking noise one reading of a pose may carry (metres), the least stop tolerance:
+/// the coordinator counts a DONE this far outside the arrival radius (its
+/// arrival_tolerance_m, whose default this is).
+inline constexpr double kArrivalToleranceM = 0.005;
+
+/// The stop tolerance of execution with tracking noise `noise_m` (std-dev of x and y):
+/// three sigma, never less than kArrivalToleranceM.
+double stopTolerance(double noise_m);
+
+/// Where a robot stops by itself: within this of its end point (the stop radius). The
+/// arrival radius less the tolerance, never less than half the arrival radius (a radius
+/// within the noise itself).
+double stopRadius(double arrival_radius, double tolerance = kArrivalToleranceM);
+
+/// The stop radius of a motion toward a body: `stop_radius` (stopRadius), reduced so that
+/// a robot stopped within it of its end point (`end_to_target_m` from the target's centre)
+/// is still within `together_m` (togetherDistance) of its target, by the tolerance; never
+/// below the tolerance (nor above `stop_radius`).
+double stopRadiusToward(double stop_radius, double tolerance, double together_m, double end_to_target_m);
+
+/// A motion has arrived when `position` is within `arrival_radius` of its end point.
+bool arrived(const Eigen::Vector2d& position, const Eigen::Vector2d& end_point, double arrival_radius);
+
+/// How far apart entities `a` and `b` of `spec` may stand when one has arrived where a
+/// motion toward the other ends, or both at one target (metres): "at one place". One
+/// stopped short of the other is within contact plus the arrival radius; two that arrived
+/// on one goal are each within the radius of it, at most two radii apart. The larger of
+/// the two. The scene network's "together" (docs/tgn.md) reads places with it, so a robot
+/// stopped where the follower stops counts as at its load, as in demonstrations. Also the
+/// reach of a ride: a load rides with its carrier when it starts within it.
+double togetherDistance(const TaskSpec& spec, int a, int b);
+/// The same from the two bodies' contact distance (TaskSpec::contactDistance) and the task's
+/// arrival radius, metres.
+double togetherDistance(double contact_m, double arrival_radius);
+
+}  // namespace ddace::task

@@ -1,0 +1,160 @@
+#include "ddace/exec/motion_contacts.h"
+
+#include <algorithm>
+
+#include "ddace/common/error.h"
+#include "ddace/task/body_geometry.h"
+
+namespace ddace::exec {
+
+namespace {
+std::pair<int, int> ordered(int a, int b) {
+  return {std::min(a, b), std::max(a, b)};
+}
+}  // namespace
+
+MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
+                              int step, const std::string& action, const std::string& target,
+                              const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m) {
+  MotionContacts out;
+  const BodyAtStart* load = nullptr;
+  for (const BodyAtStart& b : bodies)
+    if (b.object && b.step >= 0 && b.step == step && b.action == action && b.target == target &&
+        (b.position - position).norm() <= task::togetherDistance(radius_m + b.radius_m, arrival_radius_m)) {
+      load = &b;
+      out.load = b.name;
+      out.load_end = b.final_position;
+      break;
+    }
+  for (const BodyAtStart& b : bodies) {
+    if (&b == load) continue;
+    if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, margin_m)) out.ends_against.insert(b.name);
+    if (load && endsAgainst(load->final_position, load->radius_m, b.final_position, b.radius_m, margin_m))
+      out.load_ends_against.insert(b.name);
+  }
+  return out;
+}
+
+AllowedContacts::AllowedContacts(const std::vector<std::string>& names, const std::vector<double>& radii,
+                                 const std::vector<DecidedMotion>& motions, double margin_m)
+    : radii_(radii), margin_m_(margin_m) {
+  const auto n = static_cast<int>(radii.size());
+  if (names.size() != radii.size())
+    throw Error("allowed contacts: " + std::to_string(names.size()) + " names and " + std::to_string(n) + " radii");
+  const auto index = [&](const std::string& name) {
+    const auto it = std::find(names.begin(), names.end(), name);
+    return it == names.end() ? -1 : static_cast<int>(it - names.begin());
+  };
+  for (const DecidedMotion& m : motions) {
+    if (m.entity < 0 || m.entity >= n || m.target >= n)
+      throw Error("allowed contacts: a motion names an entity outside the " + std::to_string(n) + " given");
+    if (m.target >= 0) exempt_.insert(ordered(m.entity, m.target));
+    const int load = index(m.contacts.load);
+    if (load >= 0) exempt_.insert(ordered(m.entity, load));
+    for (const std::string& b : m.contacts.ends_against)
+      if (const int k = index(b); k >= 0) ends_against_.push_back({m.entity, m.end, k});
+    for (const std::string& b : m.contacts.load_ends_against)
+      if (const int k = index(b); k >= 0 && load >= 0) ends_against_.push_back({load, m.contacts.load_end, k});
+  }
+}
+
+AllowedContacts::AllowedContacts(const task::TaskSpec& spec, const std::vector<task::Token>& tokens,
+                                 const std::vector<Eigen::Vector2d>& starts, const std::vector<Eigen::Vector2d>& ends,
+                                 const std::vector<bool>& moves, const std::vector<double>& radii, double margin_m) {
+  const auto n = static_cast<int>(ends.size());
+  if (moves.size() != ends.size() || radii.size() != ends.size() || starts.size() != ends.size() ||
+      spec.entities.size() != ends.size())
+    throw Error("allowed contacts: " + std::to_string(spec.entities.size()) + " entities, " +
+                std::to_string(starts.size()) + " start positions, " + std::to_string(ends.size()) +
+                " end positions, " + std::to_string(moves.size()) + " motion flags and " +
+                std::to_string(radii.size()) + " radii");
+  const std::vector<std::string> names = spec.entityNames();
+  // Every body as the step's motions see it when the step begins.
+  std::vector<BodyAtStart> bodies;
+  for (int e = 0; e < n; ++e) {
+    if (!(radii[e] > 0)) continue;
+    BodyAtStart b;
+    b.name = names[e], b.position = starts[e], b.final_position = ends[e], b.radius_m = radii[e];
+    b.object = spec.entities[e].kind == task::EntityKind::Object;
+    bodies.push_back(b);
+  }
+  const auto bodyOf = [&](int e) {
+    return std::find_if(bodies.begin(), bodies.end(), [&](const BodyAtStart& b) { return b.name == names[e]; });
+  };
+  for (const task::Token& t : tokens) {
+    if (!t.isMotion()) continue;
+    if (t.entity < 0 || t.entity >= n || t.target >= n)
+      throw Error("allowed contacts: a token names an entity outside the " + std::to_string(n) + " given");
+    if (const auto b = bodyOf(t.entity); b != bodies.end() && moves[t.entity])
+      b->step = 0, b->action = t.action, b->target = t.target >= 0 ? names[t.target] : "";
+  }
+  std::vector<DecidedMotion> motions;
+  std::set<std::string> loads;  // a load of two carriers belongs to the first
+  for (const task::Token& t : tokens) {
+    if (!t.isMotion()) continue;
+    DecidedMotion m{t.entity, t.target, ends[t.entity], {}};
+    if (radii[t.entity] > 0) {
+      std::vector<BodyAtStart> others;
+      for (const BodyAtStart& b : bodies)
+        if (b.name != names[t.entity]) others.push_back(b);
+      m.contacts = motionContacts(starts[t.entity], radii[t.entity], ends[t.entity], 0, t.action,
+                                  t.target >= 0 ? names[t.target] : "", others, margin_m, spec.arrival_radius);
+      if (spec.entities[t.entity].kind != task::EntityKind::Robot || !loads.insert(m.contacts.load).second)
+        m.contacts.load.clear(), m.contacts.load_ends_against.clear();
+    }
+    motions.push_back(std::move(m));
+  }
+  *this = AllowedContacts(names, radii, motions, margin_m);
+}
+
+bool AllowedContacts::allowed(int a, int b, const Eigen::Vector2d& pa, const Eigen::Vector2d& pb) const {
+  if (exempt_.count(ordered(a, b))) return true;
+  const auto n = static_cast<int>(radii_.size());
+  if (a < 0 || a >= n || b < 0 || b >= n) return false;
+  for (const EndsAgainst& e : ends_against_) {
+    if (e.entity == a && e.other == b && endsAgainst(e.end, radii_[a], pb, radii_[b], margin_m_)) return true;
+    if (e.entity == b && e.other == a && endsAgainst(e.end, radii_[b], pa, radii_[a], margin_m_)) return true;
+  }
+  return false;
+}
+
+StepContacts::StepContacts(task::TaskSpec spec, std::vector<double> radii, double margin_m)
+    : spec_(std::move(spec)), radii_(std::move(radii)), margin_m_(margin_m) {}
+
+void StepContacts::beginStep(int step) {
+  if (step != step_) ends_.clear(), allowed_ = {}, step_ = step;  // no exemption of the last step stays
+}
+
+void StepContacts::note(int step, int entity, const task::Token& token, const Eigen::Vector2d& end,
+                        const std::vector<Eigen::Vector2d>& at) {
+  beginStep(step);
+  const auto n = static_cast<int>(spec_.entities.size());
+  const auto name = [&](int i) { return i >= 0 && i < n ? spec_.entities[i].name : "entity " + std::to_string(i); };
+  if (token.entity != entity)
+    throw Error("the segment of " + name(entity) + " carries a token of " + name(token.entity) +
+                ": not counted for the allowed contacts");
+  if (entity < 0 || entity >= static_cast<int>(at.size()))
+    throw Error("the segment of " + name(entity) +
+                " names no entity with a pose: not counted for the allowed contacts");
+  // Kept only once the step's contacts are worked out with it: a bad segment leaves the
+  // step's others as they were.
+  auto step_ends = ends_;
+  step_ends[entity] = {token, end};
+  std::vector<task::Token> tokens;
+  std::vector<Eigen::Vector2d> ends = at;
+  std::vector<bool> moves(at.size(), false);
+  for (const auto& [e, te] : step_ends) {
+    tokens.push_back(te.first);
+    ends[e] = te.second;
+    moves[e] = true;
+  }
+  try {
+    allowed_ = AllowedContacts(spec_, tokens, at, ends, moves, radii_, margin_m_);
+  } catch (const Error&) {
+    allowed_ = {};  // every contact counts
+    throw;
+  }
+  ends_ = std::move(step_ends);
+}
+
+}  // namespace ddace::exec
