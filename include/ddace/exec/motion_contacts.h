@@ -32,7 +32,7 @@ namespace ddace::exec {
 
 /// What a motion may touch, decided once per step from the step's end points.
 struct MotionContacts {
-  std::string load;                         ///< the object it carries, riding in front ("" = none)
+  std::string load;  ///< the object it carries, riding in front ("" = none)
   /// The table carries the load in front of its carrier once met (TableSimulator::ride: the
   /// mock robots, the simulator) instead of leaving it to be pushed (the real table, its
   /// simulation): no push steering (exec/push_path.h's pushWheels).
