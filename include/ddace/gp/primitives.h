@@ -166,7 +166,8 @@ class PrimitiveLibrary {
   /// `points` copies of the start (nothing to move).
   GeneratedPath generate(const task::Token& token, const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
                          int points = 100, int step = -1) const;
-  /// The same for a key "E:action:T" naming the library's entities (ddace path).
+  /// The same for a key "E:action:T" naming the library's entities (ddace path), or a role
+  /// key as primitives() lists it ("KIND/ACTION/KIND@STEP": that primitive, `step` unused).
   GeneratedPath generate(const std::string& key, const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
                          int points = 100, int step = -1) const;
   /// The motion classes keyed by role (header comment, "Roles").

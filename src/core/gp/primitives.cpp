@@ -510,6 +510,13 @@ GeneratedPath PrimitiveLibrary::generate(const task::Token& token, const Eigen::
 
 GeneratedPath PrimitiveLibrary::generate(const std::string& key, const Eigen::Vector2d& start,
                                          const Eigen::Vector2d& goal, int points, int step) const {
+  // A role key as primitives() lists it ("KIND/ACTION/KIND@STEP") names its primitive.
+  if (key.find('/') != std::string::npos) {
+    const auto it = primitives_.find(key);
+    if (it == primitives_.end())
+      throw Error("key '" + key + "' is no role primitive of the library of task '" + task_ + "'");
+    return generateFrom(&it->second, false, start, goal, points);
+  }
   std::vector<std::string> parts;
   std::stringstream ss(key);
   for (std::string part; std::getline(ss, part, ':');) parts.push_back(part);
