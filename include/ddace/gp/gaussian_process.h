@@ -136,8 +136,11 @@ class GaussianProcess {
   double alpha_ = 1e-10;
   double lml_ = 0;
   int evaluations_ = 0;
-  Eigen::LLT<Eigen::MatrixXd> llt_;  ///< of A = K + s^2 diag(1/m)
-  Eigen::VectorXd weights_;          ///< A^-1 ybar
+  /// Of A = K + s^2 diag(1/m). Computed on an empty matrix until fit: Eigen's default LLT
+  /// leaves its status unset, and moving an unfitted process (a Primitive being filled in)
+  /// read it (UBSan: not a valid value for type 'ComputationInfo').
+  Eigen::LLT<Eigen::MatrixXd> llt_{Eigen::MatrixXd()};
+  Eigen::VectorXd weights_;  ///< A^-1 ybar
 };
 
 }  // namespace ddace::gp
