@@ -19,8 +19,11 @@
 //                   orders count only rivals: an entity parked with another is none of a
 //                   free one's (a parked one's are every one of its kind), and token by
 //                   token one already given its part is nobody's. Orders are strict but for
-//                   two at one place. The first two slots are 0 (they held the
-//                   displacement x_j - x_i, measured and not kept: docs/tgn.md).
+//                   two at one place. And whether j stands at the same place in its kind's
+//                   order along each axis, from each side, as i in its own ("the k-th
+//                   robot from the left to the k-th goal from the left"): a flag of any
+//                   team size, where the orders themselves take values at five robots that
+//                   three never showed.
 //                   Entities within task::togetherDistance of each other (the end-point
 //                   rule: contact plus the arrival radius) are at one place: distance 0,
 //                   and they do not outrank each other.
@@ -49,10 +52,26 @@
 
 namespace ddace::tgn {
 
-/// Relative features per pair (see above): two zeros, distance, near ranks (2),
-/// far ranks (2), axis orders of j (4) and of i (4), the last step's relation (2), the
-/// relation of i's and of j's last move (2).
-inline constexpr int kRelativeFeatures = 19;
+/// The relational basis of a pair i <- j (see above), slot by slot; each axis group is from
+/// the left, the right, the front and the back.
+namespace basis {
+enum Slot : int {
+  kDistance = 0,
+  kNearJ,         ///< j's nearness rank among its kind, seen from i
+  kNearI,         ///< i's among its kind, seen from j
+  kFarJ,          ///< j's farness rank
+  kFarI,          ///< i's farness rank
+  kAxisJ,         ///< j's order along the axes (4)
+  kAxisI = 9,     ///< i's order along the axes (4)
+  kWentTo = 13,   ///< i went to j in the last step
+  kCameFrom,      ///< j went to i in the last step
+  kLastMoveTo,    ///< i's last move went to j
+  kLastMoveFrom,  ///< j's last move went to i
+  kSameOrder,     ///< j's order along the axes is i's (4)
+  kCount = kSameOrder + 4,
+};
+}  // namespace basis
+inline constexpr int kRelativeFeatures = basis::kCount;
 
 /// taken [..., N] (1 = a target no entity may point at) -> [..., 1, 1 + N], added to the
 /// pointer's logits [..., N, 1 + N]: -1e9 on the taken targets' columns ("none" stays).
