@@ -712,3 +712,45 @@ TEST(PlanCheck, NamesEachPlanNoTrainingMakes) {
             }),
             "a name group not in ascending order of distinct entities");
 }
+
+// Every refusal of transferOf (plan_check.cpp), and what a model that transfers says, each
+// from the model info of a scene model that transfers changed in one place.
+TEST(PlanCheck, TransferNamesWhyAModelRunsOnlyOnItsOwnEntities) {
+  task::TaskSpec spec;
+  spec.entities = {{"R1", task::EntityKind::Robot, "hamster"},
+                   {"R2", task::EntityKind::Robot, "hamster"},
+                   {"G1", task::EntityKind::Goal, ""},
+                   {"G2", task::EntityKind::Goal, ""}};
+  tgn::ModelInfo valid;
+  valid.variant = tgn::Variant::Scene;
+  valid.plan.relative_features = true;
+  valid.plan.identity_embedding = true;
+  valid.plan.name_groups = {{0, 1}};
+  const tgn::Transfer t = tgn::transferOf(valid, spec);
+  EXPECT_EQ(t.refusal, "");
+  EXPECT_EQ(t.any_number, (std::vector<std::string>{"robot:hamster"}));
+  EXPECT_EQ(t.named, (std::vector<std::string>{"G1", "G2"}));
+  EXPECT_EQ(t.text(), "any number of robot:hamster; by name: G1, G2");
+  const auto why = [&](const std::function<void(tgn::ModelInfo&)>& change) {
+    tgn::ModelInfo info = valid;
+    change(info);
+    return tgn::transferOf(info, spec).text();
+  };
+  EXPECT_EQ(why([](tgn::ModelInfo& i) { i.variant = tgn::Variant::Paper; }),
+            "its own task's entities only: the paper network has one output slot per entity of its task");
+  EXPECT_EQ(why([](tgn::ModelInfo& i) { i.variant = tgn::Variant::Gnn; }),
+            "its own task's entities only: the gnn network has one output slot per entity of its task");
+  EXPECT_EQ(why([](tgn::ModelInfo& i) {
+              i.plan.relative_features = false;
+              i.plan.fixed_order = true;
+            }),
+            "its own task's entities only: every training demonstration had the same steps (a fixed order): the model "
+            "learned the order of the names, not a rule of the scene");
+  EXPECT_EQ(why([](tgn::ModelInfo& i) { i.plan.relative_features = false; }),
+            "its own task's entities only: trained without the relative features: its decisions depend on the names "
+            "alone");
+  EXPECT_EQ(why([](tgn::ModelInfo& i) { i.plan.name_groups.clear(); }),
+            "its own task's entities only: training kept every entity's name (a name alone decides a role, or "
+            "shuffling the names cost the fit)");
+  EXPECT_EQ(why([](tgn::ModelInfo& i) { i.plan.identity_embedding = false; }), "any number of goal, robot:hamster");
+}
