@@ -75,7 +75,7 @@ namespace ddace::tgn {
 /// entity is ranked among every one of its kind; /15: motion primitives by role
 /// (primitives.yaml /4), the hyper-parameters without `attention`, `node_positions` and
 /// `edge_displacement` (switches nothing set). Older ones are refused (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/16";
+inline constexpr const char* kModelFormat = "ddace-model/15";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {

@@ -405,8 +405,7 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
                          std::all_of(version.begin(), version.end(), [](char c) { return c >= '0' && c <= '9'; });
     if (numeric && std::stoi(version) < std::stoi(own)) {
       const int v = std::stoi(version);
-      const std::string lacks = std::string("its pair features lack \"the same order along an axis\"") +
-                                (v < 15 ? ", its motion primitives are keyed by name only" : "") +
+      const std::string lacks = std::string("its motion primitives are keyed by name only") +
                                 (v < 14 ? ", token by token it chose the acting entities' targets only, not who "
                                           "acts, and it ranked a parked entity among the free ones"
                                         : "") +

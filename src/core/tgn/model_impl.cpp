@@ -402,7 +402,6 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
         const float oj = axis[static_cast<size_t>(j)][a], oi = axis[static_cast<size_t>(i)][a];
         r[basis::kAxisJ + a] = oj;
         r[basis::kAxisI + a] = oi;
-        r[basis::kSameOrder + a] = oj == oi ? 1.f : 0.f;
       }
       r[basis::kWentTo] = wentTo(i, j) ? 1.f : 0.f;
       r[basis::kCameFrom] = wentTo(j, i) ? 1.f : 0.f;

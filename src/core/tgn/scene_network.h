@@ -19,11 +19,8 @@
 //                   orders count only rivals: an entity parked with another is none of a
 //                   free one's (a parked one's are every one of its kind), and token by
 //                   token one already given its part is nobody's. Orders are strict but for
-//                   two at one place. And whether j stands at the same place in its kind's
-//                   order along each axis, from each side, as i in its own ("the k-th
-//                   robot from the left to the k-th goal from the left"): a flag of any
-//                   team size, where the orders themselves take values at five robots that
-//                   three never showed.
+//                   two at one place. The first two slots are 0 (they held the
+//                   displacement x_j - x_i, measured and not kept: docs/tgn.md).
 //                   Entities within task::togetherDistance of each other (the end-point
 //                   rule: contact plus the arrival radius) are at one place: distance 0,
 //                   and they do not outrank each other.
@@ -52,23 +49,22 @@
 
 namespace ddace::tgn {
 
-/// The relational basis of a pair i <- j (see above), slot by slot; each axis group is from
-/// the left, the right, the front and the back.
+/// The relational basis of a pair i <- j (see above), slot by slot (the first two are 0);
+/// each axis group is from the left, the right, the front and the back.
 namespace basis {
 enum Slot : int {
-  kDistance = 0,
+  kDistance = 2,
   kNearJ,         ///< j's nearness rank among its kind, seen from i
   kNearI,         ///< i's among its kind, seen from j
   kFarJ,          ///< j's farness rank
   kFarI,          ///< i's farness rank
   kAxisJ,         ///< j's order along the axes (4)
-  kAxisI = 9,     ///< i's order along the axes (4)
-  kWentTo = 13,   ///< i went to j in the last step
+  kAxisI = 11,    ///< i's order along the axes (4)
+  kWentTo = 15,   ///< i went to j in the last step
   kCameFrom,      ///< j went to i in the last step
   kLastMoveTo,    ///< i's last move went to j
   kLastMoveFrom,  ///< j's last move went to i
-  kSameOrder,     ///< j's order along the axes is i's (4)
-  kCount = kSameOrder + 4,
+  kCount,
 };
 }  // namespace basis
 inline constexpr int kRelativeFeatures = basis::kCount;

@@ -326,7 +326,6 @@ TEST(RelationalBasis, OrdersAlongTheAxesTellApartEntitiesSideBySide) {
           const float* r = &rel[static_cast<size_t>((t.entity * n + j) * tgn::kRelativeFeatures)];
           EXPECT_EQ(r[tgn::basis::kAxisI] == r[tgn::basis::kAxisJ], j == t.target)
               << "robot " << t.entity << ", goal " << j;
-          EXPECT_EQ(r[tgn::basis::kSameOrder] == 1.f, j == t.target) << "robot " << t.entity << ", goal " << j;
         }
   }
   EXPECT_GT(side_by_side, 0) << "no scene puts two of a kind side by side: the test would not tell";
