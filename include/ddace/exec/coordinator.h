@@ -272,7 +272,8 @@ class Coordinator {
   /// The run's dispatch record: when each token started and ended, whom it waited for, the
   /// precedence violations (nullptr before the first start).
   const Dispatch* dispatch() const { return dispatch_ ? &*dispatch_ : nullptr; }
-  /// Every goal condition of task.yaml against the latest positions, in order.
+  /// Every goal condition of task.yaml against the latest positions, in order
+  /// (task::goalConditionMet).
   std::vector<bool> goalConditionsMet() const;
   uint32_t decisionsRequested() const { return decisions_requested_; }
   /// The decision request awaiting its answer (0: none).

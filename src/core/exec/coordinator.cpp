@@ -118,9 +118,8 @@ std::vector<int> Coordinator::activeEntities() const {
 std::vector<bool> Coordinator::goalConditionsMet() const {
   std::vector<bool> met;
   for (const auto& gc : spec_.goal_conditions) {
-    const int e = spec_.entityIndex(gc.entity), at = spec_.entityIndex(gc.at);
-    const bool known = e >= 0 && at >= 0 && observation_.positions.size() == spec_.entities.size();
-    met.push_back(known && (observation_.positions[e] - observation_.positions[at]).norm() <= gc.tolerance);
+    const bool known = observation_.positions.size() == spec_.entities.size();
+    met.push_back(known && task::goalConditionMet(spec_, gc, observation_.positions));
   }
   return met;
 }
