@@ -524,38 +524,21 @@ void Labeller::placeInPlace(const std::vector<const task::Step*>& steps, int fro
   }
 }
 
-void Labeller::emit(Group& group, bool aligned) {
-  const auto& E = spec_.entities;
-  const double r = spec_.arrival_radius;
-  const size_t k = emitted_groups_++;
-  const size_t notes_from = out_.notes.size();
-  for (auto& nt : group.notes) out_.notes.push_back(std::move(nt));
-  auto& g = group.motions;
-  auto exampleTarget = [&](int entity) {
-    for (const auto& t : ex_motion_[k]->tokens)
-      if (t.entity == entity) return t.target;
-    return -1;
-  };
-
-  InferredStep step;
-  step.keyframe_row = g.front().on_row;
-  int step_off = 0;
-  for (const auto& m : g)
-    step.keyframe_row = std::min(step.keyframe_row, m.on_row), step_off = std::max(step_off, m.off_row);
+void Labeller::noteStepsDiffer(size_t k, const std::vector<Motion>& g, int row) {
   // A step whose movers are not the example's kinds (robots of one step started apart, two
   // steps run together, a motion lost or added): it and every step after it may be
   // numbered wrong, so all their tokens are listed, under one note.
-  if (example_ && !steps_differ_ && kindsOf(moversOf(g)) != kindsOf(exampleMovers(k))) {
-    steps_differ_ = true;
-    note(step.keyframe_row, "step " + std::to_string(k + 1) + " moves " + kindsText(kindsOf(moversOf(g))) +
-                                " where the example's step " + std::to_string(k + 1) + " moves " +
-                                kindsText(kindsOf(exampleMovers(k))) +
-                                " (robots of one step started apart, two steps run together, or a motion missed?): "
-                                "this step and the ones after it are listed");
-  }
-  if (aligned) placeInPlace(ex_inplace_before_[k], prev_off_ + 1, step.keyframe_row - 1);
+  if (!example_ || steps_differ_ || kindsOf(moversOf(g)) == kindsOf(exampleMovers(k))) return;
+  steps_differ_ = true;
+  note(row, "step " + std::to_string(k + 1) + " moves " + kindsText(kindsOf(moversOf(g))) +
+                " where the example's step " + std::to_string(k + 1) + " moves " +
+                kindsText(kindsOf(exampleMovers(k))) +
+                " (robots of one step started apart, two steps run together, or a motion missed?): "
+                "this step and the ones after it are listed");
+}
 
-  // 3. Loads: an object that stayed with a moving robot of the step all the way.
+std::vector<int> Labeller::carriersOf(const std::vector<Motion>& g) const {
+  const auto& E = spec_.entities;
   std::vector<int> carrier(g.size(), -1);
   for (size_t i = 0; i < g.size(); ++i) {
     if (E[g[i].entity].kind != task::EntityKind::Object) continue;
@@ -566,8 +549,94 @@ void Labeller::emit(Group& group, bool aligned) {
       if (g[i].max_distance[rb] < best) best = g[i].max_distance[rb], carrier[i] = static_cast<int>(j);
     }
   }
-  // 4. Targets: carriers and lone movers first, then their loads.
+  return carrier;
+}
+
+void Labeller::resolveTie(InferredToken& tok, const Motion& m, const EndPoint& ep, size_t k, bool aligned) {
+  const auto& E = spec_.entities;
+  std::vector<int> all = ep.tied;
+  all.push_back(ep.target);
+  tok.tied = all;
+  if (aligned) {
+    int want = -1;
+    for (const auto& t : ex_motion_[k]->tokens)
+      if (t.entity == m.entity) {
+        want = t.target;
+        break;
+      }
+    if (std::find(all.begin(), all.end(), want) != all.end()) {
+      tok.token.target = want;
+      return;
+    }
+  }
+  if (example_) {
+    // The example's choice between the same kinds, else between a goal and the bodies
+    // on it (the goal, or the body touched).
+    for (const bool bodies : {false, true}) {
+      auto it = example_->tie_kind.find(tiedKinds(spec_, all, bodies));
+      int found = -1, count = 0;
+      if (it != example_->tie_kind.end())
+        for (int c : all)
+          if (kindClass(E[c].kind, bodies) == kindClass(it->second, bodies)) found = c, ++count;
+      if (count == 1) {
+        tok.token.target = found;
+        return;
+      }
+    }
+    // Else the one end the example has a motion of that kind to (a robot sent to a
+    // robot, never to a goal, in the example).
+    int found = -1, count = 0;
+    for (int c : all)
+      if (example_->words.count(kindKey(spec_, m.entity, c, tok.load))) found = c, ++count;
+    if (count == 1) {
+      tok.token.target = found;
+      return;
+    }
+  }
+  std::string names;
+  for (int c : all) names += (names.empty() ? "" : " and ") + E[c].name;
+  note(m.off_row,
+       E[m.entity].name + " ended between " + names + " (the same distance within " + metres(spec_.arrival_radius / 2) +
+           " m); took " + E[ep.target].name,
+       m.entity);
+}
+
+void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned) {
+  const auto& E = spec_.entities;
+  const EndPoint ep = endPoint(spec_, m.entity, m.start, m.end, m.at_onset, candidatesOf(m), load, &m.at_offset);
+  tok.token.target = ep.target;
+  if (ep.target < 0) {
+    tok.token.target = ep.nearest;
+    if (ep.nearest >= 0)
+      note(m.off_row,
+           E[m.entity].name + " stopped halfway: " + metres(ep.nearest_m) + " m from " + E[ep.nearest].name +
+               ", the nearest entity, taken as its target; or it went on later to another",
+           m.entity);
+  } else if (!ep.tied.empty()) {
+    resolveTie(tok, m, ep, k, aligned);
+  }
+}
+
+void Labeller::nameAction(InferredToken& tok, const Motion& m, bool is_load) {
+  const auto& E = spec_.entities;
+  tok.kind = kindKey(spec_, m.entity, tok.token.target, tok.load);
+  // An object moving alone is reported unless the example shows such a motion or a
+  // rule of task.yaml names the word of an object's motion there.
+  const task::ActionRule* object_rule = rule(m.entity, tok.token.target, tok.load);
+  const bool object_rule_stated = object_rule && object_rule->mover_kind == task::EntityKind::Object;
+  if (E[m.entity].kind == task::EntityKind::Object && !is_load && !(example_ && example_->words.count(tok.kind)) &&
+      !object_rule_stated)
+    note(m.on_row,
+         "object " + E[m.entity].name + " moved alone (no robot with it) to " + E[tok.token.target].name +
+             "; or a robot carried it",
+         m.entity);
+  tok.token.action = word(m.entity, tok.token.target, tok.load, m.on_row);
+}
+
+std::vector<InferredToken> Labeller::motionTokens(const std::vector<Motion>& g, const std::vector<int>& carrier,
+                                                  int first_row, size_t k, bool aligned) {
   std::vector<InferredToken> tokens(g.size());
+  // Carriers and lone movers first, then their loads.
   for (int pass = 0; pass < 2; ++pass) {
     for (size_t i = 0; i < g.size(); ++i) {
       const Motion& m = g[i];
@@ -575,7 +644,7 @@ void Labeller::emit(Group& group, bool aligned) {
       if (is_load != (pass == 1)) continue;
       InferredToken& tok = tokens[i];
       tok.token.entity = m.entity;
-      tok.first_row = step.keyframe_row;
+      tok.first_row = first_row;
       tok.onset_row = m.on_row;
       tok.last_row = m.off_row;
       const bool has_load = std::find(carrier.begin(), carrier.end(), static_cast<int>(i)) != carrier.end();
@@ -587,71 +656,20 @@ void Labeller::emit(Group& group, bool aligned) {
         int load = -1;
         for (size_t j = 0; j < g.size() && load < 0; ++j)
           if (carrier[j] == static_cast<int>(i)) load = g[j].entity;
-        const EndPoint ep = endPoint(spec_, m.entity, m.start, m.end, m.at_onset, candidatesOf(m), load, &m.at_offset);
-        tok.token.target = ep.target;
-        if (ep.target < 0) {
-          tok.token.target = ep.nearest;
-          if (ep.nearest >= 0)
-            note(m.off_row,
-                 E[m.entity].name + " stopped halfway: " + metres(ep.nearest_m) + " m from " + E[ep.nearest].name +
-                     ", the nearest entity, taken as its target; or it went on later to another",
-                 m.entity);
-        } else if (!ep.tied.empty()) {
-          std::vector<int> all = ep.tied;
-          all.push_back(ep.target);
-          tok.tied = all;
-          bool resolved = false;
-          if (aligned) {
-            const int want = exampleTarget(m.entity);
-            if (std::find(all.begin(), all.end(), want) != all.end()) tok.token.target = want, resolved = true;
-          }
-          // The example's choice between the same kinds, else between a goal and the bodies
-          // on it (the goal, or the body touched).
-          for (const bool bodies : {false, true}) {
-            if (resolved || !example_) break;
-            auto it = example_->tie_kind.find(tiedKinds(spec_, all, bodies));
-            int found = -1, count = 0;
-            if (it != example_->tie_kind.end())
-              for (int c : all)
-                if (kindClass(E[c].kind, bodies) == kindClass(it->second, bodies)) found = c, ++count;
-            if (count == 1) tok.token.target = found, resolved = true;
-          }
-          // Else the one end the example has a motion of that kind to (a robot sent to a
-          // robot, never to a goal, in the example).
-          if (!resolved && example_) {
-            int found = -1, count = 0;
-            for (int c : all)
-              if (example_->words.count(kindKey(spec_, m.entity, c, tok.load))) found = c, ++count;
-            if (count == 1) tok.token.target = found, resolved = true;
-          }
-          if (!resolved) {
-            std::string names;
-            for (int c : all) names += (names.empty() ? "" : " and ") + E[c].name;
-            note(m.off_row,
-                 E[m.entity].name + " ended between " + names + " (the same distance within " + metres(r / 2) +
-                     " m); took " + E[ep.target].name,
-                 m.entity);
-          }
-        }
+        readTarget(tok, m, load, k, aligned);
       }
-      if (tok.token.target < 0) continue;
-      tok.kind = kindKey(spec_, m.entity, tok.token.target, tok.load);
-      // An object moving alone is reported unless the example shows such a motion or a
-      // rule of task.yaml names the word of an object's motion there.
-      const task::ActionRule* object_rule = rule(m.entity, tok.token.target, tok.load);
-      const bool object_rule_stated = object_rule && object_rule->mover_kind == task::EntityKind::Object;
-      if (E[m.entity].kind == task::EntityKind::Object && !is_load && !(example_ && example_->words.count(tok.kind)) &&
-          !object_rule_stated)
-        note(m.on_row,
-             "object " + E[m.entity].name + " moved alone (no robot with it) to " + E[tok.token.target].name +
-                 "; or a robot carried it",
-             m.entity);
-      tok.token.action = word(m.entity, tok.token.target, tok.load, m.on_row);
+      if (tok.token.target >= 0) nameAction(tok, m, is_load);
     }
   }
+  return tokens;
+}
+
+void Labeller::noteStopsOnTheWay(const std::vector<Motion>& g, const std::vector<int>& carrier,
+                                 const std::vector<InferredToken>& tokens) {
   // What the motion leaves open: a body it came to on its way, nearly stopping there, and
   // left in the heading it came in (a turn there is cut): a slow pass, or a stop without a
   // pause (two steps)?
+  const auto& E = spec_.entities;
   for (size_t i = 0; i < g.size(); ++i) {
     const Motion& m = g[i];
     const InferredToken& tok = tokens[i];
@@ -668,7 +686,36 @@ void Labeller::emit(Group& group, bool aligned) {
            m.entity);
     }
   }
-  // 5. In-place actions of the aligned example step, for the entities that did not move.
+}
+
+void Labeller::markUnsure(std::vector<InferredToken>& tokens, size_t notes_from) const {
+  // A token some note of this step doubts is listed to check.
+  for (size_t i = notes_from; i < out_.notes.size(); ++i)
+    for (auto& t : tokens) t.unsure = t.unsure || (!t.in_place && t.token.entity == out_.notes[i].entity);
+  for (auto& t : tokens) t.unsure = t.unsure || steps_differ_;
+  for (auto& t : tokens)  // a load goes where its carrier went
+    for (const auto& c : tokens) t.unsure = t.unsure || (t.carrier >= 0 && c.token.entity == t.carrier && c.unsure);
+}
+
+void Labeller::emit(Group& group, bool aligned) {
+  const size_t k = emitted_groups_++;
+  const size_t notes_from = out_.notes.size();
+  for (auto& nt : group.notes) out_.notes.push_back(std::move(nt));
+  const auto& g = group.motions;
+
+  InferredStep step;
+  step.keyframe_row = g.front().on_row;
+  int step_off = 0;
+  for (const auto& m : g)
+    step.keyframe_row = std::min(step.keyframe_row, m.on_row), step_off = std::max(step_off, m.off_row);
+  noteStepsDiffer(k, g, step.keyframe_row);
+  if (aligned) placeInPlace(ex_inplace_before_[k], prev_off_ + 1, step.keyframe_row - 1);
+
+  // Loads (an object that stayed with a moving robot of the step all the way), then targets.
+  const std::vector<int> carrier = carriersOf(g);
+  std::vector<InferredToken> tokens = motionTokens(g, carrier, step.keyframe_row, k, aligned);
+  noteStopsOnTheWay(g, carrier, tokens);
+  // In-place actions of the aligned example step, for the entities that did not move.
   if (aligned)
     for (const auto& t : ex_motion_[k]->tokens)
       if (!t.isMotion()) {
@@ -680,12 +727,7 @@ void Labeller::emit(Group& group, bool aligned) {
         it.kind = "in-place";
         tokens.push_back(it);
       }
-  // A token some note of this step doubts is listed to check.
-  for (size_t i = notes_from; i < out_.notes.size(); ++i)
-    for (auto& t : tokens) t.unsure = t.unsure || (!t.in_place && t.token.entity == out_.notes[i].entity);
-  for (auto& t : tokens) t.unsure = t.unsure || steps_differ_;
-  for (auto& t : tokens)  // a load goes where its carrier went
-    for (const auto& c : tokens) t.unsure = t.unsure || (t.carrier >= 0 && c.token.entity == t.carrier && c.unsure);
+  markUnsure(tokens, notes_from);
   for (auto& t : tokens)
     if (t.token.target >= 0 || t.in_place) step.tokens.push_back(std::move(t));
   std::sort(step.tokens.begin(), step.tokens.end(),
