@@ -404,6 +404,7 @@ struct Totals {
   int perturbed = 0, succeeded = 0, replans = 0, redecisions = 0, violations = 0;
   double lost_s = 0;
   int lost_n = 0;
+  double makespan_s = 0;  ///< mean over the runs counted
 };
 /// Over the perturbed trials (`all`: over every trial, the unperturbed runs).
 Totals totals(const PerturbationReport& r, const std::vector<CoordinatedRun>& runs, bool all = false) {
@@ -414,10 +415,13 @@ Totals totals(const PerturbationReport& r, const std::vector<CoordinatedRun>& ru
     if (!all && !r.with[i].perturbed) continue;
     ++t.perturbed;
     t.succeeded += runs[i].success;
+    t.makespan_s += runs[i].makespan_s;
     t.replans += runs[i].replans;
     t.redecisions += runs[i].redecisions;
     if (runs[i].success && u.success) t.lost_s += runs[i].makespan_s - u.makespan_s, ++t.lost_n;
   }
+  const int counted = all ? static_cast<int>(runs.size()) : t.perturbed;
+  if (counted > 0) t.makespan_s /= counted;
   return t;
 }
 std::string outcome(const CoordinatedRun& run) {
@@ -451,14 +455,14 @@ void printPerturbation(const PerturbationReport& r, std::ostream& out) {
   const Totals u = totals(r, r.unperturbed, true), wo = totals(r, r.without), w = totals(r, r.with);
   std::snprintf(line, sizeof line,
                 "%s, variant %s, dispatch %s, perturbation %s: %zu trials, %d perturbed\n"
-                "  unperturbed:      %d/%zu succeeded\n"
+                "  unperturbed:      %d/%zu succeeded, mean makespan %.2f s\n"
                 "  without recovery: %d/%d perturbed succeeded\n"
                 "  with recovery:    %d/%d perturbed succeeded, %d re-plans, %d re-decisions, time lost %.1f s "
                 "(mean of %d)\n"
                 "  precedence violations: %d\n",
                 r.task.c_str(), r.variant.c_str(), r.dispatch.c_str(), toString(r.perturbation).c_str(), r.demos.size(),
-                w.perturbed, u.succeeded, r.demos.size(), wo.succeeded, wo.perturbed, w.succeeded, w.perturbed,
-                w.replans, w.redecisions, w.lost_n ? w.lost_s / w.lost_n : 0.0, w.lost_n,
+                w.perturbed, u.succeeded, r.demos.size(), u.makespan_s, wo.succeeded, wo.perturbed, w.succeeded,
+                w.perturbed, w.replans, w.redecisions, w.lost_n ? w.lost_s / w.lost_n : 0.0, w.lost_n,
                 u.violations + wo.violations + w.violations);
   out << line;
 }
