@@ -57,7 +57,7 @@ class CoordinatorNode::Impl {
     cfg.dispatch = exec::parseDispatchMode(rosparam::param<std::string>(pnh, "dispatch", exec::toString(cfg.dispatch)),
                                            "parameter '" + pnh.resolveName("dispatch") + "'");
     try {
-      const DispatchInputs dispatch = loadDispatchInputs(pnh, cfg.dispatch);
+      const DispatchInputs dispatch = loadDispatchInputs(pnh, cfg);
       // Ids past every id of a coordinator this one replaces (exec::firstIdAt).
       coordinator_ = std::make_unique<exec::Coordinator>(spec_, cfg, loadEndPoints(pnh),
                                                          exec::firstIdAt(ros::WallTime::now().toSec()),
@@ -168,22 +168,26 @@ class CoordinatorNode::Impl {
     return {};
   }
 
-  /// Whom each token waits for and whether a decision reads the scene (exec/dispatch.h):
-  /// the model's manifest (~model), else a replay's (~train's demonstrations, replayed in a
-  /// fixed order). Steps dispatch needs neither: every token waits for every earlier one.
+  /// Whom each token waits for and whether a decision reads the scene (exec/dispatch.h; a
+  /// recovery re-decides a step only then, CoordinatorConfig::max_replans): the model's
+  /// manifest (~model), else a replay's (~train's demonstrations, replayed in a fixed order).
+  /// Steps dispatch without recovery needs neither: every token waits for every earlier one.
   struct DispatchInputs {
     graph::Dependencies dependencies;
     bool policy_reads_scene = true;
   };
-  DispatchInputs loadDispatchInputs(ros::NodeHandle& pnh, exec::DispatchMode mode) const {
+  DispatchInputs loadDispatchInputs(ros::NodeHandle& pnh, const exec::CoordinatorConfig& cfg) const {
     DispatchInputs in;
-    if (mode == exec::DispatchMode::Steps) return in;
+    const bool async = cfg.dispatch == exec::DispatchMode::Async;
+    if (!async && cfg.max_replans == 0) return in;
     const std::string model = rosparam::param<std::string>(pnh, "model", "");
     if (!model.empty()) {
       const tgn::SequenceModel m = tgn::SequenceModel::load(model);
-      in.dependencies = m.info().dependencies;
+      if (async) in.dependencies = m.info().dependencies;
       in.policy_reads_scene = pipeline::policyReadsScene(m.info());
     } else {
+      in.policy_reads_scene = false;  // a replay: the demonstration's steps in their order
+      if (!async) return in;
       std::string train = rosparam::param<std::string>(pnh, "train", "");
       if (train.empty()) train = rosparam::param<std::string>(pnh, "task", "");
       if (!std::filesystem::is_directory(std::filesystem::path(train) / "demos"))
@@ -191,13 +195,18 @@ class CoordinatorNode::Impl {
                     "' is async but there is neither ~model nor ~train demonstrations to learn what each token "
                     "waits for");
       in.dependencies = graph::learnDependencies(spec_, task::loadTaskDir(train).demos);
-      in.policy_reads_scene = false;
     }
-    ROS_INFO(
-        "coordinator: async dispatch, %s; decisions %s",
-        in.dependencies.learned ? "learned dependencies"
-                                : "a model without learned dependencies (every token waits for every earlier one)",
-        in.policy_reads_scene ? "once every entity has settled (the policy reads the scene)" : "ahead (a fixed order)");
+    if (async)
+      ROS_INFO("coordinator: async dispatch, %s; decisions %s",
+               in.dependencies.learned
+                   ? "learned dependencies"
+                   : "a model without learned dependencies (every token waits for every earlier one)",
+               in.policy_reads_scene ? "once every entity has settled (the policy reads the scene)"
+                                     : "ahead (a fixed order)");
+    if (cfg.max_replans > 0)
+      ROS_INFO("coordinator: up to %d recoveries per token and step: %s", cfg.max_replans,
+               in.policy_reads_scene ? "a step is re-decided from the scene as it is"
+                                     : "a token is re-planned from where it is (a fixed order)");
     return in;
   }
 

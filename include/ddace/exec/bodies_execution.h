@@ -70,6 +70,22 @@ class BodiesExecution : public ExecutionModel {
   Path follow(const Path& planned, bool is_robot, int entity) override;
 
  private:
+  struct Step;  // one step's motions while they run (bodies_execution.cpp)
+  /// Where the step's bodies end, what each motion may touch, which loads ride.
+  void decideContacts(Step& step);
+  std::vector<BodyAtStart> bodiesAtStart(const Step& step) const;
+  MotionContacts contactsOf(const Step& step, const std::vector<BodyAtStart>& bodies, int entity) const;
+  std::string targetName(int target) const;  ///< "" for none
+  static void dropLoad(MotionContacts& contacts);
+  void rideLoad(Step& step, int carrier);
+  /// Motion `m` starts: a robot's controller gets its path, an object its segment.
+  void startMotion(Step& step, size_t m);
+  void endRide(Step& step, int carrier, bool arrived);
+  void cycleRobots(Step& step);
+  void advanceTable(Step& step);
+  void judgeContacts(Step& step);
+  void stopUnfinished(Step& step);
+
   BodiesExecutionParams params_;
   ControllerParams controller_;
   double stop_tolerance_m_ = 0;  ///< task::stopTolerance of this model's noise

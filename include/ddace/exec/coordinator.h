@@ -10,6 +10,9 @@
 // when the run starts and then when Dispatch::mayDecide allows it (steps, or a policy that
 // reads the scene: once every started token has ended; async with a policy that does not:
 // as soon as the last one was made): never on a timer. onTick() only checks time-outs.
+// When the table changes under a running token the run recovers from the scene as it is
+// (CoordinatorConfig::max_replans): the step is re-decided when the policy reads the scene,
+// else the token's path is re-planned.
 // The goal of a motion token is its end point (task/end_point.h) from the positions when
 // it started (the step's tokens that started earlier at their start): at contact with a
 // body, on a goal, a carrier behind its load. Every motion token, a robot's or an
@@ -78,11 +81,20 @@ struct CoordinatorConfig {
   DispatchMode dispatch = DispatchMode::Steps;
   /// When the table changes under a token -- its segment FAILED or ABORTED (a robot pushed
   /// off its path, blocked), it timed out (stalled), or its target moved more than
-  /// arrival_radius_m + arrival_tolerance_m since it started (a box nudged) -- the token is
-  /// re-planned from the scene as it is (its entity stopped, a path from where it is, to its
-  /// end point, from where the target is now if it moved) at most this many times; after that,
-  /// or when its entity or target is not tracked, the run aborts naming why. 0: any of these
-  /// aborts (the paper's execution).
+  /// arrival_radius_m + arrival_tolerance_m since it started (a box nudged) -- the run
+  /// recovers from the scene as it is, at most this many times per token (re-plans) and per
+  /// step (re-decisions):
+  ///  - re-plan: the step stays, the token's entity is stopped and gets a path from where it
+  ///    is to its end point (from where the target is now if it moved);
+  ///  - re-decision, when the policy reads the scene (the latest step only): every token of
+  ///    the step that has not ended is stopped and withdrawn, and the step is asked for again
+  ///    from a snapshot of now in place of the one it was decided from (the policy may decide
+  ///    other tokens, or END when the change did the work).
+  /// A moved target changed what the decision read: re-decision. A token that could not run
+  /// (failed, timed out) is re-planned, and re-decided once its re-plans are used up. A fixed
+  /// order (it would decide the same) only re-plans. After that, or when the token's entity
+  /// or target is not tracked, the run aborts naming why. 0: any of these aborts (the
+  /// paper's execution).
   int max_replans = 0;
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
@@ -260,13 +272,20 @@ class Coordinator {
   /// The run's dispatch record: when each token started and ended, whom it waited for, the
   /// precedence violations (nullptr before the first start).
   const Dispatch* dispatch() const { return dispatch_ ? &*dispatch_ : nullptr; }
-  /// Every goal condition of task.yaml against the latest positions, in order.
+  /// Every goal condition of task.yaml against the latest positions, in order
+  /// (task::goalConditionMet).
   std::vector<bool> goalConditionsMet() const;
   uint32_t decisionsRequested() const { return decisions_requested_; }
   /// The decision request awaiting its answer (0: none).
   uint32_t pendingDecision() const { return pending_decision_; }
   /// The last decision the coordinator accepted (probabilities as the policy gave them).
   const std::optional<AcceptedDecision>& lastDecision() const { return last_decision_; }
+  /// Recoveries of the run so far (CoordinatorConfig::max_replans): tokens re-planned,
+  /// steps re-decided.
+  int replans() const { return replans_; }
+  int redecisions() const { return redecisions_; }
+  /// The steps withdrawn by a re-decision, as they stood then (oldest first).
+  const std::vector<StepRecord>& withdrawnSteps() const { return withdrawn_; }
 
  private:
   bool allTracked() const;
@@ -290,6 +309,14 @@ class Coordinator {
   /// Re-plans a started token from the scene as it is, or aborts naming `why` when it may
   /// not (CoordinatorConfig::max_replans).
   void replan(TokenRef t, const std::string& why, double now_s, CoordinatorOutput& out);
+  /// Recovers `t` (see max_replans): re-decides its step when `target_moved` or its re-plans
+  /// are used up, else re-plans it; re-decides only the latest step of a policy that reads
+  /// the scene.
+  void recover(TokenRef t, const std::string& why, bool target_moved, double now_s, CoordinatorOutput& out);
+  void redecide(TokenRef t, const std::string& why, double now_s, CoordinatorOutput& out);
+  /// Aborts naming `why` and returns false when `t` may not be recovered once more
+  /// (`done` of max_replans done, or its entity or target not tracked).
+  bool mayRecover(TokenRef t, int done, const std::string& why, CoordinatorOutput& out);
   /// The end point of the started token `t` from the positions `at` (the step's other
   /// started tokens at their start).
   Eigen::Vector2d endPointOf(TokenRef t, std::vector<Eigen::Vector2d> at) const;
@@ -321,6 +348,9 @@ class Coordinator {
   bool blocked_on_tracking_ = false;   ///< a ready token waits for its entities to be tracked
   uint32_t decisions_requested_ = 0;
   std::optional<AcceptedDecision> last_decision_;
+  int replans_ = 0, redecisions_ = 0;
+  std::vector<int> step_redecisions_;  ///< per step index: times it was re-decided
+  std::vector<StepRecord> withdrawn_;
 };
 
 }  // namespace ddace::exec

@@ -61,6 +61,9 @@ class Dispatch {
   /// Appends a decided step. Its tokens' predecessors are the earlier steps' tokens the
   /// mode makes them wait for.
   void addStep(const std::vector<task::Token>& tokens, double decided_s);
+  /// Forgets the last decided step (it is decided again from the scene as it is): its
+  /// tokens that ran are no longer the run's. Throws ddace::Error when there is none.
+  void withdrawLastStep();
   int steps() const { return static_cast<int>(steps_.size()); }
   const std::vector<task::Token>& tokens(int step) const;
   const task::Token& token(TokenRef t) const;

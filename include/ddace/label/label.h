@@ -110,6 +110,26 @@ class Labeller {
   void settle(bool aligned);
   /// The step(s) of one group (and the example's in-place steps before it) into out_.
   void emit(Group& g, bool aligned);
+  /// Notes (once) that step k's movers are not the kinds of the example's step k.
+  void noteStepsDiffer(size_t k, const std::vector<Motion>& g, int row);
+  /// For each motion of a group, the index of the robot motion it is the load of, or -1.
+  std::vector<int> carriersOf(const std::vector<Motion>& g) const;
+  /// Tokens of a group's motions: targets (carriers and lone movers first, then their
+  /// loads) and action words.
+  std::vector<InferredToken> motionTokens(const std::vector<Motion>& g, const std::vector<int>& carrier, int first_row,
+                                          size_t k, bool aligned);
+  /// The target of a motion that is no load (endPoint(); a tie resolved by the example).
+  void readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned);
+  /// Between the tied end points of `ep`: the example's step k (aligned), the example's
+  /// choice between such kinds, or its only motion of the kind; else noted.
+  void resolveTie(InferredToken& tok, const Motion& m, const EndPoint& ep, size_t k, bool aligned);
+  /// The action word of a token with its target (an object moving alone is noted).
+  void nameAction(InferredToken& tok, const Motion& m, bool is_load);
+  /// Notes a body a motion nearly stopped at on its way, keeping its heading.
+  void noteStopsOnTheWay(const std::vector<Motion>& g, const std::vector<int>& carrier,
+                         const std::vector<InferredToken>& tokens);
+  /// Marks the tokens that a note since `notes_from` doubts (a load with its carrier).
+  void markUnsure(std::vector<InferredToken>& tokens, size_t notes_from) const;
   void note(int row, const std::string& message, int entity = -1) { out_.notes.push_back({row, message, entity}); }
   /// Cuts motions where what moves with them changes: a robot that reaches an object and
   /// pushes it on without stopping (at the object's onset), an object handed on at contact
@@ -122,6 +142,10 @@ class Labeller {
   /// heading it came in and the one it left in.
   bool stoppedAtOnItsWay(const Motion& m, int b, double& turn) const;
   bool together(const std::vector<Eigen::Vector2d>& at, int a, int b) const;
+  /// `m` begins as the motions of a step have stopped (the last at step_off_t), within
+  /// the precision onsets and offsets are dated to: a step of its own, even with no pause
+  /// (a stop at contact followed by a change of what moves).
+  bool startsAStep(double step_off_t, const Motion& m) const;
   bool staysWith(const Motion& m, int j) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
   bool pausedOnItsWay(const Motion& a, const Motion& b) const;

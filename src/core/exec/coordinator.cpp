@@ -118,9 +118,8 @@ std::vector<int> Coordinator::activeEntities() const {
 std::vector<bool> Coordinator::goalConditionsMet() const {
   std::vector<bool> met;
   for (const auto& gc : spec_.goal_conditions) {
-    const int e = spec_.entityIndex(gc.entity), at = spec_.entityIndex(gc.at);
-    const bool known = e >= 0 && at >= 0 && observation_.positions.size() == spec_.entities.size();
-    met.push_back(known && (observation_.positions[e] - observation_.positions[at]).norm() <= gc.tolerance);
+    const bool known = observation_.positions.size() == spec_.entities.size();
+    met.push_back(known && task::goalConditionMet(spec_, gc, observation_.positions));
   }
   return met;
 }
@@ -170,6 +169,10 @@ void Coordinator::clearRun() {
   waiting_for_entities_ = false;
   blocked_on_tracking_ = false;
   dispatch_.reset();
+  replans_ = 0;
+  redecisions_ = 0;
+  step_redecisions_.clear();
+  withdrawn_.clear();
 }
 
 void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
@@ -294,22 +297,65 @@ Eigen::Vector2d Coordinator::endPointOf(TokenRef r, std::vector<Eigen::Vector2d>
   return task::stepEndPositions(spec_, end_points_, tokens, at)[static_cast<size_t>(e)];
 }
 
-void Coordinator::replan(TokenRef r, const std::string& why, double now_s, CoordinatorOutput& out) {
-  TokenRecord& t = record(r);
-  const std::string key = task::tokenKey(t.token, spec_);
-  if (t.replans >= config_.max_replans) {
+bool Coordinator::mayRecover(TokenRef r, int done, const std::string& why, CoordinatorOutput& out) {
+  const TokenRecord& t = record(r);
+  if (done >= config_.max_replans) {
     abort(config_.max_replans == 0 ? why
-                                   : why + " (re-planned " + std::to_string(t.replans) +
+                                   : why + " (recovered " + std::to_string(done) +
                                          " times, max_replans = " + std::to_string(config_.max_replans) + ")",
           out);
-    return;
+    return false;
   }
   for (int e : {t.token.entity, t.token.target})
     if (e >= 0 && !observation_.tracked.at(static_cast<size_t>(e))) {
-      abort(why + "; no re-plan: " + spec_.entities[static_cast<size_t>(e)].name + " is not tracked", out);
-      return;
+      abort(why + "; no recovery: " + spec_.entities[static_cast<size_t>(e)].name + " is not tracked", out);
+      return false;
     }
+  return true;
+}
+
+void Coordinator::recover(TokenRef r, const std::string& why, bool target_moved, double now_s, CoordinatorOutput& out) {
+  // Only the latest decision, made from the scene and not yet followed by another, is
+  // re-made: a fixed order would decide the same step again.
+  const bool may_redecide = policy_reads_scene_ && r.step + 1 == static_cast<int>(steps_.size()) &&
+                            history_.size() == steps_.size() && pending_decision_ == 0 && !end_decided_;
+  const auto k = static_cast<size_t>(r.step);
+  const int redecided = k < step_redecisions_.size() ? step_redecisions_[k] : 0;
+  // What the decision read moved: decide again. The token could not run: a path from where
+  // it is, and once that is used up, another decision (someone else may do it).
+  if (may_redecide && (target_moved || (record(r).replans >= config_.max_replans && redecided < config_.max_replans)))
+    redecide(r, why, now_s, out);
+  else replan(r, why, now_s, out);
+}
+
+void Coordinator::redecide(TokenRef r, const std::string& why, double now_s, CoordinatorOutput& out) {
+  const auto k = static_cast<size_t>(r.step);
+  if (step_redecisions_.size() <= k) step_redecisions_.resize(k + 1, 0);
+  if (!mayRecover(r, step_redecisions_[k], why, out)) return;
+  ++step_redecisions_[k];
+  ++redecisions_;
+  StepRecord& s = steps_[k];
+  for (TokenRecord& t : s.tokens)
+    if (t.token.isMotion() && t.started_s >= 0 && t.state != SegmentState::Done) {
+      if (t.segment_id != 0) out.stop.push_back(t.token.entity);
+      t.state = SegmentState::Aborted;
+      t.path_request = 0;
+    }
+  out.log.push_back("re-deciding step " + std::to_string(k + 1) + " from the scene as it is (" +
+                    std::to_string(step_redecisions_[k]) + " of " + std::to_string(config_.max_replans) + "): " + why);
+  withdrawn_.push_back(std::move(s));
+  steps_.pop_back();
+  history_.pop_back();
+  dispatch_->withdrawLastStep();
+  advance(now_s, out);  // asks for the step again from a snapshot of now
+}
+
+void Coordinator::replan(TokenRef r, const std::string& why, double now_s, CoordinatorOutput& out) {
+  TokenRecord& t = record(r);
+  const std::string key = task::tokenKey(t.token, spec_);
+  if (!mayRecover(r, t.replans, why, out)) return;
   ++t.replans;
+  ++replans_;
   if (t.segment_id != 0) out.stop.push_back(t.token.entity);  // never on with an old segment
   t.start = observation_.positions[static_cast<size_t>(t.token.entity)];
   // The end point moves with its target only: a robot pushed aside keeps the end it had.
@@ -457,7 +503,7 @@ CoordinatorOutput Coordinator::onEntities(const EntityObservation& obs, double n
       std::ostringstream os;
       os << spec_.entities[static_cast<size_t>(target)].name << " moved " << moved << " m while "
          << task::tokenKey(t.token, spec_) << " ran (more than arrival_radius_m + arrival_tolerance_m)";
-      replan({static_cast<int>(k), static_cast<int>(i)}, os.str(), now_s, out);
+      recover({static_cast<int>(k), static_cast<int>(i)}, os.str(), true, now_s, out);
       return out;
     }
   return out;
@@ -689,7 +735,8 @@ CoordinatorOutput Coordinator::onSegmentStatus(const StatusReport& r, double now
   if (std::isfinite(r.progress)) rec->progress = std::clamp(r.progress, 0.0, 1.0);
   if (st == SegmentState::Failed || st == SegmentState::Aborted) {
     rec->state = st;
-    replan(*ref, "segment " + key + " " + toString(st) + (r.message.empty() ? "" : ": " + r.message), now_s, out);
+    recover(*ref, "segment " + key + " " + toString(st) + (r.message.empty() ? "" : ": " + r.message), false, now_s,
+            out);
     return out;
   }
   if (st != SegmentState::Done) {
@@ -766,7 +813,7 @@ CoordinatorOutput Coordinator::onTick(double now_s) {
         std::ostringstream os;
         os << "segment " << task::tokenKey(t.token, spec_) << " timed out after " << t.timeout_s << " s (progress "
            << t.progress << ")";
-        replan({static_cast<int>(k), static_cast<int>(i)}, os.str(), now_s, out);
+        recover({static_cast<int>(k), static_cast<int>(i)}, os.str(), false, now_s, out);
         return out;
       }
     }

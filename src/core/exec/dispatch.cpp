@@ -37,6 +37,12 @@ void Dispatch::addStep(const std::vector<task::Token>& tokens, double decided_s)
   steps_.push_back(std::move(records));
 }
 
+void Dispatch::withdrawLastStep() {
+  if (steps_.empty()) throw Error("dispatch: no step to withdraw");
+  steps_.pop_back();
+  tokens_.pop_back();
+}
+
 const std::vector<task::Token>& Dispatch::tokens(int step) const {
   return tokens_.at(static_cast<size_t>(step));
 }

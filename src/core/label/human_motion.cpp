@@ -87,117 +87,146 @@ struct Moved {
   }
 };
 
-}  // namespace
+/// Makes one demonstration as a person moves the robots (humanMotion): row by row, step by
+/// step, then seen through the tracker.
+class Demonstrator {
+ public:
+  Demonstrator(const task::Demonstration& clean, const task::TaskSpec& spec, const HumanMotionOptions& o,
+               SplitMix64& rng)
+      : clean_(clean), spec_(spec), o_(o), rng_(rng), m_(spec.entities.size()), dt_(1.0 / o.rate_hz) {
+    d_.source = clean.source;
+    d_.step_window_s = clean.step_window_s;
+    d_.has_label_columns = clean.has_label_columns;
+    pos_ = clean.positions.front();
+  }
 
-task::Demonstration humanMotion(const task::Demonstration& clean, const task::TaskSpec& spec,
-                                const HumanMotionOptions& o, SplitMix64& rng) {
-  const size_t m = spec.entities.size();
-  task::Demonstration d;
-  d.source = clean.source;
-  d.step_window_s = clean.step_window_s;
-  d.has_label_columns = clean.has_label_columns;
-  std::vector<Vector2d> pos = clean.positions.front();
-  const double dt = 1.0 / o.rate_hz;
-  auto emit = [&](const std::vector<task::Label>& labels) {
-    d.t.push_back(static_cast<double>(d.t.size()) / o.rate_hz);
-    d.positions.push_back(pos);
-    d.labels.push_back(labels);
-  };
-  const std::vector<task::Label> idle(m);
-  auto rest = [&](double seconds) {
-    for (int i = 0, n = static_cast<int>(std::round(seconds / dt)); i < n; ++i) emit(idle);
-  };
-  // Between two steps: a person's pause, perhaps bumping a robot and putting it back.
-  auto gap = [&]() {
-    const double g = rng.uniform(o.gap_min_s, o.gap_max_s);
-    std::vector<int> robots;
-    for (size_t e = 0; e < m; ++e)
-      if (spec.entities[e].kind == task::EntityKind::Robot) robots.push_back(static_cast<int>(e));
-    if (robots.empty() || rng.uniform() >= o.nudge_probability) return rest(g);
-    const int r = robots[rng.index(robots.size())];
-    if (o.nudge_max_m <= 0) return rest(g);
-    const Vector2d home = pos[r];
-    const double a = rng.uniform(0, 2 * M_PI), dist = rng.uniform(o.nudge_min_m, o.nudge_max_m);
-    const Vector2d away = home + dist * Vector2d(std::cos(a), std::sin(a));
-    rest(0.3);
-    const int n = static_cast<int>(std::round(0.25 / dt));
-    for (int i = 1; i <= n; ++i) pos[r] = home + (away - home) * i / n, emit(idle);
-    rest(0.3);
-    for (int i = 1; i <= n; ++i) pos[r] = away + (home - away) * i / n, emit(idle);
-    rest(std::max(o.gap_min_s, g - 1.1));  // the hand goes on to the next robot
-  };
-
-  // Where a motion of a robot that carries nothing ends, off its generated end: short of
-  // contact with a body it touches, beside a goal another body stands on.
-  auto endShift = [&](const task::Segment& seg, const std::vector<Vector2d>& path, const Vector2d& heading) {
-    const int mover = seg.token.entity, target = seg.token.target;
-    if (spec.entities[mover].kind != task::EntityKind::Robot || target < 0) return Vector2d(Vector2d::Zero());
-    for (const auto& other : clean.segments)
-      if (other.step == seg.step && other.token.entity != mover && other.token.action == seg.token.action &&
-          other.token.target == target && spec.entities[other.token.entity].kind == task::EntityKind::Object)
-        return Vector2d(Vector2d::Zero());  // a carrier: its load ends the motion
-    const task::EntityKind kind = spec.entities[target].kind;
-    if (kind != task::EntityKind::Goal && o.contact_gap_max_m > 0)
-      return Vector2d(-rng.uniform(o.contact_gap_min_m, o.contact_gap_max_m) * heading);
-    const Vector2d goal = clean.positions[seg.last_row][target];
-    if (kind == task::EntityKind::Goal && o.beside_max_rad > 0 && (path.back() - goal).norm() > spec.arrival_radius) {
-      // The body it stopped at: the obstacle nearest its generated end.
-      int body = -1;
-      double best = 1e9;
-      for (size_t j = 0; j < spec.entities.size(); ++j) {
-        const double d = (clean.positions[seg.last_row][j] - path.back()).norm();
-        if (static_cast<int>(j) != mover && spec.footprint(static_cast<int>(j)).obstacle && d < best)
-          best = d, body = static_cast<int>(j);
-      }
-      if (body >= 0) {
-        const Vector2d at = clean.positions[seg.last_row][body];
-        const double turn = rng.uniform(-o.beside_max_rad, o.beside_max_rad);
-        const Vector2d from = (path.back() - at).norm() > 1e-9 ? Vector2d((path.back() - at).normalized()) : -heading;
-        const Vector2d turned(std::cos(turn) * from.x() - std::sin(turn) * from.y(),
-                              std::sin(turn) * from.x() + std::cos(turn) * from.y());
-        return Vector2d(at + spec.contactDistance(mover, body) * turned - path.back());
-      }
+  task::Demonstration run() {
+    rest(rng_.uniform(0.5, 1.0));
+    for (size_t k = 0; k < clean_.steps.size(); ++k) {
+      playStep(static_cast<int>(k));
+      gap();
     }
-    return Vector2d(Vector2d::Zero());
-  };
+    rest(1.0);
+    track();
+    d_.analyze();
+    return std::move(d_);
+  }
 
-  rest(rng.uniform(0.5, 1.0));
-  for (size_t k = 0; k < clean.steps.size(); ++k) {
-    std::vector<const task::Segment*> segs;
-    for (const auto& s : clean.segments)
-      if (s.step == static_cast<int>(k)) segs.push_back(&s);
+ private:
+  void emit(const std::vector<task::Label>& labels) {
+    d_.t.push_back(static_cast<double>(d_.t.size()) / o_.rate_hz);
+    d_.positions.push_back(pos_);
+    d_.labels.push_back(labels);
+  }
+  void rest(double seconds) {
+    const std::vector<task::Label> idle(m_);
+    for (int i = 0, n = static_cast<int>(std::round(seconds / dt_)); i < n; ++i) emit(idle);
+  }
+
+  /// Between two steps: a person's pause, perhaps bumping a robot and putting it back.
+  void gap() {
+    const double g = rng_.uniform(o_.gap_min_s, o_.gap_max_s);
+    std::vector<int> robots;
+    for (size_t e = 0; e < m_; ++e)
+      if (spec_.entities[e].kind == task::EntityKind::Robot) robots.push_back(static_cast<int>(e));
+    if (robots.empty() || rng_.uniform() >= o_.nudge_probability) return rest(g);
+    const int r = robots[rng_.index(robots.size())];
+    if (o_.nudge_max_m <= 0) return rest(g);
+    const Vector2d home = pos_[r];
+    const double a = rng_.uniform(0, 2 * M_PI), dist = rng_.uniform(o_.nudge_min_m, o_.nudge_max_m);
+    const Vector2d away = home + dist * Vector2d(std::cos(a), std::sin(a));
+    const std::vector<task::Label> idle(m_);
+    rest(0.3);
+    const int n = static_cast<int>(std::round(0.25 / dt_));
+    for (int i = 1; i <= n; ++i) pos_[r] = home + (away - home) * i / n, emit(idle);
+    rest(0.3);
+    for (int i = 1; i <= n; ++i) pos_[r] = away + (home - away) * i / n, emit(idle);
+    rest(std::max(o_.gap_min_s, g - 1.1));  // the hand goes on to the next robot
+  }
+
+  /// A robot motion that carries a load (an object of its step with the same action and
+  /// target): the load ends it.
+  bool carries(const task::Segment& seg) const {
+    for (const auto& other : clean_.segments)
+      if (other.step == seg.step && other.token.entity != seg.token.entity && other.token.action == seg.token.action &&
+          other.token.target == seg.token.target && spec_.entities[other.token.entity].kind == task::EntityKind::Object)
+        return true;
+    return false;
+  }
+
+  /// Where a robot sent to goal `target` that a body stands on ends: touching the body
+  /// nearest its generated end, turned about it; zero when no body is there.
+  Vector2d besideShift(const task::Segment& seg, const std::vector<Vector2d>& path, const Vector2d& heading) {
+    const int mover = seg.token.entity;
+    const auto& at_end = clean_.positions[seg.last_row];
+    if ((path.back() - at_end[seg.token.target]).norm() <= spec_.arrival_radius) return Vector2d::Zero();
+    int body = -1;
+    double best = 1e9;
+    for (size_t j = 0; j < spec_.entities.size(); ++j) {
+      const double d = (at_end[j] - path.back()).norm();
+      if (static_cast<int>(j) != mover && spec_.footprint(static_cast<int>(j)).obstacle && d < best)
+        best = d, body = static_cast<int>(j);
+    }
+    if (body < 0) return Vector2d::Zero();
+    const Vector2d at = at_end[body];
+    const double turn = rng_.uniform(-o_.beside_max_rad, o_.beside_max_rad);
+    const Vector2d from = (path.back() - at).norm() > 1e-9 ? Vector2d((path.back() - at).normalized()) : -heading;
+    const Vector2d turned(std::cos(turn) * from.x() - std::sin(turn) * from.y(),
+                          std::sin(turn) * from.x() + std::cos(turn) * from.y());
+    return Vector2d(at + spec_.contactDistance(mover, body) * turned - path.back());
+  }
+
+  /// Where a motion of a robot that carries nothing ends, off its generated end: short of
+  /// contact with a body it touches, beside a goal another body stands on.
+  Vector2d endShift(const task::Segment& seg, const std::vector<Vector2d>& path, const Vector2d& heading) {
+    const int mover = seg.token.entity, target = seg.token.target;
+    if (spec_.entities[mover].kind != task::EntityKind::Robot || target < 0 || carries(seg)) return Vector2d::Zero();
+    const task::EntityKind kind = spec_.entities[target].kind;
+    if (kind != task::EntityKind::Goal && o_.contact_gap_max_m > 0)
+      return Vector2d(-rng_.uniform(o_.contact_gap_min_m, o_.contact_gap_max_m) * heading);
+    if (kind == task::EntityKind::Goal && o_.beside_max_rad > 0) return besideShift(seg, path, heading);
+    return Vector2d::Zero();
+  }
+
+  /// The person's timing of a motion that follows no carrier.
+  void time(Moved& mv, const task::Segment& s, const std::vector<Vector2d>& path) {
+    const double generated = clean_.t[s.last_row] - clean_.t[s.first_row];
+    mv.delay = rng_.uniform(0, o_.onset_spread_s);
+    mv.duration = generated / rng_.uniform(o_.speed_min, o_.speed_max);
+    if (rng_.uniform() < o_.pause_probability)
+      mv.pause_at = rng_.uniform(0.3, 0.7), mv.pause = rng_.uniform(o_.pause_min_s, o_.pause_max_s);
+    mv.profile = o_.profile != Profile::Mixed ? o_.profile : static_cast<Profile>(rng_.index(4));
+    mv.to_shift = endShift(s, path, mv.endHeading());
+  }
+
+  /// The motions of step k as the person makes them; leader[i]: the index of the motion
+  /// motion i follows (a load), or -1.
+  std::vector<Moved> plan(const std::vector<const task::Segment*>& segs, std::vector<int>& leader) {
     std::vector<Moved> moved;
-    std::vector<int> leader;                // [moved] index of the motion it follows (a load), or -1
     std::vector<task::Token> moved_tokens;  // [moved]
     for (const auto* s : segs) {
       if (!s->token.isMotion()) continue;
-      auto path = clean.segmentPath(*s);
+      auto path = clean_.segmentPath(*s);
       if ((path.back() - path.front()).norm() < 1e-3) continue;
       Moved mv;
       mv.entity = s->token.entity;
       mv.path = path;
       mv.measure();
-      mv.from_shift = pos[mv.entity] - path.front();
+      mv.from_shift = pos_[mv.entity] - path.front();
       // A load moves with its carrier (task::carriedLoad: a robot of the step with the same
       // action and target; its path runs in front of the carrier's, docs/task-format.md).
       int follows = -1;
-      if (spec.entities[mv.entity].kind == task::EntityKind::Object)
+      if (spec_.entities[mv.entity].kind == task::EntityKind::Object)
         for (size_t j = 0; j < moved.size(); ++j)
-          if (spec.entities[moved[j].entity].kind == task::EntityKind::Robot &&
+          if (spec_.entities[moved[j].entity].kind == task::EntityKind::Robot &&
               moved_tokens[j].action == s->token.action && moved_tokens[j].target == s->token.target)
             follows = static_cast<int>(j);
-      const double generated = clean.t[s->last_row] - clean.t[s->first_row];
       if (follows >= 0) {
         const Moved& l = moved[follows];
         mv.delay = l.delay, mv.duration = l.duration, mv.pause_at = l.pause_at, mv.pause = l.pause;
         mv.profile = l.profile;
       } else {
-        mv.delay = rng.uniform(0, o.onset_spread_s);
-        mv.duration = generated / rng.uniform(o.speed_min, o.speed_max);
-        if (rng.uniform() < o.pause_probability)
-          mv.pause_at = rng.uniform(0.3, 0.7), mv.pause = rng.uniform(o.pause_min_s, o.pause_max_s);
-        mv.profile = o.profile != Profile::Mixed ? o.profile : static_cast<Profile>(rng.index(4));
-        mv.to_shift = endShift(*s, path, mv.endHeading());
+        time(mv, *s, path);
       }
       moved.push_back(mv);
       moved_tokens.push_back(s->token);
@@ -207,50 +236,74 @@ task::Demonstration humanMotion(const task::Demonstration& clean, const task::Ta
     double first = 1e9;
     for (const auto& mv : moved) first = std::min(first, mv.delay);
     for (auto& mv : moved) mv.delay -= first;
-    double end = moved.empty() ? o.in_place_s : 0;
+    return moved;
+  }
+
+  /// Step k's rows, labelled with the true tokens (each to the end of its own motion).
+  void playStep(int k) {
+    std::vector<const task::Segment*> segs;
+    for (const auto& s : clean_.segments)
+      if (s.step == k) segs.push_back(&s);
+    std::vector<int> leader;
+    const std::vector<Moved> moved = plan(segs, leader);
+    double end = moved.empty() ? o_.in_place_s : 0;
     for (const auto& mv : moved) end = std::max(end, mv.end());
-    std::vector<double> label_end(m, -1);
-    std::vector<task::Label> label(m);
+    std::vector<double> label_end(m_, -1);
+    std::vector<task::Label> label(m_);
     for (const auto* s : segs) {
       label[s->token.entity] = {s->token.action, s->token.target};
       label_end[s->token.entity] = end;  // in-place, and motions without their own end below
     }
     for (const auto& mv : moved) label_end[mv.entity] = mv.end();
-    const size_t first_row = d.t.size();
-    std::vector<task::Label> row_labels(m);
+    const size_t first_row = d_.t.size();
+    std::vector<task::Label> row_labels(m_);
     for (size_t i = first_row;; ++i) {
-      const double tau = static_cast<double>(i - first_row) * dt;
+      const double tau = static_cast<double>(i - first_row) * dt_;
       if (tau > end + 1e-9) break;
       // A load keeps to its carrier's timing (their generated rows go together).
       for (size_t j = 0; j < moved.size(); ++j)
-        pos[moved[j].entity] = moved[j].place(moved[leader[j] >= 0 ? leader[j] : j].progress(tau));
-      for (size_t e = 0; e < m; ++e) row_labels[e] = tau <= label_end[e] + 1e-9 ? label[e] : task::Label{};
+        pos_[moved[j].entity] = moved[j].place(moved[leader[j] >= 0 ? leader[j] : j].progress(tau));
+      for (size_t e = 0; e < m_; ++e) row_labels[e] = tau <= label_end[e] + 1e-9 ? label[e] : task::Label{};
       emit(row_labels);
     }
-    gap();
   }
-  rest(1.0);
 
-  // The tracker: noise on every pose, and a dropped frame now and then holds the last one.
-  std::vector<int> hold(m, 0);
-  for (size_t i = 0; i < d.rows(); ++i)
-    for (size_t e = 0; e < m; ++e) {
-      if (i > 0 && hold[e] > 0) {
-        --hold[e];
-        d.positions[i][e] = d.positions[i - 1][e];
-        continue;
+  /// The tracker: noise on every pose, and a dropped frame now and then holds the last one.
+  void track() {
+    std::vector<int> hold(m_, 0);
+    for (size_t i = 0; i < d_.rows(); ++i)
+      for (size_t e = 0; e < m_; ++e) {
+        if (i > 0 && hold[e] > 0) {
+          --hold[e];
+          d_.positions[i][e] = d_.positions[i - 1][e];
+          continue;
+        }
+        if (i > 0 && rng_.uniform() < o_.hold_probability) {
+          hold[e] = static_cast<int>(rng_.index(static_cast<size_t>(o_.hold_max_rows)));
+          d_.positions[i][e] = d_.positions[i - 1][e];
+          continue;
+        }
+        Vector2d& p = d_.positions[i][e];
+        p += o_.noise_m * Vector2d(rng_.normal(), rng_.normal());
+        p = {micrometres(p.x()), micrometres(p.y())};
       }
-      if (i > 0 && rng.uniform() < o.hold_probability) {
-        hold[e] = static_cast<int>(rng.index(static_cast<size_t>(o.hold_max_rows)));
-        d.positions[i][e] = d.positions[i - 1][e];
-        continue;
-      }
-      Vector2d& p = d.positions[i][e];
-      p += o.noise_m * Vector2d(rng.normal(), rng.normal());
-      p = {micrometres(p.x()), micrometres(p.y())};
-    }
-  d.analyze();
-  return d;
+  }
+
+  const task::Demonstration& clean_;
+  const task::TaskSpec& spec_;
+  const HumanMotionOptions& o_;
+  SplitMix64& rng_;
+  const size_t m_;
+  const double dt_;
+  task::Demonstration d_;
+  std::vector<Vector2d> pos_;  ///< where every entity is now
+};
+
+}  // namespace
+
+task::Demonstration humanMotion(const task::Demonstration& clean, const task::TaskSpec& spec,
+                                const HumanMotionOptions& o, SplitMix64& rng) {
+  return Demonstrator(clean, spec, o, rng).run();
 }
 
 std::vector<DemonstrationStyle> demonstrationStyles() {
@@ -342,7 +395,9 @@ LabelScore scoreLabels(const task::Demonstration& truth, const task::Demonstrati
     for (size_t j = 0; j < inferred.segments.size(); ++j) {
       const auto& is = inferred.segments[j];
       if (used[j] || is.token != ts.token || is.step != ts.step) continue;
-      if (is.last_row < ts.first_row || is.first_row > ts.last_row) continue;  // another time
+      // Another time; an in-place action leaves no trace in motion: any rows of its step's
+      // still time are as right (the scene does not change there).
+      if (ts.token.isMotion() && (is.last_row < ts.first_row || is.first_row > ts.last_row)) continue;
       used[j] = true;
       ++s.matched;
       s.onset_error_s.push_back(std::abs(inferred.t[is.first_row] - truth.t[ts.first_row]));

@@ -44,7 +44,8 @@ struct Replan : ::testing::Test {
   task::TaskDir dir = task4();
   const task::Demonstration& demo = dir.demos.front();
   std::vector<Vector2d> at = demo.positions.front();
-  Coordinator c{dir.spec, config(), task::learnEndPoints(dir.spec, dir.demos)};
+  // A replay decides in a fixed order: the step is kept and the token re-planned.
+  Coordinator c{dir.spec, config(), task::learnEndPoints(dir.spec, dir.demos), 1, {}, /*policy_reads_scene=*/false};
 
   static CoordinatorConfig config() {
     CoordinatorConfig cfg;
@@ -110,6 +111,7 @@ TEST_F(Replan, AStalledRobotIsReplannedAfterItsTimeOutThenTheRunAbortsNamingWhy)
   }
   EXPECT_EQ(c.state(), RunState::Aborted);
   EXPECT_EQ(replans, 2) << "re-planned max_replans times";
+  EXPECT_EQ(c.replans(), 2);
   EXPECT_NE(c.reason().find("R2:move:R4"), std::string::npos) << c.reason();
   EXPECT_NE(c.reason().find("timed out"), std::string::npos) << c.reason();
   EXPECT_NE(c.reason().find("max_replans = 2"), std::string::npos) << c.reason();
@@ -145,7 +147,7 @@ TEST_F(Replan, AFailedSegmentOfARobotTheTrackerLostAbortsNamingIt) {
   const auto out = c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Failed, 0.2, "pose stale", 1.0);
   EXPECT_EQ(c.state(), RunState::Aborted);
   EXPECT_TRUE(out.stop_all);
-  EXPECT_NE(c.reason().find("R1 is not tracked"), std::string::npos) << c.reason();
+  EXPECT_NE(c.reason().find("no recovery: R1 is not tracked"), std::string::npos) << c.reason();
 }
 
 TEST(ReplanOff, WithoutReplansAFailureAbortsAndAMovedTargetIsNotFollowed) {
@@ -162,4 +164,80 @@ TEST(ReplanOff, WithoutReplansAFailureAbortsAndAMovedTargetIsNotFollowed) {
   c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Failed, 0.2, "blocked", 1.0);
   EXPECT_EQ(c.state(), RunState::Aborted);
   EXPECT_NE(c.reason().find("blocked"), std::string::npos) << c.reason();
+}
+
+// A policy that reads the scene re-decides the step instead: every token of it that has not
+// ended stops, and the step is asked for again from a snapshot of now in place of the one it
+// was decided from; after max_replans re-decisions of the step the run aborts naming why.
+TEST(Redecide, AMovedTargetWithdrawsTheStepAndAsksForItAgainFromTheSceneOfNow) {
+  const task::TaskDir dir = task4();
+  CoordinatorConfig cfg;
+  cfg.max_replans = 1;
+  Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};  // reads the scene
+  const task::Demonstration& demo = dir.demos.front();
+  std::vector<Vector2d> at = demo.positions.front();
+  c.onEntities(observe(at), 0.0);
+  const auto s = c.start(0.0);
+  const auto segs = answer(c, c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1), 0.2);
+  ASSERT_EQ(segs.size(), 2u);
+  // R1 arrives; then R2's target is moved 6 cm by a hand.
+  at[static_cast<size_t>(segs[0].entity)] = segs[0].goal;
+  c.onEntities(observe(at), 1.0);
+  c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Done, 1.0, "", 1.0);
+  const auto r4 = static_cast<size_t>(segs[1].token.target);
+  at[r4] += Vector2d(0.06, 0);
+  const auto out = c.onEntities(observe(at), 1.5);
+  EXPECT_TRUE(c.running()) << c.reason();
+  EXPECT_TRUE(stops(out, segs[1].entity));
+  EXPECT_FALSE(stops(out, segs[0].entity)) << "R1's token had ended";
+  EXPECT_TRUE(out.paths.empty()) << "not re-planned: re-decided";
+  ASSERT_TRUE(out.decision);
+  EXPECT_EQ(out.decision->step, 0);
+  ASSERT_EQ(out.decision->history.size(), 1u);
+  EXPECT_TRUE(out.decision->history.back().positions[r4].isApprox(at[r4]));
+  EXPECT_EQ(c.redecisions(), 1);
+  ASSERT_EQ(c.withdrawnSteps().size(), 1u);
+  EXPECT_TRUE(c.steps().empty());
+  // The old segment's late DONE counts for nothing.
+  EXPECT_FALSE(c.onSegmentStatus(segs[1].entity, segs[1].segment_id, SegmentState::Done, 1.0, "", 1.6).decision);
+  // The same step again (a replay decides so): R2 now goes to where R4 is.
+  const auto again = answer(c, c.onDecision(out.decision->id, replayDecision(demo, out.decision->history), 1.7), 1.8);
+  ASSERT_EQ(again.size(), 2u);
+  for (const auto& g : again)
+    if (g.entity == segs[1].entity) {
+      EXPECT_LT((g.goal - at[r4]).norm(), (segs[1].goal - at[r4]).norm());
+    }
+  // Moved again: the step was re-decided max_replans times, so the run aborts naming why.
+  at[r4] += Vector2d(0.06, 0);
+  c.onEntities(observe(at), 2.0);
+  EXPECT_EQ(c.state(), RunState::Aborted);
+  EXPECT_NE(c.reason().find("R4 moved"), std::string::npos) << c.reason();
+  EXPECT_NE(c.reason().find("max_replans = 1"), std::string::npos) << c.reason();
+}
+
+TEST(Redecide, ARobotBlockedPastItsReplansIsReDecidedAndANoDecisionAbortsNamingWhy) {
+  const task::TaskDir dir = task4();
+  CoordinatorConfig cfg;
+  cfg.max_replans = 2;
+  Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};
+  std::vector<Vector2d> at = dir.demos.front().positions.front();
+  c.onEntities(observe(at), 0.0);
+  const auto s = c.start(0.0);
+  const auto segs =
+      answer(c, c.onDecision(s.decision->id, replayDecision(dir.demos.front(), s.decision->history), 0.1), 0.2);
+  ASSERT_EQ(segs.size(), 2u);
+  // Blocked: first re-planned from where it stands (twice), then the step is re-decided.
+  auto out = c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Failed, 0.3, "blocked", 1.0);
+  for (int i = 0; i < 2; ++i) {
+    ASSERT_FALSE(out.decision);
+    ASSERT_EQ(out.paths.size(), 1u);
+    const auto again = answer(c, out, 1.0 + i);
+    ASSERT_EQ(again.size(), 1u);
+    out = c.onSegmentStatus(again[0].entity, again[0].segment_id, SegmentState::Failed, 0.3, "blocked", 1.5 + i);
+  }
+  EXPECT_EQ(c.replans(), 2);
+  ASSERT_TRUE(out.decision) << "re-plans used up: the step is decided again";
+  c.onDecisionError(out.decision->id, "no token fits the scene", 1.1);
+  EXPECT_EQ(c.state(), RunState::Aborted);
+  EXPECT_NE(c.reason().find("no token fits the scene"), std::string::npos) << c.reason();
 }
