@@ -15,12 +15,14 @@
 // labels, on the inferred ones, and on the usable inferred demonstrations only (20
 // demonstrations, the first the example), OSR on 20 fresh scenes, ideal execution, for the
 // issue's families in two styles (`all`, `pause`);
-// writes docs/bench/label_styles_osr.md (with --family/--style: on stdout).
+// writes docs/bench/label_styles_osr.md (with --family/--style: on stdout); each OSR over
+// --train-seeds training seeds (3), their mean and range.
 // Usage: ddace bench label_styles [--repo DIR] [--quick] [--demos N] [--seed S]
 //        [--family F] [--style S] [--show] (one family or style, on stdout; --show: the
-//        demonstrations labelled wrong, true and inferred steps) [--osr]
+//        demonstrations labelled wrong, true and inferred steps) [--osr [--train-seeds N]]
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <iomanip>
@@ -42,37 +44,10 @@ struct Family {
   std::string name, description;
 };
 
-/// A family the generators lack, made with their motion (tasks::simulateSteps) from fetch's
-/// scenes: the robot nearest the box fetches it and pushes it onto G1, then the other robot
-/// drives to G1 as well and ends at the bodies that occupy it.
-constexpr const char* kOccupiedFamily = "fetch_then_occupied_goal";
-
-task::TaskDir occupiedGoal(int demos, uint64_t seed) {
-  tasks::GeneratorOptions o;
-  o.family = "fetch";
-  o.demos = demos;
-  o.seed = seed;
-  task::TaskDir dir = tasks::generate(o);
-  const int g1 = dir.spec.entityIndex("G1");
-  for (auto& d : dir.demos) {
-    std::vector<tasks::PlannedStep> steps;
-    for (const auto& step : d.steps) {
-      tasks::PlannedStep planned;
-      for (const auto& t : step.tokens) planned.push_back({t, {}, 0});
-      steps.push_back(planned);
-    }
-    // The last step, [O:move:F], goes to G1 instead.
-    for (auto& t : steps.back()) t.token.target = g1;
-    const std::string source = d.source;
-    d = tasks::simulateSteps(dir.spec, d.positions.front(), steps);
-    d.source = source;
-  }
-  dir.spec.name = kOccupiedFamily;
-  return dir;
-}
+constexpr const char* kOccupiedFamily = label::kOccupiedGoalFamily;
 
 task::TaskDir generated(const std::string& family, int demos, uint64_t seed) {
-  if (family == kOccupiedFamily) return occupiedGoal(demos, seed);
+  if (family == kOccupiedFamily) return label::occupiedGoalFamily(demos, seed);
   uint64_t id = 0;
   if (tasks::parseZooFamily(family, id)) return tasks::generateZoo(id, demos, seed);
   tasks::GeneratorOptions o;
@@ -135,9 +110,30 @@ OsrCells trainedOsr(const label::InferredDataset& data, const task::TaskDir& tes
   return out;
 }
 
-/// The families (docs/labels.md, "Measured"), trained on inferred and true labels.
+/// One OSR cell over training seeds: their mean and range; "refused" when a seed's model was.
+struct SeedCell {
+  std::vector<double> runs;
+  void add(double v) { runs.push_back(v); }
+  bool refused() const {
+    return std::any_of(runs.begin(), runs.end(), [](double v) { return v < 0; });
+  }
+  double mean() const {
+    double sum = 0;
+    for (const double v : runs) sum += v;
+    return runs.empty() ? -1 : sum / static_cast<double>(runs.size());
+  }
+  std::string text() const {
+    if (runs.empty() || refused()) return "refused";
+    if (runs.size() == 1) return fixed(runs[0]);
+    return fixed(mean()) + " (" + fixed(*std::min_element(runs.begin(), runs.end())) + "-" +
+           fixed(*std::max_element(runs.begin(), runs.end())) + ")";
+  }
+};
+
+/// The families (docs/labels.md, "Measured"), trained on inferred and true labels
+/// with training seeds seed .. seed + train_seeds - 1.
 int osrBench(const std::filesystem::path& repo, const std::string& only_family, const std::string& only_style,
-             uint64_t seed) {
+             uint64_t seed, int train_seeds) {
   std::vector<std::string> families = {"task4", "fetch", "zoo:140", "zoo:left-to-right", "zoo:87", kOccupiedFamily};
   if (!only_family.empty()) families = {only_family};
   std::vector<label::DemonstrationStyle> styles;
@@ -160,21 +156,24 @@ int osrBench(const std::filesystem::path& repo, const std::string& only_family, 
     // Fresh scenes, as `ddace generate` draws a test set.
     const task::TaskDir test = generated(f, test_demos, seed * 2654435761ULL + 0x7e57);
     for (const auto& st : styles) {
-      size_t k = 0;
-      while (all[k].name != st.name) ++k;
-      const label::InferredDataset data = label::inferredDataset(dir, st.options, seed + 17 * k);
-      const OsrCells osr = trainedOsr(data, test, scratch, seed);
-      auto cell = [](double v) { return v < 0 ? std::string("refused") : fixed(v); };
-      const double diff = osr.truth >= 0 && osr.inferred >= 0 ? osr.inferred - osr.truth : -1;
-      if (osr.truth >= 0 && osr.inferred >= 0) worst = std::min(worst, diff);
-      if (!osr.why.empty()) refused += "- " + f + ", " + st.name + ": " + osr.why + "\n";
-      table << "| " << f << " | " << st.name << " | " << fixed(data.score.accuracy()) << " | " << cell(osr.truth)
-            << " | " << cell(osr.inferred) << " | "
-            << (osr.truth >= 0 && osr.inferred >= 0 ? (diff >= 0 ? "+" : "") + fixed(diff) : std::string("-")) << " | "
-            << osr.usable_demos << " of " << data.inferred.demos.size() << " | " << cell(osr.usable) << " |\n";
+      const label::InferredDataset data = label::inferredDataset(dir, st.options, label::styleSeed(seed, st.name));
+      SeedCell truth, inferred, usable;
+      int usable_demos = 0;
+      for (int ts = 0; ts < train_seeds; ++ts) {
+        const OsrCells osr = trainedOsr(data, test, scratch, seed + static_cast<uint64_t>(ts));
+        truth.add(osr.truth), inferred.add(osr.inferred), usable.add(osr.usable);
+        usable_demos = osr.usable_demos;
+        if (!osr.why.empty()) refused += "- " + f + ", " + st.name + ": " + osr.why + "\n";
+      }
+      const bool both = !truth.refused() && !inferred.refused();
+      const double diff = both ? inferred.mean() - truth.mean() : -1;
+      if (both) worst = std::min(worst, diff);
+      table << "| " << f << " | " << st.name << " | " << fixed(data.score.accuracy()) << " | " << truth.text() << " | "
+            << inferred.text() << " | " << (both ? (diff >= 0 ? "+" : "") + fixed(diff) : std::string("-")) << " | "
+            << usable_demos << " of " << data.inferred.demos.size() << " | " << usable.text() << " |\n";
       std::cout << f << " " << st.name << ": accuracy " << fixed(data.score.accuracy(), 3) << ", OSR true "
-                << cell(osr.truth) << ", inferred " << cell(osr.inferred) << ", usable only " << cell(osr.usable)
-                << " (" << osr.usable_demos << " demonstrations)\n"
+                << truth.text() << ", inferred " << inferred.text() << ", usable only " << usable.text() << " ("
+                << usable_demos << " demonstrations)\n"
                 << std::flush;
     }
   }
@@ -184,13 +183,14 @@ int osrBench(const std::filesystem::path& repo, const std::string& only_family, 
      << "Each family: " << demos << " demonstrations (seed " << seed
      << ", with bodies) moved in the style (`label::humanMotion`), the first labelled by hand (the example), the "
         "others labelled from their motion (`label::inferredDataset`). The default network (`ddace train`'s "
-        "defaults, training seed "
-     << seed
+        "defaults, training seeds "
+     << seed << "-" << seed + static_cast<uint64_t>(train_seeds) - 1
      << ") is trained on the true labels, on the inferred ones, and on the usable inferred demonstrations only (the "
         "example and those with nothing listed: what a user keeps without reviewing any), and evaluated on "
      << test_demos
-     << " fresh scenes (ideal execution). One training seed: the seed alone moves OSR by a few hundredths "
-        "where few demonstrations leave the network undecided (docs/labels-log.md).\n\n"
+     << " fresh scenes (ideal execution). A cell: the mean over the training seeds (lowest-highest); the "
+        "difference: of the means. The seed alone moves OSR by a few hundredths where few demonstrations leave "
+        "the network undecided (docs/labels-log.md).\n\n"
      << table.str() << "\nLargest drop, inferred below true: " << fixed(std::max(0.0, -worst))
      << " (goal: within 0.05).\n";
   if (!refused.empty()) md << "\nRefused:\n\n" << refused;
@@ -206,7 +206,7 @@ int main(int argc, char** argv) {
     const auto repo = bench::repositoryFromArgs(argc, argv);
     bool quick = false, show = false, osr = false;
     std::string only_family, only_style;
-    int demos = 10;
+    int demos = 10, train_seeds = 3;
     uint64_t seed = 1;
     for (int i = 1; i < argc; ++i) {
       const std::string a = argv[i];
@@ -223,27 +223,25 @@ int main(int argc, char** argv) {
         show = true;
       } else if (a == "--osr") {
         osr = true;
+      } else if (a == "--train-seeds" && i + 1 < argc) {
+        train_seeds = std::atoi(argv[++i]);
+        if (train_seeds < 1 || train_seeds > 10)
+          throw Error("--train-seeds must be 1..10 (got '" + std::string(argv[i]) + "')");
       } else if (a == "--seed" && i + 1 < argc) {
         seed = std::strtoull(argv[++i], nullptr, 10);
       } else {
         throw Error(
             "usage: bench_label_styles [--repo DIR] [--quick] [--demos N] [--seed S] [--family F] [--style S] "
-            "[--show] [--osr] (got '" +
+            "[--show] [--osr [--train-seeds N]] (got '" +
             a + "')");
       }
     }
-    if (osr) return osrBench(repo, only_family, only_style, seed);
+    if (osr) return osrBench(repo, only_family, only_style, seed, train_seeds);
     std::vector<Family> families;
     for (const auto& f : tasks::allFamilies()) families.push_back({f, f});
     for (const auto& k : tasks::userKinds()) families.push_back({k.family, k.kind});
     families.push_back({kOccupiedFamily, "fetch, then the other robot to the goal the box occupies"});
     std::vector<label::DemonstrationStyle> styles = label::demonstrationStyles();
-    // Each style's own seed, by its place in the full list (the same with --style).
-    auto styleSeed = [&, all = styles](const std::string& name) {
-      for (size_t k = 0; k < all.size(); ++k)
-        if (all[k].name == name) return seed + 17 * k;
-      return seed;
-    };
     if (quick) {
       families = {{"fetch", "fetch"}, {"zoo:87", "relay"}, {kOccupiedFamily, "occupied goal"}};
       std::vector<label::DemonstrationStyle> some;
@@ -271,15 +269,17 @@ int main(int argc, char** argv) {
     for (size_t i = 0; i <= styles.size(); ++i) table << "---|";
     table << "\n";
     label::LabelScore total;
-    std::vector<label::LabelScore> by_style(styles.size());
+    std::vector<label::LabelScore> by_style(styles.size()), by_family(families.size());
     double worst_all = 1;
-    for (const auto& f : families) {
+    for (size_t fi = 0; fi < families.size(); ++fi) {
+      const Family& f = families[fi];
       const task::TaskDir dir = generated(f.name, demos, seed);
       table << "| " << f.name << " |";
       double worst = 2;
       std::string worst_style;
       for (size_t k = 0; k < styles.size(); ++k) {
-        const label::InferredDataset data = label::inferredDataset(dir, styles[k].options, styleSeed(styles[k].name));
+        const label::InferredDataset data =
+            label::inferredDataset(dir, styles[k].options, label::styleSeed(seed, styles[k].name));
         const double acc = data.score.accuracy();
         for (size_t d = 1; show && d < data.truth.demos.size(); ++d)
           if (!task::sameSteps(data.truth.demos[d].steps, data.inferred.demos[d].steps))
@@ -291,6 +291,7 @@ int main(int argc, char** argv) {
         table << " " << fixed(acc) << " |";
         if (acc < worst) worst = acc, worst_style = styles[k].name;
         by_style[k].add(data.score);
+        by_family[fi].add(data.score);
         total.add(data.score);
         std::cout << f.name << " " << styles[k].name << ": accuracy " << fixed(acc, 3) << ", wrong " << data.score.wrong
                   << " (listed " << data.score.wrong_listed << "), listed " << data.score.listed << "\n"
@@ -324,6 +325,10 @@ int main(int argc, char** argv) {
     };
     for (size_t k = 0; k < styles.size(); ++k) doubtRow(styles[k].name, by_style[k]);
     doubtRow("every style", total);
+    md << "\nThe same per family, over every style:\n\n"
+       << "| family | wrong tokens | of them listed | listed tokens | of them wrong | wrong demos | of them with "
+          "nothing listed |\n|---|---|---|---|---|---|---|\n";
+    for (size_t fi = 0; fi < families.size(); ++fi) doubtRow(families[fi].name, by_family[fi]);
     md << "\nGoal: at least 0.90 of the wrong tokens listed, no wrong demonstration with nothing listed.\n";
     if (quick) std::cout << md.str();  // a smoke run: the results file keeps the full run
     else bench::writeResults(repo, "label_styles", md.str());

@@ -23,7 +23,7 @@ struct TrialScore {
   bool ended_correctly = false;      ///< END right after the last ground-truth step
   int gt_robot_motions = 0;          ///< ground-truth motion tokens of robots
   int achieved_robot_motions = 0;    ///< ... executed (same entity, action, target) and arrived
-  bool goal_conditions_hold = true;  ///< every goal_conditions entry at the end
+  bool goal_conditions_hold = true;  ///< every goal_conditions entry at the end (task::goalConditionMet)
   std::vector<double> fd;            ///< normalised Fréchet distance per matched motion token
   /// Executed with bodies (exec::Trial::bodies): the collisions count against success.
   bool bodies = false;

@@ -23,9 +23,17 @@
 //     arrival radius).
 // And "at one place" (togetherDistance): contact plus the arrival radius.
 //
+// Goal conditions (task.yaml's goal_conditions) are judged within what bodies allow
+// (goalConditionMet): "E at A within t" holds when E is within t of the nearest place its
+// body can stand on its line to A -- A itself when nothing stands there, else where its body
+// first clears every other obstacle (reachableDistance). A goal another robot stands on is
+// reached at contact with it.
+//
 // Owns: these rules and their tolerance. Must not: decide where a motion ends (the end
 // point rule does, task/end_point.h). Units: metres.
 #pragma once
+
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -67,5 +75,22 @@ double togetherDistance(const TaskSpec& spec, int a, int b);
 /// The same from the two bodies' contact distance (TaskSpec::contactDistance) and the task's
 /// arrival radius, metres.
 double togetherDistance(double contact_m, double arrival_radius);
+
+/// How near entity `entity` of `spec` can stand to entity `at` on its line to it (metres from
+/// `at`), every entity at `positions` (table frame; a non-finite position stands nowhere):
+/// the least distance s >= 0 along the ray from `at` toward `entity` at which the body of
+/// `entity` overlaps no other obstacle but `at` itself (contact is no overlap). 0 when
+/// `entity` is no obstacle, or stands on `at`. `at`'s own body does not count: a condition
+/// between two bodies is read as their centre distance. Throws ddace::Error when
+/// `positions` is not one per entity or an index is outside it.
+double reachableDistance(const TaskSpec& spec, int entity, int at, const std::vector<Eigen::Vector2d>& positions);
+
+/// Whether `condition` holds with every entity of `spec` at `positions`: its entity is
+/// within its tolerance of where its body can stand nearest its `at` (reachableDistance),
+/// that is |E - A| - reachableDistance <= tolerance. False when either entity is unknown
+/// to `spec` or its position is not finite. The one judge of `ddace eval`, the coordinator
+/// and the run report. Throws ddace::Error when `positions` is not one per entity.
+bool goalConditionMet(const TaskSpec& spec, const GoalCondition& condition,
+                      const std::vector<Eigen::Vector2d>& positions);
 
 }  // namespace ddace::task

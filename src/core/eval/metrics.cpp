@@ -57,12 +57,9 @@ TrialScore scoreTrial(const task::TaskSpec& spec, const task::Demonstration& gt,
       s.fd.push_back(normalisedFrechet(generated, truth));
   }
 
-  for (const auto& g : spec.goal_conditions) {
-    const int a = spec.entityIndex(g.entity), b = spec.entityIndex(g.at);
-    if (a < 0 || b < 0 || trial.final_positions.empty() ||
-        (trial.final_positions[a] - trial.final_positions[b]).norm() > g.tolerance)
+  for (const auto& g : spec.goal_conditions)
+    if (trial.final_positions.size() != spec.entities.size() || !task::goalConditionMet(spec, g, trial.final_positions))
       s.goal_conditions_hold = false;
-  }
   s.bodies = trial.bodies;
   s.makespan_s = trial.makespan_s;
   if (trial.bodies) {

@@ -1,5 +1,8 @@
 #include "ddace/label/human_motion.h"
 
+#include "ddace/common/error.h"
+#include "ddace/tasks/generators.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -357,6 +360,44 @@ std::vector<DemonstrationStyle> demonstrationStyles() {
   return styles;
 }
 
+DemonstrationStyle demonstrationStyle(const std::string& name) {
+  for (const auto& s : demonstrationStyles())
+    if (s.name == name) return s;
+  throw Error("no demonstration style '" + name +
+              "' (calm, pause, onset, speed, contact, occupied, bump, camera, all)");
+}
+
+uint64_t styleSeed(uint64_t seed, const std::string& name) {
+  const auto all = demonstrationStyles();
+  for (size_t k = 0; k < all.size(); ++k)
+    if (all[k].name == name) return seed + 17 * k;
+  return seed;
+}
+
+task::TaskDir occupiedGoalFamily(int demos, uint64_t seed) {
+  tasks::GeneratorOptions o;
+  o.family = "fetch";
+  o.demos = demos;
+  o.seed = seed;
+  task::TaskDir dir = tasks::generate(o);
+  const int g1 = dir.spec.entityIndex("G1");
+  for (auto& d : dir.demos) {
+    std::vector<tasks::PlannedStep> steps;
+    for (const auto& step : d.steps) {
+      tasks::PlannedStep planned;
+      for (const auto& t : step.tokens) planned.push_back({t, {}, 0});
+      steps.push_back(planned);
+    }
+    // The last step, [O:move:F], goes to G1 instead.
+    for (auto& t : steps.back()) t.token.target = g1;
+    const std::string source = d.source;
+    d = tasks::simulateSteps(dir.spec, d.positions.front(), steps);
+    d.source = source;
+  }
+  dir.spec.name = kOccupiedGoalFamily;
+  return dir;
+}
+
 double LabelScore::accuracy() const {
   const int denom = std::max(true_tokens, inferred_tokens);
   return denom == 0 ? 1.0 : static_cast<double>(matched) / denom;
@@ -395,7 +436,9 @@ LabelScore scoreLabels(const task::Demonstration& truth, const task::Demonstrati
     for (size_t j = 0; j < inferred.segments.size(); ++j) {
       const auto& is = inferred.segments[j];
       if (used[j] || is.token != ts.token || is.step != ts.step) continue;
-      if (is.last_row < ts.first_row || is.first_row > ts.last_row) continue;  // another time
+      // Another time; an in-place action leaves no trace in motion: any rows of its step's
+      // still time are as right (the scene does not change there).
+      if (ts.token.isMotion() && (is.last_row < ts.first_row || is.first_row > ts.last_row)) continue;
       used[j] = true;
       ++s.matched;
       s.onset_error_s.push_back(std::abs(inferred.t[is.first_row] - truth.t[ts.first_row]));

@@ -177,8 +177,8 @@ TEST(ContactRules, TouchingABodyNoMotionInvolvesIsACollision) {
 }
 
 // Two and three robots sent to one goal in the same step: one ends on it, the others at the
-// robots before them (within the arrival radius of touching); touching is no collision, the
-// run finishes.
+// robots before them (within the arrival radius of touching), and each meets "at G1"; touching is
+// no collision, the run finishes.
 TEST(ContactRules, RobotsSentToOneGoalAtOnceEndAtEachOtherWithoutACollision) {
   for (const int robots : {2, 3}) {
     SCOPED_TRACE(std::to_string(robots) + " robots");
@@ -197,6 +197,14 @@ TEST(ContactRules, RobotsSentToOneGoalAtOnceEndAtEachOtherWithoutACollision) {
       double gap = 1e9;  // to the nearest robot before it
       for (int j = 0; j < i; ++j) gap = std::min(gap, (r.positions[i] - r.positions[j]).norm() - 2 * kR);
       EXPECT_LT(gap, s.arrival_radius) << "R" << i + 1 << " ends " << 100 * gap << " cm off";
+      // "Ri at G1" is judged from where its body can stand (task::goalConditionMet): met
+      // where it ended; 10 cm further back on its line, not.
+      task::GoalCondition at_goal;  // the default tolerance
+      at_goal.entity = "R" + std::to_string(i + 1), at_goal.at = "G1";
+      EXPECT_TRUE(task::goalConditionMet(s, at_goal, r.positions)) << (r.positions[i] - goal).norm();
+      std::vector<Vector2d> short_of = r.positions;
+      short_of[i] += 0.1 * (r.positions[i] - goal).normalized();
+      EXPECT_FALSE(task::goalConditionMet(s, at_goal, short_of));
     }
   }
 }

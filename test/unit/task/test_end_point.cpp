@@ -149,6 +149,48 @@ TEST(BodyGeometry, TheStopTowardABodyKeepsTheStoppedRobotTogetherWithIt) {
   EXPECT_DOUBLE_EQ(stopRadiusToward(stop, tol, together, contact + 0.1), tol) << "never below the tolerance";
 }
 
+// Goal conditions are judged within what bodies allow: a robot at a goal another robot
+// stands on meets "at G1" touching that robot; one far short does not; with the goal free,
+// the plain distance decides.
+TEST(BodyGeometry, AGoalConditionOnAGoalAnotherBodyTakesIsJudgedFromWhereABodyCanStand) {
+  task::TaskSpec spec;
+  spec.entities = {{"R1", task::EntityKind::Robot, ""},
+                   {"R2", task::EntityKind::Robot, ""},
+                   {"R3", task::EntityKind::Robot, ""},
+                   {"G1", task::EntityKind::Goal, ""}};
+  const double contact = spec.contactDistance(0, 1);
+  const Vector2d goal(0.5, 0.5), nowhere(0.9, 0.1);
+  const GoalCondition r2_at_g1{"R2", "G1", 0.02};
+  // R1 on G1 (a little off it), R2 touching R1 on the goal's left.
+  std::vector<Vector2d> at = {goal + Vector2d(0.005, 0), goal - Vector2d(contact - 0.005, 0), nowhere, goal};
+  EXPECT_NEAR(reachableDistance(spec, 1, 3, at), contact - 0.005, 1e-9);
+  EXPECT_TRUE(goalConditionMet(spec, r2_at_g1, at)) << "touching the robot on the goal";
+  at[1] = goal - Vector2d(contact + 0.01, 0);
+  EXPECT_TRUE(goalConditionMet(spec, r2_at_g1, at)) << "1 cm short of touching";
+  at[1] = goal - Vector2d(contact + 0.05, 0);
+  EXPECT_FALSE(goalConditionMet(spec, r2_at_g1, at)) << "5 cm short of touching";
+  // Queued behind: R3 touches R2, which touches R1 on the goal: the nearest place on its line.
+  at[1] = goal - Vector2d(contact, 0);
+  at[2] = goal - Vector2d(2 * contact + 0.002, 0);
+  EXPECT_NEAR(reachableDistance(spec, 2, 3, at), 2 * contact, 1e-9);
+  EXPECT_TRUE(goalConditionMet(spec, {"R3", "G1", 0.01}, at));
+  // A gap narrower than a body is no place to stand; one as wide is.
+  at[1] = goal - Vector2d(contact + 0.5 * contact, 0);
+  at[2] = goal - Vector2d(4 * contact, 0);
+  EXPECT_NEAR(reachableDistance(spec, 2, 3, at), 2.5 * contact, 1e-9);
+  at[1] = goal - Vector2d(3 * contact, 0);
+  EXPECT_NEAR(reachableDistance(spec, 2, 3, at), contact - 0.005, 1e-9);
+  // The goal free: R2 reaches it; the condition is the plain distance.
+  at = {nowhere, goal - Vector2d(0.03, 0), nowhere + Vector2d(0, 0.2), goal};
+  EXPECT_EQ(reachableDistance(spec, 1, 3, at), 0.0);
+  EXPECT_FALSE(goalConditionMet(spec, r2_at_g1, at));
+  // Unknown: an entity not in the task, a position not tracked.
+  EXPECT_FALSE(goalConditionMet(spec, {"R9", "G1", 1.0}, at));
+  at[1] = Vector2d(NAN, NAN);
+  EXPECT_FALSE(goalConditionMet(spec, r2_at_g1, at));
+  EXPECT_THROW(goalConditionMet(spec, r2_at_g1, {goal}), Error);
+}
+
 // Together: one arrived where a motion toward the other ends (contact plus the arrival
 // radius), or two on one goal (two radii).
 TEST(TogetherDistance, IsContactPlusTheArrivalRadiusAndTwoRadiiOnAGoal) {
