@@ -15,12 +15,14 @@
 // labels, on the inferred ones, and on the usable inferred demonstrations only (20
 // demonstrations, the first the example), OSR on 20 fresh scenes, ideal execution, for the
 // issue's families in two styles (`all`, `pause`);
-// writes docs/bench/label_styles_osr.md (with --family/--style: on stdout).
+// writes docs/bench/label_styles_osr.md (with --family/--style: on stdout); each OSR over
+// --train-seeds training seeds (3), their mean and range.
 // Usage: ddace bench label_styles [--repo DIR] [--quick] [--demos N] [--seed S]
 //        [--family F] [--style S] [--show] (one family or style, on stdout; --show: the
-//        demonstrations labelled wrong, true and inferred steps) [--osr]
+//        demonstrations labelled wrong, true and inferred steps) [--osr [--train-seeds N]]
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <iomanip>
@@ -135,9 +137,30 @@ OsrCells trainedOsr(const label::InferredDataset& data, const task::TaskDir& tes
   return out;
 }
 
-/// The families (docs/labels.md, "Measured"), trained on inferred and true labels.
+/// One OSR cell over training seeds: their mean and range; "refused" when a seed's model was.
+struct SeedCell {
+  std::vector<double> runs;
+  void add(double v) { runs.push_back(v); }
+  bool refused() const {
+    return std::any_of(runs.begin(), runs.end(), [](double v) { return v < 0; });
+  }
+  double mean() const {
+    double sum = 0;
+    for (const double v : runs) sum += v;
+    return runs.empty() ? -1 : sum / static_cast<double>(runs.size());
+  }
+  std::string text() const {
+    if (runs.empty() || refused()) return "refused";
+    if (runs.size() == 1) return fixed(runs[0]);
+    return fixed(mean()) + " (" + fixed(*std::min_element(runs.begin(), runs.end())) + "-" +
+           fixed(*std::max_element(runs.begin(), runs.end())) + ")";
+  }
+};
+
+/// The families (docs/labels.md, "Measured"), trained on inferred and true labels
+/// with training seeds seed .. seed + train_seeds - 1.
 int osrBench(const std::filesystem::path& repo, const std::string& only_family, const std::string& only_style,
-             uint64_t seed) {
+             uint64_t seed, int train_seeds) {
   std::vector<std::string> families = {"task4", "fetch", "zoo:140", "zoo:left-to-right", "zoo:87", kOccupiedFamily};
   if (!only_family.empty()) families = {only_family};
   std::vector<label::DemonstrationStyle> styles;
@@ -163,18 +186,23 @@ int osrBench(const std::filesystem::path& repo, const std::string& only_family, 
       size_t k = 0;
       while (all[k].name != st.name) ++k;
       const label::InferredDataset data = label::inferredDataset(dir, st.options, seed + 17 * k);
-      const OsrCells osr = trainedOsr(data, test, scratch, seed);
-      auto cell = [](double v) { return v < 0 ? std::string("refused") : fixed(v); };
-      const double diff = osr.truth >= 0 && osr.inferred >= 0 ? osr.inferred - osr.truth : -1;
-      if (osr.truth >= 0 && osr.inferred >= 0) worst = std::min(worst, diff);
-      if (!osr.why.empty()) refused += "- " + f + ", " + st.name + ": " + osr.why + "\n";
-      table << "| " << f << " | " << st.name << " | " << fixed(data.score.accuracy()) << " | " << cell(osr.truth)
-            << " | " << cell(osr.inferred) << " | "
-            << (osr.truth >= 0 && osr.inferred >= 0 ? (diff >= 0 ? "+" : "") + fixed(diff) : std::string("-")) << " | "
-            << osr.usable_demos << " of " << data.inferred.demos.size() << " | " << cell(osr.usable) << " |\n";
+      SeedCell truth, inferred, usable;
+      int usable_demos = 0;
+      for (int ts = 0; ts < train_seeds; ++ts) {
+        const OsrCells osr = trainedOsr(data, test, scratch, seed + static_cast<uint64_t>(ts));
+        truth.add(osr.truth), inferred.add(osr.inferred), usable.add(osr.usable);
+        usable_demos = osr.usable_demos;
+        if (!osr.why.empty()) refused += "- " + f + ", " + st.name + ": " + osr.why + "\n";
+      }
+      const bool both = !truth.refused() && !inferred.refused();
+      const double diff = both ? inferred.mean() - truth.mean() : -1;
+      if (both) worst = std::min(worst, diff);
+      table << "| " << f << " | " << st.name << " | " << fixed(data.score.accuracy()) << " | " << truth.text() << " | "
+            << inferred.text() << " | " << (both ? (diff >= 0 ? "+" : "") + fixed(diff) : std::string("-")) << " | "
+            << usable_demos << " of " << data.inferred.demos.size() << " | " << usable.text() << " |\n";
       std::cout << f << " " << st.name << ": accuracy " << fixed(data.score.accuracy(), 3) << ", OSR true "
-                << cell(osr.truth) << ", inferred " << cell(osr.inferred) << ", usable only " << cell(osr.usable)
-                << " (" << osr.usable_demos << " demonstrations)\n"
+                << truth.text() << ", inferred " << inferred.text() << ", usable only " << usable.text() << " ("
+                << usable_demos << " demonstrations)\n"
                 << std::flush;
     }
   }
@@ -184,13 +212,14 @@ int osrBench(const std::filesystem::path& repo, const std::string& only_family, 
      << "Each family: " << demos << " demonstrations (seed " << seed
      << ", with bodies) moved in the style (`label::humanMotion`), the first labelled by hand (the example), the "
         "others labelled from their motion (`label::inferredDataset`). The default network (`ddace train`'s "
-        "defaults, training seed "
-     << seed
+        "defaults, training seeds "
+     << seed << "-" << seed + static_cast<uint64_t>(train_seeds) - 1
      << ") is trained on the true labels, on the inferred ones, and on the usable inferred demonstrations only (the "
         "example and those with nothing listed: what a user keeps without reviewing any), and evaluated on "
      << test_demos
-     << " fresh scenes (ideal execution). One training seed: the seed alone moves OSR by a few hundredths "
-        "where few demonstrations leave the network undecided (docs/labels-log.md).\n\n"
+     << " fresh scenes (ideal execution). A cell: the mean over the training seeds (lowest-highest); the "
+        "difference: of the means. The seed alone moves OSR by a few hundredths where few demonstrations leave "
+        "the network undecided (docs/labels-log.md).\n\n"
      << table.str() << "\nLargest drop, inferred below true: " << fixed(std::max(0.0, -worst))
      << " (goal: within 0.05).\n";
   if (!refused.empty()) md << "\nRefused:\n\n" << refused;
@@ -206,7 +235,7 @@ int main(int argc, char** argv) {
     const auto repo = bench::repositoryFromArgs(argc, argv);
     bool quick = false, show = false, osr = false;
     std::string only_family, only_style;
-    int demos = 10;
+    int demos = 10, train_seeds = 3;
     uint64_t seed = 1;
     for (int i = 1; i < argc; ++i) {
       const std::string a = argv[i];
@@ -223,16 +252,20 @@ int main(int argc, char** argv) {
         show = true;
       } else if (a == "--osr") {
         osr = true;
+      } else if (a == "--train-seeds" && i + 1 < argc) {
+        train_seeds = std::atoi(argv[++i]);
+        if (train_seeds < 1 || train_seeds > 10)
+          throw Error("--train-seeds must be 1..10 (got '" + std::string(argv[i]) + "')");
       } else if (a == "--seed" && i + 1 < argc) {
         seed = std::strtoull(argv[++i], nullptr, 10);
       } else {
         throw Error(
             "usage: bench_label_styles [--repo DIR] [--quick] [--demos N] [--seed S] [--family F] [--style S] "
-            "[--show] [--osr] (got '" +
+            "[--show] [--osr [--train-seeds N]] (got '" +
             a + "')");
       }
     }
-    if (osr) return osrBench(repo, only_family, only_style, seed);
+    if (osr) return osrBench(repo, only_family, only_style, seed, train_seeds);
     std::vector<Family> families;
     for (const auto& f : tasks::allFamilies()) families.push_back({f, f});
     for (const auto& k : tasks::userKinds()) families.push_back({k.family, k.kind});
@@ -271,9 +304,10 @@ int main(int argc, char** argv) {
     for (size_t i = 0; i <= styles.size(); ++i) table << "---|";
     table << "\n";
     label::LabelScore total;
-    std::vector<label::LabelScore> by_style(styles.size());
+    std::vector<label::LabelScore> by_style(styles.size()), by_family(families.size());
     double worst_all = 1;
-    for (const auto& f : families) {
+    for (size_t fi = 0; fi < families.size(); ++fi) {
+      const Family& f = families[fi];
       const task::TaskDir dir = generated(f.name, demos, seed);
       table << "| " << f.name << " |";
       double worst = 2;
@@ -291,6 +325,7 @@ int main(int argc, char** argv) {
         table << " " << fixed(acc) << " |";
         if (acc < worst) worst = acc, worst_style = styles[k].name;
         by_style[k].add(data.score);
+        by_family[fi].add(data.score);
         total.add(data.score);
         std::cout << f.name << " " << styles[k].name << ": accuracy " << fixed(acc, 3) << ", wrong " << data.score.wrong
                   << " (listed " << data.score.wrong_listed << "), listed " << data.score.listed << "\n"
@@ -324,6 +359,10 @@ int main(int argc, char** argv) {
     };
     for (size_t k = 0; k < styles.size(); ++k) doubtRow(styles[k].name, by_style[k]);
     doubtRow("every style", total);
+    md << "\nThe same per family, over every style:\n\n"
+       << "| family | wrong tokens | of them listed | listed tokens | of them wrong | wrong demos | of them with "
+          "nothing listed |\n|---|---|---|---|---|---|---|\n";
+    for (size_t fi = 0; fi < families.size(); ++fi) doubtRow(families[fi].name, by_family[fi]);
     md << "\nGoal: at least 0.90 of the wrong tokens listed, no wrong demonstration with nothing listed.\n";
     if (quick) std::cout << md.str();  // a smoke run: the results file keeps the full run
     else bench::writeResults(repo, "label_styles", md.str());

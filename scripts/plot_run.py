@@ -3,8 +3,11 @@
 footprint where it started (dashed) and where it ended (solid), every planned path (thin,
 with its +-2 sigma band) and every executed path, one colour per entity, the goals as flat
 prints, and the run's closest approach between two bodies (with its clearance): red
-only when that pair collided, else grey; collisions are listed in the title. Reads the run.json that
-execution_monitor_node writes into the run directory.
+only when that pair collided, else grey; collisions are listed in the title. Below it, the
+run in time: one row per robot, its segments as bars, and when it waited and for whom
+(hatched: from when it stood until its next segment went out, released by the segment of
+another entity that ended last before then). Reads the run.json that execution_monitor_node
+writes into the run directory.
 
 usage: scripts/plot_run.py RUN_DIR/run.json OUT.png
 """
@@ -33,6 +36,54 @@ def band(points, sd, k=2.0):
     return left + right[::-1]
 
 
+def waits(segments, gap_s=0.05):
+    """(robot, from_s, to_s, released_by) for every time a robot stood longer than gap_s
+    before its next segment went out, waiting for another entity's segment to end: the one
+    that ended last before then (in steps, the slowest of the step before; in async, its
+    predecessor)."""
+    ended = [s for s in segments if s.get("ended_s") is not None]
+    per_robot = {}
+    for s in sorted(segments, key=lambda s: s["sent_s"]):
+        if s.get("kind") == "robot":
+            per_robot.setdefault(s["entity"], []).append(s)
+    out = []
+    for robot, segs in per_robot.items():
+        idle = 0.0  # the first decision
+        for s in segs:
+            released = [o for o in ended if o["entity"] != robot and o["ended_s"] <= s["sent_s"] + 1e-6]
+            if released and s["sent_s"] - idle > gap_s:
+                by = max(released, key=lambda o: o["ended_s"])
+                if by["ended_s"] > idle:
+                    out.append((robot, idle, s["sent_s"], by["key"]))
+            idle = s["ended_s"] if s.get("ended_s") is not None else s["sent_s"]
+    return out
+
+
+def timeline(ax, segments, colour):
+    """One row per robot: its segments, and when it waited and for whom."""
+    robots = sorted({s["entity"] for s in segments if s.get("kind") == "robot"})
+    row = {r: i for i, r in enumerate(robots)}
+    end = max([s["sent_s"] for s in segments] + [s["ended_s"] for s in segments if s.get("ended_s") is not None]
+              + [1.0])
+    for s in segments:
+        if s["entity"] not in row:
+            continue
+        stop = s["ended_s"] if s.get("ended_s") is not None else end
+        ax.broken_barh([(s["sent_s"], max(stop - s["sent_s"], 1e-3))], (row[s["entity"]] - 0.3, 0.6),
+                       color=colour.get(s["entity"], "grey"), alpha=0.8)
+    for robot, since, until, by in waits(segments):
+        ax.broken_barh([(since, until - since)], (row[robot] - 0.3, 0.6), facecolor="none", edgecolor="grey",
+                       hatch="///", lw=0.6)
+        ax.annotate("waits %.1fs for %s" % (until - since, by), ((since + until) / 2, row[robot]), fontsize=7,
+                    ha="center", va="center", bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.8))
+    ax.set_yticks(range(len(robots)))
+    ax.set_yticklabels(robots)
+    ax.set_ylim(-0.6, max(len(robots), 1) - 0.4)
+    ax.invert_yaxis()
+    ax.set_xlabel("time since the first decision (s); hatched: waiting")
+    ax.grid(axis="x", alpha=0.3)
+
+
 def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__)
@@ -42,7 +93,8 @@ def main():
     names = [b["name"] for b in bodies] or sorted({s["entity"] for s in run["segments"]})
     cmap = plt.get_cmap("tab20")
     colour = {n: cmap(i % 20) for i, n in enumerate(names)}
-    fig, ax = plt.subplots(figsize=(9, 9))
+    fig, (ax, tl) = plt.subplots(2, 1, figsize=(9, 11.5), gridspec_kw={"height_ratios": [4, 1]})
+    timeline(tl, run["segments"], colour)
     for seg in run["segments"]:
         c = colour.get(seg["entity"], "grey")
         planned = seg.get("planned") or []

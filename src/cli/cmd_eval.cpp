@@ -2,17 +2,19 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 
 #include "command.h"
 #include "ddace/common/file.h"
 #include "ddace/pipeline/evaluation.h"
+#include "ddace/pipeline/perturbation.h"
 
 namespace ddace::cli {
 using namespace ddace::pipeline;
 namespace {
 
 int runEval(const std::vector<std::string>& argv) {
-  Args args(argv, {"--json", "--execution", "--noise", "--seed", "--config", "--dispatch"},
+  Args args(argv, {"--json", "--execution", "--noise", "--seed", "--config", "--dispatch", "--perturb"},
             {"--allow-other-task", "--no-bodies", "--no-filter"});
   args.expectAtMostPositional(2);
   const std::string model_dir = args.positional(0, "MODELDIR");
@@ -43,7 +45,15 @@ int runEval(const std::vector<std::string>& argv) {
     o.config = exec::readExecutionConfig(args.get("--config", ""));
   }
 
-  if (args.has("--dispatch")) {
+  std::optional<Perturbation> perturb;
+  if (args.has("--perturb")) {
+    perturb = parsePerturbation(args.get("--perturb", ""), "--perturb");
+    if (o.execution != "ideal")
+      throw Error(
+          "--perturb runs the coordinator on entities that follow their paths ideally (--execution ideal); "
+          "with bodies it is not simulated yet");
+    if (args.has("--dispatch")) o.dispatch = exec::parseDispatchMode(args.get("--dispatch", ""), "--dispatch");
+  } else if (args.has("--dispatch")) {
     o.dispatch = exec::parseDispatchMode(args.get("--dispatch", ""), "--dispatch");
     if (o.execution != "diffdrive" || o.bodies)
       throw Error(
@@ -54,6 +64,16 @@ int runEval(const std::vector<std::string>& argv) {
   const ModelForTask bound =
       modelForTask(loadModel(model_dir), model_dir, test, test_dir, args.has("--allow-other-task"));
   if (!bound.note.empty()) std::cout << bound.note << "\n";
+  if (perturb) {
+    const PerturbationReport r = evaluatePerturbed(bound.model, test, *perturb, o.dispatch, o.seed);
+    printPerturbation(r, std::cout);
+    if (args.has("--json")) {
+      const std::string path = args.get("--json", "");
+      writeTextFile(path, perturbationJson(r));
+      std::cout << "wrote " << path << "\n";
+    }
+    return 0;
+  }
   const Evaluation e = evaluate(bound.model, test, o);
   printEvaluation(e, std::cout);
   if (args.has("--json")) {
@@ -67,7 +87,8 @@ int runEval(const std::vector<std::string>& argv) {
 DDACE_COMMAND(
     {"eval",
      "ddace eval MODELDIR TESTDIR|GENERATED_DIR [--json FILE] [--execution ideal|diffdrive] [--noise SIGMA_M] "
-     "[--seed S] [--no-bodies] [--no-filter] [--config EXECUTION_YAML] [--dispatch steps|async] [--allow-other-task]",
+     "[--seed S] [--no-bodies] [--no-filter] [--config EXECUTION_YAML] [--dispatch steps|async] "
+     "[--perturb box_moved[:CM]|robot_pushed[:CM]|robot_stalled[:S]|robot_lost] [--allow-other-task]",
      "run the learned task in closed loop on every test demonstration's start configuration and "
      "report OSR, SSR, GCR and FD (a model of another task is refused unless --allow-other-task; a test set "
      "of the same task with other numbers of robots, goals or boxes runs the model bound by kind, with a "
@@ -79,7 +100,12 @@ DDACE_COMMAND(
      "simulated Hamster and table of an execution config such as config/execution.yaml, whose values "
      "are the built-in defaults; its position noise is --noise's). --dispatch (points): steps, every token of a "
      "step after the last step ended (the default), or async, each token when its own predecessors under "
-     "the model's learned dependencies ended; prints the makespan and the precedence violations",
+     "the model's learned dependencies ended; prints the makespan and the precedence violations. "
+     "--perturb: every trial runs through the coordinator (entities following their paths ideally in time) "
+     "three times: unperturbed, and with the table changed once at a drawn moment (--seed) without recovery "
+     "and with it (max_replans 2: the step re-decided from the scene, or the path re-planned); prints the "
+     "trials that succeeded, the re-plans and re-decisions and the time lost (docs/execution.md, "
+     "\"Perturbations\")",
      runEval});
 
 }  // namespace

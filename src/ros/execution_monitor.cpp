@@ -495,9 +495,14 @@ class ExecutionMonitorNode::Impl {
       }
       t.predicted.push_back(st);
     }
-    // Executed motion tokens: every segment sent, with the positions it passed through.
+    // Executed motion tokens: every segment sent, with the positions it passed through,
+    // but one its entity was sent again in the same step (re-planned or re-decided).
     for (const auto& [id, seg] : segments_) {
       if (seg.sent == ros::Time()) continue;
+      const bool replaced = std::any_of(segments_.begin(), segments_.end(), [&](const auto& other) {
+        return other.second.entity == seg.entity && other.second.step == seg.step && other.second.sent > seg.sent;
+      });
+      if (replaced) continue;
       exec::ExecutedToken ex;
       try {
         ex.token = task::parseTokenKey(seg.key, spec_);

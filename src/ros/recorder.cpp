@@ -145,6 +145,11 @@ class RecorderNode::Impl {
           os << "\n  " << n;
           ROS_WARN("recorder_node: check %s", n.c_str());
         }
+        if (const std::string& advice = recorder_->inferenceAdvice(); !advice.empty()) {
+          std::istringstream lines(advice);
+          for (std::string line; std::getline(lines, line);) os << "\n  " << line;
+          ROS_WARN("recorder_node: %s", advice.c_str());
+        }
         res.message = os.str();
         res.success = true;
       } catch (const Error& e) {

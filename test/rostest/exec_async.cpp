@@ -23,23 +23,12 @@ TEST(ExecAsync, FinishesTask4AndNeverSendsASegmentBeforeItsPredecessorsEnded) {
   exec_test::Watcher watch(nh, test.spec);
   exec_test::Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "autostart:=false",
                            "monitor:=false", "config:=" + config});
-  const std::string started = exec_test::startRun(watch, 30.0);
-  ASSERT_TRUE(started.empty()) << started;
-  const bool ended = exec_test::waitFor(
-      [&] {
-        const auto c = watch.stateCode();
-        return c == ddace::CoordinatorState::FINISHED || c == ddace::CoordinatorState::ABORTED ||
-               c == ddace::CoordinatorState::ESTOPPED;
-      },
-      90.0);
-  ros::Duration(0.3).sleep();  // the last statuses and wheel commands
-  const ddace::CoordinatorState s = watch.state();
-  ASSERT_TRUE(ended) << "run did not end; state " << s.state_name;
-  ASSERT_EQ(s.state, ddace::CoordinatorState::FINISHED) << s.state_name << ": " << s.reason;
+  const exec_test::RunEnd run = exec_test::runToEnd(watch, 30.0, 90.0);
+  ASSERT_TRUE(exec_test::finished(run));
+  const ddace::CoordinatorState& s = run.state;
   const auto truth = exec_test::truthSteps(test.demos.front(), test.spec);
   EXPECT_EQ(exec_test::executedSteps(s), truth);
-  for (size_t i = 0; i < s.goal_conditions_met.size(); ++i)
-    EXPECT_TRUE(s.goal_conditions_met[i]) << s.goal_conditions[i];
+  EXPECT_TRUE(exec_test::goalConditionsMet(s));
   EXPECT_EQ(watch.requests(), test.demos.front().steps.size() + 1) << "one decision per step plus END";
 
   // Precedence, from the stamps on the wire.
@@ -68,11 +57,7 @@ TEST(ExecAsync, FinishesTask4AndNeverSendsASegmentBeforeItsPredecessorsEnded) {
                                  << a.step + 1 << ") ended";
     }
   EXPECT_GT(checked, 0) << "no segment waited for another";
-  for (const auto& [robot, cmds] : watch.wheels()) {
-    ASSERT_FALSE(cmds.empty()) << robot;
-    EXPECT_EQ(cmds.back().left, 0.0) << robot << " still driving at the end";
-    EXPECT_EQ(cmds.back().right, 0.0) << robot;
-  }
+  EXPECT_TRUE(exec_test::wheelsStopped(watch));
 }
 
 int main(int argc, char** argv) {

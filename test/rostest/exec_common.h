@@ -510,6 +510,92 @@ inline std::string startRun(Watcher& watch, double timeout_s) {
   return "";
 }
 
+/// How a run started by runToEnd ended.
+struct RunEnd {
+  std::string not_started;        ///< what kept the run from starting ("" when it started)
+  bool ended = false;             ///< finished, aborted or e-stopped within timeout_s
+  double timeout_s = 0;           ///< the time it was given to end
+  ddace::CoordinatorState state;  ///< the coordinator's last state
+};
+
+/// Starts the run once the watcher's links stand (startRun, up to `start_timeout_s`) and
+/// waits up to `end_timeout_s` for it to end: finished, aborted or e-stopped; then a moment
+/// for the last statuses and wheel commands.
+inline RunEnd runToEnd(Watcher& watch, double start_timeout_s, double end_timeout_s) {
+  RunEnd run;
+  run.timeout_s = end_timeout_s;
+  run.not_started = startRun(watch, start_timeout_s);
+  if (!run.not_started.empty()) return run;
+  run.ended = waitFor(
+      [&] {
+        const auto c = watch.stateCode();
+        return c == ddace::CoordinatorState::FINISHED || c == ddace::CoordinatorState::ABORTED ||
+               c == ddace::CoordinatorState::ESTOPPED;
+      },
+      end_timeout_s);
+  ros::Duration(0.3).sleep();
+  run.state = watch.state();
+  return run;
+}
+
+/// Success when `run` started, ended and finished; else which of these failed and why.
+inline ::testing::AssertionResult finished(const RunEnd& run) {
+  if (!run.not_started.empty()) return ::testing::AssertionFailure() << run.not_started;
+  if (!run.ended)
+    return ::testing::AssertionFailure() << "run did not end within " << run.timeout_s << " s; state "
+                                         << run.state.state_name;
+  if (run.state.state != ddace::CoordinatorState::FINISHED)
+    return ::testing::AssertionFailure() << run.state.state_name << ": " << run.state.reason;
+  return ::testing::AssertionSuccess();
+}
+
+/// Success when the coordinator judged every goal condition of `s` met; else those not met.
+inline ::testing::AssertionResult goalConditionsMet(const ddace::CoordinatorState& s) {
+  std::string unmet;
+  for (size_t i = 0; i < s.goal_conditions_met.size(); ++i)
+    if (!s.goal_conditions_met[i]) unmet += "\n  not met: " + s.goal_conditions.at(i);
+  if (!unmet.empty()) return ::testing::AssertionFailure() << unmet;
+  return ::testing::AssertionSuccess();
+}
+
+/// Success when every robot the watcher saw got wheel commands and its last one is a stop.
+inline ::testing::AssertionResult wheelsStopped(Watcher& watch) {
+  std::string wrong;
+  for (const auto& [robot, cmds] : watch.wheels()) {
+    if (cmds.empty()) wrong += "\n  " + robot + ": no wheel command";
+    else if (cmds.back().left != 0.0 || cmds.back().right != 0.0) wrong += "\n  " + robot + " still driving at the end";
+  }
+  if (!wrong.empty()) return ::testing::AssertionFailure() << wrong;
+  return ::testing::AssertionSuccess();
+}
+
+/// The simulated table's true poses (/ddace/true_entities): each entity's first and last.
+class TrueTable {
+ public:
+  explicit TrueTable(ros::NodeHandle& nh)
+      : sub_(
+            nh.subscribe<ddace::EntityArray>("/ddace/true_entities", 10, [this](const ddace::EntityArray::ConstPtr& m) {
+              const std::lock_guard<std::mutex> l(mu_);
+              for (const auto& e : m->entities) {
+                first_.emplace(e.name, e);
+                last_[e.name] = e;
+              }
+            })) {}
+  std::map<std::string, ddace::Entity> first() const {
+    const std::lock_guard<std::mutex> l(mu_);
+    return first_;
+  }
+  std::map<std::string, ddace::Entity> last() const {
+    const std::lock_guard<std::mutex> l(mu_);
+    return last_;
+  }
+
+ private:
+  mutable std::mutex mu_;
+  std::map<std::string, ddace::Entity> first_, last_;
+  ros::Subscriber sub_;  // last: its callback ends before the maps go
+};
+
 /// Step token keys of a demonstration, sorted per step.
 inline std::vector<std::vector<std::string>> truthSteps(const ddace::task::Demonstration& d,
                                                         const ddace::task::TaskSpec& spec) {
@@ -577,23 +663,12 @@ inline void runTaskEndToEnd(const std::string& family, int robots, bool learned,
                                    "autostart:=false", "monitor:=false",         "config:=" + files.config_file};
   args.insert(args.end(), extra_args.begin(), extra_args.end());
   Launch graph(args);
-  const std::string started = startRun(watch, 30.0);
-  ASSERT_TRUE(started.empty()) << started;
-  const bool ended = waitFor(
-      [&] {
-        const auto c = watch.stateCode();
-        return c == ddace::CoordinatorState::FINISHED || c == ddace::CoordinatorState::ABORTED ||
-               c == ddace::CoordinatorState::ESTOPPED;
-      },
-      timeout_s);
-  ros::Duration(0.3).sleep();  // the last statuses and wheel commands
-  const ddace::CoordinatorState s = watch.state();
-  ASSERT_TRUE(ended) << "run did not end within " << timeout_s << " s; state " << s.state_name;
-  ASSERT_EQ(s.state, ddace::CoordinatorState::FINISHED) << s.state_name << ": " << s.reason;
+  const RunEnd run = runToEnd(watch, 30.0, timeout_s);
+  ASSERT_TRUE(finished(run));
+  const ddace::CoordinatorState& s = run.state;
   EXPECT_EQ(executedSteps(s), truthSteps(test.demos.front(), test.spec));
   ASSERT_EQ(s.goal_conditions_met.size(), test.spec.goal_conditions.size());
-  for (size_t i = 0; i < s.goal_conditions_met.size(); ++i)
-    EXPECT_TRUE(s.goal_conditions_met[i]) << s.goal_conditions[i];
+  EXPECT_TRUE(goalConditionsMet(s));
   for (const auto& step : s.steps)
     for (size_t i = 0; i < step.tokens.size(); ++i)
       EXPECT_EQ(step.status[i], ddace::SegmentStatus::DONE) << step.tokens[i].entity << " in step " << step.index;

@@ -1,5 +1,6 @@
-// A stalled mock robot: its segment times out, the run aborts cleanly (after re-planning it as
-// often as coordinator/max_replans allows), every wheel is zero.
+// A stalled mock robot: its segment times out, the run aborts cleanly (after re-planning it, and
+// with a policy that reads the scene re-deciding its step, as often as coordinator/max_replans
+// allows), every wheel is zero.
 #include "exec_common.h"
 
 using namespace exec_test;
@@ -90,6 +91,43 @@ TEST(ExecStall, WithReplansAStalledRobotIsReplannedThenTheRunAbortsNamingWhy) {
   std::sort(r2_sent.begin(), r2_sent.end());
   EXPECT_GE((r2_sent[1] - r2_sent[0]).toSec(), 4.0) << "re-planned before its time-out";
   EXPECT_EQ(w.requests(), 1u) << "no further step was decided";
+  for (const auto& [robot, cmds] : w.wheels()) {
+    ASSERT_FALSE(cmds.empty()) << robot;
+    EXPECT_TRUE(cmds.back().zero()) << robot << " still driving after the abort";
+  }
+}
+
+// With a model whose decisions read the scene (deliver's scene network) and max_replans: 1,
+// the node re-plans the stalled fetcher's token once, then decides the step again from the
+// scene of now (a second decision request), re-plans that once, and aborts naming why.
+TEST(ExecStall, WithALearnedSceneModelTheStepIsDecidedAgainBeforeTheRunAborts) {
+  ros::NodeHandle nh;
+  const Files files = Files::fromParams();
+  const ScratchDir scratch("stall_redecide");
+  const std::string& dir = scratch;
+  generateTask(dir, "deliver", 20, 1);
+  const std::string model = trainModel(dir);
+  const auto spec = ddace::task::loadTaskDir(dir + "/test").spec;
+  const std::string config = writeConfig(files.config_file, dir + "/execution.yaml",
+                                         {{{"coordinator", "segment_timeout_s", "3.0"},
+                                           {"coordinator", "segment_timeout_per_m_s", "0.0"},
+                                           {"coordinator", "max_replans", "1"}}});
+  Watcher w(nh, spec);
+  Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "model:=" + model,
+                "autostart:=false", "monitor:=false", "config:=" + config, "stalled:=[R1, R2]"});
+  const std::string started = startRun(w, 30.0);
+  ASSERT_TRUE(started.empty()) << started;
+  ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 60.0))
+      << "state " << w.state().state_name;
+  ros::Duration(0.5).sleep();
+  const auto s = w.state();
+  EXPECT_NE(s.reason.find("timed out"), std::string::npos) << s.reason;
+  EXPECT_NE(s.reason.find("max_replans = 1"), std::string::npos) << s.reason;
+  EXPECT_EQ(w.requests(), 2u) << "step 1 was not decided again after its re-plan timed out";
+  ASSERT_EQ(s.steps.size(), 1u);
+  int fetches = 0;
+  for (const auto& [id, seg] : w.segments()) fetches += seg.key.find(":move:B1") != std::string::npos;
+  EXPECT_EQ(fetches, 4) << "sent, re-planned, sent again by the new decision, re-planned";
   for (const auto& [robot, cmds] : w.wheels()) {
     ASSERT_FALSE(cmds.empty()) << robot;
     EXPECT_TRUE(cmds.back().zero()) << robot << " still driving after the abort";

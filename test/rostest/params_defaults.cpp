@@ -115,10 +115,10 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"safety", YAML::Node()}},
                  {"robots"});
   expectDefaults(yaml["path_follower"]["safety"], "path_follower/safety", defaultsOf(ddace::exec::SafetyParams{}));
-  // gains/arrival_radius_m: the node's default is the task's radius (segments carry it).
+  // gains/stop_radius_m: the node's default is the task's stop radius (segments carry it).
   Defaults gains = defaultsOf(ddace::exec::FollowerGains{});
-  gains.erase("arrival_radius_m");
-  expectDefaults(yaml["path_follower"]["gains"], "path_follower/gains", gains, {"arrival_radius_m"});
+  gains.erase("stop_radius_m");
+  expectDefaults(yaml["path_follower"]["gains"], "path_follower/gains", gains, {"stop_radius_m"});
 
   const MockRobotNode::Params m;
   Defaults mock = defaultsOf<ddace::exec::TableSimulatorParams>(m);

@@ -28,16 +28,8 @@ TEST(SimFetch, ExecuteRealSimCarriesTheBoxToItsGoal) {
   const ddace::task::TaskDir test = ddace::task::loadTaskDir(dir + "/test");
 
   std::mutex mu;
-  std::map<std::string, ddace::Entity> first_truth, last_truth;
   std::map<uint32_t, ddace::SegmentStatus> box_status;
-  ros::Subscriber truth_sub =
-      nh.subscribe<ddace::EntityArray>("/ddace/true_entities", 10, [&](const ddace::EntityArray::ConstPtr& m) {
-        const std::lock_guard<std::mutex> l(mu);
-        for (const auto& e : m->entities) {
-          first_truth.emplace(e.name, e);
-          last_truth[e.name] = e;
-        }
-      });
+  const exec_test::TrueTable truth(nh);
   ros::Subscriber box_sub =
       nh.subscribe<ddace::SegmentStatus>("/robots/B1/segment_status", 20, [&](const ddace::SegmentStatus::ConstPtr& m) {
         const std::lock_guard<std::mutex> l(mu);
@@ -49,19 +41,9 @@ TEST(SimFetch, ExecuteRealSimCarriesTheBoxToItsGoal) {
       {files.launch_file, "task:=" + dir + "/test", "model:=" + model, "sim:=true", "autostart:=false",
        "monitor:=false", "execution:=" + files.config_file, "markers:=" + markers, "mock_link_dir:=" + dir + "/links"},
       dir + "/launch.log");
-  const std::string started = exec_test::startRun(watch, 40.0);
-  ASSERT_TRUE(started.empty()) << started;
-  const bool ended = exec_test::waitFor(
-      [&] {
-        const auto c = watch.stateCode();
-        return c == ddace::CoordinatorState::FINISHED || c == ddace::CoordinatorState::ABORTED ||
-               c == ddace::CoordinatorState::ESTOPPED;
-      },
-      100.0);
-  ros::Duration(0.3).sleep();
-  const ddace::CoordinatorState s = watch.state();
+  const exec_test::RunEnd run = exec_test::runToEnd(watch, 40.0, 100.0);
+  auto first_truth = truth.first(), last_truth = truth.last();
   const auto where = [&] {  // the true poses, for a failure's message
-    const std::lock_guard<std::mutex> l(mu);
     std::string w;
     for (const auto& [name, e] : last_truth)
       w += " " + name + " (" + std::to_string(first_truth[name].pose.x) + ", " +
@@ -69,11 +51,10 @@ TEST(SimFetch, ExecuteRealSimCarriesTheBoxToItsGoal) {
            std::to_string(e.pose.y) + ")";
     return w;
   };
-  ASSERT_TRUE(ended) << "run did not end; state " << s.state_name << ";" << where();
-  ASSERT_EQ(s.state, ddace::CoordinatorState::FINISHED) << s.state_name << ": " << s.reason << ";" << where();
+  ASSERT_TRUE(exec_test::finished(run)) << where();
+  const ddace::CoordinatorState& s = run.state;
   EXPECT_EQ(exec_test::executedSteps(s), exec_test::truthSteps(test.demos.front(), test.spec));
-  for (size_t i = 0; i < s.goal_conditions_met.size(); ++i)
-    EXPECT_TRUE(s.goal_conditions_met[i]) << s.goal_conditions[i];
+  EXPECT_TRUE(exec_test::goalConditionsMet(s));
 
   const std::lock_guard<std::mutex> l(mu);
   // carried_objects reported the box's carry DONE.

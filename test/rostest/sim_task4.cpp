@@ -30,21 +30,13 @@ TEST(SimTask4, ExecuteRealSimFinishesOnTheSimulatedTable) {
   // What moved the robots (the mock Hamsters' wire) and where they truly went.
   std::mutex mu;
   std::map<std::string, uint64_t> motoring_lines;
-  std::map<std::string, ddace::Entity> first_truth, last_truth;
   int tracked = 0;
   ros::Subscriber mock_sub = nh.subscribe<ddace::HamsterMockState>("/mock_hamster/state", 100,
                                                                    [&](const ddace::HamsterMockState::ConstPtr& m) {
                                                                      const std::lock_guard<std::mutex> l(mu);
                                                                      motoring_lines[m->robot] = m->motoring_lines;
                                                                    });
-  ros::Subscriber truth_sub =
-      nh.subscribe<ddace::EntityArray>("/ddace/true_entities", 10, [&](const ddace::EntityArray::ConstPtr& m) {
-        const std::lock_guard<std::mutex> l(mu);
-        for (const auto& e : m->entities) {
-          first_truth.emplace(e.name, e);
-          last_truth[e.name] = e;
-        }
-      });
+  const exec_test::TrueTable truth(nh);
   ros::Subscriber tracked_sub =
       nh.subscribe<ddace::EntityArray>("/ddace/entities", 10, [&](const ddace::EntityArray::ConstPtr& m) {
         const std::lock_guard<std::mutex> l(mu);
@@ -56,29 +48,15 @@ TEST(SimTask4, ExecuteRealSimFinishesOnTheSimulatedTable) {
       {files.launch_file, "task:=" + dir + "/test", "model:=" + model, "sim:=true", "autostart:=false",
        "monitor:=false", "execution:=" + files.config_file, "mock_link_dir:=" + dir + "/links"},
       dir + "/launch.log");
-  const std::string started = exec_test::startRun(watch, 40.0);
-  ASSERT_TRUE(started.empty()) << started;
-  const bool ended = exec_test::waitFor(
-      [&] {
-        const auto c = watch.stateCode();
-        return c == ddace::CoordinatorState::FINISHED || c == ddace::CoordinatorState::ABORTED ||
-               c == ddace::CoordinatorState::ESTOPPED;
-      },
-      90.0);
-  ros::Duration(0.3).sleep();  // the last statuses and wheel commands
-  const ddace::CoordinatorState s = watch.state();
-  ASSERT_TRUE(ended) << "run did not end; state " << s.state_name;
-  ASSERT_EQ(s.state, ddace::CoordinatorState::FINISHED) << s.state_name << ": " << s.reason;
+  const exec_test::RunEnd run = exec_test::runToEnd(watch, 40.0, 90.0);
+  ASSERT_TRUE(exec_test::finished(run));
+  const ddace::CoordinatorState& s = run.state;
   EXPECT_EQ(exec_test::executedSteps(s), exec_test::truthSteps(test.demos.front(), test.spec));
   ASSERT_EQ(s.goal_conditions_met.size(), test.spec.goal_conditions.size());
-  for (size_t i = 0; i < s.goal_conditions_met.size(); ++i)
-    EXPECT_TRUE(s.goal_conditions_met[i]) << s.goal_conditions[i];
-  for (const auto& [robot, cmds] : watch.wheels()) {
-    ASSERT_FALSE(cmds.empty()) << robot;
-    EXPECT_EQ(cmds.back().left, 0.0) << robot << " still driving at the end";
-    EXPECT_EQ(cmds.back().right, 0.0) << robot;
-  }
+  EXPECT_TRUE(exec_test::goalConditionsMet(s));
+  EXPECT_TRUE(exec_test::wheelsStopped(watch));
 
+  auto first_truth = truth.first(), last_truth = truth.last();
   const std::lock_guard<std::mutex> l(mu);
   EXPECT_GT(tracked, 100) << "the tracker published too few measured poses";
   // The goal conditions hold on the simulated table itself, not only in what the tracker saw.

@@ -82,16 +82,19 @@ struct CoordinatorConfig {
   /// When the table changes under a token -- its segment FAILED or ABORTED (a robot pushed
   /// off its path, blocked), it timed out (stalled), or its target moved more than
   /// arrival_radius_m + arrival_tolerance_m since it started (a box nudged) -- the run
-  /// recovers from the scene as it is, at most this many times per token and per step:
-  ///  - a policy that reads the scene re-decides the step (the latest one decided): every
-  ///    token of it that has not ended is stopped and withdrawn, and the step is asked for
-  ///    again from a snapshot of now in place of the one it was decided from (the policy may
-  ///    decide other tokens, or END when the change did the work);
-  ///  - a policy that does not (a fixed order: it would decide the same) keeps the step and
-  ///    re-plans the token: its entity stopped, a path from where it is to its end point, from
-  ///    where the target is now if it moved.
-  /// After that, or when the token's entity or target is not tracked, the run aborts naming
-  /// why. 0: any of these aborts (the paper's execution).
+  /// recovers from the scene as it is, at most this many times per token (re-plans) and per
+  /// step (re-decisions):
+  ///  - re-plan: the step stays, the token's entity is stopped and gets a path from where it
+  ///    is to its end point (from where the target is now if it moved);
+  ///  - re-decision, when the policy reads the scene (the latest step only): every token of
+  ///    the step that has not ended is stopped and withdrawn, and the step is asked for again
+  ///    from a snapshot of now in place of the one it was decided from (the policy may decide
+  ///    other tokens, or END when the change did the work).
+  /// A moved target changed what the decision read: re-decision. A token that could not run
+  /// (failed, timed out) is re-planned, and re-decided once its re-plans are used up. A fixed
+  /// order (it would decide the same) only re-plans. After that, or when the token's entity
+  /// or target is not tracked, the run aborts naming why. 0: any of these aborts (the
+  /// paper's execution).
   int max_replans = 0;
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
@@ -306,9 +309,10 @@ class Coordinator {
   /// Re-plans a started token from the scene as it is, or aborts naming `why` when it may
   /// not (CoordinatorConfig::max_replans).
   void replan(TokenRef t, const std::string& why, double now_s, CoordinatorOutput& out);
-  /// Re-decides the step of `t` from the scene as it is (see max_replans), or re-plans `t`
-  /// when the decision does not read the scene or was not the latest.
-  void recover(TokenRef t, const std::string& why, double now_s, CoordinatorOutput& out);
+  /// Recovers `t` (see max_replans): re-decides its step when `target_moved` or its re-plans
+  /// are used up, else re-plans it; re-decides only the latest step of a policy that reads
+  /// the scene.
+  void recover(TokenRef t, const std::string& why, bool target_moved, double now_s, CoordinatorOutput& out);
   void redecide(TokenRef t, const std::string& why, double now_s, CoordinatorOutput& out);
   /// Aborts naming `why` and returns false when `t` may not be recovered once more
   /// (`done` of max_replans done, or its entity or target not tracked).

@@ -10,9 +10,9 @@
 // error; the other keys of path_follower and mock_robots are the nodes' own (known, not
 // read here), and the other nodes' sections are not read nor checked here (the
 // params_defaults rostest holds the shipped file's keys to the nodes'). The simulated Hamster's tracking noise and its
-// seed are read but eval's are its own (--noise, --seed); gains/arrival_radius_m is the task's, as segments carry it;
-// `bodies: false` is refused (eval's points take no config).
-// Units: metres, seconds, radians, as the file states them.
+// seed are read but eval's are its own (--noise, --seed); gains/stop_radius_m is the task's stop radius, as segments
+// carry it; `bodies: false` is refused (eval's points take no config). Units: metres, seconds, radians, as the file
+// states them.
 #pragma once
 
 #include <string>

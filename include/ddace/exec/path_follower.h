@@ -7,8 +7,8 @@
 // being short-cut. The pursuit point lies `lookahead_m` of arc beyond the progress point;
 // the curvature toward it (2 sin(alpha) / distance) sets the turn rate. Speed falls off
 // near the goal and with the heading error; beyond `rotate_in_place_rad` of heading error
-// the robot turns on the spot. Done = within `arrival_radius_m` of the final point with
-// (almost) all of the path covered.
+// the robot turns on the spot. Done = within `stop_radius_m` (the stop radius, task::stopRadius) of the final point
+// with (almost) all of the path covered.
 //
 // Owns: the control law, progress and arrival. Must not: know about ROS, time-outs or
 // stale poses (the node and the coordinator handle those).
@@ -49,7 +49,7 @@ struct FollowerGains {
   double heading_gain = 3.0;          ///< rad/s per rad of heading error when turning on the spot
   double max_turn_rate_radps = 4.0;   ///< |yaw rate| limit
   double search_window_m = 0.10;      ///< progress advances at most this much arc per call
-  double arrival_radius_m = 0.03;     ///< done within this distance of the final point
+  double stop_radius_m = 0.03;        ///< the stop radius: done within this distance of the final point
   double wheel_base_m = 0.030;        ///< as DiffDriveParams::wheel_base_m
   double max_wheel_speed_mps = 0.20;  ///< both wheels are scaled together to stay within +-this
 
@@ -69,7 +69,7 @@ void visitParams(FollowerGains& g, Visit&& visit) {
   visit("heading_gain", g.heading_gain);
   visit("max_turn_rate_radps", g.max_turn_rate_radps);
   visit("search_window_m", g.search_window_m);
-  visit("arrival_radius_m", g.arrival_radius_m);
+  visit("stop_radius_m", g.stop_radius_m);
   visit("wheel_base_m", g.wheel_base_m);
   visit("max_wheel_speed_mps", g.max_wheel_speed_mps);
 }

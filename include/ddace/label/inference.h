@@ -84,6 +84,13 @@ struct Motion {
   /// Takes `o`'s closest approaches (speed, place, time) to the entities it came closer to.
   void absorbClosest(const Motion& o);
   bool resumed = false;  ///< joined from two motions across a pause
+  /// Where its last piece began (joined across a pause: where it went on from): the line
+  /// it came in on, as the end-point rule reads an approach.
+  Eigen::Vector2d leg_start = Eigen::Vector2d::Zero();
+  /// It began as a creep (slower than a rest reads, found once it was start_m away).
+  bool crept = false;
+  /// Where the entity rested before this motion, nudges aside (MotionSegmenter's home).
+  Eigen::Vector2d rested_at = Eigen::Vector2d::Zero();
   /// Cut where what moved with it changed (label.h): the whole motion's offset (row, time);
   /// the motion's own for one not cut.
   int whole_off_row = -1;
@@ -127,8 +134,9 @@ class MotionSegmenter {
   /// Closes motions still running at the last row (their offset: the last row).
   void finish();
 
-  /// Motions found so far (nudges left out), in order of their offset. take() hands
-  /// them over, so memory stays bounded for a long recording.
+  /// Motions found so far, nudges included (a motion paused on its way may go on: the
+  /// labeller joins the pieces before it leaves out what ends where it began), in order of
+  /// their offset. take() hands them over, so memory stays bounded for a long recording.
   std::vector<Motion> take();
   /// True when no entity is moving: a step may be over.
   bool allResting() const;
@@ -156,6 +164,14 @@ class MotionSegmenter {
     bool moving = false;
     Eigen::Vector2d anchor = Eigen::Vector2d::Zero();  ///< rest position (running mean)
     int anchor_n = 0;
+    /// Where it rests, nudges aside: where it first rested, where its last motion that
+    /// was no nudge ended, or where the anchor has stayed for pause_s (a nudge not put
+    /// back).
+    Eigen::Vector2d home = Eigen::Vector2d::Zero();
+    /// Where it came to rest (first, or at the end of its last motion): the anchor follows
+    /// a creep no farther than start_m from here.
+    Eigen::Vector2d rest_from = Eigen::Vector2d::Zero();
+    double anchor_t = 0;  ///< when the anchor was last set
     Motion motion;
   };
   void startMotion(size_t e);

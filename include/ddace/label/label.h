@@ -142,6 +142,10 @@ class Labeller {
   /// heading it came in and the one it left in.
   bool stoppedAtOnItsWay(const Motion& m, int b, double& turn) const;
   bool together(const std::vector<Eigen::Vector2d>& at, int a, int b) const;
+  /// `m` begins as the motions of a step have stopped (the last at step_off_t), within
+  /// the precision onsets and offsets are dated to: a step of its own, even with no pause
+  /// (a stop at contact followed by a change of what moves).
+  bool startsAStep(double step_off_t, const Motion& m) const;
   bool staysWith(const Motion& m, int j) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
   bool pausedOnItsWay(const Motion& a, const Motion& b) const;

@@ -33,7 +33,7 @@ class PathFollowerNode {
  public:
   /// The node's own parameters (private namespace) and their defaults, as
   /// config/execution.yaml (section path_follower) documents them; ~gains/* are
-  /// exec::FollowerGains (arrival_radius_m defaults to the task's arrival_radius).
+  /// exec::FollowerGains (stop_radius_m defaults to task::stopRadius of the task's arrival_radius).
   struct Params {
     double rate_hz = 50.0;         ///< control cycle; wheel commands go out every cycle
     double pose_timeout_s = 0.25;  ///< no pose of a robot for this long = stale -> zero wheels

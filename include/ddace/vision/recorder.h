@@ -126,6 +126,9 @@ class DemoRecorder {
   const std::string& inferredSteps() const { return inferred_steps_; }
   /// What the last stop() could not infer surely, "demos/demo_003.csv:47: ..." each.
   const std::vector<std::string>& inferenceNotes() const { return notes_; }
+  /// What the person does about inferenceNotes(), one line each ("" when there are none):
+  /// nothing when the labels taken are what was demonstrated, else how to correct them.
+  const std::string& inferenceAdvice() const { return advice_; }
   /// Stops and deletes the current recording.
   void discard();
   /// Forces the rows written so far to the disk now (fdatasync).
@@ -143,6 +146,8 @@ class DemoRecorder {
   bool hasLabelColumns(size_t i) const { return spec_.entities[i].kind != task::EntityKind::Goal; }
 
  private:
+  /// inferenceAdvice() for the notes of `inf` on the demonstration saved as `path`.
+  std::string reviewAdvice(const label::Inference& inf, const std::string& path) const;
   task::TaskSpec spec_;
   std::string dir_;
   double flush_period_s_;
@@ -153,6 +158,7 @@ class DemoRecorder {
   std::optional<label::Example> example_;
   std::string inferred_steps_;
   std::vector<std::string> notes_;
+  std::string advice_;
   bool labelled_ = false;  ///< a label was set during this recording
 
   int fd_ = -1;

@@ -314,12 +314,17 @@ bool Coordinator::mayRecover(TokenRef r, int done, const std::string& why, Coord
   return true;
 }
 
-void Coordinator::recover(TokenRef r, const std::string& why, double now_s, CoordinatorOutput& out) {
+void Coordinator::recover(TokenRef r, const std::string& why, bool target_moved, double now_s, CoordinatorOutput& out) {
   // Only the latest decision, made from the scene and not yet followed by another, is
   // re-made: a fixed order would decide the same step again.
-  const bool latest = r.step + 1 == static_cast<int>(steps_.size()) && history_.size() == steps_.size() &&
-                      pending_decision_ == 0 && !end_decided_;
-  if (policy_reads_scene_ && latest) redecide(r, why, now_s, out);
+  const bool may_redecide = policy_reads_scene_ && r.step + 1 == static_cast<int>(steps_.size()) &&
+                            history_.size() == steps_.size() && pending_decision_ == 0 && !end_decided_;
+  const auto k = static_cast<size_t>(r.step);
+  const int redecided = k < step_redecisions_.size() ? step_redecisions_[k] : 0;
+  // What the decision read moved: decide again. The token could not run: a path from where
+  // it is, and once that is used up, another decision (someone else may do it).
+  if (may_redecide && (target_moved || (record(r).replans >= config_.max_replans && redecided < config_.max_replans)))
+    redecide(r, why, now_s, out);
   else replan(r, why, now_s, out);
 }
 
@@ -498,7 +503,7 @@ CoordinatorOutput Coordinator::onEntities(const EntityObservation& obs, double n
       std::ostringstream os;
       os << spec_.entities[static_cast<size_t>(target)].name << " moved " << moved << " m while "
          << task::tokenKey(t.token, spec_) << " ran (more than arrival_radius_m + arrival_tolerance_m)";
-      recover({static_cast<int>(k), static_cast<int>(i)}, os.str(), now_s, out);
+      recover({static_cast<int>(k), static_cast<int>(i)}, os.str(), true, now_s, out);
       return out;
     }
   return out;
@@ -730,7 +735,8 @@ CoordinatorOutput Coordinator::onSegmentStatus(const StatusReport& r, double now
   if (std::isfinite(r.progress)) rec->progress = std::clamp(r.progress, 0.0, 1.0);
   if (st == SegmentState::Failed || st == SegmentState::Aborted) {
     rec->state = st;
-    recover(*ref, "segment " + key + " " + toString(st) + (r.message.empty() ? "" : ": " + r.message), now_s, out);
+    recover(*ref, "segment " + key + " " + toString(st) + (r.message.empty() ? "" : ": " + r.message), false, now_s,
+            out);
     return out;
   }
   if (st != SegmentState::Done) {
@@ -807,7 +813,7 @@ CoordinatorOutput Coordinator::onTick(double now_s) {
         std::ostringstream os;
         os << "segment " << task::tokenKey(t.token, spec_) << " timed out after " << t.timeout_s << " s (progress "
            << t.progress << ")";
-        recover({static_cast<int>(k), static_cast<int>(i)}, os.str(), now_s, out);
+        recover({static_cast<int>(k), static_cast<int>(i)}, os.str(), false, now_s, out);
         return out;
       }
     }

@@ -11,7 +11,7 @@ DiffDriveExecution::DiffDriveExecution(double arrival_radius_m, double noise_m, 
                                        const FollowerGains& gains, const DiffDriveParams& robot)
     : gains_(gains), robot_(robot) {
   // The one stop rule with this model's own noise as the tolerance.
-  gains_.arrival_radius_m = task::stopRadius(arrival_radius_m, task::stopTolerance(noise_m));
+  gains_.stop_radius_m = task::stopRadius(arrival_radius_m, task::stopTolerance(noise_m));
   robot_.position_noise_m = noise_m;
   robot_.seed = seed;
   gains_.validate();

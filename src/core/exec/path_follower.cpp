@@ -51,7 +51,7 @@ void FollowerGains::validate() const {
   positive(heading_gain, "heading_gain");
   positive(max_turn_rate_radps, "max_turn_rate_radps");
   positive(search_window_m, "search_window_m");
-  positive(arrival_radius_m, "arrival_radius_m");
+  positive(stop_radius_m, "stop_radius_m");
   positive(wheel_base_m, "wheel_base_m");
   positive(max_wheel_speed_mps, "max_wheel_speed_mps");
   if (!(min_speed_mps >= 0) || min_speed_mps > cruise_speed_mps)
@@ -121,8 +121,8 @@ FollowerOutput PathFollower::compute(const Pose2D& pose) {
   // Arrived: near the goal with (almost) the whole path covered, so that a path passing
   // near its own end point half-way does not finish early.
   const double remaining_m = total_m_ - s_m_;
-  if (done_ || (out.distance_to_goal_m <= gains_.arrival_radius_m &&
-                remaining_m <= std::max(gains_.lookahead_m, 3 * gains_.arrival_radius_m) + best_d)) {
+  if (done_ || (out.distance_to_goal_m <= gains_.stop_radius_m &&
+                remaining_m <= std::max(gains_.lookahead_m, 3 * gains_.stop_radius_m) + best_d)) {
     done_ = true;
     s_m_ = total_m_;
     out.progress = 1.0;

@@ -30,7 +30,7 @@ void RobotController::start(const PlannedPath& path, const std::string& target, 
     if (!(r > 0) || !std::isfinite(r))
       throw Error("the stop radii of " + name_ + "'s motion must be positive numbers of metres");
   FollowerGains g = params_.gains;
-  g.arrival_radius_m = stop_radius_m;
+  g.stop_radius_m = stop_radius_m;
   PathFollower f(g);
   f.setPath(path);  // throws for an empty or non-finite path, the last motion kept
   follower_ = std::move(f);

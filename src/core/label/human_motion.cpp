@@ -395,7 +395,9 @@ LabelScore scoreLabels(const task::Demonstration& truth, const task::Demonstrati
     for (size_t j = 0; j < inferred.segments.size(); ++j) {
       const auto& is = inferred.segments[j];
       if (used[j] || is.token != ts.token || is.step != ts.step) continue;
-      if (is.last_row < ts.first_row || is.first_row > ts.last_row) continue;  // another time
+      // Another time; an in-place action leaves no trace in motion: any rows of its step's
+      // still time are as right (the scene does not change there).
+      if (ts.token.isMotion() && (is.last_row < ts.first_row || is.first_row > ts.last_row)) continue;
       used[j] = true;
       ++s.matched;
       s.onset_error_s.push_back(std::abs(inferred.t[is.first_row] - truth.t[ts.first_row]));

@@ -120,14 +120,27 @@ void MotionSegmenter::row(double t, const std::vector<Vector2d>& positions) {
       if (st.anchor_n == 0 || d <= 2 * o_.edge_m) {
         // The rest position: a running mean of the rows that differ from it by noise only
         // (bounded weight, so a slow drift of the tracker is followed; a slow start is not).
+        if (st.anchor_n == 0) st.home = st.rest_from = p, st.anchor_t = t;
         st.anchor_n = std::min(st.anchor_n + 1, 100);
         st.anchor += (p - st.anchor) / st.anchor_n;
+        // Held still_s beyond the still_s that set it: it came to rest here (a creep moves
+        // the anchor sooner); held pause_s: it rests here (a nudge not put back).
+        if (t - st.anchor_t >= 2 * o_.still_s) st.rest_from = st.anchor;
+        if (t - st.anchor_t >= o_.pause_s) st.home = st.anchor;
       } else if (d > o_.start_m) {
         startMotion(e);
-      } else if (Vector2d rest; stillAt(e, o_.still_m, rest)) {
-        // Come to rest a little off (a nudge not put back exactly): rest there.
+      } else if (Vector2d rest; stillAt(e, o_.still_m, rest) && (rest - st.anchor).norm() > o_.edge_m) {
+        // Come to rest a little off (a nudge not put back exactly): rest there. Unless
+        // that is farther than start_m from where it came to rest: it crept away, slower
+        // than still_m in still_s (a slow start), from there.
         st.anchor = rest;
         st.anchor_n = 1;
+        st.anchor_t = t;
+        if ((rest - st.rest_from).norm() > o_.start_m) {
+          st.anchor = st.rest_from;
+          startMotion(e);
+          st.motion.crept = true;
+        }
       }
       continue;
     }
@@ -159,7 +172,8 @@ void MotionSegmenter::startMotion(size_t e) {
   m.entity = static_cast<int>(e);
   m.on_row = s.row;
   m.on_t = s.t;
-  m.start = st.anchor;
+  m.start = m.leg_start = st.anchor;
+  m.rested_at = st.home;
   m.at_onset = s.p;
   m.max_distance.assign(s.p.size(), 0);
   m.min_distance.assign(s.p.size(), std::numeric_limits<double>::infinity());
@@ -288,10 +302,12 @@ void MotionSegmenter::endMotion(size_t e, const Vector2d& rest, size_t first) {
       break;
     }
   }
-  if ((m.end - m.start).norm() >= o_.nudge_m) done_.push_back(std::move(m));
+  if ((rest - m.start).norm() >= o_.nudge_m) st.home = rest;
+  done_.push_back(std::move(m));
   st.moving = false;
-  st.anchor = rest;
+  st.anchor = st.rest_from = rest;
   st.anchor_n = 1;
+  st.anchor_t = history_.back().t;
 }
 
 void MotionSegmenter::finish() {

@@ -43,6 +43,12 @@ std::string tiedKinds(const task::TaskSpec& spec, const std::vector<int>& entiti
   return s;
 }
 
+std::string namesOf(const task::TaskSpec& spec, const std::vector<int>& entities) {
+  std::string names;
+  for (int c : entities) names += (names.empty() ? "" : " and ") + spec.entities[c].name;
+  return names;
+}
+
 std::string metres(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.3f", v);
@@ -112,7 +118,9 @@ Inference Labeller::finish() {
 void Labeller::arrive(std::vector<Motion> found) {
   const auto& E = spec_.entities;
   for (auto& m : found) {
-    // A goal is a mark on the table: its motion (a print pushed aside) is no token.
+    // A goal is a mark on the table: its motion (a print pushed aside) is no token; one
+    // less than nudge_m is the tracker's or a hand's, not reported.
+    if (E[m.entity].kind == task::EntityKind::Goal && (m.end - m.start).norm() < options_.nudge_m) continue;
     if (E[m.entity].kind == task::EntityKind::Goal)
       note(m.on_row, "goal " + E[m.entity].name + " moved " + metres((m.end - m.start).norm()) +
                          " m; a goal does not act, its motion is no token (check the marker)");
@@ -136,9 +144,31 @@ std::vector<bool> Labeller::candidatesOf(const Motion& m) const {
 // A pause: a motion that stopped away from every entity, or over one but goes on in the
 // heading it came in (not taking along what it stopped at), goes on within pause_s.
 bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
-  const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a), -1, &a.at_offset);
-  if (ep.target < 0) return true;
-  if (a.end_dir.dot(b.start_dir) < std::cos(options_.heading_rad)) return false;
+  // No rest between them (within the precision onsets and offsets are dated to), or b
+  // crept on before a still_s of rest: one motion, slower than a rest reads, found in
+  // pieces (cutAtContacts() cuts where what moves with it changes).
+  const double rest = b.on_t - a.off_t;
+  if (rest < options_.still_s / 2 || (b.crept && rest < options_.still_s)) return true;
+  // Bumped by a hand and put back: a went a short way (less than twice a nudge) and b
+  // heads back to where a began.
+  const Vector2d back = a.start - a.end;
+  if (back.norm() > 0 && back.norm() < 2 * options_.nudge_m &&
+      b.start_dir.dot(back.normalized()) > std::cos(options_.heading_rad))
+    return true;
+  // What a carried (an object that stayed with it) ends a carrier's motion.
+  int load = -1;
+  for (int j = 0; j < static_cast<int>(spec_.entities.size()); ++j)
+    if (j != a.entity && spec_.entities[j].kind == task::EntityKind::Object && staysWith(a, j) &&
+        (load < 0 || a.max_distance[j] < a.max_distance[load]))
+      load = j;
+  const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a), load, &a.at_offset);
+  // Stopped away from every entity; a piece shorter than a nudge only where it goes on in
+  // its heading (a robot nudged by a hand or a body is no start of its next motion).
+  const bool heading_kept = a.end_dir.dot(b.start_dir) >= std::cos(options_.heading_rad);
+  if (ep.target < 0) return heading_kept || (a.end - a.start).norm() >= options_.nudge_m;
+  // Over an entity: goes on in the heading it came in, farther than a nudge (a robot
+  // bumped where it rests goes nowhere new).
+  if (!heading_kept || (b.end - a.end).norm() < options_.nudge_m) return false;
   // Went to an object and moves on with it: a fetch, then a carry.
   for (int c : ep.tied)
     if (staysWith(b, c)) return false;
@@ -168,6 +198,7 @@ Motion after(const Motion& m, int row, double t, const std::vector<Vector2d>& at
   b.start = at[m.entity];
   b.at_onset = at;
   b.resumed = false;
+  b.rested_at = b.leg_start = b.start;
   if ((b.end - b.start).norm() > 0) b.start_dir = (b.end - b.start).normalized();
   return b;
 }
@@ -241,7 +272,8 @@ void Labeller::cutAtContacts(std::vector<Motion>& ms) const {
         // first of the two stopped.
         const auto& at_end = m.off_row <= load.off_row ? m.at_offset : load.at_offset;
         if (!together(load.at_onset, R, load.entity) || !together(at_end, R, load.entity) ||
-            (load.at_onset[R] - m.start).norm() < options_.nudge_m)
+            (load.at_onset[R] - m.start).norm() < options_.nudge_m ||
+            (load.at_onset[R] - m.rested_at).norm() < options_.nudge_m)
           continue;
         Motion approach = before(m, load.on_row, load.on_t, load.at_onset);
         Motion push = after(m, load.on_row, load.on_t, load.at_onset);
@@ -279,6 +311,11 @@ void Labeller::cutAtContacts(std::vector<Motion>& ms) const {
   }
 }
 
+bool Labeller::startsAStep(double step_off_t, const Motion& m) const {
+  // Onsets and offsets are dated to within about still_s / 2 (a few rows).
+  return m.on_t >= step_off_t - options_.still_s / 2;
+}
+
 void Labeller::decide(bool at_end) {
   const auto& E = spec_.entities;
   const size_t n = E.size();
@@ -290,15 +327,18 @@ void Labeller::decide(bool at_end) {
     return a.entity != b.entity ? a.entity < b.entity : a.on_row < b.on_row;
   });
   std::vector<Motion> merged;
+  // A motion back to where the entity rested (a nudge put back) is done: nothing joins it.
+  auto putBack = [&](const Motion& a) { return (a.end - a.rested_at).norm() < options_.start_m; };
   for (auto& m : ms) {
     if (!merged.empty() && merged.back().entity == m.entity) {
       Motion& a = merged.back();
-      if (m.on_t - a.off_t <= options_.pause_s && pausedOnItsWay(a, m)) {
+      if (m.on_t - a.off_t <= options_.pause_s && !putBack(a) && pausedOnItsWay(a, m)) {
         a.off_row = a.whole_off_row = m.off_row;
         a.off_t = a.whole_off_t = m.off_t;
         a.end = m.end;
         a.end_dir = m.end_dir;
         a.at_offset = m.at_offset;
+        a.leg_start = m.leg_start;
         for (size_t j = 0; j < n; ++j) a.max_distance[j] = std::max(a.max_distance[j], m.max_distance[j]);
         a.absorbClosest(m);
         a.resumed = true;
@@ -307,6 +347,11 @@ void Labeller::decide(bool at_end) {
     }
     merged.push_back(std::move(m));
   }
+  // 2. Nudges: a motion, joined across its pauses, that ends where it began (less than
+  // nudge_m away: bumped and put back) is no token.
+  merged.erase(std::remove_if(merged.begin(), merged.end(),
+                              [&](const Motion& m) { return (m.end - m.start).norm() < options_.nudge_m; }),
+               merged.end());
   cutAtContacts(merged);
   // Pieces of steps handed over already (a motion cut in two waits for its second piece).
   // A motion that began as the last one handed over ended (a push after a short stop at
@@ -320,13 +365,18 @@ void Labeller::decide(bool at_end) {
   for (const auto& m : merged) last_on[m.entity] = std::max(last_on[m.entity], m.on_row);
   std::stable_sort(merged.begin(), merged.end(), [](const Motion& a, const Motion& b) { return a.on_row < b.on_row; });
 
-  // 2. Steps: motions that overlap in time; a step ends when every one of them has stopped.
+  // 3. Steps: motions that overlap in time; a step ends when every one of them has stopped.
   std::vector<Group> groups;
   std::vector<int> group_off;  // [group] its last offset row
   int max_off = -1;
+  double max_off_t = 0;
   for (auto& m : merged) {
-    if (groups.empty() || m.on_row > max_off) groups.emplace_back(), group_off.push_back(-1);
+    if (groups.empty() || m.on_row > max_off || startsAStep(max_off_t, m)) {
+      groups.emplace_back(), group_off.push_back(-1);
+      max_off = -1;
+    }
     max_off = std::max(max_off, m.off_row);
+    max_off_t = groups.back().motions.empty() ? m.off_t : std::max(max_off_t, m.off_t);
     group_off.back() = max_off;
     // One token per entity and step: a second motion of the same entity joins its first.
     auto& g = groups.back().motions;
@@ -341,6 +391,7 @@ void Labeller::decide(bool at_end) {
       same->whole_off_row = std::max(same->whole_off_row, m.whole_off_row);
       same->whole_off_t = std::max(same->whole_off_t, m.whole_off_t);
       same->end = m.end;
+      same->leg_start = m.leg_start;
       same->end_dir = m.end_dir;
       same->at_offset = m.at_offset;
       for (size_t j = 0; j < n; ++j) same->max_distance[j] = std::max(same->max_distance[j], m.max_distance[j]);
@@ -580,6 +631,12 @@ void Labeller::resolveTie(InferredToken& tok, const Motion& m, const EndPoint& e
           if (kindClass(E[c].kind, bodies) == kindClass(it->second, bodies)) found = c, ++count;
       if (count == 1) {
         tok.token.target = found;
+        // A body of another kind than the one the example took: listed.
+        if (E[found].kind != it->second)
+          note(m.off_row,
+               E[m.entity].name + " ended between " + namesOf(spec_, all) + "; took " + E[found].name +
+                   " as the example took a " + task::toString(it->second) + " there, not the goal",
+               m.entity);
         return;
       }
     }
@@ -593,17 +650,15 @@ void Labeller::resolveTie(InferredToken& tok, const Motion& m, const EndPoint& e
       return;
     }
   }
-  std::string names;
-  for (int c : all) names += (names.empty() ? "" : " and ") + E[c].name;
   note(m.off_row,
-       E[m.entity].name + " ended between " + names + " (the same distance within " + metres(spec_.arrival_radius / 2) +
-           " m); took " + E[ep.target].name,
+       E[m.entity].name + " ended between " + namesOf(spec_, all) + " (the same distance within " +
+           metres(spec_.arrival_radius / 2) + " m); took " + E[ep.target].name,
        m.entity);
 }
 
 void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned) {
   const auto& E = spec_.entities;
-  const EndPoint ep = endPoint(spec_, m.entity, m.start, m.end, m.at_onset, candidatesOf(m), load, &m.at_offset);
+  const EndPoint ep = endPoint(spec_, m.entity, m.leg_start, m.end, m.at_onset, candidatesOf(m), load, &m.at_offset);
   tok.token.target = ep.target;
   if (ep.target < 0) {
     tok.token.target = ep.nearest;

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <regex>
+#include <sstream>
 #include <utility>
 
 #include "ddace/common/file.h"
@@ -173,6 +174,7 @@ std::string DemoRecorder::start(double t0) {
   labelled_ = false;
   inferred_steps_.clear();
   notes_.clear();
+  advice_.clear();
   t0_ = t0;
   last_t_ = -1;
   last_flush_ = 0;
@@ -253,6 +255,24 @@ void DemoRecorder::flush() {
   if (fd_ >= 0) ::fdatasync(fd_);
 }
 
+std::string DemoRecorder::reviewAdvice(const label::Inference& inf, const std::string& path) const {
+  std::string advice =
+      "what to do: nothing, if every label taken above is what you demonstrated (the demonstration is used as it "
+      "is); else correct it with `scripts/label_keyboard.py --review " +
+      path + "`, or delete that file and demonstrate again";
+  const bool halfway = std::any_of(inf.notes.begin(), inf.notes.end(), [](const label::Note& n) {
+    return n.message.find(" stopped halfway: ") != std::string::npos;
+  });
+  if (halfway) {
+    std::ostringstream pause;
+    pause << label::SegmentationOptions::forTask(spec_).pause_s;
+    advice += "\n\"stopped halfway\": the robot rested " + pause.str() +
+              " s or longer away from every entity, so its motion ended there; if it was on its way to another "
+              "entity, demonstrate again without resting on the way";
+  }
+  return advice;
+}
+
 std::string DemoRecorder::stop() {
   if (fd_ < 0) throw Error("not recording");
   closeFile();
@@ -277,6 +297,7 @@ std::string DemoRecorder::stop() {
       inferred_steps_ += "]";
     }
     for (const auto& n : inf.notes) notes_.push_back(shown + ":" + std::to_string(n.row + 2) + ": " + n.message);
+    if (!notes_.empty()) advice_ = reviewAdvice(inf, final_path_);
     std::error_code ec;
     fs::remove(partial_path_, ec);
     return final_path_;

@@ -1,42 +1,34 @@
 // scripts/network_mode.py, the network-mode check of the launch files, run in network
 // namespaces this test makes (unshare --map-root-user --net): only loopback, plus a private
 // lab address put on it. No traffic leaves them. And every launch file that starts a graph
-// runs it, one machine by default.
-#include <sys/wait.h>
-
-#include <cstdio>
+// runs it, one machine by default, and refuses to load outside scripts/loopback_only.
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "ddace/common/repository.h"
+#include "run_tool.h"
 
 namespace {
 
-struct ScriptRun {
-  int status = -1;
-  std::string out;
-};
+using ddace::test::runShell;
+using ddace::test::ToolRun;
+
+/// scripts/NAME of this repository.
+std::string script(const std::string& name) {
+  return (ddace::findRepository("", {"scripts/" + name}) / "scripts" / name).string();
+}
 
 /// Runs `env` + network_mode.py `args` --check-only in a new network namespace whose
 /// loopback is up and also holds 10.9.9.9 (a private address of "this host").
-ScriptRun inNamespace(const std::string& env, const std::string& args) {
-  const std::string script =
-      (ddace::findRepository("", {"scripts/network_mode.py"}) / "scripts/network_mode.py").string();
+ToolRun inNamespace(const std::string& env, const std::string& args) {
   const std::string inner = "ip link set lo up && ip addr add 10.9.9.9/32 dev lo && env -u ROS_HOSTNAME -u ROS_IP " +
-                            env + " /usr/bin/python3 '" + script + "' " + args + " --check-only";
-  ScriptRun r;
-  FILE* p = ::popen(("unshare --map-root-user --net -- /bin/sh -c \"" + inner + "\" 2>&1").c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = ::pclose(p);
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+                            env + " /usr/bin/python3 '" + script("network_mode.py") + "' " + args + " --check-only";
+  return runShell("unshare --map-root-user --net -- /bin/sh -c \"" + inner + "\"");
 }
 
 bool namespacesWork() {
@@ -47,14 +39,14 @@ bool namespacesWork() {
 
 TEST(NetworkMode, OneMachineModePassesInALoopbackOnlyNamespace) {
   if (!namespacesWork()) GTEST_SKIP() << "no user and network namespaces here (docs/trust-boundary.md)";
-  const ScriptRun r = inNamespace("", "--lab-network false");
+  const ToolRun r = inNamespace("", "--lab-network false");
   EXPECT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("only loopback"), std::string::npos) << r.out;
 }
 
 TEST(NetworkMode, LabModeNeedsROS_IPOnAPrivateAddressOfThisHostAndSaysWhatIsExposed) {
   if (!namespacesWork()) GTEST_SKIP() << "no user and network namespaces here (docs/trust-boundary.md)";
-  ScriptRun r = inNamespace("ROS_IP=10.9.9.9 ROS_MASTER_URI=http://10.9.9.9:11311", "--lab-network true");
+  ToolRun r = inNamespace("ROS_IP=10.9.9.9 ROS_MASTER_URI=http://10.9.9.9:11311", "--lab-network true");
   EXPECT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("reachable from other hosts through lo (10.9.9.9)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("exposed:"), std::string::npos) << r.out;
@@ -79,28 +71,26 @@ TEST(NetworkMode, LabModeNeedsROS_IPOnAPrivateAddressOfThisHostAndSaysWhatIsExpo
 
 /// The arguments of every network_mode node of each launch file in `files` with
 /// task:=t model:=m `extra`, read by roslaunch's own loader (nothing is started), and the
-/// DDACE_NETWORK its nodes get: one line "FILE: [args, ...] [modes...]" per file.
+/// DDACE_NETWORK its nodes get: one line "FILE: [args, ...] [modes...]" per file, or
+/// "FILE: refused: WHY" when the loader stops. `env` goes before the loader's command.
 static std::string networkModeArgs(const std::string& dir, const std::vector<std::string>& files,
-                                   const std::string& extra) {
+                                   const std::string& extra, const std::string& env = "DDACE_LOOPBACK_ONLY=1") {
   // $(find ddace) is this repository, whatever environment the test runs in.
   const std::string repo = std::filesystem::path(dir).parent_path().string();
   std::string cmd =
-      "ROS_PACKAGE_PATH='" + repo +
+      "env -u DDACE_LOOPBACK_ONLY " + env + " ROS_PACKAGE_PATH='" + repo +
       "':\"$ROS_PACKAGE_PATH\" /usr/bin/python3 -c \"import sys, roslaunch.config as c\n"
       "for f in sys.argv[2:]:\n"
-      "  cfg = c.load_config_default([(f, ['task:=t', 'model:=m'] + sys.argv[1].split())], None)\n"
+      "  try:\n"
+      "    cfg = c.load_config_default([(f, ['task:=t', 'model:=m'] + sys.argv[1].split())], None)\n"
+      "  except Exception as e:\n"
+      "    print(f.split('/')[-1] + ': refused:', str(e).replace(chr(10), ' '))\n"
+      "    continue\n"
       "  print(f.split('/')[-1] + ':', [n.args for n in cfg.nodes if n.name.startswith('network_mode')],\n"
       "        sorted(set(dict(n.env_args).get('DDACE_NETWORK') for n in cfg.nodes)))\n\" '" +
       extra + "'";
   for (const auto& f : files) cmd += " '" + dir + "/" + f + "'";
-  std::string out;
-  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  if (!p) return out;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  ::pclose(p);
-  return out;
+  return runShell(cmd).out;
 }
 
 TEST(NetworkMode, EveryLaunchFileThatStartsAGraphStatesItsMode) {
@@ -119,11 +109,33 @@ TEST(NetworkMode, EveryLaunchFileThatStartsAGraphStatesItsMode) {
         << out;
 }
 
+TEST(NetworkMode, AOneMachineLaunchOutsideLoopbackOnlyIsRefusedBeforeRoslaunchOpensAPort) {
+  // roslaunch loads the whole file before it starts its XML-RPC server or a master: refused
+  // by the loader, a launch has listened on nothing.
+  const std::string dir = (ddace::findRepository("", {"launch/record.launch"}) / "launch").string();
+  const std::vector<std::string> files{"record.launch", "tabletop.launch", "execute_real.launch", "execute_sim.launch"};
+  std::string out = networkModeArgs(dir, files, "", "");
+  for (const auto& f : files)
+    EXPECT_NE(out.find(f + ": refused: while processing " + dir + "/one_machine.xml"), std::string::npos)
+        << f << " without DDACE_LOOPBACK_ONLY\n"
+        << out;
+  for (const auto& f : files)
+    EXPECT_NE(out.find("start it as: scripts/loopback_only roslaunch ddace " + f + " ..."), std::string::npos)
+        << f << ": the message says how to start it\n"
+        << out;
+  // A multi-machine lab is asked for on purpose: no namespace.
+  const std::vector<std::string> lab{"record.launch", "tabletop.launch", "execute_real.launch"};
+  out = networkModeArgs(dir, lab, "lab_network:=true", "");
+  for (const auto& f : lab)
+    EXPECT_NE(out.find(f + ": ['--lab-network true --launch " + f + "'] ['lab']"), std::string::npos)
+        << f << ": lab_network:=true loads without a namespace\n"
+        << out;
+}
+
 TEST(NetworkMode, JoinRunsACommandInTheNamespaceOfARunningGraph) {
   if (!namespacesWork()) GTEST_SKIP() << "no user and network namespaces here (docs/trust-boundary.md)";
   // A graph in a namespace of its own (the target prints its namespace, then waits), and
   // `loopback_only --join PID` from outside: the command must run in the target's namespace.
-  const std::string script = (ddace::findRepository("", {"scripts/loopback_only"}) / "scripts/loopback_only").string();
   const std::string shell = ::testing::TempDir() + "join_check.sh";
   std::ofstream(shell)
       << "f=$(mktemp)\n"
@@ -133,14 +145,9 @@ TEST(NetworkMode, JoinRunsACommandInTheNamespaceOfARunningGraph) {
          "echo target $(cat $f)\n"
          "echo own $(readlink /proc/self/ns/net)\n"
          "echo joined $(\"$1\" --join $p readlink /proc/self/ns/net)\n"
+         "echo variable $(\"$1\" --join $p printenv DDACE_LOOPBACK_ONLY)\n"
          "kill $p; rm -f $f\n";
-  std::string out;
-  FILE* p = ::popen(("/bin/bash '" + shell + "' '" + script + "' 2>&1").c_str(), "r");
-  ASSERT_NE(p, nullptr);
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  ::pclose(p);
+  const std::string out = runShell("/bin/bash '" + shell + "' '" + script("loopback_only") + "'").out;
   auto field = [&](const std::string& key) {
     const size_t at = out.find(key + " ");
     return at == std::string::npos ? std::string()
@@ -149,6 +156,37 @@ TEST(NetworkMode, JoinRunsACommandInTheNamespaceOfARunningGraph) {
   ASSERT_NE(field("target"), "") << out;
   EXPECT_EQ(field("joined"), field("target")) << out;
   EXPECT_NE(field("joined"), field("own")) << out;
+  EXPECT_EQ(field("variable"), "1") << "a launch joined to the graph must load:\n" << out;
+}
+
+TEST(NetworkMode, JoinWithoutAPidRefusesWhenMoreThanOneGraphRunsListingThem) {
+  if (!namespacesWork()) GTEST_SKIP() << "no user and network namespaces here (docs/trust-boundary.md)";
+  // Two "graphs": a program called roslaunch in each of two namespaces. Other graphs of this
+  // user may run too (listed as well): what counts is that none is joined and both are named.
+  const std::string dir = ::testing::TempDir() + "join_two";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir + "/roslaunch") << "trap 'kill $s; exit 0' TERM\nreadlink /proc/self/ns/net > $1.ready\n"
+                                       "sleep 30 & s=$!\nwait $s\n";
+  std::ofstream(dir + "/check.sh")
+      << "d=$2; rm -f $d/a.ready $d/b.ready\n"
+         "unshare --map-root-user --net -- /bin/sh $d/roslaunch $d/a ddace first.launch & a=$!\n"
+         "unshare --map-root-user --net -- /bin/sh $d/roslaunch $d/b ddace second.launch & b=$!\n"
+         "for i in $(seq 200); do [ -s $d/a.ready ] && [ -s $d/b.ready ] && break; sleep 0.1; done\n"
+         "echo pids $a $b\n"
+         "\"$1\" --join readlink /proc/self/ns/net; echo status $?\n"
+         "kill $a $b; wait\n";
+  const ToolRun r = runShell("/bin/bash '" + dir + "/check.sh' '" + script("loopback_only") + "' '" + dir + "'");
+  const size_t at = r.out.find("pids ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  std::string a, b;
+  std::istringstream(r.out.substr(at + 5)) >> a >> b;
+  EXPECT_NE(r.out.find("status 2"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("net:["), std::string::npos) << "joined a graph:\n" << r.out;
+  EXPECT_NE(r.out.find("give the PID of the one to join"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("PID " + a + ", started "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("PID " + b + ", started "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("roslaunch " + dir + "/a ddace first.launch"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("roslaunch " + dir + "/b ddace second.launch"), std::string::npos) << r.out;
 }
 
 TEST(NetworkMode, ANodeOfAOneMachineLaunchRefusesToOpenAPortOnTheHostsNetwork) {
@@ -158,22 +196,11 @@ TEST(NetworkMode, ANodeOfAOneMachineLaunchRefusesToOpenAPortOnTheHostsNetwork) {
   const std::string node =
       (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "path_follower_node").string();
   ASSERT_TRUE(std::filesystem::exists(node)) << node;
-  const ScriptRun r = [&] {
-    ScriptRun run;
-    FILE* p = ::popen(("unshare --map-root-user --net -- /bin/sh -c \"ip link set lo up && (ip link add eth9 type "
-                       "bridge || ip link add eth9 type veth peer name eth8 || ip tuntap add dev eth9 mode tap) && "
-                       "DDACE_NETWORK=loopback ROS_MASTER_URI=http://127.0.0.1:1 '" +
-                       node + "'\" 2>&1")
-                          .c_str(),
-                      "r");
-    if (!p) return run;
-    char buf[4096];
-    size_t n;
-    while ((n = fread(buf, 1, sizeof buf, p)) > 0) run.out.append(buf, n);
-    const int status = ::pclose(p);
-    run.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return run;
-  }();
+  const ToolRun r = runShell(
+      "unshare --map-root-user --net -- /bin/sh -c \"ip link set lo up && (ip link add eth9 type bridge || ip link "
+      "add eth9 type veth peer name eth8 || ip tuntap add dev eth9 mode tap) && DDACE_NETWORK=loopback "
+      "ROS_MASTER_URI=http://127.0.0.1:1 '" +
+      node + "'\"");
   EXPECT_EQ(r.status, 1) << r.out;
   EXPECT_NE(r.out.find("not started: the launch asked for one machine"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("eth9"), std::string::npos) << r.out;

@@ -215,7 +215,7 @@ TEST(Redecide, AMovedTargetWithdrawsTheStepAndAsksForItAgainFromTheSceneOfNow) {
   EXPECT_NE(c.reason().find("max_replans = 1"), std::string::npos) << c.reason();
 }
 
-TEST(Redecide, ADecisionThatCannotBeMadeFromTheSceneOfNowAbortsNamingWhy) {
+TEST(Redecide, ARobotBlockedPastItsReplansIsReDecidedAndANoDecisionAbortsNamingWhy) {
   const task::TaskDir dir = task4();
   CoordinatorConfig cfg;
   cfg.max_replans = 2;
@@ -226,8 +226,17 @@ TEST(Redecide, ADecisionThatCannotBeMadeFromTheSceneOfNowAbortsNamingWhy) {
   const auto segs =
       answer(c, c.onDecision(s.decision->id, replayDecision(dir.demos.front(), s.decision->history), 0.1), 0.2);
   ASSERT_EQ(segs.size(), 2u);
-  const auto out = c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Failed, 0.3, "blocked", 1.0);
-  ASSERT_TRUE(out.decision);
+  // Blocked: first re-planned from where it stands (twice), then the step is re-decided.
+  auto out = c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Failed, 0.3, "blocked", 1.0);
+  for (int i = 0; i < 2; ++i) {
+    ASSERT_FALSE(out.decision);
+    ASSERT_EQ(out.paths.size(), 1u);
+    const auto again = answer(c, out, 1.0 + i);
+    ASSERT_EQ(again.size(), 1u);
+    out = c.onSegmentStatus(again[0].entity, again[0].segment_id, SegmentState::Failed, 0.3, "blocked", 1.5 + i);
+  }
+  EXPECT_EQ(c.replans(), 2);
+  ASSERT_TRUE(out.decision) << "re-plans used up: the step is decided again";
   c.onDecisionError(out.decision->id, "no token fits the scene", 1.1);
   EXPECT_EQ(c.state(), RunState::Aborted);
   EXPECT_NE(c.reason().find("no token fits the scene"), std::string::npos) << c.reason();

@@ -45,7 +45,7 @@ Outcome run(const std::vector<Mover>& movers, const std::vector<Obstacle>& obsta
   DiffDriveParams dp;
   dp.latency_s = 0.04;
   FollowerGains g;
-  g.arrival_radius_m = arrival_m;
+  g.stop_radius_m = arrival_m;
   std::vector<DiffDriveModel> robots;
   std::vector<PathFollower> followers;
   std::vector<SafetyFilter> filters;

@@ -376,6 +376,52 @@ TEST(Label, APushThatBeginsAsTheApproachEndsIsTheCarriers) {
     }
 }
 
+TEST(Label, ABumpPutBackStraightIntoThePushIsNoApproach) {
+  // R1 rests at the box; a hand bumps it 3 cm aside and puts it back, and the push starts
+  // as it arrives back (no rest between): the return is no approach to the box.
+  Scene paused = pushScene(1.0);
+  const auto example = label::Example::fromDemonstration(labelledByHand(paused, paused.infer(), "carry"), paused.spec);
+  Scene s;
+  const Vector2d u = Vector2d(1, 1).normalized(), side(-u.y(), u.x());
+  s.pos[0] = {0.2, 0.2};
+  s.rest(1);
+  const Vector2d at_box = Vector2d(0.5, 0.5) - 0.042 * u;
+  s.move({{0, at_box, 0, 1.5}});
+  s.rest(1.0);
+  s.move({{0, at_box + 0.03 * side, 0, 0.25}});
+  s.rest(0.3);
+  s.move({{0, at_box, 0, 0.25}});
+  s.move({{0, Vector2d(0.9, 0.9) - 0.042 * u}, {2, {0.9, 0.9}}});
+  s.rest(1);
+  const auto inf = s.infer(&example);
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:B1"}, {"R1:carry:G1", "B1:carry:G1"}}));
+}
+
+TEST(Label, ARobotCreepingSlowerThanAStopIsReadFromWhereItRested) {
+  // R1 pushed 15 cm in 12.5 s (at most 1.8 cm/s: every 0.4 s of it within still_m, as a
+  // rest reads): it left where it rested, so it moved, from about when it left.
+  Scene s;
+  s.pos[0] = {0.75, 0.1};
+  s.rest(1);
+  s.move({{0, {0.9, 0.1}, 0, 12.5}});
+  s.rest(1);
+  const auto inf = s.infer();
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G2"}}));
+  // It was start_m (1.5 cm) away 3.45 s in (the scene is noiseless: exact); the onset is
+  // dated back from there toward where it left.
+  EXPECT_LT(s.d.t[inf.steps[0].tokens[0].onset_row], 3.45);
+}
+
+TEST(Label, AMotionBeginningAsTheStepStopsIsTheNextStep) {
+  // R1 drives to R2 and stops touching it; R2 sets off to G1 as R1 brakes, 0.1 s before it
+  // rests (within the precision onsets and offsets are dated to): two steps.
+  Scene s;
+  s.rest(1);
+  s.move({{0, Vector2d(0.1, 0.8 - 0.044), 0, 2}, {1, {0.9, 0.9}, 1.9, 2}});
+  s.rest(1);
+  EXPECT_EQ(tokens(s.infer(), s.spec), (Steps{{"R1:move:R2"}, {"R2:move:G1"}}));
+}
+
 TEST(Label, ABoxHandedOnAtContactIsTwoSteps) {
   // R1 pushes the box to R2 (stopping behind it), R2 takes it on to G2 without a pause:
   // the box never stops, two carriers carry it in turn.

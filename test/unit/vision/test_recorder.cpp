@@ -366,3 +366,38 @@ TEST(Recorder, HiddenEntitiesAreNamedWithWhetherToAct) {
   EXPECT_NE(report.find(r + " hidden in 2 rows"), std::string::npos) << report;
   EXPECT_NE(report.find("ACT"), std::string::npos) << report;
 }
+
+TEST(Recorder, InferredLabelsToCheckSayWhetherToActAndHow) {
+  TempDir dir;
+  const RecorderConfig c = shippedConfig();
+  // R1 drives towards the middle and rests there, away from every entity, 5 s (the
+  // labeller's pause_s is 3 s): "stopped halfway".
+  const auto scene = [](double t, const Eigen::Vector2d& end) {
+    std::vector<Eigen::Vector2d> p = positions(0);
+    const double s = std::clamp((t - 1.0) / 1.5, 0.0, 1.0);
+    p[0] = (1 - s) * p[0] + s * end;
+    return p;
+  };
+  DemoRecorder rec(c.spec, dir.path.string(), 1.0);
+  rec.inferLabels(true);
+  const std::string path = rec.start(0.0);
+  for (int i = 0; i < 30 * 8; ++i) rec.addRow(i / 30.0, scene(i / 30.0, {0.27, 0.5}));
+  ASSERT_EQ(rec.stop(), path);
+  ASSERT_FALSE(rec.inferenceNotes().empty());
+  EXPECT_NE(rec.inferenceNotes().front().find("R1 stopped halfway"), std::string::npos) << rec.inferenceNotes().front();
+  const std::string& advice = rec.inferenceAdvice();
+  EXPECT_NE(advice.find("what to do: nothing, if every label taken above is what you demonstrated"), std::string::npos)
+      << advice;
+  EXPECT_NE(advice.find("scripts/label_keyboard.py --review " + path + "`, or delete that file"), std::string::npos)
+      << advice;
+  EXPECT_NE(advice.find("\"stopped halfway\": the robot rested 3 s or longer away from every entity"),
+            std::string::npos)
+      << advice;
+
+  // R1 to G1 and nothing unsure: no advice either.
+  rec.start(100.0);
+  for (int i = 0; i < 30 * 8; ++i) rec.addRow(100.0 + i / 30.0, scene(i / 30.0, positions(0)[4]));
+  rec.stop();
+  EXPECT_TRUE(rec.inferenceNotes().empty()) << rec.inferenceNotes().front();
+  EXPECT_EQ(rec.inferenceAdvice(), "");
+}

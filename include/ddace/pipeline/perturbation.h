@@ -1,0 +1,91 @@
+// The perturbation suite of `ddace eval --perturb`: the learned task run through the
+// coordinator (exec::Coordinator, the code that runs the robots) while the table changes
+// under it once per trial, with and without recovery (CoordinatorConfig::max_replans).
+//
+// The table: every entity follows its segment's path ideally at the robots' cruise speed
+// (points, no bodies: an object rides along its own path, as `--execution ideal` carries
+// it), in control cycles of 50 Hz; the coordinator sees every entity's position every cycle
+// and hears DONE when a segment's path is run. Once per trial, at a moment drawn from the
+// seed (a step of the demonstration, and how far along one of its motions is: 20-80 %),
+// one of these happens to a motion under way:
+//   box_moved[:CM]    its target, a box, is put down CM cm away (default 6) in a drawn direction;
+//   robot_pushed[:CM] its robot is pushed CM cm (default 5) across its path, and its follower
+//                     fails the segment (it left its path);
+//   robot_stalled[:S] its robot stands still S seconds (default 5), then goes on;
+//   robot_lost        its robot stops and the tracker loses it for good.
+// Kinds that fit no motion of a trial (box_moved in a task without boxes) leave it
+// unperturbed; the report counts the trials perturbed.
+//
+// A trial succeeds when the run finished (the policy said END), it scores as a success
+// against the test demonstration (eval/metrics.h: every step, END, every robot motion at
+// its end point, the goal conditions) and no motion ended at an end point its target had
+// left (more than the arrival radius + tolerance since the end point was fixed): a robot
+// that went on to where a moved box was did not do its step.
+//
+// Owns: the perturbed runs and their report. Must not: decide, plan or recover (the
+// coordinator does), score a trial (eval/metrics.h).
+// Units: metres, seconds; table frame.
+#pragma once
+
+#include <cstdint>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "ddace/eval/metrics.h"
+#include "ddace/exec/dispatch.h"
+#include "ddace/pipeline/evaluation.h"
+
+namespace ddace::pipeline {
+
+enum class PerturbationKind : uint8_t { None = 0, BoxMoved, RobotPushed, RobotStalled, RobotLost };
+
+struct Perturbation {
+  PerturbationKind kind = PerturbationKind::None;
+  double amount = 0;  ///< metres (box_moved, robot_pushed) or seconds (robot_stalled)
+};
+/// "box_moved", "box_moved:8" (cm), "robot_pushed[:CM]", "robot_stalled[:S]", "robot_lost".
+/// Throws ddace::Error naming `what`, the text and the choices.
+Perturbation parsePerturbation(const std::string& text, const std::string& what);
+/// "box_moved 6 cm", "robot_stalled 5 s", ...
+std::string toString(const Perturbation& p);
+
+/// The recoveries a perturbed run is given: CoordinatorConfig::max_replans.
+inline constexpr int kPerturbedMaxReplans = 2;
+
+/// One run of a trial through the coordinator.
+struct CoordinatedRun {
+  exec::Trial trial;
+  eval::TrialScore score;
+  bool perturbed = false;  ///< the perturbation happened
+  std::string what;        ///< "step 2, 40 %: B1 moved 6.0 cm"
+  bool finished = false;   ///< the run finished (the policy said END)
+  std::string reason;      ///< why it ended (the coordinator's reason)
+  std::string failure;     ///< a finished run that failed: the first step that differs, or what did not hold
+  int stale_ends = 0;      ///< motions that ended where their target had left
+  int replans = 0, redecisions = 0;
+  int precedence_violations = 0;
+  bool success = false;
+  double makespan_s = 0;  ///< from the first decision to the last token's end (simulated)
+};
+
+/// Runs the model on `gt`'s start through the coordinator with `max_replans`, applying `p`
+/// once at the moment drawn from `seed`.
+CoordinatedRun runCoordinated(const Model& model, const task::TaskSpec& spec, const task::Demonstration& gt,
+                              const Perturbation& p, int max_replans, exec::DispatchMode dispatch, uint64_t seed);
+
+/// Per trial: unperturbed, perturbed without recovery (max_replans 0), perturbed with
+/// (kPerturbedMaxReplans); all three with the same draw.
+struct PerturbationReport {
+  std::string task, variant, dispatch;
+  Perturbation perturbation;
+  std::vector<std::string> demos;
+  std::vector<CoordinatedRun> unperturbed, without, with;
+};
+PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& test, const Perturbation& p,
+                                     exec::DispatchMode dispatch, uint64_t seed);
+/// One line per trial, then per run: successes x/N, recoveries, mean makespan and time lost.
+void printPerturbation(const PerturbationReport& r, std::ostream& out);
+std::string perturbationJson(const PerturbationReport& r);
+
+}  // namespace ddace::pipeline

@@ -1,0 +1,509 @@
+// The perturbation suite (include/ddace/pipeline/perturbation.h).
+#include "ddace/pipeline/perturbation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <ostream>
+
+#include <nlohmann/json.hpp>
+
+#include "ddace/common/error.h"
+#include "ddace/common/random.h"
+#include "ddace/exec/coordinator.h"
+#include "ddace/exec/path_follower.h"
+#include "ddace/exec/scene.h"
+
+namespace ddace::pipeline {
+namespace {
+
+constexpr double kCycleS = 0.02;  // the control rate, 50 Hz
+/// A run not ended by then is cut; the coordinator's time-outs end a stuck one sooner.
+constexpr double kMaxRunS = 600;
+
+double lengthOf(const exec::Path& p) {
+  double s = 0;
+  for (size_t i = 1; i < p.size(); ++i) s += (p[i] - p[i - 1]).norm();
+  return s;
+}
+
+/// The point `s` metres along `p`.
+Eigen::Vector2d pointAt(const exec::Path& p, double s) {
+  for (size_t i = 1; i < p.size(); ++i) {
+    const double l = (p[i] - p[i - 1]).norm();
+    if (s <= l && l > 0) return p[i - 1] + (p[i] - p[i - 1]) * (s / l);
+    s -= l;
+  }
+  return p.back();
+}
+
+/// One segment being run: its entity follows the path ideally at cruise speed.
+struct Mover {
+  int entity = -1;
+  uint32_t segment = 0;
+  int step = 0;
+  task::Token token;
+  exec::Path path, executed;
+  double length = 0, along = 0;
+  double stalled_until_s = -1;
+  bool lost = false;
+};
+
+/// The moment of the perturbation: a step of the demonstration, how far along a motion
+/// of it (or of a later step) is, and a direction.
+struct Draw {
+  int step = 0;
+  double fraction = 0.5;
+  double angle = 0;
+};
+
+class Runner {
+ public:
+  Runner(const Model& model, const task::TaskSpec& spec, const task::Demonstration& gt, const Perturbation& p,
+         int max_replans, exec::DispatchMode dispatch, uint64_t seed)
+      : model_(model),
+        spec_(spec),
+        gt_(gt),
+        p_(p),
+        c_(spec, config(spec, max_replans, dispatch), model.primitives->endPoints(), 1,
+           model.sequence.info().dependencies, policyReadsScene(model)) {
+    for (const exec::Pose2D& pose : exec::startPoses(gt)) pos_.push_back(pose.position());
+    tracked_.assign(pos_.size(), true);
+    SplitMix64 rng(seed * 0x2545F4914F6CDD1DULL + 0x5eed);
+    // A step of the demonstration with a motion the kind fits.
+    std::vector<int> steps;
+    for (size_t k = 0; k < gt.steps.size(); ++k)
+      if (std::any_of(gt.steps[k].tokens.begin(), gt.steps[k].tokens.end(),
+                      [&](const task::Token& t) { return t.isMotion() && fitsKind(t); }))
+        steps.push_back(static_cast<int>(k));
+    draw_.step = steps.empty() ? 0 : steps[rng.index(steps.size())];
+    draw_.fraction = rng.uniform(0.2, 0.8);
+    draw_.angle = rng.uniform(0, 2 * M_PI);
+    speed_ = exec::FollowerGains{}.cruise_speed_mps;
+  }
+
+  CoordinatedRun run() {
+    handle(c_.onEntities({pos_, tracked_}, now_));
+    handle(c_.start(now_));
+    while (c_.running() && now_ < kMaxRunS) cycle();
+    return result();
+  }
+
+ private:
+  static exec::CoordinatorConfig config(const task::TaskSpec& spec, int max_replans, exec::DispatchMode dispatch) {
+    exec::CoordinatorConfig cfg;
+    cfg.arrival_radius_m = spec.arrival_radius;
+    cfg.max_replans = max_replans;
+    cfg.dispatch = dispatch;
+    return cfg;
+  }
+
+  /// Answers what the coordinator asks for at once (decisions and paths take no time).
+  void handle(exec::CoordinatorOutput first) {
+    std::deque<exec::CoordinatorOutput> todo{std::move(first)};
+    while (!todo.empty()) {
+      const exec::CoordinatorOutput out = std::move(todo.front());
+      todo.pop_front();
+      for (int e : out.stop) drop(e);
+      for (const exec::SegmentCommand& s : out.segments) {
+        drop(s.entity);
+        Mover m;
+        m.entity = s.entity, m.segment = s.segment_id, m.step = s.step, m.token = s.token;
+        m.path = s.path.points.empty() ? exec::Path{s.goal} : s.path.points;
+        m.length = lengthOf(m.path);
+        m.executed = {pos_[static_cast<size_t>(s.entity)]};
+        movers_.push_back(std::move(m));
+      }
+      for (const exec::PathRequest& r : out.paths) {
+        try {
+          const gp::GeneratedPath g = model_.primitives->generate(r.token, r.start, r.goal, 100, r.step);
+          todo.push_back(c_.onPath(r.id, {g.points, g.stddev}, "", now_));
+        } catch (const Error& e) {
+          todo.push_back(c_.onPath(r.id, {}, e.what(), now_));
+        }
+      }
+      if (out.decision) {
+        try {
+          const tgn::Prediction d = model_.sequence.predictNext(out.decision->history);
+          todo.push_back(c_.onDecision(out.decision->id, exec::Decision{d.end, d.tokens}, now_));
+        } catch (const Error& e) {
+          todo.push_back(c_.onDecisionError(out.decision->id, e.what(), now_));
+        }
+      }
+    }
+  }
+
+  /// `e`'s segment is over (stopped, replaced or done): what it ran is kept.
+  void drop(int e) {
+    for (auto it = movers_.begin(); it != movers_.end();)
+      if (it->entity == e) {
+        executed_[it->segment] = it->executed;
+        it = movers_.erase(it);
+      } else {
+        ++it;
+      }
+  }
+
+  void cycle() {
+    now_ += kCycleS;
+    std::vector<std::pair<int, uint32_t>> arrived;
+    for (Mover& m : movers_) {
+      if (m.lost || now_ < m.stalled_until_s) continue;
+      m.along = std::min(m.length, m.along + speed_ * kCycleS);
+      pos_[static_cast<size_t>(m.entity)] = pointAt(m.path, m.along);
+      m.executed.push_back(pos_[static_cast<size_t>(m.entity)]);
+      if (m.along >= m.length) arrived.emplace_back(m.entity, m.segment);
+    }
+    const std::optional<std::pair<int, uint32_t>> failed = perturb();
+    handle(c_.onEntities({pos_, tracked_}, now_));
+    if (failed) {
+      drop(failed->first);
+      handle(c_.onSegmentStatus(failed->first, failed->second, exec::SegmentState::Failed, 0.5, "pushed off its path",
+                                now_));
+    }
+    for (const auto& [e, segment] : arrived) {
+      if (std::none_of(movers_.begin(), movers_.end(), [&](const Mover& m) { return m.segment == segment; })) continue;
+      drop(e);
+      handle(c_.onSegmentStatus(e, segment, exec::SegmentState::Done, 1.0, "", now_));
+      countStaleEnd(segment);
+    }
+    handle(c_.onTick(now_));
+  }
+
+  /// box_moved: a motion toward a box; the others: a robot's motion.
+  bool fitsKind(const task::Token& t) const {
+    const auto kind = [&](int e) { return spec_.entities[static_cast<size_t>(e)].kind; };
+    if (p_.kind == PerturbationKind::BoxMoved) return t.target >= 0 && kind(t.target) == task::EntityKind::Object;
+    return kind(t.entity) == task::EntityKind::Robot;
+  }
+
+  bool fits(const Mover& m) const {
+    if (m.step < draw_.step || m.length < 1e-6 || m.along < draw_.fraction * m.length || m.along >= m.length ||
+        !fitsKind(m.token))
+      return false;
+    // A box that a motion of the run moves is not put down by a hand.
+    return p_.kind != PerturbationKind::BoxMoved ||
+           std::none_of(movers_.begin(), movers_.end(), [&](const Mover& o) { return o.entity == m.token.target; });
+  }
+
+  /// Applies the perturbation when its moment has come; returns a segment its follower fails.
+  std::optional<std::pair<int, uint32_t>> perturb() {
+    if (applied_ || p_.kind == PerturbationKind::None) return std::nullopt;
+    const auto m = std::find_if(movers_.begin(), movers_.end(), [&](const Mover& o) { return fits(o); });
+    if (m == movers_.end()) return std::nullopt;
+    applied_ = true;
+    char what[200];
+    const int pct = static_cast<int>(std::lround(100 * m->along / m->length));
+    const auto name = [&](int e) { return spec_.entities[static_cast<size_t>(e)].name.c_str(); };
+    std::optional<std::pair<int, uint32_t>> failed;
+    switch (p_.kind) {
+      case PerturbationKind::BoxMoved:
+        pos_[static_cast<size_t>(m->token.target)] +=
+            p_.amount * Eigen::Vector2d(std::cos(draw_.angle), std::sin(draw_.angle));
+        std::snprintf(what, sizeof what, "step %d, %d %%: %s moved %.1f cm", m->step + 1, pct, name(m->token.target),
+                      p_.amount * 100);
+        break;
+      case PerturbationKind::RobotPushed: {
+        const Eigen::Vector2d ahead = pointAt(m->path, std::min(m->length, m->along + 0.01)) - pos_[m->entity];
+        const Eigen::Vector2d across =
+            ahead.norm() > 1e-9 ? Eigen::Vector2d(-ahead.y(), ahead.x()).normalized() : Eigen::Vector2d(1, 0);
+        pos_[static_cast<size_t>(m->entity)] += p_.amount * across;
+        failed = std::make_pair(m->entity, m->segment);
+        std::snprintf(what, sizeof what, "step %d, %d %%: %s pushed %.1f cm off its path", m->step + 1, pct,
+                      name(m->entity), p_.amount * 100);
+        break;
+      }
+      case PerturbationKind::RobotStalled:
+        m->stalled_until_s = now_ + p_.amount;
+        std::snprintf(what, sizeof what, "step %d, %d %%: %s stalled %.1f s", m->step + 1, pct, name(m->entity),
+                      p_.amount);
+        break;
+      case PerturbationKind::RobotLost:
+        m->lost = true;
+        tracked_[static_cast<size_t>(m->entity)] = false;
+        std::snprintf(what, sizeof what, "step %d, %d %%: %s lost", m->step + 1, pct, name(m->entity));
+        break;
+      case PerturbationKind::None:
+        break;
+    }
+    what_ = what;
+    return failed;
+  }
+
+  /// A motion that ended where its target had left (by a hand: not moved by a token of
+  /// its own step) did not do its step.
+  void countStaleEnd(uint32_t segment) {
+    for (const exec::StepRecord& s : c_.steps())
+      for (const exec::TokenRecord& t : s.tokens) {
+        if (t.segment_id != segment || t.state != exec::SegmentState::Done || t.token.target < 0) continue;
+        const bool moved_by_step = std::any_of(s.tokens.begin(), s.tokens.end(), [&](const exec::TokenRecord& o) {
+          return o.token.entity == t.token.target && o.token.isMotion();
+        });
+        const double left = (pos_[static_cast<size_t>(t.token.target)] - t.target_start).norm();
+        if (!moved_by_step && left > spec_.arrival_radius + exec::CoordinatorConfig{}.arrival_tolerance_m)
+          ++stale_ends_;
+      }
+  }
+
+  /// Why a finished run does not score as a success: the first step that differs, else
+  /// what of the motions or goal conditions did not hold.
+  std::string failureOf(const eval::TrialScore& score, const exec::Trial& t) const {
+    const auto keys = [&](const std::vector<task::Step>& steps, size_t k) {
+      if (k >= steps.size()) return std::string("{END}");
+      std::vector<task::Token> tokens = steps[k].tokens;
+      std::sort(tokens.begin(), tokens.end());
+      std::string out;
+      for (const task::Token& tok : tokens) out += (out.empty() ? "" : " ") + task::tokenKey(tok, spec_);
+      return "{" + out + "}";
+    };
+    for (size_t k = 0; k < std::max(gt_.steps.size(), t.predicted.size()); ++k)
+      if (keys(t.predicted, k) != keys(gt_.steps, k))
+        return "step " + std::to_string(k + 1) + ": predicted " + keys(t.predicted, k) + " demonstrated " +
+               keys(gt_.steps, k);
+    if (score.achieved_robot_motions < score.gt_robot_motions) return "a robot motion stopped short of its end point";
+    return "a goal condition does not hold";
+  }
+
+  CoordinatedRun result() {
+    CoordinatedRun r;
+    if (c_.running()) handle(c_.abortRun("not ended within " + std::to_string(kMaxRunS) + " s", now_));
+    for (const Mover& m : movers_) executed_[m.segment] = m.executed;
+    exec::Trial& t = r.trial;
+    for (const exec::StepRecord& s : c_.steps()) {
+      task::Step step;
+      for (const exec::TokenRecord& k : s.tokens) {
+        step.tokens.push_back(k.token);
+        exec::ExecutedToken ex;
+        ex.token = k.token, ex.step = s.step, ex.start = k.start, ex.goal = k.goal, ex.planned = k.path.points;
+        const auto run = executed_.find(k.segment_id);
+        ex.executed = k.segment_id != 0 && run != executed_.end() ? run->second : exec::Path{k.start};
+        if (ex.executed.empty()) ex.executed = {k.start};
+        t.executed.push_back(std::move(ex));
+      }
+      t.predicted.push_back(std::move(step));
+    }
+    t.ended = c_.state() == exec::RunState::Finished;
+    t.final_positions = pos_;
+    if (c_.dispatch()) {
+      t.makespan_s = c_.dispatch()->makespan();
+      r.precedence_violations = c_.dispatch()->violations();
+    }
+    r.score = eval::scoreTrial(spec_, gt_, t, false);
+    r.perturbed = applied_;
+    r.what = what_;
+    r.finished = t.ended;
+    r.reason = c_.reason();
+    r.stale_ends = stale_ends_;
+    r.replans = c_.replans();
+    r.redecisions = c_.redecisions();
+    r.makespan_s = t.makespan_s;
+    r.success = r.finished && r.score.success && stale_ends_ == 0;
+    if (r.finished && !r.score.success) r.failure = failureOf(r.score, t);
+    return r;
+  }
+
+  const Model& model_;
+  const task::TaskSpec& spec_;
+  const task::Demonstration& gt_;
+  Perturbation p_;
+  exec::Coordinator c_;
+  std::vector<Eigen::Vector2d> pos_;
+  std::vector<bool> tracked_;
+  std::vector<Mover> movers_;
+  std::map<uint32_t, exec::Path> executed_;  ///< by segment id
+  Draw draw_;
+  double speed_ = 0, now_ = 0;
+  bool applied_ = false;
+  std::string what_;
+  int stale_ends_ = 0;
+};
+
+struct KindName {
+  PerturbationKind kind;
+  const char* name;
+  double default_amount;  ///< in the unit the text takes (cm, s)
+  const char* unit;
+};
+const KindName kKinds[] = {{PerturbationKind::BoxMoved, "box_moved", 6, "cm"},
+                           {PerturbationKind::RobotPushed, "robot_pushed", 5, "cm"},
+                           {PerturbationKind::RobotStalled, "robot_stalled", 5, "s"},
+                           {PerturbationKind::RobotLost, "robot_lost", 0, ""}};
+
+}  // namespace
+
+Perturbation parsePerturbation(const std::string& text, const std::string& what) {
+  const size_t colon = text.find(':');
+  const std::string name = text.substr(0, colon);
+  for (const KindName& k : kKinds) {
+    if (name != k.name) continue;
+    double amount = k.default_amount;
+    if (colon != std::string::npos) {
+      const std::string number = text.substr(colon + 1);
+      size_t used = 0;
+      try {
+        amount = std::stod(number, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (k.kind == PerturbationKind::RobotLost || used == 0 || used != number.size() || !std::isfinite(amount) ||
+          amount <= 0)
+        throw Error(what + " '" + text + "': " +
+                    (k.kind == PerturbationKind::RobotLost
+                         ? std::string("robot_lost takes no amount")
+                         : "the amount must be a positive number of " + std::string(k.unit)));
+    }
+    return {k.kind, std::string(k.unit) == "cm" ? amount / 100 : amount};
+  }
+  throw Error(what + " '" + text + "' is not one of box_moved[:CM], robot_pushed[:CM], robot_stalled[:S], robot_lost");
+}
+
+std::string toString(const Perturbation& p) {
+  char s[80];
+  for (const KindName& k : kKinds)
+    if (k.kind == p.kind) {
+      if (std::string(k.unit) == "cm") std::snprintf(s, sizeof s, "%s %.1f cm", k.name, p.amount * 100);
+      else if (std::string(k.unit) == "s") std::snprintf(s, sizeof s, "%s %.1f s", k.name, p.amount);
+      else std::snprintf(s, sizeof s, "%s", k.name);
+      return s;
+    }
+  return "none";
+}
+
+CoordinatedRun runCoordinated(const Model& model, const task::TaskSpec& spec, const task::Demonstration& gt,
+                              const Perturbation& p, int max_replans, exec::DispatchMode dispatch, uint64_t seed) {
+  if (!model.primitives)
+    throw Error("a perturbed run needs a model with primitives (the " + model.sequence.variant() +
+                " variant rolls out its own trajectories)");
+  return Runner(model, spec, gt, p, max_replans, dispatch, seed).run();
+}
+
+PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& test, const Perturbation& p,
+                                     exec::DispatchMode dispatch, uint64_t seed) {
+  PerturbationReport r;
+  r.task = model.sequence.spec().name;
+  r.variant = model.sequence.variant();
+  r.dispatch = exec::toString(dispatch);
+  r.perturbation = p;
+  for (size_t i = 0; i < test.demos.size(); ++i) {
+    const task::Demonstration& gt = test.demos[i];
+    const uint64_t s = seed * 1000003ULL + i;
+    r.demos.push_back(std::filesystem::path(gt.source).filename().string());
+    r.unperturbed.push_back(runCoordinated(model, test.spec, gt, {}, kPerturbedMaxReplans, dispatch, s));
+    r.without.push_back(runCoordinated(model, test.spec, gt, p, 0, dispatch, s));
+    r.with.push_back(runCoordinated(model, test.spec, gt, p, kPerturbedMaxReplans, dispatch, s));
+  }
+  return r;
+}
+
+namespace {
+struct Totals {
+  int perturbed = 0, succeeded = 0, replans = 0, redecisions = 0, violations = 0;
+  double lost_s = 0;
+  int lost_n = 0;
+  double makespan_s = 0;  ///< mean over the runs counted
+};
+/// Over the perturbed trials (`all`: over every trial, the unperturbed runs).
+Totals totals(const PerturbationReport& r, const std::vector<CoordinatedRun>& runs, bool all = false) {
+  Totals t;
+  for (size_t i = 0; i < runs.size(); ++i) {
+    const CoordinatedRun& u = r.unperturbed[i];
+    t.violations += runs[i].precedence_violations;
+    if (!all && !r.with[i].perturbed) continue;
+    ++t.perturbed;
+    t.succeeded += runs[i].success;
+    t.makespan_s += runs[i].makespan_s;
+    t.replans += runs[i].replans;
+    t.redecisions += runs[i].redecisions;
+    if (runs[i].success && u.success) t.lost_s += runs[i].makespan_s - u.makespan_s, ++t.lost_n;
+  }
+  const int counted = all ? static_cast<int>(runs.size()) : t.perturbed;
+  if (counted > 0) t.makespan_s /= counted;
+  return t;
+}
+std::string outcome(const CoordinatedRun& run) {
+  char s[64];
+  std::snprintf(s, sizeof s, "%s %.1f s", run.success ? "yes" : "no ", run.makespan_s);
+  return s;
+}
+}  // namespace
+
+void printPerturbation(const PerturbationReport& r, std::ostream& out) {
+  char line[512];
+  std::snprintf(line, sizeof line, "%-16s %-12s %-17s %-14s %s\n", "trial", "unperturbed", "without recovery",
+                "with recovery", "perturbation");
+  out << line;
+  for (size_t i = 0; i < r.demos.size(); ++i) {
+    const CoordinatedRun &u = r.unperturbed[i], &wo = r.without[i], &w = r.with[i];
+    std::snprintf(line, sizeof line, "%-16s %-12s %-17s %-14s %s\n", r.demos[i].c_str(), outcome(u).c_str(),
+                  outcome(wo).c_str(), outcome(w).c_str(), w.perturbed ? w.what.c_str() : "(no motion fits it)");
+    out << line;
+    for (const CoordinatedRun* run : {&wo, &w}) {
+      const char* which = run == &wo ? "without" : "with";
+      if (!run->success && !run->reason.empty() && !run->finished)
+        out << "    " << which << ": " << run->reason << "\n";
+      if (!run->failure.empty()) out << "    " << which << ": " << run->failure << "\n";
+      if (run->stale_ends > 0)
+        out << "    " << which << ": " << run->stale_ends << " motion(s) ended where their target had left\n";
+    }
+    if (w.replans + w.redecisions > 0)
+      out << "    with: " << w.replans << " re-plan(s), " << w.redecisions << " re-decision(s)\n";
+  }
+  const Totals u = totals(r, r.unperturbed, true), wo = totals(r, r.without), w = totals(r, r.with);
+  std::snprintf(line, sizeof line,
+                "%s, variant %s, dispatch %s, perturbation %s: %zu trials, %d perturbed\n"
+                "  unperturbed:      %d/%zu succeeded, mean makespan %.2f s\n"
+                "  without recovery: %d/%d perturbed succeeded\n"
+                "  with recovery:    %d/%d perturbed succeeded, %d re-plans, %d re-decisions, time lost %.1f s "
+                "(mean of %d)\n"
+                "  precedence violations: %d\n",
+                r.task.c_str(), r.variant.c_str(), r.dispatch.c_str(), toString(r.perturbation).c_str(), r.demos.size(),
+                w.perturbed, u.succeeded, r.demos.size(), u.makespan_s, wo.succeeded, wo.perturbed, w.succeeded,
+                w.perturbed, w.replans, w.redecisions, w.lost_n ? w.lost_s / w.lost_n : 0.0, w.lost_n,
+                u.violations + wo.violations + w.violations);
+  out << line;
+}
+
+std::string perturbationJson(const PerturbationReport& r) {
+  nlohmann::json j;
+  j["task"] = r.task;
+  j["variant"] = r.variant;
+  j["dispatch"] = r.dispatch;
+  j["perturbation"] = toString(r.perturbation);
+  j["trials"] = r.demos.size();
+  const auto runJson = [](const CoordinatedRun& run) {
+    return nlohmann::json{{"success", run.success},
+                          {"finished", run.finished},
+                          {"reason", run.reason},
+                          {"failure", run.failure},
+                          {"stale_ends", run.stale_ends},
+                          {"replans", run.replans},
+                          {"redecisions", run.redecisions},
+                          {"makespan_s", run.makespan_s},
+                          {"precedence_violations", run.precedence_violations}};
+  };
+  for (const auto& [name, runs] :
+       {std::pair<const char*, const std::vector<CoordinatedRun>*>{"unperturbed", &r.unperturbed},
+        {"without_recovery", &r.without},
+        {"with_recovery", &r.with}}) {
+    const Totals t = totals(r, *runs, runs == &r.unperturbed);
+    j[name] = {{"perturbed", t.perturbed},
+               {"succeeded", t.succeeded},
+               {"replans", t.replans},
+               {"redecisions", t.redecisions},
+               {"precedence_violations", t.violations}};
+  }
+  j["per_trial"] = nlohmann::json::array();
+  for (size_t i = 0; i < r.demos.size(); ++i)
+    j["per_trial"].push_back({{"demo", r.demos[i]},
+                              {"perturbation", r.with[i].perturbed ? r.with[i].what : ""},
+                              {"unperturbed", runJson(r.unperturbed[i])},
+                              {"without_recovery", runJson(r.without[i])},
+                              {"with_recovery", runJson(r.with[i])}});
+  return j.dump(2) + "\n";
+}
+
+}  // namespace ddace::pipeline

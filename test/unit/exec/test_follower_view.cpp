@@ -1,0 +1,84 @@
+// What the path follower node knows of the table and the step (exec::FollowerView): the
+// decisions it used to make itself -- the stop radius toward a target, what a motion may
+// touch from where the step's bodies end, who stands, and when a robot decides again.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "ddace/exec/follower_view.h"
+#include "ddace/task/body_geometry.h"
+
+using namespace ddace;
+using namespace ddace::exec;
+using Eigen::Vector2d;
+
+namespace {
+
+std::map<std::string, task::Entity> kinds() {
+  return {{"R1", {"R1", task::EntityKind::Robot, ""}},
+          {"R2", {"R2", task::EntityKind::Robot, ""}},
+          {"O1", {"O1", task::EntityKind::Object, ""}},
+          {"G1", {"G1", task::EntityKind::Goal, ""}}};
+}
+constexpr double kArrival = 0.03, kMargin = 0.01;
+
+}  // namespace
+
+TEST(FollowerView, AMotionTowardABodyStopsNearerThanOneTowardAGoalOrWithALoad) {
+  FollowerView v(kinds(), kArrival, kMargin);
+  v.track("R1", task::EntityKind::Robot, {0.1, 0.3}, false, 1.0);
+  v.track("R2", task::EntityKind::Robot, {0.5, 0.3}, false, 1.0);
+  v.track("O1", task::EntityKind::Object, {0.14, 0.3}, false, 1.0);
+  v.track("G1", task::EntityKind::Goal, {0.8, 0.3}, false, 1.0);
+  const double stop = task::stopRadius(kArrival);
+  // R1 to R2, ending 1 cm short of contact: it stops within what keeps it at R2.
+  const double contact = 2 * task::kDefaultRobotRadius;
+  const double toward = v.stopToward("R1", 0, "go", "R2", {0.5 - contact - 0.01, 0.3}, stop);
+  EXPECT_LT(toward, stop);
+  EXPECT_LE(contact + 0.01 + toward, task::togetherDistance(contact, kArrival) + 1e-9);
+  EXPECT_DOUBLE_EQ(v.stopToward("R1", 0, "go", "G1", {0.8, 0.3}, stop), stop) << "a goal is driven onto";
+  // With O1's segment of the same step, action and target, O1 is R1's load: it ends there.
+  v.noteSegment("O1", 7, 0, "go", "R2", {0.5 - 0.04, 0.3});
+  EXPECT_DOUBLE_EQ(v.stopToward("R1", 0, "go", "R2", {0.5 - 0.09, 0.3}, stop), stop);
+}
+
+TEST(FollowerView, ACarrierMayTouchItsLoadAndWhatItsEndTouches) {
+  FollowerView v(kinds(), kArrival, kMargin);
+  v.track("R1", task::EntityKind::Robot, {0.1, 0.3}, false, 1.0);
+  v.track("R2", task::EntityKind::Robot, {0.5, 0.3}, false, 1.0);
+  v.track("O1", task::EntityKind::Object, {0.143, 0.3}, false, 1.0);
+  const uint64_t before = v.stepVersion(2);
+  v.noteSegment("R1", 1, 2, "carry", "R2", {0.5 - 0.042 - 0.044, 0.3});
+  EXPECT_NE(v.stepVersion(2), before) << "the step's robots decide again";
+  EXPECT_TRUE(v.contacts("R1", {0.1, 0.3}).load.empty()) << "its load's segment has not arrived yet";
+  v.noteSegment("O1", 2, 2, "carry", "R2", {0.5 - 0.042, 0.3});
+  const MotionContacts c = v.contacts("R1", {0.1, 0.3});
+  EXPECT_EQ(c.load, "O1");
+  EXPECT_TRUE(c.load_ends_against.count("R2")) << "the load ends touching R2";
+  EXPECT_TRUE(v.contacts("R2", {0.5, 0.3}).load.empty()) << "R2 has no segment";
+}
+
+TEST(FollowerView, BodiesWithoutARunningSegmentStandAndAnEndedSegmentIsNotRevived) {
+  FollowerView v(kinds(), kArrival, kMargin);
+  v.track("R1", task::EntityKind::Robot, {0.1, 0.3}, false, 1.0);
+  v.track("R2", task::EntityKind::Robot, {0.5, 0.3}, false, 1.5);
+  v.track("G1", task::EntityKind::Goal, {0.8, 0.3}, false, 1.0);
+  v.track("X9", std::nullopt, {0.3, 0.3}, false, 1.0);  // unknown: kept off as an object
+  double self_age = 0;
+  std::vector<SafetyBody> others = v.others("R1", 2.0, self_age);
+  EXPECT_DOUBLE_EQ(self_age, 1.0);
+  ASSERT_EQ(others.size(), 2u) << "goals have no body";
+  for (const SafetyBody& b : others) EXPECT_TRUE(b.standing) << b.name;
+  EXPECT_DOUBLE_EQ(others[0].age_s, 0.5);
+  v.noteEnded("R2", 4);  // its end arrived before the segment (another connection)
+  EXPECT_FALSE(v.noteSegment("R2", 4, 0, "go", "G1", {0.8, 0.3}));
+  EXPECT_TRUE(v.noteSegment("R2", 5, 1, "go", "G1", {0.8, 0.3}));
+  others = v.others("R1", 2.0, self_age);
+  EXPECT_FALSE(others[0].standing) << "R2 runs a segment";
+  v.noteEnded("R2", 5);
+  others = v.others("R1", 2.0, self_age);
+  EXPECT_TRUE(others[0].standing);
+  v.track("R1", task::EntityKind::Robot, {NAN, NAN}, false, 3.0);
+  v.others("R1", 3.0, self_age);
+  EXPECT_GT(self_age, 1e6) << "a pose it cannot use is stale";
+}
