@@ -44,37 +44,10 @@ struct Family {
   std::string name, description;
 };
 
-/// A family the generators lack, made with their motion (tasks::simulateSteps) from fetch's
-/// scenes: the robot nearest the box fetches it and pushes it onto G1, then the other robot
-/// drives to G1 as well and ends at the bodies that occupy it.
-constexpr const char* kOccupiedFamily = "fetch_then_occupied_goal";
-
-task::TaskDir occupiedGoal(int demos, uint64_t seed) {
-  tasks::GeneratorOptions o;
-  o.family = "fetch";
-  o.demos = demos;
-  o.seed = seed;
-  task::TaskDir dir = tasks::generate(o);
-  const int g1 = dir.spec.entityIndex("G1");
-  for (auto& d : dir.demos) {
-    std::vector<tasks::PlannedStep> steps;
-    for (const auto& step : d.steps) {
-      tasks::PlannedStep planned;
-      for (const auto& t : step.tokens) planned.push_back({t, {}, 0});
-      steps.push_back(planned);
-    }
-    // The last step, [O:move:F], goes to G1 instead.
-    for (auto& t : steps.back()) t.token.target = g1;
-    const std::string source = d.source;
-    d = tasks::simulateSteps(dir.spec, d.positions.front(), steps);
-    d.source = source;
-  }
-  dir.spec.name = kOccupiedFamily;
-  return dir;
-}
+constexpr const char* kOccupiedFamily = label::kOccupiedGoalFamily;
 
 task::TaskDir generated(const std::string& family, int demos, uint64_t seed) {
-  if (family == kOccupiedFamily) return occupiedGoal(demos, seed);
+  if (family == kOccupiedFamily) return label::occupiedGoalFamily(demos, seed);
   uint64_t id = 0;
   if (tasks::parseZooFamily(family, id)) return tasks::generateZoo(id, demos, seed);
   tasks::GeneratorOptions o;
@@ -183,9 +156,7 @@ int osrBench(const std::filesystem::path& repo, const std::string& only_family, 
     // Fresh scenes, as `ddace generate` draws a test set.
     const task::TaskDir test = generated(f, test_demos, seed * 2654435761ULL + 0x7e57);
     for (const auto& st : styles) {
-      size_t k = 0;
-      while (all[k].name != st.name) ++k;
-      const label::InferredDataset data = label::inferredDataset(dir, st.options, seed + 17 * k);
+      const label::InferredDataset data = label::inferredDataset(dir, st.options, label::styleSeed(seed, st.name));
       SeedCell truth, inferred, usable;
       int usable_demos = 0;
       for (int ts = 0; ts < train_seeds; ++ts) {
@@ -271,12 +242,6 @@ int main(int argc, char** argv) {
     for (const auto& k : tasks::userKinds()) families.push_back({k.family, k.kind});
     families.push_back({kOccupiedFamily, "fetch, then the other robot to the goal the box occupies"});
     std::vector<label::DemonstrationStyle> styles = label::demonstrationStyles();
-    // Each style's own seed, by its place in the full list (the same with --style).
-    auto styleSeed = [&, all = styles](const std::string& name) {
-      for (size_t k = 0; k < all.size(); ++k)
-        if (all[k].name == name) return seed + 17 * k;
-      return seed;
-    };
     if (quick) {
       families = {{"fetch", "fetch"}, {"zoo:87", "relay"}, {kOccupiedFamily, "occupied goal"}};
       std::vector<label::DemonstrationStyle> some;
@@ -313,7 +278,8 @@ int main(int argc, char** argv) {
       double worst = 2;
       std::string worst_style;
       for (size_t k = 0; k < styles.size(); ++k) {
-        const label::InferredDataset data = label::inferredDataset(dir, styles[k].options, styleSeed(styles[k].name));
+        const label::InferredDataset data =
+            label::inferredDataset(dir, styles[k].options, label::styleSeed(seed, styles[k].name));
         const double acc = data.score.accuracy();
         for (size_t d = 1; show && d < data.truth.demos.size(); ++d)
           if (!task::sameSteps(data.truth.demos[d].steps, data.inferred.demos[d].steps))

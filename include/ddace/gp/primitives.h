@@ -194,6 +194,7 @@ class PrimitiveLibrary {
   const task::EndPointModel& endPoints() const { return end_points_; }
 
  private:
+  friend class LibraryReader;  // parse()'s parts (primitives.cpp)
   /// The primitive for (entity, action, target) names in `step` (roles, then names after
   /// the fallback rule), or null.
   const Primitive* lookup(const std::string& entity, const std::string& action, const std::string& target, int step,

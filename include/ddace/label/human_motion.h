@@ -47,6 +47,18 @@ struct DemonstrationStyle {
 };
 /// calm, pause, onset, speed, contact, occupied, bump, camera, all.
 std::vector<DemonstrationStyle> demonstrationStyles();
+/// The style named `name`; throws ddace::Error naming it when there is none.
+DemonstrationStyle demonstrationStyle(const std::string& name);
+/// The seed of style `name`'s demonstrations in a measurement seeded `seed`: each style
+/// its own, by its place in demonstrationStyles() (the same when one style is measured).
+uint64_t styleSeed(uint64_t seed, const std::string& name);
+
+/// fetch_then_occupied_goal, a family the generators lack, made with their motion
+/// (tasks::simulateSteps) from fetch's scenes: the robot nearest the box fetches it and
+/// pushes it onto G1, then the other robot drives to G1 as well and ends at the bodies
+/// that occupy it (a drive to an occupied goal).
+constexpr const char* kOccupiedGoalFamily = "fetch_then_occupied_goal";
+task::TaskDir occupiedGoalFamily(int demos, uint64_t seed);
 
 /// `clean` (analyzed, labelled, as generated) moved by a person: per step, each motion
 /// starts up to onset_spread_s after the first (a load with its carrier), at its own speed,

@@ -614,132 +614,165 @@ PrimitiveLibrary PrimitiveLibrary::load(const std::string& path) {
   return parse(readTextFile(path), path);
 }
 
-PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::string& path) {
-  YamlChecker c(path);
-  const YAML::Node root = c.parse(text);
-  c.throwIfErrors();
-  if (!root.IsMap()) {
-    c.error(root, "not a primitive library (expected a mapping with format: " + std::string(kPrimitivesFormat) + ")");
-    c.throwIfErrors();
-  }
-  // Another format's fields would only add noise to the one error that matters.
-  std::string format;
-  if (textField(c, root, "format", "", format) && format != kPrimitivesFormat &&
-      format != kPrimitivesFormatWithoutRoles && format != kPrimitivesFormatWithoutEndPoints)
-    c.error(root["format"],
-            "unsupported format '" + format + "' (expected " + kPrimitivesFormat +
-                (format == "ddace-primitives/1" ? "; this older library names no task: retrain the model" : "") + ")");
-  c.throwIfErrors();
-  c.onlyKeys(root,
-             {"format", "task", "entities", "task_fingerprint", "points", "pin_endpoints", "min_segment_length_m",
-              "end_points", "primitives"},
-             "a primitive library");
+/// parse() in parts: the format, the entities and fingerprint, and each primitive, every
+/// problem collected in one YamlChecker and thrown at once in file order.
+class LibraryReader {
+ public:
+  LibraryReader(const std::string& text, const std::string& path) : text_(text), c_(path) {}
 
-  PrimitiveLibrary lib;
-  if (format == kPrimitivesFormatWithoutEndPoints) {
-    lib.end_points_.centres = true;
-    if (root["end_points"])
-      c.error(root["end_points"], std::string(kPrimitivesFormatWithoutEndPoints) + " has no end_points");
+  PrimitiveLibrary read() {
+    root_ = c_.parse(text_);
+    c_.throwIfErrors();
+    if (!root_.IsMap()) {
+      c_.error(root_,
+               "not a primitive library (expected a mapping with format: " + std::string(kPrimitivesFormat) + ")");
+      c_.throwIfErrors();
+    }
+    readFormat();
+    c_.throwIfErrors();  // another format's fields would only add noise to the one error that matters
+    c_.onlyKeys(root_,
+                {"format", "task", "entities", "task_fingerprint", "points", "pin_endpoints", "min_segment_length_m",
+                 "end_points", "primitives"},
+                "a primitive library");
+    if (format_ == kPrimitivesFormatWithoutEndPoints) {
+      lib_.end_points_.centres = true;
+      if (root_["end_points"])
+        c_.error(root_["end_points"], std::string(kPrimitivesFormatWithoutEndPoints) + " has no end_points");
+    }
+    textField(c_, root_, "task", "", lib_.task_);
+    readEntities();
+    // Bounded before anything is allocated from it (every GP holds points x points matrices).
+    have_points_ = integer(c_, root_, "points", "", 2, kMaxPrimitivePoints, lib_.options_.points);
+    boolean(c_, root_, "pin_endpoints", "", lib_.options_.pin_endpoints);
+    positive(c_, root_, "min_segment_length_m", "", lib_.options_.min_segment_length_m);
+    if (!lib_.end_points_.centres) readEndPoints(c_, root_, lib_.entities_, lib_.end_points_);
+    const YAML::Node prims = c_.required(root_, "primitives");
+    if (prims && !prims.IsSequence()) c_.error(prims, "'primitives' must be a list");
+    if (prims && prims.IsSequence())
+      for (const auto& node : prims) readPrimitive(node);
+    // In file order: a hand-edited file's keys may come in any order.
+    std::vector<Diagnostic> all = c_.errors();
+    std::stable_sort(all.begin(), all.end(), [](const Diagnostic& a, const Diagnostic& b) {
+      return std::tie(a.line, a.column) < std::tie(b.line, b.column);
+    });
+    if (!all.empty()) throw Error(all);
+    lib_.indexRoles();
+    lib_.cacheGrid();
+    return std::move(lib_);
   }
-  textField(c, root, "task", "", lib.task_);
-  const YAML::Node entities = c.required(root, "entities");
-  bool entities_ok = false;
-  if (entities && (!entities.IsSequence() || entities.size() == 0)) {
-    c.error(entities, "'entities' must be a non-empty list of names");
-  } else if (entities) {
-    entities_ok = true;
-    for (const auto& e : entities) {
-      if (!e.IsScalar() || !task::isValidName(e.Scalar())) {
-        c.error(e, "invalid entity name");
-        entities_ok = false;
-      } else {
-        lib.entities_.push_back(e.Scalar());
+
+ private:
+  void readFormat() {
+    if (textField(c_, root_, "format", "", format_) && format_ != kPrimitivesFormat &&
+        format_ != kPrimitivesFormatWithoutRoles && format_ != kPrimitivesFormatWithoutEndPoints)
+      c_.error(root_["format"],
+               "unsupported format '" + format_ + "' (expected " + kPrimitivesFormat +
+                   (format_ == "ddace-primitives/1" ? "; this older library names no task: retrain the model" : "") +
+                   ")");
+  }
+
+  /// 'entities' and the task fingerprint, which must name the same entities.
+  void readEntities() {
+    const YAML::Node entities = c_.required(root_, "entities");
+    bool entities_ok = false;
+    if (entities && (!entities.IsSequence() || entities.size() == 0)) {
+      c_.error(entities, "'entities' must be a non-empty list of names");
+    } else if (entities) {
+      entities_ok = true;
+      for (const auto& e : entities) {
+        if (!e.IsScalar() || !task::isValidName(e.Scalar())) {
+          c_.error(e, "invalid entity name");
+          entities_ok = false;
+        } else {
+          lib_.entities_.push_back(e.Scalar());
+        }
       }
     }
+    const YAML::Node fp = c_.required(root_, "task_fingerprint");
+    if (!fp || !task::parseFingerprint(c_, fp, lib_.fingerprint_)) return;
+    std::vector<std::string> sorted = lib_.entities_;
+    std::sort(sorted.begin(), sorted.end());
+    std::vector<std::string> named;
+    for (const auto& e : lib_.fingerprint_.entities) named.push_back(e.substr(0, e.find(':')));
+    // The fingerprint sorts "NAME:KIND" strings, where R10:... comes before R1:... (':' > '0').
+    std::sort(named.begin(), named.end());
+    if (entities_ok && sorted != named) c_.error(fp, "task_fingerprint names other entities than 'entities'");
+    lib_.kinds_ = lib_.trained_kinds_ = PrimitiveLibrary::kindsOf(lib_.fingerprint_);
   }
-  if (const YAML::Node fp = c.required(root, "task_fingerprint")) {
-    if (task::parseFingerprint(c, fp, lib.fingerprint_)) {
-      std::vector<std::string> sorted = lib.entities_;
-      std::sort(sorted.begin(), sorted.end());
-      std::vector<std::string> named;
-      for (const auto& e : lib.fingerprint_.entities) named.push_back(e.substr(0, e.find(':')));
-      // The fingerprint sorts "NAME:KIND" strings, where R10:... comes before R1:... (':' > '0').
-      std::sort(named.begin(), named.end());
-      if (entities_ok && sorted != named) c.error(fp, "task_fingerprint names other entities than 'entities'");
-      lib.kinds_ = lib.trained_kinds_ = kindsOf(lib.fingerprint_);
-    }
+
+  bool knownEntity(const std::string& name) const {
+    return std::find(lib_.entities_.begin(), lib_.entities_.end(), name) != lib_.entities_.end();
   }
-  // Bounded before anything is allocated from it (every GP holds points x points matrices).
-  const bool have_points = integer(c, root, "points", "", 2, kMaxPrimitivePoints, lib.options_.points);
-  boolean(c, root, "pin_endpoints", "", lib.options_.pin_endpoints);
-  positive(c, root, "min_segment_length_m", "", lib.options_.min_segment_length_m);
-  if (!lib.end_points_.centres) readEndPoints(c, root, lib.entities_, lib.end_points_);
-  const YAML::Node prims = c.required(root, "primitives");
-  if (prims && !prims.IsSequence()) c.error(prims, "'primitives' must be a list");
-  auto known = [&](const std::string& name) {
-    return std::find(lib.entities_.begin(), lib.entities_.end(), name) != lib.entities_.end();
-  };
-  const auto knownKind = [&](const std::string& kind) {
-    for (const auto& entry : lib.trained_kinds_)
+  bool knownKind(const std::string& kind) const {
+    for (const auto& entry : lib_.trained_kinds_)
       if (entry.second == kind) return true;
     return false;
-  };
-  size_t means_read = 0;
-  bool aliased = false;
-  if (prims && prims.IsSequence())
-    for (const auto& node : prims) {
-      if (!c.expectMap(node, "a primitive")) continue;
-      c.onlyKeys(node, {"key", "entity", "action", "target", "step", "segments", "skipped_segments", "x", "y"},
-                 "a primitive");
-      Primitive p;
-      const bool named =
-          YamlChecker::allOf({textField(c, node, "key", "", p.key), textField(c, node, "entity", "", p.entity),
-                              textField(c, node, "action", "", p.action), textField(c, node, "target", "", p.target)});
-      const std::string what = "primitive " + p.key;
-      // A role's primitive (format /4) names kinds and its step.
-      const bool role = static_cast<bool>(node["step"]);
-      if (role && format != kPrimitivesFormat)
-        c.error(node["step"], what + ": a " + format + " library has no role primitives");
-      else if (role) integer(c, node, "step", what + ": ", 0, kMaxPrimitiveSegments, p.step);
-      if (named && role) {
-        for (const auto& [field, kind] : {std::pair{"entity", p.entity}, std::pair{"target", p.target}})
-          if (!knownKind(kind)) c.error(node[field], what + ": '" + kind + "' is no kind of the library's entities");
-        if (p.key != roleKey(motionClass(p.entity, p.action, p.target), p.step))
-          c.error(node["key"], "primitive key '" + p.key + "' does not match its kinds, action and step");
-      } else if (named) {
-        if (!known(p.entity)) c.error(node["entity"], what + ": unknown entity '" + p.entity + "'");
-        if (!known(p.target)) c.error(node["target"], what + ": unknown target '" + p.target + "'");
-        if (p.key != joinKey(p.entity, p.action, p.target))
-          c.error(node["key"], "primitive key '" + p.key + "' does not match its entity, action and target");
-      }
-      if (named && lib.primitives_.count(p.key)) c.error(node["key"], what + " appears twice");
-      const bool counted = integer(c, node, "segments", what + ": ", 1, kMaxPrimitiveSegments, p.segments);
-      const bool skipped_ok =
-          integer(c, node, "skipped_segments", what + ": ", 0, kMaxPrimitiveSegments, p.skipped_segments);
-      const YAML::Node x = c.required(node, "x", what + ": "), y = c.required(node, "y", what + ": ");
-      if (!have_points || !counted) continue;  // a GP's size is unknown
-      // Rebuilding GPs costs cubic time: only while the file is sound so far, and only for
-      // as many numbers as the text can hold (YAML aliases are not part of the format).
-      means_read += 2 * static_cast<size_t>(lib.options_.points);
-      if (2 * means_read > text.size() && !aliased) {
-        c.error(node, what + ": more numbers than the file has characters (YAML aliases are not accepted here)");
-        aliased = true;
-      }
-      const bool condition = named && skipped_ok && !aliased && c.errors().empty();
-      const bool fitted =
-          YamlChecker::allOf({x && readGp(c, x, lib.options_.points, p.segments, what + ", x", condition, p.x),
-                              y && readGp(c, y, lib.options_.points, p.segments, what + ", y", condition, p.y)});
-      if (fitted) lib.primitives_.emplace(p.key, std::move(p));
+  }
+
+  /// The key of a primitive by name (its entity, action and target) or by role (its kinds,
+  /// action and step: format /4); false when it names none.
+  bool readKey(const YAML::Node& node, Primitive& p) {
+    const bool named =
+        YamlChecker::allOf({textField(c_, node, "key", "", p.key), textField(c_, node, "entity", "", p.entity),
+                            textField(c_, node, "action", "", p.action), textField(c_, node, "target", "", p.target)});
+    const std::string what = "primitive " + p.key;
+    const bool role = static_cast<bool>(node["step"]);
+    if (role && format_ != kPrimitivesFormat)
+      c_.error(node["step"], what + ": a " + format_ + " library has no role primitives");
+    else if (role) integer(c_, node, "step", what + ": ", 0, kMaxPrimitiveSegments, p.step);
+    if (named && role) {
+      for (const auto& [field, kind] : {std::pair{"entity", p.entity}, std::pair{"target", p.target}})
+        if (!knownKind(kind)) c_.error(node[field], what + ": '" + kind + "' is no kind of the library's entities");
+      if (p.key != roleKey(motionClass(p.entity, p.action, p.target), p.step))
+        c_.error(node["key"], "primitive key '" + p.key + "' does not match its kinds, action and step");
+    } else if (named) {
+      if (!knownEntity(p.entity)) c_.error(node["entity"], what + ": unknown entity '" + p.entity + "'");
+      if (!knownEntity(p.target)) c_.error(node["target"], what + ": unknown target '" + p.target + "'");
+      if (p.key != joinKey(p.entity, p.action, p.target))
+        c_.error(node["key"], "primitive key '" + p.key + "' does not match its entity, action and target");
     }
-  // In file order: a hand-edited file's keys may come in any order.
-  std::vector<Diagnostic> all = c.errors();
-  std::stable_sort(all.begin(), all.end(), [](const Diagnostic& a, const Diagnostic& b) {
-    return std::tie(a.line, a.column) < std::tie(b.line, b.column);
-  });
-  if (!all.empty()) throw Error(all);
-  lib.indexRoles();
-  lib.cacheGrid();
-  return lib;
+    if (named && lib_.primitives_.count(p.key)) c_.error(node["key"], what + " appears twice");
+    return named;
+  }
+
+  void readPrimitive(const YAML::Node& node) {
+    if (!c_.expectMap(node, "a primitive")) return;
+    c_.onlyKeys(node, {"key", "entity", "action", "target", "step", "segments", "skipped_segments", "x", "y"},
+                "a primitive");
+    Primitive p;
+    const bool named = readKey(node, p);
+    const std::string what = "primitive " + p.key;
+    const bool counted = integer(c_, node, "segments", what + ": ", 1, kMaxPrimitiveSegments, p.segments);
+    const bool skipped_ok =
+        integer(c_, node, "skipped_segments", what + ": ", 0, kMaxPrimitiveSegments, p.skipped_segments);
+    const YAML::Node x = c_.required(node, "x", what + ": "), y = c_.required(node, "y", what + ": ");
+    if (!have_points_ || !counted) return;  // a GP's size is unknown
+    // Rebuilding GPs costs cubic time: only while the file is sound so far, and only for
+    // as many numbers as the text can hold (YAML aliases are not part of the format).
+    means_read_ += 2 * static_cast<size_t>(lib_.options_.points);
+    if (2 * means_read_ > text_.size() && !aliased_) {
+      c_.error(node, what + ": more numbers than the file has characters (YAML aliases are not accepted here)");
+      aliased_ = true;
+    }
+    const bool condition = named && skipped_ok && !aliased_ && c_.errors().empty();
+    const int points = lib_.options_.points;
+    const bool fitted = YamlChecker::allOf({x && readGp(c_, x, points, p.segments, what + ", x", condition, p.x),
+                                            y && readGp(c_, y, points, p.segments, what + ", y", condition, p.y)});
+    if (fitted) lib_.primitives_.emplace(p.key, std::move(p));
+  }
+
+  const std::string& text_;
+  YamlChecker c_;
+  YAML::Node root_;
+  std::string format_;
+  PrimitiveLibrary lib_;
+  bool have_points_ = false;
+  size_t means_read_ = 0;
+  bool aliased_ = false;
+};
+
+PrimitiveLibrary PrimitiveLibrary::parse(const std::string& text, const std::string& path) {
+  return LibraryReader(text, path).read();
 }
 
 }  // namespace ddace::gp

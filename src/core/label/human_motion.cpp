@@ -1,5 +1,8 @@
 #include "ddace/label/human_motion.h"
 
+#include "ddace/common/error.h"
+#include "ddace/tasks/generators.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -355,6 +358,44 @@ std::vector<DemonstrationStyle> demonstrationStyles() {
   }
   styles.push_back({"all", "all of the above at once", all});
   return styles;
+}
+
+DemonstrationStyle demonstrationStyle(const std::string& name) {
+  for (const auto& s : demonstrationStyles())
+    if (s.name == name) return s;
+  throw Error("no demonstration style '" + name +
+              "' (calm, pause, onset, speed, contact, occupied, bump, camera, all)");
+}
+
+uint64_t styleSeed(uint64_t seed, const std::string& name) {
+  const auto all = demonstrationStyles();
+  for (size_t k = 0; k < all.size(); ++k)
+    if (all[k].name == name) return seed + 17 * k;
+  return seed;
+}
+
+task::TaskDir occupiedGoalFamily(int demos, uint64_t seed) {
+  tasks::GeneratorOptions o;
+  o.family = "fetch";
+  o.demos = demos;
+  o.seed = seed;
+  task::TaskDir dir = tasks::generate(o);
+  const int g1 = dir.spec.entityIndex("G1");
+  for (auto& d : dir.demos) {
+    std::vector<tasks::PlannedStep> steps;
+    for (const auto& step : d.steps) {
+      tasks::PlannedStep planned;
+      for (const auto& t : step.tokens) planned.push_back({t, {}, 0});
+      steps.push_back(planned);
+    }
+    // The last step, [O:move:F], goes to G1 instead.
+    for (auto& t : steps.back()) t.token.target = g1;
+    const std::string source = d.source;
+    d = tasks::simulateSteps(dir.spec, d.positions.front(), steps);
+    d.source = source;
+  }
+  dir.spec.name = kOccupiedGoalFamily;
+  return dir;
 }
 
 double LabelScore::accuracy() const {

@@ -130,6 +130,8 @@ SequenceModel SequenceModel::boundTo(const task::TaskSpec& other) const {
       rows.push_back(from.order.canonical_of[static_cast<size_t>(source[static_cast<size_t>(impl->order.task_of[k])])]);
     after[m]->identity->weight.copy_(before[m]->identity->weight.index_select(0, torch::tensor(rows, torch::kLong)));
   }
+  // Built modules are in training mode: a bound model's decisions would run with dropout.
+  for (SceneNetwork m : after) m->eval();
   return SequenceModel(impl);
 }
 

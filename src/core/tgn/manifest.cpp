@@ -7,6 +7,7 @@
 #include <limits>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <sstream>
 
@@ -136,31 +137,11 @@ void writeFile(const std::string& path, const std::string& text) {
   writeTextFile(path, text);
 }
 
-std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
-                         const std::map<std::string, FileDigest>& files) {
-  const auto name = [&](int i) { return spec.entities.at(static_cast<size_t>(i)).name; };
-  const TrainOptions& o = info.options;
-  YAML::Emitter y;
-  y.SetDoublePrecision(17);
-  y << YAML::BeginMap;
-  y << YAML::Key << "format" << YAML::Value << kModelFormat;
-  y << YAML::Key << "variant" << YAML::Value << toString(info.variant);
-  y << YAML::Key << "seed" << YAML::Value << o.seed;
-  y << YAML::Key << "task" << YAML::Value << kTask;
-  y << YAML::Key << "files" << YAML::Value << YAML::BeginMap;
-  for (const auto& [name, d] : files) {
-    y << YAML::Key << name << YAML::Value << YAML::Flow << YAML::BeginMap;
-    y << YAML::Key << "bytes" << YAML::Value << d.bytes;
-    y << YAML::Key << "sha256" << YAML::Value << d.sha256;
-    y << YAML::EndMap;
-  }
-  y << YAML::EndMap;
-  y << YAML::Key << "task_fingerprint" << YAML::Value;
-  task::emitFingerprint(y, info.fingerprint);
-  y << YAML::Key << "epochs" << YAML::Value << info.history.size();
-  y << YAML::Key << "stop_reason" << YAML::Value << info.stop_reason;
-  y << YAML::Key << "entities" << YAML::Value << YAML::Flow << spec.entityNames();
-  y << YAML::Key << "vocabulary" << YAML::Value << YAML::Flow << info.vocabulary;
+namespace {
+
+using EntityName = std::function<std::string(int)>;
+
+void emitHyperParameters(YAML::Emitter& y, const TrainOptions& o) {
   y << YAML::Key << "hyper_parameters" << YAML::Value << YAML::BeginMap;
   y << YAML::Key << "max_epochs" << YAML::Value << o.max_epochs;
   y << YAML::Key << "heads" << YAML::Value << o.heads;
@@ -184,6 +165,9 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   y << YAML::Key << "keep_support" << YAML::Value << o.refinement.keep_support;
   y << YAML::Key << "drop_support" << YAML::Value << o.refinement.drop_support;
   y << YAML::EndMap;
+}
+
+void emitNormalisation(YAML::Emitter& y, const ModelInfo& info) {
   y << YAML::Key << "normalisation" << YAML::Value << YAML::BeginMap;
   y << YAML::Key << "mean_m" << YAML::Value << YAML::Flow << std::vector<double>{info.mean[0], info.mean[1]};
   y << YAML::Key << "std_m" << YAML::Value << YAML::Flow << std::vector<double>{info.std[0], info.std[1]};
@@ -191,7 +175,9 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
     << std::vector<double>{info.delta_std[0], info.delta_std[1]};
   y << YAML::Key << "frame_dt_s" << YAML::Value << info.frame_dt_s;
   y << YAML::EndMap;
-  const graph::RefinedGraph& g = info.refined;
+}
+
+void emitRefinement(YAML::Emitter& y, const graph::RefinedGraph& g, const EntityName& name) {
   y << YAML::Key << "refinement" << YAML::Value << YAML::BeginMap;
   y << YAML::Key << "demonstrations" << YAML::Value << g.demonstrations;
   y << YAML::Key << "clusters" << YAML::Value << g.clusters;
@@ -214,7 +200,9 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
   }
   y << YAML::EndSeq;
   y << YAML::EndMap;
-  const TrainingPlan& plan = info.plan;
+}
+
+void emitPlan(YAML::Emitter& y, const TrainingPlan& plan, const EntityName& name) {
   y << YAML::Key << "plan" << YAML::Value << YAML::BeginMap;
   y << YAML::Key << "fixed_order" << YAML::Value << plan.fixed_order;
   y << YAML::Key << "slips" << YAML::Value << plan.slips;
@@ -241,6 +229,39 @@ std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
     y << YAML::Flow << std::vector<std::string>{name(e.source), name(e.target)};
   y << YAML::EndSeq;
   y << YAML::EndMap;
+}
+
+}  // namespace
+
+std::string manifestText(const ModelInfo& info, const task::TaskSpec& spec,
+                         const std::map<std::string, FileDigest>& files) {
+  const EntityName name = [&](int i) { return spec.entities.at(static_cast<size_t>(i)).name; };
+  const TrainOptions& o = info.options;
+  YAML::Emitter y;
+  y.SetDoublePrecision(17);
+  y << YAML::BeginMap;
+  y << YAML::Key << "format" << YAML::Value << kModelFormat;
+  y << YAML::Key << "variant" << YAML::Value << toString(info.variant);
+  y << YAML::Key << "seed" << YAML::Value << o.seed;
+  y << YAML::Key << "task" << YAML::Value << kTask;
+  y << YAML::Key << "files" << YAML::Value << YAML::BeginMap;
+  for (const auto& [name, d] : files) {
+    y << YAML::Key << name << YAML::Value << YAML::Flow << YAML::BeginMap;
+    y << YAML::Key << "bytes" << YAML::Value << d.bytes;
+    y << YAML::Key << "sha256" << YAML::Value << d.sha256;
+    y << YAML::EndMap;
+  }
+  y << YAML::EndMap;
+  y << YAML::Key << "task_fingerprint" << YAML::Value;
+  task::emitFingerprint(y, info.fingerprint);
+  y << YAML::Key << "epochs" << YAML::Value << info.history.size();
+  y << YAML::Key << "stop_reason" << YAML::Value << info.stop_reason;
+  y << YAML::Key << "entities" << YAML::Value << YAML::Flow << spec.entityNames();
+  y << YAML::Key << "vocabulary" << YAML::Value << YAML::Flow << info.vocabulary;
+  emitHyperParameters(y, info.options);
+  emitNormalisation(y, info);
+  emitRefinement(y, info.refined, name);
+  emitPlan(y, info.plan, name);
   y << YAML::Key << "dependencies" << YAML::Value;
   graph::emitDependencies(y, info.dependencies);
   y << YAML::Key << "transfer" << YAML::Value << transferOf(info, spec).text();
@@ -443,6 +464,148 @@ Error yamlError(const std::string& path, const YAML::Exception& e) {
       Diagnostic{path, e.mark.is_null() ? 0 : e.mark.line + 1, e.mark.is_null() ? 0 : e.mark.column + 1, e.msg});
 }
 
+/// The vocabulary, in the action head's class order.
+void parseVocabulary(Reader& r, const YAML::Node& root, ModelInfo& info) {
+  info.vocabulary = r.texts(root, "vocabulary");
+  {
+    // The vocabulary's order is the action head's class order: it must be the training
+    // directory's, whose sorted set the fingerprint records.
+    std::vector<std::string> sorted = info.vocabulary;
+    std::sort(sorted.begin(), sorted.end());
+    if (info.vocabulary.empty() || sorted != info.fingerprint.vocabulary ||
+        std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
+      r.fail(root["vocabulary"], "vocabulary does not match task_fingerprint.vocabulary");
+  }
+}
+
+/// hyper_parameters: what the user asked (TrainOptions), validated as training validates it.
+void parseHyperParameters(Reader& r, const YAML::Node& root, TrainOptions& o) {
+  const YAML::Node hp = r.need(root, "hyper_parameters");
+  o.max_epochs = r.integer(hp, "max_epochs");
+  o.heads = r.integer(hp, "heads");
+  o.head_channels = r.integer(hp, "head_channels");
+  o.gat_layers = r.integer(hp, "gat_layers");
+  o.gru_layers = r.integer(hp, "gru_layers");
+  o.gru_hidden = r.integer(hp, "gru_hidden");
+  o.identity_embedding = r.boolean(hp, "identity_embedding");
+  o.identity_dim = r.integer(hp, "identity_dim");
+  o.head_hidden = r.integer(hp, "head_hidden");
+  for (const YAML::Node& w : r.sequence(hp, "without")) {
+    try {
+      o.without.insert(ruleFromString(r.textAt(w, "an item of 'without'")));
+    } catch (const Error& e) {
+      r.fail(w, std::string("without: ") + e.what());
+    }
+  }
+  o.weight_decay = r.number(hp, "weight_decay");
+  o.dropout = r.number(hp, "dropout");
+  o.learning_rate = r.number(hp, "learning_rate");
+  o.batch_demos = r.integer(hp, "batch_demos");
+  o.plateau_patience = r.integer(hp, "plateau_patience");
+  o.plateau_delta = r.number(hp, "plateau_delta");
+  o.threads = r.integer(hp, "threads");
+  o.refinement.keep_support = r.number(hp, "keep_support");
+  o.refinement.drop_support = r.number(hp, "drop_support");
+  o.refinement.seed = o.seed;
+  try {
+    o.validate();
+  } catch (const Error& e) {
+    r.fail(hp, e.what());
+  }
+}
+
+void parseNormalisation(Reader& r, const YAML::Node& root, ModelInfo& info) {
+  const YAML::Node norm = r.need(root, "normalisation");
+  const auto pair = [&](const char* key, double* out, bool positive) {
+    const auto v = r.numbers(norm, key);
+    if (v.size() != 2 || (positive && (v[0] <= 0 || v[1] <= 0)))
+      r.fail(norm[key], std::string(key) + " must be two finite numbers" + (positive ? " > 0" : ""));
+    out[0] = v[0];
+    out[1] = v[1];
+  };
+  pair("mean_m", info.mean, false);
+  pair("std_m", info.std, true);
+  pair("delta_std_m", info.delta_std, true);
+  info.frame_dt_s = r.number(norm, "frame_dt_s");
+  if (!(info.frame_dt_s > 0 && info.frame_dt_s <= 10))
+    r.fail(norm["frame_dt_s"], "frame_dt_s must be in (0, 10] seconds");
+}
+
+/// The refinement: clusters, eigenvalues and every edge's statistics and decision.
+graph::RefinedGraph parseRefinement(Reader& r, const YAML::Node& root, const task::TaskSpec& spec) {
+  const YAML::Node ref = r.need(root, "refinement");
+  graph::RefinedGraph g;
+  g.nodes = static_cast<int>(spec.entities.size());
+  g.demonstrations = static_cast<int>(
+      r.integerAt(r.need(ref, "demonstrations"), "refinement: demonstrations", 1, task::kMaxFingerprintCount));
+  g.clusters =
+      static_cast<int>(r.integerAt(r.need(ref, "clusters"), "refinement: clusters (at most the entities)", 1, g.nodes));
+  g.cluster.assign(static_cast<size_t>(g.nodes), 0);
+  const YAML::Node cof = r.need(ref, "cluster_of");
+  if (!cof.IsMap()) r.fail(cof, "'cluster_of' must map entity names to cluster indices");
+  for (auto it = cof.begin(); it != cof.end(); ++it)
+    g.cluster[static_cast<size_t>(r.entity(it->first, spec))] =
+        static_cast<int>(r.integerAt(it->second, "a cluster index (below clusters)", 0, g.clusters - 1));
+  const auto eig = r.numbers(ref, "eigenvalues");
+  if (eig.size() > static_cast<size_t>(g.nodes)) r.fail(ref["eigenvalues"], "more eigenvalues than entities");
+  g.eigenvalues = Eigen::Map<const Eigen::VectorXd>(eig.data(), static_cast<Eigen::Index>(eig.size()));
+  for (const YAML::Node& e : r.sequence(ref, "edges")) {
+    graph::EdgeStats s;
+    s.edge = {r.entity(r.need(e, "source"), spec), r.entity(r.need(e, "target"), spec)};
+    s.frequency = static_cast<int>(
+        r.integerAt(r.need(e, "frequency"), "an edge's frequency", 0, std::numeric_limits<int>::max()));
+    s.demos = static_cast<int>(
+        r.integerAt(r.need(e, "demos"), "an edge's demos (at most demonstrations)", 0, g.demonstrations));
+    s.support = r.numberIn(r.need(e, "support"), "an edge's support", 0, 1);
+    s.decision = r.decision(r.need(e, "decision"));
+    g.edges.push_back(s);
+    if (graph::isKept(s.decision)) g.kept.push_back(s.edge);
+  }
+  return g;
+}
+
+/// The training plan, checked for consistency with the options (plan_check.cpp).
+TrainingPlan parsePlan(Reader& r, const YAML::Node& root, const task::TaskSpec& spec, const ModelInfo& info) {
+  const YAML::Node pn = r.need(root, "plan");
+  TrainingPlan plan;
+  const int n = static_cast<int>(spec.entities.size());
+  plan.fixed_order = r.boolean(pn, "fixed_order");
+  plan.slips = static_cast<int>(
+      r.integerAt(r.need(pn, "slips"), "plan: slips (at most the demonstrations)", 0, info.refined.demonstrations));
+  plan.relative_features = r.boolean(pn, "relative_features");
+  plan.identity_embedding = r.boolean(pn, "identity_embedding");
+  plan.names_or_scene = r.boolean(pn, "names_or_scene");
+  for (const YAML::Node& group : r.sequence(pn, "name_groups")) {
+    if (!group.IsSequence() || group.size() < 2 || group.size() > spec.entities.size())
+      r.fail(group, "a name group is a list of two or more entity names");
+    std::vector<int> members;
+    for (const YAML::Node& e : group) members.push_back(r.entity(e, spec));
+    plan.name_groups.push_back(members);
+  }
+  plan.token_by_token = r.boolean(pn, "token_by_token");
+  plan.parked_out_of_ranks = r.boolean(pn, "parked_out_of_ranks");
+  plan.ensemble = static_cast<int>(
+      r.integerAt(r.need(pn, "ensemble"), "plan: ensemble (networks, at most " + std::to_string(kMaxEnsemble) + ")", 1,
+                  kMaxEnsemble));
+  {
+    const YAML::Node rules = r.need(pn, "step_rules");
+    plan.step_rules.exclusive_targets = r.boolean(rules, "exclusive_targets");
+    plan.step_rules.step_size =
+        static_cast<int>(r.integerAt(r.need(rules, "step_size"), "step_rules: step_size (at most the entities)", 0, n));
+    plan.step_rules.load_actions = r.texts(rules, "load_actions");
+    for (const std::string& a : plan.step_rules.load_actions)
+      if (std::find(info.vocabulary.begin(), info.vocabulary.end(), a) == info.vocabulary.end())
+        r.fail(rules, "step_rules: load_actions names '" + a + "', not an action of the vocabulary");
+  }
+  for (const YAML::Node& e : r.sequence(pn, "attention_edges")) {
+    if (!e.IsSequence() || e.size() != 2) r.fail(e, "an attention edge is [SOURCE, TARGET]");
+    plan.attention_edges.push_back({r.entity(e[0], spec), r.entity(e[1], spec)});
+  }
+  if (const std::string why = plan.inconsistency(info.options); !why.empty())
+    r.fail(pn, "plan: " + why + " (no training makes this plan; retrain)");
+  return plan;
+}
+
 }  // namespace
 
 std::map<std::string, FileDigest> manifestFiles(const std::string& text, const std::string& path) {
@@ -475,131 +638,11 @@ ModelInfo parseManifest(const std::string& text, const std::string& path, const 
 
     if (r.texts(root, "entities") != spec.entityNames())
       r.fail(root["entities"], "entities do not match the model's task.yaml");
-    info.vocabulary = r.texts(root, "vocabulary");
-    {
-      // The vocabulary's order is the action head's class order: it must be the training
-      // directory's, whose sorted set the fingerprint records.
-      std::vector<std::string> sorted = info.vocabulary;
-      std::sort(sorted.begin(), sorted.end());
-      if (info.vocabulary.empty() || sorted != info.fingerprint.vocabulary ||
-          std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
-        r.fail(root["vocabulary"], "vocabulary does not match task_fingerprint.vocabulary");
-    }
-
-    const YAML::Node hp = r.need(root, "hyper_parameters");
-    TrainOptions& o = info.options;
-    o.max_epochs = r.integer(hp, "max_epochs");
-    o.heads = r.integer(hp, "heads");
-    o.head_channels = r.integer(hp, "head_channels");
-    o.gat_layers = r.integer(hp, "gat_layers");
-    o.gru_layers = r.integer(hp, "gru_layers");
-    o.gru_hidden = r.integer(hp, "gru_hidden");
-    o.identity_embedding = r.boolean(hp, "identity_embedding");
-    o.identity_dim = r.integer(hp, "identity_dim");
-    o.head_hidden = r.integer(hp, "head_hidden");
-    for (const YAML::Node& w : r.sequence(hp, "without")) {
-      try {
-        o.without.insert(ruleFromString(r.textAt(w, "an item of 'without'")));
-      } catch (const Error& e) {
-        r.fail(w, std::string("without: ") + e.what());
-      }
-    }
-    o.weight_decay = r.number(hp, "weight_decay");
-    o.dropout = r.number(hp, "dropout");
-    o.learning_rate = r.number(hp, "learning_rate");
-    o.batch_demos = r.integer(hp, "batch_demos");
-    o.plateau_patience = r.integer(hp, "plateau_patience");
-    o.plateau_delta = r.number(hp, "plateau_delta");
-    o.threads = r.integer(hp, "threads");
-    o.refinement.keep_support = r.number(hp, "keep_support");
-    o.refinement.drop_support = r.number(hp, "drop_support");
-    o.refinement.seed = o.seed;
-    try {
-      o.validate();
-    } catch (const Error& e) {
-      r.fail(hp, e.what());
-    }
-
-    const YAML::Node norm = r.need(root, "normalisation");
-    const auto pair = [&](const char* key, double* out, bool positive) {
-      const auto v = r.numbers(norm, key);
-      if (v.size() != 2 || (positive && (v[0] <= 0 || v[1] <= 0)))
-        r.fail(norm[key], std::string(key) + " must be two finite numbers" + (positive ? " > 0" : ""));
-      out[0] = v[0];
-      out[1] = v[1];
-    };
-    pair("mean_m", info.mean, false);
-    pair("std_m", info.std, true);
-    pair("delta_std_m", info.delta_std, true);
-    info.frame_dt_s = r.number(norm, "frame_dt_s");
-    if (!(info.frame_dt_s > 0 && info.frame_dt_s <= 10))
-      r.fail(norm["frame_dt_s"], "frame_dt_s must be in (0, 10] seconds");
-
-    const YAML::Node ref = r.need(root, "refinement");
-    graph::RefinedGraph& g = info.refined;
-    g.nodes = static_cast<int>(spec.entities.size());
-    g.demonstrations = static_cast<int>(
-        r.integerAt(r.need(ref, "demonstrations"), "refinement: demonstrations", 1, task::kMaxFingerprintCount));
-    g.clusters = static_cast<int>(
-        r.integerAt(r.need(ref, "clusters"), "refinement: clusters (at most the entities)", 1, g.nodes));
-    g.cluster.assign(static_cast<size_t>(g.nodes), 0);
-    const YAML::Node cof = r.need(ref, "cluster_of");
-    if (!cof.IsMap()) r.fail(cof, "'cluster_of' must map entity names to cluster indices");
-    for (auto it = cof.begin(); it != cof.end(); ++it)
-      g.cluster[static_cast<size_t>(r.entity(it->first, spec))] =
-          static_cast<int>(r.integerAt(it->second, "a cluster index (below clusters)", 0, g.clusters - 1));
-    const auto eig = r.numbers(ref, "eigenvalues");
-    if (eig.size() > static_cast<size_t>(g.nodes)) r.fail(ref["eigenvalues"], "more eigenvalues than entities");
-    g.eigenvalues = Eigen::Map<const Eigen::VectorXd>(eig.data(), static_cast<Eigen::Index>(eig.size()));
-    for (const YAML::Node& e : r.sequence(ref, "edges")) {
-      graph::EdgeStats s;
-      s.edge = {r.entity(r.need(e, "source"), spec), r.entity(r.need(e, "target"), spec)};
-      s.frequency = static_cast<int>(
-          r.integerAt(r.need(e, "frequency"), "an edge's frequency", 0, std::numeric_limits<int>::max()));
-      s.demos = static_cast<int>(
-          r.integerAt(r.need(e, "demos"), "an edge's demos (at most demonstrations)", 0, g.demonstrations));
-      s.support = r.numberIn(r.need(e, "support"), "an edge's support", 0, 1);
-      s.decision = r.decision(r.need(e, "decision"));
-      g.edges.push_back(s);
-      if (graph::isKept(s.decision)) g.kept.push_back(s.edge);
-    }
-    const YAML::Node pn = r.need(root, "plan");
-    TrainingPlan& plan = info.plan;
-    const int n = static_cast<int>(spec.entities.size());
-    plan.fixed_order = r.boolean(pn, "fixed_order");
-    plan.slips = static_cast<int>(
-        r.integerAt(r.need(pn, "slips"), "plan: slips (at most the demonstrations)", 0, g.demonstrations));
-    plan.relative_features = r.boolean(pn, "relative_features");
-    plan.identity_embedding = r.boolean(pn, "identity_embedding");
-    plan.names_or_scene = r.boolean(pn, "names_or_scene");
-    for (const YAML::Node& group : r.sequence(pn, "name_groups")) {
-      if (!group.IsSequence() || group.size() < 2 || group.size() > spec.entities.size())
-        r.fail(group, "a name group is a list of two or more entity names");
-      std::vector<int> members;
-      for (const YAML::Node& e : group) members.push_back(r.entity(e, spec));
-      plan.name_groups.push_back(members);
-    }
-    plan.token_by_token = r.boolean(pn, "token_by_token");
-    plan.parked_out_of_ranks = r.boolean(pn, "parked_out_of_ranks");
-    plan.ensemble = static_cast<int>(
-        r.integerAt(r.need(pn, "ensemble"), "plan: ensemble (networks, at most " + std::to_string(kMaxEnsemble) + ")",
-                    1, kMaxEnsemble));
-    {
-      const YAML::Node rules = r.need(pn, "step_rules");
-      plan.step_rules.exclusive_targets = r.boolean(rules, "exclusive_targets");
-      plan.step_rules.step_size = static_cast<int>(
-          r.integerAt(r.need(rules, "step_size"), "step_rules: step_size (at most the entities)", 0, n));
-      plan.step_rules.load_actions = r.texts(rules, "load_actions");
-      for (const std::string& a : plan.step_rules.load_actions)
-        if (std::find(info.vocabulary.begin(), info.vocabulary.end(), a) == info.vocabulary.end())
-          r.fail(rules, "step_rules: load_actions names '" + a + "', not an action of the vocabulary");
-    }
-    for (const YAML::Node& e : r.sequence(pn, "attention_edges")) {
-      if (!e.IsSequence() || e.size() != 2) r.fail(e, "an attention edge is [SOURCE, TARGET]");
-      plan.attention_edges.push_back({r.entity(e[0], spec), r.entity(e[1], spec)});
-    }
-    if (const std::string why = plan.inconsistency(info.options); !why.empty())
-      r.fail(pn, "plan: " + why + " (no training makes this plan; retrain)");
+    parseVocabulary(r, root, info);
+    parseHyperParameters(r, root, info.options);
+    parseNormalisation(r, root, info);
+    info.refined = parseRefinement(r, root, spec);
+    info.plan = parsePlan(r, root, spec, info);
     // A model trained before dependencies were learned runs step by step (learned false).
     if (const YAML::Node deps = root["dependencies"]) info.dependencies = graph::parseDependencies(deps, path, spec);
     // What the model can transfer follows from the variant and the plan; the manifest says

@@ -218,39 +218,45 @@ void SequenceModel::Impl::features(const std::vector<Eigen::Vector2d>& pos, cons
   }
 }
 
-void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, size_t count, float* out,
-                                   const std::vector<bool>* competing) const {
-  const int n = cfg.nodes;
-  if (count == 0) throw Error("relative features: no snapshot");
-  const std::vector<Eigen::Vector2d>& pos = history[count - 1];
-  const std::vector<Eigen::Vector2d>* previous = count > 1 ? &history[count - 2] : nullptr;
-  if (!info.plan.relative_features) {  // "Fixed order": the configuration reaches no decision
-    std::fill(out, out + static_cast<size_t>(n) * n * kRelativeFeatures, 0.f);
-    return;
-  }
-  const double scale = info.std[0];  // isotropic for the scene variant
-  std::vector<double> d(static_cast<size_t>(n * n));
-  // Entities at one place (task::togetherDistance, the end-point rule): a motion ends at
-  // contact with its target or on it, a closed-loop one within the arrival radius of that
-  // (the coordinator's DONE). Nearer than that they count as together (distance 0, tied
-  // ranks), as in the demonstrations: otherwise a few millimetres of stopping error reorder
-  // the nearness ranks of a cluster and change the decision.
-  std::vector<double> together(static_cast<size_t>(n * n));
+namespace {
+
+/// The pairwise view of one snapshot the relational basis reads (canonical order).
+struct PairView {
+  int n = 0;
+  std::vector<double> together;  ///< [N * N] task::togetherDistance of each pair
+  /// The position each entity is seen at from elsewhere: the mean of the entities at one
+  /// place with it (itself when alone).
+  std::vector<Eigen::Vector2d> seen;
+  std::vector<double> d;  ///< [N * N] distance between the seen positions / scale; 0 at one place
+
+  double at(int i, int j) const { return together[static_cast<size_t>(i * n + j)]; }
+  double dist(int i, int j) const { return d[static_cast<size_t>(i * n + j)]; }
+};
+
+/// Entities at one place (task::togetherDistance, the end-point rule): a motion ends at
+/// contact with its target or on it, a closed-loop one within the arrival radius of that
+/// (the coordinator's DONE). Nearer than that they count as together (distance 0, tied
+/// ranks), as in the demonstrations: otherwise a few millimetres of stopping error reorder
+/// the nearness ranks of a cluster and change the decision. And they are seen from
+/// elsewhere as one place, their mean: a carrier and its load (or a robot and the goal it
+/// stands on) then have the same nearest of every kind, as they have one part in the rule
+/// ("the teammate nearest to it"), instead of two views a contact apart (a carrier stops
+/// behind its load) that disagree where two teammates are nearly as near.
+PairView pairView(const task::TaskSpec& spec, const EntityOrder& order, const std::vector<Eigen::Vector2d>& pos,
+                  double scale) {
+  PairView v;
+  const int n = static_cast<int>(pos.size());
+  v.n = n;
+  v.together.resize(static_cast<size_t>(n * n));
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j)
-      together[static_cast<size_t>(i * n + j)] = task::togetherDistance(spec, order.task_of[i], order.task_of[j]);
-  const auto at = [&](int i, int j) { return together[static_cast<size_t>(i * n + j)]; };
-  // Entities at one place are seen from elsewhere as one place, their mean: a carrier and
-  // its load (or a robot and the goal it stands on) then have the same nearest of every
-  // kind, as they have one part in the rule ("the teammate nearest to it"), instead of two
-  // views a contact apart (a carrier stops behind its load) that disagree where two
-  // teammates are nearly as near.
+      v.together[static_cast<size_t>(i * n + j)] = task::togetherDistance(spec, order.task_of[i], order.task_of[j]);
   // place_of[i]: the lowest index of the entities at one place with i (transitively).
   std::vector<int> place_of(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) place_of[static_cast<size_t>(i)] = i;
   for (int i = 0; i < n; ++i)
     for (int j = i + 1; j < n; ++j)
-      if ((pos[j] - pos[i]).norm() <= at(i, j)) {
+      if ((pos[j] - pos[i]).norm() <= v.at(i, j)) {
         const int a = place_of[static_cast<size_t>(i)], b = place_of[static_cast<size_t>(j)];
         if (a != b)
           for (int& p : place_of) p = p == std::max(a, b) ? std::min(a, b) : p;
@@ -261,17 +267,86 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
     sum[static_cast<size_t>(place_of[static_cast<size_t>(i)])] += pos[static_cast<size_t>(i)];
     members[static_cast<size_t>(place_of[static_cast<size_t>(i)])] += 1;
   }
-  std::vector<Eigen::Vector2d> seen(static_cast<size_t>(n));
+  v.seen.resize(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) {
     const auto p = static_cast<size_t>(place_of[static_cast<size_t>(i)]);
-    seen[static_cast<size_t>(i)] = sum[p] / members[p];
+    v.seen[static_cast<size_t>(i)] = sum[p] / members[p];
   }
+  v.d.resize(static_cast<size_t>(n * n));
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j)
-      d[static_cast<size_t>(i * n + j)] =
+      v.d[static_cast<size_t>(i * n + j)] =
           place_of[static_cast<size_t>(i)] == place_of[static_cast<size_t>(j)]
               ? 0.0
-              : (seen[static_cast<size_t>(j)] - seen[static_cast<size_t>(i)]).norm() / scale;
+              : (v.seen[static_cast<size_t>(j)] - v.seen[static_cast<size_t>(i)]).norm() / scale;
+  return v;
+}
+
+/// Order along the table's axes: 1 / (1 + the number of e's rivals before e), from the
+/// left (x), the right, the front (y) and the back; two at one place are tied, any others
+/// ordered however near their coordinates (side by side, 5 cm apart in x, one is still the
+/// leftmost). `rivals(k, e)`: k counts in e's order.
+template <class Rivals>
+std::vector<std::array<float, 4>> axisOrders(const PairView& v, const Rivals& rivals) {
+  const int n = v.n;
+  std::vector<std::array<float, 4>> axis(static_cast<size_t>(n));
+  for (int e = 0; e < n; ++e) {
+    int before[4] = {0, 0, 0, 0};
+    for (int k = 0; k < n; ++k) {
+      if (k == e || !rivals(k, e)) continue;
+      if (v.dist(k, e) == 0.0) continue;  // at one place: neither is before the other
+      const Eigen::Vector2d delta = v.seen[static_cast<size_t>(k)] - v.seen[static_cast<size_t>(e)];
+      before[0] += delta.x() < 0;
+      before[1] += delta.x() > 0;
+      before[2] += delta.y() < 0;
+      before[3] += delta.y() > 0;
+    }
+    for (int a = 0; a < 4; ++a) axis[static_cast<size_t>(e)][a] = 1.f / static_cast<float>(1 + before[a]);
+  }
+  return axis;
+}
+
+/// Each entity's last move (the latest step in which it moved more than the arrival
+/// radius): the entity it went to, or -1 (never moved). The target is where the motion
+/// headed, not where it stopped: a motion ends at contact with an obstacle target (a
+/// carrier further back, behind its load), so "within a distance" would depend on bodies.
+/// It is the entity whose place as the step began lies ahead (beyond the motion's
+/// midpoint, along it) and nearest to where the mover stopped; what it carried started
+/// beside it, behind. Chains over steps: "the giver follows the receiver" two steps after
+/// the handover.
+std::vector<int> lastMoves(const std::vector<Eigen::Vector2d>* history, size_t count, int n, double arrival_radius) {
+  std::vector<int> last_went(static_cast<size_t>(n), -1);
+  for (int e = 0; e < n; ++e)
+    for (size_t k = count - 1; k >= 1; --k) {
+      const auto& now = history[k];
+      const auto& was = history[k - 1];
+      const Eigen::Vector2d step = now[static_cast<size_t>(e)] - was[static_cast<size_t>(e)];
+      if (step.norm() <= arrival_radius) continue;
+      double best = std::numeric_limits<double>::infinity();
+      for (int f = 0; f < n; ++f) {
+        if (f == e || (was[static_cast<size_t>(f)] - was[static_cast<size_t>(e)]).dot(step) < 0.5 * step.squaredNorm())
+          continue;
+        const double m = (now[static_cast<size_t>(e)] - was[static_cast<size_t>(f)]).norm();
+        if (m < best) best = m, last_went[static_cast<size_t>(e)] = f;
+      }
+      break;
+    }
+  return last_went;
+}
+
+}  // namespace
+
+void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, size_t count, float* out,
+                                   const std::vector<bool>* competing) const {
+  const int n = cfg.nodes;
+  if (count == 0) throw Error("relative features: no snapshot");
+  const std::vector<Eigen::Vector2d>& pos = history[count - 1];
+  const std::vector<Eigen::Vector2d>* previous = count > 1 ? &history[count - 2] : nullptr;
+  if (!info.plan.relative_features) {  // "Fixed order": the configuration reaches no decision
+    std::fill(out, out + static_cast<size_t>(n) * n * kRelativeFeatures, 0.f);
+    return;
+  }
+  const PairView v = pairView(spec, order, pos, info.std[0]);  // isotropic for the scene variant
   const auto kind = [&](int i) { return spec.entities[static_cast<size_t>(order.task_of[i])].kind; };
   std::vector<bool> rival(static_cast<size_t>(n), true);
   if (competing) rival = *competing;
@@ -283,94 +358,55 @@ void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, 
   if (info.plan.parked_out_of_ranks)
     for (int k = 0; k < n; ++k)
       for (int m = 0; m < n; ++m)
-        if (m != k && d[static_cast<size_t>(k * n + m)] == 0.0) parked[static_cast<size_t>(k)] = true;
+        if (m != k && v.dist(k, m) == 0.0) parked[static_cast<size_t>(k)] = true;
   // k is a rival of e: of its kind, not given its part yet, and free unless e is parked.
   const auto rivals = [&](int k, int e) {
     return rival[static_cast<size_t>(k)] && kind(k) == kind(e) &&
            (parked[static_cast<size_t>(e)] || !parked[static_cast<size_t>(k)]);
   };
-  // Order along the table's axes: 1 / (1 + the number of rivals of e's kind before e), from
-  // the left (x), the right, the front (y) and the back; two at one place are tied, any
-  // others ordered however near their coordinates (side by side, 5 cm apart in x, one is
-  // still the leftmost).
-  std::vector<std::array<float, 4>> axis(static_cast<size_t>(n));
-  for (int e = 0; e < n; ++e) {
-    int before[4] = {0, 0, 0, 0};
-    for (int k = 0; k < n; ++k) {
-      if (k == e || !rivals(k, e)) continue;
-      if (d[static_cast<size_t>(k * n + e)] == 0.0) continue;  // at one place: neither is before the other
-      const Eigen::Vector2d delta = seen[static_cast<size_t>(k)] - seen[static_cast<size_t>(e)];
-      before[0] += delta.x() < 0;
-      before[1] += delta.x() > 0;
-      before[2] += delta.y() < 0;
-      before[3] += delta.y() > 0;
-    }
-    for (int a = 0; a < 4; ++a) axis[static_cast<size_t>(e)][a] = 1.f / static_cast<float>(1 + before[a]);
-  }
+  const std::vector<std::array<float, 4>> axis = axisOrders(v, rivals);
   // The last step (from the previous snapshot): e went to f when e moved and now stands
   // where f stood (a motion ends on its target as the step began).
   const auto wentTo = [&](int e, int f) {
     if (!previous) return false;
     const auto& was = *previous;
-    return (pos[e] - was[e]).norm() > at(e, f) && (pos[e] - was[f]).norm() <= at(e, f);
+    return (pos[e] - was[e]).norm() > v.at(e, f) && (pos[e] - was[f]).norm() <= v.at(e, f);
   };
-  // Each entity's last move (the latest step in which it moved more than the arrival
-  // radius): the entity it went to, or -1 (never moved). The target is where the motion
-  // headed, not where it stopped: a motion ends at contact with an obstacle target (a
-  // carrier further back, behind its load), so "within a distance" would depend on bodies.
-  // It is the entity whose place as the step began lies ahead (beyond the motion's
-  // midpoint, along it) and nearest to where the mover stopped; what it carried started
-  // beside it, behind. Chains over steps: "the giver follows the receiver" two steps after
-  // the handover.
-  std::vector<int> last_went(static_cast<size_t>(n), -1);
-  for (int e = 0; e < n; ++e)
-    for (size_t k = count - 1; k >= 1; --k) {
-      const auto& now = history[k];
-      const auto& was = history[k - 1];
-      const Eigen::Vector2d step = now[static_cast<size_t>(e)] - was[static_cast<size_t>(e)];
-      if (step.norm() <= spec.arrival_radius) continue;
-      double best = std::numeric_limits<double>::infinity();
-      for (int f = 0; f < n; ++f) {
-        if (f == e || (was[static_cast<size_t>(f)] - was[static_cast<size_t>(e)]).dot(step) < 0.5 * step.squaredNorm())
-          continue;
-        const double m = (now[static_cast<size_t>(e)] - was[static_cast<size_t>(f)]).norm();
-        if (m < best) best = m, last_went[static_cast<size_t>(e)] = f;
-      }
-      break;
-    }
+  const std::vector<int> last_went = lastMoves(history, count, n, spec.arrival_radius);
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j) {
       float* r = out + (static_cast<size_t>(i) * n + j) * kRelativeFeatures;
       std::fill(r, r + kRelativeFeatures, 0.f);
       if (i == j) continue;
-      const double dij = d[static_cast<size_t>(i * n + j)];
+      const double dij = v.dist(i, j);
       // How many entities of j's kind are nearer to i than j (and farther); of i's kind
       // nearer to j than i (and farther).
       int near_j = 0, near_i = 0, far_j = 0, far_i = 0;
       for (int k = 0; k < n; ++k) {
         if (k == i || k == j) continue;
         if (rivals(k, j)) {
-          near_j += d[static_cast<size_t>(i * n + k)] < dij;
-          far_j += d[static_cast<size_t>(i * n + k)] > dij;
+          near_j += v.dist(i, k) < dij;
+          far_j += v.dist(i, k) > dij;
         }
         if (rivals(k, i)) {
-          near_i += d[static_cast<size_t>(j * n + k)] < dij;
-          far_i += d[static_cast<size_t>(j * n + k)] > dij;
+          near_i += v.dist(j, k) < dij;
+          far_i += v.dist(j, k) > dij;
         }
       }
-      r[2] = static_cast<float>(dij);
-      r[3] = 1.f / static_cast<float>(1 + near_j);
-      r[4] = 1.f / static_cast<float>(1 + near_i);
-      r[5] = 1.f / static_cast<float>(1 + far_j);
-      r[6] = 1.f / static_cast<float>(1 + far_i);
+      r[basis::kDistance] = static_cast<float>(dij);
+      r[basis::kNearJ] = 1.f / static_cast<float>(1 + near_j);
+      r[basis::kNearI] = 1.f / static_cast<float>(1 + near_i);
+      r[basis::kFarJ] = 1.f / static_cast<float>(1 + far_j);
+      r[basis::kFarI] = 1.f / static_cast<float>(1 + far_i);
       for (int a = 0; a < 4; ++a) {
-        r[7 + a] = axis[static_cast<size_t>(j)][a];
-        r[11 + a] = axis[static_cast<size_t>(i)][a];
+        const float oj = axis[static_cast<size_t>(j)][a], oi = axis[static_cast<size_t>(i)][a];
+        r[basis::kAxisJ + a] = oj;
+        r[basis::kAxisI + a] = oi;
       }
-      r[15] = wentTo(i, j) ? 1.f : 0.f;
-      r[16] = wentTo(j, i) ? 1.f : 0.f;
-      r[17] = last_went[static_cast<size_t>(i)] == j ? 1.f : 0.f;
-      r[18] = last_went[static_cast<size_t>(j)] == i ? 1.f : 0.f;
+      r[basis::kWentTo] = wentTo(i, j) ? 1.f : 0.f;
+      r[basis::kCameFrom] = wentTo(j, i) ? 1.f : 0.f;
+      r[basis::kLastMoveTo] = last_went[static_cast<size_t>(i)] == j ? 1.f : 0.f;
+      r[basis::kLastMoveFrom] = last_went[static_cast<size_t>(j)] == i ? 1.f : 0.f;
     }
 }
 

@@ -49,10 +49,25 @@
 
 namespace ddace::tgn {
 
-/// Relative features per pair (see above): two zeros, distance, near ranks (2),
-/// far ranks (2), axis orders of j (4) and of i (4), the last step's relation (2), the
-/// relation of i's and of j's last move (2).
-inline constexpr int kRelativeFeatures = 19;
+/// The relational basis of a pair i <- j (see above), slot by slot (the first two are 0);
+/// each axis group is from the left, the right, the front and the back.
+namespace basis {
+enum Slot : int {
+  kDistance = 2,
+  kNearJ,         ///< j's nearness rank among its kind, seen from i
+  kNearI,         ///< i's among its kind, seen from j
+  kFarJ,          ///< j's farness rank
+  kFarI,          ///< i's farness rank
+  kAxisJ,         ///< j's order along the axes (4)
+  kAxisI = 11,    ///< i's order along the axes (4)
+  kWentTo = 15,   ///< i went to j in the last step
+  kCameFrom,      ///< j went to i in the last step
+  kLastMoveTo,    ///< i's last move went to j
+  kLastMoveFrom,  ///< j's last move went to i
+  kCount,
+};
+}  // namespace basis
+inline constexpr int kRelativeFeatures = basis::kCount;
 
 /// taken [..., N] (1 = a target no entity may point at) -> [..., 1, 1 + N], added to the
 /// pointer's logits [..., N, 1 + N]: -1e9 on the taken targets' columns ("none" stays).

@@ -31,172 +31,214 @@ class ThreadCount {
   int saved_;
 };
 
-/// Trains the network `prepared` describes (options and plan; prepare()) on `train`.
+/// One network's training (trainNetwork): its sequences, collated once for the eval pass,
+/// and the generators of the batch order, the shuffled names and the given tokens, each
+/// its own so that a rule off leaves the others' draws as they were.
+class NetworkTrainer {
+ public:
+  NetworkTrainer(const task::TaskDir& train, SequenceModel::Impl& impl)
+      : impl_(impl),
+        options_(impl.info.options),
+        plan_(impl.info.plan),
+        n_(impl.cfg.nodes),
+        gnn_(impl.cfg.gnn),
+        seqs_(impl.sequences(train.demos)),
+        everything_(collateAll(seqs_, gnn_)),
+        parameters_(impl.module().parameters()),
+        rng_(options_.seed ^ 0xD1B54A32D192ED03ULL),
+        name_rng_(options_.seed ^ 0x94D049BB133111EBULL),
+        given_rng_(options_.seed ^ 0xBF58476D1CE4E5B9ULL),
+        loads_carried_(!plan_.step_rules.load_actions.empty()) {
+    order_.resize(seqs_.size());
+    for (size_t i = 0; i < order_.size(); ++i) order_[i] = i;
+    nameGroups();
+    if (plan_.token_by_token) tokenByToken();
+  }
+
+  /// One epoch over shuffled mini-batches (at least 4 optimiser steps when there are few
+  /// demonstrations): the mean loss.
+  double epoch() {
+    const size_t bs = std::min(static_cast<size_t>(options_.batch_demos), std::max<size_t>(1, (seqs_.size() + 3) / 4));
+    for (size_t i = order_.size(); i > 1; --i) std::swap(order_[i - 1], order_[rng_.next() % i]);
+    impl_.module().train();
+    double total = 0;
+    int batches = 0;
+    for (size_t from = 0; from < order_.size(); from += bs) {
+      const std::vector<size_t> which(order_.begin() + static_cast<long>(from),
+                                      order_.begin() + static_cast<long>(std::min(order_.size(), from + bs)));
+      Batch batch = collate(seqs_, which, gnn_);
+      if (!name_groups_.empty()) batch.names = shuffledNames(which);
+      if (plan_.token_by_token) giveTokens(batch, which);
+      parameters_.zeroGrad();
+      const Tensor loss = lossOf(impl_.run(batch), batch, gnn_, impl_.isScene());
+      loss.backward();
+      // GRUs on few sequences occasionally take a huge step; clipping keeps training monotone.
+      parameters_.clipGradNorm(kClipNorm);
+      parameters_.adamStep(options_.learning_rate, options_.weight_decay);
+      total += loss.item<double>();
+      ++batches;
+    }
+    return total / batches;
+  }
+
+  /// The step accuracy on every training sequence (predictNext's decoder).
+  double accuracy() { return impl_.accuracy(everything_); }
+
+ private:
+  /// Shuffled names (docs/tgn.md): the plan's groups in canonical indices, groups sorted
+  /// too: the draws must not depend on task.yaml's order.
+  void nameGroups() {
+    for (const auto& g : plan_.name_groups) {
+      std::vector<int64_t> canonical;
+      for (int e : g) canonical.push_back(impl_.order.canonical_of[static_cast<size_t>(e)]);
+      std::sort(canonical.begin(), canonical.end());
+      name_groups_.push_back(canonical);
+    }
+    std::sort(name_groups_.begin(), name_groups_.end());
+  }
+
+  /// The identity-embedding row each entity of each slot of `which` reads: its group's
+  /// names permuted, one permutation per demonstration.
+  Tensor shuffledNames(const std::vector<size_t>& which) {
+    std::vector<int64_t> rows;
+    for (size_t i : which) {
+      std::vector<int64_t> row(static_cast<size_t>(n_));
+      for (int64_t k = 0; k < n_; ++k) row[static_cast<size_t>(k)] = k;
+      for (const auto& g : name_groups_) {
+        std::vector<int64_t> perm = g;
+        for (size_t k = perm.size(); k > 1; --k) std::swap(perm[k - 1], perm[name_rng_.next() % k]);
+        for (size_t k = 0; k < g.size(); ++k) row[static_cast<size_t>(g[k])] = perm[k];
+      }
+      for (int64_t t = 0; t < seqs_[i].x.size(0); ++t) rows.insert(rows.end(), row.begin(), row.end());
+    }
+    return torch::tensor(rows, torch::kLong);
+  }
+
+  /// Token by token: what does not change from epoch to epoch, the pairs an entity may be
+  /// chosen for and which load stands at which entity's place in every snapshot.
+  void tokenByToken() {
+    is_object_.resize(static_cast<size_t>(n_));
+    for (size_t c = 0; c < is_object_.size(); ++c)
+      is_object_[c] = impl_.spec.entities[static_cast<size_t>(impl_.order.task_of[c])].kind == task::EntityKind::Object;
+    const std::vector<bool> pairs = impl_.demonstratedTokens().may_point;
+    std::vector<float> m(pairs.begin(), pairs.end());
+    may_point_ = torch::from_blob(m.data(), {n_, impl_.cfg.targets}, torch::kFloat).clone();
+    if (!loads_carried_) return;
+    for (const Sequence& s : seqs_) {
+      std::vector<Tensor> snapshots;
+      for (const auto& pos : s.positions) snapshots.push_back(impl_.carriedBy(impl_.loadsAt(pos)));
+      carried_of_.push_back(torch::stack(snapshots));
+    }
+  }
+
+  /// Token by token (docs/tgn.md): each step of a batch gets a random part of its tokens
+  /// given (fewer than all; none as often as any other count), as predictNext will have
+  /// chosen them before deciding the rest.
+  void giveTokens(Batch& batch, const std::vector<size_t>& which) {
+    batch.may_point = may_point_;
+    if (!carried_of_.empty()) {
+      batch.carried = torch::zeros({batch.b, batch.t, n_, n_});
+      for (size_t b = 0; b < which.size(); ++b) {
+        const Tensor& c = carried_of_[which[b]];
+        batch.carried[static_cast<int64_t>(b)].narrow(0, 0, c.size(0)).copy_(c);
+      }
+    }
+    batch.given = torch::zeros({batch.b, batch.t, n_});
+    batch.taken = torch::zeros({batch.b, batch.t, n_});  // rel_slots is this batch's own copy (collate)
+    for (size_t b = 0; b < which.size(); ++b)
+      for (int64_t t = 0; t < seqs_[which[b]].x.size(0); ++t)
+        giveStep(batch, static_cast<int64_t>(b), seqs_[which[b]], t);
+  }
+
+  /// Step t of sequence s, slot b of the batch: a random part of its decisions given (a
+  /// carried load with its carrier: the same token; targets are exclusive, so no other
+  /// carrier has it), their targets taken, and the relative features with them out of the
+  /// ranks.
+  void giveStep(Batch& batch, int64_t b, const Sequence& s, int64_t t) {
+    auto act = s.action.accessor<int64_t, 2>();
+    auto tgt = s.target.accessor<int64_t, 2>();
+    std::vector<int64_t> acting;
+    for (int64_t i = 0; i < n_; ++i)
+      if (act[t][i] > 0 && !(loads_carried_ && is_object_[static_cast<size_t>(i)])) acting.push_back(i);
+    if (acting.size() < 2) return;
+    const size_t count = given_rng_.next() % acting.size();
+    if (count == 0) return;
+    for (size_t k = acting.size(); k > 1; --k) std::swap(acting[k - 1], acting[given_rng_.next() % k]);
+    auto given = batch.given.accessor<float, 3>();
+    auto taken = batch.taken.accessor<float, 3>();
+    std::vector<bool> competing(static_cast<size_t>(n_), true);
+    for (size_t k = 0; k < count; ++k) {
+      const int64_t i = acting[k];
+      given[b][t][i] = 1;
+      competing[static_cast<size_t>(i)] = false;
+      for (int64_t o = 0; loads_carried_ && o < n_; ++o)
+        if (is_object_[static_cast<size_t>(o)] && act[t][o] == act[t][i] && tgt[t][o] == tgt[t][i]) {
+          given[b][t][o] = 1;
+          competing[static_cast<size_t>(o)] = false;
+        }
+      if (tgt[t][i] > 0) {
+        taken[b][t][tgt[t][i] - 1] = 1;
+        competing[static_cast<size_t>(tgt[t][i] - 1)] = false;
+      }
+    }
+    impl_.relative(s.positions.data(), static_cast<size_t>(t) + 1, batch.rel_slots[b][t].data_ptr<float>(), &competing);
+  }
+
+  SequenceModel::Impl& impl_;
+  const TrainOptions& options_;
+  const TrainingPlan& plan_;
+  const int64_t n_;
+  const bool gnn_;
+  const std::vector<Sequence> seqs_;
+  const Batch everything_;
+  fused::FlatParameters parameters_;  // Adam as torch::optim::Adam, in a few ops
+  SplitMix64 rng_, name_rng_, given_rng_;
+  const bool loads_carried_;
+  std::vector<size_t> order_;
+  std::vector<std::vector<int64_t>> name_groups_;
+  std::vector<bool> is_object_;
+  Tensor may_point_;
+  std::vector<Tensor> carried_of_;
+};
+
+/// The epoch's line of `ddace train`'s progress.
+void printEpoch(std::ostream& out, const EpochRecord& rec, int max_epochs, bool gnn) {
+  const std::ios::fmtflags flags = out.flags();
+  const std::streamsize precision = out.precision();
+  out << "epoch " << rec.epoch << "/" << max_epochs << "  loss " << std::fixed << std::setprecision(4) << rec.loss
+      << "  " << (gnn ? "frame label accuracy " : "step accuracy ") << std::setprecision(3) << rec.step_accuracy << "  "
+      << std::setprecision(1) << rec.seconds << " s" << std::endl;
+  out.flags(flags);
+  out.precision(precision);
+}
+
+/// Trains the network `prepared` describes (options and plan; prepare()) on `train`, to
+/// the plateau or max_epochs.
 std::shared_ptr<SequenceModel::Impl> trainNetwork(const task::TaskDir& train,
                                                   const std::shared_ptr<const SequenceModel::Impl>& prepared,
                                                   std::ostream* progress) {
   auto impl = std::make_shared<SequenceModel::Impl>(*prepared);
   const TrainOptions& options = impl->info.options;
-  const TrainingPlan& plan = impl->info.plan;
   const auto started = std::chrono::steady_clock::now();
   const ThreadCount threads(options.threads);
   impl->build();
-  torch::nn::Module& net = impl->module();
-  const bool gnn = impl->cfg.gnn, acting_targets = impl->isScene();
-  const std::vector<Sequence> seqs = impl->sequences(train.demos);
-  // The eval pass after every epoch reads every sequence, collated once: the data do not
-  // change and the pass only reads the batch (the same losses and weights to the bit).
-  const Batch everything = collateAll(seqs, gnn);
-  fused::FlatParameters parameters(net.parameters());  // Adam as torch::optim::Adam, in a few ops
-  SplitMix64 rng(options.seed ^ 0xD1B54A32D192ED03ULL);
-  std::vector<size_t> order(seqs.size());
-  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  NetworkTrainer trainer(train, *impl);
   ModelInfo& info = impl->info;
   info.stop_reason = "max_epochs";
-  // Shuffled names (docs/tgn.md): the plan's groups in canonical indices, whose identity
-  // embeddings each demonstration of a batch permutes; its own generator, so that without
-  // groups training is the same to the bit.
-  std::vector<std::vector<int64_t>> name_groups;
-  for (const auto& g : plan.name_groups) {
-    std::vector<int64_t> canonical;
-    for (int e : g) canonical.push_back(impl->order.canonical_of[static_cast<size_t>(e)]);
-    std::sort(canonical.begin(), canonical.end());
-    name_groups.push_back(canonical);
-  }
-  // In canonical order, groups too: the draws must not depend on task.yaml's order.
-  std::sort(name_groups.begin(), name_groups.end());
-  SplitMix64 name_rng(options.seed ^ 0x94D049BB133111EBULL);
-  const auto shuffledNames = [&](const std::vector<size_t>& which) {
-    const int64_t n = impl->cfg.nodes;
-    std::vector<int64_t> rows;
-    for (size_t i : which) {
-      std::vector<int64_t> row(static_cast<size_t>(n));
-      for (int64_t k = 0; k < n; ++k) row[static_cast<size_t>(k)] = k;
-      for (const auto& g : name_groups) {
-        std::vector<int64_t> perm = g;
-        for (size_t k = perm.size(); k > 1; --k) std::swap(perm[k - 1], perm[name_rng.next() % k]);
-        for (size_t k = 0; k < g.size(); ++k) row[static_cast<size_t>(g[k])] = perm[k];
-      }
-      for (int64_t t = 0; t < seqs[i].x.size(0); ++t) rows.insert(rows.end(), row.begin(), row.end());
-    }
-    return torch::tensor(rows, torch::kLong);
-  };
-  // Token by token (docs/tgn.md): each step of a batch gets a random part of its tokens
-  // given (fewer than all; none as often as any other count), as predictNext will have
-  // chosen them before deciding the rest. Its own generator: elsewhere training is the same
-  // to the bit.
-  const bool token_by_token = plan.token_by_token;
-  SplitMix64 given_rng(options.seed ^ 0xBF58476D1CE4E5B9ULL);
-  const bool loads_carried = !plan.step_rules.load_actions.empty();
-  std::vector<bool> is_object(static_cast<size_t>(impl->cfg.nodes));
-  for (size_t c = 0; c < is_object.size(); ++c)
-    is_object[c] = impl->spec.entities[static_cast<size_t>(impl->order.task_of[c])].kind == task::EntityKind::Object;
-  Tensor may_point;
-  if (token_by_token) {
-    const std::vector<bool> pairs = impl->demonstratedTokens().may_point;
-    std::vector<float> m(pairs.begin(), pairs.end());
-    may_point = torch::from_blob(m.data(), {impl->cfg.nodes, impl->cfg.targets}, torch::kFloat).clone();
-  }
-  // Carried loads: which load stands at which entity's place, in every snapshot (they do
-  // not change from epoch to epoch).
-  std::vector<Tensor> carried_of;
-  if (token_by_token && loads_carried)
-    for (const Sequence& s : seqs) {
-      std::vector<Tensor> snapshots;
-      for (const auto& pos : s.positions) snapshots.push_back(impl->carriedBy(impl->loadsAt(pos)));
-      carried_of.push_back(torch::stack(snapshots));
-    }
-  const auto giveTokens = [&](Batch& batch, const std::vector<size_t>& which) {
-    const int64_t n = impl->cfg.nodes;
-    batch.may_point = may_point;
-    if (!carried_of.empty()) {
-      batch.carried = torch::zeros({batch.b, batch.t, n, n});
-      for (size_t b = 0; b < which.size(); ++b) {
-        const Tensor& c = carried_of[which[b]];
-        batch.carried[static_cast<int64_t>(b)].narrow(0, 0, c.size(0)).copy_(c);
-      }
-    }
-    batch.given = torch::zeros({batch.b, batch.t, n});
-    batch.taken = torch::zeros({batch.b, batch.t, n});  // rel_slots is this batch's own copy (collate)
-    auto given = batch.given.accessor<float, 3>();
-    auto taken = batch.taken.accessor<float, 3>();
-    for (size_t b = 0; b < which.size(); ++b) {
-      const Sequence& s = seqs[which[b]];
-      auto act = s.action.accessor<int64_t, 2>();
-      auto tgt = s.target.accessor<int64_t, 2>();
-      for (int64_t t = 0; t < s.x.size(0); ++t) {
-        // The decisions: a carried load is given with its carrier (the same token; targets
-        // are exclusive, so no other carrier has it), never on its own.
-        std::vector<int64_t> acting;
-        for (int64_t i = 0; i < n; ++i)
-          if (act[t][i] > 0 && !(loads_carried && is_object[static_cast<size_t>(i)])) acting.push_back(i);
-        if (acting.size() < 2) continue;
-        const size_t count = given_rng.next() % acting.size();
-        if (count == 0) continue;
-        for (size_t k = acting.size(); k > 1; --k) std::swap(acting[k - 1], acting[given_rng.next() % k]);
-        std::vector<bool> competing(static_cast<size_t>(n), true);
-        for (size_t k = 0; k < count; ++k) {
-          const int64_t i = acting[k];
-          given[static_cast<int64_t>(b)][t][i] = 1;
-          competing[static_cast<size_t>(i)] = false;
-          for (int64_t o = 0; loads_carried && o < n; ++o)
-            if (is_object[static_cast<size_t>(o)] && act[t][o] == act[t][i] && tgt[t][o] == tgt[t][i]) {
-              given[static_cast<int64_t>(b)][t][o] = 1;
-              competing[static_cast<size_t>(o)] = false;
-            }
-          if (tgt[t][i] > 0) {
-            taken[static_cast<int64_t>(b)][t][tgt[t][i] - 1] = 1;
-            competing[static_cast<size_t>(tgt[t][i] - 1)] = false;
-          }
-        }
-        impl->relative(s.positions.data(), static_cast<size_t>(t) + 1,
-                       batch.rel_slots[static_cast<int64_t>(b)][t].data_ptr<float>(), &competing);
-      }
-    }
-  };
-  // At least 4 optimiser steps per epoch when there are few demonstrations (few-shot).
-  const size_t bs = std::min(static_cast<size_t>(options.batch_demos), std::max<size_t>(1, (seqs.size() + 3) / 4));
   for (int epoch = 1; epoch <= options.max_epochs; ++epoch) {
-    for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[rng.next() % i]);
-    net.train();
-    double total = 0;
-    int batches = 0;
-    for (size_t from = 0; from < order.size(); from += bs) {
-      const std::vector<size_t> which(order.begin() + static_cast<long>(from),
-                                      order.begin() + static_cast<long>(std::min(order.size(), from + bs)));
-      Batch batch = collate(seqs, which, gnn);
-      if (!name_groups.empty()) batch.names = shuffledNames(which);
-      if (token_by_token) giveTokens(batch, which);
-      parameters.zeroGrad();
-      const Tensor loss = lossOf(impl->run(batch), batch, gnn, acting_targets);
-      loss.backward();
-      // GRUs on few sequences occasionally take a huge step; clipping keeps training monotone.
-      parameters.clipGradNorm(kClipNorm);
-      parameters.adamStep(options.learning_rate, options.weight_decay);
-      total += loss.item<double>();
-      ++batches;
-    }
     EpochRecord rec;
     rec.epoch = epoch;
-    rec.loss = total / batches;
-    rec.step_accuracy = impl->accuracy(everything);
+    rec.loss = trainer.epoch();
+    rec.step_accuracy = trainer.accuracy();
     rec.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     info.history.push_back(rec);
-    if (progress) {
-      const std::ios::fmtflags flags = progress->flags();
-      const std::streamsize precision = progress->precision();
-      *progress << "epoch " << epoch << "/" << options.max_epochs << "  loss " << std::fixed << std::setprecision(4)
-                << rec.loss << "  " << (gnn ? "frame label accuracy " : "step accuracy ") << std::setprecision(3)
-                << rec.step_accuracy << "  " << std::setprecision(1) << rec.seconds << " s" << std::endl;
-      progress->flags(flags);
-      progress->precision(precision);
-    }
+    if (progress) printEpoch(*progress, rec, options.max_epochs, impl->cfg.gnn);
     if (detail::atPlateau(info.history, options.plateau_patience, options.plateau_delta)) {
       info.stop_reason = "plateau";
       break;
     }
   }
-  net.eval();
+  impl->module().eval();
   return impl;
 }
 

@@ -345,26 +345,10 @@ TEST(Label, APushThatBeginsAsTheApproachEndsIsTheCarriers) {
   // demonstrated in every style at once: a push that begins on the rows at rest the
   // approach ended on (a short stop at the box) keeps its pusher; the box never moves
   // without a robot.
-  tasks::GeneratorOptions o;
-  o.family = "fetch";
-  o.demos = 10;
-  o.seed = 1;
-  task::TaskDir dir = tasks::generate(o);
-  const int g1 = dir.spec.entityIndex("G1"), b1 = dir.spec.entityIndex("B1");
-  for (auto& d : dir.demos) {
-    std::vector<tasks::PlannedStep> steps;
-    for (const auto& step : d.steps) {
-      tasks::PlannedStep planned;
-      for (const auto& t : step.tokens) planned.push_back({t, {}, 0});
-      steps.push_back(planned);
-    }
-    for (auto& t : steps.back()) t.token.target = g1;
-    d = tasks::simulateSteps(dir.spec, d.positions.front(), steps);
-  }
-  const auto styles = label::demonstrationStyles();
-  const auto all = std::find_if(styles.begin(), styles.end(), [](const auto& st) { return st.name == "all"; });
-  ASSERT_NE(all, styles.end());
-  const label::InferredDataset data = label::inferredDataset(dir, all->options, 1 + 17 * 8);
+  const task::TaskDir dir = label::occupiedGoalFamily(10, 1);
+  const int b1 = dir.spec.entityIndex("B1");
+  const label::InferredDataset data =
+      label::inferredDataset(dir, label::demonstrationStyle("all").options, label::styleSeed(1, "all"));
   for (size_t k = 1; k < data.inferred.demos.size(); ++k)
     for (const auto& step : data.inferred.demos[k].steps) {
       const bool box =
@@ -569,16 +553,14 @@ TEST(Label, StepsWithOtherMoversThanTheExamplesAreListedFromThere) {
 // Demonstrations made in the benchmark's styles (label_styles) that the labeller reads
 // wrong: every wrong token is listed, and no wrong demonstration goes without a note.
 TEST(Label, WrongTokensInOtherStylesAreListed) {
-  const auto styles = label::demonstrationStyles();
-  const auto all = std::find_if(styles.begin(), styles.end(), [](const auto& st) { return st.name == "all"; });
-  ASSERT_NE(all, styles.end());
+  const label::HumanMotionOptions all = label::demonstrationStyle("all").options;
   label::LabelScore total;
   for (const std::string family : {"task4", "fetch", "nearest_goal"}) {
     tasks::GeneratorOptions o;
     o.family = family;
     o.demos = 10;
     o.seed = 3;
-    total.add(label::inferredDataset(tasks::generate(o), all->options, 3 + 17 * 8).score);
+    total.add(label::inferredDataset(tasks::generate(o), all, label::styleSeed(3, "all")).score);
   }
   EXPECT_GT(total.wrong + total.demos_wrong, 0);  // the styles make it err here
   EXPECT_EQ(total.wrong_listed, total.wrong);

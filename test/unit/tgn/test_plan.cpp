@@ -166,7 +166,7 @@ TEST(ParkedEntities, AParkedRobotIsNoRivalOfTheFreeOnes) {
     std::vector<float> rel(static_cast<size_t>(n * n * tgn::kRelativeFeatures));
     const std::vector<std::vector<Eigen::Vector2d>> history = {d.snapshots[0].positions, pos};
     impl->relative(history.data(), history.size(), rel.data());
-    return rel[static_cast<size_t>((q1 * n + free) * tgn::kRelativeFeatures + 3)];  // j's nearness rank seen from i
+    return rel[static_cast<size_t>((q1 * n + free) * tgn::kRelativeFeatures + tgn::basis::kNearJ)];
   };
   EXPECT_FLOAT_EQ(rank(true), 1.f);
   EXPECT_FLOAT_EQ(rank(false), 0.5f);
@@ -177,8 +177,8 @@ TEST(ParkedEntities, AParkedRobotIsNoRivalOfTheFreeOnes) {
 // carrying step begins every box is parked with its carrier; ranked among the free boxes
 // only (none), each was the backmost, and the network could not tell which box goes to
 // which goal (OSR 0.47 / 0.53 at 20 demonstrations, data seeds 1-2; 0.97 / 1.00 now).
-// The k-th box from the back (i's order from the back: feature 14) goes to the k-th goal
-// from the back (j's: 10).
+// The k-th box from the back (i's order from the back) goes to the k-th goal from the back
+// (j's).
 TEST(ParkedEntities, AParkedOneIsRankedAmongEveryOneOfItsKind) {
   const task::TaskDir boxes = generate("zoo:50", 10);
   auto impl = tgn::prepare(boxes, tgn::TrainOptions{});
@@ -201,7 +201,8 @@ TEST(ParkedEntities, AParkedOneIsRankedAmongEveryOneOfItsKind) {
       for (int j = 0; j < n; ++j)
         if (kind(j) == task::EntityKind::Goal) {
           const float* r = &rel[static_cast<size_t>((t.entity * n + j) * tgn::kRelativeFeatures)];
-          EXPECT_EQ(r[14] == r[10], j == t.target) << "box " << t.entity << ", goal " << j;
+          EXPECT_EQ(r[tgn::basis::kAxisI + 3] == r[tgn::basis::kAxisJ + 3], j == t.target)
+              << "box " << t.entity << ", goal " << j;
         }
     }
   }
@@ -234,12 +235,12 @@ TEST(RelationalBasis, RemembersEachOnesLastMove) {
   const auto feature = [&](int i, int j, int f) {
     return rel[static_cast<size_t>((i * n + j) * tgn::kRelativeFeatures + f)];
   };
-  EXPECT_FLOAT_EQ(feature(giver, receiver, 15), 0.f) << "the giver did not move in the last step";
-  EXPECT_FLOAT_EQ(feature(giver, receiver, 17), 1.f) << "its last move went to the receiver";
-  EXPECT_FLOAT_EQ(feature(receiver, giver, 18), 1.f) << "seen from the receiver";
+  EXPECT_FLOAT_EQ(feature(giver, receiver, tgn::basis::kWentTo), 0.f) << "the giver did not move in the last step";
+  EXPECT_FLOAT_EQ(feature(giver, receiver, tgn::basis::kLastMoveTo), 1.f) << "its last move went to the receiver";
+  EXPECT_FLOAT_EQ(feature(receiver, giver, tgn::basis::kLastMoveFrom), 1.f) << "seen from the receiver";
   for (int j = 0; j < n; ++j)
     if (j != receiver) {
-      EXPECT_FLOAT_EQ(feature(giver, j, 17), 0.f) << "one entity per last move";
+      EXPECT_FLOAT_EQ(feature(giver, j, tgn::basis::kLastMoveTo), 0.f) << "one entity per last move";
     }
 }
 
@@ -248,7 +249,7 @@ TEST(RelationalBasis, RemembersEachOnesLastMove) {
 // contact (4.2 cm) behind the box; in this scene (a fresh one the relay failed on) R3 is the
 // giver's nearest teammate by 6.7 cm, but from the box's own place R1 is 4 mm nearer. Seen
 // from their one place, R3 is the nearest robot to both, and every distance is the same
-// (features 2: distance, 3: j's nearness rank among its kind seen from i).
+// (the distance, and j's nearness rank among its kind seen from i).
 TEST(RelationalBasis, SeesEntitiesAtOnePlaceFromOnePlace) {
   const task::TaskDir relay = generate("zoo:87", 10);
   auto impl = tgn::prepare(relay, tgn::TrainOptions{});
@@ -284,17 +285,18 @@ TEST(RelationalBasis, SeesEntitiesAtOnePlaceFromOnePlace) {
   const auto feature = [&](int i, int j, int f) {
     return rel[static_cast<size_t>((i * n + j) * tgn::kRelativeFeatures + f)];
   };
-  EXPECT_FLOAT_EQ(feature(giver, receiver, 3), 1.f) << "the receiver, seen from the giver";
-  EXPECT_FLOAT_EQ(feature(box, receiver, 3), 1.f) << "the receiver, seen from the box";
+  EXPECT_FLOAT_EQ(feature(giver, receiver, tgn::basis::kNearJ), 1.f) << "the receiver, seen from the giver";
+  EXPECT_FLOAT_EQ(feature(box, receiver, tgn::basis::kNearJ), 1.f) << "the receiver, seen from the box";
   for (int j = 0; j < n; ++j)
     if (j != giver && j != box) {
-      EXPECT_FLOAT_EQ(feature(giver, j, 2), feature(box, j, 2)) << "distance to " << j;
+      EXPECT_FLOAT_EQ(feature(giver, j, tgn::basis::kDistance), feature(box, j, tgn::basis::kDistance))
+          << "distance to " << j;
     }
 }
 
 // Orders along the table's axes are strict but for entities at one place: "robots take
 // goals in left-to-right order" pairs the k-th robot from the left (i's order from the
-// left: feature 11) with the k-th goal from the left (j's: 7), also where two robots or two
+// left) with the k-th goal from the left (j's), also where two robots or two
 // goals are nearer in x than contact plus the arrival radius (the end-point rule's distance
 // of "at one place"), which the basis once counted as tied.
 TEST(RelationalBasis, OrdersAlongTheAxesTellApartEntitiesSideBySide) {
@@ -322,7 +324,8 @@ TEST(RelationalBasis, OrdersAlongTheAxesTellApartEntitiesSideBySide) {
       for (int j = 0; j < n; ++j)
         if (kind(j) == task::EntityKind::Goal) {
           const float* r = &rel[static_cast<size_t>((t.entity * n + j) * tgn::kRelativeFeatures)];
-          EXPECT_EQ(r[11] == r[7], j == t.target) << "robot " << t.entity << ", goal " << j;
+          EXPECT_EQ(r[tgn::basis::kAxisI] == r[tgn::basis::kAxisJ], j == t.target)
+              << "robot " << t.entity << ", goal " << j;
         }
   }
   EXPECT_GT(side_by_side, 0) << "no scene puts two of a kind side by side: the test would not tell";
@@ -707,4 +710,46 @@ TEST(PlanCheck, NamesEachPlanNoTrainingMakes) {
               p.name_groups = {{1, 1}};
             }),
             "a name group not in ascending order of distinct entities");
+}
+
+// Every refusal of transferOf (plan_check.cpp), and what a model that transfers says, each
+// from the model info of a scene model that transfers changed in one place.
+TEST(PlanCheck, TransferNamesWhyAModelRunsOnlyOnItsOwnEntities) {
+  task::TaskSpec spec;
+  spec.entities = {{"R1", task::EntityKind::Robot, "hamster"},
+                   {"R2", task::EntityKind::Robot, "hamster"},
+                   {"G1", task::EntityKind::Goal, ""},
+                   {"G2", task::EntityKind::Goal, ""}};
+  tgn::ModelInfo valid;
+  valid.variant = tgn::Variant::Scene;
+  valid.plan.relative_features = true;
+  valid.plan.identity_embedding = true;
+  valid.plan.name_groups = {{0, 1}};
+  const tgn::Transfer t = tgn::transferOf(valid, spec);
+  EXPECT_EQ(t.refusal, "");
+  EXPECT_EQ(t.any_number, (std::vector<std::string>{"robot:hamster"}));
+  EXPECT_EQ(t.named, (std::vector<std::string>{"G1", "G2"}));
+  EXPECT_EQ(t.text(), "any number of robot:hamster; by name: G1, G2");
+  const auto why = [&](const std::function<void(tgn::ModelInfo&)>& change) {
+    tgn::ModelInfo info = valid;
+    change(info);
+    return tgn::transferOf(info, spec).text();
+  };
+  EXPECT_EQ(why([](tgn::ModelInfo& i) { i.variant = tgn::Variant::Paper; }),
+            "its own task's entities only: the paper network has one output slot per entity of its task");
+  EXPECT_EQ(why([](tgn::ModelInfo& i) { i.variant = tgn::Variant::Gnn; }),
+            "its own task's entities only: the gnn network has one output slot per entity of its task");
+  EXPECT_EQ(why([](tgn::ModelInfo& i) {
+              i.plan.relative_features = false;
+              i.plan.fixed_order = true;
+            }),
+            "its own task's entities only: every training demonstration had the same steps (a fixed order): the model "
+            "learned the order of the names, not a rule of the scene");
+  EXPECT_EQ(why([](tgn::ModelInfo& i) { i.plan.relative_features = false; }),
+            "its own task's entities only: trained without the relative features: its decisions depend on the names "
+            "alone");
+  EXPECT_EQ(why([](tgn::ModelInfo& i) { i.plan.name_groups.clear(); }),
+            "its own task's entities only: training kept every entity's name (a name alone decides a role, or "
+            "shuffling the names cost the fit)");
+  EXPECT_EQ(why([](tgn::ModelInfo& i) { i.plan.identity_embedding = false; }), "any number of goal, robot:hamster");
 }

@@ -62,6 +62,28 @@ TEST(OtherTeamSizes, AModelTrainedWithThreeRobotsDecidesForFive) {
   }
 }
 
+// A bound model decides as the model does, without dropout: the same scene twice gives the
+// same step with the same probabilities, and predictNext the step stepAccuracy counts.
+TEST(OtherTeamSizes, ABoundModelDecidesWithoutDropout) {
+  const uint64_t rule = zooId("zoo:left-to-right");
+  const tgn::SequenceModel model = trainedOn(rule, 3, 3);
+  const task::TaskDir five = tasks::generateZoo(rule, 10, 2, {}, {5, 0, 5});
+  const tgn::SequenceModel bound = model.boundTo(five.spec);
+  int right = 0;
+  for (const auto& d : five.demos) {
+    const tgn::Prediction first = bound.predictNext({d.snapshots[0]}), again = bound.predictNext({d.snapshots[0]});
+    EXPECT_EQ(first.tokens, again.tokens) << d.source;
+    EXPECT_EQ(first.token_probabilities, again.token_probabilities) << d.source;
+    std::vector<task::Token> decided = first.tokens, demonstrated = d.steps[0].tokens;
+    std::sort(decided.begin(), decided.end());
+    std::sort(demonstrated.begin(), demonstrated.end());
+    right += decided == demonstrated;
+  }
+  // One step, then END: a step accuracy of right / 10 on the first step, END on the second.
+  const double accuracy = bound.stepAccuracy(five.demos);
+  EXPECT_NEAR(accuracy * 2 * 10 - 10, right, 1e-9) << "the END steps all right, and the first as predictNext decides";
+}
+
 TEST(OtherTeamSizes, AFixedOrderModelIsRefusedNamingWhy) {
   tasks::GeneratorOptions g;
   g.family = "task2";
