@@ -16,6 +16,7 @@
 // Units: metres; table frame.
 #pragma once
 
+#include <limits>
 #include <map>
 #include <set>
 #include <string>
@@ -37,7 +38,10 @@ struct MotionContacts {
   /// mock robots, the simulator) instead of leaving it to be pushed (the real table, its
   /// simulation): no push steering (exec/push_path.h's pushWheels).
   bool load_rides = false;
-  Eigen::Vector2d load_end{0, 0};           ///< where the load ends
+  Eigen::Vector2d load_end{0, 0};  ///< where the load ends
+  /// Where the load stood when this was decided (NaN: unknown): its carrier's push was
+  /// planned for it there (exec::RobotController plans again when it lies elsewhere).
+  Eigen::Vector2d load_at{Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN())};
   std::set<std::string> ends_against;       ///< bodies its end point touches (SafetyBody::touchable)
   std::set<std::string> load_ends_against;  ///< bodies the load's end point touches (load_touchable)
 };

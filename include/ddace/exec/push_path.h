@@ -49,6 +49,11 @@ inline constexpr double kPushLead = 0.5;
 inline constexpr double kMaxPushLeadRad = M_PI / 3;
 /// A pushed load heads for its push line this far ahead of itself (metres).
 inline constexpr double kPushLookaheadM = 0.2;
+/// A carrier not pushing its load plans its push again from where things are once the load
+/// lies this far from where its path was planned for (metres): the load moved since.
+inline constexpr double kPushReplanM = kPushClearanceM / 3;
+/// A push planned again has a point every this many metres.
+inline constexpr double kPushPathSpacingM = 0.005;
 
 /// The path of a carrier at `from` that pushes a load standing at `load` (their contact
 /// distance `contact_m`) until the load is at `load_end`: round the load at contact +

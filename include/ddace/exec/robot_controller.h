@@ -101,6 +101,9 @@ class RobotController {
  private:
   ControlOutput end(ControlOutput out, MotionState state, std::string message);
   ControlOutput stale(ControlOutput out, const std::string& why, double now_s);
+  /// A carrier not behind its load: its path planned again round the load (exec::pushPath)
+  /// when its push just broke, or the load is kPushReplanM from where the path was planned for.
+  void replanPush(const Pose2D& pose, const SafetyBody& load, double radius_m);
 
   std::string name_;
   ControllerParams params_;
@@ -108,8 +111,10 @@ class RobotController {
   SafetyFilter filter_;
   std::string target_;
   MotionContacts contacts_;
-  double held_stop_radius_m_ = 0;  ///< the motion's (start())
-  double stale_since_s_ = -1;      ///< since when the motion waits on a stale pose (-1: not)
+  double held_stop_radius_m_ = 0;           ///< the motion's (start())
+  double stale_since_s_ = -1;               ///< since when the motion waits on a stale pose (-1: not)
+  Eigen::Vector2d push_planned_for_{0, 0};  ///< where the load was when the path was planned (NaN: not seen yet)
+  bool was_pushing_ = false;                ///< behind its load in the last cycle
 };
 
 }  // namespace ddace::exec

@@ -24,6 +24,7 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
       load = &b;
       out.load = b.name;
       out.load_end = b.final_position;
+      out.load_at = b.position;
       break;
     }
   for (const BodyAtStart& b : bodies) {

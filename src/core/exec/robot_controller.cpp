@@ -1,7 +1,9 @@
 #include "ddace/exec/robot_controller.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "ddace/common/error.h"
 #include "ddace/exec/push_path.h"
@@ -37,12 +39,29 @@ void RobotController::start(const PlannedPath& path, const std::string& target, 
   held_stop_radius_m_ = held_stop_radius_m;
   target_ = target;
   contacts_ = {};
+  push_planned_for_ = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  was_pushing_ = false;
   filter_.reset();
   stale_since_s_ = -1;
 }
 
 void RobotController::setContacts(MotionContacts contacts) {
   contacts_ = std::move(contacts);
+  push_planned_for_ = contacts_.load_at;
+  was_pushing_ = false;
+}
+
+void RobotController::replanPush(const Pose2D& pose, const SafetyBody& load, double radius_m) {
+  if (!push_planned_for_.allFinite()) {
+    push_planned_for_ = load.position;  // unknown: the path as given was planned for the load there
+    return;
+  }
+  if (!was_pushing_ && (load.position - push_planned_for_).norm() <= kPushReplanM) return;
+  const int points = std::max(2, static_cast<int>(std::ceil(follower_.lengthM() / kPushPathSpacingM)));
+  follower_.setPath(PlannedPath{pushPath(pose.position(), load.position, contacts_.load_end, radius_m + load.radius_m,
+                                         follower_.endPoint(), points),
+                                {}});
+  push_planned_for_ = load.position;
 }
 
 void RobotController::cancel() {
@@ -85,18 +104,23 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   if (pose_stale || !pose.position().allFinite() || !std::isfinite(pose.yaw))
     return stale(out, "pose of " + name_ + " is stale", now_s);
 
-  FollowerOutput o = follower_.compute(pose);
-  out.progress = o.progress;
-  out.distance_to_goal_m = o.distance_to_goal_m;
   const SafetyBody* load = nullptr;
   for (const SafetyBody& b : others)
     if (!contacts_.load.empty() && b.name == contacts_.load) load = &b;
   // Behind its load, a carrier steers the load to the load's end point (exec/push_path.h),
-  // and the load's arrival, not its own, ends the push.
-  const auto push = load && !contacts_.load_rides
-                        ? pushWheels(pose, load->position, contacts_.load_end, follower_.endPoint(),
-                                     radius_m + load->radius_m, params_.gains)
-                        : std::nullopt;
+  // and the load's arrival, not its own, ends the push. Not behind it, it goes round it to
+  // behind it along its path; when the push broke (the load slid off its front) or the load
+  // lies off where the path was planned for (it moved since), round it again from where
+  // things are.
+  const bool pushes = load && !contacts_.load_rides;
+  const auto push = pushes ? pushWheels(pose, load->position, contacts_.load_end, follower_.endPoint(),
+                                        radius_m + load->radius_m, params_.gains)
+                           : std::nullopt;
+  if (pushes && !push) replanPush(pose, *load, radius_m);
+  was_pushing_ = push.has_value();
+  FollowerOutput o = follower_.compute(pose);
+  out.progress = o.progress;
+  out.distance_to_goal_m = o.distance_to_goal_m;
   if (push ? push->load_arrived : o.done) {
     stale_since_s_ = -1;
     return end(out, MotionState::Done, "");

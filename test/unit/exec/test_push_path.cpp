@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
 
 #include "ddace/exec/push_path.h"
@@ -37,8 +38,10 @@ struct PushRun {
 };
 
 /// R1 at `carrier` (facing `yaw`) pushes B1 from `box` onto G1 at `goal` on the simulated
-/// table: the push path, then the controller's cycles on exact poses, at most 60 s.
-PushRun push(const Eigen::Vector2d& carrier, double yaw, const Eigen::Vector2d& box, const Eigen::Vector2d& goal) {
+/// table: the push path (planned for the box at `planned_box`, default `box`), then the
+/// controller's cycles on exact poses, at most 60 s.
+PushRun push(const Eigen::Vector2d& carrier, double yaw, const Eigen::Vector2d& box, const Eigen::Vector2d& goal,
+             std::optional<Eigen::Vector2d> planned_box = std::nullopt) {
   const task::TaskSpec spec = fetchTask();
   SimTable sim(spec, {{carrier.x(), carrier.y(), yaw}, {0.9, 0.1, 0}, {box.x(), box.y(), 0}, {goal.x(), goal.y(), 0}},
                DiffDriveParams{});
@@ -48,10 +51,11 @@ PushRun push(const Eigen::Vector2d& carrier, double yaw, const Eigen::Vector2d& 
   ControllerParams params;
   RobotController c("R1", params);
   const double stop = task::stopRadius(task::kDefaultArrivalRadius);
-  c.start(PlannedPath{pushPath(carrier, box, goal, contact, end, 50), {}}, "G1", stop, stop);
+  c.start(PlannedPath{pushPath(carrier, planned_box.value_or(box), goal, contact, end, 50), {}}, "G1", stop, stop);
   MotionContacts contacts;
   contacts.load = "B1";
   contacts.load_end = goal;
+  contacts.load_at = planned_box.value_or(box);
   c.setContacts(contacts);
   PushRun out;
   for (; sim.time() < 60.0; sim.step()) {
@@ -102,6 +106,19 @@ TEST(PushPath, GoesRoundTheLoadToItsFarSideThenStraightThroughIt) {
   const auto still = pushPath(from, load_end, load_end, 0.04, end, 10);
   for (const auto& p : still)
     EXPECT_LT(std::abs((p - from).x() * (end - from).y() - (p - from).y() * (end - from).x()), 1e-9);
+}
+
+// The box lies elsewhere than where its push was planned (it moved since; on the real table,
+// slid off its carrier's front): the carrier plans the push again from where things are
+// and still brings it onto its goal, rather than driving its old path to its end alone.
+TEST(PushPath, ABoxThatMovedSinceItsPushWasPlannedIsStillPushedOntoItsGoal) {
+  const Eigen::Vector2d box(0.3, 0.4), goal(0.8, 0.4);
+  for (const Eigen::Vector2d& moved : {Eigen::Vector2d(0, 0.06), Eigen::Vector2d(0.08, -0.05)}) {
+    const PushRun r = push({0.1, 0.4}, 0.0, box + moved, goal, box);
+    EXPECT_TRUE(r.done) << "moved by " << moved.transpose();
+    EXPECT_LT((r.box - goal).norm(), task::kDefaultArrivalRadius)
+        << "moved by " << moved.transpose() << ": the box at " << r.box.transpose() << " after " << r.seconds << " s";
+  }
 }
 
 TEST(PushPath, TheCarrierPushesTheBoxOntoItsGoalFromAnySide) {
