@@ -33,17 +33,24 @@
 // and clears one robot after another), a standing one (SafetyBody::standing) on the side
 // the robot's command turns to, the shorter way to its end point (the right-hand rule on a
 // tie); the side is decided once per body while the robot is held (a command pointing at
-// the body would flip it with the noise, back and forth round it).
+// the body would flip it with the noise, back and forth round it). Standing bodies it
+// cannot pass between (gaps narrower than its body with the filter's clearance either
+// side: robots ringing the one they met at, a row, a queue) are one group: a group in its
+// way (none of it a body its motion ends at) it passes by the group's edge, the one its
+// command turns least to, heading past that edge as it sees it (round one body of the
+// group it was led into the too-narrow gap next to it and held there); a group it ends at
+// it follows round body by body to its place there.
 //
 // Deadlock: held while neither the robot nor any body holding it moves `progress_m` for
-// `deadlock_after_s` (frozen: boxed in, held off its end point), or held without advancing
+// `deadlock_after_s` (frozen: boxed in, held off its end point; a robot passing a group by
+// its edge moves, leaving its path a while, and is not frozen), or held without advancing
 // along its path for `wait_limit_s` while they move (a crowd that never clears, robots
-// circling each other). A held robot whose holders move waits its turn: it is not
-// deadlocked, and stopping it would leave one more body in the others' way. The filter
-// then reports the deadlock naming the robot and the bodies holding it (the caller stops
-// the robot and reports it): every body whose constraint shaped the command, or that it
-// went round, since it last advanced -- not only those active in the cycle the clock runs
-// out in (going round, none is).
+// circling each other, a group it cannot get round). A held robot whose holders move
+// waits its turn: it is not deadlocked, and stopping it would leave one more body in the
+// others' way. The filter then reports the deadlock naming the robot and the bodies
+// holding it (the caller stops the robot and reports it): every body whose constraint
+// shaped the command, or that it went round, since it last advanced -- not only those
+// active in the cycle the clock runs out in (going round, none is).
 //
 // Fail safe (when enabled): its own pose or a body within `range_m` older than `pose_max_age_s` (or
 // marked stale) -> zero wheels and a report naming the stale body.
@@ -187,7 +194,8 @@ class SafetyFilter {
   /// Forgets the blocked and deadlock clocks (a new segment, the robot idle).
   void reset() {
     resolve_until_s_ = stuck_since_s_ = waiting_since_s_ = -1;
-    resolve_body_.clear();
+    resolve_group_.clear();
+    resolve_standing_ = false;
     held_by_.clear();
     holders_.clear();
   }
@@ -196,14 +204,16 @@ class SafetyFilter {
  private:
   SafetyParams params_;
   double wheel_base_m_, max_wheel_mps_, max_turn_radps_;
-  double resolve_until_s_ = -1;       ///< the point goes round the nearest body until then
-  double resolve_side_ = 1;           ///< +1: keeping it on the left (the right-hand rule), -1: on the right
-  std::string resolve_body_;          ///< the body resolve_side_ was decided for
-  bool resolve_of_load_ = false;      ///< ... held by the load's disc (else the robot's)
-  double stuck_since_s_ = -1;         ///< since when the filter holds the robot without progress
-  double stuck_progress_m_ = 0;       ///< its progress then
-  std::vector<std::string> held_by_;  ///< bodies that held it since then (named in a deadlock)
-  double waiting_since_s_ = -1;       ///< since when neither it nor a body holding it has moved
+  double resolve_until_s_ = -1;             ///< the point goes round the nearest body until then
+  double resolve_side_ = 1;                 ///< +1: keeping it on the left (the right-hand rule), -1: on the right
+  std::vector<std::string> resolve_group_;  ///< the bodies resolve_side_ was decided for (standingGroup)
+  bool resolve_standing_ = false;           ///< ... standing ones: gone round toward the group's edge
+  bool resolve_of_load_ = false;            ///< ... held by the load's disc (else the robot's)
+  double stuck_since_s_ = -1;               ///< since when the filter holds the robot without progress
+  double stuck_progress_m_ = 0;             ///< its progress then
+  std::vector<std::string> held_by_;        ///< bodies that held it since then (named in a deadlock)
+  double waiting_since_s_ = -1;             ///< since when neither it nor a body holding it has moved
+  Eigen::Vector2d waiting_at_{0, 0};        ///< where the robot was then
   std::vector<std::pair<std::string, Eigen::Vector2d>> holders_;  ///< bodies holding it, where they were then
 
   SafetyCommand passThrough(const Pose2D& self, double self_radius_m, const WheelSpeeds& nominal,
@@ -213,15 +223,29 @@ class SafetyFilter {
   /// The robot's own name, its load's or a body's in range whose pose is stale; "" if none.
   std::string staleName(const std::string& self_name, const Pose2D& self, double self_age_s,
                         const std::vector<SafetyBody>& bodies, const SafetyBody* load) const;
+  struct Scene;
   /// The command to filter: the nominal `z0`, or while going round, the command moving the
   /// held disc round `body` (`round_left` keeps it on the left) on the side decided for it.
   Eigen::Vector2d goRound(const Eigen::Vector2d& z0, const SafetyBody* body, bool of_load,
-                          const Eigen::Vector2d& round_left, double now_s);
-  void decideSide(const Eigen::Vector2d& z0, const SafetyBody* body, bool of_load, const Eigen::Vector2d& round_left);
+                          const Eigen::Vector2d& round_left, const Scene& scene, double now_s);
+  /// Whether the side is decided for `body` (it is in the group decided for).
+  bool decidedFor(const SafetyBody* body, bool of_load) const;
+  void decideSide(const Eigen::Vector2d& z0, const SafetyBody* body, bool of_load, const Eigen::Vector2d& round_left,
+                  const Scene& scene);
+  /// `first` and the standing bodies the robot cannot pass between, linked through each
+  /// other: gaps narrower than its body with a margin either side.
+  std::vector<const SafetyBody*> standingGroup(const SafetyBody& first, const Scene& scene) const;
+  /// The directions (table frame, radians) from the robot past a group's right and left
+  /// edges, its disc a margin off them.
+  struct GroupEdges {
+    double right_rad = 0, left_rad = 0;
+  };
+  GroupEdges groupEdges(const std::vector<const SafetyBody*>& group, const Scene& scene) const;
   /// The hold and deadlock clocks after a filtered cycle (`out` gets the deadlock);
   /// returns whether a go-round begins.
   bool trackHold(SafetyCommand& out, const std::string& self_name, const Eigen::Vector2d& x, double self_radius_m,
-                 double progress_m, const std::vector<SafetyBody>& bodies, bool going_round, double now_s);
+                 double progress_m, const std::vector<SafetyBody>& bodies, const std::string& going_round_of,
+                 double now_s);
 };
 
 /// A half-plane a . z <= b in two variables.

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "ddace/common/angle.h"
 #include "ddace/common/error.h"
 #include "ddace/task/end_point.h"
 
@@ -102,6 +103,19 @@ struct Frame {
   /// A table-frame vector in the robot's frame (the frame of z).
   Eigen::Vector2d local(const Eigen::Vector2d& v) const { return {v.dot(e), v.dot(e_perp)}; }
 };
+
+}  // namespace
+
+/// What a go-round decides its side from: the robot's frame and radius, the bodies, its load.
+struct SafetyFilter::Scene {
+  const Frame* frame;
+  const std::vector<SafetyBody>* bodies;
+  const SafetyBody* load;
+  double self_radius_m;
+  const std::string* target;
+};
+
+namespace {
 
 /// The body nearest to holding the robot or its load (not the target), to go round.
 struct Nearest {
@@ -274,26 +288,107 @@ std::string SafetyFilter::staleName(const std::string& self_name, const Pose2D& 
 }
 
 Eigen::Vector2d SafetyFilter::goRound(const Eigen::Vector2d& z0, const SafetyBody* body, bool of_load,
-                                      const Eigen::Vector2d& round_left, double now_s) {
+                                      const Eigen::Vector2d& round_left, const Scene& scene, double now_s) {
   // While resolving, the point goes around the nearest body on the side decided when the
-  // go-round began (resolve_side_: +1 keeps it on the left). At least a quarter of the top
-  // speed: a nominal that only turns on the spot would not get round anything.
+  // go-round began (resolve_side_: +1 keeps it on the left): round a moving body (or with
+  // its load) along the tangent of that body, round standing bodies toward the edge of
+  // their group as the robot sees it (tangent bug: clear of the group once there). At
+  // least a quarter of the top speed: a nominal that only turns on the spot would not get
+  // round anything.
   if (!(now_s < resolve_until_s_ && body)) return z0;
-  if (body->name != resolve_body_ || of_load != resolve_of_load_) decideSide(z0, body, of_load, round_left);
-  return std::max(z0.norm(), 0.25 * max_wheel_mps_) * resolve_side_ * round_left;
+  if (!decidedFor(body, of_load)) decideSide(z0, body, of_load, round_left, scene);
+  const double speed = std::max(z0.norm(), 0.25 * max_wheel_mps_);
+  if (!resolve_standing_) return speed * resolve_side_ * round_left;
+  std::vector<const SafetyBody*> group;
+  for (const std::string& name : resolve_group_)
+    if (const SafetyBody* b = findBody(*scene.bodies, name)) group.push_back(b);
+  const GroupEdges edges = groupEdges(group, scene);
+  const double heading = resolve_side_ > 0 ? edges.right_rad : edges.left_rad;
+  return speed * scene.frame->local(Eigen::Vector2d(std::cos(heading), std::sin(heading)));
+}
+
+bool SafetyFilter::decidedFor(const SafetyBody* body, bool of_load) const {
+  return body && of_load == resolve_of_load_ &&
+         std::find(resolve_group_.begin(), resolve_group_.end(), body->name) != resolve_group_.end();
 }
 
 void SafetyFilter::decideSide(const Eigen::Vector2d& z0, const SafetyBody* body, bool of_load,
-                              const Eigen::Vector2d& round_left) {
+                              const Eigen::Vector2d& round_left, const Scene& scene) {
   // Which way round. A body that moves too runs its own filter: both keep each other on
   // the left (the right-hand rule), so two robots face to face veer apart, never the
   // same way. A body standing still decides nothing: the robot goes round on the side its
   // own command turns to (toward its end point, the shorter way), the right-hand rule on
   // a tie -- the other way it would go the long way round and its command would turn it
-  // back into the body before it got there. Decided for one body: another body nearest
-  // later in the go-round is decided for again (its own standing flag and side).
-  resolve_side_ = body && body->standing && z0.dot(round_left) < 0 ? -1 : 1;
-  if (body) resolve_body_ = body->name, resolve_of_load_ = of_load;
+  // back into the body before it got there. Standing bodies it cannot pass between
+  // (standingGroup) and that its motion does not end at are passed as one, by the edge
+  // its command turns least to: round one of them, it would be led into the too-narrow gap
+  // next to it and held there. Decided for a body or its whole group: a body of the group
+  // nearest later keeps the side (decided again, it would flip halfway round); another
+  // body is decided for afresh.
+  resolve_group_.clear();
+  resolve_side_ = 1;
+  resolve_standing_ = false;
+  if (!body) return;
+  resolve_of_load_ = of_load;
+  // Round one body: a moving one, one with a load ahead (as the load's lever allows), or
+  // one of a group the motion ends at (its target, a body its end point touches): such a
+  // group it follows round body by body, each the shorter way, to its place there.
+  std::vector<const SafetyBody*> group{body};
+  if (body->standing && !scene.load) group = standingGroup(*body, scene);
+  const bool ends_there =
+      std::any_of(group.begin(), group.end(), [&](const SafetyBody* b) { return mayTouch(*b, *scene.target); });
+  if (group.size() == 1 || ends_there || !body->standing) {
+    resolve_group_.push_back(body->name);
+    if (body->standing) resolve_side_ = z0.dot(round_left) < 0 ? -1 : 1;
+    return;
+  }
+  // A group in its way it passes by the edge its command turns least to.
+  for (const SafetyBody* b : group) resolve_group_.push_back(b->name);
+  resolve_standing_ = true;
+  // The way the robot wants to go: its command's point velocity, else its heading.
+  const Frame& f = *scene.frame;
+  const Eigen::Vector2d dir = z0.x() * f.e + z0.y() * f.e_perp;
+  const Eigen::Vector2d way = dir.norm() > 1e-9 ? dir : f.e;
+  const double want = std::atan2(way.y(), way.x());
+  const GroupEdges edges = groupEdges(group, scene);
+  // How far the command turns to clear each edge (0: that side does not block it).
+  const double to_right = std::max(0.0, wrapAngle(want - edges.right_rad));
+  const double to_left = std::max(0.0, wrapAngle(edges.left_rad - want));
+  resolve_side_ = to_left < to_right ? -1 : 1;
+}
+
+std::vector<const SafetyBody*> SafetyFilter::standingGroup(const SafetyBody& first, const Scene& scene) const {
+  // Too narrow to pass: a gap below the robot's body with the clearance the filter keeps
+  // either side (the margin, reached by a point projection_m ahead of the axle).
+  const double passable = 2 * (scene.self_radius_m + params_.margin_m + params_.projection_m);
+  std::vector<const SafetyBody*> group{&first};
+  for (size_t k = 0; k < group.size(); ++k)
+    for (const SafetyBody& b : *scene.bodies) {
+      if (!b.standing || b.radius_m <= 0 || !b.position.allFinite() || isLoad(scene.load, b)) continue;
+      if (std::find(group.begin(), group.end(), &b) != group.end()) continue;
+      if ((b.position - group[k]->position).norm() - b.radius_m - group[k]->radius_m < passable) group.push_back(&b);
+    }
+  return group;
+}
+
+SafetyFilter::GroupEdges SafetyFilter::groupEdges(const std::vector<const SafetyBody*>& group,
+                                                  const Scene& scene) const {
+  // The directions (table frame) in which the robot's disc, a margin off, grazes each
+  // body, measured from the direction of the first body (a group is contiguous as seen
+  // from outside it): the group spans [right, left] counter-clockwise.
+  const Eigen::Vector2d x = scene.frame->x;
+  if (group.empty()) return {};
+  const Eigen::Vector2d r0 = group.front()->position - x;
+  const double ref = std::atan2(r0.y(), r0.x());
+  double lo = 0, hi = 0;
+  for (const SafetyBody* b : group) {
+    const Eigen::Vector2d v = b->position - x;
+    const double d = v.norm(), reach = b->radius_m + scene.self_radius_m + params_.margin_m;
+    const double phi = wrapAngle(std::atan2(v.y(), v.x()) - ref);
+    const double half = d > reach ? std::asin(reach / d) : M_PI / 2;
+    lo = std::min(lo, phi - half), hi = std::max(hi, phi + half);
+  }
+  return {ref + lo, ref + hi};
 }
 
 SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& self, double self_radius_m,
@@ -332,8 +427,9 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
 
   const bool going_round = now_s < resolve_until_s_ && bs.nearest.body;
   const Nearest& nearest = bs.nearest;
+  const Scene scene{&f, &bodies, load, self_radius_m, &target};
   const Eigen::Vector2d z =
-      closestFeasible(goRound(z0, nearest.body, nearest.of_load, nearest.round_left, now_s), bs.cs);
+      closestFeasible(goRound(z0, nearest.body, nearest.of_load, nearest.round_left, scene, now_s), bs.cs);
   SafetyCommand out;
   out.clearance_m = bs.clearance_m;
   out.v_mps = z.x();
@@ -350,34 +446,42 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   if (out.blocked && !out.blocking.empty())
     out.at_contact_with = atContactWith(out.blocking, bodies, target, x, self_radius_m, params_.margin_m);
 
-  const bool decide = trackHold(out, self_name, x, self_radius_m, progress_m, bodies, going_round, now_s);
+  const bool decide = trackHold(out, self_name, x, self_radius_m, progress_m, bodies,
+                                going_round ? nearest.body->name : std::string(), now_s);
   // Which way round, once per body while it is held: decided again every go-round, a
   // command pointing at a standing body (its path runs on behind it) turns it to one
   // side or the other with the noise, and the robot goes back and forth round it
   // without getting past.
-  if (decide && (!nearest.body || nearest.body->name != resolve_body_ || nearest.of_load != resolve_of_load_))
-    decideSide(z0, nearest.body, nearest.of_load, nearest.round_left);
+  if (decide && !decidedFor(nearest.body, nearest.of_load))
+    decideSide(z0, nearest.body, nearest.of_load, nearest.round_left, scene);
   return out;
 }
 
 bool SafetyFilter::trackHold(SafetyCommand& out, const std::string& self_name, const Eigen::Vector2d& x,
                              double self_radius_m, double progress_m, const std::vector<SafetyBody>& bodies,
-                             bool going_round, double now_s) {
+                             const std::string& going_round_of, double now_s) {
   // Held: the filter keeps changing the command and the robot does not advance progress_m
   // along its path. Held for resolve_after_s: go round (goRound) for resolve_after_s.
   if (!out.modified && !out.blocked) {
     stuck_since_s_ = -1;
     held_by_.clear();
     holders_.clear();
-    resolve_body_.clear();  // free: the next hold decides its side afresh
+    resolve_group_.clear();  // free: the next hold decides its side afresh
+    resolve_standing_ = false;
     return false;
   }
   if (stuck_since_s_ < 0 || progress_m >= stuck_progress_m_ + params_.progress_m) {
     stuck_since_s_ = waiting_since_s_ = now_s;
     stuck_progress_m_ = progress_m;
+    waiting_at_ = x;
     held_by_.clear();
     holders_.clear();
   }
+  // Passing a group of standing bodies by its edge, the robot leaves its path for a while
+  // (round the ring it stands in, along a row): moving progress_m, it is not frozen; a crowd
+  // it cannot get round is reported after wait_limit_s.
+  if (resolve_standing_ && !going_round_of.empty() && (x - waiting_at_).norm() >= params_.progress_m)
+    waiting_since_s_ = now_s, waiting_at_ = x;
   // A body holding it has moved progress_m since it began to: the robot waits its turn in
   // a crowd that clears (a queue, a crossing gone round one by one), it is not deadlocked.
   for (const auto& [name, at] : holders_) {
@@ -398,7 +502,7 @@ bool SafetyFilter::trackHold(SafetyCommand& out, const std::string& self_name, c
     if (b && !known) holders_.emplace_back(name, b->position);
   };
   for (const std::string& name : out.blocking) held(name);
-  if (going_round) held(resolve_body_);
+  held(going_round_of);
   const double stuck_s = now_s - stuck_since_s_;
   const bool go_round = stuck_s >= params_.resolve_after_s && now_s >= resolve_until_s_;
   if (go_round) resolve_until_s_ = now_s + params_.resolve_after_s;

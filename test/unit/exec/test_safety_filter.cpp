@@ -343,6 +343,45 @@ TEST(SafetyFilter, GoesRoundAParkedRobotInItsPathOnOneSide) {
     }
 }
 
+// The gather rules' second step: the robot the others met at leaves for its goal through
+// the half-ring of robots that stopped touching it (2 mm apart, too close together for it
+// to pass between). Going round one of them it was led into the gap next to it and held
+// there (deadlocked, 40 cm from its end point); it goes round the group they form, by the
+// edge its command turns least to, and arrives without touching any. Rings opening to
+// either side and straight back.
+TEST(SafetyFilter, ARobotRingedByTouchingRobotsLeavesRoundThemForItsGoal) {
+  const Vector2d c(0.4, 0.4), goal(0.4, 0.8);
+  const double apart = 2 * kRadius + 0.002;
+  for (const double opening : {-0.3, 0.0, 0.3}) {
+    std::vector<Mover> movers{{"R1", {c.x(), c.y(), M_PI / 2}, line(c, goal), "G1"}};
+    for (const double a : {M_PI / 6, M_PI / 2, 5 * M_PI / 6}) {
+      const Vector2d at = c + apart * Vector2d(std::cos(a + opening), std::sin(a + opening));
+      movers.push_back({"R" + std::to_string(movers.size() + 1), {at.x(), at.y(), 0}, {}, ""});
+    }
+    const Outcome o = run(movers, {}, 40);
+    EXPECT_TRUE(o.deadlocks.empty()) << "opening " << opening << ": " << o.deadlocks.front();
+    EXPECT_TRUE(o.done[0]) << "opening " << opening << ": R1 did not arrive";
+    EXPECT_GT(o.min_gap_m, 0.0) << "opening " << opening;
+  }
+}
+
+// A row of robots standing touching across a robot's path (a queue, a ring round another):
+// it passes the row by its nearer end, not into the gaps between them.
+TEST(SafetyFilter, ARowOfTouchingRobotsAcrossThePathIsPassedByItsEnd) {
+  const Vector2d from(0.2, 0.4), to(0.7, 0.4);
+  for (const double offset : {-0.03, 0.01}) {
+    std::vector<Mover> movers{{"R1", {from.x(), from.y(), 0}, line(from, to), "G1"}};
+    for (int k = -2; k <= 2; ++k) {
+      const Vector2d at(0.45, 0.4 + offset + k * (2 * kRadius + 0.003));
+      movers.push_back({"R" + std::to_string(movers.size() + 1), {at.x(), at.y(), 0}, {}, ""});
+    }
+    const Outcome o = run(movers, {}, 40);
+    EXPECT_TRUE(o.deadlocks.empty()) << "offset " << offset << ": " << o.deadlocks.front();
+    EXPECT_TRUE(o.done[0]) << "offset " << offset << ": R1 did not arrive";
+    EXPECT_GT(o.min_gap_m, 0.0) << "offset " << offset;
+  }
+}
+
 TEST(SafetyFilter, BoxedInRobotStaysPutAndIsReportedByName) {
   std::vector<Obstacle> box;
   const Vector2d c(0.4, 0.4);
