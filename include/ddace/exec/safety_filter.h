@@ -38,8 +38,8 @@
 // side: robots ringing the one they met at, a row, a queue) are one group: a group in its
 // way (none of it a body its motion ends at) it passes by the group's edge, the one its
 // command turns least to, heading past that edge as it sees it (round one body of the
-// group it was led into the too-narrow gap next to it and held there); a group it ends at
-// it follows round body by body to its place there.
+// group it was led into the too-narrow gap next to it and held there); a group it ends at,
+// or one all round it (no edge), it goes round body by body.
 //
 // Deadlock: held while neither the robot nor any body holding it moves `progress_m` for
 // `deadlock_after_s` (frozen: boxed in, held off its end point; a robot passing a group by

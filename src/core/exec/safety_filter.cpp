@@ -337,7 +337,10 @@ void SafetyFilter::decideSide(const Eigen::Vector2d& z0, const SafetyBody* body,
   if (body->standing && !scene.load) group = standingGroup(*body, scene);
   const bool ends_there =
       std::any_of(group.begin(), group.end(), [&](const SafetyBody* b) { return mayTouch(*b, *scene.target); });
-  if (group.size() == 1 || ends_there || !body->standing) {
+  // A group all round it has no edge to pass by: body by body, as before.
+  const GroupEdges edges = groupEdges(group, scene);
+  const bool surrounds = edges.left_rad - edges.right_rad >= 2 * M_PI;
+  if (group.size() == 1 || ends_there || surrounds || !body->standing) {
     resolve_group_.push_back(body->name);
     if (body->standing) resolve_side_ = z0.dot(round_left) < 0 ? -1 : 1;
     return;
@@ -350,7 +353,6 @@ void SafetyFilter::decideSide(const Eigen::Vector2d& z0, const SafetyBody* body,
   const Eigen::Vector2d dir = z0.x() * f.e + z0.y() * f.e_perp;
   const Eigen::Vector2d way = dir.norm() > 1e-9 ? dir : f.e;
   const double want = std::atan2(way.y(), way.x());
-  const GroupEdges edges = groupEdges(group, scene);
   // How far the command turns to clear each edge (0: that side does not block it).
   const double to_right = std::max(0.0, wrapAngle(want - edges.right_rad));
   const double to_left = std::max(0.0, wrapAngle(edges.left_rad - want));
