@@ -111,6 +111,9 @@ int runTrain(const std::vector<std::string>& argv) {
       first = false;
     }
     std::cout << ")\n";
+    // Where the demonstrations stop at another gap than the footprints: they win, said here.
+    for (const task::StopGap& g : task::stopGaps(train.spec, trained.primitives->endPoints(), train.demos))
+      std::cout << "end points: " << g.str() << "\n";
   }
   std::cout << "transfer: runs on " << model.transfer().text() << "\n";
   std::cout << "wrote " << out << " (ddace inspect " << out << " shows it)\n";

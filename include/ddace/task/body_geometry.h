@@ -75,6 +75,10 @@ double togetherDistance(const TaskSpec& spec, int a, int b);
 /// The same from the two bodies' contact distance (TaskSpec::contactDistance) and the task's
 /// arrival radius, metres.
 double togetherDistance(double contact_m, double arrival_radius);
+/// Whether entities `a` at `pa` and `b` at `pb` of `spec` are at one place: within
+/// togetherDistance(spec, a, b) of each other. The one test of "together" for the
+/// labeller, the scene network, the end points and the table simulator.
+bool together(const TaskSpec& spec, int a, const Eigen::Vector2d& pa, int b, const Eigen::Vector2d& pb);
 
 /// How near entity `entity` of `spec` can stand to entity `at` on its line to it (metres from
 /// `at`), every entity at `positions` (table frame; a non-finite position stands nowhere):

@@ -83,6 +83,25 @@ EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstrati
 /// or the footprints' default (see the header comment).
 Eigen::Vector2d endOffset(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step, size_t i);
 
+/// Where the demonstrations stop toward a body at another gap than the footprints' contact
+/// (robots left 4 mm or 1 cm apart; or overlapping: footprints stated too big): the end
+/// point follows the demonstrations, and training says so (stopGapNotes).
+struct StopGap {
+  std::string motion;  ///< the key, "R2:move:R1"
+  std::string mover, target;
+  double gap_m = 0;       ///< the end point's distance from the target less their contact distance (< 0: overlap)
+  int segments = 0;       ///< the demonstrated segments it comes from
+  bool by_class = false;  ///< from its motion class's segments (the key has fewer than kMinKeySegments)
+  /// "R2 stops 4 mm from R1 in the demonstrations (12 stops); footprints say 0 mm: using
+  /// the demonstrated gap".
+  std::string str() const;
+};
+/// Every motion of `demos` (once per key) toward an obstacle, without a load, whose end
+/// point under `model` (learned from `demos`) lies a whole millimetre or more off contact
+/// with its target: the demonstrated gap differs from the footprints'.
+std::vector<StopGap> stopGaps(const TaskSpec& spec, const EndPointModel& model,
+                              const std::vector<Demonstration>& demos);
+
 /// The end point of the motion token `step[i]` decided with entity positions `decided`
 /// (table frame, metres). An in-place token ends where it is. Throws ddace::Error for a
 /// token naming an entity outside `decided`.
@@ -116,9 +135,10 @@ int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, c
 /// Where every entity stands after `step` decided with entity positions `decided` when
 /// bodies must fit (table frame, metres). Each motion ends at its endPoint() under `model`;
 /// a riding load (ridingLoad()) ends in front of its carrier at their contact distance
-/// along the carrier's approach (on the target, the carrier behind it). An end point inside
-/// a standing body, or inside an end placed before it in the step (token order), is turned
-/// about the target to the nearest place at the same distance kEndTurnGapM clear of every
+/// along the carrier's approach (on the target, the carrier behind it). Its own target a
+/// motion may come as near as its end point says (demonstrations stopping inside the
+/// footprints keep their stop). An end point inside a standing body, or inside an end placed before it in the step
+/// (token order), is turned about the target to the nearest place at the same distance kEndTurnGapM clear of every
 /// other body (the motion still touches its target, and only it); where no turn frees it (a
 /// goal another body already stands on) it stops short on its way where its body first
 /// fits: two robots sent onto one goal end touching, one on it. With `table` (its corners),

@@ -189,7 +189,7 @@ bool TableSimulator::ride(int carrier, int load) {
   if (!(c.radius_m > 0) || !(l.radius_m > 0) || l.carrier >= 0) return false;
   const double contact = c.radius_m + l.radius_m;
   const Eigen::Vector2d d = l.pose.position() - c.pose.position();
-  if (d.norm() > task::togetherDistance(spec_, carrier, load)) return false;
+  if (!task::together(spec_, carrier, c.pose.position(), load, l.pose.position())) return false;
   l.carrier = carrier;
   l.ride_offset0 = Eigen::Rotation2Dd(-c.pose.yaw) * d;
   l.ride_contact_m = contact;

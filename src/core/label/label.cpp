@@ -176,7 +176,7 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
 }
 
 bool Labeller::together(const std::vector<Vector2d>& at, int a, int b) const {
-  return (at[a] - at[b]).norm() <= task::togetherDistance(spec_, a, b);
+  return task::together(spec_, a, at[a], b, at[b]);
 }
 
 namespace {

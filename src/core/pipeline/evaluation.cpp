@@ -362,6 +362,11 @@ std::string evaluationJson(const Evaluation& e) {
                               {"ended_correctly", s.ended_correctly},
                               {"goal_conditions_hold", s.goal_conditions_hold},
                               {"first_difference", i < e.first_difference.size() ? e.first_difference[i] : ""}});
+    if (i < e.trials.size() && !e.trials[i].final_positions.empty()) {  // where every entity ended, [x, y] metres
+      nlohmann::json at = nlohmann::json::array();
+      for (const Eigen::Vector2d& p : e.trials[i].final_positions) at.push_back({num(p.x()), num(p.y())});
+      j["per_trial"].back()["final_positions"] = at;
+    }
     if (s.bodies) {
       auto& t = j["per_trial"].back();
       t["collisions"] = s.collisions;

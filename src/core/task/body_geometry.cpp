@@ -33,6 +33,10 @@ double togetherDistance(double contact_m, double arrival_radius) {
   return std::max(2.0 * arrival_radius, contact_m + arrival_radius);
 }
 
+bool together(const TaskSpec& spec, int a, const Eigen::Vector2d& pa, int b, const Eigen::Vector2d& pb) {
+  return (pa - pb).norm() <= togetherDistance(spec, a, b);
+}
+
 namespace {
 
 bool finite(const Eigen::Vector2d& p) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <set>
 
 #include "ddace/common/error.h"
 
@@ -80,13 +81,28 @@ EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstrati
   return m;
 }
 
+namespace {
+
+/// The learned offset the rule uses for `step[i]`, the key's or its class's (nullptr: none;
+/// `by_class` says which).
+const EndOffset* learnedOffset(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
+                               size_t i, bool* by_class = nullptr) {
+  const Token& t = step.at(i);
+  if (by_class) *by_class = false;
+  if (auto k = model.by_key.find(tokenKey(t, spec)); k != model.by_key.end() && k->second.segments >= kMinKeySegments)
+    return &k->second;
+  if (by_class) *by_class = true;
+  if (auto c = model.by_class.find(motionClass(spec, step, i)); c != model.by_class.end() && c->second.segments > 0)
+    return &c->second;
+  return nullptr;
+}
+
+}  // namespace
+
 Vector2d endOffset(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step, size_t i) {
   const Token& t = step.at(i);
   if (model.centres || !t.isMotion()) return Vector2d::Zero();
-  if (auto k = model.by_key.find(tokenKey(t, spec)); k != model.by_key.end() && k->second.segments >= kMinKeySegments)
-    return k->second.offset;
-  if (auto c = model.by_class.find(motionClass(spec, step, i)); c != model.by_class.end() && c->second.segments > 0)
-    return c->second.offset;
+  if (const EndOffset* learned = learnedOffset(spec, model, step, i)) return learned->offset;
   // Nothing demonstrated: the bodies decide. Toward an obstacle, contact; onto a flat goal.
   const Footprint mover = spec.footprint(t.entity), target = spec.footprint(t.target);
   const int load = carriedLoad(spec, step, i);
@@ -94,6 +110,43 @@ Vector2d endOffset(const TaskSpec& spec, const EndPointModel& model, const std::
   const Footprint carried = spec.footprint(step[static_cast<size_t>(load)].entity);
   const double load_end = target.obstacle ? carried.radius_m + target.radius_m : 0.0;
   return Vector2d(-(load_end + carried.radius_m + mover.radius_m), 0.0);
+}
+
+std::string StopGap::str() const {
+  const long mm = std::lround(gap_m * 1000);
+  std::string s = mover +
+                  (mm < 0 ? " stops " + std::to_string(-mm) + " mm inside " + target + "'s footprint"
+                          : " stops " + std::to_string(mm) + " mm from " + target) +
+                  " in the demonstrations (" + std::to_string(segments) + " stops" +
+                  (by_class ? ", its motion class's" : "") + "); footprints say 0 mm: using the demonstrated " +
+                  (mm < 0 ? "stop (footprints stated too big?)" : "gap");
+  return s;
+}
+
+std::vector<StopGap> stopGaps(const TaskSpec& spec, const EndPointModel& model,
+                              const std::vector<Demonstration>& demos) {
+  std::vector<StopGap> out;
+  if (model.centres) return out;
+  std::set<std::string> seen;
+  for (const Demonstration& d : demos)
+    for (const Step& step : d.steps)
+      for (size_t i = 0; i < step.tokens.size(); ++i) {
+        const Token& t = step.tokens[i];
+        const int n = static_cast<int>(spec.entities.size());
+        if (!t.isMotion() || t.entity < 0 || t.entity >= n || t.target < 0 || t.target >= n) continue;
+        const std::string key = tokenKey(t, spec);
+        if (!spec.footprint(t.entity).obstacle || !spec.footprint(t.target).obstacle ||
+            carriedLoad(spec, step.tokens, i) >= 0 || !seen.insert(key).second)
+          continue;
+        bool by_class = false;
+        const EndOffset* learned = learnedOffset(spec, model, step.tokens, i, &by_class);
+        if (!learned) continue;
+        const double gap = learned->offset.norm() - spec.contactDistance(t.entity, t.target);
+        if (std::lround(gap * 1000) == 0) continue;  // whole millimetres, as reported
+        out.push_back({key, spec.entities[static_cast<size_t>(t.entity)].name,
+                       spec.entities[static_cast<size_t>(t.target)].name, gap, learned->segments, by_class});
+      }
+  return out;
 }
 
 Vector2d endPointFrom(const Vector2d& start, const Vector2d& target, const Vector2d& offset) {
@@ -132,7 +185,7 @@ int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, c
     const int e = step[k].entity, l = step[static_cast<size_t>(load)].entity;
     if (e < 0 || e >= n || l < 0 || l >= n)
       throw Error("a token names an entity outside the " + std::to_string(n) + " positions given");
-    return (at[static_cast<size_t>(l)] - at[static_cast<size_t>(e)]).norm() <= togetherDistance(spec, e, l) ? load : -1;
+    return together(spec, e, at[static_cast<size_t>(e)], l, at[static_cast<size_t>(l)]) ? load : -1;
   };
   const int load = atCarrier(i);
   for (size_t k = 0; load >= 0 && k < i; ++k)  // a load of two carriers rides with the first
@@ -174,14 +227,17 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
     if (!moving[static_cast<size_t>(e)] && obstacle(e)) placed.push_back(e);
   constexpr double kSlack = 1e-9;  // floating point, not geometry
   // Free: on the table, and no closer than contact to a placed body (plus `gap` to any but
-  // the motion's target).
-  const auto free = [&](int entity, const Vector2d& at, int partner, int target, double gap) {
+  // the motion's target; the target as near as the rule's end, `reach`, where the
+  // demonstrations stop inside the footprints).
+  const auto free = [&](int entity, const Vector2d& at, int partner, int target, double gap, double reach) {
     if (edgeGap(entity, at) < std::min(0.0, edgeGap(entity, decided[static_cast<size_t>(entity)]))) return false;
     if (!obstacle(entity)) return true;
-    for (int b : placed)
+    for (int b : placed) {
+      const double contact = spec.contactDistance(entity, b);
       if (b != partner && (at - ends[static_cast<size_t>(b)]).norm() <
-                              spec.contactDistance(entity, b) + (b == target ? 0.0 : gap) - kSlack)
+                              (b == target ? std::min(contact, reach) : contact + gap) - kSlack)
         return false;
+    }
     return true;
   };
   const auto rotated = [](const Vector2d& v, double a) {
@@ -200,6 +256,7 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
       load_end = end + spec.contactDistance(t.entity, load) * u;
     }
     // The rule's end point, else the nearest turn about the target that is free.
+    const double reach = (end - target).norm(), load_reach = (load_end - target).norm();
     Vector2d e_best = end, l_best = load_end;
     bool found = false;
     for (int k = 0; !found && k * kEndTurnStepRad <= kMaxEndTurnRad + 1e-12; ++k)
@@ -210,7 +267,8 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
         // A turned end keeps kEndTurnGapM from the bodies it turned away from: it touches
         // its target only (what it touches says where it went).
         const double gap = k == 0 ? 0.0 : kEndTurnGapM;
-        if (free(t.entity, e, load, t.target, gap) && (load < 0 || free(load, l, t.entity, t.target, gap))) {
+        if (free(t.entity, e, load, t.target, gap, reach) &&
+            (load < 0 || free(load, l, t.entity, t.target, gap, load_reach))) {
           e_best = e, l_best = l, found = true;
           break;
         }
@@ -220,8 +278,8 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
     const Vector2d back = end - start;
     for (double off = kBackOffStepM; !found && off < back.norm(); off += kBackOffStepM) {
       const Vector2d shift = -off * back.normalized();
-      if (free(t.entity, end + shift, load, t.target, 0) &&
-          (load < 0 || free(load, load_end + shift, t.entity, t.target, 0)))
+      if (free(t.entity, end + shift, load, t.target, 0, reach) &&
+          (load < 0 || free(load, load_end + shift, t.entity, t.target, 0, load_reach)))
         e_best = end + shift, l_best = load_end + shift, found = true;
     }
     ends[static_cast<size_t>(t.entity)] = e_best;

@@ -59,8 +59,7 @@ StepRules stepRulesOf(const task::TaskDir& train) {
         bool with_carrier = false;
         for (int c = 0; c < static_cast<int>(pos.size()); ++c) {
           if (c == o || isObject(c) ||
-              (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() >
-                  task::togetherDistance(train.spec, c, o))
+              !task::together(train.spec, c, pos[static_cast<size_t>(c)], o, pos[static_cast<size_t>(o)]))
             continue;
           with_carrier = with_carrier || same(o, c);
           if (token.count(c) && loads.count(token[c]->action) && !same(o, c)) carried = false;

@@ -75,9 +75,8 @@ std::vector<detail::Load> SequenceModel::Impl::loadsAt(const std::vector<Eigen::
     detail::Load load{static_cast<int>(o), {}};
     for (int64_t c = 0; c < n; ++c)
       if (c != o && !isObject(c) &&
-          (pos[static_cast<size_t>(c)] - pos[static_cast<size_t>(o)]).norm() <=
-              task::togetherDistance(spec, order.task_of[static_cast<size_t>(c)],
-                                     order.task_of[static_cast<size_t>(o)]))
+          task::together(spec, order.task_of[static_cast<size_t>(c)], pos[static_cast<size_t>(c)],
+                         order.task_of[static_cast<size_t>(o)], pos[static_cast<size_t>(o)]))
         load.carriers.push_back(static_cast<int>(c));
     loads.push_back(load);
   }

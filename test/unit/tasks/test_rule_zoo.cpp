@@ -272,3 +272,52 @@ TEST(RuleZoo, DirectMotionStopsAtItsGapBendsAroundNothingAndKeepsBodiesApart) {
   EXPECT_GT(straight, 0);
   EXPECT_GT(curved, 0);
 }
+
+// Where the demonstrations stop at another gap than the footprints' contact, the end point
+// follows the demonstrations and training reports it (task::stopGaps): touching says
+// nothing; 4 mm and 1 cm short are named; footprints stated too big (the demonstrations end
+// inside them) are named and the step's end points keep the demonstrated stop.
+TEST(RuleZoo, ADemonstratedStopGapOtherThanTheFootprintsIsReportedAndKept) {
+  const uint64_t fetch = findRule({"fetch: the robot farthest from B1"});
+  const int box = tasks::zooRule(fetch).robots;
+  for (double gap : {0.0, 0.004, 0.01}) {
+    const task::TaskDir dir = tasks::generateZoo(fetch, 6, 3, tasks::ZooMotion{true, gap});
+    const task::EndPointModel learned = task::learnEndPoints(dir.spec, dir.demos);
+    std::vector<std::string> to_box;
+    for (const task::StopGap& g : task::stopGaps(dir.spec, learned, dir.demos))
+      if (g.target == "B1") {
+        to_box.push_back(g.str());
+        EXPECT_NEAR(g.gap_m, gap, 5e-4) << g.str();
+      }
+    if (gap == 0) {
+      EXPECT_TRUE(to_box.empty()) << to_box.front();
+      continue;
+    }
+    ASSERT_FALSE(to_box.empty()) << gap;  // one per fetching robot
+    const std::string mm = std::to_string(static_cast<int>(std::lround(gap * 1000))) + " mm from B1";
+    for (const std::string& note : to_box) {
+      EXPECT_NE(note.find(mm), std::string::npos) << note;
+      EXPECT_NE(note.find("footprints say 0 mm: using the demonstrated gap"), std::string::npos) << note;
+    }
+  }
+  // The box's footprint stated 1 cm too big: the touching demonstrations end inside it.
+  task::TaskDir dir = tasks::generateZoo(fetch, 6, 3, tasks::ZooMotion{true, 0.0});
+  dir.spec.entities[static_cast<size_t>(box)].radius_m = task::kDefaultObjectRadius + 0.01;
+  const task::EndPointModel learned = task::learnEndPoints(dir.spec, dir.demos);
+  const std::vector<task::StopGap> gaps = task::stopGaps(dir.spec, learned, dir.demos);
+  ASSERT_FALSE(gaps.empty());
+  for (const task::StopGap& g : gaps) {
+    EXPECT_NEAR(g.gap_m, -0.01, 5e-4) << g.str();
+    EXPECT_NE(g.str().find("10 mm inside B1's footprint"), std::string::npos) << g.str();
+  }
+  // The fetch's end point stays where the demonstrations stop, not pushed out to the
+  // footprints' contact.
+  const task::Demonstration& d = dir.demos[0];
+  const std::vector<task::Token>& step = d.steps[0].tokens;
+  const std::vector<Eigen::Vector2d>& decided = d.snapshots[0].positions;
+  const std::vector<Eigen::Vector2d> ends = task::stepEndPositions(dir.spec, learned, step, decided);
+  ASSERT_EQ(step.size(), 1u);
+  const int robot = step[0].entity;
+  EXPECT_NEAR((ends[static_cast<size_t>(robot)] - decided[static_cast<size_t>(box)]).norm(),
+              dir.spec.contactDistance(robot, box) - 0.01, 5e-4);
+}
