@@ -84,8 +84,9 @@ EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstrati
 Eigen::Vector2d endOffset(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step, size_t i);
 
 /// Where the demonstrations stop toward a body at another gap than the footprints' contact
-/// (robots left 4 mm or 1 cm apart; or overlapping: footprints stated too big): the end
-/// point follows the demonstrations, and training says so (stopGapNotes).
+/// (robots left 4 mm or 1 cm apart; or overlapping: footprints stated too big): a wider gap
+/// is kept as demonstrated, an overlap ends at the footprints' contact (the filter and the
+/// collision judge hold bodies to the footprints); training names both (stopGaps).
 struct StopGap {
   std::string motion;  ///< the key, "R2:move:R1"
   std::string mover, target;
@@ -136,15 +137,14 @@ int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, c
 /// bodies must fit (table frame, metres). Each motion ends at its endPoint() under `model`;
 /// a riding load (ridingLoad()) ends in front of its carrier at their contact distance
 /// along the carrier's approach (on the target, the carrier behind it). Its own target a
-/// motion may come as near as its end point says (demonstrations stopping inside the
-/// footprints keep their stop). An end point inside a standing body, or inside an end placed before it in the step
-/// (token order), is turned about the target to the nearest place at the same distance kEndTurnGapM clear of every
-/// other body (the motion still touches its target, and only it); where no turn frees it (a
-/// goal another body already stands on) it stops short on its way where its body first
-/// fits: two robots sent onto one goal end touching, one on it. With `table` (its corners),
-/// no end is moved further over its edge than its entity starts. Used wherever a step is
-/// executed with bodies: the generated demonstrations (with nothing learned), `ddace eval`
-/// with bodies and the coordinator. Throws ddace::Error for a token naming an entity outside
+/// motion comes no nearer than their contact (demonstrations stopping inside the
+/// footprints end at contact: the footprints are what bodies are held to). An end point inside a standing body, or
+/// inside an end placed before it in the step (token order), is turned about the target to the nearest place at the
+/// same distance kEndTurnGapM clear of every other body (the motion still touches its target, and only it); where no
+/// turn frees it (a goal another body already stands on) it stops short on its way where its body first fits: two
+/// robots sent onto one goal end touching, one on it. With `table` (its corners), no end is moved further over its edge
+/// than its entity starts. Used wherever a step is executed with bodies: the generated demonstrations (with nothing
+/// learned), `ddace eval` with bodies and the coordinator. Throws ddace::Error for a token naming an entity outside
 /// `decided`.
 std::vector<Eigen::Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model,
                                               const std::vector<Token>& step,

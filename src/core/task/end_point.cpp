@@ -118,8 +118,8 @@ std::string StopGap::str() const {
                   (mm < 0 ? " stops " + std::to_string(-mm) + " mm inside " + target + "'s footprint"
                           : " stops " + std::to_string(mm) + " mm from " + target) +
                   " in the demonstrations (" + std::to_string(segments) + " stops" +
-                  (by_class ? ", its motion class's" : "") + "); footprints say 0 mm: using the demonstrated " +
-                  (mm < 0 ? "stop (footprints stated too big?)" : "gap");
+                  (by_class ? ", its motion class's" : "") + "); footprints say 0 mm: " +
+                  (mm < 0 ? "ending at their contact (footprints stated too big?)" : "using the demonstrated gap");
   return s;
 }
 
@@ -256,7 +256,10 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
       load_end = end + spec.contactDistance(t.entity, load) * u;
     }
     // The rule's end point, else the nearest turn about the target that is free.
-    const double reach = (end - target).norm(), load_reach = (load_end - target).norm();
+    // A gap wider than contact is kept; an end inside its target's footprint is not: the
+    // footprints are what the safety filter and the collision judge hold bodies to.
+    const double reach = std::max((end - target).norm(), spec.contactDistance(t.entity, t.target)),
+                 load_reach = (load_end - target).norm();
     Vector2d e_best = end, l_best = load_end;
     bool found = false;
     for (int k = 0; !found && k * kEndTurnStepRad <= kMaxEndTurnRad + 1e-12; ++k)
