@@ -104,10 +104,10 @@ class Runner {
 
   /// Answers what the coordinator asks for at once (decisions and paths take no time).
   void handle(exec::CoordinatorOutput first) {
-    std::deque<exec::CoordinatorOutput> todo{std::move(first)};
-    while (!todo.empty()) {
-      const exec::CoordinatorOutput out = std::move(todo.front());
-      todo.pop_front();
+    std::deque<exec::CoordinatorOutput> pending{std::move(first)};
+    while (!pending.empty()) {
+      const exec::CoordinatorOutput out = std::move(pending.front());
+      pending.pop_front();
       for (int e : out.stop) drop(e);
       for (const exec::SegmentCommand& s : out.segments) {
         drop(s.entity);
@@ -121,17 +121,17 @@ class Runner {
       for (const exec::PathRequest& r : out.paths) {
         try {
           const gp::GeneratedPath g = model_.primitives->generate(r.token, r.start, r.goal, 100, r.step);
-          todo.push_back(c_.onPath(r.id, {g.points, g.stddev}, "", now_));
+          pending.push_back(c_.onPath(r.id, {g.points, g.stddev}, "", now_));
         } catch (const Error& e) {
-          todo.push_back(c_.onPath(r.id, {}, e.what(), now_));
+          pending.push_back(c_.onPath(r.id, {}, e.what(), now_));
         }
       }
       if (out.decision) {
         try {
           const tgn::Prediction d = model_.sequence.predictNext(out.decision->history);
-          todo.push_back(c_.onDecision(out.decision->id, exec::Decision{d.end, d.tokens}, now_));
+          pending.push_back(c_.onDecision(out.decision->id, exec::Decision{d.end, d.tokens}, now_));
         } catch (const Error& e) {
-          todo.push_back(c_.onDecisionError(out.decision->id, e.what(), now_));
+          pending.push_back(c_.onDecisionError(out.decision->id, e.what(), now_));
         }
       }
     }

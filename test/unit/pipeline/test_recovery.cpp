@@ -44,19 +44,19 @@ struct ModelRun {
   }
   /// Answers what the coordinator asked for: decisions from the model, straight paths.
   void handle(const exec::CoordinatorOutput& first) {
-    std::vector<exec::CoordinatorOutput> todo{first};
-    while (!todo.empty()) {
-      const exec::CoordinatorOutput out = todo.back();
-      todo.pop_back();
+    std::vector<exec::CoordinatorOutput> pending{first};
+    while (!pending.empty()) {
+      const exec::CoordinatorOutput out = pending.back();
+      pending.pop_back();
       for (int e : out.stop)
         running.erase(std::remove_if(running.begin(), running.end(), [&](const auto& s) { return s.entity == e; }),
                       running.end());
       running.insert(running.end(), out.segments.begin(), out.segments.end());
-      for (const auto& p : out.paths) todo.push_back(c.onPath(p.id, {{p.start, p.goal}, {0, 0}}, "", now += 0.1));
+      for (const auto& p : out.paths) pending.push_back(c.onPath(p.id, {{p.start, p.goal}, {0, 0}}, "", now += 0.1));
       if (out.decision) {
         const tgn::Prediction p = model.sequence.predictNext(out.decision->history);
         decided.push_back(p.tokens);
-        todo.push_back(c.onDecision(out.decision->id, exec::Decision{p.end, p.tokens}, now += 0.1));
+        pending.push_back(c.onDecision(out.decision->id, exec::Decision{p.end, p.tokens}, now += 0.1));
       }
     }
   }
