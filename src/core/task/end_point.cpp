@@ -27,11 +27,39 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-/// Component-wise median of `offsets`.
+/// The median of `offsets` in polar form: the median distance from the target along the
+/// median side. Where demonstrated ends lie round the target at several sides, a
+/// component-wise median would fall nearer the target than any demonstration stopped (or
+/// farther); the side is measured from behind the target as the mover approaches (-x),
+/// where ends lie, so it does not wrap.
 EndOffset medianOffset(const std::vector<Vector2d>& offsets) {
-  std::vector<double> x, y;
-  for (const auto& o : offsets) x.push_back(o.x()), y.push_back(o.y());
-  return {Vector2d(median(x), median(y)), static_cast<int>(offsets.size())};
+  std::vector<double> distance, side;
+  for (const auto& o : offsets) distance.push_back(o.norm()), side.push_back(std::atan2(o.y(), -o.x()));
+  const double r = median(distance), a = median(side);
+  return {Vector2d(-r * std::cos(a), r * std::sin(a)), static_cast<int>(offsets.size())};
+}
+
+/// Whether the motion `step[i]`, which ended at `last` (every entity's position), ended
+/// beside another mover of its step bound for the same obstacle target: within contact
+/// plus the gap the step's placement leaves (kEndTurnGapM) and the tracking tolerance.
+/// Such an end is where the bodies of the step fitted (turned about the target, queued
+/// behind another), not where motions toward that target end: stepEndPositions places it
+/// again from the arrival order of the run. Onto a goal the stop behind the robot that
+/// took it is kept: without bodies (ideal execution) nothing places it, and the two
+/// would end on one point.
+bool displaced(const TaskSpec& spec, const std::vector<Token>& step, size_t i, const std::vector<Vector2d>& last) {
+  const Token& t = step[i];
+  const auto obstacle = [&](int e) { return spec.footprint(e).obstacle; };
+  if (!obstacle(t.entity) || !obstacle(t.target)) return false;
+  const int load = carriedLoad(spec, step, i);
+  for (size_t j = 0; j < step.size(); ++j) {
+    const int other = step[j].entity;
+    if (j == i || static_cast<int>(j) == load || !step[j].isMotion() || step[j].target != t.target || !obstacle(other))
+      continue;
+    const double apart = (last.at(static_cast<size_t>(other)) - last.at(static_cast<size_t>(t.entity))).norm();
+    if (apart <= spec.contactDistance(other, t.entity) + kEndTurnGapM + kArrivalToleranceM) return true;
+  }
+  return false;
 }
 
 }  // namespace
@@ -71,8 +99,10 @@ EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstrati
       const std::vector<Token>& step = d.steps[static_cast<size_t>(seg.step)].tokens;
       const auto at = std::find(step.begin(), step.end(), seg.token);
       if (at == step.end()) continue;
+      const auto i = static_cast<size_t>(at - step.begin());
+      if (displaced(spec, step, i, d.positions.at(static_cast<size_t>(seg.last_row)))) continue;
       keys[tokenKey(seg.token, spec)].push_back(offset);
-      classes[motionClass(spec, step, static_cast<size_t>(at - step.begin()))].push_back(offset);
+      classes[motionClass(spec, step, i)].push_back(offset);
     }
   }
   EndPointModel m;
@@ -195,7 +225,7 @@ int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, c
 
 std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
                                        const std::vector<Vector2d>& decided,
-                                       const std::optional<Eigen::AlignedBox2d>& table) {
+                                       const std::optional<Eigen::AlignedBox2d>& table, PlacementOrder order) {
   const auto n = static_cast<int>(decided.size());
   for (const Token& t : step)
     if (t.entity < 0 || t.entity >= n || t.target >= n)
@@ -212,6 +242,22 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
     movers.push_back(i);
     moving[static_cast<size_t>(step[i].entity)] = true;
     if (load_of[i] >= 0) moving[static_cast<size_t>(step[static_cast<size_t>(load_of[i])].entity)] = true;
+  }
+  if (order == PlacementOrder::Arrival) {
+    // The shortest way first. Motions bound for one place (two robots onto one goal) contest
+    // it in the tokens' order, when the first of them would arrive.
+    std::vector<Vector2d> rule(step.size());
+    std::vector<double> arrives(step.size(), 0.0);
+    for (size_t i : movers) {
+      rule[i] = endPoint(spec, model, step, i, decided);
+      arrives[i] = (rule[i] - decided[static_cast<size_t>(step[i].entity)]).norm();
+    }
+    std::vector<double> key = arrives;
+    for (size_t i : movers)
+      for (size_t j : movers)
+        if (step[j].target == step[i].target && (rule[j] - rule[i]).norm() < kArrivalToleranceM)
+          key[i] = std::min(key[i], arrives[j]);
+    std::stable_sort(movers.begin(), movers.end(), [&](size_t a, size_t b) { return key[a] < key[b]; });
   }
   const auto obstacle = [&](int e) { return spec.footprint(e).obstacle; };
   // How far the body of e at p is inside the table's edges (metres; < 0: over one).
@@ -246,8 +292,16 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
   for (size_t i : movers) {
     const Token& t = step[i];
     const Vector2d start = decided[static_cast<size_t>(t.entity)], target = decided[static_cast<size_t>(t.target)];
-    const Vector2d end = endPoint(spec, model, step, i, decided);
     const int load = load_of[i] >= 0 ? step[static_cast<size_t>(load_of[i])].entity : -1;
+    // A gap wider than contact is kept; an end inside its target's footprint moves out to
+    // contact on its side (the footprints are what the safety filter and the collision judge
+    // hold bodies to), so a turn about the target keeps it touching the target.
+    Vector2d end = endPoint(spec, model, step, i, decided);
+    const double contact = spec.contactDistance(t.entity, t.target);
+    if (load < 0 && obstacle(t.target) && obstacle(t.entity) && (end - target).norm() < contact) {
+      const Vector2d side = (end - target).norm() >= kMinApproachM ? end - target : start - target;
+      if (side.norm() >= kMinApproachM) end = target + contact * side.normalized();
+    }
     Vector2d load_end = Vector2d::Zero();
     if (load >= 0) {
       const Vector2d d = target - start;
@@ -256,10 +310,7 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
       load_end = end + spec.contactDistance(t.entity, load) * u;
     }
     // The rule's end point, else the nearest turn about the target that is free.
-    // A gap wider than contact is kept; an end inside its target's footprint is not: the
-    // footprints are what the safety filter and the collision judge hold bodies to.
-    const double reach = std::max((end - target).norm(), spec.contactDistance(t.entity, t.target)),
-                 load_reach = (load_end - target).norm();
+    const double reach = std::max((end - target).norm(), contact), load_reach = (load_end - target).norm();
     Vector2d e_best = end, l_best = load_end;
     bool found = false;
     for (int k = 0; !found && k * kEndTurnStepRad <= kMaxEndTurnRad + 1e-12; ++k)
@@ -276,6 +327,19 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
           break;
         }
       }
+    // Inside a body placed before it by no more than the tracking tolerance (ends learned
+    // from tracked stops at contact): straight out of that body, touching it.
+    for (int b : placed) {
+      const Vector2d away = end - ends[static_cast<size_t>(b)];
+      const double inside = spec.contactDistance(t.entity, b) - away.norm();
+      if (found || b == t.target || b == load || inside <= 0 || inside > kArrivalToleranceM ||
+          away.norm() < kMinApproachM)
+        continue;
+      const Vector2d shift = inside * away.normalized();
+      if (free(t.entity, end + shift, load, t.target, 0, reach) &&
+          (load < 0 || free(load, load_end + shift, t.entity, t.target, 0, load_reach)))
+        e_best = end + shift, l_best = load_end + shift, found = true;
+    }
     // Onto a goal already taken (turning about its centre changes nothing): stop short of
     // it, on the way, where the body first fits.
     const Vector2d back = end - start;

@@ -249,3 +249,120 @@ TEST(StepEndPositions, BodiesOfAStepEndWhereTheyFit) {
   }
   EXPECT_THROW(stepEndPositions(spec, none, {{r1, "move", 9}}, {{0, 0}, {1, 1}, {2, 2}, {3, 3}}), Error);
 }
+
+namespace {
+
+/// R1, R2, R3 and G1; R3 stands still.
+TaskSpec meeting() {
+  return parseTaskYaml(
+      "format: ddace-task/1\nentities:\n  - {name: R1, kind: robot, type: hamster}\n"
+      "  - {name: R2, kind: robot, type: hamster}\n  - {name: R3, kind: robot, type: hamster}\n"
+      "  - {name: G1, kind: goal}\n",
+      "task.yaml");
+}
+
+/// One demonstration of one step: every robot in `ends` drives straight from `from` to its
+/// end (ends[e], same index as from) toward R3, standing at `r3`, all at once.
+Demonstration meetingDemo(const std::vector<Vector2d>& from, const std::vector<Vector2d>& ends, const Vector2d& r3,
+                          const std::vector<int>& movers) {
+  Demonstration d;
+  d.has_label_columns = {true, true, false, false};
+  const Vector2d g1(0.1, 0.9);
+  auto row = [&](double u, bool labelled) {
+    d.t.push_back(0.05 * static_cast<double>(d.t.size()));
+    std::vector<Vector2d> p = {from[0], from[1], r3, g1};
+    std::vector<Label> l(4);
+    for (int e : movers) {
+      p[static_cast<size_t>(e)] = from[static_cast<size_t>(e)] + u * (ends[static_cast<size_t>(e)] - from[e]);
+      if (labelled) l[static_cast<size_t>(e)] = {"move", 2};
+    }
+    d.positions.push_back(p);
+    d.labels.push_back(l);
+  };
+  row(0, false);
+  for (int i = 0; i <= 20; ++i) row(i / 20.0, true);
+  row(1, false);
+  d.analyze();
+  return d;
+}
+
+}  // namespace
+
+// Ends demonstrated round the target at several sides, all at contact: the learned end is
+// at contact too (a component-wise median of ends at -60, 0 and +60 degrees would lie
+// inside the target, 2.2 cm from its centre).
+TEST(EndPoint, EndsDemonstratedAtSeveralSidesOfTheTargetAreLearnedAtTheirDistance) {
+  const TaskSpec spec = meeting();
+  const double contact = spec.contactDistance(0, 2);
+  const Vector2d r3(0.5, 0.5);
+  std::vector<Demonstration> ds;
+  for (const double side : {-M_PI / 3, 0.0, M_PI / 3, -M_PI / 3, M_PI / 3 + 0.1}) {
+    const Vector2d from(0.1, 0.5);  // approaching along +x: behind R3 is -x
+    const Vector2d end = r3 + contact * Vector2d(-std::cos(side), std::sin(side));
+    ds.push_back(meetingDemo({from, {0.9, 0.1}}, {end, {0.9, 0.1}}, r3, {0}));
+  }
+  const EndPointModel m = learnEndPoints(spec, ds);
+  ASSERT_EQ(m.by_key.at("R1:move:R3").segments, 5);
+  EXPECT_NEAR(m.by_key.at("R1:move:R3").offset.norm(), contact, 1e-9);
+  EXPECT_TRUE(stopGaps(spec, m, ds).empty()) << stopGaps(spec, m, ds).front().str();
+}
+
+// Two robots meeting at a third: the one that came second ended turned aside, beside the
+// first, where the bodies fitted. That teaches nothing about where motions toward R3 end
+// (the step's placement decides it again in the run): the footprints' rule stands,
+// contact on the side each robot comes from, and no stop gap is reported.
+TEST(EndPoint, RobotsThatEndedBesideAnotherBoundForTheSameRobotTeachNoOffset) {
+  const TaskSpec spec = meeting();
+  const double contact = spec.contactDistance(0, 2);
+  std::vector<Demonstration> ds;
+  for (int k = 0; k < 4; ++k) {
+    const Vector2d r3(0.5, 0.5 + 0.02 * k), from1(0.1, r3.y()), from2(0.15, r3.y() + 0.05);
+    const Vector2d end1 = r3 - Vector2d(contact, 0);
+    // R2 comes from nearly the same side, turned about R3 to 1 cm beside R1.
+    const double turn = 2 * std::asin((contact + kEndTurnGapM) / (2 * contact));
+    const Vector2d end2 = r3 + contact * Vector2d(-std::cos(turn), std::sin(turn));
+    ds.push_back(meetingDemo({from1, from2}, {end1, end2}, r3, {0, 1}));
+  }
+  const EndPointModel m = learnEndPoints(spec, ds);
+  EXPECT_EQ(m.by_key.count("R2:move:R3"), 0u);
+  EXPECT_EQ(m.by_class.count("robot->robot"), 0u);
+  const std::vector<Token> step = {{0, "move", 2}, {1, "move", 2}};
+  EXPECT_NEAR(endOffset(spec, m, step, 1).x(), -contact, 1e-12);
+  EXPECT_NEAR(endOffset(spec, m, step, 1).y(), 0.0, 1e-12);
+  EXPECT_TRUE(stopGaps(spec, m, ds).empty());
+}
+
+// Three robots sent to one robot: R2 is listed first, but R3 stands in front of it on
+// nearly the same way. Placed in token order, R2's end is the one on that side and R3's
+// turns away from it, so R3, there first, stands beside the way R2 comes in. Placed in the
+// order they arrive, R3 keeps the end on its side and R2 turns about R1 clear of it.
+TEST(StepEndPositions, EndsArePlacedInTheOrderTheRobotsArrive) {
+  const TaskSpec spec = parseTaskYaml(
+      "format: ddace-task/1\nentities:\n  - {name: R1, kind: robot, type: hamster}\n"
+      "  - {name: R2, kind: robot, type: hamster}\n  - {name: R3, kind: robot, type: hamster}\n"
+      "  - {name: R4, kind: robot, type: hamster}\n",
+      "task.yaml");
+  const EndPointModel none;
+  const int r1 = 0, r2 = 1, r3 = 2, r4 = 3;
+  const double contact = spec.contactDistance(r1, r2);
+  const Vector2d c(0.5, 0.5);
+  const std::vector<Vector2d> at = {c, {0.565, 0.272}, {0.570, 0.338}, {0.914, 0.474}};
+  const std::vector<Token> step = {{r2, "move", r1}, {r3, "move", r1}, {r4, "move", r1}};
+  // How far (radians) the end of e lies from the side e comes from.
+  const auto turned = [&](const std::vector<Vector2d>& ends, int e) {
+    return std::acos((ends[e] - c).normalized().dot((at[e] - c).normalized()));
+  };
+  {
+    const auto ends = stepEndPositions(spec, none, step, at);  // token order
+    EXPECT_NEAR(turned(ends, r2), 0.0, 1e-6);
+    EXPECT_GT(turned(ends, r3), M_PI / 4) << "R3, there first, turned away from R2's end";
+  }
+  const auto ends = stepEndPositions(spec, none, step, at, std::nullopt, PlacementOrder::Arrival);
+  EXPECT_NEAR(turned(ends, r3), 0.0, 1e-6) << "the first there keeps the end on its side";
+  EXPECT_GT(turned(ends, r2), M_PI / 4);
+  for (int e : {r2, r3, r4}) EXPECT_NEAR((ends[e] - c).norm(), contact, 1e-9) << "touching R1";
+  EXPECT_GE((ends[r2] - ends[r3]).norm(), contact + kEndTurnGapM - 1e-9) << "turned: clear of R3";
+  EXPECT_NEAR(turned(ends, r4), 0.0, 1e-6) << "R4's own side is free";
+  EXPECT_GE((ends[r4] - ends[r3]).norm(), contact - 1e-9);
+  EXPECT_GE((ends[r4] - ends[r2]).norm(), contact - 1e-9);
+}
