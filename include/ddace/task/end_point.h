@@ -113,7 +113,9 @@ Eigen::Vector2d endPoint(const TaskSpec& spec, const EndPointModel& model, const
                          const std::vector<Eigen::Vector2d>& decided);
 
 /// The end point the rule gives a demonstrated segment (its step's tokens, decided with the
-/// step's snapshot); the segment's goal (Demonstration::segmentGoal) when its step is unknown.
+/// step's snapshot; one that ended beside another mover bound for the same obstacle target
+/// where the step's bodies fit, stepEndPositions in token order); the segment's goal
+/// (Demonstration::segmentGoal) when its step is unknown.
 Eigen::Vector2d segmentEndPoint(const TaskSpec& spec, const EndPointModel& model, const Demonstration& demo,
                                 const Segment& segment);
 

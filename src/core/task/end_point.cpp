@@ -203,7 +203,14 @@ Vector2d segmentEndPoint(const TaskSpec& spec, const EndPointModel& model, const
   const std::vector<Token>& step = demo.steps[k].tokens;
   const auto at = std::find(step.begin(), step.end(), segment.token);
   if (at == step.end()) return demo.segmentGoal(segment);
-  return endPoint(spec, model, step, static_cast<size_t>(at - step.begin()), demo.snapshots[k].positions);
+  const auto i = static_cast<size_t>(at - step.begin());
+  const std::vector<Vector2d>& decided = demo.snapshots[k].positions;
+  // Ended beside another mover bound for the same target: where the step's bodies fitted,
+  // in the order the demonstration lists them.
+  if (segment.last_row >= 0 && static_cast<size_t>(segment.last_row) < demo.positions.size() &&
+      displaced(spec, step, i, demo.positions[static_cast<size_t>(segment.last_row)]))
+    return stepEndPositions(spec, model, step, decided)[static_cast<size_t>(segment.token.entity)];
+  return endPoint(spec, model, step, i, decided);
 }
 
 int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, const std::vector<Vector2d>& at) {
