@@ -12,12 +12,9 @@
 // position when its step was decided, in that segment's approach frame; the median (in
 // polar form: the median distance along the median side) over the segments of one key
 // ("R1:move:R3") when the key has at least kMinKeySegments of them, else over the segments
-// of its *motion class*, else the footprints' default. A segment that ended beside another
-// mover of its step bound for the same obstacle target (several robots meeting at one)
-// teaches nothing: it ended where the bodies fitted, which the step's placement decides
-// (stepEndPositions). A motion class is the mover's kind, whether it carries a load, and
-// the target's kind: "robot->robot", "robot+load->goal", "object->goal". A robot carries
-// a load when an object of its step has a token with the same action and target.
+// of its *motion class*, else the footprints' default. A motion class is the mover's kind, whether it carries a load,
+// and the target's kind: "robot->robot", "robot+load->goal", "object->goal". A robot carries a load when an object of
+// its step has a token with the same action and target.
 //
 // So demonstrations that stop at contact teach end points at contact, and demonstrations
 // that end at the target's centre teach end points at centres: recordings and generated
@@ -113,9 +110,7 @@ Eigen::Vector2d endPoint(const TaskSpec& spec, const EndPointModel& model, const
                          const std::vector<Eigen::Vector2d>& decided);
 
 /// The end point the rule gives a demonstrated segment (its step's tokens, decided with the
-/// step's snapshot; one that ended beside another mover bound for the same obstacle target
-/// where the step's bodies fit, stepEndPositions in token order); the segment's goal
-/// (Demonstration::segmentGoal) when its step is unknown.
+/// step's snapshot); the segment's goal (Demonstration::segmentGoal) when its step is unknown.
 Eigen::Vector2d segmentEndPoint(const TaskSpec& spec, const EndPointModel& model, const Demonstration& demo,
                                 const Segment& segment);
 

@@ -39,29 +39,6 @@ EndOffset medianOffset(const std::vector<Vector2d>& offsets) {
   return {Vector2d(-r * std::cos(a), r * std::sin(a)), static_cast<int>(offsets.size())};
 }
 
-/// Whether the motion `step[i]`, which ended at `last` (every entity's position), ended
-/// beside another mover of its step bound for the same obstacle target: within contact
-/// plus the gap the step's placement leaves (kEndTurnGapM) and the tracking tolerance.
-/// Such an end is where the bodies of the step fitted (turned about the target, queued
-/// behind another), not where motions toward that target end: stepEndPositions places it
-/// again from the arrival order of the run. Onto a goal the stop behind the robot that
-/// took it is kept: without bodies (ideal execution) nothing places it, and the two
-/// would end on one point.
-bool displaced(const TaskSpec& spec, const std::vector<Token>& step, size_t i, const std::vector<Vector2d>& last) {
-  const Token& t = step[i];
-  const auto obstacle = [&](int e) { return spec.footprint(e).obstacle; };
-  if (!obstacle(t.entity) || !obstacle(t.target)) return false;
-  const int load = carriedLoad(spec, step, i);
-  for (size_t j = 0; j < step.size(); ++j) {
-    const int other = step[j].entity;
-    if (j == i || static_cast<int>(j) == load || !step[j].isMotion() || step[j].target != t.target || !obstacle(other))
-      continue;
-    const double apart = (last.at(static_cast<size_t>(other)) - last.at(static_cast<size_t>(t.entity))).norm();
-    if (apart <= spec.contactDistance(other, t.entity) + kEndTurnGapM + kArrivalToleranceM) return true;
-  }
-  return false;
-}
-
 }  // namespace
 
 int carriedLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i) {
@@ -100,7 +77,6 @@ EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstrati
       const auto at = std::find(step.begin(), step.end(), seg.token);
       if (at == step.end()) continue;
       const auto i = static_cast<size_t>(at - step.begin());
-      if (displaced(spec, step, i, d.positions.at(static_cast<size_t>(seg.last_row)))) continue;
       keys[tokenKey(seg.token, spec)].push_back(offset);
       classes[motionClass(spec, step, i)].push_back(offset);
     }
@@ -203,14 +179,7 @@ Vector2d segmentEndPoint(const TaskSpec& spec, const EndPointModel& model, const
   const std::vector<Token>& step = demo.steps[k].tokens;
   const auto at = std::find(step.begin(), step.end(), segment.token);
   if (at == step.end()) return demo.segmentGoal(segment);
-  const auto i = static_cast<size_t>(at - step.begin());
-  const std::vector<Vector2d>& decided = demo.snapshots[k].positions;
-  // Ended beside another mover bound for the same target: where the step's bodies fitted,
-  // in the order the demonstration lists them.
-  if (segment.last_row >= 0 && static_cast<size_t>(segment.last_row) < demo.positions.size() &&
-      displaced(spec, step, i, demo.positions[static_cast<size_t>(segment.last_row)]))
-    return stepEndPositions(spec, model, step, decided)[static_cast<size_t>(segment.token.entity)];
-  return endPoint(spec, model, step, i, decided);
+  return endPoint(spec, model, step, static_cast<size_t>(at - step.begin()), demo.snapshots[k].positions);
 }
 
 int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, const std::vector<Vector2d>& at) {
@@ -251,8 +220,9 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
     if (load_of[i] >= 0) moving[static_cast<size_t>(step[static_cast<size_t>(load_of[i])].entity)] = true;
   }
   if (order == PlacementOrder::Arrival) {
-    // The shortest way first. Motions bound for one place (two robots onto one goal) contest
-    // it in the tokens' order, when the first of them would arrive.
+    // The shortest way first. Motions bound for one point of a goal (two robots onto it)
+    // contest it in the tokens' order, when the first of them would arrive: the robot a
+    // demonstration lists first took the goal.
     std::vector<Vector2d> rule(step.size());
     std::vector<double> arrives(step.size(), 0.0);
     for (size_t i : movers) {
@@ -262,7 +232,8 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
     std::vector<double> key = arrives;
     for (size_t i : movers)
       for (size_t j : movers)
-        if (step[j].target == step[i].target && (rule[j] - rule[i]).norm() < kArrivalToleranceM)
+        if (step[j].target == step[i].target && !spec.footprint(step[i].target).obstacle &&
+            (rule[j] - rule[i]).norm() < kArrivalToleranceM)
           key[i] = std::min(key[i], arrives[j]);
     std::stable_sort(movers.begin(), movers.end(), [&](size_t a, size_t b) { return key[a] < key[b]; });
   }
@@ -334,9 +305,9 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
           break;
         }
       }
-    // Inside a body placed before it by no more than the tracking tolerance (ends learned
-    // from tracked stops at contact): straight out of that body, touching it.
-    for (int b : placed) {
+    // Onto a goal, inside a body placed before it by no more than the tracking tolerance
+    // (ends learned from tracked stops at contact): straight out of that body, touching it.
+    for (int b : obstacle(t.target) ? std::vector<int>{} : placed) {
       const Vector2d away = end - ends[static_cast<size_t>(b)];
       const double inside = spec.contactDistance(t.entity, b) - away.norm();
       if (found || b == t.target || b == load || inside <= 0 || inside > kArrivalToleranceM ||

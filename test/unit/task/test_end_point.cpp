@@ -307,31 +307,6 @@ TEST(EndPoint, EndsDemonstratedAtSeveralSidesOfTheTargetAreLearnedAtTheirDistanc
   EXPECT_TRUE(stopGaps(spec, m, ds).empty()) << stopGaps(spec, m, ds).front().str();
 }
 
-// Two robots meeting at a third: the one that came second ended turned aside, beside the
-// first, where the bodies fitted. That teaches nothing about where motions toward R3 end
-// (the step's placement decides it again in the run): the footprints' rule stands,
-// contact on the side each robot comes from, and no stop gap is reported.
-TEST(EndPoint, RobotsThatEndedBesideAnotherBoundForTheSameRobotTeachNoOffset) {
-  const TaskSpec spec = meeting();
-  const double contact = spec.contactDistance(0, 2);
-  std::vector<Demonstration> ds;
-  for (int k = 0; k < 4; ++k) {
-    const Vector2d r3(0.5, 0.5 + 0.02 * k), from1(0.1, r3.y()), from2(0.15, r3.y() + 0.05);
-    const Vector2d end1 = r3 - Vector2d(contact, 0);
-    // R2 comes from nearly the same side, turned about R3 to 1 cm beside R1.
-    const double turn = 2 * std::asin((contact + kEndTurnGapM) / (2 * contact));
-    const Vector2d end2 = r3 + contact * Vector2d(-std::cos(turn), std::sin(turn));
-    ds.push_back(meetingDemo({from1, from2}, {end1, end2}, r3, {0, 1}));
-  }
-  const EndPointModel m = learnEndPoints(spec, ds);
-  EXPECT_EQ(m.by_key.count("R2:move:R3"), 0u);
-  EXPECT_EQ(m.by_class.count("robot->robot"), 0u);
-  const std::vector<Token> step = {{0, "move", 2}, {1, "move", 2}};
-  EXPECT_NEAR(endOffset(spec, m, step, 1).x(), -contact, 1e-12);
-  EXPECT_NEAR(endOffset(spec, m, step, 1).y(), 0.0, 1e-12);
-  EXPECT_TRUE(stopGaps(spec, m, ds).empty());
-}
-
 // Three robots sent to one robot: R2 is listed first, but R3 stands in front of it on
 // nearly the same way. Placed in token order, R2's end is the one on that side and R3's
 // turns away from it, so R3, there first, stands beside the way R2 comes in. Placed in the
