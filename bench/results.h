@@ -3,6 +3,8 @@
 // above, the package path), written atomically through common/file.h.
 #pragma once
 
+#include <cstdarg>
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <string>
@@ -36,6 +38,16 @@ inline std::filesystem::path repositoryFromArgs(int& argc, char** argv, std::vec
 /// ddace::Error naming the first other argument (`ddace bench NAME ...` hands them on).
 inline void noOtherOptions(int argc, char** argv, const std::string& name) {
   if (argc > 1) throw Error(name + " takes no options but --repo DIR (got '" + argv[1] + "')");
+}
+
+/// printf-style text, e.g. a row of a results table (up to 1023 characters).
+[[gnu::format(printf, 1, 2)]] inline std::string formatted(const char* format, ...) {
+  char text[1024];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(text, sizeof text, format, args);
+  va_end(args);
+  return text;
 }
 
 /// Writes `markdown` as docs/bench/<name>.md under `repo` and says where on stdout.
