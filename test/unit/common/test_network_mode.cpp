@@ -4,6 +4,7 @@
 // runs it, one machine by default, and refuses to load on a network with more than loopback.
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -11,10 +12,13 @@
 #include <gtest/gtest.h>
 
 #include "ddace/common/repository.h"
+#include "launch_config.h"
 #include "run_tool.h"
 
 namespace {
 
+using ddace::test::kAddInterface;
+using ddace::test::namespacesWork;
 using ddace::test::runShell;
 using ddace::test::ToolRun;
 
@@ -29,10 +33,6 @@ ToolRun inNamespace(const std::string& env, const std::string& args) {
   const std::string inner = "ip link set lo up && ip addr add 10.9.9.9/32 dev lo && env -u ROS_HOSTNAME -u ROS_IP " +
                             env + " /usr/bin/python3 '" + script("network_mode.py") + "' " + args + " --check-only";
   return runShell("unshare --map-root-user --net -- /bin/sh -c \"" + inner + "\"");
-}
-
-bool namespacesWork() {
-  return std::system("unshare --map-root-user --net -- true >/dev/null 2>&1") == 0;
 }
 
 }  // namespace
@@ -69,49 +69,46 @@ TEST(NetworkMode, LabModeNeedsROS_IPOnAPrivateAddressOfThisHostAndSaysWhatIsExpo
   EXPECT_NE(r.out.find("unset ROS_HOSTNAME"), std::string::npos) << r.out;
 }
 
-/// Shell text that gives the network namespace it runs in an interface besides loopback,
-/// standing for the host's network (a bridge, a veth pair or a tap: whatever this kernel has).
-const char* const kAddInterface =
-    "(ip link add eth9 type bridge || ip link add eth9 type veth peer name eth8 || ip tuntap add dev eth9 mode tap)";
-
 /// The arguments of every network_mode node of each launch file in `files` with
-/// task:=t model:=m `extra`, read by roslaunch's own loader (nothing is started), and the
-/// DDACE_NETWORK its nodes get: one line "FILE: [args, ...] [modes...]" per file, or
-/// "FILE: refused: WHY" when the loader stops. The loader runs in a network namespace of
-/// its own with only loopback, or with `hostNetwork` one more interface, as on a host.
-static std::string networkModeArgs(const std::string& dir, const std::vector<std::string>& files,
-                                   const std::string& extra, bool hostNetwork = false) {
-  // $(find ddace) is this repository, whatever environment the test runs in.
-  const std::string repo = std::filesystem::path(dir).parent_path().string();
-  const std::string loader = ::testing::TempDir() + "network_mode_loader.py";
-  std::ofstream(loader)
-      << "import sys, roslaunch.config as c\n"
-         "for f in sys.argv[2:]:\n"
-         "  try:\n"
-         "    cfg = c.load_config_default([(f, ['task:=t', 'model:=m'] + sys.argv[1].split())], None)\n"
-         "  except Exception as e:\n"
-         "    print(f.split('/')[-1] + ': refused:', str(e).replace(chr(10), ' '))\n"
-         "    continue\n"
-         "  print(f.split('/')[-1] + ':', [n.args for n in cfg.nodes if n.name.startswith('network_mode')],\n"
-         "        sorted(set(dict(n.env_args).get('DDACE_NETWORK') for n in cfg.nodes)))\n";
-  std::string cmd = "ip link set lo up && " + std::string(hostNetwork ? kAddInterface : "true") +
-                    " && ROS_PACKAGE_PATH='" + repo + "':\"$ROS_PACKAGE_PATH\" /usr/bin/python3 '" + loader + "' '" +
-                    extra + "'";
-  for (const auto& f : files) cmd += " '" + dir + "/" + f + "'";
-  return runShell("unshare --map-root-user --net -- /bin/sh -c \"" + cmd + "\"").out;
+/// task:=t model:=m `extra`, and the DDACE_NETWORK its nodes get: one line "FILE: [args,
+/// ...] [modes...]" per file, or "FILE: refused: WHY" when the loader stops; then the
+/// loader's own output. On a network with only loopback, or with `hostNetwork` as on a host.
+static std::string networkModeArgs(const std::vector<std::string>& files, const std::string& extra,
+                                   bool hostNetwork = false) {
+  std::string loader;
+  const auto configs = ddace::test::loadLaunches(files, "task:=t model:=m " + extra, hostNetwork, &loader);
+  std::string out;
+  for (const auto& [file, config] : configs) {
+    if (!config.refused.empty()) {
+      out += file + ": refused: " + config.refused + "\n";
+      continue;
+    }
+    std::vector<std::string> args;
+    std::set<std::string> modes;
+    for (const auto& n : config.nodes) {
+      if (n.name.rfind("network_mode", 0) == 0) args.push_back("'" + n.args + "'");
+      modes.insert("'" + n.network + "'");
+    }
+    auto list = [](const auto& items) {
+      std::string l;
+      for (const auto& i : items) l += (l.empty() ? "" : ", ") + i;
+      return "[" + l + "]";
+    };
+    out += file + ": " + list(args) + " " + list(modes) + "\n";
+  }
+  return out + loader;
 }
 
 TEST(NetworkMode, EveryLaunchFileThatStartsAGraphStatesItsMode) {
   if (!namespacesWork()) GTEST_SKIP() << "no user and network namespaces here (docs/trust-boundary.md)";
-  const std::string dir = (ddace::findRepository("", {"launch/record.launch"}) / "launch").string();
   const std::vector<std::string> files{"record.launch", "tabletop.launch", "execute_real.launch"};
   // One check each: execute_real.launch includes tabletop.launch and turns its check off.
-  std::string out = networkModeArgs(dir, files, "");
+  std::string out = networkModeArgs(files, "");
   for (const auto& f : files)
     EXPECT_NE(out.find(f + ": ['--lab-network false --launch " + f + "'] ['loopback']"), std::string::npos)
         << f << ": one machine is the default\n"
         << out;
-  out = networkModeArgs(dir, files, "lab_network:=true");
+  out = networkModeArgs(files, "lab_network:=true");
   for (const auto& f : files)
     EXPECT_NE(out.find(f + ": ['--lab-network true --launch " + f + "'] ['lab']"), std::string::npos)
         << f << ": lab_network:=true\n"
@@ -125,7 +122,7 @@ TEST(NetworkMode, AOneMachineLaunchOnAHostsNetworkIsRefusedBeforeRoslaunchOpensA
   // is on (its interfaces), nothing a user could set.
   const std::string dir = (ddace::findRepository("", {"launch/record.launch"}) / "launch").string();
   const std::vector<std::string> files{"record.launch", "tabletop.launch", "execute_real.launch", "execute_sim.launch"};
-  std::string out = networkModeArgs(dir, files, "", true);
+  std::string out = networkModeArgs(files, "", true);
   for (const auto& f : files) {
     EXPECT_NE(out.find(f + ": refused: while processing " + dir + "/one_machine.xml"), std::string::npos)
         << f << " on a network with more than loopback\n"
@@ -142,7 +139,7 @@ TEST(NetworkMode, AOneMachineLaunchOnAHostsNetworkIsRefusedBeforeRoslaunchOpensA
   }
   // A multi-machine lab is asked for on purpose: no namespace.
   const std::vector<std::string> lab{"record.launch", "tabletop.launch", "execute_real.launch"};
-  out = networkModeArgs(dir, lab, "lab_network:=true", true);
+  out = networkModeArgs(lab, "lab_network:=true", true);
   for (const auto& f : lab)
     EXPECT_NE(out.find(f + ": ['--lab-network true --launch " + f + "'] ['lab']"), std::string::npos)
         << f << ": lab_network:=true loads without a namespace\n"
