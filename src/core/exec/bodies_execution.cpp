@@ -132,6 +132,22 @@ std::vector<std::string> BodiesExecution::startMotions(const task::TaskSpec&, in
     if (motions_[m].motion.robot) rideLoad(e);
     else dropLoad(motions_[m].contacts);  // only robots carry
   }
+  // The step's robots already running decide again with them, as the path follower node
+  // does whenever its step's segments change: a robot bound for a goal that a later-started
+  // one ends on may now end against it.
+  for (size_t m = 0; m < first; ++m) {
+    Motion& o = motions_[m];
+    const int e = o.motion.entity;
+    if (!o.moving || o.step != step || !o.motion.robot || !(radius_m_[e] > 0)) continue;
+    MotionContacts c = contactsOf(o);
+    if (load_of_[e] >= 0) {  // its load rides with it whatever is decided now
+      c.load = o.contacts.load, c.load_rides = true, c.load_end = o.contacts.load_end, c.load_at = o.contacts.load_at;
+    } else {
+      dropLoad(c);
+    }
+    o.contacts = c;
+    controllers_[e]->setContacts(std::move(c));
+  }
   loaded_ = {table_->loadedPairs().begin(), table_->loadedPairs().end()};
   std::vector<std::string> failures;
   double limit_s = 0;
