@@ -3,6 +3,7 @@
 // above, the package path), written atomically through common/file.h.
 #pragma once
 
+#include <algorithm>
 #include <cstdarg>
 #include <cstdio>
 #include <filesystem>
@@ -40,13 +41,15 @@ inline void noOtherOptions(int argc, char** argv, const std::string& name) {
   if (argc > 1) throw Error(name + " takes no options but --repo DIR (got '" + argv[1] + "')");
 }
 
-/// printf-style text, e.g. a row of a results table (up to 1023 characters).
+/// printf-style text, e.g. a row of a results table.
 [[gnu::format(printf, 1, 2)]] inline std::string formatted(const char* format, ...) {
-  char text[1024];
-  va_list args;
+  va_list args, again;
   va_start(args, format);
-  std::vsnprintf(text, sizeof text, format, args);
+  va_copy(again, args);
+  std::string text(static_cast<size_t>(std::max(0, std::vsnprintf(nullptr, 0, format, args))), '\0');
   va_end(args);
+  std::vsnprintf(text.data(), text.size() + 1, format, again);
+  va_end(again);
   return text;
 }
 
