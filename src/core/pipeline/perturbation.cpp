@@ -7,6 +7,7 @@
 #include <deque>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <optional>
 #include <ostream>
 
@@ -14,6 +15,7 @@
 
 #include "ddace/common/error.h"
 #include "ddace/common/random.h"
+#include "ddace/exec/bodies_execution.h"
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/scene.h"
@@ -41,16 +43,178 @@ Eigen::Vector2d pointAt(const exec::Path& p, double s) {
   return p.back();
 }
 
-/// One segment being run: its entity follows the path ideally at cruise speed.
+/// A segment as the coordinator sent it, while it runs.
 struct Mover {
   int entity = -1;
   uint32_t segment = 0;
   int step = 0;
   task::Token token;
-  exec::Path path, executed;
-  double length = 0, along = 0;
-  double stalled_until_s = -1;
-  bool lost = false;
+  exec::Path path;
+  double length = 0;
+};
+
+/// A segment that ended on the table.
+struct SegmentEnd {
+  int entity = -1;
+  uint32_t segment = 0;
+  bool done = false;
+  std::string message;
+};
+
+/// The table under a coordinated run: every entity follows its segment, one control
+/// cycle (kCycleS) at a time, and a hand may change it.
+class Table {
+ public:
+  virtual ~Table() = default;
+  /// Segments that go out together (one coordinator output), each replacing its entity's.
+  virtual void start(const std::vector<Mover>& segments, const exec::Coordinator& c) = 0;
+  virtual void stop(int entity) = 0;
+  /// One control cycle: the segments that ended in it.
+  virtual std::vector<SegmentEnd> cycle() = 0;
+  virtual double time() const = 0;
+  virtual std::vector<Eigen::Vector2d> positions() const = 0;
+  /// The positions `entity`'s latest segment passed through.
+  virtual exec::Path executed(int entity) const = 0;
+  /// A hand puts `entity` down `by` away. Returns whether its follower fails its segment
+  /// (it left its path and cannot follow on).
+  virtual bool displace(int entity, const Eigen::Vector2d& by) = 0;
+  virtual void stall(int entity, double seconds) = 0;
+  /// Robot `entity` dies where it is.
+  virtual void kill(int entity) = 0;
+  virtual bool bodies() const { return false; }
+  virtual exec::BodyReport report() const { return {}; }
+};
+
+double traveled(const exec::Path& p) {
+  double s = 0;
+  for (size_t i = 1; i < p.size(); ++i) s += (p[i] - p[i - 1]).norm();
+  return s;
+}
+
+/// Points: every entity follows its segment's path ideally at cruise speed; a pushed
+/// entity fails its segment.
+class PointTable : public Table {
+ public:
+  explicit PointTable(std::vector<Eigen::Vector2d> start) : pos_(std::move(start)) {}
+  void start(const std::vector<Mover>& segments, const exec::Coordinator&) override {
+    for (const Mover& s : segments) {
+      stop(s.entity);
+      Running r;
+      r.mover = s;
+      r.executed = {pos_[static_cast<size_t>(s.entity)]};
+      running_.push_back(std::move(r));
+    }
+  }
+  void stop(int e) override {
+    for (auto it = running_.begin(); it != running_.end();)
+      if (it->mover.entity == e) {
+        executed_[e] = it->executed;
+        it = running_.erase(it);
+      } else {
+        ++it;
+      }
+  }
+  std::vector<SegmentEnd> cycle() override {
+    now_ += kCycleS;
+    std::vector<SegmentEnd> out;
+    for (Running& r : running_) {
+      if (r.lost || now_ < r.stalled_until_s) continue;
+      r.along = std::min(r.mover.length, r.along + speed_ * kCycleS);
+      pos_[static_cast<size_t>(r.mover.entity)] = pointAt(r.mover.path, r.along);
+      r.executed.push_back(pos_[static_cast<size_t>(r.mover.entity)]);
+      if (r.along >= r.mover.length) out.push_back({r.mover.entity, r.mover.segment, true, ""});
+    }
+    return out;
+  }
+  double time() const override { return now_; }
+  std::vector<Eigen::Vector2d> positions() const override { return pos_; }
+  exec::Path executed(int e) const override {
+    for (const Running& r : running_)
+      if (r.mover.entity == e) return r.executed;
+    const auto it = executed_.find(e);
+    return it == executed_.end() ? exec::Path{} : it->second;
+  }
+  bool displace(int e, const Eigen::Vector2d& by) override {
+    pos_[static_cast<size_t>(e)] += by;
+    return true;
+  }
+  void stall(int e, double seconds) override {
+    for (Running& r : running_)
+      if (r.mover.entity == e) r.stalled_until_s = now_ + seconds;
+  }
+  void kill(int e) override {
+    for (Running& r : running_)
+      if (r.mover.entity == e) r.lost = true;
+  }
+
+ private:
+  struct Running {
+    Mover mover;
+    exec::Path executed;
+    double along = 0, stalled_until_s = -1;
+    bool lost = false;
+  };
+  std::vector<Eigen::Vector2d> pos_;
+  std::vector<Running> running_;
+  std::map<int, exec::Path> executed_;
+  double now_ = 0;
+  const double speed_ = exec::FollowerGains{}.cruise_speed_mps;
+};
+
+/// Bodies: the robots' own control cycles on the simulated table (exec::BodiesExecution),
+/// segments starting whenever the coordinator sends them.
+class BodyTable : public Table {
+ public:
+  BodyTable(const exec::BodiesExecutionParams& params, const task::TaskSpec& spec, const task::Demonstration& gt)
+      : spec_(spec), execution_(params) {
+    execution_.beginTrial(spec, exec::startPoses(gt));
+  }
+  void start(const std::vector<Mover>& segments, const exec::Coordinator& c) override {
+    std::map<int, std::vector<const Mover*>> by_step;
+    for (const Mover& s : segments) by_step[s.step].push_back(&s);
+    for (const auto& [step, movers] : by_step) {
+      std::vector<task::Token> tokens;
+      for (const exec::TokenRecord& t : c.steps().at(static_cast<size_t>(step)).tokens) tokens.push_back(t.token);
+      std::vector<exec::StepMotion> motions;
+      for (const Mover* m : movers) {
+        const auto at = std::find_if(tokens.begin(), tokens.end(),
+                                     [&](const task::Token& t) { return t.entity == m->entity && t == m->token; });
+        motions.push_back({static_cast<size_t>(at - tokens.begin()), m->entity, m->token.target,
+                           spec_.entities[static_cast<size_t>(m->entity)].kind == task::EntityKind::Robot, m->path});
+        segment_[m->entity] = m->segment;
+      }
+      const std::vector<std::string> failures = execution_.startMotions(spec_, step, tokens, motions);
+      size_t f = 0;
+      for (const Mover* m : movers)
+        if (!execution_.moving(m->entity))
+          pending_.push_back({m->entity, m->segment, false, f < failures.size() ? failures[f++] : "not started"});
+    }
+  }
+  void stop(int e) override { execution_.stopMotion(e); }
+  std::vector<SegmentEnd> cycle() override {
+    std::vector<SegmentEnd> out;
+    out.swap(pending_);
+    for (const exec::MotionEnd& e : execution_.cycle())
+      out.push_back({e.entity, segment_[e.entity], e.done, e.message});
+    return out;
+  }
+  double time() const override { return execution_.time(); }
+  std::vector<Eigen::Vector2d> positions() const override { return execution_.positions(); }
+  exec::Path executed(int e) const override { return execution_.executed(e); }
+  bool displace(int e, const Eigen::Vector2d& by) override {
+    execution_.displace(e, by);
+    return false;  // its controller follows on from where it is
+  }
+  void stall(int e, double seconds) override { execution_.stall(e, execution_.time() + seconds); }
+  void kill(int e) override { execution_.kill(e); }
+  bool bodies() const override { return true; }
+  exec::BodyReport report() const override { return execution_.report(); }
+
+ private:
+  const task::TaskSpec& spec_;
+  exec::BodiesExecution execution_;
+  std::map<int, uint32_t> segment_;  ///< per entity: its latest segment
+  std::vector<SegmentEnd> pending_;  ///< could not start: reported at the next cycle
 };
 
 /// The moment of the perturbation: a step of the demonstration, how far along a motion
@@ -64,7 +228,7 @@ struct Draw {
 class Runner {
  public:
   Runner(const Model& model, const task::TaskSpec& spec, const task::Demonstration& gt, const Perturbation& p,
-         int max_replans, exec::DispatchMode dispatch, uint64_t seed)
+         int max_replans, exec::DispatchMode dispatch, uint64_t seed, const exec::BodiesExecutionParams* bodies)
       : model_(model),
         spec_(spec),
         gt_(gt),
@@ -73,6 +237,8 @@ class Runner {
            model.sequence.info().dependencies, policyReadsScene(model)) {
     for (const exec::Pose2D& pose : exec::startPoses(gt)) pos_.push_back(pose.position());
     tracked_.assign(pos_.size(), true);
+    if (bodies) table_ = std::make_unique<BodyTable>(*bodies, spec, gt);
+    else table_ = std::make_unique<PointTable>(pos_);
     SplitMix64 rng(seed * 0x2545F4914F6CDD1DULL + 0x5eed);
     // A step of the demonstration with a motion the kind fits.
     std::vector<int> steps;
@@ -83,7 +249,6 @@ class Runner {
     draw_.step = steps.empty() ? 0 : steps[rng.index(steps.size())];
     draw_.fraction = rng.uniform(0.2, 0.8);
     draw_.angle = rng.uniform(0, 2 * M_PI);
-    speed_ = exec::FollowerGains{}.cruise_speed_mps;
   }
 
   CoordinatedRun run() {
@@ -108,16 +273,21 @@ class Runner {
     while (!pending.empty()) {
       const exec::CoordinatorOutput out = std::move(pending.front());
       pending.pop_front();
-      for (int e : out.stop) drop(e);
+      for (int e : out.stop) {
+        drop(e);
+        table_->stop(e);
+      }
+      std::vector<Mover> started;
       for (const exec::SegmentCommand& s : out.segments) {
         drop(s.entity);
         Mover m;
         m.entity = s.entity, m.segment = s.segment_id, m.step = s.step, m.token = s.token;
         m.path = s.path.points.empty() ? exec::Path{s.goal} : s.path.points;
         m.length = lengthOf(m.path);
-        m.executed = {pos_[static_cast<size_t>(s.entity)]};
+        started.push_back(m);
         movers_.push_back(std::move(m));
       }
+      if (!started.empty()) table_->start(started, c_);
       for (const exec::PathRequest& r : out.paths) {
         try {
           const gp::GeneratedPath g = model_.primitives->generate(r.token, r.start, r.goal, 100, r.step);
@@ -141,7 +311,7 @@ class Runner {
   void drop(int e) {
     for (auto it = movers_.begin(); it != movers_.end();)
       if (it->entity == e) {
-        executed_[it->segment] = it->executed;
+        executed_[it->segment] = table_->executed(e);
         it = movers_.erase(it);
       } else {
         ++it;
@@ -149,15 +319,9 @@ class Runner {
   }
 
   void cycle() {
-    now_ += kCycleS;
-    std::vector<std::pair<int, uint32_t>> arrived;
-    for (Mover& m : movers_) {
-      if (m.lost || now_ < m.stalled_until_s) continue;
-      m.along = std::min(m.length, m.along + speed_ * kCycleS);
-      pos_[static_cast<size_t>(m.entity)] = pointAt(m.path, m.along);
-      m.executed.push_back(pos_[static_cast<size_t>(m.entity)]);
-      if (m.along >= m.length) arrived.emplace_back(m.entity, m.segment);
-    }
+    const std::vector<SegmentEnd> ended = table_->cycle();
+    now_ = table_->time();
+    pos_ = table_->positions();
     const std::optional<std::pair<int, uint32_t>> failed = perturb();
     handle(c_.onEntities({pos_, tracked_}, now_));
     if (failed) {
@@ -165,14 +329,19 @@ class Runner {
       handle(c_.onSegmentStatus(failed->first, failed->second, exec::SegmentState::Failed, 0.5, "pushed off its path",
                                 now_));
     }
-    for (const auto& [e, segment] : arrived) {
-      if (std::none_of(movers_.begin(), movers_.end(), [&](const Mover& m) { return m.segment == segment; })) continue;
-      drop(e);
-      handle(c_.onSegmentStatus(e, segment, exec::SegmentState::Done, 1.0, "", now_));
-      countStaleEnd(segment);
+    for (const SegmentEnd& e : ended) {
+      if (std::none_of(movers_.begin(), movers_.end(), [&](const Mover& m) { return m.segment == e.segment; }))
+        continue;
+      drop(e.entity);
+      handle(c_.onSegmentStatus(e.entity, e.segment, e.done ? exec::SegmentState::Done : exec::SegmentState::Failed,
+                                e.done ? 1.0 : 0.5, e.message, now_));
+      if (e.done) countStaleEnd(e.segment);
     }
     handle(c_.onTick(now_));
   }
+
+  /// How far along its path `m`'s entity has come (metres).
+  double along(const Mover& m) const { return std::min(m.length, traveled(table_->executed(m.entity))); }
 
   /// box_moved: a motion toward a box; the others: a robot's motion.
   bool fitsKind(const task::Token& t) const {
@@ -182,9 +351,8 @@ class Runner {
   }
 
   bool fits(const Mover& m) const {
-    if (m.step < draw_.step || m.length < 1e-6 || m.along < draw_.fraction * m.length || m.along >= m.length ||
-        !fitsKind(m.token))
-      return false;
+    if (m.step < draw_.step || m.length < 1e-6 || !fitsKind(m.token)) return false;
+    if (const double a = along(m); a < draw_.fraction * m.length || a >= m.length) return false;
     // A box that a motion of the run moves is not put down by a hand.
     return p_.kind != PerturbationKind::BoxMoved ||
            std::none_of(movers_.begin(), movers_.end(), [&](const Mover& o) { return o.entity == m.token.target; });
@@ -197,33 +365,32 @@ class Runner {
     if (m == movers_.end()) return std::nullopt;
     applied_ = true;
     char what[200];
-    const int pct = static_cast<int>(std::lround(100 * m->along / m->length));
+    const double at = along(*m);
+    const int pct = static_cast<int>(std::lround(100 * at / m->length));
     const auto name = [&](int e) { return spec_.entities[static_cast<size_t>(e)].name.c_str(); };
     std::optional<std::pair<int, uint32_t>> failed;
     switch (p_.kind) {
       case PerturbationKind::BoxMoved:
-        pos_[static_cast<size_t>(m->token.target)] +=
-            p_.amount * Eigen::Vector2d(std::cos(draw_.angle), std::sin(draw_.angle));
+        table_->displace(m->token.target, p_.amount * Eigen::Vector2d(std::cos(draw_.angle), std::sin(draw_.angle)));
         std::snprintf(what, sizeof what, "step %d, %d %%: %s moved %.1f cm", m->step + 1, pct, name(m->token.target),
                       p_.amount * 100);
         break;
       case PerturbationKind::RobotPushed: {
-        const Eigen::Vector2d ahead = pointAt(m->path, std::min(m->length, m->along + 0.01)) - pos_[m->entity];
+        const Eigen::Vector2d ahead = pointAt(m->path, std::min(m->length, at + 0.01)) - pos_[m->entity];
         const Eigen::Vector2d across =
             ahead.norm() > 1e-9 ? Eigen::Vector2d(-ahead.y(), ahead.x()).normalized() : Eigen::Vector2d(1, 0);
-        pos_[static_cast<size_t>(m->entity)] += p_.amount * across;
-        failed = std::make_pair(m->entity, m->segment);
+        if (table_->displace(m->entity, p_.amount * across)) failed = std::make_pair(m->entity, m->segment);
         std::snprintf(what, sizeof what, "step %d, %d %%: %s pushed %.1f cm off its path", m->step + 1, pct,
                       name(m->entity), p_.amount * 100);
         break;
       }
       case PerturbationKind::RobotStalled:
-        m->stalled_until_s = now_ + p_.amount;
+        table_->stall(m->entity, p_.amount);
         std::snprintf(what, sizeof what, "step %d, %d %%: %s stalled %.1f s", m->step + 1, pct, name(m->entity),
                       p_.amount);
         break;
       case PerturbationKind::RobotLost:
-        m->lost = true;
+        table_->kill(m->entity);
         tracked_[static_cast<size_t>(m->entity)] = false;
         std::snprintf(what, sizeof what, "step %d, %d %%: %s lost", m->step + 1, pct, name(m->entity));
         break;
@@ -231,6 +398,7 @@ class Runner {
         break;
     }
     what_ = what;
+    pos_ = table_->positions();
     return failed;
   }
 
@@ -271,7 +439,7 @@ class Runner {
   CoordinatedRun result() {
     CoordinatedRun r;
     if (c_.running()) handle(c_.abortRun("not ended within " + std::to_string(kMaxRunS) + " s", now_));
-    for (const Mover& m : movers_) executed_[m.segment] = m.executed;
+    for (const Mover& m : movers_) executed_[m.segment] = table_->executed(m.entity);
     exec::Trial& t = r.trial;
     for (const exec::StepRecord& s : c_.steps()) {
       task::Step step;
@@ -288,11 +456,15 @@ class Runner {
     }
     t.ended = c_.state() == exec::RunState::Finished;
     t.final_positions = pos_;
+    t.bodies = table_->bodies();
+    t.body_report = table_->report();
     if (c_.dispatch()) {
       t.makespan_s = c_.dispatch()->makespan();
       r.precedence_violations = c_.dispatch()->violations();
+      r.waits = describeWaits(*c_.dispatch(), spec_);
     }
     r.score = eval::scoreTrial(spec_, gt_, t, false);
+    r.collisions = r.score.collisions;
     r.perturbed = applied_;
     r.what = what_;
     r.finished = t.ended;
@@ -311,12 +483,13 @@ class Runner {
   const task::Demonstration& gt_;
   Perturbation p_;
   exec::Coordinator c_;
+  std::unique_ptr<Table> table_;
   std::vector<Eigen::Vector2d> pos_;
   std::vector<bool> tracked_;
   std::vector<Mover> movers_;
   std::map<uint32_t, exec::Path> executed_;  ///< by segment id
   Draw draw_;
-  double speed_ = 0, now_ = 0;
+  double now_ = 0;
   bool applied_ = false;
   std::string what_;
   int stale_ends_ = 0;
@@ -374,15 +547,17 @@ std::string toString(const Perturbation& p) {
 }
 
 CoordinatedRun runCoordinated(const Model& model, const task::TaskSpec& spec, const task::Demonstration& gt,
-                              const Perturbation& p, int max_replans, exec::DispatchMode dispatch, uint64_t seed) {
+                              const Perturbation& p, int max_replans, exec::DispatchMode dispatch, uint64_t seed,
+                              const exec::BodiesExecutionParams* bodies) {
   if (!model.primitives)
     throw Error("a perturbed run needs a model with primitives (the " + model.sequence.variant() +
                 " variant rolls out its own trajectories)");
-  return Runner(model, spec, gt, p, max_replans, dispatch, seed).run();
+  return Runner(model, spec, gt, p, max_replans, dispatch, seed, bodies).run();
 }
 
 PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& test, const Perturbation& p,
-                                     exec::DispatchMode dispatch, uint64_t seed) {
+                                     exec::DispatchMode dispatch, uint64_t seed,
+                                     const exec::BodiesExecutionParams* bodies) {
   PerturbationReport r;
   r.task = model.sequence.spec().name;
   r.variant = model.sequence.variant();
@@ -392,9 +567,9 @@ PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& te
     const task::Demonstration& gt = test.demos[i];
     const uint64_t s = seed * 1000003ULL + i;
     r.demos.push_back(std::filesystem::path(gt.source).filename().string());
-    r.unperturbed.push_back(runCoordinated(model, test.spec, gt, {}, kPerturbedMaxReplans, dispatch, s));
-    r.without.push_back(runCoordinated(model, test.spec, gt, p, 0, dispatch, s));
-    r.with.push_back(runCoordinated(model, test.spec, gt, p, kPerturbedMaxReplans, dispatch, s));
+    r.unperturbed.push_back(runCoordinated(model, test.spec, gt, {}, kPerturbedMaxReplans, dispatch, s, bodies));
+    r.without.push_back(runCoordinated(model, test.spec, gt, p, 0, dispatch, s, bodies));
+    r.with.push_back(runCoordinated(model, test.spec, gt, p, kPerturbedMaxReplans, dispatch, s, bodies));
   }
   return r;
 }

@@ -117,6 +117,39 @@ TEST_F(Pipeline, AsyncDispatchFinishesTask4SoonerOnPointsWithoutAPrecedenceViola
   EXPECT_TRUE(r3_released_by_r1);
 }
 
+// `ddace eval --execution diffdrive --dispatch async|steps`: with bodies every trial runs
+// through the coordinator, each robot's own control cycle on the table, segments starting
+// when the coordinator sends them. Async starts R3's leg to G1 when R1 (who met it) ended,
+// not when R2 did too; never before. Both legs end at G1, the one that started later
+// against the other: the one running decides again what it may touch when the other
+// starts (as the path follower node does), else it is held short of its end by the other.
+TEST_F(Pipeline, AsyncDispatchWithBodiesStartsEachTokenWhenItsOwnPredecessorsEnded) {
+  const task::TaskDir test = generated("task4", 6, 7);
+  pipeline::EvalOptions o;
+  o.execution = "diffdrive";
+  o.coordinated = true;
+  o.dispatch = exec::DispatchMode::Steps;
+  const auto steps = pipeline::evaluate(*model_, test, o);
+  o.dispatch = exec::DispatchMode::Async;
+  const auto async = pipeline::evaluate(*model_, test, o);
+  EXPECT_EQ(async.execution, "diffdrive with bodies, coordinated");
+  EXPECT_DOUBLE_EQ(steps.summary.osr, 1.0);
+  EXPECT_DOUBLE_EQ(async.summary.osr, 1.0);
+  EXPECT_EQ(steps.summary.collisions + async.summary.collisions, 0);
+  EXPECT_EQ(steps.precedence_violations, 0);
+  EXPECT_EQ(async.precedence_violations, 0);
+  ASSERT_EQ(async.waits.size(), 6u);
+  int own = 0;  // step-2 legs released by their own meeting, in a trial where the other ended later
+  for (size_t i = 0; i < async.waits.size(); ++i) {
+    ASSERT_EQ(async.waits[i].size(), 2u) << "R3's and R4's legs to G1 waited";
+    ASSERT_EQ(steps.waits[i].size(), 2u);
+    for (const std::string& w : async.waits[i])
+      own += (w.find("R3:move:G1 at") != std::string::npos && w.find("released by R1:move:R3") != std::string::npos) ||
+             (w.find("R4:move:G1 at") != std::string::npos && w.find("released by R2:move:R4") != std::string::npos);
+  }
+  EXPECT_EQ(own, 12) << "each leg to G1 waits for its own meeting only";
+}
+
 TEST_F(Pipeline, AModelOfAnotherTaskIsRefused) {
   const task::TaskDir other = generated("task3", 1, 1);
   try {
