@@ -161,7 +161,8 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
     if (j != a.entity && spec_.entities[j].kind == task::EntityKind::Object && staysWith(a, j) &&
         (load < 0 || a.max_distance[j] < a.max_distance[load]))
       load = j;
-  const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a), load, &a.at_offset);
+  const EndPoint ep =
+      endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a), load, &a.at_offset, /*touching=*/true);
   // Stopped away from every entity; a piece shorter than a nudge only where it goes on in
   // its heading (a robot nudged by a hand or a body is no start of its next motion).
   const bool heading_kept = a.end_dir.dot(b.start_dir) >= std::cos(options_.heading_rad);

@@ -14,6 +14,7 @@
 #include "ddace/label/label.h"
 #include "ddace/label/recording.h"
 #include "ddace/tasks/generators.h"
+#include "ddace/tasks/rule_zoo.h"
 
 using namespace ddace;
 using Eigen::Vector2d;
@@ -494,6 +495,23 @@ TEST(Label, ARobotSentToTheOneOnAGoalEndingAlsoTouchingTheBoxIsTheExamplesKind) 
   EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
 }
 
+TEST(Label, ARobotStoppingACentimetreShortOfAnotherOnItsSideIsSentToIt) {
+  // R1 drives to R2 and stops a centimetre short of touching it, come round to another
+  // side than the one it set off toward (a curved path; the near side taken): R2, as the
+  // same stop on the line would read, not "stopped halfway".
+  Scene s;
+  s.pos[1] = {0.5, 0.3};
+  s.rest(1);
+  const Vector2d u = (s.pos[1] - s.pos[0]).normalized();
+  const double a = 1.0;  // radians round R2 from the side it set off toward
+  const Vector2d side(std::cos(a) * u.x() - std::sin(a) * u.y(), std::sin(a) * u.x() + std::cos(a) * u.y());
+  s.move({{0, s.pos[1] - (s.spec.contactDistance(0, 1) + 0.01) * side}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
+}
+
 TEST(Label, AGoalTakenInTheSameStepIsTheTargetOfTheOneEndingBesideIt) {
   // R1 and R2 both sent to G1 at once: R1 takes it, R2 ends touching R1 from the side. G1
   // was free when R2 set off; it is read as occupied when R2 ended, so G1, not "halfway".
@@ -592,12 +610,12 @@ TEST(Label, StepsWithOtherMoversThanTheExamplesAreListedFromThere) {
 TEST(Label, WrongTokensInOtherStylesAreListed) {
   const label::HumanMotionOptions all = label::demonstrationStyle("all").options;
   label::LabelScore total;
-  for (const std::string family : {"task4", "fetch", "nearest_goal"}) {
-    tasks::GeneratorOptions o;
-    o.family = family;
-    o.demos = 10;
-    o.seed = 3;
-    total.add(label::inferredDataset(tasks::generate(o), all, label::styleSeed(3, "all")).score);
+  // The zoo's second motion model (paths bent around nothing, stops short of a body).
+  for (const std::string family : {"zoo:140/direct", "zoo:140/direct-10mm", "zoo:27/direct-10mm"}) {
+    uint64_t id = 0;
+    tasks::ZooMotion motion;
+    ASSERT_TRUE(tasks::parseZooFamily(family, id, &motion));
+    total.add(label::inferredDataset(tasks::generateZoo(id, 10, 3, motion), all, label::styleSeed(3, "all")).score);
   }
   EXPECT_GT(total.wrong + total.demos_wrong, 0);  // the styles make it err here
   EXPECT_EQ(total.wrong_listed, total.wrong);
