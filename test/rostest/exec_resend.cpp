@@ -47,19 +47,7 @@ TEST(ExecResend, LostMessagesAreSentAgainWithTheSameId) {
       return;
     }
     if (decision_copies[m->id] > 2) return;
-    ddace::Decision d;
-    d.id = m->id;
-    if (m->step == 0) {
-      ddace::Token t;
-      t.entity = "R1";
-      t.action = "move";
-      t.target = "G1";
-      t.probability = 1;
-      d.tokens.push_back(t);
-    } else {
-      d.end = true;
-    }
-    decision_pub.publish(d);
+    decision_pub.publish(exec_test::oneTokenThenEnd(*m, "R1", "move", "G1", 1.0));
   };
   // Path node: drops the first copy; answers with a straight line.
   auto on_path = [&](const ddace::PathRequest::ConstPtr& m) {

@@ -48,19 +48,7 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
     for (const auto& r : requests)
       if (r.id == m->id) return;
     requests.push_back(*m);
-    ddace::Decision d;
-    d.id = m->id;
-    if (m->step == 0) {
-      ddace::Token t;
-      t.entity = "R1";
-      t.action = "move";
-      t.target = "G1";
-      t.probability = 0.9;
-      d.tokens.push_back(t);
-    } else {
-      d.end = true;
-    }
-    decision_pub.publish(d);
+    decision_pub.publish(exec_test::oneTokenThenEnd(*m, "R1", "move", "G1", 0.9));
   };
   auto on_path = [&](const ddace::PathRequest::ConstPtr& m) { path_pub.publish(exec_test::straightPath(*m)); };
   auto on_segment = [&](const ddace::Segment::ConstPtr& m) {
