@@ -238,6 +238,17 @@ inline ddace::Segment straightSegment(const std::string& entity, const std::stri
   return s;
 }
 
+/// An executor's final report on segment `segment_id` of `entity` (progress 1), stamped now.
+inline ddace::SegmentStatus segmentStatus(const std::string& entity, uint32_t segment_id, uint8_t code) {
+  ddace::SegmentStatus s;
+  s.header.stamp = ros::Time::now();
+  s.entity = entity;
+  s.segment_id = segment_id;
+  s.status = code;
+  s.progress = 1;
+  return s;
+}
+
 /// A sequence node's answer to `request` in a run of one step of one token, then END.
 inline ddace::Decision oneTokenThenEnd(const ddace::DecisionRequest& request, const std::string& entity,
                                        const std::string& action, const std::string& target, double probability) {

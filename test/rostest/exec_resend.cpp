@@ -58,13 +58,7 @@ TEST(ExecResend, LostMessagesAreSentAgainWithTheSameId) {
   auto on_segment = [&](const ddace::Segment::ConstPtr& m) {
     std::lock_guard<std::mutex> l(mu);
     if (m->mode != ddace::Segment::MODE_FOLLOW || ++segment_copies[m->segment_id] != 2) return;
-    ddace::SegmentStatus s;
-    s.header.stamp = ros::Time::now();
-    s.entity = "R1";
-    s.segment_id = m->segment_id;
-    s.status = ddace::SegmentStatus::DONE;
-    s.progress = 1;
-    status_pub.publish(s);
+    status_pub.publish(exec_test::segmentStatus("R1", m->segment_id, ddace::SegmentStatus::DONE));
   };
   ros::Subscriber a = nh.subscribe<ddace::DecisionRequest>("/ddace/decision_request", 10, on_request);
   ros::Subscriber b = nh.subscribe<ddace::PathRequest>("/ddace/path_request", 10, on_path);

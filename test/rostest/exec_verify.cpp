@@ -74,13 +74,7 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
       mu, [] { return !segments.empty(); }, 10.0));
   const uint32_t id = segments.front().segment_id;
   auto status = [&](ros::Publisher& pub, const std::string& entity, uint32_t seg, uint8_t code) {
-    ddace::SegmentStatus s;
-    s.header.stamp = ros::Time::now();
-    s.entity = entity;
-    s.segment_id = seg;
-    s.status = code;
-    s.progress = 1;
-    pub.publish(s);
+    pub.publish(exec_test::segmentStatus(entity, seg, code));
   };
   // R1 is 0.25 m from G1 when its "DONE"s come.
   {
