@@ -24,6 +24,8 @@ namespace ddace::pipeline {
 namespace {
 
 constexpr double kCycleS = 0.02;  // the control rate, 50 Hz
+/// A body a hand puts down lands at least this clear of every other (metres).
+constexpr double kLandingGapM = 0.01;
 /// A run not ended by then is cut; the coordinator's time-outs end a stuck one sooner.
 constexpr double kMaxRunS = 600;
 
@@ -358,6 +360,22 @@ class Runner {
            std::none_of(movers_.begin(), movers_.end(), [&](const Mover& o) { return o.entity == m.token.target; });
   }
 
+  /// How far a hand moves `e` (amount metres): along the first of `directions` where it
+  /// lands clear of every other body by kLandingGapM (a hand puts a thing down where it
+  /// fits, it does not shove it into another), else the first.
+  Eigen::Vector2d landing(int e, const std::vector<Eigen::Vector2d>& directions) const {
+    for (const Eigen::Vector2d& d : directions) {
+      const Eigen::Vector2d at = pos_[static_cast<size_t>(e)] + p_.amount * d;
+      bool clear = true;
+      for (int j = 0; j < static_cast<int>(pos_.size()); ++j)
+        if (j != e && spec_.entities[static_cast<size_t>(j)].kind != task::EntityKind::Goal &&
+            (at - pos_[static_cast<size_t>(j)]).norm() < spec_.contactDistance(e, j) + kLandingGapM)
+          clear = false;
+      if (clear) return p_.amount * d;
+    }
+    return p_.amount * directions.front();
+  }
+
   /// Applies the perturbation when its moment has come; returns a segment its follower fails.
   std::optional<std::pair<int, uint32_t>> perturb() {
     if (applied_ || p_.kind == PerturbationKind::None) return std::nullopt;
@@ -370,16 +388,21 @@ class Runner {
     const auto name = [&](int e) { return spec_.entities[static_cast<size_t>(e)].name.c_str(); };
     std::optional<std::pair<int, uint32_t>> failed;
     switch (p_.kind) {
-      case PerturbationKind::BoxMoved:
-        table_->displace(m->token.target, p_.amount * Eigen::Vector2d(std::cos(draw_.angle), std::sin(draw_.angle)));
+      case PerturbationKind::BoxMoved: {
+        std::vector<Eigen::Vector2d> directions;
+        for (int k = 0; k < 8; ++k)
+          directions.emplace_back(std::cos(draw_.angle + k * M_PI / 4), std::sin(draw_.angle + k * M_PI / 4));
+        table_->displace(m->token.target, landing(m->token.target, directions));
         std::snprintf(what, sizeof what, "step %d, %d %%: %s moved %.1f cm", m->step + 1, pct, name(m->token.target),
                       p_.amount * 100);
         break;
+      }
       case PerturbationKind::RobotPushed: {
         const Eigen::Vector2d ahead = pointAt(m->path, std::min(m->length, at + 0.01)) - pos_[m->entity];
         const Eigen::Vector2d across =
             ahead.norm() > 1e-9 ? Eigen::Vector2d(-ahead.y(), ahead.x()).normalized() : Eigen::Vector2d(1, 0);
-        if (table_->displace(m->entity, p_.amount * across)) failed = std::make_pair(m->entity, m->segment);
+        if (table_->displace(m->entity, landing(m->entity, {across, -across})))
+          failed = std::make_pair(m->entity, m->segment);
         std::snprintf(what, sizeof what, "step %d, %d %%: %s pushed %.1f cm off its path", m->step + 1, pct,
                       name(m->entity), p_.amount * 100);
         break;
@@ -433,6 +456,14 @@ class Runner {
         return "step " + std::to_string(k + 1) + ": predicted " + keys(t.predicted, k) + " demonstrated " +
                keys(gt_.steps, k);
     if (score.achieved_robot_motions < score.gt_robot_motions) return "a robot motion stopped short of its end point";
+    if (!t.body_report.collisions.empty()) {
+      const exec::BodyContact& c = t.body_report.collisions.front();
+      char what[160];
+      std::snprintf(what, sizeof what, "%zu collision(s), the first at %.1f s: %s touched %s",
+                    t.body_report.collisions.size(), c.time_s, spec_.entities[static_cast<size_t>(c.a)].name.c_str(),
+                    spec_.entities[static_cast<size_t>(c.b)].name.c_str());
+      return what;
+    }
     return "a goal condition does not hold";
   }
 
@@ -576,7 +607,7 @@ PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& te
 
 namespace {
 struct Totals {
-  int perturbed = 0, succeeded = 0, replans = 0, redecisions = 0, violations = 0;
+  int perturbed = 0, succeeded = 0, replans = 0, redecisions = 0, violations = 0, collisions = 0;
   double lost_s = 0;
   int lost_n = 0;
   double makespan_s = 0;  ///< mean over the runs counted
@@ -593,6 +624,7 @@ Totals totals(const PerturbationReport& r, const std::vector<CoordinatedRun>& ru
     t.makespan_s += runs[i].makespan_s;
     t.replans += runs[i].replans;
     t.redecisions += runs[i].redecisions;
+    t.collisions += runs[i].collisions;
     if (runs[i].success && u.success) t.lost_s += runs[i].makespan_s - u.makespan_s, ++t.lost_n;
   }
   const int counted = all ? static_cast<int>(runs.size()) : t.perturbed;
@@ -640,6 +672,11 @@ void printPerturbation(const PerturbationReport& r, std::ostream& out) {
                 w.perturbed, w.replans, w.redecisions, w.lost_n ? w.lost_s / w.lost_n : 0.0, w.lost_n,
                 u.violations + wo.violations + w.violations);
   out << line;
+  if (!r.unperturbed.empty() && r.unperturbed.front().trial.bodies) {
+    std::snprintf(line, sizeof line, "  collisions: %d unperturbed, %d without recovery, %d with\n", u.collisions,
+                  wo.collisions, w.collisions);
+    out << line;
+  }
 }
 
 std::string perturbationJson(const PerturbationReport& r) {
@@ -650,26 +687,19 @@ std::string perturbationJson(const PerturbationReport& r) {
   j["perturbation"] = toString(r.perturbation);
   j["trials"] = r.demos.size();
   const auto runJson = [](const CoordinatedRun& run) {
-    return nlohmann::json{{"success", run.success},
-                          {"finished", run.finished},
-                          {"reason", run.reason},
-                          {"failure", run.failure},
-                          {"stale_ends", run.stale_ends},
-                          {"replans", run.replans},
-                          {"redecisions", run.redecisions},
-                          {"makespan_s", run.makespan_s},
-                          {"precedence_violations", run.precedence_violations}};
+    return nlohmann::json{{"success", run.success},         {"finished", run.finished},
+                          {"reason", run.reason},           {"failure", run.failure},
+                          {"stale_ends", run.stale_ends},   {"replans", run.replans},
+                          {"redecisions", run.redecisions}, {"makespan_s", run.makespan_s},
+                          {"collisions", run.collisions},   {"precedence_violations", run.precedence_violations}};
   };
   for (const auto& [name, runs] :
        {std::pair<const char*, const std::vector<CoordinatedRun>*>{"unperturbed", &r.unperturbed},
         {"without_recovery", &r.without},
         {"with_recovery", &r.with}}) {
     const Totals t = totals(r, *runs, runs == &r.unperturbed);
-    j[name] = {{"perturbed", t.perturbed},
-               {"succeeded", t.succeeded},
-               {"replans", t.replans},
-               {"redecisions", t.redecisions},
-               {"precedence_violations", t.violations}};
+    j[name] = {{"perturbed", t.perturbed},     {"succeeded", t.succeeded},   {"replans", t.replans},
+               {"redecisions", t.redecisions}, {"collisions", t.collisions}, {"precedence_violations", t.violations}};
   }
   j["per_trial"] = nlohmann::json::array();
   for (size_t i = 0; i < r.demos.size(); ++i)
