@@ -19,6 +19,7 @@
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/scene.h"
+#include "ddace/task/body_geometry.h"
 
 namespace ddace::pipeline {
 namespace {
@@ -300,13 +301,59 @@ class Runner {
       }
       if (out.decision) {
         try {
-          const tgn::Prediction d = model_.sequence.predictNext(out.decision->history);
-          pending.push_back(c_.onDecision(out.decision->id, exec::Decision{d.end, d.tokens}, now_));
+          pending.push_back(c_.onDecision(out.decision->id, decide(*out.decision), now_));
         } catch (const Error& e) {
           pending.push_back(c_.onDecisionError(out.decision->id, e.what(), now_));
         }
       }
     }
+  }
+
+  /// The policy's answer to `request`: the model's, or with robots lost, the model bound to
+  /// the team without them (as `ddace eval` binds it to a test set of fewer robots),
+  /// deciding from the snapshots without them. Throws ddace::Error when it cannot be bound
+  /// (the rule it learned is not stated by the scene).
+  exec::Decision decide(const exec::DecisionRequest& request) {
+    if (request.lost.empty()) {
+      const tgn::Prediction d = model_.sequence.predictNext(request.history);
+      return {d.end, d.tokens};
+    }
+    std::vector<int> kept;  // the reduced team's entities, by index in the task
+    task::TaskSpec without = spec_;
+    without.entities.clear();
+    for (int i = 0; i < static_cast<int>(spec_.entities.size()); ++i)
+      if (std::find(request.lost.begin(), request.lost.end(), i) == request.lost.end()) {
+        kept.push_back(i);
+        without.entities.push_back(spec_.entities[static_cast<size_t>(i)]);
+      }
+    std::string names;
+    for (int e : request.lost) names += (names.empty() ? "" : ", ") + spec_.entities[static_cast<size_t>(e)].name;
+    without.goal_conditions.clear();
+    for (const task::GoalCondition& g : spec_.goal_conditions)
+      if (without.entityIndex(g.entity) >= 0 && without.entityIndex(g.at) >= 0) without.goal_conditions.push_back(g);
+    lost_entities_ = request.lost;
+    if (!bound_ || bound_lost_ != request.lost) {
+      try {
+        bound_ = std::make_unique<tgn::SequenceModel>(model_.sequence.boundTo(without));
+      } catch (const Error& e) {
+        throw Error("the model cannot decide without " + names + ": " + e.what());
+      }
+      bound_lost_ = request.lost;
+    }
+    std::vector<task::Snapshot> history = request.history;
+    for (task::Snapshot& snap : history) {
+      std::vector<Eigen::Vector2d> at;
+      for (int i : kept) at.push_back(snap.positions[static_cast<size_t>(i)]);
+      snap.positions = std::move(at);
+    }
+    const tgn::Prediction d = bound_->predictNext(history);
+    exec::Decision out{d.end, {}};
+    for (task::Token t : d.tokens) {
+      t.entity = kept.at(static_cast<size_t>(t.entity));
+      if (t.target >= 0) t.target = kept.at(static_cast<size_t>(t.target));
+      out.tokens.push_back(t);
+    }
+    return out;
   }
 
   /// `e`'s segment is over (stopped, replaced or done): what it ran is kept.
@@ -467,6 +514,29 @@ class Runner {
     return "a goal condition does not hold";
   }
 
+  /// Why a run that finished without its lost robots did not do the task ("" when it did):
+  /// a robot motion that stopped short of its end point, a collision, a goal condition
+  /// that does not name a lost robot and does not hold.
+  std::string withoutLost(const exec::Trial& t) const {
+    const double within = spec_.arrival_radius + exec::CoordinatorConfig{}.arrival_tolerance_m;
+    for (const exec::ExecutedToken& ex : t.executed)
+      if (ex.token.isMotion() && spec_.entities[static_cast<size_t>(ex.token.entity)].kind == task::EntityKind::Robot &&
+          !task::arrived(ex.executed.back(), ex.goal, within))
+        return "step " + std::to_string(ex.step + 1) + ": " + task::tokenKey(ex.token, spec_) +
+               " stopped short of its end point";
+    if (!t.body_report.collisions.empty()) return std::to_string(t.body_report.collisions.size()) + " collision(s)";
+    const std::vector<int>& lost = lost_entities_;
+    for (const task::GoalCondition& g : spec_.goal_conditions) {
+      const bool names_lost = std::any_of(lost.begin(), lost.end(), [&](int e) {
+        return spec_.entities[static_cast<size_t>(e)].name == g.entity ||
+               spec_.entities[static_cast<size_t>(e)].name == g.at;
+      });
+      if (!names_lost && !task::goalConditionMet(spec_, g, t.final_positions))
+        return "goal condition " + g.entity + " at " + g.at + " does not hold";
+    }
+    return "";
+  }
+
   CoordinatedRun result() {
     CoordinatedRun r;
     if (c_.running()) handle(c_.abortRun("not ended within " + std::to_string(kMaxRunS) + " s", now_));
@@ -500,12 +570,18 @@ class Runner {
     r.what = what_;
     r.finished = t.ended;
     r.reason = c_.reason();
+    r.lost = c_.lostRobots();
     r.stale_ends = stale_ends_;
     r.replans = c_.replans();
     r.redecisions = c_.redecisions();
     r.makespan_s = t.makespan_s;
     r.success = r.finished && r.score.success && stale_ends_ == 0;
     if (r.finished && !r.score.success) r.failure = failureOf(r.score, t);
+    if (r.finished && !r.lost.empty()) {
+      // The team changed: the demonstration's steps are not the measure; the task's are.
+      r.failure = withoutLost(t);
+      r.success = r.failure.empty() && stale_ends_ == 0;
+    }
     return r;
   }
 
@@ -515,6 +591,9 @@ class Runner {
   Perturbation p_;
   exec::Coordinator c_;
   std::unique_ptr<Table> table_;
+  std::unique_ptr<tgn::SequenceModel> bound_;  ///< bound to the team without `bound_lost_`
+  std::vector<int> bound_lost_;
+  std::vector<int> lost_entities_;  ///< the robots the last decision was made without
   std::vector<Eigen::Vector2d> pos_;
   std::vector<bool> tracked_;
   std::vector<Mover> movers_;
@@ -656,6 +735,7 @@ void printPerturbation(const PerturbationReport& r, std::ostream& out) {
       if (run->stale_ends > 0)
         out << "    " << which << ": " << run->stale_ends << " motion(s) ended where their target had left\n";
     }
+    for (const std::string& l : w.lost) out << "    with: lost for good: " << l << "\n";
     if (w.replans + w.redecisions > 0)
       out << "    with: " << w.replans << " re-plan(s), " << w.redecisions << " re-decision(s)\n";
   }
@@ -687,11 +767,17 @@ std::string perturbationJson(const PerturbationReport& r) {
   j["perturbation"] = toString(r.perturbation);
   j["trials"] = r.demos.size();
   const auto runJson = [](const CoordinatedRun& run) {
-    return nlohmann::json{{"success", run.success},         {"finished", run.finished},
-                          {"reason", run.reason},           {"failure", run.failure},
-                          {"stale_ends", run.stale_ends},   {"replans", run.replans},
-                          {"redecisions", run.redecisions}, {"makespan_s", run.makespan_s},
-                          {"collisions", run.collisions},   {"precedence_violations", run.precedence_violations}};
+    return nlohmann::json{{"success", run.success},
+                          {"finished", run.finished},
+                          {"reason", run.reason},
+                          {"failure", run.failure},
+                          {"stale_ends", run.stale_ends},
+                          {"replans", run.replans},
+                          {"redecisions", run.redecisions},
+                          {"makespan_s", run.makespan_s},
+                          {"collisions", run.collisions},
+                          {"lost", run.lost},
+                          {"precedence_violations", run.precedence_violations}};
   };
   for (const auto& [name, runs] :
        {std::pair<const char*, const std::vector<CoordinatedRun>*>{"unperturbed", &r.unperturbed},
