@@ -46,7 +46,7 @@ double touchOnGoal(const task::TaskSpec& spec, int mover, int goal, const Vector
 
 EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, const Vector2d& end,
                   const std::vector<Vector2d>& where, const std::vector<bool>& candidates, int load,
-                  const std::vector<Vector2d>* at_end) {
+                  const std::vector<Vector2d>* at_end, bool touching) {
   const double r = spec.arrival_radius;
   EndPoint ep;
   ep.nearest_m = std::numeric_limits<double>::infinity();
@@ -69,9 +69,8 @@ EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, 
     // by up to the mover's diameter, touching the body on it.
     const task::Footprint mover_body = spec.footprint(mover);
     if (const double contact = spec.contactDistance(mover, target); contact > 0 && load < 0) {
-      // Touching is tight: within a quarter of the arrival radius (7.5 mm by default, five
-      // times the tracker's noise), so a body it merely passed close to is not read.
-      if (std::abs(d - contact) <= r / 4) residual = std::min(residual, std::abs(d - contact) + r / 2);
+      if (std::abs(d - contact) <= (touching ? r / 4 : r / 2))
+        residual = std::min(residual, std::abs(d - contact) + r / 2);
     } else if (!spec.footprint(target).obstacle && load < 0 && (where[c] - start).norm() > task::kMinApproachM) {
       const Vector2d u = (where[c] - start).normalized();
       const double along = std::clamp((where[c] - end).dot(u), 0.0, 2 * mover_body.radius_m);

@@ -161,7 +161,8 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
     if (j != a.entity && spec_.entities[j].kind == task::EntityKind::Object && staysWith(a, j) &&
         (load < 0 || a.max_distance[j] < a.max_distance[load]))
       load = j;
-  const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a), load, &a.at_offset);
+  const EndPoint ep =
+      endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a), load, &a.at_offset, /*touching=*/true);
   // Stopped away from every entity; a piece shorter than a nudge only where it goes on in
   // its heading (a robot nudged by a hand or a body is no start of its next motion).
   const bool heading_kept = a.end_dir.dot(b.start_dir) >= std::cos(options_.heading_rad);
@@ -581,11 +582,12 @@ void Labeller::noteStepsDiffer(size_t k, const std::vector<Motion>& g, int row) 
   // numbered wrong, so all their tokens are listed, under one note.
   if (!example_ || steps_differ_ || kindsOf(moversOf(g)) == kindsOf(exampleMovers(k))) return;
   steps_differ_ = true;
-  note(row, "step " + std::to_string(k + 1) + " moves " + kindsText(kindsOf(moversOf(g))) +
-                " where the example's step " + std::to_string(k + 1) + " moves " +
-                kindsText(kindsOf(exampleMovers(k))) +
-                " (robots of one step started apart, two steps run together, or a motion missed?): "
-                "this step and the ones after it are listed");
+  steps_differ_note_ = "step " + std::to_string(k + 1) + " moves " + kindsText(kindsOf(moversOf(g))) +
+                       " where the example's step " + std::to_string(k + 1) + " moves " +
+                       kindsText(kindsOf(exampleMovers(k))) +
+                       " (robots of one step started apart, two steps run together, or a motion missed?): "
+                       "this step and the ones after it are listed";
+  note(row, steps_differ_note_);
 }
 
 std::vector<int> Labeller::carriersOf(const std::vector<Motion>& g) const {
@@ -625,10 +627,15 @@ void Labeller::resolveTie(InferredToken& tok, const Motion& m, const EndPoint& e
     // on it (the goal, or the body touched).
     for (const bool bodies : {false, true}) {
       auto it = example_->tie_kind.find(tiedKinds(spec_, all, bodies));
-      int found = -1, count = 0;
+      int found = -1, count = 0, exact = -1, exact_count = 0;
       if (it != example_->tie_kind.end())
         for (int c : all)
-          if (kindClass(E[c].kind, bodies) == kindClass(it->second, bodies)) found = c, ++count;
+          if (kindClass(E[c].kind, bodies) == kindClass(it->second, bodies)) {
+            found = c, ++count;
+            if (E[c].kind == it->second) exact = c, ++exact_count;
+          }
+      // Several bodies touched at an occupied goal: the one of the kind the example took.
+      if (count > 1 && exact_count == 1) found = exact, count = 1;
       if (count == 1) {
         tok.token.target = found;
         // A body of another kind than the one the example took: listed.
@@ -745,11 +752,18 @@ void Labeller::noteStopsOnTheWay(const std::vector<Motion>& g, const std::vector
 
 void Labeller::markUnsure(std::vector<InferredToken>& tokens, size_t notes_from) const {
   // A token some note of this step doubts is listed to check.
+  const auto list = [](InferredToken& t, const std::string& why) {
+    if (!t.unsure) t.doubt = why;
+    t.unsure = true;
+  };
   for (size_t i = notes_from; i < out_.notes.size(); ++i)
-    for (auto& t : tokens) t.unsure = t.unsure || (!t.in_place && t.token.entity == out_.notes[i].entity);
-  for (auto& t : tokens) t.unsure = t.unsure || steps_differ_;
+    for (auto& t : tokens)
+      if (!t.in_place && t.token.entity == out_.notes[i].entity) list(t, out_.notes[i].message);
+  for (auto& t : tokens)
+    if (steps_differ_) list(t, steps_differ_note_);
   for (auto& t : tokens)  // a load goes where its carrier went
-    for (const auto& c : tokens) t.unsure = t.unsure || (t.carrier >= 0 && c.token.entity == t.carrier && c.unsure);
+    for (const auto& c : tokens)
+      if (t.carrier >= 0 && c.token.entity == t.carrier && c.unsure) list(t, c.doubt);
 }
 
 void Labeller::emit(Group& group, bool aligned) {

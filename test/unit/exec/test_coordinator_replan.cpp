@@ -36,6 +36,15 @@ std::vector<SegmentCommand> answer(Coordinator& c, const CoordinatorOutput& out,
   return segs;
 }
 
+/// Step 1 decided by a replay of `demo` with the entities at `at`, and its segments out
+/// (Task 4: R1:move:R3, R2:move:R4).
+std::vector<SegmentCommand> firstStep(Coordinator& c, const task::Demonstration& demo,
+                                      const std::vector<Vector2d>& at) {
+  c.onEntities(observe(at), 0.0);
+  const auto s = c.start(0.0);
+  return answer(c, c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1), 0.2);
+}
+
 bool stops(const CoordinatorOutput& out, int entity) {
   return std::find(out.stop.begin(), out.stop.end(), entity) != out.stop.end();
 }
@@ -52,13 +61,7 @@ struct Replan : ::testing::Test {
     cfg.max_replans = 2;
     return cfg;
   }
-  /// Step 1 decided and its segments out (R1:move:R3, R2:move:R4).
-  std::vector<SegmentCommand> firstStep() {
-    c.onEntities(observe(at), 0.0);
-    const auto s = c.start(0.0);
-    const auto d = c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1);
-    return answer(c, d, 0.2);
-  }
+  std::vector<SegmentCommand> firstStep() { return ::firstStep(c, demo, at); }
   CoordinatorOutput arrive(const SegmentCommand& s, double now) {
     at[static_cast<size_t>(s.entity)] = s.goal;
     c.onEntities(observe(at), now);
@@ -155,10 +158,7 @@ TEST(ReplanOff, WithoutReplansAFailureAbortsAndAMovedTargetIsNotFollowed) {
   const task::TaskDir dir = task4();
   Coordinator c{dir.spec, CoordinatorConfig{}, task::learnEndPoints(dir.spec, dir.demos)};
   std::vector<Vector2d> at = dir.demos.front().positions.front();
-  c.onEntities(observe(at), 0.0);
-  const auto s = c.start(0.0);
-  const auto segs =
-      answer(c, c.onDecision(s.decision->id, replayDecision(dir.demos.front(), s.decision->history), 0.1), 0.2);
+  const auto segs = firstStep(c, dir.demos.front(), at);
   ASSERT_EQ(segs.size(), 2u);
   at[static_cast<size_t>(segs[0].token.target)] += Vector2d(0.06, 0);
   EXPECT_TRUE(c.onEntities(observe(at), 1.0).paths.empty());
@@ -177,9 +177,7 @@ TEST(Redecide, AMovedTargetWithdrawsTheStepAndAsksForItAgainFromTheSceneOfNow) {
   Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};  // reads the scene
   const task::Demonstration& demo = dir.demos.front();
   std::vector<Vector2d> at = demo.positions.front();
-  c.onEntities(observe(at), 0.0);
-  const auto s = c.start(0.0);
-  const auto segs = answer(c, c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1), 0.2);
+  const auto segs = firstStep(c, demo, at);
   ASSERT_EQ(segs.size(), 2u);
   // R1 arrives; then R2's target is moved 6 cm by a hand.
   at[static_cast<size_t>(segs[0].entity)] = segs[0].goal;
@@ -222,10 +220,7 @@ TEST(Redecide, ARobotBlockedPastItsReplansIsReDecidedAndANoDecisionAbortsNamingW
   cfg.max_replans = 2;
   Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};
   std::vector<Vector2d> at = dir.demos.front().positions.front();
-  c.onEntities(observe(at), 0.0);
-  const auto s = c.start(0.0);
-  const auto segs =
-      answer(c, c.onDecision(s.decision->id, replayDecision(dir.demos.front(), s.decision->history), 0.1), 0.2);
+  const auto segs = firstStep(c, dir.demos.front(), at);
   ASSERT_EQ(segs.size(), 2u);
   // Blocked: first re-planned from where it stands (twice), then the step is re-decided.
   auto out = c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Failed, 0.3, "blocked", 1.0);
