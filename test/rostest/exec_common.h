@@ -632,6 +632,40 @@ struct Files {
   }
 };
 
+/// The whole of a text file ("" when it cannot be read).
+inline std::string readFile(const std::string& path) {
+  std::ifstream f(path);
+  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+/// The set-up of a graph test: a generated task (generateTask: DIR/train and DIR/test) in
+/// a scratch directory of its own, the .test file's files, and execute_sim.launch's
+/// arguments for them.
+struct TaskGraph {
+  ros::NodeHandle nh;
+  Files files = Files::fromParams();
+  ScratchDir scratch;
+  ddace::task::TaskDir test;  ///< DIR/test: the scene and the ground truth
+
+  TaskGraph(const std::string& name, const std::string& family, int train, int test_demos, int robots = 11)
+      : scratch(name) {
+    generateTask(scratch, family, train, test_demos, robots);
+    test = ddace::task::loadTaskDir(dir() + "/test");
+  }
+  const std::string& dir() const { return scratch; }
+  /// The shipped config with `overrides` (writeConfig), in the scratch directory.
+  std::string config(const std::vector<std::array<std::string, 3>>& overrides) const {
+    return writeConfig(files.config_file, dir() + "/execution.yaml", overrides);
+  }
+  /// execute_sim.launch on the task, the run started by the test (autostart:=false), then `extra`.
+  std::vector<std::string> args(const std::vector<std::string>& extra) const {
+    std::vector<std::string> a{files.launch_file, "task:=" + dir() + "/test", "train:=" + dir() + "/train",
+                               "autostart:=false"};
+    a.insert(a.end(), extra.begin(), extra.end());
+    return a;
+  }
+};
+
 /// The exit status of `scripts/execute_sim --check RUN_DIR` (-1 when it did not run).
 inline int checkRun(const Files& files, const std::string& run_dir) {
   if (files.execute_sim.empty()) return -1;

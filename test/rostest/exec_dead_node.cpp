@@ -12,11 +12,6 @@ using namespace exec_test;
 
 namespace {
 
-std::string readFile(const std::string& path) {
-  std::ifstream f(path);
-  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-}
-
 /// Task 4 with 4 robots and a "model" whose primitives.yaml breaks at line 3, column 1.
 struct Setup {
   ScratchDir scratch{"dead_node"};

@@ -16,11 +16,6 @@ using namespace exec_test;
 
 namespace {
 
-std::string readFile(const std::string& path) {
-  std::ifstream f(path);
-  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-}
-
 /// Task 4 (train, test) and a Task 2 model with 4 robots, once for every test.
 struct Setup {
   ScratchDir scratch{"other_task"};

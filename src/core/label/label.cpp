@@ -161,7 +161,8 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
     if (j != a.entity && spec_.entities[j].kind == task::EntityKind::Object && staysWith(a, j) &&
         (load < 0 || a.max_distance[j] < a.max_distance[load]))
       load = j;
-  const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a), load, &a.at_offset);
+  const EndPoint ep =
+      endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a), load, &a.at_offset, /*touching=*/true);
   // Stopped away from every entity; a piece shorter than a nudge only where it goes on in
   // its heading (a robot nudged by a hand or a body is no start of its next motion).
   const bool heading_kept = a.end_dir.dot(b.start_dir) >= std::cos(options_.heading_rad);
@@ -741,6 +742,10 @@ void Labeller::noteStopsOnTheWay(const std::vector<Motion>& g, const std::vector
       });
       double turn = 0;
       if (b == tok.token.target || load || !stoppedAtOnItsWay(m, b, turn)) continue;
+      // A step to b would be a motion of a kind the example never makes: a slow pass.
+      if (example_ && !example_->words.count(kindKey(spec_, m.entity, b, tok.load)) &&
+          !example_->words.count(coarseKindKey(spec_, m.entity, b, tok.load)))
+        continue;
       note(m.off_row,
            E[m.entity].name + " nearly stopped at " + E[b].name + " on its way to " + E[tok.token.target].name +
                ", keeping its heading: one motion, or a step to " + E[b].name + " and another on; taken as one",
