@@ -54,6 +54,7 @@ class CoordinatorNode::Impl {
     cfg.arrival_radius_m = rosparam::param(pnh, "arrival_radius_m", spec_.arrival_radius);
     cfg.arrival_tolerance_m = rosparam::param(pnh, "arrival_tolerance_m", cfg.arrival_tolerance_m);
     cfg.max_replans = rosparam::param(pnh, "max_replans", cfg.max_replans);
+    cfg.robot_lost_after_s = rosparam::param(pnh, "robot_lost_after_s", cfg.robot_lost_after_s);
     cfg.dispatch = exec::parseDispatchMode(rosparam::param<std::string>(pnh, "dispatch", exec::toString(cfg.dispatch)),
                                            "parameter '" + pnh.resolveName("dispatch") + "'");
     try {

@@ -58,12 +58,13 @@ inline constexpr int kPerturbedMaxReplans = 2;
 struct CoordinatedRun {
   exec::Trial trial;
   eval::TrialScore score;
-  bool perturbed = false;  ///< the perturbation happened
-  std::string what;        ///< "step 2, 40 %: B1 moved 6.0 cm"
-  bool finished = false;   ///< the run finished (the policy said END)
-  std::string reason;      ///< why it ended (the coordinator's reason)
-  std::string failure;     ///< a finished run that failed: the first step that differs, or what did not hold
-  int stale_ends = 0;      ///< motions that ended where their target had left
+  bool perturbed = false;         ///< the perturbation happened
+  std::string what;               ///< "step 2, 40 %: B1 moved 6.0 cm"
+  bool finished = false;          ///< the run finished (the policy said END)
+  std::string reason;             ///< why it ended (the coordinator's reason)
+  std::vector<std::string> lost;  ///< robots lost for good, with why (Coordinator::lostRobots)
+  std::string failure;            ///< a finished run that failed: the first step that differs, or what did not hold
+  int stale_ends = 0;             ///< motions that ended where their target had left
   int replans = 0, redecisions = 0;
   int precedence_violations = 0;
   int collisions = 0;              ///< with bodies

@@ -19,11 +19,14 @@
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/scene.h"
+#include "ddace/task/body_geometry.h"
 
 namespace ddace::pipeline {
 namespace {
 
 constexpr double kCycleS = 0.02;  // the control rate, 50 Hz
+/// A body a hand puts down lands at least this clear of every other (metres).
+constexpr double kLandingGapM = 0.01;
 /// A run not ended by then is cut; the coordinator's time-outs end a stuck one sooner.
 constexpr double kMaxRunS = 600;
 
@@ -298,13 +301,59 @@ class Runner {
       }
       if (out.decision) {
         try {
-          const tgn::Prediction d = model_.sequence.predictNext(out.decision->history);
-          pending.push_back(c_.onDecision(out.decision->id, exec::Decision{d.end, d.tokens}, now_));
+          pending.push_back(c_.onDecision(out.decision->id, decide(*out.decision), now_));
         } catch (const Error& e) {
           pending.push_back(c_.onDecisionError(out.decision->id, e.what(), now_));
         }
       }
     }
+  }
+
+  /// The policy's answer to `request`: the model's, or with robots lost, the model bound to
+  /// the team without them (as `ddace eval` binds it to a test set of fewer robots),
+  /// deciding from the snapshots without them. Throws ddace::Error when it cannot be bound
+  /// (the rule it learned is not stated by the scene).
+  exec::Decision decide(const exec::DecisionRequest& request) {
+    if (request.lost.empty()) {
+      const tgn::Prediction d = model_.sequence.predictNext(request.history);
+      return {d.end, d.tokens};
+    }
+    std::vector<int> kept;  // the reduced team's entities, by index in the task
+    task::TaskSpec without = spec_;
+    without.entities.clear();
+    for (int i = 0; i < static_cast<int>(spec_.entities.size()); ++i)
+      if (std::find(request.lost.begin(), request.lost.end(), i) == request.lost.end()) {
+        kept.push_back(i);
+        without.entities.push_back(spec_.entities[static_cast<size_t>(i)]);
+      }
+    std::string names;
+    for (int e : request.lost) names += (names.empty() ? "" : ", ") + spec_.entities[static_cast<size_t>(e)].name;
+    without.goal_conditions.clear();
+    for (const task::GoalCondition& g : spec_.goal_conditions)
+      if (without.entityIndex(g.entity) >= 0 && without.entityIndex(g.at) >= 0) without.goal_conditions.push_back(g);
+    lost_entities_ = request.lost;
+    if (!bound_ || bound_lost_ != request.lost) {
+      try {
+        bound_ = std::make_unique<tgn::SequenceModel>(model_.sequence.boundTo(without));
+      } catch (const Error& e) {
+        throw Error("the model cannot decide without " + names + ": " + e.what());
+      }
+      bound_lost_ = request.lost;
+    }
+    std::vector<task::Snapshot> history = request.history;
+    for (task::Snapshot& snap : history) {
+      std::vector<Eigen::Vector2d> at;
+      for (int i : kept) at.push_back(snap.positions[static_cast<size_t>(i)]);
+      snap.positions = std::move(at);
+    }
+    const tgn::Prediction d = bound_->predictNext(history);
+    exec::Decision out{d.end, {}};
+    for (task::Token t : d.tokens) {
+      t.entity = kept.at(static_cast<size_t>(t.entity));
+      if (t.target >= 0) t.target = kept.at(static_cast<size_t>(t.target));
+      out.tokens.push_back(t);
+    }
+    return out;
   }
 
   /// `e`'s segment is over (stopped, replaced or done): what it ran is kept.
@@ -358,6 +407,22 @@ class Runner {
            std::none_of(movers_.begin(), movers_.end(), [&](const Mover& o) { return o.entity == m.token.target; });
   }
 
+  /// How far a hand moves `e` (amount metres): along the first of `directions` where it
+  /// lands clear of every other body by kLandingGapM (a hand puts a thing down where it
+  /// fits, it does not shove it into another), else the first.
+  Eigen::Vector2d landing(int e, const std::vector<Eigen::Vector2d>& directions) const {
+    for (const Eigen::Vector2d& d : directions) {
+      const Eigen::Vector2d at = pos_[static_cast<size_t>(e)] + p_.amount * d;
+      bool clear = true;
+      for (int j = 0; j < static_cast<int>(pos_.size()); ++j)
+        if (j != e && spec_.entities[static_cast<size_t>(j)].kind != task::EntityKind::Goal &&
+            (at - pos_[static_cast<size_t>(j)]).norm() < spec_.contactDistance(e, j) + kLandingGapM)
+          clear = false;
+      if (clear) return p_.amount * d;
+    }
+    return p_.amount * directions.front();
+  }
+
   /// Applies the perturbation when its moment has come; returns a segment its follower fails.
   std::optional<std::pair<int, uint32_t>> perturb() {
     if (applied_ || p_.kind == PerturbationKind::None) return std::nullopt;
@@ -370,16 +435,21 @@ class Runner {
     const auto name = [&](int e) { return spec_.entities[static_cast<size_t>(e)].name.c_str(); };
     std::optional<std::pair<int, uint32_t>> failed;
     switch (p_.kind) {
-      case PerturbationKind::BoxMoved:
-        table_->displace(m->token.target, p_.amount * Eigen::Vector2d(std::cos(draw_.angle), std::sin(draw_.angle)));
+      case PerturbationKind::BoxMoved: {
+        std::vector<Eigen::Vector2d> directions;
+        for (int k = 0; k < 8; ++k)
+          directions.emplace_back(std::cos(draw_.angle + k * M_PI / 4), std::sin(draw_.angle + k * M_PI / 4));
+        table_->displace(m->token.target, landing(m->token.target, directions));
         std::snprintf(what, sizeof what, "step %d, %d %%: %s moved %.1f cm", m->step + 1, pct, name(m->token.target),
                       p_.amount * 100);
         break;
+      }
       case PerturbationKind::RobotPushed: {
         const Eigen::Vector2d ahead = pointAt(m->path, std::min(m->length, at + 0.01)) - pos_[m->entity];
         const Eigen::Vector2d across =
             ahead.norm() > 1e-9 ? Eigen::Vector2d(-ahead.y(), ahead.x()).normalized() : Eigen::Vector2d(1, 0);
-        if (table_->displace(m->entity, p_.amount * across)) failed = std::make_pair(m->entity, m->segment);
+        if (table_->displace(m->entity, landing(m->entity, {across, -across})))
+          failed = std::make_pair(m->entity, m->segment);
         std::snprintf(what, sizeof what, "step %d, %d %%: %s pushed %.1f cm off its path", m->step + 1, pct,
                       name(m->entity), p_.amount * 100);
         break;
@@ -433,7 +503,38 @@ class Runner {
         return "step " + std::to_string(k + 1) + ": predicted " + keys(t.predicted, k) + " demonstrated " +
                keys(gt_.steps, k);
     if (score.achieved_robot_motions < score.gt_robot_motions) return "a robot motion stopped short of its end point";
+    if (!t.body_report.collisions.empty()) {
+      const exec::BodyContact& c = t.body_report.collisions.front();
+      char what[160];
+      std::snprintf(what, sizeof what, "%zu collision(s), the first at %.1f s: %s touched %s",
+                    t.body_report.collisions.size(), c.time_s, spec_.entities[static_cast<size_t>(c.a)].name.c_str(),
+                    spec_.entities[static_cast<size_t>(c.b)].name.c_str());
+      return what;
+    }
     return "a goal condition does not hold";
+  }
+
+  /// Why a run that finished without its lost robots did not do the task ("" when it did):
+  /// a robot motion that stopped short of its end point, a collision, a goal condition
+  /// that does not name a lost robot and does not hold.
+  std::string withoutLost(const exec::Trial& t) const {
+    const double within = spec_.arrival_radius + exec::CoordinatorConfig{}.arrival_tolerance_m;
+    for (const exec::ExecutedToken& ex : t.executed)
+      if (ex.token.isMotion() && spec_.entities[static_cast<size_t>(ex.token.entity)].kind == task::EntityKind::Robot &&
+          !task::arrived(ex.executed.back(), ex.goal, within))
+        return "step " + std::to_string(ex.step + 1) + ": " + task::tokenKey(ex.token, spec_) +
+               " stopped short of its end point";
+    if (!t.body_report.collisions.empty()) return std::to_string(t.body_report.collisions.size()) + " collision(s)";
+    const std::vector<int>& lost = lost_entities_;
+    for (const task::GoalCondition& g : spec_.goal_conditions) {
+      const bool names_lost = std::any_of(lost.begin(), lost.end(), [&](int e) {
+        return spec_.entities[static_cast<size_t>(e)].name == g.entity ||
+               spec_.entities[static_cast<size_t>(e)].name == g.at;
+      });
+      if (!names_lost && !task::goalConditionMet(spec_, g, t.final_positions))
+        return "goal condition " + g.entity + " at " + g.at + " does not hold";
+    }
+    return "";
   }
 
   CoordinatedRun result() {
@@ -469,12 +570,18 @@ class Runner {
     r.what = what_;
     r.finished = t.ended;
     r.reason = c_.reason();
+    r.lost = c_.lostRobots();
     r.stale_ends = stale_ends_;
     r.replans = c_.replans();
     r.redecisions = c_.redecisions();
     r.makespan_s = t.makespan_s;
     r.success = r.finished && r.score.success && stale_ends_ == 0;
     if (r.finished && !r.score.success) r.failure = failureOf(r.score, t);
+    if (r.finished && !r.lost.empty()) {
+      // The team changed: the demonstration's steps are not the measure; the task's are.
+      r.failure = withoutLost(t);
+      r.success = r.failure.empty() && stale_ends_ == 0;
+    }
     return r;
   }
 
@@ -484,6 +591,9 @@ class Runner {
   Perturbation p_;
   exec::Coordinator c_;
   std::unique_ptr<Table> table_;
+  std::unique_ptr<tgn::SequenceModel> bound_;  ///< bound to the team without `bound_lost_`
+  std::vector<int> bound_lost_;
+  std::vector<int> lost_entities_;  ///< the robots the last decision was made without
   std::vector<Eigen::Vector2d> pos_;
   std::vector<bool> tracked_;
   std::vector<Mover> movers_;
@@ -576,7 +686,7 @@ PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& te
 
 namespace {
 struct Totals {
-  int perturbed = 0, succeeded = 0, replans = 0, redecisions = 0, violations = 0;
+  int perturbed = 0, succeeded = 0, replans = 0, redecisions = 0, violations = 0, collisions = 0;
   double lost_s = 0;
   int lost_n = 0;
   double makespan_s = 0;  ///< mean over the runs counted
@@ -593,6 +703,7 @@ Totals totals(const PerturbationReport& r, const std::vector<CoordinatedRun>& ru
     t.makespan_s += runs[i].makespan_s;
     t.replans += runs[i].replans;
     t.redecisions += runs[i].redecisions;
+    t.collisions += runs[i].collisions;
     if (runs[i].success && u.success) t.lost_s += runs[i].makespan_s - u.makespan_s, ++t.lost_n;
   }
   const int counted = all ? static_cast<int>(runs.size()) : t.perturbed;
@@ -624,6 +735,7 @@ void printPerturbation(const PerturbationReport& r, std::ostream& out) {
       if (run->stale_ends > 0)
         out << "    " << which << ": " << run->stale_ends << " motion(s) ended where their target had left\n";
     }
+    for (const std::string& l : w.lost) out << "    with: lost for good: " << l << "\n";
     if (w.replans + w.redecisions > 0)
       out << "    with: " << w.replans << " re-plan(s), " << w.redecisions << " re-decision(s)\n";
   }
@@ -640,6 +752,11 @@ void printPerturbation(const PerturbationReport& r, std::ostream& out) {
                 w.perturbed, w.replans, w.redecisions, w.lost_n ? w.lost_s / w.lost_n : 0.0, w.lost_n,
                 u.violations + wo.violations + w.violations);
   out << line;
+  if (!r.unperturbed.empty() && r.unperturbed.front().trial.bodies) {
+    std::snprintf(line, sizeof line, "  collisions: %d unperturbed, %d without recovery, %d with\n", u.collisions,
+                  wo.collisions, w.collisions);
+    out << line;
+  }
 }
 
 std::string perturbationJson(const PerturbationReport& r) {
@@ -658,6 +775,8 @@ std::string perturbationJson(const PerturbationReport& r) {
                           {"replans", run.replans},
                           {"redecisions", run.redecisions},
                           {"makespan_s", run.makespan_s},
+                          {"collisions", run.collisions},
+                          {"lost", run.lost},
                           {"precedence_violations", run.precedence_violations}};
   };
   for (const auto& [name, runs] :
@@ -665,11 +784,8 @@ std::string perturbationJson(const PerturbationReport& r) {
         {"without_recovery", &r.without},
         {"with_recovery", &r.with}}) {
     const Totals t = totals(r, *runs, runs == &r.unperturbed);
-    j[name] = {{"perturbed", t.perturbed},
-               {"succeeded", t.succeeded},
-               {"replans", t.replans},
-               {"redecisions", t.redecisions},
-               {"precedence_violations", t.violations}};
+    j[name] = {{"perturbed", t.perturbed},     {"succeeded", t.succeeded},   {"replans", t.replans},
+               {"redecisions", t.redecisions}, {"collisions", t.collisions}, {"precedence_violations", t.violations}};
   }
   j["per_trial"] = nlohmann::json::array();
   for (size_t i = 0; i < r.demos.size(); ++i)

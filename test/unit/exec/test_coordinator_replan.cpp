@@ -150,7 +150,8 @@ TEST_F(Replan, AFailedSegmentOfARobotTheTrackerLostAbortsNamingIt) {
   const auto out = c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Failed, 0.2, "pose stale", 1.0);
   EXPECT_EQ(c.state(), RunState::Aborted);
   EXPECT_TRUE(out.stop_all);
-  EXPECT_NE(c.reason().find("no recovery: R1 is not tracked"), std::string::npos) << c.reason();
+  EXPECT_NE(c.reason().find("R1 is lost"), std::string::npos) << c.reason();
+  EXPECT_NE(c.reason().find("pose stale"), std::string::npos) << c.reason();
 }
 
 TEST(ReplanOff, WithoutReplansAFailureAbortsAndAMovedTargetIsNotFollowed) {
@@ -235,4 +236,69 @@ TEST(Redecide, ARobotBlockedPastItsReplansIsReDecidedAndANoDecisionAbortsNamingW
   c.onDecisionError(out.decision->id, "no token fits the scene", 1.1);
   EXPECT_EQ(c.state(), RunState::Aborted);
   EXPECT_NE(c.reason().find("no token fits the scene"), std::string::npos) << c.reason();
+}
+
+// A robot lost for good (CoordinatorConfig::robot_lost_after_s): its segment fails while the
+// tracker does not see it, and the run goes on without it -- the step is decided again and
+// the request names it lost; a decision that still needs it aborts naming it, and so does a
+// fixed order, which would name it again.
+TEST(Redecide, ARobotLostForGoodIsLeftOutOfTheNextDecisionOrTheRunAbortsNamingIt) {
+  const task::TaskDir dir = task4();
+  const task::Demonstration& demo = dir.demos.front();
+  CoordinatorConfig cfg;
+  cfg.max_replans = 1;
+  for (const bool reads_scene : {true, false}) {
+    SCOPED_TRACE(reads_scene ? "reads the scene" : "a fixed order");
+    Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos), 1, {}, reads_scene};
+    std::vector<Vector2d> at = demo.positions.front();
+    c.onEntities(observe(at), 0.0);
+    const auto s = c.start(0.0);
+    EXPECT_TRUE(s.decision->lost.empty());
+    const auto segs = answer(c, c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1), 0.2);
+    ASSERT_EQ(segs.size(), 2u);
+    // R1's battery dies: the tracker loses it, its follower fails its segment.
+    const int r1 = segs[0].entity;
+    EntityObservation obs = observe(at);
+    obs.tracked[static_cast<size_t>(r1)] = false;
+    c.onEntities(obs, 1.0);
+    const auto out = c.onSegmentStatus(r1, segs[0].segment_id, SegmentState::Failed, 0.3, "pose of R1 is stale", 1.2);
+    ASSERT_EQ(c.lostRobots().size(), 1u);
+    EXPECT_EQ(c.lostRobots()[0].rfind(dir.spec.entities[static_cast<size_t>(r1)].name + ": ", 0), 0u);
+    if (!reads_scene) {
+      EXPECT_EQ(c.state(), RunState::Aborted);
+      EXPECT_NE(c.reason().find("is lost"), std::string::npos) << c.reason();
+      EXPECT_NE(c.reason().find("fixed order"), std::string::npos) << c.reason();
+      continue;
+    }
+    EXPECT_TRUE(c.running()) << c.reason();
+    EXPECT_TRUE(stops(out, r1));
+    ASSERT_TRUE(out.decision) << "the step is decided again without it";
+    EXPECT_EQ(out.decision->lost, std::vector<int>{r1});
+    // The policy still sends it: no decision without it.
+    c.onDecision(out.decision->id, replayDecision(demo, out.decision->history), 1.3);
+    EXPECT_EQ(c.state(), RunState::Aborted);
+    EXPECT_NE(c.reason().find("is lost"), std::string::npos) << c.reason();
+    EXPECT_NE(c.reason().find("no decision without it"), std::string::npos) << c.reason();
+  }
+}
+
+// A robot untracked past robot_lost_after_s while it stands idle is lost too: the decision
+// waiting for every entity to be tracked goes ahead without it.
+TEST(Redecide, ARobotUntrackedPastItsLimitIsLostAndTheDecisionGoesAheadWithoutIt) {
+  const task::TaskDir dir = task4();
+  CoordinatorConfig cfg;
+  cfg.max_replans = 1;
+  cfg.robot_lost_after_s = 3;
+  Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};
+  EntityObservation obs = observe(dir.demos.front().positions.front());
+  const int r2 = dir.spec.entityIndex("R2");
+  obs.tracked[static_cast<size_t>(r2)] = false;
+  c.onEntities(obs, 0.0);
+  EXPECT_FALSE(c.start(0.0).decision) << "waits for R2 to be tracked";
+  EXPECT_FALSE(c.onEntities(obs, 2.9).decision);
+  const auto out = c.onTick(3.0);
+  ASSERT_TRUE(out.decision) << c.reason();
+  EXPECT_EQ(out.decision->lost, std::vector<int>{r2});
+  ASSERT_EQ(c.lostRobots().size(), 1u);
+  EXPECT_NE(c.lostRobots()[0].find("not tracked for 3"), std::string::npos) << c.lostRobots()[0];
 }

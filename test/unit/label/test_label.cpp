@@ -512,6 +512,21 @@ TEST(Label, ARobotStoppingACentimetreShortOfAnotherOnItsSideIsSentToIt) {
   EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
 }
 
+TEST(Label, ARobotStoppingAtTheCrowdRoundItsTargetIsSentToTheTarget) {
+  // R1 and R2 are both sent to the box in one step: R1 gets there first, R2 stops behind
+  // it, touching R1 (which it never aimed at: R1 stood elsewhere when R2 set off), 8.6 cm
+  // from the box. The box, as a side touch reads, not "stopped halfway".
+  Scene s;
+  s.pos[0] = {0.3, 0.5}, s.pos[1] = {0.1, 0.5};
+  s.rest(1);
+  const double r1_box = s.spec.contactDistance(0, 2), r2_r1 = s.spec.contactDistance(1, 0);
+  s.move({{0, {0.5 - r1_box, 0.5}}, {1, {0.5 - r1_box - r2_r1, 0.5}, 0.3}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:B1", "R2:move:B1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
+}
+
 TEST(Label, AGoalTakenInTheSameStepIsTheTargetOfTheOneEndingBesideIt) {
   // R1 and R2 both sent to G1 at once: R1 takes it, R2 ends touching R1 from the side. G1
   // was free when R2 set off; it is read as occupied when R2 ended, so G1, not "halfway".
@@ -571,6 +586,28 @@ TEST(Label, ANearStopBesideABodyKeepingTheHeadingIsListed) {
   EXPECT_NE(inf.notes[0].message.find("R1 nearly stopped at R2 on its way to G2"), std::string::npos)
       << inf.notes[0].message;
   EXPECT_EQ(inf.notes[0].entity, 0);
+}
+
+TEST(Label, ANearStopAtABodyTheExampleNeverSendsARobotToIsAPass) {
+  // The same slow pass beside R2, with an example that sends robots to goals only: a step
+  // to R2 would be a motion of a kind the example never makes, so it is a pass, not listed.
+  Scene e;
+  e.pos[4] = {0.144, 0.95}, e.pos[0] = {0.144, 0.2}, e.pos[1] = {0.6, 0.8};
+  e.rest(1);
+  e.move({{0, {0.144, 0.95}, 0, 3}});
+  e.rest(1);
+  const auto example = label::Example::fromDemonstration(labelledByHand(e, e.infer(), "carry"), e.spec);
+  Scene s;
+  s.pos[4] = {0.144, 0.95};
+  s.pos[0] = {0.144, 0.2};
+  s.rest(1);
+  s.move({{0, {0.144, 0.8}, 0, 2}});
+  s.move({{0, {0.144, 0.95}, 0, 1}});
+  s.rest(1);
+  const auto inf = s.infer(&example);
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G2"}}));
+  EXPECT_FALSE(inf.steps[0].tokens[0].unsure);
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
 }
 
 TEST(Label, StepsWithOtherMoversThanTheExamplesAreListedFromThere) {
