@@ -742,6 +742,10 @@ void Labeller::noteStopsOnTheWay(const std::vector<Motion>& g, const std::vector
       });
       double turn = 0;
       if (b == tok.token.target || load || !stoppedAtOnItsWay(m, b, turn)) continue;
+      // A step to b would be a motion of a kind the example never makes: a slow pass.
+      if (example_ && !example_->words.count(kindKey(spec_, m.entity, b, tok.load)) &&
+          !example_->words.count(coarseKindKey(spec_, m.entity, b, tok.load)))
+        continue;
       note(m.off_row,
            E[m.entity].name + " nearly stopped at " + E[b].name + " on its way to " + E[tok.token.target].name +
                ", keeping its heading: one motion, or a step to " + E[b].name + " and another on; taken as one",

@@ -588,6 +588,28 @@ TEST(Label, ANearStopBesideABodyKeepingTheHeadingIsListed) {
   EXPECT_EQ(inf.notes[0].entity, 0);
 }
 
+TEST(Label, ANearStopAtABodyTheExampleNeverSendsARobotToIsAPass) {
+  // The same slow pass beside R2, with an example that sends robots to goals only: a step
+  // to R2 would be a motion of a kind the example never makes, so it is a pass, not listed.
+  Scene e;
+  e.pos[4] = {0.144, 0.95}, e.pos[0] = {0.144, 0.2}, e.pos[1] = {0.6, 0.8};
+  e.rest(1);
+  e.move({{0, {0.144, 0.95}, 0, 3}});
+  e.rest(1);
+  const auto example = label::Example::fromDemonstration(labelledByHand(e, e.infer(), "carry"), e.spec);
+  Scene s;
+  s.pos[4] = {0.144, 0.95};
+  s.pos[0] = {0.144, 0.2};
+  s.rest(1);
+  s.move({{0, {0.144, 0.8}, 0, 2}});
+  s.move({{0, {0.144, 0.95}, 0, 1}});
+  s.rest(1);
+  const auto inf = s.infer(&example);
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G2"}}));
+  EXPECT_FALSE(inf.steps[0].tokens[0].unsure);
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
+}
+
 TEST(Label, StepsWithOtherMoversThanTheExamplesAreListedFromThere) {
   // The example moves R1 and R2 in one step, then R1 on; here R2's motion is missing (a
   // robot not seen): every step from the first that differs may be numbered wrong, so
