@@ -73,6 +73,9 @@ struct EvalOptions {
   /// own predecessors under the model's learned dependencies). The points do not meet, so
   /// a trial's tokens take the same time either way and the makespan is their schedule.
   exec::DispatchMode dispatch = exec::CoordinatorConfig{}.dispatch;
+  /// Every path from its names' primitive (the paper's keys), not its role's where fitting
+  /// keyed a motion class by role (gp/primitives.h): what the role keys give, measured.
+  bool paths_by_name = false;
 };
 
 /// Whether the model's decisions read the scene (positions): every variant but a scene
