@@ -75,12 +75,16 @@ struct SceneRun {
   std::vector<Result> variants;
 };
 
-SceneRun run(TrackerScene scene, DetectorBackend backend, const std::vector<Variant>& variants, int frames) {
-  TrackerSceneRenderer renderer(scene, backend);
-  const MarkerConfig& markers = renderer.markers();
+/// The trackers of `variants` on `renderer`'s scene (their markers.yaml with the robots off
+/// the table added), each with its detector on the whole frame too.
+struct Trackers {
   std::vector<std::unique_ptr<Tracker>> trackers;
-  std::vector<std::unique_ptr<FiducialDetector>> full;  // each tracker's detector on the whole frame
-  SceneRun res;
+  std::vector<std::unique_ptr<FiducialDetector>> full;
+};
+
+Trackers makeTrackers(const TrackerSceneRenderer& renderer, const std::vector<Variant>& variants) {
+  const MarkerConfig& markers = renderer.markers();
+  Trackers t;
   for (const auto& v : variants) {
     TrackerConfig tc = v.config;
     tc.markers = markers;
@@ -90,79 +94,98 @@ SceneRun run(TrackerScene scene, DetectorBackend backend, const std::vector<Vari
       absent.name = "absent" + std::to_string(i + 1);
       tc.markers.entities.push_back(absent);
     }
-    trackers.push_back(std::make_unique<Tracker>(tc));
-    trackers.back()->setCamera(renderer.camera());
-    full.push_back(makeDetector(trackers.back()->config().detector));
-    res.variants.emplace_back();
-    res.variants.back().entities.resize(markers.entities.size());
+    t.trackers.push_back(std::make_unique<Tracker>(tc));
+    t.trackers.back()->setCamera(renderer.camera());
+    t.full.push_back(makeDetector(t.trackers.back()->config().detector));
   }
+  return t;
+}
+
+/// The reference on one frame: its time and accuracy into `res`; the scene's markers it found.
+std::set<int> referenceFrame(const cv::Mat& img, const std::vector<TrueEntity>& truth, DetectorBackend backend,
+                             const MarkerConfig& markers, const TableFrame& table, SceneRun& res) {
+  const double t0 = ddace::threadCpuS();
+  const std::vector<Detection> ref_found = referenceDetect(img, backend);
+  res.reference_ms += 1000 * (ddace::threadCpuS() - t0);
+  std::set<int> reference;
+  for (const Detection& d : ref_found) {
+    if (markers.isCorner(d.id) || markers.entityById(d.id)) reference.insert(d.id);
+    // The reference's own accuracy: its corners, the true table frame.
+    for (size_t i = 0; i < markers.entities.size(); ++i)
+      if (markers.entities[i].id == d.id) {
+        const PlanarPose p = table.markerPose(d, markers.entities[i].height_m);
+        res.reference_errors_m.push_back(std::hypot(p.x - truth[i].pose.x, p.y - truth[i].pose.y));
+      }
+  }
+  res.reference_found += static_cast<long>(reference.size());
+  for (size_t i = 0; i < markers.entities.size(); ++i)
+    res.reference_entity[i] += reference.count(markers.entities[i].id) > 0;
+  return reference;
+}
+
+/// One tracker (and its detector on the whole frame) on one frame, counted into `r`
+/// against what the reference found there.
+void trackFrame(const cv::Mat& img, double t, const std::vector<TrueEntity>& truth, const std::set<int>& reference,
+                const MarkerConfig& markers, Tracker& tracker, FiducialDetector& full, Result& r) {
+  double t0 = ddace::threadCpuS();
+  full.detect(img);
+  r.full_ms += 1000 * (ddace::threadCpuS() - t0);
+  t0 = ddace::threadCpuS();
+  const FrameResult fr = tracker.process(img, t);
+  r.tracker_ms += 1000 * (ddace::threadCpuS() - t0);
+  r.roi_frames += !fr.full_frame;
+  r.second_looks += fr.second_look;
+  r.first_look_misses += fr.first_look_misses;
+  r.absent_frames += fr.absent > 0;
+  r.absent_candidates += fr.absent_candidates;
+  std::set<int> found;
+  for (const auto& d : fr.detections) {
+    found.insert(d.id);
+    if (markers.entityById(d.id) && markers.entityById(d.id)->kind == ddace::task::EntityKind::Robot) {
+      r.robot_side_px += d.sidePx();
+      ++r.robot_sides;
+    }
+  }
+  for (const int id : reference) r.lost += !found.count(id);
+  for (size_t i = 0; i < r.entities.size(); ++i) {  // the scene's entities (not those off the table)
+    EntityCount& c = r.entities[i];
+    const bool ref = reference.count(markers.entities[i].id) > 0, vis = fr.entities[i].visible;
+    c.reference += ref;
+    c.visible += vis;
+    c.both += ref && vis;
+    c.run = ref && !vis ? c.run + 1 : 0;
+    c.longest_miss = std::max(c.longest_miss, c.run);
+    if (vis)
+      r.errors_m.push_back(
+          std::hypot(fr.entities[i].pose.x - truth[i].pose.x, fr.entities[i].pose.y - truth[i].pose.y));
+  }
+}
+
+SceneRun run(TrackerScene scene, DetectorBackend backend, const std::vector<Variant>& variants, int frames) {
+  TrackerSceneRenderer renderer(scene, backend);
+  const MarkerConfig& markers = renderer.markers();
+  Trackers t = makeTrackers(renderer, variants);
+  SceneRun res;
+  res.variants.resize(variants.size());
+  for (Result& r : res.variants) r.entities.resize(markers.entities.size());
   for (const auto& e : markers.entities) res.names.push_back(e.name);
   res.reference_entity.assign(markers.entities.size(), 0);
-
   // Warm up (first calls allocate, caches fill): not timed.
   {
     const cv::Mat img = renderer.render(renderer.truth(0.0), 0.0);
     for (int i = 0; i < 3; ++i) {
       referenceDetect(img, backend);
-      for (auto& d : full) d->detect(img);
+      for (auto& d : t.full) d->detect(img);
     }
   }
   const TableFrame table = renderer.tableFrame();
   for (int f = 0; f < frames; ++f) {
-    const double t = f / 30.0;
-    const auto truth = renderer.truth(t);
-    const cv::Mat img = renderer.render(truth, t);
-    double t0 = ddace::threadCpuS();
-    const std::vector<Detection> ref_found = referenceDetect(img, backend);
-    res.reference_ms += 1000 * (ddace::threadCpuS() - t0);
-    std::set<int> reference;
-    for (const Detection& d : ref_found) {
-      if (markers.isCorner(d.id) || markers.entityById(d.id)) reference.insert(d.id);
-      // The reference's own accuracy: its corners, the true table frame.
-      for (size_t i = 0; i < markers.entities.size(); ++i)
-        if (markers.entities[i].id == d.id) {
-          const PlanarPose p = table.markerPose(d, markers.entities[i].height_m);
-          res.reference_errors_m.push_back(std::hypot(p.x - truth[i].pose.x, p.y - truth[i].pose.y));
-        }
-    }
-    res.reference_found += static_cast<long>(reference.size());
-    for (size_t i = 0; i < markers.entities.size(); ++i)
-      res.reference_entity[i] += reference.count(markers.entities[i].id) > 0;
-    for (size_t v = 0; v < variants.size(); ++v) {
-      Result& r = res.variants[v];
-      t0 = ddace::threadCpuS();
-      full[v]->detect(img);
-      r.full_ms += 1000 * (ddace::threadCpuS() - t0);
-      t0 = ddace::threadCpuS();
-      const FrameResult fr = trackers[v]->process(img, t);
-      r.tracker_ms += 1000 * (ddace::threadCpuS() - t0);
-      r.roi_frames += !fr.full_frame;
-      r.second_looks += fr.second_look;
-      r.first_look_misses += fr.first_look_misses;
-      r.absent_frames += fr.absent > 0;
-      r.absent_candidates += fr.absent_candidates;
-      std::set<int> found;
-      for (const auto& d : fr.detections) {
-        found.insert(d.id);
-        if (markers.entityById(d.id) && markers.entityById(d.id)->kind == ddace::task::EntityKind::Robot) {
-          r.robot_side_px += d.sidePx();
-          ++r.robot_sides;
-        }
-      }
-      for (const int id : reference) r.lost += !found.count(id);
-      for (size_t i = 0; i < r.entities.size(); ++i) {  // the scene's entities (not those off the table)
-        EntityCount& c = r.entities[i];
-        const bool ref = reference.count(markers.entities[i].id) > 0, vis = fr.entities[i].visible;
-        c.reference += ref;
-        c.visible += vis;
-        c.both += ref && vis;
-        c.run = ref && !vis ? c.run + 1 : 0;
-        c.longest_miss = std::max(c.longest_miss, c.run);
-        if (vis)
-          r.errors_m.push_back(
-              std::hypot(fr.entities[i].pose.x - truth[i].pose.x, fr.entities[i].pose.y - truth[i].pose.y));
-      }
-    }
+    const double time = f / 30.0;
+    const auto truth = renderer.truth(time);
+    const cv::Mat img = renderer.render(truth, time);
+    const std::set<int> reference = referenceFrame(img, truth, backend, markers, table, res);
+    for (size_t v = 0; v < variants.size(); ++v)
+      trackFrame(img, time, truth, reference, markers, *t.trackers[v], *t.full[v], res.variants[v]);
     ++res.frames;
   }
   return res;

@@ -33,6 +33,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <ddace/CoordinatorState.h>
+#include <ddace/Decision.h>
 #include <ddace/DecisionRequest.h>
 #include <ddace/EntityArray.h>
 #include <ddace/PathRequest.h>
@@ -235,6 +236,35 @@ inline ddace::Segment straightSegment(const std::string& entity, const std::stri
   s.arrival_radius_m = arrival_radius_m;
   s.timeout_s = 30;
   return s;
+}
+
+/// An executor's final report on segment `segment_id` of `entity` (progress 1), stamped now.
+inline ddace::SegmentStatus segmentStatus(const std::string& entity, uint32_t segment_id, uint8_t code) {
+  ddace::SegmentStatus s;
+  s.header.stamp = ros::Time::now();
+  s.entity = entity;
+  s.segment_id = segment_id;
+  s.status = code;
+  s.progress = 1;
+  return s;
+}
+
+/// A sequence node's answer to `request` in a run of one step of one token, then END.
+inline ddace::Decision oneTokenThenEnd(const ddace::DecisionRequest& request, const std::string& entity,
+                                       const std::string& action, const std::string& target, double probability) {
+  ddace::Decision d;
+  d.id = request.id;
+  if (request.step != 0) {
+    d.end = true;
+    return d;
+  }
+  ddace::Token t;
+  t.entity = entity;
+  t.action = action;
+  t.target = target;
+  t.probability = probability;
+  d.tokens.push_back(t);
+  return d;
 }
 
 /// A path node's answer to `m`: the straight line from its start to its goal.

@@ -77,6 +77,42 @@ TEST(DeadNode, TheLaunchCommandExitsNonZeroWhereRoslaunchExitsZero) {
   EXPECT_NE(printed.find(coordinatorCause()), std::string::npos) << printed;
 }
 
+// The counterpart: a run that finishes exits 0 naming no node, and its launch.log holds no
+// error of the launch's own making (once every one carried "[rospack] Error: no such package
+// media_export").
+TEST(DeadNode, AFinishedRunExitsZeroAndItsLogNamesNoDeathAndNoError) {
+  ASSERT_FALSE(setup().scripts.empty()) << "the .test file must set ~scripts";
+  const std::string run_dir = std::string(setup().scratch) + "/finished_run";
+  const auto [status, printed] =
+      run("'" + setup().scripts + "/execute_sim' '" + setup().task + "' --no-build --run-dir '" + run_dir + "'",
+          std::string(setup().scratch) + "/finished.out");
+  EXPECT_EQ(status, 0) << printed;
+  EXPECT_NE(printed.find("result: finished"), std::string::npos) << printed;
+  EXPECT_EQ(printed.find(" died"), std::string::npos) << printed;
+  const std::string log = readFile(run_dir + "/launch.log");
+  EXPECT_NE(log, "") << "no launch.log in " << run_dir;
+  for (const char* error : {"[rospack] Error", "process has died", "[FATAL]"})
+    EXPECT_EQ(log.find(error), std::string::npos) << "'" << error << "' in launch.log:\n" << log;
+}
+
+// The README's demonstration step on a machine without that camera: the tracker cannot open
+// it and dies, ending the launch; scripts/launch names it, and the tracker's error says
+// how to record anyway (another device, a recording, the simulated table).
+TEST(DeadNode, RecordingWithoutTheCameraEndsNamingTheTrackerAndTheWaysAround) {
+  ASSERT_FALSE(setup().scripts.empty()) << "the .test file must set ~scripts";
+  const std::string demos = std::string(setup().scratch) + "/demos";
+  const auto [status, printed] = run("'" + setup().scripts +
+                                         "/launch' record.launch video_device:=99 keyboard:=false rviz:=false "
+                                         "output_dir:='" +
+                                         demos + "'",
+                                     std::string(setup().scratch) + "/record.out");
+  EXPECT_EQ(status, 1) << printed;
+  EXPECT_NE(printed.find("launch: node tracker died (exit code 1), a required node"), std::string::npos) << printed;
+  for (const char* hint : {"cannot open V4L2 device /dev/video99", "video_device:=N", "video_file:=FILE",
+                           "sim:=true rehearses on a simulated table"})
+    EXPECT_NE(printed.find(hint), std::string::npos) << "'" << hint << "' not said:\n" << printed;
+}
+
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "exec_dead_node_test");

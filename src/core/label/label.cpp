@@ -112,6 +112,13 @@ Inference Labeller::finish() {
   }
   if (alignment_ == Alignment::Open) settle(held_.size() == ex_motion_.size());
   if (alignment_ == Alignment::Aligned) placeInPlace(ex_inplace_before_.back(), prev_off_ + 1, segmenter_.rows() - 1);
+  // Fewer steps than the example's (a motion missed, or steps run together where no step's
+  // movers told): no token to list, but the demonstration is not to be used unchecked.
+  if (example_ && emitted_groups_ < ex_motion_.size())
+    note(std::max(segmenter_.rows() - 1, 0),
+         "the demonstration has " + std::to_string(emitted_groups_) + " step(s) of motion where the example" +
+             (example_->source.empty() ? "" : " " + example_->source) + " has " + std::to_string(ex_motion_.size()) +
+             " (a motion missed, or two steps run together?): check its steps");
   return take();
 }
 

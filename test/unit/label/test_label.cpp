@@ -610,6 +610,28 @@ TEST(Label, ANearStopAtABodyTheExampleNeverSendsARobotToIsAPass) {
   EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
 }
 
+TEST(Label, FewerStepsThanTheExamplesAreNoted) {
+  // The example sends R1 to G1, then R2 to G2; here R2's motion is missing (too short or
+  // too slow to read, or never made): every token it has is right, yet the demonstration
+  // is not the task's. Nothing to list a token by; the demonstration is noted to check.
+  Scene e;
+  e.rest(1);
+  e.move({{0, {0.9, 0.9}}});
+  e.rest(1);
+  e.move({{1, {0.9, 0.1}}});
+  e.rest(1);
+  const auto example = label::Example::fromDemonstration(labelledByHand(e, e.infer(), "carry"), e.spec);
+  Scene s;
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}}});
+  s.rest(2);
+  const auto inf = s.infer(&example);
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1"}}));
+  ASSERT_EQ(inf.notes.size(), 1u);
+  EXPECT_NE(inf.notes[0].message.find("has 1 step(s) of motion where the example has 2"), std::string::npos)
+      << inf.notes[0].message;
+}
+
 TEST(Label, StepsWithOtherMoversThanTheExamplesAreListedFromThere) {
   // The example moves R1 and R2 in one step, then R1 on; here R2's motion is missing (a
   // robot not seen): every step from the first that differs may be numbered wrong, so

@@ -11,6 +11,7 @@
 #include "ddace/tasks/rule_zoo.h"
 
 #include "../common/generated_task.h"
+#include "shared_model.h"
 
 using namespace ddace;
 using ddace::test::generated;
@@ -18,24 +19,16 @@ namespace fs = std::filesystem;
 
 namespace {
 
-class Pipeline : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    dir_ = ::testing::TempDir() + "/ddace_pipeline_task4";
-    fs::remove_all(dir_);
+/// Task 4, 12 demonstrations, training seed 3.
+struct Task4Model {
+  static constexpr const char* kDir = "ddace_pipeline_task4";
+  static pipeline::Model train(const std::string& dir) {
     tgn::TrainOptions o;
     o.seed = 3;
-    model_ = new pipeline::Model(pipeline::trainModel(generated("task4", 12, 1), o, dir_, nullptr));
+    return pipeline::trainModel(generated("task4", 12, 1), o, dir, nullptr);
   }
-  static void TearDownTestSuite() {
-    delete model_;
-    fs::remove_all(dir_);
-  }
-  static std::string dir_;
-  static pipeline::Model* model_;
 };
-std::string Pipeline::dir_;
-pipeline::Model* Pipeline::model_ = nullptr;
+using Pipeline = ddace::test::SharedModel<Task4Model>;
 
 }  // namespace
 

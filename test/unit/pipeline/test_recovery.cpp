@@ -13,6 +13,7 @@
 #include "ddace/pipeline/perturbation.h"
 
 #include "../common/generated_task.h"
+#include "shared_model.h"
 
 using namespace ddace;
 using ddace::test::generated;
@@ -80,22 +81,13 @@ int nearest(const std::vector<Vector2d>& at, const std::vector<int>& among, cons
 }
 
 /// One scene network trained on 20 deliver demonstrations for every test here (5 s).
-class Recovery : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    dir_ = ::testing::TempDir() + "/ddace_recovery_deliver";
-    fs::remove_all(dir_);
-    model_ = new pipeline::Model(pipeline::trainModel(generated("deliver", 20, 1), tgn::TrainOptions{}, dir_, nullptr));
+struct DeliverModel {
+  static constexpr const char* kDir = "ddace_recovery_deliver";
+  static pipeline::Model train(const std::string& dir) {
+    return pipeline::trainModel(generated("deliver", 20, 1), tgn::TrainOptions{}, dir, nullptr);
   }
-  static void TearDownTestSuite() {
-    delete model_;
-    fs::remove_all(dir_);
-  }
-  static std::string dir_;
-  static pipeline::Model* model_;
 };
-std::string Recovery::dir_;
-pipeline::Model* Recovery::model_ = nullptr;
+using Recovery = ddace::test::SharedModel<DeliverModel>;
 
 }  // namespace
 
