@@ -732,7 +732,10 @@ void writeLabelsIntro(std::ostream& md, const Run& run) {
      << ": the mean (lowest-highest); **difference**: inferred - true, the mean over the seeds ± its standard "
         "error (of the per-seed differences). The seed alone moves OSR where few demonstrations leave the "
         "network undecided, and so does the row of a step's snapshot, which is all that inferred labels with the "
-        "true tokens change for the network (docs/labels-log.md).\n\n"
+        "true tokens change for the network (docs/labels-log.md). These demonstrations have no bodies; with "
+        "bodies, in each way a person moves one at a time and all together, on the zoo's kinds of task and a "
+        "sample of its rules in both of its ways of moving, with how far the tokens listed to check can be "
+        "trusted: docs/bench/label_styles.md (`ddace bench label_styles`).\n\n"
      << "| family | demonstrations | accuracy | exact | to check | onset error | offset error | OSR, true labels | "
         "OSR, inferred labels | difference |\n|---|---|---|---|---|---|---|---|---|---|\n";
 }
