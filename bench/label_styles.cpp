@@ -1,15 +1,17 @@
 // bench_label_styles: token accuracy of `ddace label` on demonstrations made in other
 // ways than the generators' (label::demonstrationStyles: one aspect of a person's motion
-// varied at a time, then all at once), on every family and the zoo's kinds of task, with
-// bodies (motions end at contact, a pushed box rides in front of its pusher).
+// varied at a time, then all at once), with bodies (motions end at contact, a pushed box
+// rides in front of its pusher), on every family, the zoo's kinds of task and a sample of
+// drawn zoo rules, in both of the zoo's motion models (benchFamilies).
 //
-// Per family and style: `--demos` demonstrations moved in that style (label::humanMotion);
-// the first labelled (the example), the others labelled from motion (label::inferredDataset).
-// Reported: token accuracy, the worst style of each family (not the mean), and how far the
-// labeller's own doubt can be trusted: of the wrong tokens, the fraction listed to check;
-// of the listed tokens, the fraction wrong; wrong demonstrations with nothing listed (what
-// --strict would write silently).
-// Writes docs/bench/label_styles.md under the repository (--repo DIR); --quick: two
+// Per family, style and seed: `--demos` demonstrations moved in that style
+// (label::humanMotion); the first labelled (the example), the others labelled from motion
+// (label::inferredDataset). Reported: token accuracy (a cell: the worst over the seeds),
+// the worst style of each family (not the mean), and how far the labeller's own doubt can
+// be trusted: of the wrong tokens, the fraction listed to check; of the listed tokens, the
+// fraction wrong, by the note that listed them; wrong demonstrations with nothing listed
+// (what --strict would write silently).
+// Writes docs/bench/label_styles.md under the repository (--repo DIR); --quick: four
 // families, three styles, four demonstrations, the report on stdout (no file written).
 // --osr: what the labels change downstream instead: the default network trained on the true
 // labels, on the inferred ones, and on the usable inferred demonstrations only (20
@@ -17,7 +19,8 @@
 // issue's families in two styles (`all`, `pause`);
 // writes docs/bench/label_styles_osr.md (with --family/--style: on stdout); each OSR over
 // --train-seeds training seeds (3), their mean and range.
-// Usage: ddace bench label_styles [--repo DIR] [--quick] [--demos N] [--seed S]
+// Usage: ddace bench label_styles [--repo DIR] [--quick] [--demos N] [--seed S] [--seeds N
+//        (seeds S..S+N-1, 3)] [--zoo N (drawn rules, 20)]
 //        [--family F] [--style S] [--show] (one family or style, on stdout; --show: the
 //        demonstrations labelled wrong, true and inferred steps) [--dump DIR] (the
 //        demonstrations as moved, true labels, a task directory per style under DIR)

@@ -287,6 +287,7 @@ class CoordinatorNode::Impl {
       r.id = out.decision->id;
       r.step = out.decision->step;
       r.entity_names = spec_.entityNames();
+      for (int e : out.decision->lost) r.lost.push_back(spec_.entities[static_cast<size_t>(e)].name);
       for (const auto& snap : out.decision->history) {
         ddace::Snapshot s;
         s.stamp = stamp;

@@ -283,7 +283,7 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
         return exec::Decision{p.end, p.tokens};
       };
       const auto paths = [&](const task::Token& token, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
-        return model.primitives->generate(token, s, g, 100, step).points;
+        return model.primitives->generate(token, s, g, 100, options.paths_by_name ? -1 : step).points;
       };
       trial = exec::runTrial(spec, gt, policy, paths, *execution, model.primitives->endPoints());
     }

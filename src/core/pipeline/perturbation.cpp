@@ -19,6 +19,7 @@
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/scene.h"
+#include "ddace/pipeline/decisions_without.h"
 #include "ddace/task/body_geometry.h"
 
 namespace ddace::pipeline {
@@ -309,51 +310,12 @@ class Runner {
     }
   }
 
-  /// The policy's answer to `request`: the model's, or with robots lost, the model bound to
-  /// the team without them (as `ddace eval` binds it to a test set of fewer robots),
-  /// deciding from the snapshots without them. Throws ddace::Error when it cannot be bound
-  /// (the rule it learned is not stated by the scene).
+  /// The policy's answer to `request`: with robots lost, for the team without them
+  /// (DecisionsWithout). Throws ddace::Error when the model cannot decide without them.
   exec::Decision decide(const exec::DecisionRequest& request) {
-    if (request.lost.empty()) {
-      const tgn::Prediction d = model_.sequence.predictNext(request.history);
-      return {d.end, d.tokens};
-    }
-    std::vector<int> kept;  // the reduced team's entities, by index in the task
-    task::TaskSpec without = spec_;
-    without.entities.clear();
-    for (int i = 0; i < static_cast<int>(spec_.entities.size()); ++i)
-      if (std::find(request.lost.begin(), request.lost.end(), i) == request.lost.end()) {
-        kept.push_back(i);
-        without.entities.push_back(spec_.entities[static_cast<size_t>(i)]);
-      }
-    std::string names;
-    for (int e : request.lost) names += (names.empty() ? "" : ", ") + spec_.entities[static_cast<size_t>(e)].name;
-    without.goal_conditions.clear();
-    for (const task::GoalCondition& g : spec_.goal_conditions)
-      if (without.entityIndex(g.entity) >= 0 && without.entityIndex(g.at) >= 0) without.goal_conditions.push_back(g);
     lost_entities_ = request.lost;
-    if (!bound_ || bound_lost_ != request.lost) {
-      try {
-        bound_ = std::make_unique<tgn::SequenceModel>(model_.sequence.boundTo(without));
-      } catch (const Error& e) {
-        throw Error("the model cannot decide without " + names + ": " + e.what());
-      }
-      bound_lost_ = request.lost;
-    }
-    std::vector<task::Snapshot> history = request.history;
-    for (task::Snapshot& snap : history) {
-      std::vector<Eigen::Vector2d> at;
-      for (int i : kept) at.push_back(snap.positions[static_cast<size_t>(i)]);
-      snap.positions = std::move(at);
-    }
-    const tgn::Prediction d = bound_->predictNext(history);
-    exec::Decision out{d.end, {}};
-    for (task::Token t : d.tokens) {
-      t.entity = kept.at(static_cast<size_t>(t.entity));
-      if (t.target >= 0) t.target = kept.at(static_cast<size_t>(t.target));
-      out.tokens.push_back(t);
-    }
-    return out;
+    const tgn::Prediction d = decisions_.predict(request.history, request.lost);
+    return {d.end, d.tokens};
   }
 
   /// `e`'s segment is over (stopped, replaced or done): what it ran is kept.
@@ -591,8 +553,7 @@ class Runner {
   Perturbation p_;
   exec::Coordinator c_;
   std::unique_ptr<Table> table_;
-  std::unique_ptr<tgn::SequenceModel> bound_;  ///< bound to the team without `bound_lost_`
-  std::vector<int> bound_lost_;
+  DecisionsWithout decisions_{model_.sequence};
   std::vector<int> lost_entities_;  ///< the robots the last decision was made without
   std::vector<Eigen::Vector2d> pos_;
   std::vector<bool> tracked_;

@@ -8,6 +8,7 @@
 
 #include "ddace/common/error.h"
 #include "ddace/exec/coordinator.h"
+#include "ddace/pipeline/decisions_without.h"
 #include "ddace/pipeline/evaluation.h"
 #include "ddace/pipeline/perturbation.h"
 
@@ -227,4 +228,25 @@ TEST_F(Recovery, WithBodiesAMovedBoxAndALostRobotAreRecoveredFrom) {
     EXPECT_EQ(moved.with[i].collisions + lost.with[i].collisions, 0);
     expectWentOnWithout(test.spec, lost.without[i], lost.with[i]);
   }
+}
+
+// The decisions for the team without a lost robot (the sequence node's and `ddace eval`'s):
+// deliver's rule sends the robot nearest the box; with that robot lost the other goes, and
+// its tokens name the task's entities.
+TEST_F(Recovery, WithoutALostRobotTheOtherIsSentAndTokensNameTheTasksEntities) {
+  const task::TaskDir test = generated("deliver", 4, 77);
+  const task::TaskSpec& spec = test.spec;
+  const int r1 = spec.entityIndex("R1"), r2 = spec.entityIndex("R2"), b1 = spec.entityIndex("B1");
+  pipeline::DecisionsWithout decisions(model_->sequence);
+  for (const task::Demonstration& demo : test.demos) {
+    const std::vector<task::Snapshot> history{{0, false, demo.positions.front()}};
+    const tgn::Prediction all = decisions.predict(history, {});
+    ASSERT_EQ(all.tokens.size(), 1u);
+    const int nearest = all.tokens[0].entity, other = nearest == r1 ? r2 : r1;
+    const tgn::Prediction without = decisions.predict(history, {nearest});
+    ASSERT_EQ(without.tokens.size(), 1u);
+    EXPECT_EQ(without.tokens[0].entity, other);
+    EXPECT_EQ(without.tokens[0].target, b1);
+  }
+  EXPECT_THROW(decisions.predict({{0, false, test.demos[0].positions.front()}}, {42}), Error);
 }
