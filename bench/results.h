@@ -3,6 +3,9 @@
 // above, the package path), written atomically through common/file.h.
 #pragma once
 
+#include <algorithm>
+#include <cstdarg>
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <string>
@@ -36,6 +39,18 @@ inline std::filesystem::path repositoryFromArgs(int& argc, char** argv, std::vec
 /// ddace::Error naming the first other argument (`ddace bench NAME ...` hands them on).
 inline void noOtherOptions(int argc, char** argv, const std::string& name) {
   if (argc > 1) throw Error(name + " takes no options but --repo DIR (got '" + argv[1] + "')");
+}
+
+/// printf-style text, e.g. a row of a results table.
+[[gnu::format(printf, 1, 2)]] inline std::string formatted(const char* format, ...) {
+  va_list args, again;
+  va_start(args, format);
+  va_copy(again, args);
+  std::string text(static_cast<size_t>(std::max(0, std::vsnprintf(nullptr, 0, format, args))), '\0');
+  va_end(args);
+  std::vsnprintf(text.data(), text.size() + 1, format, again);
+  va_end(again);
+  return text;
 }
 
 /// Writes `markdown` as docs/bench/<name>.md under `repo` and says where on stdout.

@@ -73,177 +73,193 @@ long intFlag(int& i, int argc, char** argv) {
   return v;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) try {
-  const fs::path repo = bench::repositoryFromArgs(argc, argv);
+/// The command line.
+struct Options {
   long rules = 50, test_demos = 20, every = 1, seed = 1;
-  std::vector<int> sizes = {10, 20};
+  std::vector<int> sizes = {10, 20};  ///< training demonstrations, ascending
   bool quick = false;
-  tgn::TrainOptions options;
+  tgn::TrainOptions train;
+  /// The size at which the rules are also run with bodies: the largest.
+  int bodiesSize() const { return sizes.back(); }
+};
+
+/// --sizes' list, e.g. "10,20": sorted, without repeats.
+std::vector<int> parseSizes(const std::string& list) {
+  std::vector<int> sizes;
+  std::stringstream items(list);
+  for (std::string item; std::getline(items, item, ',');) {
+    char* end = nullptr;
+    const long n = std::strtol(item.c_str(), &end, 10);
+    if (item.empty() || *end != '\0' || n < 1 || n > 1000)
+      throw Error("--sizes: '" + item + "' is not a number of demonstrations (1 to 1000)");
+    sizes.push_back(static_cast<int>(n));
+  }
+  if (sizes.empty()) throw Error("--sizes needs at least one demonstration count");
+  std::sort(sizes.begin(), sizes.end());
+  sizes.erase(std::unique(sizes.begin(), sizes.end()), sizes.end());
+  return sizes;
+}
+
+Options parseOptions(int argc, char** argv) {
+  Options o;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--rules") {
-      rules = intFlag(i, argc, argv);
+      o.rules = intFlag(i, argc, argv);
     } else if (a == "--test") {
-      test_demos = intFlag(i, argc, argv);
+      o.test_demos = intFlag(i, argc, argv);
     } else if (a == "--every") {
-      every = intFlag(i, argc, argv);
+      o.every = intFlag(i, argc, argv);
     } else if (a == "--seed") {
-      seed = intFlag(i, argc, argv);
+      o.seed = intFlag(i, argc, argv);
     } else if (a == "--quick") {
-      quick = true;
+      o.quick = true;
     } else if (a == "--sizes") {
       if (i + 1 >= argc) throw Error("--sizes needs a list of demonstration counts, e.g. 10,20");
-      sizes.clear();
-      std::stringstream list(argv[++i]);
-      for (std::string item; std::getline(list, item, ',');) {
-        char* end = nullptr;
-        const long n = std::strtol(item.c_str(), &end, 10);
-        if (item.empty() || *end != '\0' || n < 1 || n > 1000)
-          throw Error("--sizes: '" + item + "' is not a number of demonstrations (1 to 1000)");
-        sizes.push_back(static_cast<int>(n));
-      }
-      if (sizes.empty()) throw Error("--sizes needs at least one demonstration count");
-      std::sort(sizes.begin(), sizes.end());
-      sizes.erase(std::unique(sizes.begin(), sizes.end()), sizes.end());
+      o.sizes = parseSizes(argv[++i]);
     } else if (a == "--without") {
       if (i + 1 >= argc) throw Error("--without needs a list of rule names");
-      options.without = tgn::rulesFromList(argv[++i]);
+      o.train.without = tgn::rulesFromList(argv[++i]);
     } else {
       throw Error("unknown argument '" + a +
                   "' (bench_rule_zoo [--rules N] [--test M] [--every K] [--sizes LIST] [--seed S] [--without LIST] "
                   "[--quick] [--repo DIR])");
     }
   }
-  options.seed = static_cast<uint64_t>(seed);
-  if (quick) {  // a smoke test of the benchmark, not its protocol
-    rules = std::min(rules, 2L), test_demos = std::min(test_demos, 3L), every = 1;
-    sizes = {3};
-    options.max_epochs = 40;
+  o.train.seed = static_cast<uint64_t>(o.seed);
+  if (o.quick) {  // a smoke test of the benchmark, not its protocol
+    o.rules = std::min(o.rules, 2L), o.test_demos = std::min(o.test_demos, 3L), o.every = 1;
+    o.sizes = {3};
+    o.train.max_epochs = 40;
   }
-  const int bodies_size = sizes.back();
-  const std::string sizes_words = [&] {
-    std::string w;
-    for (size_t k = 0; k < sizes.size(); ++k)
-      w += (k == 0 ? "" : k + 1 == sizes.size() ? " and " : ", ") + std::to_string(sizes[k]);
-    return w;
-  }();
-  const std::vector<uint64_t> distinct = tasks::distinctZooRules(static_cast<int>(rules * every));
-  const fs::path scratch = fs::temp_directory_path() / ("ddace_bench_rule_zoo_" + std::to_string(getpid()));
-  const auto start = std::chrono::steady_clock::now();
-  // One rule trained at every size and evaluated on its own test scenes.
-  // Ideal and with bodies, as `ddace table`'s section "Bodies" runs them.
-  const auto evaluateBoth = [&](const pipeline::Model& model, const task::TaskDir& test, const tasks::ZooMotion& m) {
-    WithBodies w;
-    w.motion = m;
-    w.ideal = pipeline::evaluate(model, test, {}).summary;
-    pipeline::EvalOptions o;
-    o.execution = "diffdrive";
-    o.noise_m = kBodiesNoiseM;
-    o.seed = static_cast<uint64_t>(seed);
-    w.bodies = pipeline::evaluate(model, test, o).summary;
-    return w;
-  };
-  // One rule trained at every size and evaluated on its own test scenes; at the largest
-  // size also with bodies, and on `direct` (when given) ideal and with bodies.
-  const auto measure = [&](uint64_t id, std::optional<tasks::ZooMotion> direct) {
+  return o;
+}
+
+/// One rule trained at every size and evaluated on its own test scenes; at the largest size
+/// also with bodies, and on a direct motion (when given) ideal and with bodies.
+class RuleRuns {
+ public:
+  RuleRuns(const Options& options, fs::path scratch) : o_(options), scratch_(std::move(scratch)) {}
+
+  Result measure(uint64_t id, const std::optional<tasks::ZooMotion>& direct) const {
     Result r;
     r.rule = tasks::zooRule(id);
     // Test scenes from a stream of their own, as `ddace generate` draws them.
     const uint64_t test_seed = 1 * 2654435761ULL + 0x7e57;
-    const task::TaskDir test = tasks::generateZoo(id, static_cast<int>(test_demos), test_seed);
-    const auto train = [&](const task::TaskDir& data, const std::string& name) {
-      const pipeline::Model model = pipeline::trainModel(data, options, (scratch / name).string(), nullptr);
-      fs::remove_all(scratch / name);
-      return model;
-    };
-    for (int demos : sizes) {
+    const task::TaskDir test = tasks::generateZoo(id, static_cast<int>(o_.test_demos), test_seed);
+    for (int demos : o_.sizes) {
       const auto t0 = std::chrono::steady_clock::now();
       const pipeline::Model model = train(tasks::generateZoo(id, demos, 1), std::to_string(demos));
       r.seconds[demos] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      if (demos != bodies_size || !direct) {
+      if (demos != o_.bodiesSize() || !direct) {
         r.osr[demos] = pipeline::evaluate(model, test, {}).summary.osr;
         continue;
       }
       r.bodies.push_back(evaluateBoth(model, test, tasks::ZooMotion{}));
       r.osr[demos] = r.bodies.back().ideal.osr;
     }
-    if (direct) {
-      std::optional<task::TaskDir> direct_test, direct_train;
-      try {
-        direct_test = tasks::generateZoo(id, static_cast<int>(test_demos), test_seed, *direct);
-        direct_train = tasks::generateZoo(id, bodies_size, 1, *direct);
-      } catch (const Error& e) {  // no scene its bodies keep clear on straight paths and arcs
-        r.undrawable = e.what();
-      }
-      if (direct_train) r.bodies.push_back(evaluateBoth(train(*direct_train, "direct"), *direct_test, *direct));
-    }
+    if (direct) measureDirect(id, test_seed, *direct, r);
     return r;
-  };
-  const auto osrWords = [&](const Result& r) {
-    std::string w = "OSR";
-    for (int demos : sizes) w += " " + fmt(r.osr.at(demos)) + " (" + std::to_string(demos) + ")";
-    for (const WithBodies& b : r.bodies)
-      w += "; " + b.motion.words() + ": " + fmt(b.ideal.osr) + " ideal, " + fmt(b.bodies.osr) + " with bodies, " +
-           std::to_string(b.bodies.collisions) + " collisions";
-    return w;
-  };
-  const std::vector<tasks::ZooMotion> direct_motions = tasks::directZooMotions();
-  std::vector<Result> results;
-  for (size_t k = 0; k < distinct.size(); k += static_cast<size_t>(every)) {
-    Result r = measure(distinct[k], direct_motions[results.size() % direct_motions.size()]);
-    std::cout << "zoo " << r.rule.id << " " << r.rule.name << ": " << osrWords(r) << "\n" << std::flush;
-    results.push_back(r);
   }
-  // The kinds of task users name, each its zoo rule (rule_zoo.h, userKinds), as the rules above.
-  std::vector<std::pair<tasks::ZooKind, Result>> kinds;
-  for (const tasks::ZooKind& kind : quick ? std::vector<tasks::ZooKind>{} : tasks::userKinds()) {
-    uint64_t id = 0;
-    tasks::parseZooFamily(kind.family, id);
-    Result r = measure(id, std::nullopt);
-    std::cout << kind.family << " " << kind.kind << ": " << osrWords(r) << "\n" << std::flush;
-    kinds.push_back({kind, r});
-  }
-  fs::remove_all(scratch);
-  const double minutes = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / 60;
 
+ private:
+  pipeline::Model train(const task::TaskDir& data, const std::string& name) const {
+    const pipeline::Model model = pipeline::trainModel(data, o_.train, (scratch_ / name).string(), nullptr);
+    fs::remove_all(scratch_ / name);
+    return model;
+  }
+
+  /// Ideal and with bodies, as `ddace table`'s section "Bodies" runs them.
+  WithBodies evaluateBoth(const pipeline::Model& model, const task::TaskDir& test, const tasks::ZooMotion& m) const {
+    WithBodies w;
+    w.motion = m;
+    w.ideal = pipeline::evaluate(model, test, {}).summary;
+    pipeline::EvalOptions e;
+    e.execution = "diffdrive";
+    e.noise_m = kBodiesNoiseM;
+    e.seed = static_cast<uint64_t>(o_.seed);
+    w.bodies = pipeline::evaluate(model, test, e).summary;
+    return w;
+  }
+
+  /// The rule demonstrated and tested on the direct motion, into r.bodies (or r.undrawable).
+  void measureDirect(uint64_t id, uint64_t test_seed, const tasks::ZooMotion& direct, Result& r) const {
+    std::optional<task::TaskDir> direct_test, direct_train;
+    try {
+      direct_test = tasks::generateZoo(id, static_cast<int>(o_.test_demos), test_seed, direct);
+      direct_train = tasks::generateZoo(id, o_.bodiesSize(), 1, direct);
+    } catch (const Error& e) {  // no scene its bodies keep clear on straight paths and arcs
+      r.undrawable = e.what();
+    }
+    if (direct_train) r.bodies.push_back(evaluateBoth(train(*direct_train, "direct"), *direct_test, direct));
+  }
+
+  const Options& o_;
+  fs::path scratch_;
+};
+
+/// A rule's results in words, as printed while the benchmark runs.
+std::string osrWords(const Result& r, const std::vector<int>& sizes) {
+  std::string w = "OSR";
+  for (int demos : sizes) w += " " + fmt(r.osr.at(demos)) + " (" + std::to_string(demos) + ")";
+  for (const WithBodies& b : r.bodies)
+    w += "; " + b.motion.words() + ": " + fmt(b.ideal.osr) + " ideal, " + fmt(b.bodies.osr) + " with bodies, " +
+         std::to_string(b.bodies.collisions) + " collisions";
+  return w;
+}
+
+std::string at(int n) {
+  return " at " + std::to_string(n);
+}
+
+/// "10, 20 and 40".
+std::string sizesWords(const std::vector<int>& sizes) {
+  std::string w;
+  for (size_t k = 0; k < sizes.size(); ++k)
+    w += (k == 0 ? "" : k + 1 == sizes.size() ? " and " : ", ") + std::to_string(sizes[k]);
+  return w;
+}
+
+/// The report's head: what ran, and the distribution of OSR over the rules at every size.
+std::string head(const Options& o, size_t rules, size_t distinct, double minutes, const std::vector<Result>& results) {
   std::ostringstream md;
-  const int last = sizes.back();
-  const auto at = [](int n) { return " at " + std::to_string(n); };
   md << "# Rule zoo\n\n"
-     << (quick ? "**`--quick`: a smoke test of the benchmark (2 rules, 3 demonstrations, 3 test scenes, at most 40 "
-                 "epochs); not its protocol, not its numbers.**\n\n"
-               : "")
-     << "Written by `ddace bench rule_zoo" << (quick ? " --quick" : "")
+     << (o.quick ? "**`--quick`: a smoke test of the benchmark (2 rules, 3 demonstrations, 3 test scenes, at most 40 "
+                   "epochs); not its protocol, not its numbers.**\n\n"
+                 : "")
+     << "Written by `ddace bench rule_zoo" << (o.quick ? " --quick" : "")
      << "` (bench/rule_zoo.cpp). The default model (`ddace train` defaults) "
-     << "trained on " << results.size() << " rules of the rule zoo (every " << every << (every == 1 ? "st" : "th")
-     << " of the first " << distinct.size() << " distinct rules, docs/tgn.md) at " << sizes_words
-     << " demonstrations, evaluated in closed loop (`ddace eval` defaults) on " << test_demos
-     << " fresh scenes per rule. Training seed " << seed;
-  if (!options.without.empty()) {
+     << "trained on " << rules << " rules of the rule zoo (every " << o.every << (o.every == 1 ? "st" : "th")
+     << " of the first " << distinct << " distinct rules, docs/tgn.md) at " << sizesWords(o.sizes)
+     << " demonstrations, evaluated in closed loop (`ddace eval` defaults) on " << o.test_demos
+     << " fresh scenes per rule. Training seed " << o.seed;
+  if (!o.train.without.empty()) {
     md << ", without";
-    for (tgn::Rule r : options.without) md << " " << tgn::toString(r);
+    for (tgn::Rule r : o.train.without) md << " " << tgn::toString(r);
   }
   md << ". "
      << "Run: " << utcNow() << ", " << fmt(minutes, 1) << " min, " << std::thread::hardware_concurrency()
      << "-core machine (1-minute load average " << loadAverage() << " at the end).\n\n";
   md << "| demonstrations | rules | median OSR | 10th percentile | mean | rules at OSR >= 0.9 "
         "|\n|---|---|---|---|---|---|\n";
-  for (int demos : sizes) {
+  for (int demos : o.sizes) {
     std::vector<double> v;
     for (const auto& r : results) v.push_back(r.osr.at(demos));
     const tasks::OsrDistribution d = tasks::osrDistribution(v);
     md << "| " << demos << " | " << d.rules << " | " << fmt(d.median) << " | " << fmt(d.p10) << " | " << fmt(d.mean)
        << " | " << d.at_least_0_9 << " |\n";
   }
-  md << "\n## By template (median OSR" << at(last) << " demonstrations)\n\n| template | rules |";
+  return md.str();
+}
+
+/// Median OSR per template of rules, at every size.
+std::string byTemplate(const std::vector<Result>& results, const std::vector<int>& sizes) {
+  std::ostringstream md;
+  md << "\n## By template (median OSR" << at(sizes.back()) << " demonstrations)\n\n| template | rules |";
   for (int demos : sizes) md << " median" << at(demos) << " |";
-  md << "\n|---|---|" << [&] {
-    std::string bars;
-    for (size_t k = 0; k < sizes.size(); ++k) bars += "---|";
-    return bars;
-  }() << "\n";
+  md << "\n|---|---|";
+  for (size_t k = 0; k < sizes.size(); ++k) md << "---|";
+  md << "\n";
   std::map<std::string, std::vector<const Result*>> by_kind;
   for (const auto& r : results) by_kind[r.rule.kind].push_back(&r);
   for (const auto& [kind, rs] : by_kind) {
@@ -255,6 +271,26 @@ int main(int argc, char** argv) try {
     }
     md << "\n";
   }
+  return md.str();
+}
+
+/// A table's header: `first` over `columns` columns, then OSR at every size and training time.
+std::string osrHeader(const std::string& first, int columns, const std::vector<int>& sizes) {
+  std::string h = "| " + first + " |", bars = "|";
+  for (int k = 0; k < columns; ++k) bars += "---|";
+  for (int demos : sizes) h += " OSR" + at(demos) + " |", bars += "---|";
+  return h + " training" + at(sizes.back()) + ", s |\n" + bars + "---|\n";
+}
+
+/// A rule's cells under osrHeader.
+std::string osrCells(const Result& r, const std::vector<int>& sizes) {
+  std::string c;
+  for (int demos : sizes) c += " " + fmt(r.osr.at(demos)) + " |";
+  return c + " " + fmt(r.seconds.at(sizes.back()), 1) + " |\n";
+}
+
+/// Every rule, the worst (lowest OSR summed over the sizes) first.
+std::string everyRule(const std::vector<Result>& results, const std::vector<int>& sizes) {
   const auto osrSum = [&](const Result* r) {
     double sum = 0;
     for (int demos : sizes) sum += r->osr.at(demos);
@@ -264,21 +300,19 @@ int main(int argc, char** argv) try {
   for (const auto& r : results) sorted.push_back(&r);
   std::stable_sort(sorted.begin(), sorted.end(),
                    [&](const Result* x, const Result* y) { return osrSum(x) < osrSum(y); });
-  const auto osrHeader = [&](const std::string& first, int columns) {
-    std::string h = "| " + first + " |", bars = "|";
-    for (int k = 0; k < columns; ++k) bars += "---|";
-    for (int demos : sizes) h += " OSR" + at(demos) + " |", bars += "---|";
-    return h + " training" + at(last) + ", s |\n" + bars + "---|\n";
-  };
-  const auto osrCells = [&](const Result& r) {
-    std::string c;
-    for (int demos : sizes) c += " " + fmt(r.osr.at(demos)) + " |";
-    return c + " " + fmt(r.seconds.at(last), 1) + " |\n";
-  };
-  md << "\n## Every rule, worst first\n\n" << osrHeader("rule", 1);
-  for (const Result* r : sorted) md << "| zoo:" << r->rule.id << " " << r->rule.name << " |" << osrCells(*r);
+  std::string md = "\n## Every rule, worst first\n\n" + osrHeader("rule", 1, sizes);
+  for (const Result* r : sorted)
+    md += "| zoo:" + std::to_string(r->rule.id) + " " + r->rule.name + " |" + osrCells(*r, sizes);
+  return md;
+}
 
-  // With bodies: per rule and motion model, bodies over ideal.
+std::string mm(double m) {
+  return std::isfinite(m) ? fmt(m * 1000, 1) + " mm" : std::string("–");
+}
+
+/// With bodies: per motion model, bodies over ideal across the rules, against the goals.
+std::string bodiesSummary(const std::vector<Result>& results, int bodies_size) {
+  std::ostringstream md;
   md << "\n## With bodies\n\n"
      << "Each rule" << at(bodies_size)
      << " demonstrations on two motion models (rule_zoo.h, `ZooMotion`): the generators' (paths bent around bodies, "
@@ -293,7 +327,6 @@ int main(int argc, char** argv) try {
      << " at the 10th percentile, zero collisions, FD ratio <= " << tasks::kBodiesFdRatioMedian << " at the median.\n\n"
      << "| motion | rules | median OSR ideal / bodies | OSR ratio median | p10 | collisions (trials) | min clearance | "
         "FD ratio median | makespan, mean | goals |\n|---|---|---|---|---|---|---|---|---|---|\n";
-  const auto mm = [](double m) { return std::isfinite(m) ? fmt(m * 1000, 1) + " mm" : std::string("–"); };
   for (const bool direct : {false, true}) {
     std::vector<std::pair<eval::Summary, eval::Summary>> runs;
     for (const Result& r : results)
@@ -307,6 +340,13 @@ int main(int argc, char** argv) try {
        << mm(c.min_clearance_m) << " | " << fmt(c.fd_ratio_median) << " | " << fmt(c.makespan_s, 1) << " s | "
        << (c.goalsMet() ? "met" : "**not met**") << " |\n";
   }
+  return md.str();
+}
+
+/// With bodies, rule by rule: the rules the direct motion cannot demonstrate, then every
+/// rule on every motion model.
+std::string bodiesPerRule(const std::vector<Result>& results) {
+  std::ostringstream md;
   std::string undrawable;
   for (const Result& r : results)
     if (!r.undrawable.empty()) undrawable += (undrawable.empty() ? "" : "; ") + ("zoo:" + std::to_string(r.rule.id));
@@ -321,17 +361,55 @@ int main(int argc, char** argv) try {
          << " | " << fmt(b.bodies.osr) << " | " << b.bodies.collisions << " (" << b.bodies.trials_with_collision << "/"
          << b.bodies.trials << ") | " << mm(b.bodies.min_clearance_m) << " | " << fmt(b.ideal.fd, 4) << " | "
          << fmt(b.bodies.fd, 4) << " | " << fmt(b.bodies.makespan_s, 1) << " s |\n";
+  return md.str();
+}
 
-  md << "\n## Kinds of task users name\n\nEach kind as the zoo rule that states it (rule_zoo.h, `userKinds`; goal: "
-        "OSR >= 0.9 at 20 demonstrations), trained and evaluated as the rules above (ideal).\n\n"
-     << osrHeader("kind | zoo rule", 2);
+/// The kinds of task users name, each as its zoo rule.
+std::string userKinds(const std::vector<std::pair<tasks::ZooKind, Result>>& kinds, const std::vector<int>& sizes) {
+  std::string md =
+      "\n## Kinds of task users name\n\nEach kind as the zoo rule that states it (rule_zoo.h, `userKinds`; goal: "
+      "OSR >= 0.9 at 20 demonstrations), trained and evaluated as the rules above (ideal).\n\n" +
+      osrHeader("kind | zoo rule", 2, sizes);
   for (const auto& [kind, r] : kinds)
-    md << "| " << kind.kind << " | " << kind.family << " " << r.rule.name << " |" << osrCells(r);
-  if (quick) {
-    std::cout << md.str();
+    md += "| " + kind.kind + " | " + kind.family + " " + r.rule.name + " |" + osrCells(r, sizes);
+  return md;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) try {
+  const fs::path repo = bench::repositoryFromArgs(argc, argv);
+  const Options o = parseOptions(argc, argv);
+  const std::vector<uint64_t> distinct = tasks::distinctZooRules(static_cast<int>(o.rules * o.every));
+  const fs::path scratch = fs::temp_directory_path() / ("ddace_bench_rule_zoo_" + std::to_string(getpid()));
+  const auto start = std::chrono::steady_clock::now();
+  const RuleRuns runs(o, scratch);
+  const std::vector<tasks::ZooMotion> direct_motions = tasks::directZooMotions();
+  std::vector<Result> results;
+  for (size_t k = 0; k < distinct.size(); k += static_cast<size_t>(o.every)) {
+    Result r = runs.measure(distinct[k], direct_motions[results.size() % direct_motions.size()]);
+    std::cout << "zoo " << r.rule.id << " " << r.rule.name << ": " << osrWords(r, o.sizes) << "\n" << std::flush;
+    results.push_back(r);
+  }
+  // The kinds of task users name, each its zoo rule (rule_zoo.h, userKinds), as the rules above.
+  std::vector<std::pair<tasks::ZooKind, Result>> kinds;
+  for (const tasks::ZooKind& kind : o.quick ? std::vector<tasks::ZooKind>{} : tasks::userKinds()) {
+    uint64_t id = 0;
+    tasks::parseZooFamily(kind.family, id);
+    Result r = runs.measure(id, std::nullopt);
+    std::cout << kind.family << " " << kind.kind << ": " << osrWords(r, o.sizes) << "\n" << std::flush;
+    kinds.push_back({kind, r});
+  }
+  fs::remove_all(scratch);
+  const double minutes = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / 60;
+  const std::string md = head(o, results.size(), distinct.size(), minutes, results) + byTemplate(results, o.sizes) +
+                         everyRule(results, o.sizes) + bodiesSummary(results, o.bodiesSize()) + bodiesPerRule(results) +
+                         userKinds(kinds, o.sizes);
+  if (o.quick) {
+    std::cout << md;
     return 0;
   }
-  bench::writeResults(repo, "rule_zoo", md.str());
+  bench::writeResults(repo, "rule_zoo", md);
   return 0;
 } catch (const std::exception& e) {
   std::cerr << "bench_rule_zoo: error: " << e.what() << "\n";

@@ -49,10 +49,12 @@ def fail(lines):
 def loopback_mode(launch):
     names = interfaces()
     if names != ["lo"]:
+        exposed = [f"{a} on {i}" for i, a in addresses() if not ipaddress.ip_address(a.split("%")[0]).is_loopback]
         return fail([
-            "lab_network:=false (one machine), but this graph runs on the host's network (interfaces: "
-            + ", ".join(names) + "):",
-            "every roscpp node's XML-RPC port listens on all of them, reachable from any host on those networks.",
+            f"refused: {launch} runs on one machine (lab_network:=false), but this process is on a network with "
+            "more than loopback: interfaces " + ", ".join(names)
+            + (" (addresses " + ", ".join(exposed) + ")" if exposed else "") + ";",
+            "every roscpp node's XML-RPC port would listen on all of them, reachable from any host on those networks.",
             "Start it in a loopback-only network namespace:",
             f"  scripts/loopback_only roslaunch ddace {launch} ...",
             "or, for a multi-machine lab, ask for it: lab_network:=true with ROS_IP set to this host's lab address.",

@@ -46,26 +46,28 @@ int runEval(const std::vector<std::string>& argv) {
   }
 
   std::optional<Perturbation> perturb;
+  if (args.has("--dispatch")) o.dispatch = exec::parseDispatchMode(args.get("--dispatch", ""), "--dispatch");
   if (args.has("--perturb")) {
     perturb = parsePerturbation(args.get("--perturb", ""), "--perturb");
-    if (o.execution != "ideal")
+    if (o.execution == "diffdrive" && !o.bodies)
       throw Error(
-          "--perturb runs the coordinator on entities that follow their paths ideally (--execution ideal); "
-          "with bodies it is not simulated yet");
-    if (args.has("--dispatch")) o.dispatch = exec::parseDispatchMode(args.get("--dispatch", ""), "--dispatch");
-  } else if (args.has("--dispatch")) {
-    o.dispatch = exec::parseDispatchMode(args.get("--dispatch", ""), "--dispatch");
-    if (o.execution != "diffdrive" || o.bodies)
-      throw Error(
-          "--dispatch schedules the tokens of points (--execution diffdrive --no-bodies); with bodies the "
-          "motions of one step run together and several steps' at once are not simulated yet");
+          "--perturb runs the coordinator on entities that follow their paths ideally (--execution ideal) or "
+          "on the table with bodies (--execution diffdrive); not on points (--no-bodies)");
+  } else if (args.has("--dispatch") && o.execution != "diffdrive") {
+    throw Error(
+        "--dispatch needs --execution diffdrive (points: the tokens' schedule; bodies: runs through the "
+        "coordinator)");
   }
+  // With bodies, a dispatch runs through the coordinator: segments start when it sends them.
+  o.coordinated = args.has("--dispatch") && o.execution == "diffdrive" && o.bodies;
   const task::TaskDir test = task::loadTaskDir(test_dir);
   const ModelForTask bound =
       modelForTask(loadModel(model_dir), model_dir, test, test_dir, args.has("--allow-other-task"));
   if (!bound.note.empty()) std::cout << bound.note << "\n";
   if (perturb) {
-    const PerturbationReport r = evaluatePerturbed(bound.model, test, *perturb, o.dispatch, o.seed);
+    const exec::BodiesExecutionParams table = bodiesParams(o, test.spec);
+    const PerturbationReport r = evaluatePerturbed(bound.model, test, *perturb, o.dispatch, o.seed,
+                                                   o.execution == "diffdrive" ? &table : nullptr);
     printPerturbation(r, std::cout);
     if (args.has("--json")) {
       const std::string path = args.get("--json", "");
@@ -98,10 +100,13 @@ DDACE_COMMAND(
      "its collisions, minimum clearance and makespan, and a collision fails it (--no-filter: without "
      "the filter; --no-bodies: points, each motion alone; --config: the follower gains, safety filter, "
      "simulated Hamster and table of an execution config such as config/execution.yaml, whose values "
-     "are the built-in defaults; its position noise is --noise's). --dispatch (points): steps, every token of a "
-     "step after the last step ended (the default), or async, each token when its own predecessors under "
-     "the model's learned dependencies ended; prints the makespan and the precedence violations. "
-     "--perturb: every trial runs through the coordinator (entities following their paths ideally in time) "
+     "are the built-in defaults; its position noise is --noise's). --dispatch: steps, every token of a "
+     "step after the last step ended, or async, each token when its own predecessors under "
+     "the model's learned dependencies ended; prints the makespan, the precedence violations and whom each "
+     "token waited for; on points the tokens' schedule, with bodies every trial runs through the coordinator, "
+     "its segments starting on the table when it sends them. "
+     "--perturb: every trial runs through the coordinator (entities following their paths ideally in time; "
+     "with --execution diffdrive, on the table with bodies) "
      "three times: unperturbed, and with the table changed once at a drawn moment (--seed) without recovery "
      "and with it (max_replans 2: the step re-decided from the scene, or the path re-planned); prints the "
      "trials that succeeded, the re-plans and re-decisions and the time lost (docs/execution.md, "

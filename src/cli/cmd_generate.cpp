@@ -19,10 +19,10 @@ void writeSplit(const std::string& out, const task::TaskDir& train_dir, const ta
 }
 
 int runGenerate(const std::vector<std::string>& argv) {
-  Args args(
-      argv,
-      {"--out", "--train", "--test", "--seed", "--robots", "--actions", "--jitter", "--mislabel", "--onset-jitter"},
-      {"--force"});
+  Args args(argv,
+            {"--out", "--train", "--test", "--seed", "--robots", "--goals", "--objects", "--actions", "--jitter",
+             "--mislabel", "--onset-jitter"},
+            {"--force"});
   args.expectAtMostPositional(1);
   tasks::GeneratorOptions o;
   std::string names;
@@ -39,11 +39,20 @@ int runGenerate(const std::vector<std::string>& argv) {
   tasks::ZooMotion zoo_motion;
   if (tasks::parseZooFamily(o.family, zoo_rule, &zoo_motion)) {
     // A rule of the zoo (rule_zoo.h): clean demonstrations; the family options do not apply.
-    for (const char* flag : {"--robots", "--actions", "--jitter", "--mislabel", "--onset-jitter"})
+    // --robots, --goals, --objects state the same rule with other counts (a model trained at
+    // the rule's own counts runs on them: docs/tgn.md, "Other team sizes").
+    for (const char* flag : {"--actions", "--jitter", "--mislabel", "--onset-jitter"})
       if (args.has(flag)) throw Error(std::string(flag) + " does not apply to a zoo rule (" + o.family + ")");
-    const task::TaskDir train_dir = tasks::generateZoo(zoo_rule, static_cast<int>(train), o.seed, zoo_motion);
+    tasks::ZooCounts counts;
+    for (auto [flag, count] :
+         {std::pair{"--robots", &counts.robots}, {"--goals", &counts.goals}, {"--objects", &counts.objects}}) {
+      const long n = args.getInt(flag, 0);
+      if (args.has(flag) && (n < 1 || n > 64)) throw Error(std::string(flag) + " must be between 1 and 64");
+      *count = static_cast<int>(n);
+    }
+    const task::TaskDir train_dir = tasks::generateZoo(zoo_rule, static_cast<int>(train), o.seed, zoo_motion, counts);
     const task::TaskDir test_dir =
-        tasks::generateZoo(zoo_rule, static_cast<int>(test), o.seed * 2654435761ULL + 0x7e57, zoo_motion);
+        tasks::generateZoo(zoo_rule, static_cast<int>(test), o.seed * 2654435761ULL + 0x7e57, zoo_motion, counts);
     writeSplit(out, train_dir, test_dir, args.has("--force"));
     std::cout << "generated " << o.family << " '" << train_dir.spec.name << "': " << train
               << " training demonstrations in " << out << "/train, " << test << " test in " << out << "/test\n";
@@ -51,8 +60,11 @@ int runGenerate(const std::vector<std::string>& argv) {
   }
   // The team size and the vocabulary are task2's and task3's case-study settings: given to
   // another family they would change nothing, so they are refused rather than ignored.
+  for (const char* flag : {"--goals", "--objects"})
+    if (args.has(flag)) throw Error(std::string(flag) + " applies to a zoo rule only, not to " + o.family);
   if (args.has("--robots") && o.family != "task2")
-    throw Error("--robots applies to task2 only (the team size of the scalability study), not to " + o.family);
+    throw Error("--robots applies to task2 (the team size of the scalability study) and zoo rules only, not to " +
+                o.family);
   if (args.has("--actions") && o.family != "task3")
     throw Error("--actions applies to task3 only (the vocabulary size study), not to " + o.family);
   o.robots = static_cast<int>(args.getInt("--robots", 11));
@@ -80,14 +92,15 @@ int runGenerate(const std::vector<std::string>& argv) {
   return 0;
 }
 
-DDACE_COMMAND({"generate",
-               "ddace generate FAMILY|zoo:ID --out DIR [--force] [--train N] [--test M] [--seed S] [--robots K] "
-               "[--actions K] [--jitter SIGMA_M] [--mislabel FRACTION] [--onset-jitter SECONDS]",
-               "write DIR/train and DIR/test task directories of a task family (task1..task4, fetch, "
-               "nearest_goal, queue, deliver) or of rule <id> of the rule zoo (zoo:<id>, docs/tgn.md; zoo:<id>/direct "
-               "or /direct-<N>mm: paths bent around "
-               "nothing, stops N mm short of contact)",
-               runGenerate});
+DDACE_COMMAND(
+    {"generate",
+     "ddace generate FAMILY|zoo:ID --out DIR [--force] [--train N] [--test M] [--seed S] [--robots K] "
+     "[--goals K] [--objects K] [--actions K] [--jitter SIGMA_M] [--mislabel FRACTION] [--onset-jitter SECONDS]",
+     "write DIR/train and DIR/test task directories of a task family (task1..task4, fetch, "
+     "nearest_goal, queue, deliver) or of rule <id> of the rule zoo (zoo:<id>, docs/tgn.md; zoo:<id>/direct "
+     "or /direct-<N>mm: paths bent around "
+     "nothing, stops N mm short of contact; --robots, --goals, --objects: the rule with other counts)",
+     runGenerate});
 
 }  // namespace
 }  // namespace ddace::cli

@@ -732,7 +732,10 @@ void writeLabelsIntro(std::ostream& md, const Run& run) {
      << ": the mean (lowest-highest); **difference**: inferred - true, the mean over the seeds ± its standard "
         "error (of the per-seed differences). The seed alone moves OSR where few demonstrations leave the "
         "network undecided, and so does the row of a step's snapshot, which is all that inferred labels with the "
-        "true tokens change for the network (docs/labels-log.md).\n\n"
+        "true tokens change for the network (docs/labels-log.md). These demonstrations have no bodies; with "
+        "bodies, in each way a person moves one at a time and all together, on the zoo's kinds of task and a "
+        "sample of its rules in both of its ways of moving, with how far the tokens listed to check can be "
+        "trusted: docs/bench/label_styles.md (`ddace bench label_styles`).\n\n"
      << "| family | demonstrations | accuracy | exact | to check | onset error | offset error | OSR, true labels | "
         "OSR, inferred labels | difference |\n|---|---|---|---|---|---|---|---|---|---|\n";
 }
@@ -875,6 +878,31 @@ std::vector<double> otherTeamSizeOsr(const Run& run, double factor, int& refused
   return v;
 }
 
+/// Median FD (ideal) of the zoo models `jobs` on their own test sets: with the paths as
+/// fitting keyed them (by role where that predicts better, docs/gp.md "Roles") and from the
+/// names' primitives. Rules whose FD is not finite either way are left out.
+std::pair<double, double> zooFdAsFittedAndByName(const Run& run, const std::vector<size_t>& jobs, size_t& rules) {
+  std::vector<double> fitted, by_name;
+  EvalOptions names;
+  names.paths_by_name = true;
+  for (size_t i : jobs) {
+    const Job& j = run.p.jobs[i];
+    try {
+      const double fd = evaluate(loadModel((run.s.out / "models" / j.model_name).string()),
+                                 task::loadTaskDir((j.data / "test").string()), names)
+                            .summary.fd;
+      if (!std::isfinite(fd) || !std::isfinite(run.rows[i].m.fd)) continue;
+      fitted.push_back(run.rows[i].m.fd);
+      by_name.push_back(fd);
+    } catch (const Error&) {
+      continue;  // a job that failed has no model: its row says so
+    }
+  }
+  rules = fitted.size();
+  if (fitted.empty()) return {NAN, NAN};
+  return {tasks::osrDistribution(fitted).median, tasks::osrDistribution(by_name).median};
+}
+
 /// Other team sizes (docs/tgn.md): each rule's model at the largest size run on the same
 /// rule with other numbers of robots.
 void writeOtherTeamSizes(std::ostream& md, const Run& run) {
@@ -897,6 +925,21 @@ void writeOtherTeamSizes(std::ostream& md, const Run& run) {
     }
     const tasks::OsrDistribution d = tasks::osrDistribution(v);
     md << fmt(d.median, 2) << " | " << fmt(d.p10, 2) << " | " << d.at_least_0_9 << " |\n";
+  }
+  md << "\nMotion primitives by role (docs/gp.md, \"Roles\"): the FD of the same models at the rules' own counts "
+        "(ideal execution), their paths as fitting keyed each motion class (by the step its motions stand in where "
+        "that predicts held-out motions better than the names) and every path from its names' primitive (the "
+        "paper's keys; `EvalOptions::paths_by_name`). Median over the rules.\n\n"
+     << "| motion | rules | FD, as fitted | FD, by name | by name / as fitted |\n|---|---|---|---|---|\n";
+  std::vector<size_t> largest;
+  for (size_t k = 0; k < run.p.zoo_rules.size(); ++k) largest.push_back(run.p.zoo[(k + 1) * run.p.sizes.size() - 1]);
+  const std::vector<std::pair<std::string, std::vector<size_t>>> motions = {{"the generators'", largest},
+                                                                            {"direct", run.p.zoo_direct}};
+  for (const auto& [motion, jobs] : motions) {
+    size_t rules = 0;
+    const auto [fitted, by_name] = zooFdAsFittedAndByName(run, jobs, rules);
+    md << "| " << motion << " | " << rules << " | " << fmt(fitted, 4) << " | " << fmt(by_name, 4) << " | "
+       << fmt(by_name / fitted, 2) << " |\n";
   }
 }
 

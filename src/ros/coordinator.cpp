@@ -54,6 +54,7 @@ class CoordinatorNode::Impl {
     cfg.arrival_radius_m = rosparam::param(pnh, "arrival_radius_m", spec_.arrival_radius);
     cfg.arrival_tolerance_m = rosparam::param(pnh, "arrival_tolerance_m", cfg.arrival_tolerance_m);
     cfg.max_replans = rosparam::param(pnh, "max_replans", cfg.max_replans);
+    cfg.robot_lost_after_s = rosparam::param(pnh, "robot_lost_after_s", cfg.robot_lost_after_s);
     cfg.dispatch = exec::parseDispatchMode(rosparam::param<std::string>(pnh, "dispatch", exec::toString(cfg.dispatch)),
                                            "parameter '" + pnh.resolveName("dispatch") + "'");
     try {
@@ -286,6 +287,7 @@ class CoordinatorNode::Impl {
       r.id = out.decision->id;
       r.step = out.decision->step;
       r.entity_names = spec_.entityNames();
+      for (int e : out.decision->lost) r.lost.push_back(spec_.entities[static_cast<size_t>(e)].name);
       for (const auto& snap : out.decision->history) {
         ddace::Snapshot s;
         s.stamp = stamp;

@@ -16,6 +16,7 @@
 #include "ddace/ros/heartbeat.h"
 #include "params.h"
 #include "ddace/exec/replay.h"
+#include "ddace/pipeline/decisions_without.h"
 #include "ddace/pipeline/evaluation.h"
 #include "ddace/task/fingerprint.h"
 #include "ddace/tgn/sequence_model.h"
@@ -49,8 +50,9 @@ class SequenceNode::Impl {
           "set parameter '" + pnh.resolveName("allow_other_task") + "' to true");
       if (!bound.note.empty()) ROS_INFO("sequence: %s", bound.note.c_str());
       model_ = std::make_unique<tgn::SequenceModel>(bound.model.sequence);
-      policy_ = [this](const std::vector<task::Snapshot>& h) {
-        const tgn::Prediction p = model_->predictNext(h);
+      without_ = std::make_unique<pipeline::DecisionsWithout>(*model_);
+      policy_ = [this](const std::vector<task::Snapshot>& h, const std::vector<int>& lost) {
+        const tgn::Prediction p = without_->predict(h, lost);
         exec::Decision d;
         d.end = p.end;
         d.tokens = p.tokens;
@@ -65,7 +67,12 @@ class SequenceNode::Impl {
         csv = task::demoFile(task_path, rosparam::param(pnh, "replay_demo", defaults.replay_demo),
                              "parameter '" + pnh.resolveName("replay_demo") + "'");
       demo_ = task::readDemonstrationCsv(csv, spec_);
-      policy_ = [this](const std::vector<task::Snapshot>& h) { return exec::replayDecision(demo_, h); };
+      policy_ = [this](const std::vector<task::Snapshot>& h, const std::vector<int>& lost) {
+        if (!lost.empty())
+          throw Error("a replay decides the demonstrated steps: it cannot decide without " +
+                      spec_.entities[static_cast<size_t>(lost.front())].name);
+        return exec::replayDecision(demo_, h);
+      };
       ROS_INFO("sequence: replaying the %zu steps of %s", demo_.steps.size(), csv.c_str());
     }
     pub_ = nh.advertise<ddace::Decision>("/ddace/decision", 5);
@@ -107,9 +114,15 @@ class SequenceNode::Impl {
         history.push_back(std::move(t));
       }
       if (history.empty()) throw Error("request has an empty snapshot history");
+      std::vector<int> lost;
+      for (const std::string& name : req.lost) {
+        const int e = spec_.entityIndex(name);
+        if (e < 0) throw Error("request names lost entity '" + name + "', not in the task");
+        lost.push_back(e);
+      }
       last_probabilities_.clear();
       last_end_probability_ = -1;
-      const exec::Decision d = policy_(history);
+      const exec::Decision d = policy_(history, lost);
       out.end = d.end;
       out.end_probability = last_end_probability_ >= 0 ? last_end_probability_ : (d.end ? 1.0 : 0.0);
       for (size_t i = 0; i < d.tokens.size(); ++i)
@@ -129,9 +142,11 @@ class SequenceNode::Impl {
   task::TaskSpec spec_;
   task::Demonstration demo_;
   std::unique_ptr<tgn::SequenceModel> model_;
+  std::unique_ptr<pipeline::DecisionsWithout> without_;  ///< model_ for the team without lost robots
   std::vector<double> last_probabilities_;
   double last_end_probability_ = -1;
-  std::function<exec::Decision(const std::vector<task::Snapshot>&)> policy_;
+  /// The next step from the history, for the team without the lost robots (task indices).
+  std::function<exec::Decision(const std::vector<task::Snapshot>&, const std::vector<int>&)> policy_;
   ros::Publisher pub_;
   ros::Subscriber sub_;
   std::unique_ptr<HeartbeatPublisher> heartbeat_;

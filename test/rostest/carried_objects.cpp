@@ -60,10 +60,7 @@ TEST(CarriedObjects, ABoxIsDoneWhenTrackedAtItsEndAfterItsCarrier) {
     return last.count(id) ? int(last[id].status) : -1;
   };
   const auto done = [&](uint32_t id) {
-    ddace::SegmentStatus s;
-    s.header.stamp = ros::Time::now();
-    s.entity = "R1", s.segment_id = id, s.status = ddace::SegmentStatus::DONE, s.progress = 1;
-    r1_status.publish(s);
+    r1_status.publish(exec_test::segmentStatus("R1", id, ddace::SegmentStatus::DONE));
   };
 
   // Run 1: R1 carries B1 to G1 (step 1); B1 is seen on its end point only after R1 is done.

@@ -33,6 +33,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <ddace/CoordinatorState.h>
+#include <ddace/Decision.h>
 #include <ddace/DecisionRequest.h>
 #include <ddace/EntityArray.h>
 #include <ddace/PathRequest.h>
@@ -235,6 +236,35 @@ inline ddace::Segment straightSegment(const std::string& entity, const std::stri
   s.arrival_radius_m = arrival_radius_m;
   s.timeout_s = 30;
   return s;
+}
+
+/// An executor's final report on segment `segment_id` of `entity` (progress 1), stamped now.
+inline ddace::SegmentStatus segmentStatus(const std::string& entity, uint32_t segment_id, uint8_t code) {
+  ddace::SegmentStatus s;
+  s.header.stamp = ros::Time::now();
+  s.entity = entity;
+  s.segment_id = segment_id;
+  s.status = code;
+  s.progress = 1;
+  return s;
+}
+
+/// A sequence node's answer to `request` in a run of one step of one token, then END.
+inline ddace::Decision oneTokenThenEnd(const ddace::DecisionRequest& request, const std::string& entity,
+                                       const std::string& action, const std::string& target, double probability) {
+  ddace::Decision d;
+  d.id = request.id;
+  if (request.step != 0) {
+    d.end = true;
+    return d;
+  }
+  ddace::Token t;
+  t.entity = entity;
+  t.action = action;
+  t.target = target;
+  t.probability = probability;
+  d.tokens.push_back(t);
+  return d;
 }
 
 /// A path node's answer to `m`: the straight line from its start to its goal.
@@ -629,6 +659,40 @@ struct Files {
       throw std::runtime_error("the .test file must set ~launch_file and ~config_file");
     pnh.getParam("execute_sim", f.execute_sim);
     return f;
+  }
+};
+
+/// The whole of a text file ("" when it cannot be read).
+inline std::string readFile(const std::string& path) {
+  std::ifstream f(path);
+  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+/// The set-up of a graph test: a generated task (generateTask: DIR/train and DIR/test) in
+/// a scratch directory of its own, the .test file's files, and execute_sim.launch's
+/// arguments for them.
+struct TaskGraph {
+  ros::NodeHandle nh;
+  Files files = Files::fromParams();
+  ScratchDir scratch;
+  ddace::task::TaskDir test;  ///< DIR/test: the scene and the ground truth
+
+  TaskGraph(const std::string& name, const std::string& family, int train, int test_demos, int robots = 11)
+      : scratch(name) {
+    generateTask(scratch, family, train, test_demos, robots);
+    test = ddace::task::loadTaskDir(dir() + "/test");
+  }
+  const std::string& dir() const { return scratch; }
+  /// The shipped config with `overrides` (writeConfig), in the scratch directory.
+  std::string config(const std::vector<std::array<std::string, 3>>& overrides) const {
+    return writeConfig(files.config_file, dir() + "/execution.yaml", overrides);
+  }
+  /// execute_sim.launch on the task, the run started by the test (autostart:=false), then `extra`.
+  std::vector<std::string> args(const std::vector<std::string>& extra) const {
+    std::vector<std::string> a{files.launch_file, "task:=" + dir() + "/test", "train:=" + dir() + "/train",
+                               "autostart:=false"};
+    a.insert(a.end(), extra.begin(), extra.end());
+    return a;
   }
 };
 

@@ -52,15 +52,9 @@ bool anyDriving(Watcher& w) {
 }  // namespace
 
 TEST(ExecEstop, ServiceAndTopicZeroEveryRobotWithinOneCycle) {
-  ros::NodeHandle nh;
-  const Files files = Files::fromParams();
-  const ScratchDir scratch("estop");
-  const std::string& dir = scratch;
-  generateTask(dir, "task4", 3, 1);
-  const auto spec = ddace::task::loadTaskDir(dir + "/test").spec;
-  Watcher w(nh, spec);
-  Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "autostart:=false",
-                "monitor:=false", "config:=" + files.config_file});
+  TaskGraph g("estop", "task4", 3, 1);
+  Watcher w(g.nh, g.test.spec);
+  Launch graph(g.args({"monitor:=false", "config:=" + g.files.config_file}));
   const std::string started = startRun(w, 30.0);
   ASSERT_TRUE(started.empty()) << started;
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::EXECUTING && anyDriving(w); }, 20.0));
@@ -73,7 +67,7 @@ TEST(ExecEstop, ServiceAndTopicZeroEveryRobotWithinOneCycle) {
   // The coordinator has published the e-stop when the call returns.
   const ros::Time returned = ros::Time::now();
   EXPECT_TRUE(t.response.success) << t.response.message;
-  EXPECT_TRUE(zerosArrived(w, spec, call)) << "the zeros after the e-stop did not arrive within 10 s";
+  EXPECT_TRUE(zerosArrived(w, g.test.spec, call)) << "the zeros after the e-stop did not arrive within 10 s";
   EXPECT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ESTOPPED; }, 5.0));
   // The coordinator zeroes every robot before it answers.
   std::cout << "~estop: every robot zeroed by the coordinator " << expectAllStopped(w, call, returned)
@@ -99,7 +93,7 @@ TEST(ExecEstop, ServiceAndTopicZeroEveryRobotWithinOneCycle) {
   ASSERT_TRUE(waitFor([&] { return anyDriving(w); }, 20.0)) << "robots do not drive after reset + start";
 
   // 3. The latched topic, from anybody.
-  ros::Publisher estop = nh.advertise<std_msgs::Bool>("/ddace/estop", 1, true);
+  ros::Publisher estop = g.nh.advertise<std_msgs::Bool>("/ddace/estop", 1, true);
   ASSERT_TRUE(waitFor([&] { return estop.getNumSubscribers() >= 3; }, 5.0));  // follower, mock, coordinator
   std_msgs::Bool on;
   on.data = true;
@@ -107,7 +101,7 @@ TEST(ExecEstop, ServiceAndTopicZeroEveryRobotWithinOneCycle) {
   const ros::Time pub = ros::Time::now();
   estop.publish(on);
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ESTOPPED; }, 5.0));
-  EXPECT_TRUE(zerosArrived(w, spec, pub)) << "the zeros after the e-stop did not arrive within 10 s";
+  EXPECT_TRUE(zerosArrived(w, g.test.spec, pub)) << "the zeros after the e-stop did not arrive within 10 s";
   // The coordinator zeroes in the callback that receives the e-stop, before it announces it.
   std::cout << "/ddace/estop: every robot zeroed by the coordinator "
             << expectAllStopped(w, pub, w.firstStamp(ddace::CoordinatorState::ESTOPPED)) << " s after the message\n";

@@ -16,15 +16,6 @@
 #include "ddace/ros/execution_monitor.h"
 #include "exec_common.h"
 
-namespace {
-std::string readFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-}  // namespace
-
 TEST(ExecFetch, TheBoxRidesInFrontOfItsCarrierToTheGoalAndTheRecordMeasuresTheOthers) {
   ros::NodeHandle nh;
   const exec_test::Files files = exec_test::Files::fromParams();
@@ -83,7 +74,7 @@ TEST(ExecFetch, TheBoxRidesInFrontOfItsCarrierToTheGoalAndTheRecordMeasuresTheOt
   }
   // The monitor writes the record and ends the launch.
   ASSERT_TRUE(graph.waitExit(30.0)) << "the launch did not end after the run finished";
-  const nlohmann::json r = nlohmann::json::parse(readFile(run_dir + "/result.json"));
+  const nlohmann::json r = nlohmann::json::parse(exec_test::readFile(run_dir + "/result.json"));
   EXPECT_EQ(r.at("collisions"), 0) << r.dump();
   EXPECT_EQ(r.at("osr"), 1) << r.dump();
   ASSERT_FALSE(r.at("min_clearance_m").is_null()) << r.dump();

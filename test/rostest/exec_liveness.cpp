@@ -60,31 +60,12 @@ class DeathProbe {
   ros::Time dropped_;
 };
 
-std::string readFile(const std::string& path) {
-  std::ifstream f(path);
-  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-}
-
-struct Graph {
-  ros::NodeHandle nh;
-  Files files = Files::fromParams();
-  ScratchDir scratch{"liveness"};
-  ddace::task::TaskDir test;
+/// Task 4 with 4 robots, the run recorded into run_NAME.
+struct Graph : TaskGraph {
   std::string run_dir;
-
-  explicit Graph(const std::string& name) {
-    generateTask(scratch, "task4", 3, 1, 4);
-    test = ddace::task::loadTaskDir(std::string(scratch) + "/test");
-    run_dir = std::string(scratch) + "/run_" + name;
-  }
+  explicit Graph(const std::string& name) : TaskGraph("liveness", "task4", 3, 1, 4), run_dir(dir() + "/run_" + name) {}
   std::vector<std::string> args() const {
-    return {files.launch_file,
-            "task:=" + std::string(scratch) + "/test",
-            "train:=" + std::string(scratch) + "/train",
-            "autostart:=false",
-            "monitor:=true",
-            "run_dir:=" + run_dir,
-            "config:=" + files.config_file};
+    return TaskGraph::args({"monitor:=true", "run_dir:=" + run_dir, "config:=" + files.config_file});
   }
 };
 

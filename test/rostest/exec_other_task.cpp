@@ -16,11 +16,6 @@ using namespace exec_test;
 
 namespace {
 
-std::string readFile(const std::string& path) {
-  std::ifstream f(path);
-  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-}
-
 /// Task 4 (train, test) and a Task 2 model with 4 robots, once for every test.
 struct Setup {
   ScratchDir scratch{"other_task"};
@@ -154,7 +149,7 @@ TEST(OtherTask, ExecuteSimEndsWithinSecondsNamingTheRefusal) {
   EXPECT_LT(took_s, 45.0) << "execute_sim waited for the coordinator's start time-out:\n" << printed;
   for (const std::string& why :
        {std::string("[FATAL]"), std::string("/sequence"), std::string("vocabulary: model [move, stop], task [move]"),
-        std::string("process has died")})
+        std::string("node sequence died (exit code 1)")})
     EXPECT_NE(printed.find(why), std::string::npos) << "'" << why << "' not on the terminal:\n" << printed;
   const std::string report = readFile(run_dir + "/report.txt");
   EXPECT_NE(report.find("nodes that died"), std::string::npos) << report;

@@ -10,11 +10,6 @@ using namespace exec_test;
 
 namespace {
 
-std::string readFile(const std::string& path) {
-  std::ifstream f(path);
-  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-}
-
 /// Column `field` of every message on `topic` in `bag` (`rostopic echo -b -p`: one CSV row
 /// per message, e.g. field.segment_id, field.header.stamp in nanoseconds).
 std::vector<std::string> bagColumn(const std::string& bag, const std::string& topic, const std::string& field) {

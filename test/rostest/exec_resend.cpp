@@ -47,19 +47,7 @@ TEST(ExecResend, LostMessagesAreSentAgainWithTheSameId) {
       return;
     }
     if (decision_copies[m->id] > 2) return;
-    ddace::Decision d;
-    d.id = m->id;
-    if (m->step == 0) {
-      ddace::Token t;
-      t.entity = "R1";
-      t.action = "move";
-      t.target = "G1";
-      t.probability = 1;
-      d.tokens.push_back(t);
-    } else {
-      d.end = true;
-    }
-    decision_pub.publish(d);
+    decision_pub.publish(exec_test::oneTokenThenEnd(*m, "R1", "move", "G1", 1.0));
   };
   // Path node: drops the first copy; answers with a straight line.
   auto on_path = [&](const ddace::PathRequest::ConstPtr& m) {
@@ -70,13 +58,7 @@ TEST(ExecResend, LostMessagesAreSentAgainWithTheSameId) {
   auto on_segment = [&](const ddace::Segment::ConstPtr& m) {
     std::lock_guard<std::mutex> l(mu);
     if (m->mode != ddace::Segment::MODE_FOLLOW || ++segment_copies[m->segment_id] != 2) return;
-    ddace::SegmentStatus s;
-    s.header.stamp = ros::Time::now();
-    s.entity = "R1";
-    s.segment_id = m->segment_id;
-    s.status = ddace::SegmentStatus::DONE;
-    s.progress = 1;
-    status_pub.publish(s);
+    status_pub.publish(exec_test::segmentStatus("R1", m->segment_id, ddace::SegmentStatus::DONE));
   };
   ros::Subscriber a = nh.subscribe<ddace::DecisionRequest>("/ddace/decision_request", 10, on_request);
   ros::Subscriber b = nh.subscribe<ddace::PathRequest>("/ddace/path_request", 10, on_path);

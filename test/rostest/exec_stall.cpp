@@ -6,18 +6,11 @@
 using namespace exec_test;
 
 TEST(ExecStall, SegmentTimeoutAbortsTheRunWithZeroWheels) {
-  ros::NodeHandle nh;
-  const Files files = Files::fromParams();
-  const ScratchDir scratch("stall");
-  const std::string& dir = scratch;
-  generateTask(dir, "task4", 3, 1);
-  const auto spec = ddace::task::loadTaskDir(dir + "/test").spec;
+  TaskGraph g("stall", "task4", 3, 1);
   const std::string config =
-      writeConfig(files.config_file, dir + "/execution.yaml",
-                  {{{"coordinator", "segment_timeout_s", "8.0"}, {"coordinator", "segment_timeout_per_m_s", "0.0"}}});
-  Watcher w(nh, spec);
-  Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "autostart:=false",
-                "monitor:=false", "config:=" + config, "stalled:=[R2]"});
+      g.config({{"coordinator", "segment_timeout_s", "8.0"}, {"coordinator", "segment_timeout_per_m_s", "0.0"}});
+  Watcher w(g.nh, g.test.spec);
+  Launch graph(g.args({"monitor:=false", "config:=" + config, "stalled:=[R2]"}));
   const std::string started = startRun(w, 30.0);
   ASSERT_TRUE(started.empty()) << started;
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 30.0))
@@ -62,19 +55,12 @@ TEST(ExecStall, SegmentTimeoutAbortsTheRunWithZeroWheels) {
 // With coordinator/max_replans: 1 the stalled robot's token is re-planned once from where it
 // stands (a new segment), and when that times out too the run aborts naming why.
 TEST(ExecStall, WithReplansAStalledRobotIsReplannedThenTheRunAbortsNamingWhy) {
-  ros::NodeHandle nh;
-  const Files files = Files::fromParams();
-  const ScratchDir scratch("stall_replan");
-  const std::string& dir = scratch;
-  generateTask(dir, "task4", 3, 1);
-  const auto spec = ddace::task::loadTaskDir(dir + "/test").spec;
-  const std::string config = writeConfig(files.config_file, dir + "/execution.yaml",
-                                         {{{"coordinator", "segment_timeout_s", "4.0"},
-                                           {"coordinator", "segment_timeout_per_m_s", "0.0"},
-                                           {"coordinator", "max_replans", "1"}}});
-  Watcher w(nh, spec);
-  Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "autostart:=false",
-                "monitor:=false", "config:=" + config, "stalled:=[R2]"});
+  TaskGraph g("stall_replan", "task4", 3, 1);
+  const std::string config = g.config({{"coordinator", "segment_timeout_s", "4.0"},
+                                       {"coordinator", "segment_timeout_per_m_s", "0.0"},
+                                       {"coordinator", "max_replans", "1"}});
+  Watcher w(g.nh, g.test.spec);
+  Launch graph(g.args({"monitor:=false", "config:=" + config, "stalled:=[R2]"}));
   const std::string started = startRun(w, 30.0);
   ASSERT_TRUE(started.empty()) << started;
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 40.0))
@@ -101,20 +87,13 @@ TEST(ExecStall, WithReplansAStalledRobotIsReplannedThenTheRunAbortsNamingWhy) {
 // the node re-plans the stalled fetcher's token once, then decides the step again from the
 // scene of now (a second decision request), re-plans that once, and aborts naming why.
 TEST(ExecStall, WithALearnedSceneModelTheStepIsDecidedAgainBeforeTheRunAborts) {
-  ros::NodeHandle nh;
-  const Files files = Files::fromParams();
-  const ScratchDir scratch("stall_redecide");
-  const std::string& dir = scratch;
-  generateTask(dir, "deliver", 20, 1);
-  const std::string model = trainModel(dir);
-  const auto spec = ddace::task::loadTaskDir(dir + "/test").spec;
-  const std::string config = writeConfig(files.config_file, dir + "/execution.yaml",
-                                         {{{"coordinator", "segment_timeout_s", "3.0"},
-                                           {"coordinator", "segment_timeout_per_m_s", "0.0"},
-                                           {"coordinator", "max_replans", "1"}}});
-  Watcher w(nh, spec);
-  Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "model:=" + model,
-                "autostart:=false", "monitor:=false", "config:=" + config, "stalled:=[R1, R2]"});
+  TaskGraph g("stall_redecide", "deliver", 20, 1);
+  const std::string model = trainModel(g.dir());
+  const std::string config = g.config({{"coordinator", "segment_timeout_s", "3.0"},
+                                       {"coordinator", "segment_timeout_per_m_s", "0.0"},
+                                       {"coordinator", "max_replans", "1"}});
+  Watcher w(g.nh, g.test.spec);
+  Launch graph(g.args({"model:=" + model, "monitor:=false", "config:=" + config, "stalled:=[R1, R2]"}));
   const std::string started = startRun(w, 30.0);
   ASSERT_TRUE(started.empty()) << started;
   ASSERT_TRUE(waitFor([&] { return w.stateCode() == ddace::CoordinatorState::ABORTED; }, 60.0))

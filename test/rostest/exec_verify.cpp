@@ -48,19 +48,7 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
     for (const auto& r : requests)
       if (r.id == m->id) return;
     requests.push_back(*m);
-    ddace::Decision d;
-    d.id = m->id;
-    if (m->step == 0) {
-      ddace::Token t;
-      t.entity = "R1";
-      t.action = "move";
-      t.target = "G1";
-      t.probability = 0.9;
-      d.tokens.push_back(t);
-    } else {
-      d.end = true;
-    }
-    decision_pub.publish(d);
+    decision_pub.publish(exec_test::oneTokenThenEnd(*m, "R1", "move", "G1", 0.9));
   };
   auto on_path = [&](const ddace::PathRequest::ConstPtr& m) { path_pub.publish(exec_test::straightPath(*m)); };
   auto on_segment = [&](const ddace::Segment::ConstPtr& m) {
@@ -86,13 +74,7 @@ TEST(ExecVerify, ForgedAndPrematureDonesAreIgnored) {
       mu, [] { return !segments.empty(); }, 10.0));
   const uint32_t id = segments.front().segment_id;
   auto status = [&](ros::Publisher& pub, const std::string& entity, uint32_t seg, uint8_t code) {
-    ddace::SegmentStatus s;
-    s.header.stamp = ros::Time::now();
-    s.entity = entity;
-    s.segment_id = seg;
-    s.status = code;
-    s.progress = 1;
-    pub.publish(s);
+    pub.publish(exec_test::segmentStatus(entity, seg, code));
   };
   // R1 is 0.25 m from G1 when its "DONE"s come.
   {

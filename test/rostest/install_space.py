@@ -42,9 +42,6 @@ class InstallSpace(unittest.TestCase):
         env = {"PATH": "/usr/bin:/bin", "HOME": self.work, "ROS_DISTRO": "Debian",
                "ROS_MASTER_URI": os.environ["ROS_MASTER_URI"], "ROS_HOSTNAME": "localhost",
                "ROS_HOME": os.path.join(self.work, "ros_home")}
-        # The graph runs in this test's loopback-only namespace: the launch files load there.
-        if "DDACE_LOOPBACK_ONLY" in os.environ:
-            env["DDACE_LOOPBACK_ONLY"] = os.environ["DDACE_LOOPBACK_ONLY"]
         r = subprocess.run(["bash", "-c", 'source "%s/setup.bash" && %s' % (self.prefix, script)], env=env,
                            cwd=self.work, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=timeout)
         self.assertEqual(r.returncode, 0, "%s failed:\n%s" % (script, r.stdout[-4000:]))

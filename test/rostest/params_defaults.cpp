@@ -95,7 +95,8 @@ TEST(ParamsDefaults, ExecutionYamlStatesTheNodesDefaults) {
                   {"segment_timeout_per_m_s", value(cc.segment_timeout_per_m_s)},
                   {"max_steps", value(cc.max_steps)},
                   {"dispatch", value(std::string(ddace::exec::toString(cc.dispatch)))},
-                  {"max_replans", value(cc.max_replans)}},
+                  {"max_replans", value(cc.max_replans)},
+                  {"robot_lost_after_s", value(cc.robot_lost_after_s)}},
                  {"arrival_radius_m", "roles"});
   // roles/: the node names are the launch file's; the time-outs are CoordinatorNode's.
   const YAML::Node roles = yaml["coordinator"]["roles"];

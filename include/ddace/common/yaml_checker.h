@@ -46,6 +46,9 @@ class YamlChecker {
   /// value" recorded) when `node` is not a scalar. `out` is untouched on failure,
   /// as with every check below.
   bool scalar(const YAML::Node& node, const std::string& what, std::string& out);
+  /// A scalar that is text: valid UTF-8 without control characters (what a YAML writer
+  /// writes back unchanged); else records "<what> must be printable UTF-8 text (...)".
+  bool text(const YAML::Node& node, const std::string& what, std::string& out);
   /// A finite number (the whole scalar, strtod syntax); else records
   /// "<what>: '<text>' is not a finite number".
   bool number(const YAML::Node& node, const std::string& what, double& out);

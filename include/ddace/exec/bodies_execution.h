@@ -23,14 +23,23 @@
 // touches is no collision; bodies placed overlapping at the start never collide. The closest approach is measured on
 // the true poses every cycle over the pairs that are apart, with the same exceptions.
 //
-// Owns: the step's control loop and its measurements. Must not: decide where motions end
+// A live run (the coordinator's dispatch, pipeline/perturbation.h) starts motions whenever
+// they are sent (startMotions), while others run, and advances the table one control cycle
+// at a time (cycle()); executeStep is one batch started and run to its end. What a motion
+// may touch is then decided from where every running motion ends, whatever its step (as
+// the path follower node decides it from the segments it knows). A hand may nudge a body,
+// stall a robot's wheels or kill a robot (displace, stall, kill).
+//
+// Owns: the control loop of the running motions and its measurements. Must not: decide where motions end
 // (task/end_point.h, via the planned paths) or score the trial (eval/metrics.h).
 // Units: metres, radians, seconds; table frame.
 #pragma once
 
 #include <memory>
 #include <set>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include "ddace/exec/clearance.h"
 #include "ddace/exec/execution_config.h"
@@ -54,6 +63,14 @@ struct BodiesExecutionParams {
 /// resting bodies within a fraction of a millimetre of each other.
 inline constexpr double kPartedM = 0.002;
 
+/// A motion of a live run that ended (BodiesExecution::cycle).
+struct MotionEnd {
+  int entity = -1;
+  bool done = false;        ///< arrived; else failed (a deadlock, its time limit), stopped where it is
+  std::string message;      ///< why it failed, naming the robot; "ended at contact with X" when done there
+  bool time_limit = false;  ///< stopped past its time limit
+};
+
 class BodiesExecution : public ExecutionModel {
  public:
   /// Throws ddace::Error for invalid parameters, naming the first.
@@ -62,6 +79,8 @@ class BodiesExecution : public ExecutionModel {
   std::string name() const override { return params_.config.safety.enabled ? "bodies" : "bodies-unfiltered"; }
   bool bodies() const override { return true; }
   void beginTrial(const task::TaskSpec& spec, const std::vector<Pose2D>& start) override;
+  /// The step's motions start together (startMotions) and run until each ended or the
+  /// step's time limit.
   StepExecution executeStep(const task::TaskSpec& spec, const std::vector<task::Token>& tokens,
                             const std::vector<Eigen::Vector2d>& positions,
                             const std::vector<StepMotion>& motions) override;
@@ -69,22 +88,57 @@ class BodiesExecution : public ExecutionModel {
   /// Not used: motions run together (executeStep). Throws ddace::Error.
   Path follow(const Path& planned, bool is_robot, int entity) override;
 
+  // A live run (the coordinator's dispatch): motions start whenever they are sent, while
+  // others run, and the table advances one control cycle at a time.
+
+  /// `motions` of step `step` (`tokens`: that step's) start together now, each replacing
+  /// its entity's running motion. What each may touch is decided here from where every
+  /// body is and where every running motion ends (the path follower's answer when segments
+  /// of several steps run). Their time limit: the longest one's (3x its path at cruise
+  /// speed + 10 s). Returns why motions could not start (a goal cannot move, a refused
+  /// segment): those end at once. Throws ddace::Error before beginTrial.
+  std::vector<std::string> startMotions(const task::TaskSpec& spec, int step, const std::vector<task::Token>& tokens,
+                                        const std::vector<StepMotion>& motions);
+  /// One control cycle of every robot and one period of the table; returns the motions that
+  /// ended in it (arrived, failed, or past their time limit: stopped where they are).
+  std::vector<MotionEnd> cycle();
+  /// `entity`'s motion is cancelled: it stops where it is (no end reported).
+  void stopMotion(int entity);
+  bool moving(int entity) const;
+  /// The positions `entity`'s latest motion passed through (empty: none).
+  const Path& executed(int entity) const;
+  double time() const;
+  /// Every entity's true position.
+  std::vector<Eigen::Vector2d> positions() const;
+
+  // What happens to a table under a run (`ddace eval --perturb`).
+
+  /// A hand puts `entity` down `by` metres away.
+  void displace(int entity, const Eigen::Vector2d& by);
+  /// Robot `entity`'s wheels do not turn until `until_s` (table time) whatever it commands.
+  void stall(int entity, double until_s);
+  /// Robot `entity` is dead (battery): its wheels never turn again and the tracker no longer
+  /// sees it; its controller gets a stale pose.
+  void kill(int entity);
+
  private:
-  struct Step;  // one step's motions while they run (bodies_execution.cpp)
-  /// Where the step's bodies end, what each motion may touch, which loads ride.
-  void decideContacts(Step& step);
-  std::vector<BodyAtStart> bodiesAtStart(const Step& step) const;
-  MotionContacts contactsOf(const Step& step, const std::vector<BodyAtStart>& bodies, int entity) const;
+  struct Motion;  // one motion of the trial (bodies_execution.cpp)
+  /// What motion `m` may touch, from every body's position and where each running motion ends.
+  MotionContacts contactsOf(const Motion& m) const;
   std::string targetName(int target) const;  ///< "" for none
   static void dropLoad(MotionContacts& contacts);
-  void rideLoad(Step& step, int carrier);
-  /// Motion `m` starts: a robot's controller gets its path, an object its segment.
-  void startMotion(Step& step, size_t m);
-  void endRide(Step& step, int carrier, bool arrived);
-  void cycleRobots(Step& step);
-  void advanceTable(Step& step);
-  void judgeContacts(Step& step);
-  void stopUnfinished(Step& step);
+  void rideLoad(int carrier);
+  /// Motion `m` starts: a robot's controller gets its path, an object its segment. Returns
+  /// why it cannot ("": it runs).
+  std::string startMotion(size_t m);
+  void finish(size_t m);
+  bool standing(int entity) const;
+  void endRide(int carrier, bool arrived);
+  void cycleRobots();
+  void advanceTable();
+  void judgeContacts();
+  /// Motions of `batch` still moving stop where they are, past their time limit.
+  void stopBatch(uint32_t batch);
 
   BodiesExecutionParams params_;
   ControllerParams controller_;
@@ -95,11 +149,26 @@ class BodiesExecution : public ExecutionModel {
   std::vector<double> radius_m_;                               ///< every entity's body (0: a goal)
   std::vector<bool> robot_;
   std::vector<std::string> names_;
+  task::TaskSpec spec_;
+  std::vector<Motion> motions_;           ///< every motion of the trial, in start order
+  std::vector<int> motion_of_;            ///< per entity: its latest motion, or -1
+  std::vector<int> load_of_;              ///< per carrier: the load riding with it, or -1
+  std::vector<double> stalled_until_s_;   ///< per robot: wheels blocked until then
+  std::vector<bool> dead_;                ///< per robot: kill()ed
+  std::set<std::pair<int, int>> loaded_;  ///< pairs placed overlapping (never judged)
+  AllowedContacts allowed_;               ///< of the running motions, as of the last start
+  std::vector<MotionEnd> ended_;          ///< since the last cycle()
+  uint32_t batches_ = 0;
+  int running_ = 0;                    ///< motions still moving
   size_t contacts_seen_ = 0;           ///< table_->contacts() already judged
   std::vector<PairContact> touching_;  ///< a * n + b (a < b): the run report's contact rule
   uint32_t next_segment_ = 1;
   uint64_t trials_ = 0;
   BodyReport report_;
+  // Scratch of every cycle.
+  std::vector<Pose2D> measured_;
+  std::set<std::pair<int, int>> began_;
+  std::vector<SafetyBody> others_;
 };
 
 }  // namespace ddace::exec

@@ -96,6 +96,14 @@ struct CoordinatorConfig {
   /// or target is not tracked, the run aborts naming why. 0: any of these aborts (the
   /// paper's execution).
   int max_replans = 0;
+  /// A robot is lost for good (a dead battery, carried off the table) when it has not been
+  /// tracked this long during a run, or at once when a token of it failed or timed out while
+  /// it is not tracked. With max_replans > 0 the run goes on without it where the policy
+  /// decides from the scene: its step is decided again, the lost robots left out of the
+  /// request (DecisionRequest::lost); it aborts naming the robot and why otherwise (a fixed
+  /// order names it, a decision gives it or meets it a token, a token of it in an earlier
+  /// step has not ended). With max_replans 0 an untracked robot aborts the run as before.
+  double robot_lost_after_s = 5;
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
 };
@@ -110,6 +118,10 @@ struct DecisionRequest {
   uint32_t id = 0;
   int step = 0;                         ///< index of the step to decide (0-based)
   std::vector<task::Snapshot> history;  ///< every decision's snapshot, oldest first; last = now
+  /// Robots lost for good (CoordinatorConfig::robot_lost_after_s): the decision is made
+  /// for the team without them (their positions in the snapshots mean nothing) and must
+  /// give them no token.
+  std::vector<int> lost;
 };
 
 /// The policy's confidence in a decision (display only; never changes what runs).
@@ -286,6 +298,8 @@ class Coordinator {
   int redecisions() const { return redecisions_; }
   /// The steps withdrawn by a re-decision, as they stood then (oldest first).
   const std::vector<StepRecord>& withdrawnSteps() const { return withdrawn_; }
+  /// Robots lost for good during the run, with why ("R1: not tracked for 5 s").
+  const std::vector<std::string>& lostRobots() const { return lost_reports_; }
 
  private:
   bool allTracked() const;
@@ -317,6 +331,12 @@ class Coordinator {
   /// Aborts naming `why` and returns false when `t` may not be recovered once more
   /// (`done` of max_replans done, or its entity or target not tracked).
   bool mayRecover(TokenRef t, int done, const std::string& why, CoordinatorOutput& out);
+  /// Robots untracked past robot_lost_after_s are lost (with recovery on).
+  void checkLost(double now_s, CoordinatorOutput& out);
+  /// Robot `e` is lost for good: the run goes on without it, or aborts naming it and `why`
+  /// (CoordinatorConfig::robot_lost_after_s).
+  void loseRobot(int e, const std::string& why, double now_s, CoordinatorOutput& out);
+  std::string lostWhy(int e) const;  ///< why robot `e` was lost ("" if it was not)
   /// The end point of the started token `t` from the positions `at` (the step's other
   /// started tokens at their start).
   Eigen::Vector2d endPointOf(TokenRef t, std::vector<Eigen::Vector2d> at) const;
@@ -351,6 +371,9 @@ class Coordinator {
   int replans_ = 0, redecisions_ = 0;
   std::vector<int> step_redecisions_;  ///< per step index: times it was re-decided
   std::vector<StepRecord> withdrawn_;
+  std::vector<bool> lost_;               ///< per entity: a robot lost for good
+  std::vector<double> untracked_since_;  ///< per entity: since when not tracked (-1: tracked)
+  std::vector<std::string> lost_reports_;
 };
 
 }  // namespace ddace::exec

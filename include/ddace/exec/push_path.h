@@ -54,6 +54,11 @@ inline constexpr double kPushLookaheadM = 0.2;
 inline constexpr double kPushReplanM = kPushClearanceM / 3;
 /// A push planned again has a point every this many metres.
 inline constexpr double kPushPathSpacingM = 0.005;
+/// Its push done, a carrier backs off its load until this far beyond their contact: out of
+/// its reach (pushWheels), still at one place with it (task::together). A robot is wider
+/// than a box, so a carrier left touching its load stands in the way of anyone pushing the
+/// load on past it (a relay's receiver); backed off, it leaves room.
+inline constexpr double kPushBackOffM = kPushClearanceM / 3;
 
 /// The path of a carrier at `from` that pushes a load standing at `load` (their contact
 /// distance `contact_m`) until the load is at `load_end`: round the load at contact +

@@ -101,6 +101,14 @@ class RobotController {
  private:
   ControlOutput end(ControlOutput out, MotionState state, std::string message);
   ControlOutput stale(ControlOutput out, const std::string& why, double now_s);
+  /// The motion is done (`message`); a carrier that pushes its load backs off it first.
+  ControlOutput done(ControlOutput out, std::string message, const Pose2D& pose, double pose_age_s, double radius_m,
+                     std::vector<SafetyBody>& others, double now_s);
+  /// A carrier whose push is done backs off its load, turning to drive straight away from
+  /// it, through its filter; done kPushBackOffM beyond contact, or where its filter holds it
+  /// (it stays).
+  ControlOutput backOff(ControlOutput out, const Pose2D& pose, double pose_age_s, double radius_m,
+                        std::vector<SafetyBody>& others, double now_s);
   /// A carrier not behind its load: its path planned again round the load (exec::pushPath)
   /// when its push just broke, or the load is kPushReplanM from where the path was planned for.
   void replanPush(const Pose2D& pose, const SafetyBody& load, double radius_m);
@@ -115,6 +123,8 @@ class RobotController {
   double stale_since_s_ = -1;               ///< since when the motion waits on a stale pose (-1: not)
   Eigen::Vector2d push_planned_for_{0, 0};  ///< where the load was when the path was planned (NaN: not seen yet)
   bool was_pushing_ = false;                ///< behind its load in the last cycle
+  bool backing_off_ = false;                ///< its push done: backing off its load (backOff())
+  std::string done_message_;                ///< the motion's, reported once backed off
 };
 
 }  // namespace ddace::exec

@@ -106,6 +106,14 @@ class TableSimulator {
   /// ddace::Error when `entity` is not a robot.
   void commandWheels(int entity, const WheelSpeeds& wheels);
 
+  /// A hand puts entity `entity` down at `position` (its heading kept), at rest: a riding
+  /// load stops riding, a moving object stops following its segment. Throws ddace::Error
+  /// for an index outside the task or a non-finite position.
+  void place(int entity, const Eigen::Vector2d& position);
+  /// Robot `entity`'s wheels are blocked (they do not turn, whatever is commanded) or free.
+  /// Throws ddace::Error when `entity` is not a robot.
+  void setStalled(int entity, bool stalled);
+
   /// A new segment for object `entity` along `path`, starting where the object is.
   /// Returns Accepted, or Failed for an empty path (the object then stays put), or
   /// Aborted while the e-stop is active. A copy of the running segment (same id, re-sent

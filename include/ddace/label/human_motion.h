@@ -3,7 +3,9 @@
 // family (docs/labels.md): the same steps, tokens and paths, re-timed and disturbed.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -79,9 +81,15 @@ struct LabelScore {
   double wrongListed() const;                         ///< wrong_listed / wrong; 1 when none is wrong
   double listedWrong() const;                         ///< wrong_listed / listed; 0 when none is listed
   std::vector<double> onset_error_s, offset_error_s;  ///< per matched token, seconds
-  double accuracy() const;                            ///< matched / max(true, inferred); 1 when both are empty
+  /// Listed tokens by the kind of note that listed them (doubtKind): {listed, of them wrong}.
+  std::map<std::string, std::array<int, 2>> listed_by_doubt;
+  double accuracy() const;  ///< matched / max(true, inferred); 1 when both are empty
   void add(const LabelScore& o);
 };
+
+/// The kind of a note (label::Note), for a breakdown of the listed tokens: "stopped
+/// halfway", "ended between", ... (the message's fixed words).
+std::string doubtKind(const std::string& message);
 
 /// Compares `inferred` (labels applied by applyLabels from `inference`) with `truth`
 /// (same rows); a token is listed when the inference is unsure of it.

@@ -116,14 +116,18 @@ struct EndPoint {
 /// its target), or the end point the task's one end-point rule gives this motion without
 /// anything learned (task/end_point.h: at contact with an obstacle's body, on a flat goal,
 /// a carrier behind its `load`, -1 for none). Two more count half the arrival radius worse
-/// (where a body already stood, the generators end a motion so, generators.h): touching an
-/// obstacle target from another side (within a quarter of the radius of contact), and
-/// stopped on the way short of a goal by up to the mover's diameter. A goal bodies stand on
-/// when the motion ended (`at_end`, [entity]; `where` when null: one may have arrived in
-/// the same step) is also read where the mover ends touching one of them.
+/// (where a body already stood, the generators end a motion so, generators.h): beside an
+/// obstacle target on another side (up to half the radius short of touching it: as far as
+/// a reading half the radius worse stays within it; a person stops short of a body, as on
+/// the line), and stopped on the way short of a goal by up to the mover's diameter. A goal
+/// bodies stand on when the motion ended (`at_end`, [entity]; `where` when null: one may
+/// have arrived in the same step) is also read where the mover ends touching one of them.
+/// `touching`: whether a motion stopped *at* a body (a pause there, not the motion's
+/// target): another side reads only touching it, within a quarter of the radius (five times
+/// the tracker's noise), so a body it merely stopped near is not read.
 EndPoint endPoint(const task::TaskSpec& spec, int mover, const Eigen::Vector2d& start, const Eigen::Vector2d& end,
                   const std::vector<Eigen::Vector2d>& where, const std::vector<bool>& candidates, int load = -1,
-                  const std::vector<Eigen::Vector2d>* at_end = nullptr);
+                  const std::vector<Eigen::Vector2d>* at_end = nullptr, bool touching = false);
 
 /// Finds motions row by row. Call row() for every row in order, then finish().
 class MotionSegmenter {

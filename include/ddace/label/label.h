@@ -26,6 +26,7 @@ struct InferredToken {
   std::vector<int> tied;  ///< the entities its end point could not tell apart (target among them)
   std::string kind;       ///< kindKey(): what decides its word
   bool unsure = false;    ///< listed to check: a note names it and the alternative considered
+  std::string doubt;      ///< the first note that listed it
 };
 
 struct InferredStep {
@@ -172,9 +173,10 @@ class Labeller {
   size_t emitted_groups_ = 0;
   /// A step had other kinds of movers than the example's: every token from there is listed.
   bool steps_differ_ = false;
-  int prev_off_ = -1;    ///< the last emitted group's offset row
-  int handed_off_ = -1;  ///< the last offset row of the groups handed over
-  Inference out_;        ///< decided, not taken
+  std::string steps_differ_note_;  ///< its note, which lists every later token
+  int prev_off_ = -1;              ///< the last emitted group's offset row
+  int handed_off_ = -1;            ///< the last offset row of the groups handed over
+  Inference out_;                  ///< decided, not taken
 };
 
 /// inferLabels over a demonstration in memory.

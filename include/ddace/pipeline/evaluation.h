@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "ddace/eval/metrics.h"
+#include "ddace/exec/bodies_execution.h"
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/dispatch.h"
 #include "ddace/exec/execution_config.h"
@@ -69,11 +70,25 @@ struct EvalOptions {
   /// defaults, which config/execution.yaml states; `--config FILE` reads another file's).
   /// Its filter off or its table without bodies turn the above off too.
   exec::ExecutionConfig config;
-  /// diffdrive on points: when each token starts (exec/dispatch.h): steps, or async (its
-  /// own predecessors under the model's learned dependencies). The points do not meet, so
-  /// a trial's tokens take the same time either way and the makespan is their schedule.
+  /// diffdrive: when each token starts (exec/dispatch.h): steps, or async (its own
+  /// predecessors under the model's learned dependencies). On points, which do not meet, a
+  /// trial's tokens take the same time either way and the makespan is their schedule; with
+  /// bodies and `coordinated`, each trial runs through the coordinator (pipeline/perturbation.h).
   exec::DispatchMode dispatch = exec::CoordinatorConfig{}.dispatch;
+  /// diffdrive with bodies: every trial runs through the coordinator (its dispatch, its
+  /// end points, its checks of DONE) on the table, segments starting when it sends them;
+  /// false: step by step through the closed-loop simulator (the paper's execution).
+  bool coordinated = false;
+  /// Every path from its names' primitive (the paper's keys), not its role's where fitting
+  /// keyed a motion class by role (gp/primitives.h): what the role keys give, measured.
+  bool paths_by_name = false;
 };
+
+/// The parameters of the table with bodies for `options` (diffdrive) and `spec`.
+exec::BodiesExecutionParams bodiesParams(const EvalOptions& options, const task::TaskSpec& spec);
+/// Every token of `d`'s record that had predecessors: "step 2 R3:move:G1 at 4.10 s,
+/// released by R1:move:R3 at 4.10 s".
+std::vector<std::string> describeWaits(const exec::Dispatch& d, const task::TaskSpec& spec);
 
 /// Whether the model's decisions read the scene (positions): every variant but a scene
 /// network of a fixed order, whose decisions follow from the steps so far. Async dispatch
@@ -93,7 +108,7 @@ struct Evaluation {
   /// "step K: predicted {R1:move:G2} demonstrated {R2:move:G2}" (K 1-based).
   std::vector<std::string> first_difference;
   eval::Summary summary;
-  /// diffdrive on points: the dispatch the makespans were scheduled with ("" otherwise),
+  /// diffdrive on points or coordinated: the dispatch the runs had ("" otherwise),
   /// and the tokens that started before a predecessor under the learned dependencies ended.
   std::string dispatch;
   int precedence_violations = 0;

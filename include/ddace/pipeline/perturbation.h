@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "ddace/eval/metrics.h"
+#include "ddace/exec/bodies_execution.h"
 #include "ddace/exec/dispatch.h"
 #include "ddace/pipeline/evaluation.h"
 
@@ -57,22 +58,28 @@ inline constexpr int kPerturbedMaxReplans = 2;
 struct CoordinatedRun {
   exec::Trial trial;
   eval::TrialScore score;
-  bool perturbed = false;  ///< the perturbation happened
-  std::string what;        ///< "step 2, 40 %: B1 moved 6.0 cm"
-  bool finished = false;   ///< the run finished (the policy said END)
-  std::string reason;      ///< why it ended (the coordinator's reason)
-  std::string failure;     ///< a finished run that failed: the first step that differs, or what did not hold
-  int stale_ends = 0;      ///< motions that ended where their target had left
+  bool perturbed = false;         ///< the perturbation happened
+  std::string what;               ///< "step 2, 40 %: B1 moved 6.0 cm"
+  bool finished = false;          ///< the run finished (the policy said END)
+  std::string reason;             ///< why it ended (the coordinator's reason)
+  std::vector<std::string> lost;  ///< robots lost for good, with why (Coordinator::lostRobots)
+  std::string failure;            ///< a finished run that failed: the first step that differs, or what did not hold
+  int stale_ends = 0;             ///< motions that ended where their target had left
   int replans = 0, redecisions = 0;
   int precedence_violations = 0;
+  int collisions = 0;              ///< with bodies
+  std::vector<std::string> waits;  ///< who each token waited for (describeWaits)
   bool success = false;
   double makespan_s = 0;  ///< from the first decision to the last token's end (simulated)
 };
 
 /// Runs the model on `gt`'s start through the coordinator with `max_replans`, applying `p`
-/// once at the moment drawn from `seed`.
+/// once at the moment drawn from `seed`; on points, or with `bodies` on the simulated table
+/// (exec::BodiesExecution run live: each robot's own control cycle, segments starting
+/// whenever the coordinator sends them).
 CoordinatedRun runCoordinated(const Model& model, const task::TaskSpec& spec, const task::Demonstration& gt,
-                              const Perturbation& p, int max_replans, exec::DispatchMode dispatch, uint64_t seed);
+                              const Perturbation& p, int max_replans, exec::DispatchMode dispatch, uint64_t seed,
+                              const exec::BodiesExecutionParams* bodies = nullptr);
 
 /// Per trial: unperturbed, perturbed without recovery (max_replans 0), perturbed with
 /// (kPerturbedMaxReplans); all three with the same draw.
@@ -83,7 +90,8 @@ struct PerturbationReport {
   std::vector<CoordinatedRun> unperturbed, without, with;
 };
 PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& test, const Perturbation& p,
-                                     exec::DispatchMode dispatch, uint64_t seed);
+                                     exec::DispatchMode dispatch, uint64_t seed,
+                                     const exec::BodiesExecutionParams* bodies = nullptr);
 /// One line per trial, then per run: successes x/N, recoveries, mean makespan and time lost.
 void printPerturbation(const PerturbationReport& r, std::ostream& out);
 std::string perturbationJson(const PerturbationReport& r);

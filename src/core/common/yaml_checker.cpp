@@ -1,5 +1,6 @@
 #include "ddace/common/yaml_checker.h"
 
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -56,6 +57,48 @@ bool YamlChecker::scalar(const YAML::Node& node, const std::string& what, std::s
     return false;
   }
   out = node.Scalar();
+  return true;
+}
+
+namespace {
+
+/// Why `s` is not printable UTF-8 text, or "" when it is.
+std::string notPrintableText(const std::string& s) {
+  for (size_t i = 0; i < s.size();) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    if (c < 0x80) {
+      if (std::iscntrl(c)) return "a control character at byte " + std::to_string(i + 1);
+      ++i;
+      continue;
+    }
+    // Lead byte: length and the smallest code point of that length (no overlong forms).
+    const int length = (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
+    if (length == 0 || i + length > s.size()) return "not UTF-8 at byte " + std::to_string(i + 1);
+    unsigned long code = c & (0x7F >> length);
+    for (int k = 1; k < length; ++k) {
+      const auto b = static_cast<unsigned char>(s[i + k]);
+      if ((b >> 6) != 0x2) return "not UTF-8 at byte " + std::to_string(i + 1);
+      code = (code << 6) | (b & 0x3F);
+    }
+    const unsigned long smallest[] = {0, 0, 0x80, 0x800, 0x10000};
+    if (code < smallest[length] || code > 0x10FFFF || (code >= 0xD800 && code <= 0xDFFF))
+      return "not UTF-8 at byte " + std::to_string(i + 1);
+    if (code < 0xA0) return "a control character at byte " + std::to_string(i + 1);  // C1 controls
+    i += length;
+  }
+  return "";
+}
+
+}  // namespace
+
+bool YamlChecker::text(const YAML::Node& node, const std::string& what, std::string& out) {
+  std::string s;
+  if (!scalar(node, what, s)) return false;
+  if (const std::string why = notPrintableText(s); !why.empty()) {
+    error(node, what + " must be printable UTF-8 text (" + why + ")");
+    return false;
+  }
+  out = s;
   return true;
 }
 

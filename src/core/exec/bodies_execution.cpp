@@ -18,36 +18,17 @@ double lengthOf(const Path& p) {
 }
 }  // namespace
 
-// One step's motions while they run: what was decided when the step began and what is
-// still moving.
-struct BodiesExecution::Step {
-  const task::TaskSpec& spec;
-  const std::vector<task::Token>& tokens;
-  const std::vector<StepMotion>& motions;
-  StepExecution out;
-  double t0 = 0;
-  double limit_s = 0;                               ///< the step's time limit (the longest motion's)
-  int running = 0;                                  ///< motions still running
-  std::vector<bool> moving;                         ///< per motion
-  std::vector<int> motion_of;                       ///< per entity: its motion, or -1
-  std::vector<Eigen::Vector2d> start_at, final_at;  ///< per entity: where it is / ends
-  std::vector<MotionContacts> contacts;             ///< per entity: what its motion may touch
-  std::vector<int> load_of;                         ///< per carrier: the load riding with it, or -1
-  std::set<std::pair<int, int>> loaded;             ///< pairs placed overlapping (never judged)
-  AllowedContacts allowed;
-  // Scratch of every cycle.
-  std::vector<Pose2D> measured;
-  std::set<std::pair<int, int>> began;
-  std::vector<SafetyBody> others;
-
-  Step(const task::TaskSpec& s, const std::vector<task::Token>& t, const std::vector<StepMotion>& m)
-      : spec(s), tokens(t), motions(m) {}
-  /// Motion `m` stopped (arrived, failed or stopped short).
-  void finish(size_t m) {
-    moving[m] = false;
-    --running;
-  }
-  bool standing(int entity) const { return motion_of[entity] < 0 || !moving[motion_of[entity]]; }
+// One motion of the trial: as it was sent and decided, and while it runs.
+struct BodiesExecution::Motion {
+  StepMotion motion;
+  task::Token token;
+  int step = 0;
+  uint32_t batch = 0;  ///< motions started together (startMotions) share it, and their time limit
+  double t0 = 0, limit_s = 0;
+  Eigen::Vector2d final_at{0, 0};  ///< where it ends (its path's end)
+  MotionContacts contacts;
+  Path executed;
+  bool moving = false;
 };
 
 BodiesExecution::BodiesExecution(const BodiesExecutionParams& params) : params_(params) {
@@ -80,11 +61,21 @@ void BodiesExecution::beginTrial(const task::TaskSpec& spec, const std::vector<P
   radius_m_.assign(n, 0);
   robot_.assign(n, false);
   names_ = spec.entityNames();
+  spec_ = spec;
   for (size_t i = 0; i < n; ++i) {
     radius_m_[i] = table_->radiusM(static_cast<int>(i));
     robot_[i] = spec.entities[i].kind == task::EntityKind::Robot;
     if (robot_[i]) controllers_[i] = std::make_unique<RobotController>(names_[i], controller_);
   }
+  motions_.clear();
+  motion_of_.assign(n, -1);
+  load_of_.assign(n, -1);
+  stalled_until_s_.assign(n, -1);
+  dead_.assign(n, false);
+  loaded_.clear();
+  allowed_ = AllowedContacts();
+  ended_.clear();
+  running_ = 0;
   contacts_seen_ = table_->contacts().size();
   touching_.assign(n * n, PairContact());
   report_ = {};
@@ -94,86 +85,180 @@ StepExecution BodiesExecution::executeStep(const task::TaskSpec& spec, const std
                                            const std::vector<Eigen::Vector2d>&,
                                            const std::vector<StepMotion>& motions) {
   if (!table_) throw Error("bodies execution: executeStep before beginTrial");
-  Step step(spec, tokens, motions);
-  decideContacts(step);
-  for (size_t m = 0; m < motions.size(); ++m) startMotion(step, m);
-  // The collisions are judged by what the step's motions may touch, as decided above.
-  std::vector<DecidedMotion> decided;
-  for (const StepMotion& mo : motions)
-    decided.push_back({mo.entity, mo.target, step.final_at[mo.entity], step.contacts[mo.entity]});
-  step.allowed = AllowedContacts(names_, radius_m_, decided, controller_.safety.margin_m);
-
-  while (step.running > 0 && table_->time() - step.t0 < step.limit_s) {
-    cycleRobots(step);
-    advanceTable(step);
-    judgeContacts(step);
-  }
-  stopUnfinished(step);
+  StepExecution out;
+  const size_t first = motions_.size();
+  const double t0 = table_->time();
+  out.failures = startMotions(spec, 0, tokens, motions);
+  while (running_ > 0)
+    for (const MotionEnd& e : cycle())  // a robot that stopped short, or the step's time limit
+      if (!e.done && (robot_[e.entity] || e.time_limit)) out.failures.push_back(e.message);
+  for (size_t m = first; m < motions_.size(); ++m) out.executed.push_back(std::move(motions_[m].executed));
   const int n = static_cast<int>(table_->size());
-  step.out.duration_s = table_->time() - step.t0;
-  step.out.positions.resize(n);
-  for (int i = 0; i < n; ++i) step.out.positions[i] = table_->truePose(i).position();
-  return std::move(step.out);
+  out.duration_s = table_->time() - t0;
+  out.positions.resize(n);
+  for (int i = 0; i < n; ++i) out.positions[i] = table_->truePose(i).position();
+  return out;
 }
 
-// Where the step's bodies end (the motions' end points, else where they stand) and what
-// each motion may touch: decided once, as the coordinator decides them for the robots'
-// segments (exec::motionContacts, the path follower node's answer).
-void BodiesExecution::decideContacts(Step& step) {
+std::vector<std::string> BodiesExecution::startMotions(const task::TaskSpec&, int step,
+                                                       const std::vector<task::Token>& tokens,
+                                                       const std::vector<StepMotion>& motions) {
+  if (!table_) throw Error("bodies execution: a motion started before beginTrial");
   const int n = static_cast<int>(table_->size());
-  const auto& motions = step.motions;
-  step.t0 = table_->time();
-  step.out.executed.resize(motions.size());
-  step.moving.assign(motions.size(), true);
-  step.motion_of.assign(n, -1);
-  for (size_t m = 0; m < motions.size(); ++m) {
-    const StepMotion& mo = motions[m];
-    if (mo.entity < 0 || mo.entity >= n) throw Error("bodies execution: a motion of an entity outside the task");
-    step.motion_of[mo.entity] = static_cast<int>(m);
-  }
-  step.final_at.resize(n);
-  step.start_at.resize(n);
-  for (int j = 0; j < n; ++j) step.final_at[j] = step.start_at[j] = table_->truePose(j).position();
-  for (const StepMotion& mo : motions)
-    if (!mo.planned.empty()) step.final_at[mo.entity] = mo.planned.back();
-  const std::vector<BodyAtStart> bodies = bodiesAtStart(step);
-  step.contacts.assign(n, MotionContacts());
-  step.load_of.assign(n, -1);
+  const uint32_t batch = ++batches_;
+  const size_t first = motions_.size();
   for (const StepMotion& mo : motions) {
-    if (!(radius_m_[mo.entity] > 0)) continue;
-    step.contacts[mo.entity] = contactsOf(step, bodies, mo.entity);
-    if (mo.robot) rideLoad(step, mo.entity);
-    else dropLoad(step.contacts[mo.entity]);  // only robots carry
+    if (mo.entity < 0 || mo.entity >= n) throw Error("bodies execution: a motion of an entity outside the task");
+    if (mo.token >= tokens.size()) throw Error("bodies execution: a motion of a token outside its step");
+    stopMotion(mo.entity);  // replaced
+    Motion m;
+    m.motion = mo;
+    m.token = tokens[mo.token];
+    m.step = step;
+    m.batch = batch;
+    m.t0 = table_->time();
+    m.final_at = mo.planned.empty() ? table_->truePose(mo.entity).position() : mo.planned.back();
+    m.moving = true;
+    motion_of_[mo.entity] = static_cast<int>(motions_.size());
+    motions_.push_back(std::move(m));
   }
-  step.loaded = {table_->loadedPairs().begin(), table_->loadedPairs().end()};
-}
-
-std::vector<BodyAtStart> BodiesExecution::bodiesAtStart(const Step& step) const {
-  const int n = static_cast<int>(table_->size());
-  std::vector<BodyAtStart> bodies;
-  for (int j = 0; j < n; ++j) {
-    if (!(radius_m_[j] > 0)) continue;
-    BodyAtStart b;
-    b.name = names_[j], b.position = step.start_at[j], b.final_position = step.final_at[j], b.radius_m = radius_m_[j];
-    b.object = step.spec.entities[j].kind == task::EntityKind::Object;
-    if (const int m = step.motion_of[j]; m >= 0) {
-      const task::Token& t = step.tokens.at(step.motions[m].token);
-      b.step = 0;
-      b.action = t.action;
-      b.target = targetName(t.target);
+  // What each may touch: decided once, as the coordinator's segments are by the path
+  // follower node (exec::motionContacts), from where every body ends.
+  for (size_t m = first; m < motions_.size(); ++m) {
+    const int e = motions_[m].motion.entity;
+    if (!(radius_m_[e] > 0)) continue;
+    motions_[m].contacts = contactsOf(motions_[m]);
+    load_of_[e] = -1;
+    if (motions_[m].motion.robot) rideLoad(e);
+    else dropLoad(motions_[m].contacts);  // only robots carry
+  }
+  // The step's robots already running decide again with them, as the path follower node
+  // does whenever its step's segments change: a robot bound for a goal that a later-started
+  // one ends on may now end against it.
+  for (size_t m = 0; m < first; ++m) {
+    Motion& o = motions_[m];
+    const int e = o.motion.entity;
+    if (!o.moving || o.step != step || !o.motion.robot || !(radius_m_[e] > 0)) continue;
+    MotionContacts c = contactsOf(o);
+    if (load_of_[e] >= 0) {  // its load rides with it whatever is decided now
+      c.load = o.contacts.load, c.load_rides = true, c.load_end = o.contacts.load_end, c.load_at = o.contacts.load_at;
+    } else {
+      dropLoad(c);
     }
-    bodies.push_back(b);
+    o.contacts = c;
+    controllers_[e]->setContacts(std::move(c));
   }
-  return bodies;
+  loaded_ = {table_->loadedPairs().begin(), table_->loadedPairs().end()};
+  std::vector<std::string> failures;
+  double limit_s = 0;
+  for (size_t m = first; m < motions_.size(); ++m) {
+    const std::string why = startMotion(m);
+    if (!why.empty()) failures.push_back(why);
+    else limit_s = std::max(limit_s, motions_[m].limit_s);
+  }
+  for (size_t m = first; m < motions_.size(); ++m) motions_[m].limit_s = limit_s;
+  // The collisions are judged by what the running motions may touch, as decided.
+  std::vector<DecidedMotion> decided;
+  for (size_t m = 0; m < motions_.size(); ++m)
+    if (motions_[m].moving || m >= first) {
+      const Motion& mo = motions_[m];
+      decided.push_back({mo.motion.entity, mo.motion.target, mo.final_at, mo.contacts});
+    }
+  allowed_ = AllowedContacts(names_, radius_m_, decided, controller_.safety.margin_m);
+  return failures;
 }
 
-MotionContacts BodiesExecution::contactsOf(const Step& step, const std::vector<BodyAtStart>& bodies, int i) const {
+std::vector<MotionEnd> BodiesExecution::cycle() {
+  if (!table_) throw Error("bodies execution: a cycle before beginTrial");
+  for (size_t i = 0; i < stalled_until_s_.size(); ++i)
+    if (stalled_until_s_[i] >= 0 && table_->time() >= stalled_until_s_[i]) {
+      stalled_until_s_[i] = -1;
+      if (!dead_[i]) table_->setStalled(static_cast<int>(i), false);
+    }
+  cycleRobots();
+  advanceTable();
+  judgeContacts();
+  // A batch past its time limit: whoever of it still moves stops where it is.
+  std::set<uint32_t> late;
+  for (const Motion& m : motions_)
+    if (m.moving && !(table_->time() - m.t0 < m.limit_s)) late.insert(m.batch);
+  for (uint32_t b : late) stopBatch(b);
+  std::vector<MotionEnd> out;
+  out.swap(ended_);
+  return out;
+}
+
+void BodiesExecution::stopMotion(int entity) {
+  const int m = entity >= 0 && entity < static_cast<int>(motion_of_.size()) ? motion_of_[entity] : -1;
+  if (m < 0 || !motions_[m].moving) return;
+  if (robot_[entity]) {
+    controllers_[entity]->cancel();
+    table_->commandWheels(entity, {});
+  } else {
+    table_->stopSegment(entity);
+  }
+  finish(static_cast<size_t>(m));
+  endRide(entity, false);
+}
+
+bool BodiesExecution::moving(int entity) const {
+  const int m = entity >= 0 && entity < static_cast<int>(motion_of_.size()) ? motion_of_[entity] : -1;
+  return m >= 0 && motions_[m].moving;
+}
+
+const Path& BodiesExecution::executed(int entity) const {
+  static const Path none;
+  const int m = entity >= 0 && entity < static_cast<int>(motion_of_.size()) ? motion_of_[entity] : -1;
+  return m >= 0 ? motions_[m].executed : none;
+}
+
+double BodiesExecution::time() const {
+  return table_ ? table_->time() : 0;
+}
+
+std::vector<Eigen::Vector2d> BodiesExecution::positions() const {
+  std::vector<Eigen::Vector2d> out;
+  for (int i = 0; table_ && i < static_cast<int>(table_->size()); ++i) out.push_back(table_->truePose(i).position());
+  return out;
+}
+
+void BodiesExecution::displace(int entity, const Eigen::Vector2d& by) {
+  if (!table_) throw Error("bodies execution: a perturbation before beginTrial");
+  table_->place(entity, table_->truePose(entity).position() + by);
+}
+
+void BodiesExecution::stall(int entity, double until_s) {
+  if (!table_) throw Error("bodies execution: a perturbation before beginTrial");
+  table_->setStalled(entity, true);
+  stalled_until_s_.at(static_cast<size_t>(entity)) = until_s;
+}
+
+void BodiesExecution::kill(int entity) {
+  if (!table_) throw Error("bodies execution: a perturbation before beginTrial");
+  table_->setStalled(entity, true);
+  dead_.at(static_cast<size_t>(entity)) = true;
+}
+
+MotionContacts BodiesExecution::contactsOf(const Motion& motion) const {
+  const int n = static_cast<int>(table_->size());
+  const int i = motion.motion.entity;
   std::vector<BodyAtStart> others;
-  for (const BodyAtStart& b : bodies)
-    if (b.name != names_[i]) others.push_back(b);
-  const task::Token& t = step.tokens.at(step.motions[step.motion_of[i]].token);
-  return motionContacts(step.start_at[i], radius_m_[i], step.final_at[i], 0, t.action, targetName(t.target), others,
-                        controller_.safety.margin_m, params_.arrival_radius_m);
+  for (int j = 0; j < n; ++j) {
+    if (!(radius_m_[j] > 0) || j == i) continue;
+    BodyAtStart b;
+    b.name = names_[j], b.position = b.final_position = table_->truePose(j).position(), b.radius_m = radius_m_[j];
+    b.object = spec_.entities[j].kind == task::EntityKind::Object;
+    if (const int m = motion_of_[j]; m >= 0 && motions_[m].moving) {
+      const Motion& o = motions_[m];
+      b.final_position = o.final_at;
+      b.step = o.step;
+      b.action = o.token.action;
+      b.target = targetName(o.token.target);
+    }
+    others.push_back(b);
+  }
+  return motionContacts(table_->truePose(i).position(), radius_m_[i], motion.final_at, motion.step, motion.token.action,
+                        targetName(motion.token.target), others, controller_.safety.margin_m, params_.arrival_radius_m);
 }
 
 std::string BodiesExecution::targetName(int target) const {
@@ -187,112 +272,132 @@ void BodiesExecution::dropLoad(MotionContacts& contacts) {
 
 // Its load at its carrier rides in front of it, part of its body for the filter; one
 // passed from afar moves along its own path.
-void BodiesExecution::rideLoad(Step& step, int carrier) {
-  MotionContacts& contacts = step.contacts[carrier];
-  const int load = step.spec.entityIndex(contacts.load);
+void BodiesExecution::rideLoad(int carrier) {
+  MotionContacts& contacts = motions_[static_cast<size_t>(motion_of_[carrier])].contacts;
+  const int load = spec_.entityIndex(contacts.load);
   if (load < 0) return;
   if (!(table_->carrierOf(load) < 0 && table_->ride(carrier, load))) {
     dropLoad(contacts);  // another carrier's, or too far to ride
     return;
   }
-  step.load_of[carrier] = load;
+  load_of_[carrier] = load;
   contacts.load_rides = true;
 }
 
-void BodiesExecution::startMotion(Step& step, size_t m) {
-  const StepMotion& mo = step.motions[m];
+std::string BodiesExecution::startMotion(size_t m) {
+  Motion& motion = motions_[m];
+  const StepMotion& mo = motion.motion;
   const int n = static_cast<int>(table_->size());
-  step.out.executed[m] = {table_->truePose(mo.entity).position()};
+  motion.executed = {table_->truePose(mo.entity).position()};
   const double length_m = lengthOf(mo.planned);
   if (mo.robot) {
     RobotController& c = *controllers_.at(mo.entity);
     // Toward a body, it stops where it is still at one place with it (where the body ends);
     // a carrier's load is what ends at the target.
     double stop = stop_radius_m_;
-    if (mo.target >= 0 && mo.target < n && radius_m_[mo.target] > 0 && step.contacts[mo.entity].load.empty())
+    if (mo.target >= 0 && mo.target < n && radius_m_[mo.target] > 0 && motion.contacts.load.empty()) {
+      const int t = motion_of_[mo.target];
+      const Eigen::Vector2d target_end =
+          t >= 0 && motions_[t].moving ? motions_[t].final_at : table_->truePose(mo.target).position();
       stop = task::stopRadiusToward(
           stop, stop_tolerance_m_,
           task::togetherDistance(radius_m_[mo.entity] + radius_m_[mo.target], params_.arrival_radius_m),
-          (step.final_at[mo.entity] - step.final_at[mo.target]).norm());
+          (motion.final_at - target_end).norm());
+    }
     c.start(PlannedPath{mo.planned, {}}, mo.target >= 0 ? names_[mo.target] : std::string(), stop, stop_radius_m_);
-    c.setContacts(step.contacts[mo.entity]);
-    step.limit_s = std::max(step.limit_s, 3.0 * length_m / controller_.gains.cruise_speed_mps + 10.0);
-  } else if (step.spec.entities[mo.entity].kind != task::EntityKind::Object) {
+    c.setContacts(motion.contacts);
+    motion.limit_s = 3.0 * length_m / controller_.gains.cruise_speed_mps + 10.0;
+  } else if (spec_.entities[mo.entity].kind != task::EntityKind::Object) {
     // A predicted token that moves a goal: a flat print takes no segment (the ROS
     // coordinator refuses it too). The trial fails; the evaluation goes on.
-    step.moving[m] = false;
-    step.out.failures.push_back(names_[mo.entity] + ": a " + task::toString(step.spec.entities[mo.entity].kind) +
-                                " cannot move");
-    return;
+    motion.moving = false;
+    return names_[mo.entity] + ": a " + task::toString(spec_.entities[mo.entity].kind) + " cannot move";
   } else {
     const auto status = table_->startSegment(mo.entity, next_segment_++, mo.planned);
     if (status && status->state != SegmentState::Accepted) {
-      step.moving[m] = false;
-      step.out.failures.push_back(names_[mo.entity] + ": " + status->message);
-      return;
+      motion.moving = false;
+      return names_[mo.entity] + ": " + status->message;
     }
-    step.limit_s = std::max(step.limit_s, 3.0 * length_m / params_.config.table.object_speed_mps + 10.0);
+    motion.limit_s = 3.0 * length_m / params_.config.table.object_speed_mps + 10.0;
   }
-  ++step.running;
+  ++running_;
+  return "";
 }
 
-// A carrier stopped: arrived (its load goes on the last bit to its end alone), or failed
-// (the load stops where it is). The two touch: no collision until they part.
-void BodiesExecution::endRide(Step& step, int carrier, bool arrived) {
-  const int load = step.load_of[carrier];
+void BodiesExecution::finish(size_t m) {
+  motions_[m].moving = false;
+  --running_;
+}
+
+bool BodiesExecution::standing(int entity) const {
+  const int m = motion_of_[entity];
+  return m < 0 || !motions_[m].moving;
+}
+
+// A carrier stopped: arrived (its load goes on the last bit to its end alone), or not
+// (the load stops where it is: its motion ends, failed). The two touch: no collision
+// until they part.
+void BodiesExecution::endRide(int carrier, bool arrived) {
+  const int load = load_of_[carrier];
   if (load < 0) return;
   const int n = static_cast<int>(table_->size());
-  step.load_of[carrier] = -1;
+  load_of_[carrier] = -1;
   touching_[std::min(carrier, load) * n + std::max(carrier, load)].touchAllowed();
-  const int m = step.motion_of[load];
-  if (arrived || m < 0 || !step.moving[m]) {
+  const int m = motion_of_[load];
+  if (arrived || m < 0 || !motions_[m].moving) {
     table_->endRide(load);
     return;
   }
   table_->stopSegment(load);
-  step.finish(m);
-  step.out.executed[m].push_back(table_->truePose(load).position());
+  finish(static_cast<size_t>(m));
+  motions_[m].executed.push_back(table_->truePose(load).position());
+  ended_.push_back({load, false, names_[load] + " stopped: its carrier " + names_[carrier] + " stopped short"});
 }
 
-// One control cycle of every robot, from one tracker frame for everybody.
-void BodiesExecution::cycleRobots(Step& step) {
+// One control cycle of every robot, from one tracker frame for everybody. A dead robot's
+// controller gets a stale pose; the others see it where it stands.
+void BodiesExecution::cycleRobots() {
   const int n = static_cast<int>(table_->size());
-  step.measured.resize(n);
-  for (int i = 0; i < n; ++i) step.measured[i] = table_->measuredPose(i);
+  measured_.resize(n);
+  for (int i = 0; i < n; ++i) measured_[i] = table_->measuredPose(i);
   for (int i = 0; i < n; ++i) {
     if (!robot_[i]) continue;
-    const int m = step.motion_of[i];
-    if (m < 0 || !step.moving[m]) {
+    const int m = motion_of_[i];
+    if (m < 0 || !motions_[m].moving) {
       table_->commandWheels(i, {});  // idle: zeros every cycle, as the follower node
       continue;
     }
-    step.others.clear();
+    others_.clear();
     for (int j = 0; j < n; ++j)
       if (j != i && radius_m_[j] > 0) {
-        step.others.push_back({names_[j], step.measured[j].position(), radius_m_[j], robot_[j]});
-        step.others.back().standing = step.standing(j);
+        others_.push_back({names_[j], measured_[j].position(), radius_m_[j], robot_[j]});
+        others_.back().standing = standing(j);
       }
+    const double age_s = dead_[i] ? 1e9 : 0.0;
     const ControlOutput c =
-        controllers_[i]->cycle(step.measured[i], false, 0.0, radius_m_[i], step.others, table_->time());
+        controllers_[i]->cycle(measured_[i], dead_[i], age_s, radius_m_[i], others_, table_->time());
     table_->commandWheels(i, c.wheels);
     if (c.state == MotionState::Running) continue;
-    step.finish(m);                                  // done, or failed (a deadlock): the robot stops there
-    endRide(step, i, c.state == MotionState::Done);  // the load arrived with it, or stops
-    if (c.state == MotionState::Failed) step.out.failures.push_back(c.message);
+    finish(static_cast<size_t>(m));  // done, or failed (a deadlock): the robot stops there
+    const bool done = c.state != MotionState::Failed;
+    ended_.push_back({i, done, c.message});
+    endRide(i, done);  // the load arrived with it, or stops
   }
 }
 
 // The table advances one period; objects that arrived end their motions.
-void BodiesExecution::advanceTable(Step& step) {
+void BodiesExecution::advanceTable() {
   for (const ObjectStatus& s : table_->step()) {
-    const int m = step.motion_of[s.entity];
-    if (s.state == SegmentState::Done && m >= 0 && step.moving[m]) {
-      step.finish(m);
-      step.out.executed[m].push_back(table_->truePose(s.entity).position());
+    const int m = motion_of_[s.entity];
+    if (s.state == SegmentState::Done && m >= 0 && motions_[m].moving) {
+      finish(static_cast<size_t>(m));
+      motions_[m].executed.push_back(table_->truePose(s.entity).position());
+      ended_.push_back({s.entity, true, ""});
     }
   }
-  for (size_t m = 0; m < step.motions.size(); ++m)
-    if (step.moving[m]) step.out.executed[m].push_back(table_->truePose(step.motions[m].entity).position());
+  for (int e = 0; e < static_cast<int>(motion_of_.size()); ++e)
+    if (const int m = motion_of_[e]; m >= 0 && motions_[m].moving)
+      motions_[m].executed.push_back(table_->truePose(e).position());
 }
 
 // Collisions and the closest approach, on the true poses, by the run report's rule
@@ -300,44 +405,62 @@ void BodiesExecution::advanceTable(Step& step) {
 // pair touching by design (a motion that ended at its target) once it pushes in deeper
 // than kPartedM when no longer allowed. Box2D keeps resting bodies within kPartedM, so the
 // contacts come from its events.
-void BodiesExecution::judgeContacts(Step& step) {
+void BodiesExecution::judgeContacts() {
   const int n = static_cast<int>(table_->size());
   const auto& contacts = table_->contacts();
-  step.began.clear();
+  began_.clear();
   for (; contacts_seen_ < contacts.size(); ++contacts_seen_)
-    step.began.insert({contacts[contacts_seen_].a, contacts[contacts_seen_].b});
+    began_.insert({contacts[contacts_seen_].a, contacts[contacts_seen_].b});
   for (int a = 0; a < n; ++a) {
     if (!(radius_m_[a] > 0)) continue;
     const Eigen::Vector2d pa = table_->truePose(a).position();
     for (int b = a + 1; b < n; ++b) {
-      if (!(radius_m_[b] > 0) || step.loaded.count({a, b})) continue;
+      if (!(radius_m_[b] > 0) || loaded_.count({a, b})) continue;
       const Eigen::Vector2d pb = table_->truePose(b).position();
       const double gap = (pa - pb).norm() - radius_m_[a] - radius_m_[b];
-      const bool ok = step.allowed.allowed(a, b, pa, pb);
+      const bool ok = allowed_.allowed(a, b, pa, pb);
       PairContact& pair = touching_[a * n + b];
-      if (pair.update(gap, step.began.count({a, b}) > 0, ok, kPartedM))
+      if (pair.update(gap, began_.count({a, b}) > 0, ok, kPartedM))
         report_.collisions.push_back({table_->time(), a, b});
       if (pair.measured(ok) && gap < report_.closest.clearance_m) report_.closest = {gap, a, b, table_->time(), pa, pb};
     }
   }
 }
 
-// The time limit: whoever still moves stops where it is; every load stops riding.
-void BodiesExecution::stopUnfinished(Step& step) {
-  for (size_t m = 0; m < step.motions.size(); ++m) {
-    if (!step.moving[m]) continue;
-    const int e = step.motions[m].entity;
-    if (step.motions[m].robot) {
+// The time limit: whoever of the batch still moves stops where it is; its loads stop riding.
+void BodiesExecution::stopBatch(uint32_t batch) {
+  double limit_s = 0;
+  for (size_t m = 0; m < motions_.size(); ++m) {
+    Motion& motion = motions_[m];
+    if (motion.batch != batch || !motion.moving) continue;
+    limit_s = motion.limit_s;
+    const int e = motion.motion.entity;
+    if (motion.motion.robot) {
+      controllers_[e]->cancel();
       table_->commandWheels(e, {});
+      finish(m);
     } else {
       table_->stopSegment(e);
+      if (table_->carrierOf(e) < 0) finish(m);  // a riding load stops with its carrier, below
     }
     char why[160];
     std::snprintf(why, sizeof why, "%s did not arrive within %.1f s (3x its path at cruise speed + 10 s)",
-                  names_[e].c_str(), step.limit_s);
-    step.out.failures.push_back(why);
+                  names_[e].c_str(), limit_s);
+    MotionEnd end{e, false, why};
+    end.time_limit = true;
+    ended_.push_back(end);
   }
-  for (int i = 0; i < static_cast<int>(table_->size()); ++i) endRide(step, i, false);
+  for (const Motion& motion : motions_)
+    if (motion.batch == batch && motion.motion.robot) {
+      const size_t before = ended_.size();
+      endRide(motion.motion.entity, false);
+      ended_.resize(before);  // the load's end is reported above
+    }
+  for (size_t m = 0; m < motions_.size(); ++m)  // riding another batch's carrier
+    if (motions_[m].batch == batch && motions_[m].moving) {
+      table_->endRide(motions_[m].motion.entity);
+      finish(m);
+    }
 }
 
 }  // namespace ddace::exec

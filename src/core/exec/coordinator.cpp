@@ -74,6 +74,7 @@ void CoordinatorConfig::validate() const {
   if (!(arrival_tolerance_m >= 0) || !std::isfinite(arrival_tolerance_m))
     throw Error("coordinator parameter 'arrival_tolerance_m' must be >= 0");
   if (max_replans < 0) throw Error("coordinator parameter 'max_replans' must be >= 0");
+  positive(robot_lost_after_s, "robot_lost_after_s");
 }
 
 uint32_t firstIdAt(double wall_clock_s) {
@@ -126,8 +127,8 @@ std::vector<bool> Coordinator::goalConditionsMet() const {
 
 bool Coordinator::allTracked() const {
   if (observation_.tracked.size() != spec_.entities.size()) return false;
-  for (bool t : observation_.tracked)
-    if (!t) return false;
+  for (size_t i = 0; i < observation_.tracked.size(); ++i)
+    if (!observation_.tracked[i] && !(i < lost_.size() && lost_[i])) return false;
   return true;
 }
 
@@ -173,6 +174,9 @@ void Coordinator::clearRun() {
   redecisions_ = 0;
   step_redecisions_.clear();
   withdrawn_.clear();
+  lost_.assign(spec_.entities.size(), false);
+  untracked_since_.assign(spec_.entities.size(), -1);
+  lost_reports_.clear();
 }
 
 void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
@@ -196,6 +200,8 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   req.id = nextId();
   req.step = static_cast<int>(steps_.size());
   req.history = history_;
+  for (size_t i = 0; i < lost_.size(); ++i)
+    if (lost_[i]) req.lost.push_back(static_cast<int>(i));
   pending_decision_ = req.id;
   decision_since_s_ = now_s;
   ++decisions_requested_;
@@ -309,14 +315,67 @@ bool Coordinator::mayRecover(TokenRef r, int done, const std::string& why, Coord
     return false;
   }
   for (int e : {t.token.entity, t.token.target})
-    if (e >= 0 && !observation_.tracked.at(static_cast<size_t>(e))) {
+    if (e >= 0 && !observation_.tracked.at(static_cast<size_t>(e)) && !lost_.at(static_cast<size_t>(e))) {
       abort(why + "; no recovery: " + spec_.entities[static_cast<size_t>(e)].name + " is not tracked", out);
       return false;
     }
   return true;
 }
 
+void Coordinator::checkLost(double now_s, CoordinatorOutput& out) {
+  if (config_.max_replans == 0) return;
+  for (size_t i = 0; i < untracked_since_.size() && running(); ++i)
+    if (!lost_[i] && untracked_since_[i] >= 0 && spec_.entities[i].kind == task::EntityKind::Robot &&
+        now_s - untracked_since_[i] >= config_.robot_lost_after_s)
+      loseRobot(static_cast<int>(i), "not tracked for " + seconds(config_.robot_lost_after_s), now_s, out);
+}
+
+std::string Coordinator::lostWhy(int e) const {
+  const std::string& name = spec_.entities[static_cast<size_t>(e)].name;
+  for (const std::string& r : lost_reports_)
+    if (r.rfind(name + ": ", 0) == 0) return r.substr(name.size() + 2);
+  return "";
+}
+
+void Coordinator::loseRobot(int e, const std::string& why, double now_s, CoordinatorOutput& out) {
+  const std::string& name = spec_.entities[static_cast<size_t>(e)].name;
+  lost_[static_cast<size_t>(e)] = true;
+  lost_reports_.push_back(name + ": " + why);
+  out.log.push_back(name + " is lost for good: " + why);
+  if (!policy_reads_scene_) {
+    abort(name + " is lost (" + why + "): the policy follows a fixed order that names it; no decision without it", out);
+    return;
+  }
+  // Its tokens (and those meeting it) that have not ended: withdrawn with the latest step,
+  // decided again without it; one of an earlier step cannot be.
+  std::optional<TokenRef> latest;
+  for (size_t k = 0; k < steps_.size(); ++k)
+    for (size_t i = 0; i < steps_[k].tokens.size(); ++i) {
+      const TokenRecord& t = steps_[k].tokens[i];
+      if (t.state == SegmentState::Done || (t.token.entity != e && t.token.target != e)) continue;
+      if (k + 1 != steps_.size() || history_.size() != steps_.size() || end_decided_) {
+        abort(name + " is lost (" + why + ") and " + task::tokenKey(t.token, spec_) + " of step " +
+                  std::to_string(k + 1) + " has not ended: no decision without it",
+              out);
+        return;
+      }
+      latest = TokenRef{static_cast<int>(k), static_cast<int>(i)};
+    }
+  if (latest) {
+    redecide(*latest, name + " is lost: " + why, now_s, out);
+    return;
+  }
+  advance(now_s, out);  // a decision may have waited for it to be tracked
+}
+
 void Coordinator::recover(TokenRef r, const std::string& why, bool target_moved, double now_s, CoordinatorOutput& out) {
+  // Nobody can drive a robot the tracker does not see: with recovery on it is lost for good.
+  const int e = record(r).token.entity;
+  if (config_.max_replans > 0 && spec_.entities[static_cast<size_t>(e)].kind == task::EntityKind::Robot &&
+      !observation_.tracked.at(static_cast<size_t>(e))) {
+    loseRobot(e, why + " while it is not tracked", now_s, out);
+    return;
+  }
   // Only the latest decision, made from the scene and not yet followed by another, is
   // re-made: a fixed order would decide the same step again.
   const bool may_redecide = policy_reads_scene_ && r.step + 1 == static_cast<int>(steps_.size()) &&
@@ -400,6 +459,8 @@ CoordinatorOutput Coordinator::start(double now_s) {
   if (state_ == RunState::Idle) {
     reason_.clear();
     clearRun();
+    for (size_t i = 0; i < observation_.tracked.size() && i < untracked_since_.size(); ++i)
+      if (!observation_.tracked[i]) untracked_since_[i] = now_s;
     dispatch_.emplace(spec_, config_.dispatch, dependencies_);
     out.log.push_back(std::string("dispatch: ") + toString(config_.dispatch));
     advance(now_s, out);
@@ -472,6 +533,10 @@ CoordinatorOutput Coordinator::onEntities(const EntityObservation& obs, double n
                 std::to_string(spec_.entities.size()) + ")");
   observation_ = obs;
   if (!running() || state_ == RunState::Paused) return out;
+  for (size_t i = 0; i < obs.tracked.size() && i < untracked_since_.size(); ++i)
+    untracked_since_[i] = obs.tracked[i] ? -1 : untracked_since_[i] < 0 ? now_s : untracked_since_[i];
+  checkLost(now_s, out);
+  if (!running()) return out;
   updateDistances();
   // A DONE that came before the tracked pose agreed counts once it does.
   bool ended = false;
@@ -566,6 +631,14 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
             out);
       return out;
     }
+    for (int e : {tok.entity, tok.target})
+      if (e >= 0 && lost_[static_cast<size_t>(e)]) {
+        abort(spec_.entities[static_cast<size_t>(e)].name + " is lost (" + lostWhy(e) + ") and step " +
+                  std::to_string(steps_.size() + 1) + " as decided needs it (" + task::tokenKey(tok, spec_) +
+                  "): no decision without it",
+              out);
+        return out;
+      }
     if (seen[tok.entity]) {
       abort("the policy gave entity " + spec_.entities[tok.entity].name + " two tokens in one step", out);
       return out;
@@ -798,6 +871,8 @@ CoordinatorOutput Coordinator::abortStart(const std::string& why, double) {
 CoordinatorOutput Coordinator::onTick(double now_s) {
   CoordinatorOutput out;
   if (!running() || state_ == RunState::Paused) return out;
+  checkLost(now_s, out);
+  if (!running()) return out;
   if (pending_decision_ != 0 && now_s - decision_since_s_ > config_.decision_timeout_s) {
     abort("no decision within decision_timeout_s = " + seconds(config_.decision_timeout_s), out);
     return out;

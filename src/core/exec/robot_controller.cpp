@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "ddace/common/angle.h"
 #include "ddace/common/error.h"
 #include "ddace/exec/push_path.h"
 
@@ -40,7 +41,7 @@ void RobotController::start(const PlannedPath& path, const std::string& target, 
   target_ = target;
   contacts_ = {};
   push_planned_for_ = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
-  was_pushing_ = false;
+  was_pushing_ = backing_off_ = false;
   filter_.reset();
   stale_since_s_ = -1;
 }
@@ -65,6 +66,7 @@ void RobotController::replanPush(const Pose2D& pose, const SafetyBody& load, dou
 }
 
 void RobotController::cancel() {
+  backing_off_ = false;
   follower_.clear();
   target_.clear();
   contacts_ = {};
@@ -95,6 +97,44 @@ ControlOutput RobotController::stale(ControlOutput out, const std::string& why, 
   return out;
 }
 
+ControlOutput RobotController::done(ControlOutput out, std::string message, const Pose2D& pose, double pose_age_s,
+                                    double radius_m, std::vector<SafetyBody>& others, double now_s) {
+  if (contacts_.load.empty() || contacts_.load_rides) return end(out, MotionState::Done, std::move(message));
+  backing_off_ = true;
+  done_message_ = std::move(message);
+  return backOff(out, pose, pose_age_s, radius_m, others, now_s);
+}
+
+ControlOutput RobotController::backOff(ControlOutput out, const Pose2D& pose, double pose_age_s, double radius_m,
+                                       std::vector<SafetyBody>& others, double now_s) {
+  out.progress = 1.0;
+  const SafetyBody* load = nullptr;
+  for (SafetyBody& b : others) {
+    if (b.name == contacts_.load) load = &b;
+    b.touchable = b.name == contacts_.load;  // leaving it
+    b.load_touchable = false;
+  }
+  const Eigen::Vector2d away = load ? Eigen::Vector2d(pose.position() - load->position) : Eigen::Vector2d::Zero();
+  if (!load || away.norm() >= radius_m + load->radius_m + kPushBackOffM || away.norm() < 1e-9)
+    return end(out, MotionState::Done, done_message_);
+  // Forward or backward, whichever heads nearer straight away from the load, turning onto it.
+  const double bearing = std::atan2(away.y(), away.x());
+  const double ahead = wrapAngle(bearing - pose.yaw), behind = wrapAngle(bearing - pose.yaw - M_PI);
+  const bool forward = std::abs(ahead) <= std::abs(behind);
+  const double alpha = forward ? ahead : behind;
+  const FollowerGains& g = params_.gains;
+  const double turn = std::clamp(g.heading_gain * alpha, -g.max_turn_rate_radps, g.max_turn_rate_radps);
+  const double v = std::abs(alpha) <= g.rotate_in_place_rad ? (forward ? 1 : -1) * g.min_speed_mps : 0.0;
+  const double backed_m = away.norm() - radius_m - load->radius_m;
+  const SafetyCommand c = filter_.filter(name_, pose, radius_m, pose_age_s, twistToWheels(v, turn, g.wheel_base_m),
+                                         follower_.lengthM() + std::max(0.0, backed_m), others, target_, now_s);
+  if (c.stale) return stale(out, c.reason, now_s);
+  stale_since_s_ = -1;
+  if (c.blocked || c.deadlock) return end(out, MotionState::Done, done_message_);  // no room: it stays
+  out.wheels = c.wheels;
+  return out;
+}
+
 ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double pose_age_s, double radius_m,
                                      std::vector<SafetyBody>& others, double now_s) {
   ControlOutput out;
@@ -104,6 +144,7 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   if (pose_stale || !pose.position().allFinite() || !std::isfinite(pose.yaw))
     return stale(out, "pose of " + name_ + " is stale", now_s);
 
+  if (backing_off_) return backOff(out, pose, pose_age_s, radius_m, others, now_s);
   const SafetyBody* load = nullptr;
   for (const SafetyBody& b : others)
     if (!contacts_.load.empty() && b.name == contacts_.load) load = &b;
@@ -123,7 +164,7 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   out.distance_to_goal_m = o.distance_to_goal_m;
   if (push ? push->load_arrived : o.done) {
     stale_since_s_ = -1;
-    return end(out, MotionState::Done, "");
+    return done(out, "", pose, pose_age_s, radius_m, others, now_s);
   }
   if (push) o.wheels = push->wheels;
 
@@ -151,7 +192,7 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
     // against, within the held stop radius of its end point, it has arrived.
     out.ended_at_contact_with = c.at_contact_with;
     out.progress = 1.0;
-    return end(out, MotionState::Done, "ended at contact with " + c.at_contact_with);
+    return done(out, "ended at contact with " + c.at_contact_with, pose, pose_age_s, radius_m, others, now_s);
   }
   if (c.blocked && o.distance_to_goal_m <= held_stop_radius_m_) {
     // Held short of its end point by bodies beside it (kept at the filter's margin), near
@@ -159,7 +200,7 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
     out.progress = 1.0;
     std::string by;
     for (const std::string& b : c.blocking) by += (by.empty() ? "" : ", ") + b;
-    return end(out, MotionState::Done, "held short of its end point by " + by);
+    return done(out, "held short of its end point by " + by, pose, pose_age_s, radius_m, others, now_s);
   }
   out.wheels = c.wheels;
   out.held = c.blocked;

@@ -225,6 +225,28 @@ void TableSimulator::commandWheels(int i, const WheelSpeeds& wheels) {
   e.robot->command(wheels, time_s_);
 }
 
+void TableSimulator::place(int i, const Eigen::Vector2d& position) {
+  checkIndex(i);
+  if (!position.allFinite()) throw Error("'" + names_[i] + "' placed at a non-finite position");
+  Entity& e = entities_[i];
+  if (e.carrier >= 0 || e.moving) halt(i);
+  e.pose.x = position.x();
+  e.pose.y = position.y();
+  if (e.robot) e.robot->setTruePose(e.pose);
+  if (b2Body* body = physics_->bodies[i]) {
+    body->SetTransform(toWorld(position), static_cast<float>(e.pose.yaw));
+    body->SetLinearVelocity(b2Vec2(0, 0));
+    body->SetAngularVelocity(0);
+  }
+}
+
+void TableSimulator::setStalled(int i, bool stalled) {
+  checkIndex(i);
+  Entity& e = entities_[i];
+  if (!e.robot) throw Error("'" + names_[i] + "' is not a robot: it has no wheels to stall");
+  e.robot->setStalled(stalled);
+}
+
 std::optional<ObjectStatus> TableSimulator::startSegment(int i, uint32_t segment_id,
                                                          const std::vector<Eigen::Vector2d>& path) {
   Entity& e = object(i);

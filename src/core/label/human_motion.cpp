@@ -412,6 +412,7 @@ void LabelScore::add(const LabelScore& o) {
   notes += o.notes;
   wrong += o.wrong, listed += o.listed, wrong_listed += o.wrong_listed;
   demos_wrong += o.demos_wrong, demos_wrong_listed += o.demos_wrong_listed;
+  for (const auto& [kind, n] : o.listed_by_doubt) listed_by_doubt[kind][0] += n[0], listed_by_doubt[kind][1] += n[1];
   onset_error_s.insert(onset_error_s.end(), o.onset_error_s.begin(), o.onset_error_s.end());
   offset_error_s.insert(offset_error_s.end(), o.offset_error_s.begin(), o.offset_error_s.end());
 }
@@ -421,6 +422,14 @@ double LabelScore::wrongListed() const {
 }
 double LabelScore::listedWrong() const {
   return listed == 0 ? 0.0 : static_cast<double>(wrong_listed) / listed;
+}
+
+std::string doubtKind(const std::string& message) {
+  for (const char* words :
+       {"stopped halfway", "ended between", "nearly stopped at", "where the example's step", "moved alone",
+        "no motion of the kind", "moved again in the same step", "in-place", "goal "})
+    if (message.find(words) != std::string::npos) return words;
+  return "other";
 }
 
 LabelScore scoreLabels(const task::Demonstration& truth, const task::Demonstration& inferred,
@@ -448,10 +457,16 @@ LabelScore scoreLabels(const task::Demonstration& truth, const task::Demonstrati
   for (size_t j = 0; j < inferred.segments.size(); ++j) {
     const auto& is = inferred.segments[j];
     bool unsure = false;
+    std::string doubt;
     for (const auto& step : inference.steps)
       for (const auto& t : step.tokens)
-        unsure = unsure || (t.unsure && t.token.entity == is.token.entity && t.first_row <= is.last_row &&
-                            t.last_row >= is.first_row);
+        if (!unsure && t.unsure && t.token.entity == is.token.entity && t.first_row <= is.last_row &&
+            t.last_row >= is.first_row)
+          unsure = true, doubt = t.doubt;
+    if (unsure) {
+      auto& n = s.listed_by_doubt[doubtKind(doubt)];
+      ++n[0], n[1] += !used[j];
+    }
     s.listed += unsure;
     s.wrong += !used[j];
     s.wrong_listed += unsure && !used[j];

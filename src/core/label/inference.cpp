@@ -42,11 +42,29 @@ double touchOnGoal(const task::TaskSpec& spec, int mover, int goal, const Vector
   return best;
 }
 
+/// How far from touching `mover`'s body at `end` is the nearest body that came to touch
+/// obstacle `target` (standing still) while the motion ran (at `at_end`, not at `where`: others sent to it in
+/// the same step, a crowd round it), if within `tolerance`; infinity when none is.
+double touchOnCrowd(const task::TaskSpec& spec, int mover, int target, const Vector2d& end,
+                    const std::vector<Vector2d>& where, const std::vector<Vector2d>& at_end, double tolerance) {
+  const double r = spec.arrival_radius;
+  double best = std::numeric_limits<double>::infinity();
+  if ((at_end[target] - where[target]).norm() > r / 4) return best;  // a crowd gathers at a body that stays
+  for (int j = 0; j < static_cast<int>(where.size()); ++j) {
+    if (j == mover || j == target || !spec.footprint(j).obstacle) continue;
+    const double joined = spec.contactDistance(j, target) + r / 4;
+    if ((at_end[j] - at_end[target]).norm() > joined || (where[j] - where[target]).norm() <= joined) continue;
+    const double gap = std::abs((end - at_end[j]).norm() - spec.contactDistance(mover, j));
+    if (gap <= tolerance) best = std::min(best, gap);
+  }
+  return best;
+}
+
 }  // namespace
 
 EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, const Vector2d& end,
                   const std::vector<Vector2d>& where, const std::vector<bool>& candidates, int load,
-                  const std::vector<Vector2d>* at_end) {
+                  const std::vector<Vector2d>* at_end, bool touching) {
   const double r = spec.arrival_radius;
   EndPoint ep;
   ep.nearest_m = std::numeric_limits<double>::infinity();
@@ -69,9 +87,11 @@ EndPoint endPoint(const task::TaskSpec& spec, int mover, const Vector2d& start, 
     // by up to the mover's diameter, touching the body on it.
     const task::Footprint mover_body = spec.footprint(mover);
     if (const double contact = spec.contactDistance(mover, target); contact > 0 && load < 0) {
-      // Touching is tight: within a quarter of the arrival radius (7.5 mm by default, five
-      // times the tracker's noise), so a body it merely passed close to is not read.
-      if (std::abs(d - contact) <= r / 4) residual = std::min(residual, std::abs(d - contact) + r / 2);
+      const double side = touching ? r / 4 : r / 2;
+      if (std::abs(d - contact) <= side) residual = std::min(residual, std::abs(d - contact) + r / 2);
+      // Others sent to it in the same step crowd round it: ending at one of them, from any
+      // side, reads the target as a side touch does (the first body of the crowd it met).
+      if (at_end) residual = std::min(residual, touchOnCrowd(spec, mover, target, end, where, *at_end, side) + r / 2);
     } else if (!spec.footprint(target).obstacle && load < 0 && (where[c] - start).norm() > task::kMinApproachM) {
       const Vector2d u = (where[c] - start).normalized();
       const double along = std::clamp((where[c] - end).dot(u), 0.0, 2 * mover_body.radius_m);

@@ -112,6 +112,13 @@ Inference Labeller::finish() {
   }
   if (alignment_ == Alignment::Open) settle(held_.size() == ex_motion_.size());
   if (alignment_ == Alignment::Aligned) placeInPlace(ex_inplace_before_.back(), prev_off_ + 1, segmenter_.rows() - 1);
+  // Fewer steps than the example's (a motion missed, or steps run together where no step's
+  // movers told): no token to list, but the demonstration is not to be used unchecked.
+  if (example_ && emitted_groups_ < ex_motion_.size())
+    note(std::max(segmenter_.rows() - 1, 0),
+         "the demonstration has " + std::to_string(emitted_groups_) + " step(s) of motion where the example" +
+             (example_->source.empty() ? "" : " " + example_->source) + " has " + std::to_string(ex_motion_.size()) +
+             " (a motion missed, or two steps run together?): check its steps");
   return take();
 }
 
@@ -161,7 +168,8 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
     if (j != a.entity && spec_.entities[j].kind == task::EntityKind::Object && staysWith(a, j) &&
         (load < 0 || a.max_distance[j] < a.max_distance[load]))
       load = j;
-  const EndPoint ep = endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a), load, &a.at_offset);
+  const EndPoint ep =
+      endPoint(spec_, a.entity, a.start, a.end, a.at_onset, candidatesOf(a), load, &a.at_offset, /*touching=*/true);
   // Stopped away from every entity; a piece shorter than a nudge only where it goes on in
   // its heading (a robot nudged by a hand or a body is no start of its next motion).
   const bool heading_kept = a.end_dir.dot(b.start_dir) >= std::cos(options_.heading_rad);
@@ -581,11 +589,12 @@ void Labeller::noteStepsDiffer(size_t k, const std::vector<Motion>& g, int row) 
   // numbered wrong, so all their tokens are listed, under one note.
   if (!example_ || steps_differ_ || kindsOf(moversOf(g)) == kindsOf(exampleMovers(k))) return;
   steps_differ_ = true;
-  note(row, "step " + std::to_string(k + 1) + " moves " + kindsText(kindsOf(moversOf(g))) +
-                " where the example's step " + std::to_string(k + 1) + " moves " +
-                kindsText(kindsOf(exampleMovers(k))) +
-                " (robots of one step started apart, two steps run together, or a motion missed?): "
-                "this step and the ones after it are listed");
+  steps_differ_note_ = "step " + std::to_string(k + 1) + " moves " + kindsText(kindsOf(moversOf(g))) +
+                       " where the example's step " + std::to_string(k + 1) + " moves " +
+                       kindsText(kindsOf(exampleMovers(k))) +
+                       " (robots of one step started apart, two steps run together, or a motion missed?): "
+                       "this step and the ones after it are listed";
+  note(row, steps_differ_note_);
 }
 
 std::vector<int> Labeller::carriersOf(const std::vector<Motion>& g) const {
@@ -625,10 +634,15 @@ void Labeller::resolveTie(InferredToken& tok, const Motion& m, const EndPoint& e
     // on it (the goal, or the body touched).
     for (const bool bodies : {false, true}) {
       auto it = example_->tie_kind.find(tiedKinds(spec_, all, bodies));
-      int found = -1, count = 0;
+      int found = -1, count = 0, exact = -1, exact_count = 0;
       if (it != example_->tie_kind.end())
         for (int c : all)
-          if (kindClass(E[c].kind, bodies) == kindClass(it->second, bodies)) found = c, ++count;
+          if (kindClass(E[c].kind, bodies) == kindClass(it->second, bodies)) {
+            found = c, ++count;
+            if (E[c].kind == it->second) exact = c, ++exact_count;
+          }
+      // Several bodies touched at an occupied goal: the one of the kind the example took.
+      if (count > 1 && exact_count == 1) found = exact, count = 1;
       if (count == 1) {
         tok.token.target = found;
         // A body of another kind than the one the example took: listed.
@@ -735,6 +749,10 @@ void Labeller::noteStopsOnTheWay(const std::vector<Motion>& g, const std::vector
       });
       double turn = 0;
       if (b == tok.token.target || load || !stoppedAtOnItsWay(m, b, turn)) continue;
+      // A step to b would be a motion of a kind the example never makes: a slow pass.
+      if (example_ && !example_->words.count(kindKey(spec_, m.entity, b, tok.load)) &&
+          !example_->words.count(coarseKindKey(spec_, m.entity, b, tok.load)))
+        continue;
       note(m.off_row,
            E[m.entity].name + " nearly stopped at " + E[b].name + " on its way to " + E[tok.token.target].name +
                ", keeping its heading: one motion, or a step to " + E[b].name + " and another on; taken as one",
@@ -745,11 +763,18 @@ void Labeller::noteStopsOnTheWay(const std::vector<Motion>& g, const std::vector
 
 void Labeller::markUnsure(std::vector<InferredToken>& tokens, size_t notes_from) const {
   // A token some note of this step doubts is listed to check.
+  const auto list = [](InferredToken& t, const std::string& why) {
+    if (!t.unsure) t.doubt = why;
+    t.unsure = true;
+  };
   for (size_t i = notes_from; i < out_.notes.size(); ++i)
-    for (auto& t : tokens) t.unsure = t.unsure || (!t.in_place && t.token.entity == out_.notes[i].entity);
-  for (auto& t : tokens) t.unsure = t.unsure || steps_differ_;
+    for (auto& t : tokens)
+      if (!t.in_place && t.token.entity == out_.notes[i].entity) list(t, out_.notes[i].message);
+  for (auto& t : tokens)
+    if (steps_differ_) list(t, steps_differ_note_);
   for (auto& t : tokens)  // a load goes where its carrier went
-    for (const auto& c : tokens) t.unsure = t.unsure || (t.carrier >= 0 && c.token.entity == t.carrier && c.unsure);
+    for (const auto& c : tokens)
+      if (t.carrier >= 0 && c.token.entity == t.carrier && c.unsure) list(t, c.doubt);
 }
 
 void Labeller::emit(Group& group, bool aligned) {

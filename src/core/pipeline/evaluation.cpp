@@ -13,6 +13,7 @@
 #include "ddace/common/sha256.h"
 #include "ddace/exec/bodies_execution.h"
 #include "ddace/exec/diff_drive_execution.h"
+#include "ddace/pipeline/perturbation.h"
 #include "ddace/task/end_point.h"
 
 namespace ddace::pipeline {
@@ -186,6 +187,32 @@ std::vector<std::vector<double>> pointDurations(const task::TaskSpec& spec, cons
 
 }  // namespace
 
+exec::BodiesExecutionParams bodiesParams(const EvalOptions& options, const task::TaskSpec& spec) {
+  exec::BodiesExecutionParams p;
+  p.config = options.config;
+  p.arrival_radius_m = spec.arrival_radius;
+  p.noise_m = options.noise_m;
+  p.seed = options.seed;
+  // Tracking noise is eval's own (--noise, --seed), not the mock robots' of the config.
+  const exec::DiffDriveParams hamster = exec::simulatedHamster();
+  p.config.robot.yaw_noise_rad = hamster.yaw_noise_rad;
+  p.config.robot.seed = hamster.seed;
+  p.config.safety.enabled = options.safety_filter && options.config.safety.enabled;
+  return p;
+}
+
+std::vector<std::string> describeWaits(const exec::Dispatch& d, const task::TaskSpec& spec) {
+  std::vector<std::string> out;
+  for (const exec::Wait& w : d.waits()) {
+    char line[256];
+    std::snprintf(line, sizeof line, "step %d %s at %.2f s, released by %s at %.2f s", w.token.step + 1,
+                  task::tokenKey(d.token(w.token), spec).c_str(), w.start_s,
+                  task::tokenKey(d.token(w.released_by), spec).c_str(), w.ready_s);
+    out.push_back(line);
+  }
+  return out;
+}
+
 bool policyReadsScene(const tgn::ModelInfo& info) {
   return info.variant != tgn::Variant::Scene || info.plan.relative_features;
 }
@@ -210,21 +237,31 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
   for (size_t i = 0; i < spec.entities.size(); ++i)
     if (spec.entities[i].kind == task::EntityKind::Robot) e.robot_entities.insert(static_cast<int>(i));
 
+  if (options.execution == "diffdrive" && bodies && options.coordinated) {
+    if (gnn) throw Error("a coordinated run needs a model with primitives (the gnn variant rolls out its own)");
+    e.execution += ", coordinated";
+    e.dispatch = exec::toString(options.dispatch);
+    const exec::BodiesExecutionParams table = bodiesParams(options, spec);
+    for (size_t i = 0; i < test.demos.size(); ++i) {
+      const task::Demonstration& gt = test.demos[i];
+      CoordinatedRun r =
+          runCoordinated(model, spec, gt, {}, 0, options.dispatch, options.seed * 1000003ULL + i, &table);
+      e.precedence_violations += r.precedence_violations;
+      e.waits.push_back(r.waits);
+      r.score.demo = gt.source;
+      e.scores.push_back(r.score);
+      e.first_difference.push_back(r.finished ? firstDifference(spec, gt.steps, r.trial.predicted) : r.reason);
+      if (!r.finished) r.trial.failures.push_back("not finished: " + r.reason);
+      e.trials.push_back(std::move(r.trial));
+    }
+    e.summary = eval::summarise(e.scores);
+    return e;
+  }
   std::unique_ptr<exec::ExecutionModel> execution;
   if (options.execution == "ideal") {
     execution = std::make_unique<exec::IdealExecution>();
   } else if (options.execution == "diffdrive" && bodies) {
-    exec::BodiesExecutionParams p;
-    p.config = options.config;
-    p.arrival_radius_m = spec.arrival_radius;
-    p.noise_m = options.noise_m;
-    p.seed = options.seed;
-    // Tracking noise is eval's own (--noise, --seed), not the mock robots' of the config.
-    const exec::DiffDriveParams hamster = exec::simulatedHamster();
-    p.config.robot.yaw_noise_rad = hamster.yaw_noise_rad;
-    p.config.robot.seed = hamster.seed;
-    p.config.safety.enabled = filter;
-    execution = std::make_unique<exec::BodiesExecution>(p);
+    execution = std::make_unique<exec::BodiesExecution>(bodiesParams(options, spec));
   } else if (options.execution == "diffdrive") {
     execution = std::make_unique<exec::DiffDriveExecution>(spec.arrival_radius, options.noise_m, options.seed);
   } else {
@@ -246,7 +283,7 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
         return exec::Decision{p.end, p.tokens};
       };
       const auto paths = [&](const task::Token& token, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
-        return model.primitives->generate(token, s, g, 100, step).points;
+        return model.primitives->generate(token, s, g, 100, options.paths_by_name ? -1 : step).points;
       };
       trial = exec::runTrial(spec, gt, policy, paths, *execution, model.primitives->endPoints());
     }
@@ -259,14 +296,7 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
       trial.makespan_s = d.makespan();
       e.dispatch = exec::toString(options.dispatch);
       e.precedence_violations += d.violations();
-      e.waits.emplace_back();
-      for (const exec::Wait& w : d.waits()) {
-        char line[256];
-        std::snprintf(line, sizeof line, "step %d %s at %.2f s, released by %s at %.2f s", w.token.step + 1,
-                      task::tokenKey(d.token(w.token), spec).c_str(), w.start_s,
-                      task::tokenKey(d.token(w.released_by), spec).c_str(), w.ready_s);
-        e.waits.back().push_back(line);
-      }
+      e.waits.push_back(describeWaits(d, spec));
     }
     e.scores.push_back(eval::scoreTrial(spec, gt, trial, gnn));
     e.first_difference.push_back(firstDifference(spec, gt.steps, trial.predicted));

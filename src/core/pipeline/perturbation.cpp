@@ -7,6 +7,7 @@
 #include <deque>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <optional>
 #include <ostream>
 
@@ -14,14 +15,19 @@
 
 #include "ddace/common/error.h"
 #include "ddace/common/random.h"
+#include "ddace/exec/bodies_execution.h"
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/scene.h"
+#include "ddace/pipeline/decisions_without.h"
+#include "ddace/task/body_geometry.h"
 
 namespace ddace::pipeline {
 namespace {
 
 constexpr double kCycleS = 0.02;  // the control rate, 50 Hz
+/// A body a hand puts down lands at least this clear of every other (metres).
+constexpr double kLandingGapM = 0.01;
 /// A run not ended by then is cut; the coordinator's time-outs end a stuck one sooner.
 constexpr double kMaxRunS = 600;
 
@@ -41,16 +47,178 @@ Eigen::Vector2d pointAt(const exec::Path& p, double s) {
   return p.back();
 }
 
-/// One segment being run: its entity follows the path ideally at cruise speed.
+/// A segment as the coordinator sent it, while it runs.
 struct Mover {
   int entity = -1;
   uint32_t segment = 0;
   int step = 0;
   task::Token token;
-  exec::Path path, executed;
-  double length = 0, along = 0;
-  double stalled_until_s = -1;
-  bool lost = false;
+  exec::Path path;
+  double length = 0;
+};
+
+/// A segment that ended on the table.
+struct SegmentEnd {
+  int entity = -1;
+  uint32_t segment = 0;
+  bool done = false;
+  std::string message;
+};
+
+/// The table under a coordinated run: every entity follows its segment, one control
+/// cycle (kCycleS) at a time, and a hand may change it.
+class Table {
+ public:
+  virtual ~Table() = default;
+  /// Segments that go out together (one coordinator output), each replacing its entity's.
+  virtual void start(const std::vector<Mover>& segments, const exec::Coordinator& c) = 0;
+  virtual void stop(int entity) = 0;
+  /// One control cycle: the segments that ended in it.
+  virtual std::vector<SegmentEnd> cycle() = 0;
+  virtual double time() const = 0;
+  virtual std::vector<Eigen::Vector2d> positions() const = 0;
+  /// The positions `entity`'s latest segment passed through.
+  virtual exec::Path executed(int entity) const = 0;
+  /// A hand puts `entity` down `by` away. Returns whether its follower fails its segment
+  /// (it left its path and cannot follow on).
+  virtual bool displace(int entity, const Eigen::Vector2d& by) = 0;
+  virtual void stall(int entity, double seconds) = 0;
+  /// Robot `entity` dies where it is.
+  virtual void kill(int entity) = 0;
+  virtual bool bodies() const { return false; }
+  virtual exec::BodyReport report() const { return {}; }
+};
+
+double traveled(const exec::Path& p) {
+  double s = 0;
+  for (size_t i = 1; i < p.size(); ++i) s += (p[i] - p[i - 1]).norm();
+  return s;
+}
+
+/// Points: every entity follows its segment's path ideally at cruise speed; a pushed
+/// entity fails its segment.
+class PointTable : public Table {
+ public:
+  explicit PointTable(std::vector<Eigen::Vector2d> start) : pos_(std::move(start)) {}
+  void start(const std::vector<Mover>& segments, const exec::Coordinator&) override {
+    for (const Mover& s : segments) {
+      stop(s.entity);
+      Running r;
+      r.mover = s;
+      r.executed = {pos_[static_cast<size_t>(s.entity)]};
+      running_.push_back(std::move(r));
+    }
+  }
+  void stop(int e) override {
+    for (auto it = running_.begin(); it != running_.end();)
+      if (it->mover.entity == e) {
+        executed_[e] = it->executed;
+        it = running_.erase(it);
+      } else {
+        ++it;
+      }
+  }
+  std::vector<SegmentEnd> cycle() override {
+    now_ += kCycleS;
+    std::vector<SegmentEnd> out;
+    for (Running& r : running_) {
+      if (r.lost || now_ < r.stalled_until_s) continue;
+      r.along = std::min(r.mover.length, r.along + speed_ * kCycleS);
+      pos_[static_cast<size_t>(r.mover.entity)] = pointAt(r.mover.path, r.along);
+      r.executed.push_back(pos_[static_cast<size_t>(r.mover.entity)]);
+      if (r.along >= r.mover.length) out.push_back({r.mover.entity, r.mover.segment, true, ""});
+    }
+    return out;
+  }
+  double time() const override { return now_; }
+  std::vector<Eigen::Vector2d> positions() const override { return pos_; }
+  exec::Path executed(int e) const override {
+    for (const Running& r : running_)
+      if (r.mover.entity == e) return r.executed;
+    const auto it = executed_.find(e);
+    return it == executed_.end() ? exec::Path{} : it->second;
+  }
+  bool displace(int e, const Eigen::Vector2d& by) override {
+    pos_[static_cast<size_t>(e)] += by;
+    return true;
+  }
+  void stall(int e, double seconds) override {
+    for (Running& r : running_)
+      if (r.mover.entity == e) r.stalled_until_s = now_ + seconds;
+  }
+  void kill(int e) override {
+    for (Running& r : running_)
+      if (r.mover.entity == e) r.lost = true;
+  }
+
+ private:
+  struct Running {
+    Mover mover;
+    exec::Path executed;
+    double along = 0, stalled_until_s = -1;
+    bool lost = false;
+  };
+  std::vector<Eigen::Vector2d> pos_;
+  std::vector<Running> running_;
+  std::map<int, exec::Path> executed_;
+  double now_ = 0;
+  const double speed_ = exec::FollowerGains{}.cruise_speed_mps;
+};
+
+/// Bodies: the robots' own control cycles on the simulated table (exec::BodiesExecution),
+/// segments starting whenever the coordinator sends them.
+class BodyTable : public Table {
+ public:
+  BodyTable(const exec::BodiesExecutionParams& params, const task::TaskSpec& spec, const task::Demonstration& gt)
+      : spec_(spec), execution_(params) {
+    execution_.beginTrial(spec, exec::startPoses(gt));
+  }
+  void start(const std::vector<Mover>& segments, const exec::Coordinator& c) override {
+    std::map<int, std::vector<const Mover*>> by_step;
+    for (const Mover& s : segments) by_step[s.step].push_back(&s);
+    for (const auto& [step, movers] : by_step) {
+      std::vector<task::Token> tokens;
+      for (const exec::TokenRecord& t : c.steps().at(static_cast<size_t>(step)).tokens) tokens.push_back(t.token);
+      std::vector<exec::StepMotion> motions;
+      for (const Mover* m : movers) {
+        const auto at = std::find_if(tokens.begin(), tokens.end(),
+                                     [&](const task::Token& t) { return t.entity == m->entity && t == m->token; });
+        motions.push_back({static_cast<size_t>(at - tokens.begin()), m->entity, m->token.target,
+                           spec_.entities[static_cast<size_t>(m->entity)].kind == task::EntityKind::Robot, m->path});
+        segment_[m->entity] = m->segment;
+      }
+      const std::vector<std::string> failures = execution_.startMotions(spec_, step, tokens, motions);
+      size_t f = 0;
+      for (const Mover* m : movers)
+        if (!execution_.moving(m->entity))
+          pending_.push_back({m->entity, m->segment, false, f < failures.size() ? failures[f++] : "not started"});
+    }
+  }
+  void stop(int e) override { execution_.stopMotion(e); }
+  std::vector<SegmentEnd> cycle() override {
+    std::vector<SegmentEnd> out;
+    out.swap(pending_);
+    for (const exec::MotionEnd& e : execution_.cycle())
+      out.push_back({e.entity, segment_[e.entity], e.done, e.message});
+    return out;
+  }
+  double time() const override { return execution_.time(); }
+  std::vector<Eigen::Vector2d> positions() const override { return execution_.positions(); }
+  exec::Path executed(int e) const override { return execution_.executed(e); }
+  bool displace(int e, const Eigen::Vector2d& by) override {
+    execution_.displace(e, by);
+    return false;  // its controller follows on from where it is
+  }
+  void stall(int e, double seconds) override { execution_.stall(e, execution_.time() + seconds); }
+  void kill(int e) override { execution_.kill(e); }
+  bool bodies() const override { return true; }
+  exec::BodyReport report() const override { return execution_.report(); }
+
+ private:
+  const task::TaskSpec& spec_;
+  exec::BodiesExecution execution_;
+  std::map<int, uint32_t> segment_;  ///< per entity: its latest segment
+  std::vector<SegmentEnd> pending_;  ///< could not start: reported at the next cycle
 };
 
 /// The moment of the perturbation: a step of the demonstration, how far along a motion
@@ -64,7 +232,7 @@ struct Draw {
 class Runner {
  public:
   Runner(const Model& model, const task::TaskSpec& spec, const task::Demonstration& gt, const Perturbation& p,
-         int max_replans, exec::DispatchMode dispatch, uint64_t seed)
+         int max_replans, exec::DispatchMode dispatch, uint64_t seed, const exec::BodiesExecutionParams* bodies)
       : model_(model),
         spec_(spec),
         gt_(gt),
@@ -73,6 +241,8 @@ class Runner {
            model.sequence.info().dependencies, policyReadsScene(model)) {
     for (const exec::Pose2D& pose : exec::startPoses(gt)) pos_.push_back(pose.position());
     tracked_.assign(pos_.size(), true);
+    if (bodies) table_ = std::make_unique<BodyTable>(*bodies, spec, gt);
+    else table_ = std::make_unique<PointTable>(pos_);
     SplitMix64 rng(seed * 0x2545F4914F6CDD1DULL + 0x5eed);
     // A step of the demonstration with a motion the kind fits.
     std::vector<int> steps;
@@ -83,7 +253,6 @@ class Runner {
     draw_.step = steps.empty() ? 0 : steps[rng.index(steps.size())];
     draw_.fraction = rng.uniform(0.2, 0.8);
     draw_.angle = rng.uniform(0, 2 * M_PI);
-    speed_ = exec::FollowerGains{}.cruise_speed_mps;
   }
 
   CoordinatedRun run() {
@@ -108,16 +277,21 @@ class Runner {
     while (!pending.empty()) {
       const exec::CoordinatorOutput out = std::move(pending.front());
       pending.pop_front();
-      for (int e : out.stop) drop(e);
+      for (int e : out.stop) {
+        drop(e);
+        table_->stop(e);
+      }
+      std::vector<Mover> started;
       for (const exec::SegmentCommand& s : out.segments) {
         drop(s.entity);
         Mover m;
         m.entity = s.entity, m.segment = s.segment_id, m.step = s.step, m.token = s.token;
         m.path = s.path.points.empty() ? exec::Path{s.goal} : s.path.points;
         m.length = lengthOf(m.path);
-        m.executed = {pos_[static_cast<size_t>(s.entity)]};
+        started.push_back(m);
         movers_.push_back(std::move(m));
       }
+      if (!started.empty()) table_->start(started, c_);
       for (const exec::PathRequest& r : out.paths) {
         try {
           const gp::GeneratedPath g = model_.primitives->generate(r.token, r.start, r.goal, 100, r.step);
@@ -128,8 +302,7 @@ class Runner {
       }
       if (out.decision) {
         try {
-          const tgn::Prediction d = model_.sequence.predictNext(out.decision->history);
-          pending.push_back(c_.onDecision(out.decision->id, exec::Decision{d.end, d.tokens}, now_));
+          pending.push_back(c_.onDecision(out.decision->id, decide(*out.decision), now_));
         } catch (const Error& e) {
           pending.push_back(c_.onDecisionError(out.decision->id, e.what(), now_));
         }
@@ -137,11 +310,19 @@ class Runner {
     }
   }
 
+  /// The policy's answer to `request`: with robots lost, for the team without them
+  /// (DecisionsWithout). Throws ddace::Error when the model cannot decide without them.
+  exec::Decision decide(const exec::DecisionRequest& request) {
+    lost_entities_ = request.lost;
+    const tgn::Prediction d = decisions_.predict(request.history, request.lost);
+    return {d.end, d.tokens};
+  }
+
   /// `e`'s segment is over (stopped, replaced or done): what it ran is kept.
   void drop(int e) {
     for (auto it = movers_.begin(); it != movers_.end();)
       if (it->entity == e) {
-        executed_[it->segment] = it->executed;
+        executed_[it->segment] = table_->executed(e);
         it = movers_.erase(it);
       } else {
         ++it;
@@ -149,15 +330,9 @@ class Runner {
   }
 
   void cycle() {
-    now_ += kCycleS;
-    std::vector<std::pair<int, uint32_t>> arrived;
-    for (Mover& m : movers_) {
-      if (m.lost || now_ < m.stalled_until_s) continue;
-      m.along = std::min(m.length, m.along + speed_ * kCycleS);
-      pos_[static_cast<size_t>(m.entity)] = pointAt(m.path, m.along);
-      m.executed.push_back(pos_[static_cast<size_t>(m.entity)]);
-      if (m.along >= m.length) arrived.emplace_back(m.entity, m.segment);
-    }
+    const std::vector<SegmentEnd> ended = table_->cycle();
+    now_ = table_->time();
+    pos_ = table_->positions();
     const std::optional<std::pair<int, uint32_t>> failed = perturb();
     handle(c_.onEntities({pos_, tracked_}, now_));
     if (failed) {
@@ -165,14 +340,19 @@ class Runner {
       handle(c_.onSegmentStatus(failed->first, failed->second, exec::SegmentState::Failed, 0.5, "pushed off its path",
                                 now_));
     }
-    for (const auto& [e, segment] : arrived) {
-      if (std::none_of(movers_.begin(), movers_.end(), [&](const Mover& m) { return m.segment == segment; })) continue;
-      drop(e);
-      handle(c_.onSegmentStatus(e, segment, exec::SegmentState::Done, 1.0, "", now_));
-      countStaleEnd(segment);
+    for (const SegmentEnd& e : ended) {
+      if (std::none_of(movers_.begin(), movers_.end(), [&](const Mover& m) { return m.segment == e.segment; }))
+        continue;
+      drop(e.entity);
+      handle(c_.onSegmentStatus(e.entity, e.segment, e.done ? exec::SegmentState::Done : exec::SegmentState::Failed,
+                                e.done ? 1.0 : 0.5, e.message, now_));
+      if (e.done) countStaleEnd(e.segment);
     }
     handle(c_.onTick(now_));
   }
+
+  /// How far along its path `m`'s entity has come (metres).
+  double along(const Mover& m) const { return std::min(m.length, traveled(table_->executed(m.entity))); }
 
   /// box_moved: a motion toward a box; the others: a robot's motion.
   bool fitsKind(const task::Token& t) const {
@@ -182,12 +362,27 @@ class Runner {
   }
 
   bool fits(const Mover& m) const {
-    if (m.step < draw_.step || m.length < 1e-6 || m.along < draw_.fraction * m.length || m.along >= m.length ||
-        !fitsKind(m.token))
-      return false;
+    if (m.step < draw_.step || m.length < 1e-6 || !fitsKind(m.token)) return false;
+    if (const double a = along(m); a < draw_.fraction * m.length || a >= m.length) return false;
     // A box that a motion of the run moves is not put down by a hand.
     return p_.kind != PerturbationKind::BoxMoved ||
            std::none_of(movers_.begin(), movers_.end(), [&](const Mover& o) { return o.entity == m.token.target; });
+  }
+
+  /// How far a hand moves `e` (amount metres): along the first of `directions` where it
+  /// lands clear of every other body by kLandingGapM (a hand puts a thing down where it
+  /// fits, it does not shove it into another), else the first.
+  Eigen::Vector2d landing(int e, const std::vector<Eigen::Vector2d>& directions) const {
+    for (const Eigen::Vector2d& d : directions) {
+      const Eigen::Vector2d at = pos_[static_cast<size_t>(e)] + p_.amount * d;
+      bool clear = true;
+      for (int j = 0; j < static_cast<int>(pos_.size()); ++j)
+        if (j != e && spec_.entities[static_cast<size_t>(j)].kind != task::EntityKind::Goal &&
+            (at - pos_[static_cast<size_t>(j)]).norm() < spec_.contactDistance(e, j) + kLandingGapM)
+          clear = false;
+      if (clear) return p_.amount * d;
+    }
+    return p_.amount * directions.front();
   }
 
   /// Applies the perturbation when its moment has come; returns a segment its follower fails.
@@ -197,33 +392,37 @@ class Runner {
     if (m == movers_.end()) return std::nullopt;
     applied_ = true;
     char what[200];
-    const int pct = static_cast<int>(std::lround(100 * m->along / m->length));
+    const double at = along(*m);
+    const int pct = static_cast<int>(std::lround(100 * at / m->length));
     const auto name = [&](int e) { return spec_.entities[static_cast<size_t>(e)].name.c_str(); };
     std::optional<std::pair<int, uint32_t>> failed;
     switch (p_.kind) {
-      case PerturbationKind::BoxMoved:
-        pos_[static_cast<size_t>(m->token.target)] +=
-            p_.amount * Eigen::Vector2d(std::cos(draw_.angle), std::sin(draw_.angle));
+      case PerturbationKind::BoxMoved: {
+        std::vector<Eigen::Vector2d> directions;
+        for (int k = 0; k < 8; ++k)
+          directions.emplace_back(std::cos(draw_.angle + k * M_PI / 4), std::sin(draw_.angle + k * M_PI / 4));
+        table_->displace(m->token.target, landing(m->token.target, directions));
         std::snprintf(what, sizeof what, "step %d, %d %%: %s moved %.1f cm", m->step + 1, pct, name(m->token.target),
                       p_.amount * 100);
         break;
+      }
       case PerturbationKind::RobotPushed: {
-        const Eigen::Vector2d ahead = pointAt(m->path, std::min(m->length, m->along + 0.01)) - pos_[m->entity];
+        const Eigen::Vector2d ahead = pointAt(m->path, std::min(m->length, at + 0.01)) - pos_[m->entity];
         const Eigen::Vector2d across =
             ahead.norm() > 1e-9 ? Eigen::Vector2d(-ahead.y(), ahead.x()).normalized() : Eigen::Vector2d(1, 0);
-        pos_[static_cast<size_t>(m->entity)] += p_.amount * across;
-        failed = std::make_pair(m->entity, m->segment);
+        if (table_->displace(m->entity, landing(m->entity, {across, -across})))
+          failed = std::make_pair(m->entity, m->segment);
         std::snprintf(what, sizeof what, "step %d, %d %%: %s pushed %.1f cm off its path", m->step + 1, pct,
                       name(m->entity), p_.amount * 100);
         break;
       }
       case PerturbationKind::RobotStalled:
-        m->stalled_until_s = now_ + p_.amount;
+        table_->stall(m->entity, p_.amount);
         std::snprintf(what, sizeof what, "step %d, %d %%: %s stalled %.1f s", m->step + 1, pct, name(m->entity),
                       p_.amount);
         break;
       case PerturbationKind::RobotLost:
-        m->lost = true;
+        table_->kill(m->entity);
         tracked_[static_cast<size_t>(m->entity)] = false;
         std::snprintf(what, sizeof what, "step %d, %d %%: %s lost", m->step + 1, pct, name(m->entity));
         break;
@@ -231,6 +430,7 @@ class Runner {
         break;
     }
     what_ = what;
+    pos_ = table_->positions();
     return failed;
   }
 
@@ -265,13 +465,44 @@ class Runner {
         return "step " + std::to_string(k + 1) + ": predicted " + keys(t.predicted, k) + " demonstrated " +
                keys(gt_.steps, k);
     if (score.achieved_robot_motions < score.gt_robot_motions) return "a robot motion stopped short of its end point";
+    if (!t.body_report.collisions.empty()) {
+      const exec::BodyContact& c = t.body_report.collisions.front();
+      char what[160];
+      std::snprintf(what, sizeof what, "%zu collision(s), the first at %.1f s: %s touched %s",
+                    t.body_report.collisions.size(), c.time_s, spec_.entities[static_cast<size_t>(c.a)].name.c_str(),
+                    spec_.entities[static_cast<size_t>(c.b)].name.c_str());
+      return what;
+    }
     return "a goal condition does not hold";
+  }
+
+  /// Why a run that finished without its lost robots did not do the task ("" when it did):
+  /// a robot motion that stopped short of its end point, a collision, a goal condition
+  /// that does not name a lost robot and does not hold.
+  std::string withoutLost(const exec::Trial& t) const {
+    const double within = spec_.arrival_radius + exec::CoordinatorConfig{}.arrival_tolerance_m;
+    for (const exec::ExecutedToken& ex : t.executed)
+      if (ex.token.isMotion() && spec_.entities[static_cast<size_t>(ex.token.entity)].kind == task::EntityKind::Robot &&
+          !task::arrived(ex.executed.back(), ex.goal, within))
+        return "step " + std::to_string(ex.step + 1) + ": " + task::tokenKey(ex.token, spec_) +
+               " stopped short of its end point";
+    if (!t.body_report.collisions.empty()) return std::to_string(t.body_report.collisions.size()) + " collision(s)";
+    const std::vector<int>& lost = lost_entities_;
+    for (const task::GoalCondition& g : spec_.goal_conditions) {
+      const bool names_lost = std::any_of(lost.begin(), lost.end(), [&](int e) {
+        return spec_.entities[static_cast<size_t>(e)].name == g.entity ||
+               spec_.entities[static_cast<size_t>(e)].name == g.at;
+      });
+      if (!names_lost && !task::goalConditionMet(spec_, g, t.final_positions))
+        return "goal condition " + g.entity + " at " + g.at + " does not hold";
+    }
+    return "";
   }
 
   CoordinatedRun result() {
     CoordinatedRun r;
     if (c_.running()) handle(c_.abortRun("not ended within " + std::to_string(kMaxRunS) + " s", now_));
-    for (const Mover& m : movers_) executed_[m.segment] = m.executed;
+    for (const Mover& m : movers_) executed_[m.segment] = table_->executed(m.entity);
     exec::Trial& t = r.trial;
     for (const exec::StepRecord& s : c_.steps()) {
       task::Step step;
@@ -288,21 +519,31 @@ class Runner {
     }
     t.ended = c_.state() == exec::RunState::Finished;
     t.final_positions = pos_;
+    t.bodies = table_->bodies();
+    t.body_report = table_->report();
     if (c_.dispatch()) {
       t.makespan_s = c_.dispatch()->makespan();
       r.precedence_violations = c_.dispatch()->violations();
+      r.waits = describeWaits(*c_.dispatch(), spec_);
     }
     r.score = eval::scoreTrial(spec_, gt_, t, false);
+    r.collisions = r.score.collisions;
     r.perturbed = applied_;
     r.what = what_;
     r.finished = t.ended;
     r.reason = c_.reason();
+    r.lost = c_.lostRobots();
     r.stale_ends = stale_ends_;
     r.replans = c_.replans();
     r.redecisions = c_.redecisions();
     r.makespan_s = t.makespan_s;
     r.success = r.finished && r.score.success && stale_ends_ == 0;
     if (r.finished && !r.score.success) r.failure = failureOf(r.score, t);
+    if (r.finished && !r.lost.empty()) {
+      // The team changed: the demonstration's steps are not the measure; the task's are.
+      r.failure = withoutLost(t);
+      r.success = r.failure.empty() && stale_ends_ == 0;
+    }
     return r;
   }
 
@@ -311,12 +552,15 @@ class Runner {
   const task::Demonstration& gt_;
   Perturbation p_;
   exec::Coordinator c_;
+  std::unique_ptr<Table> table_;
+  DecisionsWithout decisions_{model_.sequence};
+  std::vector<int> lost_entities_;  ///< the robots the last decision was made without
   std::vector<Eigen::Vector2d> pos_;
   std::vector<bool> tracked_;
   std::vector<Mover> movers_;
   std::map<uint32_t, exec::Path> executed_;  ///< by segment id
   Draw draw_;
-  double speed_ = 0, now_ = 0;
+  double now_ = 0;
   bool applied_ = false;
   std::string what_;
   int stale_ends_ = 0;
@@ -374,15 +618,17 @@ std::string toString(const Perturbation& p) {
 }
 
 CoordinatedRun runCoordinated(const Model& model, const task::TaskSpec& spec, const task::Demonstration& gt,
-                              const Perturbation& p, int max_replans, exec::DispatchMode dispatch, uint64_t seed) {
+                              const Perturbation& p, int max_replans, exec::DispatchMode dispatch, uint64_t seed,
+                              const exec::BodiesExecutionParams* bodies) {
   if (!model.primitives)
     throw Error("a perturbed run needs a model with primitives (the " + model.sequence.variant() +
                 " variant rolls out its own trajectories)");
-  return Runner(model, spec, gt, p, max_replans, dispatch, seed).run();
+  return Runner(model, spec, gt, p, max_replans, dispatch, seed, bodies).run();
 }
 
 PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& test, const Perturbation& p,
-                                     exec::DispatchMode dispatch, uint64_t seed) {
+                                     exec::DispatchMode dispatch, uint64_t seed,
+                                     const exec::BodiesExecutionParams* bodies) {
   PerturbationReport r;
   r.task = model.sequence.spec().name;
   r.variant = model.sequence.variant();
@@ -392,16 +638,16 @@ PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& te
     const task::Demonstration& gt = test.demos[i];
     const uint64_t s = seed * 1000003ULL + i;
     r.demos.push_back(std::filesystem::path(gt.source).filename().string());
-    r.unperturbed.push_back(runCoordinated(model, test.spec, gt, {}, kPerturbedMaxReplans, dispatch, s));
-    r.without.push_back(runCoordinated(model, test.spec, gt, p, 0, dispatch, s));
-    r.with.push_back(runCoordinated(model, test.spec, gt, p, kPerturbedMaxReplans, dispatch, s));
+    r.unperturbed.push_back(runCoordinated(model, test.spec, gt, {}, kPerturbedMaxReplans, dispatch, s, bodies));
+    r.without.push_back(runCoordinated(model, test.spec, gt, p, 0, dispatch, s, bodies));
+    r.with.push_back(runCoordinated(model, test.spec, gt, p, kPerturbedMaxReplans, dispatch, s, bodies));
   }
   return r;
 }
 
 namespace {
 struct Totals {
-  int perturbed = 0, succeeded = 0, replans = 0, redecisions = 0, violations = 0;
+  int perturbed = 0, succeeded = 0, replans = 0, redecisions = 0, violations = 0, collisions = 0;
   double lost_s = 0;
   int lost_n = 0;
   double makespan_s = 0;  ///< mean over the runs counted
@@ -418,6 +664,7 @@ Totals totals(const PerturbationReport& r, const std::vector<CoordinatedRun>& ru
     t.makespan_s += runs[i].makespan_s;
     t.replans += runs[i].replans;
     t.redecisions += runs[i].redecisions;
+    t.collisions += runs[i].collisions;
     if (runs[i].success && u.success) t.lost_s += runs[i].makespan_s - u.makespan_s, ++t.lost_n;
   }
   const int counted = all ? static_cast<int>(runs.size()) : t.perturbed;
@@ -449,6 +696,7 @@ void printPerturbation(const PerturbationReport& r, std::ostream& out) {
       if (run->stale_ends > 0)
         out << "    " << which << ": " << run->stale_ends << " motion(s) ended where their target had left\n";
     }
+    for (const std::string& l : w.lost) out << "    with: lost for good: " << l << "\n";
     if (w.replans + w.redecisions > 0)
       out << "    with: " << w.replans << " re-plan(s), " << w.redecisions << " re-decision(s)\n";
   }
@@ -465,6 +713,11 @@ void printPerturbation(const PerturbationReport& r, std::ostream& out) {
                 w.perturbed, w.replans, w.redecisions, w.lost_n ? w.lost_s / w.lost_n : 0.0, w.lost_n,
                 u.violations + wo.violations + w.violations);
   out << line;
+  if (!r.unperturbed.empty() && r.unperturbed.front().trial.bodies) {
+    std::snprintf(line, sizeof line, "  collisions: %d unperturbed, %d without recovery, %d with\n", u.collisions,
+                  wo.collisions, w.collisions);
+    out << line;
+  }
 }
 
 std::string perturbationJson(const PerturbationReport& r) {
@@ -483,6 +736,8 @@ std::string perturbationJson(const PerturbationReport& r) {
                           {"replans", run.replans},
                           {"redecisions", run.redecisions},
                           {"makespan_s", run.makespan_s},
+                          {"collisions", run.collisions},
+                          {"lost", run.lost},
                           {"precedence_violations", run.precedence_violations}};
   };
   for (const auto& [name, runs] :
@@ -490,11 +745,8 @@ std::string perturbationJson(const PerturbationReport& r) {
         {"without_recovery", &r.without},
         {"with_recovery", &r.with}}) {
     const Totals t = totals(r, *runs, runs == &r.unperturbed);
-    j[name] = {{"perturbed", t.perturbed},
-               {"succeeded", t.succeeded},
-               {"replans", t.replans},
-               {"redecisions", t.redecisions},
-               {"precedence_violations", t.violations}};
+    j[name] = {{"perturbed", t.perturbed},     {"succeeded", t.succeeded},   {"replans", t.replans},
+               {"redecisions", t.redecisions}, {"collisions", t.collisions}, {"precedence_violations", t.violations}};
   }
   j["per_trial"] = nlohmann::json::array();
   for (size_t i = 0; i < r.demos.size(); ++i)

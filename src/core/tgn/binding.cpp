@@ -68,21 +68,36 @@ std::vector<int> identitySources(const task::TaskSpec& trained, const Transfer& 
   return source;
 }
 
-/// The step size under `other`: a step in which every possible actor acted grows with
-/// them; one larger than other's actors is no rule there.
+/// The step size under `other`. It follows the counts it was all of in training: every
+/// possible actor (all at once), and, targets exclusive, every entity of a kind the tokens
+/// point at (each box fetched at once): under `other` it is the least of those counts
+/// there. 3 robots fetching 3 boxes run with 5 robots and 3 boxes fetch 3, not 5. A step
+/// size that was all of none stays, and is no rule where other has fewer actors.
 int stepSizeFor(int step_size, const ModelInfo& info, const task::TaskSpec& trained, const task::TaskSpec& other) {
   if (step_size == 0) return 0;
-  std::set<std::string> actor_kinds;  // token_types: "ACTORKIND:ACTION[:TARGETKIND]"
-  for (const auto& type : info.fingerprint.token_types) actor_kinds.insert(type.substr(0, type.find(':')));
+  std::set<std::string> actor_kinds, target_kinds;  // token_types: "ACTORKIND:ACTION[:TARGETKIND]"
+  for (const auto& type : info.fingerprint.token_types) {
+    actor_kinds.insert(type.substr(0, type.find(':')));
+    const size_t second = type.find(':', type.find(':') + 1);
+    if (second != std::string::npos) target_kinds.insert(type.substr(second + 1));
+  }
   const bool loads_carried = !info.plan.step_rules.load_actions.empty();
   const auto actors = [&](const task::TaskSpec& s) {
     return static_cast<int>(std::count_if(s.entities.begin(), s.entities.end(), [&](const task::Entity& e) {
       return actor_kinds.count(task::toString(e.kind)) && !(loads_carried && e.kind == task::EntityKind::Object);
     }));
   };
-  const int before = actors(trained), now = actors(other);
-  if (step_size == before) return now;
-  return step_size > now ? 0 : step_size;
+  const auto ofKind = [](const task::TaskSpec& s, const std::string& kind) {
+    return static_cast<int>(std::count_if(s.entities.begin(), s.entities.end(),
+                                          [&](const task::Entity& e) { return task::toString(e.kind) == kind; }));
+  };
+  std::vector<int> followed;
+  if (step_size == actors(trained)) followed.push_back(actors(other));
+  if (info.plan.step_rules.exclusive_targets)
+    for (const auto& kind : target_kinds)
+      if (step_size == ofKind(trained, kind)) followed.push_back(ofKind(other, kind));
+  if (!followed.empty()) return *std::min_element(followed.begin(), followed.end());
+  return step_size > actors(other) ? 0 : step_size;
 }
 
 }  // namespace

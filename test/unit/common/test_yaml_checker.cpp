@@ -50,6 +50,30 @@ TEST(YamlChecker, NonScalarIsNotASingleValue) {
   EXPECT_EQ(c.errors()[0].str(), "c.yaml:1:7: name must be a single value");
 }
 
+TEST(YamlChecker, TextIsPrintableUtf8) {
+  YamlChecker c("c.yaml");
+  // Accepted: ASCII, two-, three- and four-byte UTF-8. Refused: a lone continuation byte
+  // (a name the YAML writer would write back as U+FFFD), an overlong form, a truncated
+  // sequence, a C0 and a C1 control character.
+  const YAML::Node root = c.parse(
+      "a: plain\nb: \"caf\xc3\xa9 \xe2\x86\x92 \xf0\x9f\xa4\x96\"\n"
+      "c: \"ta\x98s\"\nd: \"\xc0\xaf\"\ne: \"x\xe2\x86\"\nf: \"a\x02"
+      "b\"\ng: \"a\xc2\x85"
+      "b\"\n");
+  std::string out = "kept";
+  EXPECT_TRUE(c.text(root["a"], "a", out));
+  EXPECT_EQ(out, "plain");
+  EXPECT_TRUE(c.text(root["b"], "b", out));
+  EXPECT_EQ(out, "caf\xc3\xa9 \xe2\x86\x92 \xf0\x9f\xa4\x96");
+  out = "kept";
+  for (const char* key : {"c", "d", "e", "f", "g"}) EXPECT_FALSE(c.text(root[key], key, out)) << key;
+  EXPECT_EQ(out, "kept");
+  ASSERT_EQ(c.errors().size(), 5u);
+  EXPECT_EQ(c.errors()[0].str(), "c.yaml:3:4: c must be printable UTF-8 text (not UTF-8 at byte 3)");
+  EXPECT_NE(c.errors()[3].str().find("control character at byte 2"), std::string::npos) << c.errors()[3].str();
+  EXPECT_NE(c.errors()[4].str().find("control character at byte 2"), std::string::npos) << c.errors()[4].str();
+}
+
 TEST(YamlChecker, NumbersMustBeFinite) {
   YamlChecker c("c.yaml");
   const YAML::Node root = c.parse("a: inf\nb: nan\nc: 1.5m\nd: -2\n");

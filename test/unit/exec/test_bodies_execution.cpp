@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <optional>
 
 #include "ddace/eval/metrics.h"
 #include "ddace/exec/bodies_execution.h"
@@ -306,6 +307,85 @@ TEST(BodiesExecution, TwoTokensOfOneEntityInAStepAreRefusedByName) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("two tokens of 'R1' in step 1"), std::string::npos) << e.what();
   }
+}
+
+namespace {
+
+/// Cycles the live run until `entity`'s motion ends (at most `limit_s` of table time).
+std::optional<MotionEnd> runUntilEnd(BodiesExecution& m, int entity, double limit_s) {
+  for (const double until = m.time() + limit_s; m.time() < until;)
+    for (const MotionEnd& e : m.cycle())
+      if (e.entity == entity) return e;
+  return std::nullopt;
+}
+
+}  // namespace
+
+TEST(BodiesExecution, AMotionStartedWhileAnotherRunsRunsAlongsideIt) {
+  // R1 leaves first; R2's motion (a later step) starts halfway through R1's: both arrive,
+  // R2 sooner than if it had waited for R1, without a collision.
+  const auto s = spec({{"R1", task::EntityKind::Robot},
+                       {"R2", task::EntityKind::Robot},
+                       {"G1", task::EntityKind::Goal},
+                       {"G2", task::EntityKind::Goal}});
+  const std::vector<Pose2D> start{{0.1, 0.2, 0}, {0.1, 0.5, 0}, {0.6, 0.2, 0}, {0.6, 0.5, 0}};
+  BodiesExecution m = model(true);
+  m.beginTrial(s, start);
+  EXPECT_TRUE(m.startMotions(s, 0, {token(0, 2)}, {{0, 0, 2, true, line({0.1, 0.2}, {0.6, 0.2})}}).empty());
+  for (int k = 0; k < 100; ++k) ASSERT_TRUE(m.cycle().empty()) << "R1 ended within 2 s of a 50 cm path";
+  EXPECT_TRUE(m.moving(0));
+  EXPECT_FALSE(m.moving(1));
+  const double r2_start = m.time();
+  EXPECT_TRUE(m.startMotions(s, 1, {token(1, 3)}, {{0, 1, 3, true, line({0.1, 0.5}, {0.6, 0.5})}}).empty());
+  EXPECT_TRUE(m.moving(1));
+  const auto r1 = runUntilEnd(m, 0, 30);
+  ASSERT_TRUE(r1);
+  EXPECT_TRUE(r1->done) << r1->message;
+  EXPECT_TRUE(m.moving(1)) << "R2, started later, still runs when R1 arrives";
+  const auto r2 = runUntilEnd(m, 1, 30);
+  ASSERT_TRUE(r2);
+  EXPECT_TRUE(r2->done) << r2->message;
+  EXPECT_TRUE(task::arrived(m.positions()[0], {0.6, 0.2}, 0.03)) << m.positions()[0].transpose();
+  EXPECT_TRUE(task::arrived(m.positions()[1], {0.6, 0.5}, 0.03)) << m.positions()[1].transpose();
+  EXPECT_NEAR(m.executed(1).front().x(), 0.1, 1e-6) << "R2's path starts where it stood when it started";
+  EXPECT_GT(m.time() - r2_start, 0.0);
+  EXPECT_TRUE(m.report().collisions.empty());
+}
+
+TEST(BodiesExecution, AStalledRobotStandsUntilFreedAndADeadOneFailsNamingItsPose) {
+  const auto s = spec({{"R1", task::EntityKind::Robot}, {"G1", task::EntityKind::Goal}});
+  const std::vector<Pose2D> start{{0.1, 0.3, 0}, {0.6, 0.3, 0}};
+  BodiesExecution m = model(true);
+  m.beginTrial(s, start);
+  m.startMotions(s, 0, {token(0, 1)}, {{0, 0, 1, true, line({0.1, 0.3}, {0.6, 0.3})}});
+  for (int k = 0; k < 25; ++k) m.cycle();
+  const Vector2d held = m.positions()[0];
+  m.stall(0, m.time() + 2.0);
+  for (int k = 0; k < 50; ++k) m.cycle();  // 1 s of the 2
+  EXPECT_LT((m.positions()[0] - held).norm(), 0.01) << "a stalled robot's wheels do not turn";
+  const auto end = runUntilEnd(m, 0, 30);
+  ASSERT_TRUE(end);
+  EXPECT_TRUE(end->done) << "freed, it goes on to its end: " << end->message;
+
+  m.beginTrial(s, start);
+  m.startMotions(s, 0, {token(0, 1)}, {{0, 0, 1, true, line({0.1, 0.3}, {0.6, 0.3})}});
+  for (int k = 0; k < 25; ++k) m.cycle();
+  const Vector2d died = m.positions()[0];
+  m.kill(0);
+  const auto dead = runUntilEnd(m, 0, 30);
+  ASSERT_TRUE(dead) << "a dead robot's motion ends (its pose is stale)";
+  EXPECT_FALSE(dead->done);
+  EXPECT_NE(dead->message.find("R1"), std::string::npos) << dead->message;
+  EXPECT_LT((m.positions()[0] - died).norm(), 0.01) << "it stands where it died";
+}
+
+TEST(BodiesExecution, ABoxPutDownElsewhereByAHandStaysThere) {
+  const auto s = spec({{"R1", task::EntityKind::Robot}, {"B1", task::EntityKind::Object}});
+  BodiesExecution m = model(true);
+  m.beginTrial(s, {{0.1, 0.3, 0}, {0.4, 0.3, 0}});
+  m.displace(1, {0.0, 0.06});
+  for (int k = 0; k < 10; ++k) m.cycle();
+  EXPECT_LT((m.positions()[1] - Vector2d(0.4, 0.36)).norm(), 1e-3) << m.positions()[1].transpose();
 }
 
 namespace {

@@ -109,6 +109,28 @@ std::string collisions(const task::TaskSpec& s, const BodyReport& r) {
   return out;
 }
 
+/// The same scene with robot R9 standing across a motion's path at `in_the_way` and the
+/// filter off: the motion drives into R9, and that contact -- one no motion involves -- is
+/// counted; the contacts the task demands (`demanded`: carrier and load, receiver and the
+/// box handed to it, a motion and its target) still are not.
+void expectTheIntruderCountedAndNoDemandedContact(const std::string& entities, std::vector<Pose2D> start,
+                                                  const std::vector<std::string>& steps, const Vector2d& in_the_way,
+                                                  const std::vector<std::pair<std::string, std::string>>& demanded) {
+  SCOPED_TRACE("R9 in the way at " + std::to_string(in_the_way.x()) + ", " + std::to_string(in_the_way.y()));
+  const auto s = spec(entities + " R9");
+  start.push_back({in_the_way.x(), in_the_way.y(), 0});
+  const Outcome r = run(s, start, steps, {}, 0.001, /*filter=*/false);
+  const int r9 = s.entityIndex("R9");
+  bool hit = false;
+  for (const BodyContact& c : r.report.collisions) hit = hit || c.a == r9 || c.b == r9;
+  EXPECT_TRUE(hit) << "driving into R9 was not counted: " << collisions(s, r.report);
+  for (const auto& [a, b] : demanded) {
+    const int i = std::min(s.entityIndex(a), s.entityIndex(b)), j = std::max(s.entityIndex(a), s.entityIndex(b));
+    for (const BodyContact& c : r.report.collisions)
+      EXPECT_FALSE(c.a == i && c.b == j) << a << "-" << b << " is demanded, counted: " << collisions(s, r.report);
+  }
+}
+
 }  // namespace
 
 TEST(ContactRules, AFetchWithTwoBystandersWithin5cmOfTheBoxFinishesWithoutACollision) {
@@ -127,6 +149,8 @@ TEST(ContactRules, AFetchWithTwoBystandersWithin5cmOfTheBoxFinishesWithoutAColli
   EXPECT_TRUE(task::arrived(r.positions[3], {0.8, 0.4}, s.arrival_radius)) << r.positions[3].transpose();
   EXPECT_LT((r.positions[1] - start[1].position()).norm(), 1e-3) << "R2 was pushed";
   EXPECT_LT((r.positions[2] - start[2].position()).norm(), 1e-3) << "R3 was pushed";
+  expectTheIntruderCountedAndNoDemandedContact("R1 R2 R3 O1 G1", start, {"R1 fetch O1", "R1 carry G1, O1 carry G1"},
+                                               {0.68, 0.4}, {{"R1", "O1"}});
 }
 
 TEST(ContactRules, TheSecondNearestFetchesWhileTheNearestStandsCloseToTheBox) {
@@ -146,10 +170,13 @@ TEST(ContactRules, AThreeHandRelayHandsTheBoxOnWithoutACollision) {
   const auto s = spec("R1 R2 R3 O1 G1");
   const std::vector<Pose2D> start{
       {0.1, 0.3, 0}, {0.4, 0.3, 0}, {0.4, 0.6, 0}, {0.1 + kR + kO + 0.002, 0.3, 0}, {0.8, 0.6, 0}};
-  const Outcome r = run(s, start, {"R1 pass R2, O1 pass R2", "R2 pass R3, O1 pass R3", "R3 carry G1, O1 carry G1"});
+  const std::vector<std::string> steps{"R1 pass R2, O1 pass R2", "R2 pass R3, O1 pass R3", "R3 carry G1, O1 carry G1"};
+  const Outcome r = run(s, start, steps);
   EXPECT_TRUE(r.finished()) << r.failures();
   EXPECT_TRUE(r.report.collisions.empty()) << collisions(s, r.report);
   EXPECT_TRUE(task::arrived(r.positions[3], {0.8, 0.6}, s.arrival_radius)) << r.positions[3].transpose();
+  expectTheIntruderCountedAndNoDemandedContact("R1 R2 R3 O1 G1", start, steps, {0.62, 0.6},
+                                               {{"R1", "O1"}, {"R2", "O1"}, {"R3", "O1"}, {"R1", "R2"}, {"R2", "R3"}});
 }
 
 TEST(ContactRules, TwoPairsCarryAtOnceWithoutACollision) {
@@ -158,11 +185,15 @@ TEST(ContactRules, TwoPairsCarryAtOnceWithoutACollision) {
   const double c = kR + kO + 0.002;
   const std::vector<Pose2D> start{{0.1, 0.3, 0},  {0.1 + c, 0.3, 0},  {0.7, 0.45, 0},
                                   {0.1, 0.45, 0}, {0.1 + c, 0.45, 0}, {0.7, 0.3, 0}};
-  const Outcome r = run(s, start, {"R1 carry G1, O1 carry G1, R2 carry G2, O2 carry G2"});
+  const std::vector<std::string> steps{"R1 carry G1, O1 carry G1, R2 carry G2, O2 carry G2"};
+  const Outcome r = run(s, start, steps);
   EXPECT_TRUE(r.finished()) << r.failures();
   EXPECT_TRUE(r.report.collisions.empty()) << collisions(s, r.report);
   EXPECT_TRUE(task::arrived(r.positions[1], {0.7, 0.45}, s.arrival_radius)) << r.positions[1].transpose();
   EXPECT_TRUE(task::arrived(r.positions[4], {0.7, 0.3}, s.arrival_radius)) << r.positions[4].transpose();
+  // R9 on the first pair's way before the pairs cross.
+  expectTheIntruderCountedAndNoDemandedContact("R1 O1 G1 R2 O2 G2", start, steps, {0.25, 0.335},
+                                               {{"R1", "O1"}, {"R2", "O2"}});
 }
 
 TEST(ContactRules, TouchingABodyNoMotionInvolvesIsACollision) {
@@ -194,6 +225,12 @@ TEST(ContactRules, RobotsSentToOneGoalAtOnceEndAtEachOtherWithoutACollision) {
     const Outcome r = run(s, start, {step});
     EXPECT_TRUE(r.finished()) << r.failures();
     EXPECT_TRUE(r.report.collisions.empty()) << collisions(s, r.report);
+    // R9 on R2's way (from 0.2, 0.6 to the goal): counted; the robots ending at each other not.
+    std::vector<std::pair<std::string, std::string>> demanded;
+    for (int i = 1; i <= robots; ++i)
+      for (int j = i + 1; j <= robots; ++j) demanded.push_back({"R" + std::to_string(i), "R" + std::to_string(j)});
+    expectTheIntruderCountedAndNoDemandedContact(robots == 2 ? "R1 R2 G1" : "R1 R2 R3 G1", {start.begin(), start.end()},
+                                                 {step}, {0.4, 0.5}, demanded);
     EXPECT_TRUE(task::arrived(r.positions[0], goal, s.arrival_radius)) << r.positions[0].transpose();
     for (int i = 1; i < robots; ++i) {
       double gap = 1e9;  // to the nearest robot before it

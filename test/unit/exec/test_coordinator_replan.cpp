@@ -36,6 +36,15 @@ std::vector<SegmentCommand> answer(Coordinator& c, const CoordinatorOutput& out,
   return segs;
 }
 
+/// Step 1 decided by a replay of `demo` with the entities at `at`, and its segments out
+/// (Task 4: R1:move:R3, R2:move:R4).
+std::vector<SegmentCommand> firstStep(Coordinator& c, const task::Demonstration& demo,
+                                      const std::vector<Vector2d>& at) {
+  c.onEntities(observe(at), 0.0);
+  const auto s = c.start(0.0);
+  return answer(c, c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1), 0.2);
+}
+
 bool stops(const CoordinatorOutput& out, int entity) {
   return std::find(out.stop.begin(), out.stop.end(), entity) != out.stop.end();
 }
@@ -52,13 +61,7 @@ struct Replan : ::testing::Test {
     cfg.max_replans = 2;
     return cfg;
   }
-  /// Step 1 decided and its segments out (R1:move:R3, R2:move:R4).
-  std::vector<SegmentCommand> firstStep() {
-    c.onEntities(observe(at), 0.0);
-    const auto s = c.start(0.0);
-    const auto d = c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1);
-    return answer(c, d, 0.2);
-  }
+  std::vector<SegmentCommand> firstStep() { return ::firstStep(c, demo, at); }
   CoordinatorOutput arrive(const SegmentCommand& s, double now) {
     at[static_cast<size_t>(s.entity)] = s.goal;
     c.onEntities(observe(at), now);
@@ -147,17 +150,15 @@ TEST_F(Replan, AFailedSegmentOfARobotTheTrackerLostAbortsNamingIt) {
   const auto out = c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Failed, 0.2, "pose stale", 1.0);
   EXPECT_EQ(c.state(), RunState::Aborted);
   EXPECT_TRUE(out.stop_all);
-  EXPECT_NE(c.reason().find("no recovery: R1 is not tracked"), std::string::npos) << c.reason();
+  EXPECT_NE(c.reason().find("R1 is lost"), std::string::npos) << c.reason();
+  EXPECT_NE(c.reason().find("pose stale"), std::string::npos) << c.reason();
 }
 
 TEST(ReplanOff, WithoutReplansAFailureAbortsAndAMovedTargetIsNotFollowed) {
   const task::TaskDir dir = task4();
   Coordinator c{dir.spec, CoordinatorConfig{}, task::learnEndPoints(dir.spec, dir.demos)};
   std::vector<Vector2d> at = dir.demos.front().positions.front();
-  c.onEntities(observe(at), 0.0);
-  const auto s = c.start(0.0);
-  const auto segs =
-      answer(c, c.onDecision(s.decision->id, replayDecision(dir.demos.front(), s.decision->history), 0.1), 0.2);
+  const auto segs = firstStep(c, dir.demos.front(), at);
   ASSERT_EQ(segs.size(), 2u);
   at[static_cast<size_t>(segs[0].token.target)] += Vector2d(0.06, 0);
   EXPECT_TRUE(c.onEntities(observe(at), 1.0).paths.empty());
@@ -176,9 +177,7 @@ TEST(Redecide, AMovedTargetWithdrawsTheStepAndAsksForItAgainFromTheSceneOfNow) {
   Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};  // reads the scene
   const task::Demonstration& demo = dir.demos.front();
   std::vector<Vector2d> at = demo.positions.front();
-  c.onEntities(observe(at), 0.0);
-  const auto s = c.start(0.0);
-  const auto segs = answer(c, c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1), 0.2);
+  const auto segs = firstStep(c, demo, at);
   ASSERT_EQ(segs.size(), 2u);
   // R1 arrives; then R2's target is moved 6 cm by a hand.
   at[static_cast<size_t>(segs[0].entity)] = segs[0].goal;
@@ -221,10 +220,7 @@ TEST(Redecide, ARobotBlockedPastItsReplansIsReDecidedAndANoDecisionAbortsNamingW
   cfg.max_replans = 2;
   Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};
   std::vector<Vector2d> at = dir.demos.front().positions.front();
-  c.onEntities(observe(at), 0.0);
-  const auto s = c.start(0.0);
-  const auto segs =
-      answer(c, c.onDecision(s.decision->id, replayDecision(dir.demos.front(), s.decision->history), 0.1), 0.2);
+  const auto segs = firstStep(c, dir.demos.front(), at);
   ASSERT_EQ(segs.size(), 2u);
   // Blocked: first re-planned from where it stands (twice), then the step is re-decided.
   auto out = c.onSegmentStatus(segs[0].entity, segs[0].segment_id, SegmentState::Failed, 0.3, "blocked", 1.0);
@@ -240,4 +236,69 @@ TEST(Redecide, ARobotBlockedPastItsReplansIsReDecidedAndANoDecisionAbortsNamingW
   c.onDecisionError(out.decision->id, "no token fits the scene", 1.1);
   EXPECT_EQ(c.state(), RunState::Aborted);
   EXPECT_NE(c.reason().find("no token fits the scene"), std::string::npos) << c.reason();
+}
+
+// A robot lost for good (CoordinatorConfig::robot_lost_after_s): its segment fails while the
+// tracker does not see it, and the run goes on without it -- the step is decided again and
+// the request names it lost; a decision that still needs it aborts naming it, and so does a
+// fixed order, which would name it again.
+TEST(Redecide, ARobotLostForGoodIsLeftOutOfTheNextDecisionOrTheRunAbortsNamingIt) {
+  const task::TaskDir dir = task4();
+  const task::Demonstration& demo = dir.demos.front();
+  CoordinatorConfig cfg;
+  cfg.max_replans = 1;
+  for (const bool reads_scene : {true, false}) {
+    SCOPED_TRACE(reads_scene ? "reads the scene" : "a fixed order");
+    Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos), 1, {}, reads_scene};
+    std::vector<Vector2d> at = demo.positions.front();
+    c.onEntities(observe(at), 0.0);
+    const auto s = c.start(0.0);
+    EXPECT_TRUE(s.decision->lost.empty());
+    const auto segs = answer(c, c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1), 0.2);
+    ASSERT_EQ(segs.size(), 2u);
+    // R1's battery dies: the tracker loses it, its follower fails its segment.
+    const int r1 = segs[0].entity;
+    EntityObservation obs = observe(at);
+    obs.tracked[static_cast<size_t>(r1)] = false;
+    c.onEntities(obs, 1.0);
+    const auto out = c.onSegmentStatus(r1, segs[0].segment_id, SegmentState::Failed, 0.3, "pose of R1 is stale", 1.2);
+    ASSERT_EQ(c.lostRobots().size(), 1u);
+    EXPECT_EQ(c.lostRobots()[0].rfind(dir.spec.entities[static_cast<size_t>(r1)].name + ": ", 0), 0u);
+    if (!reads_scene) {
+      EXPECT_EQ(c.state(), RunState::Aborted);
+      EXPECT_NE(c.reason().find("is lost"), std::string::npos) << c.reason();
+      EXPECT_NE(c.reason().find("fixed order"), std::string::npos) << c.reason();
+      continue;
+    }
+    EXPECT_TRUE(c.running()) << c.reason();
+    EXPECT_TRUE(stops(out, r1));
+    ASSERT_TRUE(out.decision) << "the step is decided again without it";
+    EXPECT_EQ(out.decision->lost, std::vector<int>{r1});
+    // The policy still sends it: no decision without it.
+    c.onDecision(out.decision->id, replayDecision(demo, out.decision->history), 1.3);
+    EXPECT_EQ(c.state(), RunState::Aborted);
+    EXPECT_NE(c.reason().find("is lost"), std::string::npos) << c.reason();
+    EXPECT_NE(c.reason().find("no decision without it"), std::string::npos) << c.reason();
+  }
+}
+
+// A robot untracked past robot_lost_after_s while it stands idle is lost too: the decision
+// waiting for every entity to be tracked goes ahead without it.
+TEST(Redecide, ARobotUntrackedPastItsLimitIsLostAndTheDecisionGoesAheadWithoutIt) {
+  const task::TaskDir dir = task4();
+  CoordinatorConfig cfg;
+  cfg.max_replans = 1;
+  cfg.robot_lost_after_s = 3;
+  Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};
+  EntityObservation obs = observe(dir.demos.front().positions.front());
+  const int r2 = dir.spec.entityIndex("R2");
+  obs.tracked[static_cast<size_t>(r2)] = false;
+  c.onEntities(obs, 0.0);
+  EXPECT_FALSE(c.start(0.0).decision) << "waits for R2 to be tracked";
+  EXPECT_FALSE(c.onEntities(obs, 2.9).decision);
+  const auto out = c.onTick(3.0);
+  ASSERT_TRUE(out.decision) << c.reason();
+  EXPECT_EQ(out.decision->lost, std::vector<int>{r2});
+  ASSERT_EQ(c.lostRobots().size(), 1u);
+  EXPECT_NE(c.lostRobots()[0].find("not tracked for 3"), std::string::npos) << c.lostRobots()[0];
 }

@@ -136,3 +136,82 @@ TEST(PushPath, TheCarrierPushesTheBoxOntoItsGoalFromAnySide) {
         << "from " << k.carrier.transpose() << ": the box at " << r.box.transpose() << " after " << r.seconds << " s";
   }
 }
+
+namespace {
+
+/// Robot `robot` of `sim` runs `c` until its motion ends (at most until `until_s`), every
+/// other body of the table as its filter sees it; the closest the two robots came, centre
+/// to centre, is kept in `closest_robots_m`. Returns whether the motion was done.
+bool runMotion(SimTable& sim, const task::TaskSpec& spec, RobotController& c, int robot, double until_s,
+               double& closest_robots_m) {
+  for (; sim.time() < until_s; sim.step()) {
+    const auto e = sim.entities();
+    closest_robots_m = std::min(closest_robots_m, (e[0].pose.position() - e[1].pose.position()).norm());
+    std::vector<SafetyBody> others;
+    for (size_t i = 0; i < e.size(); ++i) {
+      const task::Footprint f = spec.footprint(static_cast<int>(i));
+      if (static_cast<int>(i) != robot && f.obstacle)
+        others.push_back(
+            {e[i].name, e[i].pose.position(), f.radius_m, spec.entities[i].kind == task::EntityKind::Robot});
+    }
+    const ControlOutput o = c.cycle(e[robot].pose, false, 0.0, spec.footprint(robot).radius_m, others, sim.time());
+    sim.drive(e[robot].name, o.wheels, "test");
+    if (o.state == MotionState::Done) return true;
+    if (o.state == MotionState::Failed) {
+      std::printf("failed: %s\n", o.message.c_str());
+      return false;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+// A relay on the table of bodies: R1 pushes B1 to R2, then R2 pushes it on to G1. A robot
+// is wider than a box: R1 left touching the box stands in R2's way round it (R2's filter
+// holds it off R1: a deadlock); R1 backs off its load once its push is done, still at it,
+// and both pushes finish with the robots never touching.
+TEST(PushPath, AGiverBacksOffTheBoxItHandedOnSoTheReceiverPushesItOn) {
+  const task::TaskSpec spec = fetchTask();
+  constexpr int R2 = 1;
+  const Eigen::Vector2d r2(0.45, 0.4);
+  const double contact = spec.contactDistance(R1, B1), robots = 2 * spec.footprint(R1).radius_m;
+  const double stop = task::stopRadius(task::kDefaultArrivalRadius);
+  for (const Eigen::Vector2d& goal : {Eigen::Vector2d(0.5, 0.75), Eigen::Vector2d(0.7, 0.75)}) {
+    SCOPED_TRACE("G1 at " + std::to_string(goal.x()) + ", " + std::to_string(goal.y()));
+    SimTable sim(spec, {{0.1, 0.4, 0}, {r2.x(), r2.y(), M_PI}, {0.2, 0.4, 0}, {goal.x(), goal.y(), 0}},
+                 DiffDriveParams{});
+    double closest = 1e9;
+
+    // R1 pushes B1 until it touches R2.
+    const Eigen::Vector2d handed = r2 - Eigen::Vector2d(spec.contactDistance(R2, B1), 0);
+    RobotController giver("R1", ControllerParams{});
+    giver.start(
+        PlannedPath{pushPath({0.1, 0.4}, {0.2, 0.4}, handed, contact, handed - Eigen::Vector2d(contact, 0), 40), {}},
+        "R2", stop, stop);
+    MotionContacts to_r2;
+    to_r2.load = "B1", to_r2.load_end = handed, to_r2.load_at = {0.2, 0.4}, to_r2.load_ends_against = {"R2"};
+    giver.setContacts(to_r2);
+    ASSERT_TRUE(runMotion(sim, spec, giver, R1, 40.0, closest));
+    const auto handed_on = sim.entities();
+    EXPECT_LT((handed_on[B1].pose.position() - handed).norm(), task::kDefaultArrivalRadius);
+    const double gap = (handed_on[R1].pose.position() - handed_on[B1].pose.position()).norm() - contact;
+    EXPECT_GE(gap, kPushBackOffM - 0.002) << "R1 stayed against the box";
+    EXPECT_TRUE(task::together(spec, R1, handed_on[R1].pose.position(), B1, handed_on[B1].pose.position()))
+        << "R1 left its box";
+
+    // R2 pushes B1 on to G1.
+    const Eigen::Vector2d box = handed_on[B1].pose.position(), from = handed_on[R2].pose.position();
+    const Eigen::Vector2d u = (goal - box).normalized();
+    RobotController receiver("R2", ControllerParams{});
+    receiver.start(PlannedPath{pushPath(from, box, goal, contact, goal - contact * u, 60), {}}, "G1", stop, stop);
+    MotionContacts to_goal;
+    to_goal.load = "B1", to_goal.load_end = goal, to_goal.load_at = box;
+    receiver.setContacts(to_goal);
+    EXPECT_TRUE(runMotion(sim, spec, receiver, R2, sim.time() + 60.0, closest));
+    for (int k = 0; k < 50; ++k) sim.step();  // the box slides to rest
+    const auto e = sim.entities();
+    EXPECT_LT((e[B1].pose.position() - goal).norm(), task::kDefaultArrivalRadius) << e[B1].pose.position().transpose();
+    EXPECT_GT(closest, robots) << "R1 and R2 touched";
+  }
+}

@@ -11,6 +11,7 @@
 #include "ddace/tasks/rule_zoo.h"
 
 #include "../common/generated_task.h"
+#include "shared_model.h"
 
 using namespace ddace;
 using ddace::test::generated;
@@ -18,24 +19,16 @@ namespace fs = std::filesystem;
 
 namespace {
 
-class Pipeline : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
-    dir_ = ::testing::TempDir() + "/ddace_pipeline_task4";
-    fs::remove_all(dir_);
+/// Task 4, 12 demonstrations, training seed 3.
+struct Task4Model {
+  static constexpr const char* kDir = "ddace_pipeline_task4";
+  static pipeline::Model train(const std::string& dir) {
     tgn::TrainOptions o;
     o.seed = 3;
-    model_ = new pipeline::Model(pipeline::trainModel(generated("task4", 12, 1), o, dir_, nullptr));
+    return pipeline::trainModel(generated("task4", 12, 1), o, dir, nullptr);
   }
-  static void TearDownTestSuite() {
-    delete model_;
-    fs::remove_all(dir_);
-  }
-  static std::string dir_;
-  static pipeline::Model* model_;
 };
-std::string Pipeline::dir_;
-pipeline::Model* Pipeline::model_ = nullptr;
+using Pipeline = ddace::test::SharedModel<Task4Model>;
 
 }  // namespace
 
@@ -115,6 +108,39 @@ TEST_F(Pipeline, AsyncDispatchFinishesTask4SoonerOnPointsWithoutAPrecedenceViola
     r3_released_by_r1 = r3_released_by_r1 || (w.find("R3:move:G1 at") != std::string::npos &&
                                               w.find("released by R1:move:R3") != std::string::npos);
   EXPECT_TRUE(r3_released_by_r1);
+}
+
+// `ddace eval --execution diffdrive --dispatch async|steps`: with bodies every trial runs
+// through the coordinator, each robot's own control cycle on the table, segments starting
+// when the coordinator sends them. Async starts R3's leg to G1 when R1 (who met it) ended,
+// not when R2 did too; never before. Both legs end at G1, the one that started later
+// against the other: the one running decides again what it may touch when the other
+// starts (as the path follower node does), else it is held short of its end by the other.
+TEST_F(Pipeline, AsyncDispatchWithBodiesStartsEachTokenWhenItsOwnPredecessorsEnded) {
+  const task::TaskDir test = generated("task4", 6, 7);
+  pipeline::EvalOptions o;
+  o.execution = "diffdrive";
+  o.coordinated = true;
+  o.dispatch = exec::DispatchMode::Steps;
+  const auto steps = pipeline::evaluate(*model_, test, o);
+  o.dispatch = exec::DispatchMode::Async;
+  const auto async = pipeline::evaluate(*model_, test, o);
+  EXPECT_EQ(async.execution, "diffdrive with bodies, coordinated");
+  EXPECT_DOUBLE_EQ(steps.summary.osr, 1.0);
+  EXPECT_DOUBLE_EQ(async.summary.osr, 1.0);
+  EXPECT_EQ(steps.summary.collisions + async.summary.collisions, 0);
+  EXPECT_EQ(steps.precedence_violations, 0);
+  EXPECT_EQ(async.precedence_violations, 0);
+  ASSERT_EQ(async.waits.size(), 6u);
+  int own = 0;  // step-2 legs released by their own meeting, in a trial where the other ended later
+  for (size_t i = 0; i < async.waits.size(); ++i) {
+    ASSERT_EQ(async.waits[i].size(), 2u) << "R3's and R4's legs to G1 waited";
+    ASSERT_EQ(steps.waits[i].size(), 2u);
+    for (const std::string& w : async.waits[i])
+      own += (w.find("R3:move:G1 at") != std::string::npos && w.find("released by R1:move:R3") != std::string::npos) ||
+             (w.find("R4:move:G1 at") != std::string::npos && w.find("released by R2:move:R4") != std::string::npos);
+  }
+  EXPECT_EQ(own, 12) << "each leg to G1 waits for its own meeting only";
 }
 
 TEST_F(Pipeline, AModelOfAnotherTaskIsRefused) {

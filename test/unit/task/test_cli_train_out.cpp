@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -16,6 +17,7 @@
 
 #include "../common/file_tree.h"
 #include "../common/run_tool.h"
+#include "ddace/task/task_dir.h"
 #include "ddace/tgn/sequence_model.h"
 
 namespace fs = std::filesystem;
@@ -244,7 +246,9 @@ TEST(CliGenerate, RefusesASettingTheFamilyWouldIgnore) {
   fs::remove_all(out);
   const ToolRun robots = runTool("generate nearest_goal --robots 11 --out " + out.string());
   EXPECT_NE(robots.status, 0) << robots.out;
-  EXPECT_NE(robots.out.find("--robots applies to task2 only"), std::string::npos) << robots.out;
+  EXPECT_NE(robots.out.find("--robots applies to task2 (the team size of the scalability study) and zoo rules only"),
+            std::string::npos)
+      << robots.out;
   const ToolRun actions = runTool("generate task1 --actions 3 --out " + out.string());
   EXPECT_NE(actions.status, 0) << actions.out;
   EXPECT_NE(actions.out.find("--actions applies to task3 only"), std::string::npos) << actions.out;
@@ -252,6 +256,34 @@ TEST(CliGenerate, RefusesASettingTheFamilyWouldIgnore) {
   const ToolRun task2 = runTool("generate task2 --robots 4 --train 1 --test 0 --out " + out.string());
   EXPECT_EQ(task2.status, 0) << task2.out;
   fs::remove_all(out);
+}
+
+TEST(CliGenerate, AZooRuleWithOtherCountsIsTheSameTask) {
+  // The rule a model was trained on, with other numbers of robots and goals: the same task
+  // name (what `ddace eval` binds by kind), the counts asked for; a count below 1 refused.
+  namespace task = ddace::task;
+  const fs::path own = fs::temp_directory_path() / "ddace_cli_generate_zoo_own";
+  const fs::path five = fs::temp_directory_path() / "ddace_cli_generate_zoo_five";
+  const ToolRun a = runTool("generate zoo:37 --train 1 --test 0 --force --out " + own.string());
+  ASSERT_EQ(a.status, 0) << a.out;
+  const ToolRun b = runTool("generate zoo:37 --robots 5 --goals 6 --train 1 --test 0 --force --out " + five.string());
+  ASSERT_EQ(b.status, 0) << b.out;
+  const task::TaskSpec mine = task::loadTaskDir((own / "train").string()).spec;
+  const task::TaskSpec other = task::loadTaskDir((five / "train").string()).spec;
+  EXPECT_EQ(other.name, mine.name);
+  const auto count = [&](task::EntityKind k) {
+    return std::count_if(other.entities.begin(), other.entities.end(),
+                         [&](const task::Entity& e) { return e.kind == k; });
+  };
+  EXPECT_EQ(count(task::EntityKind::Robot), 5);
+  EXPECT_EQ(count(task::EntityKind::Goal), 6);
+  const ToolRun zero = runTool("generate zoo:37 --robots 0 --out " + five.string() + "_0");
+  EXPECT_NE(zero.status, 0) << zero.out;
+  EXPECT_NE(zero.out.find("--robots must be between 1 and 64"), std::string::npos) << zero.out;
+  const ToolRun goals = runTool("generate task1 --goals 3 --out " + five.string() + "_1");
+  EXPECT_NE(goals.out.find("--goals applies to a zoo rule only"), std::string::npos) << goals.out;
+  fs::remove_all(own);
+  fs::remove_all(five);
 }
 
 TEST(CliTrain, ThreadsAreCheckedAndRecordedAndWhatTheModelTransfersIsPrinted) {

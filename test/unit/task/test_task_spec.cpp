@@ -93,6 +93,14 @@ TEST(TaskSpec, ControlCharacterInTypeIsAnErrorAtItsPosition) {
   EXPECT_NE(d.message.find("control character"), std::string::npos) << d.message;
 }
 
+TEST(TaskSpec, ATaskNameThatIsNotUtf8IsAnErrorAtItsPosition) {
+  // Found by the task_yaml fuzzer: the writer wrote such a name back as U+FFFD, another name.
+  const Diagnostic d = onlyError("format: ddace-task/1\nname: \"tas\x98k\"\nentities:\n  - {name: R1, kind: robot}\n");
+  EXPECT_EQ(d.line, 2);
+  EXPECT_EQ(d.column, 7);
+  EXPECT_NE(d.message.find("name must be printable UTF-8 text (not UTF-8 at byte 4)"), std::string::npos) << d.message;
+}
+
 TEST(TaskSpec, DuplicateNameIsAnError) {
   const Diagnostic d =
       onlyError("format: ddace-task/1\nentities:\n  - {name: R1, kind: robot}\n  - {name: R1, kind: goal}\n");

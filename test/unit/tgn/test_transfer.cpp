@@ -159,3 +159,24 @@ TEST(SeveralPairs, TwoPairsCarryingAtOnceGoToDistinctGoalsWithTheirOwnBoxes) {
   std::cout << "zoo:two-pairs: the carry step decided exactly in " << right << " of 10 fresh scenes\n";
   EXPECT_GE(right, 8) << "the box nearer G1 to G1, the other to G2";
 }
+
+// The step size follows the counts it was all of in training: 3 robots fetching 3 boxes
+// (each box by a robot, all at once) run with 5 robots and 3 boxes send 3 robots, not 5;
+// with 5 robots and 5 boxes, 5.
+TEST(OtherTeamSizes, AStepSizeFollowsEveryCountItWasAllOf) {
+  const uint64_t rule = zooId("zoo:58");
+  ASSERT_EQ(tasks::zooRule(rule).kind, "boxes");
+  tgn::TrainOptions o;
+  o.max_epochs = 2;  // the step size is the plan's, not the weights'
+  o.without = {tgn::Rule::Ensemble};
+  const tgn::SequenceModel model = tgn::SequenceModel::train(tasks::generateZoo(rule, 4, 1, {}, {3, 3, 4}), o, nullptr);
+  ASSERT_EQ(model.info().plan.step_rules.step_size, 3);
+  const task::TaskDir more_robots = tasks::generateZoo(rule, 2, 2, {}, {5, 3, 4});
+  const tgn::SequenceModel bound = model.boundTo(more_robots.spec);
+  EXPECT_EQ(bound.info().plan.step_rules.step_size, 3) << "3 boxes: 3 fetch, whatever the robots";
+  const tgn::Prediction first = bound.predictNext({more_robots.demos[0].snapshots[0]});
+  ASSERT_FALSE(first.end);
+  EXPECT_EQ(first.tokens.size(), 3u) << "three robots sent, one to each box";
+  const task::TaskSpec more_boxes = tasks::generateZoo(rule, 1, 2, {}, {5, 5, 6}).spec;
+  EXPECT_EQ(model.boundTo(more_boxes).info().plan.step_rules.step_size, 5);
+}
