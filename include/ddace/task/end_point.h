@@ -133,31 +133,22 @@ inline constexpr double kBackOffStepM = 0.001;
 /// also goes moves on its own.
 int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, const std::vector<Eigen::Vector2d>& at);
 
-/// Which end of a step is placed first (stepEndPositions): the tokens' order (a generated
-/// demonstration: its motions arrive together, the person's order decides) or the order the
-/// robots will arrive in when the step runs (the shortest way from start to end point
-/// first; ties in token order): the first there takes the place, a later one ends where
-/// room is left beside the bodies already standing, so no end is sealed off by robots that
-/// got there before it.
-enum class PlacementOrder { Tokens, Arrival };
-
 /// Where every entity stands after `step` decided with entity positions `decided` when
 /// bodies must fit (table frame, metres). Each motion ends at its endPoint() under `model`;
 /// a riding load (ridingLoad()) ends in front of its carrier at their contact distance
 /// along the carrier's approach (on the target, the carrier behind it). Its own target a
 /// motion comes no nearer than their contact (demonstrations stopping inside the
 /// footprints end at contact: the footprints are what bodies are held to). An end point inside a standing body, or
-/// inside an end placed before it in the step (`order`), is turned about the target to the nearest place at the
+/// inside an end placed before it in the step (token order), is turned about the target to the nearest place at the
 /// same distance kEndTurnGapM clear of every other body (the motion still touches its target, and only it); where no
 /// turn frees it (a goal another body already stands on) it stops short on its way where its body first fits: two
 /// robots sent onto one goal end touching, one on it. With `table` (its corners), no end is moved further over its edge
 /// than its entity starts. Used wherever a step is executed with bodies: the generated demonstrations (with nothing
-/// learned, token order), `ddace eval` with bodies and the coordinator (arrival order). Throws ddace::Error for a
-/// token naming an entity outside `decided`.
+/// learned), `ddace eval` with bodies and the coordinator. Throws ddace::Error for a token naming an entity outside
+/// `decided`.
 std::vector<Eigen::Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model,
                                               const std::vector<Token>& step,
                                               const std::vector<Eigen::Vector2d>& decided,
-                                              const std::optional<Eigen::AlignedBox2d>& table = std::nullopt,
-                                              PlacementOrder order = PlacementOrder::Tokens);
+                                              const std::optional<Eigen::AlignedBox2d>& table = std::nullopt);
 
 }  // namespace ddace::task

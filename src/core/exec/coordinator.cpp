@@ -282,8 +282,7 @@ void Coordinator::startReady(double now_s, CoordinatorOutput& out) {
       tokens.push_back(t.token);
       if (t.started_s >= 0) at[static_cast<size_t>(t.token.entity)] = t.start;
     }
-    const std::vector<Eigen::Vector2d> ends =
-        task::stepEndPositions(spec_, end_points_, tokens, at, std::nullopt, task::PlacementOrder::Arrival);
+    const std::vector<Eigen::Vector2d> ends = task::stepEndPositions(spec_, end_points_, tokens, at);
     for (const TokenRef& r : motions)
       if (r.step == static_cast<int>(k)) record(r).goal = ends[static_cast<size_t>(record(r).token.entity)];
   }
@@ -301,8 +300,7 @@ Eigen::Vector2d Coordinator::endPointOf(TokenRef r, std::vector<Eigen::Vector2d>
     if (t.started_s >= 0 && static_cast<int>(i) != r.index) at[static_cast<size_t>(t.token.entity)] = t.start;
   }
   const int e = s.tokens[static_cast<size_t>(r.index)].token.entity;
-  return task::stepEndPositions(spec_, end_points_, tokens, at, std::nullopt,
-                                task::PlacementOrder::Arrival)[static_cast<size_t>(e)];
+  return task::stepEndPositions(spec_, end_points_, tokens, at)[static_cast<size_t>(e)];
 }
 
 bool Coordinator::mayRecover(TokenRef r, int done, const std::string& why, CoordinatorOutput& out) {

@@ -53,9 +53,7 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
     // With bodies, the step's ends are placed where bodies fit (two robots sent onto one goal
     // end touching); points end where the rule puts each motion alone (the paper's Table 2).
     const std::vector<Eigen::Vector2d> ends =
-        execution.bodies()
-            ? task::stepEndPositions(spec, end_points, d.tokens, decided, std::nullopt, task::PlacementOrder::Arrival)
-            : decided;
+        execution.bodies() ? task::stepEndPositions(spec, end_points, d.tokens, decided) : decided;
     std::vector<StepMotion> motions;
     const size_t first = trial.executed.size();
     for (size_t i = 0; i < d.tokens.size(); ++i) {

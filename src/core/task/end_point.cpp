@@ -76,9 +76,8 @@ EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstrati
       const std::vector<Token>& step = d.steps[static_cast<size_t>(seg.step)].tokens;
       const auto at = std::find(step.begin(), step.end(), seg.token);
       if (at == step.end()) continue;
-      const auto i = static_cast<size_t>(at - step.begin());
       keys[tokenKey(seg.token, spec)].push_back(offset);
-      classes[motionClass(spec, step, i)].push_back(offset);
+      classes[motionClass(spec, step, static_cast<size_t>(at - step.begin()))].push_back(offset);
     }
   }
   EndPointModel m;
@@ -201,7 +200,7 @@ int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, c
 
 std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
                                        const std::vector<Vector2d>& decided,
-                                       const std::optional<Eigen::AlignedBox2d>& table, PlacementOrder order) {
+                                       const std::optional<Eigen::AlignedBox2d>& table) {
   const auto n = static_cast<int>(decided.size());
   for (const Token& t : step)
     if (t.entity < 0 || t.entity >= n || t.target >= n)
@@ -218,24 +217,6 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
     movers.push_back(i);
     moving[static_cast<size_t>(step[i].entity)] = true;
     if (load_of[i] >= 0) moving[static_cast<size_t>(step[static_cast<size_t>(load_of[i])].entity)] = true;
-  }
-  if (order == PlacementOrder::Arrival) {
-    // The shortest way first. Motions bound for one point of a goal (two robots onto it)
-    // contest it in the tokens' order, when the first of them would arrive: the robot a
-    // demonstration lists first took the goal.
-    std::vector<Vector2d> rule(step.size());
-    std::vector<double> arrives(step.size(), 0.0);
-    for (size_t i : movers) {
-      rule[i] = endPoint(spec, model, step, i, decided);
-      arrives[i] = (rule[i] - decided[static_cast<size_t>(step[i].entity)]).norm();
-    }
-    std::vector<double> key = arrives;
-    for (size_t i : movers)
-      for (size_t j : movers)
-        if (step[j].target == step[i].target && !spec.footprint(step[i].target).obstacle &&
-            (rule[j] - rule[i]).norm() < kArrivalToleranceM)
-          key[i] = std::min(key[i], arrives[j]);
-    std::stable_sort(movers.begin(), movers.end(), [&](size_t a, size_t b) { return key[a] < key[b]; });
   }
   const auto obstacle = [&](int e) { return spec.footprint(e).obstacle; };
   // How far the body of e at p is inside the table's edges (metres; < 0: over one).
@@ -305,19 +286,6 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
           break;
         }
       }
-    // Onto a goal, inside a body placed before it by no more than the tracking tolerance
-    // (ends learned from tracked stops at contact): straight out of that body, touching it.
-    for (int b : obstacle(t.target) ? std::vector<int>{} : placed) {
-      const Vector2d away = end - ends[static_cast<size_t>(b)];
-      const double inside = spec.contactDistance(t.entity, b) - away.norm();
-      if (found || b == t.target || b == load || inside <= 0 || inside > kArrivalToleranceM ||
-          away.norm() < kMinApproachM)
-        continue;
-      const Vector2d shift = inside * away.normalized();
-      if (free(t.entity, end + shift, load, t.target, 0, reach) &&
-          (load < 0 || free(load, load_end + shift, t.entity, t.target, 0, load_reach)))
-        e_best = end + shift, l_best = load_end + shift, found = true;
-    }
     // Onto a goal already taken (turning about its centre changes nothing): stop short of
     // it, on the way, where the body first fits.
     const Vector2d back = end - start;

@@ -63,8 +63,7 @@ struct Outcome {
 };
 
 /// Runs `steps` ("R1 move G1, O1 move G1" per step: entity action target) from `start`,
-/// each motion on a straight path to its end point (task::stepEndPositions under `model`,
-/// in the order the robots arrive, as `ddace eval` and the coordinator place them).
+/// each motion on a straight path to its end point (task::stepEndPositions under `model`).
 Outcome run(const task::TaskSpec& s, const std::vector<Pose2D>& start, const std::vector<std::string>& steps,
             const task::EndPointModel& model = {}, double noise_m = 0.001, bool filter = true) {
   BodiesExecutionParams p;
@@ -87,8 +86,7 @@ Outcome run(const task::TaskSpec& s, const std::vector<Pose2D>& start, const std
       if (std::sscanf(one.c_str(), " %15s %15s %15s", e, a, t) != 3) ADD_FAILURE() << "bad token " << one;
       tokens.push_back({s.entityIndex(e), a, s.entityIndex(t)});
     }
-    const std::vector<Vector2d> ends =
-        task::stepEndPositions(s, model, tokens, at, std::nullopt, task::PlacementOrder::Arrival);
+    const std::vector<Vector2d> ends = task::stepEndPositions(s, model, tokens, at);
     std::vector<StepMotion> motions;
     for (size_t i = 0; i < tokens.size(); ++i) {
       const int e = tokens[i].entity;
@@ -246,21 +244,4 @@ TEST(ContactRules, RobotsSentToOneGoalAtOnceEndAtEachOtherWithoutACollision) {
       EXPECT_FALSE(task::goalConditionMet(s, at_goal, short_of));
     }
   }
-}
-
-// Three robots sent to one robot in one step. R2 is listed first, but R3 stands in front of
-// it on nearly the same way and gets there first. Each ends where the robots already there
-// left room (the step's ends placed in the order they arrive): every motion arrives, no
-// collision. (Placed in the tokens' order, R2's end is the one on that side and R3, there
-// first, stands turned beside it: R2 is held 3 cm short of its end, deadlocked.)
-TEST(ContactRules, RobotsMeetingAtOneRobotInAnotherOrderThanListedAllArrive) {
-  const auto s = spec("R1 R2 R3 R4");
-  const Vector2d c(0.5, 0.5);
-  const std::vector<Pose2D> start{{c.x(), c.y(), 0}, {0.565, 0.272, 0}, {0.570, 0.338, 0}, {0.914, 0.474, 0}};
-  const Outcome r = run(s, start, {"R2 move R1, R3 move R1, R4 move R1"});
-  EXPECT_TRUE(r.finished()) << r.failures();
-  EXPECT_TRUE(r.report.collisions.empty()) << collisions(s, r.report);
-  for (int e : {1, 2, 3})
-    EXPECT_LT((r.positions[static_cast<size_t>(e)] - c).norm(), 2 * kR + s.arrival_radius) << "R" << e + 1;
-  EXPECT_LT((r.positions[0] - c).norm(), 1e-3) << "R1 was pushed";
 }

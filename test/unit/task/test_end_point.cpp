@@ -306,38 +306,3 @@ TEST(EndPoint, EndsDemonstratedAtSeveralSidesOfTheTargetAreLearnedAtTheirDistanc
   EXPECT_NEAR(m.by_key.at("R1:move:R3").offset.norm(), contact, 1e-9);
   EXPECT_TRUE(stopGaps(spec, m, ds).empty()) << stopGaps(spec, m, ds).front().str();
 }
-
-// Three robots sent to one robot: R2 is listed first, but R3 stands in front of it on
-// nearly the same way. Placed in token order, R2's end is the one on that side and R3's
-// turns away from it, so R3, there first, stands beside the way R2 comes in. Placed in the
-// order they arrive, R3 keeps the end on its side and R2 turns about R1 clear of it.
-TEST(StepEndPositions, EndsArePlacedInTheOrderTheRobotsArrive) {
-  const TaskSpec spec = parseTaskYaml(
-      "format: ddace-task/1\nentities:\n  - {name: R1, kind: robot, type: hamster}\n"
-      "  - {name: R2, kind: robot, type: hamster}\n  - {name: R3, kind: robot, type: hamster}\n"
-      "  - {name: R4, kind: robot, type: hamster}\n",
-      "task.yaml");
-  const EndPointModel none;
-  const int r1 = 0, r2 = 1, r3 = 2, r4 = 3;
-  const double contact = spec.contactDistance(r1, r2);
-  const Vector2d c(0.5, 0.5);
-  const std::vector<Vector2d> at = {c, {0.565, 0.272}, {0.570, 0.338}, {0.914, 0.474}};
-  const std::vector<Token> step = {{r2, "move", r1}, {r3, "move", r1}, {r4, "move", r1}};
-  // How far (radians) the end of e lies from the side e comes from.
-  const auto turned = [&](const std::vector<Vector2d>& ends, int e) {
-    return std::acos((ends[e] - c).normalized().dot((at[e] - c).normalized()));
-  };
-  {
-    const auto ends = stepEndPositions(spec, none, step, at);  // token order
-    EXPECT_NEAR(turned(ends, r2), 0.0, 1e-6);
-    EXPECT_GT(turned(ends, r3), M_PI / 4) << "R3, there first, turned away from R2's end";
-  }
-  const auto ends = stepEndPositions(spec, none, step, at, std::nullopt, PlacementOrder::Arrival);
-  EXPECT_NEAR(turned(ends, r3), 0.0, 1e-6) << "the first there keeps the end on its side";
-  EXPECT_GT(turned(ends, r2), M_PI / 4);
-  for (int e : {r2, r3, r4}) EXPECT_NEAR((ends[e] - c).norm(), contact, 1e-9) << "touching R1";
-  EXPECT_GE((ends[r2] - ends[r3]).norm(), contact + kEndTurnGapM - 1e-9) << "turned: clear of R3";
-  EXPECT_NEAR(turned(ends, r4), 0.0, 1e-6) << "R4's own side is free";
-  EXPECT_GE((ends[r4] - ends[r3]).norm(), contact - 1e-9);
-  EXPECT_GE((ends[r4] - ends[r2]).norm(), contact - 1e-9);
-}
