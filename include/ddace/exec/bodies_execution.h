@@ -131,6 +131,14 @@ class BodiesExecution : public ExecutionModel {
   /// Motion `m` starts: a robot's controller gets its path, an object its segment. Returns
   /// why it cannot ("": it runs).
   std::string startMotion(size_t m);
+  /// startMotions' parts, in order: the motions added (returns the index of the first),
+  /// what the new ones may touch, the step's running robots told again, every new one
+  /// started (the failures; one time limit for the batch), the contact rule for judging.
+  size_t addMotions(int step, const std::vector<task::Token>& tokens, const std::vector<StepMotion>& motions);
+  void decideNewContacts(size_t first);
+  void redecideRunning(size_t first, int step);
+  std::vector<std::string> launch(size_t first);
+  void allowContacts(size_t first);
   void finish(size_t m);
   bool standing(int entity) const;
   void endRide(int carrier, bool arrived);

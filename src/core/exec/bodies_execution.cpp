@@ -104,6 +104,17 @@ std::vector<std::string> BodiesExecution::startMotions(const task::TaskSpec&, in
                                                        const std::vector<task::Token>& tokens,
                                                        const std::vector<StepMotion>& motions) {
   if (!table_) throw Error("bodies execution: a motion started before beginTrial");
+  const size_t first = addMotions(step, tokens, motions);
+  decideNewContacts(first);
+  redecideRunning(first, step);
+  loaded_ = {table_->loadedPairs().begin(), table_->loadedPairs().end()};
+  std::vector<std::string> failures = launch(first);
+  allowContacts(first);
+  return failures;
+}
+
+size_t BodiesExecution::addMotions(int step, const std::vector<task::Token>& tokens,
+                                   const std::vector<StepMotion>& motions) {
   const int n = static_cast<int>(table_->size());
   const uint32_t batch = ++batches_;
   const size_t first = motions_.size();
@@ -122,6 +133,10 @@ std::vector<std::string> BodiesExecution::startMotions(const task::TaskSpec&, in
     motion_of_[mo.entity] = static_cast<int>(motions_.size());
     motions_.push_back(std::move(m));
   }
+  return first;
+}
+
+void BodiesExecution::decideNewContacts(size_t first) {
   // What each may touch: decided once, as the coordinator's segments are by the path
   // follower node (exec::motionContacts), from where every body ends.
   for (size_t m = first; m < motions_.size(); ++m) {
@@ -132,9 +147,12 @@ std::vector<std::string> BodiesExecution::startMotions(const task::TaskSpec&, in
     if (motions_[m].motion.robot) rideLoad(e);
     else dropLoad(motions_[m].contacts);  // only robots carry
   }
-  // The step's robots already running decide again with them, as the path follower node
-  // does whenever its step's segments change: a robot bound for a goal that a later-started
-  // one ends on may now end against it.
+}
+
+void BodiesExecution::redecideRunning(size_t first, int step) {
+  // The step's robots already running decide again with the new motions, as the path
+  // follower node does whenever its step's segments change: a robot bound for a goal that a
+  // later-started one ends on may now end against it.
   for (size_t m = 0; m < first; ++m) {
     Motion& o = motions_[m];
     const int e = o.motion.entity;
@@ -148,7 +166,9 @@ std::vector<std::string> BodiesExecution::startMotions(const task::TaskSpec&, in
     o.contacts = c;
     controllers_[e]->setContacts(std::move(c));
   }
-  loaded_ = {table_->loadedPairs().begin(), table_->loadedPairs().end()};
+}
+
+std::vector<std::string> BodiesExecution::launch(size_t first) {
   std::vector<std::string> failures;
   double limit_s = 0;
   for (size_t m = first; m < motions_.size(); ++m) {
@@ -157,6 +177,10 @@ std::vector<std::string> BodiesExecution::startMotions(const task::TaskSpec&, in
     else limit_s = std::max(limit_s, motions_[m].limit_s);
   }
   for (size_t m = first; m < motions_.size(); ++m) motions_[m].limit_s = limit_s;
+  return failures;
+}
+
+void BodiesExecution::allowContacts(size_t first) {
   // The collisions are judged by what the running motions may touch, as decided.
   std::vector<DecidedMotion> decided;
   for (size_t m = 0; m < motions_.size(); ++m)
@@ -165,7 +189,6 @@ std::vector<std::string> BodiesExecution::startMotions(const task::TaskSpec&, in
       decided.push_back({mo.motion.entity, mo.motion.target, mo.final_at, mo.contacts});
     }
   allowed_ = AllowedContacts(names_, radius_m_, decided, controller_.safety.margin_m);
-  return failures;
 }
 
 std::vector<MotionEnd> BodiesExecution::cycle() {
