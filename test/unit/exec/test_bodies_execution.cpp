@@ -185,6 +185,27 @@ TEST(BodiesExecution, ACarriedLoadRidesInFrontOfItsCarrierToTheGoal) {
   EXPECT_TRUE(with.report().collisions.empty());
 }
 
+// With loads that do not ride (mock_robots/loads_ride false: the real table's way) the
+// carrier pushes its load body against body: the load's end, not the carrier's, ends the
+// push; the load ends on the goal, judged where it lies.
+TEST(BodiesExecution, ALoadThatDoesNotRideIsPushedOntoTheGoalByItsCarrier) {
+  const auto s =
+      spec({{"R1", task::EntityKind::Robot}, {"O1", task::EntityKind::Object}, {"G1", task::EntityKind::Goal}});
+  const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
+  const std::vector<Pose2D> start{{0.1, 0.3, 0}, {0.1 + contact + 0.002, 0.3, 0}, {0.6, 0.3, 0}};
+  BodiesExecutionParams p;
+  p.noise_m = 0.001;
+  p.config.table.loads_ride = false;
+  BodiesExecution with(p);
+  const StepExecution a = runStep(with, s, start, {token(0, 2), token(1, 2)},
+                                  {line({0.1, 0.3}, {0.6 - contact, 0.3}), line({0.1 + contact, 0.3}, {0.6, 0.3})});
+  EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+  EXPECT_TRUE(task::arrived(a.positions[1], {0.6, 0.3}, s.arrival_radius + task::kArrivalToleranceM))
+      << a.positions[1].transpose();
+  EXPECT_LT(a.positions[0].x(), a.positions[1].x() - contact + 0.003) << "the carrier ends behind it";
+  EXPECT_TRUE(with.report().collisions.empty());
+}
+
 TEST(BodiesExecution, ALoadBehindItsCarrierSwingsRoundToItsFront) {
   // O1 starts behind R1 (away from G1); both go to G1.
   const auto s =
@@ -394,8 +415,9 @@ namespace {
 /// the decisions as demonstrated, each motion ending where the end points learned from
 /// them say: every trial finishes without a collision, its goal conditions met; and at
 /// every decision a carrier is at its load (task::togetherDistance) as in the
-/// demonstrations, so the network would see the load in hand.
-void replayZoo(const std::string& family, int demos) {
+/// demonstrations, so the network would see the load in hand. `loads_ride` false: carriers
+/// push their loads (mock_robots/loads_ride), as on the real table.
+void replayZoo(const std::string& family, int demos, bool loads_ride = true) {
   SCOPED_TRACE(family);
   uint64_t id = 0;
   tasks::ZooMotion motion;
@@ -409,7 +431,10 @@ void replayZoo(const std::string& family, int demos) {
   for (const task::Demonstration& demo : dir.demos) {
     SCOPED_TRACE(demo.source);
     const auto policy = [&](const std::vector<task::Snapshot>& h) { return replayDecision(demo, h); };
-    BodiesExecution with = model(true);
+    BodiesExecutionParams p;
+    p.noise_m = 0.001;
+    p.config.table.loads_ride = loads_ride;
+    BodiesExecution with(p);
     const Trial a = runTrial(dir.spec, demo, policy, gen, with, ends);
     EXPECT_TRUE(a.failures.empty()) << a.failures.front();
     for (const BodyContact& c : a.body_report.collisions)
@@ -456,4 +481,10 @@ TEST(BodiesExecution, TwoPairsCarryingAtOnceFinishWithoutACollision) {
 // stays or backs off as demonstrated.
 TEST(BodiesExecution, ARelayHandsItsBoxOnWithoutACollision) {
   replayZoo("zoo:41/direct-4mm", 2);
+}
+
+// The same relay with the box pushed body against body: the receiver goes round the box
+// to behind it, touching it only from there, and pushes it on to the goal.
+TEST(BodiesExecution, ARelayPushingItsBoxHandsItOnWithoutACollision) {
+  replayZoo("zoo:41/direct-4mm", 2, /*loads_ride=*/false);
 }
