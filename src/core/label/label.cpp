@@ -839,6 +839,25 @@ Inference inferLabels(const task::Demonstration& d, const task::TaskSpec& spec, 
   return l.finish();
 }
 
+namespace {
+
+/// The label a person gave most rows of a motion (their labels and the motion's onset and
+/// offset need not agree to the row: a robot braking after its label ended), or null.
+const task::Label* labelOfMotion(const task::Demonstration& d, const InferredToken& t) {
+  std::map<std::pair<std::string, int>, int> rows;
+  const task::Label* most = nullptr;
+  int most_rows = 0;
+  for (int row = t.onset_row; row <= t.last_row; ++row) {
+    const task::Label& l = d.labels[row][t.token.entity];
+    if (l.isNull() || l.target < 0) continue;
+    const int n = ++rows[{l.action, l.target}];
+    if (n > most_rows) most = &l, most_rows = n;
+  }
+  return most;
+}
+
+}  // namespace
+
 Example Example::fromDemonstration(const task::Demonstration& d, const task::TaskSpec& spec) {
   Example ex;
   ex.source = d.source;
@@ -847,9 +866,9 @@ Example Example::fromDemonstration(const task::Demonstration& d, const task::Tas
   std::map<std::string, std::map<std::string, int>> votes;
   for (const auto& step : inf.steps)
     for (const auto& t : step.tokens) {
-      const int mid = (t.onset_row + t.last_row) / 2;
-      const task::Label& l = d.labels[mid][t.token.entity];
-      if (l.isNull() || l.target < 0) continue;
+      const task::Label* most = labelOfMotion(d, t);
+      if (!most) continue;
+      const task::Label& l = *most;
       // The word of a kind of motion: as labelled; the kind: as the motion shows it.
       ++votes[kindKey(spec, t.token.entity, l.target, t.load)][l.action];
       ++votes[coarseKindKey(spec, t.token.entity, l.target, t.load)][l.action];

@@ -341,6 +341,24 @@ TEST(Label, APushWithNoPauseAfterTheApproachIsTwoTokens) {
   EXPECT_TRUE(inf.notes.empty());
 }
 
+TEST(Label, TheExamplesWordIsTheLabelOfMostOfTheMotion) {
+  // The person's label of the push ended while the robot still rolled on (a late brake):
+  // the word is the one most of the motion's rows carry, not the one of its middle row.
+  Scene paused = pushScene(1.0);
+  const auto alone = paused.infer();
+  task::Demonstration ex = labelledByHand(paused, alone, "carry");
+  ASSERT_EQ(alone.steps.size(), 2u);
+  for (const auto& t : alone.steps[1].tokens)
+    for (int row = t.onset_row + (t.last_row - t.onset_row) * 2 / 5; row <= t.last_row; ++row)
+      ex.labels[row][t.token.entity] = {};
+  ex.analyze();
+  const auto example = label::Example::fromDemonstration(ex, paused.spec);
+  Scene s = pushScene(1.0);
+  const auto inf = s.infer(&example);
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:B1"}, {"R1:carry:G1", "B1:carry:G1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+}
+
 TEST(Label, APushThatBeginsAsTheApproachEndsIsTheCarriers) {
   // fetch, then the other robot to the occupied goal (as bench label_styles makes it),
   // demonstrated in every style at once: a push that begins on the rows at rest the
