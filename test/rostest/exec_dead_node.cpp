@@ -60,6 +60,22 @@ TEST(DeadNode, ExecuteSimExitsNonZeroNamingTheDeadRequiredNodeAndItsCause) {
   const std::string report = readFile(run_dir + "/report.txt");
   EXPECT_NE(report.find("node coordinator died (exit code 1), a required node"), std::string::npos) << report;
   EXPECT_NE(report.find(coordinatorCause()), std::string::npos) << report;
+  // The first line says why the run failed, not the SIGINT that ended the launch; which of
+  // the nodes given the broken model died first varies, the coordinator is named with its cause.
+  const std::string first = report.substr(0, report.find('\n'));
+  EXPECT_EQ(first.rfind("failed: node /", 0), 0u) << report;
+  EXPECT_NE(first.find("before the coordinator reported any state: "), std::string::npos) << report;
+  EXPECT_NE(first.find("node /coordinator died (exit code 1), a required node: " + setup().model +
+                       "/primitives.yaml:3:1: YAML syntax error"),
+            std::string::npos)
+      << report;
+  EXPECT_EQ(first.find("SIGINT"), std::string::npos) << report;
+  EXPECT_NE(printed.find(first), std::string::npos) << "the first line is not on the terminal:\n" << printed;
+  const std::string result = readFile(run_dir + "/result.json");
+  EXPECT_NE(result.find("\"state\": \"failed\""), std::string::npos) << result;
+  EXPECT_NE(result.find("\"node\": \"/coordinator\""), std::string::npos) << result;
+  EXPECT_NE(std::system(("'" + setup().scripts + "/execute_sim' --check '" + run_dir + "' > /dev/null").c_str()), 0)
+      << "execute_sim --check passed a run whose node died";
 }
 
 TEST(DeadNode, TheLaunchCommandExitsNonZeroWhereRoslaunchExitsZero) {
