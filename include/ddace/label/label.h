@@ -150,6 +150,9 @@ class Labeller {
   bool staysWith(const Motion& m, int j) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
   bool pausedOnItsWay(const Motion& a, const Motion& b) const;
+  /// `a` (a robot's motion) started an object moving, touching it, was still with it when it
+  /// stopped, and the object went on farther than a nudge before `b` began: it let go.
+  bool letGo(const Motion& a, const Motion& b) const;
   const task::ActionRule* rule(int mover, int target, int load) const;
   std::string word(int mover, int target, int load, int row);
   void placeInPlace(const std::vector<const task::Step*>& steps, int from, int to);

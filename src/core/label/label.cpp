@@ -148,9 +148,26 @@ std::vector<bool> Labeller::candidatesOf(const Motion& m) const {
   return c;
 }
 
+// A hand-over: the object's motion began at a's touch (an object's pieces pending with
+// a's), and it went on while a rested.
+bool Labeller::letGo(const Motion& a, const Motion& b) const {
+  const auto& E = spec_.entities;
+  if (E[a.entity].kind != task::EntityKind::Robot) return false;
+  const double slack = options_.still_s / 2;  // the precision onsets and offsets are dated to
+  for (const Motion& l : pending_)
+    if (E[l.entity].kind == task::EntityKind::Object && l.on_t >= a.on_t - slack && l.on_t <= a.off_t &&
+        together(l.at_onset, a.entity, l.entity) && together(a.at_offset, a.entity, l.entity) &&
+        (b.at_onset[l.entity] - a.at_offset[l.entity]).norm() >= options_.nudge_m)
+      return true;
+  return false;
+}
+
 // A pause: a motion that stopped away from every entity, or over one but goes on in the
 // heading it came in (not taking along what it stopped at), goes on within pause_s.
 bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
+  // What moved with it went on without it: a hand-over, read from the contact that
+  // changed, wherever the giver stopped and whichever way it leaves.
+  if (letGo(a, b)) return false;
   // No rest between them (within the precision onsets and offsets are dated to), or b
   // crept on before a still_s of rest: one motion, slower than a rest reads, found in
   // pieces (cutAtContacts() cuts where what moves with it changes).
@@ -822,6 +839,25 @@ Inference inferLabels(const task::Demonstration& d, const task::TaskSpec& spec, 
   return l.finish();
 }
 
+namespace {
+
+/// The label a person gave most rows of a motion (their labels and the motion's onset and
+/// offset need not agree to the row: a robot braking after its label ended), or null.
+const task::Label* labelOfMotion(const task::Demonstration& d, const InferredToken& t) {
+  std::map<std::pair<std::string, int>, int> rows;
+  const task::Label* most = nullptr;
+  int most_rows = 0;
+  for (int row = t.onset_row; row <= t.last_row; ++row) {
+    const task::Label& l = d.labels[row][t.token.entity];
+    if (l.isNull() || l.target < 0) continue;
+    const int n = ++rows[{l.action, l.target}];
+    if (n > most_rows) most = &l, most_rows = n;
+  }
+  return most;
+}
+
+}  // namespace
+
 Example Example::fromDemonstration(const task::Demonstration& d, const task::TaskSpec& spec) {
   Example ex;
   ex.source = d.source;
@@ -830,9 +866,9 @@ Example Example::fromDemonstration(const task::Demonstration& d, const task::Tas
   std::map<std::string, std::map<std::string, int>> votes;
   for (const auto& step : inf.steps)
     for (const auto& t : step.tokens) {
-      const int mid = (t.onset_row + t.last_row) / 2;
-      const task::Label& l = d.labels[mid][t.token.entity];
-      if (l.isNull() || l.target < 0) continue;
+      const task::Label* most = labelOfMotion(d, t);
+      if (!most) continue;
+      const task::Label& l = *most;
       // The word of a kind of motion: as labelled; the kind: as the motion shows it.
       ++votes[kindKey(spec, t.token.entity, l.target, t.load)][l.action];
       ++votes[coarseKindKey(spec, t.token.entity, l.target, t.load)][l.action];

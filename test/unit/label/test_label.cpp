@@ -341,6 +341,24 @@ TEST(Label, APushWithNoPauseAfterTheApproachIsTwoTokens) {
   EXPECT_TRUE(inf.notes.empty());
 }
 
+TEST(Label, TheExamplesWordIsTheLabelOfMostOfTheMotion) {
+  // The person's label of the push ended while the robot still rolled on (a late brake):
+  // the word is the one most of the motion's rows carry, not the one of its middle row.
+  Scene paused = pushScene(1.0);
+  const auto alone = paused.infer();
+  task::Demonstration ex = labelledByHand(paused, alone, "carry");
+  ASSERT_EQ(alone.steps.size(), 2u);
+  for (const auto& t : alone.steps[1].tokens)
+    for (int row = t.onset_row + (t.last_row - t.onset_row) * 2 / 5; row <= t.last_row; ++row)
+      ex.labels[row][t.token.entity] = {};
+  ex.analyze();
+  const auto example = label::Example::fromDemonstration(ex, paused.spec);
+  Scene s = pushScene(1.0);
+  const auto inf = s.infer(&example);
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:B1"}, {"R1:carry:G1", "B1:carry:G1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+}
+
 TEST(Label, APushThatBeginsAsTheApproachEndsIsTheCarriers) {
   // fetch, then the other robot to the occupied goal (as bench label_styles makes it),
   // demonstrated in every style at once: a push that begins on the rows at rest the
@@ -424,6 +442,31 @@ TEST(Label, ABoxHandedOnAtContactIsTwoSteps) {
   s.rest(1);
   const auto inf = s.infer();
   EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2", "B1:move:R2"}, {"R2:move:G2", "B1:move:G2"}}));
+}
+
+TEST(Label, AGiverThatFollowsTheReceiverHandedOnWhereTheBoxLeftIt) {
+  // R1 pushes the box east to R2 and stops behind it; R2 takes it on to G1 at once, and as
+  // soon as R2 is there R1 drives on in the heading it came in, to R2: where R1 stopped
+  // reads like a pause on its way. The box leaving it (the contact that changed) ends its
+  // hand-over: three steps, whichever the gap at the box (touching, or 1 cm apart).
+  for (const double gap : {0.0, 0.01}) {
+    Scene s;
+    s.pos[3] = {0.9, 0.6};  // G1
+    s.pos[0] = {0.1, 0.5};
+    s.pos[2] = {0.142 + gap, 0.5};
+    const Vector2d box_at_r2(0.458, 0.5);
+    s.pos[1] = box_at_r2 + Vector2d(0, 0.042);
+    s.rest(1);
+    s.move({{0, box_at_r2 - Vector2d(0.042 + gap, 0), 0, 2}, {2, box_at_r2, 0, 2}});
+    const Vector2d g1 = s.pos[3], u = (g1 - box_at_r2).normalized();
+    s.move({{1, g1 - 0.042 * u, 0, 2}, {2, g1, 0, 2}});
+    s.rest(0.3);
+    s.move({{0, s.pos[1] - 0.044 * (s.pos[1] - s.pos[0]).normalized(), 0, 2}});
+    s.rest(1);
+    EXPECT_EQ(tokens(s.infer(), s.spec),
+              (Steps{{"R1:move:R2", "B1:move:R2"}, {"R2:move:G1", "B1:move:G1"}, {"R1:move:R2"}}))
+        << "gap " << gap;
+  }
 }
 
 TEST(Label, ADriveToAnOccupiedGoalIsToTheGoal) {
