@@ -415,9 +415,8 @@ namespace {
 /// the decisions as demonstrated, each motion ending where the end points learned from
 /// them say: every trial finishes without a collision, its goal conditions met; and at
 /// every decision a carrier is at its load (task::togetherDistance) as in the
-/// demonstrations, so the network would see the load in hand. `loads_ride` false: carriers
-/// push their loads (mock_robots/loads_ride), as on the real table.
-void replayZoo(const std::string& family, int demos, bool loads_ride = true) {
+/// demonstrations, so the network would see the load in hand.
+void replayZoo(const std::string& family, int demos) {
   SCOPED_TRACE(family);
   uint64_t id = 0;
   tasks::ZooMotion motion;
@@ -431,10 +430,7 @@ void replayZoo(const std::string& family, int demos, bool loads_ride = true) {
   for (const task::Demonstration& demo : dir.demos) {
     SCOPED_TRACE(demo.source);
     const auto policy = [&](const std::vector<task::Snapshot>& h) { return replayDecision(demo, h); };
-    BodiesExecutionParams p;
-    p.noise_m = 0.001;
-    p.config.table.loads_ride = loads_ride;
-    BodiesExecution with(p);
+    BodiesExecution with = model(true);
     const Trial a = runTrial(dir.spec, demo, policy, gen, with, ends);
     EXPECT_TRUE(a.failures.empty()) << a.failures.front();
     for (const BodyContact& c : a.body_report.collisions)
@@ -481,10 +477,4 @@ TEST(BodiesExecution, TwoPairsCarryingAtOnceFinishWithoutACollision) {
 // stays or backs off as demonstrated.
 TEST(BodiesExecution, ARelayHandsItsBoxOnWithoutACollision) {
   replayZoo("zoo:41/direct-4mm", 2);
-}
-
-// The same relay with the box pushed body against body: the receiver goes round the box
-// to behind it, touching it only from there, and pushes it on to the goal.
-TEST(BodiesExecution, ARelayPushingItsBoxHandsItOnWithoutACollision) {
-  replayZoo("zoo:41/direct-4mm", 2, /*loads_ride=*/false);
 }
