@@ -44,7 +44,8 @@ double touchOnGoal(const task::TaskSpec& spec, int mover, int goal, const Vector
 
 /// How far from touching `mover`'s body at `end` is the nearest body that came to touch
 /// obstacle `target` (standing still) while the motion ran (at `at_end`, not at `where`: others sent to it in
-/// the same step, a crowd round it), if within `tolerance`; infinity when none is.
+/// the same step, a crowd round it), if within `tolerance`; infinity when none is. Touching,
+/// as both read: within `tolerance` of contact.
 double touchOnCrowd(const task::TaskSpec& spec, int mover, int target, const Vector2d& end,
                     const std::vector<Vector2d>& where, const std::vector<Vector2d>& at_end, double tolerance) {
   const double r = spec.arrival_radius;
@@ -52,7 +53,8 @@ double touchOnCrowd(const task::TaskSpec& spec, int mover, int target, const Vec
   if ((at_end[target] - where[target]).norm() > r / 4) return best;  // a crowd gathers at a body that stays
   for (int j = 0; j < static_cast<int>(where.size()); ++j) {
     if (j == mover || j == target || !spec.footprint(j).obstacle) continue;
-    const double joined = spec.contactDistance(j, target) + r / 4;
+    // Came to it as a motion reads a side touch: within `tolerance` of touching it.
+    const double joined = spec.contactDistance(j, target) + tolerance;
     if ((at_end[j] - at_end[target]).norm() > joined || (where[j] - where[target]).norm() <= joined) continue;
     const double gap = std::abs((end - at_end[j]).norm() - spec.contactDistance(mover, j));
     if (gap <= tolerance) best = std::min(best, gap);
