@@ -302,6 +302,8 @@ class Coordinator {
   const std::vector<StepRecord>& withdrawnSteps() const { return withdrawn_; }
   /// Robots lost for good during the run, with why ("R1: not tracked for 5 s").
   const std::vector<std::string>& lostRobots() const { return lost_reports_; }
+  /// The entities of the robots lost for good in this run, in task order.
+  std::vector<int> lostEntities() const;
 
  private:
   bool allTracked() const;

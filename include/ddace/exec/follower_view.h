@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,12 @@ class FollowerView {
   /// body (goals) are not kept.
   void track(const std::string& name, std::optional<task::EntityKind> kind, const Eigen::Vector2d& position, bool stale,
              double seen_s);
+
+  /// The robots the coordinator lost for good (CoordinatorState::lost; names of no robot of
+  /// the task are ignored and returned): each stays a standing body where it was last seen,
+  /// its pose no longer stale -- a dead robot is an obstacle, not a reason to stop every
+  /// robot that comes near it. Replaces the earlier list (empty: none).
+  std::vector<std::string> setLost(const std::vector<std::string>& names);
 
   /// Entity `name`'s segment `id` of `step` (`action`, `target`) ending at `end`: it
   /// replaces the last one, unless that id was reported ended already (another
@@ -82,6 +89,7 @@ class FollowerView {
   struct Tracked {
     SafetyBody body;
     double seen_s = 0;
+    bool known = false;  ///< a finite position was seen
   };
   bool isObject(const std::string& name) const;
   void bump(int step);
@@ -91,6 +99,7 @@ class FollowerView {
   std::map<std::string, Tracked> bodies_;
   std::map<std::string, Segment> segments_;
   std::map<std::string, uint32_t> ended_;  ///< the last segment id reported ended, by name
+  std::set<std::string> lost_;             ///< robots lost for good (setLost)
   std::map<int, uint64_t> versions_;
   std::vector<SafetyBody> others_;  ///< others()' answer
 };

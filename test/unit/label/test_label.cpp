@@ -573,6 +573,24 @@ TEST(Label, ARobotStoppingAtTheCrowdRoundItsTargetIsSentToTheTarget) {
   }
 }
 
+TEST(Label, ARobotStoppingBehindARowAtItsTargetIsSentToTheTarget) {
+  // R1, R2 and R3 are sent to the box in one step and end in a row: R3 touches only R2,
+  // which touches only R1, which touches the box. The crowd reaches through the row.
+  Scene s;
+  s.spec.entities.push_back({"R3", task::EntityKind::Robot, "hamster"});
+  s.pos.push_back({0.02, 0.5});
+  s.d.has_label_columns.assign(s.pos.size(), false);
+  s.pos[0] = {0.456, 0.2}, s.pos[1] = {0.15, 0.5};  // R1 from the south, the others from the west
+  s.rest(1);
+  const double r1_box = s.spec.contactDistance(0, 2), robots = s.spec.contactDistance(1, 0);
+  s.move(
+      {{0, {0.5 - r1_box, 0.5}}, {1, {0.5 - r1_box - robots, 0.5}, 0.3}, {5, {0.5 - r1_box - 2 * robots, 0.5}, 0.6}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:B1", "R2:move:B1", "R3:move:B1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
+}
+
 TEST(Label, AGoalTakenInTheSameStepIsTheTargetOfTheOneEndingBesideIt) {
   // R1 and R2 both sent to G1 at once: R1 takes it, R2 ends touching R1 from the side. G1
   // was free when R2 set off; it is read as occupied when R2 ended, so G1, not "halfway".
