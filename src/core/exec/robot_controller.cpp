@@ -171,7 +171,7 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   // What the motion may touch, as decided for its step: a body it ends against while that
   // body is at the end point, its load's likewise.
   const Eigen::Vector2d end_point = follower_.endPoint();
-  const double margin = params_.safety.margin_m;
+  const double reach = params_.safety.endsAgainstReachM();
   // A riding load is part of its carrier's body. A pushed one is while the carrier pushes
   // it (kept clear of others); otherwise it is a body like any other, except that the
   // carrier may touch it from behind (behindLoad), on its way to push it.
@@ -180,9 +180,9 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
       pushes && !push && behindLoad(pose.position(), load->position, contacts_.load_end, end_point);
   for (SafetyBody& b : others) {
     b.touchable = (from_behind && &b == load) || (contacts_.ends_against.count(b.name) &&
-                                                  endsAgainst(end_point, radius_m, b.position, b.radius_m, margin));
+                                                  endsAgainst(end_point, radius_m, b.position, b.radius_m, reach));
     b.load_touchable = in_hand && contacts_.load_ends_against.count(b.name) &&
-                       endsAgainst(contacts_.load_end, load->radius_m, b.position, b.radius_m, margin);
+                       endsAgainst(contacts_.load_end, load->radius_m, b.position, b.radius_m, reach);
   }
   if (!in_hand) load = nullptr;
   const SafetyCommand c = filter_.filter(name_, pose, radius_m, pose_age_s, o.wheels, o.progress * follower_.lengthM(),
