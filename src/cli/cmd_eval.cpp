@@ -104,11 +104,12 @@ DDACE_COMMAND(
      "step after the last step ended, or async, each token when its own predecessors under "
      "the model's learned dependencies ended; prints the makespan, the precedence violations and whom each "
      "token waited for; on points the tokens' schedule, with bodies every trial runs through the coordinator, "
-     "its segments starting on the table when it sends them. "
+     "its segments starting on the table when it sends them, recovering as the coordinator node does by default "
+     "(max_replans 2). "
      "--perturb: every trial runs through the coordinator (entities following their paths ideally in time; "
      "with --execution diffdrive, on the table with bodies) "
      "three times: unperturbed, and with the table changed once at a drawn moment (--seed) without recovery "
-     "and with it (max_replans 2: the step re-decided from the scene, or the path re-planned); prints the "
+     "and with it (max_replans 2, the default: the step re-decided from the scene, or the path re-planned); prints the "
      "trials that succeeded, the re-plans and re-decisions and the time lost (docs/execution.md, "
      "\"Perturbations\")",
      runEval});

@@ -661,6 +661,7 @@ class CoordinatorNode::Impl {
       s.steps.push_back(m);
     }
     for (int e : coordinator_->activeEntities()) s.active.push_back(spec_.entities[e].name);
+    for (int e : coordinator_->lostEntities()) s.lost.push_back(spec_.entities[e].name);
     for (const auto& step : coordinator_->steps()) {
       for (const auto& t : step.tokens) {
         if (!t.token.isMotion() || t.started_s < 0 || t.state == exec::SegmentState::Done) continue;

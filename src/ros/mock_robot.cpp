@@ -9,6 +9,7 @@
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
 #include <std_msgs/Bool.h>
+#include <std_msgs/String.h>
 #include <tf2/LinearMath/Quaternion.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
@@ -85,6 +86,16 @@ class MockRobotNode::Impl {
     const std::string topic = rosparam::param(pnh, "entities_topic", defaults.entities_topic);
     entities_pub_ = nh.advertise<ddace::EntityArray>(topic, 5);
     estop_sub_ = nh.subscribe("/ddace/estop", 5, &Impl::onEstop, this);
+    // A hand on the table (perturbation tests): puts a body down elsewhere, holds a robot.
+    subs_.push_back(pnh.subscribe<ddace::Entity>(
+        "place", 5,
+        [this, topic = pnh.resolveName("place")](const ddace::Entity::ConstPtr& m) { onPlace(topic, *m); }));
+    for (const bool hold : {true, false}) {
+      const std::string t = pnh.resolveName(hold ? "hold" : "release");
+      subs_.push_back(pnh.subscribe<std_msgs::String>(
+          hold ? "hold" : "release", 5,
+          [this, hold, t](const std_msgs::String::ConstPtr& m) { onHold(t, m->data, hold); }));
+    }
     timer_ = nh.createTimer(ros::Duration(sim_->periodS()), &Impl::onTimer, this);
     if (publish_tf_) publishStaticFrames();
     diag_timer_ =
@@ -214,6 +225,33 @@ class MockRobotNode::Impl {
     t.transform.rotation.z = q.z();
     t.transform.rotation.w = q.w();
     return t;
+  }
+
+  /// Index of entity `name` of `kind`, or -1 after logging why `topic` refused it.
+  int entityNamed(const std::string& topic, const std::string& name, bool robot_only) const {
+    const int i = spec_.entityIndex(name);
+    const bool body = i >= 0 && spec_.entities[i].kind != task::EntityKind::Goal;
+    if (body && (!robot_only || spec_.entities[i].kind == task::EntityKind::Robot)) return i;
+    ROS_ERROR("mock_robots: %s names '%s', not a %s of the task: ignored", topic.c_str(), name.c_str(),
+              robot_only ? "robot" : "robot or object");
+    return -1;
+  }
+  void onPlace(const std::string& topic, const ddace::Entity& m) {
+    const int i = entityNamed(topic, m.name, false);
+    if (i < 0) return;
+    try {
+      sim_->place(i, {m.pose.x, m.pose.y});
+    } catch (const std::exception& ex) {
+      ROS_ERROR("mock_robots: %s: %s", topic.c_str(), ex.what());
+      return;
+    }
+    ROS_WARN("mock_robots: a hand put %s down at (%.3f, %.3f)", m.name.c_str(), m.pose.x, m.pose.y);
+  }
+  void onHold(const std::string& topic, const std::string& name, bool hold) {
+    const int i = entityNamed(topic, name, true);
+    if (i < 0) return;
+    sim_->setStalled(i, hold);
+    ROS_WARN("mock_robots: %s %s", name.c_str(), hold ? "held (its wheels do not turn)" : "released");
   }
 
   void onEstop(const std_msgs::Bool& m) {

@@ -9,6 +9,8 @@
 #include <ros/ros.h>
 #include <std_msgs/Bool.h>
 
+#include <ddace/CoordinatorState.h>
+
 #include "ddace/exec/follower_view.h"
 #include "ddace/exec/robot_controller.h"
 #include "ddace/task/body_geometry.h"
@@ -47,7 +49,7 @@ class PathFollowerNode::Impl {
          {std::pair{"rate_hz", rate_hz_}, {"pose_timeout_s", pose_timeout_s_}, {"stale_fail_s", params_.stale_fail_s}})
       if (!(v > 0)) throw Error("parameter '" + pnh.resolveName(p) + "' must be positive");
     params_.validate();
-    view_ = std::make_unique<exec::FollowerView>(kinds, arrival_m, params_.safety.margin_m);
+    view_ = std::make_unique<exec::FollowerView>(kinds, arrival_m, params_.safety.endsAgainstReachM());
     for (const auto& name : names) {
       auto r = std::make_unique<Robot>(name, params_);
       r->wheels = nh.advertise<ddace::WheelCommand>("/robots/" + name + "/wheels", 10);
@@ -70,6 +72,7 @@ class PathFollowerNode::Impl {
       }
     subs_.push_back(nh.subscribe("/ddace/entities", 5, &Impl::onEntities, this));
     subs_.push_back(nh.subscribe("/ddace/estop", 5, &Impl::onEstop, this));
+    subs_.push_back(nh.subscribe("/coordinator/state", 5, &Impl::onCoordinatorState, this));
     timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz_), &Impl::onTimer, this);
     ROS_INFO("path_follower: driving %zu robots at %.0f Hz (cruise %.3f m/s, stop radius %.3f m), safety filter %s",
              robots_.size(), rate_hz_, params_.gains.cruise_speed_mps, params_.gains.stop_radius_m,
@@ -172,6 +175,16 @@ class PathFollowerNode::Impl {
     }
   }
 
+  /// The robots the coordinator lost for good stay obstacles where they were last seen.
+  void onCoordinatorState(const ddace::CoordinatorState& m) {
+    if (m.lost == lost_) return;
+    lost_ = m.lost;
+    for (const auto& n : view_->setLost(lost_))
+      ROS_WARN("path_follower: /coordinator/state names '%s' lost, not a robot of the task: ignored", n.c_str());
+    for (const auto& n : lost_)
+      ROS_WARN("path_follower: %s is lost for good: kept as an obstacle where it was last seen", n.c_str());
+  }
+
   void onEstop(const std_msgs::Bool& m) {
     if (m.data != estopped_) ROS_WARN("path_follower: e-stop %s", m.data ? "ACTIVE: zeroing every robot" : "released");
     estopped_ = m.data;
@@ -227,6 +240,7 @@ class PathFollowerNode::Impl {
 
   std::map<std::string, std::unique_ptr<Robot>> robots_;
   std::unique_ptr<exec::FollowerView> view_;
+  std::vector<std::string> lost_;         ///< the coordinator's lost robots, as last published
   std::vector<exec::SafetyBody> others_;  ///< scratch of onTimer
   std::vector<ros::Subscriber> subs_;
   exec::ControllerParams params_;

@@ -1,14 +1,16 @@
-// A stalled mock robot: its segment times out, the run aborts cleanly (after re-planning it, and
-// with a policy that reads the scene re-deciding its step, as often as coordinator/max_replans
-// allows), every wheel is zero.
+// A stalled mock robot: its segment times out, the run aborts cleanly (without recovery at
+// once; with it after re-planning it, and with a policy that reads the scene re-deciding its
+// step, as often as coordinator/max_replans allows), every wheel is zero.
 #include "exec_common.h"
 
 using namespace exec_test;
 
+// Without recovery (max_replans: 0, the paper's execution) the first time-out aborts.
 TEST(ExecStall, SegmentTimeoutAbortsTheRunWithZeroWheels) {
   TaskGraph g("stall", "task4", 3, 1);
-  const std::string config =
-      g.config({{"coordinator", "segment_timeout_s", "8.0"}, {"coordinator", "segment_timeout_per_m_s", "0.0"}});
+  const std::string config = g.config({{"coordinator", "segment_timeout_s", "8.0"},
+                                       {"coordinator", "segment_timeout_per_m_s", "0.0"},
+                                       {"coordinator", "max_replans", "0"}});
   Watcher w(g.nh, g.test.spec);
   Launch graph(g.args({"monitor:=false", "config:=" + config, "stalled:=[R2]"}));
   const std::string started = startRun(w, 30.0);

@@ -94,8 +94,10 @@ struct CoordinatorConfig {
   /// (failed, timed out) is re-planned, and re-decided once its re-plans are used up. A fixed
   /// order (it would decide the same) only re-plans. After that, or when the token's entity
   /// or target is not tracked, the run aborts naming why. 0: any of these aborts (the
-  /// paper's execution).
-  int max_replans = 0;
+  /// paper's execution). The default, 2, recovers a stall, a push or a nudged box twice
+  /// before the run gives up: one more than a single perturbation needs, since a re-plan
+  /// that starts next to a body may fail once more (docs/bench/dispatch.md).
+  int max_replans = 2;
   /// A robot is lost for good (a dead battery, carried off the table) when it has not been
   /// tracked this long during a run, or at once when a token of it failed or timed out while
   /// it is not tracked. With max_replans > 0 the run goes on without it where the policy
@@ -300,6 +302,8 @@ class Coordinator {
   const std::vector<StepRecord>& withdrawnSteps() const { return withdrawn_; }
   /// Robots lost for good during the run, with why ("R1: not tracked for 5 s").
   const std::vector<std::string>& lostRobots() const { return lost_reports_; }
+  /// The entities of the robots lost for good in this run, in task order.
+  std::vector<int> lostEntities() const;
 
  private:
   bool allTracked() const;

@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -32,15 +33,21 @@ namespace ddace::exec {
 class FollowerView {
  public:
   /// `kinds`: the task's entities by name (empty: none known; a tracked body of unknown
-  /// kind is then kept off as an object); `arrival_radius_m`: the task's; `margin_m`: the
-  /// safety filter's.
-  FollowerView(std::map<std::string, task::Entity> kinds, double arrival_radius_m, double margin_m);
+  /// kind is then kept off as an object); `arrival_radius_m`: the task's; `reach_m`: the
+  /// safety filter's SafetyParams::endsAgainstReachM().
+  FollowerView(std::map<std::string, task::Entity> kinds, double arrival_radius_m, double reach_m);
 
   /// A body as tracked at `seen_s`: `kind` as the tracker names it (the task's kind wins),
   /// `position` (non-finite: unknown), `stale` as the tracker flags it. Entities without a
   /// body (goals) are not kept.
   void track(const std::string& name, std::optional<task::EntityKind> kind, const Eigen::Vector2d& position, bool stale,
              double seen_s);
+
+  /// The robots the coordinator lost for good (CoordinatorState::lost; names of no robot of
+  /// the task are ignored and returned): each stays a standing body where it was last seen,
+  /// its pose no longer stale -- a dead robot is an obstacle, not a reason to stop every
+  /// robot that comes near it. Replaces the earlier list (empty: none).
+  std::vector<std::string> setLost(const std::vector<std::string>& names);
 
   /// Entity `name`'s segment `id` of `step` (`action`, `target`) ending at `end`: it
   /// replaces the last one, unless that id was reported ended already (another
@@ -82,15 +89,17 @@ class FollowerView {
   struct Tracked {
     SafetyBody body;
     double seen_s = 0;
+    bool known = false;  ///< a finite position was seen
   };
   bool isObject(const std::string& name) const;
   void bump(int step);
 
   std::map<std::string, task::Entity> kinds_;
-  double arrival_m_, margin_m_;
+  double arrival_m_, reach_m_;
   std::map<std::string, Tracked> bodies_;
   std::map<std::string, Segment> segments_;
   std::map<std::string, uint32_t> ended_;  ///< the last segment id reported ended, by name
+  std::set<std::string> lost_;             ///< robots lost for good (setLost)
   std::map<int, uint64_t> versions_;
   std::vector<SafetyBody> others_;  ///< others()' answer
 };

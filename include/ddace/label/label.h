@@ -62,6 +62,9 @@ struct Example {
   std::vector<task::Step> steps;             ///< as labelled
   /// tied kinds ("goal,object,robot", and as classes "body,goal") -> the kind chosen
   std::map<std::string, task::EntityKind> tie_kind;
+  /// Some step sends a robot to an entity that moves in the same step (a robot following
+  /// another): without one, a motion ending at such a mover stopped at where it went.
+  bool sends_to_movers = false;
   /// Reads the example's words off its own motion and labels. Throws ddace::Error naming
   /// `d.source` when it has no labelled motion.
   static Example fromDemonstration(const task::Demonstration& d, const task::TaskSpec& spec);
@@ -119,6 +122,10 @@ class Labeller {
   /// loads) and action words.
   std::vector<InferredToken> motionTokens(const std::vector<Motion>& g, const std::vector<int>& carrier, int first_row,
                                           size_t k, bool aligned);
+  /// A motion that ended at a mover of its step which itself went to another entity T (a
+  /// crowd round T): T when the example never sends a robot to a mover of its step, else
+  /// listed with T as the alternative.
+  void readChain(std::vector<InferredToken>& tokens, const std::vector<Motion>& g, const std::vector<int>& carrier);
   /// The target of a motion that is no load (endPoint(); a tie resolved by the example).
   void readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned);
   /// Between the tied end points of `ep`: the example's step k (aligned), the example's
@@ -150,6 +157,9 @@ class Labeller {
   bool staysWith(const Motion& m, int j) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
   bool pausedOnItsWay(const Motion& a, const Motion& b) const;
+  /// `a` (a robot's motion) started an object moving, touching it, was still with it when it
+  /// stopped, and the object went on farther than a nudge before `b` began: it let go.
+  bool letGo(const Motion& a, const Motion& b) const;
   const task::ActionRule* rule(int mover, int target, int load) const;
   std::string word(int mover, int target, int load, int row);
   void placeInPlace(const std::vector<const task::Step*>& steps, int from, int to);

@@ -51,9 +51,6 @@ Perturbation parsePerturbation(const std::string& text, const std::string& what)
 /// "box_moved 6 cm", "robot_stalled 5 s", ...
 std::string toString(const Perturbation& p);
 
-/// The recoveries a perturbed run is given: CoordinatorConfig::max_replans.
-inline constexpr int kPerturbedMaxReplans = 2;
-
 /// One run of a trial through the coordinator.
 struct CoordinatedRun {
   exec::Trial trial;
@@ -82,7 +79,7 @@ CoordinatedRun runCoordinated(const Model& model, const task::TaskSpec& spec, co
                               const exec::BodiesExecutionParams* bodies = nullptr);
 
 /// Per trial: unperturbed, perturbed without recovery (max_replans 0), perturbed with
-/// (kPerturbedMaxReplans); all three with the same draw.
+/// (CoordinatorConfig::max_replans's default); all three with the same draw.
 struct PerturbationReport {
   std::string task, variant, dispatch;
   Perturbation perturbation;

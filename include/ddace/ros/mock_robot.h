@@ -10,7 +10,9 @@
 // tracked poses, on the real table alike). This node
 // only reads the parameters and the scene and converts messages. Publishes every entity on `entities_topic` (default
 // /ddace/entities; remap it when a synthetic camera + tracker close the loop) and tf table -> entity. Parameters:
-// config/execution.yaml, section mock_robots.
+// config/execution.yaml, section mock_robots. A hand on the table, for perturbation tests:
+// ~place (ddace/Entity: a robot or object put down at pose.x, pose.y, at rest), ~hold and
+// ~release (std_msgs/String: a robot's wheels blocked, freed); other names are logged and ignored.
 #pragma once
 
 #include <memory>

@@ -200,8 +200,7 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   req.id = nextId();
   req.step = static_cast<int>(steps_.size());
   req.history = history_;
-  for (size_t i = 0; i < lost_.size(); ++i)
-    if (lost_[i]) req.lost.push_back(static_cast<int>(i));
+  req.lost = lostEntities();
   pending_decision_ = req.id;
   decision_since_s_ = now_s;
   ++decisions_requested_;
@@ -326,6 +325,13 @@ void Coordinator::checkLost(double now_s, CoordinatorOutput& out) {
     if (!lost_[i] && untracked_since_[i] >= 0 && spec_.entities[i].kind == task::EntityKind::Robot &&
         now_s - untracked_since_[i] >= config_.robot_lost_after_s)
       loseRobot(static_cast<int>(i), "not tracked for " + seconds(config_.robot_lost_after_s), now_s, out);
+}
+
+std::vector<int> Coordinator::lostEntities() const {
+  std::vector<int> out;
+  for (size_t i = 0; i < lost_.size(); ++i)
+    if (lost_[i]) out.push_back(static_cast<int>(i));
+  return out;
 }
 
 std::string Coordinator::lostWhy(int e) const {

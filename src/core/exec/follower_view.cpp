@@ -7,8 +7,8 @@
 
 namespace ddace::exec {
 
-FollowerView::FollowerView(std::map<std::string, task::Entity> kinds, double arrival_radius_m, double margin_m)
-    : kinds_(std::move(kinds)), arrival_m_(arrival_radius_m), margin_m_(margin_m) {}
+FollowerView::FollowerView(std::map<std::string, task::Entity> kinds, double arrival_radius_m, double reach_m)
+    : kinds_(std::move(kinds)), arrival_m_(arrival_radius_m), reach_m_(reach_m) {}
 
 void FollowerView::track(const std::string& name, std::optional<task::EntityKind> kind, const Eigen::Vector2d& position,
                          bool stale, double seen_s) {
@@ -21,9 +21,20 @@ void FollowerView::track(const std::string& name, std::optional<task::EntityKind
   t.body.radius_m = shape.radius_m;
   t.body.robot = e.kind == task::EntityKind::Robot;
   const bool finite = position.allFinite();
-  if (finite) t.body.position = position;
+  if (finite) t.body.position = position, t.known = true;
   t.body.stale = stale || !finite;
   t.seen_s = seen_s;
+}
+
+std::vector<std::string> FollowerView::setLost(const std::vector<std::string>& names) {
+  std::vector<std::string> refused;
+  lost_.clear();
+  for (const std::string& n : names) {
+    const auto k = kinds_.find(n);
+    if (k != kinds_.end() && k->second.kind == task::EntityKind::Robot) lost_.insert(n);
+    else refused.push_back(n);
+  }
+  return refused;
 }
 
 bool FollowerView::noteSegment(const std::string& name, uint32_t id, int step, const std::string& action,
@@ -90,7 +101,7 @@ MotionContacts FollowerView::contacts(const std::string& robot, const Eigen::Vec
     at.push_back(b);
   }
   const Segment& s = own->second;
-  return motionContacts(position, radiusOf(robot), s.end, s.step, s.action, s.target, at, margin_m_, arrival_m_);
+  return motionContacts(position, radiusOf(robot), s.end, s.step, s.action, s.target, at, reach_m_, arrival_m_);
 }
 
 const std::vector<SafetyBody>& FollowerView::others(const std::string& robot, double now_s, double& self_age_s) {
@@ -104,6 +115,11 @@ const std::vector<SafetyBody>& FollowerView::others(const std::string& robot, do
     others_.push_back(t.body);
     others_.back().age_s = now_s - t.seen_s;
     others_.back().standing = !segments_.count(name);
+    if (lost_.count(name) && t.known) {  // where it was last seen, for good
+      others_.back().stale = false;
+      others_.back().age_s = 0;
+      others_.back().standing = true;
+    }
   }
   return others_;
 }

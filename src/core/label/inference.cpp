@@ -42,18 +42,32 @@ double touchOnGoal(const task::TaskSpec& spec, int mover, int goal, const Vector
   return best;
 }
 
-/// How far from touching `mover`'s body at `end` is the nearest body that came to touch
-/// obstacle `target` (standing still) while the motion ran (at `at_end`, not at `where`: others sent to it in
-/// the same step, a crowd round it), if within `tolerance`; infinity when none is.
+/// How far from touching `mover`'s body at `end` is the nearest body of the crowd round
+/// obstacle `target` (standing still): bodies that came while the motion ran (at `at_end`,
+/// not at `where`: others sent to it in the same step) to touch it, or to touch one of the
+/// crowd (a robot stopped behind another), if within `tolerance`; infinity when none is.
+/// Touching, as a side reading: within `tolerance` of contact.
 double touchOnCrowd(const task::TaskSpec& spec, int mover, int target, const Vector2d& end,
                     const std::vector<Vector2d>& where, const std::vector<Vector2d>& at_end, double tolerance) {
   const double r = spec.arrival_radius;
   double best = std::numeric_limits<double>::infinity();
   if ((at_end[target] - where[target]).norm() > r / 4) return best;  // a crowd gathers at a body that stays
-  for (int j = 0; j < static_cast<int>(where.size()); ++j) {
-    if (j == mover || j == target || !spec.footprint(j).obstacle) continue;
-    const double joined = spec.contactDistance(j, target) + r / 4;
-    if ((at_end[j] - at_end[target]).norm() > joined || (where[j] - where[target]).norm() <= joined) continue;
+  const int n = static_cast<int>(where.size());
+  std::vector<bool> crowd(where.size(), false);
+  crowd[target] = true;
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (int j = 0; j < n; ++j) {
+      if (crowd[j] || j == mover || !spec.footprint(j).obstacle) continue;
+      for (int k = 0; k < n && !crowd[j]; ++k) {
+        const double joined = spec.contactDistance(j, k) + tolerance;
+        crowd[j] = crowd[k] && (at_end[j] - at_end[k]).norm() <= joined && (where[j] - where[k]).norm() > joined;
+      }
+      grew = grew || crowd[j];
+    }
+  }
+  for (int j = 0; j < n; ++j) {
+    if (!crowd[j] || j == target) continue;
     const double gap = std::abs((end - at_end[j]).norm() - spec.contactDistance(mover, j));
     if (gap <= tolerance) best = std::min(best, gap);
   }

@@ -148,9 +148,26 @@ std::vector<bool> Labeller::candidatesOf(const Motion& m) const {
   return c;
 }
 
+// A hand-over: the object's motion began at a's touch (an object's pieces pending with
+// a's), and it went on while a rested.
+bool Labeller::letGo(const Motion& a, const Motion& b) const {
+  const auto& E = spec_.entities;
+  if (E[a.entity].kind != task::EntityKind::Robot) return false;
+  const double slack = options_.still_s / 2;  // the precision onsets and offsets are dated to
+  for (const Motion& l : pending_)
+    if (E[l.entity].kind == task::EntityKind::Object && l.on_t >= a.on_t - slack && l.on_t <= a.off_t &&
+        together(l.at_onset, a.entity, l.entity) && together(a.at_offset, a.entity, l.entity) &&
+        (b.at_onset[l.entity] - a.at_offset[l.entity]).norm() >= options_.nudge_m)
+      return true;
+  return false;
+}
+
 // A pause: a motion that stopped away from every entity, or over one but goes on in the
 // heading it came in (not taking along what it stopped at), goes on within pause_s.
 bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
+  // What moved with it went on without it: a hand-over, read from the contact that
+  // changed, wherever the giver stopped and whichever way it leaves.
+  if (letGo(a, b)) return false;
   // No rest between them (within the precision onsets and offsets are dated to), or b
   // crept on before a still_s of rest: one motion, slower than a rest reads, found in
   // pieces (cutAtContacts() cuts where what moves with it changes).
@@ -702,34 +719,68 @@ void Labeller::nameAction(InferredToken& tok, const Motion& m, bool is_load) {
   tok.token.action = word(m.entity, tok.token.target, tok.load, m.on_row);
 }
 
+void Labeller::readChain(std::vector<InferredToken>& tokens, const std::vector<Motion>& g,
+                         const std::vector<int>& carrier) {
+  const auto& E = spec_.entities;
+  for (size_t i = 0; i < g.size(); ++i) {
+    InferredToken& tok = tokens[i];
+    if (carrier[i] >= 0 || tok.load != 0 || tok.token.target < 0) continue;
+    const int c = tok.token.target;
+    // c moved in this step, by itself, to a body other than this one, and was there when this
+    // motion ended (it had got there first: a crowd round that body, not a robot that left
+    // later).
+    int beyond = -1;
+    for (size_t j = 0; j < g.size(); ++j)
+      if (j != i && g[j].entity == c && carrier[j] < 0 && tokens[j].load == 0 && tokens[j].token.target >= 0 &&
+          tokens[j].token.target != g[i].entity && spec_.footprint(tokens[j].token.target).obstacle &&
+          g[j].off_t <= g[i].off_t + options_.still_s / 2)
+        beyond = tokens[j].token.target;
+    if (beyond < 0) continue;
+    if (example_ && !example_->sends_to_movers) {
+      tok.token.target = beyond;
+      continue;
+    }
+    note(g[i].off_row,
+         E[g[i].entity].name + " ended at " + E[c].name + ", which itself went to " + E[beyond].name +
+             " in this step: sent to " + E[c].name + ", or to " + E[beyond].name +
+             " (stopped at the crowd round it)?; took " + E[c].name,
+         g[i].entity);
+  }
+}
+
 std::vector<InferredToken> Labeller::motionTokens(const std::vector<Motion>& g, const std::vector<int>& carrier,
                                                   int first_row, size_t k, bool aligned) {
   std::vector<InferredToken> tokens(g.size());
-  // Carriers and lone movers first, then their loads.
-  for (int pass = 0; pass < 2; ++pass) {
+  for (size_t i = 0; i < g.size(); ++i) {
+    InferredToken& tok = tokens[i];
+    tok.token.entity = g[i].entity;
+    tok.first_row = first_row;
+    tok.onset_row = g[i].on_row;
+    tok.last_row = g[i].off_row;
+    const bool has_load = std::find(carrier.begin(), carrier.end(), static_cast<int>(i)) != carrier.end();
+    tok.load = carrier[i] >= 0 ? 2 : has_load ? 1 : 0;
+  }
+  // Carriers and lone movers first (every target, then chains through movers of the step,
+  // then words), then their loads.
+  for (size_t i = 0; i < g.size(); ++i) {
+    if (carrier[i] >= 0) continue;
+    int load = -1;
+    for (size_t j = 0; j < g.size() && load < 0; ++j)
+      if (carrier[j] == static_cast<int>(i)) load = g[j].entity;
+    readTarget(tokens[i], g[i], load, k, aligned);
+  }
+  readChain(tokens, g, carrier);
+  for (int pass = 0; pass < 2; ++pass)
     for (size_t i = 0; i < g.size(); ++i) {
-      const Motion& m = g[i];
       const bool is_load = carrier[i] >= 0;
       if (is_load != (pass == 1)) continue;
       InferredToken& tok = tokens[i];
-      tok.token.entity = m.entity;
-      tok.first_row = first_row;
-      tok.onset_row = m.on_row;
-      tok.last_row = m.off_row;
-      const bool has_load = std::find(carrier.begin(), carrier.end(), static_cast<int>(i)) != carrier.end();
-      tok.load = is_load ? 2 : has_load ? 1 : 0;
       if (is_load) {
         tok.carrier = g[carrier[i]].entity;
         tok.token.target = tokens[carrier[i]].token.target;
-      } else {
-        int load = -1;
-        for (size_t j = 0; j < g.size() && load < 0; ++j)
-          if (carrier[j] == static_cast<int>(i)) load = g[j].entity;
-        readTarget(tok, m, load, k, aligned);
       }
-      if (tok.token.target >= 0) nameAction(tok, m, is_load);
+      if (tok.token.target >= 0) nameAction(tok, g[i], is_load);
     }
-  }
   return tokens;
 }
 
@@ -822,6 +873,25 @@ Inference inferLabels(const task::Demonstration& d, const task::TaskSpec& spec, 
   return l.finish();
 }
 
+namespace {
+
+/// The label a person gave most rows of a motion (their labels and the motion's onset and
+/// offset need not agree to the row: a robot braking after its label ended), or null.
+const task::Label* labelOfMotion(const task::Demonstration& d, const InferredToken& t) {
+  std::map<std::pair<std::string, int>, int> rows;
+  const task::Label* most = nullptr;
+  int most_rows = 0;
+  for (int row = t.onset_row; row <= t.last_row; ++row) {
+    const task::Label& l = d.labels[row][t.token.entity];
+    if (l.isNull() || l.target < 0) continue;
+    const int n = ++rows[{l.action, l.target}];
+    if (n > most_rows) most = &l, most_rows = n;
+  }
+  return most;
+}
+
+}  // namespace
+
 Example Example::fromDemonstration(const task::Demonstration& d, const task::TaskSpec& spec) {
   Example ex;
   ex.source = d.source;
@@ -830,9 +900,9 @@ Example Example::fromDemonstration(const task::Demonstration& d, const task::Tas
   std::map<std::string, std::map<std::string, int>> votes;
   for (const auto& step : inf.steps)
     for (const auto& t : step.tokens) {
-      const int mid = (t.onset_row + t.last_row) / 2;
-      const task::Label& l = d.labels[mid][t.token.entity];
-      if (l.isNull() || l.target < 0) continue;
+      const task::Label* most = labelOfMotion(d, t);
+      if (!most) continue;
+      const task::Label& l = *most;
       // The word of a kind of motion: as labelled; the kind: as the motion shows it.
       ++votes[kindKey(spec, t.token.entity, l.target, t.load)][l.action];
       ++votes[coarseKindKey(spec, t.token.entity, l.target, t.load)][l.action];
@@ -840,6 +910,11 @@ Example Example::fromDemonstration(const task::Demonstration& d, const task::Tas
         for (const bool bodies : {false, true})
           ex.tie_kind[tiedKinds(spec, t.tied, bodies)] = spec.entities[l.target].kind;
     }
+  for (const auto& step : d.steps)
+    for (const auto& t : step.tokens)
+      for (const auto& o : step.tokens)
+        ex.sends_to_movers =
+            ex.sends_to_movers || (t.isMotion() && o.isMotion() && o.entity != t.entity && t.target == o.entity);
   for (const auto& [k, words] : votes) {
     auto best =
         std::max_element(words.begin(), words.end(), [](const auto& a, const auto& b) { return a.second < b.second; });

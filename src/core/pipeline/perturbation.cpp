@@ -465,15 +465,18 @@ class Runner {
         return "step " + std::to_string(k + 1) + ": predicted " + keys(t.predicted, k) + " demonstrated " +
                keys(gt_.steps, k);
     if (score.achieved_robot_motions < score.gt_robot_motions) return "a robot motion stopped short of its end point";
-    if (!t.body_report.collisions.empty()) {
-      const exec::BodyContact& c = t.body_report.collisions.front();
-      char what[160];
-      std::snprintf(what, sizeof what, "%zu collision(s), the first at %.1f s: %s touched %s",
-                    t.body_report.collisions.size(), c.time_s, spec_.entities[static_cast<size_t>(c.a)].name.c_str(),
-                    spec_.entities[static_cast<size_t>(c.b)].name.c_str());
-      return what;
-    }
+    if (!t.body_report.collisions.empty()) return collisions(t);
     return "a goal condition does not hold";
+  }
+
+  /// "2 collision(s), the first at 3.1 s: R1 touched R2".
+  std::string collisions(const exec::Trial& t) const {
+    const exec::BodyContact& c = t.body_report.collisions.front();
+    char what[160];
+    std::snprintf(what, sizeof what, "%zu collision(s), the first at %.1f s: %s touched %s",
+                  t.body_report.collisions.size(), c.time_s, spec_.entities[static_cast<size_t>(c.a)].name.c_str(),
+                  spec_.entities[static_cast<size_t>(c.b)].name.c_str());
+    return what;
   }
 
   /// Why a run that finished without its lost robots did not do the task ("" when it did):
@@ -486,7 +489,7 @@ class Runner {
           !task::arrived(ex.executed.back(), ex.goal, within))
         return "step " + std::to_string(ex.step + 1) + ": " + task::tokenKey(ex.token, spec_) +
                " stopped short of its end point";
-    if (!t.body_report.collisions.empty()) return std::to_string(t.body_report.collisions.size()) + " collision(s)";
+    if (!t.body_report.collisions.empty()) return collisions(t);
     const std::vector<int>& lost = lost_entities_;
     for (const task::GoalCondition& g : spec_.goal_conditions) {
       const bool names_lost = std::any_of(lost.begin(), lost.end(), [&](int e) {
@@ -638,9 +641,10 @@ PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& te
     const task::Demonstration& gt = test.demos[i];
     const uint64_t s = seed * 1000003ULL + i;
     r.demos.push_back(std::filesystem::path(gt.source).filename().string());
-    r.unperturbed.push_back(runCoordinated(model, test.spec, gt, {}, kPerturbedMaxReplans, dispatch, s, bodies));
+    const int recoveries = exec::CoordinatorConfig{}.max_replans;
+    r.unperturbed.push_back(runCoordinated(model, test.spec, gt, {}, recoveries, dispatch, s, bodies));
     r.without.push_back(runCoordinated(model, test.spec, gt, p, 0, dispatch, s, bodies));
-    r.with.push_back(runCoordinated(model, test.spec, gt, p, kPerturbedMaxReplans, dispatch, s, bodies));
+    r.with.push_back(runCoordinated(model, test.spec, gt, p, recoveries, dispatch, s, bodies));
   }
   return r;
 }

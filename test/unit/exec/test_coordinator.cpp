@@ -67,11 +67,19 @@ std::vector<SegmentCommand> answerPaths(Coordinator& c, const CoordinatorOutput&
   return segs;
 }
 
+/// The paper's execution: any failure or time-out aborts the run (no recovery;
+/// test_coordinator_replan.cpp covers the default's).
+CoordinatorConfig withoutRecovery() {
+  CoordinatorConfig cfg;
+  cfg.max_replans = 0;
+  return cfg;
+}
+
 struct Fixture : ::testing::Test {
   task::TaskDir dir = task4();
   const task::Demonstration& demo = dir.demos.front();
   task::EndPointModel ends = task::learnEndPoints(dir.spec, dir.demos);
-  Coordinator c{dir.spec, CoordinatorConfig{}, ends};
+  Coordinator c{dir.spec, withoutRecovery(), ends};
   std::vector<Vector2d> start = demo.positions.front();
 
   /// Starts and answers the first decision with step 1 of the demonstration.
@@ -200,7 +208,7 @@ TEST_F(Fixture, DoneCountsAtTheEndPointNotAtTheTargetsCentre) {
 }
 
 TEST_F(Fixture, SegmentTimeoutAbortsAndStopsTheRobots) {
-  CoordinatorConfig cfg;
+  CoordinatorConfig cfg = withoutRecovery();
   cfg.segment_timeout_s = 2.0;
   cfg.segment_timeout_per_m_s = 0;
   c = Coordinator(dir.spec, cfg, ends);

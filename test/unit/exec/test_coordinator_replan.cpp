@@ -56,11 +56,8 @@ struct Replan : ::testing::Test {
   // A replay decides in a fixed order: the step is kept and the token re-planned.
   Coordinator c{dir.spec, config(), task::learnEndPoints(dir.spec, dir.demos), 1, {}, /*policy_reads_scene=*/false};
 
-  static CoordinatorConfig config() {
-    CoordinatorConfig cfg;
-    cfg.max_replans = 2;
-    return cfg;
-  }
+  // Recovery as configured by default (max_replans 2): what a user's run does.
+  static CoordinatorConfig config() { return CoordinatorConfig{}; }
   std::vector<SegmentCommand> firstStep() { return ::firstStep(c, demo, at); }
   CoordinatorOutput arrive(const SegmentCommand& s, double now) {
     at[static_cast<size_t>(s.entity)] = s.goal;
@@ -156,7 +153,9 @@ TEST_F(Replan, AFailedSegmentOfARobotTheTrackerLostAbortsNamingIt) {
 
 TEST(ReplanOff, WithoutReplansAFailureAbortsAndAMovedTargetIsNotFollowed) {
   const task::TaskDir dir = task4();
-  Coordinator c{dir.spec, CoordinatorConfig{}, task::learnEndPoints(dir.spec, dir.demos)};
+  CoordinatorConfig cfg;
+  cfg.max_replans = 0;
+  Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};
   std::vector<Vector2d> at = dir.demos.front().positions.front();
   const auto segs = firstStep(c, dir.demos.front(), at);
   ASSERT_EQ(segs.size(), 2u);

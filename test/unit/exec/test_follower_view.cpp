@@ -82,3 +82,40 @@ TEST(FollowerView, BodiesWithoutARunningSegmentStandAndAnEndedSegmentIsNotRevive
   v.others("R1", 3.0, self_age);
   EXPECT_GT(self_age, 1e6) << "a pose it cannot use is stale";
 }
+
+// A robot the tracker lost stops every robot that comes within the filter's range (its
+// pose is stale); once the coordinator declared it lost for good it is an obstacle where
+// it was last seen, and a robot near it drives on, kept clear of it.
+TEST(FollowerView, ARobotLostForGoodStandsWhereItWasLastSeenInsteadOfStoppingItsNeighbours) {
+  FollowerView v(kinds(), kArrival, kMargin);
+  v.track("R1", task::EntityKind::Robot, {0.1, 0.3}, false, 1.0);
+  v.track("R2", task::EntityKind::Robot, {0.2, 0.3}, false, 1.0);
+  v.track("R2", task::EntityKind::Robot, {0.2, 0.3}, true, 1.0);  // the tracker holds it, stale
+  v.track("R1", task::EntityKind::Robot, {0.1, 0.3}, false, 9.0);
+  SafetyFilter filter({}, 0.03, 0.2, 4.0);
+  const Pose2D r1{0.1, 0.3, M_PI / 2};  // heading past R2, 10 cm away
+  const auto drive = [&] {
+    double self_age = 0;
+    const std::vector<SafetyBody> others = v.others("R1", 9.0, self_age);
+    return filter.filter("R1", r1, task::kDefaultRobotRadius, self_age, {0.1, 0.1}, 0.0, others, "", 9.0);
+  };
+  const SafetyCommand before = drive();
+  EXPECT_TRUE(before.stale) << "a stale body in range stops the robot";
+  EXPECT_NE(before.reason.find("R2"), std::string::npos) << before.reason;
+
+  EXPECT_EQ(v.setLost({"R2", "G1", "R9"}), (std::vector<std::string>{"G1", "R9"})) << "only robots of the task";
+  double self_age = 0;
+  const std::vector<SafetyBody> others = v.others("R1", 9.0, self_age);
+  ASSERT_EQ(others.size(), 1u);
+  EXPECT_FALSE(others[0].stale);
+  EXPECT_TRUE(others[0].standing);
+  EXPECT_DOUBLE_EQ(others[0].age_s, 0.0);
+  EXPECT_TRUE(others[0].position.isApprox(Vector2d(0.2, 0.3)));
+  const SafetyCommand after = drive();
+  EXPECT_FALSE(after.stale) << after.reason;
+  EXPECT_GT(after.wheels.left_mps + after.wheels.right_mps, 0.1) << "drives on past it";
+  EXPECT_NEAR(after.clearance_m, 0.1 - 2 * task::kDefaultRobotRadius, 1e-9) << "measured against where R2 stands";
+
+  v.setLost({});  // a new run
+  EXPECT_TRUE(v.others("R1", 9.0, self_age)[0].stale);
+}
