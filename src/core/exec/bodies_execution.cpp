@@ -188,7 +188,7 @@ void BodiesExecution::allowContacts(size_t first) {
       const Motion& mo = motions_[m];
       decided.push_back({mo.motion.entity, mo.motion.target, mo.final_at, mo.contacts});
     }
-  allowed_ = AllowedContacts(names_, radius_m_, decided, controller_.safety.margin_m);
+  allowed_ = AllowedContacts(names_, radius_m_, decided, controller_.safety.endsAgainstReachM());
 }
 
 std::vector<MotionEnd> BodiesExecution::cycle() {
@@ -281,7 +281,8 @@ MotionContacts BodiesExecution::contactsOf(const Motion& motion) const {
     others.push_back(b);
   }
   return motionContacts(table_->truePose(i).position(), radius_m_[i], motion.final_at, motion.step, motion.token.action,
-                        targetName(motion.token.target), others, controller_.safety.margin_m, params_.arrival_radius_m);
+                        targetName(motion.token.target), others, controller_.safety.endsAgainstReachM(),
+                        params_.arrival_radius_m);
 }
 
 std::string BodiesExecution::targetName(int target) const {

@@ -171,12 +171,12 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   // What the motion may touch, as decided for its step: a body it ends against while that
   // body is at the end point, its load's likewise.
   const Eigen::Vector2d end_point = follower_.endPoint();
-  const double margin = params_.safety.margin_m;
+  const double reach = params_.safety.endsAgainstReachM();
   for (SafetyBody& b : others) {
     b.touchable =
-        contacts_.ends_against.count(b.name) && endsAgainst(end_point, radius_m, b.position, b.radius_m, margin);
+        contacts_.ends_against.count(b.name) && endsAgainst(end_point, radius_m, b.position, b.radius_m, reach);
     b.load_touchable = load && contacts_.load_ends_against.count(b.name) &&
-                       endsAgainst(contacts_.load_end, load->radius_m, b.position, b.radius_m, margin);
+                       endsAgainst(contacts_.load_end, load->radius_m, b.position, b.radius_m, reach);
   }
   const SafetyCommand c = filter_.filter(name_, pose, radius_m, pose_age_s, o.wheels, o.progress * follower_.lengthM(),
                                          others, target_, now_s, load);

@@ -457,3 +457,12 @@ TEST(BodiesExecution, TwoPairsCarryingAtOnceFinishWithoutACollision) {
 TEST(BodiesExecution, ARelayHandsItsBoxOnWithoutACollision) {
   replayZoo("zoo:41/direct-4mm", 2);
 }
+
+// Robots meeting at one robot, in both ways of moving: each end turned about the met robot
+// lies beside the ends of the others, nearer than the filter's margin plus its projection,
+// and they may end against each other there (exec::SafetyParams::endsAgainstReachM): every
+// robot reaches its place, none is held off it by the ones that came first.
+TEST(BodiesExecution, RobotsMeetingAtOneRobotAllReachIt) {
+  replayZoo("zoo:10/direct-4mm", 10);
+  replayZoo("zoo:39", 5);
+}
