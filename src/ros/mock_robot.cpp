@@ -68,8 +68,8 @@ class MockRobotNode::Impl {
           s.summary(diagnostic_msgs::DiagnosticStatus::OK, "simulated");
           ros_command::diagnose(sources_.at(k), reported_foreign_[k], s);
         });
-        // A carrier's segments and their ends: its load rides with it (in every simulator a
-        // carried object stays in front of its carrier).
+        // A carrier's segments and their ends: its load rides with it, or is pushed by it
+        // (loads_ride, exec::TableSimulator::carry).
         subs_.push_back(
             nh.subscribe<ddace::Segment>("/robots/" + te.name + "/segment", 10,
                                          [this, k](const ddace::Segment::ConstPtr& m) { onRobotSegment(k, *m); }));
@@ -102,8 +102,9 @@ class MockRobotNode::Impl {
     if (publish_tf_) publishStaticFrames();
     diag_timer_ =
         nh.createSteadyTimer(ros::WallDuration(0.1), [this](const ros::SteadyTimerEvent&) { updater_.update(); });
-    ROS_INFO("mock_robots: task '%s', %zu entities at %.0f Hz on %s, %s", spec_.name.c_str(), n, dp.rate_hz,
-             topic.c_str(), sp.bodies ? "with bodies (Box2D)" : "points without bodies");
+    ROS_INFO("mock_robots: task '%s', %zu entities at %.0f Hz on %s, %s, loads %s", spec_.name.c_str(), n, dp.rate_hz,
+             topic.c_str(), sp.bodies ? "with bodies (Box2D)" : "points without bodies",
+             sp.loads_ride ? "riding in front of their carriers" : "pushed by their carriers");
   }
 
  private:
@@ -172,25 +173,26 @@ class MockRobotNode::Impl {
     }
   }
 
-  /// Robot r's running segment and object o's are a carry: the load rides with it (when it
-  /// is at the carrier; else it moves along its own path).
+  /// Robot r's running segment and object o's are a carry: the load goes with it, riding or
+  /// pushed (when it is at the carrier; else it moves along its own path).
   void pair(int r, int o) {
     const Running& a = running_.at(r);
     const Running& b = running_.at(o);
     if (sim_->carrierOf(o) >= 0 || !exec::carries(spec_, a.step, a.token, b.step, b.token)) return;
-    if (sim_->ride(r, o))
-      ROS_INFO("mock_robots: %s rides with %s (step %d)", spec_.entities[o].name.c_str(),
-               spec_.entities[r].name.c_str(), a.step + 1);
+    if (sim_->carry(r, o))
+      ROS_INFO("mock_robots: %s goes with %s (step %d)", spec_.entities[o].name.c_str(), spec_.entities[r].name.c_str(),
+               a.step + 1);
   }
 
-  /// The carrier's segment ended: DONE -- its load goes on to its end (on the target) and
-  /// reports DONE there; FAILED or ABORTED -- the load stops where it is (ABORTED).
+  /// The carrier's segment ended: DONE -- a riding load goes on to its end (on the target),
+  /// a pushed one is judged where it lies, and reports DONE or FAILED; FAILED or ABORTED --
+  /// the load stops where it is (ABORTED).
   void onRobotStatus(int r, const ddace::SegmentStatus& m) {
     const auto it = running_.find(r);
     if (it == running_.end() || m.segment_id != it->second.segment_id) return;
     if (m.status == ddace::SegmentStatus::DONE) {
       for (size_t o = 0; o < spec_.entities.size(); ++o)
-        if (sim_->carrierOf(static_cast<int>(o)) == r) sim_->endRide(static_cast<int>(o));
+        if (sim_->carrierOf(static_cast<int>(o)) == r) sim_->endCarry(static_cast<int>(o));
       running_.erase(it);
     } else if (m.status == ddace::SegmentStatus::FAILED || m.status == ddace::SegmentStatus::ABORTED) {
       running_.erase(it);

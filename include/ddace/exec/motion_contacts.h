@@ -33,10 +33,10 @@ namespace ddace::exec {
 
 /// What a motion may touch, decided once per step from the step's end points.
 struct MotionContacts {
-  std::string load;  ///< the object it carries, riding in front ("" = none)
-  /// The table carries the load in front of its carrier once met (TableSimulator::ride: the
-  /// mock robots, the simulator) instead of leaving it to be pushed (the real table, its
-  /// simulation): no push steering (exec/push_path.h's pushWheels).
+  std::string load;  ///< the object it carries ("" = none)
+  /// The table carries the load in front of its carrier once met (TableSimulator::carry with
+  /// loads_ride: the mock robots by default) instead of leaving it to be pushed (the real
+  /// table, its simulation): no push steering (exec/push_path.h's pushWheels).
   bool load_rides = false;
   Eigen::Vector2d load_end{0, 0};  ///< where the load ends
   /// Where the load stood when this was decided (NaN: unknown): its carrier's push was

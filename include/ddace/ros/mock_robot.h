@@ -34,7 +34,7 @@ class MockRobotNode {
  public:
   /// The node's own parameters (private namespace) and their defaults, as
   /// config/execution.yaml (section mock_robots) documents them; ~robot/* are
-  /// exec::DiffDriveParams; bodies, object_speed_mps and object_damping_hz are
+  /// exec::DiffDriveParams; bodies, object_speed_mps, object_damping_hz and loads_ride are
   /// exec::TableSimulatorParams'.
   struct Params : exec::TableSimulatorParams {
     Params() { bodies = true; }  // the mock table has bodies (exec::TableSimulatorParams alone: points)
