@@ -96,6 +96,8 @@ class MockRobotNode::Impl {
           hold ? "hold" : "release", 5,
           [this, hold, t](const std_msgs::String::ConstPtr& m) { onHold(t, m->data, hold); }));
     }
+    subs_.push_back(pnh.subscribe<std_msgs::String>(
+        "lose", 5, [this, t = pnh.resolveName("lose")](const std_msgs::String::ConstPtr& m) { onLose(t, m->data); }));
     timer_ = nh.createTimer(ros::Duration(sim_->periodS()), &Impl::onTimer, this);
     if (publish_tf_) publishStaticFrames();
     diag_timer_ =
@@ -256,6 +258,16 @@ class MockRobotNode::Impl {
     ROS_WARN("mock_robots: %s %s", name.c_str(), hold ? "held (its wheels do not turn)" : "released");
   }
 
+  /// The robot's battery dies: its wheels stop for good and the tracker holds its last pose,
+  /// stale, from now on.
+  void onLose(const std::string& topic, const std::string& name) {
+    const int i = entityNamed(topic, name, true);
+    if (i < 0 || lost_.count(i)) return;
+    sim_->setStalled(i, true);
+    lost_[i] = {sim_->measuredPose(i), ros::Time::now()};
+    ROS_WARN("mock_robots: %s lost (its wheels stop, the tracker holds its last pose, stale)", name.c_str());
+  }
+
   void onEstop(const std_msgs::Bool& m) {
     for (const auto& s : sim_->setEstop(m.data)) publish(s);
   }
@@ -271,16 +283,17 @@ class MockRobotNode::Impl {
     msg.header.stamp = ros::Time::now();
     msg.header.frame_id = frame_id_;
     for (size_t i = 0; i < spec_.entities.size(); ++i) {
-      const exec::Pose2D measured = sim_->measuredPose(static_cast<int>(i));
+      const auto lost = lost_.find(static_cast<int>(i));
+      const exec::Pose2D measured = lost != lost_.end() ? lost->second.first : sim_->measuredPose(static_cast<int>(i));
       ddace::Entity out;
       out.name = spec_.entities[i].name;
       out.kind = task::toString(spec_.entities[i].kind);
       out.pose.x = measured.x;
       out.pose.y = measured.y;
       out.pose.theta = measured.yaw;
-      out.visible = true;
-      out.stale = false;
-      out.last_seen = msg.header.stamp;
+      out.visible = lost == lost_.end();
+      out.stale = !out.visible;
+      out.last_seen = out.visible ? msg.header.stamp : lost->second.second;
       msg.entities.push_back(out);
       if (publish_tf_ && spec_.entities[i].kind != task::EntityKind::Goal)
         tf_.sendTransform(transform(out.name, measured, msg.header.stamp));
@@ -297,6 +310,7 @@ class MockRobotNode::Impl {
   };
   std::map<int, Running> running_;  ///< each entity's running segment (robots: as sent to their follower)
   size_t contacts_seen_ = 0;        ///< contacts already logged
+  std::map<int, std::pair<exec::Pose2D, ros::Time>> lost_;  ///< robots lost (~lose): last pose and when seen
   std::string frame_id_;
   bool publish_tf_ = true;                    // set from the parameters
   std::map<int, CommandSources> sources_;     ///< by robot index: whose wheel commands count
