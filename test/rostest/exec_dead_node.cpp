@@ -48,6 +48,27 @@ std::string coordinatorCause() {
   return "/coordinator: " + setup().model + "/manifest.yaml:3:1: YAML syntax error";
 }
 
+/// The run record in `run_dir` says the run failed because the coordinator died, with its
+/// cause, on the report's first line (not the SIGINT that ended the launch; which of the
+/// nodes given the broken model died first varies), and in result.json; the first line.
+std::string expectTheRecordNamesTheDeadCoordinator(const std::string& run_dir) {
+  const std::string report = readFile(run_dir + "/report.txt");
+  EXPECT_NE(report.find("node coordinator died (exit code 1), a required node"), std::string::npos) << report;
+  EXPECT_NE(report.find(coordinatorCause()), std::string::npos) << report;
+  const std::string first = report.substr(0, report.find('\n'));
+  EXPECT_EQ(first.rfind("failed: node /", 0), 0u) << report;
+  EXPECT_NE(first.find("before the coordinator reported any state: "), std::string::npos) << report;
+  EXPECT_NE(first.find("node /coordinator died (exit code 1), a required node: " + setup().model +
+                       "/manifest.yaml:3:1: YAML syntax error"),
+            std::string::npos)
+      << report;
+  EXPECT_EQ(first.find("SIGINT"), std::string::npos) << report;
+  const std::string result = readFile(run_dir + "/result.json");
+  EXPECT_NE(result.find("\"state\": \"failed\""), std::string::npos) << result;
+  EXPECT_NE(result.find("\"node\": \"/coordinator\""), std::string::npos) << result;
+  return first;
+}
+
 }  // namespace
 
 TEST(DeadNode, ExecuteSimExitsNonZeroNamingTheDeadRequiredNodeAndItsCause) {
@@ -59,23 +80,8 @@ TEST(DeadNode, ExecuteSimExitsNonZeroNamingTheDeadRequiredNodeAndItsCause) {
   EXPECT_EQ(status, 1) << printed;
   EXPECT_NE(printed.find("node coordinator died (exit code 1), a required node"), std::string::npos) << printed;
   EXPECT_NE(printed.find(coordinatorCause()), std::string::npos) << printed;
-  const std::string report = readFile(run_dir + "/report.txt");
-  EXPECT_NE(report.find("node coordinator died (exit code 1), a required node"), std::string::npos) << report;
-  EXPECT_NE(report.find(coordinatorCause()), std::string::npos) << report;
-  // The first line says why the run failed, not the SIGINT that ended the launch; which of
-  // the nodes given the broken model died first varies, the coordinator is named with its cause.
-  const std::string first = report.substr(0, report.find('\n'));
-  EXPECT_EQ(first.rfind("failed: node /", 0), 0u) << report;
-  EXPECT_NE(first.find("before the coordinator reported any state: "), std::string::npos) << report;
-  EXPECT_NE(first.find("node /coordinator died (exit code 1), a required node: " + setup().model +
-                       "/manifest.yaml:3:1: YAML syntax error"),
-            std::string::npos)
-      << report;
-  EXPECT_EQ(first.find("SIGINT"), std::string::npos) << report;
+  const std::string first = expectTheRecordNamesTheDeadCoordinator(run_dir);
   EXPECT_NE(printed.find(first), std::string::npos) << "the first line is not on the terminal:\n" << printed;
-  const std::string result = readFile(run_dir + "/result.json");
-  EXPECT_NE(result.find("\"state\": \"failed\""), std::string::npos) << result;
-  EXPECT_NE(result.find("\"node\": \"/coordinator\""), std::string::npos) << result;
   EXPECT_NE(std::system(("'" + setup().scripts + "/execute_sim' --check '" + run_dir + "' > /dev/null").c_str()), 0)
       << "execute_sim --check passed a run whose node died";
 }
@@ -83,9 +89,10 @@ TEST(DeadNode, ExecuteSimExitsNonZeroNamingTheDeadRequiredNodeAndItsCause) {
 TEST(DeadNode, TheLaunchCommandExitsNonZeroWhereRoslaunchExitsZero) {
   ASSERT_FALSE(setup().scripts.empty()) << "the .test file must set ~scripts";
   const std::string& t = setup().task;
+  const std::string run_dir = std::string(setup().scratch) + "/launch_run";
   const auto [status, printed] =
       run("'" + setup().scripts + "/launch' execute_sim.launch task:='" + t + "/test' train:='" + t +
-              "/train' model:='" + setup().model + "' run_dir:='" + std::string(setup().scratch) + "/launch_run'",
+              "/train' model:='" + setup().model + "' run_dir:='" + run_dir + "'",
           std::string(setup().scratch) + "/launch.out");
   EXPECT_EQ(status, 1) << printed;
   EXPECT_NE(printed.find("launch: execute_sim.launch ended with a node dead (roslaunch's exit status: 0)"),
@@ -93,6 +100,10 @@ TEST(DeadNode, TheLaunchCommandExitsNonZeroWhereRoslaunchExitsZero) {
       << printed;
   EXPECT_NE(printed.find("launch: node coordinator died (exit code 1), a required node"), std::string::npos) << printed;
   EXPECT_NE(printed.find(coordinatorCause()), std::string::npos) << printed;
+  // The run's own record says so too, first, as execute_sim's does.
+  const std::string first = expectTheRecordNamesTheDeadCoordinator(run_dir);
+  EXPECT_NE(printed.find("launch: the run's report (" + run_dir + "/report.txt) begins: " + first), std::string::npos)
+      << printed;
 }
 
 // A task without a demonstration (as `ddace init` leaves it) has no start scene: execute_sim
