@@ -148,17 +148,22 @@ std::vector<bool> Labeller::candidatesOf(const Motion& m) const {
   return c;
 }
 
-// A hand-over: the object's motion began at a's touch (an object's pieces pending with
-// a's), and it went on while a rested.
+// A hand-over: an object with a's robot (from a's onset, or set moving at its touch: an
+// object's pieces pending with a's) went on while it rested.
 bool Labeller::letGo(const Motion& a, const Motion& b) const {
   const auto& E = spec_.entities;
   if (E[a.entity].kind != task::EntityKind::Robot) return false;
   const double slack = options_.still_s / 2;  // the precision onsets and offsets are dated to
-  for (const Motion& l : pending_)
-    if (E[l.entity].kind == task::EntityKind::Object && l.on_t >= a.on_t - slack && l.on_t <= a.off_t &&
-        together(l.at_onset, a.entity, l.entity) && together(a.at_offset, a.entity, l.entity) &&
-        (b.at_onset[l.entity] - a.at_offset[l.entity]).norm() >= options_.nudge_m)
-      return true;
+  for (int j = 0; j < static_cast<int>(E.size()); ++j) {
+    if (E[j].kind != task::EntityKind::Object || !together(a.at_offset, a.entity, j) ||
+        (b.at_onset[j] - a.at_offset[j]).norm() < options_.nudge_m)
+      continue;
+    // With it: at its onset already, or set moving at its touch while it moved.
+    if (together(a.at_onset, a.entity, j)) return true;
+    for (const Motion& l : pending_)
+      if (l.entity == j && l.on_t >= a.on_t - slack && l.on_t <= a.off_t && together(l.at_onset, a.entity, j))
+        return true;
+  }
   return false;
 }
 
@@ -703,20 +708,22 @@ void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t 
   }
 }
 
-void Labeller::nameAction(InferredToken& tok, const Motion& m, bool is_load) {
+bool Labeller::nameAction(InferredToken& tok, const Motion& m, bool is_load) {
   const auto& E = spec_.entities;
   tok.kind = kindKey(spec_, m.entity, tok.token.target, tok.load);
   // An object moving alone is reported unless the example shows such a motion or a
   // rule of task.yaml names the word of an object's motion there.
   const task::ActionRule* object_rule = rule(m.entity, tok.token.target, tok.load);
   const bool object_rule_stated = object_rule && object_rule->mover_kind == task::EntityKind::Object;
-  if (E[m.entity].kind == task::EntityKind::Object && !is_load && !(example_ && example_->words.count(tok.kind)) &&
-      !object_rule_stated)
+  const bool alone = E[m.entity].kind == task::EntityKind::Object && !is_load &&
+                     !(example_ && example_->words.count(tok.kind)) && !object_rule_stated;
+  if (alone)
     note(m.on_row,
          "object " + E[m.entity].name + " moved alone (no robot with it) to " + E[tok.token.target].name +
              "; or a robot carried it",
          m.entity);
   tok.token.action = word(m.entity, tok.token.target, tok.load, m.on_row);
+  return alone;
 }
 
 void Labeller::readChain(std::vector<InferredToken>& tokens, const std::vector<Motion>& g,
@@ -779,7 +786,15 @@ std::vector<InferredToken> Labeller::motionTokens(const std::vector<Motion>& g, 
         tok.carrier = g[carrier[i]].entity;
         tok.token.target = tokens[carrier[i]].token.target;
       }
-      if (tok.token.target >= 0) nameAction(tok, g[i], is_load);
+      if (tok.token.target < 0 || !nameAction(tok, g[i], is_load)) continue;
+      // The robots of the step it ended with are the ones that may have carried it.
+      for (size_t j = 0; j < g.size(); ++j)
+        if (j != i && spec_.entities[g[j].entity].kind == task::EntityKind::Robot &&
+            together(g[i].at_offset, g[j].entity, g[i].entity))
+          note(g[j].off_row,
+               spec_.entities[g[j].entity].name + " ended with object " + spec_.entities[g[i].entity].name +
+                   ", which moved alone: did " + spec_.entities[g[j].entity].name + " carry it?",
+               g[j].entity);
     }
   return tokens;
 }

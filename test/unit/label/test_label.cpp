@@ -469,6 +469,39 @@ TEST(Label, AGiverThatFollowsTheReceiverHandedOnWhereTheBoxLeftIt) {
   }
 }
 
+TEST(Label, AGiverThatCreepsOnAfterTheHandOverStillLetGo) {
+  // A relay demonstrated in every style at once (zoo:16, the zoo's direct motion stopping
+  // 4 mm short, seed 3): in demonstration 9 the giver, its box at the receiver, creeps on
+  // 1.7 cm after a short rest (less than a nudge), just before the receiver takes the box
+  // away; 2 s later it follows the receiver in the heading it crept in. The box was with
+  // it as it crept and went on while it rested: the creep does not join the follow, and
+  // the follow is a step of its own.
+  uint64_t id = 0;
+  tasks::ZooMotion motion;
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:16/direct-4mm", id, &motion));
+  const label::InferredDataset data = label::inferredDataset(
+      tasks::generateZoo(id, 10, 3, motion), label::demonstrationStyle("all").options, label::styleSeed(3, "all"));
+  ASSERT_EQ(data.inferred.demos.size(), 10u);
+  EXPECT_TRUE(task::sameSteps(data.truth.demos[9].steps, data.inferred.demos[9].steps))
+      << data.inferred.demos[9].steps.size() << " steps, " << data.truth.demos[9].steps.size() << " true";
+}
+
+TEST(Label, ARobotEndingWithABoxThatMovedAloneIsListed) {
+  // R1 drives 20 cm onto G1 while the box swings 19 cm round to its side (a robot turning
+  // with a box, as a tracker may see it): no robot stayed with the box, so it "moved
+  // alone"; R1, which it ended with, may have carried it: its token is listed too.
+  Scene s;
+  s.pos[0] = {0.7, 0.9};
+  s.pos[2] = {0.8, 0.75};
+  s.rest(1);
+  s.move({{0, {0.9, 0.9}}, {2, {0.942, 0.9}}});
+  s.rest(1);
+  const auto inf = s.infer();
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1", "B1:move:G1"}}));
+  EXPECT_TRUE(inf.steps[0].tokens[0].unsure);
+  EXPECT_NE(inf.steps[0].tokens[0].doubt.find("which moved alone"), std::string::npos) << inf.steps[0].tokens[0].doubt;
+}
+
 TEST(Label, ADriveToAnOccupiedGoalIsToTheGoal) {
   // R1 pushes the box onto G1; then R2 drives there and stops beside R1, touching it: the
   // goal is taken, so it ends at the body on it. Which one was meant, G1 or R1? A tie the
