@@ -170,8 +170,12 @@ int runInit(const std::vector<std::string>& argv) {
   task::writeTaskYaml(recorder_config.spec, task_yaml.string());
 
   const std::string c = config.string();
-  std::cout << "ddace init: task '" << name << "' in " << dir.string() << ": " << e.robots.size() << " robots, "
-            << e.objects.size() << " objects, " << e.goals.size() << " goals, no goal condition\n"
+  const auto count = [](size_t n, const std::string& what) {
+    return std::to_string(n) + " " + what + (n == 1 ? "" : "s");
+  };
+  std::cout << "ddace init: task '" << name << "' in " << dir.string() << ": " << count(e.robots.size(), "robot")
+            << ", " << count(e.objects.size(), "object") << ", " << count(e.goals.size(), "goal")
+            << ", no goal condition\n"
             << "  " << task_yaml.string() << "\n  " << markers.string() << "   FILL IN: marker ids, corner positions\n"
             << "  " << recorder.string() << "  (goal conditions: write your own)\n"
             << "  " << hamsters.string() << "  FILL IN: radio addresses, calibration\n"

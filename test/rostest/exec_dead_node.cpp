@@ -1,8 +1,9 @@
 // A required node that dies at start ends the graph, and roslaunch exits 0 all the same.
 // The commands a user runs, scripts/execute_sim and scripts/launch (the README's), must
 // exit non-zero within seconds, naming the node, that it was required, and its cause. The
-// node here is the coordinator, given a model whose primitives.yaml does not parse: it
-// dies in its constructor, whatever the load, and needs no training.
+// node here is the coordinator, given a model whose manifest.yaml does not parse: it dies
+// in its constructor (the sequence and gp_path nodes too), whatever the load, and needs no
+// training.
 #include "exec_common.h"
 
 #include <cstdlib>
@@ -12,7 +13,7 @@ using namespace exec_test;
 
 namespace {
 
-/// Task 4 with 4 robots and a "model" whose primitives.yaml breaks at line 3, column 1.
+/// Task 4 with 4 robots and a "model" whose manifest.yaml breaks at line 3, column 1.
 struct Setup {
   ScratchDir scratch{"dead_node"};
   std::string task, model, scripts;
@@ -21,7 +22,8 @@ struct Setup {
     generateTask(task, "task4", 2, 1, 4);
     model = std::string(scratch) + "/model";
     fs::create_directories(model);
-    std::ofstream(model + "/primitives.yaml") << "primitives: [\n  {key: x\n";
+    std::ofstream(model + "/manifest.yaml") << "format: [\n  {key: x\n";
+    std::ofstream(model + "/primitives.yaml") << "primitives: []\n";
     ros::NodeHandle("~").getParam("scripts", scripts);
   }
 };
@@ -43,7 +45,7 @@ std::pair<int, std::string> run(const std::string& command, const std::string& o
 
 /// The coordinator's own error: which file, where, and what.
 std::string coordinatorCause() {
-  return "/coordinator: " + setup().model + "/primitives.yaml:3:1: YAML syntax error";
+  return "/coordinator: " + setup().model + "/manifest.yaml:3:1: YAML syntax error";
 }
 
 }  // namespace
@@ -60,6 +62,22 @@ TEST(DeadNode, ExecuteSimExitsNonZeroNamingTheDeadRequiredNodeAndItsCause) {
   const std::string report = readFile(run_dir + "/report.txt");
   EXPECT_NE(report.find("node coordinator died (exit code 1), a required node"), std::string::npos) << report;
   EXPECT_NE(report.find(coordinatorCause()), std::string::npos) << report;
+  // The first line says why the run failed, not the SIGINT that ended the launch; which of
+  // the nodes given the broken model died first varies, the coordinator is named with its cause.
+  const std::string first = report.substr(0, report.find('\n'));
+  EXPECT_EQ(first.rfind("failed: node /", 0), 0u) << report;
+  EXPECT_NE(first.find("before the coordinator reported any state: "), std::string::npos) << report;
+  EXPECT_NE(first.find("node /coordinator died (exit code 1), a required node: " + setup().model +
+                       "/manifest.yaml:3:1: YAML syntax error"),
+            std::string::npos)
+      << report;
+  EXPECT_EQ(first.find("SIGINT"), std::string::npos) << report;
+  EXPECT_NE(printed.find(first), std::string::npos) << "the first line is not on the terminal:\n" << printed;
+  const std::string result = readFile(run_dir + "/result.json");
+  EXPECT_NE(result.find("\"state\": \"failed\""), std::string::npos) << result;
+  EXPECT_NE(result.find("\"node\": \"/coordinator\""), std::string::npos) << result;
+  EXPECT_NE(std::system(("'" + setup().scripts + "/execute_sim' --check '" + run_dir + "' > /dev/null").c_str()), 0)
+      << "execute_sim --check passed a run whose node died";
 }
 
 TEST(DeadNode, TheLaunchCommandExitsNonZeroWhereRoslaunchExitsZero) {

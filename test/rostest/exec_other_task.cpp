@@ -152,6 +152,9 @@ TEST(OtherTask, ExecuteSimEndsWithinSecondsNamingTheRefusal) {
         std::string("node sequence died (exit code 1)")})
     EXPECT_NE(printed.find(why), std::string::npos) << "'" << why << "' not on the terminal:\n" << printed;
   const std::string report = readFile(run_dir + "/report.txt");
+  const std::string first = report.substr(0, report.find('\n'));
+  EXPECT_EQ(first.rfind("failed: node /", 0), 0u) << "the first line does not say why the run failed:\n" << report;
+  EXPECT_NE(first.find("vocabulary: model [move, stop], task [move]"), std::string::npos) << report;
   EXPECT_NE(report.find("nodes that died"), std::string::npos) << report;
   EXPECT_NE(report.find("vocabulary: model [move, stop], task [move]"), std::string::npos) << report;
   std::printf("exec_other_task: execute_sim ended after %.1f s\n", took_s);

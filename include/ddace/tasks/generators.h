@@ -113,10 +113,13 @@ using PlannedStep = std::vector<PlannedToken>;
 /// task::stepEndPositions() with nothing learned (the footprints' end points) on kTable. A carried load
 /// (task::ridingLoad: starting within task::togetherDistance of its carrier) rides in front of its carrier at their
 /// contact distance along the carrier's heading (it swings there over the first kLoadSwingFraction of the carry), and
-/// the carrier's path ends heading at the load's end. Each mover of a step, in token order, takes the least changed
-/// candidate path (its shape plus an extra arc kAvoidBends, a turned start kAvoidHooks, a lag kAvoidLags, its load
-/// swung the other way round; ordered by how far the path moves from its shape, then by lag) that keeps its body, and
-/// its load's, on the table and no closer than contact to a standing body or to a mover placed before it (no closer
+/// the carrier's path ends heading at the load's end; with DemoMotion::push_loads it moves only as it is pushed
+/// instead: it stands while its carrier goes round it, about its centre, to the side it is pushed from (where the
+/// carrier is, relative to the load, at the end), then moves with the carrier at that offset, never further than its
+/// pusher in any row. Each mover of a step, in token order, takes the least changed candidate path (its shape plus an
+/// extra arc kAvoidBends, a turned start kAvoidHooks, a lag kAvoidLags, its load swung (gone round) the other way
+/// round; ordered by how far the path moves from its shape, then by lag) that keeps its body, and its load's, on
+/// the table and no closer than contact to a standing body or to a mover placed before it (no closer
 /// than the pair starts or ends, when that is already below contact); of a mirror pair the one with more clearance;
 /// with none free, the one with the most clearance. Positions are rounded to whole micrometres (what a CSV holds); the
 /// demonstration is analyzed with the task's step_window_s. Throws ddace::Error for a token naming an entity outside
@@ -129,6 +132,7 @@ using PlannedStep = std::vector<PlannedToken>;
 /// another, and the caller draws the scene again).
 struct DemoMotion {
   bool avoid = true;               ///< shape each path around the bodies (above); false: keep the planned shape
+  bool push_loads = false;         ///< a carried load moves only as pushed (above); false: it swings to the front
   task::EndPointModel end_points;  ///< where motions end (nothing learned: the footprints' contact)
 };
 task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& start,

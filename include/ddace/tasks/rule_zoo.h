@@ -32,11 +32,13 @@
 // on a goal; and direct: each path straight or an arc drawn per motion, bent around
 // nothing, stopping a set gap short of contact with a robot or a box (touching, 4 mm, 1 cm:
 // people stop where they like), a scene in which a body would pass through another drawn
-// again. In both a carried box rides in front of its carrier (same target, same step);
-// later steps are decided where the earlier ones ended (task::stepEndPositions). Start configurations are uniform over
-// the table with the generators' border and separation; one in which any decision is a near tie (the chosen and a
-// competing entity's distance, or coordinate, closer than kSceneDecisionMargin) is drawn again. The same rule id, seed
-// and count give byte-identical output.
+// again. In the generators' a carried box swings to the front of its carrier (same target,
+// same step) and rides there; in direct it moves only as pushed: its carrier goes round it
+// to the side it pushes from, and the box never moves further than its pusher; later steps are decided where the
+// earlier ones ended (task::stepEndPositions). Start configurations are uniform over the table with the generators'
+// border and separation; one in which any decision is a near tie (the chosen and a competing entity's distance, or
+// coordinate, closer than kSceneDecisionMargin) is drawn again. The same rule id, seed and count give byte-identical
+// output.
 #pragma once
 
 #include <cmath>

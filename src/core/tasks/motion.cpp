@@ -51,6 +51,12 @@ struct Path {
   /// Progress along the path at time progress u is u^lag: a mover with lag > 1 falls
   /// behind and catches up at the end (it arrives after the movers before it).
   double lag = 1;
+  /// A carrier first goes round its load, which stands, from where it touches it to `from`
+  /// (behind the load as it will be pushed): an arc about `centre` from `round_start`
+  /// turning `round_turn` radians, over the first `round_share` of the progress; the shape
+  /// from `from` to `to` takes the rest.
+  Vector2d centre = Vector2d::Zero(), round_start = Vector2d::Zero();
+  double round_turn = 0, round_share = 0;
 
   double progress(double u) const { return lag == 1 ? u : std::pow(u, lag); }
 
@@ -91,19 +97,42 @@ struct Path {
     canonical(0, c, dc);
     hook = rotated(dc, angle) - dc;
   }
-  /// Where the mover is at time progress u.
-  Vector2d at(double u) const {
-    Vector2d c = Vector2d::Zero(), dc = Vector2d::Zero();
-    canonical(progress(u), c, dc);
-    const Vector2d d = to - from, perp(-d.y(), d.x());
-    return from + c.x() * d + c.y() * perp;
-  }
-  /// The path's direction (d position / d progress, table frame) at time progress u.
+  /// The path's direction (d position / d progress, table frame) at time progress u, on
+  /// its shape (a path that goes round a load first has no swinging rider).
   Vector2d tangent(double u) const {
     Vector2d c = Vector2d::Zero(), dc = Vector2d::Zero();
     canonical(progress(u), c, dc);
     const Vector2d d = to - from, perp(-d.y(), d.x());
     return dc.x() * d + dc.y() * perp;
+  }
+  /// Whether at time progress u the mover is still going round its load.
+  bool goingRound(double u) const { return progress(u) < round_share; }
+  /// Where the mover is at time progress u.
+  Vector2d at(double u) const {
+    const double s = progress(u);
+    if (s < round_share) {
+      const double f = s / round_share;
+      const Vector2d r0 = round_start - centre, r1 = from - centre;
+      const double radius = r0.norm() + (r1.norm() - r0.norm()) * f;
+      const double angle = std::atan2(r0.y(), r0.x()) + round_turn * f;
+      return centre + radius * Vector2d(std::cos(angle), std::sin(angle));
+    }
+    Vector2d c = Vector2d::Zero(), dc = Vector2d::Zero();
+    canonical(round_share == 0 ? s : (s - round_share) / (1 - round_share), c, dc);
+    const Vector2d d = to - from, perp(-d.y(), d.x());
+    return from + c.x() * d + c.y() * perp;
+  }
+  /// Goes round `around` from round_start to `from` first, turning the short way or the
+  /// long way round; its share of the progress is its share of the length.
+  void goRound(const Vector2d& around, bool long_way) {
+    centre = around, round_share = 0;
+    const Vector2d r0 = round_start - around, r1 = from - around;
+    round_turn = wrapAngle(std::atan2(r1.y(), r1.x()) - std::atan2(r0.y(), r0.x()));
+    if (long_way) round_turn -= std::copysign(2 * M_PI, round_turn);
+    const double round = std::abs(round_turn) * (r0.norm() + r1.norm()) / 2 + std::abs(r1.norm() - r0.norm());
+    if (round < 1e-6) return;
+    const double shaped = length();
+    round_share = round / (round + shaped);
   }
   /// Makes the path end heading along `heading` (a carrier toward its load's end): the
   /// final slope in its frame is tan of the angle from the chord to `heading`.
@@ -129,14 +158,22 @@ struct Path {
   }
 };
 
-/// A carried load: rides in front of its carrier's path.
+/// A carried load. Pushed (DemoMotion::push_loads): it moves only as its carrier pushes
+/// it, standing while the carrier goes round it to the side it is pushed from, then moving
+/// with the carrier at the offset it ends at (never further than its pusher, nor turning
+/// about it). Else it swings round to its carrier's front over the first kLoadSwingFraction
+/// of the carry and rides there.
 struct Rider {
   int load = -1;
-  bool long_way = false;                ///< swing in front the long way round
+  bool pushed = false;
+  bool long_way = false;                ///< swing (go round the load) the long way round
+  Vector2d start = Vector2d::Zero();    ///< where the load stands at the start of the step
+  Vector2d offset = Vector2d::Zero();   ///< pushed: load - carrier while it is pushed (as at the end)
   Vector2d offset0 = Vector2d::Zero();  ///< load - carrier at the start of the step
   double contact = 0;                   ///< their contact distance
 
   Vector2d at(const Path& carrier, double u) const {
+    if (pushed) return carrier.goingRound(u) ? start : Vector2d(carrier.at(u) + offset);
     const Vector2d c = carrier.at(u);
     const double r0 = offset0.norm(), a0 = std::atan2(offset0.y(), offset0.x());
     const Vector2d t0 = carrier.tangent(0), t = carrier.tangent(u);
@@ -229,7 +266,8 @@ struct Body {
 /// keeps clear of the bodies already fixed: standing ones and the movers before it.
 class StepPaths {
  public:
-  StepPaths(const task::TaskSpec& spec, const std::vector<Vector2d>& pos, const StepRoles& r) : spec_(spec), pos_(pos) {
+  StepPaths(const task::TaskSpec& spec, const std::vector<Vector2d>& pos, const StepRoles& r, bool push_loads)
+      : spec_(spec), pos_(pos), push_loads_(push_loads) {
     for (size_t e = 0; e < pos.size(); ++e)
       if (!r.moving[e] && isObstacle(spec, static_cast<int>(e))) fixed_.push_back({static_cast<int>(e), -1, -1});
   }
@@ -242,13 +280,19 @@ class StepPaths {
   /// without `avoid` the planned shape as it is. Returns whether the bodies keep clear.
   bool add(int e, const PathShape& shape, const Vector2d& end, int load, const Vector2d& load_end, bool avoid) {
     Rider rider;
+    Vector2d from = pos_[static_cast<size_t>(e)];
     if (load >= 0) {
       rider.load = load;
-      rider.offset0 = pos_[static_cast<size_t>(load)] - pos_[static_cast<size_t>(e)];
+      rider.pushed = push_loads_;
+      rider.start = pos_[static_cast<size_t>(load)];
+      rider.offset = load_end - end;
+      rider.offset0 = rider.start - from;
       rider.contact = spec_.contactDistance(e, load);
+      if (rider.pushed) from = rider.start - rider.offset;  // behind the load: the push starts there
     }
     const size_t index = paths.size();
-    paths.push_back({pos_[static_cast<size_t>(e)], end, shape});
+    paths.push_back({from, end, shape});
+    paths.back().round_start = pos_[static_cast<size_t>(e)];
     riders.push_back(rider);
     std::vector<Body> candidate = {{e, static_cast<int>(index), -1}};
     if (load >= 0) candidate.push_back({load, static_cast<int>(index), static_cast<int>(index)});
@@ -268,11 +312,15 @@ class StepPaths {
 
  private:
   void reshape(size_t index, const Candidate& k, const Vector2d& load_offset) {
-    paths[index].lag = k.lag;
-    paths[index].bend = k.bend;
-    if (riders[index].load >= 0) paths[index].alignEnd(load_offset);
-    paths[index].hookStart(k.hook);
-    riders[index].long_way = k.long_way;
+    Path& path = paths[index];
+    Rider& rider = riders[index];
+    path.lag = k.lag;
+    path.bend = k.bend;
+    path.round_share = 0;
+    if (rider.load >= 0) path.alignEnd(load_offset);
+    path.hookStart(k.hook);
+    rider.long_way = k.long_way;
+    if (rider.pushed) path.goRound(rider.start, k.long_way);
   }
 
   /// The first free candidate; of the equally small changes (its mirror image), the one with
@@ -333,6 +381,7 @@ class StepPaths {
 
   const task::TaskSpec& spec_;
   const std::vector<Vector2d>& pos_;
+  bool push_loads_;
   std::vector<Body> fixed_;
 };
 
@@ -402,7 +451,7 @@ task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<
     for (const auto& pt : steps[s]) tokens.push_back(pt.token);
     const std::vector<Vector2d> ends = task::stepEndPositions(spec, motion.end_points, tokens, pos, kTable);
     const StepRoles r = roles(spec, tokens, pos);
-    StepPaths sp(spec, pos, r);
+    StepPaths sp(spec, pos, r, motion.push_loads);
     for (int i : r.movers) {
       const PlannedToken& pt = steps[s][static_cast<size_t>(i)];
       const int e = pt.token.entity;

@@ -651,6 +651,7 @@ task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed, const ZooM
     dir.spec.name = "zoo " + z.family.substr(4) + motion.suffix() + " " + z.name.substr(0, z.name.rfind(" ("));
   DemoMotion demo_motion;
   demo_motion.avoid = !motion.direct;
+  demo_motion.push_loads = motion.direct;
   demo_motion.end_points = gapEndPoints(dir.spec, motion.stop_gap_m);
   SplitMix64 rng(seed * 0x9E3779B97F4A7C15ULL + 0x7A00C0DE5EEDULL + rule_id * 0xD1B54A32D192ED03ULL);
   const size_t m = dir.spec.entities.size();

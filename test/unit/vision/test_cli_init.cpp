@@ -40,7 +40,7 @@ TEST(CliInit, WritesAValidTaskOfExactlyTheNamedEntities) {
   const std::string dir = scratch("fetch two");  // a space: paths are quoted where they are written
   const ToolRun r = runTool("init '" + dir + "' --robots A1,A2 --objects Box --goals Home");
   ASSERT_EQ(r.status, 0) << r.out;
-  EXPECT_NE(r.out.find("no goal condition"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(": 2 robots, 1 object, 1 goal, no goal condition"), std::string::npos) << r.out;
 
   const ToolRun v = runTool("validate '" + dir + "'");
   EXPECT_EQ(v.status, 0) << v.out;
