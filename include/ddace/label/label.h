@@ -150,6 +150,10 @@ class Labeller {
   /// heading it came in and the one it left in.
   bool stoppedAtOnItsWay(const Motion& m, int b, double& turn) const;
   bool together(const std::vector<Eigen::Vector2d>& at, int a, int b) const;
+  /// `m` is with an object at its onset, at `at` and at its offset, and the object moved
+  /// with it: a robot going round its load to the side it pushes from (a slow turn beside
+  /// a body there is no stop).
+  bool goesRoundItsLoad(const Motion& m, const std::vector<Eigen::Vector2d>& at) const;
   /// `m` begins as the motions of a step have stopped (the last at step_off_t), within
   /// the precision onsets and offsets are dated to: a step of its own, even with no pause
   /// (a stop at contact followed by a change of what moves).

@@ -184,6 +184,13 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
   if (back.norm() > 0 && back.norm() < 2 * options_.nudge_m &&
       b.start_dir.dot(back.normalized()) > std::cos(options_.heading_rad))
     return true;
+  // Went round an object it stood at (the object standing), to the side it then pushes it
+  // from: the push's start, not a motion to the object.
+  for (int j = 0; j < static_cast<int>(spec_.entities.size()); ++j)
+    if (j != a.entity && spec_.entities[j].kind == task::EntityKind::Object && together(a.at_onset, a.entity, j) &&
+        together(a.at_offset, a.entity, j) && (a.at_offset[j] - a.at_onset[j]).norm() < options_.start_m &&
+        staysWith(b, j))
+      return true;
   // What a carried (an object that stayed with it) ends a carrier's motion.
   int load = -1;
   for (int j = 0; j < static_cast<int>(spec_.entities.size()); ++j)
@@ -301,8 +308,10 @@ void Labeller::cutAtContacts(std::vector<Motion>& ms) const {
         // Touching it as it started, having come from elsewhere, and still with it when the
         // first of the two stopped.
         const auto& at_end = m.off_row <= load.off_row ? m.at_offset : load.at_offset;
+        // Already at it when it set off (going round it to the side it pushes from): no
+        // approach.
         if (!together(load.at_onset, R, load.entity) || !together(at_end, R, load.entity) ||
-            (load.at_onset[R] - m.start).norm() < options_.nudge_m ||
+            together(m.at_onset, R, load.entity) || (load.at_onset[R] - m.start).norm() < options_.nudge_m ||
             (load.at_onset[R] - m.rested_at).norm() < options_.nudge_m)
           continue;
         Motion approach = before(m, load.on_row, load.on_t, load.at_onset);
@@ -329,7 +338,7 @@ void Labeller::cutAtContacts(std::vector<Motion>& ms) const {
             (at < 0 || m.closest_row[b] < m.closest_row[at]))
           at = b;
       }
-      if (at < 0) continue;
+      if (at < 0 || goesRoundItsLoad(m, m.closest_scene[at])) continue;
       const int row = m.closest_row[at];
       const double t = m.closest_t[at];
       const std::vector<Vector2d> scene = m.closest_scene[at];
@@ -339,6 +348,16 @@ void Labeller::cutAtContacts(std::vector<Motion>& ms) const {
       cut = true;
     }
   }
+}
+
+bool Labeller::goesRoundItsLoad(const Motion& m, const std::vector<Vector2d>& at) const {
+  const auto& E = spec_.entities;
+  for (int j = 0; j < static_cast<int>(E.size()); ++j)
+    if (E[j].kind == task::EntityKind::Object && together(m.at_onset, m.entity, j) &&
+        together(m.at_offset, m.entity, j) && together(at, m.entity, j) &&
+        (m.at_offset[j] - m.at_onset[j]).norm() >= options_.nudge_m)
+      return true;
+  return false;
 }
 
 bool Labeller::startsAStep(double step_off_t, const Motion& m) const {
@@ -814,7 +833,8 @@ void Labeller::noteStopsOnTheWay(const std::vector<Motion>& g, const std::vector
         return t.token.entity == b && t.carrier == m.entity;
       });
       double turn = 0;
-      if (b == tok.token.target || load || !stoppedAtOnItsWay(m, b, turn)) continue;
+      if (b == tok.token.target || load || !stoppedAtOnItsWay(m, b, turn) || goesRoundItsLoad(m, m.closest_scene[b]))
+        continue;
       // A step to b would be a motion of a kind the example never makes: a slow pass.
       if (example_ && !example_->words.count(kindKey(spec_, m.entity, b, tok.load)) &&
           !example_->words.count(coarseKindKey(spec_, m.entity, b, tok.load)))
