@@ -141,7 +141,7 @@ class ExecutionMonitorNode::Impl {
     // One setting, the path followers' own margin: the contacts their filters let happen
     // are the ones the report leaves out.
     contacts_ = std::make_unique<exec::StepContacts>(
-        spec_, radii_, ros_exec::loadSafetyParams(ros::NodeHandle(nh, "path_follower/safety")).margin_m);
+        spec_, radii_, ros_exec::loadSafetyParams(ros::NodeHandle(nh, "path_follower/safety")).endsAgainstReachM());
     collisions_fail_ = rosparam::param(pnh, "collisions_fail", defaults.collisions_fail);
     at_.assign(spec_.entities.size(), Eigen::Vector2d::Constant(NAN));
     const int gt = rosparam::param(pnh, "ground_truth_demo", defaults.ground_truth_demo);

@@ -68,8 +68,8 @@ class MockRobotNode::Impl {
           s.summary(diagnostic_msgs::DiagnosticStatus::OK, "simulated");
           ros_command::diagnose(sources_.at(k), reported_foreign_[k], s);
         });
-        // A carrier's segments and their ends: its load rides with it (in every simulator a
-        // carried object stays in front of its carrier).
+        // A carrier's segments and their ends: its load rides with it, or is pushed by it
+        // (loads_ride, exec::TableSimulator::carry).
         subs_.push_back(
             nh.subscribe<ddace::Segment>("/robots/" + te.name + "/segment", 10,
                                          [this, k](const ddace::Segment::ConstPtr& m) { onRobotSegment(k, *m); }));
@@ -96,12 +96,15 @@ class MockRobotNode::Impl {
           hold ? "hold" : "release", 5,
           [this, hold, t](const std_msgs::String::ConstPtr& m) { onHold(t, m->data, hold); }));
     }
+    subs_.push_back(pnh.subscribe<std_msgs::String>(
+        "lose", 5, [this, t = pnh.resolveName("lose")](const std_msgs::String::ConstPtr& m) { onLose(t, m->data); }));
     timer_ = nh.createTimer(ros::Duration(sim_->periodS()), &Impl::onTimer, this);
     if (publish_tf_) publishStaticFrames();
     diag_timer_ =
         nh.createSteadyTimer(ros::WallDuration(0.1), [this](const ros::SteadyTimerEvent&) { updater_.update(); });
-    ROS_INFO("mock_robots: task '%s', %zu entities at %.0f Hz on %s, %s", spec_.name.c_str(), n, dp.rate_hz,
-             topic.c_str(), sp.bodies ? "with bodies (Box2D)" : "points without bodies");
+    ROS_INFO("mock_robots: task '%s', %zu entities at %.0f Hz on %s, %s, loads %s", spec_.name.c_str(), n, dp.rate_hz,
+             topic.c_str(), sp.bodies ? "with bodies (Box2D)" : "points without bodies",
+             sp.loads_ride ? "riding in front of their carriers" : "pushed by their carriers");
   }
 
  private:
@@ -170,25 +173,26 @@ class MockRobotNode::Impl {
     }
   }
 
-  /// Robot r's running segment and object o's are a carry: the load rides with it (when it
-  /// is at the carrier; else it moves along its own path).
+  /// Robot r's running segment and object o's are a carry: the load goes with it, riding or
+  /// pushed (when it is at the carrier; else it moves along its own path).
   void pair(int r, int o) {
     const Running& a = running_.at(r);
     const Running& b = running_.at(o);
     if (sim_->carrierOf(o) >= 0 || !exec::carries(spec_, a.step, a.token, b.step, b.token)) return;
-    if (sim_->ride(r, o))
-      ROS_INFO("mock_robots: %s rides with %s (step %d)", spec_.entities[o].name.c_str(),
-               spec_.entities[r].name.c_str(), a.step + 1);
+    if (sim_->carry(r, o))
+      ROS_INFO("mock_robots: %s goes with %s (step %d)", spec_.entities[o].name.c_str(), spec_.entities[r].name.c_str(),
+               a.step + 1);
   }
 
-  /// The carrier's segment ended: DONE -- its load goes on to its end (on the target) and
-  /// reports DONE there; FAILED or ABORTED -- the load stops where it is (ABORTED).
+  /// The carrier's segment ended: DONE -- a riding load goes on to its end (on the target),
+  /// a pushed one is judged where it lies, and reports DONE or FAILED; FAILED or ABORTED --
+  /// the load stops where it is (ABORTED).
   void onRobotStatus(int r, const ddace::SegmentStatus& m) {
     const auto it = running_.find(r);
     if (it == running_.end() || m.segment_id != it->second.segment_id) return;
     if (m.status == ddace::SegmentStatus::DONE) {
       for (size_t o = 0; o < spec_.entities.size(); ++o)
-        if (sim_->carrierOf(static_cast<int>(o)) == r) sim_->endRide(static_cast<int>(o));
+        if (sim_->carrierOf(static_cast<int>(o)) == r) sim_->endCarry(static_cast<int>(o));
       running_.erase(it);
     } else if (m.status == ddace::SegmentStatus::FAILED || m.status == ddace::SegmentStatus::ABORTED) {
       running_.erase(it);
@@ -254,6 +258,16 @@ class MockRobotNode::Impl {
     ROS_WARN("mock_robots: %s %s", name.c_str(), hold ? "held (its wheels do not turn)" : "released");
   }
 
+  /// The robot's battery dies: its wheels stop for good and the tracker holds its last pose,
+  /// stale, from now on.
+  void onLose(const std::string& topic, const std::string& name) {
+    const int i = entityNamed(topic, name, true);
+    if (i < 0 || lost_.count(i)) return;
+    sim_->setStalled(i, true);
+    lost_[i] = {sim_->measuredPose(i), ros::Time::now()};
+    ROS_WARN("mock_robots: %s lost (its wheels stop, the tracker holds its last pose, stale)", name.c_str());
+  }
+
   void onEstop(const std_msgs::Bool& m) {
     for (const auto& s : sim_->setEstop(m.data)) publish(s);
   }
@@ -269,16 +283,17 @@ class MockRobotNode::Impl {
     msg.header.stamp = ros::Time::now();
     msg.header.frame_id = frame_id_;
     for (size_t i = 0; i < spec_.entities.size(); ++i) {
-      const exec::Pose2D measured = sim_->measuredPose(static_cast<int>(i));
+      const auto lost = lost_.find(static_cast<int>(i));
+      const exec::Pose2D measured = lost != lost_.end() ? lost->second.first : sim_->measuredPose(static_cast<int>(i));
       ddace::Entity out;
       out.name = spec_.entities[i].name;
       out.kind = task::toString(spec_.entities[i].kind);
       out.pose.x = measured.x;
       out.pose.y = measured.y;
       out.pose.theta = measured.yaw;
-      out.visible = true;
-      out.stale = false;
-      out.last_seen = msg.header.stamp;
+      out.visible = lost == lost_.end();
+      out.stale = !out.visible;
+      out.last_seen = out.visible ? msg.header.stamp : lost->second.second;
       msg.entities.push_back(out);
       if (publish_tf_ && spec_.entities[i].kind != task::EntityKind::Goal)
         tf_.sendTransform(transform(out.name, measured, msg.header.stamp));
@@ -295,6 +310,7 @@ class MockRobotNode::Impl {
   };
   std::map<int, Running> running_;  ///< each entity's running segment (robots: as sent to their follower)
   size_t contacts_seen_ = 0;        ///< contacts already logged
+  std::map<int, std::pair<exec::Pose2D, ros::Time>> lost_;  ///< robots lost (~lose): last pose and when seen
   std::string frame_id_;
   bool publish_tf_ = true;                    // set from the parameters
   std::map<int, CommandSources> sources_;     ///< by robot index: whose wheel commands count

@@ -49,7 +49,7 @@ class PathFollowerNode::Impl {
          {std::pair{"rate_hz", rate_hz_}, {"pose_timeout_s", pose_timeout_s_}, {"stale_fail_s", params_.stale_fail_s}})
       if (!(v > 0)) throw Error("parameter '" + pnh.resolveName(p) + "' must be positive");
     params_.validate();
-    view_ = std::make_unique<exec::FollowerView>(kinds, arrival_m, params_.safety.margin_m);
+    view_ = std::make_unique<exec::FollowerView>(kinds, arrival_m, params_.safety.endsAgainstReachM());
     for (const auto& name : names) {
       auto r = std::make_unique<Robot>(name, params_);
       r->wheels = nh.advertise<ddace::WheelCommand>("/robots/" + name + "/wheels", 10);

@@ -95,6 +95,20 @@ TEST(DeadNode, TheLaunchCommandExitsNonZeroWhereRoslaunchExitsZero) {
   EXPECT_NE(printed.find(coordinatorCause()), std::string::npos) << printed;
 }
 
+// A task without a demonstration (as `ddace init` leaves it) has no start scene: execute_sim
+// says so before it starts a graph whose every node would die on it.
+TEST(DeadNode, ExecuteSimOnATaskWithoutDemonstrationsSaysSoAtOnce) {
+  ASSERT_FALSE(setup().scripts.empty()) << "the .test file must set ~scripts";
+  const std::string task = std::string(setup().scratch) + "/no_demos";
+  fs::create_directories(task + "/demos");
+  fs::copy_file(setup().task + "/test/task.yaml", task + "/task.yaml");
+  const auto [status, printed] = run("'" + setup().scripts + "/execute_sim' '" + task + "' --no-build",
+                                     std::string(setup().scratch) + "/no_demos.out");
+  EXPECT_EQ(status, 2) << printed;
+  EXPECT_NE(printed.find(task + "/demos has no demonstration"), std::string::npos) << printed;
+  EXPECT_EQ(printed.find("on mock robots"), std::string::npos) << "a graph was started:\n" << printed;
+}
+
 // The counterpart: a run that finishes exits 0 naming no node, and its launch.log holds no
 // error of the launch's own making (once every one carried "[rospack] Error: no such package
 // media_export").

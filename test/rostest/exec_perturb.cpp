@@ -3,7 +3,8 @@
 // fetcher drives to the box, the box is put down 6 cm away (more than the arrival radius):
 // the coordinator re-plans the fetcher's token to where the box is now. While it carries
 // the box, the carrier's wheels are held for 5 s. The run finishes with the box on its goal.
-// Every wait is on a condition seen on the wire; the hold is the only fixed time.
+// Every wait is on a condition seen on the wire; the hold is the only fixed time. Then a
+// robot lost for good on its way to the box (second test).
 #include <cmath>
 
 #include <std_msgs/String.h>
@@ -129,6 +130,64 @@ TEST(ExecPerturb, ABoxMovedAndACarrierHeldAreRecoveredFromAndTheRunFinishes) {
   const ddace::CoordinatorState s = watch.state();
   ASSERT_EQ(s.state, ddace::CoordinatorState::FINISHED) << s.state_name << ": " << s.reason;
   EXPECT_TRUE(exec_test::goalConditionsMet(s));
+  EXPECT_TRUE(exec_test::wheelsStopped(watch));
+}
+
+// With a policy that reads the scene (deliver's scene network), the robot sent to the box
+// dies on its way (~lose: its wheels stop, the tracker holds its last pose, stale). The
+// coordinator declares it lost for good and decides the step again without it; the other
+// robot fetches the box past the dead one -- the path follower keeps it as an obstacle where
+// it was last seen, not a stale pose that stops every robot near it -- and the run finishes.
+TEST(ExecPerturb, ARobotLostForGoodIsLeftWhereItDiedAndTheOtherDoesItsWork) {
+  ros::NodeHandle nh;
+  const exec_test::Files files = exec_test::Files::fromParams();
+  const exec_test::ScratchDir scratch("perturb_lost");
+  const std::string& dir = scratch;
+  exec_test::generateTask(dir, "deliver", 20, 1);
+  const std::string model = exec_test::trainModel(dir);
+  const ddace::task::TaskDir test = ddace::task::loadTaskDir(dir + "/test");
+  Poses poses(nh);
+  ros::Publisher lose = nh.advertise<std_msgs::String>("/mock_robots/lose", 1);
+  exec_test::Watcher watch(nh, test.spec);
+  exec_test::Launch graph({files.launch_file, "task:=" + dir + "/test", "model:=" + model, "autostart:=false",
+                           "monitor:=false", "config:=" + files.config_file},
+                          dir + "/launch.log");
+  ASSERT_TRUE(exec_test::waitFor([&] { return lose.getNumSubscribers() > 0; }, 30.0))
+      << "mock_robots does not listen on ~lose";
+  const std::string started = exec_test::startRun(watch, 30.0);
+  ASSERT_TRUE(started.empty()) << started;
+  std::string fetch;
+  ASSERT_TRUE(exec_test::waitFor([&] { return !(fetch = sentKey(watch, ":move:B1")).empty(); }, 30.0))
+      << "no robot was sent to B1";
+  std_msgs::String dead;
+  dead.data = fetch.substr(0, fetch.find(':'));
+  // Near the box (12 cm between centres): whoever fetches it next comes well within the
+  // safety filter's range of the dead robot.
+  ASSERT_TRUE(exec_test::waitFor(
+      [&] {
+        const auto p = poses.latest();
+        return p.count(dead.data) && p.count("B1") && distance(p.at(dead.data), p.at("B1")) < 0.12;
+      },
+      30.0))
+      << dead.data << " did not drive to B1";
+  lose.publish(dead);
+
+  ASSERT_TRUE(exec_test::waitFor(
+      [&] {
+        const auto c = watch.stateCode();
+        return c == ddace::CoordinatorState::FINISHED || c == ddace::CoordinatorState::ABORTED;
+      },
+      90.0))
+      << "the run did not end; state " << watch.state().state_name << ": " << watch.state().reason;
+  ros::Duration(0.3).sleep();
+  const ddace::CoordinatorState s = watch.state();
+  ASSERT_EQ(s.state, ddace::CoordinatorState::FINISHED) << s.state_name << ": " << s.reason;
+  EXPECT_EQ(s.lost, std::vector<std::string>{dead.data}) << "the coordinator did not declare it lost";
+  EXPECT_TRUE(exec_test::goalConditionsMet(s));
+  bool other_fetched = false;
+  for (const auto& [id, seg] : watch.segments())
+    other_fetched |= seg.key.rfind(dead.data + ":", 0) != 0 && seg.key.find(":move:B1") != std::string::npos;
+  EXPECT_TRUE(other_fetched) << "the other robot was never sent to B1";
   EXPECT_TRUE(exec_test::wheelsStopped(watch));
 }
 

@@ -1,14 +1,16 @@
 // The closed-loop simulator's execution model with bodies (`ddace eval --execution
 // diffdrive`): every motion of a step runs at the same time on the simulated table of the
 // mock robots (exec/table_simulator.h: Box2D discs of the task's footprints, objects
-// carried along their own paths or riding with their carriers, pushed when something
+// carried along their own paths or going with their carriers, pushed when something
 // drives into them). Each robot runs exec::RobotController -- the very control cycle of
 // path_follower_node (path following, safety filter, deadlocks, ended at contact) -- from
 // its measured pose and the others'; what each motion may touch is decided once when the
 // step begins from the step's end points (exec::motionContacts, the node's answer too).
 // Without the filter (safety.enabled false) the bodies still collide, and every collision
-// is counted. A load at its carrier rides in front of it during their step
-// (TableSimulator::ride), part of the carrier's body for its filter.
+// is counted. A load at its carrier goes with it during their step (TableSimulator::carry):
+// by default it rides in front of it, part of the carrier's body for its filter; with
+// mock_robots/loads_ride false (`ddace eval --config`) the carrier pushes it as on the real
+// table (exec/push_path.h), and the load is judged where it lies when its carrier is done.
 //
 // A step ends when every robot's control law reports it arrived and every object's segment
 // is done, or when its filter reports a deadlock (the robot stops there; the failure names

@@ -33,9 +33,9 @@ namespace ddace::exec {
 class FollowerView {
  public:
   /// `kinds`: the task's entities by name (empty: none known; a tracked body of unknown
-  /// kind is then kept off as an object); `arrival_radius_m`: the task's; `margin_m`: the
-  /// safety filter's.
-  FollowerView(std::map<std::string, task::Entity> kinds, double arrival_radius_m, double margin_m);
+  /// kind is then kept off as an object); `arrival_radius_m`: the task's; `reach_m`: the
+  /// safety filter's SafetyParams::endsAgainstReachM().
+  FollowerView(std::map<std::string, task::Entity> kinds, double arrival_radius_m, double reach_m);
 
   /// A body as tracked at `seen_s`: `kind` as the tracker names it (the task's kind wins),
   /// `position` (non-finite: unknown), `stale` as the tracker flags it. Entities without a
@@ -95,7 +95,7 @@ class FollowerView {
   void bump(int step);
 
   std::map<std::string, task::Entity> kinds_;
-  double arrival_m_, margin_m_;
+  double arrival_m_, reach_m_;
   std::map<std::string, Tracked> bodies_;
   std::map<std::string, Segment> segments_;
   std::map<std::string, uint32_t> ended_;  ///< the last segment id reported ended, by name

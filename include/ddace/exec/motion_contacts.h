@@ -7,7 +7,7 @@
 // A motion may touch its target; a carrier its load -- an object whose motion has the
 // same step, action and target, within task::togetherDistance of it when the step begins
 // (a load of two carriers belongs to the first); and the bodies its end point touches, or
-// its load's end point touches (exec::endsAgainst with the filter's margin, at the bodies'
+// its load's end point touches (exec::endsAgainst with the filter's reach, at the bodies'
 // final positions: one standing there, or ending there this step, not one only passing
 // by) -- each only while that body is at the end point: two robots bound for one goal
 // keep apart on the way.
@@ -33,10 +33,10 @@ namespace ddace::exec {
 
 /// What a motion may touch, decided once per step from the step's end points.
 struct MotionContacts {
-  std::string load;  ///< the object it carries, riding in front ("" = none)
-  /// The table carries the load in front of its carrier once met (TableSimulator::ride: the
-  /// mock robots, the simulator) instead of leaving it to be pushed (the real table, its
-  /// simulation): no push steering (exec/push_path.h's pushWheels).
+  std::string load;  ///< the object it carries ("" = none)
+  /// The table carries the load in front of its carrier once met (TableSimulator::carry with
+  /// loads_ride: the mock robots by default) instead of leaving it to be pushed (the real
+  /// table, its simulation): no push steering (exec/push_path.h's pushWheels).
   bool load_rides = false;
   Eigen::Vector2d load_end{0, 0};  ///< where the load ends
   /// Where the load stood when this was decided (NaN: unknown): its carrier's push was
@@ -65,7 +65,7 @@ struct BodyAtStart {
 /// follower node, the simulator with bodies and the collision count.
 MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
                               int step, const std::string& action, const std::string& target,
-                              const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m);
+                              const std::vector<BodyAtStart>& bodies, double reach_m, double arrival_radius_m);
 
 /// A motion of a step and what it may touch (motionContacts), by entity index.
 struct DecidedMotion {
@@ -86,16 +86,16 @@ class AllowedContacts {
   /// From the step's motions as decided (`names`, `radii`: every entity's; 0 = no body).
   /// Throws ddace::Error for a motion naming an entity outside them.
   AllowedContacts(const std::vector<std::string>& names, const std::vector<double>& radii,
-                  const std::vector<DecidedMotion>& motions, double margin_m);
+                  const std::vector<DecidedMotion>& motions, double reach_m);
   /// Decided here (motionContacts for every motion of the step): `tokens`: the step's;
   /// `starts`: every entity's position when the step begins; `ends`: every entity's
   /// position at the end of the step (a motion's end point, else where it stands;
   /// non-finite = unknown); `moves`: whether the entity has a motion this step; `radii`:
-  /// every entity's disc (0 = no body); `margin_m`: the safety filter's margin. Throws
+  /// every entity's disc (0 = no body); `reach_m`: the safety filter's SafetyParams::endsAgainstReachM(). Throws
   /// ddace::Error when the sizes differ or a token names an entity outside them.
   AllowedContacts(const task::TaskSpec& spec, const std::vector<task::Token>& tokens,
                   const std::vector<Eigen::Vector2d>& starts, const std::vector<Eigen::Vector2d>& ends,
-                  const std::vector<bool>& moves, const std::vector<double>& radii, double margin_m);
+                  const std::vector<bool>& moves, const std::vector<double>& radii, double reach_m);
   /// Whether `a` (at `pa`) and `b` (at `pb`) may touch now.
   bool allowed(int a, int b, const Eigen::Vector2d& pa, const Eigen::Vector2d& pb) const;
 
@@ -108,7 +108,7 @@ class AllowedContacts {
   std::set<std::pair<int, int>> exempt_;  ///< (a, b), a < b: a motion and its target, a carrier and its load
   std::vector<EndsAgainst> ends_against_;
   std::vector<double> radii_;
-  double margin_m_ = 0;
+  double reach_m_ = 0;
 };
 
 /// The running step's allowed contacts, as its segments arrive one by one within
@@ -116,8 +116,8 @@ class AllowedContacts {
 /// each.
 class StepContacts {
  public:
-  /// `radii`: every entity's disc (0 = no body); `margin_m`: the path followers' margin.
-  StepContacts(task::TaskSpec spec, std::vector<double> radii, double margin_m);
+  /// `radii`: every entity's disc (0 = no body); `reach_m`: the path followers' SafetyParams::endsAgainstReachM().
+  StepContacts(task::TaskSpec spec, std::vector<double> radii, double reach_m);
   /// The segment of `entity` (index) in `step` with `token`, ending at `end`; `at`: every
   /// entity's position now (table frame, metres; NaN = unknown). A new step forgets the
   /// last one's contacts first. Throws ddace::Error naming both when the token is another
@@ -133,7 +133,7 @@ class StepContacts {
  private:
   task::TaskSpec spec_;
   std::vector<double> radii_;
-  double margin_m_;
+  double reach_m_;
   int step_ = -1;
   std::map<int, std::pair<task::Token, Eigen::Vector2d>> ends_;  ///< the step's motions: token, end point
   AllowedContacts allowed_;

@@ -45,12 +45,13 @@ inline constexpr double kPushConeRad = M_PI / 4;
 /// How far the carrier over-steers the load's side drift (pushWheels()): a disc pushed off
 /// its centre slides sideways, so the carrier heads as far past the contact line, the other
 /// way, as the load has drifted from its push direction; at most kMaxPushLeadRad.
-inline constexpr double kPushLead = 0.5;
+inline constexpr double kPushLead = 1.0;
 inline constexpr double kMaxPushLeadRad = M_PI / 3;
 /// A pushed load heads for its push line this far ahead of itself (metres).
 inline constexpr double kPushLookaheadM = 0.2;
 /// A carrier not pushing its load plans its push again from where things are once the load
-/// lies this far from where its path was planned for (metres): the load moved since.
+/// lies this far from where its path was planned for (metres): the load slid off its front,
+/// or something else moved it.
 inline constexpr double kPushReplanM = kPushClearanceM / 3;
 /// A push planned again has a point every this many metres.
 inline constexpr double kPushPathSpacingM = 0.005;
@@ -91,9 +92,27 @@ std::optional<PushCommand> pushWheels(const Pose2D& carrier, const Eigen::Vector
                                       const Eigen::Vector2d& load_end, const Eigen::Vector2d& carrier_end,
                                       double contact_m, const FollowerGains& gains);
 
+/// Whether a carrier at `carrier` stands behind its load at `load`, at any distance: the
+/// load, seen from the carrier, within kPushConeRad of where pushWheels heads it (the push
+/// line through `load_end` from `carrier_end`), or already at its end point. Only from
+/// there may the carrier touch its load (exec::RobotController): a carrier that runs into
+/// its load from the side shoves it off its line.
+bool behindLoad(const Eigen::Vector2d& carrier, const Eigen::Vector2d& load, const Eigen::Vector2d& load_end,
+                const Eigen::Vector2d& carrier_end);
+
 /// What the motion `step[i]` pushes when its step is decided at `decided` (every entity's
 /// position): the entity index of its load (task::ridingLoad), or nothing.
 std::optional<int> pushedLoad(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,
                               const std::vector<Eigen::Vector2d>& decided);
+
+/// The path motion `step[i]` drives, its step decided at `decided` with its bodies ending
+/// at `ends` (every entity's, task::stepEndPositions): a carrier that pushes a load
+/// (pushedLoad) goes round the load and pushes it to the load's end (pushPath from the
+/// start of `planned`, as many points, ending behind the load's end point); any other
+/// motion drives `planned`. The simulator plans a step's paths with it, as the coordinator
+/// does for the robots.
+std::vector<Eigen::Vector2d> drivenPath(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,
+                                        const std::vector<Eigen::Vector2d>& decided,
+                                        const std::vector<Eigen::Vector2d>& ends, std::vector<Eigen::Vector2d> planned);
 
 }  // namespace ddace::exec

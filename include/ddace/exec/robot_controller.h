@@ -19,7 +19,9 @@
 // from the step's end points (exec/motion_contacts.h) by the caller and given here; the
 // controller never decides it from where bodies are while they move. A body it may touch
 // as its ending is touchable only while that body is at the end point (endsAgainst from
-// its measured position): two robots bound for one goal keep apart on the way.
+// its measured position): two robots bound for one goal keep apart on the way. A load it
+// pushes is touchable only from behind it (exec::behindLoad), part of its body only while
+// it pushes it: a carrier never shoves its load off its line from the side.
 //
 // Owns: the order of the cycle, the stale clock, when a motion ends. Must not: know ROS,
 // read a clock (time comes in), or decide where a motion ends or what it may touch.

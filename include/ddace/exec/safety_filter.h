@@ -85,6 +85,14 @@ struct SafetyParams {
   double progress_m = 0.02;        ///< advancing this much along the path is progress
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
+  /// How far beyond contact the filter holds a robot's centre off a body beside it: the
+  /// barrier keeps the point projection_m ahead of the axle contact + margin off the body,
+  /// so a body square to the robot's heading holds it margin + projection off (one ahead
+  /// of it, margin + 2 projection). A body ending nearer than this to touching a motion's
+  /// end point is one the motion ends against (endsAgainst): kept at the margin, it would
+  /// hold the robot off its end point (ends turned about one target beside each other,
+  /// task::kEndTurnGapM: robots ringing the one they meet at).
+  double endsAgainstReachM() const { return margin_m + projection_m; }
 };
 
 /// Calls `visit(name, field)` for every field, by the name config/execution.yaml gives it
@@ -137,16 +145,17 @@ inline BodyShape bodyShape(const task::TaskSpec& spec, int i) {
 }
 
 /// Whether a body at `position` with `radius_m` is one the motion ends against: the
-/// robot's disc standing at the motion's `end_point` would be within `margin_m` of contact
-/// with it (the end-point rule ends a motion at contact with a robot already on the goal, a
-/// queue's last robot, ...). Such a body is touchable like the target (else the filter
+/// robot's disc standing at the motion's `end_point` would be nearer than `reach_m`
+/// (SafetyParams::endsAgainstReachM) to contact with it (the end-point rule ends a motion at
+/// contact with a robot already on the goal, a queue's last robot, beside a robot bound for
+/// the same one, ...). Such a body is touchable like the target (else the filter
 /// would hold the robot a margin off its end point), and its contact with the robot is no
 /// collision (exec/bodies_execution.h). Decided once, from where the bodies end (a step's
 /// or a segment's start); while it runs, such a body is touchable only while it is at the
 /// end point (endsAgainst from its current position): two robots bound for one goal keep
 /// a margin on the way, and one that stopped short elsewhere is gone round, not pushed.
 bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const Eigen::Vector2d& position,
-                 double radius_m, double margin_m);
+                 double radius_m, double reach_m);
 
 /// What the filter decided for one control cycle.
 struct SafetyCommand {

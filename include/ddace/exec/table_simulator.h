@@ -2,7 +2,9 @@
 // 1/rate_hz, with bodies. Robots are exec::DiffDriveModel unicycles driven by wheel
 // commands; objects move through their own segments, carried along the planned path at a
 // constant speed (exec/scene.h's CarriedObject, the execution model of
-// docs/task-format.md), and when something pushes them; goals are flat and never move.
+// docs/task-format.md), and when something pushes them; goals are flat and never move. The
+// load of a carry step goes with its carrier (carry()): riding in front of it (loads_ride,
+// the mock robots' default) or pushed by it body against body, as on the real table.
 //
 // Bodies (params.bodies): every robot and object is a disc (exec/safety_filter.h's
 // bodyShape) in a Box2D 2.4 world seen from above (no gravity). Each step a robot's unicycle decides where its
@@ -47,6 +49,9 @@ struct TableSimulatorParams {
   double object_speed_mps = 0.12;  ///< objects follow their segments at this speed
   double object_damping_hz = 8.0;  ///< table friction: a pushed object's speed decays at this rate
   int status_every_cycles = 5;     ///< a moving object reports RUNNING every N steps (10 Hz at 50 Hz)
+  /// How a carry step moves its load (carry()). true: the table carries it in front of its
+  /// carrier once met; false: it moves only when its carrier pushes it, as on the real table.
+  bool loads_ride = true;
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
 };
@@ -59,6 +64,7 @@ void visitParams(TableSimulatorParams& p, Visit&& visit) {
   visit("bodies", p.bodies);
   visit("object_speed_mps", p.object_speed_mps);
   visit("object_damping_hz", p.object_damping_hz);
+  visit("loads_ride", p.loads_ride);
 }
 
 /// What an object reports about one of its segments (SegmentStatus on the wire).
@@ -82,24 +88,31 @@ class TableSimulator {
   ~TableSimulator();
   TableSimulator(TableSimulator&&) noexcept;
 
-  /// Object `load` rides with robot `carrier` (a carry step, task::carriedLoad): from now
-  /// on it is carried in front of the carrier, not along its own segment -- from where it
-  /// is relative to the carrier it swings round to the carrier's front, at their contact
-  /// distance, over the carrier's first kRideSwingM of travel, and then turns and moves
-  /// with it. Their bodies pass through each other, as a load placed on its carrier does.
-  /// A segment of the load keeps running (RUNNING reports, progress toward its goal) until
-  /// endRide(). Returns false and changes nothing when the load is farther than
-  /// task::togetherDistance from its carrier, where the carrier counts as at it (a ball
-  /// passed from afar moves on its own segment), or either has no body. Throws ddace::Error when `carrier` is not a
-  /// robot or `load` not an object.
-  bool ride(int carrier, int load);
-  /// The load stops riding (its carrier arrived). Its running segment, if any, goes on
-  /// from where the load is straight to the segment's end -- the few centimetres its
-  /// carrier stopped short (task::stopRadius): the load ends on its target -- and reports
-  /// Done there (step()). No-op for a load that does not ride. A carrier that fails: stop
-  /// the load's segment (stopSegment) instead.
-  void endRide(int load);
-  /// The robot `load` rides with, or -1.
+  /// Object `load` goes with robot `carrier` (a carry step, task::carriedLoad): from now on
+  /// nothing carries it along its own segment. With params.loads_ride it rides: from where
+  /// it is relative to the carrier it swings round to the carrier's front, at their contact
+  /// distance, over the carrier's first kRideSwingM of travel, and then turns and moves with
+  /// it, their bodies passing through each other as a load placed on its carrier does.
+  /// Without, it moves only when its carrier pushes it, as on the real table
+  /// (exec/push_path.h steers the carrier): with bodies by Box2D's contact of the two discs,
+  /// as for any body; as points it is moved out to their contact distance along the line
+  /// of their centres whenever its carrier comes nearer. A segment of the load keeps
+  /// running (RUNNING reports, progress toward its goal) until endCarry(). Returns false
+  /// and changes nothing when the load is farther than task::togetherDistance from its
+  /// carrier, where the carrier counts as at it (a ball passed from afar moves on its own
+  /// segment), or either has no body, or the load goes with another carrier. Throws
+  /// ddace::Error when `carrier` is not a robot or `load` not an object.
+  bool carry(int carrier, int load);
+  /// The load's carrier arrived. A riding load's running segment, if any, goes on from
+  /// where the load is straight to the segment's end -- the few centimetres its carrier
+  /// stopped short (task::stopRadius): the load ends on its target -- and reports Done there
+  /// (step()). A pushed load stays where it is and its segment is reported by the next
+  /// step(): Done within the task's arrival radius plus task::kArrivalToleranceM of the
+  /// segment's end (exec::CarriedObjects' rule on the real table), else Failed naming how
+  /// far it is. No-op for a load nobody carries. A carrier that fails: stop the load's
+  /// segment (stopSegment) instead.
+  void endCarry(int load);
+  /// The robot `load` goes with (carry()), or -1.
   int carrierOf(int load) const;
 
   /// A wheel command for robot `entity`, effective after the robot's latency. Throws
@@ -165,7 +178,7 @@ class TableSimulator {
     std::unique_ptr<CarriedObject> carried;  ///< the object's current (or last) segment
     uint32_t segment_id = 0;
     bool moving = false;
-    // Riding (ride()): the carrier, the load's start offset in the carrier's frame, the
+    // Carried (carry()): the carrier; riding, also the load's start offset in the carrier's frame, the
     // carrier's travel since, and the load's distance to its goal when it began.
     int carrier = -1;
     Eigen::Vector2d ride_offset0{0, 0};
@@ -177,9 +190,11 @@ class TableSimulator {
   Entity& object(int i);
   ObjectStatus report(int i, SegmentState state, std::string message = "") const;
   void measureClearance();
-  void halt(int i);  ///< object i stops following its segment and comes to rest
+  void halt(int i);  ///< object i stops following its segment (or its carrier) and comes to rest
+  void rideLoads(const std::vector<Eigen::Vector2d>& before);  ///< riding loads to their carriers' fronts
+  void pushLoadsApart();  ///< points: every pushed load out to contact with its carrier
 
-  task::TaskSpec spec_;  ///< footprints and arrival radius: who rides (ride())
+  task::TaskSpec spec_;  ///< footprints and arrival radius: who carries (carry())
   std::vector<std::string> names_;
   std::vector<Entity> entities_;
   DiffDriveParams robot_;
@@ -188,6 +203,7 @@ class TableSimulator {
   bool estopped_ = false;
   std::unique_ptr<Physics> physics_;
   std::vector<BodyContact> contacts_;
+  std::vector<ObjectStatus> push_ended_;  ///< pushed loads' reports at endCarry(), out with the next step()
   std::unique_ptr<ClearanceMeter> meter_;
 };
 

@@ -12,7 +12,9 @@
 // /ddace/entities; remap it when a synthetic camera + tracker close the loop) and tf table -> entity. Parameters:
 // config/execution.yaml, section mock_robots. A hand on the table, for perturbation tests:
 // ~place (ddace/Entity: a robot or object put down at pose.x, pose.y, at rest), ~hold and
-// ~release (std_msgs/String: a robot's wheels blocked, freed); other names are logged and ignored.
+// ~release (std_msgs/String: a robot's wheels blocked, freed), ~lose (std_msgs/String: a
+// robot's battery dies, its wheels stop and its last pose is published stale from then on);
+// other names are logged and ignored.
 #pragma once
 
 #include <memory>
@@ -32,7 +34,7 @@ class MockRobotNode {
  public:
   /// The node's own parameters (private namespace) and their defaults, as
   /// config/execution.yaml (section mock_robots) documents them; ~robot/* are
-  /// exec::DiffDriveParams; bodies, object_speed_mps and object_damping_hz are
+  /// exec::DiffDriveParams; bodies, object_speed_mps, object_damping_hz and loads_ride are
   /// exec::TableSimulatorParams'.
   struct Params : exec::TableSimulatorParams {
     Params() { bodies = true; }  // the mock table has bodies (exec::TableSimulatorParams alone: points)

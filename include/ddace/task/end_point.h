@@ -121,8 +121,10 @@ Eigen::Vector2d endPointFrom(const Eigen::Vector2d& start, const Eigen::Vector2d
 
 /// Where bodies fit (stepEndPositions): a turned end point is searched in steps of
 /// kEndTurnStepRad, at most kMaxEndTurnRad either way about the target, and stays
-/// kEndTurnGapM (metres) from every body but its target; onto a taken goal the motion backs
-/// off kBackOffStepM (metres) at a time.
+/// kEndTurnGapM (metres) from every body but its target (so 1-1.4 cm off them, nearer than
+/// the safety filter would hold a robot arriving beside them: execution lets it end against
+/// them, exec::SafetyParams::endsAgainstReachM); onto a taken goal the motion backs off
+/// kBackOffStepM (metres) at a time.
 inline constexpr double kEndTurnStepRad = M_PI / 36;  // 5 degrees
 inline constexpr double kMaxEndTurnRad = M_PI / 2;
 inline constexpr double kEndTurnGapM = 0.01;

@@ -158,8 +158,9 @@ void BodiesExecution::redecideRunning(size_t first, int step) {
     const int e = o.motion.entity;
     if (!o.moving || o.step != step || !o.motion.robot || !(radius_m_[e] > 0)) continue;
     MotionContacts c = contactsOf(o);
-    if (load_of_[e] >= 0) {  // its load rides with it whatever is decided now
-      c.load = o.contacts.load, c.load_rides = true, c.load_end = o.contacts.load_end, c.load_at = o.contacts.load_at;
+    if (load_of_[e] >= 0) {  // its load goes with it whatever is decided now
+      c.load = o.contacts.load, c.load_rides = o.contacts.load_rides, c.load_end = o.contacts.load_end,
+      c.load_at = o.contacts.load_at;
     } else {
       dropLoad(c);
     }
@@ -188,7 +189,7 @@ void BodiesExecution::allowContacts(size_t first) {
       const Motion& mo = motions_[m];
       decided.push_back({mo.motion.entity, mo.motion.target, mo.final_at, mo.contacts});
     }
-  allowed_ = AllowedContacts(names_, radius_m_, decided, controller_.safety.margin_m);
+  allowed_ = AllowedContacts(names_, radius_m_, decided, controller_.safety.endsAgainstReachM());
 }
 
 std::vector<MotionEnd> BodiesExecution::cycle() {
@@ -281,7 +282,8 @@ MotionContacts BodiesExecution::contactsOf(const Motion& motion) const {
     others.push_back(b);
   }
   return motionContacts(table_->truePose(i).position(), radius_m_[i], motion.final_at, motion.step, motion.token.action,
-                        targetName(motion.token.target), others, controller_.safety.margin_m, params_.arrival_radius_m);
+                        targetName(motion.token.target), others, controller_.safety.endsAgainstReachM(),
+                        params_.arrival_radius_m);
 }
 
 std::string BodiesExecution::targetName(int target) const {
@@ -299,12 +301,12 @@ void BodiesExecution::rideLoad(int carrier) {
   MotionContacts& contacts = motions_[static_cast<size_t>(motion_of_[carrier])].contacts;
   const int load = spec_.entityIndex(contacts.load);
   if (load < 0) return;
-  if (!(table_->carrierOf(load) < 0 && table_->ride(carrier, load))) {
-    dropLoad(contacts);  // another carrier's, or too far to ride
+  if (!table_->carry(carrier, load)) {
+    dropLoad(contacts);  // another carrier's, or too far
     return;
   }
   load_of_[carrier] = load;
-  contacts.load_rides = true;
+  contacts.load_rides = params_.config.table.loads_ride;
 }
 
 std::string BodiesExecution::startMotion(size_t m) {
@@ -368,7 +370,7 @@ void BodiesExecution::endRide(int carrier, bool arrived) {
   touching_[std::min(carrier, load) * n + std::max(carrier, load)].touchAllowed();
   const int m = motion_of_[load];
   if (arrived || m < 0 || !motions_[m].moving) {
-    table_->endRide(load);
+    table_->endCarry(load);
     return;
   }
   table_->stopSegment(load);
@@ -412,10 +414,10 @@ void BodiesExecution::cycleRobots() {
 void BodiesExecution::advanceTable() {
   for (const ObjectStatus& s : table_->step()) {
     const int m = motion_of_[s.entity];
-    if (s.state == SegmentState::Done && m >= 0 && motions_[m].moving) {
+    if ((s.state == SegmentState::Done || s.state == SegmentState::Failed) && m >= 0 && motions_[m].moving) {
       finish(static_cast<size_t>(m));
       motions_[m].executed.push_back(table_->truePose(s.entity).position());
-      ended_.push_back({s.entity, true, ""});
+      ended_.push_back({s.entity, s.state == SegmentState::Done, s.message});
     }
   }
   for (int e = 0; e < static_cast<int>(motion_of_.size()); ++e)
@@ -481,7 +483,7 @@ void BodiesExecution::stopBatch(uint32_t batch) {
     }
   for (size_t m = 0; m < motions_.size(); ++m)  // riding another batch's carrier
     if (motions_[m].batch == batch && motions_[m].moving) {
-      table_->endRide(motions_[m].motion.entity);
+      table_->endCarry(motions_[m].motion.entity);
       finish(m);
     }
 }

@@ -7,8 +7,8 @@
 
 namespace ddace::exec {
 
-FollowerView::FollowerView(std::map<std::string, task::Entity> kinds, double arrival_radius_m, double margin_m)
-    : kinds_(std::move(kinds)), arrival_m_(arrival_radius_m), margin_m_(margin_m) {}
+FollowerView::FollowerView(std::map<std::string, task::Entity> kinds, double arrival_radius_m, double reach_m)
+    : kinds_(std::move(kinds)), arrival_m_(arrival_radius_m), reach_m_(reach_m) {}
 
 void FollowerView::track(const std::string& name, std::optional<task::EntityKind> kind, const Eigen::Vector2d& position,
                          bool stale, double seen_s) {
@@ -101,7 +101,7 @@ MotionContacts FollowerView::contacts(const std::string& robot, const Eigen::Vec
     at.push_back(b);
   }
   const Segment& s = own->second;
-  return motionContacts(position, radiusOf(robot), s.end, s.step, s.action, s.target, at, margin_m_, arrival_m_);
+  return motionContacts(position, radiusOf(robot), s.end, s.step, s.action, s.target, at, reach_m_, arrival_m_);
 }
 
 const std::vector<SafetyBody>& FollowerView::others(const std::string& robot, double now_s, double& self_age_s) {

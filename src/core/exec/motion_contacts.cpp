@@ -15,7 +15,7 @@ std::pair<int, int> ordered(int a, int b) {
 
 MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
                               int step, const std::string& action, const std::string& target,
-                              const std::vector<BodyAtStart>& bodies, double margin_m, double arrival_radius_m) {
+                              const std::vector<BodyAtStart>& bodies, double reach_m, double arrival_radius_m) {
   MotionContacts out;
   const BodyAtStart* load = nullptr;
   for (const BodyAtStart& b : bodies)
@@ -29,16 +29,16 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
     }
   for (const BodyAtStart& b : bodies) {
     if (&b == load) continue;
-    if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, margin_m)) out.ends_against.insert(b.name);
-    if (load && endsAgainst(load->final_position, load->radius_m, b.final_position, b.radius_m, margin_m))
+    if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, reach_m)) out.ends_against.insert(b.name);
+    if (load && endsAgainst(load->final_position, load->radius_m, b.final_position, b.radius_m, reach_m))
       out.load_ends_against.insert(b.name);
   }
   return out;
 }
 
 AllowedContacts::AllowedContacts(const std::vector<std::string>& names, const std::vector<double>& radii,
-                                 const std::vector<DecidedMotion>& motions, double margin_m)
-    : radii_(radii), margin_m_(margin_m) {
+                                 const std::vector<DecidedMotion>& motions, double reach_m)
+    : radii_(radii), reach_m_(reach_m) {
   const auto n = static_cast<int>(radii.size());
   if (names.size() != radii.size())
     throw Error("allowed contacts: " + std::to_string(names.size()) + " names and " + std::to_string(n) + " radii");
@@ -61,7 +61,7 @@ AllowedContacts::AllowedContacts(const std::vector<std::string>& names, const st
 
 AllowedContacts::AllowedContacts(const task::TaskSpec& spec, const std::vector<task::Token>& tokens,
                                  const std::vector<Eigen::Vector2d>& starts, const std::vector<Eigen::Vector2d>& ends,
-                                 const std::vector<bool>& moves, const std::vector<double>& radii, double margin_m) {
+                                 const std::vector<bool>& moves, const std::vector<double>& radii, double reach_m) {
   const auto n = static_cast<int>(ends.size());
   if (moves.size() != ends.size() || radii.size() != ends.size() || starts.size() != ends.size() ||
       spec.entities.size() != ends.size())
@@ -99,13 +99,13 @@ AllowedContacts::AllowedContacts(const task::TaskSpec& spec, const std::vector<t
       for (const BodyAtStart& b : bodies)
         if (b.name != names[t.entity]) others.push_back(b);
       m.contacts = motionContacts(starts[t.entity], radii[t.entity], ends[t.entity], 0, t.action,
-                                  t.target >= 0 ? names[t.target] : "", others, margin_m, spec.arrival_radius);
+                                  t.target >= 0 ? names[t.target] : "", others, reach_m, spec.arrival_radius);
       if (spec.entities[t.entity].kind != task::EntityKind::Robot || !loads.insert(m.contacts.load).second)
         m.contacts.load.clear(), m.contacts.load_ends_against.clear();
     }
     motions.push_back(std::move(m));
   }
-  *this = AllowedContacts(names, radii, motions, margin_m);
+  *this = AllowedContacts(names, radii, motions, reach_m);
 }
 
 bool AllowedContacts::allowed(int a, int b, const Eigen::Vector2d& pa, const Eigen::Vector2d& pb) const {
@@ -113,14 +113,14 @@ bool AllowedContacts::allowed(int a, int b, const Eigen::Vector2d& pa, const Eig
   const auto n = static_cast<int>(radii_.size());
   if (a < 0 || a >= n || b < 0 || b >= n) return false;
   for (const EndsAgainst& e : ends_against_) {
-    if (e.entity == a && e.other == b && endsAgainst(e.end, radii_[a], pb, radii_[b], margin_m_)) return true;
-    if (e.entity == b && e.other == a && endsAgainst(e.end, radii_[b], pa, radii_[a], margin_m_)) return true;
+    if (e.entity == a && e.other == b && endsAgainst(e.end, radii_[a], pb, radii_[b], reach_m_)) return true;
+    if (e.entity == b && e.other == a && endsAgainst(e.end, radii_[b], pa, radii_[a], reach_m_)) return true;
   }
   return false;
 }
 
-StepContacts::StepContacts(task::TaskSpec spec, std::vector<double> radii, double margin_m)
-    : spec_(std::move(spec)), radii_(std::move(radii)), margin_m_(margin_m) {}
+StepContacts::StepContacts(task::TaskSpec spec, std::vector<double> radii, double reach_m)
+    : spec_(std::move(spec)), radii_(std::move(radii)), reach_m_(reach_m) {}
 
 void StepContacts::beginStep(int step) {
   if (step != step_) ends_.clear(), allowed_ = {}, step_ = step;  // no exemption of the last step stays
@@ -150,7 +150,7 @@ void StepContacts::note(int step, int entity, const task::Token& token, const Ei
     moves[e] = true;
   }
   try {
-    allowed_ = AllowedContacts(spec_, tokens, at, ends, moves, radii_, margin_m_);
+    allowed_ = AllowedContacts(spec_, tokens, at, ends, moves, radii_, reach_m_);
   } catch (const Error&) {
     allowed_ = {};  // every contact counts
     throw;

@@ -16,6 +16,22 @@ Eigen::Vector2d onCircle(const Eigen::Vector2d& centre, double radius, double an
   return centre + radius * Eigen::Vector2d(std::cos(angle), std::sin(angle));
 }
 
+/// The push line's direction: through `load_end`, from `carrier_end` behind it (or along
+/// `fallback` when they coincide).
+Eigen::Vector2d pushDirection(const Eigen::Vector2d& load_end, const Eigen::Vector2d& carrier_end,
+                              const Eigen::Vector2d& fallback) {
+  const Eigen::Vector2d line = load_end - carrier_end;
+  return line.norm() > 1e-9 ? Eigen::Vector2d(line.normalized()) : fallback.normalized();
+}
+
+/// How far the contact normal `contact` (carrier to load) turns from where the load should
+/// head: for the push line kPushLookaheadM ahead of the load (`along` < 0 short of its end).
+double contactDrift(const Eigen::Vector2d& contact, const Eigen::Vector2d& load, const Eigen::Vector2d& load_end,
+                    const Eigen::Vector2d& w, double along) {
+  const Eigen::Vector2d aim = load_end + (along + kPushLookaheadM) * w - load;
+  return wrapAngle(std::atan2(contact.y(), contact.x()) - std::atan2(aim.y(), aim.x()));
+}
+
 }  // namespace
 
 std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::Vector2d& load,
@@ -51,18 +67,16 @@ std::optional<PushCommand> pushWheels(const Pose2D& carrier, const Eigen::Vector
   if (contact.norm() > contact_m + kPushClearanceM / 3 || contact.norm() < 1e-9) return std::nullopt;
   PushCommand out;
   // The push line runs through the load's end point, from the carrier's end behind it.
-  const Eigen::Vector2d line = load_end - carrier_end;
-  const Eigen::Vector2d w = line.norm() > 1e-9 ? Eigen::Vector2d(line.normalized()) : contact.normalized();
+  const Eigen::Vector2d w = pushDirection(load_end, carrier_end, contact);
   const double along = (load - load_end).dot(w);  // < 0: short of the end
   if (along >= 0) {
     out.load_arrived = true;
     return out;
   }
   // The load heads for the line kPushLookaheadM ahead of where it is along it.
-  const Eigen::Vector2d aim = load_end + (along + kPushLookaheadM) * w - load;
-  const double normal = std::atan2(contact.y(), contact.x()), wanted = std::atan2(aim.y(), aim.x());
-  const double drift = wrapAngle(normal - wanted);
+  const double drift = contactDrift(contact, load, load_end, w, along);
   if (std::abs(drift) > kPushConeRad) return std::nullopt;
+  const double normal = std::atan2(contact.y(), contact.x());
   const double lead = std::clamp(kPushLead * drift, -kMaxPushLeadRad, kMaxPushLeadRad);
   const double alpha = wrapAngle(normal + lead - carrier.yaw);
   double v = 0, turn = std::clamp(gains.heading_gain * alpha, -gains.max_turn_rate_radps, gains.max_turn_rate_radps);
@@ -79,11 +93,32 @@ std::optional<PushCommand> pushWheels(const Pose2D& carrier, const Eigen::Vector
   return out;
 }
 
+bool behindLoad(const Eigen::Vector2d& carrier, const Eigen::Vector2d& load, const Eigen::Vector2d& load_end,
+                const Eigen::Vector2d& carrier_end) {
+  const Eigen::Vector2d contact = load - carrier;
+  if (contact.norm() < 1e-9) return false;
+  const Eigen::Vector2d w = pushDirection(load_end, carrier_end, contact);
+  const double along = (load - load_end).dot(w);
+  return along >= 0 || std::abs(contactDrift(contact, load, load_end, w, along)) <= kPushConeRad;
+}
+
 std::optional<int> pushedLoad(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,
                               const std::vector<Eigen::Vector2d>& decided) {
   const int k = task::ridingLoad(spec, step, i, decided);
   if (k < 0) return std::nullopt;
   return step[static_cast<size_t>(k)].entity;
+}
+
+std::vector<Eigen::Vector2d> drivenPath(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,
+                                        const std::vector<Eigen::Vector2d>& decided,
+                                        const std::vector<Eigen::Vector2d>& ends,
+                                        std::vector<Eigen::Vector2d> planned) {
+  const auto load = pushedLoad(spec, step, i, decided);
+  if (!load || planned.empty()) return planned;
+  const auto l = static_cast<size_t>(*load);
+  const int carrier = step.at(i).entity;
+  return pushPath(planned.front(), decided.at(l), ends.at(l), spec.contactDistance(carrier, *load),
+                  ends.at(static_cast<size_t>(carrier)), static_cast<int>(planned.size()));
 }
 
 }  // namespace ddace::exec

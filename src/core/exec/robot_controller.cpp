@@ -151,8 +151,8 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   // Behind its load, a carrier steers the load to the load's end point (exec/push_path.h),
   // and the load's arrival, not its own, ends the push. Not behind it, it goes round it to
   // behind it along its path; when the push broke (the load slid off its front) or the load
-  // lies off where the path was planned for (it moved since), round it again from where
-  // things are.
+  // moved off where the path was planned for (something pushed it), round it again from
+  // where things are.
   const bool pushes = load && !contacts_.load_rides;
   const auto push = pushes ? pushWheels(pose, load->position, contacts_.load_end, follower_.endPoint(),
                                         radius_m + load->radius_m, params_.gains)
@@ -171,13 +171,20 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   // What the motion may touch, as decided for its step: a body it ends against while that
   // body is at the end point, its load's likewise.
   const Eigen::Vector2d end_point = follower_.endPoint();
-  const double margin = params_.safety.margin_m;
+  const double reach = params_.safety.endsAgainstReachM();
+  // A riding load is part of its carrier's body. A pushed one is while the carrier pushes
+  // it (kept clear of others); otherwise it is a body like any other, except that the
+  // carrier may touch it from behind (behindLoad), on its way to push it.
+  const bool in_hand = load && (contacts_.load_rides || push);
+  const bool from_behind =
+      pushes && !push && behindLoad(pose.position(), load->position, contacts_.load_end, end_point);
   for (SafetyBody& b : others) {
-    b.touchable =
-        contacts_.ends_against.count(b.name) && endsAgainst(end_point, radius_m, b.position, b.radius_m, margin);
-    b.load_touchable = load && contacts_.load_ends_against.count(b.name) &&
-                       endsAgainst(contacts_.load_end, load->radius_m, b.position, b.radius_m, margin);
+    b.touchable = (from_behind && &b == load) || (contacts_.ends_against.count(b.name) &&
+                                                  endsAgainst(end_point, radius_m, b.position, b.radius_m, reach));
+    b.load_touchable = in_hand && contacts_.load_ends_against.count(b.name) &&
+                       endsAgainst(contacts_.load_end, load->radius_m, b.position, b.radius_m, reach);
   }
+  if (!in_hand) load = nullptr;
   const SafetyCommand c = filter_.filter(name_, pose, radius_m, pose_age_s, o.wheels, o.progress * follower_.lengthM(),
                                          others, target_, now_s, load);
   if (c.stale) return stale(out, c.reason, now_s);  // a body nearby is stale: as the robot's own pose

@@ -41,8 +41,8 @@ BodyShape bodyShape(const task::Entity& e) {
 }
 
 bool endsAgainst(const Eigen::Vector2d& end_point, double self_radius_m, const Eigen::Vector2d& position,
-                 double radius_m, double margin_m) {
-  return radius_m > 0 && position.allFinite() && (position - end_point).norm() < self_radius_m + radius_m + margin_m;
+                 double radius_m, double reach_m) {
+  return radius_m > 0 && position.allFinite() && (position - end_point).norm() < self_radius_m + radius_m + reach_m;
 }
 
 bool endedAtContact(const SafetyCommand& c, double distance_to_end_m, double stop_radius_m) {

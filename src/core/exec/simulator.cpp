@@ -68,10 +68,8 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
         ex.planned = paths(token, ex.start, ex.goal);
         if (ex.planned.empty()) ex.planned = {ex.start, ex.goal};
         // With bodies a carrier pushes its load, as the coordinator plans it for the robots.
-        if (const auto load = execution.bodies() ? pushedLoad(spec, d.tokens, i, decided) : std::nullopt) {
-          ex.planned =
-              pushPath(ex.start, decided[static_cast<size_t>(*load)], ends[static_cast<size_t>(*load)],
-                       spec.contactDistance(token.entity, *load), ex.goal, static_cast<int>(ex.planned.size()));
+        if (execution.bodies() && pushedLoad(spec, d.tokens, i, decided)) {
+          ex.planned = drivenPath(spec, d.tokens, i, decided, ends, std::move(ex.planned));
           ex.goal = ex.planned.back();  // behind the load's end point: where the push stops
         }
         motions.push_back(

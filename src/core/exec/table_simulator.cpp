@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <set>
 
 #include <Eigen/Geometry>
@@ -126,7 +127,7 @@ TableSimulator::TableSimulator(const task::TaskSpec& spec, const std::vector<Pos
 void TableSimulator::halt(int i) {
   Entity& e = entities_[i];
   e.moving = false;
-  if (const int carrier = e.carrier; carrier >= 0) {  // a riding load stays where it is
+  if (const int carrier = e.carrier; carrier >= 0) {  // a carried load stays where it is
     e.carrier = -1;
     physics_->riding.erase({std::min(carrier, i), std::max(carrier, i)});
     for (int k : {carrier, i})  // contacts already made are filtered again
@@ -181,18 +182,24 @@ ObjectStatus TableSimulator::report(int i, SegmentState state, std::string messa
   return s;
 }
 
-bool TableSimulator::ride(int carrier, int load) {
+bool TableSimulator::carry(int carrier, int load) {
   const Entity& c = entity(carrier);
   if (!c.robot) throw Error("'" + names_[carrier] + "' is not a robot: it carries nothing");
   Entity& l = object(load);
   if (l.carrier == carrier) return true;
   if (!(c.radius_m > 0) || !(l.radius_m > 0) || l.carrier >= 0) return false;
-  const double contact = c.radius_m + l.radius_m;
   const Eigen::Vector2d d = l.pose.position() - c.pose.position();
   if (!task::together(spec_, carrier, c.pose.position(), load, l.pose.position())) return false;
   l.carrier = carrier;
+  if (!params_.loads_ride) {
+    if (b2Body* body = physics_->bodies[load]) {  // at rest until its carrier drives into it
+      body->SetLinearVelocity(b2Vec2(0, 0));
+      body->SetLinearDamping(static_cast<float>(params_.object_damping_hz));
+    }
+    return true;
+  }
   l.ride_offset0 = Eigen::Rotation2Dd(-c.pose.yaw) * d;
-  l.ride_contact_m = contact;
+  l.ride_contact_m = c.radius_m + l.radius_m;
   l.ride_travel_m = 0;
   physics_->riding.insert({std::min(carrier, load), std::max(carrier, load)});
   for (int i : {carrier, load})  // contacts already made are filtered again
@@ -201,14 +208,27 @@ bool TableSimulator::ride(int carrier, int load) {
   return true;
 }
 
-void TableSimulator::endRide(int load) {
+void TableSimulator::endCarry(int load) {
   Entity& l = object(load);
   if (l.carrier < 0) return;
   if (!l.moving) {
-    halt(load);  // ends the ride
+    halt(load);  // ends the carry
     return;
   }
   const Eigen::Vector2d goal = l.carried->goal();
+  if (!params_.loads_ride) {  // judged where it lies, as on the real table
+    ObjectStatus s = report(load, SegmentState::Done);
+    if (!task::arrived(l.pose.position(), goal, spec_.arrival_radius + task::kArrivalToleranceM)) {
+      char why[200];
+      std::snprintf(why, sizeof why, "%s is %.1f cm from its end point when its carrier %s was done",
+                    names_[load].c_str(), 100 * (goal - l.pose.position()).norm(), names_[l.carrier].c_str());
+      s.state = SegmentState::Failed;
+      s.message = why;
+    }
+    push_ended_.push_back(s);
+    halt(load);
+    return;
+  }
   halt(load);
   l.carried = std::make_unique<CarriedObject>(std::vector<Eigen::Vector2d>{l.pose.position(), goal}, l.pose.position(),
                                               params_.object_speed_mps);
@@ -275,7 +295,7 @@ ObjectStatus TableSimulator::refuseSegment(int i, uint32_t segment_id, const std
 std::optional<ObjectStatus> TableSimulator::stopSegment(int i) {
   Entity& e = object(i);
   if (!e.moving) {
-    if (e.carrier >= 0) halt(i);  // ends its ride
+    if (e.carrier >= 0) halt(i);  // ends its carry
     return std::nullopt;
   }
   halt(i);
@@ -294,9 +314,49 @@ std::vector<ObjectStatus> TableSimulator::setEstop(bool active) {
   return out;
 }
 
+// Riding loads: toward where the carrier's front is after this step. The offset swings
+// from where the load began (carrier frame) to straight ahead at contact, the short way
+// round, over the carrier's first kRideSwingM of travel.
+void TableSimulator::rideLoads(const std::vector<Eigen::Vector2d>& before) {
+  const double dt = periodS();
+  for (size_t i = 0; i < entities_.size(); ++i) {
+    Entity& e = entities_[i];
+    if (e.carrier < 0) continue;
+    const Entity& c = entities_[static_cast<size_t>(e.carrier)];
+    const Pose2D now = c.robot->truePose();  // the unicycle's pose after this step
+    e.ride_travel_m += (now.position() - before[static_cast<size_t>(e.carrier)]).norm();
+    const double s = std::min(1.0, e.ride_travel_m / kRideSwingM), w = s * s * (3 - 2 * s);
+    const double r0 = e.ride_offset0.norm(), a0 = std::atan2(e.ride_offset0.y(), e.ride_offset0.x());
+    const double r = r0 + (e.ride_contact_m - r0) * w, a = now.yaw + (1 - w) * a0;
+    const Eigen::Vector2d want = now.position() + r * Eigen::Vector2d(std::cos(a), std::sin(a));
+    if (b2Body* body = physics_->bodies[i]) {
+      body->SetLinearVelocity(toWorld((want - fromWorld(body->GetPosition())) / dt));
+      body->SetAngularVelocity(static_cast<float>(wrapAngle(now.yaw - e.pose.yaw) / dt));
+      body->SetLinearDamping(0);
+    } else {
+      e.pose = {want.x(), want.y(), now.yaw};
+    }
+  }
+}
+
+void TableSimulator::pushLoadsApart() {
+  for (size_t i = 0; i < entities_.size(); ++i) {
+    Entity& e = entities_[i];
+    if (e.carrier < 0 || physics_->bodies[i]) continue;  // with bodies, Box2D pushes
+    const Entity& c = entities_[static_cast<size_t>(e.carrier)];
+    const Eigen::Vector2d d = e.pose.position() - c.pose.position();
+    const double contact_m = c.radius_m + e.radius_m;
+    if (d.norm() >= contact_m || d.norm() < 1e-9) continue;
+    const Eigen::Vector2d p = c.pose.position() + contact_m * d.normalized();
+    e.pose.x = p.x();
+    e.pose.y = p.y();
+  }
+}
+
 std::vector<ObjectStatus> TableSimulator::step() {
   const double dt = periodS();
   std::vector<ObjectStatus> out;
+  out.swap(push_ended_);  // pushed loads whose carriers were done (endCarry())
   std::vector<Eigen::Vector2d> before(entities_.size());
   for (size_t i = 0; i < entities_.size(); ++i) before[i] = entities_[i].pose.position();
   // Where each body is driven this step: robots by their wheels (the unicycle's motion),
@@ -316,7 +376,7 @@ std::vector<ObjectStatus> TableSimulator::step() {
         e.pose = after;
       }
     } else if (e.carrier >= 0) {
-      continue;  // rides: placed after its carrier, below
+      continue;  // rides (placed after its carrier, below) or moves only when pushed
     } else if (e.moving) {
       const Eigen::Vector2d p = e.carried->advance(dt);
       if (body) {
@@ -333,27 +393,8 @@ std::vector<ObjectStatus> TableSimulator::step() {
       }
     }
   }
-  // Riding loads: toward where the carrier's front is after this step. The offset swings
-  // from where the load began (carrier frame) to straight ahead at contact, the short way
-  // round, over the carrier's first kRideSwingM of travel.
-  for (size_t i = 0; i < entities_.size(); ++i) {
-    Entity& e = entities_[i];
-    if (e.carrier < 0) continue;
-    const Entity& c = entities_[static_cast<size_t>(e.carrier)];
-    const Pose2D now = c.robot->truePose();  // the unicycle's pose after this step
-    e.ride_travel_m += (now.position() - before[static_cast<size_t>(e.carrier)]).norm();
-    const double s = std::min(1.0, e.ride_travel_m / kRideSwingM), w = s * s * (3 - 2 * s);
-    const double r0 = e.ride_offset0.norm(), a0 = std::atan2(e.ride_offset0.y(), e.ride_offset0.x());
-    const double r = r0 + (e.ride_contact_m - r0) * w, a = now.yaw + (1 - w) * a0;
-    const Eigen::Vector2d want = now.position() + r * Eigen::Vector2d(std::cos(a), std::sin(a));
-    if (b2Body* body = physics_->bodies[i]) {
-      body->SetLinearVelocity(toWorld((want - fromWorld(body->GetPosition())) / dt));
-      body->SetAngularVelocity(static_cast<float>(wrapAngle(now.yaw - e.pose.yaw) / dt));
-      body->SetLinearDamping(0);
-    } else {
-      e.pose = {want.x(), want.y(), now.yaw};
-    }
-  }
+  if (params_.loads_ride) rideLoads(before);
+  else pushLoadsApart();
   physics_->began.clear();
   physics_->world.Step(static_cast<float>(dt), 8, 3);
   time_s_ += dt;

@@ -49,7 +49,8 @@ torch::Tensor sceneAttentionV2(const torch::Tensor& hs, const torch::Tensor& hd,
 
 /// The scene network's pointer scores without the output bias: for every pair (i, j),
 ///   score_ij = <v, ReLU(a_i + b_j + r_ij + z)>,
-/// a, b [P, N, K], r [P, N, N, K], z [P, K], v [K]. Returns [P, N, N]; differentiable in all.
+/// a [P, M, K] (the M rows asked for), b [P, N, K], r [P, M, N, K], z [P, K], v [K].
+/// Returns [P, M, N]; differentiable in all.
 torch::Tensor pointerScores(const torch::Tensor& a, const torch::Tensor& b, const torch::Tensor& r,
                             const torch::Tensor& z, const torch::Tensor& v);
 

@@ -336,78 +336,146 @@ std::vector<int> lastMoves(const std::vector<Eigen::Vector2d>* history, size_t c
 
 }  // namespace
 
-void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, size_t count, float* out,
-                                   const std::vector<bool>* competing) const {
-  const int n = cfg.nodes;
+/// What the relative features of one history hold whatever the competing entities: the
+/// pairs' distances, who is parked, each entity's others in order of nearness (in groups
+/// of equal distance), the last step's and each entity's last move.
+struct PairRelations::Scene {
+  int n = 0;
+  bool relative_features = false;
+  PairView v;
+  std::vector<int> kind_of;  ///< [N] the entity's kind (task::EntityKind)
+  std::vector<bool> parked;  ///< [N]
+  /// [N][N] row r: the entities by their distance from r; group_end[r][k]: the end of the
+  /// group of equal distances position k is in.
+  std::vector<int> by_distance, group_end;
+  std::vector<bool> went_to;   ///< [N][N] e went to f in the last step
+  std::vector<int> last_went;  ///< [N] lastMoves
+
+  size_t at(int r, int k) const { return static_cast<size_t>(r * n + k); }
+};
+
+PairRelations::PairRelations(const SequenceModel::Impl& model, const std::vector<Eigen::Vector2d>* history,
+                             size_t count)
+    : scene_(std::make_unique<Scene>()) {
+  Scene& s = *scene_;
+  const int n = s.n = model.cfg.nodes;
   if (count == 0) throw Error("relative features: no snapshot");
+  s.relative_features = model.info.plan.relative_features;
+  if (!s.relative_features) return;  // "Fixed order": the configuration reaches no decision
   const std::vector<Eigen::Vector2d>& pos = history[count - 1];
-  const std::vector<Eigen::Vector2d>* previous = count > 1 ? &history[count - 2] : nullptr;
-  if (!info.plan.relative_features) {  // "Fixed order": the configuration reaches no decision
-    std::fill(out, out + static_cast<size_t>(n) * n * kRelativeFeatures, 0.f);
-    return;
-  }
-  const PairView v = pairView(spec, order, pos, info.std[0]);  // isotropic for the scene variant
-  const auto kind = [&](int i) { return spec.entities[static_cast<size_t>(order.task_of[i])].kind; };
-  std::vector<bool> rival(static_cast<size_t>(n), true);
-  if (competing) rival = *competing;
+  const PairView& v = s.v = pairView(model.spec, model.order, pos, model.info.std[0]);  // isotropic for the scene
+  s.kind_of.resize(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i)
+    s.kind_of[static_cast<size_t>(i)] = static_cast<int>(model.spec.entities[model.order.task_of[i]].kind);
   // Parked entities (docs/tgn.md): one at one place with another has had its part (a robot
   // on the goal it drove to, a box picked up) and is no rival of the free ones in "the
   // nearest of its kind"; the parked ones rank among themselves (the boxes in hand, back
   // to front).
-  std::vector<bool> parked(static_cast<size_t>(n), false);
-  if (info.plan.parked_out_of_ranks)
+  s.parked.assign(static_cast<size_t>(n), false);
+  if (model.info.plan.parked_out_of_ranks)
     for (int k = 0; k < n; ++k)
       for (int m = 0; m < n; ++m)
-        if (m != k && v.dist(k, m) == 0.0) parked[static_cast<size_t>(k)] = true;
-  // k is a rival of e: of its kind, not given its part yet, and free unless e is parked.
-  const auto rivals = [&](int k, int e) {
-    return rival[static_cast<size_t>(k)] && kind(k) == kind(e) &&
-           (parked[static_cast<size_t>(e)] || !parked[static_cast<size_t>(k)]);
-  };
-  const std::vector<std::array<float, 4>> axis = axisOrders(v, rivals);
+        if (m != k && v.dist(k, m) == 0.0) s.parked[static_cast<size_t>(k)] = true;
+  s.by_distance.resize(static_cast<size_t>(n * n));
+  s.group_end.resize(static_cast<size_t>(n * n));
+  for (int r = 0; r < n; ++r) {
+    const auto row = s.by_distance.begin() + r * n;
+    std::iota(row, row + n, 0);
+    std::sort(row, row + n, [&](int a, int b) { return v.dist(r, a) < v.dist(r, b); });
+    for (int g = 0; g < n;) {
+      int end = g;
+      while (end < n && v.dist(r, row[end]) == v.dist(r, row[g])) ++end;
+      std::fill(s.group_end.begin() + r * n + g, s.group_end.begin() + r * n + end, end);
+      g = end;
+    }
+  }
   // The last step (from the previous snapshot): e went to f when e moved and now stands
   // where f stood (a motion ends on its target as the step began).
-  const auto wentTo = [&](int e, int f) {
-    if (!previous) return false;
-    const auto& was = *previous;
-    return (pos[e] - was[e]).norm() > v.at(e, f) && (pos[e] - was[f]).norm() <= v.at(e, f);
+  s.went_to.assign(static_cast<size_t>(n * n), false);
+  if (count > 1) {
+    const auto& was = history[count - 2];
+    for (int e = 0; e < n; ++e)
+      for (int f = 0; f < n; ++f)
+        s.went_to[s.at(e, f)] = (pos[e] - was[e]).norm() > v.at(e, f) && (pos[e] - was[f]).norm() <= v.at(e, f);
+  }
+  s.last_went = lastMoves(history, count, n, model.spec.arrival_radius);
+}
+
+PairRelations::~PairRelations() = default;
+
+void PairRelations::write(float* out, const std::vector<bool>* competing, const std::vector<int64_t>* rows) const {
+  const Scene& s = *scene_;
+  const int n = s.n;
+  const size_t m = rows ? rows->size() : static_cast<size_t>(n);
+  std::fill(out, out + m * n * kRelativeFeatures, 0.f);
+  if (!s.relative_features || n == 0) return;
+  // k is a rival of e: of its kind, not given its part yet, and free unless e is parked.
+  // Whose rival k is depends on e's kind and whether e is parked: e's class, 2 kind (+1
+  // parked). (Bytes, not vector<bool>: these are read n^2 times a token.)
+  std::vector<uint8_t> rival(static_cast<size_t>(n), 1), parked(s.parked.begin(), s.parked.end());
+  if (competing) std::copy(competing->begin(), competing->end(), rival.begin());
+  const int* kind = s.kind_of.data();
+  std::vector<int> class_of(static_cast<size_t>(n));
+  for (int e = 0; e < n; ++e) class_of[static_cast<size_t>(e)] = 2 * kind[e] + parked[static_cast<size_t>(e)];
+  const auto rivals = [&](int k, int e) {
+    return rival[static_cast<size_t>(k)] && kind[k] == kind[e] &&
+           (parked[static_cast<size_t>(e)] || !parked[static_cast<size_t>(k)]);
   };
-  const std::vector<int> last_went = lastMoves(history, count, n, spec.arrival_radius);
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j) {
-      float* r = out + (static_cast<size_t>(i) * n + j) * kRelativeFeatures;
-      std::fill(r, r + kRelativeFeatures, 0.f);
-      if (i == j) continue;
-      const double dij = v.dist(i, j);
-      // How many entities of j's kind are nearer to i than j (and farther); of i's kind
-      // nearer to j than i (and farther).
-      int near_j = 0, near_i = 0, far_j = 0, far_i = 0;
-      for (int k = 0; k < n; ++k) {
-        if (k == i || k == j) continue;
-        if (rivals(k, j)) {
-          near_j += v.dist(i, k) < dij;
-          far_j += v.dist(i, k) > dij;
-        }
-        if (rivals(k, i)) {
-          near_i += v.dist(j, k) < dij;
-          far_i += v.dist(j, k) > dij;
-        }
+  const int classes = 2 * (1 + *std::max_element(s.kind_of.begin(), s.kind_of.end()));
+  std::vector<int> total(static_cast<size_t>(classes), 0), seen(static_cast<size_t>(classes));
+  const auto count = [&](int* counts, int k) {  // k in the classes it is a rival in
+    counts[2 * kind[k]] += rival[static_cast<size_t>(k)] & !parked[static_cast<size_t>(k)];
+    counts[2 * kind[k] + 1] += rival[static_cast<size_t>(k)];  // the parked ones' rivals: all of the kind
+  };
+  for (int k = 0; k < n; ++k) count(total.data(), k);
+  // nearer[r][e] (farther): how many of e's rivals lie nearer to r than e (farther); one
+  // sweep of r's others in order of distance, a group of equal distances at a time.
+  std::vector<int> nearer(static_cast<size_t>(n * n)), farther(static_cast<size_t>(n * n));
+  for (int r = 0; r < n; ++r) {
+    const int* row = s.by_distance.data() + r * n;
+    std::fill(seen.begin(), seen.end(), 0);
+    for (int g = 0; g < n;) {
+      const int end = s.group_end[s.at(r, g)];
+      for (int k = g; k < end; ++k) nearer[s.at(r, row[k])] = seen[static_cast<size_t>(class_of[row[k]])];
+      for (int k = g; k < end; ++k) count(seen.data(), row[k]);
+      for (int k = g; k < end; ++k) {
+        const auto c = static_cast<size_t>(class_of[row[k]]);
+        farther[s.at(r, row[k])] = total[c] - seen[c];
       }
+      g = end;
+    }
+  }
+  const std::vector<std::array<float, 4>> axis = axisOrders(s.v, rivals);
+  for (size_t q = 0; q < m; ++q)
+    for (int j = 0; j < n; ++j) {
+      const int i = rows ? static_cast<int>((*rows)[q]) : static_cast<int>(q);
+      if (i == j) continue;
+      float* r = out + (q * n + j) * kRelativeFeatures;
+      const double dij = s.v.dist(i, j);
+      // How many entities of j's kind are nearer to i than j (and farther); of i's kind
+      // nearer to j than i (and farther). Neither i nor j counts: j lies at dij from i (and
+      // i from j), neither nearer nor farther, and each at distance 0 from itself.
+      const int near_j = nearer[s.at(i, j)] - (rivals(i, j) && 0.0 < dij);
+      const int near_i = nearer[s.at(j, i)] - (rivals(j, i) && 0.0 < dij);
       r[basis::kDistance] = static_cast<float>(dij);
       r[basis::kNearJ] = 1.f / static_cast<float>(1 + near_j);
       r[basis::kNearI] = 1.f / static_cast<float>(1 + near_i);
-      r[basis::kFarJ] = 1.f / static_cast<float>(1 + far_j);
-      r[basis::kFarI] = 1.f / static_cast<float>(1 + far_i);
+      r[basis::kFarJ] = 1.f / static_cast<float>(1 + farther[s.at(i, j)]);
+      r[basis::kFarI] = 1.f / static_cast<float>(1 + farther[s.at(j, i)]);
       for (int a = 0; a < 4; ++a) {
-        const float oj = axis[static_cast<size_t>(j)][a], oi = axis[static_cast<size_t>(i)][a];
-        r[basis::kAxisJ + a] = oj;
-        r[basis::kAxisI + a] = oi;
+        r[basis::kAxisJ + a] = axis[static_cast<size_t>(j)][a];
+        r[basis::kAxisI + a] = axis[static_cast<size_t>(i)][a];
       }
-      r[basis::kWentTo] = wentTo(i, j) ? 1.f : 0.f;
-      r[basis::kCameFrom] = wentTo(j, i) ? 1.f : 0.f;
-      r[basis::kLastMoveTo] = last_went[static_cast<size_t>(i)] == j ? 1.f : 0.f;
-      r[basis::kLastMoveFrom] = last_went[static_cast<size_t>(j)] == i ? 1.f : 0.f;
+      r[basis::kWentTo] = s.went_to[s.at(i, j)] ? 1.f : 0.f;
+      r[basis::kCameFrom] = s.went_to[s.at(j, i)] ? 1.f : 0.f;
+      r[basis::kLastMoveTo] = s.last_went[static_cast<size_t>(i)] == j ? 1.f : 0.f;
+      r[basis::kLastMoveFrom] = s.last_went[static_cast<size_t>(j)] == i ? 1.f : 0.f;
     }
+}
+
+void SequenceModel::Impl::relative(const std::vector<Eigen::Vector2d>* history, size_t count, float* out,
+                                   const std::vector<bool>* competing) const {
+  PairRelations(*this, history, count).write(out, competing);
 }
 
 Sequence SequenceModel::Impl::keyframeSequence(const task::Demonstration& d) const {

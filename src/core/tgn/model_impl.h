@@ -133,6 +133,25 @@ struct SequenceModel::Impl {
   double accuracy(const Batch& everything);
 };
 
+/// The relative features of one history (SequenceModel::Impl::relative) for one set of
+/// competing entities after another: what does not depend on them (the pairs' distances,
+/// each entity's others in order of nearness, the last moves) is computed once. Token by
+/// token asks for them again after every token.
+class PairRelations {
+ public:
+  /// `history[0 .. count)` as in SequenceModel::Impl::relative.
+  PairRelations(const SequenceModel::Impl& model, const std::vector<Eigen::Vector2d>* history, size_t count);
+  ~PairRelations();
+  /// Into out[N][N][kRelativeFeatures]; `competing` as in SequenceModel::Impl::relative.
+  /// `rows`, when given: the pairs (i, j) of these i only, into out[rows][N][kRelativeFeatures].
+  void write(float* out, const std::vector<bool>* competing = nullptr,
+             const std::vector<int64_t>* rows = nullptr) const;
+
+ private:
+  struct Scene;
+  std::unique_ptr<Scene> scene_;
+};
+
 /// The seed of an ensemble's member k (0: the model's own).
 uint64_t memberSeed(uint64_t seed, int k);
 

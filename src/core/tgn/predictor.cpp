@@ -218,13 +218,15 @@ std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseToke
   SceneNetwork net = members().at(static_cast<size_t>(member));
   // The pointer's terms that stay from token to token, computed once.
   const SceneNetworkImpl::PointerParts parts = net->pointerParts(nodes, z, net->hiddenOf(nodes, z));
+  const PairRelations relations(*this, history, count);  // the features of each token's competing ones
   std::vector<float> own(cells), logit(cells);
-  Tensor heads_logits = target_logits;
+  {
+    const Tensor t = target_logits.contiguous();
+    std::copy(t.data_ptr<float>(), t.data_ptr<float>() + cells, own.begin());
+  }
   while (left > 0) {
     // The logits of every pair: its own, its loads' added, the masks (as floats, in the
     // order the training's tensors add them).
-    const Tensor t = heads_logits.contiguous();
-    std::copy(t.data_ptr<float>(), t.data_ptr<float>() + cells, own.begin());
     for (int64_t i = 0; i < n; ++i)
       for (int64_t j = 0; j < targets; ++j) {
         const size_t k = static_cast<size_t>(i * targets + j);
@@ -256,9 +258,24 @@ std::pair<std::vector<int>, std::vector<double>> SequenceModel::Impl::chooseToke
       taken[static_cast<size_t>(bj)] = true;
     }
     if (--left == 0) break;
-    Tensor given = torch::zeros({n, n, kRelativeFeatures});
-    relative(history, count, given.data_ptr<float>(), &competing);
-    heads_logits = net->pointerLogits(parts, given);
+    // The heads again with the given ones out of the ranks, for the rows read from here
+    // on only: the entities still open and their loads.
+    std::vector<bool> read(static_cast<size_t>(n), false);
+    for (int64_t i = 0; i < n; ++i)
+      if (open[static_cast<size_t>(i)]) {
+        read[static_cast<size_t>(i)] = true;
+        for (int64_t o : loads_of[static_cast<size_t>(i)]) read[static_cast<size_t>(o)] = true;
+      }
+    std::vector<int64_t> rows;
+    for (int64_t i = 0; i < n; ++i)
+      if (read[static_cast<size_t>(i)]) rows.push_back(i);
+    Tensor given = torch::empty({static_cast<int64_t>(rows.size()), n, kRelativeFeatures});
+    relations.write(given.data_ptr<float>(), &competing, &rows);
+    const Tensor heads_logits =
+        net->pointerLogits(parts, given, torch::tensor(rows, torch::kLong)).contiguous();  // [rows, targets]
+    for (size_t q = 0; q < rows.size(); ++q)
+      std::copy(heads_logits.data_ptr<float>() + q * targets, heads_logits.data_ptr<float>() + (q + 1) * targets,
+                own.begin() + rows[q] * targets);
   }
   return {target, log_p};
 }

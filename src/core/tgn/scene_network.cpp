@@ -3,6 +3,8 @@
 #include <string>
 #include <vector>
 
+#include "ddace/common/error.h"
+
 namespace ddace::tgn {
 
 using torch::Tensor;
@@ -118,6 +120,17 @@ Tensor SceneNetworkImpl::pointerLogits(const PointerParts& p, const Tensor& rel)
           .view(p.lead) +
       ptr_out->bias + self_mask;  // [..., N, N]
   return torch::cat({p.none, scores}, -1);
+}
+
+Tensor SceneNetworkImpl::pointerLogits(const PointerParts& p, const Tensor& rel, const Tensor& rows) {
+  const int64_t m = rows.size(0), n = p.pi.size(1), k = p.pi.size(2);
+  if (p.pi.size(0) != 1 || rel.sizes() != torch::IntArrayRef({m, n, kRelativeFeatures}))
+    throw Error("pointer logits of some rows: one scene's parts and rel [rows, N, R] needed");
+  const Tensor scores = fused::pointerScores(p.pi.index_select(1, rows), p.pj, ptr_r(rel).reshape({1, m, n, k}), p.pz,
+                                             ptr_out->weight.view({k}))
+                            .view({m, n}) +
+                        ptr_out->bias + self_mask.index_select(0, rows);  // [M, N]
+  return torch::cat({p.none.index_select(0, rows), scores}, -1);
 }
 
 Heads SceneNetworkImpl::heads(const Tensor& nodes, const Tensor& rel, const Tensor& z) {

@@ -113,6 +113,9 @@ struct SceneNetworkImpl : torch::nn::Module {
   /// The pointer's logits [..., N, 1 + N] ("none", then every entity; self masked) on `rel`
   /// [..., N, N, R]: heads().target.
   torch::Tensor pointerLogits(const PointerParts& parts, const torch::Tensor& rel);
+  /// The same for the entities `rows` [M] only (one scene: `parts` of nodes [N, width]):
+  /// `rel` [M, N, R], the rows' relative features -> [M, 1 + N].
+  torch::Tensor pointerLogits(const PointerParts& parts, const torch::Tensor& rel, const torch::Tensor& rows);
 
   NetConfig cfg;
   torch::Tensor mask;       ///< [1, N, N, 1]

@@ -185,6 +185,27 @@ TEST(BodiesExecution, ACarriedLoadRidesInFrontOfItsCarrierToTheGoal) {
   EXPECT_TRUE(with.report().collisions.empty());
 }
 
+// With loads that do not ride (mock_robots/loads_ride false: the real table's way) the
+// carrier pushes its load body against body: the load's end, not the carrier's, ends the
+// push; the load ends on the goal, judged where it lies.
+TEST(BodiesExecution, ALoadThatDoesNotRideIsPushedOntoTheGoalByItsCarrier) {
+  const auto s =
+      spec({{"R1", task::EntityKind::Robot}, {"O1", task::EntityKind::Object}, {"G1", task::EntityKind::Goal}});
+  const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
+  const std::vector<Pose2D> start{{0.1, 0.3, 0}, {0.1 + contact + 0.002, 0.3, 0}, {0.6, 0.3, 0}};
+  BodiesExecutionParams p;
+  p.noise_m = 0.001;
+  p.config.table.loads_ride = false;
+  BodiesExecution with(p);
+  const StepExecution a = runStep(with, s, start, {token(0, 2), token(1, 2)},
+                                  {line({0.1, 0.3}, {0.6 - contact, 0.3}), line({0.1 + contact, 0.3}, {0.6, 0.3})});
+  EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+  EXPECT_TRUE(task::arrived(a.positions[1], {0.6, 0.3}, s.arrival_radius + task::kArrivalToleranceM))
+      << a.positions[1].transpose();
+  EXPECT_LT(a.positions[0].x(), a.positions[1].x() - contact + 0.003) << "the carrier ends behind it";
+  EXPECT_TRUE(with.report().collisions.empty());
+}
+
 TEST(BodiesExecution, ALoadBehindItsCarrierSwingsRoundToItsFront) {
   // O1 starts behind R1 (away from G1); both go to G1.
   const auto s =
@@ -456,4 +477,13 @@ TEST(BodiesExecution, TwoPairsCarryingAtOnceFinishWithoutACollision) {
 // stays or backs off as demonstrated.
 TEST(BodiesExecution, ARelayHandsItsBoxOnWithoutACollision) {
   replayZoo("zoo:41/direct-4mm", 2);
+}
+
+// Robots meeting at one robot, in both ways of moving: each end turned about the met robot
+// lies beside the ends of the others, nearer than the filter's margin plus its projection,
+// and they may end against each other there (exec::SafetyParams::endsAgainstReachM): every
+// robot reaches its place, none is held off it by the ones that came first.
+TEST(BodiesExecution, RobotsMeetingAtOneRobotAllReachIt) {
+  replayZoo("zoo:10/direct-4mm", 10);
+  replayZoo("zoo:39", 5);
 }

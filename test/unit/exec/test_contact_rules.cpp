@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "ddace/exec/bodies_execution.h"
+#include "ddace/exec/push_path.h"
 #include "ddace/task/end_point.h"
 
 using namespace ddace;
@@ -63,7 +64,8 @@ struct Outcome {
 };
 
 /// Runs `steps` ("R1 move G1, O1 move G1" per step: entity action target) from `start`,
-/// each motion on a straight path to its end point (task::stepEndPositions under `model`).
+/// each motion on a straight path to its end point (task::stepEndPositions under `model`),
+/// a carrier on its push path (exec::drivenPath), as the simulator plans them.
 Outcome run(const task::TaskSpec& s, const std::vector<Pose2D>& start, const std::vector<std::string>& steps,
             const task::EndPointModel& model = {}, double noise_m = 0.001, bool filter = true) {
   BodiesExecutionParams p;
@@ -90,7 +92,8 @@ Outcome run(const task::TaskSpec& s, const std::vector<Pose2D>& start, const std
     std::vector<StepMotion> motions;
     for (size_t i = 0; i < tokens.size(); ++i) {
       const int e = tokens[i].entity;
-      motions.push_back({i, e, tokens[i].target, s.entities[e].kind == task::EntityKind::Robot, line(at[e], ends[e])});
+      motions.push_back({i, e, tokens[i].target, s.entities[e].kind == task::EntityKind::Robot,
+                         drivenPath(s, tokens, i, at, ends, line(at[e], ends[e]))});
     }
     out.steps.push_back(m.executeStep(s, tokens, at, motions));
     at = out.steps.back().positions;

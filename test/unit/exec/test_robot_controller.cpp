@@ -134,3 +134,35 @@ TEST(RobotController, AMotionHeldOffItsEndPointFailsAsADeadlockNamingWhatHoldsIt
   EXPECT_TRUE(o.wheels.isZero());
   EXPECT_GT((pose.position() - Vector2d(0.2, 0)).norm(), 2 * r) << "R1 pushed into R2";
 }
+
+// A carrier touches the load it pushes only from behind it (exec::behindLoad), so that it
+// never shoves the load off its line from the side: run into from behind, the load is
+// pushed; come at from its side, it is a body like any other, kept off by the filter.
+TEST(RobotController, ACarrierTouchesItsLoadOnlyFromBehind) {
+  const double r = task::kDefaultRobotRadius, o = task::kDefaultObjectRadius, gap0 = 0.008;
+  const Vector2d load(r + o + gap0, 0);
+  for (const bool from_behind : {true, false}) {
+    SCOPED_TRACE(from_behind ? "from behind" : "from its side");
+    RobotController c("R1", params());
+    c.start(straight({0, 0}, {0.3, 0}), "G1", 0.025, 0.025);
+    MotionContacts contacts;
+    contacts.load = "O1";
+    contacts.load_end = from_behind ? Vector2d(0.3, 0) : Vector2d(load.x(), 0.3);
+    contacts.load_at = load;
+    c.setContacts(contacts);
+    std::vector<SafetyBody> others{{"O1", load, o, false}};
+    others[0].standing = true;
+    Pose2D pose{0, 0, 0};
+    double closest = gap0;
+    for (double t = 0; t < 1.0; t += 0.02) {
+      const ControlOutput out = c.cycle(pose, false, 0, r, others, t);
+      const double v = (out.wheels.left_mps + out.wheels.right_mps) / 2;
+      pose = integrateUnicycle(pose, v, (out.wheels.right_mps - out.wheels.left_mps) / c.params().gains.wheel_base_m,
+                               0.02);
+      closest = std::min(closest, (pose.position() - load).norm() - r - o);
+    }
+    // (The load stands still here: a carrier that drives into it overlaps it.)
+    if (from_behind) EXPECT_LT(closest, -0.01) << "it did not drive into the load it pushes";
+    else EXPECT_GT(closest, -0.002) << "it ran into its load from the side";
+  }
+}

@@ -291,7 +291,7 @@ TEST(TableSimulator, ALoadRidesInFrontOfItsCarrierAndEndsOnItsGoal) {
   const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
   TableSimulator sim(spec, {{0, 0, 0}, {0, contact, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
   ASSERT_TRUE(sim.startSegment(O1, 7, {{0, contact}, {0.4, 0}}));
-  ASSERT_TRUE(sim.ride(R1, O1));
+  ASSERT_TRUE(sim.carry(R1, O1));
   EXPECT_EQ(sim.carrierOf(O1), R1);
   for (int k = 0; k < 100; ++k) {  // 2 s at 0.1 m/s
     sim.commandWheels(R1, {0.1, 0.1});
@@ -305,7 +305,7 @@ TEST(TableSimulator, ALoadRidesInFrontOfItsCarrierAndEndsOnItsGoal) {
     sim.commandWheels(R1, {});
     sim.step();
   }
-  sim.endRide(O1);
+  sim.endCarry(O1);
   EXPECT_EQ(sim.carrierOf(O1), -1);
   bool done = false;
   for (int k = 0; k < 100 && !done; ++k)
@@ -316,15 +316,65 @@ TEST(TableSimulator, ALoadRidesInFrontOfItsCarrierAndEndsOnItsGoal) {
   // A load out of reach does not ride; a robot's segment carries an object's of its step
   // with the same action and target only.
   TableSimulator far(spec, {{0, 0, 0}, {0.2, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
-  EXPECT_FALSE(far.ride(R1, O1));
+  EXPECT_FALSE(far.carry(R1, O1));
   // A carrier that stopped where the path follower stops (the stop radius short of contact)
   // is at its load: task::togetherDistance, as the network reads it.
   const double stopped = contact + task::stopRadius(spec.arrival_radius);
   ASSERT_LT(stopped, task::togetherDistance(spec, R1, O1));
   TableSimulator near(spec, {{0, 0, 0}, {stopped, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
-  EXPECT_TRUE(near.ride(R1, O1));
+  EXPECT_TRUE(near.carry(R1, O1));
   EXPECT_TRUE(carries(spec, 2, {R1, "move", G1}, 2, {O1, "move", G1}));
   EXPECT_FALSE(carries(spec, 2, {R1, "move", G1}, 3, {O1, "move", G1}));
   EXPECT_FALSE(carries(spec, 2, {R1, "move", G1}, 2, {O1, "push", G1}));
   EXPECT_FALSE(carries(spec, 2, {O1, "move", G1}, 2, {R1, "move", G1}));
+}
+
+// Without loads_ride a load goes where its carrier pushes it, nowhere by itself, on a table
+// of bodies (Box2D) and of points alike; done when its carrier is done with it at its end
+// point, failed naming how far when not.
+TEST(TableSimulator, APushedLoadMovesOnlyAsItsCarrierPushesItAndIsJudgedWhereItLies) {
+  // R1 at the origin facing +x, O1 just in front of it; O1's segment to (0.2, 0).
+  task::TaskSpec spec = tableTask();
+  const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
+  for (const bool bodies : {true, false}) {
+    SCOPED_TRACE(bodies ? "bodies" : "points");
+    TableSimulatorParams p;
+    p.bodies = bodies;
+    p.loads_ride = false;
+    TableSimulator sim(spec, {{0, 0, 0}, {contact + 0.002, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
+    ASSERT_TRUE(sim.startSegment(O1, 7, {{contact + 0.002, 0}, {0.2, 0}}));
+    ASSERT_TRUE(sim.carry(R1, O1));
+    EXPECT_EQ(sim.carrierOf(O1), R1);
+    for (int k = 0; k < 25; ++k)  // its carrier stands: it stays where it is
+      for (const ObjectStatus& s : sim.step()) EXPECT_EQ(s.state, SegmentState::Running);
+    EXPECT_NEAR(sim.truePose(O1).x, contact + 0.002, 1e-6) << "it moved by itself";
+    // Pushed straight ahead until it is on its end point.
+    for (int k = 0; k < 200 && sim.truePose(O1).x < 0.2; ++k) {
+      sim.commandWheels(R1, {0.1, 0.1});
+      for (const ObjectStatus& s : sim.step()) EXPECT_EQ(s.state, SegmentState::Running) << "done before its carrier";
+    }
+    const Eigen::Vector2d r = sim.truePose(R1).position(), o = sim.truePose(O1).position();
+    EXPECT_GT(o.x(), 0.19);
+    EXPECT_NEAR(o.x() - r.x(), contact, 0.003) << "in front of its carrier, touching";
+    EXPECT_NEAR(o.y(), 0, 0.003);
+    sim.commandWheels(R1, {});
+    sim.endCarry(O1);
+    EXPECT_EQ(sim.carrierOf(O1), -1);
+    const std::vector<ObjectStatus> ended = sim.step();
+    ASSERT_EQ(ended.size(), 1u);
+    EXPECT_EQ(ended[0].segment_id, 7u);
+    EXPECT_EQ(ended[0].state, SegmentState::Done) << ended[0].message;
+
+    // Its carrier done with it short of its end point: the segment fails, saying how far.
+    TableSimulator short_of(spec, {{0, 0, 0}, {contact + 0.002, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
+    ASSERT_TRUE(short_of.startSegment(O1, 8, {{contact + 0.002, 0}, {0.2, 0}}));
+    ASSERT_TRUE(short_of.carry(R1, O1));
+    short_of.endCarry(O1);
+    const std::vector<ObjectStatus> failed = short_of.step();
+    ASSERT_EQ(failed.size(), 1u);
+    EXPECT_EQ(failed[0].state, SegmentState::Failed);
+    EXPECT_NE(failed[0].message.find("O1 is 15.6 cm from its end point when its carrier R1 was done"),
+              std::string::npos)
+        << failed[0].message;
+  }
 }

@@ -120,26 +120,31 @@ TEST(FusedKernels, SceneAttentionRefusesMisshapenInputs) {
       << "nodes against the edges";
 }
 
+// Every pair of the N entities (training), and some rows only (M of them: token by token
+// asks for the rows still to be decided).
 TEST(FusedKernels, PointerScoresEqualTheOpByOpFormulationAndItsGradients) {
   torch::manual_seed(13);
   const int64_t p = 4, n = 6, k = 5;
-  const Tensor a = leaf({p, n, k}), b = leaf({p, n, k}), r = leaf({p, n, n, k}), z = leaf({p, k}), v = leaf({k});
-  const std::vector<Tensor> leaves{a, b, r, z, v};
-  const Tensor weights = torch::randn({p, n, n});
-  const Tensor out = fused::pointerScores(a, b, r, z, v);
-  (out * weights).sum().backward();
-  const std::vector<Tensor> fused_grads = gradsOf(leaves);
-  const Tensor pre = a.unsqueeze(-2) + b.unsqueeze(-3) + r + z.unsqueeze(-2).unsqueeze(-2);
-  const Tensor ref = torch::matmul(torch::relu(pre), v);
-  (ref * weights).sum().backward();
-  const std::vector<Tensor> ref_grads = gradsOf(leaves);
-  expectClose(out, ref, 1e-5, "scores");
-  const char* names[] = {"a", "b", "r", "z", "v"};
-  for (size_t i = 0; i < leaves.size(); ++i)
-    expectClose(fused_grads[i], ref_grads[i], 1e-4, std::string("d/d") + names[i]);
-  torch::NoGradGuard no_grad;
-  EXPECT_THROW(fused::pointerScores(a, b, torch::zeros({p, n, n - 1, k}), z, v), ddace::Error) << "pairs";
-  EXPECT_THROW(fused::pointerScores(a, b, r, z, torch::zeros({k + 1})), ddace::Error) << "v";
+  for (const int64_t m : {n, int64_t{3}}) {
+    const Tensor a = leaf({p, m, k}), b = leaf({p, n, k}), r = leaf({p, m, n, k}), z = leaf({p, k}), v = leaf({k});
+    const std::vector<Tensor> leaves{a, b, r, z, v};
+    const Tensor weights = torch::randn({p, m, n});
+    const Tensor out = fused::pointerScores(a, b, r, z, v);
+    (out * weights).sum().backward();
+    const std::vector<Tensor> fused_grads = gradsOf(leaves);
+    const Tensor pre = a.unsqueeze(-2) + b.unsqueeze(-3) + r + z.unsqueeze(-2).unsqueeze(-2);
+    const Tensor ref = torch::matmul(torch::relu(pre), v);
+    (ref * weights).sum().backward();
+    const std::vector<Tensor> ref_grads = gradsOf(leaves);
+    expectClose(out, ref, 1e-5, "scores, rows " + std::to_string(m));
+    const char* names[] = {"a", "b", "r", "z", "v"};
+    for (size_t i = 0; i < leaves.size(); ++i)
+      expectClose(fused_grads[i], ref_grads[i], 1e-4, std::string("d/d") + names[i] + ", rows " + std::to_string(m));
+    torch::NoGradGuard no_grad;
+    EXPECT_THROW(fused::pointerScores(a, b, torch::zeros({p, m, n - 1, k}), z, v), ddace::Error) << "pairs";
+    EXPECT_THROW(fused::pointerScores(a, b, torch::zeros({p, m + 1, n, k}), z, v), ddace::Error) << "rows";
+    EXPECT_THROW(fused::pointerScores(a, b, r, z, torch::zeros({k + 1})), ddace::Error) << "v";
+  }
 }
 
 TEST(FusedKernels, GatAttentionEqualsTheOpByOpFormulationAndItsGradients) {

@@ -331,6 +331,100 @@ TEST(RelationalBasis, OrdersAlongTheAxesTellApartEntitiesSideBySide) {
   EXPECT_GT(side_by_side, 0) << "no scene puts two of a kind side by side: the test would not tell";
 }
 
+// The nearness ranks are counts of rivals (docs/tgn.md, "Relational basis"): for the pair
+// (i, j), how many of j's rivals lie nearer to i than j (farther), and of i's nearer to j
+// than i; a rival of e is of e's kind, competing (token by token: not given its part yet)
+// and free unless e is parked. Counted here one entity at a time for every pair, in
+// scenes with parked boxes and with some entities given their part, against the features
+// token by token computes from one sort per entity (and for some rows only).
+TEST(RelationalBasis, NearnessRanksCountTheRivalsOfEachPair) {
+  const task::TaskDir boxes = generate("zoo:50", 6);
+  auto impl = tgn::prepare(boxes, tgn::TrainOptions{});
+  ASSERT_TRUE(impl->info.plan.parked_out_of_ranks);
+  impl->build();
+  const int n = impl->cfg.nodes, f = tgn::kRelativeFeatures;
+  const auto kind = [&](int c) {
+    return boxes.spec.entities[static_cast<size_t>(impl->order.task_of[static_cast<size_t>(c)])].kind;
+  };
+  int parked_seen = 0, checked = 0;
+  for (const auto& demo : boxes.demos) {
+    const task::Demonstration d = impl->order.toCanonical(demo);
+    for (size_t s = 0; s < d.snapshots.size(); ++s) {
+      std::vector<std::vector<Eigen::Vector2d>> history;
+      for (size_t k = 0; k <= s; ++k) history.push_back(d.snapshots[k].positions);
+      const tgn::PairRelations relations(*impl, history.data(), history.size());
+      for (int out_every = 0; out_every < 3; ++out_every) {  // none out, then every 2nd or 3rd entity given
+        std::vector<bool> competing(static_cast<size_t>(n), true);
+        for (int e = 0; out_every > 0 && e < n; e += out_every + 1) competing[static_cast<size_t>(e)] = false;
+        std::vector<float> rel(static_cast<size_t>(n * n * f));
+        relations.write(rel.data(), &competing);
+        const auto at = [&](int i, int j, int feature) { return rel[static_cast<size_t>((i * n + j) * f + feature)]; };
+        std::vector<bool> parked(static_cast<size_t>(n), false);
+        for (int e = 0; e < n; ++e)
+          for (int m = 0; m < n; ++m)
+            if (m != e && at(e, m, tgn::basis::kDistance) == 0.f) parked[static_cast<size_t>(e)] = true;
+        parked_seen += static_cast<int>(std::count(parked.begin(), parked.end(), true));
+        const auto rival = [&](int k, int e) {
+          return competing[static_cast<size_t>(k)] && kind(k) == kind(e) &&
+                 (parked[static_cast<size_t>(e)] || !parked[static_cast<size_t>(k)]);
+        };
+        for (int i = 0; i < n; ++i)
+          for (int j = 0; j < n; ++j) {
+            if (i == j) continue;
+            const float dij = at(i, j, tgn::basis::kDistance);
+            int near_j = 0, far_j = 0, near_i = 0, far_i = 0;
+            for (int k = 0; k < n; ++k) {
+              if (k == i || k == j) continue;
+              near_j += rival(k, j) && at(i, k, tgn::basis::kDistance) < dij;
+              far_j += rival(k, j) && at(i, k, tgn::basis::kDistance) > dij;
+              near_i += rival(k, i) && at(j, k, tgn::basis::kDistance) < dij;
+              far_i += rival(k, i) && at(j, k, tgn::basis::kDistance) > dij;
+            }
+            EXPECT_FLOAT_EQ(at(i, j, tgn::basis::kNearJ), 1.f / static_cast<float>(1 + near_j)) << i << ", " << j;
+            EXPECT_FLOAT_EQ(at(i, j, tgn::basis::kFarJ), 1.f / static_cast<float>(1 + far_j)) << i << ", " << j;
+            EXPECT_FLOAT_EQ(at(i, j, tgn::basis::kNearI), 1.f / static_cast<float>(1 + near_i)) << i << ", " << j;
+            EXPECT_FLOAT_EQ(at(i, j, tgn::basis::kFarI), 1.f / static_cast<float>(1 + far_i)) << i << ", " << j;
+            ++checked;
+          }
+        // Some rows only: the same features, those rows' alone.
+        const std::vector<int64_t> rows = {1, 3, static_cast<int64_t>(n - 1)};
+        std::vector<float> some(rows.size() * static_cast<size_t>(n * f));
+        relations.write(some.data(), &competing, &rows);
+        for (size_t q = 0; q < rows.size(); ++q)
+          EXPECT_TRUE(std::equal(some.begin() + static_cast<std::ptrdiff_t>(q * n * f),
+                                 some.begin() + static_cast<std::ptrdiff_t>((q + 1) * n * f),
+                                 rel.begin() + static_cast<std::ptrdiff_t>(rows[q] * n * f)))
+              << "row " << rows[q];
+      }
+    }
+  }
+  EXPECT_GT(parked_seen, 0) << "no parked entity: the test would not tell";
+  EXPECT_GT(checked, 1000);
+}
+
+// Token by token asks the pointer again after every token for the rows still to be
+// decided only: their logits are those of the whole heads.
+TEST(TokenByToken, ThePointersRowsAreThoseOfTheWholeHeads) {
+  const task::TaskDir goals = generate("zoo:nearest-goals", 2);
+  auto impl = tgn::prepare(goals, tgn::TrainOptions{});
+  impl->build();
+  torch::NoGradGuard no_grad;
+  tgn::SceneNetwork net = impl->members().front();
+  net->eval();
+  const int64_t n = impl->cfg.nodes;
+  torch::manual_seed(5);
+  const torch::Tensor nodes = torch::randn({n, net->act_h->weight.size(1)});
+  const torch::Tensor z = torch::randn({net->ptr_z->weight.size(1)});
+  const torch::Tensor rel = torch::rand({n, n, tgn::kRelativeFeatures});
+  const auto parts = net->pointerParts(nodes, z, net->hiddenOf(nodes, z));
+  const torch::Tensor whole = net->pointerLogits(parts, rel);
+  const torch::Tensor rows = torch::tensor(std::vector<int64_t>{0, 2, n - 1}, torch::kLong);
+  const torch::Tensor some = net->pointerLogits(parts, rel.index_select(0, rows), rows);
+  ASSERT_EQ(some.sizes(), torch::IntArrayRef({3, n + 1}));
+  EXPECT_LT((some - whole.index_select(0, rows)).abs().max().item<double>(), 1e-5);
+  EXPECT_THROW(net->pointerLogits(parts, rel, rows), Error) << "the features of every row for three rows";
+}
+
 // Demonstrated tokens: whatever the heads say, in a decided step an entity takes only
 // actions its kind took in the training demonstrations and points only at kinds of
 // target its kind pointed at. A network stopped after one epoch decides nearly at random;
