@@ -131,8 +131,8 @@ class Labeller {
   /// Between the tied end points of `ep`: the example's step k (aligned), the example's
   /// choice between such kinds, or its only motion of the kind; else noted.
   void resolveTie(InferredToken& tok, const Motion& m, const EndPoint& ep, size_t k, bool aligned);
-  /// The action word of a token with its target (an object moving alone is noted).
-  void nameAction(InferredToken& tok, const Motion& m, bool is_load);
+  /// The action word of a token with its target; true when it noted an object moving alone.
+  bool nameAction(InferredToken& tok, const Motion& m, bool is_load);
   /// Notes a body a motion nearly stopped at on its way, keeping its heading.
   void noteStopsOnTheWay(const std::vector<Motion>& g, const std::vector<int>& carrier,
                          const std::vector<InferredToken>& tokens);
@@ -150,6 +150,10 @@ class Labeller {
   /// heading it came in and the one it left in.
   bool stoppedAtOnItsWay(const Motion& m, int b, double& turn) const;
   bool together(const std::vector<Eigen::Vector2d>& at, int a, int b) const;
+  /// `m` is with an object at its onset, at `at` and at its offset, and the object moved
+  /// with it: a robot going round its load to the side it pushes from (a slow turn beside
+  /// a body there is no stop).
+  bool goesRoundItsLoad(const Motion& m, const std::vector<Eigen::Vector2d>& at) const;
   /// `m` begins as the motions of a step have stopped (the last at step_off_t), within
   /// the precision onsets and offsets are dated to: a step of its own, even with no pause
   /// (a stop at contact followed by a change of what moves).
@@ -157,8 +161,8 @@ class Labeller {
   bool staysWith(const Motion& m, int j) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
   bool pausedOnItsWay(const Motion& a, const Motion& b) const;
-  /// `a` (a robot's motion) started an object moving, touching it, was still with it when it
-  /// stopped, and the object went on farther than a nudge before `b` began: it let go.
+  /// An object was with `a`'s robot (at a's onset, or set moving at its touch during `a`)
+  /// and when it stopped, and went on farther than a nudge before `b` began: it let go.
   bool letGo(const Motion& a, const Motion& b) const;
   const task::ActionRule* rule(int mover, int target, int load) const;
   std::string word(int mover, int target, int load, int row);

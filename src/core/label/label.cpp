@@ -148,17 +148,22 @@ std::vector<bool> Labeller::candidatesOf(const Motion& m) const {
   return c;
 }
 
-// A hand-over: the object's motion began at a's touch (an object's pieces pending with
-// a's), and it went on while a rested.
+// A hand-over: an object with a's robot (from a's onset, or set moving at its touch: an
+// object's pieces pending with a's) went on while it rested.
 bool Labeller::letGo(const Motion& a, const Motion& b) const {
   const auto& E = spec_.entities;
   if (E[a.entity].kind != task::EntityKind::Robot) return false;
   const double slack = options_.still_s / 2;  // the precision onsets and offsets are dated to
-  for (const Motion& l : pending_)
-    if (E[l.entity].kind == task::EntityKind::Object && l.on_t >= a.on_t - slack && l.on_t <= a.off_t &&
-        together(l.at_onset, a.entity, l.entity) && together(a.at_offset, a.entity, l.entity) &&
-        (b.at_onset[l.entity] - a.at_offset[l.entity]).norm() >= options_.nudge_m)
-      return true;
+  for (int j = 0; j < static_cast<int>(E.size()); ++j) {
+    if (E[j].kind != task::EntityKind::Object || !together(a.at_offset, a.entity, j) ||
+        (b.at_onset[j] - a.at_offset[j]).norm() < options_.nudge_m)
+      continue;
+    // With it: at its onset already, or set moving at its touch while it moved.
+    if (together(a.at_onset, a.entity, j)) return true;
+    for (const Motion& l : pending_)
+      if (l.entity == j && l.on_t >= a.on_t - slack && l.on_t <= a.off_t && together(l.at_onset, a.entity, j))
+        return true;
+  }
   return false;
 }
 
@@ -179,6 +184,13 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
   if (back.norm() > 0 && back.norm() < 2 * options_.nudge_m &&
       b.start_dir.dot(back.normalized()) > std::cos(options_.heading_rad))
     return true;
+  // Went round an object it stood at (the object standing), to the side it then pushes it
+  // from: the push's start, not a motion to the object.
+  for (int j = 0; j < static_cast<int>(spec_.entities.size()); ++j)
+    if (j != a.entity && spec_.entities[j].kind == task::EntityKind::Object && together(a.at_onset, a.entity, j) &&
+        together(a.at_offset, a.entity, j) && (a.at_offset[j] - a.at_onset[j]).norm() < options_.start_m &&
+        staysWith(b, j))
+      return true;
   // What a carried (an object that stayed with it) ends a carrier's motion.
   int load = -1;
   for (int j = 0; j < static_cast<int>(spec_.entities.size()); ++j)
@@ -296,8 +308,10 @@ void Labeller::cutAtContacts(std::vector<Motion>& ms) const {
         // Touching it as it started, having come from elsewhere, and still with it when the
         // first of the two stopped.
         const auto& at_end = m.off_row <= load.off_row ? m.at_offset : load.at_offset;
+        // Already at it when it set off (going round it to the side it pushes from): no
+        // approach.
         if (!together(load.at_onset, R, load.entity) || !together(at_end, R, load.entity) ||
-            (load.at_onset[R] - m.start).norm() < options_.nudge_m ||
+            together(m.at_onset, R, load.entity) || (load.at_onset[R] - m.start).norm() < options_.nudge_m ||
             (load.at_onset[R] - m.rested_at).norm() < options_.nudge_m)
           continue;
         Motion approach = before(m, load.on_row, load.on_t, load.at_onset);
@@ -324,7 +338,7 @@ void Labeller::cutAtContacts(std::vector<Motion>& ms) const {
             (at < 0 || m.closest_row[b] < m.closest_row[at]))
           at = b;
       }
-      if (at < 0) continue;
+      if (at < 0 || goesRoundItsLoad(m, m.closest_scene[at])) continue;
       const int row = m.closest_row[at];
       const double t = m.closest_t[at];
       const std::vector<Vector2d> scene = m.closest_scene[at];
@@ -334,6 +348,16 @@ void Labeller::cutAtContacts(std::vector<Motion>& ms) const {
       cut = true;
     }
   }
+}
+
+bool Labeller::goesRoundItsLoad(const Motion& m, const std::vector<Vector2d>& at) const {
+  const auto& E = spec_.entities;
+  for (int j = 0; j < static_cast<int>(E.size()); ++j)
+    if (E[j].kind == task::EntityKind::Object && together(m.at_onset, m.entity, j) &&
+        together(m.at_offset, m.entity, j) && together(at, m.entity, j) &&
+        (m.at_offset[j] - m.at_onset[j]).norm() >= options_.nudge_m)
+      return true;
+  return false;
 }
 
 bool Labeller::startsAStep(double step_off_t, const Motion& m) const {
@@ -703,20 +727,22 @@ void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t 
   }
 }
 
-void Labeller::nameAction(InferredToken& tok, const Motion& m, bool is_load) {
+bool Labeller::nameAction(InferredToken& tok, const Motion& m, bool is_load) {
   const auto& E = spec_.entities;
   tok.kind = kindKey(spec_, m.entity, tok.token.target, tok.load);
   // An object moving alone is reported unless the example shows such a motion or a
   // rule of task.yaml names the word of an object's motion there.
   const task::ActionRule* object_rule = rule(m.entity, tok.token.target, tok.load);
   const bool object_rule_stated = object_rule && object_rule->mover_kind == task::EntityKind::Object;
-  if (E[m.entity].kind == task::EntityKind::Object && !is_load && !(example_ && example_->words.count(tok.kind)) &&
-      !object_rule_stated)
+  const bool alone = E[m.entity].kind == task::EntityKind::Object && !is_load &&
+                     !(example_ && example_->words.count(tok.kind)) && !object_rule_stated;
+  if (alone)
     note(m.on_row,
          "object " + E[m.entity].name + " moved alone (no robot with it) to " + E[tok.token.target].name +
              "; or a robot carried it",
          m.entity);
   tok.token.action = word(m.entity, tok.token.target, tok.load, m.on_row);
+  return alone;
 }
 
 void Labeller::readChain(std::vector<InferredToken>& tokens, const std::vector<Motion>& g,
@@ -779,7 +805,15 @@ std::vector<InferredToken> Labeller::motionTokens(const std::vector<Motion>& g, 
         tok.carrier = g[carrier[i]].entity;
         tok.token.target = tokens[carrier[i]].token.target;
       }
-      if (tok.token.target >= 0) nameAction(tok, g[i], is_load);
+      if (tok.token.target < 0 || !nameAction(tok, g[i], is_load)) continue;
+      // The robots of the step it ended with are the ones that may have carried it.
+      for (size_t j = 0; j < g.size(); ++j)
+        if (j != i && spec_.entities[g[j].entity].kind == task::EntityKind::Robot &&
+            together(g[i].at_offset, g[j].entity, g[i].entity))
+          note(g[j].off_row,
+               spec_.entities[g[j].entity].name + " ended with object " + spec_.entities[g[i].entity].name +
+                   ", which moved alone: did " + spec_.entities[g[j].entity].name + " carry it?",
+               g[j].entity);
     }
   return tokens;
 }
@@ -799,7 +833,8 @@ void Labeller::noteStopsOnTheWay(const std::vector<Motion>& g, const std::vector
         return t.token.entity == b && t.carrier == m.entity;
       });
       double turn = 0;
-      if (b == tok.token.target || load || !stoppedAtOnItsWay(m, b, turn)) continue;
+      if (b == tok.token.target || load || !stoppedAtOnItsWay(m, b, turn) || goesRoundItsLoad(m, m.closest_scene[b]))
+        continue;
       // A step to b would be a motion of a kind the example never makes: a slow pass.
       if (example_ && !example_->words.count(kindKey(spec_, m.entity, b, tok.load)) &&
           !example_->words.count(coarseKindKey(spec_, m.entity, b, tok.load)))
