@@ -159,6 +159,10 @@ class Labeller {
   /// (a stop at contact followed by a change of what moves).
   bool startsAStep(double step_off_t, const Motion& m) const;
   bool staysWith(const Motion& m, int j) const;
+  /// Object motion `o` went with robot motion `r` (overlapping in time, `r`'s robot at one
+  /// place with the object all the way): however little the robot itself moved (turning
+  /// in place sweeps what it touches round it), it moved the object.
+  bool sweptBy(const Motion& o, const Motion& r) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
   bool pausedOnItsWay(const Motion& a, const Motion& b) const;
   /// An object was with `a`'s robot (at a's onset, or set moving at its touch during `a`)

@@ -142,6 +142,12 @@ bool Labeller::staysWith(const Motion& m, int j) const {
          (m.at_offset[j] - m.at_onset[j]).norm() >= options_.nudge_m;
 }
 
+bool Labeller::sweptBy(const Motion& o, const Motion& r) const {
+  return spec_.entities[o.entity].kind == task::EntityKind::Object &&
+         spec_.entities[r.entity].kind == task::EntityKind::Robot && r.on_t <= o.off_t && o.on_t <= r.off_t &&
+         o.max_distance[r.entity] <= task::togetherDistance(spec_, o.entity, r.entity);
+}
+
 std::vector<bool> Labeller::candidatesOf(const Motion& m) const {
   std::vector<bool> c(spec_.entities.size(), true);
   for (size_t j = 0; j < c.size(); ++j) c[j] = static_cast<int>(j) != m.entity && !staysWith(m, static_cast<int>(j));
@@ -397,10 +403,17 @@ void Labeller::decide(bool at_end) {
     merged.push_back(std::move(m));
   }
   // 2. Nudges: a motion, joined across its pauses, that ends where it began (less than
-  // nudge_m away: bumped and put back) is no token.
-  merged.erase(std::remove_if(merged.begin(), merged.end(),
-                              [&](const Motion& m) { return (m.end - m.start).norm() < options_.nudge_m; }),
-               merged.end());
+  // nudge_m away: bumped and put back) is no token, unless it moved an object farther (a
+  // robot turning with its load: an object does not move alone).
+  auto movedAnObject = [&](const Motion& m) {
+    return std::any_of(merged.begin(), merged.end(),
+                       [&](const Motion& o) { return (o.end - o.start).norm() >= options_.nudge_m && sweptBy(o, m); });
+  };
+  std::vector<bool> nudge(merged.size());
+  for (size_t i = 0; i < merged.size(); ++i)
+    nudge[i] = (merged[i].end - merged[i].start).norm() < options_.nudge_m && !movedAnObject(merged[i]);
+  for (size_t i = merged.size(); i-- > 0;)
+    if (nudge[i]) merged.erase(merged.begin() + static_cast<long>(i));
   cutAtContacts(merged);
   // Pieces of steps handed over already (a motion cut in two waits for its second piece).
   // A motion that began as the last one handed over ended (a push after a short stop at
@@ -646,7 +659,7 @@ std::vector<int> Labeller::carriersOf(const std::vector<Motion>& g) const {
     double best = 1e9;
     for (size_t j = 0; j < g.size(); ++j) {
       const int rb = g[j].entity;
-      if (j == i || E[rb].kind != task::EntityKind::Robot || !staysWith(g[i], rb)) continue;
+      if (j == i || !sweptBy(g[i], g[j])) continue;
       if (g[i].max_distance[rb] < best) best = g[i].max_distance[rb], carrier[i] = static_cast<int>(j);
     }
   }

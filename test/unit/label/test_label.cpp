@@ -522,6 +522,30 @@ TEST(Label, AGiverThatCreepsOnAfterTheHandOverStillLetGo) {
             (Steps{{"R1:move:R2", "B1:move:R2"}, {"R2:move:G1", "B1:move:G1"}, {"R1:move:R2"}}));
 }
 
+TEST(Label, ARobotTurningWithItsBoxCarriesIt) {
+  // R1 stands behind the box (north of it) and turns round in a second to hand it to R2,
+  // south: R1 itself goes 2.5 cm (less than a nudge) while the box, touching it all the
+  // way, swings 18 cm round it to R2. An object does not move alone: R1 carried it.
+  Scene s;
+  const Vector2d from(0.5, 0.5), to(0.5, 0.475);
+  s.pos[0] = from;
+  s.pos[2] = from + Vector2d(0, 0.042);
+  s.pos[1] = to - Vector2d(0, 0.084);
+  s.rest(1);
+  for (int i = 0; i <= 30; ++i) {
+    const double u = i / 30.0, a = M_PI / 2 - M_PI * u * u * (3 - 2 * u);
+    s.pos[0] = from + (to - from) * u;
+    s.pos[2] = s.pos[0] + 0.042 * Vector2d(std::cos(a), std::sin(a));
+    s.emit();
+  }
+  s.rest(1);
+  const auto inf = s.infer();
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2", "B1:move:R2"}}));
+  EXPECT_EQ(inf.steps[0].tokens[1].load, 2);  // carried
+  EXPECT_EQ(inf.steps[0].tokens[1].carrier, 0);
+  EXPECT_TRUE(inf.notes.empty());
+}
+
 TEST(Label, ARobotEndingWithABoxThatMovedAloneIsListed) {
   // R1 drives 20 cm onto G1 while the box swings 19 cm round to its side (a robot turning
   // with a box, as a tracker may see it): no robot stayed with the box, so it "moved
