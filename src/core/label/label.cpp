@@ -190,11 +190,12 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
   if (back.norm() > 0 && back.norm() < 2 * options_.nudge_m &&
       b.start_dir.dot(back.normalized()) > std::cos(options_.heading_rad))
     return true;
-  // Went round an object it stood at (the object standing), to the side it then pushes it
-  // from: the push's start, not a motion to the object.
+  // Went round an object it stood at (moving it less than a nudge: no carry of its own), to
+  // the side it then pushes it from, maybe pushing a little before a pause: the push's
+  // start, not a motion to the object.
   for (int j = 0; j < static_cast<int>(spec_.entities.size()); ++j)
     if (j != a.entity && spec_.entities[j].kind == task::EntityKind::Object && together(a.at_onset, a.entity, j) &&
-        together(a.at_offset, a.entity, j) && (a.at_offset[j] - a.at_onset[j]).norm() < options_.start_m &&
+        together(a.at_offset, a.entity, j) && (a.at_offset[j] - a.at_onset[j]).norm() < options_.nudge_m &&
         staysWith(b, j))
       return true;
   // What a carried (an object that stayed with it) ends a carrier's motion.
