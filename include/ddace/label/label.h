@@ -127,7 +127,11 @@ class Labeller {
   /// listed with T as the alternative.
   void readChain(std::vector<InferredToken>& tokens, const std::vector<Motion>& g, const std::vector<int>& carrier);
   /// The target of a motion that is no load (endPoint(); a tie resolved by the example).
-  void readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned);
+  /// One that stopped away from every entity is read again among the bodies as they stood
+  /// when its step ended (`step_end`): others of the step may have come to its target
+  /// after it stopped, in front of it.
+  void readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned,
+                  const std::vector<Eigen::Vector2d>& step_end);
   /// Between the tied end points of `ep`: the example's step k (aligned), the example's
   /// choice between such kinds, or its only motion of the kind; else noted.
   void resolveTie(InferredToken& tok, const Motion& m, const EndPoint& ep, size_t k, bool aligned);

@@ -725,9 +725,17 @@ void Labeller::resolveTie(InferredToken& tok, const Motion& m, const EndPoint& e
        m.entity);
 }
 
-void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned) {
+void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned,
+                          const std::vector<Vector2d>& step_end) {
   const auto& E = spec_.entities;
-  const EndPoint ep = endPoint(spec_, m.entity, m.leg_start, m.end, m.at_onset, candidatesOf(m), load, &m.at_offset);
+  EndPoint ep = endPoint(spec_, m.entity, m.leg_start, m.end, m.at_onset, candidatesOf(m), load, &m.at_offset);
+  if (ep.target < 0) {
+    // It stopped short and the rest of its step came in front of it (a robot leaving room
+    // for those still on their way to the same body): the crowd round the target as the
+    // step left it.
+    const EndPoint later = endPoint(spec_, m.entity, m.leg_start, m.end, m.at_onset, candidatesOf(m), load, &step_end);
+    if (later.target >= 0) ep = later;
+  }
   tok.token.target = ep.target;
   if (ep.target < 0) {
     tok.token.target = ep.nearest;
@@ -802,12 +810,14 @@ std::vector<InferredToken> Labeller::motionTokens(const std::vector<Motion>& g, 
   }
   // Carriers and lone movers first (every target, then chains through movers of the step,
   // then words), then their loads.
+  const auto last =
+      std::max_element(g.begin(), g.end(), [](const Motion& a, const Motion& b) { return a.off_row < b.off_row; });
   for (size_t i = 0; i < g.size(); ++i) {
     if (carrier[i] >= 0) continue;
     int load = -1;
     for (size_t j = 0; j < g.size() && load < 0; ++j)
       if (carrier[j] == static_cast<int>(i)) load = g[j].entity;
-    readTarget(tokens[i], g[i], load, k, aligned);
+    readTarget(tokens[i], g[i], load, k, aligned, last->at_offset);
   }
   readChain(tokens, g, carrier);
   for (int pass = 0; pass < 2; ++pass)

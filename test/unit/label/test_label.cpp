@@ -727,6 +727,26 @@ TEST(Label, AGoalTakenInTheSameStepIsTheTargetOfTheOneEndingBesideIt) {
 /// R1, R3 and R4 sent to R2 (standing at 0.5, 0.5) in one step: R4 from the north, slowly,
 /// R1 from the west, and R3 setting off once R1 is there, to R2's south side, or, `crowded`,
 /// to just behind R1.
+TEST(Label, ARobotLeavingRoomInARowForOneStillOnItsWayIsSentToTheTarget) {
+  // The same row, but R3 gets to its place first and stops away from every body, leaving
+  // room for R2, which comes in between from the north a second later: as the step left
+  // them, R3 is behind a row at the box, sent to the box.
+  Scene s;
+  s.spec.entities.push_back({"R3", task::EntityKind::Robot, "hamster"});
+  s.pos.push_back({0.02, 0.5});
+  s.d.has_label_columns.assign(s.pos.size(), false);
+  s.pos[0] = {0.456, 0.2};  // R1 from the south
+  const double r1_box = s.spec.contactDistance(0, 2), robots = s.spec.contactDistance(1, 0);
+  s.pos[1] = {0.5 - r1_box - robots, 0.9};  // R2 from the north
+  s.rest(1);
+  s.move(
+      {{0, {0.5 - r1_box, 0.5}}, {5, {0.5 - r1_box - 2 * robots, 0.5}, 0, 1}, {1, {0.5 - r1_box - robots, 0.5}, 0.5}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:B1", "R2:move:B1", "R3:move:B1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
+}
+
 Scene gatherScene(bool crowded) {
   Scene s;
   s.spec.entities.push_back({"R3", task::EntityKind::Robot, "hamster"});
