@@ -814,6 +814,29 @@ TEST(Label, AStopAtABodyWithoutAPauseThatTurnsIsTwoSteps) {
   EXPECT_EQ(inf.steps[1].keyframe_row, inf.steps[0].tokens[0].last_row + 1);
 }
 
+TEST(Label, ARobotSettingOffBesideABodyAndPassingItAtSpeedDoesNotStopThere) {
+  // R1 sets off slowly 8 cm from R2, passes it touching at full speed and turns there
+  // for G1: its only slow rows were far from R2 (its start), so no stop at R2 to cut.
+  Scene s;
+  const double contact = s.spec.contactDistance(0, 1);
+  const Vector2d start(0.3, 0.28), corner(0.3, 0.35), g1 = s.pos[3];
+  s.pos[0] = start;
+  s.pos[1] = corner - Vector2d(contact, 0);  // on the outside of the turn
+  s.pos[2] = {0.5, 0.8};                     // the box out of the way
+  s.rest(1);
+  const double first = (corner - start).norm(), total = first + (g1 - corner).norm();
+  for (int i = 1; i <= 90; ++i) {
+    const double u = i / 90.0, along = total * u * u * (3 - 2 * u);
+    s.pos[0] = along < first ? Vector2d(start + (corner - start) * (along / first))
+                             : Vector2d(corner + (g1 - corner).normalized() * (along - first));
+    s.emit();
+  }
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
+}
+
 TEST(Label, ANearStopBesideABodyKeepingTheHeadingIsListed) {
   // R1 slows to nothing beside R2 (touching it) and drives on straight to G2: a slow pass
   // or a step to R2 and one on? The motion does not say: one token, listed, naming R2.
