@@ -54,6 +54,8 @@ TEST(ExecPaths, TheRealLaunchFileResolvesPathsRecordsAndWatchesThePosePublisher)
     const YAML::Node params = YAML::Load(out);
     EXPECT_EQ(params["/coordinator/task"].as<std::string>(""), std::string(caller) + "/out/task");
     EXPECT_EQ(params["/execution_monitor/task"].as<std::string>(""), std::string(caller) + "/out/task");
+    // the tracker refuses a markers file without a marker for one of the task's entities
+    EXPECT_EQ(params["/tracker/task"].as<std::string>(""), std::string(caller) + "/out/task");
     EXPECT_EQ(params["/sequence/model"].as<std::string>(""), std::string(caller) + "/out/model");
     EXPECT_EQ(params["/coordinator/roles/recorder"].as<std::string>(""), "/execution_monitor");
     EXPECT_EQ(params["/coordinator/roles/pose_source"].as<std::string>(""), nodelet ? "/camera_manager" : "/tracker");

@@ -195,7 +195,8 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   }
   task::Snapshot snap;
   snap.row = static_cast<int>(history_.size());
-  snap.positions = observation_.positions;
+  // A policy that reads the scene is asked once it settled (mayDecide): the scene as it is.
+  snap.positions = policy_reads_scene_ ? observation_.positions : sceneOnceSettled();
   history_.push_back(snap);
   DecisionRequest req;
   req.id = nextId();
@@ -207,6 +208,20 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   ++decisions_requested_;
   out.log.push_back("requesting decision " + std::to_string(req.step + 1));
   out.decision = std::move(req);
+}
+
+std::vector<Eigen::Vector2d> Coordinator::sceneOnceSettled() const {
+  std::vector<Eigen::Vector2d> at = observation_.positions;
+  for (const StepRecord& s : steps_) {
+    if (s.complete) continue;
+    std::vector<task::Token> tokens;
+    for (const TokenRecord& t : s.tokens) tokens.push_back(t.token);
+    at = task::stepEndPositions(spec_, end_points_, tokens, at);
+    for (const TokenRecord& t : s.tokens)
+      if (t.token.isMotion() && t.started_s >= 0 && t.state != SegmentState::Done)
+        at[static_cast<size_t>(t.token.entity)] = t.goal;
+  }
+  return at;
 }
 
 void Coordinator::refreshState(CoordinatorOutput& out) {
