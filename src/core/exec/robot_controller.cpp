@@ -60,7 +60,7 @@ void RobotController::replanPush(const Pose2D& pose, const SafetyBody& load, dou
   if (!was_pushing_ && (load.position - push_planned_for_).norm() <= kPushReplanM) return;
   const int points = std::max(2, static_cast<int>(std::ceil(follower_.lengthM() / kPushPathSpacingM)));
   follower_.setPath(PlannedPath{pushPath(pose.position(), load.position, contacts_.load_end, radius_m + load.radius_m,
-                                         follower_.endPoint(), points),
+                                         follower_.endPoint(), points, {}, /*push_from_behind=*/false),
                                 {}});
   push_planned_for_ = load.position;
 }
