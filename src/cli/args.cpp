@@ -126,4 +126,10 @@ double Args::getDouble(const std::string& flag, double fallback) const {
   return v;
 }
 
+std::string unlabelledAdvice(const std::string& dir, bool all) {
+  if (all) return "`ddace label " + dir + " --out DIR` infers their labels (then train on DIR)";
+  return "ddace label takes a directory of unlabelled demonstrations only: move these into a task directory of their "
+         "own (with a copy of task.yaml) and label that, or record them again";
+}
+
 }  // namespace ddace::cli

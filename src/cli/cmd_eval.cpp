@@ -14,7 +14,8 @@ using namespace ddace::pipeline;
 namespace {
 
 int runEval(const std::vector<std::string>& argv) {
-  Args args(argv, {"--json", "--execution", "--noise", "--seed", "--config", "--dispatch", "--perturb"},
+  Args args(argv,
+            {"--json", "--execution", "--noise", "--seed", "--config", "--dispatch", "--perturb", "--speed-spread"},
             {"--allow-other-task", "--no-bodies", "--no-filter"});
   args.expectAtMostPositional(2);
   const std::string model_dir = args.positional(0, "MODELDIR");
@@ -60,6 +61,13 @@ int runEval(const std::vector<std::string>& argv) {
   }
   // With bodies, a dispatch runs through the coordinator: segments start when it sends them.
   o.coordinated = args.has("--dispatch") && o.execution == "diffdrive" && o.bodies;
+  if (args.has("--speed-spread")) {
+    o.speed_spread = args.getDouble("--speed-spread", 0.0);
+    if (!(o.speed_spread >= 0 && o.speed_spread < 1))
+      throw Error("--speed-spread must be in [0, 1): each robot moves at a factor drawn from [1 - spread, 1]");
+    if (!o.coordinated || perturb)
+      throw Error("--speed-spread needs --execution diffdrive with bodies and --dispatch, without --perturb");
+  }
   const task::TaskDir test = task::loadTaskDir(test_dir);
   const ModelForTask bound =
       modelForTask(loadModel(model_dir), model_dir, test, test_dir, args.has("--allow-other-task"));
@@ -90,7 +98,8 @@ DDACE_COMMAND(
     {"eval",
      "ddace eval MODELDIR TESTDIR|GENERATED_DIR [--json FILE] [--execution ideal|diffdrive] [--noise SIGMA_M] "
      "[--seed S] [--no-bodies] [--no-filter] [--config EXECUTION_YAML] [--dispatch steps|async] "
-     "[--perturb box_moved[:CM]|robot_pushed[:CM]|robot_stalled[:S]|robot_lost] [--allow-other-task]",
+     "[--speed-spread F] [--perturb box_moved[:CM]|robot_pushed[:CM]|robot_stalled[:S]|robot_lost] "
+     "[--allow-other-task]",
      "run the learned task in closed loop on every test demonstration's start configuration and "
      "report OSR, SSR, GCR and FD (a model of another task is refused unless --allow-other-task; a test set "
      "of the same task with other numbers of robots, goals or boxes runs the model bound by kind, with a "
@@ -105,7 +114,8 @@ DDACE_COMMAND(
      "the model's learned dependencies ended; prints the makespan, the precedence violations and whom each "
      "token waited for; on points the tokens' schedule, with bodies every trial runs through the coordinator, "
      "its segments starting on the table when it sends them, recovering as the coordinator node does by default "
-     "(max_replans 2). "
+     "(max_replans 2). --speed-spread F (with --dispatch): robots that differ in speed, each driving at a "
+     "factor drawn per trial from [1 - F, 1] of the speed it commands, the same under either dispatch. "
      "--perturb: every trial runs through the coordinator (entities following their paths ideally in time; "
      "with --execution diffdrive, on the table with bodies) "
      "three times: unperturbed, and with the table changed once at a drawn moment (--seed) without recovery "

@@ -176,11 +176,12 @@ int runInit(const std::vector<std::string>& argv) {
   std::cout << "ddace init: task '" << name << "' in " << dir.string() << ": " << count(e.robots.size(), "robot")
             << ", " << count(e.objects.size(), "object") << ", " << count(e.goals.size(), "goal")
             << ", no goal condition\n"
-            << "  " << task_yaml.string() << "\n  " << markers.string() << "   FILL IN: marker ids, corner positions\n"
+            << "  " << task_yaml.string() << "\n  " << (dir / "demos").string() << "/  (the demonstrations)\n  "
+            << markers.string() << "   FILL IN: marker ids, corner positions\n"
             << "  " << recorder.string() << "  (goal conditions: write your own)\n"
             << "  " << hamsters.string() << "  FILL IN: radio addresses, calibration\n"
             << "next (README, \"Your own task\"):\n"
-            << "  scripts/loopback_only roslaunch ddace record.launch markers:=" << c << "/markers.yaml recorder:=" << c
+            << "  scripts/launch record.launch markers:=" << c << "/markers.yaml recorder:=" << c
             << "/recorder.yaml   (sim:=true: on a simulated table)\n"
             << "  ddace validate " << dir.string() << "\n";
   return 0;

@@ -79,6 +79,14 @@ int runTrain(const std::vector<std::string>& argv) {
   options.validate();
 
   const task::TaskDir train = task::loadTaskDir(task_path);
+  // A demonstration without a step would teach "END at once".
+  std::string unlabelled;
+  size_t count = 0;
+  for (const auto& d : train.demos)
+    if (d.steps.empty()) unlabelled += "\n" + d.source + ": no labelled step", ++count;
+  if (count > 0)
+    throw Error(task_path + ": demonstrations without labels (recorded with infer_labels: false?):" + unlabelled +
+                "\n" + unlabelledAdvice(task_path, count == train.demos.size()));
   // The sequence model, then (except for gnn) the GP primitive library, into one
   // directory of train's own: written whole beside MODELDIR, then swapped in, so a failed
   // or interrupted run leaves the old model as it was and no old file survives.

@@ -1,4 +1,5 @@
 // ddace validate: check a task directory and summarise what the spec derives from it.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -80,6 +81,13 @@ bool validateOne(const std::string& path, bool verbose) {
       std::printf("    END @ row %d\n", d.end_row);
     }
   }
+  const auto unlabelled =
+      std::count_if(dir.demos.begin(), dir.demos.end(), [](const auto& d) { return d.steps.empty(); });
+  if (unlabelled > 0)
+    std::cout
+        << "  " << unlabelled << " of " << dir.demos.size()
+        << " demonstrations have no labelled step (recorded with infer_labels: false), which ddace train refuses: "
+        << unlabelledAdvice(path, static_cast<size_t>(unlabelled) == dir.demos.size()) << "\n";
   const task::CommonSteps common = task::commonSteps(steps_of);
   // A labelling slip (one token unlike every other demonstration's) is reported even with
   // --verbose: training takes the steps as fixed all the same (docs/tgn.md, "Fixed order").

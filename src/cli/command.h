@@ -47,6 +47,10 @@ struct Command {
 /// letters, a swapped pair), "" when none is that close.
 std::string didYouMean(const std::string& word, const std::vector<std::string>& candidates);
 
+/// What to do about demonstrations of task directory `dir` that have no labelled step
+/// (`all`: every one of them): validate's note and train's refusal say the same.
+std::string unlabelledAdvice(const std::string& dir, bool all);
+
 /// All registered subcommands, by name.
 std::map<std::string, Command>& commands();
 

@@ -2,13 +2,9 @@
 #include "ddace/ros/mock_hamster.h"
 
 #include <ros/ros.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <chrono>
-#include <cstring>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -22,6 +18,7 @@
 #include "ddace/common/clock.h"
 #include "ddace/common/error.h"
 #include "ddace/hamster/config.h"
+#include "ddace/hamster/link_dir.h"
 #include "ddace/hamster/mock_robot.h"
 
 #include "ddace/ros/frames.h"
@@ -36,11 +33,6 @@ class MockHamsterNode::Impl {
   Impl(ros::NodeHandle& /*nh*/, ros::NodeHandle& pnh) {
     const std::string config_path = ddace::rosparam::requireString(pnh, "config", "Hamster config YAML");
     const std::string link_dir = ddace::rosparam::requireString(pnh, "link_dir", "directory for the pty symlinks");
-    if (::mkdir(link_dir.c_str(), 0755) == 0) {
-      created_dir_ = link_dir;
-    } else if (errno != EEXIST) {
-      throw ddace::Error("cannot create ~link_dir " + link_dir + ": " + std::strerror(errno));
-    }
     const BridgeConfig config = loadBridgeConfig(config_path);
     const auto only = ddace::rosparam::param(pnh, "robots", std::vector<std::string>{});
     const std::optional<double> true_mps = ddace::rosparam::optionalParam<double>(pnh, "true_mps_per_unit");
@@ -48,8 +40,16 @@ class MockHamsterNode::Impl {
     const double robot_timeout_s = ddace::rosparam::param(pnh, "robot_timeout_s", MockRobotSettings{}.robot_timeout_s);
     frame_id_ = ddace::rosparam::param<std::string>(pnh, "frame_id", kTableFrame);
     const std::vector<RobotConfig> chosen = selectRobots(config, only, "parameter ~robots", config_path);
+    std::vector<MockRobotSettings> settings;
+    std::vector<std::string> link_names;
     for (size_t index = 0; index < chosen.size(); ++index) {
-      const MockRobotSettings s = mockSettingsFor(chosen[index], index, link_dir, true_mps, robot_timeout_s);
+      settings.push_back(mockSettingsFor(chosen[index], index, link_dir, true_mps, robot_timeout_s));
+      link_names.push_back(settings.back().link_path.substr(link_dir.size() + 1));
+    }
+    // This run's own links only: another live run's directory is refused, not shared.
+    claim_ = std::make_unique<LinkDirClaim>(
+        link_dir, link_names, "parameter " + pnh.resolveName("link_dir") + " (launch argument mock_link_dir)");
+    for (const MockRobotSettings& s : settings) {
       robots_.push_back(std::make_unique<MockRobot>(s));
       ROS_INFO("mock_hamster: %s (%s, %s) on %s -> %s", s.name.c_str(), modelName(s.model).c_str(),
                s.address.display().c_str(), s.link_path.c_str(), robots_.back()->slavePath().c_str());
@@ -66,8 +66,7 @@ class MockHamsterNode::Impl {
   }
 
   ~Impl() {
-    robots_.clear();  // removes the symlinks
-    if (!created_dir_.empty()) ::rmdir(created_dir_.c_str());
+    robots_.clear();  // removes the symlinks, then the claim what it created
   }
 
   /// Steps every simulated robot each millisecond.
@@ -162,9 +161,9 @@ class MockHamsterNode::Impl {
   }
 
   std::mutex mutex_;
+  std::unique_ptr<LinkDirClaim> claim_;  // outlives the robots: their links go first
   std::vector<std::unique_ptr<MockRobot>> robots_;
   std::string frame_id_;
-  std::string created_dir_;
   ros::Publisher state_pub_, entities_pub_;
   ros::Subscriber fault_sub_;
   ros::SteadyTimer state_timer_, entity_timer_;

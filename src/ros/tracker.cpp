@@ -18,6 +18,7 @@
 #include <tf2_ros/transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include "exec_conversions.h"
 #include "params.h"
 #include "vision_ros.h"
 #include "ddace/EntityArray.h"
@@ -37,6 +38,9 @@ class TrackerNode::Impl {
     const std::string markers = rosparam::requireString(pnh_, "markers_file", "path to config/markers.yaml");
     const std::string tuning = rosparam::param<std::string>(pnh_, "tracker_file", "");
     tracker_ = std::make_unique<vision::Tracker>(vision::loadTrackerConfig(markers, tuning));
+    // With the task to run, a task entity without a marker is refused now, not waited for.
+    if (const std::string task = rosparam::param<std::string>(pnh_, "task", ""); !task.empty())
+      vision::requireTaskEntities(tracker_->config().markers, markers, ros_exec::loadTaskSpec(task), task);
     frame_id_ = rosparam::param(pnh_, "frame_id", defaults_.frame_id);
     publish_tf_ = rosparam::param(pnh_, "publish_tf", defaults_.publish_tf);
 

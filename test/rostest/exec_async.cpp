@@ -61,9 +61,5 @@ TEST(ExecAsync, FinishesTask4AndNeverSendsASegmentBeforeItsPredecessorsEnded) {
 }
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "exec_async_test");
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  return RUN_ALL_TESTS();
+  return exec_test::rostestMain(argc, argv, "exec_async_test");
 }

@@ -548,23 +548,31 @@ struct RunEnd {
   ddace::CoordinatorState state;  ///< the coordinator's last state
 };
 
-/// Starts the run once the watcher's links stand (startRun, up to `start_timeout_s`) and
-/// waits up to `end_timeout_s` for it to end: finished, aborted or e-stopped; then a moment
-/// for the last statuses and wheel commands.
-inline RunEnd runToEnd(Watcher& watch, double start_timeout_s, double end_timeout_s) {
+/// Waits up to `timeout_s` for a started run to end: finished, aborted or e-stopped; then a
+/// moment for the last statuses and wheel commands.
+inline RunEnd waitRunEnd(Watcher& watch, double timeout_s) {
   RunEnd run;
-  run.timeout_s = end_timeout_s;
-  run.not_started = startRun(watch, start_timeout_s);
-  if (!run.not_started.empty()) return run;
+  run.timeout_s = timeout_s;
   run.ended = waitFor(
       [&] {
         const auto c = watch.stateCode();
         return c == ddace::CoordinatorState::FINISHED || c == ddace::CoordinatorState::ABORTED ||
                c == ddace::CoordinatorState::ESTOPPED;
       },
-      end_timeout_s);
+      timeout_s);
   ros::Duration(0.3).sleep();
   run.state = watch.state();
+  return run;
+}
+
+/// Starts the run once the watcher's links stand (startRun, up to `start_timeout_s`) and
+/// waits up to `end_timeout_s` for it to end (waitRunEnd).
+inline RunEnd runToEnd(Watcher& watch, double start_timeout_s, double end_timeout_s) {
+  const std::string not_started = startRun(watch, start_timeout_s);
+  if (not_started.empty()) return waitRunEnd(watch, end_timeout_s);
+  RunEnd run;
+  run.timeout_s = end_timeout_s;
+  run.not_started = not_started;
   return run;
 }
 
@@ -744,6 +752,16 @@ inline void runTaskEndToEnd(const std::string& family, int robots, bool learned,
     EXPECT_EQ(cmds.back().left, 0.0) << robot << " still driving at the end";
     EXPECT_EQ(cmds.back().right, 0.0) << robot;
   }
+}
+
+/// The main() of a rostest that watches the wire: its callbacks run on two spinner threads
+/// while the test waits on conditions.
+inline int rostestMain(int argc, char** argv, const std::string& node) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, node);
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  return RUN_ALL_TESTS();
 }
 
 }  // namespace exec_test

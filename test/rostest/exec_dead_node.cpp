@@ -156,6 +156,39 @@ TEST(DeadNode, RecordingWithoutTheCameraEndsNamingTheTrackerAndTheWaysAround) {
     EXPECT_NE(printed.find(hint), std::string::npos) << "'" << hint << "' not said:\n" << printed;
 }
 
+// What the nodes say shows while the launch runs (the recorder's state after each
+// demonstration, a node's error), not when it ends: scripts/launch passes their output
+// through tee, a pipe, where unflushed lines would wait. Ended as Ctrl-C ends it: SIGINT to
+// its process group.
+TEST(ScriptsLaunch, TheNodesLinesShowWhileTheLaunchRuns) {
+  ASSERT_FALSE(setup().scripts.empty()) << "the .test file must set ~scripts";
+  const std::string dir = std::string(setup().scratch) + "/live", log = dir + "/launch.log";
+  fs::create_directories(dir);
+  const int port = 20000 + static_cast<int>(std::random_device{}() % 20000);
+  const std::string command = "ROS_MASTER_URI=http://localhost:" + std::to_string(port) + " exec '" + setup().scripts +
+                              "/launch' --log '" + log +
+                              "' record.launch video_device:=-1 keyboard:=false rviz:=false output_dir:='" + dir +
+                              "/demos' > '" + dir + "/out' 2>&1";
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    setsid();
+    execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  // The recorder waits for poses (the tracker for images): it says it is ready and stays up.
+  const bool shown = waitFor([&] { return readFile(log).find("recorder_node: ready: ") != std::string::npos; }, 90.0);
+  kill(-pid, SIGINT);
+  int status = 0;
+  const bool ended = waitFor([&] { return waitpid(pid, &status, WNOHANG) == pid; }, 60.0);
+  if (!ended) {
+    kill(-pid, SIGKILL);
+    waitpid(pid, &status, 0);
+  }
+  EXPECT_TRUE(shown) << "the recorder's 'ready' line was not in the launch's output while it ran:\n" << readFile(log);
+  EXPECT_TRUE(ended) << "the launch did not end on SIGINT within 60 s";
+}
+
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "exec_dead_node_test");

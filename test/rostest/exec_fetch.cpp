@@ -56,15 +56,9 @@ TEST(ExecFetch, TheBoxRidesInFrontOfItsCarrierToTheGoalAndTheRecordMeasuresTheOt
   exec_test::Launch graph({files.launch_file, "task:=" + dir + "/test", "train:=" + dir + "/train", "autostart:=true",
                            "monitor:=true", "run_dir:=" + run_dir, "config:=" + files.config_file},
                           dir + "/launch.log");
-  const bool ended = exec_test::waitFor(
-      [&] {
-        const auto c = watch.stateCode();
-        return c == ddace::CoordinatorState::FINISHED || c == ddace::CoordinatorState::ABORTED;
-      },
-      60.0);
-  const ddace::CoordinatorState s = watch.state();
-  ASSERT_TRUE(ended) << "the run did not end by itself within 60 s; state " << s.state_name;
-  ASSERT_EQ(s.state, ddace::CoordinatorState::FINISHED) << s.state_name << ": " << s.reason;
+  const exec_test::RunEnd run = exec_test::waitRunEnd(watch, 60.0);  // autostart: it ends by itself
+  ASSERT_TRUE(exec_test::finished(run));
+  const ddace::CoordinatorState& s = run.state;
   for (size_t i = 0; i < s.goal_conditions_met.size(); ++i)
     EXPECT_TRUE(s.goal_conditions_met[i]) << s.goal_conditions[i];
   {
@@ -85,9 +79,5 @@ TEST(ExecFetch, TheBoxRidesInFrontOfItsCarrierToTheGoalAndTheRecordMeasuresTheOt
 }
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "exec_fetch_test");
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  return RUN_ALL_TESTS();
+  return exec_test::rostestMain(argc, argv, "exec_fetch_test");
 }

@@ -2,6 +2,8 @@
 // resolves task, train and model against the directory roslaunch was started in; a node,
 // which runs in ROS_HOME, refuses a relative path with a message that says so.
 #include <cstdio>
+#include <string>
+#include <vector>
 
 #include "exec_common.h"
 
@@ -54,10 +56,32 @@ TEST(ExecPaths, TheRealLaunchFileResolvesPathsRecordsAndWatchesThePosePublisher)
     const YAML::Node params = YAML::Load(out);
     EXPECT_EQ(params["/coordinator/task"].as<std::string>(""), std::string(caller) + "/out/task");
     EXPECT_EQ(params["/execution_monitor/task"].as<std::string>(""), std::string(caller) + "/out/task");
+    // the tracker refuses a markers file without a marker for one of the task's entities
+    EXPECT_EQ(params["/tracker/task"].as<std::string>(""), std::string(caller) + "/out/task");
     EXPECT_EQ(params["/sequence/model"].as<std::string>(""), std::string(caller) + "/out/model");
     EXPECT_EQ(params["/coordinator/roles/recorder"].as<std::string>(""), "/execution_monitor");
     EXPECT_EQ(params["/coordinator/roles/pose_source"].as<std::string>(""), nodelet ? "/camera_manager" : "/tracker");
   }
+}
+
+// Two simulated rehearsals at once: each run's mock Hamsters and bridge meet in a directory
+// of pty links of their own, so the bridge of one never drives the mock robots of another
+// (the mock refuses a directory another live run holds: test_hamster's LinkDirTest).
+TEST(ExecPaths, EachSimulatedRunOfTheRealLaunchFileLinksItsMockRobotsInADirectoryOfItsOwn) {
+  std::string launch;
+  ASSERT_TRUE(ros::NodeHandle("~").getParam("real_launch_file", launch));
+  const ScratchDir caller("paths_links");
+  std::vector<std::string> dirs;
+  for (int run_index = 0; run_index < 2; ++run_index) {
+    std::string out;
+    ASSERT_EQ(run(caller, "roslaunch --dump-params '" + launch + "' task:=out/task model:=out/model sim:=true", out), 0)
+        << out;
+    const YAML::Node params = YAML::Load(out);
+    dirs.push_back(params["/mock_hamster/link_dir"].as<std::string>(""));
+    EXPECT_FALSE(dirs.back().empty()) << out;
+    EXPECT_EQ(params["/hamster_bridge/port_dir"].as<std::string>(""), dirs.back());
+  }
+  EXPECT_NE(dirs[0], dirs[1]);
 }
 
 TEST(ExecPaths, ANodeRefusesARelativeTaskPathSayingWhy) {

@@ -119,16 +119,9 @@ TEST(ExecPerturb, ABoxMovedAndACarrierHeldAreRecoveredFromAndTheRunFinishes) {
   ros::Duration(5.0).sleep();
   release.publish(carrier);
 
-  ASSERT_TRUE(exec_test::waitFor(
-      [&] {
-        const auto c = watch.stateCode();
-        return c == ddace::CoordinatorState::FINISHED || c == ddace::CoordinatorState::ABORTED;
-      },
-      90.0))
-      << "the run did not end; state " << watch.state().state_name;
-  ros::Duration(0.3).sleep();
-  const ddace::CoordinatorState s = watch.state();
-  ASSERT_EQ(s.state, ddace::CoordinatorState::FINISHED) << s.state_name << ": " << s.reason;
+  const exec_test::RunEnd run = exec_test::waitRunEnd(watch, 90.0);
+  ASSERT_TRUE(exec_test::finished(run));
+  const ddace::CoordinatorState& s = run.state;
   EXPECT_TRUE(exec_test::goalConditionsMet(s));
   EXPECT_TRUE(exec_test::wheelsStopped(watch));
 }
@@ -172,16 +165,9 @@ TEST(ExecPerturb, ARobotLostForGoodIsLeftWhereItDiedAndTheOtherDoesItsWork) {
       << dead.data << " did not drive to B1";
   lose.publish(dead);
 
-  ASSERT_TRUE(exec_test::waitFor(
-      [&] {
-        const auto c = watch.stateCode();
-        return c == ddace::CoordinatorState::FINISHED || c == ddace::CoordinatorState::ABORTED;
-      },
-      90.0))
-      << "the run did not end; state " << watch.state().state_name << ": " << watch.state().reason;
-  ros::Duration(0.3).sleep();
-  const ddace::CoordinatorState s = watch.state();
-  ASSERT_EQ(s.state, ddace::CoordinatorState::FINISHED) << s.state_name << ": " << s.reason;
+  const exec_test::RunEnd run = exec_test::waitRunEnd(watch, 90.0);
+  ASSERT_TRUE(exec_test::finished(run));
+  const ddace::CoordinatorState& s = run.state;
   EXPECT_EQ(s.lost, std::vector<std::string>{dead.data}) << "the coordinator did not declare it lost";
   EXPECT_TRUE(exec_test::goalConditionsMet(s));
   bool other_fetched = false;
@@ -192,9 +178,5 @@ TEST(ExecPerturb, ARobotLostForGoodIsLeftWhereItDiedAndTheOtherDoesItsWork) {
 }
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "exec_perturb_test");
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  return RUN_ALL_TESTS();
+  return exec_test::rostestMain(argc, argv, "exec_perturb_test");
 }

@@ -77,9 +77,5 @@ TEST(SimTask4, ExecuteRealSimFinishesOnTheSimulatedTable) {
 }
 
 int main(int argc, char** argv) {
-  testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "sim_task4_test");
-  ros::AsyncSpinner spinner(2);
-  spinner.start();
-  return RUN_ALL_TESTS();
+  return exec_test::rostestMain(argc, argv, "sim_task4_test");
 }

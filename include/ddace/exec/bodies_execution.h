@@ -122,6 +122,9 @@ class BodiesExecution : public ExecutionModel {
   /// Robot `entity` is dead (battery): its wheels never turn again and the tracker no longer
   /// sees it; its controller gets a stale pose.
   void kill(int entity);
+  /// Robot `entity` drives at `factor` (> 0) of the speed it commands, for the rest of the
+  /// trial: robots that differ in speed.
+  void setSpeedFactor(int entity, double factor);
 
  private:
   struct Motion;  // one motion of the trial (bodies_execution.cpp)

@@ -319,6 +319,10 @@ class Coordinator {
   /// other is `planned`.
   PlannedPath carrierPath(TokenRef t, const PlannedPath& planned);
   void requestDecisionIfDue(double now_s, CoordinatorOutput& out);
+  /// The scene as the decided steps will leave it: every entity of a token that has not
+  /// ended at its end point (a started one at its goal), step after step. What a fixed
+  /// order asked ahead is shown, as its demonstrations showed it a step's end.
+  std::vector<Eigen::Vector2d> sceneOnceSettled() const;
   void refreshState(CoordinatorOutput& out);
   void abort(const std::string& why, CoordinatorOutput& out);
   void stopActive(CoordinatorOutput& out);

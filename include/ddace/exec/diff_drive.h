@@ -92,6 +92,9 @@ class DiffDriveModel {
   void step();
   /// Blocks the wheels (a stalled robot): commands are accepted but nothing moves.
   void setStalled(bool stalled) { stalled_ = stalled; }
+  /// The wheels turn at `gain` (> 0) times the speed applied: a robot slower than its
+  /// commands (a weak motor, a low battery). 1 by default.
+  void setWheelGain(double gain);
 
   double time() const { return time_s_; }
   const Pose2D& truePose() const { return pose_; }
@@ -116,6 +119,7 @@ class DiffDriveModel {
   WheelSpeeds applied_;
   std::deque<Pending> pending_;
   bool stalled_ = false;
+  double wheel_gain_ = 1;
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};
 };

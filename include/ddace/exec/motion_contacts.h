@@ -12,6 +12,13 @@
 // by) -- each only while that body is at the end point: two robots bound for one goal
 // keep apart on the way.
 //
+// A robot is queued behind another when its end point does not reach its target (a body)
+// but touches the end point of a robot of its step bound for the same target, nearer it
+// (a place behind another at the body they meet at): it stands where it is until that one
+// stands (exec::RobotController), so it never seals the way in of the one whose place is
+// nearer by getting there first. The places of a meeting are taken from the inside out.
+// Onto a flat goal nothing queues (the goal has no body to be reached past).
+//
 // Owns: the rule. Must not: know ROS, or decide where motions end (task/end_point.h).
 // Units: metres; table frame.
 #pragma once
@@ -44,6 +51,9 @@ struct MotionContacts {
   Eigen::Vector2d load_at{Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN())};
   std::set<std::string> ends_against;       ///< bodies its end point touches (SafetyBody::touchable)
   std::set<std::string> load_ends_against;  ///< bodies the load's end point touches (load_touchable)
+  /// The robots it is queued behind (see motionContacts): it stands where it is until each
+  /// of them stands (arrived, or stopped).
+  std::set<std::string> after;
 };
 
 /// A body as a step's motions see it when the step begins.

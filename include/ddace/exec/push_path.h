@@ -9,6 +9,12 @@
 //   run-up o-(-- load ======================> load's end point
 //            behind it          the push       (the carrier's end point behind it)
 //
+// Bodies standing in the way (robots that stay, boxes nobody moves) are gone round: the
+// load's route from where it stands to its end is straight where that is free of them
+// (kPushPassM beyond contact, for the load and for the carrier behind it), else the shortest
+// way round them; the carrier goes round the load the way that is free to behind the
+// route's first leg, then drives the route, the load in front of it.
+//
 // The load's end point decides the direction of the push and where it stops: the carrier
 // ends behind it at their contact distance (on the push line; where the learned end point
 // of the carrier puts it elsewhere, the push line wins). The planned path of the carrier (the learned primitive's) says
@@ -61,16 +67,48 @@ inline constexpr double kPushPathSpacingM = 0.005;
 /// load on past it (a relay's receiver); backed off, it leaves room.
 inline constexpr double kPushBackOffM = kPushClearanceM / 3;
 
+/// How far beyond contact a push passes a standing body (metres): the safety filter's margin
+/// and room for the load's drift off its route.
+inline constexpr double kPushPassM = 0.03;
+/// A body the load or its carrier stands or ends beside (within its reach) is passed this
+/// far beyond contact (metres), the safety filter's margin, and never nearer than it is there.
+inline constexpr double kPushNearPassM = 0.01;
+/// A body standing during a push: the carrier and its load keep their centres `reach_m`
+/// from its centre (their contact distance with it + kPushPassM).
+struct PushObstacle {
+  Eigen::Vector2d centre{0, 0};
+  double reach_m = 0;
+};
+
 /// The path of a carrier at `from` that pushes a load standing at `load` (their contact
-/// distance `contact_m`) until the load is at `load_end`: round the load at contact +
-/// kPushClearanceM (the shorter way) to behind it, then straight along the push line to
-/// behind the load's end point at contact (the carrier's end point: the load's end decides
-/// where the carrier stops), `points` points evenly spaced by arc length (at least 2). A
-/// load already at its end point (within task::kMinApproachM) is not pushed: from straight
-/// to `from`'s own end, `fallback_end`.
+/// distance `contact_m`) until the load is at `load_end`, round the bodies `standing`: the
+/// load's route (pushRoute), round the load at contact + kPushClearanceM to behind the
+/// route's first leg (the shorter way, unless only the longer one is free of `standing`;
+/// with `push_from_behind`, not at all from within kPushClearanceM / 3 of contact and
+/// kPushConeRad of behind it),
+/// then along the route to behind the load's end point at contact on its last leg (the
+/// carrier's end point: the load's end decides where the carrier stops), `points` points
+/// evenly spaced by arc length (at least 2). A load already at its end point (within
+/// task::kMinApproachM) is not pushed: from straight to `from`'s own end, `fallback_end`.
 std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::Vector2d& load,
                                       const Eigen::Vector2d& load_end, double contact_m,
-                                      const Eigen::Vector2d& fallback_end, int points);
+                                      const Eigen::Vector2d& fallback_end, int points,
+                                      const std::vector<PushObstacle>& standing = {}, bool push_from_behind = true);
+
+/// The route of a load pushed from `load` to `load_end` (corners, first `load`, last
+/// `load_end`): straight where it keeps every body of `standing` at its reach, else the
+/// shortest way round them (past corners kPushPassM beyond their reach). A body the load
+/// stands or ends nearer to than its reach is passed kPushNearPassM beyond contact, no
+/// nearer than it is there. Straight when no way round is free.
+std::vector<Eigen::Vector2d> pushRoute(const Eigen::Vector2d& load, const Eigen::Vector2d& load_end,
+                                       const std::vector<PushObstacle>& standing);
+
+/// The bodies standing while motion `step[i]` pushes its load `load` (an entity), the step
+/// decided at `at` (every entity's position; a non-finite one is not known): every obstacle
+/// (task::Footprint) but the carrier, its load, the step's movers and the loads riding with
+/// them, at its reach for this carrier and load.
+std::vector<PushObstacle> pushObstacles(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,
+                                        int load, const std::vector<Eigen::Vector2d>& at);
 
 /// One control cycle of a carrier pushing its load.
 struct PushCommand {

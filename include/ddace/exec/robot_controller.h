@@ -4,15 +4,18 @@
 // Each cycle, from the robot's measured pose and the other bodies as tracked:
 //   1. its own pose stale (the tracker says so, or too old): zero wheels at once; stale for
 //      stale_fail_s, the motion fails naming the robot;
-//   2. the path-following law (exec::PathFollower) gives the nominal wheels; within the
+//   2. queued behind a robot of its step still on its way (MotionContacts::after): zero
+//      wheels until that one stands (no deadlock clock runs meanwhile), so the places of
+//      robots meeting at one body are taken from the inside out;
+//   3. the path-following law (exec::PathFollower) gives the nominal wheels; within the
 //      stop radius of the end point, the motion is done;
-//   3. the safety filter (exec::SafetyFilter) changes them as little as keeps every body
+//   4. the safety filter (exec::SafetyFilter) changes them as little as keeps every body
 //      clear, except what the motion may touch; a stale body near the robot counts as 1, a
 //      deadlock the filter reports fails the motion naming the bodies that hold it;
-//   4. held at contact with a body its motion ends against (exec::endedAtContact), or short
+//   5. held at contact with a body its motion ends against (exec::endedAtContact), or short
 //      of its end point by bodies beside it, within the held stop radius of the end point,
 //      the motion is done there;
-//   5. the filtered wheels go out.
+//   6. the filtered wheels go out.
 //
 // What a motion may touch -- its target, the bodies its end point touches, its load and
 // the bodies its load's end point touches (MotionContacts) -- is decided once per step
@@ -65,6 +68,8 @@ struct ControlOutput {
   bool held = false;                  ///< the filter holds the robot (blocked)
   std::vector<std::string> blocking;  ///< the bodies holding it, when held
   std::string ended_at_contact_with;  ///< Done at contact: the body
+  /// Running, not yet driving: the mover of its step it waits for (MotionContacts::after).
+  std::string waiting_for;
 };
 
 class RobotController {
@@ -103,6 +108,9 @@ class RobotController {
  private:
   ControlOutput end(ControlOutput out, MotionState state, std::string message);
   ControlOutput stale(ControlOutput out, const std::string& why, double now_s);
+  /// Queued behind `whom` (MotionContacts::after), which is still on its way: the robot
+  /// stands (zero wheels).
+  ControlOutput waitFor(ControlOutput out, const std::string& whom);
   /// The motion is done (`message`); a carrier that pushes its load backs off it first.
   ControlOutput done(ControlOutput out, std::string message, const Pose2D& pose, double pose_age_s, double radius_m,
                      std::vector<SafetyBody>& others, double now_s);

@@ -126,6 +126,9 @@ class TableSimulator {
   /// Robot `entity`'s wheels are blocked (they do not turn, whatever is commanded) or free.
   /// Throws ddace::Error when `entity` is not a robot.
   void setStalled(int entity, bool stalled);
+  /// Robot `entity`'s wheels turn at `gain` times what it commands (DiffDriveModel::setWheelGain).
+  /// Throws ddace::Error when `entity` is not a robot or `gain` is not positive.
+  void setWheelGain(int entity, double gain);
 
   /// A new segment for object `entity` along `path`, starting where the object is.
   /// Returns Accepted, or Failed for an empty path (the object then stays put), or

@@ -75,6 +75,11 @@ struct Motion {
   /// [entity] the mover's least speed while it was closest to that entity (within still_m
   /// of its least distance), m/s: a stop there.
   std::vector<double> closest_speed;
+  /// [entity] (distance, speed) of the rows within still_m of the least distance so far
+  /// that were slower than every row nearer: closest_speed is the last one's speed, and a
+  /// row left outside as the least distance falls is dropped (a slow start farther away
+  /// is no stop at the body).
+  std::vector<std::vector<std::pair<double, double>>> slow_near;
   std::vector<Eigen::Vector2d> closest_at;  ///< [entity] where the mover was when closest to it
   /// [entity] the row and time it was closest to that entity, and where every entity stood
   /// then (a cut there: a stop at a body without a pause).

@@ -127,7 +127,11 @@ class Labeller {
   /// listed with T as the alternative.
   void readChain(std::vector<InferredToken>& tokens, const std::vector<Motion>& g, const std::vector<int>& carrier);
   /// The target of a motion that is no load (endPoint(); a tie resolved by the example).
-  void readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned);
+  /// One that stopped away from every entity is read again among the bodies as they stood
+  /// when its step ended (`step_end`): others of the step may have come to its target
+  /// after it stopped, in front of it.
+  void readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned,
+                  const std::vector<Eigen::Vector2d>& step_end);
   /// Between the tied end points of `ep`: the example's step k (aligned), the example's
   /// choice between such kinds, or its only motion of the kind; else noted.
   void resolveTie(InferredToken& tok, const Motion& m, const EndPoint& ep, size_t k, bool aligned);
@@ -159,6 +163,10 @@ class Labeller {
   /// (a stop at contact followed by a change of what moves).
   bool startsAStep(double step_off_t, const Motion& m) const;
   bool staysWith(const Motion& m, int j) const;
+  /// Object motion `o` went with robot motion `r` (overlapping in time, `r`'s robot at one
+  /// place with the object all the way): however little the robot itself moved (turning
+  /// in place sweeps what it touches round it), it moved the object.
+  bool sweptBy(const Motion& o, const Motion& r) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
   bool pausedOnItsWay(const Motion& a, const Motion& b) const;
   /// An object was with `a`'s robot (at a's onset, or set moving at its touch during `a`)

@@ -73,10 +73,12 @@ struct CoordinatedRun {
 /// Runs the model on `gt`'s start through the coordinator with `max_replans`, applying `p`
 /// once at the moment drawn from `seed`; on points, or with `bodies` on the simulated table
 /// (exec::BodiesExecution run live: each robot's own control cycle, segments starting
-/// whenever the coordinator sends them).
+/// whenever the coordinator sends them). `speed_spread` (in [0, 1)): robots that differ in
+/// speed, each moving at a factor drawn from [1 - speed_spread, 1] per trial (`seed`: the
+/// same under either dispatch).
 CoordinatedRun runCoordinated(const Model& model, const task::TaskSpec& spec, const task::Demonstration& gt,
                               const Perturbation& p, int max_replans, exec::DispatchMode dispatch, uint64_t seed,
-                              const exec::BodiesExecutionParams* bodies = nullptr);
+                              const exec::BodiesExecutionParams* bodies = nullptr, double speed_spread = 0);
 
 /// Per trial: unperturbed, perturbed without recovery (max_replans 0), perturbed with
 /// (CoordinatorConfig::max_replans's default); all three with the same draw.

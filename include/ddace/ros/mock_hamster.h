@@ -7,7 +7,9 @@
 //                                  models (auto = hamster) and, unless overridden, the true
 //                                  wheel speed per unit (= its calibration: a perfect one)
 //   ~link_dir (string, required)  directory (created) for the symlinks <link_dir>/hamster_<name>
-//                                  → pty slave; point the bridge's port_dir or hints here
+//                                  → pty slave; point the bridge's port_dir or hints here.
+//                                  Claimed for this run (hamster::LinkDirClaim): refused when
+//                                  another live run holds it or a link of ours is there already
 //   ~robots   (string list, optional) simulate only these robots of the config (a name
 //             the config does not have stops the node, as in hamster_bridge_node)
 //   ~true_mps_per_unit (double, optional) the simulated robots' real speed per unit, to

@@ -122,12 +122,14 @@ class DemoRecorder {
   std::string stop();
   /// Labels inferred on stop() (nullopt: never); the example names the action words.
   void inferLabels(bool on, std::optional<label::Example> example = std::nullopt);
-  /// The inferred steps of the last stop(), as "[R1:move:G1 R2:move:G2] [...]" ("" when not inferred).
+  /// The inferred steps of the last stop(), as "[R1:move:G1 R2:move:G2] [...]" ("" when not
+  /// inferred, "none" when no step was found).
   const std::string& inferredSteps() const { return inferred_steps_; }
   /// What the last stop() could not infer surely, "demos/demo_003.csv:47: ..." each.
   const std::vector<std::string>& inferenceNotes() const { return notes_; }
   /// What the person does about inferenceNotes(), one line each ("" when there are none):
-  /// nothing when the labels taken are what was demonstrated, else how to correct them.
+  /// nothing when the labels taken are what was demonstrated, else how to correct them; or,
+  /// when no step was found, to delete the recording and demonstrate again.
   const std::string& inferenceAdvice() const { return advice_; }
   /// Stops and deletes the current recording.
   void discard();

@@ -103,6 +103,12 @@ std::string heightCorrectionName(HeightCorrection state);
 /// ids outside the family, names that task.yaml would refuse, not four corners, ...).
 MarkerConfig parseMarkerConfig(const std::string& text, const std::string& file);
 MarkerConfig loadMarkerConfig(const std::string& path);
+/// Throws ddace::Error when `markers` (read from `markers_file`) has no marker for an entity
+/// of `task` (read from `task_file`), or has it as another kind: the tracker would never
+/// report that entity, and a run on the table would wait for it. Markers of entities the
+/// task does not have are allowed (tracked, unused).
+void requireTaskEntities(const MarkerConfig& markers, const std::string& markers_file, const task::TaskSpec& task,
+                         const std::string& task_file);
 /// Parses tracker.yaml text into `config` (markers untouched). Throws ddace::Error.
 void parseTrackerTuning(const std::string& text, const std::string& file, TrackerConfig& config);
 /// Loads both files into one TrackerConfig. Throws ddace::Error.

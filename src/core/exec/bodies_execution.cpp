@@ -263,6 +263,11 @@ void BodiesExecution::kill(int entity) {
   dead_.at(static_cast<size_t>(entity)) = true;
 }
 
+void BodiesExecution::setSpeedFactor(int entity, double factor) {
+  if (!table_) throw Error("bodies execution: a speed factor before beginTrial");
+  table_->setWheelGain(entity, factor);
+}
+
 MotionContacts BodiesExecution::contactsOf(const Motion& motion) const {
   const int n = static_cast<int>(table_->size());
   const int i = motion.motion.entity;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace {
@@ -194,7 +195,8 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   }
   task::Snapshot snap;
   snap.row = static_cast<int>(history_.size());
-  snap.positions = observation_.positions;
+  // A policy that reads the scene is asked once it settled (mayDecide): the scene as it is.
+  snap.positions = policy_reads_scene_ ? observation_.positions : sceneOnceSettled();
   history_.push_back(snap);
   DecisionRequest req;
   req.id = nextId();
@@ -206,6 +208,20 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   ++decisions_requested_;
   out.log.push_back("requesting decision " + std::to_string(req.step + 1));
   out.decision = std::move(req);
+}
+
+std::vector<Eigen::Vector2d> Coordinator::sceneOnceSettled() const {
+  std::vector<Eigen::Vector2d> at = observation_.positions;
+  for (const StepRecord& s : steps_) {
+    if (s.complete) continue;
+    std::vector<task::Token> tokens;
+    for (const TokenRecord& t : s.tokens) tokens.push_back(t.token);
+    at = task::stepEndPositions(spec_, end_points_, tokens, at);
+    for (const TokenRecord& t : s.tokens)
+      if (t.token.isMotion() && t.started_s >= 0 && t.state != SegmentState::Done)
+        at[static_cast<size_t>(t.token.entity)] = t.goal;
+  }
+  return at;
 }
 
 void Coordinator::refreshState(CoordinatorOutput& out) {
@@ -733,7 +749,10 @@ PlannedPath Coordinator::carrierPath(TokenRef ref, const PlannedPath& planned) {
   StepRecord& s = steps_[static_cast<size_t>(ref.step)];
   const size_t n = spec_.entities.size();
   std::vector<task::Token> step;
-  std::vector<Eigen::Vector2d> at(n, Eigen::Vector2d::Zero());
+  // Every entity where it was last seen (not known: NaN), the step's where it started.
+  std::vector<Eigen::Vector2d> at(n, Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  for (size_t e = 0; e < n && e < observation_.positions.size() && e < observation_.tracked.size(); ++e)
+    if (observation_.tracked[e]) at[e] = observation_.positions[e];
   for (const TokenRecord& t : s.tokens) {
     step.push_back(t.token);
     at[static_cast<size_t>(t.token.entity)] = t.start;
@@ -749,7 +768,8 @@ PlannedPath Coordinator::carrierPath(TokenRef ref, const PlannedPath& planned) {
   TokenRecord& c = record(ref);
   PlannedPath out;
   out.points = pushPath(planned.points.front(), seen ? observation_.positions[e] : l->start, l->goal,
-                        spec_.contactDistance(c.token.entity, *load), c.goal, static_cast<int>(planned.points.size()));
+                        spec_.contactDistance(c.token.entity, *load), c.goal, static_cast<int>(planned.points.size()),
+                        pushObstacles(spec_, step, static_cast<size_t>(ref.index), *load, at));
   out.stddev_m.assign(out.points.size(), 0.0);
   c.goal = out.points.back();  // behind the load's end point: where the push stops
   return out;

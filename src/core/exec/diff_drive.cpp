@@ -65,11 +65,16 @@ void DiffDriveModel::step() {
 
   const double dt = 1.0 / params_.rate_hz;
   if (!stalled_) {
-    const double v = (applied_.left_mps + applied_.right_mps) / 2;
-    const double w = (applied_.right_mps - applied_.left_mps) / params_.wheel_base_m;
+    const double v = wheel_gain_ * (applied_.left_mps + applied_.right_mps) / 2;
+    const double w = wheel_gain_ * (applied_.right_mps - applied_.left_mps) / params_.wheel_base_m;
     pose_ = integrateUnicycle(pose_, v, w, dt);
   }
   time_s_ += dt;
+}
+
+void DiffDriveModel::setWheelGain(double gain) {
+  if (!(gain > 0) || !std::isfinite(gain)) throw Error("wheel gain must be positive and finite");
+  wheel_gain_ = gain;
 }
 
 Pose2D DiffDriveModel::measuredPose() {

@@ -27,9 +27,19 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
       out.load_at = b.position;
       break;
     }
+  const auto at_target =
+      std::find_if(bodies.begin(), bodies.end(), [&](const BodyAtStart& b) { return b.name == target; });
+  // Queued: its end point does not reach its target (a body), only robots ending nearer it.
+  const bool queued = !load && at_target != bodies.end() &&
+                      !endsAgainst(end_point, radius_m, at_target->final_position, at_target->radius_m, reach_m);
   for (const BodyAtStart& b : bodies) {
     if (&b == load) continue;
-    if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, reach_m)) out.ends_against.insert(b.name);
+    if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, reach_m)) {
+      out.ends_against.insert(b.name);
+      if (queued && b.step == step && !b.object && b.target == target && b.name != target &&
+          (b.final_position - at_target->final_position).norm() < (end_point - at_target->final_position).norm())
+        out.after.insert(b.name);
+    }
     if (load && endsAgainst(load->final_position, load->radius_m, b.final_position, b.radius_m, reach_m))
       out.load_ends_against.insert(b.name);
   }

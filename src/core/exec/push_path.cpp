@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "ddace/common/angle.h"
 #include "ddace/exec/path_follower.h"
@@ -32,31 +33,131 @@ double contactDrift(const Eigen::Vector2d& contact, const Eigen::Vector2d& load,
   return wrapAngle(std::atan2(contact.y(), contact.x()) - std::atan2(aim.y(), aim.x()));
 }
 
+double distanceToSegment(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double t = ab.squaredNorm() > 0 ? std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+  return (a + t * ab - p).norm();
+}
+
+/// How far `path` keeps clear of the reach of every body of `standing` (< 0: into one).
+double clearance(const std::vector<Eigen::Vector2d>& path, const std::vector<PushObstacle>& standing) {
+  double out = std::numeric_limits<double>::infinity();
+  for (size_t k = 0; k < path.size(); ++k)
+    for (const PushObstacle& o : standing)
+      out = std::min(out, distanceToSegment(o.centre, path[k > 0 ? k - 1 : 0], path[k]) - o.reach_m);
+  return out;
+}
+
+bool keepsClear(const std::vector<Eigen::Vector2d>& path, const std::vector<PushObstacle>& standing) {
+  constexpr double kSlack = 1e-9;  // floating point, not geometry
+  return clearance(path, standing) >= -kSlack;
+}
+
+bool keepsClear(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const std::vector<PushObstacle>& standing) {
+  return keepsClear(std::vector<Eigen::Vector2d>{a, b}, standing);
+}
+
+/// `standing` as passed on a way from `a` to `b`: a body within its reach of either end is
+/// passed kPushNearPassM beyond contact, and never nearer than it is there.
+std::vector<PushObstacle> passable(std::vector<PushObstacle> standing, const Eigen::Vector2d& a,
+                                   const Eigen::Vector2d& b) {
+  for (PushObstacle& o : standing) {
+    const double near = std::min((a - o.centre).norm(), (b - o.centre).norm());
+    if (near < o.reach_m) o.reach_m = std::min(near, o.reach_m - kPushPassM + kPushNearPassM);
+  }
+  return standing;
+}
+
+/// Corners of the ways round `standing`: kCornersPerBody about each, kPushPassM beyond its
+/// reach, where no other body's reach is.
+std::vector<Eigen::Vector2d> corners(const std::vector<PushObstacle>& standing) {
+  constexpr int kCornersPerBody = 12;
+  std::vector<Eigen::Vector2d> out;
+  for (const PushObstacle& o : standing)
+    for (int k = 0; k < kCornersPerBody; ++k) {
+      // Beyond the reach by the polygon's sag, so that the way between two corners keeps it.
+      const double r = (o.reach_m + kPushPassM) / std::cos(M_PI / kCornersPerBody);
+      const Eigen::Vector2d p = onCircle(o.centre, r, 2 * M_PI * k / kCornersPerBody);
+      if (keepsClear(p, p, standing)) out.push_back(p);
+    }
+  return out;
+}
+
 }  // namespace
+
+std::vector<Eigen::Vector2d> pushRoute(const Eigen::Vector2d& load, const Eigen::Vector2d& load_end,
+                                       const std::vector<PushObstacle>& standing) {
+  const std::vector<PushObstacle> bodies = passable(standing, load, load_end);
+  if (keepsClear(load, load_end, bodies)) return {load, load_end};
+  // The shortest way through the corners (Dijkstra on the free straight legs between them).
+  std::vector<Eigen::Vector2d> nodes{load, load_end};
+  for (const Eigen::Vector2d& c : corners(bodies)) nodes.push_back(c);
+  const size_t n = nodes.size();
+  std::vector<double> dist(n, std::numeric_limits<double>::infinity());
+  std::vector<int> previous(n, -1);
+  std::vector<bool> done(n, false);
+  dist[0] = 0;
+  for (size_t round = 0; round < n; ++round) {
+    size_t u = n;
+    for (size_t k = 0; k < n; ++k)
+      if (!done[k] && std::isfinite(dist[k]) && (u == n || dist[k] < dist[u])) u = k;
+    if (u == n || u == 1) break;
+    done[u] = true;
+    for (size_t v = 0; v < n; ++v) {
+      const double d = dist[u] + (nodes[v] - nodes[u]).norm();
+      if (done[v] || d >= dist[v] || !keepsClear(nodes[u], nodes[v], bodies)) continue;
+      dist[v] = d;
+      previous[v] = static_cast<int>(u);
+    }
+  }
+  if (previous[1] < 0) return {load, load_end};  // no way round: straight, as without bodies
+  std::vector<Eigen::Vector2d> route;
+  for (int k = 1; k >= 0; k = previous[static_cast<size_t>(k)]) route.push_back(nodes[static_cast<size_t>(k)]);
+  std::reverse(route.begin(), route.end());
+  return route;
+}
 
 std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::Vector2d& load,
                                       const Eigen::Vector2d& load_end, double contact_m,
-                                      const Eigen::Vector2d& fallback_end, int points) {
+                                      const Eigen::Vector2d& fallback_end, int points,
+                                      const std::vector<PushObstacle>& standing, bool push_from_behind) {
   const auto evenly = [&](std::vector<Eigen::Vector2d> corners) {
     return resampleByArcLength(PlannedPath{std::move(corners), {}}, std::max(points, 2)).points;
   };
-  const Eigen::Vector2d push = load_end - load;
-  if (push.norm() < task::kMinApproachM) return evenly({from, fallback_end});
-  const Eigen::Vector2d w = push.normalized();
+  if ((load_end - load).norm() < task::kMinApproachM) return evenly({from, fallback_end});
+  const std::vector<Eigen::Vector2d> route = pushRoute(load, load_end, standing);
+  const Eigen::Vector2d w = (route[1] - route[0]).normalized();  // the first leg
   const double radius = contact_m + kPushClearanceM;
   const double behind = std::atan2(-w.y(), -w.x());  // the run-up's bearing from the load
   std::vector<Eigen::Vector2d> out{from};
   const Eigen::Vector2d rel = from - load;
-  if (rel.norm() > 1e-9) {
-    // Out to the circle (or in, from afar), round it the shorter way to the run-up.
+  const bool behind_now =
+      push_from_behind && rel.norm() <= contact_m + kPushClearanceM / 3 &&
+      std::abs(wrapAngle(std::atan2(-rel.y(), -rel.x()) - std::atan2(w.y(), w.x()))) <= kPushConeRad;
+  if (behind_now) {
+    // Already behind it, at it: the push starts here.
+  } else if (rel.norm() > 1e-9) {
+    // Out to the circle (or in, from afar), round it to the run-up: the shorter way unless
+    // only the longer one is free of the standing bodies.
     const double bearing = std::atan2(rel.y(), rel.x());
-    const double turn = wrapAngle(behind - bearing);
-    const int steps = static_cast<int>(std::ceil(std::abs(turn) / kPushArcStepRad));
-    for (int k = 0; k <= steps; ++k) out.push_back(onCircle(load, radius, bearing + turn * k / std::max(steps, 1)));
+    const double shorter = wrapAngle(behind - bearing);
+    const auto round = [&](double turn) {
+      std::vector<Eigen::Vector2d> arc{from};
+      const int steps = static_cast<int>(std::ceil(std::abs(turn) / kPushArcStepRad));
+      for (int k = 0; k <= steps; ++k) arc.push_back(onCircle(load, radius, bearing + turn * k / std::max(steps, 1)));
+      return arc;
+    };
+    out = round(shorter);
+    const double longer = shorter - std::copysign(2 * M_PI, shorter);
+    const std::vector<PushObstacle> bodies = passable(standing, from, out.back());
+    if (!keepsClear(out, bodies) && keepsClear(round(longer), bodies)) out = round(longer);
   } else {
     out.push_back(onCircle(load, radius, behind));
   }
-  out.push_back(load_end - contact_m * w);
+  // Along the route, the load in front: the carrier ends behind the load's end on the last leg.
+  for (size_t k = 1; k + 1 < route.size(); ++k) out.push_back(route[k]);
+  const Eigen::Vector2d last = (route.back() - route[route.size() - 2]).normalized();
+  out.push_back(load_end - contact_m * last);
   return evenly(std::move(out));
 }
 
@@ -109,6 +210,26 @@ std::optional<int> pushedLoad(const task::TaskSpec& spec, const std::vector<task
   return step[static_cast<size_t>(k)].entity;
 }
 
+std::vector<PushObstacle> pushObstacles(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,
+                                        int load, const std::vector<Eigen::Vector2d>& at) {
+  const int n = static_cast<int>(spec.entities.size());
+  std::vector<bool> moves(static_cast<size_t>(n), false);
+  for (size_t k = 0; k < step.size(); ++k) {
+    if (!step[k].isMotion()) continue;
+    moves.at(static_cast<size_t>(step[k].entity)) = true;
+    if (const auto riding = pushedLoad(spec, step, k, at)) moves.at(static_cast<size_t>(*riding)) = true;
+  }
+  const int carrier = step.at(i).entity;
+  moves.at(static_cast<size_t>(load)) = true;
+  std::vector<PushObstacle> out;
+  for (int e = 0; e < n; ++e) {
+    const Eigen::Vector2d& p = at.at(static_cast<size_t>(e));
+    if (moves[static_cast<size_t>(e)] || !spec.footprint(e).obstacle || !p.allFinite()) continue;
+    out.push_back({p, std::max(spec.contactDistance(carrier, e), spec.contactDistance(load, e)) + kPushPassM});
+  }
+  return out;
+}
+
 std::vector<Eigen::Vector2d> drivenPath(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,
                                         const std::vector<Eigen::Vector2d>& decided,
                                         const std::vector<Eigen::Vector2d>& ends,
@@ -118,7 +239,8 @@ std::vector<Eigen::Vector2d> drivenPath(const task::TaskSpec& spec, const std::v
   const auto l = static_cast<size_t>(*load);
   const int carrier = step.at(i).entity;
   return pushPath(planned.front(), decided.at(l), ends.at(l), spec.contactDistance(carrier, *load),
-                  ends.at(static_cast<size_t>(carrier)), static_cast<int>(planned.size()));
+                  ends.at(static_cast<size_t>(carrier)), static_cast<int>(planned.size()),
+                  pushObstacles(spec, step, i, *load, decided));
 }
 
 }  // namespace ddace::exec

@@ -60,7 +60,7 @@ void RobotController::replanPush(const Pose2D& pose, const SafetyBody& load, dou
   if (!was_pushing_ && (load.position - push_planned_for_).norm() <= kPushReplanM) return;
   const int points = std::max(2, static_cast<int>(std::ceil(follower_.lengthM() / kPushPathSpacingM)));
   follower_.setPath(PlannedPath{pushPath(pose.position(), load.position, contacts_.load_end, radius_m + load.radius_m,
-                                         follower_.endPoint(), points),
+                                         follower_.endPoint(), points, {}, /*push_from_behind=*/false),
                                 {}});
   push_planned_for_ = load.position;
 }
@@ -135,6 +135,14 @@ ControlOutput RobotController::backOff(ControlOutput out, const Pose2D& pose, do
   return out;
 }
 
+ControlOutput RobotController::waitFor(ControlOutput out, const std::string& whom) {
+  stale_since_s_ = -1;
+  filter_.reset();  // waiting is no hold: its deadlock clock starts when it drives
+  out.waiting_for = whom;
+  out.message = name_ + " waits for " + whom + " to arrive: its end point lies behind " + whom + "'s";
+  return out;
+}
+
 ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double pose_age_s, double radius_m,
                                      std::vector<SafetyBody>& others, double now_s) {
   ControlOutput out;
@@ -145,6 +153,8 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
     return stale(out, "pose of " + name_ + " is stale", now_s);
 
   if (backing_off_) return backOff(out, pose, pose_age_s, radius_m, others, now_s);
+  for (const SafetyBody& b : others)
+    if (contacts_.after.count(b.name) && !b.standing) return waitFor(out, b.name);
   const SafetyBody* load = nullptr;
   for (const SafetyBody& b : others)
     if (!contacts_.load.empty() && b.name == contacts_.load) load = &b;

@@ -267,6 +267,13 @@ void TableSimulator::setStalled(int i, bool stalled) {
   e.robot->setStalled(stalled);
 }
 
+void TableSimulator::setWheelGain(int i, double gain) {
+  checkIndex(i);
+  Entity& e = entities_[i];
+  if (!e.robot) throw Error("'" + names_[i] + "' is not a robot: it has no wheels to slow");
+  e.robot->setWheelGain(gain);
+}
+
 std::optional<ObjectStatus> TableSimulator::startSegment(int i, uint32_t segment_id,
                                                          const std::vector<Eigen::Vector2d>& path) {
   Entity& e = object(i);

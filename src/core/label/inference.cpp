@@ -134,6 +134,7 @@ void Motion::absorbClosest(const Motion& o) {
     if (o.min_distance[j] >= min_distance[j]) continue;
     min_distance[j] = o.min_distance[j];
     closest_speed[j] = o.closest_speed[j];
+    slow_near[j] = o.slow_near[j];
     closest_at[j] = o.closest_at[j];
     closest_row[j] = o.closest_row[j];
     closest_t[j] = o.closest_t[j];
@@ -212,6 +213,7 @@ void MotionSegmenter::startMotion(size_t e) {
   m.max_distance.assign(s.p.size(), 0);
   m.min_distance.assign(s.p.size(), std::numeric_limits<double>::infinity());
   m.closest_speed.assign(s.p.size(), std::numeric_limits<double>::infinity());
+  m.slow_near.assign(s.p.size(), {});
   m.closest_at.assign(s.p.size(), s.p[e]);
   m.closest_row.assign(s.p.size(), s.row);
   m.closest_t.assign(s.p.size(), s.t);
@@ -266,9 +268,6 @@ void MotionSegmenter::trackDistances(Motion& m, size_t i) const {
   for (size_t j = 0; j < p.size(); ++j) {
     const double d = (p[m.entity] - p[j]).norm();
     if (!held(j)) m.max_distance[j] = std::max(m.max_distance[j], d);
-    // The slowest it went while closest (within still_m of the closest distance); a held
-    // pose of a resting entity is where it rests.
-    if (d < m.min_distance[j] - o_.still_m) m.closest_speed[j] = std::numeric_limits<double>::infinity();
     if (d < m.min_distance[j]) {
       m.min_distance[j] = d;
       m.closest_at[j] = p[m.entity];
@@ -276,7 +275,19 @@ void MotionSegmenter::trackDistances(Motion& m, size_t i) const {
       m.closest_t[j] = history_[i].t;
       m.closest_scene[j] = p;
     }
-    if (d <= m.min_distance[j] + o_.still_m) m.closest_speed[j] = std::min(m.closest_speed[j], speed(i, m.entity));
+    // The slowest it went while closest (within still_m of the closest distance); a held
+    // pose of a resting entity is where it rests.
+    auto& front = m.slow_near[j];  // by distance, speeds falling
+    const double within = m.min_distance[j] + o_.still_m;
+    while (!front.empty() && front.back().first > within) front.pop_back();
+    const double v = speed(i, m.entity);
+    auto at = std::lower_bound(front.begin(), front.end(), std::pair{d, -1.0});
+    if (d <= within && (at == front.begin() || std::prev(at)->second > v)) {
+      at = front.insert(at, {d, v});
+      front.erase(std::remove_if(std::next(at), front.end(), [&](const auto& e) { return e.second >= v; }),
+                  front.end());
+    }
+    m.closest_speed[j] = front.empty() ? std::numeric_limits<double>::infinity() : front.back().second;
   }
 }
 

@@ -142,6 +142,12 @@ bool Labeller::staysWith(const Motion& m, int j) const {
          (m.at_offset[j] - m.at_onset[j]).norm() >= options_.nudge_m;
 }
 
+bool Labeller::sweptBy(const Motion& o, const Motion& r) const {
+  return spec_.entities[o.entity].kind == task::EntityKind::Object &&
+         spec_.entities[r.entity].kind == task::EntityKind::Robot && r.on_t <= o.off_t && o.on_t <= r.off_t &&
+         o.max_distance[r.entity] <= task::togetherDistance(spec_, o.entity, r.entity);
+}
+
 std::vector<bool> Labeller::candidatesOf(const Motion& m) const {
   std::vector<bool> c(spec_.entities.size(), true);
   for (size_t j = 0; j < c.size(); ++j) c[j] = static_cast<int>(j) != m.entity && !staysWith(m, static_cast<int>(j));
@@ -184,11 +190,12 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
   if (back.norm() > 0 && back.norm() < 2 * options_.nudge_m &&
       b.start_dir.dot(back.normalized()) > std::cos(options_.heading_rad))
     return true;
-  // Went round an object it stood at (the object standing), to the side it then pushes it
-  // from: the push's start, not a motion to the object.
+  // Went round an object it stood at (moving it less than a nudge: no carry of its own), to
+  // the side it then pushes it from, maybe pushing a little before a pause: the push's
+  // start, not a motion to the object.
   for (int j = 0; j < static_cast<int>(spec_.entities.size()); ++j)
     if (j != a.entity && spec_.entities[j].kind == task::EntityKind::Object && together(a.at_onset, a.entity, j) &&
-        together(a.at_offset, a.entity, j) && (a.at_offset[j] - a.at_onset[j]).norm() < options_.start_m &&
+        together(a.at_offset, a.entity, j) && (a.at_offset[j] - a.at_onset[j]).norm() < options_.nudge_m &&
         staysWith(b, j))
       return true;
   // What a carried (an object that stayed with it) ends a carrier's motion.
@@ -397,10 +404,17 @@ void Labeller::decide(bool at_end) {
     merged.push_back(std::move(m));
   }
   // 2. Nudges: a motion, joined across its pauses, that ends where it began (less than
-  // nudge_m away: bumped and put back) is no token.
-  merged.erase(std::remove_if(merged.begin(), merged.end(),
-                              [&](const Motion& m) { return (m.end - m.start).norm() < options_.nudge_m; }),
-               merged.end());
+  // nudge_m away: bumped and put back) is no token, unless it moved an object farther (a
+  // robot turning with its load: an object does not move alone).
+  auto movedAnObject = [&](const Motion& m) {
+    return std::any_of(merged.begin(), merged.end(),
+                       [&](const Motion& o) { return (o.end - o.start).norm() >= options_.nudge_m && sweptBy(o, m); });
+  };
+  std::vector<bool> nudge(merged.size());
+  for (size_t i = 0; i < merged.size(); ++i)
+    nudge[i] = (merged[i].end - merged[i].start).norm() < options_.nudge_m && !movedAnObject(merged[i]);
+  for (size_t i = merged.size(); i-- > 0;)
+    if (nudge[i]) merged.erase(merged.begin() + static_cast<long>(i));
   cutAtContacts(merged);
   // Pieces of steps handed over already (a motion cut in two waits for its second piece).
   // A motion that began as the last one handed over ended (a push after a short stop at
@@ -646,7 +660,7 @@ std::vector<int> Labeller::carriersOf(const std::vector<Motion>& g) const {
     double best = 1e9;
     for (size_t j = 0; j < g.size(); ++j) {
       const int rb = g[j].entity;
-      if (j == i || E[rb].kind != task::EntityKind::Robot || !staysWith(g[i], rb)) continue;
+      if (j == i || !sweptBy(g[i], g[j])) continue;
       if (g[i].max_distance[rb] < best) best = g[i].max_distance[rb], carrier[i] = static_cast<int>(j);
     }
   }
@@ -711,9 +725,17 @@ void Labeller::resolveTie(InferredToken& tok, const Motion& m, const EndPoint& e
        m.entity);
 }
 
-void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned) {
+void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned,
+                          const std::vector<Vector2d>& step_end) {
   const auto& E = spec_.entities;
-  const EndPoint ep = endPoint(spec_, m.entity, m.leg_start, m.end, m.at_onset, candidatesOf(m), load, &m.at_offset);
+  EndPoint ep = endPoint(spec_, m.entity, m.leg_start, m.end, m.at_onset, candidatesOf(m), load, &m.at_offset);
+  if (ep.target < 0) {
+    // It stopped short and the rest of its step came in front of it (a robot leaving room
+    // for those still on their way to the same body): the crowd round the target as the
+    // step left it.
+    const EndPoint later = endPoint(spec_, m.entity, m.leg_start, m.end, m.at_onset, candidatesOf(m), load, &step_end);
+    if (later.target >= 0) ep = later;
+  }
   tok.token.target = ep.target;
   if (ep.target < 0) {
     tok.token.target = ep.nearest;
@@ -788,12 +810,14 @@ std::vector<InferredToken> Labeller::motionTokens(const std::vector<Motion>& g, 
   }
   // Carriers and lone movers first (every target, then chains through movers of the step,
   // then words), then their loads.
+  const auto last =
+      std::max_element(g.begin(), g.end(), [](const Motion& a, const Motion& b) { return a.off_row < b.off_row; });
   for (size_t i = 0; i < g.size(); ++i) {
     if (carrier[i] >= 0) continue;
     int load = -1;
     for (size_t j = 0; j < g.size() && load < 0; ++j)
       if (carrier[j] == static_cast<int>(i)) load = g[j].entity;
-    readTarget(tokens[i], g[i], load, k, aligned);
+    readTarget(tokens[i], g[i], load, k, aligned, last->at_offset);
   }
   readChain(tokens, g, carrier);
   for (int pass = 0; pass < 2; ++pass)

@@ -245,7 +245,7 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
     for (size_t i = 0; i < test.demos.size(); ++i) {
       const task::Demonstration& gt = test.demos[i];
       CoordinatedRun r = runCoordinated(model, spec, gt, {}, exec::CoordinatorConfig{}.max_replans, options.dispatch,
-                                        options.seed * 1000003ULL + i, &table);
+                                        options.seed * 1000003ULL + i, &table, options.speed_spread);
       e.precedence_violations += r.precedence_violations;
       e.waits.push_back(r.waits);
       r.score.demo = gt.source;

@@ -85,6 +85,8 @@ class Table {
   virtual void stall(int entity, double seconds) = 0;
   /// Robot `entity` dies where it is.
   virtual void kill(int entity) = 0;
+  /// Robot `entity` moves at `factor` of the speed it is driven at, for the whole run.
+  virtual void setSpeedFactor(int entity, double factor) = 0;
   virtual bool bodies() const { return false; }
   virtual exec::BodyReport report() const { return {}; }
 };
@@ -123,7 +125,8 @@ class PointTable : public Table {
     std::vector<SegmentEnd> out;
     for (Running& r : running_) {
       if (r.lost || now_ < r.stalled_until_s) continue;
-      r.along = std::min(r.mover.length, r.along + speed_ * kCycleS);
+      const auto f = factor_.find(r.mover.entity);
+      r.along = std::min(r.mover.length, r.along + speed_ * (f == factor_.end() ? 1.0 : f->second) * kCycleS);
       pos_[static_cast<size_t>(r.mover.entity)] = pointAt(r.mover.path, r.along);
       r.executed.push_back(pos_[static_cast<size_t>(r.mover.entity)]);
       if (r.along >= r.mover.length) out.push_back({r.mover.entity, r.mover.segment, true, ""});
@@ -150,6 +153,7 @@ class PointTable : public Table {
     for (Running& r : running_)
       if (r.mover.entity == e) r.lost = true;
   }
+  void setSpeedFactor(int e, double factor) override { factor_[e] = factor; }
 
  private:
   struct Running {
@@ -161,6 +165,7 @@ class PointTable : public Table {
   std::vector<Eigen::Vector2d> pos_;
   std::vector<Running> running_;
   std::map<int, exec::Path> executed_;
+  std::map<int, double> factor_;  ///< per entity: its speed factor (absent: 1)
   double now_ = 0;
   const double speed_ = exec::FollowerGains{}.cruise_speed_mps;
 };
@@ -211,6 +216,7 @@ class BodyTable : public Table {
   }
   void stall(int e, double seconds) override { execution_.stall(e, execution_.time() + seconds); }
   void kill(int e) override { execution_.kill(e); }
+  void setSpeedFactor(int e, double factor) override { execution_.setSpeedFactor(e, factor); }
   bool bodies() const override { return true; }
   exec::BodyReport report() const override { return execution_.report(); }
 
@@ -232,7 +238,8 @@ struct Draw {
 class Runner {
  public:
   Runner(const Model& model, const task::TaskSpec& spec, const task::Demonstration& gt, const Perturbation& p,
-         int max_replans, exec::DispatchMode dispatch, uint64_t seed, const exec::BodiesExecutionParams* bodies)
+         int max_replans, exec::DispatchMode dispatch, uint64_t seed, const exec::BodiesExecutionParams* bodies,
+         double speed_spread)
       : model_(model),
         spec_(spec),
         gt_(gt),
@@ -253,6 +260,13 @@ class Runner {
     draw_.step = steps.empty() ? 0 : steps[rng.index(steps.size())];
     draw_.fraction = rng.uniform(0.2, 0.8);
     draw_.angle = rng.uniform(0, 2 * M_PI);
+    // Robots that differ in speed: a stream of its own, so the same trial seed draws the
+    // same perturbation with or without it, and the same speeds under either dispatch.
+    SplitMix64 speeds(seed * 0x9E3779B97F4A7C15ULL + 0x5bd);
+    if (speed_spread > 0)
+      for (size_t e = 0; e < spec.entities.size(); ++e)
+        if (spec.entities[e].kind == task::EntityKind::Robot)
+          table_->setSpeedFactor(static_cast<int>(e), 1 - speed_spread * speeds.uniform(0, 1));
   }
 
   CoordinatedRun run() {
@@ -622,11 +636,13 @@ std::string toString(const Perturbation& p) {
 
 CoordinatedRun runCoordinated(const Model& model, const task::TaskSpec& spec, const task::Demonstration& gt,
                               const Perturbation& p, int max_replans, exec::DispatchMode dispatch, uint64_t seed,
-                              const exec::BodiesExecutionParams* bodies) {
+                              const exec::BodiesExecutionParams* bodies, double speed_spread) {
+  if (!(speed_spread >= 0 && speed_spread < 1))
+    throw Error("speed spread must be in [0, 1): each robot moves at a factor in [1 - spread, 1]");
   if (!model.primitives)
     throw Error("a perturbed run needs a model with primitives (the " + model.sequence.variant() +
                 " variant rolls out its own trajectories)");
-  return Runner(model, spec, gt, p, max_replans, dispatch, seed, bodies).run();
+  return Runner(model, spec, gt, p, max_replans, dispatch, seed, bodies, speed_spread).run();
 }
 
 PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& test, const Perturbation& p,

@@ -298,6 +298,13 @@ std::string DemoRecorder::stop() {
     }
     for (const auto& n : inf.notes) notes_.push_back(shown + ":" + std::to_string(n.row + 2) + ": " + n.message);
     if (!notes_.empty()) advice_ = reviewAdvice(inf, final_path_);
+    if (inf.steps.empty()) {
+      inferred_steps_ = "none";
+      advice_ =
+          "what to do: no robot moved to an entity, so this demonstration has no step and teaches nothing "
+          "(ddace train refuses it): delete " +
+          final_path_ + " and demonstrate again";
+    }
     std::error_code ec;
     fs::remove(partial_path_, ec);
     return final_path_;

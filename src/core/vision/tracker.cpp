@@ -125,6 +125,27 @@ MarkerConfig loadMarkerConfig(const std::string& path) {
   return parseMarkerConfig(readTextFile(path), path);
 }
 
+void requireTaskEntities(const MarkerConfig& markers, const std::string& markers_file, const task::TaskSpec& task,
+                         const std::string& task_file) {
+  std::string missing, other_kind;
+  for (const auto& e : task.entities) {
+    const auto m = std::find_if(markers.entities.begin(), markers.entities.end(),
+                                [&](const EntityMarker& marker) { return marker.name == e.name; });
+    if (m == markers.entities.end())
+      missing += (missing.empty() ? "" : ", ") + e.name + " (" + task::toString(e.kind) + ")";
+    else if (m->kind != e.kind)
+      other_kind += (other_kind.empty() ? "" : ", ") + e.name + " is of kind " + task::toString(m->kind) + " there, " +
+                    task::toString(e.kind) + " in the task";
+  }
+  if (missing.empty() && other_kind.empty()) return;
+  std::string what = markers_file + " does not fit task '" + task.name + "' (" + task_file + "): ";
+  if (!missing.empty()) what += "no marker for " + missing + (other_kind.empty() ? "" : "; ");
+  what += other_kind;
+  throw Error(what +
+              ". The tracker would never report them and the run would wait for them: give the task's own markers "
+              "file (markers:=FILE; `ddace init` writes one for exactly the task's entities) or add them to this one");
+}
+
 void parseTrackerTuning(const std::string& text, const std::string& file, TrackerConfig& config) {
   YamlChecker r(file);
   const YAML::Node root = parseRoot(r, text, "tracker.yaml");

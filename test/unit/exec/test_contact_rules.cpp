@@ -65,9 +65,10 @@ struct Outcome {
 
 /// Runs `steps` ("R1 move G1, O1 move G1" per step: entity action target) from `start`,
 /// each motion on a straight path to its end point (task::stepEndPositions under `model`),
-/// a carrier on its push path (exec::drivenPath), as the simulator plans them.
+/// a carrier on its push path (exec::drivenPath), as the simulator plans them; entity
+/// `unseen` is left out of the planning (put down after the paths were planned).
 Outcome run(const task::TaskSpec& s, const std::vector<Pose2D>& start, const std::vector<std::string>& steps,
-            const task::EndPointModel& model = {}, double noise_m = 0.001, bool filter = true) {
+            const task::EndPointModel& model = {}, double noise_m = 0.001, bool filter = true, int unseen = -1) {
   BodiesExecutionParams p;
   p.noise_m = noise_m;
   p.arrival_radius_m = s.arrival_radius;
@@ -89,11 +90,13 @@ Outcome run(const task::TaskSpec& s, const std::vector<Pose2D>& start, const std
       tokens.push_back({s.entityIndex(e), a, s.entityIndex(t)});
     }
     const std::vector<Vector2d> ends = task::stepEndPositions(s, model, tokens, at);
+    std::vector<Vector2d> seen = at;
+    if (unseen >= 0) seen[static_cast<size_t>(unseen)] = Vector2d::Constant(std::nan(""));
     std::vector<StepMotion> motions;
     for (size_t i = 0; i < tokens.size(); ++i) {
       const int e = tokens[i].entity;
       motions.push_back({i, e, tokens[i].target, s.entities[e].kind == task::EntityKind::Robot,
-                         drivenPath(s, tokens, i, at, ends, line(at[e], ends[e]))});
+                         drivenPath(s, tokens, i, seen, ends, line(at[e], ends[e]))});
     }
     out.steps.push_back(m.executeStep(s, tokens, at, motions));
     at = out.steps.back().positions;
@@ -110,18 +113,18 @@ std::string collisions(const task::TaskSpec& s, const BodyReport& r) {
   return out;
 }
 
-/// The same scene with robot R9 standing across a motion's path at `in_the_way` and the
-/// filter off: the motion drives into R9, and that contact -- one no motion involves -- is
-/// counted; the contacts the task demands (`demanded`: carrier and load, receiver and the
-/// box handed to it, a motion and its target) still are not.
+/// The same scene with robot R9 put down across a motion's path at `in_the_way` after the
+/// paths were planned (a push would go round it) and the filter off: the motion drives into R9, and that contact -- one
+/// no motion involves -- is counted; the contacts the task demands (`demanded`: carrier and load, receiver and the box
+/// handed to it, a motion and its target) still are not.
 void expectTheIntruderCountedAndNoDemandedContact(const std::string& entities, std::vector<Pose2D> start,
                                                   const std::vector<std::string>& steps, const Vector2d& in_the_way,
                                                   const std::vector<std::pair<std::string, std::string>>& demanded) {
   SCOPED_TRACE("R9 in the way at " + std::to_string(in_the_way.x()) + ", " + std::to_string(in_the_way.y()));
   const auto s = spec(entities + " R9");
   start.push_back({in_the_way.x(), in_the_way.y(), 0});
-  const Outcome r = run(s, start, steps, {}, 0.001, /*filter=*/false);
   const int r9 = s.entityIndex("R9");
+  const Outcome r = run(s, start, steps, {}, 0.001, /*filter=*/false, r9);
   bool hit = false;
   for (const BodyContact& c : r.report.collisions) hit = hit || c.a == r9 || c.b == r9;
   EXPECT_TRUE(hit) << "driving into R9 was not counted: " << collisions(s, r.report);

@@ -119,3 +119,30 @@ TEST(FollowerView, ARobotLostForGoodStandsWhereItWasLastSeenInsteadOfStoppingIts
   v.setLost({});  // a new run
   EXPECT_TRUE(v.others("R1", 9.0, self_age)[0].stale);
 }
+
+// The node's answer to whom a robot is queued behind is the simulator's (motionContacts):
+// R3's segment ends behind R2's at R1, so R3 waits while R2's segment runs; once R2's has
+// ended R2 stands, and R3 decides again with nobody to wait for.
+TEST(FollowerView, ARobotWhosePlaceIsBehindAnothersWaitsWhileThatOnesSegmentRuns) {
+  auto k = kinds();
+  k["R3"] = {"R3", task::EntityKind::Robot, ""};
+  FollowerView v(k, kArrival, 0.02);
+  const double contact = 2 * task::kDefaultRobotRadius;
+  v.track("R1", task::EntityKind::Robot, {0.5, 0.5}, false, 1.0);
+  v.track("R2", task::EntityKind::Robot, {0.9, 0.5}, false, 1.0);
+  v.track("R3", task::EntityKind::Robot, {0.7, 0.6}, false, 1.0);
+  v.noteSegment("R2", 1, 4, "move", "R1", {0.5 + contact, 0.5});
+  v.noteSegment("R3", 2, 4, "move", "R1", {0.5 + 2 * contact, 0.5});
+  EXPECT_EQ(v.contacts("R3", {0.7, 0.6}).after, (std::set<std::string>{"R2"}));
+  EXPECT_TRUE(v.contacts("R2", {0.9, 0.5}).after.empty());
+  double age = 0;
+  const auto standing = [&](const std::string& name) {
+    for (const SafetyBody& b : v.others("R3", 1.0, age))
+      if (b.name == name) return b.standing;
+    return false;
+  };
+  EXPECT_FALSE(standing("R2"));
+  v.noteEnded("R2", 1);
+  EXPECT_TRUE(standing("R2"));
+  EXPECT_TRUE(v.contacts("R3", {0.7, 0.6}).after.empty());
+}

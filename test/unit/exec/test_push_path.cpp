@@ -5,6 +5,7 @@
 // disc), ending when the load is at its end point.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <optional>
@@ -237,4 +238,49 @@ TEST(PushPath, ABoxPushedOffItsCentreIsSteeredBackOntoItsLine) {
     off_line_m += std::abs(r.box.y() - goal.y()) / offs.size();
   }
   EXPECT_LT(off_line_m, 0.02);
+}
+
+namespace {
+
+double distanceToSegment(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+  return (a + t * ab - p).norm();
+}
+
+}  // namespace
+
+// Task 3's screen: the ball lies behind the shooter, two robots stand between it and the
+// hoop, too close together for the ball to pass between them. The ball's route goes round
+// them (every leg keeps their reach; the one beside the ball kPushNearPassM beyond contact),
+// the carrier pushes it along that route to behind the hoop, and a way that is free stays
+// straight.
+TEST(PushPath, TheRouteGoesRoundBodiesStandingInTheWayOfThePush) {
+  const Eigen::Vector2d ball(0.377, 0.231), hoop(0.894, 0.812), shooter(0.419, 0.232);
+  const Eigen::Vector2d defender(0.462, 0.285), screen(0.396, 0.294);  // 6.6 cm apart
+  const double robot = task::kDefaultRobotRadius, contact_ball = robot + task::kDefaultObjectRadius;
+  const double reach = 2 * robot + kPushPassM;  // the carrier's contact with a robot: the larger
+  const std::vector<PushObstacle> standing = {{defender, reach}, {screen, reach}};
+  ASSERT_LT(distanceToSegment(screen, ball, hoop), 2 * robot) << "the straight push runs into the screen";
+
+  EXPECT_EQ(pushRoute(ball, hoop, {}).size(), 2u);
+  EXPECT_EQ(pushRoute(ball, hoop, {{{0.2, 0.8}, reach}}).size(), 2u) << "a body off the way";
+  const std::vector<Eigen::Vector2d> route = pushRoute(ball, hoop, standing);
+  ASSERT_GT(route.size(), 2u);
+  EXPECT_EQ(route.front(), ball);
+  EXPECT_EQ(route.back(), hoop);
+  const double near_screen = 2 * robot + kPushNearPassM;  // the screen stands within reach of the ball
+  for (size_t k = 1; k < route.size(); ++k) {
+    EXPECT_GE(distanceToSegment(defender, route[k - 1], route[k]), reach - 1e-9) << "leg " << k;
+    EXPECT_GE(distanceToSegment(screen, route[k - 1], route[k]), near_screen - 1e-9) << "leg " << k;
+  }
+
+  const std::vector<Eigen::Vector2d> path = pushPath(shooter, ball, hoop, contact_ball, hoop, 400, standing);
+  for (size_t k = 1; k + 1 < route.size(); ++k) {
+    double nearest = 1e9;
+    for (const Eigen::Vector2d& p : path) nearest = std::min(nearest, (p - route[k]).norm());
+    EXPECT_LT(nearest, 0.005) << "the carrier drives the route's corner " << route[k].transpose();
+  }
+  const Eigen::Vector2d last = (route.back() - route[route.size() - 2]).normalized();
+  EXPECT_LT((path.back() - (hoop - contact_ball * last)).norm(), 1e-6) << "behind the ball on the hoop";
 }

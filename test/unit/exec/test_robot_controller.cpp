@@ -51,6 +51,35 @@ TEST(MotionContacts, AreDecidedFromWhereBodiesEndNotWhereTheyAreNow) {
   EXPECT_TRUE(far.load_ends_against.empty());
 }
 
+// Robots meeting at R1: R2's end touches R1, R3's touches only R2's end, behind it. R3 is
+// queued behind R2 (it stands until R2 stands); R2 is queued behind none; onto a flat goal
+// nothing queues, nor behind a robot of another step or bound elsewhere.
+TEST(MotionContacts, ARobotWhoseEndLiesBehindAnotherMoversOfItsStepIsQueuedBehindIt) {
+  const double r = task::kDefaultRobotRadius;
+  const auto body = [](std::string name, Vector2d now, Vector2d final_at, int step, std::string target) {
+    BodyAtStart b;
+    b.name = std::move(name), b.position = now, b.final_position = final_at, b.radius_m = task::kDefaultRobotRadius;
+    b.step = step, b.action = "move", b.target = std::move(target);
+    return b;
+  };
+  const Vector2d r1(0.5, 0.5), r2_end = r1 + Vector2d(2 * r, 0), r3_end = r2_end + Vector2d(2 * r, 0);
+  BodyAtStart met = body("R1", r1, r1, -1, "");
+  const BodyAtStart r2 = body("R2", {0.9, 0.9}, r2_end, 3, "R1"), r3 = body("R3", {0.6, 0.5}, r3_end, 3, "R1");
+  const double reach = 0.02, arrival = 0.03;
+  EXPECT_EQ(motionContacts(r3.position, r, r3_end, 3, "move", "R1", {met, r2}, reach, arrival).after,
+            (std::set<std::string>{"R2"}));
+  EXPECT_TRUE(motionContacts(r2.position, r, r2_end, 3, "move", "R1", {met, r3}, reach, arrival).after.empty());
+  BodyAtStart elsewhere = r2;  // bound for another body, or in another step
+  elsewhere.target = "R4";
+  EXPECT_TRUE(motionContacts(r3.position, r, r3_end, 3, "move", "R1", {met, elsewhere}, reach, arrival).after.empty());
+  elsewhere = r2, elsewhere.step = 2;
+  EXPECT_TRUE(motionContacts(r3.position, r, r3_end, 3, "move", "R1", {met, elsewhere}, reach, arrival).after.empty());
+  // G1, a flat goal, has no body: nothing is reached past it.
+  BodyAtStart to_goal = r2;
+  to_goal.target = "G1";
+  EXPECT_TRUE(motionContacts(r3.position, r, r3_end, 3, "move", "G1", {to_goal}, reach, arrival).after.empty());
+}
+
 namespace {
 
 ControllerParams params() {
@@ -133,6 +162,30 @@ TEST(RobotController, AMotionHeldOffItsEndPointFailsAsADeadlockNamingWhatHoldsIt
   EXPECT_NE(o.message.find("R2"), std::string::npos) << o.message;
   EXPECT_TRUE(o.wheels.isZero());
   EXPECT_GT((pose.position() - Vector2d(0.2, 0)).norm(), 2 * r) << "R1 pushed into R2";
+}
+
+// Queued behind R2 (MotionContacts::after), R3 stands while R2 is on its way and drives
+// once R2 stands; the wait is no deadlock however long it lasts.
+TEST(RobotController, ARobotQueuedBehindAnotherStandsUntilThatOneStands) {
+  const double r = 0.022;
+  RobotController c("R3", params());
+  c.start(straight({0, 0}, {0.3, 0}), "R1", 0.025, 0.025);
+  MotionContacts queued;
+  queued.after = {"R2"};
+  c.setContacts(queued);
+  std::vector<SafetyBody> others{{"R2", {0.0, 0.5}, r, true}};
+  ControlOutput o;
+  for (double t = 0; t < 12; t += 0.02) {
+    o = c.cycle({0, 0, 0}, false, 0, r, others, t);
+    ASSERT_EQ(o.state, MotionState::Running) << o.message << " at t = " << t;
+    ASSERT_TRUE(o.wheels.isZero()) << "drove at t = " << t;
+  }
+  EXPECT_EQ(o.waiting_for, "R2");
+  EXPECT_NE(o.message.find("waits for R2"), std::string::npos) << o.message;
+  others[0].standing = true;  // R2 arrived: R3 goes
+  o = c.cycle({0, 0, 0}, false, 0, r, others, 12.04);
+  EXPECT_EQ(o.waiting_for, "");
+  EXPECT_GT(o.wheels.left_mps + o.wheels.right_mps, 0.0);
 }
 
 // A carrier touches the load it pushes only from behind it (exec::behindLoad), so that it

@@ -388,6 +388,34 @@ TEST(Label, ARobotGoingRoundTheBoxToPushItIsOneCarry) {
   EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
 }
 
+TEST(Label, ARobotThatGoesRoundTheBoxAndPausesAfterTheFirstCentimetreOfThePushIsOneCarry) {
+  // R1 reaches the box from the west and rests; it goes round to the box's south side,
+  // pushes it 1.8 cm north (less than a nudge: no carry of its own), pauses 0.3 s on its
+  // way (a person's hesitation), and pushes it on to G1: one push, not a second step to
+  // the box.
+  Scene s;
+  const Vector2d box(0.5, 0.5);
+  const auto round = [&](double a, double r) -> Vector2d { return box + r * Vector2d(std::cos(a), std::sin(a)); };
+  s.pos[0] = {0.2, 0.5};
+  s.pos[3] = {0.5, 0.9};  // G1, north
+  s.rest(1);
+  s.move({{0, round(M_PI, 0.042), 0, 1.5}});
+  s.rest(1);
+  const int n = 30;
+  for (int i = 1; i <= n; ++i) {
+    const double u = static_cast<double>(i) / n;
+    s.pos[0] = round((1.0 + 0.5 * u * u * (3 - 2 * u)) * M_PI, 0.042);
+    s.emit();
+  }
+  s.move({{0, s.pos[0] + Vector2d(0, 0.018), 0, 0.3}, {2, s.pos[2] + Vector2d(0, 0.018), 0, 0.3}});
+  s.rest(0.3);
+  s.move({{0, {0.5, 0.9 - 0.042}, 0, 2}, {2, {0.5, 0.9}, 0, 2}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:B1"}, {"R1:move:G1", "B1:move:G1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+}
+
 TEST(Label, APushThatBeginsAsTheApproachEndsIsTheCarriers) {
   // fetch, then the other robot to the occupied goal (as bench label_styles makes it),
   // demonstrated in every style at once: a push that begins on the rows at rest the
@@ -520,6 +548,30 @@ TEST(Label, AGiverThatCreepsOnAfterTheHandOverStillLetGo) {
   s.rest(1);
   EXPECT_EQ(tokens(s.infer(), s.spec),
             (Steps{{"R1:move:R2", "B1:move:R2"}, {"R2:move:G1", "B1:move:G1"}, {"R1:move:R2"}}));
+}
+
+TEST(Label, ARobotTurningWithItsBoxCarriesIt) {
+  // R1 stands behind the box (north of it) and turns round in a second to hand it to R2,
+  // south: R1 itself goes 2.5 cm (less than a nudge) while the box, touching it all the
+  // way, swings 18 cm round it to R2. An object does not move alone: R1 carried it.
+  Scene s;
+  const Vector2d from(0.5, 0.5), to(0.5, 0.475);
+  s.pos[0] = from;
+  s.pos[2] = from + Vector2d(0, 0.042);
+  s.pos[1] = to - Vector2d(0, 0.084);
+  s.rest(1);
+  for (int i = 0; i <= 30; ++i) {
+    const double u = i / 30.0, a = M_PI / 2 - M_PI * u * u * (3 - 2 * u);
+    s.pos[0] = from + (to - from) * u;
+    s.pos[2] = s.pos[0] + 0.042 * Vector2d(std::cos(a), std::sin(a));
+    s.emit();
+  }
+  s.rest(1);
+  const auto inf = s.infer();
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2", "B1:move:R2"}}));
+  EXPECT_EQ(inf.steps[0].tokens[1].load, 2);  // carried
+  EXPECT_EQ(inf.steps[0].tokens[1].carrier, 0);
+  EXPECT_TRUE(inf.notes.empty());
 }
 
 TEST(Label, ARobotEndingWithABoxThatMovedAloneIsListed) {
@@ -675,6 +727,26 @@ TEST(Label, AGoalTakenInTheSameStepIsTheTargetOfTheOneEndingBesideIt) {
 /// R1, R3 and R4 sent to R2 (standing at 0.5, 0.5) in one step: R4 from the north, slowly,
 /// R1 from the west, and R3 setting off once R1 is there, to R2's south side, or, `crowded`,
 /// to just behind R1.
+TEST(Label, ARobotLeavingRoomInARowForOneStillOnItsWayIsSentToTheTarget) {
+  // The same row, but R3 gets to its place first and stops away from every body, leaving
+  // room for R2, which comes in between from the north a second later: as the step left
+  // them, R3 is behind a row at the box, sent to the box.
+  Scene s;
+  s.spec.entities.push_back({"R3", task::EntityKind::Robot, "hamster"});
+  s.pos.push_back({0.02, 0.5});
+  s.d.has_label_columns.assign(s.pos.size(), false);
+  s.pos[0] = {0.456, 0.2};  // R1 from the south
+  const double r1_box = s.spec.contactDistance(0, 2), robots = s.spec.contactDistance(1, 0);
+  s.pos[1] = {0.5 - r1_box - robots, 0.9};  // R2 from the north
+  s.rest(1);
+  s.move(
+      {{0, {0.5 - r1_box, 0.5}}, {5, {0.5 - r1_box - 2 * robots, 0.5}, 0, 1}, {1, {0.5 - r1_box - robots, 0.5}, 0.5}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:B1", "R2:move:B1", "R3:move:B1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
+}
+
 Scene gatherScene(bool crowded) {
   Scene s;
   s.spec.entities.push_back({"R3", task::EntityKind::Robot, "hamster"});
@@ -740,6 +812,29 @@ TEST(Label, AStopAtABodyWithoutAPauseThatTurnsIsTwoSteps) {
   ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2"}, {"R1:move:G1"}}));
   EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
   EXPECT_EQ(inf.steps[1].keyframe_row, inf.steps[0].tokens[0].last_row + 1);
+}
+
+TEST(Label, ARobotSettingOffBesideABodyAndPassingItAtSpeedDoesNotStopThere) {
+  // R1 sets off slowly 8 cm from R2, passes it touching at full speed and turns there
+  // for G1: its only slow rows were far from R2 (its start), so no stop at R2 to cut.
+  Scene s;
+  const double contact = s.spec.contactDistance(0, 1);
+  const Vector2d start(0.3, 0.28), corner(0.3, 0.35), g1 = s.pos[3];
+  s.pos[0] = start;
+  s.pos[1] = corner - Vector2d(contact, 0);  // on the outside of the turn
+  s.pos[2] = {0.5, 0.8};                     // the box out of the way
+  s.rest(1);
+  const double first = (corner - start).norm(), total = first + (g1 - corner).norm();
+  for (int i = 1; i <= 90; ++i) {
+    const double u = i / 90.0, along = total * u * u * (3 - 2 * u);
+    s.pos[0] = along < first ? Vector2d(start + (corner - start) * (along / first))
+                             : Vector2d(corner + (g1 - corner).normalized() * (along - first));
+    s.emit();
+  }
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes[0].message;
 }
 
 TEST(Label, ANearStopBesideABodyKeepingTheHeadingIsListed) {
@@ -842,12 +937,13 @@ TEST(Label, StepsWithOtherMoversThanTheExamplesAreListedFromThere) {
 TEST(Label, WrongTokensInOtherStylesAreListed) {
   const label::HumanMotionOptions all = label::demonstrationStyle("all").options;
   label::LabelScore total;
-  // The zoo's second motion model (paths bent around nothing, stops short of a body).
-  for (const std::string family : {"zoo:87/direct", "zoo:140/direct-10mm", "zoo:27/direct-10mm"}) {
+  // Drawn zoo rules in both motion models (the second: paths bent around nothing, stops
+  // short of a body), where the benchmark finds them read wrong in `all` at seed 2.
+  for (const std::string family : {"zoo:1/direct-4mm", "zoo:2/direct-10mm", "zoo:0"}) {
     uint64_t id = 0;
     tasks::ZooMotion motion;
     ASSERT_TRUE(tasks::parseZooFamily(family, id, &motion));
-    total.add(label::inferredDataset(tasks::generateZoo(id, 10, 3, motion), all, label::styleSeed(3, "all")).score);
+    total.add(label::inferredDataset(tasks::generateZoo(id, 10, 2, motion), all, label::styleSeed(2, "all")).score);
   }
   EXPECT_GT(total.wrong + total.demos_wrong, 0);  // the styles make it err here
   EXPECT_EQ(total.wrong_listed, total.wrong);

@@ -2,7 +2,10 @@
 // closed-loop evaluation, as `ddace train` and `ddace eval` run it.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
+#include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -141,6 +144,51 @@ TEST_F(Pipeline, AsyncDispatchWithBodiesStartsEachTokenWhenItsOwnPredecessorsEnd
              (w.find("R4:move:G1 at") != std::string::npos && w.find("released by R2:move:R4") != std::string::npos);
   }
   EXPECT_EQ(own, 12) << "each leg to G1 waits for its own meeting only";
+}
+
+namespace {
+/// Trials of `e` (Task 4) whose two legs to G1 started more than half a second apart.
+int legsApart(const pipeline::Evaluation& e) {
+  int apart = 0;
+  for (const std::vector<std::string>& trial : e.waits) {
+    std::vector<double> start;
+    for (const std::string& w : trial) start.push_back(std::stod(w.substr(w.find(" at ") + 4)));
+    apart += start.size() == 2 && std::abs(start[0] - start[1]) > 0.5;
+  }
+  return apart;
+}
+}  // namespace
+
+TEST_F(Pipeline, WhereRobotsDifferInSpeedEachLegToG1LeavesWhenItsOwnMeetingEnded) {
+  // Each robot at its own speed (the same under either dispatch): the meetings of step 1
+  // end apart, and the slower one holds back only the leg that depends on it.
+  const task::TaskDir test = generated("task4", 6, 7);
+  pipeline::EvalOptions o;
+  o.execution = "diffdrive";
+  o.coordinated = true;
+  o.speed_spread = 0.5;
+  o.dispatch = exec::DispatchMode::Async;
+  const auto async = pipeline::evaluate(*model_, test, o);
+  EXPECT_EQ(async.precedence_violations, 0);
+  EXPECT_EQ(async.summary.collisions, 0);
+  ASSERT_EQ(async.waits.size(), 6u);
+  int own = 0;
+  for (const std::vector<std::string>& trial : async.waits) {
+    ASSERT_EQ(trial.size(), 2u) << "R3's and R4's legs to G1 waited";
+    for (const std::string& w : trial)
+      own += (w.find("R3:move:G1 at") != std::string::npos && w.find("released by R1:move:R3") != std::string::npos) ||
+             (w.find("R4:move:G1 at") != std::string::npos && w.find("released by R2:move:R4") != std::string::npos);
+  }
+  EXPECT_EQ(own, 12) << "each leg to G1 waits for its own meeting only";
+  EXPECT_GE(legsApart(async), 1) << "the robots' speeds set the legs off apart";
+  // Step by step both legs leave together, when the slower meeting ended; the robots are
+  // slower than without the spread.
+  o.dispatch = exec::DispatchMode::Steps;
+  const auto steps = pipeline::evaluate(*model_, test, o);
+  EXPECT_EQ(steps.precedence_violations, 0);
+  EXPECT_EQ(legsApart(steps), 0);
+  o.speed_spread = 0;
+  EXPECT_GT(steps.summary.makespan_s, pipeline::evaluate(*model_, test, o).summary.makespan_s);
 }
 
 TEST_F(Pipeline, AModelOfAnotherTaskIsRefused) {

@@ -92,6 +92,36 @@ TEST(CliInit, NeverReplacesAFileAndRefusesBadNames) {
   EXPECT_FALSE(fs::exists(scratch("bad") + "/task.yaml"));
 }
 
+// Demonstrations recorded with infer_labels: false have no step: validate says so and what to
+// run, train refuses them naming each file (a demonstration without a step would teach
+// "END at once"), before writing anything.
+TEST(CliInit, UnlabelledDemonstrationsAreNamedByValidateAndRefusedByTrain) {
+  const std::string dir = scratch("unlabelled");
+  ASSERT_EQ(runTool("init '" + dir + "' --robots R1 --goals G1").status, 0);
+  fs::create_directories(dir + "/demos");
+  std::ofstream(dir + "/demos/demo_000.csv") << "t,R1.x,R1.y,R1.action,R1.target,G1.x,G1.y\n"
+                                                "0.0,0.1,0.1,,,0.5,0.5\n0.5,0.3,0.3,,,0.5,0.5\n1.0,0.5,0.5,,,0.5,0.5\n";
+  const ToolRun v = runTool("validate '" + dir + "'");
+  EXPECT_EQ(v.status, 0) << v.out;
+  EXPECT_NE(v.out.find("1 of 1 demonstrations have no labelled step"), std::string::npos) << v.out;
+  EXPECT_NE(v.out.find("`ddace label " + dir + " --out DIR`"), std::string::npos) << v.out;
+  const std::string model = scratch("unlabelled-model");
+  const ToolRun t = runTool("train '" + dir + "' --out '" + model + "'");
+  EXPECT_NE(t.status, 0);
+  EXPECT_NE(t.out.find(dir + "/demos/demo_000.csv: no labelled step"), std::string::npos) << t.out;
+  EXPECT_NE(t.out.find("`ddace label " + dir + " --out DIR`"), std::string::npos) << t.out;
+  EXPECT_FALSE(fs::exists(model));
+  // With a labelled demonstration beside it, ddace label (unlabelled only) is not the advice.
+  std::ofstream(dir + "/demos/demo_001.csv") << "t,R1.x,R1.y,R1.action,R1.target,G1.x,G1.y\n"
+                                                "0.0,0.1,0.1,move,G1,0.5,0.5\n0.5,0.3,0.3,move,G1,0.5,0.5\n"
+                                                "1.0,0.5,0.5,,,0.5,0.5\n";
+  const ToolRun mixed = runTool("train '" + dir + "' --out '" + model + "'");
+  EXPECT_NE(mixed.status, 0);
+  EXPECT_NE(mixed.out.find("demo_000.csv: no labelled step"), std::string::npos) << mixed.out;
+  EXPECT_EQ(mixed.out.find("demo_001.csv"), std::string::npos) << mixed.out;
+  EXPECT_NE(mixed.out.find("a task directory of their own"), std::string::npos) << mixed.out;
+}
+
 TEST(CliInit, ASlipInASubcommandOrOptionGetsASuggestion) {
   const ToolRun sub = runTool("trian x");
   EXPECT_EQ(sub.status, 2);

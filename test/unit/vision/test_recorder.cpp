@@ -400,4 +400,13 @@ TEST(Recorder, InferredLabelsToCheckSayWhetherToActAndHow) {
   rec.stop();
   EXPECT_TRUE(rec.inferenceNotes().empty()) << rec.inferenceNotes().front();
   EXPECT_EQ(rec.inferenceAdvice(), "");
+
+  // Nothing moved (started and stopped at once): saved, and said to teach nothing.
+  const std::string still = rec.start(200.0);
+  for (int i = 0; i < 30 * 2; ++i) rec.addRow(200.0 + i / 30.0, positions(0));
+  ASSERT_EQ(rec.stop(), still);
+  EXPECT_EQ(rec.inferredSteps(), "none");
+  EXPECT_NE(rec.inferenceAdvice().find("has no step and teaches nothing (ddace train refuses it): delete " + still),
+            std::string::npos)
+      << rec.inferenceAdvice();
 }

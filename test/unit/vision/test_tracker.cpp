@@ -129,6 +129,26 @@ TEST(TrackerConfig, ErrorsNameFileLineAndColumn) {
   EXPECT_THROW(loadMarkerConfig(dataDir() + "does_not_exist.yaml"), ddace::Error);
 }
 
+// A run waits until every entity of the task is tracked: a markers file that misses one (the
+// package's Task 4 file given for a task of one's own) is refused at start, naming each.
+TEST(TrackerConfig, AMarkersFileWithoutATaskEntityIsRefusedNamingIt) {
+  const MarkerConfig markers = shippedConfig().markers;  // R1..R4, G1
+  const ddace::task::TaskSpec fits = ddace::task::parseTaskYaml(
+      "format: ddace-task/1\nname: two\nentities:\n  - {name: R1, kind: robot}\n  - {name: G1, kind: goal}\n",
+      "fits/task.yaml");
+  EXPECT_NO_THROW(requireTaskEntities(markers, "markers.yaml", fits, "fits/task.yaml"));
+  const ddace::task::TaskSpec own = ddace::task::parseTaskYaml(
+      "format: ddace-task/1\nname: push2\nentities:\n  - {name: R1, kind: robot}\n  - {name: B1, kind: object}\n"
+      "  - {name: G1, kind: object}\n  - {name: G2, kind: goal}\n",
+      "push2/task.yaml");
+  const std::string e = ddace::test::errorOf([&] { requireTaskEntities(markers, "markers.yaml", own, "push2"); });
+  EXPECT_NE(e.find("markers.yaml does not fit task 'push2' (push2): no marker for B1 (object), G2 (goal); "
+                   "G1 is of kind goal there, object in the task"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("markers:=FILE"), std::string::npos) << e;
+}
+
 // The simulated table takes the size of the task's table (its markers file's corners):
 // the synthetic camera frames a 1.6 x 1.2 m table away from the origin as it frames its own
 // 1 x 1 m one, and the tracker finds the table frame on it.
