@@ -513,6 +513,26 @@ class Runner {
       if (!names_lost && !task::goalConditionMet(spec_, g, t.final_positions))
         return "goal condition " + g.entity + " at " + g.at + " does not hold";
     }
+    if (spec_.goal_conditions.empty()) return objectsNotWhereDemonstrated(t);
+    return "";
+  }
+
+  /// A task that states no goal condition is judged by the demonstration's own ends: each
+  /// object must end at the last entity the demonstration moved it to, unless that one is
+  /// lost. Without this, a run that stops with a box mid-table would count as done.
+  std::string objectsNotWhereDemonstrated(const exec::Trial& t) const {
+    std::vector<int> last_target(spec_.entities.size(), -1);
+    for (const task::Step& s : gt_.steps)
+      for (const task::Token& k : s.tokens)
+        if (k.isMotion()) last_target[static_cast<size_t>(k.entity)] = k.target;
+    for (size_t e = 0; e < spec_.entities.size(); ++e) {
+      const int to = last_target[e];
+      const bool lost = std::find(lost_entities_.begin(), lost_entities_.end(), to) != lost_entities_.end();
+      if (spec_.entities[e].kind == task::EntityKind::Robot || to < 0 || lost) continue;
+      const task::GoalCondition demonstrated{spec_.entities[e].name, spec_.entities[static_cast<size_t>(to)].name};
+      if (!task::goalConditionMet(spec_, demonstrated, t.final_positions))
+        return spec_.entities[e].name + " did not end at " + demonstrated.at + ", where the demonstration left it";
+    }
     return "";
   }
 
