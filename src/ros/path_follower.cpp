@@ -232,8 +232,11 @@ class PathFollowerNode::Impl {
         ROS_WARN_THROTTLE(1.0, "path_follower: %s: %s, wheels zero", name.c_str(), c.message.c_str());
       } else {
         if (c.held) ROS_WARN_THROTTLE(1.0, "path_follower: %s: held by the safety filter", name.c_str());
+        // A robot queued behind another of its step says for whom it stands still.
+        const std::string why = c.waiting_for.empty() ? "" : c.message;
+        if (!why.empty()) ROS_INFO_THROTTLE(1.0, "path_follower: %s", why.c_str());
         if (r.cycle++ % status_every_ == 0)
-          publishStatus(r, id, ddace::SegmentStatus::RUNNING, c.progress, c.distance_to_goal_m, "");
+          publishStatus(r, id, ddace::SegmentStatus::RUNNING, c.progress, c.distance_to_goal_m, why);
       }
     }
   }

@@ -117,14 +117,27 @@ Vector2d endOffset(const TaskSpec& spec, const EndPointModel& model, const std::
   return Vector2d(-(load_end + carried.radius_m + mover.radius_m), 0.0);
 }
 
+namespace {
+
+// What an overlap means for the runs and whether to act: bodies are held to the footprints,
+// so the runs end that much farther apart than the demonstrations did.
+std::string overlapAdvice(const std::string& mover, const std::string& target, long mm) {
+  return "ending at their contact (footprints stated too big?), " + std::to_string(mm) +
+         " mm farther apart than demonstrated: if " + mover + " or " + target +
+         " is smaller than task.yaml states, correct its radius; a body nudged on arrival or the camera's error "
+         "shows the same and needs nothing";
+}
+
+}  // namespace
+
 std::string StopGap::str() const {
   const long mm = std::lround(gap_m * 1000);
-  std::string s = mover +
-                  (mm < 0 ? " stops " + std::to_string(-mm) + " mm inside " + target + "'s footprint"
-                          : " stops " + std::to_string(mm) + " mm from " + target) +
-                  " in the demonstrations (" + std::to_string(segments) + " stops" +
-                  (by_class ? ", its motion class's" : "") + "); footprints say 0 mm: " +
-                  (mm < 0 ? "ending at their contact (footprints stated too big?)" : "using the demonstrated gap");
+  std::string s =
+      mover +
+      (mm < 0 ? " stops " + std::to_string(-mm) + " mm inside " + target + "'s footprint"
+              : " stops " + std::to_string(mm) + " mm from " + target) +
+      " in the demonstrations (" + std::to_string(segments) + " stops" + (by_class ? ", its motion class's" : "") +
+      "); footprints say 0 mm: " + (mm < 0 ? overlapAdvice(mover, target, -mm) : "using the demonstrated gap");
   return s;
 }
 

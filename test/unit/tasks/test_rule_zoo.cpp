@@ -386,7 +386,11 @@ TEST(RuleZoo, ADemonstratedStopGapOtherThanTheFootprintsIsReportedAndKept) {
   for (const task::StopGap& g : gaps) {
     EXPECT_NEAR(g.gap_m, -0.01, 5e-4) << g.str();
     EXPECT_NE(g.str().find("10 mm inside B1's footprint"), std::string::npos) << g.str();
-    EXPECT_NE(g.str().find("ending at their contact (footprints stated too big?)"), std::string::npos) << g.str();
+    EXPECT_NE(g.str().find("ending at their contact (footprints stated too big?), 10 mm farther apart than "
+                           "demonstrated: if R"),
+              std::string::npos)
+        << g.str();
+    EXPECT_NE(g.str().find("or B1 is smaller than task.yaml states, correct its radius"), std::string::npos) << g.str();
   }
   // The fetch's end point is at the footprints' contact, which bodies are held to: an end
   // inside the box's footprint could not be reached without a contact deeper than touching.
