@@ -88,6 +88,9 @@ struct Motion {
   std::vector<std::vector<Eigen::Vector2d>> closest_scene;
   /// Takes `o`'s closest approaches (speed, place, time) to the entities it came closer to.
   void absorbClosest(const Motion& o);
+  /// Goes on as `o`, its later motion: `o`'s offset, end and last leg, the farthest and
+  /// closest approaches of both (the whole offset is the caller's).
+  void continueWith(const Motion& o);
   bool resumed = false;  ///< joined from two motions across a pause
   /// Where its last piece began (joined across a pause: where it went on from): the line
   /// it came in on, as the end-point rule reads an approach.

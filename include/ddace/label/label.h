@@ -99,6 +99,19 @@ class Labeller {
   /// Merges pauses and groups the pending motions; hands over the groups no later row
   /// can change (all of them `at_end`).
   void decide(bool at_end);
+  /// The pending motions, each joined with the next of its entity across a pause.
+  std::vector<Motion> joinPauses() const;
+  /// Drops the motions that end where they began (bumped and put back), unless they moved
+  /// an object farther.
+  void dropNudges(std::vector<Motion>& merged) const;
+  /// Drops the pieces of steps handed over already; a motion begins after the last one.
+  void dropHandedOver(std::vector<Motion>& merged) const;
+  /// Motions that overlap in time, as steps (one motion per entity and step); `group_off`
+  /// gets each group's last offset row.
+  std::vector<Group> groupSteps(std::vector<Motion> merged, std::vector<int>& group_off) const;
+  /// How many of the groups, in order, no later row can change.
+  size_t finalGroups(const std::vector<Group>& groups, const std::vector<int>& group_off,
+                     const std::vector<int>& last_on, const MotionSegmenter::Horizon& horizon) const;
   /// A final group: joined with the next when together they are the example's step
   /// (partial_), then place()d.
   void handOver(Group g);

@@ -142,6 +142,17 @@ void Motion::absorbClosest(const Motion& o) {
   }
 }
 
+void Motion::continueWith(const Motion& o) {
+  off_row = o.off_row;
+  off_t = o.off_t;
+  end = o.end;
+  end_dir = o.end_dir;
+  at_offset = o.at_offset;
+  leg_start = o.leg_start;
+  for (size_t j = 0; j < max_distance.size(); ++j) max_distance[j] = std::max(max_distance[j], o.max_distance[j]);
+  absorbClosest(o);
+}
+
 MotionSegmenter::MotionSegmenter(size_t entities, const SegmentationOptions& options) : o_(options), state_(entities) {}
 
 void MotionSegmenter::row(double t, const std::vector<Vector2d>& positions) {

@@ -372,12 +372,7 @@ bool Labeller::startsAStep(double step_off_t, const Motion& m) const {
   return m.on_t >= step_off_t - options_.still_s / 2;
 }
 
-void Labeller::decide(bool at_end) {
-  const auto& E = spec_.entities;
-  const size_t n = E.size();
-  next_check_t_ = std::numeric_limits<double>::infinity();
-  if (pending_.empty()) return;
-  // 1. Pauses: a motion and the next one of its entity, within pause_s, are one.
+std::vector<Motion> Labeller::joinPauses() const {
   std::vector<Motion> ms = pending_;
   std::stable_sort(ms.begin(), ms.end(), [](const Motion& a, const Motion& b) {
     return a.entity != b.entity ? a.entity < b.entity : a.on_row < b.on_row;
@@ -389,23 +384,19 @@ void Labeller::decide(bool at_end) {
     if (!merged.empty() && merged.back().entity == m.entity) {
       Motion& a = merged.back();
       if (m.on_t - a.off_t <= options_.pause_s && !putBack(a) && pausedOnItsWay(a, m)) {
-        a.off_row = a.whole_off_row = m.off_row;
-        a.off_t = a.whole_off_t = m.off_t;
-        a.end = m.end;
-        a.end_dir = m.end_dir;
-        a.at_offset = m.at_offset;
-        a.leg_start = m.leg_start;
-        for (size_t j = 0; j < n; ++j) a.max_distance[j] = std::max(a.max_distance[j], m.max_distance[j]);
-        a.absorbClosest(m);
+        a.continueWith(m);
+        a.whole_off_row = m.off_row;
+        a.whole_off_t = m.off_t;
         a.resumed = true;
         continue;
       }
     }
     merged.push_back(std::move(m));
   }
-  // 2. Nudges: a motion, joined across its pauses, that ends where it began (less than
-  // nudge_m away: bumped and put back) is no token, unless it moved an object farther (a
-  // robot turning with its load: an object does not move alone).
+  return merged;
+}
+
+void Labeller::dropNudges(std::vector<Motion>& merged) const {
   auto movedAnObject = [&](const Motion& m) {
     return std::any_of(merged.begin(), merged.end(),
                        [&](const Motion& o) { return (o.end - o.start).norm() >= options_.nudge_m && sweptBy(o, m); });
@@ -415,22 +406,17 @@ void Labeller::decide(bool at_end) {
     nudge[i] = (merged[i].end - merged[i].start).norm() < options_.nudge_m && !movedAnObject(merged[i]);
   for (size_t i = merged.size(); i-- > 0;)
     if (nudge[i]) merged.erase(merged.begin() + static_cast<long>(i));
-  cutAtContacts(merged);
-  // Pieces of steps handed over already (a motion cut in two waits for its second piece).
-  // A motion that began as the last one handed over ended (a push after a short stop at
-  // the box: the one's onset and the other's offset are dated from the same rows at rest)
-  // begins after it.
+}
+
+void Labeller::dropHandedOver(std::vector<Motion>& merged) const {
   merged.erase(std::remove_if(merged.begin(), merged.end(), [&](const Motion& m) { return m.off_row <= handed_off_; }),
                merged.end());
   for (auto& m : merged) m.on_row = std::max(m.on_row, handed_off_ + 1);
-  // The last motion of each entity may still be joined by a later one across a pause.
-  std::vector<int> last_on(n, -1);
-  for (const auto& m : merged) last_on[m.entity] = std::max(last_on[m.entity], m.on_row);
-  std::stable_sort(merged.begin(), merged.end(), [](const Motion& a, const Motion& b) { return a.on_row < b.on_row; });
+}
 
-  // 3. Steps: motions that overlap in time; a step ends when every one of them has stopped.
+std::vector<Labeller::Group> Labeller::groupSteps(std::vector<Motion> merged, std::vector<int>& group_off) const {
+  std::stable_sort(merged.begin(), merged.end(), [](const Motion& a, const Motion& b) { return a.on_row < b.on_row; });
   std::vector<Group> groups;
-  std::vector<int> group_off;  // [group] its last offset row
   int max_off = -1;
   double max_off_t = 0;
   for (auto& m : merged) {
@@ -444,42 +430,61 @@ void Labeller::decide(bool at_end) {
     // One token per entity and step: a second motion of the same entity joins its first.
     auto& g = groups.back().motions;
     auto same = std::find_if(g.begin(), g.end(), [&](const Motion& o) { return o.entity == m.entity; });
-    if (same != g.end()) {
-      groups.back().notes.push_back({m.on_row,
-                                     E[m.entity].name + " moved again in the same step (first motion ended at line " +
-                                         std::to_string(same->off_row + 2) + "); taken as one motion, not two steps",
-                                     m.entity});
-      same->off_row = m.off_row;
-      same->off_t = m.off_t;
-      same->whole_off_row = std::max(same->whole_off_row, m.whole_off_row);
-      same->whole_off_t = std::max(same->whole_off_t, m.whole_off_t);
-      same->end = m.end;
-      same->leg_start = m.leg_start;
-      same->end_dir = m.end_dir;
-      same->at_offset = m.at_offset;
-      for (size_t j = 0; j < n; ++j) same->max_distance[j] = std::max(same->max_distance[j], m.max_distance[j]);
-      same->absorbClosest(m);
+    if (same == g.end()) {
+      g.push_back(std::move(m));
       continue;
     }
-    g.push_back(std::move(m));
+    groups.back().notes.push_back({m.on_row,
+                                   spec_.entities[m.entity].name +
+                                       " moved again in the same step (first motion ended at line " +
+                                       std::to_string(same->off_row + 2) + "); taken as one motion, not two steps",
+                                   m.entity});
+    same->whole_off_row = std::max(same->whole_off_row, m.whole_off_row);
+    same->whole_off_t = std::max(same->whole_off_t, m.whole_off_t);
+    same->continueWith(m);
   }
+  return groups;
+}
 
+size_t Labeller::finalGroups(const std::vector<Group>& groups, const std::vector<int>& group_off,
+                             const std::vector<int>& last_on, const MotionSegmenter::Horizon& horizon) const {
+  size_t final_groups = 0;
+  for (; final_groups < groups.size(); ++final_groups) {
+    bool final = group_off[final_groups] < horizon.row;
+    for (const auto& m : groups[final_groups].motions)
+      final = final && m.whole_off_row < horizon.row &&
+              (horizon.t - m.whole_off_t > options_.pause_s || last_on[m.entity] > m.on_row);
+    if (!final) break;
+  }
+  return final_groups;
+}
+
+void Labeller::decide(bool at_end) {
+  next_check_t_ = std::numeric_limits<double>::infinity();
+  if (pending_.empty()) return;
+  // 1. Pauses: a motion and the next one of its entity, within pause_s, are one.
+  std::vector<Motion> merged = joinPauses();
+  // 2. Nudges: a motion, joined across its pauses, that ends where it began (less than
+  // nudge_m away: bumped and put back) is no token, unless it moved an object farther (a
+  // robot turning with its load: an object does not move alone).
+  dropNudges(merged);
+  cutAtContacts(merged);
+  // Pieces of steps handed over already (a motion cut in two waits for its second piece).
+  // A motion that began as the last one handed over ended (a push after a short stop at
+  // the box: the one's onset and the other's offset are dated from the same rows at rest)
+  // begins after it.
+  dropHandedOver(merged);
+  // The last motion of each entity may still be joined by a later one across a pause.
+  std::vector<int> last_on(spec_.entities.size(), -1);
+  for (const auto& m : merged) last_on[m.entity] = std::max(last_on[m.entity], m.on_row);
+  // 3. Steps: motions that overlap in time; a step ends when every one of them has stopped.
+  std::vector<int> group_off;  // [group] its last offset row
+  std::vector<Group> groups = groupSteps(std::move(merged), group_off);
   // A group is final when no later motion can begin within it (the horizon is past its
   // end) nor join one of its motions across a pause (the horizon is pause_s past it, or
   // the entity has moved again since); groups are final in order.
   const MotionSegmenter::Horizon horizon = segmenter_.horizon();
-  const int h_row = horizon.row;
-  const double h_t = horizon.t;
-  size_t final_groups = 0;
-  for (; final_groups < groups.size() && !at_end; ++final_groups) {
-    const Group& g = groups[final_groups];
-    bool final = group_off[final_groups] < h_row;
-    for (const auto& m : g.motions)
-      final =
-          final && m.whole_off_row < h_row && (h_t - m.whole_off_t > options_.pause_s || last_on[m.entity] > m.on_row);
-    if (!final) break;
-  }
-  if (at_end) final_groups = groups.size();
+  const size_t final_groups = at_end ? groups.size() : finalGroups(groups, group_off, last_on, horizon);
   if (final_groups > 0) {
     const int last_off = group_off[final_groups - 1];
     // A motion cut in two stays while its second piece is in a step not decided yet.
@@ -493,7 +498,7 @@ void Labeller::decide(bool at_end) {
   // pause_s after it); none ahead: when motions arrive (a running motion holds it back).
   for (const auto& m : pending_)
     for (const double when : {m.off_t, m.off_t + options_.pause_s})
-      if (when >= h_t) next_check_t_ = std::min(next_check_t_, when);
+      if (when >= horizon.t) next_check_t_ = std::min(next_check_t_, when);
 }
 
 namespace {
