@@ -17,7 +17,9 @@
 // (a place behind another at the body they meet at): it stands where it is until that one
 // stands (exec::RobotController), so it never seals the way in of the one whose place is
 // nearer by getting there first. The places of a meeting are taken from the inside out.
-// Onto a flat goal nothing queues (the goal has no body to be reached past).
+// Onto a flat goal (no body to be reached past), a robot is queued behind one bound for the
+// same goal when its place lies on that one's straight way in and not the other way round
+// -- unless it already stands on that way (waiting would unseal nothing).
 //
 // Owns: the rule. Must not: know ROS, or decide where motions end (task/end_point.h).
 // Units: metres; table frame.

@@ -11,6 +11,18 @@ namespace {
 std::pair<int, int> ordered(int a, int b) {
   return {std::min(a, b), std::max(a, b)};
 }
+
+/// Whether a body of `radius_m` at `place` lies on the straight way of a body of
+/// `mover_radius_m` from `from` to `to`: the mover would touch it before its end (at its
+/// end they may meet, as places do).
+bool onWayIn(const Eigen::Vector2d& place, double radius_m, const Eigen::Vector2d& from, const Eigen::Vector2d& to,
+             double mover_radius_m) {
+  const Eigen::Vector2d way = to - from;
+  if (way.squaredNorm() < 1e-12) return false;
+  const double t = (place - from).dot(way) / way.squaredNorm();
+  if (t >= 1) return false;
+  return (place - (from + std::max(0.0, t) * way)).norm() < radius_m + mover_radius_m;
+}
 }  // namespace
 
 MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
@@ -32,11 +44,20 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
   // Queued: its end point does not reach its target (a body), only robots ending nearer it.
   const bool queued = !load && at_target != bodies.end() &&
                       !endsAgainst(end_point, radius_m, at_target->final_position, at_target->radius_m, reach_m);
+  // Onto a flat goal: queued behind a robot bound for it whose straight way in its place
+  // lies on, and not the other way round, unless it stands on that way already (then
+  // waiting unseals nothing).
+  const bool to_flat_goal = !load && !target.empty() && at_target == bodies.end();
   for (const BodyAtStart& b : bodies) {
     if (&b == load) continue;
+    const bool same_meeting = b.step == step && !b.object && b.target == target && b.name != target;
+    if (to_flat_goal && same_meeting && onWayIn(end_point, radius_m, b.position, b.final_position, b.radius_m) &&
+        !onWayIn(position, radius_m, b.position, b.final_position, b.radius_m) &&
+        !onWayIn(b.final_position, b.radius_m, position, end_point, radius_m))
+      out.after.insert(b.name);
     if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, reach_m)) {
       out.ends_against.insert(b.name);
-      if (queued && b.step == step && !b.object && b.target == target && b.name != target &&
+      if (queued && same_meeting &&
           (b.final_position - at_target->final_position).norm() < (end_point - at_target->final_position).norm())
         out.after.insert(b.name);
     }

@@ -80,6 +80,31 @@ TEST(MotionContacts, ARobotWhoseEndLiesBehindAnotherMoversOfItsStepIsQueuedBehin
   EXPECT_TRUE(motionContacts(r3.position, r, r3_end, 3, "move", "G1", {to_goal}, reach, arrival).after.empty());
 }
 
+// Two robots bound for one flat goal (Task 4's step 2): the one whose place beside the goal
+// lies on the other's way in waits until that one stands; the other does not wait. Without
+// the wait, the first there seals the goal: the second, held off it by the filter, never
+// ends (seen on the simulated table through the real-robot graph).
+TEST(MotionContacts, OntoAFlatGoalARobotWhosePlaceLiesOnAnothersWayInWaitsForIt) {
+  const double r = task::kDefaultRobotRadius;
+  const auto body = [](std::string name, Vector2d now, Vector2d final_at) {
+    BodyAtStart b;
+    b.name = std::move(name), b.position = now, b.final_position = final_at, b.radius_m = task::kDefaultRobotRadius;
+    b.step = 1, b.action = "move", b.target = "G1";
+    return b;
+  };
+  const Vector2d g1(0.906, 0.475);
+  const BodyAtStart r3 = body("R3", {0.471, 0.269}, g1);
+  const BodyAtStart r4 = body("R4", {0.491, 0.745}, g1 + Vector2d(-0.038, 0.024));
+  const double reach = 0.02, arrival = 0.03;
+  EXPECT_EQ(motionContacts(r4.position, r, r4.final_position, 1, "move", "G1", {r3}, reach, arrival).after,
+            (std::set<std::string>{"R3"}));
+  EXPECT_TRUE(motionContacts(r3.position, r, r3.final_position, 1, "move", "G1", {r4}, reach, arrival).after.empty());
+  // Its place off the other's way (beside the goal on its own side): no wait.
+  const BodyAtStart aside = body("R4", r4.position, g1 + Vector2d(0, 2 * r + 0.01));
+  EXPECT_TRUE(
+      motionContacts(aside.position, r, aside.final_position, 1, "move", "G1", {r3}, reach, arrival).after.empty());
+}
+
 namespace {
 
 ControllerParams params() {
