@@ -203,7 +203,8 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   req.id = nextId();
   req.step = static_cast<int>(steps_.size());
   // The policy's history begins where the task was last begun again (loseRobot).
-  req.history.assign(history_.begin() + static_cast<std::ptrdiff_t>(history_from_), history_.end());
+  req.history.assign(history_.begin() + static_cast<std::ptrdiff_t>(std::min(history_from_, history_.size() - 1)),
+                     history_.end());
   for (size_t i = 0; i < req.history.size(); ++i) req.history[i].row = static_cast<int>(i);
   req.lost = lostEntities();
   pending_decision_ = req.id;
