@@ -317,12 +317,16 @@ TEST(Recorder, TheSceneIsAtRestOnlyWhenNothingMovedForStillSeconds) {
       latest.update(c.spec.entities[i].name, {0.1 * static_cast<double>(i) + (i == 0 ? dx : 0.0), 0.5}, false, true, t);
   };
   const std::string r1 = c.spec.entities[0].name;
-  // Just seen: not known to be at rest yet.
+  // Just seen: not known to be at rest yet, but nothing moved (nobody has to let go).
   all(0.0, 0.0);
-  EXPECT_NE(latest.moving(0.1), "");
+  EXPECT_EQ(latest.moving(0.1), "");
+  std::string everyone;
+  for (const auto& e : c.spec.entities) everyone += (everyone.empty() ? "" : ", ") + e.name;
+  EXPECT_EQ(latest.appeared(0.1), everyone);
   // At rest (tracker noise of a millimetre is no motion) for still_s: ready.
   for (double t = 0.0; t <= still_s + 0.05; t += 0.05) all(t, 0.001 * std::sin(40 * t));
   EXPECT_EQ(latest.moving(still_s + 0.05), "");
+  EXPECT_EQ(latest.appeared(still_s + 0.05), "");
   // R1 is moved by a hand (2 cm): it is named, the others are not, until it rests again.
   double t = still_s + 0.1;
   for (int k = 0; k < 5; ++k, t += 0.05) all(t, 0.005 * k);
