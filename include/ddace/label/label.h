@@ -182,6 +182,14 @@ class Labeller {
   bool sweptBy(const Motion& o, const Motion& r) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
   bool pausedOnItsWay(const Motion& a, const Motion& b) const;
+  /// Object motion `a` went with no robot's motion, at one place with a resting robot all the
+  /// way, and `b`, its next, went with that robot's motion: one carry (a box swung round a
+  /// robot turning in place, then pushed on by it).
+  bool swungBeforeItsCarry(const Motion& a, const Motion& b) const;
+  /// Robot motion `a` (its `load` in front, -1 for none) stopped short of `body` and `b`, its
+  /// next motion, went on to touch it: the last of the approach (a person closing in), not a
+  /// motion of its own.
+  bool closedIn(const Motion& a, const Motion& b, int body, int load) const;
   /// An object was with `a`'s robot (at a's onset, or set moving at its touch during `a`)
   /// and when it stopped, and went on farther than a nudge before `b` began: it let go.
   bool letGo(const Motion& a, const Motion& b) const;

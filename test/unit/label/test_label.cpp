@@ -574,6 +574,67 @@ TEST(Label, ARobotTurningWithItsBoxCarriesIt) {
   EXPECT_TRUE(inf.notes.empty());
 }
 
+TEST(Label, ARobotThatStopsShortOfItsBoxAndClosesInFetchedIt) {
+  // Two robots fetch a box each, then push them to their goals. R2 stops 2.5 cm short of B2,
+  // rests, and closes in to touch it slowly while R1 is still on its way to B1; a second
+  // after R1 arrives both push. R2's closing in is the last of its approach (it stood near
+  // the box, not yet touching it, when it set off again), not the start of its push: two
+  // steps, not one.
+  Scene s;
+  s.spec.entities.push_back({"B2", task::EntityKind::Object, "box"});
+  s.d.has_label_columns.assign(6, false);
+  s.pos[1] = {0.1, 0.6};
+  s.pos[4] = {0.9, 0.6};        // G2, east of B2
+  s.pos.push_back({0.5, 0.6});  // B2
+  const Vector2d u = Vector2d(1, 1).normalized(), at_b2(0.5 - 0.042, 0.6);
+  const Vector2d r1_from = s.pos[0], r1_to = Vector2d(0.5, 0.5) - 0.042 * u, r2_from = s.pos[1],
+                 r2_short = at_b2 - Vector2d(0.025, 0);
+  const auto ease = [](double tau, double from, double seconds) {
+    const double v = std::clamp((tau - from) / seconds, 0.0, 1.0);
+    return v * v * (3 - 2 * v);
+  };
+  s.rest(1);
+  for (int i = 0; i <= 4 * 30; ++i) {
+    const double tau = i / 30.0;
+    s.pos[0] = r1_from + (r1_to - r1_from) * ease(tau, 0, 4);
+    s.pos[1] = r2_from + (r2_short - r2_from) * ease(tau, 0, 1.5) + (at_b2 - r2_short) * ease(tau, 2.2, 1.2);
+    s.emit();
+  }
+  s.rest(1);
+  s.move({{0, Vector2d(0.9, 0.9) - 0.042 * u}, {2, {0.9, 0.9}}, {1, Vector2d(0.9 - 0.042, 0.6)}, {5, {0.9, 0.6}}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec),
+            (Steps{{"R1:move:B1", "R2:move:B2"}, {"R1:move:G1", "R2:move:G2", "B1:move:G1", "B2:move:G2"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+}
+
+TEST(Label, ABoxSwungRoundItsRobotTurningInPlaceIsTheStartOfItsCarry) {
+  // R1 fetches the box (touching its west side); to push it north it turns in place, less
+  // than a motion reads (the tracker sees R1 still), sweeping the box a quarter turn round
+  // it to its north side, and half a second later pushes it to G1. The box did not move
+  // alone: its swing is the start of R1's carry, in the carry's step.
+  Scene s;
+  const Vector2d at_box(0.458, 0.5);
+  s.pos[0] = {0.1, 0.5};
+  s.pos[3] = {0.458, 0.9};  // G1, north
+  s.rest(1);
+  s.move({{0, at_box, 0, 2}});
+  s.rest(1);
+  for (int i = 1; i <= 15; ++i) {
+    const double v = i / 15.0, a = M_PI / 2 * v * v * (3 - 2 * v);
+    s.pos[2] = at_box + 0.042 * Vector2d(std::cos(a), std::sin(a));
+    s.emit();
+  }
+  s.rest(0.5);
+  s.move({{0, Vector2d(0.458, 0.9 - 0.042), 0, 2}, {2, {0.458, 0.9}, 0, 2}});
+  s.rest(1);
+  const auto inf = s.infer();
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:B1"}, {"R1:move:G1", "B1:move:G1"}}));
+  EXPECT_EQ(inf.steps[1].tokens[1].carrier, 0);
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+}
+
 TEST(Label, ARobotEndingWithABoxThatMovedAloneIsListed) {
   // R1 drives 20 cm onto G1 while the box swings 19 cm round to its side (a robot turning
   // with a box, as a tracker may see it): no robot stayed with the box, so it "moved
