@@ -934,7 +934,6 @@ void Labeller::markUnsure(std::vector<InferredToken>& tokens, size_t notes_from)
 void Labeller::emit(Group& group, bool aligned) {
   const size_t k = emitted_groups_++;
   const size_t notes_from = out_.notes.size();
-  for (auto& nt : group.notes) out_.notes.push_back(std::move(nt));
   const auto& g = group.motions;
 
   InferredStep step;
@@ -943,6 +942,11 @@ void Labeller::emit(Group& group, bool aligned) {
   for (const auto& m : g)
     step.keyframe_row = std::min(step.keyframe_row, m.on_row), step_off = std::max(step_off, m.off_row);
   noteStepsDiffer(k, g, step.keyframe_row);
+  // An entity that moved twice in one step (taken as one motion): doubtful where two steps
+  // may have run together; not when this step and every one before it have the example's
+  // kinds and numbers of movers.
+  if (!example_ || steps_differ_)
+    for (auto& nt : group.notes) out_.notes.push_back(std::move(nt));
   if (aligned) placeInPlace(ex_inplace_before_[k], prev_off_ + 1, step.keyframe_row - 1);
 
   // Loads (an object that stayed with a moving robot of the step all the way), then targets.

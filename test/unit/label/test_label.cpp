@@ -635,6 +635,46 @@ TEST(Label, ABoxSwungRoundItsRobotTurningInPlaceIsTheStartOfItsCarry) {
   EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
 }
 
+TEST(Label, ARobotThatRestsMidwayWhileTheOtherOfItsStepDrivesOnIsNotListed) {
+  // R1 and R2 set off together; R1 rests 3.5 s halfway (longer than a pause) and goes on to
+  // G1 while R2 is still driving slowly to G2: R1's two motions are one step's, taken as
+  // one. The step has the example's movers (two robots), so no two steps ran together:
+  // nothing to check.
+  const auto scene = [](bool rests) {
+    Scene s;
+    s.pos[1] = {0.5, 0.05};
+    s.pos[2] = {0.5, 0.95};  // the box, out of the way
+    s.rest(1);
+    const Vector2d r1_from = s.pos[0], half(0.5, 0.5), g1 = s.pos[3], r2_from = s.pos[1], g2 = s.pos[4];
+    const auto ease = [](double tau, double from, double seconds) {
+      const double v = std::clamp((tau - from) / seconds, 0.0, 1.0);
+      return v * v * (3 - 2 * v);
+    };
+    for (int i = 0; i <= 8 * 30; ++i) {
+      const double tau = i / 30.0;
+      s.pos[0] = rests ? Vector2d(r1_from + (half - r1_from) * ease(tau, 0, 2) + (g1 - half) * ease(tau, 5.5, 2))
+                       : Vector2d(r1_from + (g1 - r1_from) * ease(tau, 0, 4));
+      s.pos[1] = r2_from + (g2 - r2_from) * ease(tau, 0, 8);
+      s.emit();
+    }
+    s.rest(1);
+    return s;
+  };
+  Scene clean = scene(false);
+  task::Demonstration labelled = clean.d;
+  label::applyLabels(labelled, clean.infer());
+  const auto example = label::Example::fromDemonstration(labelled, clean.spec);
+  Scene s = scene(true);
+  const auto inf = s.infer(&example);
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1", "R2:move:G2"}}));
+  EXPECT_FALSE(inf.steps[0].tokens[0].unsure) << inf.steps[0].tokens[0].doubt;
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+  // Without an example nothing tells whether two steps ran together: listed.
+  const auto alone = s.infer();
+  ASSERT_EQ(tokens(alone, s.spec), (Steps{{"R1:move:G1", "R2:move:G2"}}));
+  EXPECT_TRUE(alone.steps[0].tokens[0].unsure);
+}
+
 TEST(Label, ARobotEndingWithABoxThatMovedAloneIsListed) {
   // R1 drives 20 cm onto G1 while the box swings 19 cm round to its side (a robot turning
   // with a box, as a tracker may see it): no robot stayed with the box, so it "moved
