@@ -145,6 +145,9 @@ class Labeller {
   /// after it stopped, in front of it.
   void readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned,
                   const std::vector<Eigen::Vector2d>& step_end);
+  /// `m` stopped within the arrival radius of touching `body`, the body ahead of it (within a
+  /// right angle of its heading).
+  bool stoppedShortFacing(const Motion& m, int body) const;
   /// Between the tied end points of `ep`: the example's step k (aligned), the example's
   /// choice between such kinds, or its only motion of the kind; else noted.
   void resolveTie(InferredToken& tok, const Motion& m, const EndPoint& ep, size_t k, bool aligned);

@@ -769,6 +769,15 @@ void Labeller::resolveTie(InferredToken& tok, const Motion& m, const EndPoint& e
        m.entity);
 }
 
+// Stopped within the arrival radius (the task's precision of an end point) of touching a
+// body ahead of it (within a right angle of its heading): a person stopping short of the
+// body it drove to, not one stopping on its way past it.
+bool Labeller::stoppedShortFacing(const Motion& m, int body) const {
+  const double contact = spec_.contactDistance(m.entity, body);
+  const Vector2d to = m.at_offset[body] - m.end;
+  return contact > 0 && to.norm() - contact <= spec_.arrival_radius && m.end_dir.dot(to.normalized()) > 0;
+}
+
 void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned,
                           const std::vector<Vector2d>& step_end) {
   const auto& E = spec_.entities;
@@ -783,7 +792,7 @@ void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t 
   tok.token.target = ep.target;
   if (ep.target < 0) {
     tok.token.target = ep.nearest;
-    if (ep.nearest >= 0)
+    if (ep.nearest >= 0 && !stoppedShortFacing(m, ep.nearest))
       note(m.off_row,
            E[m.entity].name + " stopped halfway: " + metres(ep.nearest_m) + " m from " + E[ep.nearest].name +
                ", the nearest entity, taken as its target; or it went on later to another",

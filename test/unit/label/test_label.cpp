@@ -675,6 +675,27 @@ TEST(Label, ARobotThatRestsMidwayWhileTheOtherOfItsStepDrivesOnIsNotListed) {
   EXPECT_TRUE(alone.steps[0].tokens[0].unsure);
 }
 
+TEST(Label, ARobotStoppingShortOfABodyAheadOfItWithinTheArrivalRadiusIsNotListed) {
+  // R1 drives north and stops 2 cm short of R2 (beyond the half radius a side touch reads,
+  // within the arrival radius), R2 ahead of it 60 degrees to its right: taken as sent to R2,
+  // nothing to check. The same stop with R2 abeam behind it (100 degrees: it drove past)
+  // may be a stop on its way elsewhere: listed.
+  for (const double deg : {60.0, 100.0}) {
+    Scene s;
+    const Vector2d r2(0.5, 0.5), at = Vector2d(std::sin(deg * M_PI / 180), std::cos(deg * M_PI / 180));
+    s.pos[1] = r2;
+    s.pos[2] = {0.5, 0.95};  // the box, out of the way
+    const Vector2d end = r2 - 0.064 * at;
+    s.pos[0] = {end.x(), 0.1};
+    s.rest(1);
+    s.move({{0, end}});
+    s.rest(1);
+    const auto inf = s.infer();
+    ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2"}})) << deg;
+    EXPECT_EQ(inf.steps[0].tokens[0].unsure, deg > 90) << deg;
+  }
+}
+
 TEST(Label, ARobotEndingWithABoxThatMovedAloneIsListed) {
   // R1 drives 20 cm onto G1 while the box swings 19 cm round to its side (a robot turning
   // with a box, as a tracker may see it): no robot stayed with the box, so it "moved
