@@ -3,7 +3,9 @@
 footprint where it started (dashed) and where it ended (solid), every planned path (thin,
 with its +-2 sigma band) and every executed path, one colour per entity, the goals as flat
 prints, and the run's closest approach between two bodies (with its clearance): red
-only when that pair collided, else grey; collisions are listed in the title. Below it, the
+only when that pair collided, else grey; collisions are listed in the title. No label is
+drawn over another: one that would be is moved to the nearest free spot around its point,
+with a thin line back to it (a box carried by its robot, on its goal). Below it, the
 run in time: one row per robot, its segments as bars, and when it waited and for whom
 (hatched: from when it stood until its next segment went out, released by the segment of
 another entity that ended last before then). Reads the run.json that execution_monitor_node
@@ -84,11 +86,48 @@ def timeline(ax, segments, colour):
     ax.grid(axis="x", alpha=0.3)
 
 
-def main():
-    if len(sys.argv) != 3:
-        sys.exit(__doc__)
-    with open(sys.argv[1]) as f:
-        run = json.load(f)
+def overlaps(box, placed):
+    return sum(max(0.0, min(box.x1, p.x1) - max(box.x0, p.x0)) * max(0.0, min(box.y1, p.y1) - max(box.y0, p.y0))
+               for p in placed)
+
+
+def place_labels(fig, ax, labels):
+    """Draws the labels in order, each where it overlaps no label drawn before it: at its own
+    offset if free, else at the nearest free spot around its point (with a thin line back to
+    it), else where it overlaps least. Returns the annotations."""
+    renderer = fig.canvas.get_renderer()
+    placed, drawn = [], []
+    for label in labels:
+        dx, dy = label["offset"]
+        tries = [(dx, dy)] + [(dx + k * math.cos(a), dy + k * math.sin(a)) for k in (10, 20, 32, 48)
+                              for a in [i * math.pi / 4 for i in (2, 6, 0, 4, 1, 3, 5, 7)]]
+        best = None
+        for off in tries:
+            note = ax.annotate(label["text"], label["xy"], xytext=off, textcoords="offset points",
+                               fontsize=label["fontsize"], color=label["color"], ha=label["ha"], va=label["va"],
+                               bbox=label.get("bbox"))
+            box = note.get_window_extent(renderer).expanded(1.05, 1.1)
+            cost = overlaps(box, placed)
+            if best is None or cost < best[0]:
+                if best is not None:
+                    best[1].remove()
+                best = (cost, note, box, off)
+            else:
+                note.remove()
+            if cost == 0:
+                break
+        cost, note, box, off = best
+        if off != (dx, dy):
+            ax.annotate("", label["xy"], xytext=off, textcoords="offset points",
+                        arrowprops=dict(arrowstyle="-", color=label["color"], lw=0.4, alpha=0.6))
+        placed.append(box)
+        drawn.append(note)
+    return drawn
+
+
+def draw(run):
+    """The figure of one run and its labels (as placed)."""
+    name_labels, time_labels = [], []  # placed last: names first, then the paths' start times
     bodies = run.get("bodies") or []
     names = [b["name"] for b in bodies] or sorted({s["entity"] for s in run["segments"]})
     cmap = plt.get_cmap("tab20")
@@ -104,8 +143,8 @@ def main():
             ax.plot(*zip(*planned), color=c, lw=0.8, ls="--")
         if executed:
             ax.plot(*zip(*executed), color=c, lw=1.6)
-            ax.annotate("t=%.1fs" % seg["sent_s"], executed[0], fontsize=6, xytext=(2, -8),
-                        textcoords="offset points", color=c)
+            time_labels.append(dict(text="t=%.1fs" % seg["sent_s"], xy=executed[0], offset=(2, -8), fontsize=6,
+                                    color=c, ha="left", va="top"))
     for b in bodies:
         c = colour[b["name"]]
         r = b.get("radius_m", 0.02)
@@ -121,9 +160,9 @@ def main():
             # Goals are labelled below their print, bodies above theirs: a box on its goal
             # keeps both names legible.
             below = flat
-            ax.annotate(b["name"], b["end"], fontsize=8, ha="center", va="top" if below else "bottom",
-                        xytext=(0, -(r * 400 + 2) if below else (r * 400 + 2)), textcoords="offset points",
-                        color="black", bbox=dict(boxstyle="round,pad=0.15", fc="white", ec=c, alpha=0.8, lw=0.6))
+            name_labels.append(dict(text=b["name"], xy=b["end"], offset=(0, -(r * 400 + 2) if below else (r * 400 + 2)),
+                              fontsize=8, color="black", ha="center", va="top" if below else "bottom",
+                              bbox=dict(boxstyle="round,pad=0.15", fc="white", ec=c, alpha=0.8, lw=0.6)))
     near = run.get("closest")
     if near:
         # Red is for an alarm only: the closest pair collided. Otherwise the closest approach
@@ -136,10 +175,11 @@ def main():
         for name, at in ((near["a"], near["at_a"]), (near["b"], near["at_b"])):
             r = next((b.get("radius_m", 0.02) for b in bodies if b["name"] == name), 0.02)
             ax.add_patch(Circle(at, r, fill=False, ec=tone, lw=1.5 if alarm else 0.8, ls="-" if alarm else ":"))
-        ax.annotate("%s: %s-%s %.1f cm at t=%.1fs" % ("collision" if alarm else "closest approach", near["a"],
-                                                        near["b"], 100 * near["clearance_m"], near["time_s"]),
-                    ((xa + xb) / 2, (ya + yb) / 2), fontsize=8, color=tone, xytext=(6, 6),
-                    textcoords="offset points")
+        name_labels.append(dict(text="%s: %s-%s %.1f cm at t=%.1fs" % ("collision" if alarm else "closest approach",
+                                                                 near["a"], near["b"], 100 * near["clearance_m"],
+                                                                 near["time_s"]),
+                          xy=((xa + xb) / 2, (ya + yb) / 2), offset=(6, 6), fontsize=8, color=tone, ha="left",
+                          va="bottom"))
     ax.set_aspect("equal")
     ax.autoscale_view()
     ax.set_xlabel("x (m)")
@@ -152,6 +192,16 @@ def main():
                                               (" (" + collided + (", ..." if len(hits) > 6 else "") + ")")
                                               if hits else ""), fontsize=9)
     fig.tight_layout()
+    fig.set_dpi(110)
+    return fig, place_labels(fig, ax, name_labels + time_labels)
+
+
+def main():
+    if len(sys.argv) != 3:
+        sys.exit(__doc__)
+    with open(sys.argv[1]) as f:
+        run = json.load(f)
+    fig, _ = draw(run)
     fig.savefig(sys.argv[2], dpi=110)
 
 

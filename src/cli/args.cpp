@@ -128,8 +128,8 @@ double Args::getDouble(const std::string& flag, double fallback) const {
 
 std::string unlabelledAdvice(const std::string& dir, bool all) {
   if (all) return "`ddace label " + dir + " --out DIR` infers their labels (then train on DIR)";
-  return "ddace label takes a directory of unlabelled demonstrations only: move these into a task directory of their "
-         "own (with a copy of task.yaml) and label that, or record them again";
+  return "`ddace label " + dir +
+         " --out DIR` infers their labels and copies the labelled demonstrations as they are (then train on DIR)";
 }
 
 }  // namespace ddace::cli

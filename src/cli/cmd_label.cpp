@@ -35,6 +35,11 @@ std::string stepText(const label::InferredStep& step, const task::TaskSpec& spec
   return s + "]";
 }
 
+/// Where a demonstration's copy goes in the output directory being written (`tmp`).
+std::string inDemos(const std::string& tmp, const task::DemonstrationSummary& d) {
+  return (fs::path(tmp) / "demos" / fs::path(d.source).filename()).string();
+}
+
 int runLabel(const std::vector<std::string>& argv) {
   Args args(argv, {"--out", "--example"}, {"--strict", "--force"});
   args.expectAtMostPositional(1);
@@ -48,17 +53,21 @@ int runLabel(const std::vector<std::string>& argv) {
   const task::TaskDirSummary dir = task::summarizeTaskDir(in);
   if (!dir.errors.empty()) throw Error(dir.errors);
   const task::TaskSpec& spec = dir.spec;
-  std::vector<Diagnostic> labelled;
-  for (const auto& d : dir.demos)
-    if (!d.steps.empty())
-      labelled.push_back({d.source, d.steps.front().keyframe_row + 2, 0,
-                          "already labelled (" + std::to_string(d.steps.size()) +
-                              " steps): ddace label infers the labels of unlabelled demonstrations only. The "
-                              "recorder labels what it records when its recorder.yaml says infer_labels: true "
-                              "(the default): such a directory needs no ddace label, check it with ddace "
-                              "validate. Record with infer_labels: false to label afterwards"});
-  if (!labelled.empty()) throw Error(labelled);
   if (dir.demos.empty()) throw Error(Diagnostic{in, 0, 0, "no demonstrations in demos/ to label"});
+  // A labelled demonstration (the recorder's, or one labelled by hand) is kept as it is:
+  // only the unlabelled ones are inferred, so a directory of both loses nothing.
+  std::vector<const task::DemonstrationSummary*> unlabelled, labelled;
+  for (const auto& d : dir.demos) (d.steps.empty() ? unlabelled : labelled).push_back(&d);
+  if (unlabelled.empty())
+    throw Error(Diagnostic{
+        in, 0, 0,
+        "every demonstration is already labelled (" + std::to_string(labelled.size()) +
+            "): nothing for ddace label to infer. The recorder labels what it records when its recorder.yaml says "
+            "infer_labels: true (the default): check them with ddace validate and train on " +
+            in + " itself; scripts/label_keyboard.py --review FILE corrects one"});
+  for (const auto* d : labelled)
+    std::cout << fs::path(d->source).filename().string() << ": already labelled (" << d->steps.size()
+              << " steps): copied as it is\n";
 
   std::optional<label::Example> example;
   if (args.has("--example")) {
@@ -74,7 +83,8 @@ int runLabel(const std::vector<std::string>& argv) {
   std::vector<size_t> spill_from;
   size_t notes = 0;
   std::vector<std::string> to_review;  // demonstrations with something to check
-  for (const auto& d : dir.demos) {
+  for (const task::DemonstrationSummary* demo : unlabelled) {
+    const task::DemonstrationSummary& d = *demo;
     spill_from.push_back(spill.size());
     std::string shown;
     size_t steps = 0, unsure = 0;
@@ -97,7 +107,7 @@ int runLabel(const std::vector<std::string>& argv) {
     notes += demo_notes;
   }
   spill_from.push_back(spill.size());
-  std::cout << dir.demos.size() - to_review.size() << " of " << dir.demos.size() << " demonstrations usable";
+  std::cout << unlabelled.size() - to_review.size() << " of " << unlabelled.size() << " demonstrations usable";
   for (size_t i = 0; i < to_review.size(); ++i) std::cout << (i ? ", " : "; to review: ") << to_review[i];
   std::cout << "\n";
   if (notes > 0 && args.has("--strict")) {
@@ -111,11 +121,12 @@ int runLabel(const std::vector<std::string>& argv) {
       [&](const std::string& tmp) {
         fs::create_directories(fs::path(tmp) / "demos");
         writeTextFile((fs::path(tmp) / "task.yaml").string(), readTextFile((fs::path(in) / "task.yaml").string()));
-        for (size_t i = 0; i < dir.demos.size(); ++i) {
-          const std::string target = (fs::path(tmp) / "demos" / fs::path(dir.demos[i].source).filename()).string();
+        for (const auto* d : labelled) fs::copy_file(d->source, inDemos(tmp, *d));  // byte for byte, of any size
+        for (size_t i = 0; i < unlabelled.size(); ++i) {
+          const std::string target = inDemos(tmp, *unlabelled[i]);
           OutputFile file(target);
           label::LabelCursor cursor(spill.reader(spill_from[i], spill_from[i + 1]), spec.entities.size());
-          label::writeLabelledRecording(dir.demos[i].source, spec, inferred[i].labelled, cursor, file.stream());
+          label::writeLabelledRecording(unlabelled[i]->source, spec, inferred[i].labelled, cursor, file.stream());
           file.commit();
           // Counting the steps only: memory independent of the recording's steps too.
           const task::DemonstrationSummary back = task::summarizeDemonstrationCsv(target, spec, false);
@@ -126,7 +137,8 @@ int runLabel(const std::vector<std::string>& argv) {
         }
       },
       "ddace label", args.has("--force"));
-  std::cout << "wrote " << out << ": " << dir.demos.size() << " labelled demonstrations"
+  std::cout << "wrote " << out << ": " << unlabelled.size() << " labelled demonstrations"
+            << (labelled.empty() ? std::string() : " and " + std::to_string(labelled.size()) + " copied as they were")
             << (notes ? ", " + std::to_string(notes) + " item(s) to check (above)" : std::string()) << "\n";
   return 0;
 }
@@ -135,7 +147,8 @@ int runLabel(const std::vector<std::string>& argv) {
 
 DDACE_COMMAND({"label", "ddace label IN --out OUT [--example CSV] [--strict] [--force]",
                "infer the labels of unlabelled demonstrations from their motion, writing a labelled copy of IN "
-               "(--example: words from a demonstration labelled by hand, before task.yaml's action_rules; --strict: "
+               "(its labelled demonstrations copied as they are; --example: words from a demonstration labelled by "
+               "hand, before task.yaml's action_rules; --strict: "
                "write nothing when anything is uncertain; docs/labels.md)",
                runLabel});
 

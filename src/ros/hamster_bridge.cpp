@@ -20,6 +20,7 @@
 #include "ddace/task/task_spec.h"
 #include "ddace/hamster/config.h"
 #include "ddace/hamster/link.h"
+#include "ddace/hamster/link_dir.h"
 #include "ddace/ros/hamster_conversions.h"
 
 #include "command_sources.h"
@@ -45,6 +46,18 @@ std::vector<std::string> taskRobots(const std::string& task_dir, const BridgeCon
   return robots;
 }
 
+/// `name` in this node's namespace, e.g. /mock_hamster beside /hamster_bridge.
+std::string siblingName(const std::string& name) {
+  return ros::names::append(ros::names::parentNamespace(ros::this_node::getName()), name);
+}
+
+/// The pid parameter `param` states (cached: the master tells of changes), if set.
+std::optional<long> statedPid(const std::string& param) {
+  int pid = 0;
+  if (!ros::param::getCached(param, pid) || pid <= 0) return std::nullopt;
+  return pid;
+}
+
 }  // namespace
 
 class HamsterBridgeNode::Impl {
@@ -56,6 +69,11 @@ class HamsterBridgeNode::Impl {
     config_ = loadBridgeConfig(config_path);
     config_.port_dir = ddace::rosparam::param(pnh, "port_dir", config_.port_dir);
     config_.scan = ddace::rosparam::param(pnh, "scan", config_.scan);
+    const std::string mock_link_dir = ddace::rosparam::param<std::string>(pnh, "mock_link_dir", "");
+    if (!mock_link_dir.empty()) useMockLinks(config_, mock_link_dir);
+    // The pid the run's mock node states once it holds the link directory's claim.
+    const std::string mock_pid_param =
+        ros::names::append(ddace::rosparam::param<std::string>(pnh, "mock_node", siblingName("mock_hamster")), "pid");
     auto only = ddace::rosparam::param(pnh, "robots", std::vector<std::string>{});
     const std::string task = ddace::rosparam::param<std::string>(pnh, "task", "");
     std::string what = "parameter ~robots";
@@ -67,7 +85,12 @@ class HamsterBridgeNode::Impl {
     auto ports = std::make_shared<PortDirectory>();
     for (const auto& r : selectRobots(config_, only, what, config_path)) {
       auto robot = std::make_unique<Robot>(ddace::ros_command::load(pnh, r.name));
-      robot->link = std::make_unique<RobotLink>(r, config_, ports, transportFactoryFor(r, config_));
+      const TransportFactory factory =
+          mock_link_dir.empty()
+              ? transportFactoryFor(r, config_)
+              : mockLinkTransportFactory(
+                    mock_link_dir, [mock_pid_param] { return statedPid(mock_pid_param); }, config_.rtscts);
+      robot->link = std::make_unique<RobotLink>(r, config_, ports, factory);
       const std::string base = "/robots/" + r.name;
       Robot* raw = robot.get();
       robot->sensors = nh.advertise<ddace::HamsterSensors>(base + "/sensors", 10);
@@ -87,8 +110,12 @@ class HamsterBridgeNode::Impl {
                reach.c_str(), raw->sources.allowedList().c_str());
       robots_.push_back(std::move(robot));
     }
-    ROS_INFO("hamster_bridge: %zu robots; ports under %s, scanning [%s]", robots_.size(), config_.port_dir.c_str(),
-             join(config_.scan).c_str());
+    ROS_INFO("hamster_bridge: %zu robots; ports under %s, scanning [%s]%s", robots_.size(), config_.port_dir.c_str(),
+             join(config_.scan).c_str(),
+             mock_link_dir.empty() ? ""
+                                   : ("; mock Hamsters only: links to pseudo-terminals of the mock whose pid " +
+                                      mock_pid_param + " states, holding the directory's claim")
+                                         .c_str());
     diag_timer_ =
         nh.createSteadyTimer(ros::WallDuration(0.1), [this](const ros::SteadyTimerEvent&) { updater_.update(); });
   }

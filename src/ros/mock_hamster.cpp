@@ -2,6 +2,7 @@
 #include "ddace/ros/mock_hamster.h"
 
 #include <ros/ros.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -49,6 +50,9 @@ class MockHamsterNode::Impl {
     // This run's own links only: another live run's directory is refused, not shared.
     claim_ = std::make_unique<LinkDirClaim>(
         link_dir, link_names, "parameter " + pnh.resolveName("link_dir") + " (launch argument mock_link_dir)");
+    // Whose claim it is, for the bridge of this graph (its ~mock_link_dir): it opens no link
+    // of a directory another process holds.
+    pnh.setParam("pid", static_cast<int>(::getpid()));
     for (const MockRobotSettings& s : settings) {
       robots_.push_back(std::make_unique<MockRobot>(s));
       ROS_INFO("mock_hamster: %s (%s, %s) on %s -> %s", s.name.c_str(), modelName(s.model).c_str(),

@@ -92,6 +92,24 @@ class RecorderNode::Impl {
     }
   }
 
+  /// Why the scene at `t` is no start for a demonstration, "" when it is at rest. The first
+  /// row is every entity's start: a robot still being placed would start the demonstration
+  /// with a motion (and a goal moving then reads as a moved goal).
+  std::string notAtRest(double t) const {
+    const std::string moving = positions_->moving(t), appeared = positions_->appeared(t);
+    if (moving.empty() && appeared.empty()) return "";
+    std::ostringstream os;
+    os << "not started:";
+    if (!moving.empty())
+      os << " " << moving << " moved within the last " << positions_->stillSeconds()
+         << " s; a demonstration starts from a scene at rest: let go of everything, then start again";
+    if (!appeared.empty())
+      os << (moving.empty() ? "" : ";") << " " << appeared << " seen for less than " << positions_->stillSeconds()
+         << " s (the tracker has just begun to see " << (appeared.find(',') == std::string::npos ? "it" : "them")
+         << "), not yet known to be at rest: start again in a moment, nothing to do";
+    return os.str();
+  }
+
   bool onStart(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
     const auto p = positions_->all();
     if (recorder_->recording()) {
@@ -100,13 +118,8 @@ class RecorderNode::Impl {
       res.message = "no /ddace/entities received yet (is the tracker running?)";
     } else if (!p) {
       res.message = "not every entity has been seen yet: " + positions_->missing() + " (are their markers visible?)";
-    } else if (const std::string moving = positions_->moving(latest_->header.stamp.toSec()); !moving.empty()) {
-      // The first row is every entity's start: a robot still being placed would start the
-      // demonstration with a motion (and a goal moving then reads as a moved goal).
-      std::ostringstream os;
-      os << "not started: " << moving << " moved within the last " << positions_->stillSeconds()
-         << " s; a demonstration starts from a scene at rest: let go of everything, then start again";
-      res.message = os.str();
+    } else if (const std::string why = notAtRest(latest_->header.stamp.toSec()); !why.empty()) {
+      res.message = why;
     } else {
       try {
         t0_ = latest_->header.stamp;

@@ -118,8 +118,10 @@ struct EntityObservation {
 
 struct DecisionRequest {
   uint32_t id = 0;
-  int step = 0;                         ///< index of the step to decide (0-based)
-  std::vector<task::Snapshot> history;  ///< every decision's snapshot, oldest first; last = now
+  int step = 0;  ///< index of the step to decide (0-based)
+  /// Every decision's snapshot, oldest first; last = now. After a carrier was lost with its
+  /// load, from the decision that began the task again (Coordinator::loseRobot).
+  std::vector<task::Snapshot> history;
   /// Robots lost for good (CoordinatorConfig::robot_lost_after_s): the decision is made
   /// for the team without them (their positions in the snapshots mean nothing) and must
   /// give them no token.
@@ -335,7 +337,12 @@ class Coordinator {
   /// are used up, else re-plans it; re-decides only the latest step of a policy that reads
   /// the scene.
   void recover(TokenRef t, const std::string& why, bool target_moved, double now_s, CoordinatorOutput& out);
-  void redecide(TokenRef t, const std::string& why, double now_s, CoordinatorOutput& out);
+  /// `begin_again`: the policy is asked for its first step from the scene as it is (its
+  /// history starts again with this decision), not for the withdrawn one.
+  void redecide(TokenRef t, const std::string& why, double now_s, CoordinatorOutput& out, bool begin_again = false);
+  /// The load that the robot's unfinished motion `t` carries: an object's unfinished motion
+  /// of its step with its action and target ("" for none).
+  std::string loadOf(TokenRef t) const;
   /// Aborts naming `why` and returns false when `t` may not be recovered once more
   /// (`done` of max_replans done, or its entity or target not tracked).
   bool mayRecover(TokenRef t, int done, const std::string& why, CoordinatorOutput& out);
@@ -366,6 +373,7 @@ class Coordinator {
   std::string reason_;
   EntityObservation observation_;
   std::vector<task::Snapshot> history_;
+  size_t history_from_ = 0;  ///< the policy's history begins here (the task begun again)
   std::vector<StepRecord> steps_;
   uint32_t next_id_ = 1;
   uint32_t next_batch_ = 1;

@@ -11,8 +11,13 @@
 // Must not: delete or replace a file it did not create, or touch ROS.
 #pragma once
 
+#include <functional>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "ddace/hamster/config.h"
+#include "ddace/hamster/transport.h"
 
 namespace ddace::hamster {
 
@@ -39,5 +44,26 @@ class LinkDirClaim {
   bool created_dir_ = false;
   bool created_lock_ = false;
 };
+
+/// The pid that the live process holding `dir`'s claim wrote; nullopt when no live process
+/// holds it (no lock file, or its lock is free: the run that claimed it has ended).
+std::optional<long> claimHolder(const std::string& dir);
+
+/// The bridge of a run whose robots are mock Hamsters (a rehearsal) drives only that run's
+/// mock links, never a real dongle and never another run's mocks: `config` reduced to the
+/// links in `dir` (port_dir = dir, scan [hamster_*], no port hints, which could name a real
+/// port, and every robot serial: a BLE robot is simulated behind a link too).
+void useMockLinks(BridgeConfig& config, const std::string& dir);
+
+/// Why `port` is not a mock Hamster link of the run whose mock holds `dir`'s claim as process
+/// `mock_pid` (nullopt: that process is not known yet), or "" when it is: a path directly in
+/// `dir`, the directory claimed by that live process, the port a pseudo-terminal.
+std::string mockLinkProblem(const std::string& dir, const std::string& port, std::optional<long> mock_pid);
+
+/// Serial transports for useMockLinks: opening a port for which mockLinkProblem() names a
+/// problem throws that problem (the link keeps searching, its diagnostics say why).
+/// `mock_pid` is asked on every open (the mock may start after the bridge).
+TransportFactory mockLinkTransportFactory(const std::string& dir, std::function<std::optional<long>()> mock_pid,
+                                          bool rtscts);
 
 }  // namespace ddace::hamster

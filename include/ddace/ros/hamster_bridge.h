@@ -6,6 +6,11 @@
 //   ~port_dir (string, optional)  overrides the config's port_dir
 //   ~scan     (string list, optional) overrides the config's scan patterns ([] = hints only)
 //   ~robots   (string list, optional) drive only these robots of the config
+//   ~mock_link_dir (string, optional) a rehearsal: drive only the mock Hamsters' links in this
+//             directory (hamster::useMockLinks: port hints, scan and transports of the config
+//             ignored), and only while the directory's claim is held by the mock node of this
+//             graph, whose pid it states as ~mock_node/pid; anything else is not opened
+//   ~mock_node (string, default: mock_hamster beside this node) the mock node of this run
 //   ~diagnostic_period (double, default 1.0) diagnostics publication period, s
 // Per robot <name>:
 //   subscribes /robots/<name>/wheels  (ddace/WheelCommand, m/s per wheel)

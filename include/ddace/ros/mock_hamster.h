@@ -9,7 +9,9 @@
 //   ~link_dir (string, required)  directory (created) for the symlinks <link_dir>/hamster_<name>
 //                                  → pty slave; point the bridge's port_dir or hints here.
 //                                  Claimed for this run (hamster::LinkDirClaim): refused when
-//                                  another live run holds it or a link of ours is there already
+//                                  another live run holds it or a link of ours is there already;
+//                                  its pid is then set as ~pid, which the bridge's
+//                                  ~mock_link_dir checks the claim against
 //   ~robots   (string list, optional) simulate only these robots of the config (a name
 //             the config does not have stops the node, as in hamster_bridge_node)
 //   ~true_mps_per_unit (double, optional) the simulated robots' real speed per unit, to

@@ -63,9 +63,13 @@ class LatestPositions {
   std::optional<std::vector<Eigen::Vector2d>> all() const;
   /// The entities never measured, comma-separated in task order ("" when none).
   std::string missing() const;
-  /// The entities not at rest for still_s at time `t` (moved, or measured only since),
-  /// comma-separated in task order ("" when the whole scene is at rest).
+  /// The entities that moved within still_s before `t` (comma-separated in task order; ""
+  /// when none did). appeared(t) lists those seen for less than still_s: the scene is at
+  /// rest when both are "".
   std::string moving(double t) const;
+  /// The entities first measured within still_s before `t`: not yet known to be at rest
+  /// (a tracker just started, a marker just uncovered), comma-separated in task order.
+  std::string appeared(double t) const;
   /// Seconds the scene must be at rest before a demonstration starts.
   double stillSeconds() const { return still_s_; }
   /// How many entities' latest positions are stale.
@@ -86,6 +90,7 @@ class LatestPositions {
   std::vector<bool> stale_;
   std::vector<Eigen::Vector2d> rest_;  // where each entity rests (or last started to move)
   std::vector<double> rest_since_;     // since when
+  std::vector<double> first_seen_;
   std::vector<long> stale_rows_;
   std::vector<bool> moved_hidden_;  // reappeared farther than start_m from where it was hidden
   double still_m_ = 0, still_s_ = 0, start_m_ = 0;

@@ -163,6 +163,7 @@ void Coordinator::stopActive(CoordinatorOutput& out) {
 
 void Coordinator::clearRun() {
   history_.clear();
+  history_from_ = 0;
   steps_.clear();
   decisions_requested_ = 0;
   last_decision_.reset();
@@ -201,7 +202,10 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   DecisionRequest req;
   req.id = nextId();
   req.step = static_cast<int>(steps_.size());
-  req.history = history_;
+  // The policy's history begins where the task was last begun again (loseRobot).
+  req.history.assign(history_.begin() + static_cast<std::ptrdiff_t>(std::min(history_from_, history_.size() - 1)),
+                     history_.end());
+  for (size_t i = 0; i < req.history.size(); ++i) req.history[i].row = static_cast<int>(i);
   req.lost = lostEntities();
   pending_decision_ = req.id;
   decision_since_s_ = now_s;
@@ -382,7 +386,13 @@ void Coordinator::loseRobot(int e, const std::string& why, double now_s, Coordin
       latest = TokenRef{static_cast<int>(k), static_cast<int>(i)};
     }
   if (latest) {
-    redecide(*latest, name + " is lost: " + why, now_s, out);
+    // A carrier lost with its load leaves the load where no demonstrated step continues
+    // from: the task is begun again from the scene as it is (the policy's first step).
+    const std::string load = loadOf(*latest);
+    redecide(*latest, name + " is lost: " + why, now_s, out, !load.empty());
+    if (!load.empty() && running())
+      out.log.push_back(name + " was lost carrying " + load +
+                        ": the task is decided again from its first step, from the scene as it is");
     return;
   }
   advance(now_s, out);  // a decision may have waited for it to be tracked
@@ -409,7 +419,20 @@ void Coordinator::recover(TokenRef r, const std::string& why, bool target_moved,
   else replan(r, why, now_s, out);
 }
 
-void Coordinator::redecide(TokenRef r, const std::string& why, double now_s, CoordinatorOutput& out) {
+std::string Coordinator::loadOf(TokenRef r) const {
+  const StepRecord& s = steps_[static_cast<size_t>(r.step)];
+  const task::Token& carrier = s.tokens[static_cast<size_t>(r.index)].token;
+  if (!carrier.isMotion() || spec_.entities[static_cast<size_t>(carrier.entity)].kind != task::EntityKind::Robot)
+    return "";
+  for (const TokenRecord& t : s.tokens)
+    if (t.state != SegmentState::Done && t.token.isMotion() && t.token.action == carrier.action &&
+        t.token.target == carrier.target &&
+        spec_.entities[static_cast<size_t>(t.token.entity)].kind == task::EntityKind::Object)
+      return spec_.entities[static_cast<size_t>(t.token.entity)].name;
+  return "";
+}
+
+void Coordinator::redecide(TokenRef r, const std::string& why, double now_s, CoordinatorOutput& out, bool begin_again) {
   const auto k = static_cast<size_t>(r.step);
   if (step_redecisions_.size() <= k) step_redecisions_.resize(k + 1, 0);
   if (!mayRecover(r, step_redecisions_[k], why, out)) return;
@@ -427,6 +450,7 @@ void Coordinator::redecide(TokenRef r, const std::string& why, double now_s, Coo
   withdrawn_.push_back(std::move(s));
   steps_.pop_back();
   history_.pop_back();
+  if (begin_again) history_from_ = history_.size();
   dispatch_->withdrawLastStep();
   advance(now_s, out);  // asks for the step again from a snapshot of now
 }

@@ -7,7 +7,10 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <climits>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -104,6 +107,81 @@ void LinkDirClaim::release() {
   }
   if (created_dir_) ::rmdir(dir_.c_str());  // fails, and keeps it, unless it is empty
   created_dir_ = created_lock_ = false;
+}
+
+std::optional<long> claimHolder(const std::string& dir) {
+  const std::string lock_path = dir + "/" + LinkDirClaim::lockFileName();
+  const int fd = ::open(lock_path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return std::nullopt;
+  std::optional<long> holder;
+  if (::flock(fd, LOCK_SH | LOCK_NB) == 0) {
+    ::flock(fd, LOCK_UN);  // free: nobody holds the claim
+  } else if (errno == EWOULDBLOCK) {
+    char text[32] = {0};
+    const ssize_t n = ::pread(fd, text, sizeof text - 1, 0);
+    char* end = nullptr;
+    const long pid = n > 0 ? std::strtol(text, &end, 10) : 0;
+    holder = pid > 0 && end != text ? pid : -1;  // held, but by a pid it did not write (yet)
+  }
+  ::close(fd);
+  return holder;
+}
+
+void useMockLinks(BridgeConfig& config, const std::string& dir) {
+  config.port_dir = dir;
+  config.scan = {"hamster_*"};
+  for (RobotConfig& r : config.robots) {
+    r.port_hints.clear();
+    r.transport = TransportKind::Serial;
+  }
+}
+
+std::string mockLinkProblem(const std::string& dir, const std::string& port, std::optional<long> mock_pid) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path in_dir = fs::weakly_canonical(fs::path(dir), ec);
+  if (ec || fs::weakly_canonical(fs::path(port).parent_path(), ec) != in_dir || ec)
+    return port + " is not in the mock link directory " + dir;
+  if (!mock_pid) return "this run's mock Hamster node is not running yet (waiting for it before opening " + port + ")";
+  const std::optional<long> holder = claimHolder(dir);
+  if (!holder)
+    return dir + " is not claimed by a running mock Hamster node (" + port +
+           " may be a crashed run's link or someone else's file): not opened";
+  if (*holder != *mock_pid)
+    return dir + " is claimed by process " + std::to_string(*holder) + ", not by this run's mock Hamster node (pid " +
+           std::to_string(*mock_pid) + "): another run's robots, not opened";
+  char resolved[PATH_MAX];
+  if (!::realpath(port.c_str(), resolved)) return "cannot resolve " + port + ": " + std::strerror(errno);
+  if (std::string(resolved).rfind("/dev/pts/", 0) != 0)
+    return port + " leads to " + resolved + ", not to a mock Hamster's pseudo-terminal: not opened";
+  return "";
+}
+
+namespace {
+
+/// A serial port opened only after mockLinkProblem() found none.
+class MockLinkTransport : public SerialTransport {
+ public:
+  MockLinkTransport(std::string dir, std::string port, std::optional<long> mock_pid, bool rtscts)
+      : SerialTransport(port, rtscts), dir_(std::move(dir)), mock_pid_(mock_pid) {}
+  void open() override {
+    const std::string problem = mockLinkProblem(dir_, name(), mock_pid_);
+    if (!problem.empty()) throw Error(problem);
+    SerialTransport::open();
+  }
+
+ private:
+  std::string dir_;
+  std::optional<long> mock_pid_;
+};
+
+}  // namespace
+
+TransportFactory mockLinkTransportFactory(const std::string& dir, std::function<std::optional<long>()> mock_pid,
+                                          bool rtscts) {
+  return [dir, mock_pid = std::move(mock_pid), rtscts](const std::string& port) -> std::unique_ptr<Transport> {
+    return std::make_unique<MockLinkTransport>(dir, port, mock_pid(), rtscts);
+  };
 }
 
 }  // namespace ddace::hamster

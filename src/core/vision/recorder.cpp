@@ -329,6 +329,7 @@ LatestPositions::LatestPositions(const task::TaskSpec& spec)
       stale_(spec.entities.size(), false),
       rest_(spec.entities.size(), Eigen::Vector2d::Zero()),
       rest_since_(spec.entities.size(), 0.0),
+      first_seen_(spec.entities.size(), 0.0),
       stale_rows_(spec.entities.size(), 0),
       moved_hidden_(spec.entities.size(), false) {
   for (const auto& e : spec.entities) {
@@ -347,6 +348,7 @@ void LatestPositions::update(const std::string& name, const Eigen::Vector2d& pos
   const auto it = std::find(names_.begin(), names_.end(), name);
   if (it == names_.end()) return;
   const size_t i = static_cast<size_t>(it - names_.begin());
+  if (!positions_[i]) first_seen_[i] = t;
   if (!positions_[i] || (position_m - rest_[i]).norm() > still_m_) {
     rest_[i] = position_m;
     rest_since_[i] = t;
@@ -375,7 +377,15 @@ std::string LatestPositions::missing() const {
 std::string LatestPositions::moving(double t) const {
   std::string out;
   for (size_t i = 0; i < names_.size(); ++i)
-    if (positions_[i] && t - rest_since_[i] < still_s_) out += (out.empty() ? "" : ", ") + names_[i];
+    if (positions_[i] && t - rest_since_[i] < still_s_ && t - first_seen_[i] >= still_s_)
+      out += (out.empty() ? "" : ", ") + names_[i];
+  return out;
+}
+
+std::string LatestPositions::appeared(double t) const {
+  std::string out;
+  for (size_t i = 0; i < names_.size(); ++i)
+    if (positions_[i] && t - first_seen_[i] < still_s_) out += (out.empty() ? "" : ", ") + names_[i];
   return out;
 }
 

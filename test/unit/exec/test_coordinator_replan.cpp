@@ -301,3 +301,88 @@ TEST(Redecide, ARobotUntrackedPastItsLimitIsLostAndTheDecisionGoesAheadWithoutIt
   ASSERT_EQ(c.lostRobots().size(), 1u);
   EXPECT_NE(c.lostRobots()[0].find("not tracked for 3"), std::string::npos) << c.lostRobots()[0];
 }
+
+namespace {
+
+task::TaskDir deliver() {
+  tasks::GeneratorOptions o;
+  o.family = "deliver";
+  o.demos = 1;
+  o.seed = 3;
+  return tasks::generate(o);
+}
+
+/// Every segment of `segs` arrives at its goal.
+CoordinatorOutput arriveAll(Coordinator& c, std::vector<Vector2d>& at, const std::vector<SegmentCommand>& segs,
+                            double now) {
+  for (const auto& s : segs) at[static_cast<size_t>(s.entity)] = s.goal;
+  c.onEntities(observe(at), now);
+  CoordinatorOutput last;
+  for (const auto& s : segs) last = c.onSegmentStatus(s.entity, s.segment_id, SegmentState::Done, 1.0, "", now);
+  return last;
+}
+
+/// Robot `e`'s battery dies under its segment `seg`: the tracker loses it, its follower fails.
+CoordinatorOutput die(Coordinator& c, const std::vector<Vector2d>& at, const SegmentCommand& seg, double now) {
+  EntityObservation obs = observe(at);
+  obs.tracked[static_cast<size_t>(seg.entity)] = false;
+  c.onEntities(obs, now);
+  return c.onSegmentStatus(seg.entity, seg.segment_id, SegmentState::Failed, 0.4, "pose is stale", now + 0.1);
+}
+
+}  // namespace
+
+// A carrier lost for good with its load mid-carry leaves the load where no demonstrated
+// step continues from: the policy is asked for its first step again, from the scene as it
+// is (a history of one snapshot), not for the withdrawn carry after the steps before. A
+// robot lost without a load keeps the history: its step is decided again after the others.
+TEST(Redecide, ACarrierLostWithItsLoadBeginsTheTaskAgainFromTheSceneAsItIs) {
+  const task::TaskDir dir = deliver();
+  const task::Demonstration& demo = dir.demos.front();
+  ASSERT_EQ(demo.steps.size(), 2u);
+  Coordinator c{dir.spec, CoordinatorConfig{}, task::learnEndPoints(dir.spec, dir.demos)};  // reads the scene
+  std::vector<Vector2d> at = demo.positions.front();
+  c.onEntities(observe(at), 0.0);
+  const auto s = c.start(0.0);
+  const auto fetch = answer(c, c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1), 0.2);
+  ASSERT_EQ(fetch.size(), 1u);
+  const auto next = arriveAll(c, at, fetch, 1.0);
+  ASSERT_TRUE(next.decision);
+  ASSERT_EQ(next.decision->history.size(), 2u);
+  const auto carry = answer(c, c.onDecision(next.decision->id, replayDecision(demo, next.decision->history), 1.1), 1.2);
+  ASSERT_EQ(carry.size(), 2u) << "the carrier and its load";
+  const auto carrier = std::find_if(carry.begin(), carry.end(), [&](const SegmentCommand& g) {
+    return dir.spec.entities[static_cast<size_t>(g.entity)].kind == task::EntityKind::Robot;
+  });
+  ASSERT_NE(carrier, carry.end());
+  const int b1 = dir.spec.entityIndex("B1");
+  at[static_cast<size_t>(carrier->entity)] += Vector2d(0.05, 0);  // under way, the load with it
+  at[static_cast<size_t>(b1)] += Vector2d(0.05, 0);
+  const auto out = die(c, at, *carrier, 2.0);
+  EXPECT_TRUE(c.running()) << c.reason();
+  ASSERT_TRUE(out.decision) << "decided again without the carrier";
+  EXPECT_EQ(out.decision->lost, std::vector<int>{carrier->entity});
+  ASSERT_EQ(out.decision->history.size(), 1u) << "the task begun again: the policy's first step";
+  EXPECT_EQ(out.decision->history[0].row, 0);
+  EXPECT_TRUE(out.decision->history[0].positions[static_cast<size_t>(b1)].isApprox(at[static_cast<size_t>(b1)]))
+      << "from where the load lies now";
+  EXPECT_EQ(c.steps().size(), 1u) << "the fetch that ran stays in the record";
+  bool said = false;
+  for (const std::string& l : out.log) said = said || l.find("was lost carrying B1") != std::string::npos;
+  EXPECT_TRUE(said);
+
+  // Task 4 read from the scene: R3 lost on its way to G1 carries nothing; step 2 is asked
+  // for again after step 1.
+  const task::TaskDir t4 = task4();
+  Coordinator d{t4.spec, CoordinatorConfig{}, task::learnEndPoints(t4.spec, t4.demos)};
+  at = t4.demos.front().positions.front();
+  const auto first = firstStep(d, t4.demos.front(), at);
+  const auto step2 = arriveAll(d, at, first, 1.0);
+  ASSERT_TRUE(step2.decision);
+  const auto legs =
+      answer(d, d.onDecision(step2.decision->id, replayDecision(t4.demos.front(), step2.decision->history), 1.1), 1.2);
+  ASSERT_EQ(legs.size(), 2u);
+  const auto again = die(d, at, legs[0], 2.0);
+  ASSERT_TRUE(again.decision) << d.reason();
+  EXPECT_EQ(again.decision->history.size(), 2u) << "the step decided again after step 1";
+}

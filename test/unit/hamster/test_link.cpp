@@ -19,6 +19,7 @@
 #include "ddace/common/clock.h"
 #include "ddace/common/error.h"
 #include "ddace/hamster/link.h"
+#include "ddace/hamster/link_dir.h"
 #include "ddace/hamster/mock_robot.h"
 #include "ddace/hamster/scan.h"
 
@@ -621,4 +622,52 @@ TEST(SerialTransportPty, PartialWriteIsDiscardedSoTheNextLineGoesOutWhole) {
     return;
   }
   FAIL() << "no write went out in part";
+}
+
+TEST_F(LinkTest, ARehearsalDrivesOnlyTheLinksOfItsOwnMockHoldingTheirDirectory) {
+  // A rehearsal's bridge: only pseudo-terminal links in the mock's directory, and only while
+  // this run's mock (here: this process) holds the directory's claim. A link nobody claims
+  // (a crashed run's, someone's file) or one another process holds is never opened.
+  MockRobot& m = addMock("a", "0000000000AA", Model::Hamster, 0.002);
+  long mock_pid = ::getpid() + 1;  // first: another process's mock
+  BridgeConfig bridge;
+  RobotConfig r;
+  r.name = "R1";
+  r.address = *Address::parse("0000000000AA");
+  r.port_hints = {"/dev/ttyUSB0"};  // a real dongle: never tried in a rehearsal
+  r.transport = TransportKind::Ble;
+  r.calibration.left_mps_per_unit = r.calibration.right_mps_per_unit = 0.002;
+  bridge.robots = {r};
+  useMockLinks(bridge, dir_);
+  ASSERT_TRUE(bridge.robots[0].port_hints.empty());
+  ASSERT_EQ(bridge.robots[0].transport, TransportKind::Serial);
+  links_.push_back(std::make_unique<RobotLink>(bridge.robots[0], bridge, ports_,
+                                               mockLinkTransportFactory(
+                                                   dir_, [&] { return mock_pid; }, true)));
+  RobotLink& link = *links_.back();
+  commands_ = {{&link, 0.06, 0.06}};
+  runFor(0.5);
+  EXPECT_EQ(link.state(), LinkState::Searching);
+  EXPECT_EQ(m.motoringLines(), 0u);
+  EXPECT_NE(link.stats().last_error.find("is not claimed by a running mock Hamster node"), std::string::npos)
+      << link.stats().last_error;
+
+  auto claim = std::make_unique<LinkDirClaim>(dir_, std::vector<std::string>{}, "test");
+  runFor(0.5);
+  EXPECT_EQ(m.motoringLines(), 0u);
+  EXPECT_NE(link.stats().last_error.find("not by this run's mock Hamster node"), std::string::npos)
+      << link.stats().last_error;
+
+  mock_pid = ::getpid();
+  ASSERT_TRUE(runUntil([&] { return m.leftUnits() == 30; }, 5.0)) << link.stats().last_error;
+  EXPECT_EQ(link.port(), dir_ + "/hamster_a");
+
+  // A link in the directory that leads elsewhere than a pseudo-terminal, or a port outside it.
+  std::filesystem::create_symlink("/dev/null", dir_ + "/hamster_b");
+  EXPECT_NE(mockLinkProblem(dir_, dir_ + "/hamster_b", mock_pid).find("not to a mock Hamster's pseudo-terminal"),
+            std::string::npos);
+  EXPECT_NE(mockLinkProblem(dir_, "/dev/ttyUSB0", mock_pid).find("not in the mock link directory"), std::string::npos);
+  EXPECT_EQ(mockLinkProblem(dir_, dir_ + "/hamster_a", mock_pid), "");
+  claim.reset();
+  EXPECT_FALSE(claimHolder(dir_).has_value());
 }

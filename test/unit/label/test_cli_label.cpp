@@ -80,6 +80,25 @@ TEST(CliLabel, LabelsACopyWithTheDemonstratedStepsAndLeavesInUntouched) {
     for (const auto& s : d.segments) EXPECT_EQ(s.token.action, "move");
 }
 
+TEST(CliLabel, KeepsTheLabelledDemonstrationsOfADirectoryThatAlsoHoldsUnlabelledOnes) {
+  // Recorded partly with infer_labels: true, partly without: the unlabelled ones are
+  // labelled, the labelled one is copied byte for byte, nothing is left out.
+  const std::string r = root("mixed"), in = r + "/in", out = r + "/out", ex = r + "/example.csv";
+  const task::TaskDir truth = unlabelledTask(in, ex, "fetch");
+  const std::string kept = in + "/demos/demo_labelled.csv";
+  fs::copy_file(ex, kept);
+  const auto before = contents(in);
+  const ToolRun run = runTool("label '" + in + "' --out '" + out + "'");
+  ASSERT_EQ(run.status, 0) << run.out;
+  EXPECT_EQ(contents(in), before);
+  EXPECT_NE(run.out.find("demo_labelled.csv: already labelled ("), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("copied as it is"), std::string::npos) << run.out;
+  const task::TaskDir labelled = task::loadTaskDir(out);
+  ASSERT_EQ(labelled.demos.size(), truth.demos.size() + 1);
+  EXPECT_EQ(contents(out)[out + "/demos/demo_labelled.csv"], before.at(kept));
+  for (const auto& d : labelled.demos) EXPECT_FALSE(d.steps.empty()) << d.source;
+}
+
 TEST(CliLabel, StrictWritesNothingWhenSomethingIsUncertain) {
   // task4 in which a person stopped R1 halfway to R3 (its rows from the middle of its first
   // motion on stay there): where it went is uncertain. (Generated robots never share a spot,

@@ -226,16 +226,18 @@ TEST_F(Recovery, WithBodiesAMovedBoxAndALostRobotAreRecoveredFrom) {
     EXPECT_FALSE(moved.without[i].success);
     EXPECT_EQ(moved.with[i].redecisions, 1);
     EXPECT_EQ(moved.with[i].collisions + lost.with[i].collisions, 0);
-    // A carrier lost mid-carry: the other robot is sent, but the policy's end still counts
-    // the demonstrated steps, so it may end before the box is carried on. Such a run must
-    // not count as done: the task states no goal condition, and the report names the box
-    // that is not where the demonstration left it.
+    // A carrier lost mid-carry: the task is begun again from the scene as it is, so the
+    // other robot fetches the box where it was left and carries it on (the run is judged by
+    // where the demonstration left the box: the task states no goal condition).
     const pipeline::CoordinatedRun& with = lost.with[i];
     EXPECT_FALSE(lost.without[i].success);
     ASSERT_EQ(with.lost.size(), 1u) << with.reason;
-    if (with.success) continue;
-    EXPECT_NE(with.failure.find("B1 did not end at"), std::string::npos) << with.failure;
+    EXPECT_TRUE(with.success) << with.what << ": " << with.reason << " " << with.failure;
   }
+  // Some trial loses its carrier mid-carry (in step 2, the carry).
+  int mid_carry = 0;
+  for (size_t i = 0; i < lost.demos.size(); ++i) mid_carry += lost.with[i].what.rfind("step 2", 0) == 0;
+  EXPECT_GE(mid_carry, 1) << "a carrier is lost mid-carry in some trial";
 }
 
 // The decisions for the team without a lost robot (the sequence node's and `ddace eval`'s):

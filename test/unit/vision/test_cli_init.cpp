@@ -111,7 +111,7 @@ TEST(CliInit, UnlabelledDemonstrationsAreNamedByValidateAndRefusedByTrain) {
   EXPECT_NE(t.out.find(dir + "/demos/demo_000.csv: no labelled step"), std::string::npos) << t.out;
   EXPECT_NE(t.out.find("`ddace label " + dir + " --out DIR`"), std::string::npos) << t.out;
   EXPECT_FALSE(fs::exists(model));
-  // With a labelled demonstration beside it, ddace label (unlabelled only) is not the advice.
+  // With a labelled demonstration beside it, ddace label labels the one and keeps the other.
   std::ofstream(dir + "/demos/demo_001.csv") << "t,R1.x,R1.y,R1.action,R1.target,G1.x,G1.y\n"
                                                 "0.0,0.1,0.1,move,G1,0.5,0.5\n0.5,0.3,0.3,move,G1,0.5,0.5\n"
                                                 "1.0,0.5,0.5,,,0.5,0.5\n";
@@ -119,7 +119,9 @@ TEST(CliInit, UnlabelledDemonstrationsAreNamedByValidateAndRefusedByTrain) {
   EXPECT_NE(mixed.status, 0);
   EXPECT_NE(mixed.out.find("demo_000.csv: no labelled step"), std::string::npos) << mixed.out;
   EXPECT_EQ(mixed.out.find("demo_001.csv"), std::string::npos) << mixed.out;
-  EXPECT_NE(mixed.out.find("a task directory of their own"), std::string::npos) << mixed.out;
+  EXPECT_NE(mixed.out.find("`ddace label " + dir + " --out DIR` infers their labels and copies the labelled"),
+            std::string::npos)
+      << mixed.out;
 }
 
 TEST(CliInit, ASlipInASubcommandOrOptionGetsASuggestion) {
