@@ -145,6 +145,9 @@ class Labeller {
   /// after it stopped, in front of it.
   void readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned,
                   const std::vector<Eigen::Vector2d>& step_end);
+  /// `m` stopped within the arrival radius of touching `body`, the body ahead of it (within a
+  /// right angle of its heading).
+  bool stoppedShortFacing(const Motion& m, int body) const;
   /// Between the tied end points of `ep`: the example's step k (aligned), the example's
   /// choice between such kinds, or its only motion of the kind; else noted.
   void resolveTie(InferredToken& tok, const Motion& m, const EndPoint& ep, size_t k, bool aligned);
@@ -182,6 +185,14 @@ class Labeller {
   bool sweptBy(const Motion& o, const Motion& r) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
   bool pausedOnItsWay(const Motion& a, const Motion& b) const;
+  /// Object motion `a` went with no robot's motion, at one place with a resting robot all the
+  /// way, and `b`, its next, went with that robot's motion: one carry (a box swung round a
+  /// robot turning in place, then pushed on by it).
+  bool swungBeforeItsCarry(const Motion& a, const Motion& b) const;
+  /// Robot motion `a` (its `load` in front, -1 for none) stopped short of `body` and `b`, its
+  /// next motion, went on to touch it: the last of the approach (a person closing in), not a
+  /// motion of its own.
+  bool closedIn(const Motion& a, const Motion& b, int body, int load) const;
   /// An object was with `a`'s robot (at a's onset, or set moving at its touch during `a`)
   /// and when it stopped, and went on farther than a nudge before `b` began: it let go.
   bool letGo(const Motion& a, const Motion& b) const;

@@ -173,12 +173,51 @@ bool Labeller::letGo(const Motion& a, const Motion& b) const {
   return false;
 }
 
+// A robot (or the load it pushes) stopped short of a body, farther than a side touch reads
+// (half the radius from contact), and went on to touch it (within that): the last of its
+// approach. A hand's bump ends anywhere; an object's pieces go as its carrier's.
+bool Labeller::closedIn(const Motion& a, const Motion& b, int body, int load) const {
+  if (spec_.entities[a.entity].kind != task::EntityKind::Robot) return false;
+  const int front = load >= 0 ? load : a.entity;
+  const double contact = spec_.contactDistance(front, body);
+  if (contact <= 0) return false;
+  const double short_by = (a.at_offset[front] - a.at_offset[body]).norm() - contact;
+  const double gap = (b.at_offset[front] - b.at_offset[body]).norm() - contact;
+  return short_by > spec_.arrival_radius / 2 && std::abs(gap) <= spec_.arrival_radius / 2;
+}
+
+// An object that moved with no robot's motion, at one place with a resting robot all the way
+// (swung round it as it turned in place, slower or shorter than a motion reads), whose next
+// motion goes with that robot's: the start of that robot's carry. An object does not move
+// alone.
+bool Labeller::swungBeforeItsCarry(const Motion& a, const Motion& b) const {
+  const auto& E = spec_.entities;
+  if (E[a.entity].kind != task::EntityKind::Object) return false;
+  const auto moving = [&](int r, const Motion& o) {
+    return std::any_of(pending_.begin(), pending_.end(),
+                       [&](const Motion& m) { return m.entity == r && m.on_t <= o.off_t && o.on_t <= m.off_t; });
+  };
+  for (int r = 0; r < static_cast<int>(E.size()); ++r) {
+    if (E[r].kind != task::EntityKind::Robot) continue;
+    if (moving(r, a) && a.max_distance[r] <= task::togetherDistance(spec_, a.entity, r)) return false;  // carried
+  }
+  // With it at both ends and in between (a resting body's distance is not measured on rows
+  // the tracker repeats, so the ends decide).
+  for (int r = 0; r < static_cast<int>(E.size()); ++r)
+    if (E[r].kind == task::EntityKind::Robot && together(a.at_onset, a.entity, r) &&
+        together(a.at_offset, a.entity, r) && a.max_distance[r] <= task::togetherDistance(spec_, a.entity, r) &&
+        b.max_distance[r] <= task::togetherDistance(spec_, b.entity, r) && moving(r, b))
+      return true;
+  return false;
+}
+
 // A pause: a motion that stopped away from every entity, or over one but goes on in the
 // heading it came in (not taking along what it stopped at), goes on within pause_s.
 bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
   // What moved with it went on without it: a hand-over, read from the contact that
   // changed, wherever the giver stopped and whichever way it leaves.
   if (letGo(a, b)) return false;
+  if (swungBeforeItsCarry(a, b)) return true;
   // No rest between them (within the precision onsets and offsets are dated to), or b
   // crept on before a still_s of rest: one motion, slower than a rest reads, found in
   // pieces (cutAtContacts() cuts where what moves with it changes).
@@ -210,9 +249,9 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
   // its heading (a robot nudged by a hand or a body is no start of its next motion).
   const bool heading_kept = a.end_dir.dot(b.start_dir) >= std::cos(options_.heading_rad);
   if (ep.target < 0) return heading_kept || (a.end - a.start).norm() >= options_.nudge_m;
-  // Over an entity: goes on in the heading it came in, farther than a nudge (a robot
-  // bumped where it rests goes nowhere new).
-  if (!heading_kept || (b.end - a.end).norm() < options_.nudge_m) return false;
+  if (!heading_kept) return false;
+  if ((b.end - a.end).norm() < options_.nudge_m) return closedIn(a, b, ep.target, load);
+  // Over an entity: goes on in the heading it came in, farther than a nudge.
   // Went to an object and moves on with it: a fetch, then a carry.
   for (int c : ep.tied)
     if (staysWith(b, c)) return false;
@@ -730,6 +769,15 @@ void Labeller::resolveTie(InferredToken& tok, const Motion& m, const EndPoint& e
        m.entity);
 }
 
+// Stopped within the arrival radius (the task's precision of an end point) of touching a
+// body ahead of it (within a right angle of its heading): a person stopping short of the
+// body it drove to, not one stopping on its way past it.
+bool Labeller::stoppedShortFacing(const Motion& m, int body) const {
+  const double contact = spec_.contactDistance(m.entity, body);
+  const Vector2d to = m.at_offset[body] - m.end;
+  return contact > 0 && to.norm() - contact <= spec_.arrival_radius && m.end_dir.dot(to.normalized()) > 0;
+}
+
 void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned,
                           const std::vector<Vector2d>& step_end) {
   const auto& E = spec_.entities;
@@ -744,7 +792,7 @@ void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t 
   tok.token.target = ep.target;
   if (ep.target < 0) {
     tok.token.target = ep.nearest;
-    if (ep.nearest >= 0)
+    if (ep.nearest >= 0 && !stoppedShortFacing(m, ep.nearest))
       note(m.off_row,
            E[m.entity].name + " stopped halfway: " + metres(ep.nearest_m) + " m from " + E[ep.nearest].name +
                ", the nearest entity, taken as its target; or it went on later to another",
@@ -895,7 +943,6 @@ void Labeller::markUnsure(std::vector<InferredToken>& tokens, size_t notes_from)
 void Labeller::emit(Group& group, bool aligned) {
   const size_t k = emitted_groups_++;
   const size_t notes_from = out_.notes.size();
-  for (auto& nt : group.notes) out_.notes.push_back(std::move(nt));
   const auto& g = group.motions;
 
   InferredStep step;
@@ -904,6 +951,11 @@ void Labeller::emit(Group& group, bool aligned) {
   for (const auto& m : g)
     step.keyframe_row = std::min(step.keyframe_row, m.on_row), step_off = std::max(step_off, m.off_row);
   noteStepsDiffer(k, g, step.keyframe_row);
+  // An entity that moved twice in one step (taken as one motion): doubtful where two steps
+  // may have run together; not when this step and every one before it have the example's
+  // kinds and numbers of movers.
+  if (!example_ || steps_differ_)
+    for (auto& nt : group.notes) out_.notes.push_back(std::move(nt));
   if (aligned) placeInPlace(ex_inplace_before_[k], prev_off_ + 1, step.keyframe_row - 1);
 
   // Loads (an object that stayed with a moving robot of the step all the way), then targets.

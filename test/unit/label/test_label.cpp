@@ -574,6 +574,128 @@ TEST(Label, ARobotTurningWithItsBoxCarriesIt) {
   EXPECT_TRUE(inf.notes.empty());
 }
 
+TEST(Label, ARobotThatStopsShortOfItsBoxAndClosesInFetchedIt) {
+  // Two robots fetch a box each, then push them to their goals. R2 stops 2.5 cm short of B2,
+  // rests, and closes in to touch it slowly while R1 is still on its way to B1; a second
+  // after R1 arrives both push. R2's closing in is the last of its approach (it stood near
+  // the box, not yet touching it, when it set off again), not the start of its push: two
+  // steps, not one.
+  Scene s;
+  s.spec.entities.push_back({"B2", task::EntityKind::Object, "box"});
+  s.d.has_label_columns.assign(6, false);
+  s.pos[1] = {0.1, 0.6};
+  s.pos[4] = {0.9, 0.6};        // G2, east of B2
+  s.pos.push_back({0.5, 0.6});  // B2
+  const Vector2d u = Vector2d(1, 1).normalized(), at_b2(0.5 - 0.042, 0.6);
+  const Vector2d r1_from = s.pos[0], r1_to = Vector2d(0.5, 0.5) - 0.042 * u, r2_from = s.pos[1],
+                 r2_short = at_b2 - Vector2d(0.025, 0);
+  const auto ease = [](double tau, double from, double seconds) {
+    const double v = std::clamp((tau - from) / seconds, 0.0, 1.0);
+    return v * v * (3 - 2 * v);
+  };
+  s.rest(1);
+  for (int i = 0; i <= 4 * 30; ++i) {
+    const double tau = i / 30.0;
+    s.pos[0] = r1_from + (r1_to - r1_from) * ease(tau, 0, 4);
+    s.pos[1] = r2_from + (r2_short - r2_from) * ease(tau, 0, 1.5) + (at_b2 - r2_short) * ease(tau, 2.2, 1.2);
+    s.emit();
+  }
+  s.rest(1);
+  s.move({{0, Vector2d(0.9, 0.9) - 0.042 * u}, {2, {0.9, 0.9}}, {1, Vector2d(0.9 - 0.042, 0.6)}, {5, {0.9, 0.6}}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec),
+            (Steps{{"R1:move:B1", "R2:move:B2"}, {"R1:move:G1", "R2:move:G2", "B1:move:G1", "B2:move:G2"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+}
+
+TEST(Label, ABoxSwungRoundItsRobotTurningInPlaceIsTheStartOfItsCarry) {
+  // R1 fetches the box (touching its west side); to push it north it turns in place, less
+  // than a motion reads (the tracker sees R1 still), sweeping the box a quarter turn round
+  // it to its north side, and half a second later pushes it to G1. The box did not move
+  // alone: its swing is the start of R1's carry, in the carry's step.
+  Scene s;
+  const Vector2d at_box(0.458, 0.5);
+  s.pos[0] = {0.1, 0.5};
+  s.pos[3] = {0.458, 0.9};  // G1, north
+  s.rest(1);
+  s.move({{0, at_box, 0, 2}});
+  s.rest(1);
+  for (int i = 1; i <= 15; ++i) {
+    const double v = i / 15.0, a = M_PI / 2 * v * v * (3 - 2 * v);
+    s.pos[2] = at_box + 0.042 * Vector2d(std::cos(a), std::sin(a));
+    s.emit();
+  }
+  s.rest(0.5);
+  s.move({{0, Vector2d(0.458, 0.9 - 0.042), 0, 2}, {2, {0.458, 0.9}, 0, 2}});
+  s.rest(1);
+  const auto inf = s.infer();
+  ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:B1"}, {"R1:move:G1", "B1:move:G1"}}));
+  EXPECT_EQ(inf.steps[1].tokens[1].carrier, 0);
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+}
+
+TEST(Label, ARobotThatRestsMidwayWhileTheOtherOfItsStepDrivesOnIsNotListed) {
+  // R1 and R2 set off together; R1 rests 3.5 s halfway (longer than a pause) and goes on to
+  // G1 while R2 is still driving slowly to G2: R1's two motions are one step's, taken as
+  // one. The step has the example's movers (two robots), so no two steps ran together:
+  // nothing to check.
+  const auto scene = [](bool rests) {
+    Scene s;
+    s.pos[1] = {0.5, 0.05};
+    s.pos[2] = {0.5, 0.95};  // the box, out of the way
+    s.rest(1);
+    const Vector2d r1_from = s.pos[0], half(0.5, 0.5), g1 = s.pos[3], r2_from = s.pos[1], g2 = s.pos[4];
+    const auto ease = [](double tau, double from, double seconds) {
+      const double v = std::clamp((tau - from) / seconds, 0.0, 1.0);
+      return v * v * (3 - 2 * v);
+    };
+    for (int i = 0; i <= 8 * 30; ++i) {
+      const double tau = i / 30.0;
+      s.pos[0] = rests ? Vector2d(r1_from + (half - r1_from) * ease(tau, 0, 2) + (g1 - half) * ease(tau, 5.5, 2))
+                       : Vector2d(r1_from + (g1 - r1_from) * ease(tau, 0, 4));
+      s.pos[1] = r2_from + (g2 - r2_from) * ease(tau, 0, 8);
+      s.emit();
+    }
+    s.rest(1);
+    return s;
+  };
+  Scene clean = scene(false);
+  task::Demonstration labelled = clean.d;
+  label::applyLabels(labelled, clean.infer());
+  const auto example = label::Example::fromDemonstration(labelled, clean.spec);
+  Scene s = scene(true);
+  const auto inf = s.infer(&example);
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1", "R2:move:G2"}}));
+  EXPECT_FALSE(inf.steps[0].tokens[0].unsure) << inf.steps[0].tokens[0].doubt;
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+  // Without an example nothing tells whether two steps ran together: listed.
+  const auto alone = s.infer();
+  ASSERT_EQ(tokens(alone, s.spec), (Steps{{"R1:move:G1", "R2:move:G2"}}));
+  EXPECT_TRUE(alone.steps[0].tokens[0].unsure);
+}
+
+TEST(Label, ARobotStoppingShortOfABodyAheadOfItWithinTheArrivalRadiusIsNotListed) {
+  // R1 drives north and stops 2 cm short of R2 (beyond the half radius a side touch reads,
+  // within the arrival radius), R2 ahead of it 60 degrees to its right: taken as sent to R2,
+  // nothing to check. The same stop with R2 abeam behind it (100 degrees: it drove past)
+  // may be a stop on its way elsewhere: listed.
+  for (const double deg : {60.0, 100.0}) {
+    Scene s;
+    const Vector2d r2(0.5, 0.5), at = Vector2d(std::sin(deg * M_PI / 180), std::cos(deg * M_PI / 180));
+    s.pos[1] = r2;
+    s.pos[2] = {0.5, 0.95};  // the box, out of the way
+    const Vector2d end = r2 - 0.064 * at;
+    s.pos[0] = {end.x(), 0.1};
+    s.rest(1);
+    s.move({{0, end}});
+    s.rest(1);
+    const auto inf = s.infer();
+    ASSERT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2"}})) << deg;
+    EXPECT_EQ(inf.steps[0].tokens[0].unsure, deg > 90) << deg;
+  }
+}
+
 TEST(Label, ARobotEndingWithABoxThatMovedAloneIsListed) {
   // R1 drives 20 cm onto G1 while the box swings 19 cm round to its side (a robot turning
   // with a box, as a tracker may see it): no robot stayed with the box, so it "moved
