@@ -100,6 +100,8 @@ class PathFollower {
   double progress() const { return total_m_ > 0 ? s_m_ / total_m_ : (done_ ? 1.0 : 0.0); }
   /// The path's last point: where the motion ends (no path: the origin).
   Eigen::Vector2d endPoint() const { return points_.empty() ? Eigen::Vector2d::Zero() : points_.back(); }
+  /// The path's points (no path: none).
+  const std::vector<Eigen::Vector2d>& points() const { return points_; }
   double lengthM() const { return total_m_; }
   const FollowerGains& gains() const { return gains_; }
 

@@ -12,13 +12,16 @@
 // Bodies standing in the way (robots that stay, boxes nobody moves) are gone round: the
 // load's route from where it stands to its end is straight where that is free of them
 // (kPushPassM beyond contact, for the load and for the carrier behind it), else the shortest
-// way round them; the carrier goes round the load the way that is free to behind the
-// route's first leg, then drives the route, the load in front of it.
+// way round them; the carrier goes round the load the way that is free to behind it,
+// where the push first heads it, then drives the route, the load in front of it.
 //
 // The load's end point decides the direction of the push and where it stops: the carrier
-// ends behind it at their contact distance (on the push line; where the learned end point
-// of the carrier puts it elsewhere, the push line wins). The planned path of the carrier (the learned primitive's) says
-// how a robot moves alone; a push goes straight, the one way a disc moves a disc without losing it.
+// ends behind it at their contact distance (on the route's last leg; where the learned end
+// point of the carrier puts it elsewhere, the route wins). The planned path of the carrier
+// (the learned primitive's) says how a robot moves alone; a push goes straight from corner
+// to corner, the one way a disc moves a disc without losing it. The carrier's path is the
+// push's plan: its controller steers the load along the path beyond the load (loadRoute),
+// bends and all, and plans again from that route when the load slides off it.
 //
 // One rule for everything that drives a carrier: the coordinator's segments (ROS graph:
 // mock robots, the real table, its simulation) and the closed-loop simulator.
@@ -53,7 +56,7 @@ inline constexpr double kPushConeRad = M_PI / 4;
 /// way, as the load has drifted from its push direction; at most kMaxPushLeadRad.
 inline constexpr double kPushLead = 1.0;
 inline constexpr double kMaxPushLeadRad = M_PI / 3;
-/// A pushed load heads for its push line this far ahead of itself (metres).
+/// A pushed load heads for its route this far ahead of itself (metres).
 inline constexpr double kPushLookaheadM = 0.2;
 /// A carrier not pushing its load plans its push again from where things are once the load
 /// lies this far from where its path was planned for (metres): the load slid off its front,
@@ -82,8 +85,8 @@ struct PushObstacle {
 
 /// The path of a carrier at `from` that pushes a load standing at `load` (their contact
 /// distance `contact_m`) until the load is at `load_end`, round the bodies `standing`: the
-/// load's route (pushRoute), round the load at contact + kPushClearanceM to behind the
-/// route's first leg (the shorter way, unless only the longer one is free of `standing`;
+/// load's route (pushRoute), round the load at contact + kPushClearanceM to behind it,
+/// where the push first heads it along the route (the shorter way, unless only the longer one is free of `standing`;
 /// with `push_from_behind`, not at all from within kPushClearanceM / 3 of contact and
 /// kPushConeRad of behind it),
 /// then along the route to behind the load's end point at contact on its last leg (the
@@ -110,33 +113,57 @@ std::vector<Eigen::Vector2d> pushRoute(const Eigen::Vector2d& load, const Eigen:
 std::vector<PushObstacle> pushObstacles(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,
                                         int load, const std::vector<Eigen::Vector2d>& at);
 
+/// The path of a carrier at `from` that pushes a load along `load_route` (corners, the
+/// first where the load stands, the last its end point): round the load to behind it,
+/// as pushPath, then along the route to behind the load's end on its last
+/// leg, `points` points evenly spaced. Throws ddace::Error for a route of fewer than two
+/// distinct points.
+std::vector<Eigen::Vector2d> pushPathAlong(const Eigen::Vector2d& from, const std::vector<Eigen::Vector2d>& load_route,
+                                           double contact_m, int points, const std::vector<PushObstacle>& standing = {},
+                                           bool push_from_behind = true);
+
+/// The route a load follows when its carrier drives `carrier_path` (planned by pushPath for
+/// the load at `planned_load`): the carrier's path beyond the point nearest `planned_load`,
+/// from where the load stands now (`load`), then on to the load's end point `load_end`. A
+/// push path runs through its load and on along the load's route (round the bodies
+/// standing in the way), so the load follows its carrier's whole route, bends and all, not
+/// only its last leg.
+std::vector<Eigen::Vector2d> loadRoute(const std::vector<Eigen::Vector2d>& carrier_path,
+                                       const Eigen::Vector2d& planned_load, const Eigen::Vector2d& load,
+                                       const Eigen::Vector2d& load_end);
+
+/// The rest of `route` for a load now at `load` (off it: slid, or moved): from the load
+/// straight to the route kPushLookaheadM ahead of where it stands along it (where
+/// pushWheels heads it), then on along the route. The push planned again follows it.
+std::vector<Eigen::Vector2d> routeOnFrom(const std::vector<Eigen::Vector2d>& route, const Eigen::Vector2d& load);
+
 /// One control cycle of a carrier pushing its load.
 struct PushCommand {
   WheelSpeeds wheels;
   bool load_arrived = false;  ///< the load reached its end point: the carrier is done
 };
 
-/// Steering a pushed load to its end point from the measured poses: the load follows the
-/// push line (through `load_end`, from the carrier's end point `carrier_end` behind it),
-/// heading for the line kPushLookaheadM ahead of itself; the carrier at `carrier` (contact
-/// distance `contact_m` with its load at `load`) heads along their contact line, turned
-/// by kPushLead of the load's drift from where it should head, at the path follower's speeds
-/// (`gains`: cruise, slowdown by the load's distance to its end, turn limits). Nothing when
-/// the carrier is not behind its load (kPushConeRad, within kPushClearanceM / 3 of
-/// contact): it follows its path, round the load. The load has arrived once it reaches
-/// its end point along the push line (the carrier stops there: the load's end point, not
-/// the carrier's, ends the push).
+/// Steering a pushed load along its route (loadRoute; its last point the load's end point)
+/// from the measured poses: the load heads for its route kPushLookaheadM ahead of where it
+/// stands along it; the carrier at `carrier` (contact distance `contact_m` with its load at
+/// `load`) heads along their contact line, turned by kPushLead of the load's drift from
+/// where it should head, at the path follower's speeds (`gains`: cruise, slowdown by the
+/// load's distance to its end, turn limits). Nothing when the carrier is not behind its
+/// load (kPushConeRad, within kPushClearanceM / 3 of contact): it follows its path, round
+/// the load. A push already under way (`pushing`: it pushed in the last cycle) holds while
+/// the load drifts less than kMaxPushLeadRad, as far as the over-steer can bring it back,
+/// rather than breaking off at the edge of the cone. The load has arrived once it is past its end point along the
+/// route's last leg (the carrier stops there: the load's end point, not the carrier's, ends the push).
 std::optional<PushCommand> pushWheels(const Pose2D& carrier, const Eigen::Vector2d& load,
-                                      const Eigen::Vector2d& load_end, const Eigen::Vector2d& carrier_end,
-                                      double contact_m, const FollowerGains& gains);
+                                      const std::vector<Eigen::Vector2d>& route, double contact_m,
+                                      const FollowerGains& gains, bool pushing = false);
 
 /// Whether a carrier at `carrier` stands behind its load at `load`, at any distance: the
-/// load, seen from the carrier, within kPushConeRad of where pushWheels heads it (the push
-/// line through `load_end` from `carrier_end`), or already at its end point. Only from
-/// there may the carrier touch its load (exec::RobotController): a carrier that runs into
-/// its load from the side shoves it off its line.
-bool behindLoad(const Eigen::Vector2d& carrier, const Eigen::Vector2d& load, const Eigen::Vector2d& load_end,
-                const Eigen::Vector2d& carrier_end);
+/// load, seen from the carrier, within kPushConeRad of where pushWheels heads it along
+/// `route`, or already past its end point. Only from there may the carrier touch its load
+/// (exec::RobotController): a carrier that runs into its load from the side shoves it off
+/// its route.
+bool behindLoad(const Eigen::Vector2d& carrier, const Eigen::Vector2d& load, const std::vector<Eigen::Vector2d>& route);
 
 /// What the motion `step[i]` pushes when its step is decided at `decided` (every entity's
 /// position): the entity index of its load (task::ridingLoad), or nothing.

@@ -119,8 +119,12 @@ class RobotController {
   /// (it stays).
   ControlOutput backOff(ControlOutput out, const Pose2D& pose, double pose_age_s, double radius_m,
                         std::vector<SafetyBody>& others, double now_s);
-  /// A carrier not behind its load: its path planned again round the load (exec::pushPath)
-  /// when its push just broke, or the load is kPushReplanM from where the path was planned for.
+  /// A carrier's load seen first in its motion: the route it pushes the load along, its
+  /// path beyond the load (exec::loadRoute).
+  void planLoadRoute(const SafetyBody& load);
+  /// A carrier not behind its load: its path planned again round the load, on along the
+  /// rest of the load's route (exec::routeOnFrom, pushPathAlong), when its push just broke
+  /// or the load is kPushReplanM from where the path was planned for.
   void replanPush(const Pose2D& pose, const SafetyBody& load, double radius_m);
 
   std::string name_;
@@ -129,12 +133,13 @@ class RobotController {
   SafetyFilter filter_;
   std::string target_;
   MotionContacts contacts_;
-  double held_stop_radius_m_ = 0;           ///< the motion's (start())
-  double stale_since_s_ = -1;               ///< since when the motion waits on a stale pose (-1: not)
-  Eigen::Vector2d push_planned_for_{0, 0};  ///< where the load was when the path was planned (NaN: not seen yet)
-  bool was_pushing_ = false;                ///< behind its load in the last cycle
-  bool backing_off_ = false;                ///< its push done: backing off its load (backOff())
-  std::string done_message_;                ///< the motion's, reported once backed off
+  double held_stop_radius_m_ = 0;            ///< the motion's (start())
+  double stale_since_s_ = -1;                ///< since when the motion waits on a stale pose (-1: not)
+  Eigen::Vector2d push_planned_for_{0, 0};   ///< where the load was when the path was planned (NaN: not seen yet)
+  std::vector<Eigen::Vector2d> load_route_;  ///< the route the load is pushed along (empty: not planned yet)
+  bool was_pushing_ = false;                 ///< behind its load in the last cycle
+  bool backing_off_ = false;                 ///< its push done: backing off its load (backOff())
+  std::string done_message_;                 ///< the motion's, reported once backed off
 };
 
 }  // namespace ddace::exec

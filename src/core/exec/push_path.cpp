@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "ddace/common/angle.h"
+#include "ddace/common/error.h"
 #include "ddace/exec/path_follower.h"
 
 #include "ddace/task/end_point.h"
@@ -17,26 +18,83 @@ Eigen::Vector2d onCircle(const Eigen::Vector2d& centre, double radius, double an
   return centre + radius * Eigen::Vector2d(std::cos(angle), std::sin(angle));
 }
 
-/// The push line's direction: through `load_end`, from `carrier_end` behind it (or along
-/// `fallback` when they coincide).
-Eigen::Vector2d pushDirection(const Eigen::Vector2d& load_end, const Eigen::Vector2d& carrier_end,
-                              const Eigen::Vector2d& fallback) {
-  const Eigen::Vector2d line = load_end - carrier_end;
-  return line.norm() > 1e-9 ? Eigen::Vector2d(line.normalized()) : fallback.normalized();
+/// Where a load at `load` stands on its route (exec::loadRoute): the nearest point of the
+/// route, the last leg taken as a ray beyond its end.
+struct OnRoute {
+  size_t leg = 1;      ///< the leg (route[leg - 1] to route[leg]) nearest the load
+  double along_m = 0;  ///< how far along that leg (beyond its length on the last: past the end)
+};
+
+OnRoute onRoute(const std::vector<Eigen::Vector2d>& route, const Eigen::Vector2d& load) {
+  OnRoute best;
+  double nearest = std::numeric_limits<double>::infinity();
+  for (size_t k = 1; k < route.size(); ++k) {
+    const Eigen::Vector2d leg = route[k] - route[k - 1];
+    const double length = leg.norm();
+    double along = length > 0 ? (load - route[k - 1]).dot(leg) / length : 0.0;
+    along = std::max(0.0, k + 1 == route.size() ? along : std::min(along, length));
+    const Eigen::Vector2d p = route[k - 1] + (length > 0 ? along / length : 0.0) * leg;
+    if ((p - load).norm() <= nearest) nearest = (p - load).norm(), best = {k, along};
+  }
+  return best;
 }
 
-/// How far the contact normal `contact` (carrier to load) turns from where the load should
-/// head: for the push line kPushLookaheadM ahead of the load (`along` < 0 short of its end).
-double contactDrift(const Eigen::Vector2d& contact, const Eigen::Vector2d& load, const Eigen::Vector2d& load_end,
-                    const Eigen::Vector2d& w, double along) {
-  const Eigen::Vector2d aim = load_end + (along + kPushLookaheadM) * w - load;
-  return wrapAngle(std::atan2(contact.y(), contact.x()) - std::atan2(aim.y(), aim.x()));
+/// The point `ahead_m` of route beyond `at` (past the route's end: on along its last leg).
+Eigen::Vector2d routeAhead(const std::vector<Eigen::Vector2d>& route, OnRoute at, double ahead_m) {
+  double left = at.along_m + ahead_m;
+  for (size_t k = at.leg; k < route.size(); ++k) {
+    const Eigen::Vector2d leg = route[k] - route[k - 1];
+    if (k + 1 == route.size() || left <= leg.norm()) return route[k - 1] + left * leg.normalized();
+    left -= leg.norm();
+  }
+  return route.back();
+}
+
+bool pastEnd(const std::vector<Eigen::Vector2d>& route, const OnRoute& at) {
+  return at.leg + 1 == route.size() && at.along_m >= (route.back() - route[route.size() - 2]).norm();
 }
 
 double distanceToSegment(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   const Eigen::Vector2d ab = b - a;
   const double t = ab.squaredNorm() > 0 ? std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
   return (a + t * ab - p).norm();
+}
+
+/// Where a load standing at `at` on its route heads (pushWheels): the farthest point of the
+/// route within kPushLookaheadM ahead whose straight way from there keeps within
+/// kPushNearPassM of the route (the least room a route leaves beyond a body's reach), so
+/// a push cuts a bend by no more than that; at a sharp bend the push breaks and is planned
+/// again behind the next leg.
+Eigen::Vector2d pushAim(const std::vector<Eigen::Vector2d>& route, const OnRoute& at) {
+  const Eigen::Vector2d from = routeAhead(route, at, 0);
+  const Eigen::Vector2d farthest = routeAhead(route, at, kPushLookaheadM);
+  std::vector<Eigen::Vector2d> passed;  // the route's corners between `from` and a candidate
+  double arc = (route[at.leg] - from).norm();
+  for (size_t k = at.leg; k + 1 < route.size() && arc < kPushLookaheadM; ++k) {
+    for (const Eigen::Vector2d& c : passed)
+      if (distanceToSegment(c, from, route[k]) > kPushNearPassM) return passed.back();
+    passed.push_back(route[k]);
+    arc += (route[k + 1] - route[k]).norm();
+  }
+  for (const Eigen::Vector2d& c : passed)
+    if (distanceToSegment(c, from, farthest) > kPushNearPassM) return passed.back();
+  return farthest;
+}
+
+/// How far the contact normal `contact` (carrier to load) turns from where the load should
+/// head (pushAim).
+double contactDrift(const Eigen::Vector2d& contact, const Eigen::Vector2d& load,
+                    const std::vector<Eigen::Vector2d>& route, const OnRoute& at) {
+  const Eigen::Vector2d aim = pushAim(route, at) - load;
+  return wrapAngle(std::atan2(contact.y(), contact.x()) - std::atan2(aim.y(), aim.x()));
+}
+
+/// `points` without consecutive repeats.
+std::vector<Eigen::Vector2d> distinct(const std::vector<Eigen::Vector2d>& points) {
+  std::vector<Eigen::Vector2d> out;
+  for (const Eigen::Vector2d& p : points)
+    if (out.empty() || (p - out.back()).norm() > 1e-9) out.push_back(p);
+  return out;
 }
 
 /// How far `path` keeps clear of the reach of every body of `standing` (< 0: into one).
@@ -121,12 +179,20 @@ std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::
                                       const Eigen::Vector2d& load_end, double contact_m,
                                       const Eigen::Vector2d& fallback_end, int points,
                                       const std::vector<PushObstacle>& standing, bool push_from_behind) {
-  const auto evenly = [&](std::vector<Eigen::Vector2d> corners) {
-    return resampleByArcLength(PlannedPath{std::move(corners), {}}, std::max(points, 2)).points;
-  };
-  if ((load_end - load).norm() < task::kMinApproachM) return evenly({from, fallback_end});
-  const std::vector<Eigen::Vector2d> route = pushRoute(load, load_end, standing);
-  const Eigen::Vector2d w = (route[1] - route[0]).normalized();  // the first leg
+  if ((load_end - load).norm() < task::kMinApproachM)
+    return resampleByArcLength(PlannedPath{{from, fallback_end}, {}}, std::max(points, 2)).points;
+  return pushPathAlong(from, pushRoute(load, load_end, standing), contact_m, points, standing, push_from_behind);
+}
+
+std::vector<Eigen::Vector2d> pushPathAlong(const Eigen::Vector2d& from, const std::vector<Eigen::Vector2d>& load_route,
+                                           double contact_m, int points, const std::vector<PushObstacle>& standing,
+                                           bool push_from_behind) {
+  const std::vector<Eigen::Vector2d> route = distinct(load_route);
+  if (route.size() < 2) throw Error("a push route needs two distinct points");
+  const Eigen::Vector2d load = route.front();
+  // The run-up lies behind the load from where the push first heads it (pushAim).
+  const Eigen::Vector2d aim = pushAim(route, onRoute(route, load)) - load;
+  const Eigen::Vector2d w = aim.norm() > 1e-9 ? aim.normalized() : Eigen::Vector2d(route[1] - route[0]).normalized();
   const double radius = contact_m + kPushClearanceM;
   const double behind = std::atan2(-w.y(), -w.x());  // the run-up's bearing from the load
   std::vector<Eigen::Vector2d> out{from};
@@ -135,7 +201,9 @@ std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::
       push_from_behind && rel.norm() <= contact_m + kPushClearanceM / 3 &&
       std::abs(wrapAngle(std::atan2(-rel.y(), -rel.x()) - std::atan2(w.y(), w.x()))) <= kPushConeRad;
   if (behind_now) {
-    // Already behind it, at it: the push starts here.
+    // Already behind it, at it: the push starts here, through where the load stands (the
+    // load's route is the carrier's path beyond it, loadRoute).
+    out.push_back(load);
   } else if (rel.norm() > 1e-9) {
     // Out to the circle (or in, from afar), round it to the run-up: the shorter way unless
     // only the longer one is free of the standing bodies.
@@ -157,32 +225,57 @@ std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::
   // Along the route, the load in front: the carrier ends behind the load's end on the last leg.
   for (size_t k = 1; k + 1 < route.size(); ++k) out.push_back(route[k]);
   const Eigen::Vector2d last = (route.back() - route[route.size() - 2]).normalized();
-  out.push_back(load_end - contact_m * last);
-  return evenly(std::move(out));
+  out.push_back(route.back() - contact_m * last);
+  return resampleByArcLength(PlannedPath{std::move(out), {}}, std::max(points, 2)).points;
+}
+
+std::vector<Eigen::Vector2d> loadRoute(const std::vector<Eigen::Vector2d>& carrier_path,
+                                       const Eigen::Vector2d& planned_load, const Eigen::Vector2d& load,
+                                       const Eigen::Vector2d& load_end) {
+  size_t nearest = 0;
+  for (size_t k = 0; k < carrier_path.size(); ++k)
+    if ((carrier_path[k] - planned_load).norm() < (carrier_path[nearest] - planned_load).norm()) nearest = k;
+  std::vector<Eigen::Vector2d> route{load};
+  for (size_t k = nearest + 1; k < carrier_path.size(); ++k) route.push_back(carrier_path[k]);
+  route.push_back(load_end);
+  route = distinct(route);
+  if (route.size() < 2) route.push_back(load);  // at its end: a route of no length
+  return route;
+}
+
+std::vector<Eigen::Vector2d> routeOnFrom(const std::vector<Eigen::Vector2d>& route, const Eigen::Vector2d& load) {
+  const OnRoute at = onRoute(route, load);
+  const Eigen::Vector2d aim = pushAim(route, at);
+  const OnRoute aim_at = onRoute(route, aim);
+  std::vector<Eigen::Vector2d> out{load};
+  if (!pastEnd(route, aim_at)) out.push_back(aim);  // else straight on to the end, not past it and back
+  for (size_t k = aim_at.leg; k < route.size(); ++k) out.push_back(route[k]);
+  out = distinct(out);
+  if (out.size() < 2) out.push_back(load);
+  return out;
 }
 
 std::optional<PushCommand> pushWheels(const Pose2D& carrier, const Eigen::Vector2d& load,
-                                      const Eigen::Vector2d& load_end, const Eigen::Vector2d& carrier_end,
-                                      double contact_m, const FollowerGains& gains) {
+                                      const std::vector<Eigen::Vector2d>& route, double contact_m,
+                                      const FollowerGains& gains, bool pushing) {
   const Eigen::Vector2d contact = load - carrier.position();
-  if (contact.norm() > contact_m + kPushClearanceM / 3 || contact.norm() < 1e-9) return std::nullopt;
+  if (contact.norm() > contact_m + kPushClearanceM / 3 || contact.norm() < 1e-9 || route.size() < 2)
+    return std::nullopt;
   PushCommand out;
-  // The push line runs through the load's end point, from the carrier's end behind it.
-  const Eigen::Vector2d w = pushDirection(load_end, carrier_end, contact);
-  const double along = (load - load_end).dot(w);  // < 0: short of the end
-  if (along >= 0) {
+  const OnRoute at = onRoute(route, load);
+  if (pastEnd(route, at)) {
     out.load_arrived = true;
     return out;
   }
-  // The load heads for the line kPushLookaheadM ahead of where it is along it.
-  const double drift = contactDrift(contact, load, load_end, w, along);
-  if (std::abs(drift) > kPushConeRad) return std::nullopt;
+  // The load heads for its route kPushLookaheadM ahead of where it is along it.
+  const double drift = contactDrift(contact, load, route, at);
+  if (std::abs(drift) > (pushing ? kMaxPushLeadRad : kPushConeRad)) return std::nullopt;
   const double normal = std::atan2(contact.y(), contact.x());
   const double lead = std::clamp(kPushLead * drift, -kMaxPushLeadRad, kMaxPushLeadRad);
   const double alpha = wrapAngle(normal + lead - carrier.yaw);
   double v = 0, turn = std::clamp(gains.heading_gain * alpha, -gains.max_turn_rate_radps, gains.max_turn_rate_radps);
   if (std::abs(alpha) <= gains.rotate_in_place_rad) {
-    const double ramp = std::min(1.0, -along / gains.slowdown_radius_m);
+    const double ramp = std::min(1.0, (route.back() - load).norm() / gains.slowdown_radius_m);
     v = std::max(gains.min_speed_mps, gains.cruise_speed_mps * ramp) * std::max(0.0, std::cos(alpha));
   }
   out.wheels = twistToWheels(v, turn, gains.wheel_base_m);
@@ -194,13 +287,12 @@ std::optional<PushCommand> pushWheels(const Pose2D& carrier, const Eigen::Vector
   return out;
 }
 
-bool behindLoad(const Eigen::Vector2d& carrier, const Eigen::Vector2d& load, const Eigen::Vector2d& load_end,
-                const Eigen::Vector2d& carrier_end) {
+bool behindLoad(const Eigen::Vector2d& carrier, const Eigen::Vector2d& load,
+                const std::vector<Eigen::Vector2d>& route) {
   const Eigen::Vector2d contact = load - carrier;
-  if (contact.norm() < 1e-9) return false;
-  const Eigen::Vector2d w = pushDirection(load_end, carrier_end, contact);
-  const double along = (load - load_end).dot(w);
-  return along >= 0 || std::abs(contactDrift(contact, load, load_end, w, along)) <= kPushConeRad;
+  if (contact.norm() < 1e-9 || route.size() < 2) return false;
+  const OnRoute at = onRoute(route, load);
+  return pastEnd(route, at) || std::abs(contactDrift(contact, load, route, at)) <= kPushConeRad;
 }
 
 std::optional<int> pushedLoad(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,

@@ -41,6 +41,7 @@ void RobotController::start(const PlannedPath& path, const std::string& target, 
   target_ = target;
   contacts_ = {};
   push_planned_for_ = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  load_route_.clear();
   was_pushing_ = backing_off_ = false;
   filter_.reset();
   stale_since_s_ = -1;
@@ -49,19 +50,24 @@ void RobotController::start(const PlannedPath& path, const std::string& target, 
 void RobotController::setContacts(MotionContacts contacts) {
   contacts_ = std::move(contacts);
   push_planned_for_ = contacts_.load_at;
+  load_route_.clear();
   was_pushing_ = false;
 }
 
+void RobotController::planLoadRoute(const SafetyBody& load) {
+  if (!load_route_.empty()) return;
+  // Unknown where it was planned for: the path as given was planned for the load there.
+  if (!push_planned_for_.allFinite()) push_planned_for_ = load.position;
+  load_route_ = loadRoute(follower_.points(), push_planned_for_, load.position, contacts_.load_end);
+}
+
 void RobotController::replanPush(const Pose2D& pose, const SafetyBody& load, double radius_m) {
-  if (!push_planned_for_.allFinite()) {
-    push_planned_for_ = load.position;  // unknown: the path as given was planned for the load there
-    return;
-  }
   if (!was_pushing_ && (load.position - push_planned_for_).norm() <= kPushReplanM) return;
   const int points = std::max(2, static_cast<int>(std::ceil(follower_.lengthM() / kPushPathSpacingM)));
-  follower_.setPath(PlannedPath{pushPath(pose.position(), load.position, contacts_.load_end, radius_m + load.radius_m,
-                                         follower_.endPoint(), points, {}, /*push_from_behind=*/false),
-                                {}});
+  load_route_ = routeOnFrom(load_route_, load.position);
+  follower_.setPath(PlannedPath{
+      pushPathAlong(pose.position(), load_route_, radius_m + load.radius_m, points, {}, /*push_from_behind=*/false),
+      {}});
   push_planned_for_ = load.position;
 }
 
@@ -158,15 +164,17 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   const SafetyBody* load = nullptr;
   for (const SafetyBody& b : others)
     if (!contacts_.load.empty() && b.name == contacts_.load) load = &b;
-  // Behind its load, a carrier steers the load to the load's end point (exec/push_path.h),
-  // and the load's arrival, not its own, ends the push. Not behind it, it goes round it to
-  // behind it along its path; when the push broke (the load slid off its front) or the load
-  // moved off where the path was planned for (something pushed it), round it again from
-  // where things are.
+  // Behind its load, a carrier steers the load along the load's route -- its own path
+  // beyond the load, on to the load's end point (exec/push_path.h) -- and the load's
+  // arrival, not its own, ends the push. Not behind it, it goes round it to behind it along
+  // its path; when the push broke (the load slid off its front) or the load moved off where
+  // the path was planned for (something pushed it), round it again from where things are,
+  // on along the rest of the same route.
   const bool pushes = load && !contacts_.load_rides;
-  const auto push = pushes ? pushWheels(pose, load->position, contacts_.load_end, follower_.endPoint(),
-                                        radius_m + load->radius_m, params_.gains)
-                           : std::nullopt;
+  if (pushes) planLoadRoute(*load);
+  const auto push =
+      pushes ? pushWheels(pose, load->position, load_route_, radius_m + load->radius_m, params_.gains, was_pushing_)
+             : std::nullopt;
   if (pushes && !push) replanPush(pose, *load, radius_m);
   was_pushing_ = push.has_value();
   FollowerOutput o = follower_.compute(pose);
@@ -186,8 +194,7 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   // it (kept clear of others); otherwise it is a body like any other, except that the
   // carrier may touch it from behind (behindLoad), on its way to push it.
   const bool in_hand = load && (contacts_.load_rides || push);
-  const bool from_behind =
-      pushes && !push && behindLoad(pose.position(), load->position, contacts_.load_end, end_point);
+  const bool from_behind = pushes && !push && behindLoad(pose.position(), load->position, load_route_);
   for (SafetyBody& b : others) {
     b.touchable = (from_behind && &b == load) || (contacts_.ends_against.count(b.name) &&
                                                   endsAgainst(end_point, radius_m, b.position, b.radius_m, reach));

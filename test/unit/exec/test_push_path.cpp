@@ -284,3 +284,51 @@ TEST(PushPath, TheRouteGoesRoundBodiesStandingInTheWayOfThePush) {
   const Eigen::Vector2d last = (route.back() - route[route.size() - 2]).normalized();
   EXPECT_LT((path.back() - (hoop - contact_ball * last)).norm(), 1e-6) << "behind the ball on the hoop";
 }
+
+// Task 3's screen on the table of bodies: the shooter pushes the ball round the defender
+// and the screen standing between it and the hoop. The ball follows its carrier's whole
+// route, bend and all (exec::loadRoute): it reaches the hoop, and neither the ball nor the
+// shooter touches a robot standing in the way. (Steered only along the route's last leg, the
+// ball was aimed through the screen and the shooter, never behind it by that leg, was held
+// at the ball: a deadlock.)
+TEST(PushPath, ABallPushedRoundRobotsStandingInTheWayReachesTheHoop) {
+  task::TaskSpec spec;
+  spec.name = "screen";
+  spec.entities = {{"R1", task::EntityKind::Robot, ""},
+                   {"R2", task::EntityKind::Robot, ""},
+                   {"R3", task::EntityKind::Robot, ""},
+                   {"B1", task::EntityKind::Object, ""},
+                   {"G1", task::EntityKind::Goal, ""}};
+  constexpr int R3 = 2, Ball = 3;
+  // As Task 3's step 3 begins (a test scene of `ddace generate task3`): the ball passed to
+  // the shooter lies at its side, the defender touches the shooter, the screen the defender.
+  const Eigen::Vector2d defender(0.440, 0.253), screen(0.385, 0.289), hoop(0.845, 0.886);
+  const Eigen::Vector2d ball(0.357, 0.219), shooter(0.400, 0.205);
+  const double contact = spec.contactDistance(R3, Ball);
+  SimTable sim(spec,
+               {{defender.x(), defender.y(), -2.3},
+                {screen.x(), screen.y(), -0.6},
+                {shooter.x(), shooter.y(), -2.78},
+                {ball.x(), ball.y(), 0},
+                {hoop.x(), hoop.y(), 0}},
+               DiffDriveParams{});
+  const double reach = 2 * task::kDefaultRobotRadius + kPushPassM;
+  const std::vector<PushObstacle> standing = {{defender, reach}, {screen, reach}};
+  ASSERT_GT(pushRoute(ball, hoop, standing).size(), 2u) << "the straight push runs into the screen";
+  const double stop = task::stopRadius(task::kDefaultArrivalRadius);
+  RobotController shooter_controller("R3", ControllerParams{});
+  shooter_controller.start(PlannedPath{pushPath(shooter, ball, hoop, contact, hoop, 200, standing), {}}, "G1", stop,
+                           stop);
+  MotionContacts contacts;
+  contacts.load = "B1", contacts.load_end = hoop, contacts.load_at = ball;
+  shooter_controller.setContacts(contacts);
+  double closest = 1e9;
+  EXPECT_TRUE(runMotion(sim, spec, shooter_controller, R3, 40.0, closest));
+  for (int k = 0; k < 50; ++k) sim.step();  // the ball rolls to rest
+  const auto e = sim.entities();
+  EXPECT_LT((e[Ball].pose.position() - hoop).norm(), task::kDefaultArrivalRadius)
+      << "the ball at " << e[Ball].pose.position().transpose() << " after " << sim.time() << " s";
+  for (const BodyContact& c : sim.contacts())
+    if (std::max(c.a, c.b) >= R3 && std::min(c.a, c.b) < R3)
+      ADD_FAILURE() << spec.entities[c.a].name << " touched " << spec.entities[c.b].name << " at " << c.time_s << " s";
+}

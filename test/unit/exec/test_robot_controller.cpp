@@ -197,10 +197,13 @@ TEST(RobotController, ACarrierTouchesItsLoadOnlyFromBehind) {
   for (const bool from_behind : {true, false}) {
     SCOPED_TRACE(from_behind ? "from behind" : "from its side");
     RobotController c("R1", params());
-    c.start(straight({0, 0}, {0.3, 0}), "G1", 0.025, 0.025);
+    // From its side: the push turns at the load, its route beyond it heads across the
+    // carrier's way in.
+    const Vector2d load_end = from_behind ? Vector2d(0.3, 0) : Vector2d(load.x(), 0.3);
+    c.start(PlannedPath{{Vector2d(0, 0), load, load_end}, {}}, "G1", 0.025, 0.025);
     MotionContacts contacts;
     contacts.load = "O1";
-    contacts.load_end = from_behind ? Vector2d(0.3, 0) : Vector2d(load.x(), 0.3);
+    contacts.load_end = load_end;
     contacts.load_at = load;
     c.setContacts(contacts);
     std::vector<SafetyBody> others{{"O1", load, o, false}};
