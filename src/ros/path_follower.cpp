@@ -122,7 +122,7 @@ class PathFollowerNode::Impl {
       const exec::PlannedPath path = ros_exec::fromMsg(m.path, m.stddev_m, "/robots/" + name + "/segment");
       const bool given = m.arrival_radius_m > 0 && std::isfinite(m.arrival_radius_m);
       const double stop = given ? m.arrival_radius_m : params_.gains.stop_radius_m;  // the field is a stop radius
-      const double toward = view_->stopToward(name, m.step, m.token.action, m.token.target, path.points.back(), stop);
+      const double toward = view_->stopToward(name, m.step, m.token.action, m.token.target, stop);
       r.controller.start(path, m.token.target, toward, stop);
       view_->noteSegment(name, m.segment_id, m.step, m.token.action, m.token.target, path.points.back(), path.points);
       r.segment_id = m.segment_id, r.step = m.step, r.decided = ~0ULL, r.cycle = 0;

@@ -55,7 +55,7 @@ namespace ddace::exec {
 struct BodiesExecutionParams {
   ExecutionConfig config;  ///< the robots' controller, the simulated Hamster, the table (bodies)
   /// The task's; each motion stops within task::stopRadius of its end point (with the stop
-  /// tolerance of noise_m), toward a body within task::stopRadiusToward.
+  /// tolerance of noise_m), against a body within task::stopRadiusAgainstBody.
   double arrival_radius_m = task::kDefaultArrivalRadius;
   double noise_m = 0;  ///< std-dev of measured x and y (the simulated Hamster's noise is replaced)
   uint64_t seed = 1;

@@ -2,7 +2,7 @@
 // drives: every tracked body, and the segment of every entity -- its own robots' and those
 // driven elsewhere (objects, other followers' robots) -- with where it ends. From these it
 // decides, for a robot of its own, the stop radius toward its target
-// (task::stopRadiusToward, where the target ends this step) and what its motion may touch
+// (task::stopRadiusAgainstBody) and what its motion may touch
 // (exec::motionContacts, from where the step's bodies end), and lists the other bodies for
 // its controller, each marked standing or not. path_follower_node converts messages to and
 // from these; its robots' control cycles are exec::RobotController's.
@@ -62,13 +62,12 @@ class FollowerView {
   /// ended decides again too).
   uint64_t stepVersion(int step) const;
 
-  /// The stop radius of robot `robot`'s motion of `step` (`action` toward `target`)
-  /// ending at `end`, from `stop` (task::stopRadius): toward a body, near enough to stay
-  /// at one place with it where it ends (task::stopRadiusToward); a goal is driven onto,
-  /// and a carrier's load (an object's segment of the step with the same action and
-  /// target, known now) is what ends at the target: `stop`.
+  /// The stop radius of robot `robot`'s motion of `step` (`action` toward `target`), from
+  /// `stop` (task::stopRadius): toward a tracked body, task::stopRadiusAgainstBody; onto a
+  /// goal, or carrying a load (an object's segment of the step with the same action and
+  /// target, known now: the load is what ends at the target), `stop`.
   double stopToward(const std::string& robot, int step, const std::string& action, const std::string& target,
-                    const Eigen::Vector2d& end, double stop) const;
+                    double stop) const;
   /// What robot `robot`'s segment may touch (exec::motionContacts), it standing at
   /// `position` now, from where every body of the step ends.
   MotionContacts contacts(const std::string& robot, const Eigen::Vector2d& position) const;

@@ -56,6 +56,10 @@ struct MotionContacts {
   /// The robots it is queued behind (see motionContacts): it stands where it is until each
   /// of them stands (arrived, or stopped).
   std::set<std::string> after;
+  /// The robots of its step whose end points touch its own and that are not queued behind
+  /// it (places side by side): while one of them is on its way, it stops within the held
+  /// stop radius, leaving that one's way in open (exec::RobotController).
+  std::set<std::string> beside;
 };
 
 /// A body as a step's motions see it when the step begins.

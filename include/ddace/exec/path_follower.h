@@ -90,6 +90,8 @@ class PathFollower {
   /// Starts following `path` from progress 0. Throws ddace::Error when the path has no
   /// point or a non-finite coordinate.
   void setPath(const PlannedPath& path);
+  /// The stop radius from now on (the path kept). Throws ddace::Error unless positive.
+  void setStopRadius(double stop_radius_m);
   /// Forgets the path; compute() then returns zero wheels.
   void clear();
   bool hasPath() const { return !points_.empty(); }

@@ -78,7 +78,7 @@ class RobotController {
   RobotController(std::string name, const ControllerParams& params);
 
   /// A new motion along `path` toward `target` ("" = none), stopping by itself within
-  /// `stop_radius_m` of its end point (task::stopRadiusToward), or held by its filter --
+  /// `stop_radius_m` of its end point (task::stopRadiusAgainstBody), or held by its filter --
   /// at contact with a body it ends against, or short by bodies beside it -- within
   /// `held_stop_radius_m` of it (task::stopRadius, task/body_geometry.h); the last
   /// one is forgotten, and what it may touch is none until setContacts(). Throws
@@ -133,6 +133,7 @@ class RobotController {
   SafetyFilter filter_;
   std::string target_;
   MotionContacts contacts_;
+  double stop_radius_m_ = 0;                 ///< the motion's (start()), unless it ends beside one still moving
   double held_stop_radius_m_ = 0;            ///< the motion's (start())
   double stale_since_s_ = -1;                ///< since when the motion waits on a stale pose (-1: not)
   Eigen::Vector2d push_planned_for_{0, 0};   ///< where the load was when the path was planned (NaN: not seen yet)

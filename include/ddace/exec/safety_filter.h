@@ -14,7 +14,9 @@
 //   n . p'  >=  -share * gain * h       (share 1/2 for a robot, which runs its own
 //                                        filter and takes the other half; 1 otherwise)
 // The right side is never above 0, so a pair already inside the margin (a start scene,
-// a pushed robot) may separate but never close in. The motion's
+// a pushed robot) may separate but never close in; nearer contact than margin + l the
+// disc's own centre gets the same constraint at contact distance (x' = v e), so a robot
+// leaving a body it touches turns on the spot first instead of grazing it. The motion's
 // target (and a body marked touchable: a body the motion's end point touches) gets the
 // same constraint on the centres at contact distance. A carried load is part of the
 // robot's body: its centre q, rigidly ahead of the axle, moves as q' = v e + w (q - x)^perp,

@@ -10,13 +10,16 @@
 // Radii about a motion's end point, each named for what it is:
 //   - the *arrival radius* (task.yaml's arrival_radius): a motion counts as arrived when
 //     the entity is within it (arrived());
-//   - the *stop radius*: a robot stops by itself within it of its end point -- the arrival
-//     radius less the stop tolerance (the tracking noise a measured pose carries), so
-//     noise cannot leave a stopped robot outside it; and for a motion toward a body, near
-//     enough that the stopped robot is still at one place with it (togetherDistance):
-//     where demonstrations stop short of contact (4 mm, 1 cm), the robot stops that much
-//     nearer its end point, so the stop and the demonstrated gap never add up beyond
-//     "together" (stopRadiusToward);
+//   - the *stop radius*: a robot bound for a flat goal stops by itself within it of its
+//     end point -- the arrival radius less the stop tolerance (the tracking noise a
+//     measured pose carries), so noise cannot leave a stopped robot outside it;
+//   - a robot sent to a body (a robot, an object; carrying nothing) stops within the stop
+//     tolerance of its end point (stopRadiusAgainstBody): its end point is where the
+//     demonstrations stopped against that body (touching, 4 mm, 1 cm; task/end_point.h),
+//     and it ends there within the tracking noise, not up to the stop radius (2.4 cm)
+//     farther off -- except while a robot whose place is beside its own is still on its
+//     way (exec::MotionContacts::beside): then within the stop radius, leaving that one's
+//     way in open;
 //   - held by its safety filter at contact with a body it ends against, or short of its
 //     end point by bodies beside it, a robot has arrived within the arrival radius less
 //     the tolerance of it (stopRadius, not reduced: its true position is within the
@@ -55,11 +58,10 @@ double stopTolerance(double noise_m);
 /// within the noise itself).
 double stopRadius(double arrival_radius, double tolerance = kArrivalToleranceM);
 
-/// The stop radius of a motion toward a body: `stop_radius` (stopRadius), reduced so that
-/// a robot stopped within it of its end point (`end_to_target_m` from the target's centre)
-/// is still within `together_m` (togetherDistance) of its target, by the tolerance; never
-/// below the tolerance (nor above `stop_radius`).
-double stopRadiusToward(double stop_radius, double tolerance, double together_m, double end_to_target_m);
+/// The stop radius of a motion toward a body (a robot, an object), carrying nothing: the
+/// stop tolerance, never above `stop_radius` (stopRadius). Held at contact short of it, the
+/// motion has arrived too (exec::endedAtContact).
+double stopRadiusAgainstBody(double stop_radius, double tolerance);
 
 /// A motion has arrived when `position` is within `arrival_radius` of its end point.
 bool arrived(const Eigen::Vector2d& position, const Eigen::Vector2d& end_point, double arrival_radius);

@@ -3,7 +3,9 @@
 // directly: not the API of the commands and nodes (sequence_model.h). No torch here.
 #pragma once
 
+#include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ddace/graph/refinement.h"
@@ -50,6 +52,31 @@ std::vector<graph::Edge> liftedToKinds(const std::vector<graph::Edge>& edges, co
                                        const task::TaskSpec& to);
 /// The training's stopping rule (see "stopping" above) on the epochs so far.
 bool atPlateau(const std::vector<EpochRecord>& history, int patience, double delta);
+
+/// Entities at one place: per entity the lowest index of those at one place with it,
+/// transitively (a chain, each within its pair's `together` distance [N * N] of the next).
+std::vector<int> placesOf(const std::vector<Eigen::Vector2d>& pos, const std::vector<double>& together);
+/// Per pair of kinds (kindKey) of `spec`: how many entities of the first are at one place
+/// with an entity of the second (another one, where the kinds are the same) at `pos` (task
+/// order). Pairs with no such entity are left out.
+std::map<std::pair<std::string, std::string>, int> endCountsOf(const task::TaskSpec& spec,
+                                                               const std::vector<Eigen::Vector2d>& pos);
+/// "End scene": what the last scene of every demonstration of `train` had in common
+/// (EndScene). None from fewer than two demonstrations.
+EndScene endSceneOf(const task::TaskDir& train);
+/// `end` of a model of `trained` on the entities of `other`: a count follows the counts it was
+/// all of in training (every entity of its kind, or of the kind it is with), the least of
+/// those in `other`; any other stays, at most the entities of its kind in `other`. `waits`,
+/// per count of the result: it grew past training's (END waits for it).
+EndScene endSceneFor(const EndScene& end, const task::TaskSpec& trained, const task::TaskSpec& other,
+                     std::vector<bool>& waits);
+/// p(END) under `end` at `pos` (task order): 0 while a count that waits (`waits`, per count;
+/// empty: none) does not hold; 1 once every count holds, where they tell the end; else `p`.
+double endProbability(double p, const EndScene& end, const std::vector<bool>& waits, const task::TaskSpec& spec,
+                      const std::vector<Eigen::Vector2d>& pos);
+/// The counts a count of training follows to another task: each (training count, other
+/// count) it equals; the least of the other counts, or -1 when it equals none.
+int followedCount(int count, const std::vector<std::pair<int, int>>& trained_and_other);
 
 /// One entity's decoded output: action class (0 = idle, c = vocabulary[c-1]) and target
 /// slot (0 = no target, k = entity k-1), both in the network's canonical order.

@@ -74,8 +74,9 @@ namespace ddace::tgn {
 /// token by token chooses who acts too, a carrier's pairs are its load's, and a parked
 /// entity is ranked among every one of its kind; /15: motion primitives by role
 /// (primitives.yaml /4), the hyper-parameters without `attention`, `node_positions` and
-/// `edge_displacement` (switches nothing set). Older ones are refused (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/15";
+/// `edge_displacement` (switches nothing set); /16: the end scene (`plan.end_scene`). Older
+/// ones are refused (retrain).
+inline constexpr const char* kModelFormat = "ddace-model/16";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {
@@ -103,6 +104,7 @@ enum class Rule {
   TokenByToken,   ///< "token-by-token": decide a step's targets one token at a time
   Parked,         ///< "parked": parked entities are no rivals in the nearness ranks
   Ensemble,       ///< "ensemble": networks trained from several seeds vote on each decoded step
+  EndScene,       ///< "end-scene": END waits for what every demonstration's last scene had
 };
 const char* toString(Rule r);
 /// Throws ddace::Error listing the names for an unknown one.
@@ -184,6 +186,25 @@ struct StepRules {
   }
 };
 
+/// One relation of the entities at the end: at least `count` entities of `kind` (kindKey) were
+/// at one place (task::togetherDistance, transitively) with an entity of kind `with` (another
+/// one, where the kinds are the same).
+struct EndCount {
+  std::string kind, with;
+  int count = 0;
+  bool operator==(const EndCount& o) const { return kind == o.kind && with == o.with && count == o.count; }
+};
+
+/// "End scene" (docs/tgn.md): what the last scene of every training demonstration had in
+/// common, counted by kind. Where it held in no earlier scene (`telling`), END is decided
+/// once it holds; bound to a larger team, not before a count that grew with the team holds
+/// (the bound model's Impl::end_waits). Empty: no such rule.
+struct EndScene {
+  std::vector<EndCount> counts;  ///< by kind, then with
+  bool telling = false;
+  bool operator==(const EndScene& o) const { return counts == o.counts && telling == o.telling; }
+};
+
 /// "Ensemble" (docs/tgn.md): where the scene decides the steps, this many networks from
 /// different seeds decide together (each decodes the step, the majority's is kept); a
 /// manifest holds at most kMaxEnsemble and exactly what training makes (1 or this).
@@ -218,7 +239,9 @@ struct TrainingPlan {
   /// Scene: the number of networks voting on each decoded step ("Ensemble"): trained alike
   /// from seeds derived from the model's (the first from the model's own); 1: one network.
   int ensemble = 1;
-  StepRules step_rules;                      ///< scene: learned from the training steps; else none
+  StepRules step_rules;  ///< scene: learned from the training steps; else none
+  /// Scene, where the scene decides (relative features): when a run is over ("End scene").
+  EndScene end_scene;
   std::vector<graph::Edge> attention_edges;  ///< directed edges the network attends over (no self-loops)
   /// The same plan for the network without the identity embedding (no names to shuffle).
   TrainingPlan withoutIdentity() const;
@@ -234,7 +257,7 @@ struct TrainingPlan {
            identity_embedding == o.identity_embedding && names_or_scene == o.names_or_scene &&
            name_groups == o.name_groups && token_by_token == o.token_by_token &&
            parked_out_of_ranks == o.parked_out_of_ranks && ensemble == o.ensemble && step_rules == o.step_rules &&
-           attention_edges == o.attention_edges;
+           end_scene == o.end_scene && attention_edges == o.attention_edges;
   }
 };
 

@@ -323,18 +323,11 @@ std::string BodiesExecution::startMotion(size_t m) {
   const double length_m = lengthOf(mo.planned);
   if (mo.robot) {
     RobotController& c = *controllers_.at(mo.entity);
-    // Toward a body, it stops where it is still at one place with it (where the body ends);
-    // a carrier's load is what ends at the target.
-    double stop = stop_radius_m_;
-    if (mo.target >= 0 && mo.target < n && radius_m_[mo.target] > 0 && motion.contacts.load.empty()) {
-      const int t = motion_of_[mo.target];
-      const Eigen::Vector2d target_end =
-          t >= 0 && motions_[t].moving ? motions_[t].final_at : table_->truePose(mo.target).position();
-      stop = task::stopRadiusToward(
-          stop, stop_tolerance_m_,
-          task::togetherDistance(radius_m_[mo.entity] + radius_m_[mo.target], params_.arrival_radius_m),
-          (motion.final_at - target_end).norm());
-    }
+    // Toward a body, it ends at its end point within the tracking noise: at the gap the
+    // demonstrations stopped at. A carrier's load is what ends at the target.
+    const bool against_body =
+        mo.target >= 0 && mo.target < n && radius_m_[mo.target] > 0 && motion.contacts.load.empty();
+    const double stop = against_body ? task::stopRadiusAgainstBody(stop_radius_m_, stop_tolerance_m_) : stop_radius_m_;
     c.start(PlannedPath{mo.planned, {}}, mo.target >= 0 ? names_[mo.target] : std::string(), stop, stop_radius_m_);
     c.setContacts(motion.contacts);
     motion.limit_s = 3.0 * length_m / controller_.gains.cruise_speed_mps + 10.0;

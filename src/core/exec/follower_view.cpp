@@ -74,16 +74,11 @@ bool FollowerView::isObject(const std::string& name) const {
 }
 
 double FollowerView::stopToward(const std::string& robot, int step, const std::string& action,
-                                const std::string& target, const Eigen::Vector2d& end, double stop) const {
-  const auto body = bodies_.find(target);
-  if (body == bodies_.end()) return stop;
-  for (const auto& [name, s] : segments_)
+                                const std::string& target, double stop) const {
+  if (!bodies_.count(target)) return stop;  // a goal is driven onto
+  for (const auto& [name, s] : segments_)   // a carrier: its load is what ends at the target
     if (name != robot && s.step == step && s.action == action && s.target == target && isObject(name)) return stop;
-  Eigen::Vector2d at = body->second.body.position;
-  if (const auto s = segments_.find(target); s != segments_.end()) at = s->second.end;
-  const double contact = radiusOf(robot) + body->second.body.radius_m;
-  return task::stopRadiusToward(stop, std::max(task::kArrivalToleranceM, arrival_m_ - stop),
-                                task::togetherDistance(contact, arrival_m_), (end - at).norm());
+  return task::stopRadiusAgainstBody(stop, std::max(task::kArrivalToleranceM, arrival_m_ - stop));
 }
 
 MotionContacts FollowerView::contacts(const std::string& robot, const Eigen::Vector2d& position) const {
@@ -103,8 +98,7 @@ MotionContacts FollowerView::contacts(const std::string& robot, const Eigen::Vec
     at.push_back(b);
   }
   const Segment& s = own->second;
-  return motionContacts(position, radiusOf(robot), s.end, s.step, s.action, s.target, at, reach_m_, arrival_m_,
-                        s.way);
+  return motionContacts(position, radiusOf(robot), s.end, s.step, s.action, s.target, at, reach_m_, arrival_m_, s.way);
 }
 
 const std::vector<SafetyBody>& FollowerView::others(const std::string& robot, double now_s, double& self_age_s) {

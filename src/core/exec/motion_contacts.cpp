@@ -27,6 +27,16 @@ bool onWayIn(const Eigen::Vector2d& place, double radius_m, const std::vector<Ei
   }
   return false;
 }
+
+/// Whether `b`, a robot of the step, is queued behind a robot ending at `end_point` (see
+/// motionContacts): bound for the same target, its end not reaching it, farther from it.
+bool queuedBehind(const BodyAtStart& b, const Eigen::Vector2d& end_point,
+                  std::vector<BodyAtStart>::const_iterator target, const std::vector<BodyAtStart>& bodies,
+                  double reach_m) {
+  return target != bodies.end() && b.target == target->name &&
+         !endsAgainst(b.final_position, b.radius_m, target->final_position, target->radius_m, reach_m) &&
+         (b.final_position - target->final_position).norm() > (end_point - target->final_position).norm();
+}
 }  // namespace
 
 MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
@@ -61,6 +71,8 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
       out.after.insert(b.name);
     if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, reach_m)) {
       out.ends_against.insert(b.name);
+      if (b.step == step && !b.object && b.name != target && !queuedBehind(b, end_point, at_target, bodies, reach_m))
+        out.beside.insert(b.name);
       if (queued && same_meeting &&
           (b.final_position - at_target->final_position).norm() < (end_point - at_target->final_position).norm())
         out.after.insert(b.name);

@@ -77,6 +77,13 @@ void PathFollower::setPath(const PlannedPath& path) {
   done_ = false;
 }
 
+void PathFollower::setStopRadius(double stop_radius_m) {
+  FollowerGains g = gains_;
+  g.stop_radius_m = stop_radius_m;
+  g.validate();
+  gains_ = g;
+}
+
 void PathFollower::clear() {
   points_.clear();
   cum_m_.clear();

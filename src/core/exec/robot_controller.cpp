@@ -37,6 +37,7 @@ void RobotController::start(const PlannedPath& path, const std::string& target, 
   PathFollower f(g);
   f.setPath(path);  // throws for an empty or non-finite path, the last motion kept
   follower_ = std::move(f);
+  stop_radius_m_ = stop_radius_m;
   held_stop_radius_m_ = held_stop_radius_m;
   target_ = target;
   contacts_ = {};
@@ -177,6 +178,13 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
              : std::nullopt;
   if (pushes && !push) replanPush(pose, *load, radius_m);
   was_pushing_ = push.has_value();
+  // Ending beside a body other than its target that is still on its way (robots meeting
+  // at one body, a line), it stops within the held stop radius: driven on to its exact
+  // place it would close the way in of that one, whose place lies beside it. The last of
+  // them to come ends where its own stop radius says.
+  bool beside_moving = false;
+  for (const SafetyBody& b : others) beside_moving = beside_moving || (!b.standing && contacts_.beside.count(b.name));
+  follower_.setStopRadius(beside_moving ? std::max(stop_radius_m_, held_stop_radius_m_) : stop_radius_m_);
   FollowerOutput o = follower_.compute(pose);
   out.progress = o.progress;
   out.distance_to_goal_m = o.distance_to_goal_m;
@@ -206,6 +214,12 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
                                          others, target_, now_s, load);
   if (c.stale) return stale(out, c.reason, now_s);  // a body nearby is stale: as the robot's own pose
   stale_since_s_ = -1;
+  if (c.deadlock && o.distance_to_goal_m <= held_stop_radius_m_) {
+    // Held still near enough its end point that its true position is within the arrival
+    // radius (bodies beside it, settled): it has arrived there, as when blocked below.
+    out.progress = 1.0;
+    return done(out, "held short of its end point: " + c.reason, pose, pose_age_s, radius_m, others, now_s);
+  }
   if (c.deadlock) {
     char where[64];
     std::snprintf(where, sizeof where, ", %.1f cm from its end point", 100 * o.distance_to_goal_m);

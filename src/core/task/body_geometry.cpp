@@ -17,8 +17,8 @@ double stopRadius(double arrival_radius, double tolerance) {
   return std::max(arrival_radius - tolerance, 0.5 * arrival_radius);
 }
 
-double stopRadiusToward(double stop_radius, double tolerance, double together_m, double end_to_target_m) {
-  return std::min(stop_radius, std::max(tolerance, together_m - end_to_target_m - tolerance));
+double stopRadiusAgainstBody(double stop_radius, double tolerance) {
+  return std::min(stop_radius, tolerance);
 }
 
 bool arrived(const Eigen::Vector2d& position, const Eigen::Vector2d& end_point, double arrival_radius) {

@@ -91,12 +91,10 @@ int stepSizeFor(int step_size, const ModelInfo& info, const task::TaskSpec& trai
     return static_cast<int>(std::count_if(s.entities.begin(), s.entities.end(),
                                           [&](const task::Entity& e) { return task::toString(e.kind) == kind; }));
   };
-  std::vector<int> followed;
-  if (step_size == actors(trained)) followed.push_back(actors(other));
+  std::vector<std::pair<int, int>> counts{{actors(trained), actors(other)}};
   if (info.plan.step_rules.exclusive_targets)
-    for (const auto& kind : target_kinds)
-      if (step_size == ofKind(trained, kind)) followed.push_back(ofKind(other, kind));
-  if (!followed.empty()) return *std::min_element(followed.begin(), followed.end());
+    for (const auto& kind : target_kinds) counts.push_back({ofKind(trained, kind), ofKind(other, kind)});
+  if (const int followed = detail::followedCount(step_size, counts); followed >= 0) return followed;
   return step_size > actors(other) ? 0 : step_size;
 }
 
@@ -118,6 +116,7 @@ SequenceModel SequenceModel::boundTo(const task::TaskSpec& other) const {
   TrainingPlan& plan = impl->info.plan;
   plan.attention_edges = detail::liftedToKinds(from.info.plan.attention_edges, from.spec, other);
   plan.step_rules.step_size = stepSizeFor(plan.step_rules.step_size, from.info, from.spec, other);
+  plan.end_scene = detail::endSceneFor(from.info.plan.end_scene, from.spec, other, impl->end_waits);
   // The name groups are training's; the bound model is not trained.
   std::map<int, std::vector<int>> groups;
   for (size_t g = 0; g < from.info.plan.name_groups.size(); ++g)

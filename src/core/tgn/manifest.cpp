@@ -9,6 +9,7 @@
 #include <fstream>
 #include <functional>
 #include <iomanip>
+#include <set>
 #include <sstream>
 
 #include <yaml-cpp/yaml.h>
@@ -52,6 +53,7 @@ namespace {
 const std::pair<Rule, const char*> kRuleNames[] = {
     {Rule::Relative, "relative"},           {Rule::FixedOrder, "fixed-order"}, {Rule::ShuffledNames, "shuffled-names"},
     {Rule::TokenByToken, "token-by-token"}, {Rule::Parked, "parked"},          {Rule::Ensemble, "ensemble"},
+    {Rule::EndScene, "end-scene"},
 };
 
 }  // namespace
@@ -223,6 +225,13 @@ void emitPlan(YAML::Emitter& y, const TrainingPlan& plan, const EntityName& name
   y << YAML::Key << "exclusive_targets" << YAML::Value << plan.step_rules.exclusive_targets;
   y << YAML::Key << "step_size" << YAML::Value << plan.step_rules.step_size;
   y << YAML::Key << "load_actions" << YAML::Value << YAML::Flow << plan.step_rules.load_actions;
+  y << YAML::EndMap;
+  y << YAML::Key << "end_scene" << YAML::Value << YAML::Flow << YAML::BeginMap;
+  y << YAML::Key << "telling" << YAML::Value << plan.end_scene.telling;
+  y << YAML::Key << "counts" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+  for (const EndCount& c : plan.end_scene.counts)
+    y << YAML::Flow << YAML::BeginSeq << c.kind << c.with << c.count << YAML::EndSeq;
+  y << YAML::EndSeq;
   y << YAML::EndMap;
   y << YAML::Key << "attention_edges" << YAML::Value << YAML::BeginSeq;
   for (const auto& e : plan.attention_edges)
@@ -405,7 +414,8 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
                          std::all_of(version.begin(), version.end(), [](char c) { return c >= '0' && c <= '9'; });
     if (numeric && std::stoi(version) < std::stoi(own)) {
       const int v = std::stoi(version);
-      const std::string lacks = std::string("its motion primitives are keyed by name only") +
+      const std::string lacks = std::string("its plan has no end scene (END counted the steps)") +
+                                (v < 15 ? ", its motion primitives are keyed by name only" : "") +
                                 (v < 14 ? ", token by token it chose the acting entities' targets only, not who "
                                           "acts, and it ranked a parked entity among the free ones"
                                         : "") +
@@ -596,6 +606,20 @@ TrainingPlan parsePlan(Reader& r, const YAML::Node& root, const task::TaskSpec& 
     for (const std::string& a : plan.step_rules.load_actions)
       if (std::find(info.vocabulary.begin(), info.vocabulary.end(), a) == info.vocabulary.end())
         r.fail(rules, "step_rules: load_actions names '" + a + "', not an action of the vocabulary");
+  }
+  {
+    const YAML::Node end = r.need(pn, "end_scene");
+    plan.end_scene.telling = r.boolean(end, "telling");
+    std::set<std::string> kinds;
+    for (const auto& e : spec.entities) kinds.insert(kindKey(e));
+    for (const YAML::Node& c : r.sequence(end, "counts")) {
+      if (!c.IsSequence() || c.size() != 3) r.fail(c, "an end scene count is [KIND, WITH KIND, COUNT]");
+      EndCount count{r.textAt(c[0], "end scene: kind"), r.textAt(c[1], "end scene: with kind"), 0};
+      for (const std::string* k : {&count.kind, &count.with})
+        if (!kinds.count(*k)) r.fail(c, "end scene: '" + *k + "' is no kind of the task's entities");
+      count.count = static_cast<int>(r.integerAt(c[2], "end scene: count (at least 1, at most the entities)", 1, n));
+      plan.end_scene.counts.push_back(count);
+    }
   }
   for (const YAML::Node& e : r.sequence(pn, "attention_edges")) {
     if (!e.IsSequence() || e.size() != 2) r.fail(e, "an attention edge is [SOURCE, TARGET]");

@@ -251,16 +251,7 @@ PairView pairView(const task::TaskSpec& spec, const EntityOrder& order, const st
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j)
       v.together[static_cast<size_t>(i * n + j)] = task::togetherDistance(spec, order.task_of[i], order.task_of[j]);
-  // place_of[i]: the lowest index of the entities at one place with i (transitively).
-  std::vector<int> place_of(static_cast<size_t>(n));
-  for (int i = 0; i < n; ++i) place_of[static_cast<size_t>(i)] = i;
-  for (int i = 0; i < n; ++i)
-    for (int j = i + 1; j < n; ++j)
-      if ((pos[j] - pos[i]).norm() <= v.at(i, j)) {
-        const int a = place_of[static_cast<size_t>(i)], b = place_of[static_cast<size_t>(j)];
-        if (a != b)
-          for (int& p : place_of) p = p == std::max(a, b) ? std::min(a, b) : p;
-      }
+  const std::vector<int> place_of = detail::placesOf(pos, v.together);
   std::vector<Eigen::Vector2d> sum(static_cast<size_t>(n), Eigen::Vector2d::Zero());
   std::vector<double> members(static_cast<size_t>(n), 0.0);
   for (int i = 0; i < n; ++i) {

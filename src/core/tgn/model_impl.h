@@ -51,6 +51,8 @@ struct SequenceModel::Impl {
   std::vector<float> kinds;  ///< [canonical][3] one-hot entity kind
   /// Bound to another task's entities (SequenceModel::boundTo): runs, is not saved.
   bool bound = false;
+  /// Bound: per count of info.plan.end_scene, whether END waits for it (it grew with the team).
+  std::vector<bool> end_waits;
 
   bool isScene() const { return info.variant == Variant::Scene; }
   torch::nn::Module& module();
@@ -91,14 +93,16 @@ struct SequenceModel::Impl {
   /// `history[0 .. count)`: the snapshots so far (canonical), the last the step's.
   /// `member`: the scene ensemble's network whose heads these are (token by token runs its
   /// heads again); an ensemble keeps its members' majority (detail::majorityDecision).
-  /// First, scene only, demonstrated tokens (demonstratedTokens): the actions and targets
-  /// an entity's kind never took are set to -1e9 (the joint decoder's floor), in `lt` too.
+  /// First, scene only, p(END) under the end scene (endProbability); demonstrated tokens (demonstratedTokens): the
+  /// actions and targets an entity's kind never took are set to -1e9 (the joint decoder's floor), in `lt` too.
   /// `demonstrated`: demonstratedTokens(), computed once by the caller (it does not change
   /// from step to step).
   detail::StepDecision decide(double p_end, const std::vector<double>& la, std::vector<double>& lt,
                               const torch::Tensor& target_logits, const torch::Tensor& nodes, const torch::Tensor& z,
                               const std::vector<Eigen::Vector2d>* history, size_t count,
                               const DemonstratedTokens& demonstrated, int member = 0) const;
+  /// p(END) under the plan's end scene (detail::endProbability) at `pos` (canonical).
+  double endProbability(double p_end, const std::vector<Eigen::Vector2d>& pos) const;
   /// Carried loads (StepRules::load_actions): every object of the task (canonical) with the
   /// entities, not objects, within task::togetherDistance of it in `pos` (canonical).
   std::vector<detail::Load> loadsAt(const std::vector<Eigen::Vector2d>& pos) const;

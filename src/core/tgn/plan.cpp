@@ -122,6 +122,9 @@ TrainingPlan planTraining(const task::TaskDir& train, const TrainOptions& option
   p.relative_features = options.uses(Rule::Relative) && !(options.uses(Rule::FixedOrder) && p.fixed_order);
   if (!p.relative_features) return p;  // the rules below shape what the scene says
   p.parked_out_of_ranks = options.uses(Rule::Parked);
+  // End scene: where the scene decides, END too is read from it (what every demonstration's
+  // last scene had), not from the steps counted so far, which differ with the team's size.
+  if (options.uses(Rule::EndScene)) p.end_scene = detail::endSceneOf(train);
   // Ensemble: where the scene decides, a few demonstrations are fitted exactly by networks
   // that generalise differently (the training seed's initial weights, dropout, batch order
   // and name draws); each of several networks decodes the step and the majority decides.

@@ -14,8 +14,8 @@ std::string TrainingPlan::inconsistency(const TrainOptions& options) const {
   if (slips > 0 && !fixed_order) return "slips without a fixed order";
   if (identity_embedding && !options.identity_embedding) return "identity_embedding where the options have none";
   if (options.variant != Variant::Scene &&
-      (relative_features || step_rules.any() || !step_rules.load_actions.empty() || token_by_token ||
-       parked_out_of_ranks || names_or_scene || !name_groups.empty()))
+      (relative_features || step_rules.any() || !end_scene.counts.empty() || !step_rules.load_actions.empty() ||
+       token_by_token || parked_out_of_ranks || names_or_scene || !name_groups.empty()))
     return std::string("rules of the scene network for the ") + toString(options.variant) + " variant";
   if (relative_features && !options.uses(Rule::Relative)) return "relative_features, switched off by the options";
   if (relative_features && fixed_order && options.uses(Rule::FixedOrder)) return "relative_features on a fixed order";
@@ -24,6 +24,11 @@ std::string TrainingPlan::inconsistency(const TrainOptions& options) const {
   if (token_by_token && !(options.uses(Rule::TokenByToken) && step_rules.exclusive_targets))
     return "token_by_token without exclusive targets";
   if (parked_out_of_ranks && !options.uses(Rule::Parked)) return "parked_out_of_ranks, switched off by the options";
+  if (!end_scene.counts.empty() && !(relative_features && options.uses(Rule::EndScene)))
+    return "an end scene without the relative features, or switched off by the options";
+  if (end_scene.telling && end_scene.counts.empty()) return "a telling end scene without counts";
+  for (const EndCount& c : end_scene.counts)
+    if (c.count < 1) return "an end scene count below 1";
   // Exactly what planTraining() makes: a manifest edited to fewer networks than weights.pt
   // holds would decide with some of them silently.
   const int ensemble_made = relative_features && options.uses(Rule::Ensemble) ? kEnsembleMembers : 1;

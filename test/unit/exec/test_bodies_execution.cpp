@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 #include <optional>
 
 #include "ddace/eval/metrics.h"
@@ -450,6 +451,57 @@ void replay(const task::TaskDir& dir) {
   }
 }
 
+/// Replays `family`'s first `demos` demonstrations with bodies at tracking noise `noise_m`,
+/// the decisions as demonstrated: every run finishes without a collision, and a robot sent
+/// to a body (a robot, a box) that the demonstration left at most kNearM from it ends at
+/// the gap demonstrated, within `within_m` -- of several robots sent to one body in a step
+/// at least one (the last to come: the others stop within the stop radius while it is on
+/// its way beside them). (Carriers: their load ends at the target.)
+void replayEndGaps(const std::string& family, int demos, double noise_m, double within_m) {
+  constexpr double kNearM = 0.012;
+  SCOPED_TRACE(family);
+  uint64_t id = 0;
+  tasks::ZooMotion motion;
+  EXPECT_TRUE(tasks::parseZooFamily(family, id, &motion));
+  const task::TaskDir dir = tasks::generateZoo(id, demos, 5, motion);
+  const task::TaskSpec& spec = dir.spec;
+  const task::EndPointModel ends = task::learnEndPoints(spec, dir.demos);
+  const DemonstrationPaths paths(spec, dir.demos);
+  const auto gen = [&](const task::Token& t, const Vector2d& a, const Vector2d& b) {
+    return paths.generate(t, a, b).points;
+  };
+  for (const task::Demonstration& demo : dir.demos) {
+    SCOPED_TRACE("demonstration " + std::to_string(&demo - dir.demos.data() + 1));
+    const auto policy = [&](const std::vector<task::Snapshot>& h) { return replayDecision(demo, h); };
+    BodiesExecutionParams p;
+    p.noise_m = noise_m;
+    BodiesExecution with(p);
+    const Trial a = runTrial(spec, demo, policy, gen, with, ends);
+    EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+    EXPECT_TRUE(a.body_report.collisions.empty()) << a.body_report.collisions.size() << " collisions";
+    for (size_t k = 0; k < a.predicted.size() && k + 1 < demo.snapshots.size(); ++k) {
+      const std::vector<Vector2d>& run = k + 1 < a.snapshots.size() ? a.snapshots[k + 1].positions : a.final_positions;
+      const std::vector<Vector2d>& shown = demo.snapshots[k + 1].positions;
+      const std::vector<task::Token>& step = a.predicted[k].tokens;
+      std::map<int, double> nearest;  // by target: the smallest difference of the robots sent to it
+      for (size_t i = 0; i < step.size(); ++i) {
+        const int e = step[i].entity, b = step[i].target;
+        if (!step[i].isMotion() || b < 0 || task::carriedLoad(spec, step, i) >= 0 || !spec.footprint(e).obstacle ||
+            !spec.footprint(b).obstacle)
+          continue;
+        const double contact = spec.contactDistance(e, b);
+        const double ran = (run[e] - run[b]).norm() - contact, was = (shown[e] - shown[b]).norm() - contact;
+        if (was > kNearM) continue;
+        const auto [it, first] = nearest.emplace(b, std::abs(ran - was));
+        if (!first) it->second = std::min(it->second, std::abs(ran - was));
+      }
+      for (const auto& [b, off] : nearest)
+        EXPECT_LE(off, within_m) << "step " << k + 1 << ": the robots sent to " << spec.entities[b].name << " end "
+                                 << 1000 * off << " mm or more off the gap demonstrated";
+    }
+  }
+}
+
 void replayZoo(const std::string& family, int demos) {
   SCOPED_TRACE(family);
   uint64_t id = 0;
@@ -498,6 +550,16 @@ TEST(BodiesExecution, TwoPairsCarryingAtOnceFinishWithoutACollision) {
 // stays or backs off as demonstrated.
 TEST(BodiesExecution, ARelayHandsItsBoxOnWithoutACollision) {
   replayZoo("zoo:41/direct-4mm", 2);
+}
+
+// Demonstrations that stop touching, 4 mm and 1 cm apart: a robot sent to a body ends at
+// the gap demonstrated within the tracking noise -- the stop tolerance (3 sigma of 2 mm)
+// on its own pose and on the body's -- not anywhere within the stop radius (2.4 cm) short
+// of it (before: 2-2.5 cm beyond); and no contact the task demands counts as a collision.
+TEST(BodiesExecution, RobotsEndAtTheGapTheDemonstrationsStopAt) {
+  const double noise = 0.002, within = 2 * task::stopTolerance(noise);
+  for (const std::string family : {"zoo:20/direct", "zoo:20/direct-4mm", "zoo:20/direct-10mm"})
+    replayEndGaps(family, 3, noise, within);
 }
 
 // Robots meeting at one robot, in both ways of moving: each end turned about the met robot

@@ -773,6 +773,7 @@ TEST(PlanCheck, NamesEachPlanNoTrainingMakes) {
   valid.step_rules.exclusive_targets = true;
   valid.parked_out_of_ranks = true;
   valid.ensemble = tgn::kEnsembleMembers;
+  valid.end_scene = {{{"robot:hamster", "goal", 2}}, true};
   ASSERT_EQ(valid.inconsistency(o), "");
   const auto why = [&](const std::function<void(tgn::TrainingPlan&, tgn::TrainOptions&)>& change) {
     tgn::TrainingPlan p = valid;
@@ -791,6 +792,10 @@ TEST(PlanCheck, NamesEachPlanNoTrainingMakes) {
             "token_by_token, parked_out_of_ranks, names_or_scene or name_groups without the relative features");
   EXPECT_EQ(why([](P& p, O&) { p.step_rules.exclusive_targets = false; }), "token_by_token without exclusive targets");
   EXPECT_EQ(why([](P&, O& x) { x.without = {tgn::Rule::Parked}; }), "parked_out_of_ranks, switched off by the options");
+  EXPECT_EQ(why([](P&, O& x) { x.without = {tgn::Rule::EndScene}; }),
+            "an end scene without the relative features, or switched off by the options");
+  EXPECT_EQ(why([](P& p, O&) { p.end_scene.counts.clear(); }), "a telling end scene without counts");
+  EXPECT_EQ(why([](P& p, O&) { p.end_scene.counts[0].count = 0; }), "an end scene count below 1");
   EXPECT_EQ(why([](P& p, O&) { p.ensemble = 1; }),
             "an ensemble of 1 networks (training makes 3 for this plan and options)");
   EXPECT_EQ(why([](P& p, O&) { p.identity_embedding = false; }),

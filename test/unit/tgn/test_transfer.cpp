@@ -12,6 +12,7 @@
 #include "ddace/tasks/generators.h"
 #include "ddace/tasks/rule_zoo.h"
 #include "ddace/tgn/sequence_model.h"
+#include "ddace/tgn/detail.h"
 #include "../common/error_of.h"
 
 using namespace ddace;
@@ -179,4 +180,55 @@ TEST(OtherTeamSizes, AStepSizeFollowsEveryCountItWasAllOf) {
   EXPECT_EQ(first.tokens.size(), 3u) << "three robots sent, one to each box";
   const task::TaskSpec more_boxes = tasks::generateZoo(rule, 1, 2, {}, {5, 5, 6}).spec;
   EXPECT_EQ(model.boundTo(more_boxes).info().plan.step_rules.step_size, 5);
+}
+
+// A sequence (one robot per step, front to back, each to its nearest free goal) trained with
+// 4 robots and run with 8 ends when its last scene is reached, every robot at a goal, not
+// after the 4 steps training had: END is read from what every demonstration's last scene
+// had ("End scene"), counted by kind, and that count follows the robots and goals it was all of.
+TEST(OtherTeamSizes, ASequenceEndsAtItsLastSceneNotAfterTrainingsStepCount) {
+  const uint64_t rule = 37;
+  ASSERT_EQ(tasks::zooRule(rule).kind, "sequence");
+  const tgn::SequenceModel model = trainedOn(rule, 4, 4);
+  const tgn::EndScene& end = model.info().plan.end_scene;
+  EXPECT_TRUE(end.telling) << "no earlier scene had every robot at a goal";
+  const tgn::EndCount at_goals{"robot:hamster", "goal", 4};
+  EXPECT_NE(std::find(end.counts.begin(), end.counts.end(), at_goals), end.counts.end());
+  const task::TaskDir eight = tasks::generateZoo(rule, 4, 2, {}, {8, 0, 8});
+  const tgn::SequenceModel bound = model.boundTo(eight.spec);
+  const auto& counts = bound.info().plan.end_scene.counts;
+  EXPECT_NE(std::find(counts.begin(), counts.end(), tgn::EndCount{"robot:hamster", "goal", 8}), counts.end());
+  for (const task::Demonstration& d : eight.demos) {
+    ASSERT_EQ(d.steps.size(), 8u) << d.source;
+    for (size_t k = 0; k <= d.steps.size(); ++k) {
+      const std::vector<task::Snapshot> history(d.snapshots.begin(), d.snapshots.begin() + static_cast<long>(k) + 1);
+      EXPECT_EQ(bound.predictNext(history).end, k == d.steps.size()) << d.source << " after " << k << " steps";
+    }
+  }
+}
+
+// The end scene is what the last scenes had in common, and decides END where no earlier
+// scene had it: the relay ends with the box at G1 and giver and receiver together, a scene no
+// earlier step had. Elsewhere the END head decides, but where a count waits (it grew with the
+// team) a run short of it is never over.
+TEST(EndScene, IsWhatEveryLastSceneHadAndTellsTheEnd) {
+  const task::TaskDir relay = tasks::generateZoo(7, 6, 1);
+  const tgn::EndScene end = tgn::detail::endSceneOf(relay);
+  EXPECT_TRUE(end.telling);
+  for (const tgn::EndCount& c : std::vector<tgn::EndCount>{
+           {"object:box", "goal", 1}, {"robot:hamster", "robot:hamster", 2}, {"goal", "object:box", 1}})
+    EXPECT_NE(std::find(end.counts.begin(), end.counts.end(), c), end.counts.end()) << c.kind << " with " << c.with;
+  const task::Demonstration& d = relay.demos[0];
+  const std::vector<Eigen::Vector2d>& last = d.snapshots.back().positions;
+  EXPECT_EQ(tgn::detail::endProbability(0.2, end, {}, relay.spec, last), 1.0) << "the last scene tells the end";
+  const std::vector<bool> none, waiting(end.counts.size(), true);
+  for (size_t k = 0; k + 1 < d.snapshots.size(); ++k) {
+    EXPECT_EQ(tgn::detail::endProbability(0.9, end, none, relay.spec, d.snapshots[k].positions), 0.9) << k;
+    EXPECT_EQ(tgn::detail::endProbability(0.9, end, waiting, relay.spec, d.snapshots[k].positions), 0.0) << k;
+  }
+  tgn::EndScene untelling = end;
+  untelling.telling = false;
+  EXPECT_EQ(tgn::detail::endProbability(0.2, untelling, none, relay.spec, last), 0.2)
+      << "it held earlier too: not told";
+  EXPECT_TRUE(tgn::detail::endSceneOf(tasks::generateZoo(7, 1, 1)).counts.empty()) << "one demonstration: nothing";
 }
