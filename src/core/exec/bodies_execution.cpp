@@ -283,13 +283,12 @@ MotionContacts BodiesExecution::contactsOf(const Motion& motion) const {
       b.step = o.step;
       b.action = o.token.action;
       b.target = targetName(o.token.target);
-      b.way = o.motion.planned;
     }
     others.push_back(b);
   }
   return motionContacts(table_->truePose(i).position(), radius_m_[i], motion.final_at, motion.step, motion.token.action,
                         targetName(motion.token.target), others, controller_.safety.endsAgainstReachM(),
-                        params_.arrival_radius_m, motion.motion.planned);
+                        params_.arrival_radius_m);
 }
 
 std::string BodiesExecution::targetName(int target) const {

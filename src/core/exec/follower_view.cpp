@@ -38,11 +38,10 @@ std::vector<std::string> FollowerView::setLost(const std::vector<std::string>& n
 }
 
 bool FollowerView::noteSegment(const std::string& name, uint32_t id, int step, const std::string& action,
-                               const std::string& target, const Eigen::Vector2d& end,
-                               std::vector<Eigen::Vector2d> way) {
+                               const std::string& target, const Eigen::Vector2d& end) {
   if (const auto e = ended_.find(name); e != ended_.end() && e->second == id) return false;
   forget(name);
-  segments_[name] = {id, step, action, target, end, std::move(way)};
+  segments_[name] = {id, step, action, target, end};
   bump(step);
   return true;
 }
@@ -93,12 +92,11 @@ MotionContacts FollowerView::contacts(const std::string& robot, const Eigen::Vec
       b.final_position = s->second.end;
       b.object = isObject(name);
       b.step = s->second.step, b.action = s->second.action, b.target = s->second.target;
-      b.way = s->second.way;
     }
     at.push_back(b);
   }
   const Segment& s = own->second;
-  return motionContacts(position, radiusOf(robot), s.end, s.step, s.action, s.target, at, reach_m_, arrival_m_, s.way);
+  return motionContacts(position, radiusOf(robot), s.end, s.step, s.action, s.target, at, reach_m_, arrival_m_);
 }
 
 const std::vector<SafetyBody>& FollowerView::others(const std::string& robot, double now_s, double& self_age_s) {

@@ -12,22 +12,6 @@ std::pair<int, int> ordered(int a, int b) {
   return {std::min(a, b), std::max(a, b)};
 }
 
-/// Whether a body of `radius_m` at `place` lies on the planned `way` of a body of
-/// `mover_radius_m` (empty: unknown, no): the mover would overlap it before its end, by more
-/// than kWayInOverlapM (at its end they may touch, as places do).
-constexpr double kWayInOverlapM = 0.001;
-bool onWayIn(const Eigen::Vector2d& place, double radius_m, const std::vector<Eigen::Vector2d>& way,
-             double mover_radius_m) {
-  const double contact = radius_m + mover_radius_m - kWayInOverlapM;
-  for (size_t i = 0; i + 1 < way.size(); ++i) {
-    const Eigen::Vector2d d = way[i + 1] - way[i];
-    const double t = d.squaredNorm() < 1e-12 ? 0.0 : std::clamp((place - way[i]).dot(d) / d.squaredNorm(), 0.0, 1.0);
-    if (i + 2 == way.size() && t >= 1) continue;  // the end itself
-    if ((place - (way[i] + t * d)).norm() < contact) return true;
-  }
-  return false;
-}
-
 /// Whether `b`, a robot of the step, is queued behind a robot ending at `end_point` (see
 /// motionContacts): bound for the same target, its end not reaching it, farther from it.
 bool queuedBehind(const BodyAtStart& b, const Eigen::Vector2d& end_point,
@@ -41,8 +25,7 @@ bool queuedBehind(const BodyAtStart& b, const Eigen::Vector2d& end_point,
 
 MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
                               int step, const std::string& action, const std::string& target,
-                              const std::vector<BodyAtStart>& bodies, double reach_m, double arrival_radius_m,
-                              const std::vector<Eigen::Vector2d>& way) {
+                              const std::vector<BodyAtStart>& bodies, double reach_m, double arrival_radius_m) {
   MotionContacts out;
   const BodyAtStart* load = nullptr;
   for (const BodyAtStart& b : bodies)
@@ -59,16 +42,9 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
   // Queued: its end point does not reach its target (a body), only robots ending nearer it.
   const bool queued = !load && at_target != bodies.end() &&
                       !endsAgainst(end_point, radius_m, at_target->final_position, at_target->radius_m, reach_m);
-  // Onto a flat goal: queued behind a robot bound for it whose way in its place lies on,
-  // and not the other way round, unless it stands on that way already (then waiting
-  // unseals nothing).
-  const bool to_flat_goal = !load && !target.empty() && at_target == bodies.end();
   for (const BodyAtStart& b : bodies) {
     if (&b == load) continue;
     const bool same_meeting = b.step == step && !b.object && b.target == target && b.name != target;
-    if (to_flat_goal && same_meeting && onWayIn(end_point, radius_m, b.way, b.radius_m) &&
-        !onWayIn(position, radius_m, b.way, b.radius_m) && !onWayIn(b.final_position, b.radius_m, way, radius_m))
-      out.after.insert(b.name);
     if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, reach_m)) {
       out.ends_against.insert(b.name);
       if (b.step == step && !b.object && b.name != target && !queuedBehind(b, end_point, at_target, bodies, reach_m))
