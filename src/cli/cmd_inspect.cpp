@@ -11,6 +11,18 @@
 namespace ddace::cli {
 namespace {
 
+/// What every training demonstration's last scene had in common (docs/tgn.md, "End scene").
+std::string endSceneText(const tgn::EndScene& end) {
+  std::string counts;
+  for (const tgn::EndCount& c : end.counts)
+    counts += (counts.empty() ? "" : ", ") + std::to_string(c.count) + " " + c.kind + " at one place with " +
+              (c.with == c.kind ? "another " : "") + c.with;
+  if (counts.empty()) return "none (the END head decides)";
+  return counts + (end.telling ? " (held in no earlier scene: END once it holds)"
+                               : " (held in an earlier scene too: the END head decides; on a larger team, not "
+                                 "before this holds)");
+}
+
 /// Which earlier tokens each token waits for (graph/dependencies.h).
 void printDependencies(const graph::Dependencies& d) {
   if (!d.learned) {
@@ -85,6 +97,7 @@ int runInspect(const std::vector<std::string>& argv) {
               << on(plan.token_by_token) << ", parked entities out of the ranks " << on(plan.parked_out_of_ranks)
               << ", ensemble of " << plan.ensemble << (plan.ensemble == 1 ? " network" : " networks")
               << (without.empty() ? std::string() : "; asked --without " + without) << " (docs/tgn.md)\n";
+    std::cout << "  end scene:   " << endSceneText(plan.end_scene) << "\n";
   }
   std::cout << "  transfer:    runs on " << model.transfer().text() << "\n";
   const auto join = [](const auto& items) {

@@ -157,6 +157,7 @@ TEST(CliModel, InspectVerifiesEveryFile) {
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_NE(r.out.find("primitives.yaml"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("task fingerprint"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\n  end scene:   "), std::string::npos) << r.out;
   for (const char* f : {"primitives.yaml", "loss.csv", "task.yaml", "weights.pt", "manifest.yaml"}) {
     const std::string broken = fixture().copy(fixture().task4_model, std::string("broken_") + f);
     writeBytes(fs::path(broken) / f, fileBytes(fs::path(broken) / f) + "#\n");
