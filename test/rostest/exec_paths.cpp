@@ -79,7 +79,7 @@ TEST(ExecPaths, EachSimulatedRunOfTheRealLaunchFileLinksItsMockRobotsInADirector
     const YAML::Node params = YAML::Load(out);
     dirs.push_back(params["/mock_hamster/link_dir"].as<std::string>(""));
     EXPECT_FALSE(dirs.back().empty()) << out;
-    EXPECT_EQ(params["/hamster_bridge/port_dir"].as<std::string>(""), dirs.back());
+    EXPECT_EQ(params["/hamster_bridge/mock_link_dir"].as<std::string>(""), dirs.back());
   }
   EXPECT_NE(dirs[0], dirs[1]);
 }
