@@ -15,12 +15,17 @@ using Eigen::Vector2d;
 
 namespace {
 
-task::TaskDir task4() {
+/// One generated demonstration of `family` (seed 3).
+task::TaskDir generated(const std::string& family) {
   tasks::GeneratorOptions o;
-  o.family = "task4";
+  o.family = family;
   o.demos = 1;
   o.seed = 3;
   return tasks::generate(o);
+}
+
+task::TaskDir task4() {
+  return generated("task4");
 }
 
 EntityObservation observe(const std::vector<Vector2d>& positions) {
@@ -304,14 +309,6 @@ TEST(Redecide, ARobotUntrackedPastItsLimitIsLostAndTheDecisionGoesAheadWithoutIt
 
 namespace {
 
-task::TaskDir deliver() {
-  tasks::GeneratorOptions o;
-  o.family = "deliver";
-  o.demos = 1;
-  o.seed = 3;
-  return tasks::generate(o);
-}
-
 /// Every segment of `segs` arrives at its goal.
 CoordinatorOutput arriveAll(Coordinator& c, std::vector<Vector2d>& at, const std::vector<SegmentCommand>& segs,
                             double now) {
@@ -337,7 +334,7 @@ CoordinatorOutput die(Coordinator& c, const std::vector<Vector2d>& at, const Seg
 // is (a history of one snapshot), not for the withdrawn carry after the steps before. A
 // robot lost without a load keeps the history: its step is decided again after the others.
 TEST(Redecide, ACarrierLostWithItsLoadBeginsTheTaskAgainFromTheSceneAsItIs) {
-  const task::TaskDir dir = deliver();
+  const task::TaskDir dir = generated("deliver");
   const task::Demonstration& demo = dir.demos.front();
   ASSERT_EQ(demo.steps.size(), 2u);
   Coordinator c{dir.spec, CoordinatorConfig{}, task::learnEndPoints(dir.spec, dir.demos)};  // reads the scene

@@ -68,6 +68,12 @@ struct Scene {
     }
   }
   label::Inference infer(const label::Example* ex = nullptr) { return label::inferLabels(d, spec, ex); }
+  /// The example a user would give: this demonstration labelled as the labeller reads it.
+  label::Example ownExample() {
+    task::Demonstration labelled = d;
+    label::applyLabels(labelled, infer());
+    return label::Example::fromDemonstration(labelled, spec);
+  }
 };
 
 std::vector<std::vector<std::string>> tokens(const label::Inference& inf, const task::TaskSpec& spec) {
@@ -661,9 +667,7 @@ TEST(Label, ARobotThatRestsMidwayWhileTheOtherOfItsStepDrivesOnIsNotListed) {
     return s;
   };
   Scene clean = scene(false);
-  task::Demonstration labelled = clean.d;
-  label::applyLabels(labelled, clean.infer());
-  const auto example = label::Example::fromDemonstration(labelled, clean.spec);
+  const auto example = clean.ownExample();
   Scene s = scene(true);
   const auto inf = s.infer(&example);
   EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G1", "R2:move:G2"}}));
@@ -1036,10 +1040,7 @@ TEST(Label, StepsWithOtherMoversThanTheExamplesAreListedFromThere) {
     s.rest(1);
     return s;
   };
-  Scene ex_scene = demo(true);
-  task::Demonstration ex = ex_scene.d;
-  label::applyLabels(ex, ex_scene.infer());
-  const auto example = label::Example::fromDemonstration(ex, ex_scene.spec);
+  const auto example = demo(true).ownExample();
   Scene same = demo(true);
   const auto sure = same.infer(&example);
   EXPECT_TRUE(sure.notes.empty());
@@ -1079,9 +1080,7 @@ TEST(Label, RobotsOfOneStepStartedApartAreOneStepAsTheExampleShows) {
   ex_scene.rest(1);
   ex_scene.move({{0, {0.9, 0.9}, 0, 2}, {1, {0.9, 0.1}, 0, 2}});
   ex_scene.rest(1);
-  task::Demonstration ex = ex_scene.d;
-  label::applyLabels(ex, ex_scene.infer());
-  const auto example = label::Example::fromDemonstration(ex, ex_scene.spec);
+  const auto example = ex_scene.ownExample();
   Scene s;
   s.rest(1);
   s.move({{0, {0.9, 0.9}, 0, 1}});
