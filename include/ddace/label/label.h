@@ -185,6 +185,12 @@ class Labeller {
   bool sweptBy(const Motion& o, const Motion& r) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
   bool pausedOnItsWay(const Motion& a, const Motion& b) const;
+  /// `a` went a short way (under twice a nudge) and `b`, its entity's next motion, heads
+  /// back to where `a` began: a hand's bump and its put-back.
+  bool headsBack(const Motion& a, const Motion& b) const;
+  /// headsBack(), `b` within pause_s of `a` and ending within a nudge of where `a` began:
+  /// together they went nowhere (a nudge), whatever came before them.
+  bool bumpedAndPutBack(const Motion& a, const Motion& b) const;
   /// Object motion `a` went with no robot's motion, at one place with a resting robot all the
   /// way, and `b`, its next, went with that robot's motion: one carry (a box swung round a
   /// robot turning in place, then pushed on by it).

@@ -223,12 +223,7 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
   // pieces (cutAtContacts() cuts where what moves with it changes).
   const double rest = b.on_t - a.off_t;
   if (rest < options_.still_s / 2 || (b.crept && rest < options_.still_s)) return true;
-  // Bumped by a hand and put back: a went a short way (less than twice a nudge) and b
-  // heads back to where a began.
-  const Vector2d back = a.start - a.end;
-  if (back.norm() > 0 && back.norm() < 2 * options_.nudge_m &&
-      b.start_dir.dot(back.normalized()) > std::cos(options_.heading_rad))
-    return true;
+  if (headsBack(a, b)) return true;
   // Went round an object it stood at (moving it less than a nudge: no carry of its own), to
   // the side it then pushes it from, maybe pushing a little before a pause: the push's
   // start, not a motion to the object.
@@ -256,6 +251,18 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
   for (int c : ep.tied)
     if (staysWith(b, c)) return false;
   return !staysWith(b, ep.target);
+}
+
+// Bumped by a hand and put back: a went a short way (less than twice a nudge) and b heads
+// back to where a began.
+bool Labeller::headsBack(const Motion& a, const Motion& b) const {
+  const Vector2d back = a.start - a.end;
+  return back.norm() > 0 && back.norm() < 2 * options_.nudge_m &&
+         b.start_dir.dot(back.normalized()) > std::cos(options_.heading_rad);
+}
+
+bool Labeller::bumpedAndPutBack(const Motion& a, const Motion& b) const {
+  return b.on_t - a.off_t <= options_.pause_s && headsBack(a, b) && (b.end - a.start).norm() < options_.nudge_m;
 }
 
 bool Labeller::together(const std::vector<Vector2d>& at, int a, int b) const {
@@ -419,8 +426,12 @@ std::vector<Motion> Labeller::joinPauses() const {
   std::vector<Motion> merged;
   // A motion back to where the entity rested (a nudge put back) is done: nothing joins it.
   auto putBack = [&](const Motion& a) { return (a.end - a.rested_at).norm() < options_.start_m; };
-  for (auto& m : ms) {
-    if (!merged.empty() && merged.back().entity == m.entity) {
+  for (size_t i = 0; i < ms.size(); ++i) {
+    Motion& m = ms[i];
+    // A hand's bump and its put-back, seen whole, are a nudge of their own: the bump is
+    // no piece of the motion before it, even in its heading.
+    const bool bump = i + 1 < ms.size() && ms[i + 1].entity == m.entity && bumpedAndPutBack(m, ms[i + 1]);
+    if (!merged.empty() && merged.back().entity == m.entity && !bump) {
       Motion& a = merged.back();
       if (m.on_t - a.off_t <= options_.pause_s && !putBack(a) && pausedOnItsWay(a, m)) {
         a.continueWith(m);

@@ -114,6 +114,27 @@ TEST(Label, NudgedBackIntoPlaceIsNoToken) {
   EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G2"}}));
 }
 
+TEST(Label, ABumpInTheHeadingARobotCameInIsNoPieceOfItsMotion) {
+  // R1 drives north to R2's east side and stops 1 cm short of touching it (as a robot
+  // stops behind a crowd: away from every entity until the step is read as a whole). As
+  // R2 sets off to G1 (the next step), a hand bumps R1 1.7 cm on in the heading it came in
+  // and puts it back: the bump and the put-back are a nudge of their own, not the last of
+  // R1's approach run into R2's step.
+  Scene s;
+  const double contact = s.spec.contactDistance(0, 1);
+  const Vector2d at_r2 = s.pos[1] + Vector2d(contact + 0.01, 0);
+  s.pos[0] = {at_r2.x(), 0.1};
+  s.rest(1);
+  s.move({{0, at_r2, 0, 2}});
+  s.rest(0.6);
+  s.move({{1, {0.9, 0.9}, 0, 2.5}, {0, at_r2 + Vector2d(0, 0.017), 0.5, 0.2}});
+  s.move({{0, at_r2, 0, 0.2}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2"}, {"R2:move:G1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+}
+
 TEST(Label, RobotsStartedASecondApartAreOneStep) {
   Scene s;
   s.rest(1);
