@@ -144,10 +144,13 @@ class Labeller {
   /// when its step ended (`step_end`): others of the step may have come to its target
   /// after it stopped, in front of it.
   void readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned,
-                  const std::vector<Eigen::Vector2d>& step_end);
+                  const std::vector<Motion>& step, const std::vector<Eigen::Vector2d>& step_end);
   /// `m` stopped within the arrival radius of touching `body`, the body ahead of it (within a
   /// right angle of its heading).
   bool stoppedShortFacing(const Motion& m, int body) const;
+  /// `m` stopped short facing (stoppedShortFacing) a body that moved in its `step` and stands
+  /// nearer `target` than it: in a row behind it, not halfway (its target is not listed).
+  bool behindARow(const Motion& m, int target, const std::vector<Motion>& step) const;
   /// Between the tied end points of `ep`: the example's step k (aligned), the example's
   /// choice between such kinds, or its only motion of the kind; else noted.
   void resolveTie(InferredToken& tok, const Motion& m, const EndPoint& ep, size_t k, bool aligned);

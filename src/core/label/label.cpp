@@ -789,8 +789,17 @@ bool Labeller::stoppedShortFacing(const Motion& m, int body) const {
   return contact > 0 && to.norm() - contact <= spec_.arrival_radius && m.end_dir.dot(to.normalized()) > 0;
 }
 
+bool Labeller::behindARow(const Motion& m, int target, const std::vector<Motion>& step) const {
+  const double from_target = (m.end - m.at_offset[target]).norm();
+  for (const Motion& o : step)
+    if (o.entity != m.entity && o.entity != target && stoppedShortFacing(m, o.entity) &&
+        (m.at_offset[o.entity] - m.at_offset[target]).norm() < from_target)
+      return true;
+  return false;
+}
+
 void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned,
-                          const std::vector<Vector2d>& step_end) {
+                          const std::vector<Motion>& step, const std::vector<Vector2d>& step_end) {
   const auto& E = spec_.entities;
   EndPoint ep = endPoint(spec_, m.entity, m.leg_start, m.end, m.at_onset, candidatesOf(m), load, &m.at_offset);
   if (ep.target < 0) {
@@ -803,7 +812,7 @@ void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t 
   tok.token.target = ep.target;
   if (ep.target < 0) {
     tok.token.target = ep.nearest;
-    if (ep.nearest >= 0 && !stoppedShortFacing(m, ep.nearest))
+    if (ep.nearest >= 0 && !stoppedShortFacing(m, ep.nearest) && !behindARow(m, ep.nearest, step))
       note(m.off_row,
            E[m.entity].name + " stopped halfway: " + metres(ep.nearest_m) + " m from " + E[ep.nearest].name +
                ", the nearest entity, taken as its target; or it went on later to another",
@@ -881,7 +890,7 @@ std::vector<InferredToken> Labeller::motionTokens(const std::vector<Motion>& g, 
     int load = -1;
     for (size_t j = 0; j < g.size() && load < 0; ++j)
       if (carrier[j] == static_cast<int>(i)) load = g[j].entity;
-    readTarget(tokens[i], g[i], load, k, aligned, last->at_offset);
+    readTarget(tokens[i], g[i], load, k, aligned, g, last->at_offset);
   }
   readChain(tokens, g, carrier);
   for (int pass = 0; pass < 2; ++pass)

@@ -135,6 +135,27 @@ TEST(Label, ABumpInTheHeadingARobotCameInIsNoPieceOfItsMotion) {
   EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
 }
 
+TEST(Label, ARobotStoppingBehindARowOfItsStepIsNotListed) {
+  // R3 and R1 are sent to R2 in one step. R3 gets there first and touches it from the
+  // south; R1, following it, stops 2.2 cm short of R3 (beyond a side touch, within the
+  // arrival radius): in a row behind a robot of its step that stands nearer R2, not stopped
+  // halfway. Taken as sent to R2, and not listed.
+  Scene s;
+  s.spec.entities.push_back({"R3", task::EntityKind::Robot, "hamster"});
+  s.d.has_label_columns.assign(6, false);
+  const double contact = s.spec.contactDistance(0, 1);
+  s.pos[1] = {0.5, 0.8};
+  const Vector2d r3_at = s.pos[1] - Vector2d(0, contact), r1_at = r3_at - Vector2d(0, contact + 0.022);
+  s.pos[0] = {0.5, 0.1};
+  s.pos.push_back({0.2, 0.3});
+  s.rest(1);
+  s.move({{0, r1_at, 0.5, 2.5}, {5, r3_at, 0, 2}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2", "R3:move:R2"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+}
+
 TEST(Label, RobotsStartedASecondApartAreOneStep) {
   Scene s;
   s.rest(1);
