@@ -129,6 +129,9 @@ class Labeller {
   void emit(Group& g, bool aligned);
   /// Notes (once) that step k's movers are not the kinds of the example's step k.
   void noteStepsDiffer(size_t k, const std::vector<Motion>& g, int row);
+  /// A motion token to the entity its entity's last motion ended at, which has not moved
+  /// since, is noted: no new place (a bump put back, or a piece of that motion?).
+  void noteArrivedAgain(const std::vector<Motion>& g, const std::vector<InferredToken>& tokens);
   /// For each motion of a group, the index of the robot motion it is the load of, or -1.
   std::vector<int> carriersOf(const std::vector<Motion>& g) const;
   /// Tokens of a group's motions: targets (carriers and lone movers first, then their
@@ -230,8 +233,16 @@ class Labeller {
   bool steps_differ_ = false;
   std::string steps_differ_note_;  ///< its note, which lists every later token
   int prev_off_ = -1;              ///< the last emitted group's offset row
-  int handed_off_ = -1;            ///< the last offset row of the groups handed over
-  Inference out_;                  ///< decided, not taken
+  /// [entity] the target of its last motion token (-1: none yet), the target's position
+  /// when that motion ended, and the row it ended on.
+  struct LastArrival {
+    int target = -1;
+    Eigen::Vector2d target_at = Eigen::Vector2d::Zero();
+    int row = -1;
+  };
+  std::vector<LastArrival> last_arrival_;
+  int handed_off_ = -1;  ///< the last offset row of the groups handed over
+  Inference out_;        ///< decided, not taken
 };
 
 /// inferLabels over a demonstration in memory.

@@ -71,7 +71,8 @@ Labeller::Labeller(const task::TaskSpec& spec, const Example* example)
       segmenter_(spec.entities.size(), options_),
       next_check_t_(std::numeric_limits<double>::infinity()),
       ex_inplace_before_(1),
-      alignment_(example ? Alignment::Open : Alignment::NotAligned) {
+      alignment_(example ? Alignment::Open : Alignment::NotAligned),
+      last_arrival_(spec.entities.size()) {
   if (!example_) return;
   for (const auto& s : example_->steps) {
     const bool motion =
@@ -960,6 +961,22 @@ void Labeller::markUnsure(std::vector<InferredToken>& tokens, size_t notes_from)
       if (t.carrier >= 0 && c.token.entity == t.carrier && c.unsure) list(t, c.doubt);
 }
 
+void Labeller::noteArrivedAgain(const std::vector<Motion>& g, const std::vector<InferredToken>& tokens) {
+  const auto& E = spec_.entities;
+  for (size_t i = 0; i < g.size(); ++i) {
+    const InferredToken& t = tokens[i];
+    if (t.token.target < 0 || t.carrier >= 0) continue;
+    LastArrival& last = last_arrival_[t.token.entity];
+    if (last.target == t.token.target && (g[i].at_offset[t.token.target] - last.target_at).norm() < options_.nudge_m)
+      note(g[i].on_row,
+           E[t.token.entity].name + " moved to " + E[t.token.target].name +
+               " again, where its last motion ended (line " + std::to_string(last.row + 2) +
+               "): a bump put back, or the rest of that motion?",
+           t.token.entity);
+    last = {t.token.target, g[i].at_offset[t.token.target], g[i].off_row};
+  }
+}
+
 void Labeller::emit(Group& group, bool aligned) {
   const size_t k = emitted_groups_++;
   const size_t notes_from = out_.notes.size();
@@ -982,6 +999,7 @@ void Labeller::emit(Group& group, bool aligned) {
   const std::vector<int> carrier = carriersOf(g);
   std::vector<InferredToken> tokens = motionTokens(g, carrier, step.keyframe_row, k, aligned);
   noteStopsOnTheWay(g, carrier, tokens);
+  noteArrivedAgain(g, tokens);
   // In-place actions of the aligned example step, for the entities that did not move.
   if (aligned)
     for (const auto& t : ex_motion_[k]->tokens)

@@ -1115,6 +1115,22 @@ TEST(Label, WrongTokensInOtherStylesAreListed) {
   EXPECT_EQ(total.demos_wrong_listed, total.demos_wrong);
 }
 
+TEST(Label, ARobotReadAsArrivingAgainWhereItsLastMotionEndedIsListed) {
+  // Queue slots (zoo:5, stopping 1 cm short), `all` at seed 3, demonstration 9: R2 reaches
+  // Q2 and is bumped 3 cm aside a third of a second later (no rest a stop reads: the bump
+  // ends its drive, still read as at Q2) and put back as R3 sets off: the put-back reads
+  // as a second motion to Q2, in R3's step. No new place, so listed.
+  uint64_t id = 0;
+  tasks::ZooMotion motion;
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:5/direct-10mm", id, &motion));
+  const label::LabelScore score =
+      label::inferredDataset(tasks::generateZoo(id, 10, 3, motion), label::demonstrationStyle("all").options,
+                             label::styleSeed(3, "all"))
+          .score;
+  ASSERT_GT(score.wrong, 0);  // the put-back, read as a token of its own
+  EXPECT_EQ(score.wrong_listed, score.wrong);
+}
+
 TEST(Label, RobotsOfOneStepStartedApartAreOneStepAsTheExampleShows) {
   // R1 is done before R2 starts (a person moving one robot after the other): two steps by
   // the motion alone; the example, in which both move in one step, makes them one.
