@@ -16,11 +16,11 @@
 // what, a key can hold the ends of different roles (two robots sent to one goal: the first
 // stops on it, the second at the robot on it, whoever they are); so a motion class whose
 // ends the step they stand in predicts better than the keys (each end against the median
-// of the others of its group, by kMinRoleEndGainM per segment) is keyed by *role*: the median over the class's segments of
-// that step, used before the key's where the caller knows the motion's step (the nearest
-// demonstrated step for one never seen). A motion class is the mover's kind, whether it carries a load,
-// and the target's kind: "robot->robot", "robot+load->goal", "object->goal". A robot carries a load when an object of
-// its step has a token with the same action and target.
+// of the others of its group, by kMinRoleEndGainM per segment) is keyed by *role*: the median over the class's segments
+// of that step, used before the key's where the caller knows the motion's step (the nearest demonstrated step for one
+// never seen). A motion class is the mover's kind, whether it carries a load, and the target's kind: "robot->robot",
+// "robot+load->goal", "object->goal". A robot carries a load when an object of its step has a token with the same
+// action and target.
 //
 // So demonstrations that stop at contact teach end points at contact, and demonstrations
 // that end at the target's centre teach end points at centres: recordings and generated
