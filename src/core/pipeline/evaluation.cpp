@@ -268,8 +268,10 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
     throw Error("--execution '" + options.execution + "' is not one of ideal, diffdrive");
   }
 
-  const task::EndPointModel ends =
-      options.paths_by_name ? model.primitives->endPoints().byName() : model.primitives->endPoints();
+  // A gnn model has no primitives (it rolls out displacements).
+  const task::EndPointModel ends = !model.primitives       ? task::EndPointModel{}
+                                   : options.paths_by_name ? model.primitives->endPoints().byName()
+                                                           : model.primitives->endPoints();
   for (const auto& gt : test.demos) {
     exec::Trial trial;
     if (gnn) {
