@@ -229,7 +229,10 @@ class PathFollowerNode::Impl {
         if (!c.message.empty()) ROS_INFO("path_follower: %s: %s", name.c_str(), c.message.c_str());
         publishStatus(r, id, ddace::SegmentStatus::DONE, 1.0, c.distance_to_goal_m, c.message);
       } else if (c.waiting_stale) {
-        ROS_WARN_THROTTLE(1.0, "path_follower: %s: %s, wheels zero", name.c_str(), c.message.c_str());
+        ROS_WARN_THROTTLE(1.0,
+                          "path_follower: %s: %s, wheels zero until a fresh pose comes (nothing to do if the camera "
+                          "sees it again soon; if it lasts, the segment fails and the run says so)",
+                          name.c_str(), c.message.c_str());
       } else {
         if (c.held) ROS_WARN_THROTTLE(1.0, "path_follower: %s: held by the safety filter", name.c_str());
         // A robot queued behind another of its step says for whom it stands still.

@@ -182,4 +182,10 @@ std::vector<Eigen::Vector2d> drivenPath(const task::TaskSpec& spec, const std::v
                                         const std::vector<Eigen::Vector2d>& decided,
                                         const std::vector<Eigen::Vector2d>& ends, std::vector<Eigen::Vector2d> planned);
 
+/// Where a carrier ends that pushed its load to `load_end`, stopping at `push_end` (the
+/// push path's last point, at contact behind the load): kPushBackOffM farther straight away
+/// from the load, where it stands once backed off (RobotController::backOff). Its end point
+/// is judged there; a carrier whose load rides stays at `push_end`.
+Eigen::Vector2d backedOffEnd(const Eigen::Vector2d& push_end, const Eigen::Vector2d& load_end);
+
 }  // namespace ddace::exec

@@ -129,6 +129,9 @@ class Labeller {
   void emit(Group& g, bool aligned);
   /// Notes (once) that step k's movers are not the kinds of the example's step k.
   void noteStepsDiffer(size_t k, const std::vector<Motion>& g, int row);
+  /// Every motion of `g` ended at (together with) a body that moved in `first`, the group
+  /// before it: it joined them (a robot held back until there was room at the crowd).
+  bool joinedItsBodies(const Group& g, const Group& first) const;
   /// A motion token to the entity its entity's last motion ended at, which has not moved
   /// since, is noted: no new place (a bump put back, or a piece of that motion?).
   void noteArrivedAgain(const std::vector<Motion>& g, const std::vector<InferredToken>& tokens);

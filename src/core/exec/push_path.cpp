@@ -339,4 +339,10 @@ std::vector<Eigen::Vector2d> drivenPath(const task::TaskSpec& spec, const std::v
                   pushObstacles(spec, step, i, *load, decided));
 }
 
+Eigen::Vector2d backedOffEnd(const Eigen::Vector2d& push_end, const Eigen::Vector2d& load_end) {
+  const Eigen::Vector2d away = push_end - load_end;
+  if (away.norm() < 1e-9) return push_end;
+  return push_end + away.normalized() * kPushBackOffM;
+}
+
 }  // namespace ddace::exec

@@ -68,9 +68,11 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
         ex.planned = paths(token, ex.start, ex.goal);
         if (ex.planned.empty()) ex.planned = {ex.start, ex.goal};
         // With bodies a carrier pushes its load, as the coordinator plans it for the robots.
-        if (execution.bodies() && pushedLoad(spec, d.tokens, i, decided)) {
+        const std::optional<int> load = execution.bodies() ? pushedLoad(spec, d.tokens, i, decided) : std::nullopt;
+        if (load) {
           ex.planned = drivenPath(spec, d.tokens, i, decided, ends, std::move(ex.planned));
           ex.goal = ex.planned.back();  // behind the load's end point: where the push stops
+          if (execution.pushesLoads()) ex.goal = backedOffEnd(ex.goal, ends[static_cast<size_t>(*load)]);
         }
         motions.push_back(
             {i, token.entity, token.target, spec.entities[token.entity].kind == task::EntityKind::Robot, ex.planned});

@@ -583,6 +583,17 @@ std::set<int> Labeller::exampleMovers(size_t k) const {
   return want;
 }
 
+bool Labeller::joinedItsBodies(const Group& g, const Group& first) const {
+  const auto& E = spec_.entities;
+  for (const Motion& m : g.motions) {
+    bool joined = false;
+    for (const Motion& o : first.motions)
+      joined = joined || (E[o.entity].kind != task::EntityKind::Goal && together(m.at_offset, m.entity, o.entity));
+    if (!joined) return false;
+  }
+  return true;
+}
+
 void Labeller::handOver(Group g) {
   if (partial_) {
     // Robots of one step started apart, the first done before the next began: one step
@@ -597,8 +608,8 @@ void Labeller::handOver(Group g) {
     const std::set<int> want = exampleMovers(groups_seen_);
     Group first = std::move(*partial_);
     partial_.reset();
-    if (disjoint &&
-        (both == want || (first_on - partial_off < spec_.step_window_s && kindsOf(both) == kindsOf(want)))) {
+    if (disjoint && (both == want || ((first_on - partial_off < spec_.step_window_s || joinedItsBodies(g, first)) &&
+                                      kindsOf(both) == kindsOf(want)))) {
       for (auto& m : g.motions) first.motions.push_back(std::move(m));
       for (auto& n : g.notes) first.notes.push_back(std::move(n));
       g = std::move(first);

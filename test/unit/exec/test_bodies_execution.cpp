@@ -235,6 +235,63 @@ TEST(BodiesExecution, ALoadThatDoesNotRideIsPushedOntoTheGoalByItsCarrier) {
   EXPECT_TRUE(with.report().collisions.empty());
 }
 
+// A pushing carrier is judged where it stands when done: backed off its load
+// (kPushBackOffM), its end point as far from the load's end as it stands from the load;
+// judged at contact, the backing off spent 2 of the 3 cm arrival radius. A riding carrier
+// is judged at contact behind its load's end.
+TEST(BodiesExecution, ACarrierIsJudgedAtTheGapToItsLoadItEndsAt) {
+  tasks::GeneratorOptions o;
+  o.family = "fetch";
+  o.demos = 4;
+  o.seed = 3;
+  const task::TaskDir dir = tasks::generate(o);
+  const task::EndPointModel ends = task::learnEndPoints(dir.spec, dir.demos);
+  const DemonstrationPaths paths(dir.spec, dir.demos);
+  const auto gen = [&](const task::Token& t, const Vector2d& a, const Vector2d& b) {
+    return paths.generate(t, a, b).points;
+  };
+  for (const bool ride : {true, false}) {
+    SCOPED_TRACE(ride ? "riding" : "pushed");
+    int carriers = 0;
+    for (const task::Demonstration& demo : dir.demos) {
+      const auto policy = [&](const std::vector<task::Snapshot>& h) { return replayDecision(demo, h); };
+      BodiesExecutionParams p;
+      p.noise_m = 0.001;
+      p.config.table.loads_ride = ride;
+      BodiesExecution with(p);
+      const Trial a = runTrial(dir.spec, demo, policy, gen, with, ends);
+      EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+      for (const ExecutedToken& c : a.executed) {
+        const task::Step& step = a.predicted[static_cast<size_t>(c.step)];
+        for (size_t i = 0; i < step.tokens.size(); ++i) {
+          if (step.tokens[i].entity != c.token.entity || !c.token.isMotion()) continue;
+          const int load = task::carriedLoad(dir.spec, step.tokens, i);
+          if (load < 0) continue;
+          const int l = step.tokens[static_cast<size_t>(load)].entity;
+          const ExecutedToken* lt = nullptr;
+          for (const ExecutedToken& e : a.executed)
+            if (e.step == c.step && e.token.entity == l) lt = &e;
+          ASSERT_NE(lt, nullptr);
+          const size_t after = static_cast<size_t>(c.step) + 1;
+          const std::vector<Vector2d>& at =
+              after < a.snapshots.size() ? a.snapshots[after].positions : a.final_positions;
+          const double judged = (c.goal - lt->goal).norm(), stood = (at[c.token.entity] - at[l]).norm();
+          if (ride) {  // stops short (task::stopRadius) while its load goes on: judged at contact
+            EXPECT_NEAR(judged, dir.spec.contactDistance(c.token.entity, l), 1e-9);
+            ++carriers;
+            continue;
+          }
+          EXPECT_NEAR(judged, stood, 0.006)
+              << "step " << c.step + 1 << ": " << dir.spec.entities[c.token.entity].name << " is judged "
+              << 100 * judged << " cm from its load's end, ends " << 100 * stood << " cm from its load";
+          ++carriers;
+        }
+      }
+    }
+    EXPECT_GT(carriers, 0);
+  }
+}
+
 TEST(BodiesExecution, ALoadBehindItsCarrierSwingsRoundToItsFront) {
   // O1 starts behind R1 (away from G1); both go to G1.
   const auto s =

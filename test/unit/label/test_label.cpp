@@ -1131,6 +1131,45 @@ TEST(Label, ARobotReadAsArrivingAgainWhereItsLastMotionEndedIsListed) {
   EXPECT_EQ(score.wrong_listed, score.wrong);
 }
 
+TEST(Label, ARobotHeldBackUntilThereIsRoomAtTheCrowdIsOfItsStep) {
+  // The example: R1 and R3 sent to R2 in one step, then R2 to G1. Here the scene chose R3
+  // as the one to meet at: R2 gets to R3 first; R1 sets off only 1.5 s after R2 has stopped
+  // (beyond the step window: held back until there was room) and stops behind R2, touching
+  // it. It joined the bodies of the step before it, and the two have as many robots as the
+  // example's step: one step.
+  const auto scene = [](int first, int target, bool together) {
+    Scene s;
+    s.spec.entities.push_back({"R3", task::EntityKind::Robot, "hamster"});
+    s.d.has_label_columns.assign(6, false);
+    s.pos.push_back({0.8, 0.2});
+    s.pos[2] = {0.2, 0.9};  // the box, out of the way
+    const double contact = s.spec.contactDistance(0, 1);
+    s.pos[target] = {0.5, 0.5};
+    s.pos[0] = {0.1, 0.3};
+    s.pos[first] = {0.5, 0.1};
+    const Vector2d first_at(0.5, 0.5 - contact);
+    s.rest(1);
+    if (together) {
+      s.move({{0, {0.5 - contact, 0.5}}, {first, first_at}});
+    } else {
+      s.move({{first, first_at}});
+      s.rest(1.5);
+      s.move({{0, first_at - Vector2d(0, contact)}});
+    }
+    s.rest(1);
+    s.move({{target, {0.9, 0.9}}});
+    s.rest(1);
+    return s;
+  };
+  Scene ex_scene = scene(5, 1, true);
+  const auto example = ex_scene.ownExample();
+  ASSERT_EQ(tokens(ex_scene.infer(), ex_scene.spec), (Steps{{"R1:move:R2", "R3:move:R2"}, {"R2:move:G1"}}));
+  Scene s = scene(1, 5, false);
+  const auto inf = s.infer(&example);
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R3", "R2:move:R3"}, {"R3:move:G1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+}
+
 TEST(Label, RobotsOfOneStepStartedApartAreOneStepAsTheExampleShows) {
   // R1 is done before R2 starts (a person moving one robot after the other): two steps by
   // the motion alone; the example, in which both move in one step, makes them one.
