@@ -225,7 +225,7 @@ std::vector<Eigen::Vector2d> Coordinator::sceneOnceSettled() const {
     if (s.complete) continue;
     std::vector<task::Token> tokens;
     for (const TokenRecord& t : s.tokens) tokens.push_back(t.token);
-    at = task::stepEndPositions(spec_, end_points_, tokens, at);
+    at = task::stepEndPositions(spec_, end_points_, tokens, at, std::nullopt, s.step);
     for (const TokenRecord& t : s.tokens)
       if (t.token.isMotion() && t.started_s >= 0 && t.state != SegmentState::Done)
         at[static_cast<size_t>(t.token.entity)] = t.goal;
@@ -394,7 +394,8 @@ void Coordinator::startReady(double now_s, CoordinatorOutput& out) {
       tokens.push_back(t.token);
       if (t.started_s >= 0) at[static_cast<size_t>(t.token.entity)] = t.start;
     }
-    const std::vector<Eigen::Vector2d> ends = task::stepEndPositions(spec_, end_points_, tokens, at);
+    const std::vector<Eigen::Vector2d> ends =
+        task::stepEndPositions(spec_, end_points_, tokens, at, std::nullopt, static_cast<int>(k));
     for (const TokenRef& r : motions)
       if (r.step == static_cast<int>(k)) record(r).goal = ends[static_cast<size_t>(record(r).token.entity)];
   }
@@ -412,7 +413,7 @@ Eigen::Vector2d Coordinator::endPointOf(TokenRef r, std::vector<Eigen::Vector2d>
     if (t.started_s >= 0 && static_cast<int>(i) != r.index) at[static_cast<size_t>(t.token.entity)] = t.start;
   }
   const int e = s.tokens[static_cast<size_t>(r.index)].token.entity;
-  return task::stepEndPositions(spec_, end_points_, tokens, at)[static_cast<size_t>(e)];
+  return task::stepEndPositions(spec_, end_points_, tokens, at, std::nullopt, r.step)[static_cast<size_t>(e)];
 }
 
 bool Coordinator::mayRecover(TokenRef r, int done, const std::string& why, CoordinatorOutput& out) {
