@@ -61,6 +61,11 @@ def fit_through_origin(xs, ys):
     return k, residual
 
 
+# A robot that moved at under this fraction of the commanded speed did not follow the command
+# (switched off, not linked, wheels blocked, another robot's marker): no calibration is fitted
+# to it. A calibration ten times off is beyond what this fit is for.
+FOLLOWED_FRACTION = 0.1
+
 PARAMS = ("robot", "config", "speeds", "run_s", "settle_s", "output", "entities_topic")
 
 
@@ -143,6 +148,13 @@ class Calibrator:
         heading = tha + 0.5 * math.remainder(thb - tha, 2 * math.pi)
         forward = ((xb - xa) * math.cos(heading) + (yb - ya) * math.sin(heading)) / dt
         yaw_rate = math.remainder(thb - tha, 2 * math.pi) / dt
+        if abs(forward) < FOLLOWED_FRACTION * abs(mps):
+            raise ValueError(
+                f"robot {self.robot} moved {forward:+.4f} m/s when commanded {mps:+.3f} m/s (units "
+                f"{u_left:+d}/{u_right:+d}): it did not follow the command, and a calibration fitted to that would "
+                f"drive it at full speed whatever is asked; nothing written. Is it switched on and linked (the "
+                f"bridge says '{self.robot} streaming'), are its wheels free, is {self.robot}'s marker on it, and "
+                f"does this graph drive it (on a simulated table recording, sim:=true, the teleop does)?")
         v_left = forward - yaw_rate * self.track_m / 2
         v_right = forward + yaw_rate * self.track_m / 2
         return u_left, u_right, v_left, v_right

@@ -1,15 +1,15 @@
 #!/usr/bin/python3
 """Draw one run of the execution graph as one view of the whole table: every body's
 footprint where it started (dashed) and where it ended (solid), every planned path (thin,
-with its +-2 sigma band) and every executed path, one colour per entity, the goals as flat
-prints, and the run's closest approach between two bodies (with its clearance): red
-only when that pair collided, else grey; collisions are listed in the title. No label is
-drawn over another: one that would be is moved to the nearest free spot around its point,
-with a thin line back to it (a box carried by its robot, on its goal). Below it, the
-run in time: one row per robot, its segments as bars, and when it waited and for whom
-(hatched: from when it stood until its next segment went out, released by the segment of
-another entity that ended last before then). Reads the run.json that execution_monitor_node
-writes into the run directory.
+with its +-2 sigma band) and every executed path, one colour per entity (ENTITY_COLOURS),
+the goals as flat prints, the objects hatched, and the run's closest approach between two
+bodies (with its clearance): red only when that pair collided, else grey; collisions are
+listed in the title. No label is drawn over another: one that would be is moved to the
+nearest free spot around its point, with a thin line back to it (a box carried by its
+robot, on its goal). Below it, the run in time: one row per robot, its segments as bars,
+and when it waited and for whom (hatched: from when it stood until its next segment went
+out, released by the segment of another entity that ended last before then). Reads the
+run.json that execution_monitor_node writes into the run directory.
 
 usage: scripts/plot_run.py RUN_DIR/run.json OUT.png
 """
@@ -125,13 +125,30 @@ def place_labels(fig, ax, labels):
     return drawn
 
 
+ALARM, INFO = "crimson", "dimgrey"  # a collision; the closest approach when it was none
+# One colour per entity, told apart at a glance: the first eight differ in hue, the next four
+# in lightness as well; none is like ALARM or INFO. Robots take
+# the first, then objects, then goals, so robots and what they bring never share a hue in a
+# task of eight entities or fewer; past twelve the colours repeat.
+ENTITY_COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#bcbd22", "#17becf", "#e377c2", "#137e6d",
+                  "#000080", "#836539", "#ac4f06", "#6a6e09"]
+KIND_ORDER = ("robot", "object", "goal")
+
+
+def entity_colours(bodies, names):
+    """Each entity's colour: robots first, then objects, then goals, in the task's order."""
+    kind = {b["name"]: b.get("kind") for b in bodies}
+    rank = {k: i for i, k in enumerate(KIND_ORDER)}
+    order = sorted(names, key=lambda n: (rank.get(kind.get(n), len(KIND_ORDER)), names.index(n)))
+    return {n: ENTITY_COLOURS[i % len(ENTITY_COLOURS)] for i, n in enumerate(order)}
+
+
 def draw(run):
     """The figure of one run and its labels (as placed)."""
     name_labels, time_labels = [], []  # placed last: names first, then the paths' start times
     bodies = run.get("bodies") or []
     names = [b["name"] for b in bodies] or sorted({s["entity"] for s in run["segments"]})
-    cmap = plt.get_cmap("tab20")
-    colour = {n: cmap(i % 20) for i, n in enumerate(names)}
+    colour = entity_colours(bodies, names)
     fig, (ax, tl) = plt.subplots(2, 1, figsize=(9, 11.5), gridspec_kw={"height_ratios": [4, 1]})
     timeline(tl, run["segments"], colour)
     for seg in run["segments"]:
@@ -154,8 +171,9 @@ def draw(run):
                 continue
             if flat:
                 ax.add_patch(Circle(b[key], r, color=c, alpha=0.25, lw=0))
-            else:
-                ax.add_patch(Circle(b[key], r, fill=False, ec=c, ls=style, lw=1.2))
+            else:  # an object's footprint hatched, a robot's plain: the kind at a glance
+                ax.add_patch(Circle(b[key], r, fill=False, ec=c, ls=style, lw=1.2,
+                                    hatch="////" if b.get("kind") == "object" else None))
         if "end" in b:
             # Goals are labelled below their print, bodies above theirs: a box on its goal
             # keeps both names legible.
@@ -169,7 +187,7 @@ def draw(run):
         # is information (grey).
         hits = run.get("collisions") or []
         alarm = any({h["a"], h["b"]} == {near["a"], near["b"]} for h in hits)
-        tone = "red" if alarm else "dimgrey"
+        tone = ALARM if alarm else INFO
         (xa, ya), (xb, yb) = near["at_a"], near["at_b"]
         ax.plot([xa, xb], [ya, yb], color=tone, lw=2.5 if alarm else 1.2, ls="-" if alarm else ":")
         for name, at in ((near["a"], near["at_a"]), (near["b"], near["at_b"])):

@@ -110,6 +110,7 @@ int demoPaths(const Args& args, const gp::PrimitiveLibrary& trained) {
   const gp::PrimitiveLibrary lib =
       task.spec.entityNames() == trained.entityNames() ? trained : trained.boundTo(task.spec);
   const bool by_name = args.has("--by-name");
+  const task::EndPointModel ends = by_name ? lib.endPoints().byName() : lib.endPoints();
   std::ofstream f(args.get("--csv", ""));
   if (!f) throw Error(Diagnostic{args.get("--csv", ""), 0, 0, "cannot open for writing"});
   f << "demo,segment,key,source_key,kind,i,x,y,stddev\n" << std::setprecision(9);
@@ -123,9 +124,8 @@ int demoPaths(const Args& args, const gp::PrimitiveLibrary& trained) {
       const std::vector<Eigen::Vector2d> truth = demo.segmentPath(seg);
       if ((truth.back() - truth.front()).norm() < gp::kMinMotionLength) continue;
       const std::string key = task::tokenKey(seg.token, task.spec);
-      const gp::GeneratedPath g =
-          lib.generate(seg.token, truth.front(), task::segmentEndPoint(task.spec, lib.endPoints(), demo, seg), 100,
-                       by_name ? -1 : seg.step);
+      const gp::GeneratedPath g = lib.generate(
+          seg.token, truth.front(), task::segmentEndPoint(task.spec, ends, demo, seg), 100, by_name ? -1 : seg.step);
       fell_back += g.fell_back;
       for (size_t i = 0; i < truth.size(); ++i)
         f << name << "," << s << "," << key << "," << g.source_key << ",demo," << i << "," << truth[i].x() << ","
@@ -187,7 +187,7 @@ DDACE_COMMAND({"path",
                "print or write a primitive path retargeted to a start and goal (metres, table frame), the motion "
                "in step K (0-based: a role's primitive where the library keys its class by role), "
                "or every motion segment of TASKDIR next to its generated path with the mean FD per key "
-               "(--by-name: the names' primitives only), or list the primitives",
+               "(--by-name: the names' primitives and end points only), or list the primitives",
                runPath});
 
 }  // namespace

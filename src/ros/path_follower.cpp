@@ -123,8 +123,8 @@ class PathFollowerNode::Impl {
       const bool given = m.arrival_radius_m > 0 && std::isfinite(m.arrival_radius_m);
       const double stop = given ? m.arrival_radius_m : params_.gains.stop_radius_m;  // the field is a stop radius
       const double toward = view_->stopToward(name, m.step, m.token.action, m.token.target, stop);
-      r.controller.start(path, m.token.target, toward, stop);
-      view_->noteSegment(name, m.segment_id, m.step, m.token.action, m.token.target, path.points.back());
+      r.controller.start(path, m.token.target, toward, stop, view_->stopAtPlace(stop));
+      view_->noteSegment(name, m.segment_id, m.step, m.token.action, m.token.target, path.points.back(), path.points);
       r.segment_id = m.segment_id, r.step = m.step, r.decided = ~0ULL, r.cycle = 0;
       publishStatus(r, m.segment_id, ddace::SegmentStatus::ACCEPTED, 0, 0, "");
     } catch (const std::exception& e) {
@@ -141,7 +141,7 @@ class PathFollowerNode::Impl {
       try {
         const exec::PlannedPath p = ros_exec::fromMsg(m.path, m.stddev_m, "/robots/" + name + "/segment");
         if (p.points.empty()) throw Error("its path has no points");
-        view_->noteSegment(name, m.segment_id, m.step, m.token.action, m.token.target, p.points.back());
+        view_->noteSegment(name, m.segment_id, m.step, m.token.action, m.token.target, p.points.back(), p.points);
         return;
       } catch (const std::exception& e) {
         ROS_WARN("path_follower: ignoring segment %u of %s: %s", m.segment_id, name.c_str(), e.what());
@@ -229,7 +229,10 @@ class PathFollowerNode::Impl {
         if (!c.message.empty()) ROS_INFO("path_follower: %s: %s", name.c_str(), c.message.c_str());
         publishStatus(r, id, ddace::SegmentStatus::DONE, 1.0, c.distance_to_goal_m, c.message);
       } else if (c.waiting_stale) {
-        ROS_WARN_THROTTLE(1.0, "path_follower: %s: %s, wheels zero", name.c_str(), c.message.c_str());
+        ROS_WARN_THROTTLE(1.0,
+                          "path_follower: %s: %s, wheels zero until a fresh pose comes (nothing to do if the camera "
+                          "sees it again soon; if it lasts, the segment fails and the run says so)",
+                          name.c_str(), c.message.c_str());
       } else {
         if (c.held) ROS_WARN_THROTTLE(1.0, "path_follower: %s: held by the safety filter", name.c_str());
         // A robot queued behind another of its step says for whom it stands still.

@@ -162,6 +162,23 @@ TEST(DeadNode, RecordingWithoutTheCameraEndsNamingTheTrackerAndTheWaysAround) {
     EXPECT_NE(printed.find(hint), std::string::npos) << "'" << hint << "' not said:\n" << printed;
 }
 
+// The README's demonstration step on a machine without the program that opens the keyboard
+// window (xterm): roslaunch refuses the launch blaming "a bad launch-prefix"; scripts/launch
+// names the program and the way around (no windows, the tools from other terminals).
+TEST(ScriptsLaunch, AWindowProgramNotInstalledIsNamedWithTheWayAround) {
+  ASSERT_FALSE(setup().scripts.empty()) << "the .test file must set ~scripts";
+  const std::string demos = std::string(setup().scratch) + "/no_window";
+  const auto [status, printed] = run("'" + setup().scripts +
+                                         "/launch' record.launch video_device:=-1 rviz:=false "
+                                         "'keyboard_prefix:=ddace-no-such-terminal -e' output_dir:='" +
+                                         demos + "'",
+                                     std::string(setup().scratch) + "/no_window.out");
+  EXPECT_EQ(status, 1) << printed;
+  for (const char* said : {"launch: ddace-no-such-terminal is not installed", "apt install ddace-no-such-terminal",
+                           "keyboard:=false teleop:=false"})
+    EXPECT_NE(printed.find(said), std::string::npos) << "'" << said << "' not said:\n" << printed;
+}
+
 // What the nodes say shows while the launch runs (the recorder's state after each
 // demonstration, a node's error), not when it ends: scripts/launch passes their output
 // through tee, a pipe, where unflushed lines would wait. Ended as Ctrl-C ends it: SIGINT to

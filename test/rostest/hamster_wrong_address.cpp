@@ -60,7 +60,8 @@ TEST(HamsterWrongAddress, WarnsWithTheFoundAddressAndSaysErrorInTheDiagnostics) 
   // The first report may pass before /rosout connects; it repeats every 10 s.
   EXPECT_TRUE(waitFor([&] { return has("carries robot B1:00:00:00:00:00, which is not in the config"); }, 25.0))
       << "no warning naming the address found on the port";
-  EXPECT_TRUE(waitFor([&] { return has("robot A1:00:00:00:00:00 not found on 1 ports searched"); }, 5.0))
+  // Said once the robot has been searched for search_quiet_s (3 s by default).
+  EXPECT_TRUE(waitFor([&] { return has("robot A1:00:00:00:00:00 not found on 1 ports searched"); }, 15.0))
       << "no warning listing the ports searched";
   EXPECT_TRUE(waitFor(
       [&] {

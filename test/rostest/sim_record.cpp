@@ -1,8 +1,9 @@
 // launch/record.launch sim:=true with the files of a task of one's own, as `ddace init`
 // writes them (robots R1, R2 and goal G1, laid out in rows; recorded into the task
-// directory init made, whose task.yaml the recorder accepts): the test steers R2 onto G1 from what the
-// simulated table shows, as a person at the teleop's keys would, between /recorder/start
-// and /recorder/stop. The saved demonstration must hold that motion as the tracker saw it
+// directory init made, whose task.yaml the recorder accepts): a start while R2 still moves
+// is refused, naming R2; then the test steers R2 onto G1 from what the simulated table shows, as a person at the
+// teleop's keys would, between /recorder/start and /recorder/stop. The saved demonstration must hold that motion as the
+// tracker saw it
 // -- R2 from its row onto G1, the others still -- and the label the recorder inferred
 // from it: R2 moves to G1. Then a person's own tool: scripts/sim_teleop.py on a
 // pseudo-terminal, keys typed, drives R1 forward and stops it; the same tool under another
@@ -114,9 +115,38 @@ TEST(SimRecord, RecordsARobotDrivenOnTheSimulatedTable) {
                            "markers:=" + out + "/config/markers.yaml", "recorder:=" + out + "/config/recorder.yaml",
                            "command_sources:=[/sim_teleop, " + ros::this_node::getName() + "]"},
                           dir + "/launch.log");
+  auto drive = [&](double left, double right) {
+    ddace::WheelCommand c;
+    c.header.stamp = ros::Time::now();
+    c.left_mps = left;
+    c.right_mps = right;
+    wheels.publish(c);
+  };
+  ASSERT_TRUE(exec_test::waitFor([&] { return wheels.getNumSubscribers() == 1u; }, 40.0))
+      << "sim_table does not listen to /robots/R2/wheels";
+
+  // A start while a robot still moves is refused, naming it: R2 rocks back and forth (5 cm)
+  // until the recorder has named it; then it rests, and the start goes through.
   std::string message;
+  bool started_moving = false;
+  const auto rocking = ros::WallTime::now();
+  const bool named = exec_test::waitFor(
+      [&] {
+        const double v = std::fmod((ros::WallTime::now() - rocking).toSec(), 1.0) < 0.5 ? 0.1 : -0.1;
+        drive(v, v);
+        ros::WallDuration(0.05).sleep();
+        std_srvs::Trigger t;
+        if (!ros::service::exists("/recorder/start", false) || !ros::service::call("/recorder/start", t)) return false;
+        message = t.response.message;
+        started_moving = t.response.success;
+        return started_moving || message.find("R2 moved within the last") != std::string::npos;
+      },
+      40.0);
+  drive(0, 0);
+  ASSERT_FALSE(started_moving) << "the recorder started while R2 moved: " << message;
+  ASSERT_TRUE(named) << "the recorder's refusal does not name R2: " << message;
+  std::cout << "sim_record: " << message << "\n";
   ASSERT_TRUE(exec_test::trigger("/recorder/start", 40.0, &message)) << "the recorder did not start: " << message;
-  ASSERT_EQ(wheels.getNumSubscribers(), 1u) << "sim_table does not listen to /robots/R2/wheels";
   std::map<std::string, Pose> start;
   {
     const std::lock_guard<std::mutex> l(mu);
@@ -125,13 +155,6 @@ TEST(SimRecord, RecordsARobotDrivenOnTheSimulatedTable) {
   ASSERT_TRUE(start.count("R2") && start.count("G1"));
 
   // Steer R2 onto G1: turn toward it, drive while facing it, stop on it.
-  auto drive = [&](double left, double right) {
-    ddace::WheelCommand c;
-    c.header.stamp = ros::Time::now();
-    c.left_mps = left;
-    c.right_mps = right;
-    wheels.publish(c);
-  };
   const bool arrived = exec_test::waitFor(
       [&] {
         Pose r, g;

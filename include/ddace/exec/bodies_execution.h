@@ -80,6 +80,7 @@ class BodiesExecution : public ExecutionModel {
   ~BodiesExecution() override;
   std::string name() const override { return params_.config.safety.enabled ? "bodies" : "bodies-unfiltered"; }
   bool bodies() const override { return true; }
+  bool pushesLoads() const override { return !params_.config.table.loads_ride; }
   void beginTrial(const task::TaskSpec& spec, const std::vector<Pose2D>& start) override;
   /// The step's motions start together (startMotions) and run until each ended or the
   /// step's time limit.

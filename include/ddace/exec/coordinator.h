@@ -7,9 +7,11 @@
 // Each decided token starts when the dispatch rule (exec/dispatch.h) lets it: in `steps`
 // when every token of the earlier steps has ended (the paper's execution), in `async` when
 // its own predecessors under the learned dependencies have ended. A decision is requested
-// when the run starts and then when Dispatch::mayDecide allows it (steps, or a policy that
-// reads the scene: once every started token has ended; async with a policy that does not:
-// as soon as the last one was made): never on a timer. onTick() only checks time-outs.
+// when the run starts and then when Dispatch::mayDecide allows it (steps: once every started
+// token has ended; async with a policy that does not read the scene: as soon as the last one
+// was made; async with one that does: ahead, once every step before the latest has ended,
+// from the scene the latest step's tokens will leave, held only if the scene settles as
+// predicted): never on a timer. onTick() only checks time-outs.
 // When the table changes under a running token the run recovers from the scene as it is
 // (CoordinatorConfig::max_replans): the step is re-decided when the policy reads the scene,
 // else the token's path is re-planned.
@@ -321,6 +323,27 @@ class Coordinator {
   /// other is `planned`.
   PlannedPath carrierPath(TokenRef t, const PlannedPath& planned);
   void requestDecisionIfDue(double now_s, CoordinatorOutput& out);
+  /// A decision asked ahead from the predicted scene (a policy that reads the scene, under
+  /// async) holds once every step before it has ended and every entity stands within
+  /// arrival_radius_m + arrival_tolerance_m of where that scene put it (its snapshot then
+  /// becomes the scene as it is); else it is withdrawn (withdrawAhead) and asked for again
+  /// from the scene as it is.
+  void settleAhead(CoordinatorOutput& out);
+  /// Withdraws the decision asked ahead and not yet held -- its request, its step (the
+  /// tokens under way stopped; those that ended stay done on the table) or its END --
+  /// naming `why`. No effect when there is none.
+  void withdrawAhead(const std::string& why, CoordinatorOutput& out);
+  /// Per token of a step decided from `scene`: the robot tokens of the step bound for the
+  /// same target whose end point lies nearer it (by more than arrival_tolerance_m), which
+  /// start before it (Dispatch::addStep's start_after): places at one target are taken from
+  /// the inside out, as from the common start the demonstrations showed. Released first, the
+  /// outer one (Task 4's R4, ending 4.4 cm short of G1) stands on the inner one's way in.
+  std::vector<std::vector<int>> insideOut(const std::vector<task::Token>& tokens,
+                                          const std::vector<Eigen::Vector2d>& scene) const;
+  /// The first entity (not lost) `settled` farther than the arrival radius and tolerance
+  /// from where `predicted` put it, and how far ("" when none is).
+  std::string unlikePrediction(const std::vector<Eigen::Vector2d>& predicted,
+                               const std::vector<Eigen::Vector2d>& settled) const;
   /// The scene as the decided steps will leave it: every entity of a token that has not
   /// ended at its end point (a started one at its goal), step after step. What a fixed
   /// order asked ahead is shown, as its demonstrations showed it a step's end.
@@ -374,6 +397,9 @@ class Coordinator {
   EntityObservation observation_;
   std::vector<task::Snapshot> history_;
   size_t history_from_ = 0;  ///< the policy's history begins here (the task begun again)
+  /// The decision asked ahead from a predicted scene and not yet held (settleAhead): its
+  /// snapshot's index in history_ (= its step's, or steps_.size() for END); -1: none.
+  int ahead_ = -1;
   std::vector<StepRecord> steps_;
   uint32_t next_id_ = 1;
   uint32_t next_batch_ = 1;

@@ -6,9 +6,17 @@
 //          the earlier tokens it involves an entity of, and those people showed it
 //          waiting for), never before. The next decision is asked for as soon as the last
 //          one was made when the policy does not read the scene (a fixed order: its
-//          decisions follow from the steps so far); a policy that reads the scene decides
-//          from the scene as it is once every entity it reads has settled -- the scene
-//          network reads every entity, so once every started token has ended.
+//          decisions follow from the steps so far); a policy that reads the scene is asked
+//          ahead once every step before the latest has ended: what it reads is then the
+//          scene as it is and the end points of the latest step's tokens, so it decides
+//          from the scene those will leave (predicted), and the decision holds only if the
+//          scene settles as predicted (exec::Coordinator commits or withdraws it).
+//
+// Within a step, under either mode, a token may be held until others of its step have
+// started (addStep's `start_after`): the coordinator holds a robot whose end is farther from
+// a target than another robot's of the step bound for the same target, so places at one
+// target are taken from the inside out, from a common start as demonstrated, not in the
+// order the robots happen to be released.
 //
 // Dispatch keeps the record: when each token started and ended, whom it waited for, and
 // the precedence violations of the record (a token that started before one of its
@@ -59,8 +67,11 @@ class Dispatch {
 
   DispatchMode mode() const { return mode_; }
   /// Appends a decided step. Its tokens' predecessors are the earlier steps' tokens the
-  /// mode makes them wait for.
-  void addStep(const std::vector<task::Token>& tokens, double decided_s);
+  /// mode makes them wait for; `start_after[i]` (empty: none) the indexes of tokens of the
+  /// same step that must have started before token i starts. Throws ddace::Error for an
+  /// index outside the step or a token held after itself.
+  void addStep(const std::vector<task::Token>& tokens, double decided_s,
+               const std::vector<std::vector<int>>& start_after = {});
   /// Forgets the last decided step (it is decided again from the scene as it is): its
   /// tokens that ran are no longer the run's. Throws ddace::Error when there is none.
   void withdrawLastStep();
@@ -72,7 +83,8 @@ class Dispatch {
   /// Under the learned dependencies (what violations() checks against).
   std::vector<TokenRef> learnedPredecessors(TokenRef t) const;
 
-  /// Not started, and every predecessor has ended.
+  /// Not started, every predecessor has ended and every token of its step it starts after
+  /// has started.
   bool ready(TokenRef t) const;
   /// Every ready token, in step then token order.
   std::vector<TokenRef> readyTokens() const;
@@ -90,6 +102,8 @@ class Dispatch {
   bool allEnded() const;
   /// Whether the next decision may be asked for now (see the header comment).
   bool mayDecide(bool policy_reads_scene) const;
+  /// Every token of every step before `step` has ended (every step: allEnded()).
+  bool settledBefore(int step) const;
 
   /// Tokens that started before one of their learned predecessors ended (from the times).
   int violations() const;
@@ -103,6 +117,7 @@ class Dispatch {
   struct Record {
     task::Token token;
     std::vector<TokenRef> predecessors;
+    std::vector<int> start_after;  ///< tokens of its step that start before it
     double start_s = -1, end_s = -1;
   };
   Record& at(TokenRef t);

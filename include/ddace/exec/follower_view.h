@@ -49,11 +49,11 @@ class FollowerView {
   /// robot that comes near it. Replaces the earlier list (empty: none).
   std::vector<std::string> setLost(const std::vector<std::string>& names);
 
-  /// Entity `name`'s segment `id` of `step` (`action`, `target`) ending at `end`: it
-  /// replaces the last one, unless that id was reported ended already (another
-  /// connection). Returns whether it was noted.
+  /// Entity `name`'s segment `id` of `step` (`action`, `target`) ending at `end`, along
+  /// `way` (its planned path; empty: unknown): it replaces the last one, unless that id was
+  /// reported ended already (another connection). Returns whether it was noted.
   bool noteSegment(const std::string& name, uint32_t id, int step, const std::string& action, const std::string& target,
-                   const Eigen::Vector2d& end);
+                   const Eigen::Vector2d& end, std::vector<Eigen::Vector2d> way = {});
   /// Segment `id` of `name` ended (done, failed, aborted): forgotten.
   void noteEnded(const std::string& name, uint32_t id);
   /// Forgets `name`'s segment, whatever its id (a stop, a malformed segment).
@@ -68,6 +68,10 @@ class FollowerView {
   /// target, known now: the load is what ends at the target), `stop`.
   double stopToward(const std::string& robot, int step, const std::string& action, const std::string& target,
                     double stop) const;
+  /// The stop radius of a motion ending at its own place, within the stop tolerance, from
+  /// `stop` (task::stopRadiusAgainstBody): toward a body, or awaited by a robot queued
+  /// behind it (exec::RobotController::start).
+  double stopAtPlace(double stop) const;
   /// What robot `robot`'s segment may touch (exec::motionContacts), it standing at
   /// `position` now, from where every body of the step ends.
   MotionContacts contacts(const std::string& robot, const Eigen::Vector2d& position) const;
@@ -84,6 +88,7 @@ class FollowerView {
     int step = -1;
     std::string action, target;
     Eigen::Vector2d end{0, 0};
+    std::vector<Eigen::Vector2d> way;  ///< its planned path (empty: unknown)
   };
   struct Tracked {
     SafetyBody body;

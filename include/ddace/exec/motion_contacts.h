@@ -17,7 +17,11 @@
 // (a place behind another at the body they meet at): it stands where it is until that one
 // stands (exec::RobotController), so it never seals the way in of the one whose place is
 // nearer by getting there first. The places of a meeting are taken from the inside out.
-// Onto a flat goal nothing queues (the goal has no body to be reached past).
+// Onto a flat goal (no body to be reached past), a robot is queued behind one bound for the
+// same goal when its place lies on that one's way in (its planned path) and not the other way round
+// -- unless it already stands on that way (waiting would unseal nothing). A robot others
+// wait for ends at its own place (within the stop tolerance, not the stop radius): stopping
+// short on its way in, it would stand in the place of the one waiting for it.
 //
 // Owns: the rule. Must not: know ROS, or decide where motions end (task/end_point.h).
 // Units: metres; table frame.
@@ -54,6 +58,10 @@ struct MotionContacts {
   /// The robots it is queued behind (see motionContacts): it stands where it is until each
   /// of them stands (arrived, or stopped).
   std::set<std::string> after;
+  /// The robots of its step queued behind it (their `after` names it): they wait for it to
+  /// stand, and it ends at its own place, within the stop tolerance (exec::RobotController):
+  /// stopping short it would stand in a waiting robot's place.
+  std::set<std::string> awaited_by;
   /// The robots of its step whose end points touch its own and that are not queued behind
   /// it (places side by side): while one of them is on its way, it stops within the held
   /// stop radius, leaving that one's way in open (exec::RobotController).
@@ -71,15 +79,18 @@ struct BodyAtStart {
   /// be the robot's load.
   int step = -1;
   std::string action, target;
+  std::vector<Eigen::Vector2d> way;  ///< its motion's planned path (empty: unknown)
 };
 
 /// What a robot's motion (`step`, `action`, `target`, ending at `end_point`) may touch,
 /// decided when its step begins with the robot at `position` (see the header comment);
-/// `arrival_radius_m`: the task's (task::togetherDistance). The one answer of the path
-/// follower node, the simulator with bodies and the collision count.
+/// `arrival_radius_m`: the task's (task::togetherDistance); `way`: the motion's planned path
+/// (empty: unknown). The one answer of the path follower node, the simulator with bodies
+/// and the collision count.
 MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
                               int step, const std::string& action, const std::string& target,
-                              const std::vector<BodyAtStart>& bodies, double reach_m, double arrival_radius_m);
+                              const std::vector<BodyAtStart>& bodies, double reach_m, double arrival_radius_m,
+                              const std::vector<Eigen::Vector2d>& way = {});
 
 /// A motion of a step and what it may touch (motionContacts), by entity index.
 struct DecidedMotion {

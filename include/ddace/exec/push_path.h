@@ -148,7 +148,9 @@ struct PushCommand {
 /// stands along it; the carrier at `carrier` (contact distance `contact_m` with its load at
 /// `load`) heads along their contact line, turned by kPushLead of the load's drift from
 /// where it should head, at the path follower's speeds (`gains`: cruise, slowdown by the
-/// load's distance to its end, turn limits). Nothing when the carrier is not behind its
+/// load's distance to its end, turn limits), slowed in proportion to that drift (standing,
+/// turning only, at kMaxPushLeadRad): pushed on at full speed, a load drifting off its route is
+/// dragged on off it faster than the over-steer turns their contact back. Nothing when the carrier is not behind its
 /// load (kPushConeRad, within kPushClearanceM / 3 of contact): it follows its path, round
 /// the load. A push already under way (`pushing`: it pushed in the last cycle) holds while
 /// the load drifts less than kMaxPushLeadRad, as far as the over-steer can bring it back,
@@ -179,5 +181,11 @@ std::optional<int> pushedLoad(const task::TaskSpec& spec, const std::vector<task
 std::vector<Eigen::Vector2d> drivenPath(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,
                                         const std::vector<Eigen::Vector2d>& decided,
                                         const std::vector<Eigen::Vector2d>& ends, std::vector<Eigen::Vector2d> planned);
+
+/// Where a carrier ends that pushed its load to `load_end`, stopping at `push_end` (the
+/// push path's last point, at contact behind the load): kPushBackOffM farther straight away
+/// from the load, where it stands once backed off (RobotController::backOff). Its end point
+/// is judged there; a carrier whose load rides stays at `push_end`.
+Eigen::Vector2d backedOffEnd(const Eigen::Vector2d& push_end, const Eigen::Vector2d& load_end);
 
 }  // namespace ddace::exec

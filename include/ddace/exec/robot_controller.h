@@ -81,9 +81,12 @@ class RobotController {
   /// `stop_radius_m` of its end point (task::stopRadiusAgainstBody), or held by its filter --
   /// at contact with a body it ends against, or short by bodies beside it -- within
   /// `held_stop_radius_m` of it (task::stopRadius, task/body_geometry.h); the last
-  /// one is forgotten, and what it may touch is none until setContacts(). Throws
+  /// one is forgotten, and what it may touch is none until setContacts(). Awaited by a robot
+  /// queued behind it (MotionContacts::awaited_by), carrying nothing, it stops within
+  /// `place_stop_radius_m` (task::stopRadiusAgainstBody; <= 0: `stop_radius_m`). Throws
   /// ddace::Error for an empty path or a non-finite point or radius.
-  void start(const PlannedPath& path, const std::string& target, double stop_radius_m, double held_stop_radius_m);
+  void start(const PlannedPath& path, const std::string& target, double stop_radius_m, double held_stop_radius_m,
+             double place_stop_radius_m = 0);
   /// What the running motion may touch (decided for its step).
   void setContacts(MotionContacts contacts);
   /// Forgets the motion (stopped, replaced, e-stop): the controller is Idle.
@@ -135,6 +138,7 @@ class RobotController {
   MotionContacts contacts_;
   double stop_radius_m_ = 0;                 ///< the motion's (start()), unless it ends beside one still moving
   double held_stop_radius_m_ = 0;            ///< the motion's (start())
+  double place_stop_radius_m_ = 0;           ///< the motion's when others wait for it (start())
   double stale_since_s_ = -1;                ///< since when the motion waits on a stale pose (-1: not)
   Eigen::Vector2d push_planned_for_{0, 0};   ///< where the load was when the path was planned (NaN: not seen yet)
   std::vector<Eigen::Vector2d> load_route_;  ///< the route the load is pushed along (empty: not planned yet)

@@ -81,6 +81,8 @@ class ExecutionModel {
   virtual std::string name() const = 0;
   /// Whether the model has bodies (collisions and clearance are measured: report()).
   virtual bool bodies() const { return false; }
+  /// Whether a carrier pushes its load and backs off it when done (bodies, loads not riding).
+  virtual bool pushesLoads() const { return false; }
   /// A trial begins from every entity's `start` pose (the task's order).
   virtual void beginTrial(const task::TaskSpec& /*spec*/, const std::vector<Pose2D>& /*start*/) {}
   /// Runs every motion of one step (`tokens`, decided at `positions`). The default runs

@@ -46,12 +46,14 @@
 // The result says so (fell_back, source_key).
 //
 // End points. The library also holds where the demonstrated motions ended relative to
-// their targets (task/end_point.h, learned by fit()): the paths a caller asks for run from
-// the start to the end point that rule gives (generate() takes it as `goal`).
+// their targets (task/end_point.h, learned by fit(), by role where the step tells them
+// better than the names): the paths a caller asks for run from the start to the end point
+// that rule gives (generate() takes it as `goal`).
 //
-// File: <modeldir>/primitives.yaml (format ddace-primitives/4), documented in docs/gp.md.
-// A /3 file (before roles) reads as a library keyed by name; a /2 file (before end points
-// were learned) also reads: its motions end at their targets' centres, as it was trained.
+// File: <modeldir>/primitives.yaml (format ddace-primitives/5), documented in docs/gp.md.
+// A /4 file (before end points by role) reads with its end points by name and class; a /3
+// file (before roles) as a library keyed by name; a /2 file (before end points were
+// learned) also reads: its motions end at their targets' centres, as it was trained.
 //
 // A library is immutable after fit()/load(): generate() may be called from several
 // threads at once.
@@ -75,8 +77,11 @@
 namespace ddace::gp {
 
 /// /2: the library names the task fingerprint it was fitted on (task/fingerprint.h).
-/// /3: and the learned end points (task/end_point.h). /4: and the role primitives.
-inline constexpr const char* kPrimitivesFormat = "ddace-primitives/4";
+/// /3: and the learned end points (task/end_point.h). /4: and the role primitives. /5: and
+/// the end points of the motion classes keyed by role.
+inline constexpr const char* kPrimitivesFormat = "ddace-primitives/5";
+/// Read as a library whose end points are by name and class only, as it was trained.
+inline constexpr const char* kPrimitivesFormatWithoutRoleEnds = "ddace-primitives/4";
 /// Read as a library keyed by name only.
 inline constexpr const char* kPrimitivesFormatWithoutRoles = "ddace-primitives/3";
 /// Read as: every motion ends at its target's centre.
@@ -145,7 +150,7 @@ class PrimitiveLibrary {
   /// Fits one primitive per motion key of `train`. Throws ddace::Error for invalid options.
   static PrimitiveLibrary fit(const task::TaskDir& train, const PrimitiveOptions& options = {});
 
-  /// Writes the library as YAML (format ddace-primitives/3). Throws ddace::Error naming
+  /// Writes the library as YAML (format kPrimitivesFormat). Throws ddace::Error naming
   /// the file when it cannot be written.
   void save(const std::string& path) const;
   /// The text save() writes.

@@ -54,15 +54,18 @@ struct RobotConfig {
 };
 
 struct BridgeConfig {
-  std::string port_dir = "/dev";        ///< base of relative port patterns
-  std::vector<std::string> scan;        ///< patterns scanned after the hints
-  bool rtscts = true;                   ///< RTS/CTS hardware flow control
-  double command_timeout_s = 0.2;       ///< no command for this long → zero wheels
-  double command_max_age_s = 0.2;       ///< a command stamped longer ago (or ahead) is refused
-  double link_timeout_s = 0.25;         ///< no valid line for this long → reconnect
-  double identify_interval_s = 0.1;     ///< between FF requests
-  int identify_retries = 10;            ///< FF requests per port before giving up on it
-  double rescan_interval_s = 0.5;       ///< pause after every port was tried
+  std::string port_dir = "/dev";     ///< base of relative port patterns
+  std::vector<std::string> scan;     ///< patterns scanned after the hints
+  bool rtscts = true;                ///< RTS/CTS hardware flow control
+  double command_timeout_s = 0.2;    ///< no command for this long → zero wheels
+  double command_max_age_s = 0.2;    ///< a command stamped longer ago (or ahead) is refused
+  double link_timeout_s = 0.25;      ///< no valid line for this long → reconnect
+  double identify_interval_s = 0.1;  ///< between FF requests
+  int identify_retries = 10;         ///< FF requests per port before giving up on it
+  double rescan_interval_s = 0.5;    ///< pause after every port was tried
+  /// A robot not found is reported once it has been searched for this long (s): robots
+  /// being switched on and a rehearsal's mock links come up while the bridge starts.
+  double search_quiet_s = 3.0;
   double ble_connect_timeout_s = 20.0;  ///< BLE: give up a connection attempt after this long
   double battery_low_v = 3.6;           ///< mean battery below this → WARN (roboid's "low")
   double battery_empty_v = 3.0;         ///< mean battery below this → ERROR (roboid's "empty")

@@ -171,6 +171,8 @@ class RobotLink {
   /// when no robot of this bridge has that address, and moves on to the next port.
   void foreignRobot(const Address& address, double now_s);
   void warn(const std::string& message, double now_s);
+  /// A warning that the robot is not found (yet): quiet for search_quiet_s of searching.
+  void warnSearch(const std::string& message, double now_s);
 
   RobotConfig robot_;
   BridgeConfig bridge_;
@@ -194,6 +196,7 @@ class RobotLink {
   double last_line_s_ = -1.0;
   double last_write_s_ = -1.0;
   double lost_s_ = -1.0;
+  double searching_since_s_ = -1.0;    // since the link last streamed (or began); -1 while it streams
   std::vector<std::string> searched_;  // what each port of the current pass said
   std::vector<std::string> warnings_;
   std::vector<double> battery_;  // last battery_samples readings, V

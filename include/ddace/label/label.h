@@ -129,6 +129,12 @@ class Labeller {
   void emit(Group& g, bool aligned);
   /// Notes (once) that step k's movers are not the kinds of the example's step k.
   void noteStepsDiffer(size_t k, const std::vector<Motion>& g, int row);
+  /// Every motion of `g` ended at (together with) a body that moved in `first`, the group
+  /// before it: it joined them (a robot held back until there was room at the crowd).
+  bool joinedItsBodies(const Group& g, const Group& first) const;
+  /// A motion token to the entity its entity's last motion ended at, which has not moved
+  /// since, is noted: no new place (a bump put back, or a piece of that motion?).
+  void noteArrivedAgain(const std::vector<Motion>& g, const std::vector<InferredToken>& tokens);
   /// For each motion of a group, the index of the robot motion it is the load of, or -1.
   std::vector<int> carriersOf(const std::vector<Motion>& g) const;
   /// Tokens of a group's motions: targets (carriers and lone movers first, then their
@@ -144,10 +150,13 @@ class Labeller {
   /// when its step ended (`step_end`): others of the step may have come to its target
   /// after it stopped, in front of it.
   void readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned,
-                  const std::vector<Eigen::Vector2d>& step_end);
+                  const std::vector<Motion>& step, const std::vector<Eigen::Vector2d>& step_end);
   /// `m` stopped within the arrival radius of touching `body`, the body ahead of it (within a
   /// right angle of its heading).
   bool stoppedShortFacing(const Motion& m, int body) const;
+  /// `m` stopped short facing (stoppedShortFacing) a body that moved in its `step` and stands
+  /// nearer `target` than it: in a row behind it, not halfway (its target is not listed).
+  bool behindARow(const Motion& m, int target, const std::vector<Motion>& step) const;
   /// Between the tied end points of `ep`: the example's step k (aligned), the example's
   /// choice between such kinds, or its only motion of the kind; else noted.
   void resolveTie(InferredToken& tok, const Motion& m, const EndPoint& ep, size_t k, bool aligned);
@@ -185,6 +194,12 @@ class Labeller {
   bool sweptBy(const Motion& o, const Motion& r) const;
   std::vector<bool> candidatesOf(const Motion& m) const;
   bool pausedOnItsWay(const Motion& a, const Motion& b) const;
+  /// `a` went a short way (under twice a nudge) and `b`, its entity's next motion, heads
+  /// back to where `a` began: a hand's bump and its put-back.
+  bool headsBack(const Motion& a, const Motion& b) const;
+  /// headsBack(), `b` within pause_s of `a` and ending within a nudge of where `a` began:
+  /// together they went nowhere (a nudge), whatever came before them.
+  bool bumpedAndPutBack(const Motion& a, const Motion& b) const;
   /// Object motion `a` went with no robot's motion, at one place with a resting robot all the
   /// way, and `b`, its next, went with that robot's motion: one carry (a box swung round a
   /// robot turning in place, then pushed on by it).
@@ -221,8 +236,16 @@ class Labeller {
   bool steps_differ_ = false;
   std::string steps_differ_note_;  ///< its note, which lists every later token
   int prev_off_ = -1;              ///< the last emitted group's offset row
-  int handed_off_ = -1;            ///< the last offset row of the groups handed over
-  Inference out_;                  ///< decided, not taken
+  /// [entity] the target of its last motion token (-1: none yet), the target's position
+  /// when that motion ended, and the row it ended on.
+  struct LastArrival {
+    int target = -1;
+    Eigen::Vector2d target_at = Eigen::Vector2d::Zero();
+    int row = -1;
+  };
+  std::vector<LastArrival> last_arrival_;
+  int handed_off_ = -1;  ///< the last offset row of the groups handed over
+  Inference out_;        ///< decided, not taken
 };
 
 /// inferLabels over a demonstration in memory.

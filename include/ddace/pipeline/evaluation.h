@@ -82,8 +82,9 @@ struct EvalOptions {
   /// coordinated: robots that differ in speed, each at a factor of the speed it is driven
   /// at drawn per trial from [1 - speed_spread, 1] (the same under either dispatch).
   double speed_spread = 0;
-  /// Every path from its names' primitive (the paper's keys), not its role's where fitting
-  /// keyed a motion class by role (gp/primitives.h): what the role keys give, measured.
+  /// Every path from its names' primitive (the paper's keys) to its names' end point, not its
+  /// role's where fitting keyed a motion class by role (gp/primitives.h, task/end_point.h):
+  /// what the role keys give, measured.
   bool paths_by_name = false;
 };
 

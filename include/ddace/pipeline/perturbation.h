@@ -80,6 +80,15 @@ CoordinatedRun runCoordinated(const Model& model, const task::TaskSpec& spec, co
                               const Perturbation& p, int max_replans, exec::DispatchMode dispatch, uint64_t seed,
                               const exec::BodiesExecutionParams* bodies = nullptr, double speed_spread = 0);
 
+/// How a run that lost robots is judged in a task that states no goal condition: by the
+/// demonstration's (`gt`) own ends. The first object (task order) that is not at the last
+/// entity `gt` moved it to, unless that entity is `lost`: "B1 did not end at G2, where the
+/// demonstration left it"; "" when every one is. Without it a run that ended with a box
+/// mid-table would count as done.
+std::string objectNotWhereDemonstrated(const task::TaskSpec& spec, const task::Demonstration& gt,
+                                       const std::vector<Eigen::Vector2d>& final_positions,
+                                       const std::vector<int>& lost);
+
 /// Per trial: unperturbed, perturbed without recovery (max_replans 0), perturbed with
 /// (CoordinatorConfig::max_replans's default); all three with the same draw.
 struct PerturbationReport {

@@ -12,9 +12,15 @@
 // position when its step was decided, in that segment's approach frame; the median (in
 // polar form: the median distance along the median side) over the segments of one key
 // ("R1:move:R3") when the key has at least kMinKeySegments of them, else over the segments
-// of its *motion class*, else the footprints' default. A motion class is the mover's kind, whether it carries a load,
-// and the target's kind: "robot->robot", "robot+load->goal", "object->goal". A robot carries a load when an object of
-// its step has a token with the same action and target.
+// of its *motion class*, else the footprints' default. Where the scene decides who does
+// what, a key can hold the ends of different roles (two robots sent to one goal: the first
+// stops on it, the second at the robot on it, whoever they are); so a motion class whose
+// ends the step they stand in predicts better than the keys (each end against the median
+// of the others of its group, by kMinRoleEndGainM per segment) is keyed by *role*: the median over the class's segments
+// of that step, used before the key's where the caller knows the motion's step (the nearest demonstrated step for one
+// never seen). A motion class is the mover's kind, whether it carries a load, and the target's kind: "robot->robot",
+// "robot+load->goal", "object->goal". A robot carries a load when an object of its step has a token with the same
+// action and target.
 //
 // So demonstrations that stop at contact teach end points at contact, and demonstrations
 // that end at the target's centre teach end points at centres: recordings and generated
@@ -50,6 +56,12 @@ namespace ddace::task {
 /// A key's own offset is used when it has at least this many demonstrated segments
 /// (fewer: its motion class's), so one mislabelled segment cannot place a key's end.
 inline constexpr int kMinKeySegments = 3;
+/// A motion class's ends are keyed by role only where the steps predict held-out ends better
+/// than the keys by this much per segment on average (metres). Measured, not derived: two
+/// robots sent to one goal in turn gain 22 mm (the second stops at the first); the
+/// generators' families 0; four robots meeting at a fifth (zoo:2) 4.6 mm, the ends round the
+/// target at several sides pooled, and one of its 8 replays with bodies then deadlocked.
+inline constexpr double kMinRoleEndGainM = 0.005;
 /// Segments whose start is closer to the target than this have no approach direction
 /// and teach nothing (metres).
 inline constexpr double kMinApproachM = 0.005;
@@ -64,6 +76,15 @@ struct EndOffset {
 struct EndPointModel {
   std::map<std::string, EndOffset> by_key;    ///< "R1:move:R3"
   std::map<std::string, EndOffset> by_class;  ///< "robot->robot", "robot+load->goal", ...
+  /// Classes keyed by role (header comment): class -> step (0-based) -> offset, each step's
+  /// from at least kMinKeySegments segments.
+  std::map<std::string, std::map<int, EndOffset>> by_role;
+  /// The same ends keyed by name and class only (the paper's keys, to compare against).
+  EndPointModel byName() const {
+    EndPointModel m = *this;
+    m.by_role.clear();
+    return m;
+  }
   /// True for a model trained before end points were learned: every motion ends at its
   /// target's centre, as those models were trained (primitives.yaml /2).
   bool centres = false;
@@ -79,9 +100,11 @@ std::string motionClass(const TaskSpec& spec, const std::vector<Token>& step, si
 /// `spec`).
 EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstration>& demos);
 
-/// The offset the rule uses for `step[i]` (approach frame, metres): the key's, its class's,
-/// or the footprints' default (see the header comment).
-Eigen::Vector2d endOffset(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step, size_t i);
+/// The offset the rule uses for `step[i]` (approach frame, metres): its role's when
+/// `step_index` (the step it stands in, 0-based; < 0: unknown) is given and its class is keyed
+/// by role, the key's, its class's, or the footprints' default (see the header comment).
+Eigen::Vector2d endOffset(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step, size_t i,
+                          int step_index = -1);
 
 /// Where the demonstrations stop toward a body at another gap than the footprints' contact
 /// (robots left 4 mm or 1 cm apart; or overlapping: footprints stated too big): a wider gap
@@ -104,10 +127,11 @@ std::vector<StopGap> stopGaps(const TaskSpec& spec, const EndPointModel& model,
                               const std::vector<Demonstration>& demos);
 
 /// The end point of the motion token `step[i]` decided with entity positions `decided`
-/// (table frame, metres). An in-place token ends where it is. Throws ddace::Error for a
+/// (table frame, metres), standing in step `step_index` (endOffset()). An in-place token ends
+/// where it is. Throws ddace::Error for a
 /// token naming an entity outside `decided`.
 Eigen::Vector2d endPoint(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step, size_t i,
-                         const std::vector<Eigen::Vector2d>& decided);
+                         const std::vector<Eigen::Vector2d>& decided, int step_index = -1);
 
 /// The end point the rule gives a demonstrated segment (its step's tokens, decided with the
 /// step's snapshot); the segment's goal (Demonstration::segmentGoal) when its step is unknown.
@@ -136,7 +160,8 @@ inline constexpr double kBackOffStepM = 0.001;
 int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, const std::vector<Eigen::Vector2d>& at);
 
 /// Where every entity stands after `step` decided with entity positions `decided` when
-/// bodies must fit (table frame, metres). Each motion ends at its endPoint() under `model`;
+/// bodies must fit (table frame, metres). Each motion ends at its endPoint() under `model`
+/// (in step `step_index`);
 /// a riding load (ridingLoad()) ends in front of its carrier at their contact distance
 /// along the carrier's approach (on the target, the carrier behind it). Its own target a
 /// motion comes no nearer than their contact (demonstrations stopping inside the
@@ -151,6 +176,7 @@ int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, c
 std::vector<Eigen::Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model,
                                               const std::vector<Token>& step,
                                               const std::vector<Eigen::Vector2d>& decided,
-                                              const std::optional<Eigen::AlignedBox2d>& table = std::nullopt);
+                                              const std::optional<Eigen::AlignedBox2d>& table = std::nullopt,
+                                              int step_index = -1);
 
 }  // namespace ddace::task

@@ -283,12 +283,13 @@ MotionContacts BodiesExecution::contactsOf(const Motion& motion) const {
       b.step = o.step;
       b.action = o.token.action;
       b.target = targetName(o.token.target);
+      b.way = o.motion.planned;
     }
     others.push_back(b);
   }
   return motionContacts(table_->truePose(i).position(), radius_m_[i], motion.final_at, motion.step, motion.token.action,
                         targetName(motion.token.target), others, controller_.safety.endsAgainstReachM(),
-                        params_.arrival_radius_m);
+                        params_.arrival_radius_m, motion.motion.planned);
 }
 
 std::string BodiesExecution::targetName(int target) const {
@@ -326,8 +327,9 @@ std::string BodiesExecution::startMotion(size_t m) {
     // demonstrations stopped at. A carrier's load is what ends at the target.
     const bool against_body =
         mo.target >= 0 && mo.target < n && radius_m_[mo.target] > 0 && motion.contacts.load.empty();
-    const double stop = against_body ? task::stopRadiusAgainstBody(stop_radius_m_, stop_tolerance_m_) : stop_radius_m_;
-    c.start(PlannedPath{mo.planned, {}}, mo.target >= 0 ? names_[mo.target] : std::string(), stop, stop_radius_m_);
+    const double at_place = task::stopRadiusAgainstBody(stop_radius_m_, stop_tolerance_m_);
+    c.start(PlannedPath{mo.planned, {}}, mo.target >= 0 ? names_[mo.target] : std::string(),
+            against_body ? at_place : stop_radius_m_, stop_radius_m_, at_place);
     c.setContacts(motion.contacts);
     motion.limit_s = 3.0 * length_m / controller_.gains.cruise_speed_mps + 10.0;
   } else if (spec_.entities[mo.entity].kind != task::EntityKind::Object) {

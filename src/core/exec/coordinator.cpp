@@ -164,6 +164,7 @@ void Coordinator::stopActive(CoordinatorOutput& out) {
 void Coordinator::clearRun() {
   history_.clear();
   history_from_ = 0;
+  ahead_ = -1;
   steps_.clear();
   decisions_requested_ = 0;
   last_decision_.reset();
@@ -182,7 +183,7 @@ void Coordinator::clearRun() {
 }
 
 void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
-  if (end_decided_ || pending_decision_ != 0) return;
+  if (end_decided_ || pending_decision_ != 0 || ahead_ >= 0) return;
   if (!steps_.empty() && !dispatch_->mayDecide(policy_reads_scene_)) return;
   if (!allTracked()) {
     waiting_for_entities_ = true;
@@ -196,9 +197,12 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   }
   task::Snapshot snap;
   snap.row = static_cast<int>(history_.size());
-  // A policy that reads the scene is asked once it settled (mayDecide): the scene as it is.
-  snap.positions = policy_reads_scene_ ? observation_.positions : sceneOnceSettled();
+  // A policy that reads the scene decides from the scene as it is once it settled, else
+  // (asked ahead) from the scene the decided steps will leave, as a fixed order always does.
+  const bool ahead = policy_reads_scene_ && !dispatch_->allEnded();
+  snap.positions = policy_reads_scene_ && !ahead ? observation_.positions : sceneOnceSettled();
   history_.push_back(snap);
+  if (ahead) ahead_ = static_cast<int>(history_.size()) - 1;
   DecisionRequest req;
   req.id = nextId();
   req.step = static_cast<int>(steps_.size());
@@ -210,7 +214,8 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   pending_decision_ = req.id;
   decision_since_s_ = now_s;
   ++decisions_requested_;
-  out.log.push_back("requesting decision " + std::to_string(req.step + 1));
+  out.log.push_back("requesting decision " + std::to_string(req.step + 1) +
+                    (ahead ? " ahead, from the scene the running tokens will leave" : ""));
   out.decision = std::move(req);
 }
 
@@ -220,12 +225,99 @@ std::vector<Eigen::Vector2d> Coordinator::sceneOnceSettled() const {
     if (s.complete) continue;
     std::vector<task::Token> tokens;
     for (const TokenRecord& t : s.tokens) tokens.push_back(t.token);
-    at = task::stepEndPositions(spec_, end_points_, tokens, at);
+    at = task::stepEndPositions(spec_, end_points_, tokens, at, std::nullopt, s.step);
     for (const TokenRecord& t : s.tokens)
       if (t.token.isMotion() && t.started_s >= 0 && t.state != SegmentState::Done)
         at[static_cast<size_t>(t.token.entity)] = t.goal;
   }
   return at;
+}
+
+std::vector<std::vector<int>> Coordinator::insideOut(const std::vector<task::Token>& tokens,
+                                                     const std::vector<Eigen::Vector2d>& scene) const {
+  const std::vector<Eigen::Vector2d> ends = task::stepEndPositions(spec_, end_points_, tokens, scene);
+  const auto robotMotion = [&](const task::Token& t) {
+    return t.isMotion() && t.target >= 0 &&
+           spec_.entities[static_cast<size_t>(t.entity)].kind == task::EntityKind::Robot;
+  };
+  const auto fromTarget = [&](const task::Token& t) {
+    return (ends[static_cast<size_t>(t.entity)] - scene[static_cast<size_t>(t.target)]).norm();
+  };
+  std::vector<std::vector<int>> after(tokens.size());
+  for (size_t i = 0; i < tokens.size(); ++i)
+    for (size_t j = 0; j < tokens.size(); ++j)
+      if (i != j && robotMotion(tokens[i]) && robotMotion(tokens[j]) && tokens[i].target == tokens[j].target &&
+          fromTarget(tokens[j]) + config_.arrival_tolerance_m < fromTarget(tokens[i]))
+        after[i].push_back(static_cast<int>(j));
+  return after;
+}
+
+std::string Coordinator::unlikePrediction(const std::vector<Eigen::Vector2d>& predicted,
+                                          const std::vector<Eigen::Vector2d>& settled) const {
+  const double within = config_.arrival_radius_m + config_.arrival_tolerance_m;
+  for (size_t e = 0; e < predicted.size() && e < settled.size(); ++e) {
+    if (lost_[e]) continue;
+    const double off = (settled[e] - predicted[e]).norm();
+    if (off <= within) continue;
+    std::ostringstream os;
+    os << spec_.entities[e].name << " stands " << off << " m from where it was predicted (more than "
+       << "arrival_radius_m + arrival_tolerance_m)";
+    return os.str();
+  }
+  return "";
+}
+
+void Coordinator::settleAhead(CoordinatorOutput& out) {
+  if (ahead_ < 0 || pending_decision_ != 0 || !dispatch_->settledBefore(ahead_)) return;
+  if (!allTracked()) {
+    waiting_for_entities_ = true;  // checked again once every entity is tracked
+    return;
+  }
+  // The scene the decision read, settled: where everything is, the entities of its tokens
+  // that started where they started (each after its own predecessors ended).
+  std::vector<Eigen::Vector2d> settled = observation_.positions;
+  if (ahead_ < static_cast<int>(steps_.size()))
+    for (const TokenRecord& t : steps_[static_cast<size_t>(ahead_)].tokens)
+      if (t.started_s >= 0) settled[static_cast<size_t>(t.token.entity)] = t.start;
+  task::Snapshot& read = history_[static_cast<size_t>(ahead_)];
+  const std::string off = unlikePrediction(read.positions, settled);
+  const std::string what =
+      ahead_ == static_cast<int>(steps_.size()) ? std::string("END") : "step " + std::to_string(ahead_ + 1);
+  if (!off.empty()) {
+    withdrawAhead("the scene did not settle as predicted: " + off, out);
+    return;
+  }
+  read.positions = settled;  // what later decisions read: the scene as it settled
+  ahead_ = -1;
+  out.log.push_back(what + ", decided ahead, holds: the scene settled as predicted");
+}
+
+void Coordinator::withdrawAhead(const std::string& why, CoordinatorOutput& out) {
+  if (ahead_ < 0) return;
+  const bool step = pending_decision_ == 0 && !end_decided_;
+  out.log.push_back((pending_decision_ != 0 ? std::string("the request for decision ") + std::to_string(ahead_ + 1)
+                     : step                 ? "step " + std::to_string(ahead_ + 1)
+                                            : std::string("END")) +
+                    ", asked ahead, is withdrawn: " + why);
+  if (pending_decision_ != 0) {
+    pending_decision_ = 0;  // its answer is ignored
+  } else if (end_decided_) {
+    end_decided_ = false;
+    reason_.clear();
+  } else {
+    StepRecord& s = steps_.back();
+    for (TokenRecord& t : s.tokens)
+      if (t.token.isMotion() && t.started_s >= 0 && t.state != SegmentState::Done) {
+        if (t.segment_id != 0) out.stop.push_back(t.token.entity);
+        t.state = SegmentState::Aborted;
+        t.path_request = 0;
+      }
+    withdrawn_.push_back(std::move(s));
+    steps_.pop_back();
+    dispatch_->withdrawLastStep();
+  }
+  history_.pop_back();
+  ahead_ = -1;
 }
 
 void Coordinator::refreshState(CoordinatorOutput& out) {
@@ -254,6 +346,7 @@ void Coordinator::advance(double now_s, CoordinatorOutput& out) {
     s.finished_s = now_s;
     out.log.push_back("step " + std::to_string(s.step + 1) + " complete");
   }
+  settleAhead(out);
   if (end_decided_ && dispatch_->allEnded()) {
     setState(RunState::Finished, out);
     return;
@@ -277,6 +370,7 @@ void Coordinator::startReady(double now_s, CoordinatorOutput& out) {
         continue;
       }
       dispatch_->start(r, now_s);
+      again = true;  // a token of its step may start after it
       t.started_s = now_s;
       t.start = observation_.positions[static_cast<size_t>(e)];
       t.goal = t.start;
@@ -284,7 +378,6 @@ void Coordinator::startReady(double now_s, CoordinatorOutput& out) {
         motions.push_back(r);
       } else {
         endToken(r, now_s, out, "");  // in place: ends as it starts, which may release others
-        again = true;
       }
     }
   }
@@ -301,7 +394,8 @@ void Coordinator::startReady(double now_s, CoordinatorOutput& out) {
       tokens.push_back(t.token);
       if (t.started_s >= 0) at[static_cast<size_t>(t.token.entity)] = t.start;
     }
-    const std::vector<Eigen::Vector2d> ends = task::stepEndPositions(spec_, end_points_, tokens, at);
+    const std::vector<Eigen::Vector2d> ends =
+        task::stepEndPositions(spec_, end_points_, tokens, at, std::nullopt, static_cast<int>(k));
     for (const TokenRef& r : motions)
       if (r.step == static_cast<int>(k)) record(r).goal = ends[static_cast<size_t>(record(r).token.entity)];
   }
@@ -319,7 +413,7 @@ Eigen::Vector2d Coordinator::endPointOf(TokenRef r, std::vector<Eigen::Vector2d>
     if (t.started_s >= 0 && static_cast<int>(i) != r.index) at[static_cast<size_t>(t.token.entity)] = t.start;
   }
   const int e = s.tokens[static_cast<size_t>(r.index)].token.entity;
-  return task::stepEndPositions(spec_, end_points_, tokens, at)[static_cast<size_t>(e)];
+  return task::stepEndPositions(spec_, end_points_, tokens, at, std::nullopt, r.step)[static_cast<size_t>(e)];
 }
 
 bool Coordinator::mayRecover(TokenRef r, int done, const std::string& why, CoordinatorOutput& out) {
@@ -370,6 +464,7 @@ void Coordinator::loseRobot(int e, const std::string& why, double now_s, Coordin
     abort(name + " is lost (" + why + "): the policy follows a fixed order that names it; no decision without it", out);
     return;
   }
+  withdrawAhead(name + " is lost", out);  // it read the lost robot where it was predicted
   // Its tokens (and those meeting it) that have not ended: withdrawn with the latest step,
   // decided again without it; one of an earlier step cannot be.
   std::optional<TokenRef> latest;
@@ -406,6 +501,8 @@ void Coordinator::recover(TokenRef r, const std::string& why, bool target_moved,
     loseRobot(e, why + " while it is not tracked", now_s, out);
     return;
   }
+  // A decision asked ahead read the scene this token was to leave.
+  if (ahead_ != r.step) withdrawAhead(why, out);
   // Only the latest decision, made from the scene and not yet followed by another, is
   // re-made: a fixed order would decide the same step again.
   const bool may_redecide = policy_reads_scene_ && r.step + 1 == static_cast<int>(steps_.size()) &&
@@ -450,6 +547,7 @@ void Coordinator::redecide(TokenRef r, const std::string& why, double now_s, Coo
   withdrawn_.push_back(std::move(s));
   steps_.pop_back();
   history_.pop_back();
+  if (ahead_ == static_cast<int>(k)) ahead_ = -1;  // decided again: from the scene as it is, or ahead anew
   if (begin_again) history_from_ = history_.size();
   dispatch_->withdrawLastStep();
   advance(now_s, out);  // asks for the step again from a snapshot of now
@@ -537,6 +635,7 @@ CoordinatorOutput Coordinator::pause(double) {
     return out;
   }
   if (pending_decision_ != 0 && !history_.empty()) history_.pop_back();
+  if (pending_decision_ != 0) ahead_ = -1;  // asked again on resume
   pending_decision_ = 0;
   for (auto& s : steps_)
     for (auto& t : s.tokens) t.path_request = 0;
@@ -697,7 +796,7 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
   for (const auto& t : step.tokens) os << " " << task::tokenKey(t.token, spec_);
   out.log.push_back(os.str());
   steps_.push_back(std::move(step));
-  dispatch_->addStep(d.tokens, now_s);
+  dispatch_->addStep(d.tokens, now_s, insideOut(d.tokens, history_.back().positions));
   advance(now_s, out);
   return out;
 }

@@ -22,13 +22,22 @@ DispatchMode parseDispatchMode(const std::string& text, const std::string& what)
 Dispatch::Dispatch(task::TaskSpec spec, DispatchMode mode, graph::Dependencies deps)
     : spec_(std::move(spec)), mode_(mode), deps_(std::move(deps)) {}
 
-void Dispatch::addStep(const std::vector<task::Token>& tokens, double decided_s) {
+void Dispatch::addStep(const std::vector<task::Token>& tokens, double decided_s,
+                       const std::vector<std::vector<int>>& start_after) {
+  if (!start_after.empty() && start_after.size() != tokens.size())
+    throw Error("dispatch: one list of tokens to start after per token of the step");
+  for (size_t i = 0; i < start_after.size(); ++i)
+    for (int j : start_after[i])
+      if (j < 0 || j >= static_cast<int>(tokens.size()) || j == static_cast<int>(i))
+        throw Error("dispatch: token " + std::to_string(i) + " of the step cannot start after token " +
+                    std::to_string(j));
   if (first_decision_s_ < 0) first_decision_s_ = decided_s;
   const int k = steps();
   tokens_.push_back(tokens);
   std::vector<Record> records(tokens.size());
   for (size_t i = 0; i < tokens.size(); ++i) {
     records[i].token = tokens[i];
+    if (!start_after.empty()) records[i].start_after = start_after[i];
     for (int s = 0; s < k; ++s)
       for (size_t j = 0; j < tokens_[static_cast<size_t>(s)].size(); ++j)
         if (mode_ == DispatchMode::Steps || deps_.waitsFor(spec_, tokens, i, tokens_[static_cast<size_t>(s)], j))
@@ -85,6 +94,8 @@ bool Dispatch::ready(TokenRef t) const {
   if (started(t)) return false;
   for (const TokenRef& p : predecessors(t))
     if (!ended(p)) return false;
+  for (int j : at(t).start_after)
+    if (!started({t.step, j})) return false;
   return true;
 }
 
@@ -117,8 +128,16 @@ bool Dispatch::allEnded() const {
   return true;
 }
 
+bool Dispatch::settledBefore(int step) const {
+  for (int s = 0; s < std::min(step, steps()); ++s)
+    for (const Record& r : steps_[static_cast<size_t>(s)])
+      if (r.end_s < 0) return false;
+  return true;
+}
+
 bool Dispatch::mayDecide(bool policy_reads_scene) const {
-  return (mode_ == DispatchMode::Async && !policy_reads_scene) || allEnded();
+  if (mode_ == DispatchMode::Steps) return allEnded();
+  return !policy_reads_scene || settledBefore(steps() - 1);
 }
 
 int Dispatch::violations() const {
@@ -174,10 +193,11 @@ Dispatch scheduleSteps(const task::TaskSpec& spec, const graph::Dependencies& de
       d.addStep(steps[decided], now);
       ++decided;
     }
-    for (const TokenRef& t : d.readyTokens()) {
-      d.start(t, now);
-      running.push_back({t, now, now + durations[static_cast<size_t>(t.step)][static_cast<size_t>(t.index)]});
-    }
+    for (std::vector<TokenRef> ready = d.readyTokens(); !ready.empty(); ready = d.readyTokens())
+      for (const TokenRef& t : ready) {
+        d.start(t, now);
+        running.push_back({t, now, now + durations[static_cast<size_t>(t.step)][static_cast<size_t>(t.index)]});
+      }
     if (running.empty()) break;
     // The next end.
     const auto next = std::min_element(running.begin(), running.end(), [](const auto& a, const auto& b) {

@@ -38,10 +38,11 @@ std::vector<std::string> FollowerView::setLost(const std::vector<std::string>& n
 }
 
 bool FollowerView::noteSegment(const std::string& name, uint32_t id, int step, const std::string& action,
-                               const std::string& target, const Eigen::Vector2d& end) {
+                               const std::string& target, const Eigen::Vector2d& end,
+                               std::vector<Eigen::Vector2d> way) {
   if (const auto e = ended_.find(name); e != ended_.end() && e->second == id) return false;
   forget(name);
-  segments_[name] = {id, step, action, target, end};
+  segments_[name] = {id, step, action, target, end, std::move(way)};
   bump(step);
   return true;
 }
@@ -77,6 +78,10 @@ double FollowerView::stopToward(const std::string& robot, int step, const std::s
   if (!bodies_.count(target)) return stop;  // a goal is driven onto
   for (const auto& [name, s] : segments_)   // a carrier: its load is what ends at the target
     if (name != robot && s.step == step && s.action == action && s.target == target && isObject(name)) return stop;
+  return stopAtPlace(stop);
+}
+
+double FollowerView::stopAtPlace(double stop) const {
   return task::stopRadiusAgainstBody(stop, std::max(task::kArrivalToleranceM, arrival_m_ - stop));
 }
 
@@ -92,11 +97,12 @@ MotionContacts FollowerView::contacts(const std::string& robot, const Eigen::Vec
       b.final_position = s->second.end;
       b.object = isObject(name);
       b.step = s->second.step, b.action = s->second.action, b.target = s->second.target;
+      b.way = s->second.way;
     }
     at.push_back(b);
   }
   const Segment& s = own->second;
-  return motionContacts(position, radiusOf(robot), s.end, s.step, s.action, s.target, at, reach_m_, arrival_m_);
+  return motionContacts(position, radiusOf(robot), s.end, s.step, s.action, s.target, at, reach_m_, arrival_m_, s.way);
 }
 
 const std::vector<SafetyBody>& FollowerView::others(const std::string& robot, double now_s, double& self_age_s) {

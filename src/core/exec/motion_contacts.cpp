@@ -12,6 +12,22 @@ std::pair<int, int> ordered(int a, int b) {
   return {std::min(a, b), std::max(a, b)};
 }
 
+/// Whether a body of `radius_m` at `place` lies on the planned `way` of a body of
+/// `mover_radius_m` (empty: unknown, no): the mover would overlap it before its end, by more
+/// than kWayInOverlapM (at its end they may touch, as places do).
+constexpr double kWayInOverlapM = 0.001;
+bool onWayIn(const Eigen::Vector2d& place, double radius_m, const std::vector<Eigen::Vector2d>& way,
+             double mover_radius_m) {
+  const double contact = radius_m + mover_radius_m - kWayInOverlapM;
+  for (size_t i = 0; i + 1 < way.size(); ++i) {
+    const Eigen::Vector2d d = way[i + 1] - way[i];
+    const double t = d.squaredNorm() < 1e-12 ? 0.0 : std::clamp((place - way[i]).dot(d) / d.squaredNorm(), 0.0, 1.0);
+    if (i + 2 == way.size() && t >= 1) continue;  // the end itself
+    if ((place - (way[i] + t * d)).norm() < contact) return true;
+  }
+  return false;
+}
+
 /// Whether `b`, a robot of the step, is queued behind a robot ending at `end_point` (see
 /// motionContacts): bound for the same target, its end not reaching it, farther from it.
 bool queuedBehind(const BodyAtStart& b, const Eigen::Vector2d& end_point,
@@ -21,11 +37,23 @@ bool queuedBehind(const BodyAtStart& b, const Eigen::Vector2d& end_point,
          !endsAgainst(b.final_position, b.radius_m, target->final_position, target->radius_m, reach_m) &&
          (b.final_position - target->final_position).norm() > (end_point - target->final_position).norm();
 }
+
+/// Whether a robot at `position` (`radius_m`) ending at `end` waits, onto a flat goal, for
+/// one (`other_radius_m`) ending at `other_end` along `other_way`: its place lies on that
+/// one's way in, not the other way round (`way`: its own), and it does not already stand
+/// on that way (then waiting unseals nothing).
+bool waitsOntoFlatGoal(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end,
+                       const std::vector<Eigen::Vector2d>& way, const Eigen::Vector2d& other_end, double other_radius_m,
+                       const std::vector<Eigen::Vector2d>& other_way) {
+  return onWayIn(end, radius_m, other_way, other_radius_m) && !onWayIn(position, radius_m, other_way, other_radius_m) &&
+         !onWayIn(other_end, other_radius_m, way, radius_m);
+}
 }  // namespace
 
 MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, const Eigen::Vector2d& end_point,
                               int step, const std::string& action, const std::string& target,
-                              const std::vector<BodyAtStart>& bodies, double reach_m, double arrival_radius_m) {
+                              const std::vector<BodyAtStart>& bodies, double reach_m, double arrival_radius_m,
+                              const std::vector<Eigen::Vector2d>& way) {
   MotionContacts out;
   const BodyAtStart* load = nullptr;
   for (const BodyAtStart& b : bodies)
@@ -42,13 +70,25 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
   // Queued: its end point does not reach its target (a body), only robots ending nearer it.
   const bool queued = !load && at_target != bodies.end() &&
                       !endsAgainst(end_point, radius_m, at_target->final_position, at_target->radius_m, reach_m);
+  // Onto a flat goal: queued behind a robot bound for it whose way in its place lies on,
+  // and not the other way round, unless it stands on that way already (then waiting
+  // unseals nothing).
+  const bool to_flat_goal = !load && !target.empty() && at_target == bodies.end();
   for (const BodyAtStart& b : bodies) {
     if (&b == load) continue;
     const bool same_meeting = b.step == step && !b.object && b.target == target && b.name != target;
-    if (endsAgainst(end_point, radius_m, b.final_position, b.radius_m, reach_m)) {
+    const bool ends_against = endsAgainst(end_point, radius_m, b.final_position, b.radius_m, reach_m);
+    if (to_flat_goal && same_meeting) {
+      if (waitsOntoFlatGoal(position, radius_m, end_point, way, b.final_position, b.radius_m, b.way))
+        out.after.insert(b.name);
+      if (waitsOntoFlatGoal(b.position, b.radius_m, b.final_position, b.way, end_point, radius_m, way))
+        out.awaited_by.insert(b.name);
+    }
+    if (same_meeting && ends_against && queuedBehind(b, end_point, at_target, bodies, reach_m))
+      out.awaited_by.insert(b.name);
+    if (ends_against) {
       out.ends_against.insert(b.name);
-      if (b.step == step && !b.object && b.name != target && !queuedBehind(b, end_point, at_target, bodies, reach_m))
-        out.beside.insert(b.name);
+      if (b.step == step && !b.object && b.name != target && !out.awaited_by.count(b.name)) out.beside.insert(b.name);
       if (queued && same_meeting &&
           (b.final_position - at_target->final_position).norm() < (end_point - at_target->final_position).norm())
         out.after.insert(b.name);

@@ -276,7 +276,11 @@ std::optional<PushCommand> pushWheels(const Pose2D& carrier, const Eigen::Vector
   double v = 0, turn = std::clamp(gains.heading_gain * alpha, -gains.max_turn_rate_radps, gains.max_turn_rate_radps);
   if (std::abs(alpha) <= gains.rotate_in_place_rad) {
     const double ramp = std::min(1.0, (route.back() - load).norm() / gains.slowdown_radius_m);
-    v = std::max(gains.min_speed_mps, gains.cruise_speed_mps * ramp) * std::max(0.0, std::cos(alpha));
+    // As slow as the load heads off where it should: the over-steer then moves the carrier
+    // round the load's side (turning their contact back) before the push drags the load on
+    // off its route; at kMaxPushLeadRad it only turns.
+    const double on_course = std::max(0.0, 1.0 - std::abs(drift) / kMaxPushLeadRad);
+    v = std::max(gains.min_speed_mps, gains.cruise_speed_mps * ramp) * std::max(0.0, std::cos(alpha)) * on_course;
   }
   out.wheels = twistToWheels(v, turn, gains.wheel_base_m);
   const double peak = std::max(std::abs(out.wheels.left_mps), std::abs(out.wheels.right_mps));
@@ -333,6 +337,12 @@ std::vector<Eigen::Vector2d> drivenPath(const task::TaskSpec& spec, const std::v
   return pushPath(planned.front(), decided.at(l), ends.at(l), spec.contactDistance(carrier, *load),
                   ends.at(static_cast<size_t>(carrier)), static_cast<int>(planned.size()),
                   pushObstacles(spec, step, i, *load, decided));
+}
+
+Eigen::Vector2d backedOffEnd(const Eigen::Vector2d& push_end, const Eigen::Vector2d& load_end) {
+  const Eigen::Vector2d away = push_end - load_end;
+  if (away.norm() < 1e-9) return push_end;
+  return push_end + away.normalized() * kPushBackOffM;
 }
 
 }  // namespace ddace::exec

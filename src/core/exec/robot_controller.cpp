@@ -28,8 +28,9 @@ RobotController::RobotController(std::string name, const ControllerParams& param
 }
 
 void RobotController::start(const PlannedPath& path, const std::string& target, double stop_radius_m,
-                            double held_stop_radius_m) {
-  for (const double r : {stop_radius_m, held_stop_radius_m})
+                            double held_stop_radius_m, double place_stop_radius_m) {
+  if (place_stop_radius_m <= 0) place_stop_radius_m = stop_radius_m;
+  for (const double r : {stop_radius_m, held_stop_radius_m, place_stop_radius_m})
     if (!(r > 0) || !std::isfinite(r))
       throw Error("the stop radii of " + name_ + "'s motion must be positive numbers of metres");
   FollowerGains g = params_.gains;
@@ -39,6 +40,7 @@ void RobotController::start(const PlannedPath& path, const std::string& target, 
   follower_ = std::move(f);
   stop_radius_m_ = stop_radius_m;
   held_stop_radius_m_ = held_stop_radius_m;
+  place_stop_radius_m_ = std::min(stop_radius_m, place_stop_radius_m);
   target_ = target;
   contacts_ = {};
   push_planned_for_ = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
@@ -146,7 +148,8 @@ ControlOutput RobotController::waitFor(ControlOutput out, const std::string& who
   stale_since_s_ = -1;
   filter_.reset();  // waiting is no hold: its deadlock clock starts when it drives
   out.waiting_for = whom;
-  out.message = name_ + " waits for " + whom + " to arrive: its end point lies behind " + whom + "'s";
+  out.message =
+      name_ + " waits for " + whom + " to stand: its place lies behind " + whom + "'s, or on " + whom + "'s way in";
   return out;
 }
 
@@ -182,9 +185,12 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   // at one body, a line), it stops within the held stop radius: driven on to its exact
   // place it would close the way in of that one, whose place lies beside it. The last of
   // them to come ends where its own stop radius says.
+  // Awaited by a robot queued behind it, it ends at its own place: stopping short on its
+  // way in it would stand in the waiting one's.
   bool beside_moving = false;
   for (const SafetyBody& b : others) beside_moving = beside_moving || (!b.standing && contacts_.beside.count(b.name));
-  follower_.setStopRadius(beside_moving ? std::max(stop_radius_m_, held_stop_radius_m_) : stop_radius_m_);
+  const double own = contacts_.awaited_by.empty() || !contacts_.load.empty() ? stop_radius_m_ : place_stop_radius_m_;
+  follower_.setStopRadius(beside_moving ? std::max(own, held_stop_radius_m_) : own);
   FollowerOutput o = follower_.compute(pose);
   out.progress = o.progress;
   out.distance_to_goal_m = o.distance_to_goal_m;

@@ -53,7 +53,7 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
     // With bodies, the step's ends are placed where bodies fit (two robots sent onto one goal
     // end touching); points end where the rule puts each motion alone (the paper's Table 2).
     const std::vector<Eigen::Vector2d> ends =
-        execution.bodies() ? task::stepEndPositions(spec, end_points, d.tokens, decided) : decided;
+        execution.bodies() ? task::stepEndPositions(spec, end_points, d.tokens, decided, std::nullopt, k) : decided;
     std::vector<StepMotion> motions;
     const size_t first = trial.executed.size();
     for (size_t i = 0; i < d.tokens.size(); ++i) {
@@ -63,14 +63,16 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
       ex.step = k;
       ex.start = decided[token.entity];
       ex.goal = execution.bodies() ? ends[static_cast<size_t>(token.entity)]
-                                   : task::endPoint(spec, end_points, d.tokens, i, decided);
+                                   : task::endPoint(spec, end_points, d.tokens, i, decided, k);
       if (token.isMotion()) {
         ex.planned = paths(token, ex.start, ex.goal);
         if (ex.planned.empty()) ex.planned = {ex.start, ex.goal};
         // With bodies a carrier pushes its load, as the coordinator plans it for the robots.
-        if (execution.bodies() && pushedLoad(spec, d.tokens, i, decided)) {
+        const std::optional<int> load = execution.bodies() ? pushedLoad(spec, d.tokens, i, decided) : std::nullopt;
+        if (load) {
           ex.planned = drivenPath(spec, d.tokens, i, decided, ends, std::move(ex.planned));
           ex.goal = ex.planned.back();  // behind the load's end point: where the push stops
+          if (execution.pushesLoads()) ex.goal = backedOffEnd(ex.goal, ends[static_cast<size_t>(*load)]);
         }
         motions.push_back(
             {i, token.entity, token.target, spec.entities[token.entity].kind == task::EntityKind::Robot, ex.planned});

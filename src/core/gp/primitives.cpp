@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <set>
 #include <sstream>
@@ -124,18 +125,42 @@ bool integer(YamlChecker& c, const YAML::Node& map, const std::string& key, cons
   return n && c.integer(n, where + key, lo, hi, out);
 }
 
-/// end_points: {by_key: [{motion, offset: [x, y], segments}], by_class: [...]}.
-void readEndPoints(YamlChecker& c, const YAML::Node& root, const std::vector<std::string>& entities,
+/// Whether `name` is an end point class "KIND[+load]->KIND" (with `role`: and "@STEP"),
+/// setting `motion_class` and `step`.
+bool endPointClass(const std::string& name, bool role, std::string& motion_class, int& step) {
+  motion_class = name;
+  if (role) {
+    const auto at = name.rfind('@');
+    const std::string digits = at == std::string::npos ? "" : name.substr(at + 1);
+    if (digits.empty() || digits.size() > 6 ||
+        !std::all_of(digits.begin(), digits.end(), [](unsigned char ch) { return std::isdigit(ch) != 0; }))
+      return false;
+    step = std::stoi(digits);
+    motion_class = name.substr(0, at);
+  }
+  const auto kind = [](const std::string& k) { return k == "robot" || k == "object" || k == "goal"; };
+  const auto arrow = motion_class.find("->");
+  std::string mover = arrow == std::string::npos ? "" : motion_class.substr(0, arrow);
+  if (mover.size() > 5 && mover.substr(mover.size() - 5) == "+load") mover.resize(mover.size() - 5);
+  return arrow != std::string::npos && kind(mover) && kind(motion_class.substr(arrow + 2));
+}
+
+/// end_points: {by_key: [{motion, offset: [x, y], segments}], by_class: [...], by_role:
+/// [...] (`roles`: a /5 library's; motion "CLASS@STEP")}.
+void readEndPoints(YamlChecker& c, const YAML::Node& root, const std::vector<std::string>& entities, bool roles,
                    task::EndPointModel& model) {
   const YAML::Node ends = c.required(root, "end_points", "", "where the demonstrated motions ended; retrain the model");
   if (!ends || !c.expectMap(ends, "end_points")) return;
-  c.onlyKeys(ends, {"by_key", "by_class"}, "end_points");
+  c.onlyKeys(
+      ends,
+      roles ? std::set<std::string>{"by_key", "by_class", "by_role"} : std::set<std::string>{"by_key", "by_class"},
+      "end_points");
   auto known = [&](const std::string& name) {
     return std::find(entities.begin(), entities.end(), name) != entities.end();
   };
-  auto kind = [](const std::string& k) { return k == "robot" || k == "object" || k == "goal"; };
-  for (const char* group : {"by_key", "by_class"}) {
-    const bool by_key = std::string(group) == "by_key";
+  for (const char* group : {"by_key", "by_class", "by_role"}) {
+    const bool by_key = std::string(group) == "by_key", by_role = std::string(group) == "by_role";
+    if (by_role && !roles) continue;
     const YAML::Node list = c.required(ends, group, "end_points: ");
     if (!list) continue;
     if (!list.IsSequence()) {
@@ -145,7 +170,8 @@ void readEndPoints(YamlChecker& c, const YAML::Node& root, const std::vector<std
     for (const auto& node : list) {
       if (!c.expectMap(node, std::string("an entry of end_points: ") + group)) continue;
       c.onlyKeys(node, {"motion", "offset", "segments"}, std::string("an entry of end_points: ") + group);
-      std::string name;
+      std::string name, motion_class;
+      int step = -1;
       task::EndOffset e;
       bool ok = textField(c, node, "motion", "end point ", name);
       if (ok && by_key) {
@@ -154,12 +180,11 @@ void readEndPoints(YamlChecker& c, const YAML::Node& root, const std::vector<std
         if (!ok)
           c.error(node["motion"], "end point key '" + name + "' is not ENTITY:ACTION:TARGET of the library's entities");
       } else if (ok) {
-        const auto arrow = name.find("->");
-        std::string mover = arrow == std::string::npos ? "" : name.substr(0, arrow);
-        if (mover.size() > 5 && mover.substr(mover.size() - 5) == "+load") mover.resize(mover.size() - 5);
-        ok = arrow != std::string::npos && kind(mover) && kind(name.substr(arrow + 2));
+        ok = endPointClass(name, by_role, motion_class, step);
         if (!ok)
-          c.error(node["motion"], "end point class '" + name + "' is not KIND[+load]->KIND (robot, object, goal)");
+          c.error(node["motion"], "end point " + std::string(by_role ? "role" : "class") + " '" + name + "' is not " +
+                                      (by_role ? "KIND[+load]->KIND@STEP" : "KIND[+load]->KIND") +
+                                      " (robot, object, goal)");
       }
       const YAML::Node off = c.required(node, "offset", "end point " + name + ": ");
       if (off && (!off.IsSequence() || off.size() != 2)) {
@@ -175,8 +200,11 @@ void readEndPoints(YamlChecker& c, const YAML::Node& root, const std::vector<std
         ok = false;
       }
       ok = integer(c, node, "segments", "end point " + name + ": ", 1, kMaxPrimitiveSegments, e.segments) && ok;
-      auto& into = by_key ? model.by_key : model.by_class;
-      if (ok && !into.emplace(name, e).second) c.error(node["motion"], "end point " + name + " appears twice");
+      const bool fresh = !ok       ? true
+                         : by_role ? model.by_role[motion_class].emplace(step, e).second
+                         : by_key  ? model.by_key.emplace(name, e).second
+                                   : model.by_class.emplace(name, e).second;
+      if (!fresh) c.error(node["motion"], "end point " + name + " appears twice");
     }
   }
 }
@@ -581,14 +609,21 @@ std::string PrimitiveLibrary::text() const {
   out << YAML::Key << "min_segment_length_m" << YAML::Value << options_.min_segment_length_m;
   // Where the demonstrated motions ended: metres in the approach frame (task/end_point.h).
   out << YAML::Key << "end_points" << YAML::Value << YAML::BeginMap;
+  const auto emitEnd = [&out](const std::string& name, const task::EndOffset& e) {
+    out << YAML::Flow << YAML::BeginMap << YAML::Key << "motion" << YAML::Value << name << YAML::Key << "offset"
+        << YAML::Value << YAML::Flow << std::vector<double>{e.offset.x(), e.offset.y()} << YAML::Key << "segments"
+        << YAML::Value << e.segments << YAML::EndMap;
+  };
   for (const char* group : {"by_key", "by_class"}) {
     out << YAML::Key << group << YAML::Value << YAML::BeginSeq;
     for (const auto& [name, e] : std::string(group) == "by_key" ? end_points_.by_key : end_points_.by_class)
-      out << YAML::Flow << YAML::BeginMap << YAML::Key << "motion" << YAML::Value << name << YAML::Key << "offset"
-          << YAML::Value << YAML::Flow << std::vector<double>{e.offset.x(), e.offset.y()} << YAML::Key << "segments"
-          << YAML::Value << e.segments << YAML::EndMap;
+      emitEnd(name, e);
     out << YAML::EndSeq;
   }
+  out << YAML::Key << "by_role" << YAML::Value << YAML::BeginSeq;
+  for (const auto& [motion_class, steps] : end_points_.by_role)
+    for (const auto& [step, e] : steps) emitEnd(motion_class + "@" + std::to_string(step), e);
+  out << YAML::EndSeq;
   out << YAML::EndMap;
   out << YAML::Key << "primitives" << YAML::Value << YAML::BeginSeq;
   for (const auto& [key, p] : primitives_) {
@@ -645,7 +680,8 @@ class LibraryReader {
     have_points_ = integer(c_, root_, "points", "", 2, kMaxPrimitivePoints, lib_.options_.points);
     boolean(c_, root_, "pin_endpoints", "", lib_.options_.pin_endpoints);
     positive(c_, root_, "min_segment_length_m", "", lib_.options_.min_segment_length_m);
-    if (!lib_.end_points_.centres) readEndPoints(c_, root_, lib_.entities_, lib_.end_points_);
+    if (!lib_.end_points_.centres)
+      readEndPoints(c_, root_, lib_.entities_, format_ == kPrimitivesFormat, lib_.end_points_);
     const YAML::Node prims = c_.required(root_, "primitives");
     if (prims && !prims.IsSequence()) c_.error(prims, "'primitives' must be a list");
     if (prims && prims.IsSequence())
@@ -664,7 +700,8 @@ class LibraryReader {
  private:
   void readFormat() {
     if (textField(c_, root_, "format", "", format_) && format_ != kPrimitivesFormat &&
-        format_ != kPrimitivesFormatWithoutRoles && format_ != kPrimitivesFormatWithoutEndPoints)
+        format_ != kPrimitivesFormatWithoutRoleEnds && format_ != kPrimitivesFormatWithoutRoles &&
+        format_ != kPrimitivesFormatWithoutEndPoints)
       c_.error(root_["format"],
                "unsupported format '" + format_ + "' (expected " + kPrimitivesFormat +
                    (format_ == "ddace-primitives/1" ? "; this older library names no task: retrain the model" : "") +
@@ -717,7 +754,7 @@ class LibraryReader {
                             textField(c_, node, "action", "", p.action), textField(c_, node, "target", "", p.target)});
     const std::string what = "primitive " + p.key;
     const bool role = static_cast<bool>(node["step"]);
-    if (role && format_ != kPrimitivesFormat)
+    if (role && (format_ == kPrimitivesFormatWithoutRoles || format_ == kPrimitivesFormatWithoutEndPoints))
       c_.error(node["step"], what + ": a " + format_ + " library has no role primitives");
     else if (role) integer(c_, node, "step", what + ": ", 0, kMaxPrimitiveSegments, p.step);
     if (named && role) {

@@ -204,8 +204,8 @@ BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& 
   cfg.scan = defaultScanPatterns();
   c.onlyKeys(root,
              {"port_dir", "scan", "rtscts", "command_timeout_s", "command_max_age_s", "link_timeout_s",
-              "identify_interval_s", "identify_retries", "rescan_interval_s", "transport", "ble_adapter",
-              "ble_connect_timeout_s", "battery_low_v", "battery_empty_v", "battery_samples", "robots"},
+              "identify_interval_s", "identify_retries", "rescan_interval_s", "search_quiet_s", "transport",
+              "ble_adapter", "ble_connect_timeout_s", "battery_low_v", "battery_empty_v", "battery_samples", "robots"},
              "the Hamster config");
   RobotConfig defaults;  // transport and adapter for robots that do not set their own
   if (root["transport"]) parseTransport(c, root["transport"], "transport", defaults.transport);
@@ -222,6 +222,7 @@ BridgeConfig parseBridgeConfig(const std::string& yaml_text, const std::string& 
     c.positive(root["identify_interval_s"], "identify_interval_s", cfg.identify_interval_s);
   }
   if (root["rescan_interval_s"]) c.positive(root["rescan_interval_s"], "rescan_interval_s", cfg.rescan_interval_s);
+  if (root["search_quiet_s"]) c.number(root["search_quiet_s"], "search_quiet_s", 0.0, 600.0, cfg.search_quiet_s);
   if (root["command_max_age_s"]) c.positive(root["command_max_age_s"], "command_max_age_s", cfg.command_max_age_s);
   positiveInteger(c, root["identify_retries"], "identify_retries", 1000, cfg.identify_retries);
   positiveInteger(c, root["battery_samples"], "battery_samples", 1000, cfg.battery_samples);

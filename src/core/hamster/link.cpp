@@ -141,6 +141,10 @@ void RobotLink::warn(const std::string& message, double now_s) {
   if (ports_->due(robot_.name + ": " + message, now_s, kWarningRepeatS)) warnings_.push_back(message);
 }
 
+void RobotLink::warnSearch(const std::string& message, double now_s) {
+  if (now_s - searching_since_s_ >= bridge_.search_quiet_s) warn(message, now_s);
+}
+
 std::vector<std::string> RobotLink::takeWarnings() {
   return std::exchange(warnings_, {});
 }
@@ -192,6 +196,7 @@ void RobotLink::drop(const std::string& why) {
 }
 
 void RobotLink::startSearch(double now_s) {
+  if (searching_since_s_ < 0) searching_since_s_ = now_s;
   if (robot_.transport == TransportKind::Ble) {
     // One endpoint, named by adapter and address: the robot is found by BlueZ.
     candidates_ = {bleEndpoint(robot_.ble_adapter, robot_.address)};
@@ -202,7 +207,7 @@ void RobotLink::startSearch(double now_s) {
   std::error_code ec;
   if (!std::filesystem::is_directory(bridge_.port_dir.empty() ? "/dev" : bridge_.port_dir, ec)) {
     stats_.last_error = "port directory " + bridge_.port_dir + " does not exist";
-    warn(stats_.last_error + " (port_dir in the config or ~port_dir); still looking", now_s);
+    warnSearch(stats_.last_error + ": set port_dir in the config or ~port_dir (still looking)", now_s);
   }
   std::vector<std::string> patterns = robot_.port_hints;
   candidates_ = expandPorts(patterns, bridge_.port_dir);
@@ -270,7 +275,9 @@ void RobotLink::tryNextPort(double now_s) {
   } else {
     stats_.last_error = "not found on " + std::to_string(searched_.size()) + " ports searched: " + where;
   }
-  warn("robot " + robot_.address.display() + " " + stats_.last_error, now_s);
+  warnSearch("robot " + robot_.address.display() + " " + stats_.last_error +
+                 " (still looking; if the robot is on, check its address and port_hints in the config)",
+             now_s);
   startSearch(now_s);
   next_search_s_ = now_s + bridge_.rescan_interval_s;
 }
@@ -408,6 +415,7 @@ void RobotLink::handleLine(std::string_view line, double now_s, std::vector<Cycl
     if (state_ != LinkState::Streaming) {
       // A sensor line answered: the robot hears us and we hear it.
       state_ = LinkState::Streaming;
+      searching_since_s_ = -1.0;
       ++stats_.connects;
       stats_.last_error.clear();
     }

@@ -425,9 +425,9 @@ double LabelScore::listedWrong() const {
 }
 
 std::string doubtKind(const std::string& message) {
-  for (const char* words :
-       {"stopped halfway", "ended between", "stopped at the crowd", "nearly stopped at", "where the example's step",
-        "moved alone", "no motion of the kind", "moved again in the same step", "in-place", "goal "})
+  for (const char* words : {"stopped halfway", "ended between", "stopped at the crowd", "nearly stopped at",
+                            "where the example's step", "moved alone", "no motion of the kind",
+                            "moved again in the same step", "again, where its last motion ended", "in-place", "goal "})
     if (message.find(words) != std::string::npos) return words;
   return "other";
 }

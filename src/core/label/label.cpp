@@ -71,7 +71,8 @@ Labeller::Labeller(const task::TaskSpec& spec, const Example* example)
       segmenter_(spec.entities.size(), options_),
       next_check_t_(std::numeric_limits<double>::infinity()),
       ex_inplace_before_(1),
-      alignment_(example ? Alignment::Open : Alignment::NotAligned) {
+      alignment_(example ? Alignment::Open : Alignment::NotAligned),
+      last_arrival_(spec.entities.size()) {
   if (!example_) return;
   for (const auto& s : example_->steps) {
     const bool motion =
@@ -223,12 +224,7 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
   // pieces (cutAtContacts() cuts where what moves with it changes).
   const double rest = b.on_t - a.off_t;
   if (rest < options_.still_s / 2 || (b.crept && rest < options_.still_s)) return true;
-  // Bumped by a hand and put back: a went a short way (less than twice a nudge) and b
-  // heads back to where a began.
-  const Vector2d back = a.start - a.end;
-  if (back.norm() > 0 && back.norm() < 2 * options_.nudge_m &&
-      b.start_dir.dot(back.normalized()) > std::cos(options_.heading_rad))
-    return true;
+  if (headsBack(a, b)) return true;
   // Went round an object it stood at (moving it less than a nudge: no carry of its own), to
   // the side it then pushes it from, maybe pushing a little before a pause: the push's
   // start, not a motion to the object.
@@ -256,6 +252,18 @@ bool Labeller::pausedOnItsWay(const Motion& a, const Motion& b) const {
   for (int c : ep.tied)
     if (staysWith(b, c)) return false;
   return !staysWith(b, ep.target);
+}
+
+// Bumped by a hand and put back: a went a short way (less than twice a nudge) and b heads
+// back to where a began.
+bool Labeller::headsBack(const Motion& a, const Motion& b) const {
+  const Vector2d back = a.start - a.end;
+  return back.norm() > 0 && back.norm() < 2 * options_.nudge_m &&
+         b.start_dir.dot(back.normalized()) > std::cos(options_.heading_rad);
+}
+
+bool Labeller::bumpedAndPutBack(const Motion& a, const Motion& b) const {
+  return b.on_t - a.off_t <= options_.pause_s && headsBack(a, b) && (b.end - a.start).norm() < options_.nudge_m;
 }
 
 bool Labeller::together(const std::vector<Vector2d>& at, int a, int b) const {
@@ -419,8 +427,12 @@ std::vector<Motion> Labeller::joinPauses() const {
   std::vector<Motion> merged;
   // A motion back to where the entity rested (a nudge put back) is done: nothing joins it.
   auto putBack = [&](const Motion& a) { return (a.end - a.rested_at).norm() < options_.start_m; };
-  for (auto& m : ms) {
-    if (!merged.empty() && merged.back().entity == m.entity) {
+  for (size_t i = 0; i < ms.size(); ++i) {
+    Motion& m = ms[i];
+    // A hand's bump and its put-back, seen whole, are a nudge of their own: the bump is
+    // no piece of the motion before it, even in its heading.
+    const bool bump = i + 1 < ms.size() && ms[i + 1].entity == m.entity && bumpedAndPutBack(m, ms[i + 1]);
+    if (!merged.empty() && merged.back().entity == m.entity && !bump) {
       Motion& a = merged.back();
       if (m.on_t - a.off_t <= options_.pause_s && !putBack(a) && pausedOnItsWay(a, m)) {
         a.continueWith(m);
@@ -571,6 +583,17 @@ std::set<int> Labeller::exampleMovers(size_t k) const {
   return want;
 }
 
+bool Labeller::joinedItsBodies(const Group& g, const Group& first) const {
+  const auto& E = spec_.entities;
+  for (const Motion& m : g.motions) {
+    bool joined = false;
+    for (const Motion& o : first.motions)
+      joined = joined || (E[o.entity].kind != task::EntityKind::Goal && together(m.at_offset, m.entity, o.entity));
+    if (!joined) return false;
+  }
+  return true;
+}
+
 void Labeller::handOver(Group g) {
   if (partial_) {
     // Robots of one step started apart, the first done before the next began: one step
@@ -585,8 +608,8 @@ void Labeller::handOver(Group g) {
     const std::set<int> want = exampleMovers(groups_seen_);
     Group first = std::move(*partial_);
     partial_.reset();
-    if (disjoint &&
-        (both == want || (first_on - partial_off < spec_.step_window_s && kindsOf(both) == kindsOf(want)))) {
+    if (disjoint && (both == want || ((first_on - partial_off < spec_.step_window_s || joinedItsBodies(g, first)) &&
+                                      kindsOf(both) == kindsOf(want)))) {
       for (auto& m : g.motions) first.motions.push_back(std::move(m));
       for (auto& n : g.notes) first.notes.push_back(std::move(n));
       g = std::move(first);
@@ -778,8 +801,17 @@ bool Labeller::stoppedShortFacing(const Motion& m, int body) const {
   return contact > 0 && to.norm() - contact <= spec_.arrival_radius && m.end_dir.dot(to.normalized()) > 0;
 }
 
+bool Labeller::behindARow(const Motion& m, int target, const std::vector<Motion>& step) const {
+  const double from_target = (m.end - m.at_offset[target]).norm();
+  for (const Motion& o : step)
+    if (o.entity != m.entity && o.entity != target && stoppedShortFacing(m, o.entity) &&
+        (m.at_offset[o.entity] - m.at_offset[target]).norm() < from_target)
+      return true;
+  return false;
+}
+
 void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t k, bool aligned,
-                          const std::vector<Vector2d>& step_end) {
+                          const std::vector<Motion>& step, const std::vector<Vector2d>& step_end) {
   const auto& E = spec_.entities;
   EndPoint ep = endPoint(spec_, m.entity, m.leg_start, m.end, m.at_onset, candidatesOf(m), load, &m.at_offset);
   if (ep.target < 0) {
@@ -792,7 +824,7 @@ void Labeller::readTarget(InferredToken& tok, const Motion& m, int load, size_t 
   tok.token.target = ep.target;
   if (ep.target < 0) {
     tok.token.target = ep.nearest;
-    if (ep.nearest >= 0 && !stoppedShortFacing(m, ep.nearest))
+    if (ep.nearest >= 0 && !stoppedShortFacing(m, ep.nearest) && !behindARow(m, ep.nearest, step))
       note(m.off_row,
            E[m.entity].name + " stopped halfway: " + metres(ep.nearest_m) + " m from " + E[ep.nearest].name +
                ", the nearest entity, taken as its target; or it went on later to another",
@@ -870,7 +902,7 @@ std::vector<InferredToken> Labeller::motionTokens(const std::vector<Motion>& g, 
     int load = -1;
     for (size_t j = 0; j < g.size() && load < 0; ++j)
       if (carrier[j] == static_cast<int>(i)) load = g[j].entity;
-    readTarget(tokens[i], g[i], load, k, aligned, last->at_offset);
+    readTarget(tokens[i], g[i], load, k, aligned, g, last->at_offset);
   }
   readChain(tokens, g, carrier);
   for (int pass = 0; pass < 2; ++pass)
@@ -940,6 +972,22 @@ void Labeller::markUnsure(std::vector<InferredToken>& tokens, size_t notes_from)
       if (t.carrier >= 0 && c.token.entity == t.carrier && c.unsure) list(t, c.doubt);
 }
 
+void Labeller::noteArrivedAgain(const std::vector<Motion>& g, const std::vector<InferredToken>& tokens) {
+  const auto& E = spec_.entities;
+  for (size_t i = 0; i < g.size(); ++i) {
+    const InferredToken& t = tokens[i];
+    if (t.token.target < 0 || t.carrier >= 0) continue;
+    LastArrival& last = last_arrival_[t.token.entity];
+    if (last.target == t.token.target && (g[i].at_offset[t.token.target] - last.target_at).norm() < options_.nudge_m)
+      note(g[i].on_row,
+           E[t.token.entity].name + " moved to " + E[t.token.target].name +
+               " again, where its last motion ended (line " + std::to_string(last.row + 2) +
+               "): a bump put back, or the rest of that motion?",
+           t.token.entity);
+    last = {t.token.target, g[i].at_offset[t.token.target], g[i].off_row};
+  }
+}
+
 void Labeller::emit(Group& group, bool aligned) {
   const size_t k = emitted_groups_++;
   const size_t notes_from = out_.notes.size();
@@ -962,6 +1010,7 @@ void Labeller::emit(Group& group, bool aligned) {
   const std::vector<int> carrier = carriersOf(g);
   std::vector<InferredToken> tokens = motionTokens(g, carrier, step.keyframe_row, k, aligned);
   noteStopsOnTheWay(g, carrier, tokens);
+  noteArrivedAgain(g, tokens);
   // In-place actions of the aligned example step, for the entities that did not move.
   if (aligned)
     for (const auto& t : ex_motion_[k]->tokens)

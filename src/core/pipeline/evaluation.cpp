@@ -268,6 +268,10 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
     throw Error("--execution '" + options.execution + "' is not one of ideal, diffdrive");
   }
 
+  // A gnn model has no primitives (it rolls out displacements).
+  const task::EndPointModel ends = !model.primitives       ? task::EndPointModel{}
+                                   : options.paths_by_name ? model.primitives->endPoints().byName()
+                                                           : model.primitives->endPoints();
   for (const auto& gt : test.demos) {
     exec::Trial trial;
     if (gnn) {
@@ -285,7 +289,7 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
       const auto paths = [&](const task::Token& token, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
         return model.primitives->generate(token, s, g, 100, options.paths_by_name ? -1 : step).points;
       };
-      trial = exec::runTrial(spec, gt, policy, paths, *execution, model.primitives->endPoints());
+      trial = exec::runTrial(spec, gt, policy, paths, *execution, ends);
     }
     if (options.execution == "diffdrive" && !bodies && !gnn) {
       std::vector<std::vector<task::Token>> steps;
@@ -340,8 +344,10 @@ void printEvaluation(const Evaluation& e, std::ostream& out) {
     }
   }
   const auto& m = e.summary;
-  std::snprintf(line, sizeof line, "%s, variant %s, execution %s: %d trials  OSR %.3f  SSR %.3f  GCR %.3f  FD %.4f\n",
-                e.task.c_str(), e.variant.c_str(), e.execution.c_str(), m.trials, m.osr, m.ssr, m.gcr, m.fd);
+  // The task's name apart: a zoo rule's name in words is longer than the buffer.
+  out << e.task << ", variant " << e.variant << ", execution " << e.execution << ": ";
+  std::snprintf(line, sizeof line, "%d trials  OSR %.3f  SSR %.3f  GCR %.3f  FD %.4f\n", m.trials, m.osr, m.ssr, m.gcr,
+                m.fd);
   out << line;
   if (m.bodies) {
     std::snprintf(line, sizeof line,

@@ -513,26 +513,7 @@ class Runner {
       if (!names_lost && !task::goalConditionMet(spec_, g, t.final_positions))
         return "goal condition " + g.entity + " at " + g.at + " does not hold";
     }
-    if (spec_.goal_conditions.empty()) return objectsNotWhereDemonstrated(t);
-    return "";
-  }
-
-  /// A task that states no goal condition is judged by the demonstration's own ends: each
-  /// object must end at the last entity the demonstration moved it to, unless that one is
-  /// lost. Without this, a run that stops with a box mid-table would count as done.
-  std::string objectsNotWhereDemonstrated(const exec::Trial& t) const {
-    std::vector<int> last_target(spec_.entities.size(), -1);
-    for (const task::Step& s : gt_.steps)
-      for (const task::Token& k : s.tokens)
-        if (k.isMotion()) last_target[static_cast<size_t>(k.entity)] = k.target;
-    for (size_t e = 0; e < spec_.entities.size(); ++e) {
-      const int to = last_target[e];
-      const bool lost = std::find(lost_entities_.begin(), lost_entities_.end(), to) != lost_entities_.end();
-      if (spec_.entities[e].kind == task::EntityKind::Robot || to < 0 || lost) continue;
-      const task::GoalCondition demonstrated{spec_.entities[e].name, spec_.entities[static_cast<size_t>(to)].name};
-      if (!task::goalConditionMet(spec_, demonstrated, t.final_positions))
-        return spec_.entities[e].name + " did not end at " + demonstrated.at + ", where the demonstration left it";
-    }
+    if (spec_.goal_conditions.empty()) return objectNotWhereDemonstrated(spec_, gt_, t.final_positions, lost);
     return "";
   }
 
@@ -615,6 +596,24 @@ const KindName kKinds[] = {{PerturbationKind::BoxMoved, "box_moved", 6, "cm"},
                            {PerturbationKind::RobotLost, "robot_lost", 0, ""}};
 
 }  // namespace
+
+std::string objectNotWhereDemonstrated(const task::TaskSpec& spec, const task::Demonstration& gt,
+                                       const std::vector<Eigen::Vector2d>& final_positions,
+                                       const std::vector<int>& lost) {
+  std::vector<int> last_target(spec.entities.size(), -1);
+  for (const task::Step& s : gt.steps)
+    for (const task::Token& k : s.tokens)
+      if (k.isMotion()) last_target[static_cast<size_t>(k.entity)] = k.target;
+  for (size_t e = 0; e < spec.entities.size(); ++e) {
+    const int to = last_target[e];
+    const bool to_lost = std::find(lost.begin(), lost.end(), to) != lost.end();
+    if (spec.entities[e].kind == task::EntityKind::Robot || to < 0 || to_lost) continue;
+    const task::GoalCondition demonstrated{spec.entities[e].name, spec.entities[static_cast<size_t>(to)].name};
+    if (!task::goalConditionMet(spec, demonstrated, final_positions))
+      return spec.entities[e].name + " did not end at " + demonstrated.at + ", where the demonstration left it";
+  }
+  return "";
+}
 
 Perturbation parsePerturbation(const std::string& text, const std::string& what) {
   const size_t colon = text.find(':');

@@ -58,8 +58,54 @@ std::string motionClass(const TaskSpec& spec, const std::vector<Token>& step, si
          toString(spec.entities.at(static_cast<size_t>(t.target)).kind);
 }
 
+namespace {
+
+/// One demonstrated end: its offset, its key and the step it stands in.
+struct DemonstratedEnd {
+  Vector2d offset;
+  std::string key;
+  int step = 0;
+};
+
+/// How well grouping a class's ends by `group` predicts a held-out one: each end against the
+/// median of the others of its group (too few others for a key's offset: of the whole
+/// class's others, as endOffset() falls back), the distances summed (metres).
+template <typename Group>
+double heldOutError(const std::vector<DemonstratedEnd>& ends, const Group& group) {
+  double total = 0;
+  for (size_t k = 0; k < ends.size(); ++k) {
+    std::vector<Vector2d> mates, others;
+    for (size_t j = 0; j < ends.size(); ++j) {
+      if (j == k) continue;
+      others.push_back(ends[j].offset);
+      if (group(ends[j]) == group(ends[k])) mates.push_back(ends[j].offset);
+    }
+    if (others.empty()) return 0;
+    const std::vector<Vector2d>& from = static_cast<int>(mates.size()) >= kMinKeySegments ? mates : others;
+    total += (medianOffset(from).offset - ends[k].offset).norm();
+  }
+  return total;
+}
+
+/// The class's ends by step when the steps predict held-out ends better than the keys do
+/// (steps of fewer than kMinKeySegments ends left out); empty: keyed by name.
+std::map<int, EndOffset> roleOffsets(const std::vector<DemonstratedEnd>& ends) {
+  const auto key = [](const DemonstratedEnd& e) { return e.key; };
+  const auto step = [](const DemonstratedEnd& e) { return std::to_string(e.step); };
+  std::map<int, EndOffset> out;
+  const double gain = (heldOutError(ends, key) - heldOutError(ends, step)) / static_cast<double>(ends.size());
+  if (!(gain >= kMinRoleEndGainM)) return out;
+  std::map<int, std::vector<Vector2d>> by_step;
+  for (const DemonstratedEnd& e : ends) by_step[e.step].push_back(e.offset);
+  for (const auto& [k, offsets] : by_step)
+    if (static_cast<int>(offsets.size()) >= kMinKeySegments) out[k] = medianOffset(offsets);
+  return out;
+}
+
+}  // namespace
+
 EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstration>& demos) {
-  std::map<std::string, std::vector<Vector2d>> keys, classes;
+  std::map<std::string, std::vector<DemonstratedEnd>> classes;
   for (const Demonstration& d : demos) {
     for (const Segment& seg : d.segments) {
       if (!seg.token.isMotion() || seg.step >= static_cast<int>(d.steps.size()) ||
@@ -76,13 +122,20 @@ EndPointModel learnEndPoints(const TaskSpec& spec, const std::vector<Demonstrati
       const std::vector<Token>& step = d.steps[static_cast<size_t>(seg.step)].tokens;
       const auto at = std::find(step.begin(), step.end(), seg.token);
       if (at == step.end()) continue;
-      keys[tokenKey(seg.token, spec)].push_back(offset);
-      classes[motionClass(spec, step, static_cast<size_t>(at - step.begin()))].push_back(offset);
+      classes[motionClass(spec, step, static_cast<size_t>(at - step.begin()))].push_back(
+          {offset, tokenKey(seg.token, spec), seg.step});
     }
   }
   EndPointModel m;
+  std::map<std::string, std::vector<Vector2d>> keys;  // a key's ends, of any class
+  for (const auto& [c, ends] : classes) {
+    std::vector<Vector2d> all;
+    for (const DemonstratedEnd& e : ends) keys[e.key].push_back(e.offset), all.push_back(e.offset);
+    m.by_class[c] = medianOffset(all);
+    std::map<int, EndOffset> roles = roleOffsets(ends);
+    if (!roles.empty()) m.by_role[c] = std::move(roles);
+  }
   for (const auto& [k, v] : keys) m.by_key[k] = medianOffset(v);
-  for (const auto& [c, v] : classes) m.by_class[c] = medianOffset(v);
   return m;
 }
 
@@ -91,9 +144,18 @@ namespace {
 /// The learned offset the rule uses for `step[i]`, the key's or its class's (nullptr: none;
 /// `by_class` says which).
 const EndOffset* learnedOffset(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
-                               size_t i, bool* by_class = nullptr) {
+                               size_t i, int step_index = -1, bool* by_class = nullptr) {
   const Token& t = step.at(i);
   if (by_class) *by_class = false;
+  // A class keyed by role: its offset of the step, or of the nearest demonstrated one (the
+  // earlier on a tie).
+  if (auto r = model.by_role.find(motionClass(spec, step, i)); step_index >= 0 && r != model.by_role.end()) {
+    const EndOffset* best = nullptr;
+    int best_distance = 0;
+    for (const auto& [k, e] : r->second)
+      if (!best || std::abs(k - step_index) < best_distance) best = &e, best_distance = std::abs(k - step_index);
+    if (best) return best;
+  }
   if (auto k = model.by_key.find(tokenKey(t, spec)); k != model.by_key.end() && k->second.segments >= kMinKeySegments)
     return &k->second;
   if (by_class) *by_class = true;
@@ -104,10 +166,11 @@ const EndOffset* learnedOffset(const TaskSpec& spec, const EndPointModel& model,
 
 }  // namespace
 
-Vector2d endOffset(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step, size_t i) {
+Vector2d endOffset(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step, size_t i,
+                   int step_index) {
   const Token& t = step.at(i);
   if (model.centres || !t.isMotion()) return Vector2d::Zero();
-  if (const EndOffset* learned = learnedOffset(spec, model, step, i)) return learned->offset;
+  if (const EndOffset* learned = learnedOffset(spec, model, step, i, step_index)) return learned->offset;
   // Nothing demonstrated: the bodies decide. Toward an obstacle, contact; onto a flat goal.
   const Footprint mover = spec.footprint(t.entity), target = spec.footprint(t.target);
   const int load = carriedLoad(spec, step, i);
@@ -157,7 +220,7 @@ std::vector<StopGap> stopGaps(const TaskSpec& spec, const EndPointModel& model,
             carriedLoad(spec, step.tokens, i) >= 0 || !seen.insert(key).second)
           continue;
         bool by_class = false;
-        const EndOffset* learned = learnedOffset(spec, model, step.tokens, i, &by_class);
+        const EndOffset* learned = learnedOffset(spec, model, step.tokens, i, -1, &by_class);
         if (!learned) continue;
         const double gap = learned->offset.norm() - spec.contactDistance(t.entity, t.target);
         if (std::lround(gap * 1000) == 0) continue;  // whole millimetres, as reported
@@ -174,14 +237,14 @@ Vector2d endPointFrom(const Vector2d& start, const Vector2d& target, const Vecto
 }
 
 Vector2d endPoint(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step, size_t i,
-                  const std::vector<Vector2d>& decided) {
+                  const std::vector<Vector2d>& decided, int step_index) {
   const Token& t = step.at(i);
   const auto n = static_cast<int>(decided.size());
   if (t.entity < 0 || t.entity >= n || t.target >= n)
     throw Error("end point of a token naming an entity outside the " + std::to_string(n) + " positions given");
   if (!t.isMotion()) return decided[static_cast<size_t>(t.entity)];
   return endPointFrom(decided[static_cast<size_t>(t.entity)], decided[static_cast<size_t>(t.target)],
-                      endOffset(spec, model, step, i));
+                      endOffset(spec, model, step, i, step_index));
 }
 
 Vector2d segmentEndPoint(const TaskSpec& spec, const EndPointModel& model, const Demonstration& demo,
@@ -191,7 +254,7 @@ Vector2d segmentEndPoint(const TaskSpec& spec, const EndPointModel& model, const
   const std::vector<Token>& step = demo.steps[k].tokens;
   const auto at = std::find(step.begin(), step.end(), segment.token);
   if (at == step.end()) return demo.segmentGoal(segment);
-  return endPoint(spec, model, step, static_cast<size_t>(at - step.begin()), demo.snapshots[k].positions);
+  return endPoint(spec, model, step, static_cast<size_t>(at - step.begin()), demo.snapshots[k].positions, segment.step);
 }
 
 int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, const std::vector<Vector2d>& at) {
@@ -213,7 +276,7 @@ int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, c
 
 std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
                                        const std::vector<Vector2d>& decided,
-                                       const std::optional<Eigen::AlignedBox2d>& table) {
+                                       const std::optional<Eigen::AlignedBox2d>& table, int step_index) {
   const auto n = static_cast<int>(decided.size());
   for (const Token& t : step)
     if (t.entity < 0 || t.entity >= n || t.target >= n)
@@ -268,7 +331,7 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
     // A gap wider than contact is kept; an end inside its target's footprint moves out to
     // contact on its side (the footprints are what the safety filter and the collision judge
     // hold bodies to), so a turn about the target keeps it touching the target.
-    Vector2d end = endPoint(spec, model, step, i, decided);
+    Vector2d end = endPoint(spec, model, step, i, decided, step_index);
     const double contact = spec.contactDistance(t.entity, t.target);
     if (load < 0 && obstacle(t.target) && obstacle(t.entity) && (end - target).norm() < contact) {
       const Vector2d side = (end - target).norm() >= kMinApproachM ? end - target : start - target;

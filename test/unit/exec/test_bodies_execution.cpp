@@ -121,6 +121,34 @@ TEST(BodiesExecution, AMotionEndingAgainstARobotOnTheGoalArrivesThere) {
   EXPECT_TRUE(with.report().collisions.empty());
 }
 
+// Two robots onto one flat goal (Task 4's step 2): R3 ends on G1, R4 backed off on its way
+// to contact with R3's place (task::stepEndPositions), which lies on R3's way in. R4, nearer,
+// waits until R3 stands (MotionContacts::after), and R3, awaited, ends at its own place
+// within the stop tolerance, not anywhere within the stop radius short of it, where it
+// would stand in R4's place: R3 ends at its place, R4 arrives at its own. Without the wait
+// R4 stands in R3's way first (on the real table R3 then never got round it); without the
+// tight stop R3 stops short, in R4's place.
+TEST(BodiesExecution, TwoRobotsOntoOneGoalEachEndAtTheirPlacesWhenOnesLiesOnTheOthersWayIn) {
+  const auto s =
+      spec({{"R3", task::EntityKind::Robot}, {"R4", task::EntityKind::Robot}, {"G1", task::EntityKind::Goal}});
+  const Vector2d g1(0.906, 0.475), r3(0.421, 0.249), r4(0.62, 0.64);
+  const std::vector<Pose2D> start{{r3.x(), r3.y(), 0.4}, {r4.x(), r4.y(), -0.5}, {g1.x(), g1.y(), 0}};
+  const std::vector<task::Token> tokens{token(0, 2), token(1, 2)};
+  const std::vector<Vector2d> ends = task::stepEndPositions(s, {}, tokens, {r3, r4, g1});
+  ASSERT_LT((ends[0] - g1).norm(), 1e-9);
+  ASSERT_NEAR((ends[1] - ends[0]).norm(), 2 * task::kDefaultRobotRadius, 0.002) << "R4 backs off to contact";
+  BodiesExecutionParams p;
+  p.noise_m = 0.002;
+  BodiesExecution with(p);
+  const StepExecution a = runStep(with, s, start, tokens, {line(r3, ends[0]), line(r4, ends[1])});
+  EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+  EXPECT_TRUE(with.report().collisions.empty());
+  const double within = 2 * task::stopTolerance(p.noise_m);
+  EXPECT_LT((a.positions[0] - ends[0]).norm(), within) << "R3 ends at its place: " << a.positions[0].transpose();
+  const double arrived = task::stopRadius(p.arrival_radius_m, task::stopTolerance(p.noise_m)) + within;
+  EXPECT_LT((a.positions[1] - ends[1]).norm(), arrived) << "R4 arrives at its place: " << a.positions[1].transpose();
+}
+
 TEST(BodiesExecution, DrivingIntoARobotStandingAtItsEndPointIsACollision) {
   // R1 reaches G1 first and stands there; R3's path (to G2) runs through it. Only the
   // bodies a motion ends against are exempt, decided for the step: R3 does not end at R1,
@@ -205,6 +233,63 @@ TEST(BodiesExecution, ALoadThatDoesNotRideIsPushedOntoTheGoalByItsCarrier) {
       << a.positions[1].transpose();
   EXPECT_LT(a.positions[0].x(), a.positions[1].x() - contact + 0.003) << "the carrier ends behind it";
   EXPECT_TRUE(with.report().collisions.empty());
+}
+
+// A pushing carrier is judged where it stands when done: backed off its load
+// (kPushBackOffM), its end point as far from the load's end as it stands from the load;
+// judged at contact, the backing off spent 2 of the 3 cm arrival radius. A riding carrier
+// is judged at contact behind its load's end.
+TEST(BodiesExecution, ACarrierIsJudgedAtTheGapToItsLoadItEndsAt) {
+  tasks::GeneratorOptions o;
+  o.family = "fetch";
+  o.demos = 4;
+  o.seed = 3;
+  const task::TaskDir dir = tasks::generate(o);
+  const task::EndPointModel ends = task::learnEndPoints(dir.spec, dir.demos);
+  const DemonstrationPaths paths(dir.spec, dir.demos);
+  const auto gen = [&](const task::Token& t, const Vector2d& a, const Vector2d& b) {
+    return paths.generate(t, a, b).points;
+  };
+  for (const bool ride : {true, false}) {
+    SCOPED_TRACE(ride ? "riding" : "pushed");
+    int carriers = 0;
+    for (const task::Demonstration& demo : dir.demos) {
+      const auto policy = [&](const std::vector<task::Snapshot>& h) { return replayDecision(demo, h); };
+      BodiesExecutionParams p;
+      p.noise_m = 0.001;
+      p.config.table.loads_ride = ride;
+      BodiesExecution with(p);
+      const Trial a = runTrial(dir.spec, demo, policy, gen, with, ends);
+      EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+      for (const ExecutedToken& c : a.executed) {
+        const task::Step& step = a.predicted[static_cast<size_t>(c.step)];
+        for (size_t i = 0; i < step.tokens.size(); ++i) {
+          if (step.tokens[i].entity != c.token.entity || !c.token.isMotion()) continue;
+          const int load = task::carriedLoad(dir.spec, step.tokens, i);
+          if (load < 0) continue;
+          const int l = step.tokens[static_cast<size_t>(load)].entity;
+          const ExecutedToken* lt = nullptr;
+          for (const ExecutedToken& e : a.executed)
+            if (e.step == c.step && e.token.entity == l) lt = &e;
+          ASSERT_NE(lt, nullptr);
+          const size_t after = static_cast<size_t>(c.step) + 1;
+          const std::vector<Vector2d>& at =
+              after < a.snapshots.size() ? a.snapshots[after].positions : a.final_positions;
+          const double judged = (c.goal - lt->goal).norm(), stood = (at[c.token.entity] - at[l]).norm();
+          if (ride) {  // stops short (task::stopRadius) while its load goes on: judged at contact
+            EXPECT_NEAR(judged, dir.spec.contactDistance(c.token.entity, l), 1e-9);
+            ++carriers;
+            continue;
+          }
+          EXPECT_NEAR(judged, stood, 0.006)
+              << "step " << c.step + 1 << ": " << dir.spec.entities[c.token.entity].name << " is judged "
+              << 100 * judged << " cm from its load's end, ends " << 100 * stood << " cm from its load";
+          ++carriers;
+        }
+      }
+    }
+    EXPECT_GT(carriers, 0);
+  }
 }
 
 TEST(BodiesExecution, ALoadBehindItsCarrierSwingsRoundToItsFront) {

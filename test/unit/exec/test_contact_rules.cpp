@@ -66,13 +66,16 @@ struct Outcome {
 /// Runs `steps` ("R1 move G1, O1 move G1" per step: entity action target) from `start`,
 /// each motion on a straight path to its end point (task::stepEndPositions under `model`),
 /// a carrier on its push path (exec::drivenPath), as the simulator plans them; entity
-/// `unseen` is left out of the planning (put down after the paths were planned).
+/// `unseen` is left out of the planning (put down after the paths were planned). A carried
+/// load rides in front of its carrier, or with `pushed` is pushed by it, as on the real table.
 Outcome run(const task::TaskSpec& s, const std::vector<Pose2D>& start, const std::vector<std::string>& steps,
-            const task::EndPointModel& model = {}, double noise_m = 0.001, bool filter = true, int unseen = -1) {
+            const task::EndPointModel& model = {}, double noise_m = 0.001, bool filter = true, int unseen = -1,
+            bool pushed = false) {
   BodiesExecutionParams p;
   p.noise_m = noise_m;
   p.arrival_radius_m = s.arrival_radius;
   p.config.safety.enabled = filter;
+  p.config.table.loads_ride = !pushed;
   BodiesExecution m(p);
   m.beginTrial(s, start);
   std::vector<Vector2d> at;
@@ -119,12 +122,13 @@ std::string collisions(const task::TaskSpec& s, const BodyReport& r) {
 /// handed to it, a motion and its target) still are not.
 void expectTheIntruderCountedAndNoDemandedContact(const std::string& entities, std::vector<Pose2D> start,
                                                   const std::vector<std::string>& steps, const Vector2d& in_the_way,
-                                                  const std::vector<std::pair<std::string, std::string>>& demanded) {
+                                                  const std::vector<std::pair<std::string, std::string>>& demanded,
+                                                  bool pushed = false) {
   SCOPED_TRACE("R9 in the way at " + std::to_string(in_the_way.x()) + ", " + std::to_string(in_the_way.y()));
   const auto s = spec(entities + " R9");
   start.push_back({in_the_way.x(), in_the_way.y(), 0});
   const int r9 = s.entityIndex("R9");
-  const Outcome r = run(s, start, steps, {}, 0.001, /*filter=*/false, r9);
+  const Outcome r = run(s, start, steps, {}, 0.001, /*filter=*/false, r9, pushed);
   bool hit = false;
   for (const BodyContact& c : r.report.collisions) hit = hit || c.a == r9 || c.b == r9;
   EXPECT_TRUE(hit) << "driving into R9 was not counted: " << collisions(s, r.report);
@@ -181,6 +185,23 @@ TEST(ContactRules, AThreeHandRelayHandsTheBoxOnWithoutACollision) {
   EXPECT_TRUE(task::arrived(r.positions[3], {0.8, 0.6}, s.arrival_radius)) << r.positions[3].transpose();
   expectTheIntruderCountedAndNoDemandedContact("R1 R2 R3 O1 G1", start, steps, {0.62, 0.6},
                                                {{"R1", "O1"}, {"R2", "O1"}, {"R3", "O1"}, {"R1", "R2"}, {"R2", "R3"}});
+}
+
+// The same relay with the box pushed, as on the real table: each carrier pushes it round to
+// the next robot's side and backs off it; the receiver goes round the box and the giver
+// standing beside it and pushes the box on.
+TEST(ContactRules, AThreeHandRelayOfAPushedBoxHandsItOnWithoutACollision) {
+  const auto s = spec("R1 R2 R3 O1 G1");
+  const std::vector<Pose2D> start{
+      {0.1, 0.3, 0}, {0.4, 0.3, 0}, {0.4, 0.6, 0}, {0.1 + kR + kO + 0.002, 0.3, 0}, {0.8, 0.6, 0}};
+  const std::vector<std::string> steps{"R1 pass R2, O1 pass R2", "R2 pass R3, O1 pass R3", "R3 carry G1, O1 carry G1"};
+  const Outcome r = run(s, start, steps, {}, 0.001, true, -1, /*pushed=*/true);
+  EXPECT_TRUE(r.finished()) << r.failures();
+  EXPECT_TRUE(r.report.collisions.empty()) << collisions(s, r.report);
+  EXPECT_TRUE(task::arrived(r.positions[3], {0.8, 0.6}, s.arrival_radius)) << r.positions[3].transpose();
+  expectTheIntruderCountedAndNoDemandedContact("R1 R2 R3 O1 G1", start, steps, {0.62, 0.6},
+                                               {{"R1", "O1"}, {"R2", "O1"}, {"R3", "O1"}, {"R1", "R2"}, {"R2", "R3"}},
+                                               /*pushed=*/true);
 }
 
 TEST(ContactRules, TwoPairsCarryAtOnceWithoutACollision) {

@@ -135,17 +135,79 @@ TEST_F(AsyncFixture, ARobotStartsBeforeTheSlowestOfTheStepBeforeEndedButNeverBef
   EXPECT_LT(d.makespan(), sd.makespan());
 }
 
-TEST_F(AsyncFixture, APolicyThatReadsTheSceneIsAskedOnlyOnceEveryStartedTokenEnded) {
+// A policy that reads the scene is asked for the next step while the robots move, from the
+// scene they will leave: the step holds once they settled where predicted, and a robot whose
+// own work allows it starts before the slowest of the step before arrived.
+TEST_F(AsyncFixture, APolicyThatReadsTheSceneIsAskedAheadFromTheSceneTheRunningStepWillLeave) {
   Coordinator scene = make(DispatchMode::Async, true);
   const DriveResult run = driveAtSpeeds(scene);
   ASSERT_EQ(scene.state(), RunState::Finished) << scene.reason();
-  EXPECT_EQ(run.decisions_while_moving, 0);
+  EXPECT_GT(run.decisions_while_moving, 0);
   EXPECT_EQ(scene.dispatch()->violations(), 0);
+  EXPECT_TRUE(scene.withdrawnSteps().empty()) << "the scene settled as predicted";
+  Coordinator steps = make(DispatchMode::Steps, true);
+  driveAtSpeeds(steps);
+  ASSERT_EQ(steps.state(), RunState::Finished) << steps.reason();
+  EXPECT_LT(scene.dispatch()->makespan(), steps.dispatch()->makespan()) << "R3 left before the slow R2 arrived";
+}
 
-  Coordinator fixed = make(DispatchMode::Async, false);
-  const DriveResult ahead = driveAtSpeeds(fixed);
-  ASSERT_EQ(fixed.state(), RunState::Finished) << fixed.reason();
-  EXPECT_GT(ahead.decisions_while_moving, 0);  // a fixed order is decided ahead of the robots
+// Decided ahead, a step holds only if the scene settles as predicted: R1 is moved by hand
+// after it met R3, so once R2 arrives the step decided ahead (R3 already under way) is
+// withdrawn and decided again from the scene as it is; the run goes on and finishes.
+TEST_F(AsyncFixture, AStepDecidedAheadIsDecidedAgainWhenTheSceneDoesNotSettleAsPredicted) {
+  Coordinator c = make(DispatchMode::Async, true);
+  std::vector<Vector2d> at = demo.positions.front();
+  const auto index = [&](const char* name) { return static_cast<size_t>(dir.spec.entityIndex(name)); };
+  std::vector<SegmentCommand> running;
+  std::vector<DecisionRequest> asked;
+  std::vector<std::string> log;
+  double now = 0;
+  // Answers decisions (the demonstration's) and paths (straight) at once.
+  const std::function<void(CoordinatorOutput)> answer = [&](CoordinatorOutput o) {
+    log.insert(log.end(), o.log.begin(), o.log.end());
+    for (int e : o.stop)
+      running.erase(std::remove_if(running.begin(), running.end(), [&](const auto& s) { return s.entity == e; }),
+                    running.end());
+    running.insert(running.end(), o.segments.begin(), o.segments.end());
+    for (const auto& p : o.paths) answer(c.onPath(p.id, {{p.start, p.goal}, {0, 0}}, "", now));
+    if (o.decision) {
+      asked.push_back(*o.decision);
+      answer(c.onDecision(o.decision->id, replayDecision(demo, o.decision->history), now));
+    }
+  };
+  const auto arrive = [&](const std::string& name, double at_s) {
+    now = at_s;
+    const auto s = std::find_if(running.begin(), running.end(),
+                                [&](const auto& g) { return dir.spec.entities[g.entity].name == name; });
+    ASSERT_NE(s, running.end()) << name << " has no segment";
+    const SegmentCommand seg = *s;
+    running.erase(s);
+    at[static_cast<size_t>(seg.entity)] = seg.goal;
+    answer(c.onEntities(observe(at), now));
+    answer(c.onSegmentStatus(seg.entity, seg.segment_id, SegmentState::Done, 1.0, "", now));
+  };
+  c.onEntities(observe(at), 0.0);
+  answer(c.start(0.0));
+  ASSERT_EQ(asked.size(), 2u) << "step 2 asked for while step 1 runs";
+  const Vector2d r4_predicted = asked[1].history.back().positions[index("R4")];
+  arrive("R1", 1.0);  // R1 met R3: R3 leaves for G1
+  ASSERT_TRUE(std::any_of(running.begin(), running.end(), [&](const auto& s) { return s.entity == int(index("R3")); }));
+  at[index("R1")] += Vector2d(0.10, 0);  // a hand moves R1 10 cm
+  answer(c.onEntities(observe(at), now = 1.5));
+  const size_t before = log.size();
+  arrive("R2", 3.0);
+  ASSERT_EQ(c.withdrawnSteps().size(), 1u) << "the step decided ahead is withdrawn";
+  EXPECT_TRUE(std::any_of(log.begin() + static_cast<std::ptrdiff_t>(before), log.end(), [](const std::string& l) {
+    return l.find("did not settle as predicted: R1 stands") != std::string::npos;
+  }));
+  ASSERT_GE(asked.size(), 3u) << "step 2 asked for again";
+  EXPECT_EQ(asked[2].step, 1);
+  EXPECT_TRUE(asked[2].history.back().positions[index("R1")].isApprox(at[index("R1")])) << "from the scene as it is";
+  EXPECT_TRUE((asked[1].history.back().positions[index("R4")] - r4_predicted).norm() < 1e-12);
+  for (int i = 0; i < 4 && c.running() && !running.empty(); ++i)
+    arrive(dir.spec.entities[running.front().entity].name, 4.0 + i);
+  EXPECT_EQ(c.state(), RunState::Finished) << c.reason();
+  EXPECT_EQ(c.dispatch()->violations(), 0);
 }
 
 TEST_F(AsyncFixture, AFixedOrderAskedAheadIsShownTheSceneAsTheRunningStepWillLeaveIt) {
@@ -201,4 +263,34 @@ TEST_F(AsyncFixture, EndFinishesTheRunOnlyOnceEveryTokenHasEnded) {
   EXPECT_EQ(c.state(), RunState::Executing);  // END is known, robots still move
   EXPECT_FALSE(c.dispatch()->allEnded());
   EXPECT_EQ(c.decisionsRequested(), static_cast<uint32_t>(demo.steps.size() + 1));
+}
+
+// Places at one target are taken from the inside out: R4 ends short of G1 on R3's way in,
+// so with R1 slow (R2 meets R4 first) R4 still leaves for G1 only once R3 has left; released
+// first, it would stand in R3's way at G1.
+TEST_F(AsyncFixture, ARobotEndingFartherFromATargetStartsOnlyOnceTheNearerOneStarted) {
+  Coordinator c = make(DispatchMode::Async, false);
+  drive(c, demo, [&](int e) { return dir.spec.entities[static_cast<size_t>(e)].name == "R1" ? 0.03 : 0.15; });
+  ASSERT_EQ(c.state(), RunState::Finished) << c.reason();
+  const Dispatch& d = *c.dispatch();
+  ASSERT_EQ(d.steps(), 2);
+  std::optional<TokenRef> r3, r4, r2_meets;
+  for (int s = 0; s < d.steps(); ++s)
+    for (int i = 0; i < static_cast<int>(d.tokens(s).size()); ++i) {
+      const std::string key = task::tokenKey(d.token({s, i}), dir.spec);
+      if (key == "R3:move:G1") r3 = TokenRef{s, i};
+      if (key == "R4:move:G1") r4 = TokenRef{s, i};
+      if (key == "R2:move:R4") r2_meets = TokenRef{s, i};
+    }
+  ASSERT_TRUE(r3 && r4 && r2_meets);
+  const task::Token& t3 = d.token(*r3);
+  const task::Token& t4 = d.token(*r4);
+  const std::vector<Vector2d> place = task::stepEndPositions(dir.spec, ends, {t3, t4}, demo.positions.back());
+  const Vector2d g1 = demo.positions.back()[static_cast<size_t>(t3.target)];
+  ASSERT_GT((place[static_cast<size_t>(t4.entity)] - g1).norm(),
+            (place[static_cast<size_t>(t3.entity)] - g1).norm() + 0.01)
+      << "R4 ends farther from G1 than R3";
+  EXPECT_LT(d.endTime(*r2_meets) + 1.0, d.startTime(*r3)) << "R2 met R4 well before R1 met R3";
+  EXPECT_GE(d.startTime(*r4), d.startTime(*r3)) << "R4 left before R3";
+  EXPECT_EQ(d.violations(), 0);
 }

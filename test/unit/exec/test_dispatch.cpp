@@ -126,7 +126,7 @@ TEST(Dispatch, AsyncFinishesTask4SoonerThanStepsAndNeverStartsATokenEarly) {
   EXPECT_LT(async_total, steps_total);
 }
 
-TEST(Dispatch, APolicyThatReadsTheSceneDecidesOnlyOnceEveryEntityHasSettled) {
+TEST(Dispatch, APolicyThatReadsTheSceneIsAskedAheadOnceEveryStepBeforeTheLatestEnded) {
   const task::TaskDir dir = task4(1);
   graph::Dependencies deps;
   deps.learned = true;
@@ -137,8 +137,27 @@ TEST(Dispatch, APolicyThatReadsTheSceneDecidesOnlyOnceEveryEntityHasSettled) {
   const auto fixed = exec::scheduleSteps(dir.spec, deps, DispatchMode::Async, false, steps, durations, nullptr);
   const auto stepwise = exec::scheduleSteps(dir.spec, deps, DispatchMode::Steps, false, steps, durations, nullptr);
   EXPECT_DOUBLE_EQ(stepwise.makespan(), 6);
-  EXPECT_DOUBLE_EQ(scene.makespan(), 6);  // step 2 decided when R2 arrived
   EXPECT_DOUBLE_EQ(fixed.makespan(), 5);  // R3 left at 2 s, when R1 reached it
+  EXPECT_DOUBLE_EQ(scene.makespan(), 5);  // step 2 decided ahead, from where step 1 ends
+
+  // Asked ahead by one step only: step 3 waits until every token of step 1 ended.
+  exec::Dispatch d(dir.spec, DispatchMode::Async, deps);
+  d.addStep(steps[0], 0);
+  EXPECT_TRUE(d.mayDecide(true)) << "step 2, ahead of step 1's ends";
+  d.addStep(steps[1], 0);
+  EXPECT_TRUE(d.mayDecide(false)) << "a fixed order: always";
+  EXPECT_FALSE(d.mayDecide(true)) << "step 3 would read step 1's ends, not yet settled";
+  d.start({0, 0}, 0);
+  d.start({0, 1}, 0);
+  d.end({0, 0}, 2);
+  EXPECT_FALSE(d.mayDecide(true));
+  EXPECT_FALSE(d.settledBefore(1));
+  d.end({0, 1}, 3);
+  EXPECT_TRUE(d.settledBefore(1));
+  EXPECT_TRUE(d.mayDecide(true));
+  exec::Dispatch s(dir.spec, DispatchMode::Steps, deps);
+  s.addStep(steps[0], 0);
+  EXPECT_FALSE(s.mayDecide(true)) << "steps: once every token ended";
 }
 
 TEST(Dispatch, WhatPeopleShowedItWaitingForHoldsItBack) {

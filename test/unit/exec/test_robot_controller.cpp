@@ -80,6 +80,51 @@ TEST(MotionContacts, ARobotWhoseEndLiesBehindAnotherMoversOfItsStepIsQueuedBehin
   EXPECT_TRUE(motionContacts(r3.position, r, r3_end, 3, "move", "G1", {to_goal}, reach, arrival).after.empty());
 }
 
+// Two robots bound for one flat goal (Task 4's step 2): the one whose place beside the goal
+// lies on the other's way in waits until that one stands; the other does not wait. Without
+// the wait, the first there seals the goal: the second, held off it by the filter, never
+// ends (seen on the simulated table through the real-robot graph).
+TEST(MotionContacts, OntoAFlatGoalARobotWhosePlaceLiesOnAnothersWayInWaitsForIt) {
+  const double r = task::kDefaultRobotRadius;
+  const auto straight = [](Vector2d a, Vector2d b) {
+    std::vector<Vector2d> way;
+    for (int i = 0; i <= 50; ++i) way.push_back(a + (b - a) * i / 50.0);
+    return way;
+  };
+  const auto body = [&](std::string name, Vector2d now, std::vector<Vector2d> way) {
+    BodyAtStart b;
+    b.name = std::move(name), b.position = now, b.final_position = way.back(), b.radius_m = task::kDefaultRobotRadius;
+    b.step = 1, b.action = "move", b.target = "G1", b.way = std::move(way);
+    return b;
+  };
+  const Vector2d g1(0.906, 0.475), r3_at(0.471, 0.269), r4_at(0.491, 0.745);
+  const BodyAtStart r3 = body("R3", r3_at, straight(r3_at, g1));
+  const BodyAtStart r4 = body("R4", r4_at, straight(r4_at, g1 + Vector2d(-0.038, 0.024)));
+  const double reach = 0.02, arrival = 0.03;
+  const auto after = [&](const BodyAtStart& self, const BodyAtStart& other) {
+    return motionContacts(self.position, r, self.final_position, 1, "move", "G1", {other}, reach, arrival, self.way)
+        .after;
+  };
+  EXPECT_EQ(after(r4, r3), (std::set<std::string>{"R3"}));
+  EXPECT_TRUE(after(r3, r4).empty());
+  // R3, awaited by R4, ends at its own place: R4 is not beside it (stopping short, R3 would
+  // stand in R4's place).
+  const MotionContacts awaited =
+      motionContacts(r3.position, r, r3.final_position, 1, "move", "G1", {r4}, reach, arrival, r3.way);
+  EXPECT_EQ(awaited.awaited_by, (std::set<std::string>{"R4"}));
+  EXPECT_TRUE(awaited.beside.empty());
+  // R3 coming in from the other side of the goal: R4's place is off its way.
+  std::vector<Vector2d> round = straight(r3_at, {0.95, 0.3});
+  for (const Vector2d& p : straight({0.95, 0.3}, g1)) round.push_back(p);
+  EXPECT_TRUE(after(r4, body("R3", r3_at, round)).empty());
+  // Its place off the other's way (beside the goal on its own side): no wait.
+  EXPECT_TRUE(after(body("R4", r4_at, straight(r4_at, g1 + Vector2d(0, 2 * r + 0.01))), r3).empty());
+  // The other's way unknown (a segment without a path): no wait.
+  BodyAtStart unknown = r3;
+  unknown.way.clear();
+  EXPECT_TRUE(after(r4, unknown).empty());
+}
+
 namespace {
 
 ControllerParams params() {

@@ -285,12 +285,12 @@ TEST(PrimitiveLibrary, CorruptedFilesAreRejectedCleanly) {
   expectLoadError(not_yaml, "YAML syntax error");
 
   const std::string wrong_format = dir + "/wrong_format.yaml";
-  writeTextFile(wrong_format, std::regex_replace(text, std::regex("ddace-primitives/4"), "ddace-primitives/9"));
+  writeTextFile(wrong_format, std::regex_replace(text, std::regex("ddace-primitives/5"), "ddace-primitives/9"));
   expectLoadError(wrong_format, "unsupported format");
 
   // A library of the format before the task fingerprint: retrain.
   const std::string older = dir + "/older.yaml";
-  writeTextFile(older, std::regex_replace(text, std::regex("ddace-primitives/4"), "ddace-primitives/1"));
+  writeTextFile(older, std::regex_replace(text, std::regex("ddace-primitives/5"), "ddace-primitives/1"));
   expectLoadError(older, "retrain");
 
   // The task fingerprint edited (Task 4's goal conditions made Task 2's): its digest refuses it.
@@ -453,7 +453,7 @@ TEST(PrimitiveLibrary, StoresWhereMotionsEndAndPathsEndThere) {
     EXPECT_EQ(back.endPoints().by_key.at(key).offset, e.offset) << key;
     EXPECT_EQ(back.endPoints().by_key.at(key).segments, e.segments) << key;
   }
-  std::string old = std::regex_replace(readTextFile(dir + "/primitives.yaml"), std::regex("ddace-primitives/4"),
+  std::string old = std::regex_replace(readTextFile(dir + "/primitives.yaml"), std::regex("ddace-primitives/5"),
                                        "ddace-primitives/2");
   old = std::regex_replace(old, std::regex("end_points:[^\\n]*\\n(  [^\\n]*\\n)*"), "");
   writeTextFile(dir + "/old.yaml", old);

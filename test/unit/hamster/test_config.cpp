@@ -100,6 +100,7 @@ TEST(HamsterConfig, TheShippedConfigStatesTheDefaultsTheParserApplies) {
       {"identify_interval_s", number(c.identify_interval_s)},
       {"identify_retries", number(c.identify_retries)},
       {"rescan_interval_s", number(c.rescan_interval_s)},
+      {"search_quiet_s", number(c.search_quiet_s)},
       {"transport", r.transport == TransportKind::Serial ? "serial" : "ble"},
       {"ble_adapter", r.ble_adapter},
       {"ble_connect_timeout_s", number(c.ble_connect_timeout_s)},
@@ -152,6 +153,10 @@ TEST(HamsterConfig, ErrorsNameFileLineAndColumn) {
             std::string::npos)
       << errorOf(std::string("identify_retries: 2.5\n") + kRobot);
   EXPECT_EQ(parseBridgeConfig(std::string("identify_retries: 3\n") + kRobot, "h.yaml").identify_retries, 3);
+  EXPECT_NE(errorOf(std::string("search_quiet_s: -1\n") + kRobot).find("h.yaml:1:17: search_quiet_s must be in 0..600"),
+            std::string::npos)
+      << errorOf(std::string("search_quiet_s: -1\n") + kRobot);
+  EXPECT_EQ(parseBridgeConfig(std::string("search_quiet_s: 0\n") + kRobot, "h.yaml").search_quiet_s, 0.0);
   // An invalid address is reported once, not also as a duplicate of another invalid one.
   const std::string bad = errorOf(
       "robots:\n  - name: R1\n    address: nonsense\n    calibration: {mps_per_unit: 0.002}\n"

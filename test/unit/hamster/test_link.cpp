@@ -420,6 +420,7 @@ TEST_F(LinkTest, WarnsOnceAboutAForeignRobotAndListsThePortsSearched) {
     r->calibration.left_mps_per_unit = r->calibration.right_mps_per_unit = 0.002;
   }
   bridge.robots = {r1, r2};
+  bridge.search_quiet_s = 0.0;  // warned from the first pass
   RobotLink l1(r1, bridge, ports_, serialTransportFactory());
   std::vector<std::string> warnings;
   const double end = monotonicS() + 1.5;  // three search passes
@@ -450,15 +451,22 @@ TEST_F(LinkTest, MissingPortDirectoryIsReported) {
   r.address = *Address::parse("0000000000AA");
   r.calibration.left_mps_per_unit = r.calibration.right_mps_per_unit = 0.002;
   RobotLink l(r, bridge, ports_, serialTransportFactory());
-  l.poll(0.0, reports_);
+  // Quiet while robots and links may still be coming up; in the diagnostics at once.
+  for (double t = 0.0; t < bridge.search_quiet_s; t += bridge.rescan_interval_s) {
+    l.poll(t, reports_);
+    EXPECT_TRUE(l.takeWarnings().empty()) << "at " << t << " s";
+  }
+  EXPECT_NE(l.health(0.0, 0).summary.find("no_such_dir"), std::string::npos) << l.health(0.0, 0).summary;
+  const double t0 = bridge.search_quiet_s + bridge.rescan_interval_s;
+  l.poll(t0, reports_);
   const auto w = l.takeWarnings();
   ASSERT_FALSE(w.empty());
-  EXPECT_NE(w[0].find("port directory " + dir_ + "/no_such_dir does not exist"), std::string::npos) << w[0];
-  l.poll(1.0, reports_);
+  EXPECT_NE(w[0].find("port directory " + dir_ + "/no_such_dir does not exist: set port_dir"), std::string::npos)
+      << w[0];
+  l.poll(t0 + 1.0, reports_);
   EXPECT_TRUE(l.takeWarnings().empty());  // not at every scan; it stays in the diagnostics
-  l.poll(1.0 + RobotLink::kWarningRepeatS, reports_);
+  l.poll(t0 + 1.0 + RobotLink::kWarningRepeatS, reports_);
   EXPECT_FALSE(l.takeWarnings().empty());  // but again after a while: a console scrolls
-  EXPECT_NE(l.health(1.0, 0).summary.find("no_such_dir"), std::string::npos) << l.health(1.0, 0).summary;
 }
 
 TEST_F(LinkTest, StaleOrFutureStampedCommandsAreRefusedAndCounted) {

@@ -114,6 +114,48 @@ TEST(Label, NudgedBackIntoPlaceIsNoToken) {
   EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:G2"}}));
 }
 
+TEST(Label, ABumpInTheHeadingARobotCameInIsNoPieceOfItsMotion) {
+  // R1 drives north to R2's east side and stops 1 cm short of touching it (as a robot
+  // stops behind a crowd: away from every entity until the step is read as a whole). As
+  // R2 sets off to G1 (the next step), a hand bumps R1 1.7 cm on in the heading it came in
+  // and puts it back: the bump and the put-back are a nudge of their own, not the last of
+  // R1's approach run into R2's step.
+  Scene s;
+  const double contact = s.spec.contactDistance(0, 1);
+  const Vector2d at_r2 = s.pos[1] + Vector2d(contact + 0.01, 0);
+  s.pos[0] = {at_r2.x(), 0.1};
+  s.rest(1);
+  s.move({{0, at_r2, 0, 2}});
+  s.rest(0.6);
+  s.move({{1, {0.9, 0.9}, 0, 2.5}, {0, at_r2 + Vector2d(0, 0.017), 0.5, 0.2}});
+  s.move({{0, at_r2, 0, 0.2}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2"}, {"R2:move:G1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+}
+
+TEST(Label, ARobotStoppingBehindARowOfItsStepIsNotListed) {
+  // R3 and R1 are sent to R2 in one step. R3 gets there first and touches it from the
+  // south; R1, following it, stops 2.2 cm short of R3 (beyond a side touch, within the
+  // arrival radius): in a row behind a robot of its step that stands nearer R2, not stopped
+  // halfway. Taken as sent to R2, and not listed.
+  Scene s;
+  s.spec.entities.push_back({"R3", task::EntityKind::Robot, "hamster"});
+  s.d.has_label_columns.assign(6, false);
+  const double contact = s.spec.contactDistance(0, 1);
+  s.pos[1] = {0.5, 0.8};
+  const Vector2d r3_at = s.pos[1] - Vector2d(0, contact), r1_at = r3_at - Vector2d(0, contact + 0.022);
+  s.pos[0] = {0.5, 0.1};
+  s.pos.push_back({0.2, 0.3});
+  s.rest(1);
+  s.move({{0, r1_at, 0.5, 2.5}, {5, r3_at, 0, 2}});
+  s.rest(1);
+  const auto inf = s.infer();
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R2", "R3:move:R2"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
+}
+
 TEST(Label, RobotsStartedASecondApartAreOneStep) {
   Scene s;
   s.rest(1);
@@ -1071,6 +1113,61 @@ TEST(Label, WrongTokensInOtherStylesAreListed) {
   EXPECT_GT(total.wrong + total.demos_wrong, 0);  // the styles make it err here
   EXPECT_EQ(total.wrong_listed, total.wrong);
   EXPECT_EQ(total.demos_wrong_listed, total.demos_wrong);
+}
+
+TEST(Label, ARobotReadAsArrivingAgainWhereItsLastMotionEndedIsListed) {
+  // Queue slots (zoo:5, stopping 1 cm short), `all` at seed 3, demonstration 9: R2 reaches
+  // Q2 and is bumped 3 cm aside a third of a second later (no rest a stop reads: the bump
+  // ends its drive, still read as at Q2) and put back as R3 sets off: the put-back reads
+  // as a second motion to Q2, in R3's step. No new place, so listed.
+  uint64_t id = 0;
+  tasks::ZooMotion motion;
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:5/direct-10mm", id, &motion));
+  const label::LabelScore score =
+      label::inferredDataset(tasks::generateZoo(id, 10, 3, motion), label::demonstrationStyle("all").options,
+                             label::styleSeed(3, "all"))
+          .score;
+  ASSERT_GT(score.wrong, 0);  // the put-back, read as a token of its own
+  EXPECT_EQ(score.wrong_listed, score.wrong);
+}
+
+TEST(Label, ARobotHeldBackUntilThereIsRoomAtTheCrowdIsOfItsStep) {
+  // The example: R1 and R3 sent to R2 in one step, then R2 to G1. Here the scene chose R3
+  // as the one to meet at: R2 gets to R3 first; R1 sets off only 1.5 s after R2 has stopped
+  // (beyond the step window: held back until there was room) and stops behind R2, touching
+  // it. It joined the bodies of the step before it, and the two have as many robots as the
+  // example's step: one step.
+  const auto scene = [](int first, int target, bool together) {
+    Scene s;
+    s.spec.entities.push_back({"R3", task::EntityKind::Robot, "hamster"});
+    s.d.has_label_columns.assign(6, false);
+    s.pos.push_back({0.8, 0.2});
+    s.pos[2] = {0.2, 0.9};  // the box, out of the way
+    const double contact = s.spec.contactDistance(0, 1);
+    s.pos[target] = {0.5, 0.5};
+    s.pos[0] = {0.1, 0.3};
+    s.pos[first] = {0.5, 0.1};
+    const Vector2d first_at(0.5, 0.5 - contact);
+    s.rest(1);
+    if (together) {
+      s.move({{0, {0.5 - contact, 0.5}}, {first, first_at}});
+    } else {
+      s.move({{first, first_at}});
+      s.rest(1.5);
+      s.move({{0, first_at - Vector2d(0, contact)}});
+    }
+    s.rest(1);
+    s.move({{target, {0.9, 0.9}}});
+    s.rest(1);
+    return s;
+  };
+  Scene ex_scene = scene(5, 1, true);
+  const auto example = ex_scene.ownExample();
+  ASSERT_EQ(tokens(ex_scene.infer(), ex_scene.spec), (Steps{{"R1:move:R2", "R3:move:R2"}, {"R2:move:G1"}}));
+  Scene s = scene(1, 5, false);
+  const auto inf = s.infer(&example);
+  EXPECT_EQ(tokens(inf, s.spec), (Steps{{"R1:move:R3", "R2:move:R3"}, {"R3:move:G1"}}));
+  EXPECT_TRUE(inf.notes.empty()) << inf.notes.front().message;
 }
 
 TEST(Label, RobotsOfOneStepStartedApartAreOneStepAsTheExampleShows) {

@@ -260,3 +260,25 @@ TEST_F(Recovery, WithoutALostRobotTheOtherIsSentAndTokensNameTheTasksEntities) {
   }
   EXPECT_THROW(decisions.predict({{0, false, test.demos[0].positions.front()}}, {42}), Error);
 }
+
+// A run that lost a robot is judged by the task's own ends; deliver states no goal
+// condition, so by the demonstration's: a box left mid-table is named, not counted as done.
+TEST(RobotLostJudgement, ABoxNotWhereTheDemonstrationLeftItIsNamed) {
+  const task::TaskDir dir = generated("deliver", 1, 77);
+  const task::TaskSpec& spec = dir.spec;
+  ASSERT_TRUE(spec.goal_conditions.empty());
+  const task::Demonstration& demo = dir.demos.front();
+  const int b1 = spec.entityIndex("B1");
+  int goal = -1;
+  for (const task::Step& s : demo.steps)
+    for (const task::Token& t : s.tokens)
+      if (t.entity == b1 && t.isMotion()) goal = t.target;
+  ASSERT_GE(goal, 0) << "the demonstration carries B1 somewhere";
+  std::vector<Vector2d> end = demo.positions.back();
+  EXPECT_EQ(pipeline::objectNotWhereDemonstrated(spec, demo, end, {}), "") << "B1 where the demonstration left it";
+  end[static_cast<size_t>(b1)] = demo.positions.front()[static_cast<size_t>(b1)];  // never carried
+  EXPECT_EQ(pipeline::objectNotWhereDemonstrated(spec, demo, end, {}),
+            "B1 did not end at " + spec.entities[static_cast<size_t>(goal)].name + ", where the demonstration left it");
+  EXPECT_EQ(pipeline::objectNotWhereDemonstrated(spec, demo, end, {goal}), "")
+      << "an object the demonstration left at an entity that is lost is not asked for";
+}
