@@ -148,7 +148,8 @@ TEST(ContactRecording, RobotsStoppingAtContactAreTrackedLearnedAndRun) {
     n.finished = c.state() == exec::RunState::Finished;
     return n;
   };
-  const task::EndPointModel centres{{}, {}, true};  // a model whose motions end on the targets
+  task::EndPointModel centres;  // a model whose motions end on the targets
+  centres.centres = true;
   for (const auto& d : recorded.demos) {
     const Counted learned = coordinate(d, ends);
     EXPECT_TRUE(learned.finished);
