@@ -35,11 +35,15 @@
 #include "ddace/gp/primitives.h"
 #include "ddace/graph/dependencies.h"
 #include "ddace/pipeline/evaluation.h"
+#include "ddace/ros/path_follower.h"
 #include "ddace/task/end_point.h"
 #include "ddace/task/task_dir.h"
 #include "ddace/tgn/sequence_model.h"
 
 namespace ddace::nodes {
+namespace {
+const char* const kFollower = "/path_follower";  ///< the follower role's default node
+}  // namespace
 
 class CoordinatorNode::Impl {
  public:
@@ -55,6 +59,7 @@ class CoordinatorNode::Impl {
     cfg.arrival_tolerance_m = rosparam::param(pnh, "arrival_tolerance_m", cfg.arrival_tolerance_m);
     cfg.max_replans = rosparam::param(pnh, "max_replans", cfg.max_replans);
     cfg.robot_lost_after_s = rosparam::param(pnh, "robot_lost_after_s", cfg.robot_lost_after_s);
+    cfg.loads_ride = followerLoadsRide(pnh);
     cfg.dispatch = exec::parseDispatchMode(rosparam::param<std::string>(pnh, "dispatch", exec::toString(cfg.dispatch)),
                                            "parameter '" + pnh.resolveName("dispatch") + "'");
     try {
@@ -466,13 +471,25 @@ class CoordinatorNode::Impl {
 
   /// The node of every role, from ~roles (config/execution.yaml). An empty name leaves the
   /// role unwatched (e.g. objects nobody moves on the real table).
+  /// The node of role `key` (under ~roles), absolute ("" = none).
+  static std::string roleNode(const ros::NodeHandle& pnh, const std::string& key, const std::string& fallback) {
+    std::string n = rosparam::param<std::string>(ros::NodeHandle(pnh, "roles"), key, fallback);
+    if (!n.empty() && n[0] != '/') n = "/" + n;
+    return n;
+  }
+
+  /// Whether loads ride in front of their carriers or are pushed: the follower's own
+  /// ~loads_ride, which decides whether its carriers back off (a pushing carrier is judged
+  /// where it then stands).
+  static bool followerLoadsRide(const ros::NodeHandle& pnh) {
+    const bool fallback = PathFollowerNode::Params{}.loads_ride;
+    const std::string follower = roleNode(pnh, "follower", kFollower);
+    return follower.empty() ? fallback : rosparam::param(ros::NodeHandle(follower), "loads_ride", fallback);
+  }
+
   void loadRoles(const ros::NodeHandle& pnh) {
     const ros::NodeHandle r(pnh, "roles");
-    auto name = [&](const std::string& key, const std::string& fallback) {
-      std::string n = rosparam::param<std::string>(r, key, fallback);
-      if (!n.empty() && n[0] != '/') n = "/" + n;
-      return n;
-    };
+    auto name = [&](const std::string& key, const std::string& fallback) { return roleNode(pnh, key, fallback); };
     const CoordinatorNode::Params defaults;
     const double heartbeat_s = rosparam::param(r, "heartbeat_timeout_s", defaults.heartbeat_timeout_s);
     const double pose_s = rosparam::param(r, "pose_timeout_s", defaults.pose_timeout_s);
@@ -488,7 +505,7 @@ class CoordinatorNode::Impl {
     const std::string seq = name("sequence", "/sequence"), paths = name("paths", "/gp_path");
     if (!seq.empty()) serving("sequence node", seq, "/ddace/decision_request");
     if (!paths.empty()) serving("path node", paths, "/ddace/path_request");
-    const std::string follower = name("follower", "/path_follower"), objects = name("object_executor", "/mock_robots");
+    const std::string follower = name("follower", kFollower), objects = name("object_executor", "/mock_robots");
     const std::string driver = name("driver", "/mock_robots");
     for (size_t i = 0; i < spec_.entities.size(); ++i) {
       const auto& e = spec_.entities[i];

@@ -17,11 +17,10 @@
 // else the token's path is re-planned.
 // The goal of a motion token is its end point (task/end_point.h) from the positions when
 // it started (the step's tokens that started earlier at their start): at contact with a
-// body, on a goal, a carrier behind its load. Every motion token, a robot's or an
-// object's, becomes one segment for that entity whose path ends there; tokens that start
-// together are planned together and their segments go out together; in-place tokens end
-// when they start. The state is the busiest of what is under way: Executing while a
-// segment runs, else Planning while a path is awaited, else Deciding.
+// body, on a goal, a carrier behind its load (a pushing one backed off it, exec::carrierEnd). Every motion token, a
+// robot's or an object's, becomes one segment for that entity whose path ends there; tokens that start together are
+// planned together and their segments go out together; in-place tokens end when they start. The state is the busiest of
+// what is under way: Executing while a segment runs, else Planning while a path is awaited, else Deciding.
 //
 // Owns: the run's state, the requests and segments it sends, the record of what was
 // executed. Must not: talk ROS, read clocks (time comes in as `now_s`), plan paths or
@@ -108,6 +107,11 @@ struct CoordinatorConfig {
   /// order names it, a decision gives it or meets it a token, a token of it in an earlier
   /// step has not ended). With max_replans 0 an untracked robot aborts the run as before.
   double robot_lost_after_s = 5;
+  /// Whether a carrier's load rides in front of it (the mock robots' table) or is pushed (the
+  /// real table, its simulation): a pushing carrier backs off its load when done and is
+  /// judged where it then stands (exec::carrierEnd). Its followers' setting (the node reads
+  /// the follower role's ~loads_ride; `ddace eval` the table's mock_robots/loads_ride).
+  bool loads_ride = false;
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
 };
@@ -319,8 +323,8 @@ class Coordinator {
   void requestPaths(const std::vector<TokenRef>& tokens, double now_s, CoordinatorOutput& out);
   void sendBatch(uint32_t batch, double now_s, CoordinatorOutput& out);
   /// The path of started token `t` from its planned one: a carrier's pushes its load
-  /// (exec/push_path.h) and ends behind the load's end point (its goal moves there), any
-  /// other is `planned`.
+  /// (exec/push_path.h) and ends behind the load's end point (its goal moves to where it
+  /// then stands, exec::carrierEnd), any other is `planned`.
   PlannedPath carrierPath(TokenRef t, const PlannedPath& planned);
   void requestDecisionIfDue(double now_s, CoordinatorOutput& out);
   /// A decision asked ahead from the predicted scene (a policy that reads the scene, under

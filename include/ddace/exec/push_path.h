@@ -182,10 +182,11 @@ std::vector<Eigen::Vector2d> drivenPath(const task::TaskSpec& spec, const std::v
                                         const std::vector<Eigen::Vector2d>& decided,
                                         const std::vector<Eigen::Vector2d>& ends, std::vector<Eigen::Vector2d> planned);
 
-/// Where a carrier ends that pushed its load to `load_end`, stopping at `push_end` (the
-/// push path's last point, at contact behind the load): kPushBackOffM farther straight away
-/// from the load, where it stands once backed off (RobotController::backOff). Its end point
-/// is judged there; a carrier whose load rides stays at `push_end`.
-Eigen::Vector2d backedOffEnd(const Eigen::Vector2d& push_end, const Eigen::Vector2d& load_end);
+/// Where a carrier's motion is judged -- where it stands when done -- that moved its load
+/// to `load_end` stopping at `push_end` (its path's last point, drivenPath: at contact
+/// behind the load). A carrier whose load rides (`loads_ride`) stays at `push_end`; one that
+/// pushes backs off kPushBackOffM farther straight away from the load
+/// (RobotController::backOff). The one rule of the simulator and the coordinator.
+Eigen::Vector2d carrierEnd(const Eigen::Vector2d& push_end, const Eigen::Vector2d& load_end, bool loads_ride);
 
 }  // namespace ddace::exec

@@ -894,7 +894,7 @@ PlannedPath Coordinator::carrierPath(TokenRef ref, const PlannedPath& planned) {
                         spec_.contactDistance(c.token.entity, *load), c.goal, static_cast<int>(planned.points.size()),
                         pushObstacles(spec_, step, static_cast<size_t>(ref.index), *load, at));
   out.stddev_m.assign(out.points.size(), 0.0);
-  c.goal = out.points.back();  // behind the load's end point: where the push stops
+  c.goal = carrierEnd(out.points.back(), l->goal, config_.loads_ride);
   return out;
 }
 

@@ -339,9 +339,9 @@ std::vector<Eigen::Vector2d> drivenPath(const task::TaskSpec& spec, const std::v
                   pushObstacles(spec, step, i, *load, decided));
 }
 
-Eigen::Vector2d backedOffEnd(const Eigen::Vector2d& push_end, const Eigen::Vector2d& load_end) {
+Eigen::Vector2d carrierEnd(const Eigen::Vector2d& push_end, const Eigen::Vector2d& load_end, bool loads_ride) {
   const Eigen::Vector2d away = push_end - load_end;
-  if (away.norm() < 1e-9) return push_end;
+  if (loads_ride || away.norm() < 1e-9) return push_end;
   return push_end + away.normalized() * kPushBackOffM;
 }
 

@@ -71,8 +71,7 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
         const std::optional<int> load = execution.bodies() ? pushedLoad(spec, d.tokens, i, decided) : std::nullopt;
         if (load) {
           ex.planned = drivenPath(spec, d.tokens, i, decided, ends, std::move(ex.planned));
-          ex.goal = ex.planned.back();  // behind the load's end point: where the push stops
-          if (execution.pushesLoads()) ex.goal = backedOffEnd(ex.goal, ends[static_cast<size_t>(*load)]);
+          ex.goal = carrierEnd(ex.planned.back(), ends[static_cast<size_t>(*load)], !execution.pushesLoads());
         }
         motions.push_back(
             {i, token.entity, token.target, spec.entities[token.entity].kind == task::EntityKind::Robot, ex.planned});

@@ -244,8 +244,8 @@ class Runner {
         spec_(spec),
         gt_(gt),
         p_(p),
-        c_(spec, config(spec, max_replans, dispatch), model.primitives->endPoints(), 1,
-           model.sequence.info().dependencies, policyReadsScene(model)) {
+        c_(spec, config(spec, max_replans, dispatch, !bodies || bodies->config.table.loads_ride),
+           model.primitives->endPoints(), 1, model.sequence.info().dependencies, policyReadsScene(model)) {
     for (const exec::Pose2D& pose : exec::startPoses(gt)) pos_.push_back(pose.position());
     tracked_.assign(pos_.size(), true);
     if (bodies) table_ = std::make_unique<BodyTable>(*bodies, spec, gt);
@@ -277,8 +277,11 @@ class Runner {
   }
 
  private:
-  static exec::CoordinatorConfig config(const task::TaskSpec& spec, int max_replans, exec::DispatchMode dispatch) {
+  /// `loads_ride`: the table's (points: every carrier stays where its path ends).
+  static exec::CoordinatorConfig config(const task::TaskSpec& spec, int max_replans, exec::DispatchMode dispatch,
+                                        bool loads_ride) {
     exec::CoordinatorConfig cfg;
+    cfg.loads_ride = loads_ride;
     cfg.arrival_radius_m = spec.arrival_radius;
     cfg.max_replans = max_replans;
     cfg.dispatch = dispatch;

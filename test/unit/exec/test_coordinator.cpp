@@ -6,6 +6,7 @@
 
 #include "ddace/common/error.h"
 #include "ddace/exec/coordinator.h"
+#include "ddace/exec/push_path.h"
 #include "ddace/exec/replay.h"
 #include "ddace/tasks/generators.h"
 
@@ -645,4 +646,58 @@ TEST(CoordinatorIds, AreNeverZero) {
   EXPECT_EQ(firstIdAt(2147483.648), 1u);  // 2^31 ms: 0 modulo 2^31
   EXPECT_EQ(firstIdAt(-1.0), 1u);
   EXPECT_EQ(firstIdAt(std::numeric_limits<double>::quiet_NaN()), 1u);
+}
+
+// A carrier that pushes its load backs off it when done (RobotController::backOff): the
+// coordinator judges it where it then stands (exec::carrierEnd), kPushBackOffM beyond the
+// contact behind the load's end where its path stops; a carrier whose load rides, at that
+// contact. Judged at contact, a pushing carrier spent 2 of the 3 cm arrival radius backing
+// off, and a DONE from where it stands backed off and as far again on was ignored.
+TEST(CoordinatorPush, APushingCarrierIsJudgedWhereItStandsBackedOffItsLoad) {
+  tasks::GeneratorOptions o;
+  o.family = "fetch";
+  o.demos = 2;
+  o.seed = 3;
+  const task::TaskDir dir = tasks::generate(o);
+  const task::Demonstration& demo = dir.demos.front();
+  const int b1 = dir.spec.entityIndex("B1");
+  for (const bool ride : {true, false}) {
+    SCOPED_TRACE(ride ? "riding" : "pushed");
+    CoordinatorConfig cfg = withoutRecovery();
+    cfg.loads_ride = ride;
+    Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};
+    c.onEntities(observe(demo.positions.front()), 0.0);
+    // The steps before the carry arrive.
+    CoordinatorOutput next = c.start(0.0);
+    std::vector<SegmentCommand> carry;
+    for (double now = 0.1; next.decision && carry.empty(); now += 1) {
+      const auto segs =
+          answerPaths(c, c.onDecision(next.decision->id, replayDecision(demo, next.decision->history), now), now);
+      if (std::any_of(segs.begin(), segs.end(), [&](const SegmentCommand& g) { return g.entity == b1; })) carry = segs;
+      for (const auto& g : segs)
+        if (carry.empty()) next = arriveDone(c, g, now + 0.5);
+    }
+    ASSERT_EQ(carry.size(), 2u) << "the carrier and its load: " << c.reason();
+    const size_t k = c.steps().size() - 1;
+    const SegmentCommand& robot = carry[0].entity == b1 ? carry[1] : carry[0];
+    const SegmentCommand& load = carry[0].entity == b1 ? carry[0] : carry[1];
+    const Vector2d push_end = robot.path.points.back();
+    const double contact = dir.spec.contactDistance(robot.entity, b1);
+    ASSERT_NEAR((push_end - load.goal).norm(), contact, 1e-6) << "the push stops at contact behind the load's end";
+    const double beyond = ride ? 0.0 : kPushBackOffM;
+    EXPECT_NEAR((robot.goal - load.goal).norm(), contact + beyond, 1e-6);
+    EXPECT_NEAR((robot.goal - push_end).norm(), beyond, 1e-6) << "straight away from the load's end";
+    EXPECT_TRUE(c.steps()[k].tokens[0].goal.isApprox(robot.goal) || c.steps()[k].tokens[1].goal.isApprox(robot.goal))
+        << "the run's record judges it there";
+    // Done where it stands (backed off, for a pushing carrier) and 3 cm farther on, within
+    // the arrival radius: 5 cm from the contact for a pushing carrier.
+    const Vector2d away = (push_end - load.goal).normalized();
+    EntityObservation obs = c.observation();
+    obs.positions[static_cast<size_t>(robot.entity)] = push_end + (beyond + 0.03) * away;
+    obs.positions[static_cast<size_t>(b1)] = load.goal;
+    c.onEntities(obs, 20.0);
+    c.onSegmentStatus(report(c, b1, load.segment_id, SegmentState::Done, 1.0), 20.0);
+    c.onSegmentStatus(report(c, robot.entity, robot.segment_id, SegmentState::Done, 1.0), 20.0);
+    EXPECT_TRUE(c.steps()[k].complete) << "its DONE counts";
+  }
 }
