@@ -24,7 +24,10 @@ struct TrialScore {
   int gt_robot_motions = 0;          ///< ground-truth motion tokens of robots
   int achieved_robot_motions = 0;    ///< ... executed (same entity, action, target) and arrived
   bool goal_conditions_hold = true;  ///< every goal_conditions entry at the end (task::goalConditionMet)
-  std::vector<double> fd;            ///< normalised Fréchet distance per matched motion token
+  /// With bodies: every executed motion of an object arrived (a load its carrier pushed and
+  /// left short of its end point fails the trial, goal condition or not).
+  bool objects_arrived = true;
+  std::vector<double> fd;  ///< normalised Fréchet distance per matched motion token
   /// Executed with bodies (exec::Trial::bodies): the collisions count against success.
   bool bodies = false;
   int collisions = 0;            ///< bodies that touched (exec::BodyReport), 0 without bodies

@@ -59,6 +59,10 @@ struct BodiesExecutionParams {
   double arrival_radius_m = task::kDefaultArrivalRadius;
   double noise_m = 0;  ///< std-dev of measured x and y (the simulated Hamster's noise is replaced)
   uint64_t seed = 1;
+  /// The number of the first trial (then counting up): trial k's noise is drawn from seed and
+  /// k, so a trial run alone (a coordinated run, one execution per trial) can draw the noise
+  /// of the k-th trial of a run of many.
+  uint64_t first_trial = 1;
 };
 
 /// Two bodies in contact have parted when their gap exceeds this (metres): Box2D keeps

@@ -14,7 +14,8 @@
 // predicted): never on a timer. onTick() only checks time-outs.
 // When the table changes under a running token the run recovers from the scene as it is
 // (CoordinatorConfig::max_replans): the step is re-decided when the policy reads the scene,
-// else the token's path is re-planned.
+// else the token's path is re-planned -- never a pushed load's alone (its carrier moves it):
+// its step is re-decided, or the run aborts.
 // The goal of a motion token is its end point (task/end_point.h) from the positions when
 // it started (the step's tokens that started earlier at their start): at contact with a
 // body, on a goal, a carrier behind its load (a pushing one backed off it, exec::carrierEnd). Every motion token, a
@@ -370,6 +371,10 @@ class Coordinator {
   /// The load that the robot's unfinished motion `t` carries: an object's unfinished motion
   /// of its step with its action and target ("" for none).
   std::string loadOf(TokenRef t) const;
+  /// The robot of its step that pushes object motion `t` (loads not riding), or "" (a load
+  /// riding, or moved by no robot of its step). Nothing else moves a pushed load: its own
+  /// segment sent again would have the table move it by hand.
+  std::string pusherOf(TokenRef t) const;
   /// Aborts naming `why` and returns false when `t` may not be recovered once more
   /// (`done` of max_replans done, or its entity or target not tracked).
   bool mayRecover(TokenRef t, int done, const std::string& why, CoordinatorOutput& out);

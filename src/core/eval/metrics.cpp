@@ -50,7 +50,9 @@ TrialScore scoreTrial(const task::TaskSpec& spec, const task::Demonstration& gt,
     if (robot) ++s.gt_robot_motions;
     if (i < 0) continue;
     const exec::ExecutedToken& ex = trial.executed[i];
-    if (robot && task::arrived(ex.executed.back(), ex.goal, spec.arrival_radius)) ++s.achieved_robot_motions;
+    const bool arrived = task::arrived(ex.executed.back(), ex.goal, spec.arrival_radius);
+    if (robot && arrived) ++s.achieved_robot_motions;
+    if (!robot && trial.bodies && !arrived) s.objects_arrived = false;
     const exec::Path& generated = use_executed_paths || ex.planned.empty() ? ex.executed : ex.planned;
     const auto truth = gt.segmentPath(seg);
     if (generated.size() >= 2 && truth.size() >= 2 && (truth.back() - truth.front()).norm() > 1e-9)
@@ -67,7 +69,7 @@ TrialScore scoreTrial(const task::TaskSpec& spec, const task::Demonstration& gt,
     if (trial.body_report.closest.a >= 0) s.min_clearance_m = trial.body_report.closest.clearance_m;
   }
   s.success = s.correct_steps == s.gt_steps && s.ended_correctly && s.achieved_robot_motions == s.gt_robot_motions &&
-              s.goal_conditions_hold && s.collisions == 0;
+              s.goal_conditions_hold && s.objects_arrived && s.collisions == 0;
   return s;
 }
 

@@ -53,7 +53,7 @@ Path BodiesExecution::follow(const Path&, bool, int) {
 
 void BodiesExecution::beginTrial(const task::TaskSpec& spec, const std::vector<Pose2D>& start) {
   DiffDriveParams robot = params_.config.robot;
-  robot.seed = params_.seed * 1000003ULL + (++trials_);  // fresh, reproducible noise per trial
+  robot.seed = params_.seed * 1000003ULL + params_.first_trial + trials_++;  // fresh, reproducible noise per trial
   table_ = std::make_unique<TableSimulator>(spec, start, robot, params_.config.table);
   const size_t n = spec.entities.size();
   controllers_.clear();

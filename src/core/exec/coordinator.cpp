@@ -15,6 +15,7 @@ std::string seconds(double s) {
 
 #include "ddace/common/error.h"
 #include "ddace/exec/push_path.h"
+#include "ddace/exec/table_simulator.h"
 
 namespace ddace::exec {
 
@@ -511,9 +512,26 @@ void Coordinator::recover(TokenRef r, const std::string& why, bool target_moved,
   const int redecided = k < step_redecisions_.size() ? step_redecisions_[k] : 0;
   // What the decision read moved: decide again. The token could not run: a path from where
   // it is, and once that is used up, another decision (someone else may do it).
-  if (may_redecide && (target_moved || (record(r).replans >= config_.max_replans && redecided < config_.max_replans)))
+  const std::string pusher = pusherOf(r);
+  if (!pusher.empty() && !(may_redecide && redecided < config_.max_replans)) {
+    abort(why + "; no recovery: nothing moves " + spec_.entities[static_cast<size_t>(e)].name + " but its carrier " +
+              pusher + (may_redecide ? " (re-decided " + std::to_string(redecided) + " times)" : ""),
+          out);
+    return;
+  }
+  if (may_redecide && (target_moved || !pusher.empty() ||
+                       (record(r).replans >= config_.max_replans && redecided < config_.max_replans)))
     redecide(r, why, now_s, out);
   else replan(r, why, now_s, out);
+}
+
+std::string Coordinator::pusherOf(TokenRef r) const {
+  if (config_.loads_ride) return "";
+  const StepRecord& s = steps_[static_cast<size_t>(r.step)];
+  const task::Token& load = s.tokens[static_cast<size_t>(r.index)].token;
+  for (const TokenRecord& t : s.tokens)
+    if (carries(spec_, r.step, t.token, r.step, load)) return spec_.entities[static_cast<size_t>(t.token.entity)].name;
+  return "";
 }
 
 std::string Coordinator::loadOf(TokenRef r) const {

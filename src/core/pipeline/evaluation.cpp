@@ -241,9 +241,10 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
     if (gnn) throw Error("a coordinated run needs a model with primitives (the gnn variant rolls out its own)");
     e.execution += ", coordinated";
     e.dispatch = exec::toString(options.dispatch);
-    const exec::BodiesExecutionParams table = bodiesParams(options, spec);
+    exec::BodiesExecutionParams table = bodiesParams(options, spec);
     for (size_t i = 0; i < test.demos.size(); ++i) {
       const task::Demonstration& gt = test.demos[i];
+      table.first_trial = i + 1;  // the noise of the simulator's trial i: the two runs compare trial by trial
       CoordinatedRun r = runCoordinated(model, spec, gt, {}, exec::CoordinatorConfig{}.max_replans, options.dispatch,
                                         options.seed * 1000003ULL + i, &table, options.speed_spread);
       e.precedence_violations += r.precedence_violations;

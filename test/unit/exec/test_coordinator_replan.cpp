@@ -383,3 +383,48 @@ TEST(Redecide, ACarrierLostWithItsLoadBeginsTheTaskAgainFromTheSceneAsItIs) {
   ASSERT_TRUE(again.decision) << d.reason();
   EXPECT_EQ(again.decision->history.size(), 2u) << "the step decided again after step 1";
 }
+
+// A pushed load (loads not riding: the real table, its simulation) moves only with its
+// carrier. Its carrier done and the load left short of its end, its own segment sent again
+// would have the table move it by hand (mock robots: a box gliding on its own, into the
+// robots): a fixed order aborts naming why. A riding load's segment is sent again.
+TEST(Replan, APushedLoadLeftShortIsNeverSentOnAlone) {
+  const task::TaskDir dir = generated("fetch");
+  const task::Demonstration& demo = dir.demos.front();
+  const int b1 = dir.spec.entityIndex("B1");
+  for (const bool ride : {true, false}) {
+    SCOPED_TRACE(ride ? "riding" : "pushed");
+    CoordinatorConfig cfg;
+    cfg.loads_ride = ride;
+    Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos), 1, {}, /*policy_reads_scene=*/false};
+    std::vector<Vector2d> at = demo.positions.front();
+    c.onEntities(observe(at), 0.0);
+    CoordinatorOutput next = c.start(0.0);
+    std::vector<SegmentCommand> carry;
+    for (double now = 0.1; next.decision && carry.empty(); now += 1) {
+      const auto segs =
+          answer(c, c.onDecision(next.decision->id, replayDecision(demo, next.decision->history), now), now);
+      if (std::any_of(segs.begin(), segs.end(), [&](const SegmentCommand& g) { return g.entity == b1; })) carry = segs;
+      else next = arriveAll(c, at, segs, now + 0.5);
+    }
+    ASSERT_EQ(carry.size(), 2u) << c.reason();
+    const SegmentCommand& robot = carry[0].entity == b1 ? carry[1] : carry[0];
+    const SegmentCommand& load = carry[0].entity == b1 ? carry[0] : carry[1];
+    at[static_cast<size_t>(robot.entity)] = robot.goal;  // done, its push broken: the box 20 cm short
+    at[static_cast<size_t>(b1)] = load.goal + 0.2 * (load.path.points.front() - load.goal).normalized();
+    c.onEntities(observe(at), 20.0);
+    c.onSegmentStatus(robot.entity, robot.segment_id, SegmentState::Done, 1.0, "", 20.0);
+    const auto out = c.onSegmentStatus(b1, load.segment_id, SegmentState::Failed, 0.5,
+                                       "B1 is 20.0 cm from its end point when its carrier was done", 20.0);
+    if (ride) {
+      ASSERT_EQ(out.paths.size(), 1u) << "the riding load re-planned: " << c.reason();
+      EXPECT_EQ(out.paths[0].token.entity, b1);
+      continue;
+    }
+    EXPECT_TRUE(out.paths.empty()) << "no path for B1 alone";
+    EXPECT_TRUE(out.segments.empty());
+    EXPECT_EQ(c.state(), RunState::Aborted);
+    const std::string carrier = dir.spec.entities[static_cast<size_t>(robot.entity)].name;
+    EXPECT_NE(c.reason().find("nothing moves B1 but its carrier " + carrier), std::string::npos) << c.reason();
+  }
+}
