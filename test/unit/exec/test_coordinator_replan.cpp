@@ -388,7 +388,7 @@ TEST(Redecide, ACarrierLostWithItsLoadBeginsTheTaskAgainFromTheSceneAsItIs) {
 // carrier. Its carrier done and the load left short of its end, its own segment sent again
 // would have the table move it by hand (mock robots: a box gliding on its own, into the
 // robots): a fixed order aborts naming why. A riding load's segment is sent again.
-TEST(Replan, APushedLoadLeftShortIsNeverSentOnAlone) {
+TEST(PushedLoadReplan, IsNeverSentOnAlone) {
   const task::TaskDir dir = generated("fetch");
   const task::Demonstration& demo = dir.demos.front();
   const int b1 = dir.spec.entityIndex("B1");
