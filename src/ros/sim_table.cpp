@@ -31,6 +31,9 @@ namespace {
 constexpr int kMaxCatchUpSteps = 5;
 /// A goal has no body: its drag handle is a disc this large.
 constexpr double kGoalHandleRadiusM = 0.02;
+/// Drag handles float this high: above the tracker's markers and frames, so a click from
+/// above picks the handle, not them.
+constexpr double kHandleHeightM = 0.1;
 
 }  // namespace
 
@@ -161,6 +164,7 @@ class SimTableNode::Impl {
       m.description = "drag " + m.name;
       m.pose.position.x = entities[i].pose.x;
       m.pose.position.y = entities[i].pose.y;
+      m.pose.position.z = kHandleHeightM;
       m.pose.orientation.w = 1;
       const double radius_m = std::max(spec.footprint(static_cast<int>(i)).radius_m, kGoalHandleRadiusM);
       m.scale = static_cast<float>(3 * radius_m);
@@ -175,7 +179,7 @@ class SimTableNode::Impl {
       disc.scale.z = 0.004;
       const bool robot = spec.entities[i].kind == task::EntityKind::Robot;
       disc.color.r = robot ? 0.2f : 0.9f, disc.color.g = 0.6f, disc.color.b = robot ? 1.0f : 0.2f;
-      disc.color.a = 0.35f;
+      disc.color.a = 0.5f;
       move.markers.push_back(disc);
       m.controls.push_back(move);
       drag_server_->insert(m, [this](const auto& f) { onDrag(f); });
@@ -217,6 +221,7 @@ class SimTableNode::Impl {
       geometry_msgs::Pose p;
       p.position.x = targets[i] ? targets[i]->x() : entities[i].pose.x;
       p.position.y = targets[i] ? targets[i]->y() : entities[i].pose.y;
+      p.position.z = kHandleHeightM;
       p.orientation.w = 1;
       drag_server_->setPose(entities[i].name, p);
     }
