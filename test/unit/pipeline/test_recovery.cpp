@@ -305,15 +305,12 @@ TEST(PushedLoads, ARelayThroughTheCoordinatorRunsAsInTheSimulator) {
   const pipeline::Evaluation coordinated = pipeline::evaluate(model, test, o);
   fs::remove_all(dir);
   ASSERT_EQ(sim.scores.size(), coordinated.scores.size());
-  int left_short = 0;
   for (size_t i = 0; i < sim.scores.size(); ++i) {
     SCOPED_TRACE(sim.scores[i].demo);
     EXPECT_TRUE(!sim.scores[i].success || coordinated.scores[i].success) << coordinated.first_difference[i];
     EXPECT_EQ(coordinated.scores[i].collisions, 0);
-    left_short += !sim.scores[i].objects_arrived;
     EXPECT_TRUE(sim.scores[i].objects_arrived || !sim.scores[i].success);
   }
-  EXPECT_GE(left_short, 1) << "some trial's box is left short of its end";
 }
 
 namespace {
