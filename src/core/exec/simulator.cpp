@@ -2,6 +2,7 @@
 
 #include "ddace/common/error.h"
 #include "ddace/exec/push_path.h"
+#include "ddace/exec/ride_path.h"
 #include "ddace/exec/scene.h"
 
 namespace ddace::exec {
@@ -67,9 +68,10 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
       if (token.isMotion()) {
         ex.planned = paths(token, ex.start, ex.goal);
         if (ex.planned.empty()) ex.planned = {ex.start, ex.goal};
-        // With bodies a carrier pushes its load, as the coordinator plans it for the robots.
+        // With bodies a carrier pushes its load, as the coordinator plans it for the robots,
+        // unless the load rides and the path shown passes the bodies standing (ride_path.h).
         const std::optional<int> load = execution.bodies() ? pushedLoad(spec, d.tokens, i, decided) : std::nullopt;
-        if (load) {
+        if (load && !drivesShownPath(spec, d.tokens, i, *load, decided, ex.planned, !execution.pushesLoads())) {
           ex.planned = drivenPath(spec, d.tokens, i, decided, ends, std::move(ex.planned));
           ex.goal = ex.planned.back();  // behind the load's end point: where the push stops
           if (execution.pushesLoads()) ex.goal = backedOffEnd(ex.goal, ends[static_cast<size_t>(*load)]);

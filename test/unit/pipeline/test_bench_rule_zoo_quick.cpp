@@ -6,13 +6,16 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
+
+#include <unistd.h>
 
 namespace fs = std::filesystem;
 
 TEST(BenchRuleZooQuick, BothMotionModelsIdealAndWithBodies) {
   const fs::path ddace = fs::read_symlink("/proc/self/exe").parent_path() / "ddace";
   ASSERT_TRUE(fs::exists(ddace)) << ddace;
-  const fs::path repo = fs::path(::testing::TempDir()) / "ddace_bench_rule_zoo_quick";
+  const fs::path repo = fs::path(::testing::TempDir()) / ("ddace_bench_rule_zoo_quick_" + std::to_string(::getpid()));
   fs::remove_all(repo);
   fs::create_directories(repo / "docs" / "bench");
   std::ofstream(repo / "package.xml") << "<package><name>ddace</name></package>\n";

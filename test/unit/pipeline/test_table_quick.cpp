@@ -6,6 +6,9 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
+
+#include <unistd.h>
 
 namespace fs = std::filesystem;
 
@@ -13,7 +16,7 @@ TEST(TableQuick, WritesResultsAndEveryFigure) {
   // The ddace tool is built next to this test binary (devel/lib/ddace).
   const fs::path ddace = fs::read_symlink("/proc/self/exe").parent_path() / "ddace";
   ASSERT_TRUE(fs::exists(ddace)) << ddace;
-  const fs::path out = fs::path(::testing::TempDir()) / "ddace_table_quick";
+  const fs::path out = fs::path(::testing::TempDir()) / ("ddace_table_quick_" + std::to_string(::getpid()));
   fs::remove_all(out);
   // The table pins libtorch's kernels to AVX2 whatever the caller's environment says: a
   // model trained alone with AVX2 kernels must equal the table's (below).
