@@ -8,6 +8,7 @@
 #include <memory>
 #include <set>
 
+#include <interactive_markers/interactive_marker_server.h>
 #include <ros/ros.h>
 
 #include <ddace/EntityArray.h>
@@ -28,6 +29,11 @@ namespace {
 /// At most this many periods are stepped at once when the node fell behind (a loaded
 /// machine): the table keeps pace with the wall clock, the robots' speeds stay true.
 constexpr int kMaxCatchUpSteps = 5;
+/// A goal has no body: its drag handle is a disc this large.
+constexpr double kGoalHandleRadiusM = 0.02;
+/// Drag handles float this high: above the tracker's markers and frames, so a click from
+/// above picks the handle, not them.
+constexpr double kHandleHeightM = 0.1;
 
 }  // namespace
 
@@ -72,6 +78,7 @@ class SimTableNode::Impl {
     pub_ = nh.advertise<ddace::EntityArray>(topic, 5);
     last_step_ = std::chrono::steady_clock::now();
     timer_ = nh.createSteadyTimer(ros::WallDuration(sim_->periodS()), &Impl::onTimer, this);
+    if (rosparam::param(pnh, "drag", defaults.drag)) startDragging(pnh.resolveName("drag"));
     ROS_INFO("sim_table: task '%s', %zu entities with bodies at %.0f Hz; wheels from %s; true poses on %s",
              spec.name.c_str(), spec.entities.size(), 1.0 / sim_->periodS(), wheels_from_.c_str(),
              nh.resolveName(topic).c_str());
@@ -144,6 +151,83 @@ class SimTableNode::Impl {
             e.name.c_str(), wheels_from_.c_str(), grace_s_);
   }
 
+  /// One interactive marker per entity on `topic_ns` (rviz: Interact tool): a flat disc of
+  /// its body, dropped where it should go.
+  void startDragging(const std::string& topic_ns) {
+    drag_server_ = std::make_unique<interactive_markers::InteractiveMarkerServer>(topic_ns);
+    const task::TaskSpec& spec = sim_->spec();
+    const auto entities = sim_->entities();
+    for (size_t i = 0; i < spec.entities.size(); ++i) {
+      visualization_msgs::InteractiveMarker m;
+      m.header.frame_id = frame_id_;
+      m.name = spec.entities[i].name;
+      m.description = "drag " + m.name;
+      m.pose.position.x = entities[i].pose.x;
+      m.pose.position.y = entities[i].pose.y;
+      m.pose.position.z = kHandleHeightM;
+      m.pose.orientation.w = 1;
+      const double radius_m = std::max(spec.footprint(static_cast<int>(i)).radius_m, kGoalHandleRadiusM);
+      m.scale = static_cast<float>(3 * radius_m);
+      visualization_msgs::InteractiveMarkerControl move;
+      move.name = "move";
+      move.interaction_mode = visualization_msgs::InteractiveMarkerControl::MOVE_PLANE;
+      move.orientation.w = move.orientation.y = M_SQRT1_2;  // the plane's normal: the table's z
+      move.always_visible = true;
+      visualization_msgs::Marker disc;
+      disc.type = visualization_msgs::Marker::CYLINDER;
+      disc.scale.x = disc.scale.y = 2 * radius_m;
+      disc.scale.z = 0.004;
+      const bool robot = spec.entities[i].kind == task::EntityKind::Robot;
+      disc.color.r = robot ? 0.2f : 0.9f, disc.color.g = 0.6f, disc.color.b = robot ? 1.0f : 0.2f;
+      disc.color.a = 0.5f;
+      move.markers.push_back(disc);
+      m.controls.push_back(move);
+      drag_server_->insert(m, [this](const auto& f) { onDrag(f); });
+    }
+    drag_server_->applyChanges();
+    drag_timer_ = ros::NodeHandle().createSteadyTimer(ros::WallDuration(0.1), &Impl::showDrags, this);
+    ROS_INFO(
+        "sim_table: drag entities in rviz (Interact tool, %s): a robot drives to where it is dropped, a box or "
+        "goal is carried there",
+        topic_ns.c_str());
+  }
+
+  void onDrag(const visualization_msgs::InteractiveMarkerFeedbackConstPtr& f) {
+    using F = visualization_msgs::InteractiveMarkerFeedback;
+    if (f->event_type == F::MOUSE_DOWN) held_.insert(f->marker_name);
+    if (f->event_type == F::MOUSE_UP) held_.erase(f->marker_name);
+    if (f->event_type != F::POSE_UPDATE && f->event_type != F::MOUSE_UP) return;
+    if (!f->header.frame_id.empty() && f->header.frame_id != frame_id_) {
+      ROS_WARN_THROTTLE(5.0,
+                        "sim_table: a drag of %s in frame '%s' ignored: the markers are in '%s' (set rviz's "
+                        "fixed frame to it)",
+                        f->marker_name.c_str(), f->header.frame_id.c_str(), frame_id_.c_str());
+      return;
+    }
+    try {
+      sim_->drag(f->marker_name, {f->pose.position.x, f->pose.position.y}, "drag of " + f->client_id);
+    } catch (const Error& e) {
+      ROS_ERROR_THROTTLE(1.0, "sim_table: %s", e.what());
+    }
+  }
+
+  /// Each marker not in a hand sits on its entity, or on where it was dropped while it goes there.
+  void showDrags(const ros::SteadyTimerEvent&) {
+    for (const std::string& note : sim_->takeDragNotes()) ROS_INFO("sim_table: %s", note.c_str());
+    const auto entities = sim_->entities();
+    const auto targets = sim_->dragTargets();
+    for (size_t i = 0; i < entities.size(); ++i) {
+      if (held_.count(entities[i].name)) continue;
+      geometry_msgs::Pose p;
+      p.position.x = targets[i] ? targets[i]->x() : entities[i].pose.x;
+      p.position.y = targets[i] ? targets[i]->y() : entities[i].pose.y;
+      p.position.z = kHandleHeightM;
+      p.orientation.w = 1;
+      drag_server_->setPose(entities[i].name, p);
+    }
+    drag_server_->applyChanges();
+  }
+
   void onTimer(const ros::SteadyTimerEvent&) {
     const auto now = std::chrono::steady_clock::now();
     const auto period = std::chrono::duration<double>(sim_->periodS());
@@ -186,7 +270,9 @@ class SimTableNode::Impl {
   std::map<std::string, CommandSources> sources_;  ///< wheels: commands; by robot (outlives subs_)
   std::vector<ros::Subscriber> subs_;
   ros::Publisher pub_;
-  ros::SteadyTimer timer_, grace_timer_;
+  ros::SteadyTimer timer_, grace_timer_, drag_timer_;
+  std::unique_ptr<interactive_markers::InteractiveMarkerServer> drag_server_;
+  std::set<std::string> held_;  ///< the markers a mouse holds now
 };
 
 SimTableNode::SimTableNode(ros::NodeHandle nh, ros::NodeHandle pnh) : impl_(std::make_unique<Impl>(nh, pnh)) {}

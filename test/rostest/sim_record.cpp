@@ -1,9 +1,9 @@
 // launch/record.launch sim:=true with the files of a task of one's own, as `ddace init`
 // writes them (robots R1, R2 and goal G1, laid out in rows; recorded into the task
 // directory init made, whose task.yaml the recorder accepts): a start while R2 still moves
-// is refused, naming R2; then the test steers R2 onto G1 from what the simulated table shows, as a person at the
-// teleop's keys would, between /recorder/start and /recorder/stop. The saved demonstration must hold that motion as the
-// tracker saw it
+// is refused, naming R2; then the test drags R2 onto G1 as a person in rviz does (interactive marker feedback on
+// /sim_table/drag/feedback: R2's marker dropped on G1), between /recorder/start and /recorder/stop. The saved
+// demonstration must hold that motion as the tracker saw it
 // -- R2 from its row onto G1, the others still -- and the label the recorder inferred
 // from it: R2 moves to G1. Then a person's own tool: scripts/sim_teleop.py on a
 // pseudo-terminal, keys typed, drives R1 forward and stops it; the same tool under another
@@ -18,6 +18,8 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+
+#include <visualization_msgs/InteractiveMarkerFeedback.h>
 
 namespace {
 
@@ -110,6 +112,7 @@ TEST(SimRecord, RecordsARobotDrivenOnTheSimulatedTable) {
         for (const auto& e : m->entities) truth[e.name] = {e.pose.x, e.pose.y, e.pose.theta};
       });
   ros::Publisher wheels = nh.advertise<ddace::WheelCommand>("/robots/R2/wheels", 5);
+  ros::Publisher drag = nh.advertise<visualization_msgs::InteractiveMarkerFeedback>("/sim_table/drag/feedback", 5);
 
   exec_test::Launch graph({launch_file, "sim:=true", "keyboard:=false", "teleop:=false", "rviz:=false",
                            "markers:=" + out + "/config/markers.yaml", "recorder:=" + out + "/config/recorder.yaml",
@@ -154,26 +157,35 @@ TEST(SimRecord, RecordsARobotDrivenOnTheSimulatedTable) {
   }
   ASSERT_TRUE(start.count("R2") && start.count("G1"));
 
-  // Steer R2 onto G1: turn toward it, drive while facing it, stop on it.
+  // Drag R2 onto G1 in "rviz": press on its marker, move it there, let go.
+  ASSERT_TRUE(exec_test::waitFor([&] { return drag.getNumSubscribers() > 0u; }, 10.0))
+      << "sim_table serves no drag markers on /sim_table/drag";
+  for (const uint8_t event : {visualization_msgs::InteractiveMarkerFeedback::MOUSE_DOWN,
+                              visualization_msgs::InteractiveMarkerFeedback::POSE_UPDATE,
+                              visualization_msgs::InteractiveMarkerFeedback::MOUSE_UP}) {
+    visualization_msgs::InteractiveMarkerFeedback f;
+    f.header.frame_id = "table";
+    f.header.stamp = ros::Time::now();
+    f.client_id = "/rviz/InteractiveMarkers";
+    f.marker_name = "R2";
+    f.control_name = "move";
+    f.event_type = event;
+    f.pose.position.x = start["G1"].x;
+    f.pose.position.y = start["G1"].y;
+    f.pose.orientation.w = 1;
+    drag.publish(f);
+    ros::WallDuration(0.1).sleep();
+  }
+  Pose r2_before_stop;
   const bool arrived = exec_test::waitFor(
       [&] {
-        Pose r, g;
-        {
-          const std::lock_guard<std::mutex> l(mu);
-          r = truth["R2"], g = truth["G1"];
-        }
-        const double dx = g.x - r.x, dy = g.y - r.y;
-        if (std::hypot(dx, dy) < 0.01) return true;
-        const double err = std::remainder(std::atan2(dy, dx) - r.theta, 2 * M_PI);
-        const double v = std::abs(err) < 0.3 ? std::min(0.12, 2 * std::hypot(dx, dy)) : 0.0;
-        const double w = std::clamp(3.0 * err, -3.0, 3.0);
-        drive(v - w * 0.015, v + w * 0.015);
-        ros::Duration(0.05).sleep();
-        return false;
+        const std::lock_guard<std::mutex> l(mu);
+        r2_before_stop = truth["R2"];
+        return std::hypot(truth["R2"].x - start["G1"].x, truth["R2"].y - start["G1"].y) < 0.015;
       },
       30.0);
-  drive(0, 0);
-  ASSERT_TRUE(arrived) << "R2 did not reach G1 on the simulated table";
+  ASSERT_TRUE(arrived) << "R2 was not driven to G1 where it was dropped; it is at (" << r2_before_stop.x << ", "
+                       << r2_before_stop.y << ")";
   ros::Duration(1.5).sleep();  // still at the end, as a person lets go
   ASSERT_TRUE(exec_test::trigger("/recorder/stop", 10.0, &message)) << message;
   std::cout << "sim_record: " << message << "\n";

@@ -333,6 +333,12 @@ class Coordinator {
   /// tokens under way stopped; those that ended stay done on the table) or its END --
   /// naming `why`. No effect when there is none.
   void withdrawAhead(const std::string& why, CoordinatorOutput& out);
+  /// The first motion of a decided step whose motion class (task::motionClass: the mover's
+  /// kind, whether it carries a load, the target's kind) no demonstration has, as "R1:carry:B2
+  /// (robot+load->object)"; "" when every one was demonstrated or nothing was learned (a model
+  /// whose motions end at centres). Such a motion has no learned path or end: a team bound
+  /// without a lost robot decided what its training never showed.
+  std::string undemonstratedMotion(const std::vector<task::Token>& tokens) const;
   /// Per token of a step decided from `scene`: the robot tokens of the step bound for the
   /// same target whose end point lies nearer it (by more than arrival_tolerance_m), which
   /// start before it (Dispatch::addStep's start_after): places at one target are taken from

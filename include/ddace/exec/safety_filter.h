@@ -11,8 +11,10 @@
 // (p' = v e + w l e_perp), so keeping p at least contact + margin + l from a neighbour's
 // centre keeps the bodies at least contact + margin apart. Per neighbour j, with
 // h = |p - c_j| - (r_i + r_j + margin + l) and n the unit vector from c_j to p:
-//   n . p'  >=  -share * gain * h       (share 1/2 for a robot, which runs its own
-//                                        filter and takes the other half; 1 otherwise)
+//   n . p'  >=  -share * gain * h       (share 1/2 for a robot on its way, which runs
+//                                        its own filter and takes the other half; 1 for
+//                                        a standing one, which does not move away, and
+//                                        for an object)
 // The right side is never above 0, so a pair already inside the margin (a start scene,
 // a pushed robot) may separate but never close in; nearer contact than margin + l the
 // disc's own centre gets the same constraint at contact distance (x' = v e), so a robot
@@ -130,7 +132,8 @@ struct SafetyBody {
   bool load_touchable = false;
   /// It stands still (an idle robot, an object without a motion): a go-round passes it on
   /// the side the robot's command turns to, not by the right-hand rule two moving robots
-  /// share.
+  /// share; and a standing robot takes no half of a pair's constraint (it does not move
+  /// away), so the robot closes in on it at the full barrier rate.
   bool standing = false;
 };
 

@@ -119,6 +119,9 @@ struct Evaluation {
   /// Per trial with a dispatch: every token that had predecessors, "step 2 R3:move:G1 at
   /// 4.10 s, released by R1:move:R3 at 4.10 s" (who it waited for, and when).
   std::vector<std::vector<std::string>> waits;
+  /// Coordinated runs, per trial: the makespan async dispatch would give were every token to
+  /// take the time it took in the run (CoordinatedRun::async_bound_s; 0: not finished).
+  std::vector<double> async_bound_s;
 };
 
 Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOptions& options);

@@ -68,6 +68,10 @@ struct CoordinatedRun {
   std::vector<std::string> waits;  ///< who each token waited for (describeWaits)
   bool success = false;
   double makespan_s = 0;  ///< from the first decision to the last token's end (simulated)
+  /// The makespan async dispatch gives the run's steps were every token to take as long as
+  /// it took in this run (exec::scheduleSteps): what any dispatch that never starts a token
+  /// before its predecessors ended can reach, the tokens' times unchanged (0: not finished).
+  double async_bound_s = 0;
 };
 
 /// Runs the model on `gt`'s start through the coordinator with `max_replans`, applying `p`

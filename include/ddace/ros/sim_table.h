@@ -20,6 +20,9 @@
 // the corner markers of ~markers_file (or on ~table_size [width, depth] m from the
 // origin, when given or when there are no corners); ~scene (map name: [x, y(, yaw)]) over either;
 // ~robot/* (exec::DiffDriveParams); ~frame_id.
+// ~drag (bool): a person drags entities in rviz (interactive markers on ~drag/update,
+// feedback on ~drag/feedback; exec::SimTable::drag: robots drive to where they are dropped,
+// boxes and goals are carried there, nothing teleports). Drags ending short are logged.
 #pragma once
 
 #include <memory>
@@ -46,6 +49,8 @@ class SimTableNode {
     std::string frame_id = kTableFrame;
     /// A robot of the task whose wheels are not heard of within this long is reported.
     double wheels_grace_s = 5.0;
+    /// Entities dragged in rviz (interactive markers on ~drag/...): record.launch sim:=true.
+    bool drag = false;
   };
 
   SimTableNode(ros::NodeHandle nh, ros::NodeHandle pnh);

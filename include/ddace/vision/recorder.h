@@ -3,12 +3,14 @@
 //
 // Crash safety: rows go to demos/demo_NNN.csv.partial, each row (the first one with
 // the header) built in the recorder's own buffer and handed to the kernel in one
-// write(2), never through stdio, so the file never ends inside a row, whenever the
-// process dies; fdatasync at least every `flush_period_s` bounds what a power loss
-// takes. stop() checks the file with the task module's reader and renames it to
-// demo_NNN.csv. A recorder that is killed leaves the .partial file, whole rows only,
-// a valid CSV once renamed to .csv (empty when it died before the first row);
-// `ddace validate` reports it as a partial recording (rename it to use it, or delete it).
+// write(2), never through stdio, so every row whose addRow() returned is in the file,
+// whenever the process dies; fdatasync at least every `flush_period_s` bounds what a
+// power loss takes. stop() checks the file with the task module's reader and renames it
+// to demo_NNN.csv. A recorder that is killed leaves the .partial file: whole rows, and
+// at most a torn last row without its newline (Linux may end a write(2) to a file at a
+// page boundary when SIGKILL arrives during it); empty when it died before the first
+// row. `ddace validate` reports it as a partial recording; recoverPartialRecording()
+// (`ddace recover`) keeps its whole rows as the .csv.
 //
 // Owns: task.yaml from the configuration, the CSV rows, the current labels.
 // Must not: know about ROS or the tracker (recorder_node feeds it).
@@ -95,6 +97,23 @@ class LatestPositions {
   std::vector<bool> moved_hidden_;  // reappeared farther than start_m from where it was hidden
   double still_m_ = 0, still_s_ = 0, start_m_ = 0;
 };
+
+/// What recoverPartialRecording() kept and cut.
+struct RecoveredRecording {
+  std::string csv_path;  ///< the demonstration it wrote: the .partial name without ".partial"
+  size_t rows = 0;       ///< whole rows kept
+  size_t steps = 0;      ///< labelled steps in them (0: unlabelled, `ddace label` infers them)
+  std::string torn_row;  ///< the torn last row it cut (bytes after the last newline), "" when none
+};
+
+/// Keeps every whole row of a recorder's `partial_path` (demos/NAME.csv.partial) as
+/// demos/NAME.csv: the bytes up to its last newline, so only a torn last row (no newline:
+/// the recorder died while writing it) is cut, and returned. The rows kept are read back
+/// with the task module's reader (any length) before the .partial file is deleted. Throws
+/// ddace::Error naming the .partial file (line:column of a bad row) and leaves it as it
+/// was, with no .csv written, when NAME.csv exists, the file has no whole row after its
+/// header, or a row kept does not read as `spec`'s demonstration.
+RecoveredRecording recoverPartialRecording(const std::string& partial_path, const task::TaskSpec& spec);
 
 class DemoRecorder {
  public:

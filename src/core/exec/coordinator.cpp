@@ -791,6 +791,17 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
     r.token = tok;
     step.tokens.push_back(std::move(r));
   }
+  const std::string unsupported = undemonstratedMotion(d.tokens);
+  if (!unsupported.empty()) {
+    const std::vector<int> lost = lostEntities();
+    std::string lost_names;
+    for (int e : lost) lost_names += (lost_names.empty() ? "" : ", ") + spec_.entities[static_cast<size_t>(e)].name;
+    abort((lost.empty() ? std::string() : lost_names + " is lost and ") + "step " + std::to_string(step.step + 1) +
+              " as decided" + (lost.empty() ? "" : " without it") + " moves " + unsupported +
+              ": no demonstration has such a motion" + (lost.empty() ? "" : "; no decision without it"),
+          out);
+    return out;
+  }
   std::ostringstream os;
   os << "step " << step.step + 1 << ":";
   for (const auto& t : step.tokens) os << " " << task::tokenKey(t.token, spec_);
@@ -799,6 +810,16 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
   dispatch_->addStep(d.tokens, now_s, insideOut(d.tokens, history_.back().positions));
   advance(now_s, out);
   return out;
+}
+
+std::string Coordinator::undemonstratedMotion(const std::vector<task::Token>& tokens) const {
+  if (end_points_.by_class.empty()) return "";  // nothing learned to hold a decision to
+  for (size_t i = 0; i < tokens.size(); ++i) {
+    if (!tokens[i].isMotion()) continue;
+    const std::string motion = task::motionClass(spec_, tokens, i);
+    if (end_points_.by_class.count(motion) == 0) return task::tokenKey(tokens[i], spec_) + " (" + motion + ")";
+  }
+  return "";
 }
 
 CoordinatorOutput Coordinator::onDecisionError(uint32_t id, const std::string& error, double) {

@@ -425,7 +425,9 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   for (size_t j = 0; j < bodies.size(); ++j) {
     const SafetyBody& b = bodies[j];
     if (b.radius_m <= 0 || !b.position.allFinite() || isLoad(load, b)) continue;
-    const double share = b.robot ? 0.5 : 1.0;  // a robot runs its own filter: it takes the other half
+    // A robot on its way runs its own filter and takes the other half; a standing one does
+    // not move away, so the whole constraint is this robot's.
+    const double share = b.robot && !b.standing ? 0.5 : 1.0;
     const bool near_robot = (b.position - x).norm() <= params_.range_m;
     if (!near_robot && !(load && (b.position - load->position).norm() <= params_.range_m)) continue;
     if (load) loadBarrier(bs, params_, f, *load, b, static_cast<int>(j), target, share);

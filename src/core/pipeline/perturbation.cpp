@@ -517,6 +517,24 @@ class Runner {
     return "";
   }
 
+  /// The makespan of the run's steps under async were each token to take the time it took
+  /// here (0 when a token did not end).
+  double asyncBound(const exec::Dispatch& d) const {
+    std::vector<std::vector<task::Token>> steps;
+    std::vector<std::vector<double>> durations;
+    for (int k = 0; k < d.steps(); ++k) {
+      steps.push_back(d.tokens(k));
+      durations.emplace_back();
+      for (int i = 0; i < static_cast<int>(d.tokens(k).size()); ++i) {
+        if (!d.ended({k, i})) return 0;
+        durations.back().push_back(d.endTime({k, i}) - d.startTime({k, i}));
+      }
+    }
+    return exec::scheduleSteps(spec_, model_.sequence.info().dependencies, exec::DispatchMode::Async,
+                               policyReadsScene(model_), steps, durations, nullptr)
+        .makespan();
+  }
+
   CoordinatedRun result() {
     CoordinatedRun r;
     if (c_.running()) handle(c_.abortRun("not ended within " + std::to_string(kMaxRunS) + " s", now_));
@@ -540,6 +558,7 @@ class Runner {
     t.bodies = table_->bodies();
     t.body_report = table_->report();
     if (c_.dispatch()) {
+      r.async_bound_s = asyncBound(*c_.dispatch());
       t.makespan_s = c_.dispatch()->makespan();
       r.precedence_violations = c_.dispatch()->violations();
       r.waits = describeWaits(*c_.dispatch(), spec_);
@@ -685,8 +704,17 @@ PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& te
 }
 
 namespace {
+/// A run that lost a robot for good and aborted naming it (the goal where the run cannot go on
+/// without it: never a finish with the task undone).
+bool abortedNamingLost(const CoordinatedRun& run) {
+  if (run.finished) return false;
+  for (const std::string& l : run.lost)
+    if (run.reason.find(l.substr(0, l.find(':'))) != std::string::npos) return true;
+  return false;
+}
 struct Totals {
   int perturbed = 0, succeeded = 0, replans = 0, redecisions = 0, violations = 0, collisions = 0;
+  int aborted_naming_lost = 0;
   double lost_s = 0;
   int lost_n = 0;
   double makespan_s = 0;  ///< mean over the runs counted
@@ -700,6 +728,7 @@ Totals totals(const PerturbationReport& r, const std::vector<CoordinatedRun>& ru
     if (!all && !r.with[i].perturbed) continue;
     ++t.perturbed;
     t.succeeded += runs[i].success;
+    t.aborted_naming_lost += abortedNamingLost(runs[i]);
     t.makespan_s += runs[i].makespan_s;
     t.replans += runs[i].replans;
     t.redecisions += runs[i].redecisions;
@@ -752,6 +781,14 @@ void printPerturbation(const PerturbationReport& r, std::ostream& out) {
                 w.perturbed, w.replans, w.redecisions, w.lost_n ? w.lost_s / w.lost_n : 0.0, w.lost_n,
                 u.violations + wo.violations + w.violations);
   out << line;
+  if (r.perturbation.kind == PerturbationKind::RobotLost) {
+    std::snprintf(line, sizeof line,
+                  "  robot lost, with recovery: %d/%d went on without it and succeeded, %d/%d aborted naming it, "
+                  "%d/%d neither\n",
+                  w.succeeded, w.perturbed, w.aborted_naming_lost, w.perturbed,
+                  w.perturbed - w.succeeded - w.aborted_naming_lost, w.perturbed);
+    out << line;
+  }
   if (!r.unperturbed.empty() && r.unperturbed.front().trial.bodies) {
     std::snprintf(line, sizeof line, "  collisions: %d unperturbed, %d without recovery, %d with\n", u.collisions,
                   wo.collisions, w.collisions);
@@ -784,8 +821,13 @@ std::string perturbationJson(const PerturbationReport& r) {
         {"without_recovery", &r.without},
         {"with_recovery", &r.with}}) {
     const Totals t = totals(r, *runs, runs == &r.unperturbed);
-    j[name] = {{"perturbed", t.perturbed},     {"succeeded", t.succeeded},   {"replans", t.replans},
-               {"redecisions", t.redecisions}, {"collisions", t.collisions}, {"precedence_violations", t.violations}};
+    j[name] = {{"perturbed", t.perturbed},
+               {"succeeded", t.succeeded},
+               {"aborted_naming_lost", t.aborted_naming_lost},
+               {"replans", t.replans},
+               {"redecisions", t.redecisions},
+               {"collisions", t.collisions},
+               {"precedence_violations", t.violations}};
   }
   j["per_trial"] = nlohmann::json::array();
   for (size_t i = 0; i < r.demos.size(); ++i)

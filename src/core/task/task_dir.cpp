@@ -116,8 +116,9 @@ void checkDir(const std::string& path, TaskSpec& spec, std::vector<Diagnostic>& 
     errors.push_back({demos.string(), 0, 0, "no demonstrations (expected demos/*.csv)"});
   for (const auto& p : listing.partial) {
     errors.push_back({p.string(), 0, 0,
-                      "partial recording (the recorder stopped without finishing it): "
-                      "inspect it, then rename it to .csv to use it or delete it"});
+                      "partial recording (the recorder stopped without finishing it): `ddace recover " +
+                          p.parent_path().parent_path().string() +
+                          "` keeps its whole rows as .csv (cutting a row torn by the kill), or delete it"});
   }
   for (const auto& p : listing.csvs) {
     try {

@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <regex>
 #include <sstream>
 #include <utility>
@@ -239,8 +240,9 @@ bool DemoRecorder::addRow(double t_abs, const std::vector<Eigen::Vector2d>& posi
     }
   }
   row += "\n";
-  // One write(2) per row: the kernel has either none or all of it, so a killed
-  // recorder leaves whole rows (stdio would hand over 4 KiB blocks cut anywhere).
+  // One write(2) per row, nothing held back: a killed recorder leaves every row added
+  // (stdio would hold rows back and hand over 4 KiB blocks cut anywhere). A kill during
+  // the write can still tear this row at a page boundary: recoverPartialRecording cuts it.
   writeWhole(row);
   last_t_ = std::max(0.0, t);
   ++rows_;
@@ -313,6 +315,84 @@ std::string DemoRecorder::stop() {
   fs::rename(partial_path_, final_path_, ec);
   if (ec) throw Error(Diagnostic{partial_path_, 0, 0, "cannot rename to " + final_path_ + ": " + ec.message()});
   return final_path_;
+}
+
+namespace {
+
+/// The offset just after the last newline of the `size` bytes of `path` (0 when there is
+/// none), read from its end: a file of any length.
+std::uintmax_t endOfWholeLines(const std::string& path, std::uintmax_t size) {
+  std::ifstream in(path, std::ios::binary);
+  char buf[4096];
+  for (std::uintmax_t end = size; end > 0;) {
+    const std::uintmax_t n = std::min<std::uintmax_t>(sizeof buf, end);
+    in.seekg(static_cast<std::streamoff>(end - n));
+    in.read(buf, static_cast<std::streamsize>(n));
+    if (!in) throw Error(Diagnostic{path, 0, 0, "cannot read: " + std::string(std::strerror(errno))});
+    for (std::uintmax_t i = n; i-- > 0;)
+      if (buf[i] == '\n') return end - n + i + 1;
+    end -= n;
+  }
+  return 0;
+}
+
+/// Copies the first `bytes` bytes of `from` to `to` (written whole or not at all).
+void copyPrefix(const std::string& from, std::uintmax_t bytes, const std::string& to) {
+  std::ifstream in(from, std::ios::binary);
+  OutputFile out(to);
+  char buf[1 << 16];
+  for (std::uintmax_t left = bytes; left > 0;) {
+    const std::uintmax_t n = std::min<std::uintmax_t>(sizeof buf, left);
+    in.read(buf, static_cast<std::streamsize>(n));
+    if (!in) throw Error(Diagnostic{from, 0, 0, "cannot read: " + std::string(std::strerror(errno))});
+    out.write(std::string_view(buf, n));
+    left -= n;
+  }
+  out.commit();
+}
+
+}  // namespace
+
+RecoveredRecording recoverPartialRecording(const std::string& partial, const task::TaskSpec& spec) {
+  const std::string suffix = ".csv.partial";
+  if (partial.size() <= suffix.size() || partial.compare(partial.size() - suffix.size(), suffix.size(), suffix) != 0)
+    throw Error(Diagnostic{partial, 0, 0, "not a recorder's partial recording (demos/NAME.csv.partial)"});
+  RecoveredRecording r;
+  r.csv_path = partial.substr(0, partial.size() - std::string(".partial").size());
+  std::error_code ec;
+  if (fs::exists(r.csv_path, ec) || ec)
+    throw Error(
+        Diagnostic{partial, 0, 0, r.csv_path + " exists already; rename one of the two (the next free demo_NNN.csv)"});
+  const std::uintmax_t size = fs::file_size(partial, ec);
+  if (ec) throw Error(Diagnostic{partial, 0, 0, "cannot read: " + ec.message()});
+  const std::uintmax_t whole = endOfWholeLines(partial, size);
+  if (whole == 0)
+    throw Error(Diagnostic{partial, 1, 0,
+                           size == 0 ? "empty: the recorder died before its first row; nothing to keep, delete it"
+                                     : "no whole line: the recorder died while writing its first row; nothing to "
+                                       "keep, delete it"});
+  {
+    std::ifstream in(partial, std::ios::binary);
+    r.torn_row.resize(static_cast<size_t>(size - whole));
+    in.seekg(static_cast<std::streamoff>(whole));
+    in.read(r.torn_row.data(), static_cast<std::streamsize>(r.torn_row.size()));
+    if (!in) throw Error(Diagnostic{partial, 0, 0, "cannot read: " + std::string(std::strerror(errno))});
+  }
+  copyPrefix(partial, whole, r.csv_path);
+  try {
+    const task::DemonstrationSummary kept = task::summarizeDemonstrationCsv(r.csv_path, spec);
+    r.rows = kept.rows;
+    r.steps = kept.step_count;
+  } catch (const Error& e) {
+    fs::remove(r.csv_path, ec);
+    std::vector<Diagnostic> errors = e.diagnostics();
+    for (auto& d : errors)
+      if (d.file == r.csv_path) d.file = partial;  // its lines are the .partial file's lines
+    throw Error(errors);
+  }
+  fs::remove(partial, ec);
+  if (ec) throw Error(Diagnostic{partial, 0, 0, "kept as " + r.csv_path + " but cannot delete it: " + ec.message()});
+  return r;
 }
 
 void DemoRecorder::discard() {

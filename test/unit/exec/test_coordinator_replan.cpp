@@ -383,3 +383,51 @@ TEST(Redecide, ACarrierLostWithItsLoadBeginsTheTaskAgainFromTheSceneAsItIs) {
   ASSERT_TRUE(again.decision) << d.reason();
   EXPECT_EQ(again.decision->history.size(), 2u) << "the step decided again after step 1";
 }
+
+// A decided step that moves what no demonstration moved -- a motion class without a learned
+// end or path, such as a team bound without a lost robot carrying one box onto the other --
+// is refused: the run aborts naming the motion (and the lost robot), never drives it.
+TEST(Redecide, AStepWithAMotionNoDemonstrationHasAbortsNamingIt) {
+  const task::TaskDir dir = generated("deliver");  // fetch (robot->object), carry (robot+load->goal, object->goal)
+  const task::Demonstration& demo = dir.demos.front();
+  const int r1 = dir.spec.entityIndex("R1"), r2 = dir.spec.entityIndex("R2"), g1 = dir.spec.entityIndex("G1");
+  const auto started = [&](Coordinator& c) {
+    c.onEntities(observe(demo.positions.front()), 0.0);
+    return c.start(0.0);
+  };
+  {
+    Coordinator c{dir.spec, CoordinatorConfig{}, task::learnEndPoints(dir.spec, dir.demos)};
+    const auto s = started(c);
+    const auto out = c.onDecision(s.decision->id, Decision{false, {task::Token{r1, "move", g1}}}, 0.1);
+    EXPECT_EQ(c.state(), RunState::Aborted);
+    EXPECT_TRUE(out.paths.empty() && out.segments.empty()) << "nothing is driven";
+    EXPECT_NE(c.reason().find("R1:move:G1 (robot->goal)"), std::string::npos) << c.reason();
+    EXPECT_NE(c.reason().find("no demonstration has such a motion"), std::string::npos) << c.reason();
+  }
+  {
+    // The demonstrated step runs.
+    Coordinator c{dir.spec, CoordinatorConfig{}, task::learnEndPoints(dir.spec, dir.demos)};
+    const auto s = started(c);
+    const auto out = c.onDecision(s.decision->id, replayDecision(demo, s.decision->history), 0.1);
+    EXPECT_TRUE(c.running()) << c.reason();
+    EXPECT_FALSE(out.paths.empty());
+  }
+  {
+    // R2 lost for good; the step decided without it sends R1 to a goal with nothing to carry
+    // (robot->goal): refused, naming R2.
+    CoordinatorConfig cfg;
+    cfg.robot_lost_after_s = 1;
+    Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};
+    EntityObservation obs = observe(demo.positions.front());
+    obs.tracked[static_cast<size_t>(r2)] = false;
+    c.onEntities(obs, 0.0);
+    c.start(0.0);
+    const auto out = c.onTick(1.0);
+    ASSERT_TRUE(out.decision) << c.reason();
+    ASSERT_EQ(out.decision->lost, std::vector<int>{r2});
+    c.onDecision(out.decision->id, Decision{false, {task::Token{r1, "move", g1}}}, 1.1);
+    EXPECT_EQ(c.state(), RunState::Aborted);
+    EXPECT_EQ(c.reason().rfind("R2 is lost and step 1 as decided without it moves R1:move:G1", 0), 0u) << c.reason();
+    EXPECT_NE(c.reason().find("no decision without it"), std::string::npos) << c.reason();
+  }
+}

@@ -138,6 +138,24 @@ TEST(SafetyFilter, FreeRoadPassesTheCommandUnchanged) {
   EXPECT_FALSE(c.blocked);
 }
 
+// A robot closing in on the robot it is sent to: on its way, that one runs its own filter
+// and takes half of the pair's constraint; standing, it does not move away, so the whole
+// rate is this robot's -- it closes a 1 cm gap twice as fast, and still no faster than the
+// barrier allows (before: half the rate either way, every meeting at a standing robot
+// crawling the last centimetres).
+TEST(SafetyFilter, ARobotClosesInOnAStandingRobotAtTheWholeBarrierRate) {
+  const SafetyParams sp;
+  const double gap = 0.01;
+  const auto closing = [&](bool standing) {
+    SafetyFilter f(sp, 0.03, 0.2, 4.0);
+    SafetyBody target{"R2", {2 * kRadius + gap, 0}, kRadius, true, 0.03, false};
+    target.standing = standing;
+    return f.filter("R1", {0, 0, 0}, kRadius, 0.03, {0.15, 0.15}, 0.0, {target}, "R2", 0).v_mps;
+  };
+  EXPECT_NEAR(closing(false), 0.5 * sp.barrier_gain_hz * gap, 1e-9);
+  EXPECT_NEAR(closing(true), sp.barrier_gain_hz * gap, 1e-9);
+}
+
 TEST(SafetyFilter, HeadOnBothArriveWithoutContact) {
   const Vector2d a(0.1, 0.3), b(0.5, 0.3);
   const Outcome o =

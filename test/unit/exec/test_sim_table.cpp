@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <algorithm>
 #include <limits>
 #include <string>
 
@@ -108,4 +109,102 @@ TEST(LayoutScene, SaysWhenARowDoesNotFit) {
   const std::string e = errorOf([&] { layoutScene(spec, {0, 0}, {1.0, 1.0}); });
   EXPECT_TRUE(contains(e, "30 robots do not fit")) << e;
   EXPECT_TRUE(contains(e, "give their start poses")) << e;
+}
+
+namespace {
+
+/// Steps until no drag is left (or `limit_s`); the largest distance any entity moved in one period.
+double stepDrags(SimTable& sim, double limit_s, std::vector<double>* largest_step = nullptr) {
+  double t = 0;
+  auto any = [&] {
+    for (const auto& target : sim.dragTargets())
+      if (target) return true;
+    return false;
+  };
+  for (; t < limit_s && any(); t += sim.periodS()) {
+    const auto before = sim.entities();
+    sim.step();
+    const auto after = sim.entities();
+    if (largest_step)
+      for (size_t i = 0; i < after.size(); ++i)
+        (*largest_step)[i] =
+            std::max((*largest_step)[i], (after[i].pose.position() - before[i].pose.position()).norm());
+  }
+  return t;
+}
+
+}  // namespace
+
+// A dragged robot is not teleported: it turns and drives to where it was dropped on its
+// wheels, never faster than they go, and stops there.
+TEST(SimTable, ADraggedRobotDrivesToWhereItWasDroppedOnItsWheels) {
+  SimTable sim = table();
+  const Eigen::Vector2d target(0.1, 0.32);  // behind it, to its left: it turns first
+  sim.drag("R2", target, "rviz");
+  std::vector<double> largest(4, 0.0);
+  const double took_s = stepDrags(sim, 15.0, &largest);
+  EXPECT_LT(took_s, 15.0) << "the drag never ended";
+  const auto e = sim.entities();
+  EXPECT_LT((e[R2].pose.position() - target).norm(), SimTable::kDragStopM + 0.003);
+  EXPECT_LE(largest[R2], DiffDriveParams{}.max_wheel_speed_mps * sim.periodS() + 1e-9);
+  EXPECT_DOUBLE_EQ(e[R1].pose.x, 0.2);
+  EXPECT_DOUBLE_EQ(e[B1].pose.x, 0.3);
+  EXPECT_TRUE(sim.takeDragNotes().empty());
+  for (int k = 0; k < 50; ++k) sim.step();
+  EXPECT_LT((sim.entities()[R2].pose.position() - e[R2].pose.position()).norm(), 1e-3) << "it stands";
+}
+
+// A hand carries a box or a goal at hand speed; a goal has no body and passes under a robot.
+TEST(SimTable, ADraggedBoxOrGoalIsCarriedByHand) {
+  SimTable sim = table();
+  sim.drag("B1", {0.5, 0.7}, "rviz");
+  sim.drag("G1", {0.2, 0.2}, "rviz");  // onto R2
+  std::vector<double> largest(4, 0.0);
+  stepDrags(sim, 10.0, &largest);
+  const auto e = sim.entities();
+  EXPECT_LT((e[B1].pose.position() - Eigen::Vector2d(0.5, 0.7)).norm(), 1e-6);
+  EXPECT_LT((e[G1].pose.position() - Eigen::Vector2d(0.2, 0.2)).norm(), 1e-6);
+  EXPECT_LE(largest[B1], SimTable::kHandSpeedMps * sim.periodS() + 1e-6);  // (Box2D keeps floats)
+  EXPECT_DOUBLE_EQ(e[R2].pose.x, 0.2);
+  EXPECT_TRUE(sim.takeDragNotes().empty());
+}
+
+// A box dragged onto a robot stops at contact with it, and the drag ends there saying so.
+TEST(SimTable, ABoxDraggedOntoARobotStopsAtContactSayingSo) {
+  SimTable sim = table();
+  sim.drag("B1", {0.2, 0.2}, "rviz");  // R2 stands there
+  stepDrags(sim, 20.0);
+  const auto e = sim.entities();
+  const double gap = (e[B1].pose.position() - e[R2].pose.position()).norm();
+  EXPECT_GE(gap, sim.spec().contactDistance(B1, R2) - 1e-3) << "the box went into the robot";
+  EXPECT_LT(gap, sim.spec().contactDistance(B1, R2) + 0.005) << "it stopped short of contact";
+  const auto notes = sim.takeDragNotes();
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_TRUE(contains(notes[0], "B1 stopped ")) << notes[0];
+  EXPECT_TRUE(contains(notes[0], "drag it around")) << notes[0];
+}
+
+// The teleop idles on its robot with zero wheels: that does not stop a drag; keys pressed do.
+TEST(SimTable, TheKeysTakeOverFromADrag) {
+  SimTable sim = table();
+  sim.drag("R2", {0.6, 0.2}, "rviz");
+  for (int k = 0; k < 25; ++k) {
+    sim.drive("R2", {0, 0}, "teleop");
+    sim.step();
+  }
+  EXPECT_TRUE(sim.dragTargets()[R2].has_value());
+  EXPECT_GT(sim.entities()[R2].pose.x, 0.21);
+  sim.drive("R2", {-0.05, 0.05}, "teleop");
+  EXPECT_FALSE(sim.dragTargets()[R2].has_value());
+}
+
+TEST(SimTable, RefusesADragOfWhatIsNotOnTheTableNamingTheSource) {
+  SimTable sim = table();
+  EXPECT_TRUE(contains(errorOf([&] {
+                         sim.drag("R9", {0.5, 0.5}, "/sim_table/drag");
+                       }),
+                       "/sim_table/drag: 'R9' is no entity"));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(contains(errorOf([&] { sim.drag("R1", {nan, 0.5}, "rviz"); }), "R1 dragged to a non-finite"));
+  EXPECT_FALSE(sim.dragTargets()[R1].has_value());
 }

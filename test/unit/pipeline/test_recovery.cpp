@@ -11,6 +11,7 @@
 #include "ddace/pipeline/decisions_without.h"
 #include "ddace/pipeline/evaluation.h"
 #include "ddace/pipeline/perturbation.h"
+#include "ddace/tasks/rule_zoo.h"
 
 #include "../common/generated_task.h"
 #include "shared_model.h"
@@ -281,4 +282,44 @@ TEST(RobotLostJudgement, ABoxNotWhereTheDemonstrationLeftItIsNamed) {
             "B1 did not end at " + spec.entities[static_cast<size_t>(goal)].name + ", where the demonstration left it");
   EXPECT_EQ(pipeline::objectNotWhereDemonstrated(spec, demo, end, {goal}), "")
       << "an object the demonstration left at an entity that is lost is not asked for";
+}
+
+namespace {
+
+/// zoo:two-pairs, as `ddace generate zoo:two-pairs --train 10 --seed 1`: two carrier-load
+/// pairs, trained on teams of two robots only.
+struct TwoPairsModel {
+  static constexpr const char* kDir = "ddace_recovery_two_pairs";
+  static task::TaskDir demos(int n, uint64_t seed) {
+    uint64_t rule = 0;
+    tasks::ZooMotion motion;
+    if (!tasks::parseZooFamily("zoo:two-pairs", rule, &motion)) throw Error("zoo:two-pairs is not a zoo family");
+    return tasks::generateZoo(rule, n, seed, motion);
+  }
+  static pipeline::Model train(const std::string& dir) {
+    return pipeline::trainModel(demos(10, 1), tgn::TrainOptions{}, dir, nullptr);
+  }
+};
+using TwoPairsLost = ddace::test::SharedModel<TwoPairsModel>;
+
+}  // namespace
+
+// A robot lost for good where the model, trained on teams of two, decides for the one left a
+// motion no demonstration has (carrying one box onto the other): the run aborts naming the
+// lost robot and the motion; it never finishes with a box left where the task does not end.
+TEST_F(TwoPairsLost, ARobotLostWhereTheModelCannotGoOnAbortsNamingIt) {
+  const task::TaskDir test = TwoPairsModel::demos(3, 2654435761ULL + 0x7e57);
+  const pipeline::PerturbationReport lost = pipeline::evaluatePerturbed(
+      *model_, test, pipeline::parsePerturbation("robot_lost", "--perturb"), exec::DispatchMode::Steps, 5);
+  for (size_t i = 0; i < lost.demos.size(); ++i) {
+    const pipeline::CoordinatedRun& with = lost.with[i];
+    EXPECT_TRUE(lost.unperturbed[i].success) << lost.demos[i] << " " << lost.unperturbed[i].failure;
+    ASSERT_TRUE(with.perturbed) << lost.demos[i];
+    ASSERT_EQ(with.lost.size(), 1u) << with.reason;
+    if (with.success) continue;  // went on without it and did the task
+    EXPECT_FALSE(with.finished) << lost.demos[i] << ": finished with the task undone: " << with.failure;
+    const std::string name = with.lost[0].substr(0, with.lost[0].find(':'));
+    EXPECT_EQ(with.reason.rfind(name + " is lost", 0), 0u) << with.reason;
+    EXPECT_NE(with.reason.find("no demonstration has such a motion"), std::string::npos) << with.reason;
+  }
 }

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <thread>
 
+#include "../common/run_tool.h"
 #include "ddace/common/error.h"
 #include "ddace/common/file.h"
 #include "ddace/common/repository.h"
@@ -257,21 +258,125 @@ TEST(Recorder, KillNineLeavesWholeRowsAtAnyKillPoint) {
     const std::string& partial = killed.partial;
     ASSERT_FALSE(partial.empty()) << "the recorder did not start";
     ASSERT_TRUE(fs::exists(partial));
-    // The documented recovery: rename the .partial file to .csv; the directory validates.
-    const std::string csv = partial.substr(0, partial.size() - std::string(".partial").size());
-    fs::rename(partial, csv);
-    const std::string text = readTextFile(csv);
-    ASSERT_FALSE(text.empty());
-    EXPECT_EQ(text.back(), '\n') << "killed after " << kill_after << " s: the last row is torn";
+    // The documented recovery (`ddace recover`): the whole rows become the .csv, a row
+    // torn by the kill (rarely: a write cut at a page boundary) is cut; the directory validates.
+    const std::string text = readTextFile(partial);
+    RecoveredRecording r;
+    try {
+      r = recoverPartialRecording(partial, spec);
+    } catch (const Error& e) {
+      ADD_FAILURE() << "killed after " << kill_after << " s: " << e.what();
+      continue;
+    }
+    EXPECT_EQ(readTextFile(r.csv_path) + r.torn_row, text) << "only the torn last row is cut";
+    EXPECT_EQ(r.torn_row.find('\n'), std::string::npos);
     const task::TaskDirReport report = task::checkTaskDir(dir.path.string());
     EXPECT_TRUE(report.errors.empty()) << "killed after " << kill_after
                                        << " s: " << (report.errors.empty() ? "" : report.errors[0].message);
-    const task::Demonstration d = task::readDemonstrationCsv(csv, spec);
+    const task::Demonstration d = task::readDemonstrationCsv(r.csv_path, spec);
+    EXPECT_EQ(d.rows(), r.rows);
     // Every row added before the kill is in the file (rows are not held back), however
     // fast the machine ran.
     EXPECT_GE(d.rows(), static_cast<size_t>(killed.rows_added)) << "killed after " << kill_after << " s";
     EXPECT_GT(killed.rows_added, 0);
   }
+}
+
+namespace {
+
+/// A task directory with one recording left .partial (40 rows of the shipped task, R1
+/// labelled); returns the .partial file's path and fills `text` with its bytes.
+std::string leftPartial(const fs::path& dir, std::string& text) {
+  const RecorderConfig c = shippedConfig();
+  DemoRecorder rec(c.spec, dir.string(), 1.0);
+  rec.start(0.0);
+  rec.setLabel("R1", "move", "G1");
+  for (int i = 0; i < 40; ++i) rec.addRow(i / 30.0, positions(i / 30.0));
+  text = readTextFile(rec.partialPath());
+  return rec.partialPath();
+}
+
+}  // namespace
+
+// What a kill during a row's write(2) leaves, made exactly: the file cut inside, at the
+// start and at the end of its last two rows (one lacking only its newline). The recovery
+// keeps every whole row and cuts only the torn one.
+TEST(Recorder, RecoveryKeepsEveryWholeRowAndCutsOnlyATornLastRow) {
+  TempDir dir;
+  std::string text;
+  const std::string partial = leftPartial(dir.path, text);
+  const task::TaskSpec spec = shippedConfig().spec;
+  const size_t last = text.rfind('\n', text.size() - 2) + 1;  // the last row's start
+  const size_t before_last = text.rfind('\n', last - 2) + 1;  // the row before it
+  const size_t mid = (last + text.size()) / 2;
+  for (size_t cut : {before_last + 1, last - 1, last, last + 1, mid, text.size() - 1, text.size()}) {
+    writeTextFile(partial, text.substr(0, cut));
+    const RecoveredRecording r = recoverPartialRecording(partial, spec);
+    const size_t whole = text.rfind('\n', cut - 1) + 1;
+    EXPECT_EQ(readTextFile(r.csv_path), text.substr(0, whole)) << "cut at " << cut;
+    EXPECT_EQ(r.torn_row, text.substr(whole, cut - whole)) << "the torn row is shown as it was";
+    EXPECT_EQ(r.rows, static_cast<size_t>(std::count(text.begin(), text.begin() + whole, '\n')) - 1);
+    EXPECT_EQ(r.rows, cut == text.size() ? 40u : (cut >= last ? 39u : 38u));
+    EXPECT_EQ(r.steps, 1u);
+    EXPECT_FALSE(fs::exists(partial));
+    EXPECT_TRUE(task::checkTaskDir(dir.path.string()).errors.empty()) << "cut at " << cut;
+    fs::remove(r.csv_path);
+  }
+}
+
+// A .partial file that cannot be kept is left exactly as it was, and no .csv is written.
+TEST(Recorder, RecoveryLeavesWhatItCannotKeepAsItWas) {
+  TempDir dir;
+  std::string text;
+  const std::string partial = leftPartial(dir.path, text);
+  const std::string csv = partial.substr(0, partial.size() - std::string(".partial").size());
+  const task::TaskSpec spec = shippedConfig().spec;
+  const size_t header_end = text.find('\n') + 1;
+  auto refused = [&](const std::string& bytes, const std::string& why) {
+    writeTextFile(partial, bytes);
+    try {
+      recoverPartialRecording(partial, spec);
+      ADD_FAILURE() << "kept: " << why;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(partial), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(readTextFile(partial), bytes);
+    EXPECT_FALSE(fs::exists(csv));
+  };
+  refused("", "empty");
+  refused(text.substr(0, header_end - 5), "no whole line");  // died in the first write
+  refused(text.substr(0, header_end + 20), "no data rows");  // the first row torn
+  std::string bad = text;
+  bad[text.find('\n', header_end) + 1] = 'x';  // row 2's t (line 3)
+  refused(bad, ":3:");
+  writeTextFile(csv, "theirs");
+  writeTextFile(partial, text);
+  EXPECT_THROW(recoverPartialRecording(partial, spec), Error);  // never over another demonstration
+  EXPECT_EQ(readTextFile(csv), "theirs");
+  EXPECT_EQ(readTextFile(partial), text);
+}
+
+// The recovery as a user runs it: validate names the command, recover says what it cut.
+TEST(Recorder, DdaceRecoverKeepsTheWholeRowsAndShowsTheTornOne) {
+  TempDir dir;
+  std::string text;
+  const std::string partial = leftPartial(dir.path, text);
+  const size_t last = text.rfind('\n', text.size() - 2) + 1;
+  writeTextFile(partial, text.substr(0, last + 12));
+  const std::string d = "'" + dir.path.string() + "'";
+  const test::ToolRun before = test::runTool("validate " + d);
+  EXPECT_EQ(before.status, 1);
+  EXPECT_NE(before.out.find("partial recording"), std::string::npos) << before.out;
+  EXPECT_NE(before.out.find("ddace recover " + dir.path.string()), std::string::npos) << before.out;
+  const test::ToolRun run = test::runTool("recover " + d);
+  EXPECT_EQ(run.status, 0) << run.out;
+  EXPECT_NE(run.out.find("39 rows kept, labelled steps: 1"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("cut its torn last row (12 bytes without a newline"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find(text.substr(last, 12)), std::string::npos) << run.out;
+  const test::ToolRun after = test::runTool("validate " + d);
+  EXPECT_EQ(after.status, 0) << after.out;
+  EXPECT_NE(test::runTool("recover " + d).out.find("nothing to recover"), std::string::npos);
 }
 
 TEST(Recorder, RefusesADirectoryOfAnotherTask) {
