@@ -4,7 +4,7 @@
 // asks for no more threads than a machine has (issue: `threads: 100000` made inspect and
 // eval start 2,386 threads and hang). The task is test/fuzz/manifest_task.yaml. Parses
 // from memory (tgn::files::parseManifest takes the text). Most inputs stop at the
-// manifest's own digest: the corpus holds manifests sealed at ddace-model/16, both accepted
+// manifest's own digest: the corpus holds manifests sealed at ddace-model/17, both accepted
 // (task4_scene.yaml, and task4_scene_plan.yaml, the same with every field of its training
 // plan set: name groups, token by token, parked, load actions, an ensemble of 3, an end scene; reseal them
 // at the current format, SHA-256 of every byte before the digest line, for the fuzzer to

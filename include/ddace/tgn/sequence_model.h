@@ -76,7 +76,7 @@ namespace ddace::tgn {
 /// (primitives.yaml /4), the hyper-parameters without `attention`, `node_positions` and
 /// `edge_displacement` (switches nothing set); /16: the end scene (`plan.end_scene`). Older
 /// ones are refused (retrain).
-inline constexpr const char* kModelFormat = "ddace-model/16";
+inline constexpr const char* kModelFormat = "ddace-model/17";
 
 /// The network of a model (docs/tgn.md). Names: "scene", "paper", "full-graph", "gnn".
 enum class Variant {

@@ -414,7 +414,10 @@ YAML::Node checkedRoot(Reader& r, const std::string& text, const std::string& pa
                          std::all_of(version.begin(), version.end(), [](char c) { return c >= '0' && c <= '9'; });
     if (numeric && std::stoi(version) < std::stoi(own)) {
       const int v = std::stoi(version);
-      const std::string lacks = std::string("its plan has no end scene (END counted the steps)") +
+      const std::string lacks = std::string(
+                                    "its scene features read a move as going to the nearest entity ahead, not "
+                                    "to the one it stopped at") +
+                                (v < 16 ? ", its plan has no end scene (END counted the steps)" : "") +
                                 (v < 15 ? ", its motion primitives are keyed by name only" : "") +
                                 (v < 14 ? ", token by token it chose the acting entities' targets only, not who "
                                           "acts, and it ranked a parked entity among the free ones"

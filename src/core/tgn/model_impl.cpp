@@ -297,29 +297,44 @@ std::vector<std::array<float, 4>> axisOrders(const PairView& v, const Rivals& ri
   return axis;
 }
 
-/// Each entity's last move (the latest step in which it moved more than the arrival
-/// radius): the entity it went to, or -1 (never moved). The target is where the motion
+/// The entity e's motion from `was` to `now` went to, or -1 (it moved no more than the
+/// arrival radius, or nothing lay ahead): of the entities whose place as the step began lies
+/// ahead (beyond the motion's midpoint, along it; what it carried started beside it,
+/// behind), the one it stopped where a motion toward it ends by the footprints: at contact
+/// with an obstacle, on a goal (task/end_point.h). Not the nearest: a robot that joins one
+/// standing on a goal stops a contact from both, and the nearest of the two was a
+/// millimetre's coincidence (a line-up's second robot "went to the goal" as the first did,
+/// so a fourth joined the head instead of the third). The target is where the motion
 /// headed, not where it stopped: a motion ends at contact with an obstacle target (a
 /// carrier further back, behind its load), so "within a distance" would depend on bodies.
-/// It is the entity whose place as the step began lies ahead (beyond the motion's
-/// midpoint, along it) and nearest to where the mover stopped; what it carried started
-/// beside it, behind. Chains over steps: "the giver follows the receiver" two steps after
-/// the handover.
-std::vector<int> lastMoves(const std::vector<Eigen::Vector2d>* history, size_t count, int n, double arrival_radius) {
+int wentTo(const task::TaskSpec& spec, const EntityOrder& order, const std::vector<Eigen::Vector2d>& was,
+           const std::vector<Eigen::Vector2d>& now, int e, double arrival_radius) {
+  const auto at = [](const std::vector<Eigen::Vector2d>& p, int k) { return p[static_cast<size_t>(k)]; };
+  const Eigen::Vector2d step = at(now, e) - at(was, e);
+  if (step.norm() <= arrival_radius) return -1;
+  int went = -1;
+  double best = std::numeric_limits<double>::infinity();
+  for (int f = 0; f < static_cast<int>(was.size()); ++f) {
+    if (f == e || (at(was, f) - at(was, e)).dot(step) < 0.5 * step.squaredNorm()) continue;
+    const double contact =
+        spec.contactDistance(order.task_of[static_cast<size_t>(e)], order.task_of[static_cast<size_t>(f)]);
+    const double off = std::abs((at(now, e) - at(was, f)).norm() - contact);
+    if (off < best) best = off, went = f;
+  }
+  return went;
+}
+
+/// Each entity's last move (the latest step in which it moved more than the arrival
+/// radius): the entity it went to (wentTo), or -1 (never moved). Chains over steps: "the
+/// giver follows the receiver" two steps after the handover.
+std::vector<int> lastMoves(const task::TaskSpec& spec, const EntityOrder& order,
+                           const std::vector<Eigen::Vector2d>* history, size_t count, int n, double arrival_radius) {
   std::vector<int> last_went(static_cast<size_t>(n), -1);
   for (int e = 0; e < n; ++e)
     for (size_t k = count - 1; k >= 1; --k) {
-      const auto& now = history[k];
-      const auto& was = history[k - 1];
-      const Eigen::Vector2d step = now[static_cast<size_t>(e)] - was[static_cast<size_t>(e)];
-      if (step.norm() <= arrival_radius) continue;
-      double best = std::numeric_limits<double>::infinity();
-      for (int f = 0; f < n; ++f) {
-        if (f == e || (was[static_cast<size_t>(f)] - was[static_cast<size_t>(e)]).dot(step) < 0.5 * step.squaredNorm())
-          continue;
-        const double m = (now[static_cast<size_t>(e)] - was[static_cast<size_t>(f)]).norm();
-        if (m < best) best = m, last_went[static_cast<size_t>(e)] = f;
-      }
+      if ((history[k][static_cast<size_t>(e)] - history[k - 1][static_cast<size_t>(e)]).norm() <= arrival_radius)
+        continue;
+      last_went[static_cast<size_t>(e)] = wentTo(spec, order, history[k - 1], history[k], e, arrival_radius);
       break;
     }
   return last_went;
@@ -380,16 +395,17 @@ PairRelations::PairRelations(const SequenceModel::Impl& model, const std::vector
       g = end;
     }
   }
-  // The last step (from the previous snapshot): e went to f when e moved and now stands
-  // where f stood (a motion ends on its target as the step began).
+  // The last step (from the previous snapshot): e went to f when its motion went to f
+  // (wentTo) and it now stands where f stood (at one place with f's place as the step began).
   s.went_to.assign(static_cast<size_t>(n * n), false);
   if (count > 1) {
     const auto& was = history[count - 2];
-    for (int e = 0; e < n; ++e)
-      for (int f = 0; f < n; ++f)
-        s.went_to[s.at(e, f)] = (pos[e] - was[e]).norm() > v.at(e, f) && (pos[e] - was[f]).norm() <= v.at(e, f);
+    for (int e = 0; e < n; ++e) {
+      const int f = wentTo(model.spec, model.order, was, pos, e, model.spec.arrival_radius);
+      if (f >= 0 && (pos[e] - was[f]).norm() <= v.at(e, f)) s.went_to[s.at(e, f)] = true;
+    }
   }
-  s.last_went = lastMoves(history, count, n, model.spec.arrival_radius);
+  s.last_went = lastMoves(model.spec, model.order, history, count, n, model.spec.arrival_radius);
 }
 
 PairRelations::~PairRelations() = default;

@@ -23,6 +23,7 @@
 #include "model_impl.h"
 
 #include "../common/file_tree.h"
+#include "../common/role_tasks.h"
 
 using namespace ddace;
 namespace fs = std::filesystem;
@@ -242,6 +243,45 @@ TEST(RelationalBasis, RemembersEachOnesLastMove) {
     if (j != receiver) {
       EXPECT_FLOAT_EQ(feature(giver, j, tgn::basis::kLastMoveTo), 0.f) << "one entity per last move";
     }
+}
+
+// A move went to the entity it stopped where a motion toward it ends (at contact with a
+// robot, on a goal), not the nearest: in a line-up the second robot joins the head, which
+// stands on G1, and stops a contact from both; by nearness its move "went to" G1 in some
+// scenes (a millimetre's coincidence), as the head's had, and a model trained with three
+// robots then sent a fourth to the head.
+TEST(RelationalBasis, AMoveWentToWhatItStoppedAtNotTheNearest) {
+  const task::TaskDir line = test::lineUp(10, 1, 4);
+  auto impl = tgn::prepare(line, tgn::TrainOptions{});
+  impl->build();
+  const int n = impl->cfg.nodes;
+  for (const task::Demonstration& demo : line.demos) {
+    const task::Demonstration d = impl->order.toCanonical(demo);
+    ASSERT_EQ(d.steps.size(), 4u) << demo.source;
+    std::vector<std::vector<Eigen::Vector2d>> history;
+    for (size_t k = 0; k < d.snapshots.size(); ++k) history.push_back(d.snapshots[k].positions);
+    // After step k (k = 1..3) its mover joined the robot of step k - 1: the last step's, and
+    // each one's last move, went to the robot it joined, the head's to G1.
+    for (size_t k = 1; k < 4; ++k) {
+      std::vector<float> rel(static_cast<size_t>(n * n * tgn::kRelativeFeatures));
+      impl->relative(history.data(), k + 2, rel.data());
+      const auto feature = [&](int i, int j, int f) {
+        return rel[static_cast<size_t>((i * n + j) * tgn::kRelativeFeatures + f)];
+      };
+      for (size_t s = 0; s <= k; ++s) {
+        const task::Token& t = d.steps[s].tokens.at(0);
+        for (int j = 0; j < n; ++j) {
+          const float expected = j == t.target ? 1.f : 0.f;
+          EXPECT_EQ(feature(t.entity, j, tgn::basis::kLastMoveTo), expected)
+              << demo.source << " after step " << k + 1 << ": the last move of step " << s + 1;
+          if (s == k) {
+            EXPECT_EQ(feature(t.entity, j, tgn::basis::kWentTo), expected)
+                << demo.source << " step " << k + 1 << ": went to the one it joined only";
+          }
+        }
+      }
+    }
+  }
 }
 
 // Entities at one place are seen from one place: "the robot nearest B1 fetches it and

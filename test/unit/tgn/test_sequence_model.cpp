@@ -220,7 +220,7 @@ TEST(SequenceModel, RejectsMissingTruncatedCorruptedAndMismatchedFiles) {
   EXPECT_NE(e.find("manifest.yaml records"), std::string::npos) << e;
   e = variant("other_format", [&](const fs::path& d) {
     rewrite(d / "manifest.yaml",
-            [](std::string& s) { s.replace(s.find("format: ddace-model/16"), 22, "format: ddace-model/17"); });
+            [](std::string& s) { s.replace(s.find("format: ddace-model/17"), 22, "format: ddace-model/18"); });
   });
   EXPECT_NE(e.find("manifest.yaml:"), std::string::npos) << e;
   e = variant("loss_row", [&](const fs::path& d) { rewrite(d / "loss.csv", [](std::string& s) { s += "x,y\n"; }); });
@@ -313,31 +313,35 @@ TEST(SequenceModel, RefusesEveryManifestEdit) {
   // An older format: retrain, saying what it lacks; a newer one: said so.
   for (const char* version :
        {"ddace-model/9", "ddace-model/8", "ddace-model/7", "ddace-model/5", "ddace-model/4", "ddace-model/2"}) {
-    const std::string old = edited("format: ddace-model/16", std::string("format: ") + version, false);
+    const std::string old = edited("format: ddace-model/17", std::string("format: ") + version, false);
     EXPECT_NE(old.find("retrain"), std::string::npos) << old;
     EXPECT_NE(old.find("relational basis"), std::string::npos) << old;
     EXPECT_EQ(old.find("no training plan") != std::string::npos, std::string(version) != "ddace-model/9") << old;
     EXPECT_NE(old.find("manifest.yaml:"), std::string::npos) << old;
   }
   {
-    const std::string old = edited("format: ddace-model/16", "format: ddace-model/10", false);
+    const std::string old = edited("format: ddace-model/17", "format: ddace-model/10", false);
     EXPECT_NE(old.find("retrain"), std::string::npos) << old;
     EXPECT_NE(old.find("no ensemble"), std::string::npos) << old;
-    const std::string twelve = edited("format: ddace-model/16", "format: ddace-model/12", false);
+    const std::string twelve = edited("format: ddace-model/17", "format: ddace-model/12", false);
     EXPECT_NE(twelve.find("relational basis"), std::string::npos) << twelve;
     EXPECT_EQ(twelve.find("no ensemble"), std::string::npos) << twelve;
-    const std::string thirteen = edited("format: ddace-model/16", "format: ddace-model/13", false);
+    const std::string thirteen = edited("format: ddace-model/17", "format: ddace-model/13", false);
     EXPECT_NE(thirteen.find("who acts"), std::string::npos) << thirteen;
     EXPECT_EQ(thirteen.find("relational basis"), std::string::npos) << thirteen;
-    const std::string fourteen = edited("format: ddace-model/16", "format: ddace-model/14", false);
+    const std::string fourteen = edited("format: ddace-model/17", "format: ddace-model/14", false);
     EXPECT_NE(fourteen.find("keyed by name only"), std::string::npos) << fourteen;
     EXPECT_EQ(fourteen.find("who acts"), std::string::npos) << fourteen;
-    const std::string last = edited("format: ddace-model/16", "format: ddace-model/15", false);
-    EXPECT_NE(last.find("no end scene"), std::string::npos) << last;
-    EXPECT_EQ(last.find("keyed by name only"), std::string::npos) << last;
+    const std::string fifteen = edited("format: ddace-model/17", "format: ddace-model/15", false);
+    EXPECT_NE(fifteen.find("no end scene"), std::string::npos) << fifteen;
+    EXPECT_EQ(fifteen.find("keyed by name only"), std::string::npos) << fifteen;
+    const std::string last = edited("format: ddace-model/17", "format: ddace-model/16", false);
+    EXPECT_NE(last.find("retrain"), std::string::npos) << last;
+    EXPECT_NE(last.find("the one it stopped at"), std::string::npos) << last;
+    EXPECT_EQ(last.find("no end scene"), std::string::npos) << last;
   }
-  EXPECT_NE(edited("format: ddace-model/16", "format: ddace-model/2", false).find("digests"), std::string::npos);
-  EXPECT_NE(edited("format: ddace-model/16", "format: ddace-model/18", false).find("newer"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/17", "format: ddace-model/2", false).find("digests"), std::string::npos);
+  EXPECT_NE(edited("format: ddace-model/17", "format: ddace-model/19", false).find("newer"), std::string::npos);
   {
     // The record is what training did: fetch's robots were shuffled (or, after 2 epochs, the
     // network without names kept: then none), Task 2's names not.

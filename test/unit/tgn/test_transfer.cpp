@@ -14,6 +14,7 @@
 #include "ddace/tgn/sequence_model.h"
 #include "ddace/tgn/detail.h"
 #include "../common/error_of.h"
+#include "../common/role_tasks.h"
 
 using namespace ddace;
 using ddace::test::errorOf;
@@ -61,6 +62,29 @@ TEST(OtherTeamSizes, AModelTrainedWithThreeRobotsDecidesForFive) {
     EXPECT_THROW(model.boundTo(tasks::generateZoo(zooId("zoo:two-boxes"), 1, 1).spec), Error)
         << family << ": a task with boxes has a kind the model never saw";
   }
+}
+
+// A line-up (the robot nearest G1 drives to it, each next one joins the one before it)
+// trained with 3 robots, run with 6 in fresh scenes: every robot joins the one that joined
+// last. With three robots the second had always stopped a contact from both the head and G1,
+// so by nearness its move had "gone to G1" as the head's had; the fourth robot was then sent
+// to the head (OSR 0.00 at 6).
+TEST(OtherTeamSizes, ALineUpTrainedWithThreeRobotsRunsWithSix) {
+  tgn::TrainOptions o;
+  o.without = {tgn::Rule::Ensemble};
+  const tgn::SequenceModel model = tgn::SequenceModel::train(test::lineUp(20, 1), o, nullptr);
+  ASSERT_EQ(model.transfer().refusal, "");
+  const task::TaskDir six = test::lineUp(10, 2, 6);
+  const tgn::SequenceModel bound = model.boundTo(six.spec);
+  int right = 0;
+  for (const auto& d : six.demos) {
+    ASSERT_EQ(d.steps.size(), 6u);
+    // The fourth step, decided from the scene the first three left.
+    const tgn::Prediction p = bound.predictNext({d.snapshots.begin(), d.snapshots.begin() + 4});
+    right += !p.end && p.tokens == d.steps[3].tokens;
+  }
+  EXPECT_GE(right, 9) << "of 10: the fourth robot joins the third";
+  EXPECT_GE(bound.stepAccuracy(six.demos), 0.9) << "every step of the six, and END";
 }
 
 // A bound model decides as the model does, without dropout: the same scene twice gives the
