@@ -666,3 +666,35 @@ TEST(BodiesExecution, RobotsMeetingAtOneRobotAllReachIt) {
 TEST(BodiesExecution, FourRobotsMeetingAtAFifthAllReachIt) {
   replayZoo("zoo:2", 10);
 }
+
+// A met robot ringed in by the robots that met it, its way to its goal through them: it
+// leaves through the widest gap between two of them that its body fits with the filter's
+// margin (behind or beside it), then goes round them (without: held inside the ring and
+// reported deadlocked). The rings of zoo:2 (test scene 3) and zoo:6 (test scene 7), step 2.
+TEST(BodiesExecution, ARobotRingedInByStandingRobotsLeavesThroughTheGapItFits) {
+  struct Ring {
+    Pose2D met;
+    std::vector<Vector2d> ring;
+    Vector2d goal;
+  };
+  const std::vector<Ring> rings{
+      {{0.813, 0.221, -2.02}, {{0.749, 0.246}, {0.807, 0.280}, {0.783, 0.181}, {0.880, 0.263}}, {0.535, 0.389}},
+      {{0.571, 0.479, -1.77}, {{0.596, 0.528}, {0.521, 0.463}, {0.631, 0.421}, {0.537, 0.578}}, {0.157, 0.128}}};
+  for (const Ring& r : rings) {
+    SCOPED_TRACE("ringed at " + std::to_string(r.met.x) + ", " + std::to_string(r.met.y));
+    const auto s = spec({{"R1", task::EntityKind::Robot},
+                         {"R2", task::EntityKind::Robot},
+                         {"R3", task::EntityKind::Robot},
+                         {"R4", task::EntityKind::Robot},
+                         {"R5", task::EntityKind::Robot},
+                         {"G1", task::EntityKind::Goal}});
+    std::vector<Pose2D> start{r.met};
+    for (const Vector2d& p : r.ring) start.push_back({p.x(), p.y(), 0});
+    start.push_back({r.goal.x(), r.goal.y(), 0});
+    BodiesExecution with = model(true);
+    const StepExecution a = runStep(with, s, start, {token(0, 5)}, {line(r.met.position(), r.goal)});
+    EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+    EXPECT_TRUE(task::arrived(a.positions[0], r.goal, 0.03)) << a.positions[0].transpose();
+    EXPECT_TRUE(with.report().collisions.empty());
+  }
+}
