@@ -121,6 +121,13 @@ struct Load {
   int object = 0;
   std::vector<int> carriers;
 };
+/// Carried loads: each object (in `entity_of`'s order: entity_of[i] is node i's entity of
+/// `spec`) with the entities, not objects, that can carry it as a step begins: those at its
+/// place (task::together) whose nearest object at their place it is. A robot stands at one
+/// load's place at most: a carrier beside another pair's box (two pairs fetched side by
+/// side) is that box's neighbour, not its carrier. Ties go to the first object.
+std::vector<Load> loadsAt(const task::TaskSpec& spec, const std::vector<int>& entity_of,
+                          const std::vector<Eigen::Vector2d>& pos);
 /// Carried loads (StepRules::load_actions): a load and its carrier are one decision. For
 /// each load whose tokens in `step` break the rule (the load takes a load action that no
 /// entity at its place takes with the same target, or one of them takes a load action

@@ -15,6 +15,7 @@ std::string seconds(double s) {
 
 #include "ddace/common/error.h"
 #include "ddace/exec/push_path.h"
+#include "ddace/exec/ride_path.h"
 #include "ddace/exec/table_simulator.h"
 
 namespace ddace::exec {
@@ -927,10 +928,15 @@ PlannedPath Coordinator::carrierPath(TokenRef ref, const PlannedPath& planned) {
   // Planned from where the load is now (a re-plan: it may have moved).
   const auto e = static_cast<size_t>(*load);
   const bool seen = observation_.positions.size() > e && observation_.tracked[e];
+  if (seen) at[e] = observation_.positions[e];
+  // A riding load's carrier drives the path shown where it passes the bodies standing, as
+  // the simulator decides it (ride_path.h).
+  if (drivesShownPath(spec_, step, static_cast<size_t>(ref.index), *load, at, planned.points, config_.loads_ride))
+    return planned;
   TokenRecord& c = record(ref);
   PlannedPath out;
-  out.points = pushPath(planned.points.front(), seen ? observation_.positions[e] : l->start, l->goal,
-                        spec_.contactDistance(c.token.entity, *load), c.goal, static_cast<int>(planned.points.size()),
+  out.points = pushPath(planned.points.front(), at[e], l->goal, spec_.contactDistance(c.token.entity, *load), c.goal,
+                        static_cast<int>(planned.points.size()),
                         pushObstacles(spec_, step, static_cast<size_t>(ref.index), *load, at));
   out.stddev_m.assign(out.points.size(), 0.0);
   c.goal = carrierEnd(out.points.back(), l->goal, config_.loads_ride);

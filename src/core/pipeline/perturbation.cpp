@@ -19,6 +19,7 @@
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/path_follower.h"
 #include "ddace/exec/scene.h"
+#include "ddace/exec/table_simulator.h"
 #include "ddace/pipeline/decisions_without.h"
 #include "ddace/task/body_geometry.h"
 
@@ -98,10 +99,12 @@ double traveled(const exec::Path& p) {
 }
 
 /// Points: every entity follows its segment's path ideally at cruise speed; a pushed
-/// entity fails its segment.
+/// entity fails its segment. A load its carrier carries in their step (exec::carries)
+/// moves along its own path only while the carrier moves: it stands while its carrier is
+/// stalled or dead, as a riding or pushed load does on a table with bodies.
 class PointTable : public Table {
  public:
-  explicit PointTable(std::vector<Eigen::Vector2d> start) : pos_(std::move(start)) {}
+  PointTable(const task::TaskSpec& spec, std::vector<Eigen::Vector2d> start) : spec_(spec), pos_(std::move(start)) {}
   void start(const std::vector<Mover>& segments, const exec::Coordinator&) override {
     for (const Mover& s : segments) {
       stop(s.entity);
@@ -124,7 +127,7 @@ class PointTable : public Table {
     now_ += kCycleS;
     std::vector<SegmentEnd> out;
     for (Running& r : running_) {
-      if (r.lost || now_ < r.stalled_until_s) continue;
+      if (standing(r) || standingCarrier(r)) continue;
       const auto f = factor_.find(r.mover.entity);
       r.along = std::min(r.mover.length, r.along + speed_ * (f == factor_.end() ? 1.0 : f->second) * kCycleS);
       pos_[static_cast<size_t>(r.mover.entity)] = pointAt(r.mover.path, r.along);
@@ -162,6 +165,15 @@ class PointTable : public Table {
     double along = 0, stalled_until_s = -1;
     bool lost = false;
   };
+  bool standing(const Running& r) const { return r.lost || now_ < r.stalled_until_s; }
+  /// Whether `load` is carried in its step by a robot segment that stands now.
+  bool standingCarrier(const Running& load) const {
+    return std::any_of(running_.begin(), running_.end(), [&](const Running& c) {
+      return &c != &load && standing(c) &&
+             exec::carries(spec_, c.mover.step, c.mover.token, load.mover.step, load.mover.token);
+    });
+  }
+  const task::TaskSpec& spec_;
   std::vector<Eigen::Vector2d> pos_;
   std::vector<Running> running_;
   std::map<int, exec::Path> executed_;
@@ -249,7 +261,7 @@ class Runner {
     for (const exec::Pose2D& pose : exec::startPoses(gt)) pos_.push_back(pose.position());
     tracked_.assign(pos_.size(), true);
     if (bodies) table_ = std::make_unique<BodyTable>(*bodies, spec, gt);
-    else table_ = std::make_unique<PointTable>(pos_);
+    else table_ = std::make_unique<PointTable>(spec, pos_);
     SplitMix64 rng(seed * 0x2545F4914F6CDD1DULL + 0x5eed);
     // A step of the demonstration with a motion the kind fits.
     std::vector<int> steps;

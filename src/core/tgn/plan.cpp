@@ -27,6 +27,8 @@ StepRules stepRulesOf(const task::TaskDir& train) {
   std::set<size_t> sizes[2];
   std::set<std::string> loads;
   bool carried = true;
+  std::vector<int> identity(train.spec.entities.size());
+  for (size_t i = 0; i < identity.size(); ++i) identity[i] = static_cast<int>(i);
   const auto isObject = [&](int e) {
     return train.spec.entities[static_cast<size_t>(e)].kind == task::EntityKind::Object;
   };
@@ -46,25 +48,20 @@ StepRules stepRulesOf(const task::TaskDir& train) {
         }
         sizes[decisions].insert(size);
       }
-      // Carried loads: who stands at an object's place as the step begins.
-      const auto& pos = d.snapshots[k].positions;
+      // Carried loads: who can carry each object as the step begins (detail::loadsAt).
       std::map<int, const task::Token*> token;
       for (const auto& t : step.tokens) token[t.entity] = &t;
       const auto same = [&](int a, int b) {
         return token.count(a) && token.count(b) && token[a]->action == token[b]->action &&
                token[a]->target == token[b]->target;
       };
-      for (int o = 0; o < static_cast<int>(pos.size()); ++o) {
-        if (!isObject(o)) continue;
+      for (const detail::Load& load : detail::loadsAt(train.spec, identity, d.snapshots[k].positions)) {
         bool with_carrier = false;
-        for (int c = 0; c < static_cast<int>(pos.size()); ++c) {
-          if (c == o || isObject(c) ||
-              !task::together(train.spec, c, pos[static_cast<size_t>(c)], o, pos[static_cast<size_t>(o)]))
-            continue;
-          with_carrier = with_carrier || same(o, c);
-          if (token.count(c) && loads.count(token[c]->action) && !same(o, c)) carried = false;
+        for (int c : load.carriers) {
+          with_carrier = with_carrier || same(load.object, c);
+          if (token.count(c) && loads.count(token[c]->action) && !same(load.object, c)) carried = false;
         }
-        if (token.count(o) && !with_carrier) carried = false;
+        if (token.count(load.object) && !with_carrier) carried = false;
       }
     }
   if (carried) r.load_actions.assign(loads.begin(), loads.end());

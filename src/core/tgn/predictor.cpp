@@ -73,22 +73,7 @@ double SequenceModel::Impl::endProbability(double p_end, const std::vector<Eigen
 }
 
 std::vector<detail::Load> SequenceModel::Impl::loadsAt(const std::vector<Eigen::Vector2d>& pos) const {
-  const int64_t n = cfg.nodes;
-  const auto isObject = [&](int64_t c) {
-    return spec.entities[static_cast<size_t>(order.task_of[static_cast<size_t>(c)])].kind == task::EntityKind::Object;
-  };
-  std::vector<detail::Load> loads;
-  for (int64_t o = 0; o < n; ++o) {
-    if (!isObject(o)) continue;
-    detail::Load load{static_cast<int>(o), {}};
-    for (int64_t c = 0; c < n; ++c)
-      if (c != o && !isObject(c) &&
-          task::together(spec, order.task_of[static_cast<size_t>(c)], pos[static_cast<size_t>(c)],
-                         order.task_of[static_cast<size_t>(o)], pos[static_cast<size_t>(o)]))
-        load.carriers.push_back(static_cast<int>(c));
-    loads.push_back(load);
-  }
-  return loads;
+  return detail::loadsAt(spec, order.task_of, pos);
 }
 
 Tensor SequenceModel::Impl::carriedBy(const std::vector<detail::Load>& loads) const {

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "ddace/common/error.h"
+#include "ddace/task/body_geometry.h"
 #include "ddace/tgn/detail.h"
 
 namespace ddace::tgn::detail {
@@ -245,6 +246,34 @@ StepDecision decideStep(double end_probability, const std::vector<double>& log_a
     d.tokens.assign(static_cast<size_t>(h.n), DecodedToken{});
   }
   return d;
+}
+
+std::vector<Load> loadsAt(const task::TaskSpec& spec, const std::vector<int>& entity_of,
+                          const std::vector<Eigen::Vector2d>& pos) {
+  const int n = static_cast<int>(entity_of.size());
+  if (pos.size() != entity_of.size()) throw Error("loadsAt: not one position per entity");
+  const auto isObject = [&](int i) {
+    return spec.entities.at(static_cast<size_t>(entity_of[static_cast<size_t>(i)])).kind == task::EntityKind::Object;
+  };
+  const auto at = [&](int c, int o) {
+    return task::together(spec, entity_of[static_cast<size_t>(c)], pos[static_cast<size_t>(c)],
+                          entity_of[static_cast<size_t>(o)], pos[static_cast<size_t>(o)]);
+  };
+  std::vector<Load> loads;
+  std::vector<int> load_of(static_cast<size_t>(n), -1);  // node -> index into loads
+  for (int o = 0; o < n; ++o)
+    if (isObject(o)) load_of[static_cast<size_t>(o)] = static_cast<int>(loads.size()), loads.push_back({o, {}});
+  for (int c = 0; c < n; ++c) {
+    if (isObject(c)) continue;
+    int nearest = -1;
+    for (int o = 0; o < n; ++o)
+      if (isObject(o) && at(c, o) &&
+          (nearest < 0 || (pos[static_cast<size_t>(o)] - pos[static_cast<size_t>(c)]).norm() <
+                              (pos[static_cast<size_t>(nearest)] - pos[static_cast<size_t>(c)]).norm()))
+        nearest = o;
+    if (nearest >= 0) loads[static_cast<size_t>(load_of[static_cast<size_t>(nearest)])].carriers.push_back(c);
+  }
+  return loads;
 }
 
 void coupleLoads(std::vector<DecodedToken>& step, const std::vector<double>& log_action, int actions,

@@ -313,6 +313,38 @@ TEST(PushedLoads, ARelayThroughTheCoordinatorRunsAsInTheSimulator) {
   }
 }
 
+// Riding loads (the eval default, mock robots) through the coordinator: a carrier drives
+// the path it was shown where that passes the bodies standing, as the simulator decides it
+// (exec::drivesShownPath), not a loop round its box to push it; every trial's paths and
+// outcome agree with the simulator's.
+TEST(RidingLoads, ACarryThroughTheCoordinatorDrivesThePathTheSimulatorDrives) {
+  const std::string dir = ::testing::TempDir() + "/ddace_riding_fetch";
+  fs::remove_all(dir);
+  const pipeline::Model model = pipeline::trainModel(generated("fetch", 10, 1), tgn::TrainOptions{}, dir, nullptr);
+  const task::TaskDir test = generated("fetch", 6, 2);
+  pipeline::EvalOptions o;
+  o.execution = "diffdrive";
+  o.noise_m = 0.002;
+  ASSERT_TRUE(o.config.table.loads_ride);
+  const pipeline::Evaluation sim = pipeline::evaluate(model, test, o);
+  o.coordinated = true;
+  o.dispatch = exec::DispatchMode::Steps;
+  const pipeline::Evaluation coordinated = pipeline::evaluate(model, test, o);
+  fs::remove_all(dir);
+  ASSERT_EQ(sim.scores.size(), coordinated.scores.size());
+  const auto mean = [](const std::vector<double>& v) {
+    double sum = 0;
+    for (double x : v) sum += x;
+    return v.empty() ? 0.0 : sum / static_cast<double>(v.size());
+  };
+  for (size_t i = 0; i < sim.scores.size(); ++i) {
+    SCOPED_TRACE(sim.scores[i].demo);
+    EXPECT_EQ(sim.scores[i].success, coordinated.scores[i].success) << coordinated.first_difference[i];
+    EXPECT_NEAR(mean(coordinated.scores[i].fd), mean(sim.scores[i].fd), 0.01);
+    EXPECT_LT(mean(coordinated.scores[i].fd), 0.1);
+  }
+}
+
 namespace {
 
 /// zoo:two-pairs, as `ddace generate zoo:two-pairs --train 10 --seed 1`: two carrier-load
