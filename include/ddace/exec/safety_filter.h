@@ -17,8 +17,10 @@
 //                                        for an object)
 // The right side is never above 0, so a pair already inside the margin (a start scene,
 // a pushed robot) may separate but never close in; nearer contact than margin + l the
-// disc's own centre gets the same constraint at contact distance (x' = v e), so a robot
-// leaving a body it touches turns on the spot first instead of grazing it. The motion's
+// disc's own centre gets the same constraint at half the margin (x' = v e), so a robot
+// leaving a body it touches turns on the spot first instead of grazing it, and two robots
+// pressed together within the margin are not drifted into contact by the tracking noise
+// (a measured gap wider than the true one let them close in). The motion's
 // target (and a body marked touchable: a body the motion's end point touches) gets the
 // same constraint on the centres at contact distance. A carried load is part of the
 // robot's body: its centre q, rigidly ahead of the axle, moves as q' = v e + w (q - x)^perp,

@@ -211,10 +211,14 @@ void robotBarrier(Barriers& out, const SafetyParams& sp, const Frame& f, double 
     c.b = std::max(0.0, share * sp.barrier_gain_hz * h);
     considerNearest(out.nearest, h, -c.a, b, f, nullptr);  // -c.a: away from it, in the robot's frame
     // Nearer contact than the point's barrier reaches (a robot leaving a body it ended
-    // against turns away from it): the disc itself never closes in, so it cannot graze it.
+    // against turns away from it): the disc itself never closes in within half the margin,
+    // so it cannot graze it -- nor drift onto it on the tracking noise, as a barrier to
+    // contact let it on a measured gap wider than the true one. (The whole margin held two
+    // robots passing each other in a ring so tight that more of them deadlocked.)
     if (const double gap = centres - contact; gap < sp.margin_m + f.l && centres > 1e-9) {
       const Eigen::Vector2d m = (f.x - b.position) / centres;
-      out.add({Eigen::Vector2d(-m.dot(f.e), 0.0), std::max(0.0, share * sp.barrier_gain_hz * gap)}, index);
+      const double h = gap - sp.margin_m / 2;
+      out.add({Eigen::Vector2d(-m.dot(f.e), 0.0), std::max(0.0, share * sp.barrier_gain_hz * h)}, index);
     }
   }
   out.add(c, index);
