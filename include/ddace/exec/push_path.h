@@ -13,7 +13,9 @@
 // load's route from where it stands to its end is straight where that is free of them
 // (kPushPassM beyond contact, for the load and for the carrier behind it), else the shortest
 // way round them; the carrier goes round the load the way that is free to behind it,
-// where the push first heads it, then drives the route, the load in front of it.
+// where the push first heads it, then drives the route, the load in front of it. Where a
+// body stands in that run-up (a relay's giver, behind the box it handed on), the load is
+// pushed out from beside it first, then on to its end.
 //
 // The load's end point decides the direction of the push and where it stops: the carrier
 // ends behind it at their contact distance (on the route's last leg; where the learned end
@@ -91,8 +93,12 @@ struct PushObstacle {
 /// kPushConeRad of behind it),
 /// then along the route to behind the load's end point at contact on its last leg (the
 /// carrier's end point: the load's end decides where the carrier stops), `points` points
-/// evenly spaced by arc length (at least 2). A load already at its end point (within
-/// task::kMinApproachM) is not pushed: from straight to `from`'s own end, `fallback_end`.
+/// evenly spaced by arc length (at least 2). Where the run-up is taken (a body of `standing`
+/// within the filter's margin, kPushNearPassM, of the carrier behind the load), the route
+/// first leads the load out from beside that body, in the way that keeps the run-up free
+/// and lets the carrier go round the load at the turn, whose carrier's path is shortest.
+/// A load already at its end point (within task::kMinApproachM) is not pushed: from
+/// straight to `from`'s own end, `fallback_end`.
 std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::Vector2d& load,
                                       const Eigen::Vector2d& load_end, double contact_m,
                                       const Eigen::Vector2d& fallback_end, int points,

@@ -66,7 +66,15 @@ struct CoordinatedRun {
   int precedence_violations = 0;
   int collisions = 0;              ///< with bodies
   std::vector<std::string> waits;  ///< who each token waited for (describeWaits)
-  bool success = false;
+  bool success = false;            ///< judged against the test demonstration (the scene before the hand)
+  /// box_moved under the first step of a zoo task: judged instead by the
+  /// steps the zoo's rule decides on the scene right after the hand (tasks::zooSteps) --
+  /// every step, END, every motion at its end point, each object where those steps leave it,
+  /// no collision: 1 done as the rule says there, 0 not (rule_failure says why), -1 not
+  /// judged (another task or step, or a near tie there: no one answer).
+  int by_rule = -1;
+  std::string rule_failure;
+  bool rule_tie = false;  ///< not judged: a decision of the rule there is a near tie
   double makespan_s = 0;  ///< from the first decision to the last token's end (simulated)
   /// The makespan async dispatch gives the run's steps were every token to take as long as
   /// it took in this run (exec::scheduleSteps): what any dispatch that never starts a token

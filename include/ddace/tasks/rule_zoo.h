@@ -43,6 +43,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -143,6 +144,17 @@ struct ZooCounts {
 };
 task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed, const ZooMotion& motion = {},
                           const ZooCounts& counts = {});
+/// The steps rule `rule_id` decides on `scene` (index = `spec`'s entities, a zoo task's
+/// in any counts) taken as its start, later steps decided where the earlier ones end as
+/// `motion` ends them; nothing when a decision there is a near tie (kSceneDecisionMargin):
+/// the rule states no one answer. What a run is judged by where a hand changed the scene
+/// under its first step. Throws ddace::Error when `scene` does not fit `spec`.
+std::optional<std::vector<task::Step>> zooSteps(uint64_t rule_id, const task::TaskSpec& spec,
+                                                const std::vector<Eigen::Vector2d>& scene,
+                                                const ZooMotion& motion = {});
+/// The zoo rule and motion a task states when generateZoo made it (its name says which),
+/// or false.
+bool zooRuleOfTask(const task::TaskSpec& spec, uint64_t& id, ZooMotion& motion);
 /// Parses "zoo:<id>" or "zoo:<key>" of a named rule (as `ddace generate` takes it), with an
 /// optional motion suffix "/direct" or "/direct-<N>mm" (N whole millimetres, 0..20), into
 /// the rule's id and `motion`; false for any other family name. Throws ddace::Error naming

@@ -141,6 +141,78 @@ std::vector<Eigen::Vector2d> corners(const std::vector<PushObstacle>& standing) 
   return out;
 }
 
+/// Where a carrier behind the load at the start of `route` heads it first (pushAim), a
+/// unit vector.
+Eigen::Vector2d firstHeading(const std::vector<Eigen::Vector2d>& route) {
+  const Eigen::Vector2d aim = pushAim(route, onRoute(route, route.front())) - route.front();
+  return aim.norm() > 1e-9 ? aim.normalized() : Eigen::Vector2d(route[1] - route[0]).normalized();
+}
+
+double length(const std::vector<Eigen::Vector2d>& path) {
+  double out = 0;
+  for (size_t k = 1; k < path.size(); ++k) out += (path[k] - path[k - 1]).norm();
+  return out;
+}
+
+/// Whether a carrier can line up behind a load at `load` to push it along `heading`: its
+/// run-up, from contact out to kPushClearanceM beyond it, keeps every body of `standing`
+/// `within_m` short of its reach.
+bool runUpFree(const Eigen::Vector2d& load, const Eigen::Vector2d& heading, double contact_m,
+               std::vector<PushObstacle> standing, double within_m = 0) {
+  for (PushObstacle& o : standing) o.reach_m -= within_m;
+  return keepsClear(load - contact_m * heading, load - (contact_m + kPushClearanceM) * heading, standing);
+}
+
+/// Whether the run-up of a push along `route` is taken by a standing body: the safety
+/// filter would hold the carrier off it (kPushNearPassM, its margin) before it is behind
+/// the load.
+bool runUpTaken(const std::vector<Eigen::Vector2d>& route, double contact_m,
+                const std::vector<PushObstacle>& standing) {
+  return !runUpFree(route.front(), firstHeading(route), contact_m, standing, kPushPassM - kPushNearPassM);
+}
+
+/// Whether a carrier can go round a load at `load` at kPushClearanceM beyond their contact
+/// (where a push planned again goes round it) keeping every body of `standing` at its reach.
+bool roundFree(const Eigen::Vector2d& load, double contact_m, const std::vector<PushObstacle>& standing) {
+  std::vector<Eigen::Vector2d> ring;
+  for (double a = 0; a < 2 * M_PI + kPushArcStepRad; a += kPushArcStepRad)
+    ring.push_back(onCircle(load, contact_m + kPushClearanceM, a));
+  return keepsClear(ring, standing);
+}
+
+/// A route for a load whose run-up is taken by a body standing behind it (a relay's giver
+/// that handed it on, the box between the two robots): first out from beside that body
+/// along one of kLeadOutWays whose run-up keeps every standing body at its reach, as far as
+/// the carrier then goes round the load freely (a push planned again at the turn), then on
+/// to `load_end` (pushRoute). Of those, the one whose carrier's whole path (pushPathAlong
+/// from `from`) is shortest; nothing when no way is free within kMaxLeadOutM.
+std::optional<std::vector<Eigen::Vector2d>> leadOutRoute(const Eigen::Vector2d& from, const Eigen::Vector2d& load,
+                                                         const Eigen::Vector2d& load_end, double contact_m,
+                                                         const std::vector<PushObstacle>& standing) {
+  constexpr int kLeadOutWays = 24;
+  constexpr double kLeadOutStepM = 0.01, kMaxLeadOutM = 0.3;
+  std::optional<std::vector<Eigen::Vector2d>> best;
+  double shortest = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < kLeadOutWays; ++k) {
+    const Eigen::Vector2d way(std::cos(2 * M_PI * k / kLeadOutWays), std::sin(2 * M_PI * k / kLeadOutWays));
+    if (!runUpFree(load, way, contact_m, standing)) continue;
+    for (double out_m = kLeadOutStepM; out_m <= kMaxLeadOutM; out_m += kLeadOutStepM) {
+      const Eigen::Vector2d turn = load + out_m * way;
+      if (!keepsClear(load, turn, passable(standing, load, turn))) break;  // the load would run into a body
+      if (!roundFree(turn, contact_m, standing)) continue;
+      const std::vector<Eigen::Vector2d> on = distinct(pushRoute(turn, load_end, standing));
+      if (on.size() < 2 || !runUpFree(turn, firstHeading(on), contact_m, standing)) break;
+      std::vector<Eigen::Vector2d> route{load};
+      route.insert(route.end(), on.begin(), on.end());
+      constexpr int kMeasuredPoints = 200;  // the carrier's path drawn to measure its length
+      const double driven = length(pushPathAlong(from, route, contact_m, kMeasuredPoints, standing));
+      if (driven < shortest) shortest = driven, best = route;
+      break;
+    }
+  }
+  return best;
+}
+
 }  // namespace
 
 std::vector<Eigen::Vector2d> pushRoute(const Eigen::Vector2d& load, const Eigen::Vector2d& load_end,
@@ -181,7 +253,10 @@ std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::
                                       const std::vector<PushObstacle>& standing, bool push_from_behind) {
   if ((load_end - load).norm() < task::kMinApproachM)
     return resampleByArcLength(PlannedPath{{from, fallback_end}, {}}, std::max(points, 2)).points;
-  return pushPathAlong(from, pushRoute(load, load_end, standing), contact_m, points, standing, push_from_behind);
+  std::vector<Eigen::Vector2d> route = pushRoute(load, load_end, standing);
+  if (runUpTaken(route, contact_m, standing))
+    route = leadOutRoute(from, load, load_end, contact_m, standing).value_or(route);
+  return pushPathAlong(from, route, contact_m, points, standing, push_from_behind);
 }
 
 std::vector<Eigen::Vector2d> pushPathAlong(const Eigen::Vector2d& from, const std::vector<Eigen::Vector2d>& load_route,
@@ -191,8 +266,7 @@ std::vector<Eigen::Vector2d> pushPathAlong(const Eigen::Vector2d& from, const st
   if (route.size() < 2) throw Error("a push route needs two distinct points");
   const Eigen::Vector2d load = route.front();
   // The run-up lies behind the load from where the push first heads it (pushAim).
-  const Eigen::Vector2d aim = pushAim(route, onRoute(route, load)) - load;
-  const Eigen::Vector2d w = aim.norm() > 1e-9 ? aim.normalized() : Eigen::Vector2d(route[1] - route[0]).normalized();
+  const Eigen::Vector2d w = firstHeading(route);
   const double radius = contact_m + kPushClearanceM;
   const double behind = std::atan2(-w.y(), -w.x());  // the run-up's bearing from the load
   std::vector<Eigen::Vector2d> out{from};

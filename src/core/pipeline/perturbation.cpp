@@ -22,6 +22,7 @@
 #include "ddace/exec/table_simulator.h"
 #include "ddace/pipeline/decisions_without.h"
 #include "ddace/task/body_geometry.h"
+#include "ddace/tasks/rule_zoo.h"
 
 namespace ddace::pipeline {
 namespace {
@@ -460,6 +461,8 @@ class Runner {
     }
     what_ = what;
     pos_ = table_->positions();
+    scene_after_ = pos_;
+    perturbed_step_ = m->step;
     return failed;
   }
 
@@ -511,7 +514,11 @@ class Runner {
   /// Why a run that finished without its lost robots did not do the task ("" when it did):
   /// a robot motion that stopped short of its end point, a collision, a goal condition
   /// that does not name a lost robot and does not hold.
-  std::string withoutLost(const exec::Trial& t) const {
+  std::string withoutLost(const exec::Trial& t) const { return taskUndone(t, gt_); }
+
+  /// Why finished run `t` did not do the task ("" when it did), the steps of `ends` stating
+  /// where objects end when the task states no goal condition (withoutLost).
+  std::string taskUndone(const exec::Trial& t, const task::Demonstration& ends) const {
     const double within = spec_.arrival_radius + exec::CoordinatorConfig{}.arrival_tolerance_m;
     for (const exec::ExecutedToken& ex : t.executed)
       if (ex.token.isMotion() && spec_.entities[static_cast<size_t>(ex.token.entity)].kind == task::EntityKind::Robot &&
@@ -528,8 +535,33 @@ class Runner {
       if (!names_lost && !task::goalConditionMet(spec_, g, t.final_positions))
         return "goal condition " + g.entity + " at " + g.at + " does not hold";
     }
-    if (spec_.goal_conditions.empty()) return objectNotWhereDemonstrated(spec_, gt_, t.final_positions, lost);
+    if (spec_.goal_conditions.empty()) return objectNotWhereDemonstrated(spec_, ends, t.final_positions, lost);
     return "";
+  }
+
+  /// A box moved under the first step of a zoo task: the rule's steps on the scene right
+  /// after the hand are the measure; the demonstration is of the scene before it.
+  void judgeByRule(CoordinatedRun& r) const {
+    uint64_t id = 0;
+    tasks::ZooMotion motion;
+    if (!applied_ || p_.kind != PerturbationKind::BoxMoved || perturbed_step_ != 0 ||
+        !tasks::zooRuleOfTask(spec_, id, motion))
+      return;
+    task::Demonstration rule;
+    if (const auto steps = tasks::zooSteps(id, spec_, scene_after_, motion)) rule.steps = *steps;
+    else return void(r.rule_tie = true);  // the rule states no one answer there
+    const exec::Trial& t = r.trial;
+    std::string why = r.finished ? "" : "not finished: " + r.reason;
+    for (size_t k = 0; k < std::max(rule.steps.size(), t.predicted.size()) && why.empty(); ++k) {
+      std::vector<task::Token> a = k < t.predicted.size() ? t.predicted[k].tokens : std::vector<task::Token>{};
+      std::vector<task::Token> b = k < rule.steps.size() ? rule.steps[k].tokens : std::vector<task::Token>{};
+      std::sort(a.begin(), a.end()), std::sort(b.begin(), b.end());
+      if (a != b) why = "step " + std::to_string(k + 1) + " is not the rule's on the scene after the hand";
+    }
+    if (why.empty()) why = taskUndone(t, rule);
+    if (why.empty() && stale_ends_ > 0) why = "a motion ended where its target had left";
+    r.by_rule = why.empty();
+    r.rule_failure = why;
   }
 
   /// The makespan of the run's steps under async were each token to take the time it took
@@ -591,6 +623,7 @@ class Runner {
     r.makespan_s = t.makespan_s;
     r.success = r.finished && r.score.success && stale_ends_ == 0;
     if (r.finished && !r.score.success) r.failure = failureOf(r.score, t);
+    judgeByRule(r);
     if (r.finished && !r.lost.empty()) {
       // The team changed: the demonstration's steps are not the measure; the task's are.
       r.failure = withoutLost(t);
@@ -614,6 +647,8 @@ class Runner {
   Draw draw_;
   double now_ = 0;
   bool applied_ = false;
+  std::vector<Eigen::Vector2d> scene_after_;  ///< every entity right after the hand
+  int perturbed_step_ = -1;                   ///< the step of the motion it came under
   std::string what_;
   int stale_ends_ = 0;
 };
@@ -730,6 +765,9 @@ bool abortedNamingLost(const CoordinatedRun& run) {
 struct Totals {
   int perturbed = 0, succeeded = 0, replans = 0, redecisions = 0, violations = 0, collisions = 0;
   int aborted_naming_lost = 0;
+  /// Runs judged by the zoo's rule (CoordinatedRun::by_rule), done as it says; of those,
+  /// done only by the rule's measure, or only by the demonstration's.
+  int by_rule_judged = 0, by_rule_done = 0, by_rule_only = 0, by_demo_only = 0, rule_ties = 0;
   double lost_s = 0;
   int lost_n = 0;
   double makespan_s = 0;  ///< mean over the runs counted
@@ -744,6 +782,13 @@ Totals totals(const PerturbationReport& r, const std::vector<CoordinatedRun>& ru
     ++t.perturbed;
     t.succeeded += runs[i].success;
     t.aborted_naming_lost += abortedNamingLost(runs[i]);
+    t.rule_ties += runs[i].rule_tie;
+    if (runs[i].by_rule >= 0) {
+      ++t.by_rule_judged;
+      t.by_rule_done += runs[i].by_rule;
+      t.by_rule_only += runs[i].by_rule && !runs[i].success;
+      t.by_demo_only += !runs[i].by_rule && runs[i].success;
+    }
     t.makespan_s += runs[i].makespan_s;
     t.replans += runs[i].replans;
     t.redecisions += runs[i].redecisions;
@@ -779,6 +824,12 @@ void printPerturbation(const PerturbationReport& r, std::ostream& out) {
       if (run->stale_ends > 0)
         out << "    " << which << ": " << run->stale_ends << " motion(s) ended where their target had left\n";
     }
+    if (w.by_rule >= 0 || w.rule_tie)
+      out << "    with, by the rule on the scene after the hand: "
+          << (w.rule_tie  ? "a near tie there, not judged"
+              : w.by_rule ? "done"
+                          : w.rule_failure)
+          << "\n";
     for (const std::string& l : w.lost) out << "    with: lost for good: " << l << "\n";
     if (w.replans + w.redecisions > 0)
       out << "    with: " << w.replans << " re-plan(s), " << w.redecisions << " re-decision(s)\n";
@@ -804,6 +855,14 @@ void printPerturbation(const PerturbationReport& r, std::ostream& out) {
                   w.perturbed - w.succeeded - w.aborted_naming_lost, w.perturbed);
     out << line;
   }
+  if (w.by_rule_judged + w.rule_ties > 0) {
+    std::snprintf(line, sizeof line,
+                  "  with recovery, judged by the zoo's rule on the scene after the hand: %d/%d done as it says "
+                  "(of them %d failed against the demonstration; %d not done succeeded against it), %d near "
+                  "ties not judged\n",
+                  w.by_rule_done, w.by_rule_judged, w.by_rule_only, w.by_demo_only, w.rule_ties);
+    out << line;
+  }
   if (!r.unperturbed.empty() && r.unperturbed.front().trial.bodies) {
     std::snprintf(line, sizeof line, "  collisions: %d unperturbed, %d without recovery, %d with\n", u.collisions,
                   wo.collisions, w.collisions);
@@ -819,17 +878,13 @@ std::string perturbationJson(const PerturbationReport& r) {
   j["perturbation"] = toString(r.perturbation);
   j["trials"] = r.demos.size();
   const auto runJson = [](const CoordinatedRun& run) {
-    return nlohmann::json{{"success", run.success},
-                          {"finished", run.finished},
-                          {"reason", run.reason},
-                          {"failure", run.failure},
-                          {"stale_ends", run.stale_ends},
-                          {"replans", run.replans},
-                          {"redecisions", run.redecisions},
-                          {"makespan_s", run.makespan_s},
-                          {"collisions", run.collisions},
-                          {"lost", run.lost},
-                          {"precedence_violations", run.precedence_violations}};
+    return nlohmann::json{{"success", run.success},         {"finished", run.finished},
+                          {"reason", run.reason},           {"failure", run.failure},
+                          {"stale_ends", run.stale_ends},   {"replans", run.replans},
+                          {"redecisions", run.redecisions}, {"makespan_s", run.makespan_s},
+                          {"collisions", run.collisions},   {"lost", run.lost},
+                          {"by_rule", run.by_rule},         {"rule_failure", run.rule_failure},
+                          {"rule_tie", run.rule_tie},       {"precedence_violations", run.precedence_violations}};
   };
   for (const auto& [name, runs] :
        {std::pair<const char*, const std::vector<CoordinatedRun>*>{"unperturbed", &r.unperturbed},
@@ -839,6 +894,9 @@ std::string perturbationJson(const PerturbationReport& r) {
     j[name] = {{"perturbed", t.perturbed},
                {"succeeded", t.succeeded},
                {"aborted_naming_lost", t.aborted_naming_lost},
+               {"by_rule_judged", t.by_rule_judged},
+               {"by_rule_done", t.by_rule_done},
+               {"rule_ties", t.rule_ties},
                {"replans", t.replans},
                {"redecisions", t.redecisions},
                {"collisions", t.collisions},

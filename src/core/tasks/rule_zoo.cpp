@@ -626,6 +626,39 @@ BodiesComparison compareBodies(const std::vector<std::pair<eval::Summary, eval::
   return c;
 }
 
+std::optional<std::vector<task::Step>> zooSteps(uint64_t rule_id, const task::TaskSpec& spec,
+                                                const std::vector<Vector2d>& scene, const ZooMotion& motion) {
+  if (scene.size() != spec.entities.size())
+    throw Error("a scene of " + std::to_string(scene.size()) + " positions for a task of " +
+                std::to_string(spec.entities.size()) + " entities");
+  Rule rule = ruleOf(rule_id);
+  ZooRule& z = rule.info;
+  z.robots = z.objects = z.goals = 0;
+  for (const task::Entity& e : spec.entities)
+    ++(e.kind == EntityKind::Robot ? z.robots : e.kind == EntityKind::Object ? z.objects : z.goals);
+  Steps steps;
+  if (!Decider(spec, rule, gapEndPoints(spec, motion.stop_gap_m), scene).decide(steps)) return std::nullopt;
+  std::vector<task::Step> out;
+  for (const std::vector<Move>& moves : steps) {
+    out.emplace_back();
+    for (const Move& m : moves) out.back().tokens.push_back({m.entity, m.action, m.target});
+  }
+  return out;
+}
+
+bool zooRuleOfTask(const task::TaskSpec& spec, uint64_t& id, ZooMotion& motion) {
+  const std::string prefix = "zoo ";
+  if (spec.name.rfind(prefix, 0) != 0) return false;
+  const std::string family = spec.name.substr(prefix.size(), spec.name.find(' ', prefix.size()) - prefix.size());
+  try {
+    if (!parseZooFamily("zoo:" + family, id, &motion)) return false;
+    const std::string words = zooRule(id).name;
+    return spec.name == prefix + family + " " + words.substr(0, words.rfind(" ("));
+  } catch (const Error&) {
+    return false;
+  }
+}
+
 task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed, const ZooMotion& motion,
                           const ZooCounts& counts) {
   if (demos < 0) throw Error("the number of demonstrations must not be negative");

@@ -381,3 +381,40 @@ TEST(PushPath, ABallPushedRoundRobotsStandingInTheWayReachesTheHoop) {
     if (std::max(c.a, c.b) >= R3 && std::min(c.a, c.b) < R3)
       ADD_FAILURE() << spec.entities[c.a].name << " touched " << spec.entities[c.b].name << " at " << c.time_s << " s";
 }
+
+// A pushed relay's hand-over leaves the box between the two robots: the giver behind it,
+// backed off, the receiver in front. Where the goal lies beyond the receiver, the giver
+// stands where the receiver would push from; the receiver's filter holds it off the giver
+// short of there (it was held against the giver, or passed the box and left it where it
+// was handed on). The push goes out from beside the giver first: the receiver's path keeps
+// the giver beyond the filter's margin everywhere, the box's route keeps it at its reach,
+// and the box still ends on its goal, the carrier behind it. Where the run-up is free (the
+// goal to the side), the push is planned as before.
+TEST(PushPath, AReceiverWhoseRunUpTheGiverStandsInPushesTheBoxOutFromBesideItFirst) {
+  const double robot = task::kDefaultRobotRadius, contact = robot + task::kDefaultObjectRadius;
+  const Eigen::Vector2d box(0.405, 0.4), receiver(box.x() + contact + 0.004, 0.4);
+  const Eigen::Vector2d giver(box.x() - contact - kPushBackOffM, 0.402);
+  const std::vector<PushObstacle> standing{{giver, 2 * robot + kPushPassM}};
+  for (const Eigen::Vector2d& goal : {Eigen::Vector2d(0.805, 0.4), Eigen::Vector2d(0.78, 0.26)}) {
+    SCOPED_TRACE("G1 at " + std::to_string(goal.x()) + ", " + std::to_string(goal.y()));
+    const Eigen::Vector2d u = (goal - box).normalized();
+    ASSERT_EQ(pushRoute(box, goal, standing).size(), 2u) << "nothing stands in the box's way";
+    ASSERT_LT((box - contact * u - giver).norm(), 2 * robot + kPushNearPassM) << "the giver stands at the run-up";
+
+    const std::vector<Eigen::Vector2d> path = pushPath(receiver, box, goal, contact, goal - contact * u, 400, standing);
+    double nearest = 1e9;
+    for (size_t k = 1; k < path.size(); ++k)
+      nearest = std::min(nearest, distanceToSegment(giver, path[k - 1], path[k]));
+    EXPECT_GE(nearest, 2 * robot + kPushNearPassM) << "the receiver is sent into the giver's margin";
+    const std::vector<Eigen::Vector2d> route = loadRoute(path, box, box, goal);
+    for (size_t k = 1; k < route.size(); ++k)
+      EXPECT_GE(distanceToSegment(giver, route[k - 1], route[k]), contact + kPushNearPassM - 1e-9) << "leg " << k;
+    const Eigen::Vector2d last = (route.back() - route[route.size() - 2]).normalized();
+    EXPECT_LT((route.back() - goal).norm(), 1e-9);
+    EXPECT_LT((path.back() - (goal - contact * last)).norm(), 1e-6) << "behind the box on its goal";
+  }
+  const Eigen::Vector2d side(0.5, 0.75);
+  EXPECT_EQ(pushPath(receiver, box, side, contact, side, 100, standing),
+            pushPathAlong(receiver, pushRoute(box, side, standing), contact, 100, standing))
+      << "a free run-up: the push as before";
+}

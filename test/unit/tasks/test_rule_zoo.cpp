@@ -8,6 +8,7 @@
 #include <functional>
 #include <set>
 
+#include "ddace/common/error.h"
 #include "ddace/task/body_geometry.h"
 #include "ddace/tasks/generators.h"
 #include "ddace/tasks/rule_zoo.h"
@@ -403,4 +404,56 @@ TEST(RuleZoo, ADemonstratedStopGapOtherThanTheFootprintsIsReportedAndKept) {
   const double reached = (ends[static_cast<size_t>(robot)] - decided[static_cast<size_t>(box)]).norm();
   EXPECT_GE(reached, dir.spec.contactDistance(robot, box) - 1e-9);  // backed off in kBackOffStepM steps
   EXPECT_LE(reached, dir.spec.contactDistance(robot, box) + task::kBackOffStepM + 1e-9);
+}
+
+// A zoo rule states its steps for any scene (what a perturbed run is judged by where a hand
+// changed the scene): on a demonstration's start it decides the demonstrated steps, for
+// every kind of rule, both motion models and other team sizes; a box put next to another
+// robot changes who fetches it; a task the zoo did not make names no rule.
+TEST(RuleZoo, TheRuleDecidesTheDemonstratedStepsFromAnyScene) {
+  const auto sorted = [](std::vector<task::Token> t) {
+    std::sort(t.begin(), t.end());
+    return t;
+  };
+  std::vector<task::TaskDir> dirs;
+  for (uint64_t id : tasks::distinctZooRules(24)) dirs.push_back(tasks::generateZoo(id, 3, 5));
+  uint64_t two_boxes = 0;
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:two-boxes", two_boxes));
+  dirs.push_back(tasks::generateZoo(two_boxes, 3, 5));
+  dirs.push_back(tasks::generateZoo(87, 3, 5, {true, 0.004}));
+  dirs.push_back(tasks::generateZoo(87, 3, 5, {}, {5, 0, 0}));
+  std::set<std::string> kinds;
+  for (const task::TaskDir& dir : dirs) {
+    SCOPED_TRACE(dir.spec.name);
+    uint64_t id = 0;
+    tasks::ZooMotion motion;
+    ASSERT_TRUE(tasks::zooRuleOfTask(dir.spec, id, motion));
+    kinds.insert(tasks::zooRule(id).kind);
+    for (const task::Demonstration& d : dir.demos) {
+      const auto steps = tasks::zooSteps(id, dir.spec, d.snapshots[0].positions, motion);
+      ASSERT_TRUE(steps) << "a demonstrated scene is no near tie";
+      ASSERT_EQ(steps->size(), d.steps.size());
+      for (size_t k = 0; k < steps->size(); ++k) EXPECT_EQ(sorted((*steps)[k].tokens), sorted(d.steps[k].tokens));
+    }
+  }
+  EXPECT_EQ(kinds.size(), 7u) << "every kind of rule";
+
+  // zoo:87, "the robot nearest to B1 fetches B1": B1 put 8 cm from a robot that did not fetch it.
+  const task::TaskDir relay = tasks::generateZoo(87, 1, 5);
+  std::vector<Eigen::Vector2d> scene = relay.demos[0].snapshots[0].positions;
+  const int fetcher = relay.demos[0].steps[0].tokens[0].entity, box = relay.spec.entityIndex("B1");
+  const int other = fetcher == 0 ? 1 : 0;
+  scene[static_cast<size_t>(box)] = scene[static_cast<size_t>(other)] + Eigen::Vector2d(0.08, 0);
+  const auto moved = tasks::zooSteps(87, relay.spec, scene);
+  ASSERT_TRUE(moved);
+  EXPECT_EQ(moved->front().tokens.front().entity, other);
+  EXPECT_THROW(tasks::zooSteps(87, relay.spec, {scene.begin(), scene.end() - 1}), Error);
+
+  uint64_t id = 0;
+  tasks::ZooMotion motion;
+  task::TaskSpec other_task = relay.spec;
+  other_task.name = "zoo 87 relay: somebody else's words";
+  EXPECT_FALSE(tasks::zooRuleOfTask(other_task, id, motion));
+  other_task.name = "fetch_nearest_robot";
+  EXPECT_FALSE(tasks::zooRuleOfTask(other_task, id, motion));
 }
