@@ -71,8 +71,9 @@ bool validateOne(const std::string& path, bool verbose) {
     std::printf("  %s: %zu rows (%.2f s), %zu keyframes, %zu steps, %zu segments\n",
                 fs::path(d.source).filename().c_str(), d.rows, d.t_last - d.t_first, d.steps.size(), d.steps.size(),
                 d.segments);
-    // Where step grouping merged a late label into its step (people label one robot after another).
-    for (const auto& note : task::mergedOnsetNotes(d.source, d.steps, spec))
+    // Where step grouping merged a late label into its step (people label one robot after
+    // another), or a late one made a step of its own by the window alone.
+    for (const auto& note : task::stepGroupingNotes(d.source, d.steps, spec))
       std::printf("    %s\n", note.str().c_str());
     if (verbose || d.steps.empty()) {
       for (size_t k = 0; k < d.steps.size(); ++k)

@@ -15,6 +15,15 @@
 
 namespace ddace::eval {
 
+/// With bodies: an object whose executed motion ended outside the arrival radius of its end point.
+struct ObjectLeftShort {
+  int step = 0;           ///< index of the predicted step
+  std::string token;      ///< task::tokenKey of its motion ("B1:carry:G1")
+  double distance_m = 0;  ///< from where it ended to its end point
+  /// "step 2: B1:carry:G1 left 6.2 cm short of its end"
+  std::string describe() const;
+};
+
 struct TrialScore {
   std::string demo;                  ///< test demonstration file
   int gt_steps = 0;                  ///< ground-truth steps
@@ -24,9 +33,9 @@ struct TrialScore {
   int gt_robot_motions = 0;          ///< ground-truth motion tokens of robots
   int achieved_robot_motions = 0;    ///< ... executed (same entity, action, target) and arrived
   bool goal_conditions_hold = true;  ///< every goal_conditions entry at the end (task::goalConditionMet)
-  /// With bodies: every executed motion of an object arrived (a load its carrier pushed and
-  /// left short of its end point fails the trial, goal condition or not).
-  bool objects_arrived = true;
+  /// With bodies: the objects whose executed motion did not arrive (a load its carrier pushed
+  /// and left short of its end point fails the trial, goal condition or not).
+  std::vector<ObjectLeftShort> objects_left_short;
   std::vector<double> fd;  ///< normalised Fréchet distance per matched motion token
   /// Executed with bodies (exec::Trial::bodies): the collisions count against success.
   bool bodies = false;
@@ -38,6 +47,7 @@ struct TrialScore {
   double ssr() const { return gt_steps ? static_cast<double>(correct_steps) / gt_steps : 1.0; }
   double gcr() const { return gt_robot_motions ? static_cast<double>(achieved_robot_motions) / gt_robot_motions : 1.0; }
   double meanFd() const;  ///< NaN when no motion token matched
+  bool objectsArrived() const { return objects_left_short.empty(); }
 };
 
 /// Scores one trial. `use_executed_paths`: FD on the executed positions instead of the

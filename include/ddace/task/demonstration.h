@@ -55,6 +55,10 @@ struct Step {
   int keyframe_row = 0;  ///< the row of the step's first token: its snapshot
   std::vector<Token> tokens;
   std::vector<LateOnset> late;  ///< the tokens that joined after keyframe_row, in row order
+  /// > 0: its first token began this many seconds after the previous step's keyframe,
+  /// while every token of that step still ran: a step of its own by step_window_s alone
+  /// (a late onset people may have meant for the step before).
+  double past_window_s = 0;
 };
 
 /// The same number of steps with the same tokens, step by step (keyframe rows and late
@@ -126,10 +130,13 @@ class Demonstration {
   Eigen::Vector2d segmentGoal(const Segment& segment) const;
 };
 
-/// One note per token that step grouping merged into its step, for `ddace validate`:
-/// "<source>:<line>: step k: R2:move:G1 began 0.250 s after the step's first token
-/// (line L); merged into the step" (line = row + 2: the header is line 1).
-std::vector<Diagnostic> mergedOnsetNotes(const Demonstration& demo, const TaskSpec& spec);
+/// Step grouping's notes for `ddace validate` (line = row + 2: the header is line 1): one per
+/// token merged into its step, "<source>:<line>: step k: R2:move:G1 began 0.250 s after
+/// the step's first token (line L); merged into the step", and one per step opened by the
+/// window alone (Step::past_window_s), "<source>:<line>: step k: R2:move:G1 began 0.530 s
+/// after step k-1's first token (line L) while all its tokens still ran: a step of its own
+/// by step_window_s 0.5 (raise it in task.yaml if it belongs to step k-1)".
+std::vector<Diagnostic> stepGroupingNotes(const Demonstration& demo, const TaskSpec& spec);
 
 /// The largest demonstration CSV readDemonstrationCsv accepts: 1 GiB. It reads it as a
 /// stream, never holding its text, but keeps the parsed rows (about 90 bytes per entity

@@ -28,9 +28,9 @@ struct DemonstrationSummary {
 /// does not grow with the steps either (`ddace label`'s read-back check).
 DemonstrationSummary summarizeDemonstrationCsv(const std::string& path, const TaskSpec& spec, bool keep_steps = true);
 
-/// mergedOnsetNotes() of the steps of `source`.
-std::vector<Diagnostic> mergedOnsetNotes(const std::string& source, const std::vector<Step>& steps,
-                                         const TaskSpec& spec);
+/// stepGroupingNotes() of the steps of `source`.
+std::vector<Diagnostic> stepGroupingNotes(const std::string& source, const std::vector<Step>& steps,
+                                          const TaskSpec& spec);
 
 /// checkTaskDir without keeping the rows: the same checks and errors, a summary per
 /// valid demonstration.

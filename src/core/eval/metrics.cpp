@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "ddace/eval/frechet.h"
@@ -14,6 +15,13 @@ double TrialScore::meanFd() const {
   double s = 0;
   for (double v : fd) s += v;
   return s / fd.size();
+}
+
+std::string ObjectLeftShort::describe() const {
+  char line[160];
+  std::snprintf(line, sizeof line, "step %d: %s left %.1f cm short of its end", step + 1, token.c_str(),
+                distance_m * 100);
+  return line;
 }
 
 namespace {
@@ -52,7 +60,8 @@ TrialScore scoreTrial(const task::TaskSpec& spec, const task::Demonstration& gt,
     const exec::ExecutedToken& ex = trial.executed[i];
     const bool arrived = task::arrived(ex.executed.back(), ex.goal, spec.arrival_radius);
     if (robot && arrived) ++s.achieved_robot_motions;
-    if (!robot && trial.bodies && !arrived) s.objects_arrived = false;
+    if (!robot && trial.bodies && !arrived)
+      s.objects_left_short.push_back({ex.step, task::tokenKey(ex.token, spec), (ex.executed.back() - ex.goal).norm()});
     const exec::Path& generated = use_executed_paths || ex.planned.empty() ? ex.executed : ex.planned;
     const auto truth = gt.segmentPath(seg);
     if (generated.size() >= 2 && truth.size() >= 2 && (truth.back() - truth.front()).norm() > 1e-9)
@@ -69,7 +78,7 @@ TrialScore scoreTrial(const task::TaskSpec& spec, const task::Demonstration& gt,
     if (trial.body_report.closest.a >= 0) s.min_clearance_m = trial.body_report.closest.clearance_m;
   }
   s.success = s.correct_steps == s.gt_steps && s.ended_correctly && s.achieved_robot_motions == s.gt_robot_motions &&
-              s.goal_conditions_hold && s.objects_arrived && s.collisions == 0;
+              s.goal_conditions_hold && s.objectsArrived() && s.collisions == 0;
   return s;
 }
 

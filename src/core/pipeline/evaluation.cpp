@@ -354,6 +354,7 @@ void printEvaluation(const Evaluation& e, std::ostream& out) {
         out << "    collision at " << c.time_s << " s: " << e.entity_names.at(c.a) << " touched "
             << e.entity_names.at(c.b) << "\n";
       for (const auto& f : t.failures) out << "    " << f << "\n";
+      for (const eval::ObjectLeftShort& o : s.objects_left_short) out << "    " << o.describe() << "\n";
       for (const auto& ex : t.executed)  // robots that stopped outside the arrival radius
         if (ex.token.isMotion() && e.robot_entities.count(ex.token.entity) &&
             !task::arrived(ex.executed.back(), ex.goal, e.arrival_radius_m)) {
@@ -439,6 +440,7 @@ std::string evaluationJson(const Evaluation& e) {
       t["min_clearance_m"] = num(s.min_clearance_m);
       t["makespan_s"] = s.makespan_s;
       t["failures"] = e.trials[i].failures;
+      for (const eval::ObjectLeftShort& o : s.objects_left_short) t["failures"].push_back(o.describe());
     } else if (!e.dispatch.empty()) {
       j["per_trial"].back()["makespan_s"] = s.makespan_s;
       if (i < e.waits.size()) j["per_trial"].back()["waits"] = e.waits[i];

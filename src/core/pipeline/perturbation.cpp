@@ -498,6 +498,7 @@ class Runner {
                keys(gt_.steps, k);
     if (score.achieved_robot_motions < score.gt_robot_motions) return "a robot motion stopped short of its end point";
     if (!t.body_report.collisions.empty()) return collisions(t);
+    if (!score.objectsArrived()) return score.objects_left_short.front().describe();
     return "a goal condition does not hold";
   }
 

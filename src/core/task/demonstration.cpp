@@ -133,8 +133,11 @@ class StepGrouper {
       // labels only end while others hold; with grouping only a beginning label opens a step.
       if (window_ == 0 && !all_null && labels != prev_) openStep(i, t, positions);
     } else {
-      const bool joins = step_count_ > 0 && !open_ended_ && t - last_keyframe_t_ <= window_;
+      const bool running = step_count_ > 0 && !open_ended_;
+      const bool joins = running && t - last_keyframe_t_ <= window_;
+      const double since = t - last_keyframe_t_;
       if (!joins) openStep(i, t, positions);
+      if (running && !joins && window_ > 0) steps_.back().past_window_s = since;
       const int k = step_count_ - 1;
       Step& step = steps_.back();
       for (const Token& token : starting) {
@@ -226,15 +229,39 @@ Eigen::Vector2d Demonstration::segmentGoal(const Segment& segment) const {
   return positions[steps[segment.step].keyframe_row][who];
 }
 
-std::vector<Diagnostic> mergedOnsetNotes(const Demonstration& demo, const TaskSpec& spec) {
-  return mergedOnsetNotes(demo.source, demo.steps, spec);
+namespace {
+
+/// A token of `step` that began at its keyframe (not one that joined later).
+const Token& firstToken(const Step& step) {
+  for (const Token& t : step.tokens)
+    if (std::none_of(step.late.begin(), step.late.end(), [&](const LateOnset& l) { return l.token == t; })) return t;
+  return step.tokens.front();
 }
 
-std::vector<Diagnostic> mergedOnsetNotes(const std::string& source, const std::vector<Step>& steps,
-                                         const TaskSpec& spec) {
+}  // namespace
+
+std::vector<Diagnostic> stepGroupingNotes(const Demonstration& demo, const TaskSpec& spec) {
+  return stepGroupingNotes(demo.source, demo.steps, spec);
+}
+
+std::vector<Diagnostic> stepGroupingNotes(const std::string& source, const std::vector<Step>& steps,
+                                          const TaskSpec& spec) {
   std::vector<Diagnostic> notes;
   for (size_t k = 0; k < steps.size(); ++k) {
     const Step& step = steps[k];
+    if (step.past_window_s > 0 && k > 0) {
+      char since[64];
+      std::snprintf(since, sizeof since, "%.3f", step.past_window_s);
+      char window[32];
+      std::snprintf(window, sizeof window, "%g", spec.step_window_s);
+      const std::string before = "step " + std::to_string(k);
+      notes.push_back({source, step.keyframe_row + 2, 0,
+                       "step " + std::to_string(k + 1) + ": " + tokenKey(firstToken(step), spec) + " began " + since +
+                           " s after " + before + "'s first token (line " +
+                           std::to_string(steps[k - 1].keyframe_row + 2) +
+                           ") while all its tokens still ran: a step of its own by step_window_s " + window +
+                           " (raise it in task.yaml if it belongs to " + before + ")"});
+    }
     for (const LateOnset& late : step.late) {
       char delay[32];
       std::snprintf(delay, sizeof delay, "%.3f", late.delay_s);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <optional>
 
@@ -414,25 +415,33 @@ TEST(BodiesExecution, ATrialWhoseBoxIsLeftShortOfItsEndFails) {
     BodiesExecution with(p);
     const Trial arrived = runTrial(dir.spec, demo, policy, gen, with, ends);
     const eval::TrialScore delivered = eval::scoreTrial(dir.spec, demo, arrived);
-    EXPECT_TRUE(delivered.objects_arrived);
+    EXPECT_TRUE(delivered.objectsArrived());
     EXPECT_TRUE(delivered.success) << "GCR " << delivered.gcr() << ", " << delivered.collisions << " collisions";
 
     Trial left_short = arrived;
-    int boxes = 0;
+    std::vector<std::string> expected;  // the reason of each box, as its eval line reads
     for (ExecutedToken& ex : left_short.executed) {
       if (!ex.token.isMotion() || dir.spec.entities[ex.token.entity].kind != task::EntityKind::Object) continue;
       while (ex.executed.size() > 1 && (ex.executed.back() - ex.goal).norm() < 2 * dir.spec.arrival_radius)
         ex.executed.pop_back();
-      ASSERT_GE((ex.executed.back() - ex.goal).norm(), 2 * dir.spec.arrival_radius) << "the box was pushed that far";
+      const double short_m = (ex.executed.back() - ex.goal).norm();
+      ASSERT_GE(short_m, 2 * dir.spec.arrival_radius) << "the box was pushed that far";
       left_short.final_positions[static_cast<size_t>(ex.token.entity)] = ex.executed.back();
-      ++boxes;
+      char line[160];
+      std::snprintf(line, sizeof line, "step %d: %s left %.1f cm short of its end", ex.step + 1,
+                    task::tokenKey(ex.token, dir.spec).c_str(), short_m * 100);
+      expected.push_back(line);
     }
-    ASSERT_GE(boxes, 1) << "the demonstration moves a box";
+    ASSERT_GE(expected.size(), 1u) << "the demonstration moves a box";
     const eval::TrialScore short_score = eval::scoreTrial(dir.spec, demo, left_short);
     EXPECT_DOUBLE_EQ(short_score.gcr(), 1.0) << "its carrier was done";
     EXPECT_EQ(short_score.collisions, 0);
-    EXPECT_FALSE(short_score.objects_arrived);
+    EXPECT_FALSE(short_score.objectsArrived());
     EXPECT_FALSE(short_score.success);
+    // The reason names each box, its token and how far from its end it was left.
+    std::vector<std::string> reasons;
+    for (const eval::ObjectLeftShort& o : short_score.objects_left_short) reasons.push_back(o.describe());
+    EXPECT_EQ(reasons, expected);
   }
 }
 
@@ -795,7 +804,7 @@ TEST(BodiesExecution, PushedRelaysReplayedWithBodiesDeliverTheirBox) {
       const auto policy = [&](const std::vector<task::Snapshot>& h) { return replayDecision(demo, h); };
       BodiesExecution with(p);
       const eval::TrialScore s = eval::scoreTrial(dir.spec, demo, runTrial(dir.spec, demo, policy, gen, with, ends));
-      delivered += s.objects_arrived;
+      delivered += s.objectsArrived();
       collisions += s.collisions;
     }
     EXPECT_GE(delivered, 18) << "of 20 boxes on their goals";

@@ -309,7 +309,7 @@ TEST(PushedLoads, ARelayThroughTheCoordinatorRunsAsInTheSimulator) {
     SCOPED_TRACE(sim.scores[i].demo);
     EXPECT_TRUE(!sim.scores[i].success || coordinated.scores[i].success) << coordinated.first_difference[i];
     EXPECT_EQ(coordinated.scores[i].collisions, 0);
-    EXPECT_TRUE(sim.scores[i].objects_arrived || !sim.scores[i].success);
+    EXPECT_TRUE(sim.scores[i].objectsArrived() || !sim.scores[i].success);
   }
 }
 
