@@ -17,8 +17,10 @@
 //                                        for an object)
 // The right side is never above 0, so a pair already inside the margin (a start scene,
 // a pushed robot) may separate but never close in; nearer contact than margin + l the
-// disc's own centre gets the same constraint at contact distance (x' = v e), so a robot
-// leaving a body it touches turns on the spot first instead of grazing it. The motion's
+// disc's own centre gets the same constraint at half the margin (x' = v e), so a robot
+// leaving a body it touches turns on the spot first instead of grazing it, and two robots
+// pressed together within the margin are not drifted into contact by the tracking noise
+// (a measured gap wider than the true one let them close in). The motion's
 // target (and a body marked touchable: a body the motion's end point touches) gets the
 // same constraint on the centres at contact distance. A carried load is part of the
 // robot's body: its centre q, rigidly ahead of the axle, moves as q' = v e + w (q - x)^perp,
@@ -43,7 +45,12 @@
 // way (none of it a body its motion ends at) it passes by the group's edge, the one its
 // command turns least to, heading past that edge as it sees it (round one body of the
 // group it was led into the too-narrow gap next to it and held there); a group it ends at,
-// or one all round it (no edge), it goes round body by body.
+// or one all round it (no edge), it goes round body by body -- except a group lying all
+// round it that it does not end at (a met robot inside the ring of robots that met it, its
+// way on through them): it leaves by the widest gap between two of them that its disc
+// passes a margin off each (wayOut: behind or beside it as much as ahead), those bodies
+// holding its disc, not the point ahead, a margin off while it does (the point has no room
+// in such a gap), then passes the group by its edge.
 //
 // Deadlock: held while neither the robot nor any body holding it moves `progress_m` for
 // `deadlock_after_s` (frozen: boxed in, held off its end point; a robot passing a group by
@@ -64,6 +71,7 @@
 // Units: metres, radians, seconds, m/s; table frame.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -210,12 +218,18 @@ class SafetyFilter {
     resolve_until_s_ = stuck_since_s_ = waiting_since_s_ = -1;
     resolve_group_.clear();
     resolve_standing_ = false;
+    leaving_.reset();
     held_by_.clear();
     holders_.clear();
   }
   const SafetyParams& params() const { return params_; }
 
  private:
+  /// A way out between two standing bodies (wayOut).
+  struct Gap {
+    Eigen::Vector2d middle;  ///< halfway between the two bodies' edges
+    Eigen::Vector2d out;     ///< unit normal of the line through them, away from the robot
+  };
   SafetyParams params_;
   double wheel_base_m_, max_wheel_mps_, max_turn_radps_;
   double resolve_until_s_ = -1;             ///< the point goes round the nearest body until then
@@ -223,6 +237,7 @@ class SafetyFilter {
   std::vector<std::string> resolve_group_;  ///< the bodies resolve_side_ was decided for (standingGroup)
   bool resolve_standing_ = false;           ///< ... standing ones: gone round toward the group's edge
   bool resolve_of_load_ = false;            ///< ... held by the load's disc (else the robot's)
+  std::optional<Gap> leaving_;              ///< ... all round it: the gap it leaves by first (wayOut)
   double stuck_since_s_ = -1;               ///< since when the filter holds the robot without progress
   double stuck_progress_m_ = 0;             ///< its progress then
   std::vector<std::string> held_by_;        ///< bodies that held it since then (named in a deadlock)
@@ -255,6 +270,12 @@ class SafetyFilter {
     double right_rad = 0, left_rad = 0;
   };
   GroupEdges groupEdges(const std::vector<const SafetyBody*>& group, const Scene& scene) const;
+  /// Where the robot leaves a group of standing bodies that lies all round it (none half a
+  /// turn from the next, as seen from the robot): the widest gap between two neighbours, if
+  /// its disc passes it with the margin either side. None: not enclosed, or no such gap. While it leaves, the
+  /// group holds its disc, not the point ahead of it, a margin off: a ring's gap leaves the
+  /// point no room either side, and the robot's way is its own go-round, not the path.
+  std::optional<Gap> wayOut(const std::vector<const SafetyBody*>& group, const Scene& scene) const;
   /// The hold and deadlock clocks after a filtered cycle (`out` gets the deadlock);
   /// returns whether a go-round begins.
   bool trackHold(SafetyCommand& out, const std::string& self_name, const Eigen::Vector2d& x, double self_radius_m,

@@ -176,11 +176,20 @@ void loadBarrier(Barriers& out, const SafetyParams& sp, const Frame& f, const Sa
 
 /// The barrier of body `b` on the robot's own disc.
 void robotBarrier(Barriers& out, const SafetyParams& sp, const Frame& f, double self_radius_m, const SafetyBody& b,
-                  int index, const std::string& target, double share) {
+                  int index, const std::string& target, double share, bool disc_only) {
   const double centres = (b.position - f.x).norm();
   const double contact = self_radius_m + b.radius_m;
   out.clearance_m = std::min(out.clearance_m, centres - contact);
   HalfPlane c;
+  if (disc_only && !mayTouch(b, target)) {
+    // Its disc a margin off (x' = v e), not the point ahead: leaving a ring by a gap.
+    if (centres < 1e-9) return;
+    const Eigen::Vector2d m = (f.x - b.position) / centres;
+    const double h = centres - contact - sp.margin_m;
+    considerNearest(out.nearest, h, f.local(m), b, f, nullptr);
+    out.add({Eigen::Vector2d(-m.dot(f.e), 0.0), std::max(0.0, share * sp.barrier_gain_hz * h)}, index);
+    return;
+  }
   if (mayTouch(b, target)) {
     // The motion's own target: the centres may close in to contact, no margin.
     if (centres < 1e-9) return;
@@ -202,10 +211,14 @@ void robotBarrier(Barriers& out, const SafetyParams& sp, const Frame& f, double 
     c.b = std::max(0.0, share * sp.barrier_gain_hz * h);
     considerNearest(out.nearest, h, -c.a, b, f, nullptr);  // -c.a: away from it, in the robot's frame
     // Nearer contact than the point's barrier reaches (a robot leaving a body it ended
-    // against turns away from it): the disc itself never closes in, so it cannot graze it.
+    // against turns away from it): the disc itself never closes in within half the margin,
+    // so it cannot graze it -- nor drift onto it on the tracking noise, as a barrier to
+    // contact let it on a measured gap wider than the true one. (The whole margin held two
+    // robots passing each other in a ring so tight that more of them deadlocked.)
     if (const double gap = centres - contact; gap < sp.margin_m + f.l && centres > 1e-9) {
       const Eigen::Vector2d m = (f.x - b.position) / centres;
-      out.add({Eigen::Vector2d(-m.dot(f.e), 0.0), std::max(0.0, share * sp.barrier_gain_hz * gap)}, index);
+      const double h = gap - sp.margin_m / 2;
+      out.add({Eigen::Vector2d(-m.dot(f.e), 0.0), std::max(0.0, share * sp.barrier_gain_hz * h)}, index);
     }
   }
   out.add(c, index);
@@ -253,6 +266,18 @@ std::string deadlockReason(const std::string& self_name, double stuck_s, std::ve
   std::snprintf(what, sizeof what, " has not advanced %.0f cm along its path in %.1f s", sp.progress_m * 100, stuck_s);
   return "deadlock: " + self_name + what + ", held by the safety filter" +
          (names.empty() ? std::string() : " against " + names);
+}
+
+/// Which edge of a standing group spanning [right_rad, left_rad] the robot passes by (+1:
+/// the right one): the one its command turns least to (0: that side does not block it).
+double edgeSide(const Eigen::Vector2d& z0, double right_rad, double left_rad, const Frame& f) {
+  // The way the robot wants to go: its command's point velocity, else its heading.
+  const Eigen::Vector2d dir = z0.x() * f.e + z0.y() * f.e_perp;
+  const Eigen::Vector2d way = dir.norm() > 1e-9 ? dir : f.e;
+  const double want = std::atan2(way.y(), way.x());
+  const double to_right = std::max(0.0, wrapAngle(want - right_rad));
+  const double to_left = std::max(0.0, wrapAngle(left_rad - want));
+  return to_left < to_right ? -1 : 1;
 }
 
 }  // namespace
@@ -308,9 +333,51 @@ Eigen::Vector2d SafetyFilter::goRound(const Eigen::Vector2d& z0, const SafetyBod
   std::vector<const SafetyBody*> group;
   for (const std::string& name : resolve_group_)
     if (const SafetyBody* b = findBody(*scene.bodies, name)) group.push_back(b);
+  const Frame& f = *scene.frame;
+  if (leaving_) {
+    // Inside a ring of standing bodies: out through the gap it fits, along the gap's normal
+    // and steered onto the line through its middle, until its disc is past the gap by the
+    // filter's clearance; then round the ring by the edge its command turns least to.
+    const double past = scene.self_radius_m + params_.margin_m + params_.projection_m;
+    if ((f.x - leaving_->middle).dot(leaving_->out) < past) {
+      const Eigen::Vector2d u = f.x - leaving_->middle;
+      const Eigen::Vector2d off_line = u - u.dot(leaving_->out) * leaving_->out;
+      return speed * f.local((leaving_->out - off_line / scene.self_radius_m).normalized());
+    }
+    leaving_.reset();
+    const GroupEdges out = groupEdges(group, scene);
+    resolve_side_ = edgeSide(z0, out.right_rad, out.left_rad, f);
+  }
   const GroupEdges edges = groupEdges(group, scene);
   const double heading = resolve_side_ > 0 ? edges.right_rad : edges.left_rad;
-  return speed * scene.frame->local(Eigen::Vector2d(std::cos(heading), std::sin(heading)));
+  return speed * f.local(Eigen::Vector2d(std::cos(heading), std::sin(heading)));
+}
+
+std::optional<SafetyFilter::Gap> SafetyFilter::wayOut(const std::vector<const SafetyBody*>& group,
+                                                      const Scene& scene) const {
+  // Enclosed: the group's bodies lie all round the robot, none half a turn from the next.
+  const Eigen::Vector2d x = scene.frame->x;
+  std::vector<std::pair<double, const SafetyBody*>> round;
+  for (const SafetyBody* b : group) {
+    const Eigen::Vector2d v = b->position - x;
+    round.emplace_back(std::atan2(v.y(), v.x()), b);
+  }
+  if (round.size() < 3) return std::nullopt;
+  std::sort(round.begin(), round.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::optional<Gap> widest;
+  double widest_m = 2 * (scene.self_radius_m + params_.margin_m);  // its disc, a margin either side
+  for (size_t k = 0; k < round.size(); ++k) {
+    const auto& [a0, b0] = round[k];
+    const auto& [a1, b1] = round[(k + 1) % round.size()];
+    if ((k + 1 < round.size() ? a1 - a0 : a1 + 2 * M_PI - a0) >= M_PI) return std::nullopt;  // open that side
+    const Eigen::Vector2d d = b1->position - b0->position;
+    const double width = d.norm() - b0->radius_m - b1->radius_m;
+    if (width < widest_m) continue;
+    widest_m = width;  // the widest: the tracking noise narrows every gap
+    widest = Gap{b0->position + (b0->radius_m + width / 2) / d.norm() * d,
+                 Eigen::Vector2d(d.y(), -d.x()).normalized()};  // counter-clockwise neighbours: away from the robot
+  }
+  return widest;
 }
 
 bool SafetyFilter::decidedFor(const SafetyBody* body, bool of_load) const {
@@ -334,6 +401,7 @@ void SafetyFilter::decideSide(const Eigen::Vector2d& z0, const SafetyBody* body,
   resolve_group_.clear();
   resolve_side_ = 1;
   resolve_standing_ = false;
+  leaving_.reset();
   if (!body) return;
   resolve_of_load_ = of_load;
   // Round one body: a moving one, one with a load ahead (as the load's lever allows), or
@@ -346,6 +414,14 @@ void SafetyFilter::decideSide(const Eigen::Vector2d& z0, const SafetyBody* body,
   // A group all round it has no edge to pass by: body by body, as before.
   const GroupEdges edges = groupEdges(group, scene);
   const bool surrounds = edges.left_rad - edges.right_rad >= 2 * M_PI;
+  // Ringed in by standing bodies it does not end at (a met robot leaving the robots that
+  // met it): it leaves through the widest gap it fits.
+  if (!ends_there && body->standing && !scene.load) leaving_ = wayOut(group, scene);
+  if (leaving_) {
+    for (const SafetyBody* b : group) resolve_group_.push_back(b->name);
+    resolve_standing_ = true;
+    return;
+  }
   if (group.size() == 1 || ends_there || surrounds || !body->standing) {
     resolve_group_.push_back(body->name);
     if (body->standing) resolve_side_ = z0.dot(round_left) < 0 ? -1 : 1;
@@ -354,15 +430,7 @@ void SafetyFilter::decideSide(const Eigen::Vector2d& z0, const SafetyBody* body,
   // A group in its way it passes by the edge its command turns least to.
   for (const SafetyBody* b : group) resolve_group_.push_back(b->name);
   resolve_standing_ = true;
-  // The way the robot wants to go: its command's point velocity, else its heading.
-  const Frame& f = *scene.frame;
-  const Eigen::Vector2d dir = z0.x() * f.e + z0.y() * f.e_perp;
-  const Eigen::Vector2d way = dir.norm() > 1e-9 ? dir : f.e;
-  const double want = std::atan2(way.y(), way.x());
-  // How far the command turns to clear each edge (0: that side does not block it).
-  const double to_right = std::max(0.0, wrapAngle(want - edges.right_rad));
-  const double to_left = std::max(0.0, wrapAngle(edges.left_rad - want));
-  resolve_side_ = to_left < to_right ? -1 : 1;
+  resolve_side_ = edgeSide(z0, edges.right_rad, edges.left_rad, *scene.frame);
 }
 
 std::vector<const SafetyBody*> SafetyFilter::standingGroup(const SafetyBody& first, const Scene& scene) const {
@@ -431,7 +499,9 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
     const bool near_robot = (b.position - x).norm() <= params_.range_m;
     if (!near_robot && !(load && (b.position - load->position).norm() <= params_.range_m)) continue;
     if (load) loadBarrier(bs, params_, f, *load, b, static_cast<int>(j), target, share);
-    if (near_robot) robotBarrier(bs, params_, f, self_radius_m, b, static_cast<int>(j), target, share);
+    const bool leaving_it =
+        leaving_ && !load && std::find(resolve_group_.begin(), resolve_group_.end(), b.name) != resolve_group_.end();
+    if (near_robot) robotBarrier(bs, params_, f, self_radius_m, b, static_cast<int>(j), target, share, leaving_it);
   }
   addWheelLimits(bs, l, wheel_base_m_, max_wheel_mps_, max_turn_radps_);
 
@@ -478,6 +548,7 @@ bool SafetyFilter::trackHold(SafetyCommand& out, const std::string& self_name, c
     holders_.clear();
     resolve_group_.clear();  // free: the next hold decides its side afresh
     resolve_standing_ = false;
+    leaving_.reset();
     return false;
   }
   if (stuck_since_s_ < 0 || progress_m >= stuck_progress_m_ + params_.progress_m) {
