@@ -791,8 +791,7 @@ TEST(BodiesExecution, ACarrierPassesAPairStandingInItsLoadsWayByOneEdge) {
                                     {line(sc.carrier.position(), carrier_end), line(load, sc.goal)});
     EXPECT_TRUE(a.failures.empty()) << a.failures.front();
     EXPECT_TRUE(task::arrived(a.positions[3], sc.goal, 0.03)) << a.positions[3].transpose();
-           a.positions[0].y(), a.positions[3].x(), a.positions[3].y(), a.failures.size());
-           EXPECT_TRUE(with.report().collisions.empty());
+    EXPECT_TRUE(with.report().collisions.empty());
   }
 }
 
