@@ -66,7 +66,8 @@ std::map<std::pair<std::string, std::string>, int> endCountsOf(const task::TaskS
 EndScene endSceneOf(const task::TaskDir& train);
 /// `end` of a model of `trained` on the entities of `other`: a count follows the counts it was
 /// all of in training (every entity of its kind, or of the kind it is with), the least of
-/// those in `other`; any other stays, at most the entities of its kind in `other`. `waits`,
+/// those in `other`, and grows no further than every kind it was all of grew; any other
+/// stays, at most the entities of its kind in `other`. `waits`,
 /// per count of the result: it grew past training's (END waits for it).
 EndScene endSceneFor(const EndScene& end, const task::TaskSpec& trained, const task::TaskSpec& other,
                      std::vector<bool>& waits);

@@ -94,10 +94,19 @@ EndScene endSceneFor(const EndScene& end, const task::TaskSpec& trained, const t
   EndScene out;
   out.telling = end.telling;
   waits.clear();
+  // A count grows with the team only as far as every kind it equalled in training grew: boxes
+  // carried by 2 robots with 2 boxes to 2 goals, run with 4 robots, 2 boxes and 4 goals, end
+  // with 2 robots at goals, not 4. It shrinks with its own kinds only: with a robot lost,
+  // the 2 boxes still end at goals.
+  std::set<std::string> kinds;
+  for (const auto& e : trained.entities) kinds.insert(kindKey(e));
+  std::vector<std::pair<int, int>> every;
+  for (const std::string& kind : kinds) every.push_back({ofKind(trained, kind), ofKind(other, kind)});
   for (const EndCount& c : end.counts) {
     const int kind_other = ofKind(other, c.kind);
-    const int followed = followedCount(
+    int followed = followedCount(
         c.count, {{ofKind(trained, c.kind), kind_other}, {ofKind(trained, c.with), ofKind(other, c.with)}});
+    if (followed > c.count) followed = std::max(c.count, followedCount(c.count, every));
     // With another of its own kind: none where the kind has one entity.
     const int most = c.kind == c.with && kind_other < 2 ? 0 : kind_other;
     const int count = std::min(followed >= 0 ? followed : c.count, most);

@@ -231,6 +231,30 @@ TEST(OtherTeamSizes, ASequenceEndsAtItsLastSceneNotAfterTrainingsStepCount) {
   }
 }
 
+// A count of the end scene follows every kind it was all of in training: boxes carried to
+// goals with 2 robots, 2 boxes and 2 goals, run with 4 robots, 2 boxes and 4 goals, is over
+// with the 2 boxes at goals, not when the 4 robots are (before, END waited for 4 robots at
+// goals and the 2 without a box were sent to fetch a delivered one: OSR 0.00 at 2x).
+TEST(OtherTeamSizes, AnEndCountFollowsTheLeastKindItWasAllOf) {
+  const uint64_t rule = 32;
+  ASSERT_EQ(tasks::zooRule(rule).kind, "boxes");
+  tgn::TrainOptions o;
+  o.max_epochs = 2;  // the end scene is the plan's, not the weights'
+  o.without = {tgn::Rule::Ensemble};
+  const tgn::SequenceModel model = tgn::SequenceModel::train(tasks::generateZoo(rule, 4, 1, {}, {2, 2, 2}), o, nullptr);
+  const tgn::EndCount at_goals{"robot:hamster", "goal", 2};
+  const auto& trained = model.info().plan.end_scene.counts;
+  ASSERT_NE(std::find(trained.begin(), trained.end(), at_goals), trained.end());
+  const task::TaskDir larger = tasks::generateZoo(rule, 4, 2, {}, {4, 2, 4});
+  const tgn::SequenceModel bound = model.boundTo(larger.spec);
+  const auto& counts = bound.info().plan.end_scene.counts;
+  EXPECT_NE(std::find(counts.begin(), counts.end(), at_goals), counts.end()) << "2 boxes: 2 robots at goals";
+  for (const task::Demonstration& d : larger.demos) {
+    const tgn::Prediction last = bound.predictNext(d.snapshots);
+    EXPECT_TRUE(last.end) << d.source << ": both boxes at goals";
+  }
+}
+
 // The end scene is what the last scenes had in common, and decides END where no earlier
 // scene had it: the relay ends with the box at G1 and giver and receiver together, a scene no
 // earlier step had. Elsewhere the END head decides, but where a count waits (it grew with the
