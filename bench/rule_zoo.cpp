@@ -35,6 +35,7 @@
 #include "ddace/common/error.h"
 #include "ddace/common/machine.h"
 #include "ddace/pipeline/evaluation.h"
+#include "ddace/task/body_geometry.h"
 #include "ddace/tasks/rule_zoo.h"
 #include "results.h"
 
@@ -47,6 +48,10 @@ namespace {
 struct WithBodies {
   tasks::ZooMotion motion;
   eval::Summary ideal, bodies;
+  int deadlocked_trials = 0;  ///< with bodies: trials a robot of which was reported deadlocked
+  /// With bodies: why each trial that succeeded ideal failed ("scene 3: collision at 5.3 s: R1
+  /// touched R2"), printed while the benchmark runs.
+  std::vector<std::string> lost;
 };
 
 struct Result {
@@ -173,13 +178,44 @@ class RuleRuns {
   WithBodies evaluateBoth(const pipeline::Model& model, const task::TaskDir& test, const tasks::ZooMotion& m) const {
     WithBodies w;
     w.motion = m;
-    w.ideal = pipeline::evaluate(model, test, {}).summary;
     pipeline::EvalOptions e;
     e.execution = "diffdrive";
     e.noise_m = kBodiesNoiseM;
     e.seed = static_cast<uint64_t>(o_.seed);
-    w.bodies = pipeline::evaluate(model, test, e).summary;
+    const pipeline::Evaluation ideal = pipeline::evaluate(model, test, {});
+    const pipeline::Evaluation bodies = pipeline::evaluate(model, test, e);
+    w.ideal = ideal.summary;
+    w.bodies = bodies.summary;
+    for (size_t k = 0; k < bodies.trials.size(); ++k) {
+      const std::vector<std::string> why = failureWords(bodies, k);
+      if (std::any_of(why.begin(), why.end(),
+                      [](const std::string& f) { return f.find("deadlock") != std::string::npos; }))
+        ++w.deadlocked_trials;
+      if (ideal.scores.at(k).success && !bodies.scores.at(k).success)
+        for (const std::string& f : why) w.lost.push_back("scene " + std::to_string(k) + ": " + f);
+    }
     return w;
+  }
+
+  /// One trial's failures with bodies, in words: collisions, stops, loads left short, the
+  /// first step that differs from the demonstration.
+  static std::vector<std::string> failureWords(const pipeline::Evaluation& e, size_t k) {
+    std::vector<std::string> why;
+    const exec::Trial& t = e.trials.at(k);
+    for (const auto& c : t.body_report.collisions)
+      why.push_back("collision at " + fmt(c.time_s) + " s: " + e.entity_names.at(c.a) + " touched " +
+                    e.entity_names.at(c.b));
+    why.insert(why.end(), t.failures.begin(), t.failures.end());
+    for (const eval::ObjectLeftShort& o : e.scores.at(k).objects_left_short) why.push_back(o.describe());
+    for (const auto& ex : t.executed)  // robots that stopped outside the arrival radius
+      if (ex.token.isMotion() && e.robot_entities.count(ex.token.entity) &&
+          !task::arrived(ex.executed.back(), ex.goal, e.arrival_radius_m))
+        why.push_back("step " + std::to_string(ex.step + 1) + ": " + e.entity_names.at(ex.token.entity) + ":" +
+                      ex.token.action + " stopped " + fmt((ex.executed.back() - ex.goal).norm() * 100, 1) +
+                      " cm from its end point");
+    if (k < e.first_difference.size() && !e.first_difference[k].empty()) why.push_back(e.first_difference[k]);
+    if (!e.scores.at(k).goal_conditions_hold) why.push_back("goal conditions not met");
+    return why;
   }
 
   /// The rule demonstrated and tested on the direct motion, into r.bodies (or r.undrawable).
@@ -204,7 +240,10 @@ std::string osrWords(const Result& r, const std::vector<int>& sizes) {
   for (int demos : sizes) w += " " + fmt(r.osr.at(demos)) + " (" + std::to_string(demos) + ")";
   for (const WithBodies& b : r.bodies)
     w += "; " + b.motion.words() + ": " + fmt(b.ideal.osr) + " ideal, " + fmt(b.bodies.osr) + " with bodies, " +
-         std::to_string(b.bodies.collisions) + " collisions";
+         std::to_string(b.bodies.collisions) + " collisions, " + std::to_string(b.deadlocked_trials) +
+         " deadlocked trials";
+  for (const WithBodies& b : r.bodies)
+    for (const std::string& l : b.lost) w += "\n    " + b.motion.words() + ", " + l;
   return w;
 }
 
@@ -353,14 +392,15 @@ std::string bodiesPerRule(const std::vector<Result>& results) {
   md << "\nRules the direct motion cannot demonstrate (no scene whose bodies keep clear without bending around each "
         "other), not in its row: "
      << (undrawable.empty() ? std::string("none") : undrawable) << ".\n";
-  md << "\n| rule | motion | OSR ideal | OSR with bodies | collisions (trials) | min clearance | FD ideal | FD with "
-        "bodies | makespan |\n|---|---|---|---|---|---|---|---|---|\n";
+  md << "\n| rule | motion | OSR ideal | OSR with bodies | collisions (trials) | deadlocked trials | min clearance | "
+        "FD "
+        "ideal | FD with bodies | makespan |\n|---|---|---|---|---|---|---|---|---|---|\n";
   for (const Result& r : results)
     for (const WithBodies& b : r.bodies)
       md << "| zoo:" << r.rule.id << " " << r.rule.name << " | " << b.motion.words() << " | " << fmt(b.ideal.osr)
          << " | " << fmt(b.bodies.osr) << " | " << b.bodies.collisions << " (" << b.bodies.trials_with_collision << "/"
-         << b.bodies.trials << ") | " << mm(b.bodies.min_clearance_m) << " | " << fmt(b.ideal.fd, 4) << " | "
-         << fmt(b.bodies.fd, 4) << " | " << fmt(b.bodies.makespan_s, 1) << " s |\n";
+         << b.bodies.trials << ") | " << b.deadlocked_trials << " | " << mm(b.bodies.min_clearance_m) << " | "
+         << fmt(b.ideal.fd, 4) << " | " << fmt(b.bodies.fd, 4) << " | " << fmt(b.bodies.makespan_s, 1) << " s |\n";
   return md.str();
 }
 

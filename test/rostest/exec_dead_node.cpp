@@ -6,8 +6,10 @@
 // training.
 #include "exec_common.h"
 
+#include <netinet/in.h>
+#include <sys/socket.h>
+
 #include <cstdlib>
-#include <random>
 
 using namespace exec_test;
 
@@ -33,9 +35,23 @@ const Setup& setup() {
   return s;
 }
 
+/// A TCP port the kernel has free now (a random one may be held by another graph's node,
+/// and roslaunch then ends at once with no node dead).
+int freePort() {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  socklen_t size = sizeof address;
+  const bool bound = fd >= 0 && bind(fd, reinterpret_cast<sockaddr*>(&address), size) == 0 &&
+                     getsockname(fd, reinterpret_cast<sockaddr*>(&address), &size) == 0;
+  if (fd >= 0) close(fd);
+  EXPECT_TRUE(bound) << "no free TCP port";
+  return bound ? ntohs(address.sin_port) : 11311;
+}
+
 /// Runs `command` (shell text) with a master port of its own; its status and output.
 std::pair<int, std::string> run(const std::string& command, const std::string& out) {
-  const int port = 20000 + static_cast<int>(std::random_device{}() % 20000);
+  const int port = freePort();
   // `timeout` only keeps a hang from blocking the suite.
   const int status = std::system(("ROS_MASTER_URI=http://localhost:" + std::to_string(port) + " timeout -s INT 180 " +
                                   command + " > '" + out + "' 2>&1")
@@ -187,7 +203,7 @@ TEST(ScriptsLaunch, TheNodesLinesShowWhileTheLaunchRuns) {
   ASSERT_FALSE(setup().scripts.empty()) << "the .test file must set ~scripts";
   const std::string dir = std::string(setup().scratch) + "/live", log = dir + "/launch.log";
   fs::create_directories(dir);
-  const int port = 20000 + static_cast<int>(std::random_device{}() % 20000);
+  const int port = freePort();
   const std::string command = "ROS_MASTER_URI=http://localhost:" + std::to_string(port) + " exec '" + setup().scripts +
                               "/launch' --log '" + log +
                               "' record.launch video_device:=-1 keyboard:=false rviz:=false output_dir:='" + dir +

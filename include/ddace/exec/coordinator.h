@@ -359,6 +359,11 @@ class Coordinator {
   /// ended at its end point (a started one at its goal), step after step. What a fixed
   /// order asked ahead is shown, as its demonstrations showed it a step's end.
   std::vector<Eigen::Vector2d> sceneOnceSettled() const;
+  /// What a decision of a policy that reads the scene reads: the scene as it is, but an
+  /// entity a re-decided step had moved that now stands at one place with another
+  /// (task::together) where that step began (began_at_): at one place the policy reads a
+  /// robot as having gone there -- it saw a robot beside a box only once it fetched it.
+  std::vector<Eigen::Vector2d> decisionScene() const;
   void refreshState(CoordinatorOutput& out);
   void abort(const std::string& why, CoordinatorOutput& out);
   void stopActive(CoordinatorOutput& out);
@@ -428,6 +433,10 @@ class Coordinator {
   int replans_ = 0, redecisions_ = 0;
   std::vector<int> step_redecisions_;  ///< per step index: times it was re-decided
   std::vector<StepRecord> withdrawn_;
+  /// A re-decided step's entities that its withdrawn tokens had moved, where they stood in
+  /// the scene it was decided from (decisionScene); the step decided again is recorded with
+  /// them there, so the decisions after it read its motion from where it began.
+  std::vector<std::pair<int, Eigen::Vector2d>> began_at_;
   std::vector<bool> lost_;               ///< per entity: a robot lost for good
   std::vector<double> untracked_since_;  ///< per entity: since when not tracked (-1: tracked)
   std::vector<std::string> lost_reports_;

@@ -44,7 +44,11 @@
 // side: robots ringing the one they met at, a row, a queue) are one group: a group in its
 // way (none of it a body its motion ends at) it passes by the group's edge, the one its
 // command turns least to, heading past that edge as it sees it (round one body of the
-// group it was led into the too-narrow gap next to it and held there); a group it ends at,
+// group it was led into the too-narrow gap next to it and held there; a carrier, whose
+// load is turned by a lever and cannot head straight past an edge it touches, follows the
+// group's outline to that edge, round one body after the other on the side decided for the
+// group, the group and its edges taken for the disc held -- its load's or its own -- and
+// the side kept whichever of the two the group holds next); a group it ends at,
 // or one all round it (no edge), it goes round body by body -- except a group lying all
 // round it that it does not end at (a met robot inside the ring of robots that met it, its
 // way on through them): it leaves by the widest gap between two of them that its disc
@@ -252,24 +256,29 @@ class SafetyFilter {
   /// The robot's own name, its load's or a body's in range whose pose is stale; "" if none.
   std::string staleName(const std::string& self_name, const Pose2D& self, double self_age_s,
                         const std::vector<SafetyBody>& bodies, const SafetyBody* load) const;
+  /// A disc on the table: the robot's body, or its load's.
+  struct Disc {
+    Eigen::Vector2d centre;
+    double radius_m;
+  };
   struct Scene;
   /// The command to filter: the nominal `z0`, or while going round, the command moving the
   /// held disc round `body` (`round_left` keeps it on the left) on the side decided for it.
   Eigen::Vector2d goRound(const Eigen::Vector2d& z0, const SafetyBody* body, bool of_load,
                           const Eigen::Vector2d& round_left, const Scene& scene, double now_s);
   /// Whether the side is decided for `body` (it is in the group decided for).
-  bool decidedFor(const SafetyBody* body, bool of_load) const;
+  bool decidedFor(const SafetyBody* body) const;
   void decideSide(const Eigen::Vector2d& z0, const SafetyBody* body, bool of_load, const Eigen::Vector2d& round_left,
                   const Scene& scene);
-  /// `first` and the standing bodies the robot cannot pass between, linked through each
-  /// other: gaps narrower than its body with a margin either side.
-  std::vector<const SafetyBody*> standingGroup(const SafetyBody& first, const Scene& scene) const;
-  /// The directions (table frame, radians) from the robot past a group's right and left
-  /// edges, its disc a margin off them.
+  /// `first` and the standing bodies the `held` disc (the robot's, or its load's) cannot
+  /// pass between, linked through each other: gaps narrower than it with a margin either side.
+  std::vector<const SafetyBody*> standingGroup(const SafetyBody& first, const Scene& scene, const Disc& held) const;
+  /// The directions (table frame, radians) from the `held` disc past a group's right and
+  /// left edges, the disc a margin off them.
   struct GroupEdges {
     double right_rad = 0, left_rad = 0;
   };
-  GroupEdges groupEdges(const std::vector<const SafetyBody*>& group, const Scene& scene) const;
+  GroupEdges groupEdges(const std::vector<const SafetyBody*>& group, const Disc& held) const;
   /// Where the robot leaves a group of standing bodies that lies all round it (none half a
   /// turn from the next, as seen from the robot): the widest gap between two neighbours, if
   /// its disc passes it with the margin either side. None: not enclosed, or no such gap. While it leaves, the

@@ -179,6 +179,7 @@ void Coordinator::clearRun() {
   redecisions_ = 0;
   step_redecisions_.clear();
   withdrawn_.clear();
+  began_at_.clear();
   lost_.assign(spec_.entities.size(), false);
   untracked_since_.assign(spec_.entities.size(), -1);
   lost_reports_.clear();
@@ -202,7 +203,8 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   // A policy that reads the scene decides from the scene as it is once it settled, else
   // (asked ahead) from the scene the decided steps will leave, as a fixed order always does.
   const bool ahead = policy_reads_scene_ && !dispatch_->allEnded();
-  snap.positions = policy_reads_scene_ && !ahead ? observation_.positions : sceneOnceSettled();
+  snap.positions = policy_reads_scene_ && !ahead ? decisionScene() : sceneOnceSettled();
+  if (ahead) began_at_.clear();
   history_.push_back(snap);
   if (ahead) ahead_ = static_cast<int>(history_.size()) - 1;
   DecisionRequest req;
@@ -219,6 +221,19 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   out.log.push_back("requesting decision " + std::to_string(req.step + 1) +
                     (ahead ? " ahead, from the scene the running tokens will leave" : ""));
   out.decision = std::move(req);
+}
+
+std::vector<Eigen::Vector2d> Coordinator::decisionScene() const {
+  const std::vector<Eigen::Vector2d>& now = observation_.positions;
+  const auto atOnePlace = [&](int e) {
+    for (int f = 0; f < static_cast<int>(now.size()); ++f)
+      if (f != e && task::together(spec_, e, now[static_cast<size_t>(e)], f, now[static_cast<size_t>(f)])) return true;
+    return false;
+  };
+  std::vector<Eigen::Vector2d> at = now;
+  for (const auto& [e, p] : began_at_)
+    if (atOnePlace(e)) at[static_cast<size_t>(e)] = p;
+  return at;
 }
 
 std::vector<Eigen::Vector2d> Coordinator::sceneOnceSettled() const {
@@ -555,6 +570,14 @@ void Coordinator::redecide(TokenRef r, const std::string& why, double now_s, Coo
   ++step_redecisions_[k];
   ++redecisions_;
   StepRecord& s = steps_[k];
+  // Where the step's movers began: the policy reads a step's motion from one decision's
+  // scene to the next, and a robot stopped part-way has done neither that step nor another
+  // (decisionScene, onDecision). A task begun again reads the scene as it is.
+  const std::vector<Eigen::Vector2d>& begun = history_.back().positions;
+  began_at_.clear();
+  for (const TokenRecord& t : s.tokens)
+    if (!begin_again && t.token.isMotion() && t.started_s >= 0)
+      began_at_.emplace_back(t.token.entity, begun[static_cast<size_t>(t.token.entity)]);
   for (TokenRecord& t : s.tokens)
     if (t.token.isMotion() && t.started_s >= 0 && t.state != SegmentState::Done) {
       if (t.segment_id != 0) out.stop.push_back(t.token.entity);
@@ -827,6 +850,9 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
   out.log.push_back(os.str());
   steps_.push_back(std::move(step));
   dispatch_->addStep(d.tokens, now_s, insideOut(d.tokens, history_.back().positions));
+  // Later decisions read this step's motion from where the step it replaced began.
+  for (const auto& [e, p] : began_at_) history_.back().positions[static_cast<size_t>(e)] = p;
+  began_at_.clear();
   advance(now_s, out);
   return out;
 }

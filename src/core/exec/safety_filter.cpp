@@ -113,6 +113,14 @@ struct SafetyFilter::Scene {
   const SafetyBody* load;
   double self_radius_m;
   const std::string* target;
+  /// The disc held: the load's (`of_load`, carrying) or the robot's own.
+  Disc held(bool of_load) const {
+    return of_load && load ? Disc{load->position, load->radius_m} : Disc{frame->x, self_radius_m};
+  }
+  /// Whether the held disc may end touching `b` (the target, or a body its end point touches).
+  bool endsAt(const SafetyBody& b, bool of_load) const {
+    return b.name == *target || (of_load && load ? b.load_touchable : b.touchable);
+  }
 };
 
 namespace {
@@ -142,6 +150,15 @@ bool mayTouch(const SafetyBody& b, const std::string& target) {
   return b.name == target || b.touchable;
 }
 
+/// The command z moving the carried load's centre q (at r = q - x, q' = z1 e + (z2 / l)
+/// r^perp) along `t` (robot frame); none (zero) when the load is beside or behind the robot:
+/// no lever to steer it with.
+Eigen::Vector2d loadLever(const Eigen::Vector2d& t, const Frame& f, const SafetyBody& load) {
+  const Eigen::Vector2d r = f.local(load.position - f.x);
+  if (!(r.x() > 1e-6)) return Eigen::Vector2d::Zero();
+  return Eigen::Vector2d(t.x() + t.y() * r.y() / r.x(), f.l * t.y() / r.x());
+}
+
 /// Records `b` as the body nearest to holding the disc if its barrier value `h` is the
 /// smallest so far; `a` is the unit vector from the body to the disc, robot frame. Going
 /// round keeping the body on the left moves the disc along t = (-a.y, a.x): for the
@@ -151,12 +168,8 @@ void considerNearest(Nearest& n, double h, const Eigen::Vector2d& a, const Safet
                      const SafetyBody* load) {
   if (!(h < n.h)) return;
   const Eigen::Vector2d t(-a.y(), a.x());
-  Eigen::Vector2d z = t;
-  if (load) {
-    const Eigen::Vector2d r = f.local(load->position - f.x);  // the load ahead: r.x > 0
-    if (!(r.x() > 1e-6)) return;                              // beside or behind: no lever to go round with
-    z = Eigen::Vector2d(t.x() + t.y() * r.y() / r.x(), f.l * t.y() / r.x());
-  }
+  const Eigen::Vector2d z = load ? loadLever(t, f, *load) : t;
+  if (z.norm() < 1e-9) return;  // the load beside or behind: no lever to go round with
   n = {h, z.normalized(), &b, load != nullptr};
 }
 
@@ -327,7 +340,7 @@ Eigen::Vector2d SafetyFilter::goRound(const Eigen::Vector2d& z0, const SafetyBod
   // least a quarter of the top speed: a nominal that only turns on the spot would not get
   // round anything.
   if (!(now_s < resolve_until_s_ && body)) return z0;
-  if (!decidedFor(body, of_load)) decideSide(z0, body, of_load, round_left, scene);
+  if (!decidedFor(body)) decideSide(z0, body, of_load, round_left, scene);
   const double speed = std::max(z0.norm(), 0.25 * max_wheel_mps_);
   if (!resolve_standing_) return speed * resolve_side_ * round_left;
   std::vector<const SafetyBody*> group;
@@ -345,10 +358,10 @@ Eigen::Vector2d SafetyFilter::goRound(const Eigen::Vector2d& z0, const SafetyBod
       return speed * f.local((leaving_->out - off_line / scene.self_radius_m).normalized());
     }
     leaving_.reset();
-    const GroupEdges out = groupEdges(group, scene);
+    const GroupEdges out = groupEdges(group, scene.held(false));
     resolve_side_ = edgeSide(z0, out.right_rad, out.left_rad, f);
   }
-  const GroupEdges edges = groupEdges(group, scene);
+  const GroupEdges edges = groupEdges(group, scene.held(false));
   const double heading = resolve_side_ > 0 ? edges.right_rad : edges.left_rad;
   return speed * f.local(Eigen::Vector2d(std::cos(heading), std::sin(heading)));
 }
@@ -380,9 +393,10 @@ std::optional<SafetyFilter::Gap> SafetyFilter::wayOut(const std::vector<const Sa
   return widest;
 }
 
-bool SafetyFilter::decidedFor(const SafetyBody* body, bool of_load) const {
-  return body && of_load == resolve_of_load_ &&
-         std::find(resolve_group_.begin(), resolve_group_.end(), body->name) != resolve_group_.end();
+bool SafetyFilter::decidedFor(const SafetyBody* body) const {
+  // Whichever disc it now holds, the robot's or its load's: a carrier turning past a group
+  // brings its own disc near it too, and deciding afresh from that disc flipped the side.
+  return body && std::find(resolve_group_.begin(), resolve_group_.end(), body->name) != resolve_group_.end();
 }
 
 void SafetyFilter::decideSide(const Eigen::Vector2d& z0, const SafetyBody* body, bool of_load,
@@ -404,15 +418,18 @@ void SafetyFilter::decideSide(const Eigen::Vector2d& z0, const SafetyBody* body,
   leaving_.reset();
   if (!body) return;
   resolve_of_load_ = of_load;
-  // Round one body: a moving one, one with a load ahead (as the load's lever allows), or
-  // one of a group the motion ends at (its target, a body its end point touches): such a
-  // group it follows round body by body, each the shorter way, to its place there.
+  // Round one body: a moving one, or one of a group the motion ends at (its target, a body
+  // its end point touches): such a group it follows round body by body, each the shorter
+  // way, to its place there. Carrying, the disc held -- the load's or its own -- decides
+  // the group and its edges (a carrier and the load it delivered stand touching: a wall
+  // the load cannot pass between, round either of which it would be led into the other).
+  const Disc held = scene.held(of_load);
   std::vector<const SafetyBody*> group{body};
-  if (body->standing && !scene.load) group = standingGroup(*body, scene);
+  if (body->standing) group = standingGroup(*body, scene, held);
   const bool ends_there =
-      std::any_of(group.begin(), group.end(), [&](const SafetyBody* b) { return mayTouch(*b, *scene.target); });
+      std::any_of(group.begin(), group.end(), [&](const SafetyBody* b) { return scene.endsAt(*b, of_load); });
   // A group all round it has no edge to pass by: body by body, as before.
-  const GroupEdges edges = groupEdges(group, scene);
+  const GroupEdges edges = groupEdges(group, held);
   const bool surrounds = edges.left_rad - edges.right_rad >= 2 * M_PI;
   // Ringed in by standing bodies it does not end at (a met robot leaving the robots that
   // met it): it leaves through the widest gap it fits.
@@ -427,16 +444,20 @@ void SafetyFilter::decideSide(const Eigen::Vector2d& z0, const SafetyBody* body,
     if (body->standing) resolve_side_ = z0.dot(round_left) < 0 ? -1 : 1;
     return;
   }
-  // A group in its way it passes by the edge its command turns least to.
+  // A group in its way it passes by the edge its command turns least to. A carrier follows
+  // the group's outline there, round body by body on that side (keeping them on its left
+  // passes the right edge): its load, turned by a lever, cannot head straight past an edge
+  // it touches.
   for (const SafetyBody* b : group) resolve_group_.push_back(b->name);
-  resolve_standing_ = true;
+  resolve_standing_ = !scene.load;
   resolve_side_ = edgeSide(z0, edges.right_rad, edges.left_rad, *scene.frame);
 }
 
-std::vector<const SafetyBody*> SafetyFilter::standingGroup(const SafetyBody& first, const Scene& scene) const {
-  // Too narrow to pass: a gap below the robot's body with the clearance the filter keeps
+std::vector<const SafetyBody*> SafetyFilter::standingGroup(const SafetyBody& first, const Scene& scene,
+                                                           const Disc& held) const {
+  // Too narrow to pass: a gap below the held disc with the clearance the filter keeps
   // either side (the margin, reached by a point projection_m ahead of the axle).
-  const double passable = 2 * (scene.self_radius_m + params_.margin_m + params_.projection_m);
+  const double passable = 2 * (held.radius_m + params_.margin_m + params_.projection_m);
   std::vector<const SafetyBody*> group{&first};
   for (size_t k = 0; k < group.size(); ++k)
     for (const SafetyBody& b : *scene.bodies) {
@@ -447,19 +468,18 @@ std::vector<const SafetyBody*> SafetyFilter::standingGroup(const SafetyBody& fir
   return group;
 }
 
-SafetyFilter::GroupEdges SafetyFilter::groupEdges(const std::vector<const SafetyBody*>& group,
-                                                  const Scene& scene) const {
-  // The directions (table frame) in which the robot's disc, a margin off, grazes each
-  // body, measured from the direction of the first body (a group is contiguous as seen
-  // from outside it): the group spans [right, left] counter-clockwise.
-  const Eigen::Vector2d x = scene.frame->x;
+SafetyFilter::GroupEdges SafetyFilter::groupEdges(const std::vector<const SafetyBody*>& group, const Disc& held) const {
+  // The directions (table frame) in which the held disc, a margin off, grazes each body,
+  // measured from the direction of the first body (a group is contiguous as seen from
+  // outside it): the group spans [right, left] counter-clockwise.
+  const Eigen::Vector2d x = held.centre;
   if (group.empty()) return {};
   const Eigen::Vector2d r0 = group.front()->position - x;
   const double ref = std::atan2(r0.y(), r0.x());
   double lo = 0, hi = 0;
   for (const SafetyBody* b : group) {
     const Eigen::Vector2d v = b->position - x;
-    const double d = v.norm(), reach = b->radius_m + scene.self_radius_m + params_.margin_m;
+    const double d = v.norm(), reach = b->radius_m + held.radius_m + params_.margin_m;
     const double phi = wrapAngle(std::atan2(v.y(), v.x()) - ref);
     const double half = d > reach ? std::asin(reach / d) : M_PI / 2;
     lo = std::min(lo, phi - half), hi = std::max(hi, phi + half);
@@ -532,8 +552,7 @@ SafetyCommand SafetyFilter::filter(const std::string& self_name, const Pose2D& s
   // command pointing at a standing body (its path runs on behind it) turns it to one
   // side or the other with the noise, and the robot goes back and forth round it
   // without getting past.
-  if (decide && !decidedFor(nearest.body, nearest.of_load))
-    decideSide(z0, nearest.body, nearest.of_load, nearest.round_left, scene);
+  if (decide && !decidedFor(nearest.body)) decideSide(z0, nearest.body, nearest.of_load, nearest.round_left, scene);
   return out;
 }
 

@@ -754,6 +754,47 @@ TEST(BodiesExecution, ARobotRingedInByStandingRobotsLeavesThroughTheGapItFits) {
   }
 }
 
+// A carrier whose load's way runs through a pair that delivered its own box (the robot and
+// its box standing touching, a wall the load cannot pass between): it passes the pair by
+// one edge, round one body after the other on the side decided once for both, whichever
+// disc -- its load's or its own -- they hold (without: going round each body afresh, its
+// load was led into the gap between them or the side flipped as its own disc came near,
+// and it was reported deadlocked). The two scenes of the rule zoo's zoo:29 (3 pairs
+// carrying at once) where this happened, step 2: the generators' motion, test scene 2, and
+// the direct one (1 cm stops), test scene 0.
+TEST(BodiesExecution, ACarrierPassesAPairStandingInItsLoadsWayByOneEdge) {
+  struct Scene {
+    Pose2D carrier;
+    Vector2d robot, box, goal;
+  };
+  const std::vector<Scene> scenes{{{0.70, 0.822, M_PI}, {0.556, 0.787}, {0.546, 0.866}, {0.191, 0.867}},
+                                  {{0.26, 0.425, 0.35}, {0.467, 0.450}, {0.409, 0.501}, {0.846, 0.667}}};
+  for (const Scene& sc : scenes) {
+    SCOPED_TRACE("carrier at " + std::to_string(sc.carrier.x) + ", " + std::to_string(sc.carrier.y));
+    const auto s = spec({{"R1", task::EntityKind::Robot},
+                         {"R2", task::EntityKind::Robot},
+                         {"B1", task::EntityKind::Object},
+                         {"B3", task::EntityKind::Object},
+                         {"G3", task::EntityKind::Goal}});
+    const Vector2d heading(std::cos(sc.carrier.yaw), std::sin(sc.carrier.yaw));
+    const Vector2d load = sc.carrier.position() + (task::kDefaultRobotRadius + task::kDefaultObjectRadius) * heading;
+    const Vector2d carrier_end = sc.goal - (task::kDefaultRobotRadius + task::kDefaultObjectRadius) * heading;
+    const std::vector<Pose2D> start{sc.carrier,
+                                    {sc.robot.x(), sc.robot.y(), 0},
+                                    {sc.box.x(), sc.box.y(), 0},
+                                    {load.x(), load.y(), sc.carrier.yaw},
+                                    {sc.goal.x(), sc.goal.y(), 0}};
+    BodiesExecutionParams p;
+    p.noise_m = 0.002;
+    BodiesExecution with(p);
+    const StepExecution a = runStep(with, s, start, {{0, "carry", 4}, {3, "carry", 4}},
+                                    {line(sc.carrier.position(), carrier_end), line(load, sc.goal)});
+    EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+    EXPECT_TRUE(task::arrived(a.positions[3], sc.goal, 0.03)) << a.positions[3].transpose();
+    EXPECT_TRUE(with.report().collisions.empty());
+  }
+}
+
 // Two robots starting 6 mm apart side by side, their paths crossing, at the tracking noise
 // of `ddace eval` (2 mm): inside the filter's margin each disc may not close in on the
 // other, so the noise, which shows a gap wider than the true one as often as narrower,

@@ -7,7 +7,9 @@
 
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/replay.h"
+#include "ddace/task/body_geometry.h"
 #include "ddace/tasks/generators.h"
+#include "ddace/tasks/rule_zoo.h"
 
 using namespace ddace;
 using namespace ddace::exec;
@@ -475,4 +477,54 @@ TEST(Redecide, AStepWithAMotionNoDemonstrationHasAbortsNamingIt) {
     EXPECT_EQ(c.reason().rfind("R2 is lost and step 1 as decided without it moves R1:move:G1", 0), 0u) << c.reason();
     EXPECT_NE(c.reason().find("no decision without it"), std::string::npos) << c.reason();
   }
+}
+
+// The policy reads a step's motion from one decision's scene to the next, and never saw a
+// robot stopped part-way at one place with a box it was not yet at. A box put down by a hand
+// beside the robot driving to it: the step is decided again reading that robot where the
+// step began (a robot part-way and at one place with nothing is read where it is), and the
+// decision after it reads the re-decided step's motion from where the step began.
+TEST(Redecide, ARobotAtOnePlaceWithItsMovedTargetIsReadWhereItsStepBegan) {
+  uint64_t rule = 0;
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:two-boxes", rule));
+  const task::TaskDir dir = tasks::generateZoo(rule, 1, 3);
+  const task::TaskSpec& spec = dir.spec;
+  const task::Demonstration& demo = dir.demos.front();
+  Coordinator c{spec, CoordinatorConfig{}, task::learnEndPoints(spec, dir.demos)};  // reads the scene
+  const std::vector<Vector2d> begun = demo.positions.front();
+  std::vector<Vector2d> at = begun;
+  const auto segs = firstStep(c, demo, at);
+  ASSERT_EQ(segs.size(), 2u) << "two robots fetch the two boxes";
+  const auto a = static_cast<size_t>(segs[0].entity), b = static_cast<size_t>(segs[1].entity);
+  const auto box = static_cast<size_t>(segs[0].token.target);
+  // Both robots half-way; a hand puts robot a's box down 5 cm from it, on the side it came from.
+  at[a] = (begun[a] + segs[0].goal) / 2;
+  at[b] = (begun[b] + segs[1].goal) / 2;
+  c.onEntities(observe(at), 1.0);
+  at[box] = at[a] + 0.05 * (begun[a] - at[a]).normalized();
+  ASSERT_TRUE(task::together(spec, static_cast<int>(a), at[a], static_cast<int>(box), at[box]));
+  for (size_t f = 0; f < at.size(); ++f)
+    ASSERT_TRUE(f == b || !task::together(spec, static_cast<int>(b), at[b], static_cast<int>(f), at[f]));
+  const auto out = c.onEntities(observe(at), 1.5);
+  ASSERT_TRUE(out.decision) << c.reason();
+  ASSERT_EQ(out.decision->history.size(), 1u);
+  const std::vector<Vector2d>& read = out.decision->history.back().positions;
+  EXPECT_TRUE(read[a].isApprox(begun[a])) << "read where its step began, not at one place with the box";
+  EXPECT_TRUE(read[b].isApprox(at[b])) << "at one place with nothing: read where it is";
+  EXPECT_TRUE(read[box].isApprox(at[box])) << "the box where the hand put it";
+  // Decided again as before; both robots arrive, and step 2's history reads step 1's motion
+  // from where step 1 began.
+  const auto again = answer(c, c.onDecision(out.decision->id, replayDecision(demo, out.decision->history), 1.6), 1.7);
+  ASSERT_EQ(again.size(), 2u);
+  CoordinatorOutput next;
+  for (const SegmentCommand& s : again) {
+    at[static_cast<size_t>(s.entity)] = s.goal;
+    c.onEntities(observe(at), 2.0);
+    next = c.onSegmentStatus(s.entity, s.segment_id, SegmentState::Done, 1.0, "", 2.0);
+  }
+  ASSERT_TRUE(next.decision) << c.reason();
+  ASSERT_EQ(next.decision->history.size(), 2u);
+  EXPECT_TRUE(next.decision->history[0].positions[a].isApprox(begun[a]));
+  EXPECT_TRUE(next.decision->history[0].positions[b].isApprox(begun[b]));
+  EXPECT_TRUE(next.decision->history[0].positions[box].isApprox(at[box]));
 }
