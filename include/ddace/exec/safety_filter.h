@@ -240,7 +240,6 @@ class SafetyFilter {
   double resolve_side_ = 1;                 ///< +1: keeping it on the left (the right-hand rule), -1: on the right
   std::vector<std::string> resolve_group_;  ///< the bodies resolve_side_ was decided for (standingGroup)
   bool resolve_standing_ = false;           ///< ... standing ones: gone round toward the group's edge
-  bool resolve_of_load_ = false;            ///< ... held by the load's disc (else the robot's)
   std::optional<Gap> leaving_;              ///< ... all round it: the gap it leaves by first (wayOut)
   double stuck_since_s_ = -1;               ///< since when the filter holds the robot without progress
   double stuck_progress_m_ = 0;             ///< its progress then

@@ -417,7 +417,6 @@ void SafetyFilter::decideSide(const Eigen::Vector2d& z0, const SafetyBody* body,
   resolve_standing_ = false;
   leaving_.reset();
   if (!body) return;
-  resolve_of_load_ = of_load;
   // Round one body: a moving one, or one of a group the motion ends at (its target, a body
   // its end point touches): such a group it follows round body by body, each the shorter
   // way, to its place there. Carrying, the disc held -- the load's or its own -- decides
