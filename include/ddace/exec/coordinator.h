@@ -355,15 +355,20 @@ class Coordinator {
   /// from where `predicted` put it, and how far ("" when none is).
   std::string unlikePrediction(const std::vector<Eigen::Vector2d>& predicted,
                                const std::vector<Eigen::Vector2d>& settled) const;
-  /// The scene as the decided steps will leave it: every entity of a token that has not
-  /// ended at its end point (a started one at its goal), step after step. What a fixed
-  /// order asked ahead is shown, as its demonstrations showed it a step's end.
-  std::vector<Eigen::Vector2d> sceneOnceSettled() const;
+  /// The scene `at` (as it is, or as decisionScene reads it) as the decided steps will leave
+  /// it: every entity of a token that has not ended at its end point (a started one at its
+  /// goal), step after step. What a decision asked ahead reads (a fixed order always), as its
+  /// demonstrations showed it a step's end.
+  std::vector<Eigen::Vector2d> sceneOnceSettled(std::vector<Eigen::Vector2d> at) const;
   /// What a decision of a policy that reads the scene reads: the scene as it is, but an
   /// entity a re-decided step had moved that now stands at one place with another
   /// (task::together) where that step began (began_at_): at one place the policy reads a
   /// robot as having gone there -- it saw a robot beside a box only once it fetched it.
   std::vector<Eigen::Vector2d> decisionScene() const;
+  /// The step (or END) just decided in place of a re-decided one is recorded with began_at_'s
+  /// entities where that step began; decided ahead, began_at_ is kept until the scene settles
+  /// (settleAhead records the settled scene with them there too), else cleared.
+  void recordBeganAt();
   void refreshState(CoordinatorOutput& out);
   void abort(const std::string& why, CoordinatorOutput& out);
   void stopActive(CoordinatorOutput& out);
@@ -435,7 +440,8 @@ class Coordinator {
   std::vector<StepRecord> withdrawn_;
   /// A re-decided step's entities that its withdrawn tokens had moved, where they stood in
   /// the scene it was decided from (decisionScene); the step decided again is recorded with
-  /// them there, so the decisions after it read its motion from where it began.
+  /// them there, so the decisions after it read its motion from where it began. Kept until
+  /// that step holds: decided from the scene as it is, or decided ahead and settled.
   std::vector<std::pair<int, Eigen::Vector2d>> began_at_;
   std::vector<bool> lost_;               ///< per entity: a robot lost for good
   std::vector<double> untracked_since_;  ///< per entity: since when not tracked (-1: tracked)

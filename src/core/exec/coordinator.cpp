@@ -201,10 +201,10 @@ void Coordinator::requestDecisionIfDue(double now_s, CoordinatorOutput& out) {
   task::Snapshot snap;
   snap.row = static_cast<int>(history_.size());
   // A policy that reads the scene decides from the scene as it is once it settled, else
-  // (asked ahead) from the scene the decided steps will leave, as a fixed order always does.
+  // (asked ahead) from the scene the decided steps will leave, as a fixed order always does;
+  // either way a re-decided step's movers are read as decisionScene reads them.
   const bool ahead = policy_reads_scene_ && !dispatch_->allEnded();
-  snap.positions = policy_reads_scene_ && !ahead ? decisionScene() : sceneOnceSettled();
-  if (ahead) began_at_.clear();
+  snap.positions = sceneOnceSettled(policy_reads_scene_ ? decisionScene() : observation_.positions);
   history_.push_back(snap);
   if (ahead) ahead_ = static_cast<int>(history_.size()) - 1;
   DecisionRequest req;
@@ -236,8 +236,7 @@ std::vector<Eigen::Vector2d> Coordinator::decisionScene() const {
   return at;
 }
 
-std::vector<Eigen::Vector2d> Coordinator::sceneOnceSettled() const {
-  std::vector<Eigen::Vector2d> at = observation_.positions;
+std::vector<Eigen::Vector2d> Coordinator::sceneOnceSettled(std::vector<Eigen::Vector2d> at) const {
   for (const StepRecord& s : steps_) {
     if (s.complete) continue;
     std::vector<task::Token> tokens;
@@ -292,10 +291,12 @@ void Coordinator::settleAhead(CoordinatorOutput& out) {
   }
   // The scene the decision read, settled: where everything is, the entities of its tokens
   // that started where they started (each after its own predecessors ended).
+  // A re-decided step's movers stay where it began, as the decision read and recorded them.
   std::vector<Eigen::Vector2d> settled = observation_.positions;
   if (ahead_ < static_cast<int>(steps_.size()))
     for (const TokenRecord& t : steps_[static_cast<size_t>(ahead_)].tokens)
       if (t.started_s >= 0) settled[static_cast<size_t>(t.token.entity)] = t.start;
+  for (const auto& [e, p] : began_at_) settled[static_cast<size_t>(e)] = p;
   task::Snapshot& read = history_[static_cast<size_t>(ahead_)];
   const std::string off = unlikePrediction(read.positions, settled);
   const std::string what =
@@ -306,6 +307,7 @@ void Coordinator::settleAhead(CoordinatorOutput& out) {
   }
   read.positions = settled;  // what later decisions read: the scene as it settled
   ahead_ = -1;
+  began_at_.clear();
   out.log.push_back(what + ", decided ahead, holds: the scene settled as predicted");
 }
 
@@ -793,6 +795,7 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
   }
   last_decision_ = AcceptedDecision{d, prob};
   if (d.end) {
+    recordBeganAt();
     end_decided_ = true;
     reason_ = "the policy predicted END after " + std::to_string(steps_.size()) + " steps";
     out.log.push_back(reason_);
@@ -850,11 +853,14 @@ CoordinatorOutput Coordinator::onDecision(uint32_t id, const Decision& d, double
   out.log.push_back(os.str());
   steps_.push_back(std::move(step));
   dispatch_->addStep(d.tokens, now_s, insideOut(d.tokens, history_.back().positions));
-  // Later decisions read this step's motion from where the step it replaced began.
-  for (const auto& [e, p] : began_at_) history_.back().positions[static_cast<size_t>(e)] = p;
-  began_at_.clear();
+  recordBeganAt();
   advance(now_s, out);
   return out;
+}
+
+void Coordinator::recordBeganAt() {
+  for (const auto& [e, p] : began_at_) history_.back().positions[static_cast<size_t>(e)] = p;
+  if (ahead_ < 0) began_at_.clear();  // decided ahead: held until the scene settles (settleAhead)
 }
 
 std::string Coordinator::undemonstratedMotion(const std::vector<task::Token>& tokens) const {

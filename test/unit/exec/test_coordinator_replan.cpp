@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <functional>
 
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/replay.h"
@@ -527,4 +528,87 @@ TEST(Redecide, ARobotAtOnePlaceWithItsMovedTargetIsReadWhereItsStepBegan) {
   EXPECT_TRUE(next.decision->history[0].positions[a].isApprox(begun[a]));
   EXPECT_TRUE(next.decision->history[0].positions[b].isApprox(begun[b]));
   EXPECT_TRUE(next.decision->history[0].positions[box].isApprox(at[box]));
+}
+
+// The same under async, for a step re-decided while a step before it still runs: the
+// decision is asked ahead (from the scene the running step will leave), and it must read the
+// re-decided step's mover where the step began all the same, and the step decided again must
+// be recorded with it there once the scene settled. Step 1 fetches one box; step 2, decided
+// ahead, sends another robot to the other box at once (it shares nothing with step 1); a
+// hand puts that box down beside it while step 1's robot is still on its way.
+TEST(Redecide, UnderAsyncAStepReDecidedWhileAnEarlierOneRunsReadsItsMoverWhereItBegan) {
+  uint64_t rule = 0;
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:two-boxes", rule));
+  const task::TaskDir dir = tasks::generateZoo(rule, 4, 3);
+  const task::TaskSpec& spec = dir.spec;
+  const task::Demonstration& demo = dir.demos.front();
+  CoordinatorConfig cfg;
+  cfg.dispatch = DispatchMode::Async;
+  Coordinator c{spec, cfg, task::learnEndPoints(spec, dir.demos), 1, graph::learnDependencies(spec, dir.demos)};
+  const std::vector<task::Token>& fetches = demo.steps.front().tokens;
+  ASSERT_EQ(fetches.size(), 2u) << "two robots fetch the two boxes";
+  const task::Token first = fetches[0], second = fetches[1];
+  const auto a = static_cast<size_t>(first.entity), b = static_cast<size_t>(second.entity);
+  const auto box = static_cast<size_t>(second.target);
+  const std::vector<Vector2d> begun = demo.positions.front();
+  std::vector<Vector2d> at = begun;
+  std::vector<DecisionRequest> asked;
+  std::vector<SegmentCommand> running;
+  // Decides `steps` in turn (then END), answers paths with straight ones.
+  std::vector<std::vector<task::Token>> steps{{first}, {second}, {second}};
+  double now = 0;
+  const std::function<void(CoordinatorOutput)> handle = [&](CoordinatorOutput o) {
+    for (int e : o.stop)
+      running.erase(std::remove_if(running.begin(), running.end(), [&](const auto& s) { return s.entity == e; }),
+                    running.end());
+    running.insert(running.end(), o.segments.begin(), o.segments.end());
+    for (const auto& p : o.paths) handle(c.onPath(p.id, {{p.start, p.goal}, {0, 0}}, "", now));
+    if (o.decision) {
+      asked.push_back(*o.decision);
+      const bool end = asked.size() > steps.size();
+      handle(
+          c.onDecision(o.decision->id, Decision{end, end ? std::vector<task::Token>{} : steps[asked.size() - 1]}, now));
+    }
+  };
+  const auto segmentOf = [&](size_t e) {
+    const auto s = std::find_if(running.begin(), running.end(), [&](const auto& g) { return g.entity == int(e); });
+    EXPECT_NE(s, running.end()) << spec.entities[e].name << " has no segment";
+    return s == running.end() ? SegmentCommand{} : *s;
+  };
+  const auto arrive = [&](size_t e, double at_s) {
+    now = at_s;
+    const SegmentCommand s = segmentOf(e);
+    at[e] = s.goal;
+    handle(c.onEntities(observe(at), now));
+    handle(c.onSegmentStatus(s.entity, s.segment_id, SegmentState::Done, 1.0, "", now));
+  };
+  c.onEntities(observe(at), 0.0);
+  handle(c.start(0.0));
+  ASSERT_EQ(asked.size(), 2u) << "step 2 asked ahead while step 1 runs";
+  ASSERT_EQ(running.size(), 2u) << "step 2's robot left at once: " << c.reason();
+  // Both half-way; the hand puts b's box down 5 cm from b, on the side it came from.
+  at[a] = (begun[a] + segmentOf(a).goal) / 2;
+  at[b] = (begun[b] + segmentOf(b).goal) / 2;
+  handle(c.onEntities(observe(at), now = 1.0));
+  at[box] = at[b] + 0.05 * (begun[b] - at[b]).normalized();
+  ASSERT_TRUE(task::together(spec, int(b), at[b], int(box), at[box]));
+  handle(c.onEntities(observe(at), now = 1.5));
+  ASSERT_EQ(c.redecisions(), 1) << c.reason();
+  ASSERT_EQ(asked.size(), 3u);
+  const DecisionRequest& again = asked[2];
+  ASSERT_EQ(again.step, 1);
+  const std::vector<int> active = c.activeEntities();
+  ASSERT_NE(std::find(active.begin(), active.end(), int(a)), active.end()) << "step 1's robot still runs";
+  const std::vector<Vector2d>& read = again.history.back().positions;
+  EXPECT_TRUE(read[b].isApprox(begun[b])) << "read where its step began, not at one place with the box";
+  EXPECT_TRUE(read[box].isApprox(at[box])) << "the box where the hand put it";
+  EXPECT_FALSE(read[a].isApprox(at[a])) << "step 1's robot where its step will leave it";
+  // b arrives at the box, then a at its own: the step decided again holds, and the decision
+  // after it reads b's motion from where step 2 began.
+  arrive(b, 2.0);
+  arrive(a, 3.0);
+  ASSERT_GE(asked.size(), 4u) << c.reason();
+  EXPECT_EQ(c.withdrawnSteps().size(), 1u) << "only the re-decided step is withdrawn: the one decided again held";
+  EXPECT_TRUE(asked[3].history[1].positions[b].isApprox(begun[b])) << asked[3].history[1].positions[b].transpose();
+  EXPECT_EQ(c.dispatch()->violations(), 0);
 }
