@@ -71,7 +71,13 @@ struct CoordinatedRun {
   /// steps the zoo's rule decides on the scene right after the hand (tasks::zooSteps) --
   /// every step, END, every motion at its end point, each object where those steps leave it,
   /// no collision: 1 done as the rule says there, 0 not (rule_failure says why), -1 not
-  /// judged (another task or step, or a near tie there: no one answer).
+  /// judged (another task or step, or a near tie there: no one answer). robot_lost in a zoo
+  /// task: by the rule for the team without the lost robot on the scene right after the
+  /// loss -- the run finished, every motion at its end point, each object where the rule
+  /// leaves it, no collision (its steps are not compared: the run decided again from the
+  /// step it was lost in); where the rule needs more robots than are left (it states nothing
+  /// for the team left), aborted naming the lost robot or ended with every object where the
+  /// demonstration left it. A finished run that lost a robot succeeds by this judgment.
   int by_rule = -1;
   std::string rule_failure;
   bool rule_tie = false;  ///< not judged: a decision of the rule there is a near tie
@@ -93,13 +99,13 @@ CoordinatedRun runCoordinated(const Model& model, const task::TaskSpec& spec, co
                               const exec::BodiesExecutionParams* bodies = nullptr, double speed_spread = 0);
 
 /// How a run that lost robots is judged in a task that states no goal condition: by the
-/// demonstration's (`gt`) own ends. The first object (task order) that is not at the last
-/// entity `gt` moved it to, unless that entity is `lost`: "B1 did not end at G2, where the
-/// demonstration left it"; "" when every one is. Without it a run that ended with a box
-/// mid-table would count as done.
+/// demonstration's (`gt`) own ends, or the steps a zoo rule decides (`whose` names them). The
+/// first object (task order) that is not at the last entity `gt` moved it to, unless that
+/// entity is `lost`: "B1 did not end at G2, where the demonstration left it"; "" when every
+/// one is. Without it a run that ended with a box mid-table would count as done.
 std::string objectNotWhereDemonstrated(const task::TaskSpec& spec, const task::Demonstration& gt,
                                        const std::vector<Eigen::Vector2d>& final_positions,
-                                       const std::vector<int>& lost);
+                                       const std::vector<int>& lost, const std::string& whose = "the demonstration");
 
 /// Per trial: unperturbed, perturbed without recovery (max_replans 0), perturbed with
 /// (CoordinatorConfig::max_replans's default); all three with the same draw.

@@ -144,14 +144,21 @@ struct ZooCounts {
 };
 task::TaskDir generateZoo(uint64_t rule_id, int demos, uint64_t seed, const ZooMotion& motion = {},
                           const ZooCounts& counts = {});
+/// Why zooSteps states no steps.
+enum class ZooNoAnswer : uint8_t {
+  NearTie,         ///< a decision there is a near tie (kSceneDecisionMargin): no one answer
+  TooFewEntities,  ///< a choice needs more robots than the team left (a relay's receiver, a box's fetcher)
+};
 /// The steps rule `rule_id` decides on `scene` (index = `spec`'s entities, a zoo task's
 /// in any counts) taken as its start, later steps decided where the earlier ones end as
-/// `motion` ends them; nothing when a decision there is a near tie (kSceneDecisionMargin):
-/// the rule states no one answer. What a run is judged by where a hand changed the scene
-/// under its first step. Throws ddace::Error when `scene` does not fit `spec`.
+/// `motion` ends them, for the team without the robots `without` (lost for good: the rule
+/// chooses among the others; their bodies stay in `scene`); nothing when the rule states
+/// no one answer there (`why`, when given, says why). What a run is judged by where a hand
+/// changed the scene under its first step, or a robot was lost. Throws ddace::Error when
+/// `scene` does not fit `spec` or `without` names an entity that is not a robot.
 std::optional<std::vector<task::Step>> zooSteps(uint64_t rule_id, const task::TaskSpec& spec,
-                                                const std::vector<Eigen::Vector2d>& scene,
-                                                const ZooMotion& motion = {});
+                                                const std::vector<Eigen::Vector2d>& scene, const ZooMotion& motion = {},
+                                                const std::vector<int>& without = {}, ZooNoAnswer* why = nullptr);
 /// The zoo rule and motion a task states when generateZoo made it (its name says which),
 /// or false.
 bool zooRuleOfTask(const task::TaskSpec& spec, uint64_t& id, ZooMotion& motion);

@@ -49,6 +49,15 @@ Eigen::Vector2d pointAt(const exec::Path& p, double s) {
   return p.back();
 }
 
+/// A run that lost a robot for good and aborted naming it (the goal where the run cannot go on
+/// without it: never a finish with the task undone).
+bool abortedNamingLost(const CoordinatedRun& run) {
+  if (run.finished) return false;
+  for (const std::string& l : run.lost)
+    if (run.reason.find(l.substr(0, l.find(':'))) != std::string::npos) return true;
+  return false;
+}
+
 /// A segment as the coordinator sent it, while it runs.
 struct Mover {
   int entity = -1;
@@ -453,6 +462,7 @@ class Runner {
         break;
       case PerturbationKind::RobotLost:
         table_->kill(m->entity);
+        lost_robot_ = m->entity;
         tracked_[static_cast<size_t>(m->entity)] = false;
         std::snprintf(what, sizeof what, "step %d, %d %%: %s lost", m->step + 1, pct, name(m->entity));
         break;
@@ -518,8 +528,10 @@ class Runner {
   std::string withoutLost(const exec::Trial& t) const { return taskUndone(t, gt_); }
 
   /// Why finished run `t` did not do the task ("" when it did), the steps of `ends` stating
-  /// where objects end when the task states no goal condition (withoutLost).
-  std::string taskUndone(const exec::Trial& t, const task::Demonstration& ends) const {
+  /// where objects end when the task states no goal condition (withoutLost); `ends_by`
+  /// names whose steps they are.
+  std::string taskUndone(const exec::Trial& t, const task::Demonstration& ends,
+                         const std::string& ends_by = "the demonstration") const {
     const double within = spec_.arrival_radius + exec::CoordinatorConfig{}.arrival_tolerance_m;
     for (const exec::ExecutedToken& ex : t.executed)
       if (ex.token.isMotion() && spec_.entities[static_cast<size_t>(ex.token.entity)].kind == task::EntityKind::Robot &&
@@ -536,33 +548,54 @@ class Runner {
       if (!names_lost && !task::goalConditionMet(spec_, g, t.final_positions))
         return "goal condition " + g.entity + " at " + g.at + " does not hold";
     }
-    if (spec_.goal_conditions.empty()) return objectNotWhereDemonstrated(spec_, ends, t.final_positions, lost);
+    if (spec_.goal_conditions.empty()) return objectNotWhereDemonstrated(spec_, ends, t.final_positions, lost, ends_by);
     return "";
   }
 
-  /// A box moved under the first step of a zoo task: the rule's steps on the scene right
-  /// after the hand are the measure; the demonstration is of the scene before it.
+  /// A zoo task: a box moved under its first step, or a robot lost for good. The rule's
+  /// steps on the scene right after the hand or the loss, for the team left, are the
+  /// measure; the demonstration is of the scene before it and of the whole team. Where the
+  /// rule needs more robots than are left, see judgeTooFewLeft.
   void judgeByRule(CoordinatedRun& r) const {
     uint64_t id = 0;
     tasks::ZooMotion motion;
-    if (!applied_ || p_.kind != PerturbationKind::BoxMoved || perturbed_step_ != 0 ||
-        !tasks::zooRuleOfTask(spec_, id, motion))
-      return;
+    const bool moved = p_.kind == PerturbationKind::BoxMoved && perturbed_step_ == 0;
+    const bool lost = p_.kind == PerturbationKind::RobotLost;
+    if (!applied_ || !(moved || lost) || !tasks::zooRuleOfTask(spec_, id, motion)) return;
+    const std::vector<int> without = lost ? std::vector<int>{lost_robot_} : std::vector<int>{};
+    tasks::ZooNoAnswer no_answer = tasks::ZooNoAnswer::NearTie;
     task::Demonstration rule;
-    if (const auto steps = tasks::zooSteps(id, spec_, scene_after_, motion)) rule.steps = *steps;
-    else return void(r.rule_tie = true);  // the rule states no one answer there
+    if (const auto steps = tasks::zooSteps(id, spec_, scene_after_, motion, without, &no_answer)) rule.steps = *steps;
+    else if (no_answer == tasks::ZooNoAnswer::NearTie) return void(r.rule_tie = true);  // no one answer there
+    else return judgeTooFewLeft(r);
     const exec::Trial& t = r.trial;
     std::string why = r.finished ? "" : "not finished: " + r.reason;
-    for (size_t k = 0; k < std::max(rule.steps.size(), t.predicted.size()) && why.empty(); ++k) {
+    // Steps are compared under the first step only: after a loss the run's record holds
+    // the steps before it and those decided again (from the first, for a carrier lost with
+    // its load), where the rule restarts from the scene at the loss; its ends are the measure.
+    for (size_t k = 0; moved && k < std::max(rule.steps.size(), t.predicted.size()) && why.empty(); ++k) {
       std::vector<task::Token> a = k < t.predicted.size() ? t.predicted[k].tokens : std::vector<task::Token>{};
       std::vector<task::Token> b = k < rule.steps.size() ? rule.steps[k].tokens : std::vector<task::Token>{};
       std::sort(a.begin(), a.end()), std::sort(b.begin(), b.end());
       if (a != b) why = "step " + std::to_string(k + 1) + " is not the rule's on the scene after the hand";
     }
-    if (why.empty()) why = taskUndone(t, rule);
+    if (why.empty()) why = taskUndone(t, rule, "the rule");
     if (why.empty() && stale_ends_ > 0) why = "a motion ended where its target had left";
     r.by_rule = why.empty();
     r.rule_failure = why;
+  }
+
+  /// The rule needs more robots than are left, so it states nothing for the team left: done
+  /// by aborting naming the lost robot, or by a run that ends with the task's own end (every
+  /// object where the demonstration left it: the team left did it another way).
+  void judgeTooFewLeft(CoordinatedRun& r) const {
+    if (abortedNamingLost(r)) return void(r.by_rule = 1);
+    std::string undone = r.finished ? withoutLost(r.trial) : "aborted without naming it: " + r.reason;
+    if (undone.empty() && stale_ends_ > 0) undone = "a motion ended where its target had left";
+    r.by_rule = undone.empty();
+    if (!undone.empty())
+      r.rule_failure = "the rule needs more robots than are left without " +
+                       spec_.entities[static_cast<size_t>(lost_robot_)].name + "; " + undone;
   }
 
   /// The makespan of the run's steps under async were each token to take the time it took
@@ -626,8 +659,9 @@ class Runner {
     if (r.finished && !r.score.success) r.failure = failureOf(r.score, t);
     judgeByRule(r);
     if (r.finished && !r.lost.empty()) {
-      // The team changed: the demonstration's steps are not the measure; the task's are.
-      r.failure = withoutLost(t);
+      // The team changed: the demonstration's steps are not the measure; the rule's for the
+      // team left are where the task states one (judgeByRule), else the task's ends.
+      r.failure = r.by_rule >= 0 ? r.rule_failure : withoutLost(t);
       r.success = r.failure.empty() && stale_ends_ == 0;
     }
     return r;
@@ -650,6 +684,7 @@ class Runner {
   bool applied_ = false;
   std::vector<Eigen::Vector2d> scene_after_;  ///< every entity right after the hand
   int perturbed_step_ = -1;                   ///< the step of the motion it came under
+  int lost_robot_ = -1;                       ///< robot_lost: the robot that died
   std::string what_;
   int stale_ends_ = 0;
 };
@@ -669,7 +704,7 @@ const KindName kKinds[] = {{PerturbationKind::BoxMoved, "box_moved", 6, "cm"},
 
 std::string objectNotWhereDemonstrated(const task::TaskSpec& spec, const task::Demonstration& gt,
                                        const std::vector<Eigen::Vector2d>& final_positions,
-                                       const std::vector<int>& lost) {
+                                       const std::vector<int>& lost, const std::string& whose) {
   std::vector<int> last_target(spec.entities.size(), -1);
   for (const task::Step& s : gt.steps)
     for (const task::Token& k : s.tokens)
@@ -680,7 +715,7 @@ std::string objectNotWhereDemonstrated(const task::TaskSpec& spec, const task::D
     if (spec.entities[e].kind == task::EntityKind::Robot || to < 0 || to_lost) continue;
     const task::GoalCondition demonstrated{spec.entities[e].name, spec.entities[static_cast<size_t>(to)].name};
     if (!task::goalConditionMet(spec, demonstrated, final_positions))
-      return spec.entities[e].name + " did not end at " + demonstrated.at + ", where the demonstration left it";
+      return spec.entities[e].name + " did not end at " + demonstrated.at + ", where " + whose + " left it";
   }
   return "";
 }
@@ -755,14 +790,6 @@ PerturbationReport evaluatePerturbed(const Model& model, const task::TaskDir& te
 }
 
 namespace {
-/// A run that lost a robot for good and aborted naming it (the goal where the run cannot go on
-/// without it: never a finish with the task undone).
-bool abortedNamingLost(const CoordinatedRun& run) {
-  if (run.finished) return false;
-  for (const std::string& l : run.lost)
-    if (run.reason.find(l.substr(0, l.find(':'))) != std::string::npos) return true;
-  return false;
-}
 struct Totals {
   int perturbed = 0, succeeded = 0, replans = 0, redecisions = 0, violations = 0, collisions = 0;
   int aborted_naming_lost = 0;
@@ -800,6 +827,11 @@ Totals totals(const PerturbationReport& r, const std::vector<CoordinatedRun>& ru
   if (counted > 0) t.makespan_s /= counted;
   return t;
 }
+/// Where the zoo's rule judges a run from (Runner::judgeByRule).
+const char* ruleScene(const Perturbation& p) {
+  return p.kind == PerturbationKind::RobotLost ? "for the team left, on the scene at the loss"
+                                               : "on the scene after the hand";
+}
 std::string outcome(const CoordinatedRun& run) {
   char s[64];
   std::snprintf(s, sizeof s, "%s %.1f s", run.success ? "yes" : "no ", run.makespan_s);
@@ -826,7 +858,7 @@ void printPerturbation(const PerturbationReport& r, std::ostream& out) {
         out << "    " << which << ": " << run->stale_ends << " motion(s) ended where their target had left\n";
     }
     if (w.by_rule >= 0 || w.rule_tie)
-      out << "    with, by the rule on the scene after the hand: "
+      out << "    with, by the rule " << ruleScene(r.perturbation) << ": "
           << (w.rule_tie  ? "a near tie there, not judged"
               : w.by_rule ? "done"
                           : w.rule_failure)
@@ -858,10 +890,11 @@ void printPerturbation(const PerturbationReport& r, std::ostream& out) {
   }
   if (w.by_rule_judged + w.rule_ties > 0) {
     std::snprintf(line, sizeof line,
-                  "  with recovery, judged by the zoo's rule on the scene after the hand: %d/%d done as it says "
+                  "  with recovery, judged by the zoo's rule %s: %d/%d done as it says "
                   "(of them %d failed against the demonstration; %d not done succeeded against it), %d near "
                   "ties not judged\n",
-                  w.by_rule_done, w.by_rule_judged, w.by_rule_only, w.by_demo_only, w.rule_ties);
+                  ruleScene(r.perturbation), w.by_rule_done, w.by_rule_judged, w.by_rule_only, w.by_demo_only,
+                  w.rule_ties);
     out << line;
   }
   if (!r.unperturbed.empty() && r.unperturbed.front().trial.bodies) {

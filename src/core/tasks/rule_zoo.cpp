@@ -275,17 +275,20 @@ task::TaskSpec zooSpec(const ZooRule& z) {
 /// (a motion ends where the demonstration ends it: task::stepEndPositions).
 class Decider {
  public:
+  /// `without`: robots left out (lost): the rule picks among the others only.
   Decider(const task::TaskSpec& spec, const Rule& rule, const task::EndPointModel& end_points,
-          std::vector<Vector2d> start)
+          std::vector<Vector2d> start, const std::vector<int>& without = {})
       : spec_(spec), rule_(rule), end_points_(end_points), pos_(std::move(start)) {
     const ZooRule& z = rule.info;
-    for (int i = 0; i < z.robots; ++i) robots_.push_back(i);
+    for (int i = 0; i < z.robots; ++i)
+      if (std::find(without.begin(), without.end(), i) == without.end()) robots_.push_back(i);
     for (int i = 0; i < z.objects; ++i) boxes_.push_back(z.robots + i);
     for (int i = 0; i < z.goals; ++i) goals_.push_back(z.robots + z.objects + i);
   }
 
-  /// The steps, or false when a decision is a near tie.
-  bool decide(Steps& steps) {
+  /// The steps, or false when a decision is a near tie or needs more entities than there
+  /// are (`why` says which).
+  bool decide(Steps& steps, ZooNoAnswer* why = nullptr) {
     const ZooRule& z = rule_.info;
     try {
       if (z.kind == "assign") {
@@ -361,6 +364,10 @@ class Decider {
       }
       finish();
     } catch (const Tie&) {
+      if (why) *why = ZooNoAnswer::NearTie;
+      return false;
+    } catch (const TooFew&) {
+      if (why) *why = ZooNoAnswer::TooFewEntities;
       return false;
     }
     steps = steps_;
@@ -369,6 +376,7 @@ class Decider {
 
  private:
   struct Tie {};
+  struct TooFew {};  ///< a choice among fewer candidates than it needs (a robot left out)
 
   void step(std::vector<Move> moves) { steps_.push_back(std::move(moves)); }
   void add(int entity, const std::string& action, int target) { steps_.back().push_back({entity, action, target}); }
@@ -393,7 +401,7 @@ class Decider {
     return candidates;
   }
   int pick(const std::vector<int>& candidates, const Selector& s, const Vector2d& ref) {
-    if (static_cast<int>(candidates.size()) <= s.rank) throw Tie{};
+    if (static_cast<int>(candidates.size()) <= s.rank) throw TooFew{};
     return ordered(candidates, s, ref, false)[s.rank];
   }
   /// Each of `left` to one of `right` (|left| <= |right|): greedy by the selector's key
@@ -414,6 +422,7 @@ class Decider {
       for (int x : left)
         for (int y : right)
           if (!used_l.count(x) && !used_r.count(y) && (bl < 0 || key(x, y) < key(bl, br))) bl = x, br = y;
+      if (bl < 0) throw TooFew{};
       for (int x : left)
         for (int y : right)
           if (!used_l.count(x) && !used_r.count(y) && (x == bl) != (y == br) &&
@@ -627,7 +636,8 @@ BodiesComparison compareBodies(const std::vector<std::pair<eval::Summary, eval::
 }
 
 std::optional<std::vector<task::Step>> zooSteps(uint64_t rule_id, const task::TaskSpec& spec,
-                                                const std::vector<Vector2d>& scene, const ZooMotion& motion) {
+                                                const std::vector<Vector2d>& scene, const ZooMotion& motion,
+                                                const std::vector<int>& without, ZooNoAnswer* why) {
   if (scene.size() != spec.entities.size())
     throw Error("a scene of " + std::to_string(scene.size()) + " positions for a task of " +
                 std::to_string(spec.entities.size()) + " entities");
@@ -637,7 +647,12 @@ std::optional<std::vector<task::Step>> zooSteps(uint64_t rule_id, const task::Ta
   for (const task::Entity& e : spec.entities)
     ++(e.kind == EntityKind::Robot ? z.robots : e.kind == EntityKind::Object ? z.objects : z.goals);
   Steps steps;
-  if (!Decider(spec, rule, gapEndPoints(spec, motion.stop_gap_m), scene).decide(steps)) return std::nullopt;
+  for (int e : without)
+    if (e < 0 || e >= static_cast<int>(spec.entities.size()) ||
+        spec.entities[static_cast<size_t>(e)].kind != EntityKind::Robot)
+      throw Error("only robots are left out of a zoo rule's team (entity " + std::to_string(e) + ")");
+  if (!Decider(spec, rule, gapEndPoints(spec, motion.stop_gap_m), scene, without).decide(steps, why))
+    return std::nullopt;
   std::vector<task::Step> out;
   for (const std::vector<Move>& moves : steps) {
     out.emplace_back();

@@ -382,6 +382,7 @@ TEST_F(TwoPairsLost, ARobotLostWhereTheModelCannotGoOnAbortsNamingIt) {
     const std::string name = with.lost[0].substr(0, with.lost[0].find(':'));
     EXPECT_EQ(with.reason.rfind(name + " is lost", 0), 0u) << with.reason;
     EXPECT_NE(with.reason.find("no demonstration has such a motion"), std::string::npos) << with.reason;
+    EXPECT_EQ(with.by_rule, 1) << "the rule needs both robots: aborting naming the lost one is what it says";
   }
 }
 
@@ -422,6 +423,30 @@ TEST_F(RecoveryTwoBoxes, ABoxMovedBesideItsFetcherIsStillFetchedAsTheRuleSays) {
     ++judged;
     EXPECT_EQ(r.with[i].by_rule, 1) << "trial " << i << ": " << r.with[i].what << "; " << r.with[i].rule_failure << " ("
                                     << r.with[i].failure << ")";
+  }
+  EXPECT_GE(judged, 8);
+}
+
+// zoo:two-boxes with bodies, a robot lost for good on each of ten scenes: a run that goes on
+// is judged by what the rule decides for the two robots left on the scene at the loss (where
+// each box ends), not by the demonstration of the team of three; here every one does it.
+TEST_F(RecoveryTwoBoxes, ARobotLostForGoodIsJudgedByTheRuleForTheTeamLeft) {
+  const task::TaskDir test = tasks::generateZoo(TwoBoxesModel::rule(), 10, 1 * 2654435761ULL + 0x7e57);
+  pipeline::EvalOptions o;
+  o.execution = "diffdrive";
+  o.noise_m = 0.002;
+  const exec::BodiesExecutionParams table = pipeline::bodiesParams(o, test.spec);
+  const pipeline::PerturbationReport r = pipeline::evaluatePerturbed(
+      *model_, test, pipeline::parsePerturbation("robot_lost", "--perturb"), exec::DispatchMode::Steps, 1, &table);
+  int judged = 0;
+  for (size_t i = 0; i < r.demos.size(); ++i) {
+    const pipeline::CoordinatedRun& with = r.with[i];
+    if (!r.unperturbed[i].success || with.by_rule < 0) continue;
+    ++judged;
+    ASSERT_EQ(with.lost.size(), 1u) << "trial " << i << ": " << with.reason;
+    EXPECT_TRUE(with.finished) << "trial " << i << ": two robots are left for two boxes: " << with.reason;
+    EXPECT_EQ(with.by_rule, 1) << "trial " << i << ": " << with.what << "; " << with.rule_failure;
+    EXPECT_EQ(with.success, with.by_rule == 1) << "a run that went on succeeds as the rule judges it";
   }
   EXPECT_GE(judged, 8);
 }

@@ -457,3 +457,41 @@ TEST(RuleZoo, TheRuleDecidesTheDemonstratedStepsFromAnyScene) {
   other_task.name = "fetch_nearest_robot";
   EXPECT_FALSE(tasks::zooRuleOfTask(other_task, id, motion));
 }
+
+// A robot lost for good: the rule chooses among the robots left (the lost one's body stays
+// in the scene), or states no steps when it needs more robots than are left -- the measure
+// of a run that went on without it, or aborted naming it.
+TEST(RuleZoo, WithoutALostRobotTheRuleChoosesAmongTheOthersOrNeedsMoreRobots) {
+  uint64_t two_boxes = 0, two_pairs = 0;
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:two-boxes", two_boxes));
+  ASSERT_TRUE(tasks::parseZooFamily("zoo:two-pairs", two_pairs));
+  const task::TaskDir boxes = tasks::generateZoo(two_boxes, 3, 5);
+  for (const task::Demonstration& d : boxes.demos) {
+    const std::vector<Eigen::Vector2d>& scene = d.snapshots[0].positions;
+    const std::vector<task::Token>& fetches = d.steps.front().tokens;
+    ASSERT_EQ(fetches.size(), 2u);
+    const int lost = fetches[0].entity;
+    std::set<int> left;  // the robots left, all needed for the two boxes
+    for (int e = 0; e < static_cast<int>(boxes.spec.entities.size()); ++e)
+      if (e != lost && boxes.spec.entities[static_cast<size_t>(e)].kind == task::EntityKind::Robot) left.insert(e);
+    tasks::ZooNoAnswer why = tasks::ZooNoAnswer::NearTie;
+    const auto steps = tasks::zooSteps(two_boxes, boxes.spec, scene, {}, {lost}, &why);
+    if (!steps) {
+      EXPECT_EQ(why, tasks::ZooNoAnswer::NearTie) << "two robots are left for two boxes";
+      continue;
+    }
+    std::set<int> fetchers;
+    for (const task::Step& s : *steps)
+      for (const task::Token& t : s.tokens) EXPECT_NE(t.entity, lost) << "the lost robot is given nothing";
+    for (const task::Token& t : steps->front().tokens) fetchers.insert(t.entity);
+    EXPECT_EQ(fetchers, left) << "the two robots left fetch the two boxes";
+  }
+  const task::TaskDir pairs = tasks::generateZoo(two_pairs, 1, 5);
+  const int lost = pairs.demos[0].steps.front().tokens.front().entity;
+  tasks::ZooNoAnswer why = tasks::ZooNoAnswer::NearTie;
+  EXPECT_FALSE(tasks::zooSteps(two_pairs, pairs.spec, pairs.demos[0].snapshots[0].positions, {}, {lost}, &why));
+  EXPECT_EQ(why, tasks::ZooNoAnswer::TooFewEntities) << "one robot left for two boxes, each fetched by its own";
+  EXPECT_THROW(
+      tasks::zooSteps(two_pairs, pairs.spec, pairs.demos[0].snapshots[0].positions, {}, {pairs.spec.entityIndex("B1")}),
+      Error);
+}
