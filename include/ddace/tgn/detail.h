@@ -56,9 +56,10 @@ bool atPlateau(const std::vector<EpochRecord>& history, int patience, double del
 /// Entities at one place: per entity the lowest index of those at one place with it,
 /// transitively (a chain, each within its pair's `together` distance [N * N] of the next).
 std::vector<int> placesOf(const std::vector<Eigen::Vector2d>& pos, const std::vector<double>& together);
-/// Per pair of kinds (kindKey) of `spec`: how many entities of the first are at one place
-/// with an entity of the second (another one, where the kinds are the same) at `pos` (task
-/// order). Pairs with no such entity are left out.
+/// Per pair of kinds (kindKey) of `spec`: how many entities of the first are themselves at
+/// one place with an entity of the second (another one, where the kinds are the same) at
+/// `pos` (task order), not through a neighbour as placesOf joins them. Pairs with no such
+/// entity are left out.
 std::map<std::pair<std::string, std::string>, int> endCountsOf(const task::TaskSpec& spec,
                                                                const std::vector<Eigen::Vector2d>& pos);
 /// "End scene": what the last scene of every demonstration of `train` had in common

@@ -47,12 +47,12 @@ std::map<std::pair<std::string, std::string>, int> endCountsOf(const task::TaskS
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j)
       if (i != j) together[static_cast<size_t>(i * n + j)] = task::togetherDistance(spec, i, j);
-  const std::vector<int> place = placesOf(pos, together);
   std::map<std::pair<std::string, std::string>, int> counts;
   for (int e = 0; e < n; ++e) {
     std::set<std::string> with;
     for (int f = 0; f < n; ++f)
-      if (f != e && place[static_cast<size_t>(f)] == place[static_cast<size_t>(e)])
+      if (f != e && (pos[static_cast<size_t>(f)] - pos[static_cast<size_t>(e)]).norm() <=
+                        together[static_cast<size_t>(e * n + f)])
         with.insert(kindKey(spec.entities[static_cast<size_t>(f)]));
     for (const auto& w : with) ++counts[{kindKey(spec.entities[static_cast<size_t>(e)]), w}];
   }

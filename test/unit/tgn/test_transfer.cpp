@@ -9,6 +9,7 @@
 #include <string>
 
 #include "ddace/common/error.h"
+#include "ddace/task/body_geometry.h"
 #include "ddace/tasks/generators.h"
 #include "ddace/tasks/rule_zoo.h"
 #include "ddace/tgn/sequence_model.h"
@@ -279,4 +280,47 @@ TEST(EndScene, IsWhatEveryLastSceneHadAndTellsTheEnd) {
   EXPECT_EQ(tgn::detail::endProbability(0.2, untelling, none, relay.spec, last), 0.2)
       << "it held earlier too: not told";
   EXPECT_TRUE(tgn::detail::endSceneOf(tasks::generateZoo(7, 1, 1)).counts.empty()) << "one demonstration: nothing";
+}
+
+// An entity is at a place only with what it is itself at one place with, not with what its
+// neighbour is at: the fetcher of "deliver" beside its box, a goal just beyond it on the far
+// side (the goal 5.4 cm from the fetcher, the box 4.2 cm from it and 9.6 cm from the goal).
+// The box is not delivered and the run goes on with the carry; before, box and goal read as
+// at one place through the fetcher, the end scene held and the network said END (with
+// bodies, a carrier lost between its box and a goal ended a run with the box undelivered).
+TEST(EndScene, ABoxBesideItsCarrierBesideAGoalIsNotAtTheGoal) {
+  tasks::GeneratorOptions g;
+  g.family = "deliver";
+  g.demos = 10;
+  tgn::TrainOptions o;
+  o.without = {tgn::Rule::Ensemble};  // one network: a second of training
+  const tgn::SequenceModel model = tgn::SequenceModel::train(tasks::generate(g), o, nullptr);
+  ASSERT_TRUE(model.info().plan.end_scene.telling) << "the box at a goal is what only the last scenes had";
+  g.seed = 2;
+  g.demos = 5;
+  const task::TaskDir fresh = tasks::generate(g);
+  const task::TaskSpec& spec = fresh.spec;
+  const int box = spec.entityIndex("B1");
+  for (size_t k = 0; k < fresh.demos.size(); ++k) {
+    const task::Demonstration& d = fresh.demos[k];
+    const task::Token fetch = d.steps[0].tokens[0];
+    const task::Token carry = *std::find_if(d.steps[1].tokens.begin(), d.steps[1].tokens.end(),
+                                            [&](const task::Token& t) { return t.entity == fetch.entity; });
+    const int f = fetch.entity, goal = carry.target;
+    std::vector<task::Snapshot> fetched(d.snapshots.begin(), d.snapshots.begin() + 2);
+    const Eigen::Vector2d at_fetcher = fetched[1].positions[static_cast<size_t>(f)];
+    const Eigen::Vector2d away_from_box = (at_fetcher - fetched[1].positions[static_cast<size_t>(box)]).normalized();
+    for (task::Snapshot& s : fetched)
+      s.positions[static_cast<size_t>(goal)] = at_fetcher + 0.9 * task::togetherDistance(spec, f, goal) * away_from_box;
+    const std::vector<Eigen::Vector2d>& scene = fetched[1].positions;
+    ASSERT_TRUE(task::together(spec, f, scene[static_cast<size_t>(f)], box, scene[static_cast<size_t>(box)]));
+    ASSERT_TRUE(task::together(spec, f, scene[static_cast<size_t>(f)], goal, scene[static_cast<size_t>(goal)]));
+    ASSERT_FALSE(task::together(spec, box, scene[static_cast<size_t>(box)], goal, scene[static_cast<size_t>(goal)]));
+    const auto counts = tgn::detail::endCountsOf(spec, scene);
+    EXPECT_EQ(counts.count({"object:box", "goal"}), 0u) << "scene " << k << ": the box is at no goal";
+    const tgn::Prediction p = model.predictNext(fetched);
+    EXPECT_FALSE(p.end) << "scene " << k << ": the box is not delivered";
+    EXPECT_NE(std::find(p.tokens.begin(), p.tokens.end(), carry), p.tokens.end())
+        << "scene " << k << ": the carry to it";
+  }
 }
