@@ -212,7 +212,9 @@ struct TokenRecord {
   /// Straight-line distance of the entity's *tracked* position to `goal` (metres; NaN
   /// before the first observation after the segment went out).
   double distance_to_goal_m = std::numeric_limits<double>::quiet_NaN();
-  bool done_claimed = false;  ///< the executor said DONE; counted once the tracked pose agrees
+  bool done_claimed = false;              ///< the executor said DONE; counted once the tracked pose agrees
+  int pushed_load = -1;                   ///< the load its carrier pushes (-1: none, or it rides)
+  Eigen::Vector2d pushed_load_end{0, 0};  ///< that load's end point
 };
 
 struct StepRecord {
@@ -327,6 +329,9 @@ class Coordinator {
   /// (exec/push_path.h) and ends behind the load's end point (its goal moves to where it
   /// then stands, exec::carrierEnd), any other is `planned`.
   PlannedPath carrierPath(TokenRef t, const PlannedPath& planned);
+  /// A pushing carrier that said DONE is judged behind where its load is tracked now
+  /// (exec::carrierEnd, as the simulator judges it): its goal moves there.
+  void judgeBehindItsLoad(TokenRecord& t);
   void requestDecisionIfDue(double now_s, CoordinatorOutput& out);
   /// A decision asked ahead from the predicted scene (a policy that reads the scene, under
   /// async) holds once every step before it has ended and every entity stands within

@@ -89,8 +89,7 @@ struct PushObstacle {
 /// distance `contact_m`) until the load is at `load_end`, round the bodies `standing`: the
 /// load's route (pushRoute), round the load at contact + kPushClearanceM to behind it,
 /// where the push first heads it along the route (the shorter way, unless only the longer one is free of `standing`;
-/// with `push_from_behind`, not at all from within kPushClearanceM / 3 of contact and
-/// kPushConeRad of behind it),
+/// with `push_from_behind`, not at all from where a push may start, pushMayStartHere),
 /// then along the route to behind the load's end point at contact on its last leg (the
 /// carrier's end point: the load's end decides where the carrier stops), `points` points
 /// evenly spaced by arc length (at least 2). Where the run-up is taken (a body of `standing`
@@ -143,6 +142,20 @@ std::vector<Eigen::Vector2d> loadRoute(const std::vector<Eigen::Vector2d>& carri
 /// pushWheels heads it), then on along the route. The push planned again follows it.
 std::vector<Eigen::Vector2d> routeOnFrom(const std::vector<Eigen::Vector2d>& route, const Eigen::Vector2d& load);
 
+/// Whether a carrier at `carrier`, its load at `load` (contact distance `contact_m`) to be
+/// pushed along `route` (loadRoute), may start its push from where it stands: within
+/// kPushClearanceM / 3 of contact and kPushConeRad of behind the load from where the push
+/// heads it (pushAim), and the load, driven first along their contact normal (before the
+/// over-steer turns it), not run into the reach of a body of `standing` kPushNearPassM
+/// deeper than a push straight where it should head (kPushClearanceM of either; a body the
+/// load stands within the reach of is passed kPushNearPassM beyond contact, no nearer than
+/// it is). Elsewhere the carrier
+/// goes round the load to behind it first: a receiver beside a relay's giver, its contact
+/// normal pointing at the giver, would shove the box into it.
+bool pushMayStartHere(const Eigen::Vector2d& carrier, const Eigen::Vector2d& load,
+                      const std::vector<Eigen::Vector2d>& route, double contact_m,
+                      const std::vector<PushObstacle>& standing);
+
 /// One control cycle of a carrier pushing its load.
 struct PushCommand {
   WheelSpeeds wheels;
@@ -156,15 +169,16 @@ struct PushCommand {
 /// where it should head, at the path follower's speeds (`gains`: cruise, slowdown by the
 /// load's distance to its end, turn limits), slowed in proportion to that drift (standing,
 /// turning only, at kMaxPushLeadRad): pushed on at full speed, a load drifting off its route is
-/// dragged on off it faster than the over-steer turns their contact back. Nothing when the carrier is not behind its
-/// load (kPushConeRad, within kPushClearanceM / 3 of contact): it follows its path, round
-/// the load. A push already under way (`pushing`: it pushed in the last cycle) holds while
+/// dragged on off it faster than the over-steer turns their contact back. Nothing where the push may not start
+/// (pushMayStartHere, round the bodies `standing`): it follows its path, round the load.
+/// A push already under way (`pushing`: it pushed in the last cycle) holds while
 /// the load drifts less than kMaxPushLeadRad, as far as the over-steer can bring it back,
 /// rather than breaking off at the edge of the cone. The load has arrived once it is past its end point along the
 /// route's last leg (the carrier stops there: the load's end point, not the carrier's, ends the push).
 std::optional<PushCommand> pushWheels(const Pose2D& carrier, const Eigen::Vector2d& load,
                                       const std::vector<Eigen::Vector2d>& route, double contact_m,
-                                      const FollowerGains& gains, bool pushing = false);
+                                      const FollowerGains& gains, bool pushing = false,
+                                      const std::vector<PushObstacle>& standing = {});
 
 /// Whether a carrier at `carrier` stands behind its load at `load`, at any distance: the
 /// load, seen from the carrier, within kPushConeRad of where pushWheels heads it along
@@ -188,11 +202,16 @@ std::vector<Eigen::Vector2d> drivenPath(const task::TaskSpec& spec, const std::v
                                         const std::vector<Eigen::Vector2d>& decided,
                                         const std::vector<Eigen::Vector2d>& ends, std::vector<Eigen::Vector2d> planned);
 
-/// Where a carrier's motion is judged -- where it stands when done -- that moved its load
-/// to `load_end` stopping at `push_end` (its path's last point, drivenPath: at contact
-/// behind the load). A carrier whose load rides (`loads_ride`) stays at `push_end`; one that
-/// pushes backs off kPushBackOffM farther straight away from the load
-/// (RobotController::backOff). The one rule of the simulator and the coordinator.
-Eigen::Vector2d carrierEnd(const Eigen::Vector2d& push_end, const Eigen::Vector2d& load_end, bool loads_ride);
+/// Where a carrier's motion is judged -- where it stands when done -- that moved its load,
+/// planned to the load's end point `load_end` with the carrier stopping at `push_end` (its
+/// path's last point, drivenPath: at contact behind the load), the load now at `load_at`
+/// (where it ended; `load_end` when the motion is planned). A carrier whose load rides
+/// (`loads_ride`) stays at `push_end`, the load going on alone to its end. One that pushes
+/// stops where its load does (the load's arrival ends the push): behind where the load
+/// ended as `push_end` is behind `load_end`, backed off kPushBackOffM farther straight
+/// away from it (RobotController::backOff). Whether the load is on its end point is the
+/// load's own motion's to judge. The one rule of the simulator and the coordinator.
+Eigen::Vector2d carrierEnd(const Eigen::Vector2d& push_end, const Eigen::Vector2d& load_end,
+                           const Eigen::Vector2d& load_at, bool loads_ride);
 
 }  // namespace ddace::exec

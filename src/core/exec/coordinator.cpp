@@ -727,8 +727,10 @@ CoordinatorOutput Coordinator::onEntities(const EntityObservation& obs, double n
   bool ended = false;
   for (size_t k = 0; k < steps_.size(); ++k)
     for (size_t i = 0; i < steps_[k].tokens.size(); ++i) {
-      const TokenRecord& t = steps_[k].tokens[i];
-      if (t.done_claimed && t.segment_id != 0 && t.state != SegmentState::Done && arrived(t)) {
+      TokenRecord& t = steps_[k].tokens[i];
+      if (!t.done_claimed || t.segment_id == 0 || t.state == SegmentState::Done) continue;
+      judgeBehindItsLoad(t);
+      if (arrived(t)) {
         endToken({static_cast<int>(k), static_cast<int>(i)}, now_s, out,
                  "done: " + task::tokenKey(t.token, spec_) + " (tracked pose now within the arrival radius)");
         ended = true;
@@ -759,6 +761,13 @@ CoordinatorOutput Coordinator::onEntities(const EntityObservation& obs, double n
       return out;
     }
   return out;
+}
+
+void Coordinator::judgeBehindItsLoad(TokenRecord& t) {
+  if (t.pushed_load < 0 || t.path.points.empty()) return;
+  const auto l = static_cast<size_t>(t.pushed_load);
+  if (observation_.positions.size() <= l || !observation_.tracked[l]) return;
+  t.goal = carrierEnd(t.path.points.back(), t.pushed_load_end, observation_.positions[l], config_.loads_ride);
 }
 
 bool Coordinator::arrived(const TokenRecord& t) const {
@@ -960,12 +969,14 @@ PlannedPath Coordinator::carrierPath(TokenRef ref, const PlannedPath& planned) {
   if (drivesShownPath(spec_, step, static_cast<size_t>(ref.index), *load, at, planned.points, config_.loads_ride))
     return planned;
   TokenRecord& c = record(ref);
+  c.pushed_load = config_.loads_ride ? -1 : *load;
+  c.pushed_load_end = l->goal;
   PlannedPath out;
   out.points = pushPath(planned.points.front(), at[e], l->goal, spec_.contactDistance(c.token.entity, *load), c.goal,
                         static_cast<int>(planned.points.size()),
                         pushObstacles(spec_, step, static_cast<size_t>(ref.index), *load, at));
   out.stddev_m.assign(out.points.size(), 0.0);
-  c.goal = carrierEnd(out.points.back(), l->goal, config_.loads_ride);
+  c.goal = carrierEnd(out.points.back(), l->goal, l->goal, config_.loads_ride);
   return out;
 }
 
@@ -1036,6 +1047,7 @@ CoordinatorOutput Coordinator::onSegmentStatus(const StatusReport& r, double now
     if (!rec->done_claimed) rec->state = st;
     return out;
   }
+  judgeBehindItsLoad(*rec);
   updateDistances();
   if (!arrived(*rec)) {
     if (!rec->done_claimed) {

@@ -180,6 +180,22 @@ bool roundFree(const Eigen::Vector2d& load, double contact_m, const std::vector<
   return keepsClear(ring, standing);
 }
 
+/// Whether the load at `load`, pushed straight `normal` (a unit vector: the carrier's
+/// contact normal) for kPushClearanceM, runs into the reach of a body of `standing`, and
+/// kPushNearPassM deeper than pushed as far along `heading` (where it should head: a
+/// push along it that bends round a body soon after leaves the same body near): a body
+/// the load stands within the reach of is passed kPushNearPassM beyond contact, no nearer
+/// than it is.
+bool normalRunsIntoBody(const Eigen::Vector2d& load, const Eigen::Vector2d& normal, const Eigen::Vector2d& heading,
+                        const std::vector<PushObstacle>& standing) {
+  const std::vector<PushObstacle> bodies = passable(standing, load, load);
+  const auto pushed = [&](const Eigen::Vector2d& way) {
+    return clearance(std::vector<Eigen::Vector2d>{load, load + kPushClearanceM * way}, bodies);
+  };
+  const double along_normal = pushed(normal);
+  return along_normal < 0 && along_normal < pushed(heading) - kPushNearPassM;
+}
+
 /// A route for a load whose run-up is taken by a body standing behind it (a relay's giver
 /// that handed it on, the box between the two robots): first out from beside that body
 /// along one of kLeadOutWays whose run-up keeps every standing body at its reach, as far as
@@ -271,10 +287,7 @@ std::vector<Eigen::Vector2d> pushPathAlong(const Eigen::Vector2d& from, const st
   const double behind = std::atan2(-w.y(), -w.x());  // the run-up's bearing from the load
   std::vector<Eigen::Vector2d> out{from};
   const Eigen::Vector2d rel = from - load;
-  const bool behind_now =
-      push_from_behind && rel.norm() <= contact_m + kPushClearanceM / 3 &&
-      std::abs(wrapAngle(std::atan2(-rel.y(), -rel.x()) - std::atan2(w.y(), w.x()))) <= kPushConeRad;
-  if (behind_now) {
+  if (push_from_behind && pushMayStartHere(from, load, route, contact_m, standing)) {
     // Already behind it, at it: the push starts here, through where the load stands (the
     // load's route is the carrier's path beyond it, loadRoute).
     out.push_back(load);
@@ -329,9 +342,22 @@ std::vector<Eigen::Vector2d> routeOnFrom(const std::vector<Eigen::Vector2d>& rou
   return out;
 }
 
+bool pushMayStartHere(const Eigen::Vector2d& carrier, const Eigen::Vector2d& load,
+                      const std::vector<Eigen::Vector2d>& route, double contact_m,
+                      const std::vector<PushObstacle>& standing) {
+  const Eigen::Vector2d contact = load - carrier;
+  if (contact.norm() > contact_m + kPushClearanceM / 3 || contact.norm() < 1e-9 || route.size() < 2) return false;
+  const OnRoute at = onRoute(route, load);
+  const Eigen::Vector2d aim = pushAim(route, at) - load;
+  if (aim.norm() < 1e-9) return true;  // at its end: nothing to run into
+  return std::abs(contactDrift(contact, load, route, at)) <= kPushConeRad &&
+         !normalRunsIntoBody(load, contact.normalized(), aim.normalized(), standing);
+}
+
 std::optional<PushCommand> pushWheels(const Pose2D& carrier, const Eigen::Vector2d& load,
                                       const std::vector<Eigen::Vector2d>& route, double contact_m,
-                                      const FollowerGains& gains, bool pushing) {
+                                      const FollowerGains& gains, bool pushing,
+                                      const std::vector<PushObstacle>& standing) {
   const Eigen::Vector2d contact = load - carrier.position();
   if (contact.norm() > contact_m + kPushClearanceM / 3 || contact.norm() < 1e-9 || route.size() < 2)
     return std::nullopt;
@@ -343,7 +369,9 @@ std::optional<PushCommand> pushWheels(const Pose2D& carrier, const Eigen::Vector
   }
   // The load heads for its route kPushLookaheadM ahead of where it is along it.
   const double drift = contactDrift(contact, load, route, at);
-  if (std::abs(drift) > (pushing ? kMaxPushLeadRad : kPushConeRad)) return std::nullopt;
+  if (pushing ? std::abs(drift) > kMaxPushLeadRad
+              : !pushMayStartHere(carrier.position(), load, route, contact_m, standing))
+    return std::nullopt;
   const double normal = std::atan2(contact.y(), contact.x());
   const double lead = std::clamp(kPushLead * drift, -kMaxPushLeadRad, kMaxPushLeadRad);
   const double alpha = wrapAngle(normal + lead - carrier.yaw);
@@ -413,10 +441,12 @@ std::vector<Eigen::Vector2d> drivenPath(const task::TaskSpec& spec, const std::v
                   pushObstacles(spec, step, i, *load, decided));
 }
 
-Eigen::Vector2d carrierEnd(const Eigen::Vector2d& push_end, const Eigen::Vector2d& load_end, bool loads_ride) {
+Eigen::Vector2d carrierEnd(const Eigen::Vector2d& push_end, const Eigen::Vector2d& load_end,
+                           const Eigen::Vector2d& load_at, bool loads_ride) {
   const Eigen::Vector2d away = push_end - load_end;
-  if (loads_ride || away.norm() < 1e-9) return push_end;
-  return push_end + away.normalized() * kPushBackOffM;
+  if (loads_ride) return push_end;
+  if (away.norm() < 1e-9) return load_at;
+  return load_at + away + away.normalized() * kPushBackOffM;
 }
 
 }  // namespace ddace::exec

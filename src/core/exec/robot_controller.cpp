@@ -11,6 +11,22 @@
 
 namespace ddace::exec {
 
+namespace {
+
+/// The bodies standing round a carrier of radius `radius_m` pushing `load` (every other
+/// standing body, as the push's plan takes them, exec::pushObstacles): where its push may
+/// start (pushMayStartHere).
+std::vector<PushObstacle> standingRound(const std::vector<SafetyBody>& others, const SafetyBody& load,
+                                        double radius_m) {
+  std::vector<PushObstacle> out;
+  for (const SafetyBody& b : others)
+    if (b.standing && &b != &load)
+      out.push_back({b.position, std::max(radius_m, load.radius_m) + b.radius_m + kPushPassM});
+  return out;
+}
+
+}  // namespace
+
 void ControllerParams::validate() const {
   gains.validate();
   safety.validate();
@@ -176,9 +192,9 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   // on along the rest of the same route.
   const bool pushes = load && !contacts_.load_rides;
   if (pushes) planLoadRoute(*load);
-  const auto push =
-      pushes ? pushWheels(pose, load->position, load_route_, radius_m + load->radius_m, params_.gains, was_pushing_)
-             : std::nullopt;
+  const auto push = pushes ? pushWheels(pose, load->position, load_route_, radius_m + load->radius_m, params_.gains,
+                                        was_pushing_, standingRound(others, *load, radius_m))
+                           : std::nullopt;
   if (pushes && !push) replanPush(pose, *load, radius_m);
   was_pushing_ = push.has_value();
   // Ending beside a body other than its target that is still on its way (robots meeting

@@ -57,6 +57,7 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
         execution.bodies() ? task::stepEndPositions(spec, end_points, d.tokens, decided, std::nullopt, k) : decided;
     std::vector<StepMotion> motions;
     const size_t first = trial.executed.size();
+    std::vector<std::pair<size_t, int>> pushers;  // (executed token, its load) of every carrier that moves a load
     for (size_t i = 0; i < d.tokens.size(); ++i) {
       const task::Token& token = d.tokens[i];
       ExecutedToken ex;
@@ -73,7 +74,9 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
         const std::optional<int> load = execution.bodies() ? pushedLoad(spec, d.tokens, i, decided) : std::nullopt;
         if (load && !drivesShownPath(spec, d.tokens, i, *load, decided, ex.planned, !execution.pushesLoads())) {
           ex.planned = drivenPath(spec, d.tokens, i, decided, ends, std::move(ex.planned));
-          ex.goal = carrierEnd(ex.planned.back(), ends[static_cast<size_t>(*load)], !execution.pushesLoads());
+          ex.goal = carrierEnd(ex.planned.back(), ends[static_cast<size_t>(*load)], ends[static_cast<size_t>(*load)],
+                               !execution.pushesLoads());
+          pushers.push_back({trial.executed.size(), *load});
         }
         motions.push_back(
             {i, token.entity, token.target, spec.entities[token.entity].kind == task::EntityKind::Robot, ex.planned});
@@ -92,6 +95,12 @@ Trial runTrial(const task::TaskSpec& spec, const task::Demonstration& gt, const 
       pos[ex.token.entity] = ex.executed.back();
     }
     if (done.positions.size() == pos.size()) pos = done.positions;  // pushed bodies moved too
+    // A carrier is judged behind where its load ended, as the coordinator judges it.
+    for (const auto& [token, load] : pushers) {
+      ExecutedToken& ex = trial.executed[token];
+      ex.goal = carrierEnd(ex.planned.back(), ends[static_cast<size_t>(load)], pos[static_cast<size_t>(load)],
+                           !execution.pushesLoads());
+    }
     trial.makespan_s += done.duration_s;
     for (const std::string& f : done.failures) trial.failures.push_back("step " + std::to_string(k + 1) + ": " + f);
     trial.predicted.push_back(std::move(step));

@@ -155,10 +155,11 @@ TEST(PushPath, TheCarrierPushesTheBoxOntoItsGoalFromAnySide) {
 namespace {
 
 /// Robot `robot` of `sim` runs `c` until its motion ends (at most until `until_s`), every
-/// other body of the table as its filter sees it; the closest the two robots came, centre
-/// to centre, is kept in `closest_robots_m`. Returns whether the motion was done.
+/// other body of the table as its filter sees it (standing, with `others_stand`); the closest
+/// the two robots came, centre to centre, is kept in `closest_robots_m`. Returns whether the
+/// motion was done.
 bool runMotion(SimTable& sim, const task::TaskSpec& spec, RobotController& c, int robot, double until_s,
-               double& closest_robots_m) {
+               double& closest_robots_m, bool others_stand = false) {
   for (; sim.time() < until_s; sim.step()) {
     const auto e = sim.entities();
     closest_robots_m = std::min(closest_robots_m, (e[0].pose.position() - e[1].pose.position()).norm());
@@ -166,8 +167,8 @@ bool runMotion(SimTable& sim, const task::TaskSpec& spec, RobotController& c, in
     for (size_t i = 0; i < e.size(); ++i) {
       const task::Footprint f = spec.footprint(static_cast<int>(i));
       if (static_cast<int>(i) != robot && f.obstacle)
-        others.push_back(
-            {e[i].name, e[i].pose.position(), f.radius_m, spec.entities[i].kind == task::EntityKind::Robot});
+        others.push_back({e[i].name, e[i].pose.position(), f.radius_m, spec.entities[i].kind == task::EntityKind::Robot,
+                          0.0, false, false, false, others_stand});
     }
     const ControlOutput o = c.cycle(e[robot].pose, false, 0.0, spec.footprint(robot).radius_m, others, sim.time());
     sim.drive(e[robot].name, o.wheels, "test");
@@ -417,4 +418,42 @@ TEST(PushPath, AReceiverWhoseRunUpTheGiverStandsInPushesTheBoxOutFromBesideItFir
   EXPECT_EQ(pushPath(receiver, box, side, contact, side, 100, standing),
             pushPathAlong(receiver, pushRoute(box, side, standing), contact, 100, standing))
       << "a free run-up: the push as before";
+}
+
+// A relay's receiver standing within the cone behind the box it is handed (zoo:87, seed 9,
+// demonstration 4, step 3), their contact normal pointing 13 degrees off the giver backed
+// off beside the box: pushed from where it stands, the box goes first along that normal,
+// into the giver (the replay's "R4 touched B1"). It goes round the box to behind it first
+// (exec::pushMayStartHere) and the box reaches its goal without touching the giver.
+TEST(PushPath, AReceiverWhoseContactNormalPointsAtTheGiverGoesRoundTheBoxFirst) {
+  const task::TaskSpec spec = fetchTask();
+  constexpr int R2 = 1;
+  const Eigen::Vector2d giver(0.388, 0.416), box(0.343, 0.457), goal(0.917, 0.575);
+  const double contact = spec.contactDistance(R1, B1), robots = 2 * spec.footprint(R1).radius_m;
+  const Eigen::Vector2d receiver = box + (contact + 0.002) * Eigen::Vector2d(-0.0366, 0.0206).normalized();
+  const std::vector<PushObstacle> standing{{giver, robots + kPushPassM}};
+  const std::vector<Eigen::Vector2d> route = pushRoute(box, goal, standing);
+  ASSERT_TRUE(pushMayStartHere(receiver, box, route, contact, {})) << "within the cone behind the box";
+  EXPECT_FALSE(pushMayStartHere(receiver, box, route, contact, standing));
+
+  const double stop = task::stopRadius(task::kDefaultArrivalRadius);
+  const Eigen::Vector2d u = (goal - box).normalized();
+  SimTable sim(spec,
+               {{receiver.x(), receiver.y(), std::atan2(u.y(), u.x())},
+                {giver.x(), giver.y(), 0},
+                {box.x(), box.y(), 0},
+                {goal.x(), goal.y(), 0}},
+               DiffDriveParams{});
+  RobotController c("R1", ControllerParams{});
+  c.start(PlannedPath{pushPath(receiver, box, goal, contact, goal - contact * u, 200, standing), {}}, "G1", stop, stop);
+  MotionContacts to_goal;
+  to_goal.load = "B1", to_goal.load_end = goal, to_goal.load_at = box;
+  c.setContacts(to_goal);
+  double closest = 1e9;
+  EXPECT_TRUE(runMotion(sim, spec, c, R1, 60.0, closest, /*others_stand=*/true));
+  for (int k = 0; k < 50; ++k) sim.step();  // the box slides to rest
+  for (const BodyContact& k : sim.contacts())
+    EXPECT_FALSE(k.a == R2 || k.b == R2) << spec.entities[k.a].name << " touched " << spec.entities[k.b].name << " at "
+                                         << k.time_s << " s";
+  EXPECT_LT((sim.entities()[B1].pose.position() - goal).norm(), task::kDefaultArrivalRadius);
 }
