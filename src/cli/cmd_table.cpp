@@ -699,7 +699,7 @@ void writeFamilySections(std::ostream& md, const Run& run) {
   writeSection(md, run, "Human-timed demonstrations",
                "Training demonstrations labelled as a person does: every token's label begins up to " +
                    fmt(kHumanOnsetJitter, 1) +
-                   " s late (step grouping, `step_window_s`, merges it into its step), "
+                   " s late (step grouping merges it into its step: every token of the step still runs), "
                    "with Gaussian position noise of " +
                    fmt(kHumanNoise * 1000, 0) + " mm on every row; test sets are clean.",
                run.p.human);

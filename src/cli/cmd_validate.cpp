@@ -72,7 +72,7 @@ bool validateOne(const std::string& path, bool verbose) {
                 fs::path(d.source).filename().c_str(), d.rows, d.t_last - d.t_first, d.steps.size(), d.steps.size(),
                 d.segments);
     // Where step grouping merged a late label into its step (people label one robot after
-    // another), or a late one made a step of its own by the window alone.
+    // another), or a step began while the step before still ran.
     for (const auto& note : task::stepGroupingNotes(d.source, d.steps, spec))
       std::printf("    %s\n", note.str().c_str());
     if (verbose || d.steps.empty()) {

@@ -32,7 +32,8 @@
   "that E' changes any of its decisions. Where the counts of the cluster and rare rules are zero, E' decided "  \
   "nothing beyond the demonstrated edge set.\n"                                                                 \
   "- **Human-timed demonstrations.** Label onsets up to 0.4 s apart within a step are merged by step "          \
-  "grouping (`step_window_s`, 0.5 s by default) before anything is learned, so the sequence model sees the "    \
+  "grouping (a token joins its step while every token of it still runs) before anything is learned, so the "    \
+  "sequence model sees the "                                                                                    \
   "same steps as from clean data; what remains is the 2 mm position noise.\n"                                   \
   "- **Closed loop.** The ideal rows end every motion on its target, as the paper's evaluation; the "           \
   "closed-loop rows drive the same models' paths with the path follower's control law, so robots stop "         \

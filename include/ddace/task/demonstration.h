@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -46,19 +47,25 @@ Token parseTokenKey(const std::string& key, const TaskSpec& spec);
 struct LateOnset {
   Token token;
   int row = 0;         ///< row where its label begins
-  double delay_s = 0;  ///< t[row] - t[keyframe_row], seconds, in (0, step_window_s]
+  double delay_s = 0;  ///< t[row] - t[keyframe_row], seconds, > 0
 };
 
-/// Step k: the tokens that begin at keyframe k or join it within the step window,
-/// sorted by entity index.
+/// A step that began while a token of the step before still ran, after another token of
+/// that step had ended: a step of its own by the rule, which the person may have meant for
+/// the step before (started after a shorter token of it ended).
+struct StepOverlap {
+  Token ended;        ///< the first token of the step before to end
+  int ended_row = 0;  ///< its last row: a token beginning by this row joins that step
+  Token running;      ///< a token of the step before still running at this step's keyframe
+};
+
+/// Step k: the tokens that begin at keyframe k or join it while every token of it still
+/// runs (docs/task-format.md, "Step grouping"), sorted by entity index.
 struct Step {
   int keyframe_row = 0;  ///< the row of the step's first token: its snapshot
   std::vector<Token> tokens;
-  std::vector<LateOnset> late;  ///< the tokens that joined after keyframe_row, in row order
-  /// > 0: its first token began this many seconds after the previous step's keyframe,
-  /// while every token of that step still ran: a step of its own by step_window_s alone
-  /// (a late onset people may have meant for the step before).
-  double past_window_s = 0;
+  std::vector<LateOnset> late;         ///< the tokens that joined after keyframe_row, in row order
+  std::optional<StepOverlap> overlap;  ///< set when it began while the step before ran
 };
 
 /// The same number of steps with the same tokens, step by step (keyframe rows and late
@@ -107,10 +114,6 @@ class Demonstration {
   std::vector<std::vector<Eigen::Vector2d>> positions;  ///< [row][entity], metres
   std::vector<std::vector<Label>> labels;               ///< [row][entity]
   std::vector<bool> has_label_columns;                  ///< [entity]
-  /// Step grouping window, seconds >= 0 (task.yaml's step_window_s; the readers and the
-  /// generators set it from the task).
-  double step_window_s = kDefaultStepWindow;
-
   // Derived by analyze(); filled by the readers and the generators.
   std::vector<int> keyframes;       ///< keyframe row of every step
   std::vector<Step> steps;          ///< one per keyframe
@@ -120,7 +123,7 @@ class Demonstration {
   size_t rows() const { return t.size(); }
   size_t entities() const { return has_label_columns.size(); }
 
-  /// Computes steps (grouped with step_window_s), keyframes, segments and snapshots
+  /// Computes steps (step grouping), keyframes, segments and snapshots
   /// from t/positions/labels. t must be strictly increasing.
   void analyze();
   /// Positions of the segment's entity over its rows.
@@ -132,10 +135,10 @@ class Demonstration {
 
 /// Step grouping's notes for `ddace validate` (line = row + 2: the header is line 1): one per
 /// token merged into its step, "<source>:<line>: step k: R2:move:G1 began 0.250 s after
-/// the step's first token (line L); merged into the step", and one per step opened by the
-/// window alone (Step::past_window_s), "<source>:<line>: step k: R2:move:G1 began 0.530 s
-/// after step k-1's first token (line L) while all its tokens still ran: a step of its own
-/// by step_window_s 0.5 (raise it in task.yaml if it belongs to step k-1)".
+/// the step's first token (line L); merged into the step", and one per step that began
+/// while the step before still ran (Step::overlap), "<source>:<line>: step k: R2:move:G1
+/// began while R1:move:G2 of step k-1 still ran, after R3:move:B1 of it had ended (line L):
+/// a step of its own (...; begin its label by line L if it belongs to step k-1)".
 std::vector<Diagnostic> stepGroupingNotes(const Demonstration& demo, const TaskSpec& spec);
 
 /// The largest demonstration CSV readDemonstrationCsv accepts: 1 GiB. It reads it as a

@@ -15,8 +15,8 @@
 //                    "ACTORKIND:ACTION:TARGETKIND" (or "ACTORKIND:ACTION" in place) of
 //                    the demonstrations' tokens. Kinds, not names: which robot acts
 //                    depends on the scene, so it is no part of the task's identity.
-//   step_counts      the distinct numbers of steps of the demonstrations (after the step
-//                    grouping of task.yaml's step_window_s, so robust to human timing)
+//   step_counts      the distinct numbers of steps of the demonstrations (after step
+//                    grouping, so robust to human timing)
 //   demonstrations   how many demonstrations it was computed from (0: task.yaml alone)
 // digest: SHA-256 of canonicalText(), the same fields one per line.
 #pragma once

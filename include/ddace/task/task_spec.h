@@ -14,9 +14,6 @@ namespace ddace::task {
 
 inline constexpr const char* kFormat = "ddace-task/1";
 inline constexpr double kDefaultArrivalRadius = 0.03;  // metres
-/// Labels that begin this close to a step's first one join the step (docs/task-format.md,
-/// "Step grouping"); seconds. 0 is the paper's bare keyframe rule.
-inline constexpr double kDefaultStepWindow = 0.5;
 
 enum class EntityKind { Robot, Object, Goal };
 
@@ -92,7 +89,6 @@ struct TaskSpec {
   std::vector<std::string> actions;               ///< declared vocabulary (empty when absent)
   bool actions_declared = false;                  ///< true when task.yaml lists `actions`
   double arrival_radius = kDefaultArrivalRadius;  ///< metres
-  double step_window_s = kDefaultStepWindow;      ///< seconds, >= 0
   std::vector<GoalCondition> goal_conditions;
   std::vector<ActionRule> action_rules;  ///< in task.yaml's order (the first match wins)
 

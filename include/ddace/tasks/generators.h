@@ -69,7 +69,8 @@ struct GeneratorOptions {
   /// [0, onset_jitter_s) seconds (whole rows, rounded down), while its motion starts with
   /// the step (the person labels the robots of a step one after the other; the label
   /// lags, the robots do not wait for it). Labels still end with the step. Must be below
-  /// the task's step_window_s, so step grouping restores the steps exactly.
+  /// kMinStepDurationS, so every label begins before its step ends and step grouping
+  /// restores the steps exactly.
   double onset_jitter_s = 0.0;
 };
 
@@ -122,7 +123,7 @@ using PlannedStep = std::vector<PlannedToken>;
 /// the table and no closer than contact to a standing body or to a mover placed before it (no closer
 /// than the pair starts or ends, when that is already below contact); of a mirror pair the one with more clearance;
 /// with none free, the one with the most clearance. Positions are rounded to whole micrometres (what a CSV holds); the
-/// demonstration is analyzed with the task's step_window_s. Throws ddace::Error for a token naming an entity outside
+/// demonstration is analyzed (step grouping). Throws ddace::Error for a token naming an entity outside
 /// the task or a start configuration of the wrong size.
 ///
 /// `motion` changes how the person moves: other end points (where motions toward a body

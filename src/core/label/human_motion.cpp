@@ -98,7 +98,6 @@ class Demonstrator {
                SplitMix64& rng)
       : clean_(clean), spec_(spec), o_(o), rng_(rng), m_(spec.entities.size()), dt_(1.0 / o.rate_hz) {
     d_.source = clean.source;
-    d_.step_window_s = clean.step_window_s;
     d_.has_label_columns = clean.has_label_columns;
     pos_ = clean.positions.front();
   }

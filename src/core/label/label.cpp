@@ -598,7 +598,8 @@ void Labeller::handOver(Group g) {
   if (partial_) {
     // Robots of one step started apart, the first done before the next began: one step
     // when the example's step has their movers, or as many of each kind (its scene may
-    // have chosen other robots) and the second began within the task's step window.
+    // have chosen other robots) and the second began within pause_s of the first's end
+    // (a person's pause, as between the pieces of one motion).
     std::set<int> both = moversOf(partial_->motions);
     bool disjoint = true;
     for (const int e : moversOf(g.motions)) disjoint = both.insert(e).second && disjoint;
@@ -608,7 +609,7 @@ void Labeller::handOver(Group g) {
     const std::set<int> want = exampleMovers(groups_seen_);
     Group first = std::move(*partial_);
     partial_.reset();
-    if (disjoint && (both == want || ((first_on - partial_off < spec_.step_window_s || joinedItsBodies(g, first)) &&
+    if (disjoint && (both == want || ((first_on - partial_off < options_.pause_s || joinedItsBodies(g, first)) &&
                                       kindsOf(both) == kindsOf(want)))) {
       for (auto& m : g.motions) first.motions.push_back(std::move(m));
       for (auto& n : g.notes) first.notes.push_back(std::move(n));

@@ -108,48 +108,35 @@ class StepGrouper {
  public:
   /// `keep` false: only the open step is kept (its predecessors, their segments and
   /// snapshots are counted, not stored), for a summary in memory independent of the steps.
-  StepGrouper(size_t entities, double window, bool keep = true)
-      : prev_(entities), active_(entities, {-1, -1}), window_(window), keep_(keep) {}
+  explicit StepGrouper(size_t entities, bool keep = true) : prev_(entities), running_(entities), keep_(keep) {}
 
   void row(int i, double t, const std::vector<Label>& labels, const std::vector<Eigen::Vector2d>& positions) {
     const size_t m = labels.size();
     // A token ends where its entity's label changes away from it.
     for (size_t e = 0; e < m; ++e) {
-      if (labels[e] == prev_[e] || active_[e].first < 0) continue;
-      const auto [k, s] = active_[e];
-      if (keep_) step_segments_[k][s].last_row = i - 1;
-      if (k == step_count_ - 1) open_ended_ = true;
-      active_[e] = {-1, -1};
+      Running& r = running_[e];
+      if (labels[e] == prev_[e] || r.step < 0) continue;
+      if (keep_) step_segments_[r.step][r.segment].last_row = i - 1;
+      if (r.step == step_count_ - 1 && !first_ended_) first_ended_ = Ended{r.token, i - 1};
+      r.step = -1;
     }
     std::vector<Token> starting;  // tokens whose label begins in row i, by entity
-    bool all_null = true;
     for (size_t e = 0; e < m; ++e) {
       const Label& l = labels[e];
-      all_null = all_null && l.isNull();
       if (!l.isNull() && l != prev_[e]) starting.push_back({static_cast<int>(e), l.action, l.target});
     }
-    if (starting.empty()) {
-      // The bare rule (window 0) also makes a keyframe, with no token, of a row in which
-      // labels only end while others hold; with grouping only a beginning label opens a step.
-      if (window_ == 0 && !all_null && labels != prev_) openStep(i, t, positions);
-    } else {
-      const bool running = step_count_ > 0 && !open_ended_;
-      const bool joins = running && t - last_keyframe_t_ <= window_;
-      const double since = t - last_keyframe_t_;
+    if (!starting.empty()) {
+      // Tokens of one step are under way together: a token joins while none has ended.
+      const bool joins = step_count_ > 0 && !first_ended_;
       if (!joins) openStep(i, t, positions);
-      if (running && !joins && window_ > 0) steps_.back().past_window_s = since;
       const int k = step_count_ - 1;
       Step& step = steps_.back();
       for (const Token& token : starting) {
         step.tokens.push_back(token);
         if (joins) step.late.push_back({token, i, t - last_keyframe_t_});
         ++segment_count_;
-        if (!keep_) {
-          active_[token.entity] = {k, 0};
-          continue;
-        }
-        active_[token.entity] = {k, static_cast<int>(step_segments_[k].size())};
-        step_segments_[k].push_back({token, k, i, i});
+        running_[token.entity] = {k, keep_ ? static_cast<int>(step_segments_[k].size()) : 0, token};
+        if (keep_) step_segments_[k].push_back({token, k, i, i});
       }
       std::sort(step.tokens.begin(), step.tokens.end());
     }
@@ -161,8 +148,8 @@ class StepGrouper {
   /// order, by entity) and keyframe snapshots to `d`'s derived fields.
   void finish(std::vector<int>& keyframes, std::vector<Step>& steps, std::vector<Segment>& segments,
               std::vector<Snapshot>& snapshots) {
-    for (const auto& [k, s] : active_)
-      if (k >= 0 && keep_) step_segments_[k][s].last_row = last_row_;
+    for (const Running& r : running_)
+      if (r.step >= 0 && keep_) step_segments_[r.step][r.segment].last_row = last_row_;
     for (auto& segs : step_segments_) {
       std::sort(segs.begin(), segs.end(), [](const Segment& a, const Segment& b) { return a.token < b.token; });
       segments.insert(segments.end(), segs.begin(), segs.end());
@@ -176,12 +163,27 @@ class StepGrouper {
   size_t segmentCount() const { return segment_count_; }
 
  private:
+  struct Running {
+    int step = -1;  ///< -1: the entity runs no token
+    int segment = -1;
+    Token token;
+  };
+  struct Ended {
+    Token token;
+    int last_row = 0;
+  };
+
   void openStep(int i, double t, const std::vector<Eigen::Vector2d>& positions) {
+    // A token of the open step still running: this step began before that one ended.
+    std::optional<StepOverlap> overlap;
+    for (const Running& r : running_)
+      if (first_ended_ && r.step == step_count_ - 1 && !overlap)
+        overlap = StepOverlap{first_ended_->token, first_ended_->last_row, r.token};
     ++step_count_;
     last_keyframe_t_ = t;
-    open_ended_ = false;
+    first_ended_.reset();
     if (!keep_) steps_.clear();
-    steps_.push_back({i, {}, {}});
+    steps_.push_back({i, {}, {}, overlap});
     if (!keep_) return;
     step_segments_.emplace_back();
     snapshots_.push_back({i, false, positions});
@@ -189,13 +191,12 @@ class StepGrouper {
   }
 
   std::vector<Label> prev_;
-  std::vector<std::pair<int, int>> active_;  ///< [entity] (step, segment) of its running token
-  double window_;
+  std::vector<Running> running_;  ///< [entity] its running token
   std::vector<Step> steps_;
   std::vector<std::vector<Segment>> step_segments_;
   std::vector<Snapshot> snapshots_;
   std::vector<double> keyframe_t_;
-  bool open_ended_ = false;  ///< a token of the open step has ended
+  std::optional<Ended> first_ended_;  ///< the open step's first token to end
   bool keep_ = true;
   int step_count_ = 0;
   size_t segment_count_ = 0;
@@ -212,7 +213,7 @@ void Demonstration::analyze() {
   snapshots.clear();
   const size_t n = rows();
   if (n == 0) return;
-  StepGrouper grouper(entities(), step_window_s);
+  StepGrouper grouper(entities());
   for (size_t i = 0; i < n; ++i) grouper.row(static_cast<int>(i), t[i], labels[i], positions[i]);
   grouper.finish(keyframes, steps, segments, snapshots);
   snapshots.push_back({static_cast<int>(n - 1), true, positions[n - 1]});
@@ -249,18 +250,16 @@ std::vector<Diagnostic> stepGroupingNotes(const std::string& source, const std::
   std::vector<Diagnostic> notes;
   for (size_t k = 0; k < steps.size(); ++k) {
     const Step& step = steps[k];
-    if (step.past_window_s > 0 && k > 0) {
-      char since[64];
-      std::snprintf(since, sizeof since, "%.3f", step.past_window_s);
-      char window[32];
-      std::snprintf(window, sizeof window, "%g", spec.step_window_s);
+    if (step.overlap && k > 0) {
       const std::string before = "step " + std::to_string(k);
+      const std::string by = std::to_string(step.overlap->ended_row + 2);
       notes.push_back({source, step.keyframe_row + 2, 0,
-                       "step " + std::to_string(k + 1) + ": " + tokenKey(firstToken(step), spec) + " began " + since +
-                           " s after " + before + "'s first token (line " +
-                           std::to_string(steps[k - 1].keyframe_row + 2) +
-                           ") while all its tokens still ran: a step of its own by step_window_s " + window +
-                           " (raise it in task.yaml if it belongs to " + before + ")"});
+                       "step " + std::to_string(k + 1) + ": " + tokenKey(firstToken(step), spec) + " began while " +
+                           tokenKey(step.overlap->running, spec) + " of " + before + " still ran, after " +
+                           tokenKey(step.overlap->ended, spec) + " of it had ended (line " + by +
+                           "): a step of its own (a token joins a step while every token of the step runs; begin "
+                           "its label by line " +
+                           by + " if it belongs to " + before + ")"});
     }
     for (const LateOnset& late : step.late) {
       char delay[32];
@@ -336,9 +335,8 @@ class CsvParser {
       : spec_(spec),
         file_(std::move(file)),
         keep_rows_(keep_rows),
-        grouper_(spec.entities.size(), spec.step_window_s, keep_rows || keep_steps) {
+        grouper_(spec.entities.size(), keep_rows || keep_steps) {
     demo_.source = file_;
-    demo_.step_window_s = spec.step_window_s;
   }
 
   /// False once there are so many errors that reading on is pointless.

@@ -345,7 +345,7 @@ void parseFormatAndName(YamlChecker& c, const YAML::Node& root, TaskSpec& spec) 
   if (root["name"]) c.text(root["name"], "name", spec.name);
 }
 
-void parseRadiusAndWindow(YamlChecker& c, const YAML::Node& root, TaskSpec& spec) {
+void parseRadius(YamlChecker& c, const YAML::Node& root, TaskSpec& spec) {
   if (root["arrival_radius"]) {
     double r = 0;
     if (c.number(root["arrival_radius"], "arrival_radius", r)) {
@@ -354,13 +354,11 @@ void parseRadiusAndWindow(YamlChecker& c, const YAML::Node& root, TaskSpec& spec
     }
   }
 
-  if (root["step_window_s"]) {
-    double w = 0;
-    if (c.number(root["step_window_s"], "step_window_s", w)) {
-      if (w < 0) c.error(root["step_window_s"], "step_window_s must be >= 0 (seconds; 0 = the bare keyframe rule)");
-      else spec.step_window_s = w;
-    }
-  }
+  // Steps were once grouped within a fixed window; the rule needs none now.
+  if (root["step_window_s"])
+    c.error(root["step_window_s"],
+            "step_window_s is no longer read: a token joins its step while every token of the step still runs, "
+            "however late it begins (docs/task-format.md, \"Step grouping\"); delete this line");
 }
 
 }  // namespace
@@ -381,7 +379,7 @@ TaskSpec parseTaskYaml(const std::string& text, const std::string& file) {
   parseFormatAndName(c, root, spec);
   const std::set<std::string> names = parseEntities(c, root, spec);
   parseActions(c, root, spec);
-  parseRadiusAndWindow(c, root, spec);
+  parseRadius(c, root, spec);
   parseGoalConditions(c, root, names, spec);
   parseActionRules(c, root, spec);
   c.throwIfErrors();
@@ -416,9 +414,6 @@ std::string taskYamlText(const TaskSpec& spec) {
     out << "]\n";
   }
   out << "arrival_radius: " << detail::shortestNumber(spec.arrival_radius) << "                # metres\n";
-  if (spec.step_window_s != kDefaultStepWindow) {
-    out << "step_window_s: " << detail::shortestNumber(spec.step_window_s) << "                 # seconds\n";
-  }
   if (!spec.goal_conditions.empty()) {
     out << "goal_conditions:\n";
     for (const auto& g : spec.goal_conditions) {

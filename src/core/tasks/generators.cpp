@@ -391,7 +391,7 @@ task::Demonstration simulate(const Plan& plan, SplitMix64& rng, double jitter_m,
       PlannedToken pt;
       pt.token.entity = spec.entityIndex(mv.entity);
       pt.token.action = mv.action;
-      // floor: the label's lag never exceeds the drawn delay, so it stays below step_window_s.
+      // floor: the label's lag never exceeds the drawn delay, so it begins before its step ends.
       if (onset_jitter_s > 0)
         pt.label_delay_rows = static_cast<int>(std::floor(onset_rng.uniform(0, onset_jitter_s) * kGeneratorRateHz));
       if (!mv.target.empty()) {
@@ -493,13 +493,14 @@ task::TaskDir generate(const GeneratorOptions& o) {
   if (o.mislabel_fraction < 0 || o.mislabel_fraction > 1) throw Error("mislabel fraction must be in [0, 1]");
   plan.spec.actions_declared = true;
   shareTargetsByBodies(plan.spec);
-  const double window = plan.spec.step_window_s;
-  if (!(o.onset_jitter_s >= 0 && o.onset_jitter_s < window)) {
+  // The labels of a step end together: a delay below the shortest step begins before they
+  // end, so the late label joins its step.
+  if (!(o.onset_jitter_s >= 0 && o.onset_jitter_s < kMinStepDurationS)) {
     char buf[160];
     std::snprintf(buf, sizeof buf,
-                  "--onset-jitter %g is out of range: seconds in [0, %g), below the task's step_window_s "
-                  "so that the steps group back",
-                  o.onset_jitter_s, window);
+                  "--onset-jitter %g is out of range: seconds in [0, %g), below the shortest step "
+                  "so that every label begins before its step ends",
+                  o.onset_jitter_s, kMinStepDurationS);
     throw Error(buf);
   }
 
@@ -513,7 +514,6 @@ task::TaskDir generate(const GeneratorOptions& o) {
   for (int i = 0; i < o.demos; ++i) {
     if (scene) plan = sampleScene(*scene, rng);
     task::Demonstration d = simulate(plan, rng, o.jitter_m, o.onset_jitter_s, onset_rng);
-    d.step_window_s = window;
     if (i < mislabelled) mislabel(d, dir.spec, rng);
     d.analyze();
     dir.demos.push_back(std::move(d));

@@ -465,7 +465,6 @@ task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<
     const int gap = s + 1 < steps.size() ? kIdleRowsBetween : kIdleRowsAfter;
     for (int i = 0; i < gap; ++i) rows.emit(idle);
   }
-  d.step_window_s = spec.step_window_s;
   d.analyze();
   return d;
 }

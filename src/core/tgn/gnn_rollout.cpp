@@ -25,7 +25,6 @@ task::Demonstration rolloutGnn(const SequenceModel& model, const task::Demonstra
   task::Demonstration out;
   out.source = "gnn rollout of " + test_demo.source;
   out.has_label_columns = start.has_label_columns;
-  out.step_window_s = start.step_window_s;
   out.t.push_back(0);
   out.positions.push_back(start.positions[0]);
   out.labels.push_back(start.labels[0]);

@@ -116,7 +116,6 @@ task::Demonstration EntityOrder::rowsToTask(const task::Demonstration& c) const 
   const size_t n = task_of.size();
   task::Demonstration d;
   d.source = c.source;
-  d.step_window_s = c.step_window_s;
   d.t = c.t;
   d.has_label_columns.resize(n);
   for (size_t k = 0; k < n; ++k) d.has_label_columns[static_cast<size_t>(task_of[k])] = c.has_label_columns[k];

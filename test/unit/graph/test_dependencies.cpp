@@ -18,16 +18,13 @@ struct Held {
 };
 
 /// A demonstration of `spec` at 20 Hz where each token's label holds over its rows (the
-/// positions stay put: the rule reads only when labels begin and end). `window_s`: the
-/// step window, wide enough to keep the tokens of one step together however a person
-/// staggers them.
-task::Demonstration handMoved(const task::TaskSpec& spec, const std::vector<Held>& tokens, double window_s = 2.0) {
+/// positions stay put: the rule reads only when labels begin and end).
+task::Demonstration handMoved(const task::TaskSpec& spec, const std::vector<Held>& tokens) {
   const size_t n = spec.entities.size();
   int rows = 0;
   for (const Held& h : tokens) rows = std::max(rows, h.last + 3);
   task::Demonstration d;
   d.source = "hand_moved.csv";
-  d.step_window_s = window_s;
   d.has_label_columns.assign(n, true);
   for (int r = 0; r < rows; ++r) {
     d.t.push_back(r * 0.05);
@@ -163,9 +160,19 @@ TEST(Dependencies, ATokenWithNothingInCommonWaitsForThePersonsOrder) {
   const auto waited =
       graph::learnDependencies(t.spec, {handMoved(t.spec, {{"R1:move:G1", 5, 20}, {"R2:move:R4", 23, 40}})});
   EXPECT_TRUE(waited.waitsFor(t.spec, after, 0, before, 0));
-  const auto early = graph::learnDependencies(
-      t.spec, {handMoved(t.spec, {{"R1:move:G1", 5, 30}, {"R2:move:R4", 25, 40}}, /*window_s=*/0.5)});
+  // Left while R3 (of R1's step) had ended and R1 still ran: a step of its own, started early.
+  const task::Demonstration early_demo =
+      handMoved(t.spec, {{"R1:move:G1", 5, 30}, {"R3:move:G1", 6, 20}, {"R2:move:R4", 25, 40}});
+  ASSERT_EQ(early_demo.steps.size(), 2u);
+  const auto early = graph::learnDependencies(t.spec, {early_demo});
+  ASSERT_NE(early.find("R2:move:R4", "R1:move:G1"), nullptr);
+  EXPECT_EQ(early.find("R2:move:R4", "R1:move:G1")->started_early, 1);
   EXPECT_FALSE(early.waitsFor(t.spec, after, 0, before, 0));
+  // Left while every token of R1's step still ran: one step with it (step grouping), and
+  // tokens of one step wait for none of each other.
+  const task::Demonstration together = handMoved(t.spec, {{"R1:move:G1", 5, 30}, {"R2:move:R4", 25, 40}});
+  ASSERT_EQ(together.steps.size(), 1u);
+  EXPECT_FALSE(graph::learnDependencies(t.spec, {together}).waitsFor(t.spec, after, 0, before, 0));
 }
 
 TEST(Dependencies, RoundTripThroughTheManifestAndRefuseAnEditedOne) {

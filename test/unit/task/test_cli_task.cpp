@@ -77,7 +77,7 @@ TEST(CliGenerate, AnOutputThatCannotBeWrittenIsAnError) {
 
 TEST(CliGenerate, OnsetJitterIsMergedBackAndValidateSaysWhere) {
   const std::string out = root() + "/onset";
-  ToolRun r = runTool("generate task4 --out '" + out + "' --train 3 --test 1 --onset-jitter 0.4");
+  ToolRun r = runTool("generate task4 --out '" + out + "' --train 3 --test 1 --onset-jitter 0.9");
   ASSERT_EQ(r.status, 0) << r.out;
   r = runTool("validate '" + out + "'");
   EXPECT_EQ(r.status, 0) << r.out;
@@ -85,9 +85,9 @@ TEST(CliGenerate, OnsetJitterIsMergedBackAndValidateSaysWhere) {
   EXPECT_NE(r.out.find(out + "/train/demos/demo_000.csv:"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("s after the step's first token (line "), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("test/demos/demo_000.csv:"), std::string::npos) << r.out;  // the test set is clean
-  r = runTool("generate task4 --out '" + out + "2' --onset-jitter 0.6");
+  r = runTool("generate task4 --out '" + out + "2' --onset-jitter 1");
   EXPECT_NE(r.status, 0);
-  EXPECT_NE(r.out.find("--onset-jitter 0.6 is out of range"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--onset-jitter 1 is out of range"), std::string::npos) << r.out;
 }
 
 // A demonstration whose steps are the others' but for one mislabelled token is a labelling

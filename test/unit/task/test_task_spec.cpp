@@ -171,28 +171,18 @@ TEST(TaskSpec, MissingFileNamesTheFile) {
   }
 }
 
-TEST(TaskSpec, StepWindowIsOptionalValidatedAndRoundTrips) {
+TEST(TaskSpec, AStepWindowIsRefusedNamingTheRuleThatReplacedIt) {
+  // Steps were grouped within step_window_s; they are grouped by the tokens that still run
+  // now, so a task.yaml that sets a window is told so rather than silently regrouped.
   const std::string head = "format: ddace-task/1\nentities: [{name: R1, kind: robot}]\n";
-  EXPECT_DOUBLE_EQ(parseTaskYaml(head, "t").step_window_s, kDefaultStepWindow);
-  EXPECT_DOUBLE_EQ(parseTaskYaml(head + "step_window_s: 0\n", "t").step_window_s, 0.0);
-  // The default is not written (task.yaml of every existing task stays as it is) ...
-  EXPECT_EQ(taskYamlText(parseTaskYaml(head, "t")).find("step_window_s"), std::string::npos);
-  // ... any other value is, and reads back exactly.
-  for (const double w : {0.0, 0.25, 0.1 + 0.2, 1e-7, 3.0}) {
-    TaskSpec s = parseTaskYaml(head, "t");
-    s.step_window_s = w;
-    const std::string text = taskYamlText(s);
-    EXPECT_NE(text.find("step_window_s: "), std::string::npos) << text;
-    EXPECT_EQ(parseTaskYaml(text, "again").step_window_s, w) << text;
-  }
-  for (const std::string bad : {"-0.1", "nan", "inf", "abc", "[1]"}) {
-    const Diagnostic d = onlyError(head + "step_window_s: " + bad + "\n");
+  for (const std::string value : {"0.7", "0", "abc"}) {
+    const Diagnostic d = onlyError(head + "step_window_s: " + value + "\n");
     EXPECT_EQ(d.file, "task.yaml");
-    EXPECT_EQ(d.line, 3) << bad;
-    EXPECT_EQ(d.column, 16) << bad;
-    EXPECT_NE(d.message.find("step_window_s"), std::string::npos) << d.message;
+    EXPECT_EQ(d.line, 3) << value;
+    EXPECT_NE(d.message.find("step_window_s is no longer read"), std::string::npos) << d.message;
+    EXPECT_NE(d.message.find("every token of the step still runs"), std::string::npos) << d.message;
   }
-  EXPECT_NE(onlyError(head + "step_window_s: -1\n").message.find(">= 0"), std::string::npos);
+  EXPECT_EQ(taskYamlText(parseTaskYaml(head, "t")).find("step_window"), std::string::npos);
 }
 
 TEST(TaskSpec, FootprintDefaultsByKind) {

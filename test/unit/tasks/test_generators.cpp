@@ -391,27 +391,25 @@ TEST(OnsetJitter, LabelsLagTheirMotionByUpToTheJitterAndEndWithTheStep) {
 }
 
 TEST(OnsetJitter, StepGroupingRestoresTheCleanSteps) {
+  // Labels up to 0.9 s late (beyond what a fixed 0.5 s window grouped) join their steps.
   for (const auto& family : tasks::allFamilies()) {
-    const auto clean = genOnset(family, 0), late = genOnset(family, 0.4);
-    int differs_bare = 0;
+    const auto clean = genOnset(family, 0), late = genOnset(family, 0.9);
+    size_t joined = 0;
     for (size_t i = 0; i < clean.demos.size(); ++i) {
       EXPECT_EQ(structure(late.demos[i], late.spec), structure(clean.demos[i], clean.spec)) << family << " " << i;
-      task::Demonstration bare = late.demos[i];
-      bare.step_window_s = 0;  // the paper's bare keyframe rule
-      bare.analyze();
-      differs_bare += structure(bare, late.spec) != structure(clean.demos[i], clean.spec);
+      for (const auto& s : late.demos[i].steps) joined += s.late.size();
     }
-    // Without grouping, a step of several tokens falls apart into several steps.
+    // A step of several tokens had late labels to group.
     bool multi = false;
     for (const auto& s : clean.demos[0].steps) multi = multi || s.tokens.size() > 1;
     if (multi) {
-      EXPECT_GT(differs_bare, 0) << family;
+      EXPECT_GT(joined, 0u) << family;
     }
   }
 }
 
 TEST(OnsetJitter, OutOfRangeIsRefusedNamingTheOption) {
-  for (double bad : {-0.1, 0.5, 0.7, std::nan("")}) {
+  for (double bad : {-0.1, 1.0, 1.5, std::nan("")}) {
     try {
       genOnset("task4", bad, 1);
       FAIL() << bad;

@@ -42,7 +42,6 @@ task::Demonstration recordThroughCamera(const task::Demonstration& truth, const 
   d.t = truth.t;
   d.labels = truth.labels;
   d.has_label_columns = truth.has_label_columns;
-  d.step_window_s = truth.step_window_s;
   std::vector<double> yaw(spec.entities.size(), 0.0);
   for (size_t r = 0; r < truth.rows(); ++r) {
     std::vector<vision::TrueEntity> scene;
