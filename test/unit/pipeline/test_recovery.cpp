@@ -402,6 +402,17 @@ struct TwoBoxesModel {
 };
 using RecoveryTwoBoxes = ddace::test::SharedModel<TwoBoxesModel>;
 
+/// Ten fresh zoo:two-boxes scenes with bodies (2 mm tracking noise), each perturbed by `kind`.
+pipeline::PerturbationReport perturbedWithBodies(const pipeline::Model& model, const char* kind) {
+  const task::TaskDir test = tasks::generateZoo(TwoBoxesModel::rule(), 10, 1 * 2654435761ULL + 0x7e57);
+  pipeline::EvalOptions o;
+  o.execution = "diffdrive";
+  o.noise_m = 0.002;
+  const exec::BodiesExecutionParams table = pipeline::bodiesParams(o, test.spec);
+  return pipeline::evaluatePerturbed(model, test, pipeline::parsePerturbation(kind, "--perturb"),
+                                     exec::DispatchMode::Steps, 1, &table);
+}
+
 }  // namespace
 
 // zoo:two-boxes with bodies, each box moved 10 cm by a hand while a robot drives to it: the
@@ -410,13 +421,7 @@ using RecoveryTwoBoxes = ddace::test::SharedModel<TwoBoxesModel>;
 // that robot read where it stood at one place with the box sent the robots to the other
 // boxes) and a robot that then barely moved to its box (read as not having fetched it).
 TEST_F(RecoveryTwoBoxes, ABoxMovedBesideItsFetcherIsStillFetchedAsTheRuleSays) {
-  const task::TaskDir test = tasks::generateZoo(TwoBoxesModel::rule(), 10, 1 * 2654435761ULL + 0x7e57);
-  pipeline::EvalOptions o;
-  o.execution = "diffdrive";
-  o.noise_m = 0.002;
-  const exec::BodiesExecutionParams table = pipeline::bodiesParams(o, test.spec);
-  const pipeline::PerturbationReport r = pipeline::evaluatePerturbed(
-      *model_, test, pipeline::parsePerturbation("box_moved:10", "--perturb"), exec::DispatchMode::Steps, 1, &table);
+  const pipeline::PerturbationReport r = perturbedWithBodies(*model_, "box_moved:10");
   int judged = 0;
   for (size_t i = 0; i < r.demos.size(); ++i) {
     if (!r.unperturbed[i].success || r.with[i].by_rule < 0) continue;
@@ -431,13 +436,7 @@ TEST_F(RecoveryTwoBoxes, ABoxMovedBesideItsFetcherIsStillFetchedAsTheRuleSays) {
 // is judged by what the rule decides for the two robots left on the scene at the loss (where
 // each box ends), not by the demonstration of the team of three; here every one does it.
 TEST_F(RecoveryTwoBoxes, ARobotLostForGoodIsJudgedByTheRuleForTheTeamLeft) {
-  const task::TaskDir test = tasks::generateZoo(TwoBoxesModel::rule(), 10, 1 * 2654435761ULL + 0x7e57);
-  pipeline::EvalOptions o;
-  o.execution = "diffdrive";
-  o.noise_m = 0.002;
-  const exec::BodiesExecutionParams table = pipeline::bodiesParams(o, test.spec);
-  const pipeline::PerturbationReport r = pipeline::evaluatePerturbed(
-      *model_, test, pipeline::parsePerturbation("robot_lost", "--perturb"), exec::DispatchMode::Steps, 1, &table);
+  const pipeline::PerturbationReport r = perturbedWithBodies(*model_, "robot_lost");
   int judged = 0;
   for (size_t i = 0; i < r.demos.size(); ++i) {
     const pipeline::CoordinatedRun& with = r.with[i];
