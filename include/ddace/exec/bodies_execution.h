@@ -8,9 +8,9 @@
 // step begins from the step's end points (exec::motionContacts, the node's answer too).
 // Without the filter (safety.enabled false) the bodies still collide, and every collision
 // is counted. A load at its carrier goes with it during their step (TableSimulator::carry):
-// by default it rides in front of it, part of the carrier's body for its filter; with
-// mock_robots/loads_ride false (`ddace eval --config`) the carrier pushes it as on the real
-// table (exec/push_path.h), and the load is judged where it lies when its carrier is done.
+// by default the carrier pushes it as on the real table (exec/push_path.h), and the load is
+// judged where it lies when its carrier is done; with mock_robots/loads_ride true (`ddace
+// eval --config`) it rides in front of it, part of the carrier's body for its filter.
 //
 // A step ends when every robot's control law reports it arrived and every object's segment
 // is done, or when its filter reports a deadlock (the robot stops there; the failure names

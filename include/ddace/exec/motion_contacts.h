@@ -46,8 +46,8 @@ namespace ddace::exec {
 struct MotionContacts {
   std::string load;  ///< the object it carries ("" = none)
   /// The table carries the load in front of its carrier once met (TableSimulator::carry with
-  /// loads_ride: the mock robots by default) instead of leaving it to be pushed (the real
-  /// table, its simulation): no push steering (exec/push_path.h's pushWheels).
+  /// loads_ride true) instead of leaving it to be pushed (the real table, the mock robots
+  /// by default): no push steering (exec/push_path.h's pushWheels).
   bool load_rides = false;
   Eigen::Vector2d load_end{0, 0};  ///< where the load ends
   /// Where the load stood when this was decided (NaN: unknown): its carrier's push was

@@ -3,8 +3,8 @@
 // commands; objects move through their own segments, carried along the planned path at a
 // constant speed (exec/scene.h's CarriedObject, the execution model of
 // docs/task-format.md), and when something pushes them; goals are flat and never move. The
-// load of a carry step goes with its carrier (carry()): riding in front of it (loads_ride,
-// the mock robots' default) or pushed by it body against body, as on the real table.
+// load of a carry step goes with its carrier (carry()): pushed by it body against body, as
+// on the real table (the default), or riding in front of it (loads_ride).
 //
 // Bodies (params.bodies): every robot and object is a disc (exec/safety_filter.h's
 // bodyShape) in a Box2D 2.4 world seen from above (no gravity). Each step a robot's unicycle decides where its
@@ -51,9 +51,10 @@ struct TableSimulatorParams {
   double object_speed_mps = 0.12;  ///< objects follow their segments at this speed
   double object_damping_hz = 8.0;  ///< table friction: a pushed object's speed decays at this rate
   int status_every_cycles = 5;     ///< a moving object reports RUNNING every N steps (10 Hz at 50 Hz)
-  /// How a carry step moves its load (carry()). true: the table carries it in front of its
-  /// carrier once met; false: it moves only when its carrier pushes it, as on the real table.
-  bool loads_ride = true;
+  /// How a carry step moves its load (carry()). false: it moves only when its carrier
+  /// pushes it, as on the real table; true: the table carries it in front of its carrier
+  /// once met.
+  bool loads_ride = false;
   /// Throws ddace::Error naming the first invalid field.
   void validate() const;
 };

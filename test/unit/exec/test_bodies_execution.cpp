@@ -38,10 +38,11 @@ task::Token token(int entity, int target) {
   return {entity, "move", target};
 }
 
-BodiesExecution model(bool filter) {
+BodiesExecution model(bool filter, bool loads_ride = false) {
   BodiesExecutionParams p;
   p.noise_m = 0.001;
   p.config.safety.enabled = filter;
+  p.config.table.loads_ride = loads_ride;
   return BodiesExecution(p);
 }
 
@@ -202,7 +203,7 @@ TEST(BodiesExecution, ACarriedLoadRidesInFrontOfItsCarrierToTheGoal) {
   const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
   const std::vector<Pose2D> start{{0.1, 0.3, 0}, {0.1 + contact + 0.002, 0.3, 0}, {0.6, 0.3, 0}};
   const std::vector<task::Token> tokens{token(0, 2), token(1, 2)};
-  BodiesExecution with = model(true);
+  BodiesExecution with = model(true, /*loads_ride=*/true);
   const StepExecution a =
       runStep(with, s, start, tokens, {line({0.1, 0.3}, {0.6 - contact, 0.3}), line({0.1 + contact, 0.3}, {0.6, 0.3})});
   EXPECT_TRUE(a.failures.empty()) << a.failures.front();
@@ -300,7 +301,7 @@ TEST(BodiesExecution, ALoadBehindItsCarrierSwingsRoundToItsFront) {
   const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
   const std::vector<Pose2D> start{{0.2, 0.3, 0}, {0.2 - contact - 0.002, 0.3, 0}, {0.6, 0.3, 0}};
   Path load{{0.2 - contact - 0.002, 0.3}, {0.2, 0.3 + contact}, {0.2 + contact, 0.3}, {0.6, 0.3}};
-  BodiesExecution with = model(true);
+  BodiesExecution with = model(true, /*loads_ride=*/true);
   const StepExecution a =
       runStep(with, s, start, {token(0, 2), token(1, 2)}, {line({0.2, 0.3}, {0.6 - contact, 0.3}), load});
   EXPECT_LT((a.positions[1] - Vector2d(0.6, 0.3)).norm(), 0.01) << "the load ends on the goal, not blocked behind";
@@ -322,7 +323,7 @@ TEST(BodiesExecution, TheFilterKeepsACarriedLoadClearOfAStandingRobot) {
   for (const Vector2d& p : line({0.3, 0.3 + contact}, {0.3, 0.6})) load.push_back(p);
   const std::vector<task::Token> tokens{token(0, 2), token(1, 2)};
 
-  BodiesExecution with = model(true);
+  BodiesExecution with = model(true, /*loads_ride=*/true);
   const StepExecution a = runStep(with, s, start, tokens, {carrier, load});
   EXPECT_TRUE(a.failures.empty()) << a.failures.front();
   EXPECT_TRUE(with.report().collisions.empty()) << "the load touched R2";
@@ -786,6 +787,7 @@ TEST(BodiesExecution, ACarrierPassesAPairStandingInItsLoadsWayByOneEdge) {
                                     {sc.goal.x(), sc.goal.y(), 0}};
     BodiesExecutionParams p;
     p.noise_m = 0.002;
+    p.config.table.loads_ride = true;
     BodiesExecution with(p);
     const StepExecution a = runStep(with, s, start, {{0, "carry", 4}, {3, "carry", 4}},
                                     {line(sc.carrier.position(), carrier_end), line(load, sc.goal)});

@@ -316,6 +316,7 @@ TEST(TableSimulator, ALoadRidesInFrontOfItsCarrierAndEndsOnItsGoal) {
   task::TaskSpec spec = tableTask();
   TableSimulatorParams p;
   p.bodies = true;
+  p.loads_ride = true;
   const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
   TableSimulator sim(spec, {{0, 0, 0}, {0, contact, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
   ASSERT_TRUE(sim.startSegment(O1, 7, {{0, contact}, {0.4, 0}}));

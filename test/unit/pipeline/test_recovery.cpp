@@ -325,7 +325,7 @@ TEST(RidingLoads, ACarryThroughTheCoordinatorDrivesThePathTheSimulatorDrives) {
   pipeline::EvalOptions o;
   o.execution = "diffdrive";
   o.noise_m = 0.002;
-  ASSERT_TRUE(o.config.table.loads_ride);
+  o.config.table.loads_ride = true;
   const pipeline::Evaluation sim = pipeline::evaluate(model, test, o);
   o.coordinated = true;
   o.dispatch = exec::DispatchMode::Steps;
