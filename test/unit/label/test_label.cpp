@@ -1359,7 +1359,10 @@ TEST(HumanMotion, AStepSplitByALateStartIsReadAsTheCleanStepAcrossDemonstrations
     tasks::ZooMotion motion;
     ASSERT_TRUE(tasks::parseZooFamily(family, rule, &motion));
     const task::TaskDir clean = tasks::generateZoo(rule, 20, 1, motion);
-    label::HumanMotionOptions keyed = label::demonstrationStyle("onset").options;
+    // Every aspect of a person's motion, robots of a step up to 5 s apart: the zoo's
+    // fetches take seconds, so a second or two splits none.
+    label::HumanMotionOptions keyed = label::demonstrationStyle("all").options;
+    keyed.onset_spread_s = 5;
     keyed.label_at_own_onset = true;
     SplitMix64 rng(5);
     task::TaskDir moved;
