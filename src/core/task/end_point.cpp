@@ -6,6 +6,7 @@
 #include <set>
 
 #include "ddace/common/error.h"
+#include "ddace/task/meeting_places.h"
 
 namespace ddace::task {
 
@@ -19,6 +20,18 @@ Vector2d approach(const Vector2d& start, const Vector2d& target) {
   const Vector2d d = target - start;
   const double n = d.norm();
   return n < kMinApproachM ? Vector2d::Zero() : Vector2d(d / n);
+}
+
+/// The length of the shortest way from `a` to `b` that keeps out of the disc of radius `r`
+/// about `c` (both at least `r` from it): straight where the segment passes it, else along
+/// a tangent from each and round the disc's edge between them.
+double wayRound(const Vector2d& a, const Vector2d& b, const Vector2d& c, double r) {
+  const double da = (a - c).norm(), db = (b - c).norm();
+  if (da < kMinApproachM || db < kMinApproachM) return (a - b).norm();
+  const double angle = std::acos(std::clamp((a - c).dot(b - c) / (da * db), -1.0, 1.0));
+  const double ta = std::acos(std::min(1.0, r / da)), tb = std::acos(std::min(1.0, r / db));
+  if (angle <= ta + tb) return (a - b).norm();
+  return std::sqrt(std::max(0.0, da * da - r * r)) + std::sqrt(std::max(0.0, db * db - r * r)) + r * (angle - ta - tb);
 }
 
 double median(std::vector<double> v) {
@@ -277,6 +290,13 @@ int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, c
 std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
                                        const std::vector<Vector2d>& decided,
                                        const std::optional<Eigen::AlignedBox2d>& table, int step_index) {
+  return stepEndPositions(spec, model, step, decided, table, step_index, MeetingPlaces::ByLeastTravel);
+}
+
+std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
+                                       const std::vector<Vector2d>& decided,
+                                       const std::optional<Eigen::AlignedBox2d>& table, int step_index,
+                                       MeetingPlaces meetings) {
   const auto n = static_cast<int>(decided.size());
   for (const Token& t : step)
     if (t.entity < 0 || t.entity >= n || t.target >= n)
@@ -377,6 +397,32 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
       ends[static_cast<size_t>(load)] = l_best;
       if (obstacle(load)) placed.push_back(load);
     }
+  }
+  // Robots meeting at one body: who takes which place (task/meeting_places.h).
+  const auto meet = [&](size_t i, size_t j) {
+    const int a = step[i].entity, b = step[j].entity;
+    return step[i].target == step[j].target && obstacle(step[i].target) && load_of[i] < 0 && load_of[j] < 0 &&
+           obstacle(a) && obstacle(b) && spec.footprint(a).radius_m == spec.footprint(b).radius_m;
+  };
+  const auto travel = [&](size_t i, const Vector2d& p) {
+    const int e = step[i].entity, t = step[i].target;
+    return wayRound(decided[static_cast<size_t>(e)], p, decided[static_cast<size_t>(t)], spec.contactDistance(e, t));
+  };
+  const auto onTable = [&](int e, const Vector2d& p) {
+    return edgeGap(e, p) >= std::min(0.0, edgeGap(e, decided[static_cast<size_t>(e)]));
+  };
+  for (bool swapped = meetings == MeetingPlaces::ByLeastTravel; swapped;) {
+    swapped = false;
+    for (size_t a = 0; a < movers.size(); ++a)
+      for (size_t b = a + 1; b < movers.size(); ++b) {
+        const size_t i = movers[a], j = movers[b];
+        if (!meet(i, j)) continue;
+        const int ei = step[i].entity, ej = step[j].entity;
+        Vector2d &pi = ends[static_cast<size_t>(ei)], &pj = ends[static_cast<size_t>(ej)];
+        if (travel(i, pj) + travel(j, pi) < travel(i, pi) + travel(j, pj) - kSlack && onTable(ei, pj) &&
+            onTable(ej, pi))
+          std::swap(pi, pj), swapped = true;
+      }
   }
   return ends;
 }
