@@ -726,8 +726,8 @@ TEST(BodiesExecution, FourRobotsMeetingAtAFifthAllReachIt) {
 // scenes 4 and 6, step 1, the footprints' end points, straight paths): one place lies on the
 // far side of the met robot, past the places of others. Taken by the least total travel round
 // the met robot (task::stepEndPositions), every robot reaches its place (touching the met
-// robot, or queued behind one that does), with no collision. Each taken in token order, the robot bound for the far side was
-// held in another's place and that one by it (deadlocked).
+// robot, or queued behind one that does), with no collision. Each taken in token order, the robot bound for the far
+// side was held in another's place and that one by it (deadlocked).
 TEST(BodiesExecution, RobotsMeetingAtOneRobotTakeThePlacesTheyReach) {
   struct Meeting {
     std::vector<Vector2d> robots;
@@ -766,6 +766,39 @@ TEST(BodiesExecution, RobotsMeetingAtOneRobotTakeThePlacesTheyReach) {
       ADD_FAILURE() << "collision " << s.entities[c.a].name << "-" << s.entities[c.b].name << " at " << c.time_s
                     << " s";
   }
+}
+
+// Four robots meeting at a fifth near the table's edge (zoo:14 test scene 1, step 1, the
+// footprints' end points, straight paths): R1's place lies behind R3's and R4's, in the pocket
+// between them. R4, coming in past that pocket, would stop short of its place (within the
+// stop radius, leaving the ways in of the others open) -- but there it stands nearer R1's way
+// in than at its place, so it ends at its place (exec::motionContacts) and R1 reaches its own.
+// Stopping short, R4 held R1 11 cm from its place (deadlocked).
+TEST(BodiesExecution, ARobotStopsShortOfItsPlaceOnlyWhereItLeavesAnothersWayInOpen) {
+  const std::vector<Vector2d> at{{0.512, 0.135}, {0.485, 0.795}, {0.744, 0.142},
+                                 {0.251, 0.183}, {0.092, 0.496}, {0.634, 0.491}};
+  const auto s = spec({{"R1", task::EntityKind::Robot},
+                       {"R2", task::EntityKind::Robot},
+                       {"R3", task::EntityKind::Robot},
+                       {"R4", task::EntityKind::Robot},
+                       {"R5", task::EntityKind::Robot},
+                       {"G1", task::EntityKind::Goal}});
+  std::vector<Pose2D> start;
+  for (const Vector2d& p : at) start.push_back({p.x(), p.y(), 0});
+  const std::vector<task::Token> tokens{token(0, 4), token(1, 4), token(2, 4), token(3, 4)};
+  const std::vector<Vector2d> ends = task::stepEndPositions(s, {}, tokens, at);
+  std::vector<Path> paths;
+  for (const task::Token& t : tokens) paths.push_back(line(at[t.entity], ends[t.entity]));
+  BodiesExecutionParams p;
+  p.noise_m = 0.002;
+  BodiesExecution with(p);
+  const StepExecution a = runStep(with, s, start, tokens, paths);
+  EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+  for (const task::Token& t : tokens)
+    EXPECT_TRUE(task::arrived(a.positions[t.entity], ends[t.entity], s.arrival_radius))
+        << s.entities[t.entity].name << " " << 100 * (a.positions[t.entity] - ends[t.entity]).norm()
+        << " cm from its place";
+  EXPECT_TRUE(with.report().collisions.empty());
 }
 
 // A met robot ringed in by the robots that met it, its way to its goal through them: it
