@@ -25,9 +25,10 @@
 //
 // A robot whose place is beside another's of its meeting stops short of it (within the stop
 // radius) while that one is on its way, leaving its way in open -- only where stopping short
-// does: where the point of its way at the stop radius (task::stopRadius) lies nearer that
-// one's way in (its planned path and end point) than its own place does, it ends at its
-// place instead, as for a robot queued behind it.
+// leaves the meeting's places open: where the point of its way at the stop radius
+// (task::stopRadius) would stand against (exec::endsAgainst, the filter's reach) the place of
+// another robot of its meeting that its own place leaves clear, that one could not come to
+// its place, and it ends at its own place, stopping short for none.
 //
 // Owns: the rule. Must not: know ROS, or decide where motions end (task/end_point.h).
 // Units: metres; table frame.
@@ -65,10 +66,10 @@ struct MotionContacts {
   /// of them stands (arrived, or stopped).
   std::set<std::string> after;
   /// The robots of its step that need it at its own place: queued behind it (their `after`
-  /// names it; they wait for it to stand), or of its meeting with their place beside its own
-  /// and their way in nearer where it would stop short than its place is (see motionContacts).
-  /// It ends at its own place, within the stop tolerance (exec::RobotController): stopping
-  /// short it would stand in such a robot's place or way.
+  /// names it; they wait for it to stand), or of its meeting with a place its own leaves
+  /// clear and its stop short would not (see motionContacts; then `beside` is empty). It
+  /// ends at its own place, within the stop tolerance (exec::RobotController): stopping
+  /// short it would stand in such a robot's place.
   std::set<std::string> awaited_by;
   /// The robots of its step whose end points touch its own and that are not in `awaited_by`
   /// (places side by side): while one of them is on its way, it stops within the held

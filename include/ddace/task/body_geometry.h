@@ -20,8 +20,8 @@
 //     farther off -- except while a robot whose place is beside its own is still on its
 //     way (exec::MotionContacts::beside): then within the stop radius, leaving that one's
 //     way in open, where stopping short does; so does a robot, onto a flat goal too, that
-//     another robot is queued behind or would find in its way in stopping short
-//     (exec::MotionContacts::awaited_by): it would stand in that one's place or way;
+//     another robot is queued behind or whose place it would stand against stopping short
+//     (exec::MotionContacts::awaited_by): it would stand in that one's place;
 //   - held by its safety filter at contact with a body it ends against, or short of its
 //     end point by bodies beside it, a robot has arrived within the arrival radius less
 //     the tolerance of it (stopRadius, not reduced: its true position is within the

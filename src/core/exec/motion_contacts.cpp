@@ -30,17 +30,6 @@ bool onWayIn(const Eigen::Vector2d& place, double radius_m, const std::vector<Ei
   return false;
 }
 
-/// The distance from `p` to the way of `b` (its planned path, else its end point alone).
-double distanceToWay(const Eigen::Vector2d& p, const BodyAtStart& b) {
-  double d = (p - b.final_position).norm();
-  for (size_t i = 0; i + 1 < b.way.size(); ++i) {
-    const Eigen::Vector2d s = b.way[i + 1] - b.way[i];
-    const double t = s.squaredNorm() < 1e-12 ? 0.0 : std::clamp((p - b.way[i]).dot(s) / s.squaredNorm(), 0.0, 1.0);
-    d = std::min(d, (p - (b.way[i] + t * s)).norm());
-  }
-  return d;
-}
-
 /// Where a robot along `way` stops short of its end: the last point of it `stop_radius_m`
 /// from the end (nothing when the way is unknown, or never that far from its end).
 std::optional<Eigen::Vector2d> stopShortAt(const std::vector<Eigen::Vector2d>& way, double stop_radius_m) {
@@ -107,6 +96,7 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
   // Where it would stand stopping short of its place (the stop radius), for a robot of its
   // meeting still on its way in.
   const std::optional<Eigen::Vector2d> short_at = stopShortAt(way, task::stopRadius(arrival_radius_m));
+  bool stops_short = true;
   for (const BodyAtStart& b : bodies) {
     if (&b == load) continue;
     const bool same_meeting = b.step == step && !b.object && b.target == target && b.name != target;
@@ -119,10 +109,12 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
     }
     if (same_meeting && ends_against && queuedBehind(b, end_point, at_target, bodies, reach_m))
       out.awaited_by.insert(b.name);
-    // Its place beside that one's: stopping short nearer that one's way in than its place
-    // lies would close the way it is meant to leave open, so it ends at its place.
-    if (same_meeting && ends_against && short_at && !load && distanceToWay(*short_at, b) < distanceToWay(end_point, b))
-      out.awaited_by.insert(b.name);
+    // Stopping short, it would stand against the place of a robot of its meeting that its
+    // own place leaves clear: that one could not come to its place; it ends at its own,
+    // stopping short for none.
+    if (same_meeting && !ends_against && short_at && !load &&
+        endsAgainst(*short_at, radius_m, b.final_position, b.radius_m, reach_m))
+      out.awaited_by.insert(b.name), stops_short = false;
     if (ends_against) {
       out.ends_against.insert(b.name);
       if (b.step == step && !b.object && b.name != target && !out.awaited_by.count(b.name)) out.beside.insert(b.name);
@@ -133,6 +125,7 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
     if (load && endsAgainst(load->final_position, load->radius_m, b.final_position, b.radius_m, reach_m))
       out.load_ends_against.insert(b.name);
   }
+  if (!stops_short) out.beside.clear();
   return out;
 }
 

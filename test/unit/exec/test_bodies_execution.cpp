@@ -770,10 +770,10 @@ TEST(BodiesExecution, RobotsMeetingAtOneRobotTakeThePlacesTheyReach) {
 
 // Four robots meeting at a fifth near the table's edge (zoo:14 test scene 1, step 1, the
 // footprints' end points, straight paths): R1's place lies behind R3's and R4's, in the pocket
-// between them. R4, coming in past that pocket, would stop short of its place (within the
-// stop radius, leaving the ways in of the others open) -- but there it stands nearer R1's way
-// in than at its place, so it ends at its place (exec::motionContacts) and R1 reaches its own.
-// Stopping short, R4 held R1 11 cm from its place (deadlocked).
+// between them, clear of R4's place. R4, its place beside R3's, would stop short of it while
+// R3 is on its way (within the stop radius) -- but there it would stand against R1's place,
+// so it ends at its own (exec::motionContacts) and R1 reaches its place. Stopping short, R4
+// held R1 11 cm from its place (deadlocked).
 TEST(BodiesExecution, ARobotStopsShortOfItsPlaceOnlyWhereItLeavesAnothersWayInOpen) {
   const std::vector<Vector2d> at{{0.512, 0.135}, {0.485, 0.795}, {0.744, 0.142},
                                  {0.251, 0.183}, {0.092, 0.496}, {0.634, 0.491}};
