@@ -79,13 +79,7 @@ class CarriedObjectsNode::Impl {
  private:
   static double now() { return ros::Time::now().toSec(); }
 
-  std::optional<task::Token> token(const ddace::Segment& m) const {
-    try {
-      return ros_exec::fromMsg(m.token, spec_);
-    } catch (const std::exception&) {
-      return std::nullopt;
-    }
-  }
+  std::optional<task::Token> token(const ddace::Segment& m) const { return ros_exec::tokenOrNothing(m.token, spec_); }
 
   void onRobotSegment(int r, const ddace::Segment& m) {
     if (m.mode != ddace::Segment::MODE_FOLLOW) return;

@@ -98,6 +98,14 @@ task::Token fromMsg(const ddace::Token& msg, const task::TaskSpec& spec) {
   return t;
 }
 
+std::optional<task::Token> tokenOrNothing(const ddace::Token& msg, const task::TaskSpec& spec) {
+  try {
+    return fromMsg(msg, spec);
+  } catch (const Error&) {
+    return std::nullopt;
+  }
+}
+
 ddace::Token toMsg(const task::Token& token, const task::TaskSpec& spec, double probability) {
   ddace::Token m;
   m.entity = spec.entities.at(token.entity).name;

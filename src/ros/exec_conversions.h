@@ -50,6 +50,9 @@ void requireAbsolute(const std::string& path, const std::string& param);
 
 /// Token message -> core token. Throws ddace::Error naming the unknown entity/target.
 task::Token fromMsg(const ddace::Token& msg, const task::TaskSpec& spec);
+/// Token message -> core token, or nothing where fromMsg would throw (a node that refuses
+/// or ignores a malformed token says so itself).
+std::optional<task::Token> tokenOrNothing(const ddace::Token& msg, const task::TaskSpec& spec);
 ddace::Token toMsg(const task::Token& token, const task::TaskSpec& spec, double probability = 1.0);
 
 /// Planned path -> nav_msgs/Path (frame `frame_id`, orientation = direction of travel)

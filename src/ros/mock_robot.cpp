@@ -150,13 +150,7 @@ class MockRobotNode::Impl {
   }
 
   /// The segment's token, or nothing (a malformed token: the follower refuses the segment).
-  std::optional<task::Token> token(const ddace::Segment& m) const {
-    try {
-      return ros_exec::fromMsg(m.token, spec_);
-    } catch (const std::exception&) {
-      return std::nullopt;
-    }
-  }
+  std::optional<task::Token> token(const ddace::Segment& m) const { return ros_exec::tokenOrNothing(m.token, spec_); }
 
   void onRobotSegment(int r, const ddace::Segment& m) {
     const auto was = running_.find(r);
