@@ -1,8 +1,10 @@
 // How close the bodies of a run came to each other, from their tracked positions: the
 // smallest gap between any two discs (the closest approach) and every collision (two
 // discs overlapping deeper than a tolerance for tracking noise, counted once per contact
-// until they are again more than the tolerance apart). Two bodies that overlap when both are first seen (a load
-// placed on its carrier) are never measured against each other, and two bodies that came
+// until they are again more than the tolerance apart). Two bodies placed one on the other when
+// both are first seen (a load on its carrier: overlapping deeper than kPlacedOnM) are never
+// measured against each other; two that touch then (a scene's start: the tracked positions of
+// touching bodies overlap a little) are no collision until they have parted. Two bodies that came
 // into contact while allowed to touch (AllowedContacts) are not measured while they touch --
 // unless, no longer allowed (a later step), they overlap deeper than the tolerance: a robot
 // that ended against a body and later shoves into it collides (PairContact, the one rule).
@@ -25,8 +27,14 @@
 #include <Eigen/Core>
 
 #include "ddace/exec/motion_contacts.h"
+#include "ddace/task/body_geometry.h"
 
 namespace ddace::exec {
+
+/// Two bodies overlapping deeper than this when first seen were placed one on the other (a
+/// load on its carrier, metres): they never collide. Less deep they touch -- each tracked
+/// position carries up to task::kArrivalToleranceM of noise -- and collide as any two bodies.
+inline constexpr double kPlacedOnM = 2 * task::kArrivalToleranceM;
 
 /// The closest two bodies came (gap between their discs; negative = overlap).
 struct ClosestApproach {
@@ -60,6 +68,8 @@ class PairContact {
   bool measured(bool allowed) const { return !allowed && state_ != State::TouchingAllowed; }
   /// The two touch by design from now on (a carrier and the load it set down).
   void touchAllowed() { state_ = State::TouchingAllowed; }
+  /// The two touch when first seen (a scene's start): no collision until they have parted.
+  void touchingAtStart() { state_ = State::Collided; }
 
  private:
   enum class State : char { Apart, Collided, TouchingAllowed };

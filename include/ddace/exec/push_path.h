@@ -107,7 +107,8 @@ std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::
 /// `load_end`): straight where it keeps every body of `standing` at its reach, else the
 /// shortest way round them (past corners kPushPassM beyond their reach). A body the load
 /// stands or ends nearer to than its reach is passed kPushNearPassM beyond contact, no
-/// nearer than it is there. Straight when no way round is free.
+/// nearer than it is there, on the leg leaving it or arriving at it; every leg between two
+/// corners keeps each body at its reach. Straight when no way round is free.
 std::vector<Eigen::Vector2d> pushRoute(const Eigen::Vector2d& load, const Eigen::Vector2d& load_end,
                                        const std::vector<PushObstacle>& standing);
 

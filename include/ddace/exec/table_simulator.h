@@ -12,8 +12,10 @@
 // contacts, and the robot ends where its body ends. Objects slide to rest by table
 // friction (object_damping_hz) after a push. Every contact that begins is recorded
 // (contacts()) and the closest approach of any two bodies kept (closestApproach()). Two
-// bodies that overlap at the start (a load placed on its carrier) do not collide with each
-// other and are not measured (loadedPairs()).
+// bodies placed one on the other at the start (a load on its carrier, overlapping deeper
+// than exec::kPlacedOnM) do not collide with each other and are not measured
+// (loadedPairs()); two that touch at the start collide as any two, and no contact begins
+// for them until they have parted.
 //
 // Owns: the poses, the bodies, each object's segment state (accepted, running, done,
 // aborted, failed) and the status reports it produces. Must not: read a clock or talk to

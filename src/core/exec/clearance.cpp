@@ -49,8 +49,9 @@ void ClearanceMeter::update(double time_s, const std::vector<Eigen::Vector2d>& p
       const size_t k = a * radii_.size() + b;
       const double gap = (positions[a] - positions[b]).norm() - radii_[a] - radii_[b];
       if (seen_[k] == Seen::Unseen) {
-        seen_[k] = gap < 0 ? Seen::Loaded : Seen::Tracked;
+        seen_[k] = gap < -kPlacedOnM ? Seen::Loaded : Seen::Tracked;
         if (seen_[k] == Seen::Loaded) loaded_.emplace_back(static_cast<int>(a), static_cast<int>(b));
+        if (seen_[k] == Seen::Tracked && gap < std::max(tolerance_m_, 0.0)) contacts_[k].touchingAtStart();
       }
       if (seen_[k] == Seen::Loaded) continue;
       const int ia = static_cast<int>(a), ib = static_cast<int>(b);

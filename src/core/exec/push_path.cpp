@@ -236,8 +236,17 @@ std::vector<Eigen::Vector2d> pushRoute(const Eigen::Vector2d& load, const Eigen:
   const std::vector<PushObstacle> bodies = passable(standing, load, load_end);
   if (keepsClear(load, load_end, bodies)) return {load, load_end};
   // The shortest way through the corners (Dijkstra on the free straight legs between them).
+  // A body the load stands or ends beside is passed nearer only on the leg leaving it or
+  // arriving at it: a leg between two corners keeps every body at its reach, or the route
+  // would run along beside that body the whole way round it.
   std::vector<Eigen::Vector2d> nodes{load, load_end};
   for (const Eigen::Vector2d& c : corners(bodies)) nodes.push_back(c);
+  const std::vector<PushObstacle> leaving = passable(standing, load, load),
+                                  arriving = passable(standing, load_end, load_end);
+  const auto legBodies = [&](size_t u, size_t v) -> const std::vector<PushObstacle>& {
+    const bool from_start = u == 0 || v == 0, to_end = u == 1 || v == 1;
+    return from_start && to_end ? bodies : from_start ? leaving : to_end ? arriving : standing;
+  };
   const size_t n = nodes.size();
   std::vector<double> dist(n, std::numeric_limits<double>::infinity());
   std::vector<int> previous(n, -1);
@@ -251,7 +260,7 @@ std::vector<Eigen::Vector2d> pushRoute(const Eigen::Vector2d& load, const Eigen:
     done[u] = true;
     for (size_t v = 0; v < n; ++v) {
       const double d = dist[u] + (nodes[v] - nodes[u]).norm();
-      if (done[v] || d >= dist[v] || !keepsClear(nodes[u], nodes[v], bodies)) continue;
+      if (done[v] || d >= dist[v] || !keepsClear(nodes[u], nodes[v], legBodies(u, v))) continue;
       dist[v] = d;
       previous[v] = static_cast<int>(u);
     }

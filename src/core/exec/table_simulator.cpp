@@ -122,6 +122,9 @@ TableSimulator::TableSimulator(const task::TaskSpec& spec, const std::vector<Pos
     body->CreateFixture(&fixture);
     physics_->bodies[i] = body;
   }
+  // Bodies touching as the table is set are in contact already: no contact begins for them.
+  physics_->world.Step(0, 8, 3);
+  physics_->began.clear();
 }
 
 void TableSimulator::halt(int i) {

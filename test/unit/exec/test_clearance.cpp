@@ -43,6 +43,21 @@ TEST(ClearanceMeter, ALoadOnItsCarrierIsNotMeasured) {
   EXPECT_EQ(m.closest().a, -1);
 }
 
+// Two bodies touching when first seen read overlapping by the tracking noise (a box placed
+// at its carrier, 3 mm): they touch, not one on the other. No collision while they stay in
+// touch; parted and driven into each other again, they collide (before: never measured).
+TEST(ClearanceMeter, BodiesTouchingWhenFirstSeenCollideOnceTheyPartedAndMetAgain) {
+  ClearanceMeter m({0.02, 0.02}, 0.002);
+  m.update(0, {{0, 0}, {0.037, 0}});
+  m.update(1, {{0, 0}, {0.036, 0}});
+  EXPECT_TRUE(m.collisions().empty());
+  EXPECT_TRUE(m.loadedPairs().empty());
+  m.update(2, {{0, 0}, {0.1, 0}});
+  m.update(3, {{0, 0}, {0.035, 0}});
+  ASSERT_EQ(m.collisions().size(), 1u);
+  EXPECT_NEAR(m.collisions()[0].time_s, 3, 1e-12);
+}
+
 TEST(ClearanceMeter, UnknownPositionsWaitUntilSeen) {
   ClearanceMeter m({0.02, 0.02});
   m.update(0, {{0, 0}, Vector2d::Constant(NAN)});

@@ -383,6 +383,60 @@ TEST(PushPath, ABallPushedRoundRobotsStandingInTheWayReachesTheHoop) {
       ADD_FAILURE() << spec.entities[c.a].name << " touched " << spec.entities[c.b].name << " at " << c.time_s << " s";
 }
 
+// Task 3's step 3 where the ball lies beside the screen (a test scene of `ddace generate
+// task3`): the straight push to the hoop runs into the defender and the screen, and the
+// ball starts 1.3 cm beyond contact with the screen. The route may pass the screen that
+// near only while leaving it; once round the defender's corner it keeps the screen at its
+// reach. Before, the leg from the defender's corner ran along the screen at 1.4 cm beyond
+// contact for the carrier as well, where the filter held the carrier off the screen and
+// the ball, pushed round the corner, drifted into it: the push broke again and again and
+// the ball stayed where it lay.
+TEST(PushPath, ARouteLeavingABodyItStartsBesidePassesItAtItsReachOnceAway) {
+  task::TaskSpec spec;
+  spec.name = "screen";
+  spec.entities = {{"R1", task::EntityKind::Robot, ""},
+                   {"R2", task::EntityKind::Robot, ""},
+                   {"R3", task::EntityKind::Robot, ""},
+                   {"B1", task::EntityKind::Object, ""},
+                   {"G1", task::EntityKind::Goal, ""}};
+  constexpr int R3 = 2, Ball = 3;
+  const Eigen::Vector2d defender(0.442, 0.295), screen(0.390, 0.294), hoop(0.797, 0.903);
+  const Eigen::Vector2d ball(0.374, 0.241), shooter(0.415, 0.252);
+  const double contact = spec.contactDistance(R3, Ball);
+  const double reach = 2 * task::kDefaultRobotRadius + kPushPassM;
+  const std::vector<PushObstacle> standing = {{defender, reach}, {screen, reach}};
+  const std::vector<Eigen::Vector2d> route = pushRoute(ball, hoop, standing);
+  ASSERT_GT(route.size(), 2u) << "the straight push runs into the screen";
+  for (size_t k = 2; k < route.size(); ++k) {
+    const Eigen::Vector2d a = route[k - 1], b = route[k];
+    const double t = std::clamp((screen - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+    EXPECT_GE((a + t * (b - a) - screen).norm(), reach - 1e-9) << "leg " << k << " runs along the screen";
+  }
+  SimTable sim(spec,
+               {{defender.x(), defender.y(), -2.3},
+                {screen.x(), screen.y(), -0.6},
+                {shooter.x(), shooter.y(), -3.01},
+                {ball.x(), ball.y(), 0},
+                {hoop.x(), hoop.y(), 0}},
+               DiffDriveParams{});
+  const double stop = task::stopRadius(task::kDefaultArrivalRadius);
+  RobotController shooter_controller("R3", ControllerParams{});
+  shooter_controller.start(PlannedPath{pushPath(shooter, ball, hoop, contact, hoop, 200, standing), {}}, "G1", stop,
+                           stop);
+  MotionContacts contacts;
+  contacts.load = "B1", contacts.load_end = hoop, contacts.load_at = ball;
+  shooter_controller.setContacts(contacts);
+  double closest = 1e9;
+  EXPECT_TRUE(runMotion(sim, spec, shooter_controller, R3, 40.0, closest, /*others_stand=*/true));
+  for (int k = 0; k < 50; ++k) sim.step();  // the ball rolls to rest
+  const auto e = sim.entities();
+  EXPECT_LT((e[Ball].pose.position() - hoop).norm(), task::kDefaultArrivalRadius)
+      << "the ball at " << e[Ball].pose.position().transpose() << " after " << sim.time() << " s";
+  for (const BodyContact& c : sim.contacts())
+    if (std::max(c.a, c.b) >= R3 && std::min(c.a, c.b) < R3)
+      ADD_FAILURE() << spec.entities[c.a].name << " touched " << spec.entities[c.b].name << " at " << c.time_s << " s";
+}
+
 // A pushed relay's hand-over leaves the box between the two robots: the giver behind it,
 // backed off, the receiver in front. Where the goal lies beyond the receiver, the giver
 // stands where the receiver would push from; the receiver's filter holds it off the giver

@@ -270,6 +270,34 @@ TEST(TableSimulator, ALoadPlacedOnItsCarrierIsNoCollision) {
   EXPECT_NEAR(sim.truePose(O1).x, 0.0, 1e-6);  // the robot drove off from under it
 }
 
+// A scene's start is tracked: a load placed touching its carrier (Task 1's cargo in front of
+// R1) reads overlapping it by a few millimetres. It is touching, not placed on the carrier:
+// the carrier pushes it (before, the two were a loaded pair and R1 drove through its load),
+// and bodies touching at the start begin no contact when they part (Task 3's ball leaving
+// the passer).
+TEST(TableSimulator, ALoadTouchingItsCarrierAtTheStartIsPushedAndPartingIsNoContact) {
+  task::TaskSpec spec = tableTask();
+  const double contact = task::kDefaultRobotRadius + task::kDefaultObjectRadius;
+  TableSimulatorParams p;
+  p.bodies = true;
+  p.loads_ride = false;
+  TableSimulator sim(spec, {{0, 0, 0}, {contact - 0.003, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
+  EXPECT_TRUE(sim.loadedPairs().empty());
+  ASSERT_TRUE(sim.carry(R1, O1));
+  for (int k = 0; k < 100; ++k) {
+    sim.commandWheels(R1, {0.1, 0.1});
+    sim.step();
+  }
+  EXPECT_GT(sim.truePose(O1).x, 0.12) << "R1 drove through its load";
+  EXPECT_NEAR(sim.truePose(O1).x - sim.truePose(R1).x, contact, 0.003) << "in front of its carrier, touching";
+
+  TableSimulator parting(spec, {{0, 0, 0}, {contact - 0.003, 0, 0}, {0.5, 0.3, 0}}, DiffDriveParams{}, p);
+  ASSERT_TRUE(parting.startSegment(O1, 1, {{contact - 0.003, 0}, {0.2, 0}}));
+  run(parting, 50);
+  EXPECT_GT(parting.truePose(O1).x, 0.1);
+  EXPECT_TRUE(parting.contacts().empty()) << "a contact began at " << parting.contacts()[0].time_s << " s";
+}
+
 TEST(TableSimulator, RefusesWhatDoesNotFitTheTask) {
   TableSimulator sim = table();
   EXPECT_TRUE(contains(errorOf([&] { sim.commandWheels(O1, {0.1, 0.1}); }), "'O1' is not a robot"));
