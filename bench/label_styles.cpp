@@ -24,6 +24,9 @@
 //        [--family F] [--style S] [--show] (one family or style, on stdout; --show: the
 //        demonstrations labelled wrong, true and inferred steps) [--dump DIR] (the
 //        demonstrations as moved, true labels, a task directory per style under DIR)
+//        [--keyed] (true labels begin at each motion's own onset, as a person keys each
+//        robot as it starts: HumanMotionOptions::label_at_own_onset) [--onset-spread S]
+//        (styles that start a step's robots apart start them up to S seconds apart)
 //        [--osr [--train-seeds N]]
 #include <unistd.h>
 
@@ -252,7 +255,8 @@ std::vector<FamilyGroup> benchFamilies(int zoo_sample) {
 int main(int argc, char** argv) {
   try {
     const auto repo = bench::repositoryFromArgs(argc, argv);
-    bool quick = false, show = false, osr = false;
+    bool quick = false, show = false, osr = false, keyed = false;
+    double onset_spread = 0;
     std::string only_family, only_style, dump;
     int demos = 10, train_seeds = 3, seeds = 3, zoo_sample = 20;
     uint64_t seed = 1;
@@ -278,6 +282,12 @@ int main(int argc, char** argv) {
         show = true;
       } else if (a == "--dump" && i + 1 < argc) {
         dump = argv[++i];
+      } else if (a == "--keyed") {
+        keyed = true;
+      } else if (a == "--onset-spread" && i + 1 < argc) {
+        onset_spread = std::atof(argv[++i]);
+        if (!(onset_spread > 0 && onset_spread <= 5))
+          throw Error("--onset-spread must be in (0, 5] seconds (got '" + std::string(argv[i]) + "')");
       } else if (a == "--osr") {
         osr = true;
       } else if (a == "--train-seeds" && i + 1 < argc) {
@@ -289,7 +299,7 @@ int main(int argc, char** argv) {
       } else {
         throw Error(
             "usage: bench_label_styles [--repo DIR] [--quick] [--demos N] [--seed S] [--seeds N] [--zoo N] [--family "
-            "F] [--style S] [--show] [--dump DIR] [--osr [--train-seeds N]] (got '" +
+            "F] [--style S] [--show] [--dump DIR] [--keyed] [--onset-spread S] [--osr [--train-seeds N]] (got '" +
             a + "')");
       }
     }
@@ -318,6 +328,11 @@ int main(int argc, char** argv) {
         if (only_style.empty() || st.name == only_style) some.push_back(st);
       if (some.empty()) throw Error("--style " + only_style + ": no such style");
       styles = some;
+    }
+
+    for (auto& st : styles) {
+      st.options.label_at_own_onset = keyed;
+      if (onset_spread > 0 && st.options.onset_spread_s > 0) st.options.onset_spread_s = onset_spread;
     }
 
     std::ostringstream md;

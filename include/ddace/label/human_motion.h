@@ -38,6 +38,10 @@ struct HumanMotionOptions {
   /// A robot sent to a goal another body stands on ends touching the body it reaches there,
   /// turned about that body by up to this (either side) from where the generator put it.
   double beside_max_rad = 0;
+  /// true: each motion's label begins at its own onset (a person keying each robot as it
+  /// starts), not at its step's first onset; a robot started after another of its step
+  /// stopped then reads as a step of its own (docs/task-format.md, "Step grouping").
+  bool label_at_own_onset = false;
 };
 
 /// A named way of demonstrating (`ddace bench label_styles`): one aspect of a person's
@@ -65,8 +69,10 @@ task::TaskDir occupiedGoalFamily(int demos, uint64_t seed);
 /// `clean` (analyzed, labelled, as generated) moved by a person: per step, each motion
 /// starts up to onset_spread_s after the first (a load with its carrier), at its own speed,
 /// perhaps pausing; robots bumped between steps; noise and held poses. The labels are the
-/// true ones: every token of a step from the step's first onset to the end of its own motion
-/// (in-place tokens: to the step's end). The result is analyzed and has clean's steps.
+/// true ones: every token of a step from the step's first onset (label_at_own_onset: a
+/// motion's from its own) to the end of its own motion (in-place tokens: to the step's
+/// end). The result is analyzed and has clean's steps (label_at_own_onset: perhaps split,
+/// a step read as two where a robot started after another of it stopped).
 task::Demonstration humanMotion(const task::Demonstration& clean, const task::TaskSpec& spec,
                                 const HumanMotionOptions& options, SplitMix64& rng);
 
@@ -105,6 +111,8 @@ struct InferredDataset {
   LabelScore score;
   std::vector<std::vector<Note>> notes;  ///< [demo] the inference's (none for the example)
 };
+/// `truth`'s steps are grouped across its demonstrations (task::groupStepsAcrossDemonstrations)
+/// as a task directory read from disk.
 InferredDataset inferredDataset(const task::TaskDir& generated, const HumanMotionOptions& options, uint64_t seed);
 
 /// The median of `v` (0 for none).

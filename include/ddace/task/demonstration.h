@@ -59,6 +59,15 @@ struct StepOverlap {
   Token running;      ///< a token of the step before still running at this step's keyframe
 };
 
+/// A step of its own by the rule in its demonstration that the task's other demonstrations
+/// show as part of the step before (stepsShownAsOne): merged into that step.
+struct MergedStep {
+  int keyframe_row = 0;       ///< its own first row
+  std::vector<Token> tokens;  ///< its tokens, sorted
+  size_t shown_by = 0;        ///< demonstrations whose steps show the merged step
+  size_t demonstrations = 0;  ///< of the task's
+};
+
 /// Step k: the tokens that begin at keyframe k or join it while every token of it still
 /// runs (docs/task-format.md, "Step grouping"), sorted by entity index.
 struct Step {
@@ -66,6 +75,7 @@ struct Step {
   std::vector<Token> tokens;
   std::vector<LateOnset> late;         ///< the tokens that joined after keyframe_row, in row order
   std::optional<StepOverlap> overlap;  ///< set when it began while the step before ran
+  std::vector<MergedStep> merged;      ///< steps after it merged into it, in row order (tokens among `tokens`)
 };
 
 /// The same number of steps with the same tokens, step by step (keyframe rows and late
@@ -91,6 +101,23 @@ struct CommonSteps {
 };
 /// `steps_of`: every demonstration's steps, in order (at least one demonstration).
 CommonSteps commonSteps(const std::vector<std::vector<Step>>& steps_of);
+
+/// Consecutive steps of one demonstration to be read as one: steps first..last.
+struct StepRun {
+  size_t first = 0, last = 0;
+  size_t shown_by = 0;        ///< demonstrations whose steps show them as one
+  size_t demonstrations = 0;  ///< of the task's
+};
+/// Step grouping across demonstrations (docs/task-format.md, "Step grouping", rule 6):
+/// per demonstration of `steps_of` (one task's, each grouped on its own), the runs of
+/// consecutive steps whose tokens share no entity (mover or target) that more of the
+/// demonstrations show as one step than show the demonstration's own steps. Steps are
+/// compared by the kinds of their tokens (action, the kind and type of mover and target),
+/// not the names: the scene may choose other entities in each demonstration.
+std::vector<std::vector<StepRun>> stepsShownAsOne(const std::vector<std::vector<Step>>& steps_of, const TaskSpec& spec);
+/// `steps` with each run merged into its first step: the later steps' tokens join it
+/// (as Step::merged records), their keyframes go. `runs` as stepsShownAsOne gives them.
+std::vector<Step> mergedSteps(const std::vector<Step>& steps, const std::vector<StepRun>& runs);
 
 /// The rows during which a token's label holds: [first_row, last_row].
 struct Segment {
@@ -126,6 +153,9 @@ class Demonstration {
   /// Computes steps (step grouping), keyframes, segments and snapshots
   /// from t/positions/labels. t must be strictly increasing.
   void analyze();
+  /// Merges runs of steps (stepsShownAsOne) into their first step: steps, keyframes,
+  /// the segments' step indices and the snapshots follow (the run's first keyframe stays).
+  void mergeSteps(const std::vector<StepRun>& runs);
   /// Positions of the segment's entity over its rows.
   std::vector<Eigen::Vector2d> segmentPath(const Segment& segment) const;
   /// Goal of a motion segment: the target's position at its step's keyframe (when the
@@ -138,7 +168,10 @@ class Demonstration {
 /// the step's first token (line L); merged into the step", and one per step that began
 /// while the step before still ran (Step::overlap), "<source>:<line>: step k: R2:move:G1
 /// began while R1:move:G2 of step k-1 still ran, after R3:move:B1 of it had ended (line L):
-/// a step of its own (...; begin its label by line L if it belongs to step k-1)".
+/// a step of its own (...; begin its label by line L if it belongs to step k-1)", and one
+/// per step merged into the step before by the other demonstrations' evidence
+/// (Step::merged), "<source>:<line>: step k: [R2:move:B2] ... merged into step k, as 18 of
+/// 20 demonstrations show ...: check it".
 std::vector<Diagnostic> stepGroupingNotes(const Demonstration& demo, const TaskSpec& spec);
 
 /// The largest demonstration CSV readDemonstrationCsv accepts: 1 GiB. It reads it as a

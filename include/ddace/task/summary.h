@@ -33,7 +33,7 @@ std::vector<Diagnostic> stepGroupingNotes(const std::string& source, const std::
                                           const TaskSpec& spec);
 
 /// checkTaskDir without keeping the rows: the same checks and errors, a summary per
-/// valid demonstration.
+/// valid demonstration, its steps grouped across the demonstrations as checkTaskDir's.
 struct TaskDirSummary {
   std::string path;
   TaskSpec spec;

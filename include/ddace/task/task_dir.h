@@ -36,7 +36,13 @@ std::vector<std::string> demoFiles(const std::string& task_dir);
 /// "parameter '/sequence/replay_demo'").
 std::string demoFile(const std::string& task_dir, long index, const std::string& what = "demonstration index");
 
-/// Reads everything that can be read and collects every error (for `ddace validate`).
+/// Step grouping across the demonstrations of `dir` (docs/task-format.md, "Step grouping",
+/// rule 6): merges the runs of steps stepsShownAsOne finds (Demonstration::mergeSteps).
+/// The readers below apply it; a caller that builds demonstrations itself applies it once
+/// they are all there.
+void groupStepsAcrossDemonstrations(TaskDir& dir);
+/// Reads everything that can be read and collects every error (for `ddace validate`); the
+/// demonstrations' steps grouped across them (groupStepsAcrossDemonstrations).
 TaskDirReport checkTaskDir(const std::string& path);
 /// Reads a task directory; throws ddace::Error listing every error. Nothing is
 /// returned (so nothing is trained) when any file has an error.

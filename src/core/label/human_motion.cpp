@@ -250,13 +250,16 @@ class Demonstrator {
     const std::vector<Moved> moved = plan(segs, leader);
     double end = moved.empty() ? o_.in_place_s : 0;
     for (const auto& mv : moved) end = std::max(end, mv.end());
-    std::vector<double> label_end(m_, -1);
+    std::vector<double> label_begin(m_, 0), label_end(m_, -1);
     std::vector<task::Label> label(m_);
     for (const auto* s : segs) {
       label[s->token.entity] = {s->token.action, s->token.target};
       label_end[s->token.entity] = end;  // in-place, and motions without their own end below
     }
-    for (const auto& mv : moved) label_end[mv.entity] = mv.end();
+    for (const auto& mv : moved) {
+      label_end[mv.entity] = mv.end();
+      if (o_.label_at_own_onset) label_begin[mv.entity] = mv.delay;
+    }
     const size_t first_row = d_.t.size();
     std::vector<task::Label> row_labels(m_);
     for (size_t i = first_row;; ++i) {
@@ -265,7 +268,8 @@ class Demonstrator {
       // A load keeps to its carrier's timing (their generated rows go together).
       for (size_t j = 0; j < moved.size(); ++j)
         pos_[moved[j].entity] = moved[j].place(moved[leader[j] >= 0 ? leader[j] : j].progress(tau));
-      for (size_t e = 0; e < m_; ++e) row_labels[e] = tau <= label_end[e] + 1e-9 ? label[e] : task::Label{};
+      for (size_t e = 0; e < m_; ++e)
+        row_labels[e] = tau >= label_begin[e] - 1e-9 && tau <= label_end[e] + 1e-9 ? label[e] : task::Label{};
       emit(row_labels);
     }
   }
@@ -482,6 +486,7 @@ InferredDataset inferredDataset(const task::TaskDir& generated, const HumanMotio
   out.truth.spec = out.inferred.spec = generated.spec;
   SplitMix64 rng(seed * 0x9E3779B97F4A7C15ULL + 0x1abe15ULL);
   for (const auto& d : generated.demos) out.truth.demos.push_back(humanMotion(d, generated.spec, options, rng));
+  task::groupStepsAcrossDemonstrations(out.truth);
   if (out.truth.demos.empty()) return out;
   const Example example = Example::fromDemonstration(out.truth.demos.front(), generated.spec);
   out.inferred.demos.push_back(out.truth.demos.front());

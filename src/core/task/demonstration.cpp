@@ -183,7 +183,7 @@ class StepGrouper {
     last_keyframe_t_ = t;
     first_ended_.reset();
     if (!keep_) steps_.clear();
-    steps_.push_back({i, {}, {}, overlap});
+    steps_.push_back({i, {}, {}, overlap, {}});
     if (!keep_) return;
     step_segments_.emplace_back();
     snapshots_.push_back({i, false, positions});
@@ -234,9 +234,22 @@ namespace {
 
 /// A token of `step` that began at its keyframe (not one that joined later).
 const Token& firstToken(const Step& step) {
+  const auto merged = [&](const Token& t) {
+    return std::any_of(step.merged.begin(), step.merged.end(), [&](const MergedStep& m) {
+      return std::find(m.tokens.begin(), m.tokens.end(), t) != m.tokens.end();
+    });
+  };
   for (const Token& t : step.tokens)
-    if (std::none_of(step.late.begin(), step.late.end(), [&](const LateOnset& l) { return l.token == t; })) return t;
+    if (std::none_of(step.late.begin(), step.late.end(), [&](const LateOnset& l) { return l.token == t; }) &&
+        !merged(t))
+      return t;
   return step.tokens.front();
+}
+
+std::string tokenList(const std::vector<Token>& tokens, const TaskSpec& spec) {
+  std::string s;
+  for (const Token& t : tokens) s += (s.empty() ? "" : " ") + tokenKey(t, spec);
+  return "[" + s + "]";
 }
 
 }  // namespace
@@ -261,6 +274,14 @@ std::vector<Diagnostic> stepGroupingNotes(const std::string& source, const std::
                            "its label by line " +
                            by + " if it belongs to " + before + ")"});
     }
+    for (const MergedStep& m : step.merged)
+      notes.push_back(
+          {source, m.keyframe_row + 2, 0,
+           "step " + std::to_string(k + 1) + ": " + tokenList(m.tokens, spec) + " began after a token of step " +
+               std::to_string(k + 1) + " (line " + std::to_string(step.keyframe_row + 2) +
+               ") had ended, a step of its own in this demonstration; merged into step " + std::to_string(k + 1) +
+               " as " + std::to_string(m.shown_by) + " of " + std::to_string(m.demonstrations) +
+               " demonstrations show such tokens in one step: check that they are one"});
     for (const LateOnset& late : step.late) {
       char delay[32];
       std::snprintf(delay, sizeof delay, "%.3f", late.delay_s);

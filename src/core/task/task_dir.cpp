@@ -131,11 +131,30 @@ void checkDir(const std::string& path, TaskSpec& spec, std::vector<Diagnostic>& 
 
 }  // namespace
 
+namespace {
+
+/// Step grouping across the demonstrations (rule 6 of "Step grouping"): the runs of steps
+/// to merge in each of `demos`.
+template <class Demo>
+std::vector<std::vector<StepRun>> runsShownAsOne(const std::vector<Demo>& demos, const TaskSpec& spec) {
+  std::vector<std::vector<Step>> steps_of;
+  for (const Demo& d : demos) steps_of.push_back(d.steps);
+  return stepsShownAsOne(steps_of, spec);
+}
+
+}  // namespace
+
+void groupStepsAcrossDemonstrations(TaskDir& dir) {
+  const auto runs = runsShownAsOne(dir.demos, dir.spec);
+  for (size_t d = 0; d < dir.demos.size(); ++d) dir.demos[d].mergeSteps(runs[d]);
+}
+
 TaskDirReport checkTaskDir(const std::string& path) {
   TaskDirReport report;
   report.dir.path = path;
   checkDir(path, report.dir.spec, report.errors,
            [&](const std::string& csv) { report.dir.demos.push_back(readDemonstrationCsv(csv, report.dir.spec)); });
+  groupStepsAcrossDemonstrations(report.dir);
   return report;
 }
 
@@ -144,6 +163,19 @@ TaskDirSummary summarizeTaskDir(const std::string& path) {
   summary.path = path;
   checkDir(path, summary.spec, summary.errors,
            [&](const std::string& csv) { summary.demos.push_back(summarizeDemonstrationCsv(csv, summary.spec)); });
+  const auto runs = runsShownAsOne(summary.demos, summary.spec);
+  for (size_t d = 0; d < summary.demos.size(); ++d) {
+    DemonstrationSummary& s = summary.demos[d];
+    if (runs[d].empty()) continue;
+    std::vector<double> keyframe_t;
+    for (size_t k = 0, r = 0; k < s.steps.size(); ++k) {
+      if (!(r < runs[d].size() && k > runs[d][r].first && k <= runs[d][r].last)) keyframe_t.push_back(s.keyframe_t[k]);
+      if (r < runs[d].size() && k == runs[d][r].last) ++r;
+    }
+    s.steps = mergedSteps(s.steps, runs[d]);
+    s.keyframe_t = std::move(keyframe_t);
+    s.step_count = s.steps.size();
+  }
   return summary;
 }
 

@@ -1347,3 +1347,33 @@ TEST(Label, ARecordingLabelledAsAStreamIsTheSameFileAndABadRowIsNamed) {
   }
   std::remove(path.c_str());
 }
+
+// Robots of a step started apart and keyed as each starts (HumanMotionOptions::
+// label_at_own_onset): a fetch over before the other robot set off reads as a step of its
+// own in that demonstration; read as a task directory (step grouping across
+// demonstrations) every demonstration has the steps of its clean original. Both of the
+// zoo's motion models.
+TEST(HumanMotion, AStepSplitByALateStartIsReadAsTheCleanStepAcrossDemonstrations) {
+  uint64_t rule = 0;
+  for (const char* family : {"zoo:two-pairs", "zoo:two-pairs/direct"}) {
+    tasks::ZooMotion motion;
+    ASSERT_TRUE(tasks::parseZooFamily(family, rule, &motion));
+    const task::TaskDir clean = tasks::generateZoo(rule, 20, 1, motion);
+    // Every aspect of a person's motion, robots of a step up to 5 s apart: the zoo's
+    // fetches take seconds, so a second or two splits none.
+    label::HumanMotionOptions keyed = label::demonstrationStyle("all").options;
+    keyed.onset_spread_s = 5;
+    keyed.label_at_own_onset = true;
+    SplitMix64 rng(5);
+    task::TaskDir moved;
+    moved.spec = clean.spec;
+    for (const auto& d : clean.demos) moved.demos.push_back(label::humanMotion(d, clean.spec, keyed, rng));
+    size_t split = 0;
+    for (size_t i = 0; i < clean.demos.size(); ++i)
+      split += moved.demos[i].steps.size() > clean.demos[i].steps.size() ? 1 : 0;
+    EXPECT_GE(split, 1u) << family;
+    task::groupStepsAcrossDemonstrations(moved);
+    for (size_t i = 0; i < clean.demos.size(); ++i)
+      EXPECT_TRUE(task::sameSteps(moved.demos[i].steps, clean.demos[i].steps)) << family << " demo " << i;
+  }
+}

@@ -304,3 +304,98 @@ TEST(CliTrain, ThreadsAreCheckedAndRecordedAndWhatTheModelTransfersIsPrinted) {
   EXPECT_NE(lr.status, 0) << lr.out;
   EXPECT_NE(lr.out.find("--lr"), std::string::npos) << lr.out;
 }
+
+// Each of train's flags has the effect its usage names, in what it prints and the model it writes.
+namespace {
+
+/// `ddace train` of `family`'s small training set into root()/NAME with `flags` (and nothing else).
+ToolRun trainWith(const std::string& family, const std::string& name, const std::string& flags) {
+  return runTool("train '" + data(family) + "/train' --out '" + root() + "/" + name + "' " + flags);
+}
+
+ddace::tgn::ModelInfo infoOf(const std::string& name) {
+  return ddace::tgn::SequenceModel::load(root() + "/" + name).info();
+}
+
+}  // namespace
+
+TEST(CliTrainFlags, EpochsBoundTheRunAndQuietLeavesOutTheEpochLines) {
+  const ToolRun loud = trainWith("task1", "epochs3", "--epochs 3");
+  ASSERT_EQ(loud.status, 0) << loud.out;
+  EXPECT_NE(loud.out.find("epoch 1/3 "), std::string::npos) << loud.out;
+  EXPECT_NE(loud.out.find("epoch 3/3 "), std::string::npos) << loud.out;
+  EXPECT_NE(loud.out.find("stopped after 3 epochs (max_epochs)"), std::string::npos) << loud.out;
+  EXPECT_EQ(infoOf("epochs3").history.size(), 3u);
+  const ToolRun quiet = trainWith("task1", "quiet", "--epochs 3 --quiet");
+  ASSERT_EQ(quiet.status, 0) << quiet.out;
+  EXPECT_EQ(quiet.out.find("epoch 1/3"), std::string::npos) << quiet.out;
+  EXPECT_NE(quiet.out.find("stopped after 3 epochs (max_epochs)"), std::string::npos) << quiet.out;
+}
+
+TEST(CliTrainFlags, PatienceIsHowLongALossPlateauLastsBeforeTrainingStops) {
+  // The same run stops at a plateau with a short patience, and runs to --epochs with one
+  // longer than half of them (a plateau needs twice the patience in epochs).
+  const ToolRun brief = trainWith("task1", "patience2", "--epochs 120 --patience 2 --quiet");
+  ASSERT_EQ(brief.status, 0) << brief.out;
+  const ddace::tgn::ModelInfo stopped = infoOf("patience2");
+  EXPECT_EQ(stopped.stop_reason, "plateau") << brief.out;
+  EXPECT_LT(stopped.history.size(), 120u);
+  EXPECT_EQ(stopped.options.plateau_patience, 2);
+  const ToolRun long_one = trainWith("task1", "patience61", "--epochs 120 --patience 61 --quiet");
+  ASSERT_EQ(long_one.status, 0) << long_one.out;
+  EXPECT_EQ(infoOf("patience61").stop_reason, "max_epochs") << long_one.out;
+  EXPECT_EQ(infoOf("patience61").history.size(), 120u);
+}
+
+TEST(CliTrainFlags, ASeedMakesTheSameWeightsAndAnotherSeedOthers) {
+  for (const std::string name : {"seed5a", "seed5b", "seed6"}) {
+    const ToolRun r = trainWith("task1", name, "--epochs 2 --quiet --seed " + name.substr(4, 1));
+    ASSERT_EQ(r.status, 0) << r.out;
+  }
+  EXPECT_EQ(infoOf("seed5a").options.seed, 5u);
+  EXPECT_EQ(fileBytes(root() + "/seed5a/weights.pt"), fileBytes(root() + "/seed5b/weights.pt"));
+  EXPECT_NE(fileBytes(root() + "/seed5a/weights.pt"), fileBytes(root() + "/seed6/weights.pt"));
+  const ToolRun negative = trainWith("task1", "seed_negative", "--epochs 2 --seed -1");
+  EXPECT_NE(negative.status, 0) << negative.out;
+  EXPECT_NE(negative.out.find("option --seed: must be non-negative"), std::string::npos) << negative.out;
+}
+
+TEST(CliTrainFlags, WithoutSwitchesOffTheRulesItNames) {
+  // nearest_goal's rule is stated by the scene: by default an ensemble with the relative
+  // features; --without ensemble trains one network,
+  // --without relative a model of its own task's entities only.
+  const ToolRun usual = trainWith("nearest_goal", "rules_all", "--epochs 2 --quiet");
+  ASSERT_EQ(usual.status, 0) << usual.out;
+  EXPECT_EQ(infoOf("rules_all").plan.ensemble, ddace::tgn::kEnsembleMembers);
+  EXPECT_TRUE(infoOf("rules_all").plan.relative_features);
+  const ToolRun one = trainWith("nearest_goal", "rules_one", "--epochs 2 --quiet --without ensemble");
+  ASSERT_EQ(one.status, 0) << one.out;
+  EXPECT_EQ(infoOf("rules_one").plan.ensemble, 1);
+  EXPECT_TRUE(infoOf("rules_one").plan.relative_features);
+  const ToolRun named = trainWith("nearest_goal", "rules_named", "--epochs 2 --quiet --without relative,ensemble");
+  ASSERT_EQ(named.status, 0) << named.out;
+  EXPECT_FALSE(infoOf("rules_named").plan.relative_features);
+  EXPECT_NE(named.out.find("transfer: runs on its own task's entities only: trained without the relative features"),
+            std::string::npos)
+      << named.out;
+  const ToolRun unknown = trainWith("nearest_goal", "rules_unknown", "--epochs 2 --without ensembles");
+  EXPECT_NE(unknown.status, 0) << unknown.out;
+  EXPECT_NE(unknown.out.find("option --without: "), std::string::npos) << unknown.out;
+}
+
+TEST(CliTrainFlags, VariantChoosesTheNetwork) {
+  const ToolRun paper = trainWith("task4", "variant_paper", "--epochs 2 --quiet --variant paper");
+  ASSERT_EQ(paper.status, 0) << paper.out;
+  EXPECT_EQ(infoOf("variant_paper").variant, ddace::tgn::Variant::Paper);
+  EXPECT_NE(paper.out.find("training variant 'paper'"), std::string::npos) << paper.out;
+  EXPECT_NE(paper.out.find("motion primitives: "), std::string::npos) << paper.out;
+  // gnn rolls out motions itself: no GP primitives are fitted.
+  const ToolRun gnn = trainWith("task4", "variant_gnn", "--epochs 2 --quiet --variant gnn");
+  ASSERT_EQ(gnn.status, 0) << gnn.out;
+  EXPECT_EQ(infoOf("variant_gnn").variant, ddace::tgn::Variant::Gnn);
+  EXPECT_EQ(gnn.out.find("motion primitives: "), std::string::npos) << gnn.out;
+  EXPECT_FALSE(fs::exists(root() + "/variant_gnn/primitives.yaml"));
+  const ToolRun unknown = trainWith("task4", "variant_unknown", "--epochs 2 --variant big");
+  EXPECT_NE(unknown.status, 0) << unknown.out;
+  EXPECT_NE(unknown.out.find("option --variant: "), std::string::npos) << unknown.out;
+}

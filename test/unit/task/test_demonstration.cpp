@@ -6,10 +6,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 
 #include "ddace/common/random.h"
 #include "ddace/task/demonstration.h"
 #include "ddace/task/summary.h"
+#include "ddace/task/task_dir.h"
 
 #include "../common/file_tree.h"
 
@@ -782,4 +784,96 @@ TEST(CommonSteps, AFewOneTokenSlipsKeepTheStepsFixedAndAreListed) {
   std::vector<std::vector<Step>> scene;
   for (int i = 0; i < 20; ++i) scene.push_back(stepsOf({{"0:move:" + std::to_string(2 + i % 2)}}));
   EXPECT_FALSE(commonSteps(scene).fixed);
+}
+
+// ---- step grouping across demonstrations (docs/task-format.md, "Step grouping", rule 6)
+
+namespace {
+
+const char* kSceneYaml =
+    "format: ddace-task/1\nentities:\n"
+    "  - {name: R1, kind: robot}\n  - {name: R2, kind: robot}\n"
+    "  - {name: B1, kind: object}\n  - {name: G1, kind: goal}\n"
+    "actions: [move, carry, stop]\n";
+
+/// R1 moves to G1 and R2 to `r2_target`, started together (one step) or R2 after R1 has
+/// stopped (two steps by rule 4).
+std::string pairCsv(bool together, const std::string& r2_target = "B1") {
+  std::string csv = kHeader;
+  if (together) {
+    csv += row(0.0, "move", "G1", "move", r2_target, 0.1);
+    csv += row(0.1, "move", "G1", "move", r2_target, 0.2);
+    csv += row(0.2, "", "", "move", r2_target, 0.3);
+    csv += row(0.3, "", "", "", "", 0.3);
+  } else {
+    csv += row(0.0, "move", "G1", "", "", 0.1);
+    csv += row(0.1, "move", "G1", "", "", 0.2);
+    csv += row(0.2, "", "", "move", r2_target, 0.3);
+    csv += row(0.3, "", "", "move", r2_target, 0.3);
+    csv += row(0.4, "", "", "", "", 0.3);
+  }
+  return csv;
+}
+
+/// A task directory of demonstrations demo_000.csv, ... with `csvs`.
+std::string pairDir(const std::string& name, const std::vector<std::string>& csvs) {
+  const std::string dir = tempPath("across_" + name);
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir + "/demos");
+  writeBytes(dir + "/task.yaml", kSceneYaml);
+  for (size_t i = 0; i < csvs.size(); ++i) writeBytes(dir + "/demos/demo_00" + std::to_string(i) + ".csv", csvs[i]);
+  return dir;
+}
+
+std::vector<size_t> stepCounts(const TaskDir& dir) {
+  std::vector<size_t> n;
+  for (const auto& d : dir.demos) n.push_back(d.steps.size());
+  return n;
+}
+
+}  // namespace
+
+TEST(StepGroupingAcrossDemonstrations, AStepSplitWhereTheOthersShowOneIsMergedAndListed) {
+  // Two demonstrations start R1 and R2 together; in the third R2 set off after R1 had
+  // stopped. The two share no entity and the others show them as one step: one step.
+  const std::string dir = pairDir("split", {pairCsv(true), pairCsv(true), pairCsv(false)});
+  const TaskSpec spec = readTaskYaml(dir + "/task.yaml");
+  EXPECT_EQ(readDemonstrationCsv(dir + "/demos/demo_002.csv", spec).steps.size(), 2u);  // on its own
+  const TaskDir loaded = loadTaskDir(dir);
+  EXPECT_EQ(stepCounts(loaded), (std::vector<size_t>{1, 1, 1}));
+  const Demonstration& d = loaded.demos[2];
+  EXPECT_TRUE(sameSteps(d.steps, loaded.demos[0].steps));
+  EXPECT_EQ(d.keyframes, (std::vector<int>{0}));
+  ASSERT_EQ(d.snapshots.size(), 2u);  // the step's, END
+  EXPECT_EQ(d.snapshots[0].row, 0);
+  EXPECT_TRUE(d.snapshots[1].end);
+  ASSERT_EQ(d.segments.size(), 2u);
+  EXPECT_EQ(d.segments[1].step, 0);
+  EXPECT_EQ(d.segments[1].first_row, 2);                    // R2's own rows
+  EXPECT_DOUBLE_EQ(d.segmentGoal(d.segments[1]).x(), 0.2);  // B1 where the step was decided
+  // validate's summary reads the same steps and lists the merge.
+  const TaskDirSummary summary = summarizeTaskDir(dir);
+  ASSERT_EQ(summary.demos.size(), 3u);
+  EXPECT_EQ(summary.demos[2].step_count, 1u);
+  EXPECT_EQ(summary.demos[2].keyframe_t, (std::vector<double>{0.0}));
+  EXPECT_TRUE(sameSteps(summary.demos[2].steps, d.steps));
+  const std::vector<Diagnostic> notes = stepGroupingNotes(summary.demos[2].source, summary.demos[2].steps, spec);
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_EQ(notes[0].str(), dir +
+                                "/demos/demo_002.csv:4: step 1: [R2:move:B1] began after a token of step 1 (line 2) "
+                                "had ended, a step of its own in this demonstration; merged into step 1 as 2 of 3 "
+                                "demonstrations show such tokens in one step: check that they are one");
+  EXPECT_EQ(stepGroupingNotes(d, spec).size(), 1u);
+}
+
+TEST(StepGroupingAcrossDemonstrations, StepsSharingAnEntityOrShownApartStayApart) {
+  // R2 sent to R1 shares R1 with R1's step: never merged, whatever the others show.
+  EXPECT_EQ(
+      stepCounts(loadTaskDir(pairDir("shared", {pairCsv(true, "R1"), pairCsv(true, "R1"), pairCsv(false, "R1")}))),
+      (std::vector<size_t>{1, 1, 2}));
+  // Most demonstrations show two steps: the one step of the third stays one, the two stay two.
+  EXPECT_EQ(stepCounts(loadTaskDir(pairDir("apart", {pairCsv(false), pairCsv(false), pairCsv(true)}))),
+            (std::vector<size_t>{2, 2, 1}));
+  // As many show one step as two: no evidence either way.
+  EXPECT_EQ(stepCounts(loadTaskDir(pairDir("even", {pairCsv(true), pairCsv(false)}))), (std::vector<size_t>{1, 2}));
 }
