@@ -40,6 +40,9 @@ std::optional<exec::SegmentState> endedState(uint8_t status);
 ddace::SegmentStatus statusMsg(const std::string& entity, uint32_t segment_id, uint8_t status, double progress,
                                double distance_to_goal_m, const std::string& message);
 
+/// A carried object's segment status (exec::ObjectStatus), stamped now.
+ddace::SegmentStatus statusMsg(const exec::ObjectStatus& status, const task::TaskSpec& spec);
+
 /// The task spec from a task directory or a task.yaml path. Throws ddace::Error; a
 /// relative path is refused (nodes run in ROS_HOME, not in the caller's directory).
 task::TaskSpec loadTaskSpec(const std::string& task_path);
