@@ -556,6 +556,14 @@ PlannedAgain pushPlannedAgain(const Eigen::Vector2d& carrier, const Eigen::Vecto
   return out;
 }
 
+/// The push planned again ended with B1 on its goal, R1 never held against R2, nobody touching R2.
+void expectPushedPastTheStander(const PlannedAgain& r, const Eigen::Vector2d& goal) {
+  EXPECT_TRUE(r.done);
+  EXPECT_EQ(r.held_by_r2, 0) << "cycles in which the filter held R1 against R2";
+  EXPECT_EQ(r.touched_r2, 0);
+  EXPECT_LT((r.box - goal).norm(), task::kDefaultArrivalRadius) << "the box at " << r.box.transpose();
+}
+
 }  // namespace
 
 // The box moved since its push was planned (a hand, or it slid off its carrier's front):
@@ -568,10 +576,7 @@ PlannedAgain pushPlannedAgain(const Eigen::Vector2d& carrier, const Eigen::Vecto
 TEST(PushPath, APushPlannedAgainGoesRoundTheRobotsStandingAsTheFirstPlanDid) {
   const Eigen::Vector2d goal(0.8, 0.4);
   const PlannedAgain r = pushPlannedAgain({0.38, 0.43}, {0.3, 0.37}, {0.3, 0.4}, goal, {0.3, 0.5});
-  EXPECT_TRUE(r.done);
-  EXPECT_EQ(r.held_by_r2, 0) << "cycles in which the filter held R1 against R2";
-  EXPECT_EQ(r.touched_r2, 0);
-  EXPECT_LT((r.box - goal).norm(), task::kDefaultArrivalRadius) << "the box at " << r.box.transpose();
+  expectPushedPastTheStander(r, goal);
 }
 
 // As above, the robot standing behind the box where its push planned again would take its
@@ -582,8 +587,5 @@ TEST(PushPath, APushPlannedAgainGoesRoundTheRobotsStandingAsTheFirstPlanDid) {
 TEST(PushPath, APushPlannedAgainWhoseRunUpARobotStandsInLeadsTheBoxOutFirst) {
   const Eigen::Vector2d goal(0.8, 0.4);
   const PlannedAgain r = pushPlannedAgain({0.38, 0.34}, {0.3, 0.34}, {0.3, 0.4}, goal, {0.22, 0.38});
-  EXPECT_TRUE(r.done);
-  EXPECT_EQ(r.held_by_r2, 0) << "cycles in which the filter held R1 against R2";
-  EXPECT_EQ(r.touched_r2, 0);
-  EXPECT_LT((r.box - goal).norm(), task::kDefaultArrivalRadius) << "the box at " << r.box.transpose();
+  expectPushedPastTheStander(r, goal);
 }
