@@ -72,18 +72,10 @@ EndScene endSceneOf(const task::TaskDir& train);
 /// per count of the result: it grew past training's (END waits for it).
 EndScene endSceneFor(const EndScene& end, const task::TaskSpec& trained, const task::TaskSpec& other,
                      std::vector<bool>& waits);
-/// p(END) under `end` at `pos` (task order), `before` the scene the last step began from
-/// (task order; nullptr before the first step): 0 while a count that waits (`waits`, per
-/// count; empty: none) does not hold; 1 once every count holds, where they tell the end; `p`
-/// where they hold and do not tell it, or where every count with a goal holds. Short of a
-/// count with a goal: 0, but `p` where the last step changed nothing (sceneChanged), so a
-/// team that cannot bring the end about still ends.
+/// p(END) under `end` at `pos` (task order): 0 while a count that waits (`waits`, per count;
+/// empty: none) does not hold; 1 once every count holds, where they tell the end; else `p`.
 double endProbability(double p, const EndScene& end, const std::vector<bool>& waits, const task::TaskSpec& spec,
-                      const std::vector<Eigen::Vector2d>& pos, const std::vector<Eigen::Vector2d>* before);
-/// Some entity of `pos` stands farther than the task's arrival radius from where it stood in
-/// `before` (both task order).
-bool sceneChanged(const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& before,
-                  const std::vector<Eigen::Vector2d>& pos);
+                      const std::vector<Eigen::Vector2d>& pos);
 /// The counts a count of training follows to another task: each (training count, other
 /// count) it equals; the least of the other counts, or -1 when it equals none.
 int followedCount(int count, const std::vector<std::pair<int, int>>& trained_and_other);

@@ -118,34 +118,19 @@ EndScene endSceneFor(const EndScene& end, const task::TaskSpec& trained, const t
   return out;
 }
 
-bool sceneChanged(const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& before,
-                  const std::vector<Eigen::Vector2d>& pos) {
-  for (size_t e = 0; e < pos.size() && e < before.size(); ++e)
-    if ((pos[e] - before[e]).norm() > spec.arrival_radius) return true;
-  return false;
-}
-
 double endProbability(double p, const EndScene& end, const std::vector<bool>& waits, const task::TaskSpec& spec,
-                      const std::vector<Eigen::Vector2d>& pos, const std::vector<Eigen::Vector2d>* before) {
+                      const std::vector<Eigen::Vector2d>& pos) {
   if (end.counts.empty()) return p;
   const auto counts = endCountsOf(spec, pos);
-  const std::string goal = task::toString(task::EntityKind::Goal);
-  bool all = true, at_goals = true;
+  bool all = true;
   for (size_t k = 0; k < end.counts.size(); ++k) {
     const EndCount& c = end.counts[k];
     const auto it = counts.find({c.kind, c.with});
     const bool has = it != counts.end() && it->second >= c.count;
     if (!has && k < waits.size() && waits[k]) return 0.0;  // the team is larger: the END head's count is short
     all = all && has;
-    if (c.kind == goal || c.with == goal) at_goals = at_goals && has;
   }
-  if (all) return end.telling ? 1.0 : p;
-  // Short of what stood at goals at every end the END head reads the steps done, not the
-  // scene (a box left beside its carrier after as many steps as training had): the run goes
-  // on while its steps still change the scene; one whose last step moved nothing cannot reach
-  // it by going on. Counts among robots and boxes only are left to the head: where robots
-  // stop at contact, such a chain held at every training end and not at 2 of 10 right ends.
-  return at_goals || (before != nullptr && !sceneChanged(spec, *before, pos)) ? p : 0.0;
+  return end.telling && all ? 1.0 : p;
 }
 
 }  // namespace ddace::tgn::detail

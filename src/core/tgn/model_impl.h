@@ -101,9 +101,8 @@ struct SequenceModel::Impl {
                               const torch::Tensor& target_logits, const torch::Tensor& nodes, const torch::Tensor& z,
                               const std::vector<Eigen::Vector2d>* history, size_t count,
                               const DemonstratedTokens& demonstrated, int member = 0) const;
-  /// p(END) under the plan's end scene (detail::endProbability) at the last of
-  /// `history[0 .. count)` (canonical), the one before it the scene the last step began from.
-  double endProbability(double p_end, const std::vector<Eigen::Vector2d>* history, size_t count) const;
+  /// p(END) under the plan's end scene (detail::endProbability) at `pos` (canonical).
+  double endProbability(double p_end, const std::vector<Eigen::Vector2d>& pos) const;
   /// Carried loads (StepRules::load_actions): every object of the task (canonical) with the
   /// entities, not objects, within task::togetherDistance of it in `pos` (canonical).
   std::vector<detail::Load> loadsAt(const std::vector<Eigen::Vector2d>& pos) const;

@@ -64,19 +64,12 @@ DemonstratedTokens SequenceModel::Impl::demonstratedTokens() const {
   return {action_ok, target_ok, may_point};
 }
 
-double SequenceModel::Impl::endProbability(double p_end, const std::vector<Eigen::Vector2d>* history,
-                                           size_t count) const {
+double SequenceModel::Impl::endProbability(double p_end, const std::vector<Eigen::Vector2d>& pos) const {
   const EndScene& end = info.plan.end_scene;
   if (end.counts.empty()) return p_end;
-  const auto inTaskOrder = [&](const std::vector<Eigen::Vector2d>& pos) {
-    std::vector<Eigen::Vector2d> out(pos.size());
-    for (size_t c = 0; c < pos.size(); ++c) out[static_cast<size_t>(order.task_of[c])] = pos[c];
-    return out;
-  };
-  const std::vector<Eigen::Vector2d> now = inTaskOrder(history[count - 1]);
-  if (count < 2) return detail::endProbability(p_end, end, end_waits, spec, now, nullptr);
-  const std::vector<Eigen::Vector2d> before = inTaskOrder(history[count - 2]);
-  return detail::endProbability(p_end, end, end_waits, spec, now, &before);
+  std::vector<Eigen::Vector2d> in_task_order(pos.size());
+  for (size_t c = 0; c < pos.size(); ++c) in_task_order[static_cast<size_t>(order.task_of[c])] = pos[c];
+  return detail::endProbability(p_end, end, end_waits, spec, in_task_order);
 }
 
 std::vector<detail::Load> SequenceModel::Impl::loadsAt(const std::vector<Eigen::Vector2d>& pos) const {
@@ -100,7 +93,7 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
   const std::vector<Eigen::Vector2d>& pos = history[count - 1];
   const StepRules& rules = info.plan.step_rules;
   // End scene: END waits for what every demonstration's last scene had (docs/tgn.md).
-  p_end = endProbability(p_end, history, count);
+  p_end = endProbability(p_end, pos);
   // Demonstrated tokens only: an entity takes an action, and points at a kind of target,
   // that its kind took in the training demonstrations (the fingerprint's token types; a
   // goal never moves, whatever the step size asks).
@@ -324,7 +317,7 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
       const Tensor nodes = net->encode(x, rel);  // the node embeddings and the GRU output, for token by token
       const Tensor z = fused::gru(net->gru, nodes.mean(1).unsqueeze(0)).first.select(1, t - 1).squeeze(0);
       const Heads h = net->heads(nodes[t - 1], rel[t - 1], z);
-      Decided d{m.endProbability(torch::softmax(h.end, -1)[1].item<double>(), canonical.data(), static_cast<size_t>(t)),
+      Decided d{m.endProbability(torch::softmax(h.end, -1)[1].item<double>(), canonical.back()),
                 logSoftmax(h.action),
                 logSoftmax(h.target),
                 {}};
