@@ -102,8 +102,12 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
   const std::vector<bool>& target_ok = demonstrated.target_ok;
   for (size_t k = 0; k < la.size(); ++k)
     if (!action_ok[k]) la[k] = -1e9;
+  // Next targets: and only at a kind its kind took after a last move like its own (a box
+  // handed to a teammate goes on to a goal, however many teammates there are).
+  const std::vector<bool> next_ok =
+      detail::nextTargetsAllowed(info.plan.next_targets, spec, order.task_of, history, count);
   for (size_t k = 0; k < lt.size(); ++k)
-    if (!target_ok[k]) lt[k] = -1e9;
+    if (!target_ok[k] || !next_ok[k]) lt[k] = -1e9;
   // Carried loads (StepRules::load_actions): a load and the entities at its place decide as
   // one. The joint decoder sees the decisions only: each load's heads join those of the
   // entities at its place (log p(carrier's token) + log p(the load's: the same load action
@@ -146,8 +150,23 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
       acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
     // A carrier's pairs are its loads' too (one decision): their pointer logits join.
     const Tensor carried = rules.load_actions.empty() ? Tensor() : carriedBy(loads);
+    // The pairs allowed: the demonstrated ones under next targets; a carrier taking its load
+    // with it, only those its load may take too.
+    DemonstratedTokens allowed = demonstrated;
+    const auto onlyWhere = [&](int64_t i, int64_t by) {
+      for (int64_t t = 0; t < cfg.targets; ++t) {
+        const size_t k = static_cast<size_t>(i * cfg.targets + t);
+        const bool ok = next_ok[static_cast<size_t>(by * cfg.targets + t)];
+        allowed.target_ok[k] = allowed.target_ok[k] && ok;
+        allowed.may_point[k] = allowed.may_point[k] && ok;
+      }
+    };
+    for (int64_t i = 0; i < n; ++i) onlyWhere(i, i);
+    for (const detail::Load& load : loads)
+      for (int c : load.carriers)
+        if (load_action[static_cast<size_t>(decision.tokens[static_cast<size_t>(c)].action)]) onlyWhere(c, load.object);
     const auto [target, log_p] =
-        chooseTokens(target_logits, nodes, z, history, count, acting, demonstrated, carried, member);
+        chooseTokens(target_logits, nodes, z, history, count, acting, allowed, carried, member);
     for (int64_t i = 0; i < n; ++i) {
       detail::DecodedToken& token = decision.tokens[static_cast<size_t>(i)];
       if (target[static_cast<size_t>(i)] < 0) {
