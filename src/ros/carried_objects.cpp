@@ -79,13 +79,7 @@ class CarriedObjectsNode::Impl {
  private:
   static double now() { return ros::Time::now().toSec(); }
 
-  std::optional<task::Token> token(const ddace::Segment& m) const {
-    try {
-      return ros_exec::fromMsg(m.token, spec_);
-    } catch (const std::exception&) {
-      return std::nullopt;
-    }
-  }
+  std::optional<task::Token> token(const ddace::Segment& m) const { return ros_exec::tokenOrNothing(m.token, spec_); }
 
   void onRobotSegment(int r, const ddace::Segment& m) {
     if (m.mode != ddace::Segment::MODE_FOLLOW) return;
@@ -116,15 +110,7 @@ class CarriedObjectsNode::Impl {
 
   void publish(const std::vector<exec::ObjectStatus>& statuses) {
     for (const exec::ObjectStatus& s : statuses) {
-      ddace::SegmentStatus m;
-      m.header.stamp = ros::Time::now();
-      m.entity = spec_.entities[s.entity].name;
-      m.segment_id = s.segment_id;
-      m.status = ros_exec::statusCode(s.state);
-      m.progress = s.progress;
-      m.distance_to_goal_m = s.distance_to_goal_m;
-      m.message = s.message;
-      status_pubs_.at(s.entity).publish(m);
+      status_pubs_.at(s.entity).publish(ros_exec::statusMsg(s, spec_));
       if (s.state == exec::SegmentState::Failed) ROS_WARN("carried_objects: %s", s.message.c_str());
     }
   }

@@ -66,6 +66,11 @@ ddace::SegmentStatus statusMsg(const std::string& entity, uint32_t segment_id, u
   return s;
 }
 
+ddace::SegmentStatus statusMsg(const exec::ObjectStatus& status, const task::TaskSpec& spec) {
+  return statusMsg(spec.entities.at(status.entity).name, status.segment_id, statusCode(status.state), status.progress,
+                   status.distance_to_goal_m, status.message);
+}
+
 task::TaskSpec loadTaskSpec(const std::string& task_path) {
   namespace fs = std::filesystem;
   if (task_path.empty()) throw Error("no task given (parameter 'task': a task directory or its task.yaml)");
@@ -96,6 +101,14 @@ task::Token fromMsg(const ddace::Token& msg, const task::TaskSpec& spec) {
       throw Error("token " + msg.entity + ":" + msg.action + " names an unknown target '" + msg.target + "'");
   }
   return t;
+}
+
+std::optional<task::Token> tokenOrNothing(const ddace::Token& msg, const task::TaskSpec& spec) {
+  try {
+    return fromMsg(msg, spec);
+  } catch (const Error&) {
+    return std::nullopt;
+  }
 }
 
 ddace::Token toMsg(const task::Token& token, const task::TaskSpec& spec, double probability) {

@@ -40,6 +40,9 @@ std::optional<exec::SegmentState> endedState(uint8_t status);
 ddace::SegmentStatus statusMsg(const std::string& entity, uint32_t segment_id, uint8_t status, double progress,
                                double distance_to_goal_m, const std::string& message);
 
+/// A carried object's segment status (exec::ObjectStatus), stamped now.
+ddace::SegmentStatus statusMsg(const exec::ObjectStatus& status, const task::TaskSpec& spec);
+
 /// The task spec from a task directory or a task.yaml path. Throws ddace::Error; a
 /// relative path is refused (nodes run in ROS_HOME, not in the caller's directory).
 task::TaskSpec loadTaskSpec(const std::string& task_path);
@@ -50,6 +53,9 @@ void requireAbsolute(const std::string& path, const std::string& param);
 
 /// Token message -> core token. Throws ddace::Error naming the unknown entity/target.
 task::Token fromMsg(const ddace::Token& msg, const task::TaskSpec& spec);
+/// Token message -> core token, or nothing where fromMsg would throw (a node that refuses
+/// or ignores a malformed token says so itself).
+std::optional<task::Token> tokenOrNothing(const ddace::Token& msg, const task::TaskSpec& spec);
 ddace::Token toMsg(const task::Token& token, const task::TaskSpec& spec, double probability = 1.0);
 
 /// Planned path -> nav_msgs/Path (frame `frame_id`, orientation = direction of travel)

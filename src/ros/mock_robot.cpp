@@ -109,15 +109,7 @@ class MockRobotNode::Impl {
 
  private:
   void publish(const exec::ObjectStatus& s) {
-    ddace::SegmentStatus m;
-    m.header.stamp = ros::Time::now();
-    m.entity = spec_.entities[s.entity].name;
-    m.segment_id = s.segment_id;
-    m.status = ros_exec::statusCode(s.state);
-    m.progress = s.progress;
-    m.distance_to_goal_m = s.distance_to_goal_m;
-    m.message = s.message;
-    status_pubs_.at(s.entity).publish(m);
+    status_pubs_.at(s.entity).publish(ros_exec::statusMsg(s, spec_));
     // Ended: the object's segment is forgotten (a later robot segment must not pair with it).
     const auto it = running_.find(s.entity);
     if (it != running_.end() && it->second.segment_id == s.segment_id &&
@@ -150,13 +142,7 @@ class MockRobotNode::Impl {
   }
 
   /// The segment's token, or nothing (a malformed token: the follower refuses the segment).
-  std::optional<task::Token> token(const ddace::Segment& m) const {
-    try {
-      return ros_exec::fromMsg(m.token, spec_);
-    } catch (const std::exception&) {
-      return std::nullopt;
-    }
-  }
+  std::optional<task::Token> token(const ddace::Segment& m) const { return ros_exec::tokenOrNothing(m.token, spec_); }
 
   void onRobotSegment(int r, const ddace::Segment& m) {
     const auto was = running_.find(r);

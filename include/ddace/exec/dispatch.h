@@ -51,12 +51,16 @@ struct TokenRef {
   bool operator==(const TokenRef& o) const { return step == o.step && index == o.index; }
 };
 
-/// Whom a started token waited for: the predecessor whose end released it.
+/// Whom a started token waited for: the predecessor whose end released it, and the token of
+/// its own step it was held for after that (addStep's start_after).
 struct Wait {
   TokenRef token;
-  TokenRef released_by;  ///< the predecessor that ended last before it started
-  double ready_s = 0;    ///< when that predecessor ended: the token could start from here
-  double start_s = 0;    ///< when it started (later than ready_s while a decision was awaited)
+  bool released = false;  ///< it had predecessors; released_by names the last to end
+  TokenRef released_by;   ///< the predecessor that ended last before it started
+  double ready_s = 0;     ///< when that predecessor ended (none: its step was decided)
+  double start_s = 0;     ///< when it started (later than ready_s while held or awaiting a decision)
+  bool held = false;      ///< a token of its step it starts after started later than ready_s
+  TokenRef held_by;       ///< that token (the last of them to start)
 };
 
 class Dispatch {
@@ -109,8 +113,8 @@ class Dispatch {
   int violations() const;
   /// From the first decision to the last end (0 before anything ended).
   double makespan() const;
-  /// For every started token that had a predecessor: who released it and when (seconds
-  /// from the first decision).
+  /// For every started token that had a predecessor or was held for a token of its step:
+  /// who released it, who held it, and when (seconds from the first decision).
   std::vector<Wait> waits() const;
 
  private:
@@ -128,6 +132,7 @@ class Dispatch {
   graph::Dependencies deps_;
   std::vector<std::vector<Record>> steps_;
   std::vector<std::vector<task::Token>> tokens_;
+  std::vector<double> decided_s_;  ///< per step
   double first_decision_s_ = -1;
 };
 

@@ -23,6 +23,13 @@
 // wait for ends at its own place (within the stop tolerance, not the stop radius): stopping
 // short on its way in, it would stand in the place of the one waiting for it.
 //
+// A robot whose place is beside another's of its meeting stops short of it (within the stop
+// radius) while that one is on its way, leaving its way in open -- only where stopping short
+// leaves the meeting's places open: where the point of its way at the stop radius
+// (task::stopRadius) would stand against (exec::endsAgainst, the filter's reach) the place of
+// another robot of its meeting that its own place leaves clear, that one could not come to
+// its place, and it ends at its own place, stopping short for none.
+//
 // Owns: the rule. Must not: know ROS, or decide where motions end (task/end_point.h).
 // Units: metres; table frame.
 #pragma once
@@ -58,12 +65,14 @@ struct MotionContacts {
   /// The robots it is queued behind (see motionContacts): it stands where it is until each
   /// of them stands (arrived, or stopped).
   std::set<std::string> after;
-  /// The robots of its step queued behind it (their `after` names it): they wait for it to
-  /// stand, and it ends at its own place, within the stop tolerance (exec::RobotController):
-  /// stopping short it would stand in a waiting robot's place.
+  /// The robots of its step that need it at its own place: queued behind it (their `after`
+  /// names it; they wait for it to stand), or of its meeting with a place its own leaves
+  /// clear and its stop short would not (see motionContacts; then `beside` is empty). It
+  /// ends at its own place, within the stop tolerance (exec::RobotController): stopping
+  /// short it would stand in such a robot's place.
   std::set<std::string> awaited_by;
-  /// The robots of its step whose end points touch its own and that are not queued behind
-  /// it (places side by side): while one of them is on its way, it stops within the held
+  /// The robots of its step whose end points touch its own and that are not in `awaited_by`
+  /// (places side by side): while one of them is on its way, it stops within the held
   /// stop radius, leaving that one's way in open (exec::RobotController).
   std::set<std::string> beside;
 };

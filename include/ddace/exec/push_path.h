@@ -112,6 +112,11 @@ std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::
 std::vector<Eigen::Vector2d> pushRoute(const Eigen::Vector2d& load, const Eigen::Vector2d& load_end,
                                        const std::vector<PushObstacle>& standing);
 
+/// A body standing at `centre` as a push goes round it: at its reach, the larger of its
+/// contact distances with the carrier and with the load + kPushPassM. The one rule of a
+/// push planned (pushObstacles) and planned again (exec::RobotController).
+PushObstacle pushObstacle(const Eigen::Vector2d& centre, double carrier_contact_m, double load_contact_m);
+
 /// The bodies standing while motion `step[i]` pushes its load `load` (an entity), the step
 /// decided at `at` (every entity's position; a non-finite one is not known): every obstacle
 /// (task::Footprint) but the carrier, its load, the step's movers and the loads riding with
@@ -127,6 +132,14 @@ std::vector<PushObstacle> pushObstacles(const task::TaskSpec& spec, const std::v
 std::vector<Eigen::Vector2d> pushPathAlong(const Eigen::Vector2d& from, const std::vector<Eigen::Vector2d>& load_route,
                                            double contact_m, int points, const std::vector<PushObstacle>& standing = {},
                                            bool push_from_behind = true);
+
+/// `load_route` (corners, the first where the load stands, the last its end point) where a
+/// carrier at `from` can take its run-up behind the load; where a body of `standing` takes
+/// it, a route that first leads the load out from beside that body, then on to its end
+/// (as pushPath plans it; `load_route` when no way out is free). The one rule of a push
+/// planned and planned again (exec::RobotController).
+std::vector<Eigen::Vector2d> withRunUp(const Eigen::Vector2d& from, std::vector<Eigen::Vector2d> load_route,
+                                       double contact_m, const std::vector<PushObstacle>& standing);
 
 /// The route a load follows when its carrier drives `carrier_path` (planned by pushPath for
 /// the load at `planned_load`): the carrier's path beyond the point nearest `planned_load`,

@@ -38,6 +38,7 @@
 
 #include "ddace/exec/motion_contacts.h"
 #include "ddace/exec/path_follower.h"
+#include "ddace/exec/push_path.h"
 #include "ddace/exec/safety_filter.h"
 
 namespace ddace::exec {
@@ -126,9 +127,13 @@ class RobotController {
   /// path beyond the load (exec::loadRoute).
   void planLoadRoute(const SafetyBody& load);
   /// A carrier not behind its load: its path planned again round the load, on along the
-  /// rest of the load's route (exec::routeOnFrom, pushPathAlong), when its push just broke
-  /// or the load is kPushReplanM from where the path was planned for.
-  void replanPush(const Pose2D& pose, const SafetyBody& load, double radius_m);
+  /// rest of the load's route (exec::routeOnFrom; led out first from beside a body standing
+  /// in its run-up, exec::withRunUp; pushPathAlong), when its push just broke or the load is
+  /// kPushReplanM from where the path was planned for. `standing`: the bodies standing as
+  /// this cycle's push sees them (standingRound), gone round as the first plan went round
+  /// those of exec::pushObstacles.
+  void replanPush(const Pose2D& pose, const SafetyBody& load, double radius_m,
+                  const std::vector<PushObstacle>& standing);
 
   std::string name_;
   ControllerParams params_;

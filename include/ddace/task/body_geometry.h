@@ -19,9 +19,9 @@
 //     and it ends there within the tracking noise, not up to the stop radius (2.4 cm)
 //     farther off -- except while a robot whose place is beside its own is still on its
 //     way (exec::MotionContacts::beside): then within the stop radius, leaving that one's
-//     way in open; so does a robot, onto a flat goal too, that another robot is queued
-//     behind (exec::MotionContacts::awaited_by): stopping short it would stand in that
-//     one's place;
+//     way in open, where stopping short does; so does a robot, onto a flat goal too, that
+//     another robot is queued behind or whose place it would stand against stopping short
+//     (exec::MotionContacts::awaited_by): it would stand in that one's place;
 //   - held by its safety filter at contact with a body it ends against, or short of its
 //     end point by bodies beside it, a robot has arrived within the arrival radius less
 //     the tolerance of it (stopRadius, not reduced: its true position is within the

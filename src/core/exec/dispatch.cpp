@@ -44,12 +44,14 @@ void Dispatch::addStep(const std::vector<task::Token>& tokens, double decided_s,
           records[i].predecessors.push_back({s, static_cast<int>(j)});
   }
   steps_.push_back(std::move(records));
+  decided_s_.push_back(decided_s);
 }
 
 void Dispatch::withdrawLastStep() {
   if (steps_.empty()) throw Error("dispatch: no step to withdraw");
   steps_.pop_back();
   tokens_.pop_back();
+  decided_s_.pop_back();
 }
 
 const std::vector<task::Token>& Dispatch::tokens(int step) const {
@@ -164,12 +166,17 @@ std::vector<Wait> Dispatch::waits() const {
   for (int s = 0; s < steps(); ++s)
     for (int i = 0; i < static_cast<int>(steps_[static_cast<size_t>(s)].size()); ++i) {
       const Record& r = at({s, i});
-      if (r.start_s < 0 || r.predecessors.empty()) continue;
+      if (r.start_s < 0 || (r.predecessors.empty() && r.start_after.empty())) continue;
       Wait w;
       w.token = {s, i};
-      w.ready_s = -std::numeric_limits<double>::infinity();
+      w.released = !r.predecessors.empty();
+      w.ready_s = w.released ? -std::numeric_limits<double>::infinity() : decided_s_[static_cast<size_t>(s)];
       for (const TokenRef& p : r.predecessors)
         if (at(p).end_s > w.ready_s) w.ready_s = at(p).end_s, w.released_by = p;
+      double held_s = w.ready_s;
+      for (int j : r.start_after)
+        if (at({s, j}).start_s > held_s) held_s = at({s, j}).start_s, w.held = true, w.held_by = {s, j};
+      if (!w.held && !w.released) continue;  // neither released nor held: nothing waited
       w.ready_s -= first_decision_s_;
       w.start_s = r.start_s - first_decision_s_;
       out.push_back(w);

@@ -1,6 +1,8 @@
 #include "ddace/exec/motion_contacts.h"
 
 #include <algorithm>
+#include <cmath>
+#include <optional>
 
 #include "ddace/common/error.h"
 #include "ddace/task/body_geometry.h"
@@ -26,6 +28,23 @@ bool onWayIn(const Eigen::Vector2d& place, double radius_m, const std::vector<Ei
     if ((place - (way[i] + t * d)).norm() < contact) return true;
   }
   return false;
+}
+
+/// Where a robot along `way` stops short of its end: the last point of it `stop_radius_m`
+/// from the end (nothing when the way is unknown, or never that far from its end).
+std::optional<Eigen::Vector2d> stopShortAt(const std::vector<Eigen::Vector2d>& way, double stop_radius_m) {
+  if (way.empty()) return std::nullopt;
+  const Eigen::Vector2d& end = way.back();
+  for (size_t i = way.size() - 1; i-- > 0;) {
+    if ((way[i] - end).norm() < stop_radius_m) continue;
+    // Between way[i] (outside) and way[i + 1] (inside): where the way crosses the radius.
+    const Eigen::Vector2d a = way[i] - end, d = way[i + 1] - way[i];
+    const double qa = d.squaredNorm(), qb = 2 * a.dot(d), qc = a.squaredNorm() - stop_radius_m * stop_radius_m;
+    const double t =
+        qa < 1e-12 ? 0.0 : std::clamp((-qb - std::sqrt(std::max(0.0, qb * qb - 4 * qa * qc))) / (2 * qa), 0.0, 1.0);
+    return Eigen::Vector2d(way[i] + t * d);
+  }
+  return std::nullopt;
 }
 
 /// Whether `b`, a robot of the step, is queued behind a robot ending at `end_point` (see
@@ -74,6 +93,10 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
   // and not the other way round, unless it stands on that way already (then waiting
   // unseals nothing).
   const bool to_flat_goal = !load && !target.empty() && at_target == bodies.end();
+  // Where it would stand stopping short of its place (the stop radius), for a robot of its
+  // meeting still on its way in.
+  const std::optional<Eigen::Vector2d> short_at = stopShortAt(way, task::stopRadius(arrival_radius_m));
+  bool stops_short = true;
   for (const BodyAtStart& b : bodies) {
     if (&b == load) continue;
     const bool same_meeting = b.step == step && !b.object && b.target == target && b.name != target;
@@ -86,6 +109,12 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
     }
     if (same_meeting && ends_against && queuedBehind(b, end_point, at_target, bodies, reach_m))
       out.awaited_by.insert(b.name);
+    // Stopping short, it would stand against the place of a robot of its meeting that its
+    // own place leaves clear: that one could not come to its place; it ends at its own,
+    // stopping short for none.
+    if (same_meeting && !ends_against && short_at && !load &&
+        endsAgainst(*short_at, radius_m, b.final_position, b.radius_m, reach_m))
+      out.awaited_by.insert(b.name), stops_short = false;
     if (ends_against) {
       out.ends_against.insert(b.name);
       if (b.step == step && !b.object && b.name != target && !out.awaited_by.count(b.name)) out.beside.insert(b.name);
@@ -96,6 +125,7 @@ MotionContacts motionContacts(const Eigen::Vector2d& position, double radius_m, 
     if (load && endsAgainst(load->final_position, load->radius_m, b.final_position, b.radius_m, reach_m))
       out.load_ends_against.insert(b.name);
   }
+  if (!stops_short) out.beside.clear();
   return out;
 }
 

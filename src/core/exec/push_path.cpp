@@ -278,10 +278,15 @@ std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::
                                       const std::vector<PushObstacle>& standing, bool push_from_behind) {
   if ((load_end - load).norm() < task::kMinApproachM)
     return resampleByArcLength(PlannedPath{{from, fallback_end}, {}}, std::max(points, 2)).points;
-  std::vector<Eigen::Vector2d> route = pushRoute(load, load_end, standing);
-  if (runUpTaken(route, contact_m, standing))
-    route = leadOutRoute(from, load, load_end, contact_m, standing).value_or(route);
-  return pushPathAlong(from, route, contact_m, points, standing, push_from_behind);
+  return pushPathAlong(from, withRunUp(from, pushRoute(load, load_end, standing), contact_m, standing), contact_m,
+                       points, standing, push_from_behind);
+}
+
+std::vector<Eigen::Vector2d> withRunUp(const Eigen::Vector2d& from, std::vector<Eigen::Vector2d> load_route,
+                                       double contact_m, const std::vector<PushObstacle>& standing) {
+  load_route = distinct(load_route);
+  if (load_route.size() < 2 || !runUpTaken(load_route, contact_m, standing)) return load_route;
+  return leadOutRoute(from, load_route.front(), load_route.back(), contact_m, standing).value_or(load_route);
 }
 
 std::vector<Eigen::Vector2d> pushPathAlong(const Eigen::Vector2d& from, const std::vector<Eigen::Vector2d>& load_route,
@@ -417,6 +422,10 @@ std::optional<int> pushedLoad(const task::TaskSpec& spec, const std::vector<task
   return step[static_cast<size_t>(k)].entity;
 }
 
+PushObstacle pushObstacle(const Eigen::Vector2d& centre, double carrier_contact_m, double load_contact_m) {
+  return {centre, std::max(carrier_contact_m, load_contact_m) + kPushPassM};
+}
+
 std::vector<PushObstacle> pushObstacles(const task::TaskSpec& spec, const std::vector<task::Token>& step, size_t i,
                                         int load, const std::vector<Eigen::Vector2d>& at) {
   const int n = static_cast<int>(spec.entities.size());
@@ -432,7 +441,7 @@ std::vector<PushObstacle> pushObstacles(const task::TaskSpec& spec, const std::v
   for (int e = 0; e < n; ++e) {
     const Eigen::Vector2d& p = at.at(static_cast<size_t>(e));
     if (moves[static_cast<size_t>(e)] || !spec.footprint(e).obstacle || !p.allFinite()) continue;
-    out.push_back({p, std::max(spec.contactDistance(carrier, e), spec.contactDistance(load, e)) + kPushPassM});
+    out.push_back(pushObstacle(p, spec.contactDistance(carrier, e), spec.contactDistance(load, e)));
   }
   return out;
 }

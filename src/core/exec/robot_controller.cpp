@@ -14,14 +14,14 @@ namespace ddace::exec {
 namespace {
 
 /// The bodies standing round a carrier of radius `radius_m` pushing `load` (every other
-/// standing body, as the push's plan takes them, exec::pushObstacles): where its push may
-/// start (pushMayStartHere).
+/// standing body at its reach, exec::pushObstacle, as the push's plan takes them): where its
+/// push may start (pushMayStartHere) and what its push planned again goes round.
 std::vector<PushObstacle> standingRound(const std::vector<SafetyBody>& others, const SafetyBody& load,
                                         double radius_m) {
   std::vector<PushObstacle> out;
   for (const SafetyBody& b : others)
     if (b.standing && &b != &load)
-      out.push_back({b.position, std::max(radius_m, load.radius_m) + b.radius_m + kPushPassM});
+      out.push_back(pushObstacle(b.position, radius_m + b.radius_m, load.radius_m + b.radius_m));
   return out;
 }
 
@@ -80,13 +80,14 @@ void RobotController::planLoadRoute(const SafetyBody& load) {
   load_route_ = loadRoute(follower_.points(), push_planned_for_, load.position, contacts_.load_end);
 }
 
-void RobotController::replanPush(const Pose2D& pose, const SafetyBody& load, double radius_m) {
+void RobotController::replanPush(const Pose2D& pose, const SafetyBody& load, double radius_m,
+                                 const std::vector<PushObstacle>& standing) {
   if (!was_pushing_ && (load.position - push_planned_for_).norm() <= kPushReplanM) return;
   const int points = std::max(2, static_cast<int>(std::ceil(follower_.lengthM() / kPushPathSpacingM)));
-  load_route_ = routeOnFrom(load_route_, load.position);
-  follower_.setPath(PlannedPath{
-      pushPathAlong(pose.position(), load_route_, radius_m + load.radius_m, points, {}, /*push_from_behind=*/false),
-      {}});
+  load_route_ = withRunUp(pose.position(), routeOnFrom(load_route_, load.position), radius_m + load.radius_m, standing);
+  follower_.setPath(PlannedPath{pushPathAlong(pose.position(), load_route_, radius_m + load.radius_m, points, standing,
+                                              /*push_from_behind=*/false),
+                                {}});
   push_planned_for_ = load.position;
 }
 
@@ -192,10 +193,12 @@ ControlOutput RobotController::cycle(const Pose2D& pose, bool pose_stale, double
   // on along the rest of the same route.
   const bool pushes = load && !contacts_.load_rides;
   if (pushes) planLoadRoute(*load);
+  const std::vector<PushObstacle> standing =
+      pushes ? standingRound(others, *load, radius_m) : std::vector<PushObstacle>{};
   const auto push = pushes ? pushWheels(pose, load->position, load_route_, radius_m + load->radius_m, params_.gains,
-                                        was_pushing_, standingRound(others, *load, radius_m))
+                                        was_pushing_, standing)
                            : std::nullopt;
-  if (pushes && !push) replanPush(pose, *load, radius_m);
+  if (pushes && !push) replanPush(pose, *load, radius_m, standing);
   was_pushing_ = push.has_value();
   // Ending beside a body other than its target that is still on its way (robots meeting
   // at one body, a line), it stops within the held stop radius: driven on to its exact

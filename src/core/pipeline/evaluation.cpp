@@ -152,6 +152,12 @@ exec::Trial trialFromRollout(const task::Demonstration& r, int max_rows) {
   return t;
 }
 
+std::string twoDecimals(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.2f", v);
+  return text;
+}
+
 std::string tokensOf(const std::vector<task::Step>& steps, size_t k, const task::TaskSpec& spec) {
   if (k >= steps.size()) return "{END}";
   std::string out = "{";
@@ -204,10 +210,13 @@ exec::BodiesExecutionParams bodiesParams(const EvalOptions& options, const task:
 std::vector<std::string> describeWaits(const exec::Dispatch& d, const task::TaskSpec& spec) {
   std::vector<std::string> out;
   for (const exec::Wait& w : d.waits()) {
-    char line[256];
-    std::snprintf(line, sizeof line, "step %d %s at %.2f s, released by %s at %.2f s", w.token.step + 1,
-                  task::tokenKey(d.token(w.token), spec).c_str(), w.start_s,
-                  task::tokenKey(d.token(w.released_by), spec).c_str(), w.ready_s);
+    std::string line = "step " + std::to_string(w.token.step + 1) + " " + task::tokenKey(d.token(w.token), spec) +
+                       " at " + twoDecimals(w.start_s) + " s";
+    if (w.released)
+      line += ", released by " + task::tokenKey(d.token(w.released_by), spec) + " at " + twoDecimals(w.ready_s) + " s";
+    if (w.held)
+      line +=
+          ", held until " + task::tokenKey(d.token(w.held_by), spec) + " started (places taken from the inside out)";
     out.push_back(line);
   }
   return out;

@@ -6,6 +6,7 @@
 #include <set>
 
 #include "ddace/common/error.h"
+#include "ddace/task/meeting_places.h"
 
 namespace ddace::task {
 
@@ -19,6 +20,18 @@ Vector2d approach(const Vector2d& start, const Vector2d& target) {
   const Vector2d d = target - start;
   const double n = d.norm();
   return n < kMinApproachM ? Vector2d::Zero() : Vector2d(d / n);
+}
+
+/// The length of the shortest way from `a` to `b` that keeps out of the disc of radius `r`
+/// about `c` (both at least `r` from it): straight where the segment passes it, else along
+/// a tangent from each and round the disc's edge between them.
+double wayRound(const Vector2d& a, const Vector2d& b, const Vector2d& c, double r) {
+  const double da = (a - c).norm(), db = (b - c).norm();
+  if (da < kMinApproachM || db < kMinApproachM) return (a - b).norm();
+  const double angle = std::acos(std::clamp((a - c).dot(b - c) / (da * db), -1.0, 1.0));
+  const double ta = std::acos(std::min(1.0, r / da)), tb = std::acos(std::min(1.0, r / db));
+  if (angle <= ta + tb) return (a - b).norm();
+  return std::sqrt(std::max(0.0, da * da - r * r)) + std::sqrt(std::max(0.0, db * db - r * r)) + r * (angle - ta - tb);
 }
 
 double median(std::vector<double> v) {
@@ -277,62 +290,115 @@ int ridingLoad(const TaskSpec& spec, const std::vector<Token>& step, size_t i, c
 std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
                                        const std::vector<Vector2d>& decided,
                                        const std::optional<Eigen::AlignedBox2d>& table, int step_index) {
-  const auto n = static_cast<int>(decided.size());
-  for (const Token& t : step)
-    if (t.entity < 0 || t.entity >= n || t.target >= n)
-      throw Error("a token names an entity outside the " + std::to_string(n) + " positions given");
-  // Who moves: the motions and the loads riding with them.
-  std::vector<int> load_of(step.size(), -1);
-  std::vector<bool> rides(step.size(), false), moving(decided.size(), false);
-  for (size_t i = 0; i < step.size(); ++i)
-    if (step[i].isMotion() && (load_of[i] = ridingLoad(spec, step, i, decided)) >= 0)
-      rides[static_cast<size_t>(load_of[i])] = true;
-  std::vector<size_t> movers;
-  for (size_t i = 0; i < step.size(); ++i) {
-    if (!step[i].isMotion() || rides[i]) continue;
-    movers.push_back(i);
-    moving[static_cast<size_t>(step[i].entity)] = true;
-    if (load_of[i] >= 0) moving[static_cast<size_t>(step[static_cast<size_t>(load_of[i])].entity)] = true;
+  return stepEndPositions(spec, model, step, decided, table, step_index, MeetingPlaces::ByLeastTravel);
+}
+
+namespace {
+
+constexpr double kSlack = 1e-9;  // floating point, not geometry
+
+Vector2d rotated(const Vector2d& v, double a) {
+  return Vector2d(std::cos(a) * v.x() - std::sin(a) * v.y(), std::sin(a) * v.x() + std::cos(a) * v.y());
+}
+
+/// A mover's end and its riding load's (zero without one).
+struct MoverEnd {
+  Vector2d end, load_end;
+};
+
+/// The end positions of one step, placed mover by mover (stepEndPositions).
+class StepEnds {
+ public:
+  StepEnds(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
+           const std::vector<Vector2d>& decided, const std::optional<Eigen::AlignedBox2d>& table, int step_index)
+      : spec_(spec),
+        model_(model),
+        step_(step),
+        decided_(decided),
+        table_(table),
+        step_index_(step_index),
+        ends_(decided) {
+    const auto n = static_cast<int>(decided.size());
+    for (const Token& t : step)
+      if (t.entity < 0 || t.entity >= n || t.target >= n)
+        throw Error("a token names an entity outside the " + std::to_string(n) + " positions given");
+    findMovers();
   }
-  const auto obstacle = [&](int e) { return spec.footprint(e).obstacle; };
-  // How far the body of e at p is inside the table's edges (metres; < 0: over one).
-  const auto edgeGap = [&](int e, const Vector2d& p) {
-    if (!table) return std::numeric_limits<double>::infinity();
-    const Vector2d lo = p - table->min(), hi = table->max() - p;
-    return std::min({lo.x(), lo.y(), hi.x(), hi.y()}) - spec.footprint(e).radius_m;
-  };
-  std::vector<Vector2d> ends = decided;
-  // Bodies an end point must keep clear of: standing ones, then ends placed before.
-  std::vector<int> placed;
-  for (int e = 0; e < n; ++e)
-    if (!moving[static_cast<size_t>(e)] && obstacle(e)) placed.push_back(e);
-  constexpr double kSlack = 1e-9;  // floating point, not geometry
-  // Free: on the table, and no closer than contact to a placed body (plus `gap` to any but
-  // the motion's target; the target as near as the rule's end, `reach`, where the
-  // demonstrations stop inside the footprints).
-  const auto free = [&](int entity, const Vector2d& at, int partner, int target, double gap, double reach) {
-    if (edgeGap(entity, at) < std::min(0.0, edgeGap(entity, decided[static_cast<size_t>(entity)]))) return false;
+
+  /// Each mover's end: the rule's end point, else the nearest turn about its target that is
+  /// free, else short of it on the way.
+  void placeMovers() {
+    for (size_t i : movers_) place(i);
+  }
+
+  /// Robots meeting at one body: who takes which place (task/meeting_places.h), pairs
+  /// swapped while a swap shortens their travel round the body.
+  void assignMeetingPlaces() {
+    for (bool swapped = true; swapped;) {
+      swapped = false;
+      for (size_t a = 0; a < movers_.size(); ++a)
+        for (size_t b = a + 1; b < movers_.size(); ++b) swapped |= swapIfShorter(movers_[a], movers_[b]);
+    }
+  }
+
+  const std::vector<Vector2d>& ends() const { return ends_; }
+
+ private:
+  /// Who moves: the motions and the loads riding with them; the bodies standing are placed.
+  void findMovers() {
+    load_of_.assign(step_.size(), -1);
+    std::vector<bool> rides(step_.size(), false), moving(decided_.size(), false);
+    for (size_t i = 0; i < step_.size(); ++i)
+      if (step_[i].isMotion() && (load_of_[i] = ridingLoad(spec_, step_, i, decided_)) >= 0)
+        rides[static_cast<size_t>(load_of_[i])] = true;
+    for (size_t i = 0; i < step_.size(); ++i) {
+      if (!step_[i].isMotion() || rides[i]) continue;
+      movers_.push_back(i);
+      moving[static_cast<size_t>(step_[i].entity)] = true;
+      if (load_of_[i] >= 0) moving[static_cast<size_t>(loadOf(i))] = true;
+    }
+    for (int e = 0; e < static_cast<int>(decided_.size()); ++e)
+      if (!moving[static_cast<size_t>(e)] && obstacle(e)) placed_.push_back(e);
+  }
+
+  int loadOf(size_t i) const { return load_of_[i] >= 0 ? step_[static_cast<size_t>(load_of_[i])].entity : -1; }
+  bool obstacle(int e) const { return spec_.footprint(e).obstacle; }
+  const Vector2d& decided(int e) const { return decided_[static_cast<size_t>(e)]; }
+
+  /// How far the body of e at p is inside the table's edges (metres; < 0: over one).
+  double edgeGap(int e, const Vector2d& p) const {
+    if (!table_) return std::numeric_limits<double>::infinity();
+    const Vector2d lo = p - table_->min(), hi = table_->max() - p;
+    return std::min({lo.x(), lo.y(), hi.x(), hi.y()}) - spec_.footprint(e).radius_m;
+  }
+  /// On the table, or no further over its edge than where the body was when decided.
+  bool onTable(int e, const Vector2d& p) const { return edgeGap(e, p) >= std::min(0.0, edgeGap(e, decided(e))); }
+
+  /// Free: on the table, and no closer than contact to a placed body (plus `gap` to any but
+  /// the motion's target; the target as near as the rule's end, `reach`, where the
+  /// demonstrations stop inside the footprints).
+  bool free(int entity, const Vector2d& at, int partner, int target, double gap, double reach) const {
+    if (!onTable(entity, at)) return false;
     if (!obstacle(entity)) return true;
-    for (int b : placed) {
-      const double contact = spec.contactDistance(entity, b);
-      if (b != partner && (at - ends[static_cast<size_t>(b)]).norm() <
+    for (int b : placed_) {
+      const double contact = spec_.contactDistance(entity, b);
+      if (b != partner && (at - ends_[static_cast<size_t>(b)]).norm() <
                               (b == target ? std::min(contact, reach) : contact + gap) - kSlack)
         return false;
     }
     return true;
-  };
-  const auto rotated = [](const Vector2d& v, double a) {
-    return Vector2d(std::cos(a) * v.x() - std::sin(a) * v.y(), std::sin(a) * v.x() + std::cos(a) * v.y());
-  };
-  for (size_t i : movers) {
-    const Token& t = step[i];
-    const Vector2d start = decided[static_cast<size_t>(t.entity)], target = decided[static_cast<size_t>(t.target)];
-    const int load = load_of[i] >= 0 ? step[static_cast<size_t>(load_of[i])].entity : -1;
-    // A gap wider than contact is kept; an end inside its target's footprint moves out to
-    // contact on its side (the footprints are what the safety filter and the collision judge
-    // hold bodies to), so a turn about the target keeps it touching the target.
-    Vector2d end = endPoint(spec, model, step, i, decided, step_index);
-    const double contact = spec.contactDistance(t.entity, t.target);
+  }
+
+  /// The rule's end of mover i and its load's. A gap wider than contact is kept; an end
+  /// inside its target's footprint moves out to contact on its side (the footprints are what
+  /// the safety filter and the collision judge hold bodies to), so a turn about the target
+  /// keeps it touching the target.
+  MoverEnd ruleEnd(size_t i) const {
+    const Token& t = step_[i];
+    const Vector2d start = decided(t.entity), target = decided(t.target);
+    const int load = loadOf(i);
+    Vector2d end = endPoint(spec_, model_, step_, i, decided_, step_index_);
+    const double contact = spec_.contactDistance(t.entity, t.target);
     if (load < 0 && obstacle(t.target) && obstacle(t.entity) && (end - target).norm() < contact) {
       const Vector2d side = (end - target).norm() >= kMinApproachM ? end - target : start - target;
       if (side.norm() >= kMinApproachM) end = target + contact * side.normalized();
@@ -340,45 +406,108 @@ std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel
     Vector2d load_end = Vector2d::Zero();
     if (load >= 0) {
       const Vector2d d = target - start;
-      const Vector2d u = d.norm() < kMinApproachM ? Vector2d(decided[static_cast<size_t>(load)] - start).normalized()
-                                                  : Vector2d(d.normalized());
-      load_end = end + spec.contactDistance(t.entity, load) * u;
+      const Vector2d u =
+          d.norm() < kMinApproachM ? Vector2d(decided(load) - start).normalized() : Vector2d(d.normalized());
+      load_end = end + spec_.contactDistance(t.entity, load) * u;
     }
-    // The rule's end point, else the nearest turn about the target that is free.
-    const double reach = std::max((end - target).norm(), contact), load_reach = (load_end - target).norm();
-    Vector2d e_best = end, l_best = load_end;
-    bool found = false;
-    for (int k = 0; !found && k * kEndTurnStepRad <= kMaxEndTurnRad + 1e-12; ++k)
+    return {end, load_end};
+  }
+
+  /// Mover i and its load fit at `at` (turned or shifted the same), keeping `gap` from bodies.
+  bool fits(size_t i, const MoverEnd& at, const MoverEnd& rule, double gap) const {
+    const Token& t = step_[i];
+    const int load = loadOf(i);
+    const Vector2d target = decided(t.target);
+    const double reach = std::max((rule.end - target).norm(), spec_.contactDistance(t.entity, t.target));
+    return free(t.entity, at.end, load, t.target, gap, reach) &&
+           (load < 0 || free(load, at.load_end, t.entity, t.target, gap, (rule.load_end - target).norm()));
+  }
+
+  /// The rule's end point, else the nearest turn about the target that is free.
+  std::optional<MoverEnd> turnedEnd(size_t i, const MoverEnd& rule) const {
+    const Vector2d target = decided(step_[i].target);
+    for (int k = 0; k * kEndTurnStepRad <= kMaxEndTurnRad + 1e-12; ++k)
       for (int sign : {1, -1}) {
         if (k == 0 && sign < 0) continue;
         const double angle = sign * k * kEndTurnStepRad;
-        const Vector2d e = target + rotated(end - target, angle), l = target + rotated(load_end - target, angle);
+        const MoverEnd turned{target + rotated(rule.end - target, angle),
+                              target + rotated(rule.load_end - target, angle)};
         // A turned end keeps kEndTurnGapM from the bodies it turned away from: it touches
         // its target only (what it touches says where it went).
-        const double gap = k == 0 ? 0.0 : kEndTurnGapM;
-        if (free(t.entity, e, load, t.target, gap, reach) &&
-            (load < 0 || free(load, l, t.entity, t.target, gap, load_reach))) {
-          e_best = e, l_best = l, found = true;
-          break;
-        }
+        if (fits(i, turned, rule, k == 0 ? 0.0 : kEndTurnGapM)) return turned;
       }
-    // Onto a goal already taken (turning about its centre changes nothing): stop short of
-    // it, on the way, where the body first fits.
-    const Vector2d back = end - start;
-    for (double off = kBackOffStepM; !found && off < back.norm(); off += kBackOffStepM) {
+    return std::nullopt;
+  }
+
+  /// Onto a goal already taken (turning about its centre changes nothing): short of it, on
+  /// the way, where the body first fits.
+  std::optional<MoverEnd> backedOffEnd(size_t i, const MoverEnd& rule) const {
+    const Vector2d back = rule.end - decided(step_[i].entity);
+    for (double off = kBackOffStepM; off < back.norm(); off += kBackOffStepM) {
       const Vector2d shift = -off * back.normalized();
-      if (free(t.entity, end + shift, load, t.target, 0, reach) &&
-          (load < 0 || free(load, load_end + shift, t.entity, t.target, 0, load_reach)))
-        e_best = end + shift, l_best = load_end + shift, found = true;
+      const MoverEnd shifted{rule.end + shift, rule.load_end + shift};
+      if (fits(i, shifted, rule, 0)) return shifted;
     }
-    ends[static_cast<size_t>(t.entity)] = e_best;
-    if (obstacle(t.entity)) placed.push_back(t.entity);
+    return std::nullopt;
+  }
+
+  void place(size_t i) {
+    const MoverEnd rule = ruleEnd(i);
+    std::optional<MoverEnd> found = turnedEnd(i, rule);
+    if (!found) found = backedOffEnd(i, rule);
+    const MoverEnd chosen = found.value_or(rule);
+    const int entity = step_[i].entity, load = loadOf(i);
+    ends_[static_cast<size_t>(entity)] = chosen.end;
+    if (obstacle(entity)) placed_.push_back(entity);
     if (load >= 0) {
-      ends[static_cast<size_t>(load)] = l_best;
-      if (obstacle(load)) placed.push_back(load);
+      ends_[static_cast<size_t>(load)] = chosen.load_end;
+      if (obstacle(load)) placed_.push_back(load);
     }
   }
-  return ends;
+
+  /// Movers i and j go to one body, each carrying nothing, both of one size.
+  bool meet(size_t i, size_t j) const {
+    const int a = step_[i].entity, b = step_[j].entity;
+    return step_[i].target == step_[j].target && obstacle(step_[i].target) && load_of_[i] < 0 && load_of_[j] < 0 &&
+           obstacle(a) && obstacle(b) && spec_.footprint(a).radius_m == spec_.footprint(b).radius_m;
+  }
+  /// Mover i's way to `p` round its target's contact disc.
+  double travel(size_t i, const Vector2d& p) const {
+    const int e = step_[i].entity, t = step_[i].target;
+    return wayRound(decided(e), p, decided(t), spec_.contactDistance(e, t));
+  }
+  bool swapIfShorter(size_t i, size_t j) {
+    if (!meet(i, j)) return false;
+    const int ei = step_[i].entity, ej = step_[j].entity;
+    Vector2d &pi = ends_[static_cast<size_t>(ei)], &pj = ends_[static_cast<size_t>(ej)];
+    if (!(travel(i, pj) + travel(j, pi) < travel(i, pi) + travel(j, pj) - kSlack && onTable(ei, pj) && onTable(ej, pi)))
+      return false;
+    std::swap(pi, pj);
+    return true;
+  }
+
+  const TaskSpec& spec_;
+  const EndPointModel& model_;
+  const std::vector<Token>& step_;
+  const std::vector<Vector2d>& decided_;
+  const std::optional<Eigen::AlignedBox2d>& table_;
+  const int step_index_;
+  std::vector<Vector2d> ends_;
+  std::vector<int> load_of_;    ///< per token, the token of the load riding with it, or -1
+  std::vector<size_t> movers_;  ///< tokens that move a body of their own
+  std::vector<int> placed_;     ///< bodies an end must keep clear of: standing, then ends placed
+};
+
+}  // namespace
+
+std::vector<Vector2d> stepEndPositions(const TaskSpec& spec, const EndPointModel& model, const std::vector<Token>& step,
+                                       const std::vector<Vector2d>& decided,
+                                       const std::optional<Eigen::AlignedBox2d>& table, int step_index,
+                                       MeetingPlaces meetings) {
+  StepEnds ends(spec, model, step, decided, table, step_index);
+  ends.placeMovers();
+  if (meetings == MeetingPlaces::ByLeastTravel) ends.assignMeetingPlaces();
+  return ends.ends();
 }
 
 }  // namespace ddace::task

@@ -8,6 +8,7 @@
 
 #include "ddace/common/error.h"
 #include "ddace/task/end_point.h"
+#include "ddace/task/meeting_places.h"
 #include "ddace/tasks/generators.h"
 #include "micrometres.h"
 
@@ -449,7 +450,8 @@ task::Demonstration simulateSteps(const task::TaskSpec& spec, const std::vector<
   for (size_t s = 0; s < steps.size(); ++s) {
     std::vector<task::Token> tokens;
     for (const auto& pt : steps[s]) tokens.push_back(pt.token);
-    const std::vector<Vector2d> ends = task::stepEndPositions(spec, motion.end_points, tokens, pos, kTable);
+    const std::vector<Vector2d> ends =
+        task::stepEndPositions(spec, motion.end_points, tokens, pos, kTable, -1, task::MeetingPlaces::InTokenOrder);
     const StepRoles r = roles(spec, tokens, pos);
     StepPaths sp(spec, pos, r, motion.push_loads);
     for (int i : r.movers) {

@@ -9,6 +9,7 @@
 
 #include "ddace/common/random.h"
 #include "ddace/task/end_point.h"
+#include "ddace/task/meeting_places.h"
 #include "ddace/tasks/generators.h"
 
 namespace ddace::tasks {
@@ -385,7 +386,7 @@ class Decider {
     if (steps_.empty() || applied_ == steps_.size()) return;
     std::vector<task::Token> tokens;
     for (const auto& m : steps_.back()) tokens.push_back({m.entity, m.action, m.target});
-    pos_ = task::stepEndPositions(spec_, end_points_, tokens, pos_, kTable);
+    pos_ = task::stepEndPositions(spec_, end_points_, tokens, pos_, kTable, -1, task::MeetingPlaces::InTokenOrder);
     applied_ = steps_.size();
   }
 

@@ -722,6 +722,75 @@ TEST(BodiesExecution, FourRobotsMeetingAtAFifthAllReachIt) {
   replayZoo("zoo:2", 10);
 }
 
+namespace {
+
+/// Five robots and a goal: R1..R4 meet at one of the robots.
+task::TaskSpec fiveRobots() {
+  return spec({{"R1", task::EntityKind::Robot},
+               {"R2", task::EntityKind::Robot},
+               {"R3", task::EntityKind::Robot},
+               {"R4", task::EntityKind::Robot},
+               {"R5", task::EntityKind::Robot},
+               {"G1", task::EntityKind::Goal}});
+}
+
+/// One step of every robot but `met` to robot `met`, from `at` (headings 0) on straight
+/// paths to the places task::stepEndPositions gives them: no failure, every robot within
+/// `tolerance_m` of its place, no collision.
+void expectMeetingReached(BodiesExecution& with, const std::vector<Vector2d>& at, int met, double tolerance_m) {
+  const task::TaskSpec s = fiveRobots();
+  std::vector<Pose2D> start;
+  for (const Vector2d& p : at) start.push_back({p.x(), p.y(), 0});
+  std::vector<task::Token> tokens;
+  for (int r = 0; r < 5; ++r)
+    if (r != met) tokens.push_back(token(r, met));
+  const std::vector<Vector2d> ends = task::stepEndPositions(s, {}, tokens, at);
+  std::vector<Path> paths;
+  for (const task::Token& t : tokens) paths.push_back(line(at[t.entity], ends[t.entity]));
+  const StepExecution a = runStep(with, s, start, tokens, paths);
+  EXPECT_TRUE(a.failures.empty()) << a.failures.front();
+  for (const task::Token& t : tokens)
+    EXPECT_TRUE(task::arrived(a.positions[t.entity], ends[t.entity], tolerance_m))
+        << s.entities[t.entity].name << " " << 100 * (a.positions[t.entity] - ends[t.entity]).norm()
+        << " cm from its place";
+  for (const BodyContact& c : with.report().collisions)
+    ADD_FAILURE() << "collision " << s.entities[c.a].name << "-" << s.entities[c.b].name << " at " << c.time_s << " s";
+}
+
+}  // namespace
+
+// Four robots meeting at a fifth, their places round it found in token order (zoo:2 test
+// scenes 4 and 6, step 1, the footprints' end points, straight paths): one place lies on the
+// far side of the met robot, past the places of others. Taken by the least total travel round
+// the met robot (task::stepEndPositions), every robot reaches its place (touching the met
+// robot, or queued behind one that does), with no collision. Each taken in token order, the robot bound for the far
+// side was held in another's place and that one by it (deadlocked).
+TEST(BodiesExecution, RobotsMeetingAtOneRobotTakeThePlacesTheyReach) {
+  const std::vector<std::vector<Vector2d>> meetings{
+      {{0.649, 0.891}, {0.198, 0.581}, {0.411, 0.080}, {0.493, 0.815}, {0.630, 0.316}, {0.1, 0.9}},
+      {{0.349, 0.280}, {0.773, 0.670}, {0.551, 0.194}, {0.263, 0.777}, {0.453, 0.899}, {0.1, 0.9}}};
+  for (const std::vector<Vector2d>& at : meetings) {
+    SCOPED_TRACE("meeting at " + std::to_string(at[2].x()) + ", " + std::to_string(at[2].y()));
+    BodiesExecution with = model(true);
+    expectMeetingReached(with, at, 2, 0.03);
+  }
+}
+
+// Four robots meeting at a fifth near the table's edge (zoo:14 test scene 1, step 1, the
+// footprints' end points, straight paths): R1's place lies behind R3's and R4's, in the pocket
+// between them, clear of R4's place. R4, its place beside R3's, would stop short of it while
+// R3 is on its way (within the stop radius) -- but there it would stand against R1's place,
+// so it ends at its own (exec::motionContacts) and R1 reaches its place. Stopping short, R4
+// held R1 11 cm from its place (deadlocked).
+TEST(BodiesExecution, ARobotStopsShortOfItsPlaceOnlyWhereItLeavesAnothersWayInOpen) {
+  const std::vector<Vector2d> at{{0.512, 0.135}, {0.485, 0.795}, {0.744, 0.142},
+                                 {0.251, 0.183}, {0.092, 0.496}, {0.634, 0.491}};
+  BodiesExecutionParams p;
+  p.noise_m = 0.002;
+  BodiesExecution with(p);
+  expectMeetingReached(with, at, 4, fiveRobots().arrival_radius);
+}
+
 // A met robot ringed in by the robots that met it, its way to its goal through them: it
 // leaves through the widest gap between two of them that its body fits with the filter's
 // margin (behind or beside it), then goes round them (without: held inside the ring and

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <optional>
 
 #include "ddace/common/error.h"
 #include "ddace/exec/coordinator.h"
@@ -653,34 +654,58 @@ TEST(CoordinatorIds, AreNeverZero) {
 // contact behind the load's end where its path stops; a carrier whose load rides, at that
 // contact. Judged at contact, a pushing carrier spent 2 of the 3 cm arrival radius backing
 // off, and a DONE from where it stands backed off and as far again on was ignored.
-TEST(CoordinatorPush, APushingCarrierIsJudgedWhereItStandsBackedOffItsLoad) {
-  tasks::GeneratorOptions o;
-  o.family = "fetch";
-  o.demos = 2;
-  o.seed = 3;
-  const task::TaskDir dir = tasks::generate(o);
+// A fetch (seed 3) replayed until its carry goes out: `run` holds the coordinator (without
+// recovery) and the carrier's and the load's segments.
+struct FetchCarry {
+  task::TaskDir dir = fetchTask();
   const task::Demonstration& demo = dir.demos.front();
   const int b1 = dir.spec.entityIndex("B1");
-  for (const bool ride : {true, false}) {
-    SCOPED_TRACE(ride ? "riding" : "pushed");
+  std::optional<Coordinator> c;
+  SegmentCommand robot, load;
+  size_t step = 0;  ///< the carry's step
+
+  static task::TaskDir fetchTask() {
+    tasks::GeneratorOptions o;
+    o.family = "fetch";
+    o.demos = 2;
+    o.seed = 3;
+    return tasks::generate(o);
+  }
+  /// Runs the steps before the carry (each arriving) and the carry's decision; false (with
+  /// a test failure) when no carry of B1 by one robot went out.
+  bool run(bool loads_ride) {
     CoordinatorConfig cfg = withoutRecovery();
-    cfg.loads_ride = ride;
-    Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};
-    c.onEntities(observe(demo.positions.front()), 0.0);
-    // The steps before the carry arrive.
-    CoordinatorOutput next = c.start(0.0);
+    cfg.loads_ride = loads_ride;
+    c.emplace(dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos));
+    c->onEntities(observe(demo.positions.front()), 0.0);
+    CoordinatorOutput next = c->start(0.0);
     std::vector<SegmentCommand> carry;
     for (double now = 0.1; next.decision && carry.empty(); now += 1) {
       const auto segs =
-          answerPaths(c, c.onDecision(next.decision->id, replayDecision(demo, next.decision->history), now), now);
+          answerPaths(*c, c->onDecision(next.decision->id, replayDecision(demo, next.decision->history), now), now);
       if (std::any_of(segs.begin(), segs.end(), [&](const SegmentCommand& g) { return g.entity == b1; })) carry = segs;
       for (const auto& g : segs)
-        if (carry.empty()) next = arriveDone(c, g, now + 0.5);
+        if (carry.empty()) next = arriveDone(*c, g, now + 0.5);
     }
-    ASSERT_EQ(carry.size(), 2u) << "the carrier and its load: " << c.reason();
-    const size_t k = c.steps().size() - 1;
-    const SegmentCommand& robot = carry[0].entity == b1 ? carry[1] : carry[0];
-    const SegmentCommand& load = carry[0].entity == b1 ? carry[0] : carry[1];
+    EXPECT_EQ(carry.size(), 2u) << "the carrier and its load: " << c->reason();
+    if (carry.size() != 2u) return false;
+    step = c->steps().size() - 1;
+    robot = carry[0].entity == b1 ? carry[1] : carry[0];
+    load = carry[0].entity == b1 ? carry[0] : carry[1];
+    return true;
+  }
+};
+
+TEST(CoordinatorPush, APushingCarrierIsJudgedWhereItStandsBackedOffItsLoad) {
+  for (const bool ride : {true, false}) {
+    SCOPED_TRACE(ride ? "riding" : "pushed");
+    FetchCarry f;
+    ASSERT_TRUE(f.run(ride));
+    Coordinator& c = *f.c;
+    const task::TaskDir& dir = f.dir;
+    const int b1 = f.b1;
+    const size_t k = f.step;
+    const SegmentCommand &robot = f.robot, &load = f.load;
     const Vector2d push_end = robot.path.points.back();
     const double contact = dir.spec.contactDistance(robot.entity, b1);
     ASSERT_NEAR((push_end - load.goal).norm(), contact, 1e-6) << "the push stops at contact behind the load's end";
@@ -709,30 +734,12 @@ TEST(CoordinatorPush, APushingCarrierIsJudgedWhereItStandsBackedOffItsLoad) {
 // record says so: scored against the planned place, with the box 3 cm off, the carrier was
 // "stopped 4-5 cm from its end point" in the simulator (zoo:41/direct-4mm scenes 7 and 8).
 TEST(CoordinatorPush, APushingCarrierIsJudgedBehindWhereItsLoadEnded) {
-  tasks::GeneratorOptions o;
-  o.family = "fetch";
-  o.demos = 2;
-  o.seed = 3;
-  const task::TaskDir dir = tasks::generate(o);
-  const task::Demonstration& demo = dir.demos.front();
-  const int b1 = dir.spec.entityIndex("B1");
-  CoordinatorConfig cfg = withoutRecovery();
-  cfg.loads_ride = false;
-  Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos)};
-  c.onEntities(observe(demo.positions.front()), 0.0);
-  CoordinatorOutput next = c.start(0.0);
-  std::vector<SegmentCommand> carry;
-  for (double now = 0.1; next.decision && carry.empty(); now += 1) {
-    const auto segs =
-        answerPaths(c, c.onDecision(next.decision->id, replayDecision(demo, next.decision->history), now), now);
-    if (std::any_of(segs.begin(), segs.end(), [&](const SegmentCommand& g) { return g.entity == b1; })) carry = segs;
-    for (const auto& g : segs)
-      if (carry.empty()) next = arriveDone(c, g, now + 0.5);
-  }
-  ASSERT_EQ(carry.size(), 2u) << "the carrier and its load: " << c.reason();
-  const size_t k = c.steps().size() - 1;
-  const SegmentCommand& robot = carry[0].entity == b1 ? carry[1] : carry[0];
-  const SegmentCommand& load = carry[0].entity == b1 ? carry[0] : carry[1];
+  FetchCarry f;
+  ASSERT_TRUE(f.run(/*loads_ride=*/false));
+  Coordinator& c = *f.c;
+  const int b1 = f.b1;
+  const size_t k = f.step;
+  const SegmentCommand &robot = f.robot, &load = f.load;
   const Vector2d away = (robot.path.points.back() - load.goal).normalized(), side(-away.y(), away.x());
   const Vector2d box = load.goal + 0.025 * side, behind = robot.goal + 0.025 * side;
   EntityObservation obs = c.observation();

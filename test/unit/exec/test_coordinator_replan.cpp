@@ -57,6 +57,32 @@ bool stops(const CoordinatorOutput& out, int entity) {
   return std::find(out.stop.begin(), out.stop.end(), entity) != out.stop.end();
 }
 
+/// `count` demonstrations of zoo:two-boxes (seed 3): two robots fetch the two boxes.
+task::TaskDir twoBoxes(int count) {
+  uint64_t rule = 0;
+  EXPECT_TRUE(tasks::parseZooFamily("zoo:two-boxes", rule));
+  return tasks::generateZoo(rule, count, 3);
+}
+
+/// Robots `a` and `b` half-way from `begun` to their ends `a_end`, `b_end`, observed at
+/// `now`; then a hand puts `box` down 5 cm from `mover` (a or b) on the side it came from, at
+/// one place with it (task::together), and nothing is at one place with the other robot.
+/// Returns the coordinator's output of that observation.
+CoordinatorOutput boxPutBesideOneOfTwo(Coordinator& c, std::vector<Vector2d>& at, const std::vector<Vector2d>& begun,
+                                       size_t a, const Vector2d& a_end, size_t b, const Vector2d& b_end, size_t box,
+                                       size_t mover, double now, const std::function<void(CoordinatorOutput)>& handle) {
+  const task::TaskSpec& spec = c.spec();
+  at[a] = (begun[a] + a_end) / 2;
+  at[b] = (begun[b] + b_end) / 2;
+  handle(c.onEntities(observe(at), now));
+  at[box] = at[mover] + 0.05 * (begun[mover] - at[mover]).normalized();
+  EXPECT_TRUE(task::together(spec, int(mover), at[mover], int(box), at[box]));
+  const size_t other = mover == a ? b : a;
+  for (size_t f = 0; f < at.size(); ++f)
+    EXPECT_TRUE(f == other || !task::together(spec, int(other), at[other], int(f), at[f]));
+  return c.onEntities(observe(at), now + 0.5);
+}
+
 struct Replan : ::testing::Test {
   task::TaskDir dir = task4();
   const task::Demonstration& demo = dir.demos.front();
@@ -486,9 +512,7 @@ TEST(Redecide, AStepWithAMotionNoDemonstrationHasAbortsNamingIt) {
 // step began (a robot part-way and at one place with nothing is read where it is), and the
 // decision after it reads the re-decided step's motion from where the step began.
 TEST(Redecide, ARobotAtOnePlaceWithItsMovedTargetIsReadWhereItsStepBegan) {
-  uint64_t rule = 0;
-  ASSERT_TRUE(tasks::parseZooFamily("zoo:two-boxes", rule));
-  const task::TaskDir dir = tasks::generateZoo(rule, 1, 3);
+  const task::TaskDir dir = twoBoxes(1);
   const task::TaskSpec& spec = dir.spec;
   const task::Demonstration& demo = dir.demos.front();
   Coordinator c{spec, CoordinatorConfig{}, task::learnEndPoints(spec, dir.demos)};  // reads the scene
@@ -499,14 +523,8 @@ TEST(Redecide, ARobotAtOnePlaceWithItsMovedTargetIsReadWhereItsStepBegan) {
   const auto a = static_cast<size_t>(segs[0].entity), b = static_cast<size_t>(segs[1].entity);
   const auto box = static_cast<size_t>(segs[0].token.target);
   // Both robots half-way; a hand puts robot a's box down 5 cm from it, on the side it came from.
-  at[a] = (begun[a] + segs[0].goal) / 2;
-  at[b] = (begun[b] + segs[1].goal) / 2;
-  c.onEntities(observe(at), 1.0);
-  at[box] = at[a] + 0.05 * (begun[a] - at[a]).normalized();
-  ASSERT_TRUE(task::together(spec, static_cast<int>(a), at[a], static_cast<int>(box), at[box]));
-  for (size_t f = 0; f < at.size(); ++f)
-    ASSERT_TRUE(f == b || !task::together(spec, static_cast<int>(b), at[b], static_cast<int>(f), at[f]));
-  const auto out = c.onEntities(observe(at), 1.5);
+  const auto out =
+      boxPutBesideOneOfTwo(c, at, begun, a, segs[0].goal, b, segs[1].goal, box, a, 1.0, [](CoordinatorOutput) {});
   ASSERT_TRUE(out.decision) << c.reason();
   ASSERT_EQ(out.decision->history.size(), 1u);
   const std::vector<Vector2d>& read = out.decision->history.back().positions;
@@ -537,9 +555,7 @@ TEST(Redecide, ARobotAtOnePlaceWithItsMovedTargetIsReadWhereItsStepBegan) {
 // ahead, sends another robot to the other box at once (it shares nothing with step 1); a
 // hand puts that box down beside it while step 1's robot is still on its way.
 TEST(Redecide, UnderAsyncAStepReDecidedWhileAnEarlierOneRunsReadsItsMoverWhereItBegan) {
-  uint64_t rule = 0;
-  ASSERT_TRUE(tasks::parseZooFamily("zoo:two-boxes", rule));
-  const task::TaskDir dir = tasks::generateZoo(rule, 4, 3);
+  const task::TaskDir dir = twoBoxes(4);
   const task::TaskSpec& spec = dir.spec;
   const task::Demonstration& demo = dir.demos.front();
   CoordinatorConfig cfg;
@@ -587,12 +603,11 @@ TEST(Redecide, UnderAsyncAStepReDecidedWhileAnEarlierOneRunsReadsItsMoverWhereIt
   ASSERT_EQ(asked.size(), 2u) << "step 2 asked ahead while step 1 runs";
   ASSERT_EQ(running.size(), 2u) << "step 2's robot left at once: " << c.reason();
   // Both half-way; the hand puts b's box down 5 cm from b, on the side it came from.
-  at[a] = (begun[a] + segmentOf(a).goal) / 2;
-  at[b] = (begun[b] + segmentOf(b).goal) / 2;
-  handle(c.onEntities(observe(at), now = 1.0));
-  at[box] = at[b] + 0.05 * (begun[b] - at[b]).normalized();
-  ASSERT_TRUE(task::together(spec, int(b), at[b], int(box), at[box]));
-  handle(c.onEntities(observe(at), now = 1.5));
+  now = 1.0;
+  const CoordinatorOutput put =
+      boxPutBesideOneOfTwo(c, at, begun, a, segmentOf(a).goal, b, segmentOf(b).goal, box, b, now, handle);
+  now = 1.5;
+  handle(put);
   ASSERT_EQ(c.redecisions(), 1) << c.reason();
   ASSERT_EQ(asked.size(), 3u);
   const DecisionRequest& again = asked[2];

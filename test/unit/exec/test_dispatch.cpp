@@ -71,6 +71,33 @@ TEST(Dispatch, AsyncStartsATokenWhenItsOwnPredecessorsAreDone) {
   EXPECT_DOUBLE_EQ(waits[1].start_s, 3);
 }
 
+// The record names who held a token past its release: Task 4's R4, released when R2 met it,
+// starts only once R3 (ending nearer G1) started: places at one target from the inside out.
+TEST(Dispatch, TheRecordNamesTheTokenOfItsStepAReleasedTokenWasHeldFor) {
+  const task::TaskDir dir = task4(1);
+  const task::TaskSpec& spec = dir.spec;
+  graph::Dependencies deps;
+  deps.learned = true;
+  exec::Dispatch d(spec, DispatchMode::Async, deps);
+  d.addStep(tokens(spec, {"R1:move:R3", "R2:move:R4"}), 0);
+  d.addStep(tokens(spec, {"R3:move:G1", "R4:move:G1"}), 0, {{}, {0}});
+  d.start({0, 0}, 0);
+  d.start({0, 1}, 0);
+  d.end({0, 1}, 2);  // R2 at R4: R4 released, held for R3
+  EXPECT_FALSE(d.ready({1, 1}));
+  d.end({0, 0}, 3);  // R1 at R3: R3 goes, then R4
+  d.start({1, 0}, 3);
+  d.start({1, 1}, 3);
+  const auto waits = d.waits();
+  ASSERT_EQ(waits.size(), 2u);
+  EXPECT_FALSE(waits[0].held) << "R3 started as it was released";
+  EXPECT_TRUE(waits[1].released_by == (TokenRef{0, 1}));
+  EXPECT_DOUBLE_EQ(waits[1].ready_s, 2);
+  EXPECT_TRUE(waits[1].held);
+  EXPECT_TRUE(waits[1].held_by == (TokenRef{1, 0})) << "held for R3:move:G1";
+  EXPECT_DOUBLE_EQ(waits[1].start_s, 3);
+}
+
 TEST(Dispatch, StepsWaitForEveryEarlierTokenAndAStepsRecordCanBeChecked) {
   const task::TaskDir dir = task4(1);
   graph::Dependencies deps;

@@ -335,6 +335,65 @@ TEST(PushPath, TheRouteGoesRoundBodiesStandingInTheWayOfThePush) {
   EXPECT_LT((path.back() - (hoop - contact_ball * last)).norm(), 1e-6) << "behind the ball on the hoop";
 }
 
+namespace {
+
+/// Task 3's step 3 on the table of bodies (a test scene of `ddace generate task3`): the
+/// defender R1 and the screen R2 stand between the ball B1 and the hoop G1; the shooter R3
+/// lies beside the ball, facing `shooter_heading`.
+struct ScreenScene {
+  Eigen::Vector2d defender, screen, hoop, ball, shooter;
+  double shooter_heading = 0;
+};
+
+task::TaskSpec screenTask() {
+  task::TaskSpec spec;
+  spec.name = "screen";
+  spec.entities = {{"R1", task::EntityKind::Robot, ""},
+                   {"R2", task::EntityKind::Robot, ""},
+                   {"R3", task::EntityKind::Robot, ""},
+                   {"B1", task::EntityKind::Object, ""},
+                   {"G1", task::EntityKind::Goal, ""}};
+  return spec;
+}
+
+/// The standing robots' reach for the ball's route: the carrier's contact with a robot.
+std::vector<PushObstacle> screenStanding(const ScreenScene& s) {
+  const double reach = 2 * task::kDefaultRobotRadius + kPushPassM;
+  return {{s.defender, reach}, {s.screen, reach}};
+}
+
+/// The shooter pushes the ball along its route round the standing robots: the ball ends on
+/// the hoop, and neither the ball nor the shooter touches a robot standing in the way.
+void expectBallPushedOntoTheHoop(const ScreenScene& s, bool others_stand) {
+  const task::TaskSpec spec = screenTask();
+  constexpr int R3 = 2, Ball = 3;
+  SimTable sim(spec,
+               {{s.defender.x(), s.defender.y(), -2.3},
+                {s.screen.x(), s.screen.y(), -0.6},
+                {s.shooter.x(), s.shooter.y(), s.shooter_heading},
+                {s.ball.x(), s.ball.y(), 0},
+                {s.hoop.x(), s.hoop.y(), 0}},
+               DiffDriveParams{});
+  const double contact = spec.contactDistance(R3, Ball), stop = task::stopRadius(task::kDefaultArrivalRadius);
+  RobotController shooter("R3", ControllerParams{});
+  shooter.start(PlannedPath{pushPath(s.shooter, s.ball, s.hoop, contact, s.hoop, 200, screenStanding(s)), {}}, "G1",
+                stop, stop);
+  MotionContacts contacts;
+  contacts.load = "B1", contacts.load_end = s.hoop, contacts.load_at = s.ball;
+  shooter.setContacts(contacts);
+  double closest = 1e9;
+  EXPECT_TRUE(runMotion(sim, spec, shooter, R3, 40.0, closest, others_stand));
+  for (int k = 0; k < 50; ++k) sim.step();  // the ball rolls to rest
+  const auto e = sim.entities();
+  EXPECT_LT((e[Ball].pose.position() - s.hoop).norm(), task::kDefaultArrivalRadius)
+      << "the ball at " << e[Ball].pose.position().transpose() << " after " << sim.time() << " s";
+  for (const BodyContact& c : sim.contacts())
+    if (std::max(c.a, c.b) >= R3 && std::min(c.a, c.b) < R3)
+      ADD_FAILURE() << spec.entities[c.a].name << " touched " << spec.entities[c.b].name << " at " << c.time_s << " s";
+}
+
+}  // namespace
+
 // Task 3's screen on the table of bodies: the shooter pushes the ball round the defender
 // and the screen standing between it and the hoop. The ball follows its carrier's whole
 // route, bend and all (exec::loadRoute): it reaches the hoop, and neither the ball nor the
@@ -342,99 +401,33 @@ TEST(PushPath, TheRouteGoesRoundBodiesStandingInTheWayOfThePush) {
 // ball was aimed through the screen and the shooter, never behind it by that leg, was held
 // at the ball: a deadlock.)
 TEST(PushPath, ABallPushedRoundRobotsStandingInTheWayReachesTheHoop) {
-  task::TaskSpec spec;
-  spec.name = "screen";
-  spec.entities = {{"R1", task::EntityKind::Robot, ""},
-                   {"R2", task::EntityKind::Robot, ""},
-                   {"R3", task::EntityKind::Robot, ""},
-                   {"B1", task::EntityKind::Object, ""},
-                   {"G1", task::EntityKind::Goal, ""}};
-  constexpr int R3 = 2, Ball = 3;
-  // As Task 3's step 3 begins (a test scene of `ddace generate task3`): the ball passed to
-  // the shooter lies at its side, the defender touches the shooter, the screen the defender.
-  const Eigen::Vector2d defender(0.440, 0.253), screen(0.385, 0.289), hoop(0.845, 0.886);
-  const Eigen::Vector2d ball(0.357, 0.219), shooter(0.400, 0.205);
-  const double contact = spec.contactDistance(R3, Ball);
-  SimTable sim(spec,
-               {{defender.x(), defender.y(), -2.3},
-                {screen.x(), screen.y(), -0.6},
-                {shooter.x(), shooter.y(), -2.78},
-                {ball.x(), ball.y(), 0},
-                {hoop.x(), hoop.y(), 0}},
-               DiffDriveParams{});
-  const double reach = 2 * task::kDefaultRobotRadius + kPushPassM;
-  const std::vector<PushObstacle> standing = {{defender, reach}, {screen, reach}};
-  ASSERT_GT(pushRoute(ball, hoop, standing).size(), 2u) << "the straight push runs into the screen";
-  const double stop = task::stopRadius(task::kDefaultArrivalRadius);
-  RobotController shooter_controller("R3", ControllerParams{});
-  shooter_controller.start(PlannedPath{pushPath(shooter, ball, hoop, contact, hoop, 200, standing), {}}, "G1", stop,
-                           stop);
-  MotionContacts contacts;
-  contacts.load = "B1", contacts.load_end = hoop, contacts.load_at = ball;
-  shooter_controller.setContacts(contacts);
-  double closest = 1e9;
-  EXPECT_TRUE(runMotion(sim, spec, shooter_controller, R3, 40.0, closest));
-  for (int k = 0; k < 50; ++k) sim.step();  // the ball rolls to rest
-  const auto e = sim.entities();
-  EXPECT_LT((e[Ball].pose.position() - hoop).norm(), task::kDefaultArrivalRadius)
-      << "the ball at " << e[Ball].pose.position().transpose() << " after " << sim.time() << " s";
-  for (const BodyContact& c : sim.contacts())
-    if (std::max(c.a, c.b) >= R3 && std::min(c.a, c.b) < R3)
-      ADD_FAILURE() << spec.entities[c.a].name << " touched " << spec.entities[c.b].name << " at " << c.time_s << " s";
+  // As the step begins: the ball passed to the shooter lies at its side, the defender
+  // touches the shooter, the screen the defender.
+  ScreenScene s;
+  s.defender = {0.440, 0.253}, s.screen = {0.385, 0.289}, s.hoop = {0.845, 0.886};
+  s.ball = {0.357, 0.219}, s.shooter = {0.400, 0.205}, s.shooter_heading = -2.78;
+  ASSERT_GT(pushRoute(s.ball, s.hoop, screenStanding(s)).size(), 2u) << "the straight push runs into the screen";
+  expectBallPushedOntoTheHoop(s, /*others_stand=*/false);
 }
 
-// Task 3's step 3 where the ball lies beside the screen (a test scene of `ddace generate
-// task3`): the straight push to the hoop runs into the defender and the screen, and the
-// ball starts 1.3 cm beyond contact with the screen. The route may pass the screen that
-// near only while leaving it; once round the defender's corner it keeps the screen at its
-// reach. Before, the leg from the defender's corner ran along the screen at 1.4 cm beyond
-// contact for the carrier as well, where the filter held the carrier off the screen and
-// the ball, pushed round the corner, drifted into it: the push broke again and again and
-// the ball stayed where it lay.
+// Task 3's step 3 where the ball lies beside the screen: the straight push to the hoop runs
+// into the defender and the screen, and the ball starts 1.3 cm beyond contact with the
+// screen. The route may pass the screen that near only while leaving it; once round the
+// defender's corner it keeps the screen at its reach. Before, the leg from the defender's
+// corner ran along the screen at 1.4 cm beyond contact for the carrier as well, where the
+// filter held the carrier off the screen and the ball, pushed round the corner, drifted
+// into it: the push broke again and again and the ball stayed where it lay.
 TEST(PushPath, ARouteLeavingABodyItStartsBesidePassesItAtItsReachOnceAway) {
-  task::TaskSpec spec;
-  spec.name = "screen";
-  spec.entities = {{"R1", task::EntityKind::Robot, ""},
-                   {"R2", task::EntityKind::Robot, ""},
-                   {"R3", task::EntityKind::Robot, ""},
-                   {"B1", task::EntityKind::Object, ""},
-                   {"G1", task::EntityKind::Goal, ""}};
-  constexpr int R3 = 2, Ball = 3;
-  const Eigen::Vector2d defender(0.442, 0.295), screen(0.390, 0.294), hoop(0.797, 0.903);
-  const Eigen::Vector2d ball(0.374, 0.241), shooter(0.415, 0.252);
-  const double contact = spec.contactDistance(R3, Ball);
-  const double reach = 2 * task::kDefaultRobotRadius + kPushPassM;
-  const std::vector<PushObstacle> standing = {{defender, reach}, {screen, reach}};
-  const std::vector<Eigen::Vector2d> route = pushRoute(ball, hoop, standing);
+  ScreenScene s;
+  s.defender = {0.442, 0.295}, s.screen = {0.390, 0.294}, s.hoop = {0.797, 0.903};
+  s.ball = {0.374, 0.241}, s.shooter = {0.415, 0.252}, s.shooter_heading = -3.01;
+  const std::vector<Eigen::Vector2d> route = pushRoute(s.ball, s.hoop, screenStanding(s));
   ASSERT_GT(route.size(), 2u) << "the straight push runs into the screen";
-  for (size_t k = 2; k < route.size(); ++k) {
-    const Eigen::Vector2d a = route[k - 1], b = route[k];
-    const double t = std::clamp((screen - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
-    EXPECT_GE((a + t * (b - a) - screen).norm(), reach - 1e-9) << "leg " << k << " runs along the screen";
-  }
-  SimTable sim(spec,
-               {{defender.x(), defender.y(), -2.3},
-                {screen.x(), screen.y(), -0.6},
-                {shooter.x(), shooter.y(), -3.01},
-                {ball.x(), ball.y(), 0},
-                {hoop.x(), hoop.y(), 0}},
-               DiffDriveParams{});
-  const double stop = task::stopRadius(task::kDefaultArrivalRadius);
-  RobotController shooter_controller("R3", ControllerParams{});
-  shooter_controller.start(PlannedPath{pushPath(shooter, ball, hoop, contact, hoop, 200, standing), {}}, "G1", stop,
-                           stop);
-  MotionContacts contacts;
-  contacts.load = "B1", contacts.load_end = hoop, contacts.load_at = ball;
-  shooter_controller.setContacts(contacts);
-  double closest = 1e9;
-  EXPECT_TRUE(runMotion(sim, spec, shooter_controller, R3, 40.0, closest, /*others_stand=*/true));
-  for (int k = 0; k < 50; ++k) sim.step();  // the ball rolls to rest
-  const auto e = sim.entities();
-  EXPECT_LT((e[Ball].pose.position() - hoop).norm(), task::kDefaultArrivalRadius)
-      << "the ball at " << e[Ball].pose.position().transpose() << " after " << sim.time() << " s";
-  for (const BodyContact& c : sim.contacts())
-    if (std::max(c.a, c.b) >= R3 && std::min(c.a, c.b) < R3)
-      ADD_FAILURE() << spec.entities[c.a].name << " touched " << spec.entities[c.b].name << " at " << c.time_s << " s";
+  const double reach = screenStanding(s)[1].reach_m;
+  for (size_t k = 2; k < route.size(); ++k)
+    EXPECT_GE(distanceToSegment(s.screen, route[k - 1], route[k]), reach - 1e-9)
+        << "leg " << k << " runs along the screen";
+  expectBallPushedOntoTheHoop(s, /*others_stand=*/true);
 }
 
 // A pushed relay's hand-over leaves the box between the two robots: the giver behind it,
@@ -510,4 +503,89 @@ TEST(PushPath, AReceiverWhoseContactNormalPointsAtTheGiverGoesRoundTheBoxFirst) 
     EXPECT_FALSE(k.a == R2 || k.b == R2) << spec.entities[k.a].name << " touched " << spec.entities[k.b].name << " at "
                                          << k.time_s << " s";
   EXPECT_LT((sim.entities()[B1].pose.position() - goal).norm(), task::kDefaultArrivalRadius);
+}
+
+namespace {
+
+struct PlannedAgain {
+  bool done = false;
+  int held_by_r2 = 0;  ///< cycles in which the filter held R1 against R2
+  int touched_r2 = 0;  ///< contacts anybody made with R2
+  Eigen::Vector2d box{0, 0};
+};
+
+/// R1 at `carrier` (facing up) pushes B1 onto G1 at `goal`, its push planned for B1 at
+/// `planned_box` with R2 standing at `stander`, but B1 lies at `box`: the controller plans the
+/// push again at once, R2 seen standing; at most 60 s.
+PlannedAgain pushPlannedAgain(const Eigen::Vector2d& carrier, const Eigen::Vector2d& planned_box,
+                              const Eigen::Vector2d& box, const Eigen::Vector2d& goal, const Eigen::Vector2d& stander) {
+  const task::TaskSpec spec = fetchTask();
+  constexpr int R2 = 1;
+  const double contact = spec.contactDistance(R1, B1);
+  const std::vector<PushObstacle> standing{{stander, spec.contactDistance(R1, R2) + kPushPassM}};
+  const double stop = task::stopRadius(task::kDefaultArrivalRadius);
+  SimTable sim(spec,
+               {{carrier.x(), carrier.y(), M_PI / 2},
+                {stander.x(), stander.y(), 0},
+                {box.x(), box.y(), 0},
+                {goal.x(), goal.y(), 0}},
+               DiffDriveParams{});
+  RobotController c("R1", ControllerParams{});
+  const Eigen::Vector2d end = goal - contact * (goal - planned_box).normalized();
+  c.start(PlannedPath{pushPath(carrier, planned_box, goal, contact, end, 200, standing), {}}, "G1", stop, stop);
+  MotionContacts to_goal;
+  to_goal.load = "B1", to_goal.load_end = goal, to_goal.load_at = planned_box;
+  c.setContacts(to_goal);
+  PlannedAgain out;
+  for (; sim.time() < 60.0 && !out.done; sim.step()) {
+    const auto e = sim.entities();
+    std::vector<SafetyBody> others;
+    for (const int i : {R2, B1}) {
+      others.push_back({e[i].name, e[i].pose.position(), spec.footprint(i).radius_m, i == R2});
+      others.back().standing = true;
+    }
+    const ControlOutput o = c.cycle(e[R1].pose, false, 0.0, spec.footprint(R1).radius_m, others, sim.time());
+    sim.drive("R1", o.wheels, "test");
+    out.held_by_r2 += std::count(o.blocking.begin(), o.blocking.end(), "R2") > 0 ? 1 : 0;
+    out.done = o.state == MotionState::Done;
+    if (o.state == MotionState::Failed) break;
+  }
+  for (int k = 0; k < 50; ++k) sim.step();  // the box slides to rest
+  for (const BodyContact& k : sim.contacts()) out.touched_r2 += k.a == R2 || k.b == R2 ? 1 : 0;
+  out.box = sim.entities()[B1].pose.position();
+  return out;
+}
+
+/// The push planned again ended with B1 on its goal, R1 never held against R2, nobody touching R2.
+void expectPushedPastTheStander(const PlannedAgain& r, const Eigen::Vector2d& goal) {
+  EXPECT_TRUE(r.done);
+  EXPECT_EQ(r.held_by_r2, 0) << "cycles in which the filter held R1 against R2";
+  EXPECT_EQ(r.touched_r2, 0);
+  EXPECT_LT((r.box - goal).norm(), task::kDefaultArrivalRadius) << "the box at " << r.box.transpose();
+}
+
+}  // namespace
+
+// The box moved since its push was planned (a hand, or it slid off its carrier's front):
+// the carrier plans its push again from where things are, and a robot stands on the short
+// way round the box. The push planned again goes round the bodies standing as the first
+// plan did -- here the long way, below the box: the robot standing there never holds the
+// carrier, and the box ends on its goal with nobody touching that robot. (Planned again
+// with no standing bodies, the path went over the top through the robot, and the filter
+// held the carrier against it for 30 cycles before passing it.)
+TEST(PushPath, APushPlannedAgainGoesRoundTheRobotsStandingAsTheFirstPlanDid) {
+  const Eigen::Vector2d goal(0.8, 0.4);
+  const PlannedAgain r = pushPlannedAgain({0.38, 0.43}, {0.3, 0.37}, {0.3, 0.4}, goal, {0.3, 0.5});
+  expectPushedPastTheStander(r, goal);
+}
+
+// As above, the robot standing behind the box where its push planned again would take its
+// run-up: the push planned again leads the box out from beside that robot first, as a first
+// plan does (exec::withRunUp), and the box ends on its goal. (Along the rest of the old route
+// the carrier was held against the robot for 54 cycles and its motion ended with the box 48
+// cm short of its goal.)
+TEST(PushPath, APushPlannedAgainWhoseRunUpARobotStandsInLeadsTheBoxOutFirst) {
+  const Eigen::Vector2d goal(0.8, 0.4);
+  const PlannedAgain r = pushPlannedAgain({0.38, 0.34}, {0.3, 0.34}, {0.3, 0.4}, goal, {0.22, 0.38});
+  expectPushedPastTheStander(r, goal);
 }

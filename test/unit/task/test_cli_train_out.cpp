@@ -313,89 +313,93 @@ ToolRun trainWith(const std::string& family, const std::string& name, const std:
   return runTool("train '" + data(family) + "/train' --out '" + root() + "/" + name + "' " + flags);
 }
 
-ddace::tgn::ModelInfo infoOf(const std::string& name) {
-  return ddace::tgn::SequenceModel::load(root() + "/" + name).info();
+/// What a training run printed and the model it wrote.
+struct Trained {
+  ToolRun run;
+  ddace::tgn::ModelInfo info;
+};
+
+/// trainWith, expected to succeed: a failed run is a test failure (and an empty model).
+Trained trained(const std::string& family, const std::string& name, const std::string& flags) {
+  Trained t{trainWith(family, name, flags), {}};
+  if (t.run.status != 0) ADD_FAILURE() << "train " << name << " " << flags << " failed:\n" << t.run.out;
+  else t.info = ddace::tgn::SequenceModel::load(root() + "/" + name).info();
+  return t;
+}
+
+bool says(const ToolRun& r, const std::string& text) {
+  return r.out.find(text) != std::string::npos;
+}
+
+/// trainWith, expected to be refused with `message` in its output and no model written.
+void expectRefused(const std::string& family, const std::string& name, const std::string& flags,
+                   const std::string& message) {
+  const ToolRun r = trainWith(family, name, flags);
+  EXPECT_NE(r.status, 0) << r.out;
+  EXPECT_TRUE(says(r, message)) << "expected '" << message << "' in:\n" << r.out;
+  EXPECT_FALSE(fs::exists(root() + "/" + name + "/manifest.yaml"));
 }
 
 }  // namespace
 
 TEST(CliTrainFlags, EpochsBoundTheRunAndQuietLeavesOutTheEpochLines) {
-  const ToolRun loud = trainWith("task1", "epochs3", "--epochs 3");
-  ASSERT_EQ(loud.status, 0) << loud.out;
-  EXPECT_NE(loud.out.find("epoch 1/3 "), std::string::npos) << loud.out;
-  EXPECT_NE(loud.out.find("epoch 3/3 "), std::string::npos) << loud.out;
-  EXPECT_NE(loud.out.find("stopped after 3 epochs (max_epochs)"), std::string::npos) << loud.out;
-  EXPECT_EQ(infoOf("epochs3").history.size(), 3u);
-  const ToolRun quiet = trainWith("task1", "quiet", "--epochs 3 --quiet");
-  ASSERT_EQ(quiet.status, 0) << quiet.out;
-  EXPECT_EQ(quiet.out.find("epoch 1/3"), std::string::npos) << quiet.out;
-  EXPECT_NE(quiet.out.find("stopped after 3 epochs (max_epochs)"), std::string::npos) << quiet.out;
+  const Trained loud = trained("task1", "epochs3", "--epochs 3");
+  EXPECT_TRUE(says(loud.run, "epoch 1/3 ")) << loud.run.out;
+  EXPECT_TRUE(says(loud.run, "epoch 3/3 ")) << loud.run.out;
+  EXPECT_TRUE(says(loud.run, "stopped after 3 epochs (max_epochs)")) << loud.run.out;
+  EXPECT_EQ(loud.info.history.size(), 3u);
+  const Trained quiet = trained("task1", "quiet", "--epochs 3 --quiet");
+  EXPECT_FALSE(says(quiet.run, "epoch 1/3")) << quiet.run.out;
+  EXPECT_TRUE(says(quiet.run, "stopped after 3 epochs (max_epochs)")) << quiet.run.out;
 }
 
 TEST(CliTrainFlags, PatienceIsHowLongALossPlateauLastsBeforeTrainingStops) {
   // The same run stops at a plateau with a short patience, and runs to --epochs with one
   // longer than half of them (a plateau needs twice the patience in epochs).
-  const ToolRun brief = trainWith("task1", "patience2", "--epochs 120 --patience 2 --quiet");
-  ASSERT_EQ(brief.status, 0) << brief.out;
-  const ddace::tgn::ModelInfo stopped = infoOf("patience2");
-  EXPECT_EQ(stopped.stop_reason, "plateau") << brief.out;
-  EXPECT_LT(stopped.history.size(), 120u);
-  EXPECT_EQ(stopped.options.plateau_patience, 2);
-  const ToolRun long_one = trainWith("task1", "patience61", "--epochs 120 --patience 61 --quiet");
-  ASSERT_EQ(long_one.status, 0) << long_one.out;
-  EXPECT_EQ(infoOf("patience61").stop_reason, "max_epochs") << long_one.out;
-  EXPECT_EQ(infoOf("patience61").history.size(), 120u);
+  const Trained brief = trained("task1", "patience2", "--epochs 120 --patience 2 --quiet");
+  EXPECT_EQ(brief.info.stop_reason, "plateau") << brief.run.out;
+  EXPECT_LT(brief.info.history.size(), 120u);
+  EXPECT_EQ(brief.info.options.plateau_patience, 2);
+  const Trained long_one = trained("task1", "patience61", "--epochs 120 --patience 61 --quiet");
+  EXPECT_EQ(long_one.info.stop_reason, "max_epochs") << long_one.run.out;
+  EXPECT_EQ(long_one.info.history.size(), 120u);
 }
 
 TEST(CliTrainFlags, ASeedMakesTheSameWeightsAndAnotherSeedOthers) {
-  for (const std::string name : {"seed5a", "seed5b", "seed6"}) {
-    const ToolRun r = trainWith("task1", name, "--epochs 2 --quiet --seed " + name.substr(4, 1));
-    ASSERT_EQ(r.status, 0) << r.out;
-  }
-  EXPECT_EQ(infoOf("seed5a").options.seed, 5u);
+  for (const std::string name : {"seed5a", "seed5b", "seed6"})
+    trained("task1", name, "--epochs 2 --quiet --seed " + name.substr(4, 1));
+  EXPECT_EQ(ddace::tgn::SequenceModel::load(root() + "/seed5a").info().options.seed, 5u);
   EXPECT_EQ(fileBytes(root() + "/seed5a/weights.pt"), fileBytes(root() + "/seed5b/weights.pt"));
   EXPECT_NE(fileBytes(root() + "/seed5a/weights.pt"), fileBytes(root() + "/seed6/weights.pt"));
-  const ToolRun negative = trainWith("task1", "seed_negative", "--epochs 2 --seed -1");
-  EXPECT_NE(negative.status, 0) << negative.out;
-  EXPECT_NE(negative.out.find("option --seed: must be non-negative"), std::string::npos) << negative.out;
+  expectRefused("task1", "seed_negative", "--epochs 2 --seed -1", "option --seed: must be non-negative");
 }
 
 TEST(CliTrainFlags, WithoutSwitchesOffTheRulesItNames) {
   // nearest_goal's rule is stated by the scene: by default an ensemble with the relative
   // features; --without ensemble trains one network,
   // --without relative a model of its own task's entities only.
-  const ToolRun usual = trainWith("nearest_goal", "rules_all", "--epochs 2 --quiet");
-  ASSERT_EQ(usual.status, 0) << usual.out;
-  EXPECT_EQ(infoOf("rules_all").plan.ensemble, ddace::tgn::kEnsembleMembers);
-  EXPECT_TRUE(infoOf("rules_all").plan.relative_features);
-  const ToolRun one = trainWith("nearest_goal", "rules_one", "--epochs 2 --quiet --without ensemble");
-  ASSERT_EQ(one.status, 0) << one.out;
-  EXPECT_EQ(infoOf("rules_one").plan.ensemble, 1);
-  EXPECT_TRUE(infoOf("rules_one").plan.relative_features);
-  const ToolRun named = trainWith("nearest_goal", "rules_named", "--epochs 2 --quiet --without relative,ensemble");
-  ASSERT_EQ(named.status, 0) << named.out;
-  EXPECT_FALSE(infoOf("rules_named").plan.relative_features);
-  EXPECT_NE(named.out.find("transfer: runs on its own task's entities only: trained without the relative features"),
-            std::string::npos)
-      << named.out;
-  const ToolRun unknown = trainWith("nearest_goal", "rules_unknown", "--epochs 2 --without ensembles");
-  EXPECT_NE(unknown.status, 0) << unknown.out;
-  EXPECT_NE(unknown.out.find("option --without: "), std::string::npos) << unknown.out;
+  const Trained usual = trained("nearest_goal", "rules_all", "--epochs 2 --quiet");
+  EXPECT_EQ(usual.info.plan.ensemble, ddace::tgn::kEnsembleMembers);
+  EXPECT_TRUE(usual.info.plan.relative_features);
+  const Trained one = trained("nearest_goal", "rules_one", "--epochs 2 --quiet --without ensemble");
+  EXPECT_EQ(one.info.plan.ensemble, 1);
+  EXPECT_TRUE(one.info.plan.relative_features);
+  const Trained named = trained("nearest_goal", "rules_named", "--epochs 2 --quiet --without relative,ensemble");
+  EXPECT_FALSE(named.info.plan.relative_features);
+  EXPECT_TRUE(says(named.run, "transfer: runs on its own task's entities only: trained without the relative features"))
+      << named.run.out;
+  expectRefused("nearest_goal", "rules_unknown", "--epochs 2 --without ensembles", "option --without: ");
 }
 
 TEST(CliTrainFlags, VariantChoosesTheNetwork) {
-  const ToolRun paper = trainWith("task4", "variant_paper", "--epochs 2 --quiet --variant paper");
-  ASSERT_EQ(paper.status, 0) << paper.out;
-  EXPECT_EQ(infoOf("variant_paper").variant, ddace::tgn::Variant::Paper);
-  EXPECT_NE(paper.out.find("training variant 'paper'"), std::string::npos) << paper.out;
-  EXPECT_NE(paper.out.find("motion primitives: "), std::string::npos) << paper.out;
+  const Trained paper = trained("task4", "variant_paper", "--epochs 2 --quiet --variant paper");
+  EXPECT_EQ(paper.info.variant, ddace::tgn::Variant::Paper);
+  EXPECT_TRUE(says(paper.run, "training variant 'paper'")) << paper.run.out;
+  EXPECT_TRUE(says(paper.run, "motion primitives: ")) << paper.run.out;
   // gnn rolls out motions itself: no GP primitives are fitted.
-  const ToolRun gnn = trainWith("task4", "variant_gnn", "--epochs 2 --quiet --variant gnn");
-  ASSERT_EQ(gnn.status, 0) << gnn.out;
-  EXPECT_EQ(infoOf("variant_gnn").variant, ddace::tgn::Variant::Gnn);
-  EXPECT_EQ(gnn.out.find("motion primitives: "), std::string::npos) << gnn.out;
+  const Trained gnn = trained("task4", "variant_gnn", "--epochs 2 --quiet --variant gnn");
+  EXPECT_EQ(gnn.info.variant, ddace::tgn::Variant::Gnn);
+  EXPECT_FALSE(says(gnn.run, "motion primitives: ")) << gnn.run.out;
   EXPECT_FALSE(fs::exists(root() + "/variant_gnn/primitives.yaml"));
-  const ToolRun unknown = trainWith("task4", "variant_unknown", "--epochs 2 --variant big");
-  EXPECT_NE(unknown.status, 0) << unknown.out;
-  EXPECT_NE(unknown.out.find("option --variant: "), std::string::npos) << unknown.out;
+  expectRefused("task4", "variant_unknown", "--epochs 2 --variant big", "option --variant: ");
 }

@@ -299,3 +299,40 @@ TEST(EndPoint, EndsDemonstratedAtSeveralSidesOfTheTargetAreLearnedAtTheirDistanc
   EXPECT_NEAR(m.by_key.at("R1:move:R3").offset.norm(), contact, 1e-9);
   EXPECT_TRUE(stopGaps(spec, m, ds).empty()) << stopGaps(spec, m, ds).front().str();
 }
+
+// Robots meeting at one robot take the places found round it by the least total travel round
+// it: no robot's way to its place crosses another's. Here R1 (from the left) is placed
+// first, R4 (from below) next; R2, coming from between them, finds its own side taken and
+// its place turned to the far side of R1 -- across R1's way in, each to be held in the
+// other's place. The places are the same; R1 takes the far one and R2 R1's.
+TEST(StepEndPositions, RobotsMeetingAtOneRobotTakeThePlacesThereWithoutCrossing) {
+  const TaskSpec spec = parseTaskYaml(
+      "format: ddace-task/1\nentities:\n  - {name: R1, kind: robot, type: hamster}\n"
+      "  - {name: R2, kind: robot, type: hamster}\n  - {name: R3, kind: robot, type: hamster}\n"
+      "  - {name: R4, kind: robot, type: hamster}\n  - {name: G1, kind: goal}\n",
+      "task.yaml");
+  const int r1 = 0, r2 = 1, r3 = 2, r4 = 3;
+  const Vector2d met(0.5, 0.5);
+  const auto from = [&](double degrees) {
+    const double a = degrees * M_PI / 180;
+    return Vector2d(met + 0.3 * Vector2d(std::cos(a), std::sin(a)));
+  };
+  const std::vector<Vector2d> at = {from(180), from(190), met, from(250), {0.9, 0.9}};
+  const std::vector<Token> step = {{r1, "move", r3}, {r4, "move", r3}, {r2, "move", r3}};
+  const auto ends = stepEndPositions(spec, EndPointModel{}, step, at);
+  const double contact = spec.contactDistance(r1, r3);
+  for (const int e : {r1, r2, r4}) {
+    EXPECT_NEAR((ends[e] - met).norm(), contact, 1e-9) << spec.entities[e].name << " touches R3";
+    for (const int o : {r1, r2, r4})
+      if (o != e) {
+        EXPECT_GE((ends[e] - ends[o]).norm(), spec.contactDistance(e, o) - 1e-9) << "places overlap";
+      }
+  }
+  for (const int a : {r1, r2, r4})
+    for (const int b : {r1, r2, r4})
+      if (a < b) {
+        EXPECT_GE((at[a] - at[b]).dot(ends[a] - ends[b]), 0.0)
+            << spec.entities[a].name << " and " << spec.entities[b].name << " cross each other's way to their places";
+      }
+  EXPECT_NEAR((ends[r2] - met).normalized().dot(Vector2d(-1, 0)), 1.0, 1e-9) << "R2 takes the place left of R3";
+}
