@@ -76,6 +76,11 @@ EndScene endSceneFor(const EndScene& end, const task::TaskSpec& trained, const t
 /// empty: none) does not hold; 1 once every count holds, where they tell the end; else `p`.
 double endProbability(double p, const EndScene& end, const std::vector<bool>& waits, const task::TaskSpec& spec,
                       const std::vector<Eigen::Vector2d>& pos);
+/// What the scene at `pos` (task order) lacks of `end`, entities counted as at one place
+/// through neighbours too (placesOf; a carrier behind the load it pushed onto a goal is at the
+/// goal): per count that does not hold, "N <kind> with <with> (M here)" ("with another" where
+/// the kinds are the same), joined by "; ". "" when every count holds (or `end` has none).
+std::string endSceneShort(const EndScene& end, const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& pos);
 /// Each entity's last move, the relational basis's (the latest step of `history`'s first
 /// `count` snapshots in which it moved more than the arrival radius): the node it went to (the
 /// entity ahead it stopped where a motion toward it ends), or -1 (never moved, or nothing lay

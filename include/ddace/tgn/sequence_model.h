@@ -286,6 +286,10 @@ struct Prediction {
   double end_probability = 0;
   std::vector<task::Token> tokens;          ///< the next step, sorted by entity: at least one token, none when end
   std::vector<double> token_probabilities;  ///< one per token: p(action) * p(target)
+  /// When end: what the scene lacks of the end scene every demonstration had (EndScene;
+  /// detail::endSceneShort), "" when it holds or the model has none. Such an END does not
+  /// finish the task: evaluation and the coordinator's policy answer take it as an abort.
+  std::string end_short;
 };
 
 /// Size and SHA-256 of one file of a model directory, as the manifest records it.

@@ -67,9 +67,18 @@ DemonstratedTokens SequenceModel::Impl::demonstratedTokens() const {
 double SequenceModel::Impl::endProbability(double p_end, const std::vector<Eigen::Vector2d>& pos) const {
   const EndScene& end = info.plan.end_scene;
   if (end.counts.empty()) return p_end;
-  std::vector<Eigen::Vector2d> in_task_order(pos.size());
-  for (size_t c = 0; c < pos.size(); ++c) in_task_order[static_cast<size_t>(order.task_of[c])] = pos[c];
-  return detail::endProbability(p_end, end, end_waits, spec, in_task_order);
+  return detail::endProbability(p_end, end, end_waits, spec, inTaskOrder(pos));
+}
+
+std::string SequenceModel::Impl::endSceneShort(const std::vector<Eigen::Vector2d>& pos) const {
+  const EndScene& end = info.plan.end_scene;
+  return end.counts.empty() ? "" : detail::endSceneShort(end, spec, inTaskOrder(pos));
+}
+
+std::vector<Eigen::Vector2d> SequenceModel::Impl::inTaskOrder(const std::vector<Eigen::Vector2d>& pos) const {
+  std::vector<Eigen::Vector2d> out(pos.size());
+  for (size_t c = 0; c < pos.size(); ++c) out[static_cast<size_t>(order.task_of[c])] = pos[c];
+  return out;
 }
 
 std::vector<detail::Load> SequenceModel::Impl::loadsAt(const std::vector<Eigen::Vector2d>& pos) const {
@@ -368,7 +377,10 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
   Prediction p;
   p.end_probability = kept.p_end;
   p.end = decision.end;
-  if (p.end) return p;
+  if (p.end) {
+    p.end_short = m.endSceneShort(canonical.back());
+    return p;
+  }
   const std::vector<detail::DecodedToken>& step = decision.tokens;
   std::vector<std::pair<task::Token, double>> scored;
   for (int64_t i = 0; i < n; ++i) {
