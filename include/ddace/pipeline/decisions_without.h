@@ -26,7 +26,7 @@ class DecisionsWithout {
   /// team without `lost` (task indices; empty: the model's own). Throws ddace::Error naming
   /// the lost entities when the model cannot be bound without them (a fixed order, a kind
   /// left empty) or an index lies outside the task, and with unfinishedEnd's reason for an
-  /// END that does not finish the task.
+  /// END of the team without `lost` that does not finish the task.
   tgn::Prediction predict(const std::vector<task::Snapshot>& history, const std::vector<int>& lost);
 
  private:
@@ -39,7 +39,7 @@ class DecisionsWithout {
 /// Why the END of `p` does not finish the task, "" when it does (or `p` is no END): the scene
 /// lacks what every demonstration's last scene had (tgn::Prediction::end_short), naming
 /// `lost` (the lost robots, "" for none) as the reason the team cannot go on. The run
-/// aborts with it (DecisionsWithout::predict throws it; evaluation does not count the END).
+/// aborts with it (DecisionsWithout::predict throws it for a team with robots lost).
 std::string unfinishedEnd(const tgn::Prediction& p, const std::string& lost);
 
 }  // namespace ddace::pipeline

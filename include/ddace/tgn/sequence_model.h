@@ -287,8 +287,8 @@ struct Prediction {
   std::vector<task::Token> tokens;          ///< the next step, sorted by entity: at least one token, none when end
   std::vector<double> token_probabilities;  ///< one per token: p(action) * p(target)
   /// When end: what the scene lacks of the end scene every demonstration had (EndScene;
-  /// detail::endSceneShort), "" when it holds or the model has none. Such an END does not
-  /// finish the task: evaluation and the coordinator's policy answer take it as an abort.
+  /// detail::endSceneShort), "" when it holds or the model has none. With robots lost, such
+  /// an END does not finish the task (pipeline::unfinishedEnd): the run aborts naming them.
   std::string end_short;
 };
 

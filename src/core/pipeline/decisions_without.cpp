@@ -13,6 +13,8 @@ DecisionsWithout::DecisionsWithout(const tgn::SequenceModel& model) : model_(mod
 
 namespace {
 
+/// `p` for the team without `lost`: never an END the scene says leaves the task undone (a
+/// team smaller than the demonstrations' cannot count on the END head's count of the steps).
 tgn::Prediction finishing(tgn::Prediction p, const std::string& lost) {
   const std::string why = unfinishedEnd(p, lost);
   if (!why.empty()) throw Error(why);
@@ -22,7 +24,7 @@ tgn::Prediction finishing(tgn::Prediction p, const std::string& lost) {
 }  // namespace
 
 tgn::Prediction DecisionsWithout::predict(const std::vector<task::Snapshot>& history, const std::vector<int>& lost) {
-  if (lost.empty()) return finishing(model_.predictNext(history), "");
+  if (lost.empty()) return model_.predictNext(history);
   const task::TaskSpec& spec = model_.spec();
   const int n = static_cast<int>(spec.entities.size());
   std::string names;

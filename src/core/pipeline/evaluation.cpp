@@ -13,7 +13,6 @@
 #include "ddace/common/sha256.h"
 #include "ddace/exec/bodies_execution.h"
 #include "ddace/exec/diff_drive_execution.h"
-#include "ddace/pipeline/decisions_without.h"
 #include "ddace/pipeline/perturbation.h"
 #include "ddace/task/end_point.h"
 
@@ -286,7 +285,6 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
                                                            : model.primitives->endPoints();
   for (const auto& gt : test.demos) {
     exec::Trial trial;
-    std::string unfinished;  // an END that does not finish the task: the run aborts there
     if (gnn) {
       // Room for the ground truth plus two more steps' worth of frames, as the spec's limit.
       const int max_rows = static_cast<int>(gt.rows() * (gt.steps.size() + 2) / std::max<size_t>(1, gt.steps.size()));
@@ -297,17 +295,12 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
       const auto policy = [&](const std::vector<task::Snapshot>& history) {
         step = static_cast<int>(history.size()) - 1;
         const tgn::Prediction p = model.sequence.predictNext(history);
-        unfinished = unfinishedEnd(p, "");
         return exec::Decision{p.end, p.tokens};
       };
       const auto paths = [&](const task::Token& token, const Eigen::Vector2d& s, const Eigen::Vector2d& g) {
         return model.primitives->generate(token, s, g, 100, options.paths_by_name ? -1 : step).points;
       };
       trial = exec::runTrial(spec, gt, policy, paths, *execution, ends);
-      if (trial.ended && !unfinished.empty()) {
-        trial.ended = false;
-        trial.failures.push_back("not finished: " + unfinished);
-      }
     }
     if (options.execution == "diffdrive" && !bodies && !gnn) {
       std::vector<std::vector<task::Token>> steps;
@@ -321,9 +314,7 @@ Evaluation evaluate(const Model& model, const task::TaskDir& test, const EvalOpt
       e.waits.push_back(describeWaits(d, spec));
     }
     e.scores.push_back(eval::scoreTrial(spec, gt, trial, gnn));
-    const std::string difference = firstDifference(spec, gt.steps, trial.predicted);
-    e.first_difference.push_back(difference.empty() && !unfinished.empty() ? "not finished: " + unfinished
-                                                                           : difference);
+    e.first_difference.push_back(firstDifference(spec, gt.steps, trial.predicted));
     e.trials.push_back(std::move(trial));
   }
   e.summary = eval::summarise(e.scores);
