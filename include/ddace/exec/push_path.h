@@ -95,7 +95,8 @@ struct PushObstacle {
 /// evenly spaced by arc length (at least 2). Where the run-up is taken (a body of `standing`
 /// within the filter's margin, kPushNearPassM, of the carrier behind the load), the route
 /// first leads the load out from beside that body, in the way that keeps the run-up free
-/// and lets the carrier go round the load at the turn, whose carrier's path is shortest.
+/// and lets the carrier go round the load at the turn, whose carrier's path is shortest;
+/// where the carrier stands boxed in at the load (withRunUp), it pushes the load out first.
 /// A load already at its end point (within task::kMinApproachM) is not pushed: from
 /// straight to `from`'s own end, `fallback_end`.
 std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::Vector2d& load,
@@ -136,8 +137,13 @@ std::vector<Eigen::Vector2d> pushPathAlong(const Eigen::Vector2d& from, const st
 /// `load_route` (corners, the first where the load stands, the last its end point) where a
 /// carrier at `from` can take its run-up behind the load; where a body of `standing` takes
 /// it, a route that first leads the load out from beside that body, then on to its end
-/// (as pushPath plans it; `load_route` when no way out is free). The one rule of a push
-/// planned and planned again (exec::RobotController).
+/// (as pushPath plans it; `load_route` when no way out is free). A carrier boxed in at its
+/// load -- at contact with it, a body of `standing` within its reach, not behind the load
+/// for `load_route` and no way round the load free of `standing` (the way out from the
+/// load through the carrier passes that body nearer than it stands: the filter would let
+/// it neither drive on nor turn) -- pushes the load out first, straight on along their
+/// contact normal as far as it then goes round the load freely, then on to its end. The
+/// one rule of a push planned and planned again (exec::RobotController).
 std::vector<Eigen::Vector2d> withRunUp(const Eigen::Vector2d& from, std::vector<Eigen::Vector2d> load_route,
                                        double contact_m, const std::vector<PushObstacle>& standing);
 

@@ -196,37 +196,103 @@ bool normalRunsIntoBody(const Eigen::Vector2d& load, const Eigen::Vector2d& norm
   return along_normal < 0 && along_normal < pushed(heading) - kPushNearPassM;
 }
 
+/// The route of a load at `load` led out along `way` (a unit vector) before it is pushed on
+/// to `load_end`: out as far as the carrier then goes round the load freely (a push planned
+/// again at the turn), the run-up of the rest (pushRoute from the turn) free, then on;
+/// nothing when the load would run into a body first or no turn is free within kMaxLeadOutM.
+std::optional<std::vector<Eigen::Vector2d>> ledOutAlong(const Eigen::Vector2d& load, const Eigen::Vector2d& way,
+                                                        const Eigen::Vector2d& load_end, double contact_m,
+                                                        const std::vector<PushObstacle>& standing) {
+  constexpr double kLeadOutStepM = 0.01, kMaxLeadOutM = 0.3;
+  for (double out_m = kLeadOutStepM; out_m <= kMaxLeadOutM; out_m += kLeadOutStepM) {
+    const Eigen::Vector2d turn = load + out_m * way;
+    if (!keepsClear(load, turn, passable(standing, load, turn))) return std::nullopt;  // into a body
+    if (!roundFree(turn, contact_m, standing)) continue;
+    const std::vector<Eigen::Vector2d> on = distinct(pushRoute(turn, load_end, standing));
+    if (on.size() < 2 || !runUpFree(turn, firstHeading(on), contact_m, standing)) return std::nullopt;
+    std::vector<Eigen::Vector2d> route{load};
+    route.insert(route.end(), on.begin(), on.end());
+    return route;
+  }
+  return std::nullopt;
+}
+
 /// A route for a load whose run-up is taken by a body standing behind it (a relay's giver
 /// that handed it on, the box between the two robots): first out from beside that body
-/// along one of kLeadOutWays whose run-up keeps every standing body at its reach, as far as
-/// the carrier then goes round the load freely (a push planned again at the turn), then on
-/// to `load_end` (pushRoute). Of those, the one whose carrier's whole path (pushPathAlong
-/// from `from`) is shortest; nothing when no way is free within kMaxLeadOutM.
+/// along one of kLeadOutWays whose run-up keeps every standing body at its reach
+/// (ledOutAlong). Of those, the one whose carrier's whole path (pushPathAlong from `from`)
+/// is shortest; nothing when no way is free.
 std::optional<std::vector<Eigen::Vector2d>> leadOutRoute(const Eigen::Vector2d& from, const Eigen::Vector2d& load,
                                                          const Eigen::Vector2d& load_end, double contact_m,
                                                          const std::vector<PushObstacle>& standing) {
   constexpr int kLeadOutWays = 24;
-  constexpr double kLeadOutStepM = 0.01, kMaxLeadOutM = 0.3;
   std::optional<std::vector<Eigen::Vector2d>> best;
   double shortest = std::numeric_limits<double>::infinity();
   for (int k = 0; k < kLeadOutWays; ++k) {
     const Eigen::Vector2d way(std::cos(2 * M_PI * k / kLeadOutWays), std::sin(2 * M_PI * k / kLeadOutWays));
     if (!runUpFree(load, way, contact_m, standing)) continue;
-    for (double out_m = kLeadOutStepM; out_m <= kMaxLeadOutM; out_m += kLeadOutStepM) {
-      const Eigen::Vector2d turn = load + out_m * way;
-      if (!keepsClear(load, turn, passable(standing, load, turn))) break;  // the load would run into a body
-      if (!roundFree(turn, contact_m, standing)) continue;
-      const std::vector<Eigen::Vector2d> on = distinct(pushRoute(turn, load_end, standing));
-      if (on.size() < 2 || !runUpFree(turn, firstHeading(on), contact_m, standing)) break;
-      std::vector<Eigen::Vector2d> route{load};
-      route.insert(route.end(), on.begin(), on.end());
-      constexpr int kMeasuredPoints = 200;  // the carrier's path drawn to measure its length
-      const double driven = length(pushPathAlong(from, route, contact_m, kMeasuredPoints, standing));
-      if (driven < shortest) shortest = driven, best = route;
-      break;
-    }
+    const auto route = ledOutAlong(load, way, load_end, contact_m, standing);
+    if (!route) continue;
+    constexpr int kMeasuredPoints = 200;  // the carrier's path drawn to measure its length
+    const double driven = length(pushPathAlong(from, *route, contact_m, kMeasuredPoints, standing));
+    if (driven < shortest) shortest = driven, best = route;
   }
   return best;
+}
+
+/// A carrier's way from `from` to the circle of `radius` round the load at `load`, reached
+/// at bearing `arrive`, then round it by `turn` radians.
+std::vector<Eigen::Vector2d> roundFrom(const Eigen::Vector2d& from, const Eigen::Vector2d& load, double radius,
+                                       double arrive, double turn) {
+  std::vector<Eigen::Vector2d> arc{from};
+  const int steps = static_cast<int>(std::ceil(std::abs(turn) / kPushArcStepRad));
+  for (int k = 0; k <= steps; ++k) arc.push_back(onCircle(load, radius, arrive + turn * k / std::max(steps, 1)));
+  return arc;
+}
+
+/// The way of a carrier at `from` round its load at `load` on the circle of `radius` to the
+/// run-up at bearing `behind`: out to the circle along the ray from the load (or in, from
+/// afar), round it the shorter way, else the longer, whichever is free of `standing`
+/// (passed no nearer than the carrier stands, passable); nothing when neither is.
+std::optional<std::vector<Eigen::Vector2d>> freeWayRound(const Eigen::Vector2d& from, const Eigen::Vector2d& load,
+                                                         double radius, double behind,
+                                                         const std::vector<PushObstacle>& standing) {
+  const double bearing = std::atan2(from.y() - load.y(), from.x() - load.x());
+  const double shorter = wrapAngle(behind - bearing);
+  const std::vector<PushObstacle> bodies = passable(standing, from, onCircle(load, radius, behind));
+  for (const double turn : {shorter, shorter - std::copysign(2 * M_PI, shorter)}) {
+    std::vector<Eigen::Vector2d> way = roundFrom(from, load, radius, bearing, turn);
+    if (keepsClear(way, bodies)) return way;
+  }
+  return std::nullopt;
+}
+
+/// The run-up's bearing from the load at the start of `route` (behind where the push first
+/// heads it).
+double runUpBearing(const std::vector<Eigen::Vector2d>& route) {
+  const Eigen::Vector2d w = firstHeading(route);
+  return std::atan2(-w.y(), -w.x());
+}
+
+/// A route for a load whose carrier at `from` stands at it boxed in: a body stands within
+/// its reach there, it may not push the load along `route` from there and has no free way
+/// round it to the run-up (freeWayRound), but it may push it straight on along their
+/// contact normal: out that way first (ledOutAlong), then round it and on. Nothing where
+/// the carrier is not so boxed in, or no way out is.
+std::optional<std::vector<Eigen::Vector2d>> pushedOutRoute(const Eigen::Vector2d& from,
+                                                           const std::vector<Eigen::Vector2d>& route, double contact_m,
+                                                           const std::vector<PushObstacle>& standing) {
+  const Eigen::Vector2d& load = route.front();
+  const Eigen::Vector2d normal = load - from;
+  const bool beside_body = std::any_of(standing.begin(), standing.end(),
+                                       [&](const PushObstacle& o) { return (o.centre - from).norm() < o.reach_m; });
+  if (!beside_body || normal.norm() < 1e-9 || normal.norm() > contact_m + kPushClearanceM / 3 ||
+      pushMayStartHere(from, load, route, contact_m, standing) ||
+      freeWayRound(from, load, contact_m + kPushClearanceM, runUpBearing(route), standing))
+    return std::nullopt;
+  const auto out = ledOutAlong(load, normal.normalized(), route.back(), contact_m, standing);
+  if (!out || !pushMayStartHere(from, load, *out, contact_m, standing)) return std::nullopt;
+  return out;
 }
 
 }  // namespace
@@ -285,7 +351,9 @@ std::vector<Eigen::Vector2d> pushPath(const Eigen::Vector2d& from, const Eigen::
 std::vector<Eigen::Vector2d> withRunUp(const Eigen::Vector2d& from, std::vector<Eigen::Vector2d> load_route,
                                        double contact_m, const std::vector<PushObstacle>& standing) {
   load_route = distinct(load_route);
-  if (load_route.size() < 2 || !runUpTaken(load_route, contact_m, standing)) return load_route;
+  if (load_route.size() < 2) return load_route;
+  if (auto out = pushedOutRoute(from, load_route, contact_m, standing)) return *out;
+  if (!runUpTaken(load_route, contact_m, standing)) return load_route;
   return leadOutRoute(from, load_route.front(), load_route.back(), contact_m, standing).value_or(load_route);
 }
 
@@ -296,9 +364,8 @@ std::vector<Eigen::Vector2d> pushPathAlong(const Eigen::Vector2d& from, const st
   if (route.size() < 2) throw Error("a push route needs two distinct points");
   const Eigen::Vector2d load = route.front();
   // The run-up lies behind the load from where the push first heads it (pushAim).
-  const Eigen::Vector2d w = firstHeading(route);
   const double radius = contact_m + kPushClearanceM;
-  const double behind = std::atan2(-w.y(), -w.x());  // the run-up's bearing from the load
+  const double behind = runUpBearing(route);
   std::vector<Eigen::Vector2d> out{from};
   const Eigen::Vector2d rel = from - load;
   if (push_from_behind && pushMayStartHere(from, load, route, contact_m, standing)) {
@@ -309,17 +376,8 @@ std::vector<Eigen::Vector2d> pushPathAlong(const Eigen::Vector2d& from, const st
     // Out to the circle (or in, from afar), round it to the run-up: the shorter way unless
     // only the longer one is free of the standing bodies.
     const double bearing = std::atan2(rel.y(), rel.x());
-    const double shorter = wrapAngle(behind - bearing);
-    const auto round = [&](double turn) {
-      std::vector<Eigen::Vector2d> arc{from};
-      const int steps = static_cast<int>(std::ceil(std::abs(turn) / kPushArcStepRad));
-      for (int k = 0; k <= steps; ++k) arc.push_back(onCircle(load, radius, bearing + turn * k / std::max(steps, 1)));
-      return arc;
-    };
-    out = round(shorter);
-    const double longer = shorter - std::copysign(2 * M_PI, shorter);
-    const std::vector<PushObstacle> bodies = passable(standing, from, out.back());
-    if (!keepsClear(out, bodies) && keepsClear(round(longer), bodies)) out = round(longer);
+    out = freeWayRound(from, load, radius, behind, standing)
+              .value_or(roundFrom(from, load, radius, bearing, wrapAngle(behind - bearing)));
   } else {
     out.push_back(onCircle(load, radius, behind));
   }

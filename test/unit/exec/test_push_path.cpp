@@ -325,7 +325,7 @@ TEST(PushPath, TheRouteGoesRoundBodiesStandingInTheWayOfThePush) {
     EXPECT_GE(distanceToSegment(screen, route[k - 1], route[k]), near_screen - 1e-9) << "leg " << k;
   }
 
-  const std::vector<Eigen::Vector2d> path = pushPath(shooter, ball, hoop, contact_ball, hoop, 400, standing);
+  const std::vector<Eigen::Vector2d> path = pushPathAlong(shooter, route, contact_ball, 400, standing);
   for (size_t k = 1; k + 1 < route.size(); ++k) {
     double nearest = 1e9;
     for (const Eigen::Vector2d& p : path) nearest = std::min(nearest, (p - route[k]).norm());
@@ -588,4 +588,20 @@ TEST(PushPath, APushPlannedAgainWhoseRunUpARobotStandsInLeadsTheBoxOutFirst) {
   const Eigen::Vector2d goal(0.8, 0.4);
   const PlannedAgain r = pushPlannedAgain({0.38, 0.34}, {0.3, 0.34}, {0.3, 0.4}, goal, {0.22, 0.38});
   expectPushedPastTheStander(r, goal);
+}
+
+// Task 3's step 3 with the shooter boxed in (test scene 1 of `ddace generate task3`): the
+// ball lies west of the shooter at contact, the defender stands north-east of the shooter
+// 7.6 mm beyond contact and the screen north of the ball. The push heads the ball east, so
+// the run-up lies west of the ball, and every way round the ball starts through the
+// defender's margin: the filter lets the shooter neither drive on nor turn. The shooter
+// pushes the ball out west first, straight on from where it stands, then goes round it and
+// pushes it on: the ball reaches the hoop and nobody touches the defender or the screen.
+// (Planned round the ball from where it stood, north through both robots, the shooter was
+// held at once: a deadlock against the defender and the ball.)
+TEST(PushPath, ACarrierBoxedInBesideItsLoadPushesItOutFirst) {
+  ScreenScene s;
+  s.defender = {0.480, 0.253}, s.screen = {0.432, 0.276}, s.hoop = {0.860, 0.791};
+  s.ball = {0.420, 0.214}, s.shooter = {0.461, 0.205}, s.shooter_heading = -3.08;
+  expectBallPushedOntoTheHoop(s, /*others_stand=*/true);
 }
