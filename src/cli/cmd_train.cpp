@@ -132,7 +132,7 @@ DDACE_COMMAND(
     {"train",
      "ddace train TASKDIR --out MODELDIR [--force] [--variant scene|paper|full-graph|gnn] [--epochs N=400] "
      "[--seed S=1] [--threads T=1] [--patience P=20] "
-     "[--without relative,fixed-order,shuffled-names,token-by-token,parked,ensemble,end-scene] [--quiet]",
+     "[--without relative,fixed-order,shuffled-names,token-by-token,parked,ensemble,end-scene,next-targets] [--quiet]",
      "train the temporal graph network (one progress line per epoch) and fit the GP motion primitives into MODELDIR "
      "(refused when it holds anything else; --force replaces an earlier model); prints what the model can run on "
      "besides its task's entities (other numbers of robots, goals, boxes: docs/tgn.md)",

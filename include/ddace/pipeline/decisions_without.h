@@ -5,10 +5,12 @@
 // positions; its tokens name the task's entities again. The one answer of `ddace eval
 // --perturb robot_lost` and of the sequence node.
 //
-// Owns: the reduced team and the binding. Must not: decide who is lost (the coordinator).
+// Owns: the reduced team and the binding; whether an END finishes the task (unfinishedEnd). Must not: decide who is
+// lost (the coordinator).
 #pragma once
 
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "ddace/task/demonstration.h"
@@ -23,7 +25,8 @@ class DecisionsWithout {
   /// The model's prediction from `history` (every entity of the task, oldest first) for the
   /// team without `lost` (task indices; empty: the model's own). Throws ddace::Error naming
   /// the lost entities when the model cannot be bound without them (a fixed order, a kind
-  /// left empty) or an index lies outside the task.
+  /// left empty) or an index lies outside the task, and with unfinishedEnd's reason for an
+  /// END of the team without `lost` that does not finish the task.
   tgn::Prediction predict(const std::vector<task::Snapshot>& history, const std::vector<int>& lost);
 
  private:
@@ -32,5 +35,11 @@ class DecisionsWithout {
   std::vector<int> bound_lost_;
   std::vector<int> kept_;  ///< the reduced team's entities, by task index
 };
+
+/// Why the END of `p` does not finish the task, "" when it does (or `p` is no END): the scene
+/// lacks what every demonstration's last scene had (tgn::Prediction::end_short), naming
+/// `lost` (the lost robots, "" for none) as the reason the team cannot go on. The run
+/// aborts with it (DecisionsWithout::predict throws it for a team with robots lost).
+std::string unfinishedEnd(const tgn::Prediction& p, const std::string& lost);
 
 }  // namespace ddace::pipeline

@@ -76,6 +76,27 @@ EndScene endSceneFor(const EndScene& end, const task::TaskSpec& trained, const t
 /// empty: none) does not hold; 1 once every count holds, where they tell the end; else `p`.
 double endProbability(double p, const EndScene& end, const std::vector<bool>& waits, const task::TaskSpec& spec,
                       const std::vector<Eigen::Vector2d>& pos);
+/// What the scene at `pos` (task order) lacks of `end`, entities counted as at one place
+/// through neighbours too (placesOf; a carrier behind the load it pushed onto a goal is at the
+/// goal): per count that does not hold, "N <kind> with <with> (M here)" ("with another" where
+/// the kinds are the same), joined by "; ". "" when every count holds (or `end` has none).
+std::string endSceneShort(const EndScene& end, const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& pos);
+/// Each entity's last move, the relational basis's (the latest step of `history`'s first
+/// `count` snapshots in which it moved more than the arrival radius): the node it went to (the
+/// entity ahead it stopped where a motion toward it ends), or -1 (never moved, or nothing lay
+/// ahead). Nodes in `entity_of`'s order (entity_of[i]: node i's entity of `spec`).
+std::vector<int> lastMoves(const task::TaskSpec& spec, const std::vector<int>& entity_of,
+                           const std::vector<Eigen::Vector2d>* history, size_t count);
+/// "Next targets": every transition of `train`'s tokens (NextTarget): an acting entity's
+/// kind, the kind its last move went to as the step began (lastMoves), its target's kind.
+std::vector<NextTarget> nextTargetsOf(const task::TaskDir& train);
+/// Under `rule` (TrainingPlan::next_targets), per node and target slot [n][n + 1] (slot 0 in
+/// place, k node k-1; nodes as lastMoves'): may it take that target next. An entity whose
+/// kind took no token after a last move to its last move's kind is not restricted (nothing
+/// was shown), nor is any where `rule` is empty.
+std::vector<bool> nextTargetsAllowed(const std::vector<NextTarget>& rule, const task::TaskSpec& spec,
+                                     const std::vector<int>& entity_of, const std::vector<Eigen::Vector2d>* history,
+                                     size_t count);
 /// The counts a count of training follows to another task: each (training count, other
 /// count) it equals; the least of the other counts, or -1 when it equals none.
 int followedCount(int count, const std::vector<std::pair<int, int>>& trained_and_other);

@@ -48,6 +48,7 @@
 #include <memory>
 #include <set>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "ddace/graph/dependencies.h"
@@ -105,6 +106,7 @@ enum class Rule {
   Parked,         ///< "parked": parked entities are no rivals in the nearness ranks
   Ensemble,       ///< "ensemble": networks trained from several seeds vote on each decoded step
   EndScene,       ///< "end-scene": END waits for what every demonstration's last scene had
+  NextTargets,    ///< "next-targets": an entity points next only at kinds its kind pointed at after such a move
 };
 const char* toString(Rule r);
 /// Throws ddace::Error listing the names for an unknown one.
@@ -205,6 +207,17 @@ struct EndScene {
   bool operator==(const EndScene& o) const { return counts == o.counts && telling == o.telling; }
 };
 
+/// One transition of "Next targets" (docs/tgn.md): an entity of `kind` (kindKey) whose last
+/// move went to an entity of kind `after` ("none": it never moved, or to nothing) took a
+/// token at an entity of kind `target` ("none": in place).
+struct NextTarget {
+  std::string kind, after, target;
+  bool operator==(const NextTarget& o) const { return kind == o.kind && after == o.after && target == o.target; }
+  bool operator<(const NextTarget& o) const {
+    return std::tie(kind, after, target) < std::tie(o.kind, o.after, o.target);
+  }
+};
+
 /// "Ensemble" (docs/tgn.md): where the scene decides the steps, this many networks from
 /// different seeds decide together (each decodes the step, the majority's is kept); a
 /// manifest holds at most kMaxEnsemble and exactly what training makes (1 or this).
@@ -242,6 +255,9 @@ struct TrainingPlan {
   StepRules step_rules;  ///< scene: learned from the training steps; else none
   /// Scene, where the scene decides (relative features): when a run is over ("End scene").
   EndScene end_scene;
+  /// Scene, where the scene decides: every transition the training tokens took ("Next
+  /// targets"; detail::nextTargetsOf), sorted. Empty: no such rule (a manifest without it).
+  std::vector<NextTarget> next_targets;
   std::vector<graph::Edge> attention_edges;  ///< directed edges the network attends over (no self-loops)
   /// The same plan for the network without the identity embedding (no names to shuffle).
   TrainingPlan withoutIdentity() const;
@@ -257,7 +273,7 @@ struct TrainingPlan {
            identity_embedding == o.identity_embedding && names_or_scene == o.names_or_scene &&
            name_groups == o.name_groups && token_by_token == o.token_by_token &&
            parked_out_of_ranks == o.parked_out_of_ranks && ensemble == o.ensemble && step_rules == o.step_rules &&
-           end_scene == o.end_scene && attention_edges == o.attention_edges;
+           end_scene == o.end_scene && next_targets == o.next_targets && attention_edges == o.attention_edges;
   }
 };
 
@@ -270,6 +286,10 @@ struct Prediction {
   double end_probability = 0;
   std::vector<task::Token> tokens;          ///< the next step, sorted by entity: at least one token, none when end
   std::vector<double> token_probabilities;  ///< one per token: p(action) * p(target)
+  /// When end: what the scene lacks of the end scene every demonstration had (EndScene;
+  /// detail::endSceneShort), "" when it holds or the model has none. With robots lost, such
+  /// an END does not finish the task (pipeline::unfinishedEnd): the run aborts naming them.
+  std::string end_short;
 };
 
 /// Size and SHA-256 of one file of a model directory, as the manifest records it.

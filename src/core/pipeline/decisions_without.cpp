@@ -11,6 +11,18 @@ namespace ddace::pipeline {
 
 DecisionsWithout::DecisionsWithout(const tgn::SequenceModel& model) : model_(model) {}
 
+namespace {
+
+/// `p` for the team without `lost`: never an END the scene says leaves the task undone (a
+/// team smaller than the demonstrations' cannot count on the END head's count of the steps).
+tgn::Prediction finishing(tgn::Prediction p, const std::string& lost) {
+  const std::string why = unfinishedEnd(p, lost);
+  if (!why.empty()) throw Error(why);
+  return p;
+}
+
+}  // namespace
+
 tgn::Prediction DecisionsWithout::predict(const std::vector<task::Snapshot>& history, const std::vector<int>& lost) {
   if (lost.empty()) return model_.predictNext(history);
   const task::TaskSpec& spec = model_.spec();
@@ -54,7 +66,14 @@ tgn::Prediction DecisionsWithout::predict(const std::vector<task::Snapshot>& his
     t.entity = kept_.at(static_cast<size_t>(t.entity));
     if (t.target >= 0) t.target = kept_.at(static_cast<size_t>(t.target));
   }
-  return p;
+  return finishing(std::move(p), names);
+}
+
+std::string unfinishedEnd(const tgn::Prediction& p, const std::string& lost) {
+  if (!p.end || p.end_short.empty()) return "";
+  return (lost.empty() ? std::string("END") : lost + " is lost and END for the team left") +
+         " would leave the task undone: every demonstration ended with " + p.end_short +
+         (lost.empty() ? "" : "; no decision without it");
 }
 
 }  // namespace ddace::pipeline

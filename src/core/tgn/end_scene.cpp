@@ -1,7 +1,9 @@
 // "End scene" (docs/tgn.md): when a run is over, from what the last scene of every training
 // demonstration had in common, counted by kind so that it holds for other team sizes. No torch.
 #include <algorithm>
+#include <map>
 #include <set>
+#include <string>
 
 #include "ddace/task/end_point.h"
 #include "ddace/tgn/detail.h"
@@ -10,17 +12,46 @@ namespace ddace::tgn::detail {
 
 namespace {
 
+/// How many entities of `c.kind` are with one of `c.with` in `counts` (endCountsOf).
+int countHere(const std::map<std::pair<std::string, std::string>, int>& counts, const EndCount& c) {
+  const auto it = counts.find({c.kind, c.with});
+  return it == counts.end() ? 0 : it->second;
+}
+
 bool holds(const EndScene& end, const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& pos) {
   const auto counts = endCountsOf(spec, pos);
-  return std::all_of(end.counts.begin(), end.counts.end(), [&](const EndCount& c) {
-    const auto it = counts.find({c.kind, c.with});
-    return it != counts.end() && it->second >= c.count;
-  });
+  return std::all_of(end.counts.begin(), end.counts.end(),
+                     [&](const EndCount& c) { return countHere(counts, c) >= c.count; });
 }
 
 int ofKind(const task::TaskSpec& spec, const std::string& kind) {
   return static_cast<int>(std::count_if(spec.entities.begin(), spec.entities.end(),
                                         [&](const task::Entity& e) { return kindKey(e) == kind; }));
+}
+
+/// task::togetherDistance of every pair of `spec`'s entities, [N * N].
+std::vector<double> togetherDistances(const task::TaskSpec& spec) {
+  const int n = static_cast<int>(spec.entities.size());
+  std::vector<double> together(static_cast<size_t>(n * n), 0.0);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      if (i != j) together[static_cast<size_t>(i * n + j)] = task::togetherDistance(spec, i, j);
+  return together;
+}
+
+/// endCountsOf with entities at one place through neighbours too (placesOf): a carrier
+/// behind the load it pushed onto a goal is at the goal.
+std::map<std::pair<std::string, std::string>, int> placeCountsOf(const task::TaskSpec& spec,
+                                                                 const std::vector<Eigen::Vector2d>& pos) {
+  const std::vector<int> place_of = placesOf(pos, togetherDistances(spec));
+  std::map<std::pair<std::string, std::string>, int> counts;
+  for (size_t e = 0; e < pos.size(); ++e) {
+    std::set<std::string> with;
+    for (size_t f = 0; f < pos.size(); ++f)
+      if (f != e && place_of[f] == place_of[e]) with.insert(kindKey(spec.entities[f]));
+    for (const auto& w : with) ++counts[{kindKey(spec.entities[e]), w}];
+  }
+  return counts;
 }
 
 }  // namespace
@@ -43,10 +74,7 @@ std::vector<int> placesOf(const std::vector<Eigen::Vector2d>& pos, const std::ve
 std::map<std::pair<std::string, std::string>, int> endCountsOf(const task::TaskSpec& spec,
                                                                const std::vector<Eigen::Vector2d>& pos) {
   const int n = static_cast<int>(spec.entities.size());
-  std::vector<double> together(static_cast<size_t>(n * n), 0.0);
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < n; ++j)
-      if (i != j) together[static_cast<size_t>(i * n + j)] = task::togetherDistance(spec, i, j);
+  const std::vector<double> together = togetherDistances(spec);
   std::map<std::pair<std::string, std::string>, int> counts;
   for (int e = 0; e < n; ++e) {
     std::set<std::string> with;
@@ -125,12 +153,26 @@ double endProbability(double p, const EndScene& end, const std::vector<bool>& wa
   bool all = true;
   for (size_t k = 0; k < end.counts.size(); ++k) {
     const EndCount& c = end.counts[k];
-    const auto it = counts.find({c.kind, c.with});
-    const bool has = it != counts.end() && it->second >= c.count;
+    const bool has = countHere(counts, c) >= c.count;
     if (!has && k < waits.size() && waits[k]) return 0.0;  // the team is larger: the END head's count is short
     all = all && has;
   }
   return end.telling && all ? 1.0 : p;
+}
+
+std::string endSceneShort(const EndScene& end, const task::TaskSpec& spec, const std::vector<Eigen::Vector2d>& pos) {
+  if (end.counts.empty()) return "";
+  // Through neighbours: with bodies a carrier stops behind its load, short of the goal the
+  // demonstrations' carriers reached with it; that is no task left undone.
+  const auto counts = placeCountsOf(spec, pos);
+  std::string lacks;
+  for (const EndCount& c : end.counts) {
+    const int here = countHere(counts, c);
+    if (here >= c.count) continue;
+    lacks += (lacks.empty() ? "" : "; ") + std::to_string(c.count) + " " + c.kind + " with " +
+             (c.kind == c.with ? "another" : c.with) + " (" + std::to_string(here) + " here)";
+  }
+  return lacks;
 }
 
 }  // namespace ddace::tgn::detail

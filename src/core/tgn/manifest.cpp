@@ -51,9 +51,14 @@ Variant variantFromString(const std::string& name) {
 namespace {
 
 const std::pair<Rule, const char*> kRuleNames[] = {
-    {Rule::Relative, "relative"},           {Rule::FixedOrder, "fixed-order"}, {Rule::ShuffledNames, "shuffled-names"},
-    {Rule::TokenByToken, "token-by-token"}, {Rule::Parked, "parked"},          {Rule::Ensemble, "ensemble"},
+    {Rule::Relative, "relative"},
+    {Rule::FixedOrder, "fixed-order"},
+    {Rule::ShuffledNames, "shuffled-names"},
+    {Rule::TokenByToken, "token-by-token"},
+    {Rule::Parked, "parked"},
+    {Rule::Ensemble, "ensemble"},
     {Rule::EndScene, "end-scene"},
+    {Rule::NextTargets, "next-targets"},
 };
 
 }  // namespace
@@ -233,6 +238,10 @@ void emitPlan(YAML::Emitter& y, const TrainingPlan& plan, const EntityName& name
     y << YAML::Flow << YAML::BeginSeq << c.kind << c.with << c.count << YAML::EndSeq;
   y << YAML::EndSeq;
   y << YAML::EndMap;
+  y << YAML::Key << "next_targets" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+  for (const NextTarget& t : plan.next_targets)
+    y << YAML::Flow << YAML::BeginSeq << t.kind << t.after << t.target << YAML::EndSeq;
+  y << YAML::EndSeq;
   y << YAML::Key << "attention_edges" << YAML::Value << YAML::BeginSeq;
   for (const auto& e : plan.attention_edges)
     y << YAML::Flow << std::vector<std::string>{name(e.source), name(e.target)};
@@ -622,6 +631,22 @@ TrainingPlan parsePlan(Reader& r, const YAML::Node& root, const task::TaskSpec& 
         if (!kinds.count(*k)) r.fail(c, "end scene: '" + *k + "' is no kind of the task's entities");
       count.count = static_cast<int>(r.integerAt(c[2], "end scene: count (at least 1, at most the entities)", 1, n));
       plan.end_scene.counts.push_back(count);
+    }
+  }
+  if (pn["next_targets"]) {  // absent in a manifest written before the rule: no such rule
+    std::set<std::string> kinds;
+    for (const auto& e : spec.entities) kinds.insert(kindKey(e));
+    for (const YAML::Node& t : r.sequence(pn, "next_targets")) {
+      if (!t.IsSequence() || t.size() != 3)
+        r.fail(t, "a next target is [KIND, KIND ITS LAST MOVE WENT TO, TARGET KIND]");
+      NextTarget next{r.textAt(t[0], "next target: kind"), r.textAt(t[1], "next target: after"),
+                      r.textAt(t[2], "next target: target kind")};
+      if (!kinds.count(next.kind)) r.fail(t, "next target: '" + next.kind + "' is no kind of the task's entities");
+      if (next.after != "none" && !kinds.count(next.after))
+        r.fail(t, "next target: '" + next.after + "' is neither 'none' nor a kind of the task's entities");
+      if (next.target != "none" && !kinds.count(next.target))
+        r.fail(t, "next target: '" + next.target + "' is neither 'none' (in place) nor a kind of the task's entities");
+      plan.next_targets.push_back(next);
     }
   }
   for (const YAML::Node& e : r.sequence(pn, "attention_edges")) {

@@ -306,7 +306,7 @@ std::vector<std::array<float, 4>> axisOrders(const PairView& v, const Rivals& ri
 /// so a fourth joined the head instead of the third). The target is where the motion
 /// headed, not where it stopped: a motion ends at contact with an obstacle target (a
 /// carrier further back, behind its load), so "within a distance" would depend on bodies.
-int wentTo(const task::TaskSpec& spec, const EntityOrder& order, const std::vector<Eigen::Vector2d>& was,
+int wentTo(const task::TaskSpec& spec, const std::vector<int>& entity_of, const std::vector<Eigen::Vector2d>& was,
            const std::vector<Eigen::Vector2d>& now, int e, double arrival_radius) {
   const auto at = [](const std::vector<Eigen::Vector2d>& p, int k) { return p[static_cast<size_t>(k)]; };
   const Eigen::Vector2d step = at(now, e) - at(was, e);
@@ -315,31 +315,28 @@ int wentTo(const task::TaskSpec& spec, const EntityOrder& order, const std::vect
   double best = std::numeric_limits<double>::infinity();
   for (int f = 0; f < static_cast<int>(was.size()); ++f) {
     if (f == e || (at(was, f) - at(was, e)).dot(step) < 0.5 * step.squaredNorm()) continue;
-    const double contact =
-        spec.contactDistance(order.task_of[static_cast<size_t>(e)], order.task_of[static_cast<size_t>(f)]);
+    const double contact = spec.contactDistance(entity_of[static_cast<size_t>(e)], entity_of[static_cast<size_t>(f)]);
     const double off = std::abs((at(now, e) - at(was, f)).norm() - contact);
     if (off < best) best = off, went = f;
   }
   return went;
 }
 
-/// Each entity's last move (the latest step in which it moved more than the arrival
-/// radius): the entity it went to (wentTo), or -1 (never moved). Chains over steps: "the
-/// giver follows the receiver" two steps after the handover.
-std::vector<int> lastMoves(const task::TaskSpec& spec, const EntityOrder& order,
-                           const std::vector<Eigen::Vector2d>* history, size_t count, int n, double arrival_radius) {
+}  // namespace
+
+std::vector<int> detail::lastMoves(const task::TaskSpec& spec, const std::vector<int>& entity_of,
+                                   const std::vector<Eigen::Vector2d>* history, size_t count) {
+  const int n = static_cast<int>(entity_of.size());
   std::vector<int> last_went(static_cast<size_t>(n), -1);
   for (int e = 0; e < n; ++e)
     for (size_t k = count - 1; k >= 1; --k) {
-      if ((history[k][static_cast<size_t>(e)] - history[k - 1][static_cast<size_t>(e)]).norm() <= arrival_radius)
+      if ((history[k][static_cast<size_t>(e)] - history[k - 1][static_cast<size_t>(e)]).norm() <= spec.arrival_radius)
         continue;
-      last_went[static_cast<size_t>(e)] = wentTo(spec, order, history[k - 1], history[k], e, arrival_radius);
+      last_went[static_cast<size_t>(e)] = wentTo(spec, entity_of, history[k - 1], history[k], e, spec.arrival_radius);
       break;
     }
   return last_went;
 }
-
-}  // namespace
 
 /// What the relative features of one history hold whatever the competing entities: the
 /// pairs' distances, who is parked, each entity's others in order of nearness (in groups
@@ -400,11 +397,11 @@ PairRelations::PairRelations(const SequenceModel::Impl& model, const std::vector
   if (count > 1) {
     const auto& was = history[count - 2];
     for (int e = 0; e < n; ++e) {
-      const int f = wentTo(model.spec, model.order, was, pos, e, model.spec.arrival_radius);
+      const int f = wentTo(model.spec, model.order.task_of, was, pos, e, model.spec.arrival_radius);
       if (f >= 0 && (pos[e] - was[f]).norm() <= v.at(e, f)) s.went_to[s.at(e, f)] = true;
     }
   }
-  s.last_went = lastMoves(model.spec, model.order, history, count, n, model.spec.arrival_radius);
+  s.last_went = detail::lastMoves(model.spec, model.order.task_of, history, count);
 }
 
 PairRelations::~PairRelations() = default;

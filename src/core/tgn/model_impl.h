@@ -103,6 +103,10 @@ struct SequenceModel::Impl {
                               const DemonstratedTokens& demonstrated, int member = 0) const;
   /// p(END) under the plan's end scene (detail::endProbability) at `pos` (canonical).
   double endProbability(double p_end, const std::vector<Eigen::Vector2d>& pos) const;
+  /// What the scene at `pos` (canonical) lacks of the plan's end scene (detail::endSceneShort).
+  std::string endSceneShort(const std::vector<Eigen::Vector2d>& pos) const;
+  /// `pos` (canonical order) in the task's order.
+  std::vector<Eigen::Vector2d> inTaskOrder(const std::vector<Eigen::Vector2d>& pos) const;
   /// Carried loads (StepRules::load_actions): every object of the task (canonical) with the
   /// entities, not objects, within task::togetherDistance of it in `pos` (canonical).
   std::vector<detail::Load> loadsAt(const std::vector<Eigen::Vector2d>& pos) const;

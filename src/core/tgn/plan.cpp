@@ -122,6 +122,9 @@ TrainingPlan planTraining(const task::TaskDir& train, const TrainOptions& option
   // End scene: where the scene decides, END too is read from it (what every demonstration's
   // last scene had), not from the steps counted so far, which differ with the team's size.
   if (options.uses(Rule::EndScene)) p.end_scene = detail::endSceneOf(train);
+  // Next targets: which kinds of target an entity takes next follows from its own last move
+  // (a box handed to a teammate goes on to a goal), not from how many of each kind there are.
+  if (options.uses(Rule::NextTargets)) p.next_targets = detail::nextTargetsOf(train);
   // Ensemble: where the scene decides, a few demonstrations are fitted exactly by networks
   // that generalise differently (the training seed's initial weights, dropout, batch order
   // and name draws); each of several networks decodes the step and the majority decides.

@@ -1,6 +1,7 @@
 // TrainingPlan::inconsistency: planTraining()'s enabling conditions (plan.cpp) read
 // backwards, for the manifest reader; and what a plan lets the model transfer (transferOf).
 // Without libtorch, so the manifest fuzz target links it.
+#include <algorithm>
 #include <set>
 #include <string>
 #include <vector>
@@ -27,6 +28,11 @@ std::string TrainingPlan::inconsistency(const TrainOptions& options) const {
   if (!end_scene.counts.empty() && !(relative_features && options.uses(Rule::EndScene)))
     return "an end scene without the relative features, or switched off by the options";
   if (end_scene.telling && end_scene.counts.empty()) return "a telling end scene without counts";
+  if (!next_targets.empty() && !(relative_features && options.uses(Rule::NextTargets)))
+    return "next targets without the relative features, or switched off by the options";
+  if (!std::is_sorted(next_targets.begin(), next_targets.end()) ||
+      std::adjacent_find(next_targets.begin(), next_targets.end()) != next_targets.end())
+    return "next targets not sorted, or repeated";
   for (const EndCount& c : end_scene.counts)
     if (c.count < 1) return "an end scene count below 1";
   // Exactly what planTraining() makes: a manifest edited to fewer networks than weights.pt

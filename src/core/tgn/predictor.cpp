@@ -67,9 +67,18 @@ DemonstratedTokens SequenceModel::Impl::demonstratedTokens() const {
 double SequenceModel::Impl::endProbability(double p_end, const std::vector<Eigen::Vector2d>& pos) const {
   const EndScene& end = info.plan.end_scene;
   if (end.counts.empty()) return p_end;
-  std::vector<Eigen::Vector2d> in_task_order(pos.size());
-  for (size_t c = 0; c < pos.size(); ++c) in_task_order[static_cast<size_t>(order.task_of[c])] = pos[c];
-  return detail::endProbability(p_end, end, end_waits, spec, in_task_order);
+  return detail::endProbability(p_end, end, end_waits, spec, inTaskOrder(pos));
+}
+
+std::string SequenceModel::Impl::endSceneShort(const std::vector<Eigen::Vector2d>& pos) const {
+  const EndScene& end = info.plan.end_scene;
+  return end.counts.empty() ? "" : detail::endSceneShort(end, spec, inTaskOrder(pos));
+}
+
+std::vector<Eigen::Vector2d> SequenceModel::Impl::inTaskOrder(const std::vector<Eigen::Vector2d>& pos) const {
+  std::vector<Eigen::Vector2d> out(pos.size());
+  for (size_t c = 0; c < pos.size(); ++c) out[static_cast<size_t>(order.task_of[c])] = pos[c];
+  return out;
 }
 
 std::vector<detail::Load> SequenceModel::Impl::loadsAt(const std::vector<Eigen::Vector2d>& pos) const {
@@ -102,8 +111,12 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
   const std::vector<bool>& target_ok = demonstrated.target_ok;
   for (size_t k = 0; k < la.size(); ++k)
     if (!action_ok[k]) la[k] = -1e9;
+  // Next targets: and only at a kind its kind took after a last move like its own (a box
+  // handed to a teammate goes on to a goal, however many teammates there are).
+  const std::vector<bool> next_ok =
+      detail::nextTargetsAllowed(info.plan.next_targets, spec, order.task_of, history, count);
   for (size_t k = 0; k < lt.size(); ++k)
-    if (!target_ok[k]) lt[k] = -1e9;
+    if (!target_ok[k] || !next_ok[k]) lt[k] = -1e9;
   // Carried loads (StepRules::load_actions): a load and the entities at its place decide as
   // one. The joint decoder sees the decisions only: each load's heads join those of the
   // entities at its place (log p(carrier's token) + log p(the load's: the same load action
@@ -146,8 +159,23 @@ detail::StepDecision SequenceModel::Impl::decide(double p_end, const std::vector
       acting[static_cast<size_t>(i)] = decision.tokens[static_cast<size_t>(i)].action != 0;
     // A carrier's pairs are its loads' too (one decision): their pointer logits join.
     const Tensor carried = rules.load_actions.empty() ? Tensor() : carriedBy(loads);
+    // The pairs allowed: the demonstrated ones under next targets; a carrier taking its load
+    // with it, only those its load may take too.
+    DemonstratedTokens allowed = demonstrated;
+    const auto onlyWhere = [&](int64_t i, int64_t by) {
+      for (int64_t t = 0; t < cfg.targets; ++t) {
+        const size_t k = static_cast<size_t>(i * cfg.targets + t);
+        const bool ok = next_ok[static_cast<size_t>(by * cfg.targets + t)];
+        allowed.target_ok[k] = allowed.target_ok[k] && ok;
+        allowed.may_point[k] = allowed.may_point[k] && ok;
+      }
+    };
+    for (int64_t i = 0; i < n; ++i) onlyWhere(i, i);
+    for (const detail::Load& load : loads)
+      for (int c : load.carriers)
+        if (load_action[static_cast<size_t>(decision.tokens[static_cast<size_t>(c)].action)]) onlyWhere(c, load.object);
     const auto [target, log_p] =
-        chooseTokens(target_logits, nodes, z, history, count, acting, demonstrated, carried, member);
+        chooseTokens(target_logits, nodes, z, history, count, acting, allowed, carried, member);
     for (int64_t i = 0; i < n; ++i) {
       detail::DecodedToken& token = decision.tokens[static_cast<size_t>(i)];
       if (target[static_cast<size_t>(i)] < 0) {
@@ -349,7 +377,10 @@ Prediction SequenceModel::predictNext(const std::vector<task::Snapshot>& history
   Prediction p;
   p.end_probability = kept.p_end;
   p.end = decision.end;
-  if (p.end) return p;
+  if (p.end) {
+    p.end_short = m.endSceneShort(canonical.back());
+    return p;
+  }
   const std::vector<detail::DecodedToken>& step = decision.tokens;
   std::vector<std::pair<task::Token, double>> scored;
   for (int64_t i = 0; i < n; ++i) {

@@ -324,3 +324,35 @@ TEST(EndScene, ABoxBesideItsCarrierBesideAGoalIsNotAtTheGoal) {
         << "scene " << k << ": the carry to it";
   }
 }
+
+// Next targets (docs/tgn.md): a relay (zoo:17, "the frontmost robot fetches B1, hands it to a
+// teammate, who carries it to a goal") trained with its 4 robots and run with 8: the receiver
+// carries the box on to the goal, not to another teammate. In training a box whose last move
+// went to a robot always went on to a goal next; with twice the teammates the network's
+// pointer sent it on to a robot (step 3 wrong in every 8-robot scene, OSR 0.00 at 2x).
+TEST(NextTargets, ARelayedBoxGoesOnToAGoalWithTwiceTheTeammates) {
+  const uint64_t rule = 17;
+  const task::TaskDir train = tasks::generateZoo(rule, 20, 1);
+  const std::vector<tgn::NextTarget> next = tgn::detail::nextTargetsOf(train);
+  const auto has = [&](const tgn::NextTarget& t) { return std::count(next.begin(), next.end(), t) > 0; };
+  EXPECT_TRUE(has({"object:box", "robot:hamster", "goal"})) << "handed over, then to a goal";
+  EXPECT_FALSE(has({"object:box", "robot:hamster", "robot:hamster"})) << "never handed over twice";
+  EXPECT_TRUE(has({"object:box", "none", "robot:hamster"})) << "the first carry goes to a teammate";
+  tgn::TrainOptions o;
+  o.without = {tgn::Rule::Ensemble};  // one network: a few seconds of training
+  const tgn::SequenceModel model = tgn::SequenceModel::train(train, o, nullptr);
+  EXPECT_EQ(model.info().plan.next_targets, next);
+  const task::TaskDir eight = tasks::generateZoo(rule, 10, 2, {}, {8, 0, 3});
+  const tgn::SequenceModel bound = model.boundTo(eight.spec);
+  int right = 0;
+  for (const auto& d : eight.demos) {
+    ASSERT_GE(d.steps.size(), 3u);
+    // The third step, decided from the scene the handover left: the receiver carries B1 on.
+    const tgn::Prediction p = bound.predictNext({d.snapshots.begin(), d.snapshots.begin() + 3});
+    std::vector<task::Token> decided = p.tokens, demonstrated = d.steps[2].tokens;
+    std::sort(decided.begin(), decided.end());
+    std::sort(demonstrated.begin(), demonstrated.end());
+    right += !p.end && decided == demonstrated;
+  }
+  EXPECT_GE(right, 9) << "of 10: the box goes on to its goal";
+}
