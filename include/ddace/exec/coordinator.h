@@ -425,6 +425,9 @@ class Coordinator {
   RunState state_ = RunState::Idle;
   std::string reason_;
   EntityObservation observation_;
+  /// Per entity: where the tracker last saw it (NaN: never). A robot the tracker lost still
+  /// stands there, and a push is planned round it.
+  std::vector<Eigen::Vector2d> last_seen_;
   std::vector<task::Snapshot> history_;
   size_t history_from_ = 0;  ///< the policy's history begins here (the task begun again)
   /// The decision asked ahead from a predicted scene and not yet held (settleAhead): its

@@ -719,6 +719,9 @@ CoordinatorOutput Coordinator::onEntities(const EntityObservation& obs, double n
     throw Error("coordinator: an observation must have one position and one tracked flag per task entity (" +
                 std::to_string(spec_.entities.size()) + ")");
   observation_ = obs;
+  last_seen_.resize(obs.positions.size(), Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  for (size_t i = 0; i < obs.positions.size(); ++i)
+    if (obs.tracked[i] && obs.positions[i].allFinite()) last_seen_[i] = obs.positions[i];
   if (!running() || state_ == RunState::Paused) return out;
   for (size_t i = 0; i < obs.tracked.size() && i < untracked_since_.size(); ++i)
     untracked_since_[i] = obs.tracked[i] ? -1 : untracked_since_[i] < 0 ? now_s : untracked_since_[i];
@@ -953,10 +956,9 @@ PlannedPath Coordinator::carrierPath(TokenRef ref, const PlannedPath& planned) {
   StepRecord& s = steps_[static_cast<size_t>(ref.step)];
   const size_t n = spec_.entities.size();
   std::vector<task::Token> step;
-  // Every entity where it was last seen (not known: NaN), the step's where it started.
+  // Every entity where it was last seen (never seen: NaN), the step's where it started.
   std::vector<Eigen::Vector2d> at(n, Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN()));
-  for (size_t e = 0; e < n && e < observation_.positions.size() && e < observation_.tracked.size(); ++e)
-    if (observation_.tracked[e]) at[e] = observation_.positions[e];
+  for (size_t e = 0; e < n && e < last_seen_.size(); ++e) at[e] = last_seen_[e];
   for (const TokenRecord& t : s.tokens) {
     step.push_back(t.token);
     at[static_cast<size_t>(t.token.entity)] = t.start;

@@ -458,6 +458,57 @@ TEST(PushedLoadReplan, IsNeverSentOnAlone) {
   }
 }
 
+namespace {
+
+/// fetch, pushed: the path the coordinator sends R1 to push B1 to G1 with R2 standing half-way
+/// between them, R2 either tracked there or last seen there (its battery dead, the tracker
+/// lost it) when the push is planned.
+std::vector<Vector2d> pushPastR2(bool r2_tracked, Vector2d& r2_at) {
+  const task::TaskDir dir = generated("fetch");  // R1:move:B1, R1:carry:G1 B1:carry:G1, R2:move:R1
+  const task::Demonstration& demo = dir.demos.front();
+  const size_t r2 = static_cast<size_t>(dir.spec.entityIndex("R2"));
+  const int b1 = dir.spec.entityIndex("B1");
+  CoordinatorConfig cfg;
+  cfg.loads_ride = false;
+  Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos), 1, {}, /*policy_reads_scene=*/false};
+  std::vector<Vector2d> at = demo.positions.front();
+  c.onEntities(observe(at), 0.0);
+  CoordinatorOutput next = c.start(0.0);
+  for (double now = 0.1; next.decision; now += 1) {
+    const CoordinatorOutput out = c.onDecision(next.decision->id, replayDecision(demo, next.decision->history), now);
+    const bool carry =
+        std::any_of(out.paths.begin(), out.paths.end(), [&](const auto& p) { return p.token.entity == b1; });
+    if (!carry) {
+      next = arriveAll(c, at, answer(c, out, now), now + 0.5);
+      continue;
+    }
+    at[r2] = r2_at = (at[static_cast<size_t>(b1)] + at[static_cast<size_t>(dir.spec.entityIndex("G1"))]) / 2;
+    EntityObservation obs = observe(at);
+    c.onEntities(obs, now);
+    obs.tracked[r2] = r2_tracked;
+    c.onEntities(obs, now + 0.1);
+    for (const SegmentCommand& s : answer(c, out, now + 0.2))
+      if (s.entity != b1) return s.path.points;
+  }
+  ADD_FAILURE() << "no carry step: " << c.reason();
+  return {};
+}
+
+}  // namespace
+
+// A robot the tracker lost still stands where it was last seen: a push is planned round it
+// as round a robot it sees.
+TEST(PushedLoadReplan, GoesRoundARobotLastSeenOnItsWay) {
+  Vector2d r2;
+  const std::vector<Vector2d> seen = pushPastR2(true, r2), lost = pushPastR2(false, r2);
+  ASSERT_FALSE(seen.empty());
+  double closest = 1e9;
+  for (const Vector2d& p : lost) closest = std::min(closest, (p - r2).norm());
+  EXPECT_GT(closest, 0.044) << "R1's path keeps its body clear of R2's";
+  ASSERT_EQ(lost.size(), seen.size());
+  for (size_t i = 0; i < seen.size(); ++i) EXPECT_LT((lost[i] - seen[i]).norm(), 1e-9) << "point " << i;
+}
+
 // A decided step that moves what no demonstration moved -- a motion class without a learned
 // end or path, such as a team bound without a lost robot carrying one box onto the other --
 // is refused: the run aborts naming the motion (and the lost robot), never drives it.
