@@ -680,7 +680,7 @@ struct FetchCarry {
     c->onEntities(observe(demo.positions.front()), 0.0);
     CoordinatorOutput next = c->start(0.0);
     std::vector<SegmentCommand> carry;
-    for (double now = 0.1; next.decision && carry.empty(); now += 1) {
+    for (double now = 0.1; next.decision && carry.empty() && now < 20; now += 1) {  // a few steps, never a hang
       const auto segs =
           answerPaths(*c, c->onDecision(next.decision->id, replayDecision(demo, next.decision->history), now), now);
       if (std::any_of(segs.begin(), segs.end(), [&](const SegmentCommand& g) { return g.entity == b1; })) carry = segs;

@@ -430,7 +430,7 @@ TEST(PushedLoadReplan, IsNeverSentOnAlone) {
     c.onEntities(observe(at), 0.0);
     CoordinatorOutput next = c.start(0.0);
     std::vector<SegmentCommand> carry;
-    for (double now = 0.1; next.decision && carry.empty(); now += 1) {
+    for (double now = 0.1; next.decision && carry.empty() && now < 20; now += 1) {  // a few steps, never a hang
       const auto segs =
           answer(c, c.onDecision(next.decision->id, replayDecision(demo, next.decision->history), now), now);
       if (std::any_of(segs.begin(), segs.end(), [&](const SegmentCommand& g) { return g.entity == b1; })) carry = segs;
@@ -474,7 +474,7 @@ std::vector<Vector2d> pushPastR2(bool r2_tracked, Vector2d& r2_at) {
   std::vector<Vector2d> at = demo.positions.front();
   c.onEntities(observe(at), 0.0);
   CoordinatorOutput next = c.start(0.0);
-  for (double now = 0.1; next.decision; now += 1) {
+  for (double now = 0.1; next.decision && now < 20; now += 1) {  // a few steps, never a hang
     const CoordinatorOutput out = c.onDecision(next.decision->id, replayDecision(demo, next.decision->history), now);
     const bool carry =
         std::any_of(out.paths.begin(), out.paths.end(), [&](const auto& p) { return p.token.entity == b1; });
