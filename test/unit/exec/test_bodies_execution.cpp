@@ -651,6 +651,18 @@ void replayZoo(const std::string& family, int demos) {
   replay(tasks::generateZoo(id, demos, 5, motion));
 }
 
+/// replay() on three generated scenes (seed 7) of every family the project ships.
+void replayEveryShippedFamily(bool loads_ride) {
+  for (const std::string& family : tasks::allFamilies()) {
+    SCOPED_TRACE(family);
+    tasks::GeneratorOptions o;
+    o.family = family;
+    o.demos = 3;
+    o.seed = 7;
+    replay(tasks::generate(o), loads_ride);
+  }
+}
+
 }  // namespace
 
 // Every family the project ships (the paper's and the scene families), its demonstrated
@@ -660,14 +672,7 @@ void replayZoo(const std::string& family, int demos) {
 // three generated scenes each the run finishes with no deadlock and no collision, its goal
 // conditions met, as it does without bodies.
 TEST(BodiesExecution, EveryShippedFamilyReplayedWithBodiesReachesItsGoal) {
-  for (const std::string& family : tasks::allFamilies()) {
-    SCOPED_TRACE(family);
-    tasks::GeneratorOptions o;
-    o.family = family;
-    o.demos = 3;
-    o.seed = 7;
-    replay(tasks::generate(o), /*loads_ride=*/true);
-  }
+  replayEveryShippedFamily(/*loads_ride=*/true);
 }
 
 // As above with every load pushed by its carrier, as on the real table (mock_robots/loads_ride
@@ -677,14 +682,7 @@ TEST(BodiesExecution, EveryShippedFamilyReplayedWithBodiesReachesItsGoal) {
 // defender's margin, where its filter let it neither drive on nor turn; exec::withRunUp now
 // has it push the ball out first.)
 TEST(BodiesExecution, EveryShippedFamilyReplayedWithPushedLoadsReachesItsGoal) {
-  for (const std::string& family : tasks::allFamilies()) {
-    SCOPED_TRACE(family);
-    tasks::GeneratorOptions o;
-    o.family = family;
-    o.demos = 3;
-    o.seed = 7;
-    replay(tasks::generate(o), /*loads_ride=*/false);
-  }
+  replayEveryShippedFamily(/*loads_ride=*/false);
 }
 
 // Demonstrations that stop 1 cm short of contact: the fetcher stops where they stopped (within

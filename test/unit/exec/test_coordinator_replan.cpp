@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <functional>
+#include <optional>
 
 #include "ddace/exec/coordinator.h"
 #include "ddace/exec/replay.h"
@@ -413,6 +414,24 @@ TEST(Redecide, ACarrierLostWithItsLoadBeginsTheTaskAgainFromTheSceneAsItIs) {
   EXPECT_EQ(again.decision->history.size(), 2u) << "the step decided again after step 1";
 }
 
+/// `demo`'s decisions replayed from its first scene, every step before the one that moves
+/// `b1` arriving: that step's decision output, its paths not yet answered, and `now` its
+/// time; nullopt (a test failure) when no decision moves `b1` within 20.
+std::optional<CoordinatorOutput> decideUntilItMoves(Coordinator& c, const task::Demonstration& demo,
+                                                    std::vector<Vector2d>& at, int b1, double& now) {
+  at = demo.positions.front();
+  c.onEntities(observe(at), 0.0);
+  CoordinatorOutput next = c.start(0.0);
+  for (now = 0.1; next.decision && now < 20; now += 1) {  // a few steps, never a hang
+    CoordinatorOutput out = c.onDecision(next.decision->id, replayDecision(demo, next.decision->history), now);
+    if (std::any_of(out.paths.begin(), out.paths.end(), [&](const auto& p) { return p.token.entity == b1; }))
+      return out;
+    next = arriveAll(c, at, answer(c, out, now), now + 0.5);
+  }
+  ADD_FAILURE() << "no decision moves entity " << b1 << ": " << c.reason();
+  return std::nullopt;
+}
+
 // A pushed load (loads not riding: the real table, its simulation) moves only with its
 // carrier. Its carrier done and the load left short of its end, its own segment sent again
 // would have the table move it by hand (mock robots: a box gliding on its own, into the
@@ -426,16 +445,11 @@ TEST(PushedLoadReplan, IsNeverSentOnAlone) {
     CoordinatorConfig cfg;
     cfg.loads_ride = ride;
     Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos), 1, {}, /*policy_reads_scene=*/false};
-    std::vector<Vector2d> at = demo.positions.front();
-    c.onEntities(observe(at), 0.0);
-    CoordinatorOutput next = c.start(0.0);
-    std::vector<SegmentCommand> carry;
-    for (double now = 0.1; next.decision && carry.empty() && now < 20; now += 1) {  // a few steps, never a hang
-      const auto segs =
-          answer(c, c.onDecision(next.decision->id, replayDecision(demo, next.decision->history), now), now);
-      if (std::any_of(segs.begin(), segs.end(), [&](const SegmentCommand& g) { return g.entity == b1; })) carry = segs;
-      else next = arriveAll(c, at, segs, now + 0.5);
-    }
+    std::vector<Vector2d> at;
+    double now = 0;
+    const std::optional<CoordinatorOutput> decided = decideUntilItMoves(c, demo, at, b1, now);
+    ASSERT_TRUE(decided);
+    const std::vector<SegmentCommand> carry = answer(c, *decided, now);
     ASSERT_EQ(carry.size(), 2u) << c.reason();
     const SegmentCommand& robot = carry[0].entity == b1 ? carry[1] : carry[0];
     const SegmentCommand& load = carry[0].entity == b1 ? carry[0] : carry[1];
@@ -471,26 +485,18 @@ std::vector<Vector2d> pushPastR2(bool r2_tracked, Vector2d& r2_at) {
   CoordinatorConfig cfg;
   cfg.loads_ride = false;
   Coordinator c{dir.spec, cfg, task::learnEndPoints(dir.spec, dir.demos), 1, {}, /*policy_reads_scene=*/false};
-  std::vector<Vector2d> at = demo.positions.front();
-  c.onEntities(observe(at), 0.0);
-  CoordinatorOutput next = c.start(0.0);
-  for (double now = 0.1; next.decision && now < 20; now += 1) {  // a few steps, never a hang
-    const CoordinatorOutput out = c.onDecision(next.decision->id, replayDecision(demo, next.decision->history), now);
-    const bool carry =
-        std::any_of(out.paths.begin(), out.paths.end(), [&](const auto& p) { return p.token.entity == b1; });
-    if (!carry) {
-      next = arriveAll(c, at, answer(c, out, now), now + 0.5);
-      continue;
-    }
-    at[r2] = r2_at = (at[static_cast<size_t>(b1)] + at[static_cast<size_t>(dir.spec.entityIndex("G1"))]) / 2;
-    EntityObservation obs = observe(at);
-    c.onEntities(obs, now);
-    obs.tracked[r2] = r2_tracked;
-    c.onEntities(obs, now + 0.1);
-    for (const SegmentCommand& s : answer(c, out, now + 0.2))
-      if (s.entity != b1) return s.path.points;
-  }
-  ADD_FAILURE() << "no carry step: " << c.reason();
+  std::vector<Vector2d> at;
+  double now = 0;
+  const std::optional<CoordinatorOutput> carry = decideUntilItMoves(c, demo, at, b1, now);
+  if (!carry) return {};
+  at[r2] = r2_at = (at[static_cast<size_t>(b1)] + at[static_cast<size_t>(dir.spec.entityIndex("G1"))]) / 2;
+  EntityObservation obs = observe(at);
+  c.onEntities(obs, now);
+  obs.tracked[r2] = r2_tracked;
+  c.onEntities(obs, now + 0.1);
+  for (const SegmentCommand& s : answer(c, *carry, now + 0.2))
+    if (s.entity != b1) return s.path.points;
+  ADD_FAILURE() << "no segment for R1's push";
   return {};
 }
 
